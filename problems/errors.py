@@ -1,0 +1,38 @@
+"""Errors raised for bad input.  Each message names what is wrong."""
+
+from __future__ import annotations
+
+
+class ProblemInputError(ValueError):
+    """Invalid input to a problem builder (surface, material, load, file)."""
+
+
+class MemoryBudgetError(MemoryError):
+    """Building the requested object would exceed the memory budget.
+
+    The message carries the estimate so callers can record it as a skip reason.
+    """
+
+    def __init__(self, what: str, needed_bytes: float, budget_bytes: float) -> None:
+        self.what = what
+        self.needed_bytes = float(needed_bytes)
+        self.budget_bytes = float(budget_bytes)
+        super().__init__(
+            f"{what} needs about {needed_bytes / 2**30:.3g} GiB, "
+            f"over the memory budget of {budget_bytes / 2**30:.3g} GiB"
+        )
+
+
+def check_positive(name: str, value: float) -> float:
+    """Return ``value`` as float if finite and > 0, else raise a clear error."""
+    v = float(value)
+    if not (v > 0.0) or v != v or v == float("inf"):
+        raise ProblemInputError(f"{name} must be a finite positive number, got {value!r}")
+    return v
+
+
+def check_nonnegative(name: str, value: float) -> float:
+    v = float(value)
+    if not (v >= 0.0) or v == float("inf"):
+        raise ProblemInputError(f"{name} must be a finite number >= 0, got {value!r}")
+    return v

@@ -1,0 +1,337 @@
+"""Contact QP instances (paper section 2) and load sequences.
+
+For a surface xi on an N x N grid and a far-field displacement Delta >= 0:
+
+* trial set  I_C = {(i, j): xi_ij >= xi_max - Delta}
+* ubar_ij = Delta - xi_max + xi_ij  on I_C  (the rigid-body interpenetration)
+* H = influence coefficients restricted to I_C
+
+The QP is  min 1/2 p'Hp - ubar'p  s.t. p >= 0, equivalently the LCP
+w = Hp - ubar >= 0, p >= 0, w'p = 0.  p is the force on each element (N when E is
+in Pa and lengths in m), so the total load is P = sum(p).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
+from .kernels import check_kernel, kernel_table
+from .operators import (
+    DEFAULT_MEMORY_BUDGET,
+    ContactOperator,
+    DenseOperator,
+    FFTOperator,
+    KernelTransform,
+    check_dense_budget,
+)
+from .surfaces import Surface
+
+OperatorKind = Literal["fft", "dense"]
+
+#: An element is "in contact" when p_i > CONTACT_THRESHOLD * max(p).
+CONTACT_THRESHOLD = 1e-9
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Where the QP's unknowns sit on the physical grid (for warm-start mapping,
+    field reconstruction and the cascade multi-resolution method)."""
+
+    grid_shape: tuple[int, int]
+    delta: float
+    indices: np.ndarray  # flat indices into grid_shape, one per unknown
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(n, 2) element-centre coordinates."""
+        i, j = np.divmod(self.indices, self.grid_shape[1])
+        return np.column_stack([i, j]).astype(np.float64) * self.delta
+
+
+@dataclass
+class QP:
+    """What a solver sees: the operator H (n x n, SPD) and the vector ubar.
+
+    ``geometry`` is optional and read only by solvers that need positions (CMR).
+    """
+
+    H: ContactOperator
+    ubar: np.ndarray
+    geometry: Geometry | None = None
+
+    @property
+    def n(self) -> int:
+        return int(self.ubar.size)
+
+    def objective(self, p: np.ndarray) -> float:
+        return float(0.5 * p @ self.H.matvec(p) - self.ubar @ p)
+
+
+@dataclass
+class ContactInstance:
+    """One contact QP at one far-field displacement, with its physical context."""
+
+    qp: QP
+    delta: float  # far-field displacement Delta (length unit)
+    E: float  # composite modulus E*
+    kernel: str
+    periodic: bool
+    surface: Surface | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return self.qp.n
+
+    @property
+    def geometry(self) -> Geometry | None:
+        return self.qp.geometry
+
+    @property
+    def total_elements(self) -> int:
+        g = self.qp.geometry
+        return int(np.prod(g.grid_shape)) if g is not None else self.n
+
+    @property
+    def nominal_area(self) -> float:
+        g = self.qp.geometry
+        if g is None:
+            return float(self.n)
+        return float(np.prod(g.grid_shape)) * g.delta**2
+
+    def load(self, p: np.ndarray) -> float:
+        """Total force P = sum p_ij."""
+        return float(np.sum(p))
+
+    def dimensionless_load(self, p: np.ndarray) -> float:
+        """P / (E A), A = L^2 the nominal area (paper Fig. 4 abscissa)."""
+        return self.load(p) / (self.E * self.nominal_area)
+
+    def contact_mask(self, p: np.ndarray) -> np.ndarray:
+        pmax = float(np.max(p)) if p.size else 0.0
+        if pmax <= 0.0:
+            return np.zeros(p.shape, dtype=bool)
+        return p > CONTACT_THRESHOLD * pmax
+
+    def contact_fraction(self, p: np.ndarray) -> float:
+        """A / A0: elements in contact over all N^2 elements."""
+        return float(np.count_nonzero(self.contact_mask(p))) / self.total_elements
+
+    def pressure_field(self, p: np.ndarray) -> np.ndarray:
+        """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""
+        g = self._require_geometry()
+        f = np.zeros(g.grid_shape)
+        f.ravel()[g.indices] = p / g.delta**2
+        return f
+
+    def _require_geometry(self) -> Geometry:
+        if self.qp.geometry is None:
+            raise ProblemInputError("this instance has no grid geometry")
+        return self.qp.geometry
+
+
+# ---------------------------------------------------------------------------
+# Builders
+# ---------------------------------------------------------------------------
+
+
+def trial_set(heights: np.ndarray, delta_disp: float) -> np.ndarray:
+    """Flat indices of I_C = {xi >= xi_max - Delta} (row-major order)."""
+    zmax = float(heights.max())
+    return np.flatnonzero(heights.ravel() >= zmax - delta_disp)
+
+
+class InstanceBuilder:
+    """Builds the instances of one surface at many displacements, sharing the kernel
+    transform (its FFT is computed once)."""
+
+    def __init__(
+        self,
+        surface: Surface,
+        E: float,
+        kernel: str = "bcc",
+        periodic: bool = False,
+        operator: OperatorKind = "fft",
+        memory_budget: float | None = None,
+        images: int = 2,
+    ) -> None:
+        check_kernel(kernel, periodic)
+        self.surface = surface
+        self.E = check_positive("E (composite modulus)", E)
+        self.kernel = kernel
+        self.periodic = periodic
+        if operator not in ("fft", "dense"):
+            raise ProblemInputError(f"operator must be 'fft' or 'dense', got {operator!r}")
+        self.operator_kind = operator
+        self.memory_budget = DEFAULT_MEMORY_BUDGET if memory_budget is None else memory_budget
+        self.images = images
+        self._transform: KernelTransform | None = None
+
+    @property
+    def transform(self) -> KernelTransform:
+        if self._transform is None:
+            table = kernel_table(
+                self.kernel, self.surface.shape, self.surface.delta, self.E, self.periodic, images=self.images
+            )
+            self._transform = KernelTransform(table, self.surface.shape)
+        return self._transform
+
+    def operator_on(self, indices: np.ndarray, kind: OperatorKind | None = None) -> ContactOperator:
+        fft_op = FFTOperator(self.transform, indices)
+        if (kind or self.operator_kind) == "dense":
+            check_dense_budget(fft_op.n, self.memory_budget)
+            return DenseOperator(fft_op.to_dense(self.memory_budget))
+        return fft_op
+
+    def build(self, delta_disp: float, meta: dict[str, Any] | None = None) -> ContactInstance:
+        check_nonnegative("far-field displacement Delta", delta_disp)
+        h = self.surface.heights
+        idx = trial_set(h, delta_disp)
+        if idx.size == 0:
+            raise ProblemInputError(f"empty trial set at Delta = {delta_disp!r}")
+        ubar = delta_disp - float(h.max()) + h.ravel()[idx]
+        ubar = np.maximum(ubar, 0.0)  # exact zero at the highest point, never -0 by roundoff
+        geom = Geometry(self.surface.shape, self.surface.delta, idx)
+        qp = QP(self.operator_on(idx), ubar, geom)
+        return ContactInstance(
+            qp=qp,
+            delta=float(delta_disp),
+            E=self.E,
+            kernel=self.kernel,
+            periodic=self.periodic,
+            surface=self.surface,
+            meta=dict(meta or {}),
+        )
+
+
+def build_instance(
+    surface: Surface,
+    delta_disp: float,
+    E: float,
+    kernel: str = "bcc",
+    periodic: bool = False,
+    operator: OperatorKind = "fft",
+    memory_budget: float | None = None,
+) -> ContactInstance:
+    """One contact QP instance (see module doc)."""
+    return InstanceBuilder(surface, E, kernel, periodic, operator, memory_budget).build(delta_disp)
+
+
+# ---------------------------------------------------------------------------
+# Load sequences
+# ---------------------------------------------------------------------------
+
+
+def paper_max_displacement(surface: Surface) -> float:
+    """The paper's top step: (xi_max - xi_mean) / 2."""
+    return 0.5 * (surface.z_max - surface.z_mean)
+
+
+def load_ramp(delta_max: float, steps: int) -> np.ndarray:
+    """Delta_k = (k / K) * delta_max for k = 1..K."""
+    check_positive("maximum displacement", delta_max)
+    if int(steps) != steps or steps < 1:
+        raise ProblemInputError(f"number of load steps must be a positive integer, got {steps}")
+    return delta_max * np.arange(1, int(steps) + 1) / int(steps)
+
+
+def load_unload_cycle(delta_max: float, steps: int, cycles: int = 1) -> np.ndarray:
+    """Up in ``steps`` steps to delta_max, down to delta_max/steps, repeated ``cycles`` times."""
+    up = load_ramp(delta_max, steps)
+    one = np.concatenate([up, up[-2::-1]])
+    return np.concatenate([one] + [one[1:] for _ in range(int(cycles) - 1)])
+
+
+# ---------------------------------------------------------------------------
+# The greedy counterexample (paper Example 1)
+# ---------------------------------------------------------------------------
+
+
+def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, operator: OperatorKind = "dense") -> ContactInstance:
+    """Paper Example 1: an N x N grid (n = N^2), every element in the trial set,
+    ubar ~ U(0, 1) drawn as ``numpy.random.default_rng(seed).random(n)``, BCC kernel,
+    delta = 1 and E = 0.01 (arbitrary consistent units)."""
+    N = int(round(np.sqrt(n)))
+    if N * N != n or N < 2:
+        raise ProblemInputError(f"counterexample needs n = N^2 with N >= 2, got n = {n}")
+    ubar = np.random.default_rng(seed).random(n)
+    surf = Surface(np.zeros((N, N)), delta, unit="a.u.", name=f"counterexample-n{n}")
+    builder = InstanceBuilder(surf, E, "bcc", periodic=False, operator=operator)
+    idx = np.arange(n)
+    geom = Geometry((N, N), delta, idx)
+    qp = QP(builder.operator_on(idx), ubar, geom)
+    return ContactInstance(qp, delta=float("nan"), E=E, kernel="bcc", periodic=False, surface=surf,
+                           meta={"seed": seed, "family": "counterexample"})
+
+
+# ---------------------------------------------------------------------------
+# Analytic scenes
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HertzSolution:
+    contact_radius: float
+    load: float
+    peak_pressure: float
+
+
+def hertz_solution(radius: float, E: float, delta_disp: float) -> HertzSolution:
+    """Rigid sphere of radius R on an elastic half-space (composite modulus E*),
+    indentation Delta: a = sqrt(R Delta), P = 4/3 E* sqrt(R) Delta^{3/2},
+    p0 = 2 E* a / (pi R)."""
+    a = np.sqrt(radius * delta_disp)
+    return HertzSolution(a, 4.0 / 3.0 * E * np.sqrt(radius) * delta_disp**1.5, 2.0 * E * a / (np.pi * radius))
+
+
+def hertz_surface(N: int, radius: float, length: float) -> Surface:
+    """Paraboloid cap xi = -r^2 / (2R) centred on an N x N grid of side ``length``
+    (the element centres of an even N straddle the apex symmetrically)."""
+    if N < 2:
+        raise ProblemInputError(f"need N >= 2, got {N}")
+    check_positive("sphere radius", radius)
+    delta = length / N
+    x = (np.arange(N) - (N - 1) / 2.0) * delta
+    r2 = x[:, None] ** 2 + x[None, :] ** 2
+    return Surface(-r2 / (2.0 * radius), delta, name=f"hertz-N{N}", meta={"radius": radius})
+
+
+def flat_punch_surface(N: int, punch_radius: float, length: float, depth: float | None = None) -> Surface:
+    """A rigid flat circular punch of radius a: xi = 0 inside r <= a, -depth outside
+    (depth default: the side length, far beyond any displacement used)."""
+    if N < 2:
+        raise ProblemInputError(f"need N >= 2, got {N}")
+    check_positive("punch radius", punch_radius)
+    delta = length / N
+    x = (np.arange(N) - (N - 1) / 2.0) * delta
+    r = np.hypot(x[:, None], x[None, :])
+    d = length if depth is None else depth
+    return Surface(np.where(r <= punch_radius, 0.0, -d), delta, name=f"flat-punch-N{N}", meta={"punch_radius": punch_radius})
+
+
+def flat_punch_load(punch_radius: float, E: float, delta_disp: float) -> float:
+    """P = 2 a E* Delta."""
+    return 2.0 * punch_radius * E * delta_disp
+
+
+__all__ = [
+    "QP",
+    "ContactInstance",
+    "Geometry",
+    "InstanceBuilder",
+    "MemoryBudgetError",
+    "build_instance",
+    "counterexample",
+    "flat_punch_load",
+    "flat_punch_surface",
+    "hertz_solution",
+    "hertz_surface",
+    "load_ramp",
+    "load_unload_cycle",
+    "paper_max_displacement",
+    "trial_set",
+]

@@ -1,0 +1,266 @@
+"""Operators for the influence matrix H restricted to an index set I (the trial set).
+
+One interface, two implementations:
+
+``DenseOperator``
+    holds H_II as an n x n array (small n only).
+``FFTOperator``
+    matrix-free.  H is Toeplitz-block-Toeplitz (aperiodic: embedded in a 2N x 2N
+    circulant) or block-circulant (periodic), so H_II x = gather_I(K * scatter_I(x)),
+    with the convolution done by real FFTs against a transform of the kernel that is
+    computed once and shared by every restriction.  It never allocates n x n.
+
+Both expose: ``matvec``, ``diagonal``, ``submatrix``/``column`` (gathered from the
+kernel table, so even the FFT operator can hand out a dense block cheaply),
+``restrict`` (a sub-operator on a subset of I), ``to_dense`` (guarded by a memory
+budget) and memory estimates.  Every operator counts its matvecs in ``matvec_count``.
+"""
+
+from __future__ import annotations
+
+import os
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.fft as sfft
+from scipy.sparse.linalg import LinearOperator
+
+from .errors import MemoryBudgetError, ProblemInputError
+
+#: Default memory budget for assembling dense matrices (bytes).  Overridable by the
+#: environment variable CONTACTBENCH_MEMORY_BUDGET_GB.
+DEFAULT_MEMORY_BUDGET = float(os.environ.get("CONTACTBENCH_MEMORY_BUDGET_GB", "8")) * 2**30
+
+
+def fft_workers() -> int:
+    """Threads used by scipy.fft (env CONTACTBENCH_FFT_WORKERS, default: all cores)."""
+    env = os.environ.get("CONTACTBENCH_FFT_WORKERS")
+    if env:
+        return max(1, int(env))
+    return os.cpu_count() or 1
+
+
+def dense_nbytes(n: int) -> int:
+    return 8 * int(n) * int(n)
+
+
+def check_dense_budget(n: int, budget: float | None = None, what: str = "dense H") -> None:
+    """Raise MemoryBudgetError if an n x n float64 matrix would exceed the budget."""
+    b = DEFAULT_MEMORY_BUDGET if budget is None else budget
+    need = dense_nbytes(n)
+    if need > b:
+        raise MemoryBudgetError(f"{what} ({n} x {n} float64)", need, b)
+
+
+class ContactOperator(ABC):
+    """H restricted to the trial set: symmetric positive definite, all entries > 0
+    for the BCC and Love kernels (aperiodic)."""
+
+    n: int
+    matvec_count: int
+
+    @abstractmethod
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        """H_II x."""
+
+    @abstractmethod
+    def diagonal(self) -> np.ndarray:
+        """diag(H_II)."""
+
+    @abstractmethod
+    def submatrix(self, rows: np.ndarray, cols: np.ndarray | None = None) -> np.ndarray:
+        """Dense block H[rows, cols] (positions 0..n-1 of this operator)."""
+
+    @abstractmethod
+    def restrict(self, idx: np.ndarray) -> "ContactOperator":
+        """Operator on the subset ``idx`` (positions 0..n-1) of this operator's set."""
+
+    @property
+    @abstractmethod
+    def memory_nbytes(self) -> int:
+        """Bytes the operator holds (plus its work arrays)."""
+
+    @property
+    def kind(self) -> str:
+        return type(self).__name__
+
+    def column(self, j: int) -> np.ndarray:
+        return self.submatrix(np.arange(self.n), np.array([j]))[:, 0]
+
+    def dense_nbytes(self) -> int:
+        return dense_nbytes(self.n)
+
+    def to_dense(self, budget: float | None = None) -> np.ndarray:
+        check_dense_budget(self.n, budget)
+        idx = np.arange(self.n)
+        return self.submatrix(idx, idx)
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        return self.matvec(x)
+
+    def as_linear_operator(self) -> LinearOperator:
+        return LinearOperator((self.n, self.n), matvec=self.matvec, rmatvec=self.matvec, dtype=np.float64)
+
+    def frobenius_norm(self) -> float:
+        """||H_II||_F (the paper's Lipschitz bound for gradient projection)."""
+        return float(np.linalg.norm(self.to_dense()))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.n, self.n)
+
+
+class DenseOperator(ContactOperator):
+    """H_II held as a dense array."""
+
+    def __init__(self, H: np.ndarray) -> None:
+        H = np.asarray(H, dtype=np.float64)
+        if H.ndim != 2 or H.shape[0] != H.shape[1]:
+            raise ProblemInputError(f"H must be a square matrix, got shape {H.shape}")
+        self.H = H
+        self.n = H.shape[0]
+        self.matvec_count = 0
+
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        self.matvec_count += 1
+        return self.H @ x
+
+    def diagonal(self) -> np.ndarray:
+        return np.diag(self.H).copy()
+
+    def submatrix(self, rows: np.ndarray, cols: np.ndarray | None = None) -> np.ndarray:
+        cols = rows if cols is None else cols
+        return self.H[np.ix_(np.asarray(rows), np.asarray(cols))]
+
+    def restrict(self, idx: np.ndarray) -> "DenseOperator":
+        idx = np.asarray(idx)
+        return DenseOperator(self.H[np.ix_(idx, idx)])
+
+    def to_dense(self, budget: float | None = None) -> np.ndarray:
+        return self.H
+
+    def frobenius_norm(self) -> float:
+        return float(np.linalg.norm(self.H))
+
+    @property
+    def memory_nbytes(self) -> int:
+        return int(self.H.nbytes)
+
+
+@dataclass
+class KernelTransform:
+    """The kernel's offset table and its real FFT on the (padded) grid, shared by all
+    restrictions of one instance."""
+
+    table: np.ndarray  # real-space circulant table, shape = padded grid
+    grid_shape: tuple[int, int]  # physical N1 x N2
+    khat: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.table = np.ascontiguousarray(self.table, dtype=np.float64)
+        self.khat = sfft.rfft2(self.table, workers=fft_workers())
+
+    @property
+    def padded_shape(self) -> tuple[int, int]:
+        return self.table.shape  # type: ignore[return-value]
+
+    @property
+    def periodic(self) -> bool:
+        return self.table.shape == tuple(self.grid_shape)
+
+    def padded_index(self, flat_grid_idx: np.ndarray) -> np.ndarray:
+        """Map flat indices on the physical grid to flat indices on the padded grid."""
+        i, j = np.divmod(np.asarray(flat_grid_idx, dtype=np.int64), self.grid_shape[1])
+        return i * self.padded_shape[1] + j
+
+    def convolve(self, field_padded: np.ndarray) -> np.ndarray:
+        """K * f on the padded grid (circular convolution)."""
+        w = fft_workers()
+        F = sfft.rfft2(field_padded, workers=w)
+        F *= self.khat
+        return sfft.irfft2(F, s=self.padded_shape, workers=w)
+
+    def work_nbytes(self) -> int:
+        p0, p1 = self.padded_shape
+        # kernel table + its transform + one real and one complex work array.
+        return int(8 * p0 * p1 * 2 + 16 * p0 * (p1 // 2 + 1) * 2)
+
+
+class FFTOperator(ContactOperator):
+    """Matrix-free H_II: scatter to the grid, convolve by FFT, gather."""
+
+    def __init__(self, transform: KernelTransform, grid_idx: np.ndarray) -> None:
+        self.transform = transform
+        self.grid_idx = np.asarray(grid_idx, dtype=np.int64)
+        self.pidx = transform.padded_index(self.grid_idx)
+        self.n = int(self.grid_idx.size)
+        self.matvec_count = 0
+        p0, p1 = transform.padded_shape
+        pi, pj = np.divmod(self.pidx, p1)
+        self._pi, self._pj = pi, pj
+
+    def scatter(self, x: np.ndarray) -> np.ndarray:
+        field_ = np.zeros(self.transform.padded_shape)
+        field_.ravel()[self.pidx] = x
+        return field_
+
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        self.matvec_count += 1
+        return self.transform.convolve(self.scatter(x)).ravel()[self.pidx]
+
+    def displacement_field(self, x: np.ndarray) -> np.ndarray:
+        """Displacement on the whole physical grid caused by forces x on the set."""
+        self.matvec_count += 1
+        u = self.transform.convolve(self.scatter(x))
+        n1, n2 = self.transform.grid_shape
+        return u[:n1, :n2].copy()
+
+    def diagonal(self) -> np.ndarray:
+        return np.full(self.n, self.transform.table[0, 0])
+
+    def submatrix(self, rows: np.ndarray, cols: np.ndarray | None = None) -> np.ndarray:
+        rows = np.asarray(rows)
+        cols = rows if cols is None else np.asarray(cols)
+        p0, p1 = self.transform.padded_shape
+        di = (self._pi[rows][:, None] - self._pi[cols][None, :]) % p0
+        dj = (self._pj[rows][:, None] - self._pj[cols][None, :]) % p1
+        return self.transform.table[di, dj]
+
+    def restrict(self, idx: np.ndarray) -> "FFTOperator":
+        return FFTOperator(self.transform, self.grid_idx[np.asarray(idx)])
+
+    def frobenius_norm(self) -> float:
+        """sqrt(1_I' (K^2 * 1_I)): one convolution with the squared kernel, no n x n."""
+        sq = KernelTransform(self.transform.table**2, self.transform.grid_shape)
+        ones = np.zeros(self.transform.padded_shape)
+        ones.ravel()[self.pidx] = 1.0
+        return float(np.sqrt(max(0.0, float(np.sum(sq.convolve(ones).ravel()[self.pidx])))))
+
+    @property
+    def memory_nbytes(self) -> int:
+        return self.transform.work_nbytes() + 5 * 8 * self.n
+
+
+def spectral_norm_estimate(op: ContactOperator, iters: int = 30, seed: int = 0, rtol: float = 1e-6) -> float:
+    """Largest eigenvalue of the SPD operator by power iteration (a few matvecs).
+
+    The Rayleigh quotient converges from below; it is returned inflated by 1 % so it
+    can serve as a safe step length bound for gradient projection.
+    """
+    rng = np.random.default_rng(seed)
+    x = rng.random(op.n) + 0.5  # positive start: H has positive entries, Perron vector > 0
+    x /= np.linalg.norm(x)
+    lam = 0.0
+    for _ in range(iters):
+        y = op.matvec(x)
+        lam_new = float(x @ y)
+        ny = np.linalg.norm(y)
+        if ny == 0.0:
+            return 0.0
+        x = y / ny
+        if abs(lam_new - lam) <= rtol * abs(lam_new):
+            lam = lam_new
+            break
+        lam = lam_new
+    return 1.01 * lam

@@ -1,0 +1,137 @@
+"""Scene interfaces."""
+
+from __future__ import annotations
+
+import json
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from ..instances import ContactInstance
+from ..surfaces import Surface
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Options a user may set on the command line; None means "the scene's default"."""
+
+    size: int | None = None
+    steps: int | None = None
+    seeds: tuple[int, ...] | None = None
+    surface_path: str | None = None
+    length: float | None = None
+    E: float | None = None
+    kernel: str | None = None
+    periodic: bool | None = None
+    operator: str | None = None  # "fft" or "dense"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def get(self, name: str, default: Any) -> Any:
+        v = getattr(self, name)
+        return default if v is None else v
+
+    def merged(self, defaults: "SceneConfig") -> "SceneConfig":
+        """Fill unset fields from ``defaults``."""
+        kw = {f: getattr(defaults, f) for f in ("size", "steps", "seeds", "surface_path", "length", "E",
+                                                 "kernel", "periodic", "operator") if getattr(self, f) is None}
+        extra = {**defaults.extra, **self.extra}
+        return replace(self, extra=extra, **kw)
+
+
+@dataclass(frozen=True)
+class InstanceSpec:
+    """A picklable recipe for one instance (a surface with its load sequence).
+
+    ``params`` hold everything needed to rebuild it (seed, size, kernel, ...), are
+    JSON-serialisable, and are recorded with every row.
+    """
+
+    scene: str
+    instance: str
+    params: dict[str, Any]
+
+    def build(self) -> "LoadSequence":
+        from . import get_scene
+
+        return get_scene(self.scene).build(self)
+
+    def params_json(self) -> str:
+        return json.dumps(self.params, sort_keys=True, default=str)
+
+
+@dataclass
+class LoadSequence:
+    """The steps of one instance.  ``factory(k)`` builds the QP instance of step k
+    (0-based); ``deltas[k]`` is its far-field displacement (NaN where the scene has
+    none); ``analytic(k)`` returns closed-form values for the step, if any."""
+
+    instance: str
+    deltas: list[float]
+    factory: Callable[[int], ContactInstance]
+    surface: Surface | None = None
+    analytic: Callable[[int], dict[str, float]] | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.deltas)
+
+    def at(self, k: int) -> ContactInstance:
+        inst = self.factory(k)
+        inst.meta.setdefault("step", k)
+        return inst
+
+
+@dataclass(frozen=True)
+class SolverVariant:
+    """A solver with fixed parameters, e.g. NNLS+GP with K = 50.  ``label`` is what the
+    tidy table calls it (column ``solver``); ``base`` is the registry name."""
+
+    base: str
+    params: dict[str, Any] = field(default_factory=dict)
+    label: str = ""
+
+    @property
+    def name(self) -> str:
+        return self.label or self.base
+
+
+class Scene(ABC):
+    """A named family of instances (benchopt's Dataset)."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    defaults: ClassVar[SceneConfig] = SceneConfig()
+    #: Registry names run when the user gives no --solvers (None: every available solver).
+    default_solvers: ClassVar[tuple[str, ...] | None] = None
+    #: Whether consecutive steps form a load history (warm starts across steps).
+    load_history: ClassVar[bool] = True
+
+    def config(self, cfg: SceneConfig | None) -> SceneConfig:
+        return (cfg or SceneConfig()).merged(self.defaults)
+
+    @abstractmethod
+    def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
+        """Recipes for every instance of the scene under ``cfg`` (already merged)."""
+
+    @abstractmethod
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        """Build the load sequence of one recipe."""
+
+    def variants(self, cfg: SceneConfig, solvers: list[str]) -> list[SolverVariant]:
+        """Solver variants to run; default: each requested solver with no parameters."""
+        return [SolverVariant(s) for s in solvers]
+
+    def warnings(self, cfg: SceneConfig) -> list[str]:
+        """Things the user should know before trusting the run (e.g. CMR on a surface
+        that is not self-affine)."""
+        return []
+
+
+def seeds_of(cfg: SceneConfig, default: tuple[int, ...] = (0,)) -> tuple[int, ...]:
+    return tuple(cfg.seeds) if cfg.seeds else default
+
+
+def nan() -> float:
+    return float(np.nan)

@@ -1,0 +1,192 @@
+"""The paper's scenes: paper-sweep, counterexample, and the analytic hertz / flat-punch."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..instances import (
+    InstanceBuilder,
+    counterexample,
+    flat_punch_load,
+    flat_punch_surface,
+    hertz_solution,
+    hertz_surface,
+    load_ramp,
+    paper_max_displacement,
+)
+from ..surfaces import Surface, rmd_surface_n
+from . import register_scene
+from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of
+
+PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
+
+
+def surface_from_params(params: dict[str, Any]) -> Surface:
+    """Rebuild the surface a recipe names: a measured file, or an RMD surface from its seed."""
+    if params.get("surface_path"):
+        from ..io import load_surface  # measured height maps (issue: real surfaces)
+
+        return load_surface(params["surface_path"], length=params.get("length"))
+    return rmd_surface_n(
+        int(params["size"]),
+        float(params["hurst"]),
+        length=float(params["length"]),
+        rms_height=float(params.get("rms_height", 1e-6)),
+        seed=int(params["seed"]),
+    )
+
+
+def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> LoadSequence:
+    """A load sequence on one surface; every step shares one kernel transform."""
+    p = spec.params
+    builder = InstanceBuilder(
+        surface,
+        float(p["E"]),
+        kernel=str(p["kernel"]),
+        periodic=bool(p["periodic"]),
+        operator=str(p.get("operator", "fft")),
+    )
+    ds = [float(d) for d in deltas]
+
+    def factory(k: int):
+        return builder.build(ds[k], meta={"step": k})
+
+    return LoadSequence(spec.instance, ds, factory, surface=surface)
+
+
+def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
+    """One recipe per seed (or one for a measured surface)."""
+    base = {
+        "size": cfg.size,
+        "hurst": hurst,
+        "length": cfg.length,
+        "E": cfg.E,
+        "kernel": cfg.kernel,
+        "periodic": bool(cfg.periodic),
+        "operator": cfg.operator,
+        "steps": cfg.steps,
+        **(extra or {}),
+    }
+    if cfg.surface_path:
+        name = str(cfg.surface_path).replace("/", "_")
+        return [InstanceSpec(scene, f"file-{name}", {**base, "surface_path": cfg.surface_path, "seed": 0})]
+    bc = "per" if cfg.periodic else "np"
+    return [
+        InstanceSpec(scene, f"rmd-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}", {**base, "seed": int(s)})
+        for s in seeds_of(cfg)
+    ]
+
+
+@register_scene
+class PaperSweep(Scene):
+    """The paper's headline test (section 4, Fig. 4): RMD H = 0.7, L = 100 um, N = 512,
+    BCC kernel, non-periodic, K = 10 steps, Delta_k = (k/K) (z_max - z_mean) / 2."""
+
+    name = "paper-sweep"
+    description = "RMD H=0.7, L=100um, 512^2, BCC, 10 displacement steps up to (zmax-zmean)/2 (paper Fig. 4)"
+    defaults = SceneConfig(size=512, steps=10, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
+                           periodic=False, operator="fft")
+
+    def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
+        return rough_surface_specs(self.name, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        surface = surface_from_params(spec.params)
+        deltas = load_ramp(paper_max_displacement(surface), int(spec.params["steps"]))
+        return ramp_sequence(spec, surface, deltas)
+
+
+@register_scene
+class Counterexample(Scene):
+    """Paper Example 1: N x N grid all in the trial set, ubar ~ U(0,1), BCC, delta = 1,
+    E = 0.01; n = 25, 100, 400 over seeds 0..99."""
+
+    name = "counterexample"
+    description = "greedy counterexample (paper Example 1): n = 25, 100, 400, ubar ~ U(0,1), seeds 0-99"
+    defaults = SceneConfig(seeds=tuple(range(100)), operator="dense", extra={"sizes": (25, 100, 400)})
+    load_history = False
+
+    def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
+        sizes = (cfg.size * cfg.size,) if cfg.size else tuple(cfg.extra.get("sizes", (25, 100, 400)))
+        return [
+            InstanceSpec(self.name, f"n{n}-s{s}", {"n": int(n), "seed": int(s), "operator": cfg.operator})
+            for n in sizes
+            for s in seeds_of(cfg)
+        ]
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        n, seed = int(spec.params["n"]), int(spec.params["seed"])
+        op = str(spec.params.get("operator") or "dense")
+        return LoadSequence(spec.instance, [float("nan")], lambda k: counterexample(n, seed, operator=op))
+
+
+@register_scene
+class Hertz(Scene):
+    """A rigid sphere (paraboloid) on the half-space, refined meshes; the closed forms
+    give contact radius, load and peak pressure (discretisation error vs mesh size)."""
+
+    name = "hertz"
+    description = "Hertz sphere: load and contact radius vs closed form, over mesh refinement"
+    defaults = SceneConfig(steps=1, length=2.0e-3, E=1.0e9, kernel="bcc", periodic=False, operator="fft",
+                           extra={"sizes": (16, 32, 64, 128), "radius": 10e-3, "a_over_L": 0.25})
+    load_history = False
+
+    def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
+        sizes = (cfg.size,) if cfg.size else tuple(cfg.extra["sizes"])
+        R = float(cfg.extra["radius"])
+        a = float(cfg.extra["a_over_L"]) * float(cfg.length)
+        return [
+            InstanceSpec(self.name, f"N{N}-{cfg.kernel}", {"size": int(N), "length": cfg.length, "E": cfg.E,
+                                                           "kernel": cfg.kernel, "periodic": False,
+                                                           "operator": cfg.operator, "radius": R,
+                                                           "delta": a * a / R, "steps": int(cfg.steps)})
+            for N in sizes
+        ]
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        p = spec.params
+        surface = hertz_surface(int(p["size"]), float(p["radius"]), float(p["length"]))
+        deltas = load_ramp(float(p["delta"]), int(p["steps"]))
+        seq = ramp_sequence(spec, surface, deltas)
+        R, E = float(p["radius"]), float(p["E"])
+
+        def analytic(k: int) -> dict[str, float]:
+            s = hertz_solution(R, E, deltas[k])
+            return {"load": s.load, "contact_radius": s.contact_radius, "peak_pressure": s.peak_pressure}
+
+        seq.analytic = analytic
+        return seq
+
+
+@register_scene
+class FlatPunch(Scene):
+    """A rigid flat circular punch: P = 2 a E* Delta."""
+
+    name = "flat-punch"
+    description = "flat circular punch: load vs P = 2 a E* Delta over mesh refinement"
+    defaults = SceneConfig(steps=1, length=2.0e-3, E=1.0e9, kernel="bcc", periodic=False, operator="fft",
+                           extra={"sizes": (16, 32, 64, 128), "a_over_L": 0.3, "delta_over_a": 1e-3})
+    load_history = False
+
+    def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
+        sizes = (cfg.size,) if cfg.size else tuple(cfg.extra["sizes"])
+        a = float(cfg.extra["a_over_L"]) * float(cfg.length)
+        return [
+            InstanceSpec(self.name, f"N{N}-{cfg.kernel}", {"size": int(N), "length": cfg.length, "E": cfg.E,
+                                                           "kernel": cfg.kernel, "periodic": False,
+                                                           "operator": cfg.operator, "punch_radius": a,
+                                                           "delta": float(cfg.extra["delta_over_a"]) * a,
+                                                           "steps": int(cfg.steps)})
+            for N in sizes
+        ]
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        p = spec.params
+        a = float(p["punch_radius"])
+        surface = flat_punch_surface(int(p["size"]), a, float(p["length"]))
+        deltas = load_ramp(float(p["delta"]), int(p["steps"]))
+        seq = ramp_sequence(spec, surface, deltas)
+        seq.analytic = lambda k: {"load": flat_punch_load(a, float(p["E"]), deltas[k]), "contact_radius": a}
+        return seq

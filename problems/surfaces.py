@@ -1,0 +1,346 @@
+"""Rough surfaces: the ``Surface`` record, random midpoint displacement (RMD) and
+spectral generators, and the radially averaged PSD with a Hurst-exponent fit.
+
+Conventions: heights and lengths in metres (``unit`` says otherwise), grids are square
+N x N with spacing ``delta = L / N`` (periodic) or ``L / (N - 1)`` (an RMD grid of
+2^k + 1 points whose corners both lie on the domain boundary).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .errors import ProblemInputError, check_positive
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A rigid rough surface sampled on a square grid.
+
+    heights : N x N array of elevations xi_ij (the paper's average heights).
+    delta   : grid spacing.
+    unit    : length unit of heights and delta ("m" by default).
+    levels  : coarser representations of the same surface (coarsest first), when the
+              generator provides them (RMD) -- the cascade multi-resolution method uses
+              them.  The last entry is *not* the surface itself.
+    periodic: whether the heights are periodic (wrap-around) -- a hint for kernels.
+    """
+
+    heights: np.ndarray
+    delta: float
+    unit: str = "m"
+    name: str = "surface"
+    levels: tuple["Surface", ...] = ()
+    periodic: bool = False
+    meta: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        h = np.asarray(self.heights)
+        if h.ndim != 2:
+            raise ProblemInputError(f"surface heights must be a 2-D array, got {h.ndim}-D")
+        if h.shape[0] != h.shape[1]:
+            raise ProblemInputError(
+                f"surface grid must be square, got {h.shape[0]} x {h.shape[1]} "
+                "(crop or pad it first; problems.io does this explicitly)"
+            )
+        if h.shape[0] < 2:
+            raise ProblemInputError("surface grid must be at least 2 x 2, got 1 x 1")
+        if not np.issubdtype(h.dtype, np.number) or np.iscomplexobj(h):
+            raise ProblemInputError(f"surface heights must be real numbers, got dtype {h.dtype}")
+        h = h.astype(np.float64, copy=False)
+        bad = ~np.isfinite(h)
+        if bad.any():
+            raise ProblemInputError(
+                f"surface heights contain {int(bad.sum())} NaN/inf values "
+                f"(first at index {tuple(int(v) for v in np.argwhere(bad)[0])})"
+            )
+        check_positive("grid spacing delta", self.delta)
+        object.__setattr__(self, "heights", h)
+
+    @property
+    def N(self) -> int:
+        return int(self.heights.shape[0])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.heights.shape  # type: ignore[return-value]
+
+    @property
+    def length(self) -> float:
+        """Lateral side length L = N * delta (area covered by the elements)."""
+        return self.N * self.delta
+
+    @property
+    def area(self) -> float:
+        return self.length**2
+
+    @property
+    def z_max(self) -> float:
+        return float(self.heights.max())
+
+    @property
+    def z_mean(self) -> float:
+        return float(self.heights.mean())
+
+    @property
+    def rms_height(self) -> float:
+        return float(np.std(self.heights))
+
+    def rms_slope(self) -> float:
+        """sqrt(<|grad h|^2>) by forward differences (periodic wrap when periodic)."""
+        h = self.heights
+        if self.periodic:
+            gx = (np.roll(h, -1, 0) - h) / self.delta
+            gy = (np.roll(h, -1, 1) - h) / self.delta
+        else:
+            gx = np.diff(h, axis=0)[:, :-1] / self.delta
+            gy = np.diff(h, axis=1)[:-1, :] / self.delta
+        return float(np.sqrt(np.mean(gx**2 + gy**2)))
+
+    def scaled(self, length_factor: float) -> "Surface":
+        """The same surface with every length multiplied by ``length_factor``."""
+        return replace(
+            self,
+            heights=self.heights * length_factor,
+            delta=self.delta * length_factor,
+            levels=tuple(s.scaled(length_factor) for s in self.levels),
+        )
+
+
+# ---------------------------------------------------------------------------
+# Random midpoint displacement (diamond-square), Peitgen & Saupe 1988
+# ---------------------------------------------------------------------------
+
+
+def _rmd_grid(k: int, hurst: float, rng: np.random.Generator, periodic: bool) -> tuple[np.ndarray, list[int]]:
+    """Diamond-square on a 2^k (periodic) or 2^k+1 grid; returns heights and the steps
+    at which each coarse level was complete."""
+    m = 2**k
+    size = m if periodic else m + 1
+    z = np.zeros((size, size))
+    sigma = 1.0
+    if not periodic:
+        z[::m, ::m] = rng.normal(0.0, sigma, (2, 2))
+    step = m
+    steps_done: list[int] = [m]
+    while step > 1:
+        half = step // 2
+        sigma *= 0.5 ** (0.5 * hurst)
+        c = z[::step, ::step]
+        if periodic:
+            avg = (c + np.roll(c, -1, 0) + np.roll(c, -1, 1) + np.roll(np.roll(c, -1, 0), -1, 1)) / 4.0
+        else:
+            avg = (c[:-1, :-1] + c[1:, :-1] + c[:-1, 1:] + c[1:, 1:]) / 4.0
+        z[half::step, half::step] = avg + rng.normal(0.0, sigma, avg.shape)
+        sigma *= 0.5 ** (0.5 * hurst)
+        c = z[::step, ::step]
+        d = z[half::step, half::step]
+        if periodic:
+            a = (c + np.roll(c, -1, 0) + np.roll(d, 1, 1) + d) / 4.0  # at (i*step+half, j*step)
+            b = (c + np.roll(c, -1, 1) + np.roll(d, 1, 0) + d) / 4.0  # at (i*step, j*step+half)
+        else:
+            a = _edge_average(c, d, axis=0)
+            b = _edge_average(c, d, axis=1)
+        z[half::step, ::step] = a + rng.normal(0.0, sigma, a.shape)
+        z[::step, half::step] = b + rng.normal(0.0, sigma, b.shape)
+        step = half
+        steps_done.append(step)
+    return z, steps_done
+
+
+def _edge_average(c: np.ndarray, d: np.ndarray, axis: int) -> np.ndarray:
+    """Mean of the 2 corner and up to 2 centre neighbours of the non-periodic edge
+    midpoints (3 neighbours on the boundary)."""
+    if axis == 1:
+        return _edge_average(c.T, d.T, axis=0).T
+    # points at (i*step+half, j*step): i in 0..M-1, j in 0..M
+    corners = c[:-1, :] + c[1:, :]
+    M = d.shape[0]
+    total = corners.copy()
+    count = np.full(total.shape, 2.0)
+    total[:, :-1] += d  # centre to the right (j*step+half)
+    count[:, :-1] += 1
+    total[:, 1:] += d  # centre to the left
+    count[:, 1:] += 1
+    assert total.shape == (M, M + 1)
+    return total / count
+
+
+def rmd_surface(
+    k: int,
+    hurst: float,
+    length: float = 100e-6,
+    rms_height: float = 1e-6,
+    seed: int = 0,
+    periodic: bool = True,
+    min_level: int = 2,
+) -> Surface:
+    """Random midpoint displacement fractal surface with Hurst exponent ``hurst``.
+
+    Grid: 2^k points per side when ``periodic`` (wrap-around diamond-square), or
+    2^k + 1 otherwise.  Heights are scaled so the fine surface has the given rms.
+    Every coarse level of the construction with at least 2^min_level points per side is
+    kept in ``levels`` (coarsest first) with the same scaling -- the coarse levels are
+    exact sub-samples of the fine one, as the cascade multi-resolution method needs.
+    """
+    if not (0.0 < hurst < 1.0):
+        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
+    if int(k) != k or k < 1 or k > 13:
+        raise ProblemInputError(f"RMD level k must be an integer in 1..13, got {k}")
+    check_positive("length L", length)
+    check_positive("rms height", rms_height)
+    rng = np.random.default_rng(seed)
+    z, _ = _rmd_grid(int(k), hurst, rng, periodic)
+    z -= z.mean()
+    z *= rms_height / z.std()
+    size = z.shape[0]
+    delta = length / (size if periodic else size - 1)
+    levels = []
+    for lev in range(min_level, k):
+        stride = 2 ** (k - lev)
+        levels.append(
+            Surface(z[::stride, ::stride].copy(), delta * stride, name=f"rmd-level{lev}", periodic=periodic)
+        )
+    meta = {"generator": "rmd", "hurst": hurst, "seed": seed, "k": k, "rms_height": rms_height}
+    return Surface(z, delta, name=f"rmd-H{hurst:g}-k{k}-s{seed}", levels=tuple(levels), periodic=periodic, meta=meta)
+
+
+def rmd_surface_n(N: int, hurst: float, **kw: Any) -> Surface:
+    """RMD surface with exactly N points per side: periodic when N = 2^k, non-periodic
+    when N = 2^k + 1."""
+    if N >= 2 and (N & (N - 1)) == 0:
+        return rmd_surface(int(np.log2(N)), hurst, periodic=True, **kw)
+    if N >= 3 and ((N - 1) & (N - 2)) == 0:
+        return rmd_surface(int(np.log2(N - 1)), hurst, periodic=False, **kw)
+    raise ProblemInputError(f"RMD needs N = 2^k or 2^k + 1 points per side, got N = {N}")
+
+
+# ---------------------------------------------------------------------------
+# Spectral (FFT-filtered) surfaces
+# ---------------------------------------------------------------------------
+
+
+def wavevectors(N: int, delta: float) -> np.ndarray:
+    """|q| on the N x N FFT grid (rad per length)."""
+    q = 2.0 * np.pi * np.fft.fftfreq(N, d=delta)
+    return np.hypot(q[:, None], q[None, :])
+
+
+def spectral_surface(
+    N: int,
+    hurst: float,
+    length: float = 100e-6,
+    rms_height: float = 1e-6,
+    seed: int = 0,
+    rolloff_wavelength: float | None = None,
+    short_cutoff_wavelength: float | None = None,
+) -> Surface:
+    """Periodic self-affine surface by filtering white noise with sqrt(C(q)).
+
+    C(q) ~ q^(-2(1+H)) between q_r = 2 pi / rolloff_wavelength (default: the system
+    size, i.e. no plateau) and q_s = 2 pi / short_cutoff_wavelength (default: the grid
+    Nyquist); C is constant (a roll-off plateau) below q_r and zero above q_s.
+    """
+    if not (0.0 < hurst < 1.0):
+        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
+    if N < 2:
+        raise ProblemInputError(f"need N >= 2 points per side, got {N}")
+    check_positive("length L", length)
+    check_positive("rms height", rms_height)
+    delta = length / N
+    q = wavevectors(N, delta)
+    q_r = 2.0 * np.pi / (rolloff_wavelength if rolloff_wavelength else length)
+    q_s = 2.0 * np.pi / short_cutoff_wavelength if short_cutoff_wavelength else np.inf
+    qq = np.maximum(q, q_r)
+    amp = qq ** (-(1.0 + hurst))
+    amp[q == 0] = 0.0
+    amp[q > q_s] = 0.0
+    rng = np.random.default_rng(seed)
+    noise = np.fft.fft2(rng.normal(size=(N, N)))
+    z = np.real(np.fft.ifft2(noise * amp))
+    z -= z.mean()
+    z *= rms_height / z.std()
+    meta = {
+        "generator": "spectral",
+        "hurst": hurst,
+        "seed": seed,
+        "rolloff_wavelength": rolloff_wavelength,
+        "rms_height": rms_height,
+    }
+    return Surface(z, delta, name=f"spectral-H{hurst:g}-N{N}-s{seed}", periodic=True, meta=meta)
+
+
+# ---------------------------------------------------------------------------
+# PSD and Hurst fit
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RadialPSD:
+    q: np.ndarray  # bin centres (rad/length), geometric means
+    C: np.ndarray  # isotropic PSD C(q), length^4
+    counts: np.ndarray
+
+
+def radial_psd(surface: Surface, bins_per_decade: int = 10, window: bool | None = None) -> RadialPSD:
+    """Radially averaged 2-D PSD C(q) = (delta^2/N^2) |FFT(h)|^2 / (2 pi)^2 (length^4),
+    binned logarithmically.  A Hann window is applied to non-periodic surfaces."""
+    h = surface.heights - surface.heights.mean()
+    N = surface.N
+    use_window = (not surface.periodic) if window is None else window
+    if use_window:
+        w1 = np.hanning(N)
+        w = np.outer(w1, w1)
+        h = h * w / np.sqrt(np.mean(w**2))
+    F = np.fft.fft2(h)
+    C2 = (surface.delta**2 / N**2) * np.abs(F) ** 2 / (2.0 * np.pi) ** 2
+    q = wavevectors(N, surface.delta)
+    mask = q > 0
+    qv, Cv = q[mask], C2[mask]
+    lo, hi = np.log10(qv.min()), np.log10(qv.max())
+    nb = max(2, int(np.ceil((hi - lo) * bins_per_decade)))
+    edges = np.logspace(lo, hi + 1e-12, nb + 1)
+    which = np.clip(np.digitize(qv, edges) - 1, 0, nb - 1)
+    counts = np.bincount(which, minlength=nb)[:nb]
+    sums = np.bincount(which, weights=Cv, minlength=nb)[:nb]
+    logq = np.bincount(which, weights=np.log(qv), minlength=nb)[:nb]
+    ok = counts > 0
+    return RadialPSD(q=np.exp(logq[ok] / counts[ok]), C=sums[ok] / counts[ok], counts=counts[ok])
+
+
+@dataclass(frozen=True)
+class HurstFit:
+    hurst: float
+    slope: float
+    intercept: float
+    q_range: tuple[float, float]
+    r2: float
+
+
+def fit_hurst(
+    surface: Surface,
+    q_min: float | None = None,
+    q_max: float | None = None,
+    psd: RadialPSD | None = None,
+) -> HurstFit:
+    """Fit log C = a + s log q over [q_min, q_max]; H = -s/2 - 1.
+
+    Defaults: from 4 x the fundamental (2 pi/L) to half the Nyquist wave number, which
+    avoids the few, noisy lowest modes and the aliased top octave.
+    """
+    psd = radial_psd(surface) if psd is None else psd
+    q0 = 2.0 * np.pi / surface.length
+    q_nyq = np.pi / surface.delta
+    lo = 4.0 * q0 if q_min is None else q_min
+    hi = 0.5 * q_nyq if q_max is None else q_max
+    m = (psd.q >= lo) & (psd.q <= hi)
+    if m.sum() < 3:
+        raise ProblemInputError(f"too few PSD bins in [{lo:.3g}, {hi:.3g}] to fit a Hurst exponent")
+    x, y = np.log(psd.q[m]), np.log(psd.C[m])
+    s, a = np.polyfit(x, y, 1)
+    resid = y - (a + s * x)
+    r2 = 1.0 - float(np.sum(resid**2) / np.sum((y - y.mean()) ** 2))
+    return HurstFit(hurst=-s / 2.0 - 1.0, slope=float(s), intercept=float(a), q_range=(lo, hi), r2=r2)
