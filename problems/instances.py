@@ -44,6 +44,13 @@ class Geometry:
     grid_shape: tuple[int, int]
     delta: float
     indices: np.ndarray  # flat indices into grid_shape, one per unknown
+    # Physical context, for solvers that rebuild related problems (CMR builds the
+    # coarse-level instances of the same surface at the same far-field displacement).
+    surface: Surface | None = None
+    far_field: float | None = None
+    E: float | None = None
+    kernel: str | None = None
+    periodic: bool | None = None
 
     @property
     def positions(self) -> np.ndarray:
@@ -187,15 +194,36 @@ class InstanceBuilder:
             return DenseOperator(fft_op.to_dense(self.memory_budget))
         return fft_op
 
-    def build(self, delta_disp: float, meta: dict[str, Any] | None = None) -> ContactInstance:
+    def build(
+        self,
+        delta_disp: float,
+        meta: dict[str, Any] | None = None,
+        candidates: np.ndarray | None = None,
+    ) -> ContactInstance:
+        """The QP at far-field displacement ``delta_disp`` (paper section 2).
+
+        ``candidates`` (flat grid indices or an N x N boolean mask) restricts the trial
+        set to I_C intersected with it -- how the cascade multi-resolution method keeps
+        only the heights near the coarse level's contact domain (paper section 5).
+        """
         check_nonnegative("far-field displacement Delta", delta_disp)
         h = self.surface.heights
         idx = trial_set(h, delta_disp)
+        if candidates is not None:
+            idx = np.intersect1d(idx, self._candidate_indices(candidates), assume_unique=False)
         if idx.size == 0:
-            raise ProblemInputError(f"empty trial set at Delta = {delta_disp!r}")
+            where = " within the given candidate points" if candidates is not None else ""
+            raise ProblemInputError(f"empty trial set at Delta = {delta_disp!r}{where}: no element can touch")
+        if self.periodic and idx.size == h.size:
+            raise ProblemInputError(
+                f"periodic kernel with every grid point in the trial set (Delta = {delta_disp!r}): "
+                "H is singular along the constant vector (its q = 0 mode is removed) and the QP is unbounded; "
+                "use a smaller Delta or a non-periodic kernel"
+            )
         ubar = delta_disp - float(h.max()) + h.ravel()[idx]
-        ubar = np.maximum(ubar, 0.0)  # exact zero at the highest point, never -0 by roundoff
-        geom = Geometry(self.surface.shape, self.surface.delta, idx)
+        ubar = np.maximum(ubar, 0.0)  # ubar = Delta at the top, >= 0 (never -0 by roundoff) at the set's edge
+        geom = Geometry(self.surface.shape, self.surface.delta, idx, surface=self.surface,
+                        far_field=float(delta_disp), E=self.E, kernel=self.kernel, periodic=self.periodic)
         qp = QP(self.operator_on(idx), ubar, geom)
         return ContactInstance(
             qp=qp,
@@ -206,6 +234,22 @@ class InstanceBuilder:
             surface=self.surface,
             meta=dict(meta or {}),
         )
+
+    def _candidate_indices(self, candidates: np.ndarray) -> np.ndarray:
+        """Flat grid indices from an index array or an N x N boolean mask."""
+        c = np.asarray(candidates)
+        if c.dtype == bool:
+            if c.shape != self.surface.shape:
+                raise ProblemInputError(
+                    f"candidate mask has shape {c.shape}, the surface grid is {self.surface.shape}"
+                )
+            return np.flatnonzero(c)
+        c = c.astype(np.int64).ravel()
+        if c.size and (c.min() < 0 or c.max() >= self.surface.heights.size):
+            raise ProblemInputError(
+                f"candidate indices must lie in 0..{self.surface.heights.size - 1}, got {c.min()}..{c.max()}"
+            )
+        return np.unique(c)
 
 
 def build_instance(

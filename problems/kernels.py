@@ -31,9 +31,15 @@ Kernels
 Periodic real-space kernels (``bcc``, ``love``) sum the patch kernel over
 (2M+1)^2 periodic images and subtract the cell mean.  Removing the mean is removing
 the q = 0 mode, whose compliance is infinite for a periodic half-space: the
-displacement is then measured from its own mean plane.  After the subtraction each
-image's contribution decays like r^-5 (the square cell has no dipole or quadrupole
-moment), so a couple of image shells suffice (``images``, default 2).
+displacement is then measured from its own mean plane (so on the *whole* grid the
+periodic H is singular along the constant vector; on any proper subset it is SPD).
+After the subtraction an image at distance R contributes, to leading order, the
+isotropic second-order Taylor term (|x|^2 - <|x|^2>)/4 * lap(1/(pi E R)) =
+(|x|^2 - <|x|^2>) / (4 pi E R^3), which does not cancel over a shell (the in-plane
+Laplacian of 1/R is 1/R^3, not 0).  Truncating at M shells therefore leaves an
+O(1/M) paraboloid error; it is added back in closed form from the lattice sum of
+R^-3 beyond shell M (``_image_tail_correction``), leaving O(M^-3): with M = 2 the
+table matches M = 24 to ~4e-5 of its diagonal at N = 16 (6.6e-3 without).
 """
 
 from __future__ import annotations
@@ -129,11 +135,41 @@ def periodic_table(
     for mx in range(-images, images + 1):
         for my in range(-images, images + 1):
             table += f(ox[:, None] + mx * n1, oy[None, :] + my * n2, delta, E)
+    table += _image_tail_correction((n1, n2), delta, E, images)
     # Make the table exactly even (the half-period offset has an asymmetric image set).
     table = 0.5 * (table + np.roll(table[::-1, :], 1, axis=0))
     table = 0.5 * (table + np.roll(table[:, ::-1], 1, axis=1))
     table -= table.mean()
     return table
+
+
+def _lattice_tail_sum(periods: tuple[float, float], images: int, shells: int = 400) -> float:
+    """sum |(mx P1, my P2)|^-3 over integer (mx, my) with max(|mx|, |my|) > images:
+    explicit square shells up to ``shells``, then the integral over the plane outside
+    the rectangle of half-sides (shells + 1/2) P, which is integral dtheta / R(theta)."""
+    p1, p2 = periods
+    total = 0.0
+    for k in range(images + 1, shells + 1):
+        i = np.arange(-k, k + 1, dtype=np.float64)
+        inner = i[1:-1]
+        r_rows = np.hypot(k * p1, i * p2)  # mx = +-k, all my
+        r_cols = np.hypot(inner * p1, k * p2)  # my = +-k, |mx| < k
+        total += 2.0 * float(np.sum(r_rows**-3.0)) + 2.0 * float(np.sum(r_cols**-3.0))
+    a, b = (shells + 0.5) * p1, (shells + 0.5) * p2
+    theta = (np.arange(20000) + 0.5) * (2.0 * np.pi / 20000)
+    inv_R = np.maximum(np.abs(np.cos(theta)) / a, np.abs(np.sin(theta)) / b)
+    return total + float(np.mean(inv_R)) * 2.0 * np.pi
+
+
+def _image_tail_correction(shape: tuple[int, int], delta: float, E: float, images: int) -> np.ndarray:
+    """Leading-order contribution of the periodic images beyond shell ``images``:
+    (|x|^2 - <|x|^2>) / (4 pi E) * sum_{far images} R^-3 (see the module doc)."""
+    n1, n2 = shape
+    x = _wrapped_offsets(n1, n1) * delta
+    y = _wrapped_offsets(n2, n2) * delta
+    r2 = x[:, None] ** 2 + y[None, :] ** 2
+    tail = _lattice_tail_sum((n1 * delta, n2 * delta), images)
+    return (r2 - r2.mean()) * tail / (4.0 * np.pi * E)
 
 
 def _spectral_table(shape: tuple[int, int], delta: float, E: float) -> np.ndarray:

@@ -115,9 +115,22 @@ class Surface:
 # ---------------------------------------------------------------------------
 
 
-def _rmd_grid(k: int, hurst: float, rng: np.random.Generator, periodic: bool) -> tuple[np.ndarray, list[int]]:
-    """Diamond-square on a 2^k (periodic) or 2^k+1 grid; returns heights and the steps
-    at which each coarse level was complete."""
+def _rmd_grid(
+    k: int, hurst: float, rng: np.random.Generator, periodic: bool, additions: bool = False
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Diamond-square on a 2^k (periodic) or 2^k + 1 grid.
+
+    Each level halves the step in two half-steps (diamond: cell centres; square: edge
+    midpoints); each half-step scales the displacement deviation by 2^(-H/2), so a
+    level scales it by 2^-H (Peitgen & Saupe 1988, "The Science of Fractal Images",
+    sec. 2.3.3, MidPointFM2D).  With ``additions`` (Voss's successive random
+    additions) every point already defined also receives a displacement of the same
+    deviation at each half-step, not only the new midpoints.
+
+    Returns the heights and the construction's states: the grid of every completed
+    level (step 2^(k-1), ..., 2), coarsest first.  Without additions these are exact
+    sub-samples of the final heights; with additions later stages move them.
+    """
     m = 2**k
     size = m if periodic else m + 1
     z = np.zeros((size, size))
@@ -125,7 +138,7 @@ def _rmd_grid(k: int, hurst: float, rng: np.random.Generator, periodic: bool) ->
     if not periodic:
         z[::m, ::m] = rng.normal(0.0, sigma, (2, 2))
     step = m
-    steps_done: list[int] = [m]
+    states: list[np.ndarray] = []
     while step > 1:
         half = step // 2
         sigma *= 0.5 ** (0.5 * hurst)
@@ -135,6 +148,8 @@ def _rmd_grid(k: int, hurst: float, rng: np.random.Generator, periodic: bool) ->
         else:
             avg = (c[:-1, :-1] + c[1:, :-1] + c[:-1, 1:] + c[1:, 1:]) / 4.0
         z[half::step, half::step] = avg + rng.normal(0.0, sigma, avg.shape)
+        if additions:
+            _add_noise(z[::step, ::step], sigma, rng)
         sigma *= 0.5 ** (0.5 * hurst)
         c = z[::step, ::step]
         d = z[half::step, half::step]
@@ -146,9 +161,18 @@ def _rmd_grid(k: int, hurst: float, rng: np.random.Generator, periodic: bool) ->
             b = _edge_average(c, d, axis=1)
         z[half::step, ::step] = a + rng.normal(0.0, sigma, a.shape)
         z[::step, half::step] = b + rng.normal(0.0, sigma, b.shape)
+        if additions:
+            _add_noise(z[::step, ::step], sigma, rng)
+            _add_noise(z[half::step, half::step], sigma, rng)
         step = half
-        steps_done.append(step)
-    return z, steps_done
+        if step > 1:
+            states.append(z[::step, ::step].copy())
+    return z, states
+
+
+def _add_noise(view: np.ndarray, sigma: float, rng: np.random.Generator) -> None:
+    """Add N(0, sigma^2) displacements in place to every point of a strided view."""
+    view += rng.normal(0.0, sigma, view.shape)
 
 
 def _edge_average(c: np.ndarray, d: np.ndarray, axis: int) -> np.ndarray:
@@ -177,14 +201,22 @@ def rmd_surface(
     seed: int = 0,
     periodic: bool = True,
     min_level: int = 2,
+    additions: bool = False,
 ) -> Surface:
-    """Random midpoint displacement fractal surface with Hurst exponent ``hurst``.
+    """Random midpoint displacement fractal surface with Hurst exponent ``hurst``
+    (diamond-square, Peitgen & Saupe 1988; the paper's section 5 generator).
 
     Grid: 2^k points per side when ``periodic`` (wrap-around diamond-square), or
     2^k + 1 otherwise.  Heights are scaled so the fine surface has the given rms.
     Every coarse level of the construction with at least 2^min_level points per side is
-    kept in ``levels`` (coarsest first) with the same scaling -- the coarse levels are
-    exact sub-samples of the fine one, as the cascade multi-resolution method needs.
+    kept in ``levels`` (coarsest first), shifted and scaled like the fine surface.
+
+    ``additions=False`` (default, the paper's construction): coarse heights are never
+    moved again, so every level is an exact sub-sample of the fine surface -- the
+    property the cascade multi-resolution method relies on.  ``additions=True`` (Voss's
+    successive random additions) also displaces the existing points at every stage;
+    the levels are then the construction's states, not sub-samples.  Both bias a PSD
+    fit of H low (see docs/problems.md for the measured bias); additions by ~0.01 less.
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
@@ -193,18 +225,20 @@ def rmd_surface(
     check_positive("length L", length)
     check_positive("rms height", rms_height)
     rng = np.random.default_rng(seed)
-    z, _ = _rmd_grid(int(k), hurst, rng, periodic)
-    z -= z.mean()
-    z *= rms_height / z.std()
+    z, states = _rmd_grid(int(k), hurst, rng, periodic, additions=additions)
+    shift = z.mean()
+    factor = rms_height / (z - shift).std()
+    z = (z - shift) * factor
     size = z.shape[0]
     delta = length / (size if periodic else size - 1)
     levels = []
-    for lev in range(min_level, k):
-        stride = 2 ** (k - lev)
-        levels.append(
-            Surface(z[::stride, ::stride].copy(), delta * stride, name=f"rmd-level{lev}", periodic=periodic)
-        )
-    meta = {"generator": "rmd", "hurst": hurst, "seed": seed, "k": k, "rms_height": rms_height}
+    for lev in range(max(1, min_level), int(k)):
+        stride = 2 ** (int(k) - lev)
+        coarse = (states[lev - 1] - shift) * factor
+        levels.append(Surface(coarse, delta * stride, name=f"rmd-level{lev}", periodic=periodic,
+                              meta={"level": lev, "stride": stride}))
+    meta = {"generator": "rmd", "hurst": hurst, "seed": seed, "k": k, "rms_height": rms_height,
+            "additions": additions}
     return Surface(z, delta, name=f"rmd-H{hurst:g}-k{k}-s{seed}", levels=tuple(levels), periodic=periodic, meta=meta)
 
 
@@ -282,12 +316,13 @@ def spectral_surface(
 class RadialPSD:
     q: np.ndarray  # bin centres (rad/length), geometric means
     C: np.ndarray  # isotropic PSD C(q), length^4
-    counts: np.ndarray
+    counts: np.ndarray  # number of FFT modes in each bin
 
 
-def radial_psd(surface: Surface, bins_per_decade: int = 10, window: bool | None = None) -> RadialPSD:
-    """Radially averaged 2-D PSD C(q) = (delta^2/N^2) |FFT(h)|^2 / (2 pi)^2 (length^4),
-    binned logarithmically.  A Hann window is applied to non-periodic surfaces."""
+def periodogram(surface: Surface, window: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """|q| and the 2-D periodogram C(q) = (delta^2/N^2) |FFT(h)|^2 / (2 pi)^2 (length^4)
+    of every FFT mode.  A Hann window (normalised to unit mean square) is applied to
+    non-periodic surfaces unless ``window`` says otherwise."""
     h = surface.heights - surface.heights.mean()
     N = surface.N
     use_window = (not surface.periodic) if window is None else window
@@ -297,7 +332,12 @@ def radial_psd(surface: Surface, bins_per_decade: int = 10, window: bool | None 
         h = h * w / np.sqrt(np.mean(w**2))
     F = np.fft.fft2(h)
     C2 = (surface.delta**2 / N**2) * np.abs(F) ** 2 / (2.0 * np.pi) ** 2
-    q = wavevectors(N, surface.delta)
+    return wavevectors(N, surface.delta), C2
+
+
+def radial_psd(surface: Surface, bins_per_decade: int = 10, window: bool | None = None) -> RadialPSD:
+    """Radially averaged 2-D PSD (see ``periodogram``), binned logarithmically."""
+    q, C2 = periodogram(surface, window)
     mask = q > 0
     qv, Cv = q[mask], C2[mask]
     lo, hi = np.log10(qv.min()), np.log10(qv.max())
@@ -314,10 +354,17 @@ def radial_psd(surface: Surface, bins_per_decade: int = 10, window: bool | None 
 @dataclass(frozen=True)
 class HurstFit:
     hurst: float
-    slope: float
-    intercept: float
+    slope: float  # of log C versus log q; H = -slope/2 - 1
+    intercept: float  # log C at q = 1 (rad/length)
     q_range: tuple[float, float]
-    r2: float
+    r2: float  # of the fitted line against the radially averaged PSD bins in q_range
+    method: str = "whittle"
+
+
+#: Default fit window: from FIT_Q_MIN_CYCLES x the fundamental 2 pi/L up to the
+#: Nyquist wave number pi/delta divided by FIT_Q_MAX_DIVISOR.
+FIT_Q_MIN_CYCLES = 2.0
+FIT_Q_MAX_DIVISOR = 3.0
 
 
 def fit_hurst(
@@ -325,22 +372,60 @@ def fit_hurst(
     q_min: float | None = None,
     q_max: float | None = None,
     psd: RadialPSD | None = None,
+    method: str = "whittle",
 ) -> HurstFit:
-    """Fit log C = a + s log q over [q_min, q_max]; H = -s/2 - 1.
+    """Fit the power law C(q) = c q^s over [q_min, q_max]; H = -s/2 - 1.
 
-    Defaults: from 4 x the fundamental (2 pi/L) to half the Nyquist wave number, which
-    avoids the few, noisy lowest modes and the aliased top octave.
+    ``method="whittle"`` (default): Whittle's maximum-likelihood fit on the individual
+    FFT modes (each periodogram value is C(q) times a unit exponential variable), which
+    weights every mode equally and has no log-of-noise bias.  ``method="binned"``:
+    least squares of log C on log q over the radially averaged bins, weighted by the
+    number of modes per bin (used when ``psd`` is given).
+
+    Default window: 2 x the fundamental (2 pi/L) to a third of the Nyquist wave number.
+    It leaves out the few, noisy lowest modes and the top of the spectrum, where RMD
+    surfaces carry excess power (their interpolation is a poor low-pass) and where
+    aliasing lives.  The measured bias per generator is in docs/problems.md.
     """
-    psd = radial_psd(surface) if psd is None else psd
     q0 = 2.0 * np.pi / surface.length
     q_nyq = np.pi / surface.delta
-    lo = 4.0 * q0 if q_min is None else q_min
-    hi = 0.5 * q_nyq if q_max is None else q_max
-    m = (psd.q >= lo) & (psd.q <= hi)
+    lo = FIT_Q_MIN_CYCLES * q0 if q_min is None else float(q_min)
+    hi = q_nyq / FIT_Q_MAX_DIVISOR if q_max is None else float(q_max)
+    if method not in ("whittle", "binned"):
+        raise ProblemInputError(f"unknown Hurst fit method {method!r}; choose 'whittle' or 'binned'")
+    binned = radial_psd(surface) if psd is None else psd
+    m = (binned.q >= lo) & (binned.q <= hi)
     if m.sum() < 3:
         raise ProblemInputError(f"too few PSD bins in [{lo:.3g}, {hi:.3g}] to fit a Hurst exponent")
-    x, y = np.log(psd.q[m]), np.log(psd.C[m])
-    s, a = np.polyfit(x, y, 1)
+    x, y = np.log(binned.q[m]), np.log(binned.C[m])
+    if method == "binned" or psd is not None:
+        s, a = np.polyfit(x, y, 1, w=np.sqrt(binned.counts[m]))
+        method = "binned"
+    else:
+        s, a = _whittle_power_law(*periodogram(surface), lo, hi)
     resid = y - (a + s * x)
     r2 = 1.0 - float(np.sum(resid**2) / np.sum((y - y.mean()) ** 2))
-    return HurstFit(hurst=-s / 2.0 - 1.0, slope=float(s), intercept=float(a), q_range=(lo, hi), r2=r2)
+    return HurstFit(hurst=-s / 2.0 - 1.0, slope=float(s), intercept=float(a), q_range=(lo, hi), r2=r2,
+                    method=method)
+
+
+def _whittle_power_law(q: np.ndarray, C: np.ndarray, lo: float, hi: float) -> tuple[float, float]:
+    """Maximum-likelihood (Whittle) slope s and log-amplitude a of C = e^a q^s over
+    the modes with lo <= |q| <= hi.  With I_k ~ C(q_k) Exp(1) the negative
+    log-likelihood, minimised over a in closed form, is
+    log mean(I_k q_k^-s) + s mean(log q_k)."""
+    from scipy.optimize import minimize_scalar
+
+    m = (q >= lo) & (q <= hi)
+    lq = np.log(q[m])
+    I = C[m]
+    lq_mean = float(lq.mean())
+    dl = lq - lq_mean  # centred: keeps exp() in range for any slope
+
+    def profile_nll(s: float) -> float:
+        return float(np.log(np.mean(I * np.exp(-s * dl))))
+
+    res = minimize_scalar(profile_nll, bounds=(-8.0, 0.0), method="bounded", options={"xatol": 1e-10})
+    s = float(res.x)
+    a = float(np.log(np.mean(I * np.exp(-s * dl)))) - s * lq_mean
+    return s, a

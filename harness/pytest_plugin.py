@@ -1,0 +1,55 @@
+"""pytest plugin ``contactbench`` (entry point pytest11), loaded in every pytest session
+of an environment where the package is installed -- so it imports nothing heavy at
+module level.
+
+Fixtures
+--------
+``contact_instance``  factory: ``contact_instance("rmd", N=32, step=-1)`` or
+                      ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance.
+``run_harness``       factory: run the harness into a temporary directory and return the
+                      tidy table (pandas DataFrame), e.g.
+                      ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import pytest
+
+
+@pytest.fixture
+def contact_instance() -> Callable[..., Any]:
+    def make(kind: str = "rmd", **kw: Any) -> Any:
+        if kind == "counterexample":
+            from problems.instances import counterexample
+
+            return counterexample(int(kw.get("n", 100)), int(kw.get("seed", 0)), operator=kw.get("operator", "dense"))
+        if kind == "rmd":
+            from problems.scenes import SceneConfig, get_scene
+
+            scene = get_scene("paper-sweep")
+            cfg = scene.config(SceneConfig(size=int(kw.get("N", 32)), steps=int(kw.get("steps", 3)),
+                                           seeds=(int(kw.get("seed", 0)),), operator=kw.get("operator")))
+            seq = scene.build(scene.instances(cfg)[0])
+            return seq.at(int(kw.get("step", -1)) % len(seq))
+        raise ValueError(f"unknown instance kind {kind!r}: use 'rmd' or 'counterexample'")
+
+    return make
+
+
+@pytest.fixture
+def run_harness(tmp_path: Any) -> Callable[..., Any]:
+    def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
+        from harness.runner import RunConfig, run_benchmark
+        from harness.store import load_table
+        from problems.scenes import SceneConfig
+
+        scene_keys = {"size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator", "extra"}
+        cfg = SceneConfig(**{k: v for k, v in options.items() if k in scene_keys})
+        run_cfg = RunConfig(progress=False, **{k: v for k, v in options.items() if k not in scene_keys})
+        out_dir = out or tmp_path / "run"
+        run_benchmark(scenes, cfg, solvers, run_cfg, out_dir, command=["pytest"])
+        return load_table(out_dir)
+
+    return run

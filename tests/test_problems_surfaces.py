@@ -1,0 +1,115 @@
+"""Surfaces: RMD and spectral generators, the Hurst fit, coarse levels, bad heights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from problems.errors import ProblemInputError
+from problems.surfaces import Surface, fit_hurst, radial_psd, rmd_surface, rmd_surface_n, spectral_surface
+
+HURSTS = (0.3, 0.5, 0.7)
+
+
+@pytest.mark.parametrize("hurst", HURSTS)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hurst_fit_recovers_H_for_spectral_surfaces(hurst: float, seed: int) -> None:
+    s = spectral_surface(256, hurst, seed=seed)
+    assert abs(fit_hurst(s).hurst - hurst) <= 0.05
+
+
+@pytest.mark.parametrize("hurst", HURSTS)
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hurst_fit_recovers_H_for_rmd_surfaces(hurst: float, periodic: bool, seed: int) -> None:
+    s = rmd_surface(8, hurst, seed=seed, periodic=periodic)
+    assert s.N == (256 if periodic else 257)
+    assert abs(fit_hurst(s).hurst - hurst) <= 0.1
+
+
+def test_binned_fit_agrees_with_whittle_on_a_spectral_surface() -> None:
+    s = spectral_surface(256, 0.6, seed=4)
+    binned = fit_hurst(s, psd=radial_psd(s))
+    assert binned.method == "binned"
+    assert abs(binned.hurst - fit_hurst(s).hurst) < 0.03
+    assert binned.r2 > 0.95
+
+
+def test_radial_psd_integrates_to_the_variance() -> None:
+    """Parseval: sum over modes of C(q) dq^2 = rms^2 (periodic, no window)."""
+    s = spectral_surface(64, 0.5, rms_height=2e-6, seed=0)
+    psd = radial_psd(s)
+    dq2 = (2 * np.pi / s.length) ** 2
+    assert np.sum(psd.C * psd.counts) * dq2 == pytest.approx(s.rms_height**2, rel=1e-10)
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_rmd_coarse_levels_are_exact_sub_samples(periodic: bool) -> None:
+    s = rmd_surface(6, 0.7, seed=3, periodic=periodic)
+    assert [lev.N for lev in s.levels] == ([4, 8, 16, 32] if periodic else [5, 9, 17, 33])
+    for lev in s.levels:
+        stride = lev.meta["stride"]
+        assert np.array_equal(lev.heights, s.heights[::stride, ::stride])
+        assert lev.delta == pytest.approx(s.delta * stride, rel=1e-15)
+        assert lev.periodic == periodic
+
+
+def test_rmd_with_additions_stores_the_construction_states() -> None:
+    plain = rmd_surface(6, 0.7, seed=3)
+    sra = rmd_surface(6, 0.7, seed=3, additions=True)
+    assert [lev.N for lev in sra.levels] == [lev.N for lev in plain.levels]
+    stride = sra.levels[-1].meta["stride"]
+    moved = sra.levels[-1].heights - sra.heights[::stride, ::stride]
+    assert np.abs(moved).max() > 0  # later stages displaced the old points ...
+    assert np.std(moved) < 0.5 * sra.rms_height  # ... by the small, fine-scale additions only
+
+
+def test_rmd_is_seeded_and_scaled() -> None:
+    a = rmd_surface(5, 0.5, seed=9, rms_height=3e-6, length=50e-6)
+    b = rmd_surface(5, 0.5, seed=9, rms_height=3e-6, length=50e-6)
+    assert np.array_equal(a.heights, b.heights)
+    assert a.rms_height == pytest.approx(3e-6, rel=1e-12)
+    assert abs(a.z_mean) < 1e-18 and a.length == pytest.approx(50e-6)
+    assert not np.array_equal(a.heights, rmd_surface(5, 0.5, seed=10).heights)
+
+
+def test_rmd_surface_n_chooses_the_grid_and_refuses_other_sizes() -> None:
+    assert rmd_surface_n(32, 0.7).periodic and rmd_surface_n(32, 0.7).N == 32
+    assert not rmd_surface_n(33, 0.7).periodic and rmd_surface_n(33, 0.7).N == 33
+    with pytest.raises(ProblemInputError, match="N = 2\\^k or 2\\^k \\+ 1 .* N = 30"):
+        rmd_surface_n(30, 0.7)
+    with pytest.raises(ProblemInputError, match="Hurst exponent must lie in \\(0, 1\\), got 1.2"):
+        rmd_surface(5, 1.2)
+
+
+def test_surface_scaled_scales_every_length() -> None:
+    s = rmd_surface(5, 0.7, seed=2)
+    t = s.scaled(1e-6)
+    assert np.allclose(t.heights, s.heights * 1e-6, rtol=1e-15, atol=0)
+    assert t.delta == pytest.approx(s.delta * 1e-6, rel=1e-15)
+    assert t.rms_slope() == pytest.approx(s.rms_slope(), rel=1e-12)  # slopes are dimensionless
+    assert all(np.allclose(a.heights, b.heights * 1e-6) for a, b in zip(t.levels, s.levels))
+    assert fit_hurst(t).hurst == pytest.approx(fit_hurst(s).hurst, abs=1e-9)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_heights_are_refused(bad: float) -> None:
+    h = np.zeros((8, 8))
+    h[2, 5] = bad
+    with pytest.raises(ProblemInputError, match="NaN/inf values .*\\(2, 5\\)"):
+        Surface(h, 1e-6)
+
+
+def test_non_square_and_tiny_grids_are_refused() -> None:
+    with pytest.raises(ProblemInputError, match="must be square, got 8 x 9"):
+        Surface(np.zeros((8, 9)), 1e-6)
+    with pytest.raises(ProblemInputError, match="at least 2 x 2, got 1 x 1"):
+        Surface(np.zeros((1, 1)), 1e-6)
+    with pytest.raises(ProblemInputError, match="2-D array, got 1-D"):
+        Surface(np.zeros(8), 1e-6)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1e-6, np.nan])
+def test_bad_grid_spacing_is_refused(bad: float) -> None:
+    with pytest.raises(ProblemInputError, match="grid spacing delta must be a finite positive number"):
+        Surface(np.zeros((4, 4)), bad)
