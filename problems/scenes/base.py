@@ -107,6 +107,11 @@ class Scene(ABC):
     default_solvers: ClassVar[tuple[str, ...] | None] = None
     #: Whether consecutive steps form a load history (warm starts across steps).
     load_history: ClassVar[bool] = True
+    #: Profiles run when the user gives no --profile (None: ("default",)).
+    default_profiles: ClassVar[tuple[str, ...] | None] = None
+    #: Registry name of the scene's preferred exact reference solver (None: the harness's
+    #: candidates, tightest first).
+    reference_solver: ClassVar[str | None] = None
 
     def config(self, cfg: SceneConfig | None) -> SceneConfig:
         return (cfg or SceneConfig()).merged(self.defaults)
@@ -122,6 +127,11 @@ class Scene(ABC):
     def variants(self, cfg: SceneConfig, solvers: list[str]) -> list[SolverVariant]:
         """Solver variants to run; default: each requested solver with no parameters."""
         return [SolverVariant(s) for s in solvers]
+
+    #: A composite scene (e.g. "default") sets ``parts`` to a method returning
+    #: [(scene name, SceneConfig, solver names or None, profiles or None), ...] and runs
+    #: those scenes instead of its own instances.
+    parts: ClassVar[Any] = None
 
     def warnings(self, cfg: SceneConfig) -> list[str]:
         """Things the user should know before trusting the run (e.g. CMR on a surface

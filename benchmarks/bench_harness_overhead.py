@@ -1,0 +1,108 @@
+"""Harness overhead against a bare solver call on a 256^2 instance (issue 5: <= 5 %).
+
+    .venv/bin/python benchmarks/bench_harness_overhead.py [--size 256] [--solver pk] [--repeats 5]
+
+The instance is the top load step of the paper-sweep surface at N = 256.
+
+* bare    : in this process, one warm-up solve, then ``repeats`` timed ``solver.solve`` calls.
+* harness : the runner on the same instance (``JobRunner``: a forked isolated worker that
+            builds the instance, an untimed warm-up, ``repeats`` timed solves each followed
+            by the KKT check, the reference/analytic comparison and a fsync'ed row).
+
+Reported:
+  overhead per solve  = (job wall - build - warm-up - sum of timed solves) / sum of timed solves
+                        (worker start, pipe round trips, KKT check, row writing)
+  KKT check share     = one kkt_check on the instance / median bare solve
+  solve-time ratio    = median harness solve_time_s / median bare solve time (isolation must
+                        not slow the solver itself)
+  whole-run overhead  = the same with run_benchmark's fixed costs (plan, meta.json, parquet/csv)
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from harness.kkt import kkt_check
+from harness.runner import JobRunner, RunConfig, plan_run, run_benchmark
+from harness.store import ResultStore, load_table
+from problems.scenes import LoadSequence, SceneConfig, register_scene
+from problems.scenes.core import PaperSweep
+from solvers.base import SolverSettings
+from solvers.registry import get_solver
+
+
+@register_scene
+class TopStep(PaperSweep):
+    """paper-sweep reduced to its top load step (one instance-step)."""
+
+    name = "overhead-top-step"
+
+    def build(self, spec):  # type: ignore[no-untyped-def]
+        seq = super().build(spec)
+        last = len(seq) - 1
+        return LoadSequence(seq.instance, [seq.deltas[last]], lambda k: seq.at(last), surface=seq.surface)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--solver", default="pk")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--profile", default="default")
+    args = ap.parse_args()
+
+    cfg = SceneConfig(size=args.size, steps=args.steps, seeds=(0,))
+    scene = TopStep()
+    spec = scene.instances(scene.config(cfg))[0]
+    inst = scene.build(spec).at(0)
+    solver = get_solver(args.solver)
+    settings = SolverSettings(profile=args.profile, time_limit=600)
+    solver.solve(inst.qp, settings, None)  # warm-up
+    bare = []
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        res = solver.solve(inst.qp, settings, None)
+        bare.append(time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    kkt_check(inst, np.asarray(res.p))
+    t_kkt = time.perf_counter() - t0
+
+    run = RunConfig(profiles=(args.profile,), repeats=args.repeats, timeout=600, reference="none", warm=False,
+                    progress=False)
+    with tempfile.TemporaryDirectory() as tmp:
+        job = plan_run([scene.name], cfg, [args.solver], run).jobs[0]
+        store = ResultStore(tmp)
+        t0 = time.perf_counter()
+        JobRunner(job, run, {}, store.cache_dir, store.append).run()
+        t_job = time.perf_counter() - t0
+        table = store.finalize()
+        with tempfile.TemporaryDirectory() as tmp2:
+            t0 = time.perf_counter()
+            run_benchmark([scene.name], cfg, [args.solver], replace(run, warmup=False), tmp2, command=["bench"])
+            t_run = time.perf_counter() - t0
+            whole = load_table(tmp2)
+    solves = table["solve_time_s"].to_numpy()
+    build = float(table["build_time_s"].iloc[0])
+    warmup = float(np.median(solves))  # the untimed warm-up costs about one solve
+    overhead = (t_job - build - warmup - solves.sum()) / solves.sum()
+    whole_over = (t_run - float(whole["build_time_s"].iloc[0]) - whole["solve_time_s"].sum()) / whole["solve_time_s"].sum()
+    print(f"instance: paper-sweep top step, N = {args.size}, n = {inst.n}; solver {args.solver}, profile {args.profile}")
+    print(f"status {set(table['status'])}, kkt_error {table['kkt_error'].max():.2e}")
+    print(f"bare solve         median {statistics.median(bare):.4f} s  min {min(bare):.4f} s")
+    print(f"harness solve_time median {np.median(solves):.4f} s  min {solves.min():.4f} s"
+          f"  (ratio {np.median(solves) / statistics.median(bare):.3f})")
+    print(f"build (in worker)  {build:.3f} s;  job wall {t_job:.3f} s for {len(solves)} timed solves + warm-up")
+    print(f"KKT check          {t_kkt * 1e3:.2f} ms = {100 * t_kkt / statistics.median(bare):.2f} % of a solve")
+    print(f"overhead per solve {100 * overhead:.2f} % (worker start, pipe, KKT check, rows)")
+    print(f"whole-run overhead {100 * whole_over:.2f} % (adds plan, meta.json with git, parquet/csv; no warm-up)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,145 @@
+"""Benchmark of the paper's algorithms (Bemporad & Paggi 2015, section 4, Fig. 4-5).
+
+RMD surfaces (H = 0.7, L = 100 um, BCC kernel, aperiodic, FFT operator) at 128^2 and
+256^2, 10 displacement steps up to (z_max - z_mean)/2.  For each solver variant: total
+time and iterations over the ramp, matvecs, steps converged and worst scaled KKT error.
+Warm-started variants take the previous step's p (and w) mapped by grid position.
+
+    OMP_NUM_THREADS=1 CONTACTBENCH_FFT_WORKERS=1 .venv/bin/python benchmarks/bench_paper_solvers.py \
+        --sizes 128 256 --time-limit 60 --budget 300
+
+A variant that exceeds ``--budget`` seconds on one size skips the rest of its ramp
+(marked in the table).  Not a test: figures depend on the machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from harness.kkt import kkt_check
+from problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
+from problems.surfaces import rmd_surface_n
+from solvers.base import SolverSettings, WarmStart
+from solvers.registry import get_solver
+
+
+@dataclass(frozen=True)
+class Variant:
+    label: str
+    solver: str
+    warm: bool
+    params: dict = field(default_factory=dict)
+    tol: float | None = None
+    max_iter: int | None = None
+
+
+VARIANTS = (
+    Variant("greedy-cg", "greedy-cg", False),
+    Variant("greedy-chol", "greedy-chol", False),
+    Variant("greedy-gs", "greedy-gs", False),
+    Variant("pk (cold)", "pk", False),
+    Variant("pk (warm)", "pk", True),
+    Variant("nnls (cold)", "nnls", False),
+    Variant("nnls (warm)", "nnls", True),
+    Variant("nnls-gp K=100 (cold)", "nnls-gp", False, {"K": 100}),
+    Variant("nnls-gp K=100 (warm)", "nnls-gp", True, {"K": 100}),
+    Variant("admm (warm, 1e-6)", "admm", True, tol=1e-6, max_iter=3000),
+)
+
+
+@dataclass
+class Row:
+    label: str
+    N: int
+    n_max: int = 0
+    time: float = 0.0
+    iterations: int = 0
+    matvecs: int = 0
+    converged: int = 0
+    steps: int = 0
+    kkt_max: float = 0.0
+    note: str = ""
+
+
+def map_by_position(prev: ContactInstance, values: np.ndarray | None, cur: ContactInstance) -> np.ndarray | None:
+    """Values on the previous trial set moved onto the current one by grid index."""
+    if values is None:
+        return None
+    out = np.zeros(cur.n)
+    g_prev, g_cur = prev.geometry.indices, cur.geometry.indices
+    pos = np.searchsorted(g_prev, g_cur)
+    pos = np.minimum(pos, g_prev.size - 1)
+    hit = g_prev[pos] == g_cur
+    out[hit] = values[pos[hit]]
+    return out
+
+
+def run_variant(v: Variant, N: int, instances: list[ContactInstance], time_limit: float, budget: float) -> Row:
+    row = Row(v.label, N, n_max=max(i.n for i in instances))
+    solver = get_solver(v.solver)
+    prev, prev_res = None, None
+    for inst in instances:
+        warm = None
+        if v.warm and prev is not None:
+            warm = WarmStart(map_by_position(prev, prev_res.p, inst), map_by_position(prev, prev_res.w, inst))
+        settings = SolverSettings(tol=v.tol, max_iter=v.max_iter, time_limit=time_limit, params=dict(v.params))
+        t0 = time.perf_counter()
+        try:
+            res = solver.solve(inst.qp, settings, warm)
+        except MemoryError as exc:
+            row.note = f"memory: {exc}"[:60]
+            break
+        row.time += time.perf_counter() - t0
+        row.steps += 1
+        row.iterations += res.iterations
+        row.matvecs += res.matvecs
+        row.converged += int(res.converged)
+        row.kkt_max = max(row.kkt_max, kkt_check(inst, res.p).kkt_error)
+        prev, prev_res = inst, res
+        if row.time > budget:
+            row.note = f"over budget after {row.steps} steps"
+            break
+    return row
+
+
+def print_table(rows: list[Row]) -> None:
+    ref = {r.N: r.time / max(r.steps, 1) for r in rows if r.label.startswith("nnls-gp K=100 (cold)")}
+    head = f"{'N':>4} {'solver':<22} {'n_max':>6} {'steps':>5} {'conv':>4} {'time s':>9} {'x nnls-gp':>9} {'iters':>8} {'matvecs':>8} {'kkt max':>8}  note"
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        per_step = r.time / max(r.steps, 1)
+        ratio = per_step / ref[r.N] if ref.get(r.N) else float("nan")
+        print(f"{r.N:>4} {r.label:<22} {r.n_max:>6} {r.steps:>5} {r.converged:>4} {r.time:>9.2f} {ratio:>9.1f} "
+              f"{r.iterations:>8} {r.matvecs:>8} {r.kkt_max:>8.1e}  {r.note}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--time-limit", type=float, default=60.0, help="per-solve time limit (s)")
+    ap.add_argument("--budget", type=float, default=300.0, help="per variant and size (s)")
+    ap.add_argument("--only", nargs="*", default=None, help="labels (prefix match) to run")
+    args = ap.parse_args()
+    rows: list[Row] = []
+    for N in args.sizes:
+        surf = rmd_surface_n(N, 0.7, length=100e-6, seed=args.seed)
+        builder = InstanceBuilder(surf, 1e9, "bcc", periodic=False, operator="fft")
+        instances = [builder.build(d) for d in load_ramp(paper_max_displacement(surf), args.steps)]
+        for v in VARIANTS:
+            if args.only and not any(v.label.startswith(o) for o in args.only):
+                continue
+            row = run_variant(v, N, instances, args.time_limit, args.budget)
+            rows.append(row)
+            print(f"# done {N} {v.label}: {row.time:.2f} s", flush=True)
+    print_table(rows)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+"""pytest-benchmark over every registered solver (parametrized from the registry: a newly
+registered solver is benchmarked with no edit here).
+
+    pytest --benchmark-only benchmarks/                      # run
+    pytest --benchmark-only benchmarks/ --benchmark-json=b.json
+
+Each round solves a fresh problem (a new operator object, so no state carries over;
+``benchmark.pedantic(setup=...)``).  The answer of the last round is judged by
+``harness.kkt.kkt_check`` and compared with the exact reference; the figures go to
+``benchmark.extra_info`` and so into the JSON output.  Pairs the harness would skip
+(capabilities, memory or time model, missing package) are skipped with the same reason.
+"""
+
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+import pytest
+
+from harness.kkt import kkt_check, relative_error, relative_load_error
+from harness.runner import instance_operator_kind, skip_decision
+from problems.errors import ProblemInputError
+from problems.instances import QP, ContactInstance, counterexample
+from problems.scenes import SceneConfig, get_scene
+from solvers.base import SolverSettings, get_profile
+from solvers.registry import all_solvers, get_solver
+
+PROFILE = os.environ.get("CONTACTBENCH_BENCH_PROFILE", "default")
+TIME_LIMIT = float(os.environ.get("CONTACTBENCH_BENCH_TIMEOUT", "30"))
+ROUNDS = int(os.environ.get("CONTACTBENCH_BENCH_ROUNDS", "3"))
+INSTANCES = ("rmd-32-top", "counterexample-100-s1")
+
+
+@lru_cache(maxsize=None)
+def instance(name: str) -> ContactInstance:
+    if name == "counterexample-100-s1":
+        return counterexample(100, seed=1)
+    if name == "rmd-32-top":
+        scene = get_scene("paper-sweep")
+        cfg = scene.config(SceneConfig(size=32, steps=3, seeds=(0,)))
+        seq = scene.build(scene.instances(cfg)[0])
+        return seq.at(len(seq) - 1)
+    raise KeyError(name)
+
+
+@lru_cache(maxsize=None)
+def dense_matrix(name: str) -> np.ndarray:
+    return instance(name).qp.H.to_dense()
+
+
+@lru_cache(maxsize=None)
+def reference(name: str) -> np.ndarray | None:
+    """The exact answer (scipy-nnls on a dense H), or None if that solver is missing."""
+    try:
+        ref = get_solver("scipy-nnls")
+    except KeyError:
+        return None
+    if not ref.availability()[0]:
+        return None
+    return ref.solve(fresh_qp(name, "dense"), SolverSettings(profile="high")).p
+
+
+def fresh_qp(name: str, operator: str) -> QP:
+    """A new QP object per round: a new operator (matvec counters, caches start empty)."""
+    inst = instance(name)
+    ubar = inst.qp.ubar.copy()
+    if operator == "dense":
+        from problems.operators import DenseOperator
+
+        return QP(DenseOperator(dense_matrix(name)), ubar, inst.qp.geometry)
+    return QP(inst.qp.H.restrict(np.arange(inst.n)), ubar, inst.qp.geometry)
+
+
+@pytest.mark.parametrize("name", INSTANCES)
+@pytest.mark.parametrize("solver_name", list(all_solvers()))
+def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
+    inst = instance(name)
+    decision = skip_decision(solver_name, inst.n, instance_operator_kind(inst), TIME_LIMIT, float(2**30))
+    if decision.skip:
+        pytest.skip(decision.reason)
+    solver = get_solver(solver_name)
+    settings = SolverSettings(profile=PROFILE, time_limit=TIME_LIMIT)
+
+    def setup() -> tuple[tuple[Any, ...], dict[str, Any]]:
+        return (fresh_qp(name, decision.operator), settings, None), {}
+
+    try:  # the warm-up round; a solver that refuses the instance with a clear error is skipped
+        solver.solve(fresh_qp(name, decision.operator), settings, None)
+    except ProblemInputError as exc:
+        pytest.skip(f"{solver_name} refuses this instance: {exc}")
+    result = benchmark.pedantic(solver.solve, setup=setup, rounds=ROUNDS, iterations=1, warmup_rounds=0)
+    p = np.asarray(result.p, dtype=np.float64)
+    kkt = kkt_check(inst, p)
+    info: dict[str, Any] = {
+        "solver": solver_name, "instance": name, "n": inst.n, "profile": PROFILE, "operator": decision.operator,
+        "kkt_error": kkt.kkt_error, "primal_residual": kkt.primal, "dual_residual": kkt.dual,
+        "complementarity": kkt.complementarity, "iterations": int(result.iterations),
+        "solver_converged": bool(result.converged), "solved": kkt.passes(get_profile(PROFILE).check_tol),
+        "load": inst.load(p),
+    }
+    p_ref = reference(name)
+    if p_ref is not None:
+        info["p_rel_error"] = relative_error(p, p_ref)
+        info["load_rel_error"] = relative_load_error(inst.load(p), float(np.sum(p_ref)))
+    benchmark.extra_info.update(info)
+    assert p.shape == (inst.n,)

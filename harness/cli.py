@@ -1,0 +1,226 @@
+"""The ``contactbench`` command line.
+
+    contactbench list scenes|solvers
+    contactbench run SCENE [SCENE...] [--solvers a,b|all] [--profile p[,q]] [--size N] [--steps K]
+                     [--seeds 0-9|0,3,5] [--surface PATH --length L] [--E E] [--kernel bcc|love]
+                     [--periodic] [--repeats R] [--timeout S] [--out DIR] [--jobs J] [--cold] ...
+    contactbench report DIR
+    contactbench validate MODULE:NAME|NAME [...]
+
+``run`` writes DIR/rows.jsonl (the resumable journal), DIR/results.parquet,
+DIR/results.csv and DIR/meta.json; running the same command again completes only the
+missing cells.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from typing import Sequence
+
+from problems.errors import ProblemInputError
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """'0-9' -> 0..9, '0,3,5' -> (0, 3, 5), '0-2,7' -> (0, 1, 2, 7)."""
+    seeds: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        try:
+            if "-" in part:
+                a, b = part.split("-", 1)
+                lo, hi = int(a), int(b)
+                if hi < lo or lo < 0:
+                    raise ValueError
+                seeds.extend(range(lo, hi + 1))
+            else:
+                seeds.append(int(part))
+                if seeds[-1] < 0:
+                    raise ValueError
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"bad seed list {text!r}: use e.g. 0-9 or 0,3,5") from None
+    if not seeds:
+        raise argparse.ArgumentTypeError(f"empty seed list {text!r}")
+    return tuple(dict.fromkeys(seeds))
+
+
+def parse_profiles(text: str) -> tuple[str, ...]:
+    from solvers.base import PROFILES
+
+    names = tuple(p.strip() for p in text.split(",") if p.strip())
+    bad = [p for p in names if p not in PROFILES]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"unknown profile {', '.join(bad) or text!r}; choose from {', '.join(PROFILES)}")
+    return names
+
+
+def positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="contactbench", description="Benchmark harness for BEM rough-surface contact QPs")
+    ap.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = ap.add_subparsers(dest="command", required=True)
+
+    ls = sub.add_parser("list", help="list scenes or solvers")
+    ls.add_argument("what", choices=("scenes", "solvers"))
+
+    run = sub.add_parser("run", help="run scenes and write a tidy table")
+    run.add_argument("scenes", nargs="+", metavar="SCENE")
+    run.add_argument("--solvers", default=None, help="comma list of registry names or MODULE:NAME, or 'all'")
+    run.add_argument("--profile", type=parse_profiles, default=None, help="profile(s): default, low, mid, high (comma list)")
+    run.add_argument("--size", type=positive_int, default=None, help="grid points per side N")
+    run.add_argument("--steps", type=positive_int, default=None, help="number of load steps K")
+    run.add_argument("--seeds", type=parse_seeds, default=None, help="e.g. 0-9 or 0,3,5")
+    run.add_argument("--surface", default=None, help="height map in metres (.npy/.csv/.txt)")
+    run.add_argument("--length", type=positive_float, default=None, help="side length L in metres")
+    run.add_argument("--E", type=positive_float, default=None, help="composite modulus E* in Pa")
+    run.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None)
+    run.add_argument("--periodic", action="store_true", default=None, help="periodic domain")
+    run.add_argument("--operator", choices=("fft", "dense"), default=None, help="operator the instance is built with")
+    run.add_argument("--repeats", type=positive_int, default=1, help="timed solves per cell (min and median reported)")
+    run.add_argument("--timeout", type=positive_float, default=60.0, help="hard limit per solve, seconds")
+    run.add_argument("--out", default=None, help="output directory (default results/<scenes>)")
+    run.add_argument("--jobs", type=positive_int, default=1, help="instances run concurrently")
+    run.add_argument("--cold", action="store_true", help="no warm starts along load histories")
+    run.add_argument("--no-warmup", action="store_true", help="skip the untimed warm-up solve")
+    run.add_argument("--reference", default="auto", help="reference solver: auto (default), none, or a name")
+    run.add_argument("--reference-timeout", type=positive_float, default=None, help="limit for a reference solve (default 5 x timeout)")
+    run.add_argument("--memory-budget-gb", type=positive_float, default=None, help="memory a solve may use (GiB)")
+    run.add_argument("--threads", type=positive_int, default=None, help="BLAS/FFT threads per worker")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run.add_argument("--report", action="store_true", help="build the report after the run")
+
+    rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
+    rep.add_argument("dir")
+
+    val = sub.add_parser("validate", help="run a solver through the conformance battery")
+    val.add_argument("args", nargs=argparse.REMAINDER, help="MODULE:NAME or NAME, then the battery's own options")
+    return ap
+
+
+def cmd_list(what: str) -> int:
+    if what == "scenes":
+        from problems.scenes import all_scenes, scene_import_errors
+
+        for name, scene in all_scenes().items():
+            print(f"{name:24s} {scene.description}")
+        for mod, err in scene_import_errors().items():
+            print(f"[import error] {mod}: {err.strip().splitlines()[-1]}")
+        return 0
+    from solvers.registry import all_solvers, import_errors
+
+    rows = []
+    for name, solver in all_solvers().items():
+        ok, why = solver.availability()
+        rows.append((name, solver.family, "yes" if ok else f"no ({why})", solver.capabilities.describe()))
+    w0 = max([len(r[0]) for r in rows] + [6])
+    w1 = max([len(r[1]) for r in rows] + [6])
+    print(f"{'solver':{w0}s}  {'family':{w1}s}  available / capabilities")
+    for name, fam, avail, caps in rows:
+        print(f"{name:{w0}s}  {fam:{w1}s}  {avail}\n{'':{w0}s}  {'':{w1}s}  {caps}")
+    for mod, err in import_errors().items():
+        print(f"[import error] {mod}: {err.strip().splitlines()[-1]}")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    from problems.scenes import SceneConfig, get_scene
+
+    from .runner import RunConfig, run_benchmark
+
+    for name in args.scenes:
+        get_scene(name)  # unknown scene: a clear KeyError listing the known ones
+    if args.surface and not args.length:
+        raise ProblemInputError("--surface needs --length L (the side length in metres)")
+    cfg = SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
+                      length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic, operator=args.operator)
+    kw = {}
+    if args.memory_budget_gb:
+        kw["memory_budget"] = args.memory_budget_gb * 2**30
+    run_cfg = RunConfig(profiles=args.profile, repeats=args.repeats, timeout=args.timeout, warm=not args.cold,
+                        warmup=not args.no_warmup, jobs=args.jobs, reference=args.reference,
+                        reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
+                        progress=False if args.no_progress else None, **kw)
+    out = args.out or "results/" + "-".join(args.scenes)
+    summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv])
+    for w in summary.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    print(summary.line())
+    if args.report:
+        return cmd_report(out)
+    return 0
+
+
+def cmd_report(out_dir: str) -> int:
+    try:
+        from . import report
+    except ImportError as exc:
+        if "harness.report" in str(exc) or "report" in str(getattr(exc, "name", "")):
+            print("contactbench report: the report module (harness/report.py) is not installed in this checkout; "
+                  f"the tidy table is in {out_dir}/results.parquet", file=sys.stderr)
+            return 2
+        raise
+    path = report.build_report(out_dir)
+    if path is not None:
+        print(f"report: {path}")
+    return 0
+
+
+def cmd_validate(args: Sequence[str]) -> int:
+    try:
+        from . import conformance
+    except ImportError as exc:
+        if "conformance" in str(exc):
+            print("contactbench validate: the conformance battery (harness/conformance.py) is not in this checkout",
+                  file=sys.stderr)
+            return 2
+        raise
+    return int(conformance.main(list(args)) or 0)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(message)s", stream=sys.stderr)
+    try:
+        if args.command == "list":
+            return cmd_list(args.what)
+        if args.command == "run":
+            return cmd_run(args, argv)
+        if args.command == "report":
+            return cmd_report(args.dir)
+        if args.command == "validate":
+            return cmd_validate(args.args)
+    except KeyboardInterrupt:
+        print("interrupted: rows so far are kept; run the same command again to finish", file=sys.stderr)
+        return 130
+    except (ProblemInputError, KeyError, ValueError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        print(f"contactbench: error: {msg}", file=sys.stderr)
+        return 2
+    return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

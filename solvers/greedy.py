@@ -1,0 +1,232 @@
+"""Greedy methods (Bemporad & Paggi 2015, section 3.1, Algorithm 1).
+
+Solve the unconstrained system H_II p_I = ubar_I on the current set I, drop every
+element with p_j < -eps from I (tensile force), and repeat on the reduced set.  Three
+variants for the unconstrained solve (paper: "Steps 2.1-2.4 can be replaced by any
+other algorithm"):
+
+* ``greedy-cg``   conjugate gradient (Algorithm 1 steps 2.1-2.4), warm started on each
+                  pass from the previous pass's p_I; matrix-free (dense or FFT operator).
+* ``greedy-gs``   Gauss-Seidel sweeps (as in Borri-Brunetto, Carpinteri & Chiaia, BCC),
+                  block-row form; rows of H gathered with ``op.submatrix``.
+* ``greedy-chol`` Cholesky of the dense block H_II on every pass (the paper's MATLAB
+                  ``mldivide``); needs n^2 memory and raises ``MemoryBudgetError`` beyond
+                  the budget.
+
+**Intended method, not the printed loop.**  Read literally, Algorithm 1's outer loop tests
+``min(p) < -eps`` only *after* step 2.5 has zeroed the negative entries, so it always
+stops after one pass, with w_I != 0 on the reduced set.  What runs here is the intended
+method: the reduced system is solved again after every removal, until a pass yields no
+negative p (``info["passes"]`` counts the passes).
+
+Greedy methods are not exact: nothing guarantees w >= 0 on the removed elements (the
+paper's Example 1 is a counterexample), so ``Capabilities.exact`` is False.  No warm
+start: eliminations are irreversible, so the paper's safe start is I = all, p = 0
+(a supplied WarmStart is ignored, ``warm_started=False``).
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import scipy.linalg as sla
+
+from problems.errors import MemoryBudgetError
+from problems.instances import QP
+from problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget, dense_nbytes
+
+from ._common import (
+    EXACT_TOL,
+    Deadline,
+    RunRecorder,
+    Scales,
+    cholesky_seconds,
+    conjugate_gradient,
+    matvec_seconds,
+    max_iter_of,
+)
+from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from .registry import register
+
+#: Typical number of outer passes and inner iterations per pass (for time_estimate).
+TYPICAL_PASSES = 20
+TYPICAL_CG_ITERS_PER_PASS = 60
+TYPICAL_GS_SWEEPS_PER_PASS = 200
+
+
+@dataclass
+class ReducedSolve:
+    """Result of one unconstrained solve H_II x = ubar_I."""
+
+    x: np.ndarray
+    iterations: int
+    converged: bool
+
+
+class GreedySolver(Solver):
+    """Algorithm 1 (intended reading) with a pluggable unconstrained solve."""
+
+    family: ClassVar[str] = "paper"
+    capabilities: ClassVar[Capabilities] = Capabilities(warm_start="none", exact=False)
+    default_max_iter: ClassVar[int] = 100_000
+
+    @abstractmethod
+    def solve_reduced(
+        self, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float, max_iter: int, deadline: Deadline
+    ) -> ReducedSolve:
+        """Solve op x = b (op = H restricted to the current set I)."""
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        rec = RunRecorder(qp, settings)
+        rec.info["method"] = "greedy, repeated until no negative p (intended Algorithm 1)"
+        trivial = rec.trivial(False)
+        if trivial is not None:
+            return trivial
+        sc = Scales.of(qp)
+        tol = settings.tolerance(EXACT_TOL)
+        max_iter = max_iter_of(settings, self.default_max_iter)
+        max_passes = int(settings.param("max_passes", qp.n + 1))
+        literal = bool(settings.param("literal_one_pass", False))  # testing aid only
+        active = np.arange(qp.n)
+        p = np.zeros(qp.n)
+        op: ContactOperator = qp.H
+        total_it, passes, converged = 0, 0, False
+        while passes < max_passes:
+            passes += 1
+            red = self.solve_reduced(op, qp.ubar[active], p[active], sc.disp_tol(tol),
+                                     max_iter - total_it, rec.deadline)
+            total_it += red.iterations
+            p[:] = 0.0
+            p[active] = red.x
+            negative = red.x < -sc.force_tol(tol)
+            rec.record(passes, float(-min(0.0, red.x.min(initial=0.0))) / sc.p_s)
+            if not negative.any():
+                converged = red.converged
+                break
+            p[active[negative]] = 0.0  # step 2.5: zero tensile forces, shrink I
+            active = active[~negative]
+            if literal or total_it >= max_iter or rec.deadline.expired() or active.size == 0:
+                break
+            op = rec.tally.track(qp.H.restrict(active))
+        np.maximum(p, 0.0, out=p)  # entries in (-eps, 0) count as zero
+        rec.info.update(passes=passes, final_set_size=int(active.size))
+        status, message = rec.stop_status(converged)
+        return rec.result(p, total_it, converged, status, f"{message} after {passes} passes", False)
+
+
+@register
+class GreedyCG(GreedySolver):
+    """Greedy method with conjugate gradient (paper Algorithm 1, intended reading).
+
+    Each pass runs CG (steps 2.1-2.4) on the reduced operator ``H.restrict(I)``, warm
+    started from the previous pass's p_I.  Matrix-free: dense or FFT operator.
+    Not exact (paper Example 1); no warm start across load steps."""
+
+    name = "greedy-cg"
+    description = "Greedy + CG (Algorithm 1, repeated to no negative p); not exact"
+
+    def solve_reduced(self, op, b, x0, atol, max_iter, deadline) -> ReducedSolve:
+        r = conjugate_gradient(op, b, x0, atol, max_iter, deadline)
+        return ReducedSolve(r.x, r.iterations, r.converged)
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return TYPICAL_PASSES * TYPICAL_CG_ITERS_PER_PASS * matvec_seconds(n, operator_kind)
+
+
+class RowBlocks:
+    """Row blocks H[B, :] of a reduced operator: sliced from one dense copy when it fits
+    the memory budget, else gathered from the kernel table block by block."""
+
+    def __init__(self, op: ContactOperator, block: int, budget: float) -> None:
+        self.op = op
+        self.block = block
+        self.dense = op.to_dense(budget) if dense_nbytes(op.n) <= budget else None
+
+    def rows(self, s: int, e: int) -> np.ndarray:
+        if self.dense is not None:
+            return self.dense[s:e]
+        return self.op.submatrix(np.arange(s, e), np.arange(self.op.n))
+
+    def residual(self, b: np.ndarray, x: np.ndarray) -> np.ndarray:
+        if self.dense is not None:
+            return b - self.dense @ x
+        return b - self.op.matvec(x)
+
+
+def gauss_seidel(rows: RowBlocks, b: np.ndarray, x0: np.ndarray, atol: float, max_sweeps: int,
+                 deadline: Deadline, check_every: int = 4) -> ReducedSolve:
+    """Forward Gauss-Seidel sweeps on H x = b in block-row form: for each row block B,
+    x_B <- tril(H_BB)^-1 (b_B - H_B,<B x_<B(new) - triu(H_BB, 1) x_B(old) - H_B,>B x_>B(old)),
+    which is exactly
+    point Gauss-Seidel.  Stops when ||b - Hx||_inf <= atol (checked every few sweeps)."""
+    n = b.size
+    x = x0.copy()
+    sweeps = 0
+    res = float(np.max(np.abs(rows.residual(b, x)))) if n else 0.0
+    while res > atol and sweeps < max_sweeps and not deadline.expired():
+        for s in range(0, n, rows.block):
+            e = min(n, s + rows.block)
+            R = rows.rows(s, e)
+            D = R[:, s:e]
+            rhs = b[s:e] - R[:, :s] @ x[:s] - R[:, e:] @ x[e:] - np.triu(D, 1) @ x[s:e]
+            x[s:e] = sla.solve_triangular(D, rhs, lower=True, check_finite=False)
+        sweeps += 1
+        if sweeps % check_every == 0 or sweeps >= max_sweeps:
+            res = float(np.max(np.abs(rows.residual(b, x))))
+    return ReducedSolve(x, sweeps, res <= atol)
+
+
+@register
+class GreedyGS(GreedySolver):
+    """Greedy method with Gauss-Seidel (paper section 3.1 / section 4, as in BCC).
+
+    The unconstrained solve of each pass is forward Gauss-Seidel, warm started from the
+    previous pass; one iteration = one sweep.  Rows come from ``op.submatrix`` (one dense
+    copy of H_II when it fits the memory budget, else gathered per block on every sweep,
+    so memory stays O(block x n)).  Not exact; no warm start."""
+
+    name = "greedy-gs"
+    description = "Greedy + Gauss-Seidel (BCC); not exact"
+    default_max_iter = 100_000
+
+    def solve_reduced(self, op, b, x0, atol, max_iter, deadline) -> ReducedSolve:
+        rows = RowBlocks(op, block=256, budget=DEFAULT_MEMORY_BUDGET / 4)
+        return gauss_seidel(rows, b, x0, atol, max_iter, deadline)
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return TYPICAL_PASSES * TYPICAL_GS_SWEEPS_PER_PASS * matvec_seconds(n, "dense")
+
+
+@register
+class GreedyCholesky(GreedySolver):
+    """Greedy method with a Cholesky solve (the paper's MATLAB ``mldivide``).
+
+    Every pass gathers the dense block H_II with ``op.submatrix`` and factors it afresh
+    (as mldivide does).  Needs n^2 memory: raises MemoryBudgetError over the budget (the
+    paper: "lack of memory for n > 20000").  Not exact; no warm start."""
+
+    name = "greedy-chol"
+    description = "Greedy + Cholesky (mldivide); dense n^2; not exact"
+    capabilities = Capabilities(warm_start="none", exact=False, needs_dense=True)
+
+    def memory_estimate(self, n: int) -> float:
+        return float(dense_nbytes(n))
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        check_dense_budget(qp.n, what="greedy-chol: dense block H_II for the Cholesky factor")
+        return super().solve(qp, settings, warm)
+
+    def solve_reduced(self, op, b, x0, atol, max_iter, deadline) -> ReducedSolve:
+        idx = np.arange(op.n)
+        try:
+            A = np.array(op.submatrix(idx, idx), dtype=np.float64, copy=True)
+        except MemoryError as exc:  # the gather itself ran out of memory
+            raise MemoryBudgetError("greedy-chol: dense block H_II", dense_nbytes(op.n), DEFAULT_MEMORY_BUDGET) from exc
+        x = sla.cho_solve(sla.cho_factor(A, lower=True, overwrite_a=True, check_finite=False), b, check_finite=False)
+        return ReducedSolve(x, 1, True)
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return TYPICAL_PASSES * cholesky_seconds(n)

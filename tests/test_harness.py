@@ -1,0 +1,269 @@
+"""Harness core: isolation statuses, skips, warm starts, resume after SIGKILL, the
+store, the reference cache and the CLI round trip.  Small grids only (8^2-16^2)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+try:  # registers the throw-away solvers (tests/ may or may not be a package)
+    from tests import test_harness_solvers  # noqa: F401
+except ImportError:  # pragma: no cover
+    import test_harness_solvers  # noqa: F401
+from harness import cli
+from harness.runner import RunConfig, make_cell_id, map_by_grid_index, plan_run, run_benchmark
+from harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
+from harness.store import ROWS_FILE, ResultStore, load_table, read_journal
+from problems.scenes import SceneConfig
+
+TESTS = Path(__file__).resolve().parent
+SOLVER_MODULE = test_harness_solvers.__name__
+SMALL = SceneConfig(size=8, steps=2, seeds=(0,))
+
+
+def run(tmp: Path, solvers: list[str], cfg: SceneConfig = SMALL, scenes: tuple[str, ...] = ("paper-sweep",),
+        **kw: object) -> pd.DataFrame:
+    kw.setdefault("reference", "test-exact")
+    kw.setdefault("progress", False)
+    run_benchmark(list(scenes), cfg, solvers, RunConfig(**kw), tmp, command=["pytest"])  # type: ignore[arg-type]
+    return load_table(tmp)
+
+
+def by_solver(df: pd.DataFrame) -> dict[str, set[str]]:
+    return {s: set(g["status"]) for s, g in df.groupby("solver")}
+
+
+def test_crash_hang_and_raise_cost_only_their_own_rows(tmp_path: Path) -> None:
+    solvers = ["test-crash", "test-exact", "test-hang", "test-raise", "test-warm-pg"]
+    df = run(tmp_path, solvers, timeout=1.0)
+    assert len(df) == 2 * len(solvers)  # 2 steps x 5 solvers, every row kept
+    assert by_solver(df) == {
+        "test-crash": {"crashed"},
+        "test-hang": {"timeout"},
+        "test-raise": {"failed"},
+        "test-exact": {"solved"},
+        "test-warm-pg": {"solved"},
+    }
+    crash = df[df.solver == "test-crash"].iloc[0]
+    assert "SIGABRT" in crash["error"]
+    assert "deliberate failure" in df[df.solver == "test-raise"].iloc[0]["error"]
+    ok = df[df.status == "solved"]
+    assert (ok["kkt_error"] <= ok["check_tol"]).all()
+    assert (ok["p_rel_error"] < 1e-6).all() and (ok["reference_solver"] == "test-exact").all()
+    assert set(df["status"]) <= set(STATUSES)
+    assert list(df.columns[: len(ALL_COLUMNS)]) == list(ALL_COLUMNS)
+    assert df["cell_id"].is_unique
+
+
+def test_skips_are_recorded_with_reasons_and_not_attempted(tmp_path: Path) -> None:
+    cfg = SceneConfig(size=16, steps=3, seeds=(0,))
+    df = run(tmp_path, ["test-tiny", "test-slow-model", "test-missing"], cfg=cfg, timeout=5.0)
+    skipped = df[df.status == "skipped"]
+    assert skipped["solve_time_s"].isna().all() and skipped["kkt_error"].isna().all()
+    reasons = dict(zip(skipped["solver"], skipped["skip_reason"]))
+    assert "not installed" in reasons["test-missing"]
+    assert "predicted solve time 8.64e+04 s" in reasons["test-slow-model"] and "limit of 5 s" in reasons["test-slow-model"]
+    tiny = df[df.solver == "test-tiny"]
+    big = tiny[tiny.n > 10]
+    assert len(big) > 0 and (big.status == "skipped").all()
+    assert big["skip_reason"].str.contains("max_n = 10").all()
+    assert (tiny[tiny.n <= 10].status == "solved").all()
+
+
+def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path) -> None:
+    df = run(tmp_path, ["test-exact"], reference="none", memory_budget=4.0)  # bytes: n = 1 needs 8
+    assert (df.status == "skipped").all()
+    assert df["skip_reason"].str.contains("needs dense H").all()
+    assert df["skip_reason"].str.contains("GiB").all()
+
+
+def test_dense_h_is_assembled_once_per_step_and_only_when_needed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from problems import operators
+
+    log = tmp_path / "assemblies.log"
+    original = operators.ContactOperator.to_dense
+
+    def counting_to_dense(self: operators.ContactOperator, budget: float | None = None) -> np.ndarray:
+        with open(log, "a") as fh:
+            fh.write(f"{self.n}\n")
+        return original(self, budget)
+
+    monkeypatch.setattr(operators.FFTOperator, "to_dense", counting_to_dense)  # inherited by the forked worker
+    df = run(tmp_path / "free", ["test-warm-pg"], reference="none")
+    assert (df.status == "solved").all() and (df.operator == "fft").all()
+    assert not log.exists()  # no dense-H solver in the run: never assembled
+    df = run(tmp_path / "dense", ["test-exact", "test-sleepy", "test-warm-pg"], reference="test-exact")
+    assert (df.status == "solved").all()
+    assert set(df[df.solver != "test-warm-pg"].operator) == {"dense"}
+    assert len(log.read_text().split()) == 2  # two steps: one assembly each, shared by 3 users
+
+
+def test_map_by_grid_index_keeps_shared_points_and_zeroes_new_ones() -> None:
+    values = np.array([1.0, 2.0, 3.0])
+    from_idx = np.array([7, 2, 5])  # unsorted on purpose
+    to_idx = np.array([1, 2, 5, 6, 7, 9])
+    out = map_by_grid_index(values, from_idx, to_idx)
+    np.testing.assert_array_equal(out, [0.0, 2.0, 3.0, 0.0, 1.0, 0.0])
+    assert map_by_grid_index(np.array([]), np.array([], dtype=int), np.array([3])).tolist() == [0.0]
+    with pytest.raises(ValueError, match="values for"):
+        map_by_grid_index(values, np.array([1, 2]), to_idx)
+
+
+def test_load_history_warm_starts_from_the_solvers_own_previous_step(tmp_path: Path) -> None:
+    cfg = SceneConfig(size=16, steps=3, seeds=(0,))
+    warm = run(tmp_path / "warm", ["test-warm-pg", "test-exact"], cfg=cfg, profiles=("high",))
+    cold = run(tmp_path / "cold", ["test-warm-pg", "test-exact"], cfg=cfg, profiles=("high",), warm=False)
+    pg_w = warm[warm.solver == "test-warm-pg"].sort_values("step")
+    pg_c = cold[cold.solver == "test-warm-pg"].sort_values("step")
+    assert pg_w["warm_start"].tolist() == [False, True, True]
+    assert not pg_c["warm_start"].any()
+    assert not warm[warm.solver == "test-exact"]["warm_start"].any()  # no warm-start capability: runs cold
+    assert (pg_w.status == "solved").all() and (pg_c.status == "solved").all()
+    assert (pg_w["p_rel_error"] < 1e-6).all()
+    assert pg_w["iterations"].iloc[1:].sum() < pg_c["iterations"].iloc[1:].sum()
+    assert set(warm["cell_id"]).isdisjoint(cold["cell_id"])  # warm and cold are different cells
+
+
+def test_repeats_give_min_and_median_and_reference_is_cached(tmp_path: Path) -> None:
+    df = run(tmp_path, ["test-exact"], repeats=3)
+    assert len(df) == 2 * 3
+    for _, g in df.groupby("step"):
+        assert g["solve_time_min_s"].iloc[0] == pytest.approx(g["solve_time_s"].min())
+        assert g["solve_time_median_s"].iloc[0] == pytest.approx(g["solve_time_s"].median())
+    refs = sorted((tmp_path / "_cache").glob("ref-*.npz"))
+    assert len(refs) == 2  # once per instance-step
+    stamps = [r.stat().st_mtime_ns for r in refs]
+    df2 = run(tmp_path, ["test-exact", "test-warm-pg"], repeats=3)
+    assert [r.stat().st_mtime_ns for r in refs] == stamps  # stored reference not recomputed
+    assert len(df2) == 2 * 2 * 3 and df2["cell_id"].is_unique
+    assert (df2["p_rel_error"] < 1e-6).all()
+
+
+def test_analytic_load_columns_on_hertz(tmp_path: Path) -> None:
+    cfg = SceneConfig(size=16)
+    df = run(tmp_path, ["test-exact"], cfg=cfg, scenes=("hertz",), reference="none")
+    row = df.iloc[0]
+    assert row.status == "solved" and row.analytic_load > 0
+    assert row.load_rel_error == pytest.approx(abs(row.load - row.analytic_load) / row.analytic_load)
+    assert row.analytic_load_rel_error == pytest.approx(row.load_rel_error)
+
+
+def test_store_cuts_a_partial_last_line_and_keeps_first_rows(tmp_path: Path) -> None:
+    path = tmp_path / ROWS_FILE
+    path.write_text(json.dumps({"cell_id": "a", "status": "solved"}) + "\n"
+                    + json.dumps({"cell_id": "a", "status": "failed"}) + "\n" + '{"cell_id": "b", "sta')
+    store = ResultStore(tmp_path)
+    assert store.done_statuses() == {"a": "solved"}
+    store.append({"cell_id": "c", "status": "skipped", "skip_reason": "x"})
+    rows = read_journal(path)
+    assert [r["cell_id"] for r in rows] == ["a", "c"]
+    table = store.finalize()
+    assert set(REQUIRED_COLUMNS) <= set(table.columns) and len(table) == 2
+
+
+def test_cell_ids_are_stable_and_distinct() -> None:
+    plan = plan_run(["paper-sweep"], SMALL, ["test-exact", "test-warm-pg"], RunConfig(profiles=("low", "high")))
+    job = plan.jobs[0]
+    ids = {make_cell_id(job.spec, k, v, p, 0, True) for k in range(2) for v in job.variants for p in job.profiles}
+    assert len(ids) == 2 * 2 * 2
+    again = plan_run(["paper-sweep"], SMALL, ["test-exact", "test-warm-pg"], RunConfig(profiles=("low", "high"))).jobs[0]
+    assert make_cell_id(again.spec, 1, again.variants[0], "low", 0, True) == make_cell_id(job.spec, 1, job.variants[0], "low", 0, True)
+
+
+def cli_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(TESTS.parent), str(TESTS), env.get("PYTHONPATH", "")])
+    env.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", CONTACTBENCH_FFT_WORKERS="1", CI="true")
+    return env
+
+
+def test_sigkill_mid_run_then_rerun_gives_exactly_the_full_table(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "harness.cli", "run", "counterexample", "--size", "3", "--seeds", "0-5",
+           "--solvers", f"{SOLVER_MODULE}:SleepyStub,test-exact", "--reference", "test-exact",
+           "--no-warmup", "--out", str(out)]
+    proc = subprocess.Popen(cmd, env=cli_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    journal = out / ROWS_FILE
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if journal.exists() and journal.read_text().count("\n") >= 3:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    before = {r["cell_id"]: r for r in read_journal(journal)}
+    assert 3 <= len(before) < 12
+    done = subprocess.run(cmd, env=cli_env(), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    table = load_table(out)
+    assert len(table) == 12 and table["cell_id"].is_unique
+    assert journal.read_text().count("\n") == 12  # nothing appended twice
+    assert set(table["status"]) == {"solved"}
+    after = {r["cell_id"]: r for r in read_journal(journal)}
+    for cid, row in before.items():  # rows written before the kill are kept as they were
+        assert after[cid]["timestamp"] == row["timestamp"]
+        assert after[cid]["solve_time_s"] == row["solve_time_s"]
+
+
+def test_cli_run_then_report_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cli"
+    rc = cli.main(["run", "paper-sweep", "--size", "8", "--steps", "2", "--solvers", "test-exact,test-warm-pg",
+                   "--profile", "low,high", "--reference", "test-exact", "--out", str(out), "--no-progress"])
+    assert rc == 0
+    assert "8 rows (8 new)" in capsys.readouterr().out
+    for name in ("results.parquet", "results.csv", "meta.json", ROWS_FILE):
+        assert (out / name).exists()
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["command"][:3] == ["contactbench", "run", "paper-sweep"]
+    assert meta["machine"]["logical_cores"] and "numpy" in meta["packages"]
+    csv = pd.read_csv(out / "results.csv")
+    assert len(csv) == 8 and set(REQUIRED_COLUMNS) <= set(csv.columns)
+    try:
+        import harness.report  # noqa: F401
+    except ImportError:
+        pytest.skip("harness/report.py is not in this checkout yet")
+    assert cli.main(["report", str(out)]) == 0
+    assert (out / "report.md").exists()
+
+
+def test_cli_lists_and_rejects_bad_input(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["list", "scenes"]) == 0
+    listed = capsys.readouterr().out
+    for scene in ("default", "gp-k-sweep", "greedy-linear-solvers", "paper-sweep"):
+        assert scene in listed
+    assert cli.main(["list", "solvers"]) == 0
+    listed = capsys.readouterr().out
+    assert "test-missing" in listed and "nonexistent-backend" in listed and "needs-dense-H" in listed
+    assert cli.main(["run", "no-such-scene"]) == 2
+    assert "unknown scene" in capsys.readouterr().err
+    assert cli.parse_seeds("0-2,7") == (0, 1, 2, 7)
+    with pytest.raises(SystemExit):
+        cli.main(["run", "paper-sweep", "--seeds", "3-1"])
+
+
+def test_jobs_pool_gives_the_same_table_as_serial(tmp_path: Path) -> None:
+    cfg = SceneConfig(size=3, seeds=(0, 1, 2))
+    kw = dict(scenes=("counterexample",), cfg=cfg, warmup=False)
+    serial = run(tmp_path / "serial", ["test-exact", "test-warm-pg"], **kw)  # type: ignore[arg-type]
+    pooled = run(tmp_path / "pool", ["test-exact", "test-warm-pg"], jobs=2, **kw)  # type: ignore[arg-type]
+    assert len(pooled) == len(serial) == 6 and pooled["cell_id"].is_unique
+    assert pooled["cell_id"].tolist() == serial["cell_id"].tolist()
+    np.testing.assert_allclose(pooled["load"], serial["load"], rtol=1e-12)
+    assert pooled["status"].tolist() == serial["status"].tolist()
+
+
+def test_plugin_fixtures(contact_instance, run_harness) -> None:  # type: ignore[no-untyped-def]
+    inst = contact_instance("counterexample", n=9, seed=0)
+    assert inst.n == 9
+    df = run_harness(["counterexample"], solvers=["test-exact"], size=3, seeds=(0,), reference="none")
+    assert df["status"].tolist() == ["solved"]

@@ -1,0 +1,158 @@
+"""Throw-away solvers for the harness tests (registered only when this module is
+imported: by the harness tests, or by a ``contactbench run --solvers
+test_harness_solvers:NAME`` subprocess with tests/ on PYTHONPATH), plus checks that
+the two honest ones are right -- the harness tests rely on them."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.optimize import nnls
+
+from harness.kkt import kkt_check
+from problems.instances import QP, counterexample
+from problems.operators import spectral_norm_estimate
+from solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart
+from solvers.registry import register
+
+
+def dense_exact_solution(qp: QP) -> np.ndarray:
+    """scipy's NNLS on the Cholesky factor: with H = L L', 1/2 p'Hp - ubar'p =
+    1/2 ||L'p - L^-1 ubar||^2 + const, so the QP is an NNLS problem (exact)."""
+    H = qp.H.to_dense()
+    L = np.linalg.cholesky(H)
+    b = sla.solve_triangular(L, qp.ubar, lower=True)
+    p, _ = nnls(L.T, b, maxiter=50 * qp.n)
+    return p
+
+
+@register(replace=True)
+class ExactStub(Solver):
+    """Dense exact reference (scipy NNLS on the Cholesky factor); no warm start."""
+
+    name = "test-exact"
+    family = "test"
+    capabilities = Capabilities(operators=frozenset({"dense"}), needs_dense=True, exact=True, input_format="dense")
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        if settings.params.get("sleep"):
+            time.sleep(float(settings.params["sleep"]))
+        p = dense_exact_solution(qp)
+        return SolveResult(p=p, iterations=1, converged=True, status="optimal")
+
+
+@register(replace=True)
+class SleepyStub(ExactStub):
+    """The exact solver, slowed down (0.15 s per solve) so a run can be killed mid-way."""
+
+    name = "test-sleepy"
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        time.sleep(0.15)
+        return super().solve(qp, settings, warm)
+
+
+@register(replace=True)
+class WarmPGStub(Solver):
+    """Matrix-free projected gradient (Nesterov-accelerated, restart on increase),
+    primal warm start; info["warm_given"] says whether a warm start arrived."""
+
+    name = "test-warm-pg"
+    family = "test"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}), warm_start="primal")
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        tol = settings.tolerance(1e-8)
+        max_iter = settings.max_iter or 20000
+        L = spectral_norm_estimate(qp.H, iters=50)
+        p = np.zeros(qp.n) if warm is None or warm.p is None else np.maximum(np.asarray(warm.p, float), 0.0)
+        y, p_old, t = p.copy(), p.copy(), 1.0
+        it = 0
+        for it in range(1, max_iter + 1):
+            g = qp.H.matvec(y) - qp.ubar
+            p = np.maximum(y - g / L, 0.0)
+            t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
+            y = p + (t - 1) / t_new * (p - p_old)
+            p_old, t = p, t_new
+            if it % 10 == 0 and kkt_check(qp, p).kkt_error <= 0.1 * tol:
+                break
+        return SolveResult(p=p, iterations=it, converged=kkt_check(qp, p).kkt_error <= tol, status="done",
+                           warm_started=warm is not None, info={"warm_given": warm is not None})
+
+
+@register(replace=True)
+class CrashStub(Solver):
+    """Aborts the process (a segfault stand-in)."""
+
+    name = "test-crash"
+    family = "test"
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        os.abort()
+
+
+@register(replace=True)
+class HangStub(Solver):
+    """Never returns."""
+
+    name = "test-hang"
+    family = "test"
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        time.sleep(3600)
+        raise AssertionError("unreachable")
+
+
+@register(replace=True)
+class RaiseStub(Solver):
+    """Raises."""
+
+    name = "test-raise"
+    family = "test"
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        raise RuntimeError("deliberate failure in test-raise")
+
+
+@register(replace=True)
+class TinyStub(ExactStub):
+    """Dense-only with a hard size limit of 10 unknowns."""
+
+    name = "test-tiny"
+    capabilities = Capabilities(operators=frozenset({"dense"}), needs_dense=True, exact=True, max_n=10)
+
+
+@register(replace=True)
+class SlowModelStub(ExactStub):
+    """Its time model predicts a day per solve."""
+
+    name = "test-slow-model"
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return 86400.0
+
+
+@register(replace=True)
+class MissingStub(ExactStub):
+    """Reports its backend as not installed."""
+
+    name = "test-missing"
+
+    def availability(self) -> tuple[bool, str]:
+        return False, "package 'nonexistent-backend' is not installed"
+
+
+def test_exact_solver_is_exact_on_the_counterexample() -> None:
+    inst = counterexample(25, seed=1)
+    p = ExactStub().solve(inst.qp, SolverSettings()).p
+    assert kkt_check(inst, p).kkt_error < 1e-10
+
+
+def test_warm_pg_reaches_the_exact_answer() -> None:
+    inst = counterexample(16, seed=2)
+    res = WarmPGStub().solve(inst.qp, SolverSettings(profile="high"))
+    p_ref = dense_exact_solution(inst.qp)
+    assert np.max(np.abs(res.p - p_ref)) <= 1e-6 * np.max(p_ref)

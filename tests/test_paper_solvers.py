@@ -1,0 +1,278 @@
+"""The paper's algorithms (issue 3): counterexample, agreement with a trusted reference,
+Hertz convergence, warm starts, memory/time limits.
+
+Reference: scipy.optimize.nnls on the Cholesky factor (H = C'C, min ||Cp - C^-T ubar||),
+written here so that it shares no code with the solvers under test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.optimize as so
+
+import problems.operators as operators_mod
+from harness.kkt import kkt_check, relative_error
+from problems.errors import MemoryBudgetError
+from problems.instances import (
+    ContactInstance,
+    InstanceBuilder,
+    counterexample,
+    hertz_solution,
+    hertz_surface,
+    load_ramp,
+    paper_max_displacement,
+)
+from problems.surfaces import rmd_surface_n
+from solvers.base import SolverSettings, WarmStart
+from solvers.registry import get_solver, import_errors
+
+PAPER_SOLVERS = ("greedy-cg", "greedy-gs", "greedy-chol", "pk", "nnls", "nnls-gp", "gp", "admm")
+EXACT = ("pk", "nnls", "nnls-gp")
+#: greedy-cg fails on these seeds at n = 100 (regression cases; seed 1 is the clear one).
+GREEDY_FAILING_SEEDS_N100 = (1, 4, 9, 11)
+
+
+def reference_solution(inst: ContactInstance) -> np.ndarray:
+    H = inst.qp.H.to_dense()
+    C = sla.cholesky(H, lower=False)
+    d = sla.solve_triangular(C, inst.qp.ubar, trans="T")
+    return so.nnls(C, d, maxiter=50 * d.size)[0]
+
+
+def violates(inst: ContactInstance, p: np.ndarray, p_exact: np.ndarray) -> bool:
+    return kkt_check(inst, p).kkt_error > 1e-8 or relative_error(p, p_exact) > 1e-6
+
+
+def solve(name: str, inst: ContactInstance, warm: WarmStart | None = None, **params):
+    tol = params.pop("tol", None)
+    return get_solver(name).solve(inst.qp, SolverSettings(tol=tol, params=params), warm)
+
+
+def test_all_paper_solvers_registered() -> None:
+    assert not {k: v for k, v in import_errors().items() if "paper" in k}
+    for name in PAPER_SOLVERS:
+        s = get_solver(name)
+        assert s.family == "paper"
+        assert s.capabilities.exact == (name in EXACT)
+    assert get_solver("greedy-chol").memory_estimate(1000) >= 8 * 1000**2
+
+
+# ---------------------------------------------------------------------------
+# Counterexample (paper Example 1)
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def counterexamples_n100() -> list[tuple[ContactInstance, np.ndarray]]:
+    out = []
+    for seed in range(100):
+        inst = counterexample(100, seed)
+        out.append((inst, reference_solution(inst)))
+    return out
+
+
+def test_greedy_cg_fails_on_a_fraction_of_counterexamples(counterexamples_n100) -> None:
+    failing = [inst.meta["seed"] for inst, ref in counterexamples_n100 if violates(inst, solve("greedy-cg", inst).p, ref)]
+    fraction = len(failing) / len(counterexamples_n100)
+    assert 0.25 <= fraction <= 0.50, f"greedy-cg failure fraction {fraction:.2f}"
+    assert set(GREEDY_FAILING_SEEDS_N100) <= set(failing)
+
+
+@pytest.mark.parametrize("seed", GREEDY_FAILING_SEEDS_N100)
+def test_greedy_failing_seeds_are_wrong_in_w_and_p(seed: int) -> None:
+    inst = counterexample(100, seed)
+    ref = reference_solution(inst)
+    for name in ("greedy-cg", "greedy-chol", "greedy-gs"):
+        res = solve(name, inst)
+        assert res.p.min() >= 0.0
+        rep = kkt_check(inst, res.p)
+        assert rep.dual > 1e-8, f"{name}: w >= 0 should fail on seed {seed}"
+        assert relative_error(res.p, ref) > 1e-6
+
+
+def test_nnls_never_violates_and_exact_solvers_pass_kkt(counterexamples_n100) -> None:
+    for i, (inst, ref) in enumerate(counterexamples_n100):
+        names = EXACT if i < 30 else ("nnls",)  # every exact solver on 30 seeds, NNLS on all 100
+        for name in names:
+            res = solve(name, inst)
+            assert res.converged, (name, i)
+            assert kkt_check(inst, res.p).kkt_error <= 1e-8, (name, i)
+            assert relative_error(res.p, ref) <= 1e-6, (name, i)
+
+
+def test_greedy_runs_the_intended_method_not_the_literal_one_pass() -> None:
+    inst = counterexample(100, 1)
+    literal = solve("greedy-cg", inst, literal_one_pass=True)
+    intended = solve("greedy-cg", inst)
+    assert literal.info["passes"] == 1 and intended.info["passes"] > 1
+    # The literal reading leaves w != 0 on its own set (the negatives were just zeroed);
+    # the intended method solves the reduced system exactly on its final set.
+    w_lit = inst.qp.H.matvec(literal.p) - inst.qp.ubar
+    w_int = inst.qp.H.matvec(intended.p) - inst.qp.ubar
+    scale = np.abs(inst.qp.ubar).max()
+    assert np.abs(w_lit[literal.p > 0]).max() > 1e-3 * scale
+    assert np.abs(w_int[intended.p > 0]).max() < 1e-8 * scale
+    assert relative_error(literal.p, intended.p) > 1e-3
+
+
+# ---------------------------------------------------------------------------
+# Agreement with the reference on a 64^2 RMD surface, 3 load steps, both operators
+# ---------------------------------------------------------------------------
+
+AGREEMENT_CASES = {
+    "greedy-cg": {},
+    "greedy-gs": {},
+    "greedy-chol": {},
+    "pk": {},
+    "nnls": {"linear": "cholesky"},
+    "nnls/cg": {"linear": "cg"},
+    "nnls-gp": {},
+    "gp": {"lipschitz": "power", "tol": 1e-10},
+    "gp/frobenius": {"lipschitz": "frobenius", "tol": 1e-10, "restart": True},
+    "admm": {"tol": 1e-10},
+}
+
+
+@pytest.fixture(scope="module")
+def rmd64_steps() -> dict[str, list[tuple[ContactInstance, np.ndarray]]]:
+    surf = rmd_surface_n(64, 0.7, length=100e-6, seed=0)
+    deltas = load_ramp(paper_max_displacement(surf), 3)
+    out: dict[str, list[tuple[ContactInstance, np.ndarray]]] = {}
+    for kind in ("dense", "fft"):
+        b = InstanceBuilder(surf, 1e9, "bcc", periodic=False, operator=kind)
+        insts = [b.build(d) for d in deltas]
+        out[kind] = [(inst, reference_solution(inst)) for inst in insts]
+    return out
+
+
+@pytest.mark.parametrize("kind", ["dense", "fft"])
+@pytest.mark.parametrize("case", list(AGREEMENT_CASES))
+def test_agreement_with_reference(rmd64_steps, kind: str, case: str) -> None:
+    name = case.split("/")[0]
+    for inst, ref in rmd64_steps[kind]:
+        res = solve(name, inst, **dict(AGREEMENT_CASES[case]))
+        assert res.converged, (case, inst.n, res.message)
+        assert relative_error(res.p, ref) <= 1e-6, (case, inst.n)
+        assert abs(res.p.sum() - ref.sum()) <= 1e-8 * ref.sum(), (case, inst.n)
+        assert res.matvecs >= 0 and res.trace is not None
+    if case.startswith("gp"):
+        assert res.info["lipschitz"] == AGREEMENT_CASES[case]["lipschitz"]
+    if case.startswith("nnls"):
+        assert res.info["linear_solver"] == AGREEMENT_CASES[case].get("linear", res.info["linear_solver"])
+
+
+def test_nnls_auto_backend_follows_operator_kind(rmd64_steps) -> None:
+    inst = rmd64_steps["dense"][0][0]
+    assert solve("nnls", inst).info["linear_solver"] == "cholesky"
+    assert solve("admm", inst).info["linear_solver"] == "cholesky"
+    assert solve("admm", rmd64_steps["fft"][0][0]).info["linear_solver"] == "cg"
+
+
+# ---------------------------------------------------------------------------
+# Hertz: mesh refinement
+# ---------------------------------------------------------------------------
+
+
+def test_hertz_load_and_radius_converge_under_refinement() -> None:
+    L, R, E = 2e-3, 10e-3, 1e9
+    a = 0.25 * L
+    d = a * a / R
+    exact = hertz_solution(R, E, d)
+    load_err, radius_err = [], []
+    for N in (16, 32, 64):
+        surf = hertz_surface(N, R, L)
+        inst = InstanceBuilder(surf, E, "bcc", periodic=False, operator="fft").build(d)
+        res = solve("nnls", inst)
+        assert kkt_check(inst, res.p).kkt_error <= 1e-8
+        load_err.append(abs(inst.load(res.p) - exact.load) / exact.load)
+        area = np.count_nonzero(inst.contact_mask(res.p)) * surf.delta**2
+        radius_err.append(abs(np.sqrt(area / np.pi) - exact.contact_radius) / exact.contact_radius)
+    assert load_err[0] > load_err[1] > load_err[2]
+    assert load_err[2] < 0.03 and radius_err[2] < 0.03
+    assert radius_err[2] < radius_err[1]
+    order = np.log2(load_err[1] / load_err[2])
+    assert order > 0.8, f"observed load convergence order {order:.2f}"  # measured ~1.2
+
+
+# ---------------------------------------------------------------------------
+# Warm starts along a load ramp
+# ---------------------------------------------------------------------------
+
+
+def map_to(prev: ContactInstance, p_prev: np.ndarray, cur: ContactInstance) -> np.ndarray:
+    """Previous-step values onto the current trial set by grid position (zero if new)."""
+    out = np.zeros(cur.n)
+    pos = {int(g): k for k, g in enumerate(prev.geometry.indices)}
+    for k, g in enumerate(cur.geometry.indices):
+        j = pos.get(int(g))
+        if j is not None:
+            out[k] = p_prev[j]
+    return out
+
+
+@pytest.fixture(scope="module")
+def ramp32() -> list[ContactInstance]:
+    surf = rmd_surface_n(32, 0.7, length=100e-6, seed=3)
+    b = InstanceBuilder(surf, 1e9, "bcc", periodic=False, operator="fft")
+    return [b.build(d) for d in load_ramp(paper_max_displacement(surf), 10)]
+
+
+@pytest.mark.parametrize("name", ["nnls", "pk", "nnls-gp", "admm"])
+def test_warm_started_ramp_matches_cold_and_nnls_saves_iterations(ramp32, name: str) -> None:
+    cold_it, warm_it = 0, 0
+    prev, p_prev, w_prev = None, None, None
+    tol = 1e-10 if name == "admm" else None
+    for inst in ramp32:
+        cold = solve(name, inst, tol=tol)
+        warm = None
+        if prev is not None:
+            warm = WarmStart(map_to(prev, p_prev, inst), map_to(prev, w_prev, inst))
+        hot = solve(name, inst, warm, tol=tol)
+        assert hot.warm_started == (warm is not None)
+        assert hot.converged and cold.converged
+        assert relative_error(hot.p, cold.p) <= 1e-6
+        assert abs(hot.p.sum() - cold.p.sum()) <= 1e-8 * cold.p.sum()
+        cold_it += cold.iterations
+        warm_it += hot.iterations
+        prev, p_prev, w_prev = inst, hot.p, hot.w
+    if name == "nnls":
+        assert warm_it < cold_it, (warm_it, cold_it)
+
+
+def test_greedy_ignores_warm_start(ramp32) -> None:
+    inst = ramp32[3]
+    res = solve("greedy-cg", inst, WarmStart(np.ones(inst.n)))
+    assert res.warm_started is False
+
+
+# ---------------------------------------------------------------------------
+# Limits: memory budget, time limit, bad parameters
+# ---------------------------------------------------------------------------
+
+
+def test_greedy_cholesky_over_budget_raises_memory_error(monkeypatch, ramp32) -> None:
+    monkeypatch.setattr(operators_mod, "DEFAULT_MEMORY_BUDGET", 8.0 * 10 * 10)
+    with pytest.raises(MemoryBudgetError):
+        solve("greedy-chol", ramp32[-1])
+
+
+def test_time_limit_stops_and_reports_not_converged(ramp32) -> None:
+    inst = ramp32[-1]
+    res = get_solver("gp").solve(inst.qp, SolverSettings(tol=1e-14, time_limit=0.0))
+    assert not res.converged and res.status == "time_limit"
+
+
+def test_max_iter_is_respected(ramp32) -> None:
+    res = get_solver("pk").solve(ramp32[-1].qp, SolverSettings(max_iter=3))
+    assert res.iterations <= 3 and not res.converged
+
+
+def test_bad_parameters_are_named(ramp32) -> None:
+    with pytest.raises(ValueError, match="lipschitz"):
+        solve("gp", ramp32[0], lipschitz="euclid")
+    with pytest.raises(ValueError, match="linear"):
+        solve("nnls", ramp32[0], linear="qr")
+    with pytest.raises(ValueError, match="rho"):
+        solve("admm", ramp32[0], rho=-1.0)
