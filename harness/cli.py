@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--size", type=positive_int, default=None, help="grid points per side N")
     run.add_argument("--steps", type=positive_int, default=None, help="number of load steps K")
     run.add_argument("--seeds", type=parse_seeds, default=None, help="e.g. 0-9 or 0,3,5")
-    run.add_argument("--surface", default=None, help="height map in metres (.npy/.csv/.txt)")
+    run.add_argument("--surface", default=None, help="measured height map in metres (.npy/.csv/.txt, or ISO 25178-71 .x3p)")
     run.add_argument("--length", type=positive_float, default=None, help="side length L in metres")
     run.add_argument("--E", type=positive_float, default=None, help="composite modulus E* in Pa")
     run.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None)
@@ -151,8 +151,8 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
     for name in args.scenes:
         get_scene(name)  # unknown scene: a clear KeyError listing the known ones
-    if args.surface and not args.length:
-        raise ProblemInputError("--surface needs --length L (the side length in metres)")
+    if args.surface and not args.length and not str(args.surface).lower().endswith(".x3p"):
+        raise ProblemInputError("--surface needs --length L (the side length in metres; only .x3p files carry their own spacing)")
     cfg = SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
                       length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic, operator=args.operator)
     kw = {}

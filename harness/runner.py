@@ -164,6 +164,11 @@ class RunPlan:
         return sum(j.n_cells(repeats) for j in self.jobs)
 
 
+def safe_name(name: str) -> str:
+    """A file name with only letters, digits, '.', '_', '-', '[', ']', '=' and '+'."""
+    return "".join(c if c.isalnum() or c in "._-[]=+" else "_" for c in name)
+
+
 def params_json(params: dict[str, Any]) -> str:
     return json.dumps(params, sort_keys=True, default=str)
 
@@ -379,6 +384,7 @@ class SolveTask:
     warmup: bool = False
     reference_path: str | None = None
     record_warm: bool = True
+    arrays_path: str | None = None  # where a wrong answer on a small instance is kept for the report
 
 
 @dataclass(frozen=True)
@@ -647,9 +653,31 @@ class InstanceWorker:
         if task.time_limit and elapsed > task.time_limit:
             row.update(status="timeout", error=f"finished after {elapsed:.3g} s, beyond the {task.time_limit:.3g} s limit")
         row["correct_claim"] = bool(res.converged) == (row["status"] == "solved")
+        save_wrong_answer(task.arrays_path, inst, p, self.reference_p(task.reference_path), row)
         if task.record_warm:
             self.remember(task, inst, p, res.w)
         return row
+
+
+#: Wrong answers on instances up to this size are kept as arrays for the report's plots.
+MAX_SAVED_N = 5000
+
+
+def save_wrong_answer(path: str | None, inst: ContactInstance, p: np.ndarray, p_ref: np.ndarray | None,
+                      row: dict[str, Any]) -> None:
+    """Keep (p, p_ref, ubar, w) of a wrong answer on a small instance as ``path`` (npz, no
+    pickles) -- the counterexample figure plots one.  The first one per cell wins."""
+    if not path or inst.n > MAX_SAVED_N or p_ref is None or os.path.exists(path):
+        return
+    wrong = row.get("status") != "solved" or not (float(row.get("p_rel_error", np.nan)) <= 1e-6)
+    if not wrong:
+        return
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    w = inst.qp.H.matvec(p) - inst.qp.ubar
+    tmp = path + f".tmp{os.getpid()}"
+    with open(tmp, "wb") as fh:
+        np.savez(fh, p=p, p_ref=p_ref, ubar=inst.qp.ubar, w=w, E=inst.E)
+    os.replace(tmp, path)
 
 
 # ---------------------------------------------------------------------------
@@ -857,7 +885,9 @@ class JobRunner:
     def solve_task(self, ctx: StepContext, v: SolverVariant, profile: str, operator: str, warm: bool, warmup: bool) -> SolveTask:
         return SolveTask(step=ctx.k, base=v.base, params=dict(v.params), label=v.name, profile=profile,
                          operator=operator, check_tol=get_profile(profile).check_tol, time_limit=self.run_cfg.timeout,
-                         warm=warm, warmup=warmup, reference_path=ctx.reference_path)
+                         warm=warm, warmup=warmup, reference_path=ctx.reference_path,
+                         arrays_path=str(self.cache_dir.parent / "arrays" / safe_name(
+                             f"{self.job.spec.scene}-{self.job.spec.instance}-{v.name}.npz")))
 
     def run_group(self, ctx: StepContext, v: SolverVariant, profile: str, reps: list[int], operator: str) -> None:
         lost: tuple[str, str] | None = None  # (status, why) once a repeat timed out or crashed

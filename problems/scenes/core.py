@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -88,6 +89,13 @@ class PaperSweep(Scene):
     description = "RMD H=0.7, L=100um, 512^2, BCC, 10 displacement steps up to (zmax-zmean)/2 (paper Fig. 4)"
     defaults = SceneConfig(size=512, steps=10, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
                            periodic=False, operator="fft")
+
+    def config(self, cfg: SceneConfig | None) -> SceneConfig:
+        merged = super().config(cfg)
+        if cfg is not None and cfg.surface_path and cfg.length is None:
+            # A measured file keeps its own spacing (x3p) unless the user gives --length.
+            merged = replace(merged, length=None)
+        return merged
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
         return rough_surface_specs(self.name, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))

@@ -1,0 +1,289 @@
+"""problems.io: readers round-trip each format, bad files get clear errors, cleaning
+rules, the block-average coarsening filter and the PSD power-law check."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from problems.errors import ProblemInputError
+from problems.io import (
+    SurfaceFileError,
+    block_average,
+    coarse_levels,
+    load_surface,
+    power_law_check,
+    read_height_map,
+    with_coarse_levels,
+    write_text,
+    write_x3p,
+)
+from problems.surfaces import rmd_surface_n, spectral_surface
+
+DATA = Path(__file__).resolve().parents[1] / "problems" / "data"
+
+
+def random_map(shape: tuple[int, int] = (12, 12), seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).normal(0.0, 1e-6, shape)
+
+
+# --- round trips -----------------------------------------------------------------
+
+
+def test_npy_round_trip_exact(tmp_path: Path) -> None:
+    z = random_map()
+    np.save(tmp_path / "a.npy", z)
+    s = load_surface(tmp_path / "a.npy", length=1e-4)
+    np.testing.assert_array_equal(s.heights, z)
+    assert s.delta == pytest.approx(1e-4 / 12)
+    assert s.meta["format"] == "npy" and not s.periodic
+
+
+@pytest.mark.parametrize("delim", [",", ";", "\t", " "])
+def test_text_round_trip_any_delimiter(tmp_path: Path, delim: str) -> None:
+    z = random_map((9, 9), seed=1)
+    write_text(tmp_path / "a.txt", z, delimiter=delim)
+    s = load_surface(tmp_path / "a.txt", length=1.0)
+    np.testing.assert_array_equal(s.heights, z)
+
+
+def test_text_comments_and_units(tmp_path: Path) -> None:
+    (tmp_path / "a.csv").write_text("# exported heights in um\n1, 2, 3\n4, 5, 6 # row 2\n7, 8, 9,\n")
+    s = load_surface(tmp_path / "a.csv", length=3e-6, height_unit="um")
+    np.testing.assert_allclose(s.heights, np.arange(1, 10).reshape(3, 3) * 1e-6)
+
+
+@pytest.mark.parametrize("dtype,tol", [("D", 0.0), ("F", 1e-7), ("L", 0.0), ("I", 0.0)])
+def test_x3p_round_trip_each_data_type(tmp_path: Path, dtype: str, tol: float) -> None:
+    z = random_map((10, 10), seed=2)
+    inc = 1e-9
+    if dtype in "LI":
+        z = np.round(z / inc) * inc  # representable exactly
+    write_x3p(tmp_path / "a.x3p", z, 2.5e-6, data_type=dtype, z_increment=inc)
+    s = load_surface(tmp_path / "a.x3p")
+    np.testing.assert_allclose(s.heights, z, rtol=tol, atol=1e-15)
+    assert s.delta == 2.5e-6  # the file's own spacing
+    assert s.meta["x3p_data_type"] == dtype
+
+
+@pytest.mark.parametrize("dtype", ["D", "I"])
+def test_x3p_missing_points_round_trip(tmp_path: Path, dtype: str) -> None:
+    z = np.round(random_map((8, 8), seed=3) / 1e-9) * 1e-9
+    z[2, 3] = z[5, 5] = np.nan
+    write_x3p(tmp_path / "a.x3p", z, 1e-6, data_type=dtype, z_increment=1e-9)
+    raw = read_height_map(tmp_path / "a.x3p")
+    np.testing.assert_array_equal(np.isnan(raw.z), np.isnan(z))
+    np.testing.assert_allclose(raw.z[~np.isnan(z)], z[~np.isnan(z)], atol=1e-15)
+
+
+def test_x3p_axis_orientation_x_fastest(tmp_path: Path) -> None:
+    z = np.arange(12.0).reshape(3, 4) * 1e-6  # 3 rows (y), 4 columns (x)
+    write_x3p(tmp_path / "a.x3p", z, 1e-6)
+    with zipfile.ZipFile(tmp_path / "a.x3p") as zf:
+        xml = zf.read("main.xml").decode()
+        raw = np.frombuffer(zf.read("bindata/data.bin"), "<f8")
+    assert "<SizeX>4</SizeX>" in xml and "<SizeY>3</SizeY>" in xml
+    np.testing.assert_array_equal(raw[:4], z[0])  # x runs fastest
+    np.testing.assert_array_equal(read_height_map(tmp_path / "a.x3p").z, z)
+
+
+def test_x3p_length_overrides_file_spacing(tmp_path: Path) -> None:
+    write_x3p(tmp_path / "a.x3p", random_map((8, 8)), 1e-6)
+    s = load_surface(tmp_path / "a.x3p", length=16e-6)
+    assert s.delta == pytest.approx(2e-6) and s.meta["spacing_from"] == "length argument"
+
+
+# --- bad files ---------------------------------------------------------------------
+
+
+def _x3p_with_xml(path: Path, xml_edit: tuple[str, str] | None = None, drop: str | None = None,
+                  data: bytes | None = None) -> Path:
+    write_x3p(path, random_map((6, 6)), 1e-6)
+    with zipfile.ZipFile(path) as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    if xml_edit:
+        members["main.xml"] = members["main.xml"].replace(xml_edit[0].encode(), xml_edit[1].encode())
+    if drop:
+        members.pop(drop)
+    if data is not None:
+        members["bindata/data.bin"] = data
+    path.unlink()
+    with zipfile.ZipFile(path, "w") as zf:
+        for n, b in members.items():
+            zf.writestr(n, b)
+    return path
+
+
+def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
+    """Each bad-file class -> (file, a phrase its error must contain)."""
+    out: dict[str, tuple[Path, str]] = {}
+    np.save(tmp / "good.npy", random_map((16, 16)))
+    raw = (tmp / "good.npy").read_bytes()
+    (tmp / "trunc.npy").write_bytes(raw[: len(raw) // 2])
+    out["truncated npy"] = (tmp / "trunc.npy", "truncated")
+    np.save(tmp / "obj.npy", np.array([{"a": 1}, None], dtype=object), allow_pickle=True)
+    out["pickled npy"] = (tmp / "obj.npy", "pickle")
+    np.save(tmp / "vec.npy", np.arange(10.0))
+    out["wrong shape npy"] = (tmp / "vec.npy", "wrong shape")
+    np.save(tmp / "str.npy", np.array([["a", "b"], ["c", "d"]]))
+    out["non-numeric npy"] = (tmp / "str.npy", "non-numeric")
+    np.save(tmp / "nan.npy", np.full((4, 4), np.nan))
+    out["NaN-only"] = (tmp / "nan.npy", "NaN-only")
+    (tmp / "ragged.csv").write_text("1,2,3\n4,5,6\n7,8\n")
+    out["truncated text"] = (tmp / "ragged.csv", "wrong shape")
+    (tmp / "words.csv").write_text("1,2\n3,abc\n")
+    out["non-numeric text"] = (tmp / "words.csv", "non-numeric value 'abc' on line 2")
+    (tmp / "empty.txt").write_text("# nothing\n")
+    out["empty text"] = (tmp / "empty.txt", "no data rows")
+    with zipfile.ZipFile(tmp / "other.x3p", "w") as zf:
+        zf.writestr("readme.txt", "hello")
+    out["zip not x3p"] = (tmp / "other.x3p", "not x3p")
+    (tmp / "plain.x3p").write_text("not a zip")
+    out["x3p not a zip"] = (tmp / "plain.x3p", "not a zip")
+    write_x3p(tmp / "t.x3p", random_map((6, 6)), 1e-6)
+    rawx = (tmp / "t.x3p").read_bytes()
+    (tmp / "trunc.x3p").write_bytes(rawx[: len(rawx) - 200])
+    out["truncated x3p"] = (tmp / "trunc.x3p", "zip")
+    out["truncated x3p data"] = (_x3p_with_xml(tmp / "short.x3p", data=b"\0" * 100), "truncated point data")
+    out["x3p checksum"] = (_x3p_with_xml(tmp / "md5.x3p", data=b"\0" * 288), "MD5")
+    out["x3p missing data"] = (_x3p_with_xml(tmp / "nodata.x3p", drop="bindata/data.bin"), "missing")
+    out["x3p profile"] = (_x3p_with_xml(tmp / "prf.x3p", ("<FeatureType>SUR", "<FeatureType>PRF")), "'SUR'")
+    out["x3p bad xml"] = (_x3p_with_xml(tmp / "xml.x3p", ("</Record1>", "")), "not well-formed")
+    out["unreadable path"] = (tmp / "does-not-exist.npy", "unreadable path")
+    out["directory"] = (tmp, "unreadable path")
+    return out
+
+
+def test_every_bad_file_class_gives_a_clear_error(tmp_path: Path) -> None:
+    for what, (path, phrase) in bad_files(tmp_path).items():
+        with pytest.raises(SurfaceFileError) as e:
+            load_surface(path, length=1e-4)
+        msg = str(e.value)
+        assert str(path) in msg, what
+        assert phrase.lower() in msg.lower(), f"{what}: {msg}"
+        assert isinstance(e.value, ProblemInputError)
+
+
+def test_text_or_npy_without_length_asks_for_it(tmp_path: Path) -> None:
+    np.save(tmp_path / "a.npy", random_map())
+    with pytest.raises(ProblemInputError, match="length"):
+        load_surface(tmp_path / "a.npy")
+
+
+# --- cleaning ----------------------------------------------------------------------
+
+
+def test_nan_rules(tmp_path: Path) -> None:
+    z = np.arange(16.0).reshape(4, 4)
+    z[0, 0] = np.nan
+    np.save(tmp_path / "a.npy", z)
+    with pytest.warns(UserWarning, match="1 missing"):
+        s = load_surface(tmp_path / "a.npy", length=4.0)
+    assert s.heights[0, 0] == pytest.approx(np.nanmean(z)) and s.meta["nan_points"] == 1
+    with pytest.warns(UserWarning):
+        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-min").heights[0, 0] == 1.0
+    with pytest.warns(UserWarning):
+        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-nearest").heights[0, 0] in (1.0, 4.0)
+    with pytest.raises(SurfaceFileError, match="nan='error'"):
+        load_surface(tmp_path / "a.npy", length=4.0, nan="error")
+
+
+def test_plane_detrend_removes_tilt_exactly(tmp_path: Path) -> None:
+    rough = random_map((16, 16), seed=4)
+    yy, xx = np.mgrid[0:16, 0:16]
+    np.save(tmp_path / "a.npy", rough + 3e-6 + 2e-7 * xx - 1e-7 * yy)
+    s = load_surface(tmp_path / "a.npy", length=1.0, detrend="plane")
+    yyf, xxf = yy.ravel(), xx.ravel()
+    A = np.column_stack([np.ones(256), xxf, yyf])
+    coef, *_ = np.linalg.lstsq(A, s.heights.ravel(), rcond=None)
+    np.testing.assert_allclose(coef, 0.0, atol=1e-20)
+    assert s.meta["removed_plane"]["b_per_column"] == pytest.approx(2e-7, rel=0.2)
+
+
+def test_non_square_crop_pad_error(tmp_path: Path) -> None:
+    z = random_map((6, 10), seed=5)
+    np.save(tmp_path / "a.npy", z)
+    with pytest.warns(UserWarning, match="cropped 6x10"):
+        c = load_surface(tmp_path / "a.npy", length=6.0)
+    np.testing.assert_array_equal(c.heights, z[:, 2:8])
+    assert c.delta == 1.0 and "cropped" in c.meta["square"]
+    with pytest.warns(UserWarning, match="padded"):
+        p = load_surface(tmp_path / "a.npy", length=10.0, square="pad")
+    assert p.N == 10
+    np.testing.assert_array_equal(p.heights[:6], z)
+    assert np.all(p.heights[6:] == z.min())
+    with pytest.raises(SurfaceFileError, match="not square"):
+        load_surface(tmp_path / "a.npy", length=1.0, square="error")
+
+
+def test_bad_option_values_are_named() -> None:
+    with pytest.raises(ProblemInputError, match="square"):
+        load_surface("x.npy", 1.0, square="stretch")  # type: ignore[arg-type]
+
+
+def test_shipped_samples_load() -> None:
+    with pytest.warns(UserWarning):
+        x3p = load_surface(DATA / "solar-10x-like.x3p", detrend="plane")
+    assert x3p.N == 128 and x3p.delta == pytest.approx(1e-3 / 128)
+    with pytest.warns(UserWarning, match="cropped"):
+        npy = load_surface(DATA / "solar-100x-like.npy", length=97.5e-6, detrend="plane")
+    assert npy.N == 96
+    csv = load_surface(DATA / "ground-like-um.csv", length=5e-4, height_unit="um")
+    assert 0.3e-6 < csv.rms_height < 3e-6
+    assert not power_law_check(x3p).power_law  # roll-off
+    assert power_law_check(npy).power_law
+    total = sum(f.stat().st_size for f in DATA.iterdir() if f.is_file())
+    assert total < 400_000
+
+
+# --- coarsening filter ----------------------------------------------------------------
+
+
+def test_block_average_is_the_2x2_area_mean() -> None:
+    s = spectral_surface(8, 0.7, length=8.0, seed=1)
+    c = block_average(s)
+    assert c.N == 4 and c.delta == 2 * s.delta
+    np.testing.assert_allclose(c.heights[1, 2], s.heights[2:4, 4:6].mean())
+    assert c.heights.mean() == pytest.approx(s.heights.mean(), abs=1e-15)  # area-weighted: mean kept
+    assert c.meta["origin"] == (0.5 * s.delta, 0.5 * s.delta)
+
+
+def test_block_average_keeps_a_constant_and_a_plane() -> None:
+    from problems.surfaces import Surface
+
+    yy, xx = np.mgrid[0:8, 0:8].astype(float)
+    s = Surface(3.0 + 2.0 * xx + yy, 1.0)
+    c = block_average(s)
+    cy, cx = np.mgrid[0:4, 0:4].astype(float)
+    # a plane is reproduced at the coarse element centres (2i + 0.5, 2j + 0.5)
+    np.testing.assert_allclose(c.heights, 3.0 + 2.0 * (2 * cx + 0.5) + (2 * cy + 0.5))
+
+
+def test_coarse_levels_layout() -> None:
+    s = spectral_surface(64, 0.7, seed=2)
+    lv = coarse_levels(s, 3)
+    assert [x.N for x in lv] == [8, 16, 32]  # coarsest first, the surface excluded
+    assert [x.N for x in with_coarse_levels(s, 16).levels] == [16, 32]
+    rmd = rmd_surface_n(32, 0.7)
+    assert with_coarse_levels(rmd, 16) is rmd  # RMD keeps its own levels
+    with pytest.raises(ProblemInputError):
+        coarse_levels(s, -1)
+
+
+# --- power-law check ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("H", [0.3, 0.5, 0.7])
+def test_power_law_check_passes_rmd_and_pure_spectra(H: float) -> None:
+    assert power_law_check(rmd_surface_n(256, H)).power_law
+    c = power_law_check(spectral_surface(256, H, seed=3))
+    assert c.power_law and c.hurst == pytest.approx(H, abs=0.15)
+
+
+def test_power_law_check_flags_a_rolloff_plateau() -> None:
+    c = power_law_check(spectral_surface(256, 0.6, seed=3, rolloff_wavelength=100e-6 / 16))
+    assert not c.power_law and "NOT a power law" in c.message
+    assert abs(c.slope_low) < 1.0 < abs(c.slope_high)
