@@ -6,6 +6,7 @@ Fixtures
 --------
 ``contact_instance``  factory: ``contact_instance("rmd", N=32, step=-1)`` or
                       ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance.
+``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
 ``run_harness``       factory: run the harness into a temporary directory and return the
                       tidy table (pandas DataFrame), e.g.
                       ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``.
@@ -53,3 +54,13 @@ def run_harness(tmp_path: Any) -> Callable[..., Any]:
         return load_table(out_dir)
 
     return run
+
+
+@pytest.fixture
+def contactbench_conformance() -> Callable[..., Any]:
+    """``contactbench_conformance(solver)`` runs the conformance battery (fast subset) on a
+    solver (instance, registry name or ``module:NAME``) and fails the test on a wrong
+    answer claimed as converged.  See docs/adding-a-solver.md."""
+    from harness.conformance import assert_conforms
+
+    return assert_conforms
