@@ -121,6 +121,9 @@ class Capabilities:
     exact: bool = False
     max_n: int | None = None
     input_format: str = "operator"  # "operator", "dense" or "sparse"
+    #: Best scaled KKT error the method can reach (e.g. a backend's regularisation floor);
+    #: None when it can reach round-off.
+    accuracy_floor: float | None = None
 
     def describe(self) -> str:
         parts = [
@@ -132,6 +135,8 @@ class Capabilities:
         ]
         if self.max_n:
             parts.append(f"max_n={self.max_n}")
+        if self.accuracy_floor:
+            parts.append(f"floor={self.accuracy_floor:g}")
         return ", ".join(parts)
 
 

@@ -1,0 +1,99 @@
+"""``cvxpy``: the contact QP through CVXPY's modelling layer (Diamond & Boyd 2016).
+
+CVXPY is no longer a qpsolvers backend, so it has its own adapter.  On the equilibrated
+problem of ``solvers._scaling`` it states Bemporad & Paggi 2015, eq. (6) as
+
+* ``form="quad_form"`` (default):  Minimize(0.5 * quad_form(p, psd_wrap(H~)) - u~ @ p),
+  p >= 0  (psd_wrap skips CVXPY's eigenvalue check of H~);
+* ``form="cholesky"``:  Minimize(0.5 * sum_squares(L' p) - u~ @ p), p >= 0, H~ = L L'.
+
+Default solver: CLARABEL (interior point; chosen because it reaches the ``high``
+profile, while CVXPY's own default for QPs, OSQP without polishing, misses 1e-6 in p).
+Pick another with params {"solver": "OSQP"}; the one used is recorded in
+``info["cvxpy_solver"]``.  Tolerances are mapped by the same per-backend functions as
+the qpsolvers adapters (``solvers.qp_backends``), since CVXPY forwards the solver's own
+option names.  Building the expression and CVXPY's compilation are build time; the
+solver's time is solve time.  Warm start: none with CLARABEL.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.linalg as sla
+
+from .base import Capabilities, SolverSettings
+from .qp_backends import OptionMap, Request, clarabel_options, osqp_options, piqp_options, scs_options
+from .registry import register
+from ._scaling import BackendOutcome, EquilibratedAdapter, ScaledQP, requested_tolerance
+
+DEFAULT_CVXPY_SOLVER = "CLARABEL"
+
+#: CVXPY solver name -> the tolerance mapping of that backend (others: their defaults).
+TOLERANCE_MAPS: dict[str, OptionMap] = {
+    "CLARABEL": clarabel_options,
+    "OSQP": osqp_options,
+    "SCS": scs_options,
+    "PIQP": piqp_options,
+}
+
+
+def cvxpy_problem(H: np.ndarray, u: np.ndarray, form: str) -> tuple[Any, Any]:
+    """(problem, variable) for min 1/2 p'Hp - u'p, p >= 0 in the requested form."""
+    import cvxpy as cp
+
+    p = cp.Variable(u.size)
+    if form == "quad_form":
+        objective = 0.5 * cp.quad_form(p, cp.psd_wrap(H)) - u @ p
+    elif form == "cholesky":
+        L = sla.cholesky(H, lower=True, check_finite=False)
+        objective = 0.5 * cp.sum_squares(L.T @ p) - u @ p
+    else:
+        raise ValueError(f"cvxpy form must be 'quad_form' or 'cholesky', got {form!r}")
+    return cp.Problem(cp.Minimize(objective), [p >= 0]), p
+
+
+@register
+class CVXPYAdapter(EquilibratedAdapter):
+    """CVXPY model of the equilibrated QP (module doc).  Warm start: none (CLARABEL)."""
+
+    name: ClassVar[str] = "cvxpy"
+    description: ClassVar[str] = f"CVXPY quad_form model, solver {DEFAULT_CVXPY_SOLVER} (params: solver, form)"
+    capabilities: ClassVar[Capabilities] = Capabilities(
+        needs_dense=True, warm_start="none", exact=False, input_format="dense"
+    )
+    required_package: ClassVar[str] = "cvxpy"
+    # dense H, scaled copy, CVXPY's constant and its canonical sparse P, the solver's KKT
+    memory_copies: ClassVar[float] = 7.0
+    time_coef: ClassVar[float] = 2.8e-9
+    time_exponent: ClassVar[float] = 3.0
+
+    def solve_scaled(self, sqp: ScaledQP, settings: SolverSettings) -> BackendOutcome:
+        import cvxpy as cp
+
+        solver = str(settings.param("solver", DEFAULT_CVXPY_SOLVER)).upper()
+        form = str(settings.param("form", "quad_form"))
+        t0 = time.perf_counter()
+        problem, var = cvxpy_problem(sqp.H, sqp.u, form)
+        model_time = time.perf_counter() - t0
+        req = Request(requested_tolerance(settings), settings.max_iter, settings.time_limit)
+        opts = {**TOLERANCE_MAPS.get(solver, lambda r: {})(req), **settings.param("backend_options", {})}
+        t1 = time.perf_counter()
+        try:
+            problem.solve(solver=solver, **opts)
+        except (cp.error.SolverError, ValueError, TypeError) as exc:
+            return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, convert_time=model_time,
+                                  info={"cvxpy_solver": solver, "form": form, "options": opts})
+        wall = time.perf_counter() - t1
+        compile_time = float(getattr(problem, "compilation_time", None) or 0.0)
+        stats = problem.solver_stats
+        x = None if var.value is None else np.asarray(var.value, dtype=np.float64).ravel()
+        return BackendOutcome(
+            x, str(problem.status), problem.status == cp.OPTIMAL, int(stats.num_iters or 0),
+            convert_time=model_time + compile_time,
+            backend_setup_time=stats.setup_time, backend_solve_time=stats.solve_time,
+            info={"cvxpy_solver": stats.solver_name or solver, "form": form, "options": opts,
+                  "cvxpy_compile_time": compile_time, "cvxpy_solve_wall": wall - compile_time},
+        )

@@ -1,0 +1,327 @@
+"""Generic QP solvers through qpsolvers' ``solve_problem`` (Caron et al., qpsolvers).
+
+Every backend qpsolvers knows is registered as ``qp-<backend>`` (available or not: the
+registry then says why, "not installed" or "failed to import ..."), plus two
+labelled interior-point variants followed by an exact active-set solve,
+``qp-clarabel+polish`` and ``qp-piqp+polish`` (see ``solvers._scaling``).
+
+Each backend gets the contact QP  min 1/2 p'Hp - ubar'p, p >= 0  (Bemporad & Paggi 2015,
+eq. (6)) as P = H~, q = -u~, lb = 0 after the equilibration of ``solvers._scaling``
+(raw mode: params {"scaling": False}).  H is assembled dense (or taken from the shared
+DenseOperator); sparse backends get a CSC copy, converted at build time.
+
+Tolerance profiles (``default`` = the backend's own defaults, untouched; ``low`` 1e-3,
+``mid`` 1e-6, ``high`` 1e-9) are mapped by each backend's own function below onto that
+backend's absolute *and* relative options; relative ones are set to 0 where that is
+how the solver reaches an absolute target.  Known traps handled there: OSQP needs
+``polishing=True`` to be exact, HiGHS' QP regularization (default 1e-7) caps it near
+3e-7 so it is lowered with the tolerance, CVXOPT needs its tolerances at 1e-10 or
+below.  PIQP and ProxQP get dense input (10-20x faster at n ~ 3000).
+
+Warm start: qpsolvers forwards the primal to OSQP, ProxQP, QPALM, SCS and CVXOPT
+(declared "primal"); Clarabel, PIQP, HiGHS, DAQP, quadprog and ECOS ignore it ("none").
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from .base import Capabilities, SolverSettings, WarmKind
+from .registry import register
+from ._scaling import BackendOutcome, EquilibratedAdapter, ScaledQP, missing_package_message, requested_tolerance
+
+
+@dataclass(frozen=True)
+class Request:
+    """What the harness asked for, in the backend-neutral form the option maps read."""
+
+    tol: float | None  # None: the ``default`` profile (backend defaults)
+    max_iter: int | None
+    time_limit: float | None
+
+
+OptionMap = Callable[[Request], dict[str, Any]]
+
+
+def ipm_gap_target(tol: float) -> float:
+    """Interior-point gap/feasibility target for a requested accuracy ``tol``: ten times
+    tighter, because on (nearly) degenerate elements p converges only like sqrt(mu); one
+    more iteration (measured) brings p and the load, not just the KKT residual, to tol."""
+    return 0.1 * tol
+
+
+def _limits(req: Request, iter_key: str | None, time_key: str | None) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if iter_key and req.max_iter is not None:
+        out[iter_key] = int(req.max_iter)
+    if time_key and req.time_limit is not None:
+        out[time_key] = float(req.time_limit)
+    return out
+
+
+# --- each backend's own tolerance mapping ----------------------------------------
+
+
+def osqp_options(req: Request) -> dict[str, Any]:
+    """ADMM: absolute target with eps_rel = 0, polishing for an exact active set."""
+    out = _limits(req, "max_iter", "time_limit")
+    if req.tol is not None:
+        out.update(eps_abs=req.tol, eps_rel=0.0, polishing=True, polish_refine_iter=10)
+        out.setdefault("max_iter", 200_000)
+    return out
+
+
+def clarabel_options(req: Request) -> dict[str, Any]:
+    """Interior point: feasibility, gap (absolute and relative) and KT-ratio tolerances."""
+    out = _limits(req, "max_iter", "time_limit")
+    if req.tol is not None:
+        t = ipm_gap_target(req.tol)
+        out.update(tol_feas=t, tol_gap_abs=t, tol_gap_rel=t, tol_ktratio=min(1e-6, t),
+                   reduced_tol_feas=max(t, 1e-10), reduced_tol_gap_abs=max(t, 1e-10), reduced_tol_gap_rel=max(t, 1e-10))
+        out.setdefault("max_iter", 500)
+    return out
+
+
+def proxqp_options(req: Request) -> dict[str, Any]:
+    """Proximal augmented Lagrangian: eps_abs with eps_rel = 0, plus the duality gap."""
+    out = _limits(req, "max_iter", None)
+    if req.tol is not None:
+        out.update(eps_abs=req.tol, eps_rel=0.0, check_duality_gap=True,
+                   eps_duality_gap_abs=req.tol, eps_duality_gap_rel=0.0)
+        out.setdefault("max_iter", 100_000)
+    return out
+
+
+def piqp_options(req: Request) -> dict[str, Any]:
+    """Proximal interior point: eps_abs with eps_rel = 0, plus the duality gap."""
+    out = _limits(req, "max_iter", None)
+    if req.tol is not None:
+        t = ipm_gap_target(req.tol)
+        out.update(eps_abs=t, eps_rel=0.0, check_duality_gap=True, eps_duality_gap_abs=t, eps_duality_gap_rel=0.0)
+        out.setdefault("max_iter", 1000)
+    return out
+
+
+def scs_options(req: Request) -> dict[str, Any]:
+    """Operator splitting (homogeneous embedding): eps_abs with eps_rel = 0."""
+    out = _limits(req, "max_iters", "time_limit_secs")
+    if req.tol is not None:
+        out.update(eps_abs=req.tol, eps_rel=0.0)
+        out.setdefault("max_iters", 1_000_000)
+    return out
+
+
+def highs_options(req: Request) -> dict[str, Any]:
+    """Active-set QP: feasibility/optimality tolerances; its QP regularization
+    (default 1e-7) caps accuracy near 3e-7, so it is lowered with the tolerance."""
+    out = _limits(req, "qp_iteration_limit", "time_limit")
+    if req.tol is not None:
+        t = req.tol
+        out.update(primal_feasibility_tolerance=t, dual_feasibility_tolerance=t, optimality_tolerance=t,
+                   qp_regularization_value=min(1e-7, t * 1e-2))
+    return out
+
+
+def cvxopt_options(req: Request) -> dict[str, Any]:
+    """Interior point: abstol/reltol/feastol, at 1e-10 or below for 1e-8 in KKT."""
+    out = _limits(req, "maxiters", None)
+    if req.tol is not None:
+        t = min(ipm_gap_target(req.tol), 1e-10) if req.tol <= 1e-8 else ipm_gap_target(req.tol)
+        out.update(abstol=t, reltol=t, feastol=t, refinement=2)
+        out.setdefault("maxiters", 200)
+    return out
+
+
+def qpalm_options(req: Request) -> dict[str, Any]:
+    """Proximal augmented Lagrangian: eps_abs with eps_rel = 0 (inner tolerances too)."""
+    out = _limits(req, "max_iter", "time_limit")
+    if req.tol is not None:
+        out.update(eps_abs=req.tol, eps_rel=0.0, eps_abs_in=min(1.0, 100 * req.tol), eps_rel_in=0.0)
+        out.setdefault("max_iter", 100_000)
+    return out
+
+
+def daqp_options(req: Request) -> dict[str, Any]:
+    """Dual active set (exact up to its feasibility tolerance)."""
+    out = _limits(req, "iter_limit", None)
+    if req.tol is not None:
+        out.update(primal_tol=req.tol, dual_tol=min(1e-12, req.tol))
+    return out
+
+
+def ecos_options(req: Request) -> dict[str, Any]:
+    """Interior point on the SOCP reformulation: abstol/reltol/feastol at tol/100, not
+    below 1e-11 (tighter targets end in ECOS' "not found" at n ~ 100).  Even then its
+    KKT error scatters up to ~3e-8: declared accuracy floor 1e-7."""
+    out = _limits(req, "max_iters", None)
+    if req.tol is not None:
+        t = max(0.01 * req.tol, 1e-11)  # measured: 0.1 * tol leaves 1e-6 on some seeds
+        out.update(abstol=t, reltol=t, feastol=t)
+    return out
+
+
+def no_options(req: Request) -> dict[str, Any]:
+    """No tolerance to set (finite active-set method, or a backend this module does
+    not know: its defaults are used and recorded as such)."""
+    return {}
+
+
+# --- the backends --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BackendSpec:
+    """One qpsolvers backend: how to call it and what to declare for it."""
+
+    backend: str  # qpsolvers' name
+    package: str  # the Python module it needs
+    method: str
+    input_format: str  # "dense" or "sparse"
+    warm_start: WarmKind
+    options: OptionMap
+    memory_copies: float  # peak ~ copies * 8 n^2 (see _scaling.dense_memory_model)
+    time_coef: float  # t ~ coef * n^exponent seconds, fitted by bench_qp_backends.py
+    time_exponent: float = 3.0
+    accuracy_floor: float | None = None  # smallest scaled KKT error it reaches, if > 1e-8
+
+
+BACKENDS: tuple[BackendSpec, ...] = (
+    BackendSpec("osqp", "osqp", "ADMM", "sparse", "primal", osqp_options, 5.5, 1.4e-9),
+    BackendSpec("clarabel", "clarabel", "interior point", "sparse", "none", clarabel_options, 5.5, 1.7e-9),
+    BackendSpec("proxqp", "proxsuite", "proximal augmented Lagrangian", "dense", "primal", proxqp_options, 9.0, 1.5e-9),
+    BackendSpec("piqp", "piqp", "proximal interior point", "dense", "none", piqp_options, 6.0, 4e-10),
+    BackendSpec("scs", "scs", "operator splitting", "sparse", "primal", scs_options, 5.5, 1e-9),
+    BackendSpec("highs", "highspy", "active set", "sparse", "none", highs_options, 5.5, 1e-8),
+    BackendSpec("cvxopt", "cvxopt", "interior point", "dense", "primal", cvxopt_options, 6.0, 1.8e-9),
+    BackendSpec("qpalm", "qpalm", "proximal augmented Lagrangian", "sparse", "primal", qpalm_options, 5.5, 3.2e-9),
+    BackendSpec("daqp", "daqp", "dual active set", "dense", "none", daqp_options, 4.0, 4e-9),
+    BackendSpec("quadprog", "quadprog", "dual active set (Goldfarb-Idnani)", "dense", "none", no_options, 4.0, 6.4e-9),
+    BackendSpec("ecos", "ecos", "interior point (SOCP)", "sparse", "none", ecos_options, 6.0, 1.4e-8,
+                accuracy_floor=1e-7),
+)
+
+
+def _status_of(sol: Any) -> tuple[str, int]:
+    """The backend's own status string and iteration count from a qpsolvers Solution."""
+    extras = getattr(sol, "extras", None) or {}
+    status: Any = None
+    iters: Any = None
+    if isinstance(extras, dict):
+        status = extras.get("status", extras.get("status_val"))
+        iters = extras.get("iter", extras.get("iterations"))
+        info = extras.get("info")
+        if info is not None and not isinstance(info, (dict, str)):
+            status = status if status is not None else getattr(info, "status", None)
+            iters = iters if iters is not None else getattr(info, "iter", getattr(info, "iterations", None))
+    if status is None:
+        status = "found" if getattr(sol, "found", False) else "not found"
+    try:
+        it = int(iters) if iters is not None else 0
+    except (TypeError, ValueError):
+        it = 0
+    return str(status).rsplit(".", 1)[-1], it  # "Status.PIQP_SOLVED" -> "PIQP_SOLVED"
+
+
+def _problem_matrix(sqp: ScaledQP, fmt: str) -> tuple[Any, float]:
+    """P in the backend's format and the conversion time (counted as build time)."""
+    if fmt == "dense":
+        return sqp.H, 0.0
+    t0 = time.perf_counter()
+    P = sp.csc_matrix(sqp.H)
+    return P, time.perf_counter() - t0
+
+
+class QPSolversAdapter(EquilibratedAdapter):
+    """qpsolvers.solve_problem on the equilibrated QP (module doc); one instance per
+    backend.  Warm start: primal where qpsolvers forwards it (BackendSpec.warm_start)."""
+
+    family: ClassVar[str] = "qp"
+
+    def __init__(self, spec: BackendSpec, polish: bool = False) -> None:
+        self.spec = spec
+        self.polish = polish  # type: ignore[misc]
+        self.name = f"qp-{spec.backend}" + ("+polish" if polish else "")  # type: ignore[misc]
+        self.required_package = spec.package  # type: ignore[misc]
+        self.memory_copies = spec.memory_copies + (0.5 if polish else 0.0)  # type: ignore[misc]
+        self.time_coef = spec.time_coef * (1.3 if polish else 1.0)  # type: ignore[misc]
+        self.time_exponent = spec.time_exponent  # type: ignore[misc]
+        #: smallest scaled KKT error the backend reaches on these instances (None: 1e-8 or better)
+        self.accuracy_floor = None if polish else spec.accuracy_floor
+        tail = "; then one exact solve on the detected active set (labelled polish variant)" if polish else ""
+        self.description = (  # type: ignore[misc]
+            f"{spec.backend} ({spec.method}) via qpsolvers on the equilibrated dense QP, "
+            f"{spec.input_format} input{tail}"
+            + (f"; accuracy floor ~{spec.accuracy_floor:g} (cannot reach the high profile)" if self.accuracy_floor else "")
+        )
+        self.capabilities = Capabilities(  # type: ignore[misc]
+            needs_dense=True,
+            warm_start=spec.warm_start,
+            exact=False,
+            input_format=spec.input_format,
+            accuracy_floor=self.accuracy_floor,
+        )
+
+    def availability(self) -> tuple[bool, str]:
+        why = missing_package_message(self.name, "qpsolvers")
+        if why:
+            return False, why
+        import qpsolvers
+
+        if self.spec.backend in qpsolvers.available_solvers:
+            return True, "available"
+        why = missing_package_message(self.name, self.spec.package)
+        return False, why or f"failed to import: qpsolvers does not list backend {self.spec.backend!r}"
+
+    def solve_scaled(self, sqp: ScaledQP, settings: SolverSettings) -> BackendOutcome:
+        import qpsolvers
+
+        fmt = settings.param("input_format", self.spec.input_format)
+        P, convert = _problem_matrix(sqp, fmt)
+        req = Request(requested_tolerance(settings), settings.max_iter, settings.time_limit)
+        opts = {**self.spec.options(req), **settings.param("backend_options", {})}
+        problem = qpsolvers.Problem(P, -sqp.u, lb=np.zeros(sqp.n))
+        warm = sqp.x0 if self.spec.warm_start != "none" else None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                sol = qpsolvers.solve_problem(problem, solver=self.spec.backend, initvals=warm, **opts)
+            except Exception as exc:  # the backend's own failure is a status, not a crash
+                return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, convert_time=convert,
+                                      info={"backend": self.spec.backend, "options": opts})
+        status, iters = _status_of(sol)
+        x = None if sol.x is None else np.asarray(sol.x, dtype=np.float64)
+        return BackendOutcome(
+            x, status, bool(sol.found), iters, convert_time=convert,
+            backend_setup_time=getattr(sol, "build_time", None), backend_solve_time=getattr(sol, "solve_time", None),
+            warm_started=warm is not None,
+            info={"backend": self.spec.backend, "input_format": fmt, "options": opts,
+                  "warnings": [str(w.message) for w in caught][:5]},
+        )
+
+
+def _extra_backends() -> tuple[BackendSpec, ...]:
+    """Backends qpsolvers can import that this module has no mapping for (defaults)."""
+    try:
+        import qpsolvers
+    except Exception:
+        return ()
+    known = {b.backend for b in BACKENDS}
+    dense = set(getattr(qpsolvers, "dense_solvers", []))
+    return tuple(
+        BackendSpec(b, b, "unknown", "dense" if b in dense else "sparse", "none", no_options, 6.0, 1e-8)
+        for b in qpsolvers.available_solvers if b not in known
+    )
+
+
+POLISHED = ("clarabel", "piqp")
+
+for _spec in BACKENDS + _extra_backends():
+    register(QPSolversAdapter(_spec))
+    if _spec.backend in POLISHED:
+        register(QPSolversAdapter(_spec, polish=True))

@@ -1,0 +1,180 @@
+"""Generic QP adapters (qpsolvers backends, cvxpy, scipy-nnls reference): accuracy at the
+``high`` profile against the reference, equilibration, raw mode, missing packages,
+capabilities and the memory model that skips 512^2 instances."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.kkt import kkt_check, relative_error, relative_load_error
+from problems.instances import ContactInstance, InstanceBuilder, counterexample, paper_max_displacement, trial_set
+from problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from problems.surfaces import rmd_surface_n
+from solvers import _scaling
+from solvers.base import SolverSettings, WarmStart
+from solvers.qp_backends import BackendSpec, QPSolversAdapter, no_options
+from solvers.registry import all_solvers, get_solver
+
+ADAPTERS = sorted(n for n, s in all_solvers().items() if n.startswith("qp-") or n == "cvxpy")
+COUNTEREXAMPLE_SEEDS = (0, 1, 2, 3, 4)
+
+
+def _instances() -> dict[str, ContactInstance]:
+    surf = rmd_surface_n(32, 0.7, seed=1)
+    out = {"rmd32": InstanceBuilder(surf, 1e9, operator="dense").build(paper_max_displacement(surf))}
+    for seed in COUNTEREXAMPLE_SEEDS:
+        out[f"counterexample-{seed}"] = counterexample(100, seed)
+    return out
+
+
+@pytest.fixture(scope="module")
+def cases() -> dict[str, tuple[ContactInstance, np.ndarray]]:
+    ref = get_solver("scipy-nnls")
+    out = {}
+    for key, inst in _instances().items():
+        res = ref.solve(inst.qp, SolverSettings("high"))
+        out[key] = (inst, res.p)
+    return out
+
+
+def _require(name: str) -> None:
+    ok, why = get_solver(name).availability()
+    if not ok:
+        pytest.skip(f"{name}: {why}")
+
+
+def test_reference_is_exact(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    for key, (inst, p) in cases.items():
+        assert kkt_check(inst, p).kkt_error < 1e-12, key
+        assert np.count_nonzero(p > 0) > 0, key
+
+
+@pytest.mark.parametrize("name", ADAPTERS)
+def test_high_profile_agrees_with_reference(name: str, cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require(name)
+    solver = get_solver(name)
+    # a backend that cannot reach the high profile says so (ECOS); it is held to its floor
+    floor = getattr(solver, "accuracy_floor", None) or 1e-8
+    for key, (inst, p_ref) in cases.items():
+        res = solver.solve(inst.qp, SolverSettings("high"))
+        rep = kkt_check(inst, res.p)
+        assert rep.kkt_error <= floor, f"{name} on {key}: kkt {rep.kkt_error:.2e}, status {res.status}"
+        assert relative_error(res.p, p_ref) <= 100 * floor, f"{name} on {key}"
+        assert relative_load_error(inst.load(res.p), inst.load(p_ref)) <= floor, f"{name} on {key}"
+        assert res.status and res.status != "unknown"
+        assert res.setup_time >= 0.0 and res.solve_time >= 0.0
+        assert res.info["build_time"] == pytest.approx(res.setup_time)
+
+
+def test_equilibration_gives_order_one_problem() -> None:
+    rng = np.random.default_rng(3)
+    M = rng.random((6, 6))
+    H = 4e-6 * (M @ M.T + 6 * np.eye(6))
+    ubar = 1e-6 * rng.random(6)
+    eq = _scaling.equilibration_for(np.diag(H), ubar)
+    Hs, us = eq.scale_matrix(H), eq.scale_rhs(ubar)
+    np.testing.assert_allclose(np.diag(Hs), 1.0)
+    assert np.max(np.abs(us)) == pytest.approx(1.0)
+    p = rng.random(6)
+    np.testing.assert_allclose(eq.to_original(eq.to_scaled(p)), p)
+    # objective divided by s^2, gap mapped back exactly
+    ps = eq.to_scaled(p)
+    obj = 0.5 * p @ H @ p - ubar @ p
+    obj_s = 0.5 * ps @ Hs @ ps - us @ ps
+    assert obj_s * eq.s**2 == pytest.approx(obj, rel=1e-12)
+    np.testing.assert_allclose(eq.gap_to_original(Hs @ ps - us), H @ p - ubar, rtol=1e-12, atol=1e-20)
+    raw = _scaling.equilibration_for(np.diag(H), ubar, enabled=False)
+    assert raw.scale_matrix(H) is H and raw.s == 1.0
+
+
+def test_shared_dense_matrix_is_not_copied(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    inst, _ = cases["rmd32"]
+    assert isinstance(inst.qp.H, DenseOperator)
+    assert _scaling.dense_matrix(inst.qp) is inst.qp.H.H
+
+
+def test_raw_mode_can_be_selected(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require("qp-osqp")
+    inst, p_ref = cases["rmd32"]
+    solver = get_solver("qp-osqp")
+    raw = solver.solve(inst.qp, SolverSettings("default", params={"scaling": False}))
+    scaled = solver.solve(inst.qp, SolverSettings("default"))
+    assert raw.info["scaling"] == "raw" and raw.info["scale_s"] == 1.0
+    assert scaled.info["scaling"] == "jacobi+rhs"
+    # the documented hazard: OSQP's defaults on SI-unit data stop far from the answer
+    assert kkt_check(inst, raw.p).kkt_error > 1e3 * kkt_check(inst, scaled.p).kkt_error
+
+
+def test_missing_backend_gives_clear_message(tmp_path, monkeypatch) -> None:
+    missing = QPSolversAdapter(BackendSpec("nosuchqp", "contactbench_no_such_pkg", "none", "dense", "none",
+                                           no_options, 4.0, 1e-9))
+    ok, why = missing.availability()
+    assert not ok and "not installed" in why and "contactbench_no_such_pkg" in why
+    inst = counterexample(4, 0)
+    with pytest.raises(RuntimeError, match="not installed"):
+        missing.solve(inst.qp, SolverSettings("high"))
+    (tmp_path / "contactbench_broken_pkg.py").write_text("import contactbench_absent_dependency\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    broken = QPSolversAdapter(BackendSpec("brokenqp", "contactbench_broken_pkg", "none", "dense", "none",
+                                          no_options, 4.0, 1e-9))
+    ok, why = broken.availability()
+    assert not ok and why.startswith("failed to import")
+
+
+def test_every_adapter_declares_capabilities() -> None:
+    solvers = all_solvers()
+    for name in ADAPTERS + ["scipy-nnls"]:
+        cap = solvers[name].capabilities
+        assert cap.needs_dense and cap.input_format in ("dense", "sparse"), name
+    assert solvers["scipy-nnls"].capabilities.exact
+    assert solvers["qp-osqp"].capabilities.warm_start == "primal"
+    assert solvers["qp-proxqp"].capabilities.warm_start == "primal"
+    assert solvers["qp-clarabel"].capabilities.warm_start == "none"
+    assert solvers["qp-piqp"].capabilities.warm_start == "none"
+    assert solvers["qp-piqp"].capabilities.input_format == "dense"
+    assert solvers["qp-osqp"].capabilities.input_format == "sparse"
+
+
+def test_memory_model_skips_512_top_step() -> None:
+    surf = rmd_surface_n(512, 0.7, seed=2)
+    n = int(trial_set(surf.heights, paper_max_displacement(surf)).size)
+    assert n > 15_000
+    for name in ADAPTERS + ["scipy-nnls"]:
+        solver = get_solver(name)
+        assert solver.memory_estimate(n) > DEFAULT_MEMORY_BUDGET, name
+        assert solver.memory_estimate(33) < DEFAULT_MEMORY_BUDGET, name
+        assert solver.time_estimate(n, "fft") > solver.time_estimate(33, "fft"), name
+
+
+def test_polish_is_a_separate_labelled_variant(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require("qp-clarabel")
+    inst, p_ref = cases["counterexample-0"]
+    plain = get_solver("qp-clarabel").solve(inst.qp, SolverSettings("default"))
+    pol = get_solver("qp-clarabel+polish").solve(inst.qp, SolverSettings("default"))
+    assert "polish_rounds" not in plain.info and pol.info["polish_converged"]
+    assert kkt_check(inst, pol.p).kkt_error < 1e-12
+    assert kkt_check(inst, pol.p).kkt_error <= kkt_check(inst, plain.p).kkt_error
+
+
+def test_polish_repairs_a_wrong_active_set(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    inst, p_ref = cases["counterexample-1"]
+    sqp = _scaling.assemble_scaled(inst.qp, SolverSettings())
+    exact = sqp.eq.to_scaled(p_ref)
+    guess = exact.copy()
+    on, off = np.flatnonzero(exact > 0), np.flatnonzero(exact == 0)
+    guess[on[:5]] = 0.0  # five contact elements wrongly released
+    guess[off[:5]] = 1.0  # five free elements wrongly pressed
+    out = _scaling.active_set_polish(sqp.H, sqp.u, guess)
+    assert out.converged and out.rounds > 1
+    assert relative_error(sqp.eq.to_original(out.p), p_ref) < 1e-10
+
+
+def test_warm_start_is_forwarded_where_supported(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require("qp-osqp")
+    inst, p_ref = cases["counterexample-2"]
+    res = get_solver("qp-osqp").solve(inst.qp, SolverSettings("mid"), WarmStart(p=p_ref))
+    assert res.warm_started
+    if get_solver("qp-clarabel").availability()[0]:
+        res = get_solver("qp-clarabel").solve(inst.qp, SolverSettings("mid"), WarmStart(p=p_ref))
+        assert not res.warm_started
