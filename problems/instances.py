@@ -208,20 +208,27 @@ class InstanceBuilder:
         """
         check_nonnegative("far-field displacement Delta", delta_disp)
         h = self.surface.heights
-        idx = trial_set(h, delta_disp)
+        # Periodic kernels have the q = 0 mode removed: the surface rises between contacts
+        # (negative influence coefficients far away), so points below xi_max - Delta can
+        # touch and the rigid-body trial set is no superset of the contact set.  Periodic
+        # problems are therefore posed on the whole grid, ubar < 0 where the rigid body
+        # does not reach; the QP is bounded while sum(ubar) < 0 (H's null vector is 1).
+        idx = np.arange(h.size) if self.periodic else trial_set(h, delta_disp)
         if candidates is not None:
             idx = np.intersect1d(idx, self._candidate_indices(candidates), assume_unique=False)
         if idx.size == 0:
             where = " within the given candidate points" if candidates is not None else ""
             raise ProblemInputError(f"empty trial set at Delta = {delta_disp!r}{where}: no element can touch")
-        if self.periodic and idx.size == h.size:
-            raise ProblemInputError(
-                f"periodic kernel with every grid point in the trial set (Delta = {delta_disp!r}): "
-                "H is singular along the constant vector (its q = 0 mode is removed) and the QP is unbounded; "
-                "use a smaller Delta or a non-periodic kernel"
-            )
         ubar = delta_disp - float(h.max()) + h.ravel()[idx]
-        ubar = np.maximum(ubar, 0.0)  # ubar = Delta at the top, >= 0 (never -0 by roundoff) at the set's edge
+        if self.periodic:
+            if idx.size == h.size and float(np.sum(ubar)) >= 0.0:
+                raise ProblemInputError(
+                    f"periodic problem at Delta = {delta_disp!r} >= xi_max - xi_mean: H is singular along the "
+                    "constant vector (its q = 0 mode is removed) and the QP is unbounded; use a smaller Delta "
+                    "or a non-periodic kernel"
+                )
+        else:
+            ubar = np.maximum(ubar, 0.0)  # ubar = Delta at the top, >= 0 (never -0 by roundoff) at the set's edge
         geom = Geometry(self.surface.shape, self.surface.delta, idx, surface=self.surface,
                         far_field=float(delta_disp), E=self.E, kernel=self.kernel, periodic=self.periodic)
         qp = QP(self.operator_on(idx), ubar, geom)

@@ -170,10 +170,14 @@ def test_bad_candidates_are_refused(surface: Surface) -> None:
         builder.build(0.0, candidates=np.array([5000]))
 
 
-def test_periodic_full_trial_set_is_refused() -> None:
+def test_periodic_problem_is_posed_on_the_whole_grid_and_refused_when_unbounded() -> None:
     s = rmd_surface(4, 0.7, seed=0, periodic=True)
     builder = InstanceBuilder(s, E, "bcc", periodic=True)
-    with pytest.raises(ProblemInputError, match="every grid point in the trial set .* singular"):
+    inst = builder.build(paper_max_displacement(s))
+    assert inst.n == s.heights.size  # points below xi_max - Delta may touch: whole grid
+    assert inst.qp.ubar.min() < 0.0 and inst.qp.ubar.sum() < 0.0
+    np.testing.assert_allclose(inst.qp.ubar.max(), paper_max_displacement(s))
+    with pytest.raises(ProblemInputError, match="xi_max - xi_mean: H is singular .* unbounded"):
         builder.build(10 * (s.z_max - s.heights.min()))
 
 

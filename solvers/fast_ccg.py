@@ -1,0 +1,168 @@
+"""Polonsky-Keer constrained conjugate gradients (fast-ccg) and the Bugnicourt et al.
+constrained CG without restart (fast-dual-ccg), both matrix-free on the FFT operator.
+
+fast-ccg
+    Polonsky & Keer, Wear 231 (1999) 206, displacement-controlled form: CG on the
+    contact set S = {p > 0} with the gap g = Hp - ubar as residual; after each step
+    p < 0 is clipped to 0, points with p = 0 and g < 0 (penetration) enter with the
+    force -tau g, and conjugacy is reset (delta = 0) whenever a point entered.
+fast-dual-ccg
+    Bugnicourt, Sainsot, Dureisseix, Gauthier & Lubrecht, Tribol. Lett. 66 (2018) 29,
+    algorithm OUT_LIN: projected CG on the pixel forces (ContactMechanics calls this
+    the "dual" objective: variable = force, gradient = gap) with a Polak-Ribiere
+    beta and *no restart*; the residual is the gap with admissible multipliers
+    (g >= 0 where p = 0) removed.
+
+Both minimise the paper's QP (Bemporad & Paggi 2015, eq. (5)): min 1/2 p'Hp - ubar'p,
+p >= 0.  One matvec per iteration while the projection is inactive (the gap is
+updated as g += alpha H d), two when it clips.  Warm start: primal (WarmStart.p).
+The stopping test is the harness's scaled KKT error (unit-invariant), confirmed on a
+freshly recomputed gap.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from problems.instances import QP
+
+from ._fast_common import (
+    DEFAULT_TOL,
+    FAST_CAPABILITIES,
+    GapState,
+    check_qp,
+    iteration_limit,
+    make_result,
+    scaled_kkt,
+    start_point,
+    time_left,
+)
+from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
+from .registry import register
+
+
+class _FastCG(Solver):
+    family = "fast"
+    capabilities = FAST_CAPABILITIES
+
+    def memory_estimate(self, n: int) -> float:
+        return 8.0 * 8.0 * n
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        t_setup = time.perf_counter()
+        check_qp(qp)
+        tol = settings.tolerance(DEFAULT_TOL)
+        p0, warm_started = start_point(qp, warm)
+        m0 = qp.H.matvec_count
+        diag_max = float(np.max(qp.H.diagonal()))
+        trace = Trace()
+        state = GapState(qp.H, qp.ubar, p0)
+        setup = time.perf_counter() - t_setup
+        it, kkt = self._iterate(state, qp.ubar, diag_max, tol, iteration_limit(settings, qp.n), settings, trace)
+        return make_result(state, iterations=it, kkt=kkt, tol=tol, trace=trace, matvecs0=m0,
+                           warm_started=warm_started, setup_time=setup)
+
+    def _iterate(self, state: GapState, ubar: np.ndarray, diag_max: float, tol: float, max_iter: int,
+                 settings: SolverSettings, trace: Trace) -> tuple[int, float]:
+        raise NotImplementedError
+
+
+def converged_now(state: GapState, ubar: np.ndarray, diag_max: float, tol: float) -> tuple[bool, float]:
+    """Scaled KKT test on the running gap, confirmed on a recomputed one."""
+    kkt = scaled_kkt(state.p, state.g, ubar, diag_max)
+    if kkt > tol:
+        return False, kkt
+    state.refresh()
+    kkt = scaled_kkt(state.p, state.g, ubar, diag_max)
+    return kkt <= tol, kkt
+
+
+@register
+class FastPolonskyKeer(_FastCG):
+    """Polonsky-Keer CCG (1999) with warm start, FFT operator (see module doc)."""
+
+    name = "fast-ccg"
+    description = "Polonsky-Keer constrained CG on the FFT operator, warm-started (Wear 1999)"
+
+    def _iterate(self, state, ubar, diag_max, tol, max_iter, settings, trace):
+        H = state.H
+        t = np.zeros_like(state.p)
+        G_old, reset = 1.0, True
+        t0 = time.perf_counter()
+        kkt = np.inf
+        for it in range(1, max_iter + 1):
+            ok, kkt = converged_now(state, ubar, diag_max, tol)
+            trace.record(it - 1, kkt)
+            if ok or not time_left(t0, settings):
+                return it - 1, kkt
+            S = state.p > 0.0
+            if not np.any(S):  # nothing in contact: the most penetrating points enter
+                S = state.g < 0.0
+            r = np.where(S, state.g, 0.0)
+            G = float(r @ r)
+            t = r if reset or G_old == 0.0 else np.where(S, r + (G / G_old) * t, 0.0)
+            q = H.matvec(t)
+            tq = float(t @ q)
+            if tq <= 0.0:
+                state.refresh()
+                reset = True
+                continue
+            tau = float(r @ t) / tq
+            p_new = state.p - tau * t
+            entering = (state.p == 0.0) & (state.g < 0.0) & ~S
+            p_new[entering] = -tau * state.g[entering]
+            clipped = p_new < 0.0
+            p_new[clipped] = 0.0
+            if np.any(entering) or np.any(clipped):
+                state.p = p_new
+                state.refresh()
+            else:
+                state.p = p_new
+                state.g -= tau * q
+            reset = bool(np.any(entering))
+            G_old = G
+        return max_iter, kkt
+
+
+@register
+class FastBugnicourtCCG(_FastCG):
+    """Bugnicourt et al. (2018) constrained CG without restart (see module doc)."""
+
+    name = "fast-dual-ccg"
+    description = "Bugnicourt et al. 2018 constrained CG without restart on the forces (ContactMechanics' 'dual'), FFT operator"
+
+    def _iterate(self, state, ubar, diag_max, tol, max_iter, settings, trace):
+        H = state.H
+        res = self._residual(state)
+        d = -res
+        t0 = time.perf_counter()
+        kkt = np.inf
+        for it in range(1, max_iter + 1):
+            ok, kkt = converged_now(state, ubar, diag_max, tol)
+            trace.record(it - 1, kkt)
+            if ok or not time_left(t0, settings):
+                return it - 1, kkt
+            Hd = H.matvec(d)
+            dHd = float(d @ Hd)
+            if dHd <= 0.0:  # d = 0 (converged up to round-off) or lost conjugacy: restart
+                state.refresh()
+                res = self._residual(state)
+                d = -res
+                if not np.any(d):
+                    return it, scaled_kkt(state.p, state.g, ubar, diag_max)
+                continue
+            alpha = -float(res @ d) / dHd
+            state.step(alpha, d, Hd)
+            res_old = res
+            res = self._residual(state)
+            beta = float(res @ (res - res_old)) / (alpha * dHd)
+            d = -res + beta * d
+            d[(state.p == 0.0) & (res == 0.0)] = 0.0
+        return max_iter, kkt
+
+    @staticmethod
+    def _residual(state: GapState) -> np.ndarray:
+        """Gap with the admissible multipliers (p = 0, g >= 0) removed."""
+        return np.where((state.p <= 0.0) & (state.g >= 0.0), 0.0, state.g)

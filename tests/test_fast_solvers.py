@@ -1,0 +1,129 @@
+"""The matrix-free fast solvers (solvers/fast_*.py) against a dense reference.
+
+Reference: scipy.optimize.nnls on the Cholesky factor (H = L L', the QP is
+min 1/2 ||L'p - L^-1 ubar||^2 over p >= 0).  Small grids only; no timing asserts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from scipy.optimize import nnls
+
+from harness.kkt import kkt_check, relative_error
+from problems.errors import ProblemInputError
+from problems.instances import InstanceBuilder, load_ramp, paper_max_displacement
+from problems.operators import FFTOperator
+from problems.surfaces import rmd_surface_n
+from solvers.base import SolverSettings, WarmStart
+from solvers.registry import get_solver
+
+FAST = ["fast-ccg", "fast-dual-ccg", "fast-pdas"]
+HIGH = SolverSettings(profile="high")
+
+
+def nnls_reference(qp) -> np.ndarray:
+    """scipy NNLS on the Cholesky factor.  A periodic QP is posed on the whole grid, where
+    H is singular along the constant vector: solve it on the upper half of ubar (a proper
+    subset, H positive definite there), extend by zeros and prove the extension exact by
+    the full-grid KKT check."""
+    idx = np.arange(qp.n)
+    if qp.n == int(np.prod(qp.geometry.grid_shape)) if qp.geometry is not None else False:
+        idx = np.sort(np.argsort(qp.ubar)[qp.n // 2:])
+    H = qp.H.submatrix(idx, idx)
+    L = sla.cholesky(H, lower=True)
+    b = sla.solve_triangular(L, qp.ubar[idx], lower=True)
+    p_sub, _ = nnls(L.T, b, maxiter=50 * idx.size)
+    p = np.zeros(qp.n)
+    p[idx] = p_sub
+    assert kkt_check(qp, p).kkt_error <= 1e-10, "reference subset too small"
+    return p
+
+
+def instance(N: int, kernel: str, periodic: bool, frac: float = 1.0, operator: str = "fft", seed: int = 3):
+    s = rmd_surface_n(N, 0.7, length=100e-6, seed=seed)
+    b = InstanceBuilder(s, 1e9, kernel, periodic=periodic, operator=operator)
+    return b, b.build(frac * paper_max_displacement(s))
+
+
+@pytest.mark.parametrize("name", FAST)
+@pytest.mark.parametrize(
+    "N,kernel,periodic,operator",
+    [(33, "bcc", False, "fft"), (32, "bcc", True, "fft"), (64, "spectral", True, "fft"), (33, "love", False, "dense")],
+)
+def test_same_p_as_dense_nnls(name, N, kernel, periodic, operator):
+    _, inst = instance(N, kernel, periodic, operator=operator)
+    assert inst.n > 20
+    p_ref = nnls_reference(inst.qp)
+    res = get_solver(name).solve(inst.qp, HIGH)
+    assert res.converged
+    assert kkt_check(inst, res.p).kkt_error <= 1e-8
+    assert relative_error(res.p, p_ref) <= 1e-6
+    assert np.all(res.p >= 0)
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_warm_start_from_previous_step(name):
+    s = rmd_surface_n(64, 0.7, length=100e-6, seed=5)
+    b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
+    d1, d2 = load_ramp(paper_max_displacement(s), 2)
+    i1, i2 = b.build(d1), b.build(d2)
+    r1 = get_solver(name).solve(i1.qp, HIGH)
+    full = np.zeros(s.heights.size)
+    full[i1.geometry.indices] = r1.p
+    warm = get_solver(name).solve(i2.qp, HIGH, WarmStart(full[i2.geometry.indices]))
+    cold = get_solver(name).solve(i2.qp, HIGH)
+    assert warm.warm_started and not cold.warm_started
+    assert kkt_check(i2, warm.p).kkt_error <= 1e-8
+    assert relative_error(warm.p, cold.p) <= 1e-6
+    again = get_solver(name).solve(i2.qp, HIGH, WarmStart(warm.p))
+    assert again.iterations <= 2  # started at the solution: (almost) nothing left to do
+    assert relative_error(again.p, warm.p) <= 1e-8
+
+
+def test_sweep_loads_agree_between_exact_solvers():
+    """A 10-step non-periodic BCC sweep at 128^2 (paper scene, smaller grid):
+    every fast solver reaches kkt <= 1e-8 and they agree on every load."""
+    s = rmd_surface_n(128, 0.7, length=100e-6, seed=0)
+    b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
+    loads = {}
+    for name in FAST:
+        prev = np.zeros(s.heights.size)
+        loads[name] = []
+        for k, d in enumerate(load_ramp(paper_max_displacement(s), 10)):
+            inst = b.build(d)
+            idx = inst.geometry.indices
+            res = get_solver(name).solve(inst.qp, HIGH, WarmStart(prev[idx]) if k else None)
+            assert kkt_check(inst, res.p).kkt_error <= 1e-8, (name, k)
+            prev = np.zeros(s.heights.size)
+            prev[idx] = res.p
+            loads[name].append(inst.load(res.p))
+    ref = np.array(loads["fast-ccg"])
+    for name in FAST[1:]:
+        np.testing.assert_allclose(loads[name], ref, rtol=1e-6)
+
+
+def test_pruned_fft_matvec_matches_full_convolution():
+    for periodic, kernel in ((False, "bcc"), (True, "bcc"), (True, "spectral")):
+        b, inst = instance(32 if periodic else 33, kernel, periodic)
+        op = inst.qp.H
+        assert isinstance(op, FFTOperator)
+        x = np.random.default_rng(1).random(op.n)
+        full = b.transform.convolve(op.scatter(x)).ravel()[op.pidx]
+        np.testing.assert_allclose(op.matvec(x), full, rtol=1e-12, atol=1e-12 * np.abs(full).max())
+        np.testing.assert_allclose(op.matvec(x), op.to_dense() @ x, rtol=1e-10)
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_bad_warm_start_shape_is_a_clear_error(name):
+    _, inst = instance(33, "bcc", False)
+    with pytest.raises(ProblemInputError, match="warm-start"):
+        get_solver(name).solve(inst.qp, HIGH, WarmStart(np.zeros(inst.n + 1)))
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_registered_as_exact_fast_solvers(name):
+    s = get_solver(name)
+    assert s.family == "fast" and s.capabilities.exact and s.capabilities.warm_start == "primal"
+    assert not s.capabilities.needs_dense
