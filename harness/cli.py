@@ -110,6 +110,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--threads", type=positive_int, default=None, help="BLAS/FFT threads per worker")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.add_argument("--report", action="store_true", help="build the report after the run")
+    run.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="send the cells to a running Dask scheduler (tcp://host:8786); see docs/distributed.md")
 
     rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
     rep.add_argument("dir")
@@ -163,7 +165,13 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
                         reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
                         progress=False if args.no_progress else None, **kw)
     out = args.out or "results/" + "-".join(args.scenes)
-    summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv])
+    if args.scheduler:
+        from .distributed import run_benchmark_on_dask
+
+        summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
+                                        command=["contactbench", *argv])
+    else:
+        summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv])
     for w in summary.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(summary.line())

@@ -33,6 +33,18 @@ from .errors import MemoryBudgetError, ProblemInputError
 DEFAULT_MEMORY_BUDGET = float(os.environ.get("CONTACTBENCH_MEMORY_BUDGET_GB", "8")) * 2**30
 
 
+#: The FFT operator switches to a dense block after this many matvecs when that is
+#: cheaper (small trial sets on large grids) ...
+DENSE_SWITCH_AFTER = 4
+#: ... and the block has at most this many entries (128 MiB).
+DENSE_SWITCH_MAX_ENTRIES = 1 << 24
+
+
+def dense_switch_enabled() -> bool:
+    """The hybrid dense/FFT matvec is on unless CONTACTBENCH_DENSE_SWITCH=0."""
+    return os.environ.get("CONTACTBENCH_DENSE_SWITCH", "1") not in ("0", "false", "no")
+
+
 def fft_workers() -> int:
     """Threads used by scipy.fft (env CONTACTBENCH_FFT_WORKERS, default: all cores)."""
     env = os.environ.get("CONTACTBENCH_FFT_WORKERS")
@@ -224,7 +236,7 @@ class KernelTransform:
 class FFTOperator(ContactOperator):
     """Matrix-free H_II: scatter to the physical grid, convolve by FFT, gather."""
 
-    def __init__(self, transform: KernelTransform, grid_idx: np.ndarray) -> None:
+    def __init__(self, transform: KernelTransform, grid_idx: np.ndarray, auto_dense: bool | None = None) -> None:
         self.transform = transform
         self.grid_idx = np.asarray(grid_idx, dtype=np.int64)
         self.pidx = transform.padded_index(self.grid_idx)
@@ -233,6 +245,27 @@ class FFTOperator(ContactOperator):
         p0, p1 = transform.padded_shape
         pi, pj = np.divmod(self.pidx, p1)
         self._pi, self._pj = pi, pj
+        self.auto_dense = dense_switch_enabled() if auto_dense is None else bool(auto_dense)
+        self._dense: np.ndarray | None = None
+
+    def dense_pays(self) -> bool:
+        """Whether a dense H_II matvec (n^2 entries streamed) is cheaper than the FFT pair
+        on the padded grid (P points) and small enough to hold."""
+        P = int(np.prod(self.transform.padded_shape))
+        # Calibrated at 512^2 (P = 1024^2) on 2 cores: the pruned FFT pair takes about as
+        # long as streaming a dense block of 0.4 P log2 P entries (n ~ 2800) from memory.
+        return self.n * self.n <= min(DENSE_SWITCH_MAX_ENTRIES, 0.4 * P * np.log2(max(P, 2)))
+
+    def _maybe_switch_to_dense(self) -> None:
+        # After a few matvecs a small trial set on a large grid is cheaper as a dense
+        # block gathered from the kernel table: same numbers, no FFT.
+        if self._dense is None and self.auto_dense and self.matvec_count >= DENSE_SWITCH_AFTER and self.dense_pays():
+            idx = np.arange(self.n)
+            self._dense = self.submatrix(idx, idx)
+
+    @property
+    def uses_dense(self) -> bool:
+        return self._dense is not None
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
         """x placed on the padded grid (zero elsewhere)."""
@@ -247,6 +280,9 @@ class FFTOperator(ContactOperator):
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         self.matvec_count += 1
+        self._maybe_switch_to_dense()
+        if self._dense is not None:
+            return self._dense @ x
         u = self.transform.convolve_physical(self._scatter_physical(x))
         n2 = self.transform.grid_shape[1]
         if u.flags.c_contiguous:
@@ -266,12 +302,25 @@ class FFTOperator(ContactOperator):
         rows = np.asarray(rows)
         cols = rows if cols is None else np.asarray(cols)
         p0, p1 = self.transform.padded_shape
-        di = (self._pi[rows][:, None] - self._pi[cols][None, :]) % p0
-        dj = (self._pj[rows][:, None] - self._pj[cols][None, :]) % p1
-        return self.transform.table[di, dj]
+        table = self.transform.table.ravel()
+        ri, rj = self._pi[rows], self._pj[rows]
+        ci, cj = self._pi[cols], self._pj[cols]
+        out = np.empty((rows.size, cols.size))
+        # Row blocks keep the offset temporaries near 32 MiB whatever the size of the block.
+        step = max(1, (1 << 22) // max(1, cols.size))
+        for b0 in range(0, rows.size, step):
+            b1 = min(rows.size, b0 + step)
+            flat = ((ri[b0:b1, None] - ci[None, :]) % p0) * p1
+            flat += (rj[b0:b1, None] - cj[None, :]) % p1
+            np.take(table, flat, out=out[b0:b1])
+        return out
 
     def restrict(self, idx: np.ndarray) -> "FFTOperator":
-        return FFTOperator(self.transform, self.grid_idx[np.asarray(idx)])
+        idx = np.asarray(idx)
+        op = FFTOperator(self.transform, self.grid_idx[idx], auto_dense=self.auto_dense)
+        if self._dense is not None:
+            op._dense = self._dense[np.ix_(idx, idx)]
+        return op
 
     def frobenius_norm(self) -> float:
         """sqrt(1_I' (K^2 * 1_I)): one convolution with the squared kernel, no n x n."""
@@ -282,7 +331,8 @@ class FFTOperator(ContactOperator):
 
     @property
     def memory_nbytes(self) -> int:
-        return self.transform.work_nbytes() + 5 * 8 * self.n
+        dense = 8 * self.n * self.n if (self._dense is not None or (self.auto_dense and self.dense_pays())) else 0
+        return self.transform.work_nbytes() + 5 * 8 * self.n + dense
 
 
 def spectral_norm_estimate(op: ContactOperator, iters: int = 30, seed: int = 0, rtol: float = 1e-6) -> float:
