@@ -718,6 +718,8 @@ class JobRunner:
         self._step_error = ""
         self.host = socket.gethostname()
         self.build_times: dict[int, float] = {}
+        #: (variant, profile) -> (step, n) of its first timeout: larger steps are skipped.
+        self.too_slow: dict[tuple[str, str], tuple[int, int]] = {}
 
     # -- cells ------------------------------------------------------------
     def cell_id(self, k: int, v: SolverVariant, profile: str, r: int) -> str:
@@ -819,6 +821,10 @@ class JobRunner:
             self.obtain_reference(ctx, n, inst_op)
         for v, prof, reps in todo:
             d = decisions[v.name]
+            slow = self.too_slow.get((v.name, prof))
+            if not d.skip and slow is not None and n >= slow[1]:
+                d = Decision(reason=f"predicted over the {self.run_cfg.timeout:g} s limit: it timed out at step "
+                                    f"{slow[0]} with n = {slow[1]}, and this step has n = {n}")
             if d.skip:
                 for r in reps:
                     self.emit(self.row_for(ctx, ctx.k, v, prof, r, status="skipped", skip_reason=d.reason))
@@ -927,6 +933,8 @@ class JobRunner:
                 row.update(status=status, solve_time_s=out.elapsed, warm_start=warm, error=out.detail[-2000:])
                 if status in ("timeout", "crashed"):
                     lost = (status, f"repeat {r} ended with {status}")
+            if row.get("status") == "timeout":
+                self.too_slow.setdefault((v.name, profile), (ctx.k, int(ctx.info["n"])))
             self.emit(row)
 
 

@@ -48,11 +48,14 @@ def test_crash_hang_and_raise_cost_only_their_own_rows(tmp_path: Path) -> None:
     assert len(df) == 2 * len(solvers)  # 2 steps x 5 solvers, every row kept
     assert by_solver(df) == {
         "test-crash": {"crashed"},
-        "test-hang": {"timeout"},
+        "test-hang": {"timeout", "skipped"},
         "test-raise": {"failed"},
         "test-exact": {"solved"},
         "test-warm-pg": {"solved"},
     }
+    hang = df[df.solver == "test-hang"].sort_values("step")
+    assert list(hang["status"]) == ["timeout", "skipped"]  # the larger step is predicted too slow
+    assert "timed out at step 0" in hang.iloc[1]["skip_reason"]
     crash = df[df.solver == "test-crash"].iloc[0]
     assert "SIGABRT" in crash["error"]
     assert "deliberate failure" in df[df.solver == "test-raise"].iloc[0]["error"]
