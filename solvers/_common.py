@@ -26,7 +26,7 @@ import numpy as np
 from problems.instances import QP
 from problems.operators import ContactOperator, DenseOperator, spectral_norm_estimate
 
-from .base import SolveResult, SolverSettings, Trace, WarmStart
+from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
 
 #: Default relative tolerance of the exact (finite-termination) methods.
 EXACT_TOL = 1e-10
@@ -298,3 +298,20 @@ def matvec_seconds(n: int, operator_kind_: str) -> float:
 
 def cholesky_seconds(n: int) -> float:
     return (n**3 / 3.0) / (5.0 * DENSE_FLOPS)
+
+
+class PrimalWarmSolver(Solver):
+    """Shared prologue of the paper's iterative solvers: set up the recorder, take the
+    primal warm start, return at once on a trivial problem (ubar <= 0), then ``run``."""
+
+    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+        rec = RunRecorder(qp, settings)
+        p0 = warm_primal(warm, qp.n)
+        trivial = rec.trivial(p0 is not None)
+        if trivial is not None:
+            return trivial
+        return self.run(qp, settings, warm, rec, p0)
+
+    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: "RunRecorder",
+            p0: np.ndarray | None) -> SolveResult:
+        raise NotImplementedError

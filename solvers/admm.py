@@ -36,6 +36,7 @@ from problems.instances import QP
 from problems.operators import check_dense_budget
 
 from ._common import (
+    PrimalWarmSolver,
     FIRST_ORDER_TOL,
     RunRecorder,
     Scales,
@@ -43,9 +44,8 @@ from ._common import (
     is_dense,
     matvec_seconds,
     max_iter_of,
-    warm_primal,
 )
-from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from .base import Capabilities, SolveResult, SolverSettings, WarmStart
 from .registry import register
 
 TYPICAL_ADMM_ITERATIONS = 1000
@@ -79,7 +79,7 @@ def resolvent(qp: QP, rho: float, linear: str, atol: float, rec: RunRecorder) ->
 
 
 @register
-class ADMM(Solver):
+class ADMM(PrimalWarmSolver):
     """ADMM with over-relaxation (paper Algorithm 5).  Params: rho (default 1, relative to
     mean diag H), rho_relative, alpha (default 1.5), linear.  Warm start: primal-dual."""
 
@@ -88,12 +88,8 @@ class ADMM(Solver):
     description = "ADMM scaled form, alpha=1.5, rho relative to mean diag(H) (Algorithm 5)"
     capabilities = Capabilities(warm_start="primal-dual", exact=False)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        rec = RunRecorder(qp, settings)
-        p0 = warm_primal(warm, qp.n)
-        trivial = rec.trivial(p0 is not None)
-        if trivial is not None:
-            return trivial
+    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
+            p0: np.ndarray | None) -> SolveResult:
         sc = Scales.of(qp)
         tol = settings.tolerance(FIRST_ORDER_TOL)
         alpha = float(settings.param("alpha", 1.5))

@@ -26,6 +26,7 @@ import numpy as np
 from problems.instances import QP
 
 from ._common import (
+    PrimalWarmSolver,
     EXACT_TOL,
     FIRST_ORDER_TOL,
     RunRecorder,
@@ -34,9 +35,8 @@ from ._common import (
     matvec_seconds,
     max_iter_of,
     natural_residual,
-    warm_primal,
 )
-from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from .base import Capabilities, SolveResult, SolverSettings, WarmStart
 from .nnls import FACTOR_MAX_N, nnls_active_set
 from .registry import register
 
@@ -87,7 +87,7 @@ def lipschitz_of(qp: QP, settings: SolverSettings, rec: RunRecorder) -> float:
 
 
 @register
-class GradientProjection(Solver):
+class GradientProjection(PrimalWarmSolver):
     """Accelerated gradient projection on the primal QP (paper Algorithm 4) run to
     tolerance.  Params: lipschitz = frobenius | power, restart, check_every.
     Not exact (first order); warm start: primal."""
@@ -97,12 +97,8 @@ class GradientProjection(Solver):
     description = "Accelerated gradient projection (Algorithm 4), Frobenius or power-iteration L"
     capabilities = Capabilities(warm_start="primal", exact=False)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        rec = RunRecorder(qp, settings)
-        p0 = warm_primal(warm, qp.n)
-        trivial = rec.trivial(p0 is not None)
-        if trivial is not None:
-            return trivial
+    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
+            p0: np.ndarray | None) -> SolveResult:
         L = lipschitz_of(qp, settings, rec)
         rec.mark_setup_done()
         out = accelerated_gradient_projection(
@@ -118,7 +114,7 @@ class GradientProjection(Solver):
 
 
 @register
-class NNLSGP(Solver):
+class NNLSGP(PrimalWarmSolver):
     """NNLS warm started by K accelerated GP steps (paper section 3.3.1: Algorithm 4 then
     Algorithm 3).  Params: K (default 100), lipschitz, restart, linear (NNLS step 6).
     Exact; warm start: primal (the GP steps start from it)."""
@@ -128,12 +124,8 @@ class NNLSGP(Solver):
     description = "K accelerated GP steps then NNLS (Algorithms 4 + 3); K param, default 100"
     capabilities = Capabilities(warm_start="primal", exact=True)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        rec = RunRecorder(qp, settings)
-        p0 = warm_primal(warm, qp.n)
-        trivial = rec.trivial(p0 is not None)
-        if trivial is not None:
-            return trivial
+    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
+            p0: np.ndarray | None) -> SolveResult:
         K = int(settings.param("K", 100))
         if K < 0:
             raise ValueError(f"nnls-gp: K (GP iterations) must be >= 0, got {K}")

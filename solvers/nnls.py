@@ -31,6 +31,7 @@ from problems.instances import QP
 from problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget
 
 from ._common import (
+    PrimalWarmSolver,
     EXACT_TOL,
     RunRecorder,
     Scales,
@@ -38,9 +39,8 @@ from ._common import (
     is_dense,
     matvec_seconds,
     max_iter_of,
-    warm_primal,
 )
-from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from .base import Capabilities, SolveResult, SolverSettings, WarmStart
 from .registry import register
 
 #: Under "auto", FFT operators use the incremental Cholesky backend while a full n x n
@@ -304,7 +304,7 @@ def nnls_active_set(qp: QP, p0: np.ndarray, tol: float, max_iter: int, linear: s
 
 
 @register
-class NNLS(Solver):
+class NNLS(PrimalWarmSolver):
     """Lawson-Hanson NNLS on the QP (paper Algorithm 3), warm started from p.
 
     Step 6 by incremental Cholesky updates (dense / small) or warm-started CG on
@@ -316,12 +316,8 @@ class NNLS(Solver):
     description = "Lawson-Hanson active set on the QP (Algorithm 3), incremental Cholesky or CG"
     capabilities = Capabilities(warm_start="primal", exact=True)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        rec = RunRecorder(qp, settings)
-        p0 = warm_primal(warm, qp.n)
-        trivial = rec.trivial(p0 is not None)
-        if trivial is not None:
-            return trivial
+    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
+            p0: np.ndarray | None) -> SolveResult:
         out = nnls_active_set(qp, np.zeros(qp.n) if p0 is None else p0, settings.tolerance(EXACT_TOL),
                               max_iter_of(settings, 5 * qp.n + 100), str(settings.param("linear", "auto")), rec)
         status, _ = rec.stop_status(out.converged)
