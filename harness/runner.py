@@ -275,10 +275,17 @@ class Decision:
         return bool(self.reason)
 
 
-def skip_decision(base: str, n: int, instance_operator: str, time_limit: float, memory_budget: float) -> Decision:
+#: Growth exponent of solve time with n used to extrapolate an observed solve.
+OBSERVED_TIME_EXPONENT = 1.5
+
+
+def skip_decision(base: str, n: int, instance_operator: str, time_limit: float, memory_budget: float,
+                  observed: tuple[int, float] | None = None) -> Decision:
     """Ask the solver's availability, capabilities, memory and time models whether it
     can serve a trial set of size n within the limits.  The reason is in words, with
-    the estimate."""
+    the estimate.  ``observed`` = (n', seconds) of the same solver's solve of the
+    previous step of the load sequence: when given it replaces the solver's static time
+    model (which cannot know about warm starts), extrapolated as (n / n')^1.5."""
     try:
         solver = resolve_solver(base)
     except Exception as exc:
@@ -307,6 +314,12 @@ def skip_decision(base: str, n: int, instance_operator: str, time_limit: float, 
     if dense_bytes + own_bytes > memory_budget:
         return Decision(reason=(f"memory estimate {(dense_bytes + own_bytes) / GiB:.3g} GiB at n = {n} "
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
+    if observed is not None and observed[0] > 0:
+        t_obs = observed[1] * max(1.0, n / observed[0]) ** OBSERVED_TIME_EXPONENT
+        if t_obs > time_limit:
+            return Decision(reason=(f"predicted solve time {t_obs:.3g} s at n = {n} from {observed[1]:.3g} s at "
+                                    f"n = {observed[0]} on the previous step, over the time limit of {time_limit:.3g} s"))
+        return Decision(operator=operator)
     try:
         t_est = solver.time_estimate(n, operator)
     except Exception as exc:
@@ -720,6 +733,9 @@ class JobRunner:
         self.build_times: dict[int, float] = {}
         #: (variant, profile) -> (step, n) of its first timeout: larger steps are skipped.
         self.too_slow: dict[tuple[str, str], tuple[int, int]] = {}
+        #: (variant, profile) -> (n, seconds) of its last finished solve along the load
+        #: history: the time prediction for the next step (see skip_decision).
+        self.observed: dict[tuple[str, str], tuple[int, float]] = {}
 
     # -- cells ------------------------------------------------------------
     def cell_id(self, k: int, v: SolverVariant, profile: str, r: int) -> str:
@@ -815,12 +831,13 @@ class JobRunner:
     def run_step(self, ctx: StepContext, todo: list[tuple[SolverVariant, str, list[int]]]) -> None:
         info = ctx.info
         n, inst_op = int(info["n"]), str(info["operator"])
-        decisions = {v.name: skip_decision(v.base, n, inst_op, self.run_cfg.timeout, self.run_cfg.memory_budget)
-                     for v, _, _ in todo}
+        decisions = {(v.name, prof): skip_decision(v.base, n, inst_op, self.run_cfg.timeout,
+                                                   self.run_cfg.memory_budget, self.observed.get((v.name, prof)))
+                     for v, prof, _ in todo}
         if any(not d.skip for d in decisions.values()):
             self.obtain_reference(ctx, n, inst_op)
         for v, prof, reps in todo:
-            d = decisions[v.name]
+            d = decisions[(v.name, prof)]
             slow = self.too_slow.get((v.name, prof))
             if not d.skip and slow is not None and n >= slow[1]:
                 d = Decision(reason=f"predicted over the {self.run_cfg.timeout:g} s limit: it timed out at step "
@@ -935,6 +952,8 @@ class JobRunner:
                     lost = (status, f"repeat {r} ended with {status}")
             if row.get("status") == "timeout":
                 self.too_slow.setdefault((v.name, profile), (ctx.k, int(ctx.info["n"])))
+            elif row.get("status") in ("solved", "inaccurate") and self.job.load_history:
+                self.observed[(v.name, profile)] = (int(ctx.info["n"]), float(row["solve_time_s"]))
             self.emit(row)
 
 

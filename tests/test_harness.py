@@ -82,6 +82,17 @@ def test_skips_are_recorded_with_reasons_and_not_attempted(tmp_path: Path) -> No
     assert (tiny[tiny.n <= 10].status == "solved").all()
 
 
+def test_observed_step_time_replaces_the_static_time_model(tmp_path: Path) -> None:
+    cfg = SceneConfig(size=16, steps=3, seeds=(0,))
+    df = run(tmp_path, ["test-pessimist", "test-hang"], cfg=cfg, timeout=1.0).sort_values("step")
+    pess = df[df.solver == "test-pessimist"]
+    assert pess.iloc[0]["n"] <= 3 < pess.iloc[-1]["n"]
+    # its first step ran, so the later ones are predicted from the observed time, not the model
+    assert (pess.status == "solved").all()
+    hang = df[df.solver == "test-hang"]
+    assert list(hang.status) == ["timeout", "skipped", "skipped"]
+
+
 def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path) -> None:
     df = run(tmp_path, ["test-exact"], reference="none", memory_budget=4.0)  # bytes: n = 1 needs 8
     assert (df.status == "skipped").all()

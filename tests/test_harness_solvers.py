@@ -136,6 +136,16 @@ class SlowModelStub(ExactStub):
 
 
 @register(replace=True)
+class PessimistStub(ExactStub):
+    """Its static time model is hopeless beyond 3 unknowns (it cannot know it is fast)."""
+
+    name = "test-pessimist"
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return 86400.0 if n > 3 else 0.0
+
+
+@register(replace=True)
 class MissingStub(ExactStub):
     """Reports its backend as not installed."""
 
