@@ -64,13 +64,13 @@ MAX_FAILURE_ROWS = 40
 #: Edit here when the registry uses other names.
 PAPER_ROLES: dict[str, tuple[str, ...]] = {
     "nnls-gp": (r"nnls[-_+]?gp(\[K=100\])?", r"nnls[-_+]?gp.*"),
-    "nnls": (r"nnls", r"nnls[-_]?(lh|lawson[-_]?hanson)"),
-    "pk": (r"pk", r"pk[-_]?(1999|99|cold)", r"polonsky[-_]?keer", r"ccg", r"constrained[-_]?cg"),
-    "pk-warm": (r"pk[-_+]?(1999|99)?[-_+]?warm", r"polonsky[-_]?keer[-_+]?warm"),
+    "nnls": (r"nnls \(warm\)", r"nnls", r"nnls[-_]?(lh|lawson[-_]?hanson)"),
+    "pk": (r"pk", r"pk[-_]?(1999|99|cold)", r"polonsky[-_]?keer", r"ccg", r"constrained[-_]?cg", r"pk \(warm\)"),
+    "pk-warm": (r"pk \(warm\)", r"pk[-_+]?(1999|99)?[-_+]?warm", r"polonsky[-_]?keer[-_+]?warm"),
     "greedy-cg": (r"greedy[-_]?cg", r"greedy"),
     "greedy-gs": (r"greedy[-_]?(gs|gauss[-_]?seidel)",),
     "greedy-chol": (r"greedy[-_]?(chol|cholesky|mldivide)",),
-    "admm": (r"admm",),
+    "admm": (r"admm", r"admm \(warm\)"),
 }
 ROLE_LABELS = {"nnls-gp": "NNLS+GP", "nnls": "NNLS", "pk": "P&K 1999", "pk-warm": "P&K 1999 + warm start",
                "greedy-cg": "greedy CG", "greedy-gs": "greedy Gauss-Seidel", "greedy-chol": "greedy Cholesky",
@@ -124,7 +124,7 @@ class ReportContext:
             names = natural_sorted(self.table["solver"].astype(str).unique())
             palette = distinct_colors(len(names))
             self._colors.update({s: palette[i] for i, s in enumerate(names)})
-        return self._colors.get(solver, "black")
+        return self._colors.get(solver.removesuffix(WARM_SUFFIX), "black")
 
     def save_figure(self, fig: Figure, name: str) -> str:
         """Write ``figures/<name>.png`` and return the Markdown-relative path."""
@@ -309,7 +309,7 @@ _NUMERIC = ("step", "delta", "n", "repeat", "build_time_s", "solve_time_s", "ite
             "E", "nominal_area", "N", "analytic_load", "analytic_load_rel_error", "time_limit_s")
 _TEXT = ("scene", "instance", "solver", "profile", "status", "skip_reason", "base_solver", "params", "family",
          "solver_status", "solver_message", "kernel", "operator", "reference_solver", "error", "trace", "host",
-         "timestamp", "cell_id")
+         "timestamp", "cell_id", "history")
 
 
 def load_table(out_dir: str | Path) -> pd.DataFrame:
@@ -339,6 +339,8 @@ def normalise_table(df: pd.DataFrame) -> pd.DataFrame:
     for c in _TEXT:
         d[c] = d[c].map(lambda v: "" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
     d["warm_start"] = agg._as_bool(d["warm_start"]).fillna(False).astype(bool)
+    # tables written before the column existed: every run warm-started by default
+    d["history"] = d["history"].map(lambda v: v if isinstance(v, str) and v else "warm")
     bad = sorted(set(d["status"]) - set(STATUSES))
     if bad:
         raise ReportInputError(f"unknown status value(s) {bad}; expected one of {', '.join(STATUSES)}")
@@ -390,6 +392,8 @@ def attempted(rows: pd.DataFrame) -> pd.DataFrame:
 def per_cell(rows: pd.DataFrame) -> pd.DataFrame:
     """Fold repeats: min solve time, worst (any unsolved) status, first of the rest."""
     keys = ["scene", "instance", "step", "solver", "profile"]
+    if "history" in rows.columns:  # a warm-start run and a --cold run of one step are two cells
+        keys.append("history")
     if rows.empty:
         return rows.assign(solved=pd.Series(dtype=bool))
     r = rows.assign(solved=rows["status"] == "solved", _t=rows["solve_time_s"])
@@ -608,26 +612,38 @@ def header_section(ctx: ReportContext) -> str:
 # ---------------------------------------------------------------------------
 
 
+WARM_SUFFIX = " (warm)"
+#: Solver families drawn in Fig. 4 (the paper's algorithms and our matrix-free ones).
+FIG4_FAMILIES = frozenset({"paper", "fast"})
+
+
 def _curve_label(solver: str, warm: bool) -> str:
-    return f"{solver} (warm)" if warm else solver
+    return f"{solver}{WARM_SUFFIX}" if warm else solver
 
 
 def _sweep_totals(cells: pd.DataFrame) -> pd.DataFrame:
     """Per solver: total solve time summed over instances and steps, whether every
     step was solved, and the step count."""
     g = cells.groupby("solver", sort=False)
-    return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": g["solved"].all(),
-                         "cells": g.size()})
+    n_cells = g.size()
+    # complete: every step of the sweep attempted (none skipped) and solved
+    complete = g["solved"].all() & (n_cells == n_cells.max())
+    return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": complete, "cells": n_cells})
 
 
 def _plot_time_vs_load(ctx: ReportContext, ax: Any, cells: pd.DataFrame, label_of: Callable[[str], str],
                        color_of: Callable[[str], Any]) -> None:
     xs_all, ys_all = [], []
+    # Abscissa: the step's load from the solved answers (a wrong or late answer's own
+    # load would put its point elsewhere).
+    step_load = cells[cells["solved"]].groupby(["instance", "step"])["dim_load"].median()
     for s in natural_sorted(cells["solver"].unique()):
         c = cells[cells["solver"] == s].sort_values("step")
-        x = c["dim_load"].where(c["dim_load"] > 0)
+        x = pd.Series([step_load.get((i, k), np.nan) for i, k in zip(c["instance"], c["step"])], index=c.index)
+        x = x.where(x > 0)
         y = c["solve_time_s"]
-        ax.plot(x, y, marker="o", ms=4, lw=1.3, color=color_of(s), label=label_of(s))
+        ax.plot(x, y, marker="o", ms=4, lw=1.3, color=color_of(s), label=label_of(s),
+                ls="--" if s.endswith(WARM_SUFFIX) else "-")
         bad = ~c["solved"]
         if bad.any():
             ax.plot(x[bad], y[bad], ls="none", marker="x", ms=8, mew=2, color="red")
@@ -649,11 +665,16 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     if r.empty:
         return Section("Fig. 4: solve time against load (paper-sweep)", "Every pair of this scene was skipped.\n")
     cells = per_cell(r)
+    # warm and cold runs of one solver are separate curves ("pk" and "pk (warm)")
+    warm_runs = cells.groupby(["solver", "history"])["warm_start"].transform("any")
+    cells["solver"] = [_curve_label(s, bool(w)) for s, w in zip(cells["solver"], warm_runs)]
     inst = natural_sorted(cells["instance"].unique())[0]
-    warm = cells.groupby("solver")["warm_start"].any().to_dict()
+    # The figure shows the paper's algorithms and ours (the table below lists every solver).
+    shown = cells["family"].isin(FIG4_FAMILIES)
+    if not shown.any():  # a table without family labels: draw everything
+        shown = pd.Series(True, index=cells.index)
     fig, (ax,) = new_figure(width=6.4, height=4.2)
-    _plot_time_vs_load(ctx, ax, cells[cells["instance"] == inst], lambda s: _curve_label(s, warm.get(s, False)),
-                       ctx.color)
+    _plot_time_vs_load(ctx, ax, cells[(cells["instance"] == inst) & shown], lambda s: s, ctx.color)
     ax.set_title(f"paper-sweep, instance {inst}, profile {prof}", fontsize=9)
     legend_outside(ax, "solver")
     rel = ctx.save_figure(fig, "fig4-paper-sweep")
@@ -665,8 +686,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     rows_t = []
     for s in natural_sorted(tot.index):
         t = tot.loc[s]
-        rows_t.append((_curve_label(s, warm.get(s, False)), fmt_num(t["total_s"]), "yes" if t["complete"] else "no",
-                       int(t["cells"])))
+        rows_t.append((s, fmt_num(t["total_s"]), "yes" if t["complete"] else "no", int(t["cells"])))
     body.append(table_md(ctx, f"total solve time over all steps and instances, profile `{prof}`.",
                          ["solver", "total [s]", "all steps solved", "steps"], rows_t, "lrlr"))
     body.append(_fig4_reading(tot, n_max))
@@ -702,7 +722,7 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int) -> str:
                 parts.append(f"{label}: `{role[key]}` did not solve every step, so its ratio is not comparable.")
             else:
                 parts.append(claim_sentence(label, _ratio(tot, role[key], ref), claim))
-        if role["pk-warm"] and role["pk"]:
+        if role["pk-warm"] and role["pk"] and role["pk-warm"] != role["pk"]:
             parts.append(f"Warm-started P&K takes {fmt_ratio(_ratio(tot, role['pk-warm'], role['pk']))} the time "
                          f"of the cold one.")
     complete = tot[tot["complete"]]

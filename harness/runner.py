@@ -770,6 +770,7 @@ class JobRunner:
             periodic=info.get("periodic"), reference_solver=ctx.reference_solver if ctx else "",
             analytic_load=(info.get("analytic") or {}).get("load"), build_time_s=self.build_times.get(k),
             host=self.host, timestamp=now_iso(), cell_id=self.cell_id(k, v, profile, r),
+            history="warm" if self.run_cfg.warm else "cold",
         )
         row.update(values)
         return row

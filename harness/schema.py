@@ -82,6 +82,7 @@ EXTRA_COLUMNS: Final = (
     "trace",  # JSON list of [iteration, elapsed_s, residual], possibly thinned
     "host",
     "timestamp",
+    "history",  # "warm": the run warm-starts along load histories (default); "cold": --cold
 )
 
 ALL_COLUMNS: Final = REQUIRED_COLUMNS + EXTRA_COLUMNS

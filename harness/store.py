@@ -37,12 +37,12 @@ CSV_FILE = "results.csv"
 STRING_COLUMNS = (
     "scene", "instance", "solver", "profile", "status", "skip_reason", "cell_id", "base_solver", "params",
     "family", "solver_status", "solver_message", "kernel", "operator", "reference_solver", "error", "trace",
-    "host", "timestamp",
+    "host", "timestamp", "history",
 )
 INT_COLUMNS = ("step", "n", "repeat", "iterations", "matvecs", "N")
 BOOL_COLUMNS = ("warm_start", "solver_converged", "correct_claim", "periodic")
 #: Columns that identify a group of repeats (everything that names the solve but ``repeat``).
-GROUP_COLUMNS = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start")
+GROUP_COLUMNS = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start", "history")
 
 
 def _json_default(obj: Any) -> Any:
