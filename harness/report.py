@@ -1048,7 +1048,8 @@ def _counterexample_case(ctx: ReportContext, cells: pd.DataFrame) -> str:
     idx = np.arange(1, len(case.ubar) + 1)
     axs[0].plot(idx, case.ubar, "o", ms=3, color="tab:blue", label="ubar")
     axs[0].set_ylabel("ubar  [a.u. of length]")
-    neg = case.w < 0
+    # violated beyond round-off: the KKT check's scale (max |ubar|) times 1e-9
+    neg = case.w < -1e-9 * max(float(np.max(np.abs(case.ubar), initial=0.0)), 1e-300)
     axs[1].plot(idx, case.w, "o", ms=3, color="tab:blue", label="w = H p - ubar")
     if neg.any():
         axs[1].plot(idx[neg], case.w[neg], "o", ms=6, color="red", label="w < 0 (LCP violated)")
