@@ -166,3 +166,29 @@ def iteration_limit(settings: SolverSettings, n: int) -> int:
 
 def time_left(t0: float, settings: SolverSettings) -> bool:
     return settings.time_limit is None or time.perf_counter() - t0 < float(settings.time_limit)
+
+
+@dataclass
+class FastStart:
+    """What every fast solver sets up before iterating (shared prologue)."""
+
+    tol: float
+    warm_started: bool
+    matvecs0: int
+    diag_max: float
+    state: "GapState"
+    trace: Trace
+    setup: float
+
+
+def begin_fast_solve(qp: QP, settings: SolverSettings, warm: WarmStart | None) -> FastStart:
+    """Check the QP, pick the tolerance, take the warm start and compute the first gap."""
+    t0 = time.perf_counter()
+    check_qp(qp)
+    tol = settings.tolerance(DEFAULT_TOL)
+    p0, warm_started = start_point(qp, warm)
+    m0 = qp.H.matvec_count
+    diag_max = float(np.max(qp.H.diagonal()))
+    trace = Trace()
+    state = GapState(qp.H, qp.ubar, p0)
+    return FastStart(tol, warm_started, m0, diag_max, state, trace, time.perf_counter() - t0)

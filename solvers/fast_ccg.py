@@ -29,14 +29,12 @@ import numpy as np
 from problems.instances import QP
 
 from ._fast_common import (
-    DEFAULT_TOL,
+    begin_fast_solve,
     FAST_CAPABILITIES,
     GapState,
-    check_qp,
     iteration_limit,
     make_result,
     scaled_kkt,
-    start_point,
     time_left,
 )
 from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
@@ -51,18 +49,10 @@ class _FastCG(Solver):
         return 8.0 * 8.0 * n
 
     def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        t_setup = time.perf_counter()
-        check_qp(qp)
-        tol = settings.tolerance(DEFAULT_TOL)
-        p0, warm_started = start_point(qp, warm)
-        m0 = qp.H.matvec_count
-        diag_max = float(np.max(qp.H.diagonal()))
-        trace = Trace()
-        state = GapState(qp.H, qp.ubar, p0)
-        setup = time.perf_counter() - t_setup
-        it, kkt = self._iterate(state, qp.ubar, diag_max, tol, iteration_limit(settings, qp.n), settings, trace)
-        return make_result(state, iterations=it, kkt=kkt, tol=tol, trace=trace, matvecs0=m0,
-                           warm_started=warm_started, setup_time=setup)
+        s = begin_fast_solve(qp, settings, warm)
+        it, kkt = self._iterate(s.state, qp.ubar, s.diag_max, s.tol, iteration_limit(settings, qp.n), settings, s.trace)
+        return make_result(s.state, iterations=it, kkt=kkt, tol=s.tol, trace=s.trace, matvecs0=s.matvecs0,
+                           warm_started=s.warm_started, setup_time=s.setup)
 
     def _iterate(self, state: GapState, ubar: np.ndarray, diag_max: float, tol: float, max_iter: int,
                  settings: SolverSettings, trace: Trace) -> tuple[int, float]:

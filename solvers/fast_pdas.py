@@ -29,18 +29,15 @@ import numpy as np
 from problems.instances import QP
 
 from ._fast_common import (
-    DEFAULT_TOL,
+    begin_fast_solve,
     FAST_CAPABILITIES,
-    GapState,
-    check_qp,
     fourier_inverse_preconditioner,
     iteration_limit,
     make_result,
     scaled_kkt,
-    start_point,
     time_left,
 )
-from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
+from .base import SolveResult, Solver, SolverSettings, WarmStart
 from .fast_ccg import FastBugnicourtCCG
 from .registry import register
 
@@ -87,15 +84,8 @@ class FastPDAS(Solver):
         return 12.0 * 8.0 * n
 
     def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        t_setup = time.perf_counter()
-        check_qp(qp)
-        tol = settings.tolerance(DEFAULT_TOL)
-        p0, warm_started = start_point(qp, warm)
-        m0 = qp.H.matvec_count
-        diag_max = float(np.max(qp.H.diagonal()))
-        state = GapState(qp.H, qp.ubar, p0)
-        trace = Trace()
-        setup = time.perf_counter() - t_setup
+        s = begin_fast_solve(qp, settings, warm)
+        tol, state, trace, diag_max = s.tol, s.state, s.trace, s.diag_max
         use_m = bool(settings.param("precondition", False))
         max_outer = int(settings.param("max_outer", 50))
         inner_max = iteration_limit(settings, qp.n)
@@ -135,7 +125,7 @@ class FastPDAS(Solver):
             ccg = FastBugnicourtCCG()
             it, kkt = ccg._iterate(state, qp.ubar, diag_max, tol, inner_max, settings, trace)
             info.update(finished_by_ccg=True, ccg_iterations=it)
-        res = make_result(state, iterations=outer, kkt=kkt, tol=tol, trace=trace, matvecs0=m0,
-                          warm_started=warm_started, setup_time=setup, info=info)
+        res = make_result(state, iterations=outer, kkt=kkt, tol=tol, trace=trace, matvecs0=s.matvecs0,
+                          warm_started=s.warm_started, setup_time=s.setup, info=info)
         res.matvecs += extra_mv
         return res
