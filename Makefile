@@ -15,7 +15,10 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
+# A fresh default run each time (the committed results/default is replaced, not resumed;
+# `contactbench run` itself resumes an interrupted run).
 bench: $(STAMP)
+	rm -rf results/default
 	$(VENV)/bin/contactbench run default --out results/default
 	$(VENV)/bin/contactbench report results/default
 
