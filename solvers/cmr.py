@@ -21,7 +21,9 @@ per side are skipped.  Every level's solution summary is returned in
 
 Parameters (``SolverSettings.params``): ``h`` (area-of-influence factor, default 2),
 ``coarsest`` (points per side of the first level, default 16), ``levels`` (explicit
-list of points-per-side to use, optional), ``base_params`` (dict passed to the base).
+list of points-per-side to use, optional), ``base_params`` (dict passed to the base),
+``repair`` (default False, not in the paper: re-admit pruned points that overlap and
+re-solve until none does, which makes the answer exact).
 Warm start: a primal warm start for the fine problem is restricted to the projected
 set and handed to the base solver when the base accepts one; coarse levels start cold.
 The base solver is looked up by registry name at solve time.
@@ -45,7 +47,10 @@ from .registry import all_solvers, get_solver, register
 
 #: Bases for which ``cmr+<base>`` is registered (others: ``make_cmr(name)``).
 CMR_BASES: tuple[str, ...] = ("nnls", "pk", "scipy-nnls", "nnls-gp", "fast-ccg")
-CMR_KEYS = frozenset({"h", "coarsest", "levels", "base_params"})
+CMR_KEYS = frozenset({"h", "coarsest", "levels", "base_params", "repair"})
+#: With ``repair``, gaps below -REPAIR_GAP * max|ubar| on pruned points count as missed contacts.
+REPAIR_GAP = 1e-9
+MAX_REPAIR_ROUNDS = 50
 
 
 @dataclass
@@ -161,8 +166,9 @@ class CMRSolver(Solver):
             prev = self._coarse_level(s, surf, g, base, sub_settings, prev, h * prev_delta, period, op_kind)
             records.append(prev.record)
             prev_delta = surf.delta
-        p, fine_result, rec = self._fine_level(len(coarse) + 1, qp, g, base, sub_settings, prev,
-                                               h * prev_delta, period, warm)
+        p, fine_result, rec, rounds = self._fine_level(len(coarse) + 1, qp, g, base, sub_settings, prev,
+                                                       h * prev_delta, period, warm,
+                                                       bool(settings.param("repair", False)))
         records.append(rec)
         check = _psd_check(g.surface)
         info = {
@@ -172,6 +178,7 @@ class CMRSolver(Solver):
             "n_p_over_n": rec.n_p_over_n,
             "cascade": [r.N for r in records],
             "psd_power_law": check[0],
+            "repair_rounds": rounds,
         }
         summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g}: n_p/n={rec.n_p_over_n:.4f} "
                    f"coarse-loads=[{', '.join(f'{r.load:.6g}' for r in records[:-1])}]")
@@ -219,8 +226,13 @@ class CMRSolver(Solver):
 
     def _fine_level(self, s: int, qp: QP, g: Geometry, base: Solver, settings: SolverSettings,
                     prev: LevelSolution | None, radius: float, period: float | None,
-                    warm: WarmStart | None) -> tuple[np.ndarray, SolveResult, LevelRecord]:
-        """The given QP restricted to the projected set; p returned on the full set."""
+                    warm: WarmStart | None, repair: bool = False) -> tuple[np.ndarray, SolveResult, LevelRecord, int]:
+        """The given QP restricted to the projected set; p returned on the full set.
+
+        With ``repair`` (not in the paper): pruned points whose gap comes out negative
+        were wrongly excluded; they are added to the set and the restricted problem is
+        solved again, warm started, until no pruned point overlaps -- the answer is then
+        the exact solution of the full QP, and the cascade only chose the start."""
         t = time.perf_counter()
         surf = g.surface
         assert surf is not None
@@ -237,9 +249,30 @@ class CMRSolver(Solver):
                                      w=None if warm.w is None else np.asarray(warm.w)[pos])
             res = base.solve(QP(qp.H.restrict(pos), qp.ubar[pos], sub_geom), settings, sub_warm)
             p_full[pos] = np.asarray(res.p, dtype=np.float64)
+        rounds = 0
+        while repair and rounds < MAX_REPAIR_ROUNDS:
+            missed = _missed_contacts(qp, p_full, pos)
+            if missed.size == 0:
+                break
+            rounds += 1
+            pos = np.union1d(pos, missed)
+            sub_geom = Geometry(g.grid_shape, g.delta, g.indices[pos], surface=surf, far_field=g.far_field,
+                                E=g.E, kernel=g.kernel, periodic=g.periodic)
+            start = WarmStart(p=p_full[pos]) if base.capabilities.warm_start != "none" else None
+            res = base.solve(QP(qp.H.restrict(pos), qp.ubar[pos], sub_geom), settings, start)
+            p_full[:] = 0.0
+            p_full[pos] = np.asarray(res.p, dtype=np.float64)
         c = contact_mask(p_full)
         rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, c, res)
-        return p_full, res, rec
+        return p_full, res, rec, rounds
+
+
+def _missed_contacts(qp: QP, p_full: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Positions outside ``pos`` whose gap w = Hp - ubar is negative beyond round-off."""
+    w = qp.H.matvec(p_full) - qp.ubar
+    out = np.ones(qp.n, dtype=bool)
+    out[pos] = False
+    return np.flatnonzero(out & (w < -REPAIR_GAP * float(np.max(np.abs(qp.ubar), initial=0.0))))
 
 
 def _projection(points: np.ndarray, prev: LevelSolution | None, radius: float,

@@ -196,3 +196,15 @@ def test_cutoff_scene_cmr_fails_on_rolloff_and_works_on_power_law() -> None:
         errs[spec.params["surface"]] = abs(r.p.sum() - ref) / ref
     assert errs["power-law"] < 0.05
     assert errs["rolloff"] > 4 * errs["power-law"]
+
+
+def test_repair_makes_a_pruning_cascade_exact() -> None:
+    inst = rmd_instance(N=64, H=0.5, seed=2)
+    plain = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1.0, "coarsest": 16}))
+    assert kkt_check(inst, plain.p).kkt_error > 1e-6  # h = 1 prunes real contacts here
+    fixed = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1.0, "coarsest": 16, "repair": True}))
+    assert fixed.info["repair_rounds"] >= 1
+    assert fixed.info["levels"][-1]["n_p"] < inst.n  # still solved on a reduced set
+    p_ref = direct(inst)
+    np.testing.assert_allclose(fixed.p, p_ref, rtol=1e-8, atol=1e-12 * p_ref.max())
+    assert kkt_check(inst, fixed.p).kkt_error < 1e-8
