@@ -155,6 +155,10 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         get_scene(name)  # unknown scene: a clear KeyError listing the known ones
     if args.surface and not args.length and not str(args.surface).lower().endswith(".x3p"):
         raise ProblemInputError("--surface needs --length L (the side length in metres; only .x3p files carry their own spacing)")
+    if args.surface:  # read it once here: a bad file is one clear error, not a failed row per cell
+        from problems.io import load_surface
+
+        load_surface(args.surface, length=args.length)
     cfg = SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
                       length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic, operator=args.operator)
     kw = {}

@@ -265,6 +265,18 @@ def test_cli_lists_and_rejects_bad_input(capsys: pytest.CaptureFixture[str]) -> 
         cli.main(["run", "paper-sweep", "--seeds", "3-1"])
 
 
+def test_cli_refuses_an_unreadable_surface_before_running(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run"
+    missing = tmp_path / "missing.npy"
+    assert cli.main(["run", "paper-sweep", "--surface", str(missing), "--length", "1e-4", "--out", str(out)]) == 2
+    assert f"cannot use surface file '{missing}'" in capsys.readouterr().err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("a,b\n1,2\n")
+    assert cli.main(["run", "paper-sweep", "--surface", str(bad), "--length", "1e-4", "--out", str(out)]) == 2
+    assert "non-numeric value 'a'" in capsys.readouterr().err
+    assert not out.exists()  # nothing was planned or recorded
+
+
 def test_jobs_pool_gives_the_same_table_as_serial(tmp_path: Path) -> None:
     cfg = SceneConfig(size=3, seeds=(0, 1, 2))
     kw = dict(scenes=("counterexample",), cfg=cfg, warmup=False)
