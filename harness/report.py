@@ -631,16 +631,15 @@ def _sweep_totals(cells: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": complete, "cells": n_cells})
 
 
-def _plot_time_vs_load(ctx: ReportContext, ax: Any, cells: pd.DataFrame, label_of: Callable[[str], str],
-                       color_of: Callable[[str], Any]) -> None:
+def _plot_time_curves(ax: Any, cells: pd.DataFrame, x_of: Callable[[pd.DataFrame], pd.Series], sort_by: str,
+                      color_of: Callable[[str], Any], xlabel: str,
+                      label_of: Callable[[str], str] = str) -> None:
+    """Solve time against ``x_of(rows)``, one curve per solver (dashed when warm
+    started), red crosses on the answers that failed the KKT check."""
     xs_all, ys_all = [], []
-    # Abscissa: the step's load from the solved answers (a wrong or late answer's own
-    # load would put its point elsewhere).
-    step_load = cells[cells["solved"]].groupby(["instance", "step"])["dim_load"].median()
     for s in natural_sorted(cells["solver"].unique()):
-        c = cells[cells["solver"] == s].sort_values("step")
-        x = pd.Series([step_load.get((i, k), np.nan) for i, k in zip(c["instance"], c["step"])], index=c.index)
-        x = x.where(x > 0)
+        c = cells[cells["solver"] == s].sort_values(sort_by)
+        x = x_of(c)
         y = c["solve_time_s"]
         ax.plot(x, y, marker="o", ms=4, lw=1.3, color=color_of(s), label=label_of(s),
                 ls="--" if s.endswith(WARM_SUFFIX) else "-")
@@ -653,9 +652,22 @@ def _plot_time_vs_load(ctx: ReportContext, ax: Any, cells: pd.DataFrame, label_o
         ax.plot([], [], ls="none", marker="x", ms=8, mew=2, color="red", label="not solved (KKT check)")
     log_if_wide(ax, "x", xs_all)
     log_if_wide(ax, "y", ys_all)
-    ax.set_xlabel("dimensionless load P/(E A)  [-]")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("solve time  [s]")
     ax.grid(True, which="both", alpha=0.3)
+
+
+def _plot_time_vs_load(ax: Any, cells: pd.DataFrame, color_of: Callable[[str], Any],
+                       label_of: Callable[[str], str] = str) -> None:
+    # Abscissa: the step's load from the solved answers (a wrong or late answer's own
+    # load would put its point elsewhere).
+    step_load = cells[cells["solved"]].groupby(["instance", "step"])["dim_load"].median()
+
+    def x_of(c: pd.DataFrame) -> pd.Series:
+        x = pd.Series([step_load.get((i, k), np.nan) for i, k in zip(c["instance"], c["step"])], index=c.index)
+        return x.where(x > 0)
+
+    _plot_time_curves(ax, cells, x_of, "step", color_of, "dimensionless load P/(E A)  [-]", label_of)
 
 
 @register_section("paper-sweep", title="Fig. 4: solve time against load (paper-sweep)", group="paper", order=10)
@@ -674,7 +686,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     if not shown.any():  # a table without family labels: draw everything
         shown = pd.Series(True, index=cells.index)
     fig, (ax,) = new_figure(width=6.4, height=4.2)
-    _plot_time_vs_load(ctx, ax, cells[(cells["instance"] == inst) & shown], lambda s: s, ctx.color)
+    _plot_time_vs_load(ax, cells[(cells["instance"] == inst) & shown], ctx.color)
     ax.set_title(f"paper-sweep, instance {inst}, profile {prof}", fontsize=9)
     legend_outside(ax, "solver")
     rel = ctx.save_figure(fig, "fig4-paper-sweep")
@@ -744,22 +756,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     if cells.empty:
         return Section(title, "Every pair of this scene was skipped.\n")
     fig, (ax,) = new_figure(width=6.4, height=4.2)
-    xs, ys = [], []
-    for s in natural_sorted(cells["solver"].unique()):
-        c = cells[cells["solver"] == s].sort_values("n")
-        ax.plot(c["n"], c["solve_time_s"], marker="o", ms=4, lw=1.3, color=ctx.color(s), label=s)
-        bad = ~c["solved"]
-        if bad.any():
-            ax.plot(c["n"][bad], c["solve_time_s"][bad], ls="none", marker="x", ms=8, mew=2, color="red")
-        xs += list(c["n"])
-        ys += list(c["solve_time_s"])
-    if (~cells["solved"]).any():
-        ax.plot([], [], ls="none", marker="x", ms=8, mew=2, color="red", label="not solved (KKT check)")
-    log_if_wide(ax, "x", xs)
-    log_if_wide(ax, "y", ys)
-    ax.set_xlabel("trial-set size n  [points]")
-    ax.set_ylabel("solve time  [s]")
-    ax.grid(True, which="both", alpha=0.3)
+    _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]")
     ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
     legend_outside(ax, "solver")
     rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
@@ -840,8 +837,8 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     fig, (ax1, ax2) = new_figure(ncols=2, width=5.2, height=4.0)
     sub = cells[cells["instance"] == inst]
     order = sorted(sub["solver"].unique(), key=lambda s: label_of_solver[s])
-    _plot_time_vs_load(ctx, ax1, sub[sub["solver"].isin(order)],
-                       lambda s: f"K = {int(label_of_solver[s])}", lambda s: kcol[label_of_solver[s]])
+    _plot_time_vs_load(ax1, sub[sub["solver"].isin(order)], lambda s: kcol[label_of_solver[s]],
+                       lambda s: f"K = {int(label_of_solver[s])}")
     ax1.set_title(f"per step, instance {inst}", fontsize=9)
     g = cells.groupby("K")
     tot = pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": g["solved"].all()})
