@@ -20,6 +20,7 @@ import numpy as np
 
 from harness.kkt import kkt_check
 from problems.instances import InstanceBuilder, paper_max_displacement
+from problems.operators import fft_backend, fft_workers
 from problems.surfaces import rmd_surface_n
 from solvers.base import SolverSettings
 from solvers.registry import get_solver
@@ -44,7 +45,7 @@ def main() -> None:
         dt = time.perf_counter() - t
         kkt = kkt_check(inst, res.p).kkt_error
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-        print(f"N={N} n={inst.n} solver={args.solver} setup={setup:.1f}s solve={dt:.1f}s "
+        print(f"N={N} n={inst.n} solver={args.solver} fft={fft_backend()}x{fft_workers()} setup={setup:.1f}s solve={dt:.1f}s "
               f"iterations={res.iterations} matvecs={res.matvecs} ({1e3 * dt / max(res.matvecs, 1):.0f} ms each) "
               f"kkt={kkt:.2e} load={inst.load(res.p):.6e} A/A0={inst.contact_fraction(res.p):.5f} "
               f"operator_state={op.memory_nbytes / 2**20:.0f} MiB peak_rss={rss:.0f} MiB", flush=True)

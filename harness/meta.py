@@ -24,10 +24,10 @@ META_FILE = "meta.json"
 PACKAGES = (
     "contactbench", "numpy", "scipy", "pandas", "pyarrow", "qpsolvers", "osqp", "clarabel", "proxsuite", "piqp",
     "cvxpy", "scs", "ecos", "highspy", "matplotlib", "threadpoolctl", "psutil", "dask", "distributed",
-    "pytest-benchmark", "numba",
+    "pytest-benchmark", "numba", "ducc0",
 )
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CONTACTBENCH_FFT_WORKERS",
-              "CONTACTBENCH_MEMORY_BUDGET_GB")
+              "CONTACTBENCH_FFT_BACKEND", "CONTACTBENCH_MEMORY_BUDGET_GB")
 
 
 def package_versions(names: tuple[str, ...] = PACKAGES) -> dict[str, str]:
@@ -72,12 +72,12 @@ def thread_settings() -> dict[str, Any]:
     except Exception:
         pass
     try:
-        from problems.operators import fft_workers
+        from problems.operators import fft_backend, fft_workers
 
-        fft = fft_workers()
+        fft, backend = fft_workers(), fft_backend()
     except Exception:
-        fft = None
-    return {"env": env, "threadpools": pools, "fft_workers": fft}
+        fft, backend = None, None
+    return {"env": env, "threadpools": pools, "fft_workers": fft, "fft_backend": backend}
 
 
 def git_state(cwd: str | os.PathLike[str] | None = None) -> dict[str, Any]:

@@ -552,7 +552,8 @@ def _threads_text(v: Any) -> str | None:
         return _fmt_value(v)
     parts = [f"{k}={x}" for k, x in sorted((v.get("env") or {}).items()) if x not in (None, "")]
     if v.get("fft_workers") is not None:
-        parts.append(f"FFT workers={v['fft_workers']}")
+        backend = f" ({v['fft_backend']})" if v.get("fft_backend") else ""
+        parts.append(f"FFT workers={v['fft_workers']}{backend}")
     for pool in v.get("threadpools") or []:
         if isinstance(pool, dict):
             text = f"{pool.get('internal_api') or pool.get('user_api')}: {pool.get('num_threads')} threads"
