@@ -7,16 +7,25 @@ trial-set size, kkt and the peak RSS, plus the state memory of the operator
 (kernel table + real spectrum + FFT work arrays) -- the figure that decides
 feasibility at 4096^2.
 
-Usage: python benchmarks/bench_large.py [--sizes 2048] [--solver fast-ccg] [--fraction 1.0]
+Every run is one child process (its own peak RSS), so "--backends ducc,scipy" compares
+the two FFT libraries side by side in one run.  Rows are appended to --out (CSV).
+
+Usage: python benchmarks/bench_large.py [--sizes 2048,4096] [--solvers fast-dual-ccg,fast-ccg]
+       [--backends ducc,scipy] [--fraction 1.0] [--out results/perf/large.csv]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import json
+import os
 import resource
+import subprocess
+import sys
 import time
+from pathlib import Path
 
-import numpy as np
 
 from harness.kkt import kkt_check
 from problems.instances import InstanceBuilder, paper_max_displacement
@@ -26,29 +35,64 @@ from solvers.base import SolverSettings
 from solvers.registry import get_solver
 
 
+def solve_one(N: int, solver: str, fraction: float, tol: float) -> dict:
+    t0 = time.perf_counter()
+    surf = rmd_surface_n(N, 0.7, length=100e-6, seed=0)
+    b = InstanceBuilder(surf, 1e9, "bcc", periodic=False)
+    inst = b.build(fraction * paper_max_displacement(surf))
+    setup = time.perf_counter() - t0
+    op = inst.qp.H
+    t = time.perf_counter()
+    res = get_solver(solver).solve(inst.qp, SolverSettings(profile="high", tol=tol))
+    dt = time.perf_counter() - t
+    return {
+        "N": N, "n": inst.n, "solver": solver, "fft": fft_backend(), "threads": fft_workers(),
+        "setup_s": round(setup, 2), "solve_s": round(dt, 2), "iterations": res.iterations,
+        "matvecs": res.matvecs, "ms_per_matvec": round(1e3 * dt / max(res.matvecs, 1), 1),
+        "kkt": f"{kkt_check(inst, res.p).kkt_error:.2e}", "load_N": f"{inst.load(res.p):.8e}",
+        "contact_fraction": round(inst.contact_fraction(res.p), 6),
+        "operator_state_mib": round(op.memory_nbytes / 2**20),
+        "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="2048")
-    ap.add_argument("--solver", default="fast-ccg")
+    ap.add_argument("--solvers", default="fast-dual-ccg")
+    ap.add_argument("--backends", default="", help="comma list of ducc,scipy (default: the operator's default)")
     ap.add_argument("--fraction", type=float, default=1.0, help="Delta as a fraction of the paper's top step")
     ap.add_argument("--tol", type=float, default=1e-9)
+    ap.add_argument("--out", default="results/perf/large.csv")
+    ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.child:
+        N, solver = args.child.split(":")
+        print("RESULT " + json.dumps(solve_one(int(N), solver, args.fraction, args.tol)), flush=True)
+        return
+    out = Path(args.out)
     for N in (int(s) for s in args.sizes.split(",")):
-        t0 = time.perf_counter()
-        surf = rmd_surface_n(N, 0.7, length=100e-6, seed=0)
-        b = InstanceBuilder(surf, 1e9, "bcc", periodic=False)
-        inst = b.build(args.fraction * paper_max_displacement(surf))
-        setup = time.perf_counter() - t0
-        op = inst.qp.H
-        t = time.perf_counter()
-        res = get_solver(args.solver).solve(inst.qp, SolverSettings(profile="high", tol=args.tol))
-        dt = time.perf_counter() - t
-        kkt = kkt_check(inst, res.p).kkt_error
-        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-        print(f"N={N} n={inst.n} solver={args.solver} fft={fft_backend()}x{fft_workers()} setup={setup:.1f}s solve={dt:.1f}s "
-              f"iterations={res.iterations} matvecs={res.matvecs} ({1e3 * dt / max(res.matvecs, 1):.0f} ms each) "
-              f"kkt={kkt:.2e} load={inst.load(res.p):.6e} A/A0={inst.contact_fraction(res.p):.5f} "
-              f"operator_state={op.memory_nbytes / 2**20:.0f} MiB peak_rss={rss:.0f} MiB", flush=True)
+        for solver in args.solvers.split(","):
+            for backend in (args.backends.split(",") if args.backends else [""]):
+                env = dict(os.environ)
+                if backend:
+                    env["CONTACTBENCH_FFT_BACKEND"] = backend
+                cmd = [sys.executable, __file__, "--child", f"{N}:{solver}", "--fraction", str(args.fraction),
+                       "--tol", str(args.tol)]
+                proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+                rows = [json.loads(x[7:]) for x in proc.stdout.splitlines() if x.startswith("RESULT ")]
+                if not rows:
+                    print(f"N={N} {solver} {backend}: failed\n{proc.stderr[-800:]}", flush=True)
+                    continue
+                row = rows[0]
+                print(" ".join(f"{k}={v}" for k, v in row.items()), flush=True)
+                new = not out.exists()
+                out.parent.mkdir(parents=True, exist_ok=True)
+                with open(out, "a", newline="") as fh:
+                    w = csv.DictWriter(fh, fieldnames=list(row))
+                    if new:
+                        w.writeheader()
+                    w.writerow(row)
 
 
 if __name__ == "__main__":

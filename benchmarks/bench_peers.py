@@ -26,7 +26,7 @@ Each (case, solver, threads) runs in its own subprocess, so the peak RSS is its 
 
 Usage: python benchmarks/bench_peers.py [--size 512] [--steps 10] [--tol 1e-8]
        [--solvers fast-ccg,fast-dual-ccg] [--cases nonperiodic-bcc,periodic-spectral]
-       [--out results/perf/peers]
+       [--backends ducc,scipy] [--out results/perf/peers]
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ class RunRecord:
     solver: str
     threads: str
     N: int
+    fft_backend: str = ""
     total_seconds: float = float("nan")
     matvecs: int = 0
     ffts: int = 0
@@ -128,7 +129,10 @@ def run_ours(case: str, solver_name: str, N: int, steps: int, tol: float) -> Run
     surf, deltas = scene(N, steps)
     transform, insts = our_instances(case, surf, deltas)
     solver = get_solver(solver_name)
-    rec = RunRecord(case, solver_name, os.environ.get("CONTACTBENCH_FFT_WORKERS", "default"), N)
+    from problems.operators import fft_backend
+
+    rec = RunRecord(case, solver_name, os.environ.get("CONTACTBENCH_FFT_WORKERS", "default"), N,
+                    fft_backend=fft_backend())
     prev = np.zeros(surf.heights.size)
     f0 = transform.fft_count
     for k, inst in enumerate(insts):
@@ -258,8 +262,10 @@ def child_main(args: argparse.Namespace) -> None:
 # ---------------------------------------------------------------------------
 
 
-def spawn(case: str, solver: str, threads: str | None, args: argparse.Namespace) -> RunRecord:
+def spawn(case: str, solver: str, threads: str | None, args: argparse.Namespace, backend: str = "") -> RunRecord:
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    if backend:
+        env["CONTACTBENCH_FFT_BACKEND"] = backend
     if threads is None:
         env.pop("CONTACTBENCH_FFT_WORKERS", None)
     else:
@@ -283,8 +289,10 @@ def spawn(case: str, solver: str, threads: str | None, args: argparse.Namespace)
                      message=(out.stderr or out.stdout)[-500:])
 
 
-def fft_floor_seconds(case: str, N: int, threads: str | None, reps: int = 20) -> float:
+def fft_floor_seconds(case: str, N: int, threads: str | None, backend: str = "", reps: int = 20) -> float:
     """Seconds for one forward+inverse transform pair of the operator (the matvec's floor)."""
+    if backend:
+        os.environ["CONTACTBENCH_FFT_BACKEND"] = backend
     if threads is not None:
         os.environ["CONTACTBENCH_FFT_WORKERS"] = threads
     else:
@@ -304,7 +312,7 @@ def print_steps(case: str, recs: list[RunRecord]) -> None:
     if not ok:
         return
     print(f"\n== {case}: load P (N) / contact fraction A/A0 / kkt per step ==")
-    print("step " + " ".join(f"{(r.solver + '@' + r.threads)[:30]:>32s}" for r in ok))
+    print("step " + " ".join(f"{(r.solver + '@' + r.threads + r.fft_backend)[:30]:>32s}" for r in ok))
     for k in range(len(ok[0].steps)):
         cells = [f"{r.steps[k].load:.8e}/{r.steps[k].contact_fraction:.5f}/{r.steps[k].kkt:.0e}" for r in ok]
         print(f"{k + 1:4d} " + " ".join(f"{c:>32s}" for c in cells))
@@ -337,6 +345,8 @@ def main() -> None:
     ap.add_argument("--peers", default=",".join(PEERS))
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--threads", default="1,default", help="FFT threads for ours: comma list, 'default' = all")
+    ap.add_argument("--backends", default="", help="FFT libraries for ours: comma list of ducc,scipy "
+                    "(default: the operator's default only)")
     ap.add_argument("--timeout", type=float, default=900.0)
     ap.add_argument("--out", default="results/perf/peers")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
@@ -350,25 +360,29 @@ def main() -> None:
         for peer in filter(None, args.peers.split(",")):
             recs.append(spawn(case, peer, "1", args))
             print(f"[{case}] {peer}: {recs[-1].status} {recs[-1].total_seconds:.2f} s {recs[-1].message}", flush=True)
+        backends = args.backends.split(",") if args.backends else [""]
         for solver in filter(None, args.solvers.split(",")):
             for th in args.threads.split(","):
-                recs.append(spawn(case, solver, None if th == "default" else th, args))
-                r = recs[-1]
-                print(f"[{case}] {solver}@{r.threads}: {r.status} {r.total_seconds:.2f} s, "
-                      f"{r.matvecs} matvecs, max kkt {r.max_kkt:.1e} {r.message}", flush=True)
+                for backend in backends:
+                    recs.append(spawn(case, solver, None if th == "default" else th, args, backend))
+                    r = recs[-1]
+                    print(f"[{case}] {solver}@{r.threads} {r.fft_backend}: {r.status} {r.total_seconds:.2f} s, "
+                          f"{r.matvecs} matvecs, max kkt {r.max_kkt:.1e} {r.message}", flush=True)
         print_steps(case, recs)
         peers_ok = [r.total_seconds for r in recs if r.status == "ok" and r.solver in PEERS
                     and r.max_kkt <= 10 * args.tol]
         best_peer = min(peers_ok) if peers_ok else float("nan")
-        floors = {th: fft_floor_seconds(case, args.size, None if th == "default" else th)
-                  for th in args.threads.split(",")}
+        floors = {(th, b): fft_floor_seconds(case, args.size, None if th == "default" else th, b)
+                  for th in args.threads.split(",") for b in backends}
         for r in recs:
             th_key = "default" if r.threads.startswith("default") else r.threads
-            floor = floors.get(th_key, floors.get("1", float("nan")))
+            b_key = r.fft_backend if r.fft_backend in backends else backends[0]
+            floor = floors.get((th_key, b_key), float("nan"))
             per_mv = r.total_seconds / r.matvecs if r.matvecs > 0 else float("nan")
             outside = 1.0 - (r.ffts / 2) * floor / r.total_seconds if r.ffts > 0 else float("nan")
             rows.append({
-                "case": case, "N": r.N, "solver": r.solver, "threads": r.threads, "status": r.status,
+                "case": case, "N": r.N, "solver": r.solver, "threads": r.threads, "fft": r.fft_backend,
+                "status": r.status,
                 "total_s": round(r.total_seconds, 3), "matvecs": r.matvecs, "ffts": r.ffts,
                 "peak_rss_mb": round(r.peak_rss_mb, 1), "max_kkt": f"{r.max_kkt:.2e}",
                 "ratio_to_best_peer": round(r.total_seconds / best_peer, 3) if best_peer == best_peer else "",
@@ -378,7 +392,7 @@ def main() -> None:
                 "note": r.message[:120],
             })
         print(f"[{case}] best peer (kkt <= {10 * args.tol:g}): {best_peer:.2f} s; FFT pair floor: "
-              + ", ".join(f"{k} thr {1e3 * v:.2f} ms" for k, v in floors.items()), flush=True)
+              + ", ".join(f"{k[0]} thr {k[1] or 'default'} {1e3 * v:.2f} ms" for k, v in floors.items()), flush=True)
     write_tables(rows, Path(args.out))
     print(f"\nwrote {args.out}.csv and .md")
 

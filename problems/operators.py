@@ -106,6 +106,27 @@ class ContactOperator(ABC):
     def column(self, j: int) -> np.ndarray:
         return self.submatrix(np.arange(self.n), np.array([j]))[:, 0]
 
+    def blocks(self, members: np.ndarray) -> np.ndarray:
+        """Stack of diagonal blocks: out[k] = H[members[k], members[k]] for an (m, s)
+        array of positions, with -1 as padding (identity rows and columns)."""
+        members = np.asarray(members)
+        m, s = members.shape
+        a = np.broadcast_to(members[:, :, None], (m, s, s))
+        b = np.broadcast_to(members[:, None, :], (m, s, s))
+        both = (a >= 0) & (b >= 0)
+        out = np.zeros((m, s, s))
+        out[both] = self.entries(a[both], b[both])
+        return _pad_identity(out, members)
+
+    def entries(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """H[rows[k], cols[k]] for each k (elementwise pairs, not a block)."""
+        rows, cols = np.asarray(rows), np.asarray(cols)
+        out = np.empty(rows.size)
+        for r in np.unique(rows):
+            sel = np.flatnonzero(rows == r)
+            out[sel] = self.submatrix(np.array([r]), cols[sel])[0]
+        return out
+
     def dense_nbytes(self) -> int:
         return dense_nbytes(self.n)
 
@@ -127,6 +148,16 @@ class ContactOperator(ABC):
     @property
     def shape(self) -> tuple[int, int]:
         return (self.n, self.n)
+
+
+def _pad_identity(blocks: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """Zero the rows and columns of padded members (-1) and put 1 on their diagonal."""
+    k, a = np.nonzero(np.asarray(members) < 0)
+    if k.size:
+        blocks[k, a, :] = 0.0
+        blocks[k, :, a] = 0.0
+        blocks[k, a, a] = 1.0
+    return blocks
 
 
 class DenseOperator(ContactOperator):
@@ -157,6 +188,9 @@ class DenseOperator(ContactOperator):
 
     def to_dense(self, budget: float | None = None) -> np.ndarray:
         return self.H
+
+    def entries(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        return self.H[np.asarray(rows), np.asarray(cols)]
 
     def frobenius_norm(self) -> float:
         return float(np.linalg.norm(self.H))
@@ -421,6 +455,27 @@ class FFTOperator(ContactOperator):
             flat += (rj[b0:b1, None] - cj[None, :]) % p1
             np.take(table, flat, out=out[b0:b1])
         return out
+
+    def entries(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        rows, cols = np.asarray(rows), np.asarray(cols)
+        p0, p1 = self.transform.padded_shape
+        flat = ((self._pi[rows] - self._pi[cols]) % p0) * p1 + (self._pj[rows] - self._pj[cols]) % p1
+        return self.transform.table.ravel()[flat]
+
+    def blocks(self, members: np.ndarray) -> np.ndarray:
+        # The table is even in both offsets when its spectrum is real (BCC, Love,
+        # spectral), so K(di, dj) = table[|di|, |dj|]: no modulo, and small offsets
+        # stay in the first rows of the table (cache-friendly for compact groups).
+        members = np.asarray(members)
+        if np.iscomplexobj(self.transform.khat):
+            return super().blocks(members)
+        safe = np.where(members >= 0, members, 0)
+        pi, pj = self._pi[safe].astype(np.int32), self._pj[safe].astype(np.int32)
+        di = np.abs(pi[:, :, None] - pi[:, None, :])
+        dj = np.abs(pj[:, :, None] - pj[:, None, :])
+        di *= np.int32(self.transform.padded_shape[1])
+        di += dj
+        return _pad_identity(self.transform.table.ravel()[di], members)
 
     def restrict(self, idx: np.ndarray) -> "FFTOperator":
         idx = np.asarray(idx)

@@ -19,7 +19,7 @@ from problems.surfaces import rmd_surface_n
 from solvers.base import SolverSettings, WarmStart
 from solvers.registry import get_solver
 
-FAST = ["fast-ccg", "fast-dual-ccg", "fast-pdas"]
+FAST = ["fast-ccg", "fast-dual-ccg", "fast-pdas", "fast-pccg", "fast-dual-pccg"]
 HIGH = SolverSettings(profile="high")
 
 

@@ -1,0 +1,167 @@
+"""Block-Jacobi preconditioner over contact islands, for CG on a contact (free) set.
+
+On a rough surface the contact set is thousands of small islands.  H restricted to it
+is dominated by the blocks *within* each island (the half-space kernel decays like
+1/r), so the exact inverse of each island's block -- a block-Jacobi preconditioner
+whose blocks are the 8-connected components of the set on the grid -- removes the
+short-range part of the spectrum that limits CG, and leaves the smooth far-field
+coupling between islands.  Measured on the 1024^2 paper surface (3,428 contact
+points, 1,002 islands, largest 136): CG on H_AA p = ubar_A to 1e-9 takes 67
+matvecs, 47 with the continuous |q| E*/2 Fourier preconditioner of Vollebregt (2014),
+and 33 with this one (docs/fast-solvers.md).
+
+Islands larger than ``max_block`` are cut into row-major strips of that size.  The
+blocks are gathered from the operator's kernel table (``ContactOperator.submatrix``),
+grouped by size into buckets of powers of two, padded with the identity and
+inverted batch-wise, so neither the build nor ``apply`` loops over islands in
+Python.  Needs the unknowns' grid positions (``QP.geometry``); without them
+``IslandPreconditioner.build`` returns None and callers run unpreconditioned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from problems.instances import QP
+from problems.operators import ContactOperator
+
+#: Islands above this many points are cut into strips (keeps a block inverse cheap).
+MAX_BLOCK = 128
+
+#: Refactor when the set has changed in more than this fraction of its points.
+REBUILD_FRACTION = 0.2
+
+_NEIGHBOURS = ((0, 1), (1, -1), (1, 0), (1, 1))  # half of the 8-neighbourhood
+
+
+def block_width(sizes: np.ndarray) -> np.ndarray:
+    """Padded block size: powers of two up to 16, then multiples of 16 (little padding)."""
+    small = 1 << np.ceil(np.log2(np.maximum(sizes, 1))).astype(np.int64)
+    return np.where(sizes <= 16, small, 16 * ((sizes + 15) // 16))
+
+
+@dataclass
+class _Bucket:
+    members: np.ndarray  # (m, s) positions in the operator's set, -1 = padding
+    inverse: np.ndarray  # (m, s, s)
+
+
+class IslandPreconditioner:
+    """z = blockdiag(H_BB)^-1 r on a set S, zero outside S (see module doc)."""
+
+    def __init__(self, H: ContactOperator, grid_shape: tuple[int, int], grid_idx: np.ndarray,
+                 max_block: int | None = None) -> None:
+        self.H = H
+        self.n = int(grid_idx.size)
+        self.max_block = int(max_block or MAX_BLOCK)
+        self._i, self._j = np.divmod(np.asarray(grid_idx, dtype=np.int64), grid_shape[1])
+        self._shape = (int(grid_shape[0]), int(grid_shape[1]))
+        # Position of each grid point in the set (-1: not in the set), for neighbour lookups.
+        self._where = np.full(self._shape[0] * self._shape[1], -1, dtype=np.int64)
+        self._where[np.asarray(grid_idx)] = np.arange(self.n)
+        self._buckets: list[_Bucket] = []
+        self._on = np.zeros(self.n, dtype=bool)
+        self._built: np.ndarray | None = None
+        self._diag = H.diagonal()
+        self.rebuild_fraction = REBUILD_FRACTION
+        self.builds = 0
+
+    @classmethod
+    def build(cls, qp: QP, max_block: int | None = None) -> "IslandPreconditioner | None":
+        g = qp.geometry
+        if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
+            return None
+        return cls(qp.H, tuple(g.grid_shape), np.asarray(g.indices), max_block)
+
+    def update(self, S: np.ndarray) -> None:
+        """Make the preconditioner act on the set S (boolean mask over the operator's set).
+
+        The island blocks are refactored only when S has drifted by more than
+        ``rebuild_fraction`` of its size from the set they were built for; in between,
+        z = R B^-1 R r with R the restriction to S (and 1/H_ii on points of S outside
+        the built set), which is still symmetric positive definite on S, so CG stays
+        valid while the factorisation is reused."""
+        S = np.asarray(S, dtype=bool)
+        self._on = S.copy()
+        drift = int(np.count_nonzero(S != self._built)) if self._built is not None else S.size
+        if self._built is not None and drift <= self.rebuild_fraction * max(1, int(np.count_nonzero(S))):
+            return
+        self.builds += 1
+        self._built = S.copy()
+        pos = np.flatnonzero(S)
+        self._buckets = [self._factor(members) for members in self._blocks(pos)] if pos.size else []
+
+    @property
+    def on(self) -> np.ndarray:
+        """The set the preconditioner acts on now."""
+        return self._on
+
+    def apply(self, r: np.ndarray) -> np.ndarray:
+        rs = np.where(self._on, r, 0.0)
+        z = rs / self._diag
+        for b in self._buckets:
+            zb = np.einsum("mij,mj->mi", b.inverse, np.where(b.members >= 0, rs[b.members], 0.0))
+            valid = b.members >= 0
+            z[b.members[valid]] = zb[valid]
+        z[~self._on] = 0.0
+        return z
+
+    # -- partition -------------------------------------------------------------------
+
+    def _components(self, pos: np.ndarray) -> np.ndarray:
+        """Component label of each point of ``pos`` (8-connectivity on the grid)."""
+        k = pos.size
+        local = np.full(self.n, -1, dtype=np.int64)
+        local[pos] = np.arange(k)
+        i, j = self._i[pos], self._j[pos]
+        rows, cols = [], []
+        n1, n2 = self._shape
+        for di, dj in _NEIGHBOURS:
+            ii, jj = i + di, j + dj
+            ok = (ii < n1) & (jj >= 0) & (jj < n2)
+            nb = np.full(k, -1, dtype=np.int64)
+            nb[ok] = self._where[ii[ok] * n2 + jj[ok]]
+            has = nb >= 0
+            nb[has] = local[nb[has]]
+            has &= nb >= 0
+            rows.append(np.flatnonzero(has))
+            cols.append(nb[has])
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        graph = coo_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(k, k))
+        return connected_components(graph, directed=False)[1]
+
+    def _blocks(self, pos: np.ndarray):
+        """Yield (m, s) member arrays, one per size bucket (s a power of two)."""
+        labels = self._components(pos)
+        order = np.argsort(labels, kind="stable")  # pos is sorted, so row-major within an island
+        labels = labels[order]
+        starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
+        sizes = np.diff(np.r_[starts, labels.size])
+        # Cut big islands into strips of max_block points.
+        piece_starts = [starts[sizes <= self.max_block]]
+        for s0, sz in zip(starts[sizes > self.max_block], sizes[sizes > self.max_block]):
+            piece_starts.append(np.arange(s0, s0 + sz, self.max_block))
+        starts = np.sort(np.concatenate(piece_starts))
+        sizes = np.diff(np.r_[starts, labels.size])
+        sizes = np.minimum(sizes, self.max_block)
+        width = block_width(sizes)
+        for s in np.unique(width):
+            sel = np.flatnonzero(width == s)
+            offs = np.arange(s)
+            idx = starts[sel, None] + offs[None, :]
+            valid = offs[None, :] < sizes[sel, None]
+            members = np.full(idx.shape, -1, dtype=np.int64)
+            members[valid] = pos[order[idx[valid]]]
+            yield members
+
+    def _factor(self, members: np.ndarray) -> _Bucket:
+        m, s = members.shape
+        if s == 1:
+            d = self.H.entries(members[:, 0], members[:, 0])
+            return _Bucket(members, (1.0 / d)[:, None, None])
+        blocks = self.H.blocks(members)
+        return _Bucket(members, np.linalg.inv(blocks))

@@ -1,0 +1,123 @@
+"""The island block-Jacobi preconditioner (solvers/_islands.py) and the operators'
+block gathers it uses, checked against independent constructions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from problems.instances import InstanceBuilder, paper_max_displacement
+from problems.operators import DenseOperator
+from problems.surfaces import rmd_surface_n
+from solvers._islands import IslandPreconditioner, block_width
+from solvers.base import SolverSettings
+from solvers.registry import get_solver
+
+
+def build(N: int, kernel: str = "bcc", periodic: bool = False, seed: int = 2):
+    s = rmd_surface_n(N, 0.7, length=100e-6, seed=seed)
+    b = InstanceBuilder(s, 1e9, kernel, periodic=periodic)
+    return b.build(paper_max_displacement(s))
+
+
+@pytest.mark.parametrize("kernel,periodic", [("bcc", False), ("love", False), ("bcc", True), ("spectral", True)])
+def test_operator_blocks_equal_submatrices(kernel, periodic):
+    inst = build(32 if periodic else 33, kernel, periodic)
+    H = inst.qp.H
+    rng = np.random.default_rng(0)
+    members = rng.choice(H.n, size=(5, 7), replace=False)
+    members[1, 5:] = -1  # padding
+    dense = DenseOperator(H.submatrix(np.arange(H.n), np.arange(H.n)))
+    for op in (H, dense):
+        blocks = op.blocks(members)
+        for k in range(members.shape[0]):
+            valid = members[k] >= 0
+            m = members[k, valid]
+            np.testing.assert_allclose(blocks[k][np.ix_(valid, valid)], H.submatrix(m, m), rtol=1e-14, atol=0)
+            pad = np.flatnonzero(~valid)
+            np.testing.assert_array_equal(blocks[k][pad][:, pad], np.eye(pad.size))
+            assert not np.any(blocks[k][np.ix_(valid, ~valid)])
+
+
+def islands_by_label(inst, S: np.ndarray) -> list[np.ndarray]:
+    """8-connected components of S on the grid, by scipy.ndimage.label."""
+    g = inst.qp.geometry
+    mask = np.zeros(int(np.prod(g.grid_shape)), dtype=bool)
+    mask[g.indices[S]] = True
+    lab, k = ndimage.label(mask.reshape(g.grid_shape), structure=np.ones((3, 3)))
+    lab_on_set = lab.ravel()[g.indices]
+    return [np.flatnonzero(S & (lab_on_set == c)) for c in range(1, k + 1)]
+
+
+def test_apply_is_the_inverse_of_the_island_blocks():
+    inst = build(65)
+    H = inst.qp.H
+    res = get_solver("fast-dual-ccg").solve(inst.qp, SolverSettings(profile="high"))
+    S = res.p > 0
+    islands = islands_by_label(inst, S)
+    assert len(islands) > 5 and max(map(len, islands)) <= 128
+    M = IslandPreconditioner.build(inst.qp)
+    M.update(S)
+    r = np.random.default_rng(1).normal(size=H.n)
+    z = M.apply(r)
+    expected = np.zeros(H.n)
+    for isl in islands:
+        expected[isl] = np.linalg.solve(H.submatrix(isl, isl), r[isl])
+    np.testing.assert_allclose(z, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+    assert not np.any(z[~S])
+
+
+def test_big_islands_are_cut_and_the_preconditioner_stays_spd():
+    inst = build(65)
+    H = inst.qp.H
+    S = inst.qp.ubar > np.quantile(inst.qp.ubar, 0.3)  # a large, well-connected set
+    M = IslandPreconditioner(H, inst.qp.geometry.grid_shape, inst.qp.geometry.indices, max_block=16)
+    M.update(S)
+    pos = np.flatnonzero(S)
+    P = np.column_stack([M.apply(np.eye(H.n)[:, j]) for j in pos])[pos]
+    np.testing.assert_allclose(P, P.T, atol=1e-12 * np.abs(P).max())
+    assert np.min(np.linalg.eigvalsh(0.5 * (P + P.T))) > 0
+    assert max(b.members.shape[1] for b in M._buckets) <= 16
+
+
+def test_reuse_between_rebuilds_restricts_to_the_current_set():
+    inst = build(65)
+    H = inst.qp.H
+    S = inst.qp.ubar > np.quantile(inst.qp.ubar, 0.5)
+    M = IslandPreconditioner.build(inst.qp)
+    M.update(S)
+    S2 = S.copy()
+    S2[np.flatnonzero(S)[:3]] = False  # small drift: no refactorisation
+    M.update(S2)
+    assert M.builds == 1
+    z = M.apply(np.ones(H.n))
+    assert not np.any(z[~S2]) and np.all(z[S2] != 0)
+
+
+def test_block_widths_pad_little():
+    sizes = np.array([1, 2, 3, 5, 16, 17, 33, 128])
+    np.testing.assert_array_equal(block_width(sizes), [1, 2, 4, 8, 16, 32, 48, 128])
+
+
+def test_preconditioned_ccg_needs_fewer_matvecs_and_reaches_the_same_answer():
+    inst = build(129, seed=0)
+    out = {}
+    for name in ("fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg"):
+        res = get_solver(name).solve(inst.qp, SolverSettings(profile="high"))
+        assert res.converged
+        out[name] = res
+    assert out["fast-pccg"].info["preconditioner_builds"] >= 1
+    assert out["fast-pccg"].matvecs < out["fast-ccg"].matvecs
+    assert out["fast-dual-pccg"].matvecs < out["fast-dual-ccg"].matvecs
+    for a, b in (("fast-pccg", "fast-ccg"), ("fast-dual-pccg", "fast-dual-ccg")):
+        assert np.linalg.norm(out[a].p - out[b].p) <= 1e-6 * np.linalg.norm(out[b].p)
+
+
+def test_without_geometry_it_runs_unpreconditioned():
+    from problems.instances import QP
+
+    inst = build(33)
+    qp = QP(inst.qp.H, inst.qp.ubar)
+    res = get_solver("fast-pccg").solve(qp, SolverSettings(profile="high"))
+    assert res.converged and "preconditioner_builds" not in res.info
