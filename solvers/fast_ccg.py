@@ -37,7 +37,7 @@ from ._fast_common import (
     scaled_kkt,
     time_left,
 )
-from ._islands import IslandPreconditioner
+from ._preconditioners import make_preconditioner, SetPreconditioner
 from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
 from .registry import register
 
@@ -51,9 +51,7 @@ class _FastCG(Solver):
 
     def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
         s = begin_fast_solve(qp, settings, warm)
-        M = None
-        if settings.param("precondition", self.default_precondition) == "islands":
-            M = IslandPreconditioner.build(qp)
+        M = make_preconditioner(settings.param("precondition", self.default_precondition), qp)
         it, kkt = self._iterate(s.state, qp.ubar, s.diag_max, s.tol, iteration_limit(settings, qp.n), settings,
                                 s.trace, M)
         info = {"preconditioner_builds": M.builds} if M is not None else {}
@@ -63,7 +61,7 @@ class _FastCG(Solver):
     default_precondition = "none"
 
     def _iterate(self, state: GapState, ubar: np.ndarray, diag_max: float, tol: float, max_iter: int,
-                 settings: SolverSettings, trace: Trace, M: IslandPreconditioner | None = None) -> tuple[int, float]:
+                 settings: SolverSettings, trace: Trace, M: SetPreconditioner | None = None) -> tuple[int, float]:
         raise NotImplementedError
 
 
@@ -172,7 +170,7 @@ class FastBugnicourtCCG(_FastCG):
         return max_iter, kkt
 
     @staticmethod
-    def _precondition(M: IslandPreconditioner | None, res: np.ndarray) -> np.ndarray:
+    def _precondition(M: SetPreconditioner | None, res: np.ndarray) -> np.ndarray:
         if M is None:
             return res
         free = res != 0.0
@@ -188,7 +186,7 @@ class FastBugnicourtCCG(_FastCG):
 
 @register
 class FastPolonskyKeerIslands(FastPolonskyKeer):
-    """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers/_islands.py):
+    """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers._preconditioners.py):
     the CG direction on the contact set S is z = B_S^-1 r with B_S the blocks of H over the
     8-connected islands of S (cut at 128 points), refactored when S drifts by 20 %.
     Same fixed point and KKT test as fast-ccg; warm start: primal.  Without grid

@@ -1,4 +1,4 @@
-"""The island block-Jacobi preconditioner (solvers/_islands.py) and the operators'
+"""The island block-Jacobi preconditioner (solvers._preconditioners.py) and the operators'
 block gathers it uses, checked against independent constructions."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from scipy import ndimage
 from problems.instances import InstanceBuilder, paper_max_displacement
 from problems.operators import DenseOperator
 from problems.surfaces import rmd_surface_n
-from solvers._islands import IslandPreconditioner, block_width
+from solvers._preconditioners import IslandPreconditioner, block_width
 from solvers.base import SolverSettings
 from solvers.registry import get_solver
 
@@ -121,3 +121,18 @@ def test_without_geometry_it_runs_unpreconditioned():
     qp = QP(inst.qp.H, inst.qp.ubar)
     res = get_solver("fast-pccg").solve(qp, SolverSettings(profile="high"))
     assert res.converged and "preconditioner_builds" not in res.info
+
+
+@pytest.mark.parametrize("name", ["fast-pccg", "fast-dual-pccg"])
+def test_fourier_preconditioner_option_reaches_the_same_answer(name):
+    inst = build(65)
+    ref = get_solver(name.replace("pccg", "ccg")).solve(inst.qp, SolverSettings(profile="high"))
+    res = get_solver(name).solve(inst.qp, SolverSettings(profile="high", params={"precondition": "fourier"}))
+    assert res.converged
+    assert np.linalg.norm(res.p - ref.p) <= 1e-6 * np.linalg.norm(ref.p)
+
+
+def test_unknown_preconditioner_is_a_clear_error():
+    inst = build(33)
+    with pytest.raises(ValueError, match="unknown preconditioner"):
+        get_solver("fast-pccg").solve(inst.qp, SolverSettings(profile="high", params={"precondition": "ilu"}))

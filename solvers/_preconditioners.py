@@ -1,4 +1,9 @@
-"""Block-Jacobi preconditioner over contact islands, for CG on a contact (free) set.
+"""Preconditioners for CG on a contact (free) set S, used by fast-pccg / fast-dual-pccg.
+
+Both act as z = R M^-1 R r, with R the restriction to the current set S, so each is
+symmetric positive definite on S and CG stays valid while M is held fixed.
+
+``IslandPreconditioner`` (the default, "islands") -- block-Jacobi over contact islands.
 
 On a rough surface the contact set is thousands of small islands.  H restricted to it
 is dominated by the blocks *within* each island (the half-space kernel decays like
@@ -16,18 +21,27 @@ grouped by size into buckets of powers of two, padded with the identity and
 inverted batch-wise, so neither the build nor ``apply`` loops over islands in
 Python.  Needs the unknowns' grid positions (``QP.geometry``); without them
 ``IslandPreconditioner.build`` returns None and callers run unpreconditioned.
+
+``FourierPreconditioner`` ("fourier") -- Vollebregt's FFT-based preconditioner for
+BCCG (Vollebregt, J. Optim. Theory Appl. 162 (2014) 931): the inverse of the
+continuous half-space compliance, |q| E*/2 up to a constant, applied on the physical
+N1 x N2 grid (periodic approximation: one N^2 transform pair, about a quarter of the
+padded matvec), gathered on S.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+import scipy.fft as sfft
+
 from problems.instances import QP
-from problems.operators import ContactOperator
+from problems.operators import ContactOperator, fft_workers
 
 #: Islands above this many points are cut into strips (keeps a block inverse cheap).
 MAX_BLOCK = 128
@@ -42,6 +56,19 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
     """Padded block size: powers of two up to 16, then multiples of 16 (little padding)."""
     small = 1 << np.ceil(np.log2(np.maximum(sizes, 1))).astype(np.int64)
     return np.where(sizes <= 16, small, 16 * ((sizes + 15) // 16))
+
+
+class SetPreconditioner(Protocol):
+    """What the preconditioned CCGs use: act on a set S, apply z = R M^-1 R r."""
+
+    builds: int
+
+    @property
+    def on(self) -> np.ndarray: ...
+
+    def update(self, S: np.ndarray) -> None: ...
+
+    def apply(self, r: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass
@@ -165,3 +192,54 @@ class IslandPreconditioner:
             return _Bucket(members, (1.0 / d)[:, None, None])
         blocks = self.H.blocks(members)
         return _Bucket(members, np.linalg.inv(blocks))
+
+
+class FourierPreconditioner:
+    """z = R F^-1[|q| F[R r]] on the physical grid (see module doc)."""
+
+    def __init__(self, grid_shape: tuple[int, int], grid_idx: np.ndarray) -> None:
+        n1, n2 = int(grid_shape[0]), int(grid_shape[1])
+        q0 = 2.0 * np.pi * sfft.fftfreq(n1)
+        q1 = 2.0 * np.pi * sfft.rfftfreq(n2)
+        self._q = np.hypot(q0[:, None], q1[None, :])
+        self._q[0, 0] = min(q0[1] if n1 > 1 else 1.0, q1[1] if q1.size > 1 else 1.0)
+        self._shape = (n1, n2)
+        self._idx = np.asarray(grid_idx)
+        self._on = np.zeros(self._idx.size, dtype=bool)
+        self.builds = 0
+
+    @classmethod
+    def build(cls, qp: QP) -> "FourierPreconditioner | None":
+        g = qp.geometry
+        if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
+            return None
+        return cls(tuple(g.grid_shape), np.asarray(g.indices))
+
+    @property
+    def on(self) -> np.ndarray:
+        return self._on
+
+    def update(self, S: np.ndarray) -> None:
+        self._on = np.asarray(S, dtype=bool).copy()
+
+    def apply(self, r: np.ndarray) -> np.ndarray:
+        f = np.zeros(self._shape)
+        f.ravel()[self._idx] = np.where(self._on, r, 0.0)
+        w = fft_workers()
+        F = sfft.rfft2(f, workers=w, overwrite_x=True)
+        F *= self._q
+        z = sfft.irfft2(F, s=self._shape, workers=w, overwrite_x=True).ravel()[self._idx]
+        z[~self._on] = 0.0
+        return z
+
+
+def make_preconditioner(kind: str | None, qp: QP) -> SetPreconditioner | None:
+    """"islands", "fourier" or "none" (None is returned also when the QP has no grid
+    positions)."""
+    if kind == "islands":
+        return IslandPreconditioner.build(qp)
+    if kind == "fourier":
+        return FourierPreconditioner.build(qp)
+    if kind in ("none", "", None):
+        return None
+    raise ValueError(f"unknown preconditioner {kind!r}: expected 'islands', 'fourier' or 'none'")
