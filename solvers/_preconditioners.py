@@ -46,6 +46,9 @@ from problems.operators import ContactOperator, fft_workers
 #: Islands above this many points are cut into strips (keeps a block inverse cheap).
 MAX_BLOCK = 128
 
+#: Block entries gathered and inverted at a time (bounds the build's temporaries).
+BUILD_CHUNK_ENTRIES = 1 << 22
+
 #: Refactor when the set has changed in more than this fraction of its points.
 REBUILD_FRACTION = 0.2
 
@@ -162,7 +165,7 @@ class IslandPreconditioner:
         return connected_components(graph, directed=False)[1]
 
     def _blocks(self, pos: np.ndarray):
-        """Yield (m, s) member arrays, one per size bucket (s a power of two)."""
+        """Yield (m, s) member arrays, one per padded size s (see ``block_width``)."""
         labels = self._components(pos)
         order = np.argsort(labels, kind="stable")  # pos is sorted, so row-major within an island
         labels = labels[order]
@@ -190,8 +193,12 @@ class IslandPreconditioner:
         if s == 1:
             d = self.H.entries(members[:, 0], members[:, 0])
             return _Bucket(members, (1.0 / d)[:, None, None])
-        blocks = self.H.blocks(members)
-        return _Bucket(members, np.linalg.inv(blocks))
+        # Gather and invert in chunks, so the temporaries stay near 32 MiB.
+        inverse = np.empty((m, s, s))
+        step = max(1, BUILD_CHUNK_ENTRIES // (s * s))
+        for k0 in range(0, m, step):
+            inverse[k0:k0 + step] = np.linalg.inv(self.H.blocks(members[k0:k0 + step]))
+        return _Bucket(members, inverse)
 
 
 class FourierPreconditioner:

@@ -37,7 +37,7 @@ from ._fast_common import (
     scaled_kkt,
     time_left,
 )
-from ._preconditioners import make_preconditioner, SetPreconditioner
+from ._preconditioners import make_preconditioner, MAX_BLOCK, SetPreconditioner
 from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
 from .registry import register
 
@@ -47,7 +47,10 @@ class _FastCG(Solver):
     capabilities = FAST_CAPABILITIES
 
     def memory_estimate(self, n: int) -> float:
-        return 8.0 * 8.0 * n
+        # Eight vectors; with the island preconditioner, block inverses of up to
+        # MAX_BLOCK entries per point of the set (the set can be the whole trial set early).
+        blocks = 8.0 * MAX_BLOCK * n if self.default_precondition == "islands" else 0.0
+        return 8.0 * 8.0 * n + blocks
 
     def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
         s = begin_fast_solve(qp, settings, warm)
