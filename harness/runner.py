@@ -275,17 +275,38 @@ class Decision:
         return bool(self.reason)
 
 
-#: Growth exponent of solve time with n used to extrapolate an observed solve.
+#: Growth exponent of solve time with n used to extrapolate an observed solve (the
+#: floor; with two observed steps the measured exponent is used, up to the cap).
 OBSERVED_TIME_EXPONENT = 1.5
+OBSERVED_EXPONENT_CAP = 4.0
+#: An extrapolated time above this fraction of the limit counts as hopeless: the
+#: extrapolation is rough, and a timeout costs the whole limit.
+OBSERVED_SKIP_FRACTION = 0.75
+
+Observation = tuple[int, float]  # (n, solve seconds) of one finished step
+
+
+def extrapolated_time(history: Sequence[Observation], n: int) -> tuple[float, float]:
+    """(predicted seconds at n, exponent used) from the last one or two finished steps of
+    the same solver: t_last (n / n_last)^e, with e measured between the last two steps
+    when both are long enough to time (> 0.05 s) and n grew, clamped to [1.5, 4]."""
+    n1, t1 = history[-1]
+    e = OBSERVED_TIME_EXPONENT
+    if len(history) >= 2:
+        n0, t0 = history[-2]
+        if n1 > 1.1 * n0 and t0 > 0.05 and t1 > 0:
+            e = min(OBSERVED_EXPONENT_CAP, max(e, math.log(t1 / t0) / math.log(n1 / n0)))
+    return t1 * max(1.0, n / n1) ** e, e
 
 
 def skip_decision(base: str, n: int, instance_operator: str, time_limit: float, memory_budget: float,
-                  observed: tuple[int, float] | None = None) -> Decision:
+                  observed: Sequence[Observation] | Observation | None = None) -> Decision:
     """Ask the solver's availability, capabilities, memory and time models whether it
     can serve a trial set of size n within the limits.  The reason is in words, with
-    the estimate.  ``observed`` = (n', seconds) of the same solver's solve of the
-    previous step of the load sequence: when given it replaces the solver's static time
-    model (which cannot know about warm starts), extrapolated as (n / n')^1.5."""
+    the estimate.  ``observed`` = the (n', seconds) of the same solver's last one or two
+    finished steps of the load sequence: when given it replaces the solver's static time
+    model (which cannot know about warm starts), extrapolated by ``extrapolated_time``,
+    and the step is skipped when that exceeds 3/4 of the limit."""
     try:
         solver = resolve_solver(base)
     except Exception as exc:
@@ -314,11 +335,15 @@ def skip_decision(base: str, n: int, instance_operator: str, time_limit: float, 
     if dense_bytes + own_bytes > memory_budget:
         return Decision(reason=(f"memory estimate {(dense_bytes + own_bytes) / GiB:.3g} GiB at n = {n} "
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
-    if observed is not None and observed[0] > 0:
-        t_obs = observed[1] * max(1.0, n / observed[0]) ** OBSERVED_TIME_EXPONENT
-        if t_obs > time_limit:
-            return Decision(reason=(f"predicted solve time {t_obs:.3g} s at n = {n} from {observed[1]:.3g} s at "
-                                    f"n = {observed[0]} on the previous step, over the time limit of {time_limit:.3g} s"))
+    history = [observed] if observed and not isinstance(observed[0], (tuple, list)) else list(observed or [])
+    history = [(int(a), float(b)) for a, b in history if a > 0]  # type: ignore[misc]
+    if history:
+        t_obs, e = extrapolated_time(history, n)
+        if t_obs > OBSERVED_SKIP_FRACTION * time_limit:
+            n1, t1 = history[-1]
+            return Decision(reason=(f"predicted solve time {t_obs:.3g} s at n = {n} from {t1:.3g} s at n = {n1} on "
+                                    f"the previous step (time ~ n^{e:.2g}), over {OBSERVED_SKIP_FRACTION:g} of the "
+                                    f"time limit of {time_limit:.3g} s"))
         return Decision(operator=operator)
     try:
         t_est = solver.time_estimate(n, operator)
@@ -733,9 +758,9 @@ class JobRunner:
         self.build_times: dict[int, float] = {}
         #: (variant, profile) -> (step, n) of its first timeout: larger steps are skipped.
         self.too_slow: dict[tuple[str, str], tuple[int, int]] = {}
-        #: (variant, profile) -> (n, seconds) of its last finished solve along the load
-        #: history: the time prediction for the next step (see skip_decision).
-        self.observed: dict[tuple[str, str], tuple[int, float]] = {}
+        #: (variant, profile) -> (n, seconds) of its last two finished solves along the
+        #: load history: the time prediction for the next step (see skip_decision).
+        self.observed: dict[tuple[str, str], list[Observation]] = {}
 
     # -- cells ------------------------------------------------------------
     def cell_id(self, k: int, v: SolverVariant, profile: str, r: int) -> str:
@@ -954,7 +979,8 @@ class JobRunner:
             if row.get("status") == "timeout":
                 self.too_slow.setdefault((v.name, profile), (ctx.k, int(ctx.info["n"])))
             elif row.get("status") in ("solved", "inaccurate") and self.job.load_history:
-                self.observed[(v.name, profile)] = (int(ctx.info["n"]), float(row["solve_time_s"]))
+                seen = self.observed.setdefault((v.name, profile), [])
+                seen[:] = (seen + [(int(ctx.info["n"]), float(row["solve_time_s"]))])[-2:]
             self.emit(row)
 
 

@@ -35,10 +35,9 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+import scipy.fft as sfft
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-
-import scipy.fft as sfft
 
 from problems.instances import QP
 from problems.operators import ContactOperator, fft_workers
@@ -91,7 +90,7 @@ class IslandPreconditioner:
         self._i, self._j = np.divmod(np.asarray(grid_idx, dtype=np.int64), grid_shape[1])
         self._shape = (int(grid_shape[0]), int(grid_shape[1]))
         # Position of each grid point in the set (-1: not in the set), for neighbour lookups.
-        self._where = np.full(self._shape[0] * self._shape[1], -1, dtype=np.int64)
+        self._where = np.full(self._shape[0] * self._shape[1], -1, dtype=np.int32 if self.n < 2**31 else np.int64)
         self._where[np.asarray(grid_idx)] = np.arange(self.n)
         self._buckets: list[_Bucket] = []
         self._on = np.zeros(self.n, dtype=bool)
@@ -101,7 +100,7 @@ class IslandPreconditioner:
         self.builds = 0
 
     @classmethod
-    def build(cls, qp: QP, max_block: int | None = None) -> "IslandPreconditioner | None":
+    def build(cls, qp: QP, max_block: int | None = None) -> IslandPreconditioner | None:
         g = qp.geometry
         if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
             return None
@@ -216,7 +215,7 @@ class FourierPreconditioner:
         self.builds = 0
 
     @classmethod
-    def build(cls, qp: QP) -> "FourierPreconditioner | None":
+    def build(cls, qp: QP) -> FourierPreconditioner | None:
         g = qp.geometry
         if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
             return None

@@ -13,7 +13,14 @@ fast-dual-ccg
     beta and *no restart*; the residual is the gap with admissible multipliers
     (g >= 0 where p = 0) removed.
 
-Both minimise the paper's QP (Bemporad & Paggi 2015, eq. (5)): min 1/2 p'Hp - ubar'p,
+fast-pccg, fast-dual-pccg
+    the same two iterations with the CG direction preconditioned on the current free
+    set (z = M^-1 r instead of r): by default the exact inverses of H over the
+    contact islands (solvers/_preconditioners.py), or Vollebregt's Fourier |q|
+    preconditioner (params={"precondition": "fourier"}).  Any of the four accepts
+    params={"precondition": "islands" | "fourier" | "none"}.
+
+All minimise the paper's QP (Bemporad & Paggi 2015, eq. (5)): min 1/2 p'Hp - ubar'p,
 p >= 0.  One matvec per iteration while the projection is inactive (the gap is
 updated as g += alpha H d), two when it clips.  Warm start: primal (WarmStart.p).
 The stopping test is the harness's scaled KKT error (unit-invariant), confirmed on a
@@ -29,22 +36,24 @@ import numpy as np
 from problems.instances import QP
 
 from ._fast_common import (
-    begin_fast_solve,
     FAST_CAPABILITIES,
     GapState,
+    begin_fast_solve,
     iteration_limit,
     make_result,
     scaled_kkt,
     time_left,
 )
-from ._preconditioners import make_preconditioner, MAX_BLOCK, SetPreconditioner
-from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
+from ._preconditioners import MAX_BLOCK, SetPreconditioner, make_preconditioner
+from .base import Solver, SolveResult, SolverSettings, Trace, WarmStart
 from .registry import register
 
 
 class _FastCG(Solver):
     family = "fast"
     capabilities = FAST_CAPABILITIES
+    #: "islands", "fourier" or "none"; overridable per run by params["precondition"].
+    default_precondition = "none"
 
     def memory_estimate(self, n: int) -> float:
         # Eight vectors; with the island preconditioner, block inverses of up to
@@ -60,8 +69,6 @@ class _FastCG(Solver):
         info = {"preconditioner_builds": M.builds} if M is not None else {}
         return make_result(s.state, iterations=it, kkt=kkt, tol=s.tol, trace=s.trace, matvecs0=s.matvecs0,
                            warm_started=s.warm_started, setup_time=s.setup, info=info)
-
-    default_precondition = "none"
 
     def _iterate(self, state: GapState, ubar: np.ndarray, diag_max: float, tol: float, max_iter: int,
                  settings: SolverSettings, trace: Trace, M: SetPreconditioner | None = None) -> tuple[int, float]:

@@ -293,3 +293,21 @@ def test_plugin_fixtures(contact_instance, run_harness) -> None:  # type: ignore
     assert inst.n == 9
     df = run_harness(["counterexample"], solvers=["test-exact"], size=3, seeds=(0,), reference="none")
     assert df["status"].tolist() == ["solved"]
+
+
+def test_step_time_extrapolation_uses_the_measured_growth() -> None:
+    """The paper run's greedy-gs (48.3 s at n = 16,147 after 18.7 s at n = 10,274, then over
+    120 s at n = 22,458) and the cascade over NNLS (70 s after 6.5 s) are now predicted
+    hopeless from their own growth, where the fixed n^1.5 extrapolation let them time out."""
+    from harness.runner import extrapolated_time, skip_decision
+
+    t, e = extrapolated_time([(10274, 18.7), (16147, 48.3)], 22458)
+    assert 2.0 < e < 2.2 and t > 90.0
+    t_fixed, e_fixed = extrapolated_time([(16147, 48.3)], 22458)
+    assert e_fixed == 1.5 and t_fixed < 90.0
+    assert extrapolated_time([(29202, 70.3), (22458, 6.5)][::-1], 36242)[1] == 4.0  # capped
+    assert extrapolated_time([(100, 0.01), (200, 1.0)], 400)[1] == 1.5  # too short to time: floor
+    d = skip_decision("fast-ccg", 22458, "fft", 120.0, 8 * 2**30, [(10274, 18.7), (16147, 48.3)])
+    assert d.skip and "n^2.1" in d.reason and "0.75 of the time limit" in d.reason
+    assert not skip_decision("fast-ccg", 22458, "fft", 120.0, 8 * 2**30, [(10274, 1.0), (16147, 2.0)]).skip
+    assert not skip_decision("fast-ccg", 22458, "fft", 120.0, 8 * 2**30, (16147, 2.0)).skip  # one pair

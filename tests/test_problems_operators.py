@@ -127,3 +127,18 @@ def test_unknown_fft_backend_is_a_clear_error(monkeypatch) -> None:
     monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", "fftw3")
     with pytest.raises(ProblemInputError, match="CONTACTBENCH_FFT_BACKEND"):
         fft_backend()
+
+
+def test_fft_operator_pickles_after_use_and_still_agrees() -> None:
+    """Instances travel to worker processes (harness --jobs, Dask): the transform's lock and
+    work arrays must not stop that, and the copy must give the same products."""
+    import pickle
+
+    rng = np.random.default_rng(3)
+    idx = random_subset(rng, 0.5)
+    op = FFTOperator(KernelTransform(kernel_table("bcc", (N, N), DELTA, E, False), (N, N)), idx, auto_dense=False)
+    x = rng.normal(size=idx.size)
+    y = op.matvec(x)
+    copy = pickle.loads(pickle.dumps(op))
+    np.testing.assert_allclose(copy.matvec(x), y, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(op.matvec(x), y, rtol=1e-13, atol=0)
