@@ -247,6 +247,17 @@ class KernelTransform:
         self._lock = threading.Lock()
         self._work: _DuccWork | None = None
 
+    def __getstate__(self) -> dict:
+        # The lock and the work arrays are per process: not pickled (an instance sent to
+        # a worker process rebuilds them on its first convolution).
+        state = dict(self.__dict__)
+        state["_lock"], state["_work"] = None, None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
     @property
     def padded_shape(self) -> tuple[int, int]:
         return self.table.shape  # type: ignore[return-value]
