@@ -75,6 +75,16 @@ class _FastCG(Solver):
         raise NotImplementedError
 
 
+def precondition_on(M: SetPreconditioner | None, r: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """z = M^-1 r on the free set (M moved to that set first when it changed); r itself
+    without a preconditioner."""
+    if M is None:
+        return r
+    if not np.array_equal(free, M.on):
+        M.update(free)
+    return M.apply(r)
+
+
 def converged_now(state: GapState, ubar: np.ndarray, diag_max: float, tol: float) -> tuple[bool, float]:
     """Scaled KKT test on the running gap, confirmed on a recomputed one."""
     kkt = scaled_kkt(state.p, state.g, ubar, diag_max)
@@ -95,7 +105,6 @@ class FastPolonskyKeer(_FastCG):
     def _iterate(self, state, ubar, diag_max, tol, max_iter, settings, trace, M=None):
         H = state.H
         t = np.zeros_like(state.p)
-        S_prev = None
         G_old, reset = 1.0, True
         t0 = time.perf_counter()
         kkt = np.inf
@@ -108,12 +117,7 @@ class FastPolonskyKeer(_FastCG):
             if not np.any(S):  # nothing in contact: the most penetrating points enter
                 S = state.g < 0.0
             r = np.where(S, state.g, 0.0)
-            z = r
-            if M is not None:
-                if S_prev is None or not np.array_equal(S, S_prev):
-                    M.update(S)
-                    S_prev = S
-                z = M.apply(r)
+            z = precondition_on(M, r, S)
             G = float(r @ z)
             t = z if reset or G_old == 0.0 else np.where(S, z + (G / G_old) * t, 0.0)
             q = H.matvec(t)
@@ -149,7 +153,7 @@ class FastBugnicourtCCG(_FastCG):
     def _iterate(self, state, ubar, diag_max, tol, max_iter, settings, trace, M=None):
         H = state.H
         res = self._residual(state)
-        z = self._precondition(M, res)
+        z = precondition_on(M, res, res != 0.0)
         d = -z
         t0 = time.perf_counter()
         kkt = np.inf
@@ -163,7 +167,7 @@ class FastBugnicourtCCG(_FastCG):
             if dHd <= 0.0:  # d = 0 (converged up to round-off) or lost conjugacy: restart
                 state.refresh()
                 res = self._residual(state)
-                z = self._precondition(M, res)
+                z = precondition_on(M, res, res != 0.0)
                 d = -z
                 if not np.any(d):
                     return it, scaled_kkt(state.p, state.g, ubar, diag_max)
@@ -172,21 +176,12 @@ class FastBugnicourtCCG(_FastCG):
             state.step(alpha, d, Hd)
             res_old = res
             res = self._residual(state)
-            z = self._precondition(M, res)
+            z = precondition_on(M, res, res != 0.0)
             # Polak-Ribiere (preconditioned: z = M^-1 res); alpha d'Hd = -res_old'd.
             beta = float(z @ (res - res_old)) / (alpha * dHd)
             d = -z + beta * d
             d[(state.p == 0.0) & (res == 0.0)] = 0.0
         return max_iter, kkt
-
-    @staticmethod
-    def _precondition(M: SetPreconditioner | None, res: np.ndarray) -> np.ndarray:
-        if M is None:
-            return res
-        free = res != 0.0
-        if not np.array_equal(free, M.on):
-            M.update(free)
-        return M.apply(res)
 
     @staticmethod
     def _residual(state: GapState) -> np.ndarray:
@@ -196,7 +191,7 @@ class FastBugnicourtCCG(_FastCG):
 
 @register
 class FastPolonskyKeerIslands(FastPolonskyKeer):
-    """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers._preconditioners.py):
+    """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers/_preconditioners.py):
     the CG direction on the contact set S is z = B_S^-1 r with B_S the blocks of H over the
     8-connected islands of S (cut at 128 points), refactored when S drifts by 20 %.
     Same fixed point and KKT test as fast-ccg; warm start: primal.  Without grid
