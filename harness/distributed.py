@@ -54,13 +54,13 @@ from problems.scenes import SceneConfig
 from .isolation import limit_threads
 from .meta import build_meta, write_meta
 from .runner import (
+    open_run,
     InstanceJob,
     JobRunner,
     RunConfig,
     RunSummary,
     _progress_bar,
     job_cell_ids,
-    plan_run,
     under_ci,
 )
 from .store import ResultStore, encode_row
@@ -397,10 +397,7 @@ def run_benchmark_on_dask(scenes: Sequence[str], cfg: SceneConfig | None = None,
     scheduler and the workers)."""
     run = run or RunConfig()
     t0 = time.perf_counter()
-    plan = plan_run(scenes, cfg, solvers, run)
-    store = ResultStore(out_dir)
-    for w in plan.warnings:
-        log.warning("warning: %s", w)
+    plan, store = open_run(scenes, cfg, solvers, run, out_dir)
     address = scheduler if isinstance(scheduler, str) else getattr(getattr(scheduler, "scheduler", None), "address", "")
     config = {"scenes": list(scenes), "scene_config": asdict(cfg or SceneConfig()), "run": asdict(dask_run_config(run)),
               "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),

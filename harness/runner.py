@@ -1045,16 +1045,22 @@ def job_cell_ids(job: InstanceJob, run: RunConfig) -> list[str]:
             for p in job.profiles for r in range(run.repeats)]
 
 
+def open_run(scenes: Sequence[str], cfg: SceneConfig | None, solvers: Sequence[str] | str | None, run: RunConfig,
+             out_dir: str | os.PathLike[str]) -> tuple[RunPlan, ResultStore]:
+    """Plan the cells and open the store (shared by the local and the Dask runs)."""
+    plan = plan_run(scenes, cfg, solvers, run)
+    for w in plan.warnings:
+        log.warning("warning: %s", w)
+    return plan, ResultStore(out_dir)
+
+
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
                   run: RunConfig | None = None, out_dir: str | os.PathLike[str] = "results/run",
                   command: list[str] | None = None) -> RunSummary:
     """Plan, run the missing cells, write the tidy table and meta.json."""
     run = run or RunConfig()
     t0 = time.perf_counter()
-    plan = plan_run(scenes, cfg, solvers, run)
-    store = ResultStore(out_dir)
-    for w in plan.warnings:
-        log.warning("warning: %s", w)
+    plan, store = open_run(scenes, cfg, solvers, run, out_dir)
     config = {"scenes": list(scenes), "scene_config": asdict(cfg or SceneConfig()), "run": asdict(run),
               "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
               "profiles": sorted({p for j in plan.jobs for p in j.profiles})}

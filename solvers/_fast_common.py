@@ -104,29 +104,41 @@ class GapState:
         return False
 
 
-def fourier_inverse_preconditioner(qp: QP):
-    """M^-1 r = gather_I F^-1[ |q| F[scatter_I r] ]: the inverse of the continuous
-    half-space compliance 2/(E* |q|) up to a constant factor (PCG is invariant to it),
-    with |q| floored at the lowest non-zero wave number.  FFT operator only; returns
-    None for other operators."""
-    H = qp.H
-    if not isinstance(H, FFTOperator):
-        return None
-    tr = H.transform
-    p0, p1 = tr.padded_shape
+def floored_wavenumbers(shape: tuple[int, int]) -> np.ndarray:
+    """|q| on the rfft2 half-spectrum of a grid, |q(0, 0)| floored at the lowest
+    non-zero wave number (so the multiplier below is positive definite)."""
+    p0, p1 = shape
     q0 = 2.0 * np.pi * sfft.fftfreq(p0)
     q1 = 2.0 * np.pi * sfft.rfftfreq(p1)
     q = np.hypot(q0[:, None], q1[None, :])
     q[0, 0] = min(q0[1] if p0 > 1 else 1.0, q1[1] if q1.size > 1 else 1.0)
+    return q
+
+
+def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx)."""
+    f = np.zeros(shape)
+    f.ravel()[idx] = r
+    w = fft_workers()
+    F = sfft.rfft2(f, workers=w, overwrite_x=True)
+    F *= q
+    return sfft.irfft2(F, s=shape, workers=w, overwrite_x=True).ravel()[idx]
+
+
+def fourier_inverse_preconditioner(qp: QP):
+    """M^-1 r = gather_I F^-1[ |q| F[scatter_I r] ]: the inverse of the continuous
+    half-space compliance 2/(E* |q|) up to a constant factor (PCG is invariant to it),
+    with |q| floored at the lowest non-zero wave number, on the padded grid.  FFT
+    operator only; returns None for other operators."""
+    H = qp.H
+    if not isinstance(H, FFTOperator):
+        return None
+    shape = H.transform.padded_shape
+    q = floored_wavenumbers(shape)
     idx = H.pidx
 
     def apply(r: np.ndarray) -> np.ndarray:
-        f = np.zeros((p0, p1))
-        f.ravel()[idx] = r
-        w = fft_workers()
-        F = sfft.rfft2(f, workers=w, overwrite_x=True)
-        F *= q
-        return sfft.irfft2(F, s=(p0, p1), workers=w, overwrite_x=True).ravel()[idx]
+        return multiply_by_wavenumbers(q, shape, idx, r)
 
     return apply
 

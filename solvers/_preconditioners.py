@@ -35,12 +35,13 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-import scipy.fft as sfft
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from problems.instances import QP
-from problems.operators import ContactOperator, fft_workers
+from problems.operators import ContactOperator
+
+from ._fast_common import floored_wavenumbers, multiply_by_wavenumbers
 
 #: Islands above this many points are cut into strips (keeps a block inverse cheap).
 MAX_BLOCK = 128
@@ -190,8 +191,7 @@ class IslandPreconditioner:
     def _factor(self, members: np.ndarray) -> _Bucket:
         m, s = members.shape
         if s == 1:
-            d = self.H.entries(members[:, 0], members[:, 0])
-            return _Bucket(members, (1.0 / d)[:, None, None])
+            return _Bucket(members, (1.0 / self._diag[members[:, 0]])[:, None, None])
         # Gather and invert in chunks, so the temporaries stay near 32 MiB.
         inverse = np.empty((m, s, s))
         step = max(1, BUILD_CHUNK_ENTRIES // (s * s))
@@ -204,12 +204,8 @@ class FourierPreconditioner:
     """z = R F^-1[|q| F[R r]] on the physical grid (see module doc)."""
 
     def __init__(self, grid_shape: tuple[int, int], grid_idx: np.ndarray) -> None:
-        n1, n2 = int(grid_shape[0]), int(grid_shape[1])
-        q0 = 2.0 * np.pi * sfft.fftfreq(n1)
-        q1 = 2.0 * np.pi * sfft.rfftfreq(n2)
-        self._q = np.hypot(q0[:, None], q1[None, :])
-        self._q[0, 0] = min(q0[1] if n1 > 1 else 1.0, q1[1] if q1.size > 1 else 1.0)
-        self._shape = (n1, n2)
+        self._shape = (int(grid_shape[0]), int(grid_shape[1]))
+        self._q = floored_wavenumbers(self._shape)
         self._idx = np.asarray(grid_idx)
         self._on = np.zeros(self._idx.size, dtype=bool)
         self.builds = 0
@@ -229,12 +225,7 @@ class FourierPreconditioner:
         self._on = np.asarray(S, dtype=bool).copy()
 
     def apply(self, r: np.ndarray) -> np.ndarray:
-        f = np.zeros(self._shape)
-        f.ravel()[self._idx] = np.where(self._on, r, 0.0)
-        w = fft_workers()
-        F = sfft.rfft2(f, workers=w, overwrite_x=True)
-        F *= self._q
-        z = sfft.irfft2(F, s=self._shape, workers=w, overwrite_x=True).ravel()[self._idx]
+        z = multiply_by_wavenumbers(self._q, self._shape, self._idx, np.where(self._on, r, 0.0))
         z[~self._on] = 0.0
         return z
 
