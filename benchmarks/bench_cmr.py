@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.kkt import kkt_check
-from problems.instances import ContactInstance
-from problems.scenes import SceneConfig, get_scene
-from solvers.base import SolverSettings, WarmStart
-from solvers.cmr import make_cmr
-from solvers.registry import get_solver
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.instances import ContactInstance
+from contactbench.problems.scenes import SceneConfig, get_scene
+from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.cmr import make_cmr
+from contactbench.solvers.registry import get_solver
 
 
 @dataclass

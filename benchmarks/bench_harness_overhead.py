@@ -28,13 +28,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from harness.kkt import kkt_check
-from harness.runner import JobRunner, RunConfig, plan_run, run_benchmark
-from harness.store import ResultStore, load_table
-from problems.scenes import LoadSequence, SceneConfig, register_scene
-from problems.scenes.core import PaperSweep
-from solvers.base import SolverSettings
-from solvers.registry import get_solver
+from contactbench.harness.kkt import kkt_check
+from contactbench.harness.runner import JobRunner, RunConfig, plan_run, run_benchmark
+from contactbench.harness.store import ResultStore, load_table
+from contactbench.problems.scenes import LoadSequence, SceneConfig, register_scene
+from contactbench.problems.scenes.core import PaperSweep
+from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.registry import get_solver
 
 
 @register_scene

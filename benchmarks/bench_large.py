@@ -27,12 +27,12 @@ import time
 from pathlib import Path
 
 
-from harness.kkt import kkt_check
-from problems.instances import InstanceBuilder, paper_max_displacement
-from problems.operators import fft_backend, fft_workers
-from problems.surfaces import rmd_surface_n
-from solvers.base import SolverSettings
-from solvers.registry import get_solver
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.operators import fft_backend, fft_workers
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.registry import get_solver
 
 
 def solve_one(N: int, solver: str, fraction: float, tol: float) -> dict:

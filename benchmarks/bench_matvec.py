@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from problems.instances import InstanceBuilder, paper_max_displacement
-from problems.operators import ContactOperator, DenseOperator, fft_workers
-from problems.surfaces import rmd_surface_n
+from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.operators import ContactOperator, DenseOperator, fft_workers
+from contactbench.problems.surfaces import rmd_surface_n
 
 DENSE_MAX_N = 20_000
 OUT = Path(__file__).resolve().parents[1] / "results" / "perf" / "matvec.csv"

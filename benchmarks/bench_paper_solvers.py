@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from harness.kkt import kkt_check
-from problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
-from problems.surfaces import rmd_surface_n
-from solvers.base import SolverSettings, WarmStart
-from solvers.registry import get_solver
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.registry import get_solver
 
 
 @dataclass(frozen=True)

@@ -83,9 +83,9 @@ class RunRecord:
 
 
 def scene(N: int, steps: int):
-    from problems.instances import load_ramp, paper_max_displacement
-    from problems.scenes.core import PAPER_SEED
-    from problems.surfaces import rmd_surface_n
+    from contactbench.problems.instances import load_ramp, paper_max_displacement
+    from contactbench.problems.scenes.core import PAPER_SEED
+    from contactbench.problems.surfaces import rmd_surface_n
 
     surf = rmd_surface_n(N, 0.7, length=LENGTH, seed=PAPER_SEED)
     return surf, load_ramp(paper_max_displacement(surf), steps)
@@ -93,8 +93,8 @@ def scene(N: int, steps: int):
 
 def our_instances(case: str, surf, deltas):
     """ContactInstances, one per step, all sharing one kernel transform."""
-    from problems.instances import QP, ContactInstance, Geometry, InstanceBuilder
-    from problems.operators import FFTOperator
+    from contactbench.problems.instances import QP, ContactInstance, Geometry, InstanceBuilder
+    from contactbench.problems.operators import FFTOperator
 
     if case == "nonperiodic-bcc":
         b = InstanceBuilder(surf, E_STAR, "bcc", periodic=False)
@@ -112,7 +112,7 @@ def our_instances(case: str, surf, deltas):
 
 
 def judge(inst, p_on_set: np.ndarray) -> tuple[float, float, float]:
-    from harness.kkt import kkt_check
+    from contactbench.harness.kkt import kkt_check
 
     return inst.load(p_on_set), inst.contact_fraction(p_on_set), kkt_check(inst, p_on_set).kkt_error
 
@@ -123,13 +123,13 @@ def judge(inst, p_on_set: np.ndarray) -> tuple[float, float, float]:
 
 
 def run_ours(case: str, solver_name: str, N: int, steps: int, tol: float) -> RunRecord:
-    from solvers.base import SolverSettings, WarmStart
-    from solvers.registry import get_solver
+    from contactbench.solvers.base import SolverSettings, WarmStart
+    from contactbench.solvers.registry import get_solver
 
     surf, deltas = scene(N, steps)
     transform, insts = our_instances(case, surf, deltas)
     solver = get_solver(solver_name)
-    from problems.operators import fft_backend
+    from contactbench.problems.operators import fft_backend
 
     rec = RunRecord(case, solver_name, os.environ.get("CONTACTBENCH_FFT_WORKERS", "default"), N,
                     fft_backend=fft_backend())
@@ -159,7 +159,7 @@ def _cm_substrate(case: str, surf):
         from ContactMechanics import FreeFFTElasticHalfSpace, PeriodicFFTElasticHalfSpace
     except ImportError as e:  # optional extra "peers"
         raise _Unavailable(f"contactmechanics not installed ({e})") from None
-    from problems.kernels import kernel_table
+    from contactbench.problems.kernels import kernel_table
 
     N1, N2 = surf.shape
     size = (surf.delta * N1, surf.delta * N2)

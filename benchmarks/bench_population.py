@@ -27,12 +27,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CONT
 
 from distributed import Client  # noqa: E402
 
-from harness.cli import parse_seeds  # noqa: E402
-from harness.distributed import run_benchmark_on_dask, start_local_cluster  # noqa: E402
-from harness.report_population import write_population_report  # noqa: E402
-from harness.runner import RunConfig  # noqa: E402
-from harness.store import load_table  # noqa: E402
-from problems.scenes import SceneConfig  # noqa: E402
+from contactbench.harness.cli import parse_seeds  # noqa: E402
+from contactbench.harness.distributed import run_benchmark_on_dask, start_local_cluster  # noqa: E402
+from contactbench.harness.report_population import write_population_report  # noqa: E402
+from contactbench.harness.runner import RunConfig  # noqa: E402
+from contactbench.harness.store import load_table  # noqa: E402
+from contactbench.problems.scenes import SceneConfig  # noqa: E402
 
 SOLVER = "fast-ccg"
 

@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.kkt import kkt_check, relative_error, relative_load_error
-from problems.instances import ContactInstance, InstanceBuilder, paper_max_displacement
-from problems.surfaces import Surface, rmd_surface_n
-from solvers.base import PROFILES, SolverSettings
-from solvers.registry import all_solvers, get_solver
+from contactbench.harness.kkt import kkt_check, relative_error, relative_load_error
+from contactbench.problems.instances import ContactInstance, InstanceBuilder, paper_max_displacement
+from contactbench.problems.surfaces import Surface, rmd_surface_n
+from contactbench.solvers.base import PROFILES, SolverSettings
+from contactbench.solvers.registry import all_solvers, get_solver
 
 
 @dataclass

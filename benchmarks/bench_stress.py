@@ -26,7 +26,7 @@ OUT = Path("results/stress")
 
 
 def run_cond(out: Path, sizes: list[int], densities: list[float], tag: str = "") -> None:
-    from problems.scenes.stress import extreme_eigenvalues, packed_instance
+    from contactbench.problems.scenes.stress import extreme_eigenvalues, packed_instance
 
     rows = []
     path = out / (f"conditioning-{tag}.csv" if tag else "conditioning.csv")
@@ -45,8 +45,8 @@ def run_cond(out: Path, sizes: list[int], densities: list[float], tag: str = "")
 
 
 def run_survival(out: Path, mode: str, timeout: float, solvers: list[str] | None) -> None:
-    from harness.conformance import conformance_cases, validate
-    from solvers.registry import available_solvers
+    from contactbench.harness.conformance import conformance_cases, validate
+    from contactbench.solvers.registry import available_solvers
 
     names = solvers or list(available_solvers())
     cases = conformance_cases(mode)
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     elif a.what == "survival":
         run_survival(out, a.mode, a.timeout, a.solvers.split(",") if a.solvers else None)
     else:
-        from harness.report_stress import write_stress_report
+        from contactbench.harness.report_stress import write_stress_report
 
         print(write_stress_report(out))
     return 0

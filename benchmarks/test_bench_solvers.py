@@ -20,13 +20,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from harness.kkt import kkt_check, relative_error, relative_load_error
-from harness.runner import instance_operator_kind, skip_decision
-from problems.errors import ProblemInputError
-from problems.instances import QP, ContactInstance, counterexample
-from problems.scenes import SceneConfig, get_scene
-from solvers.base import SolverSettings, get_profile
-from solvers.registry import all_solvers, get_solver
+from contactbench.harness.kkt import kkt_check, relative_error, relative_load_error
+from contactbench.harness.runner import instance_operator_kind, skip_decision
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import QP, ContactInstance, counterexample
+from contactbench.problems.scenes import SceneConfig, get_scene
+from contactbench.solvers.base import SolverSettings, get_profile
+from contactbench.solvers.registry import all_solvers, get_solver
 
 PROFILE = os.environ.get("CONTACTBENCH_BENCH_PROFILE", "default")
 TIME_LIMIT = float(os.environ.get("CONTACTBENCH_BENCH_TIMEOUT", "30"))
@@ -68,7 +68,7 @@ def fresh_qp(name: str, operator: str) -> QP:
     inst = instance(name)
     ubar = inst.qp.ubar.copy()
     if operator == "dense":
-        from problems.operators import DenseOperator
+        from contactbench.problems.operators import DenseOperator
 
         return QP(DenseOperator(dense_matrix(name)), ubar, inst.qp.geometry)
     return QP(inst.qp.H.restrict(np.arange(inst.n)), ubar, inst.qp.geometry)

@@ -19,7 +19,7 @@ import logging
 import sys
 from typing import Sequence
 
-from problems.errors import ProblemInputError
+from contactbench.problems.errors import ProblemInputError
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -48,7 +48,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
 
 
 def parse_profiles(text: str) -> tuple[str, ...]:
-    from solvers.base import PROFILES
+    from contactbench.solvers.base import PROFILES
 
     names = tuple(p.strip() for p in text.split(",") if p.strip())
     bad = [p for p in names if p not in PROFILES]
@@ -123,14 +123,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_list(what: str) -> int:
     if what == "scenes":
-        from problems.scenes import all_scenes, scene_import_errors
+        from contactbench.problems.scenes import all_scenes, scene_import_errors
 
         for name, scene in all_scenes().items():
             print(f"{name:24s} {scene.description}")
         for mod, err in scene_import_errors().items():
             print(f"[import error] {mod}: {err.strip().splitlines()[-1]}")
         return 0
-    from solvers.registry import all_solvers, import_errors
+    from contactbench.solvers.registry import all_solvers, import_errors
 
     rows = []
     for name, solver in all_solvers().items():
@@ -147,7 +147,7 @@ def cmd_list(what: str) -> int:
 
 
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    from problems.scenes import SceneConfig, get_scene
+    from contactbench.problems.scenes import SceneConfig, get_scene
 
     from .runner import RunConfig, run_benchmark
 
@@ -156,7 +156,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.surface and not args.length and not str(args.surface).lower().endswith(".x3p"):
         raise ProblemInputError("--surface needs --length L (the side length in metres; only .x3p files carry their own spacing)")
     if args.surface:  # read it once here: a bad file is one clear error, not a failed row per cell
-        from problems.io import load_surface
+        from contactbench.problems.io import load_surface
 
         load_surface(args.surface, length=args.length)
     cfg = SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
@@ -188,7 +188,7 @@ def cmd_report(out_dir: str) -> int:
     try:
         from . import report
     except ImportError as exc:
-        if "harness.report" in str(exc) or "report" in str(getattr(exc, "name", "")):
+        if "contactbench.harness.report" in str(exc) or "report" in str(getattr(exc, "name", "")):
             print("contactbench report: the report module (harness/report.py) is not installed in this checkout; "
                   f"the tidy table is in {out_dir}/results.parquet", file=sys.stderr)
             return 2

@@ -52,14 +52,14 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve, cholesky, solve_triangular
 from scipy.optimize import nnls
 
-from harness.kkt import KKTReport, kkt_check, relative_error
-from problems.errors import MemoryBudgetError, ProblemInputError
-from problems.instances import QP, ContactInstance
-from problems.operators import DenseOperator
-from problems.scenes.base import InstanceSpec
-from problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from solvers.base import PROFILES, Solver, SolverSettings
-from solvers.registry import all_solvers, load_solver
+from contactbench.harness.kkt import KKTReport, kkt_check, relative_error
+from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
+from contactbench.problems.instances import QP, ContactInstance
+from contactbench.problems.operators import DenseOperator
+from contactbench.problems.scenes.base import InstanceSpec
+from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
+from contactbench.solvers.base import PROFILES, Solver, SolverSettings
+from contactbench.solvers.registry import all_solvers, load_solver
 
 #: Tolerance multiplier between the profile's check_tol and the wrong-claim threshold.
 SLACK = 10.0
@@ -281,7 +281,7 @@ class SolveRunner:
         self.solver, self.timeout, self.isolate = solver, timeout, isolate
         self.worker: Any = None
         if isolate:
-            from harness.isolation import IsolatedWorker
+            from contactbench.harness.isolation import IsolatedWorker
 
             self.worker = IsolatedWorker(lambda: _SolverHandler(solver))
 

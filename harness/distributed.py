@@ -49,7 +49,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
-from problems.scenes import SceneConfig
+from contactbench.problems.scenes import SceneConfig
 
 from .isolation import limit_threads
 from .meta import build_meta, write_meta
@@ -141,7 +141,7 @@ def register_solver_specs(specs: Sequence[str]) -> None:
     """Register ``module:NAME`` solvers on this process (a worker does not share the
     client's registry: solvers given on the command line as import paths are loaded
     again here)."""
-    from solvers.registry import load_solver, register
+    from contactbench.solvers.registry import load_solver, register
 
     for spec in specs:
         register(load_solver(spec), replace=True)

@@ -72,7 +72,7 @@ def thread_settings() -> dict[str, Any]:
     except Exception:
         pass
     try:
-        from problems.operators import fft_backend, fft_workers
+        from contactbench.problems.operators import fft_backend, fft_workers
 
         fft, backend = fft_workers(), fft_backend()
     except Exception:

@@ -23,11 +23,11 @@ import pytest
 def contact_instance() -> Callable[..., Any]:
     def make(kind: str = "rmd", **kw: Any) -> Any:
         if kind == "counterexample":
-            from problems.instances import counterexample
+            from contactbench.problems.instances import counterexample
 
             return counterexample(int(kw.get("n", 100)), int(kw.get("seed", 0)), operator=kw.get("operator", "dense"))
         if kind == "rmd":
-            from problems.scenes import SceneConfig, get_scene
+            from contactbench.problems.scenes import SceneConfig, get_scene
 
             scene = get_scene("paper-sweep")
             cfg = scene.config(SceneConfig(size=int(kw.get("N", 32)), steps=int(kw.get("steps", 3)),
@@ -42,9 +42,9 @@ def contact_instance() -> Callable[..., Any]:
 @pytest.fixture
 def run_harness(tmp_path: Any) -> Callable[..., Any]:
     def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
-        from harness.runner import RunConfig, run_benchmark
-        from harness.store import load_table
-        from problems.scenes import SceneConfig
+        from contactbench.harness.runner import RunConfig, run_benchmark
+        from contactbench.harness.store import load_table
+        from contactbench.problems.scenes import SceneConfig
 
         scene_keys = {"size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator", "extra"}
         cfg = SceneConfig(**{k: v for k, v in options.items() if k in scene_keys})
@@ -61,6 +61,6 @@ def contactbench_conformance() -> Callable[..., Any]:
     """``contactbench_conformance(solver)`` runs the conformance battery (fast subset) on a
     solver (instance, registry name or ``module:NAME``) and fails the test on a wrong
     answer claimed as converged.  See docs/adding-a-solver.md."""
-    from harness.conformance import assert_conforms
+    from contactbench.harness.conformance import assert_conforms
 
     return assert_conforms

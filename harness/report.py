@@ -194,11 +194,11 @@ def _load_plugins() -> None:
     if _PLUGINS_LOADED:
         return
     _PLUGINS_LOADED = True
-    import harness
+    import contactbench.harness as harness
 
     for mod in sorted(m.name for m in pkgutil.iter_modules(harness.__path__)):
         if mod.startswith("report_"):
-            importlib.import_module(f"harness.{mod}")
+            importlib.import_module(f"contactbench.harness.{mod}")
     try:
         eps = importlib_metadata.entry_points(group="contactbench.report_sections")
     except TypeError:  # pragma: no cover - very old importlib.metadata
@@ -1015,7 +1015,7 @@ def load_counterexample_case(path: Path, instance: str, solver: str) -> Countere
         m = re.fullmatch(r"n(\d+)-s(\d+)", instance)
         if not m:
             raise ReportInputError(f"cannot rebuild counterexample {instance!r}: name is not n<N>-s<seed>")
-        from problems.instances import counterexample
+        from contactbench.problems.instances import counterexample
 
         inst = counterexample(int(m.group(1)), int(m.group(2)))
         E = float(inst.E)

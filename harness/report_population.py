@@ -26,7 +26,7 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
-from problems.scenes import SceneConfig, get_scene
+from contactbench.problems.scenes import SceneConfig, get_scene
 
 from .meta import read_meta
 from .store import load_table
@@ -91,7 +91,7 @@ def scene_config_from_meta(meta: dict[str, Any]) -> SceneConfig:
 def surface_table(cfg: SceneConfig, instances: Sequence[str] | None = None) -> pd.DataFrame:
     """One row per population instance: hurst, seed, N and the rms slope h'_rms of its
     surface, rebuilt from the recipe's seed."""
-    from problems.scenes.population import population_surface
+    from contactbench.problems.scenes.population import population_surface
 
     scene = get_scene(SCENE)
     wanted = set(instances) if instances is not None else None

@@ -59,11 +59,11 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from problems.instances import QP, ContactInstance
-from problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
-from problems.scenes import InstanceSpec, SceneConfig, SolverVariant, get_scene
-from solvers.base import SolverSettings, WarmStart, get_profile
-from solvers.registry import get_solver, load_solver, register
+from contactbench.problems.instances import QP, ContactInstance
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from contactbench.problems.scenes import InstanceSpec, SceneConfig, SolverVariant, get_scene
+from contactbench.solvers.base import SolverSettings, WarmStart, get_profile
+from contactbench.solvers.registry import get_solver, load_solver, register
 
 from .isolation import IsolatedWorker, Outcome, PeakMemory, set_parent_death_signal
 from .kkt import kkt_check, relative_error, relative_load_error
@@ -187,7 +187,7 @@ def resolve_solver_names(requested: Sequence[str] | str | None, scene_default: S
     """Registry names to run: "all" (every registered solver, unavailable ones are
     recorded as skipped), an explicit list (``module:NAME`` entries are loaded and
     registered), or the scene's defaults, or every available solver."""
-    from solvers.registry import all_solvers, available_solvers
+    from contactbench.solvers.registry import all_solvers, available_solvers
 
     if isinstance(requested, str):
         requested = [s for s in requested.split(",") if s.strip()]

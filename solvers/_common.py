@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from problems.instances import QP
-from problems.operators import ContactOperator, DenseOperator, spectral_norm_estimate
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import ContactOperator, DenseOperator, spectral_norm_estimate
 
 from .base import SolveResult, Solver, SolverSettings, Trace, WarmStart
 

@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.fft as sfft
 
-from problems.errors import ProblemInputError
-from problems.instances import QP
-from problems.operators import ContactOperator, FFTOperator, fft_workers
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import ContactOperator, FFTOperator, fft_workers
 
 from .base import Capabilities, SolveResult, SolverSettings, Trace, WarmStart
 

@@ -38,8 +38,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from problems.instances import QP
-from problems.operators import ContactOperator
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import ContactOperator
 
 from ._fast_common import floored_wavenumbers, multiply_by_wavenumbers
 

@@ -57,8 +57,8 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.linalg as sla
 
-from problems.instances import QP
-from problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 
 from .base import SolveResult, Solver, SolverSettings, WarmStart, get_profile
 

@@ -32,8 +32,8 @@ from typing import Callable
 import numpy as np
 import scipy.linalg as sla
 
-from problems.instances import QP
-from problems.operators import check_dense_budget
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import check_dense_budget
 
 from ._common import (
     PrimalWarmSolver,

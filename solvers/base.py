@@ -18,7 +18,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from problems.instances import QP
+from contactbench.problems.instances import QP
 
 WarmKind = Literal["none", "primal", "primal-dual"]
 

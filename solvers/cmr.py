@@ -37,10 +37,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from problems.errors import ProblemInputError
-from problems.instances import CONTACT_THRESHOLD, QP, Geometry, InstanceBuilder, trial_set
-from problems.io import element_origin, power_law_check, with_coarse_levels
-from problems.surfaces import Surface
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import CONTACT_THRESHOLD, QP, Geometry, InstanceBuilder, trial_set
+from contactbench.problems.io import element_origin, power_law_check, with_coarse_levels
+from contactbench.problems.surfaces import Surface
 
 from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
 from .registry import all_solvers, get_solver, register

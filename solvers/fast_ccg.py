@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from problems.instances import QP
+from contactbench.problems.instances import QP
 
 from ._fast_common import (
     FAST_CAPABILITIES,

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from problems.instances import QP
+from contactbench.problems.instances import QP
 
 from ._fast_common import (
     begin_fast_solve,

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from problems.instances import QP
+from contactbench.problems.instances import QP
 
 from ._common import (
     PrimalWarmSolver,

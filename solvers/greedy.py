@@ -34,9 +34,9 @@ from typing import ClassVar
 import numpy as np
 import scipy.linalg as sla
 
-from problems.errors import MemoryBudgetError
-from problems.instances import QP
-from problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget, dense_nbytes
+from contactbench.problems.errors import MemoryBudgetError
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget, dense_nbytes
 
 from ._common import (
     EXACT_TOL,

@@ -27,8 +27,8 @@ from typing import Protocol
 import numpy as np
 import scipy.linalg as sla
 
-from problems.instances import QP
-from problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget
 
 from ._common import (
     PrimalWarmSolver,

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from problems.instances import QP
+from contactbench.problems.instances import QP
 
 from ._common import EXACT_TOL, RunRecorder, Scales, matvec_seconds, max_iter_of, natural_residual, warm_primal
 from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart

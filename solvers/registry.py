@@ -57,9 +57,9 @@ def _discover() -> None:
     if _DISCOVERED:
         return
     _DISCOVERED = True
-    import solvers as pkg
+    import contactbench.solvers as pkg
 
-    for mod in pkgutil.walk_packages(pkg.__path__, prefix="solvers."):
+    for mod in pkgutil.walk_packages(pkg.__path__, prefix="contactbench.solvers."):
         short = mod.name.rsplit(".", 1)[-1]
         if short in _SKIP_MODULES or short.startswith("_"):
             continue

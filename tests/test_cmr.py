@@ -9,15 +9,15 @@ import pytest
 import scipy.linalg as sl
 from scipy.optimize import nnls
 
-from harness.kkt import kkt_check
-from problems.errors import ProblemInputError
-from problems.instances import QP, InstanceBuilder, paper_max_displacement
-from problems.operators import DenseOperator
-from problems.scenes import SceneConfig, get_scene
-from problems.surfaces import rmd_surface_n, spectral_surface
-from solvers.base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
-from solvers.cmr import CMRSolver, cascade_surfaces, within_radius
-from solvers.registry import all_solvers, register, unregister
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
+from contactbench.problems.operators import DenseOperator
+from contactbench.problems.scenes import SceneConfig, get_scene
+from contactbench.problems.surfaces import rmd_surface_n, spectral_surface
+from contactbench.solvers.base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from contactbench.solvers.cmr import CMRSolver, cascade_surfaces, within_radius
+from contactbench.solvers.registry import all_solvers, register, unregister
 
 BASE = "test-cmr-exact"
 

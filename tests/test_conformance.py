@@ -9,12 +9,12 @@ import pytest
 from scipy.linalg import cholesky, solve_triangular
 from scipy.optimize import nnls
 
-from harness import conformance as cf
-from harness.kkt import kkt_check
-from problems.errors import ProblemInputError
-from problems.instances import QP
-from solvers.base import Capabilities, Solver, SolveResult
-from solvers.registry import all_solvers, register, unregister
+from contactbench.harness import conformance as cf
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import QP
+from contactbench.solvers.base import Capabilities, Solver, SolveResult
+from contactbench.solvers.registry import all_solvers, register, unregister
 
 
 def chol_nnls(H: np.ndarray, ubar: np.ndarray, dtype: type = np.float64) -> np.ndarray:

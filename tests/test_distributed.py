@@ -23,14 +23,14 @@ pytest.importorskip("distributed")
 
 from distributed import Client  # noqa: E402
 
-from harness.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
-from harness.runner import RunConfig, plan_run, run_benchmark  # noqa: E402
-from harness.schema import STATUSES  # noqa: E402
-from harness.store import ResultStore, load_table  # noqa: E402
-from problems.instances import QP  # noqa: E402
-from problems.scenes import SceneConfig  # noqa: E402
-from solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart  # noqa: E402
-from solvers.registry import get_solver  # noqa: E402
+from contactbench.harness.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
+from contactbench.harness.runner import RunConfig, plan_run, run_benchmark  # noqa: E402
+from contactbench.harness.schema import STATUSES  # noqa: E402
+from contactbench.harness.store import ResultStore, load_table  # noqa: E402
+from contactbench.problems.instances import QP  # noqa: E402
+from contactbench.problems.scenes import SceneConfig  # noqa: E402
+from contactbench.solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart  # noqa: E402
+from contactbench.solvers.registry import get_solver  # noqa: E402
 
 MARKER_ENV = "CONTACTBENCH_TEST_KILL_DIR"
 SOLVER = "fast-ccg"  # exact, matrix-free, warm-startable

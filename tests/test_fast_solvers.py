@@ -11,13 +11,13 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
-from harness.kkt import kkt_check, relative_error
-from problems.errors import ProblemInputError
-from problems.instances import InstanceBuilder, load_ramp, paper_max_displacement
-from problems.operators import FFTOperator
-from problems.surfaces import rmd_surface_n
-from solvers.base import SolverSettings, WarmStart
-from solvers.registry import get_solver
+from contactbench.harness.kkt import kkt_check, relative_error
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import InstanceBuilder, load_ramp, paper_max_displacement
+from contactbench.problems.operators import FFTOperator
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.registry import get_solver
 
 FAST = ["fast-ccg", "fast-dual-ccg", "fast-pdas", "fast-pccg", "fast-dual-pccg"]
 HIGH = SolverSettings(profile="high")
@@ -139,7 +139,7 @@ def test_paper_sweep_at_512_same_loads_from_two_exact_solvers():
     (z_max - z_mean)/2, warm-started): the island-preconditioned dual CCG and the plain
     Polonsky-Keer CCG both pass our KKT check at every step and agree on every load and
     contact area."""
-    from problems.scenes.core import PAPER_SEED
+    from contactbench.problems.scenes.core import PAPER_SEED
 
     a, c = warm_sweep("fast-dual-pccg", 512, PAPER_SEED), warm_sweep("fast-ccg", 512, PAPER_SEED)
     assert a[-1, 2] > 30_000  # the paper's ~35,000-point trial set at the top step

@@ -19,11 +19,11 @@ try:  # registers the throw-away solvers (tests/ may or may not be a package)
     from tests import test_harness_solvers  # noqa: F401
 except ImportError:  # pragma: no cover
     import test_harness_solvers  # noqa: F401
-from harness import cli
-from harness.runner import RunConfig, make_cell_id, map_by_grid_index, plan_run, run_benchmark
-from harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
-from harness.store import ROWS_FILE, ResultStore, load_table, read_journal
-from problems.scenes import SceneConfig
+from contactbench.harness import cli
+from contactbench.harness.runner import RunConfig, make_cell_id, map_by_grid_index, plan_run, run_benchmark
+from contactbench.harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
+from contactbench.harness.store import ROWS_FILE, ResultStore, load_table, read_journal
+from contactbench.problems.scenes import SceneConfig
 
 TESTS = Path(__file__).resolve().parent
 SOLVER_MODULE = test_harness_solvers.__name__
@@ -101,7 +101,7 @@ def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path) -> Non
 
 
 def test_dense_h_is_assembled_once_per_step_and_only_when_needed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from problems import operators
+    from contactbench.problems import operators
 
     log = tmp_path / "assemblies.log"
     original = operators.ContactOperator.to_dense
@@ -202,7 +202,7 @@ def cli_env() -> dict[str, str]:
 
 def test_sigkill_mid_run_then_rerun_gives_exactly_the_full_table(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "harness.cli", "run", "counterexample", "--size", "3", "--seeds", "0-5",
+    cmd = [sys.executable, "-m", "contactbench.harness.cli", "run", "counterexample", "--size", "3", "--seeds", "0-5",
            "--solvers", f"{SOLVER_MODULE}:SleepyStub,test-exact", "--reference", "test-exact",
            "--no-warmup", "--out", str(out)]
     proc = subprocess.Popen(cmd, env=cli_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -243,7 +243,7 @@ def test_cli_run_then_report_round_trip(tmp_path: Path, capsys: pytest.CaptureFi
     csv = pd.read_csv(out / "results.csv")
     assert len(csv) == 8 and set(REQUIRED_COLUMNS) <= set(csv.columns)
     try:
-        import harness.report  # noqa: F401
+        import contactbench.harness.report  # noqa: F401
     except ImportError:
         pytest.skip("harness/report.py is not in this checkout yet")
     assert cli.main(["report", str(out)]) == 0
@@ -300,7 +300,7 @@ def test_step_time_extrapolation_uses_the_measured_growth() -> None:
     timed out at n = 36,242 under the fixed n^1.5 extrapolation (it predicted 92 s); the
     measured growth (capped at n^3) predicts it over the 120 s limit.  The paper's NNLS
     (29 s at n = 16,147 after 2.3 s at n = 10,274, then 38 s at n = 22,458) must still run."""
-    from harness.runner import extrapolated_time, skip_decision
+    from contactbench.harness.runner import extrapolated_time, skip_decision
 
     t_fixed, e_fixed = extrapolated_time([(29202, 70.3)], 36242)
     assert e_fixed == 1.5 and t_fixed < 120.0

@@ -12,11 +12,11 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
-from harness.kkt import kkt_check
-from problems.instances import QP, counterexample
-from problems.operators import spectral_norm_estimate
-from solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart
-from solvers.registry import register
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.instances import QP, counterexample
+from contactbench.problems.operators import spectral_norm_estimate
+from contactbench.solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart
+from contactbench.solvers.registry import register
 
 
 def dense_exact_solution(qp: QP) -> np.ndarray:

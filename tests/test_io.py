@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from problems.errors import ProblemInputError
-from problems.io import (
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.io import (
     SurfaceFileError,
     block_average,
     coarse_levels,
@@ -21,7 +21,7 @@ from problems.io import (
     write_text,
     write_x3p,
 )
-from problems.surfaces import rmd_surface_n, spectral_surface
+from contactbench.problems.surfaces import rmd_surface_n, spectral_surface
 
 DATA = Path(__file__).resolve().parents[1] / "problems" / "data"
 
@@ -252,7 +252,7 @@ def test_block_average_is_the_2x2_area_mean() -> None:
 
 
 def test_block_average_keeps_a_constant_and_a_plane() -> None:
-    from problems.surfaces import Surface
+    from contactbench.problems.surfaces import Surface
 
     yy, xx = np.mgrid[0:8, 0:8].astype(float)
     s = Surface(3.0 + 2.0 * xx + yy, 1.0)

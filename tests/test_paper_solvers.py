@@ -12,10 +12,10 @@ import pytest
 import scipy.linalg as sla
 import scipy.optimize as so
 
-import problems.operators as operators_mod
-from harness.kkt import kkt_check, relative_error
-from problems.errors import MemoryBudgetError
-from problems.instances import (
+import contactbench.problems.operators as operators_mod
+from contactbench.harness.kkt import kkt_check, relative_error
+from contactbench.problems.errors import MemoryBudgetError
+from contactbench.problems.instances import (
     ContactInstance,
     InstanceBuilder,
     counterexample,
@@ -24,9 +24,9 @@ from problems.instances import (
     load_ramp,
     paper_max_displacement,
 )
-from problems.surfaces import rmd_surface_n
-from solvers.base import SolverSettings, WarmStart
-from solvers.registry import get_solver, import_errors
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.registry import get_solver, import_errors
 
 PAPER_SOLVERS = ("greedy-cg", "greedy-gs", "greedy-chol", "pk", "nnls", "nnls-gp", "gp", "admm")
 EXACT = ("pk", "nnls", "nnls-gp")

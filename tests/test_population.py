@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from harness.report_population import (
+from contactbench.harness.report_population import (
     bootstrap_interval,
     kappa_table,
     population_summary,
@@ -17,12 +17,12 @@ from harness.report_population import (
     t_interval,
     write_population_report,
 )
-from harness.meta import read_meta
-from harness.runner import RunConfig, run_benchmark
-from harness.store import load_table
-from problems.errors import ProblemInputError
-from problems.scenes import SceneConfig, get_scene
-from problems.scenes.population import population_displacements, population_surface, separations_for
+from contactbench.harness.meta import read_meta
+from contactbench.harness.runner import RunConfig, run_benchmark
+from contactbench.harness.store import load_table
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.scenes import SceneConfig, get_scene
+from contactbench.problems.scenes.population import population_displacements, population_surface, separations_for
 
 TINY = SceneConfig(size=16, steps=2, seeds=(0, 1, 2), extra={"hursts": (0.6,)})
 

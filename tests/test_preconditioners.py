@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from problems.instances import InstanceBuilder, paper_max_displacement
-from problems.operators import DenseOperator
-from problems.surfaces import rmd_surface_n
-from solvers._preconditioners import IslandPreconditioner, block_width
-from solvers.base import SolverSettings
-from solvers.registry import get_solver
+from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.operators import DenseOperator
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers._preconditioners import IslandPreconditioner, block_width
+from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.registry import get_solver
 
 
 def build(N: int, kernel: str = "bcc", periodic: bool = False, seed: int = 2):
@@ -115,7 +115,7 @@ def test_preconditioned_ccg_needs_fewer_matvecs_and_reaches_the_same_answer():
 
 
 def test_without_geometry_it_runs_unpreconditioned():
-    from problems.instances import QP
+    from contactbench.problems.instances import QP
 
     inst = build(33)
     qp = QP(inst.qp.H, inst.qp.ubar)

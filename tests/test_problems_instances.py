@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.kkt import kkt_check
-from problems.errors import MemoryBudgetError, ProblemInputError
-from problems.instances import (
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
+from contactbench.problems.instances import (
     InstanceBuilder,
     counterexample,
     flat_punch_load,
@@ -20,7 +20,7 @@ from problems.instances import (
     paper_max_displacement,
     trial_set,
 )
-from problems.surfaces import Surface, rmd_surface
+from contactbench.problems.surfaces import Surface, rmd_surface
 
 E = 1.0e9
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.errors import ProblemInputError
-from problems.kernels import bcc_coefficients, kernel_table, love_coefficients, periodic_table
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.kernels import bcc_coefficients, kernel_table, love_coefficients, periodic_table
 
 E, DELTA = 3.0e9, 2.0e-6
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.instances import InstanceBuilder
-from problems.kernels import bcc_coefficients, kernel_table, love_coefficients
-from problems.operators import DenseOperator, FFTOperator, KernelTransform
-from problems.surfaces import Surface
+from contactbench.problems.instances import InstanceBuilder
+from contactbench.problems.kernels import bcc_coefficients, kernel_table, love_coefficients
+from contactbench.problems.operators import DenseOperator, FFTOperator, KernelTransform
+from contactbench.problems.surfaces import Surface
 
 N, DELTA, E = 14, 1.5e-6, 2.0e9
 CASES = [("bcc", False), ("love", False), ("bcc", True), ("love", True), ("spectral", True)]
@@ -95,7 +95,7 @@ def test_ducc_and_scipy_fft_backends_agree_across_alternating_sets(kernel: str, 
     """The ducc0 path reuses work arrays between calls and clears only what the last
     call wrote: alternate two index sets and a whole-field call on one transform and
     compare every result with the scipy.fft path and with the dense product."""
-    from problems.operators import _ducc_fft
+    from contactbench.problems.operators import _ducc_fft
 
     if _ducc_fft is None:
         pytest.skip("ducc0 not importable")
@@ -121,8 +121,8 @@ def test_ducc_and_scipy_fft_backends_agree_across_alternating_sets(kernel: str, 
 
 
 def test_unknown_fft_backend_is_a_clear_error(monkeypatch) -> None:
-    from problems.errors import ProblemInputError
-    from problems.operators import fft_backend
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.problems.operators import fft_backend
 
     monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", "fftw3")
     with pytest.raises(ProblemInputError, match="CONTACTBENCH_FFT_BACKEND"):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.errors import ProblemInputError
-from problems.surfaces import Surface, fit_hurst, radial_psd, rmd_surface, rmd_surface_n, spectral_surface
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.surfaces import Surface, fit_hurst, radial_psd, rmd_surface, rmd_surface_n, spectral_surface
 
 HURSTS = (0.3, 0.5, 0.7)
 

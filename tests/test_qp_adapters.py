@@ -7,14 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.kkt import kkt_check, relative_error, relative_load_error
-from problems.instances import ContactInstance, InstanceBuilder, counterexample, paper_max_displacement, trial_set
-from problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
-from problems.surfaces import rmd_surface_n
-from solvers import _scaling
-from solvers.base import SolverSettings, WarmStart
-from solvers.qp_backends import BackendSpec, QPSolversAdapter, no_options
-from solvers.registry import all_solvers, get_solver
+from contactbench.harness.kkt import kkt_check, relative_error, relative_load_error
+from contactbench.problems.instances import ContactInstance, InstanceBuilder, counterexample, paper_max_displacement, trial_set
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers import _scaling
+from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.qp_backends import BackendSpec, QPSolversAdapter, no_options
+from contactbench.solvers.registry import all_solvers, get_solver
 
 ADAPTERS = sorted(n for n, s in all_solvers().items() if n.startswith("qp-") or n == "cvxpy")
 COUNTEREXAMPLE_SEEDS = (0, 1, 2, 3, 4)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.instances import QP
-from problems.operators import DenseOperator
-from solvers.base import PROFILES, Capabilities, SolveResult, Solver, SolverSettings, get_profile
-from solvers.registry import all_solvers, get_solver, load_solver, register, unregister
+from contactbench.problems.instances import QP
+from contactbench.problems.operators import DenseOperator
+from contactbench.solvers.base import PROFILES, Capabilities, SolveResult, Solver, SolverSettings, get_profile
+from contactbench.solvers.registry import all_solvers, get_solver, load_solver, register, unregister
 
 
 class _Dummy(Solver):

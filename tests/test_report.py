@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import report as rp
-from harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS
+from contactbench.harness import report as rp
+from contactbench.harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS
 
 # Time factors against NNLS+GP in the fabricated paper-sweep (the paper's claims).
 SWEEP_FACTORS = {"nnls-gp": 1.0, "nnls": 3.0, "pk": 26.0, "greedy-cg": 100.0, "admm": 90.0, "fast-pdas": 0.25}
@@ -280,7 +280,7 @@ def test_counterexample_case_needs_stored_arrays(tmp_path: Path) -> None:
     path = write_counterexample_arrays(out, full=False)
     assert rp.find_counterexample_arrays(out) == {("n100-s1", "greedy-cg"): path}
     case = rp.load_counterexample_case(path, "n100-s1", "greedy-cg")
-    from problems.instances import counterexample
+    from contactbench.problems.instances import counterexample
 
     inst = counterexample(100, 1)
     np.testing.assert_allclose(case.ubar, inst.qp.ubar)

@@ -43,8 +43,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import aggregates as agg
-from harness.schema import ALL_COLUMNS
+from contactbench.harness import aggregates as agg
+from contactbench.harness.schema import ALL_COLUMNS
 
 SHIFT = 1.0
 

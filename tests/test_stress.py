@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.conformance import exact_reference
-from harness.kkt import kkt_check
-from problems.operators import FFTOperator
-from problems.scenes import SceneConfig, all_scenes, get_scene
-from problems.scenes.stress import (
+from contactbench.harness.conformance import exact_reference
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.operators import FFTOperator
+from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
+from contactbench.problems.scenes.stress import (
     GROUPS,
     UNIT_SYSTEMS,
     battery_specs,
@@ -156,7 +156,7 @@ def test_perturbation_recipe_moves_ubar_by_eps() -> None:
 
 
 def test_unknown_mode_or_group_is_a_clear_error() -> None:
-    from problems.errors import ProblemInputError
+    from contactbench.problems.errors import ProblemInputError
 
     with pytest.raises(ProblemInputError, match="mode"):
         battery_specs("huge")
@@ -167,7 +167,7 @@ def test_unknown_mode_or_group_is_a_clear_error() -> None:
 def test_stress_report_renders_survival_units_and_conditioning(tmp_path) -> None:
     import pandas as pd
 
-    from harness.report_stress import render_stress_section, write_stress_report
+    from contactbench.harness.report_stress import render_stress_section, write_stress_report
 
     rows = pd.DataFrame([
         {"solver": "a", "case": "units/u", "label": "units/u@0", "group": "units", "step": 0, "status": "pass",

@@ -6,11 +6,11 @@ import numpy as np
 from hypothesis import given, seed, settings
 from hypothesis import strategies as st
 
-from harness.conformance import exact_reference
-from harness.kkt import kkt_check
-from problems.instances import QP, ContactInstance
-from problems.operators import DenseOperator
-from problems.scenes.stress import packed_instance, random_spd_instance
+from contactbench.harness.conformance import exact_reference
+from contactbench.harness.kkt import kkt_check
+from contactbench.problems.instances import QP, ContactInstance
+from contactbench.problems.operators import DenseOperator
+from contactbench.problems.scenes.stress import packed_instance, random_spd_instance
 
 SETTINGS = settings(max_examples=12, deadline=None, derandomize=True, database=None)
 

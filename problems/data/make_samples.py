@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from problems.io import write_text, write_x3p
-from problems.surfaces import spectral_surface
+from contactbench.problems.io import write_text, write_x3p
+from contactbench.problems.surfaces import spectral_surface
 
 HERE = Path(__file__).resolve().parent
 
