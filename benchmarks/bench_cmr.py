@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.solvers.base import SolverSettings, WarmStart

@@ -28,7 +28,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
+from contactbench.harness.profiles import PROFILES
 from contactbench.harness.runner import JobRunner, RunConfig, plan_run, run_benchmark
 from contactbench.harness.store import ResultStore, load_table
 from contactbench.problems.scenes import LoadSequence, SceneConfig, register_scene
@@ -63,7 +64,7 @@ def main() -> None:
     spec = scene.instances(scene.config(cfg))[0]
     inst = scene.build(spec).at(0)
     solver = get_solver(args.solver)
-    settings = SolverSettings(profile=args.profile, time_limit=600)
+    settings = SolverSettings(tol=PROFILES[args.profile].tol, time_limit=600)
     solver.solve(inst.qp, settings, None)  # warm-up
     bare = []
     for _ in range(args.repeats):

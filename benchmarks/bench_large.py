@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import fft_backend, fft_workers
 from contactbench.problems.surfaces import rmd_surface_n
@@ -43,7 +43,7 @@ def solve_one(N: int, solver: str, fraction: float, tol: float) -> dict:
     setup = time.perf_counter() - t0
     op = inst.qp.H
     t = time.perf_counter()
-    res = get_solver(solver).solve(inst.qp, SolverSettings(profile="high", tol=tol))
+    res = get_solver(solver).solve(inst.qp, SolverSettings(tol=tol))
     dt = time.perf_counter() - t
     return {
         "N": N, "n": inst.n, "solver": solver, "fft": fft_backend(), "threads": fft_workers(),

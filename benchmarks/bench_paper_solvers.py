@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings, WarmStart

@@ -112,7 +112,7 @@ def our_instances(case: str, surf, deltas):
 
 
 def judge(inst, p_on_set: np.ndarray) -> tuple[float, float, float]:
-    from contactbench.harness.kkt import kkt_check
+    from contactbench.problems.kkt import kkt_check
 
     return inst.load(p_on_set), inst.contact_fraction(p_on_set), kkt_check(inst, p_on_set).kkt_error
 
@@ -139,7 +139,7 @@ def run_ours(case: str, solver_name: str, N: int, steps: int, tol: float) -> Run
         idx = inst.geometry.indices
         warm = WarmStart(prev[idx]) if k else None
         t = time.perf_counter()
-        res = solver.solve(inst.qp, SolverSettings(profile="high", tol=tol / 10), warm)
+        res = solver.solve(inst.qp, SolverSettings(tol=tol / 10), warm)
         dt = time.perf_counter() - t
         prev = np.zeros(surf.heights.size)
         prev[idx] = res.p

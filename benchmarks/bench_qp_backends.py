@@ -25,10 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from contactbench.harness.kkt import kkt_check, relative_error, relative_load_error
+from contactbench.problems.kkt import kkt_check, relative_error, relative_load_error
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, paper_max_displacement
 from contactbench.problems.surfaces import Surface, rmd_surface_n
-from contactbench.solvers.base import PROFILES, SolverSettings
+from contactbench.harness.profiles import PROFILES
+from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import all_solvers, get_solver
 
 
@@ -68,7 +69,7 @@ def run_one(name: str, inst: ContactInstance, label: str, profile: str, p_ref: n
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = get_solver(name).solve(inst.qp, SolverSettings(profile, time_limit=time_limit))
+        res = get_solver(name).solve(inst.qp, SolverSettings(tol=PROFILES[profile].tol, time_limit=time_limit))
     wall = time.perf_counter() - t0
     kkt = kkt_check(inst, res.p).kkt_error
     return Row(label, inst.n, name, profile, wall, res.setup_time, kkt, relative_error(res.p, p_ref),
@@ -77,7 +78,7 @@ def run_one(name: str, inst: ContactInstance, label: str, profile: str, p_ref: n
 
 def reference(inst: ContactInstance) -> tuple[np.ndarray, float]:
     t0 = time.perf_counter()
-    res = get_solver("scipy-nnls").solve(inst.qp, SolverSettings("high"))
+    res = get_solver("scipy-nnls").solve(inst.qp, SolverSettings(1e-9))
     return res.p, time.perf_counter() - t0
 
 

@@ -20,12 +20,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from contactbench.harness.kkt import kkt_check, relative_error, relative_load_error
+from contactbench.problems.kkt import kkt_check, relative_error, relative_load_error
 from contactbench.harness.runner import instance_operator_kind, skip_decision
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, counterexample
 from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.solvers.base import SolverSettings, get_profile
+from contactbench.harness.profiles import get_profile
+from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import all_solvers, get_solver
 
 PROFILE = os.environ.get("CONTACTBENCH_BENCH_PROFILE", "default")
@@ -60,7 +61,7 @@ def reference(name: str) -> np.ndarray | None:
         return None
     if not ref.availability()[0]:
         return None
-    return ref.solve(fresh_qp(name, "dense"), SolverSettings(profile="high")).p
+    return ref.solve(fresh_qp(name, "dense"), SolverSettings(tol=1e-9)).p
 
 
 def fresh_qp(name: str, operator: str) -> QP:
@@ -82,7 +83,7 @@ def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
     if decision.skip:
         pytest.skip(decision.reason)
     solver = get_solver(solver_name)
-    settings = SolverSettings(profile=PROFILE, time_limit=TIME_LIMIT)
+    settings = SolverSettings(tol=get_profile(PROFILE).tol, time_limit=TIME_LIMIT)
 
     def setup() -> tuple[tuple[Any, ...], dict[str, Any]]:
         return (fresh_qp(name, decision.operator), settings, None), {}

@@ -48,7 +48,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
 
 
 def parse_profiles(text: str) -> tuple[str, ...]:
-    from contactbench.solvers.base import PROFILES
+    from .profiles import PROFILES
 
     names = tuple(p.strip() for p in text.split(",") if p.strip())
     bad = [p for p in names if p not in PROFILES]

@@ -52,13 +52,15 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve, cholesky, solve_triangular
 from scipy.optimize import nnls
 
-from contactbench.harness.kkt import KKTReport, kkt_check, relative_error
+from contactbench.problems.kkt import KKTReport, kkt_check, relative_error
 from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from contactbench.solvers.base import PROFILES, Solver, SolverSettings
+from contactbench.solvers.base import Solver, SolverSettings
+
+from .profiles import PROFILES
 from contactbench.solvers.registry import all_solvers, load_solver
 
 #: Tolerance multiplier between the profile's check_tol and the wrong-claim threshold.
@@ -251,7 +253,7 @@ def _solve_message(solver: Solver, msg: tuple[InstanceSpec, int, float | None]) 
     qp = adapt_to_solver(inst.qp, solver)
     if isinstance(qp, str):
         return {"kind": "skipped", "message": qp}
-    settings = SolverSettings(profile=str(spec.params.get("profile", "mid")), time_limit=time_limit)
+    settings = SolverSettings(tol=PROFILES[str(spec.params.get("profile", "mid"))].tol, time_limit=time_limit)
     t0 = time.perf_counter()
     try:
         res = solver.solve(qp, settings, None)

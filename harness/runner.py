@@ -62,11 +62,13 @@ import numpy as np
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, SolverVariant, get_scene
-from contactbench.solvers.base import SolverSettings, WarmStart, get_profile
+from contactbench.solvers.base import SolverSettings, WarmStart
+
+from .profiles import get_profile
 from contactbench.solvers.registry import get_solver, load_solver, register
 
 from .isolation import IsolatedWorker, Outcome, PeakMemory, set_parent_death_signal
-from .kkt import kkt_check, relative_error, relative_load_error
+from contactbench.problems.kkt import kkt_check, relative_error, relative_load_error
 from .meta import build_meta, now_iso, write_meta
 from .schema import ALL_COLUMNS
 from .store import ResultStore
@@ -585,7 +587,7 @@ class InstanceWorker:
         inst, _ = self.ensure_step(task.step)
         qp = self.qp_for(task.step, task.operator)
         solver = resolve_solver(task.base)
-        settings = SolverSettings(profile=REFERENCE_PROFILE, time_limit=task.time_limit)
+        settings = SolverSettings(tol=get_profile(REFERENCE_PROFILE).tol, time_limit=task.time_limit)
         t0 = time.perf_counter()
         res = solver.solve(qp, settings, None)
         elapsed = time.perf_counter() - t0
@@ -628,7 +630,8 @@ class InstanceWorker:
 
     @staticmethod
     def settings(task: SolveTask) -> SolverSettings:
-        return SolverSettings(profile=task.profile, time_limit=task.time_limit, params=copy.deepcopy(task.params))
+        return SolverSettings(tol=get_profile(task.profile).tol, time_limit=task.time_limit,
+                              params=copy.deepcopy(task.params))
 
     def _prepare(self, task: SolveTask) -> tuple[ContactInstance, QP, Any, WarmStart | None]:
         inst, _ = self.ensure_step(task.step)

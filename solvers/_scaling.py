@@ -60,7 +60,7 @@ import scipy.linalg as sla
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 
-from .base import SolveResult, Solver, SolverSettings, WarmStart, get_profile
+from .base import SolveResult, Solver, SolverSettings, WarmStart
 
 #: Bytes of one dense n x n float64 matrix, the unit of every adapter's memory model.
 BYTES_PER_ENTRY = 8.0
@@ -120,9 +120,7 @@ def scaling_requested(settings: SolverSettings) -> bool:
 
 def requested_tolerance(settings: SolverSettings) -> float | None:
     """The tolerance asked for, or None for the ``default`` profile (backend defaults)."""
-    if settings.tol is not None:
-        return float(settings.tol)
-    return get_profile(settings.profile).tol
+    return None if settings.tol is None else float(settings.tol)
 
 
 def dense_matrix(qp: QP, budget: float | None = None) -> np.ndarray:

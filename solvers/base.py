@@ -1,73 +1,136 @@
-"""The solver extension point: one result record, one settings record, one base class.
+"""The solver extension point: one settings record, one result record, one base class,
+and one solve lifecycle.
 
-A solver sees only ``QP`` (the operator H, the vector ubar and, for the few solvers
-that need positions, the grid geometry).  It never times itself for the report and
-never judges its own answer: the harness does both.  It may report its own internal
-time, status and a cheap convergence trace.
+A solver sees only ``QP`` (the operator H, the vector ubar and, for the few solvers that
+need positions, the grid geometry).  It never judges its own answer for the report and
+never times itself for it: the harness does both.
+
+The lifecycle (``Solver.solve``, a template method; subclasses implement ``iterate``)
+-----------------------------------------------------------------------------------------
+1. validate the QP (``check_qp``) and the parameters (``Solver.resolve_params``: an
+   unknown or ill-typed key is refused with the allowed keys in the message);
+2. resolve one numeric tolerance (``SolverSettings.tol``, else the class's
+   ``default_tol``) and one iteration limit (``max_iter``, else ``default_max_iter(n)``);
+3. apply the one warm-start policy (``warm_point``): a warm p must have length n and be
+   finite (else ``ProblemInputError``), negative entries are clipped to 0; a solver
+   whose ``capabilities.warm_start`` is "none" is handed no warm start, and its result
+   says ``warm_started=False``;
+4. start one deadline, one trace and one matvec count (``SolveContext``); return p = 0
+   at once when ubar <= 0 (no contact);
+5. call the solver's own ``iterate(ctx)``, which returns an ``Outcome``;
+6. build the ``SolveResult``: w = Hp - ubar (unless the outcome carries it), the status
+   from the small ``Status`` enum, the matvec count, and a trace whose last point is the
+   final iterate's scaled KKT error.
 
 Adding a solver = one file in ``solvers/`` with a ``Solver`` subclass decorated by
-``@register`` (see ``solvers.registry``) -- nothing else changes.
+``@register`` (``contactbench.solvers.register``); see docs/adding-a-solver.md.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
+from contactbench.problems.kkt import scaled_kkt_error
+from contactbench.problems.operators import ContactOperator
 
 WarmKind = Literal["none", "primal", "primal-dual"]
 
+#: The default tolerance of a solver that declares none: the scaled KKT error of
+#: ``contactbench.problems.kkt`` (the harness's "high" profile checks 1e-8).
+DEFAULT_TOL = 1e-8
+
+
+class Status(str, Enum):
+    """Why a solve stopped, in the solver's own words (the harness judges separately)."""
+
+    CONVERGED = "converged"  # the solver's stopping test passed
+    MAX_ITER = "max_iter"  # iteration limit reached first
+    TIME_LIMIT = "time_limit"  # SolverSettings.time_limit reached first
+    STALLED = "stalled"  # no further progress possible (breakdown, cycling, stagnation)
+    FAILED = "failed"  # no usable answer (a backend error, a non-finite iterate)
+
+
+class ParamError(ValueError):
+    """An unknown, ill-typed or out-of-range solver parameter."""
+
 
 @dataclass(frozen=True)
-class Profile:
-    """A named accuracy target.
-
-    tol       : the tolerance handed to solvers (None: the solver's own default).
-    check_tol : the scaled kkt_error at which the harness counts the answer as solved.
-    """
+class Param:
+    """One declared solver parameter: name, type, default, and its allowed values
+    (``choices``) or range [``low``, ``high``]."""
 
     name: str
-    tol: float | None
-    check_tol: float
+    kind: type
+    default: Any
+    doc: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[Any, ...] | None = None
 
+    def check(self, value: Any) -> Any:
+        """``value`` converted to ``kind`` if it is acceptable, else ``ParamError``."""
+        v = self._coerce(value)
+        if self.choices is not None and v not in self.choices:
+            raise ParamError(f"parameter {self.name!r} must be one of {', '.join(map(repr, self.choices))}, "
+                             f"got {value!r}")
+        if self.low is not None and v < self.low or self.high is not None and v > self.high:
+            raise ParamError(f"parameter {self.name!r} must lie in [{self.low}, {self.high}], got {value!r}")
+        return v
 
-PROFILES: dict[str, Profile] = {
-    "default": Profile("default", None, 1e-6),
-    "low": Profile("low", 1e-3, 1e-3),
-    "mid": Profile("mid", 1e-6, 1e-6),
-    "high": Profile("high", 1e-9, 1e-8),
-}
+    def _coerce(self, value: Any) -> Any:
+        bad = ParamError(f"parameter {self.name!r} takes a {self.kind.__name__}, got {value!r}")
+        if self.kind is bool:
+            if isinstance(value, (bool, np.bool_)):
+                return bool(value)
+            raise bad
+        if self.kind is int:
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+                raise bad
+            return int(value)
+        if self.kind is float:
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise bad
+            if not math.isfinite(float(value)):
+                raise bad
+            return float(value)
+        if not isinstance(value, self.kind):
+            raise bad
+        return value
 
-
-def get_profile(name: str) -> Profile:
-    try:
-        return PROFILES[name]
-    except KeyError:
-        raise ValueError(f"unknown profile {name!r}; choose one of {', '.join(PROFILES)}") from None
+    def describe(self) -> str:
+        allowed = (f" one of {'|'.join(map(str, self.choices))}" if self.choices is not None else
+                   f" in [{self.low if self.low is not None else '-inf'}, {self.high if self.high is not None else 'inf'}]"
+                   if self.low is not None or self.high is not None else "")
+        return f"{self.name}: {self.kind.__name__} = {self.default!r}{allowed}" + (f"  ({self.doc})" if self.doc else "")
 
 
 @dataclass
 class SolverSettings:
-    """What the harness asks for.  ``params`` are solver-specific knobs (e.g. the number
-    K of gradient-projection steps); ``tol`` overrides the profile's tolerance."""
+    """What the harness asks of one solve.
 
-    profile: str = "default"
+    tol        : the scaled KKT error to stop at (None: the solver's ``default_tol``);
+    max_iter   : iteration limit (None: the solver's ``default_max_iter(n)``);
+    time_limit : seconds from the start of ``solve`` (None: no limit);
+    params     : the solver's declared parameters (``Solver.params``), by name.
+    """
+
     tol: float | None = None
     max_iter: int | None = None
     time_limit: float | None = None
     params: dict[str, Any] = field(default_factory=dict)
 
+    # TRANSITIONAL (removed once every solver runs the lifecycle): old-style accessors.
     def tolerance(self, default: float) -> float:
-        """The tolerance to use: explicit tol, else the profile's, else ``default``."""
-        if self.tol is not None:
-            return float(self.tol)
-        t = get_profile(self.profile).tol
-        return float(default if t is None else t)
+        return float(default if self.tol is None else self.tol)
 
     def param(self, name: str, default: Any) -> Any:
         return self.params.get(name, default)
@@ -86,8 +149,19 @@ class WarmStart:
 class SolveResult:
     """One record for every solver (like scipy's OptimizeResult).
 
-    converged/status/message are the solver's *own* claim; the harness records them
-    beside its own verdict.  trace holds (iteration, elapsed seconds, residual).
+    p            : the answer (length n, the solver's final iterate);
+    w            : its gap Hp - ubar (recomputed by the lifecycle when the solver gave none);
+    iterations   : the solver's own iteration count;
+    converged    : the solver's own claim that its stopping test passed;
+    status       : a ``Status`` value (as its string);
+    message      : one line in words;
+    solve_time   : seconds inside ``solve`` (the harness times the call itself as well);
+    setup_time   : the part of solve_time before the first iteration (factorisations, ...);
+    matvecs      : products with H (or a restriction of it) during the solve;
+    warm_started : whether a warm start was used;
+    trace        : (iteration, elapsed seconds, scaled KKT error); the last point is the
+                   final iterate;
+    info         : solver-specific figures (JSON-serialisable).
     """
 
     p: np.ndarray
@@ -106,13 +180,17 @@ class SolveResult:
 
 @dataclass(frozen=True)
 class Capabilities:
-    """What a solver can serve; the harness uses it to skip pairs with a reason.
+    """What a solver can serve; the harness's skip policy reads it.
 
-    operators   : operator kinds it accepts ("dense", "fft").
-    needs_dense : it needs H assembled as an n x n array (dense or its own sparse copy).
-    warm_start  : "none", "primal" or "primal-dual".
-    exact       : finite termination / reaches round-off (a reference candidate).
-    max_n       : hard size limit (None: none besides the memory model).
+    operators    : operator kinds it accepts ("dense", "fft").
+    needs_dense  : it needs H assembled as an n x n array.
+    warm_start   : "none", "primal" or "primal-dual".
+    exact        : it solves every case to its tolerance (finite termination or
+                   convergence to round-off); the conformance battery holds it to that.
+    max_n        : hard size limit (None: none besides the memory model).
+    input_format : "operator", "dense" or "sparse".
+    needs_geometry : it needs the QP's grid geometry (positions, surface levels).
+    accuracy_floor : best scaled KKT error the method can reach (None: round-off).
     """
 
     operators: frozenset[str] = frozenset({"dense", "fft"})
@@ -120,9 +198,8 @@ class Capabilities:
     warm_start: WarmKind = "none"
     exact: bool = False
     max_n: int | None = None
-    input_format: str = "operator"  # "operator", "dense" or "sparse"
-    #: Best scaled KKT error the method can reach (e.g. a backend's regularisation floor);
-    #: None when it can reach round-off.
+    input_format: str = "operator"
+    needs_geometry: bool = False
     accuracy_floor: float | None = None
 
     def describe(self) -> str:
@@ -133,6 +210,8 @@ class Capabilities:
             "exact" if self.exact else "iterative",
             f"input={self.input_format}",
         ]
+        if self.needs_geometry:
+            parts.append("needs-geometry")
         if self.max_n:
             parts.append(f"max_n={self.max_n}")
         if self.accuracy_floor:
@@ -140,44 +219,26 @@ class Capabilities:
         return ", ".join(parts)
 
 
-class Solver(ABC):
-    """Base class.  Subclasses set ``name``, ``family``, ``capabilities`` and implement
-    ``solve``; they may refine ``availability``, ``memory_estimate`` and
-    ``time_estimate`` (used to skip hopeless pairs before attempting them)."""
+class Deadline:
+    """``SolverSettings.time_limit`` as a cheap predicate, started once per solve."""
 
-    name: ClassVar[str] = ""
-    family: ClassVar[str] = "other"  # "paper", "qp", "fast", "wrapper", "reference", "test"
-    description: ClassVar[str] = ""
-    capabilities: ClassVar[Capabilities] = Capabilities()
+    def __init__(self, time_limit: float | None, t0: float | None = None) -> None:
+        start = time.perf_counter() if t0 is None else t0
+        self.t_end = None if time_limit is None else start + float(time_limit)
 
-    def availability(self) -> tuple[bool, str]:
-        """(available, reason).  Override to check optional imports."""
-        return True, "available"
+    def expired(self) -> bool:
+        return self.t_end is not None and time.perf_counter() > self.t_end
 
-    def memory_estimate(self, n: int) -> float:
-        """Peak extra bytes the solve needs beyond the operator (default: a few vectors,
-        or an n x n matrix when the solver needs dense H)."""
-        if self.capabilities.needs_dense:
-            return 8.0 * n * n
-        return 16.0 * 8.0 * n
-
-    def time_estimate(self, n: int, operator_kind: str) -> float | None:
-        """Predicted seconds for one solve at size n, or None when unknown."""
-        return None
-
-    @abstractmethod
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        """Solve min 1/2 p'Hp - ubar'p, p >= 0."""
-
-    def __repr__(self) -> str:
-        return f"<Solver {self.name} ({self.family})>"
+    def remaining(self) -> float | None:
+        """Seconds left (None: no limit)."""
+        return None if self.t_end is None else max(0.0, self.t_end - time.perf_counter())
 
 
 class Trace:
-    """Cheap (iteration, elapsed, residual) recorder shared by iterative solvers."""
+    """Cheap (iteration, elapsed, residual) recorder."""
 
-    def __init__(self, every: int = 1) -> None:
-        self.t0 = time.perf_counter()
+    def __init__(self, every: int = 1, t0: float | None = None) -> None:
+        self.t0 = time.perf_counter() if t0 is None else t0
         self.every = max(1, every)
         self.points: list[tuple[int, float, float]] = []
 
@@ -187,3 +248,228 @@ class Trace:
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0
+
+
+@dataclass
+class Outcome:
+    """What ``Solver.iterate`` returns: the final iterate and the solver's own claim.
+
+    status None means: CONVERGED when ``converged``, else TIME_LIMIT when the deadline
+    passed, else MAX_ITER."""
+
+    p: np.ndarray
+    iterations: int
+    converged: bool
+    message: str = ""
+    w: np.ndarray | None = None
+    status: Status | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class SolveContext:
+    """Everything the lifecycle hands ``iterate``: the problem, the resolved tolerance,
+    iteration limit and parameters, the warm start, and the one deadline, trace and
+    matvec count of this solve."""
+
+    qp: QP
+    tol: float
+    max_iter: int
+    params: dict[str, Any]
+    p0: np.ndarray | None
+    warm: WarmStart | None
+    deadline: Deadline
+    trace: Trace
+    diag_max: float
+    info: dict[str, Any] = field(default_factory=dict)
+    setup_time: float | None = None
+    _ops: list[tuple[ContactOperator, int]] = field(default_factory=list)
+    _extra_matvecs: int = 0
+
+    @property
+    def n(self) -> int:
+        return self.qp.n
+
+    @property
+    def warm_started(self) -> bool:
+        return self.p0 is not None
+
+    def expired(self) -> bool:
+        return self.deadline.expired()
+
+    def record(self, it: int, residual: float) -> None:
+        self.trace.record(it, residual)
+
+    def kkt(self, p: np.ndarray, w: np.ndarray) -> float:
+        """The scaled KKT error of (p, w = Hp - ubar): the harness's own formula."""
+        return scaled_kkt_error(p, w, self.qp.ubar, self.diag_max)
+
+    def track(self, op: ContactOperator) -> ContactOperator:
+        """Count the matvecs of an operator made during the solve (a restriction)."""
+        self._ops.append((op, op.matvec_count))
+        return op
+
+    def add_matvecs(self, k: int) -> None:
+        """Count k products done outside a tracked operator."""
+        self._extra_matvecs += int(k)
+
+    def matvecs(self) -> int:
+        return int(sum(op.matvec_count - c0 for op, c0 in self._ops)) + self._extra_matvecs
+
+    def mark_setup_done(self) -> None:
+        """Everything so far was set-up (factorisations, assembly): ``setup_time``."""
+        self.setup_time = self.trace.elapsed()
+
+
+def check_qp(qp: QP) -> None:
+    """A QP a solver can be handed: ubar of length n, finite."""
+    ubar = np.asarray(qp.ubar)
+    if ubar.ndim != 1 or ubar.size != qp.H.n:
+        raise ProblemInputError(f"ubar has shape {ubar.shape}, the operator has n = {qp.H.n}")
+    if not np.all(np.isfinite(ubar)):
+        raise ProblemInputError("ubar contains non-finite values")
+
+
+def warm_point(warm: WarmStart | None, n: int, kind: WarmKind) -> np.ndarray | None:
+    """The one warm-start policy (module doc, step 3): p0 >= 0 of length n, or None."""
+    if kind == "none" or warm is None or warm.p is None:
+        return None
+    p = np.asarray(warm.p, dtype=np.float64)
+    if p.shape != (n,):
+        raise ProblemInputError(f"warm-start p has shape {p.shape}, the problem has n = {n}")
+    if not np.all(np.isfinite(p)):
+        raise ProblemInputError("warm-start p contains non-finite values")
+    return np.maximum(p, 0.0)
+
+
+@dataclass(frozen=True)
+class ProblemTraits:
+    """What the skip policy knows of a problem before solving it."""
+
+    n: int
+    operator: str  # "dense" or "fft"
+    has_geometry: bool = True
+    has_surface: bool = False  # the instance carries a surface with its coarse levels
+    periodic: bool = False
+    kernel: str = ""
+
+
+class Solver(ABC):
+    """Base class (module doc).  Subclasses set ``name``, ``family``, ``description``,
+    ``capabilities`` and ``params`` and implement ``iterate``; they may refine
+    ``default_tol``, ``default_max_iter``, ``skip``, ``availability``,
+    ``memory_estimate`` and ``time_estimate``."""
+
+    name: ClassVar[str] = ""
+    family: ClassVar[str] = "other"  # "paper", "qp", "fast", "wrapper", "reference", "external", ...
+    description: ClassVar[str] = ""
+    capabilities: ClassVar[Capabilities] = Capabilities()
+    #: Declared parameters; anything else in ``SolverSettings.params`` is refused.
+    params: ClassVar[tuple[Param, ...]] = ()
+    #: Parameter grid for sweeps (benchopt style): name -> values; studies expand it.
+    grid: ClassVar[dict[str, tuple[Any, ...]]] = {}
+    #: Tolerance on the scaled KKT error when the settings give none.
+    default_tol: ClassVar[float] = DEFAULT_TOL
+
+    def default_max_iter(self, n: int) -> int:
+        """Iteration limit when the settings give none."""
+        return 100_000
+
+    # -- what the harness asks before solving --------------------------------
+    def availability(self) -> tuple[bool, str]:
+        """(available, reason).  Override to check optional imports."""
+        return True, "available"
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        """A reason not to run on a problem with these traits (None: run it).  The
+        harness asks this after its own capability checks."""
+        if self.capabilities.needs_geometry and not traits.has_surface:
+            return f"{self.name} needs the instance's surface and its coarse levels; this problem has none"
+        return None
+
+    def memory_estimate(self, n: int) -> float:
+        """Peak extra bytes the solve needs beyond the operator."""
+        if self.capabilities.needs_dense:
+            return 8.0 * n * n
+        return 16.0 * 8.0 * n
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        """Predicted seconds for one solve at size n, or None when unknown."""
+        return None
+
+    # -- parameters ---------------------------------------------------------
+    def resolve_params(self, given: dict[str, Any] | None) -> dict[str, Any]:
+        """Every declared parameter, from ``given`` or its default; an unknown key or a
+        bad value is a ``ParamError`` naming the allowed keys."""
+        declared = {p.name: p for p in self.params}
+        given = dict(given or {})
+        unknown = sorted(set(given) - set(declared))
+        if unknown:
+            allowed = ", ".join(sorted(declared)) or "(none)"
+            raise ParamError(f"solver {self.name!r} has no parameter {', '.join(map(repr, unknown))}; "
+                             f"allowed: {allowed}")
+        return {k: (p.check(given[k]) if k in given else p.default) for k, p in declared.items()}
+
+    # -- the lifecycle --------------------------------------------------------
+    def solve(self, qp: QP, settings: SolverSettings | None = None, warm: WarmStart | None = None) -> SolveResult:
+        """Solve min 1/2 p'Hp - ubar'p, p >= 0 (module doc).  Not to be overridden."""
+        settings = settings or SolverSettings()
+        t0 = time.perf_counter()
+        check_qp(qp)
+        params = self.resolve_params(settings.params)
+        tol = float(self.default_tol if settings.tol is None else settings.tol)
+        max_iter = int(self.default_max_iter(qp.n) if settings.max_iter is None else settings.max_iter)
+        p0 = warm_point(warm, qp.n, self.capabilities.warm_start)
+        ctx = SolveContext(qp=qp, tol=tol, max_iter=max_iter, params=params, p0=p0,
+                           warm=warm if self.capabilities.warm_start != "none" else None,
+                           deadline=Deadline(settings.time_limit, t0), trace=Trace(t0=t0),
+                           diag_max=float(np.max(qp.H.diagonal())))
+        ctx.track(qp.H)
+        if np.max(qp.ubar, initial=0.0) <= 0.0:
+            out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0")
+        else:
+            out = self.iterate(ctx)
+        return finish(ctx, out)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:  # TRANSITIONAL: becomes @abstractmethod
+        """The solver's own iteration from ``ctx.p0`` (None: a cold start), honouring
+        ``ctx.tol``, ``ctx.max_iter`` and ``ctx.expired()``."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<Solver {self.name} ({self.family})>"
+
+
+def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
+    """The SolveResult of an outcome (module doc, step 6)."""
+    qp = ctx.qp
+    p = np.asarray(out.p, dtype=np.float64)
+    finite = p.shape == (qp.n,) and bool(np.all(np.isfinite(p)))
+    w = out.w
+    if w is None and finite:
+        w = qp.H.matvec(p) - qp.ubar
+    status = out.status
+    if status is None:
+        status = (Status.CONVERGED if out.converged else
+                  Status.TIME_LIMIT if ctx.deadline.expired() else Status.MAX_ITER)
+    if not finite:
+        status = Status.FAILED
+    if finite and w is not None:
+        final = ctx.kkt(p, w)
+        if not ctx.trace.points or ctx.trace.points[-1][0] != out.iterations:
+            ctx.trace.points.append((int(out.iterations), ctx.trace.elapsed(), float(final)))
+    converged = bool(out.converged) and status is Status.CONVERGED
+    return SolveResult(
+        p=p,
+        w=w,
+        iterations=int(out.iterations),
+        converged=converged,
+        status=status.value,
+        message=out.message or f"{status.value} after {out.iterations} iterations",
+        solve_time=ctx.trace.elapsed(),
+        setup_time=0.0 if ctx.setup_time is None else ctx.setup_time,
+        matvecs=ctx.matvecs(),
+        warm_started=ctx.warm_started,
+        trace=list(ctx.trace.points),
+        info={**ctx.info, **out.info},
+    )

@@ -305,7 +305,7 @@ def _require_context(qp: QP) -> Geometry:
 def _base_settings(settings: SolverSettings) -> SolverSettings:
     params = {k: v for k, v in settings.params.items() if k not in CMR_KEYS}
     params.update(settings.param("base_params", {}) or {})
-    return SolverSettings(profile=settings.profile, tol=settings.tol, max_iter=settings.max_iter,
+    return SolverSettings(tol=settings.tol, max_iter=settings.max_iter,
                           time_limit=settings.time_limit, params=params)
 
 

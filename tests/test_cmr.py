@@ -9,7 +9,7 @@ import pytest
 import scipy.linalg as sl
 from scipy.optimize import nnls
 
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import DenseOperator

@@ -10,7 +10,7 @@ from scipy.linalg import cholesky, solve_triangular
 from scipy.optimize import nnls
 
 from contactbench.harness import conformance as cf
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
 from contactbench.solvers.base import Capabilities, Solver, SolveResult

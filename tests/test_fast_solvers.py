@@ -11,7 +11,7 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
-from contactbench.harness.kkt import kkt_check, relative_error
+from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, load_ramp, paper_max_displacement
 from contactbench.problems.operators import FFTOperator
@@ -20,7 +20,7 @@ from contactbench.solvers.base import SolverSettings, WarmStart
 from contactbench.solvers.registry import get_solver
 
 FAST = ["fast-ccg", "fast-dual-ccg", "fast-pdas", "fast-pccg", "fast-dual-pccg"]
-HIGH = SolverSettings(profile="high")
+HIGH = SolverSettings(tol=1e-9)
 
 
 def nnls_reference(qp) -> np.ndarray:

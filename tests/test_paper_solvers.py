@@ -13,7 +13,7 @@ import scipy.linalg as sla
 import scipy.optimize as so
 
 import contactbench.problems.operators as operators_mod
-from contactbench.harness.kkt import kkt_check, relative_error
+from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.errors import MemoryBudgetError
 from contactbench.problems.instances import (
     ContactInstance,

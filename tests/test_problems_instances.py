@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
 from contactbench.problems.instances import (
     InstanceBuilder,

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.harness.kkt import kkt_check, relative_error, relative_load_error
+from contactbench.problems.kkt import kkt_check, relative_error, relative_load_error
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, counterexample, paper_max_displacement, trial_set
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 from contactbench.problems.surfaces import rmd_surface_n
@@ -33,7 +33,7 @@ def cases() -> dict[str, tuple[ContactInstance, np.ndarray]]:
     ref = get_solver("scipy-nnls")
     out = {}
     for key, inst in _instances().items():
-        res = ref.solve(inst.qp, SolverSettings("high"))
+        res = ref.solve(inst.qp, SolverSettings(1e-9))
         out[key] = (inst, res.p)
     return out
 
@@ -57,7 +57,7 @@ def test_high_profile_agrees_with_reference(name: str, cases: dict[str, tuple[Co
     # a backend that cannot reach the high profile says so (ECOS); it is held to its floor
     floor = getattr(solver, "accuracy_floor", None) or 1e-8
     for key, (inst, p_ref) in cases.items():
-        res = solver.solve(inst.qp, SolverSettings("high"))
+        res = solver.solve(inst.qp, SolverSettings(1e-9))
         rep = kkt_check(inst, res.p)
         assert rep.kkt_error <= floor, f"{name} on {key}: kkt {rep.kkt_error:.2e}, status {res.status}"
         assert relative_error(res.p, p_ref) <= 100 * floor, f"{name} on {key}"
@@ -98,8 +98,8 @@ def test_raw_mode_can_be_selected(cases: dict[str, tuple[ContactInstance, np.nda
     _require("qp-osqp")
     inst, p_ref = cases["rmd32"]
     solver = get_solver("qp-osqp")
-    raw = solver.solve(inst.qp, SolverSettings("default", params={"scaling": False}))
-    scaled = solver.solve(inst.qp, SolverSettings("default"))
+    raw = solver.solve(inst.qp, SolverSettings(None, params={"scaling": False}))
+    scaled = solver.solve(inst.qp, SolverSettings(None))
     assert raw.info["scaling"] == "raw" and raw.info["scale_s"] == 1.0
     assert scaled.info["scaling"] == "jacobi+rhs"
     # the documented hazard: OSQP's defaults on SI-unit data stop far from the answer
@@ -113,7 +113,7 @@ def test_missing_backend_gives_clear_message(tmp_path, monkeypatch) -> None:
     assert not ok and "not installed" in why and "contactbench_no_such_pkg" in why
     inst = counterexample(4, 0)
     with pytest.raises(RuntimeError, match="not installed"):
-        missing.solve(inst.qp, SolverSettings("high"))
+        missing.solve(inst.qp, SolverSettings(1e-9))
     (tmp_path / "contactbench_broken_pkg.py").write_text("import contactbench_absent_dependency\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     broken = QPSolversAdapter(BackendSpec("brokenqp", "contactbench_broken_pkg", "none", "dense", "none",
@@ -150,8 +150,8 @@ def test_memory_model_skips_512_top_step() -> None:
 def test_polish_is_a_separate_labelled_variant(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
     _require("qp-clarabel")
     inst, p_ref = cases["counterexample-0"]
-    plain = get_solver("qp-clarabel").solve(inst.qp, SolverSettings("default"))
-    pol = get_solver("qp-clarabel+polish").solve(inst.qp, SolverSettings("default"))
+    plain = get_solver("qp-clarabel").solve(inst.qp, SolverSettings(None))
+    pol = get_solver("qp-clarabel+polish").solve(inst.qp, SolverSettings(None))
     assert "polish_rounds" not in plain.info and pol.info["polish_converged"]
     assert kkt_check(inst, pol.p).kkt_error < 1e-12
     assert kkt_check(inst, pol.p).kkt_error <= kkt_check(inst, plain.p).kkt_error
@@ -173,8 +173,8 @@ def test_polish_repairs_a_wrong_active_set(cases: dict[str, tuple[ContactInstanc
 def test_warm_start_is_forwarded_where_supported(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
     _require("qp-osqp")
     inst, p_ref = cases["counterexample-2"]
-    res = get_solver("qp-osqp").solve(inst.qp, SolverSettings("mid"), WarmStart(p=p_ref))
+    res = get_solver("qp-osqp").solve(inst.qp, SolverSettings(1e-6), WarmStart(p=p_ref))
     assert res.warm_started
     if get_solver("qp-clarabel").availability()[0]:
-        res = get_solver("qp-clarabel").solve(inst.qp, SolverSettings("mid"), WarmStart(p=p_ref))
+        res = get_solver("qp-clarabel").solve(inst.qp, SolverSettings(1e-6), WarmStart(p=p_ref))
         assert not res.warm_started

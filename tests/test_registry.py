@@ -7,7 +7,8 @@ import pytest
 
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import DenseOperator
-from contactbench.solvers.base import PROFILES, Capabilities, SolveResult, Solver, SolverSettings, get_profile
+from contactbench.harness.profiles import PROFILES, get_profile
+from contactbench.solvers.base import Capabilities, SolveResult, Solver, SolverSettings
 from contactbench.solvers.registry import all_solvers, get_solver, load_solver, register, unregister
 
 
@@ -58,9 +59,8 @@ def test_duplicate_name_of_other_class_is_refused() -> None:
 
 def test_profiles_and_settings_tolerance() -> None:
     assert get_profile("high").tol == 1e-9 and get_profile("high").check_tol == 1e-8
-    assert SolverSettings(profile="low").tolerance(1e-12) == 1e-3
-    assert SolverSettings(profile="default").tolerance(1e-12) == 1e-12
-    assert SolverSettings(profile="mid", tol=1e-4).tolerance(1e-12) == 1e-4
+    assert SolverSettings().tolerance(1e-12) == 1e-12
+    assert SolverSettings(tol=1e-4).tolerance(1e-12) == 1e-4
     with pytest.raises(ValueError, match="unknown profile"):
         get_profile("ultra")
     assert set(PROFILES) == {"default", "low", "mid", "high"}

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from contactbench.harness.conformance import exact_reference
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.operators import FFTOperator
 from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
 from contactbench.problems.scenes.stress import (

@@ -7,7 +7,7 @@ from hypothesis import given, seed, settings
 from hypothesis import strategies as st
 
 from contactbench.harness.conformance import exact_reference
-from contactbench.harness.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.stress import packed_instance, random_spd_instance

@@ -1,4 +1,8 @@
-"""The KKT check: the one place that judges an answer.  Used by every part of the harness.
+"""The KKT figures of the contact QP: the one definition of an answer's quality.
+
+The harness judges every answer with ``kkt_check``; a solver may stop on
+``scaled_kkt_error``, the same formula computed from its own gap w = Hp - ubar (no extra
+matvec), so a solver stops exactly when the harness will accept its answer.
 
 For the QP  min 1/2 p'Hp - ubar'p, p >= 0  the KKT conditions are the LCP
 
@@ -59,6 +63,39 @@ class KKTReport:
         return bool(np.isfinite(self.kkt_error) and self.kkt_error <= tol)
 
 
+@dataclass(frozen=True)
+class KKTFigures:
+    """The three scaled figures, their max, and the two scales they were scaled by."""
+
+    primal: float
+    dual: float
+    complementarity: float
+    kkt_error: float
+    u_scale: float
+    p_scale: float
+
+
+def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float) -> KKTFigures:
+    """The scaled KKT figures of ``p`` with gap ``w = Hp - ubar`` (module doc):
+    u_s = max(|ubar|_inf, |Hp|_inf), p_s = u_s / max diag H."""
+    hp_max = float(np.max(np.abs(w + ubar), initial=0.0))
+    u_s = max(float(np.max(np.abs(ubar), initial=0.0)), hp_max)
+    if u_s == 0.0:
+        u_s = 1.0  # ubar = 0 and p = 0: every figure is an exact zero anyway
+    p_s = u_s / diag_max
+    primal = max(0.0, -float(np.min(p, initial=0.0))) / p_s
+    dual = max(0.0, -float(np.min(w, initial=0.0))) / u_s
+    comp = float(np.max(np.abs(w * p), initial=0.0)) / (u_s * p_s)
+    return KKTFigures(primal, dual, comp, max(primal, dual, comp), u_s, p_s)
+
+
+def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float) -> float:
+    """max(primal, dual, complementarity) of ``kkt_figures``: the residual a solver stops on."""
+    if p.size == 0:
+        return 0.0
+    return kkt_figures(p, w, ubar, diag_max).kkt_error
+
+
 def _as_qp(obj: Any) -> Any:
     return obj.qp if hasattr(obj, "qp") else obj
 
@@ -75,31 +112,20 @@ def kkt_check(problem: Any, p: np.ndarray) -> KKTReport:
         return KKTReport(nan, nan, nan, nan, np.inf, np.inf, np.inf, np.inf, np.inf, nan, nan, nan)
     Hp = qp.H.matvec(p)
     w = Hp - ubar
-    diag_max = float(np.max(qp.H.diagonal()))
-    u_s = max(float(np.max(np.abs(ubar), initial=0.0)), float(np.max(np.abs(Hp), initial=0.0)))
-    if u_s == 0.0:
-        u_s = 1.0  # ubar = 0 and p = 0: every figure is an exact zero anyway
-    p_s = u_s / diag_max
-    primal_abs = max(0.0, -float(np.min(p)))
-    dual_abs = max(0.0, -float(np.min(w)))
-    comp = np.abs(w * p)
-    comp_max = float(np.max(comp, initial=0.0))
+    f = kkt_figures(p, w, ubar, float(np.max(qp.H.diagonal())))
+    p_s, u_s = f.p_scale, f.u_scale
     comp_sum = abs(float(w @ p))
     p1 = float(np.sum(np.abs(p)))
-    primal = primal_abs / p_s
-    dual = dual_abs / u_s
-    complementarity = comp_max / (u_s * p_s)
-    complementarity_sum = comp_sum / (u_s * p1) if p1 > 0 else 0.0
     return KKTReport(
-        primal_abs=primal_abs,
-        dual_abs=dual_abs,
-        complementarity_abs=comp_max,
+        primal_abs=f.primal * p_s,
+        dual_abs=f.dual * u_s,
+        complementarity_abs=f.complementarity * u_s * p_s,
         complementarity_sum_abs=comp_sum,
-        primal=primal,
-        dual=dual,
-        complementarity=complementarity,
-        complementarity_sum=complementarity_sum,
-        kkt_error=max(primal, dual, complementarity),
+        primal=f.primal,
+        dual=f.dual,
+        complementarity=f.complementarity,
+        complementarity_sum=comp_sum / (u_s * p1) if p1 > 0 else 0.0,
+        kkt_error=f.kkt_error,
         objective=float(0.5 * p @ Hp - ubar @ p),
         u_scale=u_s,
         p_scale=p_s,

@@ -1,0 +1,40 @@
+"""Accuracy profiles: the harness's study design for "how accurate must an answer be".
+
+A profile is a pair of numbers.  ``tol`` is what the harness hands a solver
+(``SolverSettings.tol``; None lets each solver use its own ``default_tol``), and
+``check_tol`` is the scaled KKT error (``contactbench.problems.kkt``) at or under which
+the harness's judge counts an answer as solved.  Solvers never see a profile's name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A named accuracy target (see module doc)."""
+
+    name: str
+    tol: float | None
+    check_tol: float
+
+
+PROFILES: dict[str, Profile] = {
+    "default": Profile("default", None, 1e-6),
+    "low": Profile("low", 1e-3, 1e-3),
+    "mid": Profile("mid", 1e-6, 1e-6),
+    "high": Profile("high", 1e-9, 1e-8),
+}
+
+
+class UnknownProfileError(ValueError):
+    """A profile name that is not in ``PROFILES``."""
+
+
+def get_profile(name: str) -> Profile:
+    """The profile called ``name``, or an error listing the known ones."""
+    try:
+        return PROFILES[name]
+    except KeyError:
+        raise UnknownProfileError(f"unknown profile {name!r}; choose one of {', '.join(PROFILES)}") from None
