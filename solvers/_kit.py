@@ -1,0 +1,145 @@
+"""The one helper kit of the solvers (not a solver module: the registry skips "_" names).
+
+* ``conjugate_gradient`` -- CG on an SPD operator (optionally ``a H + c I``), warm
+  started from x0, optionally preconditioned, stopping on ||b - Ax||_inf <= atol, a
+  deadline and an iteration cap (paper Algorithm 1 steps 2.1-2.4; PCG as in
+  Golub & Van Loan, Algorithm 11.5.1).
+* ``lipschitz_constant`` -- ||H||_F (paper Algorithm 4) or a power-iteration estimate.
+* ``project_nonneg``, ``is_dense``, ``operator_kind``.
+* ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``.
+
+The solve lifecycle itself (deadline, trace, matvec count, warm start, tolerance) is in
+``contactbench.solvers.base``; the stopping residual is ``SolveContext.kkt``, the
+harness's own formula (``contactbench.problems.kkt``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from contactbench.problems.operators import ContactOperator, DenseOperator, spectral_norm_estimate
+
+from .base import Deadline
+
+Vector = np.ndarray
+LinearMap = Callable[[Vector], Vector]
+
+
+@dataclass
+class CGResult:
+    x: np.ndarray
+    iterations: int
+    residual: float  # ||b - A x||_inf, absolute
+    converged: bool
+    matvecs: int
+
+
+def conjugate_gradient(
+    matvec: LinearMap | ContactOperator,
+    b: np.ndarray,
+    x0: np.ndarray | None,
+    atol: float,
+    max_iter: int,
+    deadline: Deadline | None = None,
+    precond: LinearMap | None = None,
+    scale: float = 1.0,
+    shift: float = 0.0,
+) -> CGResult:
+    """Solve (scale A + shift I) x = b by (preconditioned) CG from x0 until
+    ||b - (scale A + shift I) x||_inf <= atol.  ``matvec`` is a function or an operator
+    (its ``matvec``); ``precond`` applies M^-1 (SPD).  On reaching atol the residual is
+    recomputed from x once to confirm it (recurrence drift)."""
+    n = b.size
+    if n == 0:
+        return CGResult(np.zeros(0), 0, 0.0, True, 0)
+    op = matvec.matvec if isinstance(matvec, ContactOperator) else matvec
+    mv = 0
+
+    def amul(v: np.ndarray) -> np.ndarray:
+        nonlocal mv
+        mv += 1
+        out = op(v)
+        if scale != 1.0:
+            out = out * scale
+        if shift:
+            out = out + shift * v
+        return out
+
+    x = np.zeros(n) if x0 is None else np.array(x0, dtype=np.float64, copy=True)
+    r = b - amul(x) if np.any(x) else b.copy()
+    res = float(np.max(np.abs(r)))
+    z = precond(r) if precond is not None else r
+    d = z.copy()
+    rz = float(r @ z)
+    it = 0
+    while res > atol and it < max_iter and not (deadline is not None and deadline.expired()):
+        q = amul(d)
+        dq = float(d @ q)
+        if dq <= 0.0:  # loss of positive definiteness by round-off: stop here
+            break
+        alpha = rz / dq
+        x += alpha * d
+        r -= alpha * q
+        res = float(np.max(np.abs(r)))
+        it += 1
+        if res <= atol:  # confirm on the true residual
+            r = b - amul(x)
+            res = float(np.max(np.abs(r)))
+            if res <= atol:
+                break
+            z = precond(r) if precond is not None else r
+            d = z.copy()
+            rz = float(r @ z)
+            continue
+        z = precond(r) if precond is not None else r
+        rz_new = float(r @ z)
+        d *= rz_new / rz
+        d += z
+        rz = rz_new
+    return CGResult(x, it, res, res <= atol, mv)
+
+
+def lipschitz_constant(op: ContactOperator, method: str) -> float:
+    """"frobenius": ||H||_F (paper Algorithm 4; a safe upper bound of lambda_max);
+    "power": lambda_max by power iteration (spectral_norm_estimate, inflated 1 %)."""
+    if method == "frobenius":
+        return op.frobenius_norm()
+    if method == "power":
+        return spectral_norm_estimate(op, iters=50, rtol=1e-4)
+    raise ValueError(f"lipschitz must be 'frobenius' or 'power', got {method!r}")
+
+
+def project_nonneg(x: np.ndarray) -> np.ndarray:
+    """Projection onto p >= 0 (in place)."""
+    return np.maximum(x, 0.0, out=x)
+
+
+def is_dense(op: ContactOperator) -> bool:
+    return isinstance(op, DenseOperator)
+
+
+def operator_kind(op: ContactOperator) -> str:
+    return "dense" if is_dense(op) else "fft"
+
+
+#: Effective dense GEMV throughput (flop/s) and FFT cost per padded point on one core.
+DENSE_FLOPS = 2.0e9
+FFT_SECONDS_PER_POINT = 4.0e-8
+#: Padded FFT grid points per trial-set unknown at the paper's top load step
+#: (trial set ~ 14 % of N^2, aperiodic padding x 4).
+FFT_POINTS_PER_UNKNOWN = 28.0
+
+
+def matvec_seconds(n: int, kind: str) -> float:
+    """Rough wall time of one H matvec at size n on one core."""
+    if kind == "dense":
+        return 2.0 * n * n / DENSE_FLOPS
+    pts = FFT_POINTS_PER_UNKNOWN * n
+    return FFT_SECONDS_PER_POINT * pts * max(1.0, np.log2(pts)) / 10.0
+
+
+def cholesky_seconds(n: int) -> float:
+    return (n**3 / 3.0) / (5.0 * DENSE_FLOPS)
