@@ -273,7 +273,7 @@ class SolveContext:
     matvec count of this solve."""
 
     qp: QP
-    tol: float
+    tol: float | None  # None only for solvers whose default_tol is None (backend defaults)
     max_iter: int
     params: dict[str, Any]
     p0: np.ndarray | None
@@ -368,8 +368,9 @@ class Solver(ABC):
     params: ClassVar[tuple[Param, ...]] = ()
     #: Parameter grid for sweeps (benchopt style): name -> values; studies expand it.
     grid: ClassVar[dict[str, tuple[Any, ...]]] = {}
-    #: Tolerance on the scaled KKT error when the settings give none.
-    default_tol: ClassVar[float] = DEFAULT_TOL
+    #: Tolerance on the scaled KKT error when the settings give none (None: the solver
+    #: maps "no tolerance asked" to its backend's own defaults, as the QP adapters do).
+    default_tol: ClassVar[float | None] = DEFAULT_TOL
 
     def default_max_iter(self, n: int) -> int:
         """Iteration limit when the settings give none."""
@@ -417,7 +418,8 @@ class Solver(ABC):
         t0 = time.perf_counter()
         check_qp(qp)
         params = self.resolve_params(settings.params)
-        tol = float(self.default_tol if settings.tol is None else settings.tol)
+        tol = settings.tol if settings.tol is not None else self.default_tol
+        tol = None if tol is None else float(tol)
         max_iter = int(self.default_max_iter(qp.n) if settings.max_iter is None else settings.max_iter)
         p0 = warm_point(warm, qp.n, self.capabilities.warm_start)
         ctx = SolveContext(qp=qp, tol=tol, max_iter=max_iter, params=params, p0=p0,
