@@ -274,7 +274,7 @@ class SolveContext:
 
     qp: QP
     tol: float | None  # None only for solvers whose default_tol is None (backend defaults)
-    max_iter: int
+    max_iter: int | None  # None only for solvers whose default_max_iter is None (backend defaults)
     params: dict[str, Any]
     p0: np.ndarray | None
     warm: WarmStart | None
@@ -319,6 +319,10 @@ class SolveContext:
     def mark_setup_done(self) -> None:
         """Everything so far was set-up (factorisations, assembly): ``setup_time``."""
         self.setup_time = self.trace.elapsed()
+
+    def add_setup_time(self, seconds: float) -> None:
+        """Count ``seconds`` spent later on set-up work (e.g. a modelling layer's compile)."""
+        self.setup_time = (self.setup_time or 0.0) + float(seconds)
 
 
 def check_qp(qp: QP) -> None:
@@ -372,8 +376,8 @@ class Solver(ABC):
     #: maps "no tolerance asked" to its backend's own defaults, as the QP adapters do).
     default_tol: ClassVar[float | None] = DEFAULT_TOL
 
-    def default_max_iter(self, n: int) -> int:
-        """Iteration limit when the settings give none."""
+    def default_max_iter(self, n: int) -> int | None:
+        """Iteration limit when the settings give none (None: the backend's own)."""
         return 100_000
 
     # -- what the harness asks before solving --------------------------------
@@ -420,7 +424,8 @@ class Solver(ABC):
         params = self.resolve_params(settings.params)
         tol = settings.tol if settings.tol is not None else self.default_tol
         tol = None if tol is None else float(tol)
-        max_iter = int(self.default_max_iter(qp.n) if settings.max_iter is None else settings.max_iter)
+        max_iter = self.default_max_iter(qp.n) if settings.max_iter is None else settings.max_iter
+        max_iter = None if max_iter is None else int(max_iter)
         p0 = warm_point(warm, qp.n, self.capabilities.warm_start)
         ctx = SolveContext(qp=qp, tol=tol, max_iter=max_iter, params=params, p0=p0,
                            warm=warm if self.capabilities.warm_start != "none" else None,
