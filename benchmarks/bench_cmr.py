@@ -1,9 +1,11 @@
 """CMR against the direct solve: the paper's Fig. 8 (scene ``cmr``) and Fig. 9 (``cmr-h-sweep``).
 
 Bemporad & Paggi 2015, section 5.2.  For every load step the direct base solver (NNLS by
-default) and CMR+base solve the same fine QP; both are warm started from their own
-solution of the previous step (mapped by grid position), as in the paper; CMR's coarse
-levels start cold.  Writes tidy CSVs and PNG figures under --out:
+default) and CMR+base solve the same fine QP; each runs the load sequence through the
+harness's ``solve_sequence`` (warm started from its own solution of the previous step,
+mapped by grid index, as in the paper; CMR's coarse levels start cold).  The cascade's
+first level is the study's (``harness.studies``).  Writes tidy CSVs and PNG figures
+under --out:
 
 * ``cmr.csv``          one row per (H, seed, step): times, loads, n_p/n, KKT errors;
 * ``cmr-levels.csv``   one row per (H, seed, step, level): the cascade's records;
@@ -17,41 +19,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from contactbench.problems.kkt import kkt_check
-from contactbench.problems.instances import ContactInstance
+from contactbench.harness.sequence import solve_sequence
+from contactbench.harness.studies import study_for
 from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.cmr import make_cmr
-from contactbench.solvers.registry import get_solver
-
-
-@dataclass
-class Previous:
-    """The last step's solution on the grid, for warm starts."""
-
-    field: np.ndarray
-
-    def warm(self, inst: ContactInstance) -> WarmStart:
-        return WarmStart(p=self.field.ravel()[inst.qp.geometry.indices].copy())
-
-
-def store(inst: ContactInstance, p: np.ndarray) -> Previous:
-    f = np.zeros(inst.qp.geometry.grid_shape)
-    f.ravel()[inst.qp.geometry.indices] = p
-    return Previous(f)
-
-
-def timed(solver, inst: ContactInstance, settings: SolverSettings, warm: WarmStart | None):
-    t = time.perf_counter()
-    r = solver.solve(inst.qp, settings, warm)
-    return r, time.perf_counter() - t
 
 
 def run_sequence(scene: str, cfg: SceneConfig, base: str, h: float, base_params: dict | None = None,
@@ -59,28 +36,24 @@ def run_sequence(scene: str, cfg: SceneConfig, base: str, h: float, base_params:
     """Direct and CMR over every instance and step of ``scene``."""
     sc = get_scene(scene)
     cfg = sc.config(cfg)
-    direct, cmr = get_solver(base), make_cmr(base)
-    coarsest = int(cfg.extra.get("coarsest", 16))
+    cmr_fixed = next(w.fixed for w in study_for(scene).sweeps if w.matches("cmr+" + base))
+    bp = dict(base_params or {})
     rows, levels = [], []
     for spec in sc.instances(cfg):
         seq = spec.build()
-        prev_d: Previous | None = None
-        prev_c: Previous | None = None
-        for k in range(len(seq)):
-            inst = seq.at(k)
-            bp = dict(base_params or {})
-            rd, td = timed(direct, inst, SolverSettings(params=bp), prev_d.warm(inst) if prev_d else None)
-            rc, tc = timed(cmr, inst, SolverSettings(params={"h": h, "coarsest": coarsest, "base_params": bp}),
-                           prev_c.warm(inst) if prev_c else None)
-            prev_d, prev_c = store(inst, rd.p), store(inst, rc.p)
+        direct = solve_sequence(base, seq, SolverSettings(params=bp))
+        cmr = solve_sequence(make_cmr(base), seq, SolverSettings(params={**cmr_fixed, "h": h, "base_params": bp}))
+        for d, c in zip(direct, cmr):
+            assert d.result is not None and c.result is not None, d.error or c.error
+            k, inst, rd, rc, td, tc = d.step, d.inst, d.result, c.result, d.seconds, c.seconds
             Pd, Pc = float(rd.p.sum()), float(rc.p.sum())
             rows.append({
                 "scene": scene, "instance": spec.instance, "hurst": spec.params.get("hurst"),
                 "seed": spec.params.get("seed"), "step": k, "far_field": inst.delta, "n": inst.n, "h": h,
                 "time_direct": td, "time_cmr": tc, "time_ratio": tc / td,
                 "load_direct": Pd, "load_cmr": Pc, "load_rel_error": (Pc - Pd) / Pd if Pd else 0.0,
-                "n_p_over_n": rc.info["n_p_over_n"], "kkt_direct": kkt_check(inst, rd.p).kkt_error,
-                "kkt_cmr": kkt_check(inst, rc.p).kkt_error, "psd_power_law": rc.info["psd_power_law"],
+                "n_p_over_n": rc.info["n_p_over_n"], "kkt_direct": d.kkt_error,
+                "kkt_cmr": c.kkt_error, "psd_power_law": rc.info["psd_power_law"],
                 "contact_direct": inst.contact_fraction(rd.p), "contact_cmr": inst.contact_fraction(rc.p),
             })
             for lv in rc.info["levels"]:

@@ -5,7 +5,7 @@
 The instance is the top load step of the paper-sweep surface at N = 256.
 
 * bare    : in this process, one warm-up solve, then ``repeats`` timed ``solver.solve`` calls.
-* harness : the runner on the same instance (``JobRunner``: a forked isolated worker that
+* harness : the runner on the same instance (``harness.job.JobRunner``: a forked isolated worker that
             builds the instance, an untimed warm-up, ``repeats`` timed solves each followed
             by the KKT check, the reference/analytic comparison and a fsync'ed row).
 
@@ -30,7 +30,9 @@ import numpy as np
 
 from contactbench.problems.kkt import kkt_check
 from contactbench.harness.profiles import PROFILES
-from contactbench.harness.runner import JobRunner, RunConfig, plan_run, run_benchmark
+from contactbench.harness.job import JobRunner
+from contactbench.harness.plan import RunConfig, plan_run
+from contactbench.harness.runner import run_benchmark
 from contactbench.harness.store import ResultStore, load_table
 from contactbench.problems.scenes import LoadSequence, SceneConfig, register_scene
 from contactbench.problems.scenes.core import PaperSweep

@@ -1,5 +1,6 @@
 """Scale check for the fast solvers: one load step of the paper-sweep scene at 2048^2
-(and optionally 4096^2), non-periodic BCC, judged by harness.kkt.kkt_check.
+(and optionally 4096^2), non-periodic BCC, solved and judged by the harness's
+``solve_sequence`` (a sequence of one step).
 
 The step solved is the paper's top step Delta = (z_max - z_mean)/2, cold-started
 (the hardest single step; a sweep would warm-start it).  Prints wall time, matvecs,
@@ -27,12 +28,11 @@ import time
 from pathlib import Path
 
 
-from contactbench.problems.kkt import kkt_check
+from contactbench.harness.sequence import solve_sequence
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import fft_backend, fft_workers
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings
-from contactbench.solvers.registry import get_solver
 
 
 def solve_one(N: int, solver: str, fraction: float, tol: float) -> dict:
@@ -42,14 +42,14 @@ def solve_one(N: int, solver: str, fraction: float, tol: float) -> dict:
     inst = b.build(fraction * paper_max_displacement(surf))
     setup = time.perf_counter() - t0
     op = inst.qp.H
-    t = time.perf_counter()
-    res = get_solver(solver).solve(inst.qp, SolverSettings(tol=tol))
-    dt = time.perf_counter() - t
+    (step,) = solve_sequence(solver, [inst], SolverSettings(tol=tol))
+    res, dt = step.result, step.seconds
+    assert res is not None, step.error
     return {
         "N": N, "n": inst.n, "solver": solver, "fft": fft_backend(), "threads": fft_workers(),
         "setup_s": round(setup, 2), "solve_s": round(dt, 2), "iterations": res.iterations,
         "matvecs": res.matvecs, "ms_per_matvec": round(1e3 * dt / max(res.matvecs, 1), 1),
-        "kkt": f"{kkt_check(inst, res.p).kkt_error:.2e}", "load_N": f"{inst.load(res.p):.8e}",
+        "kkt": f"{step.kkt_error:.2e}", "load_N": f"{inst.load(res.p):.8e}",
         "contact_fraction": round(inst.contact_fraction(res.p), 6),
         "operator_state_mib": round(op.memory_nbytes / 2**20),
         "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0),

@@ -3,7 +3,9 @@
 RMD surfaces (H = 0.7, L = 100 um, BCC kernel, aperiodic, FFT operator) at 128^2 and
 256^2, 10 displacement steps up to (z_max - z_mean)/2.  For each solver variant: total
 time and iterations over the ramp, matvecs, steps converged and worst scaled KKT error.
-Warm-started variants take the previous step's p (and w) mapped by grid position.
+Each variant's load loop is ``harness.sequence.solve_sequence``: warm-started variants
+take their own previous answer mapped by grid index, and every answer is judged by the
+harness's ``judge``.
 
     OMP_NUM_THREADS=1 CONTACTBENCH_FFT_WORKERS=1 .venv/bin/python benchmarks/bench_paper_solvers.py \
         --sizes 128 256 --time-limit 60 --budget 300
@@ -18,13 +20,10 @@ import argparse
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from contactbench.problems.kkt import kkt_check
+from contactbench.harness.sequence import solve_sequence
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers.base import SolverSettings, WarmStart
-from contactbench.solvers.registry import get_solver
+from contactbench.solvers.base import SolverSettings
 
 
 @dataclass(frozen=True)
@@ -65,44 +64,22 @@ class Row:
     note: str = ""
 
 
-def map_by_position(prev: ContactInstance, values: np.ndarray | None, cur: ContactInstance) -> np.ndarray | None:
-    """Values on the previous trial set moved onto the current one by grid index."""
-    if values is None:
-        return None
-    out = np.zeros(cur.n)
-    g_prev, g_cur = prev.geometry.indices, cur.geometry.indices
-    pos = np.searchsorted(g_prev, g_cur)
-    pos = np.minimum(pos, g_prev.size - 1)
-    hit = g_prev[pos] == g_cur
-    out[hit] = values[pos[hit]]
-    return out
-
-
 def run_variant(v: Variant, N: int, instances: list[ContactInstance], time_limit: float, budget: float) -> Row:
     row = Row(v.label, N, n_max=max(i.n for i in instances))
-    solver = get_solver(v.solver)
-    prev, prev_res = None, None
-    for inst in instances:
-        warm = None
-        if v.warm and prev is not None:
-            warm = WarmStart(map_by_position(prev, prev_res.p, inst), map_by_position(prev, prev_res.w, inst))
-        settings = SolverSettings(tol=v.tol, max_iter=v.max_iter, time_limit=time_limit, params=dict(v.params))
-        t0 = time.perf_counter()
-        try:
-            res = solver.solve(inst.qp, settings, warm)
-        except MemoryError as exc:
-            row.note = f"memory: {exc}"[:60]
+    settings = SolverSettings(tol=v.tol, max_iter=v.max_iter, time_limit=time_limit, params=dict(v.params))
+    steps = solve_sequence(v.solver, instances, settings, warm=v.warm, budget_s=budget)
+    for s in steps:
+        if s.result is None:
+            row.note = s.error[:60]
             break
-        row.time += time.perf_counter() - t0
+        row.time += s.seconds
         row.steps += 1
-        row.iterations += res.iterations
-        row.matvecs += res.matvecs
-        row.converged += int(res.converged)
-        row.kkt_max = max(row.kkt_max, kkt_check(inst, res.p).kkt_error)
-        prev, prev_res = inst, res
-        if row.time > budget:
-            row.note = f"over budget after {row.steps} steps"
-            break
+        row.iterations += s.result.iterations
+        row.matvecs += s.result.matvecs
+        row.converged += int(s.result.converged)
+        row.kkt_max = max(row.kkt_max, s.kkt_error)
+    if row.time > budget:
+        row.note = f"over budget after {row.steps} steps"
     return row
 
 

@@ -19,7 +19,9 @@ k = 1..K, and
 Conventions: p is the force per element (N); CM's "dual" variable is the same pixel
 force with gradient = gap = Hp - z - offset, offset = Delta - z_max.  The peers stop on
 max|projected gap| <= gtol: we hand them gtol = tol * max(ubar) (the harness's scaled
-dual residual) and judge *every* answer, ours and theirs, by harness.kkt.kkt_check.
+dual residual) and judge *every* answer, ours and theirs, by the harness's ``judge``.
+Our solvers run the load ramp through ``harness.sequence.solve_sequence`` (warm starts
+mapped by grid index).
 Peers run single-threaded; ours run at 1 FFT thread and at the default.
 
 Each (case, solver, threads) runs in its own subprocess, so the peak RSS is its own.
@@ -111,10 +113,12 @@ def our_instances(case: str, surf, deltas):
     return b.transform, out
 
 
-def judge(inst, p_on_set: np.ndarray) -> tuple[float, float, float]:
-    from contactbench.problems.kkt import kkt_check
+def figures(inst, p_on_set: np.ndarray) -> tuple[float, float, float]:
+    """(load, contact fraction, scaled KKT error) of an answer, by the harness's judge."""
+    from contactbench.harness.judge import judge
 
-    return inst.load(p_on_set), inst.contact_fraction(p_on_set), kkt_check(inst, p_on_set).kkt_error
+    kkt = judge(inst, p_on_set, True, float("inf")).kkt_error
+    return inst.load(p_on_set), inst.contact_fraction(p_on_set), kkt
 
 
 # ---------------------------------------------------------------------------
@@ -123,29 +127,21 @@ def judge(inst, p_on_set: np.ndarray) -> tuple[float, float, float]:
 
 
 def run_ours(case: str, solver_name: str, N: int, steps: int, tol: float) -> RunRecord:
-    from contactbench.solvers.base import SolverSettings, WarmStart
-    from contactbench.solvers.registry import get_solver
+    from contactbench.harness.sequence import solve_sequence
+    from contactbench.problems.operators import fft_backend
+    from contactbench.solvers.base import SolverSettings
 
     surf, deltas = scene(N, steps)
     transform, insts = our_instances(case, surf, deltas)
-    solver = get_solver(solver_name)
-    from contactbench.problems.operators import fft_backend
-
     rec = RunRecord(case, solver_name, os.environ.get("CONTACTBENCH_FFT_WORKERS", "default"), N,
                     fft_backend=fft_backend())
-    prev = np.zeros(surf.heights.size)
     f0 = transform.fft_count
-    for k, inst in enumerate(insts):
-        idx = inst.geometry.indices
-        warm = WarmStart(prev[idx]) if k else None
-        t = time.perf_counter()
-        res = solver.solve(inst.qp, SolverSettings(tol=tol / 10), warm)
-        dt = time.perf_counter() - t
-        prev = np.zeros(surf.heights.size)
-        prev[idx] = res.p
-        rec.matvecs += res.matvecs
-        load, area, kkt = judge(inst, res.p)
-        rec.steps.append(StepRecord(k + 1, load, area, kkt, dt, res.iterations))
+    for s in solve_sequence(solver_name, insts, SolverSettings(tol=tol / 10)):
+        assert s.result is not None and s.verdict is not None, s.error
+        rec.matvecs += s.result.matvecs
+        p = s.result.p
+        rec.steps.append(StepRecord(s.step + 1, s.inst.load(p), s.inst.contact_fraction(p), s.kkt_error, s.seconds,
+                                    s.result.iterations))
     rec.ffts = transform.fft_count - f0 - 2 * len(insts)  # minus the judge's own matvecs
     return finish(rec)
 
@@ -202,7 +198,7 @@ def run_cm(case: str, variant: str, N: int, steps: int, tol: float) -> RunRecord
         res = system.dual_minimize_proxy(inst.delta - zmax, init_force=force, gtol=gtol, maxiter=100000)
         force = np.asarray(res.x).reshape(surf.shape)
         dt = time.perf_counter() - t
-        load, area, kkt = judge(inst, force.ravel()[inst.geometry.indices])
+        load, area, kkt = figures(inst, force.ravel()[inst.geometry.indices])
         rec.steps.append(StepRecord(k + 1, load, area, kkt, dt, int(res.nit)))
     rec.matvecs = -1
     return finish(rec)
@@ -230,7 +226,7 @@ def run_tamaas(case: str, N: int, steps: int, tol: float) -> RunRecord:
         solver.solve(-float(np.mean(inst.qp.ubar)))  # mean displacement is zero: mean gap = -mean(ubar)
         dt = time.perf_counter() - t
         force = np.array(model.traction).reshape(surf.shape) * surf.delta**2
-        load, area, kkt = judge(inst, force.ravel()[inst.geometry.indices])
+        load, area, kkt = figures(inst, force.ravel()[inst.geometry.indices])
         rec.steps.append(StepRecord(k + 1, load, area, kkt, dt, -1))
     rec.matvecs = -1
     return finish(rec)

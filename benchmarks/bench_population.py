@@ -30,7 +30,7 @@ from distributed import Client  # noqa: E402
 from contactbench.harness.cli import parse_seeds  # noqa: E402
 from contactbench.harness.distributed import run_benchmark_on_dask, start_local_cluster  # noqa: E402
 from contactbench.harness.report_population import write_population_report  # noqa: E402
-from contactbench.harness.runner import RunConfig  # noqa: E402
+from contactbench.harness.plan import RunConfig  # noqa: E402
 from contactbench.harness.store import load_table  # noqa: E402
 from contactbench.problems.scenes import SceneConfig  # noqa: E402
 

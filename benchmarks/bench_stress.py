@@ -8,9 +8,11 @@
 n = 1e2 .. 1e5 points at packing densities 1.0 and 0.2 -- dense eigvalsh up to
 n = 2500, Lanczos (ARPACK) on the matrix-free FFT operator beyond.
 ``survival``: ``harness.conformance.validate`` of every available solver on the battery
-("full" by default; ``--mode fast``), each solve in a killable worker with a time limit.
-The verdict rows (one per solve, plus the unit-agreement and perturbation rows) go to
-``survival.csv``; ``report`` pivots them into the survival and unit-scaling tables.
+("full" by default; ``--mode fast``), each solve in a killable worker with a time limit
+and judged by ``harness.judge`` (the verdict of ``contactbench run``).  The verdict rows
+(one per solve, plus the unit-agreement and perturbation rows, each with its solver's
+outcome: conforms / wrong / incomplete) go to ``survival-MODE.csv``; ``report`` pivots
+them into the survival and unit-scaling tables.
 """
 
 from __future__ import annotations
@@ -55,6 +57,8 @@ def run_survival(out: Path, mode: str, timeout: float, solvers: list[str] | None
         t0 = time.perf_counter()
         table = validate(name, cases, mode=mode, timeout=timeout)
         print(f"{table.summary()}  [{time.perf_counter() - t0:.0f} s]", flush=True)
+        if not table.rows:
+            continue
         frames.append(table.to_frame())
         pd.concat(frames, ignore_index=True).to_csv(out / f"survival-{mode}.csv", index=False)
 

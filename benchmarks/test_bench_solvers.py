@@ -5,10 +5,11 @@ registered solver is benchmarked with no edit here).
     pytest --benchmark-only benchmarks/ --benchmark-json=b.json
 
 Each round solves a fresh problem (a new operator object, so no state carries over;
-``benchmark.pedantic(setup=...)``).  The answer of the last round is judged by
-``harness.kkt.kkt_check`` and compared with the exact reference; the figures go to
+``benchmark.pedantic(setup=...)``).  The answer of the last round is judged by the
+harness's ``judge`` against the exact reference; the figures go to
 ``benchmark.extra_info`` and so into the JSON output.  Pairs the harness would skip
-(capabilities, memory or time model, missing package) are skipped with the same reason.
+(``harness.skips``: capabilities, memory or time model, missing package, the solver's
+own ``skip``) are skipped with the same reason.
 """
 
 from __future__ import annotations
@@ -20,12 +21,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from contactbench.problems.kkt import kkt_check, relative_error, relative_load_error
-from contactbench.harness.runner import instance_operator_kind, skip_decision
+from contactbench.harness.judge import judge
+from contactbench.harness.profiles import get_profile
+from contactbench.harness.skips import skip_decision
+from contactbench.harness.worker import problem_traits
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, counterexample
 from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.harness.profiles import get_profile
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import all_solvers, get_solver
 
@@ -79,7 +81,7 @@ def fresh_qp(name: str, operator: str) -> QP:
 @pytest.mark.parametrize("solver_name", list(all_solvers()))
 def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
     inst = instance(name)
-    decision = skip_decision(solver_name, inst.n, instance_operator_kind(inst), TIME_LIMIT, float(2**30))
+    decision = skip_decision(solver_name, problem_traits(inst), TIME_LIMIT, float(2**30))
     if decision.skip:
         pytest.skip(decision.reason)
     solver = get_solver(solver_name)
@@ -94,17 +96,11 @@ def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
         pytest.skip(f"{solver_name} refuses this instance: {exc}")
     result = benchmark.pedantic(solver.solve, setup=setup, rounds=ROUNDS, iterations=1, warmup_rounds=0)
     p = np.asarray(result.p, dtype=np.float64)
-    kkt = kkt_check(inst, p)
+    verdict = judge(inst, p, bool(result.converged), get_profile(PROFILE).check_tol, p_ref=reference(name))
     info: dict[str, Any] = {
         "solver": solver_name, "instance": name, "n": inst.n, "profile": PROFILE, "operator": decision.operator,
-        "kkt_error": kkt.kkt_error, "primal_residual": kkt.primal, "dual_residual": kkt.dual,
-        "complementarity": kkt.complementarity, "iterations": int(result.iterations),
-        "solver_converged": bool(result.converged), "solved": kkt.passes(get_profile(PROFILE).check_tol),
-        "load": inst.load(p),
+        "iterations": int(result.iterations), "solver_converged": bool(result.converged),
+        "solved": verdict.status == "solved", "verdict": verdict.reading, **verdict.figures,
     }
-    p_ref = reference(name)
-    if p_ref is not None:
-        info["p_rel_error"] = relative_error(p, p_ref)
-        info["load_rel_error"] = relative_load_error(inst.load(p), float(np.sum(p_ref)))
     benchmark.extra_info.update(info)
     assert p.shape == (inst.n,)

@@ -33,6 +33,8 @@ from typing import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from .schema import bool_series
+
 #: The default shift of the shifted geometric mean, in seconds.  Damps the relative
 #: weight of sub-10-ms solves, whose ratios are timer noise.
 DEFAULT_SHIFT_S: float = 0.01
@@ -208,28 +210,12 @@ class SolverSummary:
 
 def claim_agreement(df: pd.DataFrame) -> pd.Series:
     """Per row: does ``solver_converged`` agree with ``status == "solved"``?  Uses the
-    stored ``correct_claim`` where present, NaN where the claim is unknown."""
+    solver's claim as stored (bool or CSV text), NaN where the claim is unknown."""
     verdict = df["status"].astype(str) == "solved"
-    claim = _as_bool(df["solver_converged"]) if "solver_converged" in df else pd.Series(pd.NA, index=df.index)
+    claim = bool_series(df["solver_converged"]) if "solver_converged" in df else pd.Series(pd.NA, index=df.index)
     agree = (claim == verdict).astype("boolean")
     agree[claim.isna()] = pd.NA
     return agree
-
-
-def _as_bool(s: pd.Series) -> pd.Series:
-    def conv(v: object) -> object:
-        if v is None or (isinstance(v, float) and math.isnan(v)) or v is pd.NA:
-            return pd.NA
-        if isinstance(v, str):
-            low = v.strip().lower()
-            if low in ("true", "1", "yes"):
-                return True
-            if low in ("false", "0", "no"):
-                return False
-            return pd.NA
-        return bool(v)
-
-    return s.map(conv).astype("boolean")
 
 
 def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequence[str] | None = None,
@@ -242,7 +228,7 @@ def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequenc
     rel = relative_to_best(sgm)
     attempted_rows = df[df["status"].astype(str) != "skipped"]
     agree = claim_agreement(attempted_rows)
-    claim = _as_bool(attempted_rows["solver_converged"]) if "solver_converged" in attempted_rows \
+    claim = bool_series(attempted_rows["solver_converged"]) if "solver_converged" in attempted_rows \
         else pd.Series(pd.NA, index=attempted_rows.index, dtype="boolean")
     out: list[SolverSummary] = []
     f = cells.frame

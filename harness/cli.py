@@ -1,15 +1,17 @@
 """The ``contactbench`` command line.
 
-    contactbench list scenes|solvers
+    contactbench list scenes|solvers [--params]
     contactbench run SCENE [SCENE...] [--solvers a,b|all] [--profile p[,q]] [--size N] [--steps K]
                      [--seeds 0-9|0,3,5] [--surface PATH --length L] [--E E] [--kernel bcc|love]
                      [--periodic] [--repeats R] [--timeout S] [--out DIR] [--jobs J] [--cold] ...
     contactbench report DIR
-    contactbench validate MODULE:NAME|NAME [...]
+    contactbench validate ...       (every argument goes to harness/conformance.py)
 
-``run`` writes DIR/rows.jsonl (the resumable journal), DIR/results.parquet,
-DIR/results.csv and DIR/meta.json; running the same command again completes only the
-missing cells.
+``run`` plans first (``harness.plan``: every scene option, solver, profile and
+reference name is checked before anything runs; bad input exits 2 with one line per
+problem and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
+DIR/results.parquet, DIR/results.csv and DIR/meta.json; running the same command
+again completes only the missing cells.
 """
 
 from __future__ import annotations
@@ -84,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ls = sub.add_parser("list", help="list scenes or solvers")
     ls.add_argument("what", choices=("scenes", "solvers"))
+    ls.add_argument("--params", action="store_true", help="with solvers: each solver's declared parameters and grid")
 
     run = sub.add_parser("run", help="run scenes and write a tidy table")
     run.add_argument("scenes", nargs="+", metavar="SCENE")
@@ -116,17 +119,19 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
     rep.add_argument("dir")
 
-    val = sub.add_parser("validate", help="run a solver through the conformance battery")
-    val.add_argument("args", nargs=argparse.REMAINDER, help="MODULE:NAME or NAME, then the battery's own options")
+    sub.add_parser("validate", help="run a solver through the conformance battery (contactbench validate --help)",
+                   add_help=False)
     return ap
 
 
-def cmd_list(what: str) -> int:
+def cmd_list(what: str, params: bool = False) -> int:
     if what == "scenes":
-        from contactbench.problems.scenes import all_scenes, scene_import_errors
+        from contactbench.problems.scenes import scene_import_errors
 
-        for name, scene in all_scenes().items():
-            print(f"{name:24s} {scene.description}")
+        from .studies import catalogue
+
+        for name, description in catalogue().items():
+            print(f"{name:24s} {description}")
         for mod, err in scene_import_errors().items():
             print(f"[import error] {mod}: {err.strip().splitlines()[-1]}")
         return 0
@@ -138,27 +143,33 @@ def cmd_list(what: str) -> int:
         rows.append((name, solver.family, "yes" if ok else f"no ({why})", solver.capabilities.describe()))
     w0 = max([len(r[0]) for r in rows] + [6])
     w1 = max([len(r[1]) for r in rows] + [6])
+    pad = " " * (w0 + w1 + 4)
     print(f"{'solver':{w0}s}  {'family':{w1}s}  available / capabilities")
     for name, fam, avail, caps in rows:
-        print(f"{name:{w0}s}  {fam:{w1}s}  {avail}\n{'':{w0}s}  {'':{w1}s}  {caps}")
+        print(f"{name:{w0}s}  {fam:{w1}s}  {avail}\n{pad}{caps}")
+        if params:
+            print("\n".join(f"{pad}{line}" for line in solver_parameter_lines(all_solvers()[name])))
     for mod, err in import_errors().items():
         print(f"[import error] {mod}: {err.strip().splitlines()[-1]}")
     return 0
 
 
+def solver_parameter_lines(solver: object) -> list[str]:
+    """``list solvers --params``: each declared parameter (``Param.describe``) and the grid."""
+    declared = tuple(getattr(solver, "params", ()) or ())
+    lines = [f"param {p.describe()}" for p in declared] or ["params: none declared"]
+    grid = dict(getattr(solver, "grid", {}) or {})
+    lines += [f"grid  {key} = {', '.join(map(str, values))}" for key, values in grid.items()]
+    return lines
+
+
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    from contactbench.problems.scenes import SceneConfig, get_scene
+    from contactbench.problems.scenes import SceneConfig
 
     from .runner import RunConfig, run_benchmark
 
-    for name in args.scenes:
-        get_scene(name)  # unknown scene: a clear KeyError listing the known ones
     if args.surface and not args.length and not str(args.surface).lower().endswith(".x3p"):
         raise ProblemInputError("--surface needs --length L (the side length in metres; only .x3p files carry their own spacing)")
-    if args.surface:  # read it once here: a bad file is one clear error, not a failed row per cell
-        from contactbench.problems.io import load_surface
-
-        load_surface(args.surface, length=args.length)
     cfg = SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
                       length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic, operator=args.operator)
     kw = {}
@@ -211,25 +222,39 @@ def cmd_validate(args: Sequence[str]) -> int:
     return int(conformance.main(list(args)) or 0)
 
 
+def forwarded_validate(argv: list[str]) -> list[str] | None:
+    """The arguments after ``validate`` when it is the command (they belong to
+    harness/conformance.py, options included), else None."""
+    for i, a in enumerate(argv):
+        if a == "validate":
+            return argv[i + 1:]
+        if not a.startswith("-"):
+            return None
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    forwarded = forwarded_validate(argv)
+    verbose = any(a in ("-v", "--verbose") for a in argv[: len(argv) - len(forwarded or [])])
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format="%(message)s", stream=sys.stderr)
+    if forwarded is not None:
+        return cmd_validate(forwarded)
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(message)s", stream=sys.stderr)
     try:
         if args.command == "list":
-            return cmd_list(args.what)
+            return cmd_list(args.what, args.params)
         if args.command == "run":
             return cmd_run(args, argv)
         if args.command == "report":
             return cmd_report(args.dir)
-        if args.command == "validate":
-            return cmd_validate(args.args)
     except KeyboardInterrupt:
         print("interrupted: rows so far are kept; run the same command again to finish", file=sys.stderr)
         return 130
     except (ProblemInputError, KeyError, ValueError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"contactbench: error: {msg}", file=sys.stderr)
+        for line in str(msg).splitlines() or [""]:
+            print(f"contactbench: error: {line}", file=sys.stderr)
         return 2
     return 1
 

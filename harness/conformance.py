@@ -1,328 +1,110 @@
 """Conformance check: run any solver through the stress battery and judge every answer.
 
 ``contactbench validate MODULE:NAME|NAME`` (``main``) and the Python API ``validate``
-run a solver -- registered, or given by import path -- on every recipe of the stress
-battery (``problems.scenes.stress``: conditioning, units, edge cases, random LCPs,
-float32 input, perturbation).  Each answer is judged here, never by the solver:
+run a solver -- registered, or given by import path -- on every case of the battery
+(``harness.conformance_cases``: conditioning, units, edge cases, random LCPs, float32
+input, perturbation, paper Example 1 at n = 400, full packing).  Every answer is judged
+by the one judge, ``harness.judge.judge``, with the case's profile's ``check_tol`` --
+the threshold ``run`` uses for "solved" -- so a solve that ``run`` calls solved is never
+WRONG here, and a WRONG one is never solved there.  Beside the judge's KKT test, the
+answer is compared with the exact reference (``p_tolerance``, a gross-error bound).
 
-* ``harness.kkt.kkt_check`` recomputes w = H p - ubar and the scaled KKT figures;
-* the error ``||p - p_ref||_inf / ||p_ref||_inf`` against an exact reference that is
-  computed here, independently of the registry (a judge must not be a contestant):
-  the known solution where a recipe is built from one (near-touching points), else
-  Lawson-Hanson NNLS (scipy) on the Cholesky factor of the dense H (H = L L',
-  min 1/2 p'Hp - ubar'p = 1/2 ||L'p - L^{-1} ubar||^2 + const), polished by a solve
-  on the support and block principal pivoting until the KKT error is at round-off.
+Row statuses (one row per solve):
 
-Verdicts (one row per solve):
-
-``pass``         the KKT error is within ``SLACK`` x the profile's check_tol and p is
-                 within ``p_tolerance`` (a gross-error bound, at most 5 %) of the reference.
-``WRONG``        the solver claimed convergence but the answer fails either test (or it
-                 returned float32 p for float32 input) -- the one verdict that makes
-                 ``validate`` exit non-zero.
-``unconverged``  an honest failure: it failed and did not claim success.
+``pass``         the judge's reading is "pass".
+``WRONG``        the solver claimed convergence, and the judge finds the answer
+                 inaccurate (scaled KKT error above check_tol).
+``unconverged``  inaccurate, and the solver did not claim convergence.
+``flagged``      the KKT test accepts the answer but a conformance extra does not: p is
+                 beyond ``p_tolerance`` of the exact reference; and on comparison rows,
+                 unit systems disagree by more than 1e-8, or a 1e-6 perturbation of ubar
+                 moved p by more than 10 cond(H) x 1e-6 (a chaotic active set).
 ``refused``      it raised ProblemInputError / MemoryBudgetError / NotImplementedError
                  (or, for float32 input, a ValueError/TypeError naming the dtype).
 ``crashed``      any other exception, or the worker process died.
 ``timeout``      no answer within the time limit (the worker is killed).
-``skipped``      the solver cannot take the case (operator kind, max_n, unavailable).
-``flagged``      a comparison row: unit systems disagree by more than 1e-8, or a
-                 perturbation moved p by more than 10 cond(H) eps (chaotic active set).
+``skipped``      the solver cannot take the case (operator kind, max_n, its own
+                 ``skip``), or a comparison row whose steps did not all pass.
 
-Each solve runs in a forked worker (``harness.isolation.IsolatedWorker``) with a hard
-wall-clock limit, so a hanging solver cannot hang ``validate``.
+Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 
-For pytest: ``conformance_cases()`` lists the recipes (parametrize over them) and
-``assert_conforms(solver)`` raises AssertionError with the verdict table when a solver
-returns a wrong answer while claiming success.
+``wrong``        a wrong answer claimed as converged (exit 1);
+``incomplete``   a solver declared exact (``capabilities.exact``) leaves solves unsolved
+                 (unconverged, timeout, crashed, or refused outside the float32 case):
+                 exit 3, listing them;
+``conforms``     neither (exit 0); a solver not declared exact is told how many solves
+                 it did not finish.
+``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
+unknown solver, an import path that does not load, no case selected) exits 2.
+
+For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
+``assert_conforms(solver)`` raises AssertionError with the verdict table unless the
+solver conforms.
 """
 
 from __future__ import annotations
 
 import argparse
-import fnmatch
 import math
+import os
 import sys
-import time
-import traceback
+from collections import Counter
 from dataclasses import asdict, dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, cholesky, solve_triangular
-from scipy.optimize import nnls
 
-from contactbench.problems.kkt import KKTReport, kkt_check, relative_error
-from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
-from contactbench.problems.instances import QP, ContactInstance
-from contactbench.problems.operators import DenseOperator
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import ContactInstance
 from contactbench.problems.scenes.base import InstanceSpec
-from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from contactbench.solvers.base import Solver, SolverSettings
-
-from .profiles import PROFILES
+from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
+from contactbench.solvers.base import Solver
 from contactbench.solvers.registry import all_solvers, load_solver
 
-#: Tolerance multiplier between the profile's check_tol and the wrong-claim threshold.
-SLACK = 10.0
+from .conformance_cases import (
+    DEFAULT_TIMEOUT,
+    REFUSABLE_GROUPS,
+    ConformanceCase,
+    Reference,
+    SolveOutcome,
+    SolveRunner,
+    cached_reference,
+    conformance_cases,
+    exact_reference,
+)
+from .judge import Verdict, judge
+from .profiles import get_profile
+
+__all__ = ["ConformanceCase", "GROUPS", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",
+           "build_battery_spec", "conformance_cases", "exact_reference", "main", "p_tolerance", "validate"]
+
 #: Agreement required across unit systems (P/(E A) relative, scaled KKT figures absolute).
 UNITS_AGREEMENT = 1e-8
 #: A perturbation may move p by at most this many times cond(H) eps.
 PERTURBATION_FACTOR = 10.0
-#: Default per-solve time limits (s) by mode.
-DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
-#: Largest n the exact reference assembles densely.
-REFERENCE_MAX_N = 4096
+#: ``p_tolerance`` = clip(P_TOL_FACTOR cond sqrt(check_tol), P_TOL_RANGE).
+P_TOL_FACTOR = 10.0
+P_TOL_RANGE = (1e-4, 0.05)
 
-FAILING = ("WRONG",)
-STRICT_FAILING = ("WRONG", "crashed", "timeout", "flagged")
-
-
-# ---------------------------------------------------------------------------
-# Cases
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ConformanceCase:
-    """One battery recipe (an InstanceSpec of the stress scenes) with its verdict profile."""
-
-    spec: InstanceSpec
-
-    @property
-    def name(self) -> str:
-        return self.spec.instance
-
-    @property
-    def group(self) -> str:
-        return str(self.spec.params["group"])
-
-    @property
-    def profile(self) -> str:
-        return str(self.spec.params.get("profile", "mid"))
-
-    @property
-    def compare(self) -> str:
-        return str(self.spec.params.get("compare", "none"))
-
-    def __str__(self) -> str:
-        return self.name
-
-
-def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
-                      pattern: str | None = None) -> list[ConformanceCase]:
-    """The battery's recipes: ``mode`` "fast" (the test-suite subset, a few seconds per
-    solver) or "full"; optionally only some ``groups`` or names matching ``pattern``
-    (fnmatch, e.g. ``"edge/*"``)."""
-    specs = battery_specs(mode, tuple(groups) if groups else GROUPS, scene="stress")
-    cases = [ConformanceCase(s) for s in specs]
-    if pattern:
-        cases = [c for c in cases if fnmatch.fnmatch(c.name, pattern) or fnmatch.fnmatch(c.group, pattern)]
-    return cases
+#: Statuses of a solve that produced an answer (the comparison rows need one per step).
+ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
+#: Statuses of a solve that an exact solver must not leave (besides WRONG).
+UNSOLVED = ("unconverged", "timeout", "crashed")
+#: Statuses that ``--strict`` also fails on.
+STRICT_FAILING = ("crashed", "timeout", "flagged")
+#: Exit code of each outcome (``main``); 2 is bad input.
+EXIT_CODES = {"conforms": 0, "wrong": 1, "strict": 1, "incomplete": 3}
+USAGE_ERROR = 2
 
 
 # ---------------------------------------------------------------------------
-# Exact reference
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Reference:
-    """The exact solution of one instance and what it took to trust it."""
-
-    p: np.ndarray
-    kkt_error: float
-    cond: float
-    method: str
-
-
-def _support_solve(H: np.ndarray, ubar: np.ndarray, support: np.ndarray) -> np.ndarray:
-    """p with p_S = H_SS^{-1} ubar_S on the support S, zero elsewhere."""
-    p = np.zeros_like(ubar)
-    if support.any():
-        S = np.flatnonzero(support)
-        p[S] = cho_solve(cho_factor(H[np.ix_(S, S)]), ubar[S])
-    return p
-
-
-def block_principal_pivoting(H: np.ndarray, ubar: np.ndarray, support: np.ndarray, max_iter: int = 100) -> np.ndarray:
-    """Refine a support guess into the exact LCP solution (Kostreva's block principal
-    pivoting; Judice & Pires 1994): solve on the support, move every infeasible index
-    across (p_i < 0 out, w_i < 0 in) -- with Murty's single least-index pivot after
-    three non-improving block steps, which terminates for P-matrices."""
-    S = support.copy()
-    best, backup = np.inf, 3
-    for _ in range(max_iter):
-        p = _support_solve(H, ubar, S)
-        w = H @ p - ubar
-        scale = max(float(np.max(np.abs(ubar), initial=0.0)), 1e-300)
-        bad = (S & (p < 0)) | (~S & (w < -1e-14 * scale))
-        nbad = int(bad.sum())
-        if nbad == 0:
-            return np.maximum(p, 0.0)
-        if nbad < best:
-            best, backup = nbad, 3
-            S = S ^ bad
-        elif backup > 0:
-            backup -= 1
-            S = S ^ bad
-        else:
-            S[np.flatnonzero(bad)[-1]] ^= True
-    return np.maximum(_support_solve(H, ubar, S), 0.0)
-
-
-def exact_reference(inst: ContactInstance) -> Reference:
-    """The exact solution of ``inst`` (see module doc); cond(H) is computed with it."""
-    qp = inst.qp
-    ubar = np.asarray(qp.ubar, dtype=np.float64)
-    cond = condition_number(qp.H) if qp.n <= REFERENCE_MAX_N else float("nan")
-    if "p_exact" in inst.meta:
-        p = np.asarray(inst.meta["p_exact"], dtype=np.float64)
-        return Reference(p, kkt_check(qp, p).kkt_error, cond, "known solution")
-    if qp.n > REFERENCE_MAX_N:
-        raise MemoryBudgetError(f"exact reference for n = {qp.n} (dense limit {REFERENCE_MAX_N})",
-                                8.0 * qp.n**2, 8.0 * REFERENCE_MAX_N**2)
-    H = np.asarray(qp.H.to_dense(), dtype=np.float64)
-    L = cholesky(H, lower=True)
-    p, _ = nnls(L.T, solve_triangular(L, ubar, lower=True), maxiter=50 * max(qp.n, 10))
-    p = block_principal_pivoting(H, ubar, p > 0)
-    return Reference(p, kkt_check(qp, p).kkt_error, cond, "nnls+bpp")
-
-
-_REFERENCES: dict[tuple[str, str, int], Reference] = {}
-
-
-def cached_reference(spec: InstanceSpec, step: int, inst: ContactInstance) -> Reference:
-    """References are deterministic per recipe: compute each once per process."""
-    key = (spec.instance, spec.params_json(), step)
-    if key not in _REFERENCES:
-        _REFERENCES[key] = exact_reference(inst)
-    return _REFERENCES[key]
-
-
-# ---------------------------------------------------------------------------
-# Running one solve (in a worker process)
+# One row per solve
 # ---------------------------------------------------------------------------
 
 
 @dataclass
-class SolveOutcome:
-    """What one solve produced, as seen from the parent process."""
-
-    kind: str  # "ok", "raised", "timeout", "crashed", "skipped"
-    p: np.ndarray | None = None
-    converged: bool | None = None
-    iterations: int | None = None
-    solver_status: str = ""
-    message: str = ""
-    error_type: str = ""
-    time_s: float = float("nan")
-
-
-def operator_kind(qp: QP) -> str:
-    return "dense" if isinstance(qp.H, DenseOperator) else "fft"
-
-
-def adapt_to_solver(qp: QP, solver: Solver) -> QP | str:
-    """The QP in a form the solver accepts, or the reason it cannot take it."""
-    caps = solver.capabilities
-    if caps.max_n is not None and qp.n > caps.max_n:
-        return f"n = {qp.n} exceeds the solver's max_n = {caps.max_n}"
-    if caps.needs_dense and qp.n > REFERENCE_MAX_N:
-        return f"the solver needs dense H; n = {qp.n} is beyond the battery's dense limit {REFERENCE_MAX_N}"
-    kind = operator_kind(qp)
-    if kind in caps.operators:
-        return qp
-    if kind == "fft" and "dense" in caps.operators:
-        return QP(DenseOperator(qp.H.to_dense()), qp.ubar, qp.geometry)
-    return f"the solver accepts {'/'.join(sorted(caps.operators))} operators; this case has a {kind} operator"
-
-
-def _is_refusal(exc: BaseException, group: str) -> bool:
-    if isinstance(exc, (ProblemInputError, MemoryBudgetError, NotImplementedError)):
-        return True
-    text = str(exc).lower()
-    return group == "precision" and isinstance(exc, (ValueError, TypeError)) and any(
-        w in text for w in ("float32", "dtype", "precision", "single"))
-
-
-def _solve_message(solver: Solver, msg: tuple[InstanceSpec, int, float | None]) -> dict[str, Any]:
-    """Worker side: rebuild the instance from its recipe, solve, report plain data."""
-    spec, step, time_limit = msg
-    inst = build_battery_spec(spec).at(step)
-    qp = adapt_to_solver(inst.qp, solver)
-    if isinstance(qp, str):
-        return {"kind": "skipped", "message": qp}
-    settings = SolverSettings(tol=PROFILES[str(spec.params.get("profile", "mid"))].tol, time_limit=time_limit)
-    t0 = time.perf_counter()
-    try:
-        res = solver.solve(qp, settings, None)
-    except Exception as exc:  # a row, not a harness failure
-        kind = "refused" if _is_refusal(exc, str(spec.params["group"])) else "raised"
-        return {"kind": kind, "error_type": type(exc).__name__, "time_s": time.perf_counter() - t0,
-                "message": f"{type(exc).__name__}: {exc}" + ("" if kind == "refused" else
-                                                            "\n" + traceback.format_exc(limit=4))}
-    elapsed = time.perf_counter() - t0
-    return {"kind": "ok", "p": np.asarray(res.p), "converged": bool(res.converged), "iterations": int(res.iterations),
-            "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed}
-
-
-class _SolverHandler:
-    def __init__(self, solver: Solver) -> None:
-        self.solver = solver
-
-    def __call__(self, msg: Any) -> dict[str, Any]:
-        return _solve_message(self.solver, msg)
-
-
-class SolveRunner:
-    """Runs solves of one solver with a hard time limit: in a forked worker
-    (``harness.isolation``) when ``isolate``, else in-process (no limit)."""
-
-    def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True) -> None:
-        self.solver, self.timeout, self.isolate = solver, timeout, isolate
-        self.worker: Any = None
-        if isolate:
-            from contactbench.harness.isolation import IsolatedWorker
-
-            self.worker = IsolatedWorker(lambda: _SolverHandler(solver))
-
-    def solve(self, spec: InstanceSpec, step: int) -> SolveOutcome:
-        msg = (spec, step, self.timeout)
-        if self.worker is None:
-            return _outcome_from_dict(_solve_message(self.solver, msg))
-        out = self.worker.call(msg, self.timeout)
-        if out.kind == "ok":
-            return _outcome_from_dict(out.value)
-        if out.kind == "timeout":
-            return SolveOutcome("timeout", message=out.detail, time_s=out.elapsed)
-        return SolveOutcome("crashed", message=out.detail, time_s=out.elapsed)
-
-    def close(self) -> None:
-        if self.worker is not None:
-            self.worker.close()
-
-
-def _outcome_from_dict(d: dict[str, Any]) -> SolveOutcome:
-    kind = d["kind"]
-    if kind == "refused":
-        return SolveOutcome("refused", message=d["message"], error_type=d["error_type"], time_s=d["time_s"])
-    if kind == "raised":
-        return SolveOutcome("crashed", message=d["message"], error_type=d["error_type"], time_s=d["time_s"])
-    if kind == "skipped":
-        return SolveOutcome("skipped", message=d["message"])
-    return SolveOutcome("ok", p=d["p"], converged=d["converged"], iterations=d["iterations"],
-                        solver_status=d["solver_status"], message=d["message"], time_s=d["time_s"])
-
-
-# ---------------------------------------------------------------------------
-# Verdicts
-# ---------------------------------------------------------------------------
-
-
-@dataclass
-class Verdict:
-    """One row of the verdict table."""
+class VerdictRow:
+    """One row of the verdict table: a solve (step >= 0) or a comparison (step -1)."""
 
     solver: str
     case: str
@@ -340,6 +122,7 @@ class Verdict:
     dim_load: float = float("nan")
     kkt: dict[str, float] = field(default_factory=dict)
     message: str = ""
+    detail: str = ""
 
     @property
     def label(self) -> str:
@@ -351,59 +134,73 @@ def p_tolerance(cond: float, check_tol: float) -> float:
 
     The scaled KKT error does not bound the error in p by cond * kkt where points are
     nearly degenerate (p_i and w_i both small: complementarity is quadratic there), so
-    the bound uses sqrt(check_tol): clip(SLACK cond sqrt(check_tol), 1e-4, 0.05)."""
+    the bound uses sqrt(check_tol): clip(P_TOL_FACTOR cond sqrt(check_tol), P_TOL_RANGE)."""
     c = cond if np.isfinite(cond) else 1e6
-    return float(min(0.05, max(1e-4, SLACK * c * math.sqrt(check_tol))))
+    lo, hi = P_TOL_RANGE
+    return float(min(hi, max(lo, P_TOL_FACTOR * c * math.sqrt(check_tol))))
 
 
-def judge(out: SolveOutcome, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
-          step: int, solver: str) -> Verdict:
-    """The verdict of one solve (see module doc)."""
-    check_tol = PROFILES[case.profile].check_tol
-    v = Verdict(solver, case.name, case.group, step, inst.n, out.kind, time_s=out.time_s, check_tol=check_tol,
-                cond=ref.cond if ref else float("nan"), message=out.message.strip().splitlines()[0] if out.message else "")
+def row_status(v: Verdict) -> str:
+    """The row status of the judge's verdict (module doc): WRONG exactly when the solver
+    claimed convergence and the judge's status is "inaccurate"."""
+    if v.reading == "pass":
+        return "pass"
+    if v.status == "solved":
+        return "flagged"
+    return "WRONG" if v.reading == "wrong" else "unconverged"
+
+
+def judge_solve(out: SolveOutcome, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
+                step: int, solver: str) -> VerdictRow:
+    """The row of one solve: the judge's verdict, read as in the module doc."""
+    check_tol = get_profile(case.profile).check_tol
+    row = VerdictRow(solver, case.name, case.group, step, inst.n, out.kind, time_s=out.time_s, check_tol=check_tol,
+                     cond=ref.cond if ref else float("nan"), message=out.message, detail=out.detail)
     if out.kind != "ok":
-        if out.kind == "crashed":
-            v.message = out.message.strip()
-        return v
-    v.claimed, v.iterations = out.converged, out.iterations
-    p = out.p
-    problems: list[str] = []
-    if p is None or p.shape != (inst.n,):
-        problems.append(f"returned p of shape {None if p is None else p.shape}, expected ({inst.n},)")
-        v.kkt_error = float("inf")
+        return row
+    p_ref = ref.p if ref is not None and ref.trusted else None
+    p_tol = p_tolerance(ref.cond, check_tol) if ref is not None and p_ref is not None else None
+    v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol)
+    row.claimed, row.iterations = bool(out.converged), out.iterations
+    row.kkt_error = v.kkt_error
+    row.p_rel_error = float(v.figures.get("p_rel_error", float("nan")))
+    row.dim_load = float(v.figures.get("dim_load", float("nan")))
+    if v.kkt is not None:
+        row.kkt = {k: float(getattr(v.kkt, k)) for k in ("primal", "dual", "complementarity", "complementarity_sum")}
+    row.status = row_status(v)
+    if row.status == "flagged":
+        row.message = "the KKT test accepts it, but " + "; ".join(v.problems)
+    elif row.status == "unconverged":
+        row.message = f"{v.message()} (solver status: {out.solver_status})"
     else:
-        rep: KKTReport = kkt_check(inst, p)
-        v.kkt_error = rep.kkt_error
-        v.kkt = {"primal": rep.primal, "dual": rep.dual, "complementarity": rep.complementarity,
-                 "complementarity_sum": rep.complementarity_sum}
-        if np.all(np.isfinite(p)):
-            v.dim_load = inst.dimensionless_load(np.asarray(p, dtype=np.float64))
-        if not rep.kkt_error <= SLACK * check_tol:
-            problems.append(f"kkt_error {rep.kkt_error:.2e} > {SLACK:g} x check_tol {check_tol:.0e}")
-        if ref is not None and np.all(np.isfinite(p)):
-            v.p_rel_error = relative_error(p, ref.p)
-            tol = p_tolerance(ref.cond, check_tol)
-            if not v.p_rel_error <= tol:
-                problems.append(f"p is {v.p_rel_error:.2e} off the exact reference (allowed {tol:.1e})")
-        if p.dtype != np.float64:
-            problems.append(f"returned {p.dtype} p (input ubar was {np.asarray(inst.qp.ubar).dtype})")
-    if not problems:
-        v.status = "pass"
-        if not out.converged:
-            v.message = "correct, though the solver did not claim convergence"
-    else:
-        v.status = "WRONG" if out.converged else "unconverged"
-        v.message = "; ".join(problems) + (" -- while claiming convergence" if out.converged else "")
-    return v
+        row.message = v.message()
+    return row
 
 
-def units_agreement(rows: list[Verdict], case: ConformanceCase, solver: str) -> Verdict:
+def _comparison_row(rows: list[VerdictRow], case: ConformanceCase, solver: str, **kw: Any) -> VerdictRow:
+    return VerdictRow(solver, case.name, case.group, -1, rows[0].n if rows else 0, "skipped", **kw)
+
+
+def _steps_verdict(rows: list[VerdictRow], ok: bool) -> str:
+    """A comparison row passes only when every step beneath it passed."""
+    if not ok:
+        return "flagged"
+    return "pass" if all(r.status == "pass" for r in rows) else "skipped"
+
+
+def _steps_note(rows: list[VerdictRow]) -> str:
+    bad = Counter(r.status for r in rows if r.status != "pass")
+    if not bad:
+        return ""
+    counts = ", ".join(f"{s} {k}" for s, k in sorted(bad.items()))
+    return f"; no verdict: {sum(bad.values())} of {len(rows)} steps did not pass ({counts})"
+
+
+def units_agreement(rows: list[VerdictRow], case: ConformanceCase, solver: str) -> VerdictRow:
     """Do the scaled KKT figures and P/(E A) agree across the unit systems / moduli?"""
-    v = Verdict(solver, case.name, case.group, -1, rows[0].n if rows else 0, "skipped",
-                check_tol=UNITS_AGREEMENT)
-    if not rows or any(r.status not in ("pass", "unconverged", "WRONG") for r in rows):
-        v.message = "not every unit system produced an answer"
+    v = _comparison_row(rows, case, solver, check_tol=UNITS_AGREEMENT)
+    if not rows or any(r.status not in ANSWERED for r in rows):
+        v.message = "not compared: not every unit system produced an answer"
         return v
     loads = np.array([r.dim_load for r in rows])
     load_spread = float(np.ptp(loads) / max(np.max(np.abs(loads)), 1e-300))
@@ -411,19 +208,19 @@ def units_agreement(rows: list[Verdict], case: ConformanceCase, solver: str) -> 
                      ("primal", "dual", "complementarity", "complementarity_sum"))
     kkt_spread = max(kkt_spread, float(np.ptp([r.kkt_error for r in rows])))
     v.kkt_error, v.p_rel_error = kkt_spread, load_spread
-    ok = load_spread <= UNITS_AGREEMENT and kkt_spread <= UNITS_AGREEMENT
-    v.status = "pass" if ok else "flagged"
+    ok = bool(load_spread <= UNITS_AGREEMENT and kkt_spread <= UNITS_AGREEMENT)
+    v.status = _steps_verdict(rows, ok)
     v.message = (f"P/(EA) spread {load_spread:.1e}, scaled-KKT spread {kkt_spread:.1e} "
-                 f"({'within' if ok else 'beyond'} {UNITS_AGREEMENT:g})")
+                 f"({'within' if ok else 'beyond'} {UNITS_AGREEMENT:g})" + _steps_note(rows))
     return v
 
 
-def perturbation_check(rows: list[Verdict], ps: list[np.ndarray | None], insts: list[ContactInstance],
-                       refs: list[Reference], case: ConformanceCase, solver: str) -> Verdict:
+def perturbation_check(rows: list[VerdictRow], ps: list[np.ndarray | None], insts: list[ContactInstance],
+                       refs: list[Reference], case: ConformanceCase, solver: str) -> VerdictRow:
     """Does p move by at most ~cond eps when ubar moves by eps (relative, 2-norms)?"""
-    v = Verdict(solver, case.name, case.group, -1, insts[0].n, "skipped", cond=refs[0].cond)
-    if any(p is None for p in ps) or any(r.status not in ("pass", "unconverged", "WRONG") for r in rows):
-        v.message = "not both solves produced an answer"
+    v = _comparison_row(rows, case, solver, cond=refs[0].cond)
+    if any(p is None for p in ps) or any(r.status not in ANSWERED for r in rows):
+        v.message = "not compared: not both solves produced an answer"
         return v
     u0, u1 = (np.asarray(i.qp.ubar, dtype=np.float64) for i in insts)
     eps = float(np.linalg.norm(u1 - u0) / np.linalg.norm(u0))
@@ -435,21 +232,27 @@ def perturbation_check(rows: list[Verdict], ps: list[np.ndarray | None], insts: 
     amplification = move / eps
     v.kkt_error = max(r.kkt_error for r in rows)
     v.p_rel_error = move
-    ok = amplification <= PERTURBATION_FACTOR * refs[0].cond
-    v.status = "pass" if ok else "flagged"
+    ok = bool(amplification <= PERTURBATION_FACTOR * refs[0].cond)
+    v.status = _steps_verdict(rows, ok)
     v.message = (f"eps {eps:.0e}: p moved {move:.1e} (exact {ref_move:.1e}), amplification {amplification:.3g} "
                  f"vs cond {refs[0].cond:.3g}; active-set flips {flips} (exact {ref_flips})"
-                 + ("" if ok else " -- chaotic"))
+                 + ("" if ok else " -- chaotic") + _steps_note(rows))
     return v
+
+
+# ---------------------------------------------------------------------------
+# The table of one solver, and its outcome
+# ---------------------------------------------------------------------------
 
 
 @dataclass
 class VerdictTable:
-    """All verdicts of one validation run."""
+    """All verdicts of one solver's validation run (module doc)."""
 
     solver: str
     mode: str
-    rows: list[Verdict] = field(default_factory=list)
+    exact: bool = False
+    rows: list[VerdictRow] = field(default_factory=list)
     available: bool = True
     note: str = ""
 
@@ -457,35 +260,76 @@ class VerdictTable:
         return sum(r.status == status for r in self.rows)
 
     @property
-    def wrong(self) -> list[Verdict]:
+    def solves(self) -> list[VerdictRow]:
+        """The rows of solves the solver was handed (not comparisons, not skipped)."""
+        return [r for r in self.rows if r.step >= 0 and r.status != "skipped"]
+
+    @property
+    def wrong(self) -> list[VerdictRow]:
         return [r for r in self.rows if r.status == "WRONG"]
 
     @property
+    def unsolved(self) -> list[VerdictRow]:
+        """Solves without a correct answer (besides WRONG ones): what an exact solver must not leave."""
+        return [r for r in self.solves if r.status in UNSOLVED
+                or (r.status == "refused" and r.group not in REFUSABLE_GROUPS)]
+
+    def outcome(self, strict: bool = False) -> str:
+        """"wrong", "strict" (only with ``strict``), "incomplete" or "conforms" (module doc)."""
+        if self.wrong:
+            return "wrong"
+        if strict and any(r.status in STRICT_FAILING for r in self.rows):
+            return "strict"
+        if self.exact and self.unsolved:
+            return "incomplete"
+        return "conforms"
+
+    @property
     def ok(self) -> bool:
-        return not self.wrong
+        return self.outcome() == "conforms"
 
     def exit_code(self, strict: bool = False) -> int:
-        bad = STRICT_FAILING if strict else FAILING
-        return 1 if any(r.status in bad for r in self.rows) else 0
+        return EXIT_CODES[self.outcome(strict)]
 
-    def summary(self) -> str:
-        statuses = ("pass", "WRONG", "unconverged", "refused", "crashed", "timeout", "skipped", "flagged")
+    def headline(self, strict: bool = False) -> str:
+        solves, unsolved = len(self.solves), self.unsolved
+        labels = ", ".join(r.label for r in unsolved)
+        outcome = self.outcome(strict)
+        if outcome == "wrong":
+            return (f"WRONG: {len(self.wrong)} wrong answer(s) claimed as converged, of {solves} solves: "
+                    f"{', '.join(r.label for r in self.wrong)}")
+        if outcome == "strict":
+            bad = [r.label for r in self.rows if r.status in STRICT_FAILING]
+            return f"FAILS (--strict): {len(bad)} crashed, timed-out or flagged row(s): {', '.join(bad)}"
+        if outcome == "incomplete":
+            return f"INCOMPLETE: declared exact, but leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
+        if not solves:
+            return "CONFORMS: no case was run (every case skipped)"
+        if not unsolved:
+            return f"CONFORMS: every solve correct ({solves} of {solves})"
+        return (f"CONFORMS: no wrong answer, but it does not solve {len(unsolved)} of {solves} "
+                f"(it is not declared exact): {labels}")
+
+    def summary(self, strict: bool = False) -> str:
+        statuses = ("pass", "WRONG", "unconverged", "flagged", "refused", "crashed", "timeout", "skipped")
         counts = ", ".join(f"{s} {self.count(s)}" for s in statuses if self.count(s))
-        verdict = "CONFORMS" if self.ok else f"FAILS: {len(self.wrong)} wrong answer(s) claimed as converged"
-        return f"{self.solver} [{self.mode}]: {verdict} ({counts or 'no rows'})"
+        return f"{self.solver} [{self.mode}]: {self.headline(strict)} (rows: {counts or 'none'})"
 
-    def format(self, width: int = 70) -> str:
-        head = f"{'case':44s} {'n':>5s} {'status':11s} {'claim':5s} {'kkt_error':>9s} {'err_ref':>9s} {'iters':>6s} {'time_s':>7s}  note"
-        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery)", head, "-" * len(head)]
+    def format(self, strict: bool = False) -> str:
+        width = max([len(r.label) for r in self.rows] + [4])
+        head = (f"{'case':{width}s} {'n':>5s} {'status':11s} {'claim':5s} {'kkt_error':>9s} {'err_ref':>9s} "
+                f"{'iters':>6s} {'time_s':>7s}  note")
+        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery"
+                 f"{', declared exact' if self.exact else ''})"]
         if self.note:
-            lines.insert(1, self.note)
+            lines.append(self.note)
+        lines += [head, "-" * len(head)]
         for r in self.rows:
             claim = "" if r.claimed is None else ("yes" if r.claimed else "no")
             it = "" if r.iterations is None else str(r.iterations)
-            msg = r.message.replace("\n", " ")
-            lines.append(f"{r.label[:44]:44s} {r.n:5d} {r.status:11s} {claim:5s} {_num(r.kkt_error)} "
-                         f"{_num(r.p_rel_error)} {it:>6s} {_num(r.time_s, '7.3f')}  {msg[:width]}")
-        lines.append(self.summary())
+            lines.append(f"{r.label:{width}s} {r.n:5d} {r.status:11s} {claim:5s} {_num(r.kkt_error)} "
+                         f"{_num(r.p_rel_error)} {it:>6s} {_num(r.time_s, '7.3f')}  {r.message}")
+        lines.append(self.summary(strict))
         return "\n".join(lines)
 
     def records(self) -> list[dict[str, Any]]:
@@ -494,6 +338,7 @@ class VerdictTable:
             d = asdict(r)
             d.pop("kkt")
             d["label"] = r.label
+            d["outcome"] = self.outcome()
             out.append(d)
         return out
 
@@ -503,7 +348,7 @@ class VerdictTable:
         return pd.DataFrame(self.records())
 
 
-def _num(x: float, fmt: str = "9.2e") -> str:
+def _num(x: float | None, fmt: str = "9.2e") -> str:
     if x is None or (isinstance(x, float) and math.isnan(x)):
         return " " * int(fmt.split(".")[0])
     return format(x, fmt)
@@ -514,28 +359,21 @@ def _num(x: float, fmt: str = "9.2e") -> str:
 # ---------------------------------------------------------------------------
 
 
-def resolve_solver(solver: Solver | str) -> Solver:
-    return load_solver(solver) if isinstance(solver, str) else solver
-
-
 def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec] | None, mode: str) -> list[ConformanceCase]:
     if cases is None:
         return conformance_cases(mode)
     return [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
 
 
-def run_case(runner: SolveRunner, case: ConformanceCase, name: str) -> list[Verdict]:
-    """All verdict rows of one recipe (one per step, plus a comparison row)."""
+def run_case(runner: SolveRunner, case: ConformanceCase, name: str) -> list[VerdictRow]:
+    """All verdict rows of one case (one per step, plus a comparison row)."""
     seq = build_battery_spec(case.spec)
     rows, ps, insts, refs = [], [], [], []
     for k in range(len(seq)):
         inst = seq.at(k)
-        try:
-            ref: Reference | None = cached_reference(case.spec, k, inst)
-        except MemoryBudgetError:
-            ref = None
+        ref = cached_reference(case.spec, k, inst)
         out = runner.solve(case.spec, k)
-        rows.append(judge(out, inst, ref, case, k, name))
+        rows.append(judge_solve(out, inst, ref, case, k, name))
         ps.append(out.p if out.kind == "ok" else None)
         insts.append(inst)
         refs.append(ref)
@@ -548,11 +386,11 @@ def run_case(runner: SolveRunner, case: ConformanceCase, name: str) -> list[Verd
 
 def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
              mode: str = "fast", timeout: float | None = None, isolate: bool = True,
-             progress: Any = None) -> VerdictTable:
+             progress: Callable[[VerdictRow], Any] | None = None) -> VerdictTable:
     """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
-    battery (default: the ``mode`` recipes) and return the verdict table."""
-    s = resolve_solver(solver)
-    table = VerdictTable(s.name, mode)
+    battery (default: the ``mode`` cases) and return the verdict table."""
+    s = load_solver(solver) if isinstance(solver, str) else solver
+    table = VerdictTable(s.name, mode, exact=bool(s.capabilities.exact))
     available, why = s.availability()
     if not available:
         table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
@@ -573,14 +411,14 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
 
 def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
                     mode: str = "fast", strict: bool = False, **kw: Any) -> VerdictTable:
-    """For a user's pytest: raise AssertionError (with the table) when ``solver``
-    returns a wrong answer while claiming success (``strict``: also on crashes,
-    timeouts and flagged comparisons)."""
+    """For a user's pytest: raise AssertionError (with the table) unless ``solver``
+    conforms -- a wrong answer claimed as converged, or, for a solver declared exact, an
+    unsolved case (``strict``: also crashes, timeouts and flagged rows)."""
     table = validate(solver, cases, mode=mode, **kw)
     if not table.available:
         raise AssertionError(table.note)
     if table.exit_code(strict):
-        raise AssertionError("\n" + table.format())
+        raise AssertionError("\n" + table.format(strict))
     return table
 
 
@@ -589,65 +427,105 @@ def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | Inst
 # ---------------------------------------------------------------------------
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="contactbench validate",
-        description="Run solvers through the stress battery and judge every answer with the KKT check. "
-                    "Exit status 1 when a solver returns a wrong answer while claiming success.")
-    ap.add_argument("solvers", nargs="*", help="registry names or import paths module:NAME")
+        description="Run solvers through the conformance battery and judge every answer with the harness's "
+                    "judge (the scaled KKT check of `contactbench run`).",
+        epilog="exit status: 0 conforms; 1 a wrong answer claimed as converged (with --strict also crashes, "
+               "timeouts, flagged rows); 2 bad input (unknown solver, import path that does not load, no case "
+               "selected, solver not available); 3 incomplete: a solver declared exact left cases unsolved.")
+    ap.add_argument("solvers", nargs="*", metavar="SOLVER",
+                    help="registry name, or import path module:NAME (the current directory is importable)")
     ap.add_argument("--all", action="store_true", help="every available registered solver")
     ap.add_argument("--full", action="store_true", help="the full battery (default: the fast subset)")
     ap.add_argument("--group", action="append", choices=GROUPS, help="only these groups (repeatable)")
-    ap.add_argument("--cases", metavar="GLOB", help="only cases whose name matches, e.g. 'edge/*'")
+    ap.add_argument("--cases", metavar="GLOB", help="only cases whose name or group matches, e.g. 'edge/*'")
     ap.add_argument("--timeout", type=float, help="seconds per solve (default: 20 fast, 60 full)")
-    ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged comparisons")
+    ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged rows")
     ap.add_argument("--no-isolate", action="store_true", help="solve in-process (no time limit; for debugging)")
-    ap.add_argument("--list", action="store_true", help="list the cases and exit")
+    ap.add_argument("--list", action="store_true", help="list the selected cases and exit")
     ap.add_argument("--csv", metavar="PATH", help="also write the verdict rows as CSV")
     ap.add_argument("--quiet", action="store_true", help="print only the summary line per solver")
     return ap
 
 
+class SolverLoadError(ValueError):
+    """A solver named on the command line that cannot be loaded or run here."""
+
+
+def load_named_solver(name: str) -> Solver:
+    """The solver called ``name`` (registry name or ``module:NAME``), or a
+    ``SolverLoadError`` that says what is wrong in one line."""
+    if ":" not in name:
+        try:
+            return load_solver(name)
+        except KeyError as exc:
+            raise SolverLoadError(f"{exc.args[0] if exc.args else exc} (or give an import path module:NAME)") from None
+    module, attr = name.split(":", 1)
+    if os.getcwd() not in sys.path:  # like `python -m`: a module in the current directory loads
+        sys.path.insert(0, os.getcwd())
+    try:
+        return load_solver(name)
+    except ModuleNotFoundError as exc:
+        raise SolverLoadError(f"cannot import {module!r} for solver {name!r}: {exc}; run from the folder that "
+                              "holds it or put that folder on PYTHONPATH") from None
+    except AttributeError:
+        raise SolverLoadError(f"module {module!r} has no attribute {attr!r} (solver {name!r})") from None
+    except Exception as exc:  # the user's module failed to import or to build its solver
+        raise SolverLoadError(f"cannot load solver {name!r}: {type(exc).__name__}: {exc}") from None
+
+
+def _selected_solvers(names: Sequence[str], every: bool) -> list[Solver]:
+    solvers = [load_named_solver(n) for n in dict.fromkeys(names)]
+    for s in solvers:
+        ok, why = s.availability()
+        if not ok:
+            raise SolverLoadError(f"solver {s.name!r} is not available here: {why}")
+    if every:
+        seen = {s.name for s in solvers}
+        solvers += [s for n, s in all_solvers().items() if n not in seen and s.availability()[0]]
+    if not solvers:
+        raise SolverLoadError("name a solver (registry name or module:NAME) or pass --all")
+    return solvers
+
+
+def _combined_exit(codes: Sequence[int]) -> int:
+    """Wrong answers first (1), then incomplete exact solvers (3), else 0."""
+    return 1 if 1 in codes else (3 if 3 in codes else 0)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """``contactbench validate``: 0 conforms, 1 wrong answers claimed as converged
-    (or, with --strict, crashes/timeouts/flags), 2 usage error, 3 solver unavailable."""
-    args = _parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    """``contactbench validate`` (module doc for the exit status)."""
+    try:
+        args = build_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    except SystemExit as exc:  # --help (0) or a usage error (2), as a return value
+        return exc.code if isinstance(exc.code, int) else USAGE_ERROR
     mode = "full" if args.full else "fast"
     cases = conformance_cases(mode, args.group, args.cases)
     if args.list:
+        width = max([len(c.name) for c in cases] + [4])
         for c in cases:
-            print(f"{c.name:44s} group={c.group:13s} profile={c.profile}")
+            print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
         return 0
-    if not cases:
-        print("no case matches the selection", file=sys.stderr)
-        return 2
-    names = list(args.solvers)
-    if args.all:
-        names += [n for n, s in all_solvers().items() if s.availability()[0] and n not in names]
-    if not names:
-        print("name a solver (registry name or module:NAME) or pass --all", file=sys.stderr)
-        return 2
-    code, unavailable, frames = 0, False, []
-    for name in names:
-        try:
-            solver = load_solver(name)
-        except (KeyError, ImportError, AttributeError, TypeError) as exc:
-            print(f"cannot load solver {name!r}: {exc}", file=sys.stderr)
-            return 2
+    try:
+        if not cases:
+            raise SolverLoadError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
+        solvers = _selected_solvers(args.solvers, args.all)
+    except (SolverLoadError, ProblemInputError) as exc:
+        print(f"contactbench validate: error: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    codes, frames = [], []
+    for solver in solvers:
         table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate)
-        if not table.available:
-            print(table.note, file=sys.stderr)
-            unavailable = True
-            continue
-        print(table.summary() if args.quiet else table.format())
-        print()
-        code = max(code, table.exit_code(args.strict))
+        print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
+        codes.append(table.exit_code(args.strict))
         frames.append(table.to_frame())
     if args.csv and frames:
         import pandas as pd
 
         pd.concat(frames, ignore_index=True).to_csv(args.csv, index=False)
-    return code if code or not unavailable else 3
+    return _combined_exit(codes)
 
 
 if __name__ == "__main__":  # pragma: no cover

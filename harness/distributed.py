@@ -6,13 +6,16 @@ home-made scheduler: Dask places the work, and Dask's worker-loss handling (the
 scheduler re-runs a task whose worker died, up to ``distributed.scheduler.
 allowed-failures`` times) is the retry mechanism.
 
-Unit of work.  One task = one ``InstanceJob`` of harness/runner.py (all the missing
+Unit of work.  One task = one ``InstanceJob`` of harness/plan.py (all the missing
 cells of one instance: its load steps x solver variants x profiles x repeats), run on
-the worker by the runner's own ``JobRunner`` -- so a Dask worker does exactly what a
-local run does: builds the instance *on the worker* from its picklable
-``InstanceSpec`` recipe (a seed, never an operator or a surface), isolates every solve
-in a child process with a hard time limit, recomputes the KKT figures, warm-starts
-along the load history.  Only the recipe goes out and only rows come back.
+the worker by the same ``harness.job.JobRunner`` as every executor
+(``harness.executors``) -- so a Dask worker does exactly what a local run does: builds
+the instance *on the worker* from its picklable ``InstanceSpec`` recipe (a seed, never
+an operator or a surface), isolates every solve in a child process with a hard time
+limit, judges every answer (``harness.judge``), warm-starts along the load history.
+Only the recipe goes out and only rows come back.
+
+``DaskExecutor`` is the executor; ``run_benchmark_on_dask`` is ``run_benchmark`` with it.
 
 Rows.  The worker returns its rows to the client; the client writes them through the
 same resumable store (harness/store.py) as a local run, skipping any ``cell_id``
@@ -42,27 +45,20 @@ import logging
 import multiprocessing as mp
 import os
 import queue
-import uuid
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field, replace
+import uuid
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
 from contactbench.problems.scenes import SceneConfig
 
+from .executors import Progress
 from .isolation import limit_threads
-from .meta import build_meta, write_meta
-from .runner import (
-    open_run,
-    InstanceJob,
-    JobRunner,
-    RunConfig,
-    RunSummary,
-    _progress_bar,
-    job_cell_ids,
-    under_ci,
-)
+from .job import JobRunner
+from .plan import InstanceJob, RunConfig, job_cell_ids
+from .runner import RunSummary, run_benchmark
 from .store import ResultStore, encode_row
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -264,14 +260,13 @@ def missing_cells_of(job: InstanceJob, run: RunConfig, statuses: dict[str, str])
 def lost_job_rows(job: InstanceJob, run: RunConfig, statuses: dict[str, str], status: str,
                   why: str) -> list[dict[str, Any]]:
     """Rows marking every missing cell of a job that never came back (``crashed`` when
-    its worker died too often, ``failed`` when the task raised), built by the runner's
-    own row factory so they carry the full schema."""
+    its worker died too often, ``failed`` when the task raised), built by the job's own
+    row factory (``harness.rows``) so they carry the full schema."""
     runner = JobRunner(job, run, statuses, Path(tempfile.gettempdir()), lambda row: None)
     rows = []
     for k in range(job.steps_hint):
         for v, prof, reps in runner.missing(k):
-            for r in reps:
-                rows.append(runner.row_for(None, k, v, prof, r, status=status, error=why[-2000:]))
+            rows += [runner.row(None, k, v, prof, r, status=status, error=why[-2000:]) for r in reps]
     return rows
 
 
@@ -388,36 +383,39 @@ def job_rows(fut: Any, job: InstanceJob, run: RunConfig, store: ResultStore, rep
     return result.rows
 
 
+@dataclass
+class DaskExecutor:
+    """The executor (``harness.executors``) that sends jobs to a Dask scheduler: an
+    address (tcp://host:8786) or a ``distributed.Client``.  ``solver_specs`` are the
+    ``module:NAME`` solvers each worker must load."""
+
+    scheduler: "Client | str"
+    solver_specs: tuple[str, ...] = ()
+    report: DaskRunReport | None = None
+
+    def run_config(self, run: RunConfig) -> RunConfig:
+        return dask_run_config(run)
+
+    def describe(self) -> dict[str, Any]:
+        s = self.scheduler
+        address = s if isinstance(s, str) else getattr(getattr(s, "scheduler", None), "address", "")
+        return {"kind": "dask", "scheduler": str(address or "")}
+
+    def execute(self, jobs: Sequence[InstanceJob], run: RunConfig, store: ResultStore, statuses: dict[str, str],
+                progress: Progress, verbose: bool = False) -> None:
+        report = run_jobs_on_dask(jobs, self.scheduler, store, run, self.solver_specs,
+                                  on_row=lambda row: progress.update(1))
+        self.report = report
+        log.info("dask: %d jobs on %d workers, %d rows stored (%d duplicates dropped), hosts %s%s",
+                 report.jobs_submitted, report.workers, report.rows_stored, report.duplicates_dropped, report.hosts,
+                 f", killed: {report.killed_jobs}" if report.killed_jobs else "")
+
+
 def run_benchmark_on_dask(scenes: Sequence[str], cfg: SceneConfig | None = None,
                           solvers: Sequence[str] | str | None = None, run: RunConfig | None = None,
                           out_dir: str | os.PathLike[str] = "results/run", scheduler: "Client | str" = "",
                           command: list[str] | None = None) -> RunSummary:
-    """``run_benchmark`` with the cells sent to a Dask scheduler: plan, run the missing
-    cells on the cluster, write the tidy table and meta.json (which records the
-    scheduler and the workers)."""
-    run = run or RunConfig()
-    t0 = time.perf_counter()
-    plan, store = open_run(scenes, cfg, solvers, run, out_dir)
-    address = scheduler if isinstance(scheduler, str) else getattr(getattr(scheduler, "scheduler", None), "address", "")
-    config = {"scenes": list(scenes), "scene_config": asdict(cfg or SceneConfig()), "run": asdict(dask_run_config(run)),
-              "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
-              "profiles": sorted({p for j in plan.jobs for p in j.profiles}),
-              "executor": {"kind": "dask", "scheduler": str(address or "")}}
-    write_meta(out_dir, build_meta(command=command, config=config, warnings=plan.warnings))
-    before = len(store)
-    statuses = store.done_statuses()
-    total = sum(j.n_cells(run.repeats) for j in plan.jobs)
-    already = sum(1 for j in plan.jobs for c in job_cell_ids(j, run) if c in statuses)
-    show = run.progress if run.progress is not None else not under_ci()
-    bar = _progress_bar(total, already, show)
-    try:
-        report = run_jobs_on_dask(plan.jobs, scheduler, store, run, solver_import_specs(solvers),
-                                  on_row=lambda row: bar.update(1))
-        log.info("dask: %d jobs on %d workers, %d rows stored (%d duplicates dropped), hosts %s%s",
-                 report.jobs_submitted, report.workers, report.rows_stored, report.duplicates_dropped, report.hosts,
-                 f", killed: {report.killed_jobs}" if report.killed_jobs else "")
-    finally:
-        bar.close()
-        table = ResultStore(out_dir).finalize()
-    counts = {str(k): int(v) for k, v in table["status"].value_counts().items()} if len(table) else {}
-    return RunSummary(str(out_dir), len(table), len(table) - before, counts, time.perf_counter() - t0, plan.warnings)
+    """``run_benchmark`` with the cells sent to a Dask scheduler (meta.json records the
+    scheduler)."""
+    executor = DaskExecutor(scheduler, solver_import_specs(solvers))
+    return run_benchmark(scenes, cfg, solvers, run, out_dir, command=command, executor=executor)

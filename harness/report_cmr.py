@@ -28,6 +28,13 @@ from .report import (
 )
 
 NP_RE = re.compile(r"n_p/n=([0-9.eE+-]+)")
+#: The registry names of the CMR wrappers: "cmr+<base solver>" (solvers/cmr.py).
+CMR_PREFIX = "cmr+"
+
+
+def wrapped_solver(base_solver: str) -> str | None:
+    """The base solver a CMR wrapper runs ("cmr+nnls" -> "nnls"), None for other solvers."""
+    return base_solver[len(CMR_PREFIX):] if base_solver.startswith(CMR_PREFIX) else None
 
 
 def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
@@ -37,12 +44,12 @@ def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
     cells = per_cell(attempted(rows[rows["profile"] == prof]))
     if cells.empty:
         return pd.DataFrame()
-    base_of = cells["base_solver"].fillna(cells["solver"]).astype(str)
-    is_cmr = base_of.str.startswith("cmr+")
+    inner = cells["base_solver"].map(wrapped_solver)
+    is_cmr = inner.notna()
     cmr, direct = cells[is_cmr].copy(), cells[~is_cmr]
     if cmr.empty or direct.empty:
         return pd.DataFrame()
-    cmr["direct_solver"] = base_of[is_cmr].str[len("cmr+"):]
+    cmr["direct_solver"] = inner[is_cmr]
     cmr["h"] = [float(parse_json(p, {}).get("h", np.nan)) if isinstance(parse_json(p, {}), dict) else np.nan
                 for p in cmr["params"].fillna("")]
     cmr["n_p_over_n"] = [float(m.group(1)) if (m := NP_RE.search(str(s))) else np.nan

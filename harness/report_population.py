@@ -14,6 +14,9 @@ using the scene configuration recorded in OUT/meta.json.
 
 Intervals.  Across the N_s surfaces of one (H, N, load step): the Student-t interval
 of the mean, and a percentile bootstrap interval of the mean (resampling surfaces).
+
+The same statistics appear as the ``population`` section of ``contactbench report``
+and in ``write_population_report``'s population.md.
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ import pandas as pd
 from contactbench.problems.scenes import SceneConfig, get_scene
 
 from .meta import read_meta
-from .store import load_table
+from .report import ReportContext, Section, register_section
+from .schema import load_table
 
 SCENE = "population"
 #: Quantities summarised across the population, per (solver, H, N, step).
@@ -177,9 +181,25 @@ def write_population_report(out_dir: str | Path, dest: str | Path | None = None,
     dest = Path(dest or out_dir)
     dest.mkdir(parents=True, exist_ok=True)
     stats.to_csv(dest / "population_stats.csv", index=False)
-    text = (f"# Population statistics\n\nMean [95 % confidence interval] across the surfaces of each (H, N, load step); "
-            f"kappa = A E* h'_rms / P (Hyun & Robbins: ~{HYUN_ROBBINS_KAPPA:g}; Persson: sqrt(8/pi) = "
-            f"{PERSSON_KAPPA:.3f}).\n\n{markdown_table(stats)}\n")
+    text = f"# Population statistics\n\n{_intro()}\n\n{markdown_table(stats)}\n"
     path = dest / "population.md"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def _intro() -> str:
+    return (f"Mean [95 % confidence interval] across the surfaces of each (H, N, load step); kappa = A E* h'_rms / P "
+            f"(Hyun & Robbins: ~{HYUN_ROBBINS_KAPPA:g}; Persson: sqrt(8/pi) = {PERSSON_KAPPA:.3f}).")
+
+
+@register_section(SCENE, title="Population statistics", group="scenes", order=60)
+def population_section(ctx: ReportContext, rows: pd.DataFrame) -> Section:
+    title = "Population statistics (population)"
+    try:
+        stats = population_statistics(kappa_table(rows, scene_config_from_meta(ctx.meta)))
+    except ValueError as e:
+        return Section(title, f"The statistics cannot be computed from this table: {e}.\n")
+    if stats.empty:
+        return Section(title, "No population row was solved.\n")
+    return Section(title, f"{_intro()}\n\n*Table {ctx.next_table()}: population statistics per solver, H, N and "
+                          f"load step.*\n\n{markdown_table(stats)}\n")

@@ -1,9 +1,12 @@
-"""The stress report section: survival table, cond(H) vs n, unit-scaling table.
+"""The stress battery's reports.
 
-Reads what ``benchmarks/bench_stress.py`` writes into a results directory
-(``conditioning.csv``, ``survival-fast.csv`` and/or ``survival-full.csv`` -- the verdict rows of
-``harness.conformance``) and renders one markdown section; ``write_stress_report``
-saves it as ``README.md`` beside the tables, plus ``survival_matrix-<mode>.csv`` (case x solver).
+* ``contactbench report``: the summary section "Stress battery" counts, per solver, the
+  judge's verdicts (column ``verdict``) on the rows of the ``stress`` scenes of the table.
+* ``write_stress_report``: reads what ``benchmarks/bench_stress.py`` writes into a results
+  directory (``conditioning.csv``, ``survival-fast.csv`` and/or ``survival-full.csv`` -- the
+  verdict rows of ``harness.conformance``), renders survival table, cond(H) vs n and
+  unit-scaling table, and saves them as ``README.md`` beside the tables, plus
+  ``survival_matrix-<mode>.csv`` (case x solver).
 """
 
 from __future__ import annotations
@@ -11,6 +14,37 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
+
+from .report import ReportContext, Section, natural_key, register_section, table_md
+from .schema import VERDICTS
+
+#: The battery's scenes: "stress" and its parts "stress-<group>".
+STRESS_SCENE = "stress"
+
+
+def is_stress_scene(scene: str) -> bool:
+    return scene == STRESS_SCENE or scene.startswith(f"{STRESS_SCENE}-")
+
+
+@register_section("stress-verdicts", title="Stress battery", group="summary", order=25)
+def stress_section(ctx: ReportContext, table: pd.DataFrame) -> Section | None:
+    """Per solver: the judge's verdicts on the stress rows, and the rows not judged."""
+    rows = table[table["scene"].map(is_stress_scene)]
+    if rows.empty:
+        return None
+    body = []
+    lines = []
+    for solver, g in sorted(rows.groupby("solver"), key=lambda kv: natural_key(kv[0])):
+        counts = g["verdict"].value_counts()
+        lines.append((solver, len(g), *[int(counts.get(v, 0)) for v in VERDICTS], int((g["verdict"] == "").sum())))
+    body.append(table_md(ctx, "the judge's verdicts on the stress scenes' rows: pass; wrong = a wrong answer "
+                              "claimed as converged; unconverged = not solved, and the solver said so; not judged = "
+                              "skipped, failed, timed out or crashed (or a table without verdicts).",
+                         ["solver", "rows", *VERDICTS, "not judged"], lines, "lrrrrr"))
+    wrong = [f"`{s}`" for s, _n, _p, w, *_ in lines if w]
+    body.append("**Reading.** " + (f"Wrong answers claimed as converged: {', '.join(wrong)}." if wrong else
+                                   "No solver claimed convergence on a wrong answer.") + "\n")
+    return Section("Stress battery", "\n".join(body))
 
 GOOD = ("pass", "refused", "skipped")
 

@@ -4,7 +4,8 @@ Layout of a run directory ``OUT/``::
 
     rows.jsonl        the journal: one JSON object per row, appended and fsync'ed as
                       each solve finishes (the source of truth)
-    results.parquet   the tidy table (harness/schema.py), regenerated from the journal
+    results.parquet   the tidy table (harness/schema.py), regenerated from the journal;
+                      read it with ``schema.load_table`` (also importable from here)
     results.csv       the same table as CSV
     meta.json         run metadata (harness/meta.py)
     _cache/           reference solutions, one file per instance-step
@@ -20,7 +21,6 @@ from __future__ import annotations
 
 import fcntl
 import json
-import math
 import os
 from pathlib import Path
 from typing import Any, Iterable
@@ -28,19 +28,12 @@ from typing import Any, Iterable
 import numpy as np
 import pandas as pd
 
-from .schema import ALL_COLUMNS
+from .schema import apply_schema, load_table  # noqa: F401  (re-exported: the one table reader)
 
 ROWS_FILE = "rows.jsonl"
 PARQUET_FILE = "results.parquet"
 CSV_FILE = "results.csv"
 
-STRING_COLUMNS = (
-    "scene", "instance", "solver", "profile", "status", "skip_reason", "cell_id", "base_solver", "params",
-    "family", "solver_status", "solver_message", "kernel", "operator", "reference_solver", "error", "trace",
-    "host", "timestamp", "history",
-)
-INT_COLUMNS = ("step", "n", "repeat", "iterations", "matvecs", "N")
-BOOL_COLUMNS = ("warm_start", "solver_converged", "correct_claim", "periodic")
 #: Columns that identify a group of repeats (everything that names the solve but ``repeat``).
 GROUP_COLUMNS = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start", "history")
 
@@ -165,29 +158,9 @@ class ResultStore:
         return table
 
 
-def _nan_to_none(v: Any) -> Any:
-    return None if isinstance(v, float) and math.isnan(v) else v
-
-
 def tidy_table(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
-    """The tidy table: every column of the schema, stable dtypes, repeat min/median filled."""
-    df = pd.DataFrame(list(rows))
-    for col in ALL_COLUMNS:
-        if col not in df.columns:
-            df[col] = None
-    extra = [c for c in df.columns if c not in ALL_COLUMNS]
-    df = df[list(ALL_COLUMNS) + extra]
-    for col in STRING_COLUMNS:
-        df[col] = df[col].map(lambda v: "" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
-        df[col] = df[col].astype("string")
-    for col in INT_COLUMNS:
-        df[col] = pd.to_numeric(df[col].map(_nan_to_none), errors="coerce").round().astype("Int64")
-    for col in BOOL_COLUMNS:
-        df[col] = df[col].map(lambda v: None if v is None or (isinstance(v, float) and math.isnan(v)) else bool(v))
-        df[col] = df[col].astype("boolean")
-    for col in ALL_COLUMNS:
-        if col not in STRING_COLUMNS and col not in INT_COLUMNS and col not in BOOL_COLUMNS:
-            df[col] = pd.to_numeric(df[col], errors="coerce").astype("float64")
+    """The tidy table: every column of the schema with its dtype, repeat min/median filled."""
+    df = apply_schema(pd.DataFrame(list(rows)))
     if len(df):
         fill_repeat_statistics(df)
         df = df.sort_values(["scene", "instance", "step", "solver", "profile", "repeat"], kind="stable")
@@ -214,15 +187,3 @@ def write_table(table: pd.DataFrame, out_dir: str | os.PathLike[str]) -> None:
     table.to_csv(tmp_csv, index=False)
     os.replace(tmp_pq, out / PARQUET_FILE)
     os.replace(tmp_csv, out / CSV_FILE)
-
-
-def load_table(out_dir: str | os.PathLike[str]) -> pd.DataFrame:
-    """The tidy table of a run directory (from results.parquet, or rebuilt from the
-    journal when the table is missing or older than the journal)."""
-    out = Path(out_dir)
-    pq, journal = out / PARQUET_FILE, out / ROWS_FILE
-    if pq.exists() and (not journal.exists() or pq.stat().st_mtime >= journal.stat().st_mtime):
-        return pd.read_parquet(pq)
-    if journal.exists():
-        return ResultStore(out).finalize()
-    raise FileNotFoundError(f"no results in {out}: neither {PARQUET_FILE} nor {ROWS_FILE} exists")

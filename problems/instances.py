@@ -13,7 +13,7 @@ in Pa and lengths in m), so the total load is P = sum(p).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -28,7 +28,7 @@ from .operators import (
     KernelTransform,
     check_dense_budget,
 )
-from .surfaces import Surface
+from .surfaces import Surface, check_grid_size, check_not_flat
 
 OperatorKind = Literal["fft", "dense"]
 
@@ -58,6 +58,18 @@ class Geometry:
         i, j = np.divmod(self.indices, self.grid_shape[1])
         return np.column_stack([i, j]).astype(np.float64) * self.delta
 
+    @property
+    def has_surface(self) -> bool:
+        """Whether the QP can be rebuilt from its surface: the surface (on this grid), the
+        far-field displacement, E and the kernel are all known.  The cascade
+        multi-resolution method needs this (``ProblemTraits.has_surface``)."""
+        return (self.surface is not None and self.far_field is not None and self.E is not None
+                and self.kernel is not None and tuple(self.grid_shape) == self.surface.shape)
+
+    def subset(self, pos: np.ndarray) -> "Geometry":
+        """The geometry of the unknowns at positions ``pos`` (0..n-1) of this one."""
+        return replace(self, indices=self.indices[np.asarray(pos)])
+
 
 @dataclass
 class QP:
@@ -76,6 +88,13 @@ class QP:
 
     def objective(self, p: np.ndarray) -> float:
         return float(0.5 * p @ self.H.matvec(p) - self.ubar @ p)
+
+    def restrict(self, pos: np.ndarray) -> "QP":
+        """The QP on the unknowns at positions ``pos`` (0..n-1): H_PP, ubar_P and their
+        geometry (the others held at p = 0)."""
+        pos = np.asarray(pos)
+        geom = None if self.geometry is None else self.geometry.subset(pos)
+        return QP(self.H.restrict(pos), self.ubar[pos], geom)
 
 
 @dataclass
@@ -119,10 +138,7 @@ class ContactInstance:
         return self.load(p) / (self.E * self.nominal_area)
 
     def contact_mask(self, p: np.ndarray) -> np.ndarray:
-        pmax = float(np.max(p)) if p.size else 0.0
-        if pmax <= 0.0:
-            return np.zeros(p.shape, dtype=bool)
-        return p > CONTACT_THRESHOLD * pmax
+        return contact_mask(p)
 
     def contact_fraction(self, p: np.ndarray) -> float:
         """A / A0: elements in contact over all N^2 elements."""
@@ -146,10 +162,24 @@ class ContactInstance:
 # ---------------------------------------------------------------------------
 
 
+def contact_mask(p: np.ndarray) -> np.ndarray:
+    """Elements in contact: p_i > CONTACT_THRESHOLD * max(p) (none when max(p) <= 0)."""
+    pmax = float(np.max(p)) if p.size else 0.0
+    if pmax <= 0.0:
+        return np.zeros(p.shape, dtype=bool)
+    return p > CONTACT_THRESHOLD * pmax
+
+
 def trial_set(heights: np.ndarray, delta_disp: float) -> np.ndarray:
     """Flat indices of I_C = {xi >= xi_max - Delta} (row-major order)."""
     zmax = float(heights.max())
     return np.flatnonzero(heights.ravel() >= zmax - delta_disp)
+
+
+def rigid_body_ubar(heights: np.ndarray, delta_disp: float, idx: np.ndarray) -> np.ndarray:
+    """ubar = Delta - xi_max + xi on the flat indices ``idx``: the rigid-body
+    interpenetration (unclipped; negative below xi_max - Delta)."""
+    return delta_disp - float(heights.max()) + heights.ravel()[idx]
 
 
 class InstanceBuilder:
@@ -203,8 +233,8 @@ class InstanceBuilder:
         """The QP at far-field displacement ``delta_disp`` (paper section 2).
 
         ``candidates`` (flat grid indices or an N x N boolean mask) restricts the trial
-        set to I_C intersected with it -- how the cascade multi-resolution method keeps
-        only the heights near the coarse level's contact domain (paper section 5).
+        set to I_C intersected with it.  (The cascade multi-resolution method builds its
+        coarse levels with ``problems.coarsen.coarse_qp``.)
         """
         check_nonnegative("far-field displacement Delta", delta_disp)
         h = self.surface.heights
@@ -219,7 +249,7 @@ class InstanceBuilder:
         if idx.size == 0:
             where = " within the given candidate points" if candidates is not None else ""
             raise ProblemInputError(f"empty trial set at Delta = {delta_disp!r}{where}: no element can touch")
-        ubar = delta_disp - float(h.max()) + h.ravel()[idx]
+        ubar = rigid_body_ubar(h, delta_disp, idx)
         if self.periodic:
             if idx.size == h.size and float(np.sum(ubar)) >= 0.0:
                 raise ProblemInputError(
@@ -278,7 +308,9 @@ def build_instance(
 
 
 def paper_max_displacement(surface: Surface) -> float:
-    """The paper's top step: (xi_max - xi_mean) / 2."""
+    """The paper's top step: (xi_max - xi_mean) / 2 (a flat surface has none:
+    ``ProblemInputError``)."""
+    check_not_flat(surface)
     return 0.5 * (surface.z_max - surface.z_mean)
 
 
@@ -342,8 +374,7 @@ def hertz_solution(radius: float, E: float, delta_disp: float) -> HertzSolution:
 def hertz_surface(N: int, radius: float, length: float) -> Surface:
     """Paraboloid cap xi = -r^2 / (2R) centred on an N x N grid of side ``length``
     (the element centres of an even N straddle the apex symmetrically)."""
-    if N < 2:
-        raise ProblemInputError(f"need N >= 2, got {N}")
+    N = check_grid_size(N, "hertz surface")
     check_positive("sphere radius", radius)
     delta = length / N
     x = (np.arange(N) - (N - 1) / 2.0) * delta
@@ -354,8 +385,7 @@ def hertz_surface(N: int, radius: float, length: float) -> Surface:
 def flat_punch_surface(N: int, punch_radius: float, length: float, depth: float | None = None) -> Surface:
     """A rigid flat circular punch of radius a: xi = 0 inside r <= a, -depth outside
     (depth default: the side length, far beyond any displacement used)."""
-    if N < 2:
-        raise ProblemInputError(f"need N >= 2, got {N}")
+    N = check_grid_size(N, "flat-punch surface")
     check_positive("punch radius", punch_radius)
     delta = length / N
     x = (np.arange(N) - (N - 1) / 2.0) * delta
@@ -376,6 +406,7 @@ __all__ = [
     "InstanceBuilder",
     "MemoryBudgetError",
     "build_instance",
+    "contact_mask",
     "counterexample",
     "flat_punch_load",
     "flat_punch_surface",
@@ -384,5 +415,6 @@ __all__ = [
     "load_ramp",
     "load_unload_cycle",
     "paper_max_displacement",
+    "rigid_body_ubar",
     "trial_set",
 ]

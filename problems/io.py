@@ -1,4 +1,4 @@
-"""Measured height maps: reading, cleaning, coarsening and a power-law check.
+"""Measured height maps: reading (npy, text, x3p), writing, and cleaning.
 
 Formats read by :func:`load_surface` (chosen by content, not only by extension):
 
@@ -28,16 +28,7 @@ data, announced by a ``UserWarning``):
    ``"pad"`` pads to max(ny, nx) with the lowest height, the data kept in the top-left
    corner; ``"error"`` refuses a non-square map.
 
-The coarsening filter for the cascade multi-resolution method (Bemporad & Paggi 2015,
-section 5.2: "a filter to downsample the acquired surfaces") is :func:`block_average`:
-area-weighted 2 x 2 block averaging.  Each coarse element is the mean of the four fine
-elements it covers, which is exactly the average height over the coarse element's area
--- the same meaning the BEM gives a fine element's height.  :func:`coarse_levels` applies
-it repeatedly.
-
-:func:`power_law_check` tests whether the radially averaged PSD is a single power law
-over the scales a cascade spans -- the condition under which the paper found CMR
-reliable (its 10x solar-cell scan with a PSD roll-off made CMR fail).
+Coarsening and the PSD power-law test are not I/O: they live in ``problems/coarsen.py``.
 """
 
 from __future__ import annotations
@@ -46,7 +37,7 @@ import hashlib
 import io as _stdio
 import warnings
 import zipfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 from xml.etree import ElementTree as ET
@@ -54,7 +45,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
-from .surfaces import RadialPSD, Surface, radial_psd
+from .surfaces import Surface
 
 SquareRule = Literal["crop", "pad", "error"]
 NanRule = Literal["fill-mean", "fill-nearest", "fill-min", "error"]
@@ -535,134 +526,22 @@ def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
         raise ProblemInputError(f"{what} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
 
 
-# ---------------------------------------------------------------------------
-# Coarsening for the cascade multi-resolution method
-# ---------------------------------------------------------------------------
-
-
-def block_average(surface: Surface) -> Surface:
-    """Area-weighted 2 x 2 block-average coarsening: coarse element (i, j) is the mean of
-    fine elements (2i..2i+1, 2j..2j+1); spacing doubles.  An odd last row/column is
-    dropped.  ``meta["origin"]`` is the coarse element (0, 0) centre in the fine
-    surface's frame (element centres at origin + index * delta)."""
-    n = surface.N // 2
-    if n < 2:
-        raise ProblemInputError(f"cannot coarsen a {surface.N} x {surface.N} surface below 2 x 2")
-    h = surface.heights[: 2 * n, : 2 * n]
-    coarse = h.reshape(n, 2, n, 2).mean(axis=(1, 3))
-    ox, oy = surface.meta.get("origin", (0.0, 0.0))
-    origin = (ox + 0.5 * surface.delta, oy + 0.5 * surface.delta)
-    return Surface(coarse, 2.0 * surface.delta, unit=surface.unit, name=f"{surface.name}-avg{n}",
-                   periodic=surface.periodic and surface.N % 2 == 0,
-                   meta={"filter": "block-average-2x2", "origin": origin})
-
-
-def coarse_levels(surface: Surface, n_levels: int) -> tuple[Surface, ...]:
-    """``n_levels`` successive block-average coarsenings, coarsest first (the surface
-    itself not included) -- the same layout as ``Surface.levels`` of RMD surfaces."""
-    if int(n_levels) != n_levels or n_levels < 0:
-        raise ProblemInputError(f"number of coarse levels must be an integer >= 0, got {n_levels}")
-    out: list[Surface] = []
-    s = surface
-    for _ in range(int(n_levels)):
-        s = block_average(s)
-        out.append(s)
-    return tuple(reversed(out))
-
-
-def with_coarse_levels(surface: Surface, coarsest: int) -> Surface:
-    """The surface with ``levels`` filled by block averaging down to the first level with
-    at most ``coarsest`` points per side (kept as is when it already has levels)."""
-    if surface.levels:
-        return surface
-    n_levels, n = 0, surface.N
-    while n // 2 >= max(2, coarsest) and n > coarsest:
-        n //= 2
-        n_levels += 1
-    return replace(surface, levels=coarse_levels(surface, n_levels))
-
-
-def element_origin(surface: Surface) -> tuple[float, float]:
-    """Centre of element (0, 0) in the finest surface's frame (0 for RMD sub-samples)."""
-    o = surface.meta.get("origin", (0.0, 0.0))
-    return float(o[0]), float(o[1])
-
-
-# ---------------------------------------------------------------------------
-# Is the PSD a power law over the cascade's scales?
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class PowerLawCheck:
-    """Log-log PSD slopes over [q_min, q_max] and over its lower and upper halves.
-
-    ``power_law`` is False when the two half-range slopes differ by more than
-    ``max_slope_change`` (a roll-off plateau flattens the low half) or the single-line
-    fit explains less than ``min_r2`` of the variance.
-    """
-
-    power_law: bool
-    slope: float
-    slope_low: float
-    slope_high: float
-    r2: float
-    q_range: tuple[float, float]
-    hurst: float
-    message: str
-
-
-def power_law_check(surface: Surface, q_min: float | None = None, q_max: float | None = None,
-                    max_slope_change: float = 1.0, min_r2: float = 0.9,
-                    psd: RadialPSD | None = None) -> PowerLawCheck:
-    """Fit log C(q) against log q on [q_min, q_max] (default: 2 x the fundamental to half
-    the Nyquist wave number) and on each half of that range in log q."""
-    psd = radial_psd(surface) if psd is None else psd
-    q0 = 2.0 * np.pi / surface.length
-    lo = 2.0 * q0 if q_min is None else q_min
-    hi = 0.5 * np.pi / surface.delta if q_max is None else q_max
-    mid = np.sqrt(lo * hi)
-    x, y = np.log(psd.q), np.log(np.maximum(psd.C, np.finfo(float).tiny))
-
-    def fit(a: float, b: float) -> tuple[float, float]:
-        m = (psd.q >= a) & (psd.q <= b)
-        if m.sum() < 3:
-            raise ProblemInputError(f"too few PSD bins in [{a:.3g}, {b:.3g}] rad/m for a power-law check")
-        s, c = np.polyfit(x[m], y[m], 1)
-        r = y[m] - (c + s * x[m])
-        return float(s), 1.0 - float(np.sum(r**2) / max(np.sum((y[m] - y[m].mean()) ** 2), 1e-300))
-
-    slope, r2 = fit(lo, hi)
-    s_lo, _ = fit(lo, mid)
-    s_hi, _ = fit(mid, hi)
-    ok = abs(s_lo - s_hi) <= max_slope_change and r2 >= min_r2
-    hurst = -slope / 2.0 - 1.0
-    if ok:
-        msg = f"PSD is power-law over q in [{lo:.3g}, {hi:.3g}] rad/m (H = {hurst:.2f}, r2 = {r2:.3f})"
-    else:
-        msg = (f"PSD is NOT a power law over q in [{lo:.3g}, {hi:.3g}] rad/m: slope {s_lo:.2f} in the lower "
-               f"half vs {s_hi:.2f} in the upper half (r2 = {r2:.3f}); a roll-off plateau breaks the "
-               "lacunarity CMR relies on (paper section 5.2), expect large load errors")
-    return PowerLawCheck(ok, slope, s_lo, s_hi, r2, (lo, hi), hurst, msg)
-
+# TRANSITIONAL: coarsening and the PSD test live in problems/coarsen.py; this re-export
+# keeps ``from contactbench.problems.io import coarse_levels, power_law_check`` working
+# until problems/scenes/cmr.py imports them from there.  Delete it then.
+from .coarsen import coarse_levels, power_law_check  # noqa: E402,F401
 
 __all__ = [
-    "PowerLawCheck",
     "RawMap",
     "SurfaceFileError",
-    "block_average",
-    "coarse_levels",
-    "element_origin",
     "fill_missing",
     "load_surface",
     "make_square",
-    "power_law_check",
     "read_height_map",
     "read_npy",
     "read_text",
     "read_x3p",
     "remove_tilt",
-    "with_coarse_levels",
     "write_text",
     "write_x3p",
 ]

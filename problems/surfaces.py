@@ -89,6 +89,11 @@ class Surface:
     def rms_height(self) -> float:
         return float(np.std(self.heights))
 
+    @property
+    def is_flat(self) -> bool:
+        """Every height equal: no roughness."""
+        return float(self.heights.max()) == float(self.heights.min())
+
     def rms_slope(self) -> float:
         """sqrt(<|grad h|^2>) by forward differences (periodic wrap when periodic)."""
         h = self.heights
@@ -108,6 +113,48 @@ class Surface:
             delta=self.delta * length_factor,
             levels=tuple(s.scaled(length_factor) for s in self.levels),
         )
+
+
+def check_not_flat(surface: Surface) -> Surface:
+    """The surface, or a one-line ``ProblemInputError`` when all its heights are equal: a
+    flat surface has no roughness, so no displacement scale (xi_max - xi_mean = 0) and
+    no PSD to build a rough-contact load sequence or a cascade check from."""
+    if surface.is_flat:
+        raise ProblemInputError(
+            f"the surface {surface.name!r} is flat (all heights equal {float(surface.heights.flat[0]):g} "
+            f"{surface.unit}): it has no roughness, so no load ramp (xi_max - xi_mean = 0) or PSD can be "
+            "derived from it; give a rough surface")
+    return surface
+
+
+def check_grid_size(N: object, what: str = "surface") -> int:
+    """N as an int when it is an integer >= 2 (points per side), else a one-line
+    ``ProblemInputError``."""
+    ok = isinstance(N, (int, np.integer, float, np.floating)) and not isinstance(N, (bool, np.bool_)) \
+        and np.isfinite(N) and int(N) == N and N >= 2
+    if not ok:
+        raise ProblemInputError(f"a {what} needs an integer N >= 2 points per side, got N = {N!r}")
+    return int(N)  # type: ignore[arg-type]
+
+
+#: RMD levels k allowed: 2^1 .. 2^13 (8192) points per side.
+RMD_MAX_LEVEL = 13
+
+
+def check_rmd_size(N: object) -> tuple[int, bool]:
+    """(k, periodic) of an RMD grid of N points per side: N = 2^k (periodic) or 2^k + 1
+    (non-periodic), k = 1..13.  Anything else -- not a power of two (plus one), below 2,
+    not an integer -- is a one-line ``ProblemInputError``; cheap, for planning."""
+    bad = ProblemInputError(f"an RMD surface needs N = 2^k (periodic) or 2^k + 1 (non-periodic) points per "
+                            f"side with k = 1..{RMD_MAX_LEVEL} (e.g. 512 or 513), got N = {N!r}")
+    try:
+        n = check_grid_size(N, "RMD surface")
+    except ProblemInputError:
+        raise bad from None
+    for m, periodic in ((n, True), (n - 1, False)):
+        if m >= 2 and (m & (m - 1)) == 0 and m.bit_length() - 1 <= RMD_MAX_LEVEL:
+            return m.bit_length() - 1, periodic
+    raise bad
 
 
 # ---------------------------------------------------------------------------
@@ -244,12 +291,9 @@ def rmd_surface(
 
 def rmd_surface_n(N: int, hurst: float, **kw: Any) -> Surface:
     """RMD surface with exactly N points per side: periodic when N = 2^k, non-periodic
-    when N = 2^k + 1."""
-    if N >= 2 and (N & (N - 1)) == 0:
-        return rmd_surface(int(np.log2(N)), hurst, periodic=True, **kw)
-    if N >= 3 and ((N - 1) & (N - 2)) == 0:
-        return rmd_surface(int(np.log2(N - 1)), hurst, periodic=False, **kw)
-    raise ProblemInputError(f"RMD needs N = 2^k or 2^k + 1 points per side, got N = {N}")
+    when N = 2^k + 1 (``check_rmd_size``)."""
+    k, periodic = check_rmd_size(N)
+    return rmd_surface(k, hurst, periodic=periodic, **kw)
 
 
 # ---------------------------------------------------------------------------
@@ -280,8 +324,7 @@ def spectral_surface(
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
-    if N < 2:
-        raise ProblemInputError(f"need N >= 2 points per side, got {N}")
+    N = check_grid_size(N, "spectral surface")
     check_positive("length L", length)
     check_positive("rms height", rms_height)
     delta = length / N
@@ -387,6 +430,7 @@ def fit_hurst(
     surfaces carry excess power (their interpolation is a poor low-pass) and where
     aliasing lives.  The measured bias per generator is in docs/problems.md.
     """
+    check_not_flat(surface)
     q0 = 2.0 * np.pi / surface.length
     q_nyq = np.pi / surface.delta
     lo = FIT_Q_MIN_CYCLES * q0 if q_min is None else float(q_min)

@@ -5,6 +5,10 @@
   deadline and an iteration cap (paper Algorithm 1 steps 2.1-2.4; PCG as in
   Golub & Van Loan, Algorithm 11.5.1).
 * ``lipschitz_constant`` -- ||H||_F (paper Algorithm 4) or a power-iteration estimate.
+* ``cholesky_of_h`` -- the lower Cholesky factor of a dense (sub)matrix of H, scaled and
+  shifted, within the memory budget.
+* ``absolute_tol`` -- a relative tolerance in the problem's units (displacement, force),
+  for a solver's internal thresholds (which element is "negative", a CG's atol).
 * ``project_nonneg``, ``is_dense``, ``operator_kind``.
 * ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``.
 
@@ -19,10 +23,20 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import scipy.linalg as sla
 
-from contactbench.problems.operators import ContactOperator, DenseOperator, spectral_norm_estimate
+from contactbench.problems import operators
+from contactbench.problems.errors import MemoryBudgetError
+from contactbench.problems.kkt import kkt_figures
+from contactbench.problems.operators import (
+    ContactOperator,
+    DenseOperator,
+    check_dense_budget,
+    dense_nbytes,
+    spectral_norm_estimate,
+)
 
-from .base import Deadline
+from .base import Deadline, SolveContext
 
 Vector = np.ndarray
 LinearMap = Callable[[Vector], Vector]
@@ -110,6 +124,46 @@ def lipschitz_constant(op: ContactOperator, method: str) -> float:
     if method == "power":
         return spectral_norm_estimate(op, iters=50, rtol=1e-4)
     raise ValueError(f"lipschitz must be 'frobenius' or 'power', got {method!r}")
+
+
+def cholesky_of_h(op: ContactOperator, idx: np.ndarray | None = None, scale: float = 1.0, shift: float = 0.0,
+                  what: str = "Cholesky factor of H") -> np.ndarray:
+    """Lower L with L L' = scale H[idx, idx] + shift I (idx None: all of ``op``), the
+    block gathered by ``op.submatrix``; ``MemoryBudgetError`` (naming ``what``) when the
+    block would exceed the memory budget."""
+    idx = np.arange(op.n) if idx is None else np.asarray(idx)
+    check_dense_budget(idx.size, what=what)
+    try:
+        A = np.array(op.submatrix(idx, idx), dtype=np.float64, copy=True)
+    except MemoryError as exc:  # the gather itself ran out of memory
+        raise MemoryBudgetError(what, dense_nbytes(idx.size), operators.DEFAULT_MEMORY_BUDGET) from exc
+    if scale != 1.0:
+        A *= scale
+    if shift:
+        A[np.diag_indices_from(A)] += shift
+    return sla.cholesky(A, lower=True, overwrite_a=True, check_finite=False)
+
+
+def cholesky_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with L L' x = b (L from ``cholesky_of_h``)."""
+    return sla.cho_solve((L, True), b, check_finite=False)
+
+
+@dataclass(frozen=True)
+class AbsoluteTol:
+    """A relative tolerance tol in the problem's units: ``disp`` = tol u_s [length] and
+    ``force`` = tol p_s [force], with the scales of the scaled KKT error
+    (``contactbench.problems.kkt``) at p = 0: u_s = ||ubar||_inf, p_s = u_s / max diag H."""
+
+    disp: float
+    force: float
+
+
+def absolute_tol(ctx: SolveContext, tol: float) -> AbsoluteTol:
+    """``AbsoluteTol`` of ``tol`` for the problem of ``ctx``."""
+    ubar = ctx.qp.ubar
+    f = kkt_figures(np.zeros(ubar.size), -ubar, ubar, ctx.diag_max)
+    return AbsoluteTol(disp=tol * f.u_scale, force=tol * f.p_scale)
 
 
 def project_nonneg(x: np.ndarray) -> np.ndarray:

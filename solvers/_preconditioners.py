@@ -1,7 +1,11 @@
-"""Preconditioners for CG on a contact (free) set S, used by fast-pccg / fast-dual-pccg.
+"""Preconditioners for CG on a contact (free) set S: the one factory
+(``make_preconditioner``) of fast-pccg, fast-dual-pccg (and the unpreconditioned CCGs'
+``precondition`` option) and of fast-pdas's inner CG.
 
 Both act as z = R M^-1 R r, with R the restriction to the current set S, so each is
-symmetric positive definite on S and CG stays valid while M is held fixed.
+symmetric positive definite on S and CG stays valid while M is held fixed.  Each also
+says what it would do to a point that forms a set alone (``solo``), which scales the
+force of a point entering Polonsky-Keer's contact set (solvers/_ccg.py).
 
 ``IslandPreconditioner`` (the default, "islands") -- block-Jacobi over contact islands.
 
@@ -32,16 +36,15 @@ padded matvec), gathered on S.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Callable, Protocol
 
 import numpy as np
+import scipy.fft as sfft
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
-from contactbench.problems.operators import ContactOperator
-
-from ._fast_common import floored_wavenumbers, multiply_by_wavenumbers
+from contactbench.problems.operators import ContactOperator, fft_workers
 
 #: Islands above this many points are cut into strips (keeps a block inverse cheap).
 MAX_BLOCK = 128
@@ -61,8 +64,13 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
     return np.where(sizes <= 16, small, 16 * ((sizes + 15) // 16))
 
 
+#: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner).
+KINDS = ("islands", "fourier", "none")
+
+
 class SetPreconditioner(Protocol):
-    """What the preconditioned CCGs use: act on a set S, apply z = R M^-1 R r."""
+    """What the preconditioned CGs use: act on a set S, apply z = R M^-1 R r, and
+    ``solo``: z_j = m_j r_j, what M^-1 does to each point j as a one-point set."""
 
     builds: int
 
@@ -72,6 +80,8 @@ class SetPreconditioner(Protocol):
     def update(self, S: np.ndarray) -> None: ...
 
     def apply(self, r: np.ndarray) -> np.ndarray: ...
+
+    def solo(self, r: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass
@@ -139,6 +149,10 @@ class IslandPreconditioner:
             z[b.members[valid]] = zb[valid]
         z[~self._on] = 0.0
         return z
+
+    def solo(self, r: np.ndarray) -> np.ndarray:
+        """r / H_jj: the inverse of a one-point island."""
+        return r / self._diag
 
     # -- partition -------------------------------------------------------------------
 
@@ -208,6 +222,7 @@ class FourierPreconditioner:
         self._q = floored_wavenumbers(self._shape)
         self._idx = np.asarray(grid_idx)
         self._on = np.zeros(self._idx.size, dtype=bool)
+        self._solo: float | None = None
         self.builds = 0
 
     @classmethod
@@ -229,14 +244,57 @@ class FourierPreconditioner:
         z[~self._on] = 0.0
         return z
 
+    def solo(self, r: np.ndarray) -> np.ndarray:
+        """c r, c = F^-1[|q|] at offset 0 (the mean of |q| over the full spectrum)."""
+        if self._solo is None:
+            self._solo = float(sfft.irfft2(self._q, s=self._shape)[0, 0])
+        return self._solo * r
 
-def make_preconditioner(kind: str | None, qp: QP) -> SetPreconditioner | None:
-    """"islands", "fourier" or "none" (None is returned also when the QP has no grid
-    positions)."""
+
+def floored_wavenumbers(shape: tuple[int, int]) -> np.ndarray:
+    """|q| on the rfft2 half-spectrum of a grid, |q(0, 0)| floored at the lowest
+    non-zero wave number (so the multiplier below is positive definite)."""
+    p0, p1 = shape
+    q0 = 2.0 * np.pi * sfft.fftfreq(p0)
+    q1 = 2.0 * np.pi * sfft.rfftfreq(p1)
+    q = np.hypot(q0[:, None], q1[None, :])
+    q[0, 0] = min(q0[1] if p0 > 1 else 1.0, q1[1] if q1.size > 1 else 1.0)
+    return q
+
+
+def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx)."""
+    f = np.zeros(shape)
+    f.ravel()[idx] = r
+    w = fft_workers()
+    F = sfft.rfft2(f, workers=w, overwrite_x=True)
+    F *= q
+    return sfft.irfft2(F, s=shape, workers=w, overwrite_x=True).ravel()[idx]
+
+
+def make_preconditioner(kind: str, qp: QP) -> SetPreconditioner | None:
+    """The preconditioner ``kind`` (one of ``KINDS``) for CG on sets of ``qp``'s unknowns;
+    None for "none", and also when the QP has no grid positions (``QP.geometry``), which
+    both preconditioners need: the caller then runs unpreconditioned."""
     if kind == "islands":
         return IslandPreconditioner.build(qp)
     if kind == "fourier":
         return FourierPreconditioner.build(qp)
-    if kind in ("none", "", None):
+    if kind == "none":
         return None
-    raise ValueError(f"unknown preconditioner {kind!r}: expected 'islands', 'fourier' or 'none'")
+    raise ValueError(f"unknown preconditioner {kind!r}: expected one of {', '.join(KINDS)}")
+
+
+def on_subset(M: SetPreconditioner, subset: np.ndarray, n: int) -> Callable[[np.ndarray], np.ndarray]:
+    """M moved to the set ``subset`` (positions among n) as a map on vectors of length
+    |subset|: z_A = (R M^-1 R r)_A, for a CG on the restricted system H_AA x = b."""
+    mask = np.zeros(n, dtype=bool)
+    mask[subset] = True
+    M.update(mask)
+    full = np.zeros(n)
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        full[subset] = r
+        return M.apply(full)[subset]
+
+    return apply

@@ -1,4 +1,4 @@
-"""Equilibration, dense-H assembly and active-set polish shared by the QP adapters.
+"""Equilibration, dense-H assembly and the adapter skeleton shared by the QP adapters.
 
 Why scaling matters
 -------------------
@@ -23,47 +23,51 @@ cone (D > 0, s > 0).  Then p = s D p~ and the gap w = Hp - ubar = s D^{-1} w~.  
 BCC and Love kernels diag(H) is constant, so D is a multiple of the identity and every
 scaled figure is order one: H~_ij in (0, 1], u~ in [0, 1], p~ = O(1).
 
-``settings.params["scaling"] = False`` selects the raw mode (d = 1, s = 1: the
-backend sees H and ubar exactly as given), kept so stress tests can show what
-unscaled use does.
+The parameter ``scaling=False`` selects the raw mode (d = 1, s = 1: the backend sees H
+and ubar exactly as given), kept so stress tests can show what unscaled use does.
 
-Build vs solve time
--------------------
-``assemble_scaled`` fetches dense H (the operator's own array when ``qp.H`` is a
-``DenseOperator`` -- the harness shares one per instance -- else ``to_dense`` under the
-memory budget) and scales it.  That, and any format conversion an adapter does before
-calling its backend, is *build* time (``SolveResult.setup_time``); the backend's own
-setup and factorization count toward ``solve_time``.
-
-Active-set polish
------------------
-``active_set_polish`` takes an approximate solution (from an interior-point solver,
-which stalls near 1e-5 in p on nearly degenerate elements), guesses the contact set
-A = {i : p~_i > w~_i}, solves H~_AA p~_A = u~_A exactly by Cholesky and repairs the
-guess by block principal pivoting (Judice & Pires 1994: move negative p_A out of A,
-violated w_i < 0 into A; after three rounds without fewer violations fall back to
-Murty's single least-index pivot, which terminates).  It is used only by the
-explicitly labelled ``+polish`` variants, never inside a plain adapter.
+The adapter lifecycle (``EquilibratedAdapter.iterate``)
+-------------------------------------------------------
+1. ``assemble_scaled`` fetches dense H (the operator's own array when ``qp.H`` is a
+   ``DenseOperator`` -- the harness shares one per instance -- else ``to_dense`` under
+   the memory budget), scales it and the warm start;
+2. ``prepare`` converts it into the backend's input (CSC matrix, CVXPY model);
+   steps 1-2 are *build* time: ``ctx.mark_setup_done()`` (``SolveResult.setup_time``),
+   plus any build work the backend call reports itself (CVXPY's compilation);
+3. ``run_backend`` calls the backend with ``Request`` (the tolerance -- None: the
+   backend's own defaults --, iteration and time limits); its setup, factorization and
+   iterations are solve time;
+4. the labelled ``+polish`` variants repair the point by block principal pivoting
+   (``contactbench.problems.lcp.bpp_polish``); plain adapters never polish;
+5. unscaling, and an ``Outcome`` whose status is the ``Status`` enum, with the
+   backend's own word in ``info["backend_status"]``.
 """
 
 from __future__ import annotations
 
-import time
 import importlib
+import sys
+import time
 from abc import abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-import scipy.linalg as sla
 
 from contactbench.problems.instances import QP
+from contactbench.problems.lcp import bpp_polish
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 
-from .base import SolveResult, Solver, SolverSettings, WarmStart
+from .base import Outcome, Param, SolveContext, Solver, Status
 
 #: Bytes of one dense n x n float64 matrix, the unit of every adapter's memory model.
 BYTES_PER_ENTRY = 8.0
+
+#: ``default_max_iter`` of an adapter: no limit of ours, the backend keeps its own.
+BACKEND_DEFAULT_MAX_ITER = sys.maxsize
+
+SCALING = Param("scaling", bool, True, "Jacobi+rhs equilibration (False: raw SI units)")
+BACKEND_OPTIONS = Param("backend_options", dict, {}, "the backend's own options, over the mapped ones")
 
 
 @dataclass(frozen=True)
@@ -113,16 +117,6 @@ def equilibration_for(diag_H: np.ndarray, ubar: np.ndarray, enabled: bool = True
     return Equilibration(d, s if s > 0.0 else 1.0, True)
 
 
-def scaling_requested(settings: SolverSettings) -> bool:
-    """True unless the caller asked for the raw mode (params {"scaling": False})."""
-    return bool(settings.param("scaling", True))
-
-
-def requested_tolerance(settings: SolverSettings) -> float | None:
-    """The tolerance asked for, or None for the ``default`` profile (backend defaults)."""
-    return None if settings.tol is None else float(settings.tol)
-
-
 def dense_matrix(qp: QP, budget: float | None = None) -> np.ndarray:
     """Dense H: the shared array of a DenseOperator (no copy), else assembled from the
     operator under the memory budget (raises MemoryBudgetError with the estimate)."""
@@ -146,19 +140,16 @@ class ScaledQP:
         return int(self.u.size)
 
 
-def assemble_scaled(qp: QP, settings: SolverSettings, warm_p: np.ndarray | None = None) -> ScaledQP:
-    """Dense H, equilibrated (or raw), plus a scaled warm start; timed as build time."""
+def assemble_scaled(qp: QP, scaling: bool = True, p0: np.ndarray | None = None) -> ScaledQP:
+    """Dense H, equilibrated (or raw), plus the scaled warm start ``p0`` (already
+    validated by the lifecycle); timed as build time."""
     t0 = time.perf_counter()
     H = dense_matrix(qp)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
-    eq = equilibration_for(np.diag(H), ubar, scaling_requested(settings))
+    eq = equilibration_for(np.diag(H), ubar, scaling)
     Hs = eq.scale_matrix(H)
     us = eq.scale_rhs(ubar)
-    x0 = None
-    if warm_p is not None:
-        warm_p = np.asarray(warm_p, dtype=np.float64)
-        if warm_p.shape == ubar.shape:
-            x0 = np.maximum(eq.to_scaled(warm_p), 0.0)
+    x0 = None if p0 is None else np.maximum(eq.to_scaled(p0), 0.0)
     return ScaledQP(Hs, us, eq, time.perf_counter() - t0, x0)
 
 
@@ -173,78 +164,20 @@ def power_time_model(n: int, coef: float, exponent: float) -> float:
     return float(coef * float(n) ** exponent)
 
 
-# ---------------------------------------------------------------------------
-# Active-set polish (for the labelled "+polish" variants only)
-# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Request:
+    """What the harness asked for, in the backend-neutral form the option maps read."""
+
+    tol: float | None  # None: the backend's own defaults
+    max_iter: int | None  # None: the backend's own limit
+    time_limit: float | None  # seconds left of the solve's one deadline
 
 
-@dataclass
-class PolishOutcome:
-    p: np.ndarray  # scaled units
-    rounds: int
-    converged: bool
-    active: int
-    improved: bool
-    history: list[int] = field(default_factory=list)  # violations per round
-
-
-def scaled_kkt_residual(H: np.ndarray, u: np.ndarray, p: np.ndarray) -> float:
-    """max(primal, dual, complementarity) in the (order-one) scaled units."""
-    w = H @ p - u
-    return float(max(np.max(-p, initial=0.0), np.max(-w, initial=0.0), np.max(np.abs(w * p), initial=0.0)))
-
-
-def _solve_on_set(H: np.ndarray, u: np.ndarray, active: np.ndarray) -> np.ndarray:
-    p = np.zeros_like(u)
-    idx = np.flatnonzero(active)
-    if idx.size:
-        c = sla.cho_factor(H[np.ix_(idx, idx)], lower=True, check_finite=False)
-        p[idx] = sla.cho_solve(c, u[idx], check_finite=False)
-    return p
-
-
-def active_set_polish(H: np.ndarray, u: np.ndarray, p0: np.ndarray, max_rounds: int = 50,
-                      tol: float = 1e-11) -> PolishOutcome:
-    """Exact solve on the contact set detected from ``p0`` plus a check/repair loop
-    (block principal pivoting with Murty fallback, see module doc).  Returns the
-    polished point only when it is better than ``p0`` by the scaled KKT residual."""
-    p0 = np.asarray(p0, dtype=np.float64)
-    w0 = H @ p0 - u
-    active = p0 > w0
-    scale = max(1.0, float(np.max(np.abs(u), initial=0.0)))
-    best_viol, stall, history = np.inf, 0, []
-    p = p0
-    for rnd in range(1, max_rounds + 1):
-        p = _solve_on_set(H, u, active)
-        w = H @ p - u
-        bad_p = active & (p < -tol * scale)
-        bad_w = ~active & (w < -tol * scale)
-        nviol = int(np.count_nonzero(bad_p) + np.count_nonzero(bad_w))
-        history.append(nviol)
-        if nviol == 0:
-            p = np.where(active, np.maximum(p, 0.0), 0.0)
-            return _better_of(H, u, p0, p, rnd, True, int(active.sum()), history)
-        if nviol < best_viol:
-            best_viol, stall = nviol, 0
-        else:
-            stall += 1
-        if stall < 3:
-            active = (active & ~bad_p) | bad_w
-        else:  # Murty's least-index rule: finite termination
-            j = int(np.flatnonzero(bad_p | bad_w)[0])
-            active[j] = not active[j]
-    return _better_of(H, u, p0, np.maximum(p, 0.0), max_rounds, False, int(active.sum()), history)
-
-
-def _better_of(H: np.ndarray, u: np.ndarray, p0: np.ndarray, p: np.ndarray, rounds: int, converged: bool,
-               active: int, history: list[int]) -> PolishOutcome:
-    improved = scaled_kkt_residual(H, u, p) <= scaled_kkt_residual(H, u, p0)
-    return PolishOutcome(p if improved else p0, rounds, converged, active, improved, history)
-
-
-# ---------------------------------------------------------------------------
-# The adapter skeleton: build (assemble + scale), run the backend, unscale, record
-# ---------------------------------------------------------------------------
+def request_of(ctx: SolveContext) -> Request:
+    """The request of this solve: ``ctx.tol``, the iteration limit asked for (None when
+    it is the adapter's ``BACKEND_DEFAULT_MAX_ITER``) and the time left."""
+    max_iter = None if ctx.max_iter >= BACKEND_DEFAULT_MAX_ITER else int(ctx.max_iter)
+    return Request(ctx.tol, max_iter, ctx.deadline.remaining())
 
 
 @dataclass
@@ -252,14 +185,27 @@ class BackendOutcome:
     """What a backend call returns, in scaled units."""
 
     x: np.ndarray | None
-    status: str
+    status: str  # the backend's own word
     converged: bool
     iterations: int = 0
-    convert_time: float = 0.0  # adapter-side format conversion (build time)
+    late_build_time: float = 0.0  # build work inside the backend call (CVXPY's compilation)
     backend_setup_time: float | None = None  # backend's own setup/factorization (solve time)
     backend_solve_time: float | None = None
-    warm_started: bool = False
     info: dict[str, Any] = field(default_factory=dict)
+
+
+def status_of(out: BackendOutcome, finite: bool, expired: bool) -> Status:
+    """The ``Status`` of a backend's outcome; its own word stays in ``backend_status``."""
+    word = out.status.lower()
+    if not finite:
+        return Status.FAILED
+    if out.converged:
+        return Status.CONVERGED
+    if expired or "time" in word:
+        return Status.TIME_LIMIT
+    if "iter" in word or "limit" in word:
+        return Status.MAX_ITER
+    return Status.STALLED
 
 
 def missing_package_message(solver_name: str, package: str) -> str | None:
@@ -276,20 +222,25 @@ def missing_package_message(solver_name: str, package: str) -> str | None:
 
 
 class EquilibratedAdapter(Solver):
-    """Base of every generic-QP adapter: dense H (shared or assembled), equilibration
-    (module doc), one backend call in scaled units, optional labelled active-set polish,
-    unscaling and a SolveResult carrying the backend's own status.
+    """Base of every generic-QP adapter (module doc, "The adapter lifecycle"): dense H
+    (shared or assembled), equilibration, one backend call in scaled units, optional
+    labelled polish, unscaling.  ``ctx.tol`` None means the backend's own defaults.
 
-    Subclasses set ``required_package`` and implement ``solve_scaled``; they own their
-    tolerance mapping (``tolerance_options``)."""
+    Subclasses set ``required_package``, may override ``prepare`` (build work) and
+    implement ``run_backend``; they own their tolerance mapping."""
 
     family: ClassVar[str] = "qp"
     required_package: ClassVar[str] = ""
     polish: ClassVar[bool] = False
+    default_tol: ClassVar[float | None] = None
+    params: ClassVar[tuple[Param, ...]] = (SCALING,)
     #: memory model: peak bytes ~ memory_copies * 8 n^2; time model: t ~ coef * n^exponent.
     memory_copies: ClassVar[float] = 4.0
     time_coef: ClassVar[float] = 1e-9
     time_exponent: ClassVar[float] = 3.0
+
+    def default_max_iter(self, n: int) -> int:
+        return BACKEND_DEFAULT_MAX_ITER
 
     def availability(self) -> tuple[bool, str]:
         why = missing_package_message(self.name, self.required_package) if self.required_package else None
@@ -306,49 +257,52 @@ class EquilibratedAdapter(Solver):
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return power_time_model(n, self.time_coef, self.time_exponent)
 
-    @abstractmethod
-    def solve_scaled(self, sqp: ScaledQP, settings: SolverSettings) -> BackendOutcome:
-        """Run the backend on sqp.H, sqp.u (scaled units) with the settings' tolerance."""
+    def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> Any:
+        """Build work before the backend call (format conversion, modelling); its result
+        is handed to ``run_backend``.  Default: nothing to do."""
+        return None
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+    @abstractmethod
+    def run_backend(self, sqp: ScaledQP, prepared: Any, ctx: SolveContext) -> BackendOutcome:
+        """Run the backend on sqp.H, sqp.u (scaled units) for ``request_of(ctx)``."""
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
         self.require_available()
-        sqp = assemble_scaled(qp, settings, warm.p if warm is not None else None)
         t0 = time.perf_counter()
-        out = self.solve_scaled(sqp, settings)
-        backend_wall = time.perf_counter() - t0 - out.convert_time
+        sqp = assemble_scaled(ctx.qp, bool(ctx.params["scaling"]), ctx.p0)
+        prepared = self.prepare(sqp, ctx)
+        build_time = time.perf_counter() - t0
+        ctx.mark_setup_done()
+        out = self.run_backend(sqp, prepared, ctx)
+        if out.late_build_time:
+            ctx.setup_time = (ctx.setup_time or 0.0) + out.late_build_time
         info: dict[str, Any] = {
             "scaling": "jacobi+rhs" if sqp.eq.enabled else "raw",
             "scale_s": sqp.eq.s,
-            "build_time": sqp.build_time + out.convert_time,
+            "build_time": build_time + out.late_build_time,
+            "backend_status": out.status,
             "backend_setup_time": out.backend_setup_time,
             "backend_solve_time": out.backend_solve_time,
             **out.info,
         }
         x = out.x
-        if x is None or x.shape != sqp.u.shape or not np.all(np.isfinite(x)):
-            x = np.full(sqp.n, np.nan) if x is None or x.shape != sqp.u.shape else x
-            return self._result(sqp, x, out, backend_wall, info, "backend returned no finite solution")
+        finite = x is not None and x.shape == sqp.u.shape and bool(np.all(np.isfinite(x)))
+        status = status_of(out, finite, ctx.expired())
+        if not finite:
+            return Outcome(np.full(sqp.n, np.nan), out.iterations, False, "backend returned no finite solution",
+                           status=status, info=info)
         if self.polish:
             t1 = time.perf_counter()
-            pol = active_set_polish(sqp.H, sqp.u, x)
+            pol = bpp_polish(sqp.H, sqp.u, x)
             info.update(polish_time=time.perf_counter() - t1, polish_rounds=pol.rounds,
                         polish_converged=pol.converged, polish_improved=pol.improved, polish_active=pol.active)
-            backend_wall += info["polish_time"]
             x = pol.p
-        return self._result(sqp, x, out, backend_wall, info, "")
-
-    def _result(self, sqp: ScaledQP, x: np.ndarray, out: BackendOutcome, wall: float, info: dict[str, Any],
-                message: str) -> SolveResult:
-        w = sqp.H @ x - sqp.u if np.all(np.isfinite(x)) else None
-        return SolveResult(
+        return Outcome(
             p=sqp.eq.to_original(x),
-            w=None if w is None else sqp.eq.gap_to_original(w),
             iterations=out.iterations,
             converged=out.converged,
-            status=out.status,
-            message=message or f"{self.name}: backend status {out.status}",
-            solve_time=wall,
-            setup_time=sqp.build_time + out.convert_time,
-            warm_started=out.warm_started,
+            message=f"{self.name}: backend status {out.status}",
+            w=sqp.eq.gap_to_original(sqp.H @ x - sqp.u),
+            status=status,
             info=info,
         )

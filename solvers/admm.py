@@ -20,9 +20,10 @@ one, so the effective rho is rho * mean(diag H) (recorded in ``info["rho"]``).  
 
 (H/rho + I)^-1: a Cholesky factor computed once per solve for a dense operator (n^2
 memory); CG warm started from the previous s for the matrix-free operator (param
-``linear`` = auto | cholesky | cg).  Stopping (scale-invariant): primal residual
-||s - p||_inf / p_s <= tol (the paper's test) and dual residual
-rho ||p - p_prev||_inf / u_s <= tol.  Not exact; warm start: primal and dual.
+``linear`` = auto | cholesky | cg).  Stopping: the scaled KKT error of p
+(``SolveContext.kkt``, one extra matvec, every ``check_every`` iterations) <= tol, in
+place of the paper's primal residual ||s - p||: p >= 0 holds at every iterate, so the
+error is zero exactly at the solution.  Not exact; warm start: primal and dual.
 """
 
 from __future__ import annotations
@@ -30,108 +31,108 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-import scipy.linalg as sla
 
-from contactbench.problems.instances import QP
-from contactbench.problems.operators import check_dense_budget
-
-from ._common import (
-    PrimalWarmSolver,
-    FIRST_ORDER_TOL,
-    RunRecorder,
-    Scales,
-    conjugate_gradient,
-    is_dense,
-    matvec_seconds,
-    max_iter_of,
-)
-from .base import Capabilities, SolveResult, SolverSettings, WarmStart
+from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, conjugate_gradient, is_dense, matvec_seconds
+from .base import Capabilities, Outcome, Param, ParamError, SolveContext, Solver, WarmStart
 from .registry import register
 
 TYPICAL_ADMM_ITERATIONS = 1000
+#: CG iterations at most per resolvent application (matrix-free operator).
+RESOLVENT_CG_MAX_ITER = 1000
+
+Resolvent = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def resolvent(qp: QP, rho: float, linear: str, atol: float, rec: RunRecorder) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """x -> (H/rho + I)^-1 x: cached Cholesky (dense) or warm-started CG (matrix-free)."""
-    op = qp.H
+def resolvent(ctx: SolveContext, rho: float, linear: str, atol: float) -> Resolvent:
+    """(v, x0) -> (H/rho + I)^-1 v: cached Cholesky (dense) or CG warm started from x0."""
+    op = ctx.qp.H
     if linear == "auto":
         linear = "cholesky" if is_dense(op) else "cg"
-    rec.info["linear_solver"] = linear
+    ctx.info["linear_solver"] = linear
     if linear == "cholesky":
-        check_dense_budget(op.n, what="admm: Cholesky factor of H/rho + I")
-        idx = np.arange(op.n)
-        A = np.array(op.submatrix(idx, idx), dtype=np.float64, copy=True)
-        A /= rho
-        A[np.diag_indices_from(A)] += 1.0
-        factor = sla.cho_factor(A, lower=True, overwrite_a=True, check_finite=False)
-        return lambda v, x0: sla.cho_solve(factor, v, check_finite=False)
-    if linear == "cg":
-        counter = {"cg_iterations": 0}
-        rec.info["inner_cg"] = counter
+        L = cholesky_of_h(op, scale=1.0 / rho, shift=1.0, what="admm: Cholesky factor of H/rho + I")
+        return lambda v, x0: cholesky_solve(L, v)
+    ctx.info["inner_cg_iterations"] = 0
 
-        def solve_cg(v: np.ndarray, x0: np.ndarray) -> np.ndarray:
-            r = conjugate_gradient(op, v, x0, atol, 1000, rec.deadline, scale=1.0 / rho, shift=1.0)
-            counter["cg_iterations"] += r.iterations
-            return r.x
+    def solve_cg(v: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        r = conjugate_gradient(op, v, x0, atol, RESOLVENT_CG_MAX_ITER, ctx.deadline, scale=1.0 / rho, shift=1.0)
+        ctx.info["inner_cg_iterations"] += r.iterations
+        return r.x
 
-        return solve_cg
-    raise ValueError(f"admm: linear must be 'auto', 'cholesky' or 'cg', got {linear!r}")
+    return solve_cg
+
+
+def checked_rho_alpha(params: dict[str, float]) -> tuple[float, float]:
+    """(rho, alpha) with rho > 0 and 0 < alpha < 2 (the declared ranges are closed)."""
+    rho, alpha = params["rho"], params["alpha"]
+    if not (rho > 0.0 and 0.0 < alpha < 2.0):
+        raise ParamError(f"admm: need rho > 0 and 0 < alpha < 2, got rho={rho}, alpha={alpha}")
+    return rho, alpha
 
 
 @register
-class ADMM(PrimalWarmSolver):
-    """ADMM with over-relaxation (paper Algorithm 5).  Params: rho (default 1, relative to
-    mean diag H), rho_relative, alpha (default 1.5), linear.  Warm start: primal-dual."""
+class ADMM(Solver):
+    """ADMM with over-relaxation (paper section 3.4, Algorithm 5), stopped on the scaled
+    KKT error of p.  Params: rho (default 1, relative to mean diag H), rho_relative,
+    alpha (default 1.5), linear, check_every.  Not exact; warm start: primal-dual
+    (u = -w/rho)."""
 
     name = "admm"
     family = "paper"
     description = "ADMM scaled form, alpha=1.5, rho relative to mean diag(H) (Algorithm 5)"
     capabilities = Capabilities(warm_start="primal-dual", exact=False)
+    default_tol = 1e-6
+    params = (
+        Param("rho", float, 1.0, "penalty (> 0); relative to mean diag H unless rho_relative is False", low=0.0),
+        Param("rho_relative", bool, True, "rho is a multiple of mean diag H (the paper's rho = 1 has units)"),
+        Param("alpha", float, 1.5, "over-relaxation, 0 < alpha < 2", low=0.0, high=2.0),
+        Param("linear", str, "auto", "(H/rho + I)^-1 by a cached Cholesky factor, CG, or auto (Cholesky when dense)",
+              choices=("auto", "cholesky", "cg")),
+        Param("check_every", int, 1, "iterations between two KKT checks (one matvec each)", low=1),
+    )
 
-    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
-            p0: np.ndarray | None) -> SolveResult:
-        sc = Scales.of(qp)
-        tol = settings.tolerance(FIRST_ORDER_TOL)
-        alpha = float(settings.param("alpha", 1.5))
-        rho = float(settings.param("rho", 1.0))
-        if not (rho > 0.0 and 0.0 < alpha < 2.0):
-            raise ValueError(f"admm: need rho > 0 and 0 < alpha < 2, got rho={rho}, alpha={alpha}")
-        if bool(settings.param("rho_relative", True)):
+    def default_max_iter(self, n: int) -> int:
+        return 10_000
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        qp, tol = ctx.qp, ctx.tol
+        rho, alpha = checked_rho_alpha(ctx.params)
+        if ctx.params["rho_relative"]:
             rho *= float(np.mean(qp.H.diagonal()))
-        rec.info.update(rho=rho, alpha=alpha)
-        apply_m = resolvent(qp, rho, str(settings.param("linear", "auto")), 1e-2 * tol * sc.p_s, rec)
-        rec.mark_setup_done()
-        p = np.zeros(qp.n) if p0 is None else p0.copy()
-        u = self._initial_scaled_dual(qp, p, warm, rho) if p0 is not None else np.zeros(qp.n)
+        ctx.info.update(rho=rho, alpha=alpha)
+        apply_m = resolvent(ctx, rho, ctx.params["linear"], absolute_tol(ctx, 1e-2 * tol).force)
+        ctx.mark_setup_done()
+        p = np.zeros(qp.n) if ctx.p0 is None else ctx.p0.copy()
+        u = np.zeros(qp.n) if ctx.p0 is None else initial_scaled_dual(ctx, p, rho)
         s = p.copy()
-        max_iter = max_iter_of(settings, 10_000)
-        converged, i = False, 0
-        while i < max_iter and not rec.deadline.expired():
+        check_every = ctx.params["check_every"]
+        converged, i, w = False, 0, None
+        while i < ctx.max_iter and not ctx.expired():
             s = apply_m(p - u + qp.ubar / rho, s)  # 5.1
             s_hat = alpha * s + (1.0 - alpha) * p  # 5.2
-            p_prev = p
             p = np.maximum(s_hat + u, 0.0)  # 5.3
             u += s_hat - p  # 5.4
             i += 1
-            r_primal = float(np.max(np.abs(s - p))) / sc.p_s
-            r_dual = rho * float(np.max(np.abs(p - p_prev))) / sc.u_s
-            rec.record(i, max(r_primal, r_dual))
-            if r_primal <= tol and r_dual <= tol:
-                converged = True
-                break
-        if "inner_cg" in rec.info:
-            rec.info["inner_cg_iterations"] = rec.info.pop("inner_cg")["cg_iterations"]
-        status, message = rec.stop_status(converged)
-        return rec.result(p, i, converged, status, message, p0 is not None)
-
-    @staticmethod
-    def _initial_scaled_dual(qp: QP, p: np.ndarray, warm: WarmStart | None, rho: float) -> np.ndarray:
-        """u = -w/rho from the warm dual w, or from w = Hp - ubar when none is given."""
-        w = None if warm is None or warm.w is None else np.asarray(warm.w, dtype=np.float64)
-        if w is None or w.shape != p.shape:
-            w = qp.H.matvec(p) - qp.ubar
-        return -w / rho
+            w = None
+            if i % check_every == 0:
+                w = qp.H.matvec(p) - qp.ubar
+                res = ctx.kkt(p, w)
+                ctx.record(i, res)
+                if res <= tol:
+                    converged = True
+                    break
+        return Outcome(p, i, converged, w=w)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         per = matvec_seconds(n, "dense") if operator_kind == "dense" else 20 * matvec_seconds(n, "fft")
         return TYPICAL_ADMM_ITERATIONS * per
+
+
+def initial_scaled_dual(ctx: SolveContext, p: np.ndarray, rho: float) -> np.ndarray:
+    """u = -w/rho from the warm dual w, or from w = Hp - ubar when none (or none of
+    length n) is given."""
+    warm: WarmStart | None = ctx.warm
+    w = None if warm is None or warm.w is None else np.asarray(warm.w, dtype=np.float64)
+    if w is None or w.shape != p.shape or not np.all(np.isfinite(w)):
+        w = ctx.qp.H.matvec(p) - ctx.qp.ubar
+    return -w / rho

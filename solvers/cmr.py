@@ -8,49 +8,81 @@ surface (coarsest first, spacing delta(s)) at the same far-field displacement De
   r <= h * delta(s-1) of a contact point of the level s-1 solution, I_C*(s-1);
 * (2-3) build Q on I_C,p(s), solve it with any registered solver, pass I_C*(s) down.
 
-The last level is the QP the harness gave: its operator is restricted to the projected
-set (``H.restrict``) and the answer is returned on the FULL trial set, zeros outside
-the projected set, so the harness's KKT check judges the whole problem honestly (a
-wrongly excluded point shows up as a negative gap w_i < 0).
+The mathematics of the levels is in ``problems/coarsen.py``: the representations
+(``cascade_surfaces``: the surface's own RMD levels, exact sub-samples, else the
+area-weighted 2 x 2 block-average filter), their element positions in the fine frame
+(``grid_positions``) and the coarse QP of a level (``coarse_qp``).  This module holds the
+cascade itself: the pruning (step 1.2), the solves, and the records.
 
-Representations: the surface's own ``levels`` (random midpoint displacement keeps its
-coarse levels, exact sub-samples), else the area-weighted 2 x 2 block-average filter of
-``problems.io.coarse_levels``.  Levels with fewer than ``coarsest`` (default 16) points
-per side are skipped.  Every level's solution summary is returned in
-``SolveResult.info["levels"]`` (the paper: coarse predictions come for free).
+The last level is the QP the harness gave, restricted to the projected set
+(``QP.restrict``); the answer is returned on the FULL trial set, zeros outside the
+projected set, so the harness's KKT check judges the whole problem honestly (a wrongly
+excluded point shows up as a negative gap w_i < 0).  Every level's solution summary is
+returned in ``SolveResult.info["levels"]`` (the paper: coarse predictions come for free).
 
-Parameters (``SolverSettings.params``): ``h`` (area-of-influence factor, default 2),
-``coarsest`` (points per side of the first level, default 16), ``levels`` (explicit
-list of points-per-side to use, optional), ``base_params`` (dict passed to the base),
-``repair`` (default False, not in the paper: re-admit pruned points that overlap and
-re-solve until none does, which makes the answer exact).
-Warm start: a primal warm start for the fine problem is restricted to the projected
-set and handed to the base solver when the base accepts one; coarse levels start cold.
-The base solver is looked up by registry name at solve time.
+Parameters (``Param``s below): ``h`` (area-of-influence factor, default 2), ``coarsest``
+(points per side of the first level, default 16), ``levels`` (explicit sizes to use),
+``base_params`` (passed to the base), ``repair`` (default False, not in the paper:
+re-admit pruned points that overlap and re-solve until none does, which makes the answer
+exact).  Each base solve gets the tolerance and iteration limit asked of CMR (when none
+is asked, the base's own defaults) and what is LEFT of CMR's time limit, so a CMR solve
+never runs past its limit; coarse levels not reached in time are dropped.
+
+Skip policy: ``capabilities.needs_geometry`` -- a problem without a surface
+(``ProblemTraits.has_surface`` False, e.g. the counterexample) is skipped, not failed.
+Warm start: a primal warm start for the fine problem is restricted to the projected set
+and handed to the base solver when the base accepts one; coarse levels start cold.
+The base solver is looked up by registry name at solve time; ``cmr+<base>`` is
+registered for the bases in ``CMR_BASES`` (``make_cmr(name)`` wraps any other).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from contactbench.problems.coarsen import cascade_surfaces, coarse_qp, grid_positions, level_trial_set, power_law_check
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.instances import CONTACT_THRESHOLD, QP, Geometry, InstanceBuilder, trial_set
-from contactbench.problems.io import element_origin, power_law_check, with_coarse_levels
+from contactbench.problems.instances import QP, Geometry, OperatorKind, contact_mask
 from contactbench.problems.surfaces import Surface
 
-from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from .base import (
+    Capabilities,
+    Outcome,
+    Param,
+    ParamError,
+    SolveContext,
+    SolveResult,
+    Solver,
+    SolverSettings,
+    Status,
+    WarmStart,
+)
 from .registry import all_solvers, get_solver, register
 
 #: Bases for which ``cmr+<base>`` is registered (others: ``make_cmr(name)``).
 CMR_BASES: tuple[str, ...] = ("nnls", "pk", "scipy-nnls", "nnls-gp", "fast-ccg")
-CMR_KEYS = frozenset({"h", "coarsest", "levels", "base_params", "repair"})
 #: With ``repair``, gaps below -REPAIR_GAP * max|ubar| on pruned points count as missed contacts.
 REPAIR_GAP = 1e-9
 MAX_REPAIR_ROUNDS = 50
+#: h values of the paper's Fig. 9 (the sweep grid of ``h``).
+PAPER_H_SWEEP: tuple[float, ...] = (1.25, 1.5, 1.75, 2.0, 2.25, 2.5, 2.75, 3.0)
+
+
+@dataclass(frozen=True)
+class SizesParam(Param):
+    """A parameter holding grid sizes (points per side): a list or tuple of ints >= 2."""
+
+    def _coerce(self, value: Any) -> Any:
+        ok = isinstance(value, (list, tuple)) and all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 2 for v in value)
+        if not ok:
+            raise ParamError(f"parameter {self.name!r} takes a list of grid sizes (ints >= 2), got {value!r}")
+        return tuple(int(v) for v in value)
 
 
 @dataclass
@@ -79,11 +111,17 @@ class LevelSolution:
     contact_positions: np.ndarray  # (m, 2) element-centre coordinates in the fine frame
 
 
-def grid_positions(surface: Surface, flat_idx: np.ndarray) -> np.ndarray:
-    """(n, 2) element-centre coordinates of flat indices, in the finest surface's frame."""
-    i, j = np.divmod(np.asarray(flat_idx, dtype=np.int64), surface.shape[1])
-    ox, oy = element_origin(surface)
-    return np.column_stack([ox + i * surface.delta, oy + j * surface.delta])
+@dataclass
+class FineSolution:
+    """The fine level: p and its gap w on the full trial set, the last base solve, its
+    record, the repair rounds and the matvecs of the base solves."""
+
+    p: np.ndarray
+    w: np.ndarray
+    result: SolveResult
+    record: LevelRecord
+    rounds: int
+    matvecs: int
 
 
 def within_radius(points: np.ndarray, centres: np.ndarray, radius: float, period: float | None) -> np.ndarray:
@@ -100,37 +138,35 @@ def within_radius(points: np.ndarray, centres: np.ndarray, radius: float, period
     return np.isfinite(d)
 
 
-def contact_mask(p: np.ndarray) -> np.ndarray:
-    pmax = float(np.max(p)) if p.size else 0.0
-    return p > CONTACT_THRESHOLD * pmax if pmax > 0 else np.zeros(p.shape, dtype=bool)
-
-
-def cascade_surfaces(surface: Surface, coarsest: int, sizes: list[int] | None = None) -> list[Surface]:
-    """The coarse representations to use, coarsest first (the fine surface excluded)."""
-    levels = with_coarse_levels(surface, coarsest).levels
-    if sizes is not None:
-        wanted = {int(n) for n in sizes}
-        chosen = [s for s in levels if s.N in wanted]
-        missing = wanted - {s.N for s in chosen} - {surface.N}
-        if missing:
-            raise ProblemInputError(f"CMR levels {sorted(missing)} not available; the surface has "
-                                    f"{[s.N for s in levels]} below its own {surface.N}")
-        return chosen
-    return [s for s in levels if s.N >= coarsest]
-
-
 class CMRSolver(Solver):
     """CMR (Algorithm 6) over the registered solver ``base``."""
 
     family = "wrapper"
     capabilities = Capabilities(operators=frozenset({"dense", "fft"}), needs_dense=False,
-                                warm_start="primal", exact=False)
+                                warm_start="primal", exact=False, needs_geometry=True)
+    params: ClassVar[tuple[Param, ...]] = (
+        Param("h", float, 2.0, "area-of-influence factor: level s keeps the points within h*delta(s-1) "
+              "of a level s-1 contact", low=1.0),
+        Param("coarsest", int, 16, "points per side of the first (coarsest) level", low=2),
+        SizesParam("levels", tuple, None, "explicit points-per-side of the coarse levels (default: all "
+                   "from `coarsest` up)"),
+        Param("base_params", dict, None, "parameters passed to the base solver"),
+        Param("repair", bool, False, "re-admit pruned points that overlap and re-solve (exact; not in the paper)"),
+    )
+    grid: ClassVar[dict[str, tuple[Any, ...]]] = {"h": PAPER_H_SWEEP}
+    #: None: each base solve uses the base's own tolerance unless one is asked.
+    default_tol: ClassVar[float | None] = None
+
+    def default_max_iter(self, n: int) -> int:
+        """0: each base solve uses the base's own iteration limit unless one is asked."""
+        return 0
 
     def __init__(self, base: str = "nnls") -> None:
         self.base_name = base
         self.name = f"cmr+{base}"  # type: ignore[misc]
-        self.description = (f"cascade multi-resolution (paper Alg. 6) over {base}: coarse levels prune "
-                            "the trial set to h*delta(s-1) around the coarser contact set")
+        self.description = (  # type: ignore[misc]
+            f"cascade multi-resolution (paper Alg. 6) over {base}: coarse levels prune "
+            "the trial set to h*delta(s-1) around the coarser contact set")
 
     def base(self) -> Solver:
         return get_solver(self.base_name)
@@ -146,130 +182,145 @@ class CMRSolver(Solver):
         b = all_solvers().get(self.base_name)
         return b.memory_estimate(n) if b is not None else super().memory_estimate(n)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        t0 = time.perf_counter()
-        g = _require_context(qp)
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        g = require_surface(ctx.qp)
+        assert g.surface is not None
         base = self.base()
-        h = float(settings.param("h", 2.0))
-        if not h >= 1.0:
-            raise ProblemInputError(f"CMR area-of-influence factor h must be >= 1, got {h}")
-        sizes = settings.param("levels", None)
-        coarse = cascade_surfaces(g.surface, int(settings.param("coarsest", 16)), sizes)
-        sub_settings = _base_settings(settings)
+        if base.capabilities.warm_start == "none":
+            ctx.p0 = None  # a warm start the base cannot take is not used, and the result says so
+        h = float(ctx.params["h"])
+        coarse = cascade_surfaces(g.surface, int(ctx.params["coarsest"]), ctx.params["levels"])
         period = g.surface.length if (g.periodic and g.surface.periodic) else None
-        op_kind = "dense" if qp.H.kind == "DenseOperator" else "fft"
+        op_kind: OperatorKind = "dense" if ctx.qp.H.kind == "DenseOperator" else "fft"
 
         records: list[LevelRecord] = []
         prev: LevelSolution | None = None
         prev_delta = 0.0
-        for s, surf in enumerate(coarse, start=1):
-            prev = self._coarse_level(s, surf, g, base, sub_settings, prev, h * prev_delta, period, op_kind)
+        for surf in coarse:
+            if ctx.expired():
+                break  # the fine level still gets solved, pruned by the last level reached
+            prev = _coarse_level(ctx, len(records) + 1, surf, g, base, prev, h * prev_delta, period, op_kind)
             records.append(prev.record)
             prev_delta = surf.delta
-        p, fine_result, rec, rounds = self._fine_level(len(coarse) + 1, qp, g, base, sub_settings, prev,
-                                                       h * prev_delta, period, warm,
-                                                       bool(settings.param("repair", False)))
-        records.append(rec)
-        check = _psd_check(g.surface)
-        info = {
+        it0 = sum(r.iterations for r in records)
+        fine = _fine_level(ctx, len(records) + 1, g, base, prev, h * prev_delta, period, it0)
+        records.append(fine.record)
+        ctx.add_matvecs(fine.matvecs)
+        power_law, psd_message = _psd_check(g.surface)
+        info: dict[str, Any] = {
             "levels": [asdict(r) for r in records],
             "h": h,
             "base": self.base_name,
-            "n_p_over_n": rec.n_p_over_n,
+            "n_p_over_n": fine.record.n_p_over_n,
             "cascade": [r.N for r in records],
-            "psd_power_law": check[0],
-            "repair_rounds": rounds,
+            "psd_power_law": power_law,
+            "repair_rounds": fine.rounds,
         }
-        summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g}: n_p/n={rec.n_p_over_n:.4f} "
+        summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g}: n_p/n={fine.record.n_p_over_n:.4f} "
                    f"coarse-loads=[{', '.join(f'{r.load:.6g}' for r in records[:-1])}]")
-        msg = f"{summary}; base: {fine_result.message}" if fine_result.message else summary
-        if not check[0]:
-            info["warnings"] = [check[1]]
-            msg = f"{msg}; WARNING: {check[1]}" if msg else f"WARNING: {check[1]}"
-        return SolveResult(
-            p=p,
-            w=None,
-            iterations=sum(r.iterations for r in records),
-            converged=fine_result.converged,
-            status=fine_result.status,
-            message=msg,
-            solve_time=time.perf_counter() - t0,
-            setup_time=0.0,
-            matvecs=fine_result.matvecs,
-            warm_started=fine_result.warm_started,
-            trace=fine_result.trace,
-            info=info,
-        )
+        msg = f"{summary}; base: {fine.result.message}" if fine.result.message else summary
+        if not power_law:
+            info["warnings"] = [psd_message]
+            msg = f"{msg}; WARNING: {psd_message}"
+        return Outcome(p=fine.p, iterations=sum(r.iterations for r in records), converged=bool(fine.result.converged),
+                       message=msg, w=fine.w, status=_status_of(fine.result.status), info=info)
 
-    def _coarse_level(self, s: int, surf: Surface, g: Geometry, base: Solver, settings: SolverSettings,
-                      prev: LevelSolution | None, radius: float, period: float | None,
-                      op_kind: str) -> LevelSolution:
-        """Steps (1.1)-(3) on a coarse representation built with InstanceBuilder."""
-        t = time.perf_counter()
-        Delta = float(g.far_field)  # type: ignore[arg-type]
-        idx_all = trial_set(surf.heights, Delta)
-        keep = _projection(grid_positions(surf, idx_all), prev, radius, period)
-        idx = idx_all[keep]
-        p = np.zeros(idx.size)
-        res = SolveResult(p=p, converged=True, status="empty")
-        if idx.size:
-            builder = InstanceBuilder(surf, float(g.E), kernel=str(g.kernel), periodic=bool(g.periodic),
-                                      operator=op_kind)  # type: ignore[arg-type]
-            ubar = np.maximum(Delta - surf.z_max + surf.heights.ravel()[idx], 0.0)
-            geom = Geometry(surf.shape, surf.delta, idx, surface=surf, far_field=Delta, E=g.E,
-                            kernel=g.kernel, periodic=g.periodic)
-            res = base.solve(QP(builder.operator_on(idx), ubar, geom), settings, None)
-            p = np.asarray(res.p, dtype=np.float64)
-        c = contact_mask(p)
-        rec = _record(s, surf, idx_all.size, idx.size, time.perf_counter() - t, p, c, res)
-        return LevelSolution(rec, grid_positions(surf, idx[c]))
 
-    def _fine_level(self, s: int, qp: QP, g: Geometry, base: Solver, settings: SolverSettings,
-                    prev: LevelSolution | None, radius: float, period: float | None,
-                    warm: WarmStart | None, repair: bool = False) -> tuple[np.ndarray, SolveResult, LevelRecord, int]:
-        """The given QP restricted to the projected set; p returned on the full set.
+def require_surface(qp: QP) -> Geometry:
+    """The QP's geometry when it carries what CMR rebuilds the levels from (its surface on
+    the QP's grid, Delta, E, kernel), else a clear ``ProblemInputError``."""
+    g = qp.geometry
+    if g is None or g.surface is None or g.far_field is None or g.E is None or g.kernel is None:
+        raise ProblemInputError("CMR needs the QP's geometry with its surface, far-field displacement, E and "
+                                "kernel (instances built by problems.instances.InstanceBuilder carry them)")
+    if not g.has_surface:
+        raise ProblemInputError(f"CMR: QP grid {g.grid_shape} does not match its surface {g.surface.shape}")
+    return g
 
-        With ``repair`` (not in the paper): pruned points whose gap comes out negative
-        were wrongly excluded; they are added to the set and the restricted problem is
-        solved again, warm started, until no pruned point overlaps -- the answer is then
-        the exact solution of the full QP, and the cascade only chose the start."""
-        t = time.perf_counter()
-        surf = g.surface
-        assert surf is not None
-        keep = _projection(grid_positions(surf, g.indices), prev, radius, period)
-        pos = np.flatnonzero(keep)
-        p_full = np.zeros(qp.n)
-        res = SolveResult(p=np.zeros(0), converged=True, status="empty")
+
+def base_settings(ctx: SolveContext) -> SolverSettings:
+    """Settings of one base solve: CMR's tolerance and iteration limit (None: the base's
+    own), ``base_params``, and the time LEFT of CMR's deadline."""
+    return SolverSettings(tol=ctx.tol, max_iter=ctx.max_iter or None, time_limit=ctx.deadline.remaining(),
+                          params=dict(ctx.params["base_params"] or {}))
+
+
+def _coarse_level(ctx: SolveContext, s: int, surf: Surface, g: Geometry, base: Solver,
+                  prev: LevelSolution | None, radius: float, period: float | None,
+                  op_kind: OperatorKind) -> LevelSolution:
+    """Steps (1.1)-(3) on a coarse representation (its QP from ``problems.coarsen``)."""
+    t = time.perf_counter()
+    idx_all = level_trial_set(surf, g)
+    idx = idx_all[_projection(grid_positions(surf, idx_all), prev, radius, period)]
+    p = np.zeros(idx.size)
+    res = SolveResult(p=p, converged=True, status="empty")
+    if idx.size:
+        res = base.solve(coarse_qp(surf, g, idx, op_kind), base_settings(ctx), None)
+        p = np.asarray(res.p, dtype=np.float64)
+    c = contact_mask(p)
+    rec = _record(s, surf, idx_all.size, idx.size, time.perf_counter() - t, p, c, res)
+    return LevelSolution(rec, grid_positions(surf, idx[c]))
+
+
+def _fine_level(ctx: SolveContext, s: int, g: Geometry, base: Solver, prev: LevelSolution | None,
+                radius: float, period: float | None, it0: int) -> FineSolution:
+    """The given QP restricted to the projected set; p returned on the full set.
+
+    With ``repair`` (not in the paper): pruned points whose gap comes out negative
+    were wrongly excluded; they are added to the set and the restricted problem is
+    solved again, warm started, until no pruned point overlaps (or the time is up) --
+    the answer is then the exact solution of the full QP, and the cascade only chose
+    the start."""
+    t = time.perf_counter()
+    qp, surf = ctx.qp, g.surface
+    assert surf is not None
+    pos = np.flatnonzero(_projection(grid_positions(surf, g.indices), prev, radius, period))
+    p_full = np.zeros(qp.n)
+    res = SolveResult(p=np.zeros(0), converged=True, status="empty")
+    matvecs = 0
+    warm = _restricted_warm(ctx, base, pos)
+    rounds = -1
+    while True:
         if pos.size:
-            sub_geom = Geometry(g.grid_shape, g.delta, g.indices[pos], surface=surf, far_field=g.far_field,
-                                E=g.E, kernel=g.kernel, periodic=g.periodic)
-            sub_warm = None
-            if warm is not None and warm.p is not None and base.capabilities.warm_start != "none":
-                sub_warm = WarmStart(p=np.asarray(warm.p)[pos],
-                                     w=None if warm.w is None else np.asarray(warm.w)[pos])
-            res = base.solve(QP(qp.H.restrict(pos), qp.ubar[pos], sub_geom), settings, sub_warm)
-            p_full[pos] = np.asarray(res.p, dtype=np.float64)
-        rounds = 0
-        while repair and rounds < MAX_REPAIR_ROUNDS:
-            missed = _missed_contacts(qp, p_full, pos)
-            if missed.size == 0:
-                break
-            rounds += 1
-            pos = np.union1d(pos, missed)
-            sub_geom = Geometry(g.grid_shape, g.delta, g.indices[pos], surface=surf, far_field=g.far_field,
-                                E=g.E, kernel=g.kernel, periodic=g.periodic)
-            start = WarmStart(p=p_full[pos]) if base.capabilities.warm_start != "none" else None
-            res = base.solve(QP(qp.H.restrict(pos), qp.ubar[pos], sub_geom), settings, start)
+            t_start = ctx.trace.elapsed()
+            res = base.solve(qp.restrict(pos), base_settings(ctx), warm)
+            matvecs += res.matvecs
             p_full[:] = 0.0
             p_full[pos] = np.asarray(res.p, dtype=np.float64)
-        c = contact_mask(p_full)
-        rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, c, res)
-        return p_full, res, rec, rounds
+            _replace_trace(ctx, res, it0, t_start)
+        w = qp.H.matvec(p_full) - qp.ubar
+        rounds += 1
+        if not ctx.params["repair"] or rounds >= MAX_REPAIR_ROUNDS or ctx.expired():
+            break
+        missed = _missed_contacts(qp, w, pos)
+        if missed.size == 0:
+            break
+        pos = np.union1d(pos, missed)
+        warm = WarmStart(p=p_full[pos]) if base.capabilities.warm_start != "none" else None
+    rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, contact_mask(p_full), res)
+    return FineSolution(p_full, w, res, rec, rounds, matvecs)
 
 
-def _missed_contacts(qp: QP, p_full: np.ndarray, pos: np.ndarray) -> np.ndarray:
+def _restricted_warm(ctx: SolveContext, base: Solver, pos: np.ndarray) -> WarmStart | None:
+    """CMR's warm start restricted to the projected set, for a base that takes one."""
+    if ctx.p0 is None or base.capabilities.warm_start == "none":
+        return None
+    w = None if ctx.warm is None or ctx.warm.w is None else np.asarray(ctx.warm.w)[pos]
+    return WarmStart(p=ctx.p0[pos], w=w)
+
+
+def _replace_trace(ctx: SolveContext, res: SolveResult, it0: int, t_start: float) -> None:
+    """CMR's trace = the last fine-level base solve's trace, after the cascade's coarse
+    iterations and time.  Its final point (a residual of the restricted problem) is left
+    out: the lifecycle appends the full problem's final iterate."""
+    pts = [(it0 + int(it), t_start + float(t), float(r)) for it, t, r in res.trace]
+    if pts and pts[-1][0] == it0 + int(res.iterations):
+        pts.pop()
+    ctx.trace.points[:] = pts
+
+
+def _missed_contacts(qp: QP, w: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Positions outside ``pos`` whose gap w = Hp - ubar is negative beyond round-off."""
-    w = qp.H.matvec(p_full) - qp.ubar
     out = np.ones(qp.n, dtype=bool)
     out[pos] = False
     return np.flatnonzero(out & (w < -REPAIR_GAP * float(np.max(np.abs(qp.ubar), initial=0.0))))
@@ -292,28 +343,19 @@ def _record(s: int, surf: Surface, n: int, n_p: int, elapsed: float, p: np.ndarr
                        status=str(res.status), iterations=int(res.iterations))
 
 
-def _require_context(qp: QP) -> Geometry:
-    g = qp.geometry
-    if g is None or g.surface is None or g.far_field is None or g.E is None or g.kernel is None:
-        raise ProblemInputError("CMR needs the QP's geometry with its surface, far-field displacement, E and "
-                                "kernel (instances built by problems.instances.InstanceBuilder carry them)")
-    if tuple(g.grid_shape) != g.surface.shape:
-        raise ProblemInputError(f"CMR: QP grid {g.grid_shape} does not match its surface {g.surface.shape}")
-    return g
-
-
-def _base_settings(settings: SolverSettings) -> SolverSettings:
-    params = {k: v for k, v in settings.params.items() if k not in CMR_KEYS}
-    params.update(settings.param("base_params", {}) or {})
-    return SolverSettings(tol=settings.tol, max_iter=settings.max_iter,
-                          time_limit=settings.time_limit, params=params)
+def _status_of(status: str) -> Status | None:
+    """The base's status when it is one of ``Status`` (else None: the lifecycle derives it)."""
+    try:
+        return Status(status)
+    except ValueError:
+        return None
 
 
 _PSD_CACHE: dict[tuple[str, int, float, float], tuple[bool, str]] = {}
 
 
 def _psd_check(surface: Surface) -> tuple[bool, str]:
-    """(power_law, message) of problems.io.power_law_check, cached per surface."""
+    """(power_law, message) of problems.coarsen.power_law_check, cached per surface."""
     key = (surface.name, surface.N, surface.delta, float(surface.heights.sum()))
     if key not in _PSD_CACHE:
         try:
@@ -332,4 +374,4 @@ def make_cmr(base: str) -> CMRSolver:
 for _b in CMR_BASES:
     register(CMRSolver(_b))
 
-__all__ = ["CMRSolver", "LevelRecord", "cascade_surfaces", "grid_positions", "make_cmr", "within_radius"]
+__all__ = ["CMR_BASES", "CMRSolver", "LevelRecord", "PAPER_H_SWEEP", "make_cmr", "within_radius"]

@@ -10,26 +10,30 @@ problem of ``solvers._scaling`` it states Bemporad & Paggi 2015, eq. (6) as
 Default solver: CLARABEL (interior point; chosen because it reaches the ``high``
 profile, while CVXPY's own default for QPs, OSQP without polishing, misses 1e-6 in p).
 Pick another with params {"solver": "OSQP"}; the one used is recorded in
-``info["cvxpy_solver"]``.  Tolerances are mapped by the same per-backend functions as
-the qpsolvers adapters (``solvers.qp_backends``), since CVXPY forwards the solver's own
-option names.  Building the expression and CVXPY's compilation are build time; the
-solver's time is solve time.  Warm start: none with CLARABEL.
+``info["cvxpy_solver"]`` and CVXPY's status word in ``info["backend_status"]``.
+Tolerances are mapped by the same per-backend functions as the qpsolvers adapters
+(``solvers.qp_backends``), since CVXPY forwards the solver's own option names.  Building the expression and CVXPY's compilation are build time
+(``SolveResult.setup_time``); the solver's time is solve time.  Parameters: ``scaling``,
+``solver``, ``form``, ``backend_options``.  Warm start: none with CLARABEL.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-import scipy.linalg as sla
 
-from .base import Capabilities, SolverSettings
-from .qp_backends import OptionMap, Request, clarabel_options, osqp_options, piqp_options, scs_options
+from contactbench.problems.lcp import cholesky_factor
+
+from .base import Capabilities, Param, SolveContext
+from .qp_backends import OptionMap, clarabel_options, osqp_options, piqp_options, scs_options
 from .registry import register
-from ._scaling import BackendOutcome, EquilibratedAdapter, ScaledQP, requested_tolerance
+from ._scaling import BACKEND_OPTIONS, SCALING, BackendOutcome, EquilibratedAdapter, ScaledQP, request_of
 
 DEFAULT_CVXPY_SOLVER = "CLARABEL"
+FORMS = ("quad_form", "cholesky")
 
 #: CVXPY solver name -> the tolerance mapping of that backend (others: their defaults).
 TOLERANCE_MAPS: dict[str, OptionMap] = {
@@ -48,11 +52,21 @@ def cvxpy_problem(H: np.ndarray, u: np.ndarray, form: str) -> tuple[Any, Any]:
     if form == "quad_form":
         objective = 0.5 * cp.quad_form(p, cp.psd_wrap(H)) - u @ p
     elif form == "cholesky":
-        L = sla.cholesky(H, lower=True, check_finite=False)
+        L = cholesky_factor(H)
         objective = 0.5 * cp.sum_squares(L.T @ p) - u @ p
     else:
-        raise ValueError(f"cvxpy form must be 'quad_form' or 'cholesky', got {form!r}")
+        raise ValueError(f"cvxpy form must be one of {', '.join(FORMS)}, got {form!r}")
     return cp.Problem(cp.Minimize(objective), [p >= 0]), p
+
+
+@dataclass
+class CVXPYModel:
+    """The model built at build time, and what it was built for."""
+
+    problem: Any
+    variable: Any
+    solver: str
+    form: str
 
 
 @register
@@ -64,36 +78,43 @@ class CVXPYAdapter(EquilibratedAdapter):
     capabilities: ClassVar[Capabilities] = Capabilities(
         needs_dense=True, warm_start="none", exact=False, input_format="dense"
     )
+    params: ClassVar[tuple[Param, ...]] = (
+        SCALING,
+        Param("solver", str, DEFAULT_CVXPY_SOLVER, "the CVXPY solver name (case-insensitive)"),
+        Param("form", str, "quad_form", "how the objective is stated", choices=FORMS),
+        BACKEND_OPTIONS,
+    )
     required_package: ClassVar[str] = "cvxpy"
     # dense H, scaled copy, CVXPY's constant and its canonical sparse P, the solver's KKT
     memory_copies: ClassVar[float] = 7.0
     time_coef: ClassVar[float] = 2.8e-9
     time_exponent: ClassVar[float] = 3.0
 
-    def solve_scaled(self, sqp: ScaledQP, settings: SolverSettings) -> BackendOutcome:
+    def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> CVXPYModel:
+        form = str(ctx.params["form"])
+        problem, var = cvxpy_problem(sqp.H, sqp.u, form)
+        return CVXPYModel(problem, var, str(ctx.params["solver"]).upper(), form)
+
+    def run_backend(self, sqp: ScaledQP, prepared: CVXPYModel, ctx: SolveContext) -> BackendOutcome:
         import cvxpy as cp
 
-        solver = str(settings.param("solver", DEFAULT_CVXPY_SOLVER)).upper()
-        form = str(settings.param("form", "quad_form"))
-        t0 = time.perf_counter()
-        problem, var = cvxpy_problem(sqp.H, sqp.u, form)
-        model_time = time.perf_counter() - t0
-        req = Request(requested_tolerance(settings), settings.max_iter, settings.time_limit)
-        opts = {**TOLERANCE_MAPS.get(solver, lambda r: {})(req), **settings.param("backend_options", {})}
+        solver, problem = prepared.solver, prepared.problem
+        opts = {**TOLERANCE_MAPS.get(solver, lambda r: {})(request_of(ctx)), **ctx.params["backend_options"]}
+        info: dict[str, Any] = {"cvxpy_solver": solver, "form": prepared.form, "options": opts}
         t1 = time.perf_counter()
         try:
             problem.solve(solver=solver, **opts)
         except (cp.error.SolverError, ValueError, TypeError) as exc:
-            return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, convert_time=model_time,
-                                  info={"cvxpy_solver": solver, "form": form, "options": opts})
+            return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, info=info)
         wall = time.perf_counter() - t1
         compile_time = float(getattr(problem, "compilation_time", None) or 0.0)
         stats = problem.solver_stats
+        var = prepared.variable
         x = None if var.value is None else np.asarray(var.value, dtype=np.float64).ravel()
         return BackendOutcome(
             x, str(problem.status), problem.status == cp.OPTIMAL, int(stats.num_iters or 0),
-            convert_time=model_time + compile_time,
+            late_build_time=compile_time,
             backend_setup_time=stats.setup_time, backend_solve_time=stats.solve_time,
-            info={"cvxpy_solver": stats.solver_name or solver, "form": form, "options": opts,
+            info={**info, "cvxpy_solver": stats.solver_name or solver,
                   "cvxpy_compile_time": compile_time, "cvxpy_solve_wall": wall - compile_time},
         )

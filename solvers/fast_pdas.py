@@ -1,4 +1,4 @@
-"""fast-pdas: primal-dual active set / semismooth Newton with preconditioned CG on the
+"""fast-pdas: primal-dual active set / semismooth Newton with (preconditioned) CG on the
 active set, matrix-free on the FFT operator.
 
 The LCP  w = Hp - ubar >= 0, p >= 0, w'p = 0  (Bemporad & Paggi 2015, eq. (6)) is
@@ -9,123 +9,100 @@ Ito & Kunisch (SIAM J. Optim. 13, 2002):
     A = {i : p_i - c w_i > 0},   p_I = 0,   H_AA p_A = ubar_A,
 
 so *every* point whose sign is wrong changes set at once (unlike Lawson-Hanson's one at
-a time).  H_AA p_A = ubar_A is solved inexactly by CG on the FFT operator restricted to
-A, warm-started from the current p_A, optionally preconditioned (param
-``precondition``, default False: it measured slower here, see docs/fast-solvers.md)
-with the inverse continuous Boussinesq kernel |q| E*/2 in Fourier space (Vollebregt,
-J. Optim. Theory Appl. 162, 2014).  The inner tolerance tightens with the outer KKT
-error (inexact Newton).  Safeguard: PDAS can cycle when H is not an M-matrix (the
-half-space kernel is positive everywhere); if the scaled KKT error stops decreasing
-the iterate is clipped to p >= 0 and finished by the Bugnicourt CCG (fast-dual-ccg).
-Warm start: primal (WarmStart.p).
+a time).  H_AA p_A = ubar_A is solved inexactly by ``_kit.conjugate_gradient`` on the
+operator restricted to A, warm-started from the current p_A, optionally preconditioned
+(param ``precondition``, default "none": "fourier", Vollebregt's |q| E*/2, measured
+slower here, see docs/fast-solvers.md; or "islands"; both from
+``_preconditioners.make_preconditioner``).  The inner tolerance tightens with the outer
+KKT error (inexact Newton).  Safeguard: PDAS can cycle when H is not an M-matrix (the
+half-space kernel is positive everywhere); if the scaled KKT error stops decreasing, or
+``max_outer`` steps pass, the iterate is clipped to p >= 0 and finished by the Bugnicourt
+CCG (``_ccg.bugnicourt``, as fast-dual-ccg) under the same deadline (one time limit per
+solve).  Iterations = Newton steps + CCG iterations.  Warm start: primal (``ctx.p0``).
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
-from contactbench.problems.instances import QP
-
-from ._fast_common import (
-    begin_fast_solve,
-    FAST_CAPABILITIES,
-    fourier_inverse_preconditioner,
-    iteration_limit,
-    make_result,
-    scaled_kkt,
-    time_left,
-)
-from .base import SolveResult, Solver, SolverSettings, WarmStart
-from .fast_ccg import FastBugnicourtCCG
+from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
+from ._kit import conjugate_gradient
+from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
+from .base import Outcome, Param, SolveContext
 from .registry import register
 
+#: Outer steps without halving the KKT error before the CCG takes over.
+STALL_STEPS = 3
 
-def pcg(matvec, b: np.ndarray, x0: np.ndarray, stop_abs: float, max_iter: int, precond=None) -> tuple[np.ndarray, int]:
-    """Preconditioned CG for the SPD system on the active set; stops when
-    max|b - Hx| <= stop_abs.  Returns (x, matvecs)."""
-    x = x0.copy()
-    r = b - matvec(x)
-    mv = 1
-    if np.max(np.abs(r), initial=0.0) <= stop_abs:
-        return x, mv
-    z = precond(r) if precond else r
-    d = z.copy()
-    rz = float(r @ z)
-    for _ in range(max_iter):
-        Hd = matvec(d)
-        mv += 1
-        dHd = float(d @ Hd)
-        if dHd <= 0.0:
-            break
-        alpha = rz / dHd
-        x += alpha * d
-        r -= alpha * Hd
-        if np.max(np.abs(r)) <= stop_abs:
-            break
-        z = precond(r) if precond else r
-        rz_new = float(r @ z)
-        d = z + (rz_new / rz) * d
-        rz = rz_new
-    return x, mv
+
+def active_set(state: GapState, diag_max: float) -> np.ndarray:
+    """A = {p - c w > 0}, c = 1/max diag H (the points that penetrate when p = 0)."""
+    A = np.flatnonzero(state.p * diag_max - state.g > 0.0)
+    return A if A.size else np.flatnonzero(state.g < 0.0)
+
+
+def newton_step(ctx: SolveContext, state: GapState, A: np.ndarray, kkt: float, M: SetPreconditioner | None) -> int:
+    """p_A <- H_AA^-1 ubar_A (inexact CG from the current p_A), p = 0 off A; returns the
+    CG's matvecs."""
+    qp = ctx.qp
+    u_s = max(float(np.max(np.abs(qp.ubar))), float(np.max(np.abs(state.g + qp.ubar))))
+    atol = u_s * max(0.2 * ctx.tol, min(1e-2, 0.05 * kkt))
+    precond = on_subset(M, A, qp.n) if M is not None else None
+    cg = conjugate_gradient(qp.H.restrict(A), qp.ubar[A], state.p[A], atol, ctx.max_iter,
+                            deadline=ctx.deadline, precond=precond)
+    state.p = np.zeros(qp.n)
+    state.p[A] = cg.x
+    state.refresh()
+    return cg.matvecs
 
 
 @register
-class FastPDAS(Solver):
-    """Primal-dual active set (semismooth Newton) + CG on the active set (see module doc)."""
+class FastPDAS(FastSolver):
+    """Primal-dual active set (semismooth Newton; Hintermueller, Ito & Kunisch 2002) + CG
+    on the active set, CCG safeguard (see module doc).  Warm start: primal."""
 
     name = "fast-pdas"
-    family = "fast"
     description = "primal-dual active set / semismooth Newton, CG on the active set (FFT operator), CCG safeguard"
-    capabilities = FAST_CAPABILITIES
+    params = (
+        Param("precondition", str, "none", "inner CG preconditioner on the active set", choices=KINDS),
+        Param("max_outer", int, 50, "active-set (Newton) steps before the CCG safeguard takes over", low=1),
+    )
 
     def memory_estimate(self, n: int) -> float:
         return 12.0 * 8.0 * n
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        s = begin_fast_solve(qp, settings, warm)
-        tol, state, trace, diag_max = s.tol, s.state, s.trace, s.diag_max
-        use_m = bool(settings.param("precondition", False))
-        max_outer = int(settings.param("max_outer", 50))
-        inner_max = iteration_limit(settings, qp.n)
-        extra_mv, outer, kkt = 0, 0, scaled_kkt(state.p, state.g, qp.ubar, diag_max)
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        state = GapState.start(ctx)
+        M = make_preconditioner(ctx.params["precondition"], ctx.qp)
+        ctx.mark_setup_done()
+        inner_mv, outer, kkt = 0, 0, ctx.kkt(state.p, state.g)
         best, stall = kkt, 0
-        A_prev = None
-        t0 = time.perf_counter()
-        while kkt > tol and outer < max_outer and time_left(t0, settings):
+        A_prev: np.ndarray | None = None
+        while kkt > ctx.tol and outer < ctx.params["max_outer"] and not ctx.expired():
             outer += 1
-            A = np.flatnonzero(state.p * diag_max - state.g > 0.0)
-            if A.size == 0:
-                A = np.flatnonzero(state.g < 0.0)
+            A = active_set(state, ctx.diag_max)
             if A_prev is not None and np.array_equal(A, A_prev) and np.all(state.p[A] >= 0):
                 stall += 1
-            sub = qp.H.restrict(A)
-            u_s = max(float(np.max(np.abs(qp.ubar))), float(np.max(np.abs(state.g + qp.ubar))))
-            stop = u_s * max(0.2 * tol, min(1e-2, 0.05 * kkt))
-            M = fourier_inverse_preconditioner(QP(sub, qp.ubar[A])) if use_m else None
-            xA, mv = pcg(sub.matvec, qp.ubar[A], state.p[A], stop, inner_max, M)
-            extra_mv += mv
-            state.p = np.zeros(qp.n)
-            state.p[A] = xA
-            state.refresh()
-            kkt = scaled_kkt(state.p, state.g, qp.ubar, diag_max)
-            trace.record(outer, kkt)
+            inner_mv += newton_step(ctx, state, A, kkt, M)
+            kkt = ctx.kkt(state.p, state.g)
+            ctx.record(outer, kkt)
             A_prev = A
             if kkt < 0.5 * best:
                 best, stall = kkt, 0
             else:
                 stall += 1
-            if stall >= 3:
+            if stall >= STALL_STEPS:
                 break
-        info = {"outer_iterations": outer, "inner_matvecs": extra_mv, "finished_by_ccg": False}
-        if kkt > tol or np.any(state.p < 0):
-            state.p = np.maximum(state.p, 0.0)
+        ctx.add_matvecs(inner_mv)
+        info = {"outer_iterations": outer, "inner_matvecs": inner_mv, "finished_by_ccg": False}
+        run = CCGRun(outer, kkt, kkt <= ctx.tol and not np.any(state.p < 0.0))
+        if not run.converged and np.any(state.p < 0.0):
+            np.maximum(state.p, 0.0, out=state.p)
             state.refresh()
-            ccg = FastBugnicourtCCG()
-            it, kkt = ccg._iterate(state, qp.ubar, diag_max, tol, inner_max, settings, trace)
-            info.update(finished_by_ccg=True, ccg_iterations=it)
-        res = make_result(state, iterations=outer, kkt=kkt, tol=tol, trace=trace, matvecs0=s.matvecs0,
-                          warm_started=s.warm_started, setup_time=s.setup, info=info)
-        res.matvecs += extra_mv
-        return res
+        if not run.converged and not ctx.expired():  # finish with the CCG, same deadline
+            ccg = bugnicourt(ctx, state, None, first=outer + 1)
+            info.update(finished_by_ccg=True, ccg_iterations=ccg.iterations)
+            run = CCGRun(outer + ccg.iterations, ccg.kkt, ccg.converged, ccg.stalled)
+        if M is not None:
+            info["preconditioner_builds"] = M.builds
+        return outcome(state, run, info)

@@ -10,11 +10,11 @@ few power iterations (inflated 1 %).  ``info["lipschitz"]`` records which, and
 ``info["L"]`` its value.  Optional ``restart=True`` resets the momentum when it points
 uphill (O'Donoghue & Candes 2015) -- not in the paper, off by default.
 
-``gp`` runs to the scale-invariant KKT residual (checked every ``check_every``
-iterations, one extra matvec) or max_iter: a first-order method, not exact.
+``gp`` runs to the scaled KKT error of ``contactbench.problems.kkt`` (checked every
+``check_every`` iterations, one extra matvec) or max_iter: a first-order method, not exact.
 ``nnls-gp`` runs exactly K GP steps (param ``K``, default 100 as in the paper's
-section 4; Fig. 6 sweeps 0..200) and then NNLS (Algorithm 3) from the GP point: exact.
-Both accept a primal warm start (GP starts from it).
+section 4; Fig. 6 sweeps K = 0..200, the solver's ``grid``) and then NNLS (Algorithm 3)
+from the GP point: exact.  Both accept a primal warm start (GP starts from it).
 """
 
 from __future__ import annotations
@@ -23,22 +23,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from contactbench.problems.instances import QP
-
-from ._common import (
-    PrimalWarmSolver,
-    EXACT_TOL,
-    FIRST_ORDER_TOL,
-    RunRecorder,
-    Scales,
-    lipschitz_constant,
-    matvec_seconds,
-    max_iter_of,
-    natural_residual,
-)
-from .base import Capabilities, SolveResult, SolverSettings, WarmStart
-from .nnls import FACTOR_MAX_N, nnls_active_set
+from ._kit import lipschitz_constant, matvec_seconds
+from .base import Capabilities, Outcome, Param, SolveContext, Solver
+from .nnls import FACTOR_MAX_N, LINEAR_PARAM, nnls_active_set, nnls_max_iter
 from .registry import register
+
+LIPSCHITZ_PARAM = Param("lipschitz", str, "frobenius", "bound of lambda_max(H): ||H||_F (paper) or power iteration",
+                        choices=("frobenius", "power"))
+RESTART_PARAM = Param("restart", bool, False, "adaptive momentum restart (O'Donoghue & Candes; not in the paper)")
+#: Paper Fig. 6: the numbers K of gradient-projection steps before NNLS.
+GP_K_VALUES: tuple[int, ...] = (0, 10, 25, 50, 100, 150, 200)
 
 
 @dataclass
@@ -49,14 +43,12 @@ class GPOutcome:
     restarts: int
 
 
-def accelerated_gradient_projection(
-    qp: QP, p0: np.ndarray, L: float, K: int, rec: RunRecorder,
-    tol: float | None = None, check_every: int = 10, restart: bool = False,
-) -> GPOutcome:
-    """Algorithm 4 for at most K iterations; with ``tol``, stop early once the natural
-    residual of p is <= tol (checked every ``check_every`` iterations)."""
-    sc = Scales.of(qp) if tol is not None else None
-    op, ubar = qp.H, qp.ubar
+def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float, K: int, tol: float | None = None,
+                                    check_every: int = 10, restart: bool = False) -> GPOutcome:
+    """Algorithm 4 for at most K iterations; with ``tol``, stop early once the scaled
+    KKT error of p (``ctx.kkt``, one extra matvec) is <= tol, checked and recorded
+    every ``check_every`` iterations, as is the deadline."""
+    op, ubar = ctx.qp.H, ctx.qp.ubar
     p = p0.copy()
     p_prev = p.copy()
     j, restarts = 0, 0  # j: momentum counter (reset by restarts)
@@ -69,76 +61,87 @@ def accelerated_gradient_projection(
         j += 1
         if restart and float((s - p) @ (p - p_prev)) > 0.0:
             j, restarts = 0, restarts + 1
-        if sc is not None and (i + 1) % check_every == 0:
-            res = natural_residual(p, op.matvec(p) - ubar, sc)
-            rec.record(i + 1, res)
+        if tol is not None and (i + 1) % check_every == 0:
+            res = ctx.kkt(p, op.matvec(p) - ubar)
+            ctx.record(i + 1, res)
             if res <= tol:
                 return GPOutcome(p, i + 1, True, restarts)
-            if rec.deadline.expired():
+            if ctx.expired():
                 return GPOutcome(p, i + 1, False, restarts)
     return GPOutcome(p, K, False, restarts)
 
 
-def lipschitz_of(qp: QP, settings: SolverSettings, rec: RunRecorder) -> float:
-    method = str(settings.param("lipschitz", "frobenius"))
-    L = lipschitz_constant(qp.H, method)
-    rec.info.update(lipschitz=method, L=L)
+def lipschitz_of(ctx: SolveContext) -> float:
+    """L of Algorithm 4 by the ``lipschitz`` parameter, recorded in ``ctx.info``."""
+    method = ctx.params["lipschitz"]
+    L = lipschitz_constant(ctx.qp.H, method)
+    ctx.info.update(lipschitz=method, L=L)
     return L
 
 
+def start_point(ctx: SolveContext) -> np.ndarray:
+    return np.zeros(ctx.n) if ctx.p0 is None else ctx.p0
+
+
 @register
-class GradientProjection(PrimalWarmSolver):
-    """Accelerated gradient projection on the primal QP (paper Algorithm 4) run to
-    tolerance.  Params: lipschitz = frobenius | power, restart, check_every.
-    Not exact (first order); warm start: primal."""
+class GradientProjection(Solver):
+    """Accelerated gradient projection on the primal QP (paper section 3.3.1,
+    Algorithm 4) run until the scaled KKT error (``SolveContext.kkt``, checked every
+    ``check_every`` iterations) is <= tol.  Params: lipschitz = frobenius | power,
+    restart, check_every.  Not exact (first order); warm start: primal."""
 
     name = "gp"
     family = "paper"
     description = "Accelerated gradient projection (Algorithm 4), Frobenius or power-iteration L"
     capabilities = Capabilities(warm_start="primal", exact=False)
+    default_tol = 1e-6
+    params = (LIPSCHITZ_PARAM, RESTART_PARAM,
+              Param("check_every", int, 10, "iterations between two KKT checks (one matvec each)", low=1))
 
-    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
-            p0: np.ndarray | None) -> SolveResult:
-        L = lipschitz_of(qp, settings, rec)
-        rec.mark_setup_done()
-        out = accelerated_gradient_projection(
-            qp, np.zeros(qp.n) if p0 is None else p0, L, max_iter_of(settings, 50_000), rec,
-            tol=settings.tolerance(FIRST_ORDER_TOL), check_every=int(settings.param("check_every", 10)),
-            restart=bool(settings.param("restart", False)))
-        rec.info["restarts"] = out.restarts
-        status, message = rec.stop_status(out.converged)
-        return rec.result(out.p, out.iterations, out.converged, status, message, p0 is not None)
+    def default_max_iter(self, n: int) -> int:
+        return 50_000
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        L = lipschitz_of(ctx)
+        ctx.mark_setup_done()
+        out = accelerated_gradient_projection(ctx, start_point(ctx), L, ctx.max_iter, tol=ctx.tol,
+                                              check_every=ctx.params["check_every"], restart=ctx.params["restart"])
+        ctx.info["restarts"] = out.restarts
+        return Outcome(out.p, out.iterations, out.converged)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return 5000 * matvec_seconds(n, operator_kind)
 
 
 @register
-class NNLSGP(PrimalWarmSolver):
+class NNLSGP(Solver):
     """NNLS warm started by K accelerated GP steps (paper section 3.3.1: Algorithm 4 then
-    Algorithm 3).  Params: K (default 100), lipschitz, restart, linear (NNLS step 6).
-    Exact; warm start: primal (the GP steps start from it)."""
+    Algorithm 3; Fig. 6 sweeps K, ``grid``).  Params: K (default 100, the paper's
+    section 4), lipschitz, restart, linear (NNLS step 6).  ``max_iter`` limits the NNLS
+    part; iterations = K + NNLS iterations.  Exact; warm start: primal (the GP steps
+    start from it)."""
 
     name = "nnls-gp"
     family = "paper"
     description = "K accelerated GP steps then NNLS (Algorithms 4 + 3); K param, default 100"
     capabilities = Capabilities(warm_start="primal", exact=True)
+    default_tol = 1e-10
+    params = (Param("K", int, 100, "gradient-projection steps before NNLS", low=0),
+              LIPSCHITZ_PARAM, RESTART_PARAM, LINEAR_PARAM)
+    grid = {"K": GP_K_VALUES}
 
-    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
-            p0: np.ndarray | None) -> SolveResult:
-        K = int(settings.param("K", 100))
-        if K < 0:
-            raise ValueError(f"nnls-gp: K (GP iterations) must be >= 0, got {K}")
-        p = np.zeros(qp.n) if p0 is None else p0
+    def default_max_iter(self, n: int) -> int:
+        return nnls_max_iter(n)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        K = ctx.params["K"]
+        p = start_point(ctx)
         if K > 0:
-            L = lipschitz_of(qp, settings, rec)
-            gp = accelerated_gradient_projection(qp, p, L, K, rec, restart=bool(settings.param("restart", False)))
-            p = gp.p
-        out = nnls_active_set(qp, p, settings.tolerance(EXACT_TOL), max_iter_of(settings, 5 * qp.n + 100),
-                              str(settings.param("linear", "auto")), rec)
-        rec.info.update(K=K, gp_iterations=K, nnls_iterations=out.iterations)
-        status, _ = rec.stop_status(out.converged)
-        return rec.result(out.p, K + out.iterations, out.converged, status, out.message, p0 is not None, out.w)
+            p = accelerated_gradient_projection(ctx, p, lipschitz_of(ctx), K, restart=ctx.params["restart"]).p
+        out = nnls_active_set(ctx, p, ctx.max_iter, ctx.params["linear"], it_offset=K)
+        ctx.info.update(K=K, gp_iterations=K, nnls_iterations=out.iterations)
+        out.iterations += K
+        return out
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         per = matvec_seconds(n, operator_kind) * (1 if operator_kind == "dense" or n <= FACTOR_MAX_N else 30)

@@ -34,21 +34,10 @@ from typing import ClassVar
 import numpy as np
 import scipy.linalg as sla
 
-from contactbench.problems.errors import MemoryBudgetError
-from contactbench.problems.instances import QP
-from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget, dense_nbytes
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, dense_nbytes
 
-from ._common import (
-    EXACT_TOL,
-    Deadline,
-    RunRecorder,
-    Scales,
-    cholesky_seconds,
-    conjugate_gradient,
-    matvec_seconds,
-    max_iter_of,
-)
-from .base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
+from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, cholesky_seconds, conjugate_gradient, matvec_seconds
+from .base import Capabilities, Deadline, Outcome, Param, SolveContext, Solver
 from .registry import register
 
 #: Typical number of outer passes and inner iterations per pass (for time_estimate).
@@ -67,54 +56,55 @@ class ReducedSolve:
 
 
 class GreedySolver(Solver):
-    """Algorithm 1 (intended reading) with a pluggable unconstrained solve."""
+    """Algorithm 1 (intended reading) with a pluggable unconstrained solve.
+
+    Stops when a pass leaves no p_j < -tol p_s (``_kit.absolute_tol``); each pass's
+    inner solve runs to ||ubar_I - H_II p_I||_inf <= tol u_s.  The trace records the
+    scaled KKT error after every pass (one extra matvec per pass)."""
 
     family: ClassVar[str] = "paper"
     capabilities: ClassVar[Capabilities] = Capabilities(warm_start="none", exact=False)
-    default_max_iter: ClassVar[int] = 100_000
+    default_tol: ClassVar[float] = 1e-10
+    params = (
+        Param("max_passes", int, None, "outer passes at most (None: n + 1)", low=1),
+        Param("literal_one_pass", bool, False, "stop after one pass, as Algorithm 1 is printed (a test aid)"),
+    )
 
     @abstractmethod
-    def solve_reduced(
-        self, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float, max_iter: int, deadline: Deadline
-    ) -> ReducedSolve:
+    def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
+                      max_iter: int) -> ReducedSolve:
         """Solve op x = b (op = H restricted to the current set I)."""
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        rec = RunRecorder(qp, settings)
-        rec.info["method"] = "greedy, repeated until no negative p (intended Algorithm 1)"
-        trivial = rec.trivial(False)
-        if trivial is not None:
-            return trivial
-        sc = Scales.of(qp)
-        tol = settings.tolerance(EXACT_TOL)
-        max_iter = max_iter_of(settings, self.default_max_iter)
-        max_passes = int(settings.param("max_passes", qp.n + 1))
-        literal = bool(settings.param("literal_one_pass", False))  # testing aid only
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        qp = ctx.qp
+        atol = absolute_tol(ctx, ctx.tol)
+        max_passes = ctx.params["max_passes"] or qp.n + 1
         active = np.arange(qp.n)
         p = np.zeros(qp.n)
         op: ContactOperator = qp.H
         total_it, passes, converged = 0, 0, False
         while passes < max_passes:
             passes += 1
-            red = self.solve_reduced(op, qp.ubar[active], p[active], sc.disp_tol(tol),
-                                     max_iter - total_it, rec.deadline)
+            red = self.solve_reduced(ctx, op, qp.ubar[active], p[active], atol.disp, ctx.max_iter - total_it)
             total_it += red.iterations
             p[:] = 0.0
             p[active] = red.x
-            negative = red.x < -sc.force_tol(tol)
-            rec.record(passes, float(-min(0.0, red.x.min(initial=0.0))) / sc.p_s)
+            negative = red.x < -atol.force
             if not negative.any():
                 converged = red.converged
                 break
             p[active[negative]] = 0.0  # step 2.5: zero tensile forces, shrink I
             active = active[~negative]
-            if literal or total_it >= max_iter or rec.deadline.expired() or active.size == 0:
+            feasible = np.maximum(p, 0.0)
+            ctx.record(total_it, ctx.kkt(feasible, qp.H.matvec(feasible) - qp.ubar))
+            if ctx.params["literal_one_pass"] or total_it >= ctx.max_iter or ctx.expired() or active.size == 0:
                 break
-            op = rec.tally.track(qp.H.restrict(active))
+            op = ctx.track(qp.H.restrict(active))
         np.maximum(p, 0.0, out=p)  # entries in (-eps, 0) count as zero
-        rec.info.update(passes=passes, final_set_size=int(active.size))
-        status, message = rec.stop_status(converged)
-        return rec.result(p, total_it, converged, status, f"{message} after {passes} passes", False)
+        ctx.info.update(method="greedy, repeated until no negative p (intended Algorithm 1)", passes=passes,
+                        final_set_size=int(active.size))
+        message = f"no negative p after {passes} passes" if converged else f"stopped after {passes} passes"
+        return Outcome(p, total_it, converged, message)
 
 
 @register
@@ -128,8 +118,9 @@ class GreedyCG(GreedySolver):
     name = "greedy-cg"
     description = "Greedy + CG (Algorithm 1, repeated to no negative p); not exact"
 
-    def solve_reduced(self, op, b, x0, atol, max_iter, deadline) -> ReducedSolve:
-        r = conjugate_gradient(op, b, x0, atol, max_iter, deadline)
+    def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
+                      max_iter: int) -> ReducedSolve:
+        r = conjugate_gradient(op, b, x0, atol, max_iter, ctx.deadline)
         return ReducedSolve(r.x, r.iterations, r.converged)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
@@ -190,11 +181,11 @@ class GreedyGS(GreedySolver):
 
     name = "greedy-gs"
     description = "Greedy + Gauss-Seidel (BCC); not exact"
-    default_max_iter = 100_000
 
-    def solve_reduced(self, op, b, x0, atol, max_iter, deadline) -> ReducedSolve:
+    def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
+                      max_iter: int) -> ReducedSolve:
         rows = RowBlocks(op, block=256, budget=DEFAULT_MEMORY_BUDGET / 4)
-        return gauss_seidel(rows, b, x0, atol, max_iter, deadline)
+        return gauss_seidel(rows, b, x0, atol, max_iter, ctx.deadline)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return TYPICAL_PASSES * TYPICAL_GS_SWEEPS_PER_PASS * matvec_seconds(n, "dense")
@@ -215,18 +206,10 @@ class GreedyCholesky(GreedySolver):
     def memory_estimate(self, n: int) -> float:
         return float(dense_nbytes(n))
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        check_dense_budget(qp.n, what="greedy-chol: dense block H_II for the Cholesky factor")
-        return super().solve(qp, settings, warm)
-
-    def solve_reduced(self, op, b, x0, atol, max_iter, deadline) -> ReducedSolve:
-        idx = np.arange(op.n)
-        try:
-            A = np.array(op.submatrix(idx, idx), dtype=np.float64, copy=True)
-        except MemoryError as exc:  # the gather itself ran out of memory
-            raise MemoryBudgetError("greedy-chol: dense block H_II", dense_nbytes(op.n), DEFAULT_MEMORY_BUDGET) from exc
-        x = sla.cho_solve(sla.cho_factor(A, lower=True, overwrite_a=True, check_finite=False), b, check_finite=False)
-        return ReducedSolve(x, 1, True)
+    def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
+                      max_iter: int) -> ReducedSolve:
+        L = cholesky_of_h(op, what="greedy-chol: dense block H_II for the Cholesky factor")
+        return ReducedSolve(cholesky_solve(L, b), 1, True)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return TYPICAL_PASSES * cholesky_seconds(n)

@@ -15,32 +15,26 @@ Step 6 (solve H_PP s_P = ubar_P) never refactors from scratch after the first so
   the current p_P.  Memory O(n).
 
 ``linear="auto"`` picks ``cholesky`` for a dense operator or a small FFT problem
-(a full factor within 1/8 of the memory budget, ``FACTOR_MAX_N``) and ``cg`` otherwise; ``info["linear_solver"]`` records it.
+(a full factor within 1/8 of the memory budget, ``FACTOR_MAX_N``) and ``cg`` otherwise;
+``info["linear_solver"]`` records it.  The dense (re)factorisation is
+``_kit.cholesky_of_h``.
+
+Stopping: when no index of the zero set has w_j < -tol u_s, the answer is claimed
+converged if its scaled KKT error (``SolveContext.kkt``) is <= tol, else "stalled".
 Finite termination: an exact method (a reference candidate).  Warm start: primal.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 import scipy.linalg as sla
 
-from contactbench.problems.instances import QP
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, check_dense_budget
 
-from ._common import (
-    PrimalWarmSolver,
-    EXACT_TOL,
-    RunRecorder,
-    Scales,
-    conjugate_gradient,
-    is_dense,
-    matvec_seconds,
-    max_iter_of,
-)
-from .base import Capabilities, SolveResult, SolverSettings, WarmStart
+from ._kit import absolute_tol, cholesky_of_h, conjugate_gradient, is_dense, matvec_seconds
+from .base import Capabilities, Outcome, Param, SolveContext, Solver, Status
 from .registry import register
 
 #: Under "auto", FFT operators use the incremental Cholesky backend while a full n x n
@@ -121,8 +115,7 @@ class IncrementalCholesky:
         self._reserve(m)
         self._order[:m] = passive
         if m:
-            A = self.op.submatrix(passive, passive)
-            self.buf[:m, :m] = sla.cholesky(A, lower=True, check_finite=False)
+            self.buf[:m, :m] = cholesky_of_h(self.op, passive, what="nnls: Cholesky factor of H_PP")
         self.k = m
 
     def add(self, j: int) -> bool:
@@ -173,10 +166,10 @@ class RestrictedCG:
 
     name = "cg"
 
-    def __init__(self, op: ContactOperator, atol: float, rec: RunRecorder) -> None:
+    def __init__(self, op: ContactOperator, atol: float, ctx: SolveContext) -> None:
         self.op = op
         self.atol = atol
-        self.rec = rec
+        self.ctx = ctx
         self.mask = np.zeros(op.n, dtype=bool)
         self.cg_iterations = 0
         self.max_cg_iter = max(200, 10 * int(np.sqrt(op.n)) + 200)
@@ -199,20 +192,24 @@ class RestrictedCG:
     def solve(self, rhs: np.ndarray, x0: np.ndarray) -> np.ndarray:
         if rhs.size == 0:
             return rhs.copy()
-        sub = self.rec.tally.track(self.op.restrict(self.order))
-        r = conjugate_gradient(sub, rhs, x0, self.atol, self.max_cg_iter, self.rec.deadline)
+        sub = self.ctx.track(self.op.restrict(self.order))
+        r = conjugate_gradient(sub, rhs, x0, self.atol, self.max_cg_iter, self.ctx.deadline)
         self.cg_iterations += r.iterations
         return r.x
 
 
-def choose_backend(op: ContactOperator, linear: str, atol: float, rec: RunRecorder) -> PassiveSetSolver:
+#: The step-6 backends a solver may name (``linear`` parameter).
+LINEAR_CHOICES = ("auto", "cholesky", "cg")
+LINEAR_PARAM = Param("linear", str, "auto", "step-6 solve: incremental Cholesky, CG on H_PP, or auto "
+                     "(Cholesky for a dense operator or n <= FACTOR_MAX_N)", choices=LINEAR_CHOICES)
+
+
+def choose_backend(op: ContactOperator, linear: str, atol: float, ctx: SolveContext) -> PassiveSetSolver:
     if linear == "auto":
         linear = "cholesky" if (is_dense(op) or op.n <= FACTOR_MAX_N) else "cg"
     if linear == "cholesky":
         return IncrementalCholesky(op)
-    if linear == "cg":
-        return RestrictedCG(op, atol, rec)
-    raise ValueError(f"nnls: linear must be 'auto', 'cholesky' or 'cg', got {linear!r}")
+    return RestrictedCG(op, atol, ctx)
 
 
 # ---------------------------------------------------------------------------
@@ -220,38 +217,35 @@ def choose_backend(op: ContactOperator, linear: str, atol: float, rec: RunRecord
 # ---------------------------------------------------------------------------
 
 
-@dataclass
-class NNLSOutcome:
-    p: np.ndarray
-    w: np.ndarray
-    iterations: int
-    converged: bool
-    message: str
-
-
-def nnls_active_set(qp: QP, p0: np.ndarray, tol: float, max_iter: int, linear: str, rec: RunRecorder) -> NNLSOutcome:
-    """Paper Algorithm 3 from p0 >= 0 (P = {p0 > 0}).  tol is relative: optimality is
-    min_Z w >= -tol u_s; a candidate s_P is accepted when s_P >= -tol p_s."""
-    sc = Scales.of(qp)
+def nnls_active_set(ctx: SolveContext, p0: np.ndarray, max_iter: int, linear: str, it_offset: int = 0) -> Outcome:
+    """Paper Algorithm 3 from p0 >= 0 (P = {p0 > 0}) until the scaled KKT error of
+    (p, w) is <= ctx.tol (checked at step 3, where w is at hand).  Inner thresholds
+    (``_kit.absolute_tol``): an index may enter P when w_j < -tol u_s, and a candidate
+    s_P is accepted when s_P >= -tol p_s.  ``it_offset`` shifts the trace's iteration
+    numbers (iterations done before this call)."""
+    qp = ctx.qp
     op, ubar = qp.H, qp.ubar
-    eps_w, eps_p = sc.disp_tol(tol), sc.force_tol(tol)
-    backend = choose_backend(op, linear, 0.1 * eps_w, rec)
+    atol = absolute_tol(ctx, ctx.tol)
+    eps_w, eps_p = atol.disp, atol.force
+    backend = choose_backend(op, linear, 0.1 * eps_w, ctx)
     p = p0.copy()
     passive = p > 0.0
     backend.reset(np.flatnonzero(passive))
     w = op.matvec(p) - ubar
     init = not passive.any()  # steps 1-2: a warm p skips the first "add"
     rejected = np.zeros(qp.n, dtype=bool)
-    k, adds, removes, message, converged = 0, 0, 0, "", False
+    k, adds, removes, message, status = 0, 0, 0, "", None
     while True:
         if init:  # steps 4-5
             cand = ~passive & ~rejected
             wmin = float(w[cand].min()) if cand.any() else 0.0
             if wmin >= -eps_w:
-                converged = not rejected.any() or float(w[~passive].min(initial=0.0)) >= -eps_w
-                message = "optimal: w >= -eps on the zero set" if converged else "stalled: rejected indices left"
+                converged = ctx.kkt(p, w) <= ctx.tol
+                message = ("optimal: w >= -eps on the zero set" if converged else
+                           "stalled: no index left to add, scaled KKT error above tol")
+                status = Status.CONVERGED if converged else Status.STALLED
                 break
-            if k >= max_iter or rec.deadline.expired():
+            if k >= max_iter or ctx.expired():
                 message = "stopped before optimality"
                 break
             t = int(np.flatnonzero(cand)[np.argmin(w[cand])])
@@ -291,37 +285,46 @@ def nnls_active_set(qp: QP, p0: np.ndarray, tol: float, max_iter: int, linear: s
             passive[leaving] = False  # steps 10-11
             backend.remove(leaving)
             removes += leaving.size
-            if k >= max_iter or rec.deadline.expired():
+            if k >= max_iter or ctx.expired():
                 break
         w = op.matvec(p) - ubar  # step 3
-        rec.record(k, float(max(0.0, -float(w[~passive].min(initial=0.0)))) / sc.u_s)
-    rec.info.update(linear_solver=backend.name, additions=adds, removals=removes, passive_size=int(passive.sum()))
+        ctx.record(it_offset + k, ctx.kkt(p, w))
+    ctx.info.update(linear_solver=backend.name, additions=adds, removals=removes, passive_size=int(passive.sum()))
     if isinstance(backend, IncrementalCholesky):
-        rec.info["factor_updates"] = backend.updates
+        ctx.info["factor_updates"] = backend.updates
     if isinstance(backend, RestrictedCG):
-        rec.info["inner_cg_iterations"] = backend.cg_iterations
-    return NNLSOutcome(p, w, k, converged, message)
+        ctx.info["inner_cg_iterations"] = backend.cg_iterations
+    return Outcome(p, k, status is Status.CONVERGED, message, w=w, status=status)
+
+
+def nnls_max_iter(n: int) -> int:
+    """Iteration limit of Algorithm 3 (solves of step 6) when the settings give none."""
+    return 5 * n + 100
 
 
 @register
-class NNLS(PrimalWarmSolver):
-    """Lawson-Hanson NNLS on the QP (paper Algorithm 3), warm started from p.
+class NNLS(Solver):
+    """Lawson-Hanson NNLS on the QP (paper section 3.3, Algorithm 3), warm started from p.
 
     Step 6 by incremental Cholesky updates (dense / small) or warm-started CG on
     ``op.restrict(P)`` (matrix-free); param ``linear`` = auto | cholesky | cg.
-    One iteration = one solve of step 6.  Exact; warm start: primal (load history)."""
+    One iteration = one solve of step 6.  Stops on the scaled KKT error
+    (``SolveContext.kkt``).  Exact (finite termination); warm start: primal (the load
+    history: P starts as supp p)."""
 
     name = "nnls"
     family = "paper"
     description = "Lawson-Hanson active set on the QP (Algorithm 3), incremental Cholesky or CG"
     capabilities = Capabilities(warm_start="primal", exact=True)
+    default_tol = 1e-10
+    params = (LINEAR_PARAM,)
 
-    def run(self, qp: QP, settings: SolverSettings, warm: WarmStart | None, rec: RunRecorder,
-            p0: np.ndarray | None) -> SolveResult:
-        out = nnls_active_set(qp, np.zeros(qp.n) if p0 is None else p0, settings.tolerance(EXACT_TOL),
-                              max_iter_of(settings, 5 * qp.n + 100), str(settings.param("linear", "auto")), rec)
-        status, _ = rec.stop_status(out.converged)
-        return rec.result(out.p, out.iterations, out.converged, status, out.message, p0 is not None, out.w)
+    def default_max_iter(self, n: int) -> int:
+        return nnls_max_iter(n)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        p0 = np.zeros(ctx.n) if ctx.p0 is None else ctx.p0
+        return nnls_active_set(ctx, p0, ctx.max_iter, ctx.params["linear"])
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         # cold start: ~0.3 n additions, each one matvec plus a factor update or a CG solve

@@ -10,13 +10,17 @@ eq. (6)) as P = H~, q = -u~, lb = 0 after the equilibration of ``solvers._scalin
 (raw mode: params {"scaling": False}).  H is assembled dense (or taken from the shared
 DenseOperator); sparse backends get a CSC copy, converted at build time.
 
-Tolerance profiles (``default`` = the backend's own defaults, untouched; ``low`` 1e-3,
-``mid`` 1e-6, ``high`` 1e-9) are mapped by each backend's own function below onto that
-backend's absolute *and* relative options; relative ones are set to 0 where that is
+A requested tolerance (``ctx.tol``; None -- the ``default`` profile -- leaves the
+backend's own defaults untouched; ``low`` 1e-3, ``mid`` 1e-6, ``high`` 1e-9) is mapped
+by each backend's own function below onto that backend's absolute *and* relative options; relative ones are set to 0 where that is
 how the solver reaches an absolute target.  Known traps handled there: OSQP needs
 ``polishing=True`` to be exact, HiGHS' QP regularization (default 1e-7) caps it near
 3e-7 so it is lowered with the tolerance, CVXOPT needs its tolerances at 1e-10 or
 below.  PIQP and ProxQP get dense input (10-20x faster at n ~ 3000).
+
+Parameters: ``scaling`` (bool), ``input_format`` ("dense"/"sparse", default the
+backend's) and ``backend_options`` (dict of the backend's own options, applied last).
+The backend's status string is kept in ``info["backend_status"]``.
 
 Warm start: qpsolvers forwards the primal to OSQP, ProxQP, QPALM, SCS and CVXOPT
 (declared "primal"); Clarabel, PIQP, HiGHS, DAQP, quadprog and ECOS ignore it ("none").
@@ -24,7 +28,6 @@ Warm start: qpsolvers forwards the primal to OSQP, ProxQP, QPALM, SCS and CVXOPT
 
 from __future__ import annotations
 
-import time
 import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar
@@ -32,19 +35,10 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 import scipy.sparse as sp
 
-from .base import Capabilities, SolverSettings, WarmKind
+from .base import Capabilities, Param, SolveContext, WarmKind
 from .registry import register
-from ._scaling import BackendOutcome, EquilibratedAdapter, ScaledQP, missing_package_message, requested_tolerance
-
-
-@dataclass(frozen=True)
-class Request:
-    """What the harness asked for, in the backend-neutral form the option maps read."""
-
-    tol: float | None  # None: the ``default`` profile (backend defaults)
-    max_iter: int | None
-    time_limit: float | None
-
+from ._scaling import (BACKEND_OPTIONS, SCALING, BackendOutcome, EquilibratedAdapter, Request, ScaledQP,
+                       missing_package_message, request_of)
 
 OptionMap = Callable[[Request], dict[str, Any]]
 
@@ -228,13 +222,9 @@ def _status_of(sol: Any) -> tuple[str, int]:
     return str(status).rsplit(".", 1)[-1], it  # "Status.PIQP_SOLVED" -> "PIQP_SOLVED"
 
 
-def _problem_matrix(sqp: ScaledQP, fmt: str) -> tuple[Any, float]:
-    """P in the backend's format and the conversion time (counted as build time)."""
-    if fmt == "dense":
-        return sqp.H, 0.0
-    t0 = time.perf_counter()
-    P = sp.csc_matrix(sqp.H)
-    return P, time.perf_counter() - t0
+def _problem_matrix(sqp: ScaledQP, fmt: str) -> Any:
+    """P in the backend's format (a CSC copy for sparse backends)."""
+    return sqp.H if fmt == "dense" else sp.csc_matrix(sqp.H)
 
 
 class QPSolversAdapter(EquilibratedAdapter):
@@ -251,6 +241,9 @@ class QPSolversAdapter(EquilibratedAdapter):
         self.memory_copies = spec.memory_copies + (0.5 if polish else 0.0)  # type: ignore[misc]
         self.time_coef = spec.time_coef * (1.3 if polish else 1.0)  # type: ignore[misc]
         self.time_exponent = spec.time_exponent  # type: ignore[misc]
+        input_format = Param("input_format", str, spec.input_format, "matrix handed to the backend",
+                             choices=("dense", "sparse"))
+        self.params = (SCALING, input_format, BACKEND_OPTIONS)  # type: ignore[misc]
         #: smallest scaled KKT error the backend reaches on these instances (None: 1e-8 or better)
         self.accuracy_floor = None if polish else spec.accuracy_floor
         tail = "; then one exact solve on the detected active set (labelled polish variant)" if polish else ""
@@ -278,30 +271,31 @@ class QPSolversAdapter(EquilibratedAdapter):
         why = missing_package_message(self.name, self.spec.package)
         return False, why or f"failed to import: qpsolvers does not list backend {self.spec.backend!r}"
 
-    def solve_scaled(self, sqp: ScaledQP, settings: SolverSettings) -> BackendOutcome:
+    def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> Any:
+        """qpsolvers' Problem(P, -u~, lb=0) with P in the requested input format."""
         import qpsolvers
 
-        fmt = settings.param("input_format", self.spec.input_format)
-        P, convert = _problem_matrix(sqp, fmt)
-        req = Request(requested_tolerance(settings), settings.max_iter, settings.time_limit)
-        opts = {**self.spec.options(req), **settings.param("backend_options", {})}
-        problem = qpsolvers.Problem(P, -sqp.u, lb=np.zeros(sqp.n))
-        warm = sqp.x0 if self.spec.warm_start != "none" else None
+        P = _problem_matrix(sqp, ctx.params["input_format"])
+        return qpsolvers.Problem(P, -sqp.u, lb=np.zeros(sqp.n))
+
+    def run_backend(self, sqp: ScaledQP, prepared: Any, ctx: SolveContext) -> BackendOutcome:
+        import qpsolvers
+
+        opts = {**self.spec.options(request_of(ctx)), **ctx.params["backend_options"]}
+        info: dict[str, Any] = {"backend": self.spec.backend, "input_format": ctx.params["input_format"],
+                                "options": opts}
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                sol = qpsolvers.solve_problem(problem, solver=self.spec.backend, initvals=warm, **opts)
+                sol = qpsolvers.solve_problem(prepared, solver=self.spec.backend, initvals=sqp.x0, **opts)
             except Exception as exc:  # the backend's own failure is a status, not a crash
-                return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, convert_time=convert,
-                                      info={"backend": self.spec.backend, "options": opts})
+                return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, info=info)
         status, iters = _status_of(sol)
         x = None if sol.x is None else np.asarray(sol.x, dtype=np.float64)
         return BackendOutcome(
-            x, status, bool(sol.found), iters, convert_time=convert,
+            x, status, bool(sol.found), iters,
             backend_setup_time=getattr(sol, "build_time", None), backend_solve_time=getattr(sol, "solve_time", None),
-            warm_started=warm is not None,
-            info={"backend": self.spec.backend, "input_format": fmt, "options": opts,
-                  "warnings": [str(w.message) for w in caught][:5]},
+            info={**info, "warnings": [str(w.message) for w in caught][:5]},
         )
 
 

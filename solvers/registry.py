@@ -1,29 +1,37 @@
 """Solver registry (in the manner of qpsolvers: it knows what is importable).
 
 Every module in the ``solvers`` package (and every module under ``solvers/``
-sub-packages) is imported once on first use; modules register their solvers with the
-``@register`` decorator.  External packages can add solvers through the entry-point
-group ``contactbench.solvers`` (each entry point names a module to import), and tests
-may register throw-away solvers with ``register(..., replace=True)`` /
-``unregister``.
+sub-packages; modules named ``_*`` are helpers, not solvers) is imported once on first
+use; modules register their solvers with the ``@register`` decorator.  External
+packages can add solvers through the entry-point group ``contactbench.solvers`` (each
+entry point names a module to import), and tests may register throw-away solvers with
+``register(..., replace=True)`` / ``unregister``.  The registry itself is a
+``contactbench.plugins.PluginRegistry``.
 """
 
 from __future__ import annotations
 
 import importlib
-import pkgutil
-import traceback
-from importlib import metadata
 from typing import Callable, TypeVar
+
+from contactbench.plugins import PluginRegistry, UnknownPluginError
 
 from .base import Solver
 
-_REGISTRY: dict[str, Solver] = {}
-_IMPORT_ERRORS: dict[str, str] = {}
-_DISCOVERED = False
-_SKIP_MODULES = {"base", "registry"}
-
 S = TypeVar("S")
+
+
+class UnknownSolverError(UnknownPluginError):
+    """``get_solver`` of a name nobody registered (a ``KeyError``)."""
+
+
+def _same_class(old: Solver, new: Solver) -> bool:
+    return type(old) is type(new)
+
+
+_SOLVERS: PluginRegistry[Solver] = PluginRegistry(
+    "solver", package="contactbench.solvers", entry_point_group="contactbench.solvers", recursive=True,
+    include=lambda short: short not in ("base", "registry"), same=_same_class, error=UnknownSolverError)
 
 
 def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S], S]:
@@ -38,9 +46,7 @@ def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S]
             raise TypeError(f"{o!r} is not a Solver")
         if not inst.name:
             raise ValueError(f"{o!r} has no name")
-        if inst.name in _REGISTRY and not replace and type(_REGISTRY[inst.name]) is not type(inst):
-            raise ValueError(f"solver name {inst.name!r} is already registered")
-        _REGISTRY[inst.name] = inst
+        _SOLVERS.add(inst.name, inst, replace=replace)
         return o
 
     if obj is None:
@@ -49,39 +55,12 @@ def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S]
 
 
 def unregister(name: str) -> None:
-    _REGISTRY.pop(name, None)
-
-
-def _discover() -> None:
-    global _DISCOVERED
-    if _DISCOVERED:
-        return
-    _DISCOVERED = True
-    import contactbench.solvers as pkg
-
-    for mod in pkgutil.walk_packages(pkg.__path__, prefix="contactbench.solvers."):
-        short = mod.name.rsplit(".", 1)[-1]
-        if short in _SKIP_MODULES or short.startswith("_"):
-            continue
-        try:
-            importlib.import_module(mod.name)
-        except Exception:  # a broken module must not take the registry down
-            _IMPORT_ERRORS[mod.name] = traceback.format_exc(limit=3)
-    try:
-        eps = metadata.entry_points(group="contactbench.solvers")
-    except TypeError:  # pragma: no cover - very old importlib.metadata
-        eps = []
-    for ep in eps:
-        try:
-            ep.load()
-        except Exception:
-            _IMPORT_ERRORS[f"entry point {ep.name}"] = traceback.format_exc(limit=3)
+    _SOLVERS.remove(name)
 
 
 def all_solvers() -> dict[str, Solver]:
     """Every registered solver, available or not, by name (sorted)."""
-    _discover()
-    return dict(sorted(_REGISTRY.items()))
+    return _SOLVERS.all()
 
 
 def available_solvers() -> dict[str, Solver]:
@@ -89,22 +68,13 @@ def available_solvers() -> dict[str, Solver]:
 
 
 def import_errors() -> dict[str, str]:
-    _discover()
-    return dict(_IMPORT_ERRORS)
-
-
-class UnknownSolverError(KeyError):
-    def __str__(self) -> str:  # KeyError quotes its message; keep it readable
-        return str(self.args[0])
+    """Module -> traceback of every solver module that failed to import."""
+    return _SOLVERS.import_errors()
 
 
 def get_solver(name: str) -> Solver:
-    """The solver called ``name``, or a clear error saying what exists or why not."""
-    solvers = all_solvers()
-    if name not in solvers:
-        known = ", ".join(solvers) or "(none)"
-        raise UnknownSolverError(f"unknown solver {name!r}; registered solvers: {known}")
-    return solvers[name]
+    """The solver called ``name``, or ``UnknownSolverError`` listing the known ones."""
+    return _SOLVERS.get(name)
 
 
 def load_solver(spec: str) -> Solver:

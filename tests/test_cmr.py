@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -11,38 +12,67 @@ from scipy.optimize import nnls
 
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
+from contactbench.problems.instances import QP, InstanceBuilder, counterexample, paper_max_displacement
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.problems.surfaces import rmd_surface_n, spectral_surface
-from contactbench.solvers.base import Capabilities, SolveResult, Solver, SolverSettings, WarmStart
-from contactbench.solvers.cmr import CMRSolver, cascade_surfaces, within_radius
+from contactbench.solvers import (
+    Capabilities,
+    Outcome,
+    ParamError,
+    ProblemTraits,
+    SolveContext,
+    Solver,
+    SolverSettings,
+    WarmStart,
+)
+from contactbench.solvers.cmr import CMR_BASES, CMRSolver, within_radius
 from contactbench.solvers.registry import all_solvers, register, unregister
 
 BASE = "test-cmr-exact"
 
 
 class ExactBase(Solver):
-    """Exact test base: H = L L', then NNLS on ||L' p - L^-1 ubar|| (Lawson-Hanson)."""
+    """Exact test base: H = L L', then NNLS on ||L' p - L^-1 ubar|| (Lawson-Hanson).
+    ``calls`` records (n, warm started, time limit) of every solve."""
 
     name = BASE
     family = "test"
     capabilities = Capabilities(warm_start="primal", exact=True)
-    calls: list[tuple[int, bool]] = []
+    calls: list[tuple[int, bool, float | None]] = []
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        ExactBase.calls.append((qp.n, warm is not None))
-        L = np.linalg.cholesky(qp.H.to_dense())
-        p, _ = nnls(L.T, sl.solve_triangular(L, qp.ubar, lower=True), maxiter=50 * qp.n)
-        return SolveResult(p=p, converged=True, status="optimal", iterations=1, warm_started=warm is not None)
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        ExactBase.calls.append((ctx.n, ctx.warm_started, ctx.deadline.remaining()))
+        L = np.linalg.cholesky(ctx.qp.H.to_dense())
+        p, _ = nnls(L.T, sl.solve_triangular(L, ctx.qp.ubar, lower=True), maxiter=50 * ctx.n)
+        return Outcome(p, 1, True)
+
+
+class SlowBase(ExactBase):
+    """ExactBase after SLOW_SECONDS of work (or its time limit, whichever comes first);
+    unconverged when its time ran out."""
+
+    name = "test-cmr-slow"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        t_end = time.perf_counter() + SLOW_SECONDS
+        while time.perf_counter() < t_end and not ctx.expired():
+            time.sleep(0.01)
+        out = super().iterate(ctx)
+        return Outcome(out.p, 1, not ctx.expired())
+
+
+SLOW_SECONDS = 0.3
 
 
 @pytest.fixture(autouse=True)
 def exact_base() -> Iterator[None]:
     register(ExactBase, replace=True)
+    register(SlowBase, replace=True)
     ExactBase.calls = []
     yield
     unregister(BASE)
+    unregister(SlowBase.name)
 
 
 def direct(inst) -> np.ndarray:
@@ -83,7 +113,7 @@ def test_small_h_prunes_and_returns_p_on_the_full_trial_set() -> None:
     assert fine["n_p_over_n"] == pytest.approx(fine["n_p"] / inst.n)
     assert fine["load"] == pytest.approx(r.p.sum())
     # base solves: the coarsest level whole, every later level on its projected set
-    assert [n for n, _ in ExactBase.calls] == [lv["n_p"] for lv in r.info["levels"]]
+    assert [n for n, _, _ in ExactBase.calls] == [lv["n_p"] for lv in r.info["levels"]]
     assert r.info["levels"][0]["n_p"] == r.info["levels"][0]["n"]
     for lv in r.info["levels"]:
         assert lv["time"] >= 0 and 0 <= lv["contact_fraction"] <= 1
@@ -102,7 +132,7 @@ def test_warm_start_is_restricted_to_the_projected_set() -> None:
     ExactBase.calls = []
     r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 2.0, "coarsest": 8}), WarmStart(p=p0))
     assert r.warm_started
-    assert [w for _, w in ExactBase.calls] == [False] * (len(ExactBase.calls) - 1) + [True]
+    assert [w for _, w, _ in ExactBase.calls] == [False] * (len(ExactBase.calls) - 1) + [True]
 
 
 def test_explicit_levels_and_unknown_levels() -> None:
@@ -113,19 +143,71 @@ def test_explicit_levels_and_unknown_levels() -> None:
         CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"levels": [24]}))
 
 
-def test_needs_geometry_context_and_valid_h() -> None:
+def test_needs_geometry_context_and_valid_params() -> None:
     qp = QP(DenseOperator(np.eye(2)), np.ones(2))
     with pytest.raises(ProblemInputError, match="geometry"):
         CMRSolver(BASE).solve(qp, SolverSettings())
-    with pytest.raises(ProblemInputError, match="h must be"):
-        CMRSolver(BASE).solve(rmd_instance(N=16).qp, SolverSettings(params={"h": 0.5}))
+    qp16 = rmd_instance(N=16).qp
+    with pytest.raises(ParamError, match="'h'"):
+        CMRSolver(BASE).solve(qp16, SolverSettings(params={"h": 0.5}))
+    with pytest.raises(ParamError, match="allowed: base_params, coarsest, h, levels, repair"):
+        CMRSolver(BASE).solve(qp16, SolverSettings(params={"hh": 2.0}))
+    with pytest.raises(ParamError, match="'levels'"):
+        CMRSolver(BASE).solve(qp16, SolverSettings(params={"levels": [8.5]}))
+    with pytest.raises(ParamError, match="no parameter 'K'"):  # base_params go to the base, checked there
+        CMRSolver(BASE).solve(qp16, SolverSettings(params={"base_params": {"K": 3}}))
+
+
+def test_skipped_where_the_problem_has_no_surface() -> None:
+    """The counterexample carries no surface: the skip policy refuses CMR up front."""
+    cmr = CMRSolver(BASE)
+    assert cmr.capabilities.needs_geometry
+    no_surface = counterexample(25, 0)
+    assert no_surface.geometry is not None and not no_surface.geometry.has_surface
+    why = cmr.skip(ProblemTraits(n=25, operator="dense", has_surface=no_surface.geometry.has_surface))
+    assert why is not None and "surface" in why
+    with_surface = rmd_instance(N=16)
+    assert with_surface.geometry is not None and with_surface.geometry.has_surface
+    assert cmr.skip(ProblemTraits(n=with_surface.n, operator="fft", has_surface=True)) is None
+
+
+def test_base_solves_get_what_is_left_of_the_time_limit() -> None:
+    inst = rmd_instance(N=64)
+    CMRSolver(BASE).solve(inst.qp, SolverSettings(time_limit=60.0, params={"coarsest": 8}))
+    limits = [t for _, _, t in ExactBase.calls]
+    assert len(limits) == 4 and all(t is not None and 0 < t <= 60.0 for t in limits)
+    assert limits == sorted(limits, reverse=True)  # each solve gets less
+    ExactBase.calls = []
+    CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"coarsest": 8}))
+    assert [t for _, _, t in ExactBase.calls] == [None] * 4
+
+
+def test_a_slow_base_cannot_take_cmr_past_its_time_limit() -> None:
+    """4 levels x 0.3 s of base work, a 0.45 s limit: the cascade is cut short, the fine
+    level is still solved (with no time left) and the result says time_limit."""
+    inst = rmd_instance(N=64)
+    t0 = time.perf_counter()
+    r = CMRSolver(SlowBase.name).solve(inst.qp, SolverSettings(time_limit=0.45, params={"coarsest": 8}))
+    assert time.perf_counter() - t0 < 2.0  # generous bound on a 0.45 s limit (1.2 s without it)
+    assert r.status == "time_limit" and not r.converged
+    assert len(r.info["levels"]) < 4 and r.info["levels"][-1]["N"] == 64
+    assert r.p.shape == (inst.n,)
+
+
+def test_trace_ends_at_the_full_problems_final_iterate() -> None:
+    inst = rmd_instance(N=64, H=0.5, seed=2)
+    r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1.0, "coarsest": 16}))
+    assert r.trace[-1][0] == r.iterations
+    assert r.trace[-1][2] == pytest.approx(kkt_check(inst, r.p).kkt_error, rel=1e-6)
 
 
 def test_availability_names_a_missing_base() -> None:
     ok, why = CMRSolver("no-such-base").availability()
     assert not ok and "no-such-base" in why
     assert CMRSolver(BASE).availability()[0]
-    assert {"cmr+nnls", "cmr+scipy-nnls"} <= set(all_solvers())
+    # the registered names the results tables use
+    assert {f"cmr+{b}" for b in CMR_BASES} == {"cmr+nnls", "cmr+pk", "cmr+scipy-nnls", "cmr+nnls-gp", "cmr+fast-ccg"}
+    assert {f"cmr+{b}" for b in CMR_BASES} <= set(all_solvers())
 
 
 def test_within_radius_minimum_image() -> None:
@@ -135,13 +217,6 @@ def test_within_radius_minimum_image() -> None:
     np.testing.assert_array_equal(within_radius(pts, centres, 1.0, period=None), [False, False, False])
     np.testing.assert_array_equal(within_radius(pts, centres, 2.0, period=None), [False, False, True])
     assert not within_radius(pts, np.zeros((0, 2)), 1.0, None).any()
-
-
-def test_cascade_surfaces_rmd_levels_are_subsamples() -> None:
-    s = rmd_surface_n(64, 0.7)
-    lv = cascade_surfaces(s, 16)
-    assert [x.N for x in lv] == [16, 32]
-    np.testing.assert_array_equal(lv[0].heights, s.heights[::4, ::4])
 
 
 def test_solver_warns_on_a_rolloff_surface() -> None:
@@ -164,16 +239,14 @@ def test_cmr_scene_recipes_and_variants() -> None:
     seq = specs[0].build()
     assert len(seq) == 2 and seq.deltas[-1] == pytest.approx(paper_max_displacement(seq.surface))
     assert [x.N for x in seq.surface.levels][-1] == 16
-    v = sc.variants(cfg, ["nnls", "cmr+nnls"])
-    assert [x.name for x in v] == ["nnls", "cmr+nnls"] and v[1].params["h"] == 2.0
     assert sc.warnings(cfg) == []
 
 
-def test_h_sweep_variants_cover_paper_range() -> None:
-    sc = get_scene("cmr-h-sweep")
-    v = sc.variants(sc.config(None), ["nnls", "cmr+nnls"])
-    hs = [x.params["h"] for x in v if x.base == "cmr+nnls"]
-    assert hs[0] == 1.25 and hs[-1] == 3.0 and len({x.name for x in v}) == len(v)
+def test_h_grid_covers_the_papers_fig_9() -> None:
+    hs = CMRSolver(BASE).grid["h"]
+    assert hs[0] == 1.25 and hs[-1] == 3.0 and len(set(hs)) == len(hs) == 8
+    for h in hs:  # every grid value is a valid parameter
+        assert CMRSolver(BASE).resolve_params({"h": h})["h"] == h
 
 
 def test_cutoff_scene_warns_only_on_the_rolloff_surface() -> None:

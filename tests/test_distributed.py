@@ -24,7 +24,8 @@ pytest.importorskip("distributed")
 from distributed import Client  # noqa: E402
 
 from contactbench.harness.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
-from contactbench.harness.runner import RunConfig, plan_run, run_benchmark  # noqa: E402
+from contactbench.harness.plan import RunConfig, plan_run  # noqa: E402
+from contactbench.harness.runner import run_benchmark  # noqa: E402
 from contactbench.harness.schema import STATUSES  # noqa: E402
 from contactbench.harness.store import ResultStore, load_table  # noqa: E402
 from contactbench.problems.instances import QP  # noqa: E402

@@ -1,22 +1,28 @@
-"""The matrix-free fast solvers (solvers/fast_*.py) against a dense reference.
+"""The matrix-free fast solvers (solvers/fast_*.py) and pk (solvers/pk.py), all on the
+constrained-CG loops of solvers/_ccg.py, against a dense reference and the paper's
+Example 1.
 
 Reference: scipy.optimize.nnls on the Cholesky factor (H = L L', the QP is
-min 1/2 ||L'p - L^-1 ubar||^2 over p >= 0).  Small grids only; no timing asserts.
+min 1/2 ||L'p - L^-1 ubar||^2 over p >= 0).  Small grids only; no timing asserts (the
+one wall-clock bound is a time-LIMIT test).
 """
 
 from __future__ import annotations
+
+import time
 
 import numpy as np
 import pytest
 import scipy.linalg as sla
 from scipy.optimize import nnls
+from threadpoolctl import threadpool_limits
 
 from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.instances import InstanceBuilder, load_ramp, paper_max_displacement
+from contactbench.problems.instances import InstanceBuilder, counterexample, load_ramp, paper_max_displacement
 from contactbench.problems.operators import FFTOperator
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.base import ParamError, SolverSettings, WarmStart
 from contactbench.solvers.registry import get_solver
 
 FAST = ["fast-ccg", "fast-dual-ccg", "fast-pdas", "fast-pccg", "fast-dual-pccg"]
@@ -145,3 +151,107 @@ def test_paper_sweep_at_512_same_loads_from_two_exact_solvers():
     assert a[-1, 2] > 30_000  # the paper's ~35,000-point trial set at the top step
     np.testing.assert_allclose(a[:, 0], c[:, 0], rtol=1e-7)
     np.testing.assert_allclose(a[:, 1], c[:, 1], rtol=0, atol=2.0 / 512**2)
+
+
+def test_pk_and_fast_ccg_run_one_loop():
+    """pk is the paper's configuration of fast-ccg's loop: warm-started from the same p
+    (whose support is pk's first domain) they take the same iterates."""
+    s = rmd_surface_n(64, 0.7, length=100e-6, seed=5)
+    b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
+    d1, d2 = load_ramp(paper_max_displacement(s), 2)
+    i1, i2 = b.build(d1), b.build(d2)
+    full = np.zeros(s.heights.size)
+    full[i1.geometry.indices] = get_solver("pk").solve(i1.qp, HIGH).p
+    warm = WarmStart(full[i2.geometry.indices])
+    a, c = get_solver("pk").solve(i2.qp, HIGH, warm), get_solver("fast-ccg").solve(i2.qp, HIGH, warm)
+    assert a.converged and a.iterations == c.iterations > 2
+    np.testing.assert_array_equal(a.p, c.p)
+
+
+def test_unknown_parameter_lists_the_allowed_keys():
+    _, inst = instance(33, "bcc", False)
+    with pytest.raises(ParamError, match="allowed: max_outer, precondition"):
+        get_solver("fast-pdas").solve(inst.qp, SolverSettings(params={"precondtion": "fourier"}))
+    with pytest.raises(ParamError, match="precondition"):
+        get_solver("fast-pccg").solve(inst.qp, SolverSettings(params={"precondition": True}))
+
+
+@pytest.mark.parametrize("kind", ["fourier", "islands"])
+def test_pdas_preconditioned_inner_cg_reaches_the_same_answer(kind):
+    _, inst = instance(65, "bcc", False)
+    ref = get_solver("fast-pdas").solve(inst.qp, HIGH)
+    res = get_solver("fast-pdas").solve(inst.qp, SolverSettings(tol=1e-9, params={"precondition": kind}))
+    assert ref.converged and res.converged and "preconditioner_builds" in res.info
+    assert res.info["inner_matvecs"] < ref.info["inner_matvecs"]
+    assert relative_error(res.p, ref.p) <= 1e-6
+
+
+def test_pdas_returns_within_its_time_limit():
+    """The paper's top step at 1024^2 (n = 144,852) needs several times 2 s of
+    fast-pdas at its default tolerance; with time_limit = 2 the solve stops near 2 s
+    (its inner CG used to ignore the limit, and its safeguard restarted the clock)."""
+    from contactbench.problems.scenes.core import PAPER_SEED
+
+    s = rmd_surface_n(1024, 0.7, length=100e-6, seed=PAPER_SEED)
+    inst = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s))
+    solver = get_solver("fast-pdas")
+    t0 = time.perf_counter()
+    res = solver.solve(inst.qp, SolverSettings(time_limit=2))
+    assert time.perf_counter() - t0 < 2.5
+    assert res.status == "time_limit" and not res.converged
+
+
+def test_pdas_safeguard_runs_under_the_solve_deadline(monkeypatch):
+    """The CCG safeguard gets what is left of the solve's one deadline, not a new one."""
+    from contactbench.solvers import fast_pdas
+
+    newton_step, bugnicourt, left = fast_pdas.newton_step, fast_pdas.bugnicourt, []
+
+    def slow_newton_step(*args, **kwargs):
+        time.sleep(0.3)
+        return newton_step(*args, **kwargs)
+
+    def spy(ctx, *args, **kwargs):
+        left.append(ctx.deadline.remaining())
+        return bugnicourt(ctx, *args, **kwargs)
+
+    monkeypatch.setattr(fast_pdas, "newton_step", slow_newton_step)
+    monkeypatch.setattr(fast_pdas, "bugnicourt", spy)
+    _, inst = instance(65, "bcc", False)
+    res = get_solver("fast-pdas").solve(inst.qp, SolverSettings(tol=1e-9, time_limit=30, params={"max_outer": 1}))
+    assert res.converged and res.info["finished_by_ccg"]
+    assert len(left) == 1 and left[0] <= 30 - 0.3
+
+
+CCG_SOLVERS = [*FAST, "pk"]
+
+
+@pytest.mark.parametrize("name", CCG_SOLVERS)
+def test_counterexample_is_unit_invariant(name):
+    """Paper Example 1 (E = 0.01, diag H = 64) and the same problem with E = 1: the
+    forces scale by E and the iteration is the same.  fast-pccg once gave entering
+    points a force in the wrong units and failed at E = 0.01 (solvers/_ccg.py)."""
+    for seed in range(5):
+        a, b = counterexample(100, seed), counterexample(100, seed, E=1.0)
+        ra, rb = (get_solver(name).solve(i.qp, HIGH) for i in (a, b))
+        assert ra.converged and rb.converged and kkt_check(a, ra.p).kkt_error <= 1e-8
+        assert relative_error(100.0 * ra.p, rb.p) <= 1e-6
+        assert abs(ra.iterations - rb.iterations) <= 2
+
+
+@pytest.mark.slow
+def test_fast_pccg_solves_the_counterexample_at_1_and_2_threads(monkeypatch):
+    """Issue 14: fast-pccg, declared exact, must solve paper Example 1 (seeds 0-99 at
+    n = 25, 100, 400), and the same at 1 and 2 threads."""
+    loads = {}
+    for threads in (1, 2):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", str(threads))
+        with threadpool_limits(threads):
+            for n in (25, 100, 400):
+                for seed in range(100):
+                    inst = counterexample(n, seed)
+                    res = get_solver("fast-pccg").solve(inst.qp, SolverSettings())
+                    assert res.converged and kkt_check(inst, res.p).kkt_error <= 1e-8, (threads, n, seed)
+                    loads[threads, n, seed] = inst.load(res.p)
+    for (threads, n, seed), load in loads.items():
+        assert load == pytest.approx(loads[1, n, seed], rel=1e-7)

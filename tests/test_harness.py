@@ -20,7 +20,9 @@ try:  # registers the throw-away solvers (tests/ may or may not be a package)
 except ImportError:  # pragma: no cover
     import test_harness_solvers  # noqa: F401
 from contactbench.harness import cli
-from contactbench.harness.runner import RunConfig, make_cell_id, map_by_grid_index, plan_run, run_benchmark
+from contactbench.harness.plan import PlanError, RunConfig, make_cell_id, plan_run
+from contactbench.harness.runner import run_benchmark
+from contactbench.harness.sequence import map_by_grid_index
 from contactbench.harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
 from contactbench.harness.store import ROWS_FILE, ResultStore, load_table, read_journal
 from contactbench.problems.scenes import SceneConfig
@@ -300,7 +302,8 @@ def test_step_time_extrapolation_uses_the_measured_growth() -> None:
     timed out at n = 36,242 under the fixed n^1.5 extrapolation (it predicted 92 s); the
     measured growth (capped at n^3) predicts it over the 120 s limit.  The paper's NNLS
     (29 s at n = 16,147 after 2.3 s at n = 10,274, then 38 s at n = 22,458) must still run."""
-    from contactbench.harness.runner import extrapolated_time, skip_decision
+    from contactbench.harness.skips import extrapolated_time, skip_decision
+    from contactbench.solvers.base import ProblemTraits
 
     t_fixed, e_fixed = extrapolated_time([(29202, 70.3)], 36242)
     assert e_fixed == 1.5 and t_fixed < 120.0
@@ -312,7 +315,228 @@ def test_step_time_extrapolation_uses_the_measured_growth() -> None:
     t, e = extrapolated_time([(10274, 18.7), (16147, 48.3)], 22458)
     assert 2.0 < e < 2.2 and 90.0 < t < 120.0
     budget = 8 * 2**30
-    d = skip_decision("fast-ccg", 36242, "fft", 120.0, budget, [(22458, 6.5), (29202, 70.3)])
+    big, mid = ProblemTraits(36242, "fft", has_surface=True), ProblemTraits(22458, "fft", has_surface=True)
+    d = skip_decision("fast-ccg", big, 120.0, budget, [(22458, 6.5), (29202, 70.3)])
     assert d.skip and "n^3" in d.reason and "time limit of 120 s" in d.reason
-    assert not skip_decision("fast-ccg", 22458, "fft", 120.0, budget, [(10274, 2.29), (16147, 29.2)]).skip
-    assert not skip_decision("fast-ccg", 22458, "fft", 120.0, budget, (16147, 2.0)).skip  # one (n, t) pair
+    assert not skip_decision("fast-ccg", mid, 120.0, budget, [(10274, 2.29), (16147, 29.2)]).skip
+    assert not skip_decision("fast-ccg", mid, 120.0, budget, [(16147, 2.0)]).skip  # one (n, t) pair
+
+
+# ---------------------------------------------------------------------------
+# Planning refuses bad input up front; studies; the one skip interpreter; judge
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("size, why", [("1000", "2^k"), ("1", "2^k")])
+def test_bad_size_exits_2_with_one_line_and_writes_no_table(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                            size: str, why: str) -> None:
+    out = tmp_path / "run"
+    assert cli.main(["run", "paper-sweep", "--size", size, "--solvers", "test-exact", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("contactbench: error: paper-sweep:") and why in err[0]
+    assert f"N = {size}" in err[0]
+    assert not out.exists()  # nothing planned, run or recorded
+
+
+def test_flat_surface_is_refused_before_anything_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    flat = tmp_path / "flat.npy"
+    np.save(flat, np.zeros((16, 16)))
+    out = tmp_path / "run"
+    rc = cli.main(["run", "paper-sweep", "--surface", str(flat), "--length", "1e-4", "--solvers", "test-exact",
+                   "--out", str(out)])
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is flat" in err[0] and "no step makes contact" in err[0]
+    assert not out.exists()
+    with pytest.raises(PlanError, match="is flat"):  # the same check through the Python API
+        plan_run(["cmr"], SceneConfig(surface_path=str(flat), length=1e-4), ["test-exact"])
+
+
+def test_every_bad_input_is_reported_once(tmp_path: Path) -> None:
+    with pytest.raises(PlanError) as info:  # ten seeds of one bad size: one problem; a bad reference: another
+        plan_run(["paper-sweep", "counterexample"], SceneConfig(size=1, seeds=tuple(range(10))), ["test-exact"],
+                 RunConfig(reference="no-such-reference"))
+    problems = info.value.problems
+    assert len(problems) == 3, problems
+    assert problems[0].startswith("paper-sweep:") and "2^k" in problems[0] and "N = 1" in problems[0]
+    assert problems[1].startswith("counterexample:")
+    assert problems[2].startswith("--reference: unknown solver 'no-such-reference'")
+
+
+def test_studies_keep_the_variants_and_cells_of_the_scenes() -> None:
+    from contactbench.harness.studies import COMPOSITES, study_for
+
+    cmr = study_for("cmr").variants(["nnls", "cmr+nnls"], {})
+    assert [v.name for v in cmr] == ["nnls", "cmr+nnls"] and cmr[1].params == {"h": 2.0, "coarsest": 16}
+    sweep = study_for("cmr-h-sweep").variants(["cmr+pk"], {"levels": [16, 32]})
+    assert [v.name for v in sweep][:2] == ["cmr+pk h=1.25", "cmr+pk h=1.5"] and len(sweep) == 8
+    assert sweep[-1].params == {"h": 3.0, "coarsest": 16, "levels": [16, 32]}
+    gp = study_for("gp-k-sweep").variants(["nnls-gp", "pk"], {})
+    assert [v.name for v in gp] == [f"nnls-gp[K={k}]" for k in (0, 10, 25, 50, 100, 150, 200)] + ["pk"]  # Fig. 6
+    assert study_for("gp-k-sweep").variants(["nnls-gp"], {"K": (5,)})[0].params == {"K": 5}
+    assert study_for("stress-edge").solvers is None  # a scene with no record: every available solver
+    default = plan_run(["default"], None, None, RunConfig())
+    assert {j.spec.scene for j in default.jobs} == {s.study.scene for s in COMPOSITES["default"].parts}
+    # the cell id of one stored cell of `make bench` (results/default) does not move
+    job = next(j for j in default.jobs if j.spec.instance == "n100-s0")
+    pk = next(v for v in job.variants if v.name == "pk")
+    assert make_cell_id(job.spec, 0, pk, "default", 0, True) == make_cell_id(
+        job.spec, 0, type(pk)("pk"), "default", 0, True)
+
+
+def test_a_sweep_reads_the_solvers_declared_grid() -> None:
+    from contactbench.harness.studies import Study, Sweep
+    from contactbench.solvers.registry import register, unregister
+
+    class Gridded(test_harness_solvers.ExactStub):
+        name = "test-gridded"
+        grid = {"K": (3, 7)}
+
+    register(Gridded, replace=True)
+    try:
+        study = Study("paper-sweep", sweeps=(Sweep("test-gridded", "K", kind=int),))
+        assert [(v.name, v.params) for v in study.variants(["test-gridded"])] == [
+            ("test-gridded[K=3]", {"K": 3}), ("test-gridded[K=7]", {"K": 7})]
+    finally:
+        unregister("test-gridded")
+
+
+class NeedsSurfaceStub(test_harness_solvers.ExactStub):
+    """A solver that needs the instance's surface (as the CMR wrappers do)."""
+
+    name = "test-needs-surface"
+    capabilities = test_harness_solvers.Capabilities(operators=frozenset({"dense"}), needs_dense=True,
+                                                     needs_geometry=True, input_format="dense")
+
+
+def test_a_solver_needing_a_surface_is_skipped_with_its_reason_on_the_counterexample(tmp_path: Path) -> None:
+    from contactbench.solvers.registry import register, unregister
+
+    register(NeedsSurfaceStub, replace=True)
+    try:
+        df = run(tmp_path / "ce", ["test-needs-surface", "test-exact"], cfg=SceneConfig(size=3, seeds=(0,)),
+                 scenes=("counterexample",))
+        surf = run(tmp_path / "ps", ["test-needs-surface"], reference="none")
+    finally:
+        unregister("test-needs-surface")
+    row = df[df.solver == "test-needs-surface"].iloc[0]
+    assert row.status == "skipped" and "needs the instance's surface" in row.skip_reason
+    assert pd.isna(row.solve_time_s)
+    assert (df[df.solver == "test-exact"].status == "solved").all()
+    assert (surf.status == "solved").all()  # a rough surface has one: it runs
+
+
+def test_cmr_wrappers_are_skipped_with_a_reason_on_the_counterexample(tmp_path: Path) -> None:
+    df = run(tmp_path, ["cmr+nnls", "cmr+pk"], cfg=SceneConfig(size=3, seeds=(0,)), scenes=("counterexample",),
+             reference="none", warmup=False)
+    assert (df.status == "skipped").all(), df[["solver", "status", "error"]]
+    assert df["skip_reason"].str.contains("surface").all()
+
+
+def test_run_rows_carry_the_judges_verdict(tmp_path: Path) -> None:
+    from contactbench.harness.judge import judge
+    from contactbench.problems.scenes import get_scene
+    from contactbench.solvers.registry import get_solver
+
+    cfg = SceneConfig(size=8, steps=2, seeds=(0,))
+    df = run(tmp_path, ["test-warm-pg"], cfg=cfg, profiles=("low",), warm=False, reference="none")
+    scene = get_scene("paper-sweep")
+    seq = scene.instances(scene.config(cfg))[0].build()
+    for _, row in df.sort_values("step").iterrows():
+        inst = seq.at(int(row.step))
+        res = get_solver("test-warm-pg").solve(inst.qp, test_harness_solvers.SolverSettings(tol=1e-3))
+        v = judge(inst, res.p, res.converged, float(row.check_tol))
+        assert (row.status, row.verdict) == (v.status, v.reading)
+        assert row.kkt_error == pytest.approx(v.figures["kkt_error"], rel=1e-9)
+        assert bool(row.correct_claim) == v.correct_claim
+
+
+class JacobiStub(test_harness_solvers.Solver):
+    """One projected Jacobi step p = max(ubar / diag H, 0): not the answer.  The liar
+    claims convergence, the honest one does not."""
+
+    name = "test-jacobi-liar"
+    family = "test"
+    claims = True
+
+    def iterate(self, ctx: test_harness_solvers.SolveContext) -> test_harness_solvers.Outcome:
+        p = np.maximum(ctx.qp.ubar / ctx.qp.H.diagonal(), 0.0)
+        return test_harness_solvers.Outcome(p, 1, self.claims, "one Jacobi step")
+
+
+class HonestJacobiStub(JacobiStub):
+    name = "test-jacobi-honest"
+    claims = False
+
+
+def test_run_and_validate_give_the_same_verdict_on_the_same_solve(tmp_path: Path) -> None:
+    from contactbench.harness.conformance import validate
+    from contactbench.problems.scenes import get_scene
+    from contactbench.solvers.registry import register, unregister
+
+    cfg = SceneConfig(extra={"mode": "fast"})
+    scene = get_scene("stress-random")
+    specs = [spec for spec in scene.instances(scene.config(cfg)) if spec.params["family"] == "bcc"][:2]
+    stubs = (JacobiStub, HonestJacobiStub)
+    for stub in stubs:
+        register(stub, replace=True)
+    try:
+        df = run(tmp_path, ["test-exact", "test-jacobi-liar", "test-jacobi-honest"], cfg=cfg,
+                 scenes=("stress-random",), profiles=("mid",), reference="none", warmup=False)
+        tables = {name: validate(name, specs, isolate=False) for name in ("test-exact", "test-jacobi-liar",
+                                                                            "test-jacobi-honest")}
+    finally:
+        for stub in stubs:
+            unregister(stub.name)
+    as_validate = {"pass": "pass", "wrong": "WRONG", "unconverged": "unconverged"}
+    seen = set()
+    for name, table in tables.items():
+        for vrow in table.rows:
+            row = df[(df.solver == name) & (df.instance == vrow.case) & (df.step == vrow.step)].iloc[0]
+            assert as_validate[row.verdict] == vrow.status, (name, vrow.case, row.verdict, vrow.status)
+            assert row.kkt_error == pytest.approx(vrow.kkt_error, rel=1e-12)
+            seen.add(row.verdict)
+    assert seen == {"pass", "wrong", "unconverged"}
+
+
+def test_solve_sequence_warm_starts_by_grid_index_and_judges_each_step() -> None:
+    from contactbench.harness.sequence import solve_sequence
+    from contactbench.problems.scenes import get_scene
+
+    scene = get_scene("paper-sweep")
+    seq = scene.instances(scene.config(SceneConfig(size=16, steps=3, seeds=(0,))))[0].build()
+    warm = solve_sequence("test-warm-pg", seq, test_harness_solvers.SolverSettings(tol=1e-9), check_tol=1e-8)
+    cold = solve_sequence("test-warm-pg", seq, test_harness_solvers.SolverSettings(tol=1e-9), check_tol=1e-8,
+                          warm=False)
+    assert [s.warm_started for s in warm] == [False, True, True] and not any(s.warm_started for s in cold)
+    assert all(s.verdict is not None and s.verdict.status == "solved" for s in warm + cold)
+    iterations = [sum(s.result.iterations for s in run[1:] if s.result) for run in (warm, cold)]
+    assert iterations[0] < iterations[1]
+    np.testing.assert_allclose([s.inst.load(s.result.p) for s in warm], [s.inst.load(s.result.p) for s in cold],
+                               rtol=1e-6)
+
+
+def test_list_solvers_params_prints_declared_parameters_and_grid(capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.solvers.base import Param
+    from contactbench.solvers.registry import register, unregister
+
+    class Declared(test_harness_solvers.ExactStub):
+        name = "test-declared"
+        params = (Param("K", int, 10, "gradient steps", low=0),)
+        grid = {"K": (0, 10)}
+
+    register(Declared, replace=True)
+    try:
+        assert cli.main(["list", "solvers", "--params"]) == 0
+    finally:
+        unregister("test-declared")
+    out = capsys.readouterr().out
+    block = out[out.index("test-declared"):].splitlines()[:4]
+    assert any("param K: int = 10 in [0, inf]  (gradient steps)" in line for line in block), block
+    assert any("grid  K = 0, 10" in line for line in block), block
+
+
+def test_validate_forwards_every_argument_to_the_conformance_module() -> None:
+    assert cli.forwarded_validate(["validate", "--list"]) == ["--list"]
+    assert cli.forwarded_validate(["-v", "validate", "--all", "--quiet"]) == ["--all", "--quiet"]
+    assert cli.forwarded_validate(["run", "validate"]) is None

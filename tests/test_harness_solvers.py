@@ -15,8 +15,7 @@ from scipy.optimize import nnls
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import QP, counterexample
 from contactbench.problems.operators import spectral_norm_estimate
-from contactbench.solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart
-from contactbench.solvers.registry import register
+from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, SolverSettings, register
 
 
 def dense_exact_solution(qp: QP) -> np.ndarray:
@@ -36,12 +35,12 @@ class ExactStub(Solver):
     name = "test-exact"
     family = "test"
     capabilities = Capabilities(operators=frozenset({"dense"}), needs_dense=True, exact=True, input_format="dense")
+    params = (Param("sleep", float, 0.0, "seconds to sleep before solving", low=0.0),)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        if settings.params.get("sleep"):
-            time.sleep(float(settings.params["sleep"]))
-        p = dense_exact_solution(qp)
-        return SolveResult(p=p, iterations=1, converged=True, status="optimal")
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        if ctx.params["sleep"]:
+            time.sleep(ctx.params["sleep"])
+        return Outcome(dense_exact_solution(ctx.qp), 1, True, "scipy NNLS on the Cholesky factor")
 
 
 @register(replace=True)
@@ -50,9 +49,9 @@ class SleepyStub(ExactStub):
 
     name = "test-sleepy"
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+    def iterate(self, ctx: SolveContext) -> Outcome:
         time.sleep(0.15)
-        return super().solve(qp, settings, warm)
+        return super().iterate(ctx)
 
 
 @register(replace=True)
@@ -64,23 +63,28 @@ class WarmPGStub(Solver):
     family = "test"
     capabilities = Capabilities(operators=frozenset({"dense", "fft"}), warm_start="primal")
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        tol = settings.tolerance(1e-8)
-        max_iter = settings.max_iter or 20000
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        qp = ctx.qp
         L = spectral_norm_estimate(qp.H, iters=50)
-        p = np.zeros(qp.n) if warm is None or warm.p is None else np.maximum(np.asarray(warm.p, float), 0.0)
+        p = np.zeros(qp.n) if ctx.p0 is None else ctx.p0
         y, p_old, t = p.copy(), p.copy(), 1.0
         it = 0
-        for it in range(1, max_iter + 1):
+        for it in range(1, ctx.max_iter + 1):
             g = qp.H.matvec(y) - qp.ubar
             p = np.maximum(y - g / L, 0.0)
             t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
             y = p + (t - 1) / t_new * (p - p_old)
             p_old, t = p, t_new
-            if it % 10 == 0 and kkt_check(qp, p).kkt_error <= 0.1 * tol:
-                break
-        return SolveResult(p=p, iterations=it, converged=kkt_check(qp, p).kkt_error <= tol, status="done",
-                           warm_started=warm is not None, info={"warm_given": warm is not None})
+            if it % 10 == 0:
+                res = ctx.kkt(p, qp.H.matvec(p) - qp.ubar)
+                ctx.record(it, res)
+                if res <= 0.1 * ctx.tol:
+                    break
+        w = qp.H.matvec(p) - qp.ubar
+        return Outcome(p, it, ctx.kkt(p, w) <= ctx.tol, w=w, info={"warm_given": ctx.p0 is not None})
+
+    def default_max_iter(self, n: int) -> int:
+        return 20000
 
 
 @register(replace=True)
@@ -90,7 +94,7 @@ class CrashStub(Solver):
     name = "test-crash"
     family = "test"
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+    def iterate(self, ctx: SolveContext) -> Outcome:
         os.abort()
 
 
@@ -101,7 +105,7 @@ class HangStub(Solver):
     name = "test-hang"
     family = "test"
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+    def iterate(self, ctx: SolveContext) -> Outcome:
         time.sleep(3600)
         raise AssertionError("unreachable")
 
@@ -113,7 +117,7 @@ class RaiseStub(Solver):
     name = "test-raise"
     family = "test"
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
+    def iterate(self, ctx: SolveContext) -> Outcome:
         raise RuntimeError("deliberate failure in test-raise")
 
 

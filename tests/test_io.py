@@ -1,5 +1,5 @@
 """problems.io: readers round-trip each format, bad files get clear errors, cleaning
-rules, the block-average coarsening filter and the PSD power-law check."""
+rules.  (Coarsening and the PSD power-law check: tests/test_problems_coarsen.py.)"""
 
 from __future__ import annotations
 
@@ -10,18 +10,8 @@ import numpy as np
 import pytest
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.io import (
-    SurfaceFileError,
-    block_average,
-    coarse_levels,
-    load_surface,
-    power_law_check,
-    read_height_map,
-    with_coarse_levels,
-    write_text,
-    write_x3p,
-)
-from contactbench.problems.surfaces import rmd_surface_n, spectral_surface
+from contactbench.problems.coarsen import power_law_check
+from contactbench.problems.io import SurfaceFileError, load_surface, read_height_map, write_text, write_x3p
 
 DATA = Path(__file__).resolve().parents[1] / "problems" / "data"
 
@@ -237,53 +227,3 @@ def test_shipped_samples_load() -> None:
     assert power_law_check(npy).power_law
     total = sum(f.stat().st_size for f in DATA.iterdir() if f.is_file())
     assert total < 400_000
-
-
-# --- coarsening filter ----------------------------------------------------------------
-
-
-def test_block_average_is_the_2x2_area_mean() -> None:
-    s = spectral_surface(8, 0.7, length=8.0, seed=1)
-    c = block_average(s)
-    assert c.N == 4 and c.delta == 2 * s.delta
-    np.testing.assert_allclose(c.heights[1, 2], s.heights[2:4, 4:6].mean())
-    assert c.heights.mean() == pytest.approx(s.heights.mean(), abs=1e-15)  # area-weighted: mean kept
-    assert c.meta["origin"] == (0.5 * s.delta, 0.5 * s.delta)
-
-
-def test_block_average_keeps_a_constant_and_a_plane() -> None:
-    from contactbench.problems.surfaces import Surface
-
-    yy, xx = np.mgrid[0:8, 0:8].astype(float)
-    s = Surface(3.0 + 2.0 * xx + yy, 1.0)
-    c = block_average(s)
-    cy, cx = np.mgrid[0:4, 0:4].astype(float)
-    # a plane is reproduced at the coarse element centres (2i + 0.5, 2j + 0.5)
-    np.testing.assert_allclose(c.heights, 3.0 + 2.0 * (2 * cx + 0.5) + (2 * cy + 0.5))
-
-
-def test_coarse_levels_layout() -> None:
-    s = spectral_surface(64, 0.7, seed=2)
-    lv = coarse_levels(s, 3)
-    assert [x.N for x in lv] == [8, 16, 32]  # coarsest first, the surface excluded
-    assert [x.N for x in with_coarse_levels(s, 16).levels] == [16, 32]
-    rmd = rmd_surface_n(32, 0.7)
-    assert with_coarse_levels(rmd, 16) is rmd  # RMD keeps its own levels
-    with pytest.raises(ProblemInputError):
-        coarse_levels(s, -1)
-
-
-# --- power-law check ------------------------------------------------------------------
-
-
-@pytest.mark.parametrize("H", [0.3, 0.5, 0.7])
-def test_power_law_check_passes_rmd_and_pure_spectra(H: float) -> None:
-    assert power_law_check(rmd_surface_n(256, H)).power_law
-    c = power_law_check(spectral_surface(256, H, seed=3))
-    assert c.power_law and c.hurst == pytest.approx(H, abs=0.15)
-
-
-def test_power_law_check_flags_a_rolloff_plateau() -> None:
-    c = power_law_check(spectral_surface(256, 0.6, seed=3, rolloff_wavelength=100e-6 / 16))
-    assert not c.power_law and "NOT a power law" in c.message
-    assert abs(c.slope_low) < 1.0 < abs(c.slope_high)

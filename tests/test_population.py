@@ -18,7 +18,8 @@ from contactbench.harness.report_population import (
     write_population_report,
 )
 from contactbench.harness.meta import read_meta
-from contactbench.harness.runner import RunConfig, run_benchmark
+from contactbench.harness.plan import RunConfig
+from contactbench.harness.runner import run_benchmark
 from contactbench.harness.store import load_table
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig, get_scene

@@ -10,8 +10,8 @@ from scipy import ndimage
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers._preconditioners import IslandPreconditioner, block_width
-from contactbench.solvers.base import SolverSettings
+from contactbench.solvers._preconditioners import KINDS, IslandPreconditioner, block_width, make_preconditioner
+from contactbench.solvers.base import ParamError, SolverSettings
 from contactbench.solvers.registry import get_solver
 
 
@@ -134,5 +134,30 @@ def test_fourier_preconditioner_option_reaches_the_same_answer(name):
 
 def test_unknown_preconditioner_is_a_clear_error():
     inst = build(33)
-    with pytest.raises(ValueError, match="unknown preconditioner"):
+    with pytest.raises(ParamError, match="'precondition' must be one of 'islands', 'fourier', 'none'"):
         get_solver("fast-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"precondition": "ilu"}))
+    with pytest.raises(ValueError, match="unknown preconditioner 'ilu'"):
+        make_preconditioner("ilu", inst.qp)
+
+
+@pytest.mark.parametrize("kind", [k for k in KINDS if k != "none"])
+def test_solo_is_the_preconditioner_of_a_one_point_set(kind):
+    """``solo`` (the entering force's scale in Polonsky-Keer) is what apply does to a
+    point that forms a set alone."""
+    inst = build(33)
+    M = make_preconditioner(kind, inst.qp)
+    r = np.random.default_rng(3).normal(size=inst.n)
+    solo = M.solo(r)
+    for j in (0, inst.n // 2, inst.n - 1):
+        S = np.zeros(inst.n, dtype=bool)
+        S[j] = True
+        M.update(S)
+        assert M.apply(r)[j] == pytest.approx(solo[j], rel=1e-10)
+
+
+def test_no_preconditioner_without_geometry_or_when_none():
+    from contactbench.problems.instances import QP
+
+    inst = build(33)
+    assert make_preconditioner("none", inst.qp) is None
+    assert make_preconditioner("islands", QP(inst.qp.H, inst.qp.ubar)) is None

@@ -18,6 +18,7 @@ from contactbench.problems.instances import (
     load_ramp,
     load_unload_cycle,
     paper_max_displacement,
+    rigid_body_ubar,
     trial_set,
 )
 from contactbench.problems.surfaces import Surface, rmd_surface
@@ -198,3 +199,28 @@ def test_dense_matrix_over_budget_is_refused_with_the_estimate(surface: Surface)
     fft = InstanceBuilder(surface, E, operator="fft", memory_budget=1000.0).build(D)
     with pytest.raises(MemoryBudgetError, match=f"\\({n} x {n} float64\\)"):
         fft.qp.H.to_dense(budget=1000.0)
+
+
+def test_a_flat_surface_has_no_paper_load_ramp() -> None:
+    flat = Surface(np.zeros((16, 16)), 1e-6, name="flat-file")
+    with pytest.raises(ProblemInputError, match="'flat-file' is flat \\(all heights equal"):
+        paper_max_displacement(flat)
+    # an instance at a given Delta stays well defined (the stress scene's full-contact case)
+    assert InstanceBuilder(flat, E).build(1e-7).n == flat.heights.size
+
+
+def test_restricted_qp_keeps_operator_ubar_and_geometry_consistent(surface: Surface) -> None:
+    inst = InstanceBuilder(surface, E, operator="dense").build(paper_max_displacement(surface))
+    pos = np.array([0, 2, 3])
+    sub = inst.qp.restrict(pos)
+    np.testing.assert_array_equal(sub.H.to_dense(), inst.qp.H.to_dense()[np.ix_(pos, pos)])
+    np.testing.assert_array_equal(sub.ubar, inst.qp.ubar[pos])
+    np.testing.assert_array_equal(sub.geometry.indices, inst.geometry.indices[pos])
+    assert sub.geometry.surface is surface and sub.geometry.far_field == inst.delta
+    np.testing.assert_array_equal(rigid_body_ubar(surface.heights, inst.delta, inst.geometry.indices), inst.qp.ubar)
+
+
+def test_has_surface_tells_which_problems_can_be_rebuilt_from_their_surface(surface: Surface) -> None:
+    inst = InstanceBuilder(surface, E).build(paper_max_displacement(surface))
+    assert inst.geometry.has_surface
+    assert not counterexample(25, 0).geometry.has_surface  # a grid, but no surface (paper Example 1)

@@ -6,7 +6,17 @@ import numpy as np
 import pytest
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.surfaces import Surface, fit_hurst, radial_psd, rmd_surface, rmd_surface_n, spectral_surface
+from contactbench.problems.surfaces import (
+    Surface,
+    check_grid_size,
+    check_not_flat,
+    check_rmd_size,
+    fit_hurst,
+    radial_psd,
+    rmd_surface,
+    rmd_surface_n,
+    spectral_surface,
+)
 
 HURSTS = (0.3, 0.5, 0.7)
 
@@ -76,7 +86,7 @@ def test_rmd_is_seeded_and_scaled() -> None:
 def test_rmd_surface_n_chooses_the_grid_and_refuses_other_sizes() -> None:
     assert rmd_surface_n(32, 0.7).periodic and rmd_surface_n(32, 0.7).N == 32
     assert not rmd_surface_n(33, 0.7).periodic and rmd_surface_n(33, 0.7).N == 33
-    with pytest.raises(ProblemInputError, match="N = 2\\^k or 2\\^k \\+ 1 .* N = 30"):
+    with pytest.raises(ProblemInputError, match="N = 2\\^k \\(periodic\\) or 2\\^k \\+ 1 .* N = 30"):
         rmd_surface_n(30, 0.7)
     with pytest.raises(ProblemInputError, match="Hurst exponent must lie in \\(0, 1\\), got 1.2"):
         rmd_surface(5, 1.2)
@@ -113,3 +123,38 @@ def test_non_square_and_tiny_grids_are_refused() -> None:
 def test_bad_grid_spacing_is_refused(bad: float) -> None:
     with pytest.raises(ProblemInputError, match="grid spacing delta must be a finite positive number"):
         Surface(np.zeros((4, 4)), bad)
+
+
+@pytest.mark.parametrize("N, k, periodic", [(2, 1, True), (3, 1, False), (512, 9, True), (513, 9, False),
+                                             (8192, 13, True)])
+def test_rmd_sizes_are_powers_of_two_or_one_more(N: int, k: int, periodic: bool) -> None:
+    assert check_rmd_size(N) == (k, periodic)
+
+
+@pytest.mark.parametrize("bad", [1000, 1, 0, -4, 6, 16384, 512.5, "512", True])
+def test_other_rmd_sizes_get_a_one_line_error(bad: object) -> None:
+    with pytest.raises(ProblemInputError, match="RMD surface needs N = 2\\^k .* or 2\\^k \\+ 1") as err:
+        check_rmd_size(bad)
+    assert "\n" not in str(err.value) and repr(bad) in str(err.value)
+    if isinstance(bad, int) and not isinstance(bad, bool):
+        with pytest.raises(ProblemInputError, match=f"got N = {bad}$"):
+            rmd_surface_n(bad, 0.7)
+
+
+@pytest.mark.parametrize("bad", [1, 0, 2.5, "8"])
+def test_spectral_surfaces_need_an_integer_size_of_at_least_2(bad: object) -> None:
+    with pytest.raises(ProblemInputError, match="spectral surface needs an integer N >= 2"):
+        spectral_surface(bad, 0.7)  # type: ignore[arg-type]
+    assert check_grid_size(6) == 6 and check_grid_size(8.0) == 8
+
+
+def test_a_flat_surface_gets_a_clear_error() -> None:
+    flat = Surface(np.full((8, 8), 3e-6), 1e-6, name="plate")
+    assert flat.is_flat and not rmd_surface_n(8, 0.7).is_flat
+    with pytest.raises(ProblemInputError, match="the surface 'plate' is flat \\(all heights equal 3e-06 m\\)") as err:
+        check_not_flat(flat)
+    assert "\n" not in str(err.value)
+    with pytest.raises(ProblemInputError, match="flat"):
+        fit_hurst(flat)
+    rough = rmd_surface_n(8, 0.7)
+    assert check_not_flat(rough) is rough

@@ -1,6 +1,7 @@
 """Generic QP adapters (qpsolvers backends, cvxpy, scipy-nnls reference): accuracy at the
 ``high`` profile against the reference, equilibration, raw mode, missing packages,
-capabilities and the memory model that skips 512^2 instances."""
+capabilities, the memory model that skips 512^2 instances, and the solve lifecycle
+(statuses, declared parameters, backend defaults, build vs solve time)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from contactbench.problems.instances import ContactInstance, InstanceBuilder, co
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import _scaling
-from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.base import ParamError, SolverSettings, Status, WarmStart
 from contactbench.solvers.qp_backends import BackendSpec, QPSolversAdapter, no_options
 from contactbench.solvers.registry import all_solvers, get_solver
 
@@ -62,9 +63,10 @@ def test_high_profile_agrees_with_reference(name: str, cases: dict[str, tuple[Co
         assert rep.kkt_error <= floor, f"{name} on {key}: kkt {rep.kkt_error:.2e}, status {res.status}"
         assert relative_error(res.p, p_ref) <= 100 * floor, f"{name} on {key}"
         assert relative_load_error(inst.load(res.p), inst.load(p_ref)) <= floor, f"{name} on {key}"
-        assert res.status and res.status != "unknown"
-        assert res.setup_time >= 0.0 and res.solve_time >= 0.0
-        assert res.info["build_time"] == pytest.approx(res.setup_time)
+        assert res.status == Status.CONVERGED.value and res.converged, f"{name} on {key}"
+        assert res.info["backend_status"] and res.info["backend_status"] != res.status
+        # build (assembly, scaling, conversion, CVXPY's compilation) is setup, inside solve time
+        assert 0.0 < res.info["build_time"] <= res.setup_time <= res.solve_time
 
 
 def test_equilibration_gives_order_one_problem() -> None:
@@ -157,17 +159,17 @@ def test_polish_is_a_separate_labelled_variant(cases: dict[str, tuple[ContactIns
     assert kkt_check(inst, pol.p).kkt_error <= kkt_check(inst, plain.p).kkt_error
 
 
-def test_polish_repairs_a_wrong_active_set(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+def test_polish_variant_repairs_a_cut_short_backend(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require("qp-clarabel")
     inst, p_ref = cases["counterexample-1"]
-    sqp = _scaling.assemble_scaled(inst.qp, SolverSettings())
-    exact = sqp.eq.to_scaled(p_ref)
-    guess = exact.copy()
-    on, off = np.flatnonzero(exact > 0), np.flatnonzero(exact == 0)
-    guess[on[:5]] = 0.0  # five contact elements wrongly released
-    guess[off[:5]] = 1.0  # five free elements wrongly pressed
-    out = _scaling.active_set_polish(sqp.H, sqp.u, guess)
-    assert out.converged and out.rounds > 1
-    assert relative_error(sqp.eq.to_original(out.p), p_ref) < 1e-10
+    short = SolverSettings(1e-9, max_iter=2)  # two interior-point steps: far from the answer
+    plain = get_solver("qp-clarabel").solve(inst.qp, short)
+    pol = get_solver("qp-clarabel+polish").solve(inst.qp, short)
+    assert plain.status == pol.status == Status.MAX_ITER.value and not pol.converged
+    assert kkt_check(inst, plain.p).kkt_error > 1e-3
+    assert pol.info["polish_converged"] and pol.info["polish_rounds"] > 1  # the guessed set was repaired
+    assert kkt_check(inst, pol.p).kkt_error < 1e-12
+    assert relative_error(pol.p, p_ref) < 1e-10
 
 
 def test_warm_start_is_forwarded_where_supported(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
@@ -178,3 +180,51 @@ def test_warm_start_is_forwarded_where_supported(cases: dict[str, tuple[ContactI
     if get_solver("qp-clarabel").availability()[0]:
         res = get_solver("qp-clarabel").solve(inst.qp, SolverSettings(1e-6), WarmStart(p=p_ref))
         assert not res.warm_started
+
+
+def test_backend_limits_and_failures_map_to_the_status_enum(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    inst, _ = cases["counterexample-0"]
+    _require("qp-osqp")
+    res = get_solver("qp-osqp").solve(inst.qp, SolverSettings(1e-9, max_iter=5))
+    assert res.status == Status.MAX_ITER.value and not res.converged
+    assert "iterations" in res.info["backend_status"] and res.info["options"]["max_iter"] == 5
+    res = get_solver("scipy-nnls").solve(inst.qp, SolverSettings(max_iter=2))  # Lawson-Hanson cut short
+    assert res.status == Status.FAILED.value and not res.converged
+    assert res.info["backend_status"].startswith("error: RuntimeError") and np.all(np.isnan(res.p))
+
+
+def test_no_tolerance_means_the_backends_own_defaults(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require("qp-osqp")
+    inst, _ = cases["counterexample-0"]
+    solver = get_solver("qp-osqp")
+    assert solver.default_tol is None
+    assert solver.solve(inst.qp, SolverSettings(None)).info["options"] == {}  # nothing set, no limit of ours
+    asked = solver.solve(inst.qp, SolverSettings(1e-6, time_limit=30.0)).info["options"]
+    assert asked["eps_abs"] == 1e-6 and asked["eps_rel"] == 0.0 and 0.0 < asked["time_limit"] <= 30.0
+
+
+def test_parameters_are_declared_and_checked(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    inst, _ = cases["counterexample-0"]
+    for name in ADAPTERS + ["scipy-nnls"]:
+        declared = {p.name for p in get_solver(name).params}
+        assert "scaling" in declared, name
+    assert {p.name for p in get_solver("scipy-nnls").params} == {"scaling"}
+    assert {p.name for p in get_solver("cvxpy").params} == {"scaling", "solver", "form", "backend_options"}
+    with pytest.raises(ParamError, match="allowed: backend_options, input_format, scaling"):
+        get_solver("qp-osqp").solve(inst.qp, SolverSettings(params={"scalling": False}))
+    with pytest.raises(ParamError, match="input_format"):
+        get_solver("qp-osqp").solve(inst.qp, SolverSettings(params={"input_format": "csr"}))
+    with pytest.raises(ParamError, match="form"):
+        get_solver("cvxpy").solve(inst.qp, SolverSettings(params={"form": "qaud_form"}))
+    with pytest.raises(ParamError, match="scaling"):
+        get_solver("scipy-nnls").solve(inst.qp, SolverSettings(params={"scaling": "no"}))
+
+
+def test_input_format_parameter_reaches_the_backend(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    _require("qp-osqp")
+    inst, p_ref = cases["counterexample-3"]
+    solver = get_solver("qp-osqp")
+    assert solver.solve(inst.qp, SolverSettings(1e-9)).info["input_format"] == "sparse"
+    dense = solver.solve(inst.qp, SolverSettings(1e-9, params={"input_format": "dense"}))
+    assert dense.info["input_format"] == "dense" and dense.converged
+    assert relative_error(dense.p, p_ref) < 1e-6

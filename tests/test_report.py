@@ -1,4 +1,4 @@
-"""The report (harness/report.py) built from a fabricated tidy table.
+"""The report (harness/report.py and its section modules) built from a fabricated tidy table.
 
 ``fabricate_table`` writes a plausible table with every schema column: paper-sweep,
 greedy-linear-solvers, gp-k-sweep, counterexample and hertz rows, with skips, a
@@ -19,6 +19,8 @@ import pandas as pd
 import pytest
 
 from contactbench.harness import report as rp
+from contactbench.harness import report_counterexample as rce
+from contactbench.harness import report_paper as rpp
 from contactbench.harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS
 
 # Time factors against NNLS+GP in the fabricated paper-sweep (the paper's claims).
@@ -268,18 +270,18 @@ def test_missing_scenes_get_no_section_and_the_report_is_deterministic(tmp_path:
 def test_counterexample_case_needs_stored_arrays(tmp_path: Path) -> None:
     df = fabricate_table()
     out = write_out(tmp_path, df[df["scene"] == "counterexample"], fmt="csv")
-    table = rp.load_table(out)  # the CSV fallback
+    table = rp.read_table(out)  # the CSV fallback
     ctx = rp.ReportContext(out, table, {})
     cells = rp.per_cell(table)
-    cells = cells.assign(violates=rp.lcp_violation(cells))
-    msg = rp._counterexample_case(ctx, cells)
+    cells = cells.assign(violates=rce.lcp_violation(cells))
+    msg = rce._counterexample_case(ctx, cells)
     assert re.search(r"cannot be plotted: no array file `arrays/counterexample-n100-s\d+-greedy-cg\.npz` "
                      r"\(keys p, p_ref, ubar, w\)", msg)
     assert not ctx.figures
     # p and p_ref only: ubar and w are rebuilt from the problem (no solve)
     path = write_counterexample_arrays(out, full=False)
-    assert rp.find_counterexample_arrays(out) == {("n100-s1", "greedy-cg"): path}
-    case = rp.load_counterexample_case(path, "n100-s1", "greedy-cg")
+    assert rce.find_counterexample_arrays(out) == {("n100-s1", "greedy-cg"): path}
+    case = rce.load_counterexample_case(path, "n100-s1", "greedy-cg")
     from contactbench.problems.instances import counterexample
 
     inst = counterexample(100, 1)
@@ -287,13 +289,13 @@ def test_counterexample_case_needs_stored_arrays(tmp_path: Path) -> None:
     np.testing.assert_allclose(case.w, inst.qp.H.matvec(case.p) - inst.qp.ubar)
     np.savez(out / "arrays" / "counterexample-n100-s2-greedy-cg.npz", p=case.p)
     with pytest.raises(rp.ReportInputError, match="p_ref"):
-        rp.load_counterexample_case(out / "arrays" / "counterexample-n100-s2-greedy-cg.npz", "n100-s2", "greedy-cg")
+        rce.load_counterexample_case(out / "arrays" / "counterexample-n100-s2-greedy-cg.npz", "n100-s2", "greedy-cg")
 
 
 def test_csv_and_parquet_read_alike(tmp_path: Path) -> None:
     df = fabricate_table()
-    a = rp.load_table(write_out(tmp_path / "pq", df))
-    b = rp.load_table(write_out(tmp_path / "csv", df, fmt="csv"))
+    a = rp.read_table(write_out(tmp_path / "pq", df))
+    b = rp.read_table(write_out(tmp_path / "csv", df, fmt="csv"))
     for col in ("status", "solver", "instance", "params", "trace", "skip_reason"):
         assert list(a[col]) == list(b[col]), col
     for col in ("solve_time_s", "kkt_error", "n", "dim_load"):
@@ -335,16 +337,160 @@ def test_a_registered_section_is_rendered_for_its_scene(tmp_path: Path) -> None:
         rp.register_section("hertz", title="x")(lambda ctx, rows: None)
 
 
-def test_role_resolution_and_claim_judgement() -> None:
-    names = ["greedy-chol", "greedy-cg", "nnls", "nnls-gp[K=50]", "nnls-gp[K=100]", "pk", "pk-warm"]
-    assert rp.resolve_role(names, "nnls-gp") == "nnls-gp[K=100]"
-    assert rp.resolve_role(names, "pk") == "pk"
-    assert rp.resolve_role(names, "pk-warm") == "pk-warm"
-    assert rp.resolve_role(names, "greedy-cg") == "greedy-cg"
-    assert rp.resolve_role(names, "admm") is None
-    claim = rp.Claim("~26x", 20.0, 33.0)
-    assert rp.judge(26.0, claim) == "agrees with the paper"
-    assert rp.judge(50.0, claim).startswith("is close to")
-    assert "smaller" in rp.judge(3.0, claim)
-    assert rp.judge(0.5, claim).startswith("contradicts")
-    assert rp.judge(float("nan"), claim).startswith("cannot")
+def test_roles_are_found_by_base_solver_and_params_not_by_label() -> None:
+    curves = pd.DataFrame({
+        "solver": ["greedy-chol", "my-cg", "nnls", "nnls-gp[K=50]", "gp100", "pk", "pk (warm)", "cmr+pk", "polonsky"],
+        "base_solver": ["greedy-chol", "greedy-cg", "nnls", "nnls-gp", "nnls-gp", "pk", "pk", "cmr+pk", "fast-ccg"],
+        "params": ["{}", "{}", "{}", '{"K": 50}', '{"K": 100}', "{}", "{}", "{}", "{}"],
+        "warm": [False, False, False, False, False, False, True, False, False],
+    })
+    assert rpp.resolve_role(curves, "nnls-gp") == "gp100"  # the paper's K, whatever the label
+    assert rpp.resolve_role(curves[curves["solver"] != "gp100"], "nnls-gp") == "nnls-gp[K=50]"  # another K
+    assert rpp.resolve_role(curves, "pk") == "pk"  # cold first
+    assert rpp.resolve_role(curves, "pk-warm") == "pk (warm)"
+    assert rpp.resolve_role(curves[curves["solver"] != "pk"], "pk") == "pk (warm)"  # warm when no cold run
+    assert rpp.resolve_role(curves[curves["solver"] != "pk (warm)"], "pk-warm") is None
+    assert rpp.resolve_role(curves, "greedy-cg") == "my-cg"
+    assert rpp.resolve_role(curves, "admm") is None
+    assert rpp.resolve_role(curves.drop(columns="warm"), "pk") == "pk"
+
+
+def test_claim_agreement_words() -> None:
+    claim = rpp.Claim("~26x", 20.0, 33.0)
+    assert rpp.agreement(26.0, claim) == "agrees with the paper"
+    assert rpp.agreement(50.0, claim).startswith("is close to")
+    assert "smaller" in rpp.agreement(3.0, claim)
+    assert rpp.agreement(0.5, claim).startswith("contradicts")
+    assert rpp.agreement(float("nan"), claim).startswith("cannot")
+
+
+# ---------------------------------------------------------------------------
+# The table contract (harness/schema.py) and the plug-in registry (contactbench/plugins.py)
+# ---------------------------------------------------------------------------
+
+
+def test_the_schema_types_every_column_and_load_table_applies_it(tmp_path: Path) -> None:
+    from contactbench.harness import schema
+
+    assert list(schema.COLUMNS) == list(ALL_COLUMNS) and ALL_COLUMNS[:len(REQUIRED_COLUMNS)] == REQUIRED_COLUMNS
+    assert all(c.dtype in schema.DTYPES and c.doc for c in schema.COLUMNS.values())
+    assert schema.COLUMNS["verdict"].dtype == "string" and set(schema.VERDICTS) == {"pass", "wrong", "unconverged"}
+    df = fabricate_table().drop(columns=["verdict", "history"])  # a table written before these columns
+    for source in (write_out(tmp_path / "pq", df), write_out(tmp_path / "csv", df, fmt="csv"),
+                   tmp_path / "csv" / "results.csv"):
+        t = schema.load_table(source)
+        assert list(t.columns) == list(ALL_COLUMNS)
+        assert {c: str(t[c].dtype) for c in ALL_COLUMNS} == \
+            {c.name: ("string" if c.dtype == "string" else c.dtype) for c in schema.COLUMNS.values()}
+        assert set(t["verdict"]) == {""} and t["warm_start"].dtype == "boolean"
+        assert list(t["n"]) == list(df["n"].astype("Int64"))
+
+
+def test_load_table_reads_a_journal_newer_than_the_table_without_writing(tmp_path: Path) -> None:
+    import os
+
+    from contactbench.harness.schema import MissingTableError, TableError, load_table
+    from contactbench.harness.store import ResultStore
+
+    rows = fabricate_table().head(3).assign(cell_id=["a", "b", "c"], verdict=["pass", "wrong", "unconverged"])
+    store = ResultStore(tmp_path)
+    for r in rows.to_dict("records")[:2]:
+        store.append(r)
+    store.finalize()
+    store.append(rows.to_dict("records")[2])
+    pq = tmp_path / "results.parquet"
+    os.utime(pq, (1, 1))  # the journal is newer: the table is stale
+    before = pq.read_bytes()
+    t = load_table(tmp_path).sort_values("cell_id")
+    assert list(t["cell_id"]) == ["a", "b", "c"] and list(t["verdict"]) == ["pass", "wrong", "unconverged"]
+    assert pq.read_bytes() == before and pq.stat().st_mtime == 1  # reading never writes
+    with pytest.raises(MissingTableError, match="no results table"):
+        load_table(tmp_path / "nowhere")
+    bad = fabricate_table().head(2).assign(verdict=["pass", "fine"])
+    with pytest.raises(TableError, match="verdict.*fine"):
+        load_table(write_out(tmp_path / "bad", bad))
+
+
+def _write_plugin_package(root: Path, name: str) -> None:
+    pkg = root / name
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    reg = ("from contactbench.plugins import PluginRegistry\n"
+           f"WIDGETS = PluginRegistry('widget', package={name!r}, include=lambda short: short != 'registry')\n")
+    (pkg / "registry.py").write_text(reg)
+    (pkg / "alpha.py").write_text(f"from {name}.registry import WIDGETS\nWIDGETS.add('alpha', 1)\n")
+    (pkg / "beta.py").write_text(f"from {name}.registry import WIDGETS\nWIDGETS.add('beta', 2)\n")
+    (pkg / "broken.py").write_text("raise RuntimeError('this plug-in is broken')\n")
+    (pkg / "_helper.py").write_text("raise AssertionError('helpers are not plug-ins')\n")
+
+
+def test_plugin_registry_discovers_once_keeps_import_errors_and_names_the_known(tmp_path: Path,
+                                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib
+
+    from contactbench.plugins import UnknownPluginError
+
+    _write_plugin_package(tmp_path, "cb_test_widgets")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reg = importlib.import_module("cb_test_widgets.registry").WIDGETS
+    assert reg.all() == {"alpha": 1, "beta": 2}
+    errors = reg.import_errors()
+    assert list(errors) == ["cb_test_widgets.broken"] and "this plug-in is broken" in errors["cb_test_widgets.broken"]
+    with pytest.raises(UnknownPluginError, match=r"unknown widget 'gamma'; known widgets: alpha, beta") as e:
+        reg.get("gamma")
+    assert isinstance(e.value, KeyError)
+    with pytest.raises(ValueError, match="already registered"):
+        reg.add("alpha", 3)
+    reg.add("alpha", 3, replace=True)
+    reg.remove("beta")
+    assert reg.all() == {"alpha": 3}  # discovery ran once: beta is not imported again
+
+
+def test_solvers_scenes_and_sections_share_the_plugin_registry() -> None:
+    from contactbench.plugins import PluginRegistry
+    from contactbench.problems import scenes
+    from contactbench.solvers import registry
+
+    assert isinstance(registry._SOLVERS, PluginRegistry) and isinstance(scenes._SCENES, PluginRegistry)
+    assert isinstance(rp._SECTIONS, PluginRegistry)
+    with pytest.raises(registry.UnknownSolverError, match="unknown solver 'no-such'; known solvers: "):
+        registry.get_solver("no-such")
+    with pytest.raises(KeyError, match="unknown scene 'no-such'; known scenes: .*paper-sweep"):
+        scenes.get_scene("no-such")
+    sections = rp.registered_sections()
+    assert {"paper-sweep", "counterexample", "cmr", "population", "work-precision", "scene-tables"} <= set(sections)
+    assert not rp.section_import_errors()
+
+
+def test_a_summary_section_is_rendered_for_every_table(tmp_path: Path) -> None:
+    df = fabricate_table()
+    out = write_out(tmp_path, df[df["scene"] == "hertz"])
+
+    @rp.register_section("test-summary", title="x", group="summary", order=25)
+    def summary(ctx: rp.ReportContext, table: pd.DataFrame) -> rp.Section:
+        return rp.Section("A summary", f"{table['scene'].nunique()} scene(s), {len(table)} rows.\n")
+
+    try:
+        text = rp.build_report(out).read_text()
+    finally:
+        rp.unregister_section("test-summary")
+    assert f"## A summary\n\n1 scene(s), {int((df['scene'] == 'hertz').sum())} rows." in text
+    assert text.index("## Aggregates across instances") < text.index("## A summary") < \
+        text.index("## Skips and failures")
+
+
+def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
+    df = fabricate_table()
+    stress = df[(df["scene"] == "hertz") & df["solver"].isin(["nnls", "pk"])].assign(scene="stress-edge")
+    stress["verdict"] = ["pass", "wrong", "pass", "unconverged", "pass", "", "pass", "pass"]
+    text = rp.build_report(write_out(tmp_path, pd.concat([df[df["scene"] == "hertz"], stress]))).read_text()
+    section = text.split("## Stress battery")[1].split("\n## ")[0]
+    assert "| solver | rows | pass | wrong | unconverged | not judged |" in section
+    counts = stress.groupby("solver")["verdict"].apply(list).to_dict()
+    for s, v in counts.items():
+        row = f"| {s} | {len(v)} | {v.count('pass')} | {v.count('wrong')} | {v.count('unconverged')} | {v.count('')} |"
+        assert row in section
+    wrong = sorted(stress.loc[stress["verdict"] == "wrong", "solver"].unique())
+    assert f"Wrong answers claimed as converged: {', '.join(f'`{s}`' for s in wrong)}." in section
+    assert "## Stress battery" not in rp.build_report(write_out(tmp_path / "plain", df[df["scene"] == "hertz"])) \
+        .read_text()

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.harness.conformance import exact_reference
+from contactbench.harness.conformance_cases import exact_reference
+from contactbench.problems.instances import counterexample
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.operators import FFTOperator
 from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
@@ -16,6 +17,7 @@ from contactbench.problems.scenes.stress import (
     build_battery_spec,
     condition_number,
     extreme_eigenvalues,
+    known_solution_instance,
     packed_instance,
 )
 
@@ -98,6 +100,35 @@ def test_near_touching_points_have_w_of_1e_14() -> None:
     near = (p == 0) & (w < 1e-12 * np.max(np.abs(w)))
     assert near.sum() >= inst.meta["near_touching"]
     assert np.all(w[near] > 0)
+
+
+def test_example_1_recipes_are_the_papers_counterexample_at_n400() -> None:
+    specs = battery_specs("fast", ("counterexample",))
+    assert len(specs) >= 3 and {s.params["n"] for s in specs} == {400}
+    for spec in specs:
+        inst = build_battery_spec(spec).at(0)
+        paper = counterexample(400, spec.params["seed"])
+        np.testing.assert_array_equal(inst.qp.ubar, paper.qp.ubar)
+        assert inst.n == inst.total_elements == 400
+    assert {s.params["n"] for s in battery_specs("full", ("counterexample",))} >= {100, 400}
+
+
+@pytest.mark.parametrize("kernel", ["bcc", "love"])
+def test_full_packing_puts_every_point_in_contact_with_a_known_solution(kernel: str) -> None:
+    spec = next(s for s in battery_specs("fast", ("packing",)) if s.params["kernel"] == kernel)
+    inst = build_battery_spec(spec).at(0)
+    p = inst.meta["p_exact"]
+    assert inst.n == inst.total_elements and np.all(p > 0)
+    assert kkt_check(inst, p).kkt_error < 1e-14
+    inst.meta.pop("p_exact")  # the reference must find it on its own
+    np.testing.assert_allclose(exact_reference(inst).p, p, rtol=1e-8)
+
+
+def test_known_solution_instance_rejects_an_empty_contact_set() -> None:
+    from contactbench.problems.errors import ProblemInputError
+
+    with pytest.raises(ProblemInputError, match="active_fraction"):
+        known_solution_instance(4, 0, active_fraction=0.0)
 
 
 def test_float32_recipe_hands_over_float32() -> None:

@@ -10,55 +10,39 @@ by ``@register_scene``.  Modules are discovered automatically.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-import traceback
+from contactbench.plugins import PluginRegistry
 
 from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, SolverVariant
 
-_SCENES: dict[str, Scene] = {}
-_ERRORS: dict[str, str] = {}
-_DISCOVERED = False
+
+def _same_class(old: Scene, new: Scene) -> bool:
+    return type(old) is type(new)
+
+
+_SCENES: PluginRegistry[Scene] = PluginRegistry(
+    "scene", package=__name__, include=lambda short: short != "base", same=_same_class)
 
 
 def register_scene(cls: type[Scene]) -> type[Scene]:
+    """Class decorator: register one instance of the scene under its ``name``."""
     inst = cls()
     if not inst.name:
         raise ValueError(f"{cls!r} has no name")
-    _SCENES[inst.name] = inst
+    _SCENES.add(inst.name, inst)
     return cls
 
 
-def _discover() -> None:
-    global _DISCOVERED
-    if _DISCOVERED:
-        return
-    _DISCOVERED = True
-    for mod in pkgutil.iter_modules(__path__, prefix=__name__ + "."):
-        short = mod.name.rsplit(".", 1)[-1]
-        if short == "base" or short.startswith("_"):
-            continue
-        try:
-            importlib.import_module(mod.name)
-        except Exception:
-            _ERRORS[mod.name] = traceback.format_exc(limit=3)
-
-
 def all_scenes() -> dict[str, Scene]:
-    _discover()
-    return dict(sorted(_SCENES.items()))
+    return _SCENES.all()
 
 
 def scene_import_errors() -> dict[str, str]:
-    _discover()
-    return dict(_ERRORS)
+    return _SCENES.import_errors()
 
 
 def get_scene(name: str) -> Scene:
-    scenes = all_scenes()
-    if name not in scenes:
-        raise KeyError(f"unknown scene {name!r}; known scenes: {', '.join(scenes)}")
-    return scenes[name]
+    """The scene called ``name``, or a ``KeyError`` listing the known ones."""
+    return _SCENES.get(name)
 
 
 __all__ = [
@@ -70,4 +54,5 @@ __all__ = [
     "all_scenes",
     "get_scene",
     "register_scene",
+    "scene_import_errors",
 ]

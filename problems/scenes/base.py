@@ -9,6 +9,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
+from ..errors import ProblemInputError
 from ..instances import ContactInstance
 from ..surfaces import Surface
 
@@ -85,8 +86,9 @@ class LoadSequence:
 
 @dataclass(frozen=True)
 class SolverVariant:
-    """A solver with fixed parameters, e.g. NNLS+GP with K = 50.  ``label`` is what the
-    tidy table calls it (column ``solver``); ``base`` is the registry name."""
+    """TRANSITIONAL: moved to ``contactbench.harness.studies.SolverVariant`` (solver
+    variants are study design, not data); kept only while ``problems/scenes/__init__``
+    still re-exports the name.  Nothing in problems/ uses it."""
 
     base: str
     params: dict[str, Any] = field(default_factory=dict)
@@ -98,20 +100,16 @@ class SolverVariant:
 
 
 class Scene(ABC):
-    """A named family of instances (benchopt's Dataset)."""
+    """A named family of instances (benchopt's Dataset): pure data -- surfaces, kernels,
+    load sequences.  Which solvers run on it, at which profiles, with which parameter
+    grids and against which reference is the harness's study design
+    (``contactbench.harness.studies``)."""
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     defaults: ClassVar[SceneConfig] = SceneConfig()
-    #: Registry names run when the user gives no --solvers (None: every available solver).
-    default_solvers: ClassVar[tuple[str, ...] | None] = None
     #: Whether consecutive steps form a load history (warm starts across steps).
     load_history: ClassVar[bool] = True
-    #: Profiles run when the user gives no --profile (None: ("default",)).
-    default_profiles: ClassVar[tuple[str, ...] | None] = None
-    #: Registry name of the scene's preferred exact reference solver (None: the harness's
-    #: candidates, tightest first).
-    reference_solver: ClassVar[str | None] = None
 
     def config(self, cfg: SceneConfig | None) -> SceneConfig:
         return (cfg or SceneConfig()).merged(self.defaults)
@@ -124,19 +122,31 @@ class Scene(ABC):
     def build(self, spec: InstanceSpec) -> LoadSequence:
         """Build the load sequence of one recipe."""
 
-    def variants(self, cfg: SceneConfig, solvers: list[str]) -> list[SolverVariant]:
-        """Solver variants to run; default: each requested solver with no parameters."""
-        return [SolverVariant(s) for s in solvers]
-
-    #: A composite scene (e.g. "default") sets ``parts`` to a method returning
-    #: [(scene name, SceneConfig, solver names or None, profiles or None), ...] and runs
-    #: those scenes instead of its own instances.
-    parts: ClassVar[Any] = None
+    def validate(self, cfg: SceneConfig) -> None:
+        """Refuse a bad configuration before anything runs: raise ``ProblemInputError``
+        naming the bad input (``cfg`` is already merged).  Called by the harness's
+        planner; it must be cheap (build surfaces and loads, not operators).  The default
+        checks nothing beyond what ``instances`` itself refuses."""
 
     def warnings(self, cfg: SceneConfig) -> list[str]:
-        """Things the user should know before trusting the run (e.g. CMR on a surface
-        that is not self-affine)."""
+        """Things the user should know before trusting the run (e.g. a surface whose
+        PSD is not a power law, where a multi-resolution method is unreliable)."""
         return []
+
+
+def validate_each(specs: list[InstanceSpec], check: Callable[[InstanceSpec], Any]) -> None:
+    """Run ``check`` on every recipe; raise one ``ProblemInputError`` with one line per
+    distinct problem found (ten seeds of a bad size are one problem, not ten)."""
+    problems: list[str] = []
+    for spec in specs:
+        try:
+            check(spec)
+        except ProblemInputError as exc:
+            msg = str(exc)
+            if msg not in problems:
+                problems.append(msg)
+    if problems:
+        raise ProblemInputError("\n".join(problems))
 
 
 def seeds_of(cfg: SceneConfig, default: tuple[int, ...] = (0,)) -> tuple[int, ...]:

@@ -1,15 +1,17 @@
-"""Scenes of the cascade multi-resolution method (Bemporad & Paggi 2015, section 5.2).
+"""Scenes of the cascade multi-resolution method (Bemporad & Paggi 2015, section 5.2):
+data only (the CMR variants, h values and cascade depth are the harness's study design,
+``contactbench.harness.studies``).
 
-* ``cmr``         -- Fig. 8: RMD surfaces H = 0.3, 0.5, 0.7, L = 100 um, 256^2, cascade
-                     16 -> 32 -> 64 -> 128 -> 256, h = 2, 10 displacement steps up to
-                     (z_max - z_mean)/2; CMR+NNLS against the direct NNLS.
-* ``cmr-h-sweep`` -- Fig. 9: H = 0.7, the top step only, h from 1.25 to 3.0.
+* ``cmr``         -- Fig. 8: RMD surfaces H = 0.3, 0.5, 0.7, L = 100 um, 256^2, 10
+                     displacement steps up to (z_max - z_mean)/2 (the surfaces keep their
+                     RMD coarse levels 16 -> 32 -> ... -> 256).
+* ``cmr-h-sweep`` -- Fig. 9: H = 0.7, the top step only.
 * ``cmr-cutoff``  -- the cautionary case of Figs. 10-11: a spectral surface whose PSD has
                      a roll-off plateau at low wave numbers (like the 10x scan) against a
-                     pure power law (like the 100x scan); H = 0.6, cascade 64 -> 128 -> 256
-                     by block averaging, h = 1.5, one step Delta = (z_max - z_mean)/5.
+                     pure power law (like the 100x scan); H = 0.6, 256^2, one step
+                     Delta = (z_max - z_mean)/5.
 
-``warnings(cfg)`` flags every instance whose PSD is not a power law over the scales the
+``warnings(cfg)`` flags every instance whose PSD is not a power law over the scales a
 cascade spans (``problems.io.power_law_check``); the CMR solver repeats the check and
 puts the warning in its result.
 """
@@ -23,26 +25,8 @@ import numpy as np
 from ..io import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
-from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, SolverVariant, seeds_of
-from .core import PAPER_E, ramp_sequence, rough_surface_specs, surface_from_params
-
-#: h values of the paper's Fig. 9.
-H_SWEEP: tuple[float, ...] = (1.25, 1.5, 1.75, 2.0, 2.25, 2.5, 2.75, 3.0)
-
-
-def cmr_variants(solvers: list[str], hs: tuple[float, ...], extra: dict[str, Any]) -> list[SolverVariant]:
-    """Each non-CMR solver once; each ``cmr+*`` solver once per h (labelled by h when
-    there are several)."""
-    out: list[SolverVariant] = []
-    common = {k: extra[k] for k in ("coarsest", "levels") if extra.get(k) is not None}
-    for s in solvers:
-        if not s.startswith("cmr+"):
-            out.append(SolverVariant(s))
-            continue
-        for h in hs:
-            label = s if len(hs) == 1 else f"{s} h={h:g}"
-            out.append(SolverVariant(s, {"h": float(h), **common}, label))
-    return out
+from .base import InstanceSpec, Scene, SceneConfig, seeds_of
+from .core import PAPER_E, RampScene, check_relief, rough_surface_specs, surface_from_params
 
 
 def psd_warnings(scene: Scene, cfg: SceneConfig, surface_of: Any) -> list[str]:
@@ -51,7 +35,7 @@ def psd_warnings(scene: Scene, cfg: SceneConfig, surface_of: Any) -> list[str]:
     for spec in scene.instances(cfg):
         check = power_law_check(surface_of(spec.params))
         if not check.power_law:
-            out.append(f"{scene.name}/{spec.instance}: CMR asked for, but the {check.message}")
+            out.append(f"{scene.name}/{spec.instance}: a multi-resolution method is unreliable here: the {check.message}")
     return out
 
 
@@ -62,8 +46,8 @@ def top_steps(surface: Surface, steps: int, fraction: float) -> np.ndarray:
     return load_ramp(fraction * (surface.z_max - surface.z_mean), steps)
 
 
-class _RMDCascadeScene(Scene):
-    """Shared recipe/build of the RMD scenes (surfaces with their own coarse levels)."""
+class _RMDCascadeScene(RampScene):
+    """Shared recipe/loads of the RMD scenes (surfaces with their own coarse levels)."""
 
     hursts: tuple[float, ...] = (0.7,)
     max_fraction = 0.5  # Delta_max = max_fraction * (z_max - z_mean), the paper's top step
@@ -74,9 +58,9 @@ class _RMDCascadeScene(Scene):
             hursts = hursts[:1]
         return [spec for H in hursts for spec in rough_surface_specs(self.name, cfg, float(H))]
 
-    def build(self, spec: InstanceSpec) -> LoadSequence:
-        surface = surface_from_params(spec.params)
-        return ramp_sequence(spec, surface, top_steps(surface, int(spec.params["steps"]), self.max_fraction))
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
+        surface = check_relief(surface_from_params(spec.params))
+        return surface, top_steps(surface, int(spec.params["steps"]), self.max_fraction)
 
     def warnings(self, cfg: SceneConfig) -> list[str]:
         return psd_warnings(self, self.config(cfg), surface_from_params)
@@ -84,50 +68,36 @@ class _RMDCascadeScene(Scene):
 
 @register_scene
 class CMRScene(_RMDCascadeScene):
-    """Paper Fig. 8: CMR+NNLS (h = 2) vs direct NNLS on RMD H = 0.3, 0.5, 0.7."""
+    """Paper Fig. 8: RMD H = 0.3, 0.5, 0.7, 256^2, 10 steps up to (z_max - z_mean)/2."""
 
     name = "cmr"
-    description = "CMR (paper Fig. 8): RMD H=0.3,0.5,0.7, 256^2, cascade 16->256, h=2, vs direct NNLS"
+    description = "CMR problems (paper Fig. 8): RMD H=0.3,0.5,0.7, 256^2, 10 steps up to (zmax-zmean)/2"
     defaults = SceneConfig(size=256, steps=10, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
-                           periodic=False, operator="fft",
-                           extra={"hursts": (0.3, 0.5, 0.7), "h": (2.0,), "coarsest": 16})
-    default_solvers = ("nnls", "cmr+nnls")
+                           periodic=False, operator="fft", extra={"hursts": (0.3, 0.5, 0.7)})
     hursts = (0.3, 0.5, 0.7)
-
-    def variants(self, cfg: SceneConfig, solvers: list[str]) -> list[SolverVariant]:
-        cfg = self.config(cfg)
-        return cmr_variants(solvers, _as_tuple(cfg.extra.get("h", (2.0,))), cfg.extra)
 
 
 @register_scene
 class CMRHSweep(_RMDCascadeScene):
-    """Paper Fig. 9: H = 0.7, the top displacement step, h = 1.25 .. 3.0."""
+    """Paper Fig. 9: H = 0.7, the top displacement step (for the sweep over h)."""
 
     name = "cmr-h-sweep"
-    description = "CMR h sweep (paper Fig. 9): RMD H=0.7, 256^2, top step, h=1.25..3.0, vs direct NNLS"
+    description = "CMR h-sweep problem (paper Fig. 9): RMD H=0.7, 256^2, the top step"
     defaults = SceneConfig(size=256, steps=1, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
-                           periodic=False, operator="fft",
-                           extra={"hursts": (0.7,), "h": H_SWEEP, "coarsest": 16})
-    default_solvers = ("nnls", "cmr+nnls")
+                           periodic=False, operator="fft", extra={"hursts": (0.7,)})
     load_history = False
-
-    def variants(self, cfg: SceneConfig, solvers: list[str]) -> list[SolverVariant]:
-        cfg = self.config(cfg)
-        return cmr_variants(solvers, _as_tuple(cfg.extra.get("h", H_SWEEP)), cfg.extra)
 
 
 @register_scene
-class CMRCutoff(Scene):
-    """Paper section 5.2, Figs. 10-11: PSD roll-off plateau (CMR fails) vs pure power law
-    (CMR works); spectral surfaces, H = 0.6, cascade 64 -> 128 -> 256, h = 1.5."""
+class CMRCutoff(RampScene):
+    """Paper section 5.2, Figs. 10-11: a spectral surface with a PSD roll-off plateau
+    (where CMR fails) and one with a pure power law (where it works); H = 0.6."""
 
     name = "cmr-cutoff"
-    description = "CMR on a PSD with a roll-off plateau (fails) vs a pure power law (works), h=1.5"
+    description = "PSD with a roll-off plateau vs a pure power law, H=0.6, 256^2 (paper Figs. 10-11)"
     defaults = SceneConfig(size=256, steps=1, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
                            periodic=False, operator="fft",
-                           extra={"hurst": 0.6, "rolloff_fraction": 1 / 32, "h": (1.5,), "coarsest": 64,
-                                  "max_fraction": 0.2})
-    default_solvers = ("nnls", "cmr+nnls")
+                           extra={"hurst": 0.6, "rolloff_fraction": 1 / 32, "max_fraction": 0.2})
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -142,14 +112,9 @@ class CMRCutoff(Scene):
                              {**base, "surface": kind, "rolloff_fraction": frac, "seed": int(s)})
                 for kind, frac in kinds.items() for s in seeds_of(cfg)]
 
-    def build(self, spec: InstanceSpec) -> LoadSequence:
-        surface = cutoff_surface(spec.params)
-        deltas = top_steps(surface, int(spec.params["steps"]), float(spec.params["max_fraction"]))
-        return ramp_sequence(spec, surface, deltas)
-
-    def variants(self, cfg: SceneConfig, solvers: list[str]) -> list[SolverVariant]:
-        cfg = self.config(cfg)
-        return cmr_variants(solvers, _as_tuple(cfg.extra.get("h", (1.5,))), cfg.extra)
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
+        surface = check_relief(cutoff_surface(spec.params))
+        return surface, top_steps(surface, int(spec.params["steps"]), float(spec.params["max_fraction"]))
 
     def warnings(self, cfg: SceneConfig) -> list[str]:
         return psd_warnings(self, self.config(cfg), cutoff_surface)
@@ -164,6 +129,3 @@ def cutoff_surface(params: dict[str, Any]) -> Surface:
     return spectral_surface(int(params["size"]), float(params["hurst"]), length=L, seed=int(params["seed"]),
                             rolloff_wavelength=None if frac is None else float(frac) * L)
 
-
-def _as_tuple(v: Any) -> tuple[float, ...]:
-    return tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else (float(v),)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from ..errors import ProblemInputError
 from ..instances import (
     InstanceBuilder,
     counterexample,
@@ -19,7 +21,7 @@ from ..instances import (
 )
 from ..surfaces import Surface, rmd_surface_n
 from . import register_scene
-from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of
+from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of, validate_each
 
 PAPER_SEED = 55  # RMD seed of the paper-sweep default surface (see PaperSweep)
 PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
@@ -58,6 +60,38 @@ def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> L
     return LoadSequence(spec.instance, ds, factory, surface=surface)
 
 
+def check_relief(surface: Surface) -> Surface:
+    """``surface`` if it has relief (z_max > z_mean): load steps that are fractions of
+    z_max - z_mean need it; on a flat surface no step would make contact."""
+    if not surface.z_max > surface.z_mean:
+        raise ProblemInputError(f"surface {surface.name!r} is flat (z_max = z_mean = {surface.z_mean:g}): its load "
+                                "steps are fractions of z_max - z_mean, so no step makes contact")
+    return surface
+
+
+def paper_ramp(spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
+    """The paper's loading of a rough-surface recipe: Delta_k = (k/K) (z_max - z_mean)/2."""
+    surface = check_relief(surface_from_params(spec.params))
+    return surface, load_ramp(paper_max_displacement(surface), int(spec.params["steps"]))
+
+
+class RampScene(Scene):
+    """A scene whose recipes are one surface under a sequence of far-field displacements:
+    subclasses give ``loads(spec)`` = (surface, displacements); ``build`` and
+    ``validate`` (the planner's up-front check: surfaces and loads, no operators) both
+    go through it."""
+
+    @abstractmethod
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
+        """(surface, far-field displacements) of one recipe."""
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        return ramp_sequence(spec, *self.loads(spec))
+
+    def validate(self, cfg: SceneConfig) -> None:
+        validate_each(self.instances(cfg), self.loads)
+
+
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
     """One recipe per seed (or one for a measured surface)."""
     base = {
@@ -82,7 +116,7 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
 
 
 @register_scene
-class PaperSweep(Scene):
+class PaperSweep(RampScene):
     """The paper's headline test (section 4, Fig. 4): RMD H = 0.7, L = 100 um, N = 512,
     BCC kernel, non-periodic, K = 10 steps, Delta_k = (k/K) (z_max - z_mean) / 2."""
 
@@ -103,10 +137,8 @@ class PaperSweep(Scene):
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
         return rough_surface_specs(self.name, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
 
-    def build(self, spec: InstanceSpec) -> LoadSequence:
-        surface = surface_from_params(spec.params)
-        deltas = load_ramp(paper_max_displacement(surface), int(spec.params["steps"]))
-        return ramp_sequence(spec, surface, deltas)
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
+        return paper_ramp(spec)
 
 
 @register_scene
@@ -127,6 +159,11 @@ class Counterexample(Scene):
             for s in seeds_of(cfg)
         ]
 
+    def validate(self, cfg: SceneConfig) -> None:
+        # One build per size, with the cheap FFT operator: the builder owns the rule on n.
+        sizes = {spec.params["n"]: spec for spec in self.instances(cfg)}
+        validate_each(list(sizes.values()), lambda spec: counterexample(int(spec.params["n"]), 0, operator="fft"))
+
     def build(self, spec: InstanceSpec) -> LoadSequence:
         n, seed = int(spec.params["n"]), int(spec.params["seed"])
         op = str(spec.params.get("operator") or "dense")
@@ -134,7 +171,7 @@ class Counterexample(Scene):
 
 
 @register_scene
-class Hertz(Scene):
+class Hertz(RampScene):
     """A rigid sphere (paraboloid) on the half-space, refined meshes; the closed forms
     give contact radius, load and peak pressure (discretisation error vs mesh size)."""
 
@@ -156,11 +193,14 @@ class Hertz(Scene):
             for N in sizes
         ]
 
-    def build(self, spec: InstanceSpec) -> LoadSequence:
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         p = spec.params
         surface = hertz_surface(int(p["size"]), float(p["radius"]), float(p["length"]))
-        deltas = load_ramp(float(p["delta"]), int(p["steps"]))
-        seq = ramp_sequence(spec, surface, deltas)
+        return surface, load_ramp(float(p["delta"]), int(p["steps"]))
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        seq = super().build(spec)
+        p, deltas = spec.params, seq.deltas
         R, E = float(p["radius"]), float(p["E"])
 
         def analytic(k: int) -> dict[str, float]:
@@ -172,7 +212,7 @@ class Hertz(Scene):
 
 
 @register_scene
-class FlatPunch(Scene):
+class FlatPunch(RampScene):
     """A rigid flat circular punch: P = 2 a E* Delta."""
 
     name = "flat-punch"
@@ -193,11 +233,14 @@ class FlatPunch(Scene):
             for N in sizes
         ]
 
-    def build(self, spec: InstanceSpec) -> LoadSequence:
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         p = spec.params
+        surface = flat_punch_surface(int(p["size"]), float(p["punch_radius"]), float(p["length"]))
+        return surface, load_ramp(float(p["delta"]), int(p["steps"]))
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        seq = super().build(spec)
+        p, deltas = spec.params, seq.deltas
         a = float(p["punch_radius"])
-        surface = flat_punch_surface(int(p["size"]), a, float(p["length"]))
-        deltas = load_ramp(float(p["delta"]), int(p["steps"]))
-        seq = ramp_sequence(spec, surface, deltas)
         seq.analytic = lambda k: {"load": flat_punch_load(a, float(p["E"]), deltas[k]), "contact_radius": a}
         return seq

@@ -33,8 +33,8 @@ import numpy as np
 from ..errors import ProblemInputError
 from ..surfaces import Surface
 from . import register_scene
-from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of
-from .core import PAPER_E, ramp_sequence, surface_from_params
+from .base import InstanceSpec, LoadSequence, SceneConfig, seeds_of
+from .core import PAPER_E, RampScene, ramp_sequence, surface_from_params
 
 DEFAULT_HURSTS: tuple[float, ...] = (0.5, 0.7, 0.9)
 #: Flat-to-mean-plane separations, in units of the rms height (small loads first).
@@ -75,7 +75,7 @@ def instance_name(hurst: float, size: int, seed: int) -> str:
 
 
 @register_scene
-class Population(Scene):
+class Population(RampScene):
     """N_s seeded RMD surfaces per (H, N), each at a few small loads (Monte Carlo)."""
 
     name = "population"
@@ -90,7 +90,6 @@ class Population(Scene):
         operator="fft",
         extra={"hursts": DEFAULT_HURSTS, "separations": DEFAULT_SEPARATIONS, "rms_height": 1e-6},
     )
-    default_solvers = ("fast-ccg",)
     load_history = True
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -119,9 +118,12 @@ class Population(Scene):
             for s in seeds_of(cfg, tuple(range(DEFAULT_POPULATION)))
         ]
 
-    def build(self, spec: InstanceSpec) -> LoadSequence:
+    def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         surface = population_surface(spec)
-        deltas = population_displacements(surface, spec.params["separations"])
+        return surface, population_displacements(surface, spec.params["separations"])
+
+    def build(self, spec: InstanceSpec) -> LoadSequence:
+        surface, deltas = self.loads(spec)
         seq = ramp_sequence(spec, surface, deltas)
         seq.meta.update(hurst=float(spec.params["hurst"]), seed=int(spec.params["seed"]),
                         rms_slope=surface.rms_slope(), separations=list(spec.params["separations"]))

@@ -2,7 +2,7 @@
 
 One battery of hard cases serves two jobs: ``contactbench run stress`` (these scenes,
 run like any other) and ``contactbench validate`` (``harness.conformance``, which runs
-a solver through the same recipes and judges every answer with ``harness.kkt``).
+a solver through the same recipes and judges every answer with ``harness.judge``).
 
 Groups (each is also a scene of its own, ``stress-<group>``; ``stress`` is the union):
 
@@ -27,6 +27,13 @@ precision
     float32 ubar: a solver must solve it in float64 or refuse it with a clear error.
 perturbation
     ubar and ubar + eps d (||d|| = ||ubar||): p may move by at most ~cond(H) eps.
+counterexample
+    Paper Example 1 itself (``problems.instances.counterexample``: every element of an
+    N x N grid in the trial set, ubar ~ U(0, 1), BCC, E = 0.01) at n = 400 and several
+    seeds -- the family that refutes the greedy loop and stalls inexact pivoting.
+packing
+    Full packing with every point in contact: an LCP built from a solution p* > 0 on
+    every element of an N x N grid (ubar = H p*, w* = 0), BCC and Love kernels.
 
 Every recipe is an ``InstanceSpec`` whose params carry ``group``, the verdict
 ``profile`` (``mid``, or ``high`` where precision is the point) and ``compare``
@@ -44,7 +51,15 @@ import numpy as np
 from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 
 from ..errors import ProblemInputError
-from ..instances import QP, ContactInstance, Geometry, InstanceBuilder, paper_max_displacement, trial_set
+from ..instances import (
+    QP,
+    ContactInstance,
+    Geometry,
+    InstanceBuilder,
+    counterexample,
+    paper_max_displacement,
+    trial_set,
+)
 from ..kernels import kernel_table
 from ..operators import ContactOperator, DenseOperator, FFTOperator, KernelTransform, check_dense_budget
 from ..surfaces import Surface, rmd_surface_n
@@ -66,7 +81,8 @@ NEAR_TOUCH_GAP = 1e-14
 #: Largest n whose condition number is computed densely (eigvalsh).
 DENSE_EIG_LIMIT = 2500
 
-GROUPS: tuple[str, ...] = ("conditioning", "units", "edge", "random", "precision", "perturbation")
+GROUPS: tuple[str, ...] = ("conditioning", "units", "edge", "random", "precision", "perturbation",
+                           "counterexample", "packing")
 
 
 # ---------------------------------------------------------------------------
@@ -180,21 +196,24 @@ def random_spd_instance(n: int, seed: int) -> ContactInstance:
 
 
 def known_solution_instance(N: int, seed: int, kernel: str = "bcc", operator: str = "fft",
-                            gap: float = NEAR_TOUCH_GAP) -> ContactInstance:
-    """An LCP built from its solution: p* > 0 on a random half of an N x N grid, w* > 0
-    elsewhere, ubar = H p* - w*.  A tenth of the inactive points are near-touching:
-    w* = gap * max|H p*|.  The exact solution p* is in ``meta["p_exact"]``."""
+                            gap: float = NEAR_TOUCH_GAP, active_fraction: float = 0.5) -> ContactInstance:
+    """An LCP built from its solution: p* > 0 on a random ``active_fraction`` of an N x N
+    grid (1.0: every point in contact), w* > 0 elsewhere, ubar = H p* - w*.  A tenth of
+    the inactive points are near-touching: w* = gap * max|H p*|.  The exact solution p*
+    is in ``meta["p_exact"]``."""
+    if not (0.0 < active_fraction <= 1.0):
+        raise ProblemInputError(f"active_fraction must lie in (0, 1], got {active_fraction}")
     rng = np.random.default_rng(seed)
     n = N * N
     idx = np.arange(n)
     op = grid_operator((N, N), 1.0, 1.0, kernel, idx, operator)
-    active = rng.random(n) < 0.5
+    active = rng.random(n) < active_fraction if active_fraction < 1.0 else np.ones(n, dtype=bool)
     p_star = np.where(active, 0.1 + rng.random(n), 0.0)
     Hp = op.matvec(p_star)
     u_s = float(np.max(np.abs(Hp)))
     w_star = np.where(active, 0.0, (0.05 + rng.random(n)) * u_s)
     inactive = np.flatnonzero(~active)
-    near = rng.choice(inactive, size=max(1, inactive.size // 10), replace=False)
+    near = rng.choice(inactive, size=inactive.size // 10 or min(1, inactive.size), replace=False)
     w_star[near] = gap * u_s
     ubar = Hp - w_star
     op.matvec_count = 0
@@ -371,6 +390,19 @@ def build_perturbation(spec: InstanceSpec) -> LoadSequence:
     return LoadSequence(spec.instance, [float("nan")] * 2, factory)
 
 
+def build_counterexample(spec: InstanceSpec) -> LoadSequence:
+    """Paper Example 1 (``problems.instances.counterexample``) as one battery recipe."""
+    p = spec.params
+    return _single(spec, lambda: counterexample(int(p["n"]), int(p["seed"]), operator=str(p.get("operator", "dense"))))
+
+
+def build_packing(spec: InstanceSpec) -> LoadSequence:
+    """Every point of an N x N grid in contact, with the exact solution known."""
+    p = spec.params
+    return _single(spec, lambda: known_solution_instance(int(p["size"]), int(p["seed"]), str(p["kernel"]),
+                                                         str(p.get("operator", "fft")), active_fraction=1.0))
+
+
 BUILDERS: dict[str, Callable[[InstanceSpec], LoadSequence]] = {
     "conditioning": build_conditioning,
     "units": build_units,
@@ -378,6 +410,8 @@ BUILDERS: dict[str, Callable[[InstanceSpec], LoadSequence]] = {
     "random": build_random,
     "precision": build_precision,
     "perturbation": build_perturbation,
+    "counterexample": build_counterexample,
+    "packing": build_packing,
 }
 
 
@@ -432,20 +466,34 @@ def perturbation_specs(scene: str, n: int, seeds: tuple[int, ...] = (0,)) -> lis
             for s in seeds]
 
 
+def counterexample_specs(scene: str, sizes: tuple[int, ...], seeds: tuple[int, ...]) -> list[InstanceSpec]:
+    return [_spec(scene, "counterexample", f"example1-n{n}-s{s}", n=int(n), seed=int(s), operator="dense")
+            for n in sizes for s in seeds]
+
+
+def packing_specs(scene: str, size: int, kernels: tuple[str, ...] = ("bcc", "love"), seed: int = 0) -> list[InstanceSpec]:
+    return [_spec(scene, "packing", f"all-in-contact-{k}-N{size}", size=int(size), kernel=k, seed=seed,
+                  operator="fft")
+            for k in kernels]
+
+
 #: Sizes per mode.  "fast" keeps every case dense-solvable in well under a second.
 MODES: dict[str, dict[str, Any]] = {
     "fast": {"cond_sizes": (100,), "densities": (1.0, 0.2), "units_size": 16, "edge_size": 16,
              "spd_sizes": (30,), "bcc_sizes": (64,), "random_densities": (0.1, 0.5, 1.0), "seeds": (0, 2),
-             "precision_size": 16, "perturbation_n": 100},
+             "precision_size": 32, "perturbation_n": 100, "example1_sizes": (400,), "example1_seeds": (0, 1, 2),
+             "packing_size": 20},
     "full": {"cond_sizes": (100, 400, 1000), "densities": (1.0, 0.5, 0.1), "units_size": 32, "edge_size": 32,
              "spd_sizes": (50, 200), "bcc_sizes": (100, 400), "random_densities": (0.05, 0.3, 1.0),
-             "seeds": (0, 1), "precision_size": 32, "perturbation_n": 400},
+             "seeds": (0, 1), "precision_size": 32, "perturbation_n": 400, "example1_sizes": (100, 400),
+             "example1_seeds": tuple(range(10)), "packing_size": 32},
     # The stress scene: conditioning up to 1e5 (FFT operator; dense-only solvers are
     # skipped by the runner's memory model), the rest as in "full".
     "scene": {"cond_sizes": (100, 1000, 10000, 100000), "densities": (1.0, 0.2), "units_size": 64,
               "edge_size": 32, "spd_sizes": (50, 200), "bcc_sizes": (100, 400, 1600),
               "random_densities": (0.05, 0.3, 1.0), "seeds": (0, 1, 2), "precision_size": 64,
-              "perturbation_n": 1000},
+              "perturbation_n": 1000, "example1_sizes": (25, 100, 400), "example1_seeds": tuple(range(10)),
+              "packing_size": 64},
 }
 
 
@@ -461,6 +509,8 @@ def battery_specs(mode: str = "fast", groups: tuple[str, ...] = GROUPS, scene: s
         "random": lambda: random_specs(scene, m["spd_sizes"], m["bcc_sizes"], m["random_densities"], m["seeds"]),
         "precision": lambda: precision_specs(scene, m["precision_size"]),
         "perturbation": lambda: perturbation_specs(scene, m["perturbation_n"]),
+        "counterexample": lambda: counterexample_specs(scene, m["example1_sizes"], m["example1_seeds"]),
+        "packing": lambda: packing_specs(scene, m["packing_size"]),
     }
     unknown = set(groups) - set(makers)
     if unknown:
@@ -518,3 +568,5 @@ _group_scene("edge", "Delta=0, single point, full contact, equal maxima, plateau
 _group_scene("random", "random SPD positive-entry LCPs and BCC with random ubar, sparse to fully packed")
 _group_scene("precision", "float32 ubar: solved in float64 or refused")
 _group_scene("perturbation", "ubar vs ubar + 1e-6 perturbation: p must move continuously")
+_group_scene("counterexample", "paper Example 1 (all of an N x N grid in the trial set, ubar ~ U(0,1)) at n = 400")
+_group_scene("packing", "full packing: every point of an N x N grid in contact, exact solution known")

@@ -1,0 +1,278 @@
+"""The report's summary sections, rendered for every table whatever its scenes: run time
+against error (work-precision, with solver traces), aggregates (success and correct
+rates, shifted geometric means and Dolan-More performance profiles from
+harness/aggregates.py), skips and failures, and one table per scene.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from . import aggregates as agg
+from .report import (
+    LOG_FLOOR,
+    PROFILE_PREFERENCE,
+    ReportContext,
+    Section,
+    attempted,
+    floor_log,
+    fmt_err,
+    fmt_num,
+    fmt_pct,
+    legend_outside,
+    log_if_wide,
+    natural_key,
+    natural_sorted,
+    new_figure,
+    parse_trace,
+    per_cell,
+    register_section,
+    scene_rank,
+    table_md,
+)
+
+MAX_TABLE_ROWS = 80
+MAX_FAILURE_ROWS = 40
+
+# ---------------------------------------------------------------------------
+# Run time against error
+# ---------------------------------------------------------------------------
+
+_PROFILE_MARKERS = {"low": "v", "default": "o", "mid": "s", "high": "^"}
+
+
+def _representative_trace_row(rows: pd.DataFrame) -> pd.Series | None:
+    """The traced row with the largest n at the tightest profile (then lowest step)."""
+    t = rows[rows["trace"].str.len() > 2]
+    if t.empty:
+        return None
+    rank = {p: i for i, p in enumerate(PROFILE_PREFERENCE)}
+    t = t.assign(_pr=t["profile"].map(lambda p: rank.get(p, len(rank))))
+    t = t.sort_values(["n", "_pr", "instance", "step", "repeat"], ascending=[False, True, True, True, True],
+                      kind="stable")
+    return t.iloc[0]
+
+
+@register_section("work-precision", title="Run time against error", group="summary", order=10)
+def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
+    parts = ["Each point is one solve: solve time against the harness's scaled `kkt_error` (left) and against "
+             "the error in p relative to the scene's reference (right); marker shape = profile. Lines are "
+             "the solver's own convergence trace (its residual, which is not the same figure as kkt_error) "
+             "for one representative solve: the largest n at the tightest profile. Values below "
+             f"{LOG_FLOOR:g} are drawn at {LOG_FLOOR:g}.\n"]
+    for scene in ctx.scenes():
+        r = attempted(ctx.rows(scene))
+        r = r[r["solve_time_s"].notna() & (r["solve_time_s"] > 0)]
+        if r.empty:
+            parts.append(f"### {scene}\n\nNo attempted solve with a time.\n")
+            continue
+        fig, (a1, a2) = new_figure(ncols=2, width=4.8, height=3.8)
+        traced: list[str] = []
+        xs, y1, y2 = list(r["solve_time_s"]), list(floor_log(r["kkt_error"])), list(floor_log(r["p_rel_error"]))
+        for s in natural_sorted(r["solver"].unique()):
+            c = r[r["solver"] == s]
+            for prof in natural_sorted(c["profile"].unique()):
+                cp = c[c["profile"] == prof]
+                mk = _PROFILE_MARKERS.get(prof, "D")
+                for ok, face in ((True, ctx.color(s)), (False, "none")):
+                    cs = cp[(cp["status"] == "solved") == ok]
+                    for a, col in ((a1, "kkt_error"), (a2, "p_rel_error")):
+                        a.scatter(cs["solve_time_s"], floor_log(cs[col]), s=16, marker=mk, facecolors=face,
+                                  edgecolors=ctx.color(s), linewidths=0.8, alpha=0.75)
+            rep = _representative_trace_row(c)
+            if rep is not None:
+                tr = parse_trace(rep["trace"])
+                ok = (tr[:, 1] > 0) & np.isfinite(tr[:, 2])
+                a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s), alpha=0.8)
+                xs += list(tr[ok, 1])
+                y1 += list(floor_log(tr[ok, 2]))
+                traced.append(f"`{s}` ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})")
+            a1.plot([], [], ls="none", marker="s", color=ctx.color(s), label=s)
+        for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
+                natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
+            a1.plot([], [], ls="none", marker=_PROFILE_MARKERS.get(prof, "D"), color="gray", label=f"profile {prof}")
+        if (r["status"] != "solved").any():
+            a1.plot([], [], ls="none", marker="o", mfc="none", color="gray", label="hollow: not solved")
+        if traced:
+            a1.plot([], [], color="gray", lw=1.0, label="trace (own residual)")
+        for a, lab, ys in ((a1, "scaled KKT error  [-]", y1), (a2, "||p - p_ref||_inf / ||p_ref||_inf  [-]", y2)):
+            a.set_xlabel("solve time  [s]")
+            a.set_ylabel(lab)
+            a.grid(True, which="major", alpha=0.3)
+            if not np.any(np.isfinite(ys)):
+                continue  # nothing drawn here (no reference error): log axes would have no limits
+            log_if_wide(a, "x", xs)
+            if not log_if_wide(a, "y", ys, decades=0.0):
+                a.set_yscale("log")  # a single error level: still an error axis
+        if r["p_rel_error"].notna().sum() == 0:
+            a2.text(0.5, 0.5, "no reference error stored", ha="center", va="center", transform=a2.transAxes)
+        a1.set_title(f"{scene}: KKT error", fontsize=9)
+        a2.set_title(f"{scene}: error against reference", fontsize=9)
+        h, lbl = a1.get_legend_handles_labels()
+        a2.legend(h, lbl, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
+        rel = ctx.save_figure(fig, f"wp-{scene}")
+        cap = f"run time against error, scene `{scene}` ({len(r)} solves)."
+        if traced:
+            cap += " Traces: " + ", ".join(traced) + "."
+        parts.append(f"### {scene}\n\n" + ctx.figure_md(rel, cap))
+    return Section("Run time against error", "\n".join(parts))
+
+
+# ---------------------------------------------------------------------------
+# Aggregates
+# ---------------------------------------------------------------------------
+
+
+@register_section("aggregates", title="Aggregates across instances", group="summary", order=20)
+def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
+    parts = [f"Per scene. A problem is one (instance, step, profile). **Success**: the harness's KKT check "
+             f"passes at the profile's `check_tol` (status `solved`), over attempted cells. **Correct**: the "
+             f"solver's own convergence claim agrees with that verdict, over attempted rows with a claim; "
+             f"**false claims** count rows claiming convergence that fail the check. **SGM**: shifted geometric "
+             f"mean of solve time, shift s = {fmt_num(ctx.shift)} s, exp(mean(log(t + s))) - s, relative to the "
+             f"best solver of the scene; every cell that is not solved (failed, inaccurate, timeout, crashed, "
+             f"skipped or not run) counts at its time limit. Repeats: a cell is solved when every repeat is, at "
+             f"the minimum time. **Performance profile** (Dolan & More 2002): the fraction of problems a "
+             f"solver solves within tau times the best solver's time.\n"]
+    for scene in ctx.scenes():
+        r = ctx.rows(scene)
+        summ = agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique()))
+        cells = agg.cell_table(r, natural_sorted(r["solver"].unique()))
+        parts.append(f"### {scene}\n")
+        rows_t = [(s.solver, s.problems, s.attempted, s.solved, fmt_pct(s.success_rate),
+                   f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims, fmt_num(s.sgm_s),
+                   fmt_num(s.sgm_rel)) for s in sorted(summ, key=lambda s: natural_key(s.solver))]
+        parts.append(table_md(ctx, f"aggregates, scene `{scene}` ({len(cells.problems)} problems; SGM shift "
+                                   f"{fmt_num(ctx.shift)} s).",
+                              ["solver", "problems", "attempted", "solved", "success", "correct (rows)",
+                               "false claims", "SGM [s]", "SGM / best"], rows_t, "lrrrrrrrr"))
+        if len(cells.solvers) >= 2 and cells.problems:
+            parts.append(_profile_figure(ctx, scene, agg.performance_profile(cells)))
+    parts.append("### All scenes\n")
+    t = table
+    summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
+    parts.append(table_md(ctx, "success and correct rates over every scene (no time aggregate across scenes: "
+                               "solvers do not all run on the same problems).",
+                          ["solver", "attempted", "solved", "success", "correct (rows)", "false claims"],
+                          [(s.solver, s.attempted, s.solved, fmt_pct(s.success_rate),
+                            f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims)
+                           for s in sorted(summ, key=lambda s: natural_key(s.solver))], "lrrrrr"))
+    return Section("Aggregates across instances", "\n".join(parts))
+
+
+def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile) -> str:
+    hi = max(2.0, prof.max_finite_ratio() * 1.5)
+    taus = np.unique(np.concatenate([np.geomspace(1.0, hi, 200), *[r[np.isfinite(r)] for r in prof.ratios.values()]]))
+    taus = taus[(taus >= 1.0) & (taus <= hi)]
+    fig, (ax,) = new_figure(width=6.0, height=4.0)
+    for s in prof.solvers:
+        ax.step(taus, prof.curve(s, taus), where="post", color=ctx.color(s), lw=1.5, label=s)
+    ax.set_xscale("log", base=2)
+    ax.set_xlim(1.0, hi)
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("tau: time within tau x the best solver's time  [-]")
+    ax.set_ylabel("fraction of problems solved  [-]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_title(f"performance profile, {scene} ({prof.n_problems} problems)", fontsize=9)
+    legend_outside(ax, "solver")
+    rel = ctx.save_figure(fig, f"pp-{scene}")
+    return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
+                              f"which a solver is fastest; the right end is its success share.")
+
+
+# ---------------------------------------------------------------------------
+# Skips and failures
+# ---------------------------------------------------------------------------
+
+
+@register_section("skips", title="Skips and failures", group="summary", order=30)
+def skips_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
+    t = table
+    parts = []
+    sk = t[t["status"] == "skipped"]
+    if sk.empty:
+        parts.append("No pair was skipped.\n")
+    else:
+        g = sk.groupby(["scene", "solver", "skip_reason"], sort=False)
+        rows_t = sorted(((sc, so, len(x), x["instance"].nunique(), re_ or "(no reason recorded)")
+                         for (sc, so, re_), x in g),
+                        key=lambda r: (scene_rank(r[0]), natural_key(r[1]), r[4]))
+        parts.append(table_md(ctx, "skipped pairs, by scene, solver and reason (rows: skipped cells; instances: "
+                                   "distinct instances).", ["scene", "solver", "rows", "instances", "reason"],
+                              rows_t, "llrrl"))
+    bad = t[t["status"].isin(["failed", "timeout", "crashed"])]
+    if bad.empty:
+        parts.append("No solve failed, timed out or crashed.\n")
+    else:
+        bad = bad.sort_values(["scene", "solver", "profile", "instance", "step", "repeat"], kind="stable",
+                              key=lambda c: c.map(natural_key) if c.dtype == object else c)
+        rows_t = [(r.scene, r.solver, r.profile, r.instance, fmt_num(r.step), r.status,
+                   _short(r.error or r.solver_message)) for r in bad.head(MAX_FAILURE_ROWS).itertuples()]
+        cap = "solves that failed (raised), timed out or crashed"
+        if len(bad) > MAX_FAILURE_ROWS:
+            cap += f" (first {MAX_FAILURE_ROWS} of {len(bad)})"
+        parts.append(table_md(ctx, cap + ".", ["scene", "solver", "profile", "instance", "step", "status", "error"],
+                              rows_t, "llllrll"))
+    ina = t[t["status"] == "inaccurate"]
+    if len(ina):
+        g = ina.groupby(["scene", "solver", "profile"], sort=True)
+        rows_t = [(sc, so, pr, len(x), fmt_err(x["kkt_error"].max()), fmt_err(x["check_tol"].max()))
+                  for (sc, so, pr), x in g]
+        rows_t.sort(key=lambda r: (natural_key(r[0]), natural_key(r[1]), r[2]))
+        parts.append(table_md(ctx, "inaccurate answers (returned, but the KKT check failed at the profile's "
+                                   "tolerance).", ["scene", "solver", "profile", "rows", "worst kkt_error",
+                                                   "check_tol"], rows_t, "lllrrr"))
+    return Section("Skips and failures", "\n".join(parts))
+
+
+def _short(text: str, n: int = 90) -> str:
+    line = str(text).strip().splitlines()[-1] if str(text).strip() else ""
+    return line if len(line) <= n else line[: n - 3] + "..."
+
+
+# ---------------------------------------------------------------------------
+# Per-scene tables
+# ---------------------------------------------------------------------------
+
+
+@register_section("scene-tables", title="Tables per scene", group="summary", order=40)
+def scene_tables_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
+    parts = []
+    for scene in ctx.scenes():
+        r = attempted(ctx.rows(scene))
+        parts.append(f"### {scene}\n")
+        if r.empty:
+            parts.append("Every pair was skipped (see Skips and failures).\n")
+            continue
+        cells = per_cell(r)
+        if len(cells) <= MAX_TABLE_ROWS:
+            cells = cells.assign(_k=[(natural_key(i), s, natural_key(so), natural_key(p)) for i, s, so, p in
+                                     zip(cells["instance"], cells["step"], cells["solver"], cells["profile"])])
+            cells = cells.sort_values("_k", kind="stable")
+            rows_t = [(c.instance, fmt_num(c.step), fmt_num(c.n), c.solver, c.profile, "yes" if c.warm_start else "no",
+                       c.status, fmt_num(c.solve_time_s), fmt_num(c.iterations), fmt_err(c.kkt_error),
+                       fmt_err(c.p_rel_error), fmt_err(c.load_rel_error), fmt_num(c.contact_fraction))
+                      for c in cells.itertuples()]
+            parts.append(table_md(ctx, f"scene `{scene}`: one row per (instance, step, solver, profile), time = "
+                                       f"minimum over repeats, status = worst over repeats; errors are relative "
+                                       f"to the scene's reference; contact = A/A0.",
+                                  ["instance", "step", "n", "solver", "profile", "warm", "status", "time [s]",
+                                   "iters", "kkt_error", "p err", "load err", "contact"], rows_t,
+                                  "lrrlllrrrrrrr"))
+        else:
+            g = cells.groupby(["n", "solver", "profile"], sort=True)
+            rows_t = []
+            for (n, s, p), c in g:
+                rows_t.append((fmt_num(n), s, p, len(c), int(c["solved"].sum()), fmt_num(c["solve_time_s"].median()),
+                               fmt_num(c["iterations"].median()), fmt_err(c["kkt_error"].median()),
+                               fmt_err(c["kkt_error"].max()), fmt_err(c["p_rel_error"].max())))
+            rows_t.sort(key=lambda x: (float(x[0]) if x[0] != "-" else -1, natural_key(x[1]), natural_key(x[2])))
+            parts.append(table_md(ctx, f"scene `{scene}` ({len(cells)} cells, summarised by n, solver and profile): "
+                                       f"median time and iterations, median and worst kkt_error, worst error in p.",
+                                  ["n", "solver", "profile", "cells", "solved", "median time [s]", "median iters",
+                                   "median kkt", "worst kkt", "worst p err"], rows_t, "rllrrrrrrr"))
+    return Section("Tables per scene", "\n".join(parts))
+
+
+# ---------------------------------------------------------------------------

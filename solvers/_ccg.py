@@ -1,0 +1,263 @@
+"""The constrained conjugate gradients of ``pk`` and the fast solvers (not a solver module:
+the registry skips "_" names): one gap state, one Polonsky-Keer loop, one Bugnicourt loop.
+
+* ``GapState``      -- p and its gap g = Hp - ubar, kept consistent at one matvec per
+                       linear step (g += alpha Hd), recomputed when a projection changed p
+                       and every ``refresh_every`` steps against round-off drift.
+* ``polonsky_keer`` -- Polonsky & Keer, Wear 231 (1999) 206, displacement control (Bemporad &
+                       Paggi 2015, Algorithm 2): CG on the contact set S = {p > 0} with the
+                       gap as residual; p < 0 is clipped to 0, points with p = 0 and g < 0
+                       (penetration, I_ol) enter, and the conjugacy is reset whenever a point
+                       entered.  Optionally preconditioned on S (z = M^-1 r).
+* ``bugnicourt``    -- Bugnicourt, Sainsot, Dureisseix, Gauthier & Lubrecht, Tribol. Lett. 66
+                       (2018) 29, algorithm OUT_LIN: projected CG on the forces with a
+                       Polak-Ribiere beta and no restart; the residual is the gap with the
+                       admissible multipliers (p = 0, g >= 0) removed.  Optionally
+                       preconditioned on its free set {res != 0}.
+
+Both loops stop on the harness's scaled KKT error (``SolveContext.kkt``) of the running
+gap, confirmed on a freshly recomputed one, and honour the solve's one deadline.  Both
+minimise the paper's QP (eq. (5)): min 1/2 p'Hp - ubar'p, p >= 0.
+
+Preconditioned entry (why fast-pccg once failed the paper's Example 1)
+---------------------------------------------------------------------
+Unpreconditioned, the direction is t = g, so tau = g't / t'Ht has units of 1/H and an
+entering point gets the force -tau g_j (Algorithm 2, step 3.5).  Preconditioned, t = M^-1 r
+is a force and tau is dimensionless, so -tau g_j is a length posing as a force: its size
+depends on the units (on the counterexample, E = 0.01 and diag H = 64, every entering point
+got 64 times its force; PK then cycled, 97 of 100 seeds stopped at max_iter, and the
+iterate it stopped at depended on round-off, i.e. on the thread count).  The entering
+points get the force -tau m_j g_j instead, with m_j the preconditioner's own inverse for a
+point that forms a set alone (``SetPreconditioner.solo``: 1 / H_jj for the island blocks),
+which is -tau g_j again without a preconditioner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from contactbench.problems.operators import ContactOperator
+
+from ._preconditioners import MAX_BLOCK, SetPreconditioner
+from .base import Capabilities, Outcome, Solver, SolveContext, Status
+
+
+@dataclass
+class GapState:
+    """Iterate p (>= 0) and its gap g = Hp - ubar, kept consistent at one matvec per
+    linear step (plus one per projection that changes p)."""
+
+    H: ContactOperator
+    ubar: np.ndarray
+    p: np.ndarray
+    refresh_every: int = 50
+    g: np.ndarray = field(init=False)
+    _since_refresh: int = field(init=False, default=0)
+
+    def __post_init__(self) -> None:
+        self.refresh()
+
+    @classmethod
+    def start(cls, ctx: SolveContext) -> GapState:
+        """The state at the warm start ``ctx.p0``, or at p = 0 (cold)."""
+        p0 = np.zeros(ctx.n) if ctx.p0 is None else ctx.p0.copy()
+        return cls(ctx.qp.H, ctx.qp.ubar, p0)
+
+    def refresh(self) -> None:
+        """Recompute g from scratch (one matvec)."""
+        self.g = self.H.matvec(self.p) - self.ubar
+        self._since_refresh = 0
+
+    def step(self, alpha: float, d: np.ndarray, Hd: np.ndarray) -> bool:
+        """p <- max(p + alpha d, 0); returns True when the projection was active."""
+        self.p += alpha * d
+        clipped = self.p < 0.0
+        if np.any(clipped):
+            self.p[clipped] = 0.0
+            self.refresh()
+            return True
+        self.g += alpha * Hd
+        self._since_refresh += 1
+        if self._since_refresh >= self.refresh_every:
+            self.refresh()
+        return False
+
+
+@dataclass
+class CCGRun:
+    """How a constrained CG loop stopped: iterations, the last scaled KKT error, and
+    whether it stopped on a breakdown (no descent direction left) rather than a limit."""
+
+    iterations: int
+    kkt: float
+    converged: bool
+    stalled: bool = False
+
+
+def converged_now(ctx: SolveContext, state: GapState) -> tuple[bool, float]:
+    """Scaled KKT test on the running gap, confirmed on a recomputed one."""
+    kkt = ctx.kkt(state.p, state.g)
+    if kkt > ctx.tol:
+        return False, kkt
+    state.refresh()
+    kkt = ctx.kkt(state.p, state.g)
+    return kkt <= ctx.tol, kkt
+
+
+def checkpoint(ctx: SolveContext, state: GapState, done: int, first: int) -> CCGRun:
+    """The KKT test after ``done`` iterations (``converged_now``), recorded on the trace
+    as iteration ``first + done``."""
+    ok, kkt = converged_now(ctx, state)
+    ctx.record(first + done, kkt)
+    return CCGRun(done, kkt, ok)
+
+
+def precondition_on(M: SetPreconditioner | None, r: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """z = M^-1 r on the free set (M moved to that set first when it changed); r itself
+    without a preconditioner."""
+    if M is None:
+        return r
+    if not np.array_equal(free, M.on):
+        M.update(free)
+    return M.apply(r)
+
+
+def entering_force(M: SetPreconditioner | None, tau: float, g: np.ndarray, entering: np.ndarray) -> np.ndarray:
+    """Force of the ``entering`` points (p = 0, gap g < 0) after a step tau (module doc)."""
+    return -tau * (g[entering] if M is None else M.solo(g)[entering])
+
+
+def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
+                  domain: np.ndarray | None = None, max_iter: int | None = None, first: int = 0) -> CCGRun:
+    """Polonsky & Keer's CCG (module doc) from ``state`` until ``ctx.tol``, ``max_iter``
+    (default ``ctx.max_iter``) or the deadline.  ``domain``: the contact set of the first
+    iteration (default: the support of p, or {g < 0} when p = 0).  One matvec per
+    iteration while no point enters or is clipped, two otherwise.  The trace numbers
+    iterations from ``first``."""
+    max_iter = ctx.max_iter if max_iter is None else max_iter
+    t = np.zeros_like(state.p)
+    G_old, reset = 1.0, True
+    run = CCGRun(0, np.inf, False)
+    for it in range(1, max_iter + 1):
+        run = checkpoint(ctx, state, it - 1, first)
+        if run.converged or ctx.expired():
+            return run
+        if domain is not None and it == 1:
+            S = domain
+        else:
+            S = state.p > 0.0
+            if not np.any(S):  # nothing in contact: the penetrating points enter
+                S = state.g < 0.0
+        r = np.where(S, state.g, 0.0)
+        if not np.any(r):  # S is at rest; let the penetrating points in and restart
+            S = S | (state.g < 0.0)
+            r, reset = np.where(S, state.g, 0.0), True
+            if not np.any(r):
+                return CCGRun(it - 1, run.kkt, False, stalled=True)
+        z = precondition_on(M, r, S)
+        G = float(r @ z)
+        t = z if reset or G_old == 0.0 else np.where(S, z + (G / G_old) * t, 0.0)  # step 3.1
+        q = state.H.matvec(t)
+        tq = float(t @ q)
+        if tq <= 0.0:  # lost positive definiteness by round-off: recompute and restart
+            state.refresh()
+            reset = True
+            continue
+        tau = float(r @ t) / tq  # step 3.2
+        p_new = state.p - tau * t  # step 3.3
+        entering = (state.p == 0.0) & (state.g < 0.0) & ~S  # step 3.5 (I_ol)
+        if np.any(entering):
+            p_new[entering] = entering_force(M, tau, state.g, entering)
+        clipped = p_new < 0.0  # step 3.4
+        p_new[clipped] = 0.0
+        state.p = p_new
+        if np.any(entering) or np.any(clipped):
+            state.refresh()  # step 3.8
+        else:
+            state.g -= tau * q
+        reset = bool(np.any(entering))
+        G_old = G  # step 3.7
+    return CCGRun(max_iter, run.kkt, False)
+
+
+def dual_residual(state: GapState) -> np.ndarray:
+    """Gap with the admissible multipliers (p = 0, g >= 0) removed."""
+    return np.where((state.p <= 0.0) & (state.g >= 0.0), 0.0, state.g)
+
+
+def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
+               max_iter: int | None = None, first: int = 0) -> CCGRun:
+    """Bugnicourt et al.'s CCG without restart (module doc) from ``state`` until
+    ``ctx.tol``, ``max_iter`` (default ``ctx.max_iter``) or the deadline.  One matvec per
+    iteration (two when the projection clips).  The trace numbers iterations from
+    ``first``."""
+    max_iter = ctx.max_iter if max_iter is None else max_iter
+    res = dual_residual(state)
+    d = -precondition_on(M, res, res != 0.0)
+    run = CCGRun(0, np.inf, False)
+    for it in range(1, max_iter + 1):
+        run = checkpoint(ctx, state, it - 1, first)
+        if run.converged or ctx.expired():
+            return run
+        Hd = state.H.matvec(d)
+        dHd = float(d @ Hd)
+        if dHd <= 0.0:  # d = 0 (converged up to round-off) or lost conjugacy: restart
+            state.refresh()
+            res = dual_residual(state)
+            d = -precondition_on(M, res, res != 0.0)
+            if not np.any(d):
+                kkt = ctx.kkt(state.p, state.g)
+                return CCGRun(it, kkt, kkt <= ctx.tol, stalled=kkt > ctx.tol)
+            continue
+        alpha = -float(res @ d) / dHd
+        state.step(alpha, d, Hd)
+        res_old = res
+        res = dual_residual(state)
+        z = precondition_on(M, res, res != 0.0)
+        # Polak-Ribiere (preconditioned: z = M^-1 res); alpha d'Hd = -res_old'd.
+        beta = float(z @ (res - res_old)) / (alpha * dHd)
+        d = -z + beta * d
+        d[(state.p == 0.0) & (res == 0.0)] = 0.0
+    return CCGRun(max_iter, run.kkt, False)
+
+
+def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:
+    """The lifecycle's ``Outcome`` of a CCG run, with the state's gap as w (recomputed
+    when the run converged; otherwise within round-off drift of Hp - ubar, and no
+    matvec is spent after a deadline)."""
+    return Outcome(
+        p=state.p,
+        iterations=run.iterations,
+        converged=run.converged,
+        message=f"scaled KKT error {run.kkt:.3e} after {run.iterations} iterations",
+        w=state.g,
+        status=Status.STALLED if run.stalled and not run.converged else None,
+        info=dict(info or {}),
+    )
+
+
+class FastSolver(Solver):
+    """What the matrix-free fast solvers share: family, capabilities (exact, primal warm
+    start, dense or FFT operator), the default iteration limit and the memory model."""
+
+    family = "fast"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}), needs_dense=False, warm_start="primal",
+                                exact=True)
+
+    def default_max_iter(self, n: int) -> int:
+        return max(1000, 20 * int(np.sqrt(max(n, 1))) + 2000)
+
+    def memory_estimate(self, n: int) -> float:
+        # Eight vectors; with the island preconditioner, block inverses of up to
+        # MAX_BLOCK entries per point of the set (the set can be the whole trial set early).
+        blocks = 8.0 * MAX_BLOCK * n if self.uses_islands() else 0.0
+        return 8.0 * 8.0 * n + blocks
+
+    def uses_islands(self) -> bool:
+        """Whether the default preconditioner is the island one (memory model)."""
+        for p in self.params:
+            if p.name == "precondition":
+                return p.default == "islands"
+        return False
