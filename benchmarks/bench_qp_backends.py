@@ -73,7 +73,7 @@ def run_one(name: str, inst: ContactInstance, label: str, profile: str, p_ref: n
     wall = time.perf_counter() - t0
     kkt = kkt_check(inst, res.p).kkt_error
     return Row(label, inst.n, name, profile, wall, res.setup_time, kkt, relative_error(res.p, p_ref),
-               relative_load_error(inst.load(res.p), inst.load(p_ref)), res.status, res.converged)
+               relative_load_error(inst.load(res.p), inst.load(p_ref)), res.info.get("backend_status", res.status), res.converged)
 
 
 def reference(inst: ContactInstance) -> tuple[np.ndarray, float]:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-from typing import Sequence
+from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 
@@ -59,24 +59,23 @@ def parse_profiles(text: str) -> tuple[str, ...]:
     return names
 
 
-def positive_float(text: str) -> float:
+def positive_number(text: str, kind: type, what: str) -> Any:
+    """``text`` as a number of ``kind`` that is > 0, else an argparse error naming it."""
     try:
-        v = float(text)
+        v = kind(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
     if not v > 0:
         raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
     return v
 
 
+def positive_float(text: str) -> float:
+    return float(positive_number(text, float, "a number"))
+
+
 def positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
-    return v
+    return int(positive_number(text, int, "an integer"))
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -33,6 +33,7 @@ from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_bat
 from contactbench.solvers.base import Solver, SolverSettings
 
 from .profiles import get_profile
+from .skips import capability_decision
 from .worker import instance_operator_kind, problem_traits
 
 #: Default per-solve time limits (s) by battery mode.
@@ -42,6 +43,8 @@ DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
 KILL_GRACE = (2.0, 0.25)  # seconds + fraction of the limit
 #: Largest n the exact reference (and a dense-only solver) assembles densely.
 REFERENCE_MAX_N = 4096
+#: What a solve of the battery may use: a dense H at the reference limit plus its copies.
+BATTERY_MEMORY_BUDGET = 4 * 8.0 * REFERENCE_MAX_N**2
 #: A reference is trusted (used for the error in p) when its scaled KKT error is at most this.
 TRUSTED_REFERENCE_KKT = 1e-9
 #: Groups in which refusing the case is a legitimate answer (float32 input).
@@ -167,20 +170,12 @@ def adapt_to_solver(inst: ContactInstance, solver: Solver) -> QP | str:
     and 5 of ``harness.skips`` (max_n, operator kind, the solver's own ``skip``); the
     battery applies no time model, so a solver cannot skip its way out of a case."""
     qp = inst.qp
-    caps = solver.capabilities
-    if caps.max_n is not None and qp.n > caps.max_n:
-        return f"n = {qp.n} exceeds the solver's max_n = {caps.max_n}"
-    if caps.needs_dense and qp.n > REFERENCE_MAX_N:
-        return f"the solver needs dense H; n = {qp.n} is beyond the battery's dense limit {REFERENCE_MAX_N}"
-    why = solver.skip(problem_traits(inst))
-    if why:
-        return why
-    kind = instance_operator_kind(inst)
-    if kind in caps.operators:
-        return qp
-    if kind == "fft" and "dense" in caps.operators:
+    d = capability_decision(solver, problem_traits(inst), BATTERY_MEMORY_BUDGET)
+    if d.skip:
+        return d.reason
+    if d.operator == "dense" and instance_operator_kind(inst) != "dense":
         return QP(DenseOperator(qp.H.to_dense()), qp.ubar, qp.geometry)
-    return f"the solver accepts {'/'.join(sorted(caps.operators))} operators; this case has a {kind} operator"
+    return qp
 
 
 def is_refusal(exc: BaseException, group: str) -> bool:

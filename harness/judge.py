@@ -26,7 +26,7 @@ import numpy as np
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
-READINGS = ("pass", "wrong", "unconverged")
+from .schema import VERDICTS as READINGS  # the table contract names the readings
 
 
 @dataclass

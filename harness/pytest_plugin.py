@@ -42,7 +42,8 @@ def contact_instance() -> Callable[..., Any]:
 @pytest.fixture
 def run_harness(tmp_path: Any) -> Callable[..., Any]:
     def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
-        from contactbench.harness.runner import RunConfig, run_benchmark
+        from contactbench.harness.plan import RunConfig
+        from contactbench.harness.runner import run_benchmark
         from contactbench.harness.store import load_table
         from contactbench.problems.scenes import SceneConfig
 

@@ -34,11 +34,11 @@ from typing import Any, Final
 
 import pandas as pd
 
-from .judge import READINGS
 
 STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skipped")
 #: The values of ``verdict`` besides "" (the judge's readings).
-VERDICTS: Final = READINGS
+#: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``.
+VERDICTS: Final = ("pass", "wrong", "unconverged")
 DTYPES: Final = ("string", "Int64", "boolean", "float64")
 
 

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
-from contactbench.solvers.base import ProblemTraits
+from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.registry import load_solver
 
 GiB = float(2**30)
@@ -81,6 +81,16 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
     ok, why = solver.availability()
     if not ok:
         return Decision(reason=f"not available: {why}")
+    d = capability_decision(solver, traits, memory_budget)
+    if d.skip:
+        return d
+    return time_decision(solver, traits, d.operator, time_limit, observed)
+
+
+def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: float) -> Decision:
+    """Steps 2-5 of the module doc for a loaded, available solver: max_n, the operator
+    it is given, memory, and its own ``skip``.  No time model (``validate`` uses this:
+    a solver cannot skip its way out of a conformance case)."""
     n, caps = traits.n, solver.capabilities
     if caps.max_n is not None and n > caps.max_n:
         return Decision(reason=f"trial set n = {n} exceeds the solver's limit max_n = {caps.max_n}")
@@ -108,7 +118,7 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
         return Decision(reason=f"skip check failed: {exc}")
     if own_reason:
         return Decision(reason=str(own_reason))
-    return time_decision(solver, traits, operator, time_limit, observed)
+    return Decision(operator=operator)
 
 
 def time_decision(solver: object, traits: ProblemTraits, operator: str, time_limit: float,

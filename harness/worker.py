@@ -190,7 +190,7 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
     """What the skip policy may know of an instance before solving it."""
     geom = inst.geometry
     return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
-                         has_surface=geom is not None and geom.surface is not None, periodic=bool(inst.periodic),
+                         has_surface=geom is not None and geom.has_surface, periodic=bool(inst.periodic),
                          kernel=inst.kernel)
 
 

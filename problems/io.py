@@ -526,11 +526,6 @@ def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
         raise ProblemInputError(f"{what} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
 
 
-# TRANSITIONAL: coarsening and the PSD test live in problems/coarsen.py; this re-export
-# keeps ``from contactbench.problems.io import coarse_levels, power_law_check`` working
-# until problems/scenes/cmr.py imports them from there.  Delete it then.
-from .coarsen import coarse_levels, power_law_check  # noqa: E402,F401
-
 __all__ = [
     "RawMap",
     "SurfaceFileError",

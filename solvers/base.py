@@ -128,13 +128,6 @@ class SolverSettings:
     time_limit: float | None = None
     params: dict[str, Any] = field(default_factory=dict)
 
-    # TRANSITIONAL (removed once every solver runs the lifecycle): old-style accessors.
-    def tolerance(self, default: float) -> float:
-        return float(default if self.tol is None else self.tol)
-
-    def param(self, name: str, default: Any) -> Any:
-        return self.params.get(name, default)
-
 
 @dataclass
 class WarmStart:
@@ -438,10 +431,10 @@ class Solver(ABC):
             out = self.iterate(ctx)
         return finish(ctx, out)
 
-    def iterate(self, ctx: SolveContext) -> Outcome:  # TRANSITIONAL: becomes @abstractmethod
+    @abstractmethod
+    def iterate(self, ctx: SolveContext) -> Outcome:
         """The solver's own iteration from ``ctx.p0`` (None: a cold start), honouring
         ``ctx.tol``, ``ctx.max_iter`` and ``ctx.expired()``."""
-        raise NotImplementedError
 
     def __repr__(self) -> str:
         return f"<Solver {self.name} ({self.family})>"

@@ -157,9 +157,9 @@ class CMRSolver(Solver):
     #: None: each base solve uses the base's own tolerance unless one is asked.
     default_tol: ClassVar[float | None] = None
 
-    def default_max_iter(self, n: int) -> int:
-        """0: each base solve uses the base's own iteration limit unless one is asked."""
-        return 0
+    def default_max_iter(self, n: int) -> int | None:
+        """None: each base solve uses the base's own iteration limit unless one is asked."""
+        return None
 
     def __init__(self, base: str = "nnls") -> None:
         self.base_name = base
@@ -241,7 +241,7 @@ def require_surface(qp: QP) -> Geometry:
 def base_settings(ctx: SolveContext) -> SolverSettings:
     """Settings of one base solve: CMR's tolerance and iteration limit (None: the base's
     own), ``base_params``, and the time LEFT of CMR's deadline."""
-    return SolverSettings(tol=ctx.tol, max_iter=ctx.max_iter or None, time_limit=ctx.deadline.remaining(),
+    return SolverSettings(tol=ctx.tol, max_iter=ctx.max_iter, time_limit=ctx.deadline.remaining(),
                           params=dict(ctx.params["base_params"] or {}))
 
 

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from contactbench.problems.kkt import kkt_figures
+
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
 from ._kit import conjugate_gradient
 from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
@@ -45,7 +47,7 @@ def newton_step(ctx: SolveContext, state: GapState, A: np.ndarray, kkt: float, M
     """p_A <- H_AA^-1 ubar_A (inexact CG from the current p_A), p = 0 off A; returns the
     CG's matvecs."""
     qp = ctx.qp
-    u_s = max(float(np.max(np.abs(qp.ubar))), float(np.max(np.abs(state.g + qp.ubar))))
+    u_s = kkt_figures(state.p, state.g, qp.ubar, ctx.diag_max).u_scale
     atol = u_s * max(0.2 * ctx.tol, min(1e-2, 0.05 * kkt))
     precond = on_subset(M, A, qp.n) if M is not None else None
     cg = conjugate_gradient(qp.H.restrict(A), qp.ubar[A], state.p[A], atol, ctx.max_iter,

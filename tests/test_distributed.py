@@ -30,7 +30,7 @@ from contactbench.harness.schema import STATUSES  # noqa: E402
 from contactbench.harness.store import ResultStore, load_table  # noqa: E402
 from contactbench.problems.instances import QP  # noqa: E402
 from contactbench.problems.scenes import SceneConfig  # noqa: E402
-from contactbench.solvers.base import Capabilities, Solver, SolverSettings, SolveResult, WarmStart  # noqa: E402
+from contactbench.solvers.base import Capabilities, Outcome, SolveContext, Solver, SolverSettings  # noqa: E402
 from contactbench.solvers.registry import get_solver  # noqa: E402
 
 MARKER_ENV = "CONTACTBENCH_TEST_KILL_DIR"
@@ -53,6 +53,13 @@ def kill_dask_worker(after_s: float = 0.0) -> None:
     time.sleep(30)  # PR_SET_PDEATHSIG ends this process with its parent
 
 
+def solve_with_base(ctx: SolveContext) -> Outcome:
+    """The answer of ``SOLVER`` on the same problem, settings and warm start."""
+    res = get_solver(SOLVER).solve(ctx.qp, SolverSettings(tol=ctx.tol, max_iter=ctx.max_iter,
+                                                          time_limit=ctx.deadline.remaining()), ctx.warm)
+    return Outcome(res.p, res.iterations, res.converged, res.message, w=res.w)
+
+
 class KillWorkerOnce(Solver):
     """fast-ccg, except that the first solve on surface seed 1 kills the Dask worker."""
 
@@ -60,8 +67,8 @@ class KillWorkerOnce(Solver):
     family = "test"
     capabilities = Capabilities(warm_start="primal", exact=True)
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        if seed_of(qp) == 1:
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        if seed_of(ctx.qp) == 1:
             marker = Path(os.environ[MARKER_ENV]) / self.name
             try:
                 os.close(os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
@@ -69,7 +76,7 @@ class KillWorkerOnce(Solver):
                 pass
             else:
                 kill_dask_worker()
-        return get_solver(SOLVER).solve(qp, settings, warm)
+        return solve_with_base(ctx)
 
 
 class KillWorkerAlways(KillWorkerOnce):
@@ -77,10 +84,10 @@ class KillWorkerAlways(KillWorkerOnce):
 
     name = "test-kill-worker-always"
 
-    def solve(self, qp: QP, settings: SolverSettings, warm: WarmStart | None = None) -> SolveResult:
-        if seed_of(qp) == 1 and warm is not None:  # step 1 (warm-started from step 0)
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        if seed_of(ctx.qp) == 1 and ctx.warm is not None:  # step 1 (warm-started from step 0)
             kill_dask_worker(after_s=0.5)  # rows finished before are streamed to the client by then
-        return get_solver(SOLVER).solve(qp, settings, warm)
+        return solve_with_base(ctx)
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from contactbench.plugins import PluginRegistry
 
-from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, SolverVariant
+from .base import InstanceSpec, LoadSequence, Scene, SceneConfig
 
 
 def _same_class(old: Scene, new: Scene) -> bool:
@@ -50,7 +50,6 @@ __all__ = [
     "LoadSequence",
     "Scene",
     "SceneConfig",
-    "SolverVariant",
     "all_scenes",
     "get_scene",
     "register_scene",

@@ -84,21 +84,6 @@ class LoadSequence:
         return inst
 
 
-@dataclass(frozen=True)
-class SolverVariant:
-    """TRANSITIONAL: moved to ``contactbench.harness.studies.SolverVariant`` (solver
-    variants are study design, not data); kept only while ``problems/scenes/__init__``
-    still re-exports the name.  Nothing in problems/ uses it."""
-
-    base: str
-    params: dict[str, Any] = field(default_factory=dict)
-    label: str = ""
-
-    @property
-    def name(self) -> str:
-        return self.label or self.base
-
-
 class Scene(ABC):
     """A named family of instances (benchopt's Dataset): pure data -- surfaces, kernels,
     load sequences.  Which solvers run on it, at which profiles, with which parameter

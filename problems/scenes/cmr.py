@@ -12,7 +12,7 @@ data only (the CMR variants, h values and cascade depth are the harness's study 
                      Delta = (z_max - z_mean)/5.
 
 ``warnings(cfg)`` flags every instance whose PSD is not a power law over the scales a
-cascade spans (``problems.io.power_law_check``); the CMR solver repeats the check and
+cascade spans (``problems.coarsen.power_law_check``); the CMR solver repeats the check and
 puts the warning in its result.
 """
 
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..io import power_law_check
+from ..coarsen import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
 from .base import InstanceSpec, Scene, SceneConfig, seeds_of
