@@ -38,7 +38,7 @@ def answer_columns(reply: SolveReply, time_limit: float) -> dict[str, Any]:
         out["peak_mem_mb"] = reply.peak_mem_mb
         out.update(asdict(reply.facts))
     if reply.verdict is None:
-        out.update(status="failed", error=reply.error)
+        out.update(status=reply.aborted or "failed", error=reply.error)
         return out
     verdict = reply.verdict
     out.update(verdict.figures, status=verdict.status, verdict=verdict.reading)

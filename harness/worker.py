@@ -33,7 +33,7 @@ import numpy as np
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 from contactbench.problems.scenes import InstanceSpec
-from contactbench.solvers.base import ProblemTraits, SolverSettings, WarmStart
+from contactbench.solvers.base import ProblemTraits, SolveAborted, SolverSettings, WarmStart
 from contactbench.solvers.registry import load_solver
 
 from .isolation import PeakMemory
@@ -175,6 +175,7 @@ class SolveReply:
     verdict: Verdict | None = None
     error: str = ""
     kept_warm: bool = False
+    aborted: str = ""  # "timeout" / "crashed" when the solver raised SolveAborted
 
 
 # ---------------------------------------------------------------------------
@@ -361,6 +362,8 @@ class InstanceWorker:
             t0 = time.perf_counter()
             try:
                 res = solver.solve(qp, settings, warm)
+            except SolveAborted as exc:
+                return SolveReply(time.perf_counter() - t0, warm is not None, error=str(exc), aborted=exc.status)
             except Exception as exc:
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=f"{type(exc).__name__}: {exc}")
             elapsed = time.perf_counter() - t0

@@ -59,6 +59,18 @@ class Status(str, Enum):
     FAILED = "failed"  # no usable answer (a backend error, a non-finite iterate)
 
 
+class SolveAborted(RuntimeError):
+    """A solve that ended without an answer, in a way the harness records as the row's
+    status: ``status`` is "timeout" (killed at its time limit, e.g. an external program)
+    or "crashed" (it died: a signal, a segfault).  Any other exception is "failed"."""
+
+    def __init__(self, status: str, message: str) -> None:
+        if status not in ("timeout", "crashed"):
+            raise ValueError(f"SolveAborted status must be 'timeout' or 'crashed', got {status!r}")
+        super().__init__(message)
+        self.status = status
+
+
 class ParamError(ValueError):
     """An unknown, ill-typed or out-of-range solver parameter."""
 
