@@ -1,15 +1,23 @@
 """pytest-benchmark over every registered solver (parametrized from the registry: a newly
 registered solver is benchmarked with no edit here).
 
-    pytest --benchmark-only benchmarks/                      # run
-    pytest --benchmark-only benchmarks/ --benchmark-json=b.json
+    pytest --benchmark-only --benchmark-enable benchmarks/                      # run
+    pytest --benchmark-only --benchmark-enable benchmarks/ --benchmark-json=b.json
 
 Each round solves a fresh problem (a new operator object, so no state carries over;
 ``benchmark.pedantic(setup=...)``).  The answer of the last round is judged by the
-harness's ``judge`` against the exact reference; the figures go to
-``benchmark.extra_info`` and so into the JSON output.  Pairs the harness would skip
-(``harness.skips``: capabilities, memory or time model, missing package, the solver's
-own ``skip``) are skipped with the same reason.
+harness's ``judge`` against the exact reference, and the judge's reading decides the
+test, as in ``contactbench validate``:
+
+* "pass"        -- the test passes; the figures go to ``benchmark.extra_info`` and so
+                   into the JSON output;
+* "wrong"       -- the solver claimed convergence but the answer fails the judge: a test
+                   FAILURE whose message carries the KKT figures;
+* "unconverged" -- the solver honestly reported no convergence: an ``xfail`` with the
+                   judge's reason.
+
+Pairs the harness would skip (``harness.skips``: capabilities, memory or time model,
+missing package, the solver's own ``skip``) are skipped with the same reason.
 """
 
 from __future__ import annotations
@@ -21,7 +29,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from contactbench.harness.judge import judge
+from contactbench.harness.judge import Verdict, judge
 from contactbench.harness.profiles import get_profile
 from contactbench.harness.skips import skip_decision
 from contactbench.harness.worker import problem_traits
@@ -95,12 +103,30 @@ def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
     except ProblemInputError as exc:
         pytest.skip(f"{solver_name} refuses this instance: {exc}")
     result = benchmark.pedantic(solver.solve, setup=setup, rounds=ROUNDS, iterations=1, warmup_rounds=0)
-    p = np.asarray(result.p, dtype=np.float64)
-    verdict = judge(inst, p, bool(result.converged), get_profile(PROFILE).check_tol, p_ref=reference(name))
+    verdict = judge(inst, np.asarray(result.p), bool(result.converged), get_profile(PROFILE).check_tol,
+                    p_ref=reference(name))
     info: dict[str, Any] = {
         "solver": solver_name, "instance": name, "n": inst.n, "profile": PROFILE, "operator": decision.operator,
         "iterations": int(result.iterations), "solver_converged": bool(result.converged),
         "solved": verdict.status == "solved", "verdict": verdict.reading, **verdict.figures,
     }
     benchmark.extra_info.update(info)
-    assert p.shape == (inst.n,)
+    settle(verdict, f"{solver_name} on {name} (n = {inst.n}, profile {PROFILE})", result.message)
+
+
+def kkt_figures(verdict: Verdict) -> str:
+    """The judge's KKT figures of an answer, for a failure or xfail message."""
+    f = verdict.figures
+    keys = ("kkt_error", "primal_residual", "dual_residual", "complementarity", "p_rel_error", "load_rel_error")
+    return ", ".join(f"{k} {float(f[k]):.3e}" for k in keys if k in f) or f"kkt_error {verdict.kkt_error:.3e}"
+
+
+def settle(verdict: Verdict, what: str, solver_message: str) -> None:
+    """The test's outcome from the judge's reading (module doc): fail a wrong answer
+    claimed as converged, xfail an honest non-convergence, pass the rest."""
+    if verdict.reading == "wrong":
+        pytest.fail(f"{what}: the solver claims convergence but the judge reads the answer as wrong: "
+                    f"{verdict.message()}; KKT figures: {kkt_figures(verdict)}", pytrace=False)
+    if verdict.reading == "unconverged":
+        pytest.xfail(f"{what}: not converged, as the solver says ({solver_message or 'no message'}): "
+                     f"{'; '.join(verdict.problems)}; KKT figures: {kkt_figures(verdict)}")

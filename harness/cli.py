@@ -2,8 +2,9 @@
 
     contactbench list scenes|solvers [--params]
     contactbench run SCENE [SCENE...] [--solvers a,b|all] [--profile p[,q]] [--size N] [--steps K]
-                     [--seeds 0-9|0,3,5] [--surface PATH --length L] [--E E] [--kernel bcc|love]
+                     [--seeds 0-9|0,3,5] [--surface PATH [--length L] [--channel C]] [--E E] [--kernel bcc|love]
                      [--periodic] [--repeats R] [--timeout S] [--out DIR] [--jobs J] [--cold] ...
+    contactbench export SCENE [scene options of run] --format problem-dir|hdf5|qpbenchmark --out DIR
     contactbench report DIR
     contactbench validate ...       (every argument goes to harness/conformance.py)
 
@@ -91,15 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenes", nargs="+", metavar="SCENE")
     run.add_argument("--solvers", default=None, help="comma list of registry names or MODULE:NAME, or 'all'")
     run.add_argument("--profile", type=parse_profiles, default=None, help="profile(s): default, low, mid, high (comma list)")
-    run.add_argument("--size", type=positive_int, default=None, help="grid points per side N")
-    run.add_argument("--steps", type=positive_int, default=None, help="number of load steps K")
-    run.add_argument("--seeds", type=parse_seeds, default=None, help="e.g. 0-9 or 0,3,5")
-    run.add_argument("--surface", default=None, help="measured height map in metres (.npy/.csv/.txt, or ISO 25178-71 .x3p)")
-    run.add_argument("--length", type=positive_float, default=None, help="side length L in metres")
-    run.add_argument("--E", type=positive_float, default=None, help="composite modulus E* in Pa")
-    run.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None)
-    run.add_argument("--periodic", action="store_true", default=None, help="periodic domain")
-    run.add_argument("--operator", choices=("fft", "dense"), default=None, help="operator the instance is built with")
+    add_scene_options(run)
     run.add_argument("--repeats", type=positive_int, default=1, help="timed solves per cell (min and median reported)")
     run.add_argument("--timeout", type=positive_float, default=60.0, help="hard limit per solve, seconds")
     run.add_argument("--out", default=None, help="output directory (default results/<scenes>)")
@@ -114,6 +107,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--report", action="store_true", help="build the report after the run")
     run.add_argument("--scheduler", default=None, metavar="ADDRESS",
                      help="send the cells to a running Dask scheduler (tcp://host:8786); see docs/distributed.md")
+
+    exp = sub.add_parser("export", help="write every (instance, step) QP of a scene to files (problems/export.py)")
+    exp.add_argument("scene", metavar="SCENE")
+    add_scene_options(exp)
+    exp.add_argument("--format", dest="fmt", choices=("problem-dir", "hdf5", "qpbenchmark"), required=True)
+    exp.add_argument("--out", required=True, help="output directory")
+    exp.add_argument("--dense-limit", type=positive_int, default=None, help="largest n whose dense H is written")
 
     rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
     rep.add_argument("dir")
@@ -162,15 +162,48 @@ def solver_parameter_lines(solver: object) -> list[str]:
     return lines
 
 
-def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+def scene_config(args: argparse.Namespace) -> Any:
+    """The SceneConfig of ``run``/``export``'s scene options.  --length may be omitted for
+    a surface file that states its lateral size (problems/io.py checks it at planning)."""
     from contactbench.problems.scenes import SceneConfig
 
-    from .runner import RunConfig, run_benchmark
+    if args.channel is not None and not args.surface:
+        raise ProblemInputError("--channel picks a channel of a --surface file; no --surface was given")
+    extra = {} if args.channel is None else {"channel": args.channel}
+    if args.height_unit is not None or args.allow_steep:  # problems/units.py: the plausibility check
+        if not args.surface:
+            raise ProblemInputError("--height-unit and --allow-steep apply to a --surface file; no --surface was given")
+        extra.update({k: v for k, v in (("height_unit", args.height_unit), ("allow_steep", args.allow_steep)) if v})
+    return SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
+                       length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic,
+                       operator=args.operator, extra=extra)
 
-    if args.surface and not args.length and not str(args.surface).lower().endswith(".x3p"):
-        raise ProblemInputError("--surface needs --length L (the side length in metres; only .x3p files carry their own spacing)")
-    cfg = SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
-                      length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic, operator=args.operator)
+
+def add_scene_options(p: argparse.ArgumentParser) -> None:
+    """The scene options shared by ``run`` and ``export``."""
+    p.add_argument("--size", type=positive_int, default=None, help="grid points per side N")
+    p.add_argument("--steps", type=positive_int, default=None, help="number of load steps K")
+    p.add_argument("--seeds", type=parse_seeds, default=None, help="e.g. 0-9 or 0,3,5")
+    p.add_argument("--surface", default=None,
+                   help="measured height map: .npy/.csv/.txt or any SurfaceTopography format (.x3p, .gwy, .nc, .mat, ...)")
+    p.add_argument("--channel", default=None, help="channel (index or name) of a multi-channel --surface file")
+    p.add_argument("--length", type=positive_float, default=None,
+                   help="side length L in metres (optional when the surface file states its size)")
+    p.add_argument("--height-unit", choices=("m", "mm", "um", "nm"), default=None,
+                   help="unit of the heights of a --surface file that states none (default m)")
+    p.add_argument("--allow-steep", action="store_true",
+                   help="run a --surface beyond the small-slope range (rms slope > 1 or heights > side length)")
+    p.add_argument("--E", type=positive_float, default=None, help="composite modulus E* in Pa")
+    p.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None)
+    p.add_argument("--periodic", action="store_true", default=None, help="periodic domain")
+    p.add_argument("--operator", choices=("fft", "dense"), default=None, help="operator the instance is built with")
+
+
+def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    from .runner import RunConfig, run_benchmark
+    from .store import RunLock
+
+    cfg = scene_config(args)
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
@@ -179,18 +212,27 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
                         reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
                         progress=False if args.no_progress else None, **kw)
     out = args.out or "results/" + "-".join(args.scenes)
-    if args.scheduler:
-        from .distributed import run_benchmark_on_dask
+    with RunLock(out):  # one writer per results folder (harness/store.py)
+        if args.scheduler:
+            from .distributed import run_benchmark_on_dask
 
-        summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
-                                        command=["contactbench", *argv])
-    else:
-        summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv])
+            summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
+                                            command=["contactbench", *argv])
+        else:
+            summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv])
     for w in summary.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(summary.line())
     if args.report:
         return cmd_report(out)
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from contactbench.problems.export import export_scene
+
+    summary = export_scene(args.scene, scene_config(args), args.fmt, args.out, dense_limit=args.dense_limit)
+    print(summary.line())
     return 0
 
 
@@ -247,6 +289,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return cmd_run(args, argv)
         if args.command == "report":
             return cmd_report(args.dir)
+        if args.command == "export":
+            return cmd_export(args)
     except KeyboardInterrupt:
         print("interrupted: rows so far are kept; run the same command again to finish", file=sys.stderr)
         return 130

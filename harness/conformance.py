@@ -37,6 +37,14 @@ Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
 unknown solver, an import path that does not load, no case selected) exits 2.
 
+``--command 'CMD {problem} {solution}' [--inputs dense|kernel]`` validates an outside
+program over the file protocol (``contactbench.solvers.external``,
+docs/external-solvers.md): the cases its inputs do not allow are skipped, each with its
+reason, and listed after the table ("left out").  An external program claims
+convergence when its solution.json says ``"status": "converged"`` or gives no status.
+``--out DIR`` writes the conformance report (``harness.conformance_report``:
+DIR/verdicts.csv and DIR/conformance.md); the exit status is the same.
+
 For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
 ``assert_conforms(solver)`` raises AssertionError with the verdict table unless the
 solver conforms.
@@ -120,6 +128,7 @@ class VerdictRow:
     cond: float = float("nan")
     check_tol: float = float("nan")
     dim_load: float = float("nan")
+    ref_time_s: float = float("nan")  # seconds the exact reference took (nan: known solution)
     kkt: dict[str, float] = field(default_factory=dict)
     message: str = ""
     detail: str = ""
@@ -155,7 +164,8 @@ def judge_solve(out: SolveOutcome, inst: ContactInstance, ref: Reference | None,
     """The row of one solve: the judge's verdict, read as in the module doc."""
     check_tol = get_profile(case.profile).check_tol
     row = VerdictRow(solver, case.name, case.group, step, inst.n, out.kind, time_s=out.time_s, check_tol=check_tol,
-                     cond=ref.cond if ref else float("nan"), message=out.message, detail=out.detail)
+                     cond=ref.cond if ref else float("nan"), message=out.message, detail=out.detail,
+                     ref_time_s=ref.time_s if ref else float("nan"))
     if out.kind != "ok":
         return row
     p_ref = ref.p if ref is not None and ref.trusted else None
@@ -446,6 +456,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-isolate", action="store_true", help="solve in-process (no time limit; for debugging)")
     ap.add_argument("--list", action="store_true", help="list the selected cases and exit")
     ap.add_argument("--csv", metavar="PATH", help="also write the verdict rows as CSV")
+    ap.add_argument("--out", metavar="DIR", help="write the conformance report: DIR/verdicts.csv and DIR/conformance.md "
+                                                  "(the exit status is the same)")
+    ap.add_argument("--command", metavar="'CMD {problem} {solution}'",
+                    help="validate an outside program over the file protocol (docs/external-solvers.md)")
+    ap.add_argument("--inputs", choices=("dense", "kernel"), default=None,
+                    help="with --command: what the program reads, the dense H (default) or the kernel table")
     ap.add_argument("--quiet", action="store_true", help="print only the summary line per solver")
     return ap
 
@@ -476,8 +492,19 @@ def load_named_solver(name: str) -> Solver:
         raise SolverLoadError(f"cannot load solver {name!r}: {type(exc).__name__}: {exc}") from None
 
 
-def _selected_solvers(names: Sequence[str], every: bool) -> list[Solver]:
-    solvers = [load_named_solver(n) for n in dict.fromkeys(names)]
+def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:
+    """The solver of ``--command`` (an unregistered external solver), checked up front."""
+    if command is None:
+        if inputs is not None:
+            raise SolverLoadError("--inputs goes with --command")
+        return []
+    from contactbench.solvers.external import command_solver
+
+    return [command_solver(command, inputs or "dense")]
+
+
+def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = ()) -> list[Solver]:
+    solvers = [load_named_solver(n) for n in dict.fromkeys(names)] + list(extra)
     for s in solvers:
         ok, why = s.availability()
         if not ok:
@@ -486,7 +513,7 @@ def _selected_solvers(names: Sequence[str], every: bool) -> list[Solver]:
         seen = {s.name for s in solvers}
         solvers += [s for n, s in all_solvers().items() if n not in seen and s.availability()[0]]
     if not solvers:
-        raise SolverLoadError("name a solver (registry name or module:NAME) or pass --all")
+        raise SolverLoadError("name a solver (registry name or module:NAME), pass --all, or give --command")
     return solvers
 
 
@@ -511,21 +538,57 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if not cases:
             raise SolverLoadError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
-        solvers = _selected_solvers(args.solvers, args.all)
+        command_solvers = command_solver_of(args.command, args.inputs)
+        solvers = _selected_solvers(args.solvers, args.all, command_solvers)
+        if args.out:
+            check_out_dir(args.out)
     except (SolverLoadError, ProblemInputError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    codes, frames = [], []
+    codes, frames, tables = [], [], []
     for solver in solvers:
         table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate)
         print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
+        left = left_out_lines(table) if not args.quiet or solver in command_solvers else []
+        if left:
+            print("\n".join(left) + "\n", flush=True)
         codes.append(table.exit_code(args.strict))
         frames.append(table.to_frame())
+        tables.append(table)
     if args.csv and frames:
         import pandas as pd
 
         pd.concat(frames, ignore_index=True).to_csv(args.csv, index=False)
+    if args.out:
+        from .conformance_report import write_conformance_report
+
+        path = write_conformance_report(tables, args.out, strict=args.strict, command=list(argv or sys.argv[1:]))
+        print(f"conformance report: {path}")
     return _combined_exit(codes)
+
+
+def check_out_dir(path: str) -> None:
+    """``--out DIR`` must be a folder that can be written (checked before anything runs)."""
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise SolverLoadError(f"--out {path!r}: cannot create the folder ({exc.strerror or exc})") from None
+    if not os.access(path, os.W_OK):
+        raise SolverLoadError(f"--out {path!r}: the folder is not writable")
+
+
+def left_out_lines(table: VerdictTable) -> list[str]:
+    """The cases the solver was not handed (skipped solves), grouped by reason."""
+    by_reason: dict[str, list[str]] = {}
+    for r in table.rows:
+        if r.status == "skipped" and r.step >= 0:
+            by_reason.setdefault(r.message or "no reason given", []).append(r.label)
+    if not by_reason:
+        return []
+    total = sum(len(v) for v in by_reason.values())
+    lines = [f"left out {total} solve(s) of {table.solver!r}:"]
+    lines += [f"  {len(labels)} because {reason}: {', '.join(labels)}" for reason, labels in by_reason.items()]
+    return lines
 
 
 if __name__ == "__main__":  # pragma: no cover

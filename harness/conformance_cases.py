@@ -30,7 +30,7 @@ from contactbench.problems.lcp import exact_solution
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from contactbench.solvers.base import Solver, SolverSettings
+from contactbench.solvers.base import SolveAborted, Solver, SolverSettings
 
 from .profiles import get_profile
 from .skips import capability_decision
@@ -107,6 +107,7 @@ class Reference:
     kkt_error: float
     cond: float
     method: str
+    time_s: float = float("nan")  # seconds to compute it (nan: a known solution, not computed)
 
     @property
     def trusted(self) -> bool:
@@ -124,8 +125,10 @@ def exact_reference(inst: ContactInstance) -> Reference:
     if qp.n > REFERENCE_MAX_N:
         raise MemoryBudgetError(f"exact reference for n = {qp.n} (dense limit {REFERENCE_MAX_N})",
                                 8.0 * qp.n**2, 8.0 * REFERENCE_MAX_N**2)
+    t0 = time.perf_counter()
     sol = exact_solution(qp.H.to_dense(), np.asarray(qp.ubar, dtype=np.float64))
-    return Reference(sol.p, kkt_check(qp, sol.p).kkt_error, cond, "nnls+bpp")
+    elapsed = time.perf_counter() - t0
+    return Reference(sol.p, kkt_check(qp, sol.p).kkt_error, cond, "nnls+bpp", elapsed)
 
 
 _REFERENCES: dict[tuple[str, str, int], Reference] = {}
@@ -199,6 +202,9 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None]) -> d
     t0 = time.perf_counter()
     try:
         res = solver.solve(qp, settings, None)
+    except SolveAborted as exc:  # killed at its limit, or died (an external program)
+        return {"kind": exc.status, "time_s": time.perf_counter() - t0,
+                "message": str(exc).strip().splitlines()[0], "detail": str(exc)}
     except Exception as exc:  # a row, not a harness failure
         refused = is_refusal(exc, str(spec.params["group"]))
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,

@@ -10,12 +10,18 @@ whose handler (``harness.worker.InstanceWorker``) builds the instance's
    ``skip(traits)``, and what this job has observed);
 3. assembles the dense H at most once for the step, and only if a variant that runs
    needs it (its assembly time is added to that variant's ``build_time_s``);
-4. obtains the reference solution: from OUT/_cache/ if stored, else by running the
-   study's reference candidates in order (``harness.studies``); a reference that fails
-   its own check is not used;
+4. obtains the reference solution: from OUT/_cache/ if stored; else, with the automatic
+   reference, from the run itself when an exact solver is among the variants that run
+   (its group is solved first and its answer serves, if the judge finds it solved to
+   ``REFERENCE_MAX_KKT`` and to the tightest profile of the step -- no second solve;
+   rows name it ``label@profile`` in ``reference_solver``); else by running the study's
+   reference candidates in order (``harness.studies``); a reference that fails its own
+   check is not used;
 5. runs each (variant, profile): an untimed warm-up solve the first time the worker
-   meets the variant, then ``repeats`` timed solves, each under a hard wall-clock limit
-   enforced by killing the worker; every answer is judged by ``harness.judge.judge``.
+   meets the variant -- dropped when the solve is predicted to take longer than
+   ``RunConfig.warmup_limit`` (``predicted_seconds``; the row's ``error`` says so) --
+   then ``repeats`` timed solves, each under a hard wall-clock limit enforced by
+   killing the worker; every answer is judged by ``harness.judge.judge``.
 
 Warm starts: along a load history each solver starts from its own previous-step answer
 (``harness.sequence``) when its capabilities allow and the run asks; after a worker
@@ -35,16 +41,18 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Callable
 
+from contactbench.solvers._kit import matvec_seconds
 from contactbench.solvers.registry import load_solver
 
 from .isolation import IsolatedWorker, Outcome
 from .plan import InstanceJob, RunConfig, safe_name
 from .profiles import get_profile
 from .rows import RowFactory, answer_columns
-from .skips import Decision, SkipPolicy, skip_decision
+from .skips import Decision, SkipPolicy, extrapolated_time, skip_decision
 from .store import ResultStore
 from .studies import SolverVariant
 from .worker import (
+    REFERENCE_MAX_KKT,
     AssembleDense,
     BuildStep,
     ComputeReference,
@@ -62,6 +70,10 @@ log = logging.getLogger("contactbench")
 
 Todo = list[tuple[SolverVariant, str, list[int]]]  # (variant, profile, repeats still missing)
 
+#: Without a time model or an observed step, a solve is predicted to cost at least this
+#: many products with H (``predicted_seconds``; the warm-up rule only).
+MIN_PREDICTED_MATVECS = 20
+
 
 @dataclass
 class StepContext:
@@ -71,6 +83,8 @@ class StepContext:
     dense_time: float | None = None
     reference_solver: str = ""
     reference_path: str | None = None
+    serving: tuple[str, str] | None = None  # (label, profile) whose answer is to serve as the reference
+    serve_max_kkt: float = REFERENCE_MAX_KKT
 
     @property
     def scene_dense(self) -> bool:
@@ -175,16 +189,52 @@ class JobRunner:
     def run_step(self, ctx: StepContext, todo: Todo) -> None:
         traits = ctx.info.traits
         decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits) for v, prof, _ in todo}
-        if any(not d.skip for d in decisions.values()):
-            self.obtain_reference(ctx)
-        for v, prof, reps in todo:
+        running = [(v, prof) for v, prof, _ in todo if not decisions[(v.name, prof)].skip]
+        if running:
+            self.plan_reference(ctx, running)
+        pending = list(todo)
+        while pending:  # the group whose answer is to serve as the reference first
+            i = next((j for j, (v, prof, _) in enumerate(pending) if (v.name, prof) == ctx.serving), 0)
+            v, prof, reps = pending.pop(i)
             d = decisions[(v.name, prof)]
             if d.skip:
                 self.emit_rows(ctx, ctx.k, v, prof, reps, status="skipped", skip_reason=d.reason)
-            else:
-                self.run_group(ctx, v, prof, reps, d.operator)
+                continue
+            self.run_group(ctx, v, prof, reps, d.operator)
+            if ctx.serving == (v.name, prof) and ctx.reference_path is None:  # its answer did not serve:
+                rest = [(w, p) for w, p, _ in pending if not decisions[(w.name, p)].skip]
+                ctx.serving = self.reference_server(rest)  # the next exact solver of the run,
+                if ctx.serving is None and rest:
+                    self.obtain_reference(ctx)  # else the reference is solved, if any row is left to judge
 
     # -- the reference ----------------------------------------------------
+    def plan_reference(self, ctx: StepContext, running: list[tuple[SolverVariant, str]]) -> None:
+        """A stored reference, else a run's own answer to come (module doc, step 4), else
+        a reference solve now."""
+        server = self.reference_server(running) if self.run_cfg.reference == "auto" else None
+        names = [*self.job.reference_candidates, *([served_name(*server)] if server else [])]
+        for name in names:
+            path = self.reference_path(ctx.k, name)
+            if path.exists():
+                ctx.reference_solver, ctx.reference_path = name, str(path)
+                return
+        if server is not None:
+            ctx.serving = server
+            ctx.serve_max_kkt = min([REFERENCE_MAX_KKT] + [get_profile(prof).check_tol for _, prof in running])
+            return
+        self.obtain_reference(ctx)
+
+    def reference_server(self, running: list[tuple[SolverVariant, str]]) -> tuple[str, str] | None:
+        """The (label, profile) of the exact solver in the run whose answer is to serve as
+        the reference: the tightest profile first, then the reference candidates' order,
+        then the run's order.  None without a reference, or without an exact solver."""
+        if not self.job.reference_candidates:
+            return None
+        order = {name: i for i, name in enumerate(self.job.reference_candidates)}
+        exact = [(get_profile(prof).check_tol, order.get(v.base, len(order)), i, (v.name, prof))
+                 for i, (v, prof) in enumerate(running) if is_exact(v.base)]
+        return min(exact)[-1] if exact else None
+
     def obtain_reference(self, ctx: StepContext) -> None:
         for cand in self.job.reference_candidates:
             path = self.reference_path(ctx.k, cand)
@@ -219,7 +269,7 @@ class JobRunner:
         key = json.dumps([spec.scene, spec.instance, spec.params_json(), int(k), solver], default=str)
         digest = hashlib.sha1(key.encode("utf-8")).hexdigest()[:16]
         safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in f"{spec.scene}-{spec.instance}")[:80]
-        return self.cache_dir / f"ref-{safe}-k{k}-{solver}-{digest}.npz"
+        return self.cache_dir / f"ref-{safe}-k{k}-{safe_name(solver)[:80]}-{digest}.npz"
 
     # -- warm starts ------------------------------------------------------
     def want_warm(self, v: SolverVariant, k: int) -> bool:
@@ -248,20 +298,44 @@ class JobRunner:
     def solve_task(self, ctx: StepContext, v: SolverVariant, profile: str, operator: str, warm: bool) -> SolveTask:
         spec = self.job.spec
         arrays = self.cache_dir.parent / "arrays" / safe_name(f"{spec.scene}-{spec.instance}-{v.name}.npz")
+        serve = ctx.serving == (v.name, profile) and ctx.reference_path is None
         return SolveTask(step=ctx.k, base=v.base, params=dict(v.params), label=v.name, profile=profile,
                          operator=operator, check_tol=get_profile(profile).check_tol, time_limit=self.run_cfg.timeout,
-                         warm=warm, reference_path=ctx.reference_path, arrays_path=str(arrays))
+                         warm=warm, reference_path=ctx.reference_path, arrays_path=str(arrays),
+                         reference_out=str(self.reference_path(ctx.k, served_name(v.name, profile))) if serve else None,
+                         reference_max_kkt=ctx.serve_max_kkt)
 
-    def timed_solve(self, task: SolveTask, v: SolverVariant) -> Outcome:
-        """The untimed warm-up (first time this worker meets the variant), then the solve."""
+    def predicted_seconds(self, ctx: StepContext, v: SolverVariant, profile: str, operator: str) -> float:
+        """The predicted time of this solve: extrapolated from the variant's own finished
+        steps (``harness.skips``), else the solver's time model, else at least
+        ``MIN_PREDICTED_MATVECS`` products with H."""
+        n = ctx.info.n
+        seen = self.policy.observed.get((v.name, profile))
+        if seen:
+            return extrapolated_time(seen, n)[0]
+        try:
+            t = load_solver(v.base).time_estimate(n, operator)
+        except Exception:
+            t = None
+        return float(t) if t is not None else MIN_PREDICTED_MATVECS * matvec_seconds(n, operator)
+
+    def timed_solve(self, ctx: StepContext, task: SolveTask, v: SolverVariant) -> tuple[Outcome, str]:
+        """The untimed warm-up (first time this worker meets the variant, unless the solve
+        is predicted to be big), then the solve.  Returns (outcome, note on the warm-up)."""
         deadline = self.run_cfg.timeout * 1.1 + 1.0  # the limit plus room for the KKT check and the pipe
+        note = ""
         if self.run_cfg.warmup and (self.worker.generation, v.name) not in self.warmed:
-            w_out = self.worker.call(WarmUp(task), deadline)
-            if w_out.kind in ("timeout", "crashed"):
-                w_out.detail = "in the untimed warm-up solve: " + w_out.detail
-                return w_out
+            t = self.predicted_seconds(ctx, v, task.profile, task.operator)
+            if t > self.run_cfg.warmup_limit:
+                note = (f"no warm-up solve: predicted {t:.3g} s > {self.run_cfg.warmup_limit:g} s, so the timed "
+                        "solve includes one-time costs")
+            else:
+                w_out = self.worker.call(WarmUp(task), deadline)
+                if w_out.kind in ("timeout", "crashed"):
+                    w_out.detail = "in the untimed warm-up solve: " + w_out.detail
+                    return w_out, note
             self.warmed.add((self.worker.generation, v.name))
-        return self.worker.call(Solve(task), deadline)
+        return self.worker.call(Solve(task), deadline), note
 
     def run_group(self, ctx: StepContext, v: SolverVariant, profile: str, reps: list[int], operator: str) -> None:
         lost: tuple[str, str] | None = None  # (status, why) once a repeat timed out or crashed
@@ -276,7 +350,7 @@ class JobRunner:
                 self.emit(self.row(ctx, ctx.k, v, profile, r, status="failed",
                                    error=self._step_error or "could not prepare the step (dense H assembly failed)"))
                 continue
-            out = self.timed_solve(self.solve_task(ctx, v, profile, operator, warm=warm), v)
+            out, note = self.timed_solve(ctx, self.solve_task(ctx, v, profile, operator, warm=warm), v)
             build = self.build_times.get(ctx.k) or 0.0
             if operator == "dense" and not ctx.scene_dense:
                 build += ctx.dense_time or 0.0
@@ -285,14 +359,32 @@ class JobRunner:
                 values = answer_columns(reply, self.run_cfg.timeout)
                 if reply.kept_warm:
                     self.warm_have.add((self.worker.generation, v.name, profile, ctx.k))
+                if reply.reference_saved:  # this answer serves as the step's reference from now on
+                    ctx.reference_solver = served_name(v.name, profile)
+                    ctx.reference_path = str(self.reference_path(ctx.k, ctx.reference_solver))
             else:
                 status = {"timeout": "timeout", "crashed": "crashed"}.get(out.kind, "failed")
                 values = dict(status=status, solve_time_s=out.elapsed, warm_start=warm, error=out.detail[-2000:])
                 if status in ("timeout", "crashed"):
                     lost = (status, f"repeat {r} ended with {status}")
+            if note:  # (until the table has a column for it: harness/schema.py)
+                values["error"] = "; ".join(x for x in (values.get("error") or "", note) if x)
             row = self.row(ctx, ctx.k, v, profile, r, operator=operator, build_time_s=build, **values)
             self.policy.note((v.name, profile), ctx.k, n, row["status"], row.get("solve_time_s"), self.job.load_history)
             self.emit(row)
+
+
+def served_name(label: str, profile: str) -> str:
+    """``reference_solver`` of a run's own answer that served as the reference."""
+    return f"{label}@{profile}"
+
+
+def is_exact(base: str) -> bool:
+    """Whether solver ``base`` declares itself exact (``Capabilities.exact``)."""
+    try:
+        return bool(load_solver(base).capabilities.exact)
+    except Exception:
+        return False
 
 
 def run_instance_job(job: InstanceJob, run: RunConfig, out_dir: str | os.PathLike[str],

@@ -141,7 +141,7 @@ def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
     merged = {**record, **{k: v for k, v in previous.items() if k in ("date", "command")}}
     merged["invocations"] = invocations
     merged["warnings"] = sorted(set(previous.get("warnings", [])) | set(record.get("warnings", [])))
-    tmp = path.with_suffix(".json.tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")  # unique per writer, renamed over the file
     tmp.write_text(json.dumps(merged, indent=2, default=str), encoding="utf-8")
     os.replace(tmp, path)
     return path

@@ -36,7 +36,9 @@ class RunConfig:
     repeats           : timed solves per cell group (min and median are reported).
     timeout           : hard wall-clock limit per solve, seconds.
     warm              : warm-start along load histories where the solver supports it.
-    warmup            : one untimed solve the first time a worker meets a variant.
+    warmup            : one untimed solve the first time a worker meets a variant, unless
+                        the solve is predicted to take longer than ``warmup_limit``
+                        seconds (harness.job: a big solve is paid once).
     jobs              : instance jobs run concurrently (process pool).
     reference         : "auto", "none" or a solver name.
     reference_timeout : limit for one reference solve (None: 5 x timeout).
@@ -51,6 +53,7 @@ class RunConfig:
     timeout: float = 60.0
     warm: bool = True
     warmup: bool = True
+    warmup_limit: float = 5.0
     jobs: int = 1
     reference: str = "auto"
     reference_timeout: float | None = None
@@ -183,6 +186,7 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
     """The jobs and warnings of one study on its scene under ``cfg`` (validated)."""
     scene = get_scene(study.scene)
     merged = scene.config(cfg)
+    check_height_unit_applied(study.scene, merged, scene)
     scene.validate(merged)
     variants = tuple(study.variants(solvers, merged.extra))
     profiles = tuple(run.profiles or study.profiles)
@@ -190,6 +194,17 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
     jobs = [InstanceJob(spec, variants, profiles, bool(scene.load_history), refs, int(spec.params.get("steps") or 1))
             for spec in scene.instances(merged)]
     return jobs, [f"{study.scene}: {w}" for w in scene.warnings(merged)]
+
+
+def check_height_unit_applied(name: str, cfg: SceneConfig, scene: Any) -> None:
+    """Refuse ``--height-unit`` where a scene's recipes of a measured surface do not carry
+    it (the surface would silently be read in metres)."""
+    unit = cfg.extra.get("height_unit")
+    if unit in (None, "m"):
+        return
+    if any(s.params.get("surface_path") and s.params.get("height_unit") != unit for s in scene.instances(cfg)):
+        raise ProblemInputError(f"--height-unit {unit}: scene {name!r} does not apply a height unit to its "
+                                "surface file; convert the file to metres instead")
 
 
 def plan_run(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,

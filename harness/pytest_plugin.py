@@ -9,7 +9,9 @@ Fixtures
 ``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
 ``run_harness``       factory: run the harness into a temporary directory and return the
                       tidy table (pandas DataFrame), e.g.
-                      ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``.
+                      ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``;
+                      a measured surface's ``height_unit`` / ``allow_steep`` go in
+                      ``extra={"height_unit": "um"}``.
 """
 
 from __future__ import annotations
@@ -44,14 +46,15 @@ def run_harness(tmp_path: Any) -> Callable[..., Any]:
     def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
         from contactbench.harness.plan import RunConfig
         from contactbench.harness.runner import run_benchmark
-        from contactbench.harness.store import load_table
+        from contactbench.harness.store import RunLock, load_table
         from contactbench.problems.scenes import SceneConfig
 
         scene_keys = {"size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator", "extra"}
         cfg = SceneConfig(**{k: v for k, v in options.items() if k in scene_keys})
         run_cfg = RunConfig(progress=False, **{k: v for k, v in options.items() if k not in scene_keys})
         out_dir = out or tmp_path / "run"
-        run_benchmark(scenes, cfg, solvers, run_cfg, out_dir, command=["pytest"])
+        with RunLock(out_dir):  # one writer per results folder, as `contactbench run`
+            run_benchmark(scenes, cfg, solvers, run_cfg, out_dir, command=["pytest"])
         return load_table(out_dir)
 
     return run

@@ -46,6 +46,7 @@ from matplotlib.figure import Figure
 from contactbench.plugins import PluginRegistry
 
 from . import aggregates as agg
+from .report_style import DEFAULT_FAMILY, SolverStyles
 from .schema import COLUMNS, STATUSES, TableError, bool_series, load_table
 
 REPORT_NAME = "report.md"
@@ -89,7 +90,7 @@ class ReportContext:
     meta: dict[str, Any]
     shift: float = agg.DEFAULT_SHIFT_S
     figures: list[str] = field(default_factory=list)
-    _colors: dict[str, Any] = field(default_factory=dict)
+    _styles: SolverStyles | None = None
     _table_no: int = 0
     _fig_no: int = 0
 
@@ -103,12 +104,22 @@ class ReportContext:
     def scenes(self) -> list[str]:
         return sort_scenes(self.table["scene"].unique())
 
+    @property
+    def styles(self) -> SolverStyles:
+        """Each solver's colour and marker for the whole report (a family shares a hue;
+        harness/report_style.py)."""
+        if self._styles is None:
+            self._styles = SolverStyles(solver_families(self.table), natural_key)
+        return self._styles
+
     def color(self, solver: str) -> Any:
-        if not self._colors:
-            names = natural_sorted(self.table["solver"].astype(str).unique())
-            palette = distinct_colors(len(names))
-            self._colors.update({s: palette[i] for i, s in enumerate(names)})
-        return self._colors.get(solver.removesuffix(WARM_SUFFIX), "black")
+        return self.styles.color(solver.removesuffix(WARM_SUFFIX))
+
+    def marker(self, solver: str) -> str:
+        return self.styles.marker(solver.removesuffix(WARM_SUFFIX))
+
+    def family(self, solver: str) -> str:
+        return self.styles.family(solver.removesuffix(WARM_SUFFIX))
 
     def save_figure(self, fig: Figure, name: str) -> str:
         """Write ``figures/<name>.png`` and return the Markdown-relative path."""
@@ -198,6 +209,18 @@ def distinct_colors(k: int) -> list[Any]:
     base = [*matplotlib.colormaps["tab10"].colors, *matplotlib.colormaps["Dark2"].colors,
             *matplotlib.colormaps["Set1"].colors[:7]]
     return [base[i % len(base)] for i in range(k)]
+
+
+def solver_families(table: pd.DataFrame) -> dict[str, str]:
+    """Solver label -> its family (the first non-empty ``family`` of its rows, else
+    DEFAULT_FAMILY)."""
+    out: dict[str, str] = {}
+    for s, f in zip(table["solver"].astype(str), table["family"].astype(str)):
+        if f and not out.get(s):
+            out[s] = f
+        else:
+            out.setdefault(s, "")
+    return {s: (f or DEFAULT_FAMILY) for s, f in out.items()}
 
 
 def slug(text: str) -> str:
@@ -408,6 +431,16 @@ def new_figure(ncols: int = 1, width: float = 6.4, height: float = 4.0) -> tuple
     return fig, axes
 
 
+def grid_figure(nrows: int, ncols: int, width: float = 4.6, height: float = 3.4,
+                wspace: float = 0.30) -> tuple[Figure, list[list[Any]]]:
+    """A figure of ``nrows`` x ``ncols`` panels of ``width`` x ``height`` inches each
+    (small multiples); ``axes[i][j]``."""
+    fig = Figure(figsize=(width * ncols, height * nrows))
+    axes = [[fig.add_subplot(nrows, ncols, i * ncols + j + 1) for j in range(ncols)] for i in range(nrows)]
+    fig.subplots_adjust(wspace=wspace, hspace=0.42)
+    return fig, axes
+
+
 def integer_ticks(ax: Any, values: Iterable[float], max_ticks: int = 8) -> None:
     """Label a log x axis at the data's own integer values (e.g. N = 16, 32, 64)."""
     from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
@@ -539,8 +572,9 @@ def header_section(ctx: ReportContext) -> str:
 # ---------------------------------------------------------------------------
 
 
-def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S) -> Path:
-    """Write OUT/report.md and OUT/figures/*.png from the stored table; return the path."""
+def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: bool = True) -> Path:
+    """Write OUT/report.md and OUT/figures/*.png from the stored table, and (``html``)
+    the interactive OUT/report.html (harness/report_html.py); return report.md's path."""
     out = Path(out_dir)
     table = read_table(out)
     if table.empty:
@@ -564,6 +598,10 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S) -> Pat
             doc.append(f"## {sec.title}\n\n{sec.body}")
     path = out / REPORT_NAME
     write_atomic(path, "\n".join(d.rstrip() + "\n" for d in doc))
+    if html:
+        from .report_html import write_html_report
+
+        write_html_report(ctx)
     return path
 
 

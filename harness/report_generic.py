@@ -6,10 +6,13 @@ harness/aggregates.py), skips and failures, and one table per scene.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
 from . import aggregates as agg
+from .report_style import GREY, MAX_SERIES, Panel, family_panels, panels_note
 from .report import (
     LOG_FLOOR,
     PROFILE_PREFERENCE,
@@ -18,6 +21,7 @@ from .report import (
     attempted,
     floor_log,
     fmt_err,
+    grid_figure,
     fmt_num,
     fmt_pct,
     legend_outside,
@@ -33,6 +37,12 @@ from .report import (
 )
 
 MAX_TABLE_ROWS = 80
+
+
+def reached_accuracy(rows: pd.DataFrame) -> dict[str, float]:
+    """Solver -> median kkt_error over its solved rows (the accuracy its times bought)."""
+    ok = rows[(rows["status"] == "solved") & rows["kkt_error"].notna()]
+    return {str(k): float(v) for k, v in ok.groupby("solver")["kkt_error"].median().items()}
 MAX_FAILURE_ROWS = 40
 
 # ---------------------------------------------------------------------------
@@ -60,63 +70,91 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
              "the error in p relative to the scene's reference (right); marker shape = profile. Lines are "
              "the solver's own convergence trace (its residual, which is not the same figure as kkt_error) "
              "for one representative solve: the largest n at the tightest profile. Values below "
-             f"{LOG_FLOOR:g} are drawn at {LOG_FLOOR:g}.\n"]
+             f"{LOG_FLOOR:g} are drawn at {LOG_FLOOR:g}. Colours are fixed per solver in the whole report; a "
+             f"family shares a hue. A scene with more than {MAX_SERIES} solvers gets one row of panels per "
+             "family, the other families drawn in light grey.\n"]
     for scene in ctx.scenes():
         r = attempted(ctx.rows(scene))
         r = r[r["solve_time_s"].notna() & (r["solve_time_s"] > 0)]
         if r.empty:
             parts.append(f"### {scene}\n\nNo attempted solve with a time.\n")
             continue
-        fig, (a1, a2) = new_figure(ncols=2, width=4.8, height=3.8)
-        traced: list[str] = []
-        xs, y1, y2 = list(r["solve_time_s"]), list(floor_log(r["kkt_error"])), list(floor_log(r["p_rel_error"]))
-        for s in natural_sorted(r["solver"].unique()):
-            c = r[r["solver"] == s]
-            for prof in natural_sorted(c["profile"].unique()):
-                cp = c[c["profile"] == prof]
-                mk = _PROFILE_MARKERS.get(prof, "D")
-                for ok, face in ((True, ctx.color(s)), (False, "none")):
-                    cs = cp[(cp["status"] == "solved") == ok]
-                    for a, col in ((a1, "kkt_error"), (a2, "p_rel_error")):
-                        a.scatter(cs["solve_time_s"], floor_log(cs[col]), s=16, marker=mk, facecolors=face,
-                                  edgecolors=ctx.color(s), linewidths=0.8, alpha=0.75)
-            rep = _representative_trace_row(c)
-            if rep is not None:
-                tr = parse_trace(rep["trace"])
-                ok = (tr[:, 1] > 0) & np.isfinite(tr[:, 2])
-                a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s), alpha=0.8)
-                xs += list(tr[ok, 1])
-                y1 += list(floor_log(tr[ok, 2]))
-                traced.append(f"`{s}` ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})")
-            a1.plot([], [], ls="none", marker="s", color=ctx.color(s), label=s)
-        for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
-                natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
-            a1.plot([], [], ls="none", marker=_PROFILE_MARKERS.get(prof, "D"), color="gray", label=f"profile {prof}")
-        if (r["status"] != "solved").any():
-            a1.plot([], [], ls="none", marker="o", mfc="none", color="gray", label="hollow: not solved")
-        if traced:
-            a1.plot([], [], color="gray", lw=1.0, label="trace (own residual)")
-        for a, lab, ys in ((a1, "scaled KKT error  [-]", y1), (a2, "||p - p_ref||_inf / ||p_ref||_inf  [-]", y2)):
-            a.set_xlabel("solve time  [s]")
-            a.set_ylabel(lab)
-            a.grid(True, which="major", alpha=0.3)
-            if not np.any(np.isfinite(ys)):
-                continue  # nothing drawn here (no reference error): log axes would have no limits
-            log_if_wide(a, "x", xs)
-            if not log_if_wide(a, "y", ys, decades=0.0):
-                a.set_yscale("log")  # a single error level: still an error axis
-        if r["p_rel_error"].notna().sum() == 0:
-            a2.text(0.5, 0.5, "no reference error stored", ha="center", va="center", transform=a2.transAxes)
-        a1.set_title(f"{scene}: KKT error", fontsize=9)
-        a2.set_title(f"{scene}: error against reference", fontsize=9)
-        h, lbl = a1.get_legend_handles_labels()
-        a2.legend(h, lbl, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
+        solvers = natural_sorted(r["solver"].unique())
+        panels = family_panels(solvers, ctx.family)
+        fig, axes = grid_figure(len(panels), 2, width=4.8, height=3.5, wspace=0.35)
+        traced: dict[str, str] = {}
+        for (a1, a2), panel in zip(axes, panels):
+            _wp_panel(ctx, a1, a2, r, panel, traced)
+            if len(panels) > 1:
+                a1.set_title(f"{scene}, {panel.title}: KKT error", fontsize=9)
+                a2.set_title(f"{scene}, {panel.title}: error against reference", fontsize=9)
+            else:
+                a1.set_title(f"{scene}: KKT error", fontsize=9)
+                a2.set_title(f"{scene}: error against reference", fontsize=9)
         rel = ctx.save_figure(fig, f"wp-{scene}")
-        cap = f"run time against error, scene `{scene}` ({len(r)} solves)."
+        cap = f"run time against error, scene `{scene}` ({len(r)} solves, {len(solvers)} solvers)."
+        cap += panels_note(panels)
         if traced:
-            cap += " Traces: " + ", ".join(traced) + "."
+            cap += " Traces: " + ", ".join(traced[s] for s in solvers if s in traced) + "."
         parts.append(f"### {scene}\n\n" + ctx.figure_md(rel, cap))
     return Section("Run time against error", "\n".join(parts))
+
+
+def _wp_points(ctx: ReportContext, a1: Any, a2: Any, c: pd.DataFrame, color: Any, size: float, alpha: float,
+               hollow_failed: bool = True) -> None:
+    for prof in natural_sorted(c["profile"].unique()):
+        cp = c[c["profile"] == prof]
+        mk = _PROFILE_MARKERS.get(prof, "D")
+        for ok, face in ((True, color), (False, "none" if hollow_failed else color)):
+            cs = cp[(cp["status"] == "solved") == ok]
+            if cs.empty:
+                continue
+            for a, col in ((a1, "kkt_error"), (a2, "p_rel_error")):
+                a.scatter(cs["solve_time_s"], floor_log(cs[col]), s=size, marker=mk, facecolors=face,
+                          edgecolors=color, linewidths=0.8, alpha=alpha)
+
+
+def _wp_panel(ctx: ReportContext, a1: Any, a2: Any, r: pd.DataFrame, panel: Panel, traced: dict[str, str]) -> None:
+    """One row of the work-precision figure: every solve of the scene in grey, the
+    panel's solvers in their colours with their representative traces."""
+    others = r[~r["solver"].isin(panel.solvers)]
+    if len(others):
+        _wp_points(ctx, a1, a2, others, GREY, 8, 0.6, hollow_failed=False)
+    xs, y1, y2 = list(r["solve_time_s"]), list(floor_log(r["kkt_error"])), list(floor_log(r["p_rel_error"]))
+    for s in panel.solvers:
+        c = r[r["solver"] == s]
+        _wp_points(ctx, a1, a2, c, ctx.color(s), 16, 0.8)
+        rep = _representative_trace_row(c)
+        if rep is not None:
+            tr = parse_trace(rep["trace"])
+            ok = (tr[:, 1] > 0) & np.isfinite(tr[:, 2])
+            a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s), alpha=0.8)
+            xs += list(tr[ok, 1])
+            y1 += list(floor_log(tr[ok, 2]))
+            traced[s] = f"`{s}` ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})"
+        a1.plot([], [], ls="none", marker="s", color=ctx.color(s), label=s)
+    for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
+            natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
+        a1.plot([], [], ls="none", marker=_PROFILE_MARKERS.get(prof, "D"), color="gray", label=f"profile {prof}")
+    if (r["status"] != "solved").any():
+        a1.plot([], [], ls="none", marker="o", mfc="none", color="gray", label="hollow: not solved")
+    if panel.solvers and any(s in traced for s in panel.solvers):
+        a1.plot([], [], color="gray", lw=1.0, label="trace (own residual)")
+    if len(others):
+        a1.plot([], [], ls="none", marker="o", color=GREY, label="other families")
+    for a, lab, ys in ((a1, "scaled KKT error  [-]", y1), (a2, "||p - p_ref||_inf / ||p_ref||_inf  [-]", y2)):
+        a.set_xlabel("solve time  [s]")
+        a.set_ylabel(lab, fontsize=8)
+        a.grid(True, which="major", alpha=0.3)
+        if not np.any(np.isfinite(ys)):
+            continue  # nothing drawn here (no reference error): log axes would have no limits
+        log_if_wide(a, "x", xs)
+        if not log_if_wide(a, "y", ys, decades=0.0):
+            a.set_yscale("log")  # a single error level: still an error axis
+    if r["p_rel_error"].notna().sum() == 0:
+        a2.text(0.5, 0.5, "no reference error stored", ha="center", va="center", transform=a2.transAxes)
+    h, lbl = a1.get_legend_handles_labels()
+    a2.legend(h, lbl, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
 
 
 # ---------------------------------------------------------------------------
@@ -140,15 +178,20 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         summ = agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique()))
         cells = agg.cell_table(r, natural_sorted(r["solver"].unique()))
         parts.append(f"### {scene}\n")
+        acc = reached_accuracy(r)
         rows_t = [(s.solver, s.problems, s.attempted, s.solved, fmt_pct(s.success_rate),
                    f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims, fmt_num(s.sgm_s),
-                   fmt_num(s.sgm_rel)) for s in sorted(summ, key=lambda s: natural_key(s.solver))]
+                   fmt_num(s.sgm_rel), fmt_err(acc.get(s.solver, np.nan)))
+                  for s in sorted(summ, key=lambda s: natural_key(s.solver))]
         parts.append(table_md(ctx, f"aggregates, scene `{scene}` ({len(cells.problems)} problems; SGM shift "
-                                   f"{fmt_num(ctx.shift)} s).",
+                                   f"{fmt_num(ctx.shift)} s). A solved cell passed the profile's KKT check, but "
+                                   f"solvers stop at their own tolerances: the last column is the median "
+                                   f"kkt_error of the solver's solved cells, the accuracy its times were bought at.",
                               ["solver", "problems", "attempted", "solved", "success", "correct (rows)",
-                               "false claims", "SGM [s]", "SGM / best"], rows_t, "lrrrrrrrr"))
+                               "false claims", "SGM [s]", "SGM / best", "median kkt (solved)"], rows_t,
+                              "lrrrrrrrrr"))
         if len(cells.solvers) >= 2 and cells.problems:
-            parts.append(_profile_figure(ctx, scene, agg.performance_profile(cells)))
+            parts.append(_profile_figure(ctx, scene, agg.performance_profile(cells), {x.solver: x.sgm_s for x in summ}))
     parts.append("### All scenes\n")
     t = table
     summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
@@ -161,24 +204,53 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     return Section("Aggregates across instances", "\n".join(parts))
 
 
-def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile) -> str:
+def best_of_family(ctx: ReportContext, score: dict[str, float]) -> dict[str, str]:
+    """Family -> its solver with the smallest finite ``score`` (e.g. SGM; ties by name)."""
+    best: dict[str, str] = {}
+    for s in natural_sorted(score):
+        v = score[s]
+        if not np.isfinite(v):
+            continue
+        f = ctx.family(s)
+        if f not in best or v < score[best[f]]:
+            best[f] = s
+    return best
+
+
+def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float]) -> str:
     hi = max(2.0, prof.max_finite_ratio() * 1.5)
     taus = np.unique(np.concatenate([np.geomspace(1.0, hi, 200), *[r[np.isfinite(r)] for r in prof.ratios.values()]]))
     taus = taus[(taus >= 1.0) & (taus <= hi)]
-    fig, (ax,) = new_figure(width=6.0, height=4.0)
-    for s in prof.solvers:
-        ax.step(taus, prof.curve(s, taus), where="post", color=ctx.color(s), lw=1.5, label=s)
-    ax.set_xscale("log", base=2)
-    ax.set_xlim(1.0, hi)
-    ax.set_ylim(-0.02, 1.02)
-    ax.set_xlabel("tau: time within tau x the best solver's time  [-]")
-    ax.set_ylabel("fraction of problems solved  [-]")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(f"performance profile, {scene} ({prof.n_problems} problems)", fontsize=9)
-    legend_outside(ax, "solver")
+    panels = family_panels(list(prof.solvers), ctx.family, best_of_family(ctx, sgm))
+    ncols = 1 if len(panels) == 1 else 2
+    nrows = -(-len(panels) // ncols)
+    fig, axes = grid_figure(nrows, ncols, width=6.0 if ncols == 1 else 5.6, height=4.0 if ncols == 1 else 3.5,
+                            wspace=0.85)
+    flat = [a for row in axes for a in row]
+    curves = {s: prof.curve(s, taus) for s in prof.solvers}
+    for ax, panel in zip(flat, panels):
+        if len(panels) > 1:
+            for s in prof.solvers:
+                if s not in panel.solvers:
+                    ax.step(taus, curves[s], where="post", color=GREY, lw=0.8)
+        for s in panel.solvers:
+            ax.step(taus, curves[s], where="post", color=ctx.color(s), lw=1.5, label=s)
+        ax.set_xscale("log", base=2)
+        ax.set_xlim(1.0, hi)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("tau: within tau x the best time  [-]", fontsize=8)
+        ax.set_ylabel("fraction of problems solved  [-]", fontsize=8)
+        ax.grid(True, which="both", alpha=0.3)
+        where = "" if len(panels) == 1 else f", {panel.title}"
+        ax.set_title(f"performance profile, {scene}{where} ({prof.n_problems} problems)", fontsize=9)
+        legend_outside(ax, "solver")
+    for ax in flat[len(panels):]:
+        ax.set_visible(False)
     rel = ctx.save_figure(fig, f"pp-{scene}")
+    note = panels_note(panels).replace("best solver of each family", "best solver of each family by SGM")
     return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
-                              f"which a solver is fastest; the right end is its success share.")
+                              f"which a solver is fastest among those that pass the same KKT check; the right "
+                              f"end is its success share.{note}")
 
 
 # ---------------------------------------------------------------------------

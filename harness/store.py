@@ -9,6 +9,16 @@ Layout of a run directory ``OUT/``::
     results.csv       the same table as CSV
     meta.json         run metadata (harness/meta.py)
     _cache/           reference solutions, one file per instance-step
+    run.lock          while a run is writing: its PID, host and start time (``RunLock``)
+
+One writer per results folder: ``contactbench run`` holds ``RunLock`` on OUT for the
+whole run (an exclusive ``flock`` on OUT/run.lock, whose text names the holder).  A
+second run into a live folder is refused (``FolderInUseError``, exit 2, naming the
+holder's PID and host); a lock left by a process that is gone (same host, PID no longer
+running, or running a later process under a reused PID) is taken over with a warning.
+``report`` and ``load_table`` read without the lock: the table files are written to a
+unique temporary file in OUT and renamed over the old ones (``os.replace``), so a
+reader sees the old table or the new one, never half of one.
 
 Crash safety: a row is appended with one ``write`` under an exclusive ``flock`` and
 fsync'ed, so concurrent writers (``--jobs``, Dask workers on a shared file system) do not
@@ -19,11 +29,21 @@ row of each cell, so a cell is never counted twice.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import fcntl
 import json
+import logging
 import os
+import socket
+import time
+import uuid
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
+
+from contactbench.problems.errors import ProblemInputError
 
 import numpy as np
 import pandas as pd
@@ -33,6 +53,9 @@ from .schema import apply_schema, load_table  # noqa: F401  (re-exported: the on
 ROWS_FILE = "rows.jsonl"
 PARQUET_FILE = "results.parquet"
 CSV_FILE = "results.csv"
+LOCK_FILE = "run.lock"
+
+log = logging.getLogger("contactbench")
 
 #: Columns that identify a group of repeats (everything that names the solve but ``repeat``).
 GROUP_COLUMNS = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start", "history")
@@ -179,11 +202,205 @@ def fill_repeat_statistics(df: pd.DataFrame) -> None:
 
 
 def write_table(table: pd.DataFrame, out_dir: str | os.PathLike[str]) -> None:
-    """results.parquet and results.csv, each written to a temporary file then renamed."""
+    """results.parquet and results.csv, each written to a unique temporary file in
+    ``out_dir`` and then renamed over the old one (a reader never sees half a table,
+    and two writers never share a temporary name)."""
     out = Path(out_dir)
-    tmp_pq = out / (PARQUET_FILE + ".tmp")
-    tmp_csv = out / (CSV_FILE + ".tmp")
-    table.to_parquet(tmp_pq, index=False)
-    table.to_csv(tmp_csv, index=False)
-    os.replace(tmp_pq, out / PARQUET_FILE)
-    os.replace(tmp_csv, out / CSV_FILE)
+    replace_atomically(out / PARQUET_FILE, lambda tmp: table.to_parquet(tmp, index=False))
+    replace_atomically(out / CSV_FILE, lambda tmp: table.to_csv(tmp, index=False))
+
+
+def replace_atomically(path: Path, write: Callable[[str], Any]) -> None:
+    """``write(tmp)`` to a unique temporary file next to ``path``, fsync it, then rename
+    it over ``path``; the temporary file is removed if anything fails."""
+    tmp = str(path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"))  # (umask applies)
+    try:
+        write(tmp)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+# ---------------------------------------------------------------------------
+# One writer per results folder
+# ---------------------------------------------------------------------------
+
+
+class FolderInUseError(ProblemInputError):
+    """Another live run holds the results folder's lock (the command line exits 2)."""
+
+
+@dataclass(frozen=True)
+class LockHolder:
+    """What run.lock says of the run that holds (or held) it."""
+
+    pid: int
+    host: str
+    started: str
+    started_epoch: float = 0.0
+    command: str = ""
+
+    def describe(self) -> str:
+        return f"PID {self.pid} on host {self.host} (started {self.started or 'at an unknown time'})"
+
+    @classmethod
+    def me(cls) -> "LockHolder":
+        import sys
+
+        now = time.time()
+        started = datetime.fromtimestamp(now, timezone.utc).isoformat(timespec="seconds")
+        return cls(os.getpid(), socket.gethostname(), started, now, " ".join(sys.argv)[:500])
+
+    @classmethod
+    def parse(cls, text: str) -> "LockHolder | None":
+        try:
+            d = json.loads(text)
+            return cls(int(d["pid"]), str(d["host"]), str(d.get("started", "")), float(d.get("started_epoch", 0.0)),
+                       str(d.get("command", "")))
+        except (ValueError, KeyError, TypeError):
+            return None
+
+
+def process_state(holder: LockHolder) -> str:
+    """"running", "gone" (no such process, or a process started after the lock: a reused
+    PID) or "unknown" (another host: its processes cannot be seen from here)."""
+    if holder.host != socket.gethostname():
+        return "unknown"
+    try:
+        os.kill(holder.pid, 0)
+    except ProcessLookupError:
+        return "gone"
+    except PermissionError:
+        pass  # it exists, under another user
+    except OSError as exc:  # pragma: no cover - EINVAL etc.
+        return "gone" if exc.errno == errno.ESRCH else "running"
+    try:
+        import psutil
+
+        if holder.started_epoch and psutil.Process(holder.pid).create_time() > holder.started_epoch + 2.0:
+            return "gone"  # that PID now names a process started after the lock was written
+    except Exception:
+        pass
+    return "running"
+
+
+class RunLock:
+    """The lock of one results folder (module doc): ``with RunLock(out): ...``.
+
+    Held as an exclusive, non-blocking ``flock`` on OUT/run.lock for the whole run (the
+    kernel drops it when the process dies, however it dies), with the holder's PID, host
+    and start time written in the file for the message a second run gets.  Released by
+    removing the file; a folder the lock itself created and that stayed empty is removed
+    too (a run refused at planning leaves nothing behind)."""
+
+    def __init__(self, out_dir: str | os.PathLike[str]) -> None:
+        self.out = Path(out_dir)
+        self.path = self.out / LOCK_FILE
+        self.fd: int | None = None
+        self.created_dir = False
+        self.took_over: LockHolder | None = None
+
+    def __enter__(self) -> "RunLock":
+        return self.acquire()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()
+
+    def acquire(self) -> "RunLock":
+        if self.fd is not None:
+            return self
+        self.created_dir = not self.out.exists()
+        self.out.mkdir(parents=True, exist_ok=True)
+        try:
+            for _ in range(20):  # another process may remove or replace the file between open and flock
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+                try:
+                    if self._claim(fd):
+                        self.fd = fd
+                        _HELD.add(fd)
+                        return self
+                except BaseException:
+                    os.close(fd)
+                    raise
+                os.close(fd)
+            raise FolderInUseError(f"results folder {self.out} is in use: its lock file {self.path} keeps changing")
+        except BaseException:
+            self._remove_empty_dir()
+            raise
+
+    def _claim(self, fd: int) -> bool:
+        """Lock ``fd``, judge any previous holder, write ourselves; False: retry."""
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise
+            raise self.in_use(LockHolder.parse(os.pread(fd, 65536, 0).decode("utf-8", "replace"))) from None
+        if not self._is_current(fd):
+            return False
+        previous = LockHolder.parse(os.pread(fd, 65536, 0).decode("utf-8", "replace"))
+        if previous is not None:
+            state = process_state(previous)
+            if state != "gone":
+                raise self.in_use(previous, state)
+            log.warning("warning: taking over the lock of results folder %s left by %s, which is no longer running",
+                        self.out, previous.describe())
+            self.took_over = previous
+        data = json.dumps(asdict(LockHolder.me())).encode("utf-8")
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, data, 0)
+        os.fsync(fd)
+        return True
+
+    def _is_current(self, fd: int) -> bool:
+        try:
+            return os.fstat(fd).st_ino == os.stat(self.path).st_ino
+        except FileNotFoundError:
+            return False
+
+    def in_use(self, holder: LockHolder | None, state: str = "running") -> FolderInUseError:
+        who = holder.describe() if holder is not None else "another process"
+        if state == "unknown":
+            hint = (f"its processes cannot be checked from this host; if that run is gone, delete {self.path}, "
+                    "or choose another --out")
+        else:
+            hint = "wait for it to finish or choose another --out"
+        return FolderInUseError(f"results folder {self.out} is in use by another run: {who}; {hint}")
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        try:
+            if self._is_current(self.fd):
+                os.unlink(self.path)
+        except OSError:
+            pass
+        finally:
+            _HELD.discard(self.fd)
+            os.close(self.fd)
+            self.fd = None
+        self._remove_empty_dir()
+
+    def _remove_empty_dir(self) -> None:
+        if self.created_dir:
+            with contextlib.suppress(OSError):
+                self.out.rmdir()  # only succeeds when empty
+
+
+#: Lock descriptors held by this process: a forked child (an isolated worker, a pool
+#: process) closes its copies, so the lock lives and dies with the run itself.
+_HELD: set[int] = set()
+
+
+def _close_held_in_child() -> None:
+    for fd in list(_HELD):
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _HELD.clear()
+
+
+os.register_at_fork(after_in_child=_close_held_in_child)

@@ -36,6 +36,7 @@ from contactbench.problems.scenes import InstanceSpec
 from contactbench.solvers.base import ProblemTraits, SolveAborted, SolverSettings, WarmStart
 from contactbench.solvers.registry import load_solver
 
+from .fields import save_field
 from .isolation import PeakMemory
 from .judge import Verdict, judge
 from .profiles import get_profile
@@ -88,6 +89,8 @@ class SolveTask:
     reference_path: str | None = None
     record_warm: bool = True
     arrays_path: str | None = None  # where a wrong answer on a small instance is kept for the report
+    reference_out: str | None = None  # keep this answer as the step's reference here when it passes
+    reference_max_kkt: float = REFERENCE_MAX_KKT  # ... with a scaled KKT error at most this (harness.job)
 
 
 @dataclass(frozen=True)
@@ -176,6 +179,7 @@ class SolveReply:
     error: str = ""
     kept_warm: bool = False
     aborted: str = ""  # "timeout" / "crashed" when the solver raised SolveAborted
+    reference_saved: bool = False  # this answer was kept as the step's reference (task.reference_out)
 
 
 # ---------------------------------------------------------------------------
@@ -310,12 +314,26 @@ class InstanceWorker:
         if verdict.status != "solved":
             return ReferenceReply(msg.base, cached=False, error=f"reference {msg.base} failed its check: "
                                   f"{verdict.message() or verdict.status}", time=elapsed, kkt_error=verdict.kkt_error)
-        tmp = msg.path + f".tmp{os.getpid()}"
-        with open(tmp, "wb") as fh:
-            np.savez(fh, p=p, solver=msg.base, kkt_error=verdict.kkt_error, time=elapsed)
-        os.replace(tmp, msg.path)
-        self.refs[msg.path] = p
+        self.keep_reference(msg.path, p, msg.base, verdict.kkt_error, elapsed)
         return ReferenceReply(msg.base, cached=False, time=elapsed, kkt_error=verdict.kkt_error)
+
+    def keep_reference(self, path: str, p: np.ndarray, solver: str, kkt_error: float, elapsed: float) -> None:
+        """Store ``p`` as the step's reference answer (npz, no pickles) and hold it."""
+        tmp = path + f".tmp{os.getpid()}"
+        with open(tmp, "wb") as fh:
+            np.savez(fh, p=p, solver=solver, kkt_error=kkt_error, time=elapsed)
+        os.replace(tmp, path)
+        self.refs[path] = p
+
+    def serve_as_reference(self, task: SolveTask, p: np.ndarray, verdict: Verdict, elapsed: float) -> bool:
+        """Keep a run's own answer as the step's reference (no second solve) when the
+        judge found it solved within ``task.reference_max_kkt``; it is then its own
+        reference (p_rel_error = load_rel_error = 0)."""
+        if not task.reference_out or verdict.status != "solved" or not verdict.kkt_error <= task.reference_max_kkt:
+            return False
+        self.keep_reference(task.reference_out, p, task.label, verdict.kkt_error, elapsed)
+        verdict.figures.update(p_rel_error=0.0, load_rel_error=0.0)
+        return True
 
     def remember(self, task: SolveTask, inst: ContactInstance, p: np.ndarray, w: Any) -> bool:
         state = WarmState.of(task.step, inst, p, w)
@@ -384,7 +402,11 @@ class InstanceWorker:
         p_ref = self.reference_p(task.reference_path)
         reply.verdict = judge(inst, p, bool(res.converged), task.check_tol, p_ref=p_ref,
                               analytic_load=self.analytic(task.step).get("load"))
+        if p_ref is None:
+            reply.reference_saved = self.serve_as_reference(task, p, reply.verdict, elapsed)
         save_wrong_answer(task.arrays_path, inst, p, p_ref, reply.verdict)
+        save_field(task.arrays_path, self.spec.scene, self.spec.instance, inst, p, task.step, len(self.seq),
+                   task.label, reply.verdict.status)  # the report's field pictures (harness/fields.py)
         if task.record_warm:
             reply.kept_warm = self.remember(task, inst, p, res.w)
         return reply

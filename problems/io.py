@@ -1,17 +1,31 @@
-"""Measured height maps: reading (npy, text, x3p), writing, and cleaning.
+"""Measured height maps: reading (every format SurfaceTopography knows, plus .npy and
+text), and cleaning.
 
-Formats read by :func:`load_surface` (chosen by content, not only by extension):
+Formats read by :func:`load_surface`:
 
 * ``.npy``  -- ``numpy.load(..., allow_pickle=False)``: pickled/object arrays are refused,
-  never loaded.
+  never loaded.  The array is (rows = y, columns = x).
 * text      -- a plain matrix of numbers, one row per line; the delimiter (comma,
   semicolon, tab or white space) is detected from the first data line; ``#`` starts a
   comment; ``nan`` marks a missing point.
-* ``.x3p``  -- ISO 25178-71 (XML + binary in a zip): a small reader/writer of our own
-  (``read_x3p`` / ``write_x3p``), stdlib only.  It handles surface records ("SUR") with
-  data types D (float64), F (float32), L (int32) and I (int16), the CX/CY increments
-  (the grid spacing), the CZ increment/offset (the height scale) and an optional
-  valid-points bit mask (``bindata/valid.bin``); checksums are verified when present.
+* everything else -- through SurfaceTopography's readers (about 40 instrument formats:
+  ISO 25178-71 .x3p, Gwyddion .gwy, NetCDF .nc, MATLAB .mat, Keyence .vk4, Zygo .datx,
+  Wyko .opd, Sensofar .plu, Digital Surf .sur, Bruker .spm, Olympus .lext, Alicona
+  .al3d, ...).  The reader is chosen by the file's extension when SurfaceTopography
+  knows it (so a damaged file gets that format's own error), else by content.  Heights
+  and the lateral size are converted to metres from the file's own unit; a file with no
+  unit (.mat, .npz) is read in ``height_unit``.  SurfaceTopography indexes heights
+  [x, y]; a :class:`Surface` is [y, x] (rows = y), so maps are transposed on the way
+  in -- except bare-matrix containers (.mat, .npz), whose matrix is taken as it is,
+  like a .npy.  Refused with a clear error: non-uniform line scans, 1-D profiles,
+  multi-channel files without a chosen ``channel``, units that do not convert to
+  metres, non-square pixels.  For .x3p the MD5 checksum of the point data stated in
+  main.xml is verified (SurfaceTopography does not); this module parses no XML itself.
+
+The lateral size: a file that states its physical size (x3p, gwy, nc, most instrument
+formats) gives the spacing, so ``length`` may be omitted; when both are given they must
+agree (relative 1e-6: NetCDF stores sizes in float32) and the given length is used.
+Files that state no size (.npy, text, .mat, .npz) need ``length``.
 
 Cleaning, in this order (each step recorded in ``Surface.meta`` and, when it changes the
 data, announced by a ``UserWarning``):
@@ -20,10 +34,10 @@ data, announced by a ``UserWarning``):
    of the measured points; ``"fill-nearest"`` by its nearest measured neighbour;
    ``"fill-min"`` by the lowest measured height (never brought into contact before every
    measured point is); ``"error"`` refuses the file.  A file with no measured point is
-   always an error.
-2. Tilt (``detrend=``): ``"none"`` (default), ``"mean"`` (subtract the mean height) or
-   ``"plane"`` (subtract the least-squares mean plane z = a + b x + c y fitted to the
-   measured points).
+   always an error.  (Masked points of a SurfaceTopography channel are missing points.)
+2. Tilt (``detrend=``): ``"none"`` (default), ``"mean"`` or ``"plane"``: SurfaceTopography's
+   ``detrend("center")`` / ``detrend("height")`` (the least-squares mean plane
+   z = a + b x + c y over the grid).
 3. Square grid (``square=``): ``"crop"`` (default) keeps the central min(ny, nx) square;
    ``"pad"`` pads to max(ny, nx) with the lowest height, the data kept in the top-left
    corner; ``"error"`` refuses a non-square map.
@@ -40,12 +54,12 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
-from xml.etree import ElementTree as ET
 
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
 from .surfaces import Surface
+from .units import HEIGHT_UNITS
 
 SquareRule = Literal["crop", "pad", "error"]
 NanRule = Literal["fill-mean", "fill-nearest", "fill-min", "error"]
@@ -54,12 +68,13 @@ DetrendRule = Literal["none", "mean", "plane"]
 SQUARE_RULES = ("crop", "pad", "error")
 NAN_RULES = ("fill-mean", "fill-nearest", "fill-min", "error")
 DETREND_RULES = ("none", "mean", "plane")
-HEIGHT_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9}
 
 NPY_MAGIC = b"\x93NUMPY"
-ZIP_MAGIC = b"PK\x03\x04"
-X3P_NS = "http://www.opengps.eu/2008/ISO5436_2"
-X3P_DTYPES = {"D": "<f8", "F": "<f4", "L": "<i4", "I": "<i2"}
+TEXT_SUFFIXES = (".txt", ".csv", ".tsv")
+#: SurfaceTopography formats that hold a bare matrix: taken as (rows, columns) like a .npy.
+MATRIX_FORMATS = ("mat", "npz")
+#: Relative disagreement allowed between a given length and the file's own lateral size.
+LENGTH_RTOL = 1e-6
 
 
 class SurfaceFileError(ProblemInputError):
@@ -73,13 +88,15 @@ class SurfaceFileError(ProblemInputError):
 
 @dataclass
 class RawMap:
-    """A height map as read from a file, before cleaning: z (ny x nx, metres, NaN for
-    missing points) and the spacing the file states (None when it states none)."""
+    """A height map as read from a file, before cleaning: z (ny x nx, metres once
+    ``unit_known``, NaN for missing points) and the spacing the file states in metres
+    (None when it states none)."""
 
     z: np.ndarray
     spacing: float | None
     fmt: str
     info: dict[str, Any] = field(default_factory=dict)
+    unit_known: bool = False
 
 
 # ---------------------------------------------------------------------------
@@ -95,43 +112,49 @@ def load_surface(
     nan: NanRule = "fill-mean",
     detrend: DetrendRule = "none",
     height_unit: str = "m",
+    channel: int | str | None = None,
     name: str | None = None,
 ) -> Surface:
     """Read a measured height map and return a non-periodic :class:`Surface` in metres.
 
     ``length`` is the side length L (metres) of the final square grid, so the spacing is
-    L / N.  When None, the file's own spacing is used (.x3p); files that state no spacing
-    (.npy, text) then raise a clear error.  ``height_unit`` scales .npy/text heights
-    ("m", "mm", "um", "nm"); .x3p heights are metres by the standard.
+    L / N.  When None, the file's own lateral size is used; files that state none (.npy,
+    text, .mat) then raise a clear error; when both are given they must agree.
+    ``height_unit`` ("m", "mm", "um", "nm") scales files that carry no unit of their
+    own; ``channel`` (index or name) picks one channel of a multi-channel file.
     """
     _check_choice("square", square, SQUARE_RULES)
     _check_choice("nan", nan, NAN_RULES)
     _check_choice("detrend", detrend, DETREND_RULES)
     _check_choice("height_unit", height_unit, tuple(HEIGHT_UNITS))
     p = Path(path)
-    raw = read_height_map(p)
-    z = raw.z if raw.fmt == "x3p" else raw.z * HEIGHT_UNITS[height_unit]
+    raw = read_height_map(p, channel=channel)
+    scale = 1.0 if raw.unit_known else HEIGHT_UNITS[height_unit]
+    z = raw.z * scale
+    file_spacing = None if raw.spacing is None else raw.spacing * scale
     meta: dict[str, Any] = {"source": str(p), "format": raw.fmt, "original_shape": list(z.shape), **raw.info}
+    if not raw.unit_known:
+        meta["height_unit"] = height_unit
     z = fill_missing(z, nan, p, meta)
     z = remove_tilt(z, detrend, meta)
     z = make_square(z, square, p, meta)
-    delta = _spacing(p, z.shape[0], length, raw.spacing, meta)
+    delta = _spacing(p, z.shape[0], length, file_spacing, meta)
     return Surface(z, delta, name=name or p.stem, periodic=False, meta=meta)
 
 
-def read_height_map(path: str | Path) -> RawMap:
-    """Read the raw map of any supported format, chosen by the file's first bytes."""
+def read_height_map(path: str | Path, channel: int | str | None = None) -> RawMap:
+    """Read the raw map of any supported format (module doc)."""
     p = Path(path)
     head = _read_head(p)
-    if head.startswith(NPY_MAGIC):
+    suffix = p.suffix.lower()
+    if head.startswith(NPY_MAGIC) or suffix == ".npy":
+        _only_channel(p, channel)
         return read_npy(p)
-    if head.startswith(ZIP_MAGIC):
-        return read_x3p(p)
-    if p.suffix.lower() == ".x3p":
-        raise SurfaceFileError(p, "not a zip archive, so not an ISO 25178-71 .x3p file")
-    if p.suffix.lower() == ".npy":
-        raise SurfaceFileError(p, "not a .npy file (missing the NUMPY header); truncated or another format")
-    return read_text(p)
+    known = _topography_formats()
+    if suffix in TEXT_SUFFIXES or (suffix.lstrip(".") not in known and _looks_like_text(p)):
+        _only_channel(p, channel)
+        return read_text(p)
+    return read_with_surfacetopography(p, known.get(suffix.lstrip(".")), channel)
 
 
 def _read_head(p: Path) -> bytes:
@@ -142,8 +165,34 @@ def _read_head(p: Path) -> bytes:
         raise SurfaceFileError(p, f"unreadable path ({e.strerror or e})") from None
 
 
+def _topography_formats() -> dict[str, str | None]:
+    """File extension -> SurfaceTopography format id (None where several formats share it)."""
+    from SurfaceTopography.IO import readers
+
+    out: dict[str, str | None] = {}
+    for reader in readers:
+        for ext in getattr(reader, "_file_extensions", None) or ():
+            e = str(ext).lower()
+            out[e] = reader.format() if e not in out else None
+    return out
+
+
+def _looks_like_text(p: Path) -> bool:
+    try:
+        with open(p, "rb") as f:
+            f.read(4096).decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def _only_channel(p: Path, channel: int | str | None) -> None:
+    if channel not in (None, 0, "0"):
+        raise SurfaceFileError(p, f"has a single channel; channel {channel!r} does not exist")
+
+
 # ---------------------------------------------------------------------------
-# Readers
+# Readers of our own: .npy and text
 # ---------------------------------------------------------------------------
 
 
@@ -174,7 +223,7 @@ def read_text(path: str | Path) -> RawMap:
     try:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError:
-        raise SurfaceFileError(p, "binary content that is not .npy or .x3p, and not a text matrix") from None
+        raise SurfaceFileError(p, "binary content that is not .npy and not a text matrix") from None
     except OSError as e:
         raise SurfaceFileError(p, f"unreadable path ({e.strerror or e})") from None
     lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
@@ -224,211 +273,154 @@ def _numeric_matrix(p: Path, a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _x3p_find(root: ET.Element, path: str) -> ET.Element | None:
-    """Find a child by a '/'-separated path, ignoring XML namespaces."""
-    node: ET.Element | None = root
-    for part in path.split("/"):
-        if node is None:
-            return None
-        node = next((c for c in node if c.tag.rsplit("}", 1)[-1] == part), None)
-    return node
+
+# ---------------------------------------------------------------------------
+# Every other format: SurfaceTopography's readers
+# ---------------------------------------------------------------------------
 
 
-def _x3p_text(root: ET.Element, path: str, p: Path, default: str | None = None) -> str:
-    node = _x3p_find(root, path)
-    if node is None or node.text is None or not node.text.strip():
-        if default is not None:
-            return default
-        raise SurfaceFileError(p, f"x3p main.xml lacks {path}")
-    return node.text.strip()
+def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | None = None) -> RawMap:
+    """One channel of a file through SurfaceTopography (``fmt`` None: detect by content),
+    in metres when the file states its unit; every failure is a :class:`SurfaceFileError`."""
+    from SurfaceTopography.IO import open_topography
 
-
-def _x3p_float(root: ET.Element, path: str, p: Path, default: float | None = None) -> float:
-    txt = _x3p_text(root, path, p, None if default is None else repr(default))
+    what = fmt or "the detected format"
     try:
-        return float(txt)
-    except ValueError:
-        raise SurfaceFileError(p, f"x3p main.xml: {path} is not a number ({txt!r})") from None
+        reader = open_topography(str(p), format=fmt)
+        what = f"{reader.name()} (.{reader.format()})"
+        info = _pick_channel(p, reader, channel)
+        kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
+        topo = reader.topography(channel_index=info.index, **kw)
+        heights = np.ma.filled(np.ma.asarray(topo.heights(), dtype=np.float64), np.nan)
+    except SurfaceFileError:
+        raise
+    except Exception as e:  # the readers raise many kinds; each becomes one clear line
+        raise SurfaceFileError(p, _reader_failure(e, what)) from None
+    fmt_id = reader.format()
+    z = heights if fmt_id in MATRIX_FORMATS else heights.T
+    meta: dict[str, Any] = {"reader": f"SurfaceTopography {_st_version()}", "channel": info.name,
+                            "file_unit": topo.unit}
+    factor = _metres_per_unit(p, topo.unit)
+    spacing = None
+    if info.physical_sizes is not None:
+        spacing = _file_spacing(p, topo.physical_sizes, topo.nb_grid_pts) * (factor or 1.0)
+        meta["file_size_m" if factor else "file_size"] = [float(s) * (factor or 1.0) for s in topo.physical_sizes]
+    if fmt_id == "x3p":
+        meta.update(_x3p_checks(p, topo.info.get("raw_metadata", {})))
+    z = _numeric_matrix(p, z) * (factor or 1.0)
+    return RawMap(z, spacing, fmt_id, meta, unit_known=factor is not None)
 
 
-def read_x3p(path: str | Path) -> RawMap:
-    """ISO 25178-71 .x3p: main.xml (Record1 axes, Record3 matrix size and data link)
-    plus the binary point data (little endian, x fastest).  Heights are
-    ``CZ.Offset + CZ.Increment * value``; points flagged invalid, or NaN, are missing."""
-    p = Path(path)
-    try:
-        zf = zipfile.ZipFile(p)
-    except zipfile.BadZipFile as e:
-        raise SurfaceFileError(p, f"not a valid zip archive, so not an .x3p file ({e})") from None
-    except OSError as e:
-        raise SurfaceFileError(p, f"unreadable path ({e.strerror or e})") from None
-    with zf:
-        names = set(zf.namelist())
-        if "main.xml" not in names:
-            raise SurfaceFileError(p, f"a zip that is not x3p: no main.xml (it holds {sorted(names)[:5]})")
-        root = _parse_main_xml(p, _zip_read(zf, "main.xml", p))
-        ftype = _x3p_text(root, "Record1/FeatureType", p)
-        if ftype != "SUR":
-            raise SurfaceFileError(p, f"x3p feature type {ftype!r} is not an areal surface ('SUR')")
-        for ax in ("CX", "CY"):
-            if _x3p_text(root, f"Record1/Axes/{ax}/AxisType", p) != "I":
-                raise SurfaceFileError(p, f"x3p axis {ax} is not incremental (a point list); only gridded maps are supported")
-        dx = _x3p_float(root, "Record1/Axes/CX/Increment", p)
-        dy = _x3p_float(root, "Record1/Axes/CY/Increment", p)
-        dz = _x3p_float(root, "Record1/Axes/CZ/Increment", p, 1.0)
-        z0 = _x3p_float(root, "Record1/Axes/CZ/Offset", p, 0.0)
-        dtype = _x3p_text(root, "Record1/Axes/CZ/DataType", p)
-        if dtype not in X3P_DTYPES:
-            raise SurfaceFileError(p, f"x3p data type {dtype!r} unsupported (D, F, L, I are)")
-        nx, ny, nz = (int(_x3p_float(root, f"Record3/MatrixDimension/Size{a}", p)) for a in "XYZ")
-        if nz != 1 or nx < 1 or ny < 1:
-            raise SurfaceFileError(p, f"wrong shape: x3p matrix is {nx} x {ny} x {nz}; need one layer (SizeZ = 1)")
-        z = _x3p_points(zf, root, p, names, dtype, nx, ny)
-        valid = _x3p_valid_mask(zf, root, p, names, nx, ny)
-    z = z0 + dz * z
-    if valid is not None:
-        z[~valid] = np.nan
-    if not np.isclose(dx, dy, rtol=1e-6):
-        raise SurfaceFileError(p, f"non-square pixels (CX increment {dx:g} m, CY increment {dy:g} m); resample first")
-    info = {"x3p_data_type": dtype, "x3p_increments": [dx, dy, dz]}
-    return RawMap(_numeric_matrix(p, z), check_positive("x3p CX increment", dx), "x3p", info)
+def _reader_failure(e: Exception, what: str) -> str:
+    from SurfaceTopography.Exceptions import CannotDetectFileFormat, CorruptFile, FileFormatMismatch
+
+    msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    if isinstance(e, CannotDetectFileFormat):
+        return ("not a format contactbench reads (.npy, a text matrix) nor one SurfaceTopography "
+                "recognises (every reader tried)")
+    if isinstance(e, FileFormatMismatch):
+        return f"not a valid {what} file ({msg})"
+    if isinstance(e, CorruptFile):
+        return f"corrupt or truncated {what} file ({msg})"
+    if type(e).__name__ in ("EntitiesForbidden", "DTDForbidden", "ExternalReferenceForbidden"):
+        return f"{what}: its XML declares a DTD/entities; refused"
+    if type(e).__name__ == "ParseError":
+        return f"{what}: its XML is not well-formed ({msg})"
+    return f"{what} reader failed ({type(e).__name__}: {msg})"
 
 
-def _zip_read(zf: zipfile.ZipFile, member: str, p: Path) -> bytes:
-    try:
-        return zf.read(member)
-    except (zipfile.BadZipFile, EOFError, OSError, KeyError) as e:
-        raise SurfaceFileError(p, f"truncated or corrupt zip member {member!r} ({e})") from None
-    except Exception as e:  # zlib.error on a damaged deflate stream
-        raise SurfaceFileError(p, f"truncated or corrupt zip member {member!r} ({type(e).__name__}: {e})") from None
+def _pick_channel(p: Path, reader: Any, channel: int | str | None) -> Any:
+    """The chosen channel's info; refuses an unchosen multi-channel file, line scans and
+    profiles."""
+    chans = list(reader.channels)
+    listing = "; ".join(f"{c.index}: {c.name!r}" for c in chans)
+    if channel is None:
+        if len(chans) > 1:
+            raise SurfaceFileError(p, f"{len(chans)} channels ({listing}); choose one with --channel INDEX|NAME")
+        info = chans[0]
+    else:
+        key = str(channel)
+        hits = [c for c in chans if str(c.index) == key] or [c for c in chans if c.name == key]
+        if len(hits) != 1:
+            raise SurfaceFileError(p, f"no channel {channel!r} (it has {listing})")
+        info = hits[0]
+    if not info.is_uniform:
+        raise SurfaceFileError(p, f"channel {info.name!r} is a non-uniform line scan; need a gridded 2-D height map")
+    if info.dim != 2:
+        raise SurfaceFileError(p, f"channel {info.name!r} is a {info.dim}-D profile (line scan); need a 2-D height map")
+    return info
 
 
-def _parse_main_xml(p: Path, data: bytes) -> ET.Element:
-    if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
-        raise SurfaceFileError(p, "x3p main.xml declares a DTD/entities; refused")
-    try:
-        return ET.fromstring(data)
-    except ET.ParseError as e:
-        raise SurfaceFileError(p, f"x3p main.xml is not well-formed XML ({e})") from None
-
-
-def _x3p_points(zf: zipfile.ZipFile, root: ET.Element, p: Path, names: set[str], dtype: str,
-                nx: int, ny: int) -> np.ndarray:
-    link = _x3p_find(root, "Record3/DataLink/PointDataLink")
-    if link is None:
-        data_list = _x3p_find(root, "Record3/DataList")
-        if data_list is None:
-            raise SurfaceFileError(p, "x3p Record3 has neither a DataLink nor a DataList")
-        vals = [(d.text or "").strip() for d in data_list]
-        if len(vals) != nx * ny:
-            raise SurfaceFileError(p, f"wrong shape: DataList has {len(vals)} values, SizeX*SizeY = {nx * ny}")
-        try:
-            arr = np.array([float(v) if v else np.nan for v in vals])
-        except ValueError:
-            raise SurfaceFileError(p, "non-numeric value in the x3p DataList") from None
-        return arr.reshape(ny, nx)
-    member = (link.text or "").strip()
-    if member not in names:
-        raise SurfaceFileError(p, f"x3p point data {member!r} named in main.xml is missing from the zip")
-    raw = _zip_read(zf, member, p)
-    want = nx * ny * np.dtype(X3P_DTYPES[dtype]).itemsize
-    if len(raw) != want:
-        raise SurfaceFileError(p, f"truncated point data: {member} has {len(raw)} bytes, "
-                                  f"{nx} x {ny} values of type {dtype} need {want}")
-    md5 = _x3p_find(root, "Record3/DataLink/MD5ChecksumPointData")
-    if md5 is not None and md5.text and md5.text.strip().lower() != hashlib.md5(raw).hexdigest():
-        raise SurfaceFileError(p, f"MD5 checksum of {member} does not match main.xml (corrupt data)")
-    arr = np.frombuffer(raw, dtype=X3P_DTYPES[dtype]).astype(np.float64)
-    return arr.reshape(ny, nx)
-
-
-def _x3p_valid_mask(zf: zipfile.ZipFile, root: ET.Element, p: Path, names: set[str], nx: int,
-                    ny: int) -> np.ndarray | None:
-    link = _x3p_find(root, "Record3/DataLink/ValidPointsLink")
-    if link is None or not (link.text or "").strip():
+def _metres_per_unit(p: Path, unit: str | None) -> float | None:
+    """Metres per file unit (None: the file states no unit)."""
+    if unit is None:
         return None
-    member = link.text.strip()
-    if member not in names:
-        raise SurfaceFileError(p, f"x3p valid-points mask {member!r} named in main.xml is missing from the zip")
-    bits = np.unpackbits(np.frombuffer(_zip_read(zf, member, p), dtype=np.uint8), bitorder="little")
-    if bits.size < nx * ny:
-        raise SurfaceFileError(p, f"truncated valid-points mask: {bits.size} bits for {nx * ny} points")
-    return bits[: nx * ny].astype(bool).reshape(ny, nx)
+    from SurfaceTopography.Support.UnitConversion import get_unit_conversion_factor
+
+    try:
+        return float(get_unit_conversion_factor(unit, "m"))
+    except ValueError as e:
+        raise SurfaceFileError(p, f"unit {unit!r} cannot be converted to metres ({e})") from None
+
+
+def _file_spacing(p: Path, sizes: Any, nb: Any) -> float:
+    """The grid spacing the file states (file units); refuses non-square pixels."""
+    dx, dy = float(sizes[0]) / int(nb[0]), float(sizes[1]) / int(nb[1])
+    if not np.isclose(dx, dy, rtol=LENGTH_RTOL):
+        raise SurfaceFileError(p, f"non-square pixels (x spacing {dx:g}, y spacing {dy:g} in the file's unit); "
+                                  "resample first")
+    return check_positive("file grid spacing", dx)
+
+
+def _x3p_checks(p: Path, raw_meta: dict[str, Any]) -> dict[str, Any]:
+    """Verify the point data against the MD5 that main.xml states (read from
+    SurfaceTopography's parsed metadata); return the x3p facts kept in meta."""
+    axes = raw_meta.get("Record1", {}).get("Axes", {})
+    link = raw_meta.get("Record3", {}).get("DataLink", {})
+    member, md5 = link.get("PointDataLink"), link.get("MD5ChecksumPointData")
+    if member and md5:
+        with zipfile.ZipFile(p) as zf:
+            digest = hashlib.md5(zf.read(str(member))).hexdigest()
+        if digest.lower() != str(md5).strip().lower():
+            raise SurfaceFileError(p, f"MD5 checksum of {member} does not match main.xml (corrupt data)")
+    cz = axes.get("CZ", {})
+    incs = [axes.get(a, {}).get("Increment") for a in ("CX", "CY")] + [cz.get("Increment", 1.0)]
+    return {"x3p_data_type": cz.get("DataType"), "x3p_increments": [float(v) for v in incs if v is not None]}
+
+
+def _st_version() -> str:
+    import SurfaceTopography
+
+    return str(getattr(SurfaceTopography, "__version__", "?"))
 
 
 # ---------------------------------------------------------------------------
-# Writer (round trips, test data)
+# Writer (test data, samples): through SurfaceTopography
 # ---------------------------------------------------------------------------
 
 
-def write_x3p(path: str | Path, z: np.ndarray, spacing: float, *, data_type: str = "D",
-              z_increment: float = 1.0, spacing_y: float | None = None, comment: str = "") -> Path:
-    """Write a gridded height map (ny x nx, metres) as an ISO 25178-71 .x3p file.
+def write_topography(path: str | Path, z: np.ndarray, spacing: float, fmt: str = "x3p", **kw: Any) -> Path:
+    """Write a height map (ny x nx, metres) with SurfaceTopography's writer ``to_<fmt>``
+    (x3p, gwy, netcdf); ``kw`` go to the writer (x3p: ``dtype`` D, F, L or I)."""
+    from SurfaceTopography import Topography
 
-    Float types (D, F) store z directly (NaN for missing points); integer types (L, I)
-    store round(z / z_increment) with missing points in bindata/valid.bin.
-    """
-    if data_type not in X3P_DTYPES:
-        raise ProblemInputError(f"x3p data type must be one of {', '.join(X3P_DTYPES)}, got {data_type!r}")
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2:
-        raise ProblemInputError(f"x3p writer needs a 2-D map, got shape {z.shape}")
+        raise ProblemInputError(f"the {fmt} writer needs a 2-D map, got shape {z.shape}")
     ny, nx = z.shape
-    missing = ~np.isfinite(z)
-    if data_type in "DF":
-        inc = 1.0
-        data = (z / 1.0).astype(X3P_DTYPES[data_type]).tobytes()
-    else:
-        inc = check_positive("z_increment", z_increment)
-        info = np.iinfo(X3P_DTYPES[data_type])
-        q = np.round(np.where(missing, 0.0, z) / inc)
-        if q.min() < info.min or q.max() > info.max:
-            raise ProblemInputError(f"heights overflow x3p type {data_type} at increment {inc:g}")
-        data = q.astype(X3P_DTYPES[data_type]).tobytes()
-    valid_xml = ""
-    files: dict[str, bytes] = {"bindata/data.bin": data}
-    if missing.any() and data_type in "LI":
-        files["bindata/valid.bin"] = np.packbits(~missing.ravel(), bitorder="little").tobytes()
-        valid_xml = "<ValidPointsLink>bindata/valid.bin</ValidPointsLink>"
-    sy = spacing if spacing_y is None else spacing_y
-    cz_inc = f"<Increment>{inc!r}</Increment>" if data_type in "LI" else ""
-    xml = f"""<?xml version="1.0" encoding="UTF-8"?>
-<p:ISO5436_2 xmlns:p="{X3P_NS}">
-  <Record1>
-    <Revision>ISO5436 - 2000</Revision>
-    <FeatureType>SUR</FeatureType>
-    <Axes>
-      <CX><AxisType>I</AxisType><DataType>D</DataType><Increment>{float(spacing)!r}</Increment><Offset>0</Offset></CX>
-      <CY><AxisType>I</AxisType><DataType>D</DataType><Increment>{float(sy)!r}</Increment><Offset>0</Offset></CY>
-      <CZ><AxisType>A</AxisType><DataType>{data_type}</DataType>{cz_inc}<Offset>0</Offset></CZ>
-    </Axes>
-  </Record1>
-  <Record2>
-    <Date>2015-01-01T00:00:00</Date>
-    <Creator>contactbench problems.io.write_x3p</Creator>
-    <Instrument><Manufacturer>none</Manufacturer><Model>synthetic</Model><Serial>0</Serial><Version>1</Version></Instrument>
-    <CalibrationDate>2015-01-01T00:00:00</CalibrationDate>
-    <ProbingSystem><Type>NonContacting</Type><Identification>synthetic</Identification></ProbingSystem>
-    <Comment>{_xml_escape(comment)}</Comment>
-  </Record2>
-  <Record3>
-    <MatrixDimension><SizeX>{nx}</SizeX><SizeY>{ny}</SizeY><SizeZ>1</SizeZ></MatrixDimension>
-    <DataLink><PointDataLink>bindata/data.bin</PointDataLink><MD5ChecksumPointData>{hashlib.md5(data).hexdigest()}</MD5ChecksumPointData>{valid_xml}</DataLink>
-  </Record3>
-  <Record4><ChecksumFile>md5checksum.hex</ChecksumFile></Record4>
-</p:ISO5436_2>
-""".encode()
-    out = Path(path)
-    with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        zf.writestr("main.xml", xml)
-        zf.writestr("md5checksum.hex", f"{hashlib.md5(xml).hexdigest()} *main.xml\n")
-        for member, blob in files.items():
-            zf.writestr(member, blob)
-    return out
+    h = np.ma.masked_invalid(z.T) if np.isnan(z).any() else z.T
+    topo = Topography(h, physical_sizes=(nx * spacing, ny * spacing), unit="m")
+    writer = getattr(topo, f"to_{fmt}", None)
+    if writer is None:
+        raise ProblemInputError(f"SurfaceTopography has no writer for {fmt!r} (x3p, gwy, netcdf)")
+    writer(str(path), **kw)
+    return Path(path)
 
 
-def _xml_escape(s: str) -> str:
-    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+def write_x3p(path: str | Path, z: np.ndarray, spacing: float, *, data_type: str = "D") -> Path:
+    """An ISO 25178-71 .x3p file (SurfaceTopography's writer; integer types L, I are
+    scaled over their full range)."""
+    return write_topography(path, z, spacing, "x3p", dtype=data_type)
 
 
 def write_text(path: str | Path, z: np.ndarray, delimiter: str = ",") -> Path:
@@ -473,19 +465,22 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
 
 
 def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any]) -> np.ndarray:
-    """Subtract nothing, the mean, or the least-squares mean plane (module doc, step 2)."""
+    """Subtract nothing, the mean, or the least-squares mean plane (module doc, step 2),
+    with SurfaceTopography's detrending (on the filled map, so no point is missing)."""
     meta["detrend"] = rule
     if rule == "none":
         return z
-    if rule == "mean":
-        meta["removed_mean"] = float(z.mean())
-        return z - z.mean()
+    from SurfaceTopography import Topography
+
     ny, nx = z.shape
-    yy, xx = np.mgrid[0:ny, 0:nx].astype(np.float64)
-    A = np.column_stack([np.ones(z.size), xx.ravel(), yy.ravel()])
-    coef, *_ = np.linalg.lstsq(A, z.ravel(), rcond=None)
-    meta["removed_plane"] = {"a": float(coef[0]), "b_per_column": float(coef[1]), "c_per_row": float(coef[2])}
-    return z - (A @ coef).reshape(z.shape)
+    topo = Topography(z.T, physical_sizes=(float(nx), float(ny))).detrend(
+        detrend_mode="center" if rule == "mean" else "height")
+    coeffs = [float(c) for c in topo.coeffs]
+    if rule == "mean":
+        meta["removed_mean"] = coeffs[0]
+    else:  # coefficients of x / nx and y / ny -> per column and per row
+        meta["removed_plane"] = {"a": coeffs[0], "b_per_column": coeffs[1] / nx, "c_per_row": coeffs[2] / ny}
+    return np.asarray(topo.heights(), dtype=np.float64).T
 
 
 def make_square(z: np.ndarray, rule: SquareRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:
@@ -511,12 +506,18 @@ def make_square(z: np.ndarray, rule: SquareRule, path: str | Path, meta: dict[st
 
 
 def _spacing(path: Path, n: int, length: float | None, file_spacing: float | None, meta: dict[str, Any]) -> float:
+    """The spacing of the final N x N grid: the given length / N, else the file's own;
+    both given must agree (LENGTH_RTOL)."""
     if length is not None:
         L = check_positive("surface side length", length)
-        meta["spacing_from"] = "length argument"
+        if file_spacing is not None and not np.isclose(L, n * file_spacing, rtol=LENGTH_RTOL, atol=0.0):
+            raise SurfaceFileError(path, f"the given length {L:g} m disagrees with the file's own side length "
+                                         f"{n * file_spacing:g} m ({n} points x {file_spacing:g} m); "
+                                         "drop --length or correct it")
+        meta["spacing_from"] = "length argument" if file_spacing is None else "length argument (agrees with file)"
         return L / n
     if file_spacing is None:
-        raise SurfaceFileError(path, "the file states no grid spacing; give the side length (length=..., --length)")
+        raise SurfaceFileError(path, "the file states no lateral size; give the side length (length=..., --length)")
     meta["spacing_from"] = "file"
     return float(file_spacing)
 
@@ -535,8 +536,9 @@ __all__ = [
     "read_height_map",
     "read_npy",
     "read_text",
-    "read_x3p",
+    "read_with_surfacetopography",
     "remove_tilt",
     "write_text",
+    "write_topography",
     "write_x3p",
 ]

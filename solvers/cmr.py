@@ -222,8 +222,16 @@ class CMRSolver(Solver):
         if not power_law:
             info["warnings"] = [psd_message]
             msg = f"{msg}; WARNING: {psd_message}"
-        return Outcome(p=fine.p, iterations=sum(r.iterations for r in records), converged=bool(fine.result.converged),
-                       message=msg, w=fine.w, status=_status_of(fine.result.status), info=info)
+        converged, status = bool(fine.result.converged), _status_of(fine.result.status)
+        full_kkt = ctx.kkt(fine.p, fine.w)
+        if converged and ctx.tol is not None and not full_kkt <= ctx.tol:
+            # The base converged on the pruned trial set only: CMR does not claim the full problem.
+            converged, status = False, Status.STALLED
+            msg = (f"{msg}; the pruned problem converged, but the full problem's scaled KKT error is "
+                   f"{full_kkt:.2e} > tol {ctx.tol:.1e}: the cascade pruned points that come into contact "
+                   f"(repair=True makes it exact)")
+        return Outcome(p=fine.p, iterations=sum(r.iterations for r in records), converged=converged,
+                       message=msg, w=fine.w, status=status, info=info)
 
 
 def require_surface(qp: QP) -> Geometry:

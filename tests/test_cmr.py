@@ -281,3 +281,19 @@ def test_repair_makes_a_pruning_cascade_exact() -> None:
     p_ref = direct(inst)
     np.testing.assert_allclose(fixed.p, p_ref, rtol=1e-8, atol=1e-12 * p_ref.max())
     assert kkt_check(inst, fixed.p).kkt_error < 1e-8
+
+
+def test_cmr_claims_convergence_only_when_the_full_problem_is_solved() -> None:
+    """A base that converged on the pruned set is not a claim about the full QP: when the
+    cascade pruned points that come into contact, CMR says so (stalled, not converged);
+    with repair it is exact and claims convergence."""
+    inst = rmd_instance(N=64, H=0.5, seed=2)
+    settings = SolverSettings(tol=1e-9, params={"h": 1.0, "coarsest": 16})
+    plain = CMRSolver(BASE).solve(inst.qp, settings)
+    full = kkt_check(inst, plain.p).kkt_error
+    assert full > 1e-9  # this cascade misses contacts (the premise of the test)
+    assert not plain.converged and plain.status == "stalled"
+    assert "full problem's scaled KKT error" in plain.message
+    settings.params["repair"] = True
+    repaired = CMRSolver(BASE).solve(inst.qp, settings)
+    assert repaired.converged and kkt_check(inst, repaired.p).kkt_error <= 1e-9

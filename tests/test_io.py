@@ -46,27 +46,27 @@ def test_text_comments_and_units(tmp_path: Path) -> None:
     np.testing.assert_allclose(s.heights, np.arange(1, 10).reshape(3, 3) * 1e-6)
 
 
-@pytest.mark.parametrize("dtype,tol", [("D", 0.0), ("F", 1e-7), ("L", 0.0), ("I", 0.0)])
-def test_x3p_round_trip_each_data_type(tmp_path: Path, dtype: str, tol: float) -> None:
+@pytest.mark.parametrize("dtype", ["D", "F", "L", "I"])
+def test_x3p_round_trip_each_data_type(tmp_path: Path, dtype: str) -> None:
     z = random_map((10, 10), seed=2)
-    inc = 1e-9
-    if dtype in "LI":
-        z = np.round(z / inc) * inc  # representable exactly
-    write_x3p(tmp_path / "a.x3p", z, 2.5e-6, data_type=dtype, z_increment=inc)
-    s = load_surface(tmp_path / "a.x3p")
-    np.testing.assert_allclose(s.heights, z, rtol=tol, atol=1e-15)
-    assert s.delta == 2.5e-6  # the file's own spacing
-    assert s.meta["x3p_data_type"] == dtype
+    write_x3p(tmp_path / "a.x3p", z, 2.5e-6, data_type=dtype)
+    s = load_surface(tmp_path / "a.x3p")  # no length: the file's own lateral size
+    span = float(z.max() - z.min())
+    atol = {"D": 0.0, "F": 1e-7 * span, "L": span / 2**31, "I": span / 2**15}[dtype]
+    np.testing.assert_allclose(s.heights, z, rtol=0.0, atol=atol)
+    assert s.delta == pytest.approx(2.5e-6, rel=1e-14)
+    assert s.meta["x3p_data_type"] == dtype and s.meta["spacing_from"] == "file"
 
 
 @pytest.mark.parametrize("dtype", ["D", "I"])
 def test_x3p_missing_points_round_trip(tmp_path: Path, dtype: str) -> None:
-    z = np.round(random_map((8, 8), seed=3) / 1e-9) * 1e-9
+    z = random_map((8, 8), seed=3)
     z[2, 3] = z[5, 5] = np.nan
-    write_x3p(tmp_path / "a.x3p", z, 1e-6, data_type=dtype, z_increment=1e-9)
+    write_x3p(tmp_path / "a.x3p", z, 1e-6, data_type=dtype)
     raw = read_height_map(tmp_path / "a.x3p")
     np.testing.assert_array_equal(np.isnan(raw.z), np.isnan(z))
-    np.testing.assert_allclose(raw.z[~np.isnan(z)], z[~np.isnan(z)], atol=1e-15)
+    span = float(np.nanmax(z) - np.nanmin(z))
+    np.testing.assert_allclose(raw.z[~np.isnan(z)], z[~np.isnan(z)], atol=span / 2**15)
 
 
 def test_x3p_axis_orientation_x_fastest(tmp_path: Path) -> None:
@@ -80,10 +80,22 @@ def test_x3p_axis_orientation_x_fastest(tmp_path: Path) -> None:
     np.testing.assert_array_equal(read_height_map(tmp_path / "a.x3p").z, z)
 
 
-def test_x3p_length_overrides_file_spacing(tmp_path: Path) -> None:
+def test_length_agreeing_with_the_file_is_accepted_disagreeing_refused(tmp_path: Path) -> None:
     write_x3p(tmp_path / "a.x3p", random_map((8, 8)), 1e-6)
-    s = load_surface(tmp_path / "a.x3p", length=16e-6)
-    assert s.delta == pytest.approx(2e-6) and s.meta["spacing_from"] == "length argument"
+    s = load_surface(tmp_path / "a.x3p", length=8e-6)
+    assert s.delta == pytest.approx(1e-6) and "agrees" in s.meta["spacing_from"]
+    with pytest.raises(SurfaceFileError, match="disagrees with the file's own side length"):
+        load_surface(tmp_path / "a.x3p", length=16e-6)
+
+
+def test_file_unit_is_converted_to_metres(tmp_path: Path) -> None:
+    from SurfaceTopography import Topography
+
+    z = random_map((8, 8), seed=6) * 1e6  # micrometres
+    Topography(z.T, physical_sizes=(8.0, 8.0), unit="um").to_netcdf(str(tmp_path / "a.nc"))
+    s = load_surface(tmp_path / "a.nc")
+    np.testing.assert_allclose(s.heights, z * 1e-6, rtol=1e-15)
+    assert s.delta == pytest.approx(1e-6, rel=1e-7) and s.meta["file_unit"] in ("um", "µm")
 
 
 # --- bad files ---------------------------------------------------------------------
@@ -130,20 +142,44 @@ def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     out["empty text"] = (tmp / "empty.txt", "no data rows")
     with zipfile.ZipFile(tmp / "other.x3p", "w") as zf:
         zf.writestr("readme.txt", "hello")
-    out["zip not x3p"] = (tmp / "other.x3p", "not x3p")
+    out["zip not x3p"] = (tmp / "other.x3p", "main.xml")
     (tmp / "plain.x3p").write_text("not a zip")
-    out["x3p not a zip"] = (tmp / "plain.x3p", "not a zip")
+    out["x3p not a zip"] = (tmp / "plain.x3p", "not a valid zip")
     write_x3p(tmp / "t.x3p", random_map((6, 6)), 1e-6)
     rawx = (tmp / "t.x3p").read_bytes()
     (tmp / "trunc.x3p").write_bytes(rawx[: len(rawx) - 200])
     out["truncated x3p"] = (tmp / "trunc.x3p", "zip")
-    out["truncated x3p data"] = (_x3p_with_xml(tmp / "short.x3p", data=b"\0" * 100), "truncated point data")
+    out["truncated x3p data"] = (_x3p_with_xml(tmp / "short.x3p", data=b"\0" * 100), "truncated")
     out["x3p checksum"] = (_x3p_with_xml(tmp / "md5.x3p", data=b"\0" * 288), "MD5")
     out["x3p missing data"] = (_x3p_with_xml(tmp / "nodata.x3p", drop="bindata/data.bin"), "missing")
     out["x3p profile"] = (_x3p_with_xml(tmp / "prf.x3p", ("<FeatureType>SUR", "<FeatureType>PRF")), "'SUR'")
     out["x3p bad xml"] = (_x3p_with_xml(tmp / "xml.x3p", ("</Record1>", "")), "not well-formed")
+    out["x3p entities"] = (_x3p_with_xml(tmp / "dtd.x3p", ("<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\" ?>",
+                                                          '<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "b">]>')), "DTD")
+    out.update(topography_bad_files(tmp))
     out["unreadable path"] = (tmp / "does-not-exist.npy", "unreadable path")
     out["directory"] = (tmp, "unreadable path")
+    return out
+
+
+def topography_bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
+    """The classes SurfaceTopography's formats add: line scans, profiles, channels, units, pixels."""
+    import scipy.io
+    from SurfaceTopography import NonuniformLineScan, Topography, UniformLineScan
+
+    out: dict[str, tuple[Path, str]] = {}
+    NonuniformLineScan(np.array([0.0, 0.1, 0.5, 1.0]), np.arange(4.0)).to_netcdf(str(tmp / "nu.nc"))
+    out["non-uniform line scan"] = (tmp / "nu.nc", "non-uniform line scan")
+    UniformLineScan(np.arange(10.0), 5.0, unit="um").to_netcdf(str(tmp / "ls.nc"))
+    out["1-D profile"] = (tmp / "ls.nc", "1-D profile")
+    scipy.io.savemat(tmp / "two.mat", {"height": random_map((6, 6)), "intensity": random_map((6, 6))})
+    out["multi-channel, none chosen"] = (tmp / "two.mat", "--channel")
+    Topography(random_map((6, 6)).T, physical_sizes=(6.0, 6.0), unit="V").to_netcdf(str(tmp / "volt.nc"))
+    out["unit not convertible"] = (tmp / "volt.nc", "cannot be converted to metres")
+    Topography(random_map((6, 6)).T, physical_sizes=(6e-6, 12e-6), unit="m").to_x3p(str(tmp / "pix.x3p"))
+    out["non-square pixels"] = (tmp / "pix.x3p", "non-square pixels")
+    (tmp / "junk.bin").write_bytes(bytes(range(256)) * 4)
+    out["unknown binary"] = (tmp / "junk.bin", "nor one SurfaceTopography recognises")
     return out
 
 
@@ -227,3 +263,92 @@ def test_shipped_samples_load() -> None:
     assert power_law_check(npy).power_law
     total = sum(f.stat().st_size for f in DATA.iterdir() if f.is_file())
     assert total < 400_000
+
+
+# --- round trips across formats, through the loader the CLI uses ---------------------
+
+ROUND_TRIP_N = 32
+ROUND_TRIP_L = 64e-6
+
+
+def round_trip_surface() -> np.ndarray:
+    from contactbench.problems.surfaces import rmd_surface_n
+
+    return rmd_surface_n(ROUND_TRIP_N, 0.7, length=ROUND_TRIP_L, rms_height=1e-6, seed=3).heights
+
+
+def write_every_format(tmp: Path, z: np.ndarray) -> dict[str, Path]:
+    """The same map in each format: SurfaceTopography's writers (x3p, gwy, NetCDF) and
+    numpy/scipy (.npy, .mat), and text."""
+    import scipy.io
+
+    from contactbench.problems.io import write_topography
+
+    d = ROUND_TRIP_L / ROUND_TRIP_N
+    np.save(tmp / "s.npy", z)
+    scipy.io.savemat(tmp / "s.mat", {"heights": z})
+    write_text(tmp / "s.csv", z)
+    return {"npy": tmp / "s.npy", "mat": tmp / "s.mat", "text": tmp / "s.csv",
+            "x3p": write_topography(tmp / "s.x3p", z, d, "x3p"),
+            "gwy": write_topography(tmp / "s.gwy", z, d, "gwy"),
+            "netcdf": write_topography(tmp / "s.nc", z, d, "netcdf")}
+
+
+def exact_sweep(path: Path, length: float | None) -> list[np.ndarray]:
+    """The exact contact pressures of a 2-step paper-sweep on ``path`` (the scene's own
+    loading: problems/scenes/core.surface_from_params -> problems/io.load_surface)."""
+    from contactbench.problems.lcp import exact_solution
+    from contactbench.problems.scenes import SceneConfig, get_scene
+
+    scene = get_scene("paper-sweep")
+    cfg = scene.config(SceneConfig(surface_path=str(path), length=length, steps=2))
+    (spec,) = scene.instances(cfg)
+    seq = scene.build(spec)
+    out = []
+    for k in range(len(seq)):
+        qp = seq.at(k).qp
+        out.append(exact_solution(qp.H.to_dense(), qp.ubar).p)
+    return out
+
+
+def test_every_format_round_trips_heights_size_and_contact_solution(tmp_path: Path) -> None:
+    z = round_trip_surface()
+    files = write_every_format(tmp_path, z)
+    reference = exact_sweep(files["npy"], ROUND_TRIP_L)
+    for fmt, path in files.items():
+        states_size = fmt in ("x3p", "gwy", "netcdf")
+        s = load_surface(path, None if states_size else ROUND_TRIP_L)
+        np.testing.assert_allclose(s.heights, z, rtol=1e-15, atol=0.0, err_msg=fmt)
+        assert s.length == pytest.approx(ROUND_TRIP_L, rel=1e-7), fmt  # NetCDF stores sizes in float32
+        # the same contact solution as the .npy original, to round-off (the length given,
+        # so the float32 size of NetCDF does not enter)
+        for p, p_ref in zip(exact_sweep(path, ROUND_TRIP_L), reference):
+            np.testing.assert_allclose(p, p_ref, rtol=1e-12, atol=1e-12 * float(np.max(p_ref)), err_msg=fmt)
+
+
+def test_mat_channel_is_chosen_by_name_or_index(tmp_path: Path) -> None:
+    import scipy.io
+
+    z, w = random_map((6, 6), seed=8), random_map((6, 6), seed=9)
+    scipy.io.savemat(tmp_path / "two.mat", {"height": z, "intensity": w})
+    np.testing.assert_array_equal(load_surface(tmp_path / "two.mat", 6e-6, channel="intensity").heights, w)
+    names = [load_surface(tmp_path / "two.mat", 6e-6, channel=i).meta["channel"] for i in (0, 1)]
+    assert sorted(names) == ["height", "intensity"]
+    with pytest.raises(SurfaceFileError, match="no channel 'depth'"):
+        load_surface(tmp_path / "two.mat", 6e-6, channel="depth")
+
+
+def test_cli_runs_a_gwy_file_without_length(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.harness import cli
+    from contactbench.harness.schema import load_table
+
+    path = write_every_format(tmp_path, round_trip_surface())["gwy"]
+    out = tmp_path / "run"
+    rc = cli.main(["run", "paper-sweep", "--surface", str(path), "--steps", "2", "--solvers", "nnls",
+                   "--reference", "none", "--no-progress", "--no-warmup", "--out", str(out)])
+    assert rc == 0, capsys.readouterr().err
+    table = load_table(out)
+    assert len(table) == 2 and set(table["solver"]) == {"nnls"}
+    rc = cli.main(["run", "paper-sweep", "--surface", str(path), "--length", "1e-3", "--steps", "2",
+                   "--solvers", "nnls", "--out", str(tmp_path / "bad")])
+    assert rc == 2 and "disagrees" in capsys.readouterr().err

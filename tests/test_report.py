@@ -494,3 +494,46 @@ def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
     assert f"Wrong answers claimed as converged: {', '.join(f'`{s}`' for s in wrong)}." in section
     assert "## Stress battery" not in rp.build_report(write_out(tmp_path / "plain", df[df["scene"] == "hertz"])) \
         .read_text()
+
+
+def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_path: Path,
+                                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """33 solvers in six families (one registered from outside with family "other"): every
+    panel of every figure draws at most 10 solvers, Fig. 4 draws the outside solver, and
+    the reading names the accuracy beside every "fastest"."""
+    from contactbench.harness.report_style import MAX_SERIES
+
+    rng = np.random.default_rng(5)
+    fams = ["paper"] * 10 + ["fast"] * 6 + ["qp"] * 11 + ["wrapper"] * 4 + ["reference", "other"]
+    solvers = {f"{f}-s{i}": f for i, f in enumerate(fams)}
+    rows = []
+    for k in range(4):
+        for s, f in solvers.items():
+            t = 1e-3 * (k + 1) * (1 + 10 * rng.random())
+            rows.append(_row(scene="paper-sweep", instance="i0", step=k, n=100 * (k + 1), N=64, solver=s, family=f,
+                             profile="high", solve_time_s=t, dim_load=1e-4 * (k + 1), trace=_trace(t),
+                             kkt_error=10 ** rng.uniform(-12, -9), warm_start=False))
+    out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    seen: dict[str, list[int]] = {}
+    real_save = rp.ReportContext.save_figure
+
+    def spy(self: rp.ReportContext, fig: Any, name: str) -> str:
+        counts = []
+        for ax in fig.axes:
+            _, labels = ax.get_legend_handles_labels()
+            counts.append(len({lab.removesuffix(" (warm)") for lab in labels} & set(solvers)))
+        seen[name] = counts
+        return real_save(self, fig, name)
+
+    monkeypatch.setattr(rp.ReportContext, "save_figure", spy)
+    text = rp.build_report(out, html=False).read_text()
+    assert {"fig4-paper-sweep", "wp-paper-sweep", "pp-paper-sweep"} <= set(seen)
+    for name, counts in seen.items():
+        assert max(counts, default=0) <= MAX_SERIES, (name, counts)
+    for name in ("fig4-paper-sweep", "wp-paper-sweep", "pp-paper-sweep"):
+        assert sum(seen[name]) >= len(solvers), name  # every solver drawn in colour somewhere
+    fig4 = text.split("### Fig. 4")[1].split("**Reading.**")[0]
+    assert "other (1)" in fig4 and "light grey" in fig4
+    reading = text.split("### Fig. 4")[1].split("**Reading.**")[1].split("\n")[0]
+    assert re.search(r"fastest solver over the whole sweep here is `[^`]+` with [0-9.]+ s at worst kkt \d\.\de-\d+",
+                     reading)

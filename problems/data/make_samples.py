@@ -36,8 +36,8 @@ def measured_like(n: int, hurst: float, length: float, rms: float, seed: int, ro
 def main() -> None:
     # 10x-like: roll-off plateau below q = 2 pi / (L/8); float32 x3p with NaN dropouts.
     z10 = measured_like(128, 0.6, 1.0e-3, 2.0e-6, seed=10, rolloff=1 / 8, tilt=2e-4, noise=2e-8, dropout=0.01)
-    write_x3p(HERE / "solar-10x-like.x3p", z10, 1.0e-3 / 128, data_type="F",
-              comment="synthetic, measured-like: spectral H=0.6 with roll-off at L/8, tilt, noise, dropouts")
+    # synthetic, measured-like: spectral H=0.6 with roll-off at L/8, tilt, noise, dropouts
+    write_x3p(HERE / "solar-10x-like.x3p", z10, 1.0e-3 / 128, data_type="F")
     # 100x-like: pure power law, non-square 96 x 128 (rows x columns), float64 .npy.
     z100 = measured_like(128, 0.6, 1.3e-4, 0.5e-6, seed=100, rolloff=None, tilt=5e-4, noise=5e-9,
                          dropout=0.005, ny=96)

@@ -20,6 +20,7 @@ from ..instances import (
     paper_max_displacement,
 )
 from ..surfaces import Surface, rmd_surface_n
+from ..units import check_height_unit, check_plausible_units
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of, validate_each
 
@@ -32,7 +33,8 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
     if params.get("surface_path"):
         from ..io import load_surface  # measured height maps (issue: real surfaces)
 
-        return load_surface(params["surface_path"], length=params.get("length"))
+        return load_surface(params["surface_path"], length=params.get("length"), channel=params.get("channel"),
+                            height_unit=str(params.get("height_unit", "m")))
     return rmd_surface_n(
         int(params["size"]),
         float(params["hurst"]),
@@ -58,6 +60,15 @@ def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> L
         return builder.build(ds[k], meta={"step": k})
 
     return LoadSequence(spec.instance, ds, factory, surface=surface)
+
+
+def checked_units(spec: InstanceSpec, surface: Surface, cfg: SceneConfig) -> Surface:
+    """A measured surface within the small-slope range (``problems.units``), unless the
+    run says ``--allow-steep``; generated surfaces are the scene's own and not checked."""
+    if spec.params.get("surface_path") and not cfg.extra.get("allow_steep"):
+        read_in = surface.meta.get("height_unit")  # absent: the file stated its own unit
+        check_plausible_units(surface, None if read_in is None else str(read_in))
+    return surface
 
 
 def check_relief(surface: Surface) -> Surface:
@@ -89,7 +100,7 @@ class RampScene(Scene):
         return ramp_sequence(spec, *self.loads(spec))
 
     def validate(self, cfg: SceneConfig) -> None:
-        validate_each(self.instances(cfg), self.loads)
+        validate_each(self.instances(cfg), lambda spec: checked_units(spec, self.loads(spec)[0], cfg))
 
 
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
@@ -107,7 +118,12 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
     }
     if cfg.surface_path:
         name = str(cfg.surface_path).replace("/", "_")
-        return [InstanceSpec(scene, f"file-{name}", {**base, "surface_path": cfg.surface_path, "seed": 0})]
+        file_params = {**base, "surface_path": cfg.surface_path, "seed": 0}
+        if cfg.extra.get("channel") is not None:
+            file_params["channel"] = cfg.extra["channel"]
+        if cfg.extra.get("height_unit") not in (None, "m"):  # (absent = metres: older cell ids unchanged)
+            file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
+        return [InstanceSpec(scene, f"file-{name}", file_params)]
     bc = "per" if cfg.periodic else "np"
     return [
         InstanceSpec(scene, f"rmd-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}", {**base, "seed": int(s)})
@@ -130,7 +146,8 @@ class PaperSweep(RampScene):
     def config(self, cfg: SceneConfig | None) -> SceneConfig:
         merged = super().config(cfg)
         if cfg is not None and cfg.surface_path and cfg.length is None:
-            # A measured file keeps its own spacing (x3p) unless the user gives --length.
+            # A measured file keeps its own lateral size (x3p, gwy, nc, ...) unless --length is given
+            # (problems/io.py refuses a --length that disagrees with the file).
             merged = replace(merged, length=None)
         return merged
 

@@ -1,0 +1,224 @@
+"""``report.html``: the interactive page beside report.md -- one self-contained file that
+opens offline (plotly.js and the page's own script inlined).
+
+Why Plotly.  Measured on this machine: the inlined plotly.js is 4.8 MB, Bokeh's full
+inline bundle 3.9 MB (about 2 MB for core + widgets + tables), and Vega-Lite needs
+either a CDN or the vl-convert binary to inline its scripts.  Bokeh would save about
+2.5 MB, but every cross-figure filter (solver picker, family toggles, scene and profile
+filters acting on every chart at once) would need one CustomJS callback per model; with
+Plotly the page keeps one data table and redraws each chart with ``Plotly.react`` from
+a few lines of plain JavaScript, hover templates and log axes are built in, and the
+results/paper page renders in well under the 3 s budget (docs/report.md has the
+numbers).  The Python ``plotly`` package is used only for ``get_plotlyjs()``.
+
+The page holds the table's attempted rows (instance, step, n, kkt_error, p error,
+load error, time, iterations, status for the hover) and draws from them, for every
+scene present: Fig. 4 / 6 and the CMR figures (time against load), Fig. 5 (time
+against n), the counterexample's violation shares, work-precision (kkt_error and p
+error against time), the performance profiles and the sortable shifted-geometric-mean
+table; then the load-area curve and the convergence traces per family; and, as images,
+the static figures that have no interactive twin (the fields, the counterexample case,
+the closed-form checks).  Colours are the report's (``ctx.styles``).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from . import aggregates as agg
+from .report import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_json, parse_trace, \
+    write_atomic
+from .report_fields import load_area_points
+from .report_page_script import PAGE_SCRIPT
+from .report_style import sort_families
+
+HTML_NAME = "report.html"
+#: Static figures embedded as images (they have no interactive twin on the page).
+EMBED_PREFIXES = ("field-", "counterexample-case-", "analytic-", "fig8-", "fig9-", "load-area")
+
+
+def _num(v: Any) -> float | None:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _k_of(params: Any) -> float | None:
+    p = parse_json(params, {})
+    return _num(p.get("K")) if isinstance(p, dict) else None
+
+
+def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
+    """The attempted rows, one dict each, with short keys (the page's data table)."""
+    t = attempted(ctx.table)
+    warm = t.groupby(["scene", "solver", "profile", "history"])["warm_start"].transform("any").astype(bool)
+    out = []
+    for (_, r), w in zip(t.iterrows(), warm):
+        out.append(dict(sc=r["scene"], inst=r["instance"], st=_num(r["step"]), n=_num(r["n"]), so=r["solver"],
+                        lab=f"{r['solver']}{WARM_SUFFIX}" if w else r["solver"], fa=ctx.family(r["solver"]),
+                        pr=r["profile"], stt=r["status"], kkt=_num(r["kkt_error"]), perr=_num(r["p_rel_error"]),
+                        lerr=_num(r["load_rel_error"]), t=_num(r["solve_time_s"]), it=_num(r["iterations"]),
+                        dl=_num(r["dim_load"]), cf=_num(r["contact_fraction"]), K=_k_of(r["params"]),
+                        base=r["base_solver"]))
+    out.sort(key=lambda d: (d["sc"], natural_key(d["so"]), d["pr"], natural_key(d["inst"]), d["st"] or 0))
+    return out
+
+
+def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Per scene: the performance profile curves and the aggregate (SGM) table."""
+    pp: dict[str, Any] = {}
+    sgm: dict[str, Any] = {}
+    for scene in ctx.scenes():
+        r = ctx.rows(scene)
+        solvers = natural_sorted(r["solver"].unique())
+        summ = agg.summarize(r, ctx.shift, solvers)
+        ok = r[(r["status"] == "solved") & r["kkt_error"].notna()]
+        acc = ok.groupby("solver")["kkt_error"].median()
+        sgm[scene] = {"columns": ["solver", "family", "solved", "attempted", "success", "SGM [s]", "SGM / best",
+                                  "median kkt (solved)", "false claims"],
+                      "rows": [[s.solver, ctx.family(s.solver), s.solved, s.attempted, _num(s.success_rate),
+                                _num(s.sgm_s), _num(s.sgm_rel), _num(acc.get(s.solver)), s.false_claims]
+                               for s in summ]}
+        cells = agg.cell_table(r, solvers)
+        if len(cells.solvers) >= 2 and cells.problems:
+            prof = agg.performance_profile(cells)
+            hi = max(2.0, prof.max_finite_ratio() * 1.5)
+            taus = np.unique(np.concatenate([np.geomspace(1.0, hi, 120),
+                                             *[x[np.isfinite(x)] for x in prof.ratios.values()]]))
+            taus = taus[(taus >= 1.0) & (taus <= hi)]
+            pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
+                         "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}
+    return pp, sgm
+
+
+def trace_data(ctx: ReportContext) -> dict[str, Any]:
+    """The representative trace of every solver (largest n, tightest profile) in the
+    first scene with traces (as the Markdown report's trace figure)."""
+    t = attempted(ctx.table)
+    t = t[t["trace"].str.len() > 2]
+    if t.empty:
+        return {}
+    scene = ctx.scenes()[[s in set(t["scene"]) for s in ctx.scenes()].index(True)]
+    t = t[t["scene"] == scene]
+    rank = {p: i for i, p in enumerate(("high", "mid", "default", "low"))}
+    t = t.assign(_pr=t["profile"].map(lambda p: rank.get(p, 9)))
+    t = t.sort_values(["n", "_pr", "instance", "step"], ascending=[False, True, True, True], kind="stable")
+    out = {}
+    for s, g in t.groupby("solver", sort=False):
+        row = g.iloc[0]
+        tr = parse_trace(row["trace"])
+        ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
+        out[s] = {"it": tr[ok, 0].tolist(), "t": tr[ok, 1].tolist(), "r": tr[ok, 2].tolist(),
+                  "where": f"{row['instance']} step {int(row['step'])} ({row['profile']})"}
+    return {"scene": scene, "solvers": out}
+
+
+def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:
+    out, seen = [], set()
+    for scene in ctx.scenes():
+        rows = ctx.rows(scene)
+        if rows["delta"].isna().all():
+            continue
+        pts = load_area_points(rows)
+        for inst in natural_sorted(pts["instance"].unique()):
+            pi = pts[pts["instance"] == inst].sort_values("step")
+            if inst in seen or len(pi) < 2:
+                continue
+            seen.add(inst)
+            out.append({"scene": scene, "instance": inst, "x": pi["dim_load"].tolist(), "y": pi["area"].tolist(),
+                        "step": pi["step"].tolist()})
+    return out
+
+
+def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:
+    out = []
+    for rel in ctx.figures:
+        name = Path(rel).name
+        if name.startswith(EMBED_PREFIXES):
+            data = base64.b64encode((ctx.out_dir / rel).read_bytes()).decode("ascii")
+            out.append({"name": name, "src": f"data:image/png;base64,{data}"})
+    return out
+
+
+def page_data(ctx: ReportContext) -> dict[str, Any]:
+    t = ctx.table
+    fams = sort_families(ctx.family(s) for s in t["solver"].unique())
+    pp, sgm = profiles_and_sgm(ctx)
+    return {
+        "title": str(ctx.meta.get("suite") or ", ".join(ctx.scenes())),
+        "scenes": ctx.scenes(),
+        "profiles": natural_sorted(set(attempted(t)["profile"])),
+        "families": [{"name": f, "solvers": [{"name": s, "color": ctx.styles.hex(s)} for s in
+                                             natural_sorted(x for x in t["solver"].unique() if ctx.family(x) == f)]}
+                     for f in fams],
+        "rows": page_rows(ctx),
+        "pp": pp,
+        "sgm": sgm,
+        "traces": trace_data(ctx),
+        "loadarea": load_area_data(ctx),
+        "images": embedded_images(ctx),
+    }
+
+
+def _json_for_script(obj: Any) -> str:
+    """JSON safe inside <script> (no '</' sequence)."""
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+
+
+def render_html(ctx: ReportContext) -> str:
+    from plotly.offline import get_plotlyjs
+
+    data = page_data(ctx)
+    title = html.escape(f"contactbench report: {data['title']}")
+    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\n"
+            f"<style>{PAGE_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
+            f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
+            f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "
+            f"profiles; hover a point for its instance, step, n, errors, time, iterations and status; click a "
+            f"table header to sort.</p></header>\n"
+            f"<div id=\"layout\"><nav id=\"picker\"></nav><main id=\"charts\"></main></div>\n"
+            f"<script id=\"report-data\" type=\"application/json\">{_json_for_script(data)}</script>\n"
+            f"<script>{PAGE_SCRIPT}</script>\n</body></html>\n")
+
+
+def write_html_report(ctx: ReportContext) -> Path:
+    """Write OUT/report.html (atomically); returns its path."""
+    path = ctx.out_dir / HTML_NAME
+    write_atomic(path, render_html(ctx))
+    return path
+
+
+PAGE_CSS = """
+body{font-family:system-ui,sans-serif;margin:0;color:#222}
+header{padding:8px 16px;border-bottom:1px solid #ddd}
+header h1{font-size:1.2em;margin:4px 0}
+header p{margin:4px 0;font-size:.85em;color:#555}
+#layout{display:flex;align-items:flex-start}
+#picker{width:260px;flex:none;padding:8px 12px;font-size:.8em;position:sticky;top:0;max-height:100vh;overflow:auto;
+ border-right:1px solid #ddd}
+#picker fieldset{border:1px solid #ddd;margin:0 0 8px 0;padding:4px 8px}
+#picker label{display:block;white-space:nowrap}
+#picker .fam{font-weight:bold;margin-top:4px}
+#picker .sw{display:inline-block;width:10px;height:10px;margin-right:4px;border-radius:2px}
+#charts{flex:1;padding:8px 16px;min-width:0}
+.scene{margin-bottom:24px}
+.scene h2{font-size:1.05em;border-bottom:1px solid #eee}
+.chart{width:100%;height:420px}
+.grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(520px,1fr));gap:8px}
+table.sgm{border-collapse:collapse;font-size:.8em;margin:8px 0}
+table.sgm th,table.sgm td{border:1px solid #ddd;padding:2px 6px;text-align:right}
+table.sgm th{cursor:pointer;background:#f6f6f6}
+table.sgm td:first-child,table.sgm td:nth-child(2){text-align:left}
+img.static{max-width:100%;border:1px solid #eee}
+.hidden{display:none}
+"""

@@ -1,0 +1,225 @@
+"""Writing a scene's QPs out: every (instance, step) of a scene, for outside QP tools.
+
+Three formats (``contactbench export SCENE ... --format F --out DIR``):
+
+* ``problem-dir`` -- one directory per QP in the external-solver problem format
+  (``problems/qpfile.py``, ``contactbench-qp/1``), written by its ``write_problem_dir``:
+  ``DIR/<name>/problem.json`` + raw arrays.
+* ``hdf5`` -- ``DIR/problems.h5`` (needs h5py): one group per QP holding exactly the
+  arrays of its problem directory (``ubar``, ``index``, ``H``, ``kernel_table``) as
+  datasets and its ``problem.json`` as the group attribute ``problem_json``.  It is
+  packed from the problem directory, so there is one writer of the format.
+* ``qpbenchmark`` -- ``DIR/<scene>.parquet`` in qpbenchmark's ``ProblemList`` layout
+  (columns P, q, G, h, A, b, lb, ub, name; matrices flattened row-major, absent
+  entries null), with P = H (dense), q = -ubar, lb = 0 and no other constraint, so
+  ``qpbenchmark.ParquetTestSet`` reads it as is.
+
+Every QP is named ``<instance>-step<k>`` (characters other than letters, digits and
+``._-`` replaced by ``_``).  The dense H is written only for n <= ``dense_limit``
+(default ``qpfile.DENSE_LIMIT``, 4096: 128 MiB per matrix); above it problem-dir and
+hdf5 keep the FFT kernel table only and qpbenchmark (which needs P) skips the QP.
+``DIR/manifest.json`` lists every QP -- name, scene, instance, step, n, far-field
+displacement, objective-free facts -- and every skip with its reason; the summary line
+says what was skipped.  A step with no unknown (n = 0) is skipped too.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+
+from .errors import ProblemInputError
+from .instances import ContactInstance
+from .qpfile import DENSE_LIMIT, read_problem_dir, write_problem_dir
+
+FORMATS = ("problem-dir", "hdf5", "qpbenchmark")
+#: qpbenchmark's ProblemList columns, in its order.
+QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
+
+
+@dataclass
+class ExportedQP:
+    """One manifest entry."""
+
+    name: str
+    scene: str
+    instance: str
+    step: int
+    n: int
+    delta: float | None
+    dense_H: bool
+
+
+@dataclass
+class ExportSummary:
+    """What an export wrote and skipped."""
+
+    scene: str
+    fmt: str
+    out: str
+    dense_limit: int
+    written: list[ExportedQP] = field(default_factory=list)
+    skipped: list[dict[str, Any]] = field(default_factory=list)
+
+    def line(self) -> str:
+        no_dense = sum(1 for q in self.written if not q.dense_H)
+        text = f"exported {len(self.written)} QPs of {self.scene} as {self.fmt} to {self.out}"
+        if no_dense:
+            text += f"; dense H left out of {no_dense} (n > {self.dense_limit}: kernel table only)"
+        if self.skipped:
+            text += f"; skipped {len(self.skipped)} (" + "; ".join(sorted({s['reason'] for s in self.skipped})) + ")"
+        return text
+
+
+def problem_name(instance: str, step: int) -> str:
+    """The exported name of one QP: ``<instance>-step<k>``, file-name safe."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", f"{instance}-step{step}")
+
+
+def scene_steps(scene_name: str, cfg: Any) -> Iterator[tuple[str, int, ContactInstance]]:
+    """(instance name, step, instance) of every QP of a scene under ``cfg`` (a
+    ``SceneConfig``; validated first, as the planner does)."""
+    from .scenes import get_scene
+
+    scene = get_scene(scene_name)
+    merged = scene.config(cfg)
+    scene.validate(merged)
+    for spec in scene.instances(merged):
+        seq = scene.build(spec)
+        for k in range(len(seq)):
+            yield spec.instance, k, seq.at(k)
+
+
+def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_limit: int | None = None,
+                 tol: float | None = None) -> ExportSummary:
+    """Write every (instance, step) QP of a scene in ``fmt`` under ``out`` (module doc)."""
+    if fmt not in FORMATS:
+        raise ProblemInputError(f"export format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    limit = DENSE_LIMIT if dense_limit is None else int(dense_limit)
+    if fmt == "hdf5":
+        h5py = require_h5py()
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = ExportSummary(scene_name, fmt, str(out_dir), limit)
+    rows: dict[str, list[Any]] = {k: [] for k in QPBENCHMARK_KEYS}
+    h5 = h5py.File(out_dir / "problems.h5", "w") if fmt == "hdf5" else None
+    try:
+        for instance, k, inst in scene_steps(scene_name, cfg):
+            name = problem_name(instance, k)
+            entry = ExportedQP(name, scene_name, instance, k, inst.n, _finite(inst.delta), inst.n <= limit)
+            if inst.n == 0:
+                summary.skipped.append({"name": name, "n": 0, "reason": "no unknown (n = 0)"})
+                continue
+            if fmt == "qpbenchmark" and inst.n > limit:
+                summary.skipped.append({"name": name, "n": inst.n, "reason": f"n > dense limit {limit} (P must be dense)"})
+                continue
+            if fmt == "problem-dir":
+                write_problem_dir(inst, out_dir / name, tol=tol, time_limit=None, dense_limit=limit)
+            elif fmt == "hdf5":
+                write_hdf5_group(h5, name, inst, tol=tol, dense_limit=limit)
+            else:
+                append_qpbenchmark_row(rows, name, inst)
+            summary.written.append(entry)
+    finally:
+        if h5 is not None:
+            h5.close()
+    if fmt == "qpbenchmark":
+        write_parquet(rows, out_dir / f"{re.sub(r'[^A-Za-z0-9._-]', '_', scene_name)}.parquet")
+    write_manifest(summary, out_dir / "manifest.json")
+    return summary
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def require_h5py() -> Any:
+    try:
+        import h5py
+    except ImportError:
+        raise ProblemInputError("--format hdf5 needs h5py, which is not installed (pip install h5py); "
+                                "problem-dir needs nothing") from None
+    return h5py
+
+
+def write_hdf5_group(h5: Any, name: str, inst: ContactInstance, *, tol: float | None, dense_limit: int) -> None:
+    """One QP as an HDF5 group: its problem directory's arrays and problem.json."""
+    with tempfile.TemporaryDirectory() as tmp:
+        d = write_problem_dir(inst, Path(tmp) / "qp", tol=tol, time_limit=None, dense_limit=dense_limit)
+        doc = (d / "problem.json").read_text()
+        pf = read_problem_dir(d)
+        g = h5.create_group(name)
+        g.attrs["problem_json"] = doc
+        for key in json.loads(doc)["arrays"]:
+            g.create_dataset(key, data=getattr(pf, key) if hasattr(pf, key) else pf.extra[key])
+
+
+def read_hdf5_problem(path: str | Path, name: str) -> Any:
+    """A QP group of ``problems.h5`` back as a ``qpfile.ProblemFile`` (unpacked to a
+    temporary problem directory and read by ``read_problem_dir``)."""
+    h5py = require_h5py()
+    with h5py.File(path, "r") as h5, tempfile.TemporaryDirectory() as tmp:
+        if name not in h5:
+            raise ProblemInputError(f"{path}: no QP named {name!r}")
+        g = h5[name]
+        doc = json.loads(g.attrs["problem_json"])
+        d = Path(tmp)
+        for key, entry in doc["arrays"].items():
+            np.asarray(g[key][...], dtype=np.dtype(entry["dtype"])).tofile(d / entry["file"])
+        (d / "problem.json").write_text(json.dumps(doc))
+        return read_problem_dir(d)
+
+
+def append_qpbenchmark_row(rows: dict[str, list[Any]], name: str, inst: ContactInstance) -> None:
+    """min 1/2 p'Hp - ubar'p, p >= 0 as qpbenchmark's row: P = H, q = -ubar, lb = 0."""
+    H = np.asarray(inst.qp.H.to_dense(), dtype=np.float64)
+    ubar = np.asarray(inst.qp.ubar, dtype=np.float64)
+    row = {"P": H.ravel(), "q": -ubar, "G": None, "h": None, "A": None, "b": None,
+           "lb": np.zeros_like(ubar), "ub": None, "name": name}
+    for key in QPBENCHMARK_KEYS:
+        rows[key].append(row[key])
+
+
+def write_parquet(rows: dict[str, list[Any]], path: Path) -> Path:
+    import pandas as pd
+
+    pd.DataFrame(rows, columns=list(QPBENCHMARK_KEYS)).to_parquet(path, engine="pyarrow", index=False)
+    return path
+
+
+def read_qpbenchmark_row(path: str | Path, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(P, q, lb) of one exported problem, read as qpbenchmark's ParquetTestSet does."""
+    import pandas as pd
+
+    df = pd.read_parquet(path, engine="pyarrow")
+    hit = df[df["name"] == name]
+    if len(hit) != 1:
+        raise ProblemInputError(f"{path}: no problem named {name!r}")
+    row = hit.iloc[0]
+    q = np.asarray(row["q"], dtype=np.float64)
+    return np.asarray(row["P"], dtype=np.float64).reshape(q.size, q.size), q, np.asarray(row["lb"], dtype=np.float64)
+
+
+def write_manifest(summary: ExportSummary, path: Path) -> Path:
+    doc = {"scene": summary.scene, "format": summary.fmt, "dense_limit": summary.dense_limit,
+           "qps": [asdict(q) for q in summary.written], "skipped": summary.skipped}
+    path.write_text(json.dumps(doc, indent=2) + "\n")
+    return path
+
+
+__all__ = [
+    "FORMATS",
+    "ExportSummary",
+    "ExportedQP",
+    "export_scene",
+    "problem_name",
+    "read_hdf5_problem",
+    "read_qpbenchmark_row",
+    "scene_steps",
+]

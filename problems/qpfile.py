@@ -1,0 +1,358 @@
+"""The language-neutral file protocol of one contact QP (``contactbench-qp/1``).
+
+A *problem directory* holds ``problem.json`` and raw little-endian, C-order array files;
+a *solution directory* holds what an outside program answers.  Any program that reads
+and writes these files -- C, Fortran, MATLAB/Octave, Julia, Python -- can be judged by
+the harness (``contactbench.solvers.external``, docs/external-solvers.md).
+
+Problem directory
+-----------------
+``problem.json``::
+
+    {"format": "contactbench-qp/1", "n": 400, "grid": [20, 20], "spacing": 1.0,
+     "E": 0.01, "kernel": "bcc", "periodic": false, "tol": 1e-08, "time_limit": 60.0,
+     "arrays": {"ubar": {"file": "ubar.f64", "dtype": "<f8", "shape": [400]}, ...}}
+
+The arrays (each listed under ``"arrays"`` with its file, dtype and shape):
+
+``ubar``          (n,) float64: the rigid-body interpenetration; the QP is
+                  min 1/2 p'Hp - ubar'p, p >= 0.
+``index``         (n, 2) int64: grid indices (i, j) of each unknown on the N1 x N2 grid.
+``H``             (n, n) float64, row-major: the influence matrix on the unknowns;
+                  written whenever n <= ``DENSE_LIMIT`` (env CONTACTBENCH_QPFILE_DENSE_LIMIT).
+``kernel_table``  (P1, P2) float64: the influence coefficients of the FFT operator.
+                  Aperiodic: P = 2N, H[a, b] = K[(i_a - i_b) mod P1, (j_a - j_b) mod P2]
+                  (offset -k stored at P - k; offset N is zero).  Periodic: P = N,
+                  the same formula (the table has its mean removed).
+``p0``            (n,) float64: a warm start, when the harness has one.
+
+A QP without a grid (a generic SPD matrix of the conformance battery) has ``"grid":
+null``, ``"kernel": null`` and no ``index`` or ``kernel_table``: only ``H``.
+
+Solution directory
+------------------
+``p.f64`` (n float64, little-endian) is required; ``w.f64`` (n float64) and
+``solution.json`` (``iterations``, ``status``, ``time_s``) are optional.
+``read_solution_dir`` checks them and says, in one line, what is wrong.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import ProblemInputError
+from .instances import QP, ContactInstance, Geometry
+from .kernels import KERNELS, kernel_table
+from .operators import ContactOperator, DenseOperator, FFTOperator, KernelTransform
+
+#: The format tag of problem.json.
+FORMAT = "contactbench-qp/1"
+#: H is written as a dense n x n file when n is at most this (4096: 128 MiB).
+DENSE_LIMIT = int(os.environ.get("CONTACTBENCH_QPFILE_DENSE_LIMIT", "4096"))
+#: File names of the arrays in a problem directory.
+ARRAY_FILES = {"ubar": "ubar.f64", "index": "index.i64", "H": "H.f64", "kernel_table": "kernel_table.f64",
+               "p0": "p0.f64"}
+#: File names of a solution directory.
+SOLUTION_P, SOLUTION_W, SOLUTION_JSON = "p.f64", "w.f64", "solution.json"
+#: The solution statuses an outside program may report (anything else is kept as given).
+SOLUTION_STATUSES = ("converged", "max_iter", "time_limit", "stalled", "failed")
+
+
+class SolutionFileError(RuntimeError):
+    """A solution directory whose answer cannot be used (missing, unreadable, wrong
+    length, non-finite or negative p); the message names which.  Not a
+    ``ProblemInputError``: the program answered badly, the problem was fine."""
+
+
+# ---------------------------------------------------------------------------
+# Writing a problem directory
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Physics:
+    E: float | None
+    kernel: str | None
+    periodic: bool
+
+
+def _physics(obj: QP | ContactInstance) -> tuple[QP, _Physics]:
+    if isinstance(obj, ContactInstance):
+        return obj.qp, _Physics(float(obj.E), str(obj.kernel), bool(obj.periodic))
+    if isinstance(obj, QP):
+        g = obj.geometry
+        return obj, _Physics(None if g is None or g.E is None else float(g.E),
+                             None if g is None else g.kernel, bool(g is not None and g.periodic))
+    raise ProblemInputError(f"write_problem_dir takes a QP or a ContactInstance, got {type(obj).__name__}")
+
+
+def _table_matches(table: np.ndarray, geom: Geometry, op: ContactOperator) -> bool:
+    """Whether the table reproduces H on a few sampled pairs (it must, or it is not written)."""
+    ij = _grid_index(geom)
+    rng = np.random.default_rng(0)
+    rows = rng.integers(0, op.n, size=min(64, op.n))
+    cols = rng.integers(0, op.n, size=rows.size)
+    d = ij[rows] - ij[cols]
+    want, got = op.entries(rows, cols), table[d[:, 0] % table.shape[0], d[:, 1] % table.shape[1]]
+    scale = float(np.max(np.abs(op.diagonal())))
+    return bool(np.all(np.abs(want - got) <= 1e-12 * scale))
+
+
+def problem_kernel_table(qp: QP, phys: _Physics) -> np.ndarray | None:
+    """The influence coefficients of the operator (None: H is not a grid kernel)."""
+    if isinstance(qp.H, FFTOperator):
+        return np.asarray(qp.H.transform.table, dtype=np.float64)
+    g = qp.geometry
+    if g is None or phys.kernel not in KERNELS or phys.E is None:
+        return None
+    table = kernel_table(phys.kernel, g.grid_shape, g.delta, phys.E, phys.periodic)
+    return table if _table_matches(table, g, qp.H) else None
+
+
+def _grid_index(geom: Geometry) -> np.ndarray:
+    i, j = np.divmod(np.asarray(geom.indices, dtype=np.int64), int(geom.grid_shape[1]))
+    return np.column_stack([i, j]).astype("<i8")
+
+
+def _write_array(directory: Path, name: str, arr: np.ndarray, dtype: str) -> dict[str, Any]:
+    a = np.ascontiguousarray(arr, dtype=dtype)
+    fname = ARRAY_FILES[name]
+    a.tofile(directory / fname)
+    return {"file": fname, "dtype": dtype, "shape": [int(s) for s in a.shape]}
+
+
+def _finite_or_none(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(float(x)) else float(x)
+
+
+def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.PathLike[str], *,
+                      tol: float | None, time_limit: float | None, p0: np.ndarray | None = None,
+                      dense_limit: int = DENSE_LIMIT) -> Path:
+    """Write the problem directory of a QP (module doc) into ``directory`` (created if
+    needed) and return its path.  ``tol`` is the scaled KKT error to reach and
+    ``time_limit`` the seconds allowed (either may be None: written as null)."""
+    qp, phys = _physics(qp_or_instance)
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    n = qp.n
+    ubar = np.asarray(qp.ubar, dtype=np.float64)
+    arrays: dict[str, Any] = {"ubar": _write_array(out, "ubar", ubar, "<f8")}
+    g = qp.geometry
+    table = problem_kernel_table(qp, phys)
+    if g is not None:
+        arrays["index"] = _write_array(out, "index", _grid_index(g), "<i8")
+    if n <= dense_limit:
+        arrays["H"] = _write_array(out, "H", qp.H.to_dense(), "<f8")
+    if table is not None:
+        arrays["kernel_table"] = _write_array(out, "kernel_table", table, "<f8")
+    if p0 is not None:
+        p0 = np.asarray(p0, dtype=np.float64)
+        if p0.shape != (n,):
+            raise ProblemInputError(f"warm start p0 has shape {p0.shape}, the problem has n = {n}")
+        arrays["p0"] = _write_array(out, "p0", p0, "<f8")
+    if "H" not in arrays and "kernel_table" not in arrays:
+        raise ProblemInputError(f"cannot write this QP: n = {n} is over the dense limit {dense_limit} and its "
+                                "operator has no kernel table")
+    doc = {
+        "format": FORMAT,
+        "n": int(n),
+        "grid": None if g is None else [int(s) for s in g.grid_shape],
+        "spacing": None if g is None else float(g.delta),
+        "E": _finite_or_none(phys.E),
+        "kernel": phys.kernel if table is not None else None,
+        "periodic": bool(phys.periodic),
+        "tol": _finite_or_none(tol),
+        "time_limit": _finite_or_none(time_limit),
+        "arrays": arrays,
+    }
+    (out / "problem.json").write_text(json.dumps(doc, indent=2) + "\n")
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Reading a problem directory
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class ProblemFile:
+    """A problem directory, read back: its scalars and arrays (absent ones are None)."""
+
+    n: int
+    grid: tuple[int, int] | None
+    spacing: float | None
+    E: float | None
+    kernel: str | None
+    periodic: bool
+    tol: float | None
+    time_limit: float | None
+    ubar: np.ndarray
+    index: np.ndarray | None = None
+    H: np.ndarray | None = None
+    kernel_table: np.ndarray | None = None
+    p0: np.ndarray | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def flat_indices(self) -> np.ndarray | None:
+        if self.index is None or self.grid is None:
+            return None
+        return self.index[:, 0] * int(self.grid[1]) + self.index[:, 1]
+
+    def geometry(self) -> Geometry | None:
+        flat = self.flat_indices
+        if flat is None or self.grid is None:
+            return None
+        return Geometry(self.grid, float(self.spacing or 1.0), flat, E=self.E, kernel=self.kernel,
+                        periodic=self.periodic)
+
+    def operator(self) -> ContactOperator:
+        """H as an operator: dense from ``H`` when present, else the FFT operator of the
+        kernel table (the constructors of ``problems.operators``)."""
+        if self.H is not None:
+            return DenseOperator(self.H)
+        flat = self.flat_indices
+        if self.kernel_table is None or flat is None or self.grid is None:
+            raise ProblemInputError("the problem directory has neither H nor a kernel table with grid indices")
+        return FFTOperator(KernelTransform(self.kernel_table, self.grid), flat)
+
+    def qp(self) -> QP:
+        return QP(self.operator(), self.ubar, self.geometry())
+
+
+def _read_json(path: Path, what: str) -> dict[str, Any]:
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ProblemInputError(f"{what}: {path} is missing") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProblemInputError(f"{what}: {path} is unreadable ({exc})") from None
+    if not isinstance(doc, dict):
+        raise ProblemInputError(f"{what}: {path} does not hold a JSON object")
+    return doc
+
+
+def _read_array(directory: Path, name: str, entry: Any) -> np.ndarray:
+    if not isinstance(entry, dict) or not {"file", "dtype", "shape"} <= set(entry):
+        raise ProblemInputError(f"problem.json: array {name!r} needs file, dtype and shape, got {entry!r}")
+    if entry["dtype"] not in ("<f8", "<i8"):
+        raise ProblemInputError(f"problem.json: array {name!r} has dtype {entry['dtype']!r}; expected <f8 or <i8")
+    shape = tuple(int(s) for s in entry["shape"])
+    path = directory / str(entry["file"])
+    try:
+        a = np.fromfile(path, dtype=np.dtype(entry["dtype"]))
+    except OSError as exc:
+        raise ProblemInputError(f"array {name!r}: cannot read {path} ({exc})") from None
+    if a.size != int(np.prod(shape)):
+        raise ProblemInputError(f"array {name!r}: {path} holds {a.size} values, shape {list(shape)} needs "
+                                f"{int(np.prod(shape))}")
+    return a.reshape(shape)
+
+
+def read_problem_dir(directory: str | os.PathLike[str]) -> ProblemFile:
+    """Read a problem directory written by ``write_problem_dir`` (or by anyone following
+    the layout); bad content is a ``ProblemInputError`` naming the problem."""
+    d = Path(directory)
+    doc = _read_json(d / "problem.json", "problem directory")
+    if doc.get("format") != FORMAT:
+        raise ProblemInputError(f"problem.json: format {doc.get('format')!r}, expected {FORMAT!r}")
+    arrays = doc.get("arrays")
+    if not isinstance(arrays, dict) or "ubar" not in arrays:
+        raise ProblemInputError("problem.json: 'arrays' must map names to files and include 'ubar'")
+    got = {name: _read_array(d, name, entry) for name, entry in arrays.items()}
+    n = int(doc["n"])
+    if got["ubar"].shape != (n,):
+        raise ProblemInputError(f"problem.json: ubar has shape {list(got['ubar'].shape)}, n = {n}")
+    grid = doc.get("grid")
+    known = {"ubar", "index", "H", "kernel_table", "p0"}
+    return ProblemFile(
+        n=n, grid=None if grid is None else (int(grid[0]), int(grid[1])), spacing=doc.get("spacing"),
+        E=doc.get("E"), kernel=doc.get("kernel"), periodic=bool(doc.get("periodic", False)),
+        tol=doc.get("tol"), time_limit=doc.get("time_limit"), ubar=got["ubar"], index=got.get("index"),
+        H=got.get("H"), kernel_table=got.get("kernel_table"), p0=got.get("p0"),
+        extra={k: v for k, v in got.items() if k not in known})
+
+
+# ---------------------------------------------------------------------------
+# Reading a solution directory
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class SolutionFile:
+    """An outside program's answer: p, optionally w, and its own report."""
+
+    p: np.ndarray
+    w: np.ndarray | None = None
+    iterations: int | None = None
+    status: str | None = None
+    time_s: float | None = None
+    report: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def claims_converged(self) -> bool:
+        """The protocol's rule: a solution claims convergence when its solution.json says
+        status "converged", or when it reports no status at all."""
+        return self.status is None or self.status == "converged"
+
+
+def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool) -> np.ndarray:
+    if not path.exists():
+        raise SolutionFileError(f"{what} ({path.name}) is missing")
+    try:
+        a = np.fromfile(path, dtype="<f8")
+    except (OSError, ValueError) as exc:
+        raise SolutionFileError(f"{what} ({path.name}) is unreadable: {exc}") from None
+    size = path.stat().st_size
+    if size % 8:
+        raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, not a whole number of float64 values")
+    if a.size != n:
+        raise SolutionFileError(f"{what} ({path.name}) has wrong length {a.size}, expected n = {n}")
+    bad = int(np.count_nonzero(~np.isfinite(a)))
+    if bad:
+        raise SolutionFileError(f"{what} ({path.name}) has {bad} NaN/inf entries of {n}")
+    if nonnegative and np.any(a < 0.0):
+        neg = int(np.count_nonzero(a < 0.0))
+        raise SolutionFileError(f"{what} ({path.name}) has {neg} negative entries (min {float(a.min()):.3g}); "
+                                "p >= 0 is required")
+    return a.astype(np.float64)
+
+
+def _read_report(path: Path) -> dict[str, Any]:
+    if not path.exists():
+        return {}
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SolutionFileError(f"solution.json is unreadable: {exc}") from None
+    if not isinstance(doc, dict):
+        raise SolutionFileError("solution.json does not hold a JSON object")
+    return doc
+
+
+def read_solution_dir(directory: str | os.PathLike[str], n: int, *, allow_negative: bool = False) -> SolutionFile:
+    """The answer in a solution directory (module doc): p.f64 must be n finite float64
+    values >= 0 (``allow_negative``: negative entries are kept, for the judge to see);
+    w.f64 is read when present; solution.json's iterations/status/time_s when given.
+    Anything wrong is a ``SolutionFileError`` that says which file and what."""
+    d = Path(directory)
+    p = _read_vector(d / SOLUTION_P, n, "solution p", nonnegative=not allow_negative)
+    w_path = d / SOLUTION_W
+    w = _read_vector(w_path, n, "solution w", nonnegative=False) if w_path.exists() else None
+    report = _read_report(d / SOLUTION_JSON)
+    it, status, t = report.get("iterations"), report.get("status"), report.get("time_s")
+    try:
+        iterations = None if it is None else int(it)
+        time_s = None if t is None else float(t)
+    except (TypeError, ValueError):
+        raise SolutionFileError(f"solution.json: iterations {it!r} / time_s {t!r} are not numbers") from None
+    if status is not None and not isinstance(status, str):
+        raise SolutionFileError(f"solution.json: status {status!r} is not a string")
+    return SolutionFile(p, w, iterations, None if status is None else status.strip().lower(), time_s, report)

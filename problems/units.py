@@ -1,0 +1,123 @@
+"""The plausibility check of a measured height map's units.
+
+The boundary element model of this package (a rigid surface on an elastic half-space,
+influence coefficients of Love / BCC) holds for *small slopes*: the surface must be
+nearly flat on the scale of its own lateral size.  A height map whose numbers are in
+micrometres but read as metres, with a side length of 100 um, has an rms slope of about
+10^4; every solver then "solves" a problem that describes nothing physical.
+
+``unit_figures`` computes what the check reads (rms slope by forward differences,
+``Surface.rms_slope``; the height range z_max - z_min against the side length L = N
+delta); ``check_plausible_units`` refuses a surface beyond the small-slope range --
+rms slope > ``MAX_RMS_SLOPE`` or a height range larger than the side length -- with one
+line that says what was found and which height unit was probably meant.  Scenes call it
+when they validate a measured (``--surface``) file, so ``contactbench run`` stops with
+exit 2 before anything runs; ``--height-unit m|mm|um|nm`` converts the heights of a file
+that states no unit, and ``--allow-steep`` skips the check for those who mean it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .errors import ProblemInputError
+from .surfaces import Surface
+
+#: Height units a unit-less file may be read in: name -> metres per unit (also what
+#: ``problems.io.load_surface(height_unit=...)`` accepts).
+HEIGHT_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9}
+UNIT_NAMES: dict[str, str] = {"m": "metres", "mm": "millimetres", "um": "micrometres", "nm": "nanometres"}
+#: The small-slope range: rms slope at most this, and a height range at most the side length.
+MAX_RMS_SLOPE = 1.0
+
+
+@dataclass(frozen=True)
+class UnitFigures:
+    """What the unit check reads of a surface (all lengths in metres as loaded)."""
+
+    rms_slope: float
+    height_range: float
+    side_length: float
+
+    def scaled(self, factor: float) -> "UnitFigures":
+        """The figures if every height were multiplied by ``factor``."""
+        return UnitFigures(self.rms_slope * factor, self.height_range * factor, self.side_length)
+
+    @property
+    def too_steep(self) -> bool:
+        return self.rms_slope > MAX_RMS_SLOPE
+
+    @property
+    def too_tall(self) -> bool:
+        return self.height_range > self.side_length
+
+    @property
+    def plausible(self) -> bool:
+        return not (self.too_steep or self.too_tall)
+
+
+class ImplausibleUnitsError(ProblemInputError):
+    """A surface beyond the small-slope range (module doc); the message names the figures
+    and the unit that was probably meant."""
+
+    def __init__(self, message: str, figures: UnitFigures, suggestion: str | None) -> None:
+        self.figures = figures
+        self.suggestion = suggestion
+        super().__init__(message)
+
+
+def unit_figures(surface: Surface) -> UnitFigures:
+    """rms slope, height range and side length of ``surface``."""
+    h = surface.heights
+    return UnitFigures(surface.rms_slope(), float(h.max() - h.min()), float(surface.length))
+
+
+def probable_unit(figures: UnitFigures, height_unit: str = "m") -> str | None:
+    """The largest height unit, smaller than ``height_unit``, in which the file's numbers
+    would give a plausible surface (None when none does: the side length is the
+    likelier mistake)."""
+    given = HEIGHT_UNITS[height_unit]
+    for unit, metres in sorted(HEIGHT_UNITS.items(), key=lambda kv: -kv[1]):
+        if metres < given and figures.scaled(metres / given).plausible:
+            return unit
+    return None
+
+
+def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
+    """The one-line account of an implausible surface (``height_unit`` None: the file
+    stated its own unit, so only the file or --length can be wrong)."""
+    found = []
+    if figures.too_steep:
+        found.append(f"rms slope {figures.rms_slope:.2g} "
+                     f"(the half-space model needs small slopes, <= {MAX_RMS_SLOPE:g})")
+    if figures.too_tall:
+        found.append(f"height range {figures.height_range:.3g} m exceeds the side length {figures.side_length:.3g} m")
+    text = "; ".join(found)
+    if height_unit is None:
+        return (f"{text}: the heights or the lateral size stated by the file look wrong; check the file's units "
+                "and --length, or pass --allow-steep to run it anyway")
+    unit = probable_unit(figures, height_unit)
+    if unit is None:
+        return (f"{text}: no height unit makes this plausible, so the side length is the likelier mistake; check "
+                f"--length (metres), or pass --allow-steep to run it anyway")
+    return (f"{text}: heights look like {UNIT_NAMES[unit]} given as {UNIT_NAMES[height_unit]}; pass "
+            f"--height-unit {unit} (or --allow-steep to run it anyway)")
+
+
+def check_plausible_units(surface: Surface, height_unit: str | None = "m") -> UnitFigures:
+    """The figures of ``surface`` when they are within the small-slope range, else an
+    ``ImplausibleUnitsError``.  ``height_unit`` is the unit the file's numbers were read
+    in (None when the file stated its own unit)."""
+    figures = unit_figures(surface)
+    if figures.plausible:
+        return figures
+    suggestion = probable_unit(figures, height_unit) if height_unit is not None else None
+    raise ImplausibleUnitsError(f"surface {surface.name!r}: {implausibility(figures, height_unit)}", figures,
+                                suggestion)
+
+
+def check_height_unit(height_unit: str) -> str:
+    """``height_unit`` if it names a known unit, else a ``ProblemInputError`` listing them."""
+    if height_unit not in HEIGHT_UNITS:
+        raise ProblemInputError(f"unknown height unit {height_unit!r}; choose one of {', '.join(HEIGHT_UNITS)}")
+    return height_unit

@@ -1,0 +1,207 @@
+"""ContactMechanics (the contact.engineering group's code, ``pip install contactbench[peers]``)
+as registered solvers, judged raw by our KKT check.
+
+cm-dual-ccg
+    ContactMechanics' "dual" constrained CG: ``NonSmoothContactSystem.dual_minimize_proxy``
+    (NuMPI's ``CCGWithoutRestart``), the algorithm of Bugnicourt, Sainsot, Dureisseix,
+    Gauthier & Lubrecht, Tribol. Lett. 66 (2018) 29, on the pixel forces (gradient = gap).
+    ``params={"variant": "with-restart"}`` runs NuMPI's ``CCGWithRestart`` instead.
+    Stops on its own test max|projected gap| <= gtol, with gtol = tol * max(ubar) (our
+    scaled dual residual).  Warm start: primal (``init_force``).
+cm-pk-ccg
+    ContactMechanics' Polonsky-Keer constrained CG (Polonsky & Keer, Wear 231 (1999) 206):
+    ``ContactMechanics.Optimization.constrained_conjugate_gradients`` at a fixed offset.
+    Its own test: rms and max penetration and max change of u below pentol =
+    tol * max(ubar), tensile force below forcetol = tol * max(ubar) / max diag H, relative
+    change of the total force below thermotol = tol.  Warm start: primal
+    (``initial_forces``).
+
+Kernels (``params={"green": ...}``):
+
+* ``"auto"`` (default) -- ContactMechanics' own Green's function where it has the
+  scene's kernel: ``FreeFFTElasticHalfSpace`` (Love's uniformly loaded square, Johnson
+  eq. 3.25) for a non-periodic ``love`` scene, ``PeriodicFFTElasticHalfSpace`` with
+  ``stiffness_q0=0`` (2/(E*|q|), mean mode removed) for a periodic ``spectral`` scene;
+  everywhere else (``bcc``, periodic ``love``/``bcc``) our influence coefficients;
+* ``"ours"`` -- always our influence coefficients (the operator's circulant table), put
+  into ContactMechanics through its Green's-function hook ``_compute_greens_function``.
+
+Either way ContactMechanics solves exactly our problem (solvers/_peers.py: the QP posed on
+the full grid); its force field on the trial set is judged as it comes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ._peers import GridProblem, captured, full_field, grid_problem, package_availability
+from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
+from .registry import register
+
+GREEN_CHOICES = ("auto", "ours")
+
+
+def native_green(kernel: str, periodic: bool) -> bool:
+    """Whether ContactMechanics has this kernel as its own Green's function."""
+    return (kernel == "love" and not periodic) or (kernel == "spectral" and periodic)
+
+
+def _counting(cls: type, gp: GridProblem) -> type:
+    """``cls`` with its products counted (``evaluate_disp`` and ``evaluate_force``) and,
+    non-periodic, the 2N1 x 2N2 computational grid that FreeFFTElasticHalfSpace sets only
+    for itself (not for a subclass)."""
+
+    class Counting(cls):  # type: ignore[misc, valid-type]
+        products = 0
+
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            if not gp.periodic:
+                self._comp_nb_grid_pts = (2 * gp.shape[0], 2 * gp.shape[1])
+            super().__init__(*args, **kwargs)
+
+        def evaluate_disp(self, forces: Any) -> Any:
+            type(self).products += 1
+            return super().evaluate_disp(forces)
+
+        def evaluate_force(self, disp: Any) -> Any:
+            type(self).products += 1
+            return super().evaluate_force(disp)
+
+    return Counting
+
+
+def cm_substrate(gp: GridProblem, table: np.ndarray | None) -> Any:
+    """A ContactMechanics half-space for ``gp``: its own (``table`` None) or with our
+    influence coefficients ``table`` (m per N, the operator's circulant layout)."""
+    from ContactMechanics import FreeFFTElasticHalfSpace, PeriodicFFTElasticHalfSpace
+
+    base = PeriodicFFTElasticHalfSpace if gp.periodic else FreeFFTElasticHalfSpace
+    counting = _counting(base, gp)
+    if table is None:
+        if gp.periodic:
+            return counting(gp.shape, gp.E, physical_sizes=gp.sizes, stiffness_q0=0.0)
+        return counting(gp.shape, gp.E, physical_sizes=gp.sizes)
+
+    class OurGreen(counting):  # type: ignore[misc, valid-type]
+        """ContactMechanics' half-space with our influence coefficients as Green's function
+        (evaluate_disp divides by the pixel area: the force kernel times the area)."""
+
+        def __init__(self) -> None:
+            kwargs = {"stiffness_q0": 0.0} if gp.periodic else {}
+            super().__init__(gp.shape, gp.E, physical_sizes=gp.sizes, **kwargs)
+
+        def _compute_greens_function(self) -> np.ndarray:
+            self.real_buffer.p[...] = table * self.area_per_pt
+            self.fftengine.fft(self.real_buffer, self.fourier_buffer)
+            return self.fourier_buffer.p.copy()
+
+    return OurGreen()
+
+
+class _CMSolver(Solver):
+    family = "peer"
+    capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="primal", needs_geometry=False)
+
+    def availability(self) -> tuple[bool, str]:
+        ok, why = package_availability("ContactMechanics", "ContactMechanics")
+        if ok:
+            ok2, why2 = package_availability("SurfaceTopography", "SurfaceTopography")
+            return (ok2, why if ok2 else why2)
+        return ok, why
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        if not traits.has_geometry or not traits.kernel:
+            return f"{self.name} poses the problem on a grid: it needs the QP's grid geometry and kernel"
+        return None
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return None
+
+    def posed(self, ctx: SolveContext) -> tuple[GridProblem, Any, str]:
+        gp = grid_problem(ctx.qp)
+        ours = ctx.params["green"] == "ours" or not native_green(gp.kernel, gp.periodic)
+        sub = cm_substrate(gp, gp.table(ctx.qp) if ours else None)
+        return gp, sub, ("ours" if ours else "contactmechanics")
+
+    def tolerance(self, ctx: SolveContext, gp: GridProblem) -> float:
+        """The peer's absolute gap tolerance: tol x max(ubar) (our scaled dual residual)."""
+        return float(ctx.tol) * float(np.max(gp.ubar))
+
+
+@register
+class CMDualCCG(_CMSolver):
+    """ContactMechanics' dual CCG (Bugnicourt et al., Tribol. Lett. 2018) on the pixel
+    forces through ``NonSmoothContactSystem.dual_minimize_proxy``; our kernel through its
+    Green's-function hook or its own Love / periodic kernel (module doc).  Warm start:
+    primal."""
+
+    name = "cm-dual-ccg"
+    description = "ContactMechanics: dual CCG of Bugnicourt et al. 2018 (NuMPI) on the pixel forces [peers extra]"
+    params = (Param("green", str, "auto", "auto: CM's own kernel where it has the scene's, else ours; ours: always ours",
+                    choices=GREEN_CHOICES),
+              Param("variant", str, "without-restart", "NuMPI's CCG without or with restart",
+                    choices=("without-restart", "with-restart")))
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        from ContactMechanics.Systems import NonSmoothContactSystem
+        from SurfaceTopography import Topography
+
+        gp, sub, green = self.posed(ctx)
+        topo = Topography(gp.U, physical_sizes=gp.sizes, periodic=gp.periodic)
+        system = NonSmoothContactSystem(sub, topo)
+        init = full_field(gp, ctx.p0)
+        ctx.mark_setup_done()
+        with captured() as said:
+            res = system.dual_minimize_proxy(0.0, init_force=init, solver=f"ccg-{ctx.params['variant']}",
+                                             gtol=self.tolerance(ctx, gp), maxiter=int(ctx.max_iter))
+        ctx.add_matvecs(type(sub).products)
+        force = np.asarray(res.x).reshape(gp.shape)
+        return peer_outcome(gp, force, bool(res.success), int(res.nit), str(res.message),
+                            {"green": green, "gtol": self.tolerance(ctx, gp), "peer_printed": said.tail()})
+
+
+@register
+class CMPolonskyKeer(_CMSolver):
+    """ContactMechanics' Polonsky-Keer constrained CG (Wear 1999) at a fixed rigid offset,
+    ``ContactMechanics.Optimization.constrained_conjugate_gradients``; kernels as for
+    cm-dual-ccg (module doc).  Warm start: primal (``initial_forces``)."""
+
+    name = "cm-pk-ccg"
+    description = "ContactMechanics: Polonsky-Keer constrained CG at fixed offset [peers extra]"
+    params = (Param("green", str, "auto", "auto: CM's own kernel where it has the scene's, else ours; ours: always ours",
+                    choices=GREEN_CHOICES),)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        from ContactMechanics.Optimization import constrained_conjugate_gradients
+        from SurfaceTopography import Topography
+
+        gp, sub, green = self.posed(ctx)
+        topo = Topography(gp.U, physical_sizes=gp.sizes, periodic=gp.periodic)
+        pentol = self.tolerance(ctx, gp)
+        forcetol = pentol / float(np.max(ctx.qp.H.diagonal()))
+        init = None
+        if ctx.p0 is not None:
+            init = np.zeros(sub.nb_subdomain_grid_pts)
+            init[: gp.shape[0], : gp.shape[1]] = -full_field(gp, ctx.p0)  # CM: compressive force < 0
+        ctx.mark_setup_done()
+        with captured() as said:
+            res = constrained_conjugate_gradients(sub, topo, offset=0.0, initial_forces=init, pentol=pentol,
+                                                  forcetol=forcetol, thermotol=float(ctx.tol),
+                                                  maxiter=int(ctx.max_iter))
+        ctx.add_matvecs(type(sub).products)
+        force = np.asarray(res.jac).reshape(gp.shape)
+        return peer_outcome(gp, force, bool(res.success), int(res.nit), str(res.message),
+                            {"green": green, "pentol": pentol, "forcetol": forcetol, "peer_printed": said.tail()})
+
+
+def peer_outcome(gp: GridProblem, force: np.ndarray, success: bool, nit: int, message: str,
+                 info: dict[str, Any]) -> Outcome:
+    """The peer's raw force field on the trial set, its own claim, count and message."""
+    p = gp.on_set(force)
+    off = gp.force_off_set(force)
+    status = None if success else (Status.FAILED if not np.all(np.isfinite(p)) else Status.MAX_ITER)
+    note = f"{message}" + (f"; force off the trial set {off:.1e} of max" if off > 0 else "")
+    return Outcome(p, nit, success, note, status=status,
+                   info={**info, "peer_status": message, "peer_iterations": nit, "force_off_set": off})

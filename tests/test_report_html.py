@@ -1,0 +1,149 @@
+"""report.html (harness/report_html.py): self-contained, holds every row and family, and
+-- in headless Chromium, when one is installed (make setup-browser) -- draws every chart
+without console errors, reacts to the family toggle, and renders a non-blank screenshot."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from contactbench.harness import report as rp
+from contactbench.harness.report_browser import browser_missing, check_page
+from contactbench.harness.report_style import MAX_SERIES, SolverStyles, family_panels, panels_note
+
+from .test_report import fabricate_table, write_out
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pd.DataFrame]:
+    df = fabricate_table()
+    # a solver registered from outside, with its own family (docs' example: family = "other")
+    extra = df[(df["scene"] == "paper-sweep") & (df["solver"] == "nnls")].assign(
+        solver="my-solver", base_solver="my-solver", family="other")
+    df = pd.concat([df, extra], ignore_index=True)
+    out = write_out(tmp_path_factory.mktemp("html"), df)
+    rp.build_report(out)
+    return out / "report.html", df
+
+
+def _data(html: str) -> dict:
+    m = re.search(r'<script id="report-data" type="application/json">(.*?)</script>', html, re.S)
+    assert m, "the page's data block is missing"
+    return json.loads(m.group(1))
+
+
+def test_page_is_one_offline_file_with_every_row_and_family(page: tuple[Path, pd.DataFrame]) -> None:
+    path, df = page
+    text = path.read_text()
+    assert "<script src" not in text and "<link" not in text  # nothing fetched: scripts inlined
+    assert "Plotly" in text and len(text) > 1_000_000  # plotly.js is inside
+    data = _data(text)
+    attempted = df[df["status"] != "skipped"]
+    assert len(data["rows"]) == len(attempted)
+    fams = {f["name"]: {s["name"] for s in f["solvers"]} for f in data["families"]}
+    assert set(fams) == set(df["family"].replace("", "other"))
+    assert "my-solver" in fams["other"]
+    row = data["rows"][0]
+    for key in ("inst", "st", "n", "kkt", "perr", "lerr", "t", "it", "stt"):  # the hover's fields
+        assert key in row
+    assert set(data["pp"]) >= {"paper-sweep", "counterexample"} and set(data["sgm"]) == set(df["scene"])
+
+
+def test_solver_colours_are_fixed_and_a_family_shares_a_hue() -> None:
+    import colorsys
+
+    fams = {**{f"p{i}": "paper" for i in range(12)}, **{f"f{i}": "fast" for i in range(5)}, "x": ""}
+    st = SolverStyles(fams, lambda s: (s,))
+    assert st.family("x") == "other"
+    again = SolverStyles(dict(reversed(list(fams.items()))), lambda s: (s,))
+    assert all(st.color(s) == again.color(s) for s in fams)  # independent of the order met
+    hues = {f: [colorsys.rgb_to_hls(*st.color(s))[0] for s in fams if st.family(s) == f] for f in ("paper", "fast")}
+    assert max(hues["paper"]) - min(hues["paper"]) < 0.2 and max(hues["fast"]) - min(hues["fast"]) < 0.2
+    assert abs(np.mean(hues["paper"]) - np.mean(hues["fast"])) > 0.15
+    assert len({st.color(s) for s in fams}) == len(fams)
+
+
+def test_panels_hold_at_most_ten_series_and_cover_every_solver() -> None:
+    solvers = [f"s{i:02d}" for i in range(33)]
+    fam = {s: ("paper", "fast", "qp", "wrapper", "other")[i % 5] if i < 30 else "qp" for i, s in enumerate(solvers)}
+    panels = family_panels(solvers, fam.get, best={"paper": "s00", "fast": "s01"})
+    assert panels[0].title == "best of each family" and panels[0].solvers == ("s00", "s01")
+    assert all(len(p.solvers) <= MAX_SERIES for p in panels)
+    assert {s for p in panels if p.family for s in p.solvers} == set(solvers)
+    assert "family other" in [p.title for p in panels]  # an outside family is drawn, not dropped
+    note = panels_note(panels)
+    assert "other (6)" in note and "light grey" in note
+    assert family_panels(solvers[:10], fam.get) [0].solvers == tuple(solvers[:10])
+
+
+def test_the_page_renders_in_headless_chromium(page: tuple[Path, pd.DataFrame], tmp_path: Path) -> None:
+    why = browser_missing()
+    if why:
+        pytest.skip(f"browser test skipped: {why}")
+    path, _ = page
+    shot = tmp_path / "shot.png"
+    check = check_page(path, shot, family="paper")
+    assert check.console_errors == []
+    assert check.charts == check.expected_charts
+    # scenes of the fabricated table: paper-sweep, greedy, gp-k-sweep, counterexample, hertz
+    assert check.charts >= 5 * 3
+    assert check.traces_after_toggle is not None and check.traces_after_toggle < check.traces
+    assert check.load_s < 60.0  # a generous limit, not a speed claim
+    from matplotlib.image import imread
+
+    img = imread(shot)
+    assert img.shape[0] > 500 and img.shape[1] > 800
+    flat = img[..., :3].reshape(-1, 3)
+    assert flat.std() > 0.05  # not blank
+    assert len(np.unique((flat * 255).astype(np.uint8), axis=0)) > 50
+
+
+def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> None:
+    """save_field keeps a solved top step (and only that); the report draws the surface,
+    pressure and gap from it and fits kappa on the table's load-area points."""
+    from contactbench.harness.fields import FIELD_MAX_SIDE, block_reduce, field_name, load_field, save_field
+    from contactbench.harness.judge import judge
+    from contactbench.harness.report_fields import PERSSON_KAPPA, fit_kappa
+    from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+    from contactbench.problems.surfaces import rmd_surface_n
+    from contactbench.solvers.base import SolverSettings
+    from contactbench.solvers.registry import load_solver
+
+    surf = rmd_surface_n(32, 0.7, seed=1)
+    builder = InstanceBuilder(surf, E=1.0)
+    dmax = paper_max_displacement(surf)
+    arrays = tmp_path / "arrays" / "x.npz"
+    rows = []
+    for k, d in enumerate(np.linspace(0.1, 1.0, 4) * dmax):
+        inst = builder.build(float(d))
+        p = load_solver("nnls").solve(inst.qp, SolverSettings(tol=1e-10)).p
+        status = judge(inst, p, True, 1e-8).status
+        assert status == "solved"
+        kept = save_field(str(arrays), "paper-sweep", "s1", inst, p, k, 4, "nnls", status)
+        assert (kept is not None) == (k == 3)  # the top step only
+        rows.append(dict(scene="paper-sweep", instance="s1", step=k, n=inst.n, N=32, solver="nnls", family="paper",
+                         delta=float(d), dim_load=inst.dimensionless_load(p), contact_fraction=inst.contact_fraction(p),
+                         solve_time_s=0.01, load=inst.load(p)))
+    assert save_field(str(arrays), "paper-sweep", "s1", inst, p, 3, 4, "nnls", "inaccurate") is None
+    f = load_field(tmp_path / "arrays" / field_name("paper-sweep", "s1", 3), "paper-sweep", "s1")
+    assert f.heights.shape == (32, 32) and f.contact.sum() == np.count_nonzero(inst.contact_mask(p))
+    assert np.nanmin(f.gap[~f.contact]) >= -1e-6 * float(np.ptp(surf.heights))  # a gap is never negative
+    assert abs(f.pressure.sum() * f.spacing**2 - inst.load(p)) < 1e-6 * inst.load(p)
+    assert block_reduce(np.ones((2 * FIELD_MAX_SIDE,) * 2)).shape == (FIELD_MAX_SIDE, FIELD_MAX_SIDE)
+    assert max(block_reduce(np.ones((2 * FIELD_MAX_SIDE + 3,) * 2)).shape) <= FIELD_MAX_SIDE
+    x = np.array([1e-4, 2e-4, 4e-4])
+    assert abs(fit_kappa(x, PERSSON_KAPPA / 0.5 * x, 0.5).kappa - PERSSON_KAPPA) < 1e-12
+    from .test_report import _row
+    from contactbench.harness.schema import ALL_COLUMNS
+
+    df = pd.DataFrame([_row(**r) for r in rows], columns=list(ALL_COLUMNS))
+    text = rp.build_report(write_out(tmp_path, df), html=False).read_text()
+    assert "## The contact fields" in text and "figures/field-paper-sweep-s1-k3.png" in text
+    assert "figures/load-area.png" in text and "figures/traces-" not in text  # no traces stored
+    kappa = fit_kappa(df["dim_load"].to_numpy(), df["contact_fraction"].to_numpy(), surf.rms_slope()).kappa
+    assert f"| paper-sweep | s1 | 4 |" in text and rp.fmt_num(kappa) in text
