@@ -28,6 +28,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from contactbench.problems.export import qpbenchmark_test_set
+
 SOLVERS = ("clarabel", "osqp", "proxqp")
 SETTINGS = "mid_accuracy"
 PROFILE = "mid"
@@ -52,28 +54,10 @@ def export(out: Path, sizes: list[int], steps: int) -> dict[str, Path]:
 
 def contact_test_set(parquet_paths: list[Path], out: Path):  # -> a qpbenchmark TestSet
     """One qpbenchmark test set over every exported Parquet file (concatenated: same layout)."""
-    from qpbenchmark.parquet_test_set import ParquetTestSet
-
     merged = out / "testset" / "all.parquet"
     pd.concat([pd.read_parquet(p, engine="pyarrow") for p in parquet_paths], ignore_index=True).to_parquet(
         merged, engine="pyarrow", index=False)
-
-    class ContactBench(ParquetTestSet):
-        """The exported contact QPs, as a qpbenchmark test set."""
-
-        @property
-        def description(self) -> str:
-            return "contactbench export: paper-sweep and counterexample"
-
-        @property
-        def sparse_only(self) -> bool:
-            return False
-
-        @property
-        def title(self) -> str:
-            return "contactbench"
-
-    return ContactBench(merged)
+    return qpbenchmark_test_set(merged, description="contactbench export: paper-sweep and counterexample")
 
 
 def run_qpbenchmark(test_set, out: Path) -> pd.DataFrame:

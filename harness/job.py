@@ -19,7 +19,7 @@ whose handler (``harness.worker.InstanceWorker``) builds the instance's
    check is not used;
 5. runs each (variant, profile): an untimed warm-up solve the first time the worker
    meets the variant -- dropped when the solve is predicted to take longer than
-   ``RunConfig.warmup_limit`` (``predicted_seconds``; the row's ``error`` says so) --
+   ``RunConfig.warmup_limit`` (``predicted_seconds``; the row's ``warmup`` says so) --
    then ``repeats`` timed solves, each under a hard wall-clock limit enforced by
    killing the worker; every answer is judged by ``harness.judge.judge``.
 
@@ -367,8 +367,8 @@ class JobRunner:
                 values = dict(status=status, solve_time_s=out.elapsed, warm_start=warm, error=out.detail[-2000:])
                 if status in ("timeout", "crashed"):
                     lost = (status, f"repeat {r} ended with {status}")
-            if note:  # (until the table has a column for it: harness/schema.py)
-                values["error"] = "; ".join(x for x in (values.get("error") or "", note) if x)
+            if note:
+                values["warmup"] = note
             row = self.row(ctx, ctx.k, v, profile, r, operator=operator, build_time_s=build, **values)
             self.policy.note((v.name, profile), ctx.k, n, row["status"], row.get("solve_time_s"), self.job.load_history)
             self.emit(row)

@@ -173,8 +173,10 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
                               f"{fmt_num(100 * f.contact_fraction)} % of the area, have g = 0).")
 
 
-def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactField]) -> str:
-    series: list[tuple[str, str, pd.DataFrame, float]] = []
+def load_area_series(ctx: ReportContext) -> list[tuple[str, str, pd.DataFrame]]:
+    """(scene, instance, its load-area points by step) for every instance of a load
+    history with two steps or more, each instance once."""
+    out: list[tuple[str, str, pd.DataFrame]] = []
     seen: set[str] = set()
     for scene in ctx.scenes():
         rows = ctx.rows(scene)
@@ -186,8 +188,15 @@ def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactF
             if inst in seen or len(pi) < 2:
                 continue
             seen.add(inst)
-            f = fields.get((scene, inst))
-            series.append((scene, inst, pi, f.rms_slope if f is not None else float("nan")))
+            out.append((scene, inst, pi))
+    return out
+
+
+def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactField]) -> str:
+    series: list[tuple[str, str, pd.DataFrame, float]] = []
+    for scene, inst, pi in load_area_series(ctx):
+        f = fields.get((scene, inst))
+        series.append((scene, inst, pi, f.rms_slope if f is not None else float("nan")))
     if not series:
         return ""
     shown = series[:MAX_LOAD_AREA_SERIES]

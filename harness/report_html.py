@@ -36,7 +36,7 @@ import pandas as pd
 from . import aggregates as agg
 from .report import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_json, parse_trace, \
     write_atomic
-from .report_fields import load_area_points
+from .report_fields import load_area_series
 from .report_page_script import PAGE_SCRIPT
 from .report_style import sort_families
 
@@ -124,20 +124,8 @@ def trace_data(ctx: ReportContext) -> dict[str, Any]:
 
 
 def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:
-    out, seen = [], set()
-    for scene in ctx.scenes():
-        rows = ctx.rows(scene)
-        if rows["delta"].isna().all():
-            continue
-        pts = load_area_points(rows)
-        for inst in natural_sorted(pts["instance"].unique()):
-            pi = pts[pts["instance"] == inst].sort_values("step")
-            if inst in seen or len(pi) < 2:
-                continue
-            seen.add(inst)
-            out.append({"scene": scene, "instance": inst, "x": pi["dim_load"].tolist(), "y": pi["area"].tolist(),
-                        "step": pi["step"].tolist()})
-    return out
+    return [{"scene": scene, "instance": inst, "x": pi["dim_load"].tolist(), "y": pi["area"].tolist(),
+             "step": pi["step"].tolist()} for scene, inst, pi in load_area_series(ctx)]
 
 
 def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:

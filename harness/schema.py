@@ -118,6 +118,8 @@ _EXTRA = _columns(
     ("timestamp", "string", "when the row was written"),
     ("history", "string", "'warm': warm starts along load histories (default); 'cold': --cold"),
     ("verdict", "string", "the judge's reading: pass / wrong / unconverged; '' when not judged"),
+    ("warmup", "string", "'' (an untimed warm-up ran first, or --no-warmup) or why it was dropped "
+                         "(a big solve: the timed solve includes one-time costs)"),
 )
 
 #: Every column, by name, in table order.

@@ -223,3 +223,25 @@ __all__ = [
     "read_qpbenchmark_row",
     "scene_steps",
 ]
+
+
+def qpbenchmark_test_set(parquet_path: str | Path, title: str = "contactbench",
+                         description: str = "contactbench export") -> Any:
+    """The exported Parquet file as a qpbenchmark ``TestSet`` (needs the optional
+    ``qpbenchmark`` extra; its abstract TestSet asks for these three properties)."""
+    from qpbenchmark.parquet_test_set import ParquetTestSet
+
+    class Exported(ParquetTestSet):
+        @property
+        def description(self) -> str:
+            return description
+
+        @property
+        def sparse_only(self) -> bool:
+            return False
+
+        @property
+        def title(self) -> str:
+            return title
+
+    return Exported(Path(parquet_path))

@@ -17,6 +17,7 @@ from contactbench.problems.export import (
     export_scene,
     problem_name,
     read_hdf5_problem,
+    qpbenchmark_test_set,
     read_qpbenchmark_row,
     scene_steps,
 )
@@ -104,24 +105,8 @@ def test_qpbenchmark_test_set_is_P_H_q_minus_ubar_lb_zero(tmp_path: Path) -> Non
 
 def test_qpbenchmark_reads_the_exported_set(tmp_path: Path) -> None:
     pytest.importorskip("qpbenchmark")
-    from qpbenchmark.parquet_test_set import ParquetTestSet
-
     export_scene("counterexample", COUNTER, "qpbenchmark", tmp_path)
-
-    class Exported(ParquetTestSet):  # qpbenchmark's abstract TestSet needs these three
-        @property
-        def description(self) -> str:
-            return "contactbench export"
-
-        @property
-        def sparse_only(self) -> bool:
-            return False
-
-        @property
-        def title(self) -> str:
-            return "contactbench"
-
-    problems = {pb.name: pb for pb in Exported(tmp_path / "counterexample.parquet")}
+    problems = {pb.name: pb for pb in qpbenchmark_test_set(tmp_path / "counterexample.parquet")}
     orig = originals("counterexample", COUNTER)
     assert set(problems) == set(orig)
     for name, inst in orig.items():

@@ -282,7 +282,7 @@ def test_a_big_cold_top_step_is_solved_once_no_warm_up_no_second_reference(tmp_p
     assert solve_count(counting) == {"test-counting-pccg": 1}  # no warm-up, no reference solve
     row = df.iloc[0]
     assert row["status"] == "solved" and row["reference_solver"] == "test-counting-pccg@default"
-    assert "no warm-up solve: predicted 30 s > 5 s" in row["error"]
+    assert "no warm-up solve: predicted 30 s > 5 s" in row["warmup"]
     assert row["p_rel_error"] == 0.0
     refs = sorted(p.name for p in (tmp_path / "big" / "_cache").glob("ref-*.npz"))
     assert len(refs) == 1 and "test-counting-pccg_default" in refs[0]  # no other reference was solved
