@@ -102,7 +102,7 @@ class FastPDAS(FastSolver):
             np.maximum(state.p, 0.0, out=state.p)
             state.refresh()
         if not run.converged and not ctx.expired():  # finish with the CCG, same deadline
-            ccg = bugnicourt(ctx, state, None, first=outer + 1)
+            ccg = bugnicourt(ctx, state, None, first=outer)
             info.update(finished_by_ccg=True, ccg_iterations=ccg.iterations)
             run = CCGRun(outer + ccg.iterations, ccg.kkt, ccg.converged, ccg.stalled)
         if M is not None:

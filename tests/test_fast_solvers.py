@@ -223,6 +223,16 @@ def test_pdas_safeguard_runs_under_the_solve_deadline(monkeypatch):
     assert len(left) == 1 and left[0] <= 30 - 0.3
 
 
+def test_pdas_trace_numbers_the_ccg_safeguard_after_the_newton_steps():
+    """Newton steps 1..outer, then the CCG's from outer on: the trace never goes back and
+    ends at the answer's iteration count (no point appended out of order)."""
+    _, inst = instance(32, "bcc", False)
+    res = get_solver("fast-pdas").solve(inst.qp, SolverSettings(params={"max_outer": 1}))
+    assert res.info["finished_by_ccg"]
+    its = [t[0] for t in res.trace]
+    assert its == sorted(its) and its[-1] == res.iterations
+
+
 CCG_SOLVERS = [*FAST, "pk"]
 
 
