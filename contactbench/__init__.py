@@ -11,17 +11,15 @@ generic name (``problems``, ``solvers``, ``harness``) lands in a user's environm
   conformance and the command line.
 
 In the source tree the floors are the top-level folders ``problems/``, ``solvers/`` and
-``harness/``; ``pyproject.toml`` maps them under this package.
+``harness/``; ``pyproject.toml`` maps them under this package (``package-dir``), for a
+wheel and for the editable install of ``make`` alike.
 """
 
 from __future__ import annotations
 
-import os as _os
+from importlib import metadata as _metadata
 
-__version__ = "0.2.0"
-
-# Editable installs and in-tree use: the floors live beside this folder, not inside it.
-_ROOT = _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__)))
-if all(_os.path.isdir(_os.path.join(_ROOT, d)) for d in ("problems", "solvers", "harness")):
-    if _ROOT not in __path__:
-        __path__.append(_ROOT)
+try:
+    __version__ = _metadata.version("contactbench")  # the one version: pyproject.toml
+except _metadata.PackageNotFoundError:  # pragma: no cover - not installed
+    __version__ = "unknown"
