@@ -7,8 +7,8 @@ Three formats (``contactbench export SCENE ... --format F --out DIR``):
   ``DIR/<name>/problem.json`` + raw arrays.
 * ``hdf5`` -- ``DIR/problems.h5`` (needs h5py): one group per QP holding exactly the
   arrays of its problem directory (``ubar``, ``index``, ``H``, ``kernel_table``) as
-  datasets and its ``problem.json`` as the group attribute ``problem_json``.  It is
-  packed from the problem directory, so there is one writer of the format.
+  datasets and its ``problem.json`` as the group attribute ``problem_json``.  Both are
+  built by ``qpfile.problem_payload``, so there is one writer of the format.
 * ``qpbenchmark`` -- ``DIR/<scene>.parquet`` in qpbenchmark's ``ProblemList`` layout
   (columns P, q, G, h, A, b, lb, ub, name; matrices flattened row-major, absent
   entries null), with P = H (dense), q = -ubar, lb = 0 and no other constraint, so
@@ -36,7 +36,7 @@ import numpy as np
 
 from .errors import ProblemInputError
 from .instances import ContactInstance
-from .qpfile import DENSE_LIMIT, read_problem_dir, write_problem_dir
+from .qpfile import DENSE_LIMIT, problem_json, problem_payload, read_problem_dir, write_problem_dir
 
 FORMATS = ("problem-dir", "hdf5", "qpbenchmark")
 #: qpbenchmark's ProblemList columns, in its order.
@@ -79,7 +79,11 @@ class ExportSummary:
 
 def problem_name(instance: str, step: int) -> str:
     """The exported name of one QP: ``<instance>-step<k>``, file-name safe."""
-    return re.sub(r"[^A-Za-z0-9._-]", "_", f"{instance}-step{step}")
+    return _file_safe(f"{instance}-step{step}")
+
+
+def _file_safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]", "_", text)
 
 
 def scene_steps(scene_name: str, cfg: Any) -> Iterator[tuple[str, int, ContactInstance]]:
@@ -130,7 +134,7 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
         if h5 is not None:
             h5.close()
     if fmt == "qpbenchmark":
-        write_parquet(rows, out_dir / f"{re.sub(r'[^A-Za-z0-9._-]', '_', scene_name)}.parquet")
+        write_parquet(rows, out_dir / f"{_file_safe(scene_name)}.parquet")
     write_manifest(summary, out_dir / "manifest.json")
     return summary
 
@@ -149,15 +153,13 @@ def require_h5py() -> Any:
 
 
 def write_hdf5_group(h5: Any, name: str, inst: ContactInstance, *, tol: float | None, dense_limit: int) -> None:
-    """One QP as an HDF5 group: its problem directory's arrays and problem.json."""
-    with tempfile.TemporaryDirectory() as tmp:
-        d = write_problem_dir(inst, Path(tmp) / "qp", tol=tol, time_limit=None, dense_limit=dense_limit)
-        doc = (d / "problem.json").read_text()
-        pf = read_problem_dir(d)
-        g = h5.create_group(name)
-        g.attrs["problem_json"] = doc
-        for key in json.loads(doc)["arrays"]:
-            g.create_dataset(key, data=getattr(pf, key) if hasattr(pf, key) else pf.extra[key])
+    """One QP as an HDF5 group: its problem directory's arrays and problem.json
+    (``qpfile.problem_payload``, the builder of the directory itself)."""
+    doc, arrays = problem_payload(inst, tol=tol, time_limit=None, dense_limit=dense_limit)
+    g = h5.create_group(name)
+    g.attrs["problem_json"] = problem_json(doc)
+    for key, a in arrays.items():
+        g.create_dataset(key, data=a)
 
 
 def read_hdf5_problem(path: str | Path, name: str) -> Any:

@@ -121,45 +121,37 @@ def _grid_index(geom: Geometry) -> np.ndarray:
     return np.column_stack([i, j]).astype("<i8")
 
 
-def _write_array(directory: Path, name: str, arr: np.ndarray, dtype: str) -> dict[str, Any]:
-    a = np.ascontiguousarray(arr, dtype=dtype)
-    fname = ARRAY_FILES[name]
-    a.tofile(directory / fname)
-    return {"file": fname, "dtype": dtype, "shape": [int(s) for s in a.shape]}
-
-
 def _finite_or_none(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(float(x)) else float(x)
 
 
-def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.PathLike[str], *,
-                      tol: float | None, time_limit: float | None, p0: np.ndarray | None = None,
-                      dense_limit: int = DENSE_LIMIT) -> Path:
-    """Write the problem directory of a QP (module doc) into ``directory`` (created if
-    needed) and return its path.  ``tol`` is the scaled KKT error to reach and
-    ``time_limit`` the seconds allowed (either may be None: written as null)."""
+def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, time_limit: float | None,
+                    p0: np.ndarray | None = None,
+                    dense_limit: int = DENSE_LIMIT) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """What a problem directory holds (module doc), in memory: its ``problem.json``
+    document and its arrays (name -> C-order array of the listed dtype).  The one
+    builder of the format; ``write_problem_dir`` writes it to files, the HDF5 export
+    packs it into a group."""
     qp, phys = _physics(qp_or_instance)
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
     n = qp.n
-    ubar = np.asarray(qp.ubar, dtype=np.float64)
-    arrays: dict[str, Any] = {"ubar": _write_array(out, "ubar", ubar, "<f8")}
+    arrays: dict[str, np.ndarray] = {"ubar": np.asarray(qp.ubar, dtype=np.float64)}
     g = qp.geometry
     table = problem_kernel_table(qp, phys)
     if g is not None:
-        arrays["index"] = _write_array(out, "index", _grid_index(g), "<i8")
+        arrays["index"] = _grid_index(g)
     if n <= dense_limit:
-        arrays["H"] = _write_array(out, "H", qp.H.to_dense(), "<f8")
+        arrays["H"] = qp.H.to_dense()
     if table is not None:
-        arrays["kernel_table"] = _write_array(out, "kernel_table", table, "<f8")
+        arrays["kernel_table"] = table
     if p0 is not None:
         p0 = np.asarray(p0, dtype=np.float64)
         if p0.shape != (n,):
             raise ProblemInputError(f"warm start p0 has shape {p0.shape}, the problem has n = {n}")
-        arrays["p0"] = _write_array(out, "p0", p0, "<f8")
+        arrays["p0"] = p0
     if "H" not in arrays and "kernel_table" not in arrays:
         raise ProblemInputError(f"cannot write this QP: n = {n} is over the dense limit {dense_limit} and its "
                                 "operator has no kernel table")
+    arrays = {name: np.ascontiguousarray(a, dtype="<i8" if name == "index" else "<f8") for name, a in arrays.items()}
     doc = {
         "format": FORMAT,
         "n": int(n),
@@ -170,9 +162,29 @@ def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.
         "periodic": bool(phys.periodic),
         "tol": _finite_or_none(tol),
         "time_limit": _finite_or_none(time_limit),
-        "arrays": arrays,
+        "arrays": {name: {"file": ARRAY_FILES[name], "dtype": a.dtype.str, "shape": [int(s) for s in a.shape]}
+                   for name, a in arrays.items()},
     }
-    (out / "problem.json").write_text(json.dumps(doc, indent=2) + "\n")
+    return doc, arrays
+
+
+def problem_json(doc: dict[str, Any]) -> str:
+    """The text of ``problem.json`` for a ``problem_payload`` document."""
+    return json.dumps(doc, indent=2) + "\n"
+
+
+def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.PathLike[str], *,
+                      tol: float | None, time_limit: float | None, p0: np.ndarray | None = None,
+                      dense_limit: int = DENSE_LIMIT) -> Path:
+    """Write the problem directory of a QP (module doc) into ``directory`` (created if
+    needed) and return its path.  ``tol`` is the scaled KKT error to reach and
+    ``time_limit`` the seconds allowed (either may be None: written as null)."""
+    doc, arrays = problem_payload(qp_or_instance, tol=tol, time_limit=time_limit, p0=p0, dense_limit=dense_limit)
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, a in arrays.items():
+        a.tofile(out / ARRAY_FILES[name])
+    (out / "problem.json").write_text(problem_json(doc))
     return out
 
 

@@ -58,6 +58,7 @@ from ..instances import (
     InstanceBuilder,
     counterexample,
     paper_max_displacement,
+    rigid_body_ubar,
     trial_set,
 )
 from ..kernels import kernel_table
@@ -157,7 +158,7 @@ def heights_instance(heights: np.ndarray, delta: float, E: float, Delta: float, 
         surf = Surface(h, delta, unit=unit, name=name)
         return InstanceBuilder(surf, E, kernel, periodic=False, operator=operator).build(Delta)
     idx = trial_set(h, Delta)
-    ubar = np.maximum(Delta - float(h.max()) + h.ravel()[idx], 0.0)
+    ubar = np.maximum(rigid_body_ubar(h, Delta, idx), 0.0)
     geom = Geometry(h.shape, delta, idx, far_field=float(Delta), E=E, kernel=kernel, periodic=False)
     qp = QP(grid_operator(h.shape, delta, E, kernel, idx, operator), ubar, geom)
     return ContactInstance(qp, delta=float(Delta), E=E, kernel=kernel, periodic=False)
