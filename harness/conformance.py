@@ -545,7 +545,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (SolverLoadError, ProblemInputError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    codes, frames, tables = [], [], []
+    codes, tables = [], []
     for solver in solvers:
         table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate)
         print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
@@ -553,12 +553,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if left:
             print("\n".join(left) + "\n", flush=True)
         codes.append(table.exit_code(args.strict))
-        frames.append(table.to_frame())
         tables.append(table)
-    if args.csv and frames:
+    if args.csv and tables:
         import pandas as pd
 
-        pd.concat(frames, ignore_index=True).to_csv(args.csv, index=False)
+        pd.concat([t.to_frame() for t in tables], ignore_index=True).to_csv(args.csv, index=False)
     if args.out:
         from .conformance_report import write_conformance_report
 

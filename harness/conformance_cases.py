@@ -194,11 +194,12 @@ def is_refusal(exc: BaseException, group: str) -> bool:
 def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None]) -> dict[str, Any]:
     """Worker side: rebuild the instance from its recipe, solve, report plain data."""
     spec, step, time_limit = msg
+    case = ConformanceCase(spec)
     inst = build_battery_spec(spec).at(step)
     qp = adapt_to_solver(inst, solver)
     if isinstance(qp, str):
         return {"kind": "skipped", "message": qp}
-    settings = SolverSettings(tol=get_profile(str(spec.params.get("profile", "mid"))).tol, time_limit=time_limit)
+    settings = SolverSettings(tol=get_profile(case.profile).tol, time_limit=time_limit)
     t0 = time.perf_counter()
     try:
         res = solver.solve(qp, settings, None)
@@ -206,7 +207,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None]) -> d
         return {"kind": exc.status, "time_s": time.perf_counter() - t0,
                 "message": str(exc).strip().splitlines()[0], "detail": str(exc)}
     except Exception as exc:  # a row, not a harness failure
-        refused = is_refusal(exc, str(spec.params["group"]))
+        refused = is_refusal(exc, case.group)
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
                 "message": f"{type(exc).__name__}: {exc}".strip().splitlines()[0],
                 "detail": "" if refused else traceback.format_exc(limit=6)}

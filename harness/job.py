@@ -213,11 +213,8 @@ class JobRunner:
         a reference solve now."""
         server = self.reference_server(running) if self.run_cfg.reference == "auto" else None
         names = [*self.job.reference_candidates, *([served_name(*server)] if server else [])]
-        for name in names:
-            path = self.reference_path(ctx.k, name)
-            if path.exists():
-                ctx.reference_solver, ctx.reference_path = name, str(path)
-                return
+        if self.use_stored_reference(ctx, names):
+            return
         if server is not None:
             ctx.serving = server
             ctx.serve_max_kkt = min([REFERENCE_MAX_KKT] + [get_profile(prof).check_tol for _, prof in running])
@@ -235,18 +232,23 @@ class JobRunner:
                  for i, (v, prof) in enumerate(running) if is_exact(v.base)]
         return min(exact)[-1] if exact else None
 
-    def obtain_reference(self, ctx: StepContext) -> None:
-        for cand in self.job.reference_candidates:
-            path = self.reference_path(ctx.k, cand)
+    def use_stored_reference(self, ctx: StepContext, names: list[str] | tuple[str, ...]) -> bool:
+        """Take the first of ``names`` whose reference of this step is stored in OUT/_cache/."""
+        for name in names:
+            path = self.reference_path(ctx.k, name)
             if path.exists():
-                ctx.reference_solver, ctx.reference_path = cand, str(path)
-                return
+                ctx.reference_solver, ctx.reference_path = name, str(path)
+                return True
+        return False
+
+    def obtain_reference(self, ctx: StepContext) -> None:
+        if self.use_stored_reference(ctx, self.job.reference_candidates):
+            return
         traits = ctx.info.traits
         for cand in self.job.reference_candidates:
             d = skip_decision(cand, traits, self.run_cfg.ref_timeout, self.run_cfg.memory_budget)
-            if d.skip or not self.reference_from(ctx, cand, d):
-                continue
-            return
+            if not d.skip and self.reference_from(ctx, cand, d):
+                return
 
     def reference_from(self, ctx: StepContext, cand: str, d: Decision) -> bool:
         if d.operator == "dense" and not self.ensure_dense(ctx):
