@@ -104,8 +104,7 @@ def save_field(arrays_path: str | None, scene: str, instance: str, inst: Any, p:
             return None
         d.mkdir(parents=True, exist_ok=True)
         g = inst.geometry
-        pressure = np.zeros(g.grid_shape)
-        pressure.ravel()[g.indices] = p / g.delta**2
+        pressure = inst.pressure_field(p)
         contact = np.zeros(g.grid_shape, dtype=bool)
         contact.ravel()[g.indices] = inst.contact_mask(p)
         heights = np.asarray(inst.surface.heights, dtype=float)

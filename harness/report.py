@@ -47,7 +47,7 @@ from contactbench.plugins import PluginRegistry
 
 from . import aggregates as agg
 from .report_style import DEFAULT_FAMILY, SolverStyles
-from .schema import COLUMNS, STATUSES, TableError, bool_series, load_table
+from .schema import COLUMNS, STATUSES, TableError, as_text, bool_series, load_table
 
 REPORT_NAME = "report.md"
 FIGURE_DIR = "figures"
@@ -320,8 +320,7 @@ def report_view(df: pd.DataFrame) -> pd.DataFrame:
         if c.dtype in ("Int64", "float64"):
             d[c.name] = pd.to_numeric(d[c.name], errors="coerce").astype(float)
         elif c.dtype == "string":
-            d[c.name] = d[c.name].map(lambda v: "" if v is None or v is pd.NA or (isinstance(v, float) and
-                                                                                math.isnan(v)) else str(v))
+            d[c.name] = d[c.name].map(as_text)
     d["warm_start"] = bool_series(d["warm_start"]).fillna(False).astype(bool)
     d["base_solver"] = d["base_solver"].where(d["base_solver"] != "", d["solver"])
     d["history"] = d["history"].map(lambda v: v or "warm")
@@ -368,6 +367,17 @@ def pick_profile(rows: pd.DataFrame) -> str:
 
 def attempted(rows: pd.DataFrame) -> pd.DataFrame:
     return rows[rows["status"] != "skipped"]
+
+
+def representative_traces(rows: pd.DataFrame) -> dict[str, pd.Series]:
+    """Solver -> its representative traced row: the largest n at the tightest profile
+    (then the first instance, step and repeat); solvers without a trace are left out."""
+    t = rows[rows["trace"].str.len() > 2]
+    rank = {p: i for i, p in enumerate(PROFILE_PREFERENCE)}
+    t = t.assign(_pr=t["profile"].map(lambda p: rank.get(p, len(rank))))
+    t = t.sort_values(["n", "_pr", "instance", "step", "repeat"], ascending=[False, True, True, True, True],
+                      kind="stable")
+    return {s: g.iloc[0] for s, g in t.groupby("solver", sort=False)}
 
 
 def per_cell(rows: pd.DataFrame) -> pd.DataFrame:

@@ -22,9 +22,9 @@ import pandas as pd
 
 from .fields import ContactField, find_fields, load_field
 from .report import (
-    PROFILE_PREFERENCE,
     ReportContext,
     Section,
+    attempted,
     fmt_num,
     grid_figure,
     legend_outside,
@@ -32,7 +32,9 @@ from .report import (
     natural_key,
     natural_sorted,
     parse_trace,
+    pick_profile,
     register_section,
+    representative_traces,
     sort_scenes,
     table_md,
 )
@@ -80,9 +82,7 @@ def load_area_points(rows: pd.DataFrame) -> pd.DataFrame:
     r = rows[(rows["status"] == "solved") & rows["dim_load"].notna() & rows["contact_fraction"].notna()]
     if r.empty:
         return pd.DataFrame(columns=["instance", "step", "dim_load", "area"])
-    present = set(r["profile"])
-    prof = next((p for p in PROFILE_PREFERENCE if p in present), natural_sorted(present)[0])
-    r = r[r["profile"] == prof]
+    r = r[r["profile"] == pick_profile(r)]
     g = r.groupby(["instance", "step"])
     return pd.DataFrame({"dim_load": g["dim_load"].median(), "area": g["contact_fraction"].median()}).reset_index()
 
@@ -245,19 +245,24 @@ def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactF
     return "\n".join(body)
 
 
+def trace_scene(ctx: ReportContext) -> tuple[str, dict[str, pd.Series]]:
+    """The first scene (report order: the paper's sweep when present) with traced
+    solves, and each solver's representative traced row there (report.representative_traces);
+    ("", {}) when no solve has a trace."""
+    t = attempted(ctx.table)
+    t = t[t["trace"].str.len() > 2]
+    if t.empty:
+        return "", {}
+    scene = sort_scenes(t["scene"])[0]
+    return scene, representative_traces(t[t["scene"] == scene])
+
+
 def _trace_figure(ctx: ReportContext) -> str:
     """Per family, the representative solve's trace of every solver: residual against
-    iteration and against time, in the scene whose traced solves are largest."""
-    t = ctx.table[(ctx.table["status"] != "skipped") & (ctx.table["trace"].str.len() > 2)]
-    if t.empty:
+    iteration and against time, in the first scene with traces (trace_scene)."""
+    scene, reps = trace_scene(ctx)
+    if not reps:
         return ""
-    scene = sort_scenes(t["scene"])[0]  # the paper's sweep when present (report.SCENE_ORDER)
-    t = t[t["scene"] == scene]
-    rank = {p: i for i, p in enumerate(PROFILE_PREFERENCE)}
-    t = t.assign(_pr=t["profile"].map(lambda p: rank.get(p, len(rank))))
-    t = t.sort_values(["n", "_pr", "instance", "step", "repeat"], ascending=[False, True, True, True, True],
-                      kind="stable")
-    reps = {s: g.iloc[0] for s, g in t.groupby("solver", sort=False)}
     solvers = sorted(reps, key=lambda s: (natural_key(ctx.family(s)), natural_key(s)))
     panels = [q for f in sort_families(ctx.family(s) for s in solvers)
               for q in family_panels([s for s in solvers if ctx.family(s) == f], ctx.family)]

@@ -28,40 +28,29 @@ from .report import (
     log_if_wide,
     natural_key,
     natural_sorted,
-    new_figure,
     parse_trace,
     per_cell,
     register_section,
+    representative_traces,
     scene_rank,
     table_md,
 )
 
 MAX_TABLE_ROWS = 80
+MAX_FAILURE_ROWS = 40
 
 
 def reached_accuracy(rows: pd.DataFrame) -> dict[str, float]:
     """Solver -> median kkt_error over its solved rows (the accuracy its times bought)."""
     ok = rows[(rows["status"] == "solved") & rows["kkt_error"].notna()]
     return {str(k): float(v) for k, v in ok.groupby("solver")["kkt_error"].median().items()}
-MAX_FAILURE_ROWS = 40
+
 
 # ---------------------------------------------------------------------------
 # Run time against error
 # ---------------------------------------------------------------------------
 
 _PROFILE_MARKERS = {"low": "v", "default": "o", "mid": "s", "high": "^"}
-
-
-def _representative_trace_row(rows: pd.DataFrame) -> pd.Series | None:
-    """The traced row with the largest n at the tightest profile (then lowest step)."""
-    t = rows[rows["trace"].str.len() > 2]
-    if t.empty:
-        return None
-    rank = {p: i for i, p in enumerate(PROFILE_PREFERENCE)}
-    t = t.assign(_pr=t["profile"].map(lambda p: rank.get(p, len(rank))))
-    t = t.sort_values(["n", "_pr", "instance", "step", "repeat"], ascending=[False, True, True, True, True],
-                      kind="stable")
-    return t.iloc[0]
 
 
 @register_section("work-precision", title="Run time against error", group="summary", order=10)
@@ -124,7 +113,7 @@ def _wp_panel(ctx: ReportContext, a1: Any, a2: Any, r: pd.DataFrame, panel: Pane
     for s in panel.solvers:
         c = r[r["solver"] == s]
         _wp_points(ctx, a1, a2, c, ctx.color(s), 16, 0.8)
-        rep = _representative_trace_row(c)
+        rep = representative_traces(c).get(s)
         if rep is not None:
             tr = parse_trace(rep["trace"])
             ok = (tr[:, 1] > 0) & np.isfinite(tr[:, 2])
@@ -217,10 +206,18 @@ def best_of_family(ctx: ReportContext, score: dict[str, float]) -> dict[str, str
     return best
 
 
-def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float]) -> str:
+def profile_taus(prof: agg.PerformanceProfile, points: int) -> tuple[np.ndarray, float]:
+    """The tau axis of a performance profile: ``points`` geometric steps from 1 to
+    ``hi`` (1.5 x the largest finite ratio, at least 2) plus every ratio in that range,
+    so each step of a curve is drawn where it happens; returns (taus, hi)."""
     hi = max(2.0, prof.max_finite_ratio() * 1.5)
-    taus = np.unique(np.concatenate([np.geomspace(1.0, hi, 200), *[r[np.isfinite(r)] for r in prof.ratios.values()]]))
-    taus = taus[(taus >= 1.0) & (taus <= hi)]
+    taus = np.unique(np.concatenate([np.geomspace(1.0, hi, points),
+                                     *[r[np.isfinite(r)] for r in prof.ratios.values()]]))
+    return taus[(taus >= 1.0) & (taus <= hi)], hi
+
+
+def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float]) -> str:
+    taus, hi = profile_taus(prof, 200)
     panels = family_panels(list(prof.solvers), ctx.family, best_of_family(ctx, sgm))
     ncols = 1 if len(panels) == 1 else 2
     nrows = -(-len(panels) // ncols)

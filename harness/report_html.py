@@ -31,12 +31,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from . import aggregates as agg
-from .report import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_json, parse_trace, \
-    write_atomic
-from .report_fields import load_area_series
+from .report import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace, write_atomic
+from .report_fields import load_area_series, trace_scene
+from .report_generic import profile_taus, reached_accuracy
+from .report_paper import k_of
 from .report_page_script import PAGE_SCRIPT
 from .report_style import sort_families
 
@@ -53,11 +53,6 @@ def _num(v: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def _k_of(params: Any) -> float | None:
-    p = parse_json(params, {})
-    return _num(p.get("K")) if isinstance(p, dict) else None
-
-
 def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
     """The attempted rows, one dict each, with short keys (the page's data table)."""
     t = attempted(ctx.table)
@@ -68,7 +63,7 @@ def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
                         lab=f"{r['solver']}{WARM_SUFFIX}" if w else r["solver"], fa=ctx.family(r["solver"]),
                         pr=r["profile"], stt=r["status"], kkt=_num(r["kkt_error"]), perr=_num(r["p_rel_error"]),
                         lerr=_num(r["load_rel_error"]), t=_num(r["solve_time_s"]), it=_num(r["iterations"]),
-                        dl=_num(r["dim_load"]), cf=_num(r["contact_fraction"]), K=_k_of(r["params"]),
+                        dl=_num(r["dim_load"]), cf=_num(r["contact_fraction"]), K=_num(k_of(r)),
                         base=r["base_solver"]))
     out.sort(key=lambda d: (d["sc"], natural_key(d["so"]), d["pr"], natural_key(d["inst"]), d["st"] or 0))
     return out
@@ -82,8 +77,7 @@ def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]
         r = ctx.rows(scene)
         solvers = natural_sorted(r["solver"].unique())
         summ = agg.summarize(r, ctx.shift, solvers)
-        ok = r[(r["status"] == "solved") & r["kkt_error"].notna()]
-        acc = ok.groupby("solver")["kkt_error"].median()
+        acc = reached_accuracy(r)
         sgm[scene] = {"columns": ["solver", "family", "solved", "attempted", "success", "SGM [s]", "SGM / best",
                                   "median kkt (solved)", "false claims"],
                       "rows": [[s.solver, ctx.family(s.solver), s.solved, s.attempted, _num(s.success_rate),
@@ -92,10 +86,7 @@ def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]
         cells = agg.cell_table(r, solvers)
         if len(cells.solvers) >= 2 and cells.problems:
             prof = agg.performance_profile(cells)
-            hi = max(2.0, prof.max_finite_ratio() * 1.5)
-            taus = np.unique(np.concatenate([np.geomspace(1.0, hi, 120),
-                                             *[x[np.isfinite(x)] for x in prof.ratios.values()]]))
-            taus = taus[(taus >= 1.0) & (taus <= hi)]
+            taus, _ = profile_taus(prof, 120)
             pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
                          "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}
     return pp, sgm
@@ -103,19 +94,12 @@ def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]
 
 def trace_data(ctx: ReportContext) -> dict[str, Any]:
     """The representative trace of every solver (largest n, tightest profile) in the
-    first scene with traces (as the Markdown report's trace figure)."""
-    t = attempted(ctx.table)
-    t = t[t["trace"].str.len() > 2]
-    if t.empty:
+    first scene with traces (the Markdown report's trace figure: report_fields.trace_scene)."""
+    scene, reps = trace_scene(ctx)
+    if not reps:
         return {}
-    scene = ctx.scenes()[[s in set(t["scene"]) for s in ctx.scenes()].index(True)]
-    t = t[t["scene"] == scene]
-    rank = {p: i for i, p in enumerate(("high", "mid", "default", "low"))}
-    t = t.assign(_pr=t["profile"].map(lambda p: rank.get(p, 9)))
-    t = t.sort_values(["n", "_pr", "instance", "step"], ascending=[False, True, True, True], kind="stable")
     out = {}
-    for s, g in t.groupby("solver", sort=False):
-        row = g.iloc[0]
+    for s, row in reps.items():
         tr = parse_trace(row["trace"])
         ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
         out[s] = {"it": tr[ok, 0].tolist(), "t": tr[ok, 1].tolist(), "r": tr[ok, 2].tolist(),

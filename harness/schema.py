@@ -36,8 +36,8 @@ import pandas as pd
 
 
 STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skipped")
-#: The values of ``verdict`` besides "" (the judge's readings).
-#: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``.
+#: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``
+#: besides "" (not judged).
 VERDICTS: Final = ("pass", "wrong", "unconverged")
 DTYPES: Final = ("string", "Int64", "boolean", "float64")
 
