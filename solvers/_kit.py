@@ -9,7 +9,7 @@
   shifted, within the memory budget.
 * ``absolute_tol`` -- a relative tolerance in the problem's units (displacement, force),
   for a solver's internal thresholds (which element is "negative", a CG's atol).
-* ``project_nonneg``, ``is_dense``, ``operator_kind``.
+* ``is_dense``.
 * ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``.
 
 The solve lifecycle itself (deadline, trace, matvec count, warm start, tolerance) is in
@@ -166,17 +166,8 @@ def absolute_tol(ctx: SolveContext, tol: float) -> AbsoluteTol:
     return AbsoluteTol(disp=tol * f.u_scale, force=tol * f.p_scale)
 
 
-def project_nonneg(x: np.ndarray) -> np.ndarray:
-    """Projection onto p >= 0 (in place)."""
-    return np.maximum(x, 0.0, out=x)
-
-
 def is_dense(op: ContactOperator) -> bool:
     return isinstance(op, DenseOperator)
-
-
-def operator_kind(op: ContactOperator) -> str:
-    return "dense" if is_dense(op) else "fft"
 
 
 #: Effective dense GEMV throughput (flop/s) and FFT cost per padded point on one core.

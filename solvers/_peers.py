@@ -1,6 +1,7 @@
 """What the field's codes (solvers/peer_cm.py, solvers/peer_tamaas.py) share: the
-optional-import check, and posing one of our QPs as the full-grid problem a peer code
-takes (a height field, a grid, a modulus, a kernel).
+optional-import check, their base class (``PeerSolver``: family "peer", the grid skip),
+and posing one of our QPs as the full-grid problem a peer code takes (a height field, a
+grid, a modulus, a kernel).
 
 Posing (no cleaning).  A peer code works on the whole N1 x N2 grid; our QP lives on the
 trial set I (``QP.geometry.indices``).  The peer is handed the field U with U_I = ubar
@@ -26,6 +27,8 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
 from contactbench.problems.kernels import kernel_table
 
+from .base import ProblemTraits, Solver
+
 #: The install hint every peer solver prints when its package is missing.
 INSTALL_HINT = "pip install contactbench[peers]  (contactmechanics>=1.4, tamaas>=2.8)"
 
@@ -40,6 +43,17 @@ def package_availability(module: str, label: str) -> tuple[bool, str]:
     except Exception as e:  # noqa: BLE001 -- a broken install (ABI mismatch, missing shared library)
         return False, f"{label} does not import ({type(e).__name__}: {e}); reinstall with {INSTALL_HINT}"
     return True, f"available ({label} {getattr(mod, '__version__', '?')})"
+
+
+class PeerSolver(Solver):
+    """A peer code: it poses the QP on a grid, so it skips a problem without one."""
+
+    family = "peer"
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        if not traits.has_geometry or not traits.kernel:
+            return f"{self.name} poses the problem on a grid: it needs the QP's grid geometry and kernel"
+        return None
 
 
 @dataclass(frozen=True)

@@ -132,7 +132,6 @@ class ScaledQP:
     H: np.ndarray
     u: np.ndarray
     eq: Equilibration
-    build_time: float
     x0: np.ndarray | None = None  # warm start in scaled units
 
     @property
@@ -142,15 +141,14 @@ class ScaledQP:
 
 def assemble_scaled(qp: QP, scaling: bool = True, p0: np.ndarray | None = None) -> ScaledQP:
     """Dense H, equilibrated (or raw), plus the scaled warm start ``p0`` (already
-    validated by the lifecycle); timed as build time."""
-    t0 = time.perf_counter()
+    validated and clipped to p >= 0 by the lifecycle; the scaling keeps its sign)."""
     H = dense_matrix(qp)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
     eq = equilibration_for(np.diag(H), ubar, scaling)
     Hs = eq.scale_matrix(H)
     us = eq.scale_rhs(ubar)
-    x0 = None if p0 is None else np.maximum(eq.to_scaled(p0), 0.0)
-    return ScaledQP(Hs, us, eq, time.perf_counter() - t0, x0)
+    x0 = None if p0 is None else eq.to_scaled(p0)
+    return ScaledQP(Hs, us, eq, x0)
 
 
 def dense_memory_model(n: int, copies: float) -> float:
@@ -275,7 +273,7 @@ class EquilibratedAdapter(Solver):
         ctx.mark_setup_done()
         out = self.run_backend(sqp, prepared, ctx)
         if out.late_build_time:
-            ctx.setup_time = (ctx.setup_time or 0.0) + out.late_build_time
+            ctx.add_setup_time(out.late_build_time)
         info: dict[str, Any] = {
             "scaling": "jacobi+rhs" if sqp.eq.enabled else "raw",
             "scale_s": sqp.eq.s,

@@ -286,7 +286,7 @@ def _fine_level(ctx: SolveContext, s: int, g: Geometry, base: Solver, prev: Leve
     p_full = np.zeros(qp.n)
     res = SolveResult(p=np.zeros(0), converged=True, status="empty")
     matvecs = 0
-    warm = _restricted_warm(ctx, base, pos)
+    warm = _restricted_warm(ctx, pos)
     rounds = -1
     while True:
         if pos.size:
@@ -304,14 +304,15 @@ def _fine_level(ctx: SolveContext, s: int, g: Geometry, base: Solver, prev: Leve
         if missed.size == 0:
             break
         pos = np.union1d(pos, missed)
-        warm = WarmStart(p=p_full[pos]) if base.capabilities.warm_start != "none" else None
+        warm = WarmStart(p=p_full[pos])  # a base that takes none is handed none by its lifecycle
     rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, contact_mask(p_full), res)
     return FineSolution(p_full, w, res, rec, rounds, matvecs)
 
 
-def _restricted_warm(ctx: SolveContext, base: Solver, pos: np.ndarray) -> WarmStart | None:
-    """CMR's warm start restricted to the projected set, for a base that takes one."""
-    if ctx.p0 is None or base.capabilities.warm_start == "none":
+def _restricted_warm(ctx: SolveContext, pos: np.ndarray) -> WarmStart | None:
+    """CMR's warm start restricted to the projected set (``iterate`` dropped it already
+    when the base takes none)."""
+    if ctx.p0 is None:
         return None
     w = None if ctx.warm is None or ctx.warm.w is None else np.asarray(ctx.warm.w)[pos]
     return WarmStart(p=ctx.p0[pos], w=w)

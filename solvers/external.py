@@ -368,8 +368,8 @@ class ExternalSolver(Solver):
                 try:
                     res = subprocess.run(split_command(self.spec.version, self.name), cwd=self.spec.workdir,
                                          capture_output=True, text=True, timeout=10.0, stdin=subprocess.DEVNULL)
-                    self._version = (res.stdout.strip() or res.stderr.strip()).splitlines()[0][:200] \
-                        if (res.stdout.strip() or res.stderr.strip()) else f"(exit {res.returncode})"
+                    said = res.stdout.strip() or res.stderr.strip()
+                    self._version = said.splitlines()[0][:200] if said else f"(exit {res.returncode})"
                 except (OSError, subprocess.TimeoutExpired) as exc:
                     self._version = f"(version command failed: {exc})"
         return self._version

@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from ._peers import GridProblem, captured, full_field, grid_problem, package_availability
-from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
+from ._peers import GridProblem, PeerSolver, captured, full_field, grid_problem, package_availability
+from .base import Capabilities, Outcome, Param, SolveContext, Status
 from .registry import register
 
 GREEN_CHOICES = ("auto", "ours")
@@ -100,8 +100,7 @@ def cm_substrate(gp: GridProblem, table: np.ndarray | None) -> Any:
     return OurGreen()
 
 
-class _CMSolver(Solver):
-    family = "peer"
+class _CMSolver(PeerSolver):
     capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="primal", needs_geometry=False)
 
     def availability(self) -> tuple[bool, str]:
@@ -110,11 +109,6 @@ class _CMSolver(Solver):
             ok2, why2 = package_availability("SurfaceTopography", "SurfaceTopography")
             return (ok2, why if ok2 else why2)
         return ok, why
-
-    def skip(self, traits: ProblemTraits) -> str | None:
-        if not traits.has_geometry or not traits.kernel:
-            return f"{self.name} poses the problem on a grid: it needs the QP's grid geometry and kernel"
-        return None
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return None
@@ -152,14 +146,15 @@ class CMDualCCG(_CMSolver):
         topo = Topography(gp.U, physical_sizes=gp.sizes, periodic=gp.periodic)
         system = NonSmoothContactSystem(sub, topo)
         init = full_field(gp, ctx.p0)
+        gtol = self.tolerance(ctx, gp)
         ctx.mark_setup_done()
         with captured() as said:
             res = system.dual_minimize_proxy(0.0, init_force=init, solver=f"ccg-{ctx.params['variant']}",
-                                             gtol=self.tolerance(ctx, gp), maxiter=int(ctx.max_iter))
+                                             gtol=gtol, maxiter=int(ctx.max_iter))
         ctx.add_matvecs(type(sub).products)
         force = np.asarray(res.x).reshape(gp.shape)
         return peer_outcome(gp, force, bool(res.success), int(res.nit), str(res.message),
-                            {"green": green, "gtol": self.tolerance(ctx, gp), "peer_printed": said.tail()})
+                            {"green": green, "gtol": gtol, "peer_printed": said.tail()})
 
 
 @register

@@ -47,8 +47,8 @@ import numpy as np
 
 from contactbench.problems.errors import ProblemInputError
 
-from ._peers import GridProblem, grid_problem, package_availability
-from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
+from ._peers import GridProblem, PeerSolver, grid_problem, package_availability
+from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Status
 from .registry import register
 
 
@@ -155,17 +155,14 @@ def load_for_offset(offset_at: Callable[[float], float], guess: float, tol: floa
     return b, solves
 
 
-class _TamaasSolver(Solver):
-    family = "peer"
+class _TamaasSolver(PeerSolver):
     capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="none")
 
     def availability(self) -> tuple[bool, str]:
         return package_availability("tamaas", "Tamaas")
 
     def skip(self, traits: ProblemTraits) -> str | None:
-        if not traits.has_geometry or not traits.kernel:
-            return f"{self.name} poses the problem on a grid: it needs the QP's grid geometry and kernel"
-        return tamaas_serves(traits.kernel, traits.periodic)
+        return super().skip(traits) or tamaas_serves(traits.kernel, traits.periodic)
 
     def posed(self, ctx: SolveContext) -> GridProblem:
         gp = grid_problem(ctx.qp)
