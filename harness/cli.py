@@ -3,7 +3,8 @@
     contactbench list scenes|solvers [--params]
     contactbench run SCENE [SCENE...] [--solvers a,b|all] [--profile p[,q]] [--size N] [--steps K]
                      [--seeds 0-9|0,3,5] [--surface PATH [--length L] [--channel C]] [--E E] [--kernel bcc|love]
-                     [--periodic] [--repeats R] [--timeout S] [--out DIR] [--jobs J] [--cold] ...
+                     [--surface-family saupe|periodic] [--periodic] [--repeats R] [--timeout S] [--out DIR]
+                     [--jobs J] [--cold] ...
     contactbench export SCENE [scene options of run] --format problem-dir|hdf5|qpbenchmark --out DIR
     contactbench report DIR
     contactbench validate ...       (every argument goes to harness/conformance.py)
@@ -23,6 +24,8 @@ import sys
 from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import OPERATOR_KINDS
+from contactbench.problems.surfaces import RMD_FAMILIES
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -174,6 +177,10 @@ def scene_config(args: argparse.Namespace) -> Any:
         if not args.surface:
             raise ProblemInputError("--height-unit and --allow-steep apply to a --surface file; no --surface was given")
         extra.update({k: v for k, v in (("height_unit", args.height_unit), ("allow_steep", args.allow_steep)) if v})
+    if args.surface_family is not None:
+        if args.surface:
+            raise ProblemInputError("--surface-family picks the generated RMD surfaces; a --surface file was given")
+        extra["family"] = args.surface_family
     return SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
                        length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic,
                        operator=args.operator, extra=extra)
@@ -193,10 +200,14 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
                    help="unit of the heights of a --surface file that states none (default m)")
     p.add_argument("--allow-steep", action="store_true",
                    help="run a --surface beyond the small-slope range (rms slope > 1 or heights > side length)")
+    p.add_argument("--surface-family", choices=RMD_FAMILIES, default=None,
+                   help="RMD surface family of the generated surfaces: saupe (non-periodic MidPointFM2D, the "
+                        "paper's; default of non-periodic scenes) or periodic (wrap-around diamond-square)")
     p.add_argument("--E", type=positive_float, default=None, help="composite modulus E* in Pa")
     p.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None)
     p.add_argument("--periodic", action="store_true", default=None, help="periodic domain")
-    p.add_argument("--operator", choices=("fft", "dense"), default=None, help="operator the instance is built with")
+    p.add_argument("--operator", choices=OPERATOR_KINDS, default=None,
+                   help="operator the instance is built with (gpu: the optional CuPy backend, extra `gpu`)")
 
 
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:

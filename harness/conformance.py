@@ -53,6 +53,7 @@ solver conforms.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -66,7 +67,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
-from contactbench.solvers.base import Solver
+from contactbench.solvers.base import ParamError, Solver
 from contactbench.solvers.registry import all_solvers, load_solver
 
 from .conformance_cases import (
@@ -396,9 +397,11 @@ def run_case(runner: SolveRunner, case: ConformanceCase, name: str) -> list[Verd
 
 def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
              mode: str = "fast", timeout: float | None = None, isolate: bool = True,
-             progress: Callable[[VerdictRow], Any] | None = None) -> VerdictTable:
+             progress: Callable[[VerdictRow], Any] | None = None,
+             params: dict[str, Any] | None = None) -> VerdictTable:
     """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
-    battery (default: the ``mode`` cases) and return the verdict table."""
+    battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
+    its declared ``Param``s first) and return the verdict table."""
     s = load_solver(solver) if isinstance(solver, str) else solver
     table = VerdictTable(s.name, mode, exact=bool(s.capabilities.exact))
     available, why = s.availability()
@@ -406,7 +409,8 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
         table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
         return table
     limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else timeout
-    runner = SolveRunner(s, limit, isolate=isolate)
+    s.resolve_params(params)  # unknown or bad parameters: a ParamError before anything runs
+    runner = SolveRunner(s, limit, isolate=isolate, params=params)
     try:
         for case in _as_cases(cases, mode):
             new = run_case(runner, case, s.name)
@@ -463,7 +467,21 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--inputs", choices=("dense", "kernel"), default=None,
                     help="with --command: what the program reads, the dense H (default) or the kernel table")
     ap.add_argument("--quiet", action="store_true", help="print only the summary line per solver")
+    ap.add_argument("--params", type=json_object, default=None, metavar="JSON",
+                    help='solver parameters for every solve, e.g. \'{"precision": "mixed"}\' (checked against the '
+                         "solver's declared parameters: `contactbench list solvers --params`)")
     return ap
+
+
+def json_object(text: str) -> dict[str, Any]:
+    """A JSON object from the command line (argparse reports anything else as a usage error)."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON: {exc}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"expected a JSON object such as '{{\"precision\": \"mixed\"}}', got {text!r}")
+    return value
 
 
 class SolverLoadError(ValueError):
@@ -540,14 +558,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise SolverLoadError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
         command_solvers = command_solver_of(args.command, args.inputs)
         solvers = _selected_solvers(args.solvers, args.all, command_solvers)
+        for solver in solvers:
+            solver.resolve_params(args.params)
         if args.out:
             check_out_dir(args.out)
-    except (SolverLoadError, ProblemInputError) as exc:
+    except (SolverLoadError, ProblemInputError, ParamError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
         return USAGE_ERROR
     codes, tables = [], []
     for solver in solvers:
-        table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate)
+        table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
+                         params=args.params)
         print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
         left = left_out_lines(table) if not args.quiet or solver in command_solvers else []
         if left:

@@ -191,15 +191,15 @@ def is_refusal(exc: BaseException, group: str) -> bool:
         w in text for w in ("float32", "dtype", "precision", "single"))
 
 
-def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None]) -> dict[str, Any]:
+def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:
     """Worker side: rebuild the instance from its recipe, solve, report plain data."""
-    spec, step, time_limit = msg
+    spec, step, time_limit, params = msg
     case = ConformanceCase(spec)
     inst = build_battery_spec(spec).at(step)
     qp = adapt_to_solver(inst, solver)
     if isinstance(qp, str):
         return {"kind": "skipped", "message": qp}
-    settings = SolverSettings(tol=get_profile(case.profile).tol, time_limit=time_limit)
+    settings = SolverSettings(tol=get_profile(case.profile).tol, time_limit=time_limit, params=params)
     t0 = time.perf_counter()
     try:
         res = solver.solve(qp, settings, None)
@@ -227,8 +227,10 @@ class SolveRunner:
     """Runs the solves of one solver with a hard time limit: in a forked worker
     (``harness.isolation``) when ``isolate``, else in-process (no limit)."""
 
-    def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True) -> None:
+    def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
+                 params: dict[str, Any] | None = None) -> None:
         self.solver, self.timeout, self.isolate = solver, timeout, isolate
+        self.params = dict(params or {})
         self.worker: Any = None
         if isolate:
             from contactbench.harness.isolation import IsolatedWorker
@@ -236,7 +238,7 @@ class SolveRunner:
             self.worker = IsolatedWorker(lambda: _SolverHandler(solver))
 
     def solve(self, spec: InstanceSpec, step: int) -> SolveOutcome:
-        msg = (spec, step, self.timeout)
+        msg = (spec, step, self.timeout, self.params)
         if self.worker is None:
             return SolveOutcome(**solve_case(self.solver, msg))
         out = self.worker.call(msg, None if self.timeout is None else

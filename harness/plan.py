@@ -21,6 +21,7 @@ from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
+from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.solvers.registry import all_solvers, available_solvers, get_solver, load_solver, register
 
@@ -186,6 +187,8 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
     """The jobs and warnings of one study on its scene under ``cfg`` (validated)."""
     scene = get_scene(study.scene)
     merged = scene.config(cfg)
+    if merged.operator is not None:
+        check_operator_kind(str(merged.operator))  # "gpu" without CuPy or a device: the reason, before anything runs
     check_height_unit_applied(study.scene, merged, scene)
     scene.validate(merged)
     variants = tuple(study.variants(solvers, merged.extra))

@@ -79,6 +79,19 @@ class Section:
     body: str
 
 
+@dataclass(frozen=True)
+class TableRecord:
+    """A numbered table as ``table_md`` rendered it (kept on the context so that the HTML
+    page can show the same cells without computing them again)."""
+
+    number: int
+    caption: str
+    headers: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    align: str
+    on_page: bool = False  # also shown on the HTML page (report_html.tables_html)
+
+
 @dataclass
 class ReportContext:
     """What a section function gets: the whole table, meta.json, and helpers to save
@@ -90,6 +103,7 @@ class ReportContext:
     meta: dict[str, Any]
     shift: float = agg.DEFAULT_SHIFT_S
     figures: list[str] = field(default_factory=list)
+    tables: list[TableRecord] = field(default_factory=list)
     _styles: SolverStyles | None = None
     _table_no: int = 0
     _fig_no: int = 0
@@ -294,9 +308,15 @@ def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], align:
 
 
 def table_md(ctx: ReportContext, caption: str, headers: Sequence[str], rows: Sequence[Sequence[Any]],
-             align: str | None = None) -> str:
-    """A numbered, captioned table."""
-    return f"*Table {ctx.next_table()}: {caption}*\n\n" + markdown_table(headers, rows, align)
+             align: str | None = None, on_page: bool = False) -> str:
+    """A numbered, captioned table (also recorded in ``ctx.tables``; ``on_page``: the HTML
+    page shows it too)."""
+    number = ctx.next_table()
+    rows = [tuple(r) for r in rows]
+    align = align or ("l" + "r" * (len(headers) - 1))
+    ctx.tables.append(TableRecord(number, caption, tuple(str(h) for h in headers),
+                                  tuple(tuple(str(c) for c in r) for r in rows), align, on_page))
+    return f"*Table {number}: {caption}*\n\n" + markdown_table(headers, rows, align)
 
 
 # ---------------------------------------------------------------------------

@@ -1,14 +1,32 @@
 """Report sections of the cascade multi-resolution scenes (Bemporad & Paggi 2015, sec. 5.2):
 ``cmr`` (Fig. 8), ``cmr-h-sweep`` (Fig. 9) and ``cmr-cutoff`` (Figs. 10-11).
 
-Each CMR row is paired with the direct solve of its base solver on the same instance and
-step (``base_solver`` "cmr+nnls" -> solver "nnls").  n_p/n is read from the CMR solver's
-message ("n_p/n=0.7312"), which solvers/cmr.py writes.
+Section 5 is reported as distributions over seeds (issue 19): every figure draws the
+median with a 10-90 % band (``BAND``), and every table gives the same numbers, per
+surface family that ran, per base solver and per coarse reading.
+
+Pairing.  Each CMR row ("cmr+<base>" in ``base_solver``) is paired with the direct solve
+of its base (``base_solver`` == <base>) on the same instance, step and history; only
+solves that returned an answer (solved or inaccurate) are paired (a failed or timed-out
+solve has no load), so the tables' seed counts say how many pairs each figure rests on.  The
+direct time of a base given the dense H (``operator`` "dense", e.g. ``scipy-nnls``)
+includes the assembly of that H (its row's ``build_time_s`` less the step's build, which
+the CMR row of the step carries), as the CMR time includes the assembly of every level's
+matrix.  A variant's time ratio is its CMR time summed over the paired steps of an
+instance (the 10-step history of ``cmr``, the top step of ``cmr-h-sweep``) over the
+direct time summed over the same steps; the load error is (P_CMR - P_direct) / P_direct
+at the top step (negative: CMR misses load).  n_p/n is the fine level's projected share
+of the trial set, from the column ``projected_n`` when the table has one, else from the
+CMR solver's message (``NP_RE``).  The variant's h, coarse reading and first level are read from ``params`` (absent
+keys: the wrapper's declared defaults).
 """
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -18,18 +36,40 @@ from .report import (
     Section,
     attempted,
     fmt_num,
-    fmt_pct,
-    new_figure,
+    grid_figure,
+    natural_key,
     parse_json,
     per_cell,
     pick_profile,
     register_section,
     table_md,
+    tidy_log_ticks,
 )
+from .report_paper import rough_instance, surface_family_note
+from .studies import CMR_COARSEST, CMR_H
 
 NP_RE = re.compile(r"n_p/n=([0-9.eE+-]+)")
 #: The registry names of the CMR wrappers: "cmr+<base solver>" (solvers/cmr.py).
 CMR_PREFIX = "cmr+"
+#: The paper's accuracy claim: the error in the maximum load under 2 % (for H > 0.5).
+ERROR_TOL = 0.02
+#: The Hurst exponents the paper's accuracy claim is about: H > PAPER_H_MIN.
+PAPER_H_MIN = 0.5
+#: The paper's time claim: about 50 % of the time saved at h = 2 (CMR / direct ~ 0.5).
+PAPER_TIME_RATIO = 0.5
+#: The share of seeds under ERROR_TOL at which the claim is read as robust (issue 19).
+ROBUST_SHARE = 0.8
+#: The quantiles of the bands drawn and tabled around the median.
+BAND = (0.10, 0.90)
+#: The surface of paper Fig. 9 (and of the first-level figure when several H ran).
+FIG9_H = 0.7
+#: What each base solver stands for in the figures and readings.
+BASE_TEXT = {"scipy-nnls": "dense Cholesky + NNLS (the paper's base)", "nnls": "incremental NNLS",
+             "fast-dual-pccg": "FFT base fast-dual-pccg"}
+#: The statuses of a solve that returned an answer (the pairs are made of these only).
+ANSWERED = ("solved", "inaccurate")
+#: The surface-family key of instances that are not generated rough surfaces.
+NO_FAMILY = ""
 
 
 def wrapped_solver(base_solver: str) -> str | None:
@@ -37,94 +77,623 @@ def wrapped_solver(base_solver: str) -> str | None:
     return base_solver[len(CMR_PREFIX):] if base_solver.startswith(CMR_PREFIX) else None
 
 
+# ---------------------------------------------------------------------------
+# Distributions
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Band:
+    """Median and the BAND quantiles of the finite values, and how many there were."""
+
+    median: float
+    lo: float
+    hi: float
+    count: int
+
+
+def finite(values: Iterable[Any]) -> np.ndarray:
+    """The finite numbers among ``values`` (missing values of any kind dropped)."""
+    v = pd.to_numeric(pd.Series(list(values), dtype=object), errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+    return v[np.isfinite(v)]
+
+
+def band(values: Iterable[float]) -> Band:
+    v = finite(values)
+    if not len(v):
+        return Band(np.nan, np.nan, np.nan, 0)
+    lo, med, hi = np.quantile(v, [BAND[0], 0.5, BAND[1]])
+    return Band(float(med), float(lo), float(hi), len(v))
+
+
+def share_under(errors: Iterable[float], tol: float = ERROR_TOL) -> float:
+    """The share of the finite errors with |error| < tol (NaN when there is none)."""
+    e = finite(errors)
+    return float(np.mean(np.abs(e) < tol)) if len(e) else np.nan
+
+
+def worst(errors: Iterable[float]) -> float:
+    """The error of largest magnitude, with its sign."""
+    e = finite(errors)
+    return float(e[np.argmax(np.abs(e))]) if len(e) else np.nan
+
+
+def fmt_band(b: Band, pct: bool = False) -> str:
+    """"median [lo, hi]" (in % with ``pct``)."""
+    if not b.count:
+        return "-"
+    f = _pct if pct else fmt_num
+    return f"{f(b.median)} [{f(b.lo)}, {f(b.hi)}]" + (" %" if pct else "")
+
+
+def _pct(v: float) -> str:
+    x = round(100 * v, 1)
+    return f"{x if x != 0 else 0.0:.1f}"
+
+
+def fmt_pct1(v: float) -> str:
+    """A fraction in per cent, one decimal ("-" for NaN, never "-0.0")."""
+    return "-" if not np.isfinite(v) else f"{_pct(v)} %"
+
+
+# ---------------------------------------------------------------------------
+# Pairing CMR rows with the direct solves
+# ---------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=None)
+def wrapper_defaults(base_solver: str) -> dict[str, Any]:
+    """The declared defaults of a CMR wrapper's parameters ({} when it is not registered)."""
+    from contactbench.solvers.registry import load_solver
+
+    try:
+        return {p.name: p.default for p in load_solver(base_solver).params}
+    except Exception:
+        return {}
+
+
+def variant_params(base_solver: str, params_text: str) -> tuple[float, str, int]:
+    """(h, coarse, coarsest) of a CMR row: its ``params``, else the wrapper's defaults."""
+    p = parse_json(params_text, {})
+    p = {**wrapper_defaults(base_solver), **(p if isinstance(p, dict) else {})}
+    h = float(p["h"]) if p.get("h") is not None else np.nan
+    coarsest = int(p["coarsest"]) if p.get("coarsest") is not None else -1
+    return h, str(p.get("coarse") or "subsample"), coarsest
+
+
+#: The column that would hold the fine level's projected trial-set size (not in the
+#: schema yet: read when present, else n_p/n is parsed from the message).
+PROJECTED_N = "projected_n"
+
+
+def n_p_over_n(message: str) -> float:
+    m = NP_RE.search(str(message))
+    return float(m.group(1)) if m else np.nan
+
+
+def projected_share(cells: pd.DataFrame) -> pd.Series:
+    """n_p/n of CMR cells: ``PROJECTED_N`` / n where the table has it, else the message's."""
+    parsed = cells["solver_message"].map(n_p_over_n)
+    if PROJECTED_N not in cells.columns:
+        return parsed
+    stored = pd.to_numeric(cells[PROJECTED_N], errors="coerce") / cells["n"]
+    return stored.where(stored.notna(), parsed)
+
+
 def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
-    """One row per (instance, step, CMR variant): its time, load and n_p/n beside the
-    direct base solve's."""
+    """One row per (instance, step, CMR variant) at the tightest profile where both the CMR
+    solve and its direct solve returned an answer (``ANSWERED``): the CMR solve's
+    time, load and n_p/n beside its direct base solve's, the load error, the variant's
+    base / coarse / h / coarsest and the surface's family / H / seed.  Empty when no CMR
+    row has its direct solve."""
     prof = pick_profile(attempted(rows))
     cells = per_cell(attempted(rows[rows["profile"] == prof]))
     if cells.empty:
         return pd.DataFrame()
+    cells = cells[cells["status"].isin(ANSWERED)]
     inner = cells["base_solver"].map(wrapped_solver)
     is_cmr = inner.notna()
     cmr, direct = cells[is_cmr].copy(), cells[~is_cmr]
     if cmr.empty or direct.empty:
         return pd.DataFrame()
-    cmr["direct_solver"] = inner[is_cmr]
-    cmr["h"] = [float(parse_json(p, {}).get("h", np.nan)) if isinstance(parse_json(p, {}), dict) else np.nan
-                for p in cmr["params"].fillna("")]
-    cmr["n_p_over_n"] = [float(m.group(1)) if (m := NP_RE.search(str(s))) else np.nan
-                         for s in cmr["solver_message"].fillna("")]
-    d = direct[["instance", "step", "solver", "solve_time_s", "load"]].rename(
-        columns={"solver": "direct_solver", "solve_time_s": "direct_time_s", "load": "direct_load"})
-    out = cmr.merge(d, on=["instance", "step", "direct_solver"], how="inner")
+    cmr["base"] = inner[is_cmr]
+    h, coarse, coarsest = zip(*(variant_params(b, p) for b, p in zip(cmr["base_solver"], cmr["params"])))
+    cmr = cmr.assign(h=h, coarse=coarse, coarsest=coarsest, n_p_over_n=projected_share(cmr))
+    keys = ["instance", "step", "history"]
+    d = direct[[*keys, "base_solver", "solve_time_s", "load", "build_time_s", "operator"]].rename(columns={
+        "base_solver": "base", "solve_time_s": "direct_solve_s", "load": "direct_load",
+        "build_time_s": "direct_build_s", "operator": "direct_operator"})
+    out = cmr.merge(d, on=[*keys, "base"], how="inner")
+    if out.empty:
+        return out
+    dense = (out["direct_operator"] == "dense") & (out["operator"] != "dense")
+    assembly = (out["direct_build_s"] - out["build_time_s"]).clip(lower=0.0).fillna(0.0)
+    out["direct_assembly_s"] = np.where(dense, assembly, 0.0)
+    out["direct_time_s"] = out["direct_solve_s"] + out["direct_assembly_s"]
     out["err"] = (out["load"] - out["direct_load"]) / out["direct_load"]
+    out["N"] = out["N"].fillna(0).astype(int)
+    rough = [rough_instance(i) for i in out["instance"]]
+    out["surface"] = [r.family if r else NO_FAMILY for r in rough]
+    out["H"] = [r.hurst if r else np.nan for r in rough]
+    out["seed"] = [r.seed if r else -1 for r in rough]
     return out
 
 
-def _by_variant_totals(pairs: pd.DataFrame) -> pd.DataFrame:
-    top = pairs.loc[pairs.groupby(["instance", "solver"])["step"].idxmax()]
-    tot = pairs.groupby(["instance", "solver"]).agg(cmr_s=("solve_time_s", "sum"), direct_s=("direct_time_s", "sum"),
-                                                    h=("h", "first"))
+def instance_totals(pairs: pd.DataFrame) -> pd.DataFrame:
+    """One row per (instance, CMR variant): the time ratio over the paired steps, and the
+    error, n_p/n and n at the top paired step."""
+    keys = ["surface", "instance", "solver", *VARIANT, "h", "coarsest", "H", "seed"]
+    g = pairs.groupby(keys, dropna=False)
+    tot = g.agg(cmr_s=("solve_time_s", "sum"), direct_s=("direct_time_s", "sum"),
+                assembly_s=("direct_assembly_s", "sum"), steps=("step", "size"))
     tot["ratio"] = tot["cmr_s"] / tot["direct_s"]
-    tot = tot.join(top.set_index(["instance", "solver"])[["err", "n_p_over_n", "n"]])
-    return tot.reset_index()
+    top = pairs.loc[g["step"].idxmax()].set_index(keys)[["err", "n_p_over_n", "n", "step"]]
+    return tot.join(top).reset_index()
+
+
+#: What tells the CMR runs of a scene apart in every table and figure: the base, the
+#: coarse reading and the grid size (the dense base may run at a smaller N than the fast).
+VARIANT = ["base", "coarse", "N"]
+Variant = tuple[str, str, int]
+
+
+def variant_order(frame: pd.DataFrame) -> list[Variant]:
+    """The (base, coarse, N) present: dense base first, larger N first, subsample first."""
+    found = {(str(b), str(c), int(n)) for b, c, n in zip(frame["base"], frame["coarse"], frame["N"].fillna(0))}
+    rank = {"scipy-nnls": 0, "nnls": 1}
+    return sorted(found, key=lambda v: (rank.get(v[0], 2), natural_key(v[0]), -v[2], v[1] != "subsample", v[1]))
+
+
+def of_variant(frame: pd.DataFrame, v: Variant) -> pd.DataFrame:
+    return frame[(frame["base"] == v[0]) & (frame["coarse"] == v[1]) & (frame["N"].fillna(0) == v[2])]
+
+
+def variant_title(v: Variant) -> str:
+    return f"{BASE_TEXT.get(v[0], v[0])}, coarse={v[1]}, N = {v[2]}"
+
+
+#: Short names of the bases for panel titles.
+BASE_SHORT = {"scipy-nnls": "dense NNLS base (paper)", "fast-dual-pccg": "FFT base fast-dual-pccg"}
+
+
+def panel_title(v: Variant) -> str:
+    return f"{BASE_SHORT.get(v[0], v[0])}\ncoarse={v[1]}, N = {v[2]}"
+
+
+# ---------------------------------------------------------------------------
+# Summaries: the one place each table's numbers are computed
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The distribution of one group of instances (one variant at one H, or h, ...)."""
+
+    ratio: Band
+    err: Band
+    np_n: Band
+    share: float  # of |err| < ERROR_TOL
+    worst: float
+
+    @classmethod
+    def of(cls, tot: pd.DataFrame) -> Summary:
+        return cls(band(tot["ratio"]), band(tot["err"]), band(tot["n_p_over_n"]), share_under(tot["err"]),
+                   worst(tot["err"]))
+
+
+def summaries(tot: pd.DataFrame, by: Sequence[str]) -> dict[tuple, Summary]:
+    """Summary per group of ``by`` (keys as tuples; the variants in ``variant_order``,
+    numbers ascending)."""
+    rank = {v: i for i, v in enumerate(variant_order(tot))}
+    pos = {c: i for i, c in enumerate(by)}
+
+    def key(k: tuple) -> tuple:
+        head = rank.get(tuple(k[pos[c]] for c in VARIANT), -1) if set(VARIANT) <= set(pos) else 0
+        return (head, *(natural_key(str(x)) if isinstance(x, str) else ((0, float(x), ""),) for x in k))
+
+    groups = {(k if isinstance(k, tuple) else (k,)): g for k, g in tot.groupby(list(by), dropna=False)}
+    return {k: Summary.of(groups[k]) for k in sorted(groups, key=key)}
+
+
+@dataclass(frozen=True)
+class Table:
+    """A report table: caption, headers, cells, alignment -- rendered in Markdown by
+    ``table_md`` (which also records it for the HTML page)."""
+
+    caption: str
+    headers: tuple[str, ...]
+    rows: list[tuple[str, ...]]
+    align: str
+
+    def md(self, ctx: ReportContext) -> str:
+        return table_md(ctx, self.caption, self.headers, self.rows, self.align, on_page=True)
+
+
+def fig8_table(tot: pd.DataFrame, family: str) -> Table:
+    s = summaries(tot, [*VARIANT, "H"])
+    rows = [(BASE_TEXT.get(b, b), c, str(N), fmt_num(H), str(v.err.count), fmt_band(v.ratio),
+             fmt_band(v.err, pct=True), fmt_pct1(v.worst), fmt_pct1(v.share), fmt_band(v.np_n))
+            for (b, c, N, H), v in s.items()]
+    return Table(f"Fig. 8 ({family or 'all surfaces'}): per base, coarse reading and H over the seeds -- time "
+                 f"CMR / direct summed over the load history, error in the load at the top step, its worst "
+                 f"case, the share of seeds with |error| < {100 * ERROR_TOL:g} %, and n_p/n at the top step; "
+                 f"median [{100 * BAND[0]:g} %, {100 * BAND[1]:g} %].",
+                 ("base", "coarse", "N", "H", "seeds", "time ratio", "load error", "worst", "share < 2 %",
+                  "n_p/n"), rows, "llrrrrrrrr")
+
+
+def history_bands(pairs: pd.DataFrame) -> dict[tuple, Band]:
+    """Band of the load error per (base, coarse, N, H, step) over the seeds."""
+    return {(str(b), str(c), int(N), float(H), int(k)): band(g["err"])
+            for (b, c, N, H, k), g in pairs.groupby([*VARIANT, "H", "step"], dropna=False)}
+
+
+def history_table(pairs: pd.DataFrame, family: str) -> Table:
+    hb = history_bands(pairs)
+    steps = sorted({k[4] for k in hb})
+    order = variant_order(pairs)
+    groups = sorted({k[:4] for k in hb}, key=lambda k: (order.index(k[:3]), k[3]))
+    rows = [(BASE_TEXT.get(g[0], g[0]), g[1], str(g[2]), fmt_num(g[3]),
+             *(fmt_band(hb[(*g, k)], pct=True) if (*g, k) in hb else "-" for k in steps)) for g in groups]
+    return Table(f"Load error along the load history ({family or 'all surfaces'}): median [{100 * BAND[0]:g} %, "
+                 f"{100 * BAND[1]:g} %] over the seeds at each step (step 1: the lowest load).",
+                 ("base", "coarse", "N", "H", *(f"step {k + 1}" for k in steps)), rows, "llrr" + "r" * len(steps))
+
+
+def h_table(tot: pd.DataFrame, family: str) -> Table:
+    s = summaries(tot, [*VARIANT, "h"])
+    rows = [(BASE_TEXT.get(b, b), c, str(N), fmt_num(h), str(v.err.count), fmt_band(v.np_n), fmt_band(v.ratio),
+             fmt_band(v.err, pct=True), fmt_pct1(v.worst), fmt_pct1(v.share)) for (b, c, N, h), v in s.items()]
+    return Table(f"Fig. 9 ({family or 'all surfaces'}): against h, first level {CMR_COARSEST} -- n_p/n, time "
+                 f"CMR / direct and load error at the top step over the seeds; median "
+                 f"[{100 * BAND[0]:g} %, {100 * BAND[1]:g} %].",
+                 ("base", "coarse", "N", "h", "seeds", "n_p/n", "time ratio", "load error", "worst",
+                  "share < 2 %"), rows, "llrrrrrrrr")
+
+
+def coarsest_table(tot: pd.DataFrame, family: str) -> Table:
+    s = summaries(tot, [*VARIANT, "H", "coarsest"])
+    rows = [(BASE_TEXT.get(b, b), c, str(N), fmt_num(H), str(k), str(v.err.count), fmt_band(v.err, pct=True),
+             fmt_pct1(v.worst), fmt_pct1(v.share), fmt_band(v.ratio), fmt_band(v.np_n))
+            for (b, c, N, H, k), v in s.items()]
+    return Table(f"Where the cascade starts ({family or 'all surfaces'}), h = {CMR_H:g}: load error (worst case "
+                 f"over the seeds), share under {100 * ERROR_TOL:g} %, time ratio and n_p/n per first level.",
+                 ("base", "coarse", "N", "H", "first level", "seeds", "load error", "worst", "share < 2 %",
+                  "time ratio", "n_p/n"), rows, "llrrrrrrrrr")
+
+
+# ---------------------------------------------------------------------------
+# Figures
+# ---------------------------------------------------------------------------
+
+
+def _band_line(ax: Any, x: Sequence[float], bands: Sequence[Band], label: str, color: Any, scale: float = 1.0) -> None:
+    med = np.array([b.median for b in bands]) * scale
+    lo = np.array([b.lo for b in bands]) * scale
+    hi = np.array([b.hi for b in bands]) * scale
+    ax.fill_between(x, lo, hi, color=color, alpha=0.2, lw=0)
+    ax.plot(x, med, "o-", color=color, label=label, ms=4)
+
+
+def _same_y(row: Sequence[Any], bottom: float | None = None, top: float | None = None) -> None:
+    """One y range over a row of panels (the variants side by side), optionally pinned."""
+    lims = [ax.get_ylim() for ax in row]
+    lo = min(lo for lo, _ in lims) if bottom is None else bottom
+    hi = max(hi for _, hi in lims) if top is None else top
+    for ax in row:
+        ax.set_ylim(lo, hi)
+
+
+def _ratio_axes(row: Sequence[Any], ratios: Iterable[float]) -> None:
+    """One y range for a row of time-ratio panels: logarithmic when the ratios span more
+    than a decade, else linear from 0."""
+    v = finite(ratios)
+    v = v[v > 0]
+    if len(v) and np.log10(v.max() / v.min()) > 1:
+        for ax in row:
+            ax.set_yscale("log")
+        _same_y(row)
+        for ax in row:
+            tidy_log_ticks(ax, "y", float(np.log10(v.max() / v.min())))
+    else:
+        _same_y(row, bottom=0.0)
+
+
+def _tol_lines(ax: Any) -> None:
+    for y in (-100 * ERROR_TOL, 100 * ERROR_TOL):
+        ax.axhline(y, color="gray", ls="--", lw=0.8)
+
+
+def fig8_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
+    variants = variant_order(tot)
+    fig, axes = grid_figure(3, len(variants), width=3.4, height=2.6, wspace=0.35)
+    for j, v in enumerate(variants):
+        sub = of_variant(tot, v)
+        s = summaries(sub, ["H"])
+        Hs = [k[0] for k in s]
+        a1, a2, a3 = axes[0][j], axes[1][j], axes[2][j]
+        a1.scatter(sub["H"], sub["ratio"], s=6, color="tab:blue", alpha=0.35)
+        _band_line(a1, Hs, [v.ratio for v in s.values()], "median", "tab:blue")
+        a1.axhline(1.0, color="black", lw=0.8)
+        a1.axhline(PAPER_TIME_RATIO, color="gray", ls=":", lw=0.8)
+        a1.set_title(panel_title(v), fontsize=8)
+        a1.set_ylabel("time CMR / direct\n(summed over the history)" if j == 0 else "")
+        a2.scatter(sub["H"], 100 * sub["err"], s=6, color="tab:red", alpha=0.35)
+        _band_line(a2, Hs, [v.err for v in s.values()], "median", "tab:red", scale=100.0)
+        _tol_lines(a2)
+        a2.set_ylabel("load error at the\ntop step [%]" if j == 0 else "")
+        a3.bar(Hs, [100 * v.share for v in s.values()], width=0.08, color="tab:green", alpha=0.7)
+        a3.axhline(100 * ROBUST_SHARE, color="gray", ls="--", lw=0.8)
+        a3.set_ylim(0, 105)
+        a3.set_ylabel(f"seeds with |error|\n< {100 * ERROR_TOL:g} % [%]" if j == 0 else "")
+        a3.set_xlabel("Hurst exponent H")
+        for ax in (a1, a2, a3):
+            ax.set_xticks(Hs)
+            ax.margins(x=0.12)
+            ax.grid(True, alpha=0.3)
+    _ratio_axes(axes[0], tot["ratio"])
+    _same_y(axes[1])
+    return ctx.save_figure(fig, f"fig8-cmr-{family or 'all'}")
+
+
+def history_figure(ctx: ReportContext, pairs: pd.DataFrame, family: str) -> str:
+    import matplotlib
+
+    variants = variant_order(pairs)
+    hb = history_bands(pairs)
+    Hs = sorted({k[3] for k in hb})
+    cmap = matplotlib.colormaps["viridis"]
+    colors = {H: cmap(i / max(len(Hs) - 1, 1) * 0.9) for i, H in enumerate(Hs)}
+    fig, axes = grid_figure(1, len(variants), width=3.6, height=3.0, wspace=0.35)
+    for j, v in enumerate(variants):
+        ax = axes[0][j]
+        for H in Hs:
+            ks = sorted(k[4] for k in hb if k[:4] == (*v, H))
+            if ks:
+                _band_line(ax, [k + 1 for k in ks], [hb[(*v, H, k)] for k in ks], f"H = {H:g}", colors[H], 100.0)
+        _tol_lines(ax)
+        ax.set_xticks(sorted({k[4] + 1 for k in hb}))
+        ax.set_title(panel_title(v), fontsize=8)
+        ax.set_xlabel("load step (1: lowest load)")
+        ax.set_ylabel("load error [%]" if j == 0 else "")
+        ax.grid(True, alpha=0.3)
+    axes[0][-1].legend(fontsize=7, loc="lower right")
+    _same_y(axes[0])
+    return ctx.save_figure(fig, f"fig8-history-{family or 'all'}")
+
+
+def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
+    variants = variant_order(tot)
+    metrics = (("np_n", "n_p / n", 1.0, "tab:purple"), ("ratio", "time CMR / direct", 1.0, "tab:blue"),
+               ("err", "load error [%]", 100.0, "tab:red"))
+    fig, axes = grid_figure(3, len(variants), width=3.6, height=2.6, wspace=0.35)
+    for j, v in enumerate(variants):
+        sub = of_variant(tot, v)
+        s = summaries(sub, ["h"])
+        hs = [k[0] for k in s]
+        for i, (attr, label, scale, color) in enumerate(metrics):
+            ax = axes[i][j]
+            _band_line(ax, hs, [getattr(x, attr) for x in s.values()], "median", color, scale)
+            if attr == "err":
+                _tol_lines(ax)
+            if attr == "ratio":
+                ax.axhline(1.0, color="black", lw=0.8)
+            ax.set_ylabel(label if j == 0 else "")
+            ax.grid(True, alpha=0.3)
+        axes[0][j].set_title(panel_title(v), fontsize=8)
+        axes[2][j].set_xlabel("area-of-influence factor h")
+    _same_y(axes[0], bottom=0.0, top=1.0)
+    _ratio_axes(axes[1], tot["ratio"])
+    _same_y(axes[2])
+    return ctx.save_figure(fig, f"fig9-cmr-h-{family or 'all'}")
+
+
+def coarsest_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
+    Hs = sorted(tot["H"].dropna().unique())
+    H = FIG9_H if FIG9_H in Hs else (Hs[-1] if Hs else np.nan)
+    tot = tot[tot["H"] == H] if Hs else tot
+    variants = variant_order(tot)
+    fig, axes = grid_figure(1, len(variants), width=3.6, height=3.0, wspace=0.35)
+    for j, v in enumerate(variants):
+        ax = axes[0][j]
+        sub = of_variant(tot, v)
+        s = summaries(sub, ["coarsest"])
+        ks = [k[0] for k in s]
+        ax.scatter(sub["coarsest"], 100 * sub["err"], s=6, color="tab:red", alpha=0.35)
+        _band_line(ax, ks, [x.err for x in s.values()], "median", "tab:red", 100.0)
+        ax.plot(ks, [100 * x.worst for x in s.values()], "x--", color="black", label="worst seed")
+        _tol_lines(ax)
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(ks, [str(k) for k in ks])
+        ax.set_title(panel_title(v), fontsize=8)
+        ax.set_xlabel("first level (points per side)")
+        ax.set_ylabel("load error at the top step [%]" if j == 0 else "")
+        ax.grid(True, alpha=0.3)
+    axes[0][-1].legend(fontsize=7, loc="lower right")
+    _same_y(axes[0])
+    return ctx.save_figure(fig, f"fig9-coarsest-{family or 'all'}")
+
+
+# ---------------------------------------------------------------------------
+# Readings: where the paper's claim holds, in numbers from the rows
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ClaimCheck:
+    """The paper's claims read on one variant: accuracy for H > PAPER_H_MIN (typical:
+    the median; robust: ROBUST_SHARE of the surfaces and the worst one under ERROR_TOL)
+    and time (the median ratio under 1)."""
+
+    variant: Variant
+    accuracy: Summary | None
+    ratio: Band
+
+    @property
+    def typical(self) -> bool:
+        return self.accuracy is not None and abs(self.accuracy.err.median) < ERROR_TOL
+
+    @property
+    def robust(self) -> bool:
+        a = self.accuracy
+        return a is not None and a.share >= ROBUST_SHARE and abs(a.worst) < ERROR_TOL
+
+    @property
+    def saves_time(self) -> bool:
+        return self.ratio.count > 0 and self.ratio.median < 1.0
+
+    def line(self) -> str:
+        a = self.accuracy
+        acc = ("no surface with H > 0.5" if a is None else
+               f"median error {fmt_pct1(a.err.median)} ({'holds' if self.typical else 'does NOT hold'}), "
+               f"{fmt_pct1(a.share)} of {a.err.count} surfaces under {100 * ERROR_TOL:g} %, worst "
+               f"{fmt_pct1(a.worst)} ({'robust' if self.robust else 'not robust'})")
+        r = self.ratio
+        saving = (f"saves {100 * (1 - r.median):.0f} % of the time" if self.saves_time else "saves no time")
+        return (f"- {variant_title(self.variant)}: {acc}; time CMR / direct {fmt_num(r.median)} "
+                f"[{fmt_num(r.lo)}, {fmt_num(r.hi)}] -- {saving}.")
+
+
+def claim_checks(tot: pd.DataFrame) -> list[ClaimCheck]:
+    out = []
+    for v in variant_order(tot):
+        sub = of_variant(tot, v)
+        high = sub[sub["H"] > PAPER_H_MIN]
+        out.append(ClaimCheck(v, Summary.of(high) if len(high) else None, band(sub["ratio"])))
+    return out
+
+
+def low_load_line(pairs: pd.DataFrame) -> str:
+    """The error at the lowest against the top step of the history, H > PAPER_H_MIN,
+    over every variant."""
+    sub = pairs[pairs["H"] > PAPER_H_MIN]
+    if sub.empty or sub["step"].nunique() < 2:
+        return ""
+    first, top = sub[sub["step"] == sub["step"].min()], sub[sub["step"] == sub["step"].max()]
+    s_first, s_top = share_under(first["err"]), share_under(top["err"])
+    verdict = "holds less often" if s_first < s_top else "holds as often or more"
+    return (f"- Low loads (H > {PAPER_H_MIN:g}, every variant): at the first step {fmt_pct1(s_first)} of the "
+            f"solves are under {100 * ERROR_TOL:g} % (median {fmt_pct1(band(first['err']).median)}, worst "
+            f"{fmt_pct1(worst(first['err']))}), at the top step {fmt_pct1(s_top)} (median "
+            f"{fmt_pct1(band(top['err']).median)}, worst {fmt_pct1(worst(top['err']))}): the claim {verdict} "
+            f"at low loads.")
+
+
+def verdict_line(checks: Sequence[ClaimCheck]) -> str:
+    """Where the paper's claim (accuracy and time together) holds, and where not."""
+    def names(cs: Iterable[ClaimCheck]) -> str:
+        return "; ".join(variant_title(c.variant) for c in cs) or "none"
+
+    both = [c for c in checks if c.typical and c.saves_time]
+    not_robust = [c for c in checks if c.typical and not c.robust]
+    slow = [c for c in checks if not c.saves_time]
+    inaccurate = [c for c in checks if not c.typical]
+    return (f"- **In short.** Typical surface, error and time both as claimed: {names(both)}. Typical but "
+            f"not every surface (worst case): {names(not_robust)}. Error over {100 * ERROR_TOL:g} % on the typical "
+            f"surface: {names(inaccurate)}. No time saved: {names(slow)}.")
+
+
+def fig8_reading(tot: pd.DataFrame, pairs: pd.DataFrame) -> str:
+    checks = claim_checks(tot)
+    lines = [c.line() for c in checks] + [low_load_line(pairs), verdict_line(checks)]
+    return ("**Reading** (computed from the rows). The paper: error in the maximum load under 2 % for H > 0.5, "
+            "about 50 % of the time saved at h = 2 (a dense NNLS base, one surface per H). Here, per base and "
+            "coarse reading, over the seeds (time summed over the load history):\n\n"
+            + "\n".join(x for x in lines if x) + "\n")
+
+
+def fig9_reading(tot: pd.DataFrame) -> str:
+    parts = []
+    at = tot[(tot["coarsest"] == CMR_COARSEST)]
+    for v in variant_order(at):
+        sub = of_variant(at, v)
+        s = summaries(sub, ["h"])
+        if len(s) < 2:
+            continue
+        (h0, v0), (h1, v1) = next(iter(s.items())), list(s.items())[-1]
+        parts.append(f"{variant_title(v)}: n_p/n {fmt_num(v0.np_n.median)} -> {fmt_num(v1.np_n.median)} and "
+                     f"time ratio {fmt_num(v0.ratio.median)} -> {fmt_num(v1.ratio.median)}, median error "
+                     f"{fmt_pct1(v0.err.median)} -> {fmt_pct1(v1.err.median)} for h {h0[0]:g} -> {h1[0]:g}.")
+    at2 = tot[np.isclose(tot["h"], CMR_H)]
+    starts = summaries(at2, [*VARIANT, "coarsest"])
+    for (*var, k), x in starts.items():
+        if len({kk[3] for kk in starts if list(kk[:3]) == var}) > 1:
+            parts.append(f"{variant_title(tuple(var))}, h = {CMR_H:g}, first level {k}: worst error "
+                         f"{fmt_pct1(x.worst)}, {fmt_pct1(x.share)} under {100 * ERROR_TOL:g} %.")
+    return ("**Reading** (computed from the rows; paper, H = 0.7: n_p/n from 0.4 to 0.8 as h goes 1.25 -> 3.0, "
+            "the time ratio tends to 0.6 and the error falls under 1 %). " + " ".join(parts) + "\n")
+
+
+# ---------------------------------------------------------------------------
+# Sections
+# ---------------------------------------------------------------------------
+
+
+def by_family(pairs: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    return [(f, g) for f, g in sorted(pairs.groupby("surface"), key=lambda kv: kv[0])]
 
 
 @register_section("cmr", title="Fig. 8: CMR against the direct solve", group="paper", order=50)
 def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
-    title = "Fig. 8: cascade multi-resolution (CMR) against the direct solve (cmr)"
+    title = "Fig. 8: cascade multi-resolution (CMR) against the direct solve, as distributions (cmr)"
     pairs = cmr_pairs(rows)
     if pairs.empty:
         return Section(title, "No CMR row could be paired with its direct base solve.\n")
-    tot = _by_variant_totals(pairs)
-    fig, (ax1, ax2) = new_figure(ncols=2, width=5.0, height=3.8)
-    for inst, g in pairs.groupby("instance"):
-        g = g.sort_values("step")
-        ax1.plot(g["direct_load"], g["direct_time_s"], "o-", label=f"direct {inst}")
-        ax1.plot(g["load"], g["solve_time_s"], "s--", label=f"CMR {inst}")
-    ax1.set(xlabel="total load P  [N]", ylabel="solve time per step  [s]")
-    ax1.legend(fontsize=6)
-    ax2.semilogy(range(len(tot)), np.maximum(np.abs(tot["err"]), 1e-8), "o")
-    ax2.set_xticks(range(len(tot)), tot["instance"], rotation=60, fontsize=6)
-    ax2.set_ylabel("|relative error of the max load|")
-    rel = ctx.save_figure(fig, "fig8-cmr")
-    body = [ctx.figure_md(rel, "CMR against the direct solve: (left) time per load step; (right) relative error "
-                               "of the load at the top step.")]
-    body.append(table_md(ctx, "CMR time over the load history and error at the maximum load.",
-                         ["instance", "variant", "h", "CMR / direct time", "max-load error", "n_p/n (top)"],
-                         [(r.instance, r.solver, fmt_num(r.h), fmt_num(r.ratio), fmt_pct(r.err),
-                           fmt_num(r.n_p_over_n)) for r in tot.itertuples()], "llrrrr"))
-    body.append(f"**Reading.** The paper saves about 50 % of the time almost regardless of H and finds the "
-                f"max-load error under 2 % for H > 0.5. Here the median time ratio is "
-                f"{fmt_num(float(tot['ratio'].median()))} and the error ranges from "
-                f"{fmt_pct(float(tot['err'].abs().min()))} to {fmt_pct(float(tot['err'].abs().max()))}.\n")
-    return Section(title, "\n".join(body))
+    body = [surface_family_note(pairs), DESIGN_NOTE]
+    for family, fp in by_family(pairs):
+        tot = instance_totals(fp)
+        if len(by_family(pairs)) > 1:
+            body.append(f"#### Surface family `{family or 'other'}`\n")
+        body.append(ctx.figure_md(fig8_figure(ctx, tot, family),
+                                  f"Fig. 8 ({family}): against H, per base and coarse reading: (top) time CMR / "
+                                  f"direct summed over the load history (dotted: the paper's ~{PAPER_TIME_RATIO:g}); "
+                                  f"(middle) error in the load at the top step (dashed: +-{100 * ERROR_TOL:g} %); "
+                                  f"line: median, band: {100 * BAND[0]:g}-{100 * BAND[1]:g} %, dots: seeds; "
+                                  f"(bottom) share of seeds with |error| < {100 * ERROR_TOL:g} % (dashed: "
+                                  f"{100 * ROBUST_SHARE:g} %)."))
+        body.append(fig8_table(tot, family).md(ctx))
+        body.append(ctx.figure_md(history_figure(ctx, fp, family),
+                                  f"load error along the load history ({family}) per H: median and "
+                                  f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band over the seeds."))
+        body.append(history_table(fp, family).md(ctx))
+        body.append(fig8_reading(tot, fp))
+    return Section(title, "\n".join(b for b in body if b))
 
 
 @register_section("cmr-h-sweep", title="Fig. 9: CMR against h", group="paper", order=51)
 def cmr_h_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
-    title = "Fig. 9: CMR against the area-of-influence factor h (cmr-h-sweep)"
+    title = "Fig. 9: CMR against the area-of-influence factor h, and where the cascade starts (cmr-h-sweep)"
     pairs = cmr_pairs(rows)
     if pairs.empty:
         return Section(title, "No CMR row could be paired with its direct base solve.\n")
-    pairs = pairs.assign(ratio=pairs["solve_time_s"] / pairs["direct_time_s"])
-    m = pairs.groupby("h")[["n_p_over_n", "ratio", "err"]].mean()
-    fig, (ax,) = new_figure(ncols=1, width=5.5, height=3.8)
-    ax.plot(m.index, m["n_p_over_n"], "o-", label="n_p / n")
-    ax.plot(m.index, m["ratio"], "s-", label="time CMR / direct")
-    ax.plot(m.index, m["err"].abs(), "^-", label="|load error|")
-    ax.set_xlabel("h")
-    ax.legend(fontsize=8)
-    rel = ctx.save_figure(fig, "fig9-cmr-h")
-    body = [ctx.figure_md(rel, "CMR at the top step against h (means over instances).")]
-    body.append(table_md(ctx, "CMR against h.", ["h", "n_p/n", "time ratio", "load error"],
-                         [(fmt_num(h), fmt_num(r.n_p_over_n), fmt_num(r.ratio), fmt_pct(r.err))
-                          for h, r in m.iterrows()], "rrrr"))
-    body.append("**Reading.** The paper: n_p/n from 0.4 to 0.8 as h goes 1.25 -> 3.0, the time ratio tends to "
-                f"0.6 and the error falls under 1 %. Here n_p/n goes {fmt_num(float(m['n_p_over_n'].iloc[0]))} -> "
-                f"{fmt_num(float(m['n_p_over_n'].iloc[-1]))}, the time ratio ends at "
-                f"{fmt_num(float(m['ratio'].iloc[-1]))} and the error at {fmt_pct(float(m['err'].iloc[-1]))}.\n")
-    return Section(title, "\n".join(body))
+    body = [surface_family_note(pairs), DESIGN_NOTE]
+    for family, fp in by_family(pairs):
+        tot = instance_totals(fp)
+        if len(by_family(pairs)) > 1:
+            body.append(f"#### Surface family `{family or 'other'}`\n")
+        hs = tot[tot["coarsest"] == CMR_COARSEST]
+        if hs["h"].nunique() > 1:
+            body.append(ctx.figure_md(fig9_figure(ctx, hs, family),
+                                      f"Fig. 9 ({family}): n_p/n, time CMR / direct and load error at the top step "
+                                      f"against h, first level {CMR_COARSEST}; median and "
+                                      f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band over the seeds."))
+        body.append(h_table(hs, family).md(ctx))
+        starts = tot[np.isclose(tot["h"], CMR_H)]
+        if starts["coarsest"].nunique() > 1:
+            body.append(ctx.figure_md(coarsest_figure(ctx, starts, family),
+                                      f"where the cascade starts ({family}), h = {CMR_H:g}, H = {FIG9_H:g} (else the "
+                                      f"largest H that ran): load error at the top step per first level; median, "
+                                      f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band, seeds and the worst seed."))
+            body.append(coarsest_table(starts, family).md(ctx))
+        body.append(fig9_reading(tot))
+    return Section(title, "\n".join(b for b in body if b))
+
+
+DESIGN_NOTE = ("Direct solves and bases: the paper's dense Cholesky + NNLS (`scipy-nnls`, no warm start: every "
+               "step of the history from scratch; its time includes the assembly of its dense H) and our FFT "
+               "solver `fast-dual-pccg` (warm started from its previous step). CMR over each, with the coarse "
+               "levels as exact subsamples (`coarse=subsample`) or block means (`coarse=mean`); CMR's fine level "
+               "is warm started from its own previous answer along the history.\n")
 
 
 @register_section("cmr-cutoff", title="CMR on a PSD with a roll-off", group="paper", order=52)
@@ -135,9 +704,9 @@ def cmr_cutoff_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None
         return Section(title, "No CMR row could be paired with its direct base solve.\n")
     pairs = pairs.assign(ratio=pairs["solve_time_s"] / pairs["direct_time_s"],
                          warned=pairs["solver_message"].fillna("").str.contains("NOT a power law"))
-    body = [table_md(ctx, "CMR on the two surfaces (paper: -98 % error on the 10x scan with a roll-off, "
-                          "-0.4 % on the power-law 100x scan).",
-                     ["instance", "load error", "time ratio", "n_p/n", "PSD warning"],
-                     [(r.instance, fmt_pct(r.err), fmt_num(r.ratio), fmt_num(r.n_p_over_n),
-                       "yes" if r.warned else "no") for r in pairs.itertuples()], "lrrrl")]
+    body = [Table("CMR on the two surfaces (paper: -98 % error on the 10x scan with a roll-off, -0.4 % on the "
+                  "power-law 100x scan).", ("instance", "load error", "time ratio", "n_p/n", "PSD warning"),
+                  [(r.instance, fmt_pct1(r.err), fmt_num(r.ratio), fmt_num(r.n_p_over_n),
+                    "yes" if r.warned else "no") for r in pairs.itertuples()], "lrrrl").md(ctx)]
     return Section(title, "\n".join(body))
+

@@ -159,8 +159,20 @@ def render_html(ctx: ReportContext) -> str:
             f"profiles; hover a point for its instance, step, n, errors, time, iterations and status; click a "
             f"table header to sort.</p></header>\n"
             f"<div id=\"layout\"><nav id=\"picker\"></nav><main id=\"charts\"></main></div>\n"
+            f"{tables_html(ctx)}"
             f"<script id=\"report-data\" type=\"application/json\">{_json_for_script(data)}</script>\n"
             f"<script>{PAGE_SCRIPT}</script>\n</body></html>\n")
+
+
+def tables_html(ctx: ReportContext) -> str:
+    """The report.md tables marked ``on_page`` (same numbers and cells), as HTML."""
+    out = []
+    for t in (t for t in ctx.tables if t.on_page):
+        head = "".join(f"<th>{html.escape(h)}</th>" for h in t.headers)
+        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in t.rows)
+        out.append(f'<table class="sgm"><caption>Table {t.number}: {html.escape(t.caption)}</caption>'
+                   f"<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+    return f'<section id="tables"><h2>Tables (as in report.md)</h2>{"".join(out)}</section>\n' if out else ""
 
 
 def write_html_report(ctx: ReportContext) -> Path:

@@ -12,11 +12,14 @@ never by the solver's label.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
+
+from contactbench.problems.surfaces import RMD_FAMILIES
 
 from .report_style import GREY, family_panels, panels_note, sort_families
 from .report import (
@@ -43,6 +46,60 @@ from .report import (
     register_section,
     table_md,
 )
+
+# ---------------------------------------------------------------------------
+# Which surfaces ran: the instance names of generated rough surfaces
+# ---------------------------------------------------------------------------
+
+#: Names of a family in tables written before the families had names ("rmd" was the
+#: periodic wrap-around diamond-square, the generator of every scene then).
+LEGACY_FAMILIES: dict[str, str] = {"rmd": "periodic"}
+#: What each RMD family is (problems/surfaces.py RMD_FAMILIES), for the reports.
+FAMILY_TEXT: dict[str, str] = {
+    "saupe": "Saupe's non-periodic MidPointFM2D on the (2^k+1)^2 grid, the paper's generator (ref. PS88)",
+    "periodic": "the periodic wrap-around diamond-square RMD (not the paper's generator)",
+}
+#: A generated RMD surface's instance name (problems/scenes/core.py, rough_surface_specs):
+#: "<family>-H<H>-N<N>-<kernel>-<bc>-s<seed>", e.g. "saupe-H0.7-N256-bcc-np-s3" (or
+#: "rmd-H0.7-N64-s0" in older tables).
+ROUGH_INSTANCE_RE = re.compile(rf"^(?P<family>{'|'.join(sorted({*RMD_FAMILIES, *LEGACY_FAMILIES}))})"
+                               r"-H(?P<hurst>[0-9.]+)-N(?P<N>\d+)(?:-.*)?-s(?P<seed>\d+)$")
+
+
+@dataclass(frozen=True)
+class RoughInstance:
+    """The parts of a generated rough surface's instance name."""
+
+    family: str
+    hurst: float
+    N: int
+    seed: int
+
+
+def rough_instance(name: str) -> RoughInstance | None:
+    """The family, H, N and seed an instance name states; None for other instances."""
+    m = ROUGH_INSTANCE_RE.match(str(name))
+    if m is None:
+        return None
+    fam = LEGACY_FAMILIES.get(m["family"], m["family"])
+    return RoughInstance(fam, float(m["hurst"]), int(m["N"]), int(m["seed"]))
+
+
+def surface_families(rows: pd.DataFrame) -> list[str]:
+    """The RMD families of the rows' instances, sorted (none for other instances)."""
+    found = {r.family for name in rows["instance"].unique() if (r := rough_instance(name)) is not None}
+    return sorted(found)
+
+
+def surface_family_note(rows: pd.DataFrame) -> str:
+    """One line naming the surface family (families) the rows ran on; "" when no
+    instance is a generated rough surface."""
+    fams = surface_families(rows)
+    if not fams:
+        return ""
+    what = "; ".join(f"`{f}` -- {FAMILY_TEXT.get(f, 'an RMD family unknown to this report')}" for f in fams)
+    return f"**Surface family.** {what}.\n"
+
 
 # ---------------------------------------------------------------------------
 # The paper's algorithms and claims
@@ -244,12 +301,13 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     for ax in flat[len(panels):]:
         ax.set_visible(False)
     rel = ctx.save_figure(fig, "fig4-paper-sweep")
-    body = [ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
+    body = [surface_family_note(r)]
+    body.append(ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
                                f"{fmt_num(r['N'].max())}, n up to {n_max}), profile `{prof}`; dashed: warm "
                                f"started; red crosses mark steps whose answer failed the KKT check. Every "
                                f"solver of the scene is drawn (families: "
                                f"{', '.join(sort_families(ctx.family(x) for x in labels))}).{panels_note(panels)} Paper Fig. 4 ran at "
-                               f"eps = 1e-8.")]
+                               f"eps = 1e-8."))
     rows_t = []
     for s in natural_sorted(tot.index):
         t = tot.loc[s]
@@ -368,8 +426,9 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
     legend_outside(ax, "solver")
     rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
-    body = [ctx.figure_md(rel, f"greedy solve time against the trial-set size n, profile `{prof}` (paper "
-                               f"Fig. 5: CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel).")]
+    body = [surface_family_note(cells)]
+    body.append(ctx.figure_md(rel, f"greedy solve time against the trial-set size n, profile `{prof}` (paper "
+                               f"Fig. 5: CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel)."))
     body.append(_fig5_reading(cells, r))
     return Section(title, "\n".join(body))
 
@@ -462,8 +521,9 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                frameon=False)
     legend_outside(ax2)
     rel = ctx.save_figure(fig, "fig6-gp-k-sweep")
-    body = [ctx.figure_md(rel, f"NNLS+GP against K, profile `{prof}`: (left) time per step against P/(E A); "
-                               f"(right) total time summed over all steps and instances.")]
+    body = [surface_family_note(cells)]
+    body.append(ctx.figure_md(rel, f"NNLS+GP against K, profile `{prof}`: (left) time per step against P/(E A); "
+                               f"(right) total time summed over all steps and instances."))
     body.append(table_md(ctx, f"total NNLS+GP time against K, profile `{prof}`.", ["K", "total [s]", "all solved"],
                          [(int(k), fmt_num(tot.loc[k, "total_s"]), "yes" if tot.loc[k, "complete"] else "no")
                           for k in tot.index], "rrl"))

@@ -28,9 +28,28 @@ from .operators import (
     KernelTransform,
     check_dense_budget,
 )
+from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
 from .surfaces import Surface, check_grid_size, check_not_flat
 
-OperatorKind = Literal["fft", "dense"]
+OperatorKind = Literal["fft", "dense", "gpu"]
+#: The operator kinds an instance can be built with: the matrix-free FFT operator, the
+#: dense n x n block, and the FFT operator on a CUDA device (CuPy; the optional ``gpu`` extra).
+OPERATOR_KINDS: tuple[str, ...] = ("fft", "dense", "gpu")
+
+
+def check_operator_kind(kind: str) -> str:
+    """``kind`` if instances can be built with it on this machine, else ``ProblemInputError``
+    (an unknown kind, or "gpu" where CuPy or a CUDA device is missing).  Cheap: the
+    up-front check for a run."""
+    if kind not in OPERATOR_KINDS:
+        raise ProblemInputError(f"operator must be 'fft' or 'dense', got {kind!r} "
+                                "(or 'gpu' where CuPy and a CUDA device exist)")
+    if kind == "gpu":
+        reason = gpu_unavailable_reason()
+        if reason is not None:
+            raise ProblemInputError(f"operator 'gpu' is not available here: {reason}")
+    return kind
+
 
 #: An element is "in contact" when p_i > CONTACT_THRESHOLD * max(p).
 CONTACT_THRESHOLD = 1e-9
@@ -201,12 +220,11 @@ class InstanceBuilder:
         self.E = check_positive("E (composite modulus)", E)
         self.kernel = kernel
         self.periodic = periodic
-        if operator not in ("fft", "dense"):
-            raise ProblemInputError(f"operator must be 'fft' or 'dense', got {operator!r}")
-        self.operator_kind = operator
+        self.operator_kind = check_operator_kind(operator)
         self.memory_budget = DEFAULT_MEMORY_BUDGET if memory_budget is None else memory_budget
         self.images = images
         self._transform: KernelTransform | None = None
+        self._device_transform: ArrayKernelTransform | None = None
 
     @property
     def transform(self) -> KernelTransform:
@@ -217,9 +235,19 @@ class InstanceBuilder:
             self._transform = KernelTransform(table, self.surface.shape)
         return self._transform
 
+    @property
+    def device_transform(self) -> ArrayKernelTransform:
+        """The kernel transform on the CUDA device (shares the host transform's arrays)."""
+        if self._device_transform is None:
+            self._device_transform = ArrayKernelTransform.from_host(self.transform, "cupy")
+        return self._device_transform
+
     def operator_on(self, indices: np.ndarray, kind: OperatorKind | None = None) -> ContactOperator:
+        kind = kind or self.operator_kind
+        if kind == "gpu":
+            return ArrayFFTOperator(self.device_transform, indices)
         fft_op = FFTOperator(self.transform, indices)
-        if (kind or self.operator_kind) == "dense":
+        if kind == "dense":
             check_dense_budget(fft_op.n, self.memory_budget)
             return DenseOperator(fft_op.to_dense(self.memory_budget))
         return fft_op
@@ -405,6 +433,8 @@ __all__ = [
     "Geometry",
     "InstanceBuilder",
     "MemoryBudgetError",
+    "OPERATOR_KINDS",
+    "check_operator_kind",
     "build_instance",
     "contact_mask",
     "counterexample",

@@ -2,8 +2,19 @@
 spectral generators, and the radially averaged PSD with a Hurst-exponent fit.
 
 Conventions: heights and lengths in metres (``unit`` says otherwise), grids are square
-N x N with spacing ``delta = L / N`` (periodic) or ``L / (N - 1)`` (an RMD grid of
-2^k + 1 points whose corners both lie on the domain boundary).
+N x N with spacing ``delta = L / N`` (periodic, or a cropped 2^k grid of the "saupe" RMD
+family) or ``L / (N - 1)`` (a whole RMD grid of 2^k + 1 points whose corners both lie on
+the domain boundary).
+
+RMD surface families (``RMD_FAMILIES``, recorded in ``Surface.meta["family"]`` and the
+surface's name):
+
+* ``"saupe"``    -- Saupe's non-periodic MidPointFM2D on the (2^k + 1)^2 grid (the paper's
+  ref. PS88).  For N = 2^k points per side the last row and column are dropped (the paper
+  speaks of 512 and 256 heights per side); every coarse stage (2^l + 1 points, last row and
+  column dropped) is then still exactly the fine grid sub-sampled, z[::s, ::s] with
+  s = 2^(k-l).  N = 2^k + 1 keeps the whole grid.
+* ``"periodic"`` -- the wrap-around diamond-square on a 2^k grid (N = 2^k only).
 """
 
 from __future__ import annotations
@@ -141,6 +152,36 @@ def check_grid_size(N: object, what: str = "surface") -> int:
 RMD_MAX_LEVEL = 13
 
 
+#: RMD surface families: Saupe's non-periodic MidPointFM2D, and the wrap-around diamond-square.
+RMD_FAMILIES: tuple[str, ...] = ("saupe", "periodic")
+
+
+def check_rmd_family(family: object) -> str:
+    """``family`` when it is one of ``RMD_FAMILIES``, else a one-line ``ProblemInputError``."""
+    if family not in RMD_FAMILIES:
+        raise ProblemInputError(f"unknown RMD surface family {family!r}: choose one of "
+                                f"{', '.join(repr(f) for f in RMD_FAMILIES)} ('saupe' = non-periodic MidPointFM2D, "
+                                "the paper's generator; 'periodic' = wrap-around diamond-square)")
+    return str(family)
+
+
+def rmd_grid_of(N: object, family: str | None = None) -> tuple[int, bool, bool]:
+    """(k, periodic, crop) of an RMD surface of N points per side in ``family``:
+    "periodic" needs N = 2^k; "saupe" takes N = 2^k (the 2^k + 1 grid, last row and column
+    dropped: crop) or 2^k + 1 (whole); None picks by N (2^k periodic, 2^k + 1 saupe).
+    Anything else is a one-line ``ProblemInputError``; cheap, for planning."""
+    k, periodic = check_rmd_size(N)
+    if family is None:
+        return k, periodic, False
+    fam = check_rmd_family(family)
+    if fam == "periodic":
+        if not periodic:
+            raise ProblemInputError(f"the 'periodic' RMD family needs N = 2^k points per side (e.g. 512), got "
+                                    f"N = {N!r} (2^k + 1 grids are the non-periodic 'saupe' family)")
+        return k, True, False
+    return k, False, periodic
+
+
 def check_rmd_size(N: object) -> tuple[int, bool]:
     """(k, periodic) of an RMD grid of N points per side: N = 2^k (periodic) or 2^k + 1
     (non-periodic), k = 1..13.  Anything else -- not a power of two (plus one), below 2,
@@ -249,6 +290,7 @@ def rmd_surface(
     periodic: bool = True,
     min_level: int = 2,
     additions: bool = False,
+    crop: bool = False,
 ) -> Surface:
     """Random midpoint displacement fractal surface with Hurst exponent ``hurst``
     (diamond-square, Peitgen & Saupe 1988; the paper's section 5 generator).
@@ -264,6 +306,11 @@ def rmd_surface(
     successive random additions) also displaces the existing points at every stage;
     the levels are then the construction's states, not sub-samples.  Both bias a PSD
     fit of H low (see docs/problems.md for the measured bias); additions by ~0.01 less.
+
+    ``crop`` (non-periodic only): drop the last row and column of the 2^k + 1 grid and of
+    every level, so the surface has 2^k points per side (spacing L / 2^k) and each level is
+    still the fine grid sub-sampled; the rms and mean are those of the cropped grid.
+    Family (``meta["family"]``, the name's prefix): "periodic" or "saupe".
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
@@ -271,29 +318,38 @@ def rmd_surface(
         raise ProblemInputError(f"RMD level k must be an integer in 1..13, got {k}")
     check_positive("length L", length)
     check_positive("rms height", rms_height)
+    if crop and periodic:
+        raise ProblemInputError("crop applies to the non-periodic (2^k + 1) RMD grid only; a periodic RMD "
+                                "grid already has 2^k points per side")
     rng = np.random.default_rng(seed)
     z, states = _rmd_grid(int(k), hurst, rng, periodic, additions=additions)
+    if crop:
+        z, states = z[:-1, :-1], [st[:-1, :-1] for st in states]
     shift = z.mean()
     factor = rms_height / (z - shift).std()
     z = (z - shift) * factor
     size = z.shape[0]
-    delta = length / (size if periodic else size - 1)
+    delta = length / (size if periodic or crop else size - 1)
+    family = "periodic" if periodic else "saupe"
     levels = []
     for lev in range(max(1, min_level), int(k)):
         stride = 2 ** (int(k) - lev)
         coarse = (states[lev - 1] - shift) * factor
-        levels.append(Surface(coarse, delta * stride, name=f"rmd-level{lev}", periodic=periodic,
-                              meta={"level": lev, "stride": stride}))
-    meta = {"generator": "rmd", "hurst": hurst, "seed": seed, "k": k, "rms_height": rms_height,
-            "additions": additions}
-    return Surface(z, delta, name=f"rmd-H{hurst:g}-k{k}-s{seed}", levels=tuple(levels), periodic=periodic, meta=meta)
+        levels.append(Surface(coarse, delta * stride, name=f"{family}-level{lev}", periodic=periodic,
+                              meta={"level": lev, "stride": stride, "family": family}))
+    meta = {"generator": "rmd", "family": family, "hurst": hurst, "seed": seed, "k": k, "rms_height": rms_height,
+            "additions": additions, "crop": crop}
+    return Surface(z, delta, name=f"{family}-H{hurst:g}-N{size}-s{seed}", levels=tuple(levels), periodic=periodic,
+                   meta=meta)
 
 
-def rmd_surface_n(N: int, hurst: float, **kw: Any) -> Surface:
-    """RMD surface with exactly N points per side: periodic when N = 2^k, non-periodic
-    when N = 2^k + 1 (``check_rmd_size``)."""
-    k, periodic = check_rmd_size(N)
-    return rmd_surface(k, hurst, periodic=periodic, **kw)
+def rmd_surface_n(N: int, hurst: float, family: str | None = None, **kw: Any) -> Surface:
+    """RMD surface with exactly N points per side in ``family`` (``rmd_grid_of``):
+    "saupe" (non-periodic; N = 2^k cropped from the 2^k + 1 grid, or N = 2^k + 1) or
+    "periodic" (N = 2^k).  Without a family the size picks: periodic when N = 2^k,
+    saupe when N = 2^k + 1."""
+    k, periodic, crop = rmd_grid_of(N, family)
+    return rmd_surface(k, hurst, periodic=periodic, crop=crop, **kw)
 
 
 # ---------------------------------------------------------------------------

@@ -44,20 +44,43 @@ from ._preconditioners import MAX_BLOCK, SetPreconditioner
 from .base import Capabilities, Outcome, Solver, SolveContext, Status
 
 
+@dataclass(frozen=True)
+class Anchor:
+    """A base point p0 (>= 0) and its gap g0 = H p0 - ubar computed in float64: a state
+    anchored there recomputes its gap as g0 + H (p - p0), i.e. it iterates on the
+    correction d = p - p0 (bound d >= -p0) of iterative refinement (solvers/_refine.py),
+    so the error of a low-precision H scales with |d|, not with |p|."""
+
+    p0: np.ndarray
+    g0: np.ndarray
+
+
 @dataclass
 class GapState:
     """Iterate p (>= 0) and its gap g = Hp - ubar, kept consistent at one matvec per
-    linear step (plus one per projection that changes p)."""
+    linear step (plus one per projection that changes p).  With an ``anchor`` the gap is
+    g0 + H (p - p0) (``Anchor``) and starts at g0 without a matvec."""
 
     H: ContactOperator
     ubar: np.ndarray
     p: np.ndarray
     refresh_every: int = 50
+    anchor: Anchor | None = None
     g: np.ndarray = field(init=False)
     _since_refresh: int = field(init=False, default=0)
 
     def __post_init__(self) -> None:
-        self.refresh()
+        if self.anchor is None:
+            self.refresh()
+        else:
+            self.g = self.anchor.g0.copy()
+
+    @classmethod
+    def anchored(cls, H: ContactOperator, base: GapState) -> GapState:
+        """A state on operator ``H`` (e.g. float32) at ``base``'s p, anchored at base's
+        (p, g): the correction problem min 1/2 d'Hd + g'd, p + d >= 0, in the variable
+        p + d, so the CCG loops run on it unchanged."""
+        return cls(H, base.ubar, base.p.copy(), base.refresh_every, Anchor(base.p.copy(), base.g.copy()))
 
     @classmethod
     def start(cls, ctx: SolveContext) -> GapState:
@@ -66,8 +89,12 @@ class GapState:
         return cls(ctx.qp.H, ctx.qp.ubar, p0)
 
     def refresh(self) -> None:
-        """Recompute g from scratch (one matvec)."""
-        self.g = self.H.matvec(self.p) - self.ubar
+        """Recompute g from scratch (one matvec): Hp - ubar, or g0 + H (p - p0) when
+        anchored."""
+        if self.anchor is None:
+            self.g = self.H.matvec(self.p) - self.ubar
+        else:
+            self.g = self.anchor.g0 + self.H.matvec(self.p - self.anchor.p0)
         self._since_refresh = 0
 
     def step(self, alpha: float, d: np.ndarray, Hd: np.ndarray) -> bool:

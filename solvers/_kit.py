@@ -10,6 +10,8 @@
 * ``absolute_tol`` -- a relative tolerance in the problem's units (displacement, force),
   for a solver's internal thresholds (which element is "negative", a CG's atol).
 * ``is_dense``.
+* ``coarse_first_guess`` -- a cold start's first guess from the same solver on the
+  block-averaged 2x-coarser grid (``problems.coarsen``), prolonged by injection.
 * ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``.
 
 The solve lifecycle itself (deadline, trace, matvec count, warm start, tolerance) is in
@@ -26,6 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from contactbench.problems import operators
+from contactbench.problems.coarsen import block_average, coarse_qp, level_trial_set
 from contactbench.problems.errors import MemoryBudgetError
 from contactbench.problems.kkt import kkt_figures
 from contactbench.problems.operators import (
@@ -36,7 +39,7 @@ from contactbench.problems.operators import (
     spectral_norm_estimate,
 )
 
-from .base import Deadline, SolveContext
+from .base import Deadline, SolveContext, Solver, SolverSettings
 
 Vector = np.ndarray
 LinearMap = Callable[[Vector], Vector]
@@ -168,6 +171,61 @@ def absolute_tol(ctx: SolveContext, tol: float) -> AbsoluteTol:
 
 def is_dense(op: ContactOperator) -> bool:
     return isinstance(op, DenseOperator)
+
+
+#: The choices of the fast solvers' ``first_guess`` for a cold start.
+FIRST_GUESSES = ("zero", "coarse")
+#: No coarse level is made of a grid with fewer points per side than this.
+COARSE_MIN_SIDE = 128
+#: The coarse solve's tolerance (at most): the coarse grid's own discretisation error is
+#: far larger, so solving it tighter buys nothing.
+COARSE_TOL = 1e-4
+
+
+@dataclass
+class FirstGuess:
+    """A cold start's first guess (None: start from zero) and what it cost: the coarse
+    solve's matvecs (each on a grid 4x smaller than the fine one) and iterations."""
+
+    p: np.ndarray | None
+    matvecs: int = 0
+    iterations: int = 0
+    note: str = ""
+
+
+def prolong(fine_idx: np.ndarray, fine_shape: tuple[int, int], coarse_idx: np.ndarray,
+            coarse_shape: tuple[int, int], p_coarse: np.ndarray) -> np.ndarray:
+    """Forces on the fine points ``fine_idx`` from those on the 2x-coarser grid by
+    injection: each fine point gets a quarter of its parent's force (p is a force; a
+    parent covers four fine elements), zero where the parent is off the coarse set."""
+    grid = np.zeros(coarse_shape)
+    grid.ravel()[coarse_idx] = p_coarse
+    i, j = np.divmod(np.asarray(fine_idx), fine_shape[1])
+    ci, cj = i // 2, j // 2
+    inside = (ci < coarse_shape[0]) & (cj < coarse_shape[1])
+    out = np.zeros(fine_idx.size)
+    out[inside] = 0.25 * grid[ci[inside], cj[inside]]
+    return out
+
+
+def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
+    """``solver`` (with the same parameters, so recursively down to ``COARSE_MIN_SIDE``)
+    on the block-averaged 2x-coarser grid at the same far-field displacement, to
+    ``COARSE_TOL``, prolonged (``prolong``); no guess when the QP carries no surface or
+    its grid is too small."""
+    g = ctx.qp.geometry
+    if g is None or not g.has_surface or min(g.grid_shape) < 2 * COARSE_MIN_SIDE:
+        return FirstGuess(None, note="no coarse level (no surface, or grid below 2 x COARSE_MIN_SIDE)")
+    level = block_average(g.surface)
+    idx = level_trial_set(level, g)
+    if idx.size == 0:
+        return FirstGuess(None, note="empty coarse trial set")
+    qp = coarse_qp(level, g, idx, "dense" if is_dense(ctx.qp.H) else "fft")
+    tol = COARSE_TOL if ctx.tol is None else max(ctx.tol, COARSE_TOL)
+    res = solver.solve(qp, SolverSettings(tol=tol, max_iter=ctx.max_iter, time_limit=ctx.deadline.remaining(),
+                                          params=dict(ctx.params)), None)
+    p = prolong(g.indices, g.grid_shape, idx, level.shape, np.asarray(res.p, dtype=np.float64))
+    return FirstGuess(p, res.matvecs, res.iterations, f"coarse {level.shape[0]}^2 solve: {res.status}")
 
 
 #: Effective dense GEMV throughput (flop/s) and FFT cost per padded point on one core.

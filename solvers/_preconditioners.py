@@ -19,7 +19,11 @@ points, 1,002 islands, largest 136): CG on H_AA p = ubar_A to 1e-9 takes 67
 matvecs, 47 with the continuous |q| E*/2 Fourier preconditioner of Vollebregt (2014),
 and 33 with this one (docs/fast-solvers.md).
 
-Islands larger than ``max_block`` are cut into row-major strips of that size.  The
+Islands larger than ``max_block`` are cut into row-major strips of that size.  The block
+inverses are held in float64, or in float32 for the mixed-precision solves
+(``block_dtype``): a preconditioner only has to be SPD and fixed, not exact, so the fixed
+point and the float64 KKT test are unchanged, while the batched inversion (most of a
+cold 1024^2 solve's preconditioner time) and ``apply`` move half the bytes.  The
 blocks are gathered from the operator's kernel table (``ContactOperator.submatrix``),
 grouped by size into buckets of powers of two, padded with the identity and
 inverted batch-wise, so neither the build nor ``apply`` loops over islands in
@@ -94,8 +98,9 @@ class IslandPreconditioner:
     """z = blockdiag(H_BB)^-1 r on a set S, zero outside S (see module doc)."""
 
     def __init__(self, H: ContactOperator, grid_shape: tuple[int, int], grid_idx: np.ndarray,
-                 max_block: int | None = None) -> None:
+                 max_block: int | None = None, dtype: type = np.float64) -> None:
         self.H = H
+        self.dtype = np.dtype(dtype)
         self.n = int(grid_idx.size)
         self.max_block = int(max_block or MAX_BLOCK)
         self._i, self._j = np.divmod(np.asarray(grid_idx, dtype=np.int64), grid_shape[1])
@@ -111,11 +116,11 @@ class IslandPreconditioner:
         self.builds = 0
 
     @classmethod
-    def build(cls, qp: QP, max_block: int | None = None) -> IslandPreconditioner | None:
+    def build(cls, qp: QP, max_block: int | None = None, dtype: type = np.float64) -> IslandPreconditioner | None:
         g = qp.geometry
         if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
             return None
-        return cls(qp.H, tuple(g.grid_shape), np.asarray(g.indices), max_block)
+        return cls(qp.H, tuple(g.grid_shape), np.asarray(g.indices), max_block, dtype)
 
     def update(self, S: np.ndarray) -> None:
         """Make the preconditioner act on the set S (boolean mask over the operator's set).
@@ -144,7 +149,8 @@ class IslandPreconditioner:
         rs = np.where(self._on, r, 0.0)
         z = rs / self._diag
         for b in self._buckets:
-            zb = np.einsum("mij,mj->mi", b.inverse, np.where(b.members >= 0, rs[b.members], 0.0))
+            rb = np.where(b.members >= 0, rs[b.members], 0.0).astype(self.dtype, copy=False)
+            zb = np.einsum("mij,mj->mi", b.inverse, rb)
             valid = b.members >= 0
             z[b.members[valid]] = zb[valid]
         z[~self._on] = 0.0
@@ -207,10 +213,13 @@ class IslandPreconditioner:
         if s == 1:
             return _Bucket(members, (1.0 / self._diag[members[:, 0]])[:, None, None])
         # Gather and invert in chunks, so the temporaries stay near 32 MiB.
-        inverse = np.empty((m, s, s))
+        inverse = np.empty((m, s, s), dtype=self.dtype)
         step = max(1, BUILD_CHUNK_ENTRIES // (s * s))
         for k0 in range(0, m, step):
-            inverse[k0:k0 + step] = np.linalg.inv(self.H.blocks(members[k0:k0 + step]))
+            inverse[k0:k0 + step] = np.linalg.inv(self.H.blocks(members[k0:k0 + step]).astype(self.dtype, copy=False))
+        if self.dtype != np.float64:  # LU's inverse is symmetric only up to round-off: make M symmetric
+            inverse += np.swapaxes(inverse, 1, 2)
+            inverse *= 0.5
         return _Bucket(members, inverse)
 
 
@@ -272,12 +281,13 @@ def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarr
     return sfft.irfft2(F, s=shape, workers=w, overwrite_x=True).ravel()[idx]
 
 
-def make_preconditioner(kind: str, qp: QP) -> SetPreconditioner | None:
+def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64) -> SetPreconditioner | None:
     """The preconditioner ``kind`` (one of ``KINDS``) for CG on sets of ``qp``'s unknowns;
     None for "none", and also when the QP has no grid positions (``QP.geometry``), which
-    both preconditioners need: the caller then runs unpreconditioned."""
+    both preconditioners need: the caller then runs unpreconditioned.  ``block_dtype``:
+    the precision of the island blocks' inverses (module doc)."""
     if kind == "islands":
-        return IslandPreconditioner.build(qp)
+        return IslandPreconditioner.build(qp, dtype=block_dtype)
     if kind == "fourier":
         return FourierPreconditioner.build(qp)
     if kind == "none":

@@ -9,10 +9,12 @@ surface (coarsest first, spacing delta(s)) at the same far-field displacement De
 * (2-3) build Q on I_C,p(s), solve it with any registered solver, pass I_C*(s) down.
 
 The mathematics of the levels is in ``problems/coarsen.py``: the representations
-(``cascade_surfaces``: the surface's own RMD levels, exact sub-samples, else the
-area-weighted 2 x 2 block-average filter), their element positions in the fine frame
-(``grid_positions``) and the coarse QP of a level (``coarse_qp``).  This module holds the
-cascade itself: the pruning (step 1.2), the solves, and the records.
+(``cascade_surfaces``: exact sub-samples z[::s, ::s] -- the RMD generator's own stages
+where it kept them -- or block means of s x s fine elements, as ``coarse`` says), their
+element positions in the fine frame (``grid_positions``) and the coarse QP of a level
+(``coarse_qp``: the rigid-body trial set and ubar at the fine problem's Delta, measured
+from the level's OWN maximum xi_max(s)).  This module holds the cascade itself: the
+pruning (step 1.2), the solves, and the records; it only picks the levels.
 
 The last level is the QP the harness gave, restricted to the projected set
 (``QP.restrict``); the answer is returned on the FULL trial set, zeros outside the
@@ -20,8 +22,10 @@ projected set, so the harness's KKT check judges the whole problem honestly (a w
 excluded point shows up as a negative gap w_i < 0).  Every level's solution summary is
 returned in ``SolveResult.info["levels"]`` (the paper: coarse predictions come for free).
 
-Parameters (``Param``s below): ``h`` (area-of-influence factor, default 2), ``coarsest``
-(points per side of the first level, default 16), ``levels`` (explicit sizes to use),
+Parameters (``Param``s below): ``h`` (area-of-influence factor, default 2), ``coarse``
+(``"subsample"``, default: exact sub-samples; ``"mean"``: block means, the cell averages
+the paper's heights xi_ij are), ``coarsest`` (points per side of the first level, default
+16; a size the surface cannot give, N // 2^j, is refused), ``levels`` (explicit sizes),
 ``base_params`` (passed to the base), ``repair`` (default False, not in the paper:
 re-admit pruned points that overlap and re-solve until none does, which makes the answer
 exact).  Each base solve gets the tolerance and iteration limit asked of CMR (when none
@@ -45,7 +49,14 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from contactbench.problems.coarsen import cascade_surfaces, coarse_qp, grid_positions, level_trial_set, power_law_check
+from contactbench.problems.coarsen import (
+    COARSE_KINDS,
+    cascade_surfaces,
+    coarse_qp,
+    grid_positions,
+    level_trial_set,
+    power_law_check,
+)
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, Geometry, OperatorKind, contact_mask
 from contactbench.problems.surfaces import Surface
@@ -65,7 +76,7 @@ from .base import (
 from .registry import all_solvers, get_solver, register
 
 #: Bases for which ``cmr+<base>`` is registered (others: ``make_cmr(name)``).
-CMR_BASES: tuple[str, ...] = ("nnls", "pk", "scipy-nnls", "nnls-gp", "fast-ccg")
+CMR_BASES: tuple[str, ...] = ("nnls", "pk", "scipy-nnls", "nnls-gp", "fast-ccg", "fast-dual-pccg")
 #: With ``repair``, gaps below -REPAIR_GAP * max|ubar| on pruned points count as missed contacts.
 REPAIR_GAP = 1e-9
 MAX_REPAIR_ROUNDS = 50
@@ -147,7 +158,11 @@ class CMRSolver(Solver):
     params: ClassVar[tuple[Param, ...]] = (
         Param("h", float, 2.0, "area-of-influence factor: level s keeps the points within h*delta(s-1) "
               "of a level s-1 contact", low=1.0),
-        Param("coarsest", int, 16, "points per side of the first (coarsest) level", low=2),
+        Param("coarse", str, "subsample", "how coarse levels are made: 'subsample' (exact sub-samples "
+              "z[::s, ::s], the RMD generator's stages) or 'mean' (block means of s x s fine elements)",
+              choices=COARSE_KINDS),
+        Param("coarsest", int, 16, "points per side of the first (coarsest) level, N // 2^j (the study uses "
+              "16|32|64)", low=2),
         SizesParam("levels", tuple, None, "explicit points-per-side of the coarse levels (default: all "
                    "from `coarsest` up)"),
         Param("base_params", dict, None, "parameters passed to the base solver"),
@@ -189,7 +204,8 @@ class CMRSolver(Solver):
         if base.capabilities.warm_start == "none":
             ctx.p0 = None  # a warm start the base cannot take is not used, and the result says so
         h = float(ctx.params["h"])
-        coarse = cascade_surfaces(g.surface, int(ctx.params["coarsest"]), ctx.params["levels"])
+        coarse = cascade_surfaces(g.surface, int(ctx.params["coarsest"]), ctx.params["levels"],
+                                  kind=str(ctx.params["coarse"]))
         period = g.surface.length if (g.periodic and g.surface.periodic) else None
         op_kind: OperatorKind = "dense" if ctx.qp.H.kind == "DenseOperator" else "fft"
 
@@ -210,13 +226,14 @@ class CMRSolver(Solver):
         info: dict[str, Any] = {
             "levels": [asdict(r) for r in records],
             "h": h,
+            "coarse": str(ctx.params["coarse"]),
             "base": self.base_name,
             "n_p_over_n": fine.record.n_p_over_n,
             "cascade": [r.N for r in records],
             "psd_power_law": power_law,
             "repair_rounds": fine.rounds,
         }
-        summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g}: n_p/n={fine.record.n_p_over_n:.4f} "
+        summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g} coarse={ctx.params['coarse']}: n_p/n={fine.record.n_p_over_n:.4f} "
                    f"coarse-loads=[{', '.join(f'{r.load:.6g}' for r in records[:-1])}]")
         msg = f"{summary}; base: {fine.result.message}" if fine.result.message else summary
         if not power_law:
@@ -224,11 +241,12 @@ class CMRSolver(Solver):
             msg = f"{msg}; WARNING: {psd_message}"
         converged, status = bool(fine.result.converged), _status_of(fine.result.status)
         full_kkt = ctx.kkt(fine.p, fine.w)
-        if converged and ctx.tol is not None and not full_kkt <= ctx.tol:
+        claim_tol = ctx.tol if ctx.tol is not None else base.default_tol  # no tol asked: the base's own
+        if converged and claim_tol is not None and not full_kkt <= claim_tol:
             # The base converged on the pruned trial set only: CMR does not claim the full problem.
             converged, status = False, Status.STALLED
             msg = (f"{msg}; the pruned problem converged, but the full problem's scaled KKT error is "
-                   f"{full_kkt:.2e} > tol {ctx.tol:.1e}: the cascade pruned points that come into contact "
+                   f"{full_kkt:.2e} > tol {claim_tol:.1e}: the cascade pruned points that come into contact "
                    f"(repair=True makes it exact)")
         return Outcome(p=fine.p, iterations=sum(r.iterations for r in records), converged=converged,
                        message=msg, w=fine.w, status=status, info=info)

@@ -14,20 +14,28 @@ operator restricted to A, warm-started from the current p_A, optionally precondi
 (param ``precondition``, default "none": "fourier", Vollebregt's |q| E*/2, measured
 slower here, see docs/fast-solvers.md; or "islands"; both from
 ``_preconditioners.make_preconditioner``).  The inner tolerance tightens with the outer
-KKT error (inexact Newton).  Safeguard: PDAS can cycle when H is not an M-matrix (the
-half-space kernel is positive everywhere); if the scaled KKT error stops decreasing, or
-``max_outer`` steps pass, the iterate is clipped to p >= 0 and finished by the Bugnicourt
+KKT error (inexact Newton).  With ``precision="mixed"`` the step is one round of
+iterative refinement: the residual r_A = ubar_A - H_AA p_A in float64 (one restricted
+float64 matvec), the CG on the float32 operator (``ContactOperator.with_precision``) for
+the correction H_AA d = r_A from d = 0, p_A += d; the outer Newton loop is the
+refinement loop, and its KKT test is float64 (solvers/_refine.py).  Safeguard: PDAS can
+cycle when H is not an M-matrix (the half-space kernel is positive everywhere); if the
+scaled KKT error stops decreasing, or ``max_outer`` steps pass, the iterate is clipped to p >= 0 and finished by the Bugnicourt
 CCG (``_ccg.bugnicourt``, as fast-dual-ccg) under the same deadline (one time limit per
 solve).  Iterations = Newton steps + CCG iterations.  Warm start: primal (``ctx.p0``).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from contactbench.problems.kkt import kkt_figures
+from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
+from ._refine import block_dtype, low_precision, precision_param, solve_in_precision
 from ._kit import conjugate_gradient
 from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
 from .base import Outcome, Param, SolveContext
@@ -43,19 +51,38 @@ def active_set(state: GapState, diag_max: float) -> np.ndarray:
     return A if A.size else np.flatnonzero(state.g < 0.0)
 
 
-def newton_step(ctx: SolveContext, state: GapState, A: np.ndarray, kkt: float, M: SetPreconditioner | None) -> int:
-    """p_A <- H_AA^-1 ubar_A (inexact CG from the current p_A), p = 0 off A; returns the
-    CG's matvecs."""
+@dataclass
+class StepMatvecs:
+    """Matvecs of the Newton steps' CGs by precision (restricted operators)."""
+
+    float64: int = 0
+    float32: int = 0
+
+
+def newton_step(ctx: SolveContext, state: GapState, A: np.ndarray, kkt: float, M: SetPreconditioner | None,
+                H32: ContactOperator | None, count: StepMatvecs) -> None:
+    """p_A <- H_AA^-1 ubar_A (inexact CG from the current p_A; with ``H32``: on the
+    float32 correction, module doc), p = 0 off A; the CG's matvecs go to ``count``."""
     qp = ctx.qp
     u_s = kkt_figures(state.p, state.g, qp.ubar, ctx.diag_max).u_scale
     atol = u_s * max(0.2 * ctx.tol, min(1e-2, 0.05 * kkt))
     precond = on_subset(M, A, qp.n) if M is not None else None
-    cg = conjugate_gradient(qp.H.restrict(A), qp.ubar[A], state.p[A], atol, ctx.max_iter,
-                            deadline=ctx.deadline, precond=precond)
+    H_AA = qp.H.restrict(A)
+    if H32 is None:
+        cg = conjugate_gradient(H_AA, qp.ubar[A], state.p[A], atol, ctx.max_iter, deadline=ctx.deadline,
+                                precond=precond)
+        count.float64 += cg.matvecs
+        p_A = cg.x
+    else:
+        r_A = qp.ubar[A] - H_AA.matvec(state.p[A])  # the round's float64 residual
+        cg = conjugate_gradient(H32.restrict(A), r_A, None, atol, ctx.max_iter, deadline=ctx.deadline,
+                                precond=precond)
+        count.float64 += 1
+        count.float32 += cg.matvecs
+        p_A = state.p[A] + cg.x
     state.p = np.zeros(qp.n)
-    state.p[A] = cg.x
+    state.p[A] = p_A
     state.refresh()
-    return cg.matvecs
 
 
 @register
@@ -68,6 +95,7 @@ class FastPDAS(FastSolver):
     params = (
         Param("precondition", str, "none", "inner CG preconditioner on the active set", choices=KINDS),
         Param("max_outer", int, 50, "active-set (Newton) steps before the CCG safeguard takes over", low=1),
+        precision_param(),
     )
 
     def memory_estimate(self, n: int) -> float:
@@ -75,9 +103,11 @@ class FastPDAS(FastSolver):
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         state = GapState.start(ctx)
-        M = make_preconditioner(ctx.params["precondition"], ctx.qp)
+        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
+        H32 = low_precision(ctx.qp.H) if ctx.params["precision"] == "mixed" else None
         ctx.mark_setup_done()
-        inner_mv, outer, kkt = 0, 0, ctx.kkt(state.p, state.g)
+        count = StepMatvecs()
+        outer, kkt = 0, ctx.kkt(state.p, state.g)
         best, stall = kkt, 0
         A_prev: np.ndarray | None = None
         while kkt > ctx.tol and outer < ctx.params["max_outer"] and not ctx.expired():
@@ -85,7 +115,7 @@ class FastPDAS(FastSolver):
             A = active_set(state, ctx.diag_max)
             if A_prev is not None and np.array_equal(A, A_prev) and np.all(state.p[A] >= 0):
                 stall += 1
-            inner_mv += newton_step(ctx, state, A, kkt, M)
+            newton_step(ctx, state, A, kkt, M, H32, count)
             kkt = ctx.kkt(state.p, state.g)
             ctx.record(outer, kkt)
             A_prev = A
@@ -95,16 +125,20 @@ class FastPDAS(FastSolver):
                 stall += 1
             if stall >= STALL_STEPS:
                 break
-        ctx.add_matvecs(inner_mv)
-        info = {"outer_iterations": outer, "inner_matvecs": inner_mv, "finished_by_ccg": False}
+        ctx.add_matvecs(count.float64 + count.float32)
+        info = {"outer_iterations": outer, "inner_matvecs": count.float64 + count.float32,
+                "inner_matvecs_float32": count.float32, "finished_by_ccg": False}
         run = CCGRun(outer, kkt, kkt <= ctx.tol and not np.any(state.p < 0.0))
         if not run.converged and np.any(state.p < 0.0):
             np.maximum(state.p, 0.0, out=state.p)
             state.refresh()
         if not run.converged and not ctx.expired():  # finish with the CCG, same deadline
-            ccg = bugnicourt(ctx, state, None, first=outer)
-            info.update(finished_by_ccg=True, ccg_iterations=ccg.iterations)
+            ccg, more = solve_in_precision(ctx, state, bugnicourt, None, first=outer)
+            info.update(finished_by_ccg=True, ccg_iterations=ccg.iterations, ccg_matvecs_by_precision=more)
             run = CCGRun(outer + ccg.iterations, ccg.kkt, ccg.converged, ccg.stalled)
         if M is not None:
             info["preconditioner_builds"] = M.builds
+        float32 = count.float32 + int(info.get("ccg_matvecs_by_precision", {}).get("matvecs_float32", 0))
+        info.update(precision="mixed" if H32 is not None else "double", matvecs_float32=float32,
+                    matvecs_float64=ctx.matvecs() - float32)
         return outcome(state, run, info)

@@ -86,21 +86,95 @@ def rmd_instance(N: int = 64, H: float = 0.7, periodic: bool = False, seed: int 
 
 @pytest.mark.parametrize("periodic", [False, True])
 def test_large_h_reproduces_the_direct_solution(periodic: bool) -> None:
-    inst = rmd_instance(periodic=periodic)
-    r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1e4, "coarsest": 8}))
+    inst = rmd_instance(N=32, periodic=periodic)  # (periodic: the whole 32^2 grid is the trial set)
+    r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1e4, "coarsest": 4}))
     p_ref = direct(inst)
     np.testing.assert_allclose(r.p, p_ref, rtol=1e-8, atol=1e-12 * p_ref.max())
-    assert [lv["N"] for lv in r.info["levels"]] == [8, 16, 32, 64]
+    assert [lv["N"] for lv in r.info["levels"]] == [4, 8, 16, 32]
     assert r.info["levels"][-1]["n_p"] == inst.n  # nothing pruned
     assert kkt_check(inst, r.p).kkt_error < 1e-8
 
 
-def test_large_h_on_a_block_averaged_cascade() -> None:
+@pytest.mark.parametrize("coarse", ["subsample", "mean"])
+def test_large_h_on_a_surface_without_generator_stages(coarse: str) -> None:
     s = spectral_surface(64, 0.7, seed=5)
     inst = InstanceBuilder(s, 1e9, "bcc").build(0.5 * (s.z_max - s.z_mean))
-    r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1e4}))
-    assert [lv["N"] for lv in r.info["levels"]] == [16, 32, 64]
+    r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1e4, "coarse": coarse}))
+    assert [lv["N"] for lv in r.info["levels"]] == [16, 32, 64] and r.info["coarse"] == coarse
     np.testing.assert_allclose(r.p, direct(inst), rtol=1e-8, atol=1e-20)
+
+
+def test_coarse_kind_changes_the_coarse_levels_only() -> None:
+    """coarse=mean and coarse=subsample pose different coarse QPs (different coarse loads)
+    on the same fine problem; with no pruning both return the direct solution."""
+    inst = rmd_instance(N=64, H=0.7, seed=3)
+    runs = {c: CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1e4, "coarse": c}))
+            for c in ("subsample", "mean")}
+    sub, mean = ([lv["load"] for lv in runs[c].info["levels"]] for c in ("subsample", "mean"))
+    assert sub[:-1] != pytest.approx(mean[:-1], rel=1e-3)
+    assert sub[-1] == pytest.approx(mean[-1], rel=1e-10) == pytest.approx(direct(inst).sum(), rel=1e-10)
+
+
+#: Saupe RMD, 256^2, H = 0.7, h = 2, top step, coarsest 16, coarse=mean
+#: (benchmarks/check_cmr_families.py): seed 0 misses -1.74 % of the direct load, seed 1
+#: -2.62 % (the worst of seeds 0-19; median -0.30 %, 90 % of seeds under 2 %).
+CMR_MEAN_SEED_WITHIN, CMR_MEAN_SEED_BEYOND, CLAIM = 0, 1, 0.02
+
+
+def cmr_h_sweep_top(seed: int):
+    sc = get_scene("cmr-h-sweep")
+    (spec,) = sc.instances(sc.config(SceneConfig(seeds=(seed,))))
+    return spec.build().at(0)
+
+
+def test_cmr_mean_matches_the_direct_load_on_a_fixed_seed() -> None:
+    """Issue 19: on the paper's surface (saupe, 256^2, H = 0.7, h = 2, top step), CMR with
+    coarse=mean is within the paper's 2 % of the direct solve's load on seed 0."""
+    inst = cmr_h_sweep_top(CMR_MEAN_SEED_WITHIN)
+    assert inst.surface.meta["family"] == "saupe" and inst.surface.N == 256
+    P = all_solvers()["fast-dual-pccg"].solve(inst.qp, SolverSettings()).p.sum()
+    r = all_solvers()["cmr+fast-dual-pccg"].solve(inst.qp, SolverSettings(params={"coarse": "mean"}))
+    err = (r.p.sum() - P) / P
+    assert -CLAIM < err < 0  # measured -1.74 %: the cascade misses a little load, never adds
+    assert r.info["cascade"] == [16, 32, 64, 128, 256]
+
+
+def test_cmr_mean_beyond_the_claim_is_judged_inaccurate() -> None:
+    """Where coarse=mean misses more than 2 % (seed 1: -2.62 %), the harness's judge does
+    not pass the answer: its recomputed KKT error fails even the loosest profile."""
+    from contactbench.harness.judge import judge
+    from contactbench.harness.profiles import PROFILES
+
+    inst = cmr_h_sweep_top(CMR_MEAN_SEED_BEYOND)
+    P = all_solvers()["fast-dual-pccg"].solve(inst.qp, SolverSettings()).p.sum()
+    r = all_solvers()["cmr+fast-dual-pccg"].solve(inst.qp, SolverSettings(params={"coarse": "mean"}))
+    assert (r.p.sum() - P) / P < -CLAIM
+    loosest = max(p.check_tol for p in PROFILES.values())
+    v = judge(inst, r.p, r.converged, loosest)
+    assert v.status == "inaccurate" and v.kkt_error > 0.1 and not r.converged  # nor did CMR claim it
+    assert r.status == "stalled" and "full problem's scaled KKT error" in r.message
+
+
+def test_coarse_params_are_checked() -> None:
+    qp = rmd_instance(N=64).qp
+    with pytest.raises(ParamError, match="'coarse' must be one of 'subsample', 'mean'"):
+        CMRSolver(BASE).solve(qp, SolverSettings(params={"coarse": "median"}))
+    with pytest.raises(ProblemInputError, match="coarsest level 12 is not available on the 64 x 64 surface"):
+        CMRSolver(BASE).solve(qp, SolverSettings(params={"coarsest": 12}))
+    r = CMRSolver(BASE).solve(qp, SolverSettings(params={"coarsest": 32, "coarse": "mean"}))
+    assert r.info["cascade"] == [32, 64]
+
+
+@pytest.mark.parametrize("base", ["scipy-nnls", "fast-dual-pccg"])
+def test_the_papers_dense_base_and_our_fast_base_run_under_cmr(base: str) -> None:
+    """cmr+scipy-nnls (the paper's dense Cholesky + NNLS base) and cmr+fast-dual-pccg are
+    registered and give the exact answer when nothing is pruned."""
+    inst = rmd_instance(N=32, H=0.7, seed=2)
+    r = all_solvers()[f"cmr+{base}"].solve(inst.qp, SolverSettings(params={"h": 1e4, "coarsest": 8,
+                                                                             "coarse": "mean"}))
+    p_ref = direct(inst)
+    np.testing.assert_allclose(r.p.sum(), p_ref.sum(), rtol=1e-6)
+    assert kkt_check(inst, r.p).kkt_error < 1e-5
 
 
 def test_small_h_prunes_and_returns_p_on_the_full_trial_set() -> None:
@@ -147,15 +221,17 @@ def test_needs_geometry_context_and_valid_params() -> None:
     qp = QP(DenseOperator(np.eye(2)), np.ones(2))
     with pytest.raises(ProblemInputError, match="geometry"):
         CMRSolver(BASE).solve(qp, SolverSettings())
-    qp16 = rmd_instance(N=16).qp
+    qp32 = rmd_instance(N=32).qp
     with pytest.raises(ParamError, match="'h'"):
-        CMRSolver(BASE).solve(qp16, SolverSettings(params={"h": 0.5}))
-    with pytest.raises(ParamError, match="allowed: base_params, coarsest, h, levels, repair"):
-        CMRSolver(BASE).solve(qp16, SolverSettings(params={"hh": 2.0}))
+        CMRSolver(BASE).solve(qp32, SolverSettings(params={"h": 0.5}))
+    with pytest.raises(ParamError, match="allowed: base_params, coarse, coarsest, h, levels, repair"):
+        CMRSolver(BASE).solve(qp32, SolverSettings(params={"hh": 2.0}))
     with pytest.raises(ParamError, match="'levels'"):
-        CMRSolver(BASE).solve(qp16, SolverSettings(params={"levels": [8.5]}))
+        CMRSolver(BASE).solve(qp32, SolverSettings(params={"levels": [8.5]}))
     with pytest.raises(ParamError, match="no parameter 'K'"):  # base_params go to the base, checked there
-        CMRSolver(BASE).solve(qp16, SolverSettings(params={"base_params": {"K": 3}}))
+        CMRSolver(BASE).solve(qp32, SolverSettings(params={"base_params": {"K": 3}}))
+    with pytest.raises(ProblemInputError, match="coarsest level 16 is not available on the 16 x 16 surface"):
+        CMRSolver(BASE).solve(rmd_instance(N=16).qp, SolverSettings())  # no coarser level to start from
 
 
 def test_skipped_where_the_problem_has_no_surface() -> None:
@@ -206,7 +282,8 @@ def test_availability_names_a_missing_base() -> None:
     assert not ok and "no-such-base" in why
     assert CMRSolver(BASE).availability()[0]
     # the registered names the results tables use
-    assert {f"cmr+{b}" for b in CMR_BASES} == {"cmr+nnls", "cmr+pk", "cmr+scipy-nnls", "cmr+nnls-gp", "cmr+fast-ccg"}
+    assert {f"cmr+{b}" for b in CMR_BASES} == {"cmr+nnls", "cmr+pk", "cmr+scipy-nnls", "cmr+nnls-gp", "cmr+fast-ccg",
+                                               "cmr+fast-dual-pccg"}
     assert {f"cmr+{b}" for b in CMR_BASES} <= set(all_solvers())
 
 
@@ -233,13 +310,29 @@ def test_solver_warns_on_a_rolloff_surface() -> None:
 
 def test_cmr_scene_recipes_and_variants() -> None:
     sc = get_scene("cmr")
-    cfg = sc.config(SceneConfig(size=32, steps=2))
+    assert sc.load_history and sc.config(None).steps == 10
+    cfg = sc.config(SceneConfig(size=32, steps=2, seeds=(0,)))
     specs = sc.instances(cfg)
-    assert [sp.params["hurst"] for sp in specs] == [0.3, 0.5, 0.7]
+    assert [sp.params["hurst"] for sp in specs] == [0.3, 0.5, 0.7, 0.9]
+    assert specs[0].instance == "saupe-H0.3-N32-bcc-np-s0" and specs[0].params["family"] == "saupe"
     seq = specs[0].build()
     assert len(seq) == 2 and seq.deltas[-1] == pytest.approx(paper_max_displacement(seq.surface))
-    assert [x.N for x in seq.surface.levels][-1] == 16
-    assert sc.warnings(cfg) == []
+    assert [x.N for x in seq.surface.levels][-1] == 16 and seq.surface.meta["family"] == "saupe"
+    assert sc.warnings(sc.config(SceneConfig(seeds=(0, 8)))) == []  # (PSD checks need 256^2; seed 8 is steep at low q)
+    periodic = sc.instances(sc.config(SceneConfig(size=32, seeds=(0,), extra={"family": "periodic"})))
+    assert periodic[0].instance == "periodic-H0.3-N32-bcc-np-s0" and periodic[0].params_json() != specs[0].params_json()
+
+
+@pytest.mark.parametrize("scene", ["cmr", "cmr-h-sweep"])
+def test_cmr_scenes_default_to_twenty_saupe_seeds(scene: str) -> None:
+    sc = get_scene(scene)
+    specs = sc.instances(sc.config(None))
+    hursts = sorted({sp.params["hurst"] for sp in specs})
+    assert hursts == ([0.3, 0.5, 0.7, 0.9] if scene == "cmr" else [0.7])
+    assert len(specs) == 20 * len(hursts) and {sp.params["seed"] for sp in specs} == set(range(20))
+    assert {sp.params["family"] for sp in specs} == {"saupe"} and {sp.params["size"] for sp in specs} == {256}
+    with pytest.raises(ProblemInputError, match="unknown RMD surface family 'fbm'"):
+        sc.instances(sc.config(SceneConfig(extra={"family": "fbm"})))
 
 
 def test_h_grid_covers_the_papers_fig_9() -> None:

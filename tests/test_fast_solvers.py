@@ -91,7 +91,7 @@ def test_warm_start_from_previous_step(name):
 def warm_sweep(name: str, N: int, seed: int, steps: int = 10) -> np.ndarray:
     """The paper's non-periodic BCC ramp on an N^2 RMD surface, each step warm-started
     from the last and checked to kkt <= 1e-8: rows (load, A/A0, n) per step."""
-    s = rmd_surface_n(N, 0.7, length=100e-6, seed=seed)
+    s = rmd_surface_n(N, 0.7, length=100e-6, seed=seed, family="saupe")
     b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
     prev = np.zeros(s.heights.size)
     rows = []
@@ -170,7 +170,7 @@ def test_pk_and_fast_ccg_run_one_loop():
 
 def test_unknown_parameter_lists_the_allowed_keys():
     _, inst = instance(33, "bcc", False)
-    with pytest.raises(ParamError, match="allowed: max_outer, precondition"):
+    with pytest.raises(ParamError, match="allowed: max_outer, precision, precondition"):
         get_solver("fast-pdas").solve(inst.qp, SolverSettings(params={"precondtion": "fourier"}))
     with pytest.raises(ParamError, match="precondition"):
         get_solver("fast-pccg").solve(inst.qp, SolverSettings(params={"precondition": True}))
@@ -187,17 +187,16 @@ def test_pdas_preconditioned_inner_cg_reaches_the_same_answer(kind):
 
 
 def test_pdas_returns_within_its_time_limit():
-    """The paper's top step at 1024^2 (n = 144,852) needs several times 2 s of
-    fast-pdas at its default tolerance; with time_limit = 2 the solve stops near 2 s
-    (its inner CG used to ignore the limit, and its safeguard restarted the clock)."""
+    """The paper's top step at 1024^2 (n = 140,199) needs several times 2 s of
+    fast-pdas at its default tolerance; with time_limit = 2 the solve stops at its limit
+    and says so (its inner CG used to ignore the limit, and its safeguard restarted the
+    clock: that is checked without a clock in the next test)."""
     from contactbench.problems.scenes.core import PAPER_SEED
 
-    s = rmd_surface_n(1024, 0.7, length=100e-6, seed=PAPER_SEED)
+    s = rmd_surface_n(1024, 0.7, length=100e-6, seed=PAPER_SEED, family="saupe")
     inst = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s))
     solver = get_solver("fast-pdas")
-    t0 = time.perf_counter()
     res = solver.solve(inst.qp, SolverSettings(time_limit=2))
-    assert time.perf_counter() - t0 < 2.5
     assert res.status == "time_limit" and not res.converged
 
 
@@ -265,3 +264,24 @@ def test_fast_pccg_solves_the_counterexample_at_1_and_2_threads(monkeypatch):
                     loads[threads, n, seed] = inst.load(res.p)
     for (threads, n, seed), load in loads.items():
         assert load == pytest.approx(loads[1, n, seed], rel=1e-7)
+
+
+@pytest.mark.parametrize("name", ["fast-pccg", "fast-dual-pccg"])
+def test_coarse_first_guess_reaches_the_same_answer(name):
+    """first_guess="coarse": a cold start from the 2x-coarser grid's answer (its matvecs
+    counted and reported); the same fixed point as from zero."""
+    s = rmd_surface_n(256, 0.7, length=100e-6, seed=3)
+    inst = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s))
+    zero = get_solver(name).solve(inst.qp, HIGH)
+    coarse = get_solver(name).solve(inst.qp, SolverSettings(tol=1e-9, params={"first_guess": "coarse"}))
+    assert zero.converged and coarse.converged
+    assert coarse.info["coarse_matvecs"] > 0 and coarse.matvecs > coarse.info["coarse_matvecs"]
+    assert abs(coarse.p.sum() - zero.p.sum()) <= 1e-8 * zero.p.sum()
+    assert kkt_check(inst.qp, coarse.p).passes(1e-9)
+
+
+def test_coarse_first_guess_needs_a_surface_and_a_big_enough_grid():
+    s = rmd_surface_n(64, 0.7, length=100e-6, seed=3)
+    inst = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s))
+    res = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"first_guess": "coarse"}))
+    assert res.converged and res.info["coarse_matvecs"] == 0 and "no coarse level" in res.info["first_guess"]

@@ -135,7 +135,7 @@ def test_map_by_grid_index_keeps_shared_points_and_zeroes_new_ones() -> None:
 
 
 def test_load_history_warm_starts_from_the_solvers_own_previous_step(tmp_path: Path) -> None:
-    cfg = SceneConfig(size=16, steps=3, seeds=(0,))
+    cfg = SceneConfig(size=16, steps=3, seeds=(0,), extra={"family": "periodic"})  # the toy warm start gains on it
     warm = run(tmp_path / "warm", ["test-warm-pg", "test-exact"], cfg=cfg, profiles=("high",))
     cold = run(tmp_path / "cold", ["test-warm-pg", "test-exact"], cfg=cfg, profiles=("high",), warm=False)
     pg_w = warm[warm.solver == "test-warm-pg"].sort_values("step")
@@ -367,10 +367,12 @@ def test_studies_keep_the_variants_and_cells_of_the_scenes() -> None:
     from contactbench.harness.studies import COMPOSITES, study_for
 
     cmr = study_for("cmr").variants(["nnls", "cmr+nnls"], {})
-    assert [v.name for v in cmr] == ["nnls", "cmr+nnls"] and cmr[1].params == {"h": 2.0, "coarsest": 16}
-    sweep = study_for("cmr-h-sweep").variants(["cmr+pk"], {"levels": [16, 32]})
-    assert [v.name for v in sweep][:2] == ["cmr+pk h=1.25", "cmr+pk h=1.5"] and len(sweep) == 8
-    assert sweep[-1].params == {"h": 3.0, "coarsest": 16, "levels": [16, 32]}
+    assert [v.name for v in cmr] == ["nnls", "cmr+nnls coarse=subsample h=2 from 16", "cmr+nnls coarse=mean h=2 from 16"]
+    assert cmr[1].params == {"h": 2.0, "coarsest": 16, "coarse": "subsample"}
+    sweep = study_for("cmr-h-sweep").variants(["cmr+fast-dual-pccg"], {"levels": [16, 32]})
+    assert [v.name for v in sweep][:2] == ["cmr+fast-dual-pccg coarse=subsample h=1.25 from 16",
+                                           "cmr+fast-dual-pccg coarse=subsample h=1.5 from 16"] and len(sweep) == 20
+    assert sweep[15].params == {"h": 3.0, "coarsest": 16, "coarse": "mean", "levels": [16, 32]}
     gp = study_for("gp-k-sweep").variants(["nnls-gp", "pk"], {})
     assert [v.name for v in gp] == [f"nnls-gp[K={k}]" for k in (0, 10, 25, 50, 100, 150, 200)] + ["pk"]  # Fig. 6
     assert study_for("gp-k-sweep").variants(["nnls-gp"], {"K": (5,)})[0].params == {"K": 5}
@@ -504,7 +506,8 @@ def test_solve_sequence_warm_starts_by_grid_index_and_judges_each_step() -> None
     from contactbench.problems.scenes import get_scene
 
     scene = get_scene("paper-sweep")
-    seq = scene.instances(scene.config(SceneConfig(size=16, steps=3, seeds=(0,))))[0].build()
+    cfg = SceneConfig(size=16, steps=3, seeds=(0,), extra={"family": "periodic"})
+    seq = scene.instances(scene.config(cfg))[0].build()
     warm = solve_sequence("test-warm-pg", seq, test_harness_solvers.SolverSettings(tol=1e-9), check_tol=1e-8)
     cold = solve_sequence("test-warm-pg", seq, test_harness_solvers.SolverSettings(tol=1e-9), check_tol=1e-8,
                           warm=False)

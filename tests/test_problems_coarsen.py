@@ -12,12 +12,14 @@ import pytest
 from contactbench.problems.coarsen import (
     block_average,
     cascade_surfaces,
+    coarse_level,
     coarse_levels,
     coarse_qp,
     grid_positions,
+    level_sizes,
     level_trial_set,
+    mean_level,
     power_law_check,
-    with_coarse_levels,
 )
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
@@ -48,11 +50,57 @@ def test_coarse_levels_layout() -> None:
     s = spectral_surface(64, 0.7, seed=2)
     lv = coarse_levels(s, 3)
     assert [x.N for x in lv] == [8, 16, 32]  # coarsest first, the surface excluded
-    assert [x.N for x in with_coarse_levels(s, 16).levels] == [16, 32]
-    rmd = rmd_surface_n(32, 0.7)
-    assert with_coarse_levels(rmd, 16) is rmd  # RMD keeps its own levels
+    # repeated 2 x 2 averaging is the s x s block mean
+    np.testing.assert_allclose(lv[0].heights, block_average(block_average(block_average(s))).heights, rtol=1e-13)
     with pytest.raises(ProblemInputError):
         coarse_levels(s, -1)
+
+
+@pytest.mark.parametrize("N, stride", [(64, 4), (64, 16), (33, 8), (30, 4)])
+def test_mean_levels_are_block_means(N: int, stride: int) -> None:
+    """coarse=mean: element (I, J) is the mean of the s x s fine block it covers (checked
+    against an explicit reshape-mean), centred in that block in the fine frame; a last
+    partial block is dropped."""
+    s = spectral_surface(N, 0.7, length=float(N), seed=3)  # delta = 1
+    lv = coarse_level(s, stride, "mean")
+    n = N // stride
+    h = s.heights
+    explicit = np.array([[h[I * stride:(I + 1) * stride, J * stride:(J + 1) * stride].mean() for J in range(n)]
+                         for I in range(n)])
+    np.testing.assert_allclose(lv.heights, explicit, rtol=1e-13, atol=1e-20)
+    assert lv.N == n and lv.delta == pytest.approx(stride * s.delta)
+    c = 0.5 * (stride - 1)  # element (I, J) centre: (s I + (s-1)/2, s J + (s-1)/2)
+    np.testing.assert_allclose(grid_positions(lv, np.array([0, n + 1])), [[c, c], [stride + c, stride + c]])
+    assert mean_level(s, stride).meta["origin"] == (c, c)
+
+
+def test_subsample_levels_are_the_fine_grid_subsampled() -> None:
+    """coarse=subsample on a surface without generator stages: z[::s, ::s], centres on
+    fine grid points; on an RMD surface: its own stages (equal to z[::s, ::s])."""
+    s = spectral_surface(64, 0.7, length=64.0, seed=3)
+    lv = coarse_level(s, 8, "subsample")
+    np.testing.assert_array_equal(lv.heights, s.heights[::8, ::8])
+    np.testing.assert_allclose(grid_positions(lv, np.array([9])), [[8.0, 8.0]])
+    rmd = rmd_surface_n(64, 0.7, family="saupe", seed=2)
+    assert coarse_level(rmd, 4, "subsample") is rmd.levels[-2]
+    np.testing.assert_array_equal(coarse_level(rmd, 4).heights, rmd.heights[::4, ::4])
+    with pytest.raises(ProblemInputError, match="unknown coarse-level kind 'median'"):
+        coarse_level(s, 2, "median")
+
+
+def test_cascade_refuses_a_coarsest_size_the_surface_cannot_give() -> None:
+    s = rmd_surface_n(256, 0.7, family="saupe")
+    assert level_sizes(256) == {128: 2, 64: 4, 32: 8, 16: 16, 8: 32, 4: 64, 2: 128}
+    for kind in ("subsample", "mean"):
+        assert [x.N for x in cascade_surfaces(s, 16, kind=kind)] == [16, 32, 64, 128]
+        assert [x.N for x in cascade_surfaces(s, 64, kind=kind)] == [64, 128]
+    with pytest.raises(ProblemInputError, match="coarsest level 20 is not available on the 256 x 256 surface"):
+        cascade_surfaces(s, 20)
+    with pytest.raises(ProblemInputError, match="coarsest level 256 is not available"):
+        cascade_surfaces(s, 256)
+    whole = rmd_surface_n(257, 0.7, family="saupe")  # 2^k + 1: a sub-sample keeps its closing row
+    assert [x.N for x in cascade_surfaces(whole, 16)] == [17, 33, 65, 129]
+    assert [x.N for x in cascade_surfaces(whole, 16, kind="mean")] == [16, 32, 64, 128]
 
 
 # --- power-law check ------------------------------------------------------------------
@@ -79,8 +127,9 @@ def test_power_law_check_refuses_a_flat_surface() -> None:
 # --- the cascade's levels and their QPs -------------------------------------------------
 
 
-def test_cascade_surfaces_rmd_levels_are_subsamples() -> None:
-    s = rmd_surface_n(64, 0.7)
+@pytest.mark.parametrize("family", ["saupe", "periodic"])
+def test_cascade_surfaces_rmd_levels_are_subsamples(family: str) -> None:
+    s = rmd_surface_n(64, 0.7, family=family)
     lv = cascade_surfaces(s, 16)
     assert [x.N for x in lv] == [16, 32]
     np.testing.assert_array_equal(lv[0].heights, s.heights[::4, ::4])

@@ -142,3 +142,112 @@ def test_fft_operator_pickles_after_use_and_still_agrees() -> None:
     copy = pickle.loads(pickle.dumps(op))
     np.testing.assert_allclose(copy.matvec(x), y, rtol=1e-13, atol=0)
     np.testing.assert_allclose(op.matvec(x), y, rtol=1e-13, atol=0)
+
+
+# --- precision (float32 products for mixed-precision solvers) and the blocked column pass
+
+
+def _fft_op(kernel: str, periodic: bool, n: int, idx: np.ndarray) -> FFTOperator:
+    return FFTOperator(KernelTransform(kernel_table(kernel, (n, n), DELTA, E, periodic), (n, n)), idx, auto_dense=False)
+
+
+@pytest.mark.parametrize("backend", ["ducc", "scipy"])
+@pytest.mark.parametrize("n", [14, 72])
+@pytest.mark.parametrize("kernel,periodic", [("bcc", False), ("love", True)])
+def test_float32_operator_matches_float64_after_restrict(kernel: str, periodic: bool, n: int, backend: str, monkeypatch) -> None:
+    """with_precision(float32): same trial set, float32 products within ~1e-6 of float64
+    (norm-wise), for float32 and float64 input, and after restrict; 72^2 has more
+    spectrum columns than one block and is run on two threads (blocks split)."""
+    monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", backend)
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", "2")
+    rng = np.random.default_rng([n, int(periodic)])
+    idx = np.sort(rng.choice(n * n, n * n // 2, replace=False))
+    op = _fft_op(kernel, periodic, n, idx)
+    op32 = op.with_precision(np.float32)
+    assert op.with_precision(np.float64) is op and op32.with_precision(np.float32) is op32
+    assert op32.dtype == np.float32 and op32.n == op.n and op32.transform is op.transform
+    for _ in range(2):
+        x = rng.normal(size=op.n)
+        y64 = op.matvec(x)
+        for xin in (x, x.astype(np.float32)):
+            y32 = op32.matvec(xin)
+            assert y32.dtype == np.float32
+            assert np.linalg.norm(y32 - y64) <= 3e-6 * np.linalg.norm(y64)
+    sub = np.sort(rng.choice(op.n, op.n // 3, replace=False))
+    r32, r64 = op32.restrict(sub), op.restrict(sub)
+    assert r32.dtype == np.float32
+    x = rng.normal(size=sub.size)
+    assert np.linalg.norm(r32.matvec(x) - r64.matvec(x)) <= 3e-6 * np.linalg.norm(r64.matvec(x))
+    assert op32.transform.spectrum(np.float32) is op.transform.spectrum(np.float32)  # one copy per transform
+
+
+def test_float32_differs_from_float64_by_single_precision_roundoff() -> None:
+    """The float32 path really runs in single precision (not a float64 product cast)."""
+    rng = np.random.default_rng(5)
+    op = _fft_op("bcc", False, 40, np.arange(1600))
+    x = rng.normal(size=1600)
+    rel = np.linalg.norm(op.with_precision(np.float32).matvec(x) - op.matvec(x)) / np.linalg.norm(op.matvec(x))
+    assert 1e-9 < rel < 3e-6
+
+
+def test_dense_operator_with_precision_and_bad_precision() -> None:
+    from contactbench.problems.errors import ProblemInputError
+
+    rng = np.random.default_rng(2)
+    idx = random_subset(rng, 0.4)
+    dense = DenseOperator(dense_from_formula("bcc", False, idx))
+    d32 = dense.with_precision(np.float32)
+    assert d32.H.dtype == np.float32 and dense.with_precision(np.float64) is dense
+    assert d32.restrict(np.arange(5)).dtype == np.float32
+    x = rng.normal(size=idx.size)
+    assert np.linalg.norm(d32.matvec(x) - dense.matvec(x)) <= 1e-6 * np.linalg.norm(dense.matvec(x))
+    assert d32.diagonal().dtype == np.float64
+    with pytest.raises(ProblemInputError, match="precision"):
+        dense.with_precision(np.float16)
+    with pytest.raises(ProblemInputError, match="precision"):
+        _fft_op("bcc", False, N, idx).with_precision("int32")
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_whole_grid_permuted_and_subset_sets_alternate_on_one_transform(periodic: bool, monkeypatch) -> None:
+    """The whole grid in row-major order is loaded as a block; the same points in another
+    order, and a subset, go through the indexed path; calls alternate on the shared work
+    arrays (the clearing of the last call's entries) in both precisions."""
+    monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", "ducc")
+    rng = np.random.default_rng(9)
+    transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, periodic), (N, N))
+    sets = [np.arange(N * N), rng.permutation(N * N)[: N * N], random_subset(rng, 0.3)]
+    for dtype, tol in ((np.float64, 1e-12), (np.float32, 3e-6)):
+        ops = [FFTOperator(transform, idx, auto_dense=False, dtype=dtype) for idx in sets]
+        dense = [dense_from_formula("bcc", periodic, idx) for idx in sets]
+        for step in (0, 2, 1, 1, 0, 0, 2, 1):
+            x = rng.normal(size=sets[step].size)
+            ref = dense[step] @ x
+            assert np.linalg.norm(ops[step].matvec(x) - ref) <= tol * np.linalg.norm(ref)
+
+
+def test_float32_operator_pickles_and_reports_half_the_work_memory() -> None:
+    import pickle
+
+    rng = np.random.default_rng(4)
+    op32 = _fft_op("bcc", False, N, random_subset(rng, 0.5)).with_precision(np.float32)
+    x = rng.normal(size=op32.n)
+    y = op32.matvec(x)
+    np.testing.assert_allclose(pickle.loads(pickle.dumps(op32)).matvec(x), y, rtol=1e-6, atol=1e-6 * np.abs(y).max())
+    op64 = op32.with_precision(np.float64)
+    assert 2 * op32.matvec_work_nbytes == op64.matvec_work_nbytes
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_fft_floor_pair_runs_the_transform_pair_on_its_own_arrays(periodic: bool) -> None:
+    """The benchmark's FFT floor runs in both precisions and leaves the operator's work alone."""
+    from contactbench.problems.operators import fft_floor_pair
+
+    rng = np.random.default_rng(8)
+    idx = random_subset(rng, 0.5)
+    op = _fft_op("bcc", periodic, N, idx)
+    x = rng.normal(size=idx.size)
+    y = op.matvec(x)
+    for dtype in (np.float64, np.float32):
+        fft_floor_pair(op.transform, dtype)()
+    np.testing.assert_allclose(op.matvec(x), y, rtol=1e-13, atol=0)

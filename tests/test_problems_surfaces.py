@@ -10,6 +10,7 @@ from contactbench.problems.surfaces import (
     Surface,
     check_grid_size,
     check_not_flat,
+    check_rmd_family,
     check_rmd_size,
     fit_hurst,
     radial_psd,
@@ -62,6 +63,43 @@ def test_rmd_coarse_levels_are_exact_sub_samples(periodic: bool) -> None:
         assert np.array_equal(lev.heights, s.heights[::stride, ::stride])
         assert lev.delta == pytest.approx(s.delta * stride, rel=1e-15)
         assert lev.periodic == periodic
+
+
+@pytest.mark.parametrize("N, size_of_levels", [(64, [4, 8, 16, 32]), (65, [5, 9, 17, 33])])
+def test_saupe_coarse_stages_equal_the_fine_grid_subsampled(N: int, size_of_levels: list[int]) -> None:
+    """The paper's generator (non-periodic MidPointFM2D): for N = 2^k the (2^k + 1)^2 grid
+    loses its last row and column, and so does every stage -- each stage is still exactly
+    z[::s, ::s]; N = 2^k + 1 keeps the whole grid."""
+    s = rmd_surface_n(N, 0.7, family="saupe", seed=7, length=100e-6)
+    assert s.N == N and not s.periodic and s.meta["family"] == "saupe" and s.name.startswith("saupe-H0.7-")
+    assert s.delta == pytest.approx(100e-6 / 64, rel=1e-15)  # L / 2^k either way
+    assert s.rms_height == pytest.approx(1e-6, rel=1e-12) and abs(s.z_mean) < 1e-18
+    assert [lev.N for lev in s.levels] == size_of_levels
+    for lev in s.levels:
+        stride = lev.meta["stride"]
+        assert np.array_equal(lev.heights, s.heights[::stride, ::stride])
+        assert lev.delta == pytest.approx(s.delta * stride, rel=1e-15) and lev.meta["family"] == "saupe"
+    whole = rmd_surface_n(65, 0.7, family="saupe", seed=7)
+    cropped_raw = rmd_surface_n(64, 0.7, family="saupe", seed=7)
+    # the same construction: the cropped grid is the whole one without its last row/column (up to scaling)
+    a, b = whole.heights[:-1, :-1], cropped_raw.heights
+    np.testing.assert_allclose((a - a.mean()) / a.std(), (b - b.mean()) / b.std(), rtol=0, atol=1e-12)
+
+
+def test_rmd_families_choose_the_grid_and_refuse_what_they_cannot_give() -> None:
+    per = rmd_surface_n(32, 0.7, family="periodic", seed=1)
+    assert per.periodic and per.N == 32 and per.meta["family"] == "periodic" and per.name.startswith("periodic-")
+    assert np.array_equal(per.heights, rmd_surface_n(32, 0.7, seed=1).heights)  # no family: N = 2^k is periodic
+    assert rmd_surface_n(33, 0.7).meta["family"] == "saupe"
+    assert not np.array_equal(rmd_surface_n(32, 0.7, family="saupe", seed=1).heights, per.heights)
+    with pytest.raises(ProblemInputError, match="'periodic' RMD family needs N = 2\\^k .* got N = 33"):
+        rmd_surface_n(33, 0.7, family="periodic")
+    with pytest.raises(ProblemInputError, match="unknown RMD surface family 'voss': choose one of 'saupe', 'periodic'"):
+        check_rmd_family("voss")
+    with pytest.raises(ProblemInputError, match="RMD surface needs N = 2\\^k"):
+        rmd_surface_n(30, 0.7, family="saupe")
+    with pytest.raises(ProblemInputError, match="crop applies to the non-periodic"):
+        rmd_surface(5, 0.7, periodic=True, crop=True)
 
 
 def test_rmd_with_additions_stores_the_construction_states() -> None:

@@ -234,6 +234,17 @@ def test_fig5_and_fig6_readings(built: tuple[Path, str, pd.DataFrame]) -> None:
     assert f"The total time is smallest at K = {kbest} " in text
 
 
+def test_paper_sections_state_the_surface_family(built: tuple[Path, str, pd.DataFrame]) -> None:
+    _, text, _ = built
+    fig4 = text[text.index("### Fig. 4"):text.index("### Fig. 5")]
+    fig6 = text[text.index("### Fig. 6"):]
+    # the fabricated paper-sweep and gp-k-sweep instances are "rmd-H0.7-N64-s0": the periodic family's old name
+    assert "**Surface family.** `periodic`" in fig4 and "**Surface family.** `periodic`" in fig6.split("###")[1]
+    fig5 = text[text.index("### Fig. 5"):text.index("### Fig. 6")]
+    assert "**Surface family.**" not in fig5  # its instances ("n400") are not generated rough surfaces
+    assert rpp.surface_families(pd.DataFrame({"instance": ["saupe-H0.7-N512-bcc-np-s55"]})) == ["saupe"]
+
+
 def test_counterexample_fractions_and_case(built: tuple[Path, str, pd.DataFrame]) -> None:
     out, text, df = built
     ce = df[(df["scene"] == "counterexample") & (df["solver"] == "greedy-cg")]

@@ -2,14 +2,19 @@
 data only (the CMR variants, h values and cascade depth are the harness's study design,
 ``contactbench.harness.studies``).
 
-* ``cmr``         -- Fig. 8: RMD surfaces H = 0.3, 0.5, 0.7, L = 100 um, 256^2, 10
-                     displacement steps up to (z_max - z_mean)/2 (the surfaces keep their
-                     RMD coarse levels 16 -> 32 -> ... -> 256).
-* ``cmr-h-sweep`` -- Fig. 9: H = 0.7, the top step only.
+* ``cmr``         -- Fig. 8: RMD surfaces H = 0.3, 0.5, 0.7, 0.9, L = 100 um, 256^2, 10
+                     displacement steps up to (z_max - z_mean)/2, seeds 0-19 (a
+                     distribution per H; the surfaces keep their RMD coarse stages
+                     16 -> 32 -> ... -> 256, exact sub-samples).
+* ``cmr-h-sweep`` -- Fig. 9: H = 0.7, the top step only, seeds 0-19.
 * ``cmr-cutoff``  -- the cautionary case of Figs. 10-11: a spectral surface whose PSD has
                      a roll-off plateau at low wave numbers (like the 10x scan) against a
                      pure power law (like the 100x scan); H = 0.6, 256^2, one step
                      Delta = (z_max - z_mean)/5.
+
+``cmr`` and ``cmr-h-sweep`` default to the paper's generator, Saupe's non-periodic
+MidPointFM2D (RMD family "saupe"; ``--surface-family periodic`` gives the wrap-around one,
+``core.surface_family``).
 
 ``warnings(cfg)`` flags every instance whose PSD is not a power law over the scales a
 cascade spans (``problems.coarsen.power_law_check``); the CMR solver repeats the check and
@@ -46,6 +51,11 @@ def top_steps(surface: Surface, steps: int, fraction: float) -> np.ndarray:
     return load_ramp(fraction * (surface.z_max - surface.z_mean), steps)
 
 
+#: Hurst exponents of Fig. 8, and the seeds of both CMR scenes (issue 19: >= 20 per H).
+CMR_HURSTS: tuple[float, ...] = (0.3, 0.5, 0.7, 0.9)
+CMR_SEEDS: tuple[int, ...] = tuple(range(20))
+
+
 class _RMDCascadeScene(RampScene):
     """Shared recipe/loads of the RMD scenes (surfaces with their own coarse levels)."""
 
@@ -68,22 +78,24 @@ class _RMDCascadeScene(RampScene):
 
 @register_scene
 class CMRScene(_RMDCascadeScene):
-    """Paper Fig. 8: RMD H = 0.3, 0.5, 0.7, 256^2, 10 steps up to (z_max - z_mean)/2."""
+    """Paper Fig. 8: RMD H = 0.3, 0.5, 0.7, 0.9, 256^2, 10 steps up to (z_max - z_mean)/2,
+    seeds 0-19."""
 
     name = "cmr"
-    description = "CMR problems (paper Fig. 8): RMD H=0.3,0.5,0.7, 256^2, 10 steps up to (zmax-zmean)/2"
-    defaults = SceneConfig(size=256, steps=10, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
-                           periodic=False, operator="fft", extra={"hursts": (0.3, 0.5, 0.7)})
-    hursts = (0.3, 0.5, 0.7)
+    description = ("CMR problems (paper Fig. 8): RMD (saupe) H=0.3,0.5,0.7,0.9, 256^2, 10 steps up to "
+                   "(zmax-zmean)/2, seeds 0-19")
+    defaults = SceneConfig(size=256, steps=10, seeds=CMR_SEEDS, length=100e-6, E=PAPER_E, kernel="bcc",
+                           periodic=False, operator="fft", extra={"hursts": CMR_HURSTS})
+    hursts = CMR_HURSTS
 
 
 @register_scene
 class CMRHSweep(_RMDCascadeScene):
-    """Paper Fig. 9: H = 0.7, the top displacement step (for the sweep over h)."""
+    """Paper Fig. 9: H = 0.7, the top displacement step (for the sweep over h), seeds 0-19."""
 
     name = "cmr-h-sweep"
-    description = "CMR h-sweep problem (paper Fig. 9): RMD H=0.7, 256^2, the top step"
-    defaults = SceneConfig(size=256, steps=1, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
+    description = "CMR h-sweep problem (paper Fig. 9): RMD (saupe) H=0.7, 256^2, the top step, seeds 0-19"
+    defaults = SceneConfig(size=256, steps=1, seeds=CMR_SEEDS, length=100e-6, E=PAPER_E, kernel="bcc",
                            periodic=False, operator="fft", extra={"hursts": (0.7,)})
     load_history = False
 

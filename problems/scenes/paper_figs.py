@@ -7,6 +7,9 @@ each figure runs are the harness's study design, ``contactbench.harness.studies`
 * ``greedy-linear-solvers`` paper Fig. 5's problems: RMD surfaces of several sizes, each at
                             several displacements, so the trial-set size n spans about two
                             decades.
+
+Both use the paper's generator, RMD family "saupe" (``core.surface_family``), unless the
+run asks for another.
 """
 
 from __future__ import annotations

@@ -1,0 +1,262 @@
+"""The FFT operator on a GPU (CuPy), behind the ``ContactOperator`` interface.
+
+``ArrayKernelTransform`` is the kernel transform of ``problems.operators`` with its
+convolution written once against an array module ``xp``: the same pruned transform
+pair as the CPU operator (row rFFTs on the N1 physical rows, column FFTs of length
+P0, the real spectrum product, column iFFTs, then row irFFTs only on the N1 rows
+that are read; periodic grids have P = N and the same code is a plain rfft2 pair).
+
+* ``xp = cupy``: the kernel spectrum lives on the device (copied there once, on the
+  first convolution, so a transform built in one process and sent to another never
+  touches CUDA before it is used); each matvec sends x (n float64) to the device and
+  brings H_II x back -- n * 8 bytes each way, small next to the transforms.
+* ``xp = numpy``: the same code on the CPU.  It is the tested path on machines
+  without a GPU (it equals ``FFTOperator`` to round-off) and no faster than the
+  ducc0 path of ``KernelTransform``.
+
+``ArrayFFTOperator`` is ``FFTOperator`` on such a transform: ``submatrix``,
+``entries``, ``blocks``, ``diagonal`` and the dense switch for small trial sets are the
+CPU operator's own (they read the kernel table on the host); only the convolutions
+run through ``xp``.  Inputs and outputs are numpy arrays (float64; float32 for an
+operator from ``with_precision(np.float32)``, computed in single precision on the device).
+
+CuPy is optional (the ``gpu`` extra, ``pip install -e .[gpu]``; never needed):
+``gpu_unavailable_reason()`` says why the "gpu" operator cannot be built here, and
+``array_module("cupy")`` raises ``ProblemInputError`` with that reason.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import subprocess
+import sys
+import threading
+from collections import OrderedDict
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from .errors import ProblemInputError
+from .operators import FFTOperator, KernelTransform, operator_dtype
+
+#: The array modules the convolution is written against.
+ARRAY_MODULES = ("numpy", "cupy")
+#: Device copies of index sets kept per transform (one per operator in use, about).
+INDEX_CACHE_SIZE = 8
+
+
+#: Run in a child process: it initialises CUDA there, not here (the harness forks its
+#: workers, and a forked child cannot use a CUDA context its parent opened).
+_PROBE = "import cupy; print(int(cupy.cuda.runtime.getDeviceCount()))"
+
+
+@functools.lru_cache(maxsize=1)
+def gpu_unavailable_reason() -> str | None:
+    """None when CuPy imports and sees a CUDA device, else why not (one sentence).
+    Probed once per process, in a subprocess (no CUDA context is opened here)."""
+    if importlib.util.find_spec("cupy") is None:
+        return "CuPy is not installed; install the 'gpu' extra: pip install -e '.[gpu]'"
+    try:
+        proc = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=120, check=False)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"the CuPy device probe failed ({type(exc).__name__}: {exc})"
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
+        return f"CuPy finds no usable CUDA device ({last})"
+    counted = proc.stdout.strip().splitlines()
+    if not counted or not counted[-1].isdigit() or int(counted[-1]) < 1:
+        return "CuPy finds no CUDA device"
+    return None
+
+
+def array_module(name: str) -> ModuleType:
+    """numpy or cupy by name; ``ProblemInputError`` naming the reason when CuPy or a
+    device is missing."""
+    if name == "numpy":
+        return np
+    if name == "cupy":
+        reason = gpu_unavailable_reason()
+        if reason is not None:
+            raise ProblemInputError(f"the 'gpu' operator needs CuPy and a CUDA device: {reason}")
+        import cupy
+
+        return cupy
+    raise ProblemInputError(f"array module must be one of {ARRAY_MODULES}, got {name!r}")
+
+
+def to_host(a: Any) -> np.ndarray:
+    """A numpy array from a numpy or cupy array."""
+    get = getattr(a, "get", None)
+    return np.asarray(get() if callable(get) else a)
+
+
+class ArrayKernelTransform(KernelTransform):
+    """A ``KernelTransform`` whose convolutions run through the array module ``xp``.
+
+    Built from a host transform (``from_host``): the table, spectrum and shapes are
+    shared with it, nothing is recomputed.  The device state (the spectrum in each
+    precision used, and the padded indices of the operators that use it) is made on the
+    first convolution.  Like the CPU transform, every convolution runs in float64 or
+    float32 (``dtype``; float32 returns float32, for mixed-precision solvers).
+    """
+
+    xp_name: str
+
+    @classmethod
+    def from_host(cls, host: KernelTransform, xp: str = "cupy") -> "ArrayKernelTransform":
+        if xp not in ARRAY_MODULES:
+            raise ProblemInputError(f"array module must be one of {ARRAY_MODULES}, got {xp!r}")
+        self = cls.__new__(cls)
+        self.__setstate__(host.__getstate__())
+        self.xp_name = xp
+        self._device = None
+        return self
+
+    def __getstate__(self) -> dict:
+        state = super().__getstate__()
+        state["_device"] = None  # device arrays stay in their process
+        return state
+
+    @property
+    def xp(self) -> ModuleType:
+        return array_module(self.xp_name)
+
+    def _state(self) -> "_DeviceState":
+        if self._device is None:
+            self._device = _DeviceState(self.xp, self.khat)
+        return self._device
+
+    def apply_on_set(self, pidx: np.ndarray, x: np.ndarray, dtype: object = np.float64) -> np.ndarray:
+        """gather_I (K * scatter_I x) at the padded flat indices ``pidx`` (host arrays in
+        and out; the convolution runs on ``xp`` in precision ``dtype``)."""
+        dt = operator_dtype(dtype)
+        with self._lock:
+            dev = self._state()
+            d_idx = dev.indices(pidx)
+            field = dev.xp.zeros((self.grid_shape[0], self.padded_shape[1]), dtype=dt)
+            field.ravel()[d_idx] = dev.xp.asarray(x, dtype=dt)
+            out = self._convolve_rows(dev, field)
+            return to_host(out.ravel()[d_idx])
+
+    def convolve_physical(self, f: np.ndarray, dtype: object = np.float64) -> np.ndarray:
+        """(K * f) on the physical N1 x N2 grid for a field f given on it (host arrays)."""
+        dt = operator_dtype(dtype)
+        n1, n2 = self.grid_shape
+        with self._lock:
+            dev = self._state()
+            field = dev.xp.zeros((n1, self.padded_shape[1]), dtype=dt)
+            field[:, :n2] = dev.xp.asarray(f, dtype=dt)
+            return to_host(self._convolve_rows(dev, field)[:, :n2])
+
+    def _convolve_rows(self, dev: "_DeviceState", field: Any) -> Any:
+        """K * field for a field on the N1 physical rows of the padded grid (N1 x P1,
+        zero beyond the physical columns), in the field's precision: the pruned
+        transform pair; returns the N1 x P1 result rows."""
+        fft = dev.xp.fft
+        n1 = self.grid_shape[0]
+        p0, p1 = self.padded_shape
+        self.fft_count += 2
+        rows = fft.rfft(field, axis=1)  # N1 x (P1/2 + 1)
+        spec = fft.fft(rows, n=p0, axis=0)  # P0 x (P1/2 + 1); P0 = N1 when periodic
+        spec *= dev.spectrum(field.dtype)
+        back = fft.ifft(spec, axis=0)[:n1]
+        return fft.irfft(back, n=p1, axis=1)
+
+    def matvec_work_nbytes(self, dtype: object = np.float64) -> int:
+        """Device bytes a convolution in ``dtype`` allocates: the row field, the padded
+        spectrum, the back rows and the result rows."""
+        item = operator_dtype(dtype).itemsize
+        p0, p1 = self.padded_shape
+        n1 = self.grid_shape[0]
+        half = p1 // 2 + 1
+        return int(2 * item * n1 * p1 + 2 * item * (p0 + 2 * n1) * half)
+
+    def device_nbytes(self, dtype: object = np.float64) -> int:
+        """Bytes on the device: the spectrum (and its float32 copy) and the work of ``dtype``."""
+        dt = operator_dtype(dtype)
+        spectrum = self.khat.nbytes + (self.khat.nbytes // 2 if dt == np.float32 else 0)
+        return int(spectrum + self.matvec_work_nbytes(dt))
+
+    def work_nbytes(self, dtype: object = np.float64) -> int:
+        # Host: the kernel table and its spectrum (kept for blocks/submatrix); plus the device.
+        return int(self.table.nbytes + self.khat.nbytes + self.device_nbytes(dtype))
+
+
+class _DeviceState:
+    """What one process holds on the device for one transform: the spectrum in each
+    precision used and the padded indices of recently used operators (an upload per
+    operator, not per matvec)."""
+
+    def __init__(self, xp: ModuleType, khat: np.ndarray) -> None:
+        self.xp = xp
+        self._khat = khat
+        self._spectra: dict[str, Any] = {}
+        self._indices: OrderedDict[int, tuple[np.ndarray, Any]] = OrderedDict()
+
+    def spectrum(self, dtype: Any) -> Any:
+        """The kernel spectrum on the device in the precision of a real ``dtype``."""
+        real = np.dtype(dtype)
+        got = self._spectra.get(real.name)
+        if got is None:
+            target = np.result_type(real, np.complex64) if np.iscomplexobj(self._khat) else real
+            got = self._spectra[real.name] = self.xp.asarray(self._khat.astype(target, copy=False))
+        return got
+
+    def indices(self, pidx: np.ndarray) -> Any:
+        key = id(pidx)
+        hit = self._indices.get(key)
+        if hit is not None and hit[0] is pidx:
+            self._indices.move_to_end(key)
+            return hit[1]
+        dev = self.xp.asarray(pidx)
+        self._indices[key] = (pidx, dev)  # the host array is held, so its id stays unique
+        while len(self._indices) > INDEX_CACHE_SIZE:
+            self._indices.popitem(last=False)
+        return dev
+
+
+class ArrayFFTOperator(FFTOperator):
+    """``FFTOperator`` whose convolutions run through ``xp`` (CuPy on a GPU); every
+    dense gather (submatrix, entries, blocks) and the precision handling are the CPU
+    operator's own."""
+
+    transform: ArrayKernelTransform
+
+    def __init__(self, transform: ArrayKernelTransform, grid_idx: np.ndarray, auto_dense: bool | None = None,
+                 dtype: object = np.float64) -> None:
+        if not isinstance(transform, ArrayKernelTransform):
+            raise ProblemInputError("ArrayFFTOperator needs an ArrayKernelTransform (ArrayKernelTransform.from_host)")
+        super().__init__(transform, grid_idx, auto_dense=auto_dense, dtype=dtype)
+
+    @property
+    def kind(self) -> str:
+        return "gpu" if self.transform.xp_name == "cupy" else "ArrayFFTOperator[numpy]"
+
+    def _same_kind(self, op: FFTOperator) -> "ArrayFFTOperator":
+        """``op`` (made by an inherited method) as an operator of this class."""
+        out = ArrayFFTOperator(self.transform, op.grid_idx, auto_dense=op.auto_dense, dtype=op.dtype)
+        out._dense = op._dense
+        return out
+
+    def restrict(self, idx: np.ndarray) -> "ArrayFFTOperator":
+        return self._same_kind(super().restrict(idx))
+
+    def _in_precision(self, dtype: np.dtype) -> "ArrayFFTOperator":
+        return self._same_kind(super()._in_precision(dtype))
+
+
+def array_fft_operator(host: KernelTransform, grid_idx: np.ndarray, xp: str = "cupy") -> ArrayFFTOperator:
+    """H_II on the array module ``xp`` for the grid indices ``grid_idx`` of ``host``'s grid."""
+    return ArrayFFTOperator(ArrayKernelTransform.from_host(host, xp), grid_idx)
+
+
+__all__ = [
+    "ARRAY_MODULES",
+    "ArrayFFTOperator",
+    "ArrayKernelTransform",
+    "array_fft_operator",
+    "array_module",
+    "gpu_unavailable_reason",
+]

@@ -1,0 +1,206 @@
+"""The array-module FFT operator (problems/operators_gpu.py).
+
+The convolution is one code path written against ``xp``: here it runs for real with
+xp = numpy and must equal the CPU ``FFTOperator`` to round-off (periodic and not, after
+restrict, on rectangular grids); the CuPy cases run only where CuPy sees a CUDA device.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import InstanceBuilder, check_operator_kind
+from contactbench.problems.kernels import kernel_table
+from contactbench.problems.operators import FFTOperator, KernelTransform
+from contactbench.problems.operators_gpu import (
+    ArrayFFTOperator,
+    ArrayKernelTransform,
+    array_module,
+    gpu_unavailable_reason,
+)
+from contactbench.problems.surfaces import rmd_surface_n
+
+DELTA, E = 1.5e-6, 2.0e9
+CASES = [("bcc", False), ("love", False), ("bcc", True), ("spectral", True)]
+GPU_REASON = gpu_unavailable_reason()
+needs_gpu = pytest.mark.skipif(GPU_REASON is not None, reason=f"needs CuPy and a CUDA device: {GPU_REASON}")
+
+
+def host_transform(kernel: str, periodic: bool, shape: tuple[int, int]) -> KernelTransform:
+    return KernelTransform(kernel_table(kernel, shape, DELTA, E, periodic), shape)
+
+
+def operator_pair(kernel: str, periodic: bool, shape: tuple[int, int], idx: np.ndarray,
+                  xp: str = "numpy") -> tuple[FFTOperator, ArrayFFTOperator]:
+    """The CPU operator and the array-module one on the same transform (no dense switch:
+    every matvec goes through a convolution)."""
+    host = host_transform(kernel, periodic, shape)
+    cpu = FFTOperator(host, idx, auto_dense=False)
+    arr = ArrayFFTOperator(ArrayKernelTransform.from_host(host, xp), idx, auto_dense=False)
+    return cpu, arr
+
+
+def assert_close(a: np.ndarray, b: np.ndarray, rtol: float = 1e-12) -> None:
+    assert a.dtype == np.float64 and a.shape == b.shape
+    assert np.linalg.norm(a - b) <= rtol * np.linalg.norm(b), np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+@pytest.mark.parametrize("kernel,periodic", CASES)
+@pytest.mark.parametrize("shape", [(16, 16), (12, 18)])
+@pytest.mark.parametrize("fraction", [0.3, 1.0])
+def test_numpy_path_equals_cpu_fft_operator(kernel: str, periodic: bool, shape: tuple[int, int],
+                                            fraction: float) -> None:
+    rng = np.random.default_rng([CASES.index((kernel, periodic)), shape[1], int(10 * fraction)])
+    size = shape[0] * shape[1]
+    idx = np.sort(rng.choice(size, int(fraction * size), replace=False))
+    cpu, arr = operator_pair(kernel, periodic, shape, idx)
+    for _ in range(3):
+        x = rng.normal(size=idx.size)
+        assert_close(arr.matvec(x), cpu.matvec(x))
+    assert arr.matvec_count == 3 and arr.transform.fft_count == 6
+    f = rng.normal(size=idx.size)
+    assert_close(arr.displacement_field(f), cpu.displacement_field(f))
+
+
+@pytest.mark.parametrize("kernel,periodic", CASES)
+def test_restrict_stays_on_the_array_module_and_agrees(kernel: str, periodic: bool) -> None:
+    rng = np.random.default_rng(3)
+    idx = np.sort(rng.choice(256, 150, replace=False))
+    cpu, arr = operator_pair(kernel, periodic, (16, 16), idx)
+    sub = np.sort(rng.choice(idx.size, 40, replace=False))
+    r_cpu, r_arr = cpu.restrict(sub), arr.restrict(sub)
+    assert isinstance(r_arr, ArrayFFTOperator) and r_arr.transform is arr.transform
+    for _ in range(2):  # alternate between the two index sets (the device index cache)
+        x, y = rng.normal(size=sub.size), rng.normal(size=idx.size)
+        assert_close(r_arr.matvec(x), r_cpu.matvec(x))
+        assert_close(arr.matvec(y), cpu.matvec(y))
+
+
+def test_dense_gathers_are_the_cpu_operators() -> None:
+    rng = np.random.default_rng(5)
+    idx = np.sort(rng.choice(256, 120, replace=False))
+    cpu, arr = operator_pair("bcc", False, (16, 16), idx)
+    rows, cols = rng.choice(idx.size, 7), rng.choice(idx.size, 9)
+    assert np.array_equal(arr.submatrix(rows, cols), cpu.submatrix(rows, cols))
+    assert np.array_equal(arr.entries(rows[:5], cols[:5]), cpu.entries(rows[:5], cols[:5]))
+    members = np.array([[0, 3, 5], [7, 2, -1]])
+    assert np.array_equal(arr.blocks(members), cpu.blocks(members))
+    assert np.array_equal(arr.diagonal(), cpu.diagonal())
+    assert arr.memory_nbytes > cpu.transform.table.nbytes
+
+
+def test_matvec_never_uses_the_cpu_convolutions(monkeypatch) -> None:
+    def forbidden(*_a, **_k):
+        raise AssertionError("the CPU convolution was called")
+
+    monkeypatch.setattr(KernelTransform, "_ducc_convolve", forbidden)
+    monkeypatch.setattr(KernelTransform, "_scipy_convolve", forbidden)
+    idx = np.arange(0, 256, 3)
+    _, arr = operator_pair("bcc", False, (16, 16), idx)
+    assert np.all(arr.matvec(np.ones(idx.size)) > 0)  # H has positive entries (BCC, aperiodic)
+
+
+def test_float32_precision_agrees_to_single_precision_and_stays_on_the_array_module() -> None:
+    rng = np.random.default_rng(11)
+    idx = np.sort(rng.choice(400, 300, replace=False))
+    cpu, arr = operator_pair("bcc", False, (20, 20), idx)
+    f32 = arr.with_precision(np.float32)
+    assert isinstance(f32, ArrayFFTOperator) and f32.dtype == np.float32 and arr.with_precision(np.float64) is arr
+    x = rng.random(idx.size)
+    y = f32.matvec(x)
+    assert y.dtype == np.float32
+    assert_close(y.astype(np.float64), cpu.matvec(x), rtol=1e-5)
+    sub = f32.restrict(np.arange(0, idx.size, 2))
+    assert isinstance(sub, ArrayFFTOperator) and sub.dtype == np.float32
+    assert_close(sub.matvec(x[::2]).astype(np.float64), cpu.restrict(np.arange(0, idx.size, 2)).matvec(x[::2]),
+                 rtol=1e-5)
+
+
+def test_pickles_after_use_without_device_state() -> None:
+    idx = np.arange(0, 256, 2)
+    cpu, arr = operator_pair("bcc", True, (16, 16), idx)
+    x = np.random.default_rng(0).normal(size=idx.size)
+    arr.matvec(x)
+    clone = pickle.loads(pickle.dumps(arr))
+    assert clone.transform._device is None
+    assert_close(clone.matvec(x), cpu.matvec(x))
+
+
+def test_bad_inputs_are_clear_errors() -> None:
+    host = host_transform("bcc", False, (8, 8))
+    with pytest.raises(ProblemInputError, match="needs an ArrayKernelTransform"):
+        ArrayFFTOperator(host, np.arange(4))  # type: ignore[arg-type]
+    with pytest.raises(ProblemInputError, match="array module must be one of"):
+        ArrayKernelTransform.from_host(host, "jax")
+    with pytest.raises(ProblemInputError, match="float64 or float32"):
+        ArrayFFTOperator(ArrayKernelTransform.from_host(host, "numpy"), np.arange(4), dtype=np.float16)
+    with pytest.raises(ProblemInputError, match="operator must be 'fft' or 'dense', got 'sparse'"):
+        check_operator_kind("sparse")
+
+
+@pytest.mark.skipif(GPU_REASON is None, reason="CuPy and a CUDA device are present")
+def test_gpu_operator_without_a_device_is_a_clear_error() -> None:
+    surf = rmd_surface_n(16, 0.7, length=1e-4, seed=0)
+    with pytest.raises(ProblemInputError, match="operator 'gpu' is not available here"):
+        InstanceBuilder(surf, E, operator="gpu")
+    with pytest.raises(ProblemInputError, match="needs CuPy and a CUDA device"):
+        array_module("cupy")
+
+
+@needs_gpu
+@pytest.mark.parametrize("kernel,periodic", CASES)
+def test_cupy_path_equals_cpu_fft_operator(kernel: str, periodic: bool) -> None:
+    rng = np.random.default_rng(1)
+    idx = np.sort(rng.choice(24 * 24, 400, replace=False))
+    cpu, gpu = operator_pair(kernel, periodic, (24, 24), idx, xp="cupy")
+    assert gpu.kind == "gpu"
+    x = rng.normal(size=idx.size)
+    assert_close(gpu.matvec(x), cpu.matvec(x))
+    sub = np.arange(0, idx.size, 3)
+    assert_close(gpu.restrict(sub).matvec(x[sub]), cpu.restrict(sub).matvec(x[sub]))
+
+
+@needs_gpu
+def test_builder_gpu_operator_matches_fft() -> None:
+    surf = rmd_surface_n(32, 0.7, length=1e-4, seed=0)
+    d = 0.5 * (surf.z_max - surf.z_mean)
+    fft = InstanceBuilder(surf, E, operator="fft").build(d)
+    gpu = InstanceBuilder(surf, E, operator="gpu").build(d)
+    assert gpu.qp.H.kind == "gpu" and np.array_equal(gpu.qp.ubar, fft.qp.ubar)
+    x = np.random.default_rng(2).random(fft.n)
+    assert_close(gpu.qp.H.matvec(x), fft.qp.H.matvec(x))
+
+
+@pytest.mark.parametrize("solver", ["fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "fast-pdas"])
+def test_fast_solvers_run_on_the_array_operator(solver: str) -> None:
+    """Every fast solver solves the same QP through the numpy path as through the CPU
+    operator (no dense switch on either, so every product is a convolution)."""
+    from contactbench.harness.sequence import solve_sequence
+    from contactbench.problems.instances import QP, paper_max_displacement
+    from contactbench.solvers.base import SolverSettings
+
+    surf = rmd_surface_n(64, 0.7, length=1e-4, seed=0)
+    builder = InstanceBuilder(surf, E)
+    inst = builder.build(paper_max_displacement(surf))
+    idx, answers = inst.qp.geometry.indices, []
+    for op in (FFTOperator(builder.transform, idx, auto_dense=False),
+               ArrayFFTOperator(ArrayKernelTransform.from_host(builder.transform, "numpy"), idx, auto_dense=False)):
+        inst.qp = QP(op, inst.qp.ubar, inst.qp.geometry)
+        (step,) = solve_sequence(solver, [inst], SolverSettings(tol=1e-9), warm=False, check_tol=1e-8)
+        assert step.verdict is not None and step.verdict.status == "solved", step.error
+        answers.append(step.result.p)
+    assert np.max(np.abs(answers[0] - answers[1])) <= 1e-8 * np.max(answers[0])
+
+
+def test_a_failing_device_probe_is_a_reason_not_a_crash(monkeypatch) -> None:
+    import contactbench.problems.operators_gpu as gpu
+
+    monkeypatch.setattr(gpu.importlib.util, "find_spec", lambda name: object())
+    monkeypatch.setattr(gpu, "_PROBE", "raise SystemExit('cudaErrorNoDevice: no CUDA-capable device')")
+    assert "no usable CUDA device (cudaErrorNoDevice" in gpu.gpu_unavailable_reason.__wrapped__()
+    monkeypatch.setattr(gpu, "_PROBE", "print(0)")
+    assert gpu.gpu_unavailable_reason.__wrapped__() == "CuPy finds no CUDA device"
