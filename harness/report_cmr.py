@@ -451,15 +451,9 @@ def history_figure(ctx: ReportContext, pairs: pd.DataFrame, family: str) -> str:
             ks = sorted(k[4] for k in hb if k[:4] == (*v, H))
             if ks:
                 _band_line(ax, [k + 1 for k in ks], [hb[(*v, H, k)] for k in ks], f"H = {H:g}", colors[H], 100.0)
-        _tol_lines(ax)
         ax.set_xticks(sorted({k[4] + 1 for k in hb}))
-        ax.set_title(panel_title(v), fontsize=8)
-        ax.set_xlabel("load step (1: lowest load)")
-        ax.set_ylabel("load error [%]" if j == 0 else "")
-        ax.grid(True, alpha=0.3)
-    axes[0][-1].legend(fontsize=7, loc="lower right")
-    _same_y(axes[0])
-    return ctx.save_figure(fig, f"fig8-history-{family or 'all'}")
+        _error_panel(ax, v, j, "load step (1: lowest load)", "load error [%]")
+    return _error_row(ctx, fig, axes[0], f"fig8-history-{family or 'all'}")
 
 
 def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
@@ -502,16 +496,26 @@ def coarsest_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
         ax.scatter(sub["coarsest"], 100 * sub["err"], s=6, color="tab:red", alpha=0.35)
         _band_line(ax, ks, [x.err for x in s.values()], "median", "tab:red", 100.0)
         ax.plot(ks, [100 * x.worst for x in s.values()], "x--", color="black", label="worst seed")
-        _tol_lines(ax)
         ax.set_xscale("log", base=2)
         ax.set_xticks(ks, [str(k) for k in ks])
-        ax.set_title(panel_title(v), fontsize=8)
-        ax.set_xlabel("first level (points per side)")
-        ax.set_ylabel("load error at the top step [%]" if j == 0 else "")
-        ax.grid(True, alpha=0.3)
-    axes[0][-1].legend(fontsize=7, loc="lower right")
-    _same_y(axes[0])
-    return ctx.save_figure(fig, f"fig9-coarsest-{family or 'all'}")
+        _error_panel(ax, v, j, "first level (points per side)", "load error at the top step [%]")
+    return _error_row(ctx, fig, axes[0], f"fig9-coarsest-{family or 'all'}")
+
+
+def _error_panel(ax: Any, variant: tuple, j: int, xlabel: str, ylabel: str) -> None:
+    """A load-error panel of one variant: the 2 % lines, title, labels (y on the first only), grid."""
+    _tol_lines(ax)
+    ax.set_title(panel_title(variant), fontsize=8)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel if j == 0 else "")
+    ax.grid(True, alpha=0.3)
+
+
+def _error_row(ctx: ReportContext, fig: Any, row: Any, name: str) -> str:
+    """Legend on the last panel, one y-range for the row, and the saved figure's path."""
+    row[-1].legend(fontsize=7, loc="lower right")
+    _same_y(row)
+    return ctx.save_figure(fig, name)
 
 
 # ---------------------------------------------------------------------------

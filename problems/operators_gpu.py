@@ -31,7 +31,6 @@ import functools
 import importlib.util
 import subprocess
 import sys
-import threading
 from collections import OrderedDict
 from types import ModuleType
 from typing import Any

@@ -119,7 +119,7 @@ class RampScene(Scene):
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
     """One recipe per seed (or one for a measured surface).  Generated surfaces are RMD of
     the run's family (``surface_family``), which their params and names carry, e.g.
-    "saupe-H0.7-N512-bcc-np-s55"; an unknown family is refused here, before anything runs."""
+    "saupe-H0.7-N512-bcc-np-s5"; an unknown family is refused here, before anything runs."""
     base = {
         "size": cfg.size,
         "hurst": hurst,
@@ -153,7 +153,7 @@ class PaperSweep(RampScene):
     """The paper's headline test (section 4, Fig. 4): RMD H = 0.7, L = 100 um, N = 512,
     BCC kernel, non-periodic, K = 10 steps, Delta_k = (k/K) (z_max - z_mean) / 2.  The
     surface is Saupe's non-periodic MidPointFM2D (family "saupe", the paper's ref. PS88)
-    unless ``--extra family=periodic``."""
+    unless ``--surface-family periodic`` (or ``--periodic``)."""
 
     name = "paper-sweep"
     description = "RMD H=0.7, L=100um, 512^2, BCC, 10 displacement steps up to (zmax-zmean)/2 (paper Fig. 4)"
