@@ -12,7 +12,7 @@ registry on first use:
 * ``report_paper.py``          -- the paper reproductions (Bemporad & Paggi 2015, sec. 4):
   Figs. 4, 5 and 6, and the closed-form checks (``hertz``, ``flat-punch``);
 * ``report_counterexample.py`` -- Example 1, the greedy counterexample;
-* ``report_cmr.py``            -- cascade multi-resolution (sec. 5, Figs. 8-11);
+* ``report_cmr.py``            -- cascade multi-resolution (sec. 5, Figs. 8-11; its figures in ``report_cmr_figures.py``);
 * ``report_population.py``     -- Monte Carlo population statistics (kappa);
 * ``report_stress.py``         -- the stress battery's survival tables;
 * ``report_generic.py``        -- what every table gets: run time against error,
