@@ -254,13 +254,21 @@ class KernelTransform:
 
     def _ducc_convolve(self, work: "_DuccWork") -> np.ndarray:
         """K * (work.field) with ducc0, in the work arrays; returns a view of the
-        physical N1 x N2 result (valid until the next call)."""
+        physical N1 x N2 result (valid until the next call).  Row transforms run only
+        on ``work.in_runs`` (the rows holding non-zero input; the others' spectra are
+        zero) and back only on ``work.out_runs`` (the rows that will be read)."""
         w = fft_workers()
         self.fft_count += 2
         p1 = self.padded_shape[1]
-        _ducc_fft.r2c(work.field, axes=(1,), out=work.rows, nthreads=w)
+        start = 0
+        for a, b in work.in_runs:
+            work.rows[start:a] = 0.0
+            _ducc_fft.r2c(work.field[a:b], axes=(1,), out=work.rows[a:b], nthreads=w)
+            start = b
+        work.rows[start:] = 0.0
         self._column_pass(work, w)
-        _ducc_fft.c2r(work.rows, axes=(1,), lastsize=p1, forward=False, inorm=2, out=work.out, nthreads=w)
+        for a, b in work.out_runs:
+            _ducc_fft.c2r(work.rows[a:b], axes=(1,), lastsize=p1, forward=False, inorm=2, out=work.out[a:b], nthreads=w)
         return work.out[:, : self.grid_shape[1]]
 
     def _column_pass(self, work: "_DuccWork", workers: int) -> None:
@@ -335,6 +343,23 @@ def _transform_column_blocks(rows: np.ndarray, khat: np.ndarray, buf: np.ndarray
         rows[:, c : c + w] = blk[:n1]
 
 
+#: Row runs closer than this many rows are merged (one transform call instead of two).
+RUN_GAP = 8
+
+
+def row_runs(rows: np.ndarray, n1: int) -> list[tuple[int, int]]:
+    """Half-open runs [a, b) of the rows in ``rows`` (any order, repeats allowed) among
+    0..n1-1, runs less than ``RUN_GAP`` rows apart merged."""
+    flags = np.zeros(n1 + 1, dtype=bool)
+    flags[rows] = True
+    edges = np.flatnonzero(np.diff(np.r_[False, flags].view(np.int8)))
+    starts, ends = edges[0::2], edges[1::2]
+    if starts.size == 0:
+        return []
+    keep = np.r_[True, starts[1:] - ends[:-1] >= RUN_GAP]
+    return list(zip(starts[keep].tolist(), np.r_[ends[:-1][keep[1:]], ends[-1]].tolist()))
+
+
 class _DuccWork:
     """Work arrays of the ducc0 convolution in one precision, reused between calls.
 
@@ -360,6 +385,9 @@ class _DuccWork:
         self._dirty: np.ndarray | None = None  # the index array written last time (None: none)
         self._dirty_all = False
         self._layout: tuple[np.ndarray | None, bool] = (None, False)  # (index array, is the whole grid)
+        self._point_rows: tuple[np.ndarray | None, np.ndarray, list[tuple[int, int]]] = (None, np.empty(0, np.int64), [])
+        self.in_runs: list[tuple[int, int]] = [(0, n1)]  # rows with non-zero input (half-open runs)
+        self.out_runs: list[tuple[int, int]] = [(0, n1)]  # rows the caller reads
 
     @staticmethod
     def nbytes_for(grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype, workers: int) -> int:
@@ -392,20 +420,34 @@ class _DuccWork:
         self._dirty, self._dirty_all = None, False
 
     def load_points(self, pidx: np.ndarray, x: np.ndarray) -> None:
-        """Field = x at the padded flat indices pidx (row stride P1), zero elsewhere."""
+        """Field = x at the padded flat indices pidx (row stride P1), zero elsewhere; the
+        row runs of the transforms are those of the non-zero entries (in) and of pidx (out)."""
         whole = self._is_whole_grid(pidx)
         if pidx is not self._dirty:
             self._clear()
         if whole:
             self.field[:, : self.n2] = np.reshape(x, (self.n1, self.n2))
+            self.in_runs = self.out_runs = [(0, self.n1)]
         else:
             self.field.ravel()[pidx] = x
+            rows, self.out_runs = self._rows_of(pidx)
+            self.in_runs = row_runs(rows[np.asarray(x) != 0], self.n1)
         self._dirty, self._dirty_all = pidx, whole
+
+    def _rows_of(self, pidx: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
+        """The row of each index of pidx and their runs (cached for the last pidx array)."""
+        key, rows, runs = self._point_rows
+        if key is not pidx:
+            rows = pidx // self.p1
+            runs = row_runs(rows, self.n1)
+            self._point_rows = (pidx, rows, runs)
+        return rows, runs
 
     def load_field(self, f: np.ndarray) -> None:
         self._clear()
         self.field[:, : self.n2] = f
         self._dirty_all = True
+        self.in_runs = self.out_runs = [(0, self.n1)]
 
     def gather(self, pidx: np.ndarray) -> np.ndarray:
         """The result at the padded flat indices (``out`` has the layout of ``field``)."""

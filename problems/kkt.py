@@ -75,25 +75,32 @@ class KKTFigures:
     p_scale: float
 
 
-def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float) -> KKTFigures:
+def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
+                ubar_max: float | None = None) -> KKTFigures:
     """The scaled KKT figures of ``p`` with gap ``w = Hp - ubar`` (module doc):
-    u_s = max(|ubar|_inf, |Hp|_inf), p_s = u_s / max diag H."""
-    hp_max = float(np.max(np.abs(w + ubar), initial=0.0))
-    u_s = max(float(np.max(np.abs(ubar), initial=0.0)), hp_max)
+    u_s = max(|ubar|_inf, |Hp|_inf), p_s = u_s / max diag H.  ``ubar_max``: |ubar|_inf
+    when the caller already has it (a solver testing every iteration)."""
+    hp = w + ubar
+    hp_max = max(float(np.max(hp, initial=0.0)), -float(np.min(hp, initial=0.0)))
+    if ubar_max is None:
+        ubar_max = float(np.max(np.abs(ubar), initial=0.0))
+    u_s = max(ubar_max, hp_max)
     if u_s == 0.0:
         u_s = 1.0  # ubar = 0 and p = 0: every figure is an exact zero anyway
     p_s = u_s / diag_max
     primal = max(0.0, -float(np.min(p, initial=0.0))) / p_s
     dual = max(0.0, -float(np.min(w, initial=0.0))) / u_s
-    comp = float(np.max(np.abs(w * p), initial=0.0)) / (u_s * p_s)
+    np.multiply(w, p, out=hp)
+    comp = max(float(np.max(hp, initial=0.0)), -float(np.min(hp, initial=0.0))) / (u_s * p_s)
     return KKTFigures(primal, dual, comp, max(primal, dual, comp), u_s, p_s)
 
 
-def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float) -> float:
+def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
+                     ubar_max: float | None = None) -> float:
     """max(primal, dual, complementarity) of ``kkt_figures``: the residual a solver stops on."""
     if p.size == 0:
         return 0.0
-    return kkt_figures(p, w, ubar, diag_max).kkt_error
+    return kkt_figures(p, w, ubar, diag_max, ubar_max).kkt_error
 
 
 def _as_qp(obj: Any) -> Any:

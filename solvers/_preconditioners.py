@@ -19,7 +19,9 @@ points, 1,002 islands, largest 136): CG on H_AA p = ubar_A to 1e-9 takes 67
 matvecs, 47 with the continuous |q| E*/2 Fourier preconditioner of Vollebregt (2014),
 and 33 with this one (docs/fast-solvers.md).
 
-Islands larger than ``max_block`` are cut into row-major strips of that size.  The block
+Islands larger than ``max_block`` (128) are cut into row-major strips of that size, and
+into smaller strips when the set is large (``BUILD_BUDGET``: a build costs a few matvecs
+at most).  The block
 inverses are held in float64, or in float32 for the mixed-precision solves
 (``block_dtype``): a preconditioner only has to be SPD and fixed, not exact, so the fixed
 point and the float64 KKT test are unchanged, while the batched inversion (most of a
@@ -56,6 +58,10 @@ MAX_BLOCK = 128
 #: Block entries gathered and inverted at a time (bounds the build's temporaries).
 BUILD_CHUNK_ENTRIES = 1 << 22
 
+#: A build's block entries (|S| s^2 for blocks of s points) stay under this many times the
+#: grid's points, i.e. a few matvecs' worth of work (``IslandPreconditioner.block_limit``).
+BUILD_BUDGET = 40
+
 #: Refactor when the set has changed in more than this fraction of its points.
 REBUILD_FRACTION = 0.2
 
@@ -90,8 +96,9 @@ class SetPreconditioner(Protocol):
 
 @dataclass
 class _Bucket:
-    members: np.ndarray  # (m, s) positions in the operator's set, -1 = padding
+    members: np.ndarray  # (m, s) positions in the operator's set, -1 = padding (kept as 0)
     inverse: np.ndarray  # (m, s, s)
+    valid: np.ndarray  # (m, s) not padding
 
 
 class IslandPreconditioner:
@@ -110,6 +117,7 @@ class IslandPreconditioner:
         self._where[np.asarray(grid_idx)] = np.arange(self.n)
         self._buckets: list[_Bucket] = []
         self._on = np.zeros(self.n, dtype=bool)
+        self._pos = np.zeros(0, dtype=np.int64)
         self._built: np.ndarray | None = None
         self._diag = H.diagonal()
         self.rebuild_fraction = REBUILD_FRACTION
@@ -132,13 +140,25 @@ class IslandPreconditioner:
         valid while the factorisation is reused."""
         S = np.asarray(S, dtype=bool)
         self._on = S.copy()
+        self._pos = np.flatnonzero(S)
         drift = int(np.count_nonzero(S != self._built)) if self._built is not None else S.size
         if self._built is not None and drift <= self.rebuild_fraction * max(1, int(np.count_nonzero(S))):
             return
         self.builds += 1
         self._built = S.copy()
         pos = np.flatnonzero(S)
-        self._buckets = [self._factor(members) for members in self._blocks(pos)] if pos.size else []
+        self._limit = self.block_limit(pos.size)
+        buckets = (self._factor(members) for members in self._blocks(pos)) if pos.size else ()
+        self._buckets = [b for b in buckets if b is not None]
+
+    def block_limit(self, size: int) -> int:
+        """The largest block for a build on ``size`` points: s with s^2 size <= BUILD_BUDGET
+        x grid points, a multiple of 16 in [16, max_block].  A cold start's first sets are
+        the whole trial set, which the next few iterations shrink by orders of magnitude:
+        small blocks there cost a fraction and lose little (2048^2 cold top step: the same
+        77 iterations, builds 6.0 -> 1.9 s)."""
+        s = int(np.sqrt(BUILD_BUDGET * self._shape[0] * self._shape[1] / max(size, 1)))
+        return int(min(self.max_block, max(16, 16 * (s // 16))))
 
     @property
     def on(self) -> np.ndarray:
@@ -146,14 +166,16 @@ class IslandPreconditioner:
         return self._on
 
     def apply(self, r: np.ndarray) -> np.ndarray:
-        rs = np.where(self._on, r, 0.0)
-        z = rs / self._diag
+        # Work on the set's positions only: on a periodic whole grid S is a few % of n.
+        z = np.zeros(self.n)
+        pos = self._pos
+        z[pos] = r[pos] / self._diag[pos]
+        on = self._on
         for b in self._buckets:
-            rb = np.where(b.members >= 0, rs[b.members], 0.0).astype(self.dtype, copy=False)
+            valid = b.valid & on[b.members]  # members of the built set that left S count as 0
+            rb = np.where(valid, r[b.members], 0.0).astype(self.dtype, copy=False)
             zb = np.einsum("mij,mj->mi", b.inverse, rb)
-            valid = b.members >= 0
             z[b.members[valid]] = zb[valid]
-        z[~self._on] = 0.0
         return z
 
     def solo(self, r: np.ndarray) -> np.ndarray:
@@ -192,12 +214,13 @@ class IslandPreconditioner:
         starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
         sizes = np.diff(np.r_[starts, labels.size])
         # Cut big islands into strips of max_block points.
-        piece_starts = [starts[sizes <= self.max_block]]
-        for s0, sz in zip(starts[sizes > self.max_block], sizes[sizes > self.max_block]):
-            piece_starts.append(np.arange(s0, s0 + sz, self.max_block))
+        limit = self._limit
+        piece_starts = [starts[sizes <= limit]]
+        for s0, sz in zip(starts[sizes > limit], sizes[sizes > limit]):
+            piece_starts.append(np.arange(s0, s0 + sz, limit))
         starts = np.sort(np.concatenate(piece_starts))
         sizes = np.diff(np.r_[starts, labels.size])
-        sizes = np.minimum(sizes, self.max_block)
+        sizes = np.minimum(sizes, limit)
         width = block_width(sizes)
         for s in np.unique(width):
             sel = np.flatnonzero(width == s)
@@ -208,10 +231,12 @@ class IslandPreconditioner:
             members[valid] = pos[order[idx[valid]]]
             yield members
 
-    def _factor(self, members: np.ndarray) -> _Bucket:
+    def _factor(self, members: np.ndarray) -> _Bucket | None:
+        """The bucket of blocks ``members`` (None for one-point blocks: ``apply``'s
+        diagonal part already inverts those)."""
         m, s = members.shape
         if s == 1:
-            return _Bucket(members, (1.0 / self._diag[members[:, 0]])[:, None, None])
+            return None
         # Gather and invert in chunks, so the temporaries stay near 32 MiB.
         inverse = np.empty((m, s, s), dtype=self.dtype)
         step = max(1, BUILD_CHUNK_ENTRIES // (s * s))
@@ -220,7 +245,7 @@ class IslandPreconditioner:
         if self.dtype != np.float64:  # LU's inverse is symmetric only up to round-off: make M symmetric
             inverse += np.swapaxes(inverse, 1, 2)
             inverse *= 0.5
-        return _Bucket(members, inverse)
+        return _Bucket(members, inverse, members >= 0)
 
 
 class FourierPreconditioner:

@@ -290,6 +290,7 @@ class SolveContext:
     setup_time: float | None = None
     _ops: list[tuple[ContactOperator, int]] = field(default_factory=list)
     _extra_matvecs: int = 0
+    _ubar_max: float | None = None
 
     @property
     def n(self) -> int:
@@ -307,7 +308,9 @@ class SolveContext:
 
     def kkt(self, p: np.ndarray, w: np.ndarray) -> float:
         """The scaled KKT error of (p, w = Hp - ubar): the harness's own formula."""
-        return scaled_kkt_error(p, w, self.qp.ubar, self.diag_max)
+        if self._ubar_max is None:
+            self._ubar_max = float(np.max(np.abs(self.qp.ubar), initial=0.0))
+        return scaled_kkt_error(p, w, self.qp.ubar, self.diag_max, self._ubar_max)
 
     def track(self, op: ContactOperator) -> ContactOperator:
         """Count the matvecs of an operator made during the solve (a restriction)."""

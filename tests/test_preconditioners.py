@@ -181,3 +181,22 @@ def test_float32_island_blocks_are_symmetric_spd_and_close_to_float64():
     np.testing.assert_allclose(P, P.T, atol=1e-12 * np.abs(P).max())
     assert np.min(np.linalg.eigvalsh(P)) > 0
     np.testing.assert_allclose(P, P64, atol=1e-5 * np.abs(P64).max())
+
+
+def test_large_sets_get_smaller_blocks_within_the_build_budget():
+    from contactbench.solvers._preconditioners import BUILD_BUDGET
+
+    inst = build(129)
+    qp = inst.qp
+    M = IslandPreconditioner.build(qp)
+    points = int(np.prod(qp.geometry.grid_shape))
+    small = M.block_limit(10)
+    large = M.block_limit(qp.n)
+    assert small == M.max_block and 16 <= large < small and large % 16 == 0
+    limits = [M.block_limit(k) for k in (10, 100, 300, 1000, qp.n)]
+    assert limits == sorted(limits, reverse=True)
+    assert all(s == 16 or s**2 * k <= BUILD_BUDGET * points for s, k in zip(limits, (10, 100, 300, 1000, qp.n)))
+    M.update(np.ones(qp.n, dtype=bool))  # the whole trial set: a cold start's first set
+    assert max(b.members.shape[1] for b in M._buckets) <= large
+    members = np.concatenate([b.members[b.members >= 0] for b in M._buckets])
+    assert np.unique(members).size == members.size <= qp.n  # one-point blocks are the diagonal part

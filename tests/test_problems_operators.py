@@ -226,6 +226,45 @@ def test_whole_grid_permuted_and_subset_sets_alternate_on_one_transform(periodic
             assert np.linalg.norm(ops[step].matvec(x) - ref) <= tol * np.linalg.norm(ref)
 
 
+@pytest.mark.parametrize("periodic", [False, True])
+def test_row_pruned_transforms_agree_with_dense_for_sparse_inputs(periodic: bool, monkeypatch) -> None:
+    """Sets on a few separated rows, and inputs zero on whole rows of the set (a CG
+    direction on a small free set): the row transforms run only on the rows that hold
+    input and back only on the rows that are read; calls with all-zero, sparse and full
+    inputs alternate on one operator, in both precisions."""
+    monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", "ducc")
+    rng = np.random.default_rng(4)
+    transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, periodic), (N, N))
+    rows = np.array([0, 1, 5, 12, 13])  # runs merge across gaps under RUN_GAP, and not across wider ones
+    idx = np.sort(np.concatenate([r * N + rng.choice(N, 6, replace=False) for r in rows]))
+    dense = dense_from_formula("bcc", periodic, idx)
+    row_of = idx // N
+    for dtype, tol in ((np.float64, 1e-12), (np.float32, 3e-6)):
+        op = FFTOperator(transform, idx, auto_dense=False, dtype=dtype)
+        for keep in ([0, 1, 5, 12, 13], [13], [], [0], [5, 12], [0, 1, 5, 12, 13]):
+            x = rng.normal(size=idx.size) * np.isin(row_of, keep)
+            ref = dense @ x
+            got = op.matvec(x)
+            assert np.linalg.norm(got - ref) <= tol * max(np.linalg.norm(ref), 1e-300)
+
+
+def test_row_runs_merge_close_rows_and_cover_every_row() -> None:
+    from contactbench.problems.fft_transform import RUN_GAP, row_runs
+
+    assert row_runs(np.array([], dtype=np.int64), 10) == []
+    assert row_runs(np.arange(10)[::-1], 10) == [(0, 10)]
+    assert row_runs(np.array([3, 3, 3 + RUN_GAP - 1]), 40) == [(3, 3 + RUN_GAP)]
+    assert row_runs(np.array([3, 4 + RUN_GAP, 39]), 40) == [(3, 4), (4 + RUN_GAP, 5 + RUN_GAP), (39, 40)]
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        rows = rng.choice(200, rng.integers(1, 50), replace=False)
+        runs = row_runs(rows, 200)
+        covered = np.zeros(200, dtype=bool)
+        for a, b in runs:
+            covered[a:b] = True
+        assert covered[rows].all() and all(b1 < a2 for (_, b1), (a2, _) in zip(runs, runs[1:]))
+
+
 def test_float32_operator_pickles_and_reports_half_the_work_memory() -> None:
     import pickle
 
