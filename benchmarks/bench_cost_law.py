@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from contactbench.harness.isolation import set_parent_death_signal
+
 FAST_SOLVERS = ("fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "fast-pdas")
 DEFAULT_SIZES = (256, 512, 1024, 2048)
 #: Seconds a child may run past its solve time limit (surface, kernel transform, judge).
@@ -325,6 +327,7 @@ def main() -> None:
     if not isinstance(params, dict):
         ap.error("--params must be a JSON object")
     if args.child:
+        set_parent_death_signal()  # a killed run takes its solve with it
         N, solver = args.child.split(":")
         row = solve_top_step(int(N), solver, args.steps, args.operator, args.timeout, params)
         print("RESULT " + json.dumps(asdict(row)), flush=True)

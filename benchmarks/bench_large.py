@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from contactbench.harness.isolation import set_parent_death_signal
 from contactbench.harness.sequence import solve_sequence
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import fft_backend, fft_workers
@@ -109,6 +110,7 @@ def main() -> None:
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
+        set_parent_death_signal()  # a killed run takes its solve with it
         N, solver, precision, guess = args.child.split(":")
         print("RESULT " + json.dumps(solve_one(int(N), solver, args.fraction, args.tol, precision, guess)), flush=True)
         return

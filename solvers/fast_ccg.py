@@ -112,8 +112,9 @@ class FastBugnicourtCCG(_FastCCG):
 class FastPolonskyKeerIslands(FastPolonskyKeer):
     """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers/_preconditioners.py):
     the CG direction on the contact set S is z = B_S^-1 r with B_S the blocks of H over the
-    8-connected islands of S (cut at 128 points), refactored when S drifts by 20 %; an
-    entering point gets the force -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry").
+    8-connected islands of S (cut into strips of at most 128 points, fewer while the set
+    is large), refactored when S drifts by 20 %; an entering point gets the force
+    -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry").
     Same fixed point and KKT test as fast-ccg; warm start: primal.  Without grid
     positions (QP.geometry) it runs unpreconditioned."""
 
