@@ -65,6 +65,11 @@ def fft_backend() -> str:
 COLUMN_BLOCK_BYTES = 1 << 19
 
 
+#: Spectra up to this size take the column pass in one call per direction over the whole
+#: P0 x (P1/2+1) array (no per-block Python overhead; it fits in the last-level cache).
+WHOLE_SPECTRUM_BYTES = 1 << 24
+
+
 def column_block(p0: int, complex_itemsize: int) -> int:
     """Columns per block: a power of two in 4..64 with P0 * b * itemsize ~ COLUMN_BLOCK_BYTES."""
     b = max(1, COLUMN_BLOCK_BYTES // max(1, p0 * complex_itemsize))
@@ -273,9 +278,18 @@ class KernelTransform:
 
     def _column_pass(self, work: "_DuccWork", workers: int) -> None:
         """work.rows <- first N1 rows of iFFT_0(khat * FFT_0(rows zero-padded to P0)),
-        block by block of columns, the blocks shared out over ``workers`` threads."""
-        khat = self.blocked_spectrum(work.dtype, work.block)
+        block by block of columns, the blocks shared out over ``workers`` threads; on a
+        small grid in one call per direction over the whole spectrum (``work.whole``,
+        whose first N1 rows are ``work.rows``)."""
         n1 = self.grid_shape[0]
+        if work.whole is not None:
+            spec = work.whole
+            spec[n1:] = 0.0
+            _ducc_fft.c2c(spec, axes=(0,), forward=True, out=spec, nthreads=workers)
+            spec *= self.spectrum(work.dtype)
+            _ducc_fft.c2c(spec, axes=(0,), forward=False, inorm=2, out=spec, nthreads=workers)
+            return
+        khat = self.blocked_spectrum(work.dtype, work.block)
         chunks = [c for c in np.array_split(np.arange(work.n_blocks), max(1, workers)) if c.size]
         buffers = work.buffers(len(chunks))
         if len(chunks) == 1:
@@ -291,10 +305,12 @@ class KernelTransform:
         return _DuccWork.nbytes_for(self.grid_shape, self.padded_shape, operator_dtype(dtype), fft_workers())
 
     def work_nbytes(self, dtype: object = np.float64) -> int:
-        """Kernel table + spectrum + its blocked copy in ``dtype`` + the work arrays of ``dtype``."""
+        """Kernel table + spectrum + its copy in ``dtype`` (blocked, or float32 on a small
+        grid) + the work arrays of ``dtype``."""
         dt = operator_dtype(dtype)
-        blocked = self.khat.nbytes * dt.itemsize // 8
-        return int(self.table.nbytes + self.khat.nbytes + blocked + self.matvec_work_nbytes(dt))
+        whole = _DuccWork.spectrum_fits(self.padded_shape, np.result_type(dt, np.complex64).itemsize)
+        copy = 0 if whole and dt == np.float64 else self.khat.nbytes * dt.itemsize // 8  # blocked, or float32
+        return int(self.table.nbytes + self.khat.nbytes + copy + self.matvec_work_nbytes(dt))
 
 
 def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64) -> Callable[[], None]:
@@ -377,7 +393,9 @@ class _DuccWork:
         self.dtype = np.dtype(dtype)
         self.cdtype = np.result_type(self.dtype, np.complex64)
         self.field = np.zeros((n1, p1), dtype=self.dtype)
-        self.rows = np.empty((n1, p1 // 2 + 1), dtype=self.cdtype)
+        small = self.spectrum_fits((p0, p1), self.cdtype.itemsize)
+        self.whole = np.empty((p0, p1 // 2 + 1), dtype=self.cdtype) if small else None
+        self.rows = self.whole[:n1] if self.whole is not None else np.empty((n1, p1 // 2 + 1), dtype=self.cdtype)
         self.out = np.empty((n1, p1), dtype=self.dtype)
         self.block = column_block(p0, self.cdtype.itemsize)
         self.n_blocks = -(-(p1 // 2 + 1) // self.block)
@@ -390,10 +408,18 @@ class _DuccWork:
         self.out_runs: list[tuple[int, int]] = [(0, n1)]  # rows the caller reads
 
     @staticmethod
+    def spectrum_fits(padded_shape: tuple[int, int], complex_itemsize: int) -> bool:
+        """Whether the column pass runs on the whole spectrum (``WHOLE_SPECTRUM_BYTES``)."""
+        p0, p1 = padded_shape
+        return p0 * (p1 // 2 + 1) * complex_itemsize <= WHOLE_SPECTRUM_BYTES
+
+    @staticmethod
     def nbytes_for(grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype, workers: int) -> int:
         n1, _ = grid_shape
         p0, p1 = padded_shape
         item = np.dtype(dtype).itemsize
+        if _DuccWork.spectrum_fits(padded_shape, 2 * item):  # whole spectrum, no block buffers
+            return int(2 * item * n1 * p1 + 2 * item * p0 * (p1 // 2 + 1))
         block = column_block(p0, 2 * item)
         return int(2 * item * n1 * p1 + 2 * item * n1 * (p1 // 2 + 1) + max(1, workers) * 2 * item * p0 * block)
 

@@ -16,6 +16,16 @@ CASES = [("bcc", False), ("love", False), ("bcc", True), ("love", True), ("spect
 FORMULAS = {"bcc": bcc_coefficients, "love": love_coefficients}
 
 
+@pytest.fixture(autouse=True, params=["whole", "blocked"])
+def column_pass(request, monkeypatch) -> str:
+    """Every test of this module runs with both column passes of the ducc0 matvec: one call
+    per direction over the whole spectrum (small grids) and block by block (large grids)."""
+    from contactbench.problems import fft_transform
+
+    monkeypatch.setattr(fft_transform, "WHOLE_SPECTRUM_BYTES", 1 << 62 if request.param == "whole" else 0)
+    return request.param
+
+
 def random_subset(rng: np.random.Generator, fraction: float) -> np.ndarray:
     return np.sort(rng.choice(N * N, int(fraction * N * N), replace=False))
 
