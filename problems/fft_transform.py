@@ -115,7 +115,9 @@ class KernelTransform:
     the column FFTs, the spectrum product and the column iFFTs are done one block of
     columns at a time in a small buffer that stays in cache (zero-padded there, so
     only the N1 x (P1/2+1) half spectrum is held and nothing is cleared in memory);
-    the blocks are shared out over ``fft_workers()`` threads.
+    the blocks are shared out over ``fft_workers()`` threads; a spectrum of at most
+    ``WHOLE_SPECTRUM_BYTES`` takes one call per direction instead.  Row transforms run
+    only on the rows holding input and back only on the rows that are read (``row_runs``).
 
     Precision: every convolution runs in float64 or float32 (``dtype`` argument).
     float32 uses its own work arrays and a float32 copy of the spectrum, made once
