@@ -100,9 +100,8 @@ class GapState:
     def step(self, alpha: float, d: np.ndarray, Hd: np.ndarray) -> bool:
         """p <- max(p + alpha d, 0); returns True when the projection was active."""
         self.p += alpha * d
-        clipped = self.p < 0.0
-        if np.any(clipped):
-            self.p[clipped] = 0.0
+        if float(np.min(self.p, initial=0.0)) < 0.0:
+            np.maximum(self.p, 0.0, out=self.p)
             self.refresh()
             return True
         self.g += alpha * Hd
@@ -244,9 +243,10 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         res = dual_residual(state)
         z = precondition_on(M, res, res != 0.0)
         # Polak-Ribiere (preconditioned: z = M^-1 res); alpha d'Hd = -res_old'd.
-        beta = float(z @ (res - res_old)) / (alpha * dHd)
-        d = -z + beta * d
-        d[(state.p == 0.0) & (res == 0.0)] = 0.0
+        beta = (float(z @ res) - float(z @ res_old)) / (alpha * dHd)
+        d *= beta  # d <- -z + beta d, in place (d is this loop's own array)
+        d -= z
+        np.copyto(d, 0.0, where=(res == 0.0) & (state.p == 0.0))
     return CCGRun(max_iter, run.kkt, False)
 
 
