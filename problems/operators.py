@@ -48,8 +48,15 @@ DEFAULT_MEMORY_BUDGET = float(os.environ.get("CONTACTBENCH_MEMORY_BUDGET_GB", "8
 #: The FFT operator switches to a dense block after this many matvecs when that is
 #: cheaper (small trial sets on large grids) ...
 DENSE_SWITCH_AFTER = 4
-#: ... and the block has at most this many entries (128 MiB).
+#: ... and the block has at most this many entries (128 MiB) ...
 DENSE_SWITCH_MAX_ENTRIES = 1 << 24
+#: ... and at most this factor x P log2 P (P: padded grid points; 0.1 -> n <= ~1450 at
+#: 512^2).  The block costs ~20 ns an entry to gather, 25 dense products' worth, so it must
+#: be well under the FFT pair's break-even to pay within a step.  Calibrated on the 512^2
+#: paper sweep (1 thread, alternating runs): 0.4 (the break-even of the earlier, slower
+#: matvec) 3.51-3.59 s, 0.2 3.54-3.78 s, 0.1 3.24-3.54 s, 0.05 3.34-3.39 s, no switch
+#: 3.58-3.60 s.
+DENSE_SWITCH_FACTOR = 0.1
 
 
 def dense_switch_enabled() -> bool:
@@ -242,9 +249,7 @@ class FFTOperator(ContactOperator):
         """Whether a dense H_II matvec (n^2 entries streamed) is cheaper than the FFT pair
         on the padded grid (P points) and small enough to hold."""
         P = int(np.prod(self.transform.padded_shape))
-        # Calibrated at 512^2 (P = 1024^2) on 2 cores: the pruned FFT pair takes about as
-        # long as streaming a dense block of 0.4 P log2 P entries (n ~ 2800) from memory.
-        return self.n * self.n <= min(DENSE_SWITCH_MAX_ENTRIES, 0.4 * P * np.log2(max(P, 2)))
+        return self.n * self.n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_FACTOR * P * np.log2(max(P, 2)))
 
     def _maybe_switch_to_dense(self) -> None:
         # After a few matvecs a small trial set on a large grid is cheaper as a dense

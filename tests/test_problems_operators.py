@@ -300,3 +300,23 @@ def test_fft_floor_pair_runs_the_transform_pair_on_its_own_arrays(periodic: bool
     for dtype in (np.float64, np.float32):
         fft_floor_pair(op.transform, dtype)()
     np.testing.assert_allclose(op.matvec(x), y, rtol=1e-13, atol=0)
+
+
+def test_small_trial_sets_switch_to_the_dense_block_with_the_same_numbers() -> None:
+    """The hybrid operator: after DENSE_SWITCH_AFTER products a set small enough for
+    ``dense_pays`` (DENSE_SWITCH_FACTOR x P log2 P entries) is multiplied as a dense block
+    gathered from the kernel table; a larger set stays on the FFT."""
+    from contactbench.problems.operators import DENSE_SWITCH_AFTER, DENSE_SWITCH_FACTOR
+
+    transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, False), (N, N))
+    P = int(np.prod(transform.padded_shape))
+    limit = int(np.sqrt(DENSE_SWITCH_FACTOR * P * np.log2(P)))
+    rng = np.random.default_rng(3)
+    for n, switches in ((limit, True), (limit + 1, False)):
+        idx = np.sort(rng.choice(N * N, n, replace=False))
+        op = FFTOperator(transform, idx, auto_dense=True)
+        H = dense_from_formula("bcc", False, idx)
+        for k in range(DENSE_SWITCH_AFTER + 2):
+            x = rng.normal(size=n)
+            assert np.linalg.norm(op.matvec(x) - H @ x) <= 1e-12 * np.linalg.norm(H @ x)
+        assert op.uses_dense is switches
