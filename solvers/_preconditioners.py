@@ -96,7 +96,7 @@ class SetPreconditioner(Protocol):
 
 @dataclass
 class _Bucket:
-    members: np.ndarray  # (m, s) positions in the operator's set, -1 = padding (kept as 0)
+    members: np.ndarray  # (m, s) positions in the operator's set, -1 = padding (masked by valid)
     inverse: np.ndarray  # (m, s, s)
     valid: np.ndarray  # (m, s) not padding
 
