@@ -147,6 +147,7 @@ class KernelTransform:
         self._khat32: np.ndarray | None = None
         self._works: dict[str, _DuccWork] = {}
         self._blocked: dict[str, np.ndarray] = {}
+        self._floor: float | None = None
 
     def __getstate__(self) -> dict:
         # The lock, the work arrays and the derived spectra (float32, blocked) are per
@@ -157,13 +158,21 @@ class KernelTransform:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        for name, empty in (("_works", {}), ("_blocked", {}), ("_khat32", None)):
+        for name, empty in (("_works", {}), ("_blocked", {}), ("_khat32", None), ("_floor", None)):
             self.__dict__.setdefault(name, empty)
         self._lock = threading.Lock()
 
     @property
     def padded_shape(self) -> tuple[int, int]:
         return self.table.shape  # type: ignore[return-value]
+
+    @property
+    def floor(self) -> float:
+        """min(0, smallest kernel entry): < 0 for the periodic kernels, whose mean is
+        removed (computed once)."""
+        if self._floor is None:
+            self._floor = min(0.0, float(np.min(self.table, initial=0.0)))
+        return self._floor
 
     @property
     def periodic(self) -> bool:

@@ -320,3 +320,34 @@ def test_small_trial_sets_switch_to_the_dense_block_with_the_same_numbers() -> N
             x = rng.normal(size=n)
             assert np.linalg.norm(op.matvec(x) - H @ x) <= 1e-12 * np.linalg.norm(H @ x)
         assert op.uses_dense is switches
+
+
+@pytest.mark.parametrize("kernel,periodic", CASES)
+def test_partial_product_is_the_block_times_x_and_signs_are_known(kernel: str, periodic: bool) -> None:
+    """H[rows, cols] x without the block, against the formula's dense H: the FFT operator
+    (even table read at |offsets|, chunked over columns), the dense one, and the generic
+    path; ``entry_floor`` is at or under every entry (< 0 for the periodic kernels)."""
+    from contactbench.problems import operators
+    from contactbench.problems.operators import ContactOperator
+
+    rng = np.random.default_rng(5)
+    idx = random_subset(rng, 0.7)
+    op = FFTOperator(KernelTransform(kernel_table(kernel, (N, N), DELTA, E, periodic), (N, N)), idx)
+    H = dense_from_formula(kernel, periodic, idx)
+    rows = np.sort(rng.choice(idx.size, idx.size // 2, replace=False))
+    cols = rng.choice(idx.size, 9, replace=False)  # unsorted, as raised points come
+    x = rng.random(cols.size)
+    want = H[np.ix_(rows, cols)] @ x
+    chunk = operators.PARTIAL_PRODUCT_CHUNK
+    for op_ in (op, DenseOperator(H)):
+        for operators.PARTIAL_PRODUCT_CHUNK in (chunk, 7):  # one chunk, and many
+            np.testing.assert_allclose(op_.partial_product(rows, cols, x), want, rtol=1e-13, atol=0)
+        operators.PARTIAL_PRODUCT_CHUNK = chunk
+        floor = op_.entry_floor()
+        assert floor is not None and floor <= min(0.0, H.min()) and (floor < 0) is periodic
+    np.testing.assert_allclose(ContactOperator.partial_product(op, rows, cols, x), want, rtol=1e-13, atol=0)
+    assert op.partial_product(rows, cols[:0], x[:0]).tolist() == [0.0] * rows.size
+    assert ContactOperator.partial_product_pays(op, 1) is False and ContactOperator.entry_floor(op) is None
+    P = int(np.prod(op.transform.padded_shape))
+    budget = operators.PARTIAL_PRODUCT_FACTOR * P * np.log2(P)
+    assert op.partial_product_pays(int(budget)) and not op.partial_product_pays(int(budget) + 1)
