@@ -60,6 +60,7 @@ import numpy as np
 
 from contactbench.problems.operators import ContactOperator
 
+from ._farfield import MAX_AGGREGATES
 from ._preconditioners import MAX_BLOCK, SetPreconditioner
 from .base import Capabilities, Outcome, Solver, SolveContext, Status
 
@@ -358,13 +359,14 @@ class FastSolver(Solver):
 
     def memory_estimate(self, n: int) -> float:
         # Eight vectors; with the island preconditioner, block inverses of up to
-        # MAX_BLOCK entries per point of the set (the set can be the whole trial set early).
+        # MAX_BLOCK entries per point of the set (the set can be the whole trial set early),
+        # and the far field's m x m matrices (solvers/_farfield.py).
         blocks = 8.0 * MAX_BLOCK * n if self.uses_islands() else 0.0
-        return 8.0 * 8.0 * n + blocks
+        return 8.0 * 8.0 * n + blocks + (3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0)
 
     def uses_islands(self) -> bool:
         """Whether the default preconditioner is the island one (memory model)."""
         for p in self.params:
             if p.name == "precondition":
-                return p.default == "islands"
+                return p.default in ("islands", "farfield")
         return False

@@ -32,6 +32,10 @@ inverted batch-wise, so neither the build nor ``apply`` loops over islands in
 Python.  Needs the unknowns' grid positions (``QP.geometry``); without them
 ``IslandPreconditioner.build`` returns None and callers run unpreconditioned.
 
+"farfield" -- the island blocks plus the far-field coupling between them on grid tiles
+(``IslandPreconditioner(far_field=True)``, solvers/_farfield.py): M = B + Z E Z', applied
+by the Woodbury identity; the default of fast-pccg and fast-dual-pccg.
+
 ``FourierPreconditioner`` ("fourier") -- Vollebregt's FFT-based preconditioner for
 BCCG (Vollebregt, J. Optim. Theory Appl. 162 (2014) 931): the inverse of the
 continuous half-space compliance, |q| E*/2 up to a constant, applied on the physical
@@ -51,6 +55,9 @@ from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import ContactOperator, fft_workers
+
+from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
+from ._farfield import FarField, build_far_field
 
 #: Islands above this many points are cut into strips (keeps a block inverse cheap).
 MAX_BLOCK = 128
@@ -75,7 +82,7 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
 
 
 #: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner).
-KINDS = ("islands", "fourier", "none")
+KINDS = ("islands", "farfield", "fourier", "none")
 
 
 class SetPreconditioner(Protocol):
@@ -99,14 +106,18 @@ class _Bucket:
     members: np.ndarray  # (m, s) positions in the operator's set, -1 = padding (masked by valid)
     inverse: np.ndarray  # (m, s, s)
     valid: np.ndarray  # (m, s) not padding
+    row_sums: np.ndarray  # (m, s) sum_l H_kl over the block (the far-field correction's)
 
 
 class IslandPreconditioner:
     """z = blockdiag(H_BB)^-1 r on a set S, zero outside S (see module doc)."""
 
     def __init__(self, H: ContactOperator, grid_shape: tuple[int, int], grid_idx: np.ndarray,
-                 max_block: int | None = None, dtype: type = np.float64) -> None:
+                 max_block: int | None = None, dtype: type = np.float64, far_field: bool = False) -> None:
         self.H = H
+        self.far_field = far_field
+        self._far: FarField | None = None
+        self._far_set: np.ndarray | None = None
         self.dtype = np.dtype(dtype)
         self.n = int(grid_idx.size)
         self.max_block = int(max_block or MAX_BLOCK)
@@ -124,11 +135,12 @@ class IslandPreconditioner:
         self.builds = 0
 
     @classmethod
-    def build(cls, qp: QP, max_block: int | None = None, dtype: type = np.float64) -> IslandPreconditioner | None:
+    def build(cls, qp: QP, max_block: int | None = None, dtype: type = np.float64,
+              far_field: bool = False) -> IslandPreconditioner | None:
         g = qp.geometry
         if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
             return None
-        return cls(qp.H, tuple(g.grid_shape), np.asarray(g.indices), max_block, dtype)
+        return cls(qp.H, tuple(g.grid_shape), np.asarray(g.indices), max_block, dtype, far_field)
 
     def update(self, S: np.ndarray) -> None:
         """Make the preconditioner act on the set S (boolean mask over the operator's set).
@@ -142,14 +154,37 @@ class IslandPreconditioner:
         self._on = S.copy()
         self._pos = np.flatnonzero(S)
         drift = int(np.count_nonzero(S != self._built)) if self._built is not None else S.size
-        if self._built is not None and drift <= self.rebuild_fraction * max(1, int(np.count_nonzero(S))):
+        if self._built is None or drift > self.rebuild_fraction * max(1, self._pos.size):
+            self.builds += 1
+            self._built = S.copy()
+            pos = self._pos
+            self._limit = self.block_limit(pos.size)
+            buckets = (self._factor(members) for members in self._blocks(pos)) if pos.size else ()
+            self._buckets = [b for b in buckets if b is not None]
+            self._far_set = None
+        if self.far_field:
+            self._update_far_field(S)
+
+    def _update_far_field(self, S: np.ndarray) -> None:
+        """(Re)build the far-field correction (solvers/_farfield.py) when S has drifted by
+        ``farfield.REBUILD_FRACTION`` from the set it was built for, or the blocks changed."""
+        drift = int(np.count_nonzero(S != self._far_set)) if self._far_set is not None else S.size
+        if self._far_set is not None and drift <= FAR_REBUILD_FRACTION * max(1, self._pos.size):
             return
-        self.builds += 1
-        self._built = S.copy()
-        pos = np.flatnonzero(S)
-        self._limit = self.block_limit(pos.size)
-        buckets = (self._factor(members) for members in self._blocks(pos)) if pos.size else ()
-        self._buckets = [b for b in buckets if b is not None]
+        self._far, self._far_set = None, S.copy()
+        lead = np.arange(self.n)
+        sums = self._diag.copy()
+        on = self._on
+        for b in self._buckets:  # blocks restricted to S: their first point of S leads
+            ok = b.valid & on[np.where(b.valid, b.members, 0)]
+            first = np.where(ok.any(axis=1), b.members[np.arange(ok.shape[0]), ok.argmax(axis=1)], -1)
+            lead[b.members[ok]] = np.broadcast_to(first[:, None], ok.shape)[ok]
+            sums[b.members[ok]] = b.row_sums[ok]
+        ones = np.zeros(self.n)
+        ones[self._pos] = 1.0
+        v = self.apply(ones)
+        budget = BUILD_BUDGET * self._shape[0] * self._shape[1]
+        self._far = build_far_field(self.H, self._i, self._j, self._pos, lead, v, sums, budget)
 
     def block_limit(self, size: int) -> int:
         """The largest block for a build on ``size`` points: s with s^2 size <= BUILD_BUDGET
@@ -176,6 +211,8 @@ class IslandPreconditioner:
             rb = np.where(valid, r[b.members], 0.0).astype(self.dtype, copy=False)
             zb = np.einsum("mij,mj->mi", b.inverse, rb)
             z[b.members[valid]] = zb[valid]
+        if self._far is not None:
+            self._far.correct(z, r, pos)
         return z
 
     def solo(self, r: np.ndarray) -> np.ndarray:
@@ -239,13 +276,17 @@ class IslandPreconditioner:
             return None
         # Gather and invert in chunks, so the temporaries stay near 32 MiB.
         inverse = np.empty((m, s, s), dtype=self.dtype)
+        row_sums = np.empty((m, s))
+        valid = members >= 0
         step = max(1, BUILD_CHUNK_ENTRIES // (s * s))
         for k0 in range(0, m, step):
-            inverse[k0:k0 + step] = np.linalg.inv(self.H.blocks(members[k0:k0 + step]).astype(self.dtype, copy=False))
+            blocks = self.H.blocks(members[k0:k0 + step])
+            row_sums[k0:k0 + step] = np.einsum("mkl,ml->mk", blocks, valid[k0:k0 + step])
+            inverse[k0:k0 + step] = np.linalg.inv(blocks.astype(self.dtype, copy=False))
         if self.dtype != np.float64:  # LU's inverse is symmetric only up to round-off: make M symmetric
             inverse += np.swapaxes(inverse, 1, 2)
             inverse *= 0.5
-        return _Bucket(members, inverse, members >= 0)
+        return _Bucket(members, inverse, valid, row_sums)
 
 
 class FourierPreconditioner:
@@ -311,8 +352,8 @@ def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64) -> Se
     None for "none", and also when the QP has no grid positions (``QP.geometry``), which
     both preconditioners need: the caller then runs unpreconditioned.  ``block_dtype``:
     the precision of the island blocks' inverses (module doc)."""
-    if kind == "islands":
-        return IslandPreconditioner.build(qp, dtype=block_dtype)
+    if kind in ("islands", "farfield"):
+        return IslandPreconditioner.build(qp, dtype=block_dtype, far_field=kind == "farfield")
     if kind == "fourier":
         return FourierPreconditioner.build(qp)
     if kind == "none":

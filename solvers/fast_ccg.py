@@ -13,9 +13,11 @@ fast-dual-ccg
 fast-pccg, fast-dual-pccg
     the same two iterations with the CG direction preconditioned on the current free
     set (z = M^-1 r instead of r): by default the exact inverses of H over the contact
-    islands (solvers/_preconditioners.py), or Vollebregt's Fourier |q| preconditioner.
+    islands (solvers/_preconditioners.py) with the far-field correction between them on grid
+    tiles (solvers/_farfield.py: "farfield"), the islands alone ("islands"), or Vollebregt's
+    Fourier |q| preconditioner.
 
-All four take ``params={"precondition": "islands" | "fourier" | "none"}`` (a QP without
+All four take ``params={"precondition": "farfield" | "islands" | "fourier" | "none"}`` (a QP without
 grid positions runs unpreconditioned), ``"precision": "double" | "mixed"`` (mixed: float32
 inner CCG rounds under float64 iterative refinement, solvers/_refine.py; same fixed point,
 tolerance judged in float64) and ``"first_guess": "zero" | "coarse"`` (a cold start begins
@@ -113,20 +115,22 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
     """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers/_preconditioners.py):
     the CG direction on the contact set S is z = B_S^-1 r with B_S the blocks of H over the
     8-connected islands of S (cut into strips of at most 128 points, fewer while the set
-    is large), refactored when S drifts by 20 %; an entering point gets the force
-    -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry").
+    is large), refactored when S drifts by 20 %, plus the far-field coupling between the
+    blocks on grid tiles (solvers/_farfield.py, "farfield", the default); an entering point
+    gets the force -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry").
     Same fixed point and KKT test as fast-ccg; warm start: primal.  Without grid
     positions (QP.geometry) it runs unpreconditioned."""
 
     name = "fast-pccg"
     description = "Polonsky-Keer CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    params = (precondition_param("islands"), precision_param(), first_guess_param())
+    params = (precondition_param("farfield"), precision_param(), first_guess_param())
 
 
 @register
 class FastBugnicourtIslands(FastBugnicourtCCG):
     """Bugnicourt et al. (2018) CCG without restart, with the island block-Jacobi
-    preconditioner on the free set {res != 0} (Polak-Ribiere beta on z = B^-1 res).
+    preconditioner and its far-field correction ("farfield", solvers/_farfield.py) on the
+    free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
     Precision: mixed by default (solvers/_refine.py: float32 inner sweeps, float64
     iterative refinement judged by the float64 KKT error); ``precision="double"`` runs
     float64 throughout.  Warm start: primal."""
@@ -134,4 +138,4 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
     #: mixed by default: float32 inner sweeps refined in float64, same answer, 0.8x the time at 1024^2
-    params = (precondition_param("islands"), precision_param("mixed"), first_guess_param())
+    params = (precondition_param("farfield"), precision_param("mixed"), first_guess_param())

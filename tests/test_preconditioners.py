@@ -134,7 +134,7 @@ def test_fourier_preconditioner_option_reaches_the_same_answer(name):
 
 def test_unknown_preconditioner_is_a_clear_error():
     inst = build(33)
-    with pytest.raises(ParamError, match="'precondition' must be one of 'islands', 'fourier', 'none'"):
+    with pytest.raises(ParamError, match="'precondition' must be one of 'islands', 'farfield', 'fourier', 'none'"):
         get_solver("fast-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"precondition": "ilu"}))
     with pytest.raises(ValueError, match="unknown preconditioner 'ilu'"):
         make_preconditioner("ilu", inst.qp)
@@ -200,3 +200,64 @@ def test_large_sets_get_smaller_blocks_within_the_build_budget():
     assert max(b.members.shape[1] for b in M._buckets) <= large
     members = np.concatenate([b.members[b.members >= 0] for b in M._buckets])
     assert np.unique(members).size == members.size <= qp.n  # one-point blocks are the diagonal part
+
+
+def far_field_case(N: int):
+    """The contact set of an N^2 cold top step: many islands over many 16 x 16 tiles."""
+    inst = build(N, seed=5)
+    res = get_solver("fast-dual-ccg").solve(inst.qp, SolverSettings(tol=1e-10))
+    return inst, res.p > 0
+
+
+def test_far_field_correction_is_symmetric_positive_definite_on_its_set_and_a_subset():
+    """M^-1 = B^-1 - V Z K Z' V (solvers/_farfield.py) stays SPD on the set it was built for
+    and on a set that drifted a little from it (restricted, not rebuilt)."""
+    inst, S = far_field_case(128)
+    M = make_preconditioner("farfield", inst.qp)
+    M.update(S)
+    assert M._far is not None and M._far.K.shape[0] > 4
+    S2 = S.copy()
+    S2[np.flatnonzero(S)[::50]] = False  # 2 % drift: the correction is reused
+    for on in (S, S2):
+        M.update(on)
+        pos = np.flatnonzero(on)
+        P = np.column_stack([M.apply(np.eye(inst.n)[:, j]) for j in pos])
+        assert not np.any(P[~on])
+        P = P[pos]
+        np.testing.assert_allclose(P, P.T, atol=1e-10 * np.abs(P).max())
+        assert np.min(np.linalg.eigvalsh(0.5 * (P + P.T))) > 0
+
+
+def pcg_iterations(H: np.ndarray, b: np.ndarray, prec) -> int:
+    x, r = np.zeros_like(b), b.copy()
+    z = prec(r)
+    d, rz = z.copy(), r @ z
+    for it in range(1, 400):
+        q = H @ d
+        a = rz / (d @ q)
+        x += a * d
+        r -= a * q
+        if np.linalg.norm(r) <= 1e-10 * np.linalg.norm(b):
+            return it
+        z = prec(r)
+        rz, rz_old = r @ z, rz
+        d = z + (rz / rz_old) * d
+    return 400
+
+
+def test_far_field_correction_cuts_the_cg_iterations_on_a_contact_set():
+    inst, S = far_field_case(256)
+    pos = np.flatnonzero(S)
+    H, b = inst.qp.H.submatrix(pos), inst.qp.ubar[pos]
+    counts = {}
+    for kind in ("islands", "farfield"):
+        M = make_preconditioner(kind, inst.qp)
+        M.update(S)
+        full = np.zeros(inst.n)
+
+        def prec(r, M=M):
+            full[pos] = r
+            return M.apply(full)[pos]
+
+        counts[kind] = pcg_iterations(H, b, prec)
+    assert counts["farfield"] < 0.85 * counts["islands"], counts

@@ -1,0 +1,128 @@
+"""The far-field correction of the island preconditioner (not a solver module: the registry
+skips "_" names): the "farfield" preconditioner of solvers/_preconditioners.py.
+
+Block-Jacobi over contact islands (``IslandPreconditioner``) inverts the short-range part of
+H_SS exactly and leaves out the coupling *between* blocks.  H is a compliance, its large
+eigenvalues are the smooth modes, and that coupling is what makes B^-1 H large on them: the
+CG iterations on a fixed contact set grow with the grid (37 at 1024^2, 50 at 2048^2 on the
+paper's top step).  The correction puts the coupling back on a coarse space:
+
+    M = B + Z E Z',   E = W Z'(H - B)Z W,   W = diag(1 / |aggregate|),
+
+with Z the indicators of *aggregates*: the set's points grouped by T x T grid tiles, whole
+blocks at a time (a block goes to the tile of its first point), so that B^-1 Z = diag(v) Z
+with v = B^-1 1.  M^-1 follows from the Woodbury identity with no product with H:
+
+    M^-1 = B^-1 - V Z K Z' V,   K = D^-1/2 Q diag(mu / (1 + mu)) Q' D^-1/2,
+
+where D = Z' B^-1 Z (diagonal), D^1/2 E D^1/2 = Q diag(mu) Q' with the negative mu clipped
+to 0 (E+ is positive semidefinite, so M is SPD and K < D^-1 keeps M^-1 positive definite).
+Z'HZ is summed exactly over neighbouring tiles (entries gathered from the operator) and
+taken as point masses |I| |J| H(c_I, c_J) between farther ones (c: the member nearest the
+aggregate's centroid).  Measured offline on the fixed contact set (results/perf/two-level.md):
+37 -> 25 iterations at 1024^2, 50 -> 28 at 2048^2.
+
+The tile T is the smallest of 16, 32, 64, ... giving at most ``MAX_AGGREGATES`` aggregates.
+The correction is built only while the exact near-tile sums gather at most the island
+build's budget of entries (a cold start's first, huge sets get none), and rebuilt when the
+set has drifted by ``REBUILD_FRACTION`` since.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from contactbench.problems.operators import ContactOperator
+
+#: At most this many aggregates (an m x m eigendecomposition per build).
+MAX_AGGREGATES = 1024
+
+#: The smallest tile (grid points on a side).
+MIN_TILE = 16
+
+#: Rebuild the correction when the set has changed in more than this fraction of its points.
+REBUILD_FRACTION = 0.05
+
+#: Built only on sets of at most this fraction of the unknowns: a contact set, not the
+#: shrinking trial sets of a cold start's first iterations (there it costs iterations).
+MAX_SET_FRACTION = 0.2
+
+
+@dataclass
+class FarField:
+    """The coarse term of M^-1 on the set it was built for (module doc)."""
+
+    aggregate: np.ndarray  # aggregate of each position of the operator's set (-1: none)
+    v: np.ndarray  # B^-1 1 on the set
+    K: np.ndarray  # m x m
+
+    def correct(self, z: np.ndarray, r: np.ndarray, pos: np.ndarray) -> None:
+        """z -= V Z K Z' V r on the positions ``pos`` (the set now)."""
+        a = self.aggregate[pos]
+        keep = a >= 0
+        p, a = pos[keep], a[keep]
+        u = np.bincount(a, weights=self.v[p] * r[p], minlength=self.K.shape[0])
+        z[p] -= self.v[p] * (self.K @ u)[a]
+
+
+def tile_size(i: np.ndarray, j: np.ndarray) -> int:
+    """The smallest tile (MIN_TILE, doubled) that gives at most MAX_AGGREGATES occupied tiles."""
+    T = MIN_TILE
+    while np.unique((i // T) * (1 << 32) + j // T).size > MAX_AGGREGATES:
+        T *= 2
+    return T
+
+
+def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, lead: np.ndarray,
+                    v: np.ndarray, block_sums: np.ndarray, budget: float) -> FarField | None:
+    """The correction for the set ``pos`` (sorted positions in H's set; ``i``, ``j``: grid row
+    and column of every position).  ``lead[k]``: the point whose tile point k's block takes
+    (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
+    ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None when the near-tile
+    sums would gather more than ``budget`` entries, or there is one aggregate."""
+    if pos.size < 2 or pos.size > MAX_SET_FRACTION * i.size:
+        return None
+    T = tile_size(i[pos], j[pos])
+    lp = lead[pos]
+    labels, agg = np.unique((i[lp] // T) * (1 << 32) + j[lp] // T, return_inverse=True)
+    m = labels.size
+    count = np.bincount(agg, minlength=m).astype(float)
+    ti, tj = labels // (1 << 32), labels % (1 << 32)
+    near = [np.flatnonzero((np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1)) for a in range(m)]
+    if m < 2 or sum(count[a] * count[nb].sum() for a, nb in enumerate(near)) > budget:
+        return None
+    order = np.argsort(agg, kind="stable")
+    starts = np.r_[0, np.cumsum(count.astype(np.int64))]
+    members_of = [pos[order[starts[a]:starts[a + 1]]] for a in range(m)]
+    aggregate = np.full(i.size, -1, dtype=np.int64)
+    aggregate[pos] = agg
+    A = galerkin_far(H, i, j, pos, agg, count)
+    for a in range(m):  # exact sums over neighbouring tiles
+        cols = np.concatenate([members_of[b] for b in near[a]])
+        col_sums = H.partial_product(cols, members_of[a], np.ones(members_of[a].size))
+        A[a, near[a]] = np.bincount(aggregate[cols], weights=col_sums, minlength=m)[near[a]]
+    A = 0.5 * (A + A.T)
+    w = 1.0 / count
+    E = w[:, None] * (A - np.diag(np.bincount(agg, weights=block_sums[pos], minlength=m))) * w[None, :]
+    d = np.sqrt(np.bincount(agg, weights=v[pos], minlength=m))
+    mu, Q = np.linalg.eigh(d[:, None] * E * d[None, :])
+    mu = np.maximum(mu, 0.0)
+    K = (Q * (mu / (1.0 + mu))) @ Q.T / d[:, None] / d[None, :]
+    return FarField(aggregate, v, K)
+
+
+def galerkin_far(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, agg: np.ndarray,
+                 count: np.ndarray) -> np.ndarray:
+    """Point-mass Galerkin sums |I| |J| H(c_I, c_J), c the member nearest the centroid."""
+    m = count.size
+    ci = np.bincount(agg, weights=i[pos], minlength=m) / count
+    cj = np.bincount(agg, weights=j[pos], minlength=m) / count
+    dist = (i[pos] - ci[agg]) ** 2 + (j[pos] - cj[agg]) ** 2
+    order = np.lexsort((dist, agg))
+    first = np.r_[True, agg[order][1:] != agg[order][:-1]]
+    rep = pos[order[first]]  # one per aggregate, in aggregate order
+    rows = np.repeat(rep, m)
+    cols = np.tile(rep, m)
+    return (count[:, None] * count[None, :]) * H.entries(rows, cols).reshape(m, m)
