@@ -261,3 +261,4 @@ def test_far_field_correction_cuts_the_cg_iterations_on_a_contact_set():
 
         counts[kind] = pcg_iterations(H, b, prec)
     assert counts["farfield"] < 0.85 * counts["islands"], counts
+
