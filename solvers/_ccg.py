@@ -361,8 +361,8 @@ class FastSolver(Solver):
         # Eight vectors; with the island preconditioner, block inverses of up to
         # MAX_BLOCK entries per point of the set (the set can be the whole trial set early),
         # and the far field's m x m matrices (solvers/_farfield.py).
-        blocks = 8.0 * MAX_BLOCK * n if self.uses_islands() else 0.0
-        return 8.0 * 8.0 * n + blocks + (3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0)
+        blocks = 8.0 * MAX_BLOCK * n + 3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0
+        return 8.0 * 8.0 * n + blocks
 
     def uses_islands(self) -> bool:
         """Whether the default preconditioner is the island one (memory model)."""

@@ -34,7 +34,7 @@ Python.  Needs the unknowns' grid positions (``QP.geometry``); without them
 
 "farfield" -- the island blocks plus the far-field coupling between them on grid tiles
 (``IslandPreconditioner(far_field=True)``, solvers/_farfield.py): M = B + Z E Z', applied
-by the Woodbury identity; the default of fast-pccg and fast-dual-pccg.
+by the Woodbury identity; the default of fast-dual-pccg.
 
 ``FourierPreconditioner`` ("fourier") -- Vollebregt's FFT-based preconditioner for
 BCCG (Vollebregt, J. Optim. Theory Appl. 162 (2014) 931): the inverse of the
@@ -73,6 +73,14 @@ BUILD_BUDGET = 40
 REBUILD_FRACTION = 0.2
 
 _NEIGHBOURS = ((0, 1), (1, -1), (1, 0), (1, 1))  # half of the 8-neighbourhood
+
+
+def drifted(S: np.ndarray, reference: np.ndarray | None, fraction: float) -> bool:
+    """Whether the set S differs from ``reference`` (None: nothing built yet) in more than
+    ``fraction`` of |S| points: the rebuild test of the island blocks and of the far field."""
+    if reference is None:
+        return True
+    return int(np.count_nonzero(S != reference)) > fraction * max(1, int(np.count_nonzero(S)))
 
 
 def block_width(sizes: np.ndarray) -> np.ndarray:
@@ -153,8 +161,7 @@ class IslandPreconditioner:
         S = np.asarray(S, dtype=bool)
         self._on = S.copy()
         self._pos = np.flatnonzero(S)
-        drift = int(np.count_nonzero(S != self._built)) if self._built is not None else S.size
-        if self._built is None or drift > self.rebuild_fraction * max(1, self._pos.size):
+        if drifted(S, self._built, self.rebuild_fraction):
             self.builds += 1
             self._built = S.copy()
             pos = self._pos
@@ -168,8 +175,7 @@ class IslandPreconditioner:
     def _update_far_field(self, S: np.ndarray) -> None:
         """(Re)build the far-field correction (solvers/_farfield.py) when S has drifted by
         ``farfield.REBUILD_FRACTION`` from the set it was built for, or the blocks changed."""
-        drift = int(np.count_nonzero(S != self._far_set)) if self._far_set is not None else S.size
-        if self._far_set is not None and drift <= FAR_REBUILD_FRACTION * max(1, self._pos.size):
+        if not drifted(S, self._far_set, FAR_REBUILD_FRACTION):
             return
         self._far, self._far_set = None, S.copy()
         lead = np.arange(self.n)
