@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Any, ClassVar, Literal
 
@@ -246,10 +246,18 @@ class Trace:
         self.t0 = time.perf_counter() if t0 is None else t0
         self.every = max(1, every)
         self.points: list[tuple[int, float, float]] = []
+        self.offset = 0
 
     def record(self, it: int, residual: float) -> None:
+        it += self.offset
         if it % self.every == 0:
             self.points.append((int(it), time.perf_counter() - self.t0, float(residual)))
+
+    def shifted(self, k: int) -> "Trace":
+        """The same trace (clock and points) numbering iterations from ``k`` on."""
+        view = Trace(self.every, self.t0)
+        view.points, view.offset = self.points, self.offset + int(k)
+        return view
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0
@@ -291,6 +299,7 @@ class SolveContext:
     _ops: list[tuple[ContactOperator, int]] = field(default_factory=list)
     _extra_matvecs: int = 0
     _ubar_max: float | None = None
+    _parent: "SolveContext | None" = None  # a restricted solve counts its products here
 
     @property
     def n(self) -> int:
@@ -308,9 +317,25 @@ class SolveContext:
 
     def kkt(self, p: np.ndarray, w: np.ndarray) -> float:
         """The scaled KKT error of (p, w = Hp - ubar): the harness's own formula."""
+        return scaled_kkt_error(p, w, self.qp.ubar, self.diag_max, self.ubar_scale())
+
+    def restricted(self, pos: np.ndarray, p0: np.ndarray | None, first: int = 0) -> "SolveContext":
+        """This solve on the unknowns at positions ``pos`` only, the others held at 0
+        (``QP.restrict``), started at ``p0``, ``first`` iterations already spent: the same
+        tolerance, parameters, deadline, trace and matvec count, and the KKT scales of
+        the whole problem (so the subset's error is never below the whole one's on the
+        same points)."""
+        max_iter = None if self.max_iter is None else max(1, self.max_iter - first)
+        sub = replace(self, qp=self.qp.restrict(pos), p0=p0, warm=None, max_iter=max_iter, info={},
+                      trace=self.trace.shifted(first), _extra_matvecs=0, _ubar_max=self.ubar_scale(), _parent=self)
+        self.track(sub.qp.H)
+        return sub
+
+    def ubar_scale(self) -> float:
+        """max |ubar| of this solve's problem (the KKT error's displacement scale)."""
         if self._ubar_max is None:
             self._ubar_max = float(np.max(np.abs(self.qp.ubar), initial=0.0))
-        return scaled_kkt_error(p, w, self.qp.ubar, self.diag_max, self._ubar_max)
+        return self._ubar_max
 
     def track(self, op: ContactOperator) -> ContactOperator:
         """Count the matvecs of an operator made during the solve (a restriction)."""
@@ -319,7 +344,10 @@ class SolveContext:
 
     def add_matvecs(self, k: int) -> None:
         """Count k products done outside a tracked operator."""
-        self._extra_matvecs += int(k)
+        if self._parent is not None:
+            self._parent.add_matvecs(k)
+        else:
+            self._extra_matvecs += int(k)
 
     def matvecs(self) -> int:
         return int(sum(op.matvec_count - c0 for op, c0 in self._ops)) + self._extra_matvecs

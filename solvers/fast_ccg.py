@@ -40,6 +40,7 @@ from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_ke
 from ._kit import FIRST_GUESSES, coarse_first_guess
 from ._preconditioners import KINDS, make_preconditioner
 from ._refine import block_dtype, precision_param, solve_in_precision
+from ._screen import screened, screening_param
 from .base import Outcome, Param, SolveContext, Solver
 from .registry import register
 
@@ -72,12 +73,17 @@ class _FastCCG(FastSolver):
     ``params["precondition"]``, in the precision of ``params["precision"]``, from the
     first guess of ``params["first_guess"]``."""
 
-    params = (precondition_param("none"), precision_param(), first_guess_param())
+    params = (precondition_param("none"), precision_param(), first_guess_param(), screening_param())
 
     #: The loop of solvers/_ccg.py (``staticmethod(polonsky_keer)`` or ``(bugnicourt)``).
     loop: ClassVar[CCGLoop]
 
     def iterate(self, ctx: SolveContext) -> Outcome:
+        out = screened(ctx, self.iterate_on)
+        return self.iterate_on(ctx) if out is None else out
+
+    def iterate_on(self, ctx: SolveContext) -> Outcome:
+        """The loop on ``ctx``'s QP as it is (``iterate`` screens it first)."""
         M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
         ctx.mark_setup_done()
         state, info = starting_state(self, ctx)
@@ -125,7 +131,7 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
 
     name = "fast-pccg"
     description = "Polonsky-Keer CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    params = (precondition_param("islands"), precision_param(), first_guess_param())
+    params = (precondition_param("islands"), precision_param(), first_guess_param(), screening_param())
 
 
 @register
@@ -140,4 +146,4 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
     #: mixed by default: float32 inner sweeps refined in float64, same answer, 0.8x the time at 1024^2
-    params = (precondition_param("farfield"), precision_param("mixed"), first_guess_param())
+    params = (precondition_param("farfield"), precision_param("mixed"), first_guess_param(), screening_param())

@@ -1,0 +1,89 @@
+"""Safe screening (problems ``QP.can_touch``, solvers/_screen.py): the rule keeps every
+point of the exact solution's contact set, the screened solves give the unscreened
+answer, a screened set that misses contact points grows until the answer holds on the
+whole problem, and the trace and matvec count span every round."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.kkt import kkt_check, relative_error
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.registry import get_solver
+
+CCGS = ["fast-ccg", "fast-dual-ccg", "fast-pccg", "fast-dual-pccg"]
+HIGH = 1e-9
+
+
+def periodic_instance(N: int = 64, frac: float = 1.0, seed: int = 5):
+    s = rmd_surface_n(N, 0.7, length=100e-6, seed=seed)
+    return InstanceBuilder(s, 1e9, "spectral", periodic=True).build(frac * paper_max_displacement(s))
+
+
+def solve(name: str, qp, screening: str, p0: np.ndarray | None = None):
+    warm = None if p0 is None else WarmStart(p=p0)
+    return get_solver(name).solve(qp, SolverSettings(tol=HIGH, params={"screening": screening}), warm)
+
+
+@pytest.fixture(scope="module")
+def periodic():
+    inst = periodic_instance()
+    exact = solve("fast-dual-pccg", inst.qp, "none")
+    assert kkt_check(inst.qp, exact.p).kkt_error <= HIGH
+    return inst, exact.p
+
+
+def test_can_touch_keeps_the_contact_set(periodic):
+    inst, p = periodic
+    load = float(p.sum())
+    T = inst.qp.can_touch(load)
+    contact = np.flatnonzero(p > 0.0)
+    assert np.all(np.isin(contact, T))
+    assert T.size < 0.5 * inst.n  # a real reduction on a periodic problem
+    # the margin below the rigid-body set is needed: points with ubar < 0 carry force
+    assert np.any(inst.qp.ubar[contact] < 0.0)
+    assert not np.all(np.isin(contact, inst.qp.can_touch(0.0)))
+
+
+def test_aperiodic_rule_is_the_trial_set():
+    s = rmd_surface_n(33, 0.7, length=100e-6, seed=3)
+    qp = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s)).qp
+    assert np.array_equal(qp.can_touch(1e9), np.arange(qp.n))
+
+
+@pytest.mark.parametrize("name", CCGS)
+def test_screened_cold_solve_matches_unscreened(name, periodic):
+    inst, exact = periodic
+    res = solve(name, inst.qp, "safe")
+    assert res.converged
+    assert kkt_check(inst.qp, res.p).kkt_error <= HIGH
+    assert relative_error(res.p, exact) <= 1e-6
+    assert res.info["screened_size"] < inst.n
+    assert "screened_rounds" not in solve(name, inst.qp, "none").info
+
+
+@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg"])
+def test_too_small_a_set_grows_until_the_answer_holds(name, periodic):
+    """A warm start carrying 1 % of the load on the rigid-body set screens to about that
+    set, which misses contact points (ubar < 0): the solve must grow the set and still end
+    at the answer."""
+    inst, exact = periodic
+    res = solve(name, inst.qp, "safe", p0=np.where(inst.qp.ubar >= 0.0, 0.01 * exact, 0.0))
+    assert res.info["screened_rounds"] >= 2
+    assert res.converged
+    assert kkt_check(inst.qp, res.p).kkt_error <= HIGH
+    assert relative_error(res.p, exact) <= 1e-6
+    its = [it for it, _, _ in res.trace]
+    assert its == sorted(its) and its[-1] == res.iterations
+    # every round's products are counted: at least the rounds' whole-problem checks
+    assert res.matvecs >= res.iterations + res.info["screened_rounds"]
+
+
+def test_screening_none_or_aperiodic_runs_on_every_point():
+    s = rmd_surface_n(33, 0.7, length=100e-6, seed=3)
+    qp = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s)).qp
+    res = solve("fast-dual-pccg", qp, "safe")
+    assert res.converged and "screened_size" not in res.info
