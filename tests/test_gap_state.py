@@ -13,8 +13,8 @@ from contactbench.problems import operators
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers._ccg import GapState
-from contactbench.solvers.base import SolverSettings
+from contactbench.solvers._ccg import GapState, converged_now
+from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace
 from contactbench.solvers.registry import get_solver
 
 
@@ -104,3 +104,31 @@ def test_fast_solvers_give_the_same_answer_with_fewer_matvecs(name: str, periodi
     assert off.converged and on.converged
     assert np.max(np.abs(on.p - off.p)) <= 1e-7 * np.max(off.p)
     assert on.matvecs < off.matvecs
+
+
+def test_a_cold_state_costs_no_matvec() -> None:
+    """At p = 0 the gap is -ubar: refresh spends no product (a warm one does)."""
+    qp = qp_of(17, False)
+    count = qp.H.matvec_count
+    state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
+    assert qp.H.matvec_count == count and np.array_equal(state.g, -qp.ubar)
+    state.p[0] = 1.0
+    state.refresh()
+    assert qp.H.matvec_count == count + 1
+    assert np.allclose(state.g, true_gap(state))
+
+
+def test_an_anchored_round_leaves_the_confirmation_to_its_refinement() -> None:
+    """A converged running gap is confirmed on a recomputed one (one matvec), except in an
+    anchored float32 round, whose float64 refresh judges it."""
+    qp = qp_of(17, False)
+    exact = get_solver("fast-dual-ccg").solve(qp, SolverSettings(tol=1e-12)).p
+    ctx = SolveContext(qp=qp, tol=1e-9, max_iter=10, params={}, p0=None, warm=None, deadline=Deadline(None),
+                       trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    plain = GapState(qp.H, qp.ubar, exact.copy())
+    count = qp.H.matvec_count
+    assert converged_now(ctx, plain)[0] and qp.H.matvec_count == count + 1
+    H32 = qp.H.with_precision(np.float32)
+    inner = GapState.anchored(H32, plain)
+    count32 = H32.matvec_count
+    assert converged_now(ctx, inner)[0] and H32.matvec_count == count32
