@@ -11,7 +11,8 @@ sum(p) <= L, only the points with ubar_i >= f L (f = min H_ij <= 0) can be in co
 ``screened`` solves on such a set T and proves the answer on the whole problem:
 
 1. L = ``LOAD_MARGIN`` x sum(p) of the start (the warm start's load; 0 when cold, i.e.
-   the rigid-body set), T = can_touch(L) plus the start's support;
+   the rigid-body set, whose round is solved only to ``COLD_ROUND_TOL``: it is there to
+   find the load), T = can_touch(L) plus the start's support;
 2. the solver runs on the QP restricted to T (``SolveContext.restricted``: same
    tolerance, deadline, trace and matvec count, the whole problem's KKT scales);
 3. one matvec on the whole problem gives w = Hp - ubar with p = 0 off T, and the
@@ -28,6 +29,7 @@ most ``MAX_SCREENED_FRACTION`` of the unknowns (an aperiodic trial set already i
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Callable
 
 import numpy as np
@@ -39,6 +41,10 @@ LOAD_MARGIN = 1.25
 
 #: Screen only when the screened set is at most this fraction of the unknowns.
 MAX_SCREENED_FRACTION = 0.5
+
+#: A cold start's first round runs on the rigid-body set, a guess: it is solved only to
+#: this scaled KKT error, enough to bound the load for the next round.
+COLD_ROUND_TOL = 1e-3
 
 #: The values of a fast solver's ``screening`` parameter.
 SCREENINGS = ("safe", "none")
@@ -90,6 +96,8 @@ def screened(ctx: SolveContext, solve: Solve) -> Outcome | None:
     while True:
         cold = ctx.p0 is None and not infos  # a cold first round stays cold (its first guess)
         sub = ctx.restricted(T, None if cold else p[T], first=used)
+        if cold and ctx.tol is not None:  # its set is a guess: it only has to find the load
+            sub = replace(sub, tol=max(ctx.tol, COLD_ROUND_TOL))
         out = solve(sub)
         if ctx.setup_time is None:
             ctx.setup_time = sub.setup_time
@@ -103,7 +111,7 @@ def screened(ctx: SolveContext, solve: Solve) -> Outcome | None:
         if kkt <= ctx.tol or not out.converged or ctx.expired() or used >= (ctx.max_iter or used + 1):
             break
         grown = np.union1d(T, np.union1d(ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p))), np.flatnonzero(w < 0.0)))
-        if grown.size == T.size:
+        if grown.size == T.size and sub.tol == ctx.tol:
             break
         T = grown
     info = {**merged_info(infos), "screened_rounds": len(infos), "screened_size": int(T.size)}

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.instances import QP, Geometry, InstanceBuilder, paper_max_displacement, rigid_body_ubar
 from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings, WarmStart
@@ -87,3 +87,24 @@ def test_screening_none_or_aperiodic_runs_on_every_point():
     qp = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s)).qp
     res = solve("fast-dual-pccg", qp, "safe")
     assert res.converged and "screened_size" not in res.info
+
+
+@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg"])
+def test_a_cold_first_round_is_only_a_guess_and_the_solve_still_converges(name):
+    """Cold, the first round runs on the rigid-body set to a loose tolerance (it only has
+    to find the load).  With an aperiodic kernel on the whole grid (f = 0, ubar < 0 below
+    the rigid body) that set is exactly can_touch(L) for every L: the set cannot grow, and
+    the solve must go on on it to the asked tolerance, not stop at the loose one."""
+    N = 33
+    s = rmd_surface_n(N, 0.7, length=100e-6, seed=3)
+    b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
+    grid = np.arange(N * N)
+    qp = QP(b.operator_on(grid), rigid_body_ubar(s.heights, 0.5 * paper_max_displacement(s), grid),
+            Geometry((N, N), s.delta, grid))
+    assert qp.H.entry_floor() == 0.0 and np.count_nonzero(qp.ubar >= 0.0) < 0.5 * qp.n
+    res = solve(name, qp, "safe")
+    assert res.converged and res.info["screened_rounds"] == 2
+    assert res.info["screened_size"] == np.count_nonzero(qp.ubar >= 0.0)
+    exact = solve(name, qp, "none").p
+    assert kkt_check(qp, res.p).kkt_error <= HIGH
+    assert relative_error(res.p, exact) <= 1e-6
