@@ -3,11 +3,12 @@
 ``contactbench validate MODULE:NAME|NAME`` (``main``) and the Python API ``validate``
 run a solver -- registered, or given by import path -- on every case of the battery
 (``harness.conformance_cases``: conditioning, units, edge cases, random LCPs, float32
-input, perturbation, paper Example 1 at n = 400, full packing).  Every answer is judged
-by the one judge, ``harness.judge.judge``, with the case's profile's ``check_tol`` --
-the threshold ``run`` uses for "solved" -- so a solve that ``run`` calls solved is never
-WRONG here, and a WRONG one is never solved there.  Beside the judge's KKT test, the
-answer is compared with the exact reference (``p_tolerance``, a gross-error bound).
+input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids).
+Every answer is judged by the one judge, ``harness.judge.judge``, with the case's
+profile's ``check_tol`` -- the threshold ``run`` uses for "solved" -- so a solve that
+``run`` calls solved is never WRONG here, and a WRONG one is never solved there.
+Beside the judge's KKT test, the answer is compared with the exact reference
+(``p_tolerance``, a gross-error bound).
 
 Row statuses (one row per solve):
 

@@ -4,8 +4,10 @@
   (``contactbench.problems.scenes.stress``) as ``ConformanceCase`` records;
 * ``exact_reference`` -- the exact solution of one instance, computed independently of
   the solver registry (a judge must not be a contestant): the known solution where a
-  recipe is built from one, else ``contactbench.problems.lcp.exact_solution`` (NNLS on
-  the Cholesky factor, polished by block principal pivoting), with cond(H);
+  recipe is built from one or certifies one (a periodic whole grid, where H is singular:
+  ``contactbench.problems.lcp.exact_solution_on_subset``), else
+  ``contactbench.problems.lcp.exact_solution`` (NNLS on the Cholesky factor, polished by
+  block principal pivoting), with cond(H);
 * ``SolveRunner`` -- one solver's solves, each in a forked worker
   (``harness.isolation.IsolatedWorker``) with a hard wall-clock limit, so that a
   hanging solver cannot hang ``validate``.

@@ -25,21 +25,42 @@ whose solution is unique.  Two exact (finitely terminating) methods meet here:
 
 Both work on a dense H (an n x n array).  Used by the reference solver
 (``scipy-nnls``), the conformance battery's reference and the ``+polish`` QP adapters.
+
+Singular H: ``exact_solution_on_subset``.  A periodic problem is posed on the whole
+grid, where H is singular along the constant vector (its q = 0 mode is removed) but
+positive definite on every proper subset.  Since sum(ubar) < 0 there, the contact set
+is a proper subset (w = 0 on every point would give 0 = 1'Hp = sum(ubar)).  So it is
+solved exactly on a proper subset T (``exact_solution`` on the dense H_TT), extended by
+zeros and certified on the whole problem with ``problems.kkt.kkt_check``: p is the
+exact solution iff its whole-problem KKT error is at round-off.  Points off T that
+penetrate (w_i < 0) join T and the solve is repeated.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
-from contactbench.problems.kkt import scaled_kkt_error
+from contactbench.problems.kkt import kkt_check, scaled_kkt_error
+
+if TYPE_CHECKING:
+    from contactbench.problems.instances import QP
 
 #: Block pivoting rounds without fewer violations before Murty's single pivot.
 BLOCK_PATIENCE = 3
+#: Whole-problem scaled KKT error at which ``exact_solution_on_subset`` certifies its answer.
+CERTIFY_KKT = 1e-12
+#: Subset solves ``exact_solution_on_subset`` tries before it gives up.
+MAX_SUBSET_ROUNDS = 20
+
+
+class UncertifiedSolutionError(RuntimeError):
+    """``exact_solution_on_subset`` could not certify a subset solution on the whole problem."""
 
 
 @dataclass
@@ -197,3 +218,63 @@ def exact_solution(H: np.ndarray, ubar: np.ndarray, max_iter: int | None = None)
     w = H @ pol.p - ubar
     err = scaled_kkt_error(pol.p, w, ubar, float(np.max(np.diag(H), initial=0.0)))
     return LCPSolution(pol.p, w, err, pol.rounds, pol.converged, t1 - t0, t2 - t1, t3 - t2)
+
+
+@dataclass
+class SubsetSolution:
+    """The exact solution of an LCP found on a proper subset (``exact_solution_on_subset``).
+
+    p         : the solution on the whole problem (zero off ``subset``);
+    kkt_error : ``problems.kkt.kkt_check`` of p on the whole problem (<= the certifying tol);
+    subset    : the positions (0..n-1) of the last subset solved on;
+    rounds    : subset solves it took.
+    """
+
+    p: np.ndarray
+    kkt_error: float
+    subset: np.ndarray
+    rounds: int
+
+
+def top_half_subset(ubar: np.ndarray) -> np.ndarray:
+    """Positions of the largest half of ``ubar`` (sorted; at least one, a proper subset
+    for n >= 2): where contact is likeliest."""
+    u = np.asarray(ubar, dtype=np.float64)
+    keep = max(1, u.size // 2)
+    return np.sort(np.argsort(u, kind="stable")[u.size - keep:])
+
+
+def exact_solution_on_subset(qp: "QP", subset: np.ndarray | None = None, tol: float = CERTIFY_KKT,
+                             max_rounds: int = MAX_SUBSET_ROUNDS) -> SubsetSolution:
+    """The exact solution of the LCP of ``qp`` (any H positive definite on proper
+    subsets: a periodic whole-grid problem) by solves on a growing proper subset T
+    (module doc), starting from ``subset`` (positions; default ``top_half_subset``).
+    Certified when the whole-problem scaled KKT error is at most ``tol``; else
+    ``UncertifiedSolutionError`` saying why (T would be the whole problem, no point off
+    T penetrates yet the check fails, or ``max_rounds`` solves did not do)."""
+    u = np.asarray(qp.ubar, dtype=np.float64)
+    n = u.size
+    T = top_half_subset(u) if subset is None else np.unique(np.asarray(subset, dtype=np.int64))
+    err = float("inf")
+    for rnd in range(1, max_rounds + 1):
+        sol = exact_solution(qp.H.submatrix(T, T), u[T])
+        p = np.zeros(n)
+        p[T] = sol.p
+        err = kkt_check(qp, p).kkt_error
+        if err <= tol:
+            return SubsetSolution(p, err, T, rnd)
+        w = qp.H.matvec(p) - u
+        off = np.ones(n, dtype=bool)
+        off[T] = False
+        missed = np.flatnonzero(off & (w < 0.0))
+        if missed.size == 0:
+            raise UncertifiedSolutionError(
+                f"the solution on {T.size} of {n} points has whole-problem KKT error {err:.2e} > {tol:g} "
+                "and no point off the subset penetrates: the subset solve is inexact")
+        if T.size + missed.size >= n:
+            raise UncertifiedSolutionError(
+                f"{missed.size} points off a subset of {T.size} of {n} penetrate: the subset would be the "
+                "whole problem, where H may be singular")
+        T = np.union1d(T, missed)
+    raise UncertifiedSolutionError(f"no certified solution after {max_rounds} subset solves "
+                                   f"(last KKT error {err:.2e} > {tol:g} on {T.size} of {n} points)")

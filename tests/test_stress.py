@@ -7,7 +7,8 @@ import pytest
 
 from contactbench.harness.conformance_cases import exact_reference
 from contactbench.problems.instances import counterexample
-from contactbench.problems.kkt import kkt_check
+from contactbench.problems.kkt import kkt_check, relative_error
+from contactbench.problems.lcp import UncertifiedSolutionError, exact_solution_on_subset
 from contactbench.problems.operators import FFTOperator
 from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
 from contactbench.problems.scenes.stress import (
@@ -19,7 +20,10 @@ from contactbench.problems.scenes.stress import (
     extreme_eigenvalues,
     known_solution_instance,
     packed_instance,
+    periodic_instance,
 )
+from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.registry import get_solver
 
 
 def edge(case: str):
@@ -122,6 +126,66 @@ def test_full_packing_puts_every_point_in_contact_with_a_known_solution(kernel: 
     assert kkt_check(inst, p).kkt_error < 1e-14
     inst.meta.pop("p_exact")  # the reference must find it on its own
     np.testing.assert_allclose(exact_reference(inst).p, p, rtol=1e-8)
+
+
+def periodic_cases():
+    specs = battery_specs("fast", ("periodic",))
+    assert 1 <= len(specs) <= 3
+    return [(spec, build_battery_spec(spec).at(0)) for spec in specs]
+
+
+def test_periodic_recipes_are_whole_grid_problems_with_an_exact_reference() -> None:
+    """Each fast periodic case is posed on the whole N x N grid (singular H: H 1 = 0,
+    entries of both signs), its reference is exact there, a real fraction of the grid
+    touches, and some touching points lie below the rigid-body trial set (ubar < 0)."""
+    cases = periodic_cases()
+    assert {inst.kernel for _, inst in cases} == {"spectral", "bcc"}
+    for spec, inst in cases:
+        N = spec.params["size"]
+        assert inst.periodic and inst.n == N * N == inst.total_elements
+        H = inst.qp.H
+        assert np.max(np.abs(H.matvec(np.ones(inst.n)))) <= 1e-10 * H.diagonal()[0]
+        assert H.entry_floor() < 0
+        ref = exact_reference(inst)
+        assert ref.method == "known solution" and ref.kkt_error <= 1e-12
+        p, u = ref.p, inst.qp.ubar
+        touching = p > 0
+        assert np.all(p >= 0) and 0.1 <= touching.mean() < 1
+        assert np.count_nonzero(touching & (u < 0)) >= 5
+        assert inst.meta["contact_points"] == touching.sum()
+        assert inst.meta["below_rigid_body"] == np.count_nonzero(touching & (u < 0))
+
+
+def test_periodic_reference_is_not_the_rigid_body_trial_set_answer() -> None:
+    """Solved only on the rigid-body set {ubar >= 0}, the answer misses the points below
+    it: the whole-grid KKT check rejects it."""
+    for _, inst in periodic_cases():
+        trial = np.flatnonzero(inst.qp.ubar >= 0)
+        assert trial.size < inst.n
+        naive = exact_solution_on_subset(inst.qp, trial, tol=np.inf).p
+        assert kkt_check(inst, naive).kkt_error > 1e-6
+
+
+@pytest.mark.parametrize("solver", ["fast-dual-pccg", "nnls-gp"])
+def test_registered_solvers_find_the_periodic_reference(solver: str) -> None:
+    for _, inst in periodic_cases():
+        res = get_solver(solver).solve(inst.qp, SolverSettings(tol=1e-10))
+        assert res.converged and kkt_check(inst, res.p).kkt_error <= 1e-9
+        assert relative_error(res.p, inst.meta["p_exact"]) <= 1e-6
+
+
+def test_subset_solution_grows_from_a_subset_that_misses_contact() -> None:
+    """Started on the top eighth of ubar (fewer points than touch), the subset grows by
+    the penetrating points until the whole-grid KKT check certifies it."""
+    inst = periodic_instance(32, "bcc", 0)
+    exact = inst.meta["p_exact"]
+    top = np.argsort(inst.qp.ubar)[-inst.n // 8:]
+    assert np.count_nonzero(exact > 0) > top.size
+    sol = exact_solution_on_subset(inst.qp, top)
+    assert sol.rounds > 1 and sol.kkt_error <= 1e-12 and sol.subset.size < inst.n
+    np.testing.assert_allclose(sol.p, exact, rtol=0, atol=1e-10 * exact.max())
+    with pytest.raises(UncertifiedSolutionError, match="subset solves"):
+        exact_solution_on_subset(inst.qp, top, max_rounds=1)
 
 
 def test_known_solution_instance_rejects_an_empty_contact_set() -> None:

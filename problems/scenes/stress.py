@@ -34,6 +34,11 @@ counterexample
 packing
     Full packing with every point in contact: an LCP built from a solution p* > 0 on
     every element of an N x N grid (ubar = H p*, w* = 0), BCC and Love kernels.
+periodic
+    Periodic rough surfaces (spectral kernel 2/(E|q|) and periodic BCC) posed on the
+    whole N x N grid: H is singular along the constant vector, has entries of both
+    signs, and points below the rigid-body trial set (ubar < 0) touch.  The exact
+    solution is certified on the whole grid (``problems.lcp.exact_solution_on_subset``).
 
 Every recipe is an ``InstanceSpec`` whose params carry ``group``, the verdict
 ``profile`` (``mid``, or ``high`` where precision is the point) and ``compare``
@@ -45,6 +50,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
@@ -62,6 +68,7 @@ from ..instances import (
     trial_set,
 )
 from ..kernels import kernel_table
+from ..lcp import exact_solution_on_subset
 from ..operators import ContactOperator, DenseOperator, FFTOperator, KernelTransform, check_dense_budget
 from ..surfaces import Surface, rmd_surface_n
 from . import register_scene
@@ -81,9 +88,12 @@ PERTURBATION_EPS = 1e-6
 NEAR_TOUCH_GAP = 1e-14
 #: Largest n whose condition number is computed densely (eigvalsh).
 DENSE_EIG_LIMIT = 2500
+#: Far-field displacement of the periodic recipes, in units of ``paper_max_displacement``
+#: (below 2, where sum(ubar) reaches 0 and the whole-grid QP becomes unbounded).
+PERIODIC_DISPLACEMENT = 1.6
 
 GROUPS: tuple[str, ...] = ("conditioning", "units", "edge", "random", "precision", "perturbation",
-                           "counterexample", "packing")
+                           "counterexample", "packing", "periodic")
 
 
 # ---------------------------------------------------------------------------
@@ -293,6 +303,39 @@ EDGE_CASES: dict[str, Callable[[int, int], tuple[np.ndarray, float, float]]] = {
 
 
 # ---------------------------------------------------------------------------
+# Periodic problems on the whole grid
+# ---------------------------------------------------------------------------
+
+
+def periodic_builder(N: int, kernel: str, seed: int, operator: str = "fft") -> InstanceBuilder:
+    """Periodic ``kernel`` on the periodic RMD surface ``rough_heights(N, seed)``, E = 1 GPa."""
+    return InstanceBuilder(rough_heights(N, seed), EDGE_E, kernel, periodic=True, operator=operator)
+
+
+@lru_cache(maxsize=8)
+def periodic_exact(N: int, kernel: str, seed: int, factor: float) -> np.ndarray:
+    """The exact solution of ``periodic_instance`` (read-only; cached: a recipe is
+    rebuilt by every solve of the battery), certified on the whole grid."""
+    b = periodic_builder(N, kernel, seed)
+    p = exact_solution_on_subset(b.build(factor * paper_max_displacement(b.surface)).qp).p
+    p.flags.writeable = False
+    return p
+
+
+def periodic_instance(N: int, kernel: str, seed: int, factor: float = PERIODIC_DISPLACEMENT,
+                      operator: str = "fft") -> ContactInstance:
+    """A periodic rough-surface problem on the whole N x N grid at Delta = ``factor``
+    x ``paper_max_displacement`` with its exact solution in ``meta["p_exact"]``, and in
+    meta the number of contact points and of those with ubar < 0 (below the rigid body)."""
+    b = periodic_builder(N, kernel, seed, operator)
+    inst = b.build(factor * paper_max_displacement(b.surface))
+    p = periodic_exact(int(N), str(kernel), int(seed), float(factor)).copy()
+    touching = p > 0
+    return _with_meta(inst, p_exact=p, contact_points=int(np.count_nonzero(touching)),
+                      below_rigid_body=int(np.count_nonzero(touching & (inst.qp.ubar < 0))))
+
+
+# ---------------------------------------------------------------------------
 # Recipes -> load sequences
 # ---------------------------------------------------------------------------
 
@@ -404,6 +447,15 @@ def build_packing(spec: InstanceSpec) -> LoadSequence:
                                                          str(p.get("operator", "fft")), active_fraction=1.0))
 
 
+def build_periodic(spec: InstanceSpec) -> LoadSequence:
+    """A periodic rough-surface problem on the whole grid, with its exact solution."""
+    p = spec.params
+    s = rough_heights(int(p["size"]), int(p["seed"]))
+    return _single(spec, lambda: periodic_instance(int(p["size"]), str(p["kernel"]), int(p["seed"]),
+                                                   float(p["displacement"]), str(p.get("operator", "fft"))),
+                   float(p["displacement"]) * paper_max_displacement(s))
+
+
 BUILDERS: dict[str, Callable[[InstanceSpec], LoadSequence]] = {
     "conditioning": build_conditioning,
     "units": build_units,
@@ -413,6 +465,7 @@ BUILDERS: dict[str, Callable[[InstanceSpec], LoadSequence]] = {
     "perturbation": build_perturbation,
     "counterexample": build_counterexample,
     "packing": build_packing,
+    "periodic": build_periodic,
 }
 
 
@@ -478,23 +531,30 @@ def packing_specs(scene: str, size: int, kernels: tuple[str, ...] = ("bcc", "lov
             for k in kernels]
 
 
+def periodic_specs(scene: str, sizes: tuple[int, ...], kernels: tuple[str, ...] = ("spectral", "bcc"),
+                   seed: int = 0, factor: float = PERIODIC_DISPLACEMENT) -> list[InstanceSpec]:
+    return [_spec(scene, "periodic", f"whole-grid-{k}-N{N}", size=int(N), kernel=k, seed=seed,
+                  displacement=float(factor), operator="fft")
+            for N in sizes for k in kernels]
+
+
 #: Sizes per mode.  "fast" keeps every case dense-solvable in well under a second.
 MODES: dict[str, dict[str, Any]] = {
     "fast": {"cond_sizes": (100,), "densities": (1.0, 0.2), "units_size": 16, "edge_size": 16,
              "spd_sizes": (30,), "bcc_sizes": (64,), "random_densities": (0.1, 0.5, 1.0), "seeds": (0, 2),
              "precision_size": 32, "perturbation_n": 100, "example1_sizes": (400,), "example1_seeds": (0, 1, 2),
-             "packing_size": 20},
+             "packing_size": 20, "periodic_sizes": (32,)},
     "full": {"cond_sizes": (100, 400, 1000), "densities": (1.0, 0.5, 0.1), "units_size": 32, "edge_size": 32,
              "spd_sizes": (50, 200), "bcc_sizes": (100, 400), "random_densities": (0.05, 0.3, 1.0),
              "seeds": (0, 1), "precision_size": 32, "perturbation_n": 400, "example1_sizes": (100, 400),
-             "example1_seeds": tuple(range(10)), "packing_size": 32},
+             "example1_seeds": tuple(range(10)), "packing_size": 32, "periodic_sizes": (32, 64)},
     # The stress scene: conditioning up to 1e5 (FFT operator; dense-only solvers are
     # skipped by the runner's memory model), the rest as in "full".
     "scene": {"cond_sizes": (100, 1000, 10000, 100000), "densities": (1.0, 0.2), "units_size": 64,
               "edge_size": 32, "spd_sizes": (50, 200), "bcc_sizes": (100, 400, 1600),
               "random_densities": (0.05, 0.3, 1.0), "seeds": (0, 1, 2), "precision_size": 64,
               "perturbation_n": 1000, "example1_sizes": (25, 100, 400), "example1_seeds": tuple(range(10)),
-              "packing_size": 64},
+              "packing_size": 64, "periodic_sizes": (32, 64)},
 }
 
 
@@ -512,6 +572,7 @@ def battery_specs(mode: str = "fast", groups: tuple[str, ...] = GROUPS, scene: s
         "perturbation": lambda: perturbation_specs(scene, m["perturbation_n"]),
         "counterexample": lambda: counterexample_specs(scene, m["example1_sizes"], m["example1_seeds"]),
         "packing": lambda: packing_specs(scene, m["packing_size"]),
+        "periodic": lambda: periodic_specs(scene, m["periodic_sizes"]),
     }
     unknown = set(groups) - set(makers)
     if unknown:
@@ -571,3 +632,4 @@ _group_scene("precision", "float32 ubar: solved in float64 or refused")
 _group_scene("perturbation", "ubar vs ubar + 1e-6 perturbation: p must move continuously")
 _group_scene("counterexample", "paper Example 1 (all of an N x N grid in the trial set, ubar ~ U(0,1)) at n = 400")
 _group_scene("packing", "full packing: every point of an N x N grid in contact, exact solution known")
+_group_scene("periodic", "periodic rough surfaces (spectral, BCC) on the whole grid: singular H, ubar < 0 touches")
