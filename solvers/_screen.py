@@ -1,4 +1,5 @@
-"""Safe screening for the fast solvers (not a solver module: the registry skips "_" names).
+"""Safe screening for the fast solvers (not a solver module: the registry skips "_" names):
+the ``screening`` parameter of the four CCGs and fast-pdas.
 
 A periodic problem is posed on the whole grid (``problems.instances.InstanceBuilder``:
 its negative influence coefficients let points below the rigid-body trial set touch),

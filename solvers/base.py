@@ -350,6 +350,9 @@ class SolveContext:
             self._extra_matvecs += int(k)
 
     def matvecs(self) -> int:
+        """Products of the whole solve so far (a restricted solve's count is its parent's)."""
+        if self._parent is not None:
+            return self._parent.matvecs()
         return int(sum(op.matvec_count - c0 for op, c0 in self._ops)) + self._extra_matvecs
 
     def mark_setup_done(self) -> None:

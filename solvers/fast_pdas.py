@@ -22,7 +22,9 @@ refinement loop, and its KKT test is float64 (solvers/_refine.py).  Safeguard: P
 cycle when H is not an M-matrix (the half-space kernel is positive everywhere); if the
 scaled KKT error stops decreasing, or ``max_outer`` steps pass, the iterate is clipped to p >= 0 and finished by the Bugnicourt
 CCG (``_ccg.bugnicourt``, as fast-dual-ccg) under the same deadline (one time limit per
-solve).  Iterations = Newton steps + CCG iterations.  Warm start: primal (``ctx.p0``).
+solve).  Iterations = Newton steps + CCG iterations.  A whole-grid (periodic) problem is
+solved on the points that can touch and proved on the whole grid (``screening="safe"``,
+solvers/_screen.py).  Warm start: primal (``ctx.p0``).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
 from ._refine import block_dtype, low_precision, precision_param, solve_in_precision
 from ._kit import conjugate_gradient
 from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
+from ._screen import screened, screening_param
 from .base import Outcome, Param, SolveContext
 from .registry import register
 
@@ -96,12 +99,19 @@ class FastPDAS(FastSolver):
         Param("precondition", str, "none", "inner CG preconditioner on the active set", choices=KINDS),
         Param("max_outer", int, 50, "active-set (Newton) steps before the CCG safeguard takes over", low=1),
         precision_param(),
+        screening_param(),
     )
 
     def memory_estimate(self, n: int) -> float:
         return 12.0 * 8.0 * n
 
     def iterate(self, ctx: SolveContext) -> Outcome:
+        out = screened(ctx, self.iterate_on)
+        return self.iterate_on(ctx) if out is None else out
+
+    def iterate_on(self, ctx: SolveContext) -> Outcome:
+        """Newton steps on ``ctx``'s QP as it is (``iterate`` screens it first)."""
+        before = ctx.matvecs()
         state = GapState.start(ctx)
         M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
         H32 = low_precision(ctx.qp.H) if ctx.params["precision"] == "mixed" else None
@@ -140,5 +150,5 @@ class FastPDAS(FastSolver):
             info["preconditioner_builds"] = M.builds
         float32 = count.float32 + int(info.get("ccg_matvecs_by_precision", {}).get("matvecs_float32", 0))
         info.update(precision="mixed" if H32 is not None else "double", matvecs_float32=float32,
-                    matvecs_float64=ctx.matvecs() - float32)
+                    matvecs_float64=ctx.matvecs() - before - float32)
         return outcome(state, run, info)

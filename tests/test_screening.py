@@ -14,7 +14,7 @@ from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings, WarmStart
 from contactbench.solvers.registry import get_solver
 
-CCGS = ["fast-ccg", "fast-dual-ccg", "fast-pccg", "fast-dual-pccg"]
+CCGS = ["fast-ccg", "fast-dual-ccg", "fast-pccg", "fast-dual-pccg", "fast-pdas"]
 HIGH = 1e-9
 
 
@@ -65,7 +65,7 @@ def test_screened_cold_solve_matches_unscreened(name, periodic):
     assert "screened_rounds" not in solve(name, inst.qp, "none").info
 
 
-@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg"])
+@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg", "fast-pdas"])
 def test_too_small_a_set_grows_until_the_answer_holds(name, periodic):
     """A warm start carrying 1 % of the load on the rigid-body set screens to about that
     set, which misses contact points (ubar < 0): the solve must grow the set and still end
@@ -89,7 +89,7 @@ def test_screening_none_or_aperiodic_runs_on_every_point():
     assert res.converged and "screened_size" not in res.info
 
 
-@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg"])
+@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg", "fast-pdas"])
 def test_a_cold_first_round_is_only_a_guess_and_the_solve_still_converges(name):
     """Cold, the first round runs on the rigid-body set to a loose tolerance (it only has
     to find the load).  With an aperiodic kernel on the whole grid (f = 0, ubar < 0 below
