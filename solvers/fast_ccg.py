@@ -125,7 +125,8 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
     -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry").  ``precondition="farfield"``
     adds the far-field coupling between the blocks (solvers/_farfield.py); it is not the
     default here: at 4096^2 Polonsky-Keer with it did not finish the paper's cold top step
-    within 600 s (with the islands alone: 205 s).
+    within 600 s (with the islands alone: 205 s): it cycles, a few points entering and as
+    many clipped every iteration (docs/fast-solvers.md).
     Same fixed point and KKT test as fast-ccg; warm start: primal.  Without grid
     positions (QP.geometry) it runs unpreconditioned."""
 
