@@ -50,6 +50,15 @@ iterate it stopped at depended on round-off, i.e. on the thread count).  The ent
 points get the force -tau m_j g_j instead, with m_j the preconditioner's own inverse for a
 point that forms a set alone (``SetPreconditioner.solo``: 1 / H_jj for the island blocks),
 which is -tau g_j again without a preconditioner.
+
+Cycling (Polonsky-Keer with a coarse preconditioner)
+----------------------------------------------------
+With the far-field correction (solvers/_farfield.py) Polonsky-Keer cycled on the paper's
+4096^2 cold top step: after ~50 good iterations a few points entered and as many were
+clipped every iteration, the conjugacy was reset each time, and the KKT error stayed at
+7.8e-4 (``benchmarks/diagnose_pk_farfield.py``).  So when the error has not halved in
+``CYCLE_PATIENCE`` iterations, the loop asks its preconditioner to drop its coarse part
+(``SetPreconditioner.simplify``; the island blocks stay) and restarts the conjugacy.
 """
 
 from __future__ import annotations
@@ -63,6 +72,10 @@ from contactbench.problems.operators import ContactOperator
 from ._farfield import MAX_AGGREGATES
 from ._preconditioners import MAX_BLOCK, SetPreconditioner
 from .base import Capabilities, Outcome, Solver, SolveContext, Status
+
+#: Polonsky-Keer iterations without halving the KKT error before its preconditioner drops
+#: its coarse part (module doc, "Cycling").
+CYCLE_PATIENCE = 25
 
 
 @dataclass(frozen=True)
@@ -252,10 +265,14 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
     t = np.zeros_like(state.p)
     G_old, reset = 1.0, True
     run = CCGRun(0, np.inf, False)
+    best, since = np.inf, 0
     for it in range(1, max_iter + 1):
         run = checkpoint(ctx, state, it - 1, first)
         if run.converged or ctx.expired():
             return run
+        best, since = (run.kkt, 0) if run.kkt < 0.5 * best else (best, since + 1)
+        if since >= CYCLE_PATIENCE and M is not None and M.simplify():  # module doc, "Cycling"
+            since, reset = 0, True
         if domain is not None and it == 1:
             S = domain
         else:

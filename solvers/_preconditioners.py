@@ -108,6 +108,10 @@ class SetPreconditioner(Protocol):
 
     def solo(self, r: np.ndarray) -> np.ndarray: ...
 
+    def simplify(self) -> bool:
+        """Drop a coarse part, if any, for the rest of the solve (True when one was dropped)."""
+        ...
+
 
 @dataclass
 class _Bucket:
@@ -225,6 +229,12 @@ class IslandPreconditioner:
         """r / H_jj: the inverse of a one-point island."""
         return r / self._diag
 
+    def simplify(self) -> bool:
+        """Drop the far-field correction (the island blocks stay); True when there was one."""
+        had = self.far_field
+        self.far_field, self._far, self._far_set = False, None, None
+        return had
+
     # -- partition -------------------------------------------------------------------
 
     def _components(self, pos: np.ndarray) -> np.ndarray:
@@ -330,6 +340,10 @@ class FourierPreconditioner:
         if self._solo is None:
             self._solo = float(sfft.irfft2(self._q, s=self._shape)[0, 0])
         return self._solo * r
+
+    def simplify(self) -> bool:
+        """Nothing to drop."""
+        return False
 
 
 def floored_wavenumbers(shape: tuple[int, int]) -> np.ndarray:

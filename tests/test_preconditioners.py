@@ -262,3 +262,50 @@ def test_far_field_correction_cuts_the_cg_iterations_on_a_contact_set():
         counts[kind] = pcg_iterations(H, b, prec)
     assert counts["farfield"] < 0.85 * counts["islands"], counts
 
+
+
+class _Stalling:
+    """A set preconditioner that is SPD but badly scaled (Polonsky-Keer crawls with it)
+    until ``simplify`` drops that part and leaves z = r / H_jj."""
+
+    def __init__(self, H, seed: int = 0) -> None:
+        self._diag = H.diagonal()
+        self._bad = np.random.default_rng(seed).uniform(1e-4, 1.0, H.n) ** 4
+        self._on = np.zeros(H.n, dtype=bool)
+        self.builds, self.dropped = 0, 0
+
+    @property
+    def on(self) -> np.ndarray:
+        return self._on
+
+    def update(self, S: np.ndarray) -> None:
+        self._on = np.asarray(S, dtype=bool).copy()
+
+    def apply(self, r: np.ndarray) -> np.ndarray:
+        z = np.where(self._on, r / self._diag, 0.0)
+        return z if self._bad is None else z * self._bad
+
+    def solo(self, r: np.ndarray) -> np.ndarray:
+        return r / self._diag
+
+    def simplify(self) -> bool:
+        had = self._bad is not None
+        self._bad, self.dropped = None, self.dropped + had
+        return had
+
+
+def test_polonsky_keer_drops_a_coarse_part_it_stalls_with():
+    """Without halving the KKT error for CYCLE_PATIENCE iterations, Polonsky-Keer asks its
+    preconditioner to drop its coarse part (solvers/_ccg.py, "Cycling") and converges."""
+    from contactbench.solvers._ccg import CYCLE_PATIENCE, GapState, polonsky_keer
+    from contactbench.solvers.base import Deadline, SolveContext, Trace
+
+    qp = build(33).qp
+    ctx = SolveContext(qp=qp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
+                       trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    M = _Stalling(qp.H)
+    run = polonsky_keer(ctx, GapState(qp.H, qp.ubar, np.zeros(qp.n)), M)
+    assert run.converged and M.dropped == 1
+    stalled = polonsky_keer(ctx, GapState(qp.H, qp.ubar, np.zeros(qp.n)), _Stalling(qp.H),
+                            max_iter=CYCLE_PATIENCE)
+    assert not stalled.converged  # the badly scaled part alone does not get there in that time
