@@ -13,9 +13,8 @@ fast-dual-ccg
 fast-pccg, fast-dual-pccg
     the same two iterations with the CG direction preconditioned on the current free
     set (z = M^-1 r instead of r): by default the exact inverses of H over the contact
-    islands (solvers/_preconditioners.py), with the far-field correction between them on grid
-    tiles for fast-dual-pccg (solvers/_farfield.py: "farfield"), or Vollebregt's Fourier |q|
-    preconditioner.
+    islands (solvers/_preconditioners.py) with the far-field correction between them on grid
+    tiles (solvers/_farfield.py: "farfield"), or Vollebregt's Fourier |q| preconditioner.
 
 All four take ``params={"precondition": "farfield" | "islands" | "fourier" | "none"}`` (a QP without
 grid positions runs unpreconditioned), ``"precision": "double" | "mixed"`` (mixed: float32
@@ -122,17 +121,17 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
     the CG direction on the contact set S is z = B_S^-1 r with B_S the blocks of H over the
     8-connected islands of S (cut into strips of at most 128 points, fewer while the set
     is large), refactored when S drifts by 20 %; an entering point gets the force
-    -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry").  ``precondition="farfield"``
-    adds the far-field coupling between the blocks (solvers/_farfield.py); it is not the
-    default here: at 4096^2 Polonsky-Keer with it did not finish the paper's cold top step
-    within 600 s (with the islands alone: 205 s): it cycles, a few points entering and as
-    many clipped every iteration (docs/fast-solvers.md).
+    -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry"), plus by default the far-field
+    coupling between the blocks (solvers/_farfield.py, ``precondition="farfield"``), which
+    the loop drops if it stops making progress (solvers/_ccg.py, "Cycling");
+    ``precondition="islands"`` keeps the blocks alone.
     Same fixed point and KKT test as fast-ccg; warm start: primal.  Without grid
     positions (QP.geometry) it runs unpreconditioned."""
 
     name = "fast-pccg"
     description = "Polonsky-Keer CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    params = (precondition_param("islands"), precision_param(), first_guess_param(), screening_param())
+    #: farfield by default: 0.81-0.88x the islands' time on the paper's cold top step, 1024^2-4096^2
+    params = (precondition_param("farfield"), precision_param(), first_guess_param(), screening_param())
 
 
 @register
