@@ -265,28 +265,20 @@ def test_far_field_correction_cuts_the_cg_iterations_on_a_contact_set():
 
 
 class _Stalling:
-    """A set preconditioner that is SPD but badly scaled (Polonsky-Keer crawls with it)
-    until ``simplify`` drops that part and leaves z = r / H_jj."""
+    """The island preconditioner with a badly scaled (still SPD) part on top, which makes
+    Polonsky-Keer crawl until ``simplify`` drops it."""
 
-    def __init__(self, H, seed: int = 0) -> None:
-        self._diag = H.diagonal()
-        self._bad = np.random.default_rng(seed).uniform(1e-4, 1.0, H.n) ** 4
-        self._on = np.zeros(H.n, dtype=bool)
-        self.builds, self.dropped = 0, 0
+    def __init__(self, qp, seed: int = 0) -> None:
+        self.islands = make_preconditioner("islands", qp)
+        self._bad = np.random.default_rng(seed).uniform(1e-4, 1.0, qp.n) ** 4
+        self.dropped = 0
 
-    @property
-    def on(self) -> np.ndarray:
-        return self._on
-
-    def update(self, S: np.ndarray) -> None:
-        self._on = np.asarray(S, dtype=bool).copy()
+    def __getattr__(self, name):  # on, update, solo, builds: the island preconditioner's
+        return getattr(self.islands, name)
 
     def apply(self, r: np.ndarray) -> np.ndarray:
-        z = np.where(self._on, r / self._diag, 0.0)
+        z = self.islands.apply(r)
         return z if self._bad is None else z * self._bad
-
-    def solo(self, r: np.ndarray) -> np.ndarray:
-        return r / self._diag
 
     def simplify(self) -> bool:
         had = self._bad is not None
@@ -303,9 +295,9 @@ def test_polonsky_keer_drops_a_coarse_part_it_stalls_with():
     qp = build(33).qp
     ctx = SolveContext(qp=qp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
-    M = _Stalling(qp.H)
+    M = _Stalling(qp)
     run = polonsky_keer(ctx, GapState(qp.H, qp.ubar, np.zeros(qp.n)), M)
     assert run.converged and M.dropped == 1
-    stalled = polonsky_keer(ctx, GapState(qp.H, qp.ubar, np.zeros(qp.n)), _Stalling(qp.H),
+    stalled = polonsky_keer(ctx, GapState(qp.H, qp.ubar, np.zeros(qp.n)), _Stalling(qp),
                             max_iter=CYCLE_PATIENCE)
     assert not stalled.converged  # the badly scaled part alone does not get there in that time
