@@ -63,6 +63,7 @@ clipped every iteration, the conjugacy was reset each time, and the KKT error st
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,7 +71,8 @@ import numpy as np
 from contactbench.problems.operators import ContactOperator
 
 from ._farfield import MAX_AGGREGATES
-from ._preconditioners import MAX_BLOCK, SetPreconditioner
+from ._preconditioners import ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
+from ._screen import solve_screened
 from .base import Capabilities, Outcome, Solver, SolveContext, Status
 
 #: Polonsky-Keer iterations without halving the KKT error before its preconditioner drops
@@ -390,5 +392,13 @@ class FastSolver(Solver):
         """Whether the default preconditioner is the island one (memory model)."""
         for p in self.params:
             if p.name == "precondition":
-                return p.default in ("islands", "farfield")
+                return p.default in ISLAND_KINDS
         return False
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        """``iterate_on`` the QP's screened set (solvers/_screen.py), or on the whole QP."""
+        return solve_screened(ctx, self.iterate_on)
+
+    @abstractmethod
+    def iterate_on(self, ctx: SolveContext) -> Outcome:
+        """The solver's own iteration on ``ctx``'s QP as it is."""

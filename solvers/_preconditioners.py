@@ -91,6 +91,8 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
 
 #: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner).
 KINDS = ("islands", "farfield", "fourier", "none")
+#: The kinds built on the island blocks (``IslandPreconditioner``).
+ISLAND_KINDS = ("islands", "farfield")
 
 
 class SetPreconditioner(Protocol):
@@ -372,7 +374,7 @@ def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64) -> Se
     None for "none", and also when the QP has no grid positions (``QP.geometry``), which
     both preconditioners need: the caller then runs unpreconditioned.  ``block_dtype``:
     the precision of the island blocks' inverses (module doc)."""
-    if kind in ("islands", "farfield"):
+    if kind in ISLAND_KINDS:
         return IslandPreconditioner.build(qp, dtype=block_dtype, far_field=kind == "farfield")
     if kind == "fourier":
         return FourierPreconditioner.build(qp)

@@ -9,7 +9,7 @@ most of a periodic solve.
 
 ``QP.can_touch(L)`` is a safe screening rule: if the solution carries a total force
 sum(p) <= L, only the points with ubar_i >= f L (f = min H_ij <= 0) can be in contact.
-``screened`` solves on such a set T and proves the answer on the whole problem:
+``solve_screened`` solves on such a set T and proves the answer on the whole problem:
 
 1. L = ``LOAD_MARGIN`` x sum(p) of the start (the warm start's load; 0 when cold, i.e.
    the rigid-body set, whose round is solved only to ``COLD_ROUND_TOL``: it is there to
@@ -60,14 +60,17 @@ def screening_param() -> Param:
                  choices=SCREENINGS)
 
 
-def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
-    """can_touch(LOAD_MARGIN sum(p)) plus the support of p, or None when the operator
-    has no entry floor or the set is not small enough to pay."""
+def touching(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
+    """can_touch(LOAD_MARGIN sum(p)) plus the support of p (None: the operator has no
+    entry floor)."""
     touch = ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p)))
-    if touch is None:
-        return None
-    T = np.union1d(touch, np.flatnonzero(p > 0.0))
-    return T if T.size <= MAX_SCREENED_FRACTION * ctx.n else None
+    return None if touch is None else np.union1d(touch, np.flatnonzero(p > 0.0))
+
+
+def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
+    """``touching`` at the start p, or None when it is unknown or not small enough to pay."""
+    T = touching(ctx, p)
+    return T if T is not None and T.size <= MAX_SCREENED_FRACTION * ctx.n else None
 
 
 def merged_info(rounds: list[dict[str, Any]]) -> dict[str, Any]:
@@ -84,15 +87,14 @@ def merged_info(rounds: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def screened(ctx: SolveContext, solve: Solve) -> Outcome | None:
+def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
     """``solve`` on the screened set, grown until the answer holds on the whole problem
-    (module doc); None when screening does not apply (``screened_set``)."""
-    if ctx.params.get("screening", "safe") == "none":
-        return None
+    (module doc); on the whole problem when screening is off or does not apply
+    (``screened_set``)."""
     p = np.zeros(ctx.n) if ctx.p0 is None else ctx.p0.copy()
-    T = screened_set(ctx, p)
+    T = None if ctx.params.get("screening", "safe") == "none" else screened_set(ctx, p)
     if T is None:
-        return None
+        return solve(ctx)
     used, infos = 0, []
     while True:
         cold = ctx.p0 is None and not infos  # a cold first round stays cold (its first guess)
@@ -109,9 +111,10 @@ def screened(ctx: SolveContext, solve: Solve) -> Outcome | None:
         w = ctx.qp.H.matvec(p) - ctx.qp.ubar
         kkt = ctx.kkt(p, w)
         ctx.record(used, kkt)
-        if kkt <= ctx.tol or not out.converged or ctx.expired() or used >= (ctx.max_iter or used + 1):
+        out_of_iterations = ctx.max_iter is not None and used >= ctx.max_iter
+        if kkt <= ctx.tol or not out.converged or ctx.expired() or out_of_iterations:
             break
-        grown = np.union1d(T, np.union1d(ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p))), np.flatnonzero(w < 0.0)))
+        grown = np.union1d(touching(ctx, p), np.union1d(T, np.flatnonzero(w < 0.0)))
         if grown.size == T.size and sub.tol == ctx.tol:
             break
         T = grown

@@ -39,7 +39,7 @@ from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_ke
 from ._kit import FIRST_GUESSES, coarse_first_guess
 from ._preconditioners import KINDS, make_preconditioner
 from ._refine import block_dtype, precision_param, solve_in_precision
-from ._screen import screened, screening_param
+from ._screen import screening_param
 from .base import Outcome, Param, SolveContext, Solver
 from .registry import register
 
@@ -77,12 +77,8 @@ class _FastCCG(FastSolver):
     #: The loop of solvers/_ccg.py (``staticmethod(polonsky_keer)`` or ``(bugnicourt)``).
     loop: ClassVar[CCGLoop]
 
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        out = screened(ctx, self.iterate_on)
-        return self.iterate_on(ctx) if out is None else out
-
     def iterate_on(self, ctx: SolveContext) -> Outcome:
-        """The loop on ``ctx``'s QP as it is (``iterate`` screens it first)."""
+        """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
         ctx.mark_setup_done()
         state, info = starting_state(self, ctx)

@@ -40,7 +40,7 @@ from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
 from ._refine import block_dtype, low_precision, precision_param, solve_in_precision
 from ._kit import conjugate_gradient
 from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
-from ._screen import screened, screening_param
+from ._screen import screening_param
 from .base import Outcome, Param, SolveContext
 from .registry import register
 
@@ -105,12 +105,8 @@ class FastPDAS(FastSolver):
     def memory_estimate(self, n: int) -> float:
         return 12.0 * 8.0 * n
 
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        out = screened(ctx, self.iterate_on)
-        return self.iterate_on(ctx) if out is None else out
-
     def iterate_on(self, ctx: SolveContext) -> Outcome:
-        """Newton steps on ``ctx``'s QP as it is (``iterate`` screens it first)."""
+        """Newton steps on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         before = ctx.matvecs()
         state = GapState.start(ctx)
         M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
