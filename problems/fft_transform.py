@@ -20,8 +20,9 @@ from .errors import ProblemInputError
 
 try:  # ducc0: the faster FFT (see KernelTransform); scipy.fft is the fallback
     from ducc0 import fft as _ducc_fft
+    from ducc0.misc import transpose as _ducc_transpose
 except ImportError:  # pragma: no cover - ducc0 is a declared dependency
-    _ducc_fft = None
+    _ducc_fft = _ducc_transpose = None
 
 
 def fft_workers() -> int:
@@ -58,22 +59,30 @@ def fft_backend() -> str:
     return "ducc"
 
 
-#: The column transforms run on blocks of columns whose work buffer (P0 x b complex)
-#: holds about this many bytes, so a block stays in the core's cache from the forward
-#: transform through the spectrum product to the inverse transform (one read and one
-#: write of the spectrum rows per matvec instead of one per pass; results/perf/matvec.md).
+#: Long columns are transformed one block at a time: b columns copied (transposed) into a
+#: b x P0 buffer of about this many bytes, so a block stays in the core's cache from the
+#: forward transform through the spectrum product to the inverse transform (one read and
+#: one write of the spectrum rows per matvec instead of one per pass; results/perf/matvec.md).
 COLUMN_BLOCK_BYTES = 1 << 19
 
 
-#: Spectra up to this size take the column pass in one call per direction over the whole
-#: P0 x (P1/2+1) array (no per-block Python overhead; it fits in the last-level cache).
-WHOLE_SPECTRUM_BYTES = 1 << 24
+#: A column of the padded spectrum (P0 complex entries) of at least this many bytes is
+#: transformed as a contiguous row of a transposed block buffer; shorter columns are
+#: transformed in place across the whole P0 x (P1/2+1) spectrum, one call per direction
+#: (no per-block Python dispatch).  With ducc0 0.42 on AVX-512, contiguous transforms win
+#: from 2048 points in float64 and 4096 in float32, and lose below (results/perf/matvec.md).
+TRANSPOSED_COLUMN_BYTES = 1 << 15
 
 
 def column_block(p0: int, complex_itemsize: int) -> int:
-    """Columns per block: a power of two in 4..64 with P0 * b * itemsize ~ COLUMN_BLOCK_BYTES."""
+    """Columns per block: a power of two in 4..64 with b * P0 * itemsize ~ COLUMN_BLOCK_BYTES."""
     b = max(1, COLUMN_BLOCK_BYTES // max(1, p0 * complex_itemsize))
     return int(min(64, max(4, 1 << (b.bit_length() - 1))))
+
+
+def blocked_columns(p0: int, complex_itemsize: int) -> bool:
+    """Whether the column pass runs block by block on transposed buffers (``TRANSPOSED_COLUMN_BYTES``)."""
+    return p0 * complex_itemsize >= TRANSPOSED_COLUMN_BYTES
 
 
 class _ColumnPool:
@@ -115,13 +124,14 @@ class KernelTransform:
     the column FFTs, the spectrum product and the column iFFTs are done one block of
     columns at a time in a small buffer that stays in cache (zero-padded there, so
     only the N1 x (P1/2+1) half spectrum is held and nothing is cleared in memory);
-    the blocks are shared out over ``fft_workers()`` threads; a spectrum of at most
-    ``WHOLE_SPECTRUM_BYTES`` takes one call per direction instead.  Row transforms run
+    the blocks are copied in transposed, so each column is a contiguous row of the
+    buffer, and shared out over ``fft_workers()`` threads; short columns
+    (``blocked_columns``) take one call per direction over the whole spectrum instead.  Row transforms run
     only on the rows holding input and back only on the rows that are read (``row_runs``).
 
     Precision: every convolution runs in float64 or float32 (``dtype`` argument).
     float32 uses its own work arrays and a float32 copy of the spectrum, made once
-    per transform (``blocked_spectrum`` for ducc0, ``spectrum`` for scipy.fft): half
+    per transform (``transposed_spectrum`` for ducc0, ``spectrum`` for scipy.fft): half
     the memory traffic and half the work-array memory.
 
     Two FFT libraries give the same numbers (to round-off): ducc0 (default; it works
@@ -146,19 +156,19 @@ class KernelTransform:
         self._lock = threading.Lock()
         self._khat32: np.ndarray | None = None
         self._works: dict[str, _DuccWork] = {}
-        self._blocked: dict[str, np.ndarray] = {}
+        self._transposed: dict[str, np.ndarray] = {}
         self._floor: float | None = None
 
     def __getstate__(self) -> dict:
-        # The lock, the work arrays and the derived spectra (float32, blocked) are per
+        # The lock, the work arrays and the derived spectra (float32, transposed) are per
         # process: not pickled (an instance sent to a worker rebuilds them on first use).
         state = dict(self.__dict__)
-        state["_lock"], state["_works"], state["_khat32"], state["_blocked"] = None, {}, None, {}
+        state["_lock"], state["_works"], state["_khat32"], state["_transposed"] = None, {}, None, {}
         return state
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        for name, empty in (("_works", {}), ("_blocked", {}), ("_khat32", None), ("_floor", None)):
+        for name, empty in (("_works", {}), ("_transposed", {}), ("_khat32", None), ("_floor", None)):
             self.__dict__.setdefault(name, empty)
         self._lock = threading.Lock()
 
@@ -186,22 +196,21 @@ class KernelTransform:
             self._khat32 = self.khat.astype(np.complex64 if np.iscomplexobj(self.khat) else np.float32)
         return self._khat32
 
-    def blocked_spectrum(self, dtype: np.dtype, block: int) -> np.ndarray:
-        """The spectrum in precision ``dtype`` cut into column blocks, each contiguous:
-        shape (blocks, P0, block), the last block zero-padded.  The column pass reads
-        it block by block (a strided read of P0 short rows costs a TLB miss a row on
-        large grids; results/perf/matvec.md).  Made once per precision."""
-        key = f"{np.dtype(dtype).name}/{block}"
-        out = self._blocked.get(key)
+    def transposed_spectrum(self, dtype: object) -> np.ndarray:
+        """The spectrum in precision ``dtype``, transposed and contiguous: shape
+        ((P1/2+1), P0), so the block of columns [c, c + b) is the contiguous slab [c : c + b]
+        that the blocked column pass multiplies (``_transform_column_blocks``).  Made once per
+        precision, column block by column block (no full-size temporary)."""
+        dt = operator_dtype(dtype)
+        out = self._transposed.get(dt.name)
         if out is None:
             p0, m = self.khat.shape
-            nb = -(-m // block)
-            real = np.dtype(dtype) if not np.iscomplexobj(self.khat) else np.result_type(dtype, np.complex64)
-            out = np.zeros((nb, p0, block), dtype=real)
-            for k in range(nb):  # block by block: no full-size temporary
-                c = k * block
-                out[k, :, : min(block, m - c)] = self.khat[:, c : c + block]
-            self._blocked[key] = out
+            kind = dt if not np.iscomplexobj(self.khat) else np.result_type(dt, np.complex64)
+            out = np.empty((m, p0), dtype=kind)
+            step = 256
+            for c in range(0, m, step):
+                out[c : c + step] = self.khat[:, c : c + step].T
+            self._transposed[dt.name] = out
         return out
 
     def padded_index(self, flat_grid_idx: np.ndarray) -> np.ndarray:
@@ -288,10 +297,10 @@ class KernelTransform:
         return work.out[:, : self.grid_shape[1]]
 
     def _column_pass(self, work: "_DuccWork", workers: int) -> None:
-        """work.rows <- first N1 rows of iFFT_0(khat * FFT_0(rows zero-padded to P0)),
-        block by block of columns, the blocks shared out over ``workers`` threads; on a
-        small grid in one call per direction over the whole spectrum (``work.whole``,
-        whose first N1 rows are ``work.rows``)."""
+        """work.rows <- first N1 rows of iFFT_0(khat * FFT_0(rows zero-padded to P0)): for
+        short columns in one call per direction over the whole spectrum (``work.whole``,
+        whose first N1 rows are ``work.rows``), else block by block of columns in transposed
+        buffers, the blocks shared out over ``workers`` threads."""
         n1 = self.grid_shape[0]
         if work.whole is not None:
             spec = work.whole
@@ -300,14 +309,15 @@ class KernelTransform:
             spec *= self.spectrum(work.dtype)
             _ducc_fft.c2c(spec, axes=(0,), forward=False, inorm=2, out=spec, nthreads=workers)
             return
-        khat = self.blocked_spectrum(work.dtype, work.block)
-        chunks = [c for c in np.array_split(np.arange(work.n_blocks), max(1, workers)) if c.size]
+        khat_t = self.transposed_spectrum(work.dtype)
+        starts = np.arange(0, work.rows.shape[1], work.block)
+        chunks = [c for c in np.array_split(starts, max(1, workers)) if c.size]
         buffers = work.buffers(len(chunks))
         if len(chunks) == 1:
-            _transform_column_blocks(work.rows, khat, buffers[0], chunks[0], n1)
+            _transform_column_blocks(work.rows, khat_t, buffers[0], chunks[0], n1)
             return
         pool = _COLUMN_POOL.get(len(chunks))
-        jobs = [pool.submit(_transform_column_blocks, work.rows, khat, buf, c, n1) for buf, c in zip(buffers, chunks)]
+        jobs = [pool.submit(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)]
         for job in jobs:
             job.result()
 
@@ -316,58 +326,71 @@ class KernelTransform:
         return _DuccWork.nbytes_for(self.grid_shape, self.padded_shape, operator_dtype(dtype), fft_workers())
 
     def work_nbytes(self, dtype: object = np.float64) -> int:
-        """Kernel table + spectrum + its copy in ``dtype`` (blocked, or float32 on a small
-        grid) + the work arrays of ``dtype``."""
+        """Kernel table + spectrum + its copy in ``dtype`` (transposed, or float32 for short
+        columns) + the work arrays of ``dtype``."""
         dt = operator_dtype(dtype)
-        whole = _DuccWork.spectrum_fits(self.padded_shape, np.result_type(dt, np.complex64).itemsize)
-        copy = 0 if whole and dt == np.float64 else self.khat.nbytes * dt.itemsize // 8  # blocked, or float32
+        blocked = blocked_columns(self.padded_shape[0], np.result_type(dt, np.complex64).itemsize)
+        copy = 0 if not blocked and dt == np.float64 else self.khat.nbytes * dt.itemsize // 8  # transposed, or float32
         return int(self.table.nbytes + self.khat.nbytes + copy + self.matvec_work_nbytes(dt))
 
 
-def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64) -> Callable[[], None]:
+#: The two layouts of the column transforms that the FFT floor is timed in: "strided"
+#: (in place along axis 0 of the P0 x (P1/2+1) spectrum) and "transposed" (along the
+#: contiguous rows of a (P1/2+1) x P0 spectrum, the row transforms writing and reading it
+#: through a transposed view).  Which one is faster depends on the size and the precision;
+#: the floor of a matvec is the faster of the two (benchmarks/bench_matvec.py).
+FLOOR_LAYOUTS: tuple[str, ...] = ("strided", "transposed")
+
+
+def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layout: str = "strided") -> Callable[[], None]:
     """The FFT floor of a matvec: a function that runs only the transform pair a ducc0
     matvec needs, on arrays of its own -- row rFFTs on the N1 rows, column FFTs and
-    iFFTs over the whole P0 x (P1/2+1) spectrum, row irFFTs back (periodic: the rfft2 /
-    irfft2 pair) -- with ``fft_workers()`` threads, no scatter, gather, clearing or
+    iFFTs over the whole spectrum in ``layout`` (one of ``FLOOR_LAYOUTS``), row irFFTs
+    back on the N1 rows -- with ``fft_workers()`` threads, no scatter, gather, clearing or
     spectrum product.  Benchmarks time it beside the matvec (results/perf/matvec.md)."""
     if _ducc_fft is None:  # pragma: no cover - ducc0 is a declared dependency
         raise ProblemInputError("the FFT floor is measured with ducc0, which is not importable")
+    if layout not in FLOOR_LAYOUTS:
+        raise ProblemInputError(f"FFT floor layout {layout!r}: expected one of {', '.join(FLOOR_LAYOUTS)}")
     dt = operator_dtype(dtype)
     n1, _ = transform.grid_shape
     p0, p1 = transform.padded_shape
+    m = p1 // 2 + 1
     field_ = np.random.default_rng(0).random((n1, p1)).astype(dt)
-    spec = np.empty((p0, p1 // 2 + 1), dtype=np.result_type(dt, np.complex64))
+    cdt = np.result_type(dt, np.complex64)
     out = np.empty((n1, p1), dtype=dt)
+    if layout == "strided":
+        spec = np.empty((p0, m), dtype=cdt)
+        rows, axis = spec[:n1], 0
+    else:
+        spec = np.empty((m, p0), dtype=cdt)
+        rows, axis = spec[:, :n1].T, 1
 
     def pair() -> None:
         w = fft_workers()
-        if transform.periodic:
-            _ducc_fft.r2c(field_, axes=(0, 1), out=spec, nthreads=w)
-            _ducc_fft.c2r(spec, axes=(0, 1), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
-            return
-        _ducc_fft.r2c(field_, axes=(1,), out=spec[:n1], nthreads=w)
-        _ducc_fft.c2c(spec, axes=(0,), forward=True, out=spec, nthreads=w)
-        _ducc_fft.c2c(spec, axes=(0,), forward=False, inorm=2, out=spec, nthreads=w)
-        _ducc_fft.c2r(spec[:n1], axes=(1,), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
+        _ducc_fft.r2c(field_, axes=(1,), out=rows, nthreads=w)
+        _ducc_fft.c2c(spec, axes=(axis,), forward=True, out=spec, nthreads=w)
+        _ducc_fft.c2c(spec, axes=(axis,), forward=False, inorm=2, out=spec, nthreads=w)
+        _ducc_fft.c2r(rows, axes=(1,), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
 
     return pair
 
 
-def _transform_column_blocks(rows: np.ndarray, khat: np.ndarray, buf: np.ndarray, blocks: np.ndarray, n1: int) -> None:
-    """For each column block k in ``blocks``: copy the N1 rows into ``buf`` (P0 x b),
-    zero its padding rows, FFT along axis 0, multiply by the spectrum block khat[k],
-    iFFT, and write the first N1 rows back.  One thread's share of ``_column_pass``."""
-    b, m = buf.shape[1], rows.shape[1]
-    for k in blocks.tolist():
-        c = k * b
+def _transform_column_blocks(rows: np.ndarray, khat_t: np.ndarray, buf: np.ndarray, starts: np.ndarray, n1: int) -> None:
+    """For each block of columns [c, c + b) with c in ``starts``: copy the N1 rows in
+    transposed into ``buf`` (b x P0, each column a contiguous row), zero the padding,
+    FFT along the rows, multiply by the transposed spectrum's slab khat_t[c : c + b],
+    iFFT, and write the first N1 entries back.  One thread's share of ``_column_pass``."""
+    b, m = buf.shape[0], rows.shape[1]
+    for c in starts.tolist():
         w = min(b, m - c)
-        blk = buf[:, :w]
-        blk[:n1] = rows[:, c : c + w]
-        blk[n1:] = 0.0
-        _ducc_fft.c2c(blk, axes=(0,), forward=True, out=blk, nthreads=1)
-        blk *= khat[k, :, :w]
-        _ducc_fft.c2c(blk, axes=(0,), forward=False, inorm=2, out=blk, nthreads=1)
-        rows[:, c : c + w] = blk[:n1]
+        blk = buf[:w]
+        _ducc_transpose(rows[:, c : c + w].T, blk[:, :n1])
+        blk[:, n1:] = 0.0
+        _ducc_fft.c2c(blk, axes=(1,), forward=True, out=blk, nthreads=1)
+        blk *= khat_t[c : c + w]
+        _ducc_fft.c2c(blk, axes=(1,), forward=False, inorm=2, out=blk, nthreads=1)
+        rows[:, c : c + w] = blk[:, :n1].T
 
 
 #: Row runs closer than this many rows are merged (one transform call instead of two).
@@ -404,12 +427,11 @@ class _DuccWork:
         self.dtype = np.dtype(dtype)
         self.cdtype = np.result_type(self.dtype, np.complex64)
         self.field = np.zeros((n1, p1), dtype=self.dtype)
-        small = self.spectrum_fits((p0, p1), self.cdtype.itemsize)
-        self.whole = np.empty((p0, p1 // 2 + 1), dtype=self.cdtype) if small else None
+        blocked = blocked_columns(p0, self.cdtype.itemsize)
+        self.whole = None if blocked else np.empty((p0, p1 // 2 + 1), dtype=self.cdtype)
         self.rows = self.whole[:n1] if self.whole is not None else np.empty((n1, p1 // 2 + 1), dtype=self.cdtype)
         self.out = np.empty((n1, p1), dtype=self.dtype)
         self.block = column_block(p0, self.cdtype.itemsize)
-        self.n_blocks = -(-(p1 // 2 + 1) // self.block)
         self._buffers: list[np.ndarray] = []
         self._dirty: np.ndarray | None = None  # the index array written last time (None: none)
         self._dirty_all = False
@@ -419,25 +441,19 @@ class _DuccWork:
         self.out_runs: list[tuple[int, int]] = [(0, n1)]  # rows the caller reads
 
     @staticmethod
-    def spectrum_fits(padded_shape: tuple[int, int], complex_itemsize: int) -> bool:
-        """Whether the column pass runs on the whole spectrum (``WHOLE_SPECTRUM_BYTES``)."""
-        p0, p1 = padded_shape
-        return p0 * (p1 // 2 + 1) * complex_itemsize <= WHOLE_SPECTRUM_BYTES
-
-    @staticmethod
     def nbytes_for(grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype, workers: int) -> int:
         n1, _ = grid_shape
         p0, p1 = padded_shape
         item = np.dtype(dtype).itemsize
-        if _DuccWork.spectrum_fits(padded_shape, 2 * item):  # whole spectrum, no block buffers
+        if not blocked_columns(p0, 2 * item):  # whole spectrum, no block buffers
             return int(2 * item * n1 * p1 + 2 * item * p0 * (p1 // 2 + 1))
         block = column_block(p0, 2 * item)
         return int(2 * item * n1 * p1 + 2 * item * n1 * (p1 // 2 + 1) + max(1, workers) * 2 * item * p0 * block)
 
     def buffers(self, count: int) -> list[np.ndarray]:
-        """``count`` column-block buffers (P0 x block complex), one per thread."""
+        """``count`` column-block buffers (block x P0 complex), one per thread."""
         while len(self._buffers) < count:
-            self._buffers.append(np.empty((self.p0, self.block), dtype=self.cdtype))
+            self._buffers.append(np.empty((self.block, self.p0), dtype=self.cdtype))
         return self._buffers[:count]
 
     def _is_whole_grid(self, pidx: np.ndarray) -> bool:

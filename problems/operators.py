@@ -30,6 +30,7 @@ from scipy.sparse.linalg import LinearOperator
 
 from .errors import MemoryBudgetError, ProblemInputError
 from .fft_transform import (  # noqa: F401 -- re-exported: the operator's public FFT names
+    FLOOR_LAYOUTS,
     PRECISIONS,
     KernelTransform,
     _ducc_fft,

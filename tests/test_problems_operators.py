@@ -19,10 +19,11 @@ FORMULAS = {"bcc": bcc_coefficients, "love": love_coefficients}
 @pytest.fixture(autouse=True, params=["whole", "blocked"])
 def column_pass(request, monkeypatch) -> str:
     """Every test of this module runs with both column passes of the ducc0 matvec: one call
-    per direction over the whole spectrum (small grids) and block by block (large grids)."""
+    per direction over the whole spectrum (short columns) and block by block in transposed
+    buffers (long columns)."""
     from contactbench.problems import fft_transform
 
-    monkeypatch.setattr(fft_transform, "WHOLE_SPECTRUM_BYTES", 1 << 62 if request.param == "whole" else 0)
+    monkeypatch.setattr(fft_transform, "TRANSPOSED_COLUMN_BYTES", 1 << 62 if request.param == "whole" else 0)
     return request.param
 
 
@@ -289,8 +290,10 @@ def test_float32_operator_pickles_and_reports_half_the_work_memory() -> None:
 
 @pytest.mark.parametrize("periodic", [False, True])
 def test_fft_floor_pair_runs_the_transform_pair_on_its_own_arrays(periodic: bool) -> None:
-    """The benchmark's FFT floor runs in both precisions and leaves the operator's work alone."""
-    from contactbench.problems.operators import fft_floor_pair
+    """The benchmark's FFT floor runs in both precisions and both layouts, leaves the
+    operator's work alone, and names an unknown layout."""
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.problems.operators import FLOOR_LAYOUTS, fft_floor_pair
 
     rng = np.random.default_rng(8)
     idx = random_subset(rng, 0.5)
@@ -298,8 +301,11 @@ def test_fft_floor_pair_runs_the_transform_pair_on_its_own_arrays(periodic: bool
     x = rng.normal(size=idx.size)
     y = op.matvec(x)
     for dtype in (np.float64, np.float32):
-        fft_floor_pair(op.transform, dtype)()
+        for layout in FLOOR_LAYOUTS:
+            fft_floor_pair(op.transform, dtype, layout)()
     np.testing.assert_allclose(op.matvec(x), y, rtol=1e-13, atol=0)
+    with pytest.raises(ProblemInputError, match="layout 'diagonal'"):
+        fft_floor_pair(op.transform, np.float64, "diagonal")
 
 
 def test_small_trial_sets_switch_to_the_dense_block_with_the_same_numbers() -> None:
