@@ -18,7 +18,7 @@ matvecs, each on a 4x smaller grid, are in "coarse_matvecs" and in "matvecs").  
 combination is one child process.  The FFT floor of each precision
 (``problems.operators.fft_floor_pair``, the faster of its layouts, best of 5, timed in the same child) is in
 "floor64_ms" / "floor32_ms"; "ms_per_matvec" is solve seconds over matvecs (all work of
-the solve included), "peak_rss_mib" the child's peak.
+the solve included), "peak_rss_mib" the child's peak up to the end of the solve (read before the floors are timed).
 
 Usage: python benchmarks/bench_large.py [--sizes 2048,4096] [--solvers fast-dual-pccg,fast-ccg]
        [--precisions double,mixed] [--first-guesses zero,coarse] [--backends ducc,scipy]
@@ -59,18 +59,18 @@ except ImportError:  # pragma: no cover
 
 def floor_ms(transform, dtype: type) -> float | str:
     """Best of 5 of the bare FFT pair a matvec of ``dtype`` needs (ms), in the faster of
-    its layouts, or "" without it."""
+    its layouts (one layout's arrays alive at a time), or "" without it."""
     if fft_floor_pair is None or fft_backend() != "ducc":
         return ""
-    pairs = [fft_floor_pair(transform, dtype, layout) for layout in FLOOR_LAYOUTS] or [fft_floor_pair(transform, dtype)]
     best = np.inf
-    for pair in pairs:
+    for layout in FLOOR_LAYOUTS or (None,):
+        pair = fft_floor_pair(transform, dtype, layout) if layout else fft_floor_pair(transform, dtype)
         pair()
-    for _ in range(5):
-        for pair in pairs:
+        for _ in range(5):
             t = time.perf_counter()
             pair()
             best = min(best, time.perf_counter() - t)
+        del pair
     return round(1e3 * best, 1)
 
 
@@ -88,6 +88,7 @@ def solve_one(N: int, solver: str, fraction: float, tol: float, precision: str, 
     res, dt = step.result, step.seconds
     assert res is not None, step.error
     info = res.info
+    peak_rss_mib = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)  # before the floors' arrays
     return {
         "N": N, "n": inst.n, "solver": solver, "precision": precision, "first_guess": first_guess,
         "fft": fft_backend(), "threads": fft_workers(),
@@ -100,7 +101,7 @@ def solve_one(N: int, solver: str, fraction: float, tol: float, precision: str, 
         "kkt": f"{step.kkt_error:.2e}", "load_N": f"{inst.load(res.p):.8e}",
         "contact_fraction": round(inst.contact_fraction(res.p), 6),
         "operator_state_mib": round(op.memory_nbytes / 2**20),
-        "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0),
+        "peak_rss_mib": peak_rss_mib,
     }
 
 

@@ -126,8 +126,9 @@ class KernelTransform:
     only the N1 x (P1/2+1) half spectrum is held and nothing is cleared in memory);
     the blocks are copied in transposed, so each column is a contiguous row of the
     buffer, and shared out over ``fft_workers()`` threads; short columns
-    (``blocked_columns``) take one call per direction over the whole spectrum instead.  Row transforms run
-    only on the rows holding input and back only on the rows that are read (``row_runs``).
+    (``blocked_columns``) take one call per direction over the whole spectrum instead.
+    Row transforms run only on the rows holding input and back only on the rows that are
+    read (``row_runs``).
 
     Precision: every convolution runs in float64 or float32 (``dtype`` argument).
     float32 uses its own work arrays and a float32 copy of the spectrum, made once
