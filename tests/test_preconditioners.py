@@ -263,7 +263,6 @@ def test_far_field_correction_cuts_the_cg_iterations_on_a_contact_set():
     assert counts["farfield"] < 0.85 * counts["islands"], counts
 
 
-
 class _Stalling:
     """The island preconditioner with a badly scaled (still SPD) part on top, which makes
     Polonsky-Keer crawl until ``simplify`` drops it."""
