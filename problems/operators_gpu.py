@@ -33,7 +33,7 @@ import subprocess
 import sys
 from collections import OrderedDict
 from types import ModuleType
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -133,11 +133,20 @@ class ArrayKernelTransform(KernelTransform):
         dt = operator_dtype(dtype)
         with self._lock:
             dev = self._state()
-            d_idx = dev.indices(pidx)
-            field = dev.xp.zeros((self.grid_shape[0], self.padded_shape[1]), dtype=dt)
-            field.ravel()[d_idx] = dev.xp.asarray(x, dtype=dt)
-            out = self._convolve_rows(dev, field)
-            return to_host(out.ravel()[d_idx])
+            return to_host(self._apply_on_device(dev, dev.indices(pidx), dev.xp.asarray(x, dtype=dt)))
+
+    def device_apply(self, pidx: np.ndarray, x: Any) -> Any:
+        """``apply_on_set`` with x and the result on the device (no host transfers): the
+        matvec a device-resident solver would call, in the precision of ``x``."""
+        operator_dtype(x.dtype)
+        with self._lock:
+            dev = self._state()
+            return self._apply_on_device(dev, dev.indices(pidx), x)
+
+    def _apply_on_device(self, dev: "_DeviceState", d_idx: Any, d_x: Any) -> Any:
+        field = dev.xp.zeros((self.grid_shape[0], self.padded_shape[1]), dtype=d_x.dtype)
+        field.ravel()[d_idx] = d_x
+        return self._convolve_rows(dev, field).ravel()[d_idx]
 
     def convolve_physical(self, f: np.ndarray, dtype: object = np.float64) -> np.ndarray:
         """(K * f) on the physical N1 x N2 grid for a field f given on it (host arrays)."""
@@ -246,6 +255,24 @@ class ArrayFFTOperator(FFTOperator):
         return self._same_kind(super()._in_precision(dtype))
 
 
+def device_floor_pair(transform: ArrayKernelTransform, dtype: object = np.float64) -> Callable[[], Any]:
+    """The FFT floor of a device matvec (the GPU counterpart of ``fft_floor_pair``): a
+    function that runs only the pruned transform pair on device arrays of its own -- row
+    rFFTs on the N1 rows, column FFT and iFFT of length P0, row irFFTs -- with no scatter,
+    gather, product or transfer.  It returns the last array (the caller synchronises)."""
+    dt = operator_dtype(dtype)
+    xp = transform.xp
+    n1 = transform.grid_shape[0]
+    p0, p1 = transform.padded_shape
+    field = xp.asarray(np.random.default_rng(0).random((n1, p1)).astype(dt))
+
+    def pair() -> Any:
+        spec = xp.fft.fft(xp.fft.rfft(field, axis=1), n=p0, axis=0)
+        return xp.fft.irfft(xp.fft.ifft(spec, axis=0)[:n1], n=p1, axis=1)
+
+    return pair
+
+
 def array_fft_operator(host: KernelTransform, grid_idx: np.ndarray, xp: str = "cupy") -> ArrayFFTOperator:
     """H_II on the array module ``xp`` for the grid indices ``grid_idx`` of ``host``'s grid."""
     return ArrayFFTOperator(ArrayKernelTransform.from_host(host, xp), grid_idx)
@@ -256,6 +283,7 @@ __all__ = [
     "ArrayFFTOperator",
     "ArrayKernelTransform",
     "array_fft_operator",
+    "device_floor_pair",
     "array_module",
     "gpu_unavailable_reason",
 ]

@@ -20,7 +20,9 @@ from contactbench.problems.operators_gpu import (
     ArrayFFTOperator,
     ArrayKernelTransform,
     array_module,
+    device_floor_pair,
     gpu_unavailable_reason,
+    to_host,
 )
 from contactbench.problems.surfaces import rmd_surface_n
 
@@ -118,6 +120,34 @@ def test_float32_precision_agrees_to_single_precision_and_stays_on_the_array_mod
     assert isinstance(sub, ArrayFFTOperator) and sub.dtype == np.float32
     assert_close(sub.matvec(x[::2]).astype(np.float64), cpu.restrict(np.arange(0, idx.size, 2)).matvec(x[::2]),
                  rtol=1e-5)
+
+
+@pytest.mark.parametrize("xp", ["numpy", pytest.param("cupy", marks=needs_gpu)])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_device_apply_is_the_matvec_without_transfers(xp: str, dtype: type) -> None:
+    rng = np.random.default_rng(13)
+    idx = np.sort(rng.choice(400, 250, replace=False))
+    cpu, arr = operator_pair("bcc", False, (20, 20), idx, xp=xp)
+    mod = arr.transform.xp
+    x = rng.random(idx.size)
+    y = arr.transform.device_apply(arr.pidx, mod.asarray(x.astype(dtype)))
+    assert isinstance(y, mod.ndarray) and y.dtype == dtype
+    assert_close(to_host(y).astype(np.float64), cpu.matvec(x), rtol=1e-12 if dtype == np.float64 else 1e-5)
+    with pytest.raises(ProblemInputError, match="float64 or float32"):
+        arr.transform.device_apply(arr.pidx, mod.asarray(x.astype(np.float16)))
+
+
+@pytest.mark.parametrize("xp", ["numpy", pytest.param("cupy", marks=needs_gpu)])
+@pytest.mark.parametrize("periodic", [False, True])
+def test_device_floor_pair_is_the_bare_transform_pair(xp: str, periodic: bool) -> None:
+    """Without the spectrum product the floor's pair is the identity on the N1 rows it reads."""
+    cpu, arr = operator_pair("bcc", periodic, (12, 18), np.arange(12 * 18), xp=xp)
+    pair = device_floor_pair(arr.transform, np.float64)
+    out = to_host(pair())
+    n1, p1 = arr.transform.grid_shape[0], arr.transform.padded_shape[1]
+    field = np.random.default_rng(0).random((n1, p1))
+    assert out.shape == (n1, p1) and np.allclose(out, field, atol=1e-12)
+    assert to_host(device_floor_pair(arr.transform, np.float32)()).dtype == np.float32
 
 
 def test_pickles_after_use_without_device_state() -> None:
