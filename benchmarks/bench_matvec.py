@@ -6,11 +6,12 @@ load step, Delta = (xi_max - xi_mean)/2 -- this times one H_II x product of the 
 operator (problems/operators.py) in each precision (``with_precision``) and, in the
 same run and interleaved with it, the FFT floor of that precision
 (``fft_floor_pair``: the bare pruned r2c / c2c / c2c / c2r calls a matvec needs on the
-padded grid, nothing else), timed in both column layouts (``FLOOR_LAYOUTS``: strided,
-transposed); floor_ms is the faster.  ratio = matvec_ms / floor_ms (issue 18 target: <= 1.2).
+padded grid, nothing else), timed in each of ``FLOOR_LAYOUTS`` (column transforms strided
+or transposed; row transforms in one ducc0 call per direction, or in the matvec's row
+blocks); floor_ms is the fastest.  ratio = matvec_ms / floor_ms (issue 18 target: <= 1.2).
 
 Memory: work_mib is the operator's FFT work arrays in that precision (what a matvec
-runs in: field, half spectrum, result rows, column-block buffers); peak_mib is
+runs in: half spectrum, row-block and column-block buffers); peak_mib is
 tracemalloc's peak over one product (its temporaries: the gathered result, x cast);
 held_mib is everything the operator holds (kernel table, spectrum (+ float32 copy),
 work arrays, index arrays).
@@ -49,9 +50,10 @@ class MatvecRow:
     dtype: str
     fft_workers: int
     matvec_ms: float
-    floor_ms: float  # the faster of the layouts' floors
-    floor_strided_ms: float
+    floor_ms: float  # the fastest of the layouts' floors
+    floor_strided_ms: float  # row transforms in one ducc0 call per direction
     floor_transposed_ms: float
+    floor_row_blocks_ms: float  # the faster column layout with the matvec's row blocks
     ratio: float
     work_mib: float
     peak_mib: float
@@ -110,11 +112,12 @@ def bench_size(N: int, periodic: bool, workers: int, repeats: int, set_names: tu
             fns = {f"floor_{layout}": fft_floor_pair(builder.transform, dtype, layout) for layout in FLOOR_LAYOUTS}
             ms = interleaved_best({"matvec": lambda: op.matvec(x), **fns}, repeats)
             ms["floor"] = min(ms[k] for k in fns)
+            ms["floor_row_blocks"] = min((v for k, v in ms.items() if k.endswith("-row-blocks")), default=float("nan"))
             del fns
             diff = float(np.linalg.norm(op.matvec(x) - y64) / np.linalg.norm(y64))
             rows.append(MatvecRow(
                 N, periodic, label, op.n, np.dtype(dtype).name, workers, ms["matvec"], ms["floor"],
-                ms["floor_strided"], ms["floor_transposed"], ms["matvec"] / ms["floor"], op.matvec_work_nbytes / 2**20, traced_peak_mib(lambda: op.matvec(x)),
+                ms["floor_strided"], ms["floor_transposed"], ms["floor_row_blocks"], ms["matvec"] / ms["floor"], op.matvec_work_nbytes / 2**20, traced_peak_mib(lambda: op.matvec(x)),
                 op.memory_nbytes / 2**20, diff,
             ))
     return rows
@@ -135,10 +138,10 @@ def main() -> None:
         w = csv.DictWriter(fh, fieldnames=list(asdict(rows[0])))
         w.writeheader()
         w.writerows(asdict(r) for r in rows)
-    print(f"{'N':>5} {'trial set':<15} {'n':>8} {'dtype':<8} {'thr':>3} {'matvec ms':>10} {'floor ms':>9} {'strided':>8} {'transp.':>8} {'ratio':>6} "
+    print(f"{'N':>5} {'trial set':<15} {'n':>8} {'dtype':<8} {'thr':>3} {'matvec ms':>10} {'floor ms':>9} {'strided':>8} {'transp.':>8} {'row-blk':>8} {'ratio':>6} "
           f"{'work MiB':>9} {'peak MiB':>9} {'held MiB':>9} {'vs f64':>8}")
     for r in rows:
-        print(f"{r.N:>5} {r.trial_set:<15} {r.n:>8} {r.dtype:<8} {r.fft_workers:>3} {r.matvec_ms:>10.2f} {r.floor_ms:>9.2f} {r.floor_strided_ms:>8.2f} {r.floor_transposed_ms:>8.2f} "
+        print(f"{r.N:>5} {r.trial_set:<15} {r.n:>8} {r.dtype:<8} {r.fft_workers:>3} {r.matvec_ms:>10.2f} {r.floor_ms:>9.2f} {r.floor_strided_ms:>8.2f} {r.floor_transposed_ms:>8.2f} {r.floor_row_blocks_ms:>8.2f} "
               f"{r.ratio:>6.2f} {r.work_mib:>9.1f} {r.peak_mib:>9.2f} {r.held_mib:>9.1f} {r.rel_diff_vs_float64:>8.1e}")
     print(f"written to {args.out}")
 

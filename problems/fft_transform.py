@@ -1,6 +1,7 @@
 """The FFT machinery of the matrix-free operator (problems/operators.py): the kernel's
 transform shared by every restriction of one instance (``KernelTransform``), its pruned
-ducc0 convolution in cached work arrays, the column pass done in cache-sized blocks, the
+ducc0 convolution in cached work arrays, the row and column passes done in cache-sized
+blocks, the
 thread and precision settings, and ``fft_floor_pair`` -- the bare transform pair one
 matvec needs, the floor its cost is compared with (benchmarks/bench_matvec.py).
 """
@@ -11,6 +12,7 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Callable
 
 import numpy as np
@@ -74,6 +76,42 @@ COLUMN_BLOCK_BYTES = 1 << 19
 TRANSPOSED_COLUMN_BYTES = 1 << 15
 
 
+#: Rows are transformed in blocks of about this many bytes of padded rows (P1 real entries
+#: each): the block's input is copied or scattered into a small per-thread buffer, whose
+#: padding stays zero, and transformed from there; on the way back a block is transformed
+#: into a second buffer and read from it.  The N1 x P1 input and output fields are never
+#: built, and the copies happen in cache (results/perf/matvec.md, session 9).
+ROW_BLOCK_BYTES = 1 << 19
+
+#: At most this many rows a block in float32 for rows of at least ``FLOAT32_LONG_ROW``
+#: points.  ducc0 0.42 on AVX-512 transforms 16 float32 rows at a time in its vector
+#: lanes, and that path is slow for long rows: the irFFT of the 2048 rows of a 2048^2
+#: product takes 10.7 ms in one call and 3.4 ms in calls of 8 rows (rFFT 3.8 -> 3.1 ms;
+#: 4096^2 irFFT 44 -> 13 ms; 512^2 1.26 -> 0.38 ms; results/perf/matvec.md, session 9).
+#: On shorter rows the calls' own cost outweighs it.
+FLOAT32_ROW_BLOCK = 8
+FLOAT32_LONG_ROW = 1024
+
+
+def row_block(p1: int, itemsize: int = 8) -> int:
+    """Rows per block: a power of two in 1..64 with rows * P1 * 8 ~ ROW_BLOCK_BYTES; in
+    float32 (``itemsize`` 4) as many, at most ``FLOAT32_ROW_BLOCK`` on long rows."""
+    b = max(1, ROW_BLOCK_BYTES // max(1, 8 * p1))
+    rows = int(min(64, 1 << (b.bit_length() - 1)))
+    return min(rows, FLOAT32_ROW_BLOCK) if itemsize == 4 and p1 >= FLOAT32_LONG_ROW else rows
+
+
+#: Row blocks are shared over threads only for grids of at least this many padded-row
+#: entries per thread (N1 x P1): below, one thread does them (a thread's dispatch costs
+#: more than its share of a small grid's rows).
+ROW_THREAD_ENTRIES = 1 << 17
+
+
+def row_threads(n1: int, p1: int, workers: int) -> int:
+    """Threads for the row blocks of an N1 x P1 padded-row field (``ROW_THREAD_ENTRIES``)."""
+    return int(min(max(1, workers), max(1, n1 * p1 // ROW_THREAD_ENTRIES)))
+
+
 def column_block(p0: int, complex_itemsize: int) -> int:
     """Columns per block: a power of two in 4..64 with b * P0 * itemsize ~ COLUMN_BLOCK_BYTES."""
     b = max(1, COLUMN_BLOCK_BYTES // max(1, p0 * complex_itemsize))
@@ -85,9 +123,9 @@ def blocked_columns(p0: int, complex_itemsize: int) -> bool:
     return p0 * complex_itemsize >= TRANSPOSED_COLUMN_BYTES
 
 
-class _ColumnPool:
-    """Threads that share the column blocks of one convolution (ducc0 releases the
-    GIL).  Made on first use; a forked child forgets its parent's pool."""
+class _BlockPool:
+    """Threads that share the row and column blocks of one convolution (ducc0 and numpy's
+    copies release the GIL).  Made on first use; a forked child forgets its parent's pool."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -104,9 +142,19 @@ class _ColumnPool:
         self._lock, self._pool, self._size = threading.Lock(), None, 0
 
 
-_COLUMN_POOL = _ColumnPool()
+_POOL = _BlockPool()
 if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_COLUMN_POOL.forget)
+    os.register_at_fork(after_in_child=_POOL.forget)
+
+
+def _share(jobs: list[Callable[[], None]]) -> None:
+    """Run ``jobs``, one thread of the pool each (in this thread when there is one)."""
+    if len(jobs) == 1:
+        jobs[0]()
+        return
+    pool = _POOL.get(len(jobs))
+    for done in [pool.submit(job) for job in jobs]:
+        done.result()
 
 
 @dataclass
@@ -127,8 +175,11 @@ class KernelTransform:
     the blocks are copied in transposed, so each column is a contiguous row of the
     buffer, and shared out over ``fft_workers()`` threads; short columns
     (``blocked_columns``) take one call per direction over the whole spectrum instead.
-    Row transforms run only on the rows holding input and back only on the rows that are
-    read (``row_runs``).
+    The row transforms run block by block of rows (``ROW_BLOCK_BYTES``, ``_RowPlan``): the
+    block's input is copied or scattered into a small buffer and transformed from there,
+    only over the rows from its first to its last non-zero input; on the way back only the
+    rows holding points are transformed, into a second buffer that the result is read
+    from.  The blocks are shared out over the threads too.
 
     Precision: every convolution runs in float64 or float32 (``dtype`` argument).
     float32 uses its own work arrays and a float32 copy of the spectrum, made once
@@ -228,14 +279,14 @@ class KernelTransform:
 
     def convolve_physical(self, f: np.ndarray, dtype: object = np.float64) -> np.ndarray:
         """(K * f) on the physical N1 x N2 grid (a new array, in precision ``dtype``) for
-        a field f given on it (zero elsewhere on the padded grid).  ``f`` may be overwritten."""
+        a field f given on it (zero elsewhere on the padded grid)."""
         dt = operator_dtype(dtype)
         if fft_backend() == "ducc":
+            out = np.empty(self.grid_shape, dtype=dt)
             with self._lock:
-                work = self._ducc_work(dt)
-                work.load_field(f)
-                return np.array(self._ducc_convolve(work), copy=True)
-        return self._scipy_convolve(np.asarray(f, dtype=dt))
+                self._ducc_convolve(self._ducc_work(dt), None, np.asarray(f), out)
+            return out
+        return self._scipy_convolve(np.array(f, dtype=dt))
 
     def apply_on_set(self, pidx: np.ndarray, x: np.ndarray, dtype: object = np.float64) -> np.ndarray:
         """gather_I (K * scatter_I x) for the points with padded flat indices ``pidx``:
@@ -243,11 +294,10 @@ class KernelTransform:
         when ducc is used."""
         dt = operator_dtype(dtype)
         if fft_backend() == "ducc":
+            out = np.empty(pidx.size, dtype=dt)
             with self._lock:
-                work = self._ducc_work(dt)
-                work.load_points(pidx, x)
-                self._ducc_convolve(work)
-                return work.gather(pidx)
+                self._ducc_convolve(self._ducc_work(dt), pidx, np.asarray(x), out)
+            return out
         n1, n2 = self.grid_shape
         i, j = np.divmod(np.asarray(pidx), self.padded_shape[1])
         f = np.zeros((n1, n2), dtype=dt)
@@ -278,24 +328,22 @@ class KernelTransform:
             work = self._works[dtype.name] = _DuccWork(self.grid_shape, self.padded_shape, dtype)
         return work
 
-    def _ducc_convolve(self, work: "_DuccWork") -> np.ndarray:
-        """K * (work.field) with ducc0, in the work arrays; returns a view of the
-        physical N1 x N2 result (valid until the next call).  Row transforms run only
-        on ``work.in_runs`` (the rows holding non-zero input; the others' spectra are
-        zero) and back only on ``work.out_runs`` (the rows that will be read)."""
+    def _ducc_convolve(self, work: "_DuccWork", pidx: np.ndarray | None, x: np.ndarray, out: np.ndarray) -> None:
+        """out <- gather (K * scatter x) with ducc0: x and out hold the values at the padded
+        flat indices ``pidx``, or the whole physical grid when ``pidx`` is None or is the
+        whole grid in row-major order.  Row blocks (``_RowPlan``) and the column pass are
+        shared out over ``fft_workers()`` threads."""
         w = fft_workers()
         self.fft_count += 2
-        p1 = self.padded_shape[1]
-        start = 0
-        for a, b in work.in_runs:
-            work.rows[start:a] = 0.0
-            _ducc_fft.r2c(work.field[a:b], axes=(1,), out=work.rows[a:b], nthreads=w)
-            start = b
-        work.rows[start:] = 0.0
+        plan = work.plan(pidx)
+        if plan.whole:
+            x, out = np.reshape(x, self.grid_shape), np.reshape(out, self.grid_shape)
+        threads = row_threads(work.n1, work.p1, w)
+        chunks = [c for c in np.array_split(np.arange(plan.blocks), threads) if c.size]
+        buffers = work.row_buffers(len(chunks))
+        _share([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
         self._column_pass(work, w)
-        for a, b in work.out_runs:
-            _ducc_fft.c2r(work.rows[a:b], axes=(1,), lastsize=p1, forward=False, inorm=2, out=work.out[a:b], nthreads=w)
-        return work.out[:, : self.grid_shape[1]]
+        _share([partial(_rows_back, work, plan, out, c, b) for c, b in zip(chunks, buffers)])
 
     def _column_pass(self, work: "_DuccWork", workers: int) -> None:
         """work.rows <- first N1 rows of iFFT_0(khat * FFT_0(rows zero-padded to P0)): for
@@ -314,13 +362,7 @@ class KernelTransform:
         starts = np.arange(0, work.rows.shape[1], work.block)
         chunks = [c for c in np.array_split(starts, max(1, workers)) if c.size]
         buffers = work.buffers(len(chunks))
-        if len(chunks) == 1:
-            _transform_column_blocks(work.rows, khat_t, buffers[0], chunks[0], n1)
-            return
-        pool = _COLUMN_POOL.get(len(chunks))
-        jobs = [pool.submit(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)]
-        for job in jobs:
-            job.result()
+        _share([partial(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)])
 
     def matvec_work_nbytes(self, dtype: object = np.float64) -> int:
         """Bytes of the work arrays of one precision (what a matvec touches besides the spectrum)."""
@@ -335,19 +377,21 @@ class KernelTransform:
         return int(self.table.nbytes + self.khat.nbytes + copy + self.matvec_work_nbytes(dt))
 
 
-#: The two layouts of the column transforms that the FFT floor is timed in: "strided"
-#: (in place along axis 0 of the P0 x (P1/2+1) spectrum) and "transposed" (along the
-#: contiguous rows of a (P1/2+1) x P0 spectrum, the row transforms writing and reading it
-#: through a transposed view).  Which one is faster depends on the size and the precision;
-#: the floor of a matvec is the faster of the two (benchmarks/bench_matvec.py).
-FLOOR_LAYOUTS: tuple[str, ...] = ("strided", "transposed")
+#: The layouts the FFT floor is timed in.  Column transforms: "strided" (in place along
+#: axis 0 of the P0 x (P1/2+1) spectrum) or "transposed" (along the contiguous rows of a
+#: (P1/2+1) x P0 spectrum, the row transforms writing and reading it through a transposed
+#: view).  Row transforms: one ducc0 call per direction over the N1 rows with ducc0's own
+#: threads, or, with "-row-blocks", the matvec's row blocks (``row_block`` rows a call,
+#: shared over the threads).  Which is fastest depends on the size and the precision; the
+#: floor of a matvec is the fastest of them (benchmarks/bench_matvec.py).
+FLOOR_LAYOUTS: tuple[str, ...] = ("strided", "transposed", "strided-row-blocks", "transposed-row-blocks")
 
 
 def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layout: str = "strided") -> Callable[[], None]:
     """The FFT floor of a matvec: a function that runs only the transform pair a ducc0
     matvec needs, on arrays of its own -- row rFFTs on the N1 rows, column FFTs and
-    iFFTs over the whole spectrum in ``layout`` (one of ``FLOOR_LAYOUTS``), row irFFTs
-    back on the N1 rows -- with ``fft_workers()`` threads, no scatter, gather, clearing or
+    iFFTs over the whole spectrum, row irFFTs back on the N1 rows, in ``layout`` (one of
+    ``FLOOR_LAYOUTS``) -- with ``fft_workers()`` threads, no scatter, gather, clearing or
     spectrum product.  Benchmarks time it beside the matvec (results/perf/matvec.md)."""
     if _ducc_fft is None:  # pragma: no cover - ducc0 is a declared dependency
         raise ProblemInputError("the FFT floor is measured with ducc0, which is not importable")
@@ -360,21 +404,41 @@ def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layou
     field_ = np.random.default_rng(0).random((n1, p1)).astype(dt)
     cdt = np.result_type(dt, np.complex64)
     out = np.empty((n1, p1), dtype=dt)
-    if layout == "strided":
+    if layout.startswith("strided"):
         spec = np.empty((p0, m), dtype=cdt)
         rows, axis = spec[:n1], 0
     else:
         spec = np.empty((m, p0), dtype=cdt)
         rows, axis = spec[:, :n1].T, 1
+    rb = row_block(p1, dt.itemsize) if layout.endswith("-row-blocks") else n1
+
+    def forward(starts: np.ndarray, w: int) -> None:
+        for a in starts.tolist():
+            _ducc_fft.r2c(field_[a : a + rb], axes=(1,), out=rows[a : a + rb], nthreads=w)
+
+    def back(starts: np.ndarray, w: int) -> None:
+        for a in starts.tolist():
+            _ducc_fft.c2r(rows[a : a + rb], axes=(1,), lastsize=p1, forward=False, inorm=2, out=out[a : a + rb], nthreads=w)
 
     def pair() -> None:
         w = fft_workers()
-        _ducc_fft.r2c(field_, axes=(1,), out=rows, nthreads=w)
+        _rows_in_threads(forward, n1, p1, rb, w)
         _ducc_fft.c2c(spec, axes=(axis,), forward=True, out=spec, nthreads=w)
         _ducc_fft.c2c(spec, axes=(axis,), forward=False, inorm=2, out=spec, nthreads=w)
-        _ducc_fft.c2r(rows, axes=(1,), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
+        _rows_in_threads(back, n1, p1, rb, w)
 
     return pair
+
+
+def _rows_in_threads(fn: Callable[[np.ndarray, int], None], n1: int, p1: int, rb: int, workers: int) -> None:
+    """fn(starts, nthreads) over the row blocks of ``rb`` rows: one call with ducc0's own
+    ``workers`` threads when a block is all the rows, else the blocks shared over the
+    pool's ``row_threads`` threads, as the matvec shares them."""
+    if rb >= n1:
+        fn(np.zeros(1, np.int64), workers)
+        return
+    chunks = [c for c in np.array_split(np.arange(0, n1, rb), row_threads(n1, p1, workers)) if c.size]
+    _share([partial(fn, c, 1) for c in chunks])
 
 
 def _transform_column_blocks(rows: np.ndarray, khat_t: np.ndarray, buf: np.ndarray, starts: np.ndarray, n1: int) -> None:
@@ -394,32 +458,87 @@ def _transform_column_blocks(rows: np.ndarray, khat_t: np.ndarray, buf: np.ndarr
         rows[:, c : c + w] = blk[:, :n1].T
 
 
-#: Row runs closer than this many rows are merged (one transform call instead of two).
-RUN_GAP = 8
+@dataclass
+class _RowPlan:
+    """Where the points of one index set fall in the row blocks of ``row_block`` rows:
+    block k holds rows [k * rows, (k + 1) * rows) and the points at positions seg[k]:seg[k+1]
+    of the set in increasing index order (``order``: that order as positions in the set,
+    None when the set is increasing already), at flat offsets ``local`` inside the block's
+    rows (row * P1 + column).  ``whole``: the whole physical grid in row-major order, read
+    and written as blocks of rows with no indices."""
+
+    key: np.ndarray | None
+    whole: bool
+    rows: int
+    blocks: int
+    seg: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    local: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    order: np.ndarray | None = None
 
 
-def row_runs(rows: np.ndarray, n1: int) -> list[tuple[int, int]]:
-    """Half-open runs [a, b) of the rows in ``rows`` (any order, repeats allowed) among
-    0..n1-1, runs less than ``RUN_GAP`` rows apart merged."""
-    flags = np.zeros(n1 + 1, dtype=bool)
-    flags[rows] = True
-    edges = np.flatnonzero(np.diff(np.r_[False, flags].view(np.int8)))
-    starts, ends = edges[0::2], edges[1::2]
-    if starts.size == 0:
-        return []
-    keep = np.r_[True, starts[1:] - ends[:-1] >= RUN_GAP]
-    return list(zip(starts[keep].tolist(), np.r_[ends[:-1][keep[1:]], ends[-1]].tolist()))
+def _rows_forward(work: "_DuccWork", plan: _RowPlan, x: np.ndarray, blocks: np.ndarray, bufs: tuple) -> None:
+    """work.rows <- the row rFFTs of the input, block by block in ``bufs[0]``: the block's
+    values copied (whole grid) or scattered in, rFFT on the rows from the first to the last
+    non-zero input (the block's other spectrum rows are zero), and the entries written
+    cleared again (the buffer is zero between calls)."""
+    buf, rows, p1, rb = bufs[0], work.rows, work.p1, plan.rows
+    flat = buf.ravel()
+    for k in blocks.tolist():
+        a = k * rb
+        b = min(a + rb, work.n1)
+        if plan.whole:
+            buf[: b - a, : work.n2] = x[a:b]
+            lo, hi = 0, b - a
+        else:
+            s, e = plan.seg[k], plan.seg[k + 1]
+            xs = x[s:e] if plan.order is None else x[plan.order[s:e]]
+            nz = np.flatnonzero(xs)
+            if nz.size == 0:
+                rows[a:b] = 0.0
+                continue
+            loc = plan.local[s:e]
+            flat[loc] = xs
+            lo, hi = int(loc[nz[0]]) // p1, int(loc[nz[-1]]) // p1 + 1
+            rows[a : a + lo] = 0.0
+            rows[a + hi : b] = 0.0
+        _ducc_fft.r2c(buf[lo:hi], axes=(1,), out=rows[a + lo : a + hi], nthreads=1)
+        if plan.whole:  # the buffer goes back to zero for the next call (in cache)
+            buf[: b - a, : work.n2] = 0.0
+        else:
+            flat[loc] = 0.0
+
+
+def _rows_back(work: "_DuccWork", plan: _RowPlan, out: np.ndarray, blocks: np.ndarray, bufs: tuple) -> None:
+    """out <- the result at the plan's points: per block, the row irFFTs of the rows that
+    hold points into ``bufs[1]``, then copied (whole grid) or gathered out of it."""
+    buf, rows, p1, rb = bufs[1], work.rows, work.p1, plan.rows
+    for k in blocks.tolist():
+        a = k * rb
+        b = min(a + rb, work.n1)
+        if plan.whole:
+            _ducc_fft.c2r(rows[a:b], axes=(1,), lastsize=p1, forward=False, inorm=2, out=buf[: b - a], nthreads=1)
+            out[a:b] = buf[: b - a, : work.n2]
+            continue
+        s, e = plan.seg[k], plan.seg[k + 1]
+        if s == e:
+            continue
+        loc = plan.local[s:e]
+        lo, hi = int(loc[0]) // p1, int(loc[-1]) // p1 + 1
+        _ducc_fft.c2r(rows[a + lo : a + hi], axes=(1,), lastsize=p1, forward=False, inorm=2, out=buf[lo:hi], nthreads=1)
+        if plan.order is None:
+            np.take(buf.ravel(), loc, out=out[s:e])
+        else:
+            out[plan.order[s:e]] = buf.ravel()[loc]
 
 
 class _DuccWork:
     """Work arrays of the ducc0 convolution in one precision, reused between calls.
 
-    ``field`` holds the input rows (N1 x P1, zero beyond the physical columns), ``rows``
-    their half spectrum (N1 x P1/2+1), ``out`` the result rows.  Before a load only the
-    entries written by the previous call are cleared, and nothing when the index set is
-    the same array as last time (a solver's repeated matvecs on one operator: every
-    entry written before is written again).  The whole grid in row-major order is
-    loaded and read as a block, not by indices."""
+    ``rows`` holds the half spectrum of the N1 physical rows (N1 x P1/2+1; for short
+    columns the first N1 rows of ``whole``, the P0 x (P1/2+1) spectrum); each thread has
+    two row buffers (``row_block`` rows x P1: input, zero beyond what a block writes, and
+    output) and, for long columns, a column-block buffer.  The row plan of the last index
+    set is kept (a solver's repeated products on one operator reuse it)."""
 
     def __init__(self, grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype) -> None:
         n1, n2 = grid_shape
@@ -427,29 +546,26 @@ class _DuccWork:
         self.n1, self.n2, self.p0, self.p1 = n1, n2, p0, p1
         self.dtype = np.dtype(dtype)
         self.cdtype = np.result_type(self.dtype, np.complex64)
-        self.field = np.zeros((n1, p1), dtype=self.dtype)
         blocked = blocked_columns(p0, self.cdtype.itemsize)
         self.whole = None if blocked else np.empty((p0, p1 // 2 + 1), dtype=self.cdtype)
         self.rows = self.whole[:n1] if self.whole is not None else np.empty((n1, p1 // 2 + 1), dtype=self.cdtype)
-        self.out = np.empty((n1, p1), dtype=self.dtype)
         self.block = column_block(p0, self.cdtype.itemsize)
+        self.row_rows = row_block(p1, self.dtype.itemsize)
         self._buffers: list[np.ndarray] = []
-        self._dirty: np.ndarray | None = None  # the index array written last time (None: none)
-        self._dirty_all = False
-        self._layout: tuple[np.ndarray | None, bool] = (None, False)  # (index array, is the whole grid)
-        self._point_rows: tuple[np.ndarray | None, np.ndarray, list[tuple[int, int]]] = (None, np.empty(0, np.int64), [])
-        self.in_runs: list[tuple[int, int]] = [(0, n1)]  # rows with non-zero input (half-open runs)
-        self.out_runs: list[tuple[int, int]] = [(0, n1)]  # rows the caller reads
+        self._row_buffers: list[tuple[np.ndarray, np.ndarray]] = []
+        self._plan = _RowPlan(None, True, self.row_rows, -(-n1 // self.row_rows))  # the whole grid
+        self._last: _RowPlan | None = None
 
     @staticmethod
     def nbytes_for(grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype, workers: int) -> int:
         n1, _ = grid_shape
         p0, p1 = padded_shape
         item = np.dtype(dtype).itemsize
-        if not blocked_columns(p0, 2 * item):  # whole spectrum, no block buffers
-            return int(2 * item * n1 * p1 + 2 * item * p0 * (p1 // 2 + 1))
-        block = column_block(p0, 2 * item)
-        return int(2 * item * n1 * p1 + 2 * item * n1 * (p1 // 2 + 1) + max(1, workers) * 2 * item * p0 * block)
+        threads = max(1, workers)
+        row_buffers = threads * 2 * item * row_block(p1, item) * p1
+        if not blocked_columns(p0, 2 * item):  # whole spectrum, no column-block buffers
+            return int(2 * item * p0 * (p1 // 2 + 1) + row_buffers)
+        return int(2 * item * n1 * (p1 // 2 + 1) + threads * 2 * item * p0 * column_block(p0, 2 * item) + row_buffers)
 
     def buffers(self, count: int) -> list[np.ndarray]:
         """``count`` column-block buffers (block x P0 complex), one per thread."""
@@ -457,54 +573,38 @@ class _DuccWork:
             self._buffers.append(np.empty((self.block, self.p0), dtype=self.cdtype))
         return self._buffers[:count]
 
-    def _is_whole_grid(self, pidx: np.ndarray) -> bool:
-        key, whole = self._layout
-        if key is not pidx:
-            whole = pidx.size == self.n1 * self.n2 and np.array_equal(
-                pidx, (np.arange(self.n1)[:, None] * self.p1 + np.arange(self.n2)).ravel()
-            )
-            self._layout = (pidx, bool(whole))
-        return bool(whole)
+    def row_buffers(self, count: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``count`` pairs of row buffers (input zero-initialised, output), one per thread."""
+        while len(self._row_buffers) < count:
+            shape = (self.row_rows, self.p1)
+            self._row_buffers.append((np.zeros(shape, dtype=self.dtype), np.empty(shape, dtype=self.dtype)))
+        return self._row_buffers[:count]
 
-    def _clear(self) -> None:
-        if self._dirty_all:
-            self.field[:, : self.n2] = 0.0
-        elif self._dirty is not None:
-            self.field.ravel()[self._dirty] = 0.0
-        self._dirty, self._dirty_all = None, False
-
-    def load_points(self, pidx: np.ndarray, x: np.ndarray) -> None:
-        """Field = x at the padded flat indices pidx (row stride P1), zero elsewhere; the
-        row runs of the transforms are those of the non-zero entries (in) and of pidx (out)."""
-        whole = self._is_whole_grid(pidx)
-        if pidx is not self._dirty:
-            self._clear()
-        if whole:
-            self.field[:, : self.n2] = np.reshape(x, (self.n1, self.n2))
-            self.in_runs = self.out_runs = [(0, self.n1)]
+    def plan(self, pidx: np.ndarray | None) -> _RowPlan:
+        """The row plan of the padded flat indices ``pidx`` (None: the whole grid)."""
+        if pidx is None:
+            return self._plan
+        last = self._last
+        if last is not None and last.key is pidx:
+            return last
+        pidx = np.asarray(pidx)
+        if pidx.size == self.n1 * self.n2 and np.array_equal(
+            pidx, (np.arange(self.n1)[:, None] * self.p1 + np.arange(self.n2)).ravel()
+        ):
+            plan = _RowPlan(pidx, True, self._plan.rows, self._plan.blocks)
         else:
-            self.field.ravel()[pidx] = x
-            rows, self.out_runs = self._rows_of(pidx)
-            self.in_runs = row_runs(rows[np.asarray(x) != 0], self.n1)
-        self._dirty, self._dirty_all = pidx, whole
+            plan = self._points_plan(pidx)
+        self._last = plan
+        return plan
 
-    def _rows_of(self, pidx: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
-        """The row of each index of pidx and their runs (cached for the last pidx array)."""
-        key, rows, runs = self._point_rows
-        if key is not pidx:
-            rows = pidx // self.p1
-            runs = row_runs(rows, self.n1)
-            self._point_rows = (pidx, rows, runs)
-        return rows, runs
-
-    def load_field(self, f: np.ndarray) -> None:
-        self._clear()
-        self.field[:, : self.n2] = f
-        self._dirty_all = True
-        self.in_runs = self.out_runs = [(0, self.n1)]
-
-    def gather(self, pidx: np.ndarray) -> np.ndarray:
-        """The result at the padded flat indices (``out`` has the layout of ``field``)."""
-        if self._is_whole_grid(pidx):
-            return np.array(self.out[:, : self.n2]).ravel()
-        return np.take(self.out.ravel(), pidx)
+    def _points_plan(self, pidx: np.ndarray) -> _RowPlan:
+        rb = self.row_rows
+        order = None
+        ordered = pidx.astype(np.int64, copy=False)
+        if ordered.size > 1 and not np.all(ordered[1:] > ordered[:-1]):
+            order = np.argsort(ordered, kind="stable")
+            ordered = ordered[order]
+        start = (ordered // self.p1) // rb * (rb * self.p1)  # flat offset of each point's block
+        blocks = -(-self.n1 // rb)
+        seg = np.searchsorted(start, np.arange(blocks + 1) * rb * self.p1)
+        return _RowPlan(pidx, False, rb, blocks, seg, ordered - start, order)
