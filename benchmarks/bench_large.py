@@ -16,7 +16,7 @@ float32 inner CCG under float64 iterative refinement; matvecs reported by precis
 ``--first-guesses zero,coarse`` (a cold start from the 2x-coarser grid's answer; its
 matvecs, each on a 4x smaller grid, are in "coarse_matvecs" and in "matvecs").  Every
 combination is one child process.  The FFT floor of each precision
-(``problems.operators.fft_floor_pair``, the faster of its layouts, best of 5, timed in the same child) is in
+(``problems.operators.fft_floor_pair``, the fastest of its layouts, best of 5, timed in the same child) is in
 "floor64_ms" / "floor32_ms"; "ms_per_matvec" is solve seconds over matvecs (all work of
 the solve included), "peak_rss_mib" the child's peak up to the end of the solve (read before the floors are timed).
 
@@ -58,7 +58,7 @@ except ImportError:  # pragma: no cover
 
 
 def floor_ms(transform, dtype: type) -> float | str:
-    """Best of 5 of the bare FFT pair a matvec of ``dtype`` needs (ms), in the faster of
+    """Best of 5 of the bare FFT pair a matvec of ``dtype`` needs (ms), in the fastest of
     its layouts (one layout's arrays alive at a time), or "" without it."""
     if fft_floor_pair is None or fft_backend() != "ducc":
         return ""

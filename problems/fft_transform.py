@@ -76,29 +76,50 @@ COLUMN_BLOCK_BYTES = 1 << 19
 TRANSPOSED_COLUMN_BYTES = 1 << 15
 
 
-#: Rows are transformed in blocks of about this many bytes of padded rows (P1 real entries
-#: each): the block's input is copied or scattered into a small per-thread buffer, whose
-#: padding stays zero, and transformed from there; on the way back a block is transformed
-#: into a second buffer and read from it.  The N1 x P1 input and output fields are never
-#: built, and the copies happen in cache (results/perf/matvec.md, session 9).
-ROW_BLOCK_BYTES = 1 << 19
+#: Rows are transformed in blocks of about this many bytes of float64 padded rows (P1
+#: entries each), ``MIN_ROW_BLOCK`` to 64 rows: the block's input is copied or scattered
+#: into a small per-thread buffer, whose padding stays zero, and transformed from there; on
+#: the way back a block is transformed into a second buffer and read from it.  The N1 x P1
+#: input and output fields are never built, and the copies happen in cache
+#: (results/perf/matvec.md, session 9).  At least ``MIN_ROW_BLOCK`` rows, so the Python
+#: work per block stays small next to its transforms on wide grids.
+ROW_BLOCK_BYTES = 1 << 20
+MIN_ROW_BLOCK = 16
 
-#: At most this many rows a block in float32 for rows of at least ``FLOAT32_LONG_ROW``
-#: points.  ducc0 0.42 on AVX-512 transforms 16 float32 rows at a time in its vector
-#: lanes, and that path is slow for long rows: the irFFT of the 2048 rows of a 2048^2
-#: product takes 10.7 ms in one call and 3.4 ms in calls of 8 rows (rFFT 3.8 -> 3.1 ms;
-#: 4096^2 irFFT 44 -> 13 ms; 512^2 1.26 -> 0.38 ms; results/perf/matvec.md, session 9).
-#: On shorter rows the calls' own cost outweighs it.
-FLOAT32_ROW_BLOCK = 8
+
+def row_block(p1: int) -> int:
+    """Rows per block: a power of two in MIN_ROW_BLOCK..64 with rows * P1 * 8 ~ ROW_BLOCK_BYTES."""
+    b = max(1, ROW_BLOCK_BYTES // max(1, 8 * p1))
+    return int(min(64, max(MIN_ROW_BLOCK, 1 << (b.bit_length() - 1))))
+
+
+#: Rows per ducc0 call in float32 for rows of at least ``FLOAT32_LONG_ROW`` points.  ducc0
+#: 0.42 on AVX-512 transforms 16 float32 rows at a time in its vector lanes, and that path
+#: is slow for long rows: the irFFT of the 2048 rows of a 2048^2 product takes 10.7 ms in
+#: one call and 3.4 ms in calls of 8 rows (rFFT 3.8 -> 3.1 ms; 4096^2 irFFT 44 -> 13 ms;
+#: 512^2 1.26 -> 0.38 ms; results/perf/matvec.md, session 9).  On shorter rows the calls'
+#: own cost outweighs it.
+FLOAT32_ROW_BATCH = 8
 FLOAT32_LONG_ROW = 1024
 
 
-def row_block(p1: int, itemsize: int = 8) -> int:
-    """Rows per block: a power of two in 1..64 with rows * P1 * 8 ~ ROW_BLOCK_BYTES; in
-    float32 (``itemsize`` 4) as many, at most ``FLOAT32_ROW_BLOCK`` on long rows."""
-    b = max(1, ROW_BLOCK_BYTES // max(1, 8 * p1))
-    rows = int(min(64, 1 << (b.bit_length() - 1)))
-    return min(rows, FLOAT32_ROW_BLOCK) if itemsize == 4 and p1 >= FLOAT32_LONG_ROW else rows
+def row_batch(p1: int, itemsize: int) -> int:
+    """Rows per ducc0 row-transform call (0: no limit)."""
+    return FLOAT32_ROW_BATCH if itemsize == 4 and p1 >= FLOAT32_LONG_ROW else 0
+
+
+def _r2c_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
+    """dst <- the rFFTs of the rows of src, ``batch`` rows a ducc0 call (0: one call)."""
+    step = batch or max(1, src.shape[0])
+    for a in range(0, src.shape[0], step):
+        _ducc_fft.r2c(src[a : a + step], axes=(1,), out=dst[a : a + step], nthreads=1)
+
+
+def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
+    """dst <- the normalised irFFTs (length dst.shape[1]) of the rows of src, ``batch`` rows a call."""
+    step = batch or max(1, src.shape[0])
+    for a in range(0, src.shape[0], step):
+        _ducc_fft.c2r(src[a : a + step], axes=(1,), lastsize=dst.shape[1], forward=False, inorm=2, out=dst[a : a + step], nthreads=1)
 
 
 #: Row blocks are shared over threads only for grids of at least this many padded-row
@@ -410,35 +431,32 @@ def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layou
     else:
         spec = np.empty((m, p0), dtype=cdt)
         rows, axis = spec[:, :n1].T, 1
-    rb = row_block(p1, dt.itemsize) if layout.endswith("-row-blocks") else n1
+    blocks = layout.endswith("-row-blocks")
+    rb, batch = row_block(p1), row_batch(p1, dt.itemsize)
 
-    def forward(starts: np.ndarray, w: int) -> None:
+    def forward(starts: np.ndarray) -> None:
         for a in starts.tolist():
-            _ducc_fft.r2c(field_[a : a + rb], axes=(1,), out=rows[a : a + rb], nthreads=w)
+            _r2c_rows(field_[a : a + rb], rows[a : a + rb], batch)
 
-    def back(starts: np.ndarray, w: int) -> None:
+    def back(starts: np.ndarray) -> None:
         for a in starts.tolist():
-            _ducc_fft.c2r(rows[a : a + rb], axes=(1,), lastsize=p1, forward=False, inorm=2, out=out[a : a + rb], nthreads=w)
+            _c2r_rows(rows[a : a + rb], out[a : a + rb], batch)
 
     def pair() -> None:
         w = fft_workers()
-        _rows_in_threads(forward, n1, p1, rb, w)
+        chunks = [c for c in np.array_split(np.arange(0, n1, rb), row_threads(n1, p1, w)) if c.size]
+        if blocks:
+            _share([partial(forward, c) for c in chunks])
+        else:
+            _ducc_fft.r2c(field_, axes=(1,), out=rows, nthreads=w)
         _ducc_fft.c2c(spec, axes=(axis,), forward=True, out=spec, nthreads=w)
         _ducc_fft.c2c(spec, axes=(axis,), forward=False, inorm=2, out=spec, nthreads=w)
-        _rows_in_threads(back, n1, p1, rb, w)
+        if blocks:
+            _share([partial(back, c) for c in chunks])
+        else:
+            _ducc_fft.c2r(rows, axes=(1,), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
 
     return pair
-
-
-def _rows_in_threads(fn: Callable[[np.ndarray, int], None], n1: int, p1: int, rb: int, workers: int) -> None:
-    """fn(starts, nthreads) over the row blocks of ``rb`` rows: one call with ducc0's own
-    ``workers`` threads when a block is all the rows, else the blocks shared over the
-    pool's ``row_threads`` threads, as the matvec shares them."""
-    if rb >= n1:
-        fn(np.zeros(1, np.int64), workers)
-        return
-    chunks = [c for c in np.array_split(np.arange(0, n1, rb), row_threads(n1, p1, workers)) if c.size]
-    _share([partial(fn, c, 1) for c in chunks])
 
 
 def _transform_column_blocks(rows: np.ndarray, khat_t: np.ndarray, buf: np.ndarray, starts: np.ndarray, n1: int) -> None:
@@ -501,7 +519,7 @@ def _rows_forward(work: "_DuccWork", plan: _RowPlan, x: np.ndarray, blocks: np.n
             lo, hi = int(loc[nz[0]]) // p1, int(loc[nz[-1]]) // p1 + 1
             rows[a : a + lo] = 0.0
             rows[a + hi : b] = 0.0
-        _ducc_fft.r2c(buf[lo:hi], axes=(1,), out=rows[a + lo : a + hi], nthreads=1)
+        _r2c_rows(buf[lo:hi], rows[a + lo : a + hi], work.batch)
         if plan.whole:  # the buffer goes back to zero for the next call (in cache)
             buf[: b - a, : work.n2] = 0.0
         else:
@@ -516,7 +534,7 @@ def _rows_back(work: "_DuccWork", plan: _RowPlan, out: np.ndarray, blocks: np.nd
         a = k * rb
         b = min(a + rb, work.n1)
         if plan.whole:
-            _ducc_fft.c2r(rows[a:b], axes=(1,), lastsize=p1, forward=False, inorm=2, out=buf[: b - a], nthreads=1)
+            _c2r_rows(rows[a:b], buf[: b - a], work.batch)
             out[a:b] = buf[: b - a, : work.n2]
             continue
         s, e = plan.seg[k], plan.seg[k + 1]
@@ -524,7 +542,7 @@ def _rows_back(work: "_DuccWork", plan: _RowPlan, out: np.ndarray, blocks: np.nd
             continue
         loc = plan.local[s:e]
         lo, hi = int(loc[0]) // p1, int(loc[-1]) // p1 + 1
-        _ducc_fft.c2r(rows[a + lo : a + hi], axes=(1,), lastsize=p1, forward=False, inorm=2, out=buf[lo:hi], nthreads=1)
+        _c2r_rows(rows[a + lo : a + hi], buf[lo:hi], work.batch)
         if plan.order is None:
             np.take(buf.ravel(), loc, out=out[s:e])
         else:
@@ -550,7 +568,8 @@ class _DuccWork:
         self.whole = None if blocked else np.empty((p0, p1 // 2 + 1), dtype=self.cdtype)
         self.rows = self.whole[:n1] if self.whole is not None else np.empty((n1, p1 // 2 + 1), dtype=self.cdtype)
         self.block = column_block(p0, self.cdtype.itemsize)
-        self.row_rows = row_block(p1, self.dtype.itemsize)
+        self.row_rows = row_block(p1)
+        self.batch = row_batch(p1, self.dtype.itemsize)
         self._buffers: list[np.ndarray] = []
         self._row_buffers: list[tuple[np.ndarray, np.ndarray]] = []
         self._plan = _RowPlan(None, True, self.row_rows, -(-n1 // self.row_rows))  # the whole grid
@@ -562,7 +581,7 @@ class _DuccWork:
         p0, p1 = padded_shape
         item = np.dtype(dtype).itemsize
         threads = max(1, workers)
-        row_buffers = threads * 2 * item * row_block(p1, item) * p1
+        row_buffers = threads * 2 * item * row_block(p1) * p1
         if not blocked_columns(p0, 2 * item):  # whole spectrum, no column-block buffers
             return int(2 * item * p0 * (p1 // 2 + 1) + row_buffers)
         return int(2 * item * n1 * (p1 // 2 + 1) + threads * 2 * item * p0 * column_block(p0, 2 * item) + row_buffers)

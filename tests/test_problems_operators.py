@@ -27,6 +27,7 @@ def column_pass(request, monkeypatch) -> str:
     monkeypatch.setattr(fft_transform, "TRANSPOSED_COLUMN_BYTES", 0 if request.param == "blocked" else 1 << 62)
     row_bytes = {"whole": fft_transform.ROW_BLOCK_BYTES, "blocked": 1, "row-blocks": 600}[request.param]
     monkeypatch.setattr(fft_transform, "ROW_BLOCK_BYTES", row_bytes)
+    monkeypatch.setattr(fft_transform, "MIN_ROW_BLOCK", 1)
     return request.param
 
 
@@ -266,9 +267,10 @@ def test_row_pruned_transforms_agree_with_dense_for_sparse_inputs(periodic: bool
 def test_row_plan_puts_every_point_in_its_block(increasing: bool) -> None:
     """The row plan of an index set: block k's points, taken in increasing index order,
     are the set's points on its rows, at their offsets inside the block."""
-    from contactbench.problems.fft_transform import _DuccWork, row_block
+    from contactbench.problems.fft_transform import _DuccWork, row_batch, row_block
 
     assert all(row_block(p1) in (1, 2, 4, 8, 16, 32, 64) for p1 in (2, 28, 1000, 1 << 14, 1 << 20))
+    assert row_batch(1 << 12, 4) == 8 and row_batch(1 << 12, 8) == 0 and row_batch(64, 4) == 0
     rng = np.random.default_rng(2)
     work = _DuccWork((N, N), (2 * N, 2 * N), np.dtype(np.float64))
     p1, rb = 2 * N, work.row_rows
