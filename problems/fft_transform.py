@@ -12,7 +12,7 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from functools import partial
+from functools import lru_cache, partial
 from typing import Callable
 
 import numpy as np
@@ -166,6 +166,16 @@ class _BlockPool:
 _POOL = _BlockPool()
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_POOL.forget)
+
+
+@lru_cache(maxsize=64)
+def _block_chunks(stop: int, step: int, parts: int) -> tuple[np.ndarray, ...]:
+    """The block starts range(0, stop, step) cut into at most ``parts`` non-empty runs, one
+    per thread (cached: the same few shapes recur on every matvec; read-only)."""
+    chunks = tuple(c for c in np.array_split(np.arange(0, stop, step), max(1, parts)) if c.size)
+    for c in chunks:
+        c.flags.writeable = False
+    return chunks
 
 
 def _share(jobs: list[Callable[[], None]]) -> None:
@@ -359,8 +369,7 @@ class KernelTransform:
         plan = work.plan(pidx)
         if plan.whole:
             x, out = np.reshape(x, self.grid_shape), np.reshape(out, self.grid_shape)
-        threads = row_threads(work.n1, work.p1, w)
-        chunks = [c for c in np.array_split(np.arange(plan.blocks), threads) if c.size]
+        chunks = _block_chunks(work.row_blocks, 1, row_threads(work.n1, work.p1, w))
         buffers = work.row_buffers(len(chunks))
         _share([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
         self._column_pass(work, w)
@@ -380,8 +389,7 @@ class KernelTransform:
             _ducc_fft.c2c(spec, axes=(0,), forward=False, inorm=2, out=spec, nthreads=workers)
             return
         khat_t = self.transposed_spectrum(work.dtype)
-        starts = np.arange(0, work.rows.shape[1], work.block)
-        chunks = [c for c in np.array_split(starts, max(1, workers)) if c.size]
+        chunks = _block_chunks(work.rows.shape[1], work.block, workers)
         buffers = work.buffers(len(chunks))
         _share([partial(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)])
 
@@ -444,7 +452,7 @@ def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layou
 
     def pair() -> None:
         w = fft_workers()
-        chunks = [c for c in np.array_split(np.arange(0, n1, rb), row_threads(n1, p1, w)) if c.size]
+        chunks = _block_chunks(n1, rb, row_threads(n1, p1, w))
         if blocks:
             _share([partial(forward, c) for c in chunks])
         else:
@@ -478,8 +486,8 @@ def _transform_column_blocks(rows: np.ndarray, khat_t: np.ndarray, buf: np.ndarr
 
 @dataclass
 class _RowPlan:
-    """Where the points of one index set fall in the row blocks of ``row_block`` rows:
-    block k holds rows [k * rows, (k + 1) * rows) and the points at positions seg[k]:seg[k+1]
+    """Where the points of one index set fall in the row blocks (``_DuccWork.row_rows`` rows
+    each): block k holds rows [k * row_rows, (k + 1) * row_rows) and the points at positions seg[k]:seg[k+1]
     of the set in increasing index order (``order``: that order as positions in the set,
     None when the set is increasing already), at flat offsets ``local`` inside the block's
     rows (row * P1 + column).  ``whole``: the whole physical grid in row-major order, read
@@ -487,8 +495,6 @@ class _RowPlan:
 
     key: np.ndarray | None
     whole: bool
-    rows: int
-    blocks: int
     seg: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     local: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     order: np.ndarray | None = None
@@ -499,7 +505,7 @@ def _rows_forward(work: "_DuccWork", plan: _RowPlan, x: np.ndarray, blocks: np.n
     values copied (whole grid) or scattered in, rFFT on the rows from the first to the last
     non-zero input (the block's other spectrum rows are zero), and the entries written
     cleared again (the buffer is zero between calls)."""
-    buf, rows, p1, rb = bufs[0], work.rows, work.p1, plan.rows
+    buf, rows, p1, rb = bufs[0], work.rows, work.p1, work.row_rows
     flat = buf.ravel()
     for k in blocks.tolist():
         a = k * rb
@@ -529,7 +535,7 @@ def _rows_forward(work: "_DuccWork", plan: _RowPlan, x: np.ndarray, blocks: np.n
 def _rows_back(work: "_DuccWork", plan: _RowPlan, out: np.ndarray, blocks: np.ndarray, bufs: tuple) -> None:
     """out <- the result at the plan's points: per block, the row irFFTs of the rows that
     hold points into ``bufs[1]``, then copied (whole grid) or gathered out of it."""
-    buf, rows, p1, rb = bufs[1], work.rows, work.p1, plan.rows
+    buf, rows, p1, rb = bufs[1], work.rows, work.p1, work.row_rows
     for k in blocks.tolist():
         a = k * rb
         b = min(a + rb, work.n1)
@@ -569,10 +575,11 @@ class _DuccWork:
         self.rows = self.whole[:n1] if self.whole is not None else np.empty((n1, p1 // 2 + 1), dtype=self.cdtype)
         self.block = column_block(p0, self.cdtype.itemsize)
         self.row_rows = row_block(p1)
+        self.row_blocks = -(-n1 // self.row_rows)
         self.batch = row_batch(p1, self.dtype.itemsize)
         self._buffers: list[np.ndarray] = []
         self._row_buffers: list[tuple[np.ndarray, np.ndarray]] = []
-        self._plan = _RowPlan(None, True, self.row_rows, -(-n1 // self.row_rows))  # the whole grid
+        self._plan = _RowPlan(None, True)  # the whole grid
         self._last: _RowPlan | None = None
 
     @staticmethod
@@ -610,7 +617,7 @@ class _DuccWork:
         if pidx.size == self.n1 * self.n2 and np.array_equal(
             pidx, (np.arange(self.n1)[:, None] * self.p1 + np.arange(self.n2)).ravel()
         ):
-            plan = _RowPlan(pidx, True, self._plan.rows, self._plan.blocks)
+            plan = _RowPlan(pidx, True)
         else:
             plan = self._points_plan(pidx)
         self._last = plan
@@ -624,6 +631,5 @@ class _DuccWork:
             order = np.argsort(ordered, kind="stable")
             ordered = ordered[order]
         start = (ordered // self.p1) // rb * (rb * self.p1)  # flat offset of each point's block
-        blocks = -(-self.n1 // rb)
-        seg = np.searchsorted(start, np.arange(blocks + 1) * rb * self.p1)
-        return _RowPlan(pidx, False, rb, blocks, seg, ordered - start, order)
+        seg = np.searchsorted(start, np.arange(self.row_blocks + 1) * rb * self.p1)
+        return _RowPlan(pidx, False, seg, ordered - start, order)

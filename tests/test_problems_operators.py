@@ -279,10 +279,10 @@ def test_row_plan_puts_every_point_in_its_block(increasing: bool) -> None:
     if not increasing:
         pidx = rng.permutation(pidx)
     plan = work.plan(pidx)
-    assert work.plan(pidx) is plan and not plan.whole and plan.blocks == -(-N // rb)
+    assert work.plan(pidx) is plan and not plan.whole and work.row_blocks == -(-N // rb)
     ordered = pidx if plan.order is None else pidx[plan.order]
     assert (plan.order is None) == increasing and np.all(np.diff(ordered) > 0)
-    for k in range(plan.blocks):
+    for k in range(work.row_blocks):
         s, e = plan.seg[k], plan.seg[k + 1]
         assert np.array_equal(plan.local[s:e] + k * rb * p1, ordered[s:e])
         assert np.all((plan.local[s:e] >= 0) & (plan.local[s:e] < rb * p1))
