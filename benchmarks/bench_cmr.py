@@ -31,7 +31,7 @@ from typing import Sequence
 
 from contactbench.harness.cli import main as contactbench
 
-#: Section 5 as distributions (issue 19): the composite of harness/studies.py.
+#: Section 5 as distributions over seeds: the composite of harness/studies.py.
 SCENES = ("cmr-paper",)
 #: The benchmark budget of both scenes at 20 seeds on the 2-core benchmark machine, s.
 BUDGET_S = 30 * 60

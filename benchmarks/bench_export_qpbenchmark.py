@@ -1,4 +1,4 @@
-"""The outside check (issue 17): our exported QPs judged by qpbenchmark itself.
+"""The outside check: our exported QPs judged by qpbenchmark itself.
 
     .venv/bin/pip install -e .[qpbenchmark]
     .venv/bin/python benchmarks/bench_export_qpbenchmark.py [--out results/export] [--sizes 32,64]

@@ -1,4 +1,4 @@
-"""Harness overhead against a bare solver call on a 256^2 instance (issue 5: <= 5 %).
+"""Harness overhead against a bare solver call on a 256^2 instance (target: <= 5 %).
 
     .venv/bin/python benchmarks/bench_harness_overhead.py [--size 256] [--solver pk] [--repeats 5]
 

@@ -11,7 +11,7 @@ feasibility at 4096^2.
 Every run is one child process (its own peak RSS), so "--backends ducc,scipy" compares
 the two FFT libraries side by side in one run.  Rows are appended to --out (CSV).
 
-Options of the fast solvers as columns (issue 18): ``--precisions double,mixed`` (mixed:
+Options of the fast solvers as columns: ``--precisions double,mixed`` (mixed:
 float32 inner CCG under float64 iterative refinement; matvecs reported by precision) and
 ``--first-guesses zero,coarse`` (a cold start from the 2x-coarser grid's answer; its
 matvecs, each on a 4x smaller grid, are in "coarse_matvecs" and in "matvecs").  Every
@@ -47,11 +47,11 @@ from contactbench.problems.operators import fft_backend, fft_workers
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings
 
-try:  # the FFT floor (helper of issue 18); absent in older checkouts
+try:  # the FFT floor; absent in checkouts before 26d4209
     from contactbench.problems.operators import fft_floor_pair
 except ImportError:  # pragma: no cover
     fft_floor_pair = None
-try:  # the floor's layouts (session 8); older checkouts time the strided one only
+try:  # the floor's layouts; checkouts before b302c1c time the strided one only
     from contactbench.problems.operators import FLOOR_LAYOUTS
 except ImportError:  # pragma: no cover
     FLOOR_LAYOUTS = ()

@@ -8,7 +8,7 @@ same run and interleaved with it, the FFT floor of that precision
 (``fft_floor_pair``: the bare pruned r2c / c2c / c2c / c2r calls a matvec needs on the
 padded grid, nothing else), timed in each of ``FLOOR_LAYOUTS`` (column transforms strided
 or transposed; row transforms in one ducc0 call per direction, or in the matvec's row
-blocks); floor_ms is the fastest.  ratio = matvec_ms / floor_ms (issue 18 target: <= 1.2).
+blocks); floor_ms is the fastest.  ratio = matvec_ms / floor_ms (target: <= 1.2).
 
 Memory: work_mib is the operator's FFT work arrays in that precision (what a matvec
 runs in: half spectrum, row-block and column-block buffers); peak_mib is

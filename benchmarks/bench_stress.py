@@ -1,4 +1,4 @@
-"""The stress battery over the registered solvers -> results/stress/ (issue 9).
+"""The stress battery over the registered solvers -> results/stress/.
 
     .venv/bin/python benchmarks/bench_stress.py cond      # cond(H_II) vs n, both kernels
     .venv/bin/python benchmarks/bench_stress.py survival  # every solver through the battery

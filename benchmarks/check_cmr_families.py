@@ -1,4 +1,4 @@
-"""Issue 19's key question: how large is CMR's load error, per surface family and coarse-level kind?
+"""How large is CMR's load error, per surface family and coarse-level kind?
 
 At N^2 (default 256^2), Hurst H (0.7), h (2), the top step of scene ``cmr-h-sweep``
 (Delta = (z_max - z_mean)/2), over many seeds, this solves each instance directly with
@@ -31,7 +31,7 @@ from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import get_solver
 
 #: (family, coarse kind) pairs measured by default: the paper's generator with both kinds,
-#: and the wrap-around generator we used before issue 19 with exact sub-samples.
+#: and the wrap-around generator (the default before the paper's generator, 26d4209) with exact sub-samples.
 DEFAULT_CASES: tuple[tuple[str, str], ...] = (("saupe", "subsample"), ("saupe", "mean"), ("periodic", "subsample"))
 #: |load error| below this counts as "the paper's claim holds" (paper section 5.2: < 2 %).
 CLAIM = 0.02

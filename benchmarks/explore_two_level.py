@@ -1,4 +1,4 @@
-"""Exploration (issue 18, "fewer matvecs"): how many CG iterations a coarse correction on top
+"""Exploration (fewer matvecs for the large solves): how many CG iterations a coarse correction on top
 of the island block-Jacobi preconditioner would save, on the contact set of the paper's cold
 top step.  Not a solver: it forms H on the final contact set S densely (feasible up to
 2048^2, |S| ~ 11,000) and runs plain PCG on H_SS p = ubar_S to a relative residual of 1e-10
@@ -13,7 +13,7 @@ with each preconditioner:
   identity (no extra product with H; B^-1 Z and an m x m matrix per build).
 
 Usage: python benchmarks/explore_two_level.py [--size 1024] [--tiles 8 16 32 64]
-Measured (2026-11-23, docs/fast-solvers.md "Next lever"): 1024^2 islands 37, woodbury 8: 25;
+Measured (2026-11-23, code 1b4985f, 2-core Intel Xeon VM; docs/fast-solvers.md "Next lever"): 1024^2 islands 37, woodbury 8: 25;
 2048^2 islands 50, woodbury 16: 28, 32: 32, 64: 37 (results/perf/two-level.md).
 """
 
