@@ -13,8 +13,8 @@ with each preconditioner:
   identity (no extra product with H; B^-1 Z and an m x m matrix per build).
 
 Usage: python benchmarks/explore_two_level.py [--size 1024] [--tiles 8 16 32 64]
-Measured (2026-11-23, code 1b4985f, 2-core Intel Xeon VM; docs/fast-solvers.md "Next lever"): 1024^2 islands 37, woodbury 8: 25;
-2048^2 islands 50, woodbury 16: 28, 32: 32, 64: 37 (results/perf/two-level.md).
+Measured (2026-11-23, code 1b4985f, 2-core Intel Xeon VM; docs/fast-solvers.md "Next lever"):
+1024^2 islands 37, woodbury 8: 25; 2048^2 islands 50, woodbury 16: 28, 32: 32, 64: 37 (results/perf/two-level.md).
 """
 
 from __future__ import annotations
