@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import importlib.util
 import inspect
@@ -251,6 +252,7 @@ def public_modules() -> list[ModuleType]:
     return out
 
 
+@functools.cache
 def public_callables() -> dict[str, Any]:
     """Name -> function or class defined in a public module of the three packages; names
     defined twice with different objects are left out (ambiguous)."""
@@ -268,7 +270,11 @@ def public_callables() -> dict[str, Any]:
     return {k: v for k, v in found.items() if k not in ambiguous}
 
 
-MODULE_NAMES = {m.__name__.rsplit(".", 1)[-1] for m in public_modules()}
+@functools.cache
+def module_names() -> frozenset[str]:
+    return frozenset(m.__name__.rsplit(".", 1)[-1] for m in public_modules())
+
+
 _CALL_START = re.compile(r"`([A-Za-z_][\w.]*)\(")
 _KEYWORD = re.compile(r"^(\w+)\s*=")
 _NAME = re.compile(r"^([A-Za-z_]\w*)\b")
@@ -311,7 +317,7 @@ def _callable_of(dotted: str, table: dict[str, Any]) -> tuple[Any, bool]:
         if isinstance(fn, classmethod):
             return fn.__func__, True
         return fn, True
-    if len(parts) >= 2 and parts[-2] not in MODULE_NAMES:
+    if len(parts) >= 2 and parts[-2] not in module_names():
         return None, False  # a method of some object (``inst.load(p)``): run, not checked, here
     return table.get(parts[-1]), False
 
@@ -375,6 +381,39 @@ def test_the_python_of_a_page_matches_the_code(page: str) -> None:
     errors = [f"{page} block at line {line}: {e}" for line, src in python_blocks(text) for e in check_block(src)]
     errors += [f"{page} {e}" for e in check_inline_calls(text, public_callables())]
     assert errors == []
+
+
+_DOTTED = re.compile(r"`((?:contactbench\.)?(?:problems|solvers|harness)(?:\.[A-Za-z_]\w*)+)")
+
+
+def unresolved_names(text: str) -> list[str]:
+    """Backticked dotted names of the packages (``harness.judge.judge``,
+    ``contactbench.problems.kkt``) that name no module or attribute."""
+    bad = []
+    for m in _DOTTED.finditer(text):
+        parts = m.group(1).removeprefix("contactbench.").split(".")
+        obj: Any = None
+        for i in range(len(parts), 0, -1):
+            try:
+                obj, rest = importlib.import_module("contactbench." + ".".join(parts[:i])), parts[i:]
+                break
+            except ImportError:
+                continue
+        for name in rest if obj is not None else ():
+            obj = getattr(obj, name, None)
+            if obj is None:
+                break
+        if obj is None:
+            bad.append(m.group(1))
+    return bad
+
+
+def test_dotted_names_in_the_pages_exist() -> None:
+    assert unresolved_names("`harness.judge.judge` `contactbench.problems.kkt.kkt_check`") == []
+    assert unresolved_names("`harness.judge.no_such` `problems.nowhere`") == ["harness.judge.no_such",
+                                                                               "problems.nowhere"]
+    bad = {p.name: unresolved_names(p.read_text()) for p in [*pages(), REPO / "README.md"]}
+    assert {k: v for k, v in bad.items() if v} == {}
 
 
 RUN_PAGES = [p.name for p in pages() if python_blocks(p.read_text()) and p.name not in NOT_RUN]
