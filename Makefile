@@ -1,16 +1,17 @@
 # The two commands of the README: `make bench` and `make test`.
-# Both create .venv if missing and install the project into it; nothing is installed by hand.
+# Both create .venv if missing and install the project into it, with its `docs` extra (the
+# user's guide and its tests); nothing is installed by hand.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: bench test setup setup-browser benchmarks paper clean
+.PHONY: bench test setup setup-browser benchmarks paper docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e .
+	$(PY) -m pip install --quiet -e '.[docs]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -35,8 +36,12 @@ setup-browser:
 test: $(STAMP) setup-browser
 	$(PY) -m pytest -q -rs
 
+# The user's guide, built offline into site/ (mkdocs.yml; strict: any warning fails).
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+
 benchmarks: $(STAMP)
 	$(PY) -m pytest --benchmark-only --benchmark-enable -q benchmarks
 
 clean:
-	rm -rf $(VENV)
+	rm -rf $(VENV) site
