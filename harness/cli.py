@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import re
 import sys
@@ -153,6 +154,13 @@ def positive_number(text: str, kind: type, what: str) -> Any:
 
 def positive_float(text: str) -> float:
     return float(positive_number(text, float, "a number"))
+
+
+def finite_positive_float(text: str) -> float:
+    v = positive_float(text)
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
 
 
 def positive_int(text: str) -> int:
@@ -287,7 +295,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--surface", default=None,
                    help="measured height map: .npy/.csv/.txt or any SurfaceTopography format (.x3p, .gwy, .nc, .mat, ...)")
     p.add_argument("--channel", default=None, help="channel (index or name) of a multi-channel --surface file")
-    p.add_argument("--length", type=positive_float, default=None,
+    p.add_argument("--length", type=finite_positive_float, default=None,
                    help="side length L in metres (optional when the surface file states its size)")
     p.add_argument("--height-unit", choices=("m", "mm", "um", "nm"), default=None,
                    help="unit of the heights of a --surface file that states none (default: m; refused for a "
@@ -297,7 +305,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--surface-family", choices=RMD_FAMILIES, default=None,
                    help="RMD surface family of the generated surfaces: saupe (non-periodic MidPointFM2D, the "
                         "paper's; default of non-periodic scenes) or periodic (wrap-around diamond-square)")
-    p.add_argument("--E", type=positive_float, default=None,
+    p.add_argument("--E", type=finite_positive_float, default=None,
                    help="composite modulus E* in Pa (default: the scene's; refused outside the plausible range "
                         "[1e3, 1e13] Pa unless --allow-any-E)")
     p.add_argument("--allow-any-E", action="store_true", help="take an --E outside the plausible range")
