@@ -44,7 +44,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
 from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
 from contactbench.problems.surfaces import RMD_FAMILIES
-from contactbench.problems.units import check_plausible_modulus
+from contactbench.problems.units import PLAUSIBLE_MODULUS, check_plausible_modulus
 
 from contactbench.plugins import did_you_mean
 
@@ -71,7 +71,8 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     are "the scene's" / "off" and say so in their own help)."""
 
     def _get_help_string(self, action: argparse.Action) -> str | None:
-        if action.default in (None, False, argparse.SUPPRESS) or "%(default)" in (action.help or ""):
+        if action.default is None or action.default is False or action.default == argparse.SUPPRESS \
+                or "%(default)" in (action.help or ""):
             return action.help
         return super()._get_help_string(action)
 
@@ -179,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     ls.add_argument("--params", action="store_true", help="with solvers: each solver's declared parameters and grid")
 
     run = sub.add_parser("run", help="run scenes and write a tidy table")
-    run.add_argument("scenes", nargs="+", metavar="SCENE")
+    run.add_argument("scenes", nargs="+", metavar="SCENE", help="scene or mix name (contactbench list scenes)")
     run.add_argument("--solvers", default=None, metavar="LIST",
                      help="comma list of registry names or MODULE:NAME, each optionally with parameters "
                           "NAME[key=value,...] (contactbench list solvers --params), or 'all' "
@@ -206,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="send the cells to a running Dask scheduler (tcp://host:8786); see docs/distributed.md")
 
     exp = sub.add_parser("export", help="write every (instance, step) QP of a scene to files (problems/export.py)")
-    exp.add_argument("scene", metavar="SCENE")
+    exp.add_argument("scene", metavar="SCENE", help="scene name (contactbench list scenes)")
     add_scene_options(exp)
     exp.add_argument("--format", dest="fmt", choices=("problem-dir", "hdf5", "qpbenchmark"), required=True)
     exp.add_argument("--out", required=True, metavar="DIR", help="output directory")
@@ -307,7 +308,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
                         "paper's; default of non-periodic scenes) or periodic (wrap-around diamond-square)")
     p.add_argument("--E", type=finite_positive_float, default=None,
                    help="composite modulus E* in Pa (default: the scene's; refused outside the plausible range "
-                        "[1e3, 1e13] Pa unless --allow-any-E)")
+                        f"[{PLAUSIBLE_MODULUS[0]:g}, {PLAUSIBLE_MODULUS[1]:g}] Pa unless --allow-any-E)")
     p.add_argument("--allow-any-E", action="store_true", help="take an --E outside the plausible range")
     p.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None,
                    help="influence coefficients (default: the scene's; spectral needs a periodic domain)")
