@@ -407,13 +407,27 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     print(summary.line())
     status = 0
     if summary.judged == 0:
-        print(f"contactbench: error: no row could be judged ({summary.rows} rows: every one failed, timed out, "
-              f"crashed or was skipped); the reasons are in the 'error' and 'skip_reason' columns of "
-              f"{out}/results.csv", file=sys.stderr)
+        print(f"contactbench: error: no row could be judged ({summary.rows} rows, none solved or inaccurate)"
+              f"{common_reason(out)}; see the 'error' and 'skip_reason' columns of {out}/results.csv",
+              file=sys.stderr)
         status = EXIT_NOTHING_JUDGED
     if args.report:
         return cmd_report(out) or status
     return status
+
+
+def common_reason(out: str) -> str:
+    """"; most common reason: ..." -- the first line of the commonest ``error`` or
+    ``skip_reason`` of the table in ``out`` -- or "" when there is none."""
+    from .schema import load_table
+
+    table = load_table(out)
+    reasons = [str(v).strip().splitlines()[0][:200] for col in ("error", "skip_reason") if col in table
+               for v in table[col].dropna() if str(v).strip()]
+    if not reasons:
+        return ""
+    top = max(dict.fromkeys(reasons), key=reasons.count)
+    return f"; most common reason ({reasons.count(top)} of {len(table)}): {top}"
 
 
 def cmd_export(args: argparse.Namespace) -> int:
