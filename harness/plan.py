@@ -20,18 +20,11 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
+from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
-from contactbench.solvers.registry import (
-    SolverSpec,
-    all_solvers,
-    available_solvers,
-    get_solver,
-    parse_solver_spec,
-    register,
-    split_solver_list,
-)
+from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, parse_solver_spec,
+                                           register, split_solver_list)
 
 from .profiles import get_profile
 from .studies import SolverVariant, Study, expand
