@@ -10,16 +10,17 @@ read the registry *discovers* its plug-ins once:
 
 A module that fails to import does not take the registry down: its traceback is kept
 in ``import_errors()``.  ``get`` of an unknown name raises ``error`` (a ``KeyError``)
-with a message that lists the known names.
+with a message that lists the known names, led by the closest ones (``did_you_mean``).
 """
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import pkgutil
 import traceback
 from importlib import metadata
-from typing import Callable, Generic, Iterator, TypeVar
+from typing import Callable, Generic, Iterable, Iterator, TypeVar
 
 T = TypeVar("T")
 
@@ -29,6 +30,15 @@ class UnknownPluginError(KeyError):
 
     def __str__(self) -> str:  # KeyError quotes its message; keep it readable
         return str(self.args[0])
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """" (did you mean 'a' or 'b'?)" for the known names closest to ``name`` (difflib),
+    or "" when none is close: the one spelling-suggestion rule of the command line."""
+    close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+    if not close:
+        return ""
+    return f" (did you mean {' or '.join(repr(c) for c in close)}?)"
 
 
 def _always(_short: str) -> bool:
@@ -122,7 +132,7 @@ class PluginRegistry(Generic[T]):
         items = self.all()
         if name not in items:
             known = ", ".join(items) or "(none)"
-            raise self.error(f"unknown {self.kind} {name!r}; known {self.kind}s: {known}")
+            raise self.error(f"unknown {self.kind} {name!r}{did_you_mean(name, items)}; known {self.kind}s: {known}")
         return items[name]
 
     def import_errors(self) -> dict[str, str]:

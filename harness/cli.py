@@ -1,31 +1,108 @@
 """The ``contactbench`` command line.
 
     contactbench list scenes|solvers [--params]
-    contactbench run SCENE [SCENE...] [--solvers a,b|all] [--profile p[,q]] [--size N] [--steps K]
+    contactbench run SCENE [SCENE...] [--solvers a,b[k=v,...]|all] [--profile p[,q]] [--size N] [--steps K]
                      [--seeds 0-9|0,3,5] [--surface PATH [--length L] [--channel C]] [--E E] [--kernel bcc|love]
                      [--surface-family saupe|periodic] [--periodic] [--repeats R] [--timeout S] [--out DIR]
                      [--jobs J] [--cold] ...
     contactbench export SCENE [scene options of run] --format problem-dir|hdf5|qpbenchmark --out DIR
     contactbench report DIR
     contactbench validate ...       (every argument goes to harness/conformance.py)
+    contactbench --version
 
 ``run`` plans first (``harness.plan``: every scene option, solver, profile and
 reference name is checked before anything runs; bad input exits 2 with one line per
 problem and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
 DIR/results.parquet, DIR/results.csv and DIR/meta.json; running the same command
 again completes only the missing cells.
+
+Exit status (docs/harness.md, "Exit status"):
+
+* 0 -- done (``run``: at least one row was judged, solved or inaccurate);
+* 1 -- ``run`` wrote its table but the judge could read no row: every one failed,
+  timed out, crashed or was skipped (the summary line and the table say why);
+* 2 -- bad input, refused before anything runs, in one line per problem and no
+  traceback: an unknown name (with the closest known ones), an option the scene would
+  ignore, a configuration that cannot run (``--kernel spectral`` without
+  ``--periodic``, an implausible ``--E``), or a path that cannot be read or written;
+* 130 -- interrupted (the rows so far are kept).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
+import os
+import re
 import sys
-from typing import Any, Sequence
+from importlib import metadata
+from pathlib import Path
+from typing import Any, NoReturn, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
+from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
 from contactbench.problems.surfaces import RMD_FAMILIES
+from contactbench.problems.units import PLAUSIBLE_MODULUS, check_plausible_modulus
+
+from contactbench.plugins import did_you_mean
+
+#: Exit status of a run whose rows the judge could not read at all (module doc).
+EXIT_NOTHING_JUDGED = 1
+#: Exit status of bad input (module doc).
+EXIT_BAD_INPUT = 2
+#: A number, negative ones and exponents included: the value of an option, never an
+#: option itself (argparse's own pattern misses ``-1e-6``).
+NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
+#: The command-line flag of each scene option (``problems.scenes.base.SCENE_OPTIONS``).
+OPTION_FLAGS: dict[str, str] = {
+    "size": "--size", "steps": "--steps", "seeds": "--seeds", "surface_path": "--surface", "length": "--length",
+    "E": "--E", "kernel": "--kernel", "periodic": "--periodic", "operator": "--operator", "channel": "--channel",
+    "height_unit": "--height-unit", "allow_steep": "--allow-steep", "family": "--surface-family"}
+
+
+class InputError(ProblemInputError):
+    """Bad command-line input found by the command line itself (one line)."""
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``--help`` with each option's default, where it has one (None and False defaults
+    are "the scene's" / "off" and say so in their own help)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None or action.default is False or action.default == argparse.SUPPRESS \
+                or "%(default)" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with the house rules: a usage error is one line on stderr (exit 2), an
+    unknown choice names the closest ones, and a negative number (``-1e-6``) is an
+    option's value, so ``--length -1e-6`` is refused as not > 0."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NUMBER
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
+        if action.choices is not None and value not in action.choices:
+            choices = [str(c) for c in action.choices]
+            raise argparse.ArgumentError(action, f"invalid choice {value!r}{did_you_mean(str(value), choices)}; "
+                                                 f"choose from {', '.join(choices)}")
+
+
+def package_version() -> str:
+    """The installed contactbench version (``importlib.metadata``)."""
+    try:
+        return metadata.version("contactbench")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -59,7 +136,9 @@ def parse_profiles(text: str) -> tuple[str, ...]:
     names = tuple(p.strip() for p in text.split(",") if p.strip())
     bad = [p for p in names if p not in PROFILES]
     if bad or not names:
-        raise argparse.ArgumentTypeError(f"unknown profile {', '.join(bad) or text!r}; choose from {', '.join(PROFILES)}")
+        hint = did_you_mean(bad[0], PROFILES) if bad else ""
+        raise argparse.ArgumentTypeError(f"unknown profile {', '.join(bad) or text!r}{hint}; "
+                                         f"choose from {', '.join(PROFILES)}")
     return names
 
 
@@ -78,45 +157,62 @@ def positive_float(text: str) -> float:
     return float(positive_number(text, float, "a number"))
 
 
+def finite_positive_float(text: str) -> float:
+    v = positive_float(text)
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
+
+
 def positive_int(text: str) -> int:
     return int(positive_number(text, int, "an integer"))
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="contactbench", description="Benchmark harness for BEM rough-surface contact QPs")
+    ap = Parser(prog="contactbench", description="Benchmark harness for BEM rough-surface contact QPs")
+    ap.add_argument("--version", action="version", version=f"contactbench {package_version()}")
     ap.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    sub = ap.add_subparsers(dest="command", required=True)
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                            parser_class=Parser)
 
     ls = sub.add_parser("list", help="list scenes or solvers")
     ls.add_argument("what", choices=("scenes", "solvers"))
     ls.add_argument("--params", action="store_true", help="with solvers: each solver's declared parameters and grid")
 
     run = sub.add_parser("run", help="run scenes and write a tidy table")
-    run.add_argument("scenes", nargs="+", metavar="SCENE")
-    run.add_argument("--solvers", default=None, help="comma list of registry names or MODULE:NAME, or 'all'")
-    run.add_argument("--profile", type=parse_profiles, default=None, help="profile(s): default, low, mid, high (comma list)")
+    run.add_argument("scenes", nargs="+", metavar="SCENE", help="scene or mix name (contactbench list scenes)")
+    run.add_argument("--solvers", default=None, metavar="LIST",
+                     help="comma list of registry names or MODULE:NAME, each optionally with parameters "
+                          "NAME[key=value,...] (contactbench list solvers --params), or 'all' "
+                          "(default: the scene's study, else every available solver)")
+    run.add_argument("--profile", type=parse_profiles, default=None,
+                     help="profile(s): default, low, mid, high (comma list; default: the scene's study)")
     add_scene_options(run)
     run.add_argument("--repeats", type=positive_int, default=1, help="timed solves per cell (min and median reported)")
     run.add_argument("--timeout", type=positive_float, default=60.0, help="hard limit per solve, seconds")
-    run.add_argument("--out", default=None, help="output directory (default results/<scenes>)")
+    run.add_argument("--out", default=None, metavar="DIR", help="output directory (default: results/<scenes>)")
     run.add_argument("--jobs", type=positive_int, default=1, help="instances run concurrently")
     run.add_argument("--cold", action="store_true", help="no warm starts along load histories")
     run.add_argument("--no-warmup", action="store_true", help="skip the untimed warm-up solve")
-    run.add_argument("--reference", default="auto", help="reference solver: auto (default), none, or a name")
-    run.add_argument("--reference-timeout", type=positive_float, default=None, help="limit for a reference solve (default 5 x timeout)")
-    run.add_argument("--memory-budget-gb", type=positive_float, default=None, help="memory a solve may use (GiB)")
-    run.add_argument("--threads", type=positive_int, default=None, help="BLAS/FFT threads per worker")
+    run.add_argument("--reference", default="auto", help="reference solver: auto, none, or a name")
+    run.add_argument("--reference-timeout", type=positive_float, default=None,
+                     help="limit for a reference solve (default: 5 x timeout)")
+    run.add_argument("--memory-budget-gb", type=positive_float, default=None,
+                     help="memory a solve may use, GiB (default: the harness's budget)")
+    run.add_argument("--threads", type=positive_int, default=None,
+                     help="BLAS/FFT threads per worker (default: cores / jobs)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.add_argument("--report", action="store_true", help="build the report after the run")
     run.add_argument("--scheduler", default=None, metavar="ADDRESS",
                      help="send the cells to a running Dask scheduler (tcp://host:8786); see docs/distributed.md")
 
     exp = sub.add_parser("export", help="write every (instance, step) QP of a scene to files (problems/export.py)")
-    exp.add_argument("scene", metavar="SCENE")
+    exp.add_argument("scene", metavar="SCENE", help="scene name (contactbench list scenes)")
     add_scene_options(exp)
     exp.add_argument("--format", dest="fmt", choices=("problem-dir", "hdf5", "qpbenchmark"), required=True)
-    exp.add_argument("--out", required=True, help="output directory")
-    exp.add_argument("--dense-limit", type=positive_int, default=None, help="largest n whose dense H is written")
+    exp.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    exp.add_argument("--dense-limit", type=positive_int, default=None,
+                     help="largest n whose dense H is written (default: problems/export.py's)")
 
     rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
     rep.add_argument("dir")
@@ -167,54 +263,128 @@ def solver_parameter_lines(solver: object) -> list[str]:
 
 def scene_config(args: argparse.Namespace) -> Any:
     """The SceneConfig of ``run``/``export``'s scene options.  --length may be omitted for
-    a surface file that states its lateral size (problems/io.py checks it at planning)."""
+    a surface file that states its lateral size (problems/io.py checks it at planning).
+    An ``--E`` outside ``problems.units.PLAUSIBLE_MODULUS`` is refused unless
+    ``--allow-any-E``."""
     from contactbench.problems.scenes import SceneConfig
 
     if args.channel is not None and not args.surface:
-        raise ProblemInputError("--channel picks a channel of a --surface file; no --surface was given")
+        raise InputError("--channel picks a channel of a --surface file; no --surface was given")
     extra = {} if args.channel is None else {"channel": args.channel}
     if args.height_unit is not None or args.allow_steep:  # problems/units.py: the plausibility check
         if not args.surface:
-            raise ProblemInputError("--height-unit and --allow-steep apply to a --surface file; no --surface was given")
+            raise InputError("--height-unit and --allow-steep apply to a --surface file; no --surface was given")
         extra.update({k: v for k, v in (("height_unit", args.height_unit), ("allow_steep", args.allow_steep)) if v})
     if args.surface_family is not None:
         if args.surface:
-            raise ProblemInputError("--surface-family picks the generated RMD surfaces; a --surface file was given")
+            raise InputError("--surface-family picks the generated RMD surfaces; a --surface file was given")
         extra["family"] = args.surface_family
+    if args.E is not None and not args.allow_any_E:
+        check_plausible_modulus(args.E)
     return SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
                        length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic,
                        operator=args.operator, extra=extra)
 
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:
-    """The scene options shared by ``run`` and ``export``."""
-    p.add_argument("--size", type=positive_int, default=None, help="grid points per side N")
-    p.add_argument("--steps", type=positive_int, default=None, help="number of load steps K")
-    p.add_argument("--seeds", type=parse_seeds, default=None, help="e.g. 0-9 or 0,3,5")
+    """The scene options shared by ``run`` and ``export`` (None: the scene's default)."""
+    p.add_argument("--size", type=positive_int, default=None,
+                   help="grid points per side N (default: the scene's; not with --surface, whose grid it is)")
+    p.add_argument("--steps", type=positive_int, default=None, help="number of load steps K (default: the scene's)")
+    p.add_argument("--seeds", type=parse_seeds, default=None,
+                   help="e.g. 0-9 or 0,3,5 (default: the scene's; not with --surface)")
     p.add_argument("--surface", default=None,
                    help="measured height map: .npy/.csv/.txt or any SurfaceTopography format (.x3p, .gwy, .nc, .mat, ...)")
     p.add_argument("--channel", default=None, help="channel (index or name) of a multi-channel --surface file")
-    p.add_argument("--length", type=positive_float, default=None,
+    p.add_argument("--length", type=finite_positive_float, default=None,
                    help="side length L in metres (optional when the surface file states its size)")
     p.add_argument("--height-unit", choices=("m", "mm", "um", "nm"), default=None,
-                   help="unit of the heights of a --surface file that states none (default m)")
+                   help="unit of the heights of a --surface file that states none (default: m; refused for a "
+                        "file that states its unit)")
     p.add_argument("--allow-steep", action="store_true",
                    help="run a --surface beyond the small-slope range (rms slope > 1 or heights > side length)")
     p.add_argument("--surface-family", choices=RMD_FAMILIES, default=None,
                    help="RMD surface family of the generated surfaces: saupe (non-periodic MidPointFM2D, the "
                         "paper's; default of non-periodic scenes) or periodic (wrap-around diamond-square)")
-    p.add_argument("--E", type=positive_float, default=None, help="composite modulus E* in Pa")
-    p.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None)
+    p.add_argument("--E", type=finite_positive_float, default=None,
+                   help="composite modulus E* in Pa (default: the scene's; refused outside the plausible range "
+                        f"[{PLAUSIBLE_MODULUS[0]:g}, {PLAUSIBLE_MODULUS[1]:g}] Pa unless --allow-any-E)")
+    p.add_argument("--allow-any-E", action="store_true", help="take an --E outside the plausible range")
+    p.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None,
+                   help="influence coefficients (default: the scene's; spectral needs a periodic domain)")
     p.add_argument("--periodic", action="store_true", default=None, help="periodic domain")
     p.add_argument("--operator", choices=OPERATOR_KINDS, default=None,
                    help="operator the instance is built with (gpu: the optional CuPy backend, extra `gpu`)")
+
+
+def scene_names(name: str) -> list[str]:
+    """The scenes a run name stands for: a composite's parts, else the name itself."""
+    from .studies import COMPOSITES
+
+    if name in COMPOSITES:
+        return [part.study.scene for part in COMPOSITES[name].parts]
+    return [name]
+
+
+def check_scene_options(names: Sequence[str], cfg: Any) -> None:
+    """Refuse every option the user set that a named scene would ignore (for a composite:
+    that none of its parts would use), one ``InputError`` naming the option."""
+    from contactbench.problems.scenes import all_scenes
+
+    given = given_options(cfg)
+    scenes = all_scenes()
+    for name in names:
+        parts = [scenes[s] for s in scene_names(name) if s in scenes]
+        if not parts:
+            continue  # an unknown name: the planner says so, with the closest known ones
+        ignored = set.intersection(*(set(ignored_options(sc, given)) for sc in parts))
+        for opt in sorted(ignored, key=list(OPTION_FLAGS).index):
+            if "surface_path" in given and opt in GENERATED_ONLY_OPTIONS and all(
+                    opt in sc.options for sc in parts):
+                raise InputError(f"{OPTION_FLAGS[opt]} does not apply with --surface: the file gives the grid and "
+                                 "the one surface; leave it out")
+            raise InputError(f"scene {name!r} does not take {OPTION_FLAGS[opt]} (it would be ignored); "
+                             f"it takes {', '.join(taken_flags(parts)) or 'no scene option'}")
+
+
+def taken_flags(scenes: Sequence[Any]) -> list[str]:
+    """The flags of the options any of ``scenes`` reads, in ``--help`` order."""
+    return [flag for opt, flag in OPTION_FLAGS.items() if any(opt in sc.options for sc in scenes)]
+
+
+def check_solver_list(text: str | None) -> None:
+    """Refuse an empty ``--solvers`` (it would run every solver); the names themselves
+    are checked by the planner (unknown ones with the closest known names)."""
+    from contactbench.solvers.registry import split_solver_list
+
+    if text is not None and not split_solver_list(text):
+        raise InputError(f"--solvers {text!r} names no solver; give names (contactbench list solvers) or 'all'")
+
+
+def check_out_dir(path: str, option: str = "--out") -> Path:
+    """``path`` if it is, or can be made, a folder we may write: else one ``InputError``
+    naming it (an existing file, a path under a file, a folder we may not write).  Creates
+    nothing."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{option} {path}: exists and is not a folder")
+    probe = p
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise InputError(f"{option} {path}: {probe} is a file, not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {path}: cannot write in {probe} (permission denied)")
+    return p
 
 
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .runner import RunConfig, run_benchmark
     from .store import RunLock
 
+    check_solver_list(args.solvers)
     cfg = scene_config(args)
+    check_scene_options(args.scenes, cfg)
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
@@ -223,6 +393,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
                         reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
                         progress=False if args.no_progress else None, **kw)
     out = args.out or "results/" + "-".join(args.scenes)
+    check_out_dir(out)
     with RunLock(out):  # one writer per results folder (harness/store.py)
         if args.scheduler:
             from .distributed import run_benchmark_on_dask
@@ -234,20 +405,48 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     for w in summary.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(summary.line())
+    status = 0
+    if summary.judged == 0:
+        print(f"contactbench: error: no row could be judged ({summary.rows} rows, none solved or inaccurate)"
+              f"{common_reason(out)}; see the 'error' and 'skip_reason' columns of {out}/results.csv",
+              file=sys.stderr)
+        status = EXIT_NOTHING_JUDGED
     if args.report:
-        return cmd_report(out)
-    return 0
+        return cmd_report(out) or status
+    return status
+
+
+def common_reason(out: str) -> str:
+    """"; most common reason: ..." -- the first line of the commonest ``error`` or
+    ``skip_reason`` of the table in ``out`` -- or "" when there is none."""
+    from .schema import load_table
+
+    table = load_table(out)
+    reasons = [str(v).strip().splitlines()[0][:200] for col in ("error", "skip_reason") if col in table
+               for v in table[col].dropna() if str(v).strip()]
+    if not reasons:
+        return ""
+    top = max(dict.fromkeys(reasons), key=reasons.count)
+    return f"; most common reason ({reasons.count(top)} of {len(table)}): {top}"
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     from contactbench.problems.export import export_scene
+    from contactbench.problems.scenes import get_scene
 
-    summary = export_scene(args.scene, scene_config(args), args.fmt, args.out, dense_limit=args.dense_limit)
+    cfg = scene_config(args)
+    check_scene_options([args.scene], cfg)
+    check_out_dir(args.out)
+    scene = get_scene(args.scene)
+    scene.validate(scene.config(cfg))  # before the folder is made
+    summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit)
     print(summary.line())
     return 0
 
 
 def cmd_report(out_dir: str) -> int:
+    if not Path(out_dir).is_dir():
+        raise InputError(f"report {out_dir}: no such folder (give the --out folder of a run)")
     try:
         from . import report
     except ImportError as exc:
@@ -309,7 +508,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         for line in str(msg).splitlines() or [""]:
             print(f"contactbench: error: {line}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except OSError as exc:  # a path that cannot be read or written: one line naming it
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"contactbench: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return 1
 
 

@@ -498,9 +498,7 @@ def load_named_solver(name: str) -> Solver:
         except KeyError as exc:
             raise SolverLoadError(f"{exc.args[0] if exc.args else exc} (or give an import path module:NAME)") from None
     module, attr = name.split(":", 1)
-    if os.getcwd() not in sys.path:  # like `python -m`: a module in the current directory loads
-        sys.path.insert(0, os.getcwd())
-    try:
+    try:  # a module in the current folder loads, as with `python -m` (solvers/registry.py)
         return load_solver(name)
     except ModuleNotFoundError as exc:
         raise SolverLoadError(f"cannot import {module!r} for solver {name!r}: {exc}; run from the folder that "

@@ -23,7 +23,8 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
-from contactbench.solvers.registry import all_solvers, available_solvers, get_solver, load_solver, register
+from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, parse_solver_spec,
+                                           register, split_solver_list)
 
 from .profiles import get_profile
 from .studies import SolverVariant, Study, expand
@@ -155,22 +156,23 @@ def job_cell_ids(job: InstanceJob, run: RunConfig) -> list[str]:
 def resolve_solver_names(requested: Sequence[str] | str | None, study_default: Sequence[str] | None) -> list[str]:
     """Registry names to run: "all" (every registered solver, unavailable ones are
     recorded as skipped), an explicit list (``module:NAME`` entries are loaded and
-    registered), or the study's defaults, or every available solver."""
+    registered; ``name[k=v]`` entries come back as the checked label, which
+    ``Study.variants`` turns into a variant with those parameters), or the study's
+    defaults, or every available solver."""
     if isinstance(requested, str):
-        requested = [s for s in requested.split(",") if s.strip()]
+        requested = split_solver_list(requested)  # commas inside name[k=v,...] stay
     if requested:
         if list(requested) == ["all"]:
             return list(all_solvers())
         names = []
-        for spec in requested:
-            spec = spec.strip()
-            try:
-                solver = load_solver(spec)  # an unknown name is a clear KeyError
+        for text in requested:
+            try:  # an unknown name is a clear KeyError; name[k=v] is Param-checked (solvers/registry.py)
+                spec, solver = parse_solver_spec(text)
             except (ImportError, AttributeError, TypeError) as exc:
-                raise ProblemInputError(f"cannot load solver {spec!r}: {type(exc).__name__}: {exc}") from None
-            if ":" in spec:
+                raise ProblemInputError(f"cannot load solver {text.strip()!r}: {type(exc).__name__}: {exc}") from None
+            if ":" in spec.name:
                 register(solver, replace=True)
-            names.append(solver.name)
+            names.append(SolverSpec(solver.name, spec.params).label)
         return names
     if study_default:
         return [s for s in study_default if s in all_solvers()]

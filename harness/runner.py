@@ -43,6 +43,12 @@ class RunSummary:
     elapsed_s: float
     warnings: list[str]
 
+    @property
+    def judged(self) -> int:
+        """Rows the judge gave a verdict ("solved" or "inaccurate", harness/judge.py); the
+        rest failed, timed out, crashed or were skipped."""
+        return sum(self.statuses.get(s, 0) for s in ("solved", "inaccurate"))
+
     def line(self) -> str:
         counts = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
         return f"{self.rows} rows ({self.new_rows} new) in {self.elapsed_s:.1f} s: {counts} -> {self.out_dir}"

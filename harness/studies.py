@@ -34,7 +34,9 @@ from typing import Any, Sequence
 
 from contactbench.problems.coarsen import COARSE_KINDS
 from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
-from contactbench.solvers.registry import load_solver
+from contactbench.solvers.registry import load_solver, parse_solver_spec, split_solver_spec
+
+from contactbench.plugins import did_you_mean
 
 #: Exact solvers tried, in order, for the reference solution of a step (after the
 #: study's own ``reference``): the dense Lawson-Hanson NNLS where H fits, else the
@@ -134,9 +136,15 @@ class Study:
 
     def variants(self, solvers: Sequence[str], extra: dict[str, Any] | None = None) -> list[SolverVariant]:
         """Each solver once, or the variants of every sweep it matches, in the sweeps'
-        order (a parameter set two sweeps share runs once, under the first one's label)."""
+        order (a parameter set two sweeps share runs once, under the first one's label);
+        a spec with parameters, ``name[k=v]`` (``solvers.registry.parse_solver_spec``),
+        runs once with exactly those, labelled ``SolverSpec.label``."""
         out: list[SolverVariant] = []
         for s in solvers:
+            if split_solver_spec(s)[1]:  # name[k=v]: the user's parameters, no sweep
+                spec, _ = parse_solver_spec(s)
+                out.append(SolverVariant(spec.name, spec.params, spec.label))
+                continue
             sweeps = [w for w in self.sweeps if w.matches(s)]
             if not sweeps:
                 out.append(SolverVariant(s))
@@ -329,7 +337,8 @@ def expand(name: str, cfg: SceneConfig | None) -> list[tuple[Study, SceneConfig]
     if name in COMPOSITES:
         return COMPOSITES[name].expand(cfg)
     if name not in all_scenes():
-        raise KeyError(f"unknown scene {name!r}; known scenes: {', '.join(sorted(catalogue()))}")
+        raise KeyError(f"unknown scene {name!r}{did_you_mean(name, catalogue())}; "
+                       f"known scenes: {', '.join(sorted(catalogue()))}")
     return [(study_for(name), cfg or SceneConfig())]
 
 

@@ -14,7 +14,9 @@ Formats read by :func:`load_surface`:
   .al3d, ...).  The reader is chosen by the file's extension when SurfaceTopography
   knows it (so a damaged file gets that format's own error), else by content.  Heights
   and the lateral size are converted to metres from the file's own unit; a file with no
-  unit (.mat, .npz) is read in ``height_unit``.  SurfaceTopography indexes heights
+  unit (.npy, text, .mat, .npz) is read in ``height_unit`` (default metres), and a
+  ``height_unit`` given for a file that states its own unit is refused (it would be
+  ignored).  SurfaceTopography indexes heights
   [x, y]; a :class:`Surface` is [y, x] (rows = y), so maps are transposed on the way
   in -- except bare-matrix containers (.mat, .npz), whose matrix is taken as it is,
   like a .npy.  Refused with a clear error: non-uniform line scans, 1-D profiles,
@@ -111,7 +113,7 @@ def load_surface(
     square: SquareRule = "crop",
     nan: NanRule = "fill-mean",
     detrend: DetrendRule = "none",
-    height_unit: str = "m",
+    height_unit: str | None = None,
     channel: int | str | None = None,
     name: str | None = None,
 ) -> Surface:
@@ -120,15 +122,21 @@ def load_surface(
     ``length`` is the side length L (metres) of the final square grid, so the spacing is
     L / N.  When None, the file's own lateral size is used; files that state none (.npy,
     text, .mat) then raise a clear error; when both are given they must agree.
-    ``height_unit`` ("m", "mm", "um", "nm") scales files that carry no unit of their
-    own; ``channel`` (index or name) picks one channel of a multi-channel file.
+    ``height_unit`` ("m", "mm", "um", "nm"; None: metres) scales files that carry no
+    unit of their own; given for a file that states its unit it is a
+    ``SurfaceFileError`` (module doc); ``channel`` (index or name) picks one channel of a multi-channel file.
     """
     _check_choice("square", square, SQUARE_RULES)
     _check_choice("nan", nan, NAN_RULES)
     _check_choice("detrend", detrend, DETREND_RULES)
-    _check_choice("height_unit", height_unit, tuple(HEIGHT_UNITS))
+    if height_unit is not None:
+        _check_choice("height_unit", height_unit, tuple(HEIGHT_UNITS))
     p = Path(path)
     raw = read_height_map(p, channel=channel)
+    if raw.unit_known and height_unit is not None:
+        raise SurfaceFileError(p, f"the file states its own unit ({raw.info.get('file_unit')!r}), so a height unit "
+                                  f"({height_unit!r}, --height-unit) would be ignored; leave it out")
+    height_unit = height_unit or "m"
     scale = 1.0 if raw.unit_known else HEIGHT_UNITS[height_unit]
     z = raw.z * scale
     file_spacing = None if raw.spacing is None else raw.spacing * scale

@@ -14,6 +14,10 @@ line that says what was found and which height unit was probably meant.  Scenes 
 when they validate a measured (``--surface``) file, so ``contactbench run`` stops with
 exit 2 before anything runs; ``--height-unit m|mm|um|nm`` converts the heights of a file
 that states no unit, and ``--allow-steep`` skips the check for those who mean it.
+
+The composite modulus: ``check_plausible_modulus`` refuses an E* outside
+``PLAUSIBLE_MODULUS`` (Pa) -- almost always a unit slip (MPa or GPa given as Pa) -- and
+``contactbench run/export --E`` calls it unless ``--allow-any-E`` is given.
 """
 
 from __future__ import annotations
@@ -29,6 +33,11 @@ HEIGHT_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9}
 UNIT_NAMES: dict[str, str] = {"m": "metres", "mm": "millimetres", "um": "micrometres", "nm": "nanometres"}
 #: The small-slope range: rms slope at most this, and a height range at most the side length.
 MAX_RMS_SLOPE = 1.0
+#: The composite modulus E* = E / (1 - nu^2) a run takes as plausible, Pa: from soft gels
+#: and elastomers (~1e3 Pa) to beyond diamond (E* ~ 1.2e12 Pa).  Outside it the value is
+#: almost surely in the wrong unit (and far outside it the influence coefficients under-
+#: or overflow).
+PLAUSIBLE_MODULUS: tuple[float, float] = (1e3, 1e13)
 
 
 @dataclass(frozen=True)
@@ -121,3 +130,14 @@ def check_height_unit(height_unit: str) -> str:
     if height_unit not in HEIGHT_UNITS:
         raise ProblemInputError(f"unknown height unit {height_unit!r}; choose one of {', '.join(HEIGHT_UNITS)}")
     return height_unit
+
+
+def check_plausible_modulus(E: float) -> float:
+    """``E`` (Pa) if it lies in ``PLAUSIBLE_MODULUS``, else a ``ProblemInputError`` saying
+    which way it is off and how to run it anyway."""
+    lo, hi = PLAUSIBLE_MODULUS
+    if lo <= E <= hi:
+        return float(E)
+    side = "below" if E < lo else "above"
+    raise ProblemInputError(f"--E {E:g} Pa is {side} the plausible range [{lo:g}, {hi:g}] Pa of a composite "
+                            "modulus (a unit slip? E is in Pa); pass --allow-any-E to run it anyway")

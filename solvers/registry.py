@@ -7,16 +7,32 @@ packages can add solvers through the entry-point group ``contactbench.solvers`` 
 entry point names a module to import), and tests may register throw-away solvers with
 ``register(..., replace=True)`` / ``unregister``.  The registry itself is a
 ``contactbench.plugins.PluginRegistry``.
+
+A solver *spec* on the command line (``run --solvers``, ``validate``) is one of
+
+* a registry name, ``fast-dual-pccg``;
+* an import path ``module:NAME`` (a Solver subclass, instance or factory); a module in
+  the current folder loads as with ``python -m`` (``load_solver``);
+* either with fixed parameters, ``fast-dual-pccg[precision=double]`` or
+  ``name[k=v,k2=v2]``: each value is read as the declared ``Param``'s type and checked
+  by ``Solver.resolve_params`` (``parse_solver_spec``).
+
+``split_solver_list`` splits a comma list of specs (commas inside ``[...]`` belong to
+the spec).
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Callable, TypeVar
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Callable, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 
-from .base import Solver
+from .base import Param, ParamError, Solver
 
 S = TypeVar("S")
 
@@ -77,13 +93,26 @@ def get_solver(name: str) -> Solver:
     return _SOLVERS.get(name)
 
 
+def import_user_module(name: str) -> Any:
+    """Import module ``name``; a module that is not importable otherwise is looked for in
+    the current folder too (as ``python -m`` does: the folder goes on ``sys.path``)."""
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        top = name.split(".", 1)[0]
+        if exc.name != top or os.getcwd() in sys.path:
+            raise
+    sys.path.insert(0, os.getcwd())
+    return importlib.import_module(name)
+
+
 def load_solver(spec: str) -> Solver:
     """A solver by registry name or by import path ``module:NAME`` (a Solver subclass,
-    instance or factory)."""
+    instance or factory; ``import_user_module`` finds the module)."""
     if ":" not in spec:
         return get_solver(spec)
     mod_name, attr = spec.split(":", 1)
-    obj = getattr(importlib.import_module(mod_name), attr)
+    obj = getattr(import_user_module(mod_name), attr)
     if isinstance(obj, type) and issubclass(obj, Solver):
         return obj()
     if isinstance(obj, Solver):
@@ -93,3 +122,118 @@ def load_solver(spec: str) -> Solver:
         if isinstance(out, Solver):
             return out
     raise TypeError(f"{spec} is not a Solver subclass, instance or factory")
+
+
+# ---------------------------------------------------------------------------
+# Specs with parameters: name[k=v,k2=v2]
+# ---------------------------------------------------------------------------
+
+
+class SolverSpecError(ValueError):
+    """A malformed solver spec or an unusable parameter in it (one line)."""
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """A solver named on the command line: ``name`` (registry name or ``module:NAME``)
+    and the parameters fixed for it (checked values, as the user gave the keys)."""
+
+    name: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        """The table's name of the variant: ``name[k=v,...]`` with the keys sorted (the
+        scheme of the study sweeps' ``{solver}[{param}={value}]``), or ``name``."""
+        if not self.params:
+            return self.name
+        return f"{self.name}[{','.join(f'{k}={v}' for k, v in sorted(self.params.items()))}]"
+
+
+def split_solver_list(text: str) -> list[str]:
+    """The specs of a comma list, e.g. ``"a,b[k=1,j=2],c"`` -> ``["a", "b[k=1,j=2]", "c"]``;
+    empty entries are dropped; an unbalanced bracket is a ``SolverSpecError``."""
+    parts: list[str] = []
+    depth, start = 0, 0
+    for i, c in enumerate(text):
+        if c == "[":
+            depth += 1
+        elif c == "]":
+            depth -= 1
+            if depth < 0:
+                raise SolverSpecError(f"unbalanced ']' in solver list {text!r}")
+        elif c == "," and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    if depth:
+        raise SolverSpecError(f"unclosed '[' in solver list {text!r}")
+    parts.append(text[start:])
+    return [p.strip() for p in parts if p.strip()]
+
+
+def split_solver_spec(text: str) -> tuple[str, dict[str, str]]:
+    """``"name[k=v,k2=v2]"`` -> ``("name", {"k": "v", "k2": "v2"})`` (values as text)."""
+    text = text.strip()
+    if "[" not in text:
+        if "]" in text:
+            raise SolverSpecError(f"unbalanced ']' in solver {text!r}")
+        return text, {}
+    name, _, rest = text.partition("[")
+    if rest.strip() == "]":
+        raise SolverSpecError(f"empty parameter list in solver {text!r}: write name[key=value] or just name")
+    if not rest.endswith("]") or "[" in rest[:-1] or "]" in rest[:-1]:
+        raise SolverSpecError(f"bad solver spec {text!r}: write name[key=value,key2=value2]")
+    raw: dict[str, str] = {}
+    for item in rest[:-1].split(","):
+        key, eq, value = (s.strip() for s in item.partition("="))
+        if not eq or not key or not value:
+            raise SolverSpecError(f"bad parameter {item.strip()!r} in solver {text!r}: write key=value")
+        if key in raw:
+            raise SolverSpecError(f"parameter {key!r} given twice in solver {text!r}")
+        raw[key] = value
+    if not name.strip() or not raw:
+        raise SolverSpecError(f"bad solver spec {text!r}: write name[key=value,key2=value2]")
+    return name.strip(), raw
+
+
+_TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
+
+
+def param_from_text(param: Param, text: str) -> Any:
+    """``text`` read as ``param``'s type (bool: true/false, yes/no, on/off, 1/0), then
+    checked by ``Param.check``; a ``ParamError`` names the parameter."""
+    bad = ParamError(f"parameter {param.name!r} takes a {param.kind.__name__}, got {text!r}")
+    value: Any = text
+    if param.kind is bool:
+        if text.lower() not in _TRUE + _FALSE:
+            raise bad
+        value = text.lower() in _TRUE
+    elif param.kind is int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise bad from None
+    elif param.kind is float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise bad from None
+        if not math.isfinite(value):
+            raise bad
+    return param.check(value)
+
+
+def parse_solver_spec(text: str) -> tuple[SolverSpec, Solver]:
+    """The spec of one ``--solvers`` entry and its solver (loaded by ``load_solver``).
+    Parameters are read against the solver's declared ``Param``s and checked by
+    ``resolve_params``, the check ``validate --params`` makes; a bad one is a
+    ``ParamError`` naming the allowed keys, a malformed spec a ``SolverSpecError``."""
+    name, raw = split_solver_spec(text)
+    solver = load_solver(name)
+    declared = {p.name: p for p in solver.params}
+    try:
+        params = {k: param_from_text(declared[k], v) if k in declared else v for k, v in raw.items()}
+    except ParamError as exc:
+        raise ParamError(f"solver {text.strip()!r}: {exc}") from None
+    solver.resolve_params(params)  # an unknown key: the allowed ones, in one line
+    return SolverSpec(name, params), solver

@@ -70,3 +70,73 @@ def test_every_registered_solver_is_well_formed() -> None:
         assert isinstance(s.capabilities, Capabilities)
         ok, why = s.availability()
         assert isinstance(ok, bool) and why
+
+
+# ---------------------------------------------------------------------------
+# Specs on the command line: lists, name[k=v], modules in the current folder
+# ---------------------------------------------------------------------------
+
+
+def test_split_solver_list_keeps_commas_inside_brackets() -> None:
+    from contactbench.solvers.registry import SolverSpecError, split_solver_list
+
+    assert split_solver_list("a, b[k=1,j=2] ,c,,") == ["a", "b[k=1,j=2]", "c"]
+    assert split_solver_list("") == [] and split_solver_list(" , ") == []
+    for bad in ("a[k=1", "a]k", "a[k=[1]]x]"):
+        with pytest.raises(SolverSpecError):
+            split_solver_list(bad)
+
+
+def test_param_from_text_reads_the_declared_type_and_checks_it() -> None:
+    from contactbench.solvers.base import Param, ParamError
+    from contactbench.solvers.registry import param_from_text
+
+    flag = Param("flag", bool, False)
+    assert [param_from_text(flag, t) for t in ("true", "Yes", "on", "1", "false", "NO", "0")] == [
+        True, True, True, True, False, False, False]
+    k = Param("K", int, 10, low=1, high=100)
+    assert param_from_text(k, "50") == 50
+    x = Param("x", float, 1.0, low=0.0)
+    assert param_from_text(x, "1e-3") == 1e-3
+    for p, text in ((flag, "maybe"), (k, "1.5"), (k, "0"), (k, "101"), (x, "inf"), (x, "nan"), (x, "-1"),
+                    (Param("m", str, "a", choices=("a", "b")), "c")):
+        with pytest.raises(ParamError, match=repr(p.name)):
+            param_from_text(p, text)
+
+
+def test_parse_solver_spec_checks_params_against_the_solver() -> None:
+    from contactbench.solvers.base import ParamError
+    from contactbench.solvers.registry import SolverSpec, SolverSpecError, parse_solver_spec
+
+    spec, solver = parse_solver_spec("nnls-gp[K=5]")
+    assert spec == SolverSpec("nnls-gp", {"K": 5}) and solver.name == "nnls-gp"
+    assert spec.label == "nnls-gp[K=5]"
+    assert SolverSpec("s", {"b": 1, "a": True}).label == "s[a=True,b=1]"  # keys sorted: one label per variant
+    assert SolverSpec("s").label == "s"
+    with pytest.raises(ParamError, match="has no parameter 'k'"):
+        parse_solver_spec("nnls-gp[k=5]")
+    for bad in ("nnls-gp[K]", "nnls-gp[]", "nnls-gp[K=1,K=2]", "[K=1]", "nnls-gp[K=1]x"):
+        with pytest.raises(SolverSpecError):
+            parse_solver_spec(bad)
+
+
+def test_a_module_in_the_current_folder_loads(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    (tmp_path / "cwd_only_solver.py").write_text(
+        "from tests.test_registry import _Dummy\n\nclass Here(_Dummy):\n    name = 'test-here'\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", str(tmp_path))])
+    monkeypatch.delitem(sys.modules, "cwd_only_solver", raising=False)
+    assert load_solver("cwd_only_solver:Here").name == "test-here"
+    with pytest.raises(ModuleNotFoundError):
+        load_solver("no_such_module_anywhere:Here")
+
+
+def test_did_you_mean_names_only_close_ones() -> None:
+    from contactbench.plugins import did_you_mean
+
+    assert did_you_mean("scipy-nnsl", ["scipy-nnls", "pk"]) == " (did you mean 'scipy-nnls'?)"
+    assert did_you_mean("zzz", ["scipy-nnls", "pk"]) == ""
+    with pytest.raises(KeyError, match=r"unknown solver 'greedy-gc' \(did you mean .*'greedy-cg'"):
+        get_solver("greedy-gc")

@@ -11,7 +11,18 @@ import numpy as np
 
 from ..errors import ProblemInputError
 from ..instances import ContactInstance
+from ..kernels import check_kernel
 from ..surfaces import Surface
+
+
+#: Every option a user may set on a scene: the ``SceneConfig`` fields and the keys of
+#: ``extra`` the command line fills (``channel``, ``height_unit``, ``allow_steep`` of a
+#: surface file; ``family``, the RMD family of generated surfaces).
+SCENE_OPTIONS: frozenset[str] = frozenset({
+    "size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator",
+    "channel", "height_unit", "allow_steep", "family"})
+#: The options a measured surface file replaces (its grid and its one surface).
+GENERATED_ONLY_OPTIONS: frozenset[str] = frozenset({"size", "seeds", "family"})
 
 
 @dataclass(frozen=True)
@@ -96,8 +107,18 @@ class Scene(ABC):
     #: Whether consecutive steps form a load history (warm starts across steps).
     load_history: ClassVar[bool] = True
 
+    #: The options the scene reads (``SCENE_OPTIONS`` names); the command line refuses
+    #: any other it is given (``ignored_options``) instead of silently dropping it.
+    options: ClassVar[frozenset[str]] = SCENE_OPTIONS
+
     def config(self, cfg: SceneConfig | None) -> SceneConfig:
-        return (cfg or SceneConfig()).merged(self.defaults)
+        """``cfg`` with the scene's defaults filled in; a kernel the (merged) periodicity
+        cannot take is a ``ProblemInputError`` (``kernels.check_kernel``: ``spectral``
+        is periodic only)."""
+        merged = (cfg or SceneConfig()).merged(self.defaults)
+        if merged.kernel is not None and "kernel" in self.options:
+            check_kernel(str(merged.kernel), bool(merged.periodic) and "periodic" in self.options)
+        return merged
 
     @abstractmethod
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -132,6 +153,24 @@ def validate_each(specs: list[InstanceSpec], check: Callable[[InstanceSpec], Any
                 problems.append(msg)
     if problems:
         raise ProblemInputError("\n".join(problems))
+
+
+def given_options(cfg: SceneConfig) -> set[str]:
+    """The ``SCENE_OPTIONS`` a (user's, unmerged) config sets: fields not None, ``extra``
+    keys not None or False."""
+    given = {f for f in SCENE_OPTIONS if hasattr(cfg, f) and getattr(cfg, f) is not None}
+    given |= {k for k, v in cfg.extra.items() if k in SCENE_OPTIONS and v is not None and v is not False}
+    return given
+
+
+def ignored_options(scene: Scene, given: set[str]) -> list[str]:
+    """The options in ``given`` that ``scene`` would not use: those it does not read
+    (``Scene.options``) and, with a surface file, those the file replaces
+    (``GENERATED_ONLY_OPTIONS``), sorted."""
+    ignored = set(given) - set(scene.options)
+    if "surface_path" in given and "surface_path" in scene.options:
+        ignored |= set(given) & GENERATED_ONLY_OPTIONS
+    return sorted(ignored)
 
 
 def seeds_of(cfg: SceneConfig, default: tuple[int, ...] = (0,)) -> tuple[int, ...]:

@@ -30,7 +30,7 @@ import numpy as np
 from ..coarsen import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
-from .base import InstanceSpec, Scene, SceneConfig, seeds_of
+from .base import SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
 from .core import PAPER_E, RampScene, check_relief, rough_surface_specs, surface_from_params
 
 
@@ -110,6 +110,8 @@ class CMRCutoff(RampScene):
     defaults = SceneConfig(size=256, steps=1, seeds=(0,), length=100e-6, E=PAPER_E, kernel="bcc",
                            periodic=False, operator="fft",
                            extra={"hurst": 0.6, "rolloff_fraction": 1 / 32, "max_fraction": 0.2})
+    # spectral surfaces (no RMD family); a surface file is read in metres, its first channel
+    options = SCENE_OPTIONS - {"family", "channel", "height_unit"}
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:

@@ -24,6 +24,10 @@ from ..units import check_height_unit, check_plausible_units
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of, validate_each
 
+#: The options of the closed-form scenes (hertz, flat-punch): a generated shape on a
+#: non-periodic half-space, one instance per size.
+ANALYTIC_OPTIONS: frozenset[str] = frozenset({"size", "steps", "length", "E", "kernel", "operator"})
+
 PAPER_SEED = 5  # RMD seed of the paper-sweep default surface (see PaperSweep)
 PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
 
@@ -45,8 +49,9 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
     if params.get("surface_path"):
         from ..io import load_surface  # measured height maps (issue: real surfaces)
 
+        unit = params.get("height_unit")  # absent: metres for a file that states no unit
         return load_surface(params["surface_path"], length=params.get("length"), channel=params.get("channel"),
-                            height_unit=str(params.get("height_unit", "m")))
+                            height_unit=None if unit is None else str(unit))
     return rmd_surface_n(
         int(params["size"]),
         float(params["hurst"]),
@@ -136,7 +141,7 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         file_params = {**base, "surface_path": cfg.surface_path, "seed": 0}
         if cfg.extra.get("channel") is not None:
             file_params["channel"] = cfg.extra["channel"]
-        if cfg.extra.get("height_unit") not in (None, "m"):  # (absent = metres: older cell ids unchanged)
+        if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
         return [InstanceSpec(scene, f"file-{name}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
@@ -187,6 +192,7 @@ class Counterexample(Scene):
     name = "counterexample"
     description = "greedy counterexample (paper Example 1): n = 25, 100, 400, ubar ~ U(0,1), seeds 0-99"
     defaults = SceneConfig(seeds=tuple(range(100)), operator="dense", extra={"sizes": (25, 100, 400)})
+    options = frozenset({"size", "seeds", "operator"})  # n = size^2; ubar, H and E are the example's own
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -217,6 +223,7 @@ class Hertz(RampScene):
     description = "Hertz sphere: load and contact radius vs closed form, over mesh refinement"
     defaults = SceneConfig(steps=1, length=2.0e-3, E=1.0e9, kernel="bcc", periodic=False, operator="fft",
                            extra={"sizes": (16, 32, 64, 128), "radius": 10e-3, "a_over_L": 0.25})
+    options = ANALYTIC_OPTIONS
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -257,6 +264,7 @@ class FlatPunch(RampScene):
     description = "flat circular punch: load vs P = 2 a E* Delta over mesh refinement"
     defaults = SceneConfig(steps=1, length=2.0e-3, E=1.0e9, kernel="bcc", periodic=False, operator="fft",
                            extra={"sizes": (16, 32, 64, 128), "a_over_L": 0.3, "delta_over_a": 1e-3})
+    options = ANALYTIC_OPTIONS
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:

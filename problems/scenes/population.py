@@ -90,6 +90,8 @@ class Population(RampScene):
         operator="fft",
         extra={"hursts": DEFAULT_HURSTS, "separations": DEFAULT_SEPARATIONS, "rms_height": 1e-6},
     )
+    # periodic RMD surfaces of the size's own family; no surface file
+    options = frozenset({"size", "seeds", "steps", "length", "E", "kernel", "periodic", "operator"})
     load_history = True
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:

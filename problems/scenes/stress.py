@@ -596,6 +596,7 @@ class _StressScene(Scene):
 
     groups: tuple[str, ...] = GROUPS
     defaults = SceneConfig(extra={"mode": "scene"})
+    options = frozenset[str]()  # every recipe is the battery's own
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
