@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
@@ -116,9 +117,18 @@ class StoredCell:
 
     @classmethod
     def of(cls, row: dict[str, Any]) -> "StoredCell":
-        n, t = row.get("n"), row.get("solve_time_s")
+        n, t = _finite(row.get("n")), _finite(row.get("solve_time_s"))
         return cls(int(row["step"]), str(row["solver"]), str(row["profile"]), None if n is None else int(n),
-                   str(row.get("status", "")), None if t is None else float(t))
+                   str(row.get("status", "")), t)
+
+
+def _finite(value: Any) -> float | None:
+    """``value`` as a finite float, else None (a JSON null, NaN, a string)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
 
 
 @dataclass(frozen=True)
@@ -312,7 +322,8 @@ def check_bounds(est: SceneEstimate, run: RunConfig) -> None:
         problems.append(f"its largest instance ({est.largest}) needs at least {est.largest_bytes / 2**30:.3g} GiB, "
                         f"over the memory budget of {run.memory_budget / 2**30:.3g} GiB (--memory-budget-gb)")
     if est.cells > run.max_cells:
-        problems.append(f"the plan has {est.cells:,} cells ({est.instances:,} instances), over the limit of "
+        problems.append(f"the plan has {est.cells:,} cells ({est.instances:,} instance"
+                        f"{'' if est.instances == 1 else 's'}), over the limit of "
                         f"{run.max_cells:,} (--max-cells)")
     if problems:
         raise ProblemInputError("\n".join(problems))

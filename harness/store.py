@@ -331,7 +331,9 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
     if marker.exists():
         try:
             data = json.loads(marker.read_text(encoding="utf-8"))
-            fmt, runs = int(data["format"]), list(data["runs"])
+            fmt, runs = int(data["format"]), data["runs"]
+            if not (isinstance(runs, list) and all(isinstance(r, dict) for r in runs)):
+                raise TypeError("runs")
         except (OSError, ValueError, KeyError, TypeError):
             raise RunFolderError(f"results folder {out}: its marker {marker.name} cannot be read; "
                                  "choose another --out") from None

@@ -22,7 +22,7 @@ try:  # the throw-away solvers (tests/ may or may not be a package)
 except ImportError:  # pragma: no cover
     from test_harness_solvers import ExactStub
 from contactbench.harness import worker
-from contactbench.harness.plan import RunConfig
+from contactbench.harness.plan import RunConfig, StoredCell
 from contactbench.harness.runner import run_benchmark
 from contactbench.harness.skips import SkipPolicy
 from contactbench.harness.store import ROWS_FILE, load_table
@@ -136,6 +136,17 @@ def test_resume_after_an_interruption_gives_the_same_cells(uninterrupted: Path, 
     summary = run_benchmark(["paper-sweep"], CFG, SOLVERS, RUN, out, command=["pytest"])
     assert summary.new_rows == 6 * len(SOLVERS) - keep_rows
     pd.testing.assert_frame_equal(cells(out), cells(uninterrupted))
+
+
+def test_stored_cells_read_nan_null_and_text_as_unknown() -> None:
+    row = {"step": 3, "solver": "s", "profile": "default", "n": None, "status": "failed", "solve_time_s": float("nan")}
+    cell = StoredCell.of(row)
+    assert (cell.n, cell.seconds) == (None, None)
+    assert StoredCell.of({**row, "n": "x", "solve_time_s": float("inf")}).n is None
+    assert StoredCell.of({**row, "n": 12.0, "solve_time_s": 0.5}) == StoredCell(3, "s", "default", 12, "failed", 0.5)
+    policy = SkipPolicy(1.0, 2**30)
+    policy.note(("s", "default"), 0, None, "timeout", float("nan"))  # a row of a step that was never built
+    assert policy.first_timeout(("s", "default"), 5) is None
 
 
 def test_policy_reads_only_earlier_steps_whatever_the_order_rows_arrive() -> None:

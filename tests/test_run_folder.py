@@ -121,6 +121,10 @@ def test_an_unreadable_marker_and_a_file_are_refused(tmp_path: Path) -> None:
     (out / MARKER_FILE).write_text("{not json")
     with pytest.raises(RunFolderError, match="cannot be read"):
         run_benchmark(["paper-sweep"], small(), [SOLVER], RUN, out, command=["pytest"])
+    for bad in ({"format": 1, "runs": "all"}, {"format": 1, "runs": [1]}, {"runs": []}, [1]):
+        (out / MARKER_FILE).write_text(json.dumps(bad))
+        with pytest.raises(RunFolderError, match="cannot be read"):
+            run_benchmark(["paper-sweep"], small(), [SOLVER], RUN, out, command=["pytest"])
     (out / MARKER_FILE).write_text(json.dumps({"format": 99, "runs": []}))
     with pytest.raises(RunFolderError, match="newer contactbench"):
         run_benchmark(["paper-sweep"], small(), [SOLVER], RUN, out, command=["pytest"])
