@@ -105,29 +105,30 @@ def package_version() -> str:
         return "unknown (not installed)"
 
 
-def parse_seeds(text: str) -> tuple[int, ...]:
-    """'0-9' -> 0..9, '0,3,5' -> (0, 3, 5), '0-2,7' -> (0, 1, 2, 7)."""
-    seeds: list[int] = []
+def parse_seeds(text: str) -> Sequence[int]:
+    """'0-9' -> 0..9, '0,3,5' -> (0, 3, 5), '0-2,7' -> (0, 1, 2, 7).  One range stays a
+    lazy ``range`` (the plan bounds its size before anything expands it)."""
+    parts: list[range] = []
     for part in text.split(","):
         part = part.strip()
         if not part:
             continue
         try:
-            if "-" in part:
-                a, b = part.split("-", 1)
-                lo, hi = int(a), int(b)
-                if hi < lo or lo < 0:
-                    raise ValueError
-                seeds.extend(range(lo, hi + 1))
-            else:
-                seeds.append(int(part))
-                if seeds[-1] < 0:
-                    raise ValueError
+            a, b = part.split("-", 1) if "-" in part else (part, part)
+            lo, hi = int(a), int(b)
+            if hi < lo or lo < 0:
+                raise ValueError
         except ValueError:
             raise argparse.ArgumentTypeError(f"bad seed list {text!r}: use e.g. 0-9 or 0,3,5") from None
-    if not seeds:
+        parts.append(range(lo, hi + 1))
+    if not parts:
         raise argparse.ArgumentTypeError(f"empty seed list {text!r}")
-    return tuple(dict.fromkeys(seeds))
+    if len(parts) == 1:
+        return parts[0]
+    most = 10**6  # a list of several parts is expanded here (one range is not: the plan bounds it)
+    if sum(len(r) for r in parts) > most:
+        raise argparse.ArgumentTypeError(f"seed list {text!r} has over {most:,} seeds; give one range (e.g. 0-99)")
+    return tuple(dict.fromkeys(s for r in parts for s in r))
 
 
 def parse_profiles(text: str) -> tuple[str, ...]:
@@ -198,7 +199,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--reference-timeout", type=positive_float, default=None,
                      help="limit for a reference solve (default: 5 x timeout)")
     run.add_argument("--memory-budget-gb", type=positive_float, default=None,
-                     help="memory a solve may use, GiB (default: the harness's budget)")
+                     help="memory a solve, and an instance, may use, GiB (default: the harness's budget)")
+    run.add_argument("--max-cells", type=positive_int, default=None, help="most cells a plan may have (default: 100000)")
+    run.add_argument("--append", action="store_true",
+                     help="add this run to a results folder that holds a run of another configuration")
     run.add_argument("--threads", type=positive_int, default=None,
                      help="BLAS/FFT threads per worker (default: cores / jobs)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -380,7 +384,6 @@ def check_out_dir(path: str, option: str = "--out") -> Path:
 
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .runner import RunConfig, run_benchmark
-    from .store import RunLock
 
     check_solver_list(args.solvers)
     cfg = scene_config(args)
@@ -388,20 +391,23 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
+    if args.max_cells:
+        kw["max_cells"] = args.max_cells
     run_cfg = RunConfig(profiles=args.profile, repeats=args.repeats, timeout=args.timeout, warm=not args.cold,
                         warmup=not args.no_warmup, jobs=args.jobs, reference=args.reference,
                         reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
                         progress=False if args.no_progress else None, **kw)
     out = args.out or "results/" + "-".join(args.scenes)
     check_out_dir(out)
-    with RunLock(out):  # one writer per results folder (harness/store.py)
-        if args.scheduler:
-            from .distributed import run_benchmark_on_dask
+    # run_benchmark plans, checks the folder, then holds its lock (harness/store.py) while it writes
+    if args.scheduler:
+        from .distributed import run_benchmark_on_dask
 
-            summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
-                                            command=["contactbench", *argv])
-        else:
-            summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv])
+        summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
+                                        command=["contactbench", *argv], append=args.append)
+    else:
+        summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
+                                append=args.append)
     for w in summary.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(summary.line())

@@ -414,8 +414,8 @@ class DaskExecutor:
 def run_benchmark_on_dask(scenes: Sequence[str], cfg: SceneConfig | None = None,
                           solvers: Sequence[str] | str | None = None, run: RunConfig | None = None,
                           out_dir: str | os.PathLike[str] = "results/run", scheduler: "Client | str" = "",
-                          command: list[str] | None = None) -> RunSummary:
+                          command: list[str] | None = None, append: bool = False) -> RunSummary:
     """``run_benchmark`` with the cells sent to a Dask scheduler (meta.json records the
     scheduler)."""
     executor = DaskExecutor(scheduler, solver_import_specs(solvers))
-    return run_benchmark(scenes, cfg, solvers, run, out_dir, command=command, executor=executor)
+    return run_benchmark(scenes, cfg, solvers, run, out_dir, command=command, executor=executor, append=append)

@@ -7,7 +7,8 @@ whose handler (``harness.worker.InstanceWorker``) builds the instance's
 1. builds the step in the worker (build time measured there);
 2. decides for each variant whether to run it or skip it (``harness.skips``: the
    solver's availability, capabilities, memory and time models, its own
-   ``skip(traits)``, and what this job has observed);
+   ``skip(traits)``, and the rows of the earlier steps of the same (variant, profile)
+   sequence -- stored ones included, so a resumed job decides as an uninterrupted one);
 3. assembles the dense H at most once for the step, and only if a variant that runs
    needs it (its assembly time is added to that variant's ``build_time_s``);
 4. obtains the reference solution: from OUT/_cache/ if stored; else, with the automatic
@@ -104,6 +105,8 @@ class JobRunner:
         self.sink = sink
         self.rows = RowFactory(job, run)
         self.policy = SkipPolicy(run.timeout, run.memory_budget)
+        for cell in job.stored:  # a resumed job: the stored rows count as if seen live
+            self.policy.note((cell.label, cell.profile), cell.step, cell.n, cell.status, cell.seconds)
         self.worker = IsolatedWorker(partial(InstanceWorker, job.spec, run.memory_budget), threads=run.worker_threads())
         self.warmed: set[tuple[int, str]] = set()
         self.warm_have: set[tuple[int, str, str, int]] = set()  # (generation, label, profile, step) held by the worker
@@ -121,7 +124,11 @@ class JobRunner:
         return out
 
     def emit(self, row: dict[str, Any]) -> None:
+        """Hand ``row`` to the sink; the skip policy reads it exactly as it would read it
+        back from the journal on resume (``SkipPolicy``)."""
         self.statuses[row["cell_id"]] = row["status"]
+        self.policy.note((row["solver"], row["profile"]), row["step"], row.get("n"), row["status"],
+                         row.get("solve_time_s"))
         self.sink(row)
 
     def emit_rows(self, ctx: StepContext | None, k: int, v: SolverVariant, profile: str, reps: list[int],
@@ -188,7 +195,8 @@ class JobRunner:
 
     def run_step(self, ctx: StepContext, todo: Todo) -> None:
         traits = ctx.info.traits
-        decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits) for v, prof, _ in todo}
+        decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits, ctx.k, self.job.load_history)
+                     for v, prof, _ in todo}
         running = [(v, prof) for v, prof, _ in todo if not decisions[(v.name, prof)].skip]
         if running:
             self.plan_reference(ctx, running)
@@ -312,7 +320,7 @@ class JobRunner:
         steps (``harness.skips``), else the solver's time model, else at least
         ``MIN_PREDICTED_MATVECS`` products with H."""
         n = ctx.info.n
-        seen = self.policy.observed.get((v.name, profile))
+        seen = self.policy.observations((v.name, profile), ctx.k) if self.job.load_history else []
         if seen:
             return extrapolated_time(seen, n)[0]
         try:
@@ -341,7 +349,6 @@ class JobRunner:
 
     def run_group(self, ctx: StepContext, v: SolverVariant, profile: str, reps: list[int], operator: str) -> None:
         lost: tuple[str, str] | None = None  # (status, why) once a repeat timed out or crashed
-        n = ctx.info.n
         for r in reps:
             if lost is not None:
                 self.emit(self.row(ctx, ctx.k, v, profile, r, status=lost[0], error=f"not attempted: {lost[1]}"))
@@ -371,9 +378,7 @@ class JobRunner:
                     lost = (status, f"repeat {r} ended with {status}")
             if note:
                 values["warmup"] = note
-            row = self.row(ctx, ctx.k, v, profile, r, operator=operator, build_time_s=build, **values)
-            self.policy.note((v.name, profile), ctx.k, n, row["status"], row.get("solve_time_s"), self.job.load_history)
-            self.emit(row)
+            self.emit(self.row(ctx, ctx.k, v, profile, r, operator=operator, build_time_s=build, **values))
 
 
 def served_name(label: str, profile: str) -> str:
@@ -406,6 +411,10 @@ def run_instance_job(job: InstanceJob, run: RunConfig, out_dir: str | os.PathLik
         if sink is not None:
             sink(row)
 
-    known = store.done_statuses() if statuses is None else statuses
+    if statuses is None:
+        stored = {r["cell_id"]: r for r in store.rows()}
+        known, job = {c: str(r.get("status", "")) for c, r in stored.items()}, job.with_stored(stored, run)
+    else:
+        known = statuses
     JobRunner(job, run, known, store.cache_dir, write).run()
     return count

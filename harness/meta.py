@@ -3,7 +3,9 @@
 Package versions, Python, CPU model and core counts, thread settings (environment and
 threadpoolctl's view of the BLAS libraries), date, git commit (and whether the tree was
 dirty), the command line, the run configuration and the scenes' warnings.  A resumed
-run keeps the first record and appends itself to ``invocations``.
+(or, with ``--append``, an added) run keeps the first record's ``date`` and ``command``,
+appends itself to ``invocations`` and lists its command in ``commands`` (every distinct
+command that wrote to the folder, in order: ``commands_of``).
 """
 
 from __future__ import annotations
@@ -140,11 +142,24 @@ def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
     invocations.append({k: record.get(k) for k in ("date", "command", "git", "config")})
     merged = {**record, **{k: v for k, v in previous.items() if k in ("date", "command")}}
     merged["invocations"] = invocations
+    merged["commands"] = commands_of(merged)
     merged["warnings"] = sorted(set(previous.get("warnings", [])) | set(record.get("warnings", [])))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")  # unique per writer, renamed over the file
     tmp.write_text(json.dumps(merged, indent=2, default=str), encoding="utf-8")
     os.replace(tmp, path)
     return path
+
+
+def command_text(command: Any) -> str:
+    return " ".join(str(a) for a in command) if isinstance(command, (list, tuple)) else str(command or "")
+
+
+def commands_of(meta: dict[str, Any]) -> list[str]:
+    """Every distinct command that wrote to the run folder, first first: ``command`` and
+    those of ``invocations`` (meta.json of any age)."""
+    found = [command_text(meta.get("command"))]
+    found += [command_text(inv.get("command")) for inv in meta.get("invocations", []) or [] if isinstance(inv, dict)]
+    return [c for c in dict.fromkeys(found) if c]
 
 
 def read_meta(out_dir: str | os.PathLike[str]) -> dict[str, Any]:

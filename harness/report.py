@@ -46,6 +46,7 @@ from matplotlib.figure import Figure
 from contactbench.plugins import PluginRegistry
 
 from . import aggregates as agg
+from .meta import commands_of
 from .report_style import DEFAULT_FAMILY, SolverStyles
 from .schema import COLUMNS, STATUSES, TableError, as_text, bool_series, load_table
 
@@ -567,7 +568,8 @@ def header_section(ctx: ReportContext) -> str:
         ("Profiles", ", ".join(p for p in PROFILE_PREFERENCE[::-1] if p in set(t["profile"])) or
          ", ".join(natural_sorted(t["profile"].unique()))),
         ("Rows", f"{len(t)} ({status_counts(t)})"),
-        ("Command", _meta_get(m, "command", "command_line", "argv")),
+        ("Commands" if len(commands_of(m)) > 1 else "Command",
+         "; ".join(commands_of(m)) or _meta_get(m, "command", "command_line", "argv")),
         ("Date", _meta_get(m, "date", "started", "timestamp") or "unknown (no meta.json)"),
         ("Git commit", _git_text(m)),
         ("Host", _meta_get(m, "host", "hostname", "machine.host")),

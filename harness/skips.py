@@ -16,7 +16,8 @@ words, with the estimate):
    measured growth (``extrapolated_time``); else its ``time_estimate(n, operator)``;
    against the time limit.  After a timeout, larger steps of that solver are skipped.
 
-``skip_decision`` answers one question; ``SkipPolicy`` adds what one job has observed.
+``skip_decision`` answers one question; ``SkipPolicy`` adds the rows of the earlier
+steps of the same sequence, the same rows whether a run is resumed or not.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ OBSERVED_EXPONENT_CAP = 3.0
 OBSERVED_SKIP_FRACTION = 1.0
 
 Observation = tuple[int, float]  # (n, solve seconds) of one finished step
+#: Statuses of a row that ran to an answer (its time is an observation).
+ANSWERED = ("solved", "inaccurate")
 
 
 @dataclass(frozen=True)
@@ -143,30 +146,74 @@ def time_decision(solver: object, traits: ProblemTraits, operator: str, time_lim
     return Decision(operator=operator)
 
 
+@dataclass(frozen=True)
+class StepRecord:
+    """What the skip policy reads of one finished row of a (variant, profile) sequence:
+    its step, trial-set size n, status and solve seconds (the row's ``step``, ``n``,
+    ``status`` and ``solve_time_s``)."""
+
+    step: int
+    n: int
+    status: str
+    seconds: float | None
+
+
 @dataclass
 class SkipPolicy:
-    """``skip_decision`` plus what one job has seen of each (variant, profile): its
-    first timeout (larger steps are skipped) and its last two finished solves along the
-    load history (the time prediction for the next step)."""
+    """``skip_decision`` plus the rows of each (variant, profile) sequence of one job.
+
+    The decision for step k is a function of the plan (limits, traits) and of the rows of
+    steps < k of the same (variant, profile) sequence only -- whether those rows were
+    produced by this process (``note``) or read back from the journal on resume
+    (``note`` too, via ``harness.job``) -- never of the order in which cells finished:
+
+    * a timeout at step j < k with n_j <= n_k skips step k ("timed out at step j");
+    * else the last two earlier steps with an answer (solved or inaccurate; one
+      observation per step: the fastest of its answered repeats) feed
+      ``extrapolated_time`` along a load history;
+    * else the solver's own time model.
+    """
 
     time_limit: float
     memory_budget: float
-    too_slow: dict[tuple[str, str], tuple[int, int]] = field(default_factory=dict)  # -> (step, n)
-    observed: dict[tuple[str, str], list[Observation]] = field(default_factory=dict)
+    seen: dict[tuple[str, str], dict[int, list[StepRecord]]] = field(default_factory=dict)
 
-    def decide(self, base: str, key: tuple[str, str], traits: ProblemTraits) -> Decision:
-        d = skip_decision(base, traits, self.time_limit, self.memory_budget, self.observed.get(key))
-        slow = self.too_slow.get(key)
-        if not d.skip and slow is not None and traits.n >= slow[1]:
+    def decide(self, base: str, key: tuple[str, str], traits: ProblemTraits, step: int,
+               load_history: bool = True) -> Decision:
+        """The decision for ``step`` of sequence ``key`` (class doc)."""
+        observed = self.observations(key, step) if load_history else []
+        d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed)
+        slow = self.first_timeout(key, step)
+        if not d.skip and slow is not None and traits.n >= slow.n:
             return Decision(reason=f"predicted over the {self.time_limit:g} s limit: it timed out at step "
-                                   f"{slow[0]} with n = {slow[1]}, and this step has n = {traits.n}")
+                                   f"{slow.step} with n = {slow.n}, and this step has n = {traits.n}")
         return d
 
-    def note(self, key: tuple[str, str], step: int, n: int, status: str, seconds: float | None,
-             load_history: bool) -> None:
-        """Record a finished solve of ``key`` (a timeout, or an answer's time)."""
-        if status == "timeout":
-            self.too_slow.setdefault(key, (step, n))
-        elif status in ("solved", "inaccurate") and load_history and seconds is not None:
-            seen = self.observed.setdefault(key, [])
-            seen[:] = (seen + [(n, float(seconds))])[-2:]
+    def note(self, key: tuple[str, str], step: int, n: int | None, status: str, seconds: float | None) -> None:
+        """Record one finished row of sequence ``key`` (any status; only timeouts and
+        answers with a time count)."""
+        if n is None:
+            return
+        sec = None if seconds is None or not math.isfinite(float(seconds)) else float(seconds)
+        self.seen.setdefault(key, {}).setdefault(int(step), []).append(StepRecord(int(step), int(n), str(status), sec))
+
+    def earlier(self, key: tuple[str, str], step: int) -> list[tuple[int, list[StepRecord]]]:
+        return sorted((k, recs) for k, recs in self.seen.get(key, {}).items() if k < step)
+
+    def first_timeout(self, key: tuple[str, str], step: int) -> StepRecord | None:
+        """The earliest timed-out row of a step before ``step``."""
+        for _, recs in self.earlier(key, step):
+            for rec in recs:
+                if rec.status == "timeout":
+                    return rec
+        return None
+
+    def observations(self, key: tuple[str, str], step: int) -> list[Observation]:
+        """(n, seconds) of the last two steps before ``step`` with an answered repeat
+        (one per step: its fastest answered repeat)."""
+        out: list[Observation] = []
+        for _, recs in self.earlier(key, step):
+            times = [r.seconds for r in recs if r.status in ANSWERED and r.seconds is not None]
+            if times:
+                out.append((recs[0].n, min(times)))
+        return out[-2:]

@@ -10,6 +10,17 @@ Layout of a run directory ``OUT/``::
     meta.json         run metadata (harness/meta.py)
     _cache/           reference solutions, one file per instance-step
     run.lock          while a run is writing: its PID, host and start time (``RunLock``)
+    .contactbench-run.json
+                      the marker: this is a contactbench run folder (format version, and
+                      the configuration of each run that wrote to it; ``RunFolder``)
+
+A results folder is safe to point at (``check_run_folder``, before anything is written or
+locked): a missing or empty folder is a new run; a marked folder accepts a run whose
+configuration it records (a resume), and a run with another configuration only when
+asked to add to it (``append``; the differences are named otherwise); a folder written
+by contactbench before the marker existed (its meta.json has contactbench's ``command``
+and ``config`` keys, and it has rows.jsonl) counts as marked with the configuration its
+meta.json records; any other non-empty folder is refused and left as it is.
 
 One writer per results folder: ``contactbench run`` holds ``RunLock`` on OUT for the
 whole run (an exclusive ``flock`` on OUT/run.lock, whose text names the holder).  A
@@ -32,13 +43,14 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import hashlib
 import json
 import logging
 import os
 import socket
 import time
 import uuid
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -54,6 +66,9 @@ ROWS_FILE = "rows.jsonl"
 PARQUET_FILE = "results.parquet"
 CSV_FILE = "results.csv"
 LOCK_FILE = "run.lock"
+MARKER_FILE = ".contactbench-run.json"
+#: Version of the marker's format (``RunFolder``).
+MARKER_FORMAT = 1
 
 log = logging.getLogger("contactbench")
 
@@ -226,6 +241,143 @@ def replace_atomically(path: Path, write: Callable[[str], Any]) -> None:
 
 
 # ---------------------------------------------------------------------------
+# What a results folder is (the marker)
+# ---------------------------------------------------------------------------
+
+
+class RunFolderError(ProblemInputError):
+    """The results folder is not one this run may write to (the command line exits 2)."""
+
+
+def canonical(identity: dict[str, Any]) -> dict[str, Any]:
+    """``identity`` as JSON reads it back (tuples -> lists, keys sorted)."""
+    return json.loads(json.dumps(identity, sort_keys=True, default=str))
+
+
+def fingerprint(identity: dict[str, Any]) -> str:
+    """A short hash of a run configuration (``canonical`` JSON)."""
+    text = json.dumps(canonical(identity), sort_keys=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def flatten(d: Any, prefix: str = "") -> dict[str, Any]:
+    """Nested dicts as dotted keys ("run.timeout")."""
+    if not isinstance(d, dict):
+        return {prefix: d}
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    return out
+
+
+def differences(recorded: dict[str, Any], wanted: dict[str, Any]) -> list[str]:
+    """One phrase per setting that differs: "run.timeout: 60.0 in the folder, 5.0 in this run"."""
+    a, b = flatten(canonical(recorded)), flatten(canonical(wanted))
+    out = []
+    for key in sorted(set(a) | set(b)):
+        if a.get(key, "(unset)") != b.get(key, "(unset)"):
+            out.append(f"{key}: {json.dumps(a.get(key, '(unset)'))} in the folder, "
+                       f"{json.dumps(b.get(key, '(unset)'))} in this run")
+    return out
+
+
+@dataclass
+class RunFolder:
+    """What a results folder holds (module doc): ``kind`` is "new" (missing or empty but
+    for a lock file), "marked" or "legacy" (written before the marker); ``runs`` are the
+    recorded configurations, each ``{"fingerprint": ..., "config": ...}``."""
+
+    out: Path
+    kind: str
+    runs: list[dict[str, Any]] = field(default_factory=list)
+
+    def records(self, identity: dict[str, Any]) -> bool:
+        fp = fingerprint(identity)
+        return any(r.get("fingerprint") == fp for r in self.runs)
+
+    def closest(self, identity: dict[str, Any]) -> list[str]:
+        """The differences to the recorded configuration closest to ``identity``."""
+        diffs = [differences(r.get("config") or {}, identity) for r in self.runs]
+        return min(diffs, key=len) if diffs else []
+
+
+def legacy_config(out: Path) -> dict[str, Any] | None:
+    """The ``config`` of a folder written by contactbench before the marker: meta.json
+    with contactbench's ``command`` (a list) and ``config`` (a dict), and a rows.jsonl."""
+    if not (out / ROWS_FILE).is_file():
+        return None
+    try:
+        meta = json.loads((out / "meta.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if isinstance(meta, dict) and isinstance(meta.get("command"), list) and isinstance(meta.get("config"), dict):
+        return meta["config"]
+    return None
+
+
+Identity = Callable[[dict[str, Any]], dict[str, Any]]  # a meta.json ``config`` -> a run's configuration
+
+
+def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> RunFolder:
+    """Inspect ``out_dir`` without touching it; raise ``RunFolderError`` for a path that
+    is not a folder, a foreign non-empty folder or an unreadable marker.  ``identity_of``
+    turns a legacy meta.json ``config`` into a run configuration."""
+    out = Path(out_dir)
+    if not out.exists():
+        return RunFolder(out, "new")
+    if not out.is_dir():
+        raise RunFolderError(f"results folder {out} is not a folder; choose another --out")
+    marker = out / MARKER_FILE
+    if marker.exists():
+        try:
+            data = json.loads(marker.read_text(encoding="utf-8"))
+            fmt, runs = int(data["format"]), data["runs"]
+            if not (isinstance(runs, list) and all(isinstance(r, dict) for r in runs)):
+                raise TypeError("runs")
+        except (OSError, ValueError, KeyError, TypeError):
+            raise RunFolderError(f"results folder {out}: its marker {marker.name} cannot be read; "
+                                 "choose another --out") from None
+        if fmt > MARKER_FORMAT:
+            raise RunFolderError(f"results folder {out} was written by a newer contactbench (marker format {fmt}); "
+                                 "choose another --out")
+        return RunFolder(out, "marked", runs)
+    if not [p for p in out.iterdir() if p.name != LOCK_FILE]:
+        return RunFolder(out, "new")
+    config = legacy_config(out)
+    if config is None:
+        raise RunFolderError(f"results folder {out} is not empty and is not a contactbench run folder "
+                             f"(no {MARKER_FILE}); choose an empty or new --out")
+    identity = identity_of(config)
+    return RunFolder(out, "legacy", [{"fingerprint": fingerprint(identity), "config": canonical(identity)}])
+
+
+def check_run_folder(out_dir: str | os.PathLike[str], identity: dict[str, Any], append: bool,
+                     identity_of: Identity) -> RunFolder:
+    """``read_run_folder``, then refuse a run whose configuration the folder does not
+    record, unless ``append`` (``RunFolderError`` naming the differences)."""
+    folder = read_run_folder(out_dir, identity_of)
+    if folder.kind == "new" or append or folder.records(identity):
+        return folder
+    diffs = folder.closest(identity)
+    raise RunFolderError(f"results folder {folder.out} holds a run with another configuration "
+                         f"({'; '.join(diffs) or 'differs'}); resume it with the same options, choose another "
+                         "--out, or add to it with --append")
+
+
+def record_run(folder: RunFolder, identity: dict[str, Any]) -> Path:
+    """Write the marker with ``identity`` among its runs (atomically)."""
+    runs = list(folder.runs)
+    if not folder.records(identity):
+        runs.append({"fingerprint": fingerprint(identity), "config": canonical(identity)})
+    folder.out.mkdir(parents=True, exist_ok=True)
+    path = folder.out / MARKER_FILE
+    text = json.dumps({"format": MARKER_FORMAT, "tool": "contactbench", "runs": runs}, indent=2, sort_keys=True)
+    replace_atomically(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    folder.runs, folder.kind = runs, "marked"
+    return path
+
+
+# ---------------------------------------------------------------------------
 # One writer per results folder
 # ---------------------------------------------------------------------------
 
@@ -322,6 +474,7 @@ class RunLock:
                     if self._claim(fd):
                         self.fd = fd
                         _HELD.add(fd)
+                        _HELD_PATHS[str(self.out.resolve())] = self
                         return self
                 except BaseException:
                     os.close(fd)
@@ -381,6 +534,8 @@ class RunLock:
             pass
         finally:
             _HELD.discard(self.fd)
+            if _HELD_PATHS.get(str(self.out.resolve())) is self:
+                del _HELD_PATHS[str(self.out.resolve())]
             os.close(self.fd)
             self.fd = None
         self._remove_empty_dir()
@@ -391,9 +546,23 @@ class RunLock:
                 self.out.rmdir()  # only succeeds when empty
 
 
+@contextlib.contextmanager
+def holding_lock(out_dir: str | os.PathLike[str]) -> Any:
+    """Hold the lock of ``out_dir`` for the block, unless this process already holds it
+    (a caller that wrapped the run in ``RunLock``)."""
+    key = str(Path(out_dir).resolve())
+    if key in _HELD_PATHS:
+        yield _HELD_PATHS[key]
+        return
+    with RunLock(out_dir) as lock:
+        yield lock
+
+
 #: Lock descriptors held by this process: a forked child (an isolated worker, a pool
 #: process) closes its copies, so the lock lives and dies with the run itself.
 _HELD: set[int] = set()
+#: Resolved folder -> the RunLock this process holds on it.
+_HELD_PATHS: dict[str, "RunLock"] = {}
 
 
 def _close_held_in_child() -> None:
@@ -401,6 +570,7 @@ def _close_held_in_child() -> None:
         with contextlib.suppress(OSError):
             os.close(fd)
     _HELD.clear()
+    _HELD_PATHS.clear()
 
 
 os.register_at_fork(after_in_child=_close_held_in_child)

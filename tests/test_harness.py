@@ -33,10 +33,11 @@ SMALL = SceneConfig(size=8, steps=2, seeds=(0,))
 
 
 def run(tmp: Path, solvers: list[str], cfg: SceneConfig = SMALL, scenes: tuple[str, ...] = ("paper-sweep",),
-        **kw: object) -> pd.DataFrame:
+        append: bool = False, **kw: object) -> pd.DataFrame:
     kw.setdefault("reference", "test-exact")
     kw.setdefault("progress", False)
-    run_benchmark(list(scenes), cfg, solvers, RunConfig(**kw), tmp, command=["pytest"])  # type: ignore[arg-type]
+    run_benchmark(list(scenes), cfg, solvers, RunConfig(**kw), tmp, command=["pytest"],  # type: ignore[arg-type]
+                  append=append)
     return load_table(tmp)
 
 
@@ -95,7 +96,10 @@ def test_observed_step_time_replaces_the_static_time_model(tmp_path: Path) -> No
     assert list(hang.status) == ["timeout", "skipped", "skipped"]
 
 
-def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path) -> None:
+def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from contactbench.harness import plan
+
+    monkeypatch.setattr(plan, "instance_nbytes", lambda params: 0.0)  # (the plan's own bound: test_run_folder.py)
     df = run(tmp_path, ["test-exact"], reference="none", memory_budget=4.0)  # bytes: n = 1 needs 8
     assert (df.status == "skipped").all()
     assert df["skip_reason"].str.contains("needs dense H").all()
@@ -158,7 +162,7 @@ def test_repeats_give_min_and_median_and_reference_is_cached(tmp_path: Path) -> 
     refs = sorted((tmp_path / "_cache").glob("ref-*.npz"))
     assert len(refs) == 2  # once per instance-step
     stamps = [r.stat().st_mtime_ns for r in refs]
-    df2 = run(tmp_path, ["test-exact", "test-warm-pg"], repeats=3)
+    df2 = run(tmp_path, ["test-exact", "test-warm-pg"], repeats=3, append=True)  # another solver: added to the folder
     assert [r.stat().st_mtime_ns for r in refs] == stamps  # stored reference not recomputed
     assert len(df2) == 2 * 2 * 3 and df2["cell_id"].is_unique
     assert (df2["p_rel_error"] < 1e-6).all()

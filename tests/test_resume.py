@@ -1,0 +1,167 @@
+"""Deterministic resume: an interrupted and resumed run has the same cells, statuses and
+skip reasons as an uninterrupted one.
+
+Solve times come from a fake clock: the solvers below advance it by a cost of n, and
+the worker's ``time`` is replaced by it (the isolated workers are forked from this
+process, so they inherit the replacement), so every time-based decision is a function
+of n alone -- no assertion depends on the wall clock.  Interruptions are simulated by
+cutting the journal after k rows (what Ctrl-C or kill -9 leaves), and by a torn last
+line (what a kill mid-write leaves)."""
+
+from __future__ import annotations
+
+import shutil
+import types
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+try:  # the throw-away solvers (tests/ may or may not be a package)
+    from tests.test_harness_solvers import ExactStub
+except ImportError:  # pragma: no cover
+    from test_harness_solvers import ExactStub
+from contactbench.harness import worker
+from contactbench.harness.plan import RunConfig, StoredCell
+from contactbench.harness.runner import run_benchmark
+from contactbench.harness.skips import SkipPolicy
+from contactbench.harness.store import ROWS_FILE, load_table
+from contactbench.problems.scenes import SceneConfig
+from contactbench.solvers import Outcome, SolveContext, register
+from contactbench.solvers.base import ProblemTraits
+
+#: paper-sweep at 32^2 with 6 steps: trial sets n = 2, 5, 7, 16, 33, 55.
+CFG = SceneConfig(size=32, steps=6, seeds=(0,))
+RUN = RunConfig(timeout=1.0, reference="none", warmup=False, progress=False)
+SOLVERS = ["fake-steady", "fake-growing", "fake-late-timeout"]
+CLOCK = [1000.0]
+FAKE_TIME = types.SimpleNamespace(perf_counter=lambda: CLOCK[0])
+
+
+class FakeCost(ExactStub):
+    """The exact dense solver, whose solve "takes" ``cost(n)`` seconds on the fake clock."""
+
+    def cost(self, n: int) -> float:
+        raise NotImplementedError
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        CLOCK[0] += self.cost(ctx.n)
+        return super().iterate(ctx)
+
+
+@register(replace=True)
+class Steady(FakeCost):
+    """Fast along the sequence; its static time model calls every n > 6 hopeless, so a
+    resume that forgot the earlier steps would skip it."""
+
+    name = "fake-steady"
+
+    def cost(self, n: int) -> float:
+        return 1e-3 * n
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        return 1e6 if n > 6 else None
+
+
+@register(replace=True)
+class Growing(FakeCost):
+    """Time ~ n^2: predicted under the limit at n = 33 (0.76 s: step 2 is too short to
+    measure the exponent, so n^1.5), it takes 1.09 s (a timeout); the prediction from
+    step 3 passes the limit at n = 55 (a skip)."""
+
+    name = "fake-growing"
+
+    def cost(self, n: int) -> float:
+        return 1e-3 * n * n
+
+
+@register(replace=True)
+class LateTimeout(FakeCost):
+    """Predicted fine from its small steps, then over the limit at n = 16: a timeout, and
+    the larger steps skipped for it."""
+
+    name = "fake-late-timeout"
+
+    def cost(self, n: int) -> float:
+        return 0.05 if n < 16 else 2.0
+
+
+def cells(out: Path) -> pd.DataFrame:
+    df = load_table(out)
+    return df.set_index("cell_id")[["step", "solver", "status", "skip_reason"]].sort_index()
+
+
+@pytest.fixture
+def fake_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(worker, "time", FAKE_TIME)
+
+
+@pytest.fixture
+def uninterrupted(tmp_path: Path, fake_clock: None) -> Path:
+    out = tmp_path / "whole"
+    run_benchmark(["paper-sweep"], CFG, SOLVERS, RUN, out, command=["pytest"])
+    return out
+
+
+def test_the_uninterrupted_run_has_time_based_skips(uninterrupted: Path) -> None:
+    df = cells(uninterrupted)
+    assert len(df) == 6 * len(SOLVERS)
+    by = {s: list(g.sort_values("step")["status"]) for s, g in df.groupby("solver")}
+    assert by["fake-steady"] == ["solved"] * 6
+    assert by["fake-growing"] == ["solved"] * 4 + ["timeout", "skipped"]
+    assert by["fake-late-timeout"] == ["solved"] * 3 + ["timeout"] + ["skipped"] * 2
+    reasons = df[df.status == "skipped"].set_index(["solver", "step"])["skip_reason"]
+    assert reasons[("fake-growing", 5)].startswith("predicted solve time 1.63 s at n = 55 from 0.256 s at n = 16")
+    assert "timed out at step 3" in reasons[("fake-late-timeout", 4)]
+    assert "predicted solve time 1.1 s at n = 55 from 0.05 s at n = 7" in reasons[("fake-late-timeout", 5)]
+
+
+def interrupted_copy(src: Path, dst: Path, keep_rows: int, torn: bool = False) -> None:
+    """``dst`` = ``src`` as an interruption after ``keep_rows`` journal rows leaves it
+    (and, with ``torn``, half of the next row: a kill mid-write)."""
+    shutil.copytree(src, dst)
+    lines = (dst / ROWS_FILE).read_text(encoding="utf-8").splitlines(keepends=True)
+    text = "".join(lines[:keep_rows]) + (lines[keep_rows][: len(lines[keep_rows]) // 2] if torn else "")
+    (dst / ROWS_FILE).write_text(text, encoding="utf-8")
+    for name in ("results.parquet", "results.csv"):
+        (dst / name).unlink()
+
+
+@pytest.mark.parametrize(("keep_rows", "torn"), [(2, False), (8, False), (13, False), (10, True)])
+def test_resume_after_an_interruption_gives_the_same_cells(uninterrupted: Path, tmp_path: Path, keep_rows: int,
+                                                           torn: bool) -> None:
+    out = tmp_path / f"cut-{keep_rows}"
+    interrupted_copy(uninterrupted, out, keep_rows, torn)
+    CLOCK[0] += 12345.678  # the resumed run's clock is elsewhere: only differences may matter
+    summary = run_benchmark(["paper-sweep"], CFG, SOLVERS, RUN, out, command=["pytest"])
+    assert summary.new_rows == 6 * len(SOLVERS) - keep_rows
+    pd.testing.assert_frame_equal(cells(out), cells(uninterrupted))
+
+
+def test_stored_cells_read_nan_null_and_text_as_unknown() -> None:
+    row = {"step": 3, "solver": "s", "profile": "default", "n": None, "status": "failed", "solve_time_s": float("nan")}
+    cell = StoredCell.of(row)
+    assert (cell.n, cell.seconds) == (None, None)
+    assert StoredCell.of({**row, "n": "x", "solve_time_s": float("inf")}).n is None
+    assert StoredCell.of({**row, "n": 12.0, "solve_time_s": 0.5}) == StoredCell(3, "s", "default", 12, "failed", 0.5)
+    policy = SkipPolicy(1.0, 2**30)
+    policy.note(("s", "default"), 0, None, "timeout", float("nan"))  # a row of a step that was never built
+    assert policy.first_timeout(("s", "default"), 5) is None
+
+
+def test_policy_reads_only_earlier_steps_whatever_the_order_rows_arrive() -> None:
+    traits = ProblemTraits(n=55, operator="dense")
+    rows = [(0, 2, "solved", 0.004), (1, 5, "solved", 0.025), (2, 7, "solved", 0.06), (3, 16, "solved", 0.256),
+            (5, 55, "timeout", 9.0)]
+    forward, backward = SkipPolicy(1.0, 2**30), SkipPolicy(1.0, 2**30)
+    for row in rows:
+        forward.note(("fake-growing", "default"), *row)
+    for row in reversed(rows):
+        backward.note(("fake-growing", "default"), *row)
+    for policy in (forward, backward):
+        d = policy.decide("fake-growing", ("fake-growing", "default"), traits, step=4)
+        assert d.skip and "from 0.256 s at n = 16" in d.reason  # steps 2 and 3; the step-5 timeout is later
+        small = ProblemTraits(n=16, operator="dense")
+        assert not policy.decide("fake-growing", ("fake-growing", "default"), small, step=3).skip
+    assert forward.observations(("fake-growing", "default"), 4) == [(7, 0.06), (16, 0.256)]
+    assert forward.first_timeout(("fake-growing", "default"), 6).step == 5
