@@ -42,6 +42,13 @@ class Probe(Solver):
             return Outcome(p=np.full(ctx.qp.n, np.nan), iterations=1, converged=True)
         p = get_solver("pk").solve(ctx.qp, SolverSettings(tol=1e-10)).p
         return Outcome(p=p, iterations=1, converged=True)
+
+
+class Picky(Probe):
+    name = "picky-probe"
+
+    def skip(self, traits):
+        return "takes no problem at all"
 '''
 
 
@@ -347,11 +354,12 @@ def test_a_run_whose_every_row_failed_exits_1(in_tmp: Path, capsys: pytest.Captu
 
 
 def test_a_run_whose_every_row_was_skipped_exits_1(capsys: pytest.CaptureFixture[str], in_tmp: Path) -> None:
-    rc, out, err = cli(["run", "paper-sweep", *TINY, "--solvers", "pk", "--memory-budget-gb", "1e-9", "--out", "o"],
-                       capsys)
+    (in_tmp / "probe_solver.py").write_text(PROBE_MODULE)
+    rc, out, err = cli(["run", "paper-sweep", *TINY, "--solvers", "probe_solver:Picky", "--out", "o"], capsys)
     assert rc == 1, (out, err)
     assert "skipped 2" in out
-    assert "no row could be judged" in one_line(err)
+    line = one_line(err)
+    assert "no row could be judged" in line and "takes no problem at all" in line
 
 
 def test_allow_any_modulus_takes_an_implausible_one(capsys: pytest.CaptureFixture[str], in_tmp: Path) -> None:
