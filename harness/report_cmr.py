@@ -1,7 +1,7 @@
 """Report sections of the cascade multi-resolution scenes (Bemporad & Paggi 2015, sec. 5.2):
 ``cmr`` (Fig. 8), ``cmr-h-sweep`` (Fig. 9) and ``cmr-cutoff`` (Figs. 10-11).
 
-Section 5 is reported as distributions over seeds (issue 19): every figure draws the
+Section 5 is reported as distributions over seeds: every figure draws the
 median with a 10-90 % band (``BAND``), and every table gives the same numbers, per
 surface family that ran, per base solver and per coarse reading.
 
@@ -55,7 +55,7 @@ ERROR_TOL = 0.02
 PAPER_H_MIN = 0.5
 #: The paper's time claim: about 50 % of the time saved at h = 2 (CMR / direct ~ 0.5).
 PAPER_TIME_RATIO = 0.5
-#: The share of seeds under ERROR_TOL at which the claim is read as robust (issue 19).
+#: The share of seeds under ERROR_TOL at which the claim is read as robust.
 ROBUST_SHARE = 0.8
 #: The quantiles of the bands drawn and tabled around the median.
 BAND = (0.10, 0.90)

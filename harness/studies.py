@@ -21,7 +21,7 @@ available solver (or the user's list), profile ``default``, the harness's refere
 
 The variants built here are named exactly as before this module existed (labels, base
 names and parameters feed ``harness.plan.make_cell_id``), so stored runs resume -- except
-the CMR variants, which issue 19 changed on purpose (both bases, the coarse reading and
+the CMR variants, which were renamed on purpose (both bases, the coarse reading and
 the first level are in their parameters and labels).
 """
 
@@ -209,7 +209,7 @@ PAPER_SOLVERS: tuple[str, ...] = ("greedy-cg", "greedy-gs", "greedy-chol", "pk",
 GP_K_SWEEP = Sweep("nnls-gp", "K", kind=int)
 
 
-# --- Section 5 (CMR) as the paper ran it, as distributions over seeds (issue 19) -------------
+# --- Section 5 (CMR) as the paper ran it, as distributions over seeds -------------
 #: The direct solvers CMR is compared with, each also CMR's base (``cmr+<base>``): the
 #: paper's dense Cholesky + NNLS (``scipy-nnls``: Lawson-Hanson on the dense H; it takes
 #: no warm start, so it solves every step of the load history from scratch, as the

@@ -81,7 +81,7 @@ TRANSPOSED_COLUMN_BYTES = 1 << 15
 #: into a small per-thread buffer, whose padding stays zero, and transformed from there; on
 #: the way back a block is transformed into a second buffer and read from it.  The N1 x P1
 #: input and output fields are never built, and the copies happen in cache
-#: (results/perf/matvec.md, session 9).  At least ``MIN_ROW_BLOCK`` rows, so the Python
+#: (results/perf/matvec.md).  At least ``MIN_ROW_BLOCK`` rows, so the Python
 #: work per block stays small next to its transforms on wide grids.
 ROW_BLOCK_BYTES = 1 << 20
 MIN_ROW_BLOCK = 16
@@ -97,7 +97,7 @@ def row_block(p1: int) -> int:
 #: 0.42 on AVX-512 transforms 16 float32 rows at a time in its vector lanes, and that path
 #: is slow for long rows: the irFFT of the 2048 rows of a 2048^2 product takes 10.7 ms in
 #: one call and 3.4 ms in calls of 8 rows (rFFT 3.8 -> 3.1 ms; 4096^2 irFFT 44 -> 13 ms;
-#: 512^2 1.26 -> 0.38 ms; results/perf/matvec.md, session 9).  On shorter rows the calls'
+#: 512^2 1.26 -> 0.38 ms; results/perf/matvec.md).  On shorter rows the calls'
 #: own cost outweighs it.
 FLOAT32_ROW_BATCH = 8
 FLOAT32_LONG_ROW = 1024

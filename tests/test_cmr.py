@@ -128,7 +128,7 @@ def cmr_h_sweep_top(seed: int):
 
 
 def test_cmr_mean_matches_the_direct_load_on_a_fixed_seed() -> None:
-    """Issue 19: on the paper's surface (saupe, 256^2, H = 0.7, h = 2, top step), CMR with
+    """On the paper's surface (saupe, 256^2, H = 0.7, h = 2, top step), CMR with
     coarse=mean is within the paper's 2 % of the direct solve's load on seed 0."""
     inst = cmr_h_sweep_top(CMR_MEAN_SEED_WITHIN)
     assert inst.surface.meta["family"] == "saupe" and inst.surface.N == 256

@@ -1,5 +1,5 @@
 """docs/adding-a-solver.md works as written: its example is tests/example_solver.py, and
-every shell command it shows runs, from a folder outside the repository (issue 14)."""
+every shell command it shows runs, from a folder outside the repository."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Mixed precision (float32 inner CCG, float64 iterative refinement; solvers/_refine.py):
-the same answer as float64, judged in float64, on every fast solver (issue 18)."""
+the same answer as float64, judged in float64, on every fast solver."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The paper's algorithms (issue 3): counterexample, agreement with a trusted reference,
+"""The paper's algorithms: counterexample, agreement with a trusted reference,
 Hertz convergence, warm starts, memory/time limits.
 
 Reference: scipy.optimize.nnls on the Cholesky factor (H = C'C, min ||Cp - C^-T ubar||),

@@ -1,4 +1,4 @@
-"""Safe by default (issue 20): one writer per results folder, plausible units of a
+"""Safe by default: one writer per results folder, plausible units of a
 measured surface, big solves paid once, and a pytest-benchmark item that fails a wrong
 answer claimed as converged."""
 

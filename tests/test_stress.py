@@ -1,4 +1,4 @@
-"""The stress battery's recipes build what they promise (issue 9)."""
+"""The stress battery's recipes build what they promise."""
 
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ def top_steps(surface: Surface, steps: int, fraction: float) -> np.ndarray:
     return load_ramp(fraction * (surface.z_max - surface.z_mean), steps)
 
 
-#: Hurst exponents of Fig. 8, and the seeds of both CMR scenes (issue 19: >= 20 per H).
+#: Hurst exponents of Fig. 8, and the seeds of both CMR scenes (>= 20 per H).
 CMR_HURSTS: tuple[float, ...] = (0.3, 0.5, 0.7, 0.9)
 CMR_SEEDS: tuple[int, ...] = tuple(range(20))
 

@@ -1,4 +1,4 @@
-"""Stress scenes: the numerical-stability battery (issue 9).
+"""Stress scenes: the numerical-stability battery.
 
 One battery of hard cases serves two jobs: ``contactbench run stress`` (these scenes,
 run like any other) and ``contactbench validate`` (``harness.conformance``, which runs
@@ -612,7 +612,7 @@ class _StressScene(Scene):
 
 @register_scene
 class StressScene(_StressScene):
-    """The whole numerical-stability battery (issue 9)."""
+    """The whole numerical-stability battery."""
 
     name = "stress"
     description = "numerical-stability battery: conditioning, units, edge cases, random LCPs, float32, perturbation"
