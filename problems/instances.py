@@ -378,7 +378,13 @@ def load_unload_cycle(delta_max: float, steps: int, cycles: int = 1) -> np.ndarr
 def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, operator: OperatorKind = "dense") -> ContactInstance:
     """Paper Example 1: an N x N grid (n = N^2), every element in the trial set,
     ubar ~ U(0, 1) drawn as ``numpy.random.default_rng(seed).random(n)``, BCC kernel,
-    delta = 1 and E = 0.01 (arbitrary consistent units)."""
+    delta = 1 and E = 0.01 (arbitrary consistent units: delta in a.u. of length, E in
+    a.u. of force per length^2, as the paper's Fig. 2).
+
+    Its geometry is the grid with its spacing, E, kernel and periodicity (so a code that
+    poses the problem on a grid, such as the peers, can pose it); it has no surface and
+    no far-field displacement (ubar is drawn, not derived from heights), so
+    ``Geometry.has_surface`` is False."""
     N = int(round(np.sqrt(n)))
     if N * N != n or N < 2:
         raise ProblemInputError(f"counterexample needs n = N^2 with N >= 2, got n = {n}")
@@ -386,7 +392,7 @@ def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, opera
     surf = Surface(np.zeros((N, N)), delta, unit="a.u.", name=f"counterexample-n{n}")
     builder = InstanceBuilder(surf, E, "bcc", periodic=False, operator=operator)
     idx = np.arange(n)
-    geom = Geometry((N, N), delta, idx)
+    geom = Geometry((N, N), delta, idx, E=float(E), kernel="bcc", periodic=False)
     qp = QP(builder.operator_on(idx), ubar, geom)
     return ContactInstance(qp, delta=float("nan"), E=E, kernel="bcc", periodic=False, surface=surf,
                            meta={"seed": seed, "family": "counterexample"})
