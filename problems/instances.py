@@ -19,6 +19,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
+from .kkt import kkt_figures
 from .kernels import check_kernel, kernel_table
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
@@ -51,8 +52,14 @@ def check_operator_kind(kind: str) -> str:
     return kind
 
 
-#: An element is "in contact" when p_i > CONTACT_THRESHOLD * max(p).
+#: The relative test of ``contact_mask``: p_i > CONTACT_THRESHOLD * max(p).
 CONTACT_THRESHOLD = 1e-9
+#: The tolerance of the contact reading (``ContactInstance.contact_mask``) when the judge's
+#: check tolerance is not given: the default profile's ``check_tol``.
+CONTACT_TOL = 1e-6
+#: Half-width, as a factor, of the band around the contact floor whose elements count as
+#: "contact uncertain" (``ContactInstance.contact_uncertain``): a decade either side.
+CONTACT_BAND = 10.0
 
 
 @dataclass(frozen=True)
@@ -169,12 +176,38 @@ class ContactInstance:
         """P / (E A), A = L^2 the nominal area (paper Fig. 4 abscissa)."""
         return self.load(p) / (self.E * self.nominal_area)
 
-    def contact_mask(self, p: np.ndarray) -> np.ndarray:
-        return contact_mask(p)
+    def force_scale(self) -> float:
+        """The judge's force scale p_s of this problem (``problems.kkt``: ||ubar||_inf /
+        max diag H, the force that alone indents one element by the largest interpenetration);
+        it depends on the problem only, never on a candidate answer."""
+        ubar = np.asarray(self.qp.ubar, dtype=np.float64)
+        # the scales kkt_figures uses, read at p = 0 (w = -ubar), where they are the problem's own
+        return float(kkt_figures(np.zeros_like(ubar), -ubar, ubar, float(np.max(self.qp.H.diagonal()))).p_scale)
 
-    def contact_fraction(self, p: np.ndarray) -> float:
-        """A / A0: elements in contact over all N^2 elements."""
-        return float(np.count_nonzero(self.contact_mask(p))) / self.total_elements
+    def contact_floor(self, tol: float = CONTACT_TOL) -> float:
+        """The force above which an element is in contact: tol x p_s (``tol``: the judge's
+        check tolerance of the answer read)."""
+        return float(tol) * self.force_scale()
+
+    def contact_mask(self, p: np.ndarray, tol: float = CONTACT_TOL) -> np.ndarray:
+        """Elements in contact: p_i > tol x p_s (``contact_floor``).  An answer the judge
+        accepts at ``tol`` may carry forces of order tol x p_s where the exact one has none
+        (its complementarity residual is at most tol x u_s x p_s), so a floor relative to
+        max(p) would count them; this one does not (docs/report.md, "Contact fraction")."""
+        return np.asarray(p, dtype=np.float64) > self.contact_floor(tol)
+
+    def contact_fraction(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
+        """A / A0: elements in contact (``contact_mask``) over all N^2 elements."""
+        return float(np.count_nonzero(self.contact_mask(p, tol))) / self.total_elements
+
+    def contact_uncertain(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
+        """The share of all N^2 elements whose force lies within a factor CONTACT_BAND of the
+        contact floor (floor / CONTACT_BAND < p_i <= floor x CONTACT_BAND): elements whose
+        contact state the tolerance leaves open.  The flag of ``contact_fraction``: a
+        larger share than the accuracy wanted means A/A0 is not to be trusted to it."""
+        floor = self.contact_floor(tol)
+        q = np.asarray(p, dtype=np.float64)
+        return float(np.count_nonzero((q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND))) / self.total_elements
 
     def pressure_field(self, p: np.ndarray) -> np.ndarray:
         """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""
@@ -195,7 +228,9 @@ class ContactInstance:
 
 
 def contact_mask(p: np.ndarray) -> np.ndarray:
-    """Elements in contact: p_i > CONTACT_THRESHOLD * max(p) (none when max(p) <= 0)."""
+    """A relative contact test, p_i > CONTACT_THRESHOLD * max(p) (none when max(p) <= 0), for
+    an algorithm's own use where the problem's scales are not at hand (the cascade's
+    refinement).  The table's reading is ``ContactInstance.contact_mask``."""
     pmax = float(np.max(p)) if p.size else 0.0
     if pmax <= 0.0:
         return np.zeros(p.shape, dtype=bool)
@@ -455,6 +490,8 @@ __all__ = [
     "OPERATOR_KINDS",
     "check_operator_kind",
     "build_instance",
+    "CONTACT_BAND",
+    "CONTACT_TOL",
     "contact_mask",
     "counterexample",
     "flat_punch_load",
