@@ -19,8 +19,8 @@ from typing import Any, Literal
 import numpy as np
 
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
-from .kkt import kkt_figures
 from .kernels import check_kernel, kernel_table
+from .kkt import kkt_figures
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
     ContactOperator,
