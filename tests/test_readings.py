@@ -10,12 +10,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-
 from contactbench.harness import report as rp
 from contactbench.harness import report_counterexample as rce
 from contactbench.harness.judge import judge
 from contactbench.harness.schema import ALL_COLUMNS
-from contactbench.problems.instances import CONTACT_BAND, InstanceBuilder, counterexample, load_ramp, paper_max_displacement
+from contactbench.problems.instances import (
+    CONTACT_BAND,
+    InstanceBuilder,
+    counterexample,
+    load_ramp,
+    paper_max_displacement,
+)
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import SolverSettings, get_solver
 
@@ -84,7 +89,7 @@ def test_counterexample_section_prints_the_judges_counts(tmp_path: Any) -> None:
     table = rp.read_table(tmp_path)
     section = rce.counterexample_section(rp.ReportContext(tmp_path, table, {}), table).body
     g = expected[("greedy-cg", 100)]
-    assert f"| greedy-cg | - | " in section and f"({g}/6" in section
+    assert "| greedy-cg | - | " in section and f"({g}/6" in section
     assert "| loose | 0 % (0/1) |" in section and "| strict | 100 % (1/1: 1 wrong) |" in section
     assert "Distance from the exact LCP answer (not a verdict)" in section
     assert "p differs from the exact p" not in section
