@@ -176,13 +176,18 @@ class ContactInstance:
         """P / (E A), A = L^2 the nominal area (paper Fig. 4 abscissa)."""
         return self.load(p) / (self.E * self.nominal_area)
 
-    def force_scale(self) -> float:
-        """The judge's force scale p_s of this problem (``problems.kkt``: ||ubar||_inf /
-        max diag H, the force that alone indents one element by the largest interpenetration);
-        it depends on the problem only, never on a candidate answer."""
+    def problem_scales(self) -> tuple[float, float]:
+        """The judge's scales of this problem (``problems.kkt``): the displacement scale
+        u_s = ||ubar||_inf and the force scale p_s = u_s / max diag H (the force that alone
+        indents one element by u_s).  They depend on the problem only, never on an answer."""
         ubar = np.asarray(self.qp.ubar, dtype=np.float64)
         # the scales kkt_figures uses, read at p = 0 (w = -ubar), where they are the problem's own
-        return float(kkt_figures(np.zeros_like(ubar), -ubar, ubar, float(np.max(self.qp.H.diagonal()))).p_scale)
+        f = kkt_figures(np.zeros_like(ubar), -ubar, ubar, float(np.max(self.qp.H.diagonal())))
+        return float(f.u_scale), float(f.p_scale)
+
+    def force_scale(self) -> float:
+        """p_s of ``problem_scales``."""
+        return self.problem_scales()[1]
 
     def contact_floor(self, tol: float = CONTACT_TOL) -> float:
         """The force above which an element is in contact: tol x p_s (``tol``: the judge's
@@ -200,14 +205,27 @@ class ContactInstance:
         """A / A0: elements in contact (``contact_mask``) over all N^2 elements."""
         return float(np.count_nonzero(self.contact_mask(p, tol))) / self.total_elements
 
-    def contact_uncertain(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
-        """The share of all N^2 elements whose force lies within a factor CONTACT_BAND of the
-        contact floor (floor / CONTACT_BAND < p_i <= floor x CONTACT_BAND): elements whose
-        contact state the tolerance leaves open.  The flag of ``contact_fraction``: a
-        larger share than the accuracy wanted means A/A0 is not to be trusted to it."""
-        floor = self.contact_floor(tol)
+    def contact_uncertain(self, p: np.ndarray, tol: float = CONTACT_TOL, w: np.ndarray | None = None) -> float:
+        """The flag of ``contact_fraction``: the share of all N^2 elements whose contact
+        state the tolerance leaves open, those
+
+        * whose force lies within a factor CONTACT_BAND of the contact floor
+          (floor / CONTACT_BAND < p_i <= floor x CONTACT_BAND), or
+        * counted in contact (p_i > floor) while their gap is open beyond sqrt(tol) x u_s
+          (an accepted answer has |w_i p_i| <= tol u_s p_s, so a contact carrying p_i >=
+          sqrt(tol) p_s has w_i <= sqrt(tol) u_s; a larger gap marks a force the exact
+          answer need not have).
+
+        ``w`` = H p - ubar when the caller has it (else one product with H).  A share larger
+        than the accuracy wanted means A/A0 is not to be trusted to it."""
+        u_s, p_s = self.problem_scales()
+        floor = float(tol) * p_s
         q = np.asarray(p, dtype=np.float64)
-        return float(np.count_nonzero((q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND))) / self.total_elements
+        gap = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64) if w is None else np.asarray(w)
+        with np.errstate(invalid="ignore"):
+            near = (q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND)
+            open_gap = (q > floor) & ~(gap <= np.sqrt(float(tol)) * u_s)
+        return float(np.count_nonzero(near | open_gap)) / self.total_elements
 
     def pressure_field(self, p: np.ndarray) -> np.ndarray:
         """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""

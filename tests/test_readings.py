@@ -130,11 +130,39 @@ def test_contact_rule_ignores_tiny_forces_and_flags_the_ones_near_its_floor() ->
     assert inst.contact_fraction(near, CHECK_TOL) * inst.total_elements == pytest.approx(
         a0 * inst.total_elements + off)
     assert inst.contact_uncertain(near, CHECK_TOL) * inst.total_elements >= off
-    # the band is a decade either side of the floor; NaN is neither in contact nor uncertain
-    probe = np.full(inst.n, np.nan)
-    probe[:4] = [floor / CONTACT_BAND, floor / CONTACT_BAND * 1.01, floor * CONTACT_BAND, floor * CONTACT_BAND * 1.01]
+    # the band is a decade either side of the floor (open at its foot, closed at its head)
+    probe = np.zeros(inst.n)
+    top = np.argsort(inst.qp.ubar)[-4:]  # deep interpenetration: the gap stays closed (w < 0)
+    probe[top] = [floor / CONTACT_BAND, floor / CONTACT_BAND * 1.01, floor * CONTACT_BAND, floor * CONTACT_BAND * 1.01]
     assert inst.contact_uncertain(probe, CHECK_TOL) * inst.total_elements == pytest.approx(2)
     assert inst.contact_fraction(probe, CHECK_TOL) * inst.total_elements == pytest.approx(2)
+    # NaN is neither in contact nor in the band
+    assert inst.contact_fraction(np.full(inst.n, np.nan), CHECK_TOL) == 0.0
+
+
+def test_contact_flag_catches_forces_on_open_gaps_that_the_judge_accepts() -> None:
+    """An accepted answer that puts a force just above the band on separated elements
+    whose gap is open (w_i up to u_s / 11, so |w_i p_i| <= tol u_s p_s still holds): the
+    count is fooled, the flag is not."""
+    inst = _sweep_instance(32, 9)
+    exact = get_solver("nnls").solve(inst.qp, SolverSettings(tol=1e-13)).p
+    u_s, p_s = inst.problem_scales()
+    w = inst.qp.H.matvec(exact) - inst.qp.ubar
+    lie = 1.1 * CONTACT_BAND * CHECK_TOL * p_s  # 11 x the floor: just outside the band
+    victims = np.flatnonzero((exact == 0) & (w > 1e-2 * u_s) & (w < u_s / 12))
+    assert victims.size >= 3
+    p = exact.copy()
+    p[victims] = lie
+    # keep every exact contact's gap closed: re-solve its forces against the planted ones
+    H = inst.qp.H.to_dense()
+    c = np.flatnonzero(exact > 0)
+    p[c] = np.linalg.solve(H[np.ix_(c, c)], inst.qp.ubar[c] - H[np.ix_(c, victims)] @ p[victims])
+    assert np.all(p[c] > 0)
+    v = judge(inst, p, True, CHECK_TOL)
+    assert v.status == "solved"
+    extra = v.figures["contact_fraction"] - inst.contact_fraction(exact, CHECK_TOL)
+    assert extra * inst.total_elements == pytest.approx(victims.size)  # the count is fooled
+    assert v.figures["contact_uncertain"] >= extra  # the flag covers it
 
 
 def test_contact_floor_is_the_problems_not_the_answers() -> None:
