@@ -16,9 +16,9 @@ load             total force P = sum p_ij (N when E is in Pa and lengths in m).
 contact_fraction elements in contact, p_i > check_tol x p_s (p_s the problem's force scale,
                  ``problems.kkt``), divided by all N^2 elements (A/A0); docs/report.md.
 contact_uncertain elements whose contact state the tolerance leaves open (p_i within a
-                 decade of that floor, or counted in contact with the gap w_i open beyond
-                 sqrt(check_tol) x u_s), divided by all N^2 elements: the flag of
-                 contact_fraction (A/A0 is uncertain by about this).
+                 decade of that floor, or counted in contact with an open gap: w_i / u_s >=
+                 p_i / p_s or w_i > sqrt(check_tol) u_s), divided by all N^2 elements: the
+                 flag of contact_fraction (A/A0 is uncertain by about this).
 kkt_error        the scaled figure of ``contactbench.problems.kkt``.
 p_rel_error      ||p - p_ref||_inf / ||p_ref||_inf against the scene's reference.
 load_rel_error   |P - P_ref| / |P_ref| against the reference solve (or the analytic

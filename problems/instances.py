@@ -211,10 +211,12 @@ class ContactInstance:
 
         * whose force lies within a factor CONTACT_BAND of the contact floor
           (floor / CONTACT_BAND < p_i <= floor x CONTACT_BAND), or
-        * counted in contact (p_i > floor) while their gap is open beyond sqrt(tol) x u_s
-          (an accepted answer has |w_i p_i| <= tol u_s p_s, so a contact carrying p_i >=
-          sqrt(tol) p_s has w_i <= sqrt(tol) u_s; a larger gap marks a force the exact
-          answer need not have).
+        * counted in contact (p_i > floor) while their gap is open: w_i / u_s >= p_i / p_s
+          (on the complementarity curve (w_i / u_s)(p_i / p_s) <= tol of an accepted answer
+          the element sits nearer separation than contact: an interior-point answer spreads
+          such pairs, e.g. p_i = 1e-5 p_s against w_i = 1e-4 u_s, where the exact answer has
+          no force), or w_i > sqrt(tol) x u_s (an accepted contact carrying p_i >= sqrt(tol)
+          p_s has w_i <= sqrt(tol) u_s).
 
         ``w`` = H p - ubar when the caller has it (else one product with H).  A share larger
         than the accuracy wanted means A/A0 is not to be trusted to it."""
@@ -224,7 +226,8 @@ class ContactInstance:
         gap = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64) if w is None else np.asarray(w)
         with np.errstate(invalid="ignore"):
             near = (q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND)
-            open_gap = (q > floor) & ~(gap <= np.sqrt(float(tol)) * u_s)
+            closed = (gap / u_s < q / p_s) & (gap <= np.sqrt(float(tol)) * u_s)
+            open_gap = (q > floor) & ~closed
         return float(np.count_nonzero(near | open_gap)) / self.total_elements
 
     def pressure_field(self, p: np.ndarray) -> np.ndarray:

@@ -140,17 +140,22 @@ def test_contact_rule_ignores_tiny_forces_and_flags_the_ones_near_its_floor() ->
     assert inst.contact_fraction(np.full(inst.n, np.nan), CHECK_TOL) == 0.0
 
 
-def test_contact_flag_catches_forces_on_open_gaps_that_the_judge_accepts() -> None:
-    """An accepted answer that puts a force just above the band on separated elements
-    whose gap is open (w_i up to u_s / 11, so |w_i p_i| <= tol u_s p_s still holds): the
-    count is fooled, the flag is not."""
+@pytest.mark.parametrize("tol, force, gaps", [
+    (CHECK_TOL, 1.1 * CONTACT_BAND * CHECK_TOL, (1e-2, 1 / 12)),  # a wide open gap (beyond sqrt(tol) u_s)
+    (1e-4, 2.0 * CONTACT_BAND * 1e-4, (3e-3, 8e-3)),  # gap > force, both within sqrt(tol): interior-point-like
+])
+def test_contact_flag_catches_forces_on_open_gaps_that_the_judge_accepts(tol: float, force: float,
+                                                                         gaps: tuple[float, float]) -> None:
+    """An accepted answer (at ``tol``) that puts a force (in p_s) just above the band on
+    separated elements whose gap (in u_s) lies in ``gaps`` (so |w_i p_i| <= tol u_s p_s
+    still holds): the count is fooled, the flag is not."""
     inst = _sweep_instance(32, 9)
     exact = get_solver("nnls").solve(inst.qp, SolverSettings(tol=1e-13)).p
     u_s, p_s = inst.problem_scales()
     w = inst.qp.H.matvec(exact) - inst.qp.ubar
-    lie = 1.1 * CONTACT_BAND * CHECK_TOL * p_s  # 11 x the floor: just outside the band
-    victims = np.flatnonzero((exact == 0) & (w > 1e-2 * u_s) & (w < u_s / 12))
-    assert victims.size >= 3
+    lie = force * p_s
+    victims = np.flatnonzero((exact == 0) & (w > gaps[0] * u_s) & (w < gaps[1] * u_s))
+    assert victims.size >= 2
     p = exact.copy()
     p[victims] = lie
     # keep every exact contact's gap closed: re-solve its forces against the planted ones
@@ -158,9 +163,9 @@ def test_contact_flag_catches_forces_on_open_gaps_that_the_judge_accepts() -> No
     c = np.flatnonzero(exact > 0)
     p[c] = np.linalg.solve(H[np.ix_(c, c)], inst.qp.ubar[c] - H[np.ix_(c, victims)] @ p[victims])
     assert np.all(p[c] > 0)
-    v = judge(inst, p, True, CHECK_TOL)
+    v = judge(inst, p, True, tol)
     assert v.status == "solved"
-    extra = v.figures["contact_fraction"] - inst.contact_fraction(exact, CHECK_TOL)
+    extra = v.figures["contact_fraction"] - inst.contact_fraction(exact, tol)
     assert extra * inst.total_elements == pytest.approx(victims.size)  # the count is fooled
     assert v.figures["contact_uncertain"] >= extra  # the flag covers it
 
