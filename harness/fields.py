@@ -9,7 +9,7 @@ environment variable ``CONTACTBENCH_FIELD_STEPS=all``) as
       heights   float32 (m, m)  surface heights xi (the instance's length unit)
       pressure  float32 (m, m)  mean contact pressure p_ij / delta^2 (0 off contact)
       gap       float32 (m, m)  gap g = u - (Delta - xi_max + xi) (NaN where unknown)
-      contact   bool    (m, m)  p_ij > 1e-9 max p
+      contact   bool    (m, m)  p_ij > 1e-6 p_s (ContactInstance.contact_mask at its default tolerance)
       scalars   N, spacing (grid spacing of the stored maps), E, far_field (Delta), load,
                 dim_load (P / (E A0)), contact_fraction (A/A0, full grid), rms_slope
                 (h'_rms of the full surface), step, steps, solver, unit, periodic

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from contactbench.problems.instances import ContactInstance
+from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
 from .schema import VERDICTS as READINGS  # the table contract names the readings
@@ -74,7 +74,7 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     if not np.all(np.isfinite(pf)):
         problems.append("p has non-finite entries")
         return _verdict(kkt, claimed, problems, {"kkt_error": kkt.kkt_error})
-    figures = answer_figures(inst, pf, kkt, p_ref, analytic_load)
+    figures = answer_figures(inst, pf, kkt, p_ref, analytic_load, check_tol)
     if not kkt.kkt_error <= check_tol:
         problems.append(f"kkt_error {kkt.kkt_error:.2e} > check_tol {check_tol:.0e}")
     if p_ref is not None and p_tol is not None and not figures["p_rel_error"] <= p_tol:
@@ -90,9 +90,11 @@ def _verdict(kkt: KKTReport | None, claimed: bool, problems: list[str], figures:
 
 
 def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: np.ndarray | None,
-                   analytic_load: float | None) -> dict[str, Any]:
+                   analytic_load: float | None, check_tol: float = CONTACT_TOL) -> dict[str, Any]:
     """The table's figures of an answer: KKT figures, load, contact fraction and the
-    errors against the reference / closed form (column names of ``harness.schema``)."""
+    errors against the reference / closed form (column names of ``harness.schema``).
+    The contact fraction and its flag ``contact_uncertain`` are read at the judge's
+    ``check_tol`` (``ContactInstance.contact_mask``: p_i > check_tol x p_s)."""
     load = inst.load(p)
     out: dict[str, Any] = {
         "primal_residual": kkt.primal,
@@ -103,7 +105,8 @@ def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: 
         "objective": kkt.objective,
         "load": load,
         "dim_load": inst.dimensionless_load(p),
-        "contact_fraction": inst.contact_fraction(p),
+        "contact_fraction": inst.contact_fraction(p, check_tol),
+        "contact_uncertain": inst.contact_uncertain(p, check_tol),
     }
     if p_ref is not None:
         out["p_rel_error"] = relative_error(p, p_ref)

@@ -95,9 +95,9 @@ function counterexampleChart(scene) {
     const traces = [...g.keys()].sort().map(so => {
       const rs = g.get(so);
       const y = ns.map(n => { const x = rs.filter(r => r.n === n); if (!x.length) return null;
-        return 100 * x.filter(r => r.stt !== 'solved' || (r.perr !== null && r.perr > 1e-6)).length / x.length; });
+        return 100 * x.filter(r => r.stt !== 'solved').length / x.length; });  // the judge's verdict, as the section
       return {type: 'bar', name: so, x: ns.map(n => 'n = ' + n), y: y, marker: {color: COLOR[so]},
-        hovertemplate: so + ': %{y:.0f} % of seeds violate the LCP at %{x}<extra></extra>'};
+        hovertemplate: so + ': %{y:.0f} % of seeds violate the LCP (judge: not solved) at %{x}<extra></extra>'};
     });
     return [traces, layout('seeds violating the LCP (' + scene + ')', 'problem size', 'seeds violating the LCP [%]',
       [], [])];

@@ -13,7 +13,12 @@ Definitions of the less obvious figures
 delta            far-field displacement Delta of the step, in the instance's length unit
                  (metres by default); NaN for scenes without one (counterexample).
 load             total force P = sum p_ij (N when E is in Pa and lengths in m).
-contact_fraction elements with p_i > 1e-9 max(p), divided by all N^2 elements (A/A0).
+contact_fraction elements in contact, p_i > check_tol x p_s (p_s the problem's force scale,
+                 ``problems.kkt``), divided by all N^2 elements (A/A0); docs/report.md.
+contact_uncertain elements whose contact state the tolerance leaves open (p_i within a
+                 decade of that floor, or counted in contact with an open gap: w_i / u_s >=
+                 p_i / p_s or w_i > sqrt(check_tol) u_s), divided by all N^2 elements: the
+                 flag of contact_fraction (A/A0 is uncertain by about this).
 kkt_error        the scaled figure of ``contactbench.problems.kkt``.
 p_rel_error      ||p - p_ref||_inf / ||p_ref||_inf against the scene's reference.
 load_rel_error   |P - P_ref| / |P_ref| against the reference solve (or the analytic
@@ -120,6 +125,9 @@ _EXTRA = _columns(
     ("verdict", "string", "the judge's reading: pass / wrong / unconverged; '' when not judged"),
     ("warmup", "string", "'' (an untimed warm-up ran first, or --no-warmup) or why it was dropped "
                          "(a big solve: the timed solve includes one-time costs)"),
+    ("contact_uncertain", "float64", "share of the N^2 elements whose contact state check_tol leaves open (force "
+                                     "within a decade of the floor, or a contact with an open gap): the flag of "
+                                     "contact_fraction"),
 )
 
 #: Every column, by name, in table order.

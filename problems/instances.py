@@ -20,6 +20,7 @@ import numpy as np
 
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
+from .kkt import kkt_figures
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
     ContactOperator,
@@ -51,8 +52,14 @@ def check_operator_kind(kind: str) -> str:
     return kind
 
 
-#: An element is "in contact" when p_i > CONTACT_THRESHOLD * max(p).
+#: The relative test of ``contact_mask``: p_i > CONTACT_THRESHOLD * max(p).
 CONTACT_THRESHOLD = 1e-9
+#: The tolerance of the contact reading (``ContactInstance.contact_mask``) when the judge's
+#: check tolerance is not given: the default profile's ``check_tol``.
+CONTACT_TOL = 1e-6
+#: Half-width, as a factor, of the band around the contact floor whose elements count as
+#: "contact uncertain" (``ContactInstance.contact_uncertain``): a decade either side.
+CONTACT_BAND = 10.0
 
 
 @dataclass(frozen=True)
@@ -169,12 +176,59 @@ class ContactInstance:
         """P / (E A), A = L^2 the nominal area (paper Fig. 4 abscissa)."""
         return self.load(p) / (self.E * self.nominal_area)
 
-    def contact_mask(self, p: np.ndarray) -> np.ndarray:
-        return contact_mask(p)
+    def problem_scales(self) -> tuple[float, float]:
+        """The judge's scales of this problem (``problems.kkt``): the displacement scale
+        u_s = ||ubar||_inf and the force scale p_s = u_s / max diag H (the force that alone
+        indents one element by u_s).  They depend on the problem only, never on an answer."""
+        ubar = np.asarray(self.qp.ubar, dtype=np.float64)
+        # the scales kkt_figures uses, read at p = 0 (w = -ubar), where they are the problem's own
+        f = kkt_figures(np.zeros_like(ubar), -ubar, ubar, float(np.max(self.qp.H.diagonal())))
+        return float(f.u_scale), float(f.p_scale)
 
-    def contact_fraction(self, p: np.ndarray) -> float:
-        """A / A0: elements in contact over all N^2 elements."""
-        return float(np.count_nonzero(self.contact_mask(p))) / self.total_elements
+    def force_scale(self) -> float:
+        """p_s of ``problem_scales``."""
+        return self.problem_scales()[1]
+
+    def contact_floor(self, tol: float = CONTACT_TOL) -> float:
+        """The force above which an element is in contact: tol x p_s (``tol``: the judge's
+        check tolerance of the answer read)."""
+        return float(tol) * self.force_scale()
+
+    def contact_mask(self, p: np.ndarray, tol: float = CONTACT_TOL) -> np.ndarray:
+        """Elements in contact: p_i > tol x p_s (``contact_floor``).  An answer the judge
+        accepts at ``tol`` may carry forces of order tol x p_s where the exact one has none
+        (its complementarity residual is at most tol x u_s x p_s), so a floor relative to
+        max(p) would count them; this one does not (docs/report.md, "Contact fraction")."""
+        return np.asarray(p, dtype=np.float64) > self.contact_floor(tol)
+
+    def contact_fraction(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
+        """A / A0: elements in contact (``contact_mask``) over all N^2 elements."""
+        return float(np.count_nonzero(self.contact_mask(p, tol))) / self.total_elements
+
+    def contact_uncertain(self, p: np.ndarray, tol: float = CONTACT_TOL, w: np.ndarray | None = None) -> float:
+        """The flag of ``contact_fraction``: the share of all N^2 elements whose contact
+        state the tolerance leaves open, those
+
+        * whose force lies within a factor CONTACT_BAND of the contact floor
+          (floor / CONTACT_BAND < p_i <= floor x CONTACT_BAND), or
+        * counted in contact (p_i > floor) while their gap is open: w_i / u_s >= p_i / p_s
+          (on the complementarity curve (w_i / u_s)(p_i / p_s) <= tol of an accepted answer
+          the element sits nearer separation than contact: an interior-point answer spreads
+          such pairs, e.g. p_i = 1e-5 p_s against w_i = 1e-4 u_s, where the exact answer has
+          no force), or w_i > sqrt(tol) x u_s (an accepted contact carrying p_i >= sqrt(tol)
+          p_s has w_i <= sqrt(tol) u_s).
+
+        ``w`` = H p - ubar when the caller has it (else one product with H).  A share larger
+        than the accuracy wanted means A/A0 is not to be trusted to it."""
+        u_s, p_s = self.problem_scales()
+        floor = float(tol) * p_s
+        q = np.asarray(p, dtype=np.float64)
+        gap = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64) if w is None else np.asarray(w)
+        with np.errstate(invalid="ignore"):
+            near = (q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND)
+            closed = (gap / u_s < q / p_s) & (gap <= np.sqrt(float(tol)) * u_s)
+            open_gap = (q > floor) & ~closed
+        return float(np.count_nonzero(near | open_gap)) / self.total_elements
 
     def pressure_field(self, p: np.ndarray) -> np.ndarray:
         """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""
@@ -195,7 +249,9 @@ class ContactInstance:
 
 
 def contact_mask(p: np.ndarray) -> np.ndarray:
-    """Elements in contact: p_i > CONTACT_THRESHOLD * max(p) (none when max(p) <= 0)."""
+    """A relative contact test, p_i > CONTACT_THRESHOLD * max(p) (none when max(p) <= 0), for
+    an algorithm's own use where the problem's scales are not at hand (the cascade's
+    refinement).  The table's reading is ``ContactInstance.contact_mask``."""
     pmax = float(np.max(p)) if p.size else 0.0
     if pmax <= 0.0:
         return np.zeros(p.shape, dtype=bool)
@@ -378,7 +434,13 @@ def load_unload_cycle(delta_max: float, steps: int, cycles: int = 1) -> np.ndarr
 def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, operator: OperatorKind = "dense") -> ContactInstance:
     """Paper Example 1: an N x N grid (n = N^2), every element in the trial set,
     ubar ~ U(0, 1) drawn as ``numpy.random.default_rng(seed).random(n)``, BCC kernel,
-    delta = 1 and E = 0.01 (arbitrary consistent units)."""
+    delta = 1 and E = 0.01 (arbitrary consistent units: delta in a.u. of length, E in
+    a.u. of force per length^2, as the paper's Fig. 2).
+
+    Its geometry is the grid with its spacing, E, kernel and periodicity (so a code that
+    poses the problem on a grid, such as the peers, can pose it); it has no surface and
+    no far-field displacement (ubar is drawn, not derived from heights), so
+    ``Geometry.has_surface`` is False."""
     N = int(round(np.sqrt(n)))
     if N * N != n or N < 2:
         raise ProblemInputError(f"counterexample needs n = N^2 with N >= 2, got n = {n}")
@@ -386,7 +448,7 @@ def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, opera
     surf = Surface(np.zeros((N, N)), delta, unit="a.u.", name=f"counterexample-n{n}")
     builder = InstanceBuilder(surf, E, "bcc", periodic=False, operator=operator)
     idx = np.arange(n)
-    geom = Geometry((N, N), delta, idx)
+    geom = Geometry((N, N), delta, idx, E=float(E), kernel="bcc", periodic=False)
     qp = QP(builder.operator_on(idx), ubar, geom)
     return ContactInstance(qp, delta=float("nan"), E=E, kernel="bcc", periodic=False, surface=surf,
                            meta={"seed": seed, "family": "counterexample"})
@@ -449,6 +511,8 @@ __all__ = [
     "OPERATOR_KINDS",
     "check_operator_kind",
     "build_instance",
+    "CONTACT_BAND",
+    "CONTACT_TOL",
     "contact_mask",
     "counterexample",
     "flat_punch_load",
