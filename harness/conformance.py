@@ -334,7 +334,8 @@ class VerdictTable:
         width = max([len(r.label) for r in self.rows] + [4])
         head = (f"{'case':{width}s} {'n':>5s} {'status':11s} {'claim':5s} {'kkt_error':>9s} {'err_ref':>9s} "
                 f"{'iters':>6s} {'time_s':>7s}  note")
-        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery, promise: {describe_promise(self.promise)})"]
+        promise = describe_promise(self.promise)
+        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery, promise: {promise})"]
         if self.note:
             lines.append(self.note)
         lines += [head, "-" * len(head)]

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
@@ -105,7 +104,7 @@ class ProblemSeal:
     digests: tuple[tuple[str, str], ...]
 
     @classmethod
-    def of(cls, qp: Any) -> "ProblemSeal":
+    def of(cls, qp: Any) -> ProblemSeal:
         return cls(tuple((name, _digest(a)) for name, a in _defining_arrays(qp)))
 
     def broken(self, qp: Any) -> str:

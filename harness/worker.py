@@ -38,7 +38,7 @@ from contactbench.solvers.registry import load_solver
 
 from .fields import save_field
 from .isolation import PeakMemory
-from .judge import Verdict, judge
+from .judge import ProblemSeal, Verdict, judge
 from .profiles import get_profile
 from .sequence import WarmState, warm_start_from
 from .studies import REFERENCE_PROFILE
@@ -376,6 +376,7 @@ class InstanceWorker:
         inst, qp, solver, warm = self.prepare(task)
         settings = solver_settings(task)
         count0 = qp.H.matvec_count
+        seal = ProblemSeal.of(qp)  # untimed: what the solver is handed, to catch writes into it
         with PeakMemory() as mem:
             t0 = time.perf_counter()
             try:
@@ -392,16 +393,13 @@ class InstanceWorker:
             trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
         )
         reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
-        p = np.asarray(res.p, dtype=np.float64).reshape(-1)
-        if p.shape != (inst.n,):
-            reply.error = f"solver returned p of size {p.size} for n = {inst.n}"
-            return reply
-        if not np.all(np.isfinite(p)):
-            reply.error = "solver returned non-finite values in p"
-            return reply
         p_ref = self.reference_p(task.reference_path)
-        reply.verdict = judge(inst, p, bool(res.converged), task.check_tol, p_ref=p_ref,
-                              analytic_load=self.analytic(task.step).get("load"))
+        reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
+                              analytic_load=self.analytic(task.step).get("load"), tampered=seal.broken(qp))
+        if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
+            reply.error = reply.verdict.message()
+            return reply
+        p = np.asarray(res.p, dtype=np.float64)
         if p_ref is None:
             reply.reference_saved = self.serve_as_reference(task, p, reply.verdict, elapsed)
         save_wrong_answer(task.arrays_path, inst, p, p_ref, reply.verdict)

@@ -61,8 +61,12 @@ ARRAY_FILES = {"ubar": "ubar.f64", "index": "index.i64", "H": "H.f64", "kernel_t
                "p0": "p0.f64"}
 #: File names of a solution directory.
 SOLUTION_P, SOLUTION_W, SOLUTION_JSON = "p.f64", "w.f64", "solution.json"
-#: The solution statuses an outside program may report (anything else is kept as given).
-SOLUTION_STATUSES = ("converged", "max_iter", "time_limit", "stalled", "failed")
+#: Statuses of solution.json that claim convergence (no status at all claims it too).
+CLAIM_STATUSES = ("converged", "solved", "optimal")
+#: Statuses that honestly claim nothing.
+NON_CLAIM_STATUSES = ("not_converged", "max_iter", "time_limit", "stalled", "failed")
+#: Every status an outside program may report; any other word is a ``SolutionFileError``.
+SOLUTION_STATUSES = CLAIM_STATUSES + NON_CLAIM_STATUSES
 
 
 class SolutionFileError(RuntimeError):
@@ -310,9 +314,9 @@ class SolutionFile:
 
     @property
     def claims_converged(self) -> bool:
-        """The protocol's rule: a solution claims convergence when its solution.json says
-        status "converged", or when it reports no status at all."""
-        return self.status is None or self.status == "converged"
+        """The protocol's rule: a solution claims convergence when its solution.json's
+        status is one of ``CLAIM_STATUSES``, or when it reports no status at all."""
+        return self.status is None or self.status in CLAIM_STATUSES
 
 
 def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool) -> np.ndarray:
@@ -367,4 +371,8 @@ def read_solution_dir(directory: str | os.PathLike[str], n: int, *, allow_negati
         raise SolutionFileError(f"solution.json: iterations {it!r} / time_s {t!r} are not numbers") from None
     if status is not None and not isinstance(status, str):
         raise SolutionFileError(f"solution.json: status {status!r} is not a string")
-    return SolutionFile(p, w, iterations, None if status is None else status.strip().lower(), time_s, report)
+    word = None if status is None else status.strip().lower()
+    if word is not None and word not in SOLUTION_STATUSES:
+        raise SolutionFileError(f"solution.json: status {status!r} is not a protocol word; claims: "
+                                f"{', '.join(CLAIM_STATUSES)}; no claim: {', '.join(NON_CLAIM_STATUSES)}")
+    return SolutionFile(p, w, iterations, word, time_s, report)

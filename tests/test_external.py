@@ -135,6 +135,13 @@ def test_solution_report_and_the_claim_rule(tmp_path: Path) -> None:
     assert silent.status is None and silent.claims_converged  # no status: read as a claim
     honest = read_solution_dir(write_p(tmp_path / "b", np.ones(3), {"status": "max_iter", "iterations": 9}), 3)
     assert not honest.claims_converged and honest.iterations == 9
+    for k, word in enumerate(("converged", "Solved", "optimal", "not_converged", "max_iter", "time_limit",
+                              "stalled", "failed")):
+        sol = read_solution_dir(write_p(tmp_path / f"w{k}", np.ones(3), {"status": word}), 3)
+        assert sol.claims_converged == (word.lower() in ("converged", "solved", "optimal")), word
+    for word in ("done", "success", "ok", ""):
+        with pytest.raises(SolutionFileError, match="not a protocol word.*converged, solved, optimal"):
+            read_solution_dir(write_p(tmp_path / f"bad-{word}", np.ones(3), {"status": word}), 3)
     (tmp_path / "b" / "solution.json").write_text("{not json")
     with pytest.raises(SolutionFileError, match="solution.json is unreadable"):
         read_solution_dir(tmp_path / "b", 3)
@@ -242,7 +249,7 @@ def test_validate_records_a_timeout_and_a_crash(capsys: pytest.CaptureFixture[st
                             cf.conformance_cases("fast", ["edge"], "edge/plateau*"),
                             timeout=1.0 if variant == "sleep" else None)  # None: the battery's 20 s
         assert [r.status for r in table.rows] == [status], (variant, table.format())
-    assert table.exit_code() == 0  # no wrong claim: an unfinished answer is not a wrong one
+    assert table.outcome() == "incomplete" and table.exit_code() == 3  # unsolved, not wrong
 
 
 # ---------------------------------------------------------------------------
