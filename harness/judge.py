@@ -45,6 +45,7 @@ class Verdict:
     kkt: KKTReport | None
     figures: dict[str, Any] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
+    tampered: bool = False  # the solver wrote into the problem it was handed
 
     @property
     def kkt_error(self) -> float:
@@ -149,7 +150,9 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     ``inst`` must be the harness's own copy of the problem."""
     claimed = bool(claimed)
     if tampered:
-        return _failed(claimed, tampered, reading="wrong")
+        verdict = _failed(claimed, tampered, reading="wrong")
+        verdict.tampered = True
+        return verdict
     pf, why = read_answer(p, inst.n)
     if pf is None:
         return _failed(claimed, why)
@@ -158,7 +161,8 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     if np.asarray(p).dtype != np.float64:
         problems.append(f"returned {np.asarray(p).dtype} p (input ubar was {ubar_dtype})")
     kkt = kkt_check(inst, pf)
-    figures = answer_figures(inst, pf, kkt, p_ref, analytic_load)
+    with np.errstate(all="ignore"):  # a huge answer's load may overflow: a figure, not a verdict
+        figures = answer_figures(inst, pf, kkt, p_ref, analytic_load)
     solved = kkt.passes(check_tol)
     if not solved:
         problems.append(f"kkt_error {kkt.kkt_error:.2e} > check_tol {check_tol:.0e}")

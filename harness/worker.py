@@ -281,11 +281,17 @@ class InstanceWorker:
         return time.perf_counter() - t0
 
     def qp_for(self, k: int, operator: str) -> QP:
+        """The QP a solver is handed: its own copy of ubar (the judge keeps the step's),
+        the step's operator (sealed around each timed solve: ``ProblemSeal``)."""
         inst, _ = self.ensure_step(k)
         if operator == "dense" and instance_operator_kind(inst) != "dense":
             self.ensure_dense(k)
-            return QP(self.dense[k], inst.qp.ubar, inst.qp.geometry)
-        return inst.qp
+            return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry)
+        return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry)
+
+    def forget_problems(self) -> None:
+        """Drop every built step and dense H (after a solver wrote into one)."""
+        self.seq, self.steps, self.dense = None, {}, {}
 
     def reference_p(self, path: str | None) -> np.ndarray | None:
         if not path:
@@ -398,6 +404,8 @@ class InstanceWorker:
                               analytic_load=self.analytic(task.step).get("load"), tampered=seal.broken(qp))
         if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
             reply.error = reply.verdict.message()
+            if reply.verdict.tampered:
+                self.forget_problems()
             return reply
         p = np.asarray(res.p, dtype=np.float64)
         if p_ref is None:
