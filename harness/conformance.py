@@ -314,8 +314,8 @@ class VerdictTable:
         labels = ", ".join(r.label for r in unsolved)
         outcome = self.outcome(strict)
         if outcome == "wrong":
-            return (f"WRONG: {len(self.wrong)} wrong answer(s) claimed as converged, of {solves} solves: "
-                    f"{', '.join(r.label for r in self.wrong)}")
+            return (f"WRONG: {len(self.wrong)} of {solves} solves wrong (a failing answer claimed as converged, "
+                    f"or a write into the problem): {', '.join(r.label for r in self.wrong)}")
         if outcome == "strict":
             bad = [r.label for r in self.rows if r.status in STRICT_FAILING]
             return f"FAILS (--strict): {len(bad)} crashed, timed-out or flagged row(s): {', '.join(bad)}"

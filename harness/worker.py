@@ -196,7 +196,8 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
     geom = inst.geometry
     return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
                          has_surface=geom is not None and geom.has_surface, periodic=bool(inst.periodic),
-                         kernel=inst.kernel)
+                         kernel=inst.kernel,
+                         surface_side=int(geom.surface.N) if geom is not None and geom.has_surface else 0)
 
 
 def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:

@@ -434,6 +434,7 @@ class ProblemTraits:
     has_surface: bool = False  # the instance carries a surface with its coarse levels
     periodic: bool = False
     kernel: str = ""
+    surface_side: int = 0  # points per side of the instance's surface (0: none)
 
 
 class Solver(ABC):

@@ -167,11 +167,20 @@ def write_manifest(path: Path, entries: list[dict[str, object]]) -> Path:
     ({"name": "x", "command": "prog {problem} {solution}", "colour": 1}, "unknown key(s) colour"),
     ({"command": "prog {problem} {solution}"}, "'name' is required"),
     ({"name": "x", "command": "prog {problem} {solution}", "warm_start": "yes"}, "true or false"),
+    ({"name": "x", "command": "prog {problem} {solution}", "promise": "approximate"}, "a positive scaled KKT floor"),
+    ({"name": "x", "command": "prog {problem} {solution}", "promise": -1e-7}, "a positive scaled KKT floor"),
 ])
 def test_a_bad_manifest_entry_is_named(tmp_path: Path, entry: dict[str, object], words: str) -> None:
     with pytest.raises(ProblemInputError) as err:
         load_manifest(write_manifest(tmp_path / "m.toml", [entry]))
     assert words in str(err.value) and "m.toml" in str(err.value)
+
+
+def test_a_manifest_declares_its_promise(tmp_path: Path) -> None:
+    base = {"command": "prog {problem} {solution}"}
+    specs = load_manifest(write_manifest(tmp_path / "m.toml", [{"name": "a", **base}, {"name": "b", "promise": 1e-7,
+                                                                                         **base}]))
+    assert [s.promise for s in specs] == ["exact", 1e-7]
 
 
 def test_manifest_paths_from_the_environment_and_the_current_folder(tmp_path: Path) -> None:
