@@ -32,7 +32,8 @@ def settle(verdict: Any, what: str, solver_message: str = "") -> None:
                         ("kkt_error", "primal_residual", "dual_residual", "complementarity", "p_rel_error",
                          "load_rel_error") if k in verdict.figures) or f"kkt_error {verdict.kkt_error:.3e}"
     if verdict.reading == "wrong":
-        pytest.fail(f"{what}: the judge reads the answer as wrong: {verdict.message()}; KKT figures: {figures}",
+        who = "the solver claims convergence but" if verdict.claimed else "the solver wrote into its problem:"
+        pytest.fail(f"{what}: {who} the judge reads the answer as wrong: {verdict.message()}; KKT figures: {figures}",
                     pytrace=False)
     if verdict.reading == "unconverged":
         pytest.xfail(f"{what}: not converged, as the solver says ({solver_message or 'no message'}): "
