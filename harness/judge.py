@@ -90,7 +90,7 @@ def _defining_arrays(qp: Any) -> list[tuple[str, np.ndarray]]:
 
 
 def _digest(arr: np.ndarray) -> str:
-    h = hashlib.blake2b(digest_size=16)
+    h = hashlib.sha1(usedforsecurity=False)  # a fingerprint, not a defence against crafted collisions
     h.update(f"{arr.dtype.str}{arr.shape}".encode())
     h.update(memoryview(np.ascontiguousarray(arr)).cast("B"))
     return h.hexdigest()
