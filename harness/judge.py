@@ -133,11 +133,13 @@ def read_answer(p: Any, n: int) -> tuple[np.ndarray | None, str]:
     if arr.dtype.kind not in "biuf":
         return None, f"returned p of dtype {arr.dtype}, which is not real numbers"
     if arr.shape != (n,):
+        if arr.ndim == 1:
+            return None, f"returned p of wrong length {arr.size}, expected n = {n}"
         return None, f"returned p of shape {arr.shape}, expected ({n},)"
     pf = arr.astype(np.float64, copy=False)
     if not np.all(np.isfinite(pf)):
         bad = int(np.count_nonzero(~np.isfinite(pf)))
-        return None, f"p has {bad} non-finite entr{'y' if bad == 1 else 'ies'}"
+        return None, f"p has {bad} NaN/inf entr{'y' if bad == 1 else 'ies'} of {n}"
     return pf, ""
 
 

@@ -319,7 +319,7 @@ class SolutionFile:
         return self.status is None or self.status in CLAIM_STATUSES
 
 
-def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool) -> np.ndarray:
+def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: bool = True) -> np.ndarray:
     if not path.exists():
         raise SolutionFileError(f"{what} ({path.name}) is missing")
     try:
@@ -329,6 +329,8 @@ def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool) -> np.ndar
     size = path.stat().st_size
     if size % 8:
         raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, not a whole number of float64 values")
+    if not checked:  # any length and any values: for the judge to see
+        return a.astype(np.float64)
     if a.size != n:
         raise SolutionFileError(f"{what} ({path.name}) has wrong length {a.size}, expected n = {n}")
     bad = int(np.count_nonzero(~np.isfinite(a)))
@@ -353,13 +355,14 @@ def _read_report(path: Path) -> dict[str, Any]:
     return doc
 
 
-def read_solution_dir(directory: str | os.PathLike[str], n: int, *, allow_negative: bool = False) -> SolutionFile:
+def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: bool = False) -> SolutionFile:
     """The answer in a solution directory (module doc): p.f64 must be n finite float64
-    values >= 0 (``allow_negative``: negative entries are kept, for the judge to see);
+    values >= 0 (``as_written``: p is kept as written -- any length, NaN, inf or negative
+    entries -- for the judge to see; it must still be a whole number of float64 values);
     w.f64 is read when present; solution.json's iterations/status/time_s when given.
     Anything wrong is a ``SolutionFileError`` that says which file and what."""
     d = Path(directory)
-    p = _read_vector(d / SOLUTION_P, n, "solution p", nonnegative=not allow_negative)
+    p = _read_vector(d / SOLUTION_P, n, "solution p", nonnegative=True, checked=not as_written)
     w_path = d / SOLUTION_W
     w = _read_vector(w_path, n, "solution w", nonnegative=False) if w_path.exists() else None
     report = _read_report(d / SOLUTION_JSON)

@@ -29,9 +29,10 @@ One solve (``ExternalSolver.iterate``):
 3. at the time limit (``ctx.deadline``) kill the whole process group: ``SolveAborted("timeout")``;
    death by a signal (a segfault): ``SolveAborted("crashed")``; a non-zero exit:
    ``ExternalSolverError`` (the row's status "failed"), with the tail of stderr/stdout;
-4. read the solution directory (``read_solution_dir``): a missing, unreadable,
-   wrong-length or NaN p, or a status outside the protocol's words, is a
-   ``SolutionFileError`` naming what is wrong; negative entries are kept for the judge;
+4. read the solution directory (``read_solution_dir``, ``as_written``): a missing or
+   unreadable p.f64, or a status outside the protocol's words, is a ``SolutionFileError``
+   naming what is wrong; a p of the wrong length or with NaN, inf or negative entries
+   goes to the judge as written (no answer, or an inaccurate one: wrong when claimed);
 5. the claim (``SolutionFile.claims_converged``): the statuses "converged", "solved" and
    "optimal" claim convergence, and so does a missing status; "not_converged",
    "max_iter", "time_limit", "stalled" and "failed" claim nothing.  The harness judges p
@@ -401,7 +402,7 @@ class ExternalSolver(Solver):
                 info["external_version"] = self.version()
             ctx.info.update(info)
             program_outcome(proc, self.name, limit)
-            sol = read_solution_dir(solution, ctx.n, allow_negative=True)
+            sol = read_solution_dir(solution, ctx.n, as_written=True)
         claimed, status, note = solution_status(sol)
         ctx.info.update({"external_status": sol.status, "external_time_reported_s": sol.time_s})
         message = f"external: exit 0 in {proc.elapsed:.3g} s, status {sol.status or 'none'}"

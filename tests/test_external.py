@@ -252,13 +252,17 @@ def test_validate_command_bad_input_exits_2(capsys: pytest.CaptureFixture[str]) 
     assert cf.main(["test-exact", "--inputs", "kernel"]) == 2
 
 
-def test_validate_records_a_timeout_and_a_crash(capsys: pytest.CaptureFixture[str]) -> None:
-    for variant, status in (("sleep", "timeout"), ("segv", "crashed"), ("fail", "crashed"), ("short", "crashed")):
+def test_validate_records_a_timeout_a_crash_and_a_claimed_non_answer(capsys: pytest.CaptureFixture[str]) -> None:
+    for variant, status in (("sleep", "timeout"), ("segv", "crashed"), ("fail", "crashed"), ("short", "WRONG"),
+                            ("nan", "WRONG")):
         table = cf.validate(command_solver(script_command("--variant", variant)),
                             cf.conformance_cases("fast", ["edge"], "edge/plateau*"),
                             timeout=1.0 if variant == "sleep" else None)  # None: the battery's 20 s
         assert [r.status for r in table.rows] == [status], (variant, table.format())
-    assert table.outcome() == "incomplete" and table.exit_code() == 3  # unsolved, not wrong
+        if status == "WRONG":  # a short or NaN p written with "converged": no answer, claimed as one
+            assert table.outcome() == "wrong" and table.exit_code() == 1
+        else:
+            assert table.outcome() == "incomplete" and table.exit_code() == 3  # unsolved, not wrong
 
 
 # ---------------------------------------------------------------------------
@@ -310,6 +314,8 @@ def test_misbehaving_programs_cost_only_their_own_rows(tmp_path: Path) -> None:
     assert status["ext-sleep"] == {"timeout"}
     assert status["ext-segv"] == {"crashed"} and status["ext-fail"] == {"failed"}
     assert status["ext-short"] == {"failed"} and status["ext-nan"] == {"failed"}
+    verdict = {s: set(g["verdict"]) for s, g in df.groupby("solver")}
+    assert verdict["ext-short"] == {"wrong"} and verdict["ext-nan"] == {"wrong"}  # claimed "converged"
     errors = {s: " ".join(g["error"].astype(str)) for s, g in df.groupby("solver")}
     assert "giving up on purpose" in errors["ext-fail"] and "exited with code 3" in errors["ext-fail"]
     assert "wrong length" in errors["ext-short"] and "NaN" in errors["ext-nan"]
