@@ -542,7 +542,7 @@ def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver]
 
 
 def _combined_exit(codes: Sequence[int]) -> int:
-    """Wrong answers first (1), then incomplete exact solvers (3), else 0."""
+    """Wrong answers first (1), then incomplete solvers (3), else 0."""
     return 1 if 1 in codes else (3 if 3 in codes else 0)
 
 
