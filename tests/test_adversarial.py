@@ -5,6 +5,7 @@ caught by ``validate --command``."""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -13,18 +14,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from contactbench.harness import conformance as cf
 from contactbench.harness.judge import ProblemSeal, judge
 from contactbench.harness.profiles import get_profile
 from contactbench.harness.pytest_plugin import settle
-from contactbench.problems.instances import counterexample
+from contactbench.problems.instances import QP, counterexample
 from contactbench.problems.kkt import kkt_figures, scaled_kkt_error
 from contactbench.problems.lcp import exact_solution
+from contactbench.problems.operators import DenseOperator
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 from contactbench.solvers.base import check_promise
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 HERE = __name__
 ROOT = Path(__file__).resolve().parents[1]
@@ -155,18 +156,26 @@ def test_the_judge_gives_each_forged_answer_its_verdict(ex1, kind: str, claim: b
 
 def test_a_solver_that_writes_into_its_problem_is_caught_by_the_seal(ex1) -> None:
     inst, p = ex1
-    seal = ProblemSeal.of(inst.qp)
-    assert seal.broken(inst.qp) == ""
-    H = inst.qp.H
-    before = H.H.copy() if hasattr(H, "H") else None
-    qp = type(inst.qp)(H, inst.qp.ubar.copy(), inst.qp.geometry)
+    qp = QP(DenseOperator(inst.qp.H.to_dense()), inst.qp.ubar.copy(), inst.qp.geometry)
     seal = ProblemSeal.of(qp)
+    assert seal.broken(qp) == ""
     qp.ubar[0] += 1e-12
     assert "ubar" in seal.broken(qp)
     v = judge(inst, p, False, TOL, tampered=seal.broken(qp))
     assert (v.status, v.reading, v.tampered) == ("failed", "wrong", True)
-    if before is not None:
-        assert np.array_equal(before, H.H)
+    seal = ProblemSeal.of(qp)
+    qp.H.H[3, 3] *= 1.0 + 1e-15  # the dense operator's matrix
+    assert "H.H" in seal.broken(qp)
+    fft = counterexample(36, 1, operator="fft").qp
+    seal = ProblemSeal.of(fft)
+    table = fft.H.transform.table
+    old = float(table.flat[0])
+    table.flat[0] = old * (1.0 + 1e-15) + 1e-300  # the FFT operator's kernel table
+    try:
+        assert "H.transform.table" in seal.broken(fft)
+    finally:
+        table.flat[0] = old
+    assert seal.broken(fft) == ""
 
 
 @settings(max_examples=40, deadline=None)
@@ -214,7 +223,7 @@ def tables() -> dict[tuple[str, bool], cf.VerdictTable]:
 @pytest.mark.parametrize("kind, claim", PAIRS)
 def test_validate_gives_each_adversary_its_verdict(tables, kind: str, claim: bool) -> None:
     table = tables[(kind, claim)]
-    status, reading = expected(kind, claim)
+    reading = expected(kind, claim)[1]
     (row,) = table.rows
     assert row.status == ROW[reading], table.format()
     outcome = {"pass": "conforms", "wrong": "wrong", "unconverged": "incomplete"}[reading]
@@ -319,14 +328,14 @@ def shell_commands() -> list[tuple[str, int]]:
     """(command, exit status) of each ``$ command`` line of docs/verdicts.md, the status
     from the ``# exit N`` comment that follows it."""
     text = (ROOT / "docs" / "verdicts.md").read_text()
-    return [(m.group(1).strip(), int(m.group(2))) for m in re.finditer(r"^\$ (.+?)\s+# exit (\d)$", text, re.M)]
+    return [(m.group(1).strip(), int(m.group(2))) for m in re.finditer(r"^\$ (.+?)\s+# exit (\d)$", text, re.MULTILINE)]
 
 
 def test_docs_verdicts_shell_commands_run_with_their_exit_status() -> None:
     commands = shell_commands()
     assert len(commands) >= 3
     for command, code in commands:
-        proc = subprocess.run(command, shell=True, cwd=ROOT, capture_output=True, text=True, timeout=300,
-                              env={**__import__("os").environ, "PATH": f"{Path(sys.executable).parent}:"
-                                   + __import__("os").environ.get("PATH", "")})
+        env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+        proc = subprocess.run(command, shell=True, cwd=ROOT, capture_output=True, text=True, timeout=300, env=env,
+                              check=False)
         assert proc.returncode == code, (command, proc.stdout[-2000:], proc.stderr[-2000:])
