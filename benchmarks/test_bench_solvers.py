@@ -29,8 +29,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from contactbench.harness.judge import Verdict, judge
+from contactbench.harness.judge import ProblemSeal, judge
 from contactbench.harness.profiles import get_profile
+from contactbench.harness.pytest_plugin import settle
 from contactbench.harness.skips import skip_decision
 from contactbench.harness.worker import problem_traits
 from contactbench.problems.errors import ProblemInputError
@@ -95,16 +96,21 @@ def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
     solver = get_solver(solver_name)
     settings = SolverSettings(tol=get_profile(PROFILE).tol, time_limit=TIME_LIMIT)
 
+    handed: list[tuple[QP, ProblemSeal]] = []  # each round's problem, sealed before its solve
+
     def setup() -> tuple[tuple[Any, ...], dict[str, Any]]:
-        return (fresh_qp(name, decision.operator), settings, None), {}
+        qp = fresh_qp(name, decision.operator)
+        handed.append((qp, ProblemSeal.of(qp)))
+        return (qp, settings, None), {}
 
     try:  # the warm-up round; a solver that refuses the instance with a clear error is skipped
         solver.solve(fresh_qp(name, decision.operator), settings, None)
     except ProblemInputError as exc:
         pytest.skip(f"{solver_name} refuses this instance: {exc}")
     result = benchmark.pedantic(solver.solve, setup=setup, rounds=ROUNDS, iterations=1, warmup_rounds=0)
-    verdict = judge(inst, np.asarray(result.p), bool(result.converged), get_profile(PROFILE).check_tol,
-                    p_ref=reference(name))
+    qp, seal = handed[-1]
+    verdict = judge(inst, result.p, bool(result.converged), get_profile(PROFILE).check_tol,
+                    p_ref=reference(name), tampered=seal.broken(qp))
     info: dict[str, Any] = {
         "solver": solver_name, "instance": name, "n": inst.n, "profile": PROFILE, "operator": decision.operator,
         "iterations": int(result.iterations), "solver_converged": bool(result.converged),
@@ -112,21 +118,3 @@ def test_solver(benchmark: Any, solver_name: str, name: str) -> None:
     }
     benchmark.extra_info.update(info)
     settle(verdict, f"{solver_name} on {name} (n = {inst.n}, profile {PROFILE})", result.message)
-
-
-def kkt_figures(verdict: Verdict) -> str:
-    """The judge's KKT figures of an answer, for a failure or xfail message."""
-    f = verdict.figures
-    keys = ("kkt_error", "primal_residual", "dual_residual", "complementarity", "p_rel_error", "load_rel_error")
-    return ", ".join(f"{k} {float(f[k]):.3e}" for k in keys if k in f) or f"kkt_error {verdict.kkt_error:.3e}"
-
-
-def settle(verdict: Verdict, what: str, solver_message: str) -> None:
-    """The test's outcome from the judge's reading (module doc): fail a wrong answer
-    claimed as converged, xfail an honest non-convergence, pass the rest."""
-    if verdict.reading == "wrong":
-        pytest.fail(f"{what}: the solver claims convergence but the judge reads the answer as wrong: "
-                    f"{verdict.message()}; KKT figures: {kkt_figures(verdict)}", pytrace=False)
-    if verdict.reading == "unconverged":
-        pytest.xfail(f"{what}: not converged, as the solver says ({solver_message or 'no message'}): "
-                     f"{'; '.join(verdict.problems)}; KKT figures: {kkt_figures(verdict)}")

@@ -4,18 +4,22 @@
 run a solver -- registered, or given by import path -- on every case of the battery
 (``harness.conformance_cases``: conditioning, units, edge cases, random LCPs, float32
 input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids).
-Every answer is judged by the one judge, ``harness.judge.judge``, with the case's
-profile's ``check_tol`` -- the threshold ``run`` uses for "solved" -- so a solve that
-``run`` calls solved is never WRONG here, and a WRONG one is never solved there.
-Beside the judge's KKT test, the answer is compared with the exact reference
-(``p_tolerance``, a gross-error bound).
+Every answer is judged by the one judge, ``harness.judge.judge``, at the tolerance the
+solver promises (``Capabilities.promise``, docs/verdicts.md): "exact" -- the case's
+profile's ``check_tol``, the threshold ``run`` uses for "solved", so a solve that ``run``
+calls solved is never WRONG here, and a WRONG one is never solved there; a float floor
+f -- max(check_tol, f).  Beside the judge's KKT test, the answer is compared with the
+exact reference (``p_tolerance``, a gross-error bound).  The problem is sealed before
+each solve (``harness.judge.ProblemSeal``): a solver that writes into it is WRONG.
 
 Row statuses (one row per solve):
 
 ``pass``         the judge's reading is "pass".
-``WRONG``        the solver claimed convergence, and the judge finds the answer
-                 inaccurate (scaled KKT error above check_tol).
-``unconverged``  inaccurate, and the solver did not claim convergence.
+``WRONG``        the judge reads the answer "wrong": the solver claimed convergence
+                 and the answer is inaccurate (scaled KKT error above the promised
+                 tolerance) or no answer (non-finite, wrong shape or dtype); or the
+                 solver wrote into the problem it was handed.
+``unconverged``  inaccurate or no answer, and the solver did not claim convergence.
 ``flagged``      the KKT test accepts the answer but a conformance extra does not: p is
                  beyond ``p_tolerance`` of the exact reference; and on comparison rows,
                  unit systems disagree by more than 1e-8, or a 1e-6 perturbation of ubar
@@ -29,12 +33,11 @@ Row statuses (one row per solve):
 
 Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 
-``wrong``        a wrong answer claimed as converged (exit 1);
-``incomplete``   a solver declared exact (``capabilities.exact``) leaves solves unsolved
-                 (unconverged, timeout, crashed, or refused outside the float32 case):
-                 exit 3, listing them;
-``conforms``     neither (exit 0); a solver not declared exact is told how many solves
-                 it did not finish.
+``wrong``        any WRONG row (exit 1);
+``incomplete``   solves left unsolved -- unconverged, timeout, crashed, or refused
+                 outside the float32 case -- by any solver: exit 3, listing them;
+``conforms``     neither: every case solved to what the solver promises, or skipped for
+                 a capability it declares (exit 0).
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
 unknown solver, an import path that does not load, no case selected) exits 2.
 
@@ -42,7 +45,8 @@ unknown solver, an import path that does not load, no case selected) exits 2.
 program over the file protocol (``contactbench.solvers.external``,
 docs/external-solvers.md): the cases its inputs do not allow are skipped, each with its
 reason, and listed after the table ("left out").  An external program claims
-convergence when its solution.json says ``"status": "converged"`` or gives no status.
+convergence with ``"status"`` "converged", "solved" or "optimal", or no status
+(``contactbench.solvers.external``).
 ``--out DIR`` writes the conformance report (``harness.conformance_report``:
 DIR/verdicts.csv and DIR/conformance.md); the exit status is the same.
 
@@ -68,7 +72,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
-from contactbench.solvers.base import ParamError, Solver
+from contactbench.solvers.base import ParamError, Promise, Solver, describe_promise, promised_tol
 from contactbench.solvers.registry import all_solvers, load_solver
 
 from .conformance_cases import (
@@ -82,7 +86,7 @@ from .conformance_cases import (
     conformance_cases,
     exact_reference,
 )
-from .judge import Verdict, judge
+from .judge import Verdict, judge, read_answer
 from .profiles import get_profile
 
 __all__ = ["ConformanceCase", "GROUPS", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",
@@ -98,7 +102,7 @@ P_TOL_RANGE = (1e-4, 0.05)
 
 #: Statuses of a solve that produced an answer (the comparison rows need one per step).
 ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
-#: Statuses of a solve that an exact solver must not leave (besides WRONG).
+#: Statuses of a solve that no solver may leave (besides WRONG): the case is unsolved.
 UNSOLVED = ("unconverged", "timeout", "crashed")
 #: Statuses that ``--strict`` also fails on.
 STRICT_FAILING = ("crashed", "timeout", "flagged")
@@ -152,8 +156,9 @@ def p_tolerance(cond: float, check_tol: float) -> float:
 
 
 def row_status(v: Verdict) -> str:
-    """The row status of the judge's verdict (module doc): WRONG exactly when the solver
-    claimed convergence and the judge's status is "inaccurate"."""
+    """The row status of the judge's verdict (module doc): WRONG exactly when the judge
+    reads "wrong" and its status is not "solved" (a solved answer off the reference is
+    flagged)."""
     if v.reading == "pass":
         return "pass"
     if v.status == "solved":
@@ -162,9 +167,10 @@ def row_status(v: Verdict) -> str:
 
 
 def judge_solve(out: SolveOutcome, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
-                step: int, solver: str) -> VerdictRow:
-    """The row of one solve: the judge's verdict, read as in the module doc."""
-    check_tol = get_profile(case.profile).check_tol
+                step: int, solver: str, promise: Promise = "exact") -> VerdictRow:
+    """The row of one solve: the judge's verdict at the promised tolerance (the case's
+    check_tol, or the solver's floor above it), read as in the module doc."""
+    check_tol = promised_tol(promise, get_profile(case.profile).check_tol)
     row = VerdictRow(solver, case.name, case.group, step, inst.n, out.kind, time_s=out.time_s, check_tol=check_tol,
                      cond=ref.cond if ref else float("nan"), message=out.message, detail=out.detail,
                      ref_time_s=ref.time_s if ref else float("nan"))
@@ -172,7 +178,7 @@ def judge_solve(out: SolveOutcome, inst: ContactInstance, ref: Reference | None,
         return row
     p_ref = ref.p if ref is not None and ref.trusted else None
     p_tol = p_tolerance(ref.cond, check_tol) if ref is not None and p_ref is not None else None
-    v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol)
+    v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol, tampered=out.tampered)
     row.claimed, row.iterations = bool(out.converged), out.iterations
     row.kkt_error = v.kkt_error
     row.p_rel_error = float(v.figures.get("p_rel_error", float("nan")))
@@ -263,7 +269,7 @@ class VerdictTable:
 
     solver: str
     mode: str
-    exact: bool = False
+    promise: Promise = "exact"
     rows: list[VerdictRow] = field(default_factory=list)
     available: bool = True
     note: str = ""
@@ -282,7 +288,7 @@ class VerdictTable:
 
     @property
     def unsolved(self) -> list[VerdictRow]:
-        """Solves without a correct answer (besides WRONG ones): what an exact solver must not leave."""
+        """Solves without a correct answer (besides WRONG ones): what no solver may leave."""
         return [r for r in self.solves if r.status in UNSOLVED
                 or (r.status == "refused" and r.group not in REFUSABLE_GROUPS)]
 
@@ -292,7 +298,7 @@ class VerdictTable:
             return "wrong"
         if strict and any(r.status in STRICT_FAILING for r in self.rows):
             return "strict"
-        if self.exact and self.unsolved:
+        if self.unsolved:
             return "incomplete"
         return "conforms"
 
@@ -308,19 +314,16 @@ class VerdictTable:
         labels = ", ".join(r.label for r in unsolved)
         outcome = self.outcome(strict)
         if outcome == "wrong":
-            return (f"WRONG: {len(self.wrong)} wrong answer(s) claimed as converged, of {solves} solves: "
-                    f"{', '.join(r.label for r in self.wrong)}")
+            return (f"WRONG: {len(self.wrong)} of {solves} solves wrong (a failing answer claimed as converged, "
+                    f"or a write into the problem): {', '.join(r.label for r in self.wrong)}")
         if outcome == "strict":
             bad = [r.label for r in self.rows if r.status in STRICT_FAILING]
             return f"FAILS (--strict): {len(bad)} crashed, timed-out or flagged row(s): {', '.join(bad)}"
         if outcome == "incomplete":
-            return f"INCOMPLETE: declared exact, but leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
+            return f"INCOMPLETE: leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
         if not solves:
-            return "CONFORMS: no case was run (every case skipped)"
-        if not unsolved:
-            return f"CONFORMS: every solve correct ({solves} of {solves})"
-        return (f"CONFORMS: no wrong answer, but it does not solve {len(unsolved)} of {solves} "
-                f"(it is not declared exact): {labels}")
+            return "CONFORMS: no case was run (every case skipped for a declared capability)"
+        return f"CONFORMS: every solve correct to its promise ({solves} of {solves})"
 
     def summary(self, strict: bool = False) -> str:
         statuses = ("pass", "WRONG", "unconverged", "flagged", "refused", "crashed", "timeout", "skipped")
@@ -331,8 +334,8 @@ class VerdictTable:
         width = max([len(r.label) for r in self.rows] + [4])
         head = (f"{'case':{width}s} {'n':>5s} {'status':11s} {'claim':5s} {'kkt_error':>9s} {'err_ref':>9s} "
                 f"{'iters':>6s} {'time_s':>7s}  note")
-        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery"
-                 f"{', declared exact' if self.exact else ''})"]
+        promise = describe_promise(self.promise)
+        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery, promise: {promise})"]
         if self.note:
             lines.append(self.note)
         lines += [head, "-" * len(head)]
@@ -377,7 +380,7 @@ def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec] | None, mode: str)
     return [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
 
 
-def run_case(runner: SolveRunner, case: ConformanceCase, name: str) -> list[VerdictRow]:
+def run_case(runner: SolveRunner, case: ConformanceCase, name: str, promise: Promise = "exact") -> list[VerdictRow]:
     """All verdict rows of one case (one per step, plus a comparison row)."""
     seq = build_battery_spec(case.spec)
     rows, ps, insts, refs = [], [], [], []
@@ -385,8 +388,8 @@ def run_case(runner: SolveRunner, case: ConformanceCase, name: str) -> list[Verd
         inst = seq.at(k)
         ref = cached_reference(case.spec, k, inst)
         out = runner.solve(case.spec, k)
-        rows.append(judge_solve(out, inst, ref, case, k, name))
-        ps.append(out.p if out.kind == "ok" else None)
+        rows.append(judge_solve(out, inst, ref, case, k, name, promise))
+        ps.append(read_answer(out.p, inst.n)[0] if out.kind == "ok" else None)
         insts.append(inst)
         refs.append(ref)
     if case.compare == "units":
@@ -404,7 +407,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
     its declared ``Param``s first) and return the verdict table."""
     s = load_solver(solver) if isinstance(solver, str) else solver
-    table = VerdictTable(s.name, mode, exact=bool(s.capabilities.exact))
+    table = VerdictTable(s.name, mode, promise=s.capabilities.promise)
     available, why = s.availability()
     if not available:
         table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
@@ -414,7 +417,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     runner = SolveRunner(s, limit, isolate=isolate, params=params)
     try:
         for case in _as_cases(cases, mode):
-            new = run_case(runner, case, s.name)
+            new = run_case(runner, case, s.name, s.capabilities.promise)
             table.rows.extend(new)
             if progress is not None:
                 for r in new:
@@ -427,8 +430,8 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
 def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
                     mode: str = "fast", strict: bool = False, **kw: Any) -> VerdictTable:
     """For a user's pytest: raise AssertionError (with the table) unless ``solver``
-    conforms -- a wrong answer claimed as converged, or, for a solver declared exact, an
-    unsolved case (``strict``: also crashes, timeouts and flagged rows)."""
+    conforms -- a WRONG row, or a case left unsolved (``strict``: also crashes, timeouts
+    and flagged rows)."""
     table = validate(solver, cases, mode=mode, **kw)
     if not table.available:
         raise AssertionError(table.note)
@@ -447,9 +450,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog="contactbench validate",
         description="Run solvers through the conformance battery and judge every answer with the harness's "
                     "judge (the scaled KKT check of `contactbench run`).",
-        epilog="exit status: 0 conforms; 1 a wrong answer claimed as converged (with --strict also crashes, "
-               "timeouts, flagged rows); 2 bad input (unknown solver, import path that does not load, no case "
-               "selected, solver not available); 3 incomplete: a solver declared exact left cases unsolved.")
+        epilog="exit status: 0 conforms (every case solved to the solver's promise, or skipped for a declared "
+               "capability); 1 wrong: an answer claimed as converged that fails, or a solver that wrote into its "
+               "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input (unknown solver, import "
+               "path that does not load, no case selected, solver not available); 3 incomplete: cases left "
+               "unsolved (docs/verdicts.md).")
     ap.add_argument("solvers", nargs="*", metavar="SOLVER",
                     help="registry name, or import path module:NAME (the current directory is importable)")
     ap.add_argument("--all", action="store_true", help="every available registered solver")
@@ -535,7 +540,7 @@ def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver]
 
 
 def _combined_exit(codes: Sequence[int]) -> int:
-    """Wrong answers first (1), then incomplete exact solvers (3), else 0."""
+    """Wrong answers first (1), then incomplete solvers (3), else 0."""
     return 1 if 1 in codes else (3 if 3 in codes else 0)
 
 

@@ -34,6 +34,7 @@ from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
 from contactbench.solvers.base import SolveAborted, Solver, SolverSettings
 
+from .judge import ProblemSeal
 from .profiles import get_profile
 from .skips import capability_decision
 from .worker import instance_operator_kind, problem_traits
@@ -158,7 +159,8 @@ class SolveOutcome:
     """What one solve produced, as seen from the parent process.
 
     kind: "ok", "refused", "crashed", "timeout" or "skipped"; ``message`` is one line,
-    ``detail`` the traceback of a crash."""
+    ``detail`` the traceback of a crash; ``tampered`` what the solver changed in the
+    problem it was handed (``harness.judge.ProblemSeal``; "" nothing)."""
 
     kind: str
     p: np.ndarray | None = None
@@ -168,6 +170,7 @@ class SolveOutcome:
     message: str = ""
     detail: str = ""
     time_s: float = float("nan")
+    tampered: str = ""
 
 
 def adapt_to_solver(inst: ContactInstance, solver: Solver) -> QP | str:
@@ -202,6 +205,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     if isinstance(qp, str):
         return {"kind": "skipped", "message": qp}
     settings = SolverSettings(tol=get_profile(case.profile).tol, time_limit=time_limit, params=params)
+    seal = ProblemSeal.of(qp)
     t0 = time.perf_counter()
     try:
         res = solver.solve(qp, settings, None)
@@ -213,8 +217,10 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
                 "message": f"{type(exc).__name__}: {exc}".strip().splitlines()[0],
                 "detail": "" if refused else traceback.format_exc(limit=6)}
-    return {"kind": "ok", "p": np.asarray(res.p), "converged": bool(res.converged), "iterations": int(res.iterations),
-            "solver_status": str(res.status), "message": str(res.message), "time_s": time.perf_counter() - t0}
+    elapsed = time.perf_counter() - t0
+    return {"kind": "ok", "p": res.p, "converged": bool(res.converged), "iterations": int(res.iterations),
+            "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
+            "tampered": seal.broken(qp)}
 
 
 class _SolverHandler:

@@ -1,48 +1,64 @@
-"""The judge: the one place that turns an answer into a verdict.
+"""The judge: the one place that turns an answer into a verdict (docs/verdicts.md).
 
-``run``, ``validate``, the Dask executor and the benchmark scripts all call ``judge``.
-A verdict carries two readings of one answer:
+``run`` (the worker), ``validate``, ``solve_sequence``, pytest-benchmark and the
+benchmark scripts all call ``judge``.  A verdict carries two readings of one answer:
 
 * ``status``  -- the table's reading: "solved" when the scaled KKT error
-  (``contactbench.problems.kkt.kkt_check``, recomputed from H and p, never the solver's
-  own figure) is at most the profile's ``check_tol``, else "inaccurate";
+  (``contactbench.problems.kkt.kkt_check``, recomputed from the harness's own H and
+  ubar, never the solver's w or figure) is at most the profile's ``check_tol``;
+  "inaccurate" when it is not; "failed" when the answer is no answer (``read_answer``:
+  not a length-n vector of finite real numbers) or the solver wrote into the problem it
+  was handed (``ProblemSeal``);
 * ``reading`` -- the conformance reading, which also weighs the solver's own claim:
   "pass" (solved, and p within ``p_tol`` of the reference when one is given),
-  "wrong" (not that, while the solver claimed convergence: a wrong answer), or
-  "unconverged" (not that, and the solver said so: an honest failure).
+  "wrong" (not that, while the solver claimed convergence; and any answer of a solver
+  that wrote into its problem), or "unconverged" (not that, and the solver said so).
 
-Where an answer is unusable (wrong length, non-finite) the verdict says so in
-``problems`` and its kkt_error is inf.
+Every figure is NaN- and overflow-safe (``problems.kkt``): nothing non-finite can make a
+verdict better.  The scales come from the problem, never from the candidate.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+<<<<<<< HEAD
 
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
+=======
+from contactbench.problems.instances import ContactInstance
+>>>>>>> judge
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
 from .schema import VERDICTS as READINGS  # the table contract names the readings
 
+__all__ = ["READINGS", "ProblemSeal", "Verdict", "answer_figures", "judge", "read_answer"]
+
 
 @dataclass
 class Verdict:
-    """The judge's verdict on one answer (module doc)."""
+    """The judge's verdict on one answer (module doc).  ``usable``: the answer was a
+    length-n vector of finite real numbers and the problem was left as handed."""
 
-    status: str  # "solved" | "inaccurate"
+    status: str  # "solved" | "inaccurate" | "failed"
     reading: str  # "pass" | "wrong" | "unconverged"
     claimed: bool
     kkt: KKTReport | None
     figures: dict[str, Any] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
+    tampered: bool = False  # the solver wrote into the problem it was handed
 
     @property
     def kkt_error(self) -> float:
-        return float("inf") if self.kkt is None else float(self.kkt.kkt_error)
+        return math.inf if self.kkt is None else float(self.kkt.kkt_error)
+
+    @property
+    def usable(self) -> bool:
+        return self.status != "failed"
 
     @property
     def correct_claim(self) -> bool:
@@ -50,43 +66,123 @@ class Verdict:
 
     def message(self) -> str:
         text = "; ".join(self.problems)
-        if self.reading == "wrong":
+        if self.reading == "wrong" and self.claimed:
             text += " -- while claiming convergence"
         elif self.reading == "pass" and not self.claimed:
             text = "correct, though the solver did not claim convergence"
         return text
 
 
+# ---------------------------------------------------------------------------
+# The problem a solver was handed: sealed before the solve, checked after
+# ---------------------------------------------------------------------------
+
+
+def _defining_arrays(qp: Any) -> list[tuple[str, np.ndarray]]:
+    """ubar and the numpy arrays that define the operator: its public array attributes
+    and those of its public helper objects (an FFT operator's kernel transform)."""
+    out: list[tuple[str, np.ndarray]] = [("ubar", np.asarray(qp.ubar))]
+    H = qp.H
+    for name, value in sorted(vars(H).items()):
+        if name.startswith("_"):
+            continue
+        if isinstance(value, np.ndarray):
+            out.append((f"H.{name}", value))
+        elif hasattr(value, "__dict__") and not isinstance(value, type):
+            out += [(f"H.{name}.{k}", v) for k, v in sorted(vars(value).items())
+                    if not k.startswith("_") and isinstance(v, np.ndarray)]
+    return out
+
+
+def _digest(arr: np.ndarray) -> str:
+    h = hashlib.sha1(usedforsecurity=False)  # a fingerprint, not a defence against crafted collisions
+    h.update(f"{arr.dtype.str}{arr.shape}".encode())
+    h.update(memoryview(np.ascontiguousarray(arr)).cast("B"))
+    return h.hexdigest()
+
+
+@dataclass(frozen=True)
+class ProblemSeal:
+    """A fingerprint of the problem handed to a solver -- ubar and the operator's
+    defining arrays (``_defining_arrays``) -- taken before the solve; ``broken(qp)``
+    after it says what the solver changed ("" when nothing)."""
+
+    digests: tuple[tuple[str, str], ...]
+
+    @classmethod
+    def of(cls, qp: Any) -> ProblemSeal:
+        return cls(tuple((name, _digest(a)) for name, a in _defining_arrays(qp)))
+
+    def broken(self, qp: Any) -> str:
+        now = dict(ProblemSeal.of(qp).digests)
+        before = dict(self.digests)
+        changed = [name for name in before if now.get(name) != before[name]]
+        changed += [name for name in now if name not in before]
+        return f"the solver wrote into the problem it was handed ({', '.join(changed)} changed)" if changed else ""
+
+
+# ---------------------------------------------------------------------------
+# The verdict
+# ---------------------------------------------------------------------------
+
+
+def read_answer(p: Any, n: int) -> tuple[np.ndarray | None, str]:
+    """(p as float64, "") when ``p`` is a length-``n`` vector of finite real numbers
+    (float or integer dtype), else (None, what is wrong with it)."""
+    if p is None:
+        return None, "returned no p"
+    try:
+        arr = np.asarray(p)
+    except Exception as exc:  # an object that numpy cannot even wrap
+        return None, f"returned a p that cannot be read as an array ({type(exc).__name__})"
+    if arr.dtype.kind not in "biuf":
+        return None, f"returned p of dtype {arr.dtype}, which is not real numbers"
+    if arr.shape != (n,):
+        if arr.ndim == 1:
+            return None, f"returned p of wrong length {arr.size}, expected n = {n}"
+        return None, f"returned p of shape {arr.shape}, expected ({n},)"
+    pf = arr.astype(np.float64, copy=False)
+    if not np.all(np.isfinite(pf)):
+        bad = int(np.count_nonzero(~np.isfinite(pf)))
+        return None, f"p has {bad} NaN/inf entr{'y' if bad == 1 else 'ies'} of {n}"
+    return pf, ""
+
+
 def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref: np.ndarray | None = None,
-          p_tol: float | None = None, analytic_load: float | None = None) -> Verdict:
+          p_tol: float | None = None, analytic_load: float | None = None, *, tampered: str = "") -> Verdict:
     """The verdict on answer ``p`` of instance ``inst`` (module doc).  ``claimed`` is the
     solver's own convergence claim; ``p_ref`` an exact reference answer; ``p_tol`` the
-    allowed ||p - p_ref||_inf / ||p_ref||_inf for a "pass" (None: not checked)."""
+    allowed ||p - p_ref||_inf / ||p_ref||_inf for a "pass" (None: not checked);
+    ``tampered`` what ``ProblemSeal.broken`` found the solver changed ("" nothing).
+    ``inst`` must be the harness's own copy of the problem."""
+    claimed = bool(claimed)
+    if tampered:
+        verdict = _failed(claimed, tampered, reading="wrong")
+        verdict.tampered = True
+        return verdict
+    pf, why = read_answer(p, inst.n)
+    if pf is None:
+        return _failed(claimed, why)
     problems: list[str] = []
-    arr = None if p is None else np.asarray(p)
-    if arr is None or arr.shape != (inst.n,):
-        problems.append(f"returned p of shape {None if arr is None else arr.shape}, expected ({inst.n},)")
-        return _verdict(None, claimed, problems, {})
-    if arr.dtype != np.float64:
-        problems.append(f"returned {arr.dtype} p (input ubar was {np.asarray(inst.qp.ubar).dtype})")
-    pf = arr.astype(np.float64, copy=False)
+    ubar_dtype = np.asarray(inst.qp.ubar).dtype
+    if np.asarray(p).dtype != np.float64:
+        problems.append(f"returned {np.asarray(p).dtype} p (input ubar was {ubar_dtype})")
     kkt = kkt_check(inst, pf)
-    if not np.all(np.isfinite(pf)):
-        problems.append("p has non-finite entries")
-        return _verdict(kkt, claimed, problems, {"kkt_error": kkt.kkt_error})
-    figures = answer_figures(inst, pf, kkt, p_ref, analytic_load, check_tol)
-    if not kkt.kkt_error <= check_tol:
+    with np.errstate(all="ignore"):  # a huge answer's load may overflow: a figure, not a verdict
+        figures = answer_figures(inst, pf, kkt, p_ref, analytic_load, check_tol)
+    solved = kkt.passes(check_tol)
+    if not solved:
         problems.append(f"kkt_error {kkt.kkt_error:.2e} > check_tol {check_tol:.0e}")
     if p_ref is not None and p_tol is not None and not figures["p_rel_error"] <= p_tol:
         problems.append(f"p is {figures['p_rel_error']:.2e} off the exact reference (allowed {p_tol:.1e})")
-    return _verdict(kkt, claimed, problems, figures, solved=kkt.kkt_error <= check_tol)
-
-
-def _verdict(kkt: KKTReport | None, claimed: bool, problems: list[str], figures: dict[str, Any],
-             solved: bool = False) -> Verdict:
-    status = "solved" if solved else "inaccurate"
     reading = "pass" if not problems else ("wrong" if claimed else "unconverged")
-    return Verdict(status, reading, bool(claimed), kkt, figures, problems)
+    return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems)
+
+
+def _failed(claimed: bool, why: str, reading: str | None = None) -> Verdict:
+    """The verdict on no answer: status "failed", wrong if claimed (or ``reading``)."""
+    figures = {"kkt_error": math.inf, "error": why}
+    return Verdict("failed", reading or ("wrong" if claimed else "unconverged"), claimed, None, figures, [why])
 
 
 def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: np.ndarray | None,

@@ -7,6 +7,8 @@ Fixtures
 ``contact_instance``  factory: ``contact_instance("rmd", N=32, step=-1)`` or
                       ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance.
 ``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
+``contactbench_settle``  ``settle(verdict, what, solver_message)``: a pytest outcome from
+                      the judge's verdict, the rule pytest-benchmark runs use (below).
 ``run_harness``       factory: run the harness into a temporary directory and return the
                       tidy table (pandas DataFrame), e.g.
                       ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``;
@@ -19,6 +21,29 @@ from __future__ import annotations
 from typing import Any, Callable
 
 import pytest
+
+
+def settle(verdict: Any, what: str, solver_message: str = "") -> None:
+    """The pytest outcome of a judged answer (``harness.judge.Verdict``), as in
+    ``contactbench validate``: reading "wrong" (a failing answer claimed as converged,
+    no answer claimed as one, or a solver that wrote into its problem) fails the test;
+    "unconverged" (the solver said it did not converge) is an xfail; "pass" returns."""
+    figures = ", ".join(f"{k} {float(verdict.figures[k]):.3e}" for k in
+                        ("kkt_error", "primal_residual", "dual_residual", "complementarity", "p_rel_error",
+                         "load_rel_error") if k in verdict.figures) or f"kkt_error {verdict.kkt_error:.3e}"
+    if verdict.reading == "wrong":
+        who = "the solver claims convergence but" if verdict.claimed else "the solver wrote into its problem:"
+        pytest.fail(f"{what}: {who} the judge reads the answer as wrong: {verdict.message()}; KKT figures: {figures}",
+                    pytrace=False)
+    if verdict.reading == "unconverged":
+        pytest.xfail(f"{what}: not converged, as the solver says ({solver_message or 'no message'}): "
+                     f"{'; '.join(verdict.problems)}; KKT figures: {figures}")
+
+
+@pytest.fixture
+def contactbench_settle() -> Callable[..., None]:
+    """``settle(verdict, what, solver_message)`` (module function ``settle``)."""
+    return settle
 
 
 @pytest.fixture

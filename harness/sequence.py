@@ -21,7 +21,7 @@ from contactbench.problems.scenes import LoadSequence
 from contactbench.solvers.base import Solver, SolveResult, SolverSettings, WarmStart
 from contactbench.solvers.registry import load_solver
 
-from .judge import Verdict, judge
+from .judge import ProblemSeal, Verdict, judge
 from .profiles import get_profile
 
 
@@ -131,6 +131,7 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
     for k, inst in enumerate(instances_of(steps)):
         start = warm_start_from(state, inst, k, kind)
         t0 = time.perf_counter()
+        seal = ProblemSeal.of(inst.qp)
         try:
             res = s.solve(inst.qp, SolverSettings(settings.tol, settings.max_iter, settings.time_limit,
                                                   dict(settings.params)), start)
@@ -139,7 +140,7 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
             break
         seconds = time.perf_counter() - t0
         p_ref = references[k] if references is not None and k < len(references) else None
-        verdict = judge(inst, np.asarray(res.p, dtype=np.float64).reshape(-1), bool(res.converged), tol, p_ref=p_ref)
+        verdict = judge(inst, res.p, bool(res.converged), tol, p_ref=p_ref, tampered=seal.broken(inst.qp))
         step = StepSolve(k, inst, res, seconds, start is not None, verdict)
         out.append(step)
         if on_step is not None:

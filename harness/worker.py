@@ -38,7 +38,7 @@ from contactbench.solvers.registry import load_solver
 
 from .fields import save_field
 from .isolation import PeakMemory
-from .judge import Verdict, judge
+from .judge import ProblemSeal, Verdict, judge
 from .profiles import get_profile
 from .sequence import WarmState, warm_start_from
 from .studies import REFERENCE_PROFILE
@@ -196,7 +196,8 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
     geom = inst.geometry
     return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
                          has_surface=geom is not None and geom.has_surface, periodic=bool(inst.periodic),
-                         kernel=inst.kernel)
+                         kernel=inst.kernel,
+                         surface_side=int(geom.surface.N) if geom is not None and geom.has_surface else 0)
 
 
 def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:
@@ -281,11 +282,17 @@ class InstanceWorker:
         return time.perf_counter() - t0
 
     def qp_for(self, k: int, operator: str) -> QP:
+        """The QP a solver is handed: its own copy of ubar (the judge keeps the step's),
+        the step's operator (sealed around each timed solve: ``ProblemSeal``)."""
         inst, _ = self.ensure_step(k)
         if operator == "dense" and instance_operator_kind(inst) != "dense":
             self.ensure_dense(k)
-            return QP(self.dense[k], inst.qp.ubar, inst.qp.geometry)
-        return inst.qp
+            return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry)
+        return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry)
+
+    def forget_problems(self) -> None:
+        """Drop every built step and dense H (after a solver wrote into one)."""
+        self.seq, self.steps, self.dense = None, {}, {}
 
     def reference_p(self, path: str | None) -> np.ndarray | None:
         if not path:
@@ -376,6 +383,7 @@ class InstanceWorker:
         inst, qp, solver, warm = self.prepare(task)
         settings = solver_settings(task)
         count0 = qp.H.matvec_count
+        seal = ProblemSeal.of(qp)  # untimed: what the solver is handed, to catch writes into it
         with PeakMemory() as mem:
             t0 = time.perf_counter()
             try:
@@ -392,16 +400,15 @@ class InstanceWorker:
             trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
         )
         reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
-        p = np.asarray(res.p, dtype=np.float64).reshape(-1)
-        if p.shape != (inst.n,):
-            reply.error = f"solver returned p of size {p.size} for n = {inst.n}"
-            return reply
-        if not np.all(np.isfinite(p)):
-            reply.error = "solver returned non-finite values in p"
-            return reply
         p_ref = self.reference_p(task.reference_path)
-        reply.verdict = judge(inst, p, bool(res.converged), task.check_tol, p_ref=p_ref,
-                              analytic_load=self.analytic(task.step).get("load"))
+        reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
+                              analytic_load=self.analytic(task.step).get("load"), tampered=seal.broken(qp))
+        if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
+            reply.error = reply.verdict.message()
+            if reply.verdict.tampered:
+                self.forget_problems()
+            return reply
+        p = np.asarray(res.p, dtype=np.float64)
         if p_ref is None:
             reply.reference_saved = self.serve_as_reference(task, p, reply.verdict, elapsed)
         save_wrong_answer(task.arrays_path, inst, p, p_ref, reply.verdict)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
-from .kkt import kkt_figures
+from .kkt import problem_scales
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
     ContactOperator,
@@ -180,10 +180,7 @@ class ContactInstance:
         """The judge's scales of this problem (``problems.kkt``): the displacement scale
         u_s = ||ubar||_inf and the force scale p_s = u_s / max diag H (the force that alone
         indents one element by u_s).  They depend on the problem only, never on an answer."""
-        ubar = np.asarray(self.qp.ubar, dtype=np.float64)
-        # the scales kkt_figures uses, read at p = 0 (w = -ubar), where they are the problem's own
-        f = kkt_figures(np.zeros_like(ubar), -ubar, ubar, float(np.max(self.qp.H.diagonal())))
-        return float(f.u_scale), float(f.p_scale)
+        return problem_scales(np.asarray(self.qp.ubar, dtype=np.float64), float(np.max(self.qp.H.diagonal())))
 
     def force_scale(self) -> float:
         """p_s of ``problem_scales``."""

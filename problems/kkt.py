@@ -14,19 +14,26 @@ recomputes w itself from H and p -- a solver's own w or status is never used.
 Scaled figures
 --------------
 All scaled figures are dimensionless and invariant under a change of units (E -> c E,
-every length -> c length).  Two natural scales of the instance are used:
+every length -> c length).  Their two scales come from the *problem*, never from the
+candidate (a huge answer must not shrink its own residuals):
 
-* a displacement scale  u_s = max(||ubar||_inf, ||Hp||_inf)  (length), and
+* a displacement scale  u_s = ||ubar||_inf  (length; ``U_SCALE_FALLBACK`` = 1 when
+  ubar = 0, whose only answer is p = 0, so the figures are then absolute), and
 * a force scale         p_s = u_s / max(diag H)  (the force that alone indents one
   element by u_s).
 
 Then  primal = max(0, -min p) / p_s,   dual = max(0, -min w) / u_s,
-complementarity = max_i |w_i p_i| / (u_s p_s),  complementarity_sum = |w'p| / (u_s ||p||_1),
+complementarity = max_i |(w_i / u_s)(p_i / p_s)|,  complementarity_sum = |w'p| / (u_s ||p||_1),
 and  kkt_error = max(primal, dual, complementarity).
+
+Every figure is computed so that overflow, NaN or inf can only make it worse: a product
+that overflows is inf, and any NaN (inf - inf, 0 x inf, a NaN entry) reads as inf --
+never as 0, as Python's ``max`` would read it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any, Protocol
 
@@ -60,7 +67,12 @@ class KKTReport:
         return asdict(self)
 
     def passes(self, tol: float) -> bool:
-        return bool(np.isfinite(self.kkt_error) and self.kkt_error <= tol)
+        """kkt_error <= tol (False for a NaN or inf error)."""
+        return bool(math.isfinite(self.kkt_error) and self.kkt_error <= tol)
+
+
+#: u_s when ubar = 0 (the only answer is p = 0; the figures are then absolute).
+U_SCALE_FALLBACK = 1.0
 
 
 @dataclass(frozen=True)
@@ -75,24 +87,47 @@ class KKTFigures:
     p_scale: float
 
 
+def worse(x: float) -> float:
+    """``x`` as a residual: NaN reads as inf (a figure that cannot be computed is the worst)."""
+    return math.inf if math.isnan(x) else float(x)
+
+
+def worst(*xs: float) -> float:
+    """max of residuals in which a NaN is inf (Python's ``max`` would drop it)."""
+    return max(worse(x) for x in xs)
+
+
+def _negative_part(x: float) -> float:
+    """max(0, -x), NaN for NaN."""
+    return math.nan if math.isnan(x) else max(0.0, -x)
+
+
+def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = None) -> tuple[float, float]:
+    """(u_s, p_s) of the problem (module doc): u_s = ||ubar||_inf, p_s = u_s / max diag H.
+    ``ubar_max``: ||ubar||_inf when the caller already has it."""
+    u_s = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
+    if not u_s > 0.0:
+        u_s = U_SCALE_FALLBACK
+    return u_s, u_s / float(diag_max)
+
+
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
                 ubar_max: float | None = None) -> KKTFigures:
-    """The scaled KKT figures of ``p`` with gap ``w = Hp - ubar`` (module doc):
-    u_s = max(|ubar|_inf, |Hp|_inf), p_s = u_s / max diag H.  ``ubar_max``: |ubar|_inf
-    when the caller already has it (a solver testing every iteration)."""
-    hp = w + ubar
-    hp_max = max(float(np.max(hp, initial=0.0)), -float(np.min(hp, initial=0.0)))
-    if ubar_max is None:
-        ubar_max = float(np.max(np.abs(ubar), initial=0.0))
-    u_s = max(ubar_max, hp_max)
-    if u_s == 0.0:
-        u_s = 1.0  # ubar = 0 and p = 0: every figure is an exact zero anyway
-    p_s = u_s / diag_max
-    primal = max(0.0, -float(np.min(p, initial=0.0))) / p_s
-    dual = max(0.0, -float(np.min(w, initial=0.0))) / u_s
-    np.multiply(w, p, out=hp)
-    comp = max(float(np.max(hp, initial=0.0)), -float(np.min(hp, initial=0.0))) / (u_s * p_s)
-    return KKTFigures(primal, dual, comp, max(primal, dual, comp), u_s, p_s)
+    """The scaled KKT figures of ``p`` with gap ``w = Hp - ubar`` (module doc), scaled by
+    the problem's u_s = ||ubar||_inf and p_s = u_s / max diag H.  ``ubar_max``:
+    ||ubar||_inf when the caller already has it (a solver testing every iteration).
+    A non-finite entry of p or w, or a product that overflows, gives inf."""
+    u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+    with np.errstate(all="ignore"):
+        primal = _negative_part(float(np.min(p, initial=0.0))) / p_s
+        dual = _negative_part(float(np.min(w, initial=0.0))) / u_s
+        t = np.multiply(p, 1.0 / p_s)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow
+        np.multiply(t, w, out=t)
+        comp = worst(float(np.max(t, initial=0.0)), -float(np.min(t, initial=0.0))) / u_s
+    primal, dual, comp = worse(primal), worse(dual), worse(comp)
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(w))):
+        primal = dual = comp = math.inf  # an answer or gap with inf or NaN entries is no answer
+    return KKTFigures(primal, dual, comp, worst(primal, dual, comp), u_s, p_s)
 
 
 def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
@@ -107,22 +142,34 @@ def _as_qp(obj: Any) -> Any:
     return obj.qp if hasattr(obj, "qp") else obj
 
 
+def infinite_report(u_s: float = math.nan, p_s: float = math.nan) -> KKTReport:
+    """The report of an answer that is no answer (non-finite entries): every figure inf."""
+    inf, nan = math.inf, math.nan
+    return KKTReport(inf, inf, inf, inf, inf, inf, inf, inf, inf, nan, u_s, p_s)
+
+
 def kkt_check(problem: Any, p: np.ndarray) -> KKTReport:
-    """KKT figures of candidate ``p`` for ``problem`` (a QP or a ContactInstance)."""
+    """KKT figures of candidate ``p`` for ``problem`` (a QP or a ContactInstance),
+    recomputing w = Hp - ubar from the problem; ``ValueError`` when p has the wrong
+    shape.  Non-finite entries in p (or in Hp) give an all-inf report."""
     qp = _as_qp(problem)
     p = np.asarray(p, dtype=np.float64)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
     if p.shape != ubar.shape:
         raise ValueError(f"candidate p has shape {p.shape}, the problem has n = {ubar.size}")
-    nan = float("nan")
+    diag_max = float(np.max(qp.H.diagonal()))
+    u_s, p_s = problem_scales(ubar, diag_max)
     if not np.all(np.isfinite(p)):
-        return KKTReport(nan, nan, nan, nan, np.inf, np.inf, np.inf, np.inf, np.inf, nan, nan, nan)
-    Hp = qp.H.matvec(p)
-    w = Hp - ubar
-    f = kkt_figures(p, w, ubar, float(np.max(qp.H.diagonal())))
-    p_s, u_s = f.p_scale, f.u_scale
-    comp_sum = abs(float(w @ p))
-    p1 = float(np.sum(np.abs(p)))
+        return infinite_report(u_s, p_s)
+    with np.errstate(all="ignore"):
+        Hp = np.asarray(qp.H.matvec(p), dtype=np.float64)
+        w = Hp - ubar
+        f = kkt_figures(p, w, ubar, diag_max)
+        if not math.isfinite(f.kkt_error):
+            return infinite_report(u_s, p_s)
+        comp_sum = worse(abs(float(w @ p)))
+        p1 = float(np.sum(np.abs(p)))
+        objective = float(0.5 * p @ Hp - ubar @ p)
     return KKTReport(
         primal_abs=f.primal * p_s,
         dual_abs=f.dual * u_s,
@@ -131,9 +178,9 @@ def kkt_check(problem: Any, p: np.ndarray) -> KKTReport:
         primal=f.primal,
         dual=f.dual,
         complementarity=f.complementarity,
-        complementarity_sum=comp_sum / (u_s * p1) if p1 > 0 else 0.0,
+        complementarity_sum=worse(comp_sum / u_s / p1) if p1 > 0 else 0.0,
         kkt_error=f.kkt_error,
-        objective=float(0.5 * p @ Hp - ubar @ p),
+        objective=objective,
         u_scale=u_s,
         p_scale=p_s,
     )

@@ -61,8 +61,12 @@ ARRAY_FILES = {"ubar": "ubar.f64", "index": "index.i64", "H": "H.f64", "kernel_t
                "p0": "p0.f64"}
 #: File names of a solution directory.
 SOLUTION_P, SOLUTION_W, SOLUTION_JSON = "p.f64", "w.f64", "solution.json"
-#: The solution statuses an outside program may report (anything else is kept as given).
-SOLUTION_STATUSES = ("converged", "max_iter", "time_limit", "stalled", "failed")
+#: Statuses of solution.json that claim convergence (no status at all claims it too).
+CLAIM_STATUSES = ("converged", "solved", "optimal")
+#: Statuses that honestly claim nothing.
+NON_CLAIM_STATUSES = ("not_converged", "max_iter", "time_limit", "stalled", "failed")
+#: Every status an outside program may report; any other word is a ``SolutionFileError``.
+SOLUTION_STATUSES = CLAIM_STATUSES + NON_CLAIM_STATUSES
 
 
 class SolutionFileError(RuntimeError):
@@ -310,12 +314,12 @@ class SolutionFile:
 
     @property
     def claims_converged(self) -> bool:
-        """The protocol's rule: a solution claims convergence when its solution.json says
-        status "converged", or when it reports no status at all."""
-        return self.status is None or self.status == "converged"
+        """The protocol's rule: a solution claims convergence when its solution.json's
+        status is one of ``CLAIM_STATUSES``, or when it reports no status at all."""
+        return self.status is None or self.status in CLAIM_STATUSES
 
 
-def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool) -> np.ndarray:
+def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: bool = True) -> np.ndarray:
     if not path.exists():
         raise SolutionFileError(f"{what} ({path.name}) is missing")
     try:
@@ -325,6 +329,8 @@ def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool) -> np.ndar
     size = path.stat().st_size
     if size % 8:
         raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, not a whole number of float64 values")
+    if not checked:  # any length and any values: for the judge to see
+        return a.astype(np.float64)
     if a.size != n:
         raise SolutionFileError(f"{what} ({path.name}) has wrong length {a.size}, expected n = {n}")
     bad = int(np.count_nonzero(~np.isfinite(a)))
@@ -349,13 +355,14 @@ def _read_report(path: Path) -> dict[str, Any]:
     return doc
 
 
-def read_solution_dir(directory: str | os.PathLike[str], n: int, *, allow_negative: bool = False) -> SolutionFile:
+def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: bool = False) -> SolutionFile:
     """The answer in a solution directory (module doc): p.f64 must be n finite float64
-    values >= 0 (``allow_negative``: negative entries are kept, for the judge to see);
+    values >= 0 (``as_written``: p is kept as written -- any length, NaN, inf or negative
+    entries -- for the judge to see; it must still be a whole number of float64 values);
     w.f64 is read when present; solution.json's iterations/status/time_s when given.
     Anything wrong is a ``SolutionFileError`` that says which file and what."""
     d = Path(directory)
-    p = _read_vector(d / SOLUTION_P, n, "solution p", nonnegative=not allow_negative)
+    p = _read_vector(d / SOLUTION_P, n, "solution p", nonnegative=True, checked=not as_written)
     w_path = d / SOLUTION_W
     w = _read_vector(w_path, n, "solution w", nonnegative=False) if w_path.exists() else None
     report = _read_report(d / SOLUTION_JSON)
@@ -367,4 +374,8 @@ def read_solution_dir(directory: str | os.PathLike[str], n: int, *, allow_negati
         raise SolutionFileError(f"solution.json: iterations {it!r} / time_s {t!r} are not numbers") from None
     if status is not None and not isinstance(status, str):
         raise SolutionFileError(f"solution.json: status {status!r} is not a string")
-    return SolutionFile(p, w, iterations, None if status is None else status.strip().lower(), time_s, report)
+    word = None if status is None else status.strip().lower()
+    if word is not None and word not in SOLUTION_STATUSES:
+        raise SolutionFileError(f"solution.json: status {status!r} is not a protocol word; claims: "
+                                f"{', '.join(CLAIM_STATUSES)}; no claim: {', '.join(NON_CLAIM_STATUSES)}")
+    return SolutionFile(p, w, iterations, word, time_s, report)

@@ -183,19 +183,47 @@ class SolveResult:
     info: dict[str, Any] = field(default_factory=dict)
 
 
+#: What a solver promises the conformance battery (``Capabilities.promise``): "exact",
+#: or a float, the scaled KKT error it can reach.
+Promise = Literal["exact"] | float
+
+
+def check_promise(promise: Any) -> Promise:
+    """``promise`` if it is "exact" or a positive finite float, else ``ValueError``."""
+    if promise == "exact" and isinstance(promise, str):
+        return "exact"
+    if isinstance(promise, (int, float)) and not isinstance(promise, bool) and math.isfinite(promise) and promise > 0:
+        return float(promise)
+    raise ValueError(f"a solver's promise is \"exact\" or a positive scaled KKT floor (a float), got {promise!r}")
+
+
+def promised_tol(promise: Promise, check_tol: float) -> float:
+    """The scaled KKT error a case with ``check_tol`` holds a solver with ``promise`` to:
+    check_tol for "exact", else max(check_tol, floor)."""
+    return float(check_tol) if promise == "exact" else max(float(check_tol), float(promise))
+
+
+def describe_promise(promise: Promise) -> str:
+    return "exact" if promise == "exact" else f"scaled KKT floor {float(promise):g}"
+
+
 @dataclass(frozen=True)
 class Capabilities:
-    """What a solver can serve; the harness's skip policy reads it.
+    """What a solver can serve, and what it promises; the harness's skip policy and the
+    conformance battery read it.
 
     operators    : operator kinds it accepts ("dense", "fft").
     needs_dense  : it needs H assembled as an n x n array.
     warm_start   : "none", "primal" or "primal-dual".
-    exact        : it solves every case to its tolerance (finite termination or
-                   convergence to round-off); the conformance battery holds it to that.
+    exact        : finite termination -- its answer is exact up to round-off (``run``
+                   may keep it as a step's reference answer).
+    promise      : what ``contactbench validate`` holds it to on every case it does not
+                   skip (docs/verdicts.md): "exact" -- solved to the case's ``check_tol``;
+                   a float f -- solved to scaled KKT error max(check_tol, f), the floor
+                   the method can reach (a backend that cannot reach 1e-8, say).
     max_n        : hard size limit (None: none besides the memory model).
     input_format : "operator", "dense" or "sparse".
     needs_geometry : it needs the QP's grid geometry (positions, surface levels).
-    accuracy_floor : best scaled KKT error the method can reach (None: round-off).
     """
 
     operators: frozenset[str] = frozenset({"dense", "fft"})
@@ -205,7 +233,19 @@ class Capabilities:
     max_n: int | None = None
     input_format: str = "operator"
     needs_geometry: bool = False
-    accuracy_floor: float | None = None
+    promise: Promise = "exact"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "promise", check_promise(self.promise))
+
+    @property
+    def accuracy_floor(self) -> float | None:
+        """The promised floor (None: "exact", the case's tolerance)."""
+        return None if self.promise == "exact" else float(self.promise)
+
+    def promised_tol(self, check_tol: float) -> float:
+        """The scaled KKT error a case with ``check_tol`` holds this solver to."""
+        return promised_tol(self.promise, check_tol)
 
     def describe(self) -> str:
         parts = [
@@ -213,14 +253,13 @@ class Capabilities:
             "needs-dense-H" if self.needs_dense else "matrix-free",
             f"warm={self.warm_start}",
             "exact" if self.exact else "iterative",
+            "promise=" + (self.promise if self.promise == "exact" else f"floor {self.promise:g}"),
             f"input={self.input_format}",
         ]
         if self.needs_geometry:
             parts.append("needs-geometry")
         if self.max_n:
             parts.append(f"max_n={self.max_n}")
-        if self.accuracy_floor:
-            parts.append(f"floor={self.accuracy_floor:g}")
         return ", ".join(parts)
 
 
@@ -395,6 +434,7 @@ class ProblemTraits:
     has_surface: bool = False  # the instance carries a surface with its coarse levels
     periodic: bool = False
     kernel: str = ""
+    surface_side: int = 0  # points per side of the instance's surface (0: none)
 
 
 class Solver(ABC):
@@ -486,11 +526,23 @@ class Solver(ABC):
         return f"<Solver {self.name} ({self.family})>"
 
 
+def readable_answer(p: Any) -> np.ndarray:
+    """``p`` as float64 where it can be read as real numbers; else as given (an object,
+    string or complex array), for the judge to refuse."""
+    arr = np.asarray(p)
+    if arr.dtype.kind in "biuf":
+        return arr.astype(np.float64, copy=False)
+    return arr
+
+
 def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
-    """The SolveResult of an outcome (module doc, step 6)."""
+    """The SolveResult of an outcome (module doc, step 6).  The solver's claim
+    (``converged``) is passed on as made: an unusable p (wrong shape, non-finite,
+    unreadable) claimed as converged is the judge's to call wrong, not the lifecycle's to
+    turn into an honest failure; unclaimed, its status is FAILED."""
     qp = ctx.qp
-    p = np.asarray(out.p, dtype=np.float64)
-    finite = p.shape == (qp.n,) and bool(np.all(np.isfinite(p)))
+    p = readable_answer(out.p)
+    finite = p.shape == (qp.n,) and p.dtype == np.float64 and bool(np.all(np.isfinite(p)))
     w = out.w
     if w is None and finite:
         w = qp.H.matvec(p) - qp.ubar
@@ -498,7 +550,7 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
     if status is None:
         status = (Status.CONVERGED if out.converged else
                   Status.TIME_LIMIT if ctx.deadline.expired() else Status.MAX_ITER)
-    if not finite:
+    if not finite and status is not Status.CONVERGED:
         status = Status.FAILED
     if finite and w is not None:
         final = ctx.kkt(p, w)

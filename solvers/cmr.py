@@ -33,7 +33,8 @@ is asked, the base's own defaults) and what is LEFT of CMR's time limit, so a CM
 never runs past its limit; coarse levels not reached in time are dropped.
 
 Skip policy: ``capabilities.needs_geometry`` -- a problem without a surface
-(``ProblemTraits.has_surface`` False, e.g. the counterexample) is skipped, not failed.
+(``ProblemTraits.has_surface`` False, e.g. the counterexample) is skipped, not failed;
+so is a surface without a coarse level of the default ``coarsest`` size (``skip``).
 Warm start: a primal warm start for the fine problem is restricted to the projected set
 and handed to the base solver when the base accepts one; coarse levels start cold.
 The base solver is looked up by registry name at solve time; ``cmr+<base>`` is
@@ -54,6 +55,7 @@ from contactbench.problems.coarsen import (
     cascade_surfaces,
     coarse_qp,
     grid_positions,
+    level_sizes,
     level_trial_set,
     power_law_check,
 )
@@ -66,6 +68,7 @@ from .base import (
     Outcome,
     Param,
     ParamError,
+    ProblemTraits,
     SolveContext,
     SolveResult,
     Solver,
@@ -196,6 +199,17 @@ class CMRSolver(Solver):
     def memory_estimate(self, n: int) -> float:
         b = all_solvers().get(self.base_name)
         return b.memory_estimate(n) if b is not None else super().memory_estimate(n)
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        """Skipped (a declared capability, not a failure) where the surface has no coarse
+        level of the default ``coarsest`` size: CMR would refuse the problem."""
+        why = super().skip(traits)
+        coarsest = next(p.default for p in self.params if p.name == "coarsest")
+        sizes = level_sizes(traits.surface_side) if traits.surface_side else {}
+        if why is None and traits.surface_side and coarsest not in sizes:
+            why = (f"{self.name} needs a coarse level of {coarsest} points per side (its default coarsest); the "
+                   f"{traits.surface_side} x {traits.surface_side} surface has {sorted(sizes)}")
+        return why
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         g = require_surface(ctx.qp)

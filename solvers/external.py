@@ -9,7 +9,8 @@ An external solver is declared in a TOML manifest (docs/external-solvers.md)::
     warm_start = false                              # it reads p0.f64 when given
     version = "./pgs --version"                     # optional: recorded with each answer
     description = "projected Gauss-Seidel in C"     # optional
-    exact = false                                   # optional: held to every case by validate
+    exact = false                                   # optional: finite termination (exact answers)
+    promise = "exact"                               # optional: "exact" or a scaled KKT floor (validate)
 
 Manifests are read from the files named by the environment variable
 ``CONTACTBENCH_EXTERNAL_SOLVERS`` (one or more paths separated by ``os.pathsep``) and from
@@ -28,10 +29,14 @@ One solve (``ExternalSolver.iterate``):
 3. at the time limit (``ctx.deadline``) kill the whole process group: ``SolveAborted("timeout")``;
    death by a signal (a segfault): ``SolveAborted("crashed")``; a non-zero exit:
    ``ExternalSolverError`` (the row's status "failed"), with the tail of stderr/stdout;
-4. read the solution directory (``read_solution_dir``): a missing, unreadable,
-   wrong-length, NaN or negative p is a ``SolutionFileError`` naming what is wrong;
-5. the claim: converged when solution.json says ``"status": "converged"`` or gives no
-   status (``SolutionFile.claims_converged``).  The harness judges p with its KKT check.
+4. read the solution directory (``read_solution_dir``, ``as_written``): a missing or
+   unreadable p.f64, or a status outside the protocol's words, is a ``SolutionFileError``
+   naming what is wrong; a p of the wrong length or with NaN, inf or negative entries
+   goes to the judge as written (no answer, or an inaccurate one: wrong when claimed);
+5. the claim (``SolutionFile.claims_converged``): the statuses "converged", "solved" and
+   "optimal" claim convergence, and so does a missing status; "not_converged",
+   "max_iter", "time_limit", "stalled" and "failed" claim nothing.  The harness judges p
+   with its KKT check.
 """
 
 from __future__ import annotations
@@ -55,7 +60,8 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.kernels import KERNELS
 from contactbench.problems.qpfile import DENSE_LIMIT, SolutionFile, read_solution_dir, write_problem_dir
 
-from .base import Capabilities, Outcome, ProblemTraits, SolveAborted, SolveContext, Solver, Status
+from .base import (Capabilities, Outcome, ProblemTraits, Promise, SolveAborted, SolveContext, Solver, Status,
+                   check_promise)
 from .registry import all_solvers, register
 
 #: Environment variable naming manifest files (os.pathsep-separated).
@@ -70,7 +76,7 @@ TERM_GRACE = 0.5
 SIGNAL_EXITS = {128 + s: s.name for s in (signal.SIGSEGV, signal.SIGABRT, signal.SIGBUS, signal.SIGILL,
                                           signal.SIGFPE, signal.SIGKILL)}
 INPUTS = ("dense", "kernel")
-_KEYS = {"name", "command", "inputs", "warm_start", "version", "description", "exact"}
+_KEYS = {"name", "command", "inputs", "warm_start", "version", "description", "exact", "promise"}
 
 
 class ExternalSolverError(RuntimeError):
@@ -93,6 +99,7 @@ class ExternalSpec:
     version: str | None = None
     description: str = ""
     exact: bool = False
+    promise: Promise = "exact"
     workdir: str | None = None  # the folder the command runs in (None: the current one)
     source: str = ""  # the manifest it came from
 
@@ -150,10 +157,14 @@ def _spec_of(entry: Any, path: Path, k: int) -> ExternalSpec:
     for key in ("warm_start", "exact"):
         if key in entry and not isinstance(entry[key], bool):
             raise ProblemInputError(f"{where}: {key!r} must be true or false, got {entry[key]!r}")
+    try:
+        promise = check_promise(entry.get("promise", "exact"))
+    except ValueError as exc:
+        raise ProblemInputError(f"{where}: {exc}") from None
     return ExternalSpec(name=entry["name"], command=entry["command"], inputs=str(entry.get("inputs", "dense")),
                         warm_start=bool(entry.get("warm_start", False)), version=entry.get("version"),
                         description=str(entry.get("description", "")), exact=bool(entry.get("exact", False)),
-                        workdir=str(path.resolve().parent), source=str(path))
+                        promise=promise, workdir=str(path.resolve().parent), source=str(path))
 
 
 def load_manifest(path: str | os.PathLike[str]) -> list[ExternalSpec]:
@@ -302,15 +313,16 @@ def program_outcome(proc: ProcessResult, name: str, limit: float | None) -> None
         raise ExternalSolverError(f"external solver {name!r} exited with code {rc}{suffix}")
 
 
-def solution_status(sol: SolutionFile) -> tuple[bool, Status | None, str]:
-    """(claims convergence, Status, note) of an outside program's report."""
+def solution_status(sol: SolutionFile) -> tuple[bool, Status, str]:
+    """(claims convergence, Status, note) of an outside program's report (its status is
+    one of the protocol's words: ``read_solution_dir`` refuses any other)."""
     if sol.status is None:
-        return True, Status.CONVERGED, "no status given: read as converged"
-    try:
-        status = Status(sol.status)
-    except ValueError:
-        return False, Status.STALLED, f"unknown status {sol.status!r} read as not converged"
-    return status is Status.CONVERGED, status, ""
+        return True, Status.CONVERGED, "no status given: read as a claim of convergence"
+    if sol.claims_converged:
+        return True, Status.CONVERGED, "" if sol.status == "converged" else f"{sol.status!r}: a claim of convergence"
+    if sol.status == "not_converged":
+        return False, Status.STALLED, ""
+    return False, Status(sol.status), ""
 
 
 # ---------------------------------------------------------------------------
@@ -330,7 +342,7 @@ class ExternalSolver(Solver):
         dense = spec.inputs == "dense"
         self.capabilities = Capabilities(  # type: ignore[misc]
             operators=frozenset({"dense"}) if dense else frozenset({"fft"}), needs_dense=dense,
-            warm_start="primal" if spec.warm_start else "none", exact=spec.exact,
+            warm_start="primal" if spec.warm_start else "none", exact=spec.exact, promise=spec.promise,
             input_format="dense" if dense else "kernel-table")
         self._version: str | None = None
 
@@ -390,7 +402,7 @@ class ExternalSolver(Solver):
                 info["external_version"] = self.version()
             ctx.info.update(info)
             program_outcome(proc, self.name, limit)
-            sol = read_solution_dir(solution, ctx.n)
+            sol = read_solution_dir(solution, ctx.n, as_written=True)
         claimed, status, note = solution_status(sol)
         ctx.info.update({"external_status": sol.status, "external_time_reported_s": sol.time_s})
         message = f"external: exit 0 in {proc.elapsed:.3g} s, status {sol.status or 'none'}"

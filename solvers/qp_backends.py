@@ -257,7 +257,7 @@ class QPSolversAdapter(EquilibratedAdapter):
             warm_start=spec.warm_start,
             exact=False,
             input_format=spec.input_format,
-            accuracy_floor=self.accuracy_floor,
+            promise="exact" if self.accuracy_floor is None else self.accuracy_floor,
         )
 
     def availability(self) -> tuple[bool, str]:

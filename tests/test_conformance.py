@@ -1,4 +1,4 @@
-"""`contactbench validate` tells a solver's author the truth, judged by the one judge (issue 14)."""
+"""`contactbench validate` tells a solver's author the truth, judged by the one judge."""
 
 from __future__ import annotations
 
@@ -226,7 +226,7 @@ def test_an_answer_run_calls_solved_is_never_wrong_even_off_the_reference() -> N
     assert cf.STRICT_FAILING.count("flagged") == 1
 
 
-def test_exact_solver_that_leaves_cases_unsolved_is_incomplete_not_conforming() -> None:
+def test_a_solver_that_leaves_cases_unsolved_is_incomplete_not_conforming() -> None:
     table = cf.validate(EarlyStopSolver(), cases("counterexample"))
     assert table.outcome() == "incomplete" and table.exit_code() == 3
     assert all(r.status == "unconverged" for r in table.rows)
@@ -236,9 +236,10 @@ def test_exact_solver_that_leaves_cases_unsolved_is_incomplete_not_conforming() 
     assert all(r.label in summary for r in table.rows)
     with pytest.raises(AssertionError, match="INCOMPLETE"):
         cf.assert_conforms(EarlyStopSolver(), cases("counterexample"))
-    # Not declared exact: it conforms, and is told what it did not solve.
+    # Not declared exact (finite termination) makes no difference: unsolved is incomplete.
     other = cf.validate(EarlyStopIterative(), cases("counterexample"))
-    assert other.exit_code() == 0 and f"does not solve {len(other.rows)} of {len(other.rows)}" in other.summary()
+    assert other.outcome() == "incomplete" and other.exit_code() == 3
+    assert "CONFORMS" not in other.summary() and f"leaves {len(other.rows)} of {len(other.rows)}" in other.summary()
 
 
 def test_comparison_row_never_passes_over_wrong_steps_and_notes_are_whole() -> None:
@@ -296,14 +297,14 @@ def test_hanging_solver_times_out_without_hanging_validate() -> None:
     table = cf.validate(HangingSolver(), cases("edge/single-point*"), timeout=0.5)
     assert [r.status for r in table.rows] == ["timeout"]
     assert time.perf_counter() - t0 < 30
-    assert table.exit_code() == 0 and table.exit_code(strict=True) == 1
+    assert table.outcome() == "incomplete" and table.exit_code() == 3 and table.exit_code(strict=True) == 1
 
 
 def test_crash_is_reported_not_hidden() -> None:
     table = cf.validate(CrashingSolver(), cases("edge/single-point*"))
     row = table.rows[0]
     assert row.status == "crashed" and row.message == "RuntimeError: boom" and "Traceback" in row.detail
-    assert table.exit_code() == 0 and table.exit_code(strict=True) == 1
+    assert table.outcome() == "incomplete" and table.exit_code() == 3 and table.exit_code(strict=True) == 1
 
 
 def test_float32_is_solved_in_float64_refused_or_caught() -> None:

@@ -135,6 +135,13 @@ def test_solution_report_and_the_claim_rule(tmp_path: Path) -> None:
     assert silent.status is None and silent.claims_converged  # no status: read as a claim
     honest = read_solution_dir(write_p(tmp_path / "b", np.ones(3), {"status": "max_iter", "iterations": 9}), 3)
     assert not honest.claims_converged and honest.iterations == 9
+    for k, word in enumerate(("converged", "Solved", "optimal", "not_converged", "max_iter", "time_limit",
+                              "stalled", "failed")):
+        sol = read_solution_dir(write_p(tmp_path / f"w{k}", np.ones(3), {"status": word}), 3)
+        assert sol.claims_converged == (word.lower() in ("converged", "solved", "optimal")), word
+    for word in ("done", "success", "ok", ""):
+        with pytest.raises(SolutionFileError, match="not a protocol word.*converged, solved, optimal"):
+            read_solution_dir(write_p(tmp_path / f"bad-{word}", np.ones(3), {"status": word}), 3)
     (tmp_path / "b" / "solution.json").write_text("{not json")
     with pytest.raises(SolutionFileError, match="solution.json is unreadable"):
         read_solution_dir(tmp_path / "b", 3)
@@ -160,11 +167,20 @@ def write_manifest(path: Path, entries: list[dict[str, object]]) -> Path:
     ({"name": "x", "command": "prog {problem} {solution}", "colour": 1}, "unknown key(s) colour"),
     ({"command": "prog {problem} {solution}"}, "'name' is required"),
     ({"name": "x", "command": "prog {problem} {solution}", "warm_start": "yes"}, "true or false"),
+    ({"name": "x", "command": "prog {problem} {solution}", "promise": "approximate"}, "a positive scaled KKT floor"),
+    ({"name": "x", "command": "prog {problem} {solution}", "promise": -1e-7}, "a positive scaled KKT floor"),
 ])
 def test_a_bad_manifest_entry_is_named(tmp_path: Path, entry: dict[str, object], words: str) -> None:
     with pytest.raises(ProblemInputError) as err:
         load_manifest(write_manifest(tmp_path / "m.toml", [entry]))
     assert words in str(err.value) and "m.toml" in str(err.value)
+
+
+def test_a_manifest_declares_its_promise(tmp_path: Path) -> None:
+    base = {"command": "prog {problem} {solution}"}
+    specs = load_manifest(write_manifest(tmp_path / "m.toml", [{"name": "a", **base}, {"name": "b", "promise": 1e-7,
+                                                                                         **base}]))
+    assert [s.promise for s in specs] == ["exact", 1e-7]
 
 
 def test_manifest_paths_from_the_environment_and_the_current_folder(tmp_path: Path) -> None:
@@ -236,13 +252,17 @@ def test_validate_command_bad_input_exits_2(capsys: pytest.CaptureFixture[str]) 
     assert cf.main(["test-exact", "--inputs", "kernel"]) == 2
 
 
-def test_validate_records_a_timeout_and_a_crash(capsys: pytest.CaptureFixture[str]) -> None:
-    for variant, status in (("sleep", "timeout"), ("segv", "crashed"), ("fail", "crashed"), ("short", "crashed")):
+def test_validate_records_a_timeout_a_crash_and_a_claimed_non_answer(capsys: pytest.CaptureFixture[str]) -> None:
+    for variant, status in (("sleep", "timeout"), ("segv", "crashed"), ("fail", "crashed"), ("short", "WRONG"),
+                            ("nan", "WRONG")):
         table = cf.validate(command_solver(script_command("--variant", variant)),
                             cf.conformance_cases("fast", ["edge"], "edge/plateau*"),
                             timeout=1.0 if variant == "sleep" else None)  # None: the battery's 20 s
         assert [r.status for r in table.rows] == [status], (variant, table.format())
-    assert table.exit_code() == 0  # no wrong claim: an unfinished answer is not a wrong one
+        if status == "WRONG":  # a short or NaN p written with "converged": no answer, claimed as one
+            assert table.outcome() == "wrong" and table.exit_code() == 1
+        else:
+            assert table.outcome() == "incomplete" and table.exit_code() == 3  # unsolved, not wrong
 
 
 # ---------------------------------------------------------------------------
@@ -294,6 +314,8 @@ def test_misbehaving_programs_cost_only_their_own_rows(tmp_path: Path) -> None:
     assert status["ext-sleep"] == {"timeout"}
     assert status["ext-segv"] == {"crashed"} and status["ext-fail"] == {"failed"}
     assert status["ext-short"] == {"failed"} and status["ext-nan"] == {"failed"}
+    verdict = {s: set(g["verdict"]) for s, g in df.groupby("solver")}
+    assert verdict["ext-short"] == {"wrong"} and verdict["ext-nan"] == {"wrong"}  # claimed "converged"
     errors = {s: " ".join(g["error"].astype(str)) for s, g in df.groupby("solver")}
     assert "giving up on purpose" in errors["ext-fail"] and "exited with code 3" in errors["ext-fail"]
     assert "wrong length" in errors["ext-short"] and "NaN" in errors["ext-nan"]

@@ -9,7 +9,7 @@
  *   ./pgs PROBLEM_DIR SOLUTION_DIR            (exit 0: an answer was written)
  *
  * The stopping test is the harness's scaled KKT error (problems/kkt.py):
- *   u_s = max(|ubar|_inf, |Hp|_inf), p_s = u_s / max diag H,
+ *   u_s = |ubar|_inf (1 when ubar = 0), p_s = u_s / max diag H,
  *   err = max(max(0, -min w) / u_s, max_i |w_i p_i| / (u_s p_s)),  w = Hp - ubar
  * (p >= 0 by construction, so the primal figure is 0).
  */
@@ -109,15 +109,14 @@ int main(int argc, char **argv) {
                 for (long j = 0; j < n; j++) s += H[i * n + j] * p[j];
                 Hp[i] = s;
             }
-            double us = umax, dual = 0, comp = 0;
-            for (long i = 0; i < n; i++) if (fabs(Hp[i]) > us) us = fabs(Hp[i]);
+            double us = umax > 0 ? umax : 1.0, dual = 0, comp = 0;
             double ps = us / dmax;
             for (long i = 0; i < n; i++) {
                 double w = Hp[i] - ubar[i];
                 if (-w > dual) dual = -w;
                 if (fabs(w * p[i]) > comp) comp = fabs(w * p[i]);
             }
-            err = us > 0 ? fmax(dual / us, comp / (us * ps)) : 0;
+            err = fmax(dual / us, comp / (us * ps));
             if (err <= tol) { status = "converged"; break; }
             if (limit > 0 && now() - t0 > 0.9 * limit) { status = "time_limit"; break; }
         }

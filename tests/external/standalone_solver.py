@@ -36,9 +36,7 @@ def read_problem(d):
 
 
 def scaled_kkt(p, w, ubar, dmax):
-    us = max(float(np.max(np.abs(ubar), initial=0.0)), float(np.max(np.abs(w + ubar), initial=0.0)))
-    if us == 0.0:
-        return 0.0
+    us = float(np.max(np.abs(ubar), initial=0.0)) or 1.0  # the problem's scale (problems/kkt.py)
     ps = us / dmax
     primal = max(0.0, -float(np.min(p, initial=0.0))) / ps
     dual = max(0.0, -float(np.min(w, initial=0.0))) / us

@@ -1,0 +1,341 @@
+"""Answers built to fool the judge get exactly the verdict the rules give (docs/verdicts.md),
+through the judge, `run`, `validate` (Python API and CLI exit code) and pytest-benchmark's
+``settle`` alike; and an outside program that writes "solved" over a clipped answer is
+caught by ``validate --command``."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from contactbench.harness import conformance as cf
+from contactbench.harness.judge import ProblemSeal, judge
+from contactbench.harness.profiles import get_profile
+from contactbench.harness.pytest_plugin import settle
+from contactbench.problems.instances import QP, counterexample
+from contactbench.problems.kkt import kkt_figures, scaled_kkt_error
+from contactbench.problems.lcp import exact_solution
+from contactbench.problems.operators import DenseOperator
+from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
+from contactbench.solvers.base import check_promise
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+HERE = __name__
+ROOT = Path(__file__).resolve().parents[1]
+CASE = "random/spd-n30-s0*"  # one small dense LCP of the battery (n = 30, one step)
+TOL = get_profile("mid").check_tol
+
+
+def exact_of(H: np.ndarray, ubar: np.ndarray) -> np.ndarray:
+    return exact_solution(H, np.asarray(ubar, dtype=np.float64)).p
+
+
+def forge(kind: str, p: np.ndarray) -> np.ndarray:
+    """The adversarial answer ``kind`` made from the exact answer ``p``."""
+    q = p.copy()
+    top = int(np.argmax(p))
+    if kind == "exact":
+        return q
+    if kind == "nan":
+        return np.full_like(p, np.nan)
+    if kind in ("posinf", "neginf"):
+        q[top] = np.inf if kind == "posinf" else -np.inf
+        return q
+    if kind == "big300":
+        q[int(np.argmin(p))] = 1e300
+        return q
+    if kind == "big308":
+        return np.full_like(p, 1e308)
+    if kind == "subnormal":
+        return p * 1e-310
+    if kind == "negative":
+        q[int(np.argmin(p))] = -np.max(p)
+        return q
+    if kind == "dtype":
+        return np.array([str(x) for x in p], dtype=object)
+    if kind == "shape":
+        return p[:-1]
+    if kind == "permuted":
+        return p[np.roll(np.arange(p.size), 1)]
+    if kind in ("up", "down"):
+        return p * (1.0 + (1e-3 if kind == "up" else -1e-3))
+    raise KeyError(kind)
+
+
+#: Each answer and what the rules make of it: (status, reading when claimed, reading when not).
+FAILED = ("failed", "wrong", "unconverged")
+INACCURATE = ("inaccurate", "wrong", "unconverged")
+RULES = {
+    "exact": ("solved", "pass", "pass"),
+    "nan": FAILED, "posinf": FAILED, "neginf": FAILED, "dtype": FAILED, "shape": FAILED,
+    "big300": INACCURATE, "big308": INACCURATE, "subnormal": INACCURATE, "negative": INACCURATE,
+    "permuted": INACCURATE, "up": INACCURATE, "down": INACCURATE,
+    "forged_w": INACCURATE,  # half the answer with w = 0 claimed: the judge computes its own w
+    "mutate": ("failed", "wrong", "wrong"),  # wrote into its problem: wrong, claimed or not
+}
+#: validate's row status of each reading.
+ROW = {"pass": "pass", "wrong": "WRONG", "unconverged": "unconverged"}
+
+
+class Adversary(Solver):
+    """Returns ``forge(kind, exact answer)``, claiming convergence when ``claim``."""
+
+    family = "test"
+    kind = "exact"
+    claim = True
+    capabilities = Capabilities(needs_dense=False)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        H = ctx.qp.H.to_dense()
+        p = exact_of(H, ctx.qp.ubar)
+        if self.kind == "forged_w":
+            return Outcome(0.5 * p, 1, self.claim, w=np.zeros_like(p))
+        if self.kind == "mutate":
+            ubar = ctx.qp.ubar
+            ubar *= 0.5  # writes into the problem it was handed, then solves the easier problem
+            return Outcome(exact_of(H, ubar), 1, self.claim)
+        return Outcome(forge(self.kind, p), 1, self.claim)
+
+
+def _adversary(kind: str, claim: bool) -> type[Adversary]:
+    name = f"Adv_{kind}_{'claimed' if claim else 'unclaimed'}"
+    cls = type(name, (Adversary,), {"kind": kind, "claim": claim, "name": f"adv-{kind}-{'c' if claim else 'u'}"})
+    cls.__module__ = HERE
+    globals()[name] = cls
+    return cls
+
+
+ADVERSARIES = {(k, c): _adversary(k, c) for k in RULES for c in (True, False)}
+PAIRS = sorted(ADVERSARIES)
+
+
+def expected(kind: str, claim: bool) -> tuple[str, str]:
+    status, claimed, unclaimed = RULES[kind]
+    return status, claimed if claim else unclaimed
+
+
+# ---------------------------------------------------------------------------
+# The figures and the judge
+# ---------------------------------------------------------------------------
+
+
+def test_overflow_and_nan_only_make_the_figures_worse() -> None:
+    ubar, diag = np.array([1.0, -1.0, 0.5]), 2.0
+    for p, w in [(np.array([1e308, 0.0, 0.0]), np.array([1e308, 0.0, 0.0])),
+                 (np.array([np.nan, 0.0, 0.0]), np.zeros(3)),
+                 (np.array([1.0, 0.0, 0.0]), np.array([np.inf, 0.0, -np.inf])),
+                 (np.array([1e200, 0.0, 1e200]), np.array([1e200, 1.0, 1e-200]))]:
+        f = kkt_figures(p, w, ubar, diag)
+        assert f.kkt_error == np.inf and scaled_kkt_error(p, w, ubar, diag) == np.inf
+    # the scales are the problem's: a huge candidate does not shrink its own residuals
+    a = kkt_figures(np.array([1.0, 0, 0]), np.array([0.0, 1.0, 0.1]), ubar, diag)
+    b = kkt_figures(np.array([1e100, 0, 0]), np.array([0.0, 1e100, 0.1]), ubar, diag)
+    assert a.u_scale == b.u_scale == 1.0 and a.p_scale == b.p_scale == 0.5
+
+
+@pytest.fixture(scope="module")
+def ex1() -> tuple[object, np.ndarray]:
+    inst = counterexample(36, 1)
+    return inst, exact_of(inst.qp.H.to_dense(), inst.qp.ubar)
+
+
+@pytest.mark.parametrize("kind, claim", [pc for pc in PAIRS if pc[0] not in ("forged_w", "mutate")])
+def test_the_judge_gives_each_forged_answer_its_verdict(ex1, kind: str, claim: bool) -> None:
+    inst, p = ex1
+    v = judge(inst, forge(kind, p), claim, TOL)
+    assert (v.status, v.reading) == expected(kind, claim), v.message()
+    assert v.status == "solved" or not v.kkt_error <= TOL
+
+
+def test_a_solver_that_writes_into_its_problem_is_caught_by_the_seal(ex1) -> None:
+    inst, p = ex1
+    qp = QP(DenseOperator(inst.qp.H.to_dense()), inst.qp.ubar.copy(), inst.qp.geometry)
+    seal = ProblemSeal.of(qp)
+    assert seal.broken(qp) == ""
+    qp.ubar[0] += 1e-12
+    assert "ubar" in seal.broken(qp)
+    v = judge(inst, p, False, TOL, tampered=seal.broken(qp))
+    assert (v.status, v.reading, v.tampered) == ("failed", "wrong", True)
+    seal = ProblemSeal.of(qp)
+    qp.H.H[3, 3] *= 1.0 + 1e-15  # the dense operator's matrix
+    assert "H.H" in seal.broken(qp)
+    fft = counterexample(36, 1, operator="fft").qp
+    seal = ProblemSeal.of(fft)
+    table = fft.H.transform.table
+    old = float(table.flat[0])
+    table.flat[0] = old * (1.0 + 1e-15) + 1e-300  # the FFT operator's kernel table
+    try:
+        assert "H.transform.table" in seal.broken(fft)
+    finally:
+        table.flat[0] = old
+    assert seal.broken(fft) == ""
+
+
+@settings(max_examples=40, deadline=None)
+@given(scale=st.floats(min_value=1e-300, max_value=1e300).filter(lambda c: abs(c - 1.0) >= 1e-3),
+       spike=st.floats(min_value=1e3, max_value=1.7e308), index=st.integers(min_value=0, max_value=35),
+       claim=st.booleans())
+def test_no_scaled_or_spiked_answer_is_ever_solved(ex1, scale: float, spike: float, index: int, claim: bool) -> None:
+    inst, p = ex1
+    for q in (p * scale, np.where(np.arange(p.size) == index, spike * np.max(p), p)):
+        v = judge(inst, q, claim, TOL)
+        assert v.status == "inaccurate" and v.reading == ("wrong" if claim else "unconverged")
+
+
+@settings(max_examples=30, deadline=None)
+@given(bad=st.sampled_from([np.nan, np.inf, -np.inf]), index=st.integers(min_value=0, max_value=35),
+       claim=st.booleans())
+def test_any_non_finite_entry_is_no_answer(ex1, bad: float, index: int, claim: bool) -> None:
+    inst, p = ex1
+    q = p.copy()
+    q[index] = bad
+    v = judge(inst, q, claim, TOL)
+    assert (v.status, v.reading) == ("failed", "wrong" if claim else "unconverged")
+
+
+def test_the_lifecycle_keeps_a_claim_on_a_non_finite_answer(ex1) -> None:
+    inst, _ = ex1
+    res = Adv_nan_claimed().solve(inst.qp)  # noqa: F821 -- made by _adversary
+    assert res.converged and res.status == "converged"
+    res = Adv_nan_unclaimed().solve(inst.qp)  # noqa: F821
+    assert not res.converged and res.status == "failed"
+
+
+# ---------------------------------------------------------------------------
+# validate (Python API, CLI exit code) and pytest-benchmark's settle
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tables() -> dict[tuple[str, bool], cf.VerdictTable]:
+    cases = cf.conformance_cases("fast", pattern=CASE)
+    assert len(cases) == 1
+    return {pc: cf.validate(cls(), cases) for pc, cls in ADVERSARIES.items()}
+
+
+@pytest.mark.parametrize("kind, claim", PAIRS)
+def test_validate_gives_each_adversary_its_verdict(tables, kind: str, claim: bool) -> None:
+    table = tables[(kind, claim)]
+    reading = expected(kind, claim)[1]
+    (row,) = table.rows
+    assert row.status == ROW[reading], table.format()
+    outcome = {"pass": "conforms", "wrong": "wrong", "unconverged": "incomplete"}[reading]
+    assert table.outcome() == outcome and table.outcome(strict=True) == outcome
+    assert table.exit_code() == {"conforms": 0, "wrong": 1, "incomplete": 3}[outcome]
+    assert ("CONFORMS" in table.summary()) == (outcome == "conforms")
+
+
+@pytest.mark.parametrize("kind", ["exact", "nan", "big308", "shape", "mutate"])
+@pytest.mark.parametrize("claim", [True, False])
+def test_validate_cli_exit_code(kind: str, claim: bool, capsys: pytest.CaptureFixture[str]) -> None:
+    reading = expected(kind, claim)[1]
+    name = ADVERSARIES[(kind, claim)].__name__
+    rc = cf.main([f"{HERE}:{name}", "--cases", CASE, "--quiet"])
+    assert rc == {"pass": 0, "wrong": 1, "unconverged": 3}[reading], capsys.readouterr().out
+
+
+def test_settle_gives_each_reading_its_pytest_outcome(ex1) -> None:
+    inst, p = ex1
+    for kind, claim in PAIRS:
+        if kind in ("forged_w", "mutate"):
+            continue
+        v = judge(inst, forge(kind, p), claim, TOL)
+        reading = expected(kind, claim)[1]
+        if reading == "pass":
+            settle(v, kind)
+        elif reading == "wrong":
+            with pytest.raises(pytest.fail.Exception, match="wrong"):
+                settle(v, kind)
+        else:
+            with pytest.raises(pytest.xfail.Exception):
+                settle(v, kind)
+
+
+def test_a_solver_that_promises_a_floor_is_held_to_it() -> None:
+    assert check_promise("exact") == "exact" and check_promise(1e-7) == 1e-7
+    for bad in ("approximate", 0.0, -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="promise"):
+            check_promise(bad)
+    assert Capabilities(promise=1e-4).promised_tol(1e-8) == 1e-4
+    assert Capabilities().promised_tol(1e-8) == 1e-8
+
+
+# ---------------------------------------------------------------------------
+# run
+# ---------------------------------------------------------------------------
+
+
+def test_run_gives_each_adversary_its_verdict(run_harness) -> None:
+    names = {f"{HERE}:{cls.__name__}": pc for pc, cls in ADVERSARIES.items()}
+    table = run_harness(["paper-sweep"], solvers=list(names), size=16, steps=2, profiles=("mid",),
+                        reference="none", warmup=False, timeout=60.0)
+    assert len(table) == 2 * len(names)
+    for label, (kind, claim) in names.items():
+        rows = table[table["solver"] == ADVERSARIES[(kind, claim)].name]
+        assert len(rows) == 2, label
+        want = expected(kind, claim)
+        got = set(zip(rows["status"], rows["verdict"]))
+        assert got == {want}, (label, got)
+        if want[0] != "solved":
+            assert not (rows["kkt_error"].astype(float) <= TOL).any(), label
+
+
+# ---------------------------------------------------------------------------
+# The file protocol: an outside program that writes "solved" over a clipped answer
+# ---------------------------------------------------------------------------
+
+CLIPPER = textwrap.dedent('''
+    import json, os, sys
+    import numpy as np
+    problem, solution = sys.argv[1], sys.argv[2]
+    head = json.load(open(os.path.join(problem, "problem.json")))
+    n = head["n"]
+    H = np.fromfile(os.path.join(problem, "H.f64"), dtype="<f8").reshape(n, n)
+    ubar = np.fromfile(os.path.join(problem, "ubar.f64"), dtype="<f8")
+    p = np.maximum(np.linalg.solve(H, ubar), 0.0)  # the classic wrong answer
+    p.astype("<f8").tofile(os.path.join(solution, "p.f64"))
+    json.dump({"status": sys.argv[3], "iterations": 1}, open(os.path.join(solution, "solution.json"), "w"))
+''')
+
+
+@pytest.mark.parametrize("word, code", [("solved", 1), ("optimal", 1), ("converged", 1), ("not_converged", 3),
+                                        ("done", 3)])
+def test_an_outside_program_claiming_solved_over_a_clipped_answer_exits_1(
+        tmp_path: Path, word: str, code: int, capsys: pytest.CaptureFixture[str]) -> None:
+    script = tmp_path / "clipper.py"
+    script.write_text(CLIPPER)
+    rc = cf.main(["--command", f"{sys.executable} {script} {{problem}} {{solution}} {word}",
+                  "--cases", "counterexample/*-s0"])
+    out = capsys.readouterr().out
+    assert rc == code, out
+    if word == "done":  # not a protocol word: a clear error naming the allowed words, never "not converged"
+        assert "not a protocol word" in out and "solved" in out
+
+
+# ---------------------------------------------------------------------------
+# docs/verdicts.md: every shell command shown there runs as shown
+# ---------------------------------------------------------------------------
+
+
+def shell_commands() -> list[tuple[str, int]]:
+    """(command, exit status) of each ``$ command`` line of docs/verdicts.md, the status
+    from the ``# exit N`` comment that follows it."""
+    text = (ROOT / "docs" / "verdicts.md").read_text()
+    return [(m.group(1).strip(), int(m.group(2))) for m in re.finditer(r"^\$ (.+?)\s+# exit (\d)$", text, re.MULTILINE)]
+
+
+def test_docs_verdicts_shell_commands_run_with_their_exit_status() -> None:
+    commands = shell_commands()
+    assert len(commands) >= 3
+    for command, code in commands:
+        env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+        proc = subprocess.run(command, shell=True, cwd=ROOT, capture_output=True, text=True, timeout=300, env=env,
+                              check=False)
+        assert proc.returncode == code, (command, proc.stdout[-2000:], proc.stderr[-2000:])
