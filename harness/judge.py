@@ -26,12 +26,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-<<<<<<< HEAD
 
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
-=======
-from contactbench.problems.instances import ContactInstance
->>>>>>> judge
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
 from .schema import VERDICTS as READINGS  # the table contract names the readings
