@@ -6,6 +6,10 @@ bound").  Small grids; matvec bounds, no timing."""
 
 from __future__ import annotations
 
+import importlib.util
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from contactbench.problems.errors import ProblemInputError
@@ -210,3 +214,40 @@ def measured_population_member() -> Surface:
     with pytest.warns(UserWarning, match="filled"):
         z = fill_missing(raw, "fill-nearest", "measured", {})
     return Surface(z, base.delta, name="measured", periodic=False)
+
+
+# -- the population benchmark's checks ----------------------------------------------------
+
+
+def population_script():
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_surface_population.py"
+    spec = importlib.util.spec_from_file_location("bench_surface_population", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def fake_row(bench, family: str, seed: int, variant: str, matvecs: int, status: str = "solved"):
+    return bench.PopulationRow(family, 512, 0.7, 0.3, seed, f"{family}-s{seed}", 100, variant, "{}", status, matvecs,
+                               matvecs, 0, matvecs, 1, float(matvecs), 1e-10, 1.0, 100.0, 1, "h", "c", "t")
+
+
+def test_population_checks_flag_a_stall_a_slower_default_and_a_failure():
+    bench = population_script()
+    rows = []
+    for seed, (mv, ref) in enumerate([(40, 40), (42, 40), (41, 45), (90, 95), (50, 44)]):
+        rows += [fake_row(bench, "periodic", seed, "default", mv), fake_row(bench, "periodic", seed, "double-islands", ref)]
+    rows.append(fake_row(bench, "fourier", 0, "default", 0, status="timeout"))
+    why = sorted(f.why.split(" ")[0] + ":" + str(f.row.seed) + f.row.family for f in bench.checks(rows))
+    # median 42: 90 > 84 is a stall; 50 > 1.1 x 44; the timeout is reported; 42 vs 40 (1.05x) is not.
+    assert why == ["matvecs:3periodic", "matvecs:4periodic", "status:0fourier"]
+    assert not bench.checks([r for r in rows if r.seed < 3 and r.status == "solved"])
+
+
+def test_population_plan_and_member_keys():
+    bench = population_script()
+    members = bench.plan([512, 4096], list(bench.FAMILIES), {512: 2, 4096: 1})
+    assert len(members) == len(bench.CELLS) * 4 * 2 + len(bench.LARGE_CELLS) * 4
+    assert all(bench.Member.parse(m.key) == m for m in members)
+    assert {m.family for m in members} == set(bench.FAMILIES)
