@@ -56,7 +56,7 @@ Points at the bound (Bugnicourt with a preconditioner)
 ------------------------------------------------------
 Bugnicourt's free set {res != 0} holds the contact set and the points at the bound that
 penetrate (p = 0, g < 0).  Unpreconditioned, z = res there, so -z points into the
-feasible set.  Preconditioned, z = M^-1 res couples such a point j to its contact
+feasible set (only the Polak-Ribiere term can turn d).  Preconditioned, z = M^-1 res couples such a point j to its contact
 neighbours (island blocks: negative off-diagonal entries of the inverse) and to its whole
 tile (far field), and z_j can take the sign opposite to res_j: the direction pushes p_j
 below 0.  The projection then clipped p_j back to 0 at every iteration, the same points
