@@ -44,7 +44,7 @@ class Surface:
     delta: float
     unit: str = "m"
     name: str = "surface"
-    levels: tuple["Surface", ...] = ()
+    levels: tuple[Surface, ...] = ()
     periodic: bool = False
     meta: dict[str, Any] = field(default_factory=dict, compare=False)
 
@@ -116,7 +116,7 @@ class Surface:
             gy = np.diff(h, axis=1)[:-1, :] / self.delta
         return float(np.sqrt(np.mean(gx**2 + gy**2)))
 
-    def scaled(self, length_factor: float) -> "Surface":
+    def scaled(self, length_factor: float) -> Surface:
         """The same surface with every length multiplied by ``length_factor``."""
         return replace(
             self,
@@ -401,9 +401,79 @@ def spectral_surface(
         "hurst": hurst,
         "seed": seed,
         "rolloff_wavelength": rolloff_wavelength,
+        "short_cutoff_wavelength": short_cutoff_wavelength,
         "rms_height": rms_height,
     }
     return Surface(z, delta, name=f"spectral-H{hurst:g}-N{N}-s{seed}", periodic=True, meta=meta)
+
+
+#: Fourier synthesis defaults: the roll-off at a quarter of the system size, the short
+#: cutoff at four grid spacings (so the smallest features span a few points).
+ROLLOFF_FRACTION = 0.25
+SHORT_CUTOFF_SPACINGS = 4.0
+
+
+def fourier_synthesis(N: int, hurst: float, rms_slope: float, length: float = 100e-6, seed: int = 0,
+                      rolloff_wavelength: float | None = None,
+                      short_cutoff_wavelength: float | None = None) -> Surface:
+    """Periodic self-affine surface by Fourier synthesis with a roll-off and a short cutoff
+    (``spectral_surface``'s filter): C(q) flat below q_r = 2 pi / rolloff_wavelength
+    (default ``ROLLOFF_FRACTION`` L), ~ q^(-2(1+H)) up to q_s = 2 pi / short_cutoff_wavelength
+    (default ``SHORT_CUTOFF_SPACINGS`` grid spacings), zero above; heights scaled to the
+    given rms slope (``with_rms_slope``).  Name "fourier-H..-N..-s..", meta family "fourier"."""
+    check_positive("rms slope", rms_slope)
+    N = check_grid_size(N, "Fourier-synthesis surface")
+    check_positive("length L", length)
+    rolloff = rolloff_wavelength if rolloff_wavelength else ROLLOFF_FRACTION * length
+    cutoff = short_cutoff_wavelength if short_cutoff_wavelength else SHORT_CUTOFF_SPACINGS * length / N
+    s = spectral_surface(N, hurst, length=length, seed=seed, rolloff_wavelength=rolloff,
+                         short_cutoff_wavelength=cutoff)
+    s = replace(s, name=f"fourier-H{hurst:g}-N{N}-s{seed}", meta={**s.meta, "family": "fourier"})
+    return with_rms_slope(s, rms_slope)
+
+
+def with_rms_slope(surface: Surface, rms_slope: float) -> Surface:
+    """The same surface with its heights (and its levels') multiplied by one factor so that
+    ``rms_slope()`` is ``rms_slope``; meta records "rms_slope" and the new "rms_height".
+    A flat surface has no slope to scale: ``ProblemInputError``."""
+    check_positive("rms slope", rms_slope)
+    check_not_flat(surface)
+    f = rms_slope / surface.rms_slope()
+    levels = tuple(replace(lv, heights=lv.heights * f) for lv in surface.levels)
+    meta = {**surface.meta, "rms_slope": rms_slope, "rms_height": surface.rms_height * f}
+    return replace(surface, heights=surface.heights * f, levels=levels, meta=meta)
+
+
+def measured_like_heights(surface: Surface, tilt: float, missing_fraction: float, seed: int = 0,
+                          hole_radius: int = 3) -> np.ndarray:
+    """The surface's heights as an instrument might deliver them: a mean plane of slope
+    ``tilt`` (rise per length, along a random direction) left in, and NaN at about
+    ``missing_fraction`` of the points, in discs of ``hole_radius`` points around random
+    centres (dropouts).  The NaN are for a file reader's filling rule to fill
+    (problems/io.py ``fill_missing``); nothing here fills them."""
+    if not (np.isfinite(tilt) and tilt >= 0.0):
+        raise ProblemInputError(f"tilt must be a finite slope >= 0, got {tilt!r}")
+    if not (0.0 <= missing_fraction < 0.5):
+        raise ProblemInputError(f"missing fraction must lie in [0, 0.5), got {missing_fraction!r}")
+    if int(hole_radius) != hole_radius or hole_radius < 0:
+        raise ProblemInputError(f"hole radius must be an integer >= 0 points, got {hole_radius!r}")
+    rng = np.random.default_rng(seed)
+    N = surface.N
+    angle = rng.uniform(0.0, 2.0 * np.pi)
+    x = np.arange(N) * surface.delta
+    z = surface.heights + tilt * (np.cos(angle) * x[:, None] + np.sin(angle) * x[None, :])
+    r = int(hole_radius)
+    di, dj = np.mgrid[-r:r + 1, -r:r + 1]
+    disc = di**2 + dj**2 <= r * r
+    holes = round(missing_fraction * N * N / int(disc.sum()))
+    ci, cj = rng.integers(0, N, holes), rng.integers(0, N, holes)
+    mask = np.zeros((N, N), dtype=bool)
+    for a, b in zip(di[disc], dj[disc]):
+        ii, jj = ci + a, cj + b
+        ok = (ii >= 0) & (ii < N) & (jj >= 0) & (jj < N)
+        mask[ii[ok], jj[ok]] = True
+    z[mask] = np.nan
+    return z
 
 
 # ---------------------------------------------------------------------------

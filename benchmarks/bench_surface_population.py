@@ -1,0 +1,418 @@
+"""The fast default solver over a population of surface families: matvecs, iterations,
+seconds, peak memory and kkt of one cold top step per member, the default solver against
+the same solver in float64 with the island blocks alone.
+
+Population (``plan``): four surface families (``FAMILIES``) x Hurst/rms-slope cells
+(``CELLS``; ``LARGE_CELLS`` from 4096^2 up) x seeds (``--seeds N:k``, default ``SEEDS``)
+x sizes (``--sizes``), L = 100 um:
+
+* ``saupe``    -- Saupe's non-periodic RMD (problems/surfaces.py ``rmd_surface_n``, the paper's);
+* ``periodic`` -- the wrap-around RMD (diamond-square) of the same module;
+* ``fourier``  -- Fourier synthesis with a roll-off and a short cutoff (``fourier_synthesis``);
+* ``measured`` -- a Fourier-synthesis surface as an instrument delivers it: a tilt of one rms
+  height across L left in, ``MISSING_FRACTION`` of the points missing in small holes, filled by
+  problems/io.py's "fill-nearest" rule (``measured_like_heights``, ``fill_missing``).
+
+Every surface is scaled to its cell's rms slope (``with_rms_slope``).  Instance: the
+paper's, BCC kernel, non-periodic, E = the paper's, top step Delta = (z_max - z_mean)/2,
+cold start, tol 1e-9 (profile "high", judged by harness/judge.py).  Variants (``VARIANTS``):
+"default" -- ``fast-dual-pccg`` with its defaults -- and "double-islands" --
+``precision=double, precondition=islands``.
+
+Each solve runs in its own process (``--in-process`` runs them in this one: matvec counts
+only, no per-solve peak memory) with ``SolverSettings(time_limit=--timeout)`` and a hard
+kill later; rows are appended to ``OUT/surface-population.csv`` as they finish, with the
+host, the time and the code's commit.  ``OUT/surface-population.md`` is rebuilt from the
+CSV (latest row per member and variant): median and worst matvecs and seconds per size and
+family, and the two checks -- no default solve above ``STALL_FACTOR`` x the median matvecs of
+its size, and none slower than the double-islands variant by more than ``SLOWER_LIMIT``.
+
+Usage:
+  python benchmarks/bench_surface_population.py [--sizes 512 1024 2048 4096] [--families saupe,...]
+      [--seeds 512:3,1024:3,2048:2,4096:1] [--variants default,double-islands] [--threads 2]
+      [--timeout 900] [--out results/perf] [--fresh] [--in-process] [--table-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+FAMILIES = ("saupe", "periodic", "fourier", "measured")
+#: (Hurst exponent, rms slope) cells below 4096^2 ...
+CELLS = ((0.3, 1.0), (0.5, 0.05), (0.7, 0.3), (0.9, 0.1))
+#: ... and from 4096^2 up.
+LARGE_CELLS = ((0.7, 0.3),)
+LARGE_N = 4096
+SEEDS = {512: 3, 1024: 3, 2048: 2, 4096: 1}
+DEFAULT_SIZES = (512, 1024, 2048, 4096)
+LENGTH = 100e-6
+MISSING_FRACTION = 0.03
+SOLVER = "fast-dual-pccg"
+VARIANTS: dict[str, dict[str, str]] = {
+    "default": {},
+    "double-islands": {"precision": "double", "precondition": "islands"},
+    "double": {"precision": "double"},
+    "islands": {"precondition": "islands"},
+}
+#: A default solve may need at most this many times the median matvecs of its size ...
+STALL_FACTOR = 2.0
+#: ... and be at most this much slower than the double-islands variant on the same member.
+SLOWER_LIMIT = 0.10
+KILL_MARGIN_S = 120.0
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CONTACTBENCH_FFT_WORKERS")
+
+
+@dataclass(frozen=True)
+class Member:
+    """One surface of the population."""
+
+    family: str
+    N: int
+    hurst: float
+    rms_slope: float
+    seed: int
+
+    @property
+    def key(self) -> str:
+        return f"{self.family}:{self.N}:{self.hurst:g}:{self.rms_slope:g}:{self.seed}"
+
+    @classmethod
+    def parse(cls, key: str) -> Member:
+        fam, N, H, s, seed = key.split(":")
+        return cls(fam, int(N), float(H), float(s), int(seed))
+
+
+@dataclass
+class PopulationRow:
+    """One cold top-step solve of one member in one variant."""
+
+    family: str
+    N: int
+    hurst: float
+    rms_slope: float
+    seed: int
+    surface: str
+    n: int
+    variant: str
+    params: str
+    status: str
+    iterations: int
+    matvecs: int
+    matvecs_float32: int
+    matvecs_float64: int
+    preconditioner_builds: int
+    seconds: float
+    kkt: float
+    load_N: float
+    peak_rss_mib: float
+    threads: int
+    host: str
+    commit: str
+    timestamp: str
+
+
+def plan(sizes: list[int], families: list[str], seeds: dict[int, int]) -> list[Member]:
+    """The population, smallest sizes first."""
+    out = []
+    for N in sizes:
+        for H, slope in (LARGE_CELLS if N >= LARGE_N else CELLS):
+            for fam in families:
+                out += [Member(fam, N, H, slope, s) for s in range(seeds.get(N, 1))]
+    return out
+
+
+def surface_of(m: Member):
+    """The member's surface (module doc)."""
+    from contactbench.problems.io import fill_missing
+    from contactbench.problems.surfaces import (
+        Surface,
+        fourier_synthesis,
+        measured_like_heights,
+        rmd_surface_n,
+        with_rms_slope,
+    )
+
+    if m.family in ("saupe", "periodic"):
+        return with_rms_slope(rmd_surface_n(m.N, m.hurst, m.family, length=LENGTH, seed=m.seed), m.rms_slope)
+    base = fourier_synthesis(m.N, m.hurst, m.rms_slope, length=LENGTH, seed=m.seed)
+    if m.family == "fourier":
+        return base
+    raw = measured_like_heights(base, base.rms_height / LENGTH, MISSING_FRACTION, seed=m.seed + 1000)
+    name = f"measured-H{m.hurst:g}-N{m.N}-s{m.seed}"
+    meta = {"family": "measured", "hurst": m.hurst, "rms_slope": m.rms_slope, "seed": m.seed, "base": base.name}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        z = fill_missing(raw, "fill-nearest", name, meta)
+    return Surface(z, base.delta, name=name, periodic=False, meta=meta)
+
+
+def top_step(m: Member):
+    """The paper's instance on the member's surface at its top step, and the surface's name."""
+    from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+    from contactbench.problems.scenes.core import PAPER_E
+
+    s = surface_of(m)
+    return InstanceBuilder(s, PAPER_E, "bcc", periodic=False).build(paper_max_displacement(s)), s.name
+
+
+def code_commit() -> str:
+    """HEAD of the repository this script runs from, "+dirty" when it has uncommitted changes."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("+dirty" if dirty else "")
+
+
+def solve_member(m: Member, variant: str, timeout: float, commit: str) -> PopulationRow:
+    """One cold solve, in this process."""
+    from contactbench.harness.profiles import get_profile
+    from contactbench.harness.sequence import solve_sequence
+    from contactbench.problems.operators import fft_workers
+    from contactbench.solvers.base import SolverSettings
+
+    profile = get_profile("high")
+    inst, name = top_step(m)
+    params = VARIANTS[variant]
+    settings = SolverSettings(tol=profile.tol, time_limit=timeout, params=dict(params))
+    (step,) = solve_sequence(SOLVER, [inst], settings, warm=False, check_tol=profile.check_tol)
+    res = step.result
+    info = res.info if res is not None else {}
+    return PopulationRow(
+        family=m.family, N=m.N, hurst=m.hurst, rms_slope=m.rms_slope, seed=m.seed, surface=name, n=inst.n,
+        variant=variant, params=json.dumps(params, sort_keys=True),
+        status=step.verdict.status if step.verdict is not None else "failed",
+        iterations=int(res.iterations) if res is not None else 0, matvecs=int(res.matvecs) if res is not None else 0,
+        matvecs_float32=int(info.get("matvecs_float32", 0)), matvecs_float64=int(info.get("matvecs_float64", 0)),
+        preconditioner_builds=int(info.get("preconditioner_builds", 0)), seconds=round(step.seconds, 3),
+        kkt=float(f"{step.kkt_error:.3e}"), load_N=float(f"{inst.load(res.p):.10e}") if res is not None else math.nan,
+        peak_rss_mib=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1), threads=fft_workers(),
+        host=platform.node(), commit=commit, timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"))
+
+
+def failed_row(m: Member, variant: str, status: str, commit: str, threads: int) -> PopulationRow:
+    return PopulationRow(m.family, m.N, m.hurst, m.rms_slope, m.seed, "", 0, variant,
+                         json.dumps(VARIANTS[variant], sort_keys=True), status, 0, 0, 0, 0, 0, math.nan, math.nan,
+                         math.nan, math.nan, threads, platform.node(), commit, time.strftime("%Y-%m-%dT%H:%M:%S"))
+
+
+def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) -> PopulationRow:
+    """The row of one solve in a child process; a "timeout"/"failed" row when it gives none."""
+    cmd = [sys.executable, __file__, "--child", f"{m.key}@{variant}", "--timeout", str(args.timeout),
+           "--commit", commit]
+    env = dict(os.environ)
+    if args.threads:
+        env.update({v: str(args.threads) for v in THREAD_VARS})
+    try:
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=args.timeout + KILL_MARGIN_S,
+                              check=False)
+        found = [ln[7:] for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+        if found:
+            return PopulationRow(**json.loads(found[-1]))
+        status, detail = "failed", (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
+    except subprocess.TimeoutExpired:
+        status, detail = "timeout", f"killed after {args.timeout + KILL_MARGIN_S:.0f} s"
+    print(f"  {m.key} {variant}: {status}: {detail}", file=sys.stderr, flush=True)
+    return failed_row(m, variant, status, commit, int(args.threads or 0))
+
+
+def append_row(path: Path, row: PopulationRow) -> None:
+    new = not path.exists()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=[f.name for f in fields(PopulationRow)])
+        if new:
+            w.writeheader()
+        w.writerow(asdict(row))
+
+
+def read_rows(path: Path) -> list[PopulationRow]:
+    """The CSV's rows, the latest of each (member, variant)."""
+    types = {f.name: f.type for f in fields(PopulationRow)}
+    latest: dict[tuple, PopulationRow] = {}
+    with open(path, newline="") as fh:
+        for raw in csv.DictReader(fh):
+            conv = {k: (int(float(v)) if types[k] == "int" else float(v) if types[k] == "float" else v)
+                    for k, v in raw.items()}
+            r = PopulationRow(**conv)
+            latest[(r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant)] = r
+    return sorted(latest.values(), key=lambda r: (r.N, r.family, r.hurst, r.seed, r.variant))
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A default solve that breaks one of the two checks (module doc)."""
+
+    row: PopulationRow
+    why: str
+
+
+def member_of(r: PopulationRow) -> tuple:
+    return (r.family, r.N, r.hurst, r.rms_slope, r.seed)
+
+
+def checks(rows: list[PopulationRow], metric: str = "matvecs") -> list[Flag]:
+    """Default solves above STALL_FACTOR x the median ``metric`` of their size (over every
+    family), or above (1 + SLOWER_LIMIT) x the double-islands variant on their member."""
+    flags = []
+    default = [r for r in rows if r.variant == "default" and r.status == "solved"]
+    ref = {member_of(r): r for r in rows if r.variant == "double-islands" and r.status == "solved"}
+    for r in rows:
+        if r.variant == "default" and r.status != "solved":
+            flags.append(Flag(r, f"status {r.status}"))
+    for N in sorted({r.N for r in default}):
+        med = float(np.median([getattr(r, metric) for r in default if r.N == N]))
+        flags += [Flag(r, f"{metric} {getattr(r, metric):g} > {STALL_FACTOR:g} x median {med:g}")
+                  for r in default if r.N == N and getattr(r, metric) > STALL_FACTOR * med]
+    for r in default:
+        b = ref.get(member_of(r))
+        if b is not None and getattr(r, metric) > (1.0 + SLOWER_LIMIT) * getattr(b, metric):
+            flags.append(Flag(r, f"{metric} {getattr(r, metric):g} > {1 + SLOWER_LIMIT:g} x double-islands "
+                                 f"{getattr(b, metric):g}"))
+    return flags
+
+
+def summary_lines(rows: list[PopulationRow], metric: str) -> list[str]:
+    """Median / worst ``metric`` per size and family, for each variant present."""
+    variants = [v for v in VARIANTS if any(r.variant == v for r in rows)]
+    head = "| N | family | members | " + " | ".join(f"{v} median | {v} worst" for v in variants) + " |"
+    lines = [head, "|" + "---|" * (3 + 2 * len(variants))]
+    for N in sorted({r.N for r in rows}):
+        for fam in [f for f in FAMILIES if any(r.family == f and r.N == N for r in rows)] + ["all"]:
+            sel = [r for r in rows if r.N == N and (fam == "all" or r.family == fam) and r.status == "solved"]
+            cells = []
+            for v in variants:
+                vals = [getattr(r, metric) for r in sel if r.variant == v]
+                cells += [f"{np.median(vals):.4g}", f"{max(vals):.4g}"] if vals else ["-", "-"]
+            members = len({member_of(r) for r in sel})
+            lines.append(f"| {N} | {fam} | {members} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def write_markdown(rows: list[PopulationRow], path: Path) -> None:
+    hosts = sorted({r.host for r in rows})
+    commits = sorted({r.commit for r in rows})
+    times = sorted(r.timestamp for r in rows)
+    lines = [
+        "# fast-dual-pccg over a surface population: one cold top step per member",
+        "",
+        "Written by `benchmarks/bench_surface_population.py` from `surface-population.csv` (latest row per",
+        "member and variant; the module doc defines the population and the two checks).",
+        f"Host(s): {', '.join(hosts)}; commit(s): {', '.join(commits)}; rows from {times[0]} to {times[-1]}.",
+        "",
+        "## Matvecs",
+        "",
+        *summary_lines(rows, "matvecs"),
+        "",
+        "## Seconds",
+        "",
+        *summary_lines(rows, "seconds"),
+        "",
+        "## Peak RSS (MiB)",
+        "",
+        *summary_lines(rows, "peak_rss_mib"),
+        "",
+        f"## Checks: default <= {STALL_FACTOR:g} x median of its size, <= {1 + SLOWER_LIMIT:g} x double-islands",
+        "",
+    ]
+    for metric in ("matvecs", "seconds"):
+        flags = checks(rows, metric)
+        lines.append(f"- {metric}: " + ("none broken" if not flags else f"{len(flags)} broken"))
+        lines += [f"  - {f.row.surface or f.row.family} (N = {f.row.N}): {f.why}" for f in flags]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def parse_seeds(text: str) -> dict[int, int]:
+    out = dict(SEEDS)
+    for item in filter(None, text.split(",")):
+        N, k = item.split(":")
+        out[int(N)] = int(k)
+    return out
+
+
+def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """One-line errors for bad input, before anything runs."""
+    bad = [f for f in args.families.split(",") if f not in FAMILIES]
+    if bad:
+        ap.error(f"unknown family {bad[0]!r}: choose from {', '.join(FAMILIES)}")
+    bad = [v for v in args.variants.split(",") if v not in VARIANTS]
+    if bad:
+        ap.error(f"unknown variant {bad[0]!r}: choose from {', '.join(VARIANTS)}")
+    if any(N < 16 or N & (N - 1) for N in args.sizes):
+        ap.error(f"--sizes must be powers of two >= 16 (the RMD families need N = 2^k), got {args.sizes}")
+    try:
+        seeds = parse_seeds(args.seeds)
+    except ValueError:
+        ap.error(f"--seeds must look like 512:3,1024:2, got {args.seeds!r}")
+    if any(k < 1 for k in seeds.values()):
+        ap.error("--seeds: at least one seed per size")
+    if not (args.timeout > 0):
+        ap.error(f"--timeout must be > 0 s, got {args.timeout}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES))
+    ap.add_argument("--families", default=",".join(FAMILIES))
+    ap.add_argument("--seeds", default="", help="seeds per size, e.g. 512:3,2048:1 (default: " +
+                    ",".join(f"{k}:{v}" for k, v in SEEDS.items()) + ")")
+    ap.add_argument("--variants", default="default,double-islands")
+    ap.add_argument("--timeout", type=float, default=900.0, help="time limit of one solve (s)")
+    ap.add_argument("--threads", type=int, default=None, help="BLAS/OpenMP/FFT threads (default: all cores)")
+    ap.add_argument("--out", default="results/perf")
+    ap.add_argument("--fresh", action="store_true", help="start a new CSV (the old one is renamed to .csv.old)")
+    ap.add_argument("--in-process", action="store_true", help="solve in this process (no per-solve peak RSS)")
+    ap.add_argument("--table-only", action="store_true", help="rebuild the table from the CSV")
+    ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--commit", default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        from contactbench.harness.isolation import set_parent_death_signal
+
+        set_parent_death_signal()  # a killed run takes its solve with it
+        key, variant = args.child.split("@")
+        row = solve_member(Member.parse(key), variant, args.timeout, args.commit or code_commit())
+        print("RESULT " + json.dumps(asdict(row)), flush=True)
+        return
+    check_args(ap, args)
+    out = Path(args.out)
+    csv_path = out / "surface-population.csv"
+    if args.fresh and csv_path.exists():
+        csv_path.replace(out / "surface-population.csv.old")
+    if not args.table_only:
+        commit = code_commit()
+        if args.in_process and args.threads:
+            os.environ.update({v: str(args.threads) for v in THREAD_VARS})
+        for m in plan(args.sizes, args.families.split(","), parse_seeds(args.seeds)):
+            for variant in args.variants.split(","):
+                row = (solve_member(m, variant, args.timeout, commit) if args.in_process
+                       else run_child(m, variant, args, commit))
+                append_row(csv_path, row)
+                print(f"{m.key} {variant}: {row.status} n={row.n} it={row.iterations} mv={row.matvecs} "
+                      f"{row.seconds:.2f} s kkt={row.kkt:.1e} rss={row.peak_rss_mib:.0f} MiB", flush=True)
+    if not csv_path.exists():
+        sys.exit(f"bench_surface_population: error: no table at {csv_path}")
+    write_markdown(read_rows(csv_path), out / "surface-population.md")
+    print(f"wrote {out / 'surface-population.md'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,253 @@
+"""The performance population's surface families (problems/surfaces.py: Fourier synthesis
+with roll-off, rms-slope scaling, measured-like maps) and the default fast solver on them:
+exact answers in both precisions, and the rule that keeps its preconditioned direction from
+pointing out of the feasible set at points at the bound (solvers/_ccg.py, "Points at the
+bound").  Small grids; matvec bounds, no timing."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.io import fill_missing
+from contactbench.problems.kkt import kkt_check, relative_error
+from contactbench.problems.lcp import exact_solution_on_subset
+from contactbench.problems.surfaces import (
+    Surface,
+    fourier_synthesis,
+    measured_like_heights,
+    radial_psd,
+    rmd_surface_n,
+    with_rms_slope,
+)
+from contactbench.solvers import _ccg
+from contactbench.solvers._ccg import GapState, inward, precondition_on
+from contactbench.solvers._preconditioners import IslandPreconditioner
+from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.registry import get_solver
+
+E = 1e9
+L = 100e-6
+
+
+def top_step(s: Surface):
+    return InstanceBuilder(s, E, "bcc", periodic=False).build(paper_max_displacement(s))
+
+
+def measured(N: int, seed: int) -> Surface:
+    base = fourier_synthesis(N, 0.7, 0.3, length=L, seed=seed)
+    raw = measured_like_heights(base, base.rms_height / L, 0.03, seed=seed + 1000)
+    with pytest.warns(UserWarning, match="filled"):
+        z = fill_missing(raw, "fill-nearest", "measured", {})
+    return Surface(z, base.delta, name="measured", periodic=False)
+
+
+# -- generators ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("slope", [0.05, 1.0])
+def test_fourier_synthesis_has_the_rms_slope_asked_for_and_is_periodic(slope):
+    s = fourier_synthesis(128, 0.6, slope, length=L, seed=2)
+    assert s.periodic and s.meta["family"] == "fourier"
+    assert s.rms_slope() == pytest.approx(slope, rel=1e-12)
+    assert abs(s.z_mean) <= 1e-12 * s.rms_height
+
+
+def test_fourier_synthesis_rolls_off_and_cuts_off():
+    """Below the roll-off the PSD is flat, above the short cutoff it is zero; in between
+    it falls like q^-2(1+H)."""
+    N, H = 256, 0.8
+    s = fourier_synthesis(N, H, 0.2, length=L, seed=1, rolloff_wavelength=L / 4, short_cutoff_wavelength=8 * L / N)
+    psd = radial_psd(s, bins_per_decade=10, window=False)
+    q_r, q_s = 2 * np.pi / (L / 4), 2 * np.pi / (8 * L / N)
+    plateau = psd.C[psd.q < 0.8 * q_r]
+    assert plateau.max() / plateau.min() < 30  # a few modes, random: flat within the scatter, not q^-3.6 (~100x)
+    assert np.all(psd.C[psd.q > 1.5 * q_s] <= 1e-20 * psd.C.max())
+    mid = (psd.q > 1.5 * q_r) & (psd.q < 0.6 * q_s)
+    slope = np.polyfit(np.log(psd.q[mid]), np.log(psd.C[mid]), 1)[0]
+    assert slope == pytest.approx(-2 * (1 + H), abs=0.3)
+
+
+def test_with_rms_slope_scales_heights_only():
+    s = rmd_surface_n(64, 0.9, "periodic", length=L, seed=0)
+    t = with_rms_slope(s, 0.1)
+    f = t.heights[0, 0] / s.heights[0, 0]
+    np.testing.assert_allclose(t.heights, f * s.heights, rtol=1e-13)
+    assert t.delta == s.delta and t.rms_slope() == pytest.approx(0.1)
+    assert all(np.allclose(a.heights, f * b.heights) for a, b in zip(t.levels, s.levels))
+
+
+def test_with_rms_slope_refuses_a_flat_surface_and_a_bad_slope():
+    flat = Surface(np.zeros((8, 8)), 1.0)
+    with pytest.raises(ProblemInputError, match="flat"):
+        with_rms_slope(flat, 0.1)
+    s = fourier_synthesis(16, 0.5, 0.1)
+    for bad in (0.0, -1.0, np.nan, np.inf):
+        with pytest.raises(ProblemInputError):
+            with_rms_slope(s, bad)
+
+
+def test_measured_like_heights_leave_a_tilt_and_holes():
+    s = fourier_synthesis(128, 0.7, 0.3, length=L, seed=4)
+    tilt = 0.02
+    z = measured_like_heights(s, tilt, 0.05, seed=1)
+    miss = np.isnan(z)
+    assert 0.03 <= miss.mean() <= 0.06
+    # The holes are discs, not single points: most missing points have a missing neighbour.
+    assert (miss & np.roll(miss, 1, 0)).sum() > 0.5 * miss.sum()
+    ii, jj = np.nonzero(~miss)
+    A = np.c_[ii * s.delta, jj * s.delta, np.ones(ii.size)]
+    gx, gy, _ = np.linalg.lstsq(A, z[~miss], rcond=None)[0]
+    assert np.hypot(gx, gy) == pytest.approx(tilt, rel=0.1)
+    assert not np.isnan(measured_like_heights(s, 0.0, 0.0)).any()
+
+
+@pytest.mark.parametrize("kw", [{"tilt": np.nan}, {"tilt": -0.1}, {"tilt": np.inf}, {"missing_fraction": 0.7},
+                                {"missing_fraction": np.nan}, {"hole_radius": -1}, {"hole_radius": 1.5}])
+def test_measured_like_heights_refuse_bad_input(kw):
+    s = fourier_synthesis(16, 0.5, 0.1)
+    args = {"tilt": 0.01, "missing_fraction": 0.03, "hole_radius": 2} | kw
+    with pytest.raises(ProblemInputError):
+        measured_like_heights(s, **args)
+
+
+# -- the default solver on the families: exact in both precisions ------------------------
+
+FAMILY_SURFACES = {
+    "periodic-rmd": lambda: with_rms_slope(rmd_surface_n(64, 0.9, "periodic", length=L, seed=3), 0.1),
+    "fourier": lambda: fourier_synthesis(128, 0.6, 0.3, length=L, seed=1),
+    "measured": lambda: measured(64, 2),
+}
+
+
+@pytest.mark.parametrize("family", sorted(FAMILY_SURFACES))
+@pytest.mark.parametrize("precision", ["mixed", "double"])
+def test_default_solver_is_exact_on_each_family(family, precision):
+    inst = top_step(FAMILY_SURFACES[family]())
+    ref = exact_solution_on_subset(inst.qp)
+    res = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"precision": precision}))
+    assert res.converged and np.all(res.p >= 0)
+    assert kkt_check(inst, res.p).kkt_error <= 1e-8
+    assert relative_error(res.p, ref.p) <= 1e-6
+
+
+# -- points at the bound ---------------------------------------------------------------
+
+
+def bound_point_case():
+    """A point j at the bound (p = 0, a small negative residual: it penetrates) next to at
+    least three points of the contact set S of the exact answer, whose residual is -1."""
+    inst = top_step(rmd_surface_n(33, 0.7, "saupe", length=L, seed=3))
+    ref = exact_solution_on_subset(inst.qp)
+    S = ref.p > 0
+    g = inst.qp.geometry
+    where = np.full(int(np.prod(g.grid_shape)), -1)
+    where[g.indices] = np.arange(inst.n)
+    i, j = np.divmod(g.indices, g.grid_shape[1])
+    for k in np.flatnonzero(S):  # a neighbour of S in the trial set, outside S, with >= 3 contact neighbours
+        for di, dj in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+            a, b = i[k] + di, j[k] + dj
+            if 0 <= a < g.grid_shape[0] and 0 <= b < g.grid_shape[1] and where[a * g.grid_shape[1] + b] >= 0:
+                m = where[a * g.grid_shape[1] + b]
+                nbrs = [where[(a + x) * g.grid_shape[1] + b + y] for x in (-1, 0, 1) for y in (-1, 0, 1)
+                        if 0 <= a + x < g.grid_shape[0] and 0 <= b + y < g.grid_shape[1]]
+                touching = [q for q in nbrs if q >= 0 and S[q]]
+                if not S[m] and len(touching) >= 3:
+                    res = np.zeros(inst.n)
+                    res[touching] = -1.0  # the neighbours want more force ...
+                    res[m] = -1e-3  # ... and so, a little, does j
+                    return inst, GapState(inst.qp.H, inst.qp.ubar, ref.p.copy()), res, int(m)
+    raise AssertionError("no bound point next to the contact set")
+
+
+def test_a_direction_never_points_out_at_the_bound():
+    inst, state, res, j = bound_point_case()
+    M = IslandPreconditioner.build(inst.qp)
+    # Coupled to its contact neighbours, M^-1 turns the sign at j: the direction -z would
+    # push p_j below 0 (what the projection clipped at every iteration of a stall) ...
+    z = precondition_on(M, res, res != 0.0)
+    assert z[j] > 0.0 > res[j]
+    d = inward(-z, state, res)
+    assert d[j] == 0.0  # ... so it is held at the bound
+    S = state.p > 0
+    np.testing.assert_array_equal(d[S], -z[S])
+    enter = (state.p == 0) & (res < 0) & (z < 0)
+    np.testing.assert_array_equal(d[enter], -z[enter])
+    assert np.all(d[(state.p == 0) & (res == 0)] == 0.0)
+    assert res @ d < res @ -z < 0.0  # still a descent direction, a steeper one
+
+
+def old_inward(d, state, res):
+    """The rule before: only the points at rest at the bound (res = 0) were held."""
+    np.copyto(d, 0.0, where=(res == 0.0) & (state.p == 0.0))
+    return d
+
+
+#: A measured-like 128^2 map on which the old rule kept clipping the same points (old:
+#: 35 / 36 matvecs in mixed / double, now 23 / 21), and the bound with margin.
+STALL_CASE_BOUND = 30
+
+
+@pytest.mark.parametrize("precision", ["mixed", "double"])
+def test_constructed_case_converges_within_its_matvec_bound(precision, monkeypatch):
+    inst = top_step(measured_population_member())
+    solver = get_solver("fast-dual-pccg")
+    settings = SolverSettings(tol=1e-9, params={"precision": precision})
+    res = solver.solve(inst.qp, settings)
+    assert res.converged and res.matvecs <= STALL_CASE_BOUND
+    monkeypatch.setattr(_ccg, "inward", old_inward)
+    old = solver.solve(inst.qp, settings)
+    assert old.matvecs > STALL_CASE_BOUND  # the case still tells the two rules apart
+    assert relative_error(res.p, old.p) <= 1e-6
+
+
+def measured_population_member() -> Surface:
+    """The population's measured-like member at 128^2, H 0.7, rms slope 0.3, seed 1
+    (benchmarks/bench_surface_population.py ``surface_of``)."""
+    base = fourier_synthesis(128, 0.7, 0.3, length=L, seed=1)
+    raw = measured_like_heights(base, base.rms_height / L, 0.03, seed=1001)
+    with pytest.warns(UserWarning, match="filled"):
+        z = fill_missing(raw, "fill-nearest", "measured", {})
+    return Surface(z, base.delta, name="measured", periodic=False)
+
+
+# -- the population benchmark's checks ----------------------------------------------------
+
+
+def population_script():
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_surface_population.py"
+    spec = importlib.util.spec_from_file_location("bench_surface_population", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def fake_row(bench, family: str, seed: int, variant: str, matvecs: int, status: str = "solved"):
+    return bench.PopulationRow(family, 512, 0.7, 0.3, seed, f"{family}-s{seed}", 100, variant, "{}", status, matvecs,
+                               matvecs, 0, matvecs, 1, float(matvecs), 1e-10, 1.0, 100.0, 1, "h", "c", "t")
+
+
+def test_population_checks_flag_a_stall_a_slower_default_and_a_failure():
+    bench = population_script()
+    rows = []
+    for seed, (mv, ref) in enumerate([(40, 40), (42, 40), (41, 45), (90, 95), (50, 44)]):
+        rows += [fake_row(bench, "periodic", seed, "default", mv), fake_row(bench, "periodic", seed, "double-islands", ref)]
+    rows.append(fake_row(bench, "fourier", 0, "default", 0, status="timeout"))
+    why = sorted(f.why.split(" ")[0] + ":" + str(f.row.seed) + f.row.family for f in bench.checks(rows))
+    # median 42: 90 > 84 is a stall; 50 > 1.1 x 44; the timeout is reported; 42 vs 40 (1.05x) is not.
+    assert why == ["matvecs:3periodic", "matvecs:4periodic", "status:0fourier"]
+    assert not bench.checks([r for r in rows if r.seed < 3 and r.status == "solved"])
+
+
+def test_population_plan_and_member_keys():
+    bench = population_script()
+    members = bench.plan([512, 4096], list(bench.FAMILIES), {512: 2, 4096: 1})
+    assert len(members) == len(bench.CELLS) * 4 * 2 + len(bench.LARGE_CELLS) * 4
+    assert all(bench.Member.parse(m.key) == m for m in members)
+    assert {m.family for m in members} == set(bench.FAMILIES)
