@@ -349,7 +349,7 @@ def test_a_run_whose_every_row_failed_exits_1(in_tmp: Path, capsys: pytest.Captu
     assert re.search(r"2 rows \(2 new\) in .* s: failed 2 -> o", out), out
     line = one_line(err)
     assert "no row could be judged" in line and "o/results.csv" in line
-    assert "most common reason (2 of 2): solver returned non-finite values in p" in line
+    assert re.search(r"most common reason \([12] of 2\): p has \d+ NaN/inf entries", line), line
     assert (in_tmp / "o" / "results.parquet").is_file()  # the table is written all the same
 
 
