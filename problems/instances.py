@@ -245,7 +245,7 @@ class ContactInstance:
 # ---------------------------------------------------------------------------
 
 
-def contact_mask(p: np.ndarray) -> np.ndarray:
+def relative_contact_mask(p: np.ndarray) -> np.ndarray:
     """A relative contact test, p_i > CONTACT_THRESHOLD * max(p) (none when max(p) <= 0), for
     an algorithm's own use where the problem's scales are not at hand (the cascade's
     refinement).  The table's reading is ``ContactInstance.contact_mask``."""

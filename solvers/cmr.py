@@ -60,7 +60,7 @@ from contactbench.problems.coarsen import (
     power_law_check,
 )
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.instances import QP, Geometry, OperatorKind, contact_mask
+from contactbench.problems.instances import QP, Geometry, OperatorKind, relative_contact_mask
 from contactbench.problems.surfaces import Surface
 
 from .base import (
@@ -297,7 +297,7 @@ def _coarse_level(ctx: SolveContext, s: int, surf: Surface, g: Geometry, base: S
     if idx.size:
         res = base.solve(coarse_qp(surf, g, idx, op_kind), base_settings(ctx), None)
         p = np.asarray(res.p, dtype=np.float64)
-    c = contact_mask(p)
+    c = relative_contact_mask(p)
     rec = _record(s, surf, idx_all.size, idx.size, time.perf_counter() - t, p, c, res)
     return LevelSolution(rec, grid_positions(surf, idx[c]))
 
@@ -337,7 +337,7 @@ def _fine_level(ctx: SolveContext, s: int, g: Geometry, base: Solver, prev: Leve
             break
         pos = np.union1d(pos, missed)
         warm = WarmStart(p=p_full[pos])  # a base that takes none is handed none by its lifecycle
-    rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, contact_mask(p_full), res)
+    rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, relative_contact_mask(p_full), res)
     return FineSolution(p_full, w, res, rec, rounds, matvecs)
 
 

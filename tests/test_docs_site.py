@@ -156,7 +156,7 @@ def test_the_schema_definitions_reach_the_glossary() -> None:
     defs = hook.schema_definitions()
     assert {"delta", "load", "contact_fraction", "kkt_error", "p_rel_error", "load_rel_error", "status",
             "verdict"} <= set(defs)
-    assert "1e-9 max(p)" in defs["contact_fraction"]
+    assert "check_tol x p_s" in defs["contact_fraction"]
     doc = "x\n\nDefinitions of the less obvious figures\n---\nload   first\n       second\nnoise  not a column\n\nload_rel_error  again\n"
     assert hook.schema_definitions(doc) == {"load": "first second", "load_rel_error": "again"}
     assert hook.schema_definitions("no such section") == {}

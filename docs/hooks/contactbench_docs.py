@@ -40,7 +40,7 @@ UNITS: dict[str, str] = {
     "skip_reason": "-", "build_time_s": "s", "solve_time_s": "s", "iterations": "count",
     "primal_residual": "1 (scaled)", "dual_residual": "1 (scaled)", "complementarity": "1 (scaled)",
     "kkt_error": "1 (scaled)", "load": "N", "load_rel_error": "1", "p_rel_error": "1",
-    "contact_fraction": "1", "peak_mem_mb": "MiB", "cell_id": "-", "base_solver": "-", "params": "JSON",
+    "contact_fraction": "1", "contact_uncertain": "1", "peak_mem_mb": "MiB", "cell_id": "-", "base_solver": "-", "params": "JSON",
     "family": "-", "solver_status": "-", "solver_converged": "-", "solver_message": "-",
     "correct_claim": "-", "check_tol": "1 (scaled)", "solve_time_min_s": "s", "solve_time_median_s": "s",
     "solver_internal_time_s": "s", "setup_time_s": "s", "matvecs": "count",
