@@ -510,7 +510,7 @@ __all__ = [
     "build_instance",
     "CONTACT_BAND",
     "CONTACT_TOL",
-    "contact_mask",
+    "relative_contact_mask",
     "counterexample",
     "flat_punch_load",
     "flat_punch_surface",

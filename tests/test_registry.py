@@ -8,7 +8,7 @@ import pytest
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import DenseOperator
 from contactbench.harness.profiles import PROFILES, get_profile
-from contactbench.solvers.base import Capabilities, Outcome, SolveContext, SolveResult, Solver, SolverSettings
+from contactbench.solvers.base import Capabilities, Outcome, SolveContext, Solver, SolverSettings
 from contactbench.solvers.registry import all_solvers, get_solver, load_solver, register, unregister
 
 

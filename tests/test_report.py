@@ -250,7 +250,7 @@ def test_counterexample_fractions_and_case(built: tuple[Path, str, pd.DataFrame]
     ce = df[(df["scene"] == "counterexample") & (df["solver"] == "greedy-cg")]
     v = ce[ce["n"] == 100]
     bad = int((v["status"] != "solved").sum())  # the judge's verdict, never a threshold of the section's own
-    assert f"| greedy-cg | " in text and f"({bad}/20: {bad} wrong)" in text
+    assert "| greedy-cg | " in text and f"({bad}/20: {bad} wrong)" in text
     assert "Never violating (as the paper proves for NNLS): `nnls`." in text
     assert "figures/counterexample-case-n100-s1-greedy-cg.png" in text
     assert (out / "figures" / "counterexample-case-n100-s1-greedy-cg.png").is_file()
