@@ -26,7 +26,6 @@ Writes OUT/cost-law.csv, OUT/cost-law.md and OUT/cost-law.png.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 import os
@@ -35,10 +34,11 @@ import resource
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from csv_rows import append_row, read_latest
 
 from contactbench.harness.isolation import set_parent_death_signal
 
@@ -152,27 +152,9 @@ def run_child(N: int, solver: str, args: argparse.Namespace) -> CostRow:
                    timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"))
 
 
-def append_row(path: Path, row: CostRow) -> None:
-    new = not path.exists()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=[f.name for f in fields(CostRow)])
-        if new:
-            w.writeheader()
-        w.writerow(asdict(row))
-
-
 def read_rows(path: Path) -> list[CostRow]:
     """The CSV's rows, the latest of each (solver, operator, threads, params, N)."""
-    types = {f.name: f.type for f in fields(CostRow)}
-    latest: dict[tuple, CostRow] = {}
-    with open(path, newline="") as fh:
-        for raw in csv.DictReader(fh):
-            conv = {k: (int(float(v)) if types[k] == "int" else float(v) if types[k] == "float" else v)
-                    for k, v in raw.items()}
-            row = CostRow(**conv)
-            latest[(row.solver, row.operator, row.threads, row.params, row.N)] = row
-    return sorted(latest.values(), key=lambda r: (r.solver, r.operator, r.threads, r.params, r.N))
+    return read_latest(path, CostRow, key=lambda r: (r.solver, r.operator, r.threads, r.params, r.N), order=lambda r: (r.solver, r.operator, r.threads, r.params, r.N))
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,6 @@ Usage:
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 import os
@@ -46,10 +45,11 @@ import subprocess
 import sys
 import time
 import warnings
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from csv_rows import append_row, read_latest
 
 FAMILIES = ("saupe", "periodic", "fourier", "measured")
 #: (Hurst exponent, rms slope) cells below 4096^2 ...
@@ -234,27 +234,9 @@ def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) ->
     return failed_row(m, variant, status, commit, int(args.threads or 0))
 
 
-def append_row(path: Path, row: PopulationRow) -> None:
-    new = not path.exists()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=[f.name for f in fields(PopulationRow)])
-        if new:
-            w.writeheader()
-        w.writerow(asdict(row))
-
-
 def read_rows(path: Path) -> list[PopulationRow]:
     """The CSV's rows, the latest of each (member, variant)."""
-    types = {f.name: f.type for f in fields(PopulationRow)}
-    latest: dict[tuple, PopulationRow] = {}
-    with open(path, newline="") as fh:
-        for raw in csv.DictReader(fh):
-            conv = {k: (int(float(v)) if types[k] == "int" else float(v) if types[k] == "float" else v)
-                    for k, v in raw.items()}
-            r = PopulationRow(**conv)
-            latest[(r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant)] = r
-    return sorted(latest.values(), key=lambda r: (r.N, r.family, r.hurst, r.seed, r.variant))
+    return read_latest(path, PopulationRow, key=lambda r: (r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant), order=lambda r: (r.N, r.family, r.hurst, r.seed, r.variant))
 
 
 @dataclass(frozen=True)

@@ -220,8 +220,10 @@ def measured_population_member() -> Surface:
 
 
 def population_script():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_surface_population.py"
-    spec = importlib.util.spec_from_file_location("bench_surface_population", path)
+    folder = Path(__file__).resolve().parents[1] / "benchmarks"
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))  # the script's sibling csv_rows, as when it runs
+    spec = importlib.util.spec_from_file_location("bench_surface_population", folder / "bench_surface_population.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)

@@ -1,0 +1,35 @@
+"""The benchmark scripts' CSV tables of dataclass rows: append one row, read the latest
+row of each key back as the dataclass (int and float fields converted)."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import asdict, fields
+from pathlib import Path
+from typing import Any, Callable, TypeVar
+
+Row = TypeVar("Row")
+
+
+def append_row(path: Path, row: Any) -> None:
+    """Append ``row`` (a dataclass) to the CSV at ``path``, with a header when it is new."""
+    new = not path.exists()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=[f.name for f in fields(row)])
+        if new:
+            w.writeheader()
+        w.writerow(asdict(row))
+
+
+def read_latest(path: Path, cls: type[Row], key: Callable[[Row], tuple], order: Callable[[Row], tuple]) -> list[Row]:
+    """The rows of ``path`` as ``cls``, the latest of each ``key``, sorted by ``order``."""
+    types = {f.name: f.type for f in fields(cls)}
+    latest: dict[tuple, Row] = {}
+    with open(path, newline="") as fh:
+        for raw in csv.DictReader(fh):
+            conv = {k: (int(float(v)) if types[k] == "int" else float(v) if types[k] == "float" else v)
+                    for k, v in raw.items()}
+            row = cls(**conv)
+            latest[key(row)] = row
+    return sorted(latest.values(), key=order)
