@@ -55,15 +55,14 @@ def sort_families(families: Iterable[str]) -> list[str]:
 
 
 def _shades(hue: float, sat: float, k: int) -> list[tuple[float, float, float]]:
-    """``k`` colours around one hue: the hue drifts across the family and the lightness
-    steps through three levels, so neighbours differ in both."""
+    """``k`` colours of one family's hue band: the hue drifts across the band (0.18 of the
+    circle, so the family still reads as one) and the lightness steps through three levels,
+    so neighbours differ in both."""
     out = []
     for i in range(k):
         frac = i / (k - 1) if k > 1 else 0.5
-        # three lightness levels in turn and a wide hue drift, so that solvers adjacent in
-        # name order differ in both
         light = (0.28, 0.52, 0.70)[i % 3] if k > 1 else 0.4
-        h = (hue + 0.40 * (frac - 0.5)) % 1.0
+        h = (hue + 0.18 * (frac - 0.5)) % 1.0
         out.append(colorsys.hls_to_rgb(h, light, sat))
     return out
 
