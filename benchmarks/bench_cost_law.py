@@ -1,4 +1,4 @@
-"""The honest cost law of the fast solvers (issue 18): matvecs and seconds of one cold
+"""The honest cost law of the fast solvers: matvecs and seconds of one cold
 top step of the paper-sweep scene against the grid size N, with fitted exponents.
 
 For each N and solver, one child process builds the paper-sweep scene's own surface
@@ -31,16 +31,14 @@ import math
 import os
 import platform
 import resource
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from csv_rows import append_row, read_latest
-
 from contactbench.harness.isolation import set_parent_death_signal
+from csv_rows import append_row, child_result, read_latest
 
 FAST_SOLVERS = ("fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "fast-pdas")
 DEFAULT_SIZES = (256, 512, 1024, 2048)
@@ -133,15 +131,9 @@ def run_child(N: int, solver: str, args: argparse.Namespace) -> CostRow:
     """The row of one solve in a child process; a "timeout"/"failed" row when it gives none."""
     cmd = [sys.executable, __file__, "--child", f"{N}:{solver}", "--steps", str(args.steps), "--operator",
            args.operator, "--timeout", str(args.timeout), "--params", args.params]
-    try:
-        proc = subprocess.run(cmd, env=child_env(args.threads), capture_output=True, text=True,
-                              timeout=args.timeout + KILL_MARGIN_S, check=False)
-        found = [ln[7:] for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
-        if found:
-            return CostRow(**json.loads(found[-1]))
-        status, detail = "failed", (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
-    except subprocess.TimeoutExpired:
-        status, detail = "timeout", f"killed after {args.timeout + KILL_MARGIN_S:.0f} s"
+    result, status, detail = child_result(cmd, child_env(args.threads), args.timeout + KILL_MARGIN_S)
+    if result is not None:
+        return CostRow(**result)
     print(f"  N={N} {solver}: {status}: {detail}", file=sys.stderr, flush=True)
     from contactbench.problems.operators import fft_workers
 
@@ -154,7 +146,8 @@ def run_child(N: int, solver: str, args: argparse.Namespace) -> CostRow:
 
 def read_rows(path: Path) -> list[CostRow]:
     """The CSV's rows, the latest of each (solver, operator, threads, params, N)."""
-    return read_latest(path, CostRow, key=lambda r: (r.solver, r.operator, r.threads, r.params, r.N), order=lambda r: (r.solver, r.operator, r.threads, r.params, r.N))
+    return read_latest(path, CostRow, key=lambda r: (r.solver, r.operator, r.threads, r.params, r.N),
+                       order=lambda r: (r.solver, r.operator, r.threads, r.params, r.N))
 
 
 @dataclass(frozen=True)
@@ -246,7 +239,12 @@ def write_figure(rows: list[CostRow], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import LogLocator, NullFormatter, NullLocator, ScalarFormatter
+    from matplotlib.ticker import (
+        LogLocator,
+        NullFormatter,
+        NullLocator,
+        ScalarFormatter,
+    )
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.4))
     fits = fits_of(rows)

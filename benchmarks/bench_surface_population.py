@@ -49,7 +49,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from csv_rows import append_row, read_latest
+from csv_rows import append_row, child_result, read_latest
 
 FAMILIES = ("saupe", "periodic", "fourier", "measured")
 #: (Hurst exponent, rms slope) cells below 4096^2 ...
@@ -221,22 +221,17 @@ def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) ->
     env = dict(os.environ)
     if args.threads:
         env.update({v: str(args.threads) for v in THREAD_VARS})
-    try:
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=args.timeout + KILL_MARGIN_S,
-                              check=False)
-        found = [ln[7:] for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
-        if found:
-            return PopulationRow(**json.loads(found[-1]))
-        status, detail = "failed", (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
-    except subprocess.TimeoutExpired:
-        status, detail = "timeout", f"killed after {args.timeout + KILL_MARGIN_S:.0f} s"
+    result, status, detail = child_result(cmd, env, args.timeout + KILL_MARGIN_S)
+    if result is not None:
+        return PopulationRow(**result)
     print(f"  {m.key} {variant}: {status}: {detail}", file=sys.stderr, flush=True)
     return failed_row(m, variant, status, commit, int(args.threads or 0))
 
 
 def read_rows(path: Path) -> list[PopulationRow]:
     """The CSV's rows, the latest of each (member, variant)."""
-    return read_latest(path, PopulationRow, key=lambda r: (r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant), order=lambda r: (r.N, r.family, r.hurst, r.seed, r.variant))
+    return read_latest(path, PopulationRow, key=lambda r: (r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant),
+                       order=lambda r: (r.N, r.family, r.hurst, r.seed, r.variant))
 
 
 @dataclass(frozen=True)

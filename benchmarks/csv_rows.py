@@ -1,14 +1,30 @@
-"""The benchmark scripts' CSV tables of dataclass rows: append one row, read the latest
-row of each key back as the dataclass (int and float fields converted)."""
+"""The benchmark scripts' rows: one solve's row from a child process that prints
+``RESULT <json>``, and the CSV tables of dataclass rows (append one row; read the latest row
+of each key back as the dataclass, int and float fields converted)."""
 
 from __future__ import annotations
 
 import csv
+import json
+import subprocess
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 Row = TypeVar("Row")
+
+
+def child_result(cmd: list[str], env: dict[str, str] | None, limit_s: float) -> tuple[dict[str, Any] | None, str, str]:
+    """Run ``cmd`` for at most ``limit_s`` seconds: (its last ``RESULT`` JSON, "", "") when it
+    printed one, else (None, "failed" | "timeout", the reason in one line)."""
+    try:
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=limit_s, check=False)
+    except subprocess.TimeoutExpired:
+        return None, "timeout", f"killed after {limit_s:.0f} s"
+    found = [ln[7:] for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+    if found:
+        return json.loads(found[-1]), "", ""
+    return None, "failed", (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
 
 
 def append_row(path: Path, row: Any) -> None:
