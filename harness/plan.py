@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
@@ -31,6 +30,7 @@ from contactbench.solvers.registry import (SolverSpec, all_solvers, available_so
                                            register, split_solver_list)
 
 from .profiles import get_profile
+from .schema import as_finite
 from .studies import SolverVariant, Study, expand
 
 
@@ -118,18 +118,9 @@ class StoredCell:
 
     @classmethod
     def of(cls, row: dict[str, Any]) -> "StoredCell":
-        n, t = _finite(row.get("n")), _finite(row.get("solve_time_s"))
+        n, t = as_finite(row.get("n")), as_finite(row.get("solve_time_s"))
         return cls(int(row["step"]), str(row["solver"]), str(row["profile"]), None if n is None else int(n),
                    str(row.get("status", "")), t)
-
-
-def _finite(value: Any) -> float | None:
-    """``value`` as a finite float, else None (a JSON null, NaN, a string)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 @dataclass(frozen=True)

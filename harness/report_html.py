@@ -26,7 +26,6 @@ from __future__ import annotations
 import base64
 import html
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -39,18 +38,11 @@ from .report_generic import profile_taus, reached_accuracy
 from .report_paper import k_of
 from .report_page_script import PAGE_SCRIPT
 from .report_style import sort_families
+from .schema import as_finite
 
 HTML_NAME = "report.html"
 #: Static figures embedded as images (they have no interactive twin on the page).
 EMBED_PREFIXES = ("field-", "counterexample-case-", "analytic-", "fig8-", "fig9-", "load-area")
-
-
-def _num(v: Any) -> float | None:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
 
 
 def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
@@ -59,11 +51,12 @@ def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
     warm = t.groupby(["scene", "solver", "profile", "history"])["warm_start"].transform("any").astype(bool)
     out = []
     for (_, r), w in zip(t.iterrows(), warm):
-        out.append(dict(sc=r["scene"], inst=r["instance"], st=_num(r["step"]), n=_num(r["n"]), so=r["solver"],
+        out.append(dict(sc=r["scene"], inst=r["instance"], st=as_finite(r["step"]), n=as_finite(r["n"]), so=r["solver"],
                         lab=f"{r['solver']}{WARM_SUFFIX}" if w else r["solver"], fa=ctx.family(r["solver"]),
-                        pr=r["profile"], stt=r["status"], kkt=_num(r["kkt_error"]), perr=_num(r["p_rel_error"]),
-                        lerr=_num(r["load_rel_error"]), t=_num(r["solve_time_s"]), it=_num(r["iterations"]),
-                        dl=_num(r["dim_load"]), cf=_num(r["contact_fraction"]), K=_num(k_of(r)),
+                        pr=r["profile"], stt=r["status"], kkt=as_finite(r["kkt_error"]),
+                        perr=as_finite(r["p_rel_error"]), lerr=as_finite(r["load_rel_error"]),
+                        t=as_finite(r["solve_time_s"]), it=as_finite(r["iterations"]),
+                        dl=as_finite(r["dim_load"]), cf=as_finite(r["contact_fraction"]), K=as_finite(k_of(r)),
                         base=r["base_solver"]))
     out.sort(key=lambda d: (d["sc"], natural_key(d["so"]), d["pr"], natural_key(d["inst"]), d["st"] or 0))
     return out
@@ -80,8 +73,8 @@ def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]
         acc = reached_accuracy(r)
         sgm[scene] = {"columns": ["solver", "family", "solved", "attempted", "success", "SGM [s]", "SGM / best",
                                   "median kkt (solved)", "false claims"],
-                      "rows": [[s.solver, ctx.family(s.solver), s.solved, s.attempted, _num(s.success_rate),
-                                _num(s.sgm_s), _num(s.sgm_rel), _num(acc.get(s.solver)), s.false_claims]
+                      "rows": [[s.solver, ctx.family(s.solver), s.solved, s.attempted, as_finite(s.success_rate),
+                                as_finite(s.sgm_s), as_finite(s.sgm_rel), as_finite(acc.get(s.solver)), s.false_claims]
                                for s in summ]}
         cells = agg.cell_table(r, solvers)
         if len(cells.solvers) >= 2 and cells.problems:

@@ -162,6 +162,15 @@ def as_text(v: Any) -> str:
     return "" if _missing(v) else str(v)
 
 
+def as_finite(v: Any) -> float | None:
+    """A table cell as a finite float, else None (a null, NaN, inf, or text that is no number)."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
 def as_bool(v: Any) -> Any:
     """True / False / <NA> from a bool, a number or CSV text ("True", "0", "yes", ...)."""
     if _missing(v):
