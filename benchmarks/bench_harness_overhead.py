@@ -30,10 +30,10 @@ import numpy as np
 
 from contactbench.problems.kkt import kkt_check
 from contactbench.harness.profiles import PROFILES
-from contactbench.harness.job import JobRunner
-from contactbench.harness.plan import RunConfig, plan_run
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.store import ResultStore, load_table
+from contactbench.harness.run.job import JobRunner
+from contactbench.harness.run.plan import RunConfig, plan_run
+from contactbench.harness.run.runner import run_benchmark
+from contactbench.harness.table.store import ResultStore, load_table
 from contactbench.problems.scenes import LoadSequence, SceneConfig, register_scene
 from contactbench.problems.scenes.core import PaperSweep
 from contactbench.solvers.base import SolverSettings

@@ -30,7 +30,7 @@ import numpy as np
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
-from .schema import VERDICTS as READINGS  # the table contract names the readings
+from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
 __all__ = ["READINGS", "ProblemSeal", "Verdict", "answer_figures", "judge", "read_answer"]
 

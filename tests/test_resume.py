@@ -21,11 +21,11 @@ try:  # the throw-away solvers (tests/ may or may not be a package)
     from tests.test_harness_solvers import ExactStub
 except ImportError:  # pragma: no cover
     from test_harness_solvers import ExactStub
-from contactbench.harness import worker
-from contactbench.harness.plan import RunConfig, StoredCell
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.skips import SkipPolicy
-from contactbench.harness.store import ROWS_FILE, load_table
+from contactbench.harness.run import worker
+from contactbench.harness.run.plan import RunConfig, StoredCell
+from contactbench.harness.run.runner import run_benchmark
+from contactbench.harness.run.skips import SkipPolicy
+from contactbench.harness.table.store import ROWS_FILE, load_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import Outcome, SolveContext, register
 from contactbench.solvers.base import ProblemTraits
