@@ -14,8 +14,10 @@ from ..table import aggregates as agg
 from ..table.files import write_text_atomic
 from .core import (
     REPORT_NAME,
+    PageChart,
     ReportContext,
     ReportInputError,
+    Section,
     SectionSpec,
     header_section,
     load_meta,
@@ -45,20 +47,30 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     doc = [header_section(ctx)]
     scenes = set(ctx.scenes())
     for group, heading in (("paper", "Paper reproductions (Bemporad & Paggi 2015)"), ("scenes", "Scene studies")):
-        rendered = [sec for sp in _in_order(sections, group) if sp.scene in scenes
+        rendered = [(sp, sec) for sp in _in_order(sections, group) if sp.scene in scenes
                     if (sec := sp.fn(ctx, ctx.rows(sp.scene))) is not None]
         if rendered:
             doc.append(f"## {heading}\n")
-            doc += [f"### {sec.title}\n\n{sec.body}" for sec in rendered]
+            doc += [f"### {sec.title}\n\n{sec.body}{charts_md(ctx, sp.scene, sec)}" for sp, sec in rendered]
     for sp in _in_order(sections, "summary"):
         sec = sp.fn(ctx, ctx.table)
         if sec is not None:
-            doc.append(f"## {sec.title}\n\n{sec.body}")
+            doc.append(f"## {sec.title}\n\n{sec.body}{charts_md(ctx, '', sec)}")
     path = out / REPORT_NAME
     write_text_atomic(path, "\n".join(d.rstrip() + "\n" for d in doc))
     if html:
         write_html_report(ctx)
     return path
+
+
+def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:
+    """Each of the section's charts as a PNG under its body, kept on the context for
+    report.html (under ``scene``)."""
+    parts = []
+    for chart in sec.charts:
+        ctx.charts.append(PageChart(scene, chart))
+        parts.append(ctx.figure_md(ctx.save_figure(chart.to_figure(), f"chart-{chart.name}"), chart.title))
+    return "\n" + "\n".join(parts) if parts else ""
 
 
 def _in_order(sections: dict[str, SectionSpec], group: str) -> list[SectionSpec]:

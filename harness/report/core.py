@@ -43,9 +43,11 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from contactbench.plugins import PluginRegistry
+from contactbench.problems.scenes import all_scenes
 
 from ..table import aggregates as agg
 from ..table.meta import commands_of
+from .charts import Chart
 from .style import DEFAULT_FAMILY, SolverStyles
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_text, bool_series
 from ..table.store import load_table
@@ -74,10 +76,21 @@ ReportInputError = TableError
 
 @dataclass
 class Section:
-    """A report section: a title (## heading) and its Markdown body."""
+    """A report section: a title (## heading), its Markdown body, and its charts
+    (harness/report/charts.py: drawn under the body in report.md and on report.html)."""
 
     title: str
     body: str
+    charts: Sequence[Chart] = ()
+
+
+@dataclass(frozen=True)
+class PageChart:
+    """A section's chart as report.html shows it: under its scene (or, for a summary
+    section, under no scene)."""
+
+    scene: str
+    chart: Chart
 
 
 @dataclass(frozen=True)
@@ -104,7 +117,9 @@ class ReportContext:
     meta: dict[str, Any]
     shift: float = agg.DEFAULT_SHIFT_S
     figures: list[str] = field(default_factory=list)
+    page_figures: list[str] = field(default_factory=list)
     tables: list[TableRecord] = field(default_factory=list)
+    charts: list[PageChart] = field(default_factory=list)
     _styles: SolverStyles | None = None
     _table_no: int = 0
     _fig_no: int = 0
@@ -136,13 +151,17 @@ class ReportContext:
     def family(self, solver: str) -> str:
         return self.styles.family(solver.removesuffix(WARM_SUFFIX))
 
-    def save_figure(self, fig: Figure, name: str) -> str:
-        """Write ``figures/<name>.png`` and return the Markdown-relative path."""
+    def save_figure(self, fig: Figure, name: str, on_page: bool = False) -> str:
+        """Write ``figures/<name>.png`` and return the Markdown-relative path;
+        ``on_page``: report.html shows it too, as an image (a figure with no interactive
+        twin on the page)."""
         self.fig_dir.mkdir(parents=True, exist_ok=True)
         fname = f"{slug(name)}.png"
         fig.savefig(self.fig_dir / fname, dpi=110, bbox_inches="tight", metadata={"Software": None})
         rel = f"{FIGURE_DIR}/{fname}"
         self.figures.append(rel)
+        if on_page:
+            self.page_figures.append(rel)
         return rel
 
     def figure_md(self, rel: str, caption: str) -> str:
@@ -201,8 +220,11 @@ def unregister_section(scene: str) -> None:
 
 
 def registered_sections() -> dict[str, SectionSpec]:
-    """All sections, after importing ``harness/report_*.py`` and the entry points of
-    group ``contactbench.report_sections``."""
+    """All sections, after importing harness/report/sections/ and the entry points of
+    group ``contactbench.report_sections`` -- and after the scene registry's discovery
+    (problems/scenes, entry points of group ``contactbench.scenes``): a scene module
+    that registers its section is read before the sections are."""
+    all_scenes()
     return _SECTIONS.all()
 
 

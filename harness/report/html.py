@@ -42,8 +42,6 @@ from ..table.files import write_text_atomic
 from ..table.schema import as_finite
 
 HTML_NAME = "report.html"
-#: Static figures embedded as images (they have no interactive twin on the page).
-EMBED_PREFIXES = ("field-", "counterexample-case-", "analytic-", "fig8-", "fig9-", "load-area")
 
 
 def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
@@ -108,11 +106,9 @@ def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:
 
 def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:
     out = []
-    for rel in ctx.figures:
-        name = Path(rel).name
-        if name.startswith(EMBED_PREFIXES):
-            data = base64.b64encode((ctx.out_dir / rel).read_bytes()).decode("ascii")
-            out.append({"name": name, "src": f"data:image/png;base64,{data}"})
+    for rel in ctx.page_figures:  # the figures a section saved with on_page=True
+        data = base64.b64encode((ctx.out_dir / rel).read_bytes()).decode("ascii")
+        out.append({"name": Path(rel).name, "src": f"data:image/png;base64,{data}"})
     return out
 
 
@@ -133,6 +129,7 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
         "traces": trace_data(ctx),
         "loadarea": load_area_data(ctx),
         "images": embedded_images(ctx),
+        "charts": [{"scene": pc.scene, **pc.chart.to_plotly()} for pc in ctx.charts],
     }
 
 

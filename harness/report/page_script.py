@@ -168,6 +168,7 @@ function build() {
     else if (scene === 'greedy-linear-solvers') addChart(grid, scene, lineChart(scene, 'Fig. 5: greedy solve time against n', 'n', 'trial-set size n', false));
     else if (scene.startsWith('cmr')) addChart(grid, scene, lineChart(scene, (scene === 'cmr' ? 'Fig. 8' : scene === 'cmr-h-sweep' ? 'Fig. 9' : scene) + ': CMR and direct solve time against load', 'dl', 'P/(E A) [-]', true));
     else if (scene === 'counterexample') addChart(grid, scene, counterexampleChart(scene));
+    D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
     if (has) {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));
       addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
@@ -185,6 +186,7 @@ function build() {
   field.className = 'scene'; field.dataset.scene = '';
   field.innerHTML = '<h2>The contact fields and convergence</h2>';
   const grid = document.createElement('div'); grid.className = 'grid'; field.appendChild(grid);
+  D.charts.filter(c => !c.scene).forEach(c => addChart(grid, '', () => [c.data, c.layout]));
   if (D.loadarea.length) addChart(grid, '', loadAreaChart());
   if (D.traces.solvers) { addChart(grid, '', traceChart(false)); addChart(grid, '', traceChart(true)); }
   D.images.forEach(im => { const f = document.createElement('figure');

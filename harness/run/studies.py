@@ -322,8 +322,21 @@ COMPOSITES: dict[str, Composite] = {c.name: c for c in (
 )}
 
 
+def register_study(study: Study, *, replace: bool = False) -> Study:
+    """Record how the harness runs ``study.scene`` (its solvers, profiles, reference and
+    sweeps) -- called by the scene's own module, beside ``@register_scene`` and its
+    report section, so a scene is declared in one place."""
+    old = STUDIES.get(study.scene)
+    if old is not None and old != study and not replace:
+        raise ValueError(f"a study of scene {study.scene!r} is already registered")
+    STUDIES[study.scene] = study
+    return study
+
+
 def study_for(name: str) -> Study:
-    """The study of scene ``name`` (``Study(name)`` for a scene with no record)."""
+    """The study of scene ``name`` (``Study(name)`` for a scene with no record).  The
+    scenes are discovered first: a scene module registers its study when imported."""
+    all_scenes()
     if name in STUDIES:
         return STUDIES[name]
     get_scene(name)

@@ -116,7 +116,7 @@ def fig8_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
             ax.grid(True, alpha=0.3)
     _ratio_axes(axes[0], tot["ratio"])
     _same_y(axes[1])
-    return ctx.save_figure(fig, f"fig8-cmr-{family or 'all'}")
+    return ctx.save_figure(fig, f"fig8-cmr-{family or 'all'}", on_page=True)
 
 
 def history_figure(ctx: ReportContext, pairs: pd.DataFrame, family: str) -> str:
@@ -162,7 +162,7 @@ def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
     _same_y(axes[0], bottom=0.0, top=1.0)
     _ratio_axes(axes[1], tot["ratio"])
     _same_y(axes[2])
-    return ctx.save_figure(fig, f"fig9-cmr-h-{family or 'all'}")
+    return ctx.save_figure(fig, f"fig9-cmr-h-{family or 'all'}", on_page=True)
 
 
 def coarsest_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
@@ -198,7 +198,7 @@ def _error_row(ctx: ReportContext, fig: Any, row: Any, name: str) -> str:
     """Legend on the last panel, one y-range for the row, and the saved figure's path."""
     row[-1].legend(fontsize=7, loc="lower right")
     _same_y(row)
-    return ctx.save_figure(fig, name)
+    return ctx.save_figure(fig, name, on_page=True)
 
 
 @register_section("cmr", title="Fig. 8: CMR against the direct solve", group="paper", order=50)

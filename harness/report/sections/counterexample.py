@@ -290,7 +290,7 @@ def _counterexample_case(ctx: ReportContext, cells: pd.DataFrame) -> str:
         a.grid(True, alpha=0.3)
         legend_outside(a)
     axs[0].set_title(f"counterexample {case.instance}, solver {case.solver}", fontsize=9)
-    rel = ctx.save_figure(fig, f"counterexample-case-{case.instance}-{case.solver}")
+    rel = ctx.save_figure(fig, f"counterexample-case-{case.instance}-{case.solver}", on_page=True)
     n_neg = int(neg.sum())
     dp = np.abs(case.p - case.p_ref)
     on, on_ref = case.p > case.contact_floor, case.p_ref > case.contact_floor

@@ -163,7 +163,7 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
     a3.set_ylabel("probability density  [1/" + ug + "]")
     a3.set_title(f"gap distribution, step {f.step} (out of contact)", fontsize=9)
     a3.grid(True, alpha=0.3)
-    rel = ctx.save_figure(fig, f"field-{f.scene}-{f.instance}-k{f.step}")
+    rel = ctx.save_figure(fig, f"field-{f.scene}-{f.instance}-k{f.step}", on_page=True)
     return ctx.figure_md(rel, f"the contact field of `{f.scene}` instance `{f.instance}` at step {f.step} (of "
                               f"{f.steps}; far-field displacement {fmt_num(f.far_field)} {f.unit}, P/(E* A0) = "
                               f"{fmt_num(f.dim_load)}, answer of `{f.solver}`): the surface heights; the contact area "
@@ -224,7 +224,7 @@ def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactF
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title("load-area curve", fontsize=9)
     legend_outside(ax)
-    rel = ctx.save_figure(fig, "load-area")
+    rel = ctx.save_figure(fig, "load-area", on_page=True)
     left = len(series) - len(shown)
     cap = ("the load-area curve: real contact area A/A0 against the dimensionless load P/(E* A0) per load step "
            "(median over the solved answers of the tightest profile); kappa = h'_rms x the slope through the "

@@ -564,7 +564,7 @@ def _analytic_section(ctx: ReportContext, rows: pd.DataFrame, scene: str) -> Sec
     ax.set_ylabel("|P - P_analytic| / P_analytic  [-]")
     ax.grid(True, which="both", alpha=0.3)
     legend_outside(ax, "solver")
-    rel = ctx.save_figure(fig, f"analytic-{scene}")
+    rel = ctx.save_figure(fig, f"analytic-{scene}", on_page=True)
     body = [ctx.figure_md(rel, f"{scene}: relative error of the total load against the closed form, over mesh "
                                f"refinement (the largest error over the load steps of each mesh).")]
     body.append(table_md(ctx, f"{scene}: finest-mesh load error and observed order (slope of log error "

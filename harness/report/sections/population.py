@@ -110,6 +110,7 @@ def kappa_table(table: pd.DataFrame, cfg: SceneConfig) -> pd.DataFrame:
     if missing:
         raise ValueError(f"{len(missing)} instance(s) are not in the population scene under the recorded "
                          f"configuration (e.g. {sorted(missing)[0]}); pass the SceneConfig the run used")
+    df = df.drop(columns=[c for c in ("hurst", "seed") if c in df.columns])  # (the recipe's own, below)
     df = df.merge(surf, on="instance", how="left")
     df["separation"] = [seps[int(k)] for seps, k in zip(df["separations"], df["step"])]
     df = df.drop(columns="separations")
