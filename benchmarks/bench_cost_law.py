@@ -85,8 +85,8 @@ def top_step(N: int, steps: int, operator: str):
 
 def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: float, params: dict) -> CostRow:
     """One cold solve, in this process (the child)."""
-    from contactbench.harness.profiles import get_profile
-    from contactbench.harness.run.sequence import solve_sequence
+    from contactbench.harness import get_profile
+    from contactbench.harness import solve_sequence
     from contactbench.problems.operators import fft_workers
     from contactbench.solvers.base import SolverSettings
 

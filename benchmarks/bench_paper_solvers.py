@@ -20,7 +20,7 @@ import argparse
 import time
 from dataclasses import dataclass, field
 
-from contactbench.harness.run.sequence import solve_sequence
+from contactbench.harness import solve_sequence
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings

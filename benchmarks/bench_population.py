@@ -30,8 +30,8 @@ from distributed import Client  # noqa: E402
 from contactbench.harness.cli import parse_seeds  # noqa: E402
 from contactbench.harness.run.distributed import run_benchmark_on_dask, start_local_cluster  # noqa: E402
 from contactbench.harness.report.sections.population import write_population_report  # noqa: E402
-from contactbench.harness.run.plan import RunConfig  # noqa: E402
-from contactbench.harness.table.store import load_table  # noqa: E402
+from contactbench.harness import RunConfig  # noqa: E402
+from contactbench.harness import load_table  # noqa: E402
 from contactbench.problems.scenes import SceneConfig  # noqa: E402
 
 SOLVER = "fast-ccg"

@@ -184,8 +184,8 @@ def code_commit() -> str:
 
 def solve_member(m: Member, variant: str, timeout: float, commit: str) -> PopulationRow:
     """One cold solve, in this process."""
-    from contactbench.harness.profiles import get_profile
-    from contactbench.harness.run.sequence import solve_sequence
+    from contactbench.harness import get_profile
+    from contactbench.harness import solve_sequence
     from contactbench.problems.operators import fft_workers
     from contactbench.solvers.base import SolverSettings
 

@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 
 from contactbench.harness.judge import ProblemSeal, judge
-from contactbench.harness.profiles import get_profile
+from contactbench.harness import get_profile
 from contactbench.harness.pytest_plugin import settle
 from contactbench.harness.run.skips import skip_decision
 from contactbench.harness.run.worker import problem_traits

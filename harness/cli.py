@@ -10,7 +10,7 @@
     contactbench validate ...       (every argument goes to harness/conformance/battery.py)
     contactbench --version
 
-``run`` plans first (``harness.plan``: every scene option, solver, profile and
+``run`` plans first (``harness.run.plan``: every scene option, solver, profile and
 reference name is checked before anything runs; bad input exits 2 with one line per
 problem and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
 DIR/results.parquet, DIR/results.csv and DIR/meta.json; running the same command

@@ -17,7 +17,7 @@ import pytest
 from contactbench.harness.conformance import battery as cf
 from contactbench.harness.conformance.command import main as validate_main
 from contactbench.harness.judge import ProblemSeal, judge
-from contactbench.harness.profiles import get_profile
+from contactbench.harness import get_profile
 from contactbench.harness.pytest_plugin import settle
 from contactbench.problems.instances import QP, counterexample
 from contactbench.problems.kkt import kkt_figures, scaled_kkt_error

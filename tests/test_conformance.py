@@ -9,7 +9,7 @@ import pytest
 
 from contactbench.harness.conformance import battery as cf
 from contactbench.harness.conformance.command import main as validate_main
-from contactbench.harness.profiles import get_profile
+from contactbench.harness import get_profile
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.lcp import exact_solution, exact_solution_on_subset
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver

@@ -25,7 +25,7 @@ from distributed import Client  # noqa: E402
 
 from contactbench.harness.run.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
 from contactbench.harness.run.plan import RunConfig, plan_run  # noqa: E402
-from contactbench.harness.run.runner import run_benchmark  # noqa: E402
+from contactbench.harness import run_benchmark  # noqa: E402
 from contactbench.harness.table.schema import STATUSES  # noqa: E402
 from contactbench.harness.table.store import ResultStore, load_table  # noqa: E402
 from contactbench.problems.instances import QP  # noqa: E402

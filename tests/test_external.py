@@ -22,9 +22,9 @@ except ImportError:  # pragma: no cover
     import test_harness_solvers  # noqa: F401
 from contactbench.harness.conformance import battery as cf
 from contactbench.harness.conformance.command import main as validate_main
-from contactbench.harness.run.plan import RunConfig
-from contactbench.harness.run.runner import run_benchmark
-from contactbench.harness.table.store import load_table
+from contactbench.harness import RunConfig
+from contactbench.harness import run_benchmark
+from contactbench.harness import load_table
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import counterexample
 from contactbench.problems.qpfile import (

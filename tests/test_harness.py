@@ -21,7 +21,7 @@ except ImportError:  # pragma: no cover
     import test_harness_solvers  # noqa: F401
 from contactbench.harness import cli
 from contactbench.harness.run.plan import PlanError, RunConfig, make_cell_id, plan_run
-from contactbench.harness.run.runner import run_benchmark
+from contactbench.harness import run_benchmark
 from contactbench.harness.run.sequence import map_by_grid_index
 from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
 from contactbench.harness.table.store import ROWS_FILE, ResultStore, load_table, read_journal
@@ -506,7 +506,7 @@ def test_run_and_validate_give_the_same_verdict_on_the_same_solve(tmp_path: Path
 
 
 def test_solve_sequence_warm_starts_by_grid_index_and_judges_each_step() -> None:
-    from contactbench.harness.run.sequence import solve_sequence
+    from contactbench.harness import solve_sequence
     from contactbench.problems.scenes import get_scene
 
     scene = get_scene("paper-sweep")

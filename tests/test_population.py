@@ -18,9 +18,9 @@ from contactbench.harness.report.sections.population import (
     write_population_report,
 )
 from contactbench.harness.table.meta import read_meta
-from contactbench.harness.run.plan import RunConfig
-from contactbench.harness.run.runner import run_benchmark
-from contactbench.harness.table.store import load_table
+from contactbench.harness import RunConfig
+from contactbench.harness import run_benchmark
+from contactbench.harness import load_table
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.problems.scenes.population import population_displacements, population_surface, separations_for

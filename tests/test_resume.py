@@ -23,7 +23,7 @@ except ImportError:  # pragma: no cover
     from test_harness_solvers import ExactStub
 from contactbench.harness.run import worker
 from contactbench.harness.run.plan import RunConfig, StoredCell
-from contactbench.harness.run.runner import run_benchmark
+from contactbench.harness import run_benchmark
 from contactbench.harness.run.skips import SkipPolicy
 from contactbench.harness.table.store import ROWS_FILE, load_table
 from contactbench.problems.scenes import SceneConfig

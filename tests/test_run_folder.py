@@ -23,7 +23,7 @@ from contactbench.harness import cli
 from contactbench.harness.table.meta import read_meta
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
 from contactbench.harness.report.core import ReportContext, header_section
-from contactbench.harness.run.runner import run_benchmark
+from contactbench.harness import run_benchmark
 from contactbench.harness.table.store import LOCK_FILE, MARKER_FILE, RunFolderError, RunLock, load_table
 from contactbench.problems.scenes import SceneConfig, get_scene
 

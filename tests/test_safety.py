@@ -21,7 +21,7 @@ import pytest
 from contactbench.harness import cli
 from contactbench.harness.table.meta import read_meta
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
-from contactbench.harness.run.runner import run_benchmark
+from contactbench.harness import run_benchmark
 from contactbench.harness.table.store import LOCK_FILE, FolderInUseError, RunLock, load_table, write_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.problems.surfaces import Surface, rmd_surface_n

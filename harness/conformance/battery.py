@@ -2,7 +2,7 @@
 
 ``contactbench validate MODULE:NAME|NAME`` (``main``) and the Python API ``validate``
 run a solver -- registered, or given by import path -- on every case of the battery
-(``harness.conformance_cases``: conditioning, units, edge cases, random LCPs, float32
+(``harness.conformance.cases``: conditioning, units, edge cases, random LCPs, float32
 input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids).
 Every answer is judged by the one judge, ``harness.judge.judge``, at the tolerance the
 solver promises (``Capabilities.promise``, docs/verdicts.md): "exact" -- the case's
@@ -47,7 +47,7 @@ docs/external-solvers.md): the cases its inputs do not allow are skipped, each w
 reason, and listed after the table ("left out").  An external program claims
 convergence with ``"status"`` "converged", "solved" or "optimal", or no status
 (``contactbench.solvers.external``).
-``--out DIR`` writes the conformance report (``harness.conformance_report``:
+``--out DIR`` writes the conformance report (``harness.conformance.report``:
 DIR/verdicts.csv and DIR/conformance.md); the exit status is the same.
 
 For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
@@ -75,8 +75,8 @@ from .cases import (
     REFUSABLE_GROUPS,
     ConformanceCase,
     Reference,
-    SolveOutcome,
-    SolveRunner,
+    CaseAnswer,
+    CaseRunner,
     cached_reference,
     conformance_cases,
     exact_reference,
@@ -161,7 +161,7 @@ def row_status(v: Verdict) -> str:
     return "WRONG" if v.reading == "wrong" else "unconverged"
 
 
-def judge_solve(out: SolveOutcome, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
+def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
                 step: int, solver: str, promise: Promise = "exact") -> VerdictRow:
     """The row of one solve: the judge's verdict at the promised tolerance (the case's
     check_tol, or the solver's floor above it), read as in the module doc."""
@@ -375,7 +375,7 @@ def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec] | None, mode: str)
     return [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
 
 
-def run_case(runner: SolveRunner, case: ConformanceCase, name: str, promise: Promise = "exact") -> list[VerdictRow]:
+def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Promise = "exact") -> list[VerdictRow]:
     """All verdict rows of one case (one per step, plus a comparison row)."""
     seq = build_battery_spec(case.spec)
     rows, ps, insts, refs = [], [], [], []
@@ -409,7 +409,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
         return table
     limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else timeout
     s.resolve_params(params)  # unknown or bad parameters: a ParamError before anything runs
-    runner = SolveRunner(s, limit, isolate=isolate, params=params)
+    runner = CaseRunner(s, limit, isolate=isolate, params=params)
     try:
         for case in _as_cases(cases, mode):
             new = run_case(runner, case, s.name, s.capabilities.promise)

@@ -8,11 +8,11 @@
   ``contactbench.problems.lcp.exact_solution_on_subset``), else
   ``contactbench.problems.lcp.exact_solution`` (NNLS on the Cholesky factor, polished by
   block principal pivoting), with cond(H);
-* ``SolveRunner`` -- one solver's solves, each in a forked worker
-  (``harness.isolation.IsolatedWorker``) with a hard wall-clock limit, so that a
+* ``CaseRunner`` -- one solver's solves, each in a forked worker
+  (``harness.run.isolation.ChildProcess``) with a hard wall-clock limit, so that a
   hanging solver cannot hang ``validate``.
 
-The verdicts are ``harness.conformance``'s business, through ``harness.judge``.
+The verdicts are ``harness.conformance.battery``'s business, through ``harness.judge``.
 """
 
 from __future__ import annotations
@@ -155,7 +155,7 @@ def cached_reference(spec: InstanceSpec, step: int, inst: ContactInstance) -> Re
 
 
 @dataclass
-class SolveOutcome:
+class CaseAnswer:
     """What one solve produced, as seen from the parent process.
 
     kind: "ok", "refused", "crashed", "timeout" or "skipped"; ``message`` is one line,
@@ -175,7 +175,7 @@ class SolveOutcome:
 
 def adapt_to_solver(inst: ContactInstance, solver: Solver) -> QP | str:
     """The QP in a form the solver accepts, or the reason it cannot take it: steps 2, 3
-    and 5 of ``harness.skips`` (max_n, operator kind, the solver's own ``skip``); the
+    and 5 of ``harness.run.skips`` (max_n, operator kind, the solver's own ``skip``); the
     battery applies no time model, so a solver cannot skip its way out of a case."""
     qp = inst.qp
     d = capability_decision(solver, problem_traits(inst), BATTERY_MEMORY_BUDGET)
@@ -231,9 +231,9 @@ class _SolverHandler:
         return solve_case(self.solver, msg)
 
 
-class SolveRunner:
+class CaseRunner:
     """Runs the solves of one solver with a hard time limit: in a forked worker
-    (``harness.isolation``) when ``isolate``, else in-process (no limit)."""
+    (``harness.run.isolation``) when ``isolate``, else in-process (no limit)."""
 
     def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
                  params: dict[str, Any] | None = None) -> None:
@@ -241,20 +241,20 @@ class SolveRunner:
         self.params = dict(params or {})
         self.worker: Any = None
         if isolate:
-            from contactbench.harness.run.isolation import IsolatedWorker
+            from contactbench.harness.run.isolation import ChildProcess
 
-            self.worker = IsolatedWorker(lambda: _SolverHandler(solver))
+            self.worker = ChildProcess(lambda: _SolverHandler(solver))
 
-    def solve(self, spec: InstanceSpec, step: int) -> SolveOutcome:
+    def solve(self, spec: InstanceSpec, step: int) -> CaseAnswer:
         msg = (spec, step, self.timeout, self.params)
         if self.worker is None:
-            return SolveOutcome(**solve_case(self.solver, msg))
+            return CaseAnswer(**solve_case(self.solver, msg))
         out = self.worker.call(msg, None if self.timeout is None else
                                self.timeout + KILL_GRACE[0] + KILL_GRACE[1] * self.timeout)
         if out.kind == "ok":
-            return SolveOutcome(**out.value)
+            return CaseAnswer(**out.value)
         kind = "timeout" if out.kind == "timeout" else "crashed"
-        return SolveOutcome(kind, message=str(out.detail).strip().splitlines()[0] if out.detail else kind,
+        return CaseAnswer(kind, message=str(out.detail).strip().splitlines()[0] if out.detail else kind,
                             detail=str(out.detail), time_s=out.elapsed)
 
     def close(self) -> None:

@@ -1,6 +1,6 @@
 """The conformance report of ``contactbench validate ... --out DIR``.
 
-Two files, from the verdict tables of ``harness.conformance`` (nothing is re-judged):
+Two files, from the verdict tables of ``harness.conformance.battery`` (nothing is re-judged):
 
 ``verdicts.csv``      every verdict row (one per solve, plus the comparison rows), with
                       the solver's outcome and the exact reference's time;

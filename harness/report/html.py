@@ -1,15 +1,11 @@
 """``report.html``: the interactive page beside report.md -- one self-contained file that
 opens offline (plotly.js and the page's own script inlined).
 
-Why Plotly.  Measured on this machine: the inlined plotly.js is 4.8 MB, Bokeh's full
-inline bundle 3.9 MB (about 2 MB for core + widgets + tables), and Vega-Lite needs
-either a CDN or the vl-convert binary to inline its scripts.  Bokeh would save about
-2.5 MB, but every cross-figure filter (solver picker, family toggles, scene and profile
-filters acting on every chart at once) would need one CustomJS callback per model; with
-Plotly the page keeps one data table and redraws each chart with ``Plotly.react`` from
-a few lines of plain JavaScript, hover templates and log axes are built in, and the
-results/paper page renders in well under the 3 s budget (docs/report.md has the
-numbers).  The Python ``plotly`` package is used only for ``get_plotlyjs()``.
+Why Plotly: every cross-figure filter (solver picker, family toggles, scene and profile
+filters acting on every chart at once) is one data table redrawn with ``Plotly.react``
+from a few lines of plain JavaScript; hover templates and log axes are built in.  The
+Python ``plotly`` package is used only for ``get_plotlyjs()`` (the inlined script; the
+size and render-time comparison with Bokeh and Vega-Lite is in docs/report.md).
 
 The page holds the table's attempted rows (instance, step, n, kkt_error, p error,
 load error, time, iterations, status for the hover) and draws from them, for every

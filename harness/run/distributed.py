@@ -8,8 +8,8 @@ allowed-failures`` times) is the retry mechanism.
 
 Unit of work.  One task = one ``InstanceJob`` of harness/run/plan.py (all the missing
 cells of one instance: its load steps x solver variants x profiles x repeats), run on
-the worker by the same ``harness.job.JobRunner`` as every executor
-(``harness.executors``) -- so a Dask worker does exactly what a local run does: builds
+the worker by the same ``harness.run.job.JobDriver`` as every executor
+(``harness.run.executors``) -- so a Dask worker does exactly what a local run does: builds
 the instance *on the worker* from its picklable ``InstanceSpec`` recipe (a seed, never
 an operator or a surface), isolates every solve in a child process with a hard time
 limit, judges every answer (``harness.judge``), warm-starts along the load history.
@@ -56,7 +56,7 @@ from contactbench.problems.scenes import SceneConfig
 
 from .executors import Progress
 from .isolation import limit_threads
-from .job import JobRunner
+from .job import JobDriver
 from .plan import InstanceJob, RunConfig, job_cell_ids
 from .runner import RunSummary, run_benchmark
 from ..table.store import ResultStore, encode_row
@@ -193,7 +193,7 @@ def run_job_on_worker(job: InstanceJob, run: RunConfig, statuses: dict[str, str]
         if stream is not None:
             stream(row)
 
-    JobRunner(job, run, statuses, worker_cache_dir(shared_out), sink).run()
+    JobDriver(job, run, statuses, worker_cache_dir(shared_out), sink).run()
     return JobResult(job.spec.instance, rows, socket.gethostname(), os.getpid(), time.perf_counter() - t0)
 
 
@@ -261,8 +261,8 @@ def lost_job_rows(job: InstanceJob, run: RunConfig, statuses: dict[str, str], st
                   why: str) -> list[dict[str, Any]]:
     """Rows marking every missing cell of a job that never came back (``crashed`` when
     its worker died too often, ``failed`` when the task raised), built by the job's own
-    row factory (``harness.rows``) so they carry the full schema."""
-    runner = JobRunner(job, run, statuses, Path(tempfile.gettempdir()), lambda row: None)
+    row factory (``harness.run.rows``) so they carry the full schema."""
+    runner = JobDriver(job, run, statuses, Path(tempfile.gettempdir()), lambda row: None)
     rows = []
     for k in range(job.steps_hint):
         for v, prof, reps in runner.missing(k):
@@ -385,7 +385,7 @@ def job_rows(fut: Any, job: InstanceJob, run: RunConfig, store: ResultStore, rep
 
 @dataclass
 class DaskExecutor:
-    """The executor (``harness.executors``) that sends jobs to a Dask scheduler: an
+    """The executor (``harness.run.executors``) that sends jobs to a Dask scheduler: an
     address (tcp://host:8786) or a ``distributed.Client``.  ``solver_specs`` are the
     ``module:NAME`` solvers each worker must load."""
 

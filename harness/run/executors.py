@@ -1,7 +1,7 @@
 """Executors: where a plan's instance jobs run.
 
 An executor takes the jobs with missing cells and makes their rows reach the store.
-Every executor runs a job the same way -- ``harness.job.JobRunner``: the instance is
+Every executor runs a job the same way -- ``harness.run.job.JobDriver``: the instance is
 built from its picklable recipe where the job runs, each solve is isolated with a hard
 time limit and judged by the harness -- so the same cells give the same rows wherever
 they run.
@@ -9,7 +9,7 @@ they run.
 * ``SerialExecutor``  -- one job after another in this process (``--jobs 1``);
 * ``PoolExecutor``    -- a local ``concurrent.futures`` process pool (``--jobs J``); each
                          pool process appends to the same journal (flock + fsync);
-* ``harness.distributed.DaskExecutor`` -- a Dask cluster (``--scheduler ADDRESS``).
+* ``harness.run.distributed.DaskExecutor`` -- a Dask cluster (``--scheduler ADDRESS``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
 from .isolation import set_parent_death_signal
-from .job import JobRunner, run_instance_job
+from .job import JobDriver, run_instance_job
 from .plan import InstanceJob, RunConfig
 from ..table.store import ResultStore
 
@@ -64,7 +64,7 @@ class SerialExecutor:
 
         for job in jobs:
             n_before = len(store)
-            JobRunner(job, run, statuses, store.cache_dir, sink).run()
+            JobDriver(job, run, statuses, store.cache_dir, sink).run()
             if verbose:
                 log.info("%s/%s: %d rows", job.spec.scene, job.spec.instance, len(store) - n_before)
 

@@ -4,9 +4,9 @@ A solver runs inside a child process that the harness (the parent) can kill.  Th
 parent sends one message at a time over a pipe and waits at most ``timeout`` seconds
 for the answer; then
 
-* an answer            -> ``Outcome(kind="ok")`` (or ``"error"`` if the handler raised),
-* no answer in time    -> the child is killed (SIGKILL) -> ``Outcome(kind="timeout")``,
-* the child died       -> ``Outcome(kind="crashed")`` with its signal / exit code
+* an answer            -> ``ChildReply(kind="ok")`` (or ``"error"`` if the handler raised),
+* no answer in time    -> the child is killed (SIGKILL) -> ``ChildReply(kind="timeout")``,
+* the child died       -> ``ChildReply(kind="crashed")`` with its signal / exit code
   (a segfault or ``os.abort`` in a solver costs only the message that caused it).
 
 The worker is restarted lazily on the next call, with a fresh handler (all worker
@@ -39,14 +39,14 @@ from typing import Any, Callable, Literal
 
 Handler = Callable[[Any], Any]
 HandlerFactory = Callable[[], Handler]
-OutcomeKind = Literal["ok", "error", "timeout", "crashed"]
+ChildReplyKind = Literal["ok", "error", "timeout", "crashed"]
 
 
 @dataclass
-class Outcome:
+class ChildReply:
     """What came back from one message: the handler's value, or why nothing did."""
 
-    kind: OutcomeKind
+    kind: ChildReplyKind
     value: Any = None
     elapsed: float = 0.0
     detail: str = ""
@@ -121,7 +121,7 @@ def describe_exit(exitcode: int | None) -> str:
     return f"worker exited with code {exitcode}"
 
 
-class IsolatedWorker:
+class ChildProcess:
     """One child process running ``factory()``'s handler on each message sent to it."""
 
     def __init__(self, factory: HandlerFactory, threads: int | None = None, start_method: str | None = None) -> None:
@@ -150,7 +150,7 @@ class IsolatedWorker:
             self.kill()
             self.start()
 
-    def call(self, message: Any, timeout: float | None) -> Outcome:
+    def call(self, message: Any, timeout: float | None) -> ChildReply:
         """Send ``message``; wait at most ``timeout`` s (None: forever) for the reply."""
         self.ensure_started()
         assert self.conn is not None
@@ -162,24 +162,24 @@ class IsolatedWorker:
         if not self.conn.poll(timeout):
             elapsed = time.perf_counter() - t0
             self.kill()
-            return Outcome("timeout", elapsed=elapsed, detail=f"no answer within the hard limit of {timeout:.3g} s; worker killed")
+            return ChildReply("timeout", elapsed=elapsed, detail=f"no answer within the hard limit of {timeout:.3g} s; worker killed")
         try:
             kind, value = self.conn.recv()
         except (EOFError, OSError):
             return self._crashed(t0)
         elapsed = time.perf_counter() - t0
         if kind == "error":
-            return Outcome("error", elapsed=elapsed, detail=str(value))
-        return Outcome("ok", value=value, elapsed=elapsed)
+            return ChildReply("error", elapsed=elapsed, detail=str(value))
+        return ChildReply("ok", value=value, elapsed=elapsed)
 
-    def _crashed(self, t0: float) -> Outcome:
+    def _crashed(self, t0: float) -> ChildReply:
         elapsed = time.perf_counter() - t0
         code = None
         if self.proc is not None:
             self.proc.join(5.0)
             code = self.proc.exitcode
         self.kill()
-        return Outcome("crashed", elapsed=elapsed, detail=describe_exit(code))
+        return ChildReply("crashed", elapsed=elapsed, detail=describe_exit(code))
 
     def kill(self) -> None:
         """Stop the child at once (SIGKILL) and release the pipe."""
@@ -201,7 +201,7 @@ class IsolatedWorker:
                 pass
         self.kill()
 
-    def __enter__(self) -> "IsolatedWorker":
+    def __enter__(self) -> "ChildProcess":
         return self
 
     def __exit__(self, *exc: Any) -> None:

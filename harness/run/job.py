@@ -1,11 +1,11 @@
 """One job: the missing cells of one instance, run in an isolated worker.
 
-``JobRunner`` drives one long-lived isolated worker process (``harness.isolation``)
-whose handler (``harness.worker.InstanceWorker``) builds the instance's
+``JobDriver`` drives one long-lived isolated worker process (``harness.run.isolation``)
+whose handler (``harness.run.worker.SolveServer``) builds the instance's
 ``LoadSequence`` once from its recipe and the steps in order.  For each step it
 
 1. builds the step in the worker (build time measured there);
-2. decides for each variant whether to run it or skip it (``harness.skips``: the
+2. decides for each variant whether to run it or skip it (``harness.run.skips``: the
    solver's availability, capabilities, memory and time models, its own
    ``skip(traits)``, and the rows of the earlier steps of the same (variant, profile)
    sequence -- stored ones included, so a resumed job decides as an uninterrupted one);
@@ -16,7 +16,7 @@ whose handler (``harness.worker.InstanceWorker``) builds the instance's
    (its group is solved first and its answer serves, if the judge finds it solved to
    ``REFERENCE_MAX_KKT`` and to the tightest profile of the step -- no second solve;
    rows name it ``label@profile`` in ``reference_solver``); else by running the study's
-   reference candidates in order (``harness.studies``); a reference that fails its own
+   reference candidates in order (``harness.run.studies``); a reference that fails its own
    check is not used;
 5. runs each (variant, profile): an untimed warm-up solve the first time the worker
    meets the variant -- dropped when the solve is predicted to take longer than
@@ -25,10 +25,10 @@ whose handler (``harness.worker.InstanceWorker``) builds the instance's
    killing the worker; every answer is judged by ``harness.judge.judge``.
 
 Warm starts: along a load history each solver starts from its own previous-step answer
-(``harness.sequence``) when its capabilities allow and the run asks; after a worker
+(``harness.run.sequence``) when its capabilities allow and the run asks; after a worker
 restart (or on resume) the previous step is re-solved, untimed, to recover it.
 
-Every row goes through ``harness.rows.RowFactory`` and then to ``sink``.
+Every row goes through ``harness.run.rows.RowFactory`` and then to ``sink``.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from typing import Any, Callable
 from contactbench.solvers._kit import matvec_seconds
 from contactbench.solvers.registry import load_solver
 
-from .isolation import IsolatedWorker, Outcome
+from .isolation import ChildProcess, ChildReply
 from .plan import InstanceJob, RunConfig
 from ..profiles import get_profile
 from .rows import RowFactory, answer_columns
@@ -58,7 +58,7 @@ from .worker import (
     AssembleDense,
     BuildStep,
     ComputeReference,
-    InstanceWorker,
+    SolveServer,
     ReferenceReply,
     Regenerate,
     Solve,
@@ -93,9 +93,10 @@ class StepContext:
         return self.info.operator == "dense"
 
 
-class JobRunner:
-    """Runs the missing cells of one ``InstanceJob`` in an isolated worker and hands
-    each finished row to ``sink``."""
+class JobDriver:
+    """Drives one ``InstanceJob`` from the parent process: sends the missing cells'
+    solves to an isolated child (``ChildProcess``, whose handler is worker.py's
+    ``SolveServer``), serves reference answers, and hands each finished row to ``sink``."""
 
     def __init__(self, job: InstanceJob, run: RunConfig, statuses: dict[str, str], cache_dir: Path,
                  sink: Callable[[dict[str, Any]], None]) -> None:
@@ -108,7 +109,7 @@ class JobRunner:
         self.policy = SkipPolicy(run.timeout, run.memory_budget)
         for cell in job.stored:  # a resumed job: the stored rows count as if seen live
             self.policy.note((cell.label, cell.profile), cell.step, cell.n, cell.status, cell.seconds)
-        self.worker = IsolatedWorker(partial(InstanceWorker, job.spec, run.memory_budget), threads=run.worker_threads())
+        self.worker = ChildProcess(partial(SolveServer, job.spec, run.memory_budget), threads=run.worker_threads())
         self.warmed: set[tuple[int, str]] = set()
         self.warm_have: set[tuple[int, str, str, int]] = set()  # (generation, label, profile, step) held by the worker
         self._step_error = ""
@@ -318,7 +319,7 @@ class JobRunner:
 
     def predicted_seconds(self, ctx: StepContext, v: SolverVariant, profile: str, operator: str) -> float:
         """The predicted time of this solve: extrapolated from the variant's own finished
-        steps (``harness.skips``), else the solver's time model, else at least
+        steps (``harness.run.skips``), else the solver's time model, else at least
         ``MIN_PREDICTED_MATVECS`` products with H."""
         n = ctx.info.n
         seen = self.policy.observations((v.name, profile), ctx.k) if self.job.load_history else []
@@ -330,7 +331,7 @@ class JobRunner:
             t = None
         return float(t) if t is not None else MIN_PREDICTED_MATVECS * matvec_seconds(n, operator)
 
-    def timed_solve(self, ctx: StepContext, task: SolveTask, v: SolverVariant) -> tuple[Outcome, str]:
+    def timed_solve(self, ctx: StepContext, task: SolveTask, v: SolverVariant) -> tuple[ChildReply, str]:
         """The untimed warm-up (first time this worker meets the variant, unless the solve
         is predicted to be big), then the solve.  Returns (outcome, note on the warm-up)."""
         deadline = self.run_cfg.timeout * 1.1 + 1.0  # the limit plus room for the KKT check and the pipe
@@ -417,5 +418,5 @@ def run_instance_job(job: InstanceJob, run: RunConfig, out_dir: str | os.PathLik
         known, job = {c: str(r.get("status", "")) for c, r in stored.items()}, job.with_stored(stored, run)
     else:
         known = statuses
-    JobRunner(job, run, known, store.cache_dir, write).run()
+    JobDriver(job, run, known, store.cache_dir, write).run()
     return count

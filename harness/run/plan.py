@@ -1,9 +1,9 @@
 """The plan: scene names and options -> picklable instance jobs, validated up front.
 
-``plan_run`` expands each scene name through its study (``harness.studies``: solvers,
+``plan_run`` expands each scene name through its study (``harness.run.studies``: solvers,
 sweeps, profiles, reference) into ``InstanceJob`` records -- a scene's ``InstanceSpec``
 recipe plus the variants and profiles to run on it.  A job is independent of every other
-job, so an executor (``harness.executors``) may run jobs anywhere.
+job, so an executor (``harness.run.executors``) may run jobs anywhere.
 
 Planning refuses bad input before anything runs: a plan too big to run (more cells than
 ``RunConfig.max_cells``, or an instance whose memory estimate exceeds the memory budget:
@@ -54,7 +54,7 @@ class RunConfig:
     warm              : warm-start along load histories where the solver supports it.
     warmup            : one untimed solve the first time a worker meets a variant, unless
                         the solve is predicted to take longer than ``warmup_limit``
-                        seconds (harness.job: a big solve is paid once).
+                        seconds (harness.run.job: a big solve is paid once).
     jobs              : instance jobs run concurrently (process pool).
     reference         : "auto", "none" or a solver name.
     reference_timeout : limit for one reference solve (None: 5 x timeout).
@@ -108,7 +108,7 @@ class RunConfig:
 @dataclass(frozen=True)
 class StoredCell:
     """What a resumed job reads back of one stored row of its own cells: the columns the
-    skip policy (``harness.skips.SkipPolicy``) reads of a row."""
+    skip policy (``harness.run.skips.SkipPolicy``) reads of a row."""
 
     step: int
     label: str

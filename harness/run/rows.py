@@ -1,4 +1,4 @@
-"""The one place a table row is built (column meanings: ``harness.schema``).
+"""The one place a table row is built (column meanings: ``harness.table.schema``).
 
 ``RowFactory.row`` gives every row its identity (scene, instance, step, variant,
 profile, repeat, cell_id, ...) and the step's facts (n, delta, E, kernel, ...);
@@ -19,7 +19,7 @@ from ..table.files import canonical_json
 from ..table.meta import now_iso
 from .plan import InstanceJob, RunConfig, make_cell_id
 from ..profiles import get_profile
-from ..table.schema import ALL_COLUMNS
+from ..table.schema import ALL_COLUMNS, HISTORIES
 from .studies import SolverVariant
 from .worker import SolveReply, StepInfo
 
@@ -84,7 +84,7 @@ class RowFactory:
             periodic=info.periodic if info else None, reference_solver=reference_solver,
             analytic_load=info.analytic.get("load") if info else None, build_time_s=build_time_s,
             host=self.host, timestamp=now_iso(), cell_id=self.cell_id(k, v, profile, r),
-            history="warm" if self.run.warm else "cold", **instance_columns(spec.params),
+            history=HISTORIES[0] if self.run.warm else HISTORIES[1], **instance_columns(spec.params),
         )
         row.update(values)
         return row

@@ -2,23 +2,23 @@
 
 ``run_benchmark`` is the one path of a run, whatever executes it:
 
-1. plan (``harness.plan.plan_run``): scene names -> instance jobs through their studies
-   (``harness.studies``), every input validated and the plan's size bounded
+1. plan (``harness.run.plan.plan_run``): scene names -> instance jobs through their studies
+   (``harness.run.studies``), every input validated and the plan's size bounded
    (``--max-cells``, ``--memory-budget-gb``) before anything runs;
-2. check the results folder (``harness.store.check_run_folder``: a new folder, or one
+2. check the results folder (``harness.table.store.check_run_folder``: a new folder, or one
    that records this run's configuration, ``run_identity``, or ``append``), still
-   touching nothing; then take its lock (``harness.store.RunLock``), write the marker,
-   open the store and write meta.json (``harness.meta``);
-3. hand the jobs with missing cells to an executor (``harness.executors``: serial, a
-   process pool, or Dask in ``harness.distributed``); each job is run by
-   ``harness.job.JobRunner``: skip policy (``harness.skips``), isolated worker
-   (``harness.worker``), judge (``harness.judge``), one row per cell (``harness.rows``);
+   touching nothing; then take its lock (``harness.table.store.RunLock``), write the marker,
+   open the store and write meta.json (``harness.table.meta``);
+3. hand the jobs with missing cells to an executor (``harness.run.executors``: serial, a
+   process pool, or Dask in ``harness.run.distributed``); each job is run by
+   ``harness.run.job.JobDriver``: skip policy (``harness.run.skips``), isolated worker
+   (``harness.run.worker``), judge (``harness.judge``), one row per cell (``harness.run.rows``);
 4. write the tidy table.
 
 Rows are appended to the store as they finish; rerunning the same command runs only the
 cells whose ``cell_id`` is missing.  Each job carries the stored rows of its own cells
 (``InstanceJob.with_stored``), so its skip decisions on resume are those of an
-uninterrupted run (``harness.skips.SkipPolicy``).  Stored skips are kept, not decided
+uninterrupted run (``harness.run.skips.SkipPolicy``).  Stored skips are kept, not decided
 again: a skip of step k depends only on the rows of steps < k of its sequence, which a
 job writes before it (the journal is append-only, and an interruption or a torn last
 line loses a suffix of each job's rows only), and on the configuration, which the

@@ -4,7 +4,7 @@ Along a load history each solver starts from its *own* previous-step answer, map
 grid index (``Geometry.indices``) onto the new trial set: a point present in both keeps
 its value, a point new to the trial set starts at 0; w is mapped too for solvers whose
 ``capabilities.warm_start`` is "primal-dual".  This module is the one place that
-mapping lives: the runner's worker (``harness.worker``) and ``solve_sequence`` -- which
+mapping lives: the runner's worker (``harness.run.worker``) and ``solve_sequence`` -- which
 the benchmark scripts call for their load loops -- both use it.
 """
 

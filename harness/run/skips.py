@@ -165,7 +165,7 @@ class SkipPolicy:
     The decision for step k is a function of the plan (limits, traits) and of the rows of
     steps < k of the same (variant, profile) sequence only -- whether those rows were
     produced by this process (``note``) or read back from the journal on resume
-    (``note`` too, via ``harness.job``) -- never of the order in which cells finished:
+    (``note`` too, via ``harness.run.job``) -- never of the order in which cells finished:
 
     * a timeout at step j < k with n_j <= n_k skips step k ("timed out at step j");
     * else the last two earlier steps with an answer (solved or inaccurate; one

@@ -20,7 +20,7 @@ scene with its own options.  A scene with no record here gets ``Study(name)``: e
 available solver (or the user's list), profile ``default``, the harness's reference.
 
 The variants built here are named exactly as before this module existed (labels, base
-names and parameters feed ``harness.plan.make_cell_id``), so stored runs resume -- except
+names and parameters feed ``harness.run.plan.make_cell_id``), so stored runs resume -- except
 the CMR variants, which were renamed on purpose (both bases, the coarse reading and
 the first level are in their parameters and labels).
 """

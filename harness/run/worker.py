@@ -1,7 +1,7 @@
 """The worker side of a job: typed messages and the handler that lives in the isolated
-process (``harness.isolation.IsolatedWorker``).
+process (``harness.run.isolation.ChildProcess``).
 
-The parent (``harness.runner.JobRunner``) sends one message at a time:
+The parent (``harness.run.job.JobDriver``) sends one message at a time:
 
 ``BuildStep(k)``        build step k of the instance (the ``LoadSequence`` is built once
                         from its recipe) -> ``StepInfo``;
@@ -14,8 +14,8 @@ The parent (``harness.runner.JobRunner``) sends one message at a time:
                         warm start after a worker restart or on resume -> bool.
 
 Warm starts are kept here, per (variant label, profile, step), as ``WarmState`` and
-mapped by ``harness.sequence.warm_start_from``.  The table row is built by the parent
-(``harness.rows``) from the reply.
+mapped by ``harness.run.sequence.warm_start_from``.  The table row is built by the parent
+(``harness.run.rows``) from the reply.
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ class SolveTask:
     record_warm: bool = True
     arrays_path: str | None = None  # where a wrong answer on a small instance is kept for the report
     reference_out: str | None = None  # keep this answer as the step's reference here when it passes
-    reference_max_kkt: float = REFERENCE_MAX_KKT  # ... with a scaled KKT error at most this (harness.job)
+    reference_max_kkt: float = REFERENCE_MAX_KKT  # ... with a scaled KKT error at most this (harness.run.job)
 
 
 @dataclass(frozen=True)
@@ -214,7 +214,7 @@ def solver_settings(task: SolveTask) -> SolverSettings:
                           params=copy.deepcopy(task.params))
 
 
-class InstanceWorker:
+class SolveServer:
     """Message handler living in the isolated worker: builds the instance from its
     recipe once, steps in order, the dense H once per step, and runs solves."""
 

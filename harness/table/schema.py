@@ -42,6 +42,9 @@ STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skip
 #: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``
 #: besides "" (not judged).
 VERDICTS: Final = ("pass", "wrong", "unconverged")
+#: The kinds of run a row belongs to (column ``history``): warm starts along the load
+#: history (the default), or every step from a cold start (``--cold``).
+HISTORIES: Final = ("warm", "cold")
 DTYPES: Final = ("string", "Int64", "boolean", "float64")
 #: What identifies a cell: one solve of one step by one solver variant at one profile,
 #: in one kind of run (``history``: warm starts along the load history, or ``--cold``).
@@ -128,7 +131,7 @@ _EXTRA = _columns(
     ("trace", "string", "JSON list of [iteration, elapsed_s, residual], possibly thinned"),
     ("host", "string", "machine that ran the solve"),
     ("timestamp", "string", "when the row was written"),
-    ("history", "string", "'warm': warm starts along load histories (default); 'cold': --cold"),
+    ("history", "string", "one of HISTORIES: 'warm', warm starts along load histories (default); 'cold': --cold"),
     ("verdict", "string", "the judge's reading: pass / wrong / unconverged; '' when not judged"),
     ("warmup", "string", "'' (an untimed warm-up ran first, or --no-warmup) or why it was dropped "
                          "(a big solve: the timed solve includes one-time costs)"),

@@ -4,7 +4,7 @@
   judge's verdicts (column ``verdict``) on the rows of the ``stress`` scenes of the table.
 * ``write_stress_report``: reads what ``benchmarks/bench_stress.py`` writes into a results
   directory (``conditioning.csv``, ``survival-fast.csv`` and/or ``survival-full.csv`` -- the
-  verdict rows of ``harness.conformance``), renders survival table, cond(H) vs n and
+  verdict rows of ``harness.conformance.battery``), renders survival table, cond(H) vs n and
   unit-scaling table, and saves them as ``README.md`` beside the tables, plus
   ``survival_matrix-<mode>.csv`` (case x solver).
 """
