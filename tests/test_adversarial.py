@@ -26,9 +26,10 @@ from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 from contactbench.solvers.base import check_promise
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.helpers import REPO
 
 HERE = __name__
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 CASE = "random/spd-n30-s0*"  # one small dense LCP of the battery (n = 30, one step)
 TOL = get_profile("mid").check_tol
 

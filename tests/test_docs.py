@@ -15,10 +15,11 @@ from typing import Any
 import pytest
 
 from contactbench.solvers import unregister
+from tests.helpers import REPO, TESTS
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 DOC = ROOT / "docs" / "adding-a-solver.md"
-EXAMPLE = Path(__file__).with_name("example_solver.py")
+EXAMPLE = TESTS / "example_solver.py"
 
 
 def blocks(lang: str) -> list[str]:

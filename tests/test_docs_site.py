@@ -30,8 +30,8 @@ import nbformat
 import pandas as pd
 import pytest
 from nbclient import NotebookClient
+from tests.helpers import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / "docs"
 NOTEBOOK = DOCS / "tutorial.ipynb"
 HOOK = DOCS / "hooks" / "contactbench_docs.py"

@@ -33,8 +33,8 @@ from contactbench.problems.units import (
 )
 from contactbench.solvers import Outcome, SolveContext, register, unregister
 from contactbench.solvers.registry import get_solver
+from tests.helpers import REPO
 
-REPO = Path(__file__).resolve().parent.parent
 
 
 def child_env(*paths: Path, **extra: str) -> dict[str, str]:
