@@ -36,7 +36,6 @@ from contactbench.solvers.registry import get_solver
 from tests.helpers import REPO
 
 
-
 def child_env(*paths: Path, **extra: str) -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([*map(str, paths), str(REPO), env.get("PYTHONPATH", "")])
