@@ -30,6 +30,7 @@ import nbformat
 import pandas as pd
 import pytest
 from nbclient import NotebookClient
+
 from tests.helpers import REPO
 
 DOCS = REPO / "docs"
