@@ -332,6 +332,7 @@ def shell_commands() -> list[tuple[str, int]]:
     return [(m.group(1).strip(), int(m.group(2))) for m in re.finditer(r"^\$ (.+?)\s+# exit (\d)$", text, re.MULTILINE)]
 
 
+@pytest.mark.slow
 def test_docs_verdicts_shell_commands_run_with_their_exit_status() -> None:
     commands = shell_commands()
     assert len(commands) >= 3

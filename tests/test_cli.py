@@ -360,6 +360,7 @@ def test_a_run_whose_every_row_was_skipped_exits_1(capsys: pytest.CaptureFixture
     assert "no row could be judged" in line and "takes no problem at all" in line
 
 
+@pytest.mark.slow
 def test_allow_any_modulus_takes_an_implausible_one(capsys: pytest.CaptureFixture[str], in_tmp: Path) -> None:
     # the scaled KKT error is unit-free: PK solves the problem at E = 1e-300 Pa all the same
     rc, _, err = cli(["run", "paper-sweep", *TINY, "--E", "1e-300", "--allow-any-E", "--solvers", "pk",

@@ -68,6 +68,7 @@ def test_the_doc_shows_every_documented_command() -> None:
         assert any(must in c for c in cmds), must
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cmd", [command_param(c) for c in shell_commands()])
 def test_every_shell_command_of_the_doc_runs(cmd: str, outside: Path) -> None:
     res = contactbench(shlex.split(cmd)[1:], outside)

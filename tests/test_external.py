@@ -288,6 +288,7 @@ def test_the_process_group_is_killed_at_the_time_limit(tmp_path: Path) -> None:
     assert not stat.exists() or stat.read_text().split()[2] == "Z"  # the grandchild is gone too
 
 
+@pytest.mark.slow
 def test_misbehaving_programs_cost_only_their_own_rows(tmp_path: Path) -> None:
     variants = ("sleep", "segv", "fail", "short", "nan", "clip")
     entries = [{"name": f"ext-{v}", "command": script_command("--variant", v)} for v in variants]

@@ -204,6 +204,7 @@ def cli_env() -> dict[str, str]:
     return env
 
 
+@pytest.mark.slow
 def test_sigkill_mid_run_then_rerun_gives_exactly_the_full_table(tmp_path: Path) -> None:
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "contactbench.harness.cli", "run", "counterexample", "--size", "3", "--seeds", "0-5",

@@ -363,6 +363,7 @@ def test_a_summary_section_is_rendered_for_every_table(tmp_path: Path) -> None:
         text.index("## Skips and failures")
 
 
+@pytest.mark.slow
 def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
     df = fabricate_table()
     stress = df[(df["scene"] == "hertz") & df["solver"].isin(["nnls", "pk"])].assign(scene="stress-edge")
@@ -380,6 +381,7 @@ def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
         .read_text()
 
 
+@pytest.mark.slow
 def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_path: Path,
                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """33 solvers in six families (one registered from outside with family "other"): every

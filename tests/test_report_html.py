@@ -80,6 +80,7 @@ def test_panels_hold_at_most_ten_series_and_cover_every_solver() -> None:
     assert family_panels(solvers[:10], fam.get) [0].solvers == tuple(solvers[:10])
 
 
+@pytest.mark.slow
 def test_the_page_renders_in_headless_chromium(page: tuple[Path, pd.DataFrame], tmp_path: Path) -> None:
     why = browser_missing()
     if why:
