@@ -24,7 +24,7 @@ bench: $(STAMP)
 	$(VENV)/bin/contactbench run default --out results/default
 	$(VENV)/bin/contactbench report results/default
 
-# Debian's chromium and chromium-driver for the report's browser test (tests/test_report_html.py);
+# Debian's chromium and chromium-driver for the report's browser test (tests/harness/test_report_html.py);
 # installed only where it is missing, apt-get exists and we are root -- elsewhere the test skips
 # and says why.
 setup-browser:

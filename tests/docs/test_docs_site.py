@@ -38,7 +38,7 @@ NOTEBOOK = DOCS / "tutorial.ipynb"
 HOOK = DOCS / "hooks" / "contactbench_docs.py"
 #: Pages whose python blocks are checked but not run here, and why.
 NOT_RUN = {
-    "adding-a-solver.md": "its blocks are tests/example_solver.py and a pytest file, run by tests/test_docs.py",
+    "adding-a-solver.md": "its blocks are tests/example_solver.py and a pytest file, run by tests/docs/test_docs.py",
     "distributed.md": "its blocks start a SLURM or local Dask cluster",
 }
 #: The modules whose public functions and classes inline code may name.

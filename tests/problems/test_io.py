@@ -1,5 +1,5 @@
 """problems.io: readers round-trip each format, bad files get clear errors, cleaning
-rules.  (Coarsening and the PSD power-law check: tests/test_problems_coarsen.py.)"""
+rules.  (Coarsening and the PSD power-law check: tests/problems/test_problems_coarsen.py.)"""
 
 from __future__ import annotations
 
