@@ -6,11 +6,11 @@ It runs, as one harness run into one folder,
     contactbench run cmr-paper --out results/cmr --jobs 2 --threads 1 --report --no-progress
 
 and prints the wall time against ``BUDGET_S``.  The study design is the composite
-``cmr-paper`` of ``contactbench.harness.studies``: the scenes ``cmr`` and ``cmr-h-sweep``
+``cmr-paper`` of ``contactbench.harness.run.studies``: the scenes ``cmr`` and ``cmr-h-sweep``
 at 256^2 with the FFT base ``fast-dual-pccg`` and CMR over it (coarse = subsample and
 mean, h = 2 and the h grid, first levels 16 / 32 / 64), and at 128^2 with the paper's
 dense base ``scipy-nnls`` and CMR over it; 20 seeds each.  The tables and figures are the
-report's sections (harness/report_cmr.py): results/cmr holds results.parquet / results.csv
+report's sections (harness/report/sections/cmr.py): results/cmr holds results.parquet / results.csv
 (every solve), meta.json, report.md, report.html and figures/.
 
 Run:  OMP_NUM_THREADS=1 python benchmarks/bench_cmr.py [--seeds 0-19] [--jobs 2]
@@ -31,7 +31,7 @@ from typing import Sequence
 
 from contactbench.harness.cli import main as contactbench
 
-#: Section 5 as distributions over seeds: the composite of harness/studies.py.
+#: Section 5 as distributions over seeds: the composite of harness/run/studies.py.
 SCENES = ("cmr-paper",)
 #: The benchmark budget of both scenes at 20 seeds on the 2-core benchmark machine, s.
 BUDGET_S = 30 * 60

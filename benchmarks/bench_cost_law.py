@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contactbench.harness.isolation import set_parent_death_signal
+from contactbench.harness.run.isolation import set_parent_death_signal
 from csv_rows import append_row, child_result, read_latest
 
 FAST_SOLVERS = ("fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "fast-pdas")
@@ -86,8 +86,8 @@ def top_step(N: int, steps: int, operator: str):
 
 def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: float, params: dict) -> CostRow:
     """One cold solve, in this process (the child)."""
-    from contactbench.harness.profiles import get_profile
-    from contactbench.harness.sequence import solve_sequence
+    from contactbench.harness import get_profile
+    from contactbench.harness import solve_sequence
     from contactbench.problems.operators import fft_workers
     from contactbench.solvers.base import SolverSettings
 

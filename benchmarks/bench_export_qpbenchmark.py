@@ -97,7 +97,7 @@ def qpbenchmark_objectives(test_set) -> pd.DataFrame:
 
 
 def run_harness(out: Path, sizes: list[int], steps: int) -> pd.DataFrame:
-    from contactbench.harness.schema import load_table
+    from contactbench.harness import load_table
 
     solvers = ",".join(f"qp-{s}" for s in SOLVERS)
     tables = []

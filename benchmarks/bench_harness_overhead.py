@@ -5,7 +5,7 @@
 The instance is the top load step of the paper-sweep surface at N = 256.
 
 * bare    : in this process, one warm-up solve, then ``repeats`` timed ``solver.solve`` calls.
-* harness : the runner on the same instance (``harness.job.JobRunner``: a forked isolated worker that
+* harness : the runner on the same instance (``harness.job.JobDriver``: a forked isolated worker that
             builds the instance, an untimed warm-up, ``repeats`` timed solves each followed
             by the KKT check, the reference/analytic comparison and a fsync'ed row).
 
@@ -30,10 +30,10 @@ import numpy as np
 
 from contactbench.problems.kkt import kkt_check
 from contactbench.harness.profiles import PROFILES
-from contactbench.harness.job import JobRunner
-from contactbench.harness.plan import RunConfig, plan_run
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.store import ResultStore, load_table
+from contactbench.harness.run.job import JobDriver
+from contactbench.harness.run.plan import RunConfig, plan_run
+from contactbench.harness import run_benchmark
+from contactbench.harness.table.store import ResultStore, load_table
 from contactbench.problems.scenes import LoadSequence, SceneConfig, register_scene
 from contactbench.problems.scenes.core import PaperSweep
 from contactbench.solvers.base import SolverSettings
@@ -83,7 +83,7 @@ def main() -> None:
         job = plan_run([scene.name], cfg, [args.solver], run).jobs[0]
         store = ResultStore(tmp)
         t0 = time.perf_counter()
-        JobRunner(job, run, {}, store.cache_dir, store.append).run()
+        JobDriver(job, run, {}, store.cache_dir, store.append).run()
         t_job = time.perf_counter() - t0
         table = store.finalize()
         with tempfile.TemporaryDirectory() as tmp2:

@@ -39,8 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from contactbench.harness.isolation import set_parent_death_signal
-from contactbench.harness.sequence import solve_sequence
+from contactbench.harness.run.isolation import set_parent_death_signal
+from contactbench.harness import solve_sequence
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import fft_backend, fft_workers
 from contactbench.problems.surfaces import rmd_surface_n

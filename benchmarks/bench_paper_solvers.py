@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass, field
 
-from contactbench.harness.sequence import solve_sequence
+from contactbench.harness import solve_sequence
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, load_ramp, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings

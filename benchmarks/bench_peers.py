@@ -13,7 +13,7 @@ no BCC kernel (docs/peers.md):
 
 Each case runs once per thread count (``--threads 1,2``, passed to ``contactbench run
 --threads``: the worker sets OMP/OpenBLAS/MKL thread limits and our ducc0 FFT workers,
-``CONTACTBENCH_FFT_WORKERS``; harness/isolation.py ``limit_threads``), into
+``CONTACTBENCH_FFT_WORKERS``; harness/run/isolation.py ``limit_threads``), into
 OUT/t<threads>/<case>.  The summary (printed, and written to
 OUT/summary.md) gives per solver: total solve time over the steps, steps solved, the
 ratio of its time to ContactMechanics' dual CCG in the same run (ours/CM), the largest
@@ -85,7 +85,7 @@ def run_case(case: Case, threads: int, args: argparse.Namespace) -> Path:
 
 def solver_totals(out: Path, ours: str) -> list[SolverTotals]:
     """Per solver of the run in ``out``: totals, peak memory and load agreement with ``ours``."""
-    from contactbench.harness.schema import load_table
+    from contactbench.harness import load_table
 
     t = load_table(out)
     t = t[t["status"] != "skipped"]

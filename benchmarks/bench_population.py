@@ -5,7 +5,7 @@ speedup : a population of --surfaces RMD surfaces (default 200) at --size (defau
           (1 thread each); prints and writes the wall-clock speed-up.
 kappa   : the ``population`` scene at H = 0.5, 0.7, 0.9 (--seeds, --size) run on a
           LocalCluster, then the kappa = A E* h'_rms / P estimate with its confidence
-          intervals written to results/population/ (harness/report_population.py).
+          intervals written to results/population/ (harness/report/sections/population.py).
 
     .venv/bin/python benchmarks/bench_population.py speedup --surfaces 200 --size 128
     .venv/bin/python benchmarks/bench_population.py kappa --seeds 0-49 --size 64 --out results/population
@@ -28,10 +28,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CONT
 from distributed import Client  # noqa: E402
 
 from contactbench.harness.cli import parse_seeds  # noqa: E402
-from contactbench.harness.distributed import run_benchmark_on_dask, start_local_cluster  # noqa: E402
-from contactbench.harness.report_population import write_population_report  # noqa: E402
-from contactbench.harness.plan import RunConfig  # noqa: E402
-from contactbench.harness.store import load_table  # noqa: E402
+from contactbench.harness.run.distributed import run_benchmark_on_dask, start_local_cluster  # noqa: E402
+from contactbench.harness.report.sections.population import write_population_report  # noqa: E402
+from contactbench.harness import RunConfig  # noqa: E402
+from contactbench.harness import load_table  # noqa: E402
 from contactbench.problems.scenes import SceneConfig  # noqa: E402
 
 SOLVER = "fast-ccg"

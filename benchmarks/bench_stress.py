@@ -47,7 +47,7 @@ def run_cond(out: Path, sizes: list[int], densities: list[float], tag: str = "")
 
 
 def run_survival(out: Path, mode: str, timeout: float, solvers: list[str] | None) -> None:
-    from contactbench.harness.conformance import conformance_cases, validate
+    from contactbench.harness.conformance.battery import conformance_cases, validate
     from contactbench.solvers.registry import available_solvers
 
     names = solvers or list(available_solvers())
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     elif a.what == "survival":
         run_survival(out, a.mode, a.timeout, a.solvers.split(",") if a.solvers else None)
     else:
-        from contactbench.harness.report_stress import write_stress_report
+        from contactbench.harness.report.sections.stress import write_stress_report
 
         print(write_stress_report(out))
     return 0

@@ -184,8 +184,8 @@ def code_commit() -> str:
 
 def solve_member(m: Member, variant: str, timeout: float, commit: str) -> PopulationRow:
     """One cold solve, in this process."""
-    from contactbench.harness.profiles import get_profile
-    from contactbench.harness.sequence import solve_sequence
+    from contactbench.harness import get_profile
+    from contactbench.harness import solve_sequence
     from contactbench.problems.operators import fft_workers
     from contactbench.solvers.base import SolverSettings
 
@@ -362,7 +362,7 @@ def main() -> None:
     ap.add_argument("--commit", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        from contactbench.harness.isolation import set_parent_death_signal
+        from contactbench.harness.run.isolation import set_parent_death_signal
 
         set_parent_death_signal()  # a killed run takes its solve with it
         key, variant = args.child.split("@")

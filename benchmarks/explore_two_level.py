@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 import scipy.linalg as sla
 
-from contactbench.harness.sequence import solve_sequence
+from contactbench.harness import solve_sequence
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers._preconditioners import IslandPreconditioner

@@ -30,10 +30,10 @@ import numpy as np
 import pytest
 
 from contactbench.harness.judge import ProblemSeal, judge
-from contactbench.harness.profiles import get_profile
+from contactbench.harness import get_profile
 from contactbench.harness.pytest_plugin import settle
-from contactbench.harness.skips import skip_decision
-from contactbench.harness.worker import problem_traits
+from contactbench.harness.run.skips import skip_decision
+from contactbench.harness.run.worker import problem_traits
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, counterexample
 from contactbench.problems.scenes import SceneConfig, get_scene

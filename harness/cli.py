@@ -7,10 +7,10 @@
                      [--jobs J] [--cold] ...
     contactbench export SCENE [scene options of run] --format problem-dir|hdf5|qpbenchmark --out DIR
     contactbench report DIR
-    contactbench validate ...       (every argument goes to harness/conformance.py)
+    contactbench validate ...       (every argument goes to harness/conformance/battery.py)
     contactbench --version
 
-``run`` plans first (``harness.plan``: every scene option, solver, profile and
+``run`` plans first (``harness.run.plan``: every scene option, solver, profile and
 reference name is checked before anything runs; bad input exits 2 with one line per
 problem and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
 DIR/results.parquet, DIR/results.csv and DIR/meta.json; running the same command
@@ -230,7 +230,7 @@ def cmd_list(what: str, params: bool = False) -> int:
     if what == "scenes":
         from contactbench.problems.scenes import scene_import_errors
 
-        from .studies import catalogue
+        from .run.studies import catalogue
 
         for name, description in catalogue().items():
             print(f"{name:24s} {description}")
@@ -323,7 +323,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
 
 def scene_names(name: str) -> list[str]:
     """The scenes a run name stands for: a composite's parts, else the name itself."""
-    from .studies import COMPOSITES
+    from .run.studies import COMPOSITES
 
     if name in COMPOSITES:
         return [part.study.scene for part in COMPOSITES[name].parts]
@@ -383,7 +383,7 @@ def check_out_dir(path: str, option: str = "--out") -> Path:
 
 
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    from .runner import RunConfig, run_benchmark
+    from .run.runner import RunConfig, run_benchmark
 
     check_solver_list(args.solvers)
     cfg = scene_config(args)
@@ -399,9 +399,9 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
                         progress=False if args.no_progress else None, **kw)
     out = args.out or "results/" + "-".join(args.scenes)
     check_out_dir(out)
-    # run_benchmark plans, checks the folder, then holds its lock (harness/store.py) while it writes
+    # run_benchmark plans, checks the folder, then holds its lock (harness/table/store.py) while it writes
     if args.scheduler:
-        from .distributed import run_benchmark_on_dask
+        from .run.distributed import run_benchmark_on_dask
 
         summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
                                         command=["contactbench", *argv], append=args.append)
@@ -425,7 +425,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
 def common_reason(out: str) -> str:
     """"; most common reason: ..." -- the first line of the commonest ``error`` or
     ``skip_reason`` of the table in ``out`` -- or "" when there is none."""
-    from .schema import load_table
+    from .table.store import load_table
 
     table = load_table(out)
     reasons = [str(v).strip().splitlines()[0][:200] for col in ("error", "skip_reason") if col in table
@@ -453,35 +453,23 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_report(out_dir: str) -> int:
     if not Path(out_dir).is_dir():
         raise InputError(f"report {out_dir}: no such folder (give the --out folder of a run)")
-    try:
-        from . import report
-    except ImportError as exc:
-        if "contactbench.harness.report" in str(exc) or "report" in str(getattr(exc, "name", "")):
-            print("contactbench report: the report module (harness/report.py) is not installed in this checkout; "
-                  f"the tidy table is in {out_dir}/results.parquet", file=sys.stderr)
-            return 2
-        raise
-    path = report.build_report(out_dir)
+    from .report import build_report
+
+    path = build_report(out_dir)
     if path is not None:
         print(f"report: {path}")
     return 0
 
 
 def cmd_validate(args: Sequence[str]) -> int:
-    try:
-        from . import conformance
-    except ImportError as exc:
-        if "conformance" in str(exc):
-            print("contactbench validate: the conformance battery (harness/conformance.py) is not in this checkout",
-                  file=sys.stderr)
-            return 2
-        raise
-    return int(conformance.main(list(args)) or 0)
+    from .conformance.command import main as validate_main
+
+    return int(validate_main(list(args)) or 0)
 
 
 def forwarded_validate(argv: list[str]) -> list[str] | None:
     """The arguments after ``validate`` when it is the command (they belong to
-    harness/conformance.py, options included), else None."""
+    harness/conformance/command.py, options included), else None."""
     for i, a in enumerate(argv):
         if a == "validate":
             return argv[i + 1:]

@@ -30,7 +30,7 @@ import numpy as np
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
-from .schema import VERDICTS as READINGS  # the table contract names the readings
+from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
 __all__ = ["READINGS", "ProblemSeal", "Verdict", "answer_figures", "judge", "read_answer"]
 
@@ -184,7 +184,7 @@ def _failed(claimed: bool, why: str, reading: str | None = None) -> Verdict:
 def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: np.ndarray | None,
                    analytic_load: float | None, check_tol: float = CONTACT_TOL) -> dict[str, Any]:
     """The table's figures of an answer: KKT figures, load, contact fraction and the
-    errors against the reference / closed form (column names of ``harness.schema``).
+    errors against the reference / closed form (column names of ``harness.table.schema``).
     The contact fraction and its flag ``contact_uncertain`` are read at the judge's
     ``check_tol`` (``ContactInstance.contact_mask``: p_i > check_tol x p_s)."""
     load = inst.load(p)

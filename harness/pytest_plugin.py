@@ -69,9 +69,9 @@ def contact_instance() -> Callable[..., Any]:
 @pytest.fixture
 def run_harness(tmp_path: Any) -> Callable[..., Any]:
     def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
-        from contactbench.harness.plan import RunConfig
-        from contactbench.harness.runner import run_benchmark
-        from contactbench.harness.store import RunLock, load_table
+        from contactbench.harness.run.plan import RunConfig
+        from contactbench.harness.run.runner import run_benchmark
+        from contactbench.harness.table.store import RunLock, load_table
         from contactbench.problems.scenes import SceneConfig
 
         scene_keys = {"size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator", "extra"}
@@ -90,6 +90,6 @@ def contactbench_conformance() -> Callable[..., Any]:
     """``contactbench_conformance(solver)`` runs the conformance battery (fast subset) on a
     solver (instance, registry name or ``module:NAME``) and fails the test on a wrong
     answer claimed as converged.  See docs/adding-a-solver.md."""
-    from contactbench.harness.conformance import assert_conforms
+    from contactbench.harness.conformance.battery import assert_conforms
 
     return assert_conforms

@@ -22,7 +22,7 @@ import pandas as pd
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
-from contactbench.harness.schema import ALL_COLUMNS
+from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
@@ -247,6 +247,7 @@ def fabricate_table(seed: int = 0) -> pd.DataFrame:
             for s, f in SWEEP_FACTORS.items():
                 t = f * 2e-3 * (n / 1000) ** 1.3
                 kw: dict[str, Any] = dict(scene="paper-sweep", instance="rmd-H0.7-N64-s0", step=k, n=n, N=64,
+                                          surface_family="rmd", hurst=0.7, seed=0,
                                           delta=1e-7 * (k + 1), solver=s, profile=prof, check_tol=tol,
                                           solve_time_s=t, dim_load=dim_load, load=dim_load * 1e-8,
                                           warm_start=(k > 0 and s in ("pk", "nnls-gp", "fast-pdas")),
@@ -272,6 +273,7 @@ def fabricate_table(seed: int = 0) -> pd.DataFrame:
             n = 400 * (k + 1)
             t = (1e-3 * (n / 400)) * (1 + 3 * max(0.0, 1 - K / 100) ** 2) + 2e-6 * K * (n / 400)
             rows.append(report_row(scene="gp-k-sweep", instance="rmd-H0.7-N64-s0", step=k, n=n, N=64,
+                                   surface_family="rmd",
                              solver=f"nnls-gp[K={K}]", base_solver="nnls-gp", params=json.dumps({"K": K}),
                              solve_time_s=t, dim_load=1e-4 * 3 ** k, warm_start=k > 0))
     # counterexample: greedy-cg violates with the independent implementation's rates;
@@ -307,7 +309,7 @@ def fabricate_table(seed: int = 0) -> pd.DataFrame:
     return df
 
 
-# the shape harness/meta.py writes
+# the shape harness/table/meta.py writes
 META = {"suite": "synthetic", "date": "2025-01-01T00:00:00+00:00", "command": ["contactbench", "run", "all"],
         "git": {"commit": "0123abc", "dirty": False},
         "machine": {"host": "h", "platform": "Linux", "python": "3.11", "cpu": "Synthetic CPU 9000",

@@ -2,9 +2,9 @@
 
 * The column glossary: ``docs/columns.md`` holds the marker ``GLOSSARY_MARKER``; the
   build replaces it by ``glossary_markdown()``, one row per column of
-  ``contactbench.harness.schema.COLUMNS`` (name, dtype, meaning from the schema, the
+  ``contactbench.harness.table.schema.COLUMNS`` (name, dtype, meaning from the schema, the
   longer definition from the schema's module doc where it gives one) plus its unit from
-  ``UNITS`` -- the one home of the units.  Meanings live only in harness/schema.py.
+  ``UNITS`` -- the one home of the units.  Meanings live only in harness/table/schema.py.
 * The API sources: mkdocstrings reads the code statically from ``API_SOURCES``, where
   ``stage_api_sources`` links the installed layout (``contactbench/`` with the floors
   ``problems/``, ``solvers/``, ``harness/`` inside it, as pyproject.toml's package-dir maps
@@ -23,10 +23,10 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from contactbench.harness import schema
+from contactbench.harness.table import schema
 
 REPO = Path(__file__).resolve().parents[2]
-GLOSSARY_MARKER = "<!-- glossary: generated from harness/schema.py -->"
+GLOSSARY_MARKER = "<!-- glossary: generated from harness/table/schema.py -->"
 FIGURE_RUNS: tuple[str, ...] = ("default", "cmr")
 FIGURE_URL = "report-figures"
 API_SOURCES = REPO / "build" / "docs-api"  # mkdocs.yml: mkdocstrings' ``paths``

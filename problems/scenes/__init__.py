@@ -5,45 +5,23 @@ each recipe builds a ``LoadSequence`` (one instance per load step) wherever it r
 so workers rebuild instances from seeds instead of receiving them.
 
 Adding a scene = one module in ``problems/scenes/`` with a ``Scene`` subclass decorated
-by ``@register_scene``.  Modules are discovered automatically.
+by ``@register_scene``.  Modules are discovered automatically, and so are the modules
+named by entry points of group ``contactbench.scenes`` (a scene shipped by another
+package).  The registry lives in ``base.py``; this package re-exports it.
 """
 
 from __future__ import annotations
 
-from contactbench.plugins import PluginRegistry
-
-from .base import InstanceSpec, LoadSequence, Scene, SceneConfig
-
-
-def _same_class(old: Scene, new: Scene) -> bool:
-    return type(old) is type(new)
-
-
-_SCENES: PluginRegistry[Scene] = PluginRegistry(
-    "scene", package=__name__, include=lambda short: short != "base", same=_same_class)
-
-
-def register_scene(cls: type[Scene]) -> type[Scene]:
-    """Class decorator: register one instance of the scene under its ``name``."""
-    inst = cls()
-    if not inst.name:
-        raise ValueError(f"{cls!r} has no name")
-    _SCENES.add(inst.name, inst)
-    return cls
-
-
-def all_scenes() -> dict[str, Scene]:
-    return _SCENES.all()
-
-
-def scene_import_errors() -> dict[str, str]:
-    return _SCENES.import_errors()
-
-
-def get_scene(name: str) -> Scene:
-    """The scene called ``name``, or a ``KeyError`` listing the known ones."""
-    return _SCENES.get(name)
-
+from .base import (
+    InstanceSpec,
+    LoadSequence,
+    Scene,
+    SceneConfig,
+    all_scenes,
+    get_scene,
+    register_scene,
+    scene_import_errors,
+)
 
 __all__ = [
     "InstanceSpec",

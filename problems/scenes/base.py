@@ -9,6 +9,8 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
+from contactbench.plugins import PluginRegistry
+
 from ..errors import ProblemInputError
 from ..instances import ContactInstance
 from ..kernels import check_kernel
@@ -65,8 +67,6 @@ class InstanceSpec:
     params: dict[str, Any]
 
     def build(self) -> "LoadSequence":
-        from . import get_scene
-
         return get_scene(self.scene).build(self)
 
     def params_json(self) -> str:
@@ -99,7 +99,7 @@ class Scene(ABC):
     """A named family of instances (benchopt's Dataset): pure data -- surfaces, kernels,
     load sequences.  Which solvers run on it, at which profiles, with which parameter
     grids and against which reference is the harness's study design
-    (``contactbench.harness.studies``)."""
+    (``contactbench.harness.run.studies``)."""
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
@@ -179,3 +179,39 @@ def seeds_of(cfg: SceneConfig, default: tuple[int, ...] = (0,)) -> tuple[int, ..
 
 def nan() -> float:
     return float(np.nan)
+
+
+# ---------------------------------------------------------------------------
+# The scene registry (problems/scenes/__init__.py re-exports it)
+# ---------------------------------------------------------------------------
+
+
+def _same_class(old: Scene, new: Scene) -> bool:
+    return type(old) is type(new)
+
+
+_SCENES: PluginRegistry[Scene] = PluginRegistry(
+    "scene", package="contactbench.problems.scenes", entry_point_group="contactbench.scenes",
+    include=lambda short: short != "base", same=_same_class)
+
+
+def register_scene(cls: type[Scene]) -> type[Scene]:
+    """Class decorator: register one instance of the scene under its ``name``."""
+    inst = cls()
+    if not inst.name:
+        raise ValueError(f"{cls!r} has no name")
+    _SCENES.add(inst.name, inst)
+    return cls
+
+
+def all_scenes() -> dict[str, Scene]:
+    return _SCENES.all()
+
+
+def scene_import_errors() -> dict[str, str]:
+    return _SCENES.import_errors()
+
+
+def get_scene(name: str) -> Scene:
+    """The scene called ``name``, or a ``KeyError`` listing the known ones."""
+    return _SCENES.get(name)

@@ -145,7 +145,7 @@ def test_every_column_of_the_committed_table_is_in_the_glossary() -> None:
 
 
 def test_every_schema_column_has_a_unit_and_no_unit_is_stale() -> None:
-    from contactbench.harness import schema
+    from contactbench.harness.table import schema
 
     hook = load_hook()
     assert set(hook.UNITS) == set(schema.COLUMNS)

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from contactbench.harness import conformance as cf
+from contactbench.harness.conformance import battery as cf
+from contactbench.harness.conformance.command import main as validate_main
 from contactbench.harness.judge import ProblemSeal, judge
-from contactbench.harness.profiles import get_profile
+from contactbench.harness import get_profile
 from contactbench.harness.pytest_plugin import settle
 from contactbench.problems.instances import QP, counterexample
 from contactbench.problems.kkt import kkt_figures, scaled_kkt_error
@@ -238,7 +239,7 @@ def test_validate_gives_each_adversary_its_verdict(tables, kind: str, claim: boo
 def test_validate_cli_exit_code(kind: str, claim: bool, capsys: pytest.CaptureFixture[str]) -> None:
     reading = expected(kind, claim)[1]
     name = ADVERSARIES[(kind, claim)].__name__
-    rc = cf.main([f"{HERE}:{name}", "--cases", CASE, "--quiet"])
+    rc = validate_main([f"{HERE}:{name}", "--cases", CASE, "--quiet"])
     assert rc == {"pass": 0, "wrong": 1, "unconverged": 3}[reading], capsys.readouterr().out
 
 
@@ -312,7 +313,7 @@ def test_an_outside_program_claiming_solved_over_a_clipped_answer_exits_1(
         tmp_path: Path, word: str, code: int, capsys: pytest.CaptureFixture[str]) -> None:
     script = tmp_path / "clipper.py"
     script.write_text(CLIPPER)
-    rc = cf.main(["--command", f"{sys.executable} {script} {{problem}} {{solution}} {word}",
+    rc = validate_main(["--command", f"{sys.executable} {script} {{problem}} {{solution}} {word}",
                   "--cases", "counterexample/*-s0"])
     out = capsys.readouterr().out
     assert rc == code, out

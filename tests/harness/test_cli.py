@@ -376,7 +376,7 @@ def test_a_run_with_one_judged_row_exits_0(capsys: pytest.CaptureFixture[str]) -
 
 
 def test_the_summary_counts_judged_rows() -> None:
-    from contactbench.harness.runner import RunSummary
+    from contactbench.harness import RunSummary
 
     def summary(statuses: dict[str, int]) -> RunSummary:
         return RunSummary("o", sum(statuses.values()), 0, statuses, 0.0, [])

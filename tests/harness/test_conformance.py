@@ -7,8 +7,9 @@ import time
 import numpy as np
 import pytest
 
-from contactbench.harness import conformance as cf
-from contactbench.harness.profiles import get_profile
+from contactbench.harness.conformance import battery as cf
+from contactbench.harness.conformance.command import main as validate_main
+from contactbench.harness import get_profile
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.lcp import exact_solution, exact_solution_on_subset
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
@@ -257,11 +258,11 @@ def test_comparison_row_never_passes_over_wrong_steps_and_notes_are_whole() -> N
 def test_cli_exit_codes_by_name_and_import_path(capsys: pytest.CaptureFixture[str]) -> None:
     register(ClipSolver, replace=True)
     try:
-        assert cf.main(["test-conf-clip", "--cases", "random/bcc-n64-d1*"]) == 1
+        assert validate_main(["test-conf-clip", "--cases", "random/bcc-n64-d1*"]) == 1
     finally:
         unregister("test-conf-clip")
-    assert cf.main([f"{HERE}:GoodSolver", "--cases", "random/bcc-n64-d1*"]) == 0
-    assert cf.main([f"{HERE}:EarlyStopSolver", "--cases", "random/bcc-n64-d1*", "--quiet"]) == 3
+    assert validate_main([f"{HERE}:GoodSolver", "--cases", "random/bcc-n64-d1*"]) == 0
+    assert validate_main([f"{HERE}:EarlyStopSolver", "--cases", "random/bcc-n64-d1*", "--quiet"]) == 3
     out = capsys.readouterr().out
     assert "WRONG" in out and "CONFORMS" in out and "kkt_error" in out and "INCOMPLETE" in out
 
@@ -275,20 +276,20 @@ def test_cli_exit_codes_by_name_and_import_path(capsys: pytest.CaptureFixture[st
 ])
 def test_bad_input_exits_2_with_a_clear_message(argv: list[str], words: str,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
-    assert cf.main(argv) == 2
+    assert validate_main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.slow
 def test_list_help_and_all_quiet(capsys: pytest.CaptureFixture[str]) -> None:
-    assert cf.main(["--list"]) == 0
+    assert validate_main(["--list"]) == 0
     listed = capsys.readouterr().out
     assert "counterexample/example1-n400-s0" in listed and "packing/all-in-contact-bcc" in listed
-    assert cf.main(["--help"]) == 0
+    assert validate_main(["--help"]) == 0
     helptext = capsys.readouterr().out
     assert all(opt in helptext for opt in ("--all", "--quiet", "--list", "--strict", "--cases", "exit status"))
-    assert cf.main(["--all", "--quiet", "--cases", "edge/delta0*"]) == 0
+    assert validate_main(["--all", "--quiet", "--cases", "edge/delta0*"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == sum(s.availability()[0] for s in all_solvers().values())
     assert all("CONFORMS" in line for line in lines)

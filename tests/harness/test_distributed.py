@@ -1,4 +1,4 @@
-"""The Dask executor (harness/distributed.py) on a real LocalCluster: 2 worker
+"""The Dask executor (harness/run/distributed.py) on a real LocalCluster: 2 worker
 processes, 1 thread each.  A small population runs on the cluster and serially, and the
 two tables agree row for row; a worker killed mid-run (once, or on every attempt) costs
 no row: the cell is re-run by Dask or stored as ``crashed``.
@@ -23,11 +23,11 @@ pytest.importorskip("distributed")
 
 from distributed import Client  # noqa: E402
 
-from contactbench.harness.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
-from contactbench.harness.plan import RunConfig, plan_run  # noqa: E402
-from contactbench.harness.runner import run_benchmark  # noqa: E402
-from contactbench.harness.schema import STATUSES  # noqa: E402
-from contactbench.harness.store import ResultStore, load_table  # noqa: E402
+from contactbench.harness.run.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
+from contactbench.harness.run.plan import RunConfig, plan_run  # noqa: E402
+from contactbench.harness import run_benchmark  # noqa: E402
+from contactbench.harness.table.schema import STATUSES  # noqa: E402
+from contactbench.harness.table.store import ResultStore, load_table  # noqa: E402
 from contactbench.problems.instances import QP  # noqa: E402
 from contactbench.problems.scenes import SceneConfig  # noqa: E402
 from contactbench.solvers.base import Capabilities, Outcome, SolveContext, Solver, SolverSettings  # noqa: E402

@@ -16,11 +16,11 @@ import pandas as pd
 import pytest
 
 from contactbench.harness import cli
-from contactbench.harness.plan import PlanError, RunConfig, make_cell_id, plan_run
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.sequence import map_by_grid_index
-from contactbench.harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
-from contactbench.harness.store import ROWS_FILE, ResultStore, load_table, read_journal
+from contactbench.harness.run.plan import PlanError, RunConfig, make_cell_id, plan_run
+from contactbench.harness import run_benchmark
+from contactbench.harness.run.sequence import map_by_grid_index
+from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
+from contactbench.harness.table.store import ROWS_FILE, ResultStore, load_table, read_journal
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver, SolverSettings
 from tests import helpers
@@ -95,7 +95,7 @@ def test_observed_step_time_replaces_the_static_time_model(tmp_path: Path) -> No
 
 
 def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from contactbench.harness import plan
+    from contactbench.harness.run import plan
 
     monkeypatch.setattr(plan, "instance_nbytes", lambda params: 0.0)  # (the plan's own bound: test_run_folder.py)
     df = run(tmp_path, ["test-exact"], reference="none", memory_budget=4.0)  # bytes: n = 1 needs 8
@@ -248,9 +248,9 @@ def test_cli_run_then_report_round_trip(tmp_path: Path, capsys: pytest.CaptureFi
     csv = pd.read_csv(out / "results.csv")
     assert len(csv) == 8 and set(REQUIRED_COLUMNS) <= set(csv.columns)
     try:
-        import contactbench.harness.report  # noqa: F401
+        import contactbench.harness.report.core  # noqa: F401
     except ImportError:
-        pytest.skip("harness/report.py is not in this checkout yet")
+        pytest.skip("harness/report/core.py is not in this checkout yet")
     assert cli.main(["report", str(out)]) == 0
     assert (out / "report.md").exists()
 
@@ -305,7 +305,7 @@ def test_step_time_extrapolation_uses_the_measured_growth() -> None:
     timed out at n = 36,242 under the fixed n^1.5 extrapolation (it predicted 92 s); the
     measured growth (capped at n^3) predicts it over the 120 s limit.  The paper's NNLS
     (29 s at n = 16,147 after 2.3 s at n = 10,274, then 38 s at n = 22,458) must still run."""
-    from contactbench.harness.skips import extrapolated_time, skip_decision
+    from contactbench.harness.run.skips import extrapolated_time, skip_decision
     from contactbench.solvers.base import ProblemTraits
 
     t_fixed, e_fixed = extrapolated_time([(29202, 70.3)], 36242)
@@ -367,7 +367,7 @@ def test_every_bad_input_is_reported_once(tmp_path: Path) -> None:
 
 
 def test_studies_keep_the_variants_and_cells_of_the_scenes() -> None:
-    from contactbench.harness.studies import COMPOSITES, study_for
+    from contactbench.harness.run.studies import COMPOSITES, study_for
 
     cmr = study_for("cmr").variants(["nnls", "cmr+nnls"], {})
     assert [v.name for v in cmr] == ["nnls", "cmr+nnls coarse=subsample h=2 from 16", "cmr+nnls coarse=mean h=2 from 16"]
@@ -390,7 +390,7 @@ def test_studies_keep_the_variants_and_cells_of_the_scenes() -> None:
 
 
 def test_a_sweep_reads_the_solvers_declared_grid() -> None:
-    from contactbench.harness.studies import Study, Sweep
+    from contactbench.harness.run.studies import Study, Sweep
     from contactbench.solvers.registry import register, unregister
 
     class Gridded(helpers.ExactStub):
@@ -475,7 +475,7 @@ class HonestJacobiStub(JacobiStub):
 
 
 def test_run_and_validate_give_the_same_verdict_on_the_same_solve(tmp_path: Path) -> None:
-    from contactbench.harness.conformance import validate
+    from contactbench.harness.conformance.battery import validate
     from contactbench.problems.scenes import get_scene
     from contactbench.solvers.registry import register, unregister
 
@@ -505,7 +505,7 @@ def test_run_and_validate_give_the_same_verdict_on_the_same_solve(tmp_path: Path
 
 
 def test_solve_sequence_warm_starts_by_grid_index_and_judges_each_step() -> None:
-    from contactbench.harness.sequence import solve_sequence
+    from contactbench.harness import solve_sequence
     from contactbench.problems.scenes import get_scene
 
     scene = get_scene("paper-sweep")

@@ -1,4 +1,4 @@
-"""The population scene and its statistics (harness/report_population.py)."""
+"""The population scene and its statistics (harness/report/sections/population.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from contactbench.harness.report_population import (
+from contactbench.harness.report.sections.population import (
     bootstrap_interval,
     kappa_table,
     population_summary,
@@ -17,10 +17,10 @@ from contactbench.harness.report_population import (
     t_interval,
     write_population_report,
 )
-from contactbench.harness.meta import read_meta
-from contactbench.harness.plan import RunConfig
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.store import load_table
+from contactbench.harness.table.meta import read_meta
+from contactbench.harness import RunConfig
+from contactbench.harness import run_benchmark
+from contactbench.harness import load_table
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.problems.scenes.population import population_displacements, population_surface, separations_for

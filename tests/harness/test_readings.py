@@ -10,10 +10,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-from contactbench.harness import report as rp
-from contactbench.harness import report_counterexample as rce
+from contactbench.harness.report import core as rp
+from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.judge import judge
-from contactbench.harness.schema import ALL_COLUMNS
+from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import (
     CONTACT_BAND,
     InstanceBuilder,

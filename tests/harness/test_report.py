@@ -1,4 +1,4 @@
-"""The report (harness/report.py and its section modules) built from a fabricated tidy table.
+"""The report (harness/report/core.py and its section modules) built from a fabricated tidy table.
 
 ``tests.helpers.fabricate_table`` writes a plausible table with every schema column:
 paper-sweep, greedy-linear-solvers, gp-k-sweep, counterexample and hertz rows, with
@@ -18,10 +18,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contactbench.harness import report as rp
-from contactbench.harness import report_counterexample as rce
-from contactbench.harness import report_paper as rpp
-from contactbench.harness.schema import ALL_COLUMNS, REQUIRED_COLUMNS
+from contactbench.harness import build_report, load_table
+from contactbench.harness.report import core as rp
+from contactbench.harness.report.sections import counterexample as rce
+from contactbench.harness.report.sections import paper as rpp
+from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS
 from tests.helpers import fabricate_table, report_row, trace_json, write_out
 
 
@@ -51,7 +52,7 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, pd.DataF
     df = fabricate_table()
     out = write_out(tmp_path_factory.mktemp("rep"), df)
     write_counterexample_arrays(out)
-    path = rp.build_report(out)
+    path = build_report(out)
     return out, path.read_text(), df
 
 
@@ -112,11 +113,11 @@ def test_paper_sections_state_the_surface_family(built: tuple[Path, str, pd.Data
     _, text, _ = built
     fig4 = text[text.index("### Fig. 4"):text.index("### Fig. 5")]
     fig6 = text[text.index("### Fig. 6"):]
-    # the fabricated paper-sweep and gp-k-sweep instances are "rmd-H0.7-N64-s0": the periodic family's old name
+    # the fabricated paper-sweep and gp-k-sweep rows carry surface_family "rmd": the periodic family's old name
     assert "**Surface family.** `periodic`" in fig4 and "**Surface family.** `periodic`" in fig6.split("###")[1]
     fig5 = text[text.index("### Fig. 5"):text.index("### Fig. 6")]
     assert "**Surface family.**" not in fig5  # its instances ("n400") are not generated rough surfaces
-    assert rpp.surface_families(pd.DataFrame({"instance": ["saupe-H0.7-N512-bcc-np-s55"]})) == ["saupe"]
+    assert rpp.surface_families(pd.DataFrame({"surface_family": ["saupe"]})) == ["saupe"]
 
 
 def test_counterexample_fractions_and_case(built: tuple[Path, str, pd.DataFrame]) -> None:
@@ -142,14 +143,14 @@ def test_failures_and_skips_are_listed(built: tuple[Path, str, pd.DataFrame]) ->
 def test_missing_scenes_get_no_section_and_the_report_is_deterministic(tmp_path: Path) -> None:
     df = fabricate_table()
     out = write_out(tmp_path, df[df["scene"] == "hertz"], meta=None)
-    text = rp.build_report(out).read_text()
+    text = build_report(out).read_text()
     assert "Fig. 4" not in text and "Fig. 6" not in text and "Example 1" not in text
     assert "Paper reproductions" not in text
     assert "unknown (no meta.json)" in text
     assert not list((out / "figures").glob("fig4*"))
     for rel in _figure_links(text):
         assert (out / rel).is_file()
-    assert rp.build_report(out).read_text() == text  # two reports of one table diff cleanly
+    assert build_report(out).read_text() == text  # two reports of one table diff cleanly
 
 
 def test_counterexample_case_needs_stored_arrays(tmp_path: Path) -> None:
@@ -190,16 +191,16 @@ def test_csv_and_parquet_read_alike(tmp_path: Path) -> None:
 
 def test_bad_tables_give_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(rp.ReportInputError, match="no results table"):
-        rp.build_report(tmp_path)
+        build_report(tmp_path)
     df = fabricate_table().drop(columns=["kkt_error"])
     write_out(tmp_path, df)
     with pytest.raises(rp.ReportInputError, match="kkt_error"):
-        rp.build_report(tmp_path)
+        build_report(tmp_path)
     df = fabricate_table()
     df.loc[0, "status"] = "great"
     write_out(tmp_path, df)
     with pytest.raises(rp.ReportInputError, match="great"):
-        rp.build_report(tmp_path)
+        build_report(tmp_path)
 
 
 def test_a_registered_section_is_rendered_for_its_scene(tmp_path: Path) -> None:
@@ -212,7 +213,7 @@ def test_a_registered_section_is_rendered_for_its_scene(tmp_path: Path) -> None:
         return rp.Section("Fig. 99: a new scene", f"New section with {len(rows)} rows.\n")
 
     try:
-        text = rp.build_report(out).read_text()
+        text = build_report(out).read_text()
     finally:
         rp.unregister_section("test-new-scene")
     assert "### Fig. 99: a new scene" in text and f"New section with {len(new)} rows." in text
@@ -249,12 +250,12 @@ def test_claim_agreement_words() -> None:
 
 
 # ---------------------------------------------------------------------------
-# The table contract (harness/schema.py) and the plug-in registry (contactbench/plugins.py)
+# The table contract (harness/table/schema.py) and the plug-in registry (contactbench/plugins.py)
 # ---------------------------------------------------------------------------
 
 
 def test_the_schema_types_every_column_and_load_table_applies_it(tmp_path: Path) -> None:
-    from contactbench.harness import schema
+    from contactbench.harness.table import schema
 
     assert list(schema.COLUMNS) == list(ALL_COLUMNS) and ALL_COLUMNS[:len(REQUIRED_COLUMNS)] == REQUIRED_COLUMNS
     assert all(c.dtype in schema.DTYPES and c.doc for c in schema.COLUMNS.values())
@@ -262,7 +263,7 @@ def test_the_schema_types_every_column_and_load_table_applies_it(tmp_path: Path)
     df = fabricate_table().drop(columns=["verdict", "history"])  # a table written before these columns
     for source in (write_out(tmp_path / "pq", df), write_out(tmp_path / "csv", df, fmt="csv"),
                    tmp_path / "csv" / "results.csv"):
-        t = schema.load_table(source)
+        t = load_table(source)
         assert list(t.columns) == list(ALL_COLUMNS)
         assert {c: str(t[c].dtype) for c in ALL_COLUMNS} == \
             {c.name: ("string" if c.dtype == "string" else c.dtype) for c in schema.COLUMNS.values()}
@@ -273,8 +274,9 @@ def test_the_schema_types_every_column_and_load_table_applies_it(tmp_path: Path)
 def test_load_table_reads_a_journal_newer_than_the_table_without_writing(tmp_path: Path) -> None:
     import os
 
-    from contactbench.harness.schema import MissingTableError, TableError, load_table
-    from contactbench.harness.store import ResultStore
+    from contactbench.harness.table.schema import MissingTableError, TableError
+
+    from contactbench.harness.table.store import ResultStore
 
     rows = fabricate_table().head(3).assign(cell_id=["a", "b", "c"], verdict=["pass", "wrong", "unconverged"])
     store = ResultStore(tmp_path)
@@ -333,9 +335,10 @@ def test_plugin_registry_discovers_once_keeps_import_errors_and_names_the_known(
 def test_solvers_scenes_and_sections_share_the_plugin_registry() -> None:
     from contactbench.plugins import PluginRegistry
     from contactbench.problems import scenes
+    from contactbench.problems.scenes import base as scene_base
     from contactbench.solvers import registry
 
-    assert isinstance(registry._SOLVERS, PluginRegistry) and isinstance(scenes._SCENES, PluginRegistry)
+    assert isinstance(registry._SOLVERS, PluginRegistry) and isinstance(scene_base._SCENES, PluginRegistry)
     assert isinstance(rp._SECTIONS, PluginRegistry)
     with pytest.raises(registry.UnknownSolverError, match="unknown solver 'no-such'; known solvers: "):
         registry.get_solver("no-such")
@@ -355,7 +358,7 @@ def test_a_summary_section_is_rendered_for_every_table(tmp_path: Path) -> None:
         return rp.Section("A summary", f"{table['scene'].nunique()} scene(s), {len(table)} rows.\n")
 
     try:
-        text = rp.build_report(out).read_text()
+        text = build_report(out).read_text()
     finally:
         rp.unregister_section("test-summary")
     assert f"## A summary\n\n1 scene(s), {int((df['scene'] == 'hertz').sum())} rows." in text
@@ -368,7 +371,7 @@ def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
     df = fabricate_table()
     stress = df[(df["scene"] == "hertz") & df["solver"].isin(["nnls", "pk"])].assign(scene="stress-edge")
     stress["verdict"] = ["pass", "wrong", "pass", "unconverged", "pass", "", "pass", "pass"]
-    text = rp.build_report(write_out(tmp_path, pd.concat([df[df["scene"] == "hertz"], stress]))).read_text()
+    text = build_report(write_out(tmp_path, pd.concat([df[df["scene"] == "hertz"], stress]))).read_text()
     section = text.split("## Stress battery")[1].split("\n## ")[0]
     assert "| solver | rows | pass | wrong | unconverged | not judged |" in section
     counts = stress.groupby("solver")["verdict"].apply(list).to_dict()
@@ -377,7 +380,7 @@ def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
         assert row in section
     wrong = sorted(stress.loc[stress["verdict"] == "wrong", "solver"].unique())
     assert f"Wrong answers claimed as converged: {', '.join(f'`{s}`' for s in wrong)}." in section
-    assert "## Stress battery" not in rp.build_report(write_out(tmp_path / "plain", df[df["scene"] == "hertz"])) \
+    assert "## Stress battery" not in build_report(write_out(tmp_path / "plain", df[df["scene"] == "hertz"])) \
         .read_text()
 
 
@@ -387,7 +390,7 @@ def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_p
     """33 solvers in six families (one registered from outside with family "other"): every
     panel of every figure draws at most 10 solvers, Fig. 4 draws the outside solver, and
     the reading names the accuracy beside every "fastest"."""
-    from contactbench.harness.report_style import MAX_SERIES
+    from contactbench.harness.report.style import MAX_SERIES
 
     rng = np.random.default_rng(5)
     fams = ["paper"] * 10 + ["fast"] * 6 + ["qp"] * 11 + ["wrapper"] * 4 + ["reference", "other"]
@@ -412,7 +415,7 @@ def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_p
         return real_save(self, fig, name)
 
     monkeypatch.setattr(rp.ReportContext, "save_figure", spy)
-    text = rp.build_report(out, html=False).read_text()
+    text = build_report(out, html=False).read_text()
     assert {"fig4-paper-sweep", "wp-paper-sweep", "pp-paper-sweep"} <= set(seen)
     for name, counts in seen.items():
         assert max(counts, default=0) <= MAX_SERIES, (name, counts)

@@ -1,4 +1,4 @@
-"""harness/aggregates.py against hand-computed values on a 3-solver, 4-problem table.
+"""harness/table/aggregates.py against hand-computed values on a 3-solver, 4-problem table.
 
 The table (scene "s", profile "default", time limit 10 s; times in seconds):
 
@@ -43,8 +43,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contactbench.harness import aggregates as agg
-from contactbench.harness.schema import ALL_COLUMNS
+from contactbench.harness.table import aggregates as agg
+from contactbench.harness.table.schema import ALL_COLUMNS
 
 SHIFT = 1.0
 

@@ -1,5 +1,5 @@
-"""The CMR report sections (harness/report_cmr.py) and the CMR study design
-(harness/studies.py) on a fabricated table whose answers are known here.
+"""The CMR report sections (harness/report/sections/cmr.py) and the CMR study design
+(harness/run/studies.py) on a fabricated table whose answers are known here.
 
 ``fabricate_cmr`` writes cmr rows: H in HURSTS, SEEDS seeds, STEPS steps; the two direct
 solves (the dense ``scipy-nnls``, whose row carries ASSEMBLY_S of dense-H assembly in its
@@ -19,10 +19,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contactbench.harness import report as rp
-from contactbench.harness import report_cmr as rc
-from contactbench.harness.report_paper import rough_instance, surface_families
-from contactbench.harness.schema import ALL_COLUMNS, apply_schema
+from contactbench.harness.report import core as rp
+from contactbench.harness.report.sections import cmr as rc
+from contactbench.harness.report.sections import cmr_figures as rcf
+from contactbench.harness.report.sections.paper import surface_families
+from contactbench.harness.table.schema import ALL_COLUMNS, apply_schema
 
 HURSTS = (0.3, 0.7)
 SEEDS = tuple(range(7))
@@ -57,7 +58,8 @@ def fabricate_cmr(family: str = "saupe", seed: int = 0, scene: str = "cmr",
             for k in range(STEPS):
                 base_load = {"scipy-nnls": 1.0 + k + 0.1 * s}
                 base_load["fast-dual-pccg"] = base_load["scipy-nnls"] * FAST_LOAD_FACTOR
-                common = dict(scene=scene, instance=inst, step=k, n=100 * (k + 1))
+                common = dict(scene=scene, instance=inst, step=k, n=100 * (k + 1), surface_family=family, hurst=H,
+                              seed=s, N=64)
                 rows.append(_row(**common, solver="scipy-nnls", operator="dense", family="reference",
                                  build_time_s=STEP_BUILD_S + ASSEMBLY_S, solve_time_s=TIME["scipy-nnls"] * (k + 1),
                                  load=base_load["scipy-nnls"]))
@@ -144,9 +146,9 @@ def _section(tmp_path: Path, table: pd.DataFrame, fn: Any) -> tuple[Path, str]:
 def test_the_report_states_the_surface_family_and_reads_the_claim_in_numbers(
         tmp_path: Path, family: str, shown: str) -> None:
     table, errors = fabricate_cmr(family=family)
-    out, section = _section(tmp_path, table, rc.cmr_section)
+    out, section = _section(tmp_path, table, rcf.cmr_section)
     assert "**Surface family.**" in section and shown in section
-    assert (out / "figures" / f"fig8-cmr-{rough_instance(table['instance'].iloc[0]).family}.png").is_file()
+    assert (out / "figures" / f"fig8-cmr-{'periodic' if family == 'rmd' else family}.png").is_file()
     # the reading's median error over H > 0.5 for the dense base, coarse=mean, is the table's
     e = [errors[("scipy-nnls", "mean", 0.7, s, STEPS - 1)] for s in SEEDS]
     assert f"median error {100 * np.median(e):.1f} %" in section
@@ -170,16 +172,18 @@ def test_the_h_sweep_section_tables_h_and_the_first_level(tmp_path: Path) -> Non
     assert len(h_rows) == 2 * 2 * 3
     start_rows = rc.coarsest_table(tot[np.isclose(tot["h"], 2.0)], "saupe").rows
     assert len(start_rows) == 2 * 2 * len(HURSTS) * 3
-    out, text = _section(tmp_path, table, rc.cmr_h_section)
+    out, text = _section(tmp_path, table, rcf.cmr_h_section)
     assert "### Fig. 9" in text and "first level 64: worst error" in text
     assert (out / "figures" / "fig9-cmr-h-saupe.png").is_file()
     assert (out / "figures" / "fig9-coarsest-saupe.png").is_file()
 
 
-def test_surface_families_read_both_names() -> None:
-    df = pd.DataFrame({"instance": ["saupe-H0.7-N256-bcc-np-s1", "rmd-H0.7-N64-s0", "N16-bcc"]})
+def test_surface_families_read_the_column_and_its_old_name() -> None:
+    df = pd.DataFrame({"instance": ["saupe-H0.7-N256-bcc-np-s1", "x", "N16-bcc", "y"],
+                       "surface_family": ["saupe", "rmd", "", pd.NA]})
     assert surface_families(df) == ["periodic", "saupe"]
-    assert rough_instance("saupe-H0.3-N256-bcc-np-s19").hurst == 0.3
+    # the family is read from the column, never from the name
+    assert surface_families(pd.DataFrame({"instance": ["saupe-H0.7-N256-bcc-np-s1"], "surface_family": [""]})) == []
 
 
 # ---------------------------------------------------------------------------
@@ -188,7 +192,7 @@ def test_surface_families_read_both_names() -> None:
 
 
 def test_cmr_studies_run_both_bases_and_both_coarse_readings() -> None:
-    from contactbench.harness.studies import CMR_DENSE_SIZE, expand, study_for
+    from contactbench.harness.run.studies import CMR_DENSE_SIZE, expand, study_for
 
     cmr = study_for("cmr")  # the plain scene: the FFT base only (the budget)
     v = cmr.variants(cmr.solvers, {})
@@ -212,12 +216,12 @@ def test_cmr_studies_run_both_bases_and_both_coarse_readings() -> None:
         ("cmr", CMR_DENSE_SIZE), ("cmr-h-sweep", CMR_DENSE_SIZE)}
     assert {(sc, size) for sc, size, bases in parts if "cmr+fast-dual-pccg" in bases} >= {
         ("cmr", 256), ("cmr-h-sweep", 256)}
-    from contactbench.harness.plan import RunConfig, plan_run
+    from contactbench.harness.run.plan import RunConfig, plan_run
 
     seeds = {}
     for job in plan_run(["cmr-paper"], None, None, RunConfig()).jobs:
-        r = rough_instance(job.spec.instance)
-        seeds.setdefault((job.spec.scene, r.N, r.hurst), set()).add(r.seed)
+        q = job.spec.params
+        seeds.setdefault((job.spec.scene, q["size"], q["hurst"]), set()).add(q["seed"])
     assert all(len(s) >= 20 for s in seeds.values()) and len(seeds) == 2 * (4 + 1)  # 20 seeds per H
 
 

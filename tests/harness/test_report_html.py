@@ -1,4 +1,4 @@
-"""report.html (harness/report_html.py): self-contained, holds every row and family, and
+"""report.html (harness/report/html.py): self-contained, holds every row and family, and
 -- in headless Chromium, when one is installed (make setup-browser) -- draws every chart
 without console errors, reacts to the family toggle, and renders a non-blank screenshot."""
 
@@ -12,9 +12,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contactbench.harness import report as rp
-from contactbench.harness.report_browser import browser_missing, check_page
-from contactbench.harness.report_style import MAX_SERIES, SolverStyles, family_panels, panels_note
+from contactbench.harness import build_report
+from contactbench.harness.report import core as rp
+from contactbench.harness.report.browser import browser_missing, check_page
+from contactbench.harness.report.style import MAX_SERIES, SolverStyles, family_panels, panels_note
+
 from tests.helpers import fabricate_table, report_row, write_out
 
 
@@ -26,7 +28,7 @@ def page(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pd.DataFrame]:
         solver="my-solver", base_solver="my-solver", family="other")
     df = pd.concat([df, extra], ignore_index=True)
     out = write_out(tmp_path_factory.mktemp("html"), df)
-    rp.build_report(out)
+    build_report(out)
     return out / "report.html", df
 
 
@@ -106,9 +108,9 @@ def test_the_page_renders_in_headless_chromium(page: tuple[Path, pd.DataFrame], 
 def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> None:
     """save_field keeps a solved top step (and only that); the report draws the surface,
     pressure and gap from it and fits kappa on the table's load-area points."""
-    from contactbench.harness.fields import FIELD_MAX_SIDE, block_reduce, field_name, load_field, save_field
+    from contactbench.harness.table.fields import FIELD_MAX_SIDE, block_reduce, field_name, load_field, save_field
     from contactbench.harness.judge import judge
-    from contactbench.harness.report_fields import PERSSON_KAPPA, fit_kappa
+    from contactbench.harness.report.sections.fields import PERSSON_KAPPA, fit_kappa
     from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
     from contactbench.problems.surfaces import rmd_surface_n
     from contactbench.solvers.base import SolverSettings
@@ -138,10 +140,10 @@ def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> No
     assert max(block_reduce(np.ones((2 * FIELD_MAX_SIDE + 3,) * 2)).shape) <= FIELD_MAX_SIDE
     x = np.array([1e-4, 2e-4, 4e-4])
     assert abs(fit_kappa(x, PERSSON_KAPPA / 0.5 * x, 0.5).kappa - PERSSON_KAPPA) < 1e-12
-    from contactbench.harness.schema import ALL_COLUMNS
+    from contactbench.harness.table.schema import ALL_COLUMNS
 
     df = pd.DataFrame([report_row(**r) for r in rows], columns=list(ALL_COLUMNS))
-    text = rp.build_report(write_out(tmp_path, df), html=False).read_text()
+    text = build_report(write_out(tmp_path, df), html=False).read_text()
     assert "## The contact fields" in text and "figures/field-paper-sweep-s1-k3.png" in text
     assert "figures/load-area.png" in text and "figures/traces-" not in text  # no traces stored
     kappa = fit_kappa(df["dim_load"].to_numpy(), df["contact_fraction"].to_numpy(), surf.rms_slope()).kappa

@@ -17,11 +17,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from contactbench.harness import worker
-from contactbench.harness.plan import RunConfig, StoredCell
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.skips import SkipPolicy
-from contactbench.harness.store import ROWS_FILE, load_table
+from contactbench.harness.run import worker
+from contactbench.harness.run.plan import RunConfig, StoredCell
+from contactbench.harness import run_benchmark
+from contactbench.harness.run.skips import SkipPolicy
+from contactbench.harness.table.store import ROWS_FILE, load_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import Outcome, SolveContext, register
 from contactbench.solvers.base import ProblemTraits

@@ -16,11 +16,11 @@ from pathlib import Path
 import pytest
 
 from contactbench.harness import cli
-from contactbench.harness.meta import read_meta
-from contactbench.harness.plan import PlanError, RunConfig, plan_run
-from contactbench.harness.report import ReportContext, header_section
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.store import LOCK_FILE, MARKER_FILE, RunFolderError, RunLock, load_table
+from contactbench.harness.table.meta import read_meta
+from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
+from contactbench.harness.report.core import ReportContext, header_section
+from contactbench.harness import run_benchmark
+from contactbench.harness.table.store import LOCK_FILE, MARKER_FILE, RunFolderError, RunLock, load_table
 from contactbench.problems.scenes import SceneConfig, get_scene
 
 SOLVER = "test-exact"

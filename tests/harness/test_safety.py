@@ -19,10 +19,10 @@ import pandas as pd
 import pytest
 
 from contactbench.harness import cli
-from contactbench.harness.meta import read_meta
-from contactbench.harness.plan import PlanError, RunConfig, plan_run
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.store import LOCK_FILE, FolderInUseError, RunLock, load_table, write_table
+from contactbench.harness.table.meta import read_meta
+from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
+from contactbench.harness import run_benchmark
+from contactbench.harness.table.store import LOCK_FILE, FolderInUseError, RunLock, load_table, write_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.problems.units import (
@@ -277,7 +277,7 @@ def cold_top_step(out: Path, solvers: list[str], size: int = 128) -> pd.DataFram
 @pytest.mark.slow
 def test_a_big_cold_top_step_is_solved_once_no_warm_up_no_second_reference(tmp_path: Path, counting: Path) -> None:
     # 128^2 stands in for 1024^2: the solver's time model says 30 s, which is what
-    # decides (harness/job.py predicted_seconds), and the suite stays fast.
+    # decides (harness/run/job.py predicted_seconds), and the suite stays fast.
     df = cold_top_step(tmp_path / "big", ["test-counting-pccg"])
     assert solve_count(counting) == {"test-counting-pccg": 1}  # no warm-up, no reference solve
     row = df.iloc[0]

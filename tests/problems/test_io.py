@@ -341,7 +341,7 @@ def test_mat_channel_is_chosen_by_name_or_index(tmp_path: Path) -> None:
 
 def test_cli_runs_a_gwy_file_without_length(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from contactbench.harness import cli
-    from contactbench.harness.schema import load_table
+    from contactbench.harness import load_table
 
     path = write_every_format(tmp_path, round_trip_surface())["gwy"]
     out = tmp_path / "run"

@@ -209,7 +209,7 @@ def test_builder_gpu_operator_matches_fft() -> None:
 def test_fast_solvers_run_on_the_array_operator(solver: str) -> None:
     """Every fast solver solves the same QP through the numpy path as through the CPU
     operator (no dense switch on either, so every product is a convolution)."""
-    from contactbench.harness.sequence import solve_sequence
+    from contactbench.harness import solve_sequence
     from contactbench.problems.instances import QP, paper_max_displacement
     from contactbench.solvers.base import SolverSettings
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.harness.conformance_cases import exact_reference
+from contactbench.harness.conformance.cases import exact_reference
 from contactbench.problems.instances import counterexample
 from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.lcp import UncertifiedSolutionError, exact_solution_on_subset
@@ -263,7 +263,7 @@ def test_unknown_mode_or_group_is_a_clear_error() -> None:
 def test_stress_report_renders_survival_units_and_conditioning(tmp_path) -> None:
     import pandas as pd
 
-    from contactbench.harness.report_stress import render_stress_section, write_stress_report
+    from contactbench.harness.report.sections.stress import render_stress_section, write_stress_report
 
     rows = pd.DataFrame([
         {"solver": "a", "case": "units/u", "label": "units/u@0", "group": "units", "step": 0, "status": "pass",

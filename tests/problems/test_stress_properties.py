@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, seed, settings
 from hypothesis import strategies as st
 
-from contactbench.harness.conformance import exact_reference
+from contactbench.harness.conformance.battery import exact_reference
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DenseOperator

@@ -16,10 +16,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contactbench.harness import conformance as cf
-from contactbench.harness.plan import RunConfig
-from contactbench.harness.runner import run_benchmark
-from contactbench.harness.store import load_table
+from contactbench.harness.conformance import battery as cf
+from contactbench.harness.conformance.command import main as validate_main
+from contactbench.harness import RunConfig
+from contactbench.harness import run_benchmark
+from contactbench.harness import load_table
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import counterexample
 from contactbench.problems.qpfile import (
@@ -211,7 +212,7 @@ QUICK = ["--group", "edge", "--group", "random", "--group", "counterexample"]
 def test_the_c_example_passes_validate_command_and_writes_its_report(
         pgs_binary: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "report"
-    rc = cf.main(["--command", f"{pgs_binary} {{problem}} {{solution}}", *QUICK, "--out", str(out)])
+    rc = validate_main(["--command", f"{pgs_binary} {{problem}} {{solution}}", *QUICK, "--out", str(out)])
     text = capsys.readouterr().out
     assert rc == 0, text
     assert "CONFORMS: every solve correct" in text
@@ -223,7 +224,7 @@ def test_the_c_example_passes_validate_command_and_writes_its_report(
 
 def test_the_standalone_script_passes_with_kernel_inputs_and_says_what_it_left_out(
         capsys: pytest.CaptureFixture[str]) -> None:
-    rc = cf.main(["--command", script_command("--kernel"), "--inputs", "kernel", "--group", "random",
+    rc = validate_main(["--command", script_command("--kernel"), "--inputs", "kernel", "--group", "random",
                   "--group", "packing", "--quiet"])
     text = capsys.readouterr().out
     assert rc == 0, text
@@ -233,7 +234,7 @@ def test_the_standalone_script_passes_with_kernel_inputs_and_says_what_it_left_o
 
 def test_the_clipping_variant_is_caught_with_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "report"
-    rc = cf.main(["--command", script_command("--variant", "clip"), "--group", "counterexample", "--quiet",
+    rc = validate_main(["--command", script_command("--variant", "clip"), "--group", "counterexample", "--quiet",
                   "--out", str(out)])
     assert rc == 1
     assert "WRONG" in capsys.readouterr().out
@@ -242,11 +243,11 @@ def test_the_clipping_variant_is_caught_with_exit_1(tmp_path: Path, capsys: pyte
 
 
 def test_validate_command_bad_input_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
-    assert cf.main(["--command", "prog {problem}"]) == 2
+    assert validate_main(["--command", "prog {problem}"]) == 2
     assert "must contain {problem} and {solution}" in capsys.readouterr().err
-    assert cf.main(["--command", "/no/such/prog {problem} {solution}"]) == 2
+    assert validate_main(["--command", "/no/such/prog {problem} {solution}"]) == 2
     assert "not an executable file" in capsys.readouterr().err
-    assert cf.main(["test-exact", "--inputs", "kernel"]) == 2
+    assert validate_main(["test-exact", "--inputs", "kernel"]) == 2
 
 
 def test_validate_records_a_timeout_a_crash_and_a_claimed_non_answer(capsys: pytest.CaptureFixture[str]) -> None:

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from contactbench.harness import conformance as cf
+from contactbench.harness.conformance import battery as cf
 from contactbench.harness.profiles import PROFILES
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.kkt import scaled_kkt_error

@@ -1,0 +1,449 @@
+"""Conformance check: run any solver through the stress battery and judge every answer.
+
+``contactbench validate MODULE:NAME|NAME`` (``main``) and the Python API ``validate``
+run a solver -- registered, or given by import path -- on every case of the battery
+(``harness.conformance.cases``: conditioning, units, edge cases, random LCPs, float32
+input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids).
+Every answer is judged by the one judge, ``harness.judge.judge``, at the tolerance the
+solver promises (``Capabilities.promise``, docs/verdicts.md): "exact" -- the case's
+profile's ``check_tol``, the threshold ``run`` uses for "solved", so a solve that ``run``
+calls solved is never WRONG here, and a WRONG one is never solved there; a float floor
+f -- max(check_tol, f).  Beside the judge's KKT test, the answer is compared with the
+exact reference (``p_tolerance``, a gross-error bound).  The problem is sealed before
+each solve (``harness.judge.ProblemSeal``): a solver that writes into it is WRONG.
+
+Row statuses (one row per solve):
+
+``pass``         the judge's reading is "pass".
+``WRONG``        the judge reads the answer "wrong": the solver claimed convergence
+                 and the answer is inaccurate (scaled KKT error above the promised
+                 tolerance) or no answer (non-finite, wrong shape or dtype); or the
+                 solver wrote into the problem it was handed.
+``unconverged``  inaccurate or no answer, and the solver did not claim convergence.
+``flagged``      the KKT test accepts the answer but a conformance extra does not: p is
+                 beyond ``p_tolerance`` of the exact reference; and on comparison rows,
+                 unit systems disagree by more than 1e-8, or a 1e-6 perturbation of ubar
+                 moved p by more than 10 cond(H) x 1e-6 (a chaotic active set).
+``refused``      it raised ProblemInputError / MemoryBudgetError / NotImplementedError
+                 (or, for float32 input, a ValueError/TypeError naming the dtype).
+``crashed``      any other exception, or the worker process died.
+``timeout``      no answer within the time limit (the worker is killed).
+``skipped``      the solver cannot take the case (operator kind, max_n, its own
+                 ``skip``), or a comparison row whose steps did not all pass.
+
+Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
+
+``wrong``        any WRONG row (exit 1);
+``incomplete``   solves left unsolved -- unconverged, timeout, crashed, or refused
+                 outside the float32 case -- by any solver: exit 3, listing them;
+``conforms``     neither: every case solved to what the solver promises, or skipped for
+                 a capability it declares (exit 0).
+``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
+unknown solver, an import path that does not load, no case selected) exits 2.
+
+``--command 'CMD {problem} {solution}' [--inputs dense|kernel]`` validates an outside
+program over the file protocol (``contactbench.solvers.external``,
+docs/external-solvers.md): the cases its inputs do not allow are skipped, each with its
+reason, and listed after the table ("left out").  An external program claims
+convergence with ``"status"`` "converged", "solved" or "optimal", or no status
+(``contactbench.solvers.external``).
+``--out DIR`` writes the conformance report (``harness.conformance.report``:
+DIR/verdicts.csv and DIR/conformance.md); the exit status is the same.
+
+For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
+``assert_conforms(solver)`` raises AssertionError with the verdict table unless the
+solver conforms.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from contactbench.problems.instances import ContactInstance
+from contactbench.problems.scenes.base import InstanceSpec
+from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
+from contactbench.solvers.base import Promise, Solver, describe_promise, promised_tol
+from contactbench.solvers.registry import load_solver
+
+from .cases import (
+    DEFAULT_TIMEOUT,
+    REFUSABLE_GROUPS,
+    ConformanceCase,
+    Reference,
+    CaseAnswer,
+    CaseRunner,
+    cached_reference,
+    conformance_cases,
+    exact_reference,
+)
+from ..judge import Verdict, judge, read_answer
+from ..profiles import get_profile
+
+__all__ = ["ConformanceCase", "GROUPS", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",
+           "build_battery_spec", "conformance_cases", "exact_reference", "p_tolerance", "validate"]
+
+#: Agreement required across unit systems (P/(E A) relative, scaled KKT figures absolute).
+UNITS_AGREEMENT = 1e-8
+#: A perturbation may move p by at most this many times cond(H) eps.
+PERTURBATION_FACTOR = 10.0
+#: ``p_tolerance`` = clip(P_TOL_FACTOR cond sqrt(check_tol), P_TOL_RANGE).
+P_TOL_FACTOR = 10.0
+P_TOL_RANGE = (1e-4, 0.05)
+
+#: Statuses of a solve that produced an answer (the comparison rows need one per step).
+ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
+#: Statuses of a solve that no solver may leave (besides WRONG): the case is unsolved.
+UNSOLVED = ("unconverged", "timeout", "crashed")
+#: Statuses that ``--strict`` also fails on.
+STRICT_FAILING = ("crashed", "timeout", "flagged")
+#: Exit code of each outcome (``main``); 2 is bad input.
+EXIT_CODES = {"conforms": 0, "wrong": 1, "strict": 1, "incomplete": 3}
+USAGE_ERROR = 2
+
+
+# ---------------------------------------------------------------------------
+# One row per solve
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class VerdictRow:
+    """One row of the verdict table: a solve (step >= 0) or a comparison (step -1)."""
+
+    solver: str
+    case: str
+    group: str
+    step: int
+    n: int
+    status: str
+    claimed: bool | None = None
+    kkt_error: float = float("nan")
+    p_rel_error: float = float("nan")
+    iterations: int | None = None
+    time_s: float = float("nan")
+    cond: float = float("nan")
+    check_tol: float = float("nan")
+    dim_load: float = float("nan")
+    ref_time_s: float = float("nan")  # seconds the exact reference took (nan: known solution)
+    kkt: dict[str, float] = field(default_factory=dict)
+    message: str = ""
+    detail: str = ""
+
+    @property
+    def label(self) -> str:
+        return self.case if self.step < 0 else f"{self.case}@{self.step}"
+
+
+def p_tolerance(cond: float, check_tol: float) -> float:
+    """Allowed ||p - p_ref||_inf / ||p_ref||_inf: a gross-error check beside the KKT test.
+
+    The scaled KKT error does not bound the error in p by cond * kkt where points are
+    nearly degenerate (p_i and w_i both small: complementarity is quadratic there), so
+    the bound uses sqrt(check_tol): clip(P_TOL_FACTOR cond sqrt(check_tol), P_TOL_RANGE)."""
+    c = cond if np.isfinite(cond) else 1e6
+    lo, hi = P_TOL_RANGE
+    return float(min(hi, max(lo, P_TOL_FACTOR * c * math.sqrt(check_tol))))
+
+
+def row_status(v: Verdict) -> str:
+    """The row status of the judge's verdict (module doc): WRONG exactly when the judge
+    reads "wrong" and its status is not "solved" (a solved answer off the reference is
+    flagged)."""
+    if v.reading == "pass":
+        return "pass"
+    if v.status == "solved":
+        return "flagged"
+    return "WRONG" if v.reading == "wrong" else "unconverged"
+
+
+def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
+                step: int, solver: str, promise: Promise = "exact") -> VerdictRow:
+    """The row of one solve: the judge's verdict at the promised tolerance (the case's
+    check_tol, or the solver's floor above it), read as in the module doc."""
+    check_tol = promised_tol(promise, get_profile(case.profile).check_tol)
+    row = VerdictRow(solver, case.name, case.group, step, inst.n, out.kind, time_s=out.time_s, check_tol=check_tol,
+                     cond=ref.cond if ref else float("nan"), message=out.message, detail=out.detail,
+                     ref_time_s=ref.time_s if ref else float("nan"))
+    if out.kind != "ok":
+        return row
+    p_ref = ref.p if ref is not None and ref.trusted else None
+    p_tol = p_tolerance(ref.cond, check_tol) if ref is not None and p_ref is not None else None
+    v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol, tampered=out.tampered)
+    row.claimed, row.iterations = bool(out.converged), out.iterations
+    row.kkt_error = v.kkt_error
+    row.p_rel_error = float(v.figures.get("p_rel_error", float("nan")))
+    row.dim_load = float(v.figures.get("dim_load", float("nan")))
+    if v.kkt is not None:
+        row.kkt = {k: float(getattr(v.kkt, k)) for k in ("primal", "dual", "complementarity", "complementarity_sum")}
+    row.status = row_status(v)
+    if row.status == "flagged":
+        row.message = "the KKT test accepts it, but " + "; ".join(v.problems)
+    elif row.status == "unconverged":
+        row.message = f"{v.message()} (solver status: {out.solver_status})"
+    else:
+        row.message = v.message()
+    return row
+
+
+def _comparison_row(rows: list[VerdictRow], case: ConformanceCase, solver: str, **kw: Any) -> VerdictRow:
+    return VerdictRow(solver, case.name, case.group, -1, rows[0].n if rows else 0, "skipped", **kw)
+
+
+def _steps_verdict(rows: list[VerdictRow], ok: bool) -> str:
+    """A comparison row passes only when every step beneath it passed."""
+    if not ok:
+        return "flagged"
+    return "pass" if all(r.status == "pass" for r in rows) else "skipped"
+
+
+def _steps_note(rows: list[VerdictRow]) -> str:
+    bad = Counter(r.status for r in rows if r.status != "pass")
+    if not bad:
+        return ""
+    counts = ", ".join(f"{s} {k}" for s, k in sorted(bad.items()))
+    return f"; no verdict: {sum(bad.values())} of {len(rows)} steps did not pass ({counts})"
+
+
+def units_agreement(rows: list[VerdictRow], case: ConformanceCase, solver: str) -> VerdictRow:
+    """Do the scaled KKT figures and P/(E A) agree across the unit systems / moduli?"""
+    v = _comparison_row(rows, case, solver, check_tol=UNITS_AGREEMENT)
+    if not rows or any(r.status not in ANSWERED for r in rows):
+        v.message = "not compared: not every unit system produced an answer"
+        return v
+    loads = np.array([r.dim_load for r in rows])
+    load_spread = float(np.ptp(loads) / max(np.max(np.abs(loads)), 1e-300))
+    kkt_spread = max(float(np.ptp([r.kkt.get(k, np.nan) for r in rows])) for k in
+                     ("primal", "dual", "complementarity", "complementarity_sum"))
+    kkt_spread = max(kkt_spread, float(np.ptp([r.kkt_error for r in rows])))
+    v.kkt_error, v.p_rel_error = kkt_spread, load_spread
+    ok = bool(load_spread <= UNITS_AGREEMENT and kkt_spread <= UNITS_AGREEMENT)
+    v.status = _steps_verdict(rows, ok)
+    v.message = (f"P/(EA) spread {load_spread:.1e}, scaled-KKT spread {kkt_spread:.1e} "
+                 f"({'within' if ok else 'beyond'} {UNITS_AGREEMENT:g})" + _steps_note(rows))
+    return v
+
+
+def perturbation_check(rows: list[VerdictRow], ps: list[np.ndarray | None], insts: list[ContactInstance],
+                       refs: list[Reference], case: ConformanceCase, solver: str) -> VerdictRow:
+    """Does p move by at most ~cond eps when ubar moves by eps (relative, 2-norms)?"""
+    v = _comparison_row(rows, case, solver, cond=refs[0].cond)
+    if any(p is None for p in ps) or any(r.status not in ANSWERED for r in rows):
+        v.message = "not compared: not both solves produced an answer"
+        return v
+    u0, u1 = (np.asarray(i.qp.ubar, dtype=np.float64) for i in insts)
+    eps = float(np.linalg.norm(u1 - u0) / np.linalg.norm(u0))
+    p0, p1 = (np.asarray(p, dtype=np.float64) for p in ps)
+    move = float(np.linalg.norm(p1 - p0) / max(np.linalg.norm(p0), 1e-300))
+    ref_move = float(np.linalg.norm(refs[1].p - refs[0].p) / np.linalg.norm(refs[0].p))
+    flips = int(np.count_nonzero(insts[0].contact_mask(p0) != insts[1].contact_mask(p1)))
+    ref_flips = int(np.count_nonzero(insts[0].contact_mask(refs[0].p) != insts[1].contact_mask(refs[1].p)))
+    amplification = move / eps
+    v.kkt_error = max(r.kkt_error for r in rows)
+    v.p_rel_error = move
+    ok = bool(amplification <= PERTURBATION_FACTOR * refs[0].cond)
+    v.status = _steps_verdict(rows, ok)
+    v.message = (f"eps {eps:.0e}: p moved {move:.1e} (exact {ref_move:.1e}), amplification {amplification:.3g} "
+                 f"vs cond {refs[0].cond:.3g}; active-set flips {flips} (exact {ref_flips})"
+                 + ("" if ok else " -- chaotic") + _steps_note(rows))
+    return v
+
+
+# ---------------------------------------------------------------------------
+# The table of one solver, and its outcome
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class VerdictTable:
+    """All verdicts of one solver's validation run (module doc)."""
+
+    solver: str
+    mode: str
+    promise: Promise = "exact"
+    rows: list[VerdictRow] = field(default_factory=list)
+    available: bool = True
+    note: str = ""
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.rows)
+
+    @property
+    def solves(self) -> list[VerdictRow]:
+        """The rows of solves the solver was handed (not comparisons, not skipped)."""
+        return [r for r in self.rows if r.step >= 0 and r.status != "skipped"]
+
+    @property
+    def wrong(self) -> list[VerdictRow]:
+        return [r for r in self.rows if r.status == "WRONG"]
+
+    @property
+    def unsolved(self) -> list[VerdictRow]:
+        """Solves without a correct answer (besides WRONG ones): what no solver may leave."""
+        return [r for r in self.solves if r.status in UNSOLVED
+                or (r.status == "refused" and r.group not in REFUSABLE_GROUPS)]
+
+    def outcome(self, strict: bool = False) -> str:
+        """"wrong", "strict" (only with ``strict``), "incomplete" or "conforms" (module doc)."""
+        if self.wrong:
+            return "wrong"
+        if strict and any(r.status in STRICT_FAILING for r in self.rows):
+            return "strict"
+        if self.unsolved:
+            return "incomplete"
+        return "conforms"
+
+    @property
+    def ok(self) -> bool:
+        return self.outcome() == "conforms"
+
+    def exit_code(self, strict: bool = False) -> int:
+        return EXIT_CODES[self.outcome(strict)]
+
+    def headline(self, strict: bool = False) -> str:
+        solves, unsolved = len(self.solves), self.unsolved
+        labels = ", ".join(r.label for r in unsolved)
+        outcome = self.outcome(strict)
+        if outcome == "wrong":
+            return (f"WRONG: {len(self.wrong)} of {solves} solves wrong (a failing answer claimed as converged, "
+                    f"or a write into the problem): {', '.join(r.label for r in self.wrong)}")
+        if outcome == "strict":
+            bad = [r.label for r in self.rows if r.status in STRICT_FAILING]
+            return f"FAILS (--strict): {len(bad)} crashed, timed-out or flagged row(s): {', '.join(bad)}"
+        if outcome == "incomplete":
+            return f"INCOMPLETE: leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
+        if not solves:
+            return "CONFORMS: no case was run (every case skipped for a declared capability)"
+        return f"CONFORMS: every solve correct to its promise ({solves} of {solves})"
+
+    def summary(self, strict: bool = False) -> str:
+        statuses = ("pass", "WRONG", "unconverged", "flagged", "refused", "crashed", "timeout", "skipped")
+        counts = ", ".join(f"{s} {self.count(s)}" for s in statuses if self.count(s))
+        return f"{self.solver} [{self.mode}]: {self.headline(strict)} (rows: {counts or 'none'})"
+
+    def format(self, strict: bool = False) -> str:
+        width = max([len(r.label) for r in self.rows] + [4])
+        head = (f"{'case':{width}s} {'n':>5s} {'status':11s} {'claim':5s} {'kkt_error':>9s} {'err_ref':>9s} "
+                f"{'iters':>6s} {'time_s':>7s}  note")
+        promise = describe_promise(self.promise)
+        lines = [f"conformance of solver {self.solver!r} ({self.mode} battery, promise: {promise})"]
+        if self.note:
+            lines.append(self.note)
+        lines += [head, "-" * len(head)]
+        for r in self.rows:
+            claim = "" if r.claimed is None else ("yes" if r.claimed else "no")
+            it = "" if r.iterations is None else str(r.iterations)
+            lines.append(f"{r.label:{width}s} {r.n:5d} {r.status:11s} {claim:5s} {_num(r.kkt_error)} "
+                         f"{_num(r.p_rel_error)} {it:>6s} {_num(r.time_s, '7.3f')}  {r.message}")
+        lines.append(self.summary(strict))
+        return "\n".join(lines)
+
+    def records(self) -> list[dict[str, Any]]:
+        out = []
+        for r in self.rows:
+            d = asdict(r)
+            d.pop("kkt")
+            d["label"] = r.label
+            d["outcome"] = self.outcome()
+            out.append(d)
+        return out
+
+    def to_frame(self) -> Any:
+        import pandas as pd
+
+        return pd.DataFrame(self.records())
+
+
+def _num(x: float | None, fmt: str = "9.2e") -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return " " * int(fmt.split(".")[0])
+    return format(x, fmt)
+
+
+# ---------------------------------------------------------------------------
+# validate / assert_conforms
+# ---------------------------------------------------------------------------
+
+
+def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec] | None, mode: str) -> list[ConformanceCase]:
+    if cases is None:
+        return conformance_cases(mode)
+    return [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
+
+
+def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Promise = "exact") -> list[VerdictRow]:
+    """All verdict rows of one case (one per step, plus a comparison row)."""
+    seq = build_battery_spec(case.spec)
+    rows, ps, insts, refs = [], [], [], []
+    for k in range(len(seq)):
+        inst = seq.at(k)
+        ref = cached_reference(case.spec, k, inst)
+        out = runner.solve(case.spec, k)
+        rows.append(judge_solve(out, inst, ref, case, k, name, promise))
+        ps.append(read_answer(out.p, inst.n)[0] if out.kind == "ok" else None)
+        insts.append(inst)
+        refs.append(ref)
+    if case.compare == "units":
+        rows.append(units_agreement(rows, case, name))
+    elif case.compare == "perturbation" and all(r is not None for r in refs):
+        rows.append(perturbation_check(rows, ps, insts, refs, case, name))
+    return rows
+
+
+def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
+             mode: str = "fast", timeout: float | None = None, isolate: bool = True,
+             progress: Callable[[VerdictRow], Any] | None = None,
+             params: dict[str, Any] | None = None) -> VerdictTable:
+    """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
+    battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
+    its declared ``Param``s first) and return the verdict table."""
+    s = load_solver(solver) if isinstance(solver, str) else solver
+    table = VerdictTable(s.name, mode, promise=s.capabilities.promise)
+    available, why = s.availability()
+    if not available:
+        table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
+        return table
+    limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else timeout
+    s.resolve_params(params)  # unknown or bad parameters: a ParamError before anything runs
+    runner = CaseRunner(s, limit, isolate=isolate, params=params)
+    try:
+        for case in _as_cases(cases, mode):
+            new = run_case(runner, case, s.name, s.capabilities.promise)
+            table.rows.extend(new)
+            if progress is not None:
+                for r in new:
+                    progress(r)
+    finally:
+        runner.close()
+    return table
+
+
+def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
+                    mode: str = "fast", strict: bool = False, **kw: Any) -> VerdictTable:
+    """For a user's pytest: raise AssertionError (with the table) unless ``solver``
+    conforms -- a WRONG row, or a case left unsolved (``strict``: also crashes, timeouts
+    and flagged rows)."""
+    table = validate(solver, cases, mode=mode, **kw)
+    if not table.available:
+        raise AssertionError(table.note)
+    if table.exit_code(strict):
+        raise AssertionError("\n" + table.format(strict))
+    return table
+
+
+def left_out_lines(table: VerdictTable) -> list[str]:
+    """The cases the solver was not handed (skipped solves), grouped by reason."""
+    by_reason: dict[str, list[str]] = {}
+    for r in table.rows:
+        if r.status == "skipped" and r.step >= 0:
+            by_reason.setdefault(r.message or "no reason given", []).append(r.label)
+    if not by_reason:
+        return []
+    total = sum(len(v) for v in by_reason.values())
+    lines = [f"left out {total} solve(s) of {table.solver!r}:"]
+    lines += [f"  {len(labels)} because {reason}: {', '.join(labels)}" for reason, labels in by_reason.items()]
+    return lines

@@ -1,0 +1,262 @@
+"""What the conformance battery runs: its cases, their exact references, and the solves.
+
+* ``conformance_cases`` -- the recipes of the stress battery
+  (``contactbench.problems.scenes.stress``) as ``ConformanceCase`` records;
+* ``exact_reference`` -- the exact solution of one instance, computed independently of
+  the solver registry (a judge must not be a contestant): the known solution where a
+  recipe is built from one or certifies one (a periodic whole grid, where H is singular:
+  ``contactbench.problems.lcp.exact_solution_on_subset``), else
+  ``contactbench.problems.lcp.exact_solution`` (NNLS on the Cholesky factor, polished by
+  block principal pivoting), with cond(H);
+* ``CaseRunner`` -- one solver's solves, each in a forked worker
+  (``harness.run.isolation.ChildProcess``) with a hard wall-clock limit, so that a
+  hanging solver cannot hang ``validate``.
+
+The verdicts are ``harness.conformance.battery``'s business, through ``harness.judge``.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import time
+import traceback
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
+from contactbench.problems.instances import QP, ContactInstance
+from contactbench.problems.kkt import kkt_check
+from contactbench.problems.lcp import exact_solution
+from contactbench.problems.operators import DenseOperator
+from contactbench.problems.scenes.base import InstanceSpec
+from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
+from contactbench.solvers.base import SolveAborted, Solver, SolverSettings
+
+from ..judge import ProblemSeal
+from ..profiles import get_profile
+from ..run.skips import capability_decision
+from ..run.worker import instance_operator_kind, problem_traits
+
+#: Default per-solve time limits (s) by battery mode.
+DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
+#: Grace beyond the solver's own time limit before its worker is killed: a solver that
+#: honours ``time_limit`` returns an honest answer, only a hanging one is killed.
+KILL_GRACE = (2.0, 0.25)  # seconds + fraction of the limit
+#: Largest n the exact reference (and a dense-only solver) assembles densely.
+REFERENCE_MAX_N = 4096
+#: What a solve of the battery may use: a dense H at the reference limit plus its copies.
+BATTERY_MEMORY_BUDGET = 4 * 8.0 * REFERENCE_MAX_N**2
+#: A reference is trusted (used for the error in p) when its scaled KKT error is at most this.
+TRUSTED_REFERENCE_KKT = 1e-9
+#: Groups in which refusing the case is a legitimate answer (float32 input).
+REFUSABLE_GROUPS = ("precision",)
+
+
+# ---------------------------------------------------------------------------
+# Cases
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ConformanceCase:
+    """One battery recipe (an InstanceSpec of the stress scenes) with its verdict profile."""
+
+    spec: InstanceSpec
+
+    @property
+    def name(self) -> str:
+        return self.spec.instance
+
+    @property
+    def group(self) -> str:
+        return str(self.spec.params["group"])
+
+    @property
+    def profile(self) -> str:
+        return str(self.spec.params.get("profile", "mid"))
+
+    @property
+    def compare(self) -> str:
+        return str(self.spec.params.get("compare", "none"))
+
+    def __str__(self) -> str:
+        return self.name
+
+
+def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
+                      pattern: str | None = None) -> list[ConformanceCase]:
+    """The battery's recipes: ``mode`` "fast" (the test-suite subset, seconds per solver)
+    or "full"; optionally only some ``groups`` or names matching ``pattern`` (fnmatch,
+    e.g. ``"edge/*"``; a group name matches its whole group)."""
+    specs = battery_specs(mode, tuple(groups) if groups else GROUPS, scene="stress")
+    cases = [ConformanceCase(s) for s in specs]
+    if pattern:
+        cases = [c for c in cases if fnmatch.fnmatch(c.name, pattern) or fnmatch.fnmatch(c.group, pattern)]
+    return cases
+
+
+# ---------------------------------------------------------------------------
+# Exact reference
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The exact solution of one instance and what it took to trust it."""
+
+    p: np.ndarray
+    kkt_error: float
+    cond: float
+    method: str
+    time_s: float = float("nan")  # seconds to compute it (nan: a known solution, not computed)
+
+    @property
+    def trusted(self) -> bool:
+        return bool(self.kkt_error <= TRUSTED_REFERENCE_KKT)
+
+
+def exact_reference(inst: ContactInstance) -> Reference:
+    """The exact solution of ``inst`` (module doc) and cond(H); ``MemoryBudgetError``
+    beyond ``REFERENCE_MAX_N`` unknowns without a known solution."""
+    qp = inst.qp
+    cond = condition_number(qp.H) if qp.n <= REFERENCE_MAX_N else float("nan")
+    if "p_exact" in inst.meta:
+        p = np.asarray(inst.meta["p_exact"], dtype=np.float64)
+        return Reference(p, kkt_check(qp, p).kkt_error, cond, "known solution")
+    if qp.n > REFERENCE_MAX_N:
+        raise MemoryBudgetError(f"exact reference for n = {qp.n} (dense limit {REFERENCE_MAX_N})",
+                                8.0 * qp.n**2, 8.0 * REFERENCE_MAX_N**2)
+    t0 = time.perf_counter()
+    sol = exact_solution(qp.H.to_dense(), np.asarray(qp.ubar, dtype=np.float64))
+    elapsed = time.perf_counter() - t0
+    return Reference(sol.p, kkt_check(qp, sol.p).kkt_error, cond, "nnls+bpp", elapsed)
+
+
+_REFERENCES: dict[tuple[str, str, int], Reference] = {}
+
+
+def cached_reference(spec: InstanceSpec, step: int, inst: ContactInstance) -> Reference | None:
+    """References are deterministic per recipe: computed once per process (None: too
+    large to compute)."""
+    key = (spec.instance, spec.params_json(), step)
+    if key not in _REFERENCES:
+        try:
+            _REFERENCES[key] = exact_reference(inst)
+        except MemoryBudgetError:
+            return None
+    return _REFERENCES[key]
+
+
+# ---------------------------------------------------------------------------
+# Running one solve (in a worker process)
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class CaseAnswer:
+    """What one solve produced, as seen from the parent process.
+
+    kind: "ok", "refused", "crashed", "timeout" or "skipped"; ``message`` is one line,
+    ``detail`` the traceback of a crash; ``tampered`` what the solver changed in the
+    problem it was handed (``harness.judge.ProblemSeal``; "" nothing)."""
+
+    kind: str
+    p: np.ndarray | None = None
+    converged: bool | None = None
+    iterations: int | None = None
+    solver_status: str = ""
+    message: str = ""
+    detail: str = ""
+    time_s: float = float("nan")
+    tampered: str = ""
+
+
+def adapt_to_solver(inst: ContactInstance, solver: Solver) -> QP | str:
+    """The QP in a form the solver accepts, or the reason it cannot take it: steps 2, 3
+    and 5 of ``harness.run.skips`` (max_n, operator kind, the solver's own ``skip``); the
+    battery applies no time model, so a solver cannot skip its way out of a case."""
+    qp = inst.qp
+    d = capability_decision(solver, problem_traits(inst), BATTERY_MEMORY_BUDGET)
+    if d.skip:
+        return d.reason
+    if d.operator == "dense" and instance_operator_kind(inst) != "dense":
+        return QP(DenseOperator(qp.H.to_dense()), qp.ubar, qp.geometry)
+    return qp
+
+
+def is_refusal(exc: BaseException, group: str) -> bool:
+    """A clear refusal (not a crash): the project's input errors, NotImplementedError,
+    or, for float32 input, a ValueError/TypeError naming the dtype."""
+    if isinstance(exc, (ProblemInputError, MemoryBudgetError, NotImplementedError)):
+        return True
+    text = str(exc).lower()
+    return group in REFUSABLE_GROUPS and isinstance(exc, (ValueError, TypeError)) and any(
+        w in text for w in ("float32", "dtype", "precision", "single"))
+
+
+def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:
+    """Worker side: rebuild the instance from its recipe, solve, report plain data."""
+    spec, step, time_limit, params = msg
+    case = ConformanceCase(spec)
+    inst = build_battery_spec(spec).at(step)
+    qp = adapt_to_solver(inst, solver)
+    if isinstance(qp, str):
+        return {"kind": "skipped", "message": qp}
+    settings = SolverSettings(tol=get_profile(case.profile).tol, time_limit=time_limit, params=params)
+    seal = ProblemSeal.of(qp)
+    t0 = time.perf_counter()
+    try:
+        res = solver.solve(qp, settings, None)
+    except SolveAborted as exc:  # killed at its limit, or died (an external program)
+        return {"kind": exc.status, "time_s": time.perf_counter() - t0,
+                "message": str(exc).strip().splitlines()[0], "detail": str(exc)}
+    except Exception as exc:  # a row, not a harness failure
+        refused = is_refusal(exc, case.group)
+        return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
+                "message": f"{type(exc).__name__}: {exc}".strip().splitlines()[0],
+                "detail": "" if refused else traceback.format_exc(limit=6)}
+    elapsed = time.perf_counter() - t0
+    return {"kind": "ok", "p": res.p, "converged": bool(res.converged), "iterations": int(res.iterations),
+            "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
+            "tampered": seal.broken(qp)}
+
+
+class _SolverHandler:
+    def __init__(self, solver: Solver) -> None:
+        self.solver = solver
+
+    def __call__(self, msg: Any) -> dict[str, Any]:
+        return solve_case(self.solver, msg)
+
+
+class CaseRunner:
+    """Runs the solves of one solver with a hard time limit: in a forked worker
+    (``harness.run.isolation``) when ``isolate``, else in-process (no limit)."""
+
+    def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
+                 params: dict[str, Any] | None = None) -> None:
+        self.solver, self.timeout, self.isolate = solver, timeout, isolate
+        self.params = dict(params or {})
+        self.worker: Any = None
+        if isolate:
+            from contactbench.harness.run.isolation import ChildProcess
+
+            self.worker = ChildProcess(lambda: _SolverHandler(solver))
+
+    def solve(self, spec: InstanceSpec, step: int) -> CaseAnswer:
+        msg = (spec, step, self.timeout, self.params)
+        if self.worker is None:
+            return CaseAnswer(**solve_case(self.solver, msg))
+        out = self.worker.call(msg, None if self.timeout is None else
+                               self.timeout + KILL_GRACE[0] + KILL_GRACE[1] * self.timeout)
+        if out.kind == "ok":
+            return CaseAnswer(**out.value)
+        kind = "timeout" if out.kind == "timeout" else "crashed"
+        return CaseAnswer(kind, message=str(out.detail).strip().splitlines()[0] if out.detail else kind,
+                            detail=str(out.detail), time_s=out.elapsed)
+
+    def close(self) -> None:
+        if self.worker is not None:
+            self.worker.close()

@@ -1,0 +1,184 @@
+"""``contactbench validate``: the command line of the conformance battery (argument
+parsing, the solvers it names, the exit status, the optional CSV and report).
+
+Exit status: 0 every solver conforms, 1 a verdict fails, 2 bad input, 3 a solver is
+inconclusive under ``--strict`` (``VerdictTable.exit_code``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from typing import Any, Sequence
+
+from contactbench.problems.errors import ProblemInputError
+from contactbench.solvers.base import ParamError, Solver
+from contactbench.solvers.registry import all_solvers, load_solver
+
+from .battery import GROUPS, USAGE_ERROR, conformance_cases, left_out_lines, validate
+from .report import write_conformance_report
+
+
+# ---------------------------------------------------------------------------
+# Command line: contactbench validate
+# ---------------------------------------------------------------------------
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="contactbench validate",
+        description="Run solvers through the conformance battery and judge every answer with the harness's "
+                    "judge (the scaled KKT check of `contactbench run`).",
+        epilog="exit status: 0 conforms (every case solved to the solver's promise, or skipped for a declared "
+               "capability); 1 wrong: an answer claimed as converged that fails, or a solver that wrote into its "
+               "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input (unknown solver, import "
+               "path that does not load, no case selected, solver not available); 3 incomplete: cases left "
+               "unsolved (docs/verdicts.md).")
+    ap.add_argument("solvers", nargs="*", metavar="SOLVER",
+                    help="registry name, or import path module:NAME (the current directory is importable)")
+    ap.add_argument("--all", action="store_true", help="every available registered solver")
+    ap.add_argument("--full", action="store_true", help="the full battery (default: the fast subset)")
+    ap.add_argument("--group", action="append", choices=GROUPS, help="only these groups (repeatable)")
+    ap.add_argument("--cases", metavar="GLOB", help="only cases whose name or group matches, e.g. 'edge/*'")
+    ap.add_argument("--timeout", type=float, help="seconds per solve (default: 20 fast, 60 full)")
+    ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged rows")
+    ap.add_argument("--no-isolate", action="store_true", help="solve in-process (no time limit; for debugging)")
+    ap.add_argument("--list", action="store_true", help="list the selected cases and exit")
+    ap.add_argument("--csv", metavar="PATH", help="also write the verdict rows as CSV")
+    ap.add_argument("--out", metavar="DIR", help="write the conformance report: DIR/verdicts.csv and DIR/conformance.md "
+                                                  "(the exit status is the same)")
+    ap.add_argument("--command", metavar="'CMD {problem} {solution}'",
+                    help="validate an outside program over the file protocol (docs/external-solvers.md)")
+    ap.add_argument("--inputs", choices=("dense", "kernel"), default=None,
+                    help="with --command: what the program reads, the dense H (default) or the kernel table")
+    ap.add_argument("--quiet", action="store_true", help="print only the summary line per solver")
+    ap.add_argument("--params", type=json_object, default=None, metavar="JSON",
+                    help='solver parameters for every solve, e.g. \'{"precision": "mixed"}\' (checked against the '
+                         "solver's declared parameters: `contactbench list solvers --params`)")
+    return ap
+
+
+def json_object(text: str) -> dict[str, Any]:
+    """A JSON object from the command line (argparse reports anything else as a usage error)."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON: {exc}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"expected a JSON object such as '{{\"precision\": \"mixed\"}}', got {text!r}")
+    return value
+
+
+class SolverLoadError(ValueError):
+    """A solver named on the command line that cannot be loaded or run here."""
+
+
+def load_named_solver(name: str) -> Solver:
+    """The solver called ``name`` (registry name or ``module:NAME``), or a
+    ``SolverLoadError`` that says what is wrong in one line."""
+    if ":" not in name:
+        try:
+            return load_solver(name)
+        except KeyError as exc:
+            raise SolverLoadError(f"{exc.args[0] if exc.args else exc} (or give an import path module:NAME)") from None
+    module, attr = name.split(":", 1)
+    try:  # a module in the current folder loads, as with `python -m` (solvers/registry.py)
+        return load_solver(name)
+    except ModuleNotFoundError as exc:
+        raise SolverLoadError(f"cannot import {module!r} for solver {name!r}: {exc}; run from the folder that "
+                              "holds it or put that folder on PYTHONPATH") from None
+    except AttributeError:
+        raise SolverLoadError(f"module {module!r} has no attribute {attr!r} (solver {name!r})") from None
+    except Exception as exc:  # the user's module failed to import or to build its solver
+        raise SolverLoadError(f"cannot load solver {name!r}: {type(exc).__name__}: {exc}") from None
+
+
+def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:
+    """The solver of ``--command`` (an unregistered external solver), checked up front."""
+    if command is None:
+        if inputs is not None:
+            raise SolverLoadError("--inputs goes with --command")
+        return []
+    from contactbench.solvers.external import command_solver
+
+    return [command_solver(command, inputs or "dense")]
+
+
+def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = ()) -> list[Solver]:
+    solvers = [load_named_solver(n) for n in dict.fromkeys(names)] + list(extra)
+    for s in solvers:
+        ok, why = s.availability()
+        if not ok:
+            raise SolverLoadError(f"solver {s.name!r} is not available here: {why}")
+    if every:
+        seen = {s.name for s in solvers}
+        solvers += [s for n, s in all_solvers().items() if n not in seen and s.availability()[0]]
+    if not solvers:
+        raise SolverLoadError("name a solver (registry name or module:NAME), pass --all, or give --command")
+    return solvers
+
+
+def _combined_exit(codes: Sequence[int]) -> int:
+    """Wrong answers first (1), then incomplete solvers (3), else 0."""
+    return 1 if 1 in codes else (3 if 3 in codes else 0)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``contactbench validate`` (module doc for the exit status)."""
+    try:
+        args = build_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    except SystemExit as exc:  # --help (0) or a usage error (2), as a return value
+        return exc.code if isinstance(exc.code, int) else USAGE_ERROR
+    mode = "full" if args.full else "fast"
+    cases = conformance_cases(mode, args.group, args.cases)
+    if args.list:
+        width = max([len(c.name) for c in cases] + [4])
+        for c in cases:
+            print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
+        return 0
+    try:
+        if not cases:
+            raise SolverLoadError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
+        command_solvers = command_solver_of(args.command, args.inputs)
+        solvers = _selected_solvers(args.solvers, args.all, command_solvers)
+        for solver in solvers:
+            solver.resolve_params(args.params)
+        if args.out:
+            check_out_dir(args.out)
+    except (SolverLoadError, ProblemInputError, ParamError) as exc:
+        print(f"contactbench validate: error: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    codes, tables = [], []
+    for solver in solvers:
+        table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
+                         params=args.params)
+        print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
+        left = left_out_lines(table) if not args.quiet or solver in command_solvers else []
+        if left:
+            print("\n".join(left) + "\n", flush=True)
+        codes.append(table.exit_code(args.strict))
+        tables.append(table)
+    if args.csv and tables:
+        import pandas as pd
+
+        pd.concat([t.to_frame() for t in tables], ignore_index=True).to_csv(args.csv, index=False)
+    if args.out:
+        path = write_conformance_report(tables, args.out, strict=args.strict, command=list(argv or sys.argv[1:]))
+        print(f"conformance report: {path}")
+    return _combined_exit(codes)
+
+
+def check_out_dir(path: str) -> None:
+    """``--out DIR`` must be a folder that can be written (checked before anything runs)."""
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise SolverLoadError(f"--out {path!r}: cannot create the folder ({exc.strerror or exc})") from None
+    if not os.access(path, os.W_OK):
+        raise SolverLoadError(f"--out {path!r}: the folder is not writable")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

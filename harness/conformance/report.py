@@ -1,0 +1,127 @@
+"""The conformance report of ``contactbench validate ... --out DIR``.
+
+Two files, from the verdict tables of ``harness.conformance.battery`` (nothing is re-judged):
+
+``verdicts.csv``      every verdict row (one per solve, plus the comparison rows), with
+                      the solver's outcome and the exact reference's time;
+``conformance.md``    one short page: per solver its headline and exit status, then one
+                      line per case -- the verdict (the worst row status of its steps),
+                      the worst scaled KKT error, the worst error in p against the exact
+                      reference, and the solver's time against the reference's.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import shlex
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+from .battery import VerdictRow, VerdictTable, left_out_lines
+
+#: Row statuses from worst to best: a case's verdict is the worst of its rows.
+SEVERITY = ("WRONG", "crashed", "timeout", "flagged", "unconverged", "refused", "skipped", "pass")
+CSV_NAME, MD_NAME = "verdicts.csv", "conformance.md"
+
+
+@dataclass(frozen=True)
+class CaseLine:
+    """One line of the page: a case of one solver, over its steps."""
+
+    case: str
+    group: str
+    n: int
+    verdict: str
+    kkt_error: float
+    p_rel_error: float
+    time_s: float
+    ref_time_s: float
+    note: str
+
+    @property
+    def time_ratio(self) -> float:
+        ok = math.isfinite(self.time_s) and math.isfinite(self.ref_time_s) and self.ref_time_s > 0
+        return self.time_s / self.ref_time_s if ok else math.nan
+
+
+def _worst(values: Sequence[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return max(finite) if finite else math.nan
+
+
+def _total(values: Sequence[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return sum(finite) if finite and len(finite) == len(values) else math.nan
+
+
+def case_lines(table: VerdictTable) -> list[CaseLine]:
+    """The rows of ``table`` folded per case (module doc)."""
+    by_case: dict[str, list[VerdictRow]] = {}
+    for r in table.rows:
+        by_case.setdefault(r.case, []).append(r)
+    out = []
+    for case, rows in by_case.items():
+        verdict = min((r.status for r in rows), key=lambda s: SEVERITY.index(s) if s in SEVERITY else 0)
+        solves = [r for r in rows if r.step >= 0]
+        worst = next((r for r in rows if r.status == verdict), rows[0])
+        out.append(CaseLine(case, rows[0].group, max(r.n for r in rows), verdict,
+                            _worst([r.kkt_error for r in solves]), _worst([r.p_rel_error for r in solves]),
+                            _total([r.time_s for r in solves]), _total([r.ref_time_s for r in solves]),
+                            worst.message if verdict != "pass" else ""))
+    return out
+
+
+def write_csv(tables: Sequence[VerdictTable], path: Path) -> None:
+    records: list[dict[str, Any]] = [rec for t in tables for rec in t.records()]
+    fields = list(records[0]) if records else ["solver", "case", "status"]
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        w.writeheader()
+        w.writerows(records)
+
+
+def _fmt(x: float, spec: str = ".2e") -> str:
+    return "" if not math.isfinite(x) else format(x, spec)
+
+
+def _cell(text: str, width: int = 160) -> str:
+    one = " ".join(str(text).split()).replace("|", "\\|")
+    return one if len(one) <= width else one[: width - 1] + "…"
+
+
+def markdown_page(tables: Sequence[VerdictTable], strict: bool = False, command: Sequence[str] = ()) -> str:
+    lines = ["# Conformance report", ""]
+    if command:
+        lines += ["`contactbench validate " + shlex.join(command) + "`", ""]
+    lines += ["Every answer is judged by the harness's scaled KKT check (problems/kkt.py) at the case's "
+              "profile threshold; `p error` is max ||p - p_ref||_inf / ||p_ref||_inf against the exact "
+              "reference; `time / ref` compares the solver's seconds (all steps) with the exact reference's.", ""]
+    for t in tables:
+        lines += [f"## {t.solver} ({t.mode} battery)", "",
+                  f"**{t.headline(strict)}** -- exit status {t.exit_code(strict)}", ""]
+        if t.note:
+            lines += [t.note, ""]
+        lines += ["| case | n | verdict | worst KKT | p error | time (s) | ref (s) | time / ref | note |",
+                  "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- |"]
+        for c in case_lines(t):
+            lines.append(f"| {c.case} | {c.n} | {c.verdict} | {_fmt(c.kkt_error)} | {_fmt(c.p_rel_error)} | "
+                         f"{_fmt(c.time_s, '.3g')} | {_fmt(c.ref_time_s, '.3g')} | {_fmt(c.time_ratio, '.3g')} | "
+                         f"{_cell(c.note)} |")
+        left = left_out_lines(t)
+        if left:
+            lines += ["", *[f"- {ln.strip()}" for ln in left[1:]]]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_conformance_report(tables: Sequence[VerdictTable], out_dir: str | Path, *, strict: bool = False,
+                             command: Sequence[str] = ()) -> Path:
+    """Write DIR/verdicts.csv and DIR/conformance.md; return the page's path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(tables, out / CSV_NAME)
+    page = out / MD_NAME
+    page.write_text(markdown_page(tables, strict, command))
+    return page

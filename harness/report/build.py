@@ -1,0 +1,77 @@
+"""Assembly of a report: ``build_report(OUT)`` writes OUT/report.md with its figures
+under OUT/figures/ and (``html``) the interactive OUT/report.html, from the stored
+table and OUT/meta.json.  It never solves anything.
+
+The sections are the registered ones (harness/report/core.py ``registered_sections``):
+a scene section is rendered when its scene has rows, in the order of its group.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..table import aggregates as agg
+from ..table.files import write_text_atomic
+from .core import (
+    REPORT_NAME,
+    PageChart,
+    ReportContext,
+    ReportInputError,
+    Section,
+    SectionSpec,
+    header_section,
+    load_meta,
+    read_table,
+    registered_sections,
+)
+from .html import write_html_report
+
+
+# ---------------------------------------------------------------------------
+# Assembly
+# ---------------------------------------------------------------------------
+
+
+def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: bool = True) -> Path:
+    """Write OUT/report.md and OUT/figures/*.png from the stored table, and (``html``)
+    the interactive OUT/report.html (harness/report/html.py); return report.md's path."""
+    out = Path(out_dir)
+    table = read_table(out)
+    if table.empty:
+        raise ReportInputError(f"the results table in {out} has no rows")
+    ctx = ReportContext(out, table, load_meta(out), shift=shift)
+    if ctx.fig_dir.is_dir():
+        for old in ctx.fig_dir.glob("*.png"):
+            old.unlink()
+    sections = registered_sections()
+    doc = [header_section(ctx)]
+    scenes = set(ctx.scenes())
+    for group, heading in (("paper", "Paper reproductions (Bemporad & Paggi 2015)"), ("scenes", "Scene studies")):
+        rendered = [(sp, sec) for sp in _in_order(sections, group) if sp.scene in scenes
+                    if (sec := sp.fn(ctx, ctx.rows(sp.scene))) is not None]
+        if rendered:
+            doc.append(f"## {heading}\n")
+            doc += [f"### {sec.title}\n\n{sec.body}{charts_md(ctx, sp.scene, sec)}" for sp, sec in rendered]
+    for sp in _in_order(sections, "summary"):
+        sec = sp.fn(ctx, ctx.table)
+        if sec is not None:
+            doc.append(f"## {sec.title}\n\n{sec.body}{charts_md(ctx, '', sec)}")
+    path = out / REPORT_NAME
+    write_text_atomic(path, "\n".join(d.rstrip() + "\n" for d in doc))
+    if html:
+        write_html_report(ctx)
+    return path
+
+
+def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:
+    """Each of the section's charts as a PNG under its body, kept on the context for
+    report.html (under ``scene``)."""
+    parts = []
+    for chart in sec.charts:
+        ctx.charts.append(PageChart(scene, chart))
+        parts.append(ctx.figure_md(ctx.save_figure(chart.to_figure(), f"chart-{chart.name}"), chart.title))
+    return "\n" + "\n".join(parts) if parts else ""
+
+
+def _in_order(sections: dict[str, SectionSpec], group: str) -> list[SectionSpec]:
+    return sorted((sp for sp in sections.values() if sp.group == group), key=lambda sp: (sp.order, sp.scene))

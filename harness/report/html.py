@@ -1,0 +1,195 @@
+"""``report.html``: the interactive page beside report.md -- one self-contained file that
+opens offline (plotly.js and the page's own script inlined).
+
+Why Plotly: every cross-figure filter (solver picker, family toggles, scene and profile
+filters acting on every chart at once) is one data table redrawn with ``Plotly.react``
+from a few lines of plain JavaScript; hover templates and log axes are built in.  The
+Python ``plotly`` package is used only for ``get_plotlyjs()`` (the inlined script; the
+size and render-time comparison with Bokeh and Vega-Lite is in docs/report.md).
+
+The page holds the table's attempted rows (instance, step, n, kkt_error, p error,
+load error, time, iterations, status for the hover) and draws from them, for every
+scene present: Fig. 4 / 6 and the CMR figures (time against load), Fig. 5 (time
+against n), the counterexample's violation shares, work-precision (kkt_error and p
+error against time), the performance profiles and the sortable shifted-geometric-mean
+table; then the load-area curve and the convergence traces per family; and, as images,
+the static figures that have no interactive twin (the fields, the counterexample case,
+the closed-form checks).  Colours are the report's (``ctx.styles``).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..table import aggregates as agg
+from .core import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace
+from .sections.fields import load_area_series, trace_scene
+from .sections.generic import profile_taus, reached_accuracy
+from .sections.paper import k_of
+from .page_script import PAGE_SCRIPT
+from .style import sort_families
+from ..table.files import write_text_atomic
+from ..table.schema import as_finite
+
+HTML_NAME = "report.html"
+
+
+def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
+    """The attempted rows, one dict each, with short keys (the page's data table)."""
+    t = attempted(ctx.table)
+    warm = t.groupby(["scene", "solver", "profile", "history"])["warm_start"].transform("any").astype(bool)
+    out = []
+    for (_, r), w in zip(t.iterrows(), warm):
+        out.append(dict(sc=r["scene"], inst=r["instance"], st=as_finite(r["step"]), n=as_finite(r["n"]), so=r["solver"],
+                        lab=f"{r['solver']}{WARM_SUFFIX}" if w else r["solver"], fa=ctx.family(r["solver"]),
+                        pr=r["profile"], stt=r["status"], kkt=as_finite(r["kkt_error"]),
+                        perr=as_finite(r["p_rel_error"]), lerr=as_finite(r["load_rel_error"]),
+                        t=as_finite(r["solve_time_s"]), it=as_finite(r["iterations"]),
+                        dl=as_finite(r["dim_load"]), cf=as_finite(r["contact_fraction"]), K=as_finite(k_of(r)),
+                        base=r["base_solver"]))
+    out.sort(key=lambda d: (d["sc"], natural_key(d["so"]), d["pr"], natural_key(d["inst"]), d["st"] or 0))
+    return out
+
+
+def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Per scene: the performance profile curves and the aggregate (SGM) table."""
+    pp: dict[str, Any] = {}
+    sgm: dict[str, Any] = {}
+    for scene in ctx.scenes():
+        r = ctx.rows(scene)
+        solvers = natural_sorted(r["solver"].unique())
+        summ = agg.summarize(r, ctx.shift, solvers)
+        acc = reached_accuracy(r)
+        sgm[scene] = {"columns": ["solver", "family", "solved", "attempted", "success", "SGM [s]", "SGM / best",
+                                  "median kkt (solved)", "false claims"],
+                      "rows": [[s.solver, ctx.family(s.solver), s.solved, s.attempted, as_finite(s.success_rate),
+                                as_finite(s.sgm_s), as_finite(s.sgm_rel), as_finite(acc.get(s.solver)), s.false_claims]
+                               for s in summ]}
+        cells = agg.cell_table(r, solvers)
+        if len(cells.solvers) >= 2 and cells.problems:
+            prof = agg.performance_profile(cells)
+            taus, _ = profile_taus(prof, 120)
+            pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
+                         "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}
+    return pp, sgm
+
+
+def trace_data(ctx: ReportContext) -> dict[str, Any]:
+    """The representative trace of every solver (largest n, tightest profile) in the
+    first scene with traces (the Markdown report's trace figure: report_fields.trace_scene)."""
+    scene, reps = trace_scene(ctx)
+    if not reps:
+        return {}
+    out = {}
+    for s, row in reps.items():
+        tr = parse_trace(row["trace"])
+        ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
+        out[s] = {"it": tr[ok, 0].tolist(), "t": tr[ok, 1].tolist(), "r": tr[ok, 2].tolist(),
+                  "where": f"{row['instance']} step {int(row['step'])} ({row['profile']})"}
+    return {"scene": scene, "solvers": out}
+
+
+def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:
+    return [{"scene": scene, "instance": inst, "x": pi["dim_load"].tolist(), "y": pi["area"].tolist(),
+             "step": pi["step"].tolist()} for scene, inst, pi in load_area_series(ctx)]
+
+
+def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:
+    out = []
+    for rel in ctx.page_figures:  # the figures a section saved with on_page=True
+        data = base64.b64encode((ctx.out_dir / rel).read_bytes()).decode("ascii")
+        out.append({"name": Path(rel).name, "src": f"data:image/png;base64,{data}"})
+    return out
+
+
+def page_data(ctx: ReportContext) -> dict[str, Any]:
+    t = ctx.table
+    fams = sort_families(ctx.family(s) for s in t["solver"].unique())
+    pp, sgm = profiles_and_sgm(ctx)
+    return {
+        "title": str(ctx.meta.get("suite") or ", ".join(ctx.scenes())),
+        "scenes": ctx.scenes(),
+        "profiles": natural_sorted(set(attempted(t)["profile"])),
+        "families": [{"name": f, "solvers": [{"name": s, "color": ctx.styles.hex(s)} for s in
+                                             natural_sorted(x for x in t["solver"].unique() if ctx.family(x) == f)]}
+                     for f in fams],
+        "rows": page_rows(ctx),
+        "pp": pp,
+        "sgm": sgm,
+        "traces": trace_data(ctx),
+        "loadarea": load_area_data(ctx),
+        "images": embedded_images(ctx),
+        "charts": [{"scene": pc.scene, **pc.chart.to_plotly()} for pc in ctx.charts],
+    }
+
+
+def _json_for_script(obj: Any) -> str:
+    """JSON safe inside <script> (no '</' sequence)."""
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+
+
+def render_html(ctx: ReportContext) -> str:
+    from plotly.offline import get_plotlyjs
+
+    data = page_data(ctx)
+    title = html.escape(f"contactbench report: {data['title']}")
+    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\n"
+            f"<style>{PAGE_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
+            f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
+            f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "
+            f"profiles; hover a point for its instance, step, n, errors, time, iterations and status; click a "
+            f"table header to sort.</p></header>\n"
+            f"<div id=\"layout\"><nav id=\"picker\"></nav><main id=\"charts\"></main></div>\n"
+            f"{tables_html(ctx)}"
+            f"<script id=\"report-data\" type=\"application/json\">{_json_for_script(data)}</script>\n"
+            f"<script>{PAGE_SCRIPT}</script>\n</body></html>\n")
+
+
+def tables_html(ctx: ReportContext) -> str:
+    """The report.md tables marked ``on_page`` (same numbers and cells), as HTML."""
+    out = []
+    for t in (t for t in ctx.tables if t.on_page):
+        head = "".join(f"<th>{html.escape(h)}</th>" for h in t.headers)
+        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in t.rows)
+        out.append(f'<table class="sgm"><caption>Table {t.number}: {html.escape(t.caption)}</caption>'
+                   f"<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+    return f'<section id="tables"><h2>Tables (as in report.md)</h2>{"".join(out)}</section>\n' if out else ""
+
+
+def write_html_report(ctx: ReportContext) -> Path:
+    """Write OUT/report.html (atomically); returns its path."""
+    path = ctx.out_dir / HTML_NAME
+    write_text_atomic(path, render_html(ctx))
+    return path
+
+
+PAGE_CSS = """
+body{font-family:system-ui,sans-serif;margin:0;color:#222}
+header{padding:8px 16px;border-bottom:1px solid #ddd}
+header h1{font-size:1.2em;margin:4px 0}
+header p{margin:4px 0;font-size:.85em;color:#555}
+#layout{display:flex;align-items:flex-start}
+#picker{width:260px;flex:none;padding:8px 12px;font-size:.8em;position:sticky;top:0;max-height:100vh;overflow:auto;
+ border-right:1px solid #ddd}
+#picker fieldset{border:1px solid #ddd;margin:0 0 8px 0;padding:4px 8px}
+#picker label{display:block;white-space:nowrap}
+#picker .fam{font-weight:bold;margin-top:4px}
+#picker .sw{display:inline-block;width:10px;height:10px;margin-right:4px;border-radius:2px}
+#charts{flex:1;padding:8px 16px;min-width:0}
+.scene{margin-bottom:24px}
+.scene h2{font-size:1.05em;border-bottom:1px solid #eee}
+.chart{width:100%;height:420px}
+.grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(520px,1fr));gap:8px}
+table.sgm{border-collapse:collapse;font-size:.8em;margin:8px 0}
+table.sgm th,table.sgm td{border:1px solid #ddd;padding:2px 6px;text-align:right}
+table.sgm th{cursor:pointer;background:#f6f6f6}
+table.sgm td:first-child,table.sgm td:nth-child(2){text-align:left}
+img.static{max-width:100%;border:1px solid #eee}
+.hidden{display:none}
+"""

@@ -1,0 +1,244 @@
+"""The script of report.html (harness/report/html.py): plain JavaScript over the page's
+data table, drawing with Plotly.  Kept as a Python string so that it ships with the
+package wherever it is installed."""
+
+PAGE_SCRIPT = r"""
+(function () {
+'use strict';
+const D = JSON.parse(document.getElementById('report-data').textContent);
+const COLOR = {}, FAMILY = {};
+D.families.forEach(f => f.solvers.forEach(s => { COLOR[s.name] = s.color; FAMILY[s.name] = f.name; }));
+const state = {solvers: new Set(Object.keys(COLOR)), scenes: new Set(D.scenes), profiles: new Set(D.profiles)};
+const charts = [];   // {div, scene, draw: () => [traces, layout]}
+const MARKERS = {low: 'triangle-down', 'default': 'circle', mid: 'square', high: 'triangle-up'};
+const fmt = v => (v === null || v === undefined) ? '-' : Number.isInteger(v) && Math.abs(v) < 1e6 ? String(v) : (Math.abs(v) >= 1e-3 && Math.abs(v) < 1e5 ?
+  Number(v.toPrecision(3)).toString() : v.toExponential(1));
+const HOVER = 'instance %{customdata[0]}, step %{customdata[1]}, n %{customdata[2]}<br>' +
+  'solver %{customdata[9]} (%{customdata[10]})<br>kkt_error %{customdata[3]}, p error %{customdata[4]}, ' +
+  'load error %{customdata[5]}<br>time %{customdata[6]} s, iterations %{customdata[7]}, status %{customdata[8]}' +
+  '<extra></extra>';
+const custom = r => [r.inst, r.st, r.n, fmt(r.kkt), fmt(r.perr), fmt(r.lerr), fmt(r.t), r.it, r.stt, r.so, r.pr];
+const base = lab => lab.replace(/ \(warm\)$/, '');
+
+function rowsOf(scene) {
+  return D.rows.filter(r => r.sc === scene && state.solvers.has(r.so) && state.profiles.has(r.pr));
+}
+function groupBy(rows, key) {
+  const m = new Map();
+  rows.forEach(r => { const k = key(r); if (!m.has(k)) m.set(k, []); m.get(k).push(r); });
+  return m;
+}
+function axisType(vals) {
+  const v = vals.filter(x => x !== null && x > 0);
+  if (!v.length) return 'linear';
+  return Math.max(...v) / Math.min(...v) > 10 ? 'log' : 'linear';
+}
+function layout(title, xt, yt, xs, ys, extra) {
+  return Object.assign({title: {text: title, font: {size: 13}}, margin: {l: 60, r: 10, t: 40, b: 50},
+    xaxis: {title: {text: xt}, type: axisType(xs), exponentformat: 'power'},
+    yaxis: {title: {text: yt}, type: axisType(ys), exponentformat: 'power'},
+    legend: {font: {size: 10}}, hovermode: 'closest'}, extra || {});
+}
+function lineChart(scene, title, xKey, xTitle, byInstance) {
+  return () => {
+    const rows = rowsOf(scene).filter(r => r.t !== null && r[xKey] !== null);
+    const multiProf = new Set(rows.map(r => r.pr)).size > 1;
+    const g = groupBy(rows, r => r.lab + (multiProf ? ' [' + r.pr + ']' : '') + (byInstance ? ' ' + r.inst : ''));
+    const traces = [];
+    [...g.keys()].sort().forEach(k => {
+      const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
+      const so = rs[0].so;
+      traces.push({type: 'scatter', mode: 'lines+markers', name: k, x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
+        customdata: rs.map(custom), hovertemplate: HOVER, line: {color: COLOR[so], dash: rs[0].lab !== so ? 'dash' : 'solid'},
+        marker: {color: rs.map(r => r.stt === 'solved' ? COLOR[so] : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
+          symbol: rs.map(r => r.stt === 'solved' ? 'circle' : 'x')}});
+    });
+    return [traces, layout(title, xTitle, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t))];
+  };
+}
+function wpChart(scene, key, yTitle) {
+  return () => {
+    const rows = rowsOf(scene).filter(r => r.t !== null && r[key] !== null);
+    const g = groupBy(rows, r => r.so + '|' + r.pr);
+    const traces = [];
+    [...g.keys()].sort().forEach(k => {
+      const rs = g.get(k), so = rs[0].so, pr = rs[0].pr;
+      traces.push({type: 'scatter', mode: 'markers', name: so + (D.profiles.length > 1 ? ' [' + pr + ']' : ''),
+        x: rs.map(r => r.t), y: rs.map(r => Math.max(r[key], 1e-16)), customdata: rs.map(custom), hovertemplate: HOVER,
+        marker: {color: rs.map(r => r.stt === 'solved' ? COLOR[so] : 'white'), line: {color: COLOR[so], width: 1},
+          symbol: MARKERS[pr] || 'diamond', size: 7}});
+    });
+    const lay = layout('run time against ' + yTitle + ' (' + scene + ')', 'solve time [s]', yTitle,
+      rows.map(r => r.t), [1, 10, 100]);
+    lay.yaxis.type = 'log';
+    return [traces, lay];
+  };
+}
+function ppChart(scene) {
+  return () => {
+    const p = D.pp[scene];
+    const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).map(s => ({type: 'scatter',
+      mode: 'lines', line: {shape: 'hv', color: COLOR[s]}, name: s, x: p.taus, y: p.curves[s],
+      hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}));
+    const lay = layout('performance profile (' + scene + ', ' + p.n + ' problems)', 'tau (times the best time)',
+      'fraction of problems solved', p.taus, [0, 1]);
+    lay.xaxis.type = 'log';
+    lay.yaxis.range = [-0.02, 1.02];
+    return [traces, lay];
+  };
+}
+function counterexampleChart(scene) {
+  return () => {
+    const rows = rowsOf(scene);
+    const g = groupBy(rows, r => r.so);
+    const ns = [...new Set(rows.map(r => r.n))].sort((a, b) => a - b);
+    const traces = [...g.keys()].sort().map(so => {
+      const rs = g.get(so);
+      const y = ns.map(n => { const x = rs.filter(r => r.n === n); if (!x.length) return null;
+        return 100 * x.filter(r => r.stt !== 'solved').length / x.length; });  // the judge's verdict, as the section
+      return {type: 'bar', name: so, x: ns.map(n => 'n = ' + n), y: y, marker: {color: COLOR[so]},
+        hovertemplate: so + ': %{y:.0f} % of seeds violate the LCP (judge: not solved) at %{x}<extra></extra>'};
+    });
+    return [traces, layout('seeds violating the LCP (' + scene + ')', 'problem size', 'seeds violating the LCP [%]',
+      [], [])];
+  };
+}
+function traceChart(useTime) {
+  return () => {
+    const T = D.traces;
+    const traces = Object.keys(T.solvers).filter(s => state.solvers.has(s)).map(s => {
+      const d = T.solvers[s];
+      return {type: 'scatter', mode: 'lines', name: s, x: useTime ? d.t : d.it, y: d.r,
+        line: {color: COLOR[s]}, legendgroup: FAMILY[s],
+        hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
+          (useTime ? '%{x:.3g} s' : 'iteration %{x}') + '<extra></extra>'};
+    });
+    const xs = [].concat(...traces.map(t => t.x));
+    const lay = layout('convergence traces (' + T.scene + '): own residual against ' + (useTime ? 'time' : 'iteration'),
+      useTime ? 'elapsed [s]' : 'iteration', 'own residual', xs, [1, 100]);
+    lay.yaxis.type = 'log';
+    if (useTime) lay.xaxis.type = 'log';
+    return [traces, lay];
+  };
+}
+function loadAreaChart() {
+  return () => {
+    const traces = D.loadarea.filter(s => state.scenes.has(s.scene)).map((s, i) => ({type: 'scatter',
+      mode: 'lines+markers', name: s.scene + ' ' + s.instance, x: s.x, y: s.y, customdata: s.step,
+      hovertemplate: 'step %{customdata}: P/(E* A0) = %{x:.3g}, A/A0 = %{y:.3g}<extra></extra>'}));
+    const lay = layout('load-area curve', 'P / (E* A0)', 'A / A0', [1, 100], [1, 100]);
+    lay.xaxis.type = 'log'; lay.yaxis.type = 'log';
+    return [traces, lay];
+  };
+}
+function sgmTable(scene, holder) {
+  const T = D.sgm[scene];
+  let sortCol = 6, asc = true;
+  function render() {
+    const rows = T.rows.filter(r => state.solvers.has(r[0])).slice().sort((a, b) => {
+      const x = a[sortCol], y = b[sortCol];
+      if (x === y) return 0; if (x === null) return 1; if (y === null) return -1;
+      return (x < y ? -1 : 1) * (asc ? 1 : -1); });
+    const head = '<tr>' + T.columns.map((c, i) => '<th data-i="' + i + '">' + c + (i === sortCol ? (asc ? ' &#9650;' : ' &#9660;') : '') + '</th>').join('') + '</tr>';
+    const body = rows.map(r => '<tr>' + r.map((v, i) => '<td>' + (i === 4 && v !== null ? Math.round(100 * v) + ' %' :
+      (typeof v === 'number' ? fmt(v) : (v === null ? '-' : String(v)))) + '</td>').join('') + '</tr>').join('');
+    holder.innerHTML = '<table class="sgm">' + head + body + '</table>';
+    holder.querySelectorAll('th').forEach(th => th.addEventListener('click', () => {
+      const i = +th.dataset.i; if (i === sortCol) asc = !asc; else { sortCol = i; asc = true; } render(); }));
+  }
+  holder.render = render;
+  render();
+}
+function addChart(parent, scene, draw) {
+  const div = document.createElement('div');
+  div.className = 'chart';
+  parent.appendChild(div);
+  charts.push({div: div, scene: scene, draw: draw});
+}
+function build() {
+  const main = document.getElementById('charts');
+  D.scenes.forEach(scene => {
+    const sec = document.createElement('section');
+    sec.className = 'scene'; sec.dataset.scene = scene;
+    sec.innerHTML = '<h2>' + scene + '</h2>';
+    const grid = document.createElement('div'); grid.className = 'grid'; sec.appendChild(grid);
+    const has = D.rows.some(r => r.sc === scene);
+    if (scene === 'paper-sweep') addChart(grid, scene, lineChart(scene, 'Fig. 4: solve time against load', 'dl', 'P/(E A) [-]', false));
+    else if (scene === 'gp-k-sweep') addChart(grid, scene, lineChart(scene, 'Fig. 6: NNLS+GP time per step, per K', 'dl', 'P/(E A) [-]', false));
+    else if (scene === 'greedy-linear-solvers') addChart(grid, scene, lineChart(scene, 'Fig. 5: greedy solve time against n', 'n', 'trial-set size n', false));
+    else if (scene.startsWith('cmr')) addChart(grid, scene, lineChart(scene, (scene === 'cmr' ? 'Fig. 8' : scene === 'cmr-h-sweep' ? 'Fig. 9' : scene) + ': CMR and direct solve time against load', 'dl', 'P/(E A) [-]', true));
+    else if (scene === 'counterexample') addChart(grid, scene, counterexampleChart(scene));
+    D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
+    if (has) {
+      addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));
+      addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
+    }
+    if (D.pp[scene]) addChart(grid, scene, ppChart(scene));
+    if (D.sgm[scene]) {
+      const h = document.createElement('div');
+      h.innerHTML = '<h3>shifted geometric mean of solve time (click a header to sort)</h3>';
+      const t = document.createElement('div'); h.appendChild(t); sec.appendChild(h); sgmTable(scene, t);
+      charts.push({div: null, scene: scene, table: t});
+    }
+    main.appendChild(sec);
+  });
+  const field = document.createElement('section');
+  field.className = 'scene'; field.dataset.scene = '';
+  field.innerHTML = '<h2>The contact fields and convergence</h2>';
+  const grid = document.createElement('div'); grid.className = 'grid'; field.appendChild(grid);
+  D.charts.filter(c => !c.scene).forEach(c => addChart(grid, '', () => [c.data, c.layout]));
+  if (D.loadarea.length) addChart(grid, '', loadAreaChart());
+  if (D.traces.solvers) { addChart(grid, '', traceChart(false)); addChart(grid, '', traceChart(true)); }
+  D.images.forEach(im => { const f = document.createElement('figure');
+    f.innerHTML = '<img class="static" alt="' + im.name + '" src="' + im.src + '"><figcaption>' + im.name + ' (static, as in report.md)</figcaption>';
+    field.appendChild(f); });
+  main.appendChild(field);
+}
+function redraw() {
+  document.querySelectorAll('section.scene').forEach(s => {
+    if (s.dataset.scene) s.classList.toggle('hidden', !state.scenes.has(s.dataset.scene)); });
+  charts.forEach(c => {
+    if (c.scene && !state.scenes.has(c.scene)) return;
+    if (c.table) { c.table.render(); return; }
+    const [traces, lay] = c.draw();
+    Plotly.react(c.div, traces, lay, {responsive: true, displayModeBar: false});
+  });
+}
+function checkbox(label, checked, onChange, swatch) {
+  const l = document.createElement('label');
+  const i = document.createElement('input'); i.type = 'checkbox'; i.checked = checked;
+  i.addEventListener('change', () => onChange(i.checked));
+  l.appendChild(i);
+  if (swatch) { const s = document.createElement('span'); s.className = 'sw'; s.style.background = swatch; l.appendChild(s); }
+  l.appendChild(document.createTextNode(label));
+  return [l, i];
+}
+function picker() {
+  const nav = document.getElementById('picker');
+  const fsS = document.createElement('fieldset'); fsS.innerHTML = '<legend>scenes</legend>';
+  D.scenes.forEach(s => fsS.appendChild(checkbox(s, true, on => { on ? state.scenes.add(s) : state.scenes.delete(s); redraw(); })[0]));
+  const fsP = document.createElement('fieldset'); fsP.innerHTML = '<legend>profiles</legend>';
+  D.profiles.forEach(p => fsP.appendChild(checkbox(p, true, on => { on ? state.profiles.add(p) : state.profiles.delete(p); redraw(); })[0]));
+  const fsV = document.createElement('fieldset'); fsV.innerHTML = '<legend>solvers (a family box toggles the family)</legend>';
+  D.families.forEach(f => {
+    const boxes = [];
+    const [fl, fi] = checkbox(f.name + ' (' + f.solvers.length + ')', true, on => {
+      f.solvers.forEach(s => on ? state.solvers.add(s.name) : state.solvers.delete(s.name));
+      boxes.forEach(b => { b.checked = on; }); redraw(); });
+    fl.className = 'fam'; fi.dataset.family = f.name; fsV.appendChild(fl);
+    f.solvers.forEach(s => { const [l, i] = checkbox(s.name, true, on => {
+      on ? state.solvers.add(s.name) : state.solvers.delete(s.name);
+      fi.checked = f.solvers.some(x => state.solvers.has(x.name)); redraw(); }, s.color);
+      i.dataset.solver = s.name; boxes.push(i); fsV.appendChild(l); });
+  });
+  [fsS, fsP, fsV].forEach(x => nav.appendChild(x));
+}
+const t0 = performance.now();
+picker();
+build();
+redraw();
+window.contactbenchDrawMs = performance.now() - t0;
+window.contactbenchReport = {state: state, charts: charts, redraw: redraw};
+document.body.dataset.ready = '1';
+})();
+"""

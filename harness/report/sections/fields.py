@@ -1,0 +1,335 @@
+"""The pictures a contact-mechanics reader expects, from stored arrays and the table:
+the height map, the contact pressure at the top step with the contact area outlined,
+the gap distribution (OUT/arrays/field-*.npz, written by the worker: harness/table/fields.py),
+the load-area curve A/A0 against P/(E* A0) with the fitted kappa and the small-load
+slopes of Persson and Bush-Gibson-Thomas, and per solver family the convergence trace
+(the table's ``trace`` column) against iteration and against time.
+
+kappa.  At small loads A/A0 = (kappa / h'_rms) P/(E* A0) (h'_rms: rms slope of the
+surface, stored with the field).  Persson's theory gives kappa = sqrt(8/pi) ~ 1.60,
+Bush, Gibson & Thomas (Wear 35, 1975) kappa = sqrt(2 pi) ~ 2.51.  The fitted kappa is
+h'_rms times the least-squares slope through the origin over the steps with
+A/A0 <= ``SMALL_LOAD_AREA`` (at least the two smallest loads).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ...table.fields import ContactField, find_fields, load_field
+from ..core import (
+    ReportContext,
+    Section,
+    attempted,
+    fmt_num,
+    grid_figure,
+    legend_outside,
+    log_if_wide,
+    natural_key,
+    natural_sorted,
+    parse_trace,
+    pick_profile,
+    register_section,
+    representative_traces,
+    sort_scenes,
+    table_md,
+)
+from ..style import family_panels, sort_families
+
+PERSSON_KAPPA = math.sqrt(8.0 / math.pi)
+BGT_KAPPA = math.sqrt(2.0 * math.pi)
+#: Steps with A/A0 up to this are "small load" for the kappa fit.
+SMALL_LOAD_AREA = 0.10
+#: At most this many scenes get the field figure (one instance each).
+MAX_FIELD_SCENES = 3
+#: At most this many instances on the load-area figure.
+MAX_LOAD_AREA_SERIES = 10
+
+
+@dataclass(frozen=True)
+class KappaFit:
+    kappa: float
+    slope: float  # d(A/A0) / d(P/(E A0))
+    points: int
+    rms_slope: float
+
+
+def fit_kappa(dim_load: np.ndarray, area: np.ndarray, rms_slope: float) -> KappaFit:
+    """kappa = h'_rms x the slope through the origin of A/A0 on P/(E A0), over the small
+    loads (module doc); NaN without two usable points."""
+    x, y = np.asarray(dim_load, float), np.asarray(area, float)
+    ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    x, y = x[ok], y[ok]
+    order = np.argsort(x)
+    x, y = x[order], y[order]
+    small = y <= SMALL_LOAD_AREA
+    if small.sum() < 2:
+        small = np.arange(len(x)) < 2
+    x, y = x[small], y[small]
+    if len(x) < 2 or not (rms_slope > 0):
+        return KappaFit(float("nan"), float("nan"), int(len(x)), rms_slope)
+    slope = float(np.dot(x, y) / np.dot(x, x))
+    return KappaFit(slope * rms_slope, slope, int(len(x)), rms_slope)
+
+
+def load_area_points(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per (instance, step): P/(E A0) and A/A0, medians over the solved rows of the
+    tightest profile present (the answers agree to the profile's accuracy)."""
+    r = rows[(rows["status"] == "solved") & rows["dim_load"].notna() & rows["contact_fraction"].notna()]
+    if r.empty:
+        return pd.DataFrame(columns=["instance", "step", "dim_load", "area"])
+    r = r[r["profile"] == pick_profile(r)]
+    g = r.groupby(["instance", "step"])
+    return pd.DataFrame({"dim_load": g["dim_load"].median(), "area": g["contact_fraction"].median()}).reset_index()
+
+
+def _length_scale(values: np.ndarray, unit: str) -> tuple[float, str]:
+    v = float(np.nanmax(np.abs(values))) if np.any(np.isfinite(values)) else 1.0
+    if unit == "m" and 0 < v < 1e-3:
+        return (1e6, "um") if v >= 1e-7 else (1e9, "nm")
+    return 1.0, unit
+
+
+def zoom_window(pressure: np.ndarray, frac: float = 1 / 6) -> tuple[slice, slice]:
+    """The square window of side ``frac`` of the map that carries the most load."""
+    from scipy.ndimage import uniform_filter
+
+    m = pressure.shape[0]
+    w = max(8, int(round(m * frac)))
+    if w >= m:
+        return slice(0, m), slice(0, m)
+    s = uniform_filter(np.nan_to_num(pressure), size=w, mode="constant")
+    i, j = np.unravel_index(int(np.argmax(s)), s.shape)
+    i0, j0 = min(max(i - w // 2, 0), m - w), min(max(j - w // 2, 0), m - w)
+    return slice(i0, i0 + w), slice(j0, j0 + w)
+
+
+def _pressure_panel(fig: object, a: object, f: ContactField, rows: slice, cols: slice, sx: float, title: str) -> None:
+    from matplotlib.colors import LogNorm
+
+    d = f.spacing * sx
+    ext = (cols.start * d, cols.stop * d, rows.start * d, rows.stop * d)
+    pr = f.pressure[rows, cols] / f.E
+    pos = pr[pr > 0]
+    norm = LogNorm(vmin=max(float(pos.min()), float(pos.max()) * 1e-4), vmax=float(pos.max())) if pos.size else None
+    im = a.imshow(np.where(pr > 0, pr, np.nan), origin="lower", extent=ext, cmap="viridis", norm=norm,
+                  interpolation="nearest")
+    fig.colorbar(im, ax=a, fraction=0.046, pad=0.04).set_label("p / E*  [-]", fontsize=8)
+    c = f.contact[rows, cols]
+    if c.any() and not c.all():
+        k = 6  # outline the pixel edges: contour a finer copy of the mask at its sample centres
+        fine = np.kron(c.astype(float), np.ones((k, k)))
+        xs = ext[0] + (np.arange(fine.shape[1]) + 0.5) * d / k
+        ys = ext[2] + (np.arange(fine.shape[0]) + 0.5) * d / k
+        a.contour(xs, ys, fine, levels=[0.5], colors="red", linewidths=0.4)
+    a.set_facecolor("white")
+    a.set_title(title, fontsize=9)
+
+
+def _field_figure(ctx: ReportContext, f: ContactField) -> str:
+    fig, axes = grid_figure(1, 4, width=4.3, height=3.8, wspace=0.55)
+    a1, a2, a2z, a3 = axes[0]
+    m = f.heights.shape[0]
+    L = f.spacing * m
+    sx, ux = _length_scale(np.array([L]), f.unit)
+    ext = (0, L * sx, 0, L * sx)
+    sh, uh = _length_scale(f.heights - np.nanmean(f.heights), f.unit)
+    im = a1.imshow((f.heights - np.nanmean(f.heights)) * sh, origin="lower", extent=ext, cmap="terrain")
+    fig.colorbar(im, ax=a1, fraction=0.046, pad=0.04).set_label(f"height - mean  [{uh}]", fontsize=8)
+    a1.set_title(f"surface ({f.N}x{f.N})", fontsize=9)
+    a2.imshow(np.where(f.contact, 1.0, np.nan), origin="lower", extent=ext, cmap="gray_r", vmin=0, vmax=1,
+              interpolation="nearest")
+    a2.set_title(f"contact area, step {f.step} (A/A0 = {fmt_num(f.contact_fraction)})", fontsize=9)
+    zr, zc = zoom_window(f.pressure, 1 / 10)
+    _pressure_panel(fig, a2z, f, zr, zc, sx, "pressure, zoom on the most loaded window")
+    d = f.spacing * sx
+    a2.add_patch(__import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
+        (zc.start * d, zr.start * d), (zc.stop - zc.start) * d, (zr.stop - zr.start) * d, fill=False,
+        edgecolor="black", lw=0.8, ls="--"))
+    for a in (a1, a2, a2z):
+        a.set_xlabel(f"x  [{ux}]")
+        a.set_ylabel(f"y  [{ux}]")
+    gaps = f.gap[np.isfinite(f.gap) & ~f.contact]
+    gaps = np.maximum(gaps, 0.0)
+    sg, ug = _length_scale(gaps, f.unit)
+    if gaps.size:
+        a3.hist(gaps * sg, bins=60, density=True, color="tab:gray", alpha=0.85)
+        a3.set_yscale("log")
+    a3.set_xlabel(f"gap g  [{ug}]")
+    a3.set_ylabel("probability density  [1/" + ug + "]")
+    a3.set_title(f"gap distribution, step {f.step} (out of contact)", fontsize=9)
+    a3.grid(True, alpha=0.3)
+    rel = ctx.save_figure(fig, f"field-{f.scene}-{f.instance}-k{f.step}", on_page=True)
+    return ctx.figure_md(rel, f"the contact field of `{f.scene}` instance `{f.instance}` at step {f.step} (of "
+                              f"{f.steps}; far-field displacement {fmt_num(f.far_field)} {f.unit}, P/(E* A0) = "
+                              f"{fmt_num(f.dim_load)}, answer of `{f.solver}`): the surface heights; the contact area "
+                              f"(black); the contact pressure p/E* (log colour scale) in the most loaded window "
+                              f"(dashed) with the contact area outlined in red; "
+                              f"the distribution of the gap over the points out of contact (the contact points, "
+                              f"{fmt_num(100 * f.contact_fraction)} % of the area, have g = 0).")
+
+
+def load_area_series(ctx: ReportContext) -> list[tuple[str, str, pd.DataFrame]]:
+    """(scene, instance, its load-area points by step) for every instance of a load
+    history with two steps or more, each instance once."""
+    out: list[tuple[str, str, pd.DataFrame]] = []
+    seen: set[str] = set()
+    for scene in ctx.scenes():
+        rows = ctx.rows(scene)
+        if rows["delta"].isna().all():
+            continue
+        pts = load_area_points(rows)
+        for inst in natural_sorted(pts["instance"].unique()):
+            pi = pts[pts["instance"] == inst].sort_values("step")
+            if inst in seen or len(pi) < 2:
+                continue
+            seen.add(inst)
+            out.append((scene, inst, pi))
+    return out
+
+
+def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactField]) -> str:
+    series: list[tuple[str, str, pd.DataFrame, float]] = []
+    for scene, inst, pi in load_area_series(ctx):
+        f = fields.get((scene, inst))
+        series.append((scene, inst, pi, f.rms_slope if f is not None else float("nan")))
+    if not series:
+        return ""
+    shown = series[:MAX_LOAD_AREA_SERIES]
+    fig, axes = grid_figure(1, 1, width=6.4, height=4.4)
+    ax = axes[0][0]
+    fits = []
+    xs_all: list[float] = []
+    for i, (scene, inst, pi, hrms) in enumerate(shown):
+        fit = fit_kappa(pi["dim_load"].to_numpy(), pi["area"].to_numpy(), hrms)
+        fits.append((scene, inst, fit, len(pi)))
+        c = f"C{i % 10}"
+        ax.plot(pi["dim_load"], pi["area"], "o-", ms=4, color=c, label=f"{scene} {inst}"
+                + (f" (kappa = {fmt_num(fit.kappa)})" if math.isfinite(fit.kappa) else ""))
+        xs_all += list(pi["dim_load"])
+    ref = next((f for f in fits if math.isfinite(f[2].rms_slope)), None)
+    if ref is not None:
+        x = np.geomspace(min(xs_all), max(xs_all), 50)
+        for k, name, ls in ((PERSSON_KAPPA, "Persson sqrt(8/pi)", "--"), (BGT_KAPPA, "BGT sqrt(2 pi)", ":")):
+            ax.plot(x, k / ref[2].rms_slope * x, ls=ls, color="black", lw=1,
+                    label=f"{name}, h'_rms of {ref[1]}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("P / (E* A0)  [-]")
+    ax.set_ylabel("A / A0  [-]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_title("load-area curve", fontsize=9)
+    legend_outside(ax)
+    rel = ctx.save_figure(fig, "load-area", on_page=True)
+    left = len(series) - len(shown)
+    cap = ("the load-area curve: real contact area A/A0 against the dimensionless load P/(E* A0) per load step "
+           "(median over the solved answers of the tightest profile); kappa = h'_rms x the slope through the "
+           f"origin over the steps with A/A0 <= {SMALL_LOAD_AREA:g}; black lines: the small-load laws "
+           f"A/A0 = kappa/h'_rms P/(E* A0) of Persson (kappa = {PERSSON_KAPPA:.2f}) and Bush-Gibson-Thomas "
+           f"(kappa = {BGT_KAPPA:.2f}).")
+    if left:
+        cap += f" {left} further instance(s) are not drawn; the table below lists them all."
+    body = [ctx.figure_md(rel, cap)]
+    rows_t = []
+    for scene, inst, pi, hrms in series:
+        fit = fit_kappa(pi["dim_load"].to_numpy(), pi["area"].to_numpy(), hrms)
+        rows_t.append((scene, inst, len(pi), fmt_num(hrms), fit.points, fmt_num(fit.kappa),
+                       fmt_num(fit.kappa / PERSSON_KAPPA) if math.isfinite(fit.kappa) else "-"))
+    body.append(table_md(ctx, "kappa per instance (h'_rms from the stored field; '-' where no field was stored).",
+                         ["scene", "instance", "steps", "h'_rms", "fit points", "kappa", "kappa / Persson"],
+                         rows_t, "llrrrrr"))
+    return "\n".join(body)
+
+
+def trace_scene(ctx: ReportContext) -> tuple[str, dict[str, pd.Series]]:
+    """The first scene (report order: the paper's sweep when present) with traced
+    solves, and each solver's representative traced row there (report.representative_traces);
+    ("", {}) when no solve has a trace."""
+    t = attempted(ctx.table)
+    t = t[t["trace"].str.len() > 2]
+    if t.empty:
+        return "", {}
+    scene = sort_scenes(t["scene"])[0]
+    return scene, representative_traces(t[t["scene"] == scene])
+
+
+def _trace_figure(ctx: ReportContext) -> str:
+    """Per family, the representative solve's trace of every solver: residual against
+    iteration and against time, in the first scene with traces (trace_scene)."""
+    scene, reps = trace_scene(ctx)
+    if not reps:
+        return ""
+    solvers = sorted(reps, key=lambda s: (natural_key(ctx.family(s)), natural_key(s)))
+    panels = [q for f in sort_families(ctx.family(s) for s in solvers)
+              for q in family_panels([s for s in solvers if ctx.family(s) == f], ctx.family)]
+    fig, axes = grid_figure(len(panels), 2, width=4.6, height=3.2, wspace=0.30)
+    for (a1, a2), panel in zip(axes, panels):
+        its: list[float] = []
+        for s in panel.solvers:
+            tr = parse_trace(reps[s]["trace"])
+            ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
+            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), label=s)
+            its += list(tr[ok, 0])
+            ok2 = ok & (tr[:, 1] > 0)
+            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), label=s)
+        fam = ctx.family(panel.solvers[0]) if panel.solvers else ""
+        a1.set_title(f"family {fam}: residual against iteration", fontsize=9)
+        a2.set_title(f"family {fam}: residual against time", fontsize=9)
+        for a, xl in ((a1, "iteration  [-]"), (a2, "elapsed  [s]")):
+            a.set_yscale("log")
+            a.set_xlabel(xl)
+            a.set_ylabel("own residual  [-]", fontsize=8)
+            a.grid(True, which="major", alpha=0.3)
+        a2.set_xscale("log")
+        log_if_wide(a1, "x", its, decades=2.0)
+        legend_outside(a2)
+    rel = ctx.save_figure(fig, f"traces-{scene}")
+    where = ", ".join(f"`{s}`: {reps[s]['instance']} step {int(reps[s]['step'])} ({reps[s]['profile']})"
+                      for s in solvers)
+    return ctx.figure_md(rel, f"convergence traces per solver family, scene `{scene}`: each solver's own residual "
+                              f"(the figure it stops on, not the harness's kkt_error) against iteration (left) and "
+                              f"elapsed time (right) for one representative solve, the largest n at the tightest "
+                              f"profile ({where}). Solvers without a stored trace are not drawn.")
+
+
+@register_section("fields", title="The contact fields", group="summary", order=5)
+def fields_section(ctx: ReportContext, table: pd.DataFrame) -> Section | None:
+    keys = set(zip(table["scene"], table["instance"]))
+    found = find_fields(ctx.out_dir, keys)
+    top: dict[tuple[str, str], ContactField] = {}
+    for (scene, inst, step), path in sorted(found.items(), key=lambda kv: (kv[0][0], kv[0][1], -kv[0][2])):
+        if (scene, inst) not in top:
+            top[(scene, inst)] = load_field(path, scene, inst)
+    parts = ["The pictures of the field: surfaces, contact pressure and gap from the arrays the runner keeps "
+             "(`arrays/field-*.npz`: the first solved answer at the top step of each instance, harness/table/fields.py), "
+             "the load-area curve from the table, and the solvers' convergence traces.\n"]
+    drawn, seen = 0, set()
+    for scene in sort_scenes({s for s, _ in top}):
+        if drawn >= MAX_FIELD_SCENES:
+            break
+        inst = natural_sorted(i for s, i in top if s == scene)[0]
+        if inst in seen:  # the same surface in another scene (gp-k-sweep repeats paper-sweep's)
+            continue
+        seen.add(inst)
+        parts.append(_field_figure(ctx, top[(scene, inst)]))
+        drawn += 1
+    if not top:
+        parts.append("No field arrays are stored with this table (runs before fields were kept: "
+                     "`python -m contactbench.harness.run.backfill OUT` re-solves the top steps to add them).\n")
+    elif len({s for s, _ in top}) > drawn:
+        rest = [s for s in sort_scenes({s for s, _ in top}) if not any(f"field-{s}-" in x for x in ctx.figures)]
+        parts.append(f"Fields are stored but not drawn for scene(s) {', '.join(f'`{s}`' for s in rest)} "
+                     f"(at most {MAX_FIELD_SCENES} field figures per report).\n")
+    la = _load_area_figure(ctx, top)
+    if la:
+        parts.append(la)
+    tr = _trace_figure(ctx)
+    if tr:
+        parts.append(tr)
+    if len(parts) == 1:
+        return None
+    return Section("The contact fields", "\n".join(parts))

@@ -1,0 +1,587 @@
+"""Report sections of the paper reproductions (Bemporad & Paggi 2015, sec. 4): Fig. 4
+(``paper-sweep``), Fig. 5 (``greedy-linear-solvers``), Fig. 6 (``gp-k-sweep``), and the
+closed-form checks (``hertz``, ``flat-punch``).  Example 1 is in
+report_counterexample.py.
+
+Each paper section ends with a reading computed from the table that says where we agree
+with the paper's claims and where not.  The paper's algorithms are found through
+``PAPER_ROLES``: by the table's ``base_solver`` (registry name) and ``params`` columns,
+never by the solver's label.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+import pandas as pd
+
+from contactbench.problems.surfaces import RMD_FAMILIES
+
+from ..style import GREY, family_panels, panels_note, sort_families
+from ..core import (
+    WARM_SUFFIX,
+    ReportContext,
+    Section,
+    attempted,
+    floor_log,
+    fmt_err,
+    fmt_num,
+    fmt_pct,
+    fmt_ratio,
+    grid_figure,
+    integer_ticks,
+    legend_outside,
+    log_if_wide,
+    md_escape,
+    natural_key,
+    natural_sorted,
+    new_figure,
+    parse_json,
+    per_cell,
+    pick_profile,
+    register_section,
+    table_md,
+)
+
+# ---------------------------------------------------------------------------
+# Which surfaces ran: the instance names of generated rough surfaces
+# ---------------------------------------------------------------------------
+
+#: Names of a family in tables written before the families had names ("rmd" was the
+#: periodic wrap-around diamond-square, the generator of every scene then).
+LEGACY_FAMILIES: dict[str, str] = {"rmd": "periodic"}
+#: What each RMD family is (problems/surfaces.py RMD_FAMILIES), for the reports.
+FAMILY_TEXT: dict[str, str] = {
+    "saupe": "Saupe's non-periodic MidPointFM2D on the (2^k+1)^2 grid, the paper's generator (ref. PS88)",
+    "periodic": "the periodic wrap-around diamond-square RMD (not the paper's generator)",
+}
+#: The surface family of an older table's "rmd-..." instances (the periodic family's old name).
+GENERATED_FAMILIES: frozenset[str] = frozenset({*RMD_FAMILIES, *LEGACY_FAMILIES})
+
+
+def family_name(family: object) -> str:
+    """A table's ``surface_family`` value as a generated RMD family ("" for others)."""
+    text = "" if family is None or pd.isna(family) else str(family)
+    return LEGACY_FAMILIES.get(text, text) if text in GENERATED_FAMILIES else ""
+
+
+def surface_families(rows: pd.DataFrame) -> list[str]:
+    """The RMD families of the rows' instances (column ``surface_family``), sorted; none
+    for other instances."""
+    if "surface_family" not in rows.columns:
+        return []
+    return sorted({f for f in map(family_name, rows["surface_family"].unique()) if f})
+
+
+def surface_family_note(rows: pd.DataFrame) -> str:
+    """One line naming the surface family (families) the rows ran on; "" when no
+    instance is a generated rough surface."""
+    fams = surface_families(rows)
+    if not fams:
+        return ""
+    what = "; ".join(f"`{f}` -- {FAMILY_TEXT.get(f, 'an RMD family unknown to this report')}" for f in fams)
+    return f"**Surface family.** {what}.\n"
+
+
+# ---------------------------------------------------------------------------
+# The paper's algorithms and claims
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PaperRole:
+    """How to find one of the paper's algorithms in a table: its registry name, the
+    paper's parameter values (keys absent from a row's ``params`` take the solver's
+    defaults, which are the paper's), and whether the role is the warm-started run.
+    ``warm=False``: cold runs first, a warm-started one only when there is no cold one;
+    ``warm=True``: warm-started runs only."""
+
+    label: str
+    base_solver: str
+    params: dict[str, Any] = field(default_factory=dict)
+    warm: bool = False
+
+
+PAPER_ROLES: dict[str, PaperRole] = {
+    "nnls-gp": PaperRole("NNLS+GP", "nnls-gp", {"K": 100}),
+    "nnls": PaperRole("NNLS", "nnls"),
+    "pk": PaperRole("P&K 1999", "pk"),
+    "pk-warm": PaperRole("P&K 1999 + warm start", "pk", warm=True),
+    "greedy-cg": PaperRole("greedy CG", "greedy-cg"),
+    "greedy-gs": PaperRole("greedy Gauss-Seidel", "greedy-gs"),
+    "greedy-chol": PaperRole("greedy Cholesky", "greedy-chol"),
+    "admm": PaperRole("ADMM", "admm"),
+}
+
+
+def _params_match(params: Any, wanted: dict[str, Any]) -> bool:
+    p = parse_json(params, {})
+    return isinstance(p, dict) and all(p.get(k, v) == v for k, v in wanted.items())
+
+
+def resolve_role(curves: pd.DataFrame, role: str) -> str | None:
+    """The ``solver`` label that plays ``role`` (see PAPER_ROLES), or None.
+
+    ``curves`` has one row per label (or more; duplicates are ignored) with columns
+    ``solver``, ``base_solver``, ``params`` and, optionally, ``warm`` (the label is a
+    warm-started run).  Among the role's base solver's labels the one with the paper's
+    parameters wins, then the natural order of the labels."""
+    r = PAPER_ROLES[role]
+    c = curves[curves["base_solver"] == r.base_solver]
+    warm = c["warm"].astype(bool) if "warm" in c.columns else pd.Series(False, index=c.index)
+    if r.warm:
+        c, warm = c[warm], warm[warm]
+    ranked = sorted(((bool(w) != r.warm, not _params_match(p, r.params), natural_key(s), s)
+                     for s, p, w in zip(c["solver"], c["params"], warm)))
+    return ranked[0][-1] if ranked else None
+
+
+def paper_roles(curves: pd.DataFrame) -> dict[str, str | None]:
+    """Every role of PAPER_ROLES resolved in ``curves`` (see resolve_role)."""
+    return {k: resolve_role(curves, k) for k in PAPER_ROLES}
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A ratio claimed by the paper, as an interval [lo, hi]."""
+
+    text: str
+    lo: float
+    hi: float
+
+
+def agreement(measured: float, claim: Claim) -> str:
+    """Words for a measured ratio against the paper's interval."""
+    if not math.isfinite(measured):
+        return "cannot be checked from this table"
+    if claim.lo <= measured <= claim.hi:
+        return "agrees with the paper"
+    if claim.lo / 2 <= measured <= 2 * claim.hi:
+        return "is close to the paper (within a factor of 2 of its range)"
+    mid = math.sqrt(claim.lo * claim.hi)
+    if (measured > 1) == (mid > 1):
+        size = "smaller" if measured < claim.lo else "larger"
+        return f"points the same way as the paper but is {size} by a factor of {fmt_num(max(measured / claim.hi, claim.lo / measured), 2)}"
+    return "contradicts the paper (the opposite direction)"
+
+
+def claim_sentence(label: str, measured: float, claim: Claim) -> str:
+    return f"{label}: measured {fmt_ratio(measured)} against the paper's {claim.text} -- {agreement(measured, claim)}."
+
+
+# ---------------------------------------------------------------------------
+# Figs. 4, 5 and 6
+# ---------------------------------------------------------------------------
+
+#: Solver families drawn in Fig. 4 (the paper's algorithms and our matrix-free ones).
+FIG4_FAMILIES = frozenset({"paper", "fast"})
+
+
+def _curve_label(solver: str, warm: bool) -> str:
+    return f"{solver}{WARM_SUFFIX}" if warm else solver
+
+
+def _sweep_totals(cells: pd.DataFrame) -> pd.DataFrame:
+    """Per solver: total solve time summed over instances and steps, whether every
+    step was solved, and the step count."""
+    g = cells.groupby("solver", sort=False)
+    n_cells = g.size()
+    # complete: every step of the sweep attempted (none skipped) and solved
+    complete = g["solved"].all() & (n_cells == n_cells.max())
+    return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": complete, "cells": n_cells,
+                         "solved_cells": g["solved"].sum(),
+                         "worst_kkt": g["kkt_error"].max(), "worst_p_err": g["p_rel_error"].max()})
+
+
+def _plot_time_curves(ax: Any, cells: pd.DataFrame, x_of: Callable[[pd.DataFrame], pd.Series], sort_by: str,
+                      color_of: Callable[[str], Any], xlabel: str,
+                      label_of: Callable[[str], str] = str, background: pd.DataFrame | None = None,
+                      marker_of: Callable[[str], str] = lambda s: "o") -> None:
+    """Solve time against ``x_of(rows)``, one curve per solver (dashed when warm
+    started), red crosses on the answers that failed the KKT check; the solvers of
+    ``background`` drawn first as thin grey context lines."""
+    xs_all, ys_all = [], []
+    if background is not None and len(background):
+        for s in natural_sorted(background["solver"].unique()):
+            c = background[background["solver"] == s].sort_values(sort_by)
+            x = x_of(c)
+            ax.plot(x, c["solve_time_s"], lw=0.8, color=GREY, zorder=0)
+            xs_all += list(x)
+            ys_all += list(c["solve_time_s"])
+        ax.plot([], [], lw=0.8, color=GREY, label="other families")
+    for s in natural_sorted(cells["solver"].unique()):
+        c = cells[cells["solver"] == s].sort_values(sort_by)
+        x = x_of(c)
+        y = c["solve_time_s"]
+        ax.plot(x, y, marker=marker_of(s), ms=4, lw=1.3, color=color_of(s), label=label_of(s),
+                ls="--" if s.endswith(WARM_SUFFIX) else "-")
+        bad = ~c["solved"]
+        if bad.any():
+            ax.plot(x[bad], y[bad], ls="none", marker="x", ms=8, mew=2, color="red")
+        xs_all += list(x)
+        ys_all += list(y)
+    if (~cells["solved"]).any():
+        ax.plot([], [], ls="none", marker="x", ms=8, mew=2, color="red", label="not solved (KKT check)")
+    log_if_wide(ax, "x", xs_all)
+    log_if_wide(ax, "y", ys_all)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("solve time  [s]")
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def _plot_time_vs_load(ax: Any, cells: pd.DataFrame, color_of: Callable[[str], Any],
+                       label_of: Callable[[str], str] = str, background: pd.DataFrame | None = None,
+                       marker_of: Callable[[str], str] = lambda s: "o") -> None:
+    # Abscissa: the step's load from the solved answers (a wrong or late answer's own
+    # load would put its point elsewhere).
+    every = cells if background is None else pd.concat([cells, background])
+    step_load = every[every["solved"]].groupby(["instance", "step"])["dim_load"].median()
+
+    def x_of(c: pd.DataFrame) -> pd.Series:
+        x = pd.Series([step_load.get((i, k), np.nan) for i, k in zip(c["instance"], c["step"])], index=c.index)
+        return x.where(x > 0)
+
+    _plot_time_curves(ax, cells, x_of, "step", color_of, "dimensionless load P/(E A)  [-]", label_of, background,
+                      marker_of)
+    if ax.get_xscale() == "linear":  # loads are positive: log from half a decade on, else few ticks
+        xs = list(x_of(every))
+        if not log_if_wide(ax, "x", xs, decades=0.5):
+            from matplotlib.ticker import MaxNLocator
+
+            ax.xaxis.set_major_locator(MaxNLocator(4))
+
+
+@register_section("paper-sweep", title="Fig. 4: solve time against load (paper-sweep)", group="paper", order=10)
+def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
+    prof = pick_profile(attempted(rows))
+    r = attempted(rows[rows["profile"] == prof])
+    if r.empty:
+        return Section("Fig. 4: solve time against load (paper-sweep)", "Every pair of this scene was skipped.\n")
+    cells = per_cell(r)
+    # warm and cold runs of one solver are separate curves ("pk" and "pk (warm)")
+    cells["warm"] = cells.groupby(["solver", "history"])["warm_start"].transform("any").astype(bool)
+    cells["solver"] = [_curve_label(s, w) for s, w in zip(cells["solver"], cells["warm"])]
+    inst = natural_sorted(cells["instance"].unique())[0]
+    tot = _sweep_totals(cells)
+    n_max = int(r["n"].max()) if r["n"].notna().any() else 0
+    sub = cells[cells["instance"] == inst]
+    labels = natural_sorted(sub["solver"].unique())
+    best = best_per_family(tot, ctx.family)
+    panels = family_panels(labels, ctx.family, best)
+    ncols = 1 if len(panels) == 1 else 2
+    nrows = -(-len(panels) // ncols)
+    fig, axes = grid_figure(nrows, ncols, width=6.4 if ncols == 1 else 5.6, height=4.2 if ncols == 1 else 3.6,
+                            wspace=0.85)
+    flat = [a for row in axes for a in row]
+    for ax, panel in zip(flat, panels):
+        mine = sub["solver"].isin(panel.solvers)
+        _plot_time_vs_load(ax, sub[mine], ctx.color, background=sub[~mine] if len(panels) > 1 else None,
+                           marker_of=ctx.marker)
+        where = "" if len(panels) == 1 else f"{panel.title}; "
+        ax.set_title(f"paper-sweep {inst}, {where}profile {prof}", fontsize=8)
+        legend_outside(ax, "solver")
+    for ax in flat[len(panels):]:
+        ax.set_visible(False)
+    rel = ctx.save_figure(fig, "fig4-paper-sweep")
+    body = [surface_family_note(r)]
+    body.append(ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
+                               f"{fmt_num(r['N'].max())}, n up to {n_max}), profile `{prof}`; dashed: warm "
+                               f"started; red crosses mark steps whose answer failed the KKT check. Every "
+                               f"solver of the scene is drawn (families: "
+                               f"{', '.join(sort_families(ctx.family(x) for x in labels))}).{panels_note(panels)} Paper Fig. 4 ran at "
+                               f"eps = 1e-8."))
+    rows_t = []
+    for s in natural_sorted(tot.index):
+        t = tot.loc[s]
+        rows_t.append((s, ctx.family(s), fmt_num(t["total_s"]), "yes" if t["complete"] else "no", int(t["cells"]),
+                       fmt_err(t["worst_kkt"]), fmt_err(t["worst_p_err"])))
+    body.append(table_md(ctx, f"total solve time over all steps and instances, profile `{prof}`, with the accuracy "
+                              f"it bought: the worst kkt_error and the worst error in p over the steps.",
+                         ["solver", "family", "total [s]", "all steps solved", "steps", "worst kkt", "worst p err"],
+                         rows_t, "llrlrrr"))
+    body.append(_fig4_reading(tot, n_max, paper_roles(cells)))
+    return Section("Fig. 4: solve time against load (paper-sweep)", "\n".join(body))
+
+
+def best_per_family(tot: pd.DataFrame, family_of: Callable[[str], str]) -> dict[str, str]:
+    """Family -> its best label in ``_sweep_totals``: most steps solved, then complete,
+    then the least total time."""
+    ranked: dict[str, tuple] = {}
+    best: dict[str, str] = {}
+    for lab in natural_sorted(tot.index):
+        t = tot.loc[lab]
+        total = float(t["total_s"]) if t["total_s"] == t["total_s"] else float("inf")
+        key = (not bool(t["complete"]), -int(t["solved_cells"]), total)
+        f = family_of(lab)
+        if f not in ranked or key < ranked[f]:
+            ranked[f], best[f] = key, lab
+    return best
+
+
+def _ratio(tot: pd.DataFrame, a: str | None, b: str | None) -> float:
+    if a is None or b is None or a not in tot.index or b not in tot.index:
+        return float("nan")
+    if not (tot.loc[a, "complete"] and tot.loc[b, "complete"]):
+        return float("nan")
+    return float(tot.loc[a, "total_s"] / tot.loc[b, "total_s"])
+
+
+#: The accuracy levels at which the Fig. 4 reading names the fastest solver.
+ACCURACY_LEVELS = (1e-6, 1e-8, 1e-10, 1e-12)
+
+
+def _at(tot: pd.DataFrame, s: str) -> str:
+    """"`s` (12.3 s, kkt <= 4.0e-09)": a time always comes with the accuracy it bought."""
+    return f"`{s}` ({fmt_num(tot.loc[s, 'total_s'])} s, worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])})"
+
+
+def fastest_at_accuracy(tot: pd.DataFrame) -> list[tuple[float, str]]:
+    """(level, solver): per accuracy level, the fastest solver whose every step is
+    solved with kkt_error <= level (levels no solver reaches are left out, and a level
+    is kept only when its winner differs from the next looser level's)."""
+    complete = tot[tot["complete"] & tot["worst_kkt"].notna()]
+    out: list[tuple[float, str]] = []
+    for level in ACCURACY_LEVELS:
+        ok = complete[complete["worst_kkt"] <= level]
+        if ok.empty:
+            break
+        best = str(ok["total_s"].idxmin())
+        if not out or out[-1][1] != best:
+            out.append((level, best))
+        else:
+            out[-1] = (level, best)
+    return out
+
+
+def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) -> str:
+    ref = role["nnls-gp"]
+    parts = [f"**Reading.** The paper (sec. 4, n up to 35555 at 512²) finds NNLS+GP (K = 100) fastest. "
+             f"Here the largest trial set has n = {n_max}. Solvers stop at their own tolerances, so every time "
+             f"below comes with the worst kkt_error of its sweep."]
+    if n_max < 5000:
+        parts.append("At sizes this small fixed per-solve costs dominate, so the paper's ratios need not hold.")
+    if ref is None:
+        parts.append("No NNLS+GP solver is in this table, so the paper's speed-ups cannot be checked.")
+    else:
+        checks = [("pk", "P&K 1999 / NNLS+GP", Claim("~26x", 20.0, 33.0)),
+                  ("greedy-cg", "greedy CG / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0)),
+                  ("admm", "ADMM / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0))]
+        for key, label, claim in checks:
+            if role[key] is None:
+                parts.append(f"{PAPER_ROLES[key].label} is not in this table.")
+            elif not tot.loc[role[key], "complete"]:
+                parts.append(f"{label}: `{role[key]}` did not solve every step, so its ratio is not comparable.")
+            else:
+                parts.append(claim_sentence(label, _ratio(tot, role[key], ref), claim).rstrip(".")
+                             + f" (worst kkt {fmt_err(tot.loc[role[key], 'worst_kkt'])} against "
+                               f"{fmt_err(tot.loc[ref, 'worst_kkt'])}).")
+        if role["pk-warm"] and role["pk"] and role["pk-warm"] != role["pk"]:
+            parts.append(f"Warm-started P&K takes {fmt_ratio(_ratio(tot, role['pk-warm'], role['pk']))} the time "
+                         f"of the cold one.")
+    complete = tot[tot["complete"]]
+    if len(complete):
+        best = complete["total_s"].idxmin()
+        extra = ""
+        if ref and best != ref and ref in complete.index:
+            extra = f", {fmt_ratio(_ratio(tot, ref, best))} faster than NNLS+GP's {_at(tot, ref)}"
+        parts.append(f"The fastest solver over the whole sweep here is `{best}` with "
+                     f"{fmt_num(complete.loc[best, 'total_s'])} s at worst kkt "
+                     f"{fmt_err(complete.loc[best, 'worst_kkt'])}{extra}.")
+        levels = fastest_at_accuracy(tot)
+        if levels:
+            parts.append("Fastest at a common accuracy (every step solved with kkt_error at most the level): "
+                         + "; ".join(f"<= {lv:.0e}: {_at(tot, s)}" for lv, s in levels) + ".")
+    return " ".join(parts) + "\n"
+
+
+@register_section("greedy-linear-solvers", title="Fig. 5: greedy with CG, Gauss-Seidel and Cholesky",
+                  group="paper", order=20)
+def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
+    title = "Fig. 5: greedy with CG, Gauss-Seidel and Cholesky (greedy-linear-solvers)"
+    prof = pick_profile(attempted(rows))
+    r = rows[rows["profile"] == prof]
+    cells = per_cell(attempted(r))
+    if cells.empty:
+        return Section(title, "Every pair of this scene was skipped.\n")
+    fig, (ax,) = new_figure(width=6.4, height=4.2)
+    _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]")
+    ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
+    legend_outside(ax, "solver")
+    rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
+    body = [surface_family_note(cells)]
+    body.append(ctx.figure_md(rel, f"greedy solve time against the trial-set size n, profile `{prof}` (paper "
+                               f"Fig. 5: CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel)."))
+    body.append(_fig5_reading(cells, r))
+    return Section(title, "\n".join(body))
+
+
+def _paired_median_ratio(cells: pd.DataFrame, a: str | None, b: str | None) -> tuple[float, int]:
+    """Median over common solved (instance, step) of t_a / t_b, and the pair count."""
+    if a is None or b is None:
+        return float("nan"), 0
+    ka = cells[(cells["solver"] == a) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
+    kb = cells[(cells["solver"] == b) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
+    j = pd.concat([ka.rename("a"), kb.rename("b")], axis=1, join="inner").dropna()
+    j = j[j["b"] > 0]
+    return (float(np.median(j["a"] / j["b"])) if len(j) else float("nan")), len(j)
+
+
+def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
+    cg, gs, ch = (resolve_role(rows, k) for k in ("greedy-cg", "greedy-gs", "greedy-chol"))
+    parts = ["**Reading.**"]
+    if cg is None:
+        parts.append("No greedy-CG solver is in this table, so the paper's ratios cannot be checked.")
+    for other, label, claim in ((ch, "greedy Cholesky / greedy CG time", Claim("0.6-0.7 (30-40 % faster)", 0.6, 0.7)),
+                                (gs, "greedy Gauss-Seidel / greedy CG time", Claim("~3 (3x slower)", 2.4, 3.75))):
+        if cg is None:
+            break
+        if other is None:
+            parts.append(f"{label.split(' /')[0]} is not in this table.")
+            continue
+        m, k = _paired_median_ratio(cells, other, cg)
+        parts.append(claim_sentence(f"{label} (median over {k} common solved instances)", m, claim))
+    if ch is not None:
+        sk = rows[(rows["solver"] == ch) & (rows["status"] == "skipped")]
+        if len(sk):
+            i = sk["n"].idxmin()
+            parts.append(f"Cholesky was skipped from n = {fmt_num(sk.loc[i, 'n'])} on "
+                         f"({md_escape(sk.loc[i, 'skip_reason'])}); the paper ran out of memory for n > 20000.")
+        else:
+            parts.append("Cholesky was not skipped for memory at any size in this table (the paper ran out of "
+                         "memory for n > 20000).")
+    return " ".join(parts) + "\n"
+
+
+def k_of(row: pd.Series) -> float:
+    """The GP step count K of a variant, from its ``params`` JSON {"K": ...}; NaN when absent."""
+    p = parse_json(row.get("params", ""), {})
+    try:
+        return float(p["K"]) if isinstance(p, dict) and "K" in p else float("nan")
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+@register_section("gp-k-sweep", title="Fig. 6: NNLS+GP time against K", group="paper", order=30)
+def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
+    title = "Fig. 6: NNLS+GP time against the number K of GP steps (gp-k-sweep)"
+    prof = pick_profile(attempted(rows))
+    cells = per_cell(attempted(rows[rows["profile"] == prof]))
+    if cells.empty:
+        return Section(title, "Every pair of this scene was skipped.\n")
+    cells = cells.assign(K=cells.apply(k_of, axis=1))
+    cells = cells[cells["K"].notna()]
+    if cells.empty:
+        return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n")
+    import matplotlib
+
+    Ks = sorted(cells["K"].unique())
+    cmap = matplotlib.colormaps["viridis"]
+    kcol = {k: cmap(i / max(len(Ks) - 1, 1)) for i, k in enumerate(Ks)}
+    label_of_solver = dict(zip(cells["solver"], cells["K"]))
+    inst = natural_sorted(cells["instance"].unique())[0]
+    fig, (ax1, ax2) = new_figure(ncols=2, width=5.2, height=4.0)
+    sub = cells[cells["instance"] == inst]
+    order = sorted(sub["solver"].unique(), key=lambda s: label_of_solver[s])
+    _plot_time_vs_load(ax1, sub[sub["solver"].isin(order)], lambda s: kcol[label_of_solver[s]],
+                       lambda s: f"K = {int(label_of_solver[s])}")
+    ax1.set_title(f"per step, instance {inst}", fontsize=9)
+    g = cells.groupby("K")
+    tot = pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": g["solved"].all()})
+    ax2.plot(tot.index, tot["total_s"], marker="o", color="tab:blue", label="total over steps")
+    inc = tot[~tot["complete"]]
+    if len(inc):
+        ax2.plot(inc.index, inc["total_s"], ls="none", marker="x", ms=8, mew=2, color="red",
+                 label="some step not solved")
+    ax2.axvline(100, color="gray", ls="--", lw=1, label="paper's minimum (K = 100)")
+    log_if_wide(ax2, "y", tot["total_s"])
+    ax2.set_xlabel("GP steps before NNLS, K  [-]")
+    ax2.set_ylabel("total solve time over the sweep  [s]")
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.set_title("total", fontsize=9)
+    handles1, labels1 = ax1.get_legend_handles_labels()
+    ax1.legend(handles1, labels1, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=4,
+               frameon=False)
+    legend_outside(ax2)
+    rel = ctx.save_figure(fig, "fig6-gp-k-sweep")
+    body = [surface_family_note(cells)]
+    body.append(ctx.figure_md(rel, f"NNLS+GP against K, profile `{prof}`: (left) time per step against P/(E A); "
+                               f"(right) total time summed over all steps and instances."))
+    body.append(table_md(ctx, f"total NNLS+GP time against K, profile `{prof}`.", ["K", "total [s]", "all solved"],
+                         [(int(k), fmt_num(tot.loc[k, "total_s"]), "yes" if tot.loc[k, "complete"] else "no")
+                          for k in tot.index], "rrl"))
+    body.append(_fig6_reading(tot))
+    return Section(title, "\n".join(body))
+
+
+def _fig6_reading(tot: pd.DataFrame) -> str:
+    comp = tot[tot["complete"]]
+    if comp.empty:
+        return "**Reading.** No K solved every step, so the minimum cannot be placed.\n"
+    kbest = float(comp["total_s"].idxmin())
+    parts = [f"**Reading.** The total time is smallest at K = {int(kbest)} "
+             f"({fmt_num(comp.loc[kbest, 'total_s'])} s); the paper finds the minimum at K = 100 "
+             f"(no saving beyond it) -- "
+             + ("this agrees with the paper." if 50 <= kbest <= 150 else
+                "this does not agree with the paper." if comp.index.min() <= 100 <= comp.index.max() else
+                "the sweep does not bracket K = 100, so this cannot be compared directly.")]
+    if 0.0 in comp.index and kbest != 0.0:
+        parts.append(f"Going from K = 0 to K = {int(kbest)} saves "
+                     f"{fmt_pct(1 - comp.loc[kbest, 'total_s'] / comp.loc[0.0, 'total_s'])} of the time.")
+    above = comp[comp.index > kbest]
+    if len(above):
+        kmax = float(above.index.max())
+        parts.append(f"At K = {int(kmax)} the total is {fmt_ratio(comp.loc[kmax, 'total_s'] / comp.loc[kbest, 'total_s'])} "
+                     f"the minimum (the paper: more GP steps only add time).")
+    return " ".join(parts) + "\n"
+
+
+# ---------------------------------------------------------------------------
+# Closed-form checks
+# ---------------------------------------------------------------------------
+
+
+def _analytic_section(ctx: ReportContext, rows: pd.DataFrame, scene: str) -> Section | None:
+    title = f"Closed-form check ({scene})"
+    r = per_cell(attempted(rows[rows["profile"] == pick_profile(attempted(rows))]))
+    r = r[r["analytic_load_rel_error"].notna()]
+    if r.empty:
+        return Section(title, "No row carries an analytic load error.\n")
+    xcol = "N" if r["N"].notna().all() else "n"
+    fig, (ax,) = new_figure(width=6.0, height=4.0)
+    lines = []
+    for s in natural_sorted(r["solver"].unique()):
+        c = r[r["solver"] == s].groupby(xcol)["analytic_load_rel_error"].max().sort_index()
+        ax.plot(c.index, floor_log(c.to_numpy()), marker="o", ms=4, color=ctx.color(s), label=s)
+        order = _observed_order(c.index.to_numpy(float), c.to_numpy(float))
+        lines.append((s, fmt_err(c.iloc[-1]), f"{int(c.index[-1])}", fmt_num(order, 2)))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    integer_ticks(ax, r[xcol].unique())
+    ax.set_xlabel("grid points per side N  [-]" if xcol == "N" else "trial-set size n  [-]")
+    ax.set_ylabel("|P - P_analytic| / P_analytic  [-]")
+    ax.grid(True, which="both", alpha=0.3)
+    legend_outside(ax, "solver")
+    rel = ctx.save_figure(fig, f"analytic-{scene}", on_page=True)
+    body = [ctx.figure_md(rel, f"{scene}: relative error of the total load against the closed form, over mesh "
+                               f"refinement (the largest error over the load steps of each mesh).")]
+    body.append(table_md(ctx, f"{scene}: finest-mesh load error and observed order (slope of log error "
+                              f"against log {xcol} over the finest three meshes).",
+                         ["solver", "error (finest)", xcol, "observed order"], lines, "lrrr"))
+    return Section(title, "\n".join(body))
+
+
+def _observed_order(x: np.ndarray, e: np.ndarray) -> float:
+    ok = np.isfinite(e) & (e > 0) & (x > 0)
+    x, e = x[ok][-3:], e[ok][-3:]
+    if len(x) < 2:
+        return float("nan")
+    return float(-np.polyfit(np.log(x), np.log(e), 1)[0])
+
+
+register_section("hertz", title="Hertz", group="scenes", order=50)(
+    lambda ctx, rows: _analytic_section(ctx, rows, "hertz"))
+register_section("flat-punch", title="Flat punch", group="scenes", order=51)(
+    lambda ctx, rows: _analytic_section(ctx, rows, "flat-punch"))

@@ -1,0 +1,117 @@
+"""Executors: where a plan's instance jobs run.
+
+An executor takes the jobs with missing cells and makes their rows reach the store.
+Every executor runs a job the same way -- ``harness.run.job.JobDriver``: the instance is
+built from its picklable recipe where the job runs, each solve is isolated with a hard
+time limit and judged by the harness -- so the same cells give the same rows wherever
+they run.
+
+* ``SerialExecutor``  -- one job after another in this process (``--jobs 1``);
+* ``PoolExecutor``    -- a local ``concurrent.futures`` process pool (``--jobs J``); each
+                         pool process appends to the same journal (flock + fsync);
+* ``harness.run.distributed.DaskExecutor`` -- a Dask cluster (``--scheduler ADDRESS``).
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from typing import Any, Protocol, Sequence
+
+from .isolation import set_parent_death_signal
+from .job import JobDriver, run_instance_job
+from .plan import InstanceJob, RunConfig
+from ..table.store import ResultStore
+
+log = logging.getLogger("contactbench")
+
+
+class Progress(Protocol):
+    def update(self, n: int = 1) -> None: ...
+
+
+class Executor(Protocol):
+    """Runs instance jobs and stores their rows (module doc)."""
+
+    def run_config(self, run: RunConfig) -> RunConfig:
+        """The run configuration the jobs actually run under (recorded in meta.json)."""
+
+    def describe(self) -> dict[str, Any]:
+        """What meta.json records of the executor."""
+
+    def execute(self, jobs: Sequence[InstanceJob], run: RunConfig, store: ResultStore, statuses: dict[str, str],
+                progress: Progress, verbose: bool = False) -> None:
+        """Run the missing cells of ``jobs``; each stored row counts one on ``progress``."""
+
+
+@dataclass
+class SerialExecutor:
+    """One job after another, in this process."""
+
+    def run_config(self, run: RunConfig) -> RunConfig:
+        return run
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": "serial"}
+
+    def execute(self, jobs: Sequence[InstanceJob], run: RunConfig, store: ResultStore, statuses: dict[str, str],
+                progress: Progress, verbose: bool = False) -> None:
+        def sink(row: dict[str, Any]) -> None:
+            store.append(row)
+            progress.update(1)
+
+        for job in jobs:
+            n_before = len(store)
+            JobDriver(job, run, statuses, store.cache_dir, sink).run()
+            if verbose:
+                log.info("%s/%s: %d rows", job.spec.scene, job.spec.instance, len(store) - n_before)
+
+
+def _pool_init() -> None:
+    set_parent_death_signal()
+
+
+def _pool_run(job: InstanceJob, run: RunConfig, out_dir: str, statuses: dict[str, str]) -> int:
+    return run_instance_job(job, run, out_dir, statuses)
+
+
+@dataclass
+class PoolExecutor:
+    """A local process pool of ``workers`` processes (forked on Linux)."""
+
+    workers: int
+
+    def run_config(self, run: RunConfig) -> RunConfig:
+        return run
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": "process-pool", "workers": self.workers}
+
+    def execute(self, jobs: Sequence[InstanceJob], run: RunConfig, store: ResultStore, statuses: dict[str, str],
+                progress: Progress, verbose: bool = False) -> None:
+        import multiprocessing as mp
+
+        ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
+        lines0 = store.count_lines()
+        with ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx, initializer=_pool_init) as pool:
+            futures = {pool.submit(_pool_run, j, run, str(store.out), statuses) for j in jobs}
+            seen = 0
+            try:
+                while futures:
+                    done, futures = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+                    for f in done:
+                        f.result()
+                    now = store.count_lines() - lines0
+                    progress.update(max(0, now - seen))
+                    seen = max(seen, now)
+            except BaseException:
+                for f in futures:
+                    f.cancel()
+                raise
+
+
+def local_executor(run: RunConfig, jobs: int) -> Executor:
+    """Serial for ``--jobs 1`` or a single job, else a process pool."""
+    return SerialExecutor() if run.jobs <= 1 or jobs <= 1 else PoolExecutor(run.jobs)

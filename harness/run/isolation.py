@@ -1,0 +1,262 @@
+"""Process isolation for solves: a long-lived worker process with a hard wall-clock limit.
+
+A solver runs inside a child process that the harness (the parent) can kill.  The
+parent sends one message at a time over a pipe and waits at most ``timeout`` seconds
+for the answer; then
+
+* an answer            -> ``ChildReply(kind="ok")`` (or ``"error"`` if the handler raised),
+* no answer in time    -> the child is killed (SIGKILL) -> ``ChildReply(kind="timeout")``,
+* the child died       -> ``ChildReply(kind="crashed")`` with its signal / exit code
+  (a segfault or ``os.abort`` in a solver costs only the message that caused it).
+
+The worker is restarted lazily on the next call, with a fresh handler (all worker
+state -- built instances, warm starts -- is lost; callers track a ``generation``
+counter to know).  The child:
+
+* ignores SIGINT, so Ctrl-C reaches only the parent, which stops cleanly;
+* asks the kernel to SIGKILL it when the parent dies (``PR_SET_PDEATHSIG``), so a
+  ``kill -9`` of the runner leaves no orphan writing rows;
+* optionally limits BLAS (threadpoolctl) and FFT (``CONTACTBENCH_FFT_WORKERS``) threads,
+  so J workers do not oversubscribe the cores.
+
+Workers are started with the ``fork`` method on Linux: a child inherits everything
+registered in the parent (solvers registered by a test or given as ``module:NAME``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import faulthandler
+import multiprocessing as mp
+import os
+import signal
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from typing import Any, Callable, Literal
+
+Handler = Callable[[Any], Any]
+HandlerFactory = Callable[[], Handler]
+ChildReplyKind = Literal["ok", "error", "timeout", "crashed"]
+
+
+@dataclass
+class ChildReply:
+    """What came back from one message: the handler's value, or why nothing did."""
+
+    kind: ChildReplyKind
+    value: Any = None
+    elapsed: float = 0.0
+    detail: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.kind == "ok"
+
+
+def set_parent_death_signal(sig: int = signal.SIGKILL) -> None:
+    """Linux: have the kernel send ``sig`` to this process when its parent dies."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, int(sig), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except OSError:  # pragma: no cover - no libc (musl, ...): best effort
+        pass
+
+
+def limit_threads(threads: int | None) -> Any:
+    """Limit BLAS/OpenMP threads (threadpoolctl) and FFT workers in this process.
+
+    Returns the threadpoolctl controller (keep a reference for the limit to hold)."""
+    if not threads:
+        return None
+    n = str(int(threads))
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CONTACTBENCH_FFT_WORKERS"):
+        os.environ[var] = n
+    try:
+        from threadpoolctl import threadpool_limits
+
+        return threadpool_limits(limits=int(threads))
+    except Exception:  # pragma: no cover - threadpoolctl missing
+        return None
+
+
+def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    set_parent_death_signal()
+    if not os.environ.get("CONTACTBENCH_FAULTHANDLER"):
+        faulthandler.disable()  # a crashing solver is reported as a row, not a stack dump
+    _limits = limit_threads(threads)  # noqa: F841 - held for the process lifetime
+    handler = factory()
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        if msg is None:
+            return
+        try:
+            reply: tuple[str, Any] = ("ok", handler(msg))
+        except Exception as exc:  # the handler's own failure; solver errors are rows
+            reply = ("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}")
+        try:
+            conn.send(reply)
+        except (BrokenPipeError, OSError):
+            return
+
+
+def describe_exit(exitcode: int | None) -> str:
+    """'killed by signal SIGABRT' / 'exited with code 3' / 'still running'."""
+    if exitcode is None:
+        return "worker did not exit"
+    if exitcode < 0:
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = str(-exitcode)
+        return f"worker killed by signal {name}"
+    return f"worker exited with code {exitcode}"
+
+
+class ChildProcess:
+    """One child process running ``factory()``'s handler on each message sent to it."""
+
+    def __init__(self, factory: HandlerFactory, threads: int | None = None, start_method: str | None = None) -> None:
+        self.factory = factory
+        self.threads = threads
+        method = start_method or ("fork" if sys.platform.startswith("linux") else "spawn")
+        self.ctx = mp.get_context(method)
+        self.proc: Any = None
+        self.conn: Connection | None = None
+        self.generation = 0  # bumped at every (re)start: worker state does not survive it
+
+    @property
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.is_alive()
+
+    def start(self) -> None:
+        parent, child = self.ctx.Pipe(duplex=True)
+        proc = self.ctx.Process(target=_worker_main, args=(child, self.factory, self.threads), daemon=True)
+        proc.start()
+        child.close()
+        self.proc, self.conn = proc, parent
+        self.generation += 1
+
+    def ensure_started(self) -> None:
+        if not self.alive:
+            self.kill()
+            self.start()
+
+    def call(self, message: Any, timeout: float | None) -> ChildReply:
+        """Send ``message``; wait at most ``timeout`` s (None: forever) for the reply."""
+        self.ensure_started()
+        assert self.conn is not None
+        t0 = time.perf_counter()
+        try:
+            self.conn.send(message)
+        except (BrokenPipeError, OSError):
+            return self._crashed(t0)
+        if not self.conn.poll(timeout):
+            elapsed = time.perf_counter() - t0
+            self.kill()
+            return ChildReply("timeout", elapsed=elapsed, detail=f"no answer within the hard limit of {timeout:.3g} s; worker killed")
+        try:
+            kind, value = self.conn.recv()
+        except (EOFError, OSError):
+            return self._crashed(t0)
+        elapsed = time.perf_counter() - t0
+        if kind == "error":
+            return ChildReply("error", elapsed=elapsed, detail=str(value))
+        return ChildReply("ok", value=value, elapsed=elapsed)
+
+    def _crashed(self, t0: float) -> ChildReply:
+        elapsed = time.perf_counter() - t0
+        code = None
+        if self.proc is not None:
+            self.proc.join(5.0)
+            code = self.proc.exitcode
+        self.kill()
+        return ChildReply("crashed", elapsed=elapsed, detail=describe_exit(code))
+
+    def kill(self) -> None:
+        """Stop the child at once (SIGKILL) and release the pipe."""
+        if self.proc is not None:
+            if self.proc.is_alive():
+                self.proc.kill()
+            self.proc.join(5.0)
+        if self.conn is not None:
+            self.conn.close()
+        self.proc, self.conn = None, None
+
+    def close(self) -> None:
+        """Ask the child to exit, then make sure it has."""
+        if self.conn is not None and self.alive:
+            try:
+                self.conn.send(None)
+                self.proc.join(2.0)
+            except (BrokenPipeError, OSError):
+                pass
+        self.kill()
+
+    def __enter__(self) -> "ChildProcess":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+# ---------------------------------------------------------------------------
+# Peak memory of one solve
+# ---------------------------------------------------------------------------
+
+
+def _proc_status_kb(field: str) -> float | None:
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return float(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+class PeakMemory:
+    """Peak resident-memory growth of this process during a block, in MiB.
+
+    Linux: the kernel's high-water mark (VmHWM) is reset before the block by writing
+    "5" to /proc/self/clear_refs, so the figure is exact and costs nothing during the
+    solve.  Elsewhere: ru_maxrss growth (a lower bound in a long-lived process)."""
+
+    def __init__(self) -> None:
+        self.before_kb: float = 0.0
+        self.exact = False
+        self.mb = float("nan")
+
+    def __enter__(self) -> "PeakMemory":
+        rss = _proc_status_kb("VmRSS")
+        try:
+            with open("/proc/self/clear_refs", "w", encoding="ascii") as fh:
+                fh.write("5")
+            self.exact = rss is not None
+        except OSError:
+            self.exact = False
+        if self.exact:
+            self.before_kb = float(rss or 0.0)
+        else:
+            import resource
+
+            self.before_kb = float(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.exact:
+            peak = _proc_status_kb("VmHWM")
+            self.mb = max(0.0, ((peak or 0.0) - self.before_kb) / 1024.0)
+        else:
+            import resource
+
+            self.mb = max(0.0, (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - self.before_kb) / 1024.0)

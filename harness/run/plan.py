@@ -1,0 +1,378 @@
+"""The plan: scene names and options -> picklable instance jobs, validated up front.
+
+``plan_run`` expands each scene name through its study (``harness.run.studies``: solvers,
+sweeps, profiles, reference) into ``InstanceJob`` records -- a scene's ``InstanceSpec``
+recipe plus the variants and profiles to run on it.  A job is independent of every other
+job, so an executor (``harness.run.executors``) may run jobs anywhere.
+
+Planning refuses bad input before anything runs: a plan too big to run (more cells than
+``RunConfig.max_cells``, or an instance whose memory estimate exceeds the memory budget:
+``estimate_scene``, computed from sizes and counts before any surface is generated),
+every scene's ``validate`` (sizes, surfaces, loads), every solver name, profile and
+reference name.  All problems found
+are raised together as one ``PlanError`` (a ``ProblemInputError``), one line each; the
+command line turns it into exit status 2 and writes no table.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field, replace
+from typing import Any, Sequence
+
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
+from contactbench.problems.instances import check_operator_kind
+from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
+from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, parse_solver_spec,
+                                           register, split_solver_list)
+
+from ..profiles import get_profile
+from ..table.files import canonical_json
+from ..table.schema import as_finite
+from .studies import SolverVariant, Study, expand
+
+
+#: Default of ``RunConfig.max_cells`` (``--max-cells``).
+DEFAULT_MAX_CELLS = 100_000
+#: Lower bound of an instance's memory on an N x N grid (``instance_nbytes``): float64 or
+#: int64 arrays per grid point (heights, gap, pressure, grid index), and complex128
+#: half-spectra of the (padded) grid (the kernel's and one work buffer).
+GRID_ARRAYS = 4
+SPECTRA = 2
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """How to run (the scene options are in ``SceneConfig``).
+
+    profiles          : accuracy profiles (None: the study's profiles).
+    repeats           : timed solves per cell group (min and median are reported).
+    timeout           : hard wall-clock limit per solve, seconds.
+    warm              : warm-start along load histories where the solver supports it.
+    warmup            : one untimed solve the first time a worker meets a variant, unless
+                        the solve is predicted to take longer than ``warmup_limit``
+                        seconds (harness.run.job: a big solve is paid once).
+    jobs              : instance jobs run concurrently (process pool).
+    reference         : "auto", "none" or a solver name.
+    reference_timeout : limit for one reference solve (None: 5 x timeout).
+    build_timeout     : limit for building one instance step in the worker.
+    memory_budget     : bytes a solve may use (dense H + the solver's own estimate), and
+                        the most one instance may need (``estimate_scene``).
+    max_cells         : the most cells a plan may have (``estimate_scene``).
+    progress          : progress bar (None: on a terminal and not under CI).
+    threads_per_worker: BLAS/FFT threads per worker (None: cores // jobs when jobs > 1).
+    """
+
+    profiles: tuple[str, ...] | None = None
+    repeats: int = 1
+    timeout: float = 60.0
+    warm: bool = True
+    warmup: bool = True
+    warmup_limit: float = 5.0
+    jobs: int = 1
+    reference: str = "auto"
+    reference_timeout: float | None = None
+    build_timeout: float = 600.0
+    memory_budget: float = DEFAULT_MEMORY_BUDGET
+    progress: bool | None = None
+    threads_per_worker: int | None = None
+    max_cells: int = DEFAULT_MAX_CELLS
+
+    def __post_init__(self) -> None:
+        if self.repeats < 1:
+            raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        if not self.timeout > 0:
+            raise ValueError(f"timeout must be > 0 seconds, got {self.timeout}")
+        if self.jobs < 1:
+            raise ValueError(f"jobs must be >= 1, got {self.jobs}")
+        if self.max_cells < 1:
+            raise ValueError(f"max_cells must be >= 1, got {self.max_cells}")
+        for p in self.profiles or ():
+            get_profile(p)
+
+    @property
+    def ref_timeout(self) -> float:
+        return float(self.reference_timeout or 5.0 * self.timeout)
+
+    def worker_threads(self) -> int | None:
+        if self.threads_per_worker:
+            return int(self.threads_per_worker)
+        if self.jobs > 1:
+            return max(1, (os.cpu_count() or 1) // self.jobs)
+        return None
+
+
+@dataclass(frozen=True)
+class StoredCell:
+    """What a resumed job reads back of one stored row of its own cells: the columns the
+    skip policy (``harness.run.skips.SkipPolicy``) reads of a row."""
+
+    step: int
+    label: str
+    profile: str
+    n: int | None
+    status: str
+    seconds: float | None
+
+    @classmethod
+    def of(cls, row: dict[str, Any]) -> "StoredCell":
+        n, t = as_finite(row.get("n")), as_finite(row.get("solve_time_s"))
+        return cls(int(row["step"]), str(row["solver"]), str(row["profile"]), None if n is None else int(n),
+                   str(row.get("status", "")), t)
+
+
+@dataclass(frozen=True)
+class InstanceJob:
+    """Everything needed to run all cells of one instance (picklable).
+
+    ``stored``: the rows of this job's cells already in the store (``with_stored``), so
+    that a resumed job decides its skips from the same rows as an uninterrupted one."""
+
+    spec: InstanceSpec
+    variants: tuple[SolverVariant, ...]
+    profiles: tuple[str, ...]
+    load_history: bool
+    reference_candidates: tuple[str, ...]
+    steps_hint: int
+    stored: tuple[StoredCell, ...] = ()
+
+    def with_stored(self, rows: dict[str, dict[str, Any]], run: "RunConfig") -> "InstanceJob":
+        """This job with the stored rows (``cell_id`` -> row) of its own cells attached."""
+        cells = tuple(StoredCell.of(rows[c]) for c in job_cell_ids(self, run) if c in rows)
+        return replace(self, stored=cells)
+
+    def n_cells(self, repeats: int) -> int:
+        return self.steps_hint * len(self.variants) * len(self.profiles) * repeats
+
+
+@dataclass
+class RunPlan:
+    jobs: list[InstanceJob]
+    warnings: list[str] = field(default_factory=list)
+    scenes: list[str] = field(default_factory=list)
+
+    def n_cells(self, repeats: int) -> int:
+        return sum(j.n_cells(repeats) for j in self.jobs)
+
+
+class PlanError(ProblemInputError):
+    """Bad input found while planning: one line per problem."""
+
+    def __init__(self, problems: Sequence[str]) -> None:
+        self.problems = list(problems)
+        super().__init__("\n".join(self.problems))
+
+
+# ---------------------------------------------------------------------------
+# Cell identity
+# ---------------------------------------------------------------------------
+
+
+def make_cell_id(spec: InstanceSpec, step: int, variant: SolverVariant, profile: str, repeat: int, warm: bool) -> str:
+    """Stable id of one solve: a hash of everything that names it."""
+    key = json.dumps(
+        [spec.scene, spec.instance, spec.params_json(), int(step), variant.name, variant.base,
+         canonical_json(variant.params), profile, int(repeat), "warm" if warm else "cold"],
+        default=str,
+    )
+    return hashlib.sha1(key.encode("utf-8")).hexdigest()[:20]
+
+
+def job_cell_ids(job: InstanceJob, run: RunConfig) -> list[str]:
+    return [make_cell_id(job.spec, k, v, p, r, run.warm) for k in range(job.steps_hint) for v in job.variants
+            for p in job.profiles for r in range(run.repeats)]
+
+
+# ---------------------------------------------------------------------------
+# Solvers
+# ---------------------------------------------------------------------------
+
+
+def resolve_solver_names(requested: Sequence[str] | str | None, study_default: Sequence[str] | None) -> list[str]:
+    """Registry names to run: "all" (every registered solver, unavailable ones are
+    recorded as skipped), an explicit list (``module:NAME`` entries are loaded and
+    registered; ``name[k=v]`` entries come back as the checked label, which
+    ``Study.variants`` turns into a variant with those parameters), or the study's
+    defaults, or every available solver."""
+    if isinstance(requested, str):
+        requested = split_solver_list(requested)  # commas inside name[k=v,...] stay
+    if requested:
+        if list(requested) == ["all"]:
+            return list(all_solvers())
+        names = []
+        for text in requested:
+            try:  # an unknown name is a clear KeyError; name[k=v] is Param-checked (solvers/registry.py)
+                spec, solver = parse_solver_spec(text)
+            except (ImportError, AttributeError, TypeError) as exc:
+                raise ProblemInputError(f"cannot load solver {text.strip()!r}: {type(exc).__name__}: {exc}") from None
+            if ":" in spec.name:
+                register(solver, replace=True)
+            names.append(SolverSpec(solver.name, spec.params).label)
+        return names
+    if study_default:
+        return [s for s in study_default if s in all_solvers()]
+    return list(available_solvers())
+
+
+# ---------------------------------------------------------------------------
+# Planning
+# ---------------------------------------------------------------------------
+
+
+# ---------------------------------------------------------------------------
+# Bounds: the size of a plan, from sizes and counts
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SceneEstimate:
+    """A scene's plan size under one configuration, before anything is built: its cells
+    and its largest instance's memory (a lower bound, ``instance_nbytes``)."""
+
+    instances: int
+    cells: int
+    largest_bytes: float
+    largest: str
+
+
+def instance_nbytes(params: dict[str, Any]) -> float:
+    """At least the bytes one instance of recipe ``params`` needs: on an N x N grid
+    (``size``) ``GRID_ARRAYS`` arrays of N^2 eight-byte numbers and ``SPECTRA``
+    complex128 half-spectra of the grid (padded to 2N x 2N unless periodic); for a
+    problem given by its size n (``n``), the dense H (8 n^2 bytes) where the operator is
+    dense."""
+    size, n = params.get("size"), params.get("n")
+    if isinstance(size, (int, float)) and size > 0:
+        N = int(size)
+        P = N if params.get("periodic") else 2 * N
+        return float(8 * GRID_ARRAYS * N * N + SPECTRA * 16 * P * (P // 2 + 1))
+    if isinstance(n, (int, float)) and n > 0:
+        return float(8 * int(n) * int(n) if params.get("operator") == "dense" else 8 * GRID_ARRAYS * int(n))
+    return 0.0
+
+
+def _probe(scene: Any, cfg: SceneConfig, steps: int | None, seeds: Any) -> list[InstanceSpec]:
+    return list(scene.instances(replace(cfg, steps=steps, seeds=None if seeds is None else tuple(seeds))))
+
+
+def estimate_scene(scene: Any, cfg: SceneConfig, per_step: int) -> SceneEstimate:
+    """The plan size of ``scene`` under ``cfg`` (merged) with ``per_step`` cells per
+    instance step (variants x profiles x repeats).  With more than three steps or two
+    seeds it is computed from the recipes at 2 and 3 steps and 1 and 2 seeds (the cell count is
+    bilinear in steps and seeds: every scene's recipes are one per seed, each with
+    ``steps`` load steps or a fixed number), so a huge ``--steps`` or ``--seeds`` is
+    never expanded."""
+    steps, seeds = cfg.steps, cfg.seeds
+    big_steps = steps is not None and int(steps) > 3
+    big_seeds = seeds is not None and len(seeds) > 2
+    if not (big_steps or big_seeds):  # (cheap: at most three steps and two seeds)
+        specs = list(scene.instances(cfg))
+        cells = per_step * sum(int(s.params.get("steps") or 1) for s in specs)
+        return _estimate(len(specs), cells, specs)
+    s_pts = (2, 3) if big_steps else (steps,)
+    k_pts = ((seeds[0],), (seeds[0], seeds[1])) if big_seeds else (seeds,)
+    grid = {(i, j): _probe(scene, cfg, s, k) for i, s in enumerate(s_pts) for j, k in enumerate(k_pts)}
+
+    def at(i: int, j: int, what: str) -> int:
+        specs = grid[(min(i, len(s_pts) - 1), min(j, len(k_pts) - 1))]
+        return len(specs) if what == "instances" else sum(int(s.params.get("steps") or 1) for s in specs)
+
+    ds = int(steps) - 2 if big_steps else 0
+    dk = len(seeds) - 1 if big_seeds else 0
+
+    def bilinear(what: str) -> int:
+        c00, c10, c01, c11 = at(0, 0, what), at(1, 0, what), at(0, 1, what), at(1, 1, what)
+        return c00 + (c10 - c00) * ds + (c01 - c00) * dk + (c11 - c10 - c01 + c00) * ds * dk
+
+    return _estimate(bilinear("instances"), per_step * bilinear("steps"), [s for v in grid.values() for s in v])
+
+
+def _estimate(instances: int, cells: int, specs: list[InstanceSpec]) -> SceneEstimate:
+    largest = max(specs, key=lambda s: instance_nbytes(s.params), default=None)
+    if largest is None:
+        return SceneEstimate(instances, cells, 0.0, "")
+    p = largest.params
+    what = f"N = {p['size']}" if p.get("size") else (f"n = {p['n']}" if p.get("n") else largest.instance)
+    return SceneEstimate(instances, cells, instance_nbytes(p), what)
+
+
+def check_bounds(est: SceneEstimate, run: RunConfig) -> None:
+    """Refuse a scene whose plan is beyond ``run.max_cells`` or whose largest instance is
+    beyond ``run.memory_budget`` (``ProblemInputError`` with the estimate)."""
+    problems = []
+    if est.largest_bytes > run.memory_budget:
+        problems.append(f"its largest instance ({est.largest}) needs at least {est.largest_bytes / 2**30:.3g} GiB, "
+                        f"over the memory budget of {run.memory_budget / 2**30:.3g} GiB (--memory-budget-gb)")
+    if est.cells > run.max_cells:
+        problems.append(f"the plan has {est.cells:,} cells ({est.instances:,} instance"
+                        f"{'' if est.instances == 1 else 's'}), over the limit of "
+                        f"{run.max_cells:,} (--max-cells)")
+    if problems:
+        raise ProblemInputError("\n".join(problems))
+
+
+def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
+               run: RunConfig) -> tuple[list[InstanceJob], list[str]]:
+    """The jobs and warnings of one study on its scene under ``cfg`` (bounded by
+    ``check_bounds``, then validated)."""
+    scene = get_scene(study.scene)
+    merged = scene.config(cfg)
+    if merged.operator is not None:
+        check_operator_kind(str(merged.operator))  # "gpu" without CuPy or a device: the reason, before anything runs
+    variants = tuple(study.variants(solvers, merged.extra))
+    profiles = tuple(run.profiles or study.profiles)
+    check_bounds(estimate_scene(scene, merged, len(variants) * len(profiles) * run.repeats), run)
+    check_height_unit_applied(study.scene, merged, scene)
+    scene.validate(merged)
+    refs = study.reference_candidates(run.reference)
+    jobs = [InstanceJob(spec, variants, profiles, bool(scene.load_history), refs, int(spec.params.get("steps") or 1))
+            for spec in scene.instances(merged)]
+    return jobs, [f"{study.scene}: {w}" for w in scene.warnings(merged)]
+
+
+def check_height_unit_applied(name: str, cfg: SceneConfig, scene: Any) -> None:
+    """Refuse ``--height-unit`` where a scene's recipes of a measured surface do not carry
+    it (the surface would silently be read in metres)."""
+    unit = cfg.extra.get("height_unit")
+    if unit in (None, "m"):
+        return
+    if any(s.params.get("surface_path") and s.params.get("height_unit") != unit for s in scene.instances(cfg)):
+        raise ProblemInputError(f"--height-unit {unit}: scene {name!r} does not apply a height unit to its "
+                                "surface file; convert the file to metres instead")
+
+
+def plan_run(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
+             run: RunConfig | None = None) -> RunPlan:
+    """Expand scene names into instance jobs; raise ``PlanError`` listing every bad
+    input (module doc) before anything runs."""
+    run = run or RunConfig()
+    plan = RunPlan(jobs=[], scenes=list(scenes))
+    problems: list[str] = []
+    for name in scenes:
+        for study, part_cfg in expand(name, cfg):
+            try:
+                names = resolve_solver_names(solvers, study.solvers)
+                jobs, warnings = scene_jobs(study, part_cfg, names, run)
+            except ProblemInputError as exc:
+                problems += [f"{study.scene}: {line}" for line in str(exc).splitlines() if line]
+                continue
+            except MemoryError as exc:
+                problems.append(f"{study.scene}: planning ran out of memory ({type(exc).__name__}: {exc}); "
+                                "choose a smaller --size, --steps or --seeds")
+                continue
+            plan.jobs += jobs
+            plan.warnings += warnings
+    cells = plan.n_cells(run.repeats)
+    if cells > run.max_cells and not problems:
+        problems.append(f"the plan has {cells:,} cells, over the limit of {run.max_cells:,} (--max-cells)")
+    if run.reference not in ("auto", "none"):  # after --solvers: a module:NAME list may register it
+        try:
+            get_solver(run.reference)
+        except KeyError as exc:
+            problems.append(f"--reference: {exc}")
+    if problems:
+        raise PlanError(list(dict.fromkeys(problems)))
+    return plan

@@ -1,0 +1,160 @@
+"""The runner: scenes x instances x load steps x solver variants x profiles x repeats.
+
+``run_benchmark`` is the one path of a run, whatever executes it:
+
+1. plan (``harness.run.plan.plan_run``): scene names -> instance jobs through their studies
+   (``harness.run.studies``), every input validated and the plan's size bounded
+   (``--max-cells``, ``--memory-budget-gb``) before anything runs;
+2. check the results folder (``harness.table.store.check_run_folder``: a new folder, or one
+   that records this run's configuration, ``run_identity``, or ``append``), still
+   touching nothing; then take its lock (``harness.table.store.RunLock``), write the marker,
+   open the store and write meta.json (``harness.table.meta``);
+3. hand the jobs with missing cells to an executor (``harness.run.executors``: serial, a
+   process pool, or Dask in ``harness.run.distributed``); each job is run by
+   ``harness.run.job.JobDriver``: skip policy (``harness.run.skips``), isolated worker
+   (``harness.run.worker``), judge (``harness.judge``), one row per cell (``harness.run.rows``);
+4. write the tidy table.
+
+Rows are appended to the store as they finish; rerunning the same command runs only the
+cells whose ``cell_id`` is missing.  Each job carries the stored rows of its own cells
+(``InstanceJob.with_stored``), so its skip decisions on resume are those of an
+uninterrupted run (``harness.run.skips.SkipPolicy``).  Stored skips are kept, not decided
+again: a skip of step k depends only on the rows of steps < k of its sequence, which a
+job writes before it (the journal is append-only, and an interruption or a torn last
+line loses a suffix of each job's rows only), and on the configuration, which the
+folder's marker pins -- so deciding it again would give the same answer.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+from dataclasses import asdict, dataclass, replace
+from typing import Any, Sequence
+
+from contactbench.problems.scenes import SceneConfig
+
+from .executors import Executor, local_executor
+from ..table.meta import build_meta, write_meta
+from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
+from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
+
+#: The RunConfig fields that are part of a run's configuration (what the folder's marker
+#: pins): those that change which cells exist, how they are judged or skipped.  The
+#: others (jobs, threads, progress, max_cells) say how a run executes, and a resume may
+#: change them.
+IDENTITY_RUN_FIELDS = ("profiles", "repeats", "timeout", "warm", "warmup", "warmup_limit", "reference",
+                       "reference_timeout", "build_timeout", "memory_budget")
+
+log = logging.getLogger("contactbench")
+
+
+@dataclass
+class RunSummary:
+    out_dir: str
+    rows: int
+    new_rows: int
+    statuses: dict[str, int]
+    elapsed_s: float
+    warnings: list[str]
+
+    @property
+    def judged(self) -> int:
+        """Rows the judge gave a verdict ("solved" or "inaccurate", harness/judge.py); the
+        rest failed, timed out, crashed or were skipped."""
+        return sum(self.statuses.get(s, 0) for s in ("solved", "inaccurate"))
+
+    def line(self) -> str:
+        counts = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
+        return f"{self.rows} rows ({self.new_rows} new) in {self.elapsed_s:.1f} s: {counts} -> {self.out_dir}"
+
+
+def under_ci() -> bool:
+    return os.environ.get("CI", "").strip().lower() in ("1", "true", "yes") or not sys.stderr.isatty()
+
+
+def run_config_record(scenes: Sequence[str], cfg: SceneConfig, plan: RunPlan, run: RunConfig) -> dict[str, Any]:
+    """meta.json's ``config`` (less the executor)."""
+    return {"scenes": list(scenes), "scene_config": asdict(cfg), "run": asdict(run),
+            "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
+            "profiles": sorted({p for j in plan.jobs for p in j.profiles})}
+
+
+def run_identity(config: dict[str, Any]) -> dict[str, Any]:
+    """The configuration a results folder pins (its marker), from a meta.json ``config``
+    (``run_config_record``, of this run or of a folder written before the marker):
+    scenes, scene options, solvers, profiles and ``IDENTITY_RUN_FIELDS``."""
+    run = config.get("run") or {}
+    return {"scenes": config.get("scenes"), "scene_config": config.get("scene_config"),
+            "solvers": config.get("solvers"), "profiles": config.get("profiles"),
+            "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}}
+
+
+def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
+                  run: RunConfig | None = None, out_dir: str | os.PathLike[str] = "results/run",
+                  command: list[str] | None = None, executor: Executor | None = None,
+                  append: bool = False) -> RunSummary:
+    """Plan, check the folder, run the missing cells on ``executor`` (default: serial, or
+    a process pool for ``run.jobs > 1``), write the tidy table and meta.json (module doc).
+
+    Refusals (``PlanError``, ``RunFolderError``, ``FolderInUseError``: all
+    ``ProblemInputError``) come before anything is written; the lock is held only while
+    the run writes.  ``append``: add to a folder that holds a run of another
+    configuration."""
+    run = run or RunConfig()
+    t0 = time.perf_counter()
+    plan = plan_run(scenes, cfg, solvers, run)
+    cfg = cfg or SceneConfig()
+    if cfg.seeds is not None:  # (a lazy range of seeds: the plan has bounded it)
+        cfg = replace(cfg, seeds=tuple(cfg.seeds))
+    config = run_config_record(scenes, cfg, plan, run)
+    identity = run_identity(config)
+    check_run_folder(out_dir, identity, append, run_identity)
+    with holding_lock(out_dir):
+        folder = check_run_folder(out_dir, identity, append, run_identity)  # again, now that we hold the lock
+        for w in plan.warnings:
+            log.warning("warning: %s", w)
+        record_run(folder, identity)
+        store = ResultStore(out_dir)
+        return execute_plan(plan, run, store, config, command, executor, t0)
+
+
+def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict[str, Any],
+                 command: list[str] | None, executor: Executor | None, t0: float) -> RunSummary:
+    """Run the plan's missing cells into ``store`` (its folder locked), meta.json first."""
+    before = len(store)
+    stored = {r["cell_id"]: r for r in store.rows()}
+    statuses = {c: str(r.get("status", "")) for c, r in stored.items()}
+    pending = [j.with_stored(stored, run) for j in plan.jobs if not all(c in statuses for c in job_cell_ids(j, run))]
+    executor = executor or local_executor(run, len(pending))
+    config = {**config, "run": asdict(executor.run_config(run)), "executor": executor.describe()}
+    write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings))
+    total = sum(j.n_cells(run.repeats) for j in pending)
+    already = sum(1 for j in pending for c in job_cell_ids(j, run) if c in statuses)
+    show_bar = run.progress if run.progress is not None else not under_ci()
+    bar = progress_bar(total, already, show_bar)
+    try:
+        executor.execute(pending, run, store, statuses, bar, verbose=not show_bar)
+    finally:
+        bar.close()
+        table = ResultStore(store.out).finalize()
+    counts = {str(k): int(v) for k, v in table["status"].value_counts().items()} if len(table) else {}
+    return RunSummary(str(store.out), len(table), len(table) - before, counts, time.perf_counter() - t0, plan.warnings)
+
+
+class _NoBar:
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def progress_bar(total: int, initial: int, show: bool) -> Any:
+    if not show:
+        return _NoBar()
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, unit="solve", dynamic_ncols=True, smoothing=0.1)

@@ -1,0 +1,219 @@
+"""The skip policy: the one interpreter of what a solver says it can serve.
+
+Before a solve the harness asks, in order (the first "no" is the recorded reason, in
+words, with the estimate):
+
+1. can the solver be loaded, and is it available (``Solver.availability``)?
+2. ``capabilities.max_n`` against the trial-set size n;
+3. the operator: a solver that needs the dense H (``needs_dense``, or no "fft" among its
+   ``operators``) is given one; a solver that needs the FFT operator cannot run on a
+   scene that builds a dense H;
+4. memory: the dense H (if the harness must assemble it) plus ``memory_estimate(n)``
+   against the memory budget;
+5. the solver's own ``skip(traits)`` on the problem's ``ProblemTraits`` (n, operator,
+   geometry, surface, periodicity, kernel) -- e.g. CMR needs the surface's coarse levels;
+6. time: along a load history the solver's own finished steps, extrapolated by the
+   measured growth (``extrapolated_time``); else its ``time_estimate(n, operator)``;
+   against the time limit.  After a timeout, larger steps of that solver are skipped.
+
+``skip_decision`` answers one question; ``SkipPolicy`` adds the rows of the earlier
+steps of the same sequence, the same rows whether a run is resumed or not.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+from contactbench.solvers.base import ProblemTraits, Solver
+from contactbench.solvers.registry import load_solver
+
+GiB = float(2**30)
+
+#: Growth exponent of solve time with n used to extrapolate an observed solve (the
+#: floor; with two observed steps the measured exponent is used, up to the cap: dense
+#: factorisations grow like n^3, and a single jump between two steps must not condemn
+#: a solver -- the paper's NNLS goes 2.3 s -> 29 s -> 38 s -> 78 s -> 114 s at 512^2).
+OBSERVED_TIME_EXPONENT = 1.5
+OBSERVED_EXPONENT_CAP = 3.0
+#: An extrapolated time above this fraction of the limit counts as hopeless.
+OBSERVED_SKIP_FRACTION = 1.0
+
+Observation = tuple[int, float]  # (n, solve seconds) of one finished step
+#: Statuses of a row that ran to an answer (its time is an observation).
+ANSWERED = ("solved", "inaccurate")
+
+
+@dataclass(frozen=True)
+class Decision:
+    """Run the variant with ``operator`` ("fft"/"dense"), or skip it for ``reason``."""
+
+    operator: str = ""
+    reason: str = ""
+
+    @property
+    def skip(self) -> bool:
+        return bool(self.reason)
+
+
+def extrapolated_time(history: Sequence[Observation], n: int) -> tuple[float, float]:
+    """(predicted seconds at n, exponent used) from the last one or two finished steps of
+    the same solver: t_last (n / n_last)^e, with e measured between the last two steps
+    when both are long enough to time (> 0.05 s) and n grew, clamped to [1.5, 3]."""
+    n1, t1 = history[-1]
+    e = OBSERVED_TIME_EXPONENT
+    if len(history) >= 2:
+        n0, t0 = history[-2]
+        if n1 > 1.1 * n0 and t0 > 0.05 and t1 > 0:
+            e = min(OBSERVED_EXPONENT_CAP, max(e, math.log(t1 / t0) / math.log(n1 / n0)))
+    return t1 * max(1.0, n / n1) ** e, e
+
+
+def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_budget: float,
+                  observed: Sequence[Observation] | None = None) -> Decision:
+    """Whether solver ``base`` (registry name or ``module:NAME``) can serve a problem
+    with these traits within the limits (module doc, steps 1-6).  ``observed`` = the
+    (n', seconds) of the same solver's last one or two finished steps of the load
+    sequence: when given it replaces the static time model (which cannot know about
+    warm starts)."""
+    try:
+        solver = load_solver(base)
+    except Exception as exc:
+        return Decision(reason=f"solver {base!r} cannot be loaded: {exc}")
+    ok, why = solver.availability()
+    if not ok:
+        return Decision(reason=f"not available: {why}")
+    d = capability_decision(solver, traits, memory_budget)
+    if d.skip:
+        return d
+    return time_decision(solver, traits, d.operator, time_limit, observed)
+
+
+def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: float) -> Decision:
+    """Steps 2-5 of the module doc for a loaded, available solver: max_n, the operator
+    it is given, memory, and its own ``skip``.  No time model (``validate`` uses this:
+    a solver cannot skip its way out of a conformance case)."""
+    n, caps = traits.n, solver.capabilities
+    if caps.max_n is not None and n > caps.max_n:
+        return Decision(reason=f"trial set n = {n} exceeds the solver's limit max_n = {caps.max_n}")
+    wants_dense = caps.needs_dense or "fft" not in caps.operators
+    if traits.operator == "dense":
+        if "dense" not in caps.operators:
+            return Decision(reason="the solver needs the matrix-free FFT operator; this scene builds a dense H")
+        operator = "dense"
+    else:
+        operator = "dense" if wants_dense else "fft"
+    dense_bytes = 8.0 * n * n if operator == "dense" and traits.operator != "dense" else 0.0
+    try:
+        own_bytes = float(solver.memory_estimate(n))
+    except Exception as exc:
+        return Decision(reason=f"memory model failed: {exc}")
+    if dense_bytes > memory_budget:
+        return Decision(reason=(f"needs dense H: {n} x {n} float64 = {dense_bytes / GiB:.3g} GiB "
+                                f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
+    if dense_bytes + own_bytes > memory_budget:
+        return Decision(reason=(f"memory estimate {(dense_bytes + own_bytes) / GiB:.3g} GiB at n = {n} "
+                                f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
+    try:
+        own_reason = solver.skip(traits)
+    except Exception as exc:
+        return Decision(reason=f"skip check failed: {exc}")
+    if own_reason:
+        return Decision(reason=str(own_reason))
+    return Decision(operator=operator)
+
+
+def time_decision(solver: object, traits: ProblemTraits, operator: str, time_limit: float,
+                  observed: Sequence[Observation] | None) -> Decision:
+    """Step 6 of the module doc: the observed growth, else the solver's time model."""
+    n = traits.n
+    history = [(int(a), float(b)) for a, b in (observed or []) if a > 0]
+    if history:
+        t_obs, e = extrapolated_time(history, n)
+        if t_obs > OBSERVED_SKIP_FRACTION * time_limit:
+            n1, t1 = history[-1]
+            return Decision(reason=(f"predicted solve time {t_obs:.3g} s at n = {n} from {t1:.3g} s at n = {n1} on "
+                                    f"the previous step (time ~ n^{e:.2g}), over the time limit of {time_limit:.3g} s"))
+        return Decision(operator=operator)
+    try:
+        t_est = solver.time_estimate(n, operator)  # type: ignore[attr-defined]
+    except Exception as exc:
+        return Decision(reason=f"time model failed: {exc}")
+    if t_est is not None and t_est > time_limit:
+        return Decision(reason=(f"predicted solve time {t_est:.3g} s at n = {n} ({operator} operator) "
+                                f"exceeds the time limit of {time_limit:.3g} s"))
+    return Decision(operator=operator)
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What the skip policy reads of one finished row of a (variant, profile) sequence:
+    its step, trial-set size n, status and solve seconds (the row's ``step``, ``n``,
+    ``status`` and ``solve_time_s``)."""
+
+    step: int
+    n: int
+    status: str
+    seconds: float | None
+
+
+@dataclass
+class SkipPolicy:
+    """``skip_decision`` plus the rows of each (variant, profile) sequence of one job.
+
+    The decision for step k is a function of the plan (limits, traits) and of the rows of
+    steps < k of the same (variant, profile) sequence only -- whether those rows were
+    produced by this process (``note``) or read back from the journal on resume
+    (``note`` too, via ``harness.run.job``) -- never of the order in which cells finished:
+
+    * a timeout at step j < k with n_j <= n_k skips step k ("timed out at step j");
+    * else the last two earlier steps with an answer (solved or inaccurate; one
+      observation per step: the fastest of its answered repeats) feed
+      ``extrapolated_time`` along a load history;
+    * else the solver's own time model.
+    """
+
+    time_limit: float
+    memory_budget: float
+    seen: dict[tuple[str, str], dict[int, list[StepRecord]]] = field(default_factory=dict)
+
+    def decide(self, base: str, key: tuple[str, str], traits: ProblemTraits, step: int,
+               load_history: bool = True) -> Decision:
+        """The decision for ``step`` of sequence ``key`` (class doc)."""
+        observed = self.observations(key, step) if load_history else []
+        d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed)
+        slow = self.first_timeout(key, step)
+        if not d.skip and slow is not None and traits.n >= slow.n:
+            return Decision(reason=f"predicted over the {self.time_limit:g} s limit: it timed out at step "
+                                   f"{slow.step} with n = {slow.n}, and this step has n = {traits.n}")
+        return d
+
+    def note(self, key: tuple[str, str], step: int, n: int | None, status: str, seconds: float | None) -> None:
+        """Record one finished row of sequence ``key`` (any status; only timeouts and
+        answers with a time count)."""
+        if n is None:
+            return
+        sec = None if seconds is None or not math.isfinite(float(seconds)) else float(seconds)
+        self.seen.setdefault(key, {}).setdefault(int(step), []).append(StepRecord(int(step), int(n), str(status), sec))
+
+    def earlier(self, key: tuple[str, str], step: int) -> list[tuple[int, list[StepRecord]]]:
+        return sorted((k, recs) for k, recs in self.seen.get(key, {}).items() if k < step)
+
+    def first_timeout(self, key: tuple[str, str], step: int) -> StepRecord | None:
+        """The earliest timed-out row of a step before ``step``."""
+        for _, recs in self.earlier(key, step):
+            for rec in recs:
+                if rec.status == "timeout":
+                    return rec
+        return None
+
+    def observations(self, key: tuple[str, str], step: int) -> list[Observation]:
+        """(n, seconds) of the last two steps before ``step`` with an answered repeat
+        (one per step: its fastest answered repeat)."""
+        out: list[Observation] = []
+        for _, recs in self.earlier(key, step):
+            times = [r.seconds for r in recs if r.status in ANSWERED and r.seconds is not None]
+            if times:
+                out.append((recs[0].n, min(times)))
+        return out[-2:]

@@ -1,0 +1,360 @@
+"""Study design: how the harness runs each scene.
+
+A scene (``contactbench.problems.scenes``) is pure data: surfaces, kernels, load
+sequences.  A ``Study`` says what the harness does with it -- one record per scene name:
+
+* ``solvers``   the registry names run when the user gives no ``--solvers`` (None: every
+                available solver);
+* ``profiles``  the accuracy profiles run when the user gives no ``--profile``;
+* ``reference`` the preferred exact reference solver (before ``REFERENCE_CANDIDATES``);
+* ``sweeps``    parameter sweeps: a solver matching a sweep runs once per value of one
+                parameter (e.g. ``nnls-gp`` once per K of paper Fig. 6, every ``cmr+*``
+                wrapper once per area-of-influence factor h of Fig. 9), and once more per
+                entry of the sweep's ``over`` (a second, discrete choice such as the CMR
+                coarse reading).  A sweep's values are the study's own, else the solver's
+                declared ``grid``.  A solver matching several sweeps gets the variants of
+                all of them (each distinct parameter set once).
+
+A ``Composite`` (``default``, what ``make bench`` runs) is a mix of studies, each on a
+scene with its own options.  A scene with no record here gets ``Study(name)``: every
+available solver (or the user's list), profile ``default``, the harness's reference.
+
+The variants built here are named exactly as before this module existed (labels, base
+names and parameters feed ``harness.run.plan.make_cell_id``), so stored runs resume -- except
+the CMR variants, which were renamed on purpose (both bases, the coarse reading and
+the first level are in their parameters and labels).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Sequence
+
+from contactbench.problems.coarsen import COARSE_KINDS
+from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
+from contactbench.solvers.cmr import CMRSolver
+from contactbench.solvers.registry import load_solver, parse_solver_spec, split_solver_spec
+
+from contactbench.plugins import did_you_mean
+
+from ..table.files import canonical_json
+
+#: Exact solvers tried, in order, for the reference solution of a step (after the
+#: study's own ``reference``): the dense Lawson-Hanson NNLS where H fits, else the
+#: matrix-free NNLS, else Polonsky-Keer.
+REFERENCE_CANDIDATES: tuple[str, ...] = ("scipy-nnls", "nnls", "pk")
+#: The profile a reference is solved at.
+REFERENCE_PROFILE = "high"
+
+
+@dataclass(frozen=True)
+class SolverVariant:
+    """A solver with fixed parameters, e.g. NNLS+GP with K = 50.  ``label`` is what the
+    tidy table calls it (column ``solver``); ``base`` is the registry name."""
+
+    base: str
+    params: dict[str, Any] = field(default_factory=dict)
+    label: str = ""
+
+    @property
+    def name(self) -> str:
+        return self.label or self.base
+
+
+def solver_grid(solver: str, param: str) -> tuple[Any, ...]:
+    """The values of ``param`` that ``solver`` declares for sweeps (``Solver.grid``)."""
+    values = dict(load_solver(solver).grid).get(param)
+    if not values:
+        raise KeyError(f"solver {solver!r} declares no grid for parameter {param!r}")
+    return tuple(values)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Run each solver whose name matches ``solvers`` (an fnmatch pattern) once per value
+    of parameter ``param``.
+
+    values  : the values (None: the solver's own grid); a run overrides them with
+              ``SceneConfig.extra[param]``;
+    kind    : the values' type (int or float);
+    fixed   : further parameters of every swept variant; ``SceneConfig.extra`` may
+              override the keys of ``fixed`` and ``options``;
+    over    : parameter sets crossed with the values (each value runs once per entry,
+              entry by entry; default one empty set), e.g. ``coarse`` = subsample and
+              mean;
+    label   : the variant's table name, formatted with solver, param, value and every
+              parameter of the variant by name (e.g. "{solver} coarse={coarse} h={h:g}");
+    label_single : whether a sweep of one variant is labelled too (else it keeps the
+              solver's name)."""
+
+    solvers: str
+    param: str
+    values: tuple[Any, ...] | None = None
+    kind: type = float
+    fixed: dict[str, Any] = field(default_factory=dict)
+    options: tuple[str, ...] = ()
+    label: str = "{solver}[{param}={value}]"
+    label_single: bool = True
+    over: tuple[dict[str, Any], ...] = ({},)
+
+    def matches(self, solver: str) -> bool:
+        return fnmatch.fnmatchcase(solver, self.solvers)
+
+    def grid(self, solver: str, extra: dict[str, Any]) -> tuple[Any, ...]:
+        given = extra.get(self.param, self.values)
+        if given is None:
+            given = solver_grid(solver, self.param)
+        given = given if isinstance(given, (list, tuple)) else (given,)
+        return tuple(self.kind(v) for v in given)
+
+    def expand(self, solver: str, extra: dict[str, Any]) -> list[SolverVariant]:
+        values = self.grid(solver, extra)
+        given = {k: extra[k] for k in (*self.fixed, *self.options) if extra.get(k) is not None}
+        labelled = self.label_single or len(values) * len(self.over) > 1
+        out = []
+        for each in self.over:
+            for v in values:
+                params = {self.param: v, **self.fixed, **each, **given}
+                label = self.label.format(solver=solver, param=self.param, value=v, **params) if labelled else ""
+                out.append(SolverVariant(solver, params, label))
+        return out
+
+
+@dataclass(frozen=True)
+class Study:
+    """How the harness runs one scene (module doc)."""
+
+    scene: str
+    solvers: tuple[str, ...] | None = None
+    profiles: tuple[str, ...] = ("default",)
+    reference: str | None = None
+    sweeps: tuple[Sweep, ...] = ()
+
+    def variants(self, solvers: Sequence[str], extra: dict[str, Any] | None = None) -> list[SolverVariant]:
+        """Each solver once, or the variants of every sweep it matches, in the sweeps'
+        order (a parameter set two sweeps share runs once, under the first one's label);
+        a spec with parameters, ``name[k=v]`` (``solvers.registry.parse_solver_spec``),
+        runs once with exactly those, labelled ``SolverSpec.label``."""
+        out: list[SolverVariant] = []
+        for s in solvers:
+            if split_solver_spec(s)[1]:  # name[k=v]: the user's parameters, no sweep
+                spec, _ = parse_solver_spec(s)
+                out.append(SolverVariant(spec.name, spec.params, spec.label))
+                continue
+            sweeps = [w for w in self.sweeps if w.matches(s)]
+            if not sweeps:
+                out.append(SolverVariant(s))
+                continue
+            seen: set[str] = set()
+            for w in sweeps:
+                for v in w.expand(s, dict(extra or {})):
+                    key = canonical_json(v.params)
+                    if key not in seen:
+                        seen.add(key)
+                        out.append(v)
+        return out
+
+    def reference_candidates(self, reference: str) -> tuple[str, ...]:
+        """Reference solvers to try: none ("none"), the one asked for, or ("auto") the
+        study's own then ``REFERENCE_CANDIDATES``."""
+        if reference == "none":
+            return ()
+        if reference != "auto":
+            return (reference,)
+        return tuple(dict.fromkeys(([self.reference] if self.reference else []) + list(REFERENCE_CANDIDATES)))
+
+
+@dataclass(frozen=True)
+class Part:
+    """One part of a composite: a study on its scene with these options."""
+
+    study: Study
+    cfg: SceneConfig
+
+
+@dataclass(frozen=True)
+class Composite:
+    """A named mix of studies run as one (``default``).  Options the user sets override
+    every part's own; rows carry the part's scene name."""
+
+    name: str
+    description: str
+    parts: tuple[Part, ...]
+
+    def expand(self, user: SceneConfig | None) -> list[tuple[Study, SceneConfig]]:
+        return [(p.study, override(p.cfg, user)) for p in self.parts]
+
+
+def override(base: SceneConfig, user: SceneConfig | None) -> SceneConfig:
+    """``base`` with every field the user set (not None) replaced by the user's value."""
+    if user is None:
+        return base
+    kw: dict[str, Any] = {f.name: getattr(user, f.name) for f in fields(SceneConfig)
+                          if f.name != "extra" and getattr(user, f.name) is not None}
+    return replace(base, extra={**base.extra, **user.extra}, **kw)
+
+
+# ---------------------------------------------------------------------------
+# The studies
+# ---------------------------------------------------------------------------
+
+#: The paper's own algorithms (section 3) and the dense reference.
+PAPER_SOLVERS: tuple[str, ...] = ("greedy-cg", "greedy-gs", "greedy-chol", "pk", "nnls", "gp", "nnls-gp", "admm",
+                                  "scipy-nnls")
+#: Paper Fig. 6: NNLS warm-started by K accelerated gradient-projection steps, per K.
+GP_K_SWEEP = Sweep("nnls-gp", "K", kind=int)
+
+
+# --- Section 5 (CMR) as the paper ran it, as distributions over seeds -------------
+#: The direct solvers CMR is compared with, each also CMR's base (``cmr+<base>``): the
+#: paper's dense Cholesky + NNLS (``scipy-nnls``: Lawson-Hanson on the dense H; it takes
+#: no warm start, so it solves every step of the load history from scratch, as the
+#: paper's direct NNLS did) and our matrix-free FFT base ``fast-dual-pccg`` (warm started
+#: from its previous step along the history, as every solver that accepts one is).
+CMR_DIRECT_BASES: tuple[str, ...] = ("scipy-nnls", "fast-dual-pccg")
+#: The CMR wrappers over those bases.
+CMR_WRAPPERS: tuple[str, ...] = tuple(f"cmr+{b}" for b in CMR_DIRECT_BASES)
+#: The readings of a coarse level (solvers/cmr.py parameter ``coarse``): the exact
+#: subsample of the fine grid, or the block mean (a height as a cell average).
+CMR_COARSE: tuple[str, ...] = COARSE_KINDS
+#: Fig. 8's area-of-influence factor and the paper's first level (16 points per side):
+#: the cmr solver's declared defaults (solvers/cmr.py), which the report reads too.
+CMR_H: float = next(p.default for p in CMRSolver.params if p.name == "h")
+CMR_COARSEST: int = next(p.default for p in CMRSolver.params if p.name == "coarsest")
+#: Where the cascade may start (the worst case at H = 0.7 is mostly lost at 16 -> 32).
+CMR_COARSEST_SWEEP: tuple[int, ...] = (16, 32, 64)
+#: A CMR variant's table name: every choice that varies is in it.
+CMR_LABEL = "{solver} coarse={coarse} h={h:g} from {coarsest}"
+
+
+def cmr_sweep(solvers: str, hs: tuple[float, ...] | None, coarsest: int = CMR_COARSEST,
+              coarse: tuple[str, ...] = CMR_COARSE) -> Sweep:
+    """The ``cmr+*`` wrappers matching ``solvers`` once per area-of-influence factor h
+    (None: the wrapper's own grid, paper Fig. 9) and coarse reading, the cascade
+    starting at ``coarsest`` points per side."""
+    return Sweep(solvers, "h", values=hs, kind=float, fixed={"coarsest": coarsest}, options=("levels",),
+                 label=CMR_LABEL, over=tuple({"coarse": c} for c in coarse))
+
+
+def coarsest_sweep(solvers: str, values: tuple[int, ...] = CMR_COARSEST_SWEEP, h: float = CMR_H,
+                   coarse: tuple[str, ...] = CMR_COARSE) -> Sweep:
+    """The ``cmr+*`` wrappers matching ``solvers`` once per first level (points per side)
+    at factor ``h``, per coarse reading."""
+    return Sweep(solvers, "coarsest", values=values, kind=int, fixed={"h": h}, options=("levels",),
+                 label=CMR_LABEL, over=tuple({"coarse": c} for c in coarse))
+
+
+#: The FFT base and CMR over it; the dense base and CMR over it.
+CMR_FAST: tuple[str, ...] = ("fast-dual-pccg", "cmr+fast-dual-pccg")
+CMR_DENSE: tuple[str, ...] = ("scipy-nnls", "cmr+scipy-nnls")
+#: The grid the dense base runs on in ``cmr-paper``: at the scenes' 256^2 the trial sets
+#: reach n ~ 5000 (median, H = 0.7) to 20000 (H = 0.9) and one dense Lawson-Hanson solve
+#: costs ~ n^3 (6 s CPU at n = 2913), hours for 20 seeds; at 128^2 n is 4x smaller.
+CMR_DENSE_SIZE = 128
+
+#: The sweeps of the CMR scenes (every one names the base it applies to):
+#: ``cmr`` (Fig. 8): each base's CMR with both coarse readings at h = 2 from 16.
+CMR_SWEEPS: tuple[Sweep, ...] = (cmr_sweep("cmr+*", (CMR_H,)),)
+#: ``cmr-h-sweep`` (Fig. 9, the top step of H = 0.7): the FFT base's CMR per h of the
+#: paper's grid and per coarse reading, and from 16 / 32 / 64 at h = 2; the dense base's
+#: CMR per h with coarse=mean (n_p/n and the error do not depend on the base: the dense
+#: base adds the paper's time ratio, at half the cost of both readings).
+CMR_H_SWEEPS: tuple[Sweep, ...] = (
+    cmr_sweep("cmr+fast-dual-pccg", None),
+    cmr_sweep("cmr+scipy-nnls", None, coarse=("mean",)),
+    coarsest_sweep("cmr+fast-dual-pccg"),
+)
+#: cmr and cmr-h-sweep as plain scenes (256^2, within the benchmark budget): the FFT base
+#: only -- 3 solves per step (cmr), 22 per seed (cmr-h-sweep).  ``--solvers
+#: scipy-nnls,cmr+scipy-nnls`` adds the dense base (its sweeps are declared here).
+CMR_STUDY = Study("cmr", solvers=CMR_FAST, sweeps=CMR_SWEEPS)
+CMR_H_STUDY = Study("cmr-h-sweep", solvers=CMR_FAST, sweeps=CMR_H_SWEEPS)
+#: cmr-cutoff (Figs. 10-11): the incremental NNLS direct and CMR over it, from 64.
+CMR_VS_DIRECT: tuple[str, ...] = ("nnls", "cmr+nnls")
+CMR_CUTOFF_SWEEP = Sweep("cmr+*", "h", values=(1.5,), kind=float, fixed={"coarsest": 64, "coarse": "mean"}, options=("levels",),
+                         label="{solver} {param}={value:g}", label_single=False)
+GREEDY_INNER_SOLVES: tuple[str, ...] = ("greedy-cg", "greedy-gs", "greedy-chol")
+
+STUDIES: dict[str, Study] = {s.scene: s for s in (
+    Study("gp-k-sweep", solvers=("nnls-gp",), sweeps=(GP_K_SWEEP,)),
+    Study("greedy-linear-solvers", solvers=GREEDY_INNER_SOLVES),
+    CMR_STUDY,
+    CMR_H_STUDY,
+    Study("cmr-cutoff", solvers=CMR_VS_DIRECT, sweeps=(CMR_CUTOFF_SWEEP,)),
+    Study("population", solvers=("fast-ccg",)),
+)}
+
+COMPOSITES: dict[str, Composite] = {c.name: c for c in (
+    Composite(
+        "cmr-paper",
+        "paper section 5 as distributions (results/cmr): cmr and cmr-h-sweep, FFT base at 256^2, dense base at 128^2",
+        (  # every part on its scene's seeds (problems/scenes/cmr.py: 20 per H)
+            # Fig. 8 and the history: 4 H x 20 seeds, 10 steps, FFT base and CMR over it, 256^2
+            Part(CMR_STUDY, SceneConfig(size=256)),
+            # Fig. 9 and the first level: H = 0.7 x 20 seeds, the top step, 256^2
+            Part(CMR_H_STUDY, SceneConfig(size=256)),
+            # the paper's dense base beside the FFT base on the same 128^2 surfaces (Fig. 8 time ratio)
+            Part(Study("cmr", solvers=CMR_DENSE + CMR_FAST, sweeps=CMR_SWEEPS),
+                 SceneConfig(size=CMR_DENSE_SIZE)),
+            # the dense base's time ratio against h (Fig. 9), 128^2
+            Part(Study("cmr-h-sweep", solvers=CMR_DENSE, sweeps=CMR_H_SWEEPS),
+                 SceneConfig(size=CMR_DENSE_SIZE)),
+        ),
+    ),
+    Composite(
+        "default",
+        "make bench: small paper-sweep, counterexample, hertz, gp-k-sweep, greedy-linear-solvers",
+        (
+            # paper-sweep 64^2, 3 steps, every available solver at low and high (Fig. 4, work-precision)
+            Part(Study("paper-sweep", profiles=("low", "high")), SceneConfig(size=64, steps=3, seeds=(0,))),
+            # the counterexample (Example 1) at n = 100 on seeds 0-9 with the paper's solvers
+            Part(Study("counterexample", solvers=PAPER_SOLVERS),
+                 SceneConfig(seeds=tuple(range(10)), extra={"sizes": (100,)})),
+            # hertz 16^2-64^2: convergence to the closed form
+            Part(Study("hertz", solvers=("nnls", "pk", "scipy-nnls", "fast-ccg")),
+                 SceneConfig(extra={"sizes": (16, 32, 64)})),
+            Part(STUDIES["gp-k-sweep"], SceneConfig(size=64, steps=3, seeds=(0,))),  # Fig. 6
+            Part(STUDIES["greedy-linear-solvers"],  # Fig. 5
+                 SceneConfig(steps=4, seeds=(0,), extra={"sizes": (32, 64)})),
+        ),
+    ),
+)}
+
+
+def register_study(study: Study, *, replace: bool = False) -> Study:
+    """Record how the harness runs ``study.scene`` (its solvers, profiles, reference and
+    sweeps) -- called by the scene's own module, beside ``@register_scene`` and its
+    report section, so a scene is declared in one place."""
+    old = STUDIES.get(study.scene)
+    if old is not None and old != study and not replace:
+        raise ValueError(f"a study of scene {study.scene!r} is already registered")
+    STUDIES[study.scene] = study
+    return study
+
+
+def study_for(name: str) -> Study:
+    """The study of scene ``name`` (``Study(name)`` for a scene with no record).  The
+    scenes are discovered first: a scene module registers its study when imported."""
+    all_scenes()
+    if name in STUDIES:
+        return STUDIES[name]
+    get_scene(name)
+    return Study(name)
+
+
+def expand(name: str, cfg: SceneConfig | None) -> list[tuple[Study, SceneConfig]]:
+    """(study, options) pairs a scene name stands for: one, or a composite's parts."""
+    if name in COMPOSITES:
+        return COMPOSITES[name].expand(cfg)
+    if name not in all_scenes():
+        raise KeyError(f"unknown scene {name!r}{did_you_mean(name, catalogue())}; "
+                       f"known scenes: {', '.join(sorted(catalogue()))}")
+    return [(study_for(name), cfg or SceneConfig())]
+
+
+def catalogue() -> dict[str, str]:
+    """Every runnable name (scenes and composites) with its description, sorted."""
+    names = {name: scene.description for name, scene in all_scenes().items()}
+    names.update({name: c.description for name, c in COMPOSITES.items()})
+    return dict(sorted(names.items()))

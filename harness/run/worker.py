@@ -1,0 +1,431 @@
+"""The worker side of a job: typed messages and the handler that lives in the isolated
+process (``harness.run.isolation.ChildProcess``).
+
+The parent (``harness.run.job.JobDriver``) sends one message at a time:
+
+``BuildStep(k)``        build step k of the instance (the ``LoadSequence`` is built once
+                        from its recipe) -> ``StepInfo``;
+``AssembleDense(k)``    assemble the dense H of step k once -> seconds it took;
+``ComputeReference``    load the stored reference answer, or solve and store it ->
+                        ``ReferenceReply``;
+``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped;
+``Solve(task)``         one timed solve, judged by ``harness.judge.judge`` -> ``SolveReply``;
+``Regenerate(task)``    re-solve the previous step, untimed, to recover this solver's
+                        warm start after a worker restart or on resume -> bool.
+
+Warm starts are kept here, per (variant label, profile, step), as ``WarmState`` and
+mapped by ``harness.run.sequence.warm_start_from``.  The table row is built by the parent
+(``harness.run.rows``) from the reply.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, replace
+from typing import Any, Iterable, Sequence, Union
+
+import numpy as np
+
+from contactbench.problems.instances import QP, ContactInstance
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from contactbench.problems.scenes import InstanceSpec
+from contactbench.solvers.base import ProblemTraits, SolveAborted, SolverSettings, WarmStart
+from contactbench.solvers.registry import load_solver
+
+from ..table.fields import save_field
+from ..table.files import write_npz_atomic
+from .isolation import PeakMemory
+from ..judge import ProblemSeal, Verdict, judge
+from ..profiles import get_profile
+from .sequence import WarmState, warm_start_from
+from .studies import REFERENCE_PROFILE
+
+#: A candidate reference whose own scaled KKT error exceeds this is not used.
+REFERENCE_MAX_KKT = 1e-6
+MAX_TRACE_POINTS = 200
+#: Wrong answers on instances up to this size are kept as arrays for the report's plots.
+MAX_SAVED_N = 5000
+
+# ---------------------------------------------------------------------------
+# Messages and replies
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BuildStep:
+    step: int
+
+
+@dataclass(frozen=True)
+class AssembleDense:
+    step: int
+
+
+@dataclass(frozen=True)
+class ComputeReference:
+    step: int
+    base: str
+    operator: str
+    path: str
+    time_limit: float
+
+
+@dataclass(frozen=True)
+class SolveTask:
+    """One solve of one variant on one step."""
+
+    step: int
+    base: str
+    params: dict[str, Any]
+    label: str
+    profile: str
+    operator: str
+    check_tol: float
+    time_limit: float
+    warm: bool = False
+    reference_path: str | None = None
+    record_warm: bool = True
+    arrays_path: str | None = None  # where a wrong answer on a small instance is kept for the report
+    reference_out: str | None = None  # keep this answer as the step's reference here when it passes
+    reference_max_kkt: float = REFERENCE_MAX_KKT  # ... with a scaled KKT error at most this (harness.run.job)
+
+
+@dataclass(frozen=True)
+class Solve:
+    task: SolveTask
+
+
+@dataclass(frozen=True)
+class WarmUp:
+    task: SolveTask
+
+
+@dataclass(frozen=True)
+class Regenerate:
+    task: SolveTask
+
+
+Message = Union[BuildStep, AssembleDense, ComputeReference, Solve, WarmUp, Regenerate]
+
+
+@dataclass
+class StepInfo:
+    """What the parent learns of a built step: the skip policy's ``traits`` and the
+    row's columns."""
+
+    traits: ProblemTraits
+    steps: int
+    delta: float
+    build_time: float
+    sequence_built: bool
+    N: int | None
+    E: float
+    nominal_area: float
+    analytic: dict[str, float]
+
+    @property
+    def n(self) -> int:
+        return self.traits.n
+
+    @property
+    def operator(self) -> str:  # "dense" or "fft": what the scene built
+        return self.traits.operator
+
+    @property
+    def kernel(self) -> str:
+        return self.traits.kernel
+
+    @property
+    def periodic(self) -> bool:
+        return self.traits.periodic
+
+
+@dataclass
+class ReferenceReply:
+    solver: str
+    cached: bool
+    error: str = ""
+    time: float = float("nan")
+    kkt_error: float = float("nan")
+
+
+@dataclass
+class SolverFacts:
+    """The solver's own account of a solve (table columns of the same names)."""
+
+    iterations: int
+    solver_status: str
+    solver_converged: bool
+    solver_message: str
+    solver_internal_time_s: float
+    setup_time_s: float
+    matvecs: int
+    trace: str
+
+
+@dataclass
+class SolveReply:
+    """One timed solve: the seconds around ``solve``, the solver's account, and the
+    judge's verdict (None with ``error`` when the solver raised or its p is unusable)."""
+
+    elapsed: float
+    warm_start: bool
+    peak_mem_mb: float | None = None
+    facts: SolverFacts | None = None
+    verdict: Verdict | None = None
+    error: str = ""
+    kept_warm: bool = False
+    aborted: str = ""  # "timeout" / "crashed" when the solver raised SolveAborted
+    reference_saved: bool = False  # this answer was kept as the step's reference (task.reference_out)
+
+
+# ---------------------------------------------------------------------------
+# The handler
+# ---------------------------------------------------------------------------
+
+
+def instance_operator_kind(inst: ContactInstance) -> str:
+    return "dense" if isinstance(inst.qp.H, DenseOperator) else "fft"
+
+
+def problem_traits(inst: ContactInstance) -> ProblemTraits:
+    """What the skip policy may know of an instance before solving it."""
+    geom = inst.geometry
+    return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
+                         has_surface=geom is not None and geom.has_surface, periodic=bool(inst.periodic),
+                         kernel=inst.kernel,
+                         surface_side=int(geom.surface.N) if geom is not None and geom.has_surface else 0)
+
+
+def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:
+    pts = [[int(t[0]), float(t[1]), float(t[2])] for t in trace]
+    if len(pts) <= limit:
+        return pts
+    keep = np.unique(np.linspace(0, len(pts) - 1, limit).round().astype(int))
+    return [pts[i] for i in keep]
+
+
+def solver_settings(task: SolveTask) -> SolverSettings:
+    return SolverSettings(tol=get_profile(task.profile).tol, time_limit=task.time_limit,
+                          params=copy.deepcopy(task.params))
+
+
+class SolveServer:
+    """Message handler living in the isolated worker: builds the instance from its
+    recipe once, steps in order, the dense H once per step, and runs solves."""
+
+    def __init__(self, spec: InstanceSpec, memory_budget: float = DEFAULT_MEMORY_BUDGET) -> None:
+        self.spec = spec
+        self.memory_budget = memory_budget
+        self.seq: Any = None
+        self.steps: dict[int, ContactInstance] = {}
+        self.dense: dict[int, DenseOperator] = {}
+        self.refs: dict[str, np.ndarray] = {}
+        self.warm: dict[tuple[str, str, int], WarmState] = {}  # (label, profile, step)
+
+    def __call__(self, msg: Message) -> Any:
+        if isinstance(msg, BuildStep):
+            return self.step_info(msg.step)
+        if isinstance(msg, AssembleDense):
+            return self.ensure_dense(msg.step)
+        if isinstance(msg, ComputeReference):
+            return self.reference(msg)
+        if isinstance(msg, Solve):
+            return self.solve(msg.task)
+        if isinstance(msg, Regenerate):
+            return self.regenerate(msg.task)
+        if isinstance(msg, WarmUp):
+            return self.warmup(msg.task)
+        raise TypeError(f"unknown message {msg!r}")
+
+    # -- building ---------------------------------------------------------
+    def ensure_step(self, k: int) -> tuple[ContactInstance, float]:
+        if k in self.steps:
+            return self.steps[k], 0.0
+        t0 = time.perf_counter()
+        if self.seq is None:
+            self.seq = self.spec.build()
+        if not 0 <= k < len(self.seq):
+            raise IndexError(f"step {k} out of range: the sequence has {len(self.seq)} steps")
+        inst = self.seq.at(k)
+        for old in [s for s in self.steps if s < k - 1 or s > k]:
+            del self.steps[old]
+        for old in [s for s in self.dense if s != k]:
+            del self.dense[old]
+        self.steps[k] = inst
+        return inst, time.perf_counter() - t0
+
+    def analytic(self, k: int) -> dict[str, float]:
+        if self.seq is None or self.seq.analytic is None:
+            return {}
+        return {key: float(v) for key, v in self.seq.analytic(k).items()}
+
+    def step_info(self, k: int) -> StepInfo:
+        fresh_seq = self.seq is None
+        inst, t_build = self.ensure_step(k)
+        geom = inst.geometry
+        return StepInfo(
+            traits=problem_traits(inst), steps=len(self.seq), delta=float(inst.delta), build_time=t_build,
+            sequence_built=fresh_seq, N=int(geom.grid_shape[0]) if geom is not None else None, E=float(inst.E),
+            nominal_area=float(inst.nominal_area), analytic=self.analytic(k),
+        )
+
+    def ensure_dense(self, k: int) -> float:
+        inst, _ = self.ensure_step(k)
+        if k in self.dense or instance_operator_kind(inst) == "dense":
+            return 0.0
+        t0 = time.perf_counter()
+        self.dense[k] = DenseOperator(inst.qp.H.to_dense(self.memory_budget))
+        return time.perf_counter() - t0
+
+    def qp_for(self, k: int, operator: str) -> QP:
+        """The QP a solver is handed: its own copy of ubar (the judge keeps the step's),
+        the step's operator (sealed around each timed solve: ``ProblemSeal``)."""
+        inst, _ = self.ensure_step(k)
+        if operator == "dense" and instance_operator_kind(inst) != "dense":
+            self.ensure_dense(k)
+            return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry)
+        return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry)
+
+    def forget_problems(self) -> None:
+        """Drop every built step and dense H (after a solver wrote into one)."""
+        self.seq, self.steps, self.dense = None, {}, {}
+
+    def reference_p(self, path: str | None) -> np.ndarray | None:
+        if not path:
+            return None
+        if path not in self.refs:
+            if not os.path.exists(path):
+                return None
+            with np.load(path) as data:
+                self.refs[path] = np.asarray(data["p"], dtype=np.float64)
+        return self.refs[path]
+
+    # -- solving ----------------------------------------------------------
+    def reference(self, msg: ComputeReference) -> ReferenceReply:
+        """Load the stored reference, or compute it once and store it."""
+        if os.path.exists(msg.path):
+            self.reference_p(msg.path)
+            return ReferenceReply(msg.base, cached=True)
+        inst, _ = self.ensure_step(msg.step)
+        qp = self.qp_for(msg.step, msg.operator)
+        settings = SolverSettings(tol=get_profile(REFERENCE_PROFILE).tol, time_limit=msg.time_limit)
+        t0 = time.perf_counter()
+        res = load_solver(msg.base).solve(qp, settings, None)
+        elapsed = time.perf_counter() - t0
+        p = np.asarray(res.p, dtype=np.float64).reshape(-1)
+        verdict = judge(inst, p, bool(res.converged), REFERENCE_MAX_KKT)
+        if verdict.status != "solved":
+            return ReferenceReply(msg.base, cached=False, error=f"reference {msg.base} failed its check: "
+                                  f"{verdict.message() or verdict.status}", time=elapsed, kkt_error=verdict.kkt_error)
+        self.keep_reference(msg.path, p, msg.base, verdict.kkt_error, elapsed)
+        return ReferenceReply(msg.base, cached=False, time=elapsed, kkt_error=verdict.kkt_error)
+
+    def keep_reference(self, path: str, p: np.ndarray, solver: str, kkt_error: float, elapsed: float) -> None:
+        """Store ``p`` as the step's reference answer (npz, no pickles) and hold it."""
+        write_npz_atomic(path, p=p, solver=solver, kkt_error=kkt_error, time=elapsed)
+        self.refs[path] = p
+
+    def serve_as_reference(self, task: SolveTask, p: np.ndarray, verdict: Verdict, elapsed: float) -> bool:
+        """Keep a run's own answer as the step's reference (no second solve) when the
+        judge found it solved within ``task.reference_max_kkt``; it is then its own
+        reference (p_rel_error = load_rel_error = 0)."""
+        if not task.reference_out or verdict.status != "solved" or not verdict.kkt_error <= task.reference_max_kkt:
+            return False
+        self.keep_reference(task.reference_out, p, task.label, verdict.kkt_error, elapsed)
+        verdict.figures.update(p_rel_error=0.0, load_rel_error=0.0)
+        return True
+
+    def remember(self, task: SolveTask, inst: ContactInstance, p: np.ndarray, w: Any) -> bool:
+        state = WarmState.of(task.step, inst, p, w)
+        if state is None:
+            return False
+        key = (task.label, task.profile)
+        for old in [s for s in self.warm if s[:2] == key and s[2] < task.step - 1]:
+            del self.warm[old]
+        self.warm[(*key, task.step)] = state
+        return True
+
+    def regenerate(self, task: SolveTask) -> bool:
+        """Re-solve the previous step (untimed) to recover this solver's warm start."""
+        prev = replace(task, step=task.step - 1, warm=False, reference_path=None)
+        inst, _ = self.ensure_step(prev.step)
+        res = load_solver(prev.base).solve(self.qp_for(prev.step, prev.operator), solver_settings(prev), None)
+        return self.remember(prev, inst, res.p, res.w)
+
+    def prepare(self, task: SolveTask) -> tuple[ContactInstance, QP, Any, WarmStart | None]:
+        inst, _ = self.ensure_step(task.step)
+        qp = self.qp_for(task.step, task.operator)
+        solver = load_solver(task.base)
+        warm = None
+        if task.warm:
+            warm = warm_start_from(self.warm.get((task.label, task.profile, task.step - 1)), inst, task.step,
+                                   solver.capabilities.warm_start)
+        return inst, qp, solver, warm
+
+    def warmup(self, task: SolveTask) -> bool:
+        """The untimed warm-up solve (imports, JIT, caches); its answer is discarded."""
+        _, qp, solver, warm = self.prepare(task)
+        try:
+            solver.solve(qp, solver_settings(task), warm)
+        except Exception:
+            return False  # the timed solve fails the same way and records it
+        return True
+
+    def solve(self, task: SolveTask) -> SolveReply:
+        """One timed solve, judged by the harness (never by the solver's claim)."""
+        inst, qp, solver, warm = self.prepare(task)
+        settings = solver_settings(task)
+        count0 = qp.H.matvec_count
+        seal = ProblemSeal.of(qp)  # untimed: what the solver is handed, to catch writes into it
+        with PeakMemory() as mem:
+            t0 = time.perf_counter()
+            try:
+                res = solver.solve(qp, settings, warm)
+            except SolveAborted as exc:
+                return SolveReply(time.perf_counter() - t0, warm is not None, error=str(exc), aborted=exc.status)
+            except Exception as exc:
+                return SolveReply(time.perf_counter() - t0, warm is not None, error=f"{type(exc).__name__}: {exc}")
+            elapsed = time.perf_counter() - t0
+        facts = SolverFacts(
+            iterations=int(res.iterations), solver_status=str(res.status), solver_converged=bool(res.converged),
+            solver_message=str(res.message)[:500], solver_internal_time_s=float(res.solve_time),
+            setup_time_s=float(res.setup_time), matvecs=int(res.matvecs or (qp.H.matvec_count - count0)),
+            trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
+        )
+        reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
+        p_ref = self.reference_p(task.reference_path)
+        reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
+                              analytic_load=self.analytic(task.step).get("load"), tampered=seal.broken(qp))
+        if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
+            reply.error = reply.verdict.message()
+            if reply.verdict.tampered:
+                self.forget_problems()
+            return reply
+        p = np.asarray(res.p, dtype=np.float64)
+        if p_ref is None:
+            reply.reference_saved = self.serve_as_reference(task, p, reply.verdict, elapsed)
+        save_wrong_answer(task.arrays_path, inst, p, p_ref, reply.verdict)
+        save_field(task.arrays_path, self.spec.scene, self.spec.instance, inst, p, task.step, len(self.seq),
+                   task.label, reply.verdict.status)  # the report's field pictures (harness/table/fields.py)
+        if task.record_warm:
+            reply.kept_warm = self.remember(task, inst, p, res.w)
+        return reply
+
+
+def save_wrong_answer(path: str | None, inst: ContactInstance, p: np.ndarray, p_ref: np.ndarray | None,
+                      verdict: Verdict) -> None:
+    """Keep (p, p_ref, ubar, w) of a wrong answer on a small instance as ``path`` (npz, no
+    pickles) -- the counterexample figure plots one.  The first one per cell wins."""
+    if not path or inst.n > MAX_SAVED_N or p_ref is None or os.path.exists(path):
+        return
+    p_err = float(verdict.figures.get("p_rel_error", math.nan))
+    if verdict.status == "solved" and p_err <= 1e-6:
+        return
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    w = inst.qp.H.matvec(p) - inst.qp.ubar
+    write_npz_atomic(path, p=p, p_ref=p_ref, ubar=inst.qp.ubar, w=w, E=inst.E)

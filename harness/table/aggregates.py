@@ -1,0 +1,255 @@
+"""Fair aggregates over a tidy results table (harness/table/schema.py): per solver success
+rate, correct rate, shifted geometric mean of solve time relative to the best, and
+Dolan-More performance profiles.
+
+Definitions (the report states them next to every number):
+
+* A *problem* is one (scene, instance, step, profile, history): each profile is its own
+  accuracy target, so the same instance at two profiles is two problems; a step solved
+  along a warm-started load history and the same step of a ``--cold`` run start from
+  different points, so they are two problems too.
+* A *cell* is one (problem, solver) (schema.CELL_COLUMNS: the solver's label names its
+  base and parameters).  Repeats are folded into the cell: it is solved
+  when every repeat is ``status == "solved"`` (the harness's KKT verdict at the
+  profile's ``check_tol``), and its time is the minimum ``solve_time_s`` over repeats.
+* *Success rate*: solved cells / attempted cells (skipped cells are not attempted;
+  they are counted separately).
+* *Correct rate*: attempted rows on which the solver's own claim ``solver_converged``
+  agrees with the verdict ``status == "solved"``.  A *false claim* is a row where the
+  solver claims convergence and the check says otherwise.
+* *Shifted geometric mean* (Mittelmann's benchmarks): ``exp(mean(log(t + s))) - s``
+  with shift ``s`` seconds; every cell that is not solved -- failed, inaccurate,
+  timeout, crashed, skipped or absent -- counts at the time limit (``time_limit_s`` of
+  the cell, else the largest in the scene, else the largest observed time).
+  Reported relative to the best solver (1.00 = best).
+* *Performance profile* (Dolan & More, Math. Program. 91, 2002):
+  ``rho_s(tau) = |{p : t_ps <= tau * min_s' t_ps'}| / n_p`` with ``t_ps = inf`` for
+  cells that are not solved; problems no solver solves stay in ``n_p``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .schema import bool_series
+
+#: The default shift of the shifted geometric mean, in seconds.  Damps the relative
+#: weight of sub-10-ms solves, whose ratios are timer noise.
+DEFAULT_SHIFT_S: float = 0.01
+
+#: The columns that identify a problem.
+PROBLEM_KEYS: tuple[str, ...] = ("scene", "instance", "step", "profile", "history")
+
+#: Floor applied to measured times before taking ratios (a 0.0 s timer reading).
+TIME_FLOOR_S: float = 1e-9
+
+
+def shifted_geometric_mean(times: Iterable[float], shift: float = DEFAULT_SHIFT_S) -> float:
+    """``exp(mean(log(t_i + shift))) - shift``; NaN for an empty input.
+
+    ``shift`` must be >= 0 and every time >= 0 and finite (count failures at the time
+    limit before calling)."""
+    t = np.asarray(list(times), dtype=float)
+    if shift < 0 or not math.isfinite(shift):
+        raise ValueError(f"shift must be a finite number >= 0, got {shift!r}")
+    if t.size == 0:
+        return float("nan")
+    if not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise ValueError("shifted geometric mean needs finite times >= 0 (count failures at the time limit)")
+    if shift == 0 and np.any(t == 0):
+        raise ValueError("a zero time needs a positive shift")
+    return float(np.exp(np.mean(np.log(t + shift))) - shift)
+
+
+@dataclass(frozen=True)
+class CellTable:
+    """One row per (problem, solver): ``solved`` (bool), ``time_s`` (min over repeats,
+    NaN when never timed), ``penalty_s`` (the time counted for an unsolved cell),
+    ``attempted`` (not skipped)."""
+
+    frame: pd.DataFrame
+    solvers: tuple[str, ...]
+    problems: tuple[tuple, ...]
+
+
+def _penalty_time(df: pd.DataFrame) -> pd.Series:
+    """Per row: the row's time limit, else the largest limit in ``df``, else the
+    largest observed solve time (so a failure is never cheaper than any success)."""
+    limit = pd.to_numeric(df.get("time_limit_s", pd.Series(np.nan, index=df.index)), errors="coerce")
+    fallback = limit.max()
+    if not np.isfinite(fallback):
+        fallback = pd.to_numeric(df["solve_time_s"], errors="coerce").max()
+    if not np.isfinite(fallback):
+        fallback = 1.0
+    return limit.fillna(fallback)
+
+
+def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTable:
+    """Fold repeats into cells and fill absent (problem, solver) pairs as unsolved and
+    not attempted.  ``solvers`` restricts / orders the solver set (default: all)."""
+    if df.empty:
+        return CellTable(pd.DataFrame(columns=[*PROBLEM_KEYS, "solver", "solved", "attempted", "time_s",
+                                               "penalty_s"]), (), ())
+    d = df.copy()
+    if "history" not in d.columns:  # a frame built by hand, not through the schema
+        d["history"] = ""
+    d["history"] = d["history"].astype("string").fillna("")
+    d["_solved"] = d["status"].astype(str) == "solved"
+    d["_attempted"] = d["status"].astype(str) != "skipped"
+    d["_time"] = pd.to_numeric(d["solve_time_s"], errors="coerce")
+    d["_penalty"] = _penalty_time(d)
+    keys = [*PROBLEM_KEYS, "solver"]
+    g = d.groupby(keys, sort=True, dropna=False)
+    cells = pd.DataFrame({
+        "solved": g["_solved"].all(),
+        "attempted": g["_attempted"].any(),
+        "time_s": g["_time"].min(),
+        "penalty_s": g["_penalty"].max(),
+    }).reset_index()
+    all_solvers = tuple(solvers) if solvers is not None else tuple(sorted(d["solver"].astype(str).unique()))
+    problems = tuple(sorted({tuple(r) for r in d[list(PROBLEM_KEYS)].itertuples(index=False)}, key=_sort_key))
+    full = pd.MultiIndex.from_tuples([(*p, s) for p in problems for s in all_solvers], names=keys)
+    cells = cells.set_index(keys).reindex(full)
+    limit_fill = float(d["_penalty"].max())
+    cells["solved"] = cells["solved"].astype("boolean").fillna(False).astype(bool)
+    cells["attempted"] = cells["attempted"].astype("boolean").fillna(False).astype(bool)
+    cells["penalty_s"] = cells["penalty_s"].fillna(limit_fill)
+    return CellTable(cells.reset_index(), all_solvers, problems)
+
+
+def _sort_key(t: tuple) -> tuple:
+    return tuple((0, v) if isinstance(v, (int, float, np.integer, np.floating)) and not pd.isna(v)
+                 else (1, str(v)) for v in t)
+
+
+def counted_times(cells: CellTable) -> pd.DataFrame:
+    """Problems x solvers matrix of the time counted by the shifted geometric mean:
+    the measured time where solved, the penalty (time limit) otherwise."""
+    f = cells.frame
+    t = np.where(f["solved"], f["time_s"].clip(lower=0.0), f["penalty_s"])
+    return _matrix(cells, t)
+
+
+def _matrix(cells: CellTable, values: np.ndarray) -> pd.DataFrame:
+    """Problems x solvers matrix of per-cell ``values`` (cells are complete)."""
+    f = cells.frame
+    m = pd.Series(values, index=pd.MultiIndex.from_frame(f[[*PROBLEM_KEYS, "solver"]])).unstack("solver")
+    return m.reindex(columns=list(cells.solvers))
+
+
+def solved_times(cells: CellTable) -> pd.DataFrame:
+    """Problems x solvers matrix of measured times, +inf where the cell is not solved."""
+    f = cells.frame
+    t = np.where(f["solved"], np.maximum(f["time_s"].fillna(np.inf), TIME_FLOOR_S), np.inf)
+    return _matrix(cells, t)
+
+
+def shifted_geomean_table(cells: CellTable, shift: float = DEFAULT_SHIFT_S) -> dict[str, float]:
+    """Solver -> shifted geometric mean of counted times (seconds)."""
+    m = counted_times(cells)
+    return {s: shifted_geometric_mean(m[s].to_numpy(), shift) for s in cells.solvers}
+
+
+def relative_to_best(values: dict[str, float]) -> dict[str, float]:
+    """Each value divided by the smallest finite positive one."""
+    finite = [v for v in values.values() if np.isfinite(v) and v > 0]
+    best = min(finite) if finite else float("nan")
+    return {k: (v / best if best == best else float("nan")) for k, v in values.items()}
+
+
+@dataclass(frozen=True)
+class PerformanceProfile:
+    """Dolan-More profile: ``ratios[s]`` is the sorted vector of r_ps (inf where
+    unsolved); ``fraction(s, tau)`` evaluates rho_s(tau)."""
+
+    solvers: tuple[str, ...]
+    n_problems: int
+    ratios: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def fraction(self, solver: str, tau: float) -> float:
+        r = self.ratios[solver]
+        return float(np.count_nonzero(r <= tau * (1 + 1e-12)) / self.n_problems) if self.n_problems else float("nan")
+
+    def curve(self, solver: str, taus: np.ndarray) -> np.ndarray:
+        return np.array([self.fraction(solver, float(t)) for t in taus])
+
+    def max_finite_ratio(self) -> float:
+        vals = [float(np.max(r[np.isfinite(r)])) for r in self.ratios.values() if np.any(np.isfinite(r))]
+        return max(vals) if vals else 1.0
+
+
+def performance_profile(cells: CellTable) -> PerformanceProfile:
+    """r_ps = t_ps / min_s t_ps over the solvers of ``cells`` (inf for unsolved cells,
+    and for every solver on a problem that none solves)."""
+    m = solved_times(cells)
+    best = m.min(axis=1).to_numpy()
+    ratios: dict[str, np.ndarray] = {}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for s in cells.solvers:
+            r = m[s].to_numpy() / best
+            r[~np.isfinite(best)] = np.inf
+            ratios[s] = np.sort(r)
+    return PerformanceProfile(cells.solvers, len(m.index), ratios)
+
+
+@dataclass(frozen=True)
+class SolverSummary:
+    """One line of the aggregate table."""
+
+    solver: str
+    problems: int
+    attempted: int
+    skipped: int
+    solved: int
+    success_rate: float  # solved / attempted
+    claim_rows: int  # attempted rows with a known solver claim
+    correct_rate: float  # claim agrees with verdict, over claim_rows
+    false_claims: int  # claimed converged, verdict not solved
+    sgm_s: float  # shifted geometric mean of counted time
+    sgm_rel: float  # relative to the best solver
+
+
+def claim_agreement(df: pd.DataFrame) -> pd.Series:
+    """Per row: does ``solver_converged`` agree with ``status == "solved"``?  Uses the
+    solver's claim as stored (bool or CSV text), NaN where the claim is unknown."""
+    verdict = df["status"].astype(str) == "solved"
+    claim = bool_series(df["solver_converged"]) if "solver_converged" in df else pd.Series(pd.NA, index=df.index)
+    agree = (claim == verdict).astype("boolean")
+    agree[claim.isna()] = pd.NA
+    return agree
+
+
+def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequence[str] | None = None,
+              with_time: bool = True) -> list[SolverSummary]:
+    """The aggregate table of ``df`` (usually one scene): one SolverSummary per solver.
+    ``with_time=False`` leaves the time aggregate NaN (for tables mixing scenes, where
+    solvers do not all run on the same problems)."""
+    cells = cell_table(df, solvers)
+    sgm = shifted_geomean_table(cells, shift) if with_time else {s: float("nan") for s in cells.solvers}
+    rel = relative_to_best(sgm)
+    attempted_rows = df[df["status"].astype(str) != "skipped"]
+    agree = claim_agreement(attempted_rows)
+    claim = bool_series(attempted_rows["solver_converged"]) if "solver_converged" in attempted_rows \
+        else pd.Series(pd.NA, index=attempted_rows.index, dtype="boolean")
+    out: list[SolverSummary] = []
+    f = cells.frame
+    for s in cells.solvers:
+        c = f[f["solver"] == s]
+        att = int(c["attempted"].sum())
+        solved = int((c["solved"] & c["attempted"]).sum())
+        rows = attempted_rows["solver"].astype(str) == s
+        a = agree[rows].dropna()
+        false_claims = int(((claim[rows] == True) & (attempted_rows.loc[rows, "status"].astype(str) != "solved"))  # noqa: E712
+                           .fillna(False).sum())
+        out.append(SolverSummary(
+            solver=s, problems=len(c), attempted=att,
+            skipped=int(((~c["attempted"]) & c["solver"].notna()).sum()),
+            solved=solved, success_rate=solved / att if att else float("nan"),
+            claim_rows=len(a), correct_rate=float(a.astype(bool).mean()) if len(a) else float("nan"),
+            false_claims=false_claims, sgm_s=sgm[s], sgm_rel=rel[s]))
+    return out

@@ -1,0 +1,180 @@
+"""Run metadata (OUT/meta.json): what ran, where, with what.
+
+Package versions, Python, CPU model and core counts, thread settings (environment and
+threadpoolctl's view of the BLAS libraries), date, git commit (and whether the tree was
+dirty), the command line, the run configuration and the scenes' warnings.  A resumed
+(or, with ``--append``, an added) run keeps the first record's ``date`` and ``command``,
+appends itself to ``invocations`` and lists its command in ``commands`` (every distinct
+command that wrote to the folder, in order: ``commands_of``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import socket
+import subprocess
+import sys
+from dataclasses import fields
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from contactbench.problems.scenes import SceneConfig
+
+from .files import write_text_atomic
+
+META_FILE = "meta.json"
+
+PACKAGES = (
+    "contactbench", "numpy", "scipy", "pandas", "pyarrow", "qpsolvers", "osqp", "clarabel", "proxsuite", "piqp",
+    "cvxpy", "scs", "ecos", "highspy", "matplotlib", "threadpoolctl", "psutil", "dask", "distributed",
+    "pytest-benchmark", "numba", "ducc0",
+)
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CONTACTBENCH_FFT_WORKERS",
+              "CONTACTBENCH_FFT_BACKEND", "CONTACTBENCH_MEMORY_BUDGET_GB")
+
+
+def package_versions(names: tuple[str, ...] = PACKAGES) -> dict[str, str]:
+    out = {}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def physical_cores() -> int | None:
+    try:
+        import psutil
+
+        return psutil.cpu_count(logical=False)
+    except Exception:
+        return None
+
+
+def thread_settings() -> dict[str, Any]:
+    env = {k: os.environ.get(k) for k in THREAD_ENV}
+    pools: list[dict[str, Any]] = []
+    try:
+        from threadpoolctl import threadpool_info
+
+        pools = [
+            {k: p.get(k) for k in ("user_api", "internal_api", "num_threads", "version")} for p in threadpool_info()
+        ]
+    except Exception:
+        pass
+    try:
+        from contactbench.problems.operators import fft_backend, fft_workers
+
+        fft, backend = fft_workers(), fft_backend()
+    except Exception:
+        fft, backend = None, None
+    return {"env": env, "threadpools": pools, "fft_workers": fft, "fft_backend": backend}
+
+
+def git_state(cwd: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """Commit and dirty flag of the source tree (read-only git commands)."""
+    root = cwd or Path(__file__).resolve().parent.parent
+
+    def git(*args: str) -> str | None:
+        try:
+            r = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=10)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return r.stdout.strip() if r.returncode == 0 else None
+
+    commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"commit": commit, "dirty": bool(status) if status is not None else None}
+
+
+def machine_record() -> dict[str, Any]:
+    return {
+        "host": socket.gethostname(),
+        "platform": platform.platform(),
+        "python": sys.version.split()[0],
+        "cpu": cpu_model(),
+        "logical_cores": os.cpu_count(),
+        "physical_cores": physical_cores(),
+    }
+
+
+def now_iso() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def build_meta(command: list[str] | None = None, config: dict[str, Any] | None = None,
+               warnings: list[str] | None = None, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    return {
+        "date": now_iso(),
+        "command": list(command if command is not None else sys.argv),
+        "git": git_state(),
+        "machine": machine_record(),
+        "threads": thread_settings(),
+        "packages": package_versions(),
+        "config": config or {},
+        "warnings": list(warnings or []),
+        **(extra or {}),
+    }
+
+
+def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
+    """Write OUT/meta.json; a resumed run keeps the first record and lists itself under
+    ``invocations``."""
+    path = Path(out_dir) / META_FILE
+    previous: dict[str, Any] = {}
+    if path.exists():
+        try:
+            previous = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            previous = {}
+    invocations = list(previous.get("invocations", []))
+    invocations.append({k: record.get(k) for k in ("date", "command", "git", "config")})
+    merged = {**record, **{k: v for k, v in previous.items() if k in ("date", "command")}}
+    merged["invocations"] = invocations
+    merged["commands"] = commands_of(merged)
+    merged["warnings"] = sorted(set(previous.get("warnings", [])) | set(record.get("warnings", [])))
+    write_text_atomic(path, json.dumps(merged, indent=2, default=str))
+    return path
+
+
+def command_text(command: Any) -> str:
+    return " ".join(str(a) for a in command) if isinstance(command, (list, tuple)) else str(command or "")
+
+
+def commands_of(meta: dict[str, Any]) -> list[str]:
+    """Every distinct command that wrote to the run folder, first first: ``command`` and
+    those of ``invocations`` (meta.json of any age)."""
+    found = [command_text(meta.get("command"))]
+    found += [command_text(inv.get("command")) for inv in meta.get("invocations", []) or [] if isinstance(inv, dict)]
+    return [c for c in dict.fromkeys(found) if c]
+
+
+def read_meta(out_dir: str | os.PathLike[str]) -> dict[str, Any]:
+    path = Path(out_dir) / META_FILE
+    return json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+
+
+def scene_config_from_meta(meta: dict[str, Any]) -> SceneConfig:
+    """The SceneConfig a run used (OUT/meta.json), or the default one."""
+    raw = dict((meta.get("config") or {}).get("scene_config") or {})
+    names = {f.name for f in fields(SceneConfig)}
+    kw = {k: v for k, v in raw.items() if k in names}
+    if kw.get("seeds") is not None:
+        kw["seeds"] = tuple(int(s) for s in kw["seeds"])
+    return SceneConfig(**kw)

@@ -1,0 +1,238 @@
+"""The tidy table: one row per solve.  Column names here are a public contract
+(reports, scripts and users depend on them) -- add columns, never rename.
+
+``COLUMNS`` holds each column's dtype and meaning; ``apply_schema`` gives a frame
+exactly these columns and dtypes; ``load_table`` is the one reader of a stored table
+(a run directory, or a ``.parquet`` / ``.csv`` file) and applies the schema.
+
+dtypes: ``string`` (missing = ""), ``Int64`` and ``boolean`` (pandas' nullable types,
+missing = <NA>), ``float64`` (missing = NaN).
+
+Definitions of the less obvious figures
+---------------------------------------
+delta            far-field displacement Delta of the step, in the instance's length unit
+                 (metres by default); NaN for scenes without one (counterexample).
+load             total force P = sum p_ij (N when E is in Pa and lengths in m).
+contact_fraction elements in contact, p_i > check_tol x p_s (p_s the problem's force scale,
+                 ``problems.kkt``), divided by all N^2 elements (A/A0); docs/report.md.
+contact_uncertain elements whose contact state the tolerance leaves open (p_i within a
+                 decade of that floor, or counted in contact with an open gap: w_i / u_s >=
+                 p_i / p_s or w_i > sqrt(check_tol) u_s), divided by all N^2 elements: the
+                 flag of contact_fraction (A/A0 is uncertain by about this).
+kkt_error        the scaled figure of ``contactbench.problems.kkt``.
+p_rel_error      ||p - p_ref||_inf / ||p_ref||_inf against the scene's reference.
+load_rel_error   |P - P_ref| / |P_ref| against the reference solve (or the analytic
+                 load where the scene has one and no reference solve ran).
+status           the harness's verdict, one of STATUSES (never the solver's own claim,
+                 which is in solver_status / solver_converged).
+verdict          the judge's conformance reading (harness/judge.py), one of VERDICTS,
+                 "" where no answer was judged (skipped, failed, timeout, crashed).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Final
+
+import pandas as pd
+
+
+STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skipped")
+#: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``
+#: besides "" (not judged).
+VERDICTS: Final = ("pass", "wrong", "unconverged")
+#: The kinds of run a row belongs to (column ``history``): warm starts along the load
+#: history (the default), or every step from a cold start (``--cold``).
+HISTORIES: Final = ("warm", "cold")
+DTYPES: Final = ("string", "Int64", "boolean", "float64")
+#: What identifies a cell: one solve of one step by one solver variant at one profile,
+#: in one kind of run (``history``: warm starts along the load history, or ``--cold``).
+#: Repeats of a cell (column ``repeat``) fold into it.  The one definition, used by the
+#: plan's cell ids, the stored table's repeat statistics, the aggregates and the report.
+CELL_COLUMNS: Final = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start",
+                       "history")
+#: The instance parameters the table carries as columns (read from the instance's
+#: recipe, ``InstanceSpec.params``, and the built instance), so no report parses a name.
+INSTANCE_COLUMNS: Final = ("surface_family", "hurst", "N", "seed", "kernel", "periodic")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of the tidy table."""
+
+    name: str
+    dtype: str  # one of DTYPES
+    doc: str
+    required: bool = False  # one of the columns the original issue fixed
+
+
+def _columns(required: bool, *spec: tuple[str, str, str]) -> tuple[Column, ...]:
+    return tuple(Column(name, dtype, doc, required) for name, dtype, doc in spec)
+
+
+_REQUIRED = _columns(
+    True,
+    ("scene", "string", "scene name"),
+    ("instance", "string", "instance name within the scene"),
+    ("step", "Int64", "load step (0-based)"),
+    ("delta", "float64", "far-field displacement Delta of the step"),
+    ("n", "Int64", "trial-set size"),
+    ("solver", "string", "the solver's label (a labelled variant, e.g. 'nnls-gp[K=50]')"),
+    ("profile", "string", "accuracy profile (harness/profiles.py)"),
+    ("repeat", "Int64", "repeat index of the timed solve"),
+    ("warm_start", "boolean", "the solve was given a warm start"),
+    ("status", "string", "the harness's verdict, one of STATUSES"),
+    ("skip_reason", "string", "why a skipped pair was skipped"),
+    ("build_time_s", "float64", "seconds to build the instance"),
+    ("solve_time_s", "float64", "seconds of the solve (wall clock)"),
+    ("iterations", "Int64", "the solver's iteration count"),
+    ("primal_residual", "float64", "KKT figure: primal infeasibility"),
+    ("dual_residual", "float64", "KKT figure: dual infeasibility"),
+    ("complementarity", "float64", "KKT figure: complementarity"),
+    ("kkt_error", "float64", "the scaled KKT error"),
+    ("load", "float64", "total force P"),
+    ("load_rel_error", "float64", "load error against the reference or closed form"),
+    ("p_rel_error", "float64", "error in p against the reference"),
+    ("contact_fraction", "float64", "A/A0"),
+    ("peak_mem_mb", "float64", "peak memory of the solve, MiB"),
+)
+
+_EXTRA = _columns(
+    False,
+    ("cell_id", "string", "stable hash of (scene, instance, step, solver, profile, repeat, params)"),
+    ("base_solver", "string", "registry name (``solver`` may be a labelled variant)"),
+    ("params", "string", "JSON of the variant's solver parameters, e.g. {\"K\": 50}"),
+    ("family", "string", "solver family: paper, qp, fast, wrapper, reference"),
+    ("solver_status", "string", "the solver's own status string"),
+    ("solver_converged", "boolean", "the solver's own claim"),
+    ("solver_message", "string", "the solver's own message"),
+    ("correct_claim", "boolean", "solver_converged == (status == 'solved')"),
+    ("check_tol", "float64", "the profile's KKT tolerance used for the verdict"),
+    ("solve_time_min_s", "float64", "min solve time over the repeats of this cell's group"),
+    ("solve_time_median_s", "float64", "median solve time over the repeats of this cell's group"),
+    ("solver_internal_time_s", "float64", "the solver's own timing"),
+    ("setup_time_s", "float64", "set-up part of the solve (factorisations, ...)"),
+    ("matvecs", "Int64", "products with H"),
+    ("complementarity_sum", "float64", "sum of p_i w_i"),
+    ("objective", "float64", "1/2 p'Hp - ubar'p"),
+    ("dim_load", "float64", "P / (E A)"),
+    ("E", "float64", "composite Young's modulus"),
+    ("nominal_area", "float64", "nominal area A0"),
+    ("N", "Int64", "grid points per side"),
+    ("kernel", "string", "influence-coefficient kernel"),
+    ("periodic", "boolean", "periodic kernel"),
+    ("operator", "string", "'fft' or 'dense': what the solver was given"),
+    ("reference_solver", "string", "the solver of the reference solution"),
+    ("analytic_load", "float64", "closed-form load, where the scene has one"),
+    ("analytic_load_rel_error", "float64", "load error against the closed form"),
+    ("time_limit_s", "float64", "the solve's time limit"),
+    ("error", "string", "exception text for failed / crashed rows"),
+    ("trace", "string", "JSON list of [iteration, elapsed_s, residual], possibly thinned"),
+    ("host", "string", "machine that ran the solve"),
+    ("timestamp", "string", "when the row was written"),
+    ("history", "string", "one of HISTORIES: 'warm', warm starts along load histories (default); 'cold': --cold"),
+    ("verdict", "string", "the judge's reading: pass / wrong / unconverged; '' when not judged"),
+    ("warmup", "string", "'' (an untimed warm-up ran first, or --no-warmup) or why it was dropped "
+                         "(a big solve: the timed solve includes one-time costs)"),
+    ("contact_uncertain", "float64", "share of the N^2 elements whose contact state check_tol leaves open (force "
+                                     "within a decade of the floor, or a contact with an open gap): the flag of "
+                                     "contact_fraction"),
+    ("surface_family", "string", "the instance's generated surface family (problems/surfaces.py RMD_FAMILIES, e.g. "
+                                 "'saupe', 'periodic'); '' for other instances"),
+    ("hurst", "float64", "the instance's Hurst exponent H; NaN where the surface has none"),
+    ("seed", "Int64", "the instance's random seed; <NA> for deterministic instances"),
+)
+
+#: Every column, by name, in table order.
+COLUMNS: Final[dict[str, Column]] = {c.name: c for c in (*_REQUIRED, *_EXTRA)}
+#: The columns the issue fixes, in this order.
+REQUIRED_COLUMNS: Final = tuple(c.name for c in _REQUIRED)
+#: Further columns every row carries ("" / NaN / <NA> where not applicable).
+EXTRA_COLUMNS: Final = tuple(c.name for c in _EXTRA)
+ALL_COLUMNS: Final = REQUIRED_COLUMNS + EXTRA_COLUMNS
+
+
+def columns_of(dtype: str) -> tuple[str, ...]:
+    """The names of the columns of one dtype, in table order."""
+    if dtype not in DTYPES:
+        raise ValueError(f"unknown dtype {dtype!r}; the schema uses {', '.join(DTYPES)}")
+    return tuple(c.name for c in COLUMNS.values() if c.dtype == dtype)
+
+
+class TableError(ValueError):
+    """A stored table is missing or breaks the contract (columns, status values)."""
+
+
+class MissingTableError(TableError, FileNotFoundError):
+    """No stored table where one was expected."""
+
+
+def _missing(v: Any) -> bool:
+    return v is None or v is pd.NA or (isinstance(v, float) and math.isnan(v))
+
+
+def as_text(v: Any) -> str:
+    return "" if _missing(v) else str(v)
+
+
+def as_finite(v: Any) -> float | None:
+    """A table cell as a finite float, else None (a null, NaN, inf, or text that is no number)."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def as_bool(v: Any) -> Any:
+    """True / False / <NA> from a bool, a number or CSV text ("True", "0", "yes", ...)."""
+    if _missing(v):
+        return pd.NA
+    if isinstance(v, str):
+        low = v.strip().lower()
+        return True if low in ("true", "1", "yes") else False if low in ("false", "0", "no") else pd.NA
+    return bool(v)
+
+
+def bool_series(s: pd.Series) -> pd.Series:
+    """``as_bool`` over a column, as pandas' nullable boolean."""
+    return s.map(as_bool).astype("boolean")
+
+
+def apply_schema(df: pd.DataFrame) -> pd.DataFrame:
+    """A copy with every schema column (added empty where absent), schema columns first
+    in table order, then any others, each schema column cast to its dtype."""
+    d = df.copy()
+    for name in ALL_COLUMNS:
+        if name not in d.columns:
+            d[name] = None
+    d = d[list(ALL_COLUMNS) + [c for c in d.columns if c not in COLUMNS]]
+    for c in COLUMNS.values():
+        col = d[c.name]
+        if c.dtype == "string":
+            d[c.name] = col.map(as_text).astype("string")
+        elif c.dtype == "boolean":
+            d[c.name] = bool_series(col)
+        elif c.dtype == "Int64":
+            d[c.name] = pd.to_numeric(col.map(lambda v: None if _missing(v) else v), errors="coerce").round() \
+                .astype("Int64")
+        else:
+            d[c.name] = pd.to_numeric(col, errors="coerce").astype("float64")
+    return d
+
+
+def check_table(df: pd.DataFrame, source: object = "the table") -> None:
+    """Raise TableError when ``df`` lacks a required column or holds a status or
+    verdict outside the contract."""
+    missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
+    if missing:
+        raise TableError(f"results table in {source} lacks required column(s): {', '.join(missing)}")
+    bad = sorted(set(df["status"].map(as_text)) - set(STATUSES))
+    if bad:
+        raise TableError(f"unknown status value(s) {bad} in {source}; expected one of {', '.join(STATUSES)}")
+    if "verdict" in df.columns:
+        bad = sorted(set(df["verdict"].map(as_text)) - {"", *VERDICTS})
+        if bad:
+            raise TableError(f"unknown verdict value(s) {bad} in {source}; expected one of {', '.join(VERDICTS)} "
+                             f"or empty")
