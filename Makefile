@@ -1,17 +1,18 @@
 # The two commands of the README: `make bench` and `make test`.
 # Both create .venv if missing and install the project into it, with its `docs` extra (the
-# user's guide and its tests); nothing is installed by hand.
+# user's guide and its tests) and its `test` extra (hypothesis, selenium and the pinned
+# ruff); nothing is installed by hand.  A change to pyproject.toml reinstalls.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: bench test setup setup-browser benchmarks paper docs clean
+.PHONY: bench test test-quick lint setup setup-browser benchmarks paper docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[docs]'
+	$(PY) -m pip install --quiet -e '.[docs,test]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -23,7 +24,7 @@ bench: $(STAMP)
 	$(VENV)/bin/contactbench run default --out results/default
 	$(VENV)/bin/contactbench report results/default
 
-# Debian's chromium and chromium-driver for the report's browser test (tests/test_report_html.py);
+# Debian's chromium and chromium-driver for the report's browser test (tests/harness/test_report_html.py);
 # installed only where it is missing, apt-get exists and we are root -- elsewhere the test skips
 # and says why.
 setup-browser:
@@ -33,8 +34,17 @@ setup-browser:
 	    >/dev/null 2>&1 || echo "setup-browser: could not install chromium; the browser test will skip"; \
 	else echo "setup-browser: no chromium and no root apt-get; the browser test will skip"; fi
 
-test: $(STAMP) setup-browser
+# ruff with the project's configuration (pyproject.toml [tool.ruff]); any finding fails.
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+# The whole suite, after the linter.
+test: lint setup-browser
 	$(PY) -m pytest -q -rs
+
+# The suite without the tests marked slow (pyproject.toml's markers), after the linter.
+test-quick: lint
+	$(PY) -m pytest -q -rs -m "not slow"
 
 # The user's guide, built offline into site/ (mkdocs.yml; strict: any warning fails).
 docs: $(STAMP)

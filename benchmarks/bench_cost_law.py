@@ -37,6 +37,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
 from contactbench.harness.run.isolation import set_parent_death_signal
 from csv_rows import append_row, child_result, read_latest
 

@@ -13,7 +13,8 @@ load step), in float64 and float32, this times on the same machine, interleaved:
   CONTACTBENCH_FFT_WORKERS says otherwise), up to --cpu-max.
 
 Also: the relative difference of each product from the CPU float64 one (above --cpu-max,
-from the GPU float64 one), and CuPy's memory pool after the size (MiB).  Rows are appended to the CSV as they are measured.
+from the GPU float64 one), and CuPy's memory pool after the size (MiB).  Rows are appended
+to the CSV as they are measured.
 Needs CuPy and a CUDA device (the ``gpu`` extra); elsewhere it exits with code 2 and
 the reason.
 
@@ -29,7 +30,9 @@ import platform
 import sys
 import time
 from dataclasses import asdict, dataclass, fields
+from functools import partial
 from pathlib import Path
+from types import ModuleType
 from typing import Callable
 
 import numpy as np
@@ -86,8 +89,16 @@ def append(path: Path, row: GpuRow) -> None:
 
 
 def bench_size(N: int, cpu_max: int, repeats: int, out: Path) -> None:
-    import cupy
+    """Measure one N (``measure_size``), then give the device memory back: every device
+    array of the size lives in ``measure_size``'s frame and is freed when it returns."""
+    import cupy  # the `gpu` extra, checked by main() before any size
 
+    measure_size(cupy, N, cpu_max, repeats, out)
+    cupy.get_default_memory_pool().free_all_blocks()
+
+
+def measure_size(cupy: ModuleType, N: int, cpu_max: int, repeats: int, out: Path) -> None:
+    """Append one row per trial set and precision for size N (module doc)."""
     sync = cupy.cuda.Device().synchronize
     device = cupy.cuda.runtime.getDeviceProperties(0)["name"].decode()
     surface = rmd_surface_n(N, 0.7, length=100e-6, seed=0)
@@ -103,13 +114,13 @@ def bench_size(N: int, cpu_max: int, repeats: int, out: Path) -> None:
         for dtype in (np.float64, np.float32):
             gpu, cpu = gpu64.with_precision(dtype), cpu64.with_precision(dtype)
             d_x = cupy.asarray(x.astype(dtype))
-            fns = {
-                "gpu": lambda: gpu.matvec(x),
-                "device": synced(lambda: gpu_transform.device_apply(gpu.pidx, d_x), sync),
+            fns: dict[str, Callable[[], object]] = {
+                "gpu": partial(gpu.matvec, x),
+                "device": synced(partial(gpu_transform.device_apply, gpu.pidx, d_x), sync),
                 "floor": synced(device_floor_pair(gpu_transform, dtype), sync),
             }
             if N <= cpu_max:
-                fns["cpu"] = lambda: cpu.matvec(x)
+                fns["cpu"] = partial(cpu.matvec, x)
             ms = interleaved_best(fns, repeats)
             cpu_ms = ms.get("cpu", float("nan"))
             diff = float(np.linalg.norm(gpu.matvec(x) - y64) / np.linalg.norm(y64))
@@ -120,8 +131,6 @@ def bench_size(N: int, cpu_max: int, repeats: int, out: Path) -> None:
             print(f"N={N} {label} {row.dtype}: gpu {row.gpu_ms:.2f} ms, device {row.device_ms:.2f}, floor "
                   f"{row.floor_ms:.2f} ({row.device_over_floor:.2f}x), cpu {cpu_ms:.1f} ({row.cpu_over_gpu:.1f}x), "
                   f"diff {diff:.1e}, pool {row.pool_mib:.0f} MiB", flush=True)
-    del gpu_transform
-    cupy.get_default_memory_pool().free_all_blocks()
 
 
 def main() -> None:

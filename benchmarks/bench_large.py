@@ -37,7 +37,6 @@ import sys
 import time
 from pathlib import Path
 
-
 import numpy as np
 
 from contactbench.harness.run.isolation import set_parent_death_signal

@@ -17,7 +17,6 @@ A variant that exceeds ``--budget`` seconds on one size skips the rest of its ra
 from __future__ import annotations
 
 import argparse
-import time
 from dataclasses import dataclass, field
 
 from contactbench.harness import solve_sequence

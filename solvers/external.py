@@ -17,9 +17,11 @@ Manifests are read from the files named by the environment variable
 ``./contactbench-solvers.toml`` when it exists.  Each entry becomes a registered solver
 of family "external": listed by ``contactbench list solvers``, runnable in every scene,
 judged like any other.  A command runs in the folder of the manifest that declares it.
-(The registration is done by ``solvers/external_manifests.py`` when the registry
-discovers its modules, so that a broken manifest is reported as that module's import
-error and this module stays importable, e.g. for ``validate --command``.)
+(The registration is done by ``solvers/external_manifests.py``, a late source of the
+registry: the manifests are read when external solvers are resolved -- a name that is
+not built in, or the list of every solver -- not on import, so that a broken manifest is
+reported as that source's error and this module stays importable, e.g. for
+``validate --command``.)
 
 One solve (``ExternalSolver.iterate``):
 

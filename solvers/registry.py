@@ -8,6 +8,14 @@ entry point names a module to import), and tests may register throw-away solvers
 ``register(..., replace=True)`` / ``unregister``.  The registry itself is a
 ``contactbench.plugins.PluginRegistry``.
 
+Solvers declared outside any Python module (the external-solver manifests,
+``solvers/external_manifests.py``) come from a *late source*: a loader registered with
+``add_late_source`` and run once, the first time a name is not among the discovered
+solvers or every solver is listed -- never on import or discovery, so a broken
+``./contactbench-solvers.toml`` in the user's folder cannot break an import or a
+built-in solver.  A loader that fails is recorded: ``import_errors`` lists it, and a
+name that stays unknown is reported with that error.
+
 A solver *spec* on the command line (``run --solvers``, ``validate``) is one of
 
 * a registry name, ``fast-dual-pccg``;
@@ -27,6 +35,7 @@ import importlib
 import math
 import os
 import sys
+import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable, TypeVar
 
@@ -48,6 +57,50 @@ def _same_class(old: Solver, new: Solver) -> bool:
 _SOLVERS: PluginRegistry[Solver] = PluginRegistry(
     "solver", package="contactbench.solvers", entry_point_group="contactbench.solvers", recursive=True,
     include=lambda short: short not in ("base", "registry"), same=_same_class, error=UnknownSolverError)
+
+
+class _LateSources:
+    """Loaders of solvers declared outside the package, by name; each runs at most once
+    (marked first: a loader may read the registry), its failure kept as a traceback."""
+
+    def __init__(self) -> None:
+        self._loaders: dict[str, Callable[[], object]] = {}
+        self._loaded: set[str] = set()
+        self._errors: dict[str, str] = {}
+        self._messages: dict[str, str] = {}
+
+    def add(self, name: str, load: Callable[[], object]) -> None:
+        self._loaders.setdefault(name, load)
+
+    def load(self) -> None:
+        _SOLVERS.discover()  # the loaders are registered by discovered modules
+        for name, load in list(self._loaders.items()):
+            if name in self._loaded:
+                continue
+            self._loaded.add(name)
+            try:
+                load()
+            except Exception as exc:  # kept for import_errors and the unknown-name message
+                self._errors[name] = traceback.format_exc(limit=-4)
+                self._messages[name] = str(exc) or type(exc).__name__
+
+    def errors(self) -> dict[str, str]:
+        """Loader name -> traceback of each loader that failed."""
+        return dict(self._errors)
+
+    def messages(self) -> list[str]:
+        """The one-line error of each loader that failed."""
+        return list(self._messages.values())
+
+
+_LATE = _LateSources()
+
+
+def add_late_source(name: str, load: Callable[[], object]) -> None:
+    """Register ``load``, which registers solvers read from outside the package (module
+    doc); it runs once, when a name is not found or every solver is listed.  ``name``
+    (the registering module) labels its failure in ``import_errors``."""
+    _LATE.add(name, load)
 
 
 def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S], S]:
@@ -75,7 +128,9 @@ def unregister(name: str) -> None:
 
 
 def all_solvers() -> dict[str, Solver]:
-    """Every registered solver, available or not, by name (sorted)."""
+    """Every registered solver, available or not, by name (sorted); the late sources
+    (external manifests) are loaded first."""
+    _LATE.load()
     return _SOLVERS.all()
 
 
@@ -84,12 +139,23 @@ def available_solvers() -> dict[str, Solver]:
 
 
 def import_errors() -> dict[str, str]:
-    """Module -> traceback of every solver module that failed to import."""
-    return _SOLVERS.import_errors()
+    """Module -> traceback of every solver module that failed to import, and of every
+    late source (an external manifest) that failed to load."""
+    _LATE.load()
+    return {**_SOLVERS.import_errors(), **_LATE.errors()}
 
 
 def get_solver(name: str) -> Solver:
-    """The solver called ``name``, or ``UnknownSolverError`` listing the known ones."""
+    """The solver called ``name``: a discovered one, else one of the late sources
+    (external manifests, read now); else ``UnknownSolverError`` listing the known ones
+    and, first, the error of any late source that failed to load."""
+    if name in _SOLVERS:
+        return _SOLVERS.get(name)
+    _LATE.load()
+    failed = "; ".join(_LATE.messages())
+    if failed and name not in _SOLVERS:
+        raise UnknownSolverError(f"unknown solver {name!r}: external solvers could not be read: {failed}; "
+                                 f"known solvers: {', '.join(_SOLVERS.all()) or '(none)'}")
     return _SOLVERS.get(name)
 
 

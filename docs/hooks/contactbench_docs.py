@@ -13,7 +13,7 @@
   site file ``report-figures/<run>/<name>.png``, so docs/figures.md shows the committed
   figures without copying them into docs/.
 
-Importable without MkDocs (tests/test_docs_site.py calls ``glossary_markdown``).
+Importable without MkDocs (tests/docs/test_docs_site.py calls ``glossary_markdown``).
 """
 
 from __future__ import annotations

@@ -158,6 +158,7 @@ def test_the_report_states_the_surface_family_and_reads_the_claim_in_numbers(
     assert f"time CMR / direct {rp.fmt_num(ratio)} [" in section
 
 
+@pytest.mark.slow
 def test_the_h_sweep_section_tables_h_and_the_first_level(tmp_path: Path) -> None:
     parts = []
     for i, (h, start) in enumerate(((1.25, 16), (2.0, 16), (3.0, 16), (2.0, 32), (2.0, 64))):

@@ -27,9 +27,10 @@ from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 from contactbench.solvers.base import check_promise
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.helpers import REPO
 
 HERE = __name__
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 CASE = "random/spd-n30-s0*"  # one small dense LCP of the battery (n = 30, one step)
 TOL = get_profile("mid").check_tol
 
@@ -332,6 +333,7 @@ def shell_commands() -> list[tuple[str, int]]:
     return [(m.group(1).strip(), int(m.group(2))) for m in re.finditer(r"^\$ (.+?)\s+# exit (\d)$", text, re.MULTILINE)]
 
 
+@pytest.mark.slow
 def test_docs_verdicts_shell_commands_run_with_their_exit_status() -> None:
     commands = shell_commands()
     assert len(commands) >= 3

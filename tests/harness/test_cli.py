@@ -19,8 +19,9 @@ import numpy as np
 import pandas as pd
 import pytest
 from contactbench.harness.cli import main
+from tests.helpers import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 DOC = ROOT / "docs" / "harness.md"
 TINY = ["--size", "16", "--steps", "2", "--seeds", "0", "--no-progress"]
 
@@ -80,12 +81,9 @@ def refused(args: list[str], capsys: pytest.CaptureFixture[str], *needles: str) 
     return line
 
 
-@pytest.fixture(autouse=True)
-def in_tmp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """Every test runs in an empty folder of its own (relative --out paths land there)."""
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(sys, "path", list(sys.path))  # a module:NAME load may add the folder
-    return tmp_path
+#: Every test runs in an empty folder of its own (tests/conftest.py's ``in_tmp``):
+#: relative --out paths land there.
+pytestmark = pytest.mark.usefixtures("in_tmp")
 
 
 def written(folder: Path) -> list[str]:
@@ -362,6 +360,7 @@ def test_a_run_whose_every_row_was_skipped_exits_1(capsys: pytest.CaptureFixture
     assert "no row could be judged" in line and "takes no problem at all" in line
 
 
+@pytest.mark.slow
 def test_allow_any_modulus_takes_an_implausible_one(capsys: pytest.CaptureFixture[str], in_tmp: Path) -> None:
     # the scaled KKT error is unit-free: PK solves the problem at E = 1e-300 Pa all the same
     rc, _, err = cli(["run", "paper-sweep", *TINY, "--E", "1e-300", "--allow-any-E", "--solvers", "pk",

@@ -134,6 +134,7 @@ def periodic_cases():
     return [(spec, build_battery_spec(spec).at(0)) for spec in specs]
 
 
+@pytest.mark.slow
 def test_periodic_recipes_are_whole_grid_problems_with_an_exact_reference() -> None:
     """Each fast periodic case is posed on the whole N x N grid (singular H: H 1 = 0,
     entries of both signs), its reference is exact there, a real fraction of the grid

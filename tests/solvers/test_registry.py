@@ -2,27 +2,24 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import DenseOperator
 from contactbench.harness.profiles import PROFILES, get_profile
-from contactbench.solvers.base import Capabilities, Outcome, SolveContext, Solver, SolverSettings
+from contactbench.solvers.base import Capabilities, SolverSettings
 from contactbench.solvers.registry import all_solvers, get_solver, load_solver, register, unregister
-
-
-class _Dummy(Solver):
-    name = "test-dummy"
-    family = "test"
-    capabilities = Capabilities(operators=frozenset({"dense"}), exact=False)
-
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        return Outcome(p=np.maximum(ctx.qp.ubar, 0.0), iterations=1, converged=True)
+from tests.helpers import DummySolver
 
 
 def test_register_and_lookup_roundtrip() -> None:
-    register(_Dummy)
+    register(DummySolver)
     try:
         assert "test-dummy" in all_solvers()
         s = get_solver("test-dummy")
@@ -41,15 +38,15 @@ def test_unknown_solver_message_lists_known() -> None:
 
 
 def test_load_solver_by_import_path() -> None:
-    s = load_solver("tests.test_registry:_Dummy")
-    assert isinstance(s, _Dummy)
+    s = load_solver("tests.helpers:DummySolver")
+    assert isinstance(s, DummySolver)
 
 
 def test_duplicate_name_of_other_class_is_refused() -> None:
-    class Other(_Dummy):
+    class Other(DummySolver):
         pass
 
-    register(_Dummy)
+    register(DummySolver)
     try:
         with pytest.raises(ValueError, match="already registered"):
             register(Other)
@@ -124,7 +121,7 @@ def test_a_module_in_the_current_folder_loads(tmp_path, monkeypatch: pytest.Monk
     import sys
 
     (tmp_path / "cwd_only_solver.py").write_text(
-        "from tests.test_registry import _Dummy\n\nclass Here(_Dummy):\n    name = 'test-here'\n")
+        "from tests.helpers import DummySolver\n\nclass Here(DummySolver):\n    name = 'test-here'\n")
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", str(tmp_path))])
     monkeypatch.delitem(sys.modules, "cwd_only_solver", raising=False)
@@ -140,3 +137,46 @@ def test_did_you_mean_names_only_close_ones() -> None:
     assert did_you_mean("zzz", ["scipy-nnls", "pk"]) == ""
     with pytest.raises(KeyError, match=r"unknown solver 'greedy-gc' \(did you mean .*'greedy-cg'"):
         get_solver("greedy-gc")
+
+
+# ---------------------------------------------------------------------------
+# External solvers: the manifest is read when they are resolved, not on import
+# ---------------------------------------------------------------------------
+
+#: Run in a folder whose ./contactbench-solvers.toml is broken, with a good manifest named
+#: by the environment that is written only after the import and a built-in lookup: an
+#: external name then resolves from it (so nothing was read before), and a name the
+#: broken manifest should have declared is refused with that manifest's error.
+LAZY_MANIFEST_SCRIPT = """
+import sys
+from pathlib import Path
+
+import contactbench.solvers.registry as registry
+
+assert registry.get_solver("scipy-nnls").name == "scipy-nnls"
+Path(sys.argv[1]).write_text('[[solver]]\\nname = "ext-late"\\ncommand = "prog {problem} {solution}"\\n')
+assert registry.get_solver("ext-late").family == "external"
+try:
+    registry.get_solver("ext-broken")
+except registry.UnknownSolverError as exc:
+    print("REFUSED", exc)
+else:
+    raise SystemExit("ext-broken resolved from a broken manifest")
+print("ERRORS", *registry.import_errors())
+print("LISTED", "ext-late" in registry.all_solvers())
+"""
+
+
+def test_a_broken_local_manifest_breaks_no_import_and_is_reported_on_resolution(in_tmp: Path) -> None:
+    broken = in_tmp / "contactbench-solvers.toml"
+    broken.write_text('[[solver]]\nname = "ext-broken"\ncommand = \n')  # a TOML syntax error
+    late = in_tmp / "late.toml"
+    env = {**os.environ, "CONTACTBENCH_EXTERNAL_SOLVERS": str(late)}
+    proc = subprocess.run([sys.executable, "-c", LAZY_MANIFEST_SCRIPT, str(late)], cwd=in_tmp, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    refused = next(line for line in proc.stdout.splitlines() if line.startswith("REFUSED"))
+    assert "unknown solver 'ext-broken'" in refused and str(broken) in refused and "unreadable" in refused
+    assert "Traceback" not in refused  # one line: the manifest's own error, not a traceback
+    assert "ERRORS contactbench.solvers.external_manifests" in proc.stdout  # what `list solvers` prints
+    assert "LISTED True" in proc.stdout

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,6 +29,7 @@ from contactbench.solvers._ccg import GapState, inward, precondition_on
 from contactbench.solvers._preconditioners import IslandPreconditioner
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import get_solver
+from tests.helpers import REPO
 
 E = 1e9
 L = 100e-6
@@ -220,7 +220,7 @@ def measured_population_member() -> Surface:
 
 
 def population_script():
-    folder = Path(__file__).resolve().parents[1] / "benchmarks"
+    folder = REPO / "benchmarks"
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))  # the script's sibling csv_rows, as when it runs
     spec = importlib.util.spec_from_file_location("bench_surface_population", folder / "bench_surface_population.py")

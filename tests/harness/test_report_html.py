@@ -17,7 +17,7 @@ from contactbench.harness.report import core as rp
 from contactbench.harness.report.browser import browser_missing, check_page
 from contactbench.harness.report.style import MAX_SERIES, SolverStyles, family_panels, panels_note
 
-from .test_report import fabricate_table, write_out
+from tests.helpers import fabricate_table, report_row, write_out
 
 
 @pytest.fixture(scope="module")
@@ -82,6 +82,7 @@ def test_panels_hold_at_most_ten_series_and_cover_every_solver() -> None:
     assert family_panels(solvers[:10], fam.get) [0].solvers == tuple(solvers[:10])
 
 
+@pytest.mark.slow
 def test_the_page_renders_in_headless_chromium(page: tuple[Path, pd.DataFrame], tmp_path: Path) -> None:
     why = browser_missing()
     if why:
@@ -139,12 +140,11 @@ def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> No
     assert max(block_reduce(np.ones((2 * FIELD_MAX_SIDE + 3,) * 2)).shape) <= FIELD_MAX_SIDE
     x = np.array([1e-4, 2e-4, 4e-4])
     assert abs(fit_kappa(x, PERSSON_KAPPA / 0.5 * x, 0.5).kappa - PERSSON_KAPPA) < 1e-12
-    from .test_report import _row
     from contactbench.harness.table.schema import ALL_COLUMNS
 
-    df = pd.DataFrame([_row(**r) for r in rows], columns=list(ALL_COLUMNS))
+    df = pd.DataFrame([report_row(**r) for r in rows], columns=list(ALL_COLUMNS))
     text = build_report(write_out(tmp_path, df), html=False).read_text()
     assert "## The contact fields" in text and "figures/field-paper-sweep-s1-k3.png" in text
     assert "figures/load-area.png" in text and "figures/traces-" not in text  # no traces stored
     kappa = fit_kappa(df["dim_load"].to_numpy(), df["contact_fraction"].to_numpy(), surf.rms_slope()).kappa
-    assert f"| paper-sweep | s1 | 4 |" in text and rp.fmt_num(kappa) in text
+    assert "| paper-sweep | s1 | 4 |" in text and rp.fmt_num(kappa) in text

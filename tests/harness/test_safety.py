@@ -33,8 +33,7 @@ from contactbench.problems.units import (
 )
 from contactbench.solvers import Outcome, SolveContext, register, unregister
 from contactbench.solvers.registry import get_solver
-
-REPO = Path(__file__).resolve().parent.parent
+from tests.helpers import REPO
 
 
 def child_env(*paths: Path, **extra: str) -> dict[str, str]:
@@ -67,6 +66,7 @@ class Blocking(Solver):
 '''
 
 
+@pytest.mark.slow
 def test_a_second_run_into_a_live_folder_exits_2_naming_the_first(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     release = tmp_path / "release"
@@ -349,6 +349,7 @@ class Honest(Solver):
 '''
 
 
+@pytest.mark.slow
 def test_the_benchmark_fails_a_wrong_answer_claimed_as_converged(tmp_path: Path) -> None:
     (tmp_path / "bench_liars.py").write_text(BENCH_PLUGIN)
     bench = "benchmarks/test_bench_solvers.py::test_solver"

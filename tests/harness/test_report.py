@@ -1,10 +1,10 @@
 """The report (harness/report/core.py and its section modules) built from a fabricated tidy table.
 
-``fabricate_table`` writes a plausible table with every schema column: paper-sweep,
-greedy-linear-solvers, gp-k-sweep, counterexample and hertz rows, with skips, a
-timeout, a crash, inaccurate answers, false claims and traces.  Timings follow simple
-models (stated below) so the report's computed ratios can be checked against values
-recomputed here from the same table.
+``tests.helpers.fabricate_table`` writes a plausible table with every schema column:
+paper-sweep, greedy-linear-solvers, gp-k-sweep, counterexample and hertz rows, with
+skips, a timeout, a crash, inaccurate answers, false claims and traces.  Timings follow
+simple models (stated there) so the report's computed ratios can be checked against
+values recomputed here from the same table.
 """
 
 from __future__ import annotations
@@ -23,134 +23,7 @@ from contactbench.harness.report import core as rp
 from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.report.sections import paper as rpp
 from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS
-
-# Time factors against NNLS+GP in the fabricated paper-sweep (the paper's claims).
-SWEEP_FACTORS = {"nnls-gp": 1.0, "nnls": 3.0, "pk": 26.0, "greedy-cg": 100.0, "admm": 90.0, "fast-pdas": 0.25}
-
-
-def _row(**kw: Any) -> dict[str, Any]:
-    row: dict[str, Any] = {c: np.nan for c in ALL_COLUMNS}
-    row.update(
-        instance="i0", step=0, repeat=0, warm_start=False, status="solved", skip_reason="", profile="default",
-        build_time_s=0.01, iterations=10, primal_residual=0.0, dual_residual=1e-12, complementarity=1e-12,
-        kkt_error=1e-10, load=1.0, load_rel_error=1e-12, p_rel_error=1e-11, contact_fraction=0.1,
-        peak_mem_mb=50.0, params="{}", family="paper", solver_status="converged", solver_converged=True,
-        solver_message="", check_tol=1e-8, time_limit_s=60.0, error="", trace="[]", kernel="bcc",
-        periodic=False, operator="fft", reference_solver="nnls", host="synthetic", timestamp="2025-01-01T00:00:00",
-    )
-    row.update(kw)
-    row.setdefault("base_solver", row["solver"])
-    if row["base_solver"] != row["base_solver"]:
-        row["base_solver"] = row["solver"]
-    if row["status"] == "skipped":
-        for c in ("solve_time_s", "iterations", "kkt_error", "p_rel_error", "load_rel_error", "primal_residual",
-                  "dual_residual", "complementarity", "load", "contact_fraction", "peak_mem_mb"):
-            row[c] = np.nan
-        row["solver_converged"] = None
-        row["solver_status"] = ""
-    row["correct_claim"] = (None if row["solver_converged"] is None
-                            else bool(row["solver_converged"]) == (row["status"] == "solved"))
-    return row
-
-
-def _trace(total: float, iters: int = 12) -> str:
-    its = np.arange(1, iters + 1)
-    return json.dumps([[int(i), total * i / iters, float(10.0 ** (-i * 10 / iters))] for i in its])
-
-
-def fabricate_table(seed: int = 0) -> pd.DataFrame:
-    """A small plausible results table (see module docstring)."""
-    rng = np.random.default_rng(seed)
-    rows: list[dict[str, Any]] = []
-    # paper-sweep: 10 steps, n grows, t = f * 2e-3 * (n/1000)^1.3 (pk's and fast's warm start).
-    for prof, tol in (("high", 1e-8), ("default", 1e-6)):
-        for k in range(10):
-            n = int(300 * (k + 1) ** 1.2)
-            dim_load = 1e-4 * 10 ** (k * 2.2 / 9)
-            for s, f in SWEEP_FACTORS.items():
-                t = f * 2e-3 * (n / 1000) ** 1.3
-                kw: dict[str, Any] = dict(scene="paper-sweep", instance="rmd-H0.7-N64-s0", step=k, n=n, N=64,
-                                          surface_family="rmd", hurst=0.7, seed=0,
-                                          delta=1e-7 * (k + 1), solver=s, profile=prof, check_tol=tol,
-                                          solve_time_s=t, dim_load=dim_load, load=dim_load * 1e-8,
-                                          warm_start=(k > 0 and s in ("pk", "nnls-gp", "fast-pdas")),
-                                          iterations=int(20 * f), trace=_trace(t),
-                                          kkt_error=tol * 10 ** rng.uniform(-3, -0.5),
-                                          p_rel_error=tol * 10 ** rng.uniform(-2, 0.5),
-                                          family="fast" if s.startswith("fast") else "paper")
-                if s == "admm" and prof == "default" and k == 4:
-                    kw.update(status="inaccurate", kkt_error=3e-4, p_rel_error=2e-3, solver_converged=True)
-                rows.append(_row(**kw))
-    # greedy-linear-solvers: time ratios chol/cg = 0.65, gs/cg = 3.0; chol skipped at the largest n.
-    for n in (100, 400, 1600, 6400, 25600):
-        tcg = 1e-4 * (n / 100) ** 1.5
-        for s, f in (("greedy-cg", 1.0), ("greedy-gs", 3.0), ("greedy-chol", 0.65)):
-            kw = dict(scene="greedy-linear-solvers", instance=f"n{n}", n=n, N=int(np.sqrt(n)) * 2, solver=s,
-                      solve_time_s=tcg * f * (1 + 0.02 * rng.standard_normal()), dim_load=1e-3)
-            if s == "greedy-chol" and n == 25600:
-                kw.update(status="skipped", skip_reason="dense submatrix needs 4.9 GiB, over the budget of 4 GiB")
-            rows.append(_row(**kw))
-    # gp-k-sweep: total = nnls(K) + gp(K), nnls part falls until K = 100.
-    for K in (0, 25, 50, 100, 150, 200):
-        for k in range(4):
-            n = 400 * (k + 1)
-            t = (1e-3 * (n / 400)) * (1 + 3 * max(0.0, 1 - K / 100) ** 2) + 2e-6 * K * (n / 400)
-            rows.append(_row(scene="gp-k-sweep", instance="rmd-H0.7-N64-s0", step=k, n=n, N=64, surface_family="rmd",
-                             solver=f"nnls-gp[K={K}]", base_solver="nnls-gp", params=json.dumps({"K": K}),
-                             solve_time_s=t, dim_load=1e-4 * 3 ** k, warm_start=k > 0))
-    # counterexample: greedy-cg violates with the independent implementation's rates;
-    # osqp sometimes claims convergence wrongly; seed 1 at n = 100 always fails for greedy.
-    rates = {25: 0.14, 100: 0.36, 400: 0.52}
-    for n, rate in rates.items():
-        for seed_ in range(20):
-            inst = f"n{n}-s{seed_}"
-            for s in ("greedy-cg", "nnls", "osqp"):
-                kw = dict(scene="counterexample", instance=inst, n=n, N=int(np.sqrt(n)), solver=s, operator="dense",
-                          solve_time_s=1e-5 * n * (3 if s == "osqp" else 1), family="qp" if s == "osqp" else "paper",
-                          delta=np.nan)
-                bad = (s == "greedy-cg" and (rng.random() < rate or (n == 100 and seed_ == 1))) or \
-                      (s == "osqp" and seed_ % 7 == 3)
-                if bad:
-                    kw.update(status="inaccurate", kkt_error=0.05, p_rel_error=0.2, solver_converged=True)
-                rows.append(_row(**kw))
-    # hertz: load error ~ 0.5/N (first order); a crashing and a timing-out solver.
-    for N in (16, 32, 64, 128):
-        for s in ("nnls", "pk"):
-            rows.append(_row(scene="hertz", instance=f"N{N}-bcc", n=int(0.2 * N * N), N=N, solver=s,
-                             solve_time_s=1e-5 * N * N, analytic_load_rel_error=0.5 / N * (1.01 if s == "pk" else 1),
-                             dim_load=1e-3))
-        rows.append(_row(scene="hertz", instance=f"N{N}-bcc", n=int(0.2 * N * N), N=N, solver="broken",
-                         status="crashed" if N < 64 else "timeout", solve_time_s=np.nan if N < 64 else 60.0,
-                         kkt_error=np.nan, p_rel_error=np.nan, load_rel_error=np.nan, iterations=np.nan,
-                         solver_converged=None, error="solver process died with signal 6 (SIGABRT)" if N < 64
-                         else "no answer within the 60 s limit", family="test", solver_status=""))
-    # a repeat, to check folding
-    rows.append(_row(**{**{k: v for k, v in rows[0].items() if k != "correct_claim"}, "repeat": 1,
-                        "solve_time_s": rows[0]["solve_time_s"] * 1.3}))
-    df = pd.DataFrame(rows, columns=list(ALL_COLUMNS))
-    return df
-
-
-# the shape harness/table/meta.py writes
-META = {"suite": "synthetic", "date": "2025-01-01T00:00:00+00:00", "command": ["contactbench", "run", "all"],
-        "git": {"commit": "0123abc", "dirty": False},
-        "machine": {"host": "h", "platform": "Linux", "python": "3.11", "cpu": "Synthetic CPU 9000",
-                    "logical_cores": 2, "physical_cores": 1},
-        "threads": {"env": {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": None},
-                    "threadpools": [{"user_api": "blas", "internal_api": "openblas", "num_threads": 1}],
-                    "fft_workers": 1},
-        "packages": {"numpy": "2.x", "scipy": "1.x"}, "warnings": []}
-
-
-def write_out(tmp: Path, df: pd.DataFrame, meta: dict | None = META, fmt: str = "parquet") -> Path:
-    tmp.mkdir(parents=True, exist_ok=True)
-    if fmt == "parquet":
-        df.to_parquet(tmp / "results.parquet", index=False)
-    else:
-        df.to_csv(tmp / "results.csv", index=False)
-    if meta is not None:
-        (tmp / "meta.json").write_text(json.dumps(meta))
-    return tmp
+from tests.helpers import fabricate_table, report_row, trace_json, write_out
 
 
 def write_counterexample_arrays(out: Path, instance: str = "n100-s1", solver: str = "greedy-cg",
@@ -493,6 +366,7 @@ def test_a_summary_section_is_rendered_for_every_table(tmp_path: Path) -> None:
         text.index("## Skips and failures")
 
 
+@pytest.mark.slow
 def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
     df = fabricate_table()
     stress = df[(df["scene"] == "hertz") & df["solver"].isin(["nnls", "pk"])].assign(scene="stress-edge")
@@ -510,6 +384,7 @@ def test_stress_rows_get_the_verdict_counts_per_solver(tmp_path: Path) -> None:
         .read_text()
 
 
+@pytest.mark.slow
 def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_path: Path,
                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """33 solvers in six families (one registered from outside with family "other"): every
@@ -524,8 +399,8 @@ def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_p
     for k in range(4):
         for s, f in solvers.items():
             t = 1e-3 * (k + 1) * (1 + 10 * rng.random())
-            rows.append(_row(scene="paper-sweep", instance="i0", step=k, n=100 * (k + 1), N=64, solver=s, family=f,
-                             profile="high", solve_time_s=t, dim_load=1e-4 * (k + 1), trace=_trace(t),
+            rows.append(report_row(scene="paper-sweep", instance="i0", step=k, n=100 * (k + 1), N=64, solver=s, family=f,
+                             profile="high", solve_time_s=t, dim_load=1e-4 * (k + 1), trace=trace_json(t),
                              kkt_error=10 ** rng.uniform(-12, -9), warm_start=False))
     out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
     seen: dict[str, list[int]] = {}

@@ -111,6 +111,7 @@ def assert_complete(df: pd.DataFrame, n_cells: int) -> None:
     assert set(df["status"]) <= set(STATUSES)
 
 
+@pytest.mark.slow
 def test_population_on_dask_matches_the_serial_run_row_for_row(client: Client, tmp_path: Path) -> None:
     run_benchmark(["population"], POPULATION, [SOLVER], RUN, tmp_path / "serial")
     plan = plan_run(["population"], POPULATION, [SOLVER], RUN)
@@ -136,6 +137,7 @@ def test_population_on_dask_matches_the_serial_run_row_for_row(client: Client, t
     assert again.jobs_submitted == 0 and len(ResultStore(tmp_path / "dask")) == 12
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_run_costs_no_row(client: Client, tmp_path: Path) -> None:
     solvers = [SOLVER, f"{__name__}:KillWorkerOnce"]
     summary = run_benchmark_on_dask(["population"], SMALL, solvers, RUN, tmp_path, client, command=["pytest"])
@@ -147,6 +149,7 @@ def test_a_worker_killed_mid_run_costs_no_row(client: Client, tmp_path: Path) ->
     assert summary.rows == 8 and summary.statuses == {"solved": 8}
 
 
+@pytest.mark.slow
 def test_a_worker_that_dies_on_every_attempt_leaves_its_cells_marked_crashed(client: Client, tmp_path: Path) -> None:
     solvers = [SOLVER, f"{__name__}:KillWorkerAlways"]
     plan = plan_run(["population"], SMALL, solvers, RUN)

@@ -64,7 +64,7 @@ def contactbench(args: list[str], site: Path, cwd: Path) -> subprocess.Completed
 
 
 def test_a_scene_from_outside_the_repository_reaches_report_md_and_report_html(tmp_path: Path) -> None:
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     assert repo not in tmp_path.parents
     site, out = tmp_path / "site", tmp_path / "out"
     install_plugin(site)

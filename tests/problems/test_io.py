@@ -1,5 +1,5 @@
 """problems.io: readers round-trip each format, bad files get clear errors, cleaning
-rules.  (Coarsening and the PSD power-law check: tests/test_problems_coarsen.py.)"""
+rules.  (Coarsening and the PSD power-law check: tests/problems/test_problems_coarsen.py.)"""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ import pytest
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.coarsen import power_law_check
 from contactbench.problems.io import SurfaceFileError, load_surface, read_height_map, write_text, write_x3p
+from tests.helpers import REPO
 
-DATA = Path(__file__).resolve().parents[1] / "problems" / "data"
+DATA = REPO / "problems" / "data"
 
 
 def random_map(shape: tuple[int, int] = (12, 12), seed: int = 0) -> np.ndarray:

@@ -17,10 +17,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-try:  # the throw-away solvers (tests/ may or may not be a package)
-    from tests.test_harness_solvers import ExactStub
-except ImportError:  # pragma: no cover
-    from test_harness_solvers import ExactStub
 from contactbench.harness.run import worker
 from contactbench.harness.run.plan import RunConfig, StoredCell
 from contactbench.harness import run_benchmark
@@ -29,6 +25,7 @@ from contactbench.harness.table.store import ROWS_FILE, load_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import Outcome, SolveContext, register
 from contactbench.solvers.base import ProblemTraits
+from tests.helpers import ExactStub
 
 #: paper-sweep at 32^2 with 6 steps: trial sets n = 2, 5, 7, 16, 33, 55.
 CFG = SceneConfig(size=32, steps=6, seeds=(0,))

@@ -15,10 +15,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-try:  # registers the throw-away solvers (tests/ may or may not be a package)
-    from tests import test_harness_solvers  # noqa: F401
-except ImportError:  # pragma: no cover
-    import test_harness_solvers  # noqa: F401
 from contactbench.harness import cli
 from contactbench.harness.run.plan import PlanError, RunConfig, make_cell_id, plan_run
 from contactbench.harness import run_benchmark
@@ -26,9 +22,11 @@ from contactbench.harness.run.sequence import map_by_grid_index
 from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
 from contactbench.harness.table.store import ROWS_FILE, ResultStore, load_table, read_journal
 from contactbench.problems.scenes import SceneConfig
+from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver, SolverSettings
+from tests import helpers
+from tests.helpers import REPO
 
-TESTS = Path(__file__).resolve().parent
-SOLVER_MODULE = test_harness_solvers.__name__
+SOLVER_MODULE = helpers.__name__
 SMALL = SceneConfig(size=8, steps=2, seeds=(0,))
 
 
@@ -201,11 +199,12 @@ def test_cell_ids_are_stable_and_distinct() -> None:
 
 def cli_env() -> dict[str, str]:
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(TESTS.parent), str(TESTS), env.get("PYTHONPATH", "")])
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")])  # tests.helpers importable
     env.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", CONTACTBENCH_FFT_WORKERS="1", CI="true")
     return env
 
 
+@pytest.mark.slow
 def test_sigkill_mid_run_then_rerun_gives_exactly_the_full_table(tmp_path: Path) -> None:
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "contactbench.harness.cli", "run", "counterexample", "--size", "3", "--seeds", "0-5",
@@ -394,7 +393,7 @@ def test_a_sweep_reads_the_solvers_declared_grid() -> None:
     from contactbench.harness.run.studies import Study, Sweep
     from contactbench.solvers.registry import register, unregister
 
-    class Gridded(test_harness_solvers.ExactStub):
+    class Gridded(helpers.ExactStub):
         name = "test-gridded"
         grid = {"K": (3, 7)}
 
@@ -407,12 +406,12 @@ def test_a_sweep_reads_the_solvers_declared_grid() -> None:
         unregister("test-gridded")
 
 
-class NeedsSurfaceStub(test_harness_solvers.ExactStub):
+class NeedsSurfaceStub(helpers.ExactStub):
     """A solver that needs the instance's surface (as the CMR wrappers do)."""
 
     name = "test-needs-surface"
-    capabilities = test_harness_solvers.Capabilities(operators=frozenset({"dense"}), needs_dense=True,
-                                                     needs_geometry=True, input_format="dense")
+    capabilities = Capabilities(operators=frozenset({"dense"}), needs_dense=True, needs_geometry=True,
+                                input_format="dense")
 
 
 def test_a_solver_needing_a_surface_is_skipped_with_its_reason_on_the_counterexample(tmp_path: Path) -> None:
@@ -450,14 +449,14 @@ def test_run_rows_carry_the_judges_verdict(tmp_path: Path) -> None:
     seq = scene.instances(scene.config(cfg))[0].build()
     for _, row in df.sort_values("step").iterrows():
         inst = seq.at(int(row.step))
-        res = get_solver("test-warm-pg").solve(inst.qp, test_harness_solvers.SolverSettings(tol=1e-3))
+        res = get_solver("test-warm-pg").solve(inst.qp, SolverSettings(tol=1e-3))
         v = judge(inst, res.p, res.converged, float(row.check_tol))
         assert (row.status, row.verdict) == (v.status, v.reading)
         assert row.kkt_error == pytest.approx(v.figures["kkt_error"], rel=1e-9)
         assert bool(row.correct_claim) == v.correct_claim
 
 
-class JacobiStub(test_harness_solvers.Solver):
+class JacobiStub(Solver):
     """One projected Jacobi step p = max(ubar / diag H, 0): not the answer.  The liar
     claims convergence, the honest one does not."""
 
@@ -465,9 +464,9 @@ class JacobiStub(test_harness_solvers.Solver):
     family = "test"
     claims = True
 
-    def iterate(self, ctx: test_harness_solvers.SolveContext) -> test_harness_solvers.Outcome:
+    def iterate(self, ctx: SolveContext) -> Outcome:
         p = np.maximum(ctx.qp.ubar / ctx.qp.H.diagonal(), 0.0)
-        return test_harness_solvers.Outcome(p, 1, self.claims, "one Jacobi step")
+        return Outcome(p, 1, self.claims, "one Jacobi step")
 
 
 class HonestJacobiStub(JacobiStub):
@@ -512,8 +511,8 @@ def test_solve_sequence_warm_starts_by_grid_index_and_judges_each_step() -> None
     scene = get_scene("paper-sweep")
     cfg = SceneConfig(size=16, steps=3, seeds=(0,), extra={"family": "periodic"})
     seq = scene.instances(scene.config(cfg))[0].build()
-    warm = solve_sequence("test-warm-pg", seq, test_harness_solvers.SolverSettings(tol=1e-9), check_tol=1e-8)
-    cold = solve_sequence("test-warm-pg", seq, test_harness_solvers.SolverSettings(tol=1e-9), check_tol=1e-8,
+    warm = solve_sequence("test-warm-pg", seq, SolverSettings(tol=1e-9), check_tol=1e-8)
+    cold = solve_sequence("test-warm-pg", seq, SolverSettings(tol=1e-9), check_tol=1e-8,
                           warm=False)
     assert [s.warm_started for s in warm] == [False, True, True] and not any(s.warm_started for s in cold)
     assert all(s.verdict is not None and s.verdict.status == "solved" for s in warm + cold)
@@ -527,7 +526,7 @@ def test_list_solvers_params_prints_declared_parameters_and_grid(capsys: pytest.
     from contactbench.solvers.base import Param
     from contactbench.solvers.registry import register, unregister
 
-    class Declared(test_harness_solvers.ExactStub):
+    class Declared(helpers.ExactStub):
         name = "test-declared"
         params = (Param("K", int, 10, "gradient steps", low=0),)
         grid = {"K": (0, 10)}

@@ -15,10 +15,6 @@ from pathlib import Path
 
 import pytest
 
-try:  # the throw-away solvers (tests/ may or may not be a package)
-    from tests import test_harness_solvers  # noqa: F401
-except ImportError:  # pragma: no cover
-    import test_harness_solvers  # noqa: F401
 from contactbench.harness import cli
 from contactbench.harness.table.meta import read_meta
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run

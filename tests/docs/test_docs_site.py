@@ -31,13 +31,14 @@ import pandas as pd
 import pytest
 from nbclient import NotebookClient
 
-REPO = Path(__file__).resolve().parents[1]
+from tests.helpers import REPO
+
 DOCS = REPO / "docs"
 NOTEBOOK = DOCS / "tutorial.ipynb"
 HOOK = DOCS / "hooks" / "contactbench_docs.py"
 #: Pages whose python blocks are checked but not run here, and why.
 NOT_RUN = {
-    "adding-a-solver.md": "its blocks are tests/example_solver.py and a pytest file, run by tests/test_docs.py",
+    "adding-a-solver.md": "its blocks are tests/example_solver.py and a pytest file, run by tests/docs/test_docs.py",
     "distributed.md": "its blocks start a SLURM or local Dask cluster",
 }
 #: The modules whose public functions and classes inline code may name.
@@ -77,6 +78,7 @@ def python_blocks(text: str) -> list[tuple[int, str]]:
 # ---------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_site_builds_in_strict_mode(tmp_path: Path) -> None:
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
     proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
@@ -112,6 +114,7 @@ def test_the_notebook_is_stored_without_outputs() -> None:
         assert not c.outputs and c.execution_count is None, f"stored with outputs: {c.source[:60]!r}"
 
 
+@pytest.mark.slow
 def test_the_notebook_runs(tmp_path: Path) -> None:
     nb = nbformat.read(NOTEBOOK, as_version=4)
     NotebookClient(nb, timeout=120, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()

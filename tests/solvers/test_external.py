@@ -16,10 +16,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-try:  # registers test-exact, the reference of the run below
-    from tests import test_harness_solvers  # noqa: F401
-except ImportError:  # pragma: no cover
-    import test_harness_solvers  # noqa: F401
 from contactbench.harness.conformance import battery as cf
 from contactbench.harness.conformance.command import main as validate_main
 from contactbench.harness import RunConfig
@@ -46,8 +42,9 @@ from contactbench.solvers.external import (
     register_manifest,
 )
 from contactbench.solvers.registry import all_solvers, unregister
+from tests.helpers import REPO, TESTS
 
-HERE = Path(__file__).resolve().parent / "external"
+HERE = TESTS / "external"
 SCRIPT = HERE / "standalone_solver.py"
 PY = sys.executable
 
@@ -292,6 +289,7 @@ def test_the_process_group_is_killed_at_the_time_limit(tmp_path: Path) -> None:
     assert not stat.exists() or stat.read_text().split()[2] == "Z"  # the grandchild is gone too
 
 
+@pytest.mark.slow
 def test_misbehaving_programs_cost_only_their_own_rows(tmp_path: Path) -> None:
     variants = ("sleep", "segv", "fail", "short", "nan", "clip")
     entries = [{"name": f"ext-{v}", "command": script_command("--variant", v)} for v in variants]
@@ -330,7 +328,7 @@ def test_misbehaving_programs_cost_only_their_own_rows(tmp_path: Path) -> None:
 def test_the_python_reading_snippet_of_the_docs_works(tmp_path: Path) -> None:
     import re
 
-    doc = (Path(__file__).resolve().parents[1] / "docs" / "external-solvers.md").read_text()
+    doc = (REPO / "docs" / "external-solvers.md").read_text()
     snippet = re.search(r"### Python.*?```python\n(.*?)```", doc, flags=re.S).group(1)
     space: dict[str, object] = {}
     exec(compile(snippet, "docs/external-solvers.md", "exec"), space)

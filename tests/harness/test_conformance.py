@@ -182,6 +182,7 @@ def test_battery_holds_example_1_at_n400_and_full_packing() -> None:
         assert inst.n == inst.total_elements and np.all(cf.exact_reference(inst).p > 0)
 
 
+@pytest.mark.slow
 def test_correct_solver_conforms_on_the_whole_fast_battery() -> None:
     table = cf.validate(GoodSolver())
     assert table.outcome(strict=True) == "conforms" and table.exit_code(strict=True) == 0, table.format()
@@ -280,6 +281,7 @@ def test_bad_input_exits_2_with_a_clear_message(argv: list[str], words: str,
     assert words in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_list_help_and_all_quiet(capsys: pytest.CaptureFixture[str]) -> None:
     assert validate_main(["--list"]) == 0
     listed = capsys.readouterr().out

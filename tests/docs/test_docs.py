@@ -15,10 +15,11 @@ from typing import Any
 import pytest
 
 from contactbench.solvers import unregister
+from tests.helpers import REPO, TESTS
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 DOC = ROOT / "docs" / "adding-a-solver.md"
-EXAMPLE = Path(__file__).with_name("example_solver.py")
+EXAMPLE = TESTS / "example_solver.py"
 
 
 def blocks(lang: str) -> list[str]:
@@ -67,6 +68,7 @@ def test_the_doc_shows_every_documented_command() -> None:
         assert any(must in c for c in cmds), must
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cmd", [command_param(c) for c in shell_commands()])
 def test_every_shell_command_of_the_doc_runs(cmd: str, outside: Path) -> None:
     res = contactbench(shlex.split(cmd)[1:], outside)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: Installed package -> source folder (pyproject's package-dir).
 PACKAGES = {"contactbench.problems": "problems", "contactbench.solvers": "solvers",
             "contactbench.harness": "harness", "contactbench": "contactbench"}
