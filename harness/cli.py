@@ -461,10 +461,22 @@ def cmd_report(out_dir: str) -> int:
                   f"the tidy table is in {out_dir}/results.parquet", file=sys.stderr)
             return 2
         raise
+    from .report_claims import write_claims_report  # a claims folder: claims.csv -> claims.md first
+
+    claims = write_claims_report(out_dir)
+    if claims is not None:
+        print(f"claims: {claims}")
+        if not has_results_table(out_dir):
+            return 0
     path = report.build_report(out_dir)
     if path is not None:
         print(f"report: {path}")
     return 0
+
+
+def has_results_table(out_dir: str) -> bool:
+    """Whether a folder holds a stored results table (not only a claims ledger)."""
+    return any((Path(out_dir) / name).is_file() for name in ("results.parquet", "results.csv", "rows.jsonl"))
 
 
 def cmd_validate(args: Sequence[str]) -> int:

@@ -157,12 +157,13 @@ class ReportContext:
 SectionFn = Callable[[ReportContext, pd.DataFrame], "Section | None"]
 
 
-SECTION_GROUPS = ("paper", "scenes", "summary")
+SECTION_GROUPS = ("lead", "paper", "scenes", "summary")
 
 
 @dataclass(frozen=True)
 class SectionSpec:
-    """A registered section.  ``group`` "paper" (the paper reproductions) or "scenes"
+    """A registered section.  ``group`` "lead" (given the whole table like "summary", but
+    rendered first, e.g. the claims ledger), "paper" (the paper reproductions) or "scenes"
     (other scene studies): rendered when ``scene`` has rows, given those rows; group
     "summary": ``scene`` is just the section's name, and it is given the whole table
     (it may return None to be left out).  ``order`` sorts within the group."""
@@ -617,6 +618,9 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
             old.unlink()
     sections = registered_sections()
     doc = [header_section(ctx)]
+    for sp in _in_order(sections, "lead"):  # whole-table sections that lead the report
+        if (sec := sp.fn(ctx, ctx.table)) is not None:
+            doc.append(f"## {sec.title}\n\n{sec.body}")
     scenes = set(ctx.scenes())
     for group, heading in (("paper", "Paper reproductions (Bemporad & Paggi 2015)"), ("scenes", "Scene studies")):
         rendered = [sec for sp in _in_order(sections, group) if sp.scene in scenes

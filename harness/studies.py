@@ -312,7 +312,7 @@ CLAIMS_EXAMPLE1_LARGE_SEEDS = 30
 #: (warm along the history: the paper's direct) under the paper's condition.
 CLAIMS_CMR_SIZE = 128
 CLAIMS_CMR_SEEDS: tuple[int, ...] = (0, 1, 2)
-CLAIMS_CUTOFF_SIZE = 256
+CLAIMS_CUTOFF_SIZE = 512  # the paper's real surfaces: 512 points per side
 #: The solvers of each condition.
 CLAIMS_DENSE_FIG4: tuple[str, ...] = ("nnls-gp", "nnls", "pk", "admm")
 CLAIMS_COLD: tuple[str, ...] = ("pk", "greedy-cg", "greedy-chol", "greedy-gs")
