@@ -318,7 +318,8 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
         limit = math.isqrt(int(DEFAULT_MEMORY_BUDGET // 8))
         tried = float(chol["n"].max())
         out.append(claim_row("fig5-chol-memory", condition, largest, f"n <= {int(tried)} tried; our dense limit "
-                             f"n = {limit} ({DEFAULT_MEMORY_BUDGET / 2**30:g} GiB budget)", "",
+                             f"n = {limit} ({DEFAULT_MEMORY_BUDGET / 2**30:g} GiB a matrix: H and its factor "
+                             f"{2 * DEFAULT_MEMORY_BUDGET / 2**30:g} GiB)", "",
                              "results.csv: greedy-chol, largest n answered; the claim is tested only where n > "
                              "20000 was tried", testable=tried > 20000))
     return out
