@@ -211,16 +211,27 @@ def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame
 
 
 def totals(cells: pd.DataFrame) -> pd.DataFrame:
-    """Per solver label: summed solve time, steps, steps answered and steps solved; a total
-    is ``comparable`` when every step of the largest count returned an answer."""
+    """Per solver label: summed solve time and operator products (``matvecs``: the time's
+    load-independent witness), steps, steps answered and steps solved; a total is
+    ``comparable`` when every step of the largest count returned an answer."""
     if cells.empty:
-        return pd.DataFrame(columns=["total_s", "steps", "answered", "solved", "comparable"])
+        return pd.DataFrame(columns=["total_s", "matvecs", "steps", "answered", "solved", "comparable"])
     g = cells.groupby("solver")
-    out = pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "steps": g.size(),
+    mv = g["matvecs"].sum(min_count=1) if "matvecs" in cells.columns else pd.Series(math.nan, index=g.size().index)
+    out = pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "matvecs": mv, "steps": g.size(),
                         "answered": g["status"].agg(lambda s: int(s.isin(ANSWERED).sum())),
                         "solved": g["solved"].sum()})
     out["comparable"] = (out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
     return out
+
+
+def fmt_count(v: float) -> str:
+    """A count as an integer, "?" where the table has none."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return "?"
+    return f"{int(x)}" if math.isfinite(x) else "?"
 
 
 def ratio(tot: pd.DataFrame, a: str, b: str) -> tuple[float, str]:
@@ -230,8 +241,9 @@ def ratio(tot: pd.DataFrame, a: str, b: str) -> tuple[float, str]:
     if missing:
         return math.nan, f"no rows of {', '.join(missing)}"
     ta, tb = tot.loc[a], tot.loc[b]
-    words = f"{a} {ta['total_s']:.4g} s ({int(ta['solved'])}/{int(ta['steps'])} steps pass the KKT check), " \
-            f"{b} {tb['total_s']:.4g} s ({int(tb['solved'])}/{int(tb['steps'])})"
+    words = f"{a} {ta['total_s']:.4g} s, {fmt_count(ta.get('matvecs'))} matvecs ({int(ta['solved'])}/" \
+            f"{int(ta['steps'])} steps pass the KKT check), {b} {tb['total_s']:.4g} s, {fmt_count(tb.get('matvecs'))} " \
+            f"matvecs ({int(tb['solved'])}/{int(tb['steps'])})"
     if not (ta["comparable"] and tb["comparable"]) or not tb["total_s"] > 0:
         return math.nan, words + "; not every step answered"
     return float(ta["total_s"] / tb["total_s"]), words
