@@ -56,8 +56,24 @@ BOUND_FACTOR = 2.0
 #: and the spread up to which it is "partly".
 SAME_TOL = 1e-4
 SAME_PARTLY = 1e-2
-#: Fig. 6: K = 200 "saves nothing more" while its time is at least this share of K = 100's.
+#: Example 1: greedy failing on at least this share of seeds is "partly" (it does fail).
+EX1_PARTLY_MIN = 0.05
+#: A range the paper states ("0.6-0.7") holds within this factor beyond either end.
+RANGE_FACTOR = 1.25
+#: Fig. 6: K = 200 "saves nothing more" while its time is at least this share of K = 100's
+#: ("partly" down to the second share).
 NO_SAVING_SHARE = 0.95
+NO_SAVING_PARTLY = 0.8
+#: Fig. 6: the best K holds within this factor of 100 ("partly" within the second).
+K_FACTOR = 1.5
+K_PARTLY_FACTOR = 2.0
+#: A time saving the paper states (18 %) holds from this share of it up; any saving is "partly".
+SAVING_SHARE = 0.5
+#: "Almost no time saved": |saving| within this holds; a saving up to the second is "partly".
+NO_SAVING_TOL = 0.1
+NO_SAVING_PARTLY_TOL = 0.3
+#: "An error of -98 %": a load error at least this large holds; beyond the paper's 2 % is "partly".
+LARGE_ERROR = 0.5
 #: Fig. 5's ratios are read over steps with at least this trial-set size (below it fixed
 #: per-solve costs dominate).
 FIG5_MIN_N = 100
@@ -131,7 +147,8 @@ class Claim:
 
 
 CLAIMS: dict[str, Claim] = {c.id: c for c in (
-    Claim("ex1-greedy-fails", "Example 1", "greedy fails on ~40 % of seeds, any n", near(0.40, SHARE_TOL, (0.05, 1.0))),
+    Claim("ex1-greedy-fails", "Example 1", "greedy fails on ~40 % of seeds, any n",
+          near(0.40, SHARE_TOL, (EX1_PARTLY_MIN, 1.0))),
     Claim("fig4-pk-cold-over-nnlsgp", "Fig. 4", "t(P&K1999) / t(NNLS+GP K=100) = 26", about(26.0)),
     Claim("fig4-admm-over-nnlsgp", "Fig. 4", "t(ADMM) / t(NNLS+GP) ~ 100 (two orders)", about(100.0)),
     Claim("fig4-greedy-over-nnlsgp", "Fig. 4", "t(greedy CG) / t(NNLS+GP) ~ 100 (two orders)", about(100.0)),
@@ -142,24 +159,28 @@ CLAIMS: dict[str, Claim] = {c.id: c for c in (
     Claim("fig4-same-contact", "Fig. 4", "all methods give the same contact domain: spread 0",
           Rule((0.0, SAME_TOL), (0.0, SAME_PARTLY))),
     Claim("fig5-chol-over-cg", "Fig. 5", "t(greedy Cholesky) / t(greedy CG) = 0.6-0.7, any n",
-          Rule((0.6 / 1.25, 0.7 * 1.25), (0.0, 1.0))),
+          Rule((0.6 / RANGE_FACTOR, 0.7 * RANGE_FACTOR), (0.0, 1.0))),
     Claim("fig5-chol-memory", "Fig. 5", "Cholesky out of memory above n ~ 20,000 (128 GB machine)",
           Rule((0.0, 20000.0), (0.0, 20000.0))),
     Claim("fig5-gs-over-cg", "Fig. 5", "t(greedy Gauss-Seidel) / t(greedy CG) ~ 3", about(3.0)),
-    Claim("fig6-best-k", "Fig. 6", "the total time is least at K = 100", Rule((50.0, 150.0), (25.0, 200.0))),
+    Claim("fig6-best-k", "Fig. 6", "the total time is least at K = 100",
+          Rule((100 / K_FACTOR, 100 * K_FACTOR), (100 / K_PARTLY_FACTOR, 100 * K_PARTLY_FACTOR))),
     Claim("fig6-k200-over-k100", "Fig. 6", "K = 200 saves nothing more: t(K=200) / t(K=100) >= 1",
-          Rule((NO_SAVING_SHARE, INF), (0.8, INF))),
+          Rule((NO_SAVING_SHARE, INF), (NO_SAVING_PARTLY, INF))),
     Claim("fig8-cmr-time", "Fig. 8", "t(CMR) / t(direct) ~ 0.5 at h = 2, any H (worst H)",
           near(0.5, CMR_TIME_TOL, (0.0, 1.0))),
     Claim("fig8-cmr-error", "Fig. 8", "|load error| < 2 % for H > 0.5, h = 2 (90th percentile)", under(0.02)),
     Claim("fig9-np-low-h", "Fig. 9", "n_p/n = 0.4 at h = 1.25", near(0.4, SHARE_TOL)),
     Claim("fig9-np-high-h", "Fig. 9", "n_p/n = 0.8 at h = 3.0", near(0.8, SHARE_TOL)),
-    Claim("fig9-time-ratio", "Fig. 9", "t(CMR) / t(direct) tends to 0.6 (h = 3.0)", near(0.6, CMR_TIME_TOL, (0.0, 1.0))),
+    Claim("fig9-time-ratio", "Fig. 9", "t(CMR) / t(direct) tends to 0.6 (h = 3.0)",
+          near(0.6, CMR_TIME_TOL, (0.0, 1.0))),
     Claim("fig9-error", "Fig. 9", "|load error| < 1 % at large h (h = 3.0, median)", under(0.01)),
     Claim("real-power-law-error", "Fig. 11", "power-law PSD: load error -0.4 %", under(0.02)),
-    Claim("real-power-law-saving", "Fig. 11", "power-law PSD: 18 % of the time saved", Rule((0.09, 1.0), (0.0, 1.0))),
-    Claim("real-cutoff-error", "Fig. 11", "PSD cut-off: load error -98 %", Rule((0.5, INF), (0.02, INF), True)),
-    Claim("real-cutoff-saving", "Fig. 11", "PSD cut-off: almost no time saved", Rule((-0.1, 0.1), (-INF, 0.3))),
+    Claim("real-power-law-saving", "Fig. 11", "power-law PSD: 18 % of the time saved",
+          Rule((SAVING_SHARE * 0.18, 1.0), (0.0, 1.0))),
+    Claim("real-cutoff-error", "Fig. 11", "PSD cut-off: load error -98 %", Rule((LARGE_ERROR, INF), (0.02, INF), True)),
+    Claim("real-cutoff-saving", "Fig. 11", "PSD cut-off: almost no time saved",
+          Rule((-NO_SAVING_TOL, NO_SAVING_TOL), (-INF, NO_SAVING_PARTLY_TOL))),
     Claim("conclusion-greedy", "Conclusion", "NNLS+GP at least two orders of magnitude faster than greedy",
           at_least(100.0)),
     Claim("conclusion-pk", "Conclusion", "NNLS+GP 26x faster than P&K1999", about(26.0)),
@@ -241,9 +262,9 @@ def ratio(tot: pd.DataFrame, a: str, b: str) -> tuple[float, str]:
     if missing:
         return math.nan, f"no rows of {', '.join(missing)}"
     ta, tb = tot.loc[a], tot.loc[b]
-    words = f"{a} {ta['total_s']:.4g} s, {fmt_count(ta.get('matvecs'))} matvecs ({int(ta['solved'])}/" \
-            f"{int(ta['steps'])} steps pass the KKT check), {b} {tb['total_s']:.4g} s, {fmt_count(tb.get('matvecs'))} " \
-            f"matvecs ({int(tb['solved'])}/{int(tb['steps'])})"
+    words = (f"{a} {ta['total_s']:.4g} s, {fmt_count(ta.get('matvecs'))} matvecs ({int(ta['solved'])}/"
+             f"{int(ta['steps'])} steps pass the KKT check), {b} {tb['total_s']:.4g} s, "
+             f"{fmt_count(tb.get('matvecs'))} matvecs ({int(tb['solved'])}/{int(tb['steps'])})")
     if not (ta["comparable"] and tb["comparable"]) or not tb["total_s"] > 0:
         return math.nan, words + "; not every step answered"
     return float(ta["total_s"] / tb["total_s"]), words
@@ -337,23 +358,19 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     return out
 
 
-def example1_rows(rows: pd.DataFrame) -> list[ClaimRow]:
+def example1_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     """Example 1: per n, the share of seeds whose greedy-CG answer the judge rejects."""
-    r = rows[(rows["scene"] == "counterexample") & (rows["base_solver"] == "greedy-cg") & (rows["status"] != "skipped")]
+    r = of_condition(rows, "counterexample", condition)
+    r = r[r["base_solver"] == "greedy-cg"]
     if r.empty:
         return []
-    cells = seed_readings(r)
-    frac = violation_counts(cells)
     out = []
-    for cond in CONDITIONS:
-        for _, f in frac.iterrows():
-            sub = r[(r["n"] == f["n"]) & (r["operator"] == cond)]
-            if sub.empty:
-                continue
-            seeds = seeds_text(sub["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
-            out.append(claim_row("ex1-greedy-fails", cond, float(f["fraction"]), f"n = {int(f['n'])}", seeds,
-                                 f"results.csv: counterexample, greedy-cg rejected on {int(f['violations'])} of "
-                                 f"{int(f['seeds'])} seeds (wrong {int(f['wrong'])})"))
+    for _, f in violation_counts(seed_readings(r)).iterrows():
+        sub = r[r["n"] == f["n"]]
+        seeds = seeds_text(sub["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
+        out.append(claim_row("ex1-greedy-fails", condition, float(f["fraction"]), f"n = {int(f['n'])}", seeds,
+                             f"results.csv: counterexample operator {condition}, greedy-cg rejected on "
+                             f"{int(f['violations'])} of {int(f['seeds'])} seeds (wrong {int(f['wrong'])})"))
     return out
 
 
@@ -430,12 +447,13 @@ def cmr_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
 
 
 #: The ledger's readers, each of one part of the paper (conditions looped where they apply).
-READERS: tuple[Callable[[pd.DataFrame, str], list[ClaimRow]], ...] = (fig4_rows, fig5_rows, fig6_rows, cmr_rows)
+READERS: tuple[Callable[[pd.DataFrame, str], list[ClaimRow]], ...] = (example1_rows, fig4_rows, fig5_rows, fig6_rows,
+                                                                     cmr_rows)
 
 
 def ledger(rows: pd.DataFrame) -> pd.DataFrame:
     """The ledger of a results table: one row per (claim, condition, size), ``LEDGER_COLUMNS``."""
-    out: list[ClaimRow] = example1_rows(rows)
+    out: list[ClaimRow] = []
     for cond in CONDITIONS:
         for read in READERS:
             out += read(rows, cond)

@@ -203,3 +203,20 @@ def test_every_claim_of_the_issue_is_in_the_ledger() -> None:
     assert len(cl.CLAIMS) >= 12
     figs = {c.figure for c in cl.CLAIMS.values()}
     assert {"Example 1", "Fig. 4", "Fig. 5", "Fig. 6", "Fig. 8", "Fig. 9", "Fig. 11", "Conclusion"} <= figs
+
+
+def test_example1_counts_each_condition_apart() -> None:
+    rows = []
+    for op, rejected in (("dense", 4), ("fft", 0)):
+        for s in range(10):
+            bad = s < rejected
+            rows.append({"scene": "counterexample", "instance": f"n100-s{s}", "step": 0, "solver": "greedy-cg",
+                         "base_solver": "greedy-cg", "params": "{}", "profile": "paper", "history": "warm",
+                         "repeat": 0, "status": "inaccurate" if bad else "solved",
+                         "verdict": "wrong" if bad else "pass",
+                         "solver_converged": True, "n": 100, "N": 10, "operator": op, "solve_time_s": 0.01,
+                         "p_rel_error": 0.5 if bad else 0.0, "check_tol": 1e-6})
+    led = cl.ledger(pd.DataFrame(rows))
+    dense, fft = _one(led, "ex1-greedy-fails", "dense", "n = 100"), _one(led, "ex1-greedy-fails", "fft", "n = 100")
+    assert dense["measured"] == pytest.approx(0.4) and dense["verdict"] == "holds" and dense["seeds"] == "0-9"
+    assert fft["measured"] == 0.0 and fft["verdict"] == "fails"
