@@ -453,12 +453,25 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_report(out_dir: str) -> int:
     if not Path(out_dir).is_dir():
         raise InputError(f"report {out_dir}: no such folder (give the --out folder of a run)")
-    from .report import build_report
+    from .report.build import build_report
+    from .report.sections.claims import write_claims_report
 
+    claims = write_claims_report(out_dir)  # a claims folder: claims.csv -> claims.md first
+    if claims is not None:
+        print(f"claims: {claims}")
+        if not has_results_table(out_dir):
+            return 0
     path = build_report(out_dir)
     if path is not None:
         print(f"report: {path}")
     return 0
+
+
+def has_results_table(out_dir: str) -> bool:
+    """Whether a folder holds a stored results table (not only a claims ledger)."""
+    from .table.store import CSV_FILE, PARQUET_FILE, ROWS_FILE
+
+    return any((Path(out_dir) / name).is_file() for name in (PARQUET_FILE, CSV_FILE, ROWS_FILE))
 
 
 def cmd_validate(args: Sequence[str]) -> int:

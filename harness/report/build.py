@@ -45,6 +45,9 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
             old.unlink()
     sections = registered_sections()
     doc = [header_section(ctx)]
+    for sp in _in_order(sections, "lead"):  # whole-table sections that lead the report
+        if (sec := sp.fn(ctx, ctx.table)) is not None:
+            doc.append(f"## {sec.title}\n\n{sec.body}{charts_md(ctx, '', sec)}")
     scenes = set(ctx.scenes())
     for group, heading in (("paper", "Paper reproductions (Bemporad & Paggi 2015)"), ("scenes", "Scene studies")):
         rendered = [(sp, sec) for sp in _in_order(sections, group) if sp.scene in scenes

@@ -176,12 +176,13 @@ class ReportContext:
 SectionFn = Callable[[ReportContext, pd.DataFrame], "Section | None"]
 
 
-SECTION_GROUPS = ("paper", "scenes", "summary")
+SECTION_GROUPS = ("lead", "paper", "scenes", "summary")
 
 
 @dataclass(frozen=True)
 class SectionSpec:
-    """A registered section.  ``group`` "paper" (the paper reproductions) or "scenes"
+    """A registered section.  ``group`` "lead" (whole-table sections rendered first, e.g.
+    the claims ledger), "paper" (the paper reproductions) or "scenes"
     (other scene studies): rendered when ``scene`` has rows, given those rows; group
     "summary": ``scene`` is just the section's name, and it is given the whole table
     (it may return None to be left out).  ``order`` sorts within the group."""

@@ -285,6 +285,81 @@ STUDIES: dict[str, Study] = {s.scene: s for s in (
     Study("population", solvers=("fast-ccg",)),
 )}
 
+# --- The paper's claims ledger (harness/report/claims.py): two conditions ----------------------
+#: The paper's condition: the dense H, the paper's tolerance (profile "paper": eps = 1e-8),
+#: the paper's algorithms with their paper parameters (the registry defaults: NNLS+GP K =
+#: 100, ADMM alpha 1.5 and rho 1).  P&K runs warm along the load history (paper-sweep) and
+#: cold ("P&K1999") on the same surface and steps as independent solves
+#: (greedy-linear-solvers with the paper-sweep seed and 10 steps: the same instances).
+CLAIMS_DENSE_PROFILE = "paper"
+#: Our condition: FFT operators, each solver's own tolerance, the fast solvers beside the paper's.
+CLAIMS_FFT_PROFILE = "default"
+#: Grid sizes of the dense condition: every paper solver at the small ones; at the largest
+#: (256^2: n = 8,803 at the top step, a 0.6 GB H; 512^2, the paper's n = 35,555, needs
+#: 10 GB) only NNLS+GP and P&K (warm and cold), which fit the benchmark's time.
+CLAIMS_DENSE_SIZES: tuple[int, ...] = (64, 128)
+CLAIMS_LARGEST = 256
+#: Grid sizes of our condition (FFT) for Fig. 4; the greedy solvers run at the first only.
+CLAIMS_FFT_SIZES: tuple[int, ...] = (128, 256)
+#: The paper-sweep surface (seed) every Fig. 4 / Fig. 5 part runs on, so the parts share instances.
+CLAIMS_SEED = 5
+#: Example 1's sizes n (100 seeds each) and the larger n (fewer seeds: one dense H of 1600^2).
+CLAIMS_EXAMPLE1_SIZES: tuple[int, ...] = (25, 100, 400)
+CLAIMS_EXAMPLE1_LARGE = 1600
+CLAIMS_EXAMPLE1_LARGE_SEEDS = 20
+#: Fig. 6's K values: the paper's minimum (100), what lies beyond it (150, 200) and below.
+CLAIMS_K: tuple[int, ...] = (0, 50, 100, 150, 200)
+#: The CMR parts (Figs. 8-9): 128^2, seeds 0-2, the block-mean coarse reading, NNLS
+#: (warm along the history: the paper's direct) under the paper's condition; Fig. 9 at
+#: the ends of the paper's h range and at Fig. 8's h.
+CLAIMS_CMR_SIZE = 128
+CLAIMS_CMR_SEEDS: tuple[int, ...] = (0, 1, 2)
+CLAIMS_H: tuple[float, ...] = (1.25, CMR_H, 3.0)
+#: The real-surface cases (Fig. 11): the paper's real surfaces have 512 points per side.
+CLAIMS_CUTOFF_SIZE = 512
+#: The solvers of each condition (ADMM is left out of ours: its FFT-matvec CG inner solves
+#: took 108 s of the 256^2 sweep, and the claims about it are the paper's, on the dense H).
+CLAIMS_DENSE_FIG4: tuple[str, ...] = ("nnls-gp", "nnls", "pk", "admm")
+CLAIMS_DENSE_COLD: tuple[str, ...] = ("pk", "greedy-cg", "greedy-chol", "greedy-gs")
+CLAIMS_FFT_FIG4: tuple[str, ...] = ("nnls-gp", "nnls", "pk", "fast-dual-pccg", "fast-ccg")
+CLAIMS_FFT_COLD: tuple[str, ...] = ("pk", "greedy-cg", "greedy-gs")
+CLAIMS_CMR_DENSE: tuple[str, ...] = ("nnls", "cmr+nnls")
+
+
+def claims_parts() -> tuple[Part, ...]:
+    """The parts of ``paper-claims``: each figure's scene under the paper's condition
+    (dense, profile ``CLAIMS_DENSE_PROFILE``) and ours (fft, ``CLAIMS_FFT_PROFILE``)."""
+    mean_h2 = (cmr_sweep("cmr+*", (CMR_H,), coarse=("mean",)),)
+    mean_hs = (cmr_sweep("cmr+*", CLAIMS_H, coarse=("mean",)),)
+    k_sweep = (replace(GP_K_SWEEP, values=CLAIMS_K),)
+    parts: list[Part] = []
+    for op, prof, fig4, cold, cold_sizes, cmr_solvers in (
+            ("dense", CLAIMS_DENSE_PROFILE, CLAIMS_DENSE_FIG4, CLAIMS_DENSE_COLD, CLAIMS_DENSE_SIZES, CLAIMS_CMR_DENSE),
+            ("fft", CLAIMS_FFT_PROFILE, CLAIMS_FFT_FIG4, CLAIMS_FFT_COLD, CLAIMS_FFT_SIZES[:1], CMR_FAST)):
+        ramp = SceneConfig(steps=10, seeds=(CLAIMS_SEED,), operator=op)
+        for size in CLAIMS_DENSE_SIZES if op == "dense" else CLAIMS_FFT_SIZES:  # Fig. 4, warm along the history
+            parts.append(Part(Study("paper-sweep", solvers=fig4, profiles=(prof,)), replace(ramp, size=size)))
+        # Fig. 5 and P&K cold ("P&K1999"): the same surface and steps as independent solves
+        parts.append(Part(Study("greedy-linear-solvers", solvers=cold, profiles=(prof,)),
+                          replace(ramp, extra={"sizes": cold_sizes})))
+        parts.append(Part(Study("greedy-linear-solvers", solvers=("pk",), profiles=(prof,)),
+                          replace(ramp, extra={"sizes": (CLAIMS_LARGEST,)})))
+        parts.append(Part(Study("gp-k-sweep", solvers=("nnls-gp",), profiles=(prof,), sweeps=k_sweep),
+                          replace(ramp, size=CLAIMS_CMR_SIZE)))
+        cmr = SceneConfig(size=CLAIMS_CMR_SIZE, seeds=CLAIMS_CMR_SEEDS, operator=op)
+        parts.append(Part(Study("cmr", solvers=cmr_solvers, profiles=(prof,), sweeps=mean_h2), cmr))
+        parts.append(Part(Study("cmr-h-sweep", solvers=cmr_solvers, profiles=(prof,), sweeps=mean_hs), cmr))
+        parts.append(Part(Study("cmr-cutoff", solvers=cmr_solvers, profiles=(prof,), sweeps=(CMR_CUTOFF_SWEEP,)),
+                          SceneConfig(size=CLAIMS_CUTOFF_SIZE, operator=op)))
+    parts.append(Part(Study("paper-sweep", solvers=("nnls-gp", "pk"), profiles=(CLAIMS_DENSE_PROFILE,)),
+                      SceneConfig(size=CLAIMS_LARGEST, steps=10, seeds=(CLAIMS_SEED,), operator="dense")))
+    example1 = Study("counterexample", solvers=("greedy-cg",), profiles=(CLAIMS_DENSE_PROFILE,))
+    parts.append(Part(example1, SceneConfig(seeds=tuple(range(100)), extra={"sizes": CLAIMS_EXAMPLE1_SIZES})))
+    parts.append(Part(example1, SceneConfig(seeds=tuple(range(CLAIMS_EXAMPLE1_LARGE_SEEDS)),
+                                            extra={"sizes": (CLAIMS_EXAMPLE1_LARGE,)})))
+    return tuple(parts)
+
+
 COMPOSITES: dict[str, Composite] = {c.name: c for c in (
     Composite(
         "cmr-paper",
@@ -301,6 +376,12 @@ COMPOSITES: dict[str, Composite] = {c.name: c for c in (
             Part(Study("cmr-h-sweep", solvers=CMR_DENSE, sweeps=CMR_H_SWEEPS),
                  SceneConfig(size=CMR_DENSE_SIZE)),
         ),
+    ),
+    Composite(
+        "paper-claims",
+        "the paper's claims ledger (results/claims): each claim under the paper's conditions (dense H, eps 1e-8, "
+        "profile paper) and ours (FFT operators, the fast solvers)",
+        claims_parts(),
     ),
     Composite(
         "default",

@@ -58,7 +58,7 @@ def test_profiles_and_settings_tolerance() -> None:
     assert get_profile("high").tol == 1e-9 and get_profile("high").check_tol == 1e-8
     with pytest.raises(ValueError, match="unknown profile"):
         get_profile("ultra")
-    assert set(PROFILES) == {"default", "low", "mid", "high"}
+    assert set(PROFILES) == {"default", "low", "mid", "high", "paper"}
 
 
 def test_every_registered_solver_is_well_formed() -> None:

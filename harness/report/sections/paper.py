@@ -146,11 +146,14 @@ def paper_roles(curves: pd.DataFrame) -> dict[str, str | None]:
 
 @dataclass(frozen=True)
 class Claim:
-    """A ratio claimed by the paper, as an interval [lo, hi]."""
+    """A ratio claimed by the paper, as an interval [lo, hi]; ``ledger``: its row in the
+    claims ledger (harness/report/claims.py ``CLAIMS``), where it is measured under the paper's
+    conditions."""
 
     text: str
     lo: float
     hi: float
+    ledger: str = ""
 
 
 def agreement(measured: float, claim: Claim) -> str:
@@ -165,7 +168,9 @@ def agreement(measured: float, claim: Claim) -> str:
     if (measured > 1) == (mid > 1):
         size = "smaller" if measured < claim.lo else "larger"
         return f"points the same way as the paper but is {size} by a factor of {fmt_num(max(measured / claim.hi, claim.lo / measured), 2)}"
-    return "contradicts the paper (the opposite direction)"
+    where = f"row `{claim.ledger}`" if claim.ledger else "its rows"
+    return (f"points the opposite way under this table's conditions; for the paper's (dense H, eps = 1e-8) see "
+            f"{where}, condition `dense`, of the claims ledger (`contactbench run paper-claims`, claims.md)")
 
 
 def claim_sentence(label: str, measured: float, claim: Claim) -> str:
@@ -366,9 +371,11 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) ->
     if ref is None:
         parts.append("No NNLS+GP solver is in this table, so the paper's speed-ups cannot be checked.")
     else:
-        checks = [("pk", "P&K 1999 / NNLS+GP", Claim("~26x", 20.0, 33.0)),
-                  ("greedy-cg", "greedy CG / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0)),
-                  ("admm", "ADMM / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0))]
+        checks = [("pk", "P&K 1999 / NNLS+GP", Claim("~26x", 20.0, 33.0, "fig4-pk-cold-over-nnlsgp")),
+                  ("greedy-cg", "greedy CG / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0,
+                                                               "fig4-greedy-over-nnlsgp")),
+                  ("admm", "ADMM / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0,
+                                                     "fig4-admm-over-nnlsgp"))]
         for key, label, claim in checks:
             if role[key] is None:
                 parts.append(f"{PAPER_ROLES[key].label} is not in this table.")
@@ -434,8 +441,10 @@ def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
     parts = ["**Reading.**"]
     if cg is None:
         parts.append("No greedy-CG solver is in this table, so the paper's ratios cannot be checked.")
-    for other, label, claim in ((ch, "greedy Cholesky / greedy CG time", Claim("0.6-0.7 (30-40 % faster)", 0.6, 0.7)),
-                                (gs, "greedy Gauss-Seidel / greedy CG time", Claim("~3 (3x slower)", 2.4, 3.75))):
+    for other, label, claim in ((ch, "greedy Cholesky / greedy CG time", Claim("0.6-0.7 (30-40 % faster)", 0.6, 0.7,
+                                                                                          "fig5-chol-over-cg")),
+                                (gs, "greedy Gauss-Seidel / greedy CG time", Claim("~3 (3x slower)", 2.4, 3.75,
+                                                                                    "fig5-gs-over-cg"))):
         if cg is None:
             break
         if other is None:
