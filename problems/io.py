@@ -606,11 +606,11 @@ def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
 
 
 __all__ = [
-    "RawMap",
-    "SurfaceFileError",
     "CROP_RULES",
     "DETREND_RULES",
     "NAN_RULES",
+    "RawMap",
+    "SurfaceFileError",
     "crop_map",
     "fill_missing",
     "load_surface",

@@ -58,7 +58,7 @@ at N = 16 (6.6e-3 without).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -4,16 +4,21 @@ rules.  (Coarsening and the PSD power-law check: tests/test_problems_coarsen.py.
 from __future__ import annotations
 
 import warnings
-
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.coarsen import power_law_check
-from contactbench.problems.io import SurfaceFileError, load_surface, parse_length, read_height_map, write_text, write_x3p
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.io import (
+    SurfaceFileError,
+    load_surface,
+    parse_length,
+    read_height_map,
+    write_text,
+    write_x3p,
+)
 from contactbench.problems.surfaces import Surface
 
 DATA = Path(__file__).resolve().parents[1] / "problems" / "data"
@@ -287,7 +292,7 @@ def test_parse_length_refuses_bad_text(text: str) -> None:
 def test_tilt_larger_than_the_rms_slope_warns_removed_or_not(tmp_path: Path) -> None:
     rough = random_map((16, 24), seed=6)
     rough *= 1e-3 / Surface(rough, 1.0).rms_slope()  # rms slope 1e-3 at unit spacing
-    yy, xx = np.mgrid[0:16, 0:24]
+    _, xx = np.mgrid[0:16, 0:24]
     np.save(tmp_path / "t.npy", rough + 0.05 * xx)
     with pytest.warns(UserWarning, match="tilted by .* the tilt was removed"):
         s = load_surface(tmp_path / "t.npy", length=16.0)
@@ -340,7 +345,6 @@ def write_every_format(tmp: Path, z: np.ndarray) -> dict[str, Path]:
     """The same map in each format: SurfaceTopography's writers (x3p, gwy, NetCDF) and
     numpy/scipy (.npy, .mat), and text."""
     import scipy.io
-
     from contactbench.problems.io import write_topography
 
     d = ROUND_TRIP_L / ROUND_TRIP_N
