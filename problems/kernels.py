@@ -83,14 +83,21 @@ def grid_spacing(delta: Spacing, what: str = "delta (grid spacing)") -> tuple[fl
     return (float(check_positive(f"{what} along axis 0", pair[0])), float(check_positive(f"{what} along axis 1", pair[1])))
 
 
-def bcc_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) -> np.ndarray:
-    """BCC rounded-patch influence coefficients for grid offsets (dx, dy) (in cells);
-    square elements only (a rectangular spacing is a ``ProblemInputError``)."""
+def check_element_shape(kernel: str, delta: Spacing) -> tuple[float, float]:
+    """The spacings (d1, d2) when ``kernel`` takes elements of that shape, else a one-line
+    ``ProblemInputError``: 'bcc' needs square elements (d1 == d2)."""
     d1, d2 = grid_spacing(delta)
-    if d1 != d2:
+    if kernel == "bcc" and d1 != d2:
         raise ProblemInputError(f"the 'bcc' kernel needs square elements (its patch is a disc of the element's width); "
                                 f"the grid spacings are {d1:g} x {d2:g}: use the 'love' kernel (rectangular elements) "
                                 "or 'spectral' (periodic)")
+    return d1, d2
+
+
+def bcc_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) -> np.ndarray:
+    """BCC rounded-patch influence coefficients for grid offsets (dx, dy) (in cells);
+    square elements only (a rectangular spacing is a ``ProblemInputError``)."""
+    d1, _ = check_element_shape("bcc", delta)
     r = np.hypot(dx, dy) * d1
     out = np.empty(np.broadcast(dx, dy).shape, dtype=np.float64)
     diag = r == 0.0

@@ -155,3 +155,36 @@ def test_a_layer_thinner_than_an_element_needs_the_spectral_kernel() -> None:
     with pytest.raises(ProblemInputError, match="thinner than a grid element"):
         kernel_table("bcc", (8, 8), 1e-6, E, True, layer=thin)
     assert np.isfinite(kernel_table("spectral", (8, 8), 1e-6, E, True, layer=thin)).all()
+
+
+def test_layer_sweep_scene_runs_the_half_space_and_each_thickness() -> None:
+    from contactbench.problems.scenes import SceneConfig, get_scene
+    from contactbench.problems.scenes.layers import LAYER_THICKNESSES
+
+    scene = get_scene("layer-sweep")
+    cfg = scene.config(SceneConfig(size=32, steps=2))
+    specs = scene.instances(cfg)
+    assert len(specs) == 1 + len(LAYER_THICKNESSES) and specs[0].instance == "saupe-H0.7-N32-bcc-np-s5"
+    assert [s.params.get("thickness_over_L") for s in specs] == [None, *LAYER_THICKNESSES]
+    scene.validate(cfg)
+    half, thin = specs[0].build(), specs[1].build()
+    assert half.deltas == thin.deltas  # one ramp per surface: loads compare at equal approach
+    assert half.at(1).qp.geometry.layer is None
+    layer = thin.at(1).qp.geometry.layer
+    assert layer == Layer(0.1 * 1e-4, 0.3, "bonded")
+    with pytest.raises(ProblemInputError, match="thinner than a grid element"):
+        scene.validate(scene.config(SceneConfig(size=8, steps=2)))  # 0.1 L < L / 8
+    with pytest.raises(ProblemInputError, match="thicknesses"):
+        scene.instances(scene.config(SceneConfig(size=32, extra={"thicknesses": (0.5, -1.0)})))
+
+
+def test_paper_sweep_takes_a_layer_from_the_config() -> None:
+    from contactbench.problems.scenes import SceneConfig, get_scene
+
+    scene = get_scene("paper-sweep")
+    cfg = scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 2e-5, "nu": 0.45}))
+    (spec,) = scene.instances(cfg)
+    assert spec.instance.endswith("-T2e-05-nu0.45")
+    assert spec.build().at(0).qp.geometry.layer == Layer(2e-5, 0.45)
+    with pytest.raises(ProblemInputError, match="nu"):
+        scene.instances(scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 2e-5, "nu": 0.7})))[0].build()

@@ -184,3 +184,26 @@ def test_a_512_by_384_npy_map_keeps_its_shape_and_the_spacing_it_states(tmp_path
     with pytest.warns(UserWarning, match="cropped 512x384 to the central 384x384"):
         c = load_surface(tmp_path / "big.npy", length=512e-6, crop="square")
     assert c.shape == (384, 384) and c.spacing == (1e-6, 1e-6)  # a crop keeps the stated spacing
+
+
+def test_a_surface_file_recipe_passes_its_cleaning_and_length_per_axis(tmp_path: Path) -> None:
+    from contactbench.problems.scenes import SceneConfig, get_scene
+    from contactbench.problems.scenes.core import surface_from_params
+
+    np.save(tmp_path / "m.npy", rect_surface((24, 16), (1.0, 1.0)).heights)
+    scene = get_scene("paper-sweep")
+    with pytest.raises(ProblemInputError, match="'bcc' kernel needs square elements"):  # refused before anything runs
+        scene.validate(scene.config(SceneConfig(surface_path=str(tmp_path / "m.npy"), length=(24e-6, 32e-6))))
+    cfg = scene.config(SceneConfig(surface_path=str(tmp_path / "m.npy"), length=(24e-6, 32e-6), steps=2, kernel="love",
+                                   extra={"detrend": "none", "crop": "none", "nan": "error"}))
+    scene.validate(cfg)
+    (spec,) = scene.instances(cfg)
+    s = surface_from_params(spec.params)
+    assert s.shape == (24, 16) and s.spacing == pytest.approx((1e-6, 2e-6)) and s.meta["detrend"] == "none"
+    inst = spec.build().at(1)
+    assert inst.qp.geometry.spacing == pytest.approx((1e-6, 2e-6))
+    with pytest.warns(UserWarning, match="cropped"):
+        sq = surface_from_params({**spec.params, "crop": "square"})
+    assert sq.shape == (16, 16)
+    with pytest.raises(ProblemInputError, match="a generated surface is square"):
+        surface_from_params({"size": 32, "hurst": 0.7, "length": [1e-4, 2e-4], "seed": 0})
