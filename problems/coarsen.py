@@ -76,7 +76,7 @@ def level_strides(surface: Surface, coarsest: int, sizes: list[int] | tuple[int,
         return avail[int(n)]
 
     if sizes is not None:
-        return sorted((stride_of(n, "level") for n in set(int(v) for v in sizes)), reverse=True)
+        return sorted((stride_of(n, "level") for n in {int(v) for v in sizes}), reverse=True)
     top = stride_of(coarsest, "coarsest level")
     return [s for s in sorted(avail.values(), reverse=True) if s <= top]
 
@@ -89,9 +89,11 @@ def subsample_level(surface: Surface, stride: int) -> Surface:
         if int(lev.meta.get("stride", 0)) == stride:
             return lev
     h = surface.heights[::stride, ::stride]
-    return Surface(h, stride * surface.delta, unit=surface.unit, name=f"{surface.name}-sub{stride}",
-                   periodic=surface.periodic and surface.N % stride == 0,
-                   meta={"filter": "subsample", "stride": stride, "origin": element_origin(surface)})
+    d0, d1 = surface.spacing
+    return Surface(h, stride * d0, unit=surface.unit, name=f"{surface.name}-sub{stride}",
+                   periodic=surface.periodic and all(n % stride == 0 for n in surface.shape),
+                   meta={"filter": "subsample", "stride": stride, "origin": element_origin(surface)},
+                   delta1=None if surface.delta1 is None else stride * d1)
 
 
 def mean_level(surface: Surface, stride: int) -> Surface:
@@ -99,17 +101,20 @@ def mean_level(surface: Surface, stride: int) -> Surface:
     elements (sI..sI+s-1, sJ..sJ+s-1) -- the average height over its area; a last partial
     block is dropped.  ``meta["origin"]``: its element (0, 0) centre in the fine frame,
     (s - 1)/2 fine spacings in from the fine element (0, 0)."""
-    n = surface.N // stride
-    if n < 2 or stride < 2:
-        raise ProblemInputError(f"cannot coarsen the {surface.N} x {surface.N} surface {surface.name!r} by blocks "
+    N0, N1 = surface.shape
+    n0, n1 = N0 // stride, N1 // stride
+    if min(n0, n1) < 2 or stride < 2:
+        raise ProblemInputError(f"cannot coarsen the {N0} x {N1} surface {surface.name!r} by blocks "
                                 f"of {stride} x {stride}: a level needs stride >= 2 and at least 2 x 2 blocks")
-    h = surface.heights[: n * stride, : n * stride]
-    coarse = h.reshape(n, stride, n, stride).mean(axis=(1, 3))
+    h = surface.heights[: n0 * stride, : n1 * stride]
+    coarse = h.reshape(n0, stride, n1, stride).mean(axis=(1, 3))
     ox, oy = element_origin(surface)
-    off = 0.5 * (stride - 1) * surface.delta
-    return Surface(coarse, stride * surface.delta, unit=surface.unit, name=f"{surface.name}-mean{stride}",
-                   periodic=surface.periodic and surface.N % stride == 0,
-                   meta={"filter": f"block-mean-{stride}x{stride}", "stride": stride, "origin": (ox + off, oy + off)})
+    d0, d1 = surface.spacing
+    off0, off1 = 0.5 * (stride - 1) * d0, 0.5 * (stride - 1) * d1
+    return Surface(coarse, stride * d0, unit=surface.unit, name=f"{surface.name}-mean{stride}",
+                   periodic=surface.periodic and N0 % stride == 0 and N1 % stride == 0,
+                   meta={"filter": f"block-mean-{stride}x{stride}", "stride": stride, "origin": (ox + off0, oy + off1)},
+                   delta1=None if surface.delta1 is None else stride * d1)
 
 
 def coarse_level(surface: Surface, stride: int, kind: str = "subsample") -> Surface:
@@ -151,7 +156,8 @@ def grid_positions(surface: Surface, flat_idx: np.ndarray) -> np.ndarray:
     """(n, 2) element-centre coordinates of flat indices, in the finest surface's frame."""
     i, j = np.divmod(np.asarray(flat_idx, dtype=np.int64), surface.shape[1])
     ox, oy = element_origin(surface)
-    return np.column_stack([ox + i * surface.delta, oy + j * surface.delta])
+    d0, d1 = surface.spacing
+    return np.column_stack([ox + i * d0, oy + j * d1])
 
 
 # ---------------------------------------------------------------------------
@@ -178,10 +184,10 @@ def coarse_qp(level: Surface, fine: Geometry, indices: np.ndarray, operator: Ope
     Delta = float(_far_field(fine))
     idx = np.asarray(indices, dtype=np.int64)
     builder = InstanceBuilder(level, float(fine.E), kernel=str(fine.kernel), periodic=bool(fine.periodic),
-                              operator=operator)
+                              operator=operator, layer=fine.layer)
     ubar = np.maximum(rigid_body_ubar(level.heights, Delta, idx), 0.0)
     geom = Geometry(level.shape, level.delta, idx, surface=level, far_field=Delta, E=fine.E,
-                    kernel=fine.kernel, periodic=fine.periodic)
+                    kernel=fine.kernel, periodic=fine.periodic, delta1=level.delta1, layer=fine.layer)
     return QP(builder.operator_on(idx), ubar, geom)
 
 
@@ -221,14 +227,14 @@ class PowerLawCheck:
 def power_law_check(surface: Surface, q_min: float | None = None, q_max: float | None = None,
                     max_slope_change: float = 1.0, min_r2: float = 0.9,
                     psd: RadialPSD | None = None) -> PowerLawCheck:
-    """Fit log C(q) against log q on [q_min, q_max] (default: 2 x the fundamental to half
-    the Nyquist wave number) and on each half of that range in log q.  A flat surface
+    """Fit log C(q) against log q on [q_min, q_max] (default: 2 x the fundamental of the
+    shorter side to half the Nyquist wave number of the coarser spacing) and on each half of that range in log q.  A flat surface
     has no PSD: ``ProblemInputError``."""
     check_not_flat(surface)
     psd = radial_psd(surface) if psd is None else psd
-    q0 = 2.0 * np.pi / surface.length
+    q0 = 2.0 * np.pi / min(surface.lengths)
     lo = 2.0 * q0 if q_min is None else q_min
-    hi = 0.5 * np.pi / surface.delta if q_max is None else q_max
+    hi = 0.5 * np.pi / max(surface.spacing) if q_max is None else q_max
     mid = np.sqrt(lo * hi)
     x, y = np.log(psd.q), np.log(np.maximum(psd.C, np.finfo(float).tiny))
 
@@ -255,8 +261,8 @@ def power_law_check(surface: Surface, q_min: float | None = None, q_max: float |
 
 
 __all__ = [
-    "PowerLawCheck",
     "COARSE_KINDS",
+    "PowerLawCheck",
     "block_average",
     "cascade_surfaces",
     "check_coarse_kind",

@@ -21,6 +21,7 @@ import numpy as np
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
 from .kkt import problem_scales
+from .layers import Layer
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
     ContactOperator,
@@ -77,12 +78,20 @@ class Geometry:
     E: float | None = None
     kernel: str | None = None
     periodic: bool | None = None
+    #: Spacing along axis 1 (None: square elements, ``delta``); the elastic layer (None: half-space).
+    delta1: float | None = None
+    layer: Layer | None = None
+
+    @property
+    def spacing(self) -> tuple[float, float]:
+        """(d0, d1): the grid spacings along axis 0 and axis 1."""
+        return (float(self.delta), float(self.delta if self.delta1 is None else self.delta1))
 
     @property
     def positions(self) -> np.ndarray:
         """(n, 2) element-centre coordinates."""
         i, j = np.divmod(self.indices, self.grid_shape[1])
-        return np.column_stack([i, j]).astype(np.float64) * self.delta
+        return np.column_stack([i, j]).astype(np.float64) * np.asarray(self.spacing)
 
     @property
     def has_surface(self) -> bool:
@@ -166,7 +175,7 @@ class ContactInstance:
         g = self.qp.geometry
         if g is None:
             return float(self.n)
-        return float(np.prod(g.grid_shape)) * g.delta**2
+        return float(np.prod(g.grid_shape)) * g.spacing[0] * g.spacing[1]
 
     def load(self, p: np.ndarray) -> float:
         """Total force P = sum p_ij."""
@@ -231,7 +240,7 @@ class ContactInstance:
         """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""
         g = self._require_geometry()
         f = np.zeros(g.grid_shape)
-        f.ravel()[g.indices] = p / g.delta**2
+        f.ravel()[g.indices] = p / (g.spacing[0] * g.spacing[1])
         return f
 
     def _require_geometry(self) -> Geometry:
@@ -280,8 +289,10 @@ class InstanceBuilder:
         operator: OperatorKind = "fft",
         memory_budget: float | None = None,
         images: int = 2,
+        layer: Layer | None = None,
     ) -> None:
-        check_kernel(kernel, periodic)
+        check_kernel(kernel, periodic, layer)
+        self.layer = layer
         self.surface = surface
         self.E = check_positive("E (composite modulus)", E)
         self.kernel = kernel
@@ -296,7 +307,8 @@ class InstanceBuilder:
     def transform(self) -> KernelTransform:
         if self._transform is None:
             table = kernel_table(
-                self.kernel, self.surface.shape, self.surface.delta, self.E, self.periodic, images=self.images
+                self.kernel, self.surface.shape, self.surface.spacing, self.E, self.periodic, images=self.images,
+                layer=self.layer,
             )
             self._transform = KernelTransform(table, self.surface.shape)
         return self._transform
@@ -354,7 +366,8 @@ class InstanceBuilder:
         else:
             ubar = np.maximum(ubar, 0.0)  # ubar = Delta at the top, >= 0 (never -0 by roundoff) at the set's edge
         geom = Geometry(self.surface.shape, self.surface.delta, idx, surface=self.surface,
-                        far_field=float(delta_disp), E=self.E, kernel=self.kernel, periodic=self.periodic)
+                        far_field=float(delta_disp), E=self.E, kernel=self.kernel, periodic=self.periodic,
+                        delta1=self.surface.delta1, layer=self.layer)
         qp = QP(self.operator_on(idx), ubar, geom)
         return ContactInstance(
             qp=qp,

@@ -21,13 +21,16 @@ Formats read by :func:`load_surface`:
   in -- except bare-matrix containers (.mat, .npz), whose matrix is taken as it is,
   like a .npy.  Refused with a clear error: non-uniform line scans, 1-D profiles,
   multi-channel files without a chosen ``channel``, units that do not convert to
-  metres, non-square pixels.  For .x3p the MD5 checksum of the point data stated in
+  metres.  For .x3p the MD5 checksum of the point data stated in
   main.xml is verified (SurfaceTopography does not); this module parses no XML itself.
 
 The lateral size: a file that states its physical size (x3p, gwy, nc, most instrument
-formats) gives the spacing, so ``length`` may be omitted; when both are given they must
-agree (relative 1e-6: NetCDF stores sizes in float32) and the given length is used.
-Files that state no size (.npy, text, .mat, .npz) need ``length``.
+formats) gives the spacings (rectangular pixels kept), so ``length`` may be omitted; when
+both are given they must agree (relative 1e-6: NetCDF stores sizes in float32) and the
+given length is used.  Files that state no size (.npy, text, .mat, .npz) need ``length``:
+L0 (the size along the array's axis 0, rows: square pixels L0 / N0) or (L0, L1) (axis 0
+and axis 1: spacings L0 / N0 and L1 / N1).  The length describes the map as read; a crop
+keeps the spacing.
 
 Cleaning, in this order (each step recorded in ``Surface.meta`` and, when it changes the
 data, announced by a ``UserWarning``):
@@ -37,12 +40,15 @@ data, announced by a ``UserWarning``):
    ``"fill-min"`` by the lowest measured height (never brought into contact before every
    measured point is); ``"error"`` refuses the file.  A file with no measured point is
    always an error.  (Masked points of a SurfaceTopography channel are missing points.)
-2. Tilt (``detrend=``): ``"none"`` (default), ``"mean"`` or ``"plane"``: SurfaceTopography's
-   ``detrend("center")`` / ``detrend("height")`` (the least-squares mean plane
-   z = a + b x + c y over the grid).
-3. Square grid (``square=``): ``"crop"`` (default) keeps the central min(ny, nx) square;
-   ``"pad"`` pads to max(ny, nx) with the lowest height, the data kept in the top-left
-   corner; ``"error"`` refuses a non-square map.
+2. Tilt (``detrend=``): ``"plane"`` (default), ``"mean"`` or ``"none"``: subtract the
+   least-squares mean plane z = a + b j + c i over the grid (i rows, j columns), the mean,
+   or nothing.  The plane's slope in physical units (``plane_tilt``, rise per length) is
+   measured either way and recorded (``meta["tilt"]``); a tilt larger than the rms slope of
+   the map without it warns (removed with "plane"; left in otherwise, where contact would
+   then gather along the high edge).
+3. Crop (``crop=``): ``"none"`` (default) keeps every point, rectangular maps included;
+   ``"square"`` keeps the central min(N0, N1) square; ``"pad-square"`` pads to max(N0, N1)
+   with the lowest height, the data kept in the top-left corner.  Either keeps the spacing.
 
 Coarsening and the PSD power-law test are not I/O: they live in ``problems/coarsen.py``.
 """
@@ -63,11 +69,13 @@ from .errors import ProblemInputError, check_positive
 from .surfaces import Surface
 from .units import HEIGHT_UNITS
 
-SquareRule = Literal["crop", "pad", "error"]
+CropRule = Literal["none", "square", "pad-square"]
 NanRule = Literal["fill-mean", "fill-nearest", "fill-min", "error"]
 DetrendRule = Literal["none", "mean", "plane"]
+#: A lateral size: L0 along axis 0 (square pixels) or (L0, L1) along axis 0 and axis 1.
+Length = float | tuple[float, float]
 
-SQUARE_RULES = ("crop", "pad", "error")
+CROP_RULES = ("none", "square", "pad-square")
 NAN_RULES = ("fill-mean", "fill-nearest", "fill-min", "error")
 DETREND_RULES = ("none", "mean", "plane")
 
@@ -91,11 +99,11 @@ class SurfaceFileError(ProblemInputError):
 @dataclass
 class RawMap:
     """A height map as read from a file, before cleaning: z (ny x nx, metres once
-    ``unit_known``, NaN for missing points) and the spacing the file states in metres
-    (None when it states none)."""
+    ``unit_known``, NaN for missing points) and the spacings (axis 0, axis 1) the file
+    states (None when it states none)."""
 
     z: np.ndarray
-    spacing: float | None
+    spacing: tuple[float, float] | None
     fmt: str
     info: dict[str, Any] = field(default_factory=dict)
     unit_known: bool = False
@@ -108,25 +116,28 @@ class RawMap:
 
 def load_surface(
     path: str | Path,
-    length: float | None = None,
+    length: Length | None = None,
     *,
-    square: SquareRule = "crop",
+    crop: CropRule = "none",
     nan: NanRule = "fill-mean",
-    detrend: DetrendRule = "none",
+    detrend: DetrendRule = "plane",
     height_unit: str | None = None,
     channel: int | str | None = None,
     name: str | None = None,
 ) -> Surface:
-    """Read a measured height map and return a non-periodic :class:`Surface` in metres.
+    """Read a measured height map and return a non-periodic :class:`Surface` in metres,
+    N0 x N1 as read (rectangular unless ``crop`` asks otherwise).
 
-    ``length`` is the side length L (metres) of the final square grid, so the spacing is
-    L / N.  When None, the file's own lateral size is used; files that state none (.npy,
+    ``length`` (metres) is the size of the map as read: L0 along axis 0 (square pixels,
+    spacing L0 / N0) or (L0, L1) along axis 0 and axis 1 (spacings L0 / N0, L1 / N1).
+    When None, the file's own lateral size is used; files that state none (.npy,
     text, .mat) then raise a clear error; when both are given they must agree.
+    ``nan``, ``detrend`` and ``crop``: the cleaning steps of the module doc.
     ``height_unit`` ("m", "mm", "um", "nm"; None: metres) scales files that carry no
     unit of their own; given for a file that states its unit it is a
     ``SurfaceFileError`` (module doc); ``channel`` (index or name) picks one channel of a multi-channel file.
     """
-    _check_choice("square", square, SQUARE_RULES)
+    _check_choice("crop", crop, CROP_RULES)
     _check_choice("nan", nan, NAN_RULES)
     _check_choice("detrend", detrend, DETREND_RULES)
     if height_unit is not None:
@@ -139,15 +150,17 @@ def load_surface(
     height_unit = height_unit or "m"
     scale = 1.0 if raw.unit_known else HEIGHT_UNITS[height_unit]
     z = raw.z * scale
-    file_spacing = None if raw.spacing is None else raw.spacing * scale
+    file_spacing = None if raw.spacing is None else (raw.spacing[0] * scale, raw.spacing[1] * scale)
     meta: dict[str, Any] = {"source": str(p), "format": raw.fmt, "original_shape": list(z.shape), **raw.info}
     if not raw.unit_known:
         meta["height_unit"] = height_unit
+    spacing = map_spacing(p, z.shape, length, file_spacing, meta)
     z = fill_missing(z, nan, p, meta)
-    z = remove_tilt(z, detrend, meta)
-    z = make_square(z, square, p, meta)
-    delta = _spacing(p, z.shape[0], length, file_spacing, meta)
-    return Surface(z, delta, name=name or p.stem, periodic=False, meta=meta)
+    z = remove_tilt(z, detrend, meta, spacing, p)
+    z = crop_map(z, crop, p, meta)
+    meta["spacing"] = list(spacing)
+    d0, d1 = spacing
+    return Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1)
 
 
 def read_height_map(path: str | Path, channel: int | str | None = None) -> RawMap:
@@ -311,7 +324,9 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
     factor = _metres_per_unit(p, topo.unit)
     spacing = None
     if info.physical_sizes is not None:
-        spacing = _file_spacing(p, topo.physical_sizes, topo.nb_grid_pts) * (factor or 1.0)
+        dx, dy = _file_spacing(p, topo.physical_sizes, topo.nb_grid_pts)
+        k = factor or 1.0
+        spacing = (dx * k, dy * k) if fmt_id in MATRIX_FORMATS else (dy * k, dx * k)  # (axis 0, axis 1) of z
         meta["file_size_m" if factor else "file_size"] = [float(s) * (factor or 1.0) for s in topo.physical_sizes]
     if fmt_id == "x3p":
         meta.update(_x3p_checks(p, topo.info.get("raw_metadata", {})))
@@ -371,13 +386,15 @@ def _metres_per_unit(p: Path, unit: str | None) -> float | None:
         raise SurfaceFileError(p, f"unit {unit!r} cannot be converted to metres ({e})") from None
 
 
-def _file_spacing(p: Path, sizes: Any, nb: Any) -> float:
-    """The grid spacing the file states (file units); refuses non-square pixels."""
+def _file_spacing(p: Path, sizes: Any, nb: Any) -> tuple[float, float]:
+    """The grid spacings (x, y) the file states (file units); pixels equal to LENGTH_RTOL
+    are made exactly square."""
     dx, dy = float(sizes[0]) / int(nb[0]), float(sizes[1]) / int(nb[1])
-    if not np.isclose(dx, dy, rtol=LENGTH_RTOL):
-        raise SurfaceFileError(p, f"non-square pixels (x spacing {dx:g}, y spacing {dy:g} in the file's unit); "
-                                  "resample first")
-    return check_positive("file grid spacing", dx)
+    try:
+        dx, dy = check_positive("file grid spacing x", dx), check_positive("file grid spacing y", dy)
+    except ProblemInputError as e:
+        raise SurfaceFileError(p, str(e)) from None
+    return (dx, dx) if np.isclose(dx, dy, rtol=LENGTH_RTOL) else (dx, dy)
 
 
 def _x3p_checks(p: Path, raw_meta: dict[str, Any]) -> dict[str, Any]:
@@ -407,9 +424,11 @@ def _st_version() -> str:
 # ---------------------------------------------------------------------------
 
 
-def write_topography(path: str | Path, z: np.ndarray, spacing: float, fmt: str = "x3p", **kw: Any) -> Path:
-    """Write a height map (ny x nx, metres) with SurfaceTopography's writer ``to_<fmt>``
-    (x3p, gwy, netcdf); ``kw`` go to the writer (x3p: ``dtype`` D, F, L or I)."""
+def write_topography(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], fmt: str = "x3p",
+                     **kw: Any) -> Path:
+    """Write a height map (ny x nx, metres; ``spacing`` one float or (axis 0, axis 1)) with
+    SurfaceTopography's writer ``to_<fmt>`` (x3p, gwy, netcdf); ``kw`` go to the writer
+    (x3p: ``dtype`` D, F, L or I)."""
     from SurfaceTopography import Topography
 
     z = np.asarray(z, dtype=np.float64)
@@ -417,7 +436,8 @@ def write_topography(path: str | Path, z: np.ndarray, spacing: float, fmt: str =
         raise ProblemInputError(f"the {fmt} writer needs a 2-D map, got shape {z.shape}")
     ny, nx = z.shape
     h = np.ma.masked_invalid(z.T) if np.isnan(z).any() else z.T
-    topo = Topography(h, physical_sizes=(nx * spacing, ny * spacing), unit="m")
+    dy, dx = (spacing, spacing) if np.ndim(spacing) == 0 else spacing  # type: ignore[misc]
+    topo = Topography(h, physical_sizes=(nx * float(dx), ny * float(dy)), unit="m")
     writer = getattr(topo, f"to_{fmt}", None)
     if writer is None:
         raise ProblemInputError(f"SurfaceTopography has no writer for {fmt!r} (x3p, gwy, netcdf)")
@@ -425,7 +445,7 @@ def write_topography(path: str | Path, z: np.ndarray, spacing: float, fmt: str =
     return Path(path)
 
 
-def write_x3p(path: str | Path, z: np.ndarray, spacing: float, *, data_type: str = "D") -> Path:
+def write_x3p(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], *, data_type: str = "D") -> Path:
     """An ISO 25178-71 .x3p file (SurfaceTopography's writer; integer types L, I are
     scaled over their full range)."""
     return write_topography(path, z, spacing, "x3p", dtype=data_type)
@@ -472,62 +492,112 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
     return z
 
 
-def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any]) -> np.ndarray:
+def plane_fit(z: np.ndarray) -> tuple[float, float, float]:
+    """(a, c, b) of the least-squares plane z = a + c i + b j (i rows, j columns; a at
+    i = j = 0)."""
+    n0, n1 = z.shape
+    i = np.arange(n0, dtype=np.float64) - 0.5 * (n0 - 1)
+    j = np.arange(n1, dtype=np.float64) - 0.5 * (n1 - 1)
+    c = float(np.sum(i[:, None] * z) / (n1 * np.sum(i * i)))
+    b = float(np.sum(j[None, :] * z) / (n0 * np.sum(j * j)))
+    mean = float(np.mean(z))
+    return mean - c * 0.5 * (n0 - 1) - b * 0.5 * (n1 - 1), c, b
+
+
+def plane_tilt(z: np.ndarray, spacing: tuple[float, float]) -> float:
+    """|grad| of the least-squares plane of ``z`` in rise per length."""
+    _, c, b = plane_fit(z)
+    return float(np.hypot(c / spacing[0], b / spacing[1]))
+
+
+def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing: tuple[float, float] = (1.0, 1.0),
+                path: str | Path = "map") -> np.ndarray:
     """Subtract nothing, the mean, or the least-squares mean plane (module doc, step 2),
-    with SurfaceTopography's detrending (on the filled map, so no point is missing)."""
+    on the filled map (no point is missing); warn when the plane's tilt exceeds the rms
+    slope of the map without it."""
     meta["detrend"] = rule
+    a, c, b = plane_fit(z)
+    n0, n1 = z.shape
+    plane = a + c * np.arange(n0)[:, None] + b * np.arange(n1)[None, :]
+    tilt = float(np.hypot(c / spacing[0], b / spacing[1]))
+    rough = Surface(z - plane, spacing[0], delta1=spacing[1]).rms_slope()
+    meta["tilt"] = tilt
+    if tilt > rough:
+        what = "removed" if rule == "plane" else f"NOT removed (detrend={rule!r}): contact will gather on the high side"
+        warnings.warn(f"{path}: the map's mean plane is tilted by {tilt:.3g} (rise per length), more than its rms "
+                      f"slope {rough:.3g} without the tilt; the tilt was {what}", UserWarning, stacklevel=3)
     if rule == "none":
         return z
-    from SurfaceTopography import Topography
-
-    ny, nx = z.shape
-    topo = Topography(z.T, physical_sizes=(float(nx), float(ny))).detrend(
-        detrend_mode="center" if rule == "mean" else "height")
-    coeffs = [float(c) for c in topo.coeffs]
     if rule == "mean":
-        meta["removed_mean"] = coeffs[0]
-    else:  # coefficients of x / nx and y / ny -> per column and per row
-        meta["removed_plane"] = {"a": coeffs[0], "b_per_column": coeffs[1] / nx, "c_per_row": coeffs[2] / ny}
-    return np.asarray(topo.heights(), dtype=np.float64).T
+        meta["removed_mean"] = float(np.mean(z))
+        return z - float(np.mean(z))
+    meta["removed_plane"] = {"a": a, "b_per_column": b, "c_per_row": c}
+    return z - plane
 
 
-def make_square(z: np.ndarray, rule: SquareRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:
-    """Crop to the central square or pad with the lowest height (module doc, step 3)."""
+def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:
+    """Keep the map (``"none"``), crop it to its central square or pad it to a square with
+    the lowest height (module doc, step 3); the spacing is the map's either way."""
     ny, nx = z.shape
-    if ny == nx:
-        meta["square"] = "already square"
+    if rule == "none" or ny == nx:
+        meta["crop"] = "none" if ny != nx else "already square"
         return z
-    if rule == "error":
-        raise SurfaceFileError(path, f"wrong shape: {ny} x {nx} is not square and square='error'")
-    if rule == "crop":
+    if rule == "square":
         n = min(ny, nx)
         i0, j0 = (ny - n) // 2, (nx - n) // 2
         out = z[i0:i0 + n, j0:j0 + n]
-        meta["square"] = f"cropped {ny}x{nx} to the central {n}x{n} (rows {i0}:{i0 + n}, cols {j0}:{j0 + n})"
+        meta["crop"] = f"cropped {ny}x{nx} to the central {n}x{n} (rows {i0}:{i0 + n}, cols {j0}:{j0 + n})"
     else:
         n = max(ny, nx)
         out = np.full((n, n), float(z.min()))
         out[:ny, :nx] = z
-        meta["square"] = f"padded {ny}x{nx} to {n}x{n} with the lowest height {float(z.min()):.6g} (data top-left)"
-    warnings.warn(f"{path}: non-square map {meta['square']}", UserWarning, stacklevel=3)
+        meta["crop"] = f"padded {ny}x{nx} to {n}x{n} with the lowest height {float(z.min()):.6g} (data top-left)"
+    warnings.warn(f"{path}: non-square map {meta['crop']}", UserWarning, stacklevel=3)
     return out
 
 
-def _spacing(path: Path, n: int, length: float | None, file_spacing: float | None, meta: dict[str, Any]) -> float:
-    """The spacing of the final N x N grid: the given length / N, else the file's own;
-    both given must agree (LENGTH_RTOL)."""
+def parse_length(text: str) -> Length:
+    """``"L0"`` or ``"L0,L1"`` (metres) as ``load_surface``'s ``length``; anything else
+    (not a number, not finite or > 0, three values) is a one-line ``ProblemInputError``."""
+    parts = [t.strip() for t in str(text).split(",")]
+    if len(parts) not in (1, 2):
+        raise ProblemInputError(f"--length takes L0 or L0,L1 (metres), got {text!r}")
+    try:
+        values = [float(t) for t in parts]
+    except ValueError:
+        raise ProblemInputError(f"--length takes L0 or L0,L1 (metres), got {text!r}") from None
+    out = [check_positive("--length", v) for v in values]
+    return out[0] if len(out) == 1 else (out[0], out[1])
+
+
+def map_spacing(path: Path, shape: tuple[int, int], length: Length | None,
+                file_spacing: tuple[float, float] | None, meta: dict[str, Any]) -> tuple[float, float]:
+    """The spacings (axis 0, axis 1) of the map as read: the given length (L0: square
+    pixels L0 / N0; (L0, L1): L0 / N0, L1 / N1), else the file's own; both given must agree
+    (LENGTH_RTOL) on every axis given."""
+    n0, n1 = shape
     if length is not None:
-        L = check_positive("surface side length", length)
-        if file_spacing is not None and not np.isclose(L, n * file_spacing, rtol=LENGTH_RTOL, atol=0.0):
-            raise SurfaceFileError(path, f"the given length {L:g} m disagrees with the file's own side length "
-                                         f"{n * file_spacing:g} m ({n} points x {file_spacing:g} m); "
-                                         "drop --length or correct it")
+        if np.ndim(length) == 0:
+            d0 = check_positive("surface length L0", length)  # type: ignore[arg-type]
+            given = (d0 / n0, d0 / n0)
+        else:
+            pair = tuple(length)  # type: ignore[arg-type]
+            if len(pair) != 2:
+                raise ProblemInputError(f"length must be L0 or (L0, L1), got {length!r}")
+            given = (check_positive("surface length L0", pair[0]) / n0, check_positive("surface length L1", pair[1]) / n1)
+        if file_spacing is not None:
+            for axis, (g, f, n) in enumerate(zip(given, file_spacing, shape)):
+                if not np.isclose(g * n, f * n, rtol=LENGTH_RTOL, atol=0.0):
+                    raise SurfaceFileError(path, f"the given length {g * n:g} m along axis {axis} disagrees with "
+                                                 f"the file's own side length {f * n:g} m ({n} points x {f:g} m); "
+                                                 "drop --length or correct it")
         meta["spacing_from"] = "length argument" if file_spacing is None else "length argument (agrees with file)"
-        return L / n
+        return given
     if file_spacing is None:
-        raise SurfaceFileError(path, "the file states no lateral size; give the side length (length=..., --length)")
+        raise SurfaceFileError(path, "the file states no lateral size; give the length (length=L0 or (L0, L1), "
+                                     "--length L0[,L1])")
     meta["spacing_from"] = "file"
-    return float(file_spacing)
+    return (float(file_spacing[0]), float(file_spacing[1]))
 
 
 def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
@@ -536,11 +606,18 @@ def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
 
 
 __all__ = [
+    "CROP_RULES",
+    "DETREND_RULES",
+    "NAN_RULES",
     "RawMap",
     "SurfaceFileError",
+    "crop_map",
     "fill_missing",
     "load_surface",
-    "make_square",
+    "map_spacing",
+    "parse_length",
+    "plane_fit",
+    "plane_tilt",
     "read_height_map",
     "read_npy",
     "read_text",

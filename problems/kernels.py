@@ -5,6 +5,9 @@ resultant force on element (k, l).  With E the composite modulus E* = E/(1-nu^2)
 and lengths in metres, H is in m/N and the unknown p of the QP is the force in N carried
 by each element (the paper's p_{i,j}, the resultant of the pressure over S_ij).
 
+Grids are N1 x N2 with spacings (d1, d2) along axis 0 and axis 1 (``delta`` a float:
+square elements, d1 = d2); every element is a d1 x d2 rectangle.
+
 Kernels are returned as *offset tables*: ``K[dx, dy]`` for the grid offsets
 (dx, dy) in the layout the FFT operator needs (``kernel_table``):
 
@@ -20,47 +23,87 @@ Kernels
     & Chiaia 1999; paper eq. green2): 2/(pi E delta) on the diagonal and
     2/(pi E delta) arcsin(delta / (2 r)) for (i, j) != (k, l).  (The paper prints
     "i != k, j != l"; it means (i, j) != (k, l).)
+    Square elements only (the patch is a disc of the element's width; a rectangular
+    element has no such patch): a grid with d1 != d2 is refused.
 ``love``
-    Uniform pressure on the square element (Love 1929; Johnson, Contact Mechanics,
-    eq. 3.25), evaluated at the element centres.
+    Uniform pressure on the rectangular element (Love 1929; Johnson, Contact Mechanics,
+    eq. 3.25, a rectangle of half-sides a = d1/2, b = d2/2), evaluated at the element
+    centres.
 ``spectral``
     Periodic only: the continuum Boussinesq compliance 2/(E* |q|) sampled at the
-    discrete wave vectors (q = 0 removed), as used by FFT-based codes such as
-    ContactMechanics' PeriodicFFTElasticHalfSpace and Tamaas.
+    discrete wave vectors q = (2 pi k1 / (N1 d1), 2 pi k2 / (N2 d2)) (q = 0 removed), as
+    used by FFT-based codes such as ContactMechanics' PeriodicFFTElasticHalfSpace and
+    Tamaas.
+
+An elastic *layer* of finite thickness on a rigid base (``layer=``, a
+``problems.layers.Layer``) replaces the half-space: its kernels are built in
+problems/layers.py (the formula, its source and its limits: docs/layers.md).
 
 Periodic real-space kernels (``bcc``, ``love``) sum the patch kernel over
-(2M+1)^2 periodic images and subtract the cell mean.  Removing the mean is removing
+(2M+1)^2 periodic images (periods N1 d1 and N2 d2) and subtract the cell mean.  Removing the mean is removing
 the q = 0 mode, whose compliance is infinite for a periodic half-space: the
 displacement is then measured from its own mean plane (so on the *whole* grid the
 periodic H is singular along the constant vector; on any proper subset it is SPD).
-After the subtraction an image at distance R contributes, to leading order, the
-isotropic second-order Taylor term (|x|^2 - <|x|^2>)/4 * lap(1/(pi E R)) =
-(|x|^2 - <|x|^2>) / (4 pi E R^3), which does not cancel over a shell (the in-plane
-Laplacian of 1/R is 1/R^3, not 0).  Truncating at M shells therefore leaves an
-O(1/M) paraboloid error; it is added back in closed form from the lattice sum of
-R^-3 beyond shell M (``_image_tail_correction``), leaving O(M^-3): with M = 2 the
-table matches M = 24 to ~4e-5 of its diagonal at N = 16 (6.6e-3 without).
+After the subtraction an image at R = (X, Y) contributes, to leading order, the
+second-order Taylor term of 1/(pi E |R - x|): (3 (x.R)^2 / R^5 - |x|^2 / R^3) / (2 pi E),
+which does not cancel over a shell (the in-plane Laplacian of 1/R is 1/R^3, not 0).
+Summed over the far images of a rectangular lattice the cross terms cancel and it is
+(x^2 (3 Sxx - S) + y^2 (3 Syy - S)) / (2 pi E), S = sum R^-3, Sxx = sum X^2 / R^5,
+Syy = sum Y^2 / R^5 (a square lattice: Sxx = Syy = S/2, (|x|^2) S / (4 pi E)).
+Truncating at M shells therefore leaves an O(1/M) paraboloid error; it is added back in
+closed form from these lattice sums beyond shell M (``_image_tail_correction``), minus
+its mean, leaving O(M^-3): with M = 2 the table matches M = 24 to ~4e-5 of its diagonal
+at N = 16 (6.6e-3 without).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
+from .layers import Layer, aperiodic_layer_correction, periodic_layer_correction, spectral_layer_table
 
 KERNELS: tuple[str, ...] = ("bcc", "love", "spectral")
 
+#: A grid spacing: one float (square elements) or (d1, d2) along axis 0 and axis 1.
+Spacing = float | tuple[float, float]
 
-def bcc_coefficients(dx: np.ndarray, dy: np.ndarray, delta: float, E: float) -> np.ndarray:
-    """BCC rounded-patch influence coefficients for grid offsets (dx, dy) (in cells)."""
-    r = np.hypot(dx, dy) * delta
+
+def grid_spacing(delta: Spacing, what: str = "delta (grid spacing)") -> tuple[float, float]:
+    """(d1, d2) of a spacing given as one float or a pair, each finite and > 0, else a
+    one-line ``ProblemInputError``."""
+    if np.ndim(delta) == 0:
+        d = check_positive(what, delta)  # type: ignore[arg-type]
+        return (float(d), float(d))
+    pair = tuple(delta)  # type: ignore[arg-type]
+    if len(pair) != 2:
+        raise ProblemInputError(f"{what} must be one spacing or a pair (axis 0, axis 1), got {delta!r}")
+    return (float(check_positive(f"{what} along axis 0", pair[0])), float(check_positive(f"{what} along axis 1", pair[1])))
+
+
+def check_element_shape(kernel: str, delta: Spacing) -> tuple[float, float]:
+    """The spacings (d1, d2) when ``kernel`` takes elements of that shape, else a one-line
+    ``ProblemInputError``: 'bcc' needs square elements (d1 == d2)."""
+    d1, d2 = grid_spacing(delta)
+    if kernel == "bcc" and d1 != d2:
+        raise ProblemInputError(f"the 'bcc' kernel needs square elements (its patch is a disc of the element's width); "
+                                f"the grid spacings are {d1:g} x {d2:g}: use the 'love' kernel (rectangular elements) "
+                                "or 'spectral' (periodic)")
+    return d1, d2
+
+
+def bcc_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) -> np.ndarray:
+    """BCC rounded-patch influence coefficients for grid offsets (dx, dy) (in cells);
+    square elements only (a rectangular spacing is a ``ProblemInputError``)."""
+    d1, _ = check_element_shape("bcc", delta)
+    r = np.hypot(dx, dy) * d1
     out = np.empty(np.broadcast(dx, dy).shape, dtype=np.float64)
     diag = r == 0.0
-    scale = 2.0 / (np.pi * E * delta)
+    scale = 2.0 / (np.pi * E * d1)
     with np.errstate(divide="ignore"):
-        out[...] = scale * np.arcsin(np.minimum(1.0, delta / (2.0 * np.where(diag, 1.0, r))))
+        out[...] = scale * np.arcsin(np.minimum(1.0, d1 / (2.0 * np.where(diag, 1.0, r))))
     out[diag] = scale
     return out
 
@@ -75,32 +118,39 @@ def _love_term(X: np.ndarray, s: np.ndarray, b: float) -> np.ndarray:
     return X * (np.arcsinh((s + b) / aX) - np.arcsinh((s - b) / aX))
 
 
-def love_coefficients(dx: np.ndarray, dy: np.ndarray, delta: float, E: float) -> np.ndarray:
-    """Love's uniformly loaded square (side delta) influence coefficients at centre offsets."""
-    a = b = 0.5 * delta
-    x = np.asarray(dx, dtype=np.float64) * delta
-    y = np.asarray(dy, dtype=np.float64) * delta
-    # Element centres sit at integer multiples of delta, so x +- a and y +- b never vanish.
+def love_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) -> np.ndarray:
+    """Love's uniformly loaded rectangle (sides d1 x d2; a float ``delta``: a square)
+    influence coefficients at centre offsets (dx, dy) in cells, per unit force."""
+    d1, d2 = grid_spacing(delta)
+    a, b = 0.5 * d1, 0.5 * d2
+    x = np.asarray(dx, dtype=np.float64) * d1
+    y = np.asarray(dy, dtype=np.float64) * d2
+    # Element centres sit at integer multiples of the spacing, so x +- a and y +- b never vanish.
     u = (
         _love_term(x + a, y, b)
         + _love_term(y + b, x, a)
         - _love_term(x - a, y, b)
         - _love_term(y - b, x, a)
     )
-    return u / (np.pi * E * delta * delta)
+    return u / (np.pi * E * d1 * d2)
 
 
-_REAL_SPACE: dict[str, Callable[[np.ndarray, np.ndarray, float, float], np.ndarray]] = {
+_REAL_SPACE: dict[str, Callable[[np.ndarray, np.ndarray, Spacing, float], np.ndarray]] = {
     "bcc": bcc_coefficients,
     "love": love_coefficients,
 }
 
 
-def check_kernel(kernel: str, periodic: bool) -> None:
+def check_kernel(kernel: str, periodic: bool, layer: Layer | None = None) -> None:
+    """A one-line ``ProblemInputError`` for a kernel the boundary condition (or the layer)
+    cannot take: unknown names, 'spectral' on a non-periodic domain; a layer needs a
+    kernel ``problems.layers`` builds for it (``Layer.check_kernel``)."""
     if kernel not in KERNELS:
         raise ProblemInputError(f"unknown kernel {kernel!r}; choose one of {', '.join(KERNELS)}")
     if kernel == "spectral" and not periodic:
         raise ProblemInputError("the 'spectral' kernel is defined for periodic domains only")
+    if layer is not None:
+        layer.check_kernel(kernel, periodic)
 
 
 def _wrapped_offsets(n: int, period: int) -> np.ndarray:
@@ -109,7 +159,7 @@ def _wrapped_offsets(n: int, period: int) -> np.ndarray:
     return np.where(k <= period // 2, k, k - period)
 
 
-def aperiodic_table(kernel: str, shape: tuple[int, int], delta: float, E: float) -> np.ndarray:
+def aperiodic_table(kernel: str, shape: tuple[int, int], delta: Spacing, E: float) -> np.ndarray:
     """(2*N1) x (2*N2) circulant embedding of the aperiodic kernel."""
     n1, n2 = shape
     ox = _wrapped_offsets(n1, 2 * n1)
@@ -122,7 +172,7 @@ def aperiodic_table(kernel: str, shape: tuple[int, int], delta: float, E: float)
 
 
 def periodic_table(
-    kernel: str, shape: tuple[int, int], delta: float, E: float, images: int = 2
+    kernel: str, shape: tuple[int, int], delta: Spacing, E: float, images: int = 2
 ) -> np.ndarray:
     """N1 x N2 circulant table of the periodic kernel, with the q = 0 mode removed."""
     n1, n2 = shape
@@ -143,61 +193,79 @@ def periodic_table(
     return table
 
 
-def _lattice_tail_sum(periods: tuple[float, float], images: int, shells: int = 400) -> float:
-    """sum |(mx P1, my P2)|^-3 over integer (mx, my) with max(|mx|, |my|) > images:
-    explicit square shells up to ``shells``, then the integral over the plane outside
-    the rectangle of half-sides (shells + 1/2) P, which is integral dtheta / R(theta)."""
+def _lattice_tail_sums(periods: tuple[float, float], images: int, shells: int = 400) -> tuple[float, float, float]:
+    """(S, Sxx, Syy) = sums of R^-3, X^2 R^-5 and Y^2 R^-5 over the lattice points
+    R = (mx P1, my P2) with max(|mx|, |my|) > images: explicit square shells up to
+    ``shells``, then the integral over the plane outside the rectangle of half-sides
+    (shells + 1/2) P at the lattice's density 1 / (P1 P2): integral dtheta w(theta) / R(theta)
+    with w = 1, cos^2, sin^2."""
     p1, p2 = periods
-    total = 0.0
+    s = sxx = syy = 0.0
     for k in range(images + 1, shells + 1):
         i = np.arange(-k, k + 1, dtype=np.float64)
         inner = i[1:-1]
-        r_rows = np.hypot(k * p1, i * p2)  # mx = +-k, all my
-        r_cols = np.hypot(inner * p1, k * p2)  # my = +-k, |mx| < k
-        total += 2.0 * float(np.sum(r_rows**-3.0)) + 2.0 * float(np.sum(r_cols**-3.0))
+        # mx = +-k (all my) and my = +-k (|mx| < k)
+        X = np.concatenate([np.full(i.size, k * p1), inner * p1])
+        Y = np.concatenate([i * p2, np.full(inner.size, k * p2)])
+        R2 = X * X + Y * Y
+        inv3 = R2**-1.5
+        s += 2.0 * float(np.sum(inv3))
+        sxx += 2.0 * float(np.sum(X * X * inv3 / R2))
+        syy += 2.0 * float(np.sum(Y * Y * inv3 / R2))
     a, b = (shells + 0.5) * p1, (shells + 0.5) * p2
     theta = (np.arange(20000) + 0.5) * (2.0 * np.pi / 20000)
-    inv_R = np.maximum(np.abs(np.cos(theta)) / a, np.abs(np.sin(theta)) / b)
-    return total + float(np.mean(inv_R)) * 2.0 * np.pi
+    c, sn = np.cos(theta), np.sin(theta)
+    inv_R = np.maximum(np.abs(c) / a, np.abs(sn) / b)
+    w = 2.0 * np.pi / (p1 * p2)
+    return (s + w * float(np.mean(inv_R)), sxx + w * float(np.mean(c * c * inv_R)),
+            syy + w * float(np.mean(sn * sn * inv_R)))
 
 
-def _image_tail_correction(shape: tuple[int, int], delta: float, E: float, images: int) -> np.ndarray:
+def _image_tail_correction(shape: tuple[int, int], delta: Spacing, E: float, images: int) -> np.ndarray:
     """Leading-order contribution of the periodic images beyond shell ``images``:
-    (|x|^2 - <|x|^2>) / (4 pi E) * sum_{far images} R^-3 (see the module doc)."""
+    (x^2 (3 Sxx - S) + y^2 (3 Syy - S)) / (2 pi E) (see the module doc), less its mean."""
     n1, n2 = shape
-    x = _wrapped_offsets(n1, n1) * delta
-    y = _wrapped_offsets(n2, n2) * delta
-    r2 = x[:, None] ** 2 + y[None, :] ** 2
-    tail = _lattice_tail_sum((n1 * delta, n2 * delta), images)
-    return (r2 - r2.mean()) * tail / (4.0 * np.pi * E)
+    d1, d2 = grid_spacing(delta)
+    x = _wrapped_offsets(n1, n1) * d1
+    y = _wrapped_offsets(n2, n2) * d2
+    S, Sxx, Syy = _lattice_tail_sums((n1 * d1, n2 * d2), images)
+    quad = x[:, None] ** 2 * (3.0 * Sxx - S) + y[None, :] ** 2 * (3.0 * Syy - S)
+    return (quad - quad.mean()) / (2.0 * np.pi * E)
 
 
-def _spectral_table(shape: tuple[int, int], delta: float, E: float) -> np.ndarray:
-    n1, n2 = shape
-    q1 = 2.0 * np.pi * np.fft.fftfreq(n1, d=delta)
-    q2 = 2.0 * np.pi * np.fft.fftfreq(n2, d=delta)
-    q = np.hypot(q1[:, None], q2[None, :])
-    with np.errstate(divide="ignore"):
-        g = np.where(q > 0, 2.0 / (E * np.where(q > 0, q, 1.0)), 0.0)
-    # Force per element -> pressure: divide by the element area.
-    return np.real(np.fft.ifft2(g)) / (delta * delta)
+def _spectral_table(shape: tuple[int, int], delta: Spacing, E: float) -> np.ndarray:
+    return spectral_layer_table(shape, grid_spacing(delta), E, None)
 
 
 def kernel_table(
     kernel: str,
     shape: tuple[int, int],
-    delta: float,
+    delta: Spacing,
     E: float,
     periodic: bool,
     images: int = 2,
+    layer: Layer | None = None,
 ) -> np.ndarray:
-    """Offset table of the influence coefficients for the FFT operator (see module doc)."""
-    check_kernel(kernel, periodic)
+    """Offset table of the influence coefficients for the FFT operator (see module doc).
+
+    ``delta``: the spacing, one float (square elements) or (d1, d2) along axis 0 and
+    axis 1.  ``layer``: None for the elastic half-space, else the elastic layer of finite
+    thickness on a rigid base (``problems.layers``; which kernels take one:
+    ``Layer.check_kernel``)."""
+    check_kernel(kernel, periodic, layer)
     check_positive("E (composite modulus)", E)
-    check_positive("delta (grid spacing)", delta)
+    spacing = grid_spacing(delta)
     n1, n2 = (int(s) for s in shape)
     if n1 < 1 or n2 < 1 or n1 * n2 < 2:
         raise ProblemInputError(f"grid shape {shape} has fewer than two points")
+    if periodic and kernel == "spectral":
+        return spectral_layer_table((n1, n2), spacing, E, layer)
     if periodic:
-        return periodic_table(kernel, (n1, n2), delta, E, images=images)
-    return aperiodic_table(kernel, (n1, n2), delta, E)
+        table = periodic_table(kernel, (n1, n2), spacing, E, images=images)
+        return table if layer is None else table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer)
+    table = aperiodic_table(kernel, (n1, n2), spacing, E)
+    if layer is not None:
+        table = table + aperiodic_layer_correction((n1, n2), spacing, E, layer)
+        table[n1, :] = 0.0
+        table[:, n2] = 0.0
+    return table

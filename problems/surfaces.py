@@ -1,10 +1,15 @@
 """Rough surfaces: the ``Surface`` record, random midpoint displacement (RMD) and
 spectral generators, and the radially averaged PSD with a Hurst-exponent fit.
 
-Conventions: heights and lengths in metres (``unit`` says otherwise), grids are square
-N x N with spacing ``delta = L / N`` (periodic, or a cropped 2^k grid of the "saupe" RMD
-family) or ``L / (N - 1)`` (a whole RMD grid of 2^k + 1 points whose corners both lie on
-the domain boundary).
+Conventions: heights and lengths in metres (``unit`` says otherwise).  A surface is an
+N0 x N1 grid (axis 0 = rows, axis 1 = columns) with spacings ``delta`` along axis 0 and
+``delta1`` along axis 1 (None: square pixels, ``delta1 = delta``); its physical sizes are
+``lengths = (N0 delta, N1 delta1)``.  The generators here make square grids, N x N with
+spacing ``delta = L / N`` (periodic, or a cropped 2^k grid of the "saupe" RMD family) or
+``L / (N - 1)`` (a whole RMD grid of 2^k + 1 points whose corners both lie on the domain
+boundary); measured maps (problems/io.py) may be rectangular with rectangular pixels.
+``N`` and ``length`` are defined for square grids (square pixels) only and refuse a
+rectangular one with a ``ProblemInputError``: code that reads them assumes a square.
 
 RMD surface families (``RMD_FAMILIES``, recorded in ``Surface.meta["family"]`` and the
 surface's name):
@@ -29,10 +34,10 @@ from .errors import ProblemInputError, check_positive
 
 @dataclass(frozen=True)
 class Surface:
-    """A rigid rough surface sampled on a square grid.
+    """A rigid rough surface sampled on a rectangular grid (module doc).
 
-    heights : N x N array of elevations xi_ij (the paper's average heights).
-    delta   : grid spacing.
+    heights : N0 x N1 array of elevations xi_ij (the paper's average heights).
+    delta   : grid spacing along axis 0 (rows).
     unit    : length unit of heights and delta ("m" by default).
     levels  : coarser representations of the same surface (coarsest first), when the
               generator provides them (RMD) -- the cascade multi-resolution method uses
@@ -47,18 +52,15 @@ class Surface:
     levels: tuple[Surface, ...] = ()
     periodic: bool = False
     meta: dict[str, Any] = field(default_factory=dict, compare=False)
+    #: Grid spacing along axis 1 (columns); None: square pixels (``delta``).
+    delta1: float | None = None
 
     def __post_init__(self) -> None:
         h = np.asarray(self.heights)
         if h.ndim != 2:
             raise ProblemInputError(f"surface heights must be a 2-D array, got {h.ndim}-D")
-        if h.shape[0] != h.shape[1]:
-            raise ProblemInputError(
-                f"surface grid must be square, got {h.shape[0]} x {h.shape[1]} "
-                "(crop or pad it first; problems.io does this explicitly)"
-            )
-        if h.shape[0] < 2:
-            raise ProblemInputError("surface grid must be at least 2 x 2, got 1 x 1")
+        if min(h.shape) < 2:
+            raise ProblemInputError(f"surface grid must be at least 2 x 2, got {h.shape[0]} x {h.shape[1]}")
         if not np.issubdtype(h.dtype, np.number) or np.iscomplexobj(h):
             raise ProblemInputError(f"surface heights must be real numbers, got dtype {h.dtype}")
         h = h.astype(np.float64, copy=False)
@@ -69,10 +71,30 @@ class Surface:
                 f"(first at index {tuple(int(v) for v in np.argwhere(bad)[0])})"
             )
         check_positive("grid spacing delta", self.delta)
+        if self.delta1 is not None:
+            check_positive("grid spacing delta1 (axis 1)", self.delta1)
         object.__setattr__(self, "heights", h)
 
     @property
+    def spacing(self) -> tuple[float, float]:
+        """(dx0, dx1): the grid spacings along axis 0 and axis 1."""
+        return (float(self.delta), float(self.delta if self.delta1 is None else self.delta1))
+
+    @property
+    def square_pixels(self) -> bool:
+        d0, d1 = self.spacing
+        return d0 == d1
+
+    @property
+    def is_square(self) -> bool:
+        """N0 == N1 with square pixels: the grids ``N`` and ``length`` describe."""
+        return self.heights.shape[0] == self.heights.shape[1] and self.square_pixels
+
+    @property
     def N(self) -> int:
+        """Points per side of a square grid; a rectangular grid (or pixels) is a
+        ``ProblemInputError`` (read ``shape``)."""
+        self._require_square("N (points per side)")
         return int(self.heights.shape[0])
 
     @property
@@ -80,13 +102,29 @@ class Surface:
         return self.heights.shape  # type: ignore[return-value]
 
     @property
+    def lengths(self) -> tuple[float, float]:
+        """(L0, L1) = (N0 dx0, N1 dx1): the physical sizes along axis 0 and axis 1."""
+        d0, d1 = self.spacing
+        return (self.heights.shape[0] * d0, self.heights.shape[1] * d1)
+
+    @property
     def length(self) -> float:
-        """Lateral side length L = N * delta (area covered by the elements)."""
+        """Lateral side length L = N * delta of a square grid (``lengths`` otherwise)."""
+        self._require_square("the side length L")
         return self.N * self.delta
 
     @property
     def area(self) -> float:
-        return self.length**2
+        """L0 * L1, the area covered by the elements."""
+        L0, L1 = self.lengths
+        return L0 * L1
+
+    def _require_square(self, what: str) -> None:
+        if not self.is_square:
+            n0, n1 = self.shape
+            d0, d1 = self.spacing
+            raise ProblemInputError(f"{what} is defined for a square grid; the surface {self.name!r} is {n0} x {n1} "
+                                    f"with spacings {d0:g} x {d1:g} (this code path assumes a square grid)")
 
     @property
     def z_max(self) -> float:
@@ -108,12 +146,13 @@ class Surface:
     def rms_slope(self) -> float:
         """sqrt(<|grad h|^2>) by forward differences (periodic wrap when periodic)."""
         h = self.heights
+        d0, d1 = self.spacing
         if self.periodic:
-            gx = (np.roll(h, -1, 0) - h) / self.delta
-            gy = (np.roll(h, -1, 1) - h) / self.delta
+            gx = (np.roll(h, -1, 0) - h) / d0
+            gy = (np.roll(h, -1, 1) - h) / d1
         else:
-            gx = np.diff(h, axis=0)[:, :-1] / self.delta
-            gy = np.diff(h, axis=1)[:-1, :] / self.delta
+            gx = np.diff(h, axis=0)[:, :-1] / d0
+            gy = np.diff(h, axis=1)[:-1, :] / d1
         return float(np.sqrt(np.mean(gx**2 + gy**2)))
 
     def scaled(self, length_factor: float) -> Surface:
@@ -122,6 +161,7 @@ class Surface:
             self,
             heights=self.heights * length_factor,
             delta=self.delta * length_factor,
+            delta1=None if self.delta1 is None else self.delta1 * length_factor,
             levels=tuple(s.scaled(length_factor) for s in self.levels),
         )
 
@@ -357,10 +397,14 @@ def rmd_surface_n(N: int, hurst: float, family: str | None = None, **kw: Any) ->
 # ---------------------------------------------------------------------------
 
 
-def wavevectors(N: int, delta: float) -> np.ndarray:
-    """|q| on the N x N FFT grid (rad per length)."""
-    q = 2.0 * np.pi * np.fft.fftfreq(N, d=delta)
-    return np.hypot(q[:, None], q[None, :])
+def wavevectors(N: int | tuple[int, int], delta: float | tuple[float, float]) -> np.ndarray:
+    """|q| on the FFT grid (rad per length): N x N with spacing ``delta``, or the
+    N0 x N1 grid of spacings (d0, d1) when ``N`` and ``delta`` are pairs."""
+    n0, n1 = (N, N) if np.ndim(N) == 0 else N  # type: ignore[misc]
+    d0, d1 = (delta, delta) if np.ndim(delta) == 0 else delta  # type: ignore[misc]
+    q0 = 2.0 * np.pi * np.fft.fftfreq(int(n0), d=float(d0))
+    q1 = 2.0 * np.pi * np.fft.fftfreq(int(n1), d=float(d1))
+    return np.hypot(q0[:, None], q1[None, :])
 
 
 def spectral_surface(
@@ -458,19 +502,20 @@ def measured_like_heights(surface: Surface, tilt: float, missing_fraction: float
     if int(hole_radius) != hole_radius or hole_radius < 0:
         raise ProblemInputError(f"hole radius must be an integer >= 0 points, got {hole_radius!r}")
     rng = np.random.default_rng(seed)
-    N = surface.N
+    n0, n1 = surface.shape
+    d0, d1 = surface.spacing
     angle = rng.uniform(0.0, 2.0 * np.pi)
-    x = np.arange(N) * surface.delta
-    z = surface.heights + tilt * (np.cos(angle) * x[:, None] + np.sin(angle) * x[None, :])
+    z = surface.heights + tilt * (np.cos(angle) * (np.arange(n0) * d0)[:, None]
+                                  + np.sin(angle) * (np.arange(n1) * d1)[None, :])
     r = int(hole_radius)
     di, dj = np.mgrid[-r:r + 1, -r:r + 1]
     disc = di**2 + dj**2 <= r * r
-    holes = round(missing_fraction * N * N / int(disc.sum()))
-    ci, cj = rng.integers(0, N, holes), rng.integers(0, N, holes)
-    mask = np.zeros((N, N), dtype=bool)
+    holes = round(missing_fraction * n0 * n1 / int(disc.sum()))
+    ci, cj = rng.integers(0, n0, holes), rng.integers(0, n1, holes)
+    mask = np.zeros((n0, n1), dtype=bool)
     for a, b in zip(di[disc], dj[disc]):
         ii, jj = ci + a, cj + b
-        ok = (ii >= 0) & (ii < N) & (jj >= 0) & (jj < N)
+        ok = (ii >= 0) & (ii < n0) & (jj >= 0) & (jj < n1)
         mask[ii[ok], jj[ok]] = True
     z[mask] = np.nan
     return z
@@ -489,19 +534,19 @@ class RadialPSD:
 
 
 def periodogram(surface: Surface, window: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """|q| and the 2-D periodogram C(q) = (delta^2/N^2) |FFT(h)|^2 / (2 pi)^2 (length^4)
-    of every FFT mode.  A Hann window (normalised to unit mean square) is applied to
+    """|q| and the 2-D periodogram C(q) = (d0 d1 / (N0 N1)) |FFT(h)|^2 / (2 pi)^2 (length^4)
+    of every FFT mode (N x N, square pixels: delta^2 / N^2).  A Hann window (normalised to unit mean square) is applied to
     non-periodic surfaces unless ``window`` says otherwise."""
     h = surface.heights - surface.heights.mean()
-    N = surface.N
+    n0, n1 = surface.shape
     use_window = (not surface.periodic) if window is None else window
     if use_window:
-        w1 = np.hanning(N)
-        w = np.outer(w1, w1)
+        w = np.outer(np.hanning(n0), np.hanning(n1))
         h = h * w / np.sqrt(np.mean(w**2))
     F = np.fft.fft2(h)
-    C2 = (surface.delta**2 / N**2) * np.abs(F) ** 2 / (2.0 * np.pi) ** 2
-    return wavevectors(N, surface.delta), C2
+    d0, d1 = surface.spacing
+    C2 = (d0 * d1 / (n0 * n1)) * np.abs(F) ** 2 / (2.0 * np.pi) ** 2
+    return wavevectors(surface.shape, surface.spacing), C2
 
 
 def radial_psd(surface: Surface, bins_per_decade: int = 10, window: bool | None = None) -> RadialPSD:
@@ -551,14 +596,15 @@ def fit_hurst(
     least squares of log C on log q over the radially averaged bins, weighted by the
     number of modes per bin (used when ``psd`` is given).
 
-    Default window: 2 x the fundamental (2 pi/L) to a third of the Nyquist wave number.
+    Default window: 2 x the fundamental (2 pi/L, L the shorter side) to a third of the
+    Nyquist wave number (pi / the coarser spacing).
     It leaves out the few, noisy lowest modes and the top of the spectrum, where RMD
     surfaces carry excess power (their interpolation is a poor low-pass) and where
     aliasing lives.  The measured bias per generator is in docs/problems.md.
     """
     check_not_flat(surface)
-    q0 = 2.0 * np.pi / surface.length
-    q_nyq = np.pi / surface.delta
+    q0 = 2.0 * np.pi / min(surface.lengths)
+    q_nyq = np.pi / max(surface.spacing)
     lo = FIT_Q_MIN_CYCLES * q0 if q_min is None else float(q_min)
     hi = q_nyq / FIT_Q_MAX_DIVISOR if q_max is None else float(q_max)
     if method not in ("whittle", "binned"):

@@ -7,8 +7,8 @@ micrometres but read as metres, with a side length of 100 um, has an rms slope o
 10^4; every solver then "solves" a problem that describes nothing physical.
 
 ``unit_figures`` computes what the check reads (rms slope by forward differences,
-``Surface.rms_slope``; the height range z_max - z_min against the side length L = N
-delta); ``check_plausible_units`` refuses a surface beyond the small-slope range --
+``Surface.rms_slope``; the height range z_max - z_min against the shorter side length,
+min(N0 d0, N1 d1)); ``check_plausible_units`` refuses a surface beyond the small-slope range --
 rms slope > ``MAX_RMS_SLOPE`` or a height range larger than the side length -- with one
 line that says what was found and which height unit was probably meant.  Scenes call it
 when they validate a measured (``--surface``) file, so ``contactbench run`` stops with
@@ -48,7 +48,7 @@ class UnitFigures:
     height_range: float
     side_length: float
 
-    def scaled(self, factor: float) -> "UnitFigures":
+    def scaled(self, factor: float) -> UnitFigures:
         """The figures if every height were multiplied by ``factor``."""
         return UnitFigures(self.rms_slope * factor, self.height_range * factor, self.side_length)
 
@@ -78,7 +78,7 @@ class ImplausibleUnitsError(ProblemInputError):
 def unit_figures(surface: Surface) -> UnitFigures:
     """rms slope, height range and side length of ``surface``."""
     h = surface.heights
-    return UnitFigures(surface.rms_slope(), float(h.max() - h.min()), float(surface.length))
+    return UnitFigures(surface.rms_slope(), float(h.max() - h.min()), float(min(surface.lengths)))
 
 
 def probable_unit(figures: UnitFigures, height_unit: str = "m") -> str | None:

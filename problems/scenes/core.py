@@ -19,6 +19,8 @@ from ..instances import (
     load_ramp,
     paper_max_displacement,
 )
+from ..kernels import check_element_shape
+from ..layers import DEFAULT_NU, Layer
 from ..surfaces import Surface, check_rmd_family, rmd_surface_n
 from ..units import check_height_unit, check_plausible_units
 from . import register_scene
@@ -30,6 +32,39 @@ ANALYTIC_OPTIONS: frozenset[str] = frozenset({"size", "steps", "length", "E", "k
 
 PAPER_SEED = 5  # RMD seed of the paper-sweep default surface (see PaperSweep)
 PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
+
+#: ``cfg.extra`` keys of a measured surface file's cleaning (``problems.io.load_surface``'s
+#: ``detrend``, ``nan`` and ``crop``), carried into its recipe's params when given.
+SURFACE_FILE_OPTIONS: tuple[str, ...] = ("detrend", "nan", "crop")
+#: ``cfg.extra`` keys of the elastic body: ``thickness`` (metres; absent: the half-space),
+#: ``nu`` (Poisson's ratio, default ``layers.DEFAULT_NU``), ``interface`` ("bonded" or
+#: "frictionless"), carried into every recipe's params when given.
+LAYER_OPTIONS: tuple[str, ...] = ("thickness", "nu", "interface")
+
+
+def layer_from_params(params: dict[str, Any], surface: Surface | None = None) -> Layer | None:
+    """The elastic layer a recipe names, None for the half-space: ``params["thickness"]``
+    in metres, or ``params["thickness_over_L"]`` times the surface's shorter side; with
+    ``nu`` and ``interface``.  A bad value is a one-line ``ProblemInputError``."""
+    thickness = params.get("thickness")
+    if thickness is None and params.get("thickness_over_L") is not None:
+        if surface is None:
+            raise ProblemInputError("a layer thickness relative to L needs the surface")
+        thickness = float(params["thickness_over_L"]) * min(surface.lengths)
+    if thickness is None:
+        return None
+    return Layer(float(thickness), float(params.get("nu", DEFAULT_NU)), str(params.get("interface", "bonded")))
+
+
+def check_grid(params: dict[str, Any], surface: Surface) -> Surface:
+    """``surface`` when the recipe's kernel takes its elements (``kernels.check_element_shape``:
+    'bcc' needs square ones) and its layer, if any, can be built on its grid
+    (``Layer.check_kernel``: real-space kernels need T >= the spacing); else ``ProblemInputError``."""
+    check_element_shape(str(params["kernel"]), surface.spacing)
+    layer = layer_from_params(params, surface)
+    if layer is not None:
+        layer.check_kernel(str(params["kernel"]), bool(params["periodic"]), surface.spacing)
+    return surface
 
 
 def surface_family(cfg: SceneConfig) -> str:
@@ -50,8 +85,14 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
         from ..io import load_surface  # measured height maps (issue: real surfaces)
 
         unit = params.get("height_unit")  # absent: metres for a file that states no unit
-        return load_surface(params["surface_path"], length=params.get("length"), channel=params.get("channel"),
-                            height_unit=None if unit is None else str(unit))
+        length = params.get("length")
+        cleaning = {k: str(params[k]) for k in SURFACE_FILE_OPTIONS if params.get(k) is not None}
+        return load_surface(params["surface_path"], length=tuple(length) if isinstance(length, list) else length,
+                            channel=params.get("channel"), height_unit=None if unit is None else str(unit),
+                            **cleaning)  # type: ignore[arg-type]
+    if np.ndim(params.get("length")) != 0:
+        raise ProblemInputError(f"a generated surface is square: give one length, not {params.get('length')!r} "
+                                "(L0,L1 is for a surface file)")
     return rmd_surface_n(
         int(params["size"]),
         float(params["hurst"]),
@@ -71,6 +112,7 @@ def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> L
         kernel=str(p["kernel"]),
         periodic=bool(p["periodic"]),
         operator=str(p.get("operator", "fft")),
+        layer=layer_from_params(p, surface),
     )
     ds = [float(d) for d in deltas]
 
@@ -118,7 +160,22 @@ class RampScene(Scene):
         return ramp_sequence(spec, *self.loads(spec))
 
     def validate(self, cfg: SceneConfig) -> None:
-        validate_each(self.instances(cfg), lambda spec: checked_units(spec, self.loads(spec)[0], cfg))
+        validate_each(self.instances(cfg),
+                      lambda spec: check_grid(spec.params, checked_units(spec, self.loads(spec)[0], cfg)))
+
+
+def layer_suffix(params: dict[str, Any]) -> str:
+    """The instance-name suffix of a recipe's layer: "" for the half-space, "-T1e-05" (metres)
+    or "-T0.1L" (relative), then "-nu0.45" and "-frictionless" when not the defaults."""
+    if params.get("thickness") is not None:
+        out = f"-T{float(params['thickness']):g}"
+    elif params.get("thickness_over_L") is not None:
+        out = f"-T{float(params['thickness_over_L']):g}L"
+    else:
+        return ""
+    if params.get("nu") is not None and float(params["nu"]) != DEFAULT_NU:
+        out += f"-nu{float(params['nu']):g}"
+    return out + ("-frictionless" if params.get("interface") == "frictionless" else "")
 
 
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
@@ -134,20 +191,22 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         "periodic": bool(cfg.periodic),
         "operator": cfg.operator,
         "steps": cfg.steps,
+        **{k: cfg.extra[k] for k in LAYER_OPTIONS if cfg.extra.get(k) is not None},
         **(extra or {}),
     }
     if cfg.surface_path:
         name = str(cfg.surface_path).replace("/", "_")
-        file_params = {**base, "surface_path": cfg.surface_path, "seed": 0}
+        file_params = {**base, "surface_path": cfg.surface_path, "seed": 0,
+                       **{k: cfg.extra[k] for k in SURFACE_FILE_OPTIONS if cfg.extra.get(k) is not None}}
         if cfg.extra.get("channel") is not None:
             file_params["channel"] = cfg.extra["channel"]
         if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
-        return [InstanceSpec(scene, f"file-{name}", file_params)]
+        return [InstanceSpec(scene, f"file-{name}{layer_suffix(base)}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
     bc = "per" if cfg.periodic else "np"
     return [
-        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}",
+        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}{layer_suffix(base)}",
                      {**base, "family": family, "seed": int(s)})
         for s in seeds_of(cfg)
     ]

@@ -3,15 +3,23 @@ rules.  (Coarsening and the PSD power-law check: tests/problems/test_problems_co
 
 from __future__ import annotations
 
+import warnings
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.coarsen import power_law_check
-from contactbench.problems.io import SurfaceFileError, load_surface, read_height_map, write_text, write_x3p
+from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.io import (
+    SurfaceFileError,
+    load_surface,
+    parse_length,
+    read_height_map,
+    write_text,
+    write_x3p,
+)
+from contactbench.problems.surfaces import Surface
 from tests.helpers import REPO
 
 DATA = REPO / "problems" / "data"
@@ -27,7 +35,7 @@ def random_map(shape: tuple[int, int] = (12, 12), seed: int = 0) -> np.ndarray:
 def test_npy_round_trip_exact(tmp_path: Path) -> None:
     z = random_map()
     np.save(tmp_path / "a.npy", z)
-    s = load_surface(tmp_path / "a.npy", length=1e-4)
+    s = load_surface(tmp_path / "a.npy", length=1e-4, detrend="none")
     np.testing.assert_array_equal(s.heights, z)
     assert s.delta == pytest.approx(1e-4 / 12)
     assert s.meta["format"] == "npy" and not s.periodic
@@ -37,13 +45,13 @@ def test_npy_round_trip_exact(tmp_path: Path) -> None:
 def test_text_round_trip_any_delimiter(tmp_path: Path, delim: str) -> None:
     z = random_map((9, 9), seed=1)
     write_text(tmp_path / "a.txt", z, delimiter=delim)
-    s = load_surface(tmp_path / "a.txt", length=1.0)
+    s = load_surface(tmp_path / "a.txt", length=1.0, detrend="none")
     np.testing.assert_array_equal(s.heights, z)
 
 
 def test_text_comments_and_units(tmp_path: Path) -> None:
     (tmp_path / "a.csv").write_text("# exported heights in um\n1, 2, 3\n4, 5, 6 # row 2\n7, 8, 9,\n")
-    s = load_surface(tmp_path / "a.csv", length=3e-6, height_unit="um")
+    s = load_surface(tmp_path / "a.csv", length=3e-6, height_unit="um", detrend="none")
     np.testing.assert_allclose(s.heights, np.arange(1, 10).reshape(3, 3) * 1e-6)
 
 
@@ -51,7 +59,7 @@ def test_text_comments_and_units(tmp_path: Path) -> None:
 def test_x3p_round_trip_each_data_type(tmp_path: Path, dtype: str) -> None:
     z = random_map((10, 10), seed=2)
     write_x3p(tmp_path / "a.x3p", z, 2.5e-6, data_type=dtype)
-    s = load_surface(tmp_path / "a.x3p")  # no length: the file's own lateral size
+    s = load_surface(tmp_path / "a.x3p", detrend="none")  # no length: the file's own lateral size
     span = float(z.max() - z.min())
     atol = {"D": 0.0, "F": 1e-7 * span, "L": span / 2**31, "I": span / 2**15}[dtype]
     np.testing.assert_allclose(s.heights, z, rtol=0.0, atol=atol)
@@ -83,10 +91,10 @@ def test_x3p_axis_orientation_x_fastest(tmp_path: Path) -> None:
 
 def test_length_agreeing_with_the_file_is_accepted_disagreeing_refused(tmp_path: Path) -> None:
     write_x3p(tmp_path / "a.x3p", random_map((8, 8)), 1e-6)
-    s = load_surface(tmp_path / "a.x3p", length=8e-6)
+    s = load_surface(tmp_path / "a.x3p", length=8e-6, detrend="none")
     assert s.delta == pytest.approx(1e-6) and "agrees" in s.meta["spacing_from"]
     with pytest.raises(SurfaceFileError, match="disagrees with the file's own side length"):
-        load_surface(tmp_path / "a.x3p", length=16e-6)
+        load_surface(tmp_path / "a.x3p", length=16e-6, detrend="none")
 
 
 def test_file_unit_is_converted_to_metres(tmp_path: Path) -> None:
@@ -94,7 +102,7 @@ def test_file_unit_is_converted_to_metres(tmp_path: Path) -> None:
 
     z = random_map((8, 8), seed=6) * 1e6  # micrometres
     Topography(z.T, physical_sizes=(8.0, 8.0), unit="um").to_netcdf(str(tmp_path / "a.nc"))
-    s = load_surface(tmp_path / "a.nc")
+    s = load_surface(tmp_path / "a.nc", detrend="none")
     np.testing.assert_allclose(s.heights, z * 1e-6, rtol=1e-15)
     assert s.delta == pytest.approx(1e-6, rel=1e-7) and s.meta["file_unit"] in ("um", "µm")
 
@@ -177,8 +185,6 @@ def topography_bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     out["multi-channel, none chosen"] = (tmp / "two.mat", "--channel")
     Topography(random_map((6, 6)).T, physical_sizes=(6.0, 6.0), unit="V").to_netcdf(str(tmp / "volt.nc"))
     out["unit not convertible"] = (tmp / "volt.nc", "cannot be converted to metres")
-    Topography(random_map((6, 6)).T, physical_sizes=(6e-6, 12e-6), unit="m").to_x3p(str(tmp / "pix.x3p"))
-    out["non-square pixels"] = (tmp / "pix.x3p", "non-square pixels")
     (tmp / "junk.bin").write_bytes(bytes(range(256)) * 4)
     out["unknown binary"] = (tmp / "junk.bin", "nor one SurfaceTopography recognises")
     return out
@@ -187,7 +193,7 @@ def topography_bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
 def test_every_bad_file_class_gives_a_clear_error(tmp_path: Path) -> None:
     for what, (path, phrase) in bad_files(tmp_path).items():
         with pytest.raises(SurfaceFileError) as e:
-            load_surface(path, length=1e-4)
+            load_surface(path, length=1e-4, detrend="none")
         msg = str(e.value)
         assert str(path) in msg, what
         assert phrase.lower() in msg.lower(), f"{what}: {msg}"
@@ -197,7 +203,7 @@ def test_every_bad_file_class_gives_a_clear_error(tmp_path: Path) -> None:
 def test_text_or_npy_without_length_asks_for_it(tmp_path: Path) -> None:
     np.save(tmp_path / "a.npy", random_map())
     with pytest.raises(ProblemInputError, match="length"):
-        load_surface(tmp_path / "a.npy")
+        load_surface(tmp_path / "a.npy", detrend="none")
 
 
 # --- cleaning ----------------------------------------------------------------------
@@ -208,14 +214,14 @@ def test_nan_rules(tmp_path: Path) -> None:
     z[0, 0] = np.nan
     np.save(tmp_path / "a.npy", z)
     with pytest.warns(UserWarning, match="1 missing"):
-        s = load_surface(tmp_path / "a.npy", length=4.0)
+        s = load_surface(tmp_path / "a.npy", length=4.0, detrend="none")
     assert s.heights[0, 0] == pytest.approx(np.nanmean(z)) and s.meta["nan_points"] == 1
     with pytest.warns(UserWarning):
-        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-min").heights[0, 0] == 1.0
+        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-min", detrend="none").heights[0, 0] == 1.0
     with pytest.warns(UserWarning):
-        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-nearest").heights[0, 0] in (1.0, 4.0)
+        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-nearest", detrend="none").heights[0, 0] in (1.0, 4.0)
     with pytest.raises(SurfaceFileError, match="nan='error'"):
-        load_surface(tmp_path / "a.npy", length=4.0, nan="error")
+        load_surface(tmp_path / "a.npy", length=4.0, nan="error", detrend="none")
 
 
 def test_plane_detrend_removes_tilt_exactly(tmp_path: Path) -> None:
@@ -230,25 +236,83 @@ def test_plane_detrend_removes_tilt_exactly(tmp_path: Path) -> None:
     assert s.meta["removed_plane"]["b_per_column"] == pytest.approx(2e-7, rel=0.2)
 
 
-def test_non_square_crop_pad_error(tmp_path: Path) -> None:
+def test_non_square_maps_are_kept_unless_a_crop_is_asked(tmp_path: Path) -> None:
     z = random_map((6, 10), seed=5)
     np.save(tmp_path / "a.npy", z)
+    kept = load_surface(tmp_path / "a.npy", length=6.0, detrend="none")
+    np.testing.assert_array_equal(kept.heights, z)
+    assert kept.shape == (6, 10) and kept.spacing == (1.0, 1.0) and kept.lengths == (6.0, 10.0)
     with pytest.warns(UserWarning, match="cropped 6x10"):
-        c = load_surface(tmp_path / "a.npy", length=6.0)
+        c = load_surface(tmp_path / "a.npy", length=6.0, crop="square", detrend="none")
     np.testing.assert_array_equal(c.heights, z[:, 2:8])
-    assert c.delta == 1.0 and "cropped" in c.meta["square"]
+    assert c.delta == 1.0 and "cropped" in c.meta["crop"]  # the length is the map's: the crop keeps the spacing
     with pytest.warns(UserWarning, match="padded"):
-        p = load_surface(tmp_path / "a.npy", length=10.0, square="pad")
-    assert p.N == 10
+        p = load_surface(tmp_path / "a.npy", length=6.0, crop="pad-square", detrend="none")
+    assert p.N == 10 and p.delta == 1.0
     np.testing.assert_array_equal(p.heights[:6], z)
     assert np.all(p.heights[6:] == z.min())
-    with pytest.raises(SurfaceFileError, match="not square"):
-        load_surface(tmp_path / "a.npy", length=1.0, square="error")
+
+
+def test_a_file_with_rectangular_pixels_keeps_them(tmp_path: Path) -> None:
+    """x is axis 1 of a Surface (rows = y): a file of 6 x 6 points over 6 um (x) by 12 um (y)
+    has spacings (2 um, 1 um) along (axis 0, axis 1)."""
+    from SurfaceTopography import Topography
+
+    z = random_map((6, 6))
+    Topography(z.T, physical_sizes=(6e-6, 12e-6), unit="m").to_x3p(str(tmp_path / "pix.x3p"))
+    s = load_surface(tmp_path / "pix.x3p", detrend="none")
+    assert s.spacing == pytest.approx((2e-6, 1e-6)) and s.lengths == pytest.approx((12e-6, 6e-6))
+    np.testing.assert_allclose(s.heights, z, rtol=0, atol=1e-15)
+    assert load_surface(tmp_path / "pix.x3p", length=(12e-6, 6e-6), detrend="none").spacing == pytest.approx(s.spacing)
+    with pytest.raises(SurfaceFileError, match="along axis 0 disagrees"):
+        load_surface(tmp_path / "pix.x3p", length=6e-6)  # square pixels: 6 um along axis 0, the file says 12
+
+
+def test_length_per_axis_gives_rectangular_pixels(tmp_path: Path) -> None:
+    z = random_map((6, 10), seed=5)
+    np.save(tmp_path / "a.npy", z)
+    s = load_surface(tmp_path / "a.npy", length=(3.0, 20.0), detrend="none")
+    assert s.spacing == (0.5, 2.0) and s.lengths == (3.0, 20.0)
+    with pytest.raises(ProblemInputError, match="L1"):
+        load_surface(tmp_path / "a.npy", length=(3.0, -1.0), detrend="none")
+    with pytest.raises(ProblemInputError, match="L0 or \\(L0, L1\\)"):
+        load_surface(tmp_path / "a.npy", length=(3.0, 1.0, 2.0))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("text,expected", [("1e-4", 1e-4), ("1e-4, 2e-4", (1e-4, 2e-4))])
+def test_parse_length(text: str, expected: object) -> None:
+    assert parse_length(text) == expected
+
+
+@pytest.mark.parametrize("text", ["", "a", "1,2,3", "-1", "nan", "inf", "1e-4,0"])
+def test_parse_length_refuses_bad_text(text: str) -> None:
+    with pytest.raises(ProblemInputError):
+        parse_length(text)
+
+
+def test_tilt_larger_than_the_rms_slope_warns_removed_or_not(tmp_path: Path) -> None:
+    rough = random_map((16, 24), seed=6)
+    rough *= 1e-3 / Surface(rough, 1.0).rms_slope()  # rms slope 1e-3 at unit spacing
+    _, xx = np.mgrid[0:16, 0:24]
+    np.save(tmp_path / "t.npy", rough + 0.05 * xx)
+    with pytest.warns(UserWarning, match="tilted by .* the tilt was removed"):
+        s = load_surface(tmp_path / "t.npy", length=16.0)
+    assert s.meta["tilt"] == pytest.approx(0.05, rel=0.05) and s.rms_slope() < 0.05
+    with pytest.warns(UserWarning, match="NOT removed"):
+        load_surface(tmp_path / "t.npy", length=16.0, detrend="none")
+    np.save(tmp_path / "flat.npy", rough + 1e-9 * xx)  # a tilt below the roughness: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_surface(tmp_path / "flat.npy", length=16.0)
 
 
 def test_bad_option_values_are_named() -> None:
-    with pytest.raises(ProblemInputError, match="square"):
-        load_surface("x.npy", 1.0, square="stretch")  # type: ignore[arg-type]
+    with pytest.raises(ProblemInputError, match="crop"):
+        load_surface("x.npy", 1.0, crop="stretch")  # type: ignore[arg-type]
+    with pytest.raises(ProblemInputError, match="detrend"):
+        load_surface("x.npy", 1.0, detrend="quadric")  # type: ignore[arg-type]
+    with pytest.raises(ProblemInputError, match="nan"):
+        load_surface("x.npy", 1.0, nan="zero")  # type: ignore[arg-type]
 
 
 def test_shipped_samples_load() -> None:
@@ -256,9 +320,9 @@ def test_shipped_samples_load() -> None:
         x3p = load_surface(DATA / "solar-10x-like.x3p", detrend="plane")
     assert x3p.N == 128 and x3p.delta == pytest.approx(1e-3 / 128)
     with pytest.warns(UserWarning, match="cropped"):
-        npy = load_surface(DATA / "solar-100x-like.npy", length=97.5e-6, detrend="plane")
+        npy = load_surface(DATA / "solar-100x-like.npy", length=97.5e-6, detrend="plane", crop="square")
     assert npy.N == 96
-    csv = load_surface(DATA / "ground-like-um.csv", length=5e-4, height_unit="um")
+    csv = load_surface(DATA / "ground-like-um.csv", length=5e-4, height_unit="um", detrend="none")
     assert 0.3e-6 < csv.rms_height < 3e-6
     assert not power_law_check(x3p).power_law  # roll-off
     assert power_law_check(npy).power_law
@@ -282,7 +346,6 @@ def write_every_format(tmp: Path, z: np.ndarray) -> dict[str, Path]:
     """The same map in each format: SurfaceTopography's writers (x3p, gwy, NetCDF) and
     numpy/scipy (.npy, .mat), and text."""
     import scipy.io
-
     from contactbench.problems.io import write_topography
 
     d = ROUND_TRIP_L / ROUND_TRIP_N
@@ -318,7 +381,7 @@ def test_every_format_round_trips_heights_size_and_contact_solution(tmp_path: Pa
     reference = exact_sweep(files["npy"], ROUND_TRIP_L)
     for fmt, path in files.items():
         states_size = fmt in ("x3p", "gwy", "netcdf")
-        s = load_surface(path, None if states_size else ROUND_TRIP_L)
+        s = load_surface(path, None if states_size else ROUND_TRIP_L, detrend="none")
         np.testing.assert_allclose(s.heights, z, rtol=1e-15, atol=0.0, err_msg=fmt)
         assert s.length == pytest.approx(ROUND_TRIP_L, rel=1e-7), fmt  # NetCDF stores sizes in float32
         # the same contact solution as the .npy original, to round-off (the length given,
@@ -332,11 +395,11 @@ def test_mat_channel_is_chosen_by_name_or_index(tmp_path: Path) -> None:
 
     z, w = random_map((6, 6), seed=8), random_map((6, 6), seed=9)
     scipy.io.savemat(tmp_path / "two.mat", {"height": z, "intensity": w})
-    np.testing.assert_array_equal(load_surface(tmp_path / "two.mat", 6e-6, channel="intensity").heights, w)
-    names = [load_surface(tmp_path / "two.mat", 6e-6, channel=i).meta["channel"] for i in (0, 1)]
+    np.testing.assert_array_equal(load_surface(tmp_path / "two.mat", 6e-6, channel="intensity", detrend="none").heights, w)
+    names = [load_surface(tmp_path / "two.mat", 6e-6, channel=i, detrend="none").meta["channel"] for i in (0, 1)]
     assert sorted(names) == ["height", "intensity"]
     with pytest.raises(SurfaceFileError, match="no channel 'depth'"):
-        load_surface(tmp_path / "two.mat", 6e-6, channel="depth")
+        load_surface(tmp_path / "two.mat", 6e-6, channel="depth", detrend="none")
 
 
 def test_cli_runs_a_gwy_file_without_length(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

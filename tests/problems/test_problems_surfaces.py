@@ -148,11 +148,21 @@ def test_non_finite_heights_are_refused(bad: float) -> None:
         Surface(h, 1e-6)
 
 
-def test_non_square_and_tiny_grids_are_refused() -> None:
-    with pytest.raises(ProblemInputError, match="must be square, got 8 x 9"):
-        Surface(np.zeros((8, 9)), 1e-6)
+def test_rectangular_grids_are_kept_and_tiny_ones_refused() -> None:
+    s = Surface(np.zeros((8, 9)), 1e-6, delta1=2e-6)
+    assert s.shape == (8, 9) and s.spacing == (1e-6, 2e-6)
+    assert s.lengths == pytest.approx((8e-6, 18e-6)) and s.area == pytest.approx(8e-6 * 18e-6)
+    with pytest.raises(ProblemInputError, match="square grid; the surface 'surface' is 8 x 9"):
+        _ = s.N
+    with pytest.raises(ProblemInputError, match="square grid"):
+        _ = Surface(np.zeros((8, 8)), 1e-6, delta1=2e-6).length  # square shape, rectangular pixels
+    assert Surface(np.zeros((8, 8)), 1e-6, delta1=1e-6).length == pytest.approx(8e-6)
+    with pytest.raises(ProblemInputError, match="delta1"):
+        Surface(np.zeros((8, 9)), 1e-6, delta1=-1.0)
     with pytest.raises(ProblemInputError, match="at least 2 x 2, got 1 x 1"):
         Surface(np.zeros((1, 1)), 1e-6)
+    with pytest.raises(ProblemInputError, match="at least 2 x 2, got 1 x 9"):
+        Surface(np.zeros((1, 9)), 1e-6)
     with pytest.raises(ProblemInputError, match="2-D array, got 1-D"):
         Surface(np.zeros(8), 1e-6)
 
