@@ -195,10 +195,12 @@ def instance_operator_kind(inst: ContactInstance) -> str:
 def problem_traits(inst: ContactInstance) -> ProblemTraits:
     """What the skip policy may know of an instance before solving it."""
     geom = inst.geometry
+    square = geom is not None and geom.has_surface and geom.grid_shape[0] == geom.grid_shape[1] \
+        and geom.surface.delta1 in (None, geom.surface.delta)
+    # a rectangular surface has no coarse levels (coarsen.level_strides): it reads as no surface
     return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
-                         has_surface=geom is not None and geom.has_surface, periodic=bool(inst.periodic),
-                         kernel=inst.kernel,
-                         surface_side=int(geom.surface.N) if geom is not None and geom.has_surface else 0)
+                         has_surface=square, periodic=bool(inst.periodic), kernel=inst.kernel,
+                         surface_side=int(geom.grid_shape[0]) if square else 0)
 
 
 def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:

@@ -10,7 +10,8 @@ environment variable ``CONTACTBENCH_FIELD_STEPS=all``) as
       pressure  float32 (m, m)  mean contact pressure p_ij / delta^2 (0 off contact)
       gap       float32 (m, m)  gap g = u - (Delta - xi_max + xi) (NaN where unknown)
       contact   bool    (m, m)  p_ij > 1e-6 p_s (ContactInstance.contact_mask at its default tolerance)
-      scalars   N, spacing (grid spacing of the stored maps), E, far_field (Delta), load,
+      scalars   N, N1 (grid points along axes 0 and 1), spacing, spacing1 (the stored maps'
+                spacing along axes 0 and 1), E, far_field (Delta), load,
                 dim_load (P / (E A0)), contact_fraction (A/A0, full grid), rms_slope
                 (h'_rms of the full surface), step, steps, solver, unit, periodic
 
@@ -116,7 +117,8 @@ def save_field(arrays_path: str | None, scene: str, instance: str, inst: Any, p:
             pressure=block_reduce(pressure).astype(np.float32),
             gap=block_reduce(gap_field(inst, p)).astype(np.float32),
             contact=block_reduce(contact, how="any"),
-            N=np.int64(g.grid_shape[0]), spacing=np.float64(g.delta * f), E=np.float64(inst.E),
+            N=np.int64(g.grid_shape[0]), N1=np.int64(g.grid_shape[1]), spacing=np.float64(g.spacing[0] * f),
+            spacing1=np.float64(g.spacing[1] * f), E=np.float64(inst.E),
             far_field=np.float64(inst.delta), load=np.float64(inst.load(p)),
             dim_load=np.float64(inst.dimensionless_load(p)), contact_fraction=np.float64(inst.contact_fraction(p)),
             rms_slope=np.float64(inst.surface.rms_slope()), step=np.int64(step), steps=np.int64(steps),
@@ -151,6 +153,14 @@ class ContactField:
     rms_slope: float
     unit: str
     periodic: bool
+    N1: int = 0  # points along axis 1 (files written before it: 0, read as N)
+    spacing1: float = 0.0  # spacing along axis 1 (0: read as spacing)
+
+    @property
+    def extent(self) -> tuple[float, float]:
+        """The stored maps' physical sizes along axes 0 and 1."""
+        m0, m1 = self.heights.shape
+        return m0 * self.spacing, m1 * (self.spacing1 or self.spacing)
 
 
 def load_field(path: Path, scene: str, instance: str) -> ContactField:
@@ -160,7 +170,8 @@ def load_field(path: Path, scene: str, instance: str) -> ContactField:
                         np.asarray(v["heights"], float), np.asarray(v["pressure"], float), np.asarray(v["gap"], float),
                         np.asarray(v["contact"], bool), int(v["N"]), float(v["spacing"]), float(v["E"]),
                         float(v["far_field"]), float(v["load"]), float(v["dim_load"]), float(v["contact_fraction"]),
-                        float(v["rms_slope"]), str(v["unit"]), bool(v["periodic"]))
+                        float(v["rms_slope"]), str(v["unit"]), bool(v["periodic"]),
+                        int(v.get("N1", v["N"])), float(v.get("spacing1", v["spacing"])))
 
 
 def find_fields(out_dir: Path, keys: set[tuple[str, str]]) -> dict[tuple[str, str, int], Path]:

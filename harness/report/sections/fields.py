@@ -98,13 +98,13 @@ def zoom_window(pressure: np.ndarray, frac: float = 1 / 6) -> tuple[slice, slice
     """The square window of side ``frac`` of the map that carries the most load."""
     from scipy.ndimage import uniform_filter
 
-    m = pressure.shape[0]
-    w = max(8, int(round(m * frac)))
-    if w >= m:
-        return slice(0, m), slice(0, m)
+    m0, m1 = pressure.shape
+    w = max(8, int(round(min(m0, m1) * frac)))
+    if w >= min(m0, m1):
+        return slice(0, m0), slice(0, m1)
     s = uniform_filter(np.nan_to_num(pressure), size=w, mode="constant")
     i, j = np.unravel_index(int(np.argmax(s)), s.shape)
-    i0, j0 = min(max(i - w // 2, 0), m - w), min(max(j - w // 2, 0), m - w)
+    i0, j0 = min(max(i - w // 2, 0), m0 - w), min(max(j - w // 2, 0), m1 - w)
     return slice(i0, i0 + w), slice(j0, j0 + w)
 
 
@@ -133,14 +133,13 @@ def _pressure_panel(fig: object, a: object, f: ContactField, rows: slice, cols: 
 def _field_figure(ctx: ReportContext, f: ContactField) -> str:
     fig, axes = grid_figure(1, 4, width=4.3, height=3.8, wspace=0.55)
     a1, a2, a2z, a3 = axes[0]
-    m = f.heights.shape[0]
-    L = f.spacing * m
-    sx, ux = _length_scale(np.array([L]), f.unit)
-    ext = (0, L * sx, 0, L * sx)
+    L0, L1 = f.extent
+    sx, ux = _length_scale(np.array([max(L0, L1)]), f.unit)
+    ext = (0, L1 * sx, 0, L0 * sx)
     sh, uh = _length_scale(f.heights - np.nanmean(f.heights), f.unit)
     im = a1.imshow((f.heights - np.nanmean(f.heights)) * sh, origin="lower", extent=ext, cmap="terrain")
     fig.colorbar(im, ax=a1, fraction=0.046, pad=0.04).set_label(f"height - mean  [{uh}]", fontsize=8)
-    a1.set_title(f"surface ({f.N}x{f.N})", fontsize=9)
+    a1.set_title(f"surface ({f.N}x{f.N1 or f.N})", fontsize=9)
     a2.imshow(np.where(f.contact, 1.0, np.nan), origin="lower", extent=ext, cmap="gray_r", vmin=0, vmax=1,
               interpolation="nearest")
     a2.set_title(f"contact area, step {f.step} (A/A0 = {fmt_num(f.contact_fraction)})", fontsize=9)
