@@ -68,8 +68,9 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
 
 def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:
     """Each of the section's charts as a PNG under its body, kept on the context for
-    report.html (under ``scene``)."""
+    report.html (under ``scene``) with the section's page charts."""
     parts = []
+    ctx.charts.extend(PageChart(scene, rc) for rc in sec.page_charts)
     for chart in sec.charts:
         ctx.charts.append(PageChart(scene, chart))
         parts.append(ctx.figure_md(ctx.save_figure(chart.to_figure(), f"chart-{chart.name}"), chart.title))

@@ -89,3 +89,32 @@ class Chart:
 def _finite(v: float) -> float | None:
     f = float(v)
     return f if math.isfinite(f) else None
+
+
+#: The page's drawers of the table's own rows (report/page_script.py): "time-against"
+#: (solve time per row against a row field, one curve per solver label and profile, a
+#: cross where the judge did not read the answer as solved) and "unsolved-share" (the
+#: share of rows not solved per solver against n).
+ROW_DRAWERS: tuple[str, ...] = ("time-against", "unsolved-share")
+#: The row fields a "time-against" chart may put on its x axis: dimensionless load, n.
+ROW_X_FIELDS: tuple[str, ...] = ("dl", "n")
+
+
+@dataclass(frozen=True)
+class RowChart:
+    """An interactive chart that report.html draws from the scene's rows, so that the
+    page's solver and profile pickers filter it (a ``Chart`` is fixed data instead).
+    A section returns it in ``Section.page_charts``; the page knows only the drawers of
+    ``ROW_DRAWERS``, never a scene name.  ``by_instance`` draws one curve per instance."""
+
+    title: str
+    drawer: str = "time-against"
+    x: str = "dl"
+    x_title: str = "P/(E A) [-]"
+    by_instance: bool = False
+
+    def __post_init__(self) -> None:
+        if self.drawer not in ROW_DRAWERS:
+            raise ValueError(f"row chart {self.title!r}: drawer must be one of {ROW_DRAWERS}, got {self.drawer!r}")
+        if self.x not in ROW_X_FIELDS:
+            raise ValueError(f"row chart {self.title!r}: x must be one of {ROW_X_FIELDS}, got {self.x!r}")

@@ -47,7 +47,7 @@ from contactbench.problems.scenes import all_scenes
 
 from ..table import aggregates as agg
 from ..table.meta import commands_of
-from .charts import Chart
+from .charts import Chart, RowChart
 from .style import DEFAULT_FAMILY, SolverStyles
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_text, bool_series
 from ..table.store import load_table
@@ -56,9 +56,6 @@ REPORT_NAME = "report.md"
 FIGURE_DIR = "figures"
 #: Values below this are drawn at this floor on log axes (exact zeros, round-off).
 LOG_FLOOR = 1e-16
-#: The order in which known scenes appear; others follow alphabetically.
-SCENE_ORDER = ("paper-sweep", "greedy-linear-solvers", "gp-k-sweep", "counterexample", "cmr", "cmr-h-sweep",
-               "cmr-cutoff", "hertz", "flat-punch", "stress", "population")
 #: Profiles from tightest to loosest: figures of the paper use the first one present
 #: (the paper ran at epsilon = 1e-8).
 PROFILE_PREFERENCE = ("high", "mid", "default", "low")
@@ -76,12 +73,14 @@ ReportInputError = TableError
 
 @dataclass
 class Section:
-    """A report section: a title (## heading), its Markdown body, and its charts
-    (harness/report/charts.py: drawn under the body in report.md and on report.html)."""
+    """A report section: a title (## heading), its Markdown body, its charts
+    (harness/report/charts.py: drawn under the body in report.md and on report.html) and
+    its page charts (drawn by report.html from the scene's rows)."""
 
     title: str
     body: str
     charts: Sequence[Chart] = ()
+    page_charts: Sequence[RowChart] = ()  # drawn on report.html only, from the scene's rows
 
 
 @dataclass(frozen=True)
@@ -90,7 +89,7 @@ class PageChart:
     section, under no scene)."""
 
     scene: str
-    chart: Chart
+    chart: Chart | RowChart
 
 
 @dataclass(frozen=True)
@@ -279,9 +278,12 @@ def sort_scenes(scenes: Iterable[str]) -> list[str]:
 
 
 def scene_rank(scene: str) -> tuple:
-    """Sort key of a scene: SCENE_ORDER first, then natural order."""
-    known = {s: i for i, s in enumerate(SCENE_ORDER)}
-    return (known.get(scene, len(known)), natural_key(scene))
+    """Sort key of a scene: scenes with a registered section first, in the report's
+    order of sections (group, then ``order``); then the others in natural order."""
+    spec = registered_sections().get(scene)
+    if spec is None or spec.group not in ("paper", "scenes"):
+        return (1, 0, 0, natural_key(scene))
+    return (0, SECTION_GROUPS.index(spec.group), spec.order, natural_key(scene))
 
 
 def fmt_num(v: Any, digits: int = 3) -> str:

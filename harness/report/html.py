@@ -22,12 +22,14 @@ from __future__ import annotations
 import base64
 import html
 import json
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..table import aggregates as agg
+from .charts import Chart, RowChart
 from .core import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace
 from .sections.fields import load_area_series, trace_scene
 from .sections.generic import profile_taus, reached_accuracy
@@ -125,7 +127,8 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
         "traces": trace_data(ctx),
         "loadarea": load_area_data(ctx),
         "images": embedded_images(ctx),
-        "charts": [{"scene": pc.scene, **pc.chart.to_plotly()} for pc in ctx.charts],
+        "charts": [{"scene": pc.scene, **pc.chart.to_plotly()} for pc in ctx.charts if isinstance(pc.chart, Chart)],
+        "rowcharts": [{"scene": pc.scene, **asdict(pc.chart)} for pc in ctx.charts if isinstance(pc.chart, RowChart)],
     }
 
 

@@ -87,7 +87,7 @@ function ppChart(scene) {
     return [traces, lay];
   };
 }
-function counterexampleChart(scene) {
+function counterexampleChart(scene, title) {
   return () => {
     const rows = rowsOf(scene);
     const g = groupBy(rows, r => r.so);
@@ -99,7 +99,7 @@ function counterexampleChart(scene) {
       return {type: 'bar', name: so, x: ns.map(n => 'n = ' + n), y: y, marker: {color: COLOR[so]},
         hovertemplate: so + ': %{y:.0f} % of seeds violate the LCP (judge: not solved) at %{x}<extra></extra>'};
     });
-    return [traces, layout('seeds violating the LCP (' + scene + ')', 'problem size', 'seeds violating the LCP [%]',
+    return [traces, layout(title, 'problem size', 'seeds violating the LCP [%]',
       [], [])];
   };
 }
@@ -163,11 +163,8 @@ function build() {
     sec.innerHTML = '<h2>' + scene + '</h2>';
     const grid = document.createElement('div'); grid.className = 'grid'; sec.appendChild(grid);
     const has = D.rows.some(r => r.sc === scene);
-    if (scene === 'paper-sweep') addChart(grid, scene, lineChart(scene, 'Fig. 4: solve time against load', 'dl', 'P/(E A) [-]', false));
-    else if (scene === 'gp-k-sweep') addChart(grid, scene, lineChart(scene, 'Fig. 6: NNLS+GP time per step, per K', 'dl', 'P/(E A) [-]', false));
-    else if (scene === 'greedy-linear-solvers') addChart(grid, scene, lineChart(scene, 'Fig. 5: greedy solve time against n', 'n', 'trial-set size n', false));
-    else if (scene.startsWith('cmr')) addChart(grid, scene, lineChart(scene, (scene === 'cmr' ? 'Fig. 8' : scene === 'cmr-h-sweep' ? 'Fig. 9' : scene) + ': CMR and direct solve time against load', 'dl', 'P/(E A) [-]', true));
-    else if (scene === 'counterexample') addChart(grid, scene, counterexampleChart(scene));
+    D.rowcharts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, c.drawer === 'unsolved-share'
+      ? counterexampleChart(scene, c.title) : lineChart(scene, c.title, c.x, c.x_title, c.by_instance)));
     D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
     if (has) {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));

@@ -12,6 +12,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from ..charts import RowChart
 from ..core import (
     ReportContext,
     Section,
@@ -48,6 +49,11 @@ from .cmr import (
     variant_order,
 )
 from .paper import surface_family_note
+
+#: The page charts of the CMR figures: CMR and direct solve time per instance.
+FIG8_PAGE = (RowChart("Fig. 8: CMR and direct solve time against load", by_instance=True),)
+FIG9_PAGE = (RowChart("Fig. 9: CMR and direct solve time against load", by_instance=True),)
+CUTOFF_PAGE = (RowChart("cmr-cutoff: CMR and direct solve time against load", by_instance=True),)
 
 
 def _band_line(ax: Any, x: Sequence[float], bands: Sequence[Band], label: str, color: Any, scale: float = 1.0) -> None:
@@ -206,7 +212,7 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 8: cascade multi-resolution (CMR) against the direct solve, as distributions (cmr)"
     pairs = cmr_pairs(rows)
     if pairs.empty:
-        return Section(title, "No CMR row could be paired with its direct base solve.\n")
+        return Section(title, "No CMR row could be paired with its direct base solve.\n", page_charts=FIG8_PAGE)
     body = [surface_family_note(pairs), DESIGN_NOTE]
     for family, fp in by_family(pairs):
         tot = instance_totals(fp)
@@ -225,7 +231,7 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                                   f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band over the seeds."))
         body.append(history_table(fp, family).md(ctx))
         body.append(fig8_reading(tot, fp))
-    return Section(title, "\n".join(b for b in body if b))
+    return Section(title, "\n".join(b for b in body if b), page_charts=FIG8_PAGE)
 
 
 @register_section("cmr-h-sweep", title="Fig. 9: CMR against h", group="paper", order=51)
@@ -233,7 +239,7 @@ def cmr_h_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 9: CMR against the area-of-influence factor h, and where the cascade starts (cmr-h-sweep)"
     pairs = cmr_pairs(rows)
     if pairs.empty:
-        return Section(title, "No CMR row could be paired with its direct base solve.\n")
+        return Section(title, "No CMR row could be paired with its direct base solve.\n", page_charts=FIG9_PAGE)
     body = [surface_family_note(pairs), DESIGN_NOTE]
     for family, fp in by_family(pairs):
         tot = instance_totals(fp)
@@ -254,7 +260,7 @@ def cmr_h_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                                       f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band, seeds and the worst seed."))
             body.append(coarsest_table(starts, family).md(ctx))
         body.append(fig9_reading(tot))
-    return Section(title, "\n".join(b for b in body if b))
+    return Section(title, "\n".join(b for b in body if b), page_charts=FIG9_PAGE)
 
 
 DESIGN_NOTE = ("Direct solves and bases: the paper's dense Cholesky + NNLS (`scipy-nnls`, no warm start: every "
@@ -269,12 +275,12 @@ def cmr_cutoff_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None
     title = "CMR on a PSD with a roll-off plateau against a pure power law (cmr-cutoff)"
     pairs = cmr_pairs(rows)
     if pairs.empty:
-        return Section(title, "No CMR row could be paired with its direct base solve.\n")
+        return Section(title, "No CMR row could be paired with its direct base solve.\n", page_charts=CUTOFF_PAGE)
     pairs = pairs.assign(ratio=pairs["solve_time_s"] / pairs["direct_time_s"],
                          warned=pairs["solver_message"].fillna("").str.contains("NOT a power law"))
     body = [Table("CMR on the two surfaces (paper: -98 % error on the 10x scan with a roll-off, -0.4 % on the "
                   "power-law 100x scan).", ("instance", "load error", "time ratio", "n_p/n", "PSD warning"),
                   [(r.instance, fmt_pct1(r.err), fmt_num(r.ratio), fmt_num(r.n_p_over_n),
                     "yes" if r.warned else "no") for r in pairs.itertuples()], "lrrrl").md(ctx)]
-    return Section(title, "\n".join(body))
+    return Section(title, "\n".join(body), page_charts=CUTOFF_PAGE)
 

@@ -23,6 +23,7 @@ import pandas as pd
 from contactbench.problems.instances import CONTACT_TOL, counterexample
 from matplotlib.figure import Figure
 
+from ..charts import RowChart
 from ..core import (
     ReportContext,
     ReportInputError,
@@ -39,6 +40,10 @@ from ..core import (
     table_md,
 )
 from .paper import resolve_role
+
+#: The page chart of Example 1: the share of seeds not solved, per solver and n.
+EXAMPLE1_PAGE = (RowChart("seeds violating the LCP (counterexample)", drawer="unsolved-share", x="n",
+                          x_title="problem size"),)
 
 #: The judge's reading of one seed, worst first: what a cell of several repeats reads as.
 READINGS = ("no answer", "wrong", "unconverged", "accepted")
@@ -103,7 +108,7 @@ def counterexample_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | 
     prof = pick_profile(attempted(rows))
     r = attempted(rows[rows["profile"] == prof])
     if r.empty:
-        return Section(title, "Every pair of this scene was skipped.\n")
+        return Section(title, "Every pair of this scene was skipped.\n", page_charts=EXAMPLE1_PAGE)
     cells = seed_readings(r)
     frac = violation_counts(cells)
     ns = sorted(frac["n"].unique())
@@ -135,7 +140,7 @@ def counterexample_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | 
     body.append(_distance_table(ctx, cells, ns, solvers, prof))
     body.append(_counterexample_reading(frac, cells))
     body.append(_counterexample_case(ctx, cells))
-    return Section(title, "\n".join(body))
+    return Section(title, "\n".join(body), page_charts=EXAMPLE1_PAGE)
 
 
 def _check_tol_text(rows: pd.DataFrame) -> str:

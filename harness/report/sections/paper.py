@@ -21,6 +21,7 @@ import pandas as pd
 from contactbench.problems.surfaces import RMD_FAMILIES
 
 from ..style import GREY, family_panels, panels_note, sort_families
+from ..charts import RowChart
 from ..core import (
     WARM_SUFFIX,
     ReportContext,
@@ -45,6 +46,11 @@ from ..core import (
     register_section,
     table_md,
 )
+
+#: The page charts of the paper's figures (report.html draws them from the rows).
+FIG4_PAGE = (RowChart("Fig. 4: solve time against load"),)
+FIG5_PAGE = (RowChart("Fig. 5: greedy solve time against n", x="n", x_title="trial-set size n"),)
+FIG6_PAGE = (RowChart("Fig. 6: NNLS+GP time per step, per K"),)
 
 # ---------------------------------------------------------------------------
 # Which surfaces ran: the instance names of generated rough surfaces
@@ -264,7 +270,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     prof = pick_profile(attempted(rows))
     r = attempted(rows[rows["profile"] == prof])
     if r.empty:
-        return Section("Fig. 4: solve time against load (paper-sweep)", "Every pair of this scene was skipped.\n")
+        return Section("Fig. 4: solve time against load (paper-sweep)", "Every pair of this scene was skipped.\n", page_charts=FIG4_PAGE)
     cells = per_cell(r)
     # warm and cold runs of one solver are separate curves ("pk" and "pk (warm)")
     cells["warm"] = cells.groupby(["solver", "history"])["warm_start"].transform("any").astype(bool)
@@ -308,7 +314,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                          ["solver", "family", "total [s]", "all steps solved", "steps", "worst kkt", "worst p err"],
                          rows_t, "llrlrrr"))
     body.append(_fig4_reading(tot, n_max, paper_roles(cells)))
-    return Section("Fig. 4: solve time against load (paper-sweep)", "\n".join(body))
+    return Section("Fig. 4: solve time against load (paper-sweep)", "\n".join(body), page_charts=FIG4_PAGE)
 
 
 def best_per_family(tot: pd.DataFrame, family_of: Callable[[str], str]) -> dict[str, str]:
@@ -412,7 +418,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     r = rows[rows["profile"] == prof]
     cells = per_cell(attempted(r))
     if cells.empty:
-        return Section(title, "Every pair of this scene was skipped.\n")
+        return Section(title, "Every pair of this scene was skipped.\n", page_charts=FIG5_PAGE)
     fig, (ax,) = new_figure(width=6.4, height=4.2)
     _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]")
     ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
@@ -422,7 +428,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     body.append(ctx.figure_md(rel, f"greedy solve time against the trial-set size n, profile `{prof}` (paper "
                                f"Fig. 5: CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel)."))
     body.append(_fig5_reading(cells, r))
-    return Section(title, "\n".join(body))
+    return Section(title, "\n".join(body), page_charts=FIG5_PAGE)
 
 
 def _paired_median_ratio(cells: pd.DataFrame, a: str | None, b: str | None) -> tuple[float, int]:
@@ -479,11 +485,11 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     prof = pick_profile(attempted(rows))
     cells = per_cell(attempted(rows[rows["profile"] == prof]))
     if cells.empty:
-        return Section(title, "Every pair of this scene was skipped.\n")
+        return Section(title, "Every pair of this scene was skipped.\n", page_charts=FIG6_PAGE)
     cells = cells.assign(K=cells.apply(k_of, axis=1))
     cells = cells[cells["K"].notna()]
     if cells.empty:
-        return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n")
+        return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n", page_charts=FIG6_PAGE)
     import matplotlib
 
     Ks = sorted(cells["K"].unique())
@@ -522,7 +528,7 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                          [(int(k), fmt_num(tot.loc[k, "total_s"]), "yes" if tot.loc[k, "complete"] else "no")
                           for k in tot.index], "rrl"))
     body.append(_fig6_reading(tot))
-    return Section(title, "\n".join(body))
+    return Section(title, "\n".join(body), page_charts=FIG6_PAGE)
 
 
 def _fig6_reading(tot: pd.DataFrame) -> str:
