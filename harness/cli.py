@@ -42,7 +42,10 @@ from typing import Any, NoReturn, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
+from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES, parse_length
+from contactbench.problems.layers import DEFAULT_NU, INTERFACES, Layer
 from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
+from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS
 from contactbench.problems.surfaces import RMD_FAMILIES
 from contactbench.problems.units import PLAUSIBLE_MODULUS, check_plausible_modulus
 
@@ -59,7 +62,9 @@ NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
 OPTION_FLAGS: dict[str, str] = {
     "size": "--size", "steps": "--steps", "seeds": "--seeds", "surface_path": "--surface", "length": "--length",
     "E": "--E", "kernel": "--kernel", "periodic": "--periodic", "operator": "--operator", "channel": "--channel",
-    "height_unit": "--height-unit", "allow_steep": "--allow-steep", "family": "--surface-family"}
+    "height_unit": "--height-unit", "allow_steep": "--allow-steep", "family": "--surface-family",
+    "detrend": "--detrend", "nan": "--nan", "crop": "--crop", "thickness": "--thickness", "nu": "--nu",
+    "interface": "--interface"}
 
 
 class InputError(ProblemInputError):
@@ -163,6 +168,26 @@ def finite_positive_float(text: str) -> float:
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"must be finite, got {text}")
     return v
+
+
+def length_pair(text: str) -> float | tuple[float, float]:
+    """``--length``: L0 or L0,L1 in metres (``problems.io.parse_length``)."""
+    try:
+        return parse_length(text)
+    except ProblemInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def poisson_ratio(text: str) -> float:
+    """``--nu``: a Poisson's ratio, as ``problems.layers.Layer`` accepts it."""
+    try:
+        nu = float(text)
+        Layer(1.0, nu)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    except ProblemInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return nu
 
 
 def positive_int(text: str) -> int:
@@ -279,6 +304,15 @@ def scene_config(args: argparse.Namespace) -> Any:
         if not args.surface:
             raise InputError("--height-unit and --allow-steep apply to a --surface file; no --surface was given")
         extra.update({k: v for k, v in (("height_unit", args.height_unit), ("allow_steep", args.allow_steep)) if v})
+    cleaning = {k: getattr(args, k) for k in SURFACE_FILE_OPTIONS if getattr(args, k) is not None}
+    if cleaning:  # problems/io.py: load_surface's cleaning of a measured map
+        if not args.surface:
+            raise InputError(f"{', '.join(OPTION_FLAGS[k] for k in cleaning)} clean a --surface file; "
+                             "no --surface was given")
+        extra.update(cleaning)
+    if args.thickness is None and (args.nu is not None or args.interface is not None):
+        raise InputError("--nu and --interface describe an elastic layer; give its --thickness")
+    extra.update({k: getattr(args, k) for k in LAYER_OPTIONS if getattr(args, k) is not None})
     if args.surface_family is not None:
         if args.surface:
             raise InputError("--surface-family picks the generated RMD surfaces; a --surface file was given")
@@ -300,8 +334,23 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--surface", default=None,
                    help="measured height map: .npy/.csv/.txt or any SurfaceTopography format (.x3p, .gwy, .nc, .mat, ...)")
     p.add_argument("--channel", default=None, help="channel (index or name) of a multi-channel --surface file")
-    p.add_argument("--length", type=finite_positive_float, default=None,
-                   help="side length L in metres (optional when the surface file states its size)")
+    p.add_argument("--length", type=length_pair, default=None,
+                   help="L0 or L0,L1: the lateral size in metres along the map's axes 0 and 1 (L0 alone: square "
+                        "pixels; optional when the surface file states its size)")
+    p.add_argument("--detrend", choices=DETREND_RULES, default=None,
+                   help="what is removed from a --surface map before it is solved (default: plane, with a warning "
+                        "when the removed tilt exceeds the rms slope)")
+    p.add_argument("--nan", choices=NAN_RULES, default=None,
+                   help="how missing points of a --surface map are filled (default: fill-mean; error refuses them)")
+    p.add_argument("--crop", choices=CROP_RULES, default=None,
+                   help="crop a rectangular --surface map to a square (square) or pad it (pad-square); default: "
+                        "none, the whole map with its own spacing")
+    p.add_argument("--thickness", type=finite_positive_float, default=None,
+                   help="an elastic layer of this thickness in metres on a rigid base (default: the half-space)")
+    p.add_argument("--nu", type=poisson_ratio, default=None,
+                   help=f"Poisson's ratio of the layer (default {DEFAULT_NU}; a layer's stiffness depends on it)")
+    p.add_argument("--interface", choices=INTERFACES, default=None,
+                   help="the layer's contact with its rigid base (default: bonded)")
     p.add_argument("--height-unit", choices=("m", "mm", "um", "nm"), default=None,
                    help="unit of the heights of a --surface file that states none (default: m; refused for a "
                         "file that states its unit)")

@@ -18,11 +18,15 @@ from ..surfaces import Surface
 
 
 #: Every option a user may set on a scene: the ``SceneConfig`` fields and the keys of
-#: ``extra`` the command line fills (``channel``, ``height_unit``, ``allow_steep`` of a
-#: surface file; ``family``, the RMD family of generated surfaces).
+#: ``extra`` the command line fills (``channel``, ``height_unit``, ``allow_steep`` and the
+#: cleaning ``detrend``, ``nan``, ``crop`` of a surface file; ``family``, the RMD family of
+#: generated surfaces; ``thickness``, ``nu``, ``interface`` of an elastic layer).
 SCENE_OPTIONS: frozenset[str] = frozenset({
     "size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator",
-    "channel", "height_unit", "allow_steep", "family"})
+    "channel", "height_unit", "allow_steep", "family", "detrend", "nan", "crop", "thickness", "nu", "interface"})
+#: The options of an elastic layer on a rigid base (scenes that pose only the half-space
+#: leave them out of their ``options``).
+LAYER_SCENE_OPTIONS: frozenset[str] = frozenset({"thickness", "nu", "interface"})
 #: The options a measured surface file replaces (its grid and its one surface).
 GENERATED_ONLY_OPTIONS: frozenset[str] = frozenset({"size", "seeds", "family"})
 
@@ -35,7 +39,7 @@ class SceneConfig:
     steps: int | None = None
     seeds: tuple[int, ...] | None = None
     surface_path: str | None = None
-    length: float | None = None
+    length: float | tuple[float, float] | None = None  # L0, or (L0, L1) along axes 0 and 1
     E: float | None = None
     kernel: str | None = None
     periodic: bool | None = None

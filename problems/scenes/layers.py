@@ -23,7 +23,7 @@ from ..errors import ProblemInputError
 from ..layers import DEFAULT_NU
 from ..surfaces import Surface
 from . import register_scene
-from .base import InstanceSpec, SceneConfig
+from .base import SCENE_OPTIONS, InstanceSpec, SceneConfig
 from .core import PAPER_E, PAPER_SEED, RampScene, layer_suffix, paper_ramp, rough_surface_specs
 
 #: Layer thicknesses in units of the surface's (shorter) side L.
@@ -47,6 +47,7 @@ class LayerSweep(RampScene):
     defaults = SceneConfig(size=128, steps=10, seeds=(PAPER_SEED,), length=100e-6, E=PAPER_E, kernel="bcc",
                            periodic=False, operator="fft",
                            extra={"thicknesses": LAYER_THICKNESSES, "nu": DEFAULT_NU, "interface": "bonded"})
+    options = SCENE_OPTIONS - {"thickness"}  # the sweep sets the thickness itself
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
         # The sweep sets the thickness itself: a single --thickness is not read here.
