@@ -31,6 +31,10 @@ Usage:
   python benchmarks/bench_surface_population.py [--sizes 512 1024 2048 4096] [--families saupe,...]
       [--seeds 512:3,1024:3,2048:2,4096:1] [--variants default,double-islands] [--threads 2]
       [--timeout 900] [--out results/perf] [--fresh] [--in-process] [--table-only]
+The scale check (one cold top step at 8192^2 per RMD family, ``LARGE_CELLS``):
+  python benchmarks/bench_surface_population.py --fresh --sizes 8192 --families saupe,periodic
+      --variants default --threads 2 --timeout 1800 --out results/perf/scale-8192
+The quiet-machine commands of results/perf: results/perf/README.md, "Surface population".
 """
 
 from __future__ import annotations

@@ -253,3 +253,59 @@ def test_population_plan_and_member_keys():
     assert len(members) == len(bench.CELLS) * 4 * 2 + len(bench.LARGE_CELLS) * 4
     assert all(bench.Member.parse(m.key) == m for m in members)
     assert {m.family for m in members} == set(bench.FAMILIES)
+
+
+def bench_script(name: str):
+    """A sibling script of benchmarks/bench_surface_population.py, imported as it runs."""
+    population_script()  # its sibling modules on the path first
+    folder = Path(__file__).resolve().parent.parent / "benchmarks"
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_sweep_ratio_counts_only_members_both_solvers_solved_throughout():
+    sweep = bench_script("bench_population_sweep")
+    T = sweep.SweepTotals
+    assert sweep.ratio([T("ours", 1.0, 10, 10, 300), T(sweep.CM, 20.0, 10, 10, 3000)], "ours") == 0.05
+    assert np.isnan(sweep.ratio([T("ours", 1.0, 9, 10, 300), T(sweep.CM, 20.0, 10, 10, 3000)], "ours"))
+    assert np.isnan(sweep.ratio([T("ours", 1.0, 10, 10, 300), T(sweep.CM, 20.0, 7, 10, 3000)], "ours"))
+    assert np.isnan(sweep.ratio([T("ours", 1.0, 10, 10, 300)], "ours"))
+    members = sweep.members_of(",".join(sweep.MEMBERS), 256)
+    assert len(members) >= 5 and {m.N for m in members} == {256}
+    assert {m.family for m in members} == set(population_script().FAMILIES)
+
+
+@pytest.mark.parametrize("argv,what", [(["--size", "500"], "power of two"), (["--members", "rough:512:0.7:0.3:0"],
+                                        "unknown family"), (["--members", "saupe:512"], "--members"),
+                                       (["--steps", "0"], "--steps")])
+def test_sweep_refuses_bad_input_in_one_line_before_running(argv, what, tmp_path):
+    import subprocess
+
+    script = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_population_sweep.py"
+    proc = subprocess.run([sys.executable, str(script), *argv, "--out", str(tmp_path / "o")], capture_output=True, check=False,
+                          text=True, timeout=120)
+    assert proc.returncode == 2 and what in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_cost_law_per_family_recovers_known_exponents(tmp_path):
+    bench = population_script()
+    plot = bench_script("plot_population_cost_law")
+    rows = []
+    for N in (256, 512, 1024):
+        for seed in range(2):
+            for fam, a in (("saupe", 0.25), ("fourier", 0.1)):
+                r = fake_row(bench, fam, seed, "default", round(10 * (N * N) ** a))
+                r.N, r.seconds = N, 1e-6 * (N * N) ** 1.1
+                rows.append(r)
+    fits = {fam: plot.family_fit(plot.solved(rows, fam, "default"), "matvecs") for fam in ("saupe", "fourier")}
+    assert fits["saupe"].exponent == pytest.approx(0.25, abs=0.01) and fits["fourier"].exponent == pytest.approx(0.1,
+                                                                                                              abs=0.02)
+    assert plot.family_fit(plot.solved(rows, "all", "default"), "seconds").exponent == pytest.approx(1.1, abs=1e-9)
+    assert plot.family_fit([r for r in rows if r.N == 256], "matvecs") is None  # one size: no fit
+    plot.write_markdown(rows, ["default"], tmp_path)
+    text = (tmp_path / f"{plot.STEM}.md").read_text()
+    assert "| saupe | default | 256, 512, 1024 | 6 | 0.25 |" in text and "Host(s): h" in text
