@@ -29,11 +29,6 @@ import numpy as np
 
 from .errors import ProblemInputError
 
-#: Bisection steps of ``project_box_sum`` (the shift's bracket halves each step; 200 steps
-#: reach adjacent doubles from any finite bracket).
-PROJECTION_STEPS = 200
-
-
 @dataclass(frozen=True, eq=False)
 class Constraints:
     """The optional bounds and load equality of a contact QP (module doc).
@@ -119,32 +114,45 @@ def project_box(x: np.ndarray, upper: np.ndarray | None) -> np.ndarray:
 
 def project_box_sum(x: np.ndarray, upper: np.ndarray | None, load: float) -> np.ndarray:
     """The Euclidean projection of x onto {0 <= p <= upper, sum(p) = load}: p =
-    clip(x - tau, 0, upper) with the shift tau found by bisection (sum(p) is
-    non-increasing in tau), then corrected exactly on the elements strictly inside
-    their bounds.  ``load`` must be feasible (``Constraints.check``)."""
+    clip(x - tau, 0, upper), where S(tau) = sum(p) is piecewise linear and non-increasing
+    with breakpoints x_i and x_i - upper_i.  A binary search over the sorted breakpoints
+    finds the piece holding S(tau) = load (O(n log n)); on it tau solves the linear
+    equation exactly.  ``load`` must be feasible (``Constraints.check``)."""
+    x = np.asarray(x, dtype=np.float64)
     u = np.full(x.shape, math.inf) if upper is None else upper
+    fin = np.isfinite(u)
+    bps = np.unique(np.concatenate([x, (x - u)[fin]]))
 
     def total(t: float) -> float:
         return float(np.sum(np.clip(x - t, 0.0, u)))
 
-    lo = float(np.min(x)) - float(load) - 1.0  # every element at x - lo > load: sum >= load (or capped)
-    hi = float(np.max(x))  # every element at 0
-    for _ in range(PROJECTION_STEPS):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if total(mid) > load:
-            lo = mid
-        else:
-            hi = mid
-    tau = hi
-    p = np.clip(x - tau, 0.0, u)
-    free = (x - tau > 0.0) & (x - tau < u)
+    if total(float(bps[0])) < load:  # below every breakpoint: the unbounded points carry the rest
+        t_mid = float(bps[0]) - 1.0
+        lo_t = t_mid
+    else:
+        lo, hi = 0, bps.size - 1
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if total(float(bps[mid])) >= load:
+                lo = mid
+            else:
+                hi = mid
+        lo_t = float(bps[lo])
+        t_mid = 0.5 * (lo_t + float(bps[hi])) if hi > lo else lo_t
+    free = (x - t_mid > 0.0) & (x - t_mid < u)
+    sat = x - t_mid >= u
     k = int(np.count_nonzero(free))
-    if k:
-        p[free] -= (float(np.sum(p)) - float(load)) / k
-        np.clip(p, 0.0, u, out=p)
-    return p
+    tau = (float(np.sum(x[free])) + float(np.sum(u[sat])) - float(load)) / k if k else lo_t
+    return np.clip(x - tau, 0.0, u)
+
+
+def project_feasible(x: np.ndarray, constraints: Constraints) -> np.ndarray:
+    """The projection of x onto the feasible set of ``constraints``: p >= 0 (plain,
+    ``np.maximum(x, 0)``), the box (``project_box``) or the box with the load
+    (``project_box_sum``)."""
+    if constraints.load is not None:
+        return project_box_sum(x, constraints.upper, float(constraints.load))
+    return project_box(x, constraints.upper)
 
 
 def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> float:
@@ -171,5 +179,5 @@ def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> fl
     return float(np.min(g))
 
 
-__all__ = ["Constraints", "PROJECTION_STEPS", "fit_multiplier", "hardness_bounds", "make_constraints",
-           "project_box", "project_box_sum"]
+__all__ = ["Constraints", "fit_multiplier", "hardness_bounds", "make_constraints",
+           "project_box", "project_box_sum", "project_feasible"]
