@@ -19,11 +19,21 @@ violations it moves only the least violated index (Murty's rule).  It stops on a
 violation-free set: then p is the exact solution (up to round-off).  Violations are
 measured in the units of ``problems.kkt`` (tol x p_s, tol x u_s).
 
-``constrained_exact_solution`` -- the guess it polishes: the displacement-controlled
-exact solution (``problems.lcp.exact_solution``, Lawson-Hanson) clipped to the box; under
-load control, that solution at the approach Delta found by regula falsi (Illinois) on
-the total force P(Delta), non-decreasing, polishing after each step until a polish
-converges.  Every answer is certified by ``problems.kkt.constrained_figures``.
+``bvls`` -- bounded-variable least squares (Stark & Parker, Comput. Stat. 10 (1995) 129)
+stated on the QP: Lawson-Hanson's active-set method with a second bound.  The free set F
+is solved exactly (Cholesky of H_FF, the bounded elements held at 0 or u); the element
+of Z with the most negative gradient g = Hp - ubar, or of S with the most positive one,
+is freed; when the free solution leaves the box the step is cut at the first bound
+reached and the elements there are fixed (the inner loop).  It starts, as Stark & Parker
+allow, from any point of the box (a warm start): ``constrained_exact_solution`` starts
+it from the displacement-controlled exact solution (``problems.lcp.exact_solution``,
+Lawson-Hanson) clipped to the box, and ``box_polish`` checks its final sets.
+
+``constrained_exact_solution`` -- the reference: for a box, ``bvls`` from that point;
+under load control, the KKT solve with the multiplier: ``bvls`` at an approach Delta
+found by regula falsi (Illinois) on the total force P(Delta) (non-decreasing), and after
+each step ``box_polish`` with the load row from that point, until one converges.  Every
+answer is certified by ``problems.kkt.constrained_figures``.
 """
 
 from __future__ import annotations
@@ -140,6 +150,77 @@ def box_polish(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np
     return ConstrainedSolution(project_box(p, constraints.upper), delta, math.inf, False, max_rounds)
 
 
+@dataclass
+class BVLSOutcome:
+    """p, its outer iterations (elements freed), inner steps (cuts at a bound), and
+    whether it stopped with no element to free."""
+
+    p: np.ndarray
+    iterations: int
+    inner: int
+    converged: bool
+
+
+def _solve_free(H: np.ndarray, ubar: np.ndarray, u: np.ndarray, state: np.ndarray) -> np.ndarray:
+    return solve_on_sets(H, ubar, u, None, state)[0]
+
+
+def _cut_to_box(p: np.ndarray, z: np.ndarray, u: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Step from p towards z, cut at the first bound a free element reaches; the elements
+    at a bound join Z or S.  Returns (new p, whether z itself was inside the box)."""
+    free = state == F
+    low = free & (z <= 0.0)
+    high = free & (z >= u)
+    if not (np.any(low) or np.any(high)):
+        return z, True
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_low = np.where(low, p / (p - z), np.inf)
+        a_high = np.where(high, (u - p) / (z - p), np.inf)
+    alpha = float(min(np.min(a_low), np.min(a_high)))
+    alpha = min(max(alpha, 0.0), 1.0)
+    q = p + alpha * (z - p)
+    q = np.where(free, q, p)
+    tiny = 1e-14 * max(float(np.max(np.abs(p), initial=0.0)), 1e-300)
+    to_z = free & (q <= tiny) & (z <= p)
+    to_s = free & np.isfinite(u) & (q >= u * (1.0 - 1e-14)) & (z >= p)
+    if not (np.any(to_z) or np.any(to_s)):  # round-off: fix the element that set alpha
+        k = int(np.argmin(np.minimum(a_low, a_high)))
+        (to_z if low[k] else to_s)[k] = True
+    state[to_z], state[to_s] = Z, S
+    q[to_z] = 0.0
+    q[to_s] = u[to_s]
+    return q, False
+
+
+def bvls(H: np.ndarray, ubar: np.ndarray, upper: np.ndarray | None, p0: np.ndarray | None = None,
+         max_iter: int | None = None, tol: float = 1e-12) -> BVLSOutcome:
+    """Stark & Parker's BVLS on min 1/2 p'Hp - ubar'p, 0 <= p <= upper (module doc), from
+    ``p0`` (clipped to the box; None: p = 0).  An element is freed only when its gradient
+    violates by more than tol x u_s."""
+    H = np.asarray(H, dtype=np.float64)
+    ubar = np.asarray(ubar, dtype=np.float64)
+    n = ubar.size
+    u = np.full(n, math.inf) if upper is None else np.asarray(upper, dtype=np.float64)
+    u_s, _ = _scales(H, ubar)
+    p = np.zeros(n) if p0 is None else project_box(np.asarray(p0, dtype=np.float64), upper)
+    state = np.where(p <= 0.0, Z, np.where(p >= u, S, F)).astype(np.int8)
+    limit = 10 * n + 10 if max_iter is None else int(max_iter)
+    inner = 0
+    for it in range(limit + 1):
+        while np.any(state == F):  # make the free solution feasible (Stark & Parker's loop B)
+            p, inside = _cut_to_box(p, _solve_free(H, ubar, u, state), u, state)
+            inner += 1
+            if inside:
+                break
+        g = H @ p - ubar
+        score = np.where(state == Z, -g, np.where(state == S, g, 0.0))
+        j = int(np.argmax(score))
+        if score[j] <= tol * u_s or it == limit:
+            return BVLSOutcome(p, it, inner, bool(score[j] <= tol * u_s))
+        state[j] = F
+    return BVLSOutcome(p, limit, inner, False)
+
+
 def _certified(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, sol: ConstrainedSolution,
                tol: float) -> ConstrainedSolution | None:
     g = H @ sol.p - ubar
@@ -149,9 +230,13 @@ def _certified(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, sol: C
     return sol if sol.converged and f.kkt_error <= tol else None
 
 
-def _displacement_guess(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, delta: float) -> np.ndarray:
-    """The exact unbounded solution at approach ``delta``, clipped to the box."""
-    return project_box(exact_solution(H, ubar + delta).p, constraints.upper)
+def _displacement_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, delta: float) -> np.ndarray:
+    """The exact solution at approach ``delta`` within the box: Lawson-Hanson's unbounded
+    solution, clipped to the box and taken by ``bvls`` to the bounded one."""
+    p = exact_solution(H, ubar + delta).p
+    if not constraints.bounded:
+        return p
+    return bvls(H, ubar + delta, constraints.upper, p).p
 
 
 def constrained_exact_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constraints,
@@ -162,7 +247,7 @@ def constrained_exact_solution(H: np.ndarray, ubar: np.ndarray, constraints: Con
     ubar = np.asarray(ubar, dtype=np.float64)
     constraints.check(ubar.size)
     if not constraints.load_control:
-        sol = box_polish(H, ubar, constraints, _displacement_guess(H, ubar, constraints, 0.0))
+        sol = box_polish(H, ubar, constraints, _displacement_solution(H, ubar, constraints, 0.0))
         sol.solves = 1
         out = _certified(H, ubar, constraints, sol, tol)
         if out is None:
@@ -180,7 +265,7 @@ def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, 
     def total(delta: float) -> tuple[float, np.ndarray]:
         nonlocal solves
         solves += 1
-        p = _displacement_guess(H, ubar, constraints, delta)
+        p = _displacement_solution(H, ubar, constraints, delta)
         return float(np.sum(p)), p
 
     f_lo = -load
@@ -216,5 +301,5 @@ def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, 
         f"no certified solution after {solves} solves (last kkt {math.inf if last is None else last.kkt_error:.2e})")
 
 
-__all__ = ["CERTIFY_KKT", "ConstrainedSolution", "UncertifiedConstrainedSolution", "box_polish",
+__all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "bvls", "UncertifiedConstrainedSolution", "box_polish",
            "constrained_exact_solution", "solve_on_sets"]
