@@ -39,8 +39,8 @@ w <= 0 where p = u, w = 0 in between.  ``constrained_figures`` scales them with 
 u_s and p_s:
 
 * primal = max(0, -min p, max(p - u)) / p_s;
-* equality = |sum p - P| / max(P, p_s)  (relative to the load, absolute below one
-  element's force scale; 0 without a load equality);
+* equality = |sum p - P| / P  (the relative load error; scaled by p_s when P = 0, and 0
+  without a load equality);
 * dual = max_i min(max(0, -w_i) / u_s, max(0, u_i - p_i) / p_s): a negative gap is
   allowed only as far as the element sits at its upper bound (for u_i = inf this is the
   plain figure max(0, -w_i) / u_s);
@@ -185,12 +185,18 @@ def candidate_multiplier(g: np.ndarray, p: np.ndarray, constraints: Constraints,
     return float(multiplier)
 
 
+def equality_scale(load: float, p_s: float) -> float:
+    """The force the load residual is scaled by: the load P itself (a relative load error),
+    p_s when P = 0."""
+    return load if load > 0.0 else p_s
+
+
 def _equality(p: np.ndarray, constraints: Constraints, p_s: float) -> float:
     if not constraints.load_control:
         return 0.0
     load = float(constraints.load)  # type: ignore[arg-type]
     with np.errstate(all="ignore"):
-        return worse(abs(float(np.sum(p)) - load) / max(load, p_s))
+        return worse(abs(float(np.sum(p)) - load) / equality_scale(load, p_s))
 
 
 def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max: float, constraints: Constraints,
@@ -285,7 +291,7 @@ def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> K
         objective=objective,
         u_scale=u_s,
         p_scale=p_s,
-        equality_abs=0.0 if load is None else f.equality * max(float(load), p_s),
+        equality_abs=0.0 if load is None else f.equality * equality_scale(float(load), p_s),
         equality=f.equality,
         multiplier=f.multiplier if constraints.load_control else math.nan,
     )

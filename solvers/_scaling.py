@@ -24,8 +24,8 @@ BCC and Love kernels diag(H) is constant, so D is a multiple of the identity and
 scaled figure is order one: H~_ij in (0, 1], u~ in [0, 1], p~ = O(1).
 
 Bounds and a load equality (``problems.constraints``) scale with p: the box 0 <= p <= u
-is 0 <= p~ <= u / (s d) (``ScaledQP.ub``) and sum(p) = P is the row d'p~ = P / s
-(``ScaledQP.eq_row``, ``eq_rhs``); a backend states them natively (qpsolvers' ``lb``,
+is 0 <= p~ <= u / (s d) (``ScaledQP.ub``) and sum(p) = P is the row d'p~ = P / s, stated
+divided by max(d) so that its entries are at most one (``ScaledQP.eq_row``, ``eq_rhs``); a backend states them natively (qpsolvers' ``lb``,
 ``ub``, ``A``, ``b``; CVXPY's constraints).  The approach Delta (the row's multiplier) is
 not read from the backend: the lifecycle fits it from the answer.
 
@@ -144,8 +144,8 @@ class ScaledQP:
     eq: Equilibration
     x0: np.ndarray | None = None  # warm start in scaled units
     ub: np.ndarray | None = None  # upper bounds u / (s d) (None: none)
-    eq_row: np.ndarray | None = None  # the load row d (None: no load equality)
-    eq_rhs: float = 0.0  # P / s
+    eq_row: np.ndarray | None = None  # the load row d / max(d) (None: no load equality)
+    eq_rhs: float = 0.0  # P / (s max(d))
 
     @property
     def n(self) -> int:
@@ -163,8 +163,9 @@ def assemble_scaled(qp: QP, scaling: bool = True, p0: np.ndarray | None = None) 
     x0 = None if p0 is None else eq.to_scaled(p0)
     c = qp.constraints
     ub = None if not c.bounded else eq.to_scaled(c.upper_or_inf(qp.n))
-    row = None if c.load is None else (eq.d.copy() if eq.enabled else np.ones(qp.n))
-    rhs = 0.0 if c.load is None else float(c.load) / eq.s
+    dmax = float(np.max(eq.d)) if eq.enabled else 1.0
+    row = None if c.load is None else (eq.d / dmax if eq.enabled else np.ones(qp.n))
+    rhs = 0.0 if c.load is None else float(c.load) / (eq.s * dmax)
     return ScaledQP(Hs, us, eq, x0, ub, row, rhs)
 
 
