@@ -30,7 +30,7 @@ import numpy as np
 from .constraints import Constraints, hardness_bounds, make_constraints
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
-from .kkt import problem_scales
+from .kkt import constrained_scales
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
     ContactOperator,
@@ -213,8 +213,11 @@ class ContactInstance:
     def problem_scales(self) -> tuple[float, float]:
         """The judge's scales of this problem (``problems.kkt``): the displacement scale
         u_s = ||ubar||_inf and the force scale p_s = u_s / max diag H (the force that alone
-        indents one element by u_s).  They depend on the problem only, never on an answer."""
-        return problem_scales(np.asarray(self.qp.ubar, dtype=np.float64), float(np.max(self.qp.H.diagonal())))
+        indents one element by u_s; capped by the least upper bound under a hardness,
+        ``problems.kkt.constrained_scales``).  They depend on the problem only, never on an
+        answer."""
+        return constrained_scales(np.asarray(self.qp.ubar, dtype=np.float64), float(np.max(self.qp.H.diagonal())),
+                                  self.qp.constraints)
 
     def force_scale(self) -> float:
         """p_s of ``problem_scales``."""

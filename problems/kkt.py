@@ -49,6 +49,9 @@ u_s and p_s:
   u_s p_s: the lower and the upper bound's products;
 * kkt_error = max(primal, equality, dual, complementarity).
 
+The force scale is capped by the bounds: p_s = min(u_s / max diag H, min u)
+(``constrained_scales``), so a small hardness is not judged on a scale above it.
+
 Delta is the candidate's own (a solver reports it) or, when it gives none,
 ``constraints.fit_multiplier`` of the candidate; a non-finite Delta makes every figure inf.
 With no bounds and no load equality the plain figures above are computed, unchanged.
@@ -142,6 +145,17 @@ def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = N
     return u_s, u_s / float(diag_max)
 
 
+def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constraints,
+                       ubar_max: float | None = None) -> tuple[float, float]:
+    """(u_s, p_s) of a QP with constraints: ``problem_scales``, with p_s capped by the
+    least finite upper bound (a force no element can exceed, so a violation of the bound is
+    read against the bound itself).  The plain scales without bounds."""
+    u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+    if constraints.bounded:
+        p_s = min(p_s, float(np.min(constraints.upper)))
+    return u_s, p_s
+
+
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
                 ubar_max: float | None = None) -> KKTFigures:
     """The scaled KKT figures of ``p`` with gap ``w = Hp - ubar`` (module doc), scaled by
@@ -207,7 +221,7 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
     product or Delta gives inf, never a smaller figure."""
     if constraints.plain:
         return kkt_figures(p, g, ubar, diag_max, ubar_max)
-    u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+    u_s, p_s = constrained_scales(ubar, diag_max, constraints, ubar_max)
     if p.shape != g.shape or not (np.all(np.isfinite(p)) and np.all(np.isfinite(g))):
         return _all_infinite(u_s, p_s)
     delta = candidate_multiplier(g, p, constraints, multiplier)
@@ -264,7 +278,7 @@ def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> K
         raise ValueError(f"candidate p has shape {p.shape}, the problem has n = {ubar.size}")
     constraints = _constraints_of(qp)
     diag_max = float(np.max(qp.H.diagonal()))
-    u_s, p_s = problem_scales(ubar, diag_max)
+    u_s, p_s = constrained_scales(ubar, diag_max, constraints)
     if not np.all(np.isfinite(p)):
         return infinite_report(u_s, p_s)
     with np.errstate(all="ignore"):

@@ -45,7 +45,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .constraints import Constraints, fit_multiplier, project_box
-from .kkt import constrained_figures
+from .kkt import constrained_figures, constrained_scales
 from .lcp import BLOCK_PATIENCE, exact_solution
 
 #: Scaled KKT error at which ``constrained_exact_solution`` certifies its answer.
@@ -121,7 +121,7 @@ def box_polish(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np
     (module doc).  ``converged``: it stopped on a violation-free set."""
     u = constraints.upper_or_inf(ubar.size)
     load = constraints.load
-    u_s, p_s = _scales(H, ubar)
+    u_s, p_s = constrained_scales(ubar, float(np.max(np.diag(H))), constraints)
     state = _initial_sets(p0, H @ p0 - ubar - delta0, u, u_s, p_s)
     best, stall = math.inf, 0
     p, delta = p0, delta0

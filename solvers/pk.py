@@ -84,13 +84,14 @@ class PolonskyKeer(Solver):
         return 2 * TYPICAL_PK_ITERATIONS * matvec_seconds(n, operator_kind)
 
 
-def _scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray) -> np.ndarray:
+def _scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
     """p scaled so that sum(p) = P: the free forces scaled, the plastic ones kept (Almqvist
     et al.); when that fails (the plastic points alone exceed P, or a free one is
     scaled past its cap) every force is scaled, sum(min(s p, u)) = P (P & K's scaling, the
     box's cap applied after it; s by bisection, then exact on the uncapped points).  When
-    the points carrying force cannot hold P at their caps, the rest is spread over the
-    others."""
+    the points carrying force cannot hold P at their caps, the rest goes to the others in
+    the order of their gap ``g`` (the most penetrating first, each up to its cap; without
+    g, evenly)."""
     if c.load is None:
         return p
     load = float(c.load)
@@ -104,8 +105,16 @@ def _scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray) -> np.ndarray:
     on = p > 0.0
     if float(np.sum(u[on])) <= load:
         p[on] = u[on]
-        off = ~on
-        p[off] = np.minimum((load - float(np.sum(p[on]))) / max(int(np.count_nonzero(off)), 1), u[off])
+        off = np.flatnonzero(~on)
+        rest = load - float(np.sum(p[on]))
+        if g is None:
+            p[off] = np.minimum(rest / max(off.size, 1), u[off])
+            return p
+        for i in off[np.argsort(g[off], kind="stable")]:
+            if rest <= 0.0:
+                break
+            p[i] = min(rest, u[i])
+            rest -= p[i]
         return p
     lo, hi = 0.0, 1.0
     while float(np.sum(np.minimum(hi * p, u))) < load:
@@ -185,6 +194,6 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         if not conj:
             p[wants] -= tau * (g[wants] - delta)
             np.clip(p, 0.0, u, out=p)
-        p = _scale_to_load(p, c, u)
+        p = _scale_to_load(p, c, u, g - delta)
     return Outcome(p, it, False, w=g, multiplier=delta if load else None,
                    status=None if math.isfinite(res) else Status.FAILED)

@@ -98,8 +98,9 @@ def test_a_tiny_hardness_makes_every_touching_element_plastic(elastic) -> None:
         assert touching.sum() > 0, name
         assert np.all(r.p[touching] == ub[touching]), name  # p = bound on the contact set
         assert inst.plastic_fraction(r.p) == 1.0
-        assert np.all(touching == (inst.qp.ubar > 0.0)), name  # the rigid-body overlap, nearly unloaded
-        assert kkt_check(inst, r.p).kkt_error <= 1e-10, name
+        if get_solver(name).capabilities.exact:  # greedy's irreversible removals may miss some
+            assert np.all(touching == (inst.qp.ubar > 0.0)), name  # the rigid-body overlap, nearly unloaded
+            assert kkt_check(inst, r.p).kkt_error <= 1e-10, name
 
 
 def test_a_tiny_hardness_under_load_control_saturates_the_highest_points() -> None:
@@ -177,7 +178,7 @@ def test_above_the_bound_is_primal_infeasible(box_solution) -> None:
     ub = inst.qp.constraints.upper
     q = np.minimum(p * 1.5, 2.0 * ub)  # every plastic element at twice its bound, "solved"
     rep = kkt_check(inst, q)
-    assert rep.primal >= 0.99 * float(ub[0]) / rep.p_scale and not rep.passes(1e-6)
+    assert rep.primal >= 0.49 * float(ub[0]) / rep.p_scale and not rep.passes(1e-6)
     unbounded = QP(inst.qp.H, inst.qp.ubar, inst.qp.geometry)  # the same p judged without the bound
     assert kkt_check(unbounded, q).primal == 0.0
 
