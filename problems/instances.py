@@ -207,8 +207,9 @@ class ContactInstance:
     def plastic_fraction(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
         """Plastic elements (``plastic_mask``) over the elements in contact
         (``contact_mask``); 0 when none touches."""
-        touching = int(np.count_nonzero(self.contact_mask(p, tol)))
-        return float(np.count_nonzero(self.plastic_mask(p, tol) & self.contact_mask(p, tol))) / touching if touching else 0.0
+        touching = self.contact_mask(p, tol)
+        k = int(np.count_nonzero(touching))
+        return float(np.count_nonzero(self.plastic_mask(p, tol) & touching)) / k if k else 0.0
 
     def problem_scales(self) -> tuple[float, float]:
         """The judge's scales of this problem (``problems.kkt``): the displacement scale

@@ -24,8 +24,9 @@ BCC and Love kernels diag(H) is constant, so D is a multiple of the identity and
 scaled figure is order one: H~_ij in (0, 1], u~ in [0, 1], p~ = O(1).
 
 Bounds and a load equality (``problems.constraints``) scale with p: the box 0 <= p <= u
-is 0 <= p~ <= u / (s d) (``ScaledQP.ub``) and sum(p) = P is the row d'p~ = P / s, stated
-divided by max(d) so that its entries are at most one (``ScaledQP.eq_row``, ``eq_rhs``); a backend states them natively (qpsolvers' ``lb``,
+is 0 <= p~ <= u / (s d) (``ScaledQP.ub``) and sum(p) = P is the row d'p~ = P / s,
+stated divided by max(d) so that its entries are at most one (``ScaledQP.eq_row``,
+``eq_rhs``); a backend states them natively (qpsolvers' ``lb``,
 ``ub``, ``A``, ``b``; CVXPY's constraints).  The approach Delta (the row's multiplier) is
 not read from the backend: the lifecycle fits it from the answer.
 
