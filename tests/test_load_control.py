@@ -283,3 +283,23 @@ def test_the_qpbenchmark_row_carries_bounds_and_load(tmp_path: Path) -> None:
     assert np.array_equal(ub, inst.qp.constraints.upper)
     assert A.shape == (1, inst.n) and np.all(A == 1.0) and bb.tolist() == [inst.qp.constraints.load]
     assert Constraints().plain
+
+
+@pytest.mark.parametrize("name", ["cm-pk-ccg", "tamaas-pkr"])
+def test_peers_in_their_native_load_control(name: str) -> None:
+    """The field's codes under their own load control (ContactMechanics' external_force,
+    Tamaas' pressure-controlled PolonskyKeerRey) on the non-periodic Love kernel both share."""
+    solver = get_solver(name)
+    ok, why = solver.availability()
+    if not ok:
+        pytest.skip(why)
+    b = InstanceBuilder(fourier_synthesis(16, 0.8, 0.1, length=1e-4, seed=4), E, kernel="love", operator="dense")
+    d = 0.6 * paper_max_displacement(b.surface)
+    el = b.build(d)
+    inst = b.build_load(float(np.sum(exact_solution(el.qp.H.H, el.qp.ubar).p)))
+    ref = constrained_exact_solution(inst.qp.H.H, inst.qp.ubar, inst.qp.constraints)
+    r = solver.solve(inst.qp, SolverSettings(tol=1e-8, max_iter=5000, time_limit=60.0))
+    rep = kkt_check(inst, r.p, r.multiplier)
+    assert r.converged and rep.kkt_error <= 1e-7, (name, rep.kkt_error)
+    assert np.max(np.abs(r.p - ref.p)) <= 1e-6 * np.max(ref.p)
+    assert abs(r.multiplier - d) <= 1e-6 * d
