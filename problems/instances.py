@@ -27,7 +27,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .constraints import Constraints, hardness_bounds, make_constraints
+from .constraints import Constraints, fit_multiplier, hardness_bounds, make_constraints
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
 from .kkt import constrained_scales
@@ -253,17 +253,28 @@ class ContactInstance:
           no force), or w_i > sqrt(tol) x u_s (an accepted contact carrying p_i >= sqrt(tol)
           p_s has w_i <= sqrt(tol) u_s).
 
-        ``w`` = H p - ubar when the caller has it (else one product with H).  A share larger
-        than the accuracy wanted means A/A0 is not to be trusted to it."""
+        ``w`` = H p - ubar (- Delta under load control, ``gap``) when the caller has it (else
+        one product with H).  A share larger than the accuracy wanted means A/A0 is not to be
+        trusted to it."""
         u_s, p_s = self.problem_scales()
         floor = float(tol) * p_s
         q = np.asarray(p, dtype=np.float64)
-        gap = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64) if w is None else np.asarray(w)
+        gap = self.gap(q) if w is None else np.asarray(w)
         with np.errstate(invalid="ignore"):
             near = (q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND)
             closed = (gap / u_s < q / p_s) & (gap <= np.sqrt(float(tol)) * u_s)
             open_gap = (q > floor) & ~closed
         return float(np.count_nonzero(near | open_gap)) / self.total_elements
+
+    def gap(self, p: np.ndarray, multiplier: float | None = None) -> np.ndarray:
+        """w = Hp - ubar - Delta: Delta = 0 without a load equality, else ``multiplier`` (the
+        answer's approach) or, when None, ``problems.constraints.fit_multiplier`` of p."""
+        q = np.asarray(p, dtype=np.float64)
+        g = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64)
+        c = self.qp.constraints
+        if not c.load_control:
+            return g
+        return g - (fit_multiplier(g, q, c.upper) if multiplier is None else float(multiplier))
 
     def pressure_field(self, p: np.ndarray) -> np.ndarray:
         """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""
