@@ -179,11 +179,15 @@ def read_hdf5_problem(path: str | Path, name: str) -> Any:
 
 
 def append_qpbenchmark_row(rows: dict[str, list[Any]], name: str, inst: ContactInstance) -> None:
-    """min 1/2 p'Hp - ubar'p, p >= 0 as qpbenchmark's row: P = H, q = -ubar, lb = 0."""
+    """min 1/2 p'Hp - ubar'p, p >= 0 as qpbenchmark's row: P = H, q = -ubar, lb = 0; with
+    bounds ub = the upper bounds, with a load equality A = 1' (one row, stored flat like
+    P) and b = [P] (``problems.constraints``)."""
     H = np.asarray(inst.qp.H.to_dense(), dtype=np.float64)
     ubar = np.asarray(inst.qp.ubar, dtype=np.float64)
-    row = {"P": H.ravel(), "q": -ubar, "G": None, "h": None, "A": None, "b": None,
-           "lb": np.zeros_like(ubar), "ub": None, "name": name}
+    c = inst.qp.constraints
+    row = {"P": H.ravel(), "q": -ubar, "G": None, "h": None,
+           "A": None if c.load is None else np.ones(ubar.size), "b": None if c.load is None else np.array([c.load]),
+           "lb": np.zeros_like(ubar), "ub": c.upper_or_inf(ubar.size) if c.bounded else None, "name": name}
     for key in QPBENCHMARK_KEYS:
         rows[key].append(row[key])
 
@@ -208,6 +212,25 @@ def read_qpbenchmark_row(path: str | Path, name: str) -> tuple[np.ndarray, np.nd
     return np.asarray(row["P"], dtype=np.float64).reshape(q.size, q.size), q, np.asarray(row["lb"], dtype=np.float64)
 
 
+def read_qpbenchmark_constraints(path: str | Path, name: str) -> tuple[np.ndarray | None, np.ndarray | None,
+                                                                       np.ndarray | None]:
+    """(ub, A, b) of one exported problem (None where it has none); A as a 1 x n matrix."""
+    import pandas as pd
+
+    df = pd.read_parquet(path, engine="pyarrow")
+    hit = df[df["name"] == name]
+    if len(hit) != 1:
+        raise ProblemInputError(f"{path}: no problem named {name!r}")
+    row = hit.iloc[0]
+
+    def arr(key: str) -> np.ndarray | None:
+        v = row[key]
+        return None if v is None else np.asarray(v, dtype=np.float64)
+
+    A = arr("A")
+    return arr("ub"), None if A is None else A.reshape(1, -1), arr("b")
+
+
 def write_manifest(summary: ExportSummary, path: Path) -> Path:
     doc = {"scene": summary.scene, "format": summary.fmt, "dense_limit": summary.dense_limit,
            "qps": [asdict(q) for q in summary.written], "skipped": summary.skipped}
@@ -222,6 +245,7 @@ __all__ = [
     "export_scene",
     "problem_name",
     "read_hdf5_problem",
+    "read_qpbenchmark_constraints",
     "read_qpbenchmark_row",
     "scene_steps",
 ]

@@ -9,6 +9,15 @@ For a surface xi on an N x N grid and a far-field displacement Delta >= 0:
 The QP is  min 1/2 p'Hp - ubar'p  s.t. p >= 0, equivalently the LCP
 w = Hp - ubar >= 0, p >= 0, w'p = 0.  p is the force on each element (N when E is
 in Pa and lengths in m), so the total load is P = sum(p).
+
+Two generalisations live on the QP's ``constraints`` (``problems.constraints``):
+
+* a hardness H_A bounds every element, 0 <= p <= H_A delta^2 (``InstanceBuilder.build``
+  and ``build_load`` with ``hardness=``);
+* load control (``InstanceBuilder.build_load``): the total force P is given and the
+  approach Delta is the multiplier of sum(p) = P.  Delta being unknown, the trial set
+  is the whole grid and ubar = xi - xi_max (ubar at Delta = 0), so the multiplier is
+  the far-field displacement itself: w = Hp - ubar - Delta.
 """
 
 from __future__ import annotations
@@ -18,9 +27,10 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .constraints import Constraints, fit_multiplier, hardness_bounds, make_constraints
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
-from .kkt import problem_scales
+from .kkt import constrained_scales
 from .layers import Layer
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
@@ -111,11 +121,14 @@ class QP:
     """What a solver sees: the operator H (n x n, SPD) and the vector ubar.
 
     ``geometry`` is optional and read only by solvers that need positions (CMR).
+    ``constraints``: upper bounds and a load equality beyond p >= 0
+    (``problems.constraints``; the default poses none).
     """
 
     H: ContactOperator
     ubar: np.ndarray
     geometry: Geometry | None = None
+    constraints: Constraints = field(default_factory=Constraints)
 
     @property
     def n(self) -> int:
@@ -129,7 +142,7 @@ class QP:
         geometry (the others held at p = 0)."""
         pos = np.asarray(pos)
         geom = None if self.geometry is None else self.geometry.subset(pos)
-        return QP(self.H.restrict(pos), self.ubar[pos], geom)
+        return QP(self.H.restrict(pos), self.ubar[pos], geom, self.constraints.restrict(pos))
 
     def can_touch(self, load: float) -> np.ndarray | None:
         """Positions that can carry force in the solution if its total force sum(p) is at
@@ -185,11 +198,36 @@ class ContactInstance:
         """P / (E A), A = L^2 the nominal area (paper Fig. 4 abscissa)."""
         return self.load(p) / (self.E * self.nominal_area)
 
+    @property
+    def control(self) -> str:
+        """"load" when the total force is given (``QP.constraints.load``), else "displacement"."""
+        return "load" if self.qp.constraints.load_control else "displacement"
+
+    def plastic_mask(self, p: np.ndarray, tol: float = CONTACT_TOL) -> np.ndarray:
+        """Elements at their upper bound (plastic): u_i - p_i <= tol x p_s with u_i finite
+        (none without bounds)."""
+        c = self.qp.constraints
+        if not c.bounded:
+            return np.zeros(self.n, dtype=bool)
+        u = c.upper_or_inf(self.n)
+        with np.errstate(invalid="ignore"):
+            return np.isfinite(u) & (u - np.asarray(p, dtype=np.float64) <= float(tol) * self.force_scale())
+
+    def plastic_fraction(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
+        """Plastic elements (``plastic_mask``) over the elements in contact
+        (``contact_mask``); 0 when none touches."""
+        touching = self.contact_mask(p, tol)
+        k = int(np.count_nonzero(touching))
+        return float(np.count_nonzero(self.plastic_mask(p, tol) & touching)) / k if k else 0.0
+
     def problem_scales(self) -> tuple[float, float]:
         """The judge's scales of this problem (``problems.kkt``): the displacement scale
         u_s = ||ubar||_inf and the force scale p_s = u_s / max diag H (the force that alone
-        indents one element by u_s).  They depend on the problem only, never on an answer."""
-        return problem_scales(np.asarray(self.qp.ubar, dtype=np.float64), float(np.max(self.qp.H.diagonal())))
+        indents one element by u_s; capped by the least upper bound under a hardness,
+        ``problems.kkt.constrained_scales``).  They depend on the problem only, never on an
+        answer."""
+        return constrained_scales(np.asarray(self.qp.ubar, dtype=np.float64), float(np.max(self.qp.H.diagonal())),
+                                  self.qp.constraints)
 
     def force_scale(self) -> float:
         """p_s of ``problem_scales``."""
@@ -224,17 +262,28 @@ class ContactInstance:
           no force), or w_i > sqrt(tol) x u_s (an accepted contact carrying p_i >= sqrt(tol)
           p_s has w_i <= sqrt(tol) u_s).
 
-        ``w`` = H p - ubar when the caller has it (else one product with H).  A share larger
-        than the accuracy wanted means A/A0 is not to be trusted to it."""
+        ``w`` = H p - ubar (- Delta under load control, ``gap``) when the caller has it (else
+        one product with H).  A share larger than the accuracy wanted means A/A0 is not to be
+        trusted to it."""
         u_s, p_s = self.problem_scales()
         floor = float(tol) * p_s
         q = np.asarray(p, dtype=np.float64)
-        gap = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64) if w is None else np.asarray(w)
+        gap = self.gap(q) if w is None else np.asarray(w)
         with np.errstate(invalid="ignore"):
             near = (q > floor / CONTACT_BAND) & (q <= floor * CONTACT_BAND)
             closed = (gap / u_s < q / p_s) & (gap <= np.sqrt(float(tol)) * u_s)
             open_gap = (q > floor) & ~closed
         return float(np.count_nonzero(near | open_gap)) / self.total_elements
+
+    def gap(self, p: np.ndarray, multiplier: float | None = None) -> np.ndarray:
+        """w = Hp - ubar - Delta: Delta = 0 without a load equality, else ``multiplier`` (the
+        answer's approach) or, when None, ``problems.constraints.fit_multiplier`` of p."""
+        q = np.asarray(p, dtype=np.float64)
+        g = self.qp.H.matvec(q) - np.asarray(self.qp.ubar, dtype=np.float64)
+        c = self.qp.constraints
+        if not c.load_control:
+            return g
+        return g - (fit_multiplier(g, q, c.upper) if multiplier is None else float(multiplier))
 
     def pressure_field(self, p: np.ndarray) -> np.ndarray:
         """N x N field of mean pressure p_ij / delta^2 (zero off the trial set)."""
@@ -335,12 +384,16 @@ class InstanceBuilder:
         delta_disp: float,
         meta: dict[str, Any] | None = None,
         candidates: np.ndarray | None = None,
+        hardness: float | None = None,
     ) -> ContactInstance:
         """The QP at far-field displacement ``delta_disp`` (paper section 2).
 
         ``candidates`` (flat grid indices or an N x N boolean mask) restricts the trial
-        set to I_C intersected with it.  (The cascade multi-resolution method builds its
-        coarse levels with ``problems.coarsen.coarse_qp``.)
+        set to I_C intersected with it.  ``hardness`` (a pressure; None or inf: none)
+        bounds every element, 0 <= p <= hardness x delta^2.  The rigid-body trial set
+        stays a superset of the contact set under a bound (the gap off it only grows).
+        (The cascade multi-resolution method builds its coarse levels with
+        ``problems.coarsen.coarse_qp``.)
         """
         check_nonnegative("far-field displacement Delta", delta_disp)
         h = self.surface.heights
@@ -368,7 +421,7 @@ class InstanceBuilder:
         geom = Geometry(self.surface.shape, self.surface.delta, idx, surface=self.surface,
                         far_field=float(delta_disp), E=self.E, kernel=self.kernel, periodic=self.periodic,
                         delta1=self.surface.delta1, layer=self.layer)
-        qp = QP(self.operator_on(idx), ubar, geom)
+        qp = QP(self.operator_on(idx), ubar, geom, self.constraints(idx.size, hardness))
         return ContactInstance(
             qp=qp,
             delta=float(delta_disp),
@@ -378,6 +431,45 @@ class InstanceBuilder:
             surface=self.surface,
             meta=dict(meta or {}),
         )
+
+    def constraints(self, n: int, hardness: float | None = None, load: float | None = None) -> Constraints:
+        """The checked constraints of a QP on n of this surface's elements: the hardness's
+        bounds (``problems.constraints.hardness_bounds``; None or inf: none) and the load."""
+        upper = None if hardness is None else hardness_bounds(hardness, self.surface.spacing, n)
+        return make_constraints(n, upper, load)
+
+    def load_force(self, dimensionless_load: float) -> float:
+        """The total force P of a dimensionless load P / (E* A), A the nominal area."""
+        check_nonnegative("dimensionless load P/(E* A)", dimensionless_load)
+        area = float(np.prod(self.surface.shape)) * float(np.prod(self.surface.spacing))
+        return float(dimensionless_load) * self.E * area
+
+    def build_load(
+        self,
+        load: float,
+        meta: dict[str, Any] | None = None,
+        candidates: np.ndarray | None = None,
+        hardness: float | None = None,
+    ) -> ContactInstance:
+        """The QP under load control: total force ``load`` = P (a force, ``load_force``
+        converts a dimensionless one), the equality sum(p) = P whose multiplier is the
+        far-field displacement Delta (module doc).  The trial set is the whole grid
+        (``candidates`` restricts it), ubar = xi - xi_max.  ``hardness`` as in ``build``.
+        The instance's ``delta`` is NaN: the answer's multiplier is its approach."""
+        check_nonnegative("load P", load)
+        h = self.surface.heights
+        idx = np.arange(h.size)
+        if candidates is not None:
+            idx = np.intersect1d(idx, self._candidate_indices(candidates))
+        if idx.size == 0:
+            raise ProblemInputError("empty trial set within the given candidate points: no element can touch")
+        ubar = rigid_body_ubar(h, 0.0, idx)
+        geom = Geometry(self.surface.shape, self.surface.delta, idx, surface=self.surface,
+                        far_field=None, E=self.E, kernel=self.kernel, periodic=self.periodic,
+                        delta1=self.surface.delta1, layer=self.layer)
+        qp = QP(self.operator_on(idx), ubar, geom, self.constraints(idx.size, hardness, float(load)))
+        return ContactInstance(qp=qp, delta=float("nan"), E=self.E, kernel=self.kernel, periodic=self.periodic,
+                               surface=self.surface, meta={"load": float(load), **(meta or {})})
 
     def _candidate_indices(self, candidates: np.ndarray) -> np.ndarray:
         """Flat grid indices from an index array or an N x N boolean mask."""

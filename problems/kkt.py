@@ -29,6 +29,32 @@ and  kkt_error = max(primal, dual, complementarity).
 Every figure is computed so that overflow, NaN or inf can only make it worse: a product
 that overflows is inf, and any NaN (inf - inf, 0 x inf, a NaN entry) reads as inf --
 never as 0, as Python's ``max`` would read it.
+
+Bounds and load control (``problems.constraints``)
+--------------------------------------------------
+A QP may carry upper bounds u (hardness: 0 <= p <= u) and a load equality sum(p) = P whose
+multiplier is the approach Delta; then w = Hp - ubar - Delta (Delta = 0 without a load
+equality) and the KKT conditions are  0 <= p <= u,  sum p = P,  w >= 0 where p = 0,
+w <= 0 where p = u, w = 0 in between.  ``constrained_figures`` scales them with the same
+u_s and p_s:
+
+* primal = max(0, -min p, max(p - u)) / p_s;
+* equality = |sum p - P| / P  (the relative load error; scaled by p_s when P = 0, and 0
+  without a load equality);
+* dual = max_i min(max(0, -w_i) / u_s, max(0, u_i - p_i) / p_s): a negative gap is
+  allowed only as far as the element sits at its upper bound (for u_i = inf this is the
+  plain figure max(0, -w_i) / u_s);
+* complementarity = max_i of (|w_i| p_i) on an unbounded element (the plain figure) and
+  of max(max(0, w_i) |p_i|, max(0, -w_i) |u_i - p_i|) on a bounded one, scaled by
+  u_s p_s: the lower and the upper bound's products;
+* kkt_error = max(primal, equality, dual, complementarity).
+
+The force scale is capped by the bounds: p_s = min(u_s / max diag H, min u)
+(``constrained_scales``), so a small hardness is not judged on a scale above it.
+
+Delta is the candidate's own (a solver reports it) or, when it gives none,
+``constraints.fit_multiplier`` of the candidate; a non-finite Delta makes every figure inf.
+With no bounds and no load equality the plain figures above are computed, unchanged.
 """
 
 from __future__ import annotations
@@ -38,6 +64,8 @@ from dataclasses import asdict, dataclass
 from typing import Any, Protocol
 
 import numpy as np
+
+from .constraints import Constraints, fit_multiplier
 
 
 class _HasQP(Protocol):
@@ -63,6 +91,10 @@ class KKTReport:
     u_scale: float
     p_scale: float
 
+    equality_abs: float = 0.0  # |sum p - P|        [force]; 0 without a load equality
+    equality: float = 0.0  # scaled
+    multiplier: float = math.nan  # the Delta w was computed with (NaN without a load equality)
+
     def as_dict(self) -> dict[str, float]:
         return asdict(self)
 
@@ -85,6 +117,8 @@ class KKTFigures:
     kkt_error: float
     u_scale: float
     p_scale: float
+    equality: float = 0.0
+    multiplier: float = math.nan
 
 
 def worse(x: float) -> float:
@@ -109,6 +143,17 @@ def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = N
     if not u_s > 0.0:
         u_s = U_SCALE_FALLBACK
     return u_s, u_s / float(diag_max)
+
+
+def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constraints,
+                       ubar_max: float | None = None) -> tuple[float, float]:
+    """(u_s, p_s) of a QP with constraints: ``problem_scales``, with p_s capped by the
+    least finite upper bound (a force no element can exceed, so a violation of the bound is
+    read against the bound itself).  The plain scales without bounds."""
+    u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+    if constraints.bounded:
+        p_s = min(p_s, float(np.min(constraints.upper)))
+    return u_s, p_s
 
 
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
@@ -138,6 +183,77 @@ def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: f
     return kkt_figures(p, w, ubar, diag_max, ubar_max).kkt_error
 
 
+def _all_infinite(u_s: float, p_s: float, multiplier: float = math.nan) -> KKTFigures:
+    inf = math.inf
+    return KKTFigures(inf, inf, inf, inf, u_s, p_s, inf, multiplier)
+
+
+def candidate_multiplier(g: np.ndarray, p: np.ndarray, constraints: Constraints,
+                         multiplier: float | None = None) -> float:
+    """The Delta the figures use (module doc): 0 without a load equality, else the
+    candidate's ``multiplier`` or, when it gives none, ``fit_multiplier`` of (g, p)."""
+    if not constraints.load_control:
+        return 0.0
+    if multiplier is None:
+        return fit_multiplier(g, p, constraints.upper)
+    return float(multiplier)
+
+
+def equality_scale(load: float, p_s: float) -> float:
+    """The force the load residual is scaled by: the load P itself (a relative load error),
+    p_s when P = 0."""
+    return load if load > 0.0 else p_s
+
+
+def _equality(p: np.ndarray, constraints: Constraints, p_s: float) -> float:
+    if not constraints.load_control:
+        return 0.0
+    load = float(constraints.load)  # type: ignore[arg-type]
+    with np.errstate(all="ignore"):
+        return worse(abs(float(np.sum(p)) - load) / equality_scale(load, p_s))
+
+
+def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max: float, constraints: Constraints,
+                        multiplier: float | None = None, ubar_max: float | None = None) -> KKTFigures:
+    """The scaled KKT figures of ``p`` under bounds and a load equality (module doc), from
+    g = Hp - ubar (without Delta).  ``multiplier``: the candidate's Delta (None: fitted).
+    Plain constraints give exactly ``kkt_figures``.  A non-finite entry, bound violation
+    product or Delta gives inf, never a smaller figure."""
+    if constraints.plain:
+        return kkt_figures(p, g, ubar, diag_max, ubar_max)
+    u_s, p_s = constrained_scales(ubar, diag_max, constraints, ubar_max)
+    if p.shape != g.shape or not (np.all(np.isfinite(p)) and np.all(np.isfinite(g))):
+        return _all_infinite(u_s, p_s)
+    delta = candidate_multiplier(g, p, constraints, multiplier)
+    if not math.isfinite(delta):
+        return _all_infinite(u_s, p_s, delta)
+    u = constraints.upper_or_inf(p.size)
+    bounded = np.isfinite(u)
+    with np.errstate(all="ignore"):
+        w = g - delta
+        slack = u - p
+        primal = worst(_negative_part(float(np.min(p, initial=0.0))),
+                       _negative_part(float(np.min(slack, initial=0.0)))) / p_s
+        neg = np.maximum(-w, 0.0) / u_s
+        dual = worse(float(np.max(np.minimum(neg, np.maximum(slack, 0.0) / p_s), initial=0.0)))
+        pos = np.maximum(w, 0.0) / u_s
+        lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
+        upper = np.where(bounded, np.abs(slack) / p_s * neg, 0.0)
+        comp = worst(float(np.max(lower, initial=0.0)), float(np.max(upper, initial=0.0)))
+    equality = _equality(p, constraints, p_s)
+    primal, dual, comp = worse(primal), worse(dual), worse(comp)
+    return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
+
+
+def constrained_kkt_error(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max: float,
+                          constraints: Constraints, multiplier: float | None = None,
+                          ubar_max: float | None = None) -> float:
+    """kkt_error of ``constrained_figures``: the residual a solver stops on (0 for n = 0)."""
+    if p.size == 0:
+        return 0.0
+    return constrained_figures(p, g, ubar, diag_max, constraints, multiplier, ubar_max).kkt_error
+
+
 def _as_qp(obj: Any) -> Any:
     return obj.qp if hasattr(obj, "qp") else obj
 
@@ -145,31 +261,37 @@ def _as_qp(obj: Any) -> Any:
 def infinite_report(u_s: float = math.nan, p_s: float = math.nan) -> KKTReport:
     """The report of an answer that is no answer (non-finite entries): every figure inf."""
     inf, nan = math.inf, math.nan
-    return KKTReport(inf, inf, inf, inf, inf, inf, inf, inf, inf, nan, u_s, p_s)
+    return KKTReport(inf, inf, inf, inf, inf, inf, inf, inf, inf, nan, u_s, p_s, inf, inf, nan)
 
 
-def kkt_check(problem: Any, p: np.ndarray) -> KKTReport:
+def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> KKTReport:
     """KKT figures of candidate ``p`` for ``problem`` (a QP or a ContactInstance),
-    recomputing w = Hp - ubar from the problem; ``ValueError`` when p has the wrong
-    shape.  Non-finite entries in p (or in Hp) give an all-inf report."""
+    recomputing w = Hp - ubar (- Delta) from the problem; ``ValueError`` when p has the
+    wrong shape.  Non-finite entries in p (or in Hp) give an all-inf report.  Under load
+    control ``multiplier`` is the candidate's Delta (None: ``fit_multiplier``); without a
+    load equality it is not used.  A QP without bounds and load equality is judged by the
+    plain figures."""
     qp = _as_qp(problem)
     p = np.asarray(p, dtype=np.float64)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
     if p.shape != ubar.shape:
         raise ValueError(f"candidate p has shape {p.shape}, the problem has n = {ubar.size}")
+    constraints = _constraints_of(qp)
     diag_max = float(np.max(qp.H.diagonal()))
-    u_s, p_s = problem_scales(ubar, diag_max)
+    u_s, p_s = constrained_scales(ubar, diag_max, constraints)
     if not np.all(np.isfinite(p)):
         return infinite_report(u_s, p_s)
     with np.errstate(all="ignore"):
         Hp = np.asarray(qp.H.matvec(p), dtype=np.float64)
-        w = Hp - ubar
-        f = kkt_figures(p, w, ubar, diag_max)
+        g = Hp - ubar
+        f = constrained_figures(p, g, ubar, diag_max, constraints, multiplier)
         if not math.isfinite(f.kkt_error):
             return infinite_report(u_s, p_s)
-        comp_sum = worse(abs(float(w @ p)))
-        p1 = float(np.sum(np.abs(p)))
         objective = float(0.5 * p @ Hp - ubar @ p)
+        comp_sum = worse(abs(_complementarity_sum(p, g - f.multiplier if constraints.load_control else g,
+                                                  constraints)))
+        p1 = float(np.sum(np.abs(p)))
+    load = constraints.load
     return KKTReport(
         primal_abs=f.primal * p_s,
         dual_abs=f.dual * u_s,
@@ -183,7 +305,26 @@ def kkt_check(problem: Any, p: np.ndarray) -> KKTReport:
         objective=objective,
         u_scale=u_s,
         p_scale=p_s,
+        equality_abs=0.0 if load is None else f.equality * equality_scale(float(load), p_s),
+        equality=f.equality,
+        multiplier=f.multiplier if constraints.load_control else math.nan,
     )
+
+
+def _constraints_of(qp: Any) -> Constraints:
+    c = getattr(qp, "constraints", None)
+    return Constraints() if c is None else c
+
+
+def _complementarity_sum(p: np.ndarray, w: np.ndarray, constraints: Constraints) -> float:
+    """w'p, plus on bounded elements -sum of min(w, 0)(u - p): both bounds' products."""
+    if not constraints.bounded:
+        return float(w @ p)
+    u = constraints.upper_or_inf(p.size)
+    bounded = np.isfinite(u)
+    lower = float(np.where(bounded, np.maximum(w, 0.0), w) @ p)
+    upper = float(np.sum(np.where(bounded, np.maximum(-w, 0.0) * (u - p), 0.0)))
+    return lower + upper
 
 
 def relative_error(p: np.ndarray, p_ref: np.ndarray) -> float:

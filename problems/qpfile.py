@@ -1,4 +1,5 @@
-"""The language-neutral file protocol of one contact QP (``contactbench-qp/1``).
+"""The language-neutral file protocol of one contact QP (``contactbench-qp/1``, and
+``contactbench-qp/2`` for a QP with bounds or a load equality).
 
 A *problem directory* holds ``problem.json`` and raw little-endian, C-order array files;
 a *solution directory* holds what an outside program answers.  Any program that reads
@@ -25,6 +26,14 @@ The arrays (each listed under ``"arrays"`` with its file, dtype and shape):
                   (offset -k stored at P - k; offset N is zero).  Periodic: P = N,
                   the same formula (the table has its mean removed).
 ``p0``            (n,) float64: a warm start, when the harness has one.
+``upper``         (n,) float64 (format 2 only): upper bounds, 0 <= p <= upper (a
+                  hardness; ``inf`` where an element has none).
+
+Format 2 (``contactbench-qp/2``) is written only for a QP with bounds or a load equality
+(``problems.constraints``); a plain QP is still written as format 1, and both are read.
+Its ``problem.json`` adds ``"load"``: null, or the total force P of the equality row
+1'p = P (load control), whose multiplier is the approach Delta: the KKT conditions are
+w = Hp - ubar - Delta with w >= 0 where p = 0, w <= 0 where p = upper, w = 0 in between.
 
 A QP without a grid (a generic SPD matrix of the conformance battery) has ``"grid":
 null``, ``"kernel": null`` and no ``index`` or ``kernel_table``: only ``H``.
@@ -32,7 +41,8 @@ null``, ``"kernel": null`` and no ``index`` or ``kernel_table``: only ``H``.
 Solution directory
 ------------------
 ``p.f64`` (n float64, little-endian) is required; ``w.f64`` (n float64) and
-``solution.json`` (``iterations``, ``status``, ``time_s``) are optional.
+``solution.json`` (``iterations``, ``status``, ``time_s``, and under load control
+``multiplier``: the approach Delta) are optional.
 ``read_solution_dir`` checks them and says, in one line, what is wrong.
 """
 
@@ -47,18 +57,23 @@ from typing import Any
 
 import numpy as np
 
+from .constraints import Constraints, make_constraints
 from .errors import ProblemInputError
 from .instances import QP, ContactInstance, Geometry
 from .kernels import KERNELS, kernel_table
 from .operators import ContactOperator, DenseOperator, FFTOperator, KernelTransform
 
-#: The format tag of problem.json.
+#: The format tag of problem.json for a plain QP (p >= 0 only).
 FORMAT = "contactbench-qp/1"
+#: The format tag of a QP with bounds or a load equality (module doc).
+FORMAT_CONSTRAINED = "contactbench-qp/2"
+#: The tags ``read_problem_dir`` reads.
+READABLE_FORMATS = (FORMAT, FORMAT_CONSTRAINED)
 #: H is written as a dense n x n file when n is at most this (4096: 128 MiB).
 DENSE_LIMIT = int(os.environ.get("CONTACTBENCH_QPFILE_DENSE_LIMIT", "4096"))
 #: File names of the arrays in a problem directory.
 ARRAY_FILES = {"ubar": "ubar.f64", "index": "index.i64", "H": "H.f64", "kernel_table": "kernel_table.f64",
-               "p0": "p0.f64"}
+               "p0": "p0.f64", "upper": "upper.f64"}
 #: File names of a solution directory.
 SOLUTION_P, SOLUTION_W, SOLUTION_JSON = "p.f64", "w.f64", "solution.json"
 #: Statuses of solution.json that claim convergence (no status at all claims it too).
@@ -152,12 +167,15 @@ def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, 
         if p0.shape != (n,):
             raise ProblemInputError(f"warm start p0 has shape {p0.shape}, the problem has n = {n}")
         arrays["p0"] = p0
+    c = qp.constraints
+    if c.bounded:
+        arrays["upper"] = c.upper_or_inf(n)
     if "H" not in arrays and "kernel_table" not in arrays:
         raise ProblemInputError(f"cannot write this QP: n = {n} is over the dense limit {dense_limit} and its "
                                 "operator has no kernel table")
     arrays = {name: np.ascontiguousarray(a, dtype="<i8" if name == "index" else "<f8") for name, a in arrays.items()}
     doc = {
-        "format": FORMAT,
+        "format": FORMAT if c.plain else FORMAT_CONSTRAINED,
         "n": int(n),
         "grid": None if g is None else [int(s) for s in g.grid_shape],
         "spacing": None if g is None else float(g.delta),
@@ -166,6 +184,7 @@ def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, 
         "periodic": bool(phys.periodic),
         "tol": _finite_or_none(tol),
         "time_limit": _finite_or_none(time_limit),
+        **({} if c.plain else {"load": None if c.load is None else float(c.load)}),
         "arrays": {name: {"file": ARRAY_FILES[name], "dtype": a.dtype.str, "shape": [int(s) for s in a.shape]}
                    for name, a in arrays.items()},
     }
@@ -215,6 +234,14 @@ class ProblemFile:
     kernel_table: np.ndarray | None = None
     p0: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    upper: np.ndarray | None = None
+    load: float | None = None
+
+    def constraints(self) -> Constraints:
+        """The QP's bounds and load equality (none for format 1)."""
+        if self.upper is None and self.load is None:
+            return Constraints()
+        return make_constraints(self.n, self.upper, self.load)
 
     @property
     def flat_indices(self) -> np.ndarray | None:
@@ -240,7 +267,7 @@ class ProblemFile:
         return FFTOperator(KernelTransform(self.kernel_table, self.grid), flat)
 
     def qp(self) -> QP:
-        return QP(self.operator(), self.ubar, self.geometry())
+        return QP(self.operator(), self.ubar, self.geometry(), self.constraints())
 
 
 def _read_json(path: Path, what: str) -> dict[str, Any]:
@@ -277,8 +304,9 @@ def read_problem_dir(directory: str | os.PathLike[str]) -> ProblemFile:
     the layout); bad content is a ``ProblemInputError`` naming the problem."""
     d = Path(directory)
     doc = _read_json(d / "problem.json", "problem directory")
-    if doc.get("format") != FORMAT:
-        raise ProblemInputError(f"problem.json: format {doc.get('format')!r}, expected {FORMAT!r}")
+    if doc.get("format") not in READABLE_FORMATS:
+        raise ProblemInputError(f"problem.json: format {doc.get('format')!r}, expected one of "
+                                f"{', '.join(map(repr, READABLE_FORMATS))}")
     arrays = doc.get("arrays")
     if not isinstance(arrays, dict) or "ubar" not in arrays:
         raise ProblemInputError("problem.json: 'arrays' must map names to files and include 'ubar'")
@@ -287,13 +315,21 @@ def read_problem_dir(directory: str | os.PathLike[str]) -> ProblemFile:
     if got["ubar"].shape != (n,):
         raise ProblemInputError(f"problem.json: ubar has shape {list(got['ubar'].shape)}, n = {n}")
     grid = doc.get("grid")
-    known = {"ubar", "index", "H", "kernel_table", "p0"}
+    known = {"ubar", "index", "H", "kernel_table", "p0", "upper"}
+    load = doc.get("load") if doc["format"] == FORMAT_CONSTRAINED else None
+    if load is not None and not (isinstance(load, (int, float)) and not isinstance(load, bool)):
+        raise ProblemInputError(f"problem.json: load must be a number or null, got {load!r}")
+    upper = got.get("upper") if doc["format"] == FORMAT_CONSTRAINED else None
+    if upper is not None and upper.shape != (n,):
+        raise ProblemInputError(f"problem.json: upper has shape {list(upper.shape)}, n = {n}")
     return ProblemFile(
         n=n, grid=None if grid is None else (int(grid[0]), int(grid[1])), spacing=doc.get("spacing"),
         E=doc.get("E"), kernel=doc.get("kernel"), periodic=bool(doc.get("periodic", False)),
         tol=doc.get("tol"), time_limit=doc.get("time_limit"), ubar=got["ubar"], index=got.get("index"),
         H=got.get("H"), kernel_table=got.get("kernel_table"), p0=got.get("p0"),
-        extra={k: v for k, v in got.items() if k not in known})
+        extra={k: v for k, v in got.items() if k not in known},
+        upper=None if upper is None else np.asarray(upper, dtype=np.float64),
+        load=None if load is None else float(load))
 
 
 # ---------------------------------------------------------------------------
@@ -311,6 +347,7 @@ class SolutionFile:
     status: str | None = None
     time_s: float | None = None
     report: dict[str, Any] = field(default_factory=dict)
+    multiplier: float | None = None  # the approach Delta it reports (load control)
 
     @property
     def claims_converged(self) -> bool:
@@ -372,10 +409,13 @@ def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: 
         time_s = None if t is None else float(t)
     except (TypeError, ValueError):
         raise SolutionFileError(f"solution.json: iterations {it!r} / time_s {t!r} are not numbers") from None
+    mult = report.get("multiplier")
+    if mult is not None and (isinstance(mult, bool) or not isinstance(mult, (int, float))):
+        raise SolutionFileError(f"solution.json: multiplier {mult!r} is not a number")
     if status is not None and not isinstance(status, str):
         raise SolutionFileError(f"solution.json: status {status!r} is not a string")
     word = None if status is None else status.strip().lower()
     if word is not None and word not in SOLUTION_STATUSES:
         raise SolutionFileError(f"solution.json: status {status!r} is not a protocol word; claims: "
                                 f"{', '.join(CLAIM_STATUSES)}; no claim: {', '.join(NON_CLAIM_STATUSES)}")
-    return SolutionFile(p, w, iterations, word, time_s, report)
+    return SolutionFile(p, w, iterations, word, time_s, report, None if mult is None else float(mult))

@@ -30,7 +30,7 @@ import scipy.linalg as sla
 from contactbench.problems import operators
 from contactbench.problems.coarsen import block_average, coarse_qp, level_trial_set
 from contactbench.problems.errors import MemoryBudgetError
-from contactbench.problems.kkt import kkt_figures
+from contactbench.problems.kkt import constrained_scales, kkt_figures
 from contactbench.problems.operators import (
     ContactOperator,
     DenseOperator,
@@ -156,7 +156,8 @@ def cholesky_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
 class AbsoluteTol:
     """A relative tolerance tol in the problem's units: ``disp`` = tol u_s [length] and
     ``force`` = tol p_s [force], with the scales of the scaled KKT error
-    (``contactbench.problems.kkt``) at p = 0: u_s = ||ubar||_inf, p_s = u_s / max diag H."""
+    (``contactbench.problems.kkt``) at p = 0: u_s = ||ubar||_inf, p_s = u_s / max diag H
+    (capped by the least upper bound under a hardness, ``constrained_scales``)."""
 
     disp: float
     force: float
@@ -165,6 +166,9 @@ class AbsoluteTol:
 def absolute_tol(ctx: SolveContext, tol: float) -> AbsoluteTol:
     """``AbsoluteTol`` of ``tol`` for the problem of ``ctx``."""
     ubar = ctx.qp.ubar
+    if not ctx.qp.constraints.plain:
+        u_s, p_s = constrained_scales(ubar, ctx.diag_max, ctx.qp.constraints)
+        return AbsoluteTol(disp=tol * u_s, force=tol * p_s)
     f = kkt_figures(np.zeros(ubar.size), -ubar, ubar, ctx.diag_max)
     return AbsoluteTol(disp=tol * f.u_scale, force=tol * f.p_scale)
 

@@ -51,6 +51,9 @@ class PeerSolver(Solver):
     family = "peer"
 
     def skip(self, traits: ProblemTraits) -> str | None:
+        why = super().skip(traits)  # the constraints it cannot pose
+        if why:
+            return why
         if not traits.has_geometry or not traits.kernel:
             return f"{self.name} poses the problem on a grid: it needs the QP's grid geometry and kernel"
         return None

@@ -23,6 +23,13 @@ cone (D > 0, s > 0).  Then p = s D p~ and the gap w = Hp - ubar = s D^{-1} w~.  
 BCC and Love kernels diag(H) is constant, so D is a multiple of the identity and every
 scaled figure is order one: H~_ij in (0, 1], u~ in [0, 1], p~ = O(1).
 
+Bounds and a load equality (``problems.constraints``) scale with p: the box 0 <= p <= u
+is 0 <= p~ <= u / (s d) (``ScaledQP.ub``) and sum(p) = P is the row d'p~ = P / s,
+stated divided by max(d) so that its entries are at most one (``ScaledQP.eq_row``,
+``eq_rhs``); a backend states them natively (qpsolvers' ``lb``,
+``ub``, ``A``, ``b``; CVXPY's constraints).  The approach Delta (the row's multiplier) is
+not read from the backend: the lifecycle fits it from the answer.
+
 The parameter ``scaling=False`` selects the raw mode (d = 1, s = 1: the backend sees H
 and ubar exactly as given), kept so stress tests can show what unscaled use does.
 
@@ -38,7 +45,8 @@ The adapter lifecycle (``EquilibratedAdapter.iterate``)
    backend's own defaults --, iteration and time limits); its setup, factorization and
    iterations are solve time;
 4. the labelled ``+polish`` variants repair the point by block principal pivoting
-   (``contactbench.problems.lcp.bpp_polish``); plain adapters never polish;
+   (``contactbench.problems.lcp.bpp_polish``; under bounds or a load equality
+   ``problems.mixed_lcp.box_polish`` on the original problem); plain adapters never polish;
 5. unscaling, and an ``Outcome`` whose status is the ``Status`` enum, with the
    backend's own word in ``info["backend_status"]``.
 """
@@ -55,7 +63,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from contactbench.problems.instances import QP
+from contactbench.problems.constraints import fit_multiplier
+from contactbench.problems.kkt import constrained_kkt_error
 from contactbench.problems.lcp import bpp_polish
+from contactbench.problems.mixed_lcp import box_polish
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
 
 from .base import Outcome, Param, SolveContext, Solver, Status
@@ -133,6 +144,9 @@ class ScaledQP:
     u: np.ndarray
     eq: Equilibration
     x0: np.ndarray | None = None  # warm start in scaled units
+    ub: np.ndarray | None = None  # upper bounds u / (s d) (None: none)
+    eq_row: np.ndarray | None = None  # the load row d / max(d) (None: no load equality)
+    eq_rhs: float = 0.0  # P / (s max(d))
 
     @property
     def n(self) -> int:
@@ -148,7 +162,12 @@ def assemble_scaled(qp: QP, scaling: bool = True, p0: np.ndarray | None = None) 
     Hs = eq.scale_matrix(H)
     us = eq.scale_rhs(ubar)
     x0 = None if p0 is None else eq.to_scaled(p0)
-    return ScaledQP(Hs, us, eq, x0)
+    c = qp.constraints
+    ub = None if not c.bounded else eq.to_scaled(c.upper_or_inf(qp.n))
+    dmax = float(np.max(eq.d)) if eq.enabled else 1.0
+    row = None if c.load is None else (eq.d / dmax if eq.enabled else np.ones(qp.n))
+    rhs = 0.0 if c.load is None else float(c.load) / (eq.s * dmax)
+    return ScaledQP(Hs, us, eq, x0, ub, row, rhs)
 
 
 def dense_memory_model(n: int, copies: float) -> float:
@@ -289,6 +308,8 @@ class EquilibratedAdapter(Solver):
         if not finite:
             return Outcome(np.full(sqp.n, np.nan), out.iterations, False, "backend returned no finite solution",
                            status=status, info=info)
+        if self.polish and not ctx.constraints.plain:
+            return self._constrained_polish(sqp, x, ctx, status, info)
         if self.polish:
             t1 = time.perf_counter()
             pol = bpp_polish(sqp.H, sqp.u, x)
@@ -304,3 +325,24 @@ class EquilibratedAdapter(Solver):
             status=status,
             info=info,
         )
+
+    def _constrained_polish(self, sqp: ScaledQP, x: np.ndarray, ctx: SolveContext, status: Status,
+                            info: dict[str, Any]) -> Outcome:
+        """Step 4 under bounds or a load equality: ``box_polish`` on the original dense
+        problem from the backend's point, kept when its KKT error is no worse."""
+        t1 = time.perf_counter()
+        qp, c = ctx.qp, ctx.constraints
+        H = dense_matrix(qp)
+        p0 = sqp.eq.to_original(x)
+        g0 = sqp.eq.gap_to_original(sqp.H @ x - sqp.u)
+        d0 = fit_multiplier(g0, p0, c.upper) if c.load_control else 0.0
+        pol = box_polish(H, np.asarray(qp.ubar, dtype=np.float64), c, p0, d0)
+        g1 = H @ pol.p - qp.ubar
+        better = (ctx.kkt(pol.p, g1, pol.multiplier if c.load_control else None)
+                  <= constrained_kkt_error(p0, g0, qp.ubar, ctx.diag_max, c, None))
+        info.update(polish_time=time.perf_counter() - t1, polish_rounds=pol.rounds, polish_converged=pol.converged,
+                    polish_improved=better)
+        p, g = (pol.p, g1) if better else (p0, g0)
+        mult = pol.multiplier if better and c.load_control else None
+        return Outcome(p=p, iterations=0, converged=status is Status.CONVERGED, message=f"{self.name}: polished",
+                       w=g, status=status, info=info, multiplier=mult)

@@ -24,6 +24,11 @@ memory); CG warm started from the previous s for the matrix-free operator (param
 (``SolveContext.kkt``, one extra matvec, every ``check_every`` iterations) <= tol, in
 place of the paper's primal residual ||s - p||: p >= 0 holds at every iterate, so the
 error is zero exactly at the solution.  Not exact; warm start: primal and dual.
+
+Bounds and load control: step 5.3 projects onto the QP's feasible set
+(``problems.constraints.project_feasible``: the box, and the load by bisection on a
+shift); ADMM needs only a closed convex set there.  At the solution Hp - ubar = -rho u,
+the approach Delta is fitted from it by the lifecycle.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from typing import Callable
 import numpy as np
 
 from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, conjugate_gradient, is_dense, matvec_seconds
+from .gp import projection_of
 from .base import Capabilities, Outcome, Param, ParamError, SolveContext, Solver, WarmStart
 from .registry import register
 
@@ -82,7 +88,7 @@ class ADMM(Solver):
     description = "ADMM scaled form, alpha=1.5, rho relative to mean diag(H) (Algorithm 5)"
     #: first-order: promised to its default tolerance (it reaches 1e-8 too slowly for the
     #: battery's time limit on the high-profile cases)
-    capabilities = Capabilities(warm_start="primal-dual", exact=False, promise=1e-6)
+    capabilities = Capabilities(warm_start="primal-dual", exact=False, promise=1e-6, load_control=True, bounds=True)
     default_tol = 1e-6
     params = (
         Param("rho", float, 1.0, "penalty (> 0); relative to mean diag H unless rho_relative is False", low=0.0),
@@ -107,12 +113,13 @@ class ADMM(Solver):
         p = np.zeros(qp.n) if ctx.p0 is None else ctx.p0.copy()
         u = np.zeros(qp.n) if ctx.p0 is None else initial_scaled_dual(ctx, p, rho)
         s = p.copy()
+        project = projection_of(ctx)
         check_every = ctx.params["check_every"]
         converged, i, w = False, 0, None
         while i < ctx.max_iter and not ctx.expired():
             s = apply_m(p - u + qp.ubar / rho, s)  # 5.1
             s_hat = alpha * s + (1.0 - alpha) * p  # 5.2
-            p = np.maximum(s_hat + u, 0.0)  # 5.3
+            p = project(s_hat + u)  # 5.3
             u += s_hat - p  # 5.4
             i += 1
             w = None
@@ -135,6 +142,8 @@ def initial_scaled_dual(ctx: SolveContext, p: np.ndarray, rho: float) -> np.ndar
     length n) is given."""
     warm: WarmStart | None = ctx.warm
     w = None if warm is None or warm.w is None else np.asarray(warm.w, dtype=np.float64)
+    if ctx.constraints.load_control:
+        w = None  # a warm w there is Hp - ubar - Delta; u needs Hp - ubar
     if w is None or w.shape != p.shape or not np.all(np.isfinite(w)):
         w = ctx.qp.H.matvec(p) - ctx.qp.ubar
     return -w / rho

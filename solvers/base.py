@@ -16,11 +16,22 @@ The lifecycle (``Solver.solve``, a template method; subclasses implement ``itera
    whose ``capabilities.warm_start`` is "none" is handed no warm start, and its result
    says ``warm_started=False``;
 4. start one deadline, one trace and one matvec count (``SolveContext``); return p = 0
-   at once when ubar <= 0 (no contact);
+   at once when ubar <= 0 (no contact) and no load is imposed;
 5. call the solver's own ``iterate(ctx)``, which returns an ``Outcome``;
 6. build the ``SolveResult``: w = Hp - ubar (unless the outcome carries it), the status
    from the small ``Status`` enum, the matvec count, and a trace whose last point is the
    final iterate's scaled KKT error.
+
+Bounds and load control (``problems.constraints``)
+--------------------------------------------------
+A QP may carry upper bounds (a hardness) and a load equality sum(p) = P.  A solver poses
+them only if its ``Capabilities`` say so (``bounds``, ``load_control``; both default to
+False, so a solver that says nothing is skipped with the reason -- ``constraint_skip``
+-- and ``solve`` refuses such a QP).  Under load control the approach Delta is the
+equality's multiplier: an ``Outcome`` may carry it (``multiplier``), else ``finish``
+fits it from the answer (``problems.constraints.fit_multiplier``); ``SolveResult``
+reports it as ``multiplier`` and its w is Hp - ubar - Delta.  A warm start is clipped
+to the box.
 
 Adding a solver = one file in ``solvers/`` with a ``Solver`` subclass decorated by
 ``@register`` (``contactbench.solvers.register``); see docs/adding-a-solver.md.
@@ -39,7 +50,8 @@ import numpy as np
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
-from contactbench.problems.kkt import scaled_kkt_error
+from contactbench.problems.constraints import Constraints, fit_multiplier
+from contactbench.problems.kkt import constrained_kkt_error
 from contactbench.problems.operators import ContactOperator
 
 WarmKind = Literal["none", "primal", "primal-dual"]
@@ -155,7 +167,10 @@ class SolveResult:
     """One record for every solver (like scipy's OptimizeResult).
 
     p            : the answer (length n, the solver's final iterate);
-    w            : its gap Hp - ubar (recomputed by the lifecycle when the solver gave none);
+    w            : its gap Hp - ubar - Delta (Delta = 0 without a load equality; recomputed
+                   by the lifecycle when the solver gave none);
+    multiplier   : under load control, the approach Delta (the equality's multiplier: the
+                   solver's own or fitted, module doc); None otherwise;
     iterations   : the solver's own iteration count;
     converged    : the solver's own claim that its stopping test passed;
     status       : a ``Status`` value (as its string);
@@ -181,6 +196,7 @@ class SolveResult:
     warm_started: bool = False
     trace: list[tuple[int, float, float]] = field(default_factory=list)
     info: dict[str, Any] = field(default_factory=dict)
+    multiplier: float | None = None
 
 
 #: What a solver promises the conformance battery (``Capabilities.promise``): "exact",
@@ -224,6 +240,8 @@ class Capabilities:
     max_n        : hard size limit (None: none besides the memory model).
     input_format : "operator", "dense" or "sparse".
     needs_geometry : it needs the QP's grid geometry (positions, surface levels).
+    load_control : it poses the load equality sum(p) = P (load control).
+    bounds       : it poses finite upper bounds 0 <= p <= u (a hardness).
     """
 
     operators: frozenset[str] = frozenset({"dense", "fft"})
@@ -234,6 +252,8 @@ class Capabilities:
     input_format: str = "operator"
     needs_geometry: bool = False
     promise: Promise = "exact"
+    load_control: bool = False
+    bounds: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "promise", check_promise(self.promise))
@@ -258,6 +278,10 @@ class Capabilities:
         ]
         if self.needs_geometry:
             parts.append("needs-geometry")
+        if self.load_control:
+            parts.append("load-control")
+        if self.bounds:
+            parts.append("bounds")
         if self.max_n:
             parts.append(f"max_n={self.max_n}")
         return ", ".join(parts)
@@ -313,9 +337,10 @@ class Outcome:
     iterations: int
     converged: bool
     message: str = ""
-    w: np.ndarray | None = None
+    w: np.ndarray | None = None  # Hp - ubar (without Delta)
     status: Status | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    multiplier: float | None = None  # Delta under load control (None: fitted by ``finish``)
 
 
 @dataclass
@@ -354,9 +379,16 @@ class SolveContext:
     def record(self, it: int, residual: float) -> None:
         self.trace.record(it, residual)
 
-    def kkt(self, p: np.ndarray, w: np.ndarray) -> float:
-        """The scaled KKT error of (p, w = Hp - ubar): the harness's own formula."""
-        return scaled_kkt_error(p, w, self.qp.ubar, self.diag_max, self.ubar_scale())
+    @property
+    def constraints(self) -> Constraints:
+        return self.qp.constraints
+
+    def kkt(self, p: np.ndarray, w: np.ndarray, multiplier: float | None = None) -> float:
+        """The scaled KKT error of (p, w = Hp - ubar): the harness's own formula
+        (``problems.kkt.constrained_kkt_error``; under load control with ``multiplier``
+        as Delta, fitted when None; w excludes Delta)."""
+        return constrained_kkt_error(p, w, self.qp.ubar, self.diag_max, self.qp.constraints, multiplier,
+                                     self.ubar_scale())
 
     def restricted(self, pos: np.ndarray, p0: np.ndarray | None, first: int = 0) -> "SolveContext":
         """This solve on the unknowns at positions ``pos`` only, the others held at 0
@@ -404,16 +436,29 @@ class SolveContext:
 
 
 def check_qp(qp: QP) -> None:
-    """A QP a solver can be handed: ubar of length n, finite."""
+    """A QP a solver can be handed: ubar of length n, finite; its constraints posable
+    (``Constraints.check``)."""
     ubar = np.asarray(qp.ubar)
     if ubar.ndim != 1 or ubar.size != qp.H.n:
         raise ProblemInputError(f"ubar has shape {ubar.shape}, the operator has n = {qp.H.n}")
     if not np.all(np.isfinite(ubar)):
         raise ProblemInputError("ubar contains non-finite values")
+    qp.constraints.check(qp.n)
 
 
-def warm_point(warm: WarmStart | None, n: int, kind: WarmKind) -> np.ndarray | None:
-    """The one warm-start policy (module doc, step 3): p0 >= 0 of length n, or None."""
+def constraint_skip(caps: Capabilities, load_control: bool, bounded: bool, name: str = "this solver") -> str | None:
+    """Why a solver with ``caps`` cannot pose a problem under load control / with bounds
+    (None: it can)."""
+    if load_control and not caps.load_control:
+        return f"{name} cannot pose load control (the equality sum(p) = P)"
+    if bounded and not caps.bounds:
+        return f"{name} cannot pose bounded pressures (a hardness)"
+    return None
+
+
+def warm_point(warm: WarmStart | None, n: int, kind: WarmKind, upper: np.ndarray | None = None) -> np.ndarray | None:
+    """The one warm-start policy (module doc, step 3): p0 >= 0 of length n (and <= the
+    upper bounds, when given), or None."""
     if kind == "none" or warm is None or warm.p is None:
         return None
     p = np.asarray(warm.p, dtype=np.float64)
@@ -421,7 +466,8 @@ def warm_point(warm: WarmStart | None, n: int, kind: WarmKind) -> np.ndarray | N
         raise ProblemInputError(f"warm-start p has shape {p.shape}, the problem has n = {n}")
     if not np.all(np.isfinite(p)):
         raise ProblemInputError("warm-start p contains non-finite values")
-    return np.maximum(p, 0.0)
+    p = np.maximum(p, 0.0)
+    return p if upper is None else np.minimum(p, upper)
 
 
 @dataclass(frozen=True)
@@ -435,6 +481,8 @@ class ProblemTraits:
     periodic: bool = False
     kernel: str = ""
     surface_side: int = 0  # points per side of the instance's surface (0: none)
+    load_control: bool = False  # the QP carries a load equality
+    bounded: bool = False  # the QP carries finite upper bounds (a hardness)
 
 
 class Solver(ABC):
@@ -466,7 +514,11 @@ class Solver(ABC):
 
     def skip(self, traits: ProblemTraits) -> str | None:
         """A reason not to run on a problem with these traits (None: run it).  The
-        harness asks this after its own capability checks."""
+        harness asks this after its own capability checks; subclasses that refine it
+        call this first (the constraints the solver cannot pose, ``constraint_skip``)."""
+        why = constraint_skip(self.capabilities, traits.load_control, traits.bounded, self.name)
+        if why:
+            return why
         if self.capabilities.needs_geometry and not traits.has_surface:
             return f"{self.name} needs the instance's surface and its coarse levels; this problem has none"
         return None
@@ -500,18 +552,21 @@ class Solver(ABC):
         settings = settings or SolverSettings()
         t0 = time.perf_counter()
         check_qp(qp)
+        why = constraint_skip(self.capabilities, qp.constraints.load_control, qp.constraints.bounded, self.name)
+        if why:
+            raise ProblemInputError(why)
         params = self.resolve_params(settings.params)
         tol = settings.tol if settings.tol is not None else self.default_tol
         tol = None if tol is None else float(tol)
         max_iter = self.default_max_iter(qp.n) if settings.max_iter is None else settings.max_iter
         max_iter = None if max_iter is None else int(max_iter)
-        p0 = warm_point(warm, qp.n, self.capabilities.warm_start)
+        p0 = warm_point(warm, qp.n, self.capabilities.warm_start, qp.constraints.upper)
         ctx = SolveContext(qp=qp, tol=tol, max_iter=max_iter, params=params, p0=p0,
                            warm=warm if self.capabilities.warm_start != "none" else None,
                            deadline=Deadline(settings.time_limit, t0), trace=Trace(t0=t0),
                            diag_max=float(np.max(qp.H.diagonal())))
         ctx.track(qp.H)
-        if np.max(qp.ubar, initial=0.0) <= 0.0:
+        if np.max(qp.ubar, initial=0.0) <= 0.0 and not qp.constraints.load_control:
             out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0")
         else:
             out = self.iterate(ctx)
@@ -546,6 +601,11 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
     w = out.w
     if w is None and finite:
         w = qp.H.matvec(p) - qp.ubar
+    multiplier = None
+    if qp.constraints.load_control and finite and w is not None:
+        multiplier = out.multiplier
+        if multiplier is None:
+            multiplier = fit_multiplier(w, p, qp.constraints.upper)
     status = out.status
     if status is None:
         status = (Status.CONVERGED if out.converged else
@@ -553,13 +613,12 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
     if not finite and status is not Status.CONVERGED:
         status = Status.FAILED
     if finite and w is not None:
-        final = ctx.kkt(p, w)
+        final = ctx.kkt(p, w, multiplier)
         if not ctx.trace.points or ctx.trace.points[-1][0] != out.iterations:
             ctx.trace.points.append((int(out.iterations), ctx.trace.elapsed(), float(final)))
     converged = bool(out.converged) and status is Status.CONVERGED
     return SolveResult(
         p=p,
-        w=w,
         iterations=int(out.iterations),
         converged=converged,
         status=status.value,
@@ -570,4 +629,6 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
         warm_started=ctx.warm_started,
         trace=list(ctx.trace.points),
         info={**ctx.info, **out.info},
+        multiplier=None if multiplier is None else float(multiplier),
+        w=w if multiplier is None or w is None else w - multiplier,
     )

@@ -44,8 +44,10 @@ TOLERANCE_MAPS: dict[str, OptionMap] = {
 }
 
 
-def cvxpy_problem(H: np.ndarray, u: np.ndarray, form: str) -> tuple[Any, Any]:
-    """(problem, variable) for min 1/2 p'Hp - u'p, p >= 0 in the requested form."""
+def cvxpy_problem(H: np.ndarray, u: np.ndarray, form: str, ub: np.ndarray | None = None,
+                  eq_row: np.ndarray | None = None, eq_rhs: float = 0.0) -> tuple[Any, Any]:
+    """(problem, variable) for min 1/2 p'Hp - u'p, p >= 0 in the requested form, with
+    p <= ub and eq_row'p = eq_rhs when given."""
     import cvxpy as cp
 
     p = cp.Variable(u.size)
@@ -56,7 +58,12 @@ def cvxpy_problem(H: np.ndarray, u: np.ndarray, form: str) -> tuple[Any, Any]:
         objective = 0.5 * cp.sum_squares(L.T @ p) - u @ p
     else:
         raise ValueError(f"cvxpy form must be one of {', '.join(FORMS)}, got {form!r}")
-    return cp.Problem(cp.Minimize(objective), [p >= 0]), p
+    constraints = [p >= 0]
+    if ub is not None:
+        constraints.append(p <= ub)
+    if eq_row is not None:
+        constraints.append(eq_row @ p == eq_rhs)
+    return cp.Problem(cp.Minimize(objective), constraints), p
 
 
 @dataclass
@@ -76,7 +83,7 @@ class CVXPYAdapter(EquilibratedAdapter):
     name: ClassVar[str] = "cvxpy"
     description: ClassVar[str] = f"CVXPY quad_form model, solver {DEFAULT_CVXPY_SOLVER} (params: solver, form)"
     capabilities: ClassVar[Capabilities] = Capabilities(
-        needs_dense=True, warm_start="none", exact=False, input_format="dense"
+        needs_dense=True, warm_start="none", exact=False, input_format="dense", load_control=True, bounds=True
     )
     params: ClassVar[tuple[Param, ...]] = (
         SCALING,
@@ -92,7 +99,7 @@ class CVXPYAdapter(EquilibratedAdapter):
 
     def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> CVXPYModel:
         form = str(ctx.params["form"])
-        problem, var = cvxpy_problem(sqp.H, sqp.u, form)
+        problem, var = cvxpy_problem(sqp.H, sqp.u, form, sqp.ub, sqp.eq_row, sqp.eq_rhs)
         return CVXPYModel(problem, var, str(ctx.params["solver"]).upper(), form)
 
     def run_backend(self, sqp: ScaledQP, prepared: CVXPYModel, ctx: SolveContext) -> BackendOutcome:

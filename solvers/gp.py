@@ -6,7 +6,9 @@ Algorithm 4), alone (``gp``) and as the warm start of NNLS (``nnls-gp``).
 
 L must bound lambda_max(H): ``lipschitz="frobenius"`` is the paper's ||H||_F (safe but up
 to sqrt(n) too large, so steps are short); ``lipschitz="power"`` is lambda_max from a
-few power iterations (inflated 1 %).  ``info["lipschitz"]`` records which, and
+few power iterations (inflated 1 %).  Under bounds or a load equality (``gp`` only) the
+projection is onto the box and the equality (``problems.constraints.project_feasible``:
+the load by bisection on a shift), the same iteration otherwise.  ``info["lipschitz"]`` records which, and
 ``info["L"]`` its value.  Optional ``restart=True`` resets the momentum when it points
 uphill (O'Donoghue & Candes 2015) -- not in the paper, off by default.
 
@@ -20,8 +22,11 @@ from the GP point: exact.  Both accept a primal warm start (GP starts from it).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
+
+from contactbench.problems.constraints import project_feasible
 
 from ._kit import lipschitz_constant, matvec_seconds
 from .base import Capabilities, Outcome, Param, SolveContext, Solver
@@ -49,6 +54,7 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
     KKT error of p (``ctx.kkt``, one extra matvec) is <= tol, checked and recorded
     every ``check_every`` iterations, as is the deadline."""
     op, ubar = ctx.qp.H, ctx.qp.ubar
+    project = projection_of(ctx)
     p = p0.copy()
     p_prev = p.copy()
     j, restarts = 0, 0  # j: momentum counter (reset by restarts)
@@ -57,7 +63,7 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
         s = p + beta * (p - p_prev)  # step 2.2
         w = op.matvec(s) - ubar  # step 2.3
         p_prev = p  # step 2.4
-        p = np.maximum(s - w / L, 0.0)  # step 2.5
+        p = project(s - w / L)  # step 2.5
         j += 1
         if restart and float((s - p) @ (p - p_prev)) > 0.0:
             j, restarts = 0, restarts + 1
@@ -69,6 +75,15 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
             if ctx.expired():
                 return GPOutcome(p, i + 1, False, restarts)
     return GPOutcome(p, K, False, restarts)
+
+
+def projection_of(ctx: SolveContext) -> Callable[[np.ndarray], np.ndarray]:
+    """Step 2.5's projection: onto p >= 0 (the paper's), or onto the box and the load
+    equality of the QP's constraints (``problems.constraints.project_feasible``)."""
+    c = ctx.constraints
+    if c.plain:
+        return lambda x: np.maximum(x, 0.0)
+    return lambda x: project_feasible(x, c)
 
 
 def lipschitz_of(ctx: SolveContext) -> float:
@@ -93,7 +108,7 @@ class GradientProjection(Solver):
     name = "gp"
     family = "paper"
     description = "Accelerated gradient projection (Algorithm 4), Frobenius or power-iteration L"
-    capabilities = Capabilities(warm_start="primal", exact=False)
+    capabilities = Capabilities(warm_start="primal", exact=False, load_control=True, bounds=True)
     default_tol = 1e-6
     params = (LIPSCHITZ_PARAM, RESTART_PARAM,
               Param("check_every", int, 10, "iterations between two KKT checks (one matvec each)", low=1))

@@ -19,6 +19,14 @@ stops after one pass, with w_I != 0 on the reduced set.  What runs here is the i
 method: the reduced system is solved again after every removal, until a pass yields no
 negative p (``info["passes"]`` counts the passes).
 
+Hardness (``problems.constraints`` bounds): the saturation step.  A pass that leaves no
+negative force fixes every element of I whose force exceeds its bound u_j at p_j = u_j (it
+leaves I for the plastic set S, irreversibly, as a removal is; removals come first, since
+an unconstrained solve with tensile elements still in I overshoots), and the reduced
+system becomes
+H_II p_I = ubar_I - H_IS u_S (one extra matvec per pass while S is not empty).  Without
+bounds the method is unchanged.  No load control.
+
 Greedy methods are not exact: nothing guarantees w >= 0 on the removed elements (the
 paper's Example 1 is a counterexample), so ``Capabilities.exact`` is False.  No warm
 start: eliminations are irreversible, so the paper's safe start is I = all, p = 0
@@ -63,7 +71,7 @@ class GreedySolver(Solver):
     scaled KKT error after every pass (one extra matvec per pass)."""
 
     family: ClassVar[str] = "paper"
-    capabilities: ClassVar[Capabilities] = Capabilities(warm_start="none", exact=False)
+    capabilities: ClassVar[Capabilities] = Capabilities(warm_start="none", exact=False, bounds=True)
     default_tol: ClassVar[float] = 1e-10
     params = (
         Param("max_passes", int, None, "outer passes at most (None: n + 1)", low=1),
@@ -81,28 +89,37 @@ class GreedySolver(Solver):
         max_passes = ctx.params["max_passes"] or qp.n + 1
         active = np.arange(qp.n)
         p = np.zeros(qp.n)
+        u = ctx.constraints.upper_or_inf(qp.n)
+        plastic = np.zeros(qp.n, dtype=bool)
         op: ContactOperator = qp.H
         total_it, passes, converged = 0, 0, False
         while passes < max_passes:
             passes += 1
-            red = self.solve_reduced(ctx, op, qp.ubar[active], p[active], atol.disp, ctx.max_iter - total_it)
+            rhs = qp.ubar[active]
+            if plastic.any():
+                rhs = rhs - qp.H.matvec(np.where(plastic, u, 0.0))[active]
+            red = self.solve_reduced(ctx, op, rhs, p[active], atol.disp, ctx.max_iter - total_it)
             total_it += red.iterations
             p[:] = 0.0
+            p[plastic] = u[plastic]
             p[active] = red.x
             negative = red.x < -atol.force
-            if not negative.any():
+            over = (red.x > u[active] + atol.force) & ~negative.any()  # saturate once free of tension
+            if not (negative.any() or over.any()):
                 converged = red.converged
                 break
             p[active[negative]] = 0.0  # step 2.5: zero tensile forces, shrink I
-            active = active[~negative]
-            feasible = np.maximum(p, 0.0)
+            p[active[over]] = u[active[over]]  # saturation: the plastic elements leave I at their bound
+            plastic[active[over]] = True
+            active = active[~(negative | over)]
+            feasible = np.clip(p, 0.0, u)
             ctx.record(total_it, ctx.kkt(feasible, qp.H.matvec(feasible) - qp.ubar))
             if ctx.params["literal_one_pass"] or total_it >= ctx.max_iter or ctx.expired() or active.size == 0:
                 break
             op = ctx.track(qp.H.restrict(active))
-        np.maximum(p, 0.0, out=p)  # entries in (-eps, 0) count as zero
+        np.clip(p, 0.0, u, out=p)  # entries in (-eps, 0) count as zero, (u, u + eps) as u
         ctx.info.update(method="greedy, repeated until no negative p (intended Algorithm 1)", passes=passes,
-                        final_set_size=int(active.size))
+                        final_set_size=int(active.size), plastic=int(plastic.sum()))
         message = f"no negative p after {passes} passes" if converged else f"stopped after {passes} passes"
         return Outcome(p, total_it, converged, message)
 
@@ -201,7 +218,7 @@ class GreedyCholesky(GreedySolver):
 
     name = "greedy-chol"
     description = "Greedy + Cholesky (mldivide); dense n^2; not exact"
-    capabilities = Capabilities(warm_start="none", exact=False, needs_dense=True)
+    capabilities = Capabilities(warm_start="none", exact=False, needs_dense=True, bounds=True)
 
     def memory_estimate(self, n: int) -> float:
         return float(dense_nbytes(n))

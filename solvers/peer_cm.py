@@ -26,6 +26,11 @@ Kernels (``params={"green": ...}``):
 * ``"ours"`` -- always our influence coefficients (the operator's circulant table), put
   into ContactMechanics through its Green's-function hook ``_compute_greens_function``.
 
+Load control and hardness: cm-pk-ccg poses both natively (``native_control``): its
+``external_force`` is the load P (its returned ``offset`` is the approach Delta, reported
+as the multiplier), its ``hardness`` the per-pixel force bound.  cm-dual-ccg poses
+neither (its ``dual_minimize_proxy`` takes an offset only) and is skipped on them.
+
 Either way ContactMechanics solves exactly our problem (solvers/_peers.py: the QP posed on
 the full grid); its force field on the trial set is judged as it comes.
 """
@@ -35,6 +40,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+
+from contactbench.problems.constraints import Constraints
 
 from ._peers import GridProblem, PeerSolver, captured, full_field, grid_problem, package_availability
 from .base import Capabilities, Outcome, Param, SolveContext, Status
@@ -120,7 +127,10 @@ class _CMSolver(PeerSolver):
         return gp, sub, ("ours" if ours else "contactmechanics")
 
     def tolerance(self, ctx: SolveContext, gp: GridProblem) -> float:
-        """The peer's absolute gap tolerance: tol x max(ubar) (our scaled dual residual)."""
+        """The peer's absolute gap tolerance: tol x max(ubar) (our scaled dual residual;
+        tol x max|ubar| = tol x u_s under load control, where ubar <= 0)."""
+        if ctx.constraints.load_control:
+            return float(ctx.tol) * float(np.max(np.abs(gp.ubar)))
         return float(ctx.tol) * float(np.max(gp.ubar))
 
 
@@ -164,7 +174,10 @@ class CMPolonskyKeer(_CMSolver):
     cm-dual-ccg (module doc).  Warm start: primal (``initial_forces``)."""
 
     name = "cm-pk-ccg"
-    description = "ContactMechanics: Polonsky-Keer constrained CG at fixed offset [peers extra]"
+    description = ("ContactMechanics: Polonsky-Keer constrained CG at fixed offset, or at a fixed external force; "
+                   "hardness by its own bound [peers extra]")
+    capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="primal", load_control=True,
+                                bounds=True)
     params = (Param("green", str, "auto", "auto: CM's own kernel where it has the scene's, else ours; ours: always ours",
                     choices=GREEN_CHOICES),)
 
@@ -180,15 +193,37 @@ class CMPolonskyKeer(_CMSolver):
         if ctx.p0 is not None:
             init = np.zeros(sub.nb_subdomain_grid_pts)
             init[: gp.shape[0], : gp.shape[1]] = -full_field(gp, ctx.p0)  # CM: compressive force < 0
+        control = native_control(gp, ctx.constraints)
         ctx.mark_setup_done()
         with captured() as said:
-            res = constrained_conjugate_gradients(sub, topo, offset=0.0, initial_forces=init, pentol=pentol,
+            res = constrained_conjugate_gradients(sub, topo, initial_forces=init, pentol=pentol,
                                                   forcetol=forcetol, thermotol=float(ctx.tol),
-                                                  maxiter=int(ctx.max_iter))
+                                                  maxiter=int(ctx.max_iter), **control)
         ctx.add_matvecs(type(sub).products)
         force = np.asarray(res.jac).reshape(gp.shape)
-        return peer_outcome(gp, force, bool(res.success), int(res.nit), str(res.message),
-                            {"green": green, "pentol": pentol, "forcetol": forcetol, "peer_printed": said.tail()})
+        out = peer_outcome(gp, force, bool(res.success), int(res.nit), str(res.message),
+                           {"green": green, "pentol": pentol, "forcetol": forcetol, "peer_printed": said.tail(),
+                            "control": "load" if "external_force" in control else "displacement"})
+        if ctx.constraints.load_control and not gp.periodic:
+            out.multiplier = float(res.offset)  # CM's rigid offset at the given force: the approach Delta
+            # (periodic: its offset is relative to the mean-free kernel, so Delta is fitted instead)
+        return out
+
+
+def native_control(gp: GridProblem, c: Constraints) -> dict[str, Any]:
+    """ContactMechanics' own keywords for our constraints: ``external_force`` = P under
+    load control (else ``offset`` = 0: U is ubar at the QP's approach), ``hardness`` = the
+    per-pixel force bound (a scalar when uniform, else a field, inf off the trial set)."""
+    kw: dict[str, Any] = {"external_force": float(c.load)} if c.load is not None else {"offset": 0.0}
+    if c.bounded:
+        u = c.upper_or_inf(gp.indices.size)
+        if np.all(u == u[0]):
+            kw["hardness"] = float(u[0])
+        else:
+            field = np.full(gp.shape[0] * gp.shape[1], np.inf)
+            field[gp.indices] = u
+            kw["hardness"] = field.reshape(gp.shape)
+    return kw
 
 
 def peer_outcome(gp: GridProblem, force: np.ndarray, success: bool, nit: int, message: str,

@@ -32,9 +32,16 @@ tamaas-condat
     ``tamaas.Condat`` -- Condat's primal-dual splitting (J. Optim. Theory Appl. 158
     (2013) 460), mu = 0, load control.
 
+Load control (``problems.constraints``): tamaas-pkr poses it natively (periodic:
+PolonskyKeerRey pressure/pressure at the mean pressure P / A; non-periodic Love: the
+same, without the load search), and so do the three frictional solvers below, at the
+QP's own load.  Hardness: ``tamaas.KatoSaturated`` (``tamaas-kato-saturated``; Kato's
+projected gradient with the pressure capped at pmax = the bound / delta^2), periodic
+spectral under load control only.  The approach Delta is fitted from the answer.
+
 The three load-controlled solvers (periodic spectral only, Tamaas' ``surface_2d`` model)
-get the load P that Tamaas' own PolonskyKeerRey finds under displacement control on the
-same problem (time counted); a load-controlled exact answer at that P is the
+on a displacement-controlled QP get the load P that Tamaas' own PolonskyKeerRey finds
+under displacement control on the same problem (time counted); a load-controlled exact answer at that P is the
 displacement-controlled answer.  Their claim is Tamaas' own figure (the returned error or
 ``computeCost``) <= tol.  None supports a warm start (warm_start "none").
 """
@@ -97,6 +104,18 @@ def pkr_displacement_control(gp: GridProblem, tol: float, max_iter: int, primal:
     solver = tm.PolonskyKeerRey(model, np.ascontiguousarray(gp.U), tol, kind, tm.PolonskyKeerRey.gap)
     solver.max_iter = max_iter
     err = solver.solve(-float(np.mean(gp.U)))  # zero-mean H: mean gap = -mean(U) at offset 0
+    return _normal_traction(model, gp), float(err)
+
+
+def pkr_periodic_load(gp: GridProblem, tol: float, max_iter: int, load: float) -> tuple[np.ndarray, float]:
+    """Periodic PolonskyKeerRey (pressure/pressure) at total load ``load``: (force field, error)."""
+    import tamaas as tm
+
+    model = _model(gp)
+    solver = tm.PolonskyKeerRey(model, np.ascontiguousarray(gp.U), tol, tm.PolonskyKeerRey.pressure,
+                                tm.PolonskyKeerRey.pressure)
+    solver.max_iter = max_iter
+    err = solver.solve(load / (gp.sizes[0] * gp.sizes[1]))
     return _normal_traction(model, gp), float(err)
 
 
@@ -194,10 +213,16 @@ class TamaasPKR(_TamaasSolver):
     description = "Tamaas: PolonskyKeerRey CG (periodic 2/(E*|q|); non-periodic Love by load search) [peers extra]"
     params = (Param("primal", str, "gap", "periodic: the primal variable of the functional",
                     choices=("gap", "pressure")),)
+    capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="none", load_control=True)
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         gp = self.posed(ctx)
         tol, max_iter = float(ctx.tol), int(ctx.max_iter)
+        if ctx.constraints.load_control:
+            load = float(ctx.constraints.load)  # type: ignore[arg-type]
+            force, err = (pkr_periodic_load(gp, tol, max_iter, load) if gp.periodic
+                          else pkr_nonperiodic_load(gp, tol, max_iter, load))
+            return tamaas_outcome(gp, force, err, tol, {"posing": "load control (native)", "load": load})
         if gp.periodic:
             force, err = pkr_displacement_control(gp, tol, max_iter, ctx.params["primal"])
             return tamaas_outcome(gp, force, err, tol, {"posing": "displacement control"})
@@ -230,6 +255,7 @@ class _TamaasLoadControlled(_TamaasSolver):
     """A Tamaas frictional solver at mu = 0 under load control (module doc)."""
 
     tamaas_class: str = ""
+    capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="none", load_control=True)
 
     def default_max_iter(self, n: int) -> int | None:
         return None  # Tamaas' own limit (its default max_iter)
@@ -239,6 +265,10 @@ class _TamaasLoadControlled(_TamaasSolver):
         if why is None and not traits.periodic:
             return f"Tamaas' {self.tamaas_class} runs on its periodic surface model only"
         return why
+
+    def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
+        """The Tamaas solver object (mu = 0)."""
+        return getattr(tm, self.tamaas_class)(model, np.ascontiguousarray(gp.U), tol, 0.0)
 
     def run(self, solver: Any, mean_pressure: float) -> Any:
         return solver.solve([0.0, 0.0, mean_pressure])
@@ -250,11 +280,14 @@ class _TamaasLoadControlled(_TamaasSolver):
         if not gp.periodic:
             raise ProblemInputError(f"Tamaas' {self.tamaas_class} runs on its periodic surface model only")
         tol = float(ctx.tol)
-        calib, calib_err = pkr_displacement_control(gp, tol, 100_000, "gap")
-        load = float(np.sum(calib))
+        if ctx.constraints.load_control:
+            load, calib_err = float(ctx.constraints.load), None  # type: ignore[arg-type]
+        else:
+            calib, calib_err = pkr_displacement_control(gp, tol, 100_000, "gap")
+            load = float(np.sum(calib))
         ctx.mark_setup_done()
         model = _model(gp, "surface_2d")
-        solver = getattr(tm, self.tamaas_class)(model, np.ascontiguousarray(gp.U), tol, 0.0)
+        solver = self.make(tm, model, gp, tol, ctx)
         if ctx.max_iter is not None:
             solver.max_iter = int(ctx.max_iter)
         returned = self.run(solver, load / (gp.sizes[0] * gp.sizes[1]))
@@ -292,3 +325,32 @@ class TamaasCondat(_TamaasLoadControlled):
     name = "tamaas-condat"
     description = "Tamaas: Condat primal-dual splitting, mu = 0, load control [peers extra]"
     tamaas_class = "Condat"
+
+
+@register
+class TamaasKatoSaturated(_TamaasLoadControlled):
+    """Tamaas' KatoSaturated: Kato's projected gradient with the pressure capped at a
+    hardness pmax (the bound / delta^2), periodic spectral under load control only
+    (module doc).  Warm start: none."""
+
+    name = "tamaas-kato-saturated"
+    description = "Tamaas: KatoSaturated, Kato with pressures capped by a hardness, load control [peers extra]"
+    tamaas_class = "KatoSaturated"
+    capabilities = Capabilities(operators=frozenset({"fft", "dense"}), warm_start="none", load_control=True,
+                                bounds=True)
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        why = super().skip(traits)
+        if why is None and not traits.load_control:
+            return "Tamaas' KatoSaturated poses load control only"
+        return why
+
+    def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
+        c = ctx.constraints
+        if not c.load_control:
+            raise ProblemInputError("Tamaas' KatoSaturated poses load control only")
+        u = c.upper_or_inf(ctx.n)
+        if not np.all(u == u[0]):
+            raise ProblemInputError("Tamaas' KatoSaturated takes one hardness for every element")
+        pmax = float(u[0]) / gp.delta ** 2 if np.isfinite(u[0]) else float(np.finfo(float).max)
+        return tm.KatoSaturated(model, np.ascontiguousarray(gp.U), tol, pmax)

@@ -19,15 +19,39 @@ p = 0 with the whole trial set as the first domain (Algorithm 2's input I_C = {1
 warm start (paper: "both an initial trial contact domain and a set of contact
 pressures"): p from the previous step and its support as the first domain.  No
 preconditioner.  Exact (converges to round-off); matrix-free (dense or FFT operator).
+
+Load control and hardness (``problems.constraints``): ``pk_constrained``, P & K's own
+algorithm (1999, section 3: the native load-controlled CCG) with the saturation of
+Almqvist, Sahlin, Larsson & Lugt (Tribol. Int. 40 (2007) 574) for bounded pressures.
+Each iteration, on the free set I_c = {0 < p < u}:
+
+* g = Hp - ubar; under load control the approach is the mean gap over I_c,
+  Delta = mean(g_Ic), and g -= Delta (P & K eq. (9)); without a load Delta = 0;
+* t = g + d (G / G_old) t on I_c (0 elsewhere), G = sum g_Ic^2; r = Ht (minus its mean
+  over I_c under load control); tau = (g't)_Ic / (r't)_Ic; p -= tau t;
+* p < 0 -> 0 and p > u -> u (saturation); the points at rest that want force back
+  (p = 0 with g < 0) and the saturated points that want to shed it (p = u with g > 0)
+  re-enter with p -= tau g, and the conjugacy is reset (d = 0);
+* under load control the free forces are scaled so that sum(p) = P
+  (p_Ic *= (P - sum p_S) / sum p_Ic, then clipped to the box).
+
+It stops on the harness's scaled KKT error of (p, g, Delta) (``SolveContext.kkt``) and
+reports Delta as the multiplier.  Two matvecs per iteration.  Cold start: P spread evenly
+over the trial set (load control), else p = 0 with the whole set as the first I_c; warm:
+the previous p (scaled to the load).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from contactbench.problems.constraints import Constraints, fit_multiplier
 
 from ._ccg import GapState, outcome, polonsky_keer
 from ._kit import matvec_seconds
-from .base import Capabilities, Outcome, SolveContext, Solver
+from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
 
 TYPICAL_PK_ITERATIONS = 300
@@ -44,10 +68,12 @@ class PolonskyKeer(Solver):
     name = "pk"
     family = "paper"
     description = "Polonsky-Keer constrained CG (Algorithm 2), warm start of p and domain"
-    capabilities = Capabilities(warm_start="primal", exact=True)
+    capabilities = Capabilities(warm_start="primal", exact=True, load_control=True, bounds=True)
     default_tol = 1e-10
 
     def iterate(self, ctx: SolveContext) -> Outcome:
+        if not ctx.constraints.plain:
+            return pk_constrained(ctx)
         state = GapState.start(ctx)
         warm = ctx.p0 is not None and bool(np.any(ctx.p0 > 0.0))
         domain = state.p > 0.0 if warm else np.ones(ctx.n, dtype=bool)
@@ -56,3 +82,118 @@ class PolonskyKeer(Solver):
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return 2 * TYPICAL_PK_ITERATIONS * matvec_seconds(n, operator_kind)
+
+
+def _scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """p scaled so that sum(p) = P: the free forces scaled, the plastic ones kept (Almqvist
+    et al.); when that fails (the plastic points alone exceed P, or a free one is
+    scaled past its cap) every force is scaled, sum(min(s p, u)) = P (P & K's scaling, the
+    box's cap applied after it; s by bisection, then exact on the uncapped points).  When
+    the points carrying force cannot hold P at their caps, the rest goes to the others in
+    the order of their gap ``g`` (the most penetrating first, each up to its cap; without
+    g, evenly)."""
+    if c.load is None:
+        return p
+    load = float(c.load)
+    sat = p >= u
+    free = (p > 0.0) & ~sat
+    rest, carried = load - float(np.sum(p[sat])), float(np.sum(p[free]))
+    if rest >= 0.0 and carried > 0.0:  # Almqvist: the plastic points keep their force
+        p[free] *= rest / carried
+        if np.all(p[free] <= u[free]):
+            return p
+    on = p > 0.0
+    if float(np.sum(u[on])) <= load:
+        p[on] = u[on]
+        off = np.flatnonzero(~on)
+        rest = load - float(np.sum(p[on]))
+        if g is None:
+            p[off] = np.minimum(rest / max(off.size, 1), u[off])
+            return p
+        for i in off[np.argsort(g[off], kind="stable")]:
+            if rest <= 0.0:
+                break
+            p[i] = min(rest, u[i])
+            rest -= p[i]
+        return p
+    lo, hi = 0.0, 1.0
+    while float(np.sum(np.minimum(hi * p, u))) < load:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if float(np.sum(np.minimum(mid * p, u))) < load:
+            lo = mid
+        else:
+            hi = mid
+    q = np.minimum(hi * p, u)
+    free = q < u
+    carried = float(np.sum(q[free]))
+    if carried > 0.0:
+        q[free] *= (load - float(np.sum(q[~free]))) / carried
+    return np.minimum(q, u, out=q)
+
+
+def _mean_on(x: np.ndarray, mask: np.ndarray) -> float:
+    k = int(np.count_nonzero(mask))
+    return float(np.sum(x[mask])) / k if k else 0.0
+
+
+def pk_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
+    """The first iterate (module doc)."""
+    c = ctx.constraints
+    if ctx.p0 is not None and np.any(ctx.p0 > 0.0):
+        return _scale_to_load(ctx.p0.copy(), c, u)
+    if c.load is None:
+        return np.zeros(ctx.n)
+    return np.minimum(np.full(ctx.n, float(c.load) / ctx.n), u)
+
+
+def pk_constrained(ctx: SolveContext) -> Outcome:
+    """Polonsky & Keer (1999) under load control with Almqvist's saturation (module doc)."""
+    H, ubar, c = ctx.qp.H, ctx.qp.ubar, ctx.constraints
+    u = c.upper_or_inf(ctx.n)
+    load = c.load is not None
+    p = pk_start(ctx, u)
+    t = np.zeros(ctx.n)
+    G_old, conj = 1.0, False
+    delta = 0.0
+    first = ctx.p0 is None and not load  # displacement control from p = 0: the whole set is I_c
+    for it in range(int(ctx.max_iter or 0) + 1):
+        g = H.matvec(p) - ubar
+        free = (p > 0.0) & (p < u)
+        if first:
+            free = np.ones(ctx.n, dtype=bool)
+        if load:
+            delta = _mean_on(g, free) if np.any(free) else fit_multiplier(g, p, c.upper)
+        res = ctx.kkt(p, g, delta if load else None)
+        ctx.record(it, res)
+        if res <= (ctx.tol or 0.0):
+            return Outcome(p, it, True, w=g, multiplier=delta if load else None)
+        if it == ctx.max_iter or ctx.expired() or not math.isfinite(res) or not np.any(free):
+            break
+        first = False
+        r_g = np.where(free, g - delta, 0.0)
+        G = float(r_g @ r_g)
+        t = r_g + (G / G_old if conj else 0.0) * np.where(free, t, 0.0)
+        G_old = G
+        r = H.matvec(t)
+        if load:
+            r -= _mean_on(r, free)
+        den = float(r[free] @ t[free])
+        if not den > 0.0:
+            break
+        tau = float(r_g[free] @ t[free]) / den
+        p = p - tau * t
+        np.maximum(p, 0.0, out=p)
+        np.minimum(p, u, out=p)
+        wants = ((p <= 0.0) & (g - delta < 0.0)) | ((p >= u) & (g - delta > 0.0))
+        wants &= ~free
+        conj = not np.any(wants)
+        if not conj:
+            p[wants] -= tau * (g[wants] - delta)
+            np.clip(p, 0.0, u, out=p)
+        p = _scale_to_load(p, c, u, g - delta)
+    return Outcome(p, it, False, w=g, multiplier=delta if load else None,
+                   status=None if math.isfinite(res) else Status.FAILED)

@@ -258,6 +258,8 @@ class QPSolversAdapter(EquilibratedAdapter):
             exact=False,
             input_format=spec.input_format,
             promise="exact" if self.accuracy_floor is None else self.accuracy_floor,
+            load_control=True,
+            bounds=True,
         )
 
     def availability(self) -> tuple[bool, str]:
@@ -272,11 +274,17 @@ class QPSolversAdapter(EquilibratedAdapter):
         return False, why or f"failed to import: qpsolvers does not list backend {self.spec.backend!r}"
 
     def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> Any:
-        """qpsolvers' Problem(P, -u~, lb=0) with P in the requested input format."""
+        """qpsolvers' Problem(P, -u~, lb=0[, ub=u~][, A=d', b=P/s]) with P in the
+        requested input format (``_scaling``: the scaled bounds and load row)."""
         import qpsolvers
 
-        P = _problem_matrix(sqp, ctx.params["input_format"])
-        return qpsolvers.Problem(P, -sqp.u, lb=np.zeros(sqp.n))
+        fmt = ctx.params["input_format"]
+        P = _problem_matrix(sqp, fmt)
+        A = b = None
+        if sqp.eq_row is not None:
+            A = sqp.eq_row[None, :] if fmt == "dense" else sp.csc_matrix(sqp.eq_row[None, :])
+            b = np.array([sqp.eq_rhs])
+        return qpsolvers.Problem(P, -sqp.u, A=A, b=b, lb=np.zeros(sqp.n), ub=sqp.ub)
 
     def run_backend(self, sqp: ScaledQP, prepared: Any, ctx: SolveContext) -> BackendOutcome:
         import qpsolvers

@@ -25,8 +25,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from contactbench.problems.lcp import default_nnls_max_iter, exact_solution
+from contactbench.problems.mixed_lcp import UncertifiedConstrainedSolution, constrained_exact_solution
 
-from .base import Capabilities, SolveContext
+from ._scaling import dense_matrix
+from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
 from ._scaling import BackendOutcome, EquilibratedAdapter, ScaledQP
 
@@ -62,3 +64,43 @@ class ScipyNNLS(EquilibratedAdapter):
             info={"check_rounds": sol.polish_rounds, "check_time": sol.polish_time,
                   "active": int(np.count_nonzero(sol.p > 0))},
         )
+
+
+@register
+class BVLSReference(Solver):
+    """The exact reference of the bounded and load-controlled families
+    (``problems.mixed_lcp.constrained_exact_solution``): Stark & Parker's BVLS for a box,
+    started from the clipped Lawson-Hanson solution; under load control the KKT solve with
+    the multiplier (regula falsi on the approach Delta over exact BVLS solves, then block
+    principal pivoting on the sets with the load row).  Certified to a scaled KKT error
+    of 1e-10 or it fails.  Dense H, no warm start; without bounds or a load it runs
+    ``exact_solution`` (as ``scipy-nnls``, without equilibration)."""
+
+    name = "bvls"
+    family = "reference"
+    description = "BVLS (Stark & Parker) for boxes; exact KKT solve with the load multiplier for load control"
+    capabilities = Capabilities(needs_dense=True, warm_start="none", exact=True, input_format="dense",
+                                load_control=True, bounds=True)
+    default_tol = None
+
+    def default_max_iter(self, n: int) -> int | None:
+        return None
+
+    def memory_estimate(self, n: int) -> float:
+        return 4.0 * 8.0 * n * n
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        H = dense_matrix(ctx.qp)
+        ubar = np.asarray(ctx.qp.ubar, dtype=np.float64)
+        ctx.mark_setup_done()
+        c = ctx.constraints
+        if c.plain:
+            sol = exact_solution(H, ubar)
+            return Outcome(sol.p, sol.polish_rounds, sol.converged, w=sol.w)
+        try:
+            ref = constrained_exact_solution(H, ubar, c)
+        except (UncertifiedConstrainedSolution, np.linalg.LinAlgError, ValueError) as exc:
+            return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {exc}", status=Status.FAILED)
+        ctx.info.update(polish_rounds=ref.rounds, displacement_solves=ref.solves)
+        return Outcome(ref.p, ref.rounds, True, "certified exact solution", w=H @ ref.p - ubar,
+                       multiplier=ref.multiplier if c.load_control else None)

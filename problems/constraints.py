@@ -1,0 +1,185 @@
+"""The constraints of a contact QP beyond p >= 0: the one home of load control and of
+hardness-bounded pressures.
+
+A QP (``problems.instances.QP``) carries one ``Constraints`` record.  Its two optional
+parts generalise the displacement-controlled problem  min 1/2 p'Hp - ubar'p, p >= 0:
+
+* ``upper`` -- per-element upper bounds u (a force per element; ``inf`` = none): the box
+  0 <= p <= u.  A hardness H_A (a pressure) bounds every element's mean pressure p_i /
+  delta^2, so u_i = H_A delta^2 (``hardness_bounds``); an element at its bound is
+  *plastic* (Almqvist et al. 2007).
+* ``load`` -- the total force P: the equality sum(p) = P (load control, Polonsky & Keer
+  1999).  Its Lagrange multiplier is the rigid-body approach Delta: stationarity reads
+  w = Hp - ubar - Delta with w >= 0 where p = 0, w <= 0 where p = u and w = 0 in between.
+  A load-control instance poses ubar at Delta = 0 (``ubar = xi - xi_max``), so the
+  multiplier *is* the far-field displacement of the displacement-controlled problem.
+
+With neither part (``Constraints()``, ``plain``) the QP is exactly the
+displacement-controlled problem.  Also here: the projections onto the feasible set
+(``project_box``, ``project_box_sum``), used by the projection solvers, and
+``fit_multiplier``, the Delta a candidate implies when it reports none.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ProblemInputError
+
+@dataclass(frozen=True, eq=False)
+class Constraints:
+    """The optional bounds and load equality of a contact QP (module doc).
+
+    upper : None (no upper bounds) or a float64 array of length n, entries in (0, inf];
+    load  : None (displacement control) or the total force P >= 0 (load control)."""
+
+    upper: np.ndarray | None = None
+    load: float | None = None
+
+    @property
+    def bounded(self) -> bool:
+        """Some element has a finite upper bound."""
+        return self.upper is not None and bool(np.any(np.isfinite(self.upper)))
+
+    @property
+    def load_control(self) -> bool:
+        return self.load is not None
+
+    @property
+    def plain(self) -> bool:
+        """Neither bounds nor a load equality: the displacement-controlled problem."""
+        return not self.bounded and not self.load_control
+
+    def upper_or_inf(self, n: int) -> np.ndarray:
+        """The upper bounds as an array of length n (inf where there is none)."""
+        return np.full(n, math.inf) if self.upper is None else self.upper
+
+    def restrict(self, pos: np.ndarray) -> "Constraints":
+        """The constraints on the unknowns at positions ``pos`` (the others held at p = 0:
+        the load equality is unchanged)."""
+        return Constraints(None if self.upper is None else self.upper[np.asarray(pos)], self.load)
+
+    def check(self, n: int) -> None:
+        """``ProblemInputError`` unless these constraints can be posed on n unknowns: upper
+        of length n with entries > 0 (inf allowed, NaN not), load finite and >= 0, and the
+        box able to carry the load (sum(upper) >= load)."""
+        if self.upper is not None:
+            u = np.asarray(self.upper)
+            if u.shape != (n,) or u.dtype != np.float64:
+                raise ProblemInputError(f"upper bounds must be a float64 array of length {n}, got {u.dtype} {u.shape}")
+            if np.any(np.isnan(u)) or np.any(u <= 0.0):
+                raise ProblemInputError("upper bounds must be > 0 (inf for none), got NaN or a value <= 0")
+        if self.load is not None:
+            if not (isinstance(self.load, float) and math.isfinite(self.load) and self.load >= 0.0):
+                raise ProblemInputError(f"the load must be a finite float >= 0, got {self.load!r}")
+            cap = float(np.sum(self.upper_or_inf(n)))
+            if cap < self.load:
+                raise ProblemInputError(f"the load {self.load:g} exceeds what the bounds can carry ({cap:g}): "
+                                        "every element plastic cannot balance it")
+
+
+def make_constraints(n: int, upper: np.ndarray | float | None = None, load: float | None = None) -> Constraints:
+    """Checked ``Constraints`` on n unknowns: ``upper`` a scalar (every element) or an
+    array; an all-infinite ``upper`` is stored as None (no bounds), so an infinite
+    hardness poses exactly the unbounded problem."""
+    u = None
+    if upper is not None:
+        u = np.broadcast_to(np.asarray(upper, dtype=np.float64), (n,)).copy()
+        if np.all(np.isposinf(u)):
+            u = None
+    c = Constraints(u, None if load is None else float(load))
+    c.check(n)
+    return c
+
+
+def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int) -> np.ndarray:
+    """u_i = H_A d0 d1 for n elements of sides ``delta`` = (d0, d1) (one number: square
+    elements): the force at which an element's mean pressure reaches the hardness
+    ``hardness`` (inf: no bound)."""
+    h = float(hardness)
+    if math.isnan(h) or h <= 0.0:
+        raise ProblemInputError(f"hardness must be > 0 (inf for none), got {hardness!r}")
+    sides = (delta, delta) if np.ndim(delta) == 0 else tuple(delta)  # type: ignore[arg-type]
+    if len(sides) != 2 or not all(math.isfinite(float(d)) and float(d) > 0.0 for d in sides):
+        raise ProblemInputError(f"grid spacing must be finite and > 0, got {delta!r}")
+    return np.full(n, h * float(sides[0]) * float(sides[1]))
+
+
+def project_box(x: np.ndarray, upper: np.ndarray | None) -> np.ndarray:
+    """The projection of x onto {0 <= p <= upper} (upper None: p >= 0)."""
+    p = np.maximum(x, 0.0)
+    return p if upper is None else np.minimum(p, upper, out=p)
+
+
+def project_box_sum(x: np.ndarray, upper: np.ndarray | None, load: float) -> np.ndarray:
+    """The Euclidean projection of x onto {0 <= p <= upper, sum(p) = load}: p =
+    clip(x - tau, 0, upper), where S(tau) = sum(p) is piecewise linear and non-increasing
+    with breakpoints x_i and x_i - upper_i.  A binary search over the sorted breakpoints
+    finds the piece holding S(tau) = load (O(n log n)); on it tau solves the linear
+    equation exactly.  ``load`` must be feasible (``Constraints.check``)."""
+    x = np.asarray(x, dtype=np.float64)
+    u = np.full(x.shape, math.inf) if upper is None else upper
+    fin = np.isfinite(u)
+    bps = np.unique(np.concatenate([x, (x - u)[fin]]))
+
+    def total(t: float) -> float:
+        return float(np.sum(np.clip(x - t, 0.0, u)))
+
+    if total(float(bps[0])) < load:  # below every breakpoint: the unbounded points carry the rest
+        t_mid = float(bps[0]) - 1.0
+        lo_t = t_mid
+    else:
+        lo, hi = 0, bps.size - 1
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if total(float(bps[mid])) >= load:
+                lo = mid
+            else:
+                hi = mid
+        lo_t = float(bps[lo])
+        t_mid = 0.5 * (lo_t + float(bps[hi])) if hi > lo else lo_t
+    free = (x - t_mid > 0.0) & (x - t_mid < u)
+    sat = x - t_mid >= u
+    k = int(np.count_nonzero(free))
+    tau = (float(np.sum(x[free])) + float(np.sum(u[sat])) - float(load)) / k if k else lo_t
+    return np.clip(x - tau, 0.0, u)
+
+
+def project_feasible(x: np.ndarray, constraints: Constraints) -> np.ndarray:
+    """The projection of x onto the feasible set of ``constraints``: p >= 0 (plain,
+    ``np.maximum(x, 0)``), the box (``project_box``) or the box with the load
+    (``project_box_sum``)."""
+    if constraints.load is not None:
+        return project_box_sum(x, constraints.upper, float(constraints.load))
+    return project_box(x, constraints.upper)
+
+
+def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> float:
+    """The approach Delta a candidate p implies, from g = Hp - ubar (w = g - Delta):
+    the mean of g over the elements strictly inside their bounds, each weighted by its
+    distance from the nearer bound (the exact answer has g = Delta on every one of them).
+    With none inside: the largest g over the elements at their upper bound (the least
+    Delta that keeps them plastic), else the least g (the approach at which contact
+    begins).  NaN when g or p is not finite or empty."""
+    g = np.asarray(g, dtype=np.float64)
+    p = np.asarray(p, dtype=np.float64)
+    if g.size == 0 or not (np.all(np.isfinite(g)) and np.all(np.isfinite(p))):
+        return math.nan
+    u = np.full(p.shape, math.inf) if upper is None else upper
+    with np.errstate(invalid="ignore"):
+        v = np.minimum(p, u - p)
+    v = np.where(v > 0.0, v, 0.0)
+    sv = float(np.sum(v))
+    if sv > 0.0 and math.isfinite(sv):
+        return float(np.sum(v * g) / sv)
+    saturated = p >= u
+    if np.any(saturated):
+        return float(np.max(g[saturated]))
+    return float(np.min(g))
+
+
+__all__ = ["Constraints", "fit_multiplier", "hardness_bounds", "make_constraints",
+           "project_box", "project_box_sum", "project_feasible"]

@@ -1,0 +1,305 @@
+"""The exact solution of the contact QP under bounds and a load equality: the reference
+of the constrained families (``problems.constraints``).
+
+    min 1/2 p'Hp - ubar'p   s.t.  0 <= p <= u,  [sum(p) = P]
+
+with H dense SPD (or, under a load equality, positive definite on {sum d = 0}).  Its KKT
+conditions (a mixed LCP) are, with w = Hp - ubar - Delta (Delta = 0 without a load):
+w >= 0 where p = 0, w <= 0 where p = u, w = 0 in between, sum(p) = P.
+
+``box_polish`` -- block principal pivoting on the three sets Z (p = 0), F (free),
+S (p = u) (Judice & Pires 1994, extended to the box): given the sets it solves
+
+    H_FF p_F - Delta 1 = ubar_F - H_FS u_S,   1'p_F = P - 1'u_S     (load control)
+    H_FF p_F = ubar_F - H_FS u_S                                    (otherwise)
+
+and moves every violated element: a free p below 0 to Z, above u to S; an element of Z
+with w < 0 or of S with w > 0 to F.  After ``BLOCK_PATIENCE`` rounds without fewer
+violations it moves only the least violated index (Murty's rule).  It stops on a
+violation-free set: then p is the exact solution (up to round-off).  Violations are
+measured in the units of ``problems.kkt`` (tol x p_s, tol x u_s).
+
+``bvls`` -- bounded-variable least squares (Stark & Parker, Comput. Stat. 10 (1995) 129)
+stated on the QP: Lawson-Hanson's active-set method with a second bound.  The free set F
+is solved exactly (Cholesky of H_FF, the bounded elements held at 0 or u); the element
+of Z with the most negative gradient g = Hp - ubar, or of S with the most positive one,
+is freed; when the free solution leaves the box the step is cut at the first bound
+reached and the elements there are fixed (the inner loop).  It starts, as Stark & Parker
+allow, from any point of the box (a warm start): ``constrained_exact_solution`` starts
+it from the displacement-controlled exact solution (``problems.lcp.exact_solution``,
+Lawson-Hanson) clipped to the box, and ``box_polish`` checks its final sets.
+
+``constrained_exact_solution`` -- the reference: for a box, ``bvls`` from that point;
+under load control, the KKT solve with the multiplier: ``bvls`` at an approach Delta
+found by regula falsi (Illinois) on the total force P(Delta) (non-decreasing), and after
+each step ``box_polish`` with the load row from that point, until one converges.  Every
+answer is certified by ``problems.kkt.constrained_figures``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .constraints import Constraints, fit_multiplier, project_box
+from .kkt import constrained_figures, constrained_scales
+from .lcp import BLOCK_PATIENCE, exact_solution
+
+#: Scaled KKT error at which ``constrained_exact_solution`` certifies its answer.
+CERTIFY_KKT = 1e-10
+#: Regula-falsi steps on Delta before ``constrained_exact_solution`` gives up.
+MAX_MULTIPLIER_STEPS = 60
+
+Z, F, S = 0, 1, 2
+
+
+class UncertifiedConstrainedSolution(RuntimeError):
+    """No certified exact solution was found (the message says why)."""
+
+
+@dataclass
+class ConstrainedSolution:
+    """p, the multiplier Delta (0 without a load equality), the scaled KKT error of
+    ``constrained_figures``, whether the last polish ended on a violation-free set, and
+    the polish rounds and displacement-controlled solves it took."""
+
+    p: np.ndarray
+    multiplier: float
+    kkt_error: float
+    converged: bool
+    rounds: int
+    solves: int = 0
+
+
+def _scales(H: np.ndarray, ubar: np.ndarray) -> tuple[float, float]:
+    u_s = float(np.max(np.abs(ubar), initial=0.0)) or 1.0
+    return u_s, u_s / float(np.max(np.diag(H)))
+
+
+def _initial_sets(p0: np.ndarray, w0: np.ndarray, u: np.ndarray, u_s: float, p_s: float) -> np.ndarray:
+    """Z where p0 / p_s <= w0 / u_s, S where (u - p0) / p_s <= -w0 / u_s, F otherwise."""
+    state = np.full(p0.shape, F, dtype=np.int8)
+    with np.errstate(invalid="ignore"):
+        state[np.isfinite(u) & ((u - p0) / p_s <= -w0 / u_s)] = S
+    state[p0 / p_s <= w0 / u_s] = Z
+    return state
+
+
+def solve_on_sets(H: np.ndarray, ubar: np.ndarray, u: np.ndarray, load: float | None,
+                  state: np.ndarray) -> tuple[np.ndarray, float]:
+    """(p, Delta) with p = 0 on Z, u on S and the free equations (module doc) on F.
+    Without a load Delta = 0; with one and F empty, Delta is NaN (any value in a range)."""
+    p = np.zeros_like(ubar)
+    sat = np.flatnonzero(state == S)
+    free = np.flatnonzero(state == F)
+    p[sat] = u[sat]
+    rhs = ubar[free] - H[np.ix_(free, sat)] @ u[sat]
+    if load is None:
+        if free.size:
+            c = sla.cho_factor(H[np.ix_(free, free)], lower=True, check_finite=False)
+            p[free] = sla.cho_solve(c, rhs, check_finite=False)
+        return p, 0.0
+    if free.size == 0:
+        return p, math.nan
+    m = free.size
+    K = np.zeros((m + 1, m + 1))
+    K[:m, :m] = H[np.ix_(free, free)]
+    K[:m, m] = -1.0
+    K[m, :m] = 1.0
+    b = np.append(rhs, float(load) - float(np.sum(u[sat])))
+    x = sla.solve(K, b, check_finite=False)
+    p[free] = x[:m]
+    return p, float(x[m])
+
+
+def box_polish(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np.ndarray,
+               delta0: float = 0.0, max_rounds: int = 100, tol: float = 1e-11) -> ConstrainedSolution:
+    """Block principal pivoting on the box and load equality from the guess (p0, delta0)
+    (module doc).  ``converged``: it stopped on a violation-free set."""
+    u = constraints.upper_or_inf(ubar.size)
+    load = constraints.load
+    u_s, p_s = constrained_scales(ubar, float(np.max(np.diag(H))), constraints)
+    state = _initial_sets(p0, H @ p0 - ubar - delta0, u, u_s, p_s)
+    best, stall = math.inf, 0
+    p, delta = p0, delta0
+    for rnd in range(1, max_rounds + 1):
+        p, delta = solve_on_sets(H, ubar, u, load, state)
+        g = H @ p - ubar
+        if load is not None and not math.isfinite(delta):
+            delta = fit_multiplier(g, p, constraints.upper)
+        w = g - delta
+        moves = np.full(p.shape, -1, dtype=np.int8)
+        moves[(state == F) & (p < -tol * p_s)] = Z
+        moves[(state == F) & (p > u + tol * p_s)] = S
+        moves[(state == Z) & (w < -tol * u_s)] = F
+        moves[(state == S) & (w > tol * u_s)] = F
+        bad = np.flatnonzero(moves >= 0)
+        if bad.size == 0:
+            return ConstrainedSolution(project_box(p, constraints.upper), delta, 0.0, True, rnd)
+        if bad.size < best:
+            best, stall = bad.size, 0
+        else:
+            stall += 1
+        if stall < BLOCK_PATIENCE:
+            state[bad] = moves[bad]
+        else:
+            state[bad[0]] = moves[bad[0]]
+    return ConstrainedSolution(project_box(p, constraints.upper), delta, math.inf, False, max_rounds)
+
+
+@dataclass
+class BVLSOutcome:
+    """p, its outer iterations (elements freed), inner steps (cuts at a bound), and
+    whether it stopped with no element to free."""
+
+    p: np.ndarray
+    iterations: int
+    inner: int
+    converged: bool
+
+
+def _solve_free(H: np.ndarray, ubar: np.ndarray, u: np.ndarray, state: np.ndarray) -> np.ndarray:
+    return solve_on_sets(H, ubar, u, None, state)[0]
+
+
+def _cut_to_box(p: np.ndarray, z: np.ndarray, u: np.ndarray, state: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Step from p towards z, cut at the first bound a free element reaches; the elements
+    at a bound join Z or S.  Returns (new p, whether z itself was inside the box)."""
+    free = state == F
+    low = free & (z <= 0.0)
+    high = free & (z >= u)
+    if not (np.any(low) or np.any(high)):
+        return z, True
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_low = np.where(low, p / (p - z), np.inf)
+        a_high = np.where(high, (u - p) / (z - p), np.inf)
+    alpha = float(min(np.min(a_low), np.min(a_high)))
+    alpha = min(max(alpha, 0.0), 1.0)
+    q = p + alpha * (z - p)
+    q = np.where(free, q, p)
+    tiny = 1e-14 * max(float(np.max(np.abs(p), initial=0.0)), 1e-300)
+    to_z = free & (q <= tiny) & (z <= p)
+    to_s = free & np.isfinite(u) & (q >= u * (1.0 - 1e-14)) & (z >= p)
+    if not (np.any(to_z) or np.any(to_s)):  # round-off: fix the element that set alpha
+        k = int(np.argmin(np.minimum(a_low, a_high)))
+        (to_z if low[k] else to_s)[k] = True
+    state[to_z], state[to_s] = Z, S
+    q[to_z] = 0.0
+    q[to_s] = u[to_s]
+    return q, False
+
+
+def bvls(H: np.ndarray, ubar: np.ndarray, upper: np.ndarray | None, p0: np.ndarray | None = None,
+         max_iter: int | None = None, tol: float = 1e-12) -> BVLSOutcome:
+    """Stark & Parker's BVLS on min 1/2 p'Hp - ubar'p, 0 <= p <= upper (module doc), from
+    ``p0`` (clipped to the box; None: p = 0).  An element is freed only when its gradient
+    violates by more than tol x u_s."""
+    H = np.asarray(H, dtype=np.float64)
+    ubar = np.asarray(ubar, dtype=np.float64)
+    n = ubar.size
+    u = np.full(n, math.inf) if upper is None else np.asarray(upper, dtype=np.float64)
+    u_s, _ = _scales(H, ubar)
+    p = np.zeros(n) if p0 is None else project_box(np.asarray(p0, dtype=np.float64), upper)
+    state = np.where(p <= 0.0, Z, np.where(p >= u, S, F)).astype(np.int8)
+    limit = 10 * n + 10 if max_iter is None else int(max_iter)
+    inner = 0
+    for it in range(limit + 1):
+        while np.any(state == F):  # make the free solution feasible (Stark & Parker's loop B)
+            p, inside = _cut_to_box(p, _solve_free(H, ubar, u, state), u, state)
+            inner += 1
+            if inside:
+                break
+        g = H @ p - ubar
+        score = np.where(state == Z, -g, np.where(state == S, g, 0.0))
+        j = int(np.argmax(score))
+        if score[j] <= tol * u_s or it == limit:
+            return BVLSOutcome(p, it, inner, bool(score[j] <= tol * u_s))
+        state[j] = F
+    return BVLSOutcome(p, limit, inner, False)
+
+
+def _certified(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, sol: ConstrainedSolution,
+               tol: float) -> ConstrainedSolution | None:
+    g = H @ sol.p - ubar
+    mult = sol.multiplier if constraints.load_control else None
+    f = constrained_figures(sol.p, g, ubar, float(np.max(np.diag(H))), constraints, mult)
+    sol.kkt_error = f.kkt_error
+    return sol if sol.converged and f.kkt_error <= tol else None
+
+
+def _displacement_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, delta: float) -> np.ndarray:
+    """The exact solution at approach ``delta`` within the box: Lawson-Hanson's unbounded
+    solution, clipped to the box and taken by ``bvls`` to the bounded one."""
+    p = exact_solution(H, ubar + delta).p
+    if not constraints.bounded:
+        return p
+    return bvls(H, ubar + delta, constraints.upper, p).p
+
+
+def constrained_exact_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constraints,
+                               tol: float = CERTIFY_KKT) -> ConstrainedSolution:
+    """The certified exact solution (module doc) for a dense, non-singular H; raises
+    ``UncertifiedConstrainedSolution`` when no polish certifies."""
+    H = np.asarray(H, dtype=np.float64)
+    ubar = np.asarray(ubar, dtype=np.float64)
+    constraints.check(ubar.size)
+    if not constraints.load_control:
+        sol = box_polish(H, ubar, constraints, _displacement_solution(H, ubar, constraints, 0.0))
+        sol.solves = 1
+        out = _certified(H, ubar, constraints, sol, tol)
+        if out is None:
+            raise UncertifiedConstrainedSolution(f"box polish did not certify (kkt {sol.kkt_error:.2e})")
+        return out
+    return _load_controlled(H, ubar, constraints, tol)
+
+
+def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, tol: float) -> ConstrainedSolution:
+    load = float(constraints.load)  # type: ignore[arg-type]
+    u_s, _ = _scales(H, ubar)
+    lo, hi = -float(np.max(ubar)), -float(np.max(ubar)) + u_s
+    solves = 0
+
+    def total(delta: float) -> tuple[float, np.ndarray]:
+        nonlocal solves
+        solves += 1
+        p = _displacement_solution(H, ubar, constraints, delta)
+        return float(np.sum(p)), p
+
+    f_lo = -load
+    f_hi, p = total(hi)
+    f_hi -= load
+    while f_hi < 0.0:  # grow the bracket until P(hi) >= P
+        lo, f_lo = hi, f_hi
+        hi += 2.0 * (hi - lo) + u_s
+        f_hi, p = total(hi)
+        f_hi -= load
+        if solves > MAX_MULTIPLIER_STEPS:
+            raise UncertifiedConstrainedSolution(f"no approach carries the load {load:g}")
+    delta, side = hi, 0
+    last: ConstrainedSolution | None = None
+    for _ in range(MAX_MULTIPLIER_STEPS):
+        last = box_polish(H, ubar, constraints, p, delta)
+        out = _certified(H, ubar, constraints, last, tol)
+        if out is not None:
+            out.solves = solves
+            return out
+        delta = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+        fd, p = total(delta)
+        fd -= load
+        if fd > 0.0:
+            hi, f_hi = delta, fd
+            f_lo = f_lo / 2.0 if side == 1 else f_lo
+            side = 1
+        else:
+            lo, f_lo = delta, fd
+            f_hi = f_hi / 2.0 if side == -1 else f_hi
+            side = -1
+    raise UncertifiedConstrainedSolution(
+        f"no certified solution after {solves} solves (last kkt {math.inf if last is None else last.kkt_error:.2e})")
+
+
+__all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "bvls", "UncertifiedConstrainedSolution", "box_polish",
+           "constrained_exact_solution", "solve_on_sets"]
