@@ -258,7 +258,7 @@ def test_population_plan_and_member_keys():
 def bench_script(name: str):
     """A sibling script of benchmarks/bench_surface_population.py, imported as it runs."""
     population_script()  # its sibling modules on the path first
-    folder = Path(__file__).resolve().parent.parent / "benchmarks"
+    folder = REPO / "benchmarks"
     spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
@@ -284,7 +284,7 @@ def test_sweep_ratio_counts_only_members_both_solvers_solved_throughout():
 def test_sweep_refuses_bad_input_in_one_line_before_running(argv, what, tmp_path):
     import subprocess
 
-    script = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_population_sweep.py"
+    script = REPO / "benchmarks" / "bench_population_sweep.py"
     proc = subprocess.run([sys.executable, str(script), *argv, "--out", str(tmp_path / "o")], capture_output=True, check=False,
                           text=True, timeout=120)
     assert proc.returncode == 2 and what in proc.stderr and "Traceback" not in proc.stderr
