@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from contactbench.harness import load_table
 from bench_surface_population import FAMILIES, LENGTH, Member, code_commit, surface_of
 
 CB = str(Path(sys.executable).with_name("contactbench"))
@@ -79,8 +80,6 @@ def sweep_member(m: Member, args: argparse.Namespace) -> Path:
 def totals(run_dir: Path) -> tuple[list[SweepTotals], float]:
     """Per solver of one member's run: totals; and the largest relative load difference
     between ours (the first solver) and cm-dual-ccg over the steps both solved."""
-    from contactbench.harness.schema import load_table
-
     t = load_table(run_dir)
     t = t[t["status"] != "skipped"]
     rows = [SweepTotals(str(s), float(d["solve_time_s"].sum()), int((d["status"] == "solved").sum()), len(d),
