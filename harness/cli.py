@@ -40,6 +40,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, NoReturn, Sequence
 
+from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
 from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES, parse_length
@@ -64,7 +65,7 @@ OPTION_FLAGS: dict[str, str] = {
     "E": "--E", "kernel": "--kernel", "periodic": "--periodic", "operator": "--operator", "channel": "--channel",
     "height_unit": "--height-unit", "allow_steep": "--allow-steep", "family": "--surface-family",
     "detrend": "--detrend", "nan": "--nan", "crop": "--crop", "thickness": "--thickness", "nu": "--nu",
-    "interface": "--interface"}
+    "interface": "--interface", "control": "--control", "loads": "--loads", "hardness": "--hardness"}
 
 
 class InputError(ProblemInputError):
@@ -313,6 +314,7 @@ def scene_config(args: argparse.Namespace) -> Any:
     if args.thickness is None and (args.nu is not None or args.interface is not None):
         raise InputError("--nu and --interface describe an elastic layer; give its --thickness")
     extra.update({k: getattr(args, k) for k in LAYER_OPTIONS if getattr(args, k) is not None})
+    extra.update(control_options(args))
     if args.surface_family is not None:
         if args.surface:
             raise InputError("--surface-family picks the generated RMD surfaces; a --surface file was given")
@@ -322,6 +324,37 @@ def scene_config(args: argparse.Namespace) -> Any:
     return SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
                        length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic,
                        operator=args.operator, extra=extra)
+
+
+def control_options(args: argparse.Namespace) -> dict[str, Any]:
+    """``--control``, ``--loads`` and ``--hardness`` as scene options: ``--loads`` is what
+    load control needs and only load control takes; under load control the loads set
+    the steps."""
+    out: dict[str, Any] = {}
+    if args.control == CONTROLS[1]:
+        if args.loads is None:
+            raise InputError("--control load needs its load steps: --loads L1,L2,... as P/(E* A)")
+        if args.steps is not None:
+            raise InputError("--steps is set by --loads under --control load; give one or the other")
+        out.update(control=CONTROLS[1], loads=args.loads)
+    elif args.loads is not None:
+        raise InputError("--loads gives the load steps of --control load; the run is displacement-controlled")
+    elif args.control is not None:
+        out["control"] = args.control
+    if args.hardness is not None:
+        out["hardness"] = args.hardness
+    return out
+
+
+def load_list(text: str) -> tuple[float, ...]:
+    """``--loads``: L1,L2,... as P/(E* A), each finite and > 0, increasing."""
+    try:
+        values = tuple(float(t) for t in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"takes L1,L2,... (numbers, P/(E* A)), got {text!r}") from None
+    if not all(math.isfinite(v) and v > 0 for v in values) or any(b <= a for a, b in zip(values, values[1:])):
+        raise argparse.ArgumentTypeError(f"loads must be finite, > 0 and increasing, got {text!r}")
+    return values
 
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:
@@ -345,6 +378,14 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--crop", choices=CROP_RULES, default=None,
                    help="crop a rectangular --surface map to a square (square) or pad it (pad-square); default: "
                         "none, the whole map with its own spacing")
+    p.add_argument("--control", choices=CONTROLS, default=None,
+                   help="what is given: the far-field displacement (displacement, the default) or the total force "
+                        "(load, with --loads; the approach Delta is then the answer's, column delta)")
+    p.add_argument("--loads", type=load_list, default=None,
+                   help="the load steps of --control load, L1,L2,... as P/(E* A), increasing")
+    p.add_argument("--hardness", type=finite_positive_float, default=None,
+                   help="bound every element's mean pressure by this hardness in Pa (0 <= p <= H_A x element area; "
+                        "default: none)")
     p.add_argument("--thickness", type=finite_positive_float, default=None,
                    help="an elastic layer of this thickness in metres on a rigid base (default: the half-space)")
     p.add_argument("--nu", type=poisson_ratio, default=None,

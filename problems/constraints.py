@@ -29,6 +29,11 @@ import numpy as np
 
 from .errors import ProblemInputError
 
+#: How a contact problem is driven: the far-field displacement Delta given (the
+#: default), or the total force P given (``Constraints.load``).
+CONTROLS: tuple[str, ...] = ("displacement", "load")
+
+
 @dataclass(frozen=True, eq=False)
 class Constraints:
     """The optional bounds and load equality of a contact QP (module doc).

@@ -27,10 +27,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .constraints import Constraints, fit_multiplier, hardness_bounds, make_constraints
+from .constraints import CONTROLS, Constraints, fit_multiplier, hardness_bounds, make_constraints
 from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
 from .kernels import check_kernel, kernel_table
-from .kkt import constrained_scales
+from .kkt import constrained_scales, problem_scales
 from .layers import Layer
 from .operators import (
     DEFAULT_MEMORY_BUDGET,
@@ -200,8 +200,9 @@ class ContactInstance:
 
     @property
     def control(self) -> str:
-        """"load" when the total force is given (``QP.constraints.load``), else "displacement"."""
-        return "load" if self.qp.constraints.load_control else "displacement"
+        """One of ``constraints.CONTROLS``: "load" when the total force is given
+        (``QP.constraints.load``), else "displacement"."""
+        return CONTROLS[1] if self.qp.constraints.load_control else CONTROLS[0]
 
     def plastic_mask(self, p: np.ndarray, tol: float = CONTACT_TOL) -> np.ndarray:
         """Elements at their upper bound (plastic): u_i - p_i <= tol x p_s with u_i finite
@@ -533,11 +534,18 @@ def load_unload_cycle(delta_max: float, steps: int, cycles: int = 1) -> np.ndarr
 # ---------------------------------------------------------------------------
 
 
-def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, operator: OperatorKind = "dense") -> ContactInstance:
+def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, operator: OperatorKind = "dense",
+                   kernel: str = "bcc", periodic: bool = False, layer: Layer | None = None,
+                   hardness_over_ps: float | None = None) -> ContactInstance:
     """Paper Example 1: an N x N grid (n = N^2), every element in the trial set,
     ubar ~ U(0, 1) drawn as ``numpy.random.default_rng(seed).random(n)``, BCC kernel,
     delta = 1 and E = 0.01 (arbitrary consistent units: delta in a.u. of length, E in
     a.u. of force per length^2, as the paper's Fig. 2).
+
+    The paper's open question -- is greedy reliable "for other forms of H"? -- takes the
+    same draw on another operator: ``kernel`` and ``periodic`` (``kernels.kernel_table``),
+    an elastic ``layer`` on a rigid base, or a hardness bound u_i = ``hardness_over_ps`` x
+    p_s on every element (p_s the problem's force scale, ``kkt.problem_scales``).
 
     Its geometry is the grid with its spacing, E, kernel and periodicity (so a code that
     poses the problem on a grid, such as the peers, can pose it); it has no surface and
@@ -546,13 +554,19 @@ def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, opera
     N = int(round(np.sqrt(n)))
     if N * N != n or N < 2:
         raise ProblemInputError(f"counterexample needs n = N^2 with N >= 2, got n = {n}")
+    check_kernel(kernel, periodic)
     ubar = np.random.default_rng(seed).random(n)
     surf = Surface(np.zeros((N, N)), delta, unit="a.u.", name=f"counterexample-n{n}")
-    builder = InstanceBuilder(surf, E, "bcc", periodic=False, operator=operator)
+    builder = InstanceBuilder(surf, E, kernel, periodic=periodic, operator=operator, layer=layer)
     idx = np.arange(n)
-    geom = Geometry((N, N), delta, idx, E=float(E), kernel="bcc", periodic=False)
-    qp = QP(builder.operator_on(idx), ubar, geom)
-    return ContactInstance(qp, delta=float("nan"), E=E, kernel="bcc", periodic=False, surface=surf,
+    geom = Geometry((N, N), delta, idx, E=float(E), kernel=kernel, periodic=periodic, layer=layer)
+    op = builder.operator_on(idx)
+    upper = None
+    if hardness_over_ps is not None:
+        _, p_s = problem_scales(ubar, float(np.max(op.diagonal())))
+        upper = np.full(n, check_positive("hardness over p_s", hardness_over_ps) * p_s)
+    qp = QP(op, ubar, geom, make_constraints(n, upper, None))
+    return ContactInstance(qp, delta=float("nan"), E=E, kernel=kernel, periodic=periodic, surface=surf,
                            meta={"seed": seed, "family": "counterexample"})
 
 

@@ -49,7 +49,8 @@ UNITS: dict[str, str] = {
     "periodic": "-", "operator": "-", "reference_solver": "-", "analytic_load": "N",
     "analytic_load_rel_error": "1", "time_limit_s": "s", "error": "-", "trace": "JSON", "host": "-",
     "timestamp": "ISO 8601", "history": "-", "verdict": "-", "warmup": "-",
-    "surface_family": "-", "hurst": "-", "seed": "-",
+    "surface_family": "-", "hurst": "-", "seed": "-", "control": "-", "hardness": "Pa", "load_residual": "1",
+    "plastic_fraction": "1", "variant": "-",
 }
 
 

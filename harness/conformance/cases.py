@@ -29,6 +29,7 @@ from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution
+from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
@@ -129,6 +130,10 @@ def exact_reference(inst: ContactInstance) -> Reference:
         raise MemoryBudgetError(f"exact reference for n = {qp.n} (dense limit {REFERENCE_MAX_N})",
                                 8.0 * qp.n**2, 8.0 * REFERENCE_MAX_N**2)
     t0 = time.perf_counter()
+    if not qp.constraints.plain:  # bounds or a load equality: the certified mixed-LCP solve
+        csol = constrained_exact_solution(qp.H.to_dense(), np.asarray(qp.ubar, dtype=np.float64), qp.constraints)
+        elapsed = time.perf_counter() - t0
+        return Reference(csol.p, kkt_check(qp, csol.p).kkt_error, cond, "bvls+polish", elapsed)
     sol = exact_solution(qp.H.to_dense(), np.asarray(qp.ubar, dtype=np.float64))
     elapsed = time.perf_counter() - t0
     return Reference(sol.p, kkt_check(qp, sol.p).kkt_error, cond, "nnls+bpp", elapsed)

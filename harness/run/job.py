@@ -280,7 +280,7 @@ class JobDriver:
         spec = self.job.spec
         key = json.dumps([spec.scene, spec.instance, spec.params_json(), int(k), solver], default=str)
         digest = hashlib.sha1(key.encode("utf-8")).hexdigest()[:16]
-        safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in f"{spec.scene}-{spec.instance}")[:80]
+        safe = safe_name(f"{spec.scene}-{spec.instance}")[:80]
         return self.cache_dir / f"ref-{safe}-k{k}-{safe_name(solver)[:80]}-{digest}.npz"
 
     # -- warm starts ------------------------------------------------------

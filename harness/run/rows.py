@@ -13,6 +13,7 @@ import socket
 from dataclasses import asdict
 from typing import Any
 
+from contactbench.problems.constraints import CONTROLS
 from contactbench.solvers.registry import load_solver
 
 from ..table.files import canonical_json
@@ -91,10 +92,14 @@ class RowFactory:
 
 
 def instance_columns(params: dict[str, Any]) -> dict[str, Any]:
-    """The recipe's surface family, Hurst exponent and seed (``InstanceSpec.params``
-    keys ``family``, ``hurst``, ``seed``) as table columns; N, kernel and periodic come
-    from the built instance (``StepInfo``)."""
-    hurst, seed = params.get("hurst"), params.get("seed")
+    """The recipe's surface family, Hurst exponent, seed, control, hardness and variant
+    (``InstanceSpec.params`` keys ``family``, ``hurst``, ``seed``, ``control``, ``hardness``,
+    ``variant``)
+    as table columns; N, kernel and periodic come from the built instance (``StepInfo``)."""
+    hurst, seed, hardness = params.get("hurst"), params.get("seed"), params.get("hardness")
     return {"surface_family": str(params.get("family") or ""),
             "hurst": float(hurst) if hurst is not None else float("nan"),
-            "seed": int(seed) if seed is not None else None}
+            "seed": int(seed) if seed is not None else None,
+            "control": str(params.get("control") or CONTROLS[0]),
+            "hardness": float(hardness) if hardness is not None else float("nan"),
+            "variant": str(params.get("variant") or "")}

@@ -275,6 +275,11 @@ CMR_VS_DIRECT: tuple[str, ...] = ("nnls", "cmr+nnls")
 CMR_CUTOFF_SWEEP = Sweep("cmr+*", "h", values=(1.5,), kind=float, fixed={"coarsest": 64, "coarse": "mean"}, options=("levels",),
                          label="{solver} {param}={value:g}", label_single=False)
 GREEDY_INNER_SOLVES: tuple[str, ...] = ("greedy-cg", "greedy-gs", "greedy-chol")
+#: The solvers of the load-controlled and the hardness-bounded sweeps: ours that pose the
+#: family, and the field's codes in their native modes (each skipped, with the reason,
+#: where it cannot pose the problem or is not installed).
+LOAD_CONTROL_SOLVERS: tuple[str, ...] = ("pk", "gp", "cm-pk-ccg", "tamaas-pkr", "tamaas-kato-saturated")
+HARDNESS_SOLVERS: tuple[str, ...] = ("pk", "gp", "greedy-cg", "cm-pk-ccg", "tamaas-kato-saturated")
 
 STUDIES: dict[str, Study] = {s.scene: s for s in (
     Study("gp-k-sweep", solvers=("nnls-gp",), sweeps=(GP_K_SWEEP,)),
@@ -283,6 +288,10 @@ STUDIES: dict[str, Study] = {s.scene: s for s in (
     CMR_H_STUDY,
     Study("cmr-cutoff", solvers=CMR_VS_DIRECT, sweeps=(CMR_CUTOFF_SWEEP,)),
     Study("population", solvers=("fast-ccg",)),
+    Study("load-sweep", solvers=LOAD_CONTROL_SOLVERS, reference="pk"),
+    Study("plastic-sweep", solvers=HARDNESS_SOLVERS, reference="pk"),
+    Study("layer-sweep", solvers=("fast-dual-pccg", "pk", "nnls-gp"), reference="pk"),
+    Study("greedy-kernels", solvers=("greedy-cg", "greedy-chol")),
 )}
 
 # --- The paper's claims ledger (harness/report/claims.py): two conditions ----------------------

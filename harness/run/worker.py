@@ -200,7 +200,8 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
     # a rectangular surface has no coarse levels (coarsen.level_strides): it reads as no surface
     return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
                          has_surface=square, periodic=bool(inst.periodic), kernel=inst.kernel,
-                         surface_side=int(geom.grid_shape[0]) if square else 0)
+                         surface_side=int(geom.grid_shape[0]) if square else 0,
+                         load_control=inst.qp.constraints.load_control, bounded=inst.qp.constraints.bounded)
 
 
 def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:

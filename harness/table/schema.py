@@ -76,7 +76,8 @@ _REQUIRED = _columns(
     ("scene", "string", "scene name"),
     ("instance", "string", "instance name within the scene"),
     ("step", "Int64", "load step (0-based)"),
-    ("delta", "float64", "far-field displacement Delta of the step"),
+    ("delta", "float64", "far-field displacement Delta of the step (under load control: the answer's approach, "
+                         "the multiplier of the load equality as the judge fits it)"),
     ("n", "Int64", "trial-set size"),
     ("solver", "string", "the solver's label (a labelled variant, e.g. 'nnls-gp[K=50]')"),
     ("profile", "string", "accuracy profile (harness/profiles.py)"),
@@ -142,6 +143,13 @@ _EXTRA = _columns(
                                  "'saupe', 'periodic'); '' for other instances"),
     ("hurst", "float64", "the instance's Hurst exponent H; NaN where the surface has none"),
     ("seed", "Int64", "the instance's random seed; <NA> for deterministic instances"),
+    ("control", "string", "one of CONTROLS: 'displacement' (Delta given, the default) or 'load' (total force P "
+                          "given; delta is then the answer's approach, the load equality's multiplier)"),
+    ("hardness", "float64", "the pressure bound H_A in Pa (0 <= p_i <= H_A x element area); NaN: none"),
+    ("load_residual", "float64", "KKT figure under load control: |sum p - P| / P; NaN under displacement control"),
+    ("plastic_fraction", "float64", "share of the contact elements at the hardness bound; NaN without a hardness"),
+    ("variant", "string", "the recipe's named variant of its scene's problem (e.g. greedy-kernels' operator: 'bcc', "
+                          "'love', 'thin-layer', 'hardness'); '' where the scene has none"),
 )
 
 #: Every column, by name, in table order.

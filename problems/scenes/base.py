@@ -20,13 +20,18 @@ from ..surfaces import Surface
 #: Every option a user may set on a scene: the ``SceneConfig`` fields and the keys of
 #: ``extra`` the command line fills (``channel``, ``height_unit``, ``allow_steep`` and the
 #: cleaning ``detrend``, ``nan``, ``crop`` of a surface file; ``family``, the RMD family of
-#: generated surfaces; ``thickness``, ``nu``, ``interface`` of an elastic layer).
+#: generated surfaces; ``thickness``, ``nu``, ``interface`` of an elastic layer; ``control``,
+#: ``loads`` and ``hardness``: how the problem is driven and bounded).
 SCENE_OPTIONS: frozenset[str] = frozenset({
     "size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator",
-    "channel", "height_unit", "allow_steep", "family", "detrend", "nan", "crop", "thickness", "nu", "interface"})
+    "channel", "height_unit", "allow_steep", "family", "detrend", "nan", "crop", "thickness", "nu", "interface",
+    "control", "loads", "hardness"})
 #: The options of an elastic layer on a rigid base (scenes that pose only the half-space
 #: leave them out of their ``options``).
 LAYER_SCENE_OPTIONS: frozenset[str] = frozenset({"thickness", "nu", "interface"})
+#: The options of load control and hardness (scenes that pose only the displacement-
+#: controlled, unbounded problem leave them out of their ``options``).
+CONTROL_SCENE_OPTIONS: frozenset[str] = frozenset({"control", "loads", "hardness"})
 #: The options a measured surface file replaces (its grid and its one surface).
 GENERATED_ONLY_OPTIONS: frozenset[str] = frozenset({"size", "seeds", "family"})
 

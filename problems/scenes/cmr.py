@@ -30,7 +30,7 @@ import numpy as np
 from ..coarsen import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
-from .base import LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
+from .base import CONTROL_SCENE_OPTIONS, LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
 from .core import PAPER_E, RampScene, check_relief, rough_surface_specs, surface_from_params
 
 
@@ -60,7 +60,7 @@ class _RMDCascadeScene(RampScene):
     """Shared recipe/loads of the RMD scenes (surfaces with their own coarse levels)."""
 
     hursts: tuple[float, ...] = (0.7,)
-    options = SCENE_OPTIONS - LAYER_SCENE_OPTIONS  # CMR's coarse levels pose the half-space
+    options = SCENE_OPTIONS - LAYER_SCENE_OPTIONS - CONTROL_SCENE_OPTIONS  # CMR poses the plain half-space
     max_fraction = 0.5  # Delta_max = max_fraction * (z_max - z_mean), the paper's top step
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -112,7 +112,7 @@ class CMRCutoff(RampScene):
                            periodic=False, operator="fft",
                            extra={"hurst": 0.6, "rolloff_fraction": 1 / 32, "max_fraction": 0.2})
     # spectral surfaces (no RMD family); a surface file is read in metres, its first channel
-    options = SCENE_OPTIONS - {"family", "channel", "height_unit"} - LAYER_SCENE_OPTIONS
+    options = SCENE_OPTIONS - {"family", "channel", "height_unit"} - LAYER_SCENE_OPTIONS - CONTROL_SCENE_OPTIONS
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:

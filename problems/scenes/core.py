@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ..constraints import CONTROLS
 from ..errors import ProblemInputError
 from ..instances import (
     InstanceBuilder,
@@ -40,6 +41,10 @@ SURFACE_FILE_OPTIONS: tuple[str, ...] = ("detrend", "nan", "crop")
 #: ``nu`` (Poisson's ratio, default ``layers.DEFAULT_NU``), ``interface`` ("bonded" or
 #: "frictionless"), carried into every recipe's params when given.
 LAYER_OPTIONS: tuple[str, ...] = ("thickness", "nu", "interface")
+#: ``cfg.extra`` keys of how the problem is driven and bounded: ``control`` (one of
+#: ``constraints.CONTROLS``), ``loads`` (the load steps P / (E* A) under load control) and
+#: ``hardness`` (Pa: 0 <= p_i <= hardness x element area), carried into every recipe's params.
+CONTROL_OPTIONS: tuple[str, ...] = ("control", "loads", "hardness")
 
 
 def layer_from_params(params: dict[str, Any], surface: Surface | None = None) -> Layer | None:
@@ -114,12 +119,38 @@ def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> L
         operator=str(p.get("operator", "fft")),
         layer=layer_from_params(p, surface),
     )
+    hardness = None if p.get("hardness") is None else float(p["hardness"])
+    if p.get("control") == CONTROLS[1]:  # load control: the given loads, the approach is the answer's
+        loads = load_steps(p)
+
+        def by_load(k: int):
+            return builder.build_load(builder.load_force(loads[k]), hardness=hardness, meta={"step": k})
+
+        return LoadSequence(spec.instance, [float("nan")] * len(loads), by_load, surface=surface)
     ds = [float(d) for d in deltas]
 
     def factory(k: int):
-        return builder.build(ds[k], meta={"step": k})
+        return builder.build(ds[k], hardness=hardness, meta={"step": k})
 
     return LoadSequence(spec.instance, ds, factory, surface=surface)
+
+
+def load_steps(params: dict[str, Any]) -> list[float]:
+    """The load steps P / (E* A) of a load-controlled recipe (``params["loads"]``): finite,
+    > 0 and increasing, else a one-line ``ProblemInputError``."""
+    loads = [float(x) for x in params.get("loads") or ()]
+    if not loads:
+        raise ProblemInputError("load control needs its load steps (--loads L1,L2,... as P/(E* A))")
+    if not all(np.isfinite(x) and x > 0 for x in loads) or any(b <= a for a, b in zip(loads, loads[1:])):
+        raise ProblemInputError(f"--loads must be finite, > 0 and increasing, got {','.join(f'{x:g}' for x in loads)}")
+    return loads
+
+
+def control_suffix(params: dict[str, Any]) -> str:
+    """The instance-name suffix of a recipe's control and hardness: "" for the default
+    (displacement control, no hardness), "-load" and "-HA<Pa>" otherwise."""
+    out = "-load" if params.get("control") == CONTROLS[1] else ""
+    return out + (f"-HA{float(params['hardness']):g}" if params.get("hardness") is not None else "")
 
 
 def checked_units(spec: InstanceSpec, surface: Surface, cfg: SceneConfig) -> Surface:
@@ -191,9 +222,11 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         "periodic": bool(cfg.periodic),
         "operator": cfg.operator,
         "steps": cfg.steps,
-        **{k: cfg.extra[k] for k in LAYER_OPTIONS if cfg.extra.get(k) is not None},
+        **{k: cfg.extra[k] for k in LAYER_OPTIONS + CONTROL_OPTIONS if cfg.extra.get(k) is not None},
         **(extra or {}),
     }
+    if base.get("control") == CONTROLS[1]:
+        base["steps"] = len(load_steps(base))
     if cfg.surface_path:
         name = str(cfg.surface_path).replace("/", "_")
         file_params = {**base, "surface_path": cfg.surface_path, "seed": 0,
@@ -202,11 +235,12 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
             file_params["channel"] = cfg.extra["channel"]
         if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
-        return [InstanceSpec(scene, f"file-{name}{layer_suffix(base)}", file_params)]
+        return [InstanceSpec(scene, f"file-{name}{layer_suffix(base)}{control_suffix(base)}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
     bc = "per" if cfg.periodic else "np"
     return [
-        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}{layer_suffix(base)}",
+        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}{layer_suffix(base)}"
+                            f"{control_suffix(base)}",
                      {**base, "family": family, "seed": int(s)})
         for s in seeds_of(cfg)
     ]

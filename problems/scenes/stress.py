@@ -39,6 +39,9 @@ periodic
     whole N x N grid: H is singular along the constant vector, has entries of both
     signs, and points below the rigid-body trial set (ubar < 0) touch.  The exact
     solution is certified on the whole grid (``problems.lcp.exact_solution_on_subset``).
+constrained, rectangular
+    Load control, a hardness, and both; a rectangular map with square and with 1.5:1
+    pixels (``battery_families``).
 
 Every recipe is an ``InstanceSpec`` whose params carry ``group``, the verdict
 ``profile`` (``mid``, or ``high`` where precision is the point) and ``compare``
@@ -73,6 +76,7 @@ from ..operators import ContactOperator, DenseOperator, FFTOperator, KernelTrans
 from ..surfaces import Surface, rmd_surface_n
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, Scene, SceneConfig
+from .battery_families import build_constrained, build_rectangular, constrained_specs, rectangular_specs
 
 #: (length factor from metres, stress factor from pascals) of each unit system.
 UNIT_SYSTEMS: dict[str, tuple[float, float]] = {
@@ -93,7 +97,7 @@ DENSE_EIG_LIMIT = 2500
 PERIODIC_DISPLACEMENT = 1.6
 
 GROUPS: tuple[str, ...] = ("conditioning", "units", "edge", "random", "precision", "perturbation",
-                           "counterexample", "packing", "periodic")
+                           "counterexample", "packing", "periodic", "constrained", "rectangular")
 
 
 # ---------------------------------------------------------------------------
@@ -466,6 +470,8 @@ BUILDERS: dict[str, Callable[[InstanceSpec], LoadSequence]] = {
     "counterexample": build_counterexample,
     "packing": build_packing,
     "periodic": build_periodic,
+    "constrained": build_constrained,
+    "rectangular": build_rectangular,
 }
 
 
@@ -573,6 +579,8 @@ def battery_specs(mode: str = "fast", groups: tuple[str, ...] = GROUPS, scene: s
         "counterexample": lambda: counterexample_specs(scene, m["example1_sizes"], m["example1_seeds"]),
         "packing": lambda: packing_specs(scene, m["packing_size"]),
         "periodic": lambda: periodic_specs(scene, m["periodic_sizes"]),
+        "constrained": lambda: constrained_specs(scene),
+        "rectangular": lambda: rectangular_specs(scene),
     }
     unknown = set(groups) - set(makers)
     if unknown:
@@ -634,3 +642,5 @@ _group_scene("perturbation", "ubar vs ubar + 1e-6 perturbation: p must move cont
 _group_scene("counterexample", "paper Example 1 (all of an N x N grid in the trial set, ubar ~ U(0,1)) at n = 400")
 _group_scene("packing", "full packing: every point of an N x N grid in contact, exact solution known")
 _group_scene("periodic", "periodic rough surfaces (spectral, BCC) on the whole grid: singular H, ubar < 0 touches")
+_group_scene("constrained", "load control, a hardness bound, and both, on a 16^2 rough surface")
+_group_scene("rectangular", "a 48 x 32 map with square pixels (BCC) and with 1.5:1 pixels (Love)")

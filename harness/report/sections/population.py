@@ -32,7 +32,7 @@ import pandas as pd
 from contactbench.problems.scenes import SceneConfig, get_scene
 
 from ...table.meta import read_meta, scene_config_from_meta
-from ..core import ReportContext, Section, register_section
+from ..core import ReportContext, Section, markdown_table, register_section
 from ...table.store import load_table
 
 SCENE = "population"
@@ -150,19 +150,16 @@ def fmt_ci(mean: float, lo: float, hi: float, digits: int = 3) -> str:
     return f"{mean:.{digits}g} [{lo:.{digits}g}, {hi:.{digits}g}]"
 
 
-def markdown_table(stats: pd.DataFrame) -> str:
+def population_table(stats: pd.DataFrame) -> str:
     """kappa, contact fraction, dimensionless load and solve time, mean [95 % CI]."""
-    head = ("| H | N | step | d/h_rms | surfaces | A/A0 (%) | P/(E* A0) | kappa, t-interval | kappa, bootstrap | "
-            "solve time (s) |\n|---|---|---|---|---|---|---|---|---|---|")
-    lines = [head]
-    for r in stats.itertuples(index=False):
-        lines.append(
-            f"| {r.hurst:g} | {int(r.N)} | {int(r.step)} | {r.separation:g} | {r.surfaces} | "
-            f"{fmt_ci(100 * r.contact_fraction, 100 * r.contact_fraction_lo, 100 * r.contact_fraction_hi)} | "
-            f"{fmt_ci(r.dim_load, r.dim_load_lo, r.dim_load_hi)} | {fmt_ci(r.kappa, r.kappa_lo, r.kappa_hi)} | "
-            f"[{r.kappa_boot_lo:.3g}, {r.kappa_boot_hi:.3g}] | {fmt_ci(r.solve_time_s, r.solve_time_s_lo, r.solve_time_s_hi)} |"
-        )
-    return "\n".join(lines)
+    headers = ["H", "N", "step", "d/h_rms", "surfaces", "A/A0 (%)", "P/(E* A0)", "kappa, t-interval",
+               "kappa, bootstrap", "solve time (s)"]
+    rows = [(f"{r.hurst:g}", int(r.N), int(r.step), f"{r.separation:g}", r.surfaces,
+             fmt_ci(100 * r.contact_fraction, 100 * r.contact_fraction_lo, 100 * r.contact_fraction_hi),
+             fmt_ci(r.dim_load, r.dim_load_lo, r.dim_load_hi), fmt_ci(r.kappa, r.kappa_lo, r.kappa_hi),
+             f"[{r.kappa_boot_lo:.3g}, {r.kappa_boot_hi:.3g}]",
+             fmt_ci(r.solve_time_s, r.solve_time_s_lo, r.solve_time_s_hi)) for r in stats.itertuples(index=False)]
+    return markdown_table(headers, rows).rstrip("\n")
 
 
 def write_population_report(out_dir: str | Path, dest: str | Path | None = None,
@@ -172,7 +169,7 @@ def write_population_report(out_dir: str | Path, dest: str | Path | None = None,
     dest = Path(dest or out_dir)
     dest.mkdir(parents=True, exist_ok=True)
     stats.to_csv(dest / "population_stats.csv", index=False)
-    text = f"# Population statistics\n\n{_intro()}\n\n{markdown_table(stats)}\n"
+    text = f"# Population statistics\n\n{_intro()}\n\n{population_table(stats)}\n"
     path = dest / "population.md"
     path.write_text(text, encoding="utf-8")
     return path
@@ -193,4 +190,4 @@ def population_section(ctx: ReportContext, rows: pd.DataFrame) -> Section:
     if stats.empty:
         return Section(title, "No population row was solved.\n")
     return Section(title, f"{_intro()}\n\n*Table {ctx.next_table()}: population statistics per solver, H, N and "
-                          f"load step.*\n\n{markdown_table(stats)}\n")
+                          f"load step.*\n\n{population_table(stats)}\n")

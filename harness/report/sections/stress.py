@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..core import ReportContext, Section, natural_key, register_section, table_md
+from ..core import ReportContext, Section, markdown_table, natural_key, register_section, table_md
 from ...table.schema import VERDICTS
 
 #: The battery's scenes: "stress" and its parts "stress-<group>".
@@ -127,10 +127,8 @@ def _cell(v: object, floatfmt: str) -> str:
 def _md(df: pd.DataFrame, floatfmt: str = ".3g") -> str:
     """A GitHub markdown table of ``df`` (index included)."""
     d = df.reset_index() if df.index.name or not isinstance(df.index, pd.RangeIndex) else df
-    head = "| " + " | ".join(str(c) for c in d.columns) + " |"
-    sep = "|" + "|".join("---" for _ in d.columns) + "|"
-    body = ["| " + " | ".join(_cell(v, floatfmt) for v in row) + " |" for row in d.itertuples(index=False)]
-    return "\n".join([head, sep, *body])
+    rows = [[_cell(v, floatfmt) for v in row] for row in d.itertuples(index=False)]
+    return markdown_table([str(c) for c in d.columns], rows).rstrip("\n")
 
 
 def render_stress_section(results: Path) -> str:
