@@ -43,7 +43,7 @@ from typing import Any, NoReturn, Sequence
 from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
-from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES, parse_length
+from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES
 from contactbench.problems.layers import DEFAULT_NU, INTERFACES, Layer
 from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
 from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS
@@ -172,11 +172,13 @@ def finite_positive_float(text: str) -> float:
 
 
 def length_pair(text: str) -> float | tuple[float, float]:
-    """``--length``: L0 or L0,L1 in metres (``problems.io.parse_length``)."""
-    try:
-        return parse_length(text)
-    except ProblemInputError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    """``--length``: L0 or L0,L1 in metres, each finite and > 0 (``problems.io.load_surface``'s
+    ``length``)."""
+    parts = text.split(",")
+    if len(parts) not in (1, 2):
+        raise argparse.ArgumentTypeError(f"takes L0 or L0,L1 (metres), got {text!r}")
+    values = [finite_positive_float(part.strip()) for part in parts]
+    return values[0] if len(values) == 1 else (values[0], values[1])
 
 
 def poisson_ratio(text: str) -> float:

@@ -75,9 +75,13 @@ class Verdict:
 
 
 def _defining_arrays(qp: Any) -> list[tuple[str, np.ndarray]]:
-    """ubar and the numpy arrays that define the operator: its public array attributes
-    and those of its public helper objects (an FFT operator's kernel transform)."""
+    """ubar, the upper bounds (a hardness) and the numpy arrays that define the operator:
+    its public array attributes and those of its public helper objects (an FFT operator's
+    kernel transform)."""
     out: list[tuple[str, np.ndarray]] = [("ubar", np.asarray(qp.ubar))]
+    upper = getattr(getattr(qp, "constraints", None), "upper", None)
+    if upper is not None:
+        out.append(("upper", np.asarray(upper)))
     H = qp.H
     for name, value in sorted(vars(H).items()):
         if name.startswith("_"):

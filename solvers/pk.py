@@ -165,6 +165,8 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         free = (p > 0.0) & (p < u)
         if first:
             free = np.ones(ctx.n, dtype=bool)
+        if not np.any(free):  # every element at a bound: those whose gradient points inward move
+            free = ((p <= 0.0) & (g - delta < 0.0)) | ((p >= u) & (g - delta > 0.0))
         if load:
             delta = _mean_on(g, free) if np.any(free) else fit_multiplier(g, p, c.upper)
         res = ctx.kkt(p, g, delta if load else None)

@@ -187,7 +187,7 @@ def adapt_to_solver(inst: ContactInstance, solver: Solver) -> QP | str:
     if d.skip:
         return d.reason
     if d.operator == "dense" and instance_operator_kind(inst) != "dense":
-        return QP(DenseOperator(qp.H.to_dense()), qp.ubar, qp.geometry)
+        return QP(DenseOperator(qp.H.to_dense()), qp.ubar, qp.geometry, qp.constraints)
     return qp
 
 

@@ -291,8 +291,8 @@ class SolveServer:
         inst, _ = self.ensure_step(k)
         if operator == "dense" and instance_operator_kind(inst) != "dense":
             self.ensure_dense(k)
-            return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry)
-        return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry)
+            return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
+        return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
 
     def forget_problems(self) -> None:
         """Drop every built step and dense H (after a solver wrote into one)."""

@@ -6,7 +6,7 @@ constrained
     the trial set, P / (E* A) = ``LOAD_OVER_EA``), with a hardness bound
     (``HARDNESS_OVER_PS`` x the problem's force scale p_s per element), and with both.
 rectangular
-    A 48 x 32 RMD map (cut from a 48^2 one) with square pixels (BCC), and the same map
+    A 48 x 32 RMD map (cut from a 64^2 one) with square pixels (BCC), and the same map
     with pixels 1.5 times longer along axis 1 (Love's rectangle integral).
 
 Each recipe's params name its ``group``, verdict ``profile`` and ``compare`` as the other
@@ -32,6 +32,7 @@ HARDNESS_OVER_PS = 0.5
 FAMILY_E = 1e9
 CONSTRAINED_N = 16
 RECT_SHAPE = (48, 32)
+RECT_SOURCE_N = 64  # the RMD grid the rectangle is cut from (RMD sizes are powers of two)
 #: constrained case -> (load control, hardness).
 CONSTRAINED_CASES: dict[str, tuple[bool, bool]] = {
     "load": (True, False), "hardness": (False, True), "load-hardness": (True, True)}
@@ -71,8 +72,8 @@ def constrained_instance(case: str, seed: int) -> ContactInstance:
 def rectangular_instance(case: str, seed: int) -> ContactInstance:
     kernel, aspect = RECTANGULAR_CASES[case]
     n0, n1 = RECT_SHAPE
-    square = rmd_surface_n(n0, 0.7, length=100e-6, rms_height=1e-6, seed=seed)
-    surface = Surface(np.array(square.heights[:, :n1]), square.delta,
+    square = rmd_surface_n(RECT_SOURCE_N, 0.7, length=100e-6, rms_height=1e-6, seed=seed)
+    surface = Surface(np.array(square.heights[:n0, :n1]), square.delta,
                       delta1=None if aspect == 1.0 else aspect * square.delta, name=f"rect-{case}")
     return InstanceBuilder(surface, FAMILY_E, kernel, periodic=False).build(paper_max_displacement(surface))
 

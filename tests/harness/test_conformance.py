@@ -12,6 +12,7 @@ from contactbench.harness.conformance.command import main as validate_main
 from contactbench.harness import get_profile
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.lcp import exact_solution, exact_solution_on_subset
+from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 from contactbench.solvers.registry import all_solvers, register, unregister
 
@@ -22,6 +23,9 @@ def exact_p(ctx: SolveContext) -> np.ndarray:
     """The exact answer on the dense H (computed in float64); on a periodic whole grid,
     where H is singular, on a proper subset, certified on the whole grid."""
     g = ctx.qp.geometry
+    if not ctx.qp.constraints.plain:  # bounds or a load: the certified mixed-LCP solve
+        return constrained_exact_solution(ctx.qp.H.to_dense(), np.asarray(ctx.qp.ubar, dtype=np.float64),
+                                          ctx.qp.constraints).p
     if g is not None and g.periodic:
         return exact_solution_on_subset(ctx.qp).p
     return exact_solution(ctx.qp.H.to_dense(), np.asarray(ctx.qp.ubar, dtype=np.float64)).p
@@ -32,7 +36,7 @@ class GoodSolver(Solver):
 
     name = "test-conf-good"
     family = "test"
-    capabilities = Capabilities(needs_dense=True, exact=True)
+    capabilities = Capabilities(needs_dense=True, exact=True, load_control=True, bounds=True)
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         return Outcome(exact_p(ctx), 1, True)
