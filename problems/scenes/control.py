@@ -26,7 +26,7 @@ from .core import PAPER_E, PAPER_SEED, RampScene, paper_ramp, rough_surface_spec
 #: displacement ramp spans on this surface.
 LOAD_SWEEP_LOADS: tuple[float, ...] = tuple(round(4e-4 * k, 6) for k in range(1, 11))
 #: The hardness of ``plastic-sweep`` as a multiple of E*.
-PLASTIC_HARDNESS_OVER_E = 0.02
+PLASTIC_HARDNESS_OVER_E = 0.3  # at 256^2: 18-30 % of the contact plastic over the ramp
 #: The grid of both scenes (the field's codes are compared at this size).
 CONTROL_SCENE_SIZE = 256
 
@@ -59,7 +59,7 @@ class PlasticSweep(_PaperSurfaceScene):
     """The paper sweep with a hardness (module doc)."""
 
     name = "plastic-sweep"
-    description = "paper sweep at 256^2 with every pressure bounded by a hardness of 0.02 E* (a mixed LCP)"
+    description = "paper sweep at 256^2 with every pressure bounded by a hardness of 0.3 E* (a mixed LCP)"
     defaults = SceneConfig(size=CONTROL_SCENE_SIZE, steps=10, seeds=(PAPER_SEED,), length=100e-6, E=PAPER_E,
                            kernel="bcc", periodic=False, operator="fft",
                            extra={"hardness": PLASTIC_HARDNESS_OVER_E * PAPER_E})

@@ -35,8 +35,8 @@ def greedy_kernels_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | 
     ns = sorted(int(n) for n in shares["n"].unique())
     variants = natural_sorted(shares["variant"].unique())
     body = [f"Example 1's draw (ubar ~ U(0,1), every element in the trial set) on each operator; a seed counts "
-            f"as a failure when the judge does not accept the answer (profile `{prof}`). The paper's BCC figures "
-            f"for greedy CG: {', '.join(f'n = {n}: {v:.0%}' for n, v in COUNTEREXAMPLE_REFERENCE.items())}.\n"]
+            f"as a failure when the judge does not accept the answer (profile `{prof}`). On the BCC operator the "
+            f"paper reports about 40 % for any n; the counterexample scene measures, over seeds 0-99, {', '.join(f'n = {n}: {v:.0%}' for n, v in COUNTEREXAMPLE_REFERENCE.items())}.\n"]
     table_rows = []
     for solver in natural_sorted(shares["solver"].unique()):
         for variant in variants:
@@ -51,5 +51,5 @@ def greedy_kernels_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | 
         Series(f"{solver} {variant}", tuple(float(n) for n in s["n"]), tuple(100.0 * float(v) for v in s["share"]))
         for (solver, variant), s in shares.sort_values("n").groupby(["solver", "variant"]))
     chart = Chart("greedy-kernels-rejected", "Example 1 on other forms of H: seeds rejected by the judge",
-                  "n (all points in the trial set)", "seeds rejected [%]", series, x_log=True)
+                  "n (all points in the trial set)", "seeds rejected [%]", series)
     return Section(TITLE, "\n".join(body), charts=(chart,))
