@@ -46,7 +46,7 @@ from contactbench.problems.instances import OPERATOR_KINDS
 from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES
 from contactbench.problems.layers import DEFAULT_NU, INTERFACES, Layer
 from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
-from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS
+from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS, load_steps
 from contactbench.problems.surfaces import RMD_FAMILIES
 from contactbench.problems.units import PLAUSIBLE_MODULUS, check_plausible_modulus
 
@@ -349,14 +349,14 @@ def control_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def load_list(text: str) -> tuple[float, ...]:
-    """``--loads``: L1,L2,... as P/(E* A), each finite and > 0, increasing."""
+    """``--loads``: L1,L2,... as P/(E* A), checked by the scenes' one rule
+    (``problems.scenes.core.load_steps``: finite, > 0, increasing)."""
     try:
-        values = tuple(float(t) for t in text.split(","))
+        return tuple(load_steps({"loads": [float(t) for t in text.split(",")]}))
+    except ProblemInputError as exc:  # (a ValueError: caught first)
+        raise argparse.ArgumentTypeError(str(exc)) from None
     except ValueError:
         raise argparse.ArgumentTypeError(f"takes L1,L2,... (numbers, P/(E* A)), got {text!r}") from None
-    if not all(math.isfinite(v) and v > 0 for v in values) or any(b <= a for a, b in zip(values, values[1:])):
-        raise argparse.ArgumentTypeError(f"loads must be finite, > 0 and increasing, got {text!r}")
-    return values
 
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:
