@@ -68,6 +68,10 @@ def resolvent(ctx: SolveContext, rho: float, linear: str, atol: float) -> Resolv
     return solve_cg
 
 
+#: The paper's iteration limit for ADMM (section 4: K_max = 3e3).
+KMAX = 3000
+
+
 def checked_rho_alpha(params: dict[str, float]) -> tuple[float, float]:
     """(rho, alpha) with rho > 0 and 0 < alpha < 2 (the declared ranges are closed)."""
     rho, alpha = params["rho"], params["alpha"]
@@ -81,7 +85,7 @@ class ADMM(Solver):
     """ADMM with over-relaxation (paper section 3.4, Algorithm 5), stopped on the scaled
     KKT error of p.  Params: rho (default 1, relative to mean diag H), rho_relative,
     alpha (default 1.5), linear, check_every.  Not exact; warm start: primal-dual
-    (u = -w/rho)."""
+    (u = -w/rho).  At most ``KMAX`` iterations unless the harness sets ``max_iter``."""
 
     name = "admm"
     family = "paper"
@@ -100,7 +104,7 @@ class ADMM(Solver):
     )
 
     def default_max_iter(self, n: int) -> int:
-        return 10_000
+        return KMAX
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         qp, tol = ctx.qp, ctx.tol
