@@ -38,7 +38,7 @@ import numpy as np
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_keer
 from ._kit import FIRST_GUESSES, coarse_first_guess
 from ._preconditioners import KINDS, make_preconditioner
-from ._refine import block_dtype, precision_param, solve_in_precision
+from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
 from .base import Outcome, Param, SolveContext, Solver
 from .registry import register
@@ -79,7 +79,8 @@ class _FastCCG(FastSolver):
 
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
-        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
+        precision = resolved_precision(ctx.params["precision"], ctx.qp)
+        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(precision))
         ctx.mark_setup_done()
         state, info = starting_state(self, ctx)
         run, more = solve_in_precision(ctx, state, self.loop, M)
