@@ -136,11 +136,12 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     """Bugnicourt et al. (2018) CCG without restart, with the island block-Jacobi
     preconditioner and its far-field correction ("farfield", solvers/_farfield.py) on the
     free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
-    Precision: mixed by default (solvers/_refine.py: float32 inner sweeps, float64
-    iterative refinement judged by the float64 KKT error); ``precision="double"`` runs
-    float64 throughout.  Warm start: primal."""
+    Precision: ``auto`` by default (solvers/_refine.py): mixed -- float32 inner sweeps,
+    float64 iterative refinement judged by the float64 KKT error -- on grids of
+    ``AUTO_MIXED_MIN_POINTS`` points and more, float64 below; ``precision="double"`` or
+    ``"mixed"`` fixes it.  Warm start: primal."""
 
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    #: mixed by default: float32 inner sweeps refined in float64, same answer, 0.8x the time at 1024^2
-    params = (precondition_param("farfield"), precision_param("mixed"), first_guess_param(), screening_param())
+    #: auto by default: mixed where float32 pays for its twin and its refinement (solvers/_refine.py)
+    params = (precondition_param("farfield"), precision_param("auto"), first_guess_param(), screening_param())
