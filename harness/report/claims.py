@@ -320,21 +320,25 @@ def top_step_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     """Fig. 4's P&K1999 / NNLS+GP at the sizes that have no load history in the table: the
     cold solves of ``greedy-linear-solvers`` at a grid size that ``paper-sweep`` did not run
     (the study's top step of the paper's own 512^2 surface, n = 35,218 against the paper's
-    35,555), both solvers from p = 0."""
+    35,555), both solvers from p = 0.  A size where either was skipped (a memory budget
+    below the dense H) gives ``unmeasured`` rows that carry the skip reason."""
     warm_sizes = set(of_condition(rows, "paper-sweep", condition)["N"].dropna().unique())
-    cold = of_condition(rows, "greedy-linear-solvers", condition)
+    planned = rows[(rows["scene"] == "greedy-linear-solvers") & (rows["operator"] == condition)]
     out: list[ClaimRow] = []
-    for N in sorted(set(cold["N"].dropna().unique()) - warm_sizes):
-        cells = per_cell(cold[cold["N"] == N])
-        tot = totals(cells)
-        if not {"pk", "nnls-gp"} <= set(tot.index):
+    for N in sorted(set(planned["N"].dropna().unique()) - warm_sizes):
+        here = planned[(planned["N"] == N) & planned["solver"].isin(["pk", "nnls-gp"])]
+        if here.empty:
             continue
-        steps = sorted(cells["step"].dropna().unique())
-        size = f"{int(N)}^2, {len(steps)} step(s) cold, n <= {int(cells['n'].max())}"
+        cells = per_cell(here[here["status"] != "skipped"])
+        m, words = ratio(totals(cells), "pk", "nnls-gp")
+        skipped = here[here["status"] == "skipped"]
+        if len(skipped):
+            words += "; skipped: " + "; ".join(f"{s} ({r})" for s, r in zip(skipped["solver"], skipped["skip_reason"]))
+        steps = sorted(here["step"].dropna().unique())
+        size = f"{int(N)}^2, {len(steps)} step(s) cold, n <= {int(here['n'].max())}"
         where = f"results.csv: greedy-linear-solvers N={int(N)} operator {condition}, pk and nnls-gp from p = 0"
-        m, words = ratio(tot, "pk", "nnls-gp")
         for claim in ("fig4-pk-cold-over-nnlsgp", "conclusion-pk"):
-            out.append(claim_row(claim, condition, m, size, seeds_of(cells), f"{where}; {words}"))
+            out.append(claim_row(claim, condition, m, size, seeds_of(here), f"{where}; {words}"))
     return out
 
 
@@ -374,7 +378,7 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             out.append(claim_row(claim, condition, m, size, seeds,
                                  f"results.csv: greedy-linear-solvers N={int(N)} operator {condition}; median over "
                                  f"{k} steps with n >= {FIG5_MIN_N} both solved" if k else ""))
-    chol = rows[(rows["base_solver"] == "greedy-chol") & (rows["operator"] == condition)]
+    chol = rows[(rows["base_solver"] == "greedy-chol") & (rows["operator"] == condition) & (rows["status"] != "skipped")]
     if len(chol):
         answered = chol[chol["status"].isin(ANSWERED)]
         largest = float(answered["n"].max()) if len(answered) else math.nan
