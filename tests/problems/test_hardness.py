@@ -230,7 +230,7 @@ def test_plastic_fraction_counts_touching_elements_at_the_bound(box_solution) ->
     assert not plain.constraints.bounded
 
 
-def test_nnls_gp_poses_bounds_within_the_dense_budget_and_skips_beyond(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_nnls_gp_poses_bounds_within_the_dense_budget_and_skips_beyond() -> None:
     s = get_solver("nnls-gp")
     assert s.skip(ProblemTraits(n=1000, operator="fft", bounded=True)) is None
     assert s.skip(ProblemTraits(n=1000, operator="fft", load_control=True)) is None
