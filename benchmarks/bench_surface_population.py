@@ -71,6 +71,7 @@ VARIANTS: dict[str, dict[str, str]] = {
     "double-islands": {"precision": "double", "precondition": "islands"},
     "double": {"precision": "double"},
     "islands": {"precondition": "islands"},
+    "auto": {"precision": "auto"},
 }
 #: A default solve may need at most this many times the median matvecs of its size ...
 STALL_FACTOR = 2.0
@@ -127,6 +128,7 @@ class PopulationRow:
     host: str
     commit: str
     timestamp: str
+    repeats: int = 1
 
 
 def plan(sizes: list[int], families: list[str], seeds: dict[int, int]) -> list[Member]:
@@ -186,8 +188,10 @@ def code_commit() -> str:
     return head + ("+dirty" if dirty else "")
 
 
-def solve_member(m: Member, variant: str, timeout: float, commit: str) -> PopulationRow:
-    """One cold solve, in this process."""
+def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: int = 1) -> PopulationRow:
+    """One cold solve, in this process, ``repeats`` times, each on a freshly built instance
+    (no operator cache carries over): the row of the first, with the fastest of the repeats'
+    seconds (the iterates, and so the counts, are the same each time; checked)."""
     from contactbench.harness import get_profile
     from contactbench.harness import solve_sequence
     from contactbench.problems.operators import fft_workers
@@ -199,6 +203,13 @@ def solve_member(m: Member, variant: str, timeout: float, commit: str) -> Popula
     settings = SolverSettings(tol=profile.tol, time_limit=timeout, params=dict(params))
     (step,) = solve_sequence(SOLVER, [inst], settings, warm=False, check_tol=profile.check_tol)
     res = step.result
+    seconds = step.seconds
+    for _ in range(repeats - 1):  # a fresh instance each time: no operator cache carries over
+        (again,) = solve_sequence(SOLVER, [top_step(m)[0]], settings, warm=False, check_tol=profile.check_tol)
+        if res is not None and (again.result is None or again.result.matvecs != res.matvecs):
+            raise RuntimeError(f"{name} {variant}: a repeat took another path ({again.result and again.result.matvecs} "
+                               f"matvecs against {res.matvecs})")
+        seconds = min(seconds, again.seconds)
     info = res.info if res is not None else {}
     return PopulationRow(
         family=m.family, N=m.N, hurst=m.hurst, rms_slope=m.rms_slope, seed=m.seed, surface=name, n=inst.n,
@@ -206,10 +217,10 @@ def solve_member(m: Member, variant: str, timeout: float, commit: str) -> Popula
         status=step.verdict.status if step.verdict is not None else "failed",
         iterations=int(res.iterations) if res is not None else 0, matvecs=int(res.matvecs) if res is not None else 0,
         matvecs_float32=int(info.get("matvecs_float32", 0)), matvecs_float64=int(info.get("matvecs_float64", 0)),
-        preconditioner_builds=int(info.get("preconditioner_builds", 0)), seconds=round(step.seconds, 3),
+        preconditioner_builds=int(info.get("preconditioner_builds", 0)), seconds=round(seconds, 3),
         kkt=float(f"{step.kkt_error:.3e}"), load_N=float(f"{inst.load(res.p):.10e}") if res is not None else math.nan,
         peak_rss_mib=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1), threads=fft_workers(),
-        host=platform.node(), commit=commit, timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"))
+        host=platform.node(), commit=commit, timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"), repeats=repeats)
 
 
 def failed_row(m: Member, variant: str, status: str, commit: str, threads: int) -> PopulationRow:
@@ -221,7 +232,7 @@ def failed_row(m: Member, variant: str, status: str, commit: str, threads: int) 
 def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) -> PopulationRow:
     """The row of one solve in a child process; a "timeout"/"failed" row when it gives none."""
     cmd = [sys.executable, __file__, "--child", f"{m.key}@{variant}", "--timeout", str(args.timeout),
-           "--commit", commit]
+           "--commit", commit, "--repeats", str(repeats_of(m, args.repeats))]
     env = dict(os.environ)
     if args.threads:
         env.update({v: str(args.threads) for v in THREAD_VARS})
@@ -230,6 +241,11 @@ def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) ->
         return PopulationRow(**result)
     print(f"  {m.key} {variant}: {status}: {detail}", file=sys.stderr, flush=True)
     return failed_row(m, variant, status, commit, int(args.threads or 0))
+
+
+def repeats_of(m: Member, spec: dict[int, int]) -> int:
+    """How many times member ``m`` is solved (``--repeats``: per size, default 1)."""
+    return spec.get(m.N, 1)
 
 
 def read_rows(path: Path) -> list[PopulationRow]:
@@ -321,12 +337,17 @@ def write_markdown(rows: list[PopulationRow], path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def parse_seeds(text: str) -> dict[int, int]:
-    out = dict(SEEDS)
+def parse_sizes_map(text: str, base: dict[int, int]) -> dict[int, int]:
+    """``"512:3,2048:1"`` over ``base``."""
+    out = dict(base)
     for item in filter(None, text.split(",")):
         N, k = item.split(":")
         out[int(N)] = int(k)
     return out
+
+
+def parse_seeds(text: str) -> dict[int, int]:
+    return parse_sizes_map(text, SEEDS)
 
 
 def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
@@ -345,6 +366,12 @@ def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(f"--seeds must look like 512:3,1024:2, got {args.seeds!r}")
     if any(k < 1 for k in seeds.values()):
         ap.error("--seeds: at least one seed per size")
+    try:
+        repeats = parse_sizes_map(args.repeats, {})
+    except ValueError:
+        ap.error(f"--repeats must look like 512:3,1024:2, got {args.repeats!r}")
+    if any(k < 1 for k in repeats.values()):
+        ap.error("--repeats: at least one solve per member")
     if not (args.timeout > 0):
         ap.error(f"--timeout must be > 0 s, got {args.timeout}")
 
@@ -356,6 +383,8 @@ def main() -> None:
     ap.add_argument("--seeds", default="", help="seeds per size, e.g. 512:3,2048:1 (default: " +
                     ",".join(f"{k}:{v}" for k, v in SEEDS.items()) + ")")
     ap.add_argument("--variants", default="default,double-islands")
+    ap.add_argument("--repeats", default="", help="solves per member by size, the fastest recorded, "
+                    "e.g. 512:3,1024:2 (default: 1)")
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit of one solve (s)")
     ap.add_argument("--threads", type=int, default=None, help="BLAS/OpenMP/FFT threads (default: all cores)")
     ap.add_argument("--out", default="results/perf")
@@ -370,10 +399,12 @@ def main() -> None:
 
         set_parent_death_signal()  # a killed run takes its solve with it
         key, variant = args.child.split("@")
-        row = solve_member(Member.parse(key), variant, args.timeout, args.commit or code_commit())
+        row = solve_member(Member.parse(key), variant, args.timeout, args.commit or code_commit(),
+                           int(args.repeats or 1))
         print("RESULT " + json.dumps(asdict(row)), flush=True)
         return
     check_args(ap, args)
+    args.repeats = parse_sizes_map(args.repeats, {})
     out = Path(args.out)
     csv_path = out / "surface-population.csv"
     if args.fresh and csv_path.exists():
@@ -384,7 +415,7 @@ def main() -> None:
             os.environ.update({v: str(args.threads) for v in THREAD_VARS})
         for m in plan(args.sizes, args.families.split(","), parse_seeds(args.seeds)):
             for variant in args.variants.split(","):
-                row = (solve_member(m, variant, args.timeout, commit) if args.in_process
+                row = (solve_member(m, variant, args.timeout, commit, repeats_of(m, args.repeats)) if args.in_process
                        else run_child(m, variant, args, commit))
                 append_row(csv_path, row)
                 print(f"{m.key} {variant}: {row.status} n={row.n} it={row.iterations} mv={row.matvecs} "

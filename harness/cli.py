@@ -45,6 +45,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
 from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES
 from contactbench.problems.layers import DEFAULT_NU, INTERFACES, Layer
+from contactbench.problems.operators import set_memory_budget
 from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
 from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS, load_steps
 from contactbench.problems.surfaces import RMD_FAMILIES
@@ -483,6 +484,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
+        set_memory_budget(kw["memory_budget"])  # this process's skips and builds read it too
     if args.max_cells:
         kw["max_cells"] = args.max_cells
     run_cfg = RunConfig(profiles=args.profile, repeats=args.repeats, timeout=args.timeout, warm=not args.cold,

@@ -68,12 +68,26 @@ def fft_backend() -> str:
 COLUMN_BLOCK_BYTES = 1 << 19
 
 
+def has_avx512() -> bool:
+    """Whether numpy's runtime dispatch sees AVX-512F on this CPU (False when it cannot tell)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__
+    except ImportError:  # pragma: no cover - numpy < 2 or another build
+        return False
+    return bool(__cpu_features__.get("AVX512F", False))
+
+
 #: A column of the padded spectrum (P0 complex entries) of at least this many bytes is
 #: transformed as a contiguous row of a transposed block buffer; shorter columns are
 #: transformed in place across the whole P0 x (P1/2+1) spectrum, one call per direction
-#: (no per-block Python dispatch).  With ducc0 0.42 on AVX-512, contiguous transforms win
-#: from 2048 points in float64 and 4096 in float32, and lose below (results/perf/matvec.md).
-TRANSPOSED_COLUMN_BYTES = 1 << 15
+#: (no per-block Python dispatch).  The two layouts give bitwise the same products; which is
+#: faster depends on ducc0's vector code.  With AVX-512, contiguous transforms win from 2048
+#: points in float64 and 4096 in float32 (32 KiB) and lose below; with AVX2 alone they win
+#: from 1024 points in float64 and 2048 in float32 (16 KiB): 1024^2 float32 matvec 27-34 ms
+#: against 39-46 ms in place (results/perf/matvec.md).  Env CONTACTBENCH_TRANSPOSED_COLUMN_BYTES
+#: overrides.
+TRANSPOSED_COLUMN_BYTES = int(os.environ.get("CONTACTBENCH_TRANSPOSED_COLUMN_BYTES", 0)) or (
+    1 << 15 if has_avx512() else 1 << 14)
 
 
 #: Rows are transformed in blocks of about this many bytes of float64 padded rows (P1

@@ -33,13 +33,13 @@ from .kernels import check_kernel, kernel_table
 from .kkt import constrained_scales, problem_scales
 from .layers import Layer
 from .operators import (
-    DEFAULT_MEMORY_BUDGET,
     ContactOperator,
     DenseOperator,
     FFTOperator,
     KernelTransform,
     check_dense_budget,
 )
+from .operators import memory_budget as operator_memory_budget
 from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
 from .surfaces import Surface, check_grid_size, check_not_flat
 
@@ -348,7 +348,7 @@ class InstanceBuilder:
         self.kernel = kernel
         self.periodic = periodic
         self.operator_kind = check_operator_kind(operator)
-        self.memory_budget = DEFAULT_MEMORY_BUDGET if memory_budget is None else memory_budget
+        self.memory_budget = operator_memory_budget() if memory_budget is None else memory_budget
         self.images = images
         self._transform: KernelTransform | None = None
         self._device_transform: ArrayKernelTransform | None = None

@@ -45,6 +45,22 @@ from .fft_transform import (  # noqa: F401 -- re-exported: the operator's public
 #: environment variable CONTACTBENCH_MEMORY_BUDGET_GB.
 DEFAULT_MEMORY_BUDGET = float(os.environ.get("CONTACTBENCH_MEMORY_BUDGET_GB", "8")) * 2**30
 
+#: This process's budget (``memory_budget``): the default until ``set_memory_budget``.
+_budget: list[float] = [DEFAULT_MEMORY_BUDGET]
+
+
+def memory_budget() -> float:
+    """Bytes a dense matrix of this process may take: ``DEFAULT_MEMORY_BUDGET``, or what the
+    process set (a run's worker sets its run's ``--memory-budget-gb``)."""
+    return _budget[0]
+
+
+def set_memory_budget(nbytes: float) -> None:
+    """This process's budget for dense matrices from now on (> 0, finite)."""
+    if not (isinstance(nbytes, (int, float)) and 0.0 < float(nbytes) < float("inf")):
+        raise ProblemInputError(f"memory budget must be a finite number of bytes > 0, got {nbytes!r}")
+    _budget[0] = float(nbytes)
+
 
 #: The FFT operator switches to a dense block after this many matvecs when that is
 #: cheaper (small trial sets on large grids) ...
@@ -83,7 +99,7 @@ def dense_nbytes(n: int) -> int:
 
 def check_dense_budget(n: int, budget: float | None = None, what: str = "dense H") -> None:
     """Raise MemoryBudgetError if an n x n float64 matrix would exceed the budget."""
-    b = DEFAULT_MEMORY_BUDGET if budget is None else budget
+    b = memory_budget() if budget is None else budget
     need = dense_nbytes(n)
     if need > b:
         raise MemoryBudgetError(f"{what} ({n} x {n} float64)", need, b)

@@ -30,14 +30,22 @@ from typing import Any, Callable
 
 import numpy as np
 
+from contactbench.problems.instances import QP
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, GapState
 from ._preconditioners import SetPreconditioner
 from .base import Param, SolveContext
 
-#: The precisions a fast solver runs in ("mixed": float32 inner, float64 outer).
-PRECISIONS = ("double", "mixed")
+#: The precisions a fast solver runs in ("mixed": float32 inner, float64 outer; "auto":
+#: mixed on grids of at least ``AUTO_MIXED_MIN_POINTS`` points, else double).
+PRECISIONS = ("double", "mixed", "auto")
+
+#: "auto" runs mixed from this many grid points up (2048^2).  Below, a cold solve needs
+#: 25-70 matvecs, and the float32 twin's build and the refinement's float64 products cost
+#: about what float32 saves: on 512^2 and 1024^2 members of the surface population mixed was
+#: 0.52-1.55x the double time (results/perf/surface-population.md).
+AUTO_MIXED_MIN_POINTS = 2048 * 2048
 
 #: A round's inner tolerance, relative to the round's starting float64 KKT error.
 INNER_REDUCTION = 1e-4
@@ -49,12 +57,26 @@ MIN_ROUND_GAIN = 0.5
 def precision_param(default: str = "double") -> Param:
     """The one declaration of the fast solvers' ``precision`` parameter."""
     return Param("precision", str, default,
-                 "double: float64 throughout; mixed: float32 inner CCG, float64 iterative refinement",
+                 "double: float64 throughout; mixed: float32 inner CCG, float64 iterative refinement; "
+                 "auto: mixed from 2048^2 grid points up, else double",
                  choices=PRECISIONS)
 
 
+def grid_points(qp: QP) -> int:
+    """Points of the physical grid the QP's unknowns sit on (its own size without a geometry)."""
+    geo = getattr(qp, "geometry", None)
+    return int(np.prod(geo.grid_shape)) if geo is not None else int(qp.n)
+
+
+def resolved_precision(precision: str, qp: QP) -> str:
+    """"double" or "mixed": ``precision`` with "auto" decided by the grid (``AUTO_MIXED_MIN_POINTS``)."""
+    if precision == "auto":
+        return "mixed" if grid_points(qp) >= AUTO_MIXED_MIN_POINTS else "double"
+    return precision
+
+
 def block_dtype(precision: str) -> type:
-    """The island preconditioner's block precision for a solve in ``precision``."""
+    """The island preconditioner's block precision for a solve in (resolved) ``precision``."""
     return np.float32 if precision == "mixed" else np.float64
 
 
@@ -124,13 +146,14 @@ def solve_in_precision(ctx: SolveContext, state: GapState, loop: Loop, M: SetPre
     """``loop`` from ``state`` in the precision of ``ctx.params["precision"]`` (default
     double); the run and its matvecs by precision.  The trace numbers iterations from
     ``first``."""
-    H32 = low_precision(ctx.qp.H) if ctx.params.get("precision", "double") == "mixed" else None
+    precision = resolved_precision(ctx.params.get("precision", "double"), ctx.qp)
+    H32 = low_precision(ctx.qp.H) if precision == "mixed" else None
     if H32 is not None and H32 is not ctx.qp.H:
         ctx.track(H32)
     tally = MatvecTally(ctx.qp.H, H32)
     if H32 is None:
         info: dict[str, Any] = {"precision": "double"}
-        if ctx.params.get("precision") == "mixed":
+        if precision == "mixed":
             info["precision"] = "double (the operator has no float32 twin)"
         run = loop(ctx, state, M, first=first)
         return run, {**info, **tally.info()}

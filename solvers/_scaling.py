@@ -67,7 +67,7 @@ from contactbench.problems.constraints import fit_multiplier
 from contactbench.problems.kkt import constrained_kkt_error
 from contactbench.problems.lcp import bpp_polish
 from contactbench.problems.mixed_lcp import box_polish
-from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from contactbench.problems.operators import DenseOperator, memory_budget
 
 from .base import Outcome, Param, SolveContext, Solver, Status
 
@@ -133,7 +133,7 @@ def dense_matrix(qp: QP, budget: float | None = None) -> np.ndarray:
     operator under the memory budget (raises MemoryBudgetError with the estimate)."""
     if isinstance(qp.H, DenseOperator):
         return qp.H.H
-    return qp.H.to_dense(DEFAULT_MEMORY_BUDGET if budget is None else budget)
+    return qp.H.to_dense(memory_budget() if budget is None else budget)
 
 
 @dataclass

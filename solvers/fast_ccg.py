@@ -38,7 +38,7 @@ import numpy as np
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_keer
 from ._kit import FIRST_GUESSES, coarse_first_guess
 from ._preconditioners import KINDS, make_preconditioner
-from ._refine import block_dtype, precision_param, solve_in_precision
+from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
 from .base import Outcome, Param, SolveContext, Solver
 from .registry import register
@@ -79,7 +79,8 @@ class _FastCCG(FastSolver):
 
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
-        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
+        precision = resolved_precision(ctx.params["precision"], ctx.qp)
+        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(precision))
         ctx.mark_setup_done()
         state, info = starting_state(self, ctx)
         run, more = solve_in_precision(ctx, state, self.loop, M)
@@ -135,11 +136,12 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     """Bugnicourt et al. (2018) CCG without restart, with the island block-Jacobi
     preconditioner and its far-field correction ("farfield", solvers/_farfield.py) on the
     free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
-    Precision: mixed by default (solvers/_refine.py: float32 inner sweeps, float64
-    iterative refinement judged by the float64 KKT error); ``precision="double"`` runs
-    float64 throughout.  Warm start: primal."""
+    Precision: ``auto`` by default (solvers/_refine.py): mixed -- float32 inner sweeps,
+    float64 iterative refinement judged by the float64 KKT error -- on grids of
+    ``AUTO_MIXED_MIN_POINTS`` points and more, float64 below; ``precision="double"`` or
+    ``"mixed"`` fixes it.  Warm start: primal."""
 
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    #: mixed by default: float32 inner sweeps refined in float64, same answer, 0.8x the time at 1024^2
-    params = (precondition_param("farfield"), precision_param("mixed"), first_guess_param(), screening_param())
+    #: auto by default: mixed where float32 pays for its twin and its refinement (solvers/_refine.py)
+    params = (precondition_param("farfield"), precision_param("auto"), first_guess_param(), screening_param())

@@ -37,7 +37,7 @@ from contactbench.problems.kkt import kkt_figures
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
-from ._refine import block_dtype, low_precision, precision_param, solve_in_precision
+from ._refine import block_dtype, low_precision, precision_param, resolved_precision, solve_in_precision
 from ._kit import conjugate_gradient
 from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
 from ._screen import screening_param
@@ -109,8 +109,9 @@ class FastPDAS(FastSolver):
         """Newton steps on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         before = ctx.matvecs()
         state = GapState.start(ctx)
-        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(ctx.params["precision"]))
-        H32 = low_precision(ctx.qp.H) if ctx.params["precision"] == "mixed" else None
+        precision = resolved_precision(ctx.params["precision"], ctx.qp)
+        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(precision))
+        H32 = low_precision(ctx.qp.H) if precision == "mixed" else None
         ctx.mark_setup_done()
         count = StepMatvecs()
         outer, kkt = 0, ctx.kkt(state.p, state.g)

@@ -17,6 +17,13 @@ uphill (O'Donoghue & Candes 2015) -- not in the paper, off by default.
 ``nnls-gp`` runs exactly K GP steps (param ``K``, default 100 as in the paper's
 section 4; Fig. 6 sweeps K = 0..200, the solver's ``grid``) and then NNLS (Algorithm 3)
 from the GP point: exact.  Both accept a primal warm start (GP starts from it).
+
+Under bounds or a load equality, NNLS's exact active-set step becomes its bounded form:
+the K GP steps project onto the box and the equality, and block principal pivoting on the
+three sets (p = 0, free, p = u) with the load row (``problems.mixed_lcp.box_polish``, the
+same rule as the reference's) finishes from the GP point on the dense H; it stops on a
+violation-free set, so the answer is exact.  That needs the n x n H within the memory
+budget: above it the solver skips with the reason.
 """
 
 from __future__ import annotations
@@ -26,10 +33,13 @@ from typing import Callable
 
 import numpy as np
 
-from contactbench.problems.constraints import project_feasible
+from contactbench.problems.constraints import fit_multiplier, project_feasible
+from contactbench.problems.mixed_lcp import box_polish
+from contactbench.problems.operators import dense_nbytes, memory_budget
 
 from ._kit import lipschitz_constant, matvec_seconds
-from .base import Capabilities, Outcome, Param, SolveContext, Solver
+from ._scaling import dense_matrix
+from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver
 from .nnls import FACTOR_MAX_N, LINEAR_PARAM, nnls_active_set, nnls_max_iter
 from .registry import register
 
@@ -94,6 +104,19 @@ def lipschitz_of(ctx: SolveContext) -> float:
     return L
 
 
+def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
+    """NNLS's exact step under bounds and a load row (module doc): block principal pivoting
+    from the GP point ``p`` on the dense H; iterations = K + pivoting rounds."""
+    H = dense_matrix(ctx.qp)
+    c = ctx.constraints
+    ctx.mark_setup_done()
+    delta0 = fit_multiplier(H @ p - ctx.qp.ubar, p, c.upper) if c.load_control else 0.0
+    sol = box_polish(H, ctx.qp.ubar, c, p, delta0, max_rounds=max(1, int(ctx.max_iter or 1)))
+    ctx.info.update(K=K, gp_iterations=K, pivoting_rounds=sol.rounds)
+    return Outcome(sol.p, K + sol.rounds, sol.converged, multiplier=sol.multiplier if c.load_control else None,
+                   message="" if sol.converged else "block pivoting did not reach a violation-free set")
+
+
 def start_point(ctx: SolveContext) -> np.ndarray:
     return np.zeros(ctx.n) if ctx.p0 is None else ctx.p0
 
@@ -139,7 +162,7 @@ class NNLSGP(Solver):
     name = "nnls-gp"
     family = "paper"
     description = "K accelerated GP steps then NNLS (Algorithms 4 + 3); K param, default 100"
-    capabilities = Capabilities(warm_start="primal", exact=True)
+    capabilities = Capabilities(warm_start="primal", exact=True, load_control=True, bounds=True)
     default_tol = 1e-10
     params = (Param("K", int, 100, "gradient-projection steps before NNLS", low=0),
               LIPSCHITZ_PARAM, RESTART_PARAM, LINEAR_PARAM)
@@ -148,11 +171,25 @@ class NNLSGP(Solver):
     def default_max_iter(self, n: int) -> int:
         return nnls_max_iter(n)
 
+    def skip(self, traits: ProblemTraits) -> str | None:
+        why = super().skip(traits)
+        if why or not (traits.load_control or traits.bounded):
+            return why
+        need = dense_nbytes(traits.n)
+        if need > memory_budget():
+            return (f"{self.name} poses bounds and a load row on the dense H: n = {traits.n} needs "
+                    f"{need / 2**30:.3g} GiB, over the memory budget of {memory_budget() / 2**30:.3g} GiB")
+        return None
+
     def iterate(self, ctx: SolveContext) -> Outcome:
         K = ctx.params["K"]
         p = start_point(ctx)
+        if not ctx.constraints.plain:
+            p = project_feasible(p, ctx.constraints)
         if K > 0:
             p = accelerated_gradient_projection(ctx, p, lipschitz_of(ctx), K, restart=ctx.params["restart"]).p
+        if not ctx.constraints.plain:
+            return bounded_finish(ctx, p, K)
         out = nnls_active_set(ctx, p, ctx.max_iter, ctx.params["linear"], it_offset=K)
         ctx.info.update(K=K, gp_iterations=K, nnls_iterations=out.iterations)
         out.iterations += K

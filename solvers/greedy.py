@@ -42,7 +42,7 @@ from typing import ClassVar
 import numpy as np
 import scipy.linalg as sla
 
-from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, ContactOperator, dense_nbytes
+from contactbench.problems.operators import ContactOperator, dense_nbytes, memory_budget
 
 from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, cholesky_seconds, conjugate_gradient, matvec_seconds
 from .base import Capabilities, Deadline, Outcome, Param, SolveContext, Solver
@@ -201,7 +201,7 @@ class GreedyGS(GreedySolver):
 
     def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
                       max_iter: int) -> ReducedSolve:
-        rows = RowBlocks(op, block=256, budget=DEFAULT_MEMORY_BUDGET / 4)
+        rows = RowBlocks(op, block=256, budget=memory_budget() / 4)
         return gauss_seidel(rows, b, x0, atol, max_iter, ctx.deadline)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:

@@ -27,6 +27,7 @@ import pandas as pd
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 
 from ..table.files import replace_atomically
+from ..table.schema import ANSWERED
 from .core import per_cell
 from .sections.cmr import cmr_pairs, instance_totals
 from .sections.counterexample import seed_readings, violation_counts
@@ -78,8 +79,6 @@ LARGE_ERROR = 0.5
 #: Fig. 5's ratios are read over steps with at least this trial-set size (below it fixed
 #: per-solve costs dominate).
 FIG5_MIN_N = 100
-#: The statuses of a solve that returned an answer (a time to compare).
-ANSWERED = ("solved", "inaccurate")
 INF = math.inf
 
 
@@ -226,6 +225,14 @@ def seeds_text(seeds: Iterable[int]) -> str:
     return ",".join(map(str, s))
 
 
+def seeds_of(rows: pd.DataFrame) -> str:
+    """``seeds_text`` of the rows' ``seed`` column (the instance's recipe; "" where the table
+    has none)."""
+    if "seed" not in rows.columns:
+        return ""
+    return seeds_text(pd.to_numeric(rows["seed"], errors="coerce").dropna().astype(int))
+
+
 def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame:
     """The attempted rows of ``scene`` under ``condition`` (column ``operator``)."""
     r = rows[(rows["scene"] == scene) & (rows["operator"] == condition)]
@@ -284,7 +291,7 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
         tot = totals(pd.concat([w, c]))
         n_max = int(w["n"].max())
         size = f"{int(N)}^2, n <= {n_max}"
-        seeds = seeds_text(w["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
+        seeds = seeds_of(w)
         where = f"results.csv: paper-sweep (warm) and greedy-linear-solvers (cold) N={int(N)} operator {condition}"
         for claim, other in (("fig4-pk-cold-over-nnlsgp", "pk cold"), ("fig4-admm-over-nnlsgp", "admm"),
                              ("fig4-greedy-over-nnlsgp", "greedy-cg cold"), ("conclusion-greedy", "greedy-cg cold"),
@@ -306,6 +313,32 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             out.append(claim_row(claim, condition, m, size, seeds,
                                  f"{where}; top step, the largest spread over instances among the solvers that "
                                  f"pass the KKT check: {', '.join(solvers)}" if len(solvers) > 1 else ""))
+    return out
+
+
+def top_step_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
+    """Fig. 4's P&K1999 / NNLS+GP at the sizes that have no load history in the table: the
+    cold solves of ``greedy-linear-solvers`` at a grid size that ``paper-sweep`` did not run
+    (the study's top step of the paper's own 512^2 surface, n = 35,218 against the paper's
+    35,555), both solvers from p = 0.  A size where either was skipped (a memory budget
+    below the dense H) gives ``unmeasured`` rows that carry the skip reason."""
+    warm_sizes = set(of_condition(rows, "paper-sweep", condition)["N"].dropna().unique())
+    planned = rows[(rows["scene"] == "greedy-linear-solvers") & (rows["operator"] == condition)]
+    out: list[ClaimRow] = []
+    for N in sorted(set(planned["N"].dropna().unique()) - warm_sizes):
+        here = planned[(planned["N"] == N) & planned["solver"].isin(["pk", "nnls-gp"])]
+        if here.empty:
+            continue
+        cells = per_cell(here[here["status"] != "skipped"])
+        m, words = ratio(totals(cells), "pk", "nnls-gp")
+        skipped = here[here["status"] == "skipped"]
+        if len(skipped):
+            words += "; skipped: " + "; ".join(f"{s} ({r})" for s, r in zip(skipped["solver"], skipped["skip_reason"]))
+        steps = sorted(here["step"].dropna().unique())
+        size = f"{int(N)}^2, {len(steps)} step(s) cold, n <= {int(here['n'].max())}"
+        where = f"results.csv: greedy-linear-solvers N={int(N)} operator {condition}, pk and nnls-gp from p = 0"
+        for claim in ("fig4-pk-cold-over-nnlsgp", "conclusion-pk"):
+            out.append(claim_row(claim, condition, m, size, seeds_of(here), f"{where}; {words}"))
     return out
 
 
@@ -337,7 +370,7 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     for N in sorted(r["N"].dropna().unique()):
         cells = per_cell(r[r["N"] == N])
         size = f"{int(N)}^2, n <= {int(cells['n'].max())}"
-        seeds = seeds_text(cells["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
+        seeds = seeds_of(cells)
         for claim, other in (("fig5-chol-over-cg", "greedy-chol"), ("fig5-gs-over-cg", "greedy-gs")):
             if other not in set(cells["solver"]) or "greedy-cg" not in set(cells["solver"]):
                 continue
@@ -345,7 +378,7 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             out.append(claim_row(claim, condition, m, size, seeds,
                                  f"results.csv: greedy-linear-solvers N={int(N)} operator {condition}; median over "
                                  f"{k} steps with n >= {FIG5_MIN_N} both solved" if k else ""))
-    chol = rows[(rows["base_solver"] == "greedy-chol") & (rows["operator"] == condition)]
+    chol = rows[(rows["base_solver"] == "greedy-chol") & (rows["operator"] == condition) & (rows["status"] != "skipped")]
     if len(chol):
         answered = chol[chol["status"].isin(ANSWERED)]
         largest = float(answered["n"].max()) if len(answered) else math.nan
@@ -368,7 +401,7 @@ def example1_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     out = []
     for _, f in violation_counts(seed_readings(r)).iterrows():
         sub = r[r["n"] == f["n"]]
-        seeds = seeds_text(sub["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
+        seeds = seeds_of(sub)
         out.append(claim_row("ex1-greedy-fails", condition, float(f["fraction"]), f"n = {int(f['n'])}", seeds,
                              f"results.csv: counterexample operator {condition}, greedy-cg rejected on "
                              f"{int(f['violations'])} of {int(f['seeds'])} seeds (wrong {int(f['wrong'])})"))
@@ -386,7 +419,7 @@ def fig6_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     tot = tot[tot["K"].notna()]
     comp = tot[tot["comparable"]].set_index("K")
     size = f"{int(cells['N'].max())}^2, n <= {int(cells['n'].max())}"
-    seeds = seeds_text(cells["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
+    seeds = seeds_of(cells)
     where = f"results.csv: gp-k-sweep operator {condition}, K = {', '.join(f'{k:g}' for k in sorted(tot['K']))}"
     best = float(comp["total_s"].idxmin()) if len(comp) else math.nan
     out = [claim_row("fig6-best-k", condition, best, size, seeds, where if len(comp) else "")]
@@ -439,7 +472,7 @@ def cmr_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             if k.empty:
                 continue
             size = f"{int(k['N'].max())}^2, one step, n <= {int(k['n'].max())}"
-            seeds = seeds_text(k["instance"].str.extract(r"-s(\d+)$")[0].dropna().astype(int))
+            seeds = seeds_of(k)
             where = f"results.csv: cmr-cutoff {kind} surface, h = {', '.join(f'{h:g}' for h in k['h'].unique())}"
             saving = 1.0 - k["solve_time_s"] / k["direct_time_s"]
             out.append(claim_row(err_id, condition, float(k["err"].median()), size, seeds, where))
@@ -448,8 +481,8 @@ def cmr_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
 
 
 #: The ledger's readers, each of one part of the paper (conditions looped where they apply).
-READERS: tuple[Callable[[pd.DataFrame, str], list[ClaimRow]], ...] = (example1_rows, fig4_rows, fig5_rows, fig6_rows,
-                                                                     cmr_rows)
+READERS: tuple[Callable[[pd.DataFrame, str], list[ClaimRow]], ...] = (
+    example1_rows, fig4_rows, top_step_rows, fig5_rows, fig6_rows, cmr_rows)
 
 
 def ledger(rows: pd.DataFrame) -> pd.DataFrame:

@@ -31,7 +31,7 @@ from typing import Any, Iterable, Sequence, Union
 import numpy as np
 
 from contactbench.problems.instances import QP, ContactInstance
-from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator
+from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator, set_memory_budget
 from contactbench.problems.scenes import InstanceSpec
 from contactbench.solvers.base import ProblemTraits, SolveAborted, SolverSettings, WarmStart
 from contactbench.solvers.registry import load_solver
@@ -224,6 +224,7 @@ class SolveServer:
     def __init__(self, spec: InstanceSpec, memory_budget: float = DEFAULT_MEMORY_BUDGET) -> None:
         self.spec = spec
         self.memory_budget = memory_budget
+        set_memory_budget(memory_budget)  # the run's budget for every dense build in this worker
         self.seq: Any = None
         self.steps: dict[int, ContactInstance] = {}
         self.dense: dict[int, DenseOperator] = {}

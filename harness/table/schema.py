@@ -39,6 +39,8 @@ import pandas as pd
 
 
 STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skipped")
+#: The statuses of a solve that returned an answer the judge read (a time to compare).
+ANSWERED: Final = ("solved", "inaccurate")
 #: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``
 #: besides "" (not judged).
 VERDICTS: Final = ("pass", "wrong", "unconverged")

@@ -88,7 +88,7 @@ def _rows(scene: str, operator: str, times: dict[str, list[float]], N: int = 64,
     for solver, ts in times.items():
         for k, t in enumerate(ts):
             st = (status or {}).get((solver, k), "solved")
-            out.append({"scene": scene, "instance": f"saupe-H0.7-N{N}-bcc-np-s5", "step": k, "solver": solver,
+            out.append({"scene": scene, "instance": f"saupe-H0.7-N{N}-bcc-np-s5", "seed": 5, "step": k, "solver": solver,
                         "base_solver": solver, "params": "{}", "profile": "paper" if operator == "dense" else "default",
                         "history": "warm", "repeat": 0, "status": st, "solve_time_s": t, "n": 100 * (k + 1),
                         "N": N, "operator": operator, "load": load if st == "solved" else math.nan,
@@ -210,7 +210,7 @@ def test_example1_counts_each_condition_apart() -> None:
     for op, rejected in (("dense", 4), ("fft", 0)):
         for s in range(10):
             bad = s < rejected
-            rows.append({"scene": "counterexample", "instance": f"n100-s{s}", "step": 0, "solver": "greedy-cg",
+            rows.append({"scene": "counterexample", "instance": f"n100-s{s}", "seed": s, "step": 0, "solver": "greedy-cg",
                          "base_solver": "greedy-cg", "params": "{}", "profile": "paper", "history": "warm",
                          "repeat": 0, "status": "inaccurate" if bad else "solved",
                          "verdict": "wrong" if bad else "pass",
@@ -220,3 +220,35 @@ def test_example1_counts_each_condition_apart() -> None:
     dense, fft = _one(led, "ex1-greedy-fails", "dense", "n = 100"), _one(led, "ex1-greedy-fails", "fft", "n = 100")
     assert dense["measured"] == pytest.approx(0.4) and dense["verdict"] == "holds" and dense["seeds"] == "0-9"
     assert fft["measured"] == 0.0 and fft["verdict"] == "fails"
+
+
+def _paper_n(status: dict | None = None) -> pd.DataFrame:
+    """The table plus the study's top step at the paper's size (512^2, dense, no paper-sweep there)."""
+    rows = _rows("greedy-linear-solvers", "dense", {"pk": [2.0], "nnls-gp": [4.0]}, N=512, status=status)
+    for r in rows:
+        r["n"], r["skip_reason"] = 35218, "over the memory budget" if r["status"] == "skipped" else ""
+    return pd.concat([_table(), pd.DataFrame(rows)], ignore_index=True)
+
+
+def test_the_paper_size_top_step_is_read_without_a_load_history() -> None:
+    led = cl.ledger(_paper_n())
+    for claim in ("fig4-pk-cold-over-nnlsgp", "conclusion-pk"):
+        r = _one(led, claim, "dense", "512^2")
+        assert r["measured"] == pytest.approx(0.5) and r["verdict"] == "fails"
+        assert "1 step(s) cold, n <= 35218" in r["n_or_size"]
+    # the sizes with a load history keep their own rows, once each
+    assert _one(led, "fig4-pk-cold-over-nnlsgp", "dense")["measured"] == pytest.approx(26.0)
+
+
+def test_a_skipped_paper_size_is_unmeasured_and_says_why() -> None:
+    led = cl.ledger(_paper_n({("nnls-gp", 0): "skipped"}))
+    r = _one(led, "fig4-pk-cold-over-nnlsgp", "dense", "512^2")
+    assert r["verdict"] == "unmeasured" and "over the memory budget" in r["evidence"]
+
+
+def test_a_skipped_cholesky_at_a_large_n_does_not_test_the_memory_claim() -> None:
+    rows = _rows("greedy-linear-solvers", "dense", {"greedy-chol": [1.0]}, N=512, status={("greedy-chol", 0): "skipped"})
+    rows[0]["n"] = 35218
+    r = _one(cl.ledger(pd.concat([_table(), pd.DataFrame(rows)], ignore_index=True)), "fig5-chol-memory", "dense",
+             "n <=")
+    assert r["verdict"] == "unmeasured"

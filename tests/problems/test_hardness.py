@@ -155,7 +155,9 @@ def test_bounded_solvers_skip_and_refuse_correctly() -> None:
     b = builder(8)
     inst = b.build(1e-7, hardness=1e6)
     traits = ProblemTraits(n=inst.n, operator="dense", bounded=True)
-    for name in ("fast-ccg", "fast-pccg", "nnls", "nnls-gp", "scipy-nnls"):
+    unbounded = sorted(n for n, s in available_solvers().items() if not s.capabilities.bounds)
+    assert {"nnls", "scipy-nnls"} <= set(unbounded)
+    for name in unbounded:
         assert "cannot pose bounded pressures" in get_solver(name).skip(traits)
         with pytest.raises(ProblemInputError, match="bounded"):
             get_solver(name).solve(inst.qp)
@@ -226,3 +228,12 @@ def test_plastic_fraction_counts_touching_elements_at_the_bound(box_solution) ->
     assert inst.plastic_fraction(np.zeros_like(p)) == 0.0
     plain = QP(DenseOperator(inst.qp.H.H), inst.qp.ubar)
     assert not plain.constraints.bounded
+
+
+def test_nnls_gp_poses_bounds_within_the_dense_budget_and_skips_beyond() -> None:
+    s = get_solver("nnls-gp")
+    assert s.skip(ProblemTraits(n=1000, operator="fft", bounded=True)) is None
+    assert s.skip(ProblemTraits(n=1000, operator="fft", load_control=True)) is None
+    why = s.skip(ProblemTraits(n=10**6, operator="fft", bounded=True))  # 7.3 TiB of dense H
+    assert why is not None and "memory budget" in why and "n = 1000000" in why
+    assert s.skip(ProblemTraits(n=10**6, operator="fft")) is None  # the plain problem never needs the dense H

@@ -42,6 +42,7 @@ from ..core import (
     pick_profile,
     table_md,
 )
+from ...table.schema import ANSWERED
 from .paper import family_name
 
 #: The study's area-of-influence factor and first level: the cmr solver's declared
@@ -67,8 +68,6 @@ FIG9_H = 0.7
 #: What each base solver stands for in the figures and readings.
 BASE_TEXT = {"scipy-nnls": "dense Cholesky + NNLS (the paper's base)", "nnls": "incremental NNLS",
              "fast-dual-pccg": "FFT base fast-dual-pccg"}
-#: The statuses of a solve that returned an answer (the pairs are made of these only).
-ANSWERED = ("solved", "inaccurate")
 #: The surface-family key of instances that are not generated rough surfaces.
 NO_FAMILY = ""
 

@@ -1,0 +1,42 @@
+"""``contactbench run --memory-budget-gb`` reaches every dense build of the run's workers
+(they are forked from the run's process and build the scene's dense H themselves): a dense
+instance over the process's default budget builds under a larger run budget."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from contactbench.problems import operators
+from contactbench.problems.errors import ProblemInputError
+
+
+def run(tmp_path: Path, budget_gb: float, env_gb: str) -> list[dict]:
+    out = tmp_path / f"run-{budget_gb}"
+    cmd = [sys.executable, "-m", "contactbench.harness.cli", "run", "greedy-linear-solvers", "--size", "32",
+           "--steps", "1", "--seeds", "0", "--operator", "dense", "--solvers", "pk", "--reference", "none",
+           "--no-progress", "--out", str(out), "--memory-budget-gb", str(budget_gb)]
+    env = {**os.environ, "CONTACTBENCH_MEMORY_BUDGET_GB": env_gb}
+    subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300, check=False)
+    return [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines() if line.strip()]
+
+
+@pytest.mark.slow
+def test_the_run_budget_reaches_the_workers_dense_build(tmp_path: Path) -> None:
+    # the 32^2 top step's dense H is ~1 MiB; a process default of ~1 KiB refuses it, and the
+    # run's 1 GiB lets it build
+    (row,) = run(tmp_path, 1.0, "0.000001")
+    assert row["status"] == "solved", row.get("error")
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf"), "8"])
+def test_set_memory_budget_refuses_what_is_not_a_positive_size(bad: object) -> None:
+    before = operators.memory_budget()
+    with pytest.raises(ProblemInputError):
+        operators.set_memory_budget(bad)  # type: ignore[arg-type]
+    assert operators.memory_budget() == before
