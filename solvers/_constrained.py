@@ -37,8 +37,9 @@ to move), with g = Hp - ubar kept by the cheap update g -= tau Ht:
   resets the conjugacy (a point only leaving does not, as in P & K).
 
 So one matvec per iteration while the projection is inactive, two otherwise (pk: two
-always).  It stops on the harness's scaled KKT error of (p, g, Delta), confirmed on a
-recomputed g, and reports Delta as the multiplier.  A load the box cannot carry (sum(u) <
+always).  It stops on the harness's scaled KKT error of (p, g, Delta) -- under load
+control the worse of the loop's Delta and the one fitted from p (``_kkt``) -- confirmed
+on a recomputed g, and reports the loop's Delta as the multiplier.  A load the box cannot carry (sum(u) <
 P) is refused before any solve (``Constraints.check``).
 """
 
@@ -153,18 +154,24 @@ def _free_set(p: np.ndarray, g: np.ndarray, u: np.ndarray, delta: float) -> np.n
     return free if np.any(free) else wants_to_move(p, g - delta, u)
 
 
-def _checked(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float) -> tuple[float, float, np.ndarray]:
-    """(KKT error, Delta, free set) of the state, confirmed on a recomputed gap when it
-    meets the tolerance."""
+def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float) -> tuple[float, float, np.ndarray]:
+    """(KKT error, Delta, free set) of the state.  Under load control the error is the
+    worse of the two readings of Delta: the loop's (the mean gap over the free set) and
+    the one a judge fits from p alone (``fit_multiplier``, what ``SolveContext.kkt``
+    takes without one), so a converged answer passes either way."""
     free = _free_set(state.p, state.g, u, delta)
     delta = _approach(state.g, state.p, free, ctx.constraints)
-    load = ctx.constraints.load_control
-    kkt = ctx.kkt(state.p, state.g, delta if load else None)
+    if not ctx.constraints.load_control:
+        return ctx.kkt(state.p, state.g), delta, free
+    return max(ctx.kkt(state.p, state.g, delta), ctx.kkt(state.p, state.g)), delta, free
+
+
+def _checked(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float) -> tuple[float, float, np.ndarray]:
+    """``_kkt``, confirmed on a recomputed gap when it meets the tolerance."""
+    kkt, delta, free = _kkt(ctx, state, u, delta)
     if kkt <= ctx.tol and state.confirm:
         state.refresh()
-        free = _free_set(state.p, state.g, u, delta)
-        delta = _approach(state.g, state.p, free, ctx.constraints)
-        kkt = ctx.kkt(state.p, state.g, delta if load else None)
+        kkt, delta, free = _kkt(ctx, state, u, delta)
     return kkt, delta, free
 
 

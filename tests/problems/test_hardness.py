@@ -155,11 +155,12 @@ def test_bounded_solvers_skip_and_refuse_correctly() -> None:
     b = builder(8)
     inst = b.build(1e-7, hardness=1e6)
     traits = ProblemTraits(n=inst.n, operator="dense", bounded=True)
-    for name in ("fast-ccg", "fast-pccg", "nnls", "nnls-gp", "scipy-nnls"):
+    for name in ("nnls", "nnls-gp", "scipy-nnls"):
         assert "cannot pose bounded pressures" in get_solver(name).skip(traits)
         with pytest.raises(ProblemInputError, match="bounded"):
             get_solver(name).solve(inst.qp)
-    assert get_solver("greedy-cg").skip(traits) is None
+    for name in ("greedy-cg", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg"):
+        assert get_solver(name).skip(traits) is None
     assert "load control" in get_solver("greedy-cg").skip(ProblemTraits(n=4, operator="dense", load_control=True))
 
 
