@@ -22,7 +22,8 @@ The fast loop, ``polonsky_keer_box``
 Each iteration, on the free set F = {0 < p < u} (when F is empty: the points that want
 to move), with g = Hp - ubar kept by the cheap update g -= tau Ht:
 
-* Delta = mean(g_F) under load control (P & K eq. (9)), else 0; r = g - Delta on F;
+* Delta = mean(g_F) under load control (P & K eq. (9); with no point strictly inside the
+  box, the Delta fitted from p), else 0; r = g - Delta on F;
 * z = M^-1 r on F (M = I unpreconditioned).  Under load control the direction must keep
   sum(p) on F: z is projected onto {1'z = 0} in the metric of M,
   z <- z - (1'z / 1'M^-1 1) M^-1 1 (``zero_sum``).  This is the preconditioned CG of
@@ -142,36 +143,37 @@ def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np
     return np.where(free, z - (float(np.sum(z[free])) / den) * m1, 0.0)
 
 
-def _approach(g: np.ndarray, p: np.ndarray, free: np.ndarray, c: Constraints) -> float:
-    """Delta: the mean gap over the free set, else the fitted multiplier; 0 without a load."""
-    if c.load is None:
-        return 0.0
-    return mean_on(g, free) if np.any(free) else fit_multiplier(g, p, c.upper)
+def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
+    """Delta and the CG set: under load control Delta is the mean gap over the interior
+    {0 < p < u} (P & K), or, with no point inside, the one fitted from p
+    (``fit_multiplier``: every point at a bound); 0 without a load.  The CG set is the
+    interior, or when it is empty the points that want to move."""
+    p, g = state.p, state.g
+    interior = (p > 0.0) & (p < u)
+    inside = bool(np.any(interior))
+    delta = 0.0
+    if c.load is not None:
+        delta = mean_on(g, interior) if inside else fit_multiplier(g, p, c.upper)
+    return delta, interior if inside else wants_to_move(p, g - delta, u)
 
 
-def _free_set(p: np.ndarray, g: np.ndarray, u: np.ndarray, delta: float) -> np.ndarray:
-    free = (p > 0.0) & (p < u)
-    return free if np.any(free) else wants_to_move(p, g - delta, u)
-
-
-def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float) -> tuple[float, float, np.ndarray]:
+def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
     """(KKT error, Delta, free set) of the state.  Under load control the error is the
     worse of the two readings of Delta: the loop's (the mean gap over the free set) and
     the one a judge fits from p alone (``fit_multiplier``, what ``SolveContext.kkt``
     takes without one), so a converged answer passes either way."""
-    free = _free_set(state.p, state.g, u, delta)
-    delta = _approach(state.g, state.p, free, ctx.constraints)
+    delta, free = _approach_and_free_set(state, u, ctx.constraints)
     if not ctx.constraints.load_control:
         return ctx.kkt(state.p, state.g), delta, free
     return max(ctx.kkt(state.p, state.g, delta), ctx.kkt(state.p, state.g)), delta, free
 
 
-def _checked(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float) -> tuple[float, float, np.ndarray]:
+def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
     """``_kkt``, confirmed on a recomputed gap when it meets the tolerance."""
-    kkt, delta, free = _kkt(ctx, state, u, delta)
+    kkt, delta, free = _kkt(ctx, state, u)
     if kkt <= ctx.tol and state.confirm:
         state.refresh()
-        kkt, delta, free = _kkt(ctx, state, u, delta)
+        kkt, delta, free = _kkt(ctx, state, u)
     return kkt, delta, free
 
 
@@ -190,10 +192,10 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         state.p = p
         state.refresh()
     t = np.zeros_like(state.p)
-    G_old, reset, delta = 1.0, True, 0.0
+    G_old, reset = 1.0, True
     run = CCGRun(0, math.inf, False)
     for it in range(1, max_iter + 1):
-        kkt, delta, free = _checked(ctx, state, u, delta)
+        kkt, delta, free = _checked(ctx, state, u)
         ctx.record(first + it - 1, kkt)
         run = CCGRun(it - 1, kkt, kkt <= ctx.tol, multiplier=delta if load else None)
         if run.converged or ctx.expired() or not math.isfinite(kkt):
