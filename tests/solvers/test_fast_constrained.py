@@ -78,20 +78,42 @@ def hardness_of(b: InstanceBuilder, p_el: np.ndarray, share: float) -> float:
     return share * float(np.max(p_el)) / float(np.prod(b.surface.spacing))
 
 
-@pytest.mark.parametrize("name", FAST)
-def test_a_hardness_with_a_plastic_share(square, name: str) -> None:
+Case = tuple[object, np.ndarray, "float | None"]  # (instance, exact p, exact Delta)
+
+
+@pytest.fixture(scope="module")
+def plastic(square) -> Case:
     b, d, p_el = square
     inst = b.build(d, hardness=hardness_of(b, p_el, 0.4))
-    p_ref, _ = reference(inst)
+    return (inst, *reference(inst))
+
+
+@pytest.fixture(scope="module")
+def loaded(square) -> Case:
+    b, d, p_el = square
+    inst = b.build_load(float(np.sum(p_el)))
+    return (inst, *reference(inst))
+
+
+@pytest.fixture(scope="module")
+def loaded_plastic(square) -> Case:
+    b, d, p_el = square
+    near = b.build(2.0 * d).qp.geometry.indices  # the points near contact: a small reference
+    inst = b.build_load(float(np.sum(p_el)), candidates=near, hardness=hardness_of(b, p_el, 0.5))
+    return (inst, *reference(inst))
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_a_hardness_with_a_plastic_share(plastic, name: str) -> None:
+    inst, p_ref, _ = plastic
     assert 0.1 <= inst.plastic_fraction(p_ref) <= 0.4
     assert_meets(name, inst, p_ref, None)
 
 
 @pytest.mark.parametrize("name", LOAD)
-def test_load_control_is_the_displacement_answer(square, name: str) -> None:
+def test_load_control_is_the_displacement_answer(square, loaded, name: str) -> None:
     b, d, p_el = square
-    inst = b.build_load(float(np.sum(p_el)))
-    p_ref, delta_ref = reference(inst)
+    inst, p_ref, delta_ref = loaded
     r = assert_meets(name, inst, p_ref, delta_ref)
     p_disp = carried(p_el, b.build(d), inst)
     assert np.max(np.abs(r.p - p_disp)) <= 1e-8 * np.max(p_el)  # the displacement-controlled answer ...
@@ -99,10 +121,9 @@ def test_load_control_is_the_displacement_answer(square, name: str) -> None:
 
 
 @pytest.mark.parametrize("name", LOAD)
-def test_load_control_with_a_hardness(square, name: str) -> None:
-    b, d, p_el = square
-    inst = b.build_load(float(np.sum(p_el)), hardness=hardness_of(b, p_el, 0.5))
-    p_ref, delta_ref = reference(inst)
+def test_load_control_with_a_hardness(square, loaded_plastic, name: str) -> None:
+    _, d, _ = square
+    inst, p_ref, delta_ref = loaded_plastic
     assert inst.plastic_fraction(p_ref) > 0.05
     assert delta_ref > d  # softer contact: deeper approach for the same load
     assert_meets(name, inst, p_ref, delta_ref)
@@ -116,27 +137,34 @@ def rectangle() -> InstanceBuilder:
     return InstanceBuilder(s, E, "love", operator="fft")
 
 
-@pytest.mark.parametrize("name", FAST)
-def test_a_rectangular_grid_with_unequal_spacings(rectangle, name: str) -> None:
+@pytest.fixture(scope="module")
+def rectangular_cases(rectangle) -> dict[str, Case]:
+    """The rectangle under a hardness, displacement- and load-controlled (the latter on the
+    rigid-body set at twice the approach, which holds the contact)."""
     b = rectangle
     d = paper_max_displacement(b.surface)
     plain = b.build(d)
     p_el = exact_solution(plain.qp.H.to_dense(), plain.qp.ubar).p
     H_A = hardness_of(b, p_el, 0.5)
-    cases = [b.build(d, hardness=H_A)]
-    if name in LOAD:
-        cases.append(b.build_load(float(np.sum(p_el)), hardness=H_A))
-    for inst in cases:
-        p_ref, delta_ref = reference(inst)
+    near = b.build(2.0 * d).qp.geometry.indices  # the load case on the points near contact: a small reference
+    cases = {"hardness": b.build(d, hardness=H_A),
+             "load+hardness": b.build_load(float(np.sum(p_el)), candidates=near, hardness=H_A)}
+    return {k: (inst, *reference(inst)) for k, inst in cases.items()}
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_a_rectangular_grid_with_unequal_spacings(rectangular_cases, name: str) -> None:
+    for family, (inst, p_ref, delta_ref) in rectangular_cases.items():
+        if family == "load+hardness" and name not in LOAD:
+            continue
+        assert inst.qp.geometry.grid_shape == (48, 32)
         assert inst.plastic_fraction(p_ref) > 0.0
         assert_meets(name, inst, p_ref, delta_ref)
 
 
 @pytest.mark.parametrize("name", FAST)
-def test_mixed_precision_runs_constrained_solves_in_double(square, name: str) -> None:
-    b, d, p_el = square
-    inst = b.build(d, hardness=hardness_of(b, p_el, 0.4))
-    p_ref, _ = reference(inst)
+def test_mixed_precision_runs_constrained_solves_in_double(plastic, name: str) -> None:
+    inst, p_ref, _ = plastic
     r = assert_meets(name, inst, p_ref, None, precision="mixed")
     assert r.info["precision"] == "double (constraints)"
     assert r.info["matvecs_float32"] == 0
