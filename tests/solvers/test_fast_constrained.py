@@ -285,3 +285,18 @@ def test_a_zero_load_is_no_contact(square, name: str) -> None:
     r = get_solver(name).solve(inst.qp, TIGHT)
     assert r.status == "converged", r.message
     assert not np.any(r.p)
+
+
+@pytest.mark.parametrize("precondition", ["farfield", "islands", "none"])
+def test_the_direction_keeps_the_load(square, loaded, precondition: str) -> None:
+    """Under load control the (preconditioned) direction sums to zero on the free set
+    (``_constrained.zero_sum``), so a step changes the load only when it clips: a warm
+    step along a close load history costs about one matvec per iteration, not the two
+    that a rescale after every step would."""
+    b, _, p_el = square
+    inst, p_ref, _ = loaded
+    nxt = b.build_load(1.02 * float(np.sum(p_el)))
+    s = get_solver("fast-pccg")
+    r = s.solve(nxt.qp, SolverSettings(tol=1e-12, params={"precondition": precondition}), warm=WarmStart(p=p_ref))
+    assert r.status == "converged", r.message
+    assert r.matvecs <= 1.5 * r.iterations + 2, (r.iterations, r.matvecs)
