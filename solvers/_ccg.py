@@ -371,7 +371,7 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
     is onto the box 0 <= p <= u, the residual drops the admissible multipliers at both
     bounds (``at_rest``) and the preconditioner acts on the rest; a clip at the upper
     bound costs one matvec (``GapState.step``).  Without bounds: the same iterates as
-    before they were posed.  No load equality (``fast_ccg``: not claimed)."""
+    before they were posed.  The load equality: ``_constrained.bugnicourt_load``."""
     max_iter = ctx.max_iter if max_iter is None else max_iter
     u = ctx.constraints.upper if ctx.constraints.bounded else None
     res = dual_residual(state, u)

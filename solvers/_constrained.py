@@ -15,7 +15,8 @@ multiplier (the rigid approach).
   section 3; the plastic points keep their force, Almqvist et al.).
 * ``constrained_start`` -- the first iterate: the warm start scaled to the load, else P
   spread evenly (capped by the box), else p = 0.
-* ``polonsky_keer_box`` -- the fast loop (below).
+* ``polonsky_keer_box`` -- the fast loop (below);
+* ``bugnicourt_load`` -- Bugnicourt et al.'s loop under load control (its docstring).
 
 The fast loop, ``polonsky_keer_box``
 ------------------------------------
@@ -63,7 +64,7 @@ import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
 
-from ._ccg import CCGRun, GapState, at_rest, entering_force, precondition_on
+from ._ccg import CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, precondition_on
 from ._preconditioners import SetPreconditioner
 from .base import SolveContext
 
@@ -190,6 +191,16 @@ def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, 
     return kkt, delta, free
 
 
+def feasible_start(ctx: SolveContext, state: GapState, u: np.ndarray) -> None:
+    """Move the state's p into the feasible set: ``constrained_start`` when it is 0, else
+    p capped by u and scaled to the load (its gap recomputed when p changed)."""
+    c = ctx.constraints
+    p = constrained_start(ctx, u) if not np.any(state.p > 0.0) else scale_to_load(np.minimum(state.p, u), c, u)
+    if not np.array_equal(p, state.p):
+        state.p = p
+        state.refresh()
+
+
 def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
                       max_iter: int | None = None, first: int = 0) -> CCGRun:
     """The Polonsky-Keer CCG under ``ctx.constraints`` (module doc) from ``state`` until
@@ -200,10 +211,7 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
     max_iter = ctx.max_iter if max_iter is None else max_iter
     u = c.upper_or_inf(ctx.n)
     load = c.load_control
-    p = constrained_start(ctx, u) if not np.any(state.p > 0.0) else scale_to_load(np.minimum(state.p, u), c, u)
-    if not np.array_equal(p, state.p):
-        state.p = p
-        state.refresh()
+    feasible_start(ctx, state, u)
     t = np.zeros_like(state.p)
     G_old, reset = 1.0, True
     run = CCGRun(0, math.inf, False)
@@ -261,3 +269,64 @@ def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarr
     if off:
         p[:] = scale_to_load(p, c, u, w)
     return clipped or bool(entering.size) or off
+
+
+def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
+    """(Delta, residual): Delta as in ``_approach_and_free_set``; the residual is
+    w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``)."""
+    delta, _ = _approach_and_free_set(state, u, c)
+    w = state.g - delta
+    return delta, np.where(at_rest(state.p, w, u), 0.0, w)
+
+
+def _dual_direction(M: SetPreconditioner | None, res: np.ndarray) -> np.ndarray:
+    """z = M^-1 res on the free set {res != 0}, with zero sum there (``zero_sum``)."""
+    free = res != 0.0
+    return zero_sum(M, np.where(free, precondition_on(M, res, free), 0.0), free)
+
+
+def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
+                    max_iter: int | None = None, first: int = 0) -> CCGRun:
+    """Bugnicourt et al.'s CCG (``_ccg.bugnicourt``) under load control, with or without
+    a hardness: the residual is w = g - Delta (Delta the mean gap over the interior, as
+    in the Polonsky-Keer loop) less the admissible multipliers at both bounds; the
+    direction is -z + beta d (Polak-Ribiere) with z = M^-1 res projected to zero sum on
+    the free set (``zero_sum``) and no component out of the box (``_ccg.inward``); a step
+    is projected onto the box and scaled to the load (``_project``), the gap recomputed
+    when that changed p.  Without a load: ``_ccg.bugnicourt``."""
+    c = ctx.constraints
+    if not c.load_control:
+        return bugnicourt(ctx, state, M, max_iter=max_iter, first=first)
+    max_iter = ctx.max_iter if max_iter is None else max_iter
+    u = c.upper_or_inf(ctx.n)
+    feasible_start(ctx, state, u)
+    none = np.zeros(0, dtype=np.int64)
+    _, res = _dual_residual(state, u, c)
+    d = inward(-_dual_direction(M, res), state, res, u)
+    run = CCGRun(0, math.inf, False)
+    for it in range(1, max_iter + 1):
+        kkt, delta, _ = _checked(ctx, state, u)
+        ctx.record(first + it - 1, kkt)
+        run = CCGRun(it - 1, kkt, kkt <= ctx.tol, multiplier=delta)
+        if run.converged or ctx.expired() or not math.isfinite(kkt):
+            return run
+        delta, res = _dual_residual(state, u, c)  # the gap may have been recomputed
+        Hd = state.H.matvec(d)
+        dHd = float(d @ Hd)
+        if not dHd > 0.0:  # d = 0 or lost conjugacy: restart from the steepest direction
+            state.refresh()
+            delta, res = _dual_residual(state, u, c)
+            d = inward(-_dual_direction(M, res), state, res, u)
+            if not np.any(d):
+                return CCGRun(it, kkt, False, stalled=True, multiplier=delta)
+            continue
+        alpha = -float(res @ d) / dHd
+        state.advance(alpha, d, Hd)
+        if _project(state.p, u, none, none, c, state.g - delta):
+            state.refresh()
+        res_old = res
+        delta, res = _dual_residual(state, u, c)
+        z = _dual_direction(M, res)
+        beta = (float(z @ res) - float(z @ res_old)) / (alpha * dHd)
+        d = inward(beta * d - z, state, res, u)
+    return CCGRun(max_iter, run.kkt, False, multiplier=run.multiplier)

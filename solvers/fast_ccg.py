@@ -30,10 +30,9 @@ Warm start: primal (``ctx.p0``), and its support is the first contact set.
 
 Hardness and load (``problems.constraints``): all four pose a hardness (the box
 0 <= p <= u): the Polonsky-Keer ones with Almqvist's saturation, the Bugnicourt ones by
-projection onto the box (solvers/_ccg.py, ``bugnicourt``).  fast-ccg and fast-pccg pose
-load control as well (sum(p) = P, the approach Delta reported as the multiplier:
-solvers/_constrained.py, ``polonsky_keer_box``); the Bugnicourt ones do not (skipped with
-the reason).  Under constraints: precision is double (solvers/_refine.py), the coarse
+projection onto the box (solvers/_ccg.py, ``bugnicourt``).  All four pose load control
+as well (sum(p) = P, the approach Delta reported as the multiplier: solvers/_constrained.py,
+``polonsky_keer_box`` and ``bugnicourt_load``).  Under constraints: precision is double (solvers/_refine.py), the coarse
 first guess is ignored, and a load-controlled QP is not screened (solvers/_ccg.py,
 ``FastSolver.iterate``).  Without constraints: the same iterates as before they existed.
 """
@@ -45,7 +44,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_keer
-from ._constrained import polonsky_keer_box
+from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._kit import FIRST_GUESSES, coarse_first_guess
 from ._preconditioners import KINDS, make_preconditioner
 from ._refine import block_dtype, precision_param, solve_in_precision
@@ -129,9 +128,10 @@ class FastBugnicourtCCG(_FastCCG):
     name = "fast-dual-ccg"
     description = "Bugnicourt et al. 2018 constrained CG without restart on the forces (ContactMechanics' 'dual'), FFT operator"
     capabilities = Capabilities(operators=frozenset({"dense", "fft"}), needs_dense=False, warm_start="primal",
-                                exact=True, bounds=True)
+                                exact=True, load_control=True, bounds=True)
 
     loop = staticmethod(bugnicourt)
+    constrained_loop = staticmethod(bugnicourt_load)
 
 
 @register
