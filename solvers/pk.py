@@ -39,7 +39,7 @@ It stops on the harness's scaled KKT error of (p, g, Delta) (``SolveContext.kkt`
 reports Delta as the multiplier.  Two matvecs per iteration.  The re-entry rule, the
 scaling to the load and the first iterate are solvers/_constrained.py's
 (``wants_to_move``, ``scale_to_load``, ``constrained_start``), shared with the fast
-loop of fast-ccg and fast-pccg.  Cold start: P spread evenly
+CCGs' loops.  Cold start: P spread evenly
 over the trial set (load control), else p = 0 with the whole set as the first I_c; warm:
 the previous p (scaled to the load).
 """

@@ -171,6 +171,14 @@ def test_mixed_precision_runs_constrained_solves_in_double(plastic, name: str) -
 
 
 @pytest.mark.parametrize("name", FAST)
+def test_the_coarse_first_guess_is_ignored_under_constraints(plastic, name: str) -> None:
+    inst, p_ref, _ = plastic
+    r = assert_meets(name, inst, p_ref, None, first_guess="coarse")
+    assert r.info["first_guess"] == "zero (constraints)"
+    assert "coarse_matvecs" not in r.info
+
+
+@pytest.mark.parametrize("name", FAST)
 def test_infinite_and_unreached_hardness_give_the_elastic_answer(square, name: str) -> None:
     b, d, p_el = square
     inst = b.build(d, hardness=math.inf)
