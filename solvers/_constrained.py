@@ -1,7 +1,7 @@
-"""Load control and hardness bounds in the Polonsky-Keer CCG (not a solver module: the
+"""Load control and hardness bounds in the constrained CGs (not a solver module: the
 registry skips "_" names): the one home of the rules that ``pk`` (``pk.pk_constrained``,
-P & K's own two-matvec loop) and the fast Polonsky-Keer loop (``polonsky_keer_box``,
-fast-ccg and fast-pccg) share.
+P & K's own two-matvec loop) and the fast CCGs' loops (``polonsky_keer_box`` for fast-ccg
+and fast-pccg, ``bugnicourt_load`` for fast-dual-ccg and fast-dual-pccg) share.
 
 The problem (``problems.constraints``): min 1/2 p'Hp - ubar'p on 0 <= p <= u, with the
 load equality sum(p) = P when one is posed; w = Hp - ubar - Delta, Delta the equality's
@@ -24,14 +24,15 @@ Each iteration, on the CG set F = {0 < p < u} plus the plastic points that want 
 force (p = u, w > 0; when no point is inside the box: every point that wants to move),
 with g = Hp - ubar kept by the cheap update g -= tau Ht:
 
-* Delta = mean(g_F) under load control (P & K eq. (9); with no point strictly inside the
-  box, the Delta fitted from p), else 0; r = g - Delta on F;
+* Delta = the mean gap over {0 < p < u} under load control (P & K eq. (9); with no point
+  strictly inside the box, the Delta fitted from p), else 0; r = g - Delta on F;
 * z = M^-1 r on F (M = I unpreconditioned).  Under load control the direction must keep
   sum(p) on F: z is projected onto {1'z = 0} in the metric of M,
   z <- z - (1'z / 1'M^-1 1) M^-1 1 (``zero_sum``).  This is the preconditioned CG of
-  the equality-constrained problem on F (the projector P = M^-1 - M^-1 1 (1'M^-1 1)^-1 1'M^-1
-  is symmetric positive semidefinite on {1'x = 0} and P 1 = 0, so r'Pr = r'z >= 0 and
-  Delta does not change z); without M it is z = r - mean(r_F), P & K's own direction;
+  the equality-constrained problem on F: z = P r with P = M^-1 - M^-1 1 (1'M^-1 1)^-1 1'M^-1,
+  symmetric positive semidefinite (M SPD), 1'P = 0 (the step keeps the load) and P 1 = 0
+  (Delta does not change z), so G = r'z = r'Pr >= 0 as CG needs.  Without M it is
+  z = r - mean(r_F), P & K's own direction;
 * t = z + (G / G_old) t on F, G = r'z; tau = r't / t'Ht; p -= tau t;
 * projection: p clipped to [0, u]; the penetrating points at rest outside F (p = 0,
   w < 0) get p = -tau m_j (g_j - Delta) (m_j = 1, or the preconditioner's solo inverse
@@ -52,8 +53,8 @@ iterations, 34 matvecs).
 So one matvec per iteration while the projection is inactive, two otherwise (pk: two
 always).  It stops on the harness's scaled KKT error of (p, g, Delta) -- under load
 control the worse of the loop's Delta and the one fitted from p (``_kkt``) -- confirmed
-on a recomputed g, and reports the loop's Delta as the multiplier.  A load the box cannot carry (sum(u) <
-P) is refused before any solve (``Constraints.check``).
+on a recomputed g, and reports the loop's Delta as the multiplier.  A load the box
+cannot carry (sum(u) < P) is refused before any solve (``Constraints.check``).
 """
 
 from __future__ import annotations
@@ -159,7 +160,8 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
     """Delta and the CG set: under load control Delta is the mean gap over the interior
     {0 < p < u} (P & K), or, with no point inside, the one fitted from p
     (``fit_multiplier``: every point at a bound); 0 without a load.  The CG set is the
-    interior, or when it is empty the points that want to move."""
+    interior and the plastic points that want to shed force, or when no point is inside
+    every point that wants to move (module doc)."""
     p, g = state.p, state.g
     interior = (p > 0.0) & (p < u)
     inside = bool(np.any(interior))
@@ -173,7 +175,7 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
 
 def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
     """(KKT error, Delta, free set) of the state.  Under load control the error is the
-    worse of the two readings of Delta: the loop's (the mean gap over the free set) and
+    worse of the two readings of Delta: the loop's (the mean gap over the interior) and
     the one a judge fits from p alone (``fit_multiplier``, what ``SolveContext.kkt``
     takes without one), so a converged answer passes either way."""
     delta, free = _approach_and_free_set(state, u, ctx.constraints)
