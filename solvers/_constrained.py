@@ -33,7 +33,11 @@ with g = Hp - ubar kept by the cheap update g -= tau Ht:
   symmetric positive semidefinite (M SPD), 1'P = 0 (the step keeps the load) and P 1 = 0
   (Delta does not change z), so G = r'z = r'Pr >= 0 as CG needs.  Without M it is
   z = r - mean(r_F), P & K's own direction;
-* t = z + (G / G_old) t on F, G = r'z; tau = r't / t'Ht; p -= tau t;
+* t = z + (G / G_old) t on F, G = r'z; under load control without M, t -= mean(t_F) (P &
+  K: the direction sums to zero on F even after F changed, so a step moves the load only
+  where it clips; measured on RMD 65^2 BCC under load control, 91 -> 51 matvecs to 1e-10;
+  the same projection in M's metric made fast-pccg stall on one case in 35, so with M
+  only z is projected); tau = r't / t'Ht; p -= tau t;
 * projection: p clipped to [0, u]; the penetrating points at rest outside F (p = 0,
   w < 0) get p = -tau m_j (g_j - Delta) (m_j = 1, or the preconditioner's solo inverse
   1/H_jj: ``_ccg.entering_force``); under load control the forces are scaled to P.
@@ -234,6 +238,8 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
             z = zero_sum(M, z, free)
         G = float(r @ z)
         t = z if reset or G_old == 0.0 else np.where(free, z + (G / G_old) * t, 0.0)
+        if load and M is None and not reset:  # P & K: the direction itself sums to zero on F
+            t = np.where(free, t - mean_on(t, free), 0.0)
         q = state.H.matvec(t)
         tq = float(t @ q)
         if not tq > 0.0:  # t = 0 or lost positive definiteness by round-off: recompute, restart
