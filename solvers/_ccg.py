@@ -170,9 +170,15 @@ class GapState:
         self.g += alpha * Hd
         self._since_refresh += 1
 
-    def step(self, alpha: float, d: np.ndarray, Hd: np.ndarray) -> bool:
-        """p <- max(p + alpha d, 0); returns True when the projection was active."""
+    def step(self, alpha: float, d: np.ndarray, Hd: np.ndarray, upper: np.ndarray | None = None) -> bool:
+        """p <- max(p + alpha d, 0), and <= ``upper`` when given; returns True when the
+        projection was active.  A force cut to its upper bound is not a raise, so then the
+        gap is recomputed (one matvec)."""
         self.advance(alpha, d, Hd)
+        if upper is not None and np.any(self.p > upper):
+            np.clip(self.p, 0.0, upper, out=self.p)
+            self.refresh()
+            return True
         clipped = float(np.min(self.p, initial=0.0)) < 0.0
         if clipped:
             cols = np.flatnonzero(self.p < 0.0)
@@ -235,6 +241,8 @@ class CCGRun:
     kkt: float
     converged: bool
     stalled: bool = False
+    #: Under load control, the approach Delta of the last iterate (None: no load equality).
+    multiplier: float | None = None
 
 
 def converged_now(ctx: SolveContext, state: GapState) -> tuple[bool, float]:
@@ -327,15 +335,29 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
     return CCGRun(max_iter, run.kkt, False)
 
 
-def dual_residual(state: GapState) -> np.ndarray:
-    """Gap with the admissible multipliers (p = 0, g >= 0) removed."""
-    return np.where((state.p <= 0.0) & (state.g >= 0.0), 0.0, state.g)
+def at_rest(p: np.ndarray, g: np.ndarray, upper: np.ndarray | None = None) -> np.ndarray:
+    """The points held by an admissible multiplier: at the lower bound with g >= 0, or at
+    the upper bound with g <= 0 (g: the gap, less Delta under load control).  The one
+    home of the rule; a point at a bound and not at rest wants to move inside
+    (``_constrained.wants_to_move``)."""
+    rest = (p <= 0.0) & (g >= 0.0)
+    if upper is not None:
+        rest |= (p >= upper) & (g <= 0.0)
+    return rest
 
 
-def inward(d: np.ndarray, state: GapState, res: np.ndarray) -> np.ndarray:
-    """d, in place, with no component at a point at the bound (p = 0) that is at rest
-    (res = 0) or that d would push below it (d < 0): module doc, "Points at the bound"."""
+def dual_residual(state: GapState, upper: np.ndarray | None = None) -> np.ndarray:
+    """Gap with the admissible multipliers removed (``at_rest``)."""
+    return np.where(at_rest(state.p, state.g, upper), 0.0, state.g)
+
+
+def inward(d: np.ndarray, state: GapState, res: np.ndarray, upper: np.ndarray | None = None) -> np.ndarray:
+    """d, in place, with no component at a point at a bound that is at rest (res = 0) or
+    that d would push out of the box (d < 0 at p = 0, d > 0 at p = upper): module doc,
+    "Points at the bound"."""
     np.copyto(d, 0.0, where=(state.p == 0.0) & ((res == 0.0) | (d < 0.0)))
+    if upper is not None:
+        np.copyto(d, 0.0, where=(state.p >= upper) & ((res == 0.0) | (d > 0.0)))
     return d
 
 
@@ -345,10 +367,15 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
     ``ctx.tol``, ``max_iter`` (default ``ctx.max_iter``) or the deadline.  One matvec per
     iteration, plus one when the projection clips and the partial product does not pay
     ("Raised forces").  The trace numbers iterations from
-    ``first``."""
+    ``first``.  With upper bounds (``ctx.constraints.bounded``: a hardness) the projection
+    is onto the box 0 <= p <= u, the residual drops the admissible multipliers at both
+    bounds (``at_rest``) and the preconditioner acts on the rest; a clip at the upper
+    bound costs one matvec (``GapState.step``).  Without bounds: the same iterates as
+    before they were posed.  The load equality: ``_constrained.bugnicourt_load``."""
     max_iter = ctx.max_iter if max_iter is None else max_iter
-    res = dual_residual(state)
-    d = inward(-precondition_on(M, res, res != 0.0), state, res)
+    u = ctx.constraints.upper if ctx.constraints.bounded else None
+    res = dual_residual(state, u)
+    d = inward(-precondition_on(M, res, res != 0.0), state, res, u)
     run = CCGRun(0, np.inf, False)
     for it in range(1, max_iter + 1):
         run = checkpoint(ctx, state, it - 1, first)
@@ -358,22 +385,22 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         dHd = float(d @ Hd)
         if dHd <= 0.0:  # d = 0 (converged up to round-off) or lost conjugacy: restart
             state.refresh()
-            res = dual_residual(state)
-            d = inward(-precondition_on(M, res, res != 0.0), state, res)
+            res = dual_residual(state, u)
+            d = inward(-precondition_on(M, res, res != 0.0), state, res, u)
             if not np.any(d):
                 kkt = ctx.kkt(state.p, state.g)
                 return CCGRun(it, kkt, kkt <= ctx.tol, stalled=kkt > ctx.tol)
             continue
         alpha = -float(res @ d) / dHd
-        state.step(alpha, d, Hd)
+        state.step(alpha, d, Hd, u)
         res_old = res
-        res = dual_residual(state)
+        res = dual_residual(state, u)
         z = precondition_on(M, res, res != 0.0)
         # Polak-Ribiere (preconditioned: z = M^-1 res); alpha d'Hd = -res_old'd.
         beta = (float(z @ res) - float(z @ res_old)) / (alpha * dHd)
         d *= beta  # d <- -z + beta d, in place (d is this loop's own array)
         d -= z
-        inward(d, state, res)
+        inward(d, state, res, u)
     return CCGRun(max_iter, run.kkt, False)
 
 
@@ -390,6 +417,7 @@ def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:
         w=state.g if state.exact else None,
         status=Status.STALLED if run.stalled and not run.converged else None,
         info=dict(info or {}),
+        multiplier=run.multiplier,
     )
 
 
@@ -419,7 +447,11 @@ class FastSolver(Solver):
         return False
 
     def iterate(self, ctx: SolveContext) -> Outcome:
-        """``iterate_on`` the QP's screened set (solvers/_screen.py), or on the whole QP."""
+        """``iterate_on`` the QP's screened set (solvers/_screen.py), or on the whole QP --
+        always the whole QP under load control: the screening rule bounds the gap at
+        Delta = 0, and the approach Delta is an unknown there."""
+        if ctx.constraints.load_control:
+            return self.iterate_on(ctx)
         return solve_screened(ctx, self.iterate_on)
 
     @abstractmethod

@@ -27,6 +27,14 @@ fast-ccg, plus the coarse solves' -- so "zero" stays the default).  They minimis
 min 1/2 p'Hp - ubar'p, p >= 0, stop on the harness's scaled KKT error
 (``SolveContext.kkt``) confirmed on a freshly recomputed gap, and are exact.
 Warm start: primal (``ctx.p0``), and its support is the first contact set.
+
+Hardness and load (``problems.constraints``): all four pose a hardness (the box
+0 <= p <= u): the Polonsky-Keer ones with Almqvist's saturation, the Bugnicourt ones by
+projection onto the box (solvers/_ccg.py, ``bugnicourt``).  All four pose load control
+as well (sum(p) = P, the approach Delta reported as the multiplier: solvers/_constrained.py,
+``polonsky_keer_box`` and ``bugnicourt_load``).  Under constraints: precision is double (solvers/_refine.py), the coarse
+first guess is ignored, and a load-controlled QP is not screened (solvers/_ccg.py,
+``FastSolver.iterate``).  Without constraints: the same iterates as before they existed.
 """
 
 from __future__ import annotations
@@ -36,11 +44,12 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_keer
+from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._kit import FIRST_GUESSES, coarse_first_guess
 from ._preconditioners import KINDS, make_preconditioner
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
-from .base import Outcome, Param, SolveContext, Solver
+from .base import Capabilities, Outcome, Param, SolveContext, Solver
 from .registry import register
 
 CCGLoop = Callable[..., CCGRun]
@@ -57,9 +66,14 @@ def first_guess_param() -> Param:
 
 def starting_state(solver: Solver, ctx: SolveContext) -> tuple[GapState, dict[str, Any]]:
     """The state at the warm start, else at the first guess of ``params["first_guess"]``
-    (the coarse solve's matvecs are counted, and reported as "coarse_matvecs")."""
-    if ctx.p0 is not None or ctx.params.get("first_guess", "zero") == "zero":
+    (the coarse solve's matvecs are counted, and reported as "coarse_matvecs").  Under
+    constraints (a hardness, a load) the coarse grid poses the plain problem, so the
+    first guess is ignored there ("first_guess": "zero (constraints)")."""
+    wanted = ctx.params.get("first_guess", "zero")
+    if ctx.p0 is not None or wanted == "zero":
         return GapState.start(ctx), {}
+    if not ctx.constraints.plain:
+        return GapState.start(ctx), {"first_guess": "zero (constraints)"}
     guess = coarse_first_guess(solver, ctx)
     ctx.add_matvecs(guess.matvecs)
     info = {"first_guess": guess.note, "coarse_matvecs": guess.matvecs, "coarse_iterations": guess.iterations}
@@ -76,6 +90,8 @@ class _FastCCG(FastSolver):
 
     #: The loop of solvers/_ccg.py (``staticmethod(polonsky_keer)`` or ``(bugnicourt)``).
     loop: ClassVar[CCGLoop]
+    #: The loop for a QP with a hardness or a load (None: ``loop`` poses them itself).
+    constrained_loop: ClassVar[CCGLoop | None] = None
 
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
@@ -83,7 +99,8 @@ class _FastCCG(FastSolver):
         M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(precision))
         ctx.mark_setup_done()
         state, info = starting_state(self, ctx)
-        run, more = solve_in_precision(ctx, state, self.loop, M)
+        loop = self.loop if ctx.constraints.plain or self.constrained_loop is None else self.constrained_loop
+        run, more = solve_in_precision(ctx, state, loop, M)
         info.update(more)
         if M is not None:
             info["preconditioner_builds"] = M.builds
@@ -97,8 +114,11 @@ class FastPolonskyKeer(_FastCCG):
 
     name = "fast-ccg"
     description = "Polonsky-Keer constrained CG on the FFT operator, warm-started (Wear 1999)"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}), needs_dense=False, warm_start="primal",
+                                exact=True, load_control=True, bounds=True)
 
     loop = staticmethod(polonsky_keer)
+    constrained_loop = staticmethod(polonsky_keer_box)
 
 
 @register
@@ -108,8 +128,11 @@ class FastBugnicourtCCG(_FastCCG):
 
     name = "fast-dual-ccg"
     description = "Bugnicourt et al. 2018 constrained CG without restart on the forces (ContactMechanics' 'dual'), FFT operator"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}), needs_dense=False, warm_start="primal",
+                                exact=True, load_control=True, bounds=True)
 
     loop = staticmethod(bugnicourt)
+    constrained_loop = staticmethod(bugnicourt_load)
 
 
 @register

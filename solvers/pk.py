@@ -36,7 +36,10 @@ Each iteration, on the free set I_c = {0 < p < u}:
   (p_Ic *= (P - sum p_S) / sum p_Ic, then clipped to the box).
 
 It stops on the harness's scaled KKT error of (p, g, Delta) (``SolveContext.kkt``) and
-reports Delta as the multiplier.  Two matvecs per iteration.  Cold start: P spread evenly
+reports Delta as the multiplier.  Two matvecs per iteration.  The re-entry rule, the
+scaling to the load and the first iterate are solvers/_constrained.py's
+(``wants_to_move``, ``scale_to_load``, ``constrained_start``), shared with the fast
+CCGs' loops.  Cold start: P spread evenly
 over the trial set (load control), else p = 0 with the whole set as the first I_c; warm:
 the previous p (scaled to the load).
 """
@@ -47,9 +50,10 @@ import math
 
 import numpy as np
 
-from contactbench.problems.constraints import Constraints, fit_multiplier
+from contactbench.problems.constraints import fit_multiplier
 
 from ._ccg import GapState, outcome, polonsky_keer
+from ._constrained import constrained_start, mean_on, scale_to_load, wants_to_move
 from ._kit import matvec_seconds
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
@@ -84,78 +88,12 @@ class PolonskyKeer(Solver):
         return 2 * TYPICAL_PK_ITERATIONS * matvec_seconds(n, operator_kind)
 
 
-def _scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
-    """p scaled so that sum(p) = P: the free forces scaled, the plastic ones kept (Almqvist
-    et al.); when that fails (the plastic points alone exceed P, or a free one is
-    scaled past its cap) every force is scaled, sum(min(s p, u)) = P (P & K's scaling, the
-    box's cap applied after it; s by bisection, then exact on the uncapped points).  When
-    the points carrying force cannot hold P at their caps, the rest goes to the others in
-    the order of their gap ``g`` (the most penetrating first, each up to its cap; without
-    g, evenly)."""
-    if c.load is None:
-        return p
-    load = float(c.load)
-    sat = p >= u
-    free = (p > 0.0) & ~sat
-    rest, carried = load - float(np.sum(p[sat])), float(np.sum(p[free]))
-    if rest >= 0.0 and carried > 0.0:  # Almqvist: the plastic points keep their force
-        p[free] *= rest / carried
-        if np.all(p[free] <= u[free]):
-            return p
-    on = p > 0.0
-    if float(np.sum(u[on])) <= load:
-        p[on] = u[on]
-        off = np.flatnonzero(~on)
-        rest = load - float(np.sum(p[on]))
-        if g is None:
-            p[off] = np.minimum(rest / max(off.size, 1), u[off])
-            return p
-        for i in off[np.argsort(g[off], kind="stable")]:
-            if rest <= 0.0:
-                break
-            p[i] = min(rest, u[i])
-            rest -= p[i]
-        return p
-    lo, hi = 0.0, 1.0
-    while float(np.sum(np.minimum(hi * p, u))) < load:
-        lo, hi = hi, 2.0 * hi
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if float(np.sum(np.minimum(mid * p, u))) < load:
-            lo = mid
-        else:
-            hi = mid
-    q = np.minimum(hi * p, u)
-    free = q < u
-    carried = float(np.sum(q[free]))
-    if carried > 0.0:
-        q[free] *= (load - float(np.sum(q[~free]))) / carried
-    return np.minimum(q, u, out=q)
-
-
-def _mean_on(x: np.ndarray, mask: np.ndarray) -> float:
-    k = int(np.count_nonzero(mask))
-    return float(np.sum(x[mask])) / k if k else 0.0
-
-
-def pk_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
-    """The first iterate (module doc)."""
-    c = ctx.constraints
-    if ctx.p0 is not None and np.any(ctx.p0 > 0.0):
-        return _scale_to_load(ctx.p0.copy(), c, u)
-    if c.load is None:
-        return np.zeros(ctx.n)
-    return np.minimum(np.full(ctx.n, float(c.load) / ctx.n), u)
-
-
 def pk_constrained(ctx: SolveContext) -> Outcome:
     """Polonsky & Keer (1999) under load control with Almqvist's saturation (module doc)."""
     H, ubar, c = ctx.qp.H, ctx.qp.ubar, ctx.constraints
     u = c.upper_or_inf(ctx.n)
     load = c.load is not None
-    p = pk_start(ctx, u)
+    p = constrained_start(ctx, u)
     t = np.zeros(ctx.n)
     G_old, conj = 1.0, False
     delta = 0.0
@@ -166,9 +104,9 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         if first:
             free = np.ones(ctx.n, dtype=bool)
         if not np.any(free):  # every element at a bound: those whose gradient points inward move
-            free = ((p <= 0.0) & (g - delta < 0.0)) | ((p >= u) & (g - delta > 0.0))
+            free = wants_to_move(p, g - delta, u)
         if load:
-            delta = _mean_on(g, free) if np.any(free) else fit_multiplier(g, p, c.upper)
+            delta = mean_on(g, free) if np.any(free) else fit_multiplier(g, p, c.upper)
         res = ctx.kkt(p, g, delta if load else None)
         ctx.record(it, res)
         if res <= (ctx.tol or 0.0):
@@ -182,7 +120,7 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         G_old = G
         r = H.matvec(t)
         if load:
-            r -= _mean_on(r, free)
+            r -= mean_on(r, free)
         den = float(r[free] @ t[free])
         if not den > 0.0:
             break
@@ -190,12 +128,11 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         p = p - tau * t
         np.maximum(p, 0.0, out=p)
         np.minimum(p, u, out=p)
-        wants = ((p <= 0.0) & (g - delta < 0.0)) | ((p >= u) & (g - delta > 0.0))
-        wants &= ~free
+        wants = wants_to_move(p, g - delta, u) & ~free
         conj = not np.any(wants)
         if not conj:
             p[wants] -= tau * (g[wants] - delta)
             np.clip(p, 0.0, u, out=p)
-        p = _scale_to_load(p, c, u, g - delta)
+        p = scale_to_load(p, c, u, g - delta)
     return Outcome(p, it, False, w=g, multiplier=delta if load else None,
                    status=None if math.isfinite(res) else Status.FAILED)

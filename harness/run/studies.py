@@ -278,8 +278,10 @@ GREEDY_INNER_SOLVES: tuple[str, ...] = ("greedy-cg", "greedy-gs", "greedy-chol")
 #: The solvers of the load-controlled and the hardness-bounded sweeps: ours that pose the
 #: family, and the field's codes in their native modes (each skipped, with the reason,
 #: where it cannot pose the problem or is not installed).
-LOAD_CONTROL_SOLVERS: tuple[str, ...] = ("pk", "gp", "cm-pk-ccg", "tamaas-pkr", "tamaas-kato-saturated")
-HARDNESS_SOLVERS: tuple[str, ...] = ("pk", "gp", "greedy-cg", "cm-pk-ccg", "tamaas-kato-saturated")
+LOAD_CONTROL_SOLVERS: tuple[str, ...] = ("pk", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "gp",
+                                         "cm-pk-ccg", "tamaas-pkr", "tamaas-kato-saturated")
+HARDNESS_SOLVERS: tuple[str, ...] = ("pk", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "gp", "greedy-cg",
+                                     "cm-pk-ccg", "tamaas-kato-saturated")
 
 STUDIES: dict[str, Study] = {s.scene: s for s in (
     Study("gp-k-sweep", solvers=("nnls-gp",), sweeps=(GP_K_SWEEP,)),

@@ -161,7 +161,8 @@ def test_bounded_solvers_skip_and_refuse_correctly() -> None:
         assert "cannot pose bounded pressures" in get_solver(name).skip(traits)
         with pytest.raises(ProblemInputError, match="bounded"):
             get_solver(name).solve(inst.qp)
-    assert get_solver("greedy-cg").skip(traits) is None
+    for name in ("greedy-cg", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg"):
+        assert get_solver(name).skip(traits) is None
     assert "load control" in get_solver("greedy-cg").skip(ProblemTraits(n=4, operator="dense", load_control=True))
 
 

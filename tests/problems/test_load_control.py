@@ -128,12 +128,13 @@ def test_solvers_that_cannot_pose_load_control_say_so() -> None:
     b = builder(8)
     inst = b.build_load(1e-3)
     traits = ProblemTraits(n=inst.n, operator="dense", load_control=True)
-    for name in ("fast-ccg", "fast-pdas", "nnls", "scipy-nnls", "greedy-cg"):
+    for name in ("fast-pdas", "nnls", "scipy-nnls", "greedy-cg"):
         s = get_solver(name)
         assert "cannot pose load control" in s.skip(traits)
         with pytest.raises(ProblemInputError, match="cannot pose load control"):
             s.solve(inst.qp)
-    assert get_solver("pk").skip(traits) is None
+    for name in ("pk", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg"):
+        assert get_solver(name).skip(traits) is None
 
 
 def test_the_result_gap_includes_the_multiplier(sweep) -> None:

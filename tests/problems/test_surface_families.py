@@ -182,8 +182,9 @@ def test_a_direction_never_points_out_at_the_bound():
     assert res @ d < res @ -z < 0.0  # still a descent direction, a steeper one
 
 
-def old_inward(d, state, res):
-    """The rule before: only the points at rest at the bound (res = 0) were held."""
+def old_inward(d, state, res, upper=None):
+    """The rule before: only the points at rest at the bound (res = 0) were held (no upper
+    bounds on this case)."""
     np.copyto(d, 0.0, where=(res == 0.0) & (state.p == 0.0))
     return d
 

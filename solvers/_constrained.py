@@ -1,0 +1,340 @@
+"""Load control and hardness bounds in the constrained CGs (not a solver module: the
+registry skips "_" names): the one home of the rules that ``pk`` (``pk.pk_constrained``,
+P & K's own two-matvec loop) and the fast CCGs' loops (``polonsky_keer_box`` for fast-ccg
+and fast-pccg, ``bugnicourt_load`` for fast-dual-ccg and fast-dual-pccg) share.
+
+The problem (``problems.constraints``): min 1/2 p'Hp - ubar'p on 0 <= p <= u, with the
+load equality sum(p) = P when one is posed; w = Hp - ubar - Delta, Delta the equality's
+multiplier (the rigid approach).
+
+* ``wants_to_move`` -- a point at a bound that is not held by an admissible multiplier
+  (``_ccg.at_rest``): p = 0 with w < 0 (it penetrates) or p = u with w > 0 (Almqvist,
+  Sahlin, Larsson & Lugt, Tribol. Int. 40 (2007) 574: a plastic point that wants to shed
+  force).  It re-enters and the conjugacy is reset.
+* ``scale_to_load`` -- sum(p) = P restored after a projection (Polonsky & Keer 1999,
+  section 3; the plastic points keep their force, Almqvist et al.).
+* ``constrained_start`` -- the first iterate: the warm start scaled to the load, else P
+  spread evenly (capped by the box), else p = 0.
+* ``polonsky_keer_box`` -- the fast loop (below);
+* ``bugnicourt_load`` -- Bugnicourt et al.'s loop under load control (its docstring).
+
+The fast loop, ``polonsky_keer_box``
+------------------------------------
+Each iteration, on the CG set F = {0 < p < u} plus the plastic points that want to shed
+force (p = u, w > 0; when no point is inside the box: every point that wants to move),
+with g = Hp - ubar kept by the cheap update g -= tau Ht:
+
+* Delta = the mean gap over {0 < p < u} under load control (P & K eq. (9); with no point
+  strictly inside the box, the Delta fitted from p), else 0; r = g - Delta on F;
+* z = M^-1 r on F (M = I unpreconditioned).  Under load control the direction must keep
+  sum(p) on F: z is projected onto {1'z = 0} in the metric of M,
+  z <- z - (1'z / 1'M^-1 1) M^-1 1 (``zero_sum``).  This is the preconditioned CG of
+  the equality-constrained problem on F: z = P r with P = M^-1 - M^-1 1 (1'M^-1 1)^-1 1'M^-1,
+  symmetric positive semidefinite (M SPD), 1'P = 0 (the step keeps the load) and P 1 = 0
+  (Delta does not change z), so G = r'z = r'Pr >= 0 as CG needs.  Without M it is
+  z = r - mean(r_F), P & K's own direction;
+* t = z + (G / G_old) t on F, G = r'z; under load control without M, t -= mean(t_F) (P &
+  K: the direction sums to zero on F even after F changed, so a step moves the load only
+  where it clips; measured on RMD 65^2 BCC under load control, 91 -> 51 matvecs to 1e-10;
+  the same projection in M's metric made fast-pccg stall on one case in 35, so with M
+  only z is projected); tau = r't / t'Ht; p -= tau t;
+* projection: p clipped to [0, u]; the penetrating points at rest outside F (p = 0,
+  w < 0) get p = -tau m_j (g_j - Delta) (m_j = 1, or the preconditioner's solo inverse
+  1/H_jj: ``_ccg.entering_force``); under load control the forces are scaled to P.
+  Whenever the projection changed p, g is recomputed (one matvec); a point entering or a
+  plastic point rejoining F resets the conjugacy (a point only leaving does not, as in
+  P & K).
+
+Why the plastic points rejoin F instead of shedding by a jump as in ``pk`` (p_j -= tau
+w_j): preconditioned, tau is dimensionless and the jump is m_j w_j = w_j / H_jj, each
+point's shed as if it stood alone.  A plastic region is a block of strongly coupled
+points, so its points shed together many times what they should, the freed load made
+as many zero points penetrate, and the set oscillated (RMD 65^2, BCC, hardness 0.3 of
+the elastic peak: fast-pccg at max_iter with 115 of 178 points plastic against 15).  In
+F they move along the preconditioned direction, which sees the coupling (same case: 23
+iterations, 34 matvecs).
+
+So one matvec per iteration while the projection is inactive, two otherwise (pk: two
+always).  It stops on the harness's scaled KKT error of (p, g, Delta) -- under load
+control the worse of the loop's Delta and the one fitted from p (``_kkt``) -- confirmed
+on a recomputed g, and reports the loop's Delta as the multiplier.  A load the box
+cannot carry (sum(u) < P) is refused before any solve (``Constraints.check``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from contactbench.problems.constraints import Constraints, fit_multiplier
+
+from ._ccg import CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, precondition_on
+from ._preconditioners import SetPreconditioner
+from .base import SolveContext
+
+
+def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The points at a bound that an admissible multiplier does not hold (module doc):
+    p = 0 with w < 0, p = u with w > 0 (w: the gap less Delta)."""
+    return ((p <= 0.0) | (p >= upper)) & ~at_rest(p, w, upper)
+
+
+def mean_on(x: np.ndarray, mask: np.ndarray) -> float:
+    """The mean of x over ``mask`` (0 on an empty mask)."""
+    k = int(np.count_nonzero(mask))
+    return float(np.sum(x[mask])) / k if k else 0.0
+
+
+def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """p scaled so that sum(p) = P: the free forces scaled, the plastic ones kept (Almqvist
+    et al.); when that fails (the plastic points alone exceed P, or a free one is
+    scaled past its cap) every force is scaled, sum(min(s p, u)) = P (P & K's scaling, the
+    box's cap applied after it; s by bisection, then exact on the uncapped points).  When
+    the points carrying force cannot hold P at their caps, the rest goes to the others in
+    the order of their gap ``g`` (the most penetrating first, each up to its cap; without
+    g, evenly).  p itself without a load equality."""
+    if c.load is None:
+        return p
+    load = float(c.load)
+    sat = p >= u
+    free = (p > 0.0) & ~sat
+    rest, carried = load - float(np.sum(p[sat])), float(np.sum(p[free]))
+    if rest >= 0.0 and carried > 0.0:  # Almqvist: the plastic points keep their force
+        p[free] *= rest / carried
+        if np.all(p[free] <= u[free]):
+            return p
+    on = p > 0.0
+    if float(np.sum(u[on])) <= load:
+        p[on] = u[on]
+        off = np.flatnonzero(~on)
+        rest = load - float(np.sum(p[on]))
+        if g is None:
+            p[off] = np.minimum(rest / max(off.size, 1), u[off])
+            return p
+        for i in off[np.argsort(g[off], kind="stable")]:
+            if rest <= 0.0:
+                break
+            p[i] = min(rest, u[i])
+            rest -= p[i]
+        return p
+    lo, hi = 0.0, 1.0
+    while float(np.sum(np.minimum(hi * p, u))) < load:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if float(np.sum(np.minimum(mid * p, u))) < load:
+            lo = mid
+        else:
+            hi = mid
+    q = np.minimum(hi * p, u)
+    free = q < u
+    carried = float(np.sum(q[free]))
+    if carried > 0.0:
+        q[free] *= (load - float(np.sum(q[~free]))) / carried
+    return np.minimum(q, u, out=q)
+
+
+def constrained_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
+    """The first iterate (module doc): the warm start scaled to the load, else P spread
+    evenly (capped by the box), else p = 0."""
+    c = ctx.constraints
+    if ctx.p0 is not None and np.any(ctx.p0 > 0.0):
+        return scale_to_load(np.minimum(ctx.p0, u), c, u)
+    if c.load is None:
+        return np.zeros(ctx.n)
+    return scale_to_load(np.minimum(np.full(ctx.n, float(c.load) / ctx.n), u), c, u)
+
+
+def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """z (= M^-1 r on ``free``, 0 elsewhere) projected onto {sum over free = 0} in the
+    metric of M: z - (1'z / 1'M^-1 1) M^-1 1 (module doc); z - mean(z_free) without M."""
+    if M is None:
+        return np.where(free, z - mean_on(z, free), 0.0)
+    m1 = np.where(free, M.apply(free.astype(np.float64)), 0.0)
+    den = float(np.sum(m1))
+    if not den > 0.0:  # M^-1 not positive on 1 (cannot happen for an SPD M): plain projection
+        return np.where(free, z - mean_on(z, free), 0.0)
+    return np.where(free, z - (float(np.sum(z[free])) / den) * m1, 0.0)
+
+
+def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
+    """Delta and the CG set: under load control Delta is the mean gap over the interior
+    {0 < p < u} (P & K), or, with no point inside, the one fitted from p
+    (``fit_multiplier``: every point at a bound); 0 without a load.  The CG set is the
+    interior and the plastic points that want to shed force, or when no point is inside
+    every point that wants to move (module doc)."""
+    p, g = state.p, state.g
+    interior = (p > 0.0) & (p < u)
+    inside = bool(np.any(interior))
+    delta = 0.0
+    if c.load is not None:
+        delta = mean_on(g, interior) if inside else fit_multiplier(g, p, c.upper)
+    if not inside:
+        return delta, wants_to_move(p, g - delta, u)
+    return delta, interior | ((p >= u) & (g - delta > 0.0))
+
+
+def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """(KKT error, Delta, free set) of the state.  Under load control the error is the
+    worse of the two readings of Delta: the loop's (the mean gap over the interior) and
+    the one a judge fits from p alone (``fit_multiplier``, what ``SolveContext.kkt``
+    takes without one), so a converged answer passes either way."""
+    delta, free = _approach_and_free_set(state, u, ctx.constraints)
+    if not ctx.constraints.load_control:
+        return ctx.kkt(state.p, state.g), delta, free
+    return max(ctx.kkt(state.p, state.g, delta), ctx.kkt(state.p, state.g)), delta, free
+
+
+def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """``_kkt``, confirmed on a recomputed gap when it meets the tolerance."""
+    kkt, delta, free = _kkt(ctx, state, u)
+    if kkt <= ctx.tol and state.confirm:
+        state.refresh()
+        kkt, delta, free = _kkt(ctx, state, u)
+    return kkt, delta, free
+
+
+def feasible_start(ctx: SolveContext, state: GapState, u: np.ndarray) -> None:
+    """Move the state's p into the feasible set: ``constrained_start`` when it is 0, else
+    p capped by u and scaled to the load (its gap recomputed when p changed)."""
+    c = ctx.constraints
+    p = constrained_start(ctx, u) if not np.any(state.p > 0.0) else scale_to_load(np.minimum(state.p, u), c, u)
+    if not np.array_equal(p, state.p):
+        state.p = p
+        state.refresh()
+
+
+def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
+                      max_iter: int | None = None, first: int = 0) -> CCGRun:
+    """The Polonsky-Keer CCG under ``ctx.constraints`` (module doc) from ``state`` until
+    ``ctx.tol``, ``max_iter`` (default ``ctx.max_iter``) or the deadline.  The state's p
+    is first moved into the feasible set (``constrained_start`` when cold).  The trace
+    numbers iterations from ``first``."""
+    c = ctx.constraints
+    max_iter = ctx.max_iter if max_iter is None else max_iter
+    u = c.upper_or_inf(ctx.n)
+    load = c.load_control
+    feasible_start(ctx, state, u)
+    t = np.zeros_like(state.p)
+    G_old, reset = 1.0, True
+    run = CCGRun(0, math.inf, False)
+    last = np.zeros(ctx.n, dtype=bool)
+    for it in range(1, max_iter + 1):
+        kkt, delta, free = _checked(ctx, state, u)
+        reset |= bool(np.any(free & ~last & (state.p > 0.0)))  # a plastic point rejoined the set
+        last = free
+        ctx.record(first + it - 1, kkt)
+        run = CCGRun(it - 1, kkt, kkt <= ctx.tol, multiplier=delta if load else None)
+        if run.converged or ctx.expired() or not math.isfinite(kkt):
+            return run
+        if not np.any(free):
+            return CCGRun(it - 1, kkt, False, stalled=True, multiplier=run.multiplier)
+        r = np.where(free, state.g - delta, 0.0)
+        z = np.where(free, precondition_on(M, r, free), 0.0)
+        if load:
+            z = zero_sum(M, z, free)
+        G = float(r @ z)
+        t = z if reset or G_old == 0.0 else np.where(free, z + (G / G_old) * t, 0.0)
+        if load and M is None and not reset:  # P & K: the direction itself sums to zero on F
+            t = np.where(free, t - mean_on(t, free), 0.0)
+        q = state.H.matvec(t)
+        tq = float(t @ q)
+        if not tq > 0.0:  # t = 0 or lost positive definiteness by round-off: recompute, restart
+            state.refresh()
+            if reset:
+                return CCGRun(it, kkt, False, stalled=True, multiplier=run.multiplier)
+            reset = True
+            continue
+        tau = float(r @ t) / tq
+        entering = np.flatnonzero((state.p <= 0.0) & (state.g - delta < 0.0) & ~free)
+        force = entering_force(M, tau, state.g - delta, entering)
+        state.advance(-tau, t, q)
+        moved = _project(state.p, u, entering, force, c, state.g - delta)
+        if moved:
+            state.refresh()
+        reset = bool(entering.size)
+        G_old = G
+    return CCGRun(max_iter, run.kkt, False, multiplier=run.multiplier)
+
+
+def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarray, c: Constraints,
+             w: np.ndarray) -> bool:
+    """p, in place, back in the feasible set after a step (module doc): clipped to the box,
+    the entering points moved by ``force`` (a raise at p = 0, a cut at p = u), scaled to
+    the load.  Whether p changed."""
+    before = float(np.sum(p))
+    clipped = bool(np.any(p < 0.0) or np.any(p > u))
+    np.clip(p, 0.0, u, out=p)
+    if entering.size:
+        p[entering] = np.clip(p[entering] + force, 0.0, u[entering])
+    if c.load is None:
+        return clipped or bool(entering.size)
+    total = float(np.sum(p))
+    off = abs(total - float(c.load)) > 1e-14 * max(float(c.load), abs(before))
+    if off:
+        p[:] = scale_to_load(p, c, u, w)
+    return clipped or bool(entering.size) or off
+
+
+def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
+    """(Delta, residual): Delta as in ``_approach_and_free_set``; the residual is
+    w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``)."""
+    delta, _ = _approach_and_free_set(state, u, c)
+    w = state.g - delta
+    return delta, np.where(at_rest(state.p, w, u), 0.0, w)
+
+
+def _dual_direction(M: SetPreconditioner | None, res: np.ndarray) -> np.ndarray:
+    """z = M^-1 res on the free set {res != 0}, with zero sum there (``zero_sum``)."""
+    free = res != 0.0
+    return zero_sum(M, np.where(free, precondition_on(M, res, free), 0.0), free)
+
+
+def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
+                    max_iter: int | None = None, first: int = 0) -> CCGRun:
+    """Bugnicourt et al.'s CCG (``_ccg.bugnicourt``) under load control, with or without
+    a hardness: the residual is w = g - Delta (Delta the mean gap over the interior, as
+    in the Polonsky-Keer loop) less the admissible multipliers at both bounds; the
+    direction is -z + beta d (Polak-Ribiere) with z = M^-1 res projected to zero sum on
+    the free set (``zero_sum``) and no component out of the box (``_ccg.inward``); a step
+    is projected onto the box and scaled to the load (``_project``), the gap recomputed
+    when that changed p.  Without a load: ``_ccg.bugnicourt``."""
+    c = ctx.constraints
+    if not c.load_control:
+        return bugnicourt(ctx, state, M, max_iter=max_iter, first=first)
+    max_iter = ctx.max_iter if max_iter is None else max_iter
+    u = c.upper_or_inf(ctx.n)
+    feasible_start(ctx, state, u)
+    none = np.zeros(0, dtype=np.int64)
+    _, res = _dual_residual(state, u, c)
+    d = inward(-_dual_direction(M, res), state, res, u)
+    run = CCGRun(0, math.inf, False)
+    for it in range(1, max_iter + 1):
+        kkt, delta, _ = _checked(ctx, state, u)
+        ctx.record(first + it - 1, kkt)
+        run = CCGRun(it - 1, kkt, kkt <= ctx.tol, multiplier=delta)
+        if run.converged or ctx.expired() or not math.isfinite(kkt):
+            return run
+        delta, res = _dual_residual(state, u, c)  # the gap may have been recomputed
+        Hd = state.H.matvec(d)
+        dHd = float(d @ Hd)
+        if not dHd > 0.0:  # d = 0 or lost conjugacy: restart from the steepest direction
+            state.refresh()
+            delta, res = _dual_residual(state, u, c)
+            d = inward(-_dual_direction(M, res), state, res, u)
+            if not np.any(d):
+                return CCGRun(it, kkt, False, stalled=True, multiplier=delta)
+            continue
+        alpha = -float(res @ d) / dHd
+        state.advance(alpha, d, Hd)
+        if _project(state.p, u, none, none, c, state.g - delta):
+            state.refresh()
+        res_old = res
+        delta, res = _dual_residual(state, u, c)
+        z = _dual_direction(M, res)
+        beta = (float(z @ res) - float(z @ res_old)) / (alpha * dHd)
+        d = inward(beta * d - z, state, res, u)
+    return CCGRun(max_iter, run.kkt, False, multiplier=run.multiplier)
