@@ -34,6 +34,27 @@ under load control, the KKT solve with the multiplier: ``bvls`` at an approach D
 found by regula falsi (Illinois) on the total force P(Delta) (non-decreasing), and after
 each step ``box_polish`` with the load row from that point, until one converges.  Every
 answer is certified by ``problems.kkt.constrained_figures``.
+
+Periodic load control.  A periodic kernel on the whole grid has its mean mode removed:
+H 1 = 0 (``constant_null_space``), H is positive definite only on {sum d = 0}.  The
+displacement-controlled QP at a fixed Delta is then not the sub-problem to solve (its
+P(Delta) is infinite once Delta reaches xi_max - xi_mean, the approach of full contact,
+and finite loads beyond that point all have that same Delta), so regula falsi on Delta
+does not apply.  The equality-constrained QP is solved directly instead
+(``load_active_set``): a primal active-set method in the manner of BVLS whose free
+solve is the bordered KKT system of ``solve_on_sets``,
+
+    [H_FF  -1] [p_F  ]   [ubar_F - H_FS u_S]
+    [ 1'    0] [Delta] = [P - 1'u_S        ],
+
+non-singular for every non-empty F (H is positive definite on the vectors that sum to
+zero).  It keeps p feasible (0 <= p <= u, sum p = P): a free solution that leaves the
+box is cut at the first bound reached (the load is kept along the step) and the
+elements there are fixed; on a feasible free solution the bounded element whose gap
+w = Hp - ubar - Delta has the wrong sign by most (w < 0 at p = 0, w > 0 at p = u) is
+freed, until none is.  It starts from an accelerated projected-gradient answer
+(``projected_gradient_guess``), projected onto the feasible set, and ``box_polish``
+repairs the final sets if the certificate fails.
 """
 
 from __future__ import annotations
@@ -44,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .constraints import Constraints, fit_multiplier, project_box
+from .constraints import Constraints, fit_multiplier, project_box, project_feasible
 from .kkt import constrained_figures, constrained_scales
 from .lcp import BLOCK_PATIENCE, exact_solution
 
@@ -52,6 +73,13 @@ from .lcp import BLOCK_PATIENCE, exact_solution
 CERTIFY_KKT = 1e-10
 #: Regula-falsi steps on Delta before ``constrained_exact_solution`` gives up.
 MAX_MULTIPLIER_STEPS = 60
+#: Accelerated projected-gradient steps of ``projected_gradient_guess`` (the start of the
+#: periodic load-control active set: it need only find most of the contact set).
+GUESS_STEPS = 300
+#: |H 1| / max row sum of |H| below which H annihilates the constant vector
+#: (``constant_null_space``): a periodic kernel's removed mean (round-off ~ 1e-15) passes,
+#: an aperiodic kernel's positive row sums (of order one) do not.
+NULL_SPACE_TOL = 1e-9
 
 Z, F, S = 0, 1, 2
 
@@ -239,10 +267,113 @@ def _displacement_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constra
     return bvls(H, ubar + delta, constraints.upper, p).p
 
 
+def constant_null_space(H: np.ndarray) -> bool:
+    """H 1 = 0 to round-off (``NULL_SPACE_TOL``): a periodic kernel on the whole grid,
+    its mean mode removed (module doc)."""
+    scale = float(np.max(np.sum(np.abs(H), axis=1), initial=0.0))
+    return bool(scale > 0.0 and float(np.max(np.abs(np.sum(H, axis=1)))) <= NULL_SPACE_TOL * scale)
+
+
+def projected_gradient_guess(H: np.ndarray, ubar: np.ndarray, constraints: Constraints,
+                             steps: int = GUESS_STEPS) -> np.ndarray:
+    """A feasible approximate solution: FISTA (Beck & Teboulle 2009) with the projection
+    onto the feasible set (``constraints.project_feasible``), step 1/L with L the largest
+    row sum of |H| (Gershgorin: >= the largest eigenvalue), restarted whenever the
+    momentum points uphill (O'Donoghue & Candes 2015), from the load spread evenly
+    (without a load: p = 0).  ``steps`` gradient steps (matvecs)."""
+    n = ubar.size
+    lip = float(np.max(np.sum(np.abs(H), axis=1), initial=0.0)) or 1.0
+    start = np.full(n, float(constraints.load) / n) if constraints.load_control else np.zeros(n)
+    x = project_feasible(start, constraints)
+    y, t = x, 1.0
+    for _ in range(int(steps)):
+        x_new = project_feasible(y - (H @ y - ubar) / lip, constraints)
+        if float(np.dot(y - x_new, x_new - x)) > 0.0:  # gradient restart
+            t, y = 1.0, x_new
+        else:
+            t_new = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
+            y, t = x_new + ((t - 1.0) / t_new) * (x_new - x), t_new
+        x = x_new
+    return x
+
+
+@dataclass
+class LoadActiveSetOutcome:
+    """p, the multiplier Delta, the outer iterations (elements freed), inner steps (cuts at
+    a bound; every step is one bordered solve) and whether it stopped with no element to
+    free."""
+
+    p: np.ndarray
+    multiplier: float
+    iterations: int
+    inner: int
+    converged: bool
+
+
+def load_active_set(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np.ndarray,
+                    max_iter: int | None = None, tol: float = 1e-12) -> LoadActiveSetOutcome:
+    """The primal active-set method on min 1/2 p'Hp - ubar'p, 0 <= p <= u, sum p = P
+    (module doc, periodic load control) from ``p0`` projected onto the feasible set.
+    Needs H positive definite on {sum d = 0} and a load.  An element is freed only when
+    its gap violates by more than tol x u_s."""
+    if not constraints.load_control:
+        raise ValueError("load_active_set needs a load equality")
+    load = float(constraints.load)  # type: ignore[arg-type]
+    n = ubar.size
+    u = constraints.upper_or_inf(n)
+    u_s, _ = constrained_scales(ubar, float(np.max(np.diag(H))), constraints)
+    p = project_feasible(np.asarray(p0, dtype=np.float64), constraints)
+    state = np.where(p <= 0.0, Z, np.where(p >= u, S, F)).astype(np.int8)
+    limit = 10 * n + 10 if max_iter is None else int(max_iter)
+    inner = 0
+    delta = math.nan
+    for it in range(limit + 1):
+        delta = math.nan
+        while np.any(state == F):  # the free solution made feasible, as in ``bvls``
+            z, delta = solve_on_sets(H, ubar, u, load, state)
+            p, inside = _cut_to_box(p, z, u, state)
+            inner += 1
+            if inside:
+                break
+            delta = math.nan
+        g = H @ p - ubar
+        if not math.isfinite(delta):  # no free element: Delta is any value in a range
+            delta = fit_multiplier(g, p, constraints.upper)
+        w = g - delta
+        score = np.where(state == Z, -w, np.where(state == S, w, 0.0))
+        j = int(np.argmax(score))
+        if score[j] <= tol * u_s or it == limit:
+            return LoadActiveSetOutcome(p, delta, it, inner, bool(score[j] <= tol * u_s))
+        state[j] = F
+    return LoadActiveSetOutcome(p, delta, limit, inner, False)
+
+
+def _periodic_load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints,
+                              tol: float) -> ConstrainedSolution:
+    """Periodic load control (module doc): the active set from the projected-gradient
+    guess, certified; else ``box_polish`` from its answer, certified.  ``rounds`` counts
+    the bordered solves, ``solves`` (displacement-controlled solves) is 0."""
+    act = load_active_set(H, ubar, constraints, projected_gradient_guess(H, ubar, constraints))
+    sol = ConstrainedSolution(project_box(act.p, constraints.upper), act.multiplier, math.inf,
+                              act.converged, act.inner)
+    out = _certified(H, ubar, constraints, sol, tol)
+    if out is not None:
+        return out
+    polished = box_polish(H, ubar, constraints, act.p, act.multiplier)
+    polished.rounds += act.inner
+    out = _certified(H, ubar, constraints, polished, tol)
+    if out is None:
+        raise UncertifiedConstrainedSolution(
+            f"periodic load control: active set ({act.iterations} iterations, converged {act.converged}, kkt "
+            f"{sol.kkt_error:.2e}) and polish (kkt {polished.kkt_error:.2e}) did not certify")
+    return out
+
+
 def constrained_exact_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constraints,
                                tol: float = CERTIFY_KKT) -> ConstrainedSolution:
-    """The certified exact solution (module doc) for a dense, non-singular H; raises
-    ``UncertifiedConstrainedSolution`` when no polish certifies."""
+    """The certified exact solution (module doc) for a dense H, non-singular or (under
+    load control) singular along the constant vector only (a periodic whole grid:
+    ``load_active_set``); raises ``UncertifiedConstrainedSolution`` when nothing certifies."""
     H = np.asarray(H, dtype=np.float64)
     ubar = np.asarray(ubar, dtype=np.float64)
     constraints.check(ubar.size)
@@ -253,6 +384,8 @@ def constrained_exact_solution(H: np.ndarray, ubar: np.ndarray, constraints: Con
         if out is None:
             raise UncertifiedConstrainedSolution(f"box polish did not certify (kkt {sol.kkt_error:.2e})")
         return out
+    if constant_null_space(H):
+        return _periodic_load_controlled(H, ubar, constraints, tol)
     return _load_controlled(H, ubar, constraints, tol)
 
 
@@ -301,5 +434,6 @@ def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, 
         f"no certified solution after {solves} solves (last kkt {math.inf if last is None else last.kkt_error:.2e})")
 
 
-__all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "bvls", "UncertifiedConstrainedSolution", "box_polish",
-           "constrained_exact_solution", "solve_on_sets"]
+__all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "LoadActiveSetOutcome", "bvls",
+           "UncertifiedConstrainedSolution", "box_polish", "constant_null_space", "constrained_exact_solution",
+           "load_active_set", "projected_gradient_guess", "solve_on_sets"]

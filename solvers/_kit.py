@@ -12,7 +12,8 @@
 * ``is_dense``.
 * ``coarse_first_guess`` -- a cold start's first guess from the same solver on the
   block-averaged 2x-coarser grid (``problems.coarsen``), prolonged by injection.
-* ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``.
+* ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``
+  (``WHOLE_GRID_FFT_POINTS``, ``TYPICAL_PK_LOAD_ITERATIONS``: its load-control terms).
 
 The solve lifecycle itself (deadline, trace, matvec count, warm start, tolerance) is in
 ``contactbench.solvers.base``; the stopping residual is ``SolveContext.kkt``, the
@@ -238,13 +239,22 @@ FFT_SECONDS_PER_POINT = 4.0e-8
 #: Padded FFT grid points per trial-set unknown at the paper's top load step
 #: (trial set ~ 14 % of N^2, aperiodic padding x 4).
 FFT_POINTS_PER_UNKNOWN = 28.0
+#: Padded FFT grid points per unknown when the trial set is the whole grid (load control,
+#: ``InstanceBuilder.build_load``): the 2N x 2N padding (aperiodic), none (periodic).
+WHOLE_GRID_FFT_POINTS: dict[bool, float] = {False: 4.0, True: 1.0}
+#: ``pk``'s typical iterations under load control (``solvers.pk.TYPICAL_PK_ITERATIONS``
+#: counts displacement control): load-sweep at 256^2 (whole grid, n = 65536) took 51-74
+#: iterations (103-149 matvecs) per step; with a margin.  Read by ``harness.run.skips``.
+TYPICAL_PK_LOAD_ITERATIONS = 100
 
 
-def matvec_seconds(n: int, kind: str) -> float:
-    """Rough wall time of one H matvec at size n on one core."""
+def matvec_seconds(n: int, kind: str, points_per_unknown: float = FFT_POINTS_PER_UNKNOWN) -> float:
+    """Rough wall time of one H matvec at size n on one core; the FFT operator's grid has
+    ``points_per_unknown`` padded points per unknown (default: a trial set,
+    ``FFT_POINTS_PER_UNKNOWN``; the whole grid: ``WHOLE_GRID_FFT_POINTS``)."""
     if kind == "dense":
         return 2.0 * n * n / DENSE_FLOPS
-    pts = FFT_POINTS_PER_UNKNOWN * n
+    pts = points_per_unknown * n
     return FFT_SECONDS_PER_POINT * pts * max(1.0, np.log2(pts)) / 10.0
 
 

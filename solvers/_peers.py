@@ -26,6 +26,7 @@ import numpy as np
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
 from contactbench.problems.kernels import kernel_table
+from contactbench.problems.layers import Layer
 
 from .base import ProblemTraits, Solver
 
@@ -70,10 +71,21 @@ class GridProblem:
     periodic: bool
     indices: np.ndarray  # the QP's unknowns: flat grid indices
     U: np.ndarray  # N1 x N2 field, U.flat[indices] == ubar
+    delta1: float | None = None  # spacing along axis 1 (None: square pixels, delta)
+    layer: Layer | None = None  # the elastic layer (None: half-space)
+
+    @property
+    def spacing(self) -> tuple[float, float]:
+        return (self.delta, self.delta if self.delta1 is None else self.delta1)
 
     @property
     def sizes(self) -> tuple[float, float]:
-        return (self.delta * self.shape[0], self.delta * self.shape[1])
+        return (self.spacing[0] * self.shape[0], self.spacing[1] * self.shape[1])
+
+    @property
+    def area(self) -> float:
+        """One element's area d0 d1 (a pressure times it is the element's force)."""
+        return self.spacing[0] * self.spacing[1]
 
     @property
     def ubar(self) -> np.ndarray:
@@ -99,7 +111,7 @@ class GridProblem:
         transform = getattr(qp.H, "transform", None)
         if transform is not None and tuple(transform.grid_shape) == self.shape:
             return np.asarray(transform.table)
-        return kernel_table(self.kernel, self.shape, self.delta, self.E, periodic=self.periodic)
+        return kernel_table(self.kernel, self.shape, self.spacing, self.E, periodic=self.periodic, layer=self.layer)
 
 
 def grid_problem(qp: QP) -> GridProblem:
@@ -118,7 +130,8 @@ def grid_problem(qp: QP) -> GridProblem:
         h = np.asarray(surf.heights, dtype=np.float64).ravel()
         U = np.minimum(float(g.far_field) - float(h.max()) + h, 0.0) if idx.size < U.size else U
     U[idx] = ubar
-    return GridProblem(shape, float(g.delta), float(g.E), str(g.kernel), bool(g.periodic), idx, U.reshape(shape))
+    return GridProblem(shape, float(g.delta), float(g.E), str(g.kernel), bool(g.periodic), idx, U.reshape(shape),
+                       None if g.delta1 is None else float(g.delta1), g.layer)
 
 
 def full_field(gp: GridProblem, p: np.ndarray | None) -> np.ndarray:

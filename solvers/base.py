@@ -483,6 +483,7 @@ class ProblemTraits:
     surface_side: int = 0  # points per side of the instance's surface (0: none)
     load_control: bool = False  # the QP carries a load equality
     bounded: bool = False  # the QP carries finite upper bounds (a hardness)
+    layer: bool = False  # the kernel is an elastic layer of finite thickness (not a half-space)
 
 
 class Solver(ABC):

@@ -11,12 +11,21 @@ An external solver is declared in a TOML manifest (docs/external-solvers.md)::
     description = "projected Gauss-Seidel in C"     # optional
     exact = false                                   # optional: finite termination (exact answers)
     promise = "exact"                               # optional: "exact" or a scaled KKT floor (validate)
+    load_control = false                            # optional: it poses sum(p) = P, reports the multiplier
+    bounds = false                                  # optional: it honours upper bounds (a hardness)
 
 Manifests are read from the files named by the environment variable
 ``CONTACTBENCH_EXTERNAL_SOLVERS`` (one or more paths separated by ``os.pathsep``) and from
 ``./contactbench-solvers.toml`` when it exists.  Each entry becomes a registered solver
 of family "external": listed by ``contactbench list solvers``, runnable in every scene,
 judged like any other.  A command runs in the folder of the manifest that declares it.
+
+Constrained problems (``problems.constraints``) are written in format 2: ``upper.f64``
+and ``"load"`` in problem.json.  A program is handed them only when its manifest
+declares it can pose them (``load_control = true``: the equality sum(p) = P, whose
+multiplier, the approach Delta, it may report as ``"multiplier"`` in solution.json;
+``bounds = true``: 0 <= p <= upper); an entry that declares neither is skipped on such a
+problem with the reason (``base.constraint_skip``), as before.
 (The registration is done by ``solvers/external_manifests.py``, a late source of the
 registry: the manifests are read when external solvers are resolved -- a name that is
 not built in, or the list of every solver -- not on import, so that a broken manifest is
@@ -78,7 +87,10 @@ TERM_GRACE = 0.5
 SIGNAL_EXITS = {128 + s: s.name for s in (signal.SIGSEGV, signal.SIGABRT, signal.SIGBUS, signal.SIGILL,
                                           signal.SIGFPE, signal.SIGKILL)}
 INPUTS = ("dense", "kernel")
-_KEYS = {"name", "command", "inputs", "warm_start", "version", "description", "exact", "promise"}
+_KEYS = {"name", "command", "inputs", "warm_start", "version", "description", "exact", "promise", "load_control",
+         "bounds"}
+#: The manifest's true/false keys.
+_FLAGS = ("warm_start", "exact", "load_control", "bounds")
 
 
 class ExternalSolverError(RuntimeError):
@@ -102,6 +114,8 @@ class ExternalSpec:
     description: str = ""
     exact: bool = False
     promise: Promise = "exact"
+    load_control: bool = False  # it poses the load equality and may report its multiplier
+    bounds: bool = False  # it honours the upper bounds
     workdir: str | None = None  # the folder the command runs in (None: the current one)
     source: str = ""  # the manifest it came from
 
@@ -156,7 +170,7 @@ def _spec_of(entry: Any, path: Path, k: int) -> ExternalSpec:
     for key in ("name", "command"):
         if not isinstance(entry.get(key), str):
             raise ProblemInputError(f"{where}: {key!r} is required and must be a string")
-    for key in ("warm_start", "exact"):
+    for key in _FLAGS:
         if key in entry and not isinstance(entry[key], bool):
             raise ProblemInputError(f"{where}: {key!r} must be true or false, got {entry[key]!r}")
     try:
@@ -166,7 +180,8 @@ def _spec_of(entry: Any, path: Path, k: int) -> ExternalSpec:
     return ExternalSpec(name=entry["name"], command=entry["command"], inputs=str(entry.get("inputs", "dense")),
                         warm_start=bool(entry.get("warm_start", False)), version=entry.get("version"),
                         description=str(entry.get("description", "")), exact=bool(entry.get("exact", False)),
-                        promise=promise, workdir=str(path.resolve().parent), source=str(path))
+                        promise=promise, load_control=bool(entry.get("load_control", False)),
+                        bounds=bool(entry.get("bounds", False)), workdir=str(path.resolve().parent), source=str(path))
 
 
 def load_manifest(path: str | os.PathLike[str]) -> list[ExternalSpec]:
@@ -345,7 +360,7 @@ class ExternalSolver(Solver):
         self.capabilities = Capabilities(  # type: ignore[misc]
             operators=frozenset({"dense"}) if dense else frozenset({"fft"}), needs_dense=dense,
             warm_start="primal" if spec.warm_start else "none", exact=spec.exact, promise=spec.promise,
-            input_format="dense" if dense else "kernel-table")
+            input_format="dense" if dense else "kernel-table", load_control=spec.load_control, bounds=spec.bounds)
         self._version: str | None = None
 
     # -- what the harness asks ----------------------------------------------
@@ -413,15 +428,17 @@ class ExternalSolver(Solver):
         tail = proc.tail(300).replace("\n", " | ")
         if tail:
             message += f"; {tail}"
+        multiplier = sol.multiplier if ctx.constraints.load_control else None
         return Outcome(np.asarray(sol.p), int(sol.iterations or 0), claimed, message[:500], w=None,
-                       status=status, info={})
+                       status=status, info={}, multiplier=multiplier)
 
 
 def command_solver(command: str, inputs: str = "dense", name: str = "command", *, warm_start: bool = False,
-                   workdir: str | None = None) -> ExternalSolver:
+                   workdir: str | None = None, load_control: bool = False, bounds: bool = False) -> ExternalSolver:
     """An unregistered external solver for ``contactbench validate --command``."""
     return ExternalSolver(ExternalSpec(name=name, command=command, inputs=inputs, warm_start=warm_start,
-                                       description=f"command: {command}", workdir=workdir, source="--command"))
+                                       description=f"command: {command}", load_control=load_control, bounds=bounds,
+                                       workdir=workdir, source="--command"))
 
 
 # ---------------------------------------------------------------------------

@@ -26,6 +26,11 @@ Kernels (``params={"green": ...}``):
 * ``"ours"`` -- always our influence coefficients (the operator's circulant table), put
   into ContactMechanics through its Green's-function hook ``_compute_greens_function``.
 
+An elastic layer of finite thickness (``problems.layers``) is posed with our table,
+which carries it ("auto" picks "ours" then).  Rectangular pixels (two spacings) are posed
+as they are: ContactMechanics' half-spaces take ``physical_sizes`` (L0, L1) with the grid
+(``GridProblem.sizes``), and its Love kernel is the uniformly loaded d0 x d1 rectangle.
+
 Load control and hardness: cm-pk-ccg poses both natively (``native_control``): its
 ``external_force`` is the load P (its returned ``offset`` is the approach Delta, reported
 as the multiplier), its ``hardness`` the per-pixel force bound.  cm-dual-ccg poses
@@ -50,9 +55,10 @@ from .registry import register
 GREEN_CHOICES = ("auto", "ours")
 
 
-def native_green(kernel: str, periodic: bool) -> bool:
-    """Whether ContactMechanics has this kernel as its own Green's function."""
-    return (kernel == "love" and not periodic) or (kernel == "spectral" and periodic)
+def native_green(kernel: str, periodic: bool, layer: bool = False) -> bool:
+    """Whether ContactMechanics has this kernel as its own Green's function (on a
+    half-space: with an elastic layer our table, which carries it, is used instead)."""
+    return not layer and ((kernel == "love" and not periodic) or (kernel == "spectral" and periodic))
 
 
 def _counting(cls: type, gp: GridProblem) -> type:
@@ -122,7 +128,7 @@ class _CMSolver(PeerSolver):
 
     def posed(self, ctx: SolveContext) -> tuple[GridProblem, Any, str]:
         gp = grid_problem(ctx.qp)
-        ours = ctx.params["green"] == "ours" or not native_green(gp.kernel, gp.periodic)
+        ours = ctx.params["green"] == "ours" or not native_green(gp.kernel, gp.periodic, gp.layer is not None)
         sub = cm_substrate(gp, gp.table(ctx.qp) if ours else None)
         return gp, sub, ("ours" if ours else "contactmechanics")
 

@@ -14,8 +14,10 @@ What Tamaas can pose exactly (solvers/_peers.py: the QP on the full grid, E* = E
   offset c(P) = mean over the contact of (u - U) is zero within tol x max(ubar); each
   step is one cold Tamaas solve, all counted in the solve time.
 
-It has no BCC kernel and no periodic real-space (``bcc``, ``love``) kernel: ``skip``
-says so for those pairs.
+It has no BCC kernel, no periodic real-space (``bcc``, ``love``) kernel and no elastic
+layer of finite thickness: ``skip`` says so for those.  Rectangular pixels (two
+spacings) it poses: its model takes the system size [L0, L1] (``GridProblem.sizes``),
+and a pressure is turned into an element's force by the element's area d0 d1.
 
 tamaas-pkr
     ``tamaas.PolonskyKeerRey`` -- Polonsky & Keer, Wear 231 (1999) 206, with Rey, Anciaux
@@ -59,8 +61,13 @@ from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Sta
 from .registry import register
 
 
-def tamaas_serves(kernel: str, periodic: bool) -> str | None:
-    """None when Tamaas has exactly this kernel, else the reason it cannot pose it."""
+def tamaas_serves(kernel: str, periodic: bool, layer: bool = False) -> str | None:
+    """None when Tamaas has exactly this kernel, else the reason it cannot pose it (its
+    surface operators are the half-space's: an elastic layer of finite thickness is not
+    among them)."""
+    if layer:
+        return ("Tamaas cannot pose an elastic layer of finite thickness (its surface operators are the "
+                "half-space's: periodic 2/(E*|q|), non-periodic Love)")
     if periodic and kernel == "spectral" or (not periodic and kernel == "love"):
         return None
     if kernel == "bcc":
@@ -82,7 +89,7 @@ def _normal_traction(model: Any, gp: GridProblem) -> np.ndarray:
     t = np.asarray(model.traction, dtype=np.float64)
     if t.ndim == 3:  # surface_2d: (N1, N2, 3), the normal component last
         t = t[..., -1]
-    return t.reshape(gp.shape) * gp.delta**2  # pressure -> force per element
+    return t.reshape(gp.shape) * gp.area  # pressure -> force per element
 
 
 def _cost(solver: Any, returned: Any) -> float:
@@ -181,11 +188,11 @@ class _TamaasSolver(PeerSolver):
         return package_availability("tamaas", "Tamaas")
 
     def skip(self, traits: ProblemTraits) -> str | None:
-        return super().skip(traits) or tamaas_serves(traits.kernel, traits.periodic)
+        return super().skip(traits) or tamaas_serves(traits.kernel, traits.periodic, traits.layer)
 
     def posed(self, ctx: SolveContext) -> GridProblem:
         gp = grid_problem(ctx.qp)
-        why = tamaas_serves(gp.kernel, gp.periodic)
+        why = tamaas_serves(gp.kernel, gp.periodic, gp.layer is not None)
         if why is not None:
             raise ProblemInputError(why)
         return gp
@@ -352,5 +359,5 @@ class TamaasKatoSaturated(_TamaasLoadControlled):
         u = c.upper_or_inf(ctx.n)
         if not np.all(u == u[0]):
             raise ProblemInputError("Tamaas' KatoSaturated takes one hardness for every element")
-        pmax = float(u[0]) / gp.delta ** 2 if np.isfinite(u[0]) else float(np.finfo(float).max)
+        pmax = float(u[0]) / gp.area if np.isfinite(u[0]) else float(np.finfo(float).max)
         return tm.KatoSaturated(model, np.ascontiguousarray(gp.U), tol, pmax)

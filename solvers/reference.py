@@ -72,7 +72,8 @@ class BVLSReference(Solver):
     (``problems.mixed_lcp.constrained_exact_solution``): Stark & Parker's BVLS for a box,
     started from the clipped Lawson-Hanson solution; under load control the KKT solve with
     the multiplier (regula falsi on the approach Delta over exact BVLS solves, then block
-    principal pivoting on the sets with the load row).  Certified to a scaled KKT error
+    principal pivoting on the sets with the load row; a periodic whole grid, H 1 = 0: the
+    active set on the bordered system, ``load_active_set``).  Certified to a scaled KKT error
     of 1e-10 or it fails.  Dense H, no warm start; without bounds or a load it runs
     ``exact_solution`` (as ``scipy-nnls``, without equilibration)."""
 

@@ -13,8 +13,16 @@ words, with the estimate):
 5. the solver's own ``skip(traits)`` on the problem's ``ProblemTraits`` (n, operator,
    geometry, surface, periodicity, kernel) -- e.g. CMR needs the surface's coarse levels;
 6. time: along a load history the solver's own finished steps, extrapolated by the
-   measured growth (``extrapolated_time``); else its ``time_estimate(n, operator)``;
-   against the time limit.  After a timeout, larger steps of that solver are skipped.
+   measured growth (``extrapolated_time``); else its ``time_estimate(n, operator)``,
+   under load control corrected by ``problem_time_estimate``; against the time limit.
+   After a timeout, larger steps of that solver are skipped.
+
+A solver's ``time_estimate(n, operator)`` models displacement control: a trial set of
+n unknowns inside a larger padded FFT grid, at its typical iteration count.  Under load
+control the trial set is the whole grid (n = N^2), whose FFT has
+``WHOLE_GRID_FFT_POINTS`` padded points per unknown instead of ``FFT_POINTS_PER_UNKNOWN``
+(28), and a solver may take another iteration count (``LOAD_CONTROL_ITERATION_RATIO``):
+the estimate is scaled by both ratios.
 
 ``skip_decision`` answers one question; ``SkipPolicy`` adds the rows of the earlier
 steps of the same sequence, the same rows whether a run is resumed or not.
@@ -26,7 +34,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
+from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
+                                       matvec_seconds)
 from contactbench.solvers.base import ProblemTraits, Solver
+from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.registry import load_solver
 
 GiB = float(2**30)
@@ -39,6 +50,10 @@ OBSERVED_TIME_EXPONENT = 1.5
 OBSERVED_EXPONENT_CAP = 3.0
 #: An extrapolated time above this fraction of the limit counts as hopeless.
 OBSERVED_SKIP_FRACTION = 1.0
+
+#: Iterations under load control over those the solver's ``time_estimate`` assumes, by
+#: registry name (a solver not named keeps its model's count).
+LOAD_CONTROL_ITERATION_RATIO: dict[str, float] = {"pk": TYPICAL_PK_LOAD_ITERATIONS / TYPICAL_PK_ITERATIONS}
 
 Observation = tuple[int, float]  # (n, solve seconds) of one finished step
 #: Statuses of a row that ran to an answer (its time is an observation).
@@ -68,6 +83,20 @@ def extrapolated_time(history: Sequence[Observation], n: int) -> tuple[float, fl
         if n1 > 1.1 * n0 and t0 > 0.05 and t1 > 0:
             e = min(OBSERVED_EXPONENT_CAP, max(e, math.log(t1 / t0) / math.log(n1 / n0)))
     return t1 * max(1.0, n / n1) ** e, e
+
+
+def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) -> float | None:
+    """The solver's ``time_estimate(n, operator)`` for the problem ``traits`` describe:
+    unchanged under displacement control; under load control scaled by the whole grid's
+    matvec cost over the model's and by ``LOAD_CONTROL_ITERATION_RATIO`` (module doc).
+    None when the solver has no model."""
+    t = solver.time_estimate(traits.n, operator)
+    if t is None or not traits.load_control:
+        return t
+    n = traits.n
+    whole = matvec_seconds(n, operator, WHOLE_GRID_FFT_POINTS[bool(traits.periodic)])
+    matvec_ratio = whole / matvec_seconds(n, operator, FFT_POINTS_PER_UNKNOWN)
+    return float(t) * matvec_ratio * LOAD_CONTROL_ITERATION_RATIO.get(solver.name, 1.0)
 
 
 def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_budget: float,
@@ -137,11 +166,12 @@ def time_decision(solver: object, traits: ProblemTraits, operator: str, time_lim
                                     f"the previous step (time ~ n^{e:.2g}), over the time limit of {time_limit:.3g} s"))
         return Decision(operator=operator)
     try:
-        t_est = solver.time_estimate(n, operator)  # type: ignore[attr-defined]
+        t_est = problem_time_estimate(solver, traits, operator)  # type: ignore[arg-type]
     except Exception as exc:
         return Decision(reason=f"time model failed: {exc}")
     if t_est is not None and t_est > time_limit:
-        return Decision(reason=(f"predicted solve time {t_est:.3g} s at n = {n} ({operator} operator) "
+        control = ", load control" if traits.load_control else ""
+        return Decision(reason=(f"predicted solve time {t_est:.3g} s at n = {n} ({operator} operator{control}) "
                                 f"exceeds the time limit of {time_limit:.3g} s"))
     return Decision(operator=operator)
 

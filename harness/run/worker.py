@@ -201,7 +201,8 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
     return ProblemTraits(n=inst.n, operator=instance_operator_kind(inst), has_geometry=geom is not None,
                          has_surface=square, periodic=bool(inst.periodic), kernel=inst.kernel,
                          surface_side=int(geom.grid_shape[0]) if square else 0,
-                         load_control=inst.qp.constraints.load_control, bounded=inst.qp.constraints.bounded)
+                         load_control=inst.qp.constraints.load_control, bounded=inst.qp.constraints.bounded,
+                         layer=geom is not None and geom.layer is not None)
 
 
 def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:
