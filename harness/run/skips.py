@@ -40,6 +40,8 @@ from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.registry import load_solver
 
+from ..table.schema import ANSWERED
+
 GiB = float(2**30)
 
 #: Growth exponent of solve time with n used to extrapolate an observed solve (the
@@ -56,8 +58,6 @@ OBSERVED_SKIP_FRACTION = 1.0
 LOAD_CONTROL_ITERATION_RATIO: dict[str, float] = {"pk": TYPICAL_PK_LOAD_ITERATIONS / TYPICAL_PK_ITERATIONS}
 
 Observation = tuple[int, float]  # (n, solve seconds) of one finished step
-#: Statuses of a row that ran to an answer (its time is an observation).
-ANSWERED = ("solved", "inaccurate")
 
 
 @dataclass(frozen=True)

@@ -254,7 +254,7 @@ def test_greedy_ignores_warm_start(ramp32) -> None:
 
 
 def test_greedy_cholesky_over_budget_raises_memory_error(monkeypatch, ramp32) -> None:
-    monkeypatch.setattr(operators_mod, "DEFAULT_MEMORY_BUDGET", 8.0 * 10 * 10)
+    monkeypatch.setattr(operators_mod, "_budget", [8.0 * 10 * 10])  # this process's budget (memory_budget())
     with pytest.raises(MemoryBudgetError):
         solve("greedy-chol", ramp32[-1])
 
