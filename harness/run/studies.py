@@ -279,9 +279,9 @@ GREEDY_INNER_SOLVES: tuple[str, ...] = ("greedy-cg", "greedy-gs", "greedy-chol")
 #: family, and the field's codes in their native modes (each skipped, with the reason,
 #: where it cannot pose the problem or is not installed).
 LOAD_CONTROL_SOLVERS: tuple[str, ...] = ("pk", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "gp",
-                                         "cm-pk-ccg", "tamaas-pkr", "tamaas-kato-saturated")
-HARDNESS_SOLVERS: tuple[str, ...] = ("pk", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "gp", "greedy-cg",
-                                     "cm-pk-ccg", "tamaas-kato-saturated")
+                                         "nnls-gp", "cm-pk-ccg", "tamaas-pkr", "tamaas-kato-saturated")
+HARDNESS_SOLVERS: tuple[str, ...] = ("pk", "fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "gp", "nnls-gp",
+                                     "greedy-cg", "cm-pk-ccg", "tamaas-kato-saturated")
 
 STUDIES: dict[str, Study] = {s.scene: s for s in (
     Study("gp-k-sweep", solvers=("nnls-gp",), sweeps=(GP_K_SWEEP,)),
