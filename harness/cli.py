@@ -45,7 +45,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import OPERATOR_KINDS
 from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES
 from contactbench.problems.layers import DEFAULT_NU, INTERFACES, Layer
-from contactbench.problems.operators import set_memory_budget
+from contactbench.problems.operators import memory_budget_scope
 from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
 from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS, load_steps
 from contactbench.problems.surfaces import RMD_FAMILIES
@@ -484,7 +484,6 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
-        set_memory_budget(kw["memory_budget"])  # this process's skips and builds read it too
     if args.max_cells:
         kw["max_cells"] = args.max_cells
     run_cfg = RunConfig(profiles=args.profile, repeats=args.repeats, timeout=args.timeout, warm=not args.cold,
@@ -494,14 +493,15 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     out = args.out or "results/" + "-".join(args.scenes)
     check_out_dir(out)
     # run_benchmark plans, checks the folder, then holds its lock (harness/table/store.py) while it writes
-    if args.scheduler:
-        from .run.distributed import run_benchmark_on_dask
+    with memory_budget_scope(kw.get("memory_budget")):  # the run's skips and builds read it too
+        if args.scheduler:
+            from .run.distributed import run_benchmark_on_dask
 
-        summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
-                                        command=["contactbench", *argv], append=args.append)
-    else:
-        summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
-                                append=args.append)
+            summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
+                                            command=["contactbench", *argv], append=args.append)
+        else:
+            summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
+                                    append=args.append)
     for w in summary.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(summary.line())

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import os
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
@@ -60,6 +62,19 @@ def set_memory_budget(nbytes: float) -> None:
     if not (isinstance(nbytes, (int, float)) and 0.0 < float(nbytes) < float("inf")):
         raise ProblemInputError(f"memory budget must be a finite number of bytes > 0, got {nbytes!r}")
     _budget[0] = float(nbytes)
+
+
+@contextmanager
+def memory_budget_scope(nbytes: float | None) -> Iterator[None]:
+    """This process's budget is ``nbytes`` inside the block (unchanged for None), and what it
+    was after it, however the block ends."""
+    before = _budget[0]
+    if nbytes is not None:
+        set_memory_budget(nbytes)
+    try:
+        yield
+    finally:
+        _budget[0] = before
 
 
 #: The FFT operator switches to a dense block after this many matvecs when that is

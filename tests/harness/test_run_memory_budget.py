@@ -40,3 +40,16 @@ def test_set_memory_budget_refuses_what_is_not_a_positive_size(bad: object) -> N
     with pytest.raises(ProblemInputError):
         operators.set_memory_budget(bad)  # type: ignore[arg-type]
     assert operators.memory_budget() == before
+
+
+def test_a_budget_scope_restores_the_process_budget_however_it_ends() -> None:
+    before = operators.memory_budget()
+    with operators.memory_budget_scope(1234.0):
+        assert operators.memory_budget() == 1234.0
+    assert operators.memory_budget() == before
+    with pytest.raises(RuntimeError):
+        with operators.memory_budget_scope(99.0):
+            raise RuntimeError("a run that fails")
+    assert operators.memory_budget() == before
+    with operators.memory_budget_scope(None):
+        assert operators.memory_budget() == before
