@@ -101,8 +101,31 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
     return np.where(sizes <= 16, small, 16 * ((sizes + 15) // 16))
 
 
-#: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner).
-KINDS = ("islands", "farfield", "fourier", "none")
+#: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner; "auto":
+#: "farfield" on grids of at least ``LARGE_GRID_POINTS`` points, "islands" below).
+KINDS = ("islands", "farfield", "fourier", "none", "auto")
+
+#: The grid size (points) from which the fast solvers' "auto" choices take the far-field
+#: correction (here) and float32 (solvers/_refine.py): 2048^2.  Both have set-up costs that do
+#: not shrink with the solve -- the far field's near-tile sums and m x m eigendecomposition
+#: per build, float32's twin and its refinement products -- and a cold solve on a 512^2 or
+#: 1024^2 grid needs only 25-80 matvecs: there, on rough members of the surface population
+#: (H 0.3, rms slope 1), the far field alone cost up to 1.4x the islands' time
+#: (results/perf/surface-population.md).
+LARGE_GRID_POINTS = 2048 * 2048
+
+
+def grid_points(qp: QP) -> int:
+    """Points of the physical grid the QP's unknowns sit on (its own size without a geometry)."""
+    geo = getattr(qp, "geometry", None)
+    return int(np.prod(geo.grid_shape)) if geo is not None else int(qp.n)
+
+
+def resolved_kind(kind: str, qp: QP) -> str:
+    """``kind`` with "auto" decided by the grid (``LARGE_GRID_POINTS``)."""
+    if kind == "auto":
+        return "farfield" if grid_points(qp) >= LARGE_GRID_POINTS else "islands"
+    return kind
 #: The kinds built on the island blocks (``IslandPreconditioner``).
 ISLAND_KINDS = ("islands", "farfield")
 
@@ -403,6 +426,7 @@ def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64) -> Se
     None for "none", and also when the QP has no grid positions (``QP.geometry``), which
     both preconditioners need: the caller then runs unpreconditioned.  ``block_dtype``:
     the precision of the island blocks' inverses (module doc)."""
+    kind = resolved_kind(kind, qp)
     if kind in ISLAND_KINDS:
         return IslandPreconditioner.build(qp, dtype=block_dtype, far_field=kind == "farfield")
     if kind == "fourier":

@@ -39,18 +39,14 @@ from contactbench.problems.instances import QP
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, GapState
-from ._preconditioners import SetPreconditioner
+from . import _preconditioners as preconditioners
+from ._preconditioners import SetPreconditioner, grid_points
 from .base import Param, SolveContext
 
 #: The precisions a fast solver runs in ("mixed": float32 inner, float64 outer; "auto":
-#: mixed on grids of at least ``AUTO_MIXED_MIN_POINTS`` points, else double).
+#: mixed on grids of at least ``_preconditioners.LARGE_GRID_POINTS`` points, else double).
 PRECISIONS = ("double", "mixed", "auto")
 
-#: "auto" runs mixed from this many grid points up (2048^2).  Below, a cold solve needs
-#: 25-70 matvecs, and the float32 twin's build and the refinement's float64 products cost
-#: about what float32 saves: on 512^2 and 1024^2 members of the surface population mixed was
-#: 0.52-1.55x the double time (results/perf/surface-population.md).
-AUTO_MIXED_MIN_POINTS = 2048 * 2048
 
 #: A round's inner tolerance, relative to the round's starting float64 KKT error.
 INNER_REDUCTION = 1e-4
@@ -67,16 +63,11 @@ def precision_param(default: str = "double") -> Param:
                  choices=PRECISIONS)
 
 
-def grid_points(qp: QP) -> int:
-    """Points of the physical grid the QP's unknowns sit on (its own size without a geometry)."""
-    geo = getattr(qp, "geometry", None)
-    return int(np.prod(geo.grid_shape)) if geo is not None else int(qp.n)
-
-
 def resolved_precision(precision: str, qp: QP) -> str:
-    """"double" or "mixed": ``precision`` with "auto" decided by the grid (``AUTO_MIXED_MIN_POINTS``)."""
+    """"double" or "mixed": ``precision`` with "auto" decided by the grid
+    (``_preconditioners.LARGE_GRID_POINTS``)."""
     if precision == "auto":
-        return "mixed" if grid_points(qp) >= AUTO_MIXED_MIN_POINTS else "double"
+        return "mixed" if grid_points(qp) >= preconditioners.LARGE_GRID_POINTS else "double"
     return precision
 
 

@@ -157,14 +157,15 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
 @register
 class FastBugnicourtIslands(FastBugnicourtCCG):
     """Bugnicourt et al. (2018) CCG without restart, with the island block-Jacobi
-    preconditioner and its far-field correction ("farfield", solvers/_farfield.py) on the
-    free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
-    Precision: ``auto`` by default (solvers/_refine.py): mixed -- float32 inner sweeps,
-    float64 iterative refinement judged by the float64 KKT error -- on grids of
-    ``AUTO_MIXED_MIN_POINTS`` points and more, float64 below; ``precision="double"`` or
-    ``"mixed"`` fixes it.  Warm start: primal."""
+    preconditioner on the free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
+    Both choices are ``auto`` by default, decided by the grid
+    (``_preconditioners.LARGE_GRID_POINTS``, 2048^2 points): from there up, the islands'
+    far-field correction ("farfield", solvers/_farfield.py) and mixed precision (float32
+    inner sweeps, float64 iterative refinement judged by the float64 KKT error,
+    solvers/_refine.py); below, the islands alone in float64.  ``precondition`` and
+    ``precision`` fix either.  Warm start: primal."""
 
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    #: auto by default: mixed where float32 pays for its twin and its refinement (solvers/_refine.py)
-    params = (precondition_param("farfield"), precision_param("auto"), first_guess_param(), screening_param())
+    #: auto by default: the far field and float32 where they pay for their set-up (from 2048^2 grid points)
+    params = (precondition_param("auto"), precision_param("auto"), first_guess_param(), screening_param())

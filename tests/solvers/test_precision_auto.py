@@ -1,5 +1,7 @@
-"""``precision="auto"`` (solvers/_refine.py): mixed from ``AUTO_MIXED_MIN_POINTS`` grid
-points up, double below; decided by the grid the unknowns sit on, not by their count."""
+"""``precision="auto"`` (solvers/_refine.py) and ``precondition="auto"``
+(solvers/_preconditioners.py): mixed and the far field from ``LARGE_GRID_POINTS`` grid points
+up, double and the islands alone below; decided by the grid the unknowns sit on, not by
+their count."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import pytest
 
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers import _refine
+from contactbench.solvers import _preconditioners, _refine
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import get_solver
 
@@ -22,7 +24,7 @@ def small_qp():
 
 def test_auto_is_double_below_the_threshold_and_mixed_from_it() -> None:
     qp = small_qp()
-    assert qp.geometry is not None and _refine.grid_points(qp) == 32 * 32
+    assert qp.geometry is not None and _preconditioners.grid_points(qp) == 32 * 32
     assert _refine.resolved_precision("auto", qp) == "double"
     geo = qp.geometry
     big = replace(qp, geometry=replace(geo, grid_shape=(2048, 2048)))
@@ -36,17 +38,43 @@ def test_auto_is_double_below_the_threshold_and_mixed_from_it() -> None:
 
 def test_auto_without_a_geometry_reads_the_unknowns() -> None:
     qp = replace(small_qp(), geometry=None)
-    assert _refine.grid_points(qp) == qp.n
+    assert _preconditioners.grid_points(qp) == qp.n
     assert _refine.resolved_precision("auto", qp) == "double"
 
 
 @pytest.mark.parametrize("threshold,expected", [(1, "mixed"), (10**12, "double")])
 def test_a_solve_reports_the_precision_auto_chose(monkeypatch: pytest.MonkeyPatch, threshold: int,
                                                    expected: str) -> None:
-    monkeypatch.setattr(_refine, "AUTO_MIXED_MIN_POINTS", threshold)
+    monkeypatch.setattr(_preconditioners, "LARGE_GRID_POINTS", threshold)
     qp = small_qp()
     res = get_solver("fast-dual-pccg").solve(qp, SolverSettings(tol=1e-9, params={"precision": "auto"}))
     assert res.converged and res.info["precision"] == expected, res.info
     assert (res.info["matvecs_float32"] > 0) == (expected == "mixed")
     ref = get_solver("fast-dual-pccg").solve(qp, SolverSettings(tol=1e-9, params={"precision": "double"}))
     assert np.max(np.abs(res.p - ref.p)) <= 100 * 1e-9 * np.max(ref.p)
+
+
+def test_auto_preconditioner_takes_the_far_field_from_the_threshold() -> None:
+    qp = small_qp()
+    big = replace(qp, geometry=replace(qp.geometry, grid_shape=(2048, 2048)))
+    assert _preconditioners.resolved_kind("auto", qp) == "islands"
+    assert _preconditioners.resolved_kind("auto", big) == "farfield"
+    for k in ("islands", "farfield", "fourier", "none"):
+        assert _preconditioners.resolved_kind(k, qp) == k == _preconditioners.resolved_kind(k, big)
+
+
+@pytest.mark.parametrize("threshold", [1, 10**12])
+def test_the_default_below_the_threshold_is_the_islands_in_double(monkeypatch: pytest.MonkeyPatch,
+                                                                  threshold: int) -> None:
+    """Below the threshold the default takes the iterates of precision=double,
+    precondition=islands; from it, those of mixed with the far field (the same counts, p to
+    round-off: two solves of one configuration differ in the last bits with threads)."""
+    monkeypatch.setattr(_preconditioners, "LARGE_GRID_POINTS", threshold)
+    qp = small_qp()
+    solve = get_solver("fast-dual-pccg").solve
+    default = solve(qp, SolverSettings(tol=1e-9))
+    fixed = {"precision": "double", "precondition": "islands"} if threshold > 1 else \
+        {"precision": "mixed", "precondition": "farfield"}
+    same = solve(qp, SolverSettings(tol=1e-9, params=fixed))
+    assert default.iterations == same.iterations and default.matvecs == same.matvecs
+    np.testing.assert_allclose(default.p, same.p, rtol=1e-12, atol=1e-12 * float(np.max(same.p)))
