@@ -121,11 +121,19 @@ def grid_points(qp: QP) -> int:
     return int(np.prod(geo.grid_shape)) if geo is not None else int(qp.n)
 
 
+def large_grid(qp: QP) -> bool:
+    """The one rule of the fast solvers' "auto" choices: the QP's grid has at least
+    ``LARGE_GRID_POINTS`` points."""
+    return grid_points(qp) >= LARGE_GRID_POINTS
+
+
 def resolved_kind(kind: str, qp: QP) -> str:
-    """``kind`` with "auto" decided by the grid (``LARGE_GRID_POINTS``)."""
+    """``kind`` with "auto" decided by the grid (``large_grid``)."""
     if kind == "auto":
-        return "farfield" if grid_points(qp) >= LARGE_GRID_POINTS else "islands"
+        return "farfield" if large_grid(qp) else "islands"
     return kind
+
+
 #: The kinds built on the island blocks (``IslandPreconditioner``).
 ISLAND_KINDS = ("islands", "farfield")
 

@@ -39,14 +39,12 @@ from contactbench.problems.instances import QP
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, GapState
-from . import _preconditioners as preconditioners
-from ._preconditioners import SetPreconditioner, grid_points
+from ._preconditioners import SetPreconditioner, large_grid
 from .base import Param, SolveContext
 
 #: The precisions a fast solver runs in ("mixed": float32 inner, float64 outer; "auto":
 #: mixed on grids of at least ``_preconditioners.LARGE_GRID_POINTS`` points, else double).
 PRECISIONS = ("double", "mixed", "auto")
-
 
 #: A round's inner tolerance, relative to the round's starting float64 KKT error.
 INNER_REDUCTION = 1e-4
@@ -65,9 +63,9 @@ def precision_param(default: str = "double") -> Param:
 
 def resolved_precision(precision: str, qp: QP) -> str:
     """"double" or "mixed": ``precision`` with "auto" decided by the grid
-    (``_preconditioners.LARGE_GRID_POINTS``)."""
+    (``_preconditioners.large_grid``)."""
     if precision == "auto":
-        return "mixed" if grid_points(qp) >= preconditioners.LARGE_GRID_POINTS else "double"
+        return "mixed" if large_grid(qp) else "double"
     return precision
 
 
