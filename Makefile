@@ -17,12 +17,14 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-# A fresh default run each time (the committed results/default is replaced, not resumed;
-# `contactbench run` itself resumes an interrupted run).
+# A fresh default run each time, written to BENCH_OUT (build/bench/default, outside what git
+# tracks, so a run never dirties the tree; `contactbench run` itself resumes an interrupted
+# run).  The committed copy is regenerated with `make bench BENCH_OUT=results/default`.
+BENCH_OUT ?= build/bench/default
 bench: $(STAMP)
-	rm -rf results/default
-	$(VENV)/bin/contactbench run default --out results/default
-	$(VENV)/bin/contactbench report results/default
+	rm -rf $(BENCH_OUT)
+	$(VENV)/bin/contactbench run default --out $(BENCH_OUT)
+	$(VENV)/bin/contactbench report $(BENCH_OUT)
 
 # Debian's chromium and chromium-driver for the report's browser test (tests/harness/test_report_html.py);
 # installed only where it is missing, apt-get exists and we are root -- elsewhere the test skips
