@@ -503,6 +503,11 @@ class Solver(ABC):
     #: Tolerance on the scaled KKT error when the settings give none (None: the solver
     #: maps "no tolerance asked" to its backend's own defaults, as the QP adapters do).
     default_tol: ClassVar[float | None] = DEFAULT_TOL
+    #: Problem families (an instance's ``meta["family"]``) on which the method is known to
+    #: claim a wrong answer on some draws: a documented limitation of the method, not a
+    #: defect of the code (greedy on the paper's Example 1).  A benchmark of a draw that
+    #: shows it is an expected failure.
+    refuted_on: ClassVar[frozenset[str]] = frozenset()
 
     def default_max_iter(self, n: int) -> int | None:
         """Iteration limit when the settings give none (None: the backend's own)."""

@@ -64,6 +64,7 @@ from contactbench.problems.instances import QP, Geometry, OperatorKind, relative
 from contactbench.problems.surfaces import Surface
 
 from .base import (
+    DEFAULT_TOL,
     Capabilities,
     Outcome,
     Param,
@@ -255,8 +256,8 @@ class CMRSolver(Solver):
             msg = f"{msg}; WARNING: {psd_message}"
         converged, status = bool(fine.result.converged), _status_of(fine.result.status)
         full_kkt = ctx.kkt(fine.p, fine.w)
-        claim_tol = ctx.tol if ctx.tol is not None else base.default_tol  # no tol asked: the base's own
-        if converged and claim_tol is not None and not full_kkt <= claim_tol:
+        claim_tol = claim_tolerance(ctx.tol, base)
+        if converged and not full_kkt <= claim_tol:
             # The base converged on the pruned trial set only: CMR does not claim the full problem.
             converged, status = False, Status.STALLED
             msg = (f"{msg}; the pruned problem converged, but the full problem's scaled KKT error is "
@@ -264,6 +265,17 @@ class CMRSolver(Solver):
                    f"(repair=True makes it exact)")
         return Outcome(p=fine.p, iterations=sum(r.iterations for r in records), converged=converged,
                        message=msg, w=fine.w, status=status, info=info)
+
+
+def claim_tolerance(tol: float | None, base: Solver) -> float:
+    """The scaled KKT error of the FULL problem at or under which CMR passes on its base's
+    claim of convergence: the tolerance asked, else the base's own ``default_tol``, else
+    (a base that leaves its backend's defaults, such as scipy-nnls) ``DEFAULT_TOL``, the
+    tolerance of a solver that declares none.  Never None: a claim is always checked."""
+    for t in (tol, base.default_tol):
+        if t is not None:
+            return float(t)
+    return DEFAULT_TOL
 
 
 def require_surface(qp: QP) -> Geometry:

@@ -73,6 +73,10 @@ class GreedySolver(Solver):
     family: ClassVar[str] = "paper"
     capabilities: ClassVar[Capabilities] = Capabilities(warm_start="none", exact=False, bounds=True)
     default_tol: ClassVar[float] = 1e-10
+    #: The paper's Example 1 (``problems.instances.counterexample``, family
+    #: "counterexample"): on about 40 % of its draws greedy stops with no negative p and
+    #: a negative gap on a removed element, a wrong answer it claims.
+    refuted_on: ClassVar[frozenset[str]] = frozenset({"counterexample"})
     params = (
         Param("max_passes", int, None, "outer passes at most (None: n + 1)", low=1),
         Param("literal_one_pass", bool, False, "stop after one pass, as Algorithm 1 is printed (a test aid)"),

@@ -390,3 +390,34 @@ def test_cmr_claims_convergence_only_when_the_full_problem_is_solved() -> None:
     settings.params["repair"] = True
     repaired = CMRSolver(BASE).solve(inst.qp, settings)
     assert repaired.converged and kkt_check(inst, repaired.p).kkt_error <= 1e-9
+
+
+class BackendDefaultsBase(ExactBase):
+    """ExactBase that declares no tolerance of its own (``default_tol`` None: a backend's
+    own defaults, as scipy-nnls and the QP adapters do)."""
+
+    name = "test-cmr-backend-defaults"
+    default_tol = None
+
+
+def test_no_tolerance_asked_still_checks_the_claim_on_the_full_problem() -> None:
+    """Neither CMR nor its base names a tolerance: the claim is still checked on the full
+    problem (at ``DEFAULT_TOL``), so a pruning cascade is reported stalled, never claimed."""
+    register(BackendDefaultsBase, replace=True)
+    try:
+        inst = rmd_instance(N=64, H=0.5, seed=2)
+        r = CMRSolver(BackendDefaultsBase.name).solve(inst.qp, SolverSettings(params={"h": 1.0, "coarsest": 16}))
+    finally:
+        unregister(BackendDefaultsBase.name)
+    assert kkt_check(inst, r.p).kkt_error > 1e-6  # the cascade misses contacts (the premise)
+    assert not r.converged and r.status == "stalled", r.message
+
+
+def test_cmr_over_scipy_nnls_never_claims_a_pruned_answer() -> None:
+    """The registered wrapper over the reference (no tolerance of its own) on the bench's
+    32^2 rough case: not converged, as every other wrapper reports there."""
+    scene = get_scene("paper-sweep")
+    seq = scene.build(scene.instances(scene.config(SceneConfig(size=32, steps=3, seeds=(0,))))[0])
+    inst = seq.at(len(seq) - 1)
+    r = all_solvers()["cmr+scipy-nnls"].solve(inst.qp, SolverSettings())
+    assert r.converged is (kkt_check(inst, r.p).kkt_error <= 1e-8), r.message
