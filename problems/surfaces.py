@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
+from .preprocessing import MapPreprocessing
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,9 @@ class Surface:
     meta: dict[str, Any] = field(default_factory=dict, compare=False)
     #: Grid spacing along axis 1 (columns); None: square pixels (``delta``).
     delta1: float | None = None
+    #: What was done to a measured map between its file and these heights (``problems.io``);
+    #: None for a generated surface.
+    preprocessing: MapPreprocessing | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         h = np.asarray(self.heights)
@@ -188,8 +192,10 @@ def check_grid_size(N: object, what: str = "surface") -> int:
     return int(N)  # type: ignore[arg-type]
 
 
-#: RMD levels k allowed: 2^1 .. 2^13 (8192) points per side.
-RMD_MAX_LEVEL = 13
+#: RMD levels k allowed: 2^1 .. 2^16 (65536) points per side.  The generator itself has no
+#: limit of its own: past 8192^2 what decides is the grid's memory (8 B a point) and the time
+#: to build it (about a minute at 8193^2 on 2 cores).
+RMD_MAX_LEVEL = 16
 
 
 #: RMD surface families: Saupe's non-periodic MidPointFM2D, and the wrap-around diamond-square.

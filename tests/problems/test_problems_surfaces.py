@@ -174,12 +174,13 @@ def test_bad_grid_spacing_is_refused(bad: float) -> None:
 
 
 @pytest.mark.parametrize("N, k, periodic", [(2, 1, True), (3, 1, False), (512, 9, True), (513, 9, False),
-                                             (8192, 13, True)])
+                                             (8192, 13, True), (16384, 14, True), (16385, 14, False),
+                                             (65536, 16, True)])
 def test_rmd_sizes_are_powers_of_two_or_one_more(N: int, k: int, periodic: bool) -> None:
     assert check_rmd_size(N) == (k, periodic)
 
 
-@pytest.mark.parametrize("bad", [1000, 1, 0, -4, 6, 16384, 512.5, "512", True])
+@pytest.mark.parametrize("bad", [1000, 1, 0, -4, 6, 131072, 131073, 512.5, "512", True])
 def test_other_rmd_sizes_get_a_one_line_error(bad: object) -> None:
     with pytest.raises(ProblemInputError, match="RMD surface needs N = 2\\^k .* or 2\\^k \\+ 1") as err:
         check_rmd_size(bad)
