@@ -104,7 +104,7 @@ def test_solver(benchmark: Any, request: pytest.FixtureRequest, solver_name: str
         request.applymarker(pytest.mark.xfail(strict=True, reason=(
             f"{solver_name} is known to claim a wrong answer on the {family} family (Solver.refuted_on); "
             f"{name} is such a draw")))
-    settings = SolverSettings(tol=get_profile(PROFILE).tol, time_limit=TIME_LIMIT)
+    settings = get_profile(PROFILE).solver_settings(TIME_LIMIT)
 
     handed: list[tuple[QP, ProblemSeal]] = []  # each round's problem, sealed before its solve
 

@@ -3,12 +3,18 @@
 A profile is a pair of numbers.  ``tol`` is what the harness hands a solver
 (``SolverSettings.tol``; None lets each solver use its own ``default_tol``), and
 ``check_tol`` is the scaled KKT error (``contactbench.problems.kkt``) at or under which
-the harness's judge counts an answer as solved.  Solvers never see a profile's name.
+the harness's judge counts an answer as solved.  Both go to the solver
+(``Profile.solver_settings``): a solver that leaves its stopping test to a backend's
+defaults (the QP adapters) derives the backend's tolerances from the check when no
+``tol`` is asked, and claims only what meets it.  Solvers never see a profile's name.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
+
+from contactbench.solvers.base import SolverSettings
 
 
 @dataclass(frozen=True)
@@ -18,6 +24,13 @@ class Profile:
     name: str
     tol: float | None
     check_tol: float
+
+    def solver_settings(self, time_limit: float | None = None, params: dict[str, Any] | None = None,
+                        max_iter: int | None = None) -> SolverSettings:
+        """The settings a solve under this profile is handed: its ``tol`` and its
+        ``check_tol`` (module doc), with the given limits and parameters."""
+        return SolverSettings(tol=self.tol, max_iter=max_iter, time_limit=time_limit, params=dict(params or {}),
+                              check_tol=self.check_tol)
 
 
 PROFILES: dict[str, Profile] = {

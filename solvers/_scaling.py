@@ -41,14 +41,16 @@ The adapter lifecycle (``EquilibratedAdapter.iterate``)
 2. ``prepare`` converts it into the backend's input (CSC matrix, CVXPY model);
    steps 1-2 are *build* time: ``ctx.mark_setup_done()`` (``SolveResult.setup_time``),
    plus any build work the backend call reports itself (CVXPY's compilation);
-3. ``run_backend`` calls the backend with ``Request`` (the tolerance -- None: the
+3. ``run_backend`` calls the backend with ``Request`` (the tolerance asked, else the
+   caller's check ``SolverSettings.check_tol`` -- None when neither is said: the
    backend's own defaults --, iteration and time limits); its setup, factorization and
    iterations are solve time;
 4. the labelled ``+polish`` variants repair the point by block principal pivoting
    (``contactbench.problems.lcp.bpp_polish``; under bounds or a load equality
    ``problems.mixed_lcp.box_polish`` on the original problem); plain adapters never polish;
 5. unscaling, and an ``Outcome`` whose status is the ``Status`` enum, with the
-   backend's own word in ``info["backend_status"]``.
+   backend's own word in ``info["backend_status"]``; a claim of convergence on an
+   answer above the caller's check is withdrawn (``checked_claim``: "stalled").
 """
 
 from __future__ import annotations
@@ -185,16 +187,38 @@ def power_time_model(n: int, coef: float, exponent: float) -> float:
 class Request:
     """What the harness asked for, in the backend-neutral form the option maps read."""
 
-    tol: float | None  # None: the backend's own defaults
+    tol: float | None  # the scaled KKT error to reach (None: the backend's own defaults)
     max_iter: int | None  # None: the backend's own limit
     time_limit: float | None  # seconds left of the solve's one deadline
 
 
 def request_of(ctx: SolveContext) -> Request:
-    """The request of this solve: ``ctx.tol``, the iteration limit asked for (None when
-    it is the adapter's ``BACKEND_DEFAULT_MAX_ITER``) and the time left."""
+    """The request of this solve: the tolerance (``ctx.tol``; when none is asked, the
+    check the answer will be judged at, ``ctx.check_tol``, so that the backend stops where
+    its claim meets the check; None only when neither is said: the backend's defaults),
+    the iteration limit asked for (None when it is the adapter's
+    ``BACKEND_DEFAULT_MAX_ITER``) and the time left."""
     max_iter = None if ctx.max_iter >= BACKEND_DEFAULT_MAX_ITER else int(ctx.max_iter)
-    return Request(ctx.tol, max_iter, ctx.deadline.remaining())
+    tol = ctx.tol if ctx.tol is not None else ctx.check_tol
+    return Request(tol, max_iter, ctx.deadline.remaining())
+
+
+def checked_claim(ctx: SolveContext, out: Outcome) -> Outcome:
+    """``out`` with its claim of convergence withdrawn (status "stalled", the backend's
+    word kept in ``info``) when the answer's scaled KKT error (``SolveContext.kkt``, the
+    harness's formula) is above the check the caller will judge it at
+    (``ctx.check_tol``): a backend's own stopping test is in its own norms, so an adapter
+    verifies a claim before making it.  Unchanged without a check or a claim."""
+    if not out.converged or ctx.check_tol is None or out.w is None:
+        return out
+    kkt = ctx.kkt(out.p, out.w, out.multiplier)
+    out.info["claim_kkt"] = kkt
+    if kkt <= ctx.check_tol:
+        return out
+    out.converged, out.status = False, Status.STALLED
+    out.message = (f"{out.message}; the backend reports solved, but the answer's scaled KKT error {kkt:.2e} is above "
+                   f"the check {ctx.check_tol:.0e}: not claimed")
+    return out
 
 
 @dataclass
@@ -241,7 +265,8 @@ def missing_package_message(solver_name: str, package: str) -> str | None:
 class EquilibratedAdapter(Solver):
     """Base of every generic-QP adapter (module doc, "The adapter lifecycle"): dense H
     (shared or assembled), equilibration, one backend call in scaled units, optional
-    labelled polish, unscaling.  ``ctx.tol`` None means the backend's own defaults.
+    labelled polish, unscaling.  ``ctx.tol`` and ``ctx.check_tol`` both None mean the
+    backend's own defaults.
 
     Subclasses set ``required_package``, may override ``prepare`` (build work) and
     implement ``run_backend``; they own their tolerance mapping."""
@@ -309,14 +334,14 @@ class EquilibratedAdapter(Solver):
             return Outcome(np.full(sqp.n, np.nan), out.iterations, False, "backend returned no finite solution",
                            status=status, info=info)
         if self.polish and not ctx.constraints.plain:
-            return self._constrained_polish(sqp, x, ctx, status, info)
+            return checked_claim(ctx, self._constrained_polish(sqp, x, ctx, status, info))
         if self.polish:
             t1 = time.perf_counter()
             pol = bpp_polish(sqp.H, sqp.u, x)
             info.update(polish_time=time.perf_counter() - t1, polish_rounds=pol.rounds,
                         polish_converged=pol.converged, polish_improved=pol.improved, polish_active=pol.active)
             x = pol.p
-        return Outcome(
+        return checked_claim(ctx, Outcome(
             p=sqp.eq.to_original(x),
             iterations=out.iterations,
             converged=out.converged,
@@ -324,7 +349,7 @@ class EquilibratedAdapter(Solver):
             w=sqp.eq.gap_to_original(sqp.H @ x - sqp.u),
             status=status,
             info=info,
-        )
+        ))
 
     def _constrained_polish(self, sqp: ScaledQP, x: np.ndarray, ctx: SolveContext, status: Status,
                             info: dict[str, Any]) -> Outcome:

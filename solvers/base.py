@@ -144,13 +144,18 @@ class SolverSettings:
     tol        : the scaled KKT error to stop at (None: the solver's ``default_tol``);
     max_iter   : iteration limit (None: the solver's ``default_max_iter(n)``);
     time_limit : seconds from the start of ``solve`` (None: no limit);
-    params     : the solver's declared parameters (``Solver.params``), by name.
+    params     : the solver's declared parameters (``Solver.params``), by name;
+    check_tol  : the scaled KKT error the caller judges the answer at (None: not said).
+                 A solver that leaves its stopping test to a backend (``default_tol``
+                 None) derives the backend's tolerances from it when no ``tol`` is asked,
+                 and claims convergence only on an answer that meets it.
     """
 
     tol: float | None = None
     max_iter: int | None = None
     time_limit: float | None = None
     params: dict[str, Any] = field(default_factory=dict)
+    check_tol: float | None = None
 
 
 @dataclass
@@ -360,6 +365,7 @@ class SolveContext:
     diag_max: float
     info: dict[str, Any] = field(default_factory=dict)
     setup_time: float | None = None
+    check_tol: float | None = None  # SolverSettings.check_tol
     _ops: list[tuple[ContactOperator, int]] = field(default_factory=list)
     _extra_matvecs: int = 0
     _ubar_max: float | None = None
@@ -570,7 +576,7 @@ class Solver(ABC):
         ctx = SolveContext(qp=qp, tol=tol, max_iter=max_iter, params=params, p0=p0,
                            warm=warm if self.capabilities.warm_start != "none" else None,
                            deadline=Deadline(settings.time_limit, t0), trace=Trace(t0=t0),
-                           diag_max=float(np.max(qp.H.diagonal())))
+                           diag_max=float(np.max(qp.H.diagonal())), check_tol=settings.check_tol)
         ctx.track(qp.H)
         if np.max(qp.ubar, initial=0.0) <= 0.0 and not qp.constraints.load_control:
             out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0")

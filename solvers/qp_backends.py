@@ -10,10 +10,14 @@ eq. (6)) as P = H~, q = -u~, lb = 0 after the equilibration of ``solvers._scalin
 (raw mode: params {"scaling": False}).  H is assembled dense (or taken from the shared
 DenseOperator); sparse backends get a CSC copy, converted at build time.
 
-A requested tolerance (``ctx.tol``; None -- the ``default`` profile -- leaves the
-backend's own defaults untouched; ``low`` 1e-3, ``mid`` 1e-6, ``high`` 1e-9) is mapped
-by each backend's own function below onto that backend's absolute *and* relative options; relative ones are set to 0 where that is
-how the solver reaches an absolute target.  Known traps handled there: OSQP needs
+A requested tolerance (``Request.tol``: the profile's ``tol`` -- ``low`` 1e-3, ``mid``
+1e-6, ``high`` 1e-9 --, else its check, ``SolverSettings.check_tol`` -- the ``default``
+profile's 1e-6 --; None only when the caller says neither: the backend's own defaults)
+is mapped by each backend's own function below onto that backend's absolute *and*
+relative options; relative ones are set to 0 where that is how the solver reaches an
+absolute target.  With the backends' defaults ECOS, ProxQP, QPALM and SCS stop at scaled
+KKT errors of 2e-6 to 1.1e-4 on a 32^2 rough case; mapped from 1e-6 they reach
+8e-9 to 5e-7.  A claim above the caller's check is withdrawn (``_scaling.checked_claim``).  Known traps handled there: OSQP needs
 ``polishing=True`` to be exact, HiGHS' QP regularization (default 1e-7) caps it near
 3e-7 so it is lowered with the tolerance, CVXOPT needs its tolerances at 1e-10 or
 below.  PIQP and ProxQP get dense input (10-20x faster at n ~ 3000).
@@ -149,13 +153,21 @@ def daqp_options(req: Request) -> dict[str, Any]:
     return out
 
 
+#: ECOS' tightest reliable abstol/reltol/feastol (tighter ends in its "not found" at
+#: n ~ 100) and how far below a requested scaled KKT error its options must be: its own
+#: default 1e-8 leaves 2e-6 to 3e-6, 1e-10 up to 9e-7, 1e-11 5e-9 to 4e-8 (32^2 rough
+#: case, Example 1 n = 100; 64^2 sweep).
+ECOS_TIGHTEST = 1e-11
+ECOS_OPTION_RATIO = 1e-5
+
+
 def ecos_options(req: Request) -> dict[str, Any]:
-    """Interior point on the SOCP reformulation: abstol/reltol/feastol at tol/100, not
-    below 1e-11 (tighter targets end in ECOS' "not found" at n ~ 100).  Even then its
-    KKT error scatters up to ~3e-8: declared accuracy floor 1e-7."""
+    """Interior point on the SOCP reformulation: abstol/reltol/feastol at
+    tol x ``ECOS_OPTION_RATIO``, within [``ECOS_TIGHTEST``, 1e-8] (its default).  Even at
+    the tightest its KKT error scatters up to ~4e-8: declared accuracy floor 1e-7."""
     out = _limits(req, "max_iters", None)
     if req.tol is not None:
-        t = max(0.01 * req.tol, 1e-11)  # measured: 0.1 * tol leaves 1e-6 on some seeds
+        t = min(1e-8, max(ECOS_OPTION_RATIO * req.tol, ECOS_TIGHTEST))
         out.update(abstol=t, reltol=t, feastol=t)
     return out
 

@@ -33,7 +33,7 @@ from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from contactbench.solvers.base import SolveAborted, Solver, SolverSettings
+from contactbench.solvers.base import SolveAborted, Solver
 
 from ..judge import ProblemSeal
 from ..profiles import get_profile
@@ -209,7 +209,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     qp = adapt_to_solver(inst, solver)
     if isinstance(qp, str):
         return {"kind": "skipped", "message": qp}
-    settings = SolverSettings(tol=get_profile(case.profile).tol, time_limit=time_limit, params=params)
+    settings = get_profile(case.profile).solver_settings(time_limit, params)
     seal = ProblemSeal.of(qp)
     t0 = time.perf_counter()
     try:

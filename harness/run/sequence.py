@@ -11,7 +11,7 @@ the benchmark scripts call for their load loops -- both use it.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
@@ -133,8 +133,7 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
         t0 = time.perf_counter()
         seal = ProblemSeal.of(inst.qp)
         try:
-            res = s.solve(inst.qp, SolverSettings(settings.tol, settings.max_iter, settings.time_limit,
-                                                  dict(settings.params)), start)
+            res = s.solve(inst.qp, replace(settings, params=dict(settings.params), check_tol=tol), start)
         except MemoryError as exc:
             out.append(StepSolve(k, inst, None, time.perf_counter() - t0, start is not None, None, f"memory: {exc}"))
             break

@@ -214,8 +214,7 @@ def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) 
 
 
 def solver_settings(task: SolveTask) -> SolverSettings:
-    return SolverSettings(tol=get_profile(task.profile).tol, time_limit=task.time_limit,
-                          params=copy.deepcopy(task.params))
+    return get_profile(task.profile).solver_settings(task.time_limit, copy.deepcopy(task.params))
 
 
 class SolveServer:

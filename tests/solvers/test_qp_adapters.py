@@ -228,3 +228,46 @@ def test_input_format_parameter_reaches_the_backend(cases: dict[str, tuple[Conta
     dense = solver.solve(inst.qp, SolverSettings(1e-9, params={"input_format": "dense"}))
     assert dense.info["input_format"] == "dense" and dense.converged
     assert relative_error(dense.p, p_ref) < 1e-6
+
+
+@pytest.mark.parametrize("name", ADAPTERS)
+def test_the_default_profile_derives_the_backends_tolerances_from_its_check(
+        name: str, cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    """Under a profile that asks no tolerance (``default``) a backend is handed the
+    profile's check, so what it claims meets the check; a claim it cannot back is not made."""
+    from contactbench.harness.profiles import get_profile
+
+    _require(name)
+    profile = get_profile("default")
+    assert profile.tol is None  # the premise: no tolerance asked, only the check
+    for key in ("rmd32", "counterexample-1"):
+        inst, _ = cases[key]
+        res = get_solver(name).solve(inst.qp, profile.solver_settings(30.0))
+        kkt = kkt_check(inst, res.p).kkt_error
+        assert not res.converged or kkt <= profile.check_tol, (name, key, kkt, res.message)
+        assert res.converged or res.status == Status.STALLED.value or "limit" in res.status, (name, key, res.status)
+
+
+def test_a_claim_above_the_check_is_withdrawn(cases: dict[str, tuple[ContactInstance, np.ndarray]]) -> None:
+    """OSQP cut loose (eps 1e-2, no polishing) says "solved"; with a check of 1e-8 the
+    adapter does not claim it (stalled, the backend's word kept); without a check it does."""
+    _require("qp-osqp")
+    inst, _ = cases["rmd32"]
+    loose = {"backend_options": {"eps_abs": 1e-2, "eps_rel": 1e-2, "polishing": False}}
+    solver = get_solver("qp-osqp")
+    free = solver.solve(inst.qp, SolverSettings(1e-2, params=loose))
+    assert free.converged and kkt_check(inst, free.p).kkt_error > 1e-8  # the premise: a loose claim
+    checked = solver.solve(inst.qp, SolverSettings(1e-2, params=loose, check_tol=1e-8))
+    assert not checked.converged and checked.status == Status.STALLED.value
+    assert checked.info["backend_status"] == free.info["backend_status"]
+    assert checked.info["claim_kkt"] > 1e-8 and "not claimed" in checked.message
+    np.testing.assert_allclose(checked.p, free.p)
+
+
+def test_ecos_options_follow_the_requested_tolerance() -> None:
+    from contactbench.solvers.qp_backends import ECOS_TIGHTEST, ecos_options
+    from contactbench.solvers._scaling import Request
+
+    assert ecos_options(Request(None, None, None)) == {}
+    tols = [ecos_options(Request(t, None, None))["abstol"] for t in (1e-2, 1e-3, 1e-6, 1e-9)]
+    assert tols == sorted(tols, reverse=True) and tols[-1] == ECOS_TIGHTEST and tols[0] <= 1e-8
