@@ -256,7 +256,7 @@ class CMRSolver(Solver):
             msg = f"{msg}; WARNING: {psd_message}"
         converged, status = bool(fine.result.converged), _status_of(fine.result.status)
         full_kkt = ctx.kkt(fine.p, fine.w)
-        claim_tol = claim_tolerance(ctx.tol, base)
+        claim_tol = claim_tolerance(ctx, base)
         if converged and not full_kkt <= claim_tol:
             # The base converged on the pruned trial set only: CMR does not claim the full problem.
             converged, status = False, Status.STALLED
@@ -267,12 +267,13 @@ class CMRSolver(Solver):
                        message=msg, w=fine.w, status=status, info=info)
 
 
-def claim_tolerance(tol: float | None, base: Solver) -> float:
+def claim_tolerance(ctx: SolveContext, base: Solver) -> float:
     """The scaled KKT error of the FULL problem at or under which CMR passes on its base's
     claim of convergence: the tolerance asked, else the base's own ``default_tol``, else
-    (a base that leaves its backend's defaults, such as scipy-nnls) ``DEFAULT_TOL``, the
-    tolerance of a solver that declares none.  Never None: a claim is always checked."""
-    for t in (tol, base.default_tol):
+    (a base that leaves its backend's defaults, such as scipy-nnls) the caller's check,
+    else ``DEFAULT_TOL``, the tolerance of a solver that declares none.  Never None: a
+    claim is always checked."""
+    for t in (ctx.tol, base.default_tol, ctx.check_tol):
         if t is not None:
             return float(t)
     return DEFAULT_TOL
@@ -291,10 +292,10 @@ def require_surface(qp: QP) -> Geometry:
 
 
 def base_settings(ctx: SolveContext) -> SolverSettings:
-    """Settings of one base solve: CMR's tolerance and iteration limit (None: the base's
-    own), ``base_params``, and the time LEFT of CMR's deadline."""
+    """Settings of one base solve: CMR's tolerance, check and iteration limit (None: the
+    base's own), ``base_params``, and the time LEFT of CMR's deadline."""
     return SolverSettings(tol=ctx.tol, max_iter=ctx.max_iter, time_limit=ctx.deadline.remaining(),
-                          params=dict(ctx.params["base_params"] or {}))
+                          params=dict(ctx.params["base_params"] or {}), check_tol=ctx.check_tol)
 
 
 def _coarse_level(ctx: SolveContext, s: int, surf: Surface, g: Geometry, base: Solver,
