@@ -140,7 +140,7 @@ def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = N
     """(u_s, p_s) of the problem (module doc): u_s = ||ubar||_inf, p_s = u_s / max diag H.
     ``ubar_max``: ||ubar||_inf when the caller already has it."""
     u_s = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
-    if not u_s > 0.0:
+    if not (u_s > 0.0 and u_s / float(diag_max) > 0.0):  # 0, or so small (subnormal) that p_s underflows
         u_s = U_SCALE_FALLBACK
     return u_s, u_s / float(diag_max)
 
