@@ -35,6 +35,13 @@ from .html import write_html_report
 def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: bool = True) -> Path:
     """Write OUT/report.md and OUT/figures/*.png from the stored table, and (``html``)
     the interactive OUT/report.html (harness/report/html.py); return report.md's path."""
+    write_report(out_dir, shift, html)
+    return Path(out_dir) / REPORT_NAME
+
+
+def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: bool = True) -> ReportContext:
+    """``build_report``, returning the context it filled: its figures, tables, charts and
+    ``blank_panels`` (the panels saved with nothing on them and no note: none is right)."""
     out = Path(out_dir)
     table = read_table(out)
     if table.empty:
@@ -59,11 +66,10 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
         sec = sp.fn(ctx, ctx.table)
         if sec is not None:
             doc.append(f"## {sec.title}\n\n{sec.body}{charts_md(ctx, '', sec)}")
-    path = out / REPORT_NAME
-    write_text_atomic(path, "\n".join(d.rstrip() + "\n" for d in doc))
+    write_text_atomic(out / REPORT_NAME, "\n".join(d.rstrip() + "\n" for d in doc))
     if html:
         write_html_report(ctx)
-    return path
+    return ctx
 
 
 def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:

@@ -17,6 +17,8 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
+from .panels import EMPTY_NOTE, mark_empty
+
 #: How a series is drawn: "lines" (lines and markers) or "markers" (markers only).
 SERIES_MODES: tuple[str, ...] = ("lines", "markers")
 
@@ -50,7 +52,12 @@ class Chart:
     series: tuple[Series, ...] = ()
     x_log: bool = False
     y_log: bool = False
-    notes: dict[str, Any] = field(default_factory=dict)
+    notes: dict[str, Any] = field(default_factory=dict)  # notes["empty"]: why it has no finite point
+
+    @property
+    def has_data(self) -> bool:
+        """Whether any series has a finite (x, y) point."""
+        return any(math.isfinite(float(x)) and math.isfinite(float(y)) for s in self.series for x, y in zip(s.x, s.y))
 
     def to_plotly(self) -> dict[str, Any]:
         """``{"data": [...], "layout": {...}}`` for ``Plotly.react`` (JSON-safe: NaN and
@@ -65,6 +72,9 @@ class Chart:
                   "yaxis": {"title": {"text": self.y_title}, "type": "log" if self.y_log else "linear",
                             "exponentformat": "power"},
                   "legend": {"font": {"size": 10}}, "hovermode": "closest"}
+        if self.notes.get(EMPTY_NOTE) and not self.has_data:  # say on the page why it is empty
+            layout["annotations"] = [{"text": str(self.notes[EMPTY_NOTE]), "showarrow": False, "xref": "paper",
+                                      "yref": "paper", "x": 0.5, "y": 0.5, "font": {"color": "gray"}}]
         return {"data": data, "layout": layout}
 
     def to_figure(self) -> Figure:
@@ -81,7 +91,9 @@ class Chart:
             ax.set_xscale("log")
         if self.y_log:
             ax.set_yscale("log")
-        if self.series:
+        if self.notes.get(EMPTY_NOTE) and not self.has_data:
+            mark_empty(ax, str(self.notes[EMPTY_NOTE]))
+        elif self.series:
             ax.legend(fontsize=8)
         return fig
 

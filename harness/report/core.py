@@ -48,6 +48,7 @@ from contactbench.problems.scenes import all_scenes
 from ..table import aggregates as agg
 from ..table.meta import commands_of
 from .charts import Chart, RowChart
+from .panels import blank_panels
 from .style import DEFAULT_FAMILY, SolverStyles
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_text, bool_series
 from ..table.store import load_table
@@ -119,6 +120,9 @@ class ReportContext:
     page_figures: list[str] = field(default_factory=list)
     tables: list[TableRecord] = field(default_factory=list)
     charts: list[PageChart] = field(default_factory=list)
+    #: "<figure file>: <panel title>" for every panel saved with nothing finite on it and
+    #: no note saying why (harness/report/panels.py); the tests require none.
+    blank_panels: list[str] = field(default_factory=list)
     _styles: SolverStyles | None = None
     _table_no: int = 0
     _fig_no: int = 0
@@ -156,6 +160,7 @@ class ReportContext:
         twin on the page)."""
         self.fig_dir.mkdir(parents=True, exist_ok=True)
         fname = f"{slug(name)}.png"
+        self.blank_panels += [f"{fname}: {title}" for title in blank_panels(fig)]
         fig.savefig(self.fig_dir / fname, dpi=110, bbox_inches="tight", metadata={"Software": None})
         rel = f"{FIGURE_DIR}/{fname}"
         self.figures.append(rel)
@@ -261,7 +266,10 @@ def solver_families(table: pd.DataFrame) -> dict[str, str]:
 
 
 def slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-").lower() or "x"
+    """A figure's file name from its name: lower case, each run of characters other than
+    letters, digits and ``._+-`` as one "-".  A number keeps its digits, point and the
+    sign of its exponent ("HA3e+08" -> "ha3e+08"): the name round-trips its numbers."""
+    return re.sub(r"[^A-Za-z0-9._+-]+", "-", text).strip("-").lower() or "x"
 
 
 def natural_key(text: str) -> tuple:
@@ -460,13 +468,17 @@ def log_if_wide(ax: Any, axis: str, values: Iterable[float], decades: float = 1.
 
 
 def tidy_log_ticks(ax: Any, axis: str, span_decades: float) -> None:
-    """On a log axis spanning under two decades, label 1-2-5 steps in plain numbers and
-    leave minor ticks unlabelled (matplotlib's minor labels collide on narrow panels)."""
-    from matplotlib.ticker import LogLocator, NullFormatter
+    """On a log axis spanning under two decades, label 1-2-5 steps in plain numbers (under
+    one decade, at most four evenly spaced ones) and leave minor ticks unlabelled
+    (matplotlib's minor labels collide on narrow panels)."""
+    from matplotlib.ticker import LogLocator, MaxNLocator, NullFormatter
 
     a = ax.xaxis if axis == "x" else ax.yaxis
     a.set_minor_formatter(NullFormatter())
-    if span_decades < 2:
+    if span_decades < 1:
+        a.set_major_locator(MaxNLocator(nbins=3, min_n_ticks=2))
+        a.set_major_formatter(lambda x, _pos: f"{x:.3g}")
+    elif span_decades < 2:
         a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
         a.set_major_formatter(lambda x, _pos: f"{x:g}")
 

@@ -8,10 +8,12 @@ environment variable ``CONTACTBENCH_FIELD_STEPS=all``) as
     OUT/arrays/field-<scene>-<instance>-k<step>.npz      (numpy.savez_compressed, no pickles)
       heights   float32 (m, m)  surface heights xi (the instance's length unit)
       pressure  float32 (m, m)  mean contact pressure p_ij / delta^2 (0 off contact)
-      gap       float32 (m, m)  gap g = u - (Delta - xi_max + xi) (NaN where unknown)
+      gap       float32 (m, m)  gap g = u - (Delta - xi_max + xi) (NaN where unknown; without a
+                                surface, as for Example 1, w = Hp - ubar on the trial set)
       contact   bool    (m, m)  p_ij > 1e-6 p_s (ContactInstance.contact_mask at its default tolerance)
       scalars   N, N1 (grid points along axes 0 and 1), spacing, spacing1 (the stored maps'
-                spacing along axes 0 and 1), E, far_field (Delta), load,
+                spacing along axes 0 and 1), E, far_field (Delta: under load control the
+                answer's approach, ``answer_approach``; NaN without a surface), load,
                 dim_load (P / (E A0)), contact_fraction (A/A0, full grid), rms_slope
                 (h'_rms of the full surface), step, steps, solver, unit, periodic
 
@@ -32,6 +34,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from contactbench.problems.constraints import fit_multiplier
 
 from .files import safe_name, write_npz_atomic
 
@@ -75,19 +79,31 @@ def block_reduce(a: np.ndarray, side: int = FIELD_MAX_SIDE, how: str = "mean") -
     return b.any(axis=(1, 3)) if how == "any" else np.nanmean(b, axis=(1, 3))
 
 
-def gap_field(inst: Any, p: np.ndarray) -> np.ndarray:
-    """The gap on the whole grid, u - (Delta - xi_max + xi), from the scene's matrix-free
-    operator; on the trial set only (NaN elsewhere) when the operator cannot give the
-    displacement off the set."""
+def answer_approach(inst: Any, p: np.ndarray) -> float:
+    """The far-field displacement Delta of the answer: the instance's own under
+    displacement control; under load control the load equality's multiplier that p
+    implies (``problems.constraints.fit_multiplier``, as ``ContactInstance.gap`` fits it)."""
+    c = inst.qp.constraints
+    if not c.load_control:
+        return float(inst.delta)
+    q = np.asarray(p, dtype=float)
+    return fit_multiplier(np.asarray(inst.qp.H.matvec(q), dtype=float) - np.asarray(inst.qp.ubar, dtype=float),
+                          q, c.upper)
+
+
+def gap_field(inst: Any, p: np.ndarray, approach: float) -> np.ndarray:
+    """The gap on the whole grid, u - (Delta - xi_max + xi) with Delta = ``approach``, from
+    the scene's matrix-free operator; else w = Hp - ubar - Delta (``ContactInstance.gap``)
+    on the trial set only (NaN elsewhere) -- the operator cannot give the displacement off
+    the set, or the instance has no surface (Example 1: ubar is drawn)."""
     g = inst.geometry
-    h = np.asarray(inst.surface.heights, dtype=float)
-    rigid = inst.delta - float(h.max()) + h
     H = inst.qp.H
-    if hasattr(H, "displacement_field"):
+    if g.has_surface and hasattr(H, "displacement_field"):
+        h = np.asarray(inst.surface.heights, dtype=float)
         u = np.asarray(H.displacement_field(p), dtype=float).reshape(g.grid_shape)
-        return u - rigid
+        return u - (approach - float(h.max()) + h)
     out = np.full(g.grid_shape, np.nan)
-    out.ravel()[g.indices] = np.asarray(H.matvec(p), dtype=float) - rigid.ravel()[g.indices]
+    out.ravel()[g.indices] = inst.gap(p, approach if inst.qp.constraints.load_control else None)
     return out
 
 
@@ -112,14 +128,15 @@ def save_field(arrays_path: str | None, scene: str, instance: str, inst: Any, p:
         contact.ravel()[g.indices] = inst.contact_mask(p)
         heights = np.asarray(inst.surface.heights, dtype=float)
         f = math.ceil(g.grid_shape[0] / FIELD_MAX_SIDE)
+        approach = answer_approach(inst, p)
         arrays = dict(
             heights=block_reduce(heights).astype(np.float32),
             pressure=block_reduce(pressure).astype(np.float32),
-            gap=block_reduce(gap_field(inst, p)).astype(np.float32),
+            gap=block_reduce(gap_field(inst, p, approach)).astype(np.float32),
             contact=block_reduce(contact, how="any"),
             N=np.int64(g.grid_shape[0]), N1=np.int64(g.grid_shape[1]), spacing=np.float64(g.spacing[0] * f),
             spacing1=np.float64(g.spacing[1] * f), E=np.float64(inst.E),
-            far_field=np.float64(inst.delta), load=np.float64(inst.load(p)),
+            far_field=np.float64(approach), load=np.float64(inst.load(p)),
             dim_load=np.float64(inst.dimensionless_load(p)), contact_fraction=np.float64(inst.contact_fraction(p)),
             rms_slope=np.float64(inst.surface.rms_slope()), step=np.int64(step), steps=np.int64(steps),
             solver=np.str_(solver), unit=np.str_(getattr(inst.surface, "unit", "m")),

@@ -37,7 +37,9 @@ from ..core import (
     representative_traces,
     sort_scenes,
     table_md,
+    tidy_log_ticks,
 )
+from ..panels import mark_empty
 from ..style import family_panels, sort_families
 
 PERSSON_KAPPA = math.sqrt(8.0 / math.pi)
@@ -130,16 +132,74 @@ def _pressure_panel(fig: object, a: object, f: ContactField, rows: slice, cols: 
     a.set_title(title, fontsize=9)
 
 
+def field_rows(ctx: ReportContext, f: ContactField) -> pd.DataFrame:
+    """The table's rows of the field's (scene, instance, step)."""
+    r = ctx.rows(f.scene)
+    return r[(r["instance"] == f.instance) & (r["step"] == f.step)]
+
+
+def field_approach(ctx: ReportContext, f: ContactField) -> tuple[float, str]:
+    """(Delta, control) of the field's step: the stored far-field displacement, else (a
+    field stored without it under load control) the approach the judge fitted to the same
+    solver's answer in the table; control "displacement", "load" or "" (no surface: Example
+    1 draws ubar, there is no far-field displacement)."""
+    rows = field_rows(ctx, f)
+    control = str(rows["control"].dropna().iloc[0]) if "control" in rows and rows["control"].notna().any() else ""
+    delta = f.far_field
+    if not math.isfinite(delta):
+        own = rows[rows["solver"] == f.solver]["delta"].dropna()
+        delta = float(own.iloc[0]) if len(own) else float("nan")
+    return delta, control if math.isfinite(delta) else ""
+
+
+def _approach_text(delta: float, control: str, unit: str) -> str:
+    if control == "load":
+        return f"load control: approach Delta = {fmt_num(delta)} {unit}, the load equality's multiplier"
+    if math.isfinite(delta):
+        return f"far-field displacement Delta = {fmt_num(delta)} {unit}"
+    return "no far-field displacement: ubar is drawn, not derived from heights"
+
+
+def _surface_panel(fig: object, a: object, f: ContactField, ext: tuple[float, ...]) -> bool:
+    """The height map on ``a``; a note instead when the field has no surface (constant
+    heights: Example 1).  Returns whether it drew the map."""
+    h = f.heights - np.nanmean(f.heights)
+    if not np.isfinite(h).any() or float(np.nanmax(np.abs(h))) == 0.0:
+        mark_empty(a, "no surface: this problem's ubar\nis drawn, not derived from heights")
+        a.set_title(f"surface ({f.N}x{f.N1 or f.N}): none", fontsize=9)
+        return False
+    sh, uh = _length_scale(h, f.unit)
+    im = a.imshow(h * sh, origin="lower", extent=ext, cmap="terrain")
+    fig.colorbar(im, ax=a, fraction=0.046, pad=0.04).set_label(f"height - mean  [{uh}]", fontsize=8)
+    a.set_title(f"surface ({f.N}x{f.N1 or f.N})", fontsize=9)
+    return True
+
+
+def _gap_panel(a: object, f: ContactField) -> bool:
+    """The distribution of the gap out of contact on ``a``; a note when the field stores
+    none (a field written before the gap was kept under load control).  Returns whether
+    it drew it."""
+    gaps = np.maximum(f.gap[np.isfinite(f.gap) & ~f.contact], 0.0)
+    a.set_title(f"gap distribution, step {f.step} (out of contact)", fontsize=9)
+    if not gaps.size:
+        mark_empty(a, "no gap stored with this field\n(harness.run.backfill re-solves\nthe step to store it)")
+        return False
+    sg, ug = _length_scale(gaps, f.unit)
+    a.hist(gaps * sg, bins=60, density=True, color="tab:gray", alpha=0.85)
+    a.set_yscale("log")
+    a.set_xlabel(f"gap g  [{ug}]")
+    a.set_ylabel("probability density  [1/" + ug + "]")
+    a.grid(True, alpha=0.3)
+    return True
+
+
 def _field_figure(ctx: ReportContext, f: ContactField) -> str:
     fig, axes = grid_figure(1, 4, width=4.3, height=3.8, wspace=0.55)
     a1, a2, a2z, a3 = axes[0]
     L0, L1 = f.extent
     sx, ux = _length_scale(np.array([max(L0, L1)]), f.unit)
     ext = (0, L1 * sx, 0, L0 * sx)
-    sh, uh = _length_scale(f.heights - np.nanmean(f.heights), f.unit)
-    im = a1.imshow((f.heights - np.nanmean(f.heights)) * sh, origin="lower", extent=ext, cmap="terrain")
-    fig.colorbar(im, ax=a1, fraction=0.046, pad=0.04).set_label(f"height - mean  [{uh}]", fontsize=8)
-    a1.set_title(f"surface ({f.N}x{f.N1 or f.N})", fontsize=9)
+    has_surface = _surface_panel(fig, a1, f, ext)
     a2.imshow(np.where(f.contact, 1.0, np.nan), origin="lower", extent=ext, cmap="gray_r", vmin=0, vmax=1,
               interpolation="nearest")
     a2.set_title(f"contact area, step {f.step} (A/A0 = {fmt_num(f.contact_fraction)})", fontsize=9)
@@ -149,27 +209,22 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
     a2.add_patch(__import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
         (zc.start * d, zr.start * d), (zc.stop - zc.start) * d, (zr.stop - zr.start) * d, fill=False,
         edgecolor="black", lw=0.8, ls="--"))
-    for a in (a1, a2, a2z):
+    for a in (a1, a2, a2z) if has_surface else (a2, a2z):
         a.set_xlabel(f"x  [{ux}]")
         a.set_ylabel(f"y  [{ux}]")
-    gaps = f.gap[np.isfinite(f.gap) & ~f.contact]
-    gaps = np.maximum(gaps, 0.0)
-    sg, ug = _length_scale(gaps, f.unit)
-    if gaps.size:
-        a3.hist(gaps * sg, bins=60, density=True, color="tab:gray", alpha=0.85)
-        a3.set_yscale("log")
-    a3.set_xlabel(f"gap g  [{ug}]")
-    a3.set_ylabel("probability density  [1/" + ug + "]")
-    a3.set_title(f"gap distribution, step {f.step} (out of contact)", fontsize=9)
-    a3.grid(True, alpha=0.3)
+    has_gap = _gap_panel(a3, f)
     rel = ctx.save_figure(fig, f"field-{f.scene}-{f.instance}-k{f.step}", on_page=True)
+    delta, control = field_approach(ctx, f)
+    what = [("the surface heights" if has_surface else "no surface panel (the problem has no height map)"),
+            "the contact area (black)",
+            "the contact pressure p/E* (log colour scale) in the most loaded window (dashed) with the contact "
+            "area outlined in red"]
+    what.append(f"the distribution of the gap over the points out of contact (the contact points, "
+                f"{fmt_num(100 * f.contact_fraction)} % of the area, have g = 0)" if has_gap else
+                "no gap panel: the stored field has no gap")
     return ctx.figure_md(rel, f"the contact field of `{f.scene}` instance `{f.instance}` at step {f.step} (of "
-                              f"{f.steps}; far-field displacement {fmt_num(f.far_field)} {f.unit}, P/(E* A0) = "
-                              f"{fmt_num(f.dim_load)}, answer of `{f.solver}`): the surface heights; the contact area "
-                              f"(black); the contact pressure p/E* (log colour scale) in the most loaded window "
-                              f"(dashed) with the contact area outlined in red; "
-                              f"the distribution of the gap over the points out of contact (the contact points, "
-                              f"{fmt_num(100 * f.contact_fraction)} % of the area, have g = 0).")
+                              f"{f.steps}; {_approach_text(delta, control, f.unit)}, P/(E* A0) = "
+                              f"{fmt_num(f.dim_load)}, answer of `{f.solver}`): " + "; ".join(what) + ".")
 
 
 def load_area_series(ctx: ReportContext) -> list[tuple[str, str, pd.DataFrame]]:
@@ -256,6 +311,16 @@ def trace_scene(ctx: ReportContext) -> tuple[str, dict[str, pd.Series]]:
     return scene, representative_traces(t[t["scene"] == scene])
 
 
+def _point_style(points: int) -> dict[str, object]:
+    """Markers for a series too short to show as a line."""
+    return {"marker": "o", "ms": 4} if points < 2 else {}
+
+
+def _decades(values: list[float]) -> float:
+    v = np.asarray([x for x in values if np.isfinite(x) and x > 0], dtype=float)
+    return float(np.log10(v.max() / v.min())) if len(v) else 0.0
+
+
 def _trace_figure(ctx: ReportContext) -> str:
     """Per family, the representative solve's trace of every solver: residual against
     iteration and against time, in the first scene with traces (trace_scene)."""
@@ -268,24 +333,34 @@ def _trace_figure(ctx: ReportContext) -> str:
     fig, axes = grid_figure(len(panels), 2, width=4.6, height=3.2, wspace=0.30)
     for (a1, a2), panel in zip(axes, panels):
         its: list[float] = []
+        secs: list[float] = []
+        res: list[float] = []
         for s in panel.solvers:
             tr = parse_trace(reps[s]["trace"])
             ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
-            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), label=s)
-            its += list(tr[ok, 0])
             ok2 = ok & (tr[:, 1] > 0)
-            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), label=s)
+            # a trace of one point (a backend that reports its final residual only) is a marker
+            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), label=s, **_point_style(int(ok.sum())))
+            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), label=s, **_point_style(int(ok2.sum())))
+            its += list(tr[ok, 0])
+            secs += list(tr[ok2, 1])
+            res += list(tr[ok, 2])
         fam = ctx.family(panel.solvers[0]) if panel.solvers else ""
         a1.set_title(f"family {fam}: residual against iteration", fontsize=9)
         a2.set_title(f"family {fam}: residual against time", fontsize=9)
         for a, xl in ((a1, "iteration  [-]"), (a2, "elapsed  [s]")):
             a.set_yscale("log")
+            tidy_log_ticks(a, "y", _decades(res))
             a.set_xlabel(xl)
             a.set_ylabel("own residual  [-]", fontsize=8)
             a.grid(True, which="major", alpha=0.3)
         a2.set_xscale("log")
+        tidy_log_ticks(a2, "x", _decades(secs))
         log_if_wide(a1, "x", its, decades=2.0)
         legend_outside(a2)
+        for a, xs in ((a1, its), (a2, secs)):
+            if not xs:
+                mark_empty(a, "no trace point with a positive residual" + (" and time" if a is a2 else ""))
     rel = ctx.save_figure(fig, f"traces-{scene}")
     where = ", ".join(f"`{s}`: {reps[s]['instance']} step {int(reps[s]['step'])} ({reps[s]['profile']})"
                       for s in solvers)
