@@ -586,6 +586,28 @@ def _threads_text(v: Any) -> str | None:
     return ", ".join(parts) or None
 
 
+def planned_cells(meta: dict[str, Any]) -> int | None:
+    """How many cells the run's plan has (meta.json ``config.cells``, written by the
+    runner); None for a folder written before it was recorded."""
+    cells = (meta.get("config") or {}).get("cells")
+    return int(cells) if isinstance(cells, (int, float)) and not isinstance(cells, bool) else None
+
+
+def cells_text(meta: dict[str, Any], t: pd.DataFrame) -> str | None:
+    """The header's "Cells" line: the cells with a row against the plan's, and "partial
+    run" when fewer (an interrupted run, or one still to be resumed); None without a
+    recorded plan.  A folder added to with ``--append`` holds the cells of several plans;
+    it is compared with the last one's."""
+    planned = planned_cells(meta)
+    if planned is None:
+        return None
+    done = int(t["cell_id"].nunique()) if "cell_id" in t.columns else len(t)
+    if done < planned:
+        return (f"PARTIAL RUN: {done} of {planned} planned cells have a row ({planned - done} missing: the run "
+                "was interrupted or has not finished; run the same command again to resume it)")
+    return f"{done} of {planned} planned cells (complete)"
+
+
 def status_counts(t: pd.DataFrame) -> str:
     """"solved 12, skipped 3, ..." in STATUSES order."""
     counts = t["status"].value_counts()
@@ -603,6 +625,7 @@ def header_section(ctx: ReportContext) -> str:
         ("Profiles", ", ".join(p for p in PROFILE_PREFERENCE[::-1] if p in set(t["profile"])) or
          ", ".join(natural_sorted(t["profile"].unique()))),
         ("Rows", f"{len(t)} ({status_counts(t)})"),
+        ("Cells", cells_text(m, t)),
         ("Commands" if len(commands_of(m)) > 1 else "Command",
          "; ".join(commands_of(m)) or _meta_get(m, "command", "command_line", "argv")),
         ("Date", _meta_get(m, "date", "started", "timestamp") or "unknown (no meta.json)"),

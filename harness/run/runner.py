@@ -76,10 +76,12 @@ def under_ci() -> bool:
 
 
 def run_config_record(scenes: Sequence[str], cfg: SceneConfig, plan: RunPlan, run: RunConfig) -> dict[str, Any]:
-    """meta.json's ``config`` (less the executor)."""
+    """meta.json's ``config`` (less the executor); ``cells``: how many cells the plan
+    has (a report of a folder with fewer says the run is partial)."""
     return {"scenes": list(scenes), "scene_config": asdict(cfg), "run": asdict(run),
             "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
-            "profiles": sorted({p for j in plan.jobs for p in j.profiles})}
+            "profiles": sorted({p for j in plan.jobs for p in j.profiles}),
+            "cells": plan.n_cells(run.repeats)}
 
 
 def run_identity(config: dict[str, Any]) -> dict[str, Any]:

@@ -1,0 +1,60 @@
+"""The report of an interrupted run says in its header that it is partial: how many of
+the plan's cells (meta.json ``config.cells``) have a row."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from contactbench.harness import run_benchmark
+from contactbench.harness.report.core import ReportContext, header_section, load_meta, read_table
+from contactbench.harness.run.plan import RunConfig
+from contactbench.harness.table.meta import META_FILE
+from contactbench.harness.table.store import ROWS_FILE
+from contactbench.problems.scenes import SceneConfig
+
+#: paper-sweep at 16^2 with 3 steps and 2 solvers: 6 cells.
+CFG = SceneConfig(size=16, steps=3, seeds=(0,))
+RUN = RunConfig(reference="none", warmup=False, progress=False)
+SOLVERS = ["scipy-nnls", "bvls"]
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("partial") / "whole"
+    run_benchmark(["paper-sweep"], CFG, SOLVERS, RUN, out, command=["pytest"])
+    return out
+
+
+def header(out: Path) -> str:
+    """report.md's header (``header_section``, as ``build_report`` writes it first)."""
+    return header_section(ReportContext(out, read_table(out), load_meta(out))).split("*Table 1", 1)[0]
+
+
+def test_the_plan_records_its_cells_and_a_whole_run_says_complete(whole: Path) -> None:
+    assert json.loads((whole / META_FILE).read_text())["config"]["cells"] == 6
+    top = header(whole)
+    assert "| Cells | 6 of 6 planned cells (complete) |" in top and "PARTIAL" not in top
+
+
+@pytest.mark.parametrize("keep", [1, 4])
+def test_an_interrupted_run_says_it_is_partial(whole: Path, tmp_path: Path, keep: int) -> None:
+    out = tmp_path / f"cut-{keep}"
+    shutil.copytree(whole, out)  # what Ctrl-C after ``keep`` journal rows leaves
+    lines = (out / ROWS_FILE).read_text(encoding="utf-8").splitlines(keepends=True)
+    (out / ROWS_FILE).write_text("".join(lines[:keep]), encoding="utf-8")
+    for name in ("results.parquet", "results.csv"):
+        (out / name).unlink()
+    assert f"| Cells | PARTIAL RUN: {keep} of 6 planned cells have a row ({6 - keep} missing" in header(out)
+
+
+def test_a_folder_without_a_recorded_plan_says_nothing_of_cells(whole: Path, tmp_path: Path) -> None:
+    out = tmp_path / "old"
+    shutil.copytree(whole, out)
+    meta = json.loads((out / META_FILE).read_text())
+    del meta["config"]["cells"]
+    (out / META_FILE).write_text(json.dumps(meta))
+    assert "| Cells |" not in header(out)
