@@ -41,6 +41,7 @@ from .operators import (
 )
 from .operators import memory_budget as operator_memory_budget
 from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
+from .preprocessing import MapPreprocessing
 from .surfaces import Surface, check_grid_size, check_not_flat
 
 OperatorKind = Literal["fft", "dense", "gpu"]
@@ -297,6 +298,28 @@ class ContactInstance:
         if self.qp.geometry is None:
             raise ProblemInputError("this instance has no grid geometry")
         return self.qp.geometry
+
+    @property
+    def preprocessing(self) -> MapPreprocessing | None:
+        """What was done to the measured map this problem stands on (``problems.io``);
+        None for a generated surface or none."""
+        return None if self.surface is None else self.surface.preprocessing
+
+    def problem_columns(self) -> dict[str, Any]:
+        """The table's columns of the grid, the elastic body and the map's preparation
+        (harness/table/schema.py): N0, N1 and the spacings delta0, delta1 (None without a
+        grid); the layer's thickness, nu and interface (NaN / "" on the half-space); the
+        ``MapPreprocessing.columns`` of a measured map."""
+        g = self.qp.geometry
+        out: dict[str, Any] = {"N0": None, "N1": None, "delta0": float("nan"), "delta1": float("nan"),
+                               "thickness": float("nan"), "nu": float("nan"), "interface": ""}
+        if g is not None:
+            out.update(N0=int(g.grid_shape[0]), N1=int(g.grid_shape[1]), delta0=g.spacing[0], delta1=g.spacing[1])
+            if g.layer is not None:
+                out.update(thickness=float(g.layer.thickness), nu=float(g.layer.nu), interface=str(g.layer.interface))
+        if self.preprocessing is not None:
+            out.update(self.preprocessing.columns())
+        return out
 
 
 # ---------------------------------------------------------------------------

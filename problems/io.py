@@ -32,8 +32,12 @@ L0 (the size along the array's axis 0, rows: square pixels L0 / N0) or (L0, L1) 
 and axis 1: spacings L0 / N0 and L1 / N1).  The length describes the map as read; a crop
 keeps the spacing.
 
-Cleaning, in this order (each step recorded in ``Surface.meta`` and, when it changes the
-data, announced by a ``UserWarning``):
+Cleaning, in this order.  Each step is recorded in ``Surface.meta`` and in the map's
+``MapPreprocessing`` record (``Surface.preprocessing``, problems/preprocessing.py: the file's
+base name, a hash of the raw heights and of the options that names the instance, the unit
+and the spacing per axis, the filled points, the removed plane, the crop, the warnings); a
+step that changes the data warns (``announce``: stored in the record, and a ``UserWarning``
+once per process for each file and message):
 
 1. NaN rule (``nan=``): ``"fill-mean"`` (default) replaces each missing point by the mean
    of the measured points; ``"fill-nearest"`` by its nearest measured neighbour;
@@ -66,6 +70,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
+from .preprocessing import MapPreprocessing, key_options, options_key, plane_in_lengths, raw_heights_sha256
 from .surfaces import Surface
 from .units import HEIGHT_UNITS
 
@@ -85,6 +90,8 @@ TEXT_SUFFIXES = (".txt", ".csv", ".tsv")
 MATRIX_FORMATS = ("mat", "npz")
 #: Relative disagreement allowed between a given length and the file's own lateral size.
 LENGTH_RTOL = 1e-6
+#: The cleaning warnings announced so far in this process (``announce``).
+_ANNOUNCED: set[tuple[str, str]] = set()
 
 
 class SurfaceFileError(ProblemInputError):
@@ -147,20 +154,67 @@ def load_surface(
     if raw.unit_known and height_unit is not None:
         raise SurfaceFileError(p, f"the file states its own unit ({raw.info.get('file_unit')!r}), so a height unit "
                                   f"({height_unit!r}, --height-unit) would be ignored; leave it out")
-    height_unit = height_unit or "m"
-    scale = 1.0 if raw.unit_known else HEIGHT_UNITS[height_unit]
+    unit_from = "file" if raw.unit_known else "height_unit argument" if height_unit else "default (metres)"
+    height_unit = str(raw.info.get("file_unit")) if raw.unit_known else height_unit or "m"
+    metres = float(raw.info.get("metres_per_unit", 1.0)) if raw.unit_known else HEIGHT_UNITS[height_unit]
+    scale = 1.0 if raw.unit_known else metres
     z = raw.z * scale
     file_spacing = None if raw.spacing is None else (raw.spacing[0] * scale, raw.spacing[1] * scale)
-    meta: dict[str, Any] = {"source": str(p), "format": raw.fmt, "original_shape": list(z.shape), **raw.info}
+    meta: dict[str, Any] = {"source": str(p), "format": raw.fmt, "original_shape": list(z.shape), **raw.info,
+                            "warnings": []}
     if not raw.unit_known:
         meta["height_unit"] = height_unit
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
-    z = fill_missing(z, nan, p, meta)
-    z = remove_tilt(z, detrend, meta, spacing, p)
-    z = crop_map(z, crop, p, meta)
+    named = p.resolve()  # the file a link names: its base name is the map's (MapPreprocessing.source)
+    z = fill_missing(z, nan, named, meta)
+    z = remove_tilt(z, detrend, meta, spacing, named)
+    z = crop_map(z, crop, named, meta)
     meta["spacing"] = list(spacing)
+    chosen = None if raw.info.get("channel") is None else str(raw.info["channel"])
+    raw_hash = raw_heights_sha256(raw.z)
+    key = options_key(raw_hash, key_options(nan=nan, detrend=detrend, crop=crop, metres_per_unit=metres,
+                                            spacing=spacing, channel=chosen))
+    record = preprocessing_record(p, raw, meta, z.shape, (raw_hash, key), (height_unit, unit_from, metres))
     d0, d1 = spacing
-    return Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1)
+    return Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1,
+                   preprocessing=record)
+
+
+def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tuple[int, int], hashes: tuple[str, str],
+                         unit: tuple[str, str, float]) -> MapPreprocessing:
+    """The ``MapPreprocessing`` of a map read and cleaned by ``load_surface`` (``meta``:
+    what its cleaning steps recorded; ``hashes``: (raw heights, key); ``unit``: (the unit
+    of the file's numbers, where it came from, metres per number))."""
+    n0, n1 = (int(v) for v in meta["original_shape"])
+    spacing = (float(meta["spacing"][0]), float(meta["spacing"][1]))
+    removed_mean, slope = None, None
+    if meta["detrend"] == "mean":
+        removed_mean = float(meta["removed_mean"])
+    elif meta["detrend"] == "plane":
+        removed_mean, slope = plane_in_lengths(meta["removed_plane"], (n0, n1), spacing)
+    filled = int(meta["nan_points"])
+    return MapPreprocessing(
+        source=p.resolve().name, path=str(p.resolve()), raw_sha256=hashes[0], key=hashes[1], format=raw.fmt,
+        channel=None if raw.info.get("channel") is None else str(raw.info["channel"]), height_unit=unit[0],
+        unit_from=unit[1], metres_per_unit=unit[2], shape_read=(n0, n1), shape=(int(shape[0]), int(shape[1])),
+        spacing=spacing, spacing_from=str(meta["spacing_from"]), nan_rule=str(meta["nan_rule"]), filled=filled,
+        filled_fraction=filled / (n0 * n1), fill_value=meta.get("fill_value"), detrend=str(meta["detrend"]),
+        tilt=float(meta["tilt"]), removed_mean=removed_mean, removed_slope=slope, crop=str(meta["crop_rule"]),
+        crop_done=str(meta["crop"]), warnings=tuple(meta["warnings"]))
+
+
+def announce(message: str, meta: dict[str, Any]) -> None:
+    """Record a cleaning step's warning in ``meta["warnings"]`` (the map's
+    ``MapPreprocessing.warnings``) and announce it as a ``UserWarning``: for a file read by
+    ``load_surface`` (``meta["source"]``) once per process for each distinct message (a run
+    reads its map when it plans and again when it builds), else every time.  Messages name
+    the file by its base name (``MapPreprocessing.source``)."""
+    meta.setdefault("warnings", []).append(message)
+    key = (str(Path(str(meta["source"])).resolve()), message) if meta.get("source") else None
+    if key is None or key not in _ANNOUNCED:
+        if key is not None:
+            _ANNOUNCED.add(key)
+        warnings.warn(message, UserWarning, stacklevel=4)
 
 
 def read_height_map(path: str | Path, channel: int | str | None = None) -> RawMap:
@@ -322,6 +376,8 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
     meta: dict[str, Any] = {"reader": f"SurfaceTopography {_st_version()}", "channel": info.name,
                             "file_unit": topo.unit}
     factor = _metres_per_unit(p, topo.unit)
+    if factor is not None:
+        meta["metres_per_unit"] = factor
     spacing = None
     if info.physical_sizes is not None:
         dx, dy = _file_spacing(p, topo.physical_sizes, topo.nb_grid_pts)
@@ -487,8 +543,9 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
 
         _, (ii, jj) = distance_transform_edt(missing, return_indices=True)
         z = z[ii, jj]
-    warnings.warn(f"{path}: {n_missing} missing points ({n_missing / z.size:.1%}) filled by rule {rule!r}",
-                  UserWarning, stacklevel=3)
+    if rule != "fill-nearest":
+        meta["fill_value"] = float(z[missing][0])
+    announce(f"{Path(path).name}: {n_missing} missing points ({n_missing / z.size:.1%}) filled by rule {rule!r}", meta)
     return z
 
 
@@ -524,8 +581,8 @@ def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing:
     meta["tilt"] = tilt
     if tilt > rough:
         what = "removed" if rule == "plane" else f"NOT removed (detrend={rule!r}): contact will gather on the high side"
-        warnings.warn(f"{path}: the map's mean plane is tilted by {tilt:.3g} (rise per length), more than its rms "
-                      f"slope {rough:.3g} without the tilt; the tilt was {what}", UserWarning, stacklevel=3)
+        announce(f"{Path(path).name}: the map's mean plane is tilted by {tilt:.3g} (rise per length), more than its rms "
+                 f"slope {rough:.3g} without the tilt; the tilt was {what}", meta)
     if rule == "none":
         return z
     if rule == "mean":
@@ -539,6 +596,7 @@ def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, An
     """Keep the map (``"none"``), crop it to its central square or pad it to a square with
     the lowest height (module doc, step 3); the spacing is the map's either way."""
     ny, nx = z.shape
+    meta["crop_rule"] = rule
     if rule == "none" or ny == nx:
         meta["crop"] = "none" if ny != nx else "already square"
         return z
@@ -552,7 +610,7 @@ def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, An
         out = np.full((n, n), float(z.min()))
         out[:ny, :nx] = z
         meta["crop"] = f"padded {ny}x{nx} to {n}x{n} with the lowest height {float(z.min()):.6g} (data top-left)"
-    warnings.warn(f"{path}: non-square map {meta['crop']}", UserWarning, stacklevel=3)
+    announce(f"{Path(path).name}: non-square map {meta['crop']}", meta)
     return out
 
 
