@@ -50,7 +50,7 @@ from ..table.meta import commands_of
 from .charts import Chart, RowChart
 from .panels import blank_panels
 from .style import DEFAULT_FAMILY, SolverStyles
-from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_text, bool_series
+from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finite, as_text, bool_series
 from ..table.store import load_table
 
 REPORT_NAME = "report.md"
@@ -614,6 +614,44 @@ def status_counts(t: pd.DataFrame) -> str:
     return ", ".join(f"{s} {int(counts[s])}" for s in STATUSES if s in counts.index)
 
 
+def grid_sizes(r: pd.DataFrame) -> list[str]:
+    """The distinct grids of a scene's rows, smallest first: "N" for a square grid, "N0 x N1"
+    for a rectangular one (tables without N0 / N1: N)."""
+    if "N0" not in r.columns or r["N0"].isna().all():
+        return [str(int(x)) for x in sorted(r["N"].dropna().unique())]
+    pairs = sorted({(int(a), int(b)) for a, b in zip(r["N0"], r["N1"]) if not (pd.isna(a) or pd.isna(b))})
+    return [str(a) if a == b else f"{a} x {b}" for a, b in pairs]
+
+
+def map_changes(r: pd.Series) -> str:
+    """What was done to one instance's measured map, from its table columns
+    (``schema.MAP_COLUMNS``): the removed plane or mean, the filled points, the crop."""
+    shape = f"{fmt_num(r['N0'])} x {fmt_num(r['N1'])}"
+    detrend = as_text(r["detrend"])
+    if detrend == "plane":
+        removed = (f"plane removed ({fmt_num(r['removed_mean'])} m at the centre, slopes "
+                   f"{fmt_num(r['removed_slope0'])} and {fmt_num(r['removed_slope1'])} rise per length along axes 0 "
+                   "and 1)")
+    elif detrend == "mean":
+        removed = f"mean {fmt_num(r['removed_mean'])} m removed"
+    else:
+        removed = "nothing removed (detrend none)"
+    filled = as_finite(r["nan_filled"]) or 0
+    fill = f"{int(filled)} missing points filled ({as_text(r['nan_rule'])})" if filled else "no missing point"
+    crop = as_text(r["crop"])
+    return (f"`{r['scene']}/{r['instance']}` ({as_text(r['surface_source'])}, {shape}): {removed}; {fill}"
+            f"{'' if crop in ('', 'none') else f'; crop {crop}'}")
+
+
+def problem_changes(t: pd.DataFrame) -> str:
+    """One clause per instance on a measured map (``map_changes``); "" when every surface
+    was generated."""
+    if "surface_source" not in t.columns:
+        return ""
+    maps = t[t["surface_source"].map(as_text) != ""].drop_duplicates(["scene", "instance"])
+    return "; ".join(map_changes(r) for _, r in maps.sort_values(["scene", "instance"]).iterrows())
+
+
 def header_section(ctx: ReportContext) -> str:
     m, t = ctx.meta, ctx.table
     scenes = ctx.scenes()
@@ -637,6 +675,7 @@ def header_section(ctx: ReportContext) -> str:
         ("Platform", _meta_get(m, "platform", "os", "machine.platform")),
         ("Python", _meta_get(m, "python", "python_version", "machine.python")),
         ("Package versions", _meta_get(m, "versions", "packages", "package_versions")),
+        ("Problem changes", problem_changes(t)),
         ("Run warnings", "; ".join(str(w) for w in m.get("warnings", []) or [])),
         ("Report sections that failed to load", ", ".join(section_import_errors())),
     ]
@@ -645,13 +684,13 @@ def header_section(ctx: ReportContext) -> str:
     for sc in scenes:
         r = ctx.rows(sc)
         n = r["n"].dropna()
-        N = r["N"].dropna()
+        grids = grid_sizes(r)
         steps = r["step"].dropna().nunique()
-        sizes.append((sc, r["instance"].nunique(), steps,
-                      "-" if N.empty else ", ".join(str(int(x)) for x in sorted(N.unique())),
+        sizes.append((sc, r["instance"].nunique(), steps, ", ".join(grids) or "-",
                       "-" if n.empty else f"{int(n.min())} - {int(n.max())}",
                       r["solver"].nunique(), len(r)))
-    lines.append(f"*Table {ctx.next_table()}: instance sizes per scene (N: grid points per side; n: trial-set "
+    lines.append(f"*Table {ctx.next_table()}: instance sizes per scene (N: grid points per side, N0 x N1 on a "
+                 "rectangular grid; n: trial-set "
                  f"size, smallest to largest over instances and steps).*\n")
     lines.append(markdown_table(["scene", "instances", "steps", "N", "n", "solvers", "rows"], sizes, "lrrlrrr"))
     return "\n".join(lines)

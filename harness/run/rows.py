@@ -1,7 +1,8 @@
 """The one place a table row is built (column meanings: ``harness.table.schema``).
 
 ``RowFactory.row`` gives every row its identity (scene, instance, step, variant,
-profile, repeat, cell_id, ...) and the step's facts (n, delta, E, kernel, ...);
+profile, repeat, cell_id, ...) and the step's facts (n, delta, E, kernel, ...; the grid,
+the elastic layer and a measured map's preparation from ``ContactInstance.problem_columns``);
 ``answer_columns`` turns a worker's ``SolveReply`` into the answer's columns (status,
 figures, the solver's account, the judge's reading in ``verdict``).  Skipped, failed,
 timed-out, crashed and lost rows are the same row with a status and a reason.
@@ -87,6 +88,7 @@ class RowFactory:
             host=self.host, timestamp=now_iso(), cell_id=self.cell_id(k, v, profile, r),
             history=HISTORIES[0] if self.run.warm else HISTORIES[1], **instance_columns(spec.params),
         )
+        row.update(info.columns if info else {})
         row.update(values)
         return row
 

@@ -12,7 +12,7 @@
 3. hand the jobs with missing cells to an executor (``harness.run.executors``: serial, a
    process pool, or Dask in ``harness.run.distributed``); each job is run by
    ``harness.run.job.JobDriver``: skip policy (``harness.run.skips``), isolated worker
-   (``harness.run.worker``), judge (``harness.judge``), one row per cell (``harness.run.rows``);
+   (``harness.run.worker``), judge (``harness.judging``), one row per cell (``harness.run.rows``);
 4. write the tidy table.
 
 Rows are appended to the store as they finish; rerunning the same command runs only the
@@ -37,7 +37,7 @@ from typing import Any, Sequence
 from contactbench.problems.scenes import SceneConfig
 
 from .executors import Executor, local_executor
-from ..table.meta import build_meta, write_meta
+from ..table.meta import build_meta, surface_preprocessing, write_meta
 from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
 from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
 
@@ -62,7 +62,7 @@ class RunSummary:
 
     @property
     def judged(self) -> int:
-        """Rows the judge gave a verdict ("solved" or "inaccurate", harness/judge.py); the
+        """Rows the judge gave a verdict ("solved" or "inaccurate", harness/judging.py); the
         rest failed, timed out, crashed or were skipped."""
         return sum(self.statuses.get(s, 0) for s in ("solved", "inaccurate"))
 
@@ -132,7 +132,8 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     pending = [j.with_stored(stored, run) for j in plan.jobs if not all(c in statuses for c in job_cell_ids(j, run))]
     executor = executor or local_executor(run, len(pending))
     config = {**config, "run": asdict(executor.run_config(run)), "executor": executor.describe()}
-    write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings))
+    write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
+                                     surfaces=surface_preprocessing(j.spec for j in plan.jobs)))
     total = sum(j.n_cells(run.repeats) for j in pending)
     already = sum(1 for j in pending for c in job_cell_ids(j, run) if c in statuses)
     show_bar = run.progress if run.progress is not None else not under_ci()

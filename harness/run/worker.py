@@ -9,7 +9,7 @@ The parent (``harness.run.job.JobDriver``) sends one message at a time:
 ``ComputeReference``    load the stored reference answer, or solve and store it ->
                         ``ReferenceReply``;
 ``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped;
-``Solve(task)``         one timed solve, judged by ``harness.judge.judge`` -> ``SolveReply``;
+``Solve(task)``         one timed solve, judged by ``harness.judging.judge`` -> ``SolveReply``;
 ``Regenerate(task)``    re-solve the previous step, untimed, to recover this solver's
                         warm start after a worker restart or on resume -> bool.
 
@@ -25,7 +25,7 @@ import json
 import math
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Iterable, Sequence, Union
 
 import numpy as np
@@ -39,7 +39,7 @@ from contactbench.solvers.registry import load_solver
 from ..table.fields import save_field
 from ..table.files import write_npz_atomic
 from .isolation import PeakMemory
-from ..judge import ProblemSeal, Verdict, judge
+from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
 from .sequence import WarmState, warm_start_from
 from .studies import REFERENCE_PROFILE
@@ -126,6 +126,7 @@ class StepInfo:
     E: float
     nominal_area: float
     analytic: dict[str, float]
+    columns: dict[str, Any] = field(default_factory=dict)  # ContactInstance.problem_columns
 
     @property
     def n(self) -> int:
@@ -275,7 +276,7 @@ class SolveServer:
         return StepInfo(
             traits=problem_traits(inst), steps=len(self.seq), delta=float(inst.delta), build_time=t_build,
             sequence_built=fresh_seq, N=int(geom.grid_shape[0]) if geom is not None else None, E=float(inst.E),
-            nominal_area=float(inst.nominal_area), analytic=self.analytic(k),
+            nominal_area=float(inst.nominal_area), analytic=self.analytic(k), columns=inst.problem_columns(),
         )
 
     def ensure_dense(self, k: int) -> float:

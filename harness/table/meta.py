@@ -2,7 +2,10 @@
 
 Package versions, Python, CPU model and core counts, thread settings (environment and
 threadpoolctl's view of the BLAS libraries), date, git commit (and whether the tree was
-dirty), the command line, the run configuration and the scenes' warnings.  A resumed
+dirty), the command line, the run configuration, the scenes' warnings and, for every
+instance on a measured map, what was done to the map (``surface_preprocessing``:
+"<scene>/<instance>" -> ``problems.preprocessing.MapPreprocessing.as_dict()``; its
+warnings also join ``warnings``).  A resumed
 (or, with ``--append``, an added) run keeps the first record's ``date`` and ``command``,
 appends itself to ``invocations`` and lists its command in ``commands`` (every distinct
 command that wrote to the folder, in order: ``commands_of``).
@@ -20,9 +23,10 @@ from dataclasses import fields
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
-from contactbench.problems.scenes import SceneConfig
+from contactbench.problems.scenes import InstanceSpec, SceneConfig
+from contactbench.problems.scenes.core import surface_from_params
 
 from .files import write_text_atomic
 
@@ -118,8 +122,31 @@ def now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
+def surface_preprocessing(specs: Iterable[InstanceSpec]) -> dict[str, dict[str, Any]]:
+    """meta.json's ``surface_preprocessing``: "<scene>/<instance>" -> the
+    ``MapPreprocessing`` record (``as_dict``) of every recipe on a measured map (its
+    ``params["surface_path"]``), as the scene's loader prepares it."""
+    out: dict[str, dict[str, Any]] = {}
+    for spec in specs:
+        if spec.params.get("surface_path"):
+            record = surface_from_params(spec.params).preprocessing
+            if record is not None:
+                out[f"{spec.scene}/{spec.instance}"] = record.as_dict()
+    return out
+
+
+def map_warnings(surfaces: dict[str, dict[str, Any]]) -> list[str]:
+    """The loader's warnings of each measured map, "<scene>: <warning>" as the scenes'
+    own warnings read."""
+    found = [f"{key.split('/', 1)[0]}: {w}" for key, rec in surfaces.items() for w in rec.get("warnings") or ()]
+    return list(dict.fromkeys(found))
+
+
 def build_meta(command: list[str] | None = None, config: dict[str, Any] | None = None,
-               warnings: list[str] | None = None, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+               warnings: list[str] | None = None, extra: dict[str, Any] | None = None,
+               surfaces: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """The run's record (module doc); ``surfaces`` (``surface_preprocessing``) is stored
+    under ``surface_preprocessing`` and its maps' warnings join ``warnings``."""
     return {
         "date": now_iso(),
         "command": list(command if command is not None else sys.argv),
@@ -128,7 +155,8 @@ def build_meta(command: list[str] | None = None, config: dict[str, Any] | None =
         "threads": thread_settings(),
         "packages": package_versions(),
         "config": config or {},
-        "warnings": list(warnings or []),
+        "warnings": list(dict.fromkeys([*(warnings or []), *map_warnings(surfaces or {})])),
+        "surface_preprocessing": dict(surfaces or {}),
         **(extra or {}),
     }
 

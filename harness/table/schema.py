@@ -25,7 +25,7 @@ load_rel_error   |P - P_ref| / |P_ref| against the reference solve (or the analy
                  load where the scene has one and no reference solve ran).
 status           the harness's verdict, one of STATUSES (never the solver's own claim,
                  which is in solver_status / solver_converged).
-verdict          the judge's conformance reading (harness/judge.py), one of VERDICTS,
+verdict          the judge's conformance reading (harness/judging.py), one of VERDICTS,
                  "" where no answer was judged (skipped, failed, timeout, crashed).
 """
 
@@ -41,7 +41,7 @@ import pandas as pd
 STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skipped")
 #: The statuses of a solve that returned an answer the judge read (a time to compare).
 ANSWERED: Final = ("solved", "inaccurate")
-#: The judge's readings of an answer (harness/judge.py), the values of column ``verdict``
+#: The judge's readings of an answer (harness/judging.py), the values of column ``verdict``
 #: besides "" (not judged).
 VERDICTS: Final = ("pass", "wrong", "unconverged")
 #: The kinds of run a row belongs to (column ``history``): warm starts along the load
@@ -54,9 +54,15 @@ DTYPES: Final = ("string", "Int64", "boolean", "float64")
 #: plan's cell ids, the stored table's repeat statistics, the aggregates and the report.
 CELL_COLUMNS: Final = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start",
                        "history")
+#: The columns of a measured map's preparation (``problems.preprocessing.MapPreprocessing``).
+MAP_COLUMNS: Final = ("surface_source", "surface_hash", "height_unit", "nan_rule", "nan_filled", "detrend",
+                      "removed_mean", "removed_slope0", "removed_slope1", "crop")
 #: The instance parameters the table carries as columns (read from the instance's
 #: recipe, ``InstanceSpec.params``, and the built instance), so no report parses a name.
-INSTANCE_COLUMNS: Final = ("surface_family", "hurst", "N", "seed", "kernel", "periodic")
+#: With ``E``, ``control``, ``hardness``, ``delta`` (or ``dim_load`` under load control) and,
+#: for a measured map, its file, they rebuild the problem: docs/columns.md.
+INSTANCE_COLUMNS: Final = ("surface_family", "hurst", "N", "seed", "kernel", "periodic", "N0", "N1", "delta0",
+                           "delta1", "thickness", "nu", "interface", *MAP_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -122,7 +128,7 @@ _EXTRA = _columns(
     ("dim_load", "float64", "P / (E A)"),
     ("E", "float64", "composite Young's modulus"),
     ("nominal_area", "float64", "nominal area A0"),
-    ("N", "Int64", "grid points per side"),
+    ("N", "Int64", "grid points per side; on a rectangular grid the points along axis 0 (= N0; see N1)"),
     ("kernel", "string", "influence-coefficient kernel"),
     ("periodic", "boolean", "periodic kernel"),
     ("operator", "string", "'fft' or 'dense': what the solver was given"),
@@ -152,6 +158,26 @@ _EXTRA = _columns(
     ("plastic_fraction", "float64", "share of the contact elements at the hardness bound; NaN without a hardness"),
     ("variant", "string", "the recipe's named variant of its scene's problem (e.g. greedy-kernels' operator: 'bcc', "
                           "'love', 'thin-layer', 'hardness'); '' where the scene has none"),
+    ("N0", "Int64", "grid points along axis 0 (rows) of the problem as solved; <NA> without a grid"),
+    ("N1", "Int64", "grid points along axis 1 (columns); N0 = N1 = N on a square grid"),
+    ("delta0", "float64", "grid spacing along axis 0 (element side, the instance's length unit); NaN without a grid"),
+    ("delta1", "float64", "grid spacing along axis 1 (delta0 = delta1: square elements)"),
+    ("thickness", "float64", "the elastic layer's thickness on its rigid base; NaN: the half-space"),
+    ("nu", "float64", "the elastic layer's Poisson ratio; NaN: the half-space (E is then the composite modulus)"),
+    ("interface", "string", "the layer's interface with its base, 'bonded' or 'frictionless'; '' for the half-space"),
+    ("surface_source", "string", "a measured surface's file, base name; '' for a generated surface"),
+    ("surface_hash", "string", "sha256 of the measured map's raw heights as read (shape, float64, C order; first 16 "
+                               "hex digits): the same file by any path; ''"),
+    ("height_unit", "string", "the unit of the measured file's height numbers (the file's own, or the one given; 'm' "
+                              "by default); ''"),
+    ("nan_rule", "string", "how missing points of the measured map were filled (problems/io.py NAN_RULES); ''"),
+    ("nan_filled", "Int64", "missing points of the measured map filled by nan_rule; <NA> for a generated surface"),
+    ("detrend", "string", "what was removed from the measured map: 'plane', 'mean' or 'none'; ''"),
+    ("removed_mean", "float64", "height removed at the map's centre (the mean, or the plane's height there); NaN: "
+                                "nothing removed"),
+    ("removed_slope0", "float64", "slope of the removed plane along axis 0, rise per length; NaN: no plane removed"),
+    ("removed_slope1", "float64", "slope of the removed plane along axis 1, rise per length; NaN: no plane removed"),
+    ("crop", "string", "the crop rule applied to the measured map: 'none', 'square' or 'pad-square'; ''"),
 )
 
 #: Every column, by name, in table order.
