@@ -14,7 +14,8 @@ Every adapter solves, by default, the scaled problem
 
     p = s D p~,   D = diag(d),  d_i = 1 / sqrt(H_ii),
     H~ = D H D                       (unit diagonal: a symmetric Jacobi scaling),
-    u~ = D ubar / s,   s = max_i |(D ubar)_i|   (so max |u~| = 1; s = 1 when ubar = 0),
+    u~ = D ubar / s,   s = max_i |(D ubar)_i|   (so max |u~| = 1; s = 1 when ubar = 0 or
+                                              so small that s D underflows),
 
     min 1/2 p~' H~ p~ - u~' p~,  p~ >= 0,
 
@@ -127,7 +128,9 @@ def equilibration_for(diag_H: np.ndarray, ubar: np.ndarray, enabled: bool = True
         raise ValueError("H must have a finite positive diagonal to be equilibrated")
     d = 1.0 / np.sqrt(diag_H)
     s = float(np.max(np.abs(d * ubar), initial=0.0))
-    return Equilibration(d, s if s > 0.0 else 1.0, True)
+    if not s * float(np.min(d)) >= np.finfo(np.float64).tiny:  # ubar = 0, or so small that s d underflows
+        s = 1.0
+    return Equilibration(d, s, True)
 
 
 def dense_matrix(qp: QP, budget: float | None = None) -> np.ndarray:
@@ -361,7 +364,12 @@ class EquilibratedAdapter(Solver):
         p0 = sqp.eq.to_original(x)
         g0 = sqp.eq.gap_to_original(sqp.H @ x - sqp.u)
         d0 = fit_multiplier(g0, p0, c.upper) if c.load_control else 0.0
-        pol = box_polish(H, np.asarray(qp.ubar, dtype=np.float64), c, p0, d0)
+        try:
+            pol = box_polish(H, np.asarray(qp.ubar, dtype=np.float64), c, p0, d0)
+        except np.linalg.LinAlgError as exc:  # a singular block: the backend's point stands, unpolished
+            info.update(polish_time=time.perf_counter() - t1, polish_error=str(exc), polish_improved=False)
+            return Outcome(p=p0, iterations=0, converged=status is Status.CONVERGED,
+                           message=f"{self.name}: polish broke down ({exc})", w=g0, status=status, info=info)
         g1 = H @ pol.p - qp.ubar
         better = (ctx.kkt(pol.p, g1, pol.multiplier if c.load_control else None)
                   <= constrained_kkt_error(p0, g0, qp.ubar, ctx.diag_max, c, None))

@@ -33,6 +33,7 @@ the approach Delta is fitted from it by the lifecycle.
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -133,6 +134,8 @@ class ADMM(Solver):
                 ctx.record(i, res)
                 if res <= tol:
                     converged = True
+                    break
+                if not math.isfinite(res):  # a non-finite iterate: the lifecycle reports it "failed"
                     break
         return Outcome(p, i, converged, w=w)
 

@@ -111,7 +111,7 @@ class CVXPYAdapter(EquilibratedAdapter):
         t1 = time.perf_counter()
         try:
             problem.solve(solver=solver, **opts)
-        except (cp.error.SolverError, ValueError, TypeError) as exc:
+        except Exception as exc:  # the backend's own failure (SolverError, a numerical error) is a status, not a crash
             return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, info=info)
         wall = time.perf_counter() - t1
         compile_time = float(getattr(problem, "compilation_time", None) or 0.0)

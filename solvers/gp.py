@@ -28,6 +28,7 @@ budget: above it the solver skips with the reason.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -39,7 +40,7 @@ from contactbench.problems.operators import dense_nbytes, memory_budget
 
 from ._kit import lipschitz_constant, matvec_seconds
 from ._scaling import dense_matrix
-from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver
+from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
 from .nnls import FACTOR_MAX_N, LINEAR_PARAM, nnls_active_set, nnls_max_iter
 from .registry import register
 
@@ -62,7 +63,8 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
                                     check_every: int = 10, restart: bool = False) -> GPOutcome:
     """Algorithm 4 for at most K iterations; with ``tol``, stop early once the scaled
     KKT error of p (``ctx.kkt``, one extra matvec) is <= tol, checked and recorded
-    every ``check_every`` iterations, as is the deadline."""
+    every ``check_every`` iterations, as is the deadline.  A non-finite error at a check
+    ends the loop (the lifecycle reports the non-finite p as "failed")."""
     op, ubar = ctx.qp.H, ctx.qp.ubar
     project = projection_of(ctx)
     p = p0.copy()
@@ -82,7 +84,7 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
             ctx.record(i + 1, res)
             if res <= tol:
                 return GPOutcome(p, i + 1, True, restarts)
-            if ctx.expired():
+            if ctx.expired() or not math.isfinite(res):
                 return GPOutcome(p, i + 1, False, restarts)
     return GPOutcome(p, K, False, restarts)
 
@@ -111,7 +113,12 @@ def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
     c = ctx.constraints
     ctx.mark_setup_done()
     delta0 = fit_multiplier(H @ p - ctx.qp.ubar, p, c.upper) if c.load_control else 0.0
-    sol = box_polish(H, ctx.qp.ubar, c, p, delta0, max_rounds=max(1, int(ctx.max_iter or 1)))
+    try:
+        sol = box_polish(H, ctx.qp.ubar, c, p, delta0, max_rounds=max(1, int(ctx.max_iter or 1)))
+    except np.linalg.LinAlgError as exc:  # a block of H (or the bordered load system) numerically singular
+        ctx.info.update(K=K, gp_iterations=K, pivoting_rounds=0)
+        return Outcome(p, K, False, f"block pivoting broke down on a singular system ({exc}); the GP point is "
+                       "returned", status=Status.STALLED)
     ctx.info.update(K=K, gp_iterations=K, pivoting_rounds=sol.rounds)
     return Outcome(sol.p, K + sol.rounds, sol.converged, multiplier=sol.multiplier if c.load_control else None,
                    message="" if sol.converged else "block pivoting did not reach a violation-free set")

@@ -45,7 +45,7 @@ import scipy.linalg as sla
 from contactbench.problems.operators import ContactOperator, dense_nbytes, memory_budget
 
 from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, cholesky_seconds, conjugate_gradient, matvec_seconds
-from .base import Capabilities, Deadline, Outcome, Param, SolveContext, Solver
+from .base import Capabilities, Deadline, Outcome, Param, SolveContext, Solver, Status
 from .registry import register
 
 #: Typical number of outer passes and inner iterations per pass (for time_estimate).
@@ -56,11 +56,15 @@ TYPICAL_GS_SWEEPS_PER_PASS = 200
 
 @dataclass
 class ReducedSolve:
-    """Result of one unconstrained solve H_II x = ubar_I."""
+    """Result of one unconstrained solve H_II x = ubar_I: ``broke_down`` when it stopped
+    short of its tolerance for another reason than its limits (CG: no curvature along a
+    direction; Cholesky: H_II not numerically positive definite), ``note`` why."""
 
     x: np.ndarray
     iterations: int
     converged: bool
+    broke_down: bool = False
+    note: str = ""
 
 
 class GreedySolver(Solver):
@@ -88,6 +92,10 @@ class GreedySolver(Solver):
         """Solve op x = b (op = H restricted to the current set I)."""
 
     def iterate(self, ctx: SolveContext) -> Outcome:
+        """The passes (class doc).  Degenerate passes end the loop with an answer and an
+        honest status: an empty set I is a pass with nothing negative (the method's own
+        test passes); a reduced solve with non-finite entries, or one that broke down
+        (``ReducedSolve.broke_down``), ends "stalled" at the last finite iterate."""
         qp = ctx.qp
         atol = absolute_tol(ctx, ctx.tol)
         max_passes = ctx.params["max_passes"] or qp.n + 1
@@ -97,13 +105,22 @@ class GreedySolver(Solver):
         plastic = np.zeros(qp.n, dtype=bool)
         op: ContactOperator = qp.H
         total_it, passes, converged = 0, 0, False
+        status, why = None, ""
         while passes < max_passes:
             passes += 1
+            if active.size == 0:  # nothing left in I: no negative p, the method's stopping test
+                converged = True
+                break
             rhs = qp.ubar[active]
             if plastic.any():
                 rhs = rhs - qp.H.matvec(np.where(plastic, u, 0.0))[active]
             red = self.solve_reduced(ctx, op, rhs, p[active], atol.disp, ctx.max_iter - total_it)
             total_it += red.iterations
+            if not np.all(np.isfinite(red.x)) or red.broke_down:
+                status = Status.STALLED
+                why = (f"the reduced solve of pass {passes} {'gave non-finite forces' if red.broke_down is False else 'broke down'}"
+                       f" ({red.note or 'no progress'}); the last finite iterate is returned")
+                break
             p[:] = 0.0
             p[plastic] = u[plastic]
             p[active] = red.x
@@ -118,14 +135,16 @@ class GreedySolver(Solver):
             active = active[~(negative | over)]
             feasible = np.clip(p, 0.0, u)
             ctx.record(total_it, ctx.kkt(feasible, qp.H.matvec(feasible) - qp.ubar))
-            if ctx.params["literal_one_pass"] or total_it >= ctx.max_iter or ctx.expired() or active.size == 0:
+            if ctx.params["literal_one_pass"] or total_it >= ctx.max_iter or ctx.expired():
                 break
-            op = ctx.track(qp.H.restrict(active))
+            if active.size:
+                op = ctx.track(qp.H.restrict(active))
         np.clip(p, 0.0, u, out=p)  # entries in (-eps, 0) count as zero, (u, u + eps) as u
         ctx.info.update(method="greedy, repeated until no negative p (intended Algorithm 1)", passes=passes,
                         final_set_size=int(active.size), plastic=int(plastic.sum()))
-        message = f"no negative p after {passes} passes" if converged else f"stopped after {passes} passes"
-        return Outcome(p, total_it, converged, message)
+        message = (why if status is not None else
+                   f"no negative p after {passes} passes" if converged else f"stopped after {passes} passes")
+        return Outcome(p, total_it, converged, message, status=status)
 
 
 @register
@@ -142,7 +161,9 @@ class GreedyCG(GreedySolver):
     def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
                       max_iter: int) -> ReducedSolve:
         r = conjugate_gradient(op, b, x0, atol, max_iter, ctx.deadline)
-        return ReducedSolve(r.x, r.iterations, r.converged)
+        broke = not r.converged and r.iterations < max_iter and not ctx.expired()
+        return ReducedSolve(r.x, r.iterations, r.converged, broke,
+                            f"CG stopped at residual {r.residual:.3g} > {atol:.3g}" if broke else "")
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return TYPICAL_PASSES * TYPICAL_CG_ITERS_PER_PASS * matvec_seconds(n, operator_kind)
@@ -229,7 +250,10 @@ class GreedyCholesky(GreedySolver):
 
     def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
                       max_iter: int) -> ReducedSolve:
-        L = cholesky_of_h(op, what="greedy-chol: dense block H_II for the Cholesky factor")
+        try:
+            L = cholesky_of_h(op, what="greedy-chol: dense block H_II for the Cholesky factor")
+        except np.linalg.LinAlgError as exc:  # H_II not numerically positive definite
+            return ReducedSolve(x0, 1, False, True, f"Cholesky of H_II failed: {exc}")
         return ReducedSolve(cholesky_solve(L, b), 1, True)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:

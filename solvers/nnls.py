@@ -230,7 +230,13 @@ def nnls_active_set(ctx: SolveContext, p0: np.ndarray, max_iter: int, linear: st
     backend = choose_backend(op, linear, 0.1 * eps_w, ctx)
     p = p0.copy()
     passive = p > 0.0
-    backend.reset(np.flatnonzero(passive))
+    try:
+        backend.reset(np.flatnonzero(passive))
+    except np.linalg.LinAlgError:  # the warm set's H_PP is not numerically positive definite: start cold
+        p[:] = 0.0
+        passive[:] = False
+        backend.reset(np.flatnonzero(passive))
+        ctx.info["warm_set_refused"] = True
     w = op.matvec(p) - ubar
     init = not passive.any()  # steps 1-2: a warm p skips the first "add"
     rejected = np.zeros(qp.n, dtype=bool)
@@ -261,6 +267,9 @@ def nnls_active_set(ctx: SolveContext, p0: np.ndarray, max_iter: int, linear: st
             order = backend.order
             s = backend.solve(ubar[order], p[order])
             k += 1
+            if not np.all(np.isfinite(s)):  # step 6 broke down: p is the last feasible iterate
+                message, status = "stalled: the step-6 solve gave non-finite values", Status.STALLED
+                break
             if t >= 0 and s[order == t][0] <= 0.0:  # LH anti-cycling guard
                 backend.remove(np.array([t]))
                 passive[t] = False
@@ -289,6 +298,8 @@ def nnls_active_set(ctx: SolveContext, p0: np.ndarray, max_iter: int, linear: st
                 break
         w = op.matvec(p) - ubar  # step 3
         ctx.record(it_offset + k, ctx.kkt(p, w))
+        if status is Status.STALLED:
+            break
     ctx.info.update(linear_solver=backend.name, additions=adds, removals=removes, passive_size=int(passive.sum()))
     if isinstance(backend, IncrementalCholesky):
         ctx.info["factor_updates"] = backend.updates

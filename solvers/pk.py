@@ -54,7 +54,7 @@ from contactbench.problems.constraints import fit_multiplier
 
 from ._ccg import GapState, outcome, polonsky_keer
 from ._constrained import constrained_start, mean_on, scale_to_load, wants_to_move
-from ._kit import matvec_seconds
+from ._kit import absolute_tol, matvec_seconds
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
 
@@ -89,20 +89,27 @@ class PolonskyKeer(Solver):
 
 
 def pk_constrained(ctx: SolveContext) -> Outcome:
-    """Polonsky & Keer (1999) under load control with Almqvist's saturation (module doc)."""
+    """Polonsky & Keer (1999) under load control with Almqvist's saturation (module doc).
+
+    Degenerate steps end the loop with an answer and an honest status: a free set whose
+    own residual is within the tolerance (e.g. a single free point under load control,
+    its gap equal to Delta) is widened by the points at a bound that want to move
+    (``cg_set``); a direction with no curvature after a conjugate step restarts from the
+    steepest one; nothing left to move, or no curvature along the steepest direction,
+    is "stalled" with the reason."""
     H, ubar, c = ctx.qp.H, ctx.qp.ubar, ctx.constraints
     u = c.upper_or_inf(ctx.n)
     load = c.load is not None
+    atol = absolute_tol(ctx, ctx.tol or 0.0).disp
     p = constrained_start(ctx, u)
     t = np.zeros(ctx.n)
     G_old, conj = 1.0, False
     delta = 0.0
     first = ctx.p0 is None and not load  # displacement control from p = 0: the whole set is I_c
+    status, why = None, ""
     for it in range(int(ctx.max_iter or 0) + 1):
         g = H.matvec(p) - ubar
-        free = (p > 0.0) & (p < u)
-        if first:
-            free = np.ones(ctx.n, dtype=bool)
+        free = np.ones(ctx.n, dtype=bool) if first else (p > 0.0) & (p < u)
         if not np.any(free):  # every element at a bound: those whose gradient points inward move
             free = wants_to_move(p, g - delta, u)
         if load:
@@ -111,19 +118,28 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         ctx.record(it, res)
         if res <= (ctx.tol or 0.0):
             return Outcome(p, it, True, w=g, multiplier=delta if load else None)
-        if it == ctx.max_iter or ctx.expired() or not math.isfinite(res) or not np.any(free):
+        if it == ctx.max_iter or ctx.expired() or not math.isfinite(res):
             break
         first = False
+        free, delta, widened = cg_set(p, g, delta, free, u, load, atol)
         r_g = np.where(free, g - delta, 0.0)
         G = float(r_g @ r_g)
+        if not G > 0.0:
+            status, why = Status.STALLED, "no point can move: the free set is solved and no point at a bound wants to move"
+            break
+        conj = conj and not widened
         t = r_g + (G / G_old if conj else 0.0) * np.where(free, t, 0.0)
-        G_old = G
         r = H.matvec(t)
         if load:
             r -= mean_on(r, free)
         den = float(r[free] @ t[free])
         if not den > 0.0:
+            if conj:  # the conjugate direction lost its curvature by round-off: restart steepest
+                conj = False
+                continue
+            status, why = Status.STALLED, f"no curvature along the steepest direction (t'Ht = {den:.3g})"
             break
+        G_old = G
         tau = float(r_g[free] @ t[free]) / den
         p = p - tau * t
         np.maximum(p, 0.0, out=p)
@@ -134,5 +150,23 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
             p[wants] -= tau * (g[wants] - delta)
             np.clip(p, 0.0, u, out=p)
         p = scale_to_load(p, c, u, g - delta)
-    return Outcome(p, it, False, w=g, multiplier=delta if load else None,
-                   status=None if math.isfinite(res) else Status.FAILED)
+    if status is None and not math.isfinite(res):
+        status, why = Status.FAILED, f"non-finite KKT error at iteration {it}"
+    message = f"{status.value} after {it} iterations: {why}" if status is not None else ""
+    return Outcome(p, it, False, message, w=g, multiplier=delta if load else None, status=status)
+
+
+def cg_set(p: np.ndarray, g: np.ndarray, delta: float, free: np.ndarray, u: np.ndarray, load: bool,
+           atol: float) -> tuple[np.ndarray, float, bool]:
+    """(CG set, Delta, widened): ``free`` and Delta as they are while the free set's own
+    residual max |g - Delta| exceeds ``atol`` (the tolerance in displacement units); once
+    it does not, the free set is solved on its own and the error lies at the bounds, so
+    the points at a bound that want to move (``wants_to_move``) join it and Delta is
+    the mean gap over the widened set (under load control)."""
+    if np.any(free) and float(np.max(np.abs(g[free] - delta))) > atol:
+        return free, delta, False
+    wants = wants_to_move(p, g - delta, u) & ~free
+    if not np.any(wants):
+        return free, delta, False
+    free = free | wants
+    return free, (mean_on(g, free) if load else delta), True

@@ -96,7 +96,10 @@ class BVLSReference(Solver):
         ctx.mark_setup_done()
         c = ctx.constraints
         if c.plain:
-            sol = exact_solution(H, ubar)
+            try:
+                sol = exact_solution(H, ubar)
+            except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:  # H not numerically SPD, LH cut short
+                return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {exc}", status=Status.FAILED)
             return Outcome(sol.p, sol.polish_rounds, sol.converged, w=sol.w)
         try:
             ref = constrained_exact_solution(H, ubar, c)
