@@ -5,7 +5,7 @@ For each N and solver, one child process builds the paper-sweep scene's own surf
 recipe (``get_scene("paper-sweep")``, ``SceneConfig(size=N, steps=K)``: RMD H = 0.7,
 L = 100 um, non-periodic BCC; the recipe name is recorded), takes its last (top) step
 Delta = (z_max - z_mean)/2, and solves it cold (no warm start) through the harness's
-``solve_sequence`` at the "high" profile (tol 1e-9, judged by ``harness/judge.py``).
+``solve_sequence`` at the "high" profile (tol 1e-9, judged by ``harness/judging.py``).
 Recorded per solve: n, iterations, matvecs, seconds, ms per matvec, kkt, load, the
 judge's status and the child's peak RSS.
 

@@ -9,7 +9,7 @@ n = 1e2 .. 1e5 points at packing densities 1.0 and 0.2 -- dense eigvalsh up to
 n = 2500, Lanczos (ARPACK) on the matrix-free FFT operator beyond.
 ``survival``: ``harness.conformance.validate`` of every available solver on the battery
 ("full" by default; ``--mode fast``), each solve in a killable worker with a time limit
-and judged by ``harness.judge`` (the verdict of ``contactbench run``).  The verdict rows
+and judged by ``harness.judging`` (the verdict of ``contactbench run``).  The verdict rows
 (one per solve, plus the unit-agreement and perturbation rows, each with its solver's
 outcome: conforms / wrong / incomplete) go to ``survival-MODE.csv``; ``report`` pivots
 them into the survival and unit-scaling tables.

@@ -15,7 +15,7 @@ x sizes (``--sizes``), L = 100 um:
 
 Every surface is scaled to its cell's rms slope (``with_rms_slope``).  Instance: the
 paper's, BCC kernel, non-periodic, E = the paper's, top step Delta = (z_max - z_mean)/2,
-cold start, tol 1e-9 (profile "high", judged by harness/judge.py).  Variants (``VARIANTS``):
+cold start, tol 1e-9 (profile "high", judged by harness/judging.py).  Variants (``VARIANTS``):
 "default" -- ``fast-dual-pccg`` with its defaults -- and "double-islands" --
 ``precision=double, precondition=islands``.
 

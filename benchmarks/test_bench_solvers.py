@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from contactbench.harness.judge import ProblemSeal, judge
+from contactbench.harness.judging import ProblemSeal, judge
 from contactbench.harness import get_profile
 from contactbench.harness.pytest_plugin import settle
 from contactbench.harness.run.skips import skip_decision

@@ -24,7 +24,7 @@ import pytest
 
 
 def settle(verdict: Any, what: str, solver_message: str = "") -> None:
-    """The pytest outcome of a judged answer (``harness.judge.Verdict``), as in
+    """The pytest outcome of a judged answer (``harness.judging.Verdict``), as in
     ``contactbench validate``: reading "wrong" (a failing answer claimed as converged,
     no answer claimed as one, or a solver that wrote into its problem) fails the test;
     "unconverged" (the solver said it did not converge) is an xfail; "pass" returns."""

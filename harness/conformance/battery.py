@@ -4,13 +4,13 @@
 run a solver -- registered, or given by import path -- on every case of the battery
 (``harness.conformance.cases``: conditioning, units, edge cases, random LCPs, float32
 input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids).
-Every answer is judged by the one judge, ``harness.judge.judge``, at the tolerance the
+Every answer is judged by the one judge, ``harness.judging.judge``, at the tolerance the
 solver promises (``Capabilities.promise``, docs/verdicts.md): "exact" -- the case's
 profile's ``check_tol``, the threshold ``run`` uses for "solved", so a solve that ``run``
 calls solved is never WRONG here, and a WRONG one is never solved there; a float floor
 f -- max(check_tol, f).  Beside the judge's KKT test, the answer is compared with the
 exact reference (``p_tolerance``, a gross-error bound).  The problem is sealed before
-each solve (``harness.judge.ProblemSeal``): a solver that writes into it is WRONG.
+each solve (``harness.judging.ProblemSeal``): a solver that writes into it is WRONG.
 
 Row statuses (one row per solve):
 
@@ -81,7 +81,7 @@ from .cases import (
     conformance_cases,
     exact_reference,
 )
-from ..judge import Verdict, judge, read_answer
+from ..judging import Verdict, judge, read_answer
 from ..profiles import get_profile
 
 __all__ = ["ConformanceCase", "GROUPS", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",

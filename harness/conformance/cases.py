@@ -12,7 +12,7 @@
   (``harness.run.isolation.ChildProcess``) with a hard wall-clock limit, so that a
   hanging solver cannot hang ``validate``.
 
-The verdicts are ``harness.conformance.battery``'s business, through ``harness.judge``.
+The verdicts are ``harness.conformance.battery``'s business, through ``harness.judging``.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
 from contactbench.solvers.base import SolveAborted, Solver
 
-from ..judge import ProblemSeal
+from ..judging import ProblemSeal
 from ..profiles import get_profile
 from ..run.skips import capability_decision
 from ..run.worker import instance_operator_kind, problem_traits
@@ -165,7 +165,7 @@ class CaseAnswer:
 
     kind: "ok", "refused", "crashed", "timeout" or "skipped"; ``message`` is one line,
     ``detail`` the traceback of a crash; ``tampered`` what the solver changed in the
-    problem it was handed (``harness.judge.ProblemSeal``; "" nothing)."""
+    problem it was handed (``harness.judging.ProblemSeal``; "" nothing)."""
 
     kind: str
     p: np.ndarray | None = None

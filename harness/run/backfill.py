@@ -14,7 +14,7 @@ from contactbench.problems.scenes import get_scene
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import load_solver
 
-from ..judge import judge
+from ..judging import judge
 from ..table.fields import save_field
 from ..table.meta import read_meta, scene_config_from_meta
 from ..table.store import load_table

@@ -12,7 +12,7 @@ the worker by the same ``harness.run.job.JobDriver`` as every executor
 (``harness.run.executors``) -- so a Dask worker does exactly what a local run does: builds
 the instance *on the worker* from its picklable ``InstanceSpec`` recipe (a seed, never
 an operator or a surface), isolates every solve in a child process with a hard time
-limit, judges every answer (``harness.judge``), warm-starts along the load history.
+limit, judges every answer (``harness.judging``), warm-starts along the load history.
 Only the recipe goes out and only rows come back.
 
 ``DaskExecutor`` is the executor; ``run_benchmark_on_dask`` is ``run_benchmark`` with it.

@@ -22,7 +22,7 @@ whose handler (``harness.run.worker.SolveServer``) builds the instance's
    meets the variant -- dropped when the solve is predicted to take longer than
    ``RunConfig.warmup_limit`` (``predicted_seconds``; the row's ``warmup`` says so) --
    then ``repeats`` timed solves, each under a hard wall-clock limit enforced by
-   killing the worker; every answer is judged by ``harness.judge.judge``.
+   killing the worker; every answer is judged by ``harness.judging.judge``.
 
 Warm starts: along a load history each solver starts from its own previous-step answer
 (``harness.run.sequence``) when its capabilities allow and the run asks; after a worker

@@ -21,7 +21,7 @@ from contactbench.problems.scenes import LoadSequence
 from contactbench.solvers.base import Solver, SolveResult, SolverSettings, WarmStart
 from contactbench.solvers.registry import load_solver
 
-from ..judge import ProblemSeal, Verdict, judge
+from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
 
 

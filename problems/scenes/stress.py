@@ -2,7 +2,7 @@
 
 One battery of hard cases serves two jobs: ``contactbench run stress`` (these scenes,
 run like any other) and ``contactbench validate`` (``harness.conformance``, which runs
-a solver through the same recipes and judges every answer with ``harness.judge``).
+a solver through the same recipes and judges every answer with ``harness.judging``).
 
 Groups (each is also a scene of its own, ``stress-<group>``; ``stress`` is the union):
 

@@ -390,7 +390,7 @@ _DOTTED = re.compile(r"`((?:contactbench\.)?(?:problems|solvers|harness)(?:\.[A-
 
 
 def unresolved_names(text: str) -> list[str]:
-    """Backticked dotted names of the packages (``harness.judge.judge``,
+    """Backticked dotted names of the packages (``harness.judging.judge``,
     ``contactbench.problems.kkt``) that name no module or attribute."""
     bad = []
     for m in _DOTTED.finditer(text):
@@ -412,8 +412,8 @@ def unresolved_names(text: str) -> list[str]:
 
 
 def test_dotted_names_in_the_pages_exist() -> None:
-    assert unresolved_names("`harness.judge.judge` `contactbench.problems.kkt.kkt_check`") == []
-    assert unresolved_names("`harness.judge.no_such` `problems.nowhere`") == ["harness.judge.no_such",
+    assert unresolved_names("`harness.judging.judge` `contactbench.problems.kkt.kkt_check`") == []
+    assert unresolved_names("`harness.judging.no_such` `problems.nowhere`") == ["harness.judging.no_such",
                                                                                "problems.nowhere"]
     bad = {p.name: unresolved_names(p.read_text()) for p in [*pages(), REPO / "README.md"]}
     assert {k: v for k, v in bad.items() if v} == {}

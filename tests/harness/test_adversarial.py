@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from contactbench.harness.conformance import battery as cf
 from contactbench.harness.conformance.command import main as validate_main
-from contactbench.harness.judge import ProblemSeal, judge
+from contactbench.harness.judging import ProblemSeal, judge
 from contactbench.harness import get_profile
 from contactbench.harness.pytest_plugin import settle
 from contactbench.problems.instances import QP, counterexample

@@ -242,7 +242,7 @@ def test_checker_sees_imports_under_type_checking_and_in_classes() -> None:
 def test_checker_flags_each_forbidden_direction() -> None:
     graph = {
         "contactbench.problems.x": {"contactbench.solvers.base"},
-        "contactbench.solvers.y": {"contactbench.harness.judge"},
+        "contactbench.solvers.y": {"contactbench.harness.judging"},
         "contactbench.harness.report.core": {"contactbench.harness.run.plan"},
         "contactbench.harness.table.store": {"contactbench.harness.profiles"},
         "contactbench.harness.run.plan": {"contactbench.harness.table.store"},  # allowed

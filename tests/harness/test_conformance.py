@@ -222,7 +222,7 @@ def test_wrong_claim_threshold_is_the_check_tol_of_run() -> None:
 def test_an_answer_run_calls_solved_is_never_wrong_even_off_the_reference() -> None:
     """The reference comparison is an extra: where it disagrees with a KKT pass the row is
     flagged (``--strict`` fails it), never WRONG."""
-    from contactbench.harness.judge import judge
+    from contactbench.harness.judging import judge
 
     inst = cf.build_battery_spec(cases("counterexample/*-s0")[0].spec).at(0)
     p = cf.exact_reference(inst).p

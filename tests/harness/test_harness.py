@@ -439,7 +439,7 @@ def test_cmr_wrappers_are_skipped_with_a_reason_on_the_counterexample(tmp_path: 
 
 
 def test_run_rows_carry_the_judges_verdict(tmp_path: Path) -> None:
-    from contactbench.harness.judge import judge
+    from contactbench.harness.judging import judge
     from contactbench.problems.scenes import get_scene
     from contactbench.solvers.registry import get_solver
 

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 from contactbench.harness.report import core as rp
 from contactbench.harness.report.sections import counterexample as rce
-from contactbench.harness.judge import judge
+from contactbench.harness.judging import judge
 from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import (
     CONTACT_BAND,

@@ -109,7 +109,7 @@ def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> No
     """save_field keeps a solved top step (and only that); the report draws the surface,
     pressure and gap from it and fits kappa on the table's load-area points."""
     from contactbench.harness.table.fields import FIELD_MAX_SIDE, block_reduce, field_name, load_field, save_field
-    from contactbench.harness.judge import judge
+    from contactbench.harness.judging import judge
     from contactbench.harness.report.sections.fields import PERSSON_KAPPA, fit_kappa
     from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
     from contactbench.problems.surfaces import rmd_surface_n

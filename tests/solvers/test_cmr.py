@@ -142,7 +142,7 @@ def test_cmr_mean_matches_the_direct_load_on_a_fixed_seed() -> None:
 def test_cmr_mean_beyond_the_claim_is_judged_inaccurate() -> None:
     """Where coarse=mean misses more than 2 % (seed 1: -2.62 %), the harness's judge does
     not pass the answer: its recomputed KKT error fails even the loosest profile."""
-    from contactbench.harness.judge import judge
+    from contactbench.harness.judging import judge
     from contactbench.harness.profiles import PROFILES
 
     inst = cmr_h_sweep_top(CMR_MEAN_SEED_BEYOND)

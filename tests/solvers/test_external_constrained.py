@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contactbench.harness.judge import judge
+from contactbench.harness.judging import judge
 from contactbench.harness.run.skips import capability_decision
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement

@@ -10,7 +10,7 @@ import importlib
 import numpy as np
 import pytest
 
-from contactbench.harness.judge import judge
+from contactbench.harness.judging import judge
 from contactbench.problems.instances import InstanceBuilder, load_ramp, paper_max_displacement
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import ProblemTraits, SolverSettings, get_solver
