@@ -7,7 +7,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: bench test test-quick lint setup setup-browser benchmarks paper docs clean
+.PHONY: bench test test-quick lint setup setup-browser setup-peers setup-eigen benchmarks paper docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -35,6 +35,26 @@ setup-browser:
 	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver) \
 	    >/dev/null 2>&1 || echo "setup-browser: could not install chromium; the browser test will skip"; \
 	else echo "setup-browser: no chromium and no root apt-get; the browser test will skip"; fi
+
+# The `peers` extra (ContactMechanics, Tamaas, ASPHER: docs/peers.md) on top of `setup`; `make test`
+# never asks for it (the peers' tests skip and say why).  ASPHER builds from its sdist (CMake, C++17,
+# minutes on two cores) against Eigen 3.4: Debian's libeigen3-dev first (setup-eigen).
+PEERS_STAMP := $(VENV)/.peers-stamp
+
+$(PEERS_STAMP): pyproject.toml $(STAMP) | setup-eigen
+	$(PY) -m pip install --quiet -e '.[peers]'
+	touch $(PEERS_STAMP)
+
+setup-peers: $(PEERS_STAMP)
+
+# Debian's libeigen3-dev (Eigen 3.4) for ASPHER's build; installed only where it is missing,
+# apt-get exists and we are root -- elsewhere ASPHER's CMake fetches Eigen from the internet.
+setup-eigen:
+	@if [ -f /usr/include/eigen3/Eigen/Core ]; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libeigen3-dev) \
+	    >/dev/null 2>&1 || echo "setup-eigen: could not install libeigen3-dev; ASPHER's build will fetch Eigen"; \
+	else echo "setup-eigen: no Eigen 3 headers and no root apt-get; ASPHER's build will fetch Eigen"; fi
 
 # ruff with the project's configuration (pyproject.toml [tool.ruff]); any finding fails.
 lint: $(STAMP)
