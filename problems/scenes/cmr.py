@@ -120,8 +120,9 @@ class CMRCutoff(RampScene):
                 "periodic": bool(cfg.periodic), "operator": cfg.operator, "steps": cfg.steps,
                 "hurst": float(cfg.extra["hurst"]), "max_fraction": float(cfg.extra["max_fraction"])}
         if cfg.surface_path:
-            name = str(cfg.surface_path).replace("/", "_")
-            return [InstanceSpec(self.name, f"file-{name}", {**base, "surface_path": cfg.surface_path, "seed": 0})]
+            params = {**base, "surface_path": cfg.surface_path, "seed": 0}
+            record = surface_from_params(params).preprocessing  # names the map by its base name and content
+            return [InstanceSpec(self.name, record.instance_name, {**params, "surface_path": record.path})]
         kinds = {"rolloff": float(cfg.extra["rolloff_fraction"]), "power-law": None}
         return [InstanceSpec(self.name, f"{kind}-H{base['hurst']:g}-N{cfg.size}-s{s}",
                              {**base, "surface": kind, "rolloff_fraction": frac, "seed": int(s)})
