@@ -228,14 +228,15 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
     if base.get("control") == CONTROLS[1]:
         base["steps"] = len(load_steps(base))
     if cfg.surface_path:
-        name = str(cfg.surface_path).replace("/", "_")
         file_params = {**base, "surface_path": cfg.surface_path, "seed": 0,
                        **{k: cfg.extra[k] for k in SURFACE_FILE_OPTIONS if cfg.extra.get(k) is not None}}
         if cfg.extra.get("channel") is not None:
             file_params["channel"] = cfg.extra["channel"]
         if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
-        return [InstanceSpec(scene, f"file-{name}{layer_suffix(base)}{control_suffix(base)}", file_params)]
+        record = surface_from_params(file_params).preprocessing  # names the map by its base name and content
+        file_params["surface_path"] = record.path
+        return [InstanceSpec(scene, f"{record.instance_name}{layer_suffix(base)}{control_suffix(base)}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
     bc = "per" if cfg.periodic else "np"
     return [
