@@ -27,7 +27,7 @@ The correction is built only on sets of at most ``MAX_SET_FRACTION`` of the unkn
 contact set, not a cold start's first, shrinking trial sets) and while the exact near-tile
 sums gather at most the island build's budget of entries, and rebuilt when the set has
 drifted by ``REBUILD_FRACTION`` since.  In fast-dual-pccg (its default), the paper's cold
-top step: 77 -> 57 iterations at 2048^2, 116 -> 74 at 4096^2 (results/perf/large-issue18.md).
+top step: 77 -> 57 iterations at 2048^2, 116 -> 74 at 4096^2 (results/perf/large-cold-top-step.md).
 """
 
 from __future__ import annotations
