@@ -430,7 +430,7 @@ def fig6_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
 
 
 def cmr_totals(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame:
-    """``report_cmr.instance_totals`` of one CMR scene under one condition (empty if none)."""
+    """``sections.cmr.instance_totals`` of one CMR scene under one condition (empty if none)."""
     r = of_condition(rows, scene, condition)
     pairs = cmr_pairs(r) if len(r) else pd.DataFrame()
     return instance_totals(pairs) if len(pairs) else pd.DataFrame()

@@ -5,22 +5,26 @@ dtypes are harness/table/schema.py's contract) and ``OUT/meta.json`` if present,
 ``OUT/report.md`` with its figures under ``OUT/figures/``.
 
 This module is the report's core: the context a section gets, the section registry,
-the formatting and plotting helpers every section shares, the header, and the
-assembly.  The sections live in modules named ``harness/report_*.py``, found by the
-registry on first use:
+the formatting and plotting helpers every section shares and the header; the assembly
+is harness/report/build.py.  The sections live in the modules of
+harness/report/sections/, found by the registry on first use:
 
-* ``report_paper.py``          -- the paper reproductions (Bemporad & Paggi 2015, sec. 4):
+* ``paper.py``            -- the paper reproductions (Bemporad & Paggi 2015, sec. 4):
   Figs. 4, 5 and 6, and the closed-form checks (``hertz``, ``flat-punch``);
-* ``report_counterexample.py`` -- Example 1, the greedy counterexample;
-* ``report_cmr.py``            -- cascade multi-resolution (sec. 5, Figs. 8-11; its figures in ``report_cmr_figures.py``);
-* ``report_population.py``     -- Monte Carlo population statistics (kappa);
-* ``report_stress.py``         -- the stress battery's survival tables;
-* ``report_generic.py``        -- what every table gets: run time against error,
+* ``counterexample.py``   -- Example 1, the greedy counterexample; ``greedy_kernels.py``
+  the same draw on other forms of H;
+* ``cmr.py``              -- cascade multi-resolution (sec. 5, Figs. 8-11; its figures in ``cmr_figures.py``);
+* ``constrained.py``      -- the load-controlled and hardness-bounded sweeps;
+* ``population.py``       -- Monte Carlo population statistics (kappa);
+* ``stress.py``           -- the stress battery's survival tables;
+* ``claims.py``           -- the paper's claims ledger, leading the report;
+* ``fields.py``           -- the contact fields, the load-area curve and the traces;
+* ``generic.py``          -- what every table gets: run time against error,
   aggregates (harness/table/aggregates.py), skips and failures, one table per scene.
 
 Extending: a section is a function ``(ctx, rows) -> Section | None`` registered with
 ``@register_section("scene-name", title=..., group="paper"|"scenes", order=...)`` in
-any module named ``harness/report_*.py`` or in a module named by an entry point of
+a module of harness/report/sections/ or in a module named by an entry point of
 group ``contactbench.report_sections``.  A scene section is rendered only when its
 scene has rows in the table; a ``group="summary"`` section gets the whole table and is
 always rendered.  See docs/report.md.

@@ -84,7 +84,7 @@ def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]
 
 def trace_data(ctx: ReportContext) -> dict[str, Any]:
     """The representative trace of every solver (largest n, tightest profile) in the
-    first scene with traces (the Markdown report's trace figure: report_fields.trace_scene)."""
+    first scene with traces (the Markdown report's trace figure: sections/fields.py ``trace_scene``)."""
     scene, reps = trace_scene(ctx)
     if not reps:
         return {}

@@ -12,7 +12,7 @@ shares a hue), and the split of many series into panels of at most ``MAX_SERIES`
   ``panels_note`` words the caption: what each panel shows and where the rest is.
 
 A registered section needs nothing of this beyond ``ctx.color(solver)`` and
-``ctx.marker(solver)``; ``report_generic``/``report_paper`` use the panels.
+``ctx.marker(solver)``; sections/generic.py and sections/paper.py use the panels.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ were limited to populations of 20 to 50 random surfaces and that faster solvers 
 large Monte Carlo studies possible.  This scene generates N_s seeded random-midpoint-
 displacement surfaces (paper section 5 generator) per (H, N) and loads each at a few
 small loads, so that load, real contact area and solve time can be studied across the
-population (harness/report_population.py computes the statistics and the
+population (harness/report/sections/population.py computes the statistics and the
 kappa = A E* h'_rms / P estimate of Hyun & Robbins).
 
 Loads.  A rigid flat is pressed onto the periodic surface until its plane lies

@@ -1,7 +1,7 @@
 """Report sections of the paper reproductions (Bemporad & Paggi 2015, sec. 4): Fig. 4
 (``paper-sweep``), Fig. 5 (``greedy-linear-solvers``), Fig. 6 (``gp-k-sweep``), and the
 closed-form checks (``hertz``, ``flat-punch``).  Example 1 is in
-report_counterexample.py.
+sections/counterexample.py.
 
 Each paper section ends with a reading computed from the table that says where we agree
 with the paper's claims and where not.  The paper's algorithms are found through
