@@ -72,7 +72,7 @@ class Column:
     name: str
     dtype: str  # one of DTYPES
     doc: str
-    required: bool = False  # one of the columns the original issue fixed
+    required: bool = False  # a stored table must have it (check_table)
 
 
 def _columns(required: bool, *spec: tuple[str, str, str]) -> tuple[Column, ...]:

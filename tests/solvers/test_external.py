@@ -1,4 +1,4 @@
-"""External solvers over the file protocol (issue 15, parts 1 and 3): the problem and
+"""External solvers over the file protocol: the problem and
 solution directories, the manifest, `validate --command` on a C solver and a standalone
 script, the misbehaving variants, and the conformance report (`validate --out`)."""
 

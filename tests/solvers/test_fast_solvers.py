@@ -250,7 +250,7 @@ def test_counterexample_is_unit_invariant(name):
 
 @pytest.mark.slow
 def test_fast_pccg_solves_the_counterexample_at_1_and_2_threads(monkeypatch):
-    """Issue 14: fast-pccg, declared exact, must solve paper Example 1 (seeds 0-99 at
+    """fast-pccg, declared exact, must solve paper Example 1 (seeds 0-99 at
     n = 25, 100, 400), and the same at 1 and 2 threads."""
     loads = {}
     for threads in (1, 2):
