@@ -21,7 +21,7 @@ import colorsys
 from dataclasses import dataclass
 from typing import Callable, Iterable, Mapping, Sequence
 
-#: The most series one panel draws (the issue's legibility rule).
+#: The most series one panel draws (more are not told apart by colour and legend).
 MAX_SERIES = 10
 #: Families in the order panels and legends list them; others follow alphabetically.
 FAMILY_ORDER: tuple[str, ...] = ("paper", "fast", "qp", "wrapper", "reference", "external", "other")

@@ -182,7 +182,7 @@ _EXTRA = _columns(
 
 #: Every column, by name, in table order.
 COLUMNS: Final[dict[str, Column]] = {c.name: c for c in (*_REQUIRED, *_EXTRA)}
-#: The columns the issue fixes, in this order.
+#: The columns a stored table must have (check_table), in this order.
 REQUIRED_COLUMNS: Final = tuple(c.name for c in _REQUIRED)
 #: Further columns every row carries ("" / NaN / <NA> where not applicable).
 EXTRA_COLUMNS: Final = tuple(c.name for c in _EXTRA)
