@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import os
 import re
 import sys
@@ -40,16 +39,9 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, NoReturn, Sequence
 
-from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.instances import OPERATOR_KINDS
-from contactbench.problems.io import CROP_RULES, DETREND_RULES, NAN_RULES
-from contactbench.problems.layers import DEFAULT_NU, INTERFACES, Layer
 from contactbench.problems.operators import memory_budget_scope
-from contactbench.problems.scenes.base import GENERATED_ONLY_OPTIONS, given_options, ignored_options
-from contactbench.problems.scenes.core import LAYER_OPTIONS, SURFACE_FILE_OPTIONS, load_steps
-from contactbench.problems.surfaces import RMD_FAMILIES
-from contactbench.problems.units import PLAUSIBLE_MODULUS, check_plausible_modulus
+from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
 
 from contactbench.plugins import did_you_mean
 
@@ -60,13 +52,6 @@ EXIT_BAD_INPUT = 2
 #: A number, negative ones and exponents included: the value of an option, never an
 #: option itself (argparse's own pattern misses ``-1e-6``).
 NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
-#: The command-line flag of each scene option (``problems.scenes.base.SCENE_OPTIONS``).
-OPTION_FLAGS: dict[str, str] = {
-    "size": "--size", "steps": "--steps", "seeds": "--seeds", "surface_path": "--surface", "length": "--length",
-    "E": "--E", "kernel": "--kernel", "periodic": "--periodic", "operator": "--operator", "channel": "--channel",
-    "height_unit": "--height-unit", "allow_steep": "--allow-steep", "family": "--surface-family",
-    "detrend": "--detrend", "nan": "--nan", "crop": "--crop", "thickness": "--thickness", "nu": "--nu",
-    "interface": "--interface", "control": "--control", "loads": "--loads", "hardness": "--hardness"}
 
 
 class InputError(ProblemInputError):
@@ -165,33 +150,38 @@ def positive_float(text: str) -> float:
     return float(positive_number(text, float, "a number"))
 
 
-def finite_positive_float(text: str) -> float:
-    v = positive_float(text)
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
-    return v
-
-
-def length_pair(text: str) -> float | tuple[float, float]:
-    """``--length``: L0 or L0,L1 in metres, each finite and > 0 (``problems.io.load_surface``'s
-    ``length``)."""
-    parts = text.split(",")
-    if len(parts) not in (1, 2):
-        raise argparse.ArgumentTypeError(f"takes L0 or L0,L1 (metres), got {text!r}")
-    values = [finite_positive_float(part.strip()) for part in parts]
-    return values[0] if len(values) == 1 else (values[0], values[1])
-
-
-def poisson_ratio(text: str) -> float:
-    """``--nu``: a Poisson's ratio, as ``problems.layers.Layer`` accepts it."""
+def number_list(text: str) -> tuple[float, ...]:
+    """A comma list of numbers (``--loads``, ``--length``); their rules are the plan's."""
     try:
-        nu = float(text)
-        Layer(1.0, nu)
+        return tuple(float(t) for t in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    except ProblemInputError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return nu
+        raise argparse.ArgumentTypeError(f"takes numbers separated by commas, got {text!r}") from None
+
+
+def length_value(text: str) -> float | tuple[float, ...]:
+    """``--length``: L0, or L0,L1 as a tuple (how many, and their rules, are the plan's)."""
+    values = number_list(text)
+    return values[0] if len(values) == 1 else values
+
+
+def number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+
+
+def integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+
+
+#: The text -> value parser of each option kind (``problems.scenes.options.OptionRecord.kind``):
+#: the type only; every rule on the value is checked by the plan, as for the API.
+PARSERS: dict[str, Any] = {"int": integer, "float": number, "floats": number_list, "length": length_value,
+                           "seeds": parse_seeds, "text": str}
 
 
 def positive_int(text: str) -> int:
@@ -295,158 +285,37 @@ def solver_parameter_lines(solver: object) -> list[str]:
 
 
 def scene_config(args: argparse.Namespace) -> Any:
-    """The SceneConfig of ``run``/``export``'s scene options.  --length may be omitted for
-    a surface file that states its lateral size (problems/io.py checks it at planning).
-    An ``--E`` outside ``problems.units.PLAUSIBLE_MODULUS`` is refused unless
-    ``--allow-any-E``."""
+    """The SceneConfig of ``run``/``export``'s scene options (``problems.scenes.options``):
+    each record's value, as a field or a key of ``extra``, where given.  Every rule on
+    them is the plan's (``harness.run.plan.plan_run``), the same for the API."""
     from contactbench.problems.scenes import SceneConfig
 
-    if args.channel is not None and not args.surface:
-        raise InputError("--channel picks a channel of a --surface file; no --surface was given")
-    extra = {} if args.channel is None else {"channel": args.channel}
-    if args.height_unit is not None or args.allow_steep:  # problems/units.py: the plausibility check
-        if not args.surface:
-            raise InputError("--height-unit and --allow-steep apply to a --surface file; no --surface was given")
-        extra.update({k: v for k, v in (("height_unit", args.height_unit), ("allow_steep", args.allow_steep)) if v})
-    cleaning = {k: getattr(args, k) for k in SURFACE_FILE_OPTIONS if getattr(args, k) is not None}
-    if cleaning:  # problems/io.py: load_surface's cleaning of a measured map
-        if not args.surface:
-            raise InputError(f"{', '.join(OPTION_FLAGS[k] for k in cleaning)} clean a --surface file; "
-                             "no --surface was given")
-        extra.update(cleaning)
-    if args.thickness is None and (args.nu is not None or args.interface is not None):
-        raise InputError("--nu and --interface describe an elastic layer; give its --thickness")
-    extra.update({k: getattr(args, k) for k in LAYER_OPTIONS if getattr(args, k) is not None})
-    extra.update(control_options(args))
-    if args.surface_family is not None:
-        if args.surface:
-            raise InputError("--surface-family picks the generated RMD surfaces; a --surface file was given")
-        extra["family"] = args.surface_family
-    if args.E is not None and not args.allow_any_E:
-        check_plausible_modulus(args.E)
-    return SceneConfig(size=args.size, steps=args.steps, seeds=args.seeds, surface_path=args.surface,
-                       length=args.length, E=args.E, kernel=args.kernel, periodic=args.periodic,
-                       operator=args.operator, extra=extra)
+    given = {rec.name: getattr(args, rec.name) for rec in OPTIONS if getattr(args, rec.name, None) is not None}
+    fields = {k: v for k, v in given.items() if k in CONFIG_FIELDS}
+    return SceneConfig(**fields, extra={k: v for k, v in given.items() if k not in CONFIG_FIELDS})
 
 
-def control_options(args: argparse.Namespace) -> dict[str, Any]:
-    """``--control``, ``--loads`` and ``--hardness`` as scene options: ``--loads`` is what
-    load control needs and only load control takes; under load control the loads set
-    the steps."""
-    out: dict[str, Any] = {}
-    if args.control == CONTROLS[1]:
-        if args.loads is None:
-            raise InputError("--control load needs its load steps: --loads L1,L2,... as P/(E* A)")
-        if args.steps is not None:
-            raise InputError("--steps is set by --loads under --control load; give one or the other")
-        out.update(control=CONTROLS[1], loads=args.loads)
-    elif args.loads is not None:
-        raise InputError("--loads gives the load steps of --control load; the run is displacement-controlled")
-    elif args.control is not None:
-        out["control"] = args.control
-    if args.hardness is not None:
-        out["hardness"] = args.hardness
-    return out
-
-
-def load_list(text: str) -> tuple[float, ...]:
-    """``--loads``: L1,L2,... as P/(E* A), checked by the scenes' one rule
-    (``problems.scenes.core.load_steps``: finite, > 0, increasing)."""
-    try:
-        return tuple(load_steps({"loads": [float(t) for t in text.split(",")]}))
-    except ProblemInputError as exc:  # (a ValueError: caught first)
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"takes L1,L2,... (numbers, P/(E* A)), got {text!r}") from None
+def add_option(p: argparse.ArgumentParser, rec: OptionRecord) -> None:
+    """One scene option's flag, from its record (``dest`` is the option's name)."""
+    text = rec.help + (f" [{rec.unit}]" if rec.unit and f" {rec.unit}" not in rec.help else "")
+    if rec.valid is not None or rec.plausible is not None:
+        ranges = [f"valid {rec.valid.text()}" if rec.valid else "",
+                  f"plausible {rec.plausible.text()[3:]}" if rec.plausible else ""]
+        text += f" ({'; '.join(r for r in ranges if r)})"
+    text = text.replace("%", "%%")
+    if rec.kind == "switch":
+        p.add_argument(rec.flag, dest=rec.name, action="store_true", default=None, help=text)
+    elif rec.kind == "choice":
+        p.add_argument(rec.flag, dest=rec.name, choices=rec.choices, default=None, help=text)
+    else:
+        p.add_argument(rec.flag, dest=rec.name, type=PARSERS[rec.kind], default=None, help=text)
 
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:
-    """The scene options shared by ``run`` and ``export`` (None: the scene's default)."""
-    p.add_argument("--size", type=positive_int, default=None,
-                   help="grid points per side N (default: the scene's; not with --surface, whose grid it is)")
-    p.add_argument("--steps", type=positive_int, default=None, help="number of load steps K (default: the scene's)")
-    p.add_argument("--seeds", type=parse_seeds, default=None,
-                   help="e.g. 0-9 or 0,3,5 (default: the scene's; not with --surface)")
-    p.add_argument("--surface", default=None,
-                   help="measured height map: .npy/.csv/.txt or any SurfaceTopography format (.x3p, .gwy, .nc, .mat, ...)")
-    p.add_argument("--channel", default=None, help="channel (index or name) of a multi-channel --surface file")
-    p.add_argument("--length", type=length_pair, default=None,
-                   help="L0 or L0,L1: the lateral size in metres along the map's axes 0 and 1 (L0 alone: square "
-                        "pixels; optional when the surface file states its size)")
-    p.add_argument("--detrend", choices=DETREND_RULES, default=None,
-                   help="what is removed from a --surface map before it is solved (default: plane, with a warning "
-                        "when the removed tilt exceeds the rms slope)")
-    p.add_argument("--nan", choices=NAN_RULES, default=None,
-                   help="how missing points of a --surface map are filled (default: fill-mean; error refuses them)")
-    p.add_argument("--crop", choices=CROP_RULES, default=None,
-                   help="crop a rectangular --surface map to a square (square) or pad it (pad-square); default: "
-                        "none, the whole map with its own spacing")
-    p.add_argument("--control", choices=CONTROLS, default=None,
-                   help="what is given: the far-field displacement (displacement, the default) or the total force "
-                        "(load, with --loads; the approach Delta is then the answer's, column delta)")
-    p.add_argument("--loads", type=load_list, default=None,
-                   help="the load steps of --control load, L1,L2,... as P/(E* A), increasing")
-    p.add_argument("--hardness", type=finite_positive_float, default=None,
-                   help="bound every element's mean pressure by this hardness in Pa (0 <= p <= H_A x element area; "
-                        "default: none)")
-    p.add_argument("--thickness", type=finite_positive_float, default=None,
-                   help="an elastic layer of this thickness in metres on a rigid base (default: the half-space)")
-    p.add_argument("--nu", type=poisson_ratio, default=None,
-                   help=f"Poisson's ratio of the layer (default {DEFAULT_NU}; a layer's stiffness depends on it)")
-    p.add_argument("--interface", choices=INTERFACES, default=None,
-                   help="the layer's contact with its rigid base (default: bonded)")
-    p.add_argument("--height-unit", choices=("m", "mm", "um", "nm"), default=None,
-                   help="unit of the heights of a --surface file that states none (default: m; refused for a "
-                        "file that states its unit)")
-    p.add_argument("--allow-steep", action="store_true",
-                   help="run a --surface beyond the small-slope range (rms slope > 1 or heights > side length)")
-    p.add_argument("--surface-family", choices=RMD_FAMILIES, default=None,
-                   help="RMD surface family of the generated surfaces: saupe (non-periodic MidPointFM2D, the "
-                        "paper's; default of non-periodic scenes) or periodic (wrap-around diamond-square)")
-    p.add_argument("--E", type=finite_positive_float, default=None,
-                   help="composite modulus E* in Pa (default: the scene's; refused outside the plausible range "
-                        f"[{PLAUSIBLE_MODULUS[0]:g}, {PLAUSIBLE_MODULUS[1]:g}] Pa unless --allow-any-E)")
-    p.add_argument("--allow-any-E", action="store_true", help="take an --E outside the plausible range")
-    p.add_argument("--kernel", choices=("bcc", "love", "spectral"), default=None,
-                   help="influence coefficients (default: the scene's; spectral needs a periodic domain)")
-    p.add_argument("--periodic", action="store_true", default=None, help="periodic domain")
-    p.add_argument("--operator", choices=OPERATOR_KINDS, default=None,
-                   help="operator the instance is built with (gpu: the optional CuPy backend, extra `gpu`)")
-
-
-def scene_names(name: str) -> list[str]:
-    """The scenes a run name stands for: a composite's parts, else the name itself."""
-    from .run.studies import COMPOSITES
-
-    if name in COMPOSITES:
-        return [part.study.scene for part in COMPOSITES[name].parts]
-    return [name]
-
-
-def check_scene_options(names: Sequence[str], cfg: Any) -> None:
-    """Refuse every option the user set that a named scene would ignore (for a composite:
-    that none of its parts would use), one ``InputError`` naming the option."""
-    from contactbench.problems.scenes import all_scenes
-
-    given = given_options(cfg)
-    scenes = all_scenes()
-    for name in names:
-        parts = [scenes[s] for s in scene_names(name) if s in scenes]
-        if not parts:
-            continue  # an unknown name: the planner says so, with the closest known ones
-        ignored = set.intersection(*(set(ignored_options(sc, given)) for sc in parts))
-        for opt in sorted(ignored, key=list(OPTION_FLAGS).index):
-            if "surface_path" in given and opt in GENERATED_ONLY_OPTIONS and all(
-                    opt in sc.options for sc in parts):
-                raise InputError(f"{OPTION_FLAGS[opt]} does not apply with --surface: the file gives the grid and "
-                                 "the one surface; leave it out")
-            raise InputError(f"scene {name!r} does not take {OPTION_FLAGS[opt]} (it would be ignored); "
-                             f"it takes {', '.join(taken_flags(parts)) or 'no scene option'}")
-
-
-def taken_flags(scenes: Sequence[Any]) -> list[str]:
-    """The flags of the options any of ``scenes`` reads, in ``--help`` order."""
-    return [flag for opt, flag in OPTION_FLAGS.items() if any(opt in sc.options for sc in scenes)]
+    """The scene options shared by ``run`` and ``export``, one flag per record of
+    ``problems.scenes.options.OPTIONS`` (None: the scene's default)."""
+    for rec in OPTIONS:
+        add_option(p, rec)
 
 
 def check_solver_list(text: str | None) -> None:
@@ -480,7 +349,6 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
     check_solver_list(args.solvers)
     cfg = scene_config(args)
-    check_scene_options(args.scenes, cfg)
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
@@ -532,13 +400,10 @@ def common_reason(out: str) -> str:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from contactbench.problems.export import export_scene
-    from contactbench.problems.scenes import get_scene
 
     cfg = scene_config(args)
-    check_scene_options([args.scene], cfg)
     check_out_dir(args.out)
-    scene = get_scene(args.scene)
-    scene.validate(scene.config(cfg))  # before the folder is made
+    # export_scene checks the options (the plan's rules), the scene's inputs and the folder before writing
     summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit)
     print(summary.line())
     return 0

@@ -13,7 +13,9 @@ Fixtures
                       tidy table (pandas DataFrame), e.g.
                       ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``;
                       a measured surface's ``height_unit`` / ``allow_steep`` go in
-                      ``extra={"height_unit": "um"}``.
+                      ``extra={"height_unit": "um"}``.  The options are checked by the
+                      plan, as on the command line (``problems.scenes.options``): a
+                      refused one raises ``ProblemInputError`` with the CLI's message.
 """
 
 from __future__ import annotations
@@ -73,8 +75,9 @@ def run_harness(tmp_path: Any) -> Callable[..., Any]:
         from contactbench.harness.run.runner import run_benchmark
         from contactbench.harness.table.store import RunLock, load_table
         from contactbench.problems.scenes import SceneConfig
+        from contactbench.problems.scenes.options import CONFIG_FIELDS
 
-        scene_keys = {"size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator", "extra"}
+        scene_keys = CONFIG_FIELDS | {"extra"}  # the rest is the RunConfig's; run_benchmark's plan checks both
         cfg = SceneConfig(**{k: v for k, v in options.items() if k in scene_keys})
         run_cfg = RunConfig(progress=False, **{k: v for k, v in options.items() if k not in scene_keys})
         out_dir = out or tmp_path / "run"

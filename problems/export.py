@@ -21,10 +21,16 @@ hdf5 keep the FFT kernel table only and qpbenchmark (which needs P) skips the QP
 ``DIR/manifest.json`` lists every QP -- name, scene, instance, step, n, far-field
 displacement, objective-free facts -- and every skip with its reason; the summary line
 says what was skipped.  A step with no unknown (n = 0) is skipped too.
+
+``DIR`` follows the rule of a run's results folder: a missing or empty folder is new, a
+folder an export wrote (its manifest.json names the tool) is written over, and any other
+non-empty folder is refused and left as it is (``check_export_folder``).  The scene
+options are checked first by the same rules as a run's (``scenes.options.check_config``).
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 import tempfile
@@ -37,8 +43,13 @@ import numpy as np
 from .errors import ProblemInputError
 from .instances import ContactInstance
 from .qpfile import DENSE_LIMIT, problem_json, problem_payload, read_problem_dir, write_problem_dir
+from .scenes import SceneConfig, get_scene
+from .scenes.options import check_config
 
 FORMATS = ("problem-dir", "hdf5", "qpbenchmark")
+#: The manifest's ``tool``: what marks a folder as an export's (``check_export_folder``).
+EXPORT_TOOL = "contactbench export"
+MANIFEST_FILE = "manifest.json"
 #: qpbenchmark's ProblemList columns, in its order.
 QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
 
@@ -88,10 +99,9 @@ def _file_safe(text: str) -> str:
 
 def scene_steps(scene_name: str, cfg: Any) -> Iterator[tuple[str, int, ContactInstance]]:
     """(instance name, step, instance) of every QP of a scene under ``cfg`` (a
-    ``SceneConfig``; validated first, as the planner does)."""
-    from .scenes import get_scene
-
+    ``SceneConfig``; its options and inputs checked first, as the planner does)."""
     scene = get_scene(scene_name)
+    check_config(scene_name, [scene], [cfg or SceneConfig()], cfg)
     merged = scene.config(cfg)
     scene.validate(merged)
     for spec in scene.instances(merged):
@@ -108,13 +118,15 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
     limit = DENSE_LIMIT if dense_limit is None else int(dense_limit)
     if fmt == "hdf5":
         h5py = require_h5py()
-    out_dir = Path(out)
+    out_dir = check_export_folder(out)
+    steps = scene_steps(scene_name, cfg)
+    first = next(steps, None)  # the options and inputs are checked before the folder is made
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = ExportSummary(scene_name, fmt, str(out_dir), limit)
     rows: dict[str, list[Any]] = {k: [] for k in QPBENCHMARK_KEYS}
     h5 = h5py.File(out_dir / "problems.h5", "w") if fmt == "hdf5" else None
     try:
-        for instance, k, inst in scene_steps(scene_name, cfg):
+        for instance, k, inst in itertools.chain([] if first is None else [first], steps):
             name = problem_name(instance, k)
             entry = ExportedQP(name, scene_name, instance, k, inst.n, _finite(inst.delta), inst.n <= limit)
             if inst.n == 0:
@@ -135,7 +147,7 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
             h5.close()
     if fmt == "qpbenchmark":
         write_parquet(rows, out_dir / f"{_file_safe(scene_name)}.parquet")
-    write_manifest(summary, out_dir / "manifest.json")
+    write_manifest(summary, out_dir / MANIFEST_FILE)
     return summary
 
 
@@ -231,8 +243,32 @@ def read_qpbenchmark_constraints(path: str | Path, name: str) -> tuple[np.ndarra
     return arr("ub"), None if A is None else A.reshape(1, -1), arr("b")
 
 
+def check_export_folder(out: str | Path) -> Path:
+    """``out`` as a Path if an export may write there: missing, empty, or written by an
+    export before (its manifest names ``EXPORT_TOOL``); else a ``ProblemInputError``
+    naming it (the rule of a run's results folder).  Touches nothing."""
+    out_dir = Path(out)
+    if not out_dir.exists():
+        return out_dir
+    if not out_dir.is_dir():
+        raise ProblemInputError(f"export folder {out_dir} is not a folder; choose another --out")
+    if not any(out_dir.iterdir()) or is_export_folder(out_dir):
+        return out_dir
+    raise ProblemInputError(f"export folder {out_dir} is not empty and is not a contactbench export folder "
+                            f"(no {MANIFEST_FILE} of an export); choose an empty or new --out")
+
+
+def is_export_folder(out_dir: Path) -> bool:
+    """Whether ``out_dir`` holds the manifest of an export (``EXPORT_TOOL``)."""
+    try:
+        doc = json.loads((out_dir / MANIFEST_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and doc.get("tool") == EXPORT_TOOL
+
+
 def write_manifest(summary: ExportSummary, path: Path) -> Path:
-    doc = {"scene": summary.scene, "format": summary.fmt, "dense_limit": summary.dense_limit,
+    doc = {"tool": EXPORT_TOOL, "scene": summary.scene, "format": summary.fmt, "dense_limit": summary.dense_limit,
            "qps": [asdict(q) for q in summary.written], "skipped": summary.skipped}
     path.write_text(json.dumps(doc, indent=2) + "\n")
     return path
@@ -242,6 +278,7 @@ __all__ = [
     "FORMATS",
     "ExportSummary",
     "ExportedQP",
+    "check_export_folder",
     "export_scene",
     "problem_name",
     "read_hdf5_problem",

@@ -61,6 +61,8 @@ Interface = Literal["bonded", "frictionless"]
 INTERFACES: tuple[str, ...] = ("bonded", "frictionless")
 #: Poisson's ratio when none is given.
 DEFAULT_NU = 0.3
+#: The range of Poisson's ratio: (-1, 0.5], open below, closed above (incompressible).
+NU_RANGE: tuple[float, float] = (-1.0, 0.5)
 #: Aliases folded into a periodic real-space correction: |m1|, |m2| <= ALIASES.
 ALIASES = 2
 #: Gauss-Legendre points per side averaging the non-periodic correction over an element.
@@ -84,8 +86,9 @@ class Layer:
 
     def __post_init__(self) -> None:
         check_positive("layer thickness", self.thickness)
-        if not (isinstance(self.nu, (int, float, np.floating)) and np.isfinite(self.nu) and -1.0 < self.nu <= 0.5):
-            raise ProblemInputError(f"Poisson's ratio nu must lie in (-1, 0.5], got {self.nu!r}")
+        if not (isinstance(self.nu, (int, float, np.floating)) and np.isfinite(self.nu)
+                and NU_RANGE[0] < self.nu <= NU_RANGE[1]):
+            raise ProblemInputError(f"Poisson's ratio nu must lie in ({NU_RANGE[0]:g}, {NU_RANGE[1]:g}], got {self.nu!r}")
         if self.interface not in INTERFACES:
             raise ProblemInputError(f"layer interface must be 'bonded' or 'frictionless', got {self.interface!r}")
 

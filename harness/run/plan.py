@@ -5,11 +5,16 @@ sweeps, profiles, reference) into ``InstanceJob`` records -- a scene's ``Instanc
 recipe plus the variants and profiles to run on it.  A job is independent of every other
 job, so an executor (``harness.run.executors``) may run jobs anywhere.
 
-Planning refuses bad input before anything runs: a plan too big to run (more cells than
+Planning refuses bad input before anything runs: the scene options against their rules
+(``problems.scenes.options``: every value's range and plausibility, an option a scene
+would ignore, what an option requires or excludes -- the command line, the API, the
+pytest plugin and Dask runs all come through here), a plan too big to run (more cells than
 ``RunConfig.max_cells``, or an instance whose memory estimate exceeds the memory budget:
 ``estimate_scene``, computed from sizes and counts before any surface is generated),
-every scene's ``validate`` (sizes, surfaces, loads), every solver name, profile and
-reference name.  All problems found
+every scene's ``validate`` (sizes, surfaces, loads), a scene whose every cell the solvers'
+time and memory models reject (``model_rejections``: from the trial-set sizes the scene
+tells, ``Scene.validate_sizes``, as the run's skip policy would), every solver name,
+profile and reference name.  All problems found
 are raised together as one ``PlanError`` (a ``ProblemInputError``), one line each; the
 command line turns it into exit status 2 and writes no table.
 """
@@ -22,16 +27,22 @@ import os
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
+from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
-from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, parse_solver_spec,
+from contactbench.problems.scenes.base import StepSizes
+from contactbench.problems.scenes.options import config_problems
+from contactbench.solvers.base import ProblemTraits
+from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, load_solver,
+                                           parse_solver_spec,
                                            register, split_solver_list)
 
 from ..profiles import get_profile
 from ..table.files import canonical_json
 from ..table.schema import as_finite
+from .skips import capability_decision, time_decision
 from .studies import SolverVariant, Study, expand
 
 
@@ -326,11 +337,67 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
     profiles = tuple(run.profiles or study.profiles)
     check_bounds(estimate_scene(scene, merged, len(variants) * len(profiles) * run.repeats), run)
     check_height_unit_applied(study.scene, merged, scene)
-    scene.validate(merged)
+    sizes = scene.validate_sizes(merged)
     refs = study.reference_candidates(run.reference)
     jobs = [InstanceJob(spec, variants, profiles, bool(scene.load_history), refs, int(spec.params.get("steps") or 1))
             for spec in scene.instances(merged)]
+    rejected = model_rejections(jobs, sizes, run)
+    if rejected:
+        raise ProblemInputError(f"every cell would be skipped: {rejected}; choose a smaller --size, other --solvers, "
+                                "a longer --timeout or a larger --memory-budget-gb")
     return jobs, [f"{study.scene}: {w}" for w in scene.warnings(merged)]
+
+
+def step_traits(params: dict[str, Any], n: int, side: int) -> ProblemTraits:
+    """What the skip policy will know of a step of n unknowns of recipe ``params``
+    (``harness.run.worker.problem_traits`` of the built instance)."""
+    layer = params.get("thickness") is not None or params.get("thickness_over_L") is not None
+    return ProblemTraits(n=int(n), operator=str(params.get("operator") or "fft"), has_geometry=True,
+                         has_surface=side > 0, periodic=bool(params.get("periodic")), kernel=str(params.get("kernel")),
+                         surface_side=side, load_control=params.get("control") == CONTROLS[1],
+                         bounded=params.get("hardness") is not None, layer=layer)
+
+
+def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[bool, str]:
+    """(whether solver ``base`` would run on a step with ``traits``, the memory or time
+    model's reason when that model alone rejects it).  A solver that cannot be loaded, is
+    unavailable or skips for another reason (its ``max_n``, operator, own ``skip``) is
+    neither: the run records that skip with its reason, as before."""
+    try:
+        solver = load_solver(base)
+    except Exception:  # (the plan names an unloadable solver elsewhere)
+        return False, ""
+    if not solver.availability()[0] or capability_decision(solver, traits, float("inf")).skip:
+        return False, ""
+    d = capability_decision(solver, traits, run.memory_budget)
+    if d.skip:
+        return False, d.reason
+    t = time_decision(solver, traits, d.operator, run.timeout, None)
+    return (False, t.reason) if t.skip else (True, "")
+
+
+def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], run: RunConfig) -> str:
+    """"" when some cell of ``jobs`` would run, or when the scene tells no sizes; else,
+    where the time or memory model rejects every cell, the reason at the smallest step of
+    each solver (one line)."""
+    reasons: dict[str, str] = {}
+    for job in jobs:
+        size = sizes.get(job.spec.instance)
+        if size is None:
+            return ""
+        for n in sorted(set(size.n)):
+            traits = step_traits(job.spec.params, n, size.side)
+            for v in job.variants:
+                runs, why = model_rejection(v.base, traits, run)
+                if runs:
+                    return ""
+                if why:
+                    reasons.setdefault(v.name, why)
+    if not reasons:
+        return ""
+    shown = [f"{name}: {why}" for name, why in list(reasons.items())[:3]]
+    more = f" (and {len(reasons) - 3} more)" if len(reasons) > 3 else ""
+    return "; ".join(shown) + more
 
 
 def check_height_unit_applied(name: str, cfg: SceneConfig, scene: Any) -> None:
@@ -344,13 +411,30 @@ def check_height_unit_applied(name: str, cfg: SceneConfig, scene: Any) -> None:
                                 "surface file; convert the file to metres instead")
 
 
+def option_problems(scenes: Sequence[str], cfg: SceneConfig | None) -> list[str]:
+    """The problems of the user's scene options ``cfg`` on each named scene or composite
+    (``problems.scenes.options.config_problems``; for a composite, an option is refused
+    only where none of its parts reads it).  Unknown names are left to the plan."""
+    problems: list[str] = []
+    for name in scenes:
+        try:
+            parts = expand(name, cfg)
+        except KeyError:
+            continue
+        problems += config_problems(name, [get_scene(study.scene) for study, _ in parts],
+                                    [part for _, part in parts], cfg)
+    return list(dict.fromkeys(problems))
+
+
 def plan_run(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
              run: RunConfig | None = None) -> RunPlan:
     """Expand scene names into instance jobs; raise ``PlanError`` listing every bad
     input (module doc) before anything runs."""
     run = run or RunConfig()
     plan = RunPlan(jobs=[], scenes=list(scenes))
-    problems: list[str] = []
+    problems = option_problems(scenes, cfg)
+    if problems:  # (each scene's own checks would repeat them)
+        raise PlanError(problems)
     for name in scenes:
         for study, part_cfg in expand(name, cfg):
             try:

@@ -15,30 +15,22 @@ from ..errors import ProblemInputError
 from ..instances import ContactInstance
 from ..kernels import check_kernel
 from ..surfaces import Surface
+from .options import SCENE_OPTIONS, names_in
 
 
-#: Every option a user may set on a scene: the ``SceneConfig`` fields and the keys of
-#: ``extra`` the command line fills (``channel``, ``height_unit``, ``allow_steep`` and the
-#: cleaning ``detrend``, ``nan``, ``crop`` of a surface file; ``family``, the RMD family of
-#: generated surfaces; ``thickness``, ``nu``, ``interface`` of an elastic layer; ``control``,
-#: ``loads`` and ``hardness``: how the problem is driven and bounded).
-SCENE_OPTIONS: frozenset[str] = frozenset({
-    "size", "steps", "seeds", "surface_path", "length", "E", "kernel", "periodic", "operator",
-    "channel", "height_unit", "allow_steep", "family", "detrend", "nan", "crop", "thickness", "nu", "interface",
-    "control", "loads", "hardness"})
 #: The options of an elastic layer on a rigid base (scenes that pose only the half-space
-#: leave them out of their ``options``).
-LAYER_SCENE_OPTIONS: frozenset[str] = frozenset({"thickness", "nu", "interface"})
+#: leave them out of their ``options``); the table of every option is ``options.OPTIONS``.
+LAYER_SCENE_OPTIONS: frozenset[str] = names_in("layer")
 #: The options of load control and hardness (scenes that pose only the displacement-
 #: controlled, unbounded problem leave them out of their ``options``).
-CONTROL_SCENE_OPTIONS: frozenset[str] = frozenset({"control", "loads", "hardness"})
-#: The options a measured surface file replaces (its grid and its one surface).
-GENERATED_ONLY_OPTIONS: frozenset[str] = frozenset({"size", "seeds", "family"})
+CONTROL_SCENE_OPTIONS: frozenset[str] = names_in("control")
 
 
 @dataclass(frozen=True)
 class SceneConfig:
-    """Options a user may set on the command line; None means "the scene's default"."""
+    """Options a user may set; None means "the scene's default".  Every option, field or
+    ``extra`` key, is a record of ``options.OPTIONS`` (its flag, unit, ranges and rules);
+    ``extra`` may hold a scene's own further keys (sweep values, ``hurst``, ...)."""
 
     size: int | None = None
     steps: int | None = None
@@ -82,6 +74,16 @@ class InstanceSpec:
         return json.dumps(self.params, sort_keys=True, default=str)
 
 
+@dataclass(frozen=True)
+class StepSizes:
+    """What the planner may know of a recipe's steps before any is built: the trial-set
+    size n of each step, and the side of its grid where the grid is square with square
+    pixels (0 otherwise: the worker's ``ProblemTraits.surface_side``)."""
+
+    n: tuple[int, ...]
+    side: int
+
+
 @dataclass
 class LoadSequence:
     """The steps of one instance.  ``factory(k)`` builds the QP instance of step k
@@ -116,8 +118,8 @@ class Scene(ABC):
     #: Whether consecutive steps form a load history (warm starts across steps).
     load_history: ClassVar[bool] = True
 
-    #: The options the scene reads (``SCENE_OPTIONS`` names); the command line refuses
-    #: any other it is given (``ignored_options``) instead of silently dropping it.
+    #: The options the scene reads (``options.SCENE_OPTIONS`` names); the planner refuses
+    #: any other it is given (``options.scene_problems``) instead of silently dropping it.
     options: ClassVar[frozenset[str]] = SCENE_OPTIONS
 
     def config(self, cfg: SceneConfig | None) -> SceneConfig:
@@ -143,6 +145,14 @@ class Scene(ABC):
         planner; it must be cheap (build surfaces and loads, not operators).  The default
         checks nothing beyond what ``instances`` itself refuses."""
 
+    def validate_sizes(self, cfg: SceneConfig) -> dict[str, StepSizes]:
+        """``validate``, and the ``StepSizes`` of each recipe (by instance name) where the
+        scene can tell them as cheaply (surfaces and loads, no operators); the planner
+        asks the solvers' time and memory models with them.  The default validates and
+        tells none."""
+        self.validate(cfg)
+        return {}
+
     def warnings(self, cfg: SceneConfig) -> list[str]:
         """Things the user should know before trusting the run (e.g. a surface whose
         PSD is not a power law, where a multi-resolution method is unreliable)."""
@@ -162,24 +172,6 @@ def validate_each(specs: list[InstanceSpec], check: Callable[[InstanceSpec], Any
                 problems.append(msg)
     if problems:
         raise ProblemInputError("\n".join(problems))
-
-
-def given_options(cfg: SceneConfig) -> set[str]:
-    """The ``SCENE_OPTIONS`` a (user's, unmerged) config sets: fields not None, ``extra``
-    keys not None or False."""
-    given = {f for f in SCENE_OPTIONS if hasattr(cfg, f) and getattr(cfg, f) is not None}
-    given |= {k for k, v in cfg.extra.items() if k in SCENE_OPTIONS and v is not None and v is not False}
-    return given
-
-
-def ignored_options(scene: Scene, given: set[str]) -> list[str]:
-    """The options in ``given`` that ``scene`` would not use: those it does not read
-    (``Scene.options``) and, with a surface file, those the file replaces
-    (``GENERATED_ONLY_OPTIONS``), sorted."""
-    ignored = set(given) - set(scene.options)
-    if "surface_path" in given and "surface_path" in scene.options:
-        ignored |= set(given) & GENERATED_ONLY_OPTIONS
-    return sorted(ignored)
 
 
 def seeds_of(cfg: SceneConfig, default: tuple[int, ...] = (0,)) -> tuple[int, ...]:

@@ -19,13 +19,15 @@ from ..instances import (
     hertz_surface,
     load_ramp,
     paper_max_displacement,
+    trial_set,
 )
 from ..kernels import check_element_shape
 from ..layers import DEFAULT_NU, Layer
 from ..surfaces import Surface, check_rmd_family, rmd_surface_n
 from ..units import check_height_unit, check_plausible_units
 from . import register_scene
-from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, seeds_of, validate_each
+from .base import InstanceSpec, LoadSequence, Scene, SceneConfig, StepSizes, seeds_of, validate_each
+from .options import ALLOW_IMPLAUSIBLE, BY_NAME, name_suffix, recipe_params, value_problem
 
 #: The options of the closed-form scenes (hertz, flat-punch): a generated shape on a
 #: non-periodic half-space, one instance per size.
@@ -34,17 +36,9 @@ ANALYTIC_OPTIONS: frozenset[str] = frozenset({"size", "steps", "length", "E", "k
 PAPER_SEED = 5  # RMD seed of the paper-sweep default surface (see PaperSweep)
 PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
 
-#: ``cfg.extra`` keys of a measured surface file's cleaning (``problems.io.load_surface``'s
-#: ``detrend``, ``nan`` and ``crop``), carried into its recipe's params when given.
+#: The keywords of a measured surface file's cleaning (``problems.io.load_surface``'s
+#: ``detrend``, ``nan`` and ``crop``; options of the "surface-file" group, ``options.OPTIONS``).
 SURFACE_FILE_OPTIONS: tuple[str, ...] = ("detrend", "nan", "crop")
-#: ``cfg.extra`` keys of the elastic body: ``thickness`` (metres; absent: the half-space),
-#: ``nu`` (Poisson's ratio, default ``layers.DEFAULT_NU``), ``interface`` ("bonded" or
-#: "frictionless"), carried into every recipe's params when given.
-LAYER_OPTIONS: tuple[str, ...] = ("thickness", "nu", "interface")
-#: ``cfg.extra`` keys of how the problem is driven and bounded: ``control`` (one of
-#: ``constraints.CONTROLS``), ``loads`` (the load steps P / (E* A) under load control) and
-#: ``hardness`` (Pa: 0 <= p_i <= hardness x element area), carried into every recipe's params.
-CONTROL_OPTIONS: tuple[str, ...] = ("control", "loads", "hardness")
 
 
 def layer_from_params(params: dict[str, Any], surface: Surface | None = None) -> Layer | None:
@@ -136,21 +130,22 @@ def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> L
 
 
 def load_steps(params: dict[str, Any]) -> list[float]:
-    """The load steps P / (E* A) of a load-controlled recipe (``params["loads"]``): finite,
-    > 0 and increasing, else a one-line ``ProblemInputError``."""
-    loads = [float(x) for x in params.get("loads") or ()]
-    if not loads:
+    """The load steps P / (E* A) of a load-controlled recipe (``params["loads"]``): the
+    ``loads`` record's rule (finite, > 0 and increasing; plausibility is the planner's),
+    else a one-line ``ProblemInputError``."""
+    if not params.get("loads"):
         raise ProblemInputError("load control needs its load steps (--loads L1,L2,... as P/(E* A))")
-    if not all(np.isfinite(x) and x > 0 for x in loads) or any(b <= a for a, b in zip(loads, loads[1:])):
-        raise ProblemInputError(f"--loads must be finite, > 0 and increasing, got {','.join(f'{x:g}' for x in loads)}")
-    return loads
+    problem = value_problem(BY_NAME["loads"], params["loads"], {ALLOW_IMPLAUSIBLE})
+    if problem:
+        raise ProblemInputError(problem)
+    return [float(x) for x in params["loads"]]
 
 
 def control_suffix(params: dict[str, Any]) -> str:
-    """The instance-name suffix of a recipe's control and hardness: "" for the default
-    (displacement control, no hardness), "-load" and "-HA<Pa>" otherwise."""
-    out = "-load" if params.get("control") == CONTROLS[1] else ""
-    return out + (f"-HA{float(params['hardness']):g}" if params.get("hardness") is not None else "")
+    """The instance-name suffix of a recipe's control and hardness (the "control" records'
+    rules): "" for the default (displacement control, no hardness), "-load" and "-HA<Pa>"
+    otherwise."""
+    return name_suffix(params, "control")
 
 
 def checked_units(spec: InstanceSpec, surface: Surface, cfg: SceneConfig) -> Surface:
@@ -191,22 +186,40 @@ class RampScene(Scene):
         return ramp_sequence(spec, *self.loads(spec))
 
     def validate(self, cfg: SceneConfig) -> None:
-        validate_each(self.instances(cfg),
-                      lambda spec: check_grid(spec.params, checked_units(spec, self.loads(spec)[0], cfg)))
+        self.validate_sizes(cfg)
+
+    def validate_sizes(self, cfg: SceneConfig) -> dict[str, StepSizes]:
+        sizes: dict[str, StepSizes] = {}
+
+        def check(spec: InstanceSpec) -> None:
+            surface, deltas = self.loads(spec)
+            check_grid(spec.params, checked_units(spec, surface, cfg))
+            sizes[spec.instance] = step_sizes(spec.params, surface, deltas)
+
+        validate_each(self.instances(cfg), check)
+        return sizes
+
+
+def step_sizes(params: dict[str, Any], surface: Surface, deltas: np.ndarray) -> StepSizes:
+    """The trial-set sizes of a ramp recipe's steps (``instances.trial_set``; the whole
+    grid when periodic or under load control) and its square grid's side."""
+    whole = int(surface.heights.size)
+    if params.get("control") == CONTROLS[1]:
+        n = tuple(whole for _ in load_steps(params))
+    elif params.get("periodic"):
+        n = tuple(whole for _ in deltas)
+    else:
+        n = tuple(int(trial_set(surface.heights, float(d)).size) for d in deltas)
+    N0, N1 = surface.heights.shape
+    square = N0 == N1 and surface.delta1 in (None, surface.delta)
+    return StepSizes(n, int(N0) if square else 0)
 
 
 def layer_suffix(params: dict[str, Any]) -> str:
-    """The instance-name suffix of a recipe's layer: "" for the half-space, "-T1e-05" (metres)
-    or "-T0.1L" (relative), then "-nu0.45" and "-frictionless" when not the defaults."""
-    if params.get("thickness") is not None:
-        out = f"-T{float(params['thickness']):g}"
-    elif params.get("thickness_over_L") is not None:
-        out = f"-T{float(params['thickness_over_L']):g}L"
-    else:
-        return ""
-    if params.get("nu") is not None and float(params["nu"]) != DEFAULT_NU:
-        out += f"-nu{float(params['nu']):g}"
-    return out + ("-frictionless" if params.get("interface") == "frictionless" else "")
+    """The instance-name suffix of a recipe's layer (the "layer" records' rules): "" for the
+    half-space, "-T1e-05" (metres) or "-T0.1L" (relative), then "-nu0.45" and
+    "-frictionless" when not the defaults."""
+    return name_suffix(params, "layer")
 
 
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
@@ -222,16 +235,13 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         "periodic": bool(cfg.periodic),
         "operator": cfg.operator,
         "steps": cfg.steps,
-        **{k: cfg.extra[k] for k in LAYER_OPTIONS + CONTROL_OPTIONS if cfg.extra.get(k) is not None},
+        **recipe_params(cfg.extra, "layer", "control"),
         **(extra or {}),
     }
     if base.get("control") == CONTROLS[1]:
         base["steps"] = len(load_steps(base))
     if cfg.surface_path:
-        file_params = {**base, "surface_path": cfg.surface_path, "seed": 0,
-                       **{k: cfg.extra[k] for k in SURFACE_FILE_OPTIONS if cfg.extra.get(k) is not None}}
-        if cfg.extra.get("channel") is not None:
-            file_params["channel"] = cfg.extra["channel"]
+        file_params = {**base, "surface_path": cfg.surface_path, "seed": 0, **recipe_params(cfg.extra, "surface-file")}
         if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
         record = surface_from_params(file_params).preprocessing  # names the map by its base name and content
