@@ -7,62 +7,119 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
+from contactbench.harness.report import claim_rules as cr
 from contactbench.harness.report import claims as cl
 from contactbench.harness.report.sections import claims as rc
 from contactbench.harness.cli import main
 from contactbench.harness.run.studies import CLAIMS_DENSE_PROFILE, CLAIMS_FFT_PROFILE, expand
 
 # ---------------------------------------------------------------------------
-# Verdict rules
+# Verdict rules (harness/report/claim_rules.py)
 # ---------------------------------------------------------------------------
+
+NAN = math.nan
+#: For one claim of every distinct rule: the inputs (measured, spread) that give each of
+#: its verdicts.  A yes/no rule has no "partly"; a share or an error count (no timing
+#: spread) has no "unresolved"; an untestable claim is only "unmeasured".
+RULE_CASES: dict[str, dict[str, list[tuple[float, float]]]] = {
+    "ex1-greedy-fails": {"holds": [(0.4, 0), (0.36, 0)], "partly": [(0.55, 0), (0.25, 0)], "fails": [(0.8, 0), (0.14, 0)],
+                         "unresolved": [(0.5, 0.1)]},
+    "greedy-random-h-fails": {"unmeasured": [(0.9, 0), (0.0, 0)]},
+    "greedy-smooth-no-failures": {"holds": [(0.0, 0)], "fails": [(0.1, 0)]},
+    "greedy-rare": {"holds": [(0.0, 0), (0.05, 0)], "fails": [(0.2, 0)], "unresolved": [(0.05, 0.1)]},
+    "pk-fewer-iterations-than-greedy": {"holds": [(0.5, 0)], "fails": [(1.7, 0)], "unresolved": [(0.9999, 0.01)]},
+    "nnls-warm-cuts-iterations": {"holds": [(0.3, 0)], "fails": [(0.9, 0)], "unresolved": [(0.66, 0.05)]},
+    "gp-pure-slow": {"holds": [(5.0, 0)], "fails": [(1.3, 0)], "unresolved": [(2.01, 0.1)]},
+    "gp-warm-start-benefit": {"holds": [(0.2, 0)], "fails": [(0.8, 0)], "unresolved": [(0.49, 0.1)]},
+    # 26x: 2.26 and P&K1999's 0.77 at the paper's n are contradictions, not "partly"
+    "fig4-pk-cold-over-nnlsgp": {"holds": [(26.0, 0), (20.0, 0.01)], "partly": [(10.0, 0)],
+                                 "fails": [(2.26, 0), (0.77, 0), (-26.0, 0), (0.0, 0)], "unresolved": [(18.0, 0.1)]},
+    # two orders of magnitude: 1.31x and 5.9x fail
+    "fig4-admm-over-nnlsgp": {"holds": [(100.0, 0)], "partly": [(15.0, 0)], "fails": [(1.31, 0), (5.9, 0)],
+                              "unresolved": [(31.0, 0.1)]},
+    "fig4-same-load": {"holds": [(3e-8, 0)], "fails": [(1e-3, 0)], "unresolved": [(1e-6, 0.1)]},
+    # 0.6-0.7: 0.835 is partly, not holds
+    "fig5-chol-over-cg": {"holds": [(0.65, 0), (0.58, 0)], "partly": [(0.835, 0)], "fails": [(1.2, 0)],
+                          "unresolved": [(0.77, 0.05)]},
+    "fig5-chol-memory": {"holds": [(15000.0, 0)], "fails": [(30000.0, 0)]},
+    # about 3: 5.45 is partly, not holds
+    "fig5-gs-over-cg": {"holds": [(3.0, 0)], "partly": [(5.45, 0)], "fails": [(10.0, 0)], "unresolved": [(4.2, 0.05)]},
+    "fig6-best-k": {"holds": [(100.0, 0)], "partly": [(50.0, 0), (200.0, 0)], "fails": [(0.0, 0)],
+                    "unresolved": [(70.0, 0.05)]},
+    "fig6-k200-over-k100": {"holds": [(1.2, 0)], "fails": [(0.7, 0)], "unresolved": [(1.0, 0.05)]},
+    # a slowdown (4.5x) contradicts "saves 50 %"
+    "fig8-cmr-time": {"holds": [(0.5, 0)], "partly": [(0.9, 0)], "fails": [(4.5, 0), (1.04, 0)],
+                      "unresolved": [(0.7, 0.05)]},
+    "fig8-cmr-error": {"holds": [(-0.01, 0)], "partly": [(0.037, 0)], "fails": [(-0.98, 0)],
+                       "unresolved": [(0.02, 0.1)]},
+    "fig9-np-high-h": {"holds": [(0.87, 0)], "partly": [(0.65, 0)], "fails": [(0.4, 0)]},
+    "fig9-time-ratio": {"holds": [(0.6, 0)], "partly": [(0.9, 0)], "fails": [(1.04, 0)], "unresolved": [(0.85, 0.05)]},
+    "fig9-error": {"holds": [(0.005, 0)], "partly": [(0.011, 0)], "fails": [(0.05, 0)]},
+    "fig9-error-001pct": {"holds": [(5e-5, 0)], "partly": [(1.5e-4, 0)], "fails": [(0.011, 0)]},
+    # 18 % saved: a 1.96x slowdown fails
+    "real-power-law-saving": {"holds": [(0.82, 0)], "partly": [(0.95, 0)], "fails": [(1.96, 0)]},
+    "real-cutoff-error": {"holds": [(-0.93, 0), (-0.98, 0)], "fails": [(-0.3, 0), (0.001, 0)]},
+    # "almost no time saved": a 6x slowdown fails
+    "real-cutoff-saving": {"holds": [(1.0, 0)], "partly": [(1.3, 0)], "fails": [(6.0, 0)]},
+}
+
+
+def test_every_rule_of_the_table_has_its_verdict_cases() -> None:
+    covered = {cr.CLAIMS[c].rule for c in RULE_CASES}
+    assert {c.rule for c in cr.CLAIMS.values() if c.rule.kind != "untestable"} <= covered
+    assert any(cr.CLAIMS[c].rule.kind == "untestable" for c in RULE_CASES)
+
+
+@pytest.mark.parametrize("claim", sorted(RULE_CASES))
+def test_each_rule_gives_each_of_its_verdicts(claim: str) -> None:
+    rule = cr.CLAIMS[claim].rule
+    for verdict, inputs in RULE_CASES[claim].items():
+        for m, s in inputs:
+            assert cr.judge(m, rule, "results.csv", s) == verdict, (claim, m, s)
+    assert cr.judge(NAN, rule, "results.csv") == "unmeasured"
+    expected = {"unmeasured"} if rule.kind == "untestable" else (
+        {"holds", "fails"} if rule.yes_no or rule.kind == "at-most" else {"holds", "partly", "fails"})
+    assert expected <= set(RULE_CASES[claim]) | {"unmeasured"}
+
+
+@pytest.mark.parametrize("claim", sorted(cr.CLAIMS))
+def test_a_yes_no_claim_is_never_partly_and_a_near_tie_never_holds(claim: str) -> None:
+    rule = cr.CLAIMS[claim].rule
+    seen = {cr.judge(m, rule, "e", s) for m in np.geomspace(1e-9, 1e5, 400) for s in (0.0, 0.05)}
+    if rule.yes_no:
+        assert "partly" not in seen
+    for m in np.geomspace(1e-9, 1e5, 400):  # a value whose spread reaches across a band edge
+        if len({rule.at(m / 1.05), rule.at(m * 1.05)}) > 1:
+            assert cr.judge(m, rule, "e", 0.05) == "unresolved"
 
 
 @pytest.mark.parametrize("measured", [math.nan, math.inf, -math.inf, None, "abc", ""])
 def test_a_measurement_that_is_not_a_finite_number_is_never_a_verdict(measured: object) -> None:
-    for claim in cl.CLAIMS.values():
-        assert cl.verdict(measured, claim.rule, "results.csv: x") == "unmeasured"  # type: ignore[arg-type]
+    for claim in cr.CLAIMS.values():
+        assert cr.judge(measured, claim.rule, "results.csv: x") == "unmeasured"
 
 
 def test_no_evidence_or_an_untestable_claim_is_unmeasured_even_on_the_paper_value() -> None:
-    rule = cl.CLAIMS["fig4-pk-cold-over-nnlsgp"].rule
-    assert cl.verdict(26.0, rule, "results.csv") == "holds"
-    assert cl.verdict(26.0, rule, "") == "unmeasured"
-    assert cl.verdict(26.0, rule, "   ") == "unmeasured"
-    assert cl.verdict(26.0, rule, "results.csv", testable=False) == "unmeasured"
+    rule = cr.CLAIMS["fig4-pk-cold-over-nnlsgp"].rule
+    assert cr.judge(26.0, rule, "results.csv") == "holds"
+    assert cr.judge(26.0, rule, "") == "unmeasured"
+    assert cr.judge(26.0, rule, "   ") == "unmeasured"
+    assert cr.judge(26.0, rule, "results.csv", testable=False) == "unmeasured"
 
 
-def test_ratio_rules_read_the_direction_and_the_factor() -> None:
-    rule = cl.about(26.0)
-    assert cl.verdict(26.0 * cl.RATIO_FACTOR, rule, "e") == "holds"
-    assert cl.verdict(26.0 * cl.RATIO_FACTOR * 1.01, rule, "e") == "partly"  # same way, too large
-    assert cl.verdict(1e308, rule, "e") == "partly"  # huge but finite: never holds
-    assert cl.verdict(1.5, rule, "e") == "partly"
-    assert cl.verdict(0.308, rule, "e") == "fails"  # the opposite direction
-    assert cl.verdict(0.0, rule, "e") == "fails"
-    assert cl.verdict(-26.0, rule, "e") == "fails"  # a negative time ratio is no speed-up
-
-
-def test_error_bounds_read_the_magnitude() -> None:
-    rule = cl.CLAIMS["real-power-law-error"].rule
-    assert cl.verdict(-0.004, rule, "e") == "holds"
-    assert cl.verdict(-0.03, rule, "e") == "partly"
-    assert cl.verdict(-0.98, rule, "e") == "fails"
-    cutoff = cl.CLAIMS["real-cutoff-error"].rule
-    assert cl.verdict(-0.98, cutoff, "e") == "holds"
-    assert cl.verdict(0.001, cutoff, "e") == "fails"
-
-
-def test_every_claim_has_a_rule_whose_holds_band_lies_in_its_partly_band_or_is_disjoint_by_design() -> None:
-    for c in cl.CLAIMS.values():
-        lo, hi = c.rule.holds
-        assert lo <= hi, c.id
-        assert c.id == c.id.strip() and c.figure and c.paper_value
+def test_the_claims_table_is_the_papers_with_tex_lines() -> None:
+    assert len(cr.CLAIMS) >= 35
+    for c in cr.CLAIMS.values():
+        assert c.tex_lines and all(part.strip()[0].isdigit() for part in c.tex_lines.split(",")), c.id
+        assert c.figure and c.paper_value and (c.measures or c.rule.kind == "untestable"), c.id
 
 
 def test_ratio_guards_an_infinite_or_incomplete_total() -> None:
-    tot = pd.DataFrame({"total_s": [2.6, 0.0, 1.0], "steps": [10, 10, 10], "answered": [10, 10, 9],
+    tot = pd.DataFrame({"total_s": [2.6, 0.0, 1.0], "repeats": [3, 3, 3], "spread": [0.1, 0.0, 0.0],
+                        "steps": [10, 10, 10], "answered": [10, 10, 9],
                         "solved": [10, 10, 9], "comparable": [True, True, False]},
                        index=["pk cold", "zero", "short"])
     assert math.isnan(cl.ratio(tot, "pk cold", "zero")[0])  # t_b = 0: an inf ratio is not a measurement
@@ -123,7 +180,7 @@ def test_ledger_reads_each_condition_apart() -> None:
     assert list(led.columns) == list(cl.LEDGER_COLUMNS)
     r = _one(led, "fig4-pk-cold-over-nnlsgp", "dense")
     assert r["measured"] == pytest.approx(26.0) and r["verdict"] == "holds"
-    assert "pk cold 5.2 s, 20 matvecs" in r["evidence"]  # the time's load-independent witness
+    assert "pk cold 5.2 s (median of 1), 20 matvecs" in r["evidence"]  # the time's load-independent witness
     assert _one(led, "fig4-greedy-over-nnlsgp", "dense")["verdict"] == "holds"
     assert _one(led, "fig4-admm-over-nnlsgp", "dense")["measured"] == pytest.approx(80.0)
     assert _one(led, "fig4-nnlsgp-fastest", "dense")["verdict"] == "holds"
@@ -135,7 +192,7 @@ def test_ledger_reads_each_condition_apart() -> None:
     # a failed NNLS+GP step: no ratio, and the evidence says why
     short = _one(led, "fig4-pk-cold-over-nnlsgp", "fft", "128^2")
     assert short["verdict"] == "unmeasured" and "not every step answered" in short["evidence"]
-    assert set(led["verdict"]) <= set(cl.VERDICTS)
+    assert set(led["verdict"]) <= set(cr.VERDICTS)
 
 
 def test_a_lying_solver_does_not_make_the_loads_agree() -> None:
@@ -232,10 +289,9 @@ def _paper_n(status: dict | None = None) -> pd.DataFrame:
 
 def test_the_paper_size_top_step_is_read_without_a_load_history() -> None:
     led = cl.ledger(_paper_n())
-    for claim in ("fig4-pk-cold-over-nnlsgp", "conclusion-pk"):
-        r = _one(led, claim, "dense", "512^2")
-        assert r["measured"] == pytest.approx(0.5) and r["verdict"] == "fails"
-        assert "1 step(s) cold, n <= 35218" in r["n_or_size"]
+    r = _one(led, "fig4-pk-cold-over-nnlsgp", "dense", "512^2")
+    assert r["measured"] == pytest.approx(0.5) and r["verdict"] == "fails"
+    assert "1 step(s) cold, n <= 35218" in r["n_or_size"]
     # the sizes with a load history keep their own rows, once each
     assert _one(led, "fig4-pk-cold-over-nnlsgp", "dense")["measured"] == pytest.approx(26.0)
 
@@ -252,3 +308,61 @@ def test_a_skipped_cholesky_at_a_large_n_does_not_test_the_memory_claim() -> Non
     r = _one(cl.ledger(pd.concat([_table(), pd.DataFrame(rows)], ignore_index=True)), "fig5-chol-memory", "dense",
              "n <=")
     assert r["verdict"] == "unmeasured"
+
+
+def test_a_contradicted_yes_no_claim_never_holds_nor_is_partly() -> None:
+    """NNLS+GP 1.7x slower than warm P&K: "the fastest" fails (it read "partly" before)."""
+    rows = _rows("paper-sweep", "dense", {"nnls-gp": [0.17, 0.17], "pk": [0.1, 0.1]})
+    r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "dense")
+    assert r["measured"] == pytest.approx(1.7) and r["verdict"] == "fails"
+    # a fast solver the paper never ran is not charged to the claim
+    rows = _rows("paper-sweep", "fft", {"nnls-gp": [0.1, 0.1], "pk": [0.2, 0.2], "fast-dual-pccg": [0.01, 0.01]})
+    r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "fft")
+    assert r["verdict"] == "holds" and "fastest other paper method: pk" in r["evidence"]
+
+
+def _repeated(times: dict[str, list[list[float]]]) -> pd.DataFrame:
+    """paper-sweep rows with repeats: solver -> per repeat, the step times."""
+    out = []
+    for solver, reps in times.items():
+        for r, ts in enumerate(reps):
+            for row in _rows("paper-sweep", "dense", {solver: ts}):
+                row["repeat"] = r
+                out.append(row)
+    return pd.DataFrame(out)
+
+
+def test_repeats_give_a_median_and_a_spread_and_a_near_tie_is_unresolved() -> None:
+    # a tie inside the repeats' spread: nnls-gp 0.0326 s against pk 0.0325 s, each +-5 %
+    t = _repeated({"nnls-gp": [[0.0163, 0.0163], [0.0155, 0.0155], [0.0171, 0.0171]],
+                   "pk": [[0.01625, 0.01625], [0.0170, 0.0170], [0.0155, 0.0155]]})
+    r = _one(cl.ledger(t), "fig4-nnlsgp-fastest", "dense")
+    assert r["repeats"] == 3 and r["spread"] == pytest.approx(0.098 + 0.0923, abs=2e-3)
+    assert r["measured"] == pytest.approx(0.0326 / 0.0325, rel=1e-9) and r["verdict"] == "unresolved"
+    # the same medians from tight repeats: resolved
+    t = _repeated({"nnls-gp": [[0.0163, 0.0163]] * 3, "pk": [[0.01625, 0.01625]] * 3})
+    r = _one(cl.ledger(t), "fig4-nnlsgp-fastest", "dense")
+    assert r["spread"] == 0.0 and r["verdict"] == "fails"
+
+
+def test_every_claim_is_in_the_ledger_once_per_condition_and_size_with_its_tex_lines() -> None:
+    led = cl.ledger(_paper_n())
+    assert list(led.columns) == list(cl.LEDGER_COLUMNS)
+    assert set(led["claim"]) == set(cr.CLAIMS) and led["claim"].nunique() >= 35
+    assert not led.duplicated(["claim", "condition", "n_or_size"]).any()
+    assert (led["tex_lines"].str.len() > 0).all()
+    untested = led[led["claim"] == "greedy-spacing-2delta"].iloc[0]
+    assert untested["verdict"] == "unmeasured" and "2 delta" in untested["evidence"]
+    missing = led[led["claim"] == "fig4-pkprinted-over-nnlsgp"].iloc[0]
+    assert missing["verdict"] == "unmeasured" and "not in this table" in missing["evidence"]
+
+
+def test_the_printed_pk_is_read_apart_from_pk_1999_at_the_paper_size() -> None:
+    rows = _rows("greedy-linear-solvers", "dense", {"pk-printed": [52.0], "pk": [2.0], "nnls-gp": [4.0]}, N=512)
+    for r in rows:
+        r["n"], r["skip_reason"] = 35218, ""
+    led = cl.ledger(pd.concat([_table(), pd.DataFrame(rows)], ignore_index=True))
+    printed = _one(led, "fig4-pkprinted-over-nnlsgp", "dense", "512^2")
+    assert printed["measured"] == pytest.approx(13.0) and printed["verdict"] == "partly"
+    assert "pk-printed and nnls-gp from p = 0" in printed["evidence"]
+    assert _one(led, "fig4-pk-cold-over-nnlsgp", "dense", "512^2")["verdict"] == "fails"

@@ -82,14 +82,15 @@ def verdict_counts(df: pd.DataFrame) -> str:
 
 
 def ledger_table(df: pd.DataFrame, evidence: bool = True) -> str:
-    heads = ["claim", "figure", "paper", "condition", "measured", "n / size", "seeds", "verdict"]
-    rows = [[md_escape(r.claim), md_escape(r.figure), md_escape(r.paper_value), r.condition, fmt_measured(r.measured),
-             md_escape(r.n_or_size), md_escape(r.seeds), f"**{r.verdict}**"] for r in df.itertuples()]
+    heads = ["claim", "figure", "tex", "paper", "condition", "measured", "n / size", "seeds", "repeats", "verdict"]
+    rows = [[md_escape(r.claim), md_escape(r.figure), md_escape(r.tex_lines), md_escape(r.paper_value), r.condition,
+             fmt_measured(r.measured), md_escape(r.n_or_size), md_escape(r.seeds), md_escape(r.repeats),
+             f"**{r.verdict}**"] for r in df.itertuples()]
     if evidence:
         heads.append("evidence")
         for row, r in zip(rows, df.itertuples()):
             row.append(md_escape(r.evidence) or "-")
-    return markdown_table(heads, rows, "lllllrll" + ("l" if evidence else ""))
+    return markdown_table(heads, rows, "llllllrlrl" + ("l" if evidence else ""))
 
 
 def fails_under_paper(df: pd.DataFrame) -> str:
@@ -115,8 +116,9 @@ def with_n(df: pd.DataFrame) -> str:
 
 
 def rules_table() -> str:
-    rows = [[c.id, md_escape(c.paper_value), md_escape(c.rule.text())] for c in CLAIMS.values()]
-    return markdown_table(["claim", "paper", "verdict rule on measured"], rows, "lll") + "\n"
+    rows = [[c.id, md_escape(c.tex_lines), md_escape(c.paper_value), md_escape(c.measures or "-"),
+             md_escape(c.rule.text())] for c in CLAIMS.values()]
+    return markdown_table(["claim", "tex", "paper", "measured", "verdict rule on measured"], rows, "lllll") + "\n"
 
 
 def claims_markdown(df: pd.DataFrame) -> str:
@@ -130,7 +132,9 @@ def claims_markdown(df: pd.DataFrame) -> str:
            "## With n", "", with_n(df),
            "## Verdict rules", "",
            ("`unmeasured`: the measurement is missing or not finite, or rests on no evidence, or the table cannot "
-           "test the claim (never `holds`). Otherwise the claim's rule on `measured`:"), "", rules_table()]
+           "test the claim (never `holds`). `unresolved`: the value's interval over its timed repeats, "
+           "[m / (1 + spread), m (1 + spread)], reaches across a band edge (never `holds`). Otherwise the claim's "
+           "rule on `measured` (docs/claims.md):"), "", rules_table()]
     return "\n".join(doc)
 
 

@@ -1,0 +1,304 @@
+"""The verdict rules of the paper's claims ledger: one table of kinds, every one able to
+fail, and one function, ``judge``, that reads a measured value and its spread.
+
+The verdicts (``VERDICTS``):
+
+* ``holds``      -- the measured value is inside the claim's holds band;
+* ``partly``     -- a ratio or a bound outside the holds band but inside the wider band
+                    (a yes/no claim is never partly);
+* ``fails``      -- outside both bands (for a yes/no claim: the answer is no);
+* ``unresolved`` -- the value's interval of repeats, [m / (1 + s), m (1 + s)] with s the
+                    relative spread, reaches across a band edge: the repeats cannot tell
+                    the verdicts apart (a near-tie is never ``holds``);
+* ``unmeasured`` -- no finite measurement, no evidence, or a claim the table cannot test
+                    (its ``Rule.reason`` says why).
+
+The kinds of rule (``RULE_KINDS``; docs/claims.md has the table):
+
+* ``ratio``   -- the paper gives a value v or a range [lo, hi] of a positive ratio: holds
+                 within a factor f_h of it on a log scale ([lo / f_h, hi f_h]), partly
+                 within f_p > f_h, fails outside (a non-positive ratio fails);
+* ``bound``   -- the paper gives an upper bound b on a magnitude |m| (an error): holds for
+                 |m| <= b, partly up to f_p b, fails beyond;
+* ``at-most`` / ``at-least`` -- a yes/no claim, "m <= x" or "m >= x": holds or fails;
+* ``band``    -- a share the paper gives as v: holds within +-d_h, partly within +-d_p
+                 (absolute, for fractions of seeds or of points);
+* ``untestable`` -- the table cannot test the claim: always ``unmeasured``, with the reason.
+
+The factors are the constants below, each in this one place; a claim names its kind and
+its paper value through the constructors (``ratio``, ``bound``, ``at_most``, ...).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: The verdicts, in the order the ledger counts them.
+VERDICTS: tuple[str, ...] = ("holds", "partly", "fails", "unresolved", "unmeasured")
+#: The kinds of rule (module doc).
+RULE_KINDS: tuple[str, ...] = ("ratio", "bound", "at-most", "at-least", "band", "untestable")
+
+#: "About v" (a value the paper states as a number, "26 times", "about 3"): holds within
+#: this factor of v either way, partly within the second.
+ABOUT_HOLDS = math.sqrt(2.0)
+ABOUT_PARTLY = 3.0
+#: "Orders of magnitude" (a power of ten): holds within half a decade, partly within one.
+ORDER_HOLDS = math.sqrt(10.0)
+ORDER_PARTLY = 10.0
+#: A range the paper states ("0.6-0.7"): holds within this factor beyond either end,
+#: partly within the second.
+RANGE_HOLDS = 1.1
+RANGE_PARTLY = 1.5
+#: A bound the paper states ("under 2 %"): partly up to this factor above it.
+BOUND_PARTLY = 2.0
+INF = math.inf
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One claim's rule (module doc): ``kind`` and its numbers -- ``lo``/``hi`` the paper's
+    value or range (ratio, band centre in ``lo``), the threshold (at-most, at-least, bound
+    in ``hi``), ``holds``/``partly`` the factors (ratio, bound) or half-widths (band);
+    ``absolute``: the rule reads |m|; ``reason``: why an untestable claim is unmeasured."""
+
+    kind: str
+    lo: float = math.nan
+    hi: float = math.nan
+    holds: float = 1.0
+    partly: float = 1.0
+    absolute: bool = False
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in RULE_KINDS:
+            raise ValueError(f"unknown rule kind {self.kind!r}; one of {', '.join(RULE_KINDS)}")
+
+    @property
+    def yes_no(self) -> bool:
+        return self.kind in ("at-most", "at-least")
+
+    def at(self, m: float) -> str:
+        """holds / partly / fails of a finite value m, no spread."""
+        m = abs(m) if self.absolute else m
+        if self.kind == "at-most":
+            return "holds" if m <= self.hi else "fails"
+        if self.kind == "at-least":
+            return "holds" if m >= self.lo else "fails"
+        if self.kind == "ratio":
+            if not m > 0.0:
+                return "fails"
+            return ("holds" if self.lo / self.holds <= m <= self.hi * self.holds else
+                    "partly" if self.lo / self.partly <= m <= self.hi * self.partly else "fails")
+        if self.kind == "bound":
+            return "holds" if m <= self.hi else "partly" if m <= self.hi * self.partly else "fails"
+        if self.kind == "band":
+            d = abs(m - self.lo)
+            return "holds" if d <= self.holds else "partly" if d <= self.partly else "fails"
+        return "unmeasured"
+
+    def text(self) -> str:
+        """The rule in words, for the ledger's rules table."""
+        on = "|measured|" if self.absolute else "measured"
+        if self.kind == "at-most":
+            return f"yes/no: holds if {on} <= {self.hi:g}, else fails"
+        if self.kind == "at-least":
+            return f"yes/no: holds if {on} >= {self.lo:g}, else fails"
+        if self.kind == "ratio":
+            val = f"{self.lo:g}" if self.lo == self.hi else f"[{self.lo:g}, {self.hi:g}]"
+            return (f"ratio {val}: holds in [{self.lo / self.holds:.3g}, {self.hi * self.holds:.3g}] (x{self.holds:.3g}), "
+                    f"partly in [{self.lo / self.partly:.3g}, {self.hi * self.partly:.3g}] (x{self.partly:.3g}), "
+                    f"else fails")
+        if self.kind == "bound":
+            return f"bound: holds if {on} <= {self.hi:g}, partly <= {self.hi * self.partly:g}, else fails"
+        if self.kind == "band":
+            return (f"share {self.lo:g}: holds within +-{self.holds:g}, partly within +-{self.partly:g}, "
+                    f"else fails")
+        return f"untestable here: {self.reason}"
+
+
+def ratio(value: float, hi: float | None = None, holds: float | None = None, partly: float | None = None) -> Rule:
+    """A ratio the paper gives as ``value`` ("about": ``ABOUT_*``) or as the range
+    [value, hi] (``RANGE_*``); the factors may be given."""
+    if hi is None:
+        return Rule("ratio", value, value, holds or ABOUT_HOLDS, partly or ABOUT_PARTLY)
+    return Rule("ratio", value, hi, holds or RANGE_HOLDS, partly or RANGE_PARTLY)
+
+
+def orders(value: float) -> Rule:
+    """A ratio the paper gives in orders of magnitude (``value`` a power of ten)."""
+    return Rule("ratio", value, value, ORDER_HOLDS, ORDER_PARTLY)
+
+
+def bound(b: float, partly: float = BOUND_PARTLY) -> Rule:
+    """A magnitude the paper puts under ``b`` (on |m|)."""
+    return Rule("bound", hi=b, partly=partly, absolute=True)
+
+
+def at_most(x: float, absolute: bool = False) -> Rule:
+    """The yes/no claim m <= x."""
+    return Rule("at-most", hi=x, absolute=absolute)
+
+
+def at_least(x: float, absolute: bool = False) -> Rule:
+    """The yes/no claim m >= x."""
+    return Rule("at-least", lo=x, absolute=absolute)
+
+
+def band(value: float, holds: float, partly: float) -> Rule:
+    """A share the paper gives as ``value``: holds within +-holds, partly within +-partly."""
+    return Rule("band", lo=value, holds=holds, partly=partly)
+
+
+def untestable(reason: str) -> Rule:
+    """A claim the table cannot test: always unmeasured, with ``reason``."""
+    return Rule("untestable", reason=reason)
+
+
+def as_float(measured: object) -> float:
+    """``measured`` as a float (NaN where it is not a number)."""
+    try:
+        return float(measured)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def judge(measured: object, rule: Rule, evidence: str, spread: float = 0.0, testable: bool = True) -> str:
+    """The verdict (module doc) of ``measured`` under ``rule``, its repeats' relative spread
+    ``spread`` (NaN or negative: none known, read as 0)."""
+    m = as_float(measured)
+    if rule.kind == "untestable" or not testable or not str(evidence).strip() or not math.isfinite(m):
+        return "unmeasured"
+    s = spread if math.isfinite(spread) and spread > 0.0 else 0.0
+    at_m = rule.at(m)
+    if s == 0.0:
+        return at_m
+    ends = {rule.at(m / (1.0 + s)), rule.at(m * (1.0 + s))}
+    return at_m if ends == {at_m} else "unresolved"
+
+
+# ---------------------------------------------------------------------------
+# The claims: one rule each (the ledger's table; docs/claims.md says how to add one)
+# ---------------------------------------------------------------------------
+
+#: "Rare": a greedy failure share at most this.
+RARE = 0.05
+#: "Significantly reduces": at most this share of the cold iterations.
+SIGNIFICANT = 2.0 / 3.0
+#: "Slow" (pure GP), "quite far" (greedy Cholesky from NNLS): at least this time ratio.
+SLOW = 2.0
+#: "Large benefits" (K GP steps before NNLS): t(K = 100) / t(K = 0) at most this.
+LARGE_BENEFIT = 0.5
+#: "Only a small subset" of the trial set in contact: n_contact / n at most this.
+SMALL_SUBSET = 0.5
+#: "A rapid decreasing function": the error at the far end at most this share of the near end's.
+FALLS = 0.5
+#: "The same load and contact domain, with small round-off errors": relative spread at most this.
+SAME = 1e-6
+#: "-98 %": a load error at least this large in magnitude is the paper's "poor accuracy".
+LARGE_ERROR = 0.5
+#: Example 1 and Fig. 9's shares: holds within +-SHARE_HOLDS, partly within +-SHARE_PARTLY.
+SHARE_HOLDS = 0.1
+SHARE_PARTLY = 0.2
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of the paper: an id, where it is (figure or section, and the tex lines of
+    the paper's source), the paper's words for its value, its rule, and what the ledger
+    measures it on (``measures``, the words of the rules table)."""
+
+    id: str
+    figure: str
+    tex_lines: str
+    paper_value: str
+    rule: Rule
+    measures: str = ""
+
+
+CLAIMS: dict[str, Claim] = {c.id: c for c in (
+    Claim("ex1-greedy-fails", "Example 1", "623-628", "greedy wrong on ~40 % of 100 random ubar, for any n",
+          band(0.40, SHARE_HOLDS, SHARE_PARTLY), "share of seeds whose greedy-cg answer the judge rejects, per n"),
+    Claim("greedy-random-h-fails", "Sec. 3.1", "601-604",
+          "random ubar and random SPD H with positive coefficients: greedy often wrong",
+          untestable("no scene draws a random SPD H with positive coefficients")),
+    Claim("greedy-spacing-2delta", "Sec. 3.1", "647-651", "trial points 2 delta apart: greedy always right",
+          untestable("no scene draws Example 1 with a minimum spacing of 2 delta between the trial points")),
+    Claim("greedy-smooth-no-failures", "Sec. 3.1", "651-655", "smooth ubar (sphere, flat punch): greedy never wrong",
+          at_most(0.0), "share of greedy-cg solves rejected on hertz and flat-punch"),
+    Claim("greedy-rare", "Conclusion", "1332-1334", "greedy's lack of convergence seems a rare phenomenon",
+          at_most(RARE), "share of greedy-cg solves rejected on the rough surface's steps (cold)"),
+    Claim("pk-criteria-equivalent", "Sec. 3.2", "707-711",
+          "P&K's force-based stopping rule and the displacement-based one are completely equivalent",
+          untestable("no solver runs P&K's force-based stopping rule beside the displacement-based one")),
+    Claim("pk-fewer-iterations-than-greedy", "Sec. 3.2", "716-719",
+          "P&K converges in fewer iterations than greedy CG", at_most(1.0),
+          "iterations of pk cold / greedy-cg cold, summed over the steps"),
+    Claim("nnls-warm-cuts-iterations", "Sec. 3.3", "793-797",
+          "the load history's warm start significantly reduces NNLS's iterations", at_most(SIGNIFICANT),
+          "NNLS iterations warm along the history / cold, summed over the steps"),
+    Claim("gp-pure-slow", "Sec. 3.4", "856-858", "pure accelerated GP converges slowly", at_least(SLOW),
+          "t(gp cold) / t(nnls-gp cold), the same steps"),
+    Claim("gp-warm-start-benefit", "Sec. 3.4, Fig. 6", "864-866, 1087-1091",
+          "K GP steps give NNLS large benefits: t(K = 100) well below t(K = 0, cold)", at_most(LARGE_BENEFIT),
+          "t(nnls-gp K = 100) / t(K = 0), cold"),
+    Claim("fig4-pkprinted-over-nnlsgp", "Fig. 4", "1046-1048, 1339-1341",
+          "t(P&K1999) / t(NNLS+GP K=100) = 26, P&K as printed (Algorithm 2, pk-printed)", ratio(26.0),
+          "t(pk-printed cold) / t(nnls-gp)"),
+    Claim("fig4-pk-cold-over-nnlsgp", "Fig. 4", "1046-1048, 1339-1341",
+          "t(P&K1999) / t(NNLS+GP K=100) = 26, P&K 1999 proper (pk)", ratio(26.0), "t(pk cold) / t(nnls-gp)"),
+    Claim("fig4-admm-over-nnlsgp", "Fig. 4", "1048-1050", "t(ADMM) / t(NNLS+GP) ~ 100 (two orders)", orders(100.0),
+          "t(admm) / t(nnls-gp)"),
+    Claim("fig4-greedy-over-nnlsgp", "Fig. 4", "1048-1050, 1338-1339",
+          "t(greedy CG) / t(NNLS+GP) ~ 100 (two orders; the conclusion: at least two)", orders(100.0),
+          "t(greedy-cg cold) / t(nnls-gp)"),
+    Claim("fig4-nnlsgp-fastest", "Fig. 4", "1046-1048", "NNLS+GP is the fastest of the paper's methods",
+          at_most(1.0), "t(nnls-gp) / t(the fastest other paper method)"),
+    Claim("fig4-same-load", "Fig. 4", "1039-1042", "every method gives the same load (round-off)", at_most(SAME),
+          "largest relative spread of the top step's load over the answers of every paper method"),
+    Claim("fig4-same-contact", "Fig. 4", "1039-1042", "every method gives the same contact domain (round-off)",
+          at_most(SAME), "largest relative spread of the top step's contact fraction over every answer"),
+    Claim("fig5-chol-over-cg", "Fig. 5", "1068-1071", "t(greedy Cholesky) / t(greedy CG) = 0.6-0.7, any n",
+          ratio(0.6, 0.7), "median over the steps both solve of t(greedy-chol) / t(greedy-cg)"),
+    Claim("fig5-chol-far-from-nnls", "Fig. 5", "1071-1073",
+          "greedy Cholesky is still quite far from NNLS", at_least(SLOW), "t(greedy-chol cold) / t(nnls)"),
+    Claim("fig5-chol-memory", "Fig. 5", "1074-1076", "Cholesky out of memory above n ~ 20,000 (128 GB machine)",
+          at_most(20000.0), "largest n greedy-chol answered, tested only where n > 20,000 was tried"),
+    Claim("fig5-gs-over-cg", "Fig. 5", "1077-1079", "t(greedy Gauss-Seidel) / t(greedy CG) ~ 3", ratio(3.0),
+          "median over the steps both solve of t(greedy-gs) / t(greedy-cg)"),
+    Claim("fig6-best-k", "Fig. 6", "1087-1097", "the total time is least at K = 100", ratio(100.0),
+          "the K of least total NNLS+GP time"),
+    Claim("fig6-k200-over-k100", "Fig. 6", "1092-1097", "K = 200 saves nothing more: t(K=200) / t(K=100) >= 1",
+          at_least(1.0), "t(K = 200) / t(K = 100)"),
+    Claim("subset-in-contact", "Sec. 5.1", "1112-1115", "at convergence only a small subset of the trial set is in contact",
+          at_most(SMALL_SUBSET), "points in contact / n at the top step (nnls)"),
+    Claim("lacunarity", "Sec. 5.1", "1120-1130", "the contact area at one displacement falls as delta is refined",
+          untestable("no row records one surface's contact area at its coarser levels at one displacement")),
+    Claim("cmr-2x-over-nnlsgp", "Abstract", "241-244", "CMR at least 2x faster than NNLS+GP", at_most(0.5),
+          "t(cmr+nnls) / t(nnls-gp) over the cmr steps"),
+    Claim("fig8-cmr-time", "Fig. 8", "1222-1227", "t(CMR) / t(direct) ~ 0.5 at h = 2, almost regardless of H",
+          ratio(0.5, partly=1.9), "median t(CMR) / t(direct) per H, the H farthest from 0.5"),
+    Claim("fig8-cmr-error", "Fig. 8", "1228-1231", "|load error| < 2 % for H > 0.5, h = 2 (read off Fig. 8d)",
+          bound(0.02), "90th percentile of |error| over the instances with H > 0.5"),
+    Claim("fig8-error-falls-with-h-exponent", "Fig. 8", "1228-1230", "the load error is a rapidly decreasing function of H",
+          at_most(FALLS), "median |error| at the largest H / at the smallest H"),
+    Claim("fig9-np-low-h", "Fig. 9", "1238-1241", "n_p/n = 0.4 at h = 1.25", band(0.4, SHARE_HOLDS, SHARE_PARTLY),
+          "median n_p/n over seeds"),
+    Claim("fig9-np-high-h", "Fig. 9", "1238-1241", "n_p/n = 0.8 at h = 3.0", band(0.8, SHARE_HOLDS, SHARE_PARTLY),
+          "median n_p/n over seeds"),
+    Claim("fig9-time-ratio", "Fig. 9", "1241-1244", "t(CMR) / t(direct) tends to 0.6 (40 % saved)",
+          ratio(0.6, partly=1.6), "median t(CMR) / t(direct) at h = 3"),
+    Claim("fig9-error", "Fig. 9", "1235-1237", "|load error| < 1 % at large h", bound(0.01), "median |error| at h = 3"),
+    Claim("fig9-error-falls-with-h", "Fig. 9", "1235-1237", "the error falls rapidly as h grows", at_most(FALLS),
+          "median |error| at h = 3 / at h = 1.25"),
+    Claim("fig9-error-001pct", "Fig. 9", "1242-1245", "the 40 % saving comes with < 0.01 % relative error",
+          bound(1e-4), "median |error| at h = 3"),
+    Claim("real-power-law-error", "Fig. 11", "1292-1294", "power-law PSD: load error -0.4 %", bound(0.01),
+          "median load error of CMR against its direct solve"),
+    Claim("real-power-law-saving", "Fig. 11", "1293-1295", "power-law PSD: 18 % of the time saved (ratio 0.82)",
+          ratio(0.82, holds=RANGE_HOLDS, partly=1.2), "median t(CMR) / t(direct)"),
+    Claim("real-cutoff-error", "Fig. 11", "1296-1298", "PSD cut-off: load error -98 % (poor accuracy)",
+          at_least(LARGE_ERROR, absolute=True), "median |load error| of CMR against its direct solve"),
+    Claim("real-cutoff-saving", "Fig. 11", "1297-1298", "PSD cut-off: almost no time saved (ratio ~ 1)",
+          ratio(1.0, holds=RANGE_HOLDS, partly=RANGE_PARTLY), "median t(CMR) / t(direct)"),
+)}
