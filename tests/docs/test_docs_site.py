@@ -2,7 +2,8 @@
 
 * ``mkdocs build --strict`` passes: every page in the nav, no broken link, the API reference
   collected from the code;
-* the tutorial notebook (stored without outputs) runs from top to bottom;
+* the tutorial notebook is stored without outputs and the build executes it: the page shows
+  its outputs (the conformance tables, the caught solver, the figures);
 * every column of the committed results table is in the column glossary, and every schema
   column has a unit;
 * the Python in the pages is checked against the code: every ``python`` block parses, its
@@ -29,7 +30,6 @@ from typing import Any
 import nbformat
 import pandas as pd
 import pytest
-from nbclient import NotebookClient
 
 from tests.helpers import REPO
 
@@ -41,6 +41,9 @@ NOT_RUN = {
     "adding-a-solver.md": "its blocks are tests/example_solver.py and a pytest file, run by tests/docs/test_docs.py",
     "distributed.md": "its blocks start a SLURM or local Dask cluster",
 }
+#: ipykernel's note, when the build executes the tutorial, that its kernel talks to the build
+#: over local TCP: the kernel's log, not a warning of the build.
+KERNEL_TRANSPORT_NOTE = "[IPKernelApp] WARNING | Kernel is running over TCP without encryption."
 #: The modules whose public functions and classes inline code may name.
 PUBLIC_PACKAGES = ("contactbench.problems", "contactbench.solvers", "contactbench.harness")
 
@@ -85,11 +88,16 @@ def test_the_site_builds_in_strict_mode(tmp_path: Path) -> None:
                           check=False, cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, f"mkdocs build --strict failed (install the docs extra: make setup):\n{log}"
-    assert "WARNING" not in log, log
+    warnings = [ln for ln in log.splitlines() if "WARNING" in ln and not ln.startswith(KERNEL_TRANSPORT_NOTE)]
+    assert warnings == [], log
     site = tmp_path / "site"
     columns = (site / "columns.html").read_text()
     assert "kkt_error" in columns and "glossary: generated" not in columns
-    assert (site / "tutorial.html").is_file()
+    tutorial = (site / "tutorial.html").read_text()
+    assert "CONFORMS" in tutorial, "the tutorial's own solver should conform, on the page"
+    assert "caught:" in tutorial and "WRONG" in tutorial, "the tutorial's impatient solver should be caught"
+    assert "same heights: True" in tutorial, "the read-back of a stored map keeps its heights"
+    assert "data:image/png" in tutorial, "the tutorial draws the pressure field and the load-area curve"
     api = (site / "api" / "solvers.html").read_text()
     assert "SolverSettings" in api and "get_solver" in api
     hook = load_hook()
@@ -112,17 +120,6 @@ def test_the_notebook_is_stored_without_outputs() -> None:
     assert len(code) >= 8
     for c in code:
         assert not c.outputs and c.execution_count is None, f"stored with outputs: {c.source[:60]!r}"
-
-
-@pytest.mark.slow
-def test_the_notebook_runs(tmp_path: Path) -> None:
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    NotebookClient(nb, timeout=120, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
-    text = "\n".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
-    assert "CONFORMS" in text, "the tutorial's own solver should conform"
-    assert "caught:" in text and "WRONG" in text, "the tutorial's impatient solver should be caught"
-    images = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if "image/png" in o.get("data", {})]
-    assert images, "the tutorial draws the pressure field and the load-area curve"
 
 
 # ---------------------------------------------------------------------------
