@@ -68,7 +68,8 @@ test: lint setup-browser
 test-quick: lint
 	$(PY) -m pytest -q -rs -m "not slow"
 
-# The user's guide, built offline into site/ (mkdocs.yml; strict: any warning fails).
+# The user's guide, built offline into site/ (mkdocs.yml; strict: any warning fails; the tutorial
+# notebook is executed, so its page shows its outputs).
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
 
