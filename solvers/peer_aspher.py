@@ -32,6 +32,11 @@ our QP's full-grid field U (solvers/_peers.py; U = xi - xi_max under load contro
 the force per element p' E* delta^2 (our force units), its approach a' as the load-control
 multiplier Delta = a' L (its gap g = gap + S p - a is our w = Hp - ubar - Delta / L).
 
+Tolerance.  ASPHER's certified errors are relative to its gap scale g_ref = max(gap) -
+min(gap); our scaled KKT error to u_s = max|ubar| (problems.kkt).  It is handed
+``tol x u_s / (L g_ref)`` (``handed_tol``: its penetration bound is then ours, tol u_s;
+under load control u_s = L g_ref on the whole grid and it gets ``tol`` itself).
+
 Its claim.  ``converged`` is ASPHER's own status ("converged": its Frank-Wolfe certificate
 and penetration error below ``tol``); the certified figures (``fw_error``,
 ``penetration_error``, ``load_error``, ``status``) go to ``info`` as its claim.  The verdict
@@ -190,6 +195,13 @@ def posed(ctx: SolveContext) -> Posed:
     return Posed(gp, side, np.ascontiguousarray(-gp.U / side), load / (gp.E * side * side), {**how, "load": load})
 
 
+def handed_tol(pz: Posed, ctx: SolveContext) -> float:
+    """Our ``tol`` in ASPHER's units (module doc): tol u_s / (L g_ref)."""
+    g_ref = float(np.ptp(pz.gap)) * pz.side
+    u_s = float(np.max(np.abs(ctx.qp.ubar), initial=0.0))
+    return float(ctx.tol) * (u_s / g_ref if g_ref > 0.0 and u_s > 0.0 else 1.0)
+
+
 def claim_info(res: Any, threads: int, config: dict[str, Any]) -> dict[str, Any]:
     """ASPHER's own certified figures and counts (its claim, not the verdict)."""
     stages = [f"{s['name']}:{s['precision']}:{s['iterations']}it/{s['matvec_count']}mv"
@@ -215,7 +227,8 @@ def aspher_outcome(pz: Posed, res: Any, ctx: SolveContext, threads: int, config:
             + (f" ({res.status_reason})" if res.status_reason else "")
             + (f"; force off the trial set {off:.1e} of max" if off > 0 else ""))
     approach = float(res.approach) * pz.side
-    info = {**pz.how, **claim_info(res, threads, config), "force_off_set": off, "approach_m": approach}
+    info = {**pz.how, **claim_info(res, threads, config), "force_off_set": off, "approach_m": approach,
+            "tol_handed": float(res.requested_tol)}
     return Outcome(p, int(res.iterations), claimed, note, status=status, info=info, multiplier=approach)
 
 
@@ -233,12 +246,10 @@ class _AspherSolver(PeerSolver):
         why = super().skip(traits)
         if why:
             return why
-        why = aspher_serves(traits.kernel, traits.periodic, traits.layer, traits.bounded) or displacement_served(
+        # a rectangular grid or rectangular pixels are refused when posed (``square_grid``):
+        # the traits do not carry the grid's shape
+        return aspher_serves(traits.kernel, traits.periodic, traits.layer, traits.bounded) or displacement_served(
             traits.n, traits.load_control)
-        if why is None and not traits.surface_side:
-            return ("ASPHER poses an N x N grid of square elements; this problem carries no square surface grid "
-                    "(rectangular pixels or grid, or no surface)")
-        return why
 
     def solve_posed(self, pz: Posed, ctx: SolveContext) -> tuple[Any, dict[str, Any]]:
         """ASPHER's result on the posed problem, and the configuration it ran."""
@@ -279,7 +290,7 @@ class AspherPCG(_AspherSolver):
         backend = "periodic" if pz.gp.periodic else "fft"
         solver = aspher.ContactSolver(grid_size=pz.gp.shape[0], domain_size=1.0, E_star=1.0, backend=backend)
         init = None if ctx.p0 is None else pz.pressure(full_field(pz.gp, ctx.p0))
-        res = solver.solve(pz.gap, p_nominal=pz.p_nominal, tol=float(ctx.tol), max_iter=int(ctx.max_iter),
+        res = solver.solve(pz.gap, p_nominal=pz.p_nominal, tol=handed_tol(pz, ctx), max_iter=int(ctx.max_iter),
                            precond=ctx.params["precond"], p_init=init)
         return res, {"entry": "ContactSolver.solve", "backend": backend, "precond": ctx.params["precond"]}
 
@@ -302,7 +313,7 @@ class _AspherNested(_AspherSolver):
         N = pz.gp.shape[0]
         coarsest = coarsest_level(N)
         res = aspher.solve_nested(grid_size=N, gap=pz.gap.ravel(), p_nominal=pz.p_nominal, domain_size=1.0,
-                                  E_star=1.0, coarsest=coarsest, q=q, tol=float(ctx.tol),
+                                  E_star=1.0, coarsest=coarsest, q=q, tol=handed_tol(pz, ctx),
                                   max_iter=int(ctx.max_iter), precision=precision, backend=backend,
                                   active_set=self.active_set)
         return res, {"entry": "solve_nested", "backend": backend, "precision": precision,

@@ -15,7 +15,7 @@ from contactbench.harness.judging import judge
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.mixed_lcp import constrained_exact_solution
-from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.solvers import ProblemTraits, SolverSettings, WarmStart, get_solver
 from contactbench.solvers import _peers
 from contactbench.solvers.peer_aspher import ACTIVE_F32_FLOOR, EXACT_LOAD_MAX_N, coarsest_level
@@ -48,8 +48,7 @@ def test_missing_package_is_unavailable_with_the_install_hint(monkeypatch: pytes
 
 
 def _traits(**kw: object) -> ProblemTraits:
-    base = dict(n=1024, operator="fft", kernel="love", periodic=False, load_control=True, surface_side=32,
-                has_surface=True)
+    base = dict(n=1024, operator="fft", kernel="love", periodic=False, load_control=True)
     return ProblemTraits(**{**base, **kw})  # type: ignore[arg-type]
 
 
@@ -66,7 +65,6 @@ def test_what_it_poses_runs_and_the_rest_is_skipped_with_the_reason(name: str) -
     assert "load control only" in s.skip(_traits(load_control=False, n=EXACT_LOAD_MAX_N + 1))
     assert "hardness" in s.skip(_traits(bounded=True))
     assert "layer" in s.skip(_traits(layer=True))
-    assert "square elements" in s.skip(_traits(surface_side=0, has_surface=False))
 
 
 def test_the_nested_levels_halve_down_to_the_coarsest() -> None:
@@ -149,3 +147,7 @@ def test_a_problem_it_does_not_pose_is_refused_before_solving(name: str) -> None
         get_solver(name).solve(bcc.qp)
     with pytest.raises(ProblemInputError, match="hardness"):
         get_solver(name).solve(b.build_load(1e-3, hardness=1e7).qp)
+    s = b.surface
+    for rect in (Surface(s.heights[:, :16].copy(), s.delta), Surface(s.heights.copy(), s.delta, delta1=2 * s.delta)):
+        with pytest.raises(ProblemInputError, match="N x N grid of square elements"):
+            get_solver(name).solve(InstanceBuilder(rect, 1e9, "love", periodic=False).build_load(1e-3).qp)
