@@ -17,6 +17,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
 
 #: The tag (matplotlib gid) of a panel marked empty on purpose.
@@ -59,10 +60,12 @@ def _patch_points(patch: Any) -> int:
 
 
 def _collection_points(coll: Any) -> int:
-    offsets = np.asarray(coll.get_offsets(), dtype=float).reshape(-1, 2) if hasattr(coll, "get_offsets") else ()
-    if len(offsets) and np.isfinite(offsets).all(axis=1).any() and len(coll.get_paths()):
-        return 1
-    return int(any(len(p.vertices) for p in coll.get_paths()))
+    """A scatter's finite points; for another collection (contour lines, filled areas),
+    whether it has a path with a finite vertex."""
+    if isinstance(coll, PathCollection):
+        offsets = np.asarray(coll.get_offsets(), dtype=float).reshape(-1, 2)
+        return int(np.count_nonzero(np.isfinite(offsets).all(axis=1)))
+    return int(any(len(p.vertices) and np.isfinite(p.vertices).all(axis=1).any() for p in coll.get_paths()))
 
 
 def panel_points(ax: Any) -> int:

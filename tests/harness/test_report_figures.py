@@ -120,3 +120,13 @@ def test_the_plastic_field_figure_keeps_the_hardness_in_its_name(tmp_path: Path)
     figure = next(f for f in ctx.figures if f.startswith("figures/field-"))
     assert numbers(figure.removesuffix(".png")) == numbers(f"plastic-sweep-{instance}") + [1.0]  # ... -k1
     assert ctx.blank_panels == []
+
+
+def test_a_scatter_of_nan_points_is_blank() -> None:
+    fig = Figure()
+    ax = fig.add_subplot(1, 1, 1)
+    ax.scatter([1.0, 2.0], [np.nan, np.nan])
+    ax.set_title("nan scatter")
+    assert blank_panels(fig) == ["nan scatter"]
+    ax.scatter([1.0], [2.0])
+    assert blank_panels(fig) == []

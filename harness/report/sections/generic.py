@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from ...table import aggregates as agg
+from ..panels import mark_empty
 from ..style import GREY, MAX_SERIES, Panel, family_panels, panels_note
 from ..core import (
     LOG_FLOOR,
@@ -141,12 +142,9 @@ def _wp_panel(ctx: ReportContext, a1: Any, a2: Any, r: pd.DataFrame, panel: Pane
         if not log_if_wide(a, "y", ys, decades=0.0):
             a.set_yscale("log")  # a single error level: still an error axis
     if r["p_rel_error"].notna().sum() == 0:  # no axes to read: say why the panel is empty
-        a2.set_xticks([])
-        a2.set_yticks([])
         a2.set_xlabel("")
         a2.set_ylabel("")
-        a2.text(0.5, 0.5, "no reference solution in this run\n(run without --reference none\nto see the error in p)",
-                ha="center", va="center", transform=a2.transAxes, fontsize=9, color="gray")
+        mark_empty(a2, "no reference solution in this run\n(run without --reference none\nto see the error in p)")
     h, lbl = a1.get_legend_handles_labels()
     a2.legend(h, lbl, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
 
