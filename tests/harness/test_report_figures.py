@@ -130,3 +130,17 @@ def test_a_scatter_of_nan_points_is_blank() -> None:
     assert blank_panels(fig) == ["nan scatter"]
     ax.scatter([1.0], [2.0])
     assert blank_panels(fig) == []
+
+
+def test_no_figure_of_a_full_report_has_a_blank_panel(tmp_path: Path) -> None:
+    """Every section of the fabricated table (the paper's figures, Example 1, the summary
+    figures): each panel draws data or says why it has none."""
+    from tests.harness.test_report import write_counterexample_arrays
+    from tests.helpers import fabricate_table, write_out
+
+    out = write_out(tmp_path, fabricate_table())
+    write_counterexample_arrays(out)
+    ctx = write_report(out, html=False)
+    assert len(ctx.figures) >= 12
+    assert ctx.blank_panels == []
+    assert not [c.chart.name for c in ctx.charts if isinstance(c.chart, Chart) and chart_is_blank(c.chart)]
