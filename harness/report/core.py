@@ -107,7 +107,7 @@ class TableRecord:
     headers: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
     align: str
-    on_page: bool = False  # also shown on the HTML page (report_html.tables_html)
+    on_page: bool = False  # also shown on the HTML page (html.py ``tables_html``)
 
 
 @dataclass
