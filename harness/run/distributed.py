@@ -416,6 +416,7 @@ def run_benchmark_on_dask(scenes: Sequence[str], cfg: SceneConfig | None = None,
                           out_dir: str | os.PathLike[str] = "results/run", scheduler: "Client | str" = "",
                           command: list[str] | None = None, append: bool = False) -> RunSummary:
     """``run_benchmark`` with the cells sent to a Dask scheduler (meta.json records the
-    scheduler)."""
+    scheduler).  The plan comes first, so bad scene options are refused as from the
+    command line (``ProblemInputError``) before the scheduler is contacted."""
     executor = DaskExecutor(scheduler, solver_import_specs(solvers))
     return run_benchmark(scenes, cfg, solvers, run, out_dir, command=command, executor=executor, append=append)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar
 
 import numpy as np
@@ -15,7 +15,7 @@ from ..errors import ProblemInputError
 from ..instances import ContactInstance
 from ..kernels import check_kernel
 from ..surfaces import Surface
-from .options import SCENE_OPTIONS, names_in
+from .options import SCENE_OPTIONS, SceneConfig, names_in
 
 
 #: The options of an elastic layer on a rigid base (scenes that pose only the half-space
@@ -24,35 +24,6 @@ LAYER_SCENE_OPTIONS: frozenset[str] = names_in("layer")
 #: The options of load control and hardness (scenes that pose only the displacement-
 #: controlled, unbounded problem leave them out of their ``options``).
 CONTROL_SCENE_OPTIONS: frozenset[str] = names_in("control")
-
-
-@dataclass(frozen=True)
-class SceneConfig:
-    """Options a user may set; None means "the scene's default".  Every option, field or
-    ``extra`` key, is a record of ``options.OPTIONS`` (its flag, unit, ranges and rules);
-    ``extra`` may hold a scene's own further keys (sweep values, ``hurst``, ...)."""
-
-    size: int | None = None
-    steps: int | None = None
-    seeds: tuple[int, ...] | None = None
-    surface_path: str | None = None
-    length: float | tuple[float, float] | None = None  # L0, or (L0, L1) along axes 0 and 1
-    E: float | None = None
-    kernel: str | None = None
-    periodic: bool | None = None
-    operator: str | None = None  # "fft" or "dense"
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    def get(self, name: str, default: Any) -> Any:
-        v = getattr(self, name)
-        return default if v is None else v
-
-    def merged(self, defaults: "SceneConfig") -> "SceneConfig":
-        """Fill unset fields from ``defaults``."""
-        kw = {f: getattr(defaults, f) for f in ("size", "steps", "seeds", "surface_path", "length", "E",
-                                                 "kernel", "periodic", "operator") if getattr(self, f) is None}
-        extra = {**defaults.extra, **self.extra}
-        return replace(self, extra=extra, **kw)
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,8 @@
 
 ``OPTIONS`` is the one table.  Everything else is derived from it:
 
+* ``SceneConfig``, the options' container (a field per ``CONFIG_FIELDS``, the rest in
+  its ``extra``; ``problems.scenes`` re-exports it);
 * the command line's flags, types and help (``harness/cli.py``'s ``add_scene_options``);
 * which options a ``SceneConfig`` sets (``given_options``), and whether an option is a
   ``SceneConfig`` field or a key of its ``extra`` (``OptionRecord.field``);
@@ -22,8 +24,8 @@ Adding an option is one record here and its physics in the scenes that read it (
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Protocol, Sequence
 
 from contactbench.plugins import did_you_mean
 
@@ -36,8 +38,14 @@ from ..layers import DEFAULT_NU, INTERFACES, NU_RANGE
 from ..surfaces import RMD_FAMILIES
 from ..units import HEIGHT_UNITS, PLAUSIBLE_MODULUS
 
-if TYPE_CHECKING:  # (typing only: base.py imports this module)
-    from .base import Scene, SceneConfig
+
+class ReadsOptions(Protocol):
+    """What the checks read of a scene (``base.Scene``): the options it reads and its
+    merged config."""
+
+    options: frozenset[str]
+
+    def config(self, cfg: SceneConfig | None) -> SceneConfig: ...
 
 #: Plausible hardness (Pa): from soft polymers (~10 kPa) to diamond (~100 GPa) and a
 #: decade beyond; outside it a value is almost always a unit slip.
@@ -142,6 +150,34 @@ class OptionRecord:
 
 CONFIG_FIELDS: frozenset[str] = frozenset({"size", "steps", "seeds", "surface_path", "length", "E", "kernel",
                                            "periodic", "operator"})
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Options a user may set; None means "the scene's default".  Every option, field or
+    ``extra`` key, is a record of ``OPTIONS`` (its flag, unit, ranges and rules);
+    ``extra`` may hold a scene's own further keys (sweep values, ``hurst``, ...)."""
+
+    size: int | None = None
+    steps: int | None = None
+    seeds: tuple[int, ...] | None = None
+    surface_path: str | None = None
+    length: float | tuple[float, float] | None = None  # L0, or (L0, L1) along axes 0 and 1
+    E: float | None = None
+    kernel: str | None = None
+    periodic: bool | None = None
+    operator: str | None = None  # "fft" or "dense"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def get(self, name: str, default: Any) -> Any:
+        v = getattr(self, name)
+        return default if v is None else v
+
+    def merged(self, defaults: "SceneConfig") -> "SceneConfig":
+        """Fill unset fields from ``defaults``."""
+        kw = {f: getattr(defaults, f) for f in CONFIG_FIELDS if getattr(self, f) is None}
+        extra = {**defaults.extra, **self.extra}
+        return replace(self, extra=extra, **kw)
 
 
 def _has_layer(p: dict[str, Any]) -> bool:
@@ -262,12 +298,12 @@ GENERATED_ONLY_OPTIONS: frozenset[str] = frozenset(r.name for r in OPTIONS if r.
 # ---------------------------------------------------------------------------
 
 
-def value_of(cfg: "SceneConfig", name: str) -> Any:
+def value_of(cfg: SceneConfig, name: str) -> Any:
     """The value ``cfg`` holds for option ``name`` (a field, or a key of ``extra``)."""
     return getattr(cfg, name) if BY_NAME[name].field else cfg.extra.get(name)
 
 
-def given_options(cfg: "SceneConfig") -> set[str]:
+def given_options(cfg: SceneConfig) -> set[str]:
     """The options a (user's, unmerged) config sets: fields not None, ``extra`` keys
     not None or False."""
     return {r.name for r in OPTIONS if value_of(cfg, r.name) is not None and value_of(cfg, r.name) is not False}
@@ -347,7 +383,7 @@ def value_problem(rec: OptionRecord, value: Any, allow: set[str]) -> str | None:
     return None
 
 
-def value_problems(cfg: "SceneConfig") -> list[str]:
+def value_problems(cfg: SceneConfig) -> list[str]:
     """The problems of every value ``cfg`` gives (``value_problem``), in table order."""
     allow = {r.name for r in OPTIONS if r.kind == "switch" and value_of(cfg, r.name)}
     out = []
@@ -358,7 +394,7 @@ def value_problems(cfg: "SceneConfig") -> list[str]:
     return out
 
 
-def in_effect(name: str, value: Any, given: "SceneConfig", merged: Sequence["SceneConfig"]) -> bool:
+def in_effect(name: str, value: Any, given: SceneConfig, merged: Sequence[SceneConfig]) -> bool:
     """Whether config key ``name`` is set (to ``value`` when not None) by the user or by a
     scene's merged config (any of ``merged``: a composite's parts)."""
     for cfg in (given, *merged):
@@ -373,8 +409,8 @@ def taken_flags(options: Sequence[frozenset[str]]) -> list[str]:
     return [r.flag for r in OPTIONS if not r.universal and any(r.name in o for o in options)]
 
 
-def scene_problems(name: str, options: Sequence[frozenset[str]], given: "SceneConfig",
-                   merged: Sequence["SceneConfig"]) -> list[str]:
+def scene_problems(name: str, options: Sequence[frozenset[str]], given: SceneConfig,
+                   merged: Sequence[SceneConfig]) -> list[str]:
     """The problems of the options ``given`` (the user's config) on scene or composite
     ``name``, whose scenes read ``options`` and merge the config into ``merged``: an
     option none of them reads, one a surface file replaces, an unmet requirement, two
@@ -404,8 +440,8 @@ def scene_problems(name: str, options: Sequence[frozenset[str]], given: "SceneCo
     return list(dict.fromkeys(out))
 
 
-def config_problems(name: str, scenes: Sequence["Scene"], cfgs: Sequence["SceneConfig"],
-                    given: "SceneConfig | None") -> list[str]:
+def config_problems(name: str, scenes: Sequence[ReadsOptions], cfgs: Sequence[SceneConfig],
+                    given: SceneConfig | None) -> list[str]:
     """Every problem with the user's options ``given`` on scene or composite ``name``,
     whose scenes are ``scenes`` under configs ``cfgs`` (the user's, or a composite
     part's with the user's on top): the values first (``value_problems``), and only when
@@ -424,8 +460,8 @@ def config_problems(name: str, scenes: Sequence["Scene"], cfgs: Sequence["SceneC
     return scene_problems(name, [scene.options for scene in scenes], given, merged)
 
 
-def check_config(name: str, scenes: Sequence["Scene"], cfgs: Sequence["SceneConfig"],
-                 given: "SceneConfig | None") -> None:
+def check_config(name: str, scenes: Sequence[ReadsOptions], cfgs: Sequence[SceneConfig],
+                 given: SceneConfig | None) -> None:
     """``config_problems`` as one ``ProblemInputError``, one line per problem."""
     problems = config_problems(name, scenes, cfgs, given)
     if problems:

@@ -98,6 +98,7 @@ def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path, monkey
     from contactbench.harness.run import plan
 
     monkeypatch.setattr(plan, "instance_nbytes", lambda params: 0.0)  # (the plan's own bound: test_run_folder.py)
+    monkeypatch.setattr(plan, "model_rejections", lambda *args: "")  # (its refusal: test_option_records.py)
     df = run(tmp_path, ["test-exact"], reference="none", memory_budget=4.0)  # bytes: n = 1 needs 8
     assert (df.status == "skipped").all()
     assert df["skip_reason"].str.contains("needs dense H").all()

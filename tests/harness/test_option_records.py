@@ -178,6 +178,18 @@ def test_the_api_and_the_command_line_refuse_each_rule_alike(case: Case, in_tmp:
     assert option_problems([case.good_scene or case.scene], config(case.good)) == []
 
 
+def test_the_pytest_plugin_and_a_dask_run_refuse_as_the_command_line(run_harness: Any, in_tmp: Path) -> None:
+    from contactbench.harness.run.distributed import run_benchmark_on_dask
+
+    bad = SceneConfig(size=16, extra={"thickness": 1e-5, "nu": 0.7})
+    with pytest.raises(ProblemInputError, match=r"^--nu must be in \(-1, 0.5\] \(Poisson's ratio\), got 0.7$"):
+        run_harness(["paper-sweep"], solvers=["pk"], size=16, extra=dict(bad.extra))
+    with pytest.raises(ProblemInputError, match=r"^--nu must be in \(-1, 0.5\]"):  # before any scheduler is asked
+        run_benchmark_on_dask(["paper-sweep"], bad, ["pk"], RunConfig(progress=False), in_tmp / "dask",
+                              scheduler="tcp://127.0.0.1:9")
+    assert not (in_tmp / "dask").exists()
+
+
 # ---------------------------------------------------------------------------
 # The probes of the options' paths
 # ---------------------------------------------------------------------------
