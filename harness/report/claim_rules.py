@@ -52,6 +52,10 @@ RANGE_HOLDS = 1.1
 RANGE_PARTLY = 1.5
 #: A bound the paper states ("under 2 %"): partly up to this factor above it.
 BOUND_PARTLY = 2.0
+#: The relative spread a timed ratio from a single repeat is judged with (none measured:
+#: a solve of milliseconds moves by tens of percent between runs), so a near-tie from one
+#: repeat is ``unresolved``, not ``holds``.
+SINGLE_REPEAT_SPREAD = 0.1
 INF = math.inf
 
 

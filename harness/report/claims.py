@@ -13,7 +13,8 @@ table (the ``paper-claims`` study, ``harness/run/studies.py``); ``write_ledger``
 ``claim_rules.CLAIMS``; every verdict is ``claim_rules.judge`` of the claim's rule, the
 measured value and the relative spread of its timed repeats (``repeats``, ``spread``:
 every timed total is the median over repeats, and a verdict whose margin lies inside the
-spread is ``unresolved``).  A claim the table holds no measurement of gets one
+spread is ``unresolved``; a timing from one repeat is judged with
+``SINGLE_REPEAT_SPREAD``).  A claim the table holds no measurement of gets one
 ``unmeasured`` row saying what it needs -- never ``holds``, never left out.
 """
 
@@ -30,7 +31,7 @@ from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 
 from ..table.files import replace_atomically
 from ..table.schema import ANSWERED
-from .claim_rules import CLAIMS, VERDICTS, Claim, judge
+from .claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, VERDICTS, Claim, judge
 from .core import parse_json, per_cell
 from .sections.cmr import cmr_pairs, instance_totals
 from .sections.counterexample import seed_readings, violation_counts
@@ -82,9 +83,10 @@ def claim_row(claim_id: str, condition: str, measured: float, n_or_size: str, se
               testable: bool = True, timing: Timing = Timing()) -> ClaimRow:
     """The ledger row of one measurement, its verdict from the claim's rule and spread."""
     c = CLAIMS[claim_id]
+    judged = SINGLE_REPEAT_SPREAD if timing.repeats == 1 and not math.isfinite(timing.spread) else timing.spread
     return ClaimRow(c.id, c.figure, c.tex_lines, c.paper_value, condition, float(measured), n_or_size, seeds,
-                    int(timing.repeats), float(timing.spread),
-                    judge(measured, c.rule, evidence, timing.spread, testable), evidence)
+                    int(timing.repeats), float(timing.spread), judge(measured, c.rule, evidence, judged, testable),
+                    evidence)
 
 
 # ---------------------------------------------------------------------------

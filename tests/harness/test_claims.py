@@ -390,3 +390,10 @@ def test_paper_claims_runs_the_papers_methods_as_printed_and_stated() -> None:
     variants = {v.name for v in fig4[0].variants(fig4[0].solvers)}
     assert "admm" in variants and "admm[rho=1.0,rho_relative=False]" in variants
     assert {"hertz", "flat-punch"} <= {s.scene for s, _ in parts if s.solvers == ("greedy-cg",)}
+
+
+def test_a_near_tie_from_one_repeat_is_unresolved_not_holds() -> None:
+    rows = _rows("paper-sweep", "dense", {"nnls-gp": [0.016275, 0.016275], "pk": [0.01628, 0.01628]})
+    r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "dense")
+    assert r["repeats"] == 1 and math.isnan(r["spread"])
+    assert r["measured"] < 1.0 and r["verdict"] == "unresolved"
