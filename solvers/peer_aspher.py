@@ -20,8 +20,8 @@ rectangular pixels or grids.
 
 Displacement control.  ASPHER takes a mean pressure, never an approach.  A
 displacement-controlled QP of at most ``EXACT_LOAD_MAX_N`` unknowns is translated exactly:
-ASPHER is handed the load of our exact answer (``problems.lcp.exact_solution_on_subset``,
-dense, computed in the solve's setup time, not ASPHER's), which has the same unique answer;
+ASPHER is handed the load of our exact answer (``problems.lcp.exact_solution``, periodic
+``exact_solution_on_subset``: dense, in the solve's setup time, not ASPHER's), which has the same unique answer;
 the row says so (``info["posing"]``, ``info["exact_load"]``, and ASPHER's approach, ~0 for
 this posing, in ``info["approach_m"]``).  Larger ones are skipped with the reason.
 
@@ -34,11 +34,14 @@ multiplier Delta = a' L (its gap g = gap + S p - a is our w = Hp - ubar - Delta 
 
 Tolerance.  ASPHER's certified errors are relative to its gap scale g_ref = max(gap) -
 min(gap); our scaled KKT error to u_s = max|ubar| (problems.kkt).  It is handed
-``tol x u_s / (L g_ref)`` (``handed_tol``: its penetration bound is then ours, tol u_s;
-under load control u_s = L g_ref on the whole grid and it gets ``tol`` itself).
+``tol x min(1, u_s / (L g_ref))`` (``handed_tol``: its penetration bound is then at most
+ours, tol u_s, and never looser than ``tol``; under load control u_s = L g_ref on the whole
+grid and it gets ``tol`` itself).
 
 Its claim.  ``converged`` is ASPHER's own status ("converged": its Frank-Wolfe certificate
-and penetration error below ``tol``); the certified figures (``fw_error``,
+and penetration error below ``tol``), read as a claim only at the tolerance asked: where it
+relaxed it (``effective_tol`` above ``requested_tol``: single precision stops at its
+``float_floor`` 2e-6) the solve is STALLED, and the note says so; the certified figures (``fw_error``,
 ``penetration_error``, ``load_error``, ``status``) go to ``info`` as its claim.  The verdict
 is our judge's, on our operator.
 
@@ -80,13 +83,14 @@ verification products); the stages (level, precision, iterations, matvecs) are i
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import metadata
 from typing import Any
 
 import numpy as np
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
-from contactbench.problems.lcp import UncertifiedSolutionError, exact_solution_on_subset
+from contactbench.problems.lcp import UncertifiedSolutionError, exact_solution, exact_solution_on_subset
 from contactbench.problems.operators import fft_workers
 
 from ._peers import INSTALL_HINT, GridProblem, PeerSolver, full_field, grid_problem, package_availability
@@ -109,6 +113,14 @@ EXACT_LOAD_MAX_N = 4096
 STATUSES = {"converged": Status.CONVERGED, "max_iterations": Status.MAX_ITER, "stagnated": Status.STALLED,
             "nonpositive_curvature": Status.STALLED, "verification_failed": Status.STALLED,
             "nonfinite": Status.FAILED, "resource_limit": Status.FAILED}
+
+
+def aspher_version() -> str:
+    """The installed ASPHER's version (its module has no ``__version__``)."""
+    try:
+        return metadata.version("aspher")
+    except metadata.PackageNotFoundError:
+        return "?"
 
 
 def aspher_serves(kernel: str, periodic: bool, layer: bool = False, bounded: bool = False) -> str | None:
@@ -134,12 +146,13 @@ def displacement_served(n: int, load_control: bool) -> str | None:
 def exact_load(qp: QP) -> tuple[float, dict[str, Any]]:
     """The total force of the exact answer of a displacement-controlled ``qp`` and how it
     was found (``ProblemInputError`` when it cannot be certified)."""
-    try:
-        sol = exact_solution_on_subset(qp)
+    periodic = bool(qp.geometry is not None and qp.geometry.periodic)
+    try:  # periodic: H is singular on the whole grid, so on growing proper subsets
+        p = exact_solution_on_subset(qp).p if periodic else exact_solution(qp.H.to_dense(), qp.ubar).p
     except (UncertifiedSolutionError, np.linalg.LinAlgError, RuntimeError) as exc:
         raise ProblemInputError(f"the exact answer's load, handed to ASPHER, could not be certified: {exc}") from None
-    return float(np.sum(sol.p)), {"posing": "load control at the load of the exact answer (exact_solution_on_subset, "
-                                            "setup time)", "exact_kkt": sol.kkt_error}
+    how = "exact_solution_on_subset" if periodic else "exact_solution"
+    return float(np.sum(p)), {"posing": f"load control at the load of the exact answer ({how}, setup time)"}
 
 
 def square_grid(gp: GridProblem) -> str | None:
@@ -196,10 +209,10 @@ def posed(ctx: SolveContext) -> Posed:
 
 
 def handed_tol(pz: Posed, ctx: SolveContext) -> float:
-    """Our ``tol`` in ASPHER's units (module doc): tol u_s / (L g_ref)."""
+    """Our ``tol`` in ASPHER's units (module doc): tol min(1, u_s / (L g_ref))."""
     g_ref = float(np.ptp(pz.gap)) * pz.side
     u_s = float(np.max(np.abs(ctx.qp.ubar), initial=0.0))
-    return float(ctx.tol) * (u_s / g_ref if g_ref > 0.0 and u_s > 0.0 else 1.0)
+    return float(ctx.tol) * (min(1.0, u_s / g_ref) if g_ref > 0.0 and u_s > 0.0 else 1.0)
 
 
 def claim_info(res: Any, threads: int, config: dict[str, Any]) -> dict[str, Any]:
@@ -208,6 +221,7 @@ def claim_info(res: Any, threads: int, config: dict[str, Any]) -> dict[str, Any]
               for s in getattr(res, "stage_stats", [])]
     return {**config, "threads": threads, "peer_status": str(res.status), "peer_reason": str(res.status_reason),
             "peer_iterations": int(res.iterations), "fw_error": float(res.fw_error),
+            "effective_tol": float(res.effective_tol),
             "penetration_error": float(res.penetration_error), "load_error": float(res.load_error),
             "peer_matvecs": int(res.matvec_count), "verification_matvecs": int(res.verification_matvec_count),
             "precond_applications": int(res.precond_count), "stages": " ".join(stages),
@@ -221,10 +235,14 @@ def aspher_outcome(pz: Posed, res: Any, ctx: SolveContext, threads: int, config:
     p = pz.gp.on_set(force)
     off = pz.gp.force_off_set(force)
     ctx.add_matvecs(int(res.matvec_count) + int(res.verification_matvec_count))
-    claimed = str(res.status) == "converged"
+    relaxed = float(res.effective_tol) > float(res.requested_tol)  # it stopped at a looser tol than asked
+    claimed = str(res.status) == "converged" and not relaxed
     status = Status.FAILED if not np.all(np.isfinite(p)) else STATUSES.get(str(res.status), Status.FAILED)
+    if status is Status.CONVERGED and relaxed:
+        status = Status.STALLED
     note = (f"ASPHER {res.status}: fw_error {res.fw_error:.1e}, penetration {res.penetration_error:.1e}"
             + (f" ({res.status_reason})" if res.status_reason else "")
+            + (f"; at its effective tol {res.effective_tol:.0e} > the {res.requested_tol:.0e} asked" if relaxed else "")
             + (f"; force off the trial set {off:.1e} of max" if off > 0 else ""))
     approach = float(res.approach) * pz.side
     info = {**pz.how, **claim_info(res, threads, config), "force_off_set": off, "approach_m": approach,
@@ -237,7 +255,7 @@ class _AspherSolver(PeerSolver):
 
     def availability(self) -> tuple[bool, str]:
         ok, why = package_availability("aspher", "ASPHER")
-        return ok, why if ok else why.replace(INSTALL_HINT, ASPHER_HINT)
+        return ok, f"available (ASPHER {aspher_version()})" if ok else why.replace(INSTALL_HINT, ASPHER_HINT)
 
     def default_max_iter(self, n: int) -> int | None:
         return 20_000
@@ -256,7 +274,6 @@ class _AspherSolver(PeerSolver):
         raise NotImplementedError
 
     def iterate(self, ctx: SolveContext) -> Outcome:
-        import aspher
         from threadpoolctl import threadpool_limits
 
         pz = posed(ctx)
@@ -269,7 +286,7 @@ class _AspherSolver(PeerSolver):
                 res, config = self.solve_posed(pz, ctx)
             except ValueError as exc:  # its own check of the input, before it solves
                 raise ProblemInputError(f"ASPHER refuses the problem: {exc}") from None
-        return aspher_outcome(pz, res, ctx, threads, {**config, "aspher": getattr(aspher, "__version__", "?")})
+        return aspher_outcome(pz, res, ctx, threads, {**config, "aspher": aspher_version()})
 
 
 @register
