@@ -80,6 +80,7 @@ clipped every iteration, the conjugacy was reset each time, and the KKT error st
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
 from dataclasses import dataclass, field
 
@@ -243,6 +244,8 @@ class CCGRun:
     stalled: bool = False
     #: Under load control, the approach Delta of the last iterate (None: no load equality).
     multiplier: float | None = None
+    #: Rounds of the exact finish among the iterations (solvers/_finish.py).
+    finish_rounds: int = 0
 
 
 def converged_now(ctx: SolveContext, state: GapState) -> tuple[bool, float]:
@@ -313,14 +316,18 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
                 return CCGRun(it - 1, run.kkt, False, stalled=True)
         z = precondition_on(M, r, S)
         G = float(r @ z)
-        t = z if reset or G_old == 0.0 else np.where(S, z + (G / G_old) * t, 0.0)  # step 3.1
+        if not math.isfinite(G):  # a non-finite gap: no step can be taken
+            return CCGRun(it - 1, run.kkt, False, stalled=True)
+        t = z if reset or not G_old > 0.0 else np.where(S, z + (G / G_old) * t, 0.0)  # step 3.1
         q = state.H.matvec(t)
         tq = float(t @ q)
-        if tq <= 0.0:  # lost positive definiteness by round-off: recompute and restart
+        tau = float(r @ t) / tq if tq > 0.0 else math.nan  # step 3.2
+        if not (math.isfinite(tau) and tau != 0.0):  # t = 0, lost definiteness or a zero step: restart
             state.refresh()
+            if reset:  # the steepest direction itself gives no step
+                return CCGRun(it, run.kkt, False, stalled=True)
             reset = True
             continue
-        tau = float(r @ t) / tq  # step 3.2
         entering = np.flatnonzero((state.p == 0.0) & (state.g < 0.0) & ~S)  # step 3.5 (I_ol)
         force = entering_force(M, tau, state.g, entering)
         state.advance(-tau, t, q)  # step 3.3 (t = 0 off S, so p stays 0 at the entering points)
@@ -383,25 +390,34 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
             return run
         Hd = state.H.matvec(d)
         dHd = float(d @ Hd)
-        if dHd <= 0.0:  # d = 0 (converged up to round-off) or lost conjugacy: restart
+        alpha = -float(res @ d) / dHd if dHd > 0.0 else math.nan
+        if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
             state.refresh()
             res = dual_residual(state, u)
-            d = inward(-precondition_on(M, res, res != 0.0), state, res, u)
-            if not np.any(d):
+            steepest = inward(-precondition_on(M, res, res != 0.0), state, res, u)
+            if not np.any(steepest) or np.array_equal(steepest, d):  # the steepest gives no step either
                 kkt = ctx.kkt(state.p, state.g)
                 return CCGRun(it, kkt, kkt <= ctx.tol, stalled=kkt > ctx.tol)
+            d = steepest
             continue
-        alpha = -float(res @ d) / dHd
         state.step(alpha, d, Hd, u)
         res_old = res
         res = dual_residual(state, u)
         z = precondition_on(M, res, res != 0.0)
-        # Polak-Ribiere (preconditioned: z = M^-1 res); alpha d'Hd = -res_old'd.
-        beta = (float(z @ res) - float(z @ res_old)) / (alpha * dHd)
-        d *= beta  # d <- -z + beta d, in place (d is this loop's own array)
+        d *= polak_ribiere(z, res, res_old, alpha * dHd)  # d <- -z + beta d, in place (the loop's own array)
         d -= z
         inward(d, state, res, u)
     return CCGRun(max_iter, run.kkt, False)
+
+
+def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curvature: float) -> float:
+    """Polak-Ribiere's beta of the Bugnicourt loops (preconditioned: z = M^-1 res),
+    (z'res - z'res_old) / (alpha d'Hd) with alpha d'Hd = -res_old'd; 0 (a restart along
+    -z) where the step's curvature ``step_curvature`` is not positive or beta not finite."""
+    if not step_curvature > 0.0:
+        return 0.0
+    beta = (float(z @ res) - float(z @ res_old)) / step_curvature
+    return beta if math.isfinite(beta) else 0.0
 
 
 def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:
@@ -416,7 +432,7 @@ def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:
         message=f"scaled KKT error {run.kkt:.3e} after {run.iterations} iterations",
         w=state.g if state.exact else None,
         status=Status.STALLED if run.stalled and not run.converged else None,
-        info=dict(info or {}),
+        info={**(info or {}), **({"finish_rounds": run.finish_rounds} if run.finish_rounds else {})},
         multiplier=run.multiplier,
     )
 

@@ -12,11 +12,20 @@ multiplier (the rigid approach).
   Sahlin, Larsson & Lugt, Tribol. Int. 40 (2007) 574: a plastic point that wants to shed
   force).  It re-enters and the conjugacy is reset.
 * ``scale_to_load`` -- sum(p) = P restored after a projection (Polonsky & Keer 1999,
-  section 3; the plastic points keep their force, Almqvist et al.).
+  section 3; the plastic points keep their force, Almqvist et al.; when the plastic
+  points alone exceed P, the excess is shed by the largest gap first, ``shed_by_gap``,
+  instead of scaling every force off its bound).
 * ``constrained_start`` -- the first iterate: the warm start scaled to the load, else P
   spread evenly (capped by the box), else p = 0.
 * ``polonsky_keer_box`` -- the fast loop (below);
 * ``bugnicourt_load`` -- Bugnicourt et al.'s loop under load control (its docstring).
+
+Both loops end on every degenerate step with an answer and an honest status: an empty
+CG set, a zero or non-finite direction, curvature or step restarts once from the
+steepest direction and then stops "stalled"; before a stop that is not convergence
+(and when the error has not halved in ``_finish.FINISH_PATIENCE`` iterations) the
+undecided points -- nearly all plastic near saturation, so a handful -- are solved
+exactly (``_finish.finish_exactly``), converged only on its own KKT test.
 
 The fast loop, ``polonsky_keer_box``
 ------------------------------------
@@ -64,12 +73,14 @@ cannot carry (sum(u) < P) is refused before any solve (``Constraints.check``).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
 
-from ._ccg import CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, precondition_on
+from ._ccg import CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, polak_ribiere, precondition_on
+from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
 from .base import SolveContext
 
@@ -93,7 +104,11 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
     box's cap applied after it; s by bisection, then exact on the uncapped points).  When
     the points carrying force cannot hold P at their caps, the rest goes to the others in
     the order of their gap ``g`` (the most penetrating first, each up to its cap; without
-    g, evenly).  p itself without a load equality."""
+    g, evenly).  When the plastic points alone exceed P and g is given, the excess is
+    taken from the points with the largest gap first (``shed_by_gap``): near saturation
+    (a box carrying 99 % of P) scaling every force moved all of them off the bound and
+    the loops oscillated between that and the plastic set.  p itself without a load
+    equality."""
     if c.load is None:
         return p
     load = float(c.load)
@@ -104,6 +119,8 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
         p[free] *= rest / carried
         if np.all(p[free] <= u[free]):
             return p
+    if rest < 0.0 and g is not None:  # the plastic points alone exceed P: shed by the gap
+        return shed_by_gap(p, float(np.sum(p)) - load, g)
     on = p > 0.0
     if float(np.sum(u[on])) <= load:
         p[on] = u[on]
@@ -135,6 +152,20 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
     if carried > 0.0:
         q[free] *= (load - float(np.sum(q[~free]))) / carried
     return np.minimum(q, u, out=q)
+
+
+def shed_by_gap(p: np.ndarray, excess: float, g: np.ndarray) -> np.ndarray:
+    """p, in place, less ``excess`` (> 0) of force taken from the points in the order of
+    their gap ``g``, the largest first (the points the contact holds least), each down
+    to 0 at most: near saturation this keeps the plastic set, where scaling every force
+    would move every point off its bound."""
+    for i in np.flatnonzero(p > 0.0)[np.argsort(-g[p > 0.0], kind="stable")]:
+        if excess <= 0.0:
+            break
+        take = min(excess, float(p[i]))
+        p[i] -= take
+        excess -= take
+    return p
 
 
 def constrained_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
@@ -211,8 +242,12 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
                       max_iter: int | None = None, first: int = 0) -> CCGRun:
     """The Polonsky-Keer CCG under ``ctx.constraints`` (module doc) from ``state`` until
     ``ctx.tol``, ``max_iter`` (default ``ctx.max_iter``) or the deadline.  The state's p
-    is first moved into the feasible set (``constrained_start`` when cold).  The trace
-    numbers iterations from ``first``."""
+    is first moved into the feasible set (``constrained_start`` when cold).  Where the CG
+    set cannot carry a step (empty, a zero or non-finite direction or step twice, no
+    halving of the error in ``_finish.FINISH_PATIENCE`` iterations) the exact finish on
+    the undecided points is tried (``_finish.finish_exactly``; its rounds count as
+    iterations, within ``max_iter``).  The trace numbers iterations
+    from ``first``."""
     c = ctx.constraints
     max_iter = ctx.max_iter if max_iter is None else max_iter
     u = c.upper_or_inf(ctx.n)
@@ -222,33 +257,45 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
     G_old, reset = 1.0, True
     run = CCGRun(0, math.inf, False)
     last = np.zeros(ctx.n, dtype=bool)
+    watch, extra = Stagnation(), 0
     for it in range(1, max_iter + 1):
         kkt, delta, free = _checked(ctx, state, u)
         reset |= bool(np.any(free & ~last & (state.p > 0.0)))  # a plastic point rejoined the set
         last = free
-        ctx.record(first + it - 1, kkt)
-        run = CCGRun(it - 1, kkt, kkt <= ctx.tol, multiplier=delta if load else None)
+        ctx.record(first + it - 1 + extra, kkt)
+        run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta if load else None, finish_rounds=extra)
         if run.converged or ctx.expired() or not math.isfinite(kkt):
             return run
-        if not np.any(free):
-            return CCGRun(it - 1, kkt, False, stalled=True, multiplier=run.multiplier)
+        if it - 1 + extra >= max_iter:  # the finish's rounds spent the rest
+            return run
+        if watch.stuck(kkt) and can_finish(state, delta, u):
+            watch.restart()
+            fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
+            if fin.converged:
+                return fin
+            extra, reset = fin.finish_rounds, True
+            continue
+        if not np.any(free):  # no point can move: degenerate set
+            return _broke_down(ctx, state, u, run, first, max_iter)
         r = np.where(free, state.g - delta, 0.0)
         z = np.where(free, precondition_on(M, r, free), 0.0)
         if load:
             z = zero_sum(M, z, free)
         G = float(r @ z)
-        t = z if reset or G_old == 0.0 else np.where(free, z + (G / G_old) * t, 0.0)
+        if not math.isfinite(G):
+            return _broke_down(ctx, state, u, run, first, max_iter)
+        t = z if reset or not G_old > 0.0 else np.where(free, z + (G / G_old) * t, 0.0)
         if load and M is None and not reset:  # P & K: the direction itself sums to zero on F
             t = np.where(free, t - mean_on(t, free), 0.0)
         q = state.H.matvec(t)
         tq = float(t @ q)
-        if not tq > 0.0:  # t = 0 or lost positive definiteness by round-off: recompute, restart
+        tau = float(r @ t) / tq if tq > 0.0 else math.nan
+        if not (math.isfinite(tau) and tau != 0.0):  # t = 0, lost definiteness or a zero step: restart
             state.refresh()
             if reset:
-                return CCGRun(it, kkt, False, stalled=True, multiplier=run.multiplier)
+                return _broke_down(ctx, state, u, run, first, max_iter)
             reset = True
             continue
-        tau = float(r @ t) / tq
         entering = np.flatnonzero((state.p <= 0.0) & (state.g - delta < 0.0) & ~free)
         force = entering_force(M, tau, state.g - delta, entering)
         state.advance(-tau, t, q)
@@ -257,7 +304,34 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
             state.refresh()
         reset = bool(entering.size)
         G_old = G
-    return CCGRun(max_iter, run.kkt, False, multiplier=run.multiplier)
+    return replace(run, iterations=max_iter, converged=False)
+
+
+def _finish_inside(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float, run: CCGRun,
+                   first: int, max_iter: int) -> CCGRun:
+    """The exact finish (``_finish.finish_exactly``) from the loop's ``run``, in the
+    iterations ``max_iter`` leaves: the run after it, its rounds added to the iterations
+    and to ``finish_rounds`` (unchanged when the finish declined)."""
+    left = min(FINISH_MAX_ROUNDS, max_iter - run.iterations)
+    fin = finish_exactly(ctx, state, u, delta, left) if left > 0 else None
+    if fin is None or fin.rounds == 0 and not fin.converged:
+        return run
+    done = run.iterations + fin.rounds
+    ctx.record(first + done, fin.kkt)
+    return CCGRun(done, fin.kkt, fin.converged, multiplier=fin.multiplier,
+                  finish_rounds=run.finish_rounds + fin.rounds)
+
+
+def _broke_down(ctx: SolveContext, state: GapState, u: np.ndarray, run: CCGRun, first: int,
+                max_iter: int) -> CCGRun:
+    """A loop's breakdown (no step left): the exact finish where it applies and time and
+    iterations are left, else the run as it is; "stalled" unless the finish converged on
+    its own KKT test."""
+    delta = 0.0 if run.multiplier is None else run.multiplier
+    if ctx.expired() or not math.isfinite(run.kkt) or not can_finish(state, delta, u):
+        return replace(run, stalled=True)
+    fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
+    return fin if fin.converged else replace(fin, stalled=True)
 
 
 def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarray, c: Constraints,
@@ -301,7 +375,10 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     direction is -z + beta d (Polak-Ribiere) with z = M^-1 res projected to zero sum on
     the free set (``zero_sum``) and no component out of the box (``_ccg.inward``); a step
     is projected onto the box and scaled to the load (``_project``), the gap recomputed
-    when that changed p.  Without a load: ``_ccg.bugnicourt``."""
+    when that changed p.  A direction with no descent (d'Hd or the step not positive,
+    not finite) restarts from the steepest one; where that is zero too, or the error has
+    not halved in ``_finish.FINISH_PATIENCE`` iterations, the exact finish is tried as in
+    ``polonsky_keer_box``.  Without a load: ``_ccg.bugnicourt``."""
     c = ctx.constraints
     if not c.load_control:
         return bugnicourt(ctx, state, M, max_iter=max_iter, first=first)
@@ -312,29 +389,41 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     _, res = _dual_residual(state, u, c)
     d = inward(-_dual_direction(M, res), state, res, u)
     run = CCGRun(0, math.inf, False)
+    watch, extra = Stagnation(), 0
     for it in range(1, max_iter + 1):
         kkt, delta, _ = _checked(ctx, state, u)
-        ctx.record(first + it - 1, kkt)
-        run = CCGRun(it - 1, kkt, kkt <= ctx.tol, multiplier=delta)
+        ctx.record(first + it - 1 + extra, kkt)
+        run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta, finish_rounds=extra)
         if run.converged or ctx.expired() or not math.isfinite(kkt):
             return run
+        if it - 1 + extra >= max_iter:  # the finish's rounds spent the rest
+            return run
+        if watch.stuck(kkt) and can_finish(state, delta, u):
+            watch.restart()
+            fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
+            if fin.converged:
+                return fin
+            extra = fin.finish_rounds
+            _, res = _dual_residual(state, u, c)
+            d = inward(-_dual_direction(M, res), state, res, u)
+            continue
         delta, res = _dual_residual(state, u, c)  # the gap may have been recomputed
         Hd = state.H.matvec(d)
         dHd = float(d @ Hd)
-        if not dHd > 0.0:  # d = 0 or lost conjugacy: restart from the steepest direction
+        alpha = -float(res @ d) / dHd if dHd > 0.0 else math.nan
+        if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
             state.refresh()
             delta, res = _dual_residual(state, u, c)
-            d = inward(-_dual_direction(M, res), state, res, u)
-            if not np.any(d):
-                return CCGRun(it, kkt, False, stalled=True, multiplier=delta)
+            steepest = inward(-_dual_direction(M, res), state, res, u)
+            if not np.any(steepest) or np.array_equal(steepest, d):
+                return _broke_down(ctx, state, u, run, first, max_iter)
+            d = steepest
             continue
-        alpha = -float(res @ d) / dHd
         state.advance(alpha, d, Hd)
         if _project(state.p, u, none, none, c, state.g - delta):
             state.refresh()
         res_old = res
         delta, res = _dual_residual(state, u, c)
         z = _dual_direction(M, res)
-        beta = (float(z @ res) - float(z @ res_old)) / (alpha * dHd)
-        d = inward(beta * d - z, state, res, u)
-    return CCGRun(max_iter, run.kkt, False, multiplier=run.multiplier)
+        d = inward(polak_ribiere(z, res, res_old, alpha * dHd) * d - z, state, res, u)
+    return replace(run, iterations=max_iter, converged=False)

@@ -83,7 +83,9 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     and column of every position).  ``lead[k]``: the point whose tile point k's block takes
     (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
     ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None when the near-tile
-    sums would gather more than ``budget`` entries, or there is one aggregate."""
+    sums would gather more than ``budget`` entries, there is one aggregate, or an
+    aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
+    divides by its square root)."""
     if pos.size < 2 or pos.size > MAX_SET_FRACTION * i.size:
         return None
     T = tile_size(i[pos], j[pos])
@@ -108,7 +110,10 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     A = 0.5 * (A + A.T)
     w = 1.0 / count
     E = w[:, None] * (A - np.diag(np.bincount(agg, weights=block_sums[pos], minlength=m))) * w[None, :]
-    d = np.sqrt(np.bincount(agg, weights=v[pos], minlength=m))
+    d2 = np.bincount(agg, weights=v[pos], minlength=m)
+    if not (np.all(d2 > 0.0) and np.all(np.isfinite(E))):  # 1'B^-1 1 lost to round-off: no correction
+        return None
+    d = np.sqrt(d2)
     mu, Q = np.linalg.eigh(d[:, None] * E * d[None, :])
     mu = np.maximum(mu, 0.0)
     K = (Q * (mu / (1.0 + mu))) @ Q.T / d[:, None] / d[None, :]

@@ -96,7 +96,7 @@ def conjugate_gradient(
     while res > atol and it < max_iter and not (deadline is not None and deadline.expired()):
         q = amul(d)
         dq = float(d @ q)
-        if dq <= 0.0:  # loss of positive definiteness by round-off: stop here
+        if not dq > 0.0:  # d = 0, loss of positive definiteness by round-off, or NaN: stop here
             break
         alpha = rz / dq
         x += alpha * d
@@ -114,7 +114,7 @@ def conjugate_gradient(
             continue
         z = precond(r) if precond is not None else r
         rz_new = float(r @ z)
-        d *= rz_new / rz
+        d *= rz_new / rz if rz > 0.0 else 0.0  # rz = 0 (r'M^-1 r lost to round-off): restart along z
         d += z
         rz = rz_new
     return CGResult(x, it, res, res <= atol, mv)

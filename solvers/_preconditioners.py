@@ -323,7 +323,8 @@ class IslandPreconditioner:
 
     def _factor(self, members: np.ndarray) -> _Bucket | None:
         """The bucket of blocks ``members`` (None for one-point blocks: ``apply``'s
-        diagonal part already inverts those)."""
+        diagonal part already inverts those; None too when a block is singular -- a
+        periodic kernel's whole tiny grid, H 1 = 0 -- so the diagonal stands in for it)."""
         m, s = members.shape
         if s == 1:
             return None
@@ -335,7 +336,10 @@ class IslandPreconditioner:
         for k0 in range(0, m, step):
             blocks = self.H.blocks(members[k0:k0 + step])
             row_sums[k0:k0 + step] = np.einsum("mkl,ml->mk", blocks, valid[k0:k0 + step])
-            inverse[k0:k0 + step] = np.linalg.inv(blocks.astype(self.dtype, copy=False))
+            try:
+                inverse[k0:k0 + step] = np.linalg.inv(blocks.astype(self.dtype, copy=False))
+            except np.linalg.LinAlgError:  # a singular block (a periodic whole grid's): the diagonal there
+                return None
         if self.dtype != np.float64:  # LU's inverse is symmetric only up to round-off: make M symmetric
             inverse += np.swapaxes(inverse, 1, 2)
             inverse *= 0.5

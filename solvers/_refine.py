@@ -30,6 +30,7 @@ Matvecs: the float32 and float64 products are both counted by the solve
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any, Callable
 
@@ -120,15 +121,18 @@ def refine(ctx: SolveContext, state: GapState, loop: Loop, M: SetPreconditioner 
     used, rounds = 0, 0
     kkt = ctx.kkt(state.p, state.g)
     while kkt > ctx.tol and used < ctx.max_iter and not ctx.expired():
+        if not math.isfinite(kkt):  # a non-finite gap: no round can shrink it
+            return RefinementRun(CCGRun(used, kkt, False, stalled=True), rounds, False)
         inner = GapState.anchored(H32, state)
         run = loop(inner_context(ctx, kkt, used), inner, M, first=first + used)
         used += run.iterations
         rounds += 1
-        state.p = np.maximum(inner.p, 0.0)
+        if np.all(np.isfinite(inner.p)):
+            state.p = np.maximum(inner.p, 0.0)
         state.refresh()  # the round's float64 matvec
         new = ctx.kkt(state.p, state.g)
         ctx.record(first + used, new)
-        if new > MIN_ROUND_GAIN * kkt and new > ctx.tol:  # float32 went as far as it can
+        if not new <= MIN_ROUND_GAIN * kkt and new > ctx.tol:  # float32 went as far as it can (or no finite gain)
             tail = loop(ctx, state, M, max_iter=max(1, ctx.max_iter - used), first=first + used)
             return RefinementRun(CCGRun(used + tail.iterations, tail.kkt, tail.converged, tail.stalled), rounds, True)
         kkt = new

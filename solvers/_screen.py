@@ -22,7 +22,8 @@ sum(p) <= L, only the points with ubar_i >= f L (f = min H_ij <= 0) can be in co
    w < 0, and the solve goes on from p, warm.
 
 The answer is judged on the whole problem (step 3), so screening changes which points
-the loop carries, never the fixed point: a solution of the restricted QP with w >= 0
+the loop carries, never the fixed point (a round solved on T whose answer fails on the
+whole problem while T cannot grow ends "stalled", never as if the iterations ran out): a solution of the restricted QP with w >= 0
 off T is the solution of the whole one.  It is used only where the screened set is at
 most ``MAX_SCREENED_FRACTION`` of the unknowns (an aperiodic trial set already is
 {ubar >= 0}, so there it never applies).
@@ -35,7 +36,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .base import Outcome, Param, SolveContext
+from .base import Outcome, Param, SolveContext, Status
 
 #: The load bound of a round: this many times the load of the round's start.
 LOAD_MARGIN = 1.25
@@ -95,7 +96,7 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
     T = None if ctx.params.get("screening", "safe") == "none" else screened_set(ctx, p)
     if T is None:
         return solve(ctx)
-    used, infos = 0, []
+    used, infos, stuck = 0, [], False
     while True:
         cold = ctx.p0 is None and not infos  # a cold first round stays cold (its first guess)
         sub = ctx.restricted(T, None if cold else p[T], first=used)
@@ -115,10 +116,12 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
         if kkt <= ctx.tol or not out.converged or ctx.expired() or out_of_iterations:
             break
         grown = np.union1d(touching(ctx, p), np.union1d(T, np.flatnonzero(w < 0.0)))
-        if grown.size == T.size and sub.tol == ctx.tol:
+        if grown.size == T.size and sub.tol == ctx.tol:  # solved on T, not on the whole: T cannot grow
+            stuck = True
             break
         T = grown
     info = {**merged_info(infos), "screened_rounds": len(infos), "screened_size": int(T.size)}
+    status = None if kkt <= ctx.tol else Status.STALLED if stuck else out.status
     return Outcome(p, used, kkt <= ctx.tol, f"scaled KKT error {kkt:.3e} after {used} iterations "
                    f"on {T.size} of {ctx.n} points ({len(infos)} screening rounds)", w=w,
-                   status=out.status if kkt > ctx.tol else None, info=info)
+                   status=status, info=info)
