@@ -472,17 +472,13 @@ def log_if_wide(ax: Any, axis: str, values: Iterable[float], decades: float = 1.
 
 
 def tidy_log_ticks(ax: Any, axis: str, span_decades: float) -> None:
-    """On a log axis spanning under two decades, label 1-2-5 steps in plain numbers (under
-    one decade, at most four evenly spaced ones) and leave minor ticks unlabelled
-    (matplotlib's minor labels collide on narrow panels)."""
-    from matplotlib.ticker import LogLocator, MaxNLocator, NullFormatter
+    """On a log axis spanning under two decades, label 1-2-5 steps in plain numbers and
+    leave minor ticks unlabelled (matplotlib's minor labels collide on narrow panels)."""
+    from matplotlib.ticker import LogLocator, NullFormatter
 
     a = ax.xaxis if axis == "x" else ax.yaxis
     a.set_minor_formatter(NullFormatter())
-    if span_decades < 1:
-        a.set_major_locator(MaxNLocator(nbins=3, min_n_ticks=2))
-        a.set_major_formatter(lambda x, _pos: f"{x:.3g}")
-    elif span_decades < 2:
+    if span_decades < 2:
         a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
         a.set_major_formatter(lambda x, _pos: f"{x:g}")
 

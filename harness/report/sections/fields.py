@@ -185,10 +185,12 @@ def _gap_panel(a: object, f: ContactField) -> bool:
         mark_empty(a, "no gap stored with this field\n(harness.run.backfill re-solves\nthe step to store it)")
         return False
     sg, ug = _length_scale(gaps, f.unit)
-    a.hist(gaps * sg, bins=60, density=True, color="tab:gray", alpha=0.85)
-    a.set_yscale("log")
+    density, _, _ = a.hist(gaps * sg, bins=60, density=True, color="tab:gray", alpha=0.85)
+    log_if_wide(a, "y", density, decades=1.0)  # a log scale only where the densities span decades
     a.set_xlabel(f"gap g  [{ug}]")
     a.set_ylabel("probability density  [1/" + ug + "]")
+    a.yaxis.tick_right()  # on the right: clear of the pressure panel's colour bar to its left
+    a.yaxis.set_label_position("right")
     a.grid(True, alpha=0.3)
     return True
 
@@ -316,9 +318,23 @@ def _point_style(points: int) -> dict[str, object]:
     return {"marker": "o", "ms": 4} if points < 2 else {}
 
 
-def _decades(values: list[float]) -> float:
+#: A log axis whose data span less than a decade is widened by this factor each side, so
+#: that at least two of its 1-2-5 labels fall on it.
+NARROW_LOG_MARGIN = 3.0
+
+
+def _log_axis(ax: object, axis: str, values: list[float]) -> None:
+    """Log scale on ``axis`` with plain 1-2-5 labels (``tidy_log_ticks``); data spanning
+    under a decade (one point, or a few close ones) get ``NARROW_LOG_MARGIN`` each side."""
+    (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
     v = np.asarray([x for x in values if np.isfinite(x) and x > 0], dtype=float)
-    return float(np.log10(v.max() / v.min())) if len(v) else 0.0
+    if not len(v):
+        return
+    lo, hi = float(v.min()), float(v.max())
+    if hi / lo < 10.0:
+        lo, hi = lo / NARROW_LOG_MARGIN, hi * NARROW_LOG_MARGIN
+        (ax.set_xlim if axis == "x" else ax.set_ylim)(lo, hi)
+    tidy_log_ticks(ax, axis, float(np.log10(hi / lo)))
 
 
 def _trace_figure(ctx: ReportContext) -> str:
@@ -349,13 +365,11 @@ def _trace_figure(ctx: ReportContext) -> str:
         a1.set_title(f"family {fam}: residual against iteration", fontsize=9)
         a2.set_title(f"family {fam}: residual against time", fontsize=9)
         for a, xl in ((a1, "iteration  [-]"), (a2, "elapsed  [s]")):
-            a.set_yscale("log")
-            tidy_log_ticks(a, "y", _decades(res))
+            _log_axis(a, "y", res)
             a.set_xlabel(xl)
             a.set_ylabel("own residual  [-]", fontsize=8)
             a.grid(True, which="major", alpha=0.3)
-        a2.set_xscale("log")
-        tidy_log_ticks(a2, "x", _decades(secs))
+        _log_axis(a2, "x", secs)
         log_if_wide(a1, "x", its, decades=2.0)
         legend_outside(a2)
         for a, xs in ((a1, its), (a2, secs)):
