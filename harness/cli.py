@@ -300,7 +300,7 @@ def add_option(p: argparse.ArgumentParser, rec: OptionRecord) -> None:
     text = rec.help + (f" [{rec.unit}]" if rec.unit and f" {rec.unit}" not in rec.help else "")
     if rec.valid is not None or rec.plausible is not None:
         ranges = [f"valid {rec.valid.text()}" if rec.valid else "",
-                  f"plausible {rec.plausible.text()[3:]}" if rec.plausible else ""]
+                  f"plausible {rec.plausible.text()[3:]}{' ' + rec.unit if rec.unit else ''}" if rec.plausible else ""]
         text += f" ({'; '.join(r for r in ranges if r)})"
     text = text.replace("%", "%%")
     if rec.kind == "switch":
@@ -308,7 +308,8 @@ def add_option(p: argparse.ArgumentParser, rec: OptionRecord) -> None:
     elif rec.kind == "choice":
         p.add_argument(rec.flag, dest=rec.name, choices=rec.choices, default=None, help=text)
     else:
-        p.add_argument(rec.flag, dest=rec.name, type=PARSERS[rec.kind], default=None, help=text)
+        metavar = rec.flag.lstrip("-").replace("-", "_").upper()
+        p.add_argument(rec.flag, dest=rec.name, type=PARSERS[rec.kind], default=None, metavar=metavar, help=text)
 
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:

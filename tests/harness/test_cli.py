@@ -241,13 +241,16 @@ def test_an_implausible_modulus_is_refused(E: str, capsys: pytest.CaptureFixture
 
 
 def test_the_plausible_range_is_inclusive_and_lives_in_units() -> None:
-    from contactbench.problems.units import PLAUSIBLE_MODULUS, check_plausible_modulus
+    from contactbench.problems.scenes.options import BY_NAME, value_problem
+    from contactbench.problems.units import PLAUSIBLE_MODULUS
 
     lo, hi = PLAUSIBLE_MODULUS
-    assert check_plausible_modulus(lo) == lo and check_plausible_modulus(hi) == hi
+    record = BY_NAME["E"]  # the option's record reads its range from units
+    assert (record.plausible.lo, record.plausible.hi) == PLAUSIBLE_MODULUS
+    assert value_problem(record, lo, set()) is None and value_problem(record, hi, set()) is None
     for bad in (np.nextafter(lo, 0), np.nextafter(hi, np.inf), float("nan")):
-        with pytest.raises(ValueError):
-            check_plausible_modulus(bad)
+        assert value_problem(record, bad, set()) is not None
+    assert value_problem(record, np.nextafter(lo, 0), {"allow_any_E"}) is None
 
 
 @pytest.mark.parametrize("args", [["--length", "-1e-6"], ["--length=-1e-6"], ["--E", "-5"], ["--steps", "-2"],
