@@ -1,6 +1,6 @@
 """The ``contactbench`` command line.
 
-    contactbench list scenes|solvers [--params]
+    contactbench list scenes|solvers|options [--params]
     contactbench run SCENE [SCENE...] [--solvers a,b[k=v,...]|all] [--profile p[,q]] [--size N] [--steps K]
                      [--seeds 0-9|0,3,5] [--surface PATH [--length L] [--channel C]] [--E E] [--kernel bcc|love]
                      [--surface-family saupe|periodic] [--periodic] [--repeats R] [--timeout S] [--out DIR]
@@ -10,6 +10,8 @@
     contactbench validate ...       (every argument goes to harness/conformance/battery.py)
     contactbench --version
 
+The scene options' flags come from their records (``problems.scenes.options``; ``list
+options`` prints the table and the scenes that read each); their rules are the plan's.
 ``run`` plans first (``harness.run.plan``: every scene option, solver, profile and
 reference name is checked before anything runs; bad input exits 2 with one line per
 problem and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
@@ -195,8 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
                             parser_class=Parser)
 
-    ls = sub.add_parser("list", help="list scenes or solvers")
-    ls.add_argument("what", choices=("scenes", "solvers"))
+    ls = sub.add_parser("list", help="list scenes, solvers or the scene options")
+    ls.add_argument("what", choices=("scenes", "solvers", "options"))
     ls.add_argument("--params", action="store_true", help="with solvers: each solver's declared parameters and grid")
 
     run = sub.add_parser("run", help="run scenes and write a tidy table")
@@ -245,7 +247,32 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def option_lines() -> list[str]:
+    """``list options``: each record of ``problems.scenes.options.OPTIONS`` -- flag, kind,
+    unit, ranges, what it requires or excludes -- and the scenes that read it (their
+    ``Scene.options``)."""
+    from contactbench.problems.scenes import all_scenes
+
+    scenes = all_scenes()
+    lines = []
+    for rec in OPTIONS:
+        facts = [rec.kind + (f" [{rec.unit}]" if rec.unit else ""),
+                 f"valid {rec.valid.text()}" if rec.valid else "",
+                 f"plausible {rec.plausible.text()[3:]}" if rec.plausible else "",
+                 f"choices {','.join(rec.choices)}" if rec.choices else "",
+                 *(f"needs {' or '.join(req.keys)}" + (f" when {req.when}" if req.when else "") for req in rec.requires),
+                 *(f"excludes {other}" for other in rec.excludes),
+                 "not with --surface" if rec.generated_only else "",
+                 "in the instance name" if rec.suffix else ""]
+        readers = "every scene" if rec.universal else ", ".join(n for n, sc in scenes.items() if rec.name in sc.options)
+        lines.append(f"{rec.flag:20s} {'; '.join(f for f in facts if f)}\n{'':20s} read by: {readers or 'none'}")
+    return lines
+
+
 def cmd_list(what: str, params: bool = False) -> int:
+    if what == "options":
+        print("\n".join(option_lines()))
+        return 0
     if what == "scenes":
         from contactbench.problems.scenes import scene_import_errors
 

@@ -252,3 +252,14 @@ def test_export_refuses_a_foreign_folder_as_run_does(in_tmp: Path, capsys: pytes
     assert [p.name for p in (in_tmp / "mine").iterdir()] == ["notes.txt"]
     assert main([*args, "fresh"]) == 0 and main([*args, "fresh"]) == 0  # its own folder is written over
     capsys.readouterr()
+
+
+def test_list_options_prints_the_table_with_the_scenes_that_read_each(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["list", "options"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    flags = [line.split()[0] for line in out[::2]]
+    assert flags == [r.flag for r in OPTIONS]
+    readers = dict(zip(flags, (line.split("read by: ")[1].split(", ") for line in out[1::2])))
+    assert "paper-sweep" in readers["--thickness"] and "layer-sweep" not in readers["--thickness"]
+    assert "layer-sweep" in readers["--nu"] and "cmr" not in readers["--hardness"]
+    assert readers["--allow-implausible"] == ["every scene"]
