@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import importlib.util
 import json
 import re
 from pathlib import Path
@@ -110,3 +111,17 @@ def test_the_harness_judge_is_the_function_even_after_its_module_is_imported() -
     from contactbench.harness import judge
 
     assert callable(judge) and judge.__name__ == "judge"
+
+
+@pytest.mark.parametrize("package", [m for m in ALL_MODULES if module_files()[m].name == "__init__.py"])
+def test_no_exported_name_is_shadowed_by_a_submodule(package: str) -> None:
+    """A package's exported name that is also a submodule's name resolves to the submodule
+    once that is imported (the import system binds it on the package): so an exported
+    name either is that submodule or has no submodule of its name."""
+    mod = importlib.import_module(package)
+    lazy = vars(mod).get("__getattr__")  # PEP 562 exports: what the name is meant to be
+    for name in mod.__all__:
+        meant = lazy(name) if lazy is not None and name not in vars(mod) else vars(mod).get(name)
+        if importlib.util.find_spec(f"{package}.{name}") is not None:
+            sub = importlib.import_module(f"{package}.{name}")
+            assert meant is sub, f"{package}.{name}: the export and a submodule share a name"
