@@ -298,13 +298,18 @@ def box_at_share(n: int, load: float, share: float) -> np.ndarray:
 
 @pytest.mark.parametrize("name", [n for n in LOAD if n in FAST])
 @pytest.mark.parametrize("share", [0.99, 0.999, 0.9999, 1.0])
-def test_near_saturation_the_load_is_solved_up_to_the_box_capacity(square, name: str, share: float) -> None:
-    """The 32^2 surface under load control (the elastic top step's load) with a hardness
-    whose box carries 99 % ... 100 % of it: nearly every element plastic.  Each fast CCG
-    that poses load and hardness solves it, as the judge reads it (the Delta fitted from
-    p) and with its own Delta, and the answer is in the box carrying the load."""
+@pytest.mark.parametrize("ulps", [-1, 0, 1])
+def test_near_saturation_the_load_is_solved_up_to_the_box_capacity(square, name: str, share: float,
+                                                                   ulps: int) -> None:
+    """The 32^2 surface under load control (the elastic top step's load, moved by an ulp
+    either way) with a hardness whose box carries 99 % ... 100 % of it: nearly every
+    element plastic.  Each fast CCG that poses load and hardness solves it, as the judge
+    reads it (the Delta fitted from p) and with its own Delta, and the answer is in the
+    box carrying the load."""
     b, _, p_el = square
     load = float(np.sum(p_el))
+    if ulps:
+        load = float(np.nextafter(load, math.copysign(math.inf, ulps)))
     inst = b.build_load(load)
     u = box_at_share(inst.n, load, share)
     qp = qp_with(inst, Constraints(u, load))
