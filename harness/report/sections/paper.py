@@ -115,6 +115,7 @@ PAPER_ROLES: dict[str, PaperRole] = {
     "nnls-gp": PaperRole("NNLS+GP", "nnls-gp", {"K": 100}),
     "nnls": PaperRole("NNLS", "nnls"),
     "pk": PaperRole("P&K 1999", "pk"),
+    "pk-printed": PaperRole("P&K as printed (the paper's Algorithm 2)", "pk-printed"),
     "pk-warm": PaperRole("P&K 1999 + warm start", "pk", warm=True),
     "greedy-cg": PaperRole("greedy CG", "greedy-cg"),
     "greedy-gs": PaperRole("greedy Gauss-Seidel", "greedy-gs"),
@@ -377,7 +378,9 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) ->
     if ref is None:
         parts.append("No NNLS+GP solver is in this table, so the paper's speed-ups cannot be checked.")
     else:
-        checks = [("pk", "P&K 1999 / NNLS+GP", Claim("~26x", 20.0, 33.0, "fig4-pk-cold-over-nnlsgp")),
+        checks = [("pk-printed", "P&K as printed (Algorithm 2) / NNLS+GP",
+                   Claim("~26x", 20.0, 33.0, "fig4-pkprinted-over-nnlsgp")),
+                  ("pk", "P&K 1999 / NNLS+GP", Claim("~26x", 20.0, 33.0, "fig4-pk-cold-over-nnlsgp")),
                   ("greedy-cg", "greedy CG / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0,
                                                                "fig4-greedy-over-nnlsgp")),
                   ("admm", "ADMM / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0,
