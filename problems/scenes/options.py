@@ -275,7 +275,7 @@ OPTIONS: tuple[OptionRecord, ...] = (
     OptionRecord("allow_any_E", "--allow-any-E", "switch", "take an --E outside the plausible range",
                  group="switch", universal=True),
     OptionRecord(ALLOW_IMPLAUSIBLE, "--allow-implausible", "switch", "take any value outside its plausible range "
-                 "(--E, --hardness, --loads, --length, --thickness)", group="switch", universal=True),
+                 "(the options with one: contactbench list options)", group="switch", universal=True),
 )
 
 #: The records by name.
@@ -287,10 +287,6 @@ SCENE_OPTIONS: frozenset[str] = frozenset(BY_NAME)
 def names_in(*groups: str) -> frozenset[str]:
     """The options of ``groups`` (e.g. "layer", "control")."""
     return frozenset(r.name for r in OPTIONS if r.group in groups)
-
-
-#: What a surface file replaces (its grid and its one surface).
-GENERATED_ONLY_OPTIONS: frozenset[str] = frozenset(r.name for r in OPTIONS if r.generated_only)
 
 
 # ---------------------------------------------------------------------------

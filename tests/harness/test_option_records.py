@@ -10,7 +10,7 @@ override, a plan whose every cell the solvers' models reject, and ``export --out
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -73,7 +73,6 @@ class Case:
     good_scene: str = ""
     needle: str = ""
     same_line: bool = True
-    cli_bad: dict[str, Any] = field(default_factory=dict)
 
 
 def outside(r: Range) -> float:
