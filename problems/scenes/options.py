@@ -351,6 +351,9 @@ def value_problem(rec: OptionRecord, value: Any, allow: set[str]) -> str | None:
                         f"{did_you_mean(str(value), rec.choices)}")
             return None
         if rec.kind == "seeds":
+            if isinstance(value, range):  # (a lazy range stays lazy: the plan bounds its size)
+                return None if len(value) and value.start >= 0 and value.step > 0 else \
+                    f"{rec.flag} takes integers >= 0, got {value!r}"
             seeds = list(value)
             if not seeds or any(isinstance(s, bool) or int(s) != s or s < 0 for s in seeds):
                 return f"{rec.flag} takes integers >= 0, got {value!r}"

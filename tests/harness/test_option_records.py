@@ -262,3 +262,11 @@ def test_list_options_prints_the_table_with_the_scenes_that_read_each(capsys: py
     assert "paper-sweep" in readers["--thickness"] and "layer-sweep" not in readers["--thickness"]
     assert "layer-sweep" in readers["--nu"] and "cmr" not in readers["--hardness"]
     assert readers["--allow-implausible"] == ["every scene"]
+
+
+def test_a_lazy_seed_range_is_checked_without_expanding_it() -> None:
+    huge = range(10**12)  # (a list of it would not fit in memory)
+    assert option_problems(["paper-sweep"], SceneConfig(seeds=huge)) == []  # type: ignore[arg-type]
+    assert option_problems(["paper-sweep"], SceneConfig(seeds=range(0)))  # type: ignore[arg-type]
+    with pytest.raises(PlanError, match="--max-cells"):
+        plan_run(["paper-sweep"], SceneConfig(size=16, seeds=huge), ["pk"])  # type: ignore[arg-type]
