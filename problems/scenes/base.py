@@ -26,6 +26,10 @@ LAYER_SCENE_OPTIONS: frozenset[str] = names_in("layer")
 CONTROL_SCENE_OPTIONS: frozenset[str] = names_in("control")
 
 
+#: Recipe params that say where an input was read from, not what it is (``InstanceSpec.params_json``).
+LOCATION_PARAMS: frozenset[str] = frozenset({"surface_path"})
+
+
 @dataclass(frozen=True)
 class InstanceSpec:
     """A picklable recipe for one instance (a surface with its load sequence).
@@ -42,7 +46,11 @@ class InstanceSpec:
         return get_scene(self.scene).build(self)
 
     def params_json(self) -> str:
-        return json.dumps(self.params, sort_keys=True, default=str)
+        """The recipe's identity (cell ids, job keys): its params less ``LOCATION_PARAMS``,
+        which say where an input was read from, not what it is -- a map's content is named
+        by its key in the instance name, so one map given by two paths is one cell."""
+        return json.dumps({k: v for k, v in self.params.items() if k not in LOCATION_PARAMS},
+                          sort_keys=True, default=str)
 
 
 @dataclass(frozen=True)

@@ -159,7 +159,9 @@ def test_two_paths_to_one_map_give_one_name_and_the_same_cell_ids(tmp_path: Path
     assert planned(str(tmp_path / "m.npy")) == (name, ids)
     assert planned(str(tmp_path / "sub" / ".." / "m.npy")) == (name, ids)
     assert planned(str(tmp_path / "sub" / "link.npy")) == (name, ids)  # a link: the file it names
-    assert planned(str(tmp_path / "sub" / "m.npy"))[0] == name  # a copy: the same map, the same name
+    assert planned(str(tmp_path / "sub" / "m.npy")) == (name, ids)  # a copy: the same map, the same cells
+    np.save(tmp_path / "other.npy", tilted_map_with_holes() * 1.5)
+    assert planned(str(tmp_path / "other.npy"))[1] != ids  # another map: other cells
 
 
 def test_the_record_follows_the_options_and_the_heights(tmp_path: Path) -> None:
