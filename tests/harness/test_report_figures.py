@@ -132,6 +132,7 @@ def test_a_scatter_of_nan_points_is_blank() -> None:
     assert blank_panels(fig) == []
 
 
+@pytest.mark.slow
 def test_no_figure_of_a_full_report_has_a_blank_panel(tmp_path: Path) -> None:
     """Every section of the fabricated table (the paper's figures, Example 1, the summary
     figures): each panel draws data or says why it has none."""
