@@ -15,9 +15,9 @@ when they validate a measured (``--surface``) file, so ``contactbench run`` stop
 exit 2 before anything runs; ``--height-unit m|mm|um|nm`` converts the heights of a file
 that states no unit, and ``--allow-steep`` skips the check for those who mean it.
 
-The composite modulus: ``check_plausible_modulus`` refuses an E* outside
-``PLAUSIBLE_MODULUS`` (Pa) -- almost always a unit slip (MPa or GPa given as Pa) -- and
-``contactbench run/export --E`` calls it unless ``--allow-any-E`` is given.
+The composite modulus: ``PLAUSIBLE_MODULUS`` (Pa) is the range outside which an E* is almost
+always a unit slip (MPa or GPa given as Pa); the ``--E`` option record
+(``problems.scenes.options``) checks it unless ``--allow-any-E`` is given.
 """
 
 from __future__ import annotations
@@ -130,14 +130,3 @@ def check_height_unit(height_unit: str) -> str:
     if height_unit not in HEIGHT_UNITS:
         raise ProblemInputError(f"unknown height unit {height_unit!r}; choose one of {', '.join(HEIGHT_UNITS)}")
     return height_unit
-
-
-def check_plausible_modulus(E: float) -> float:
-    """``E`` (Pa) if it lies in ``PLAUSIBLE_MODULUS``, else a ``ProblemInputError`` saying
-    which way it is off and how to run it anyway."""
-    lo, hi = PLAUSIBLE_MODULUS
-    if lo <= E <= hi:
-        return float(E)
-    side = "below" if E < lo else "above"
-    raise ProblemInputError(f"--E {E:g} Pa is {side} the plausible range [{lo:g}, {hi:g}] Pa of a composite "
-                            "modulus (a unit slip? E is in Pa); pass --allow-any-E to run it anyway")
