@@ -328,7 +328,7 @@ def medians(rows: list[AspherRow], entries: list[str]) -> list[str]:
 
 
 #: The two published ideas, each as (ASPHER's entry, our entry with the idea, our entry without).
-IDEAS = (("|q| preconditioner", "aspher-pcg", "fast-dual-pccg[fourier]", "fast-dual-pccg"),
+IDEAS = (("\\|q\\| preconditioner", "aspher-pcg", "fast-dual-pccg[fourier]", "fast-dual-pccg"),
          ("coarse-grid start", "aspher-nested", "twin:fast-dual-pccg[coarse]", "twin:fast-dual-pccg"))
 
 
