@@ -40,7 +40,7 @@ import numpy as np
 
 from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, conjugate_gradient, is_dense, matvec_seconds
 from .gp import projection_of
-from .base import Capabilities, Outcome, Param, ParamError, SolveContext, Solver, WarmStart
+from .base import Capabilities, Outcome, Param, ParamError, SolveContext, Solver, Status, WarmStart
 from .registry import register
 
 TYPICAL_ADMM_ITERATIONS = 1000
@@ -120,7 +120,7 @@ class ADMM(Solver):
         s = p.copy()
         project = projection_of(ctx)
         check_every = ctx.params["check_every"]
-        converged, i, w = False, 0, None
+        converged, i, w, status, message = False, 0, None, None, ""
         while i < ctx.max_iter and not ctx.expired():
             s = apply_m(p - u + qp.ubar / rho, s)  # 5.1
             s_hat = alpha * s + (1.0 - alpha) * p  # 5.2
@@ -135,9 +135,10 @@ class ADMM(Solver):
                 if res <= tol:
                     converged = True
                     break
-                if not math.isfinite(res):  # a non-finite iterate: the lifecycle reports it "failed"
+                if not math.isfinite(res):  # diverged (H not numerically SPD, an overflow): no usable answer
+                    status, message = Status.FAILED, f"diverged: non-finite scaled KKT error at iteration {i}"
                     break
-        return Outcome(p, i, converged, w=w)
+        return Outcome(p, i, converged, message, w=w, status=status)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         per = matvec_seconds(n, "dense") if operator_kind == "dense" else 20 * matvec_seconds(n, "fft")

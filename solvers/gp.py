@@ -57,6 +57,7 @@ class GPOutcome:
     iterations: int
     converged: bool
     restarts: int
+    diverged: bool = False  # a check met a non-finite scaled KKT error
 
 
 def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float, K: int, tol: float | None = None,
@@ -64,7 +65,7 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
     """Algorithm 4 for at most K iterations; with ``tol``, stop early once the scaled
     KKT error of p (``ctx.kkt``, one extra matvec) is <= tol, checked and recorded
     every ``check_every`` iterations, as is the deadline.  A non-finite error at a check
-    ends the loop (the lifecycle reports the non-finite p as "failed")."""
+    ends the loop (``diverged``)."""
     op, ubar = ctx.qp.H, ctx.qp.ubar
     project = projection_of(ctx)
     p = p0.copy()
@@ -85,7 +86,7 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
             if res <= tol:
                 return GPOutcome(p, i + 1, True, restarts)
             if ctx.expired() or not math.isfinite(res):
-                return GPOutcome(p, i + 1, False, restarts)
+                return GPOutcome(p, i + 1, False, restarts, diverged=not math.isfinite(res))
     return GPOutcome(p, K, False, restarts)
 
 
@@ -152,6 +153,9 @@ class GradientProjection(Solver):
         out = accelerated_gradient_projection(ctx, start_point(ctx), L, ctx.max_iter, tol=ctx.tol,
                                               check_every=ctx.params["check_every"], restart=ctx.params["restart"])
         ctx.info["restarts"] = out.restarts
+        if out.diverged:  # H not numerically SPD (or L below its lambda_max), an overflow: no usable answer
+            return Outcome(out.p, out.iterations, False, f"diverged: non-finite scaled KKT error at iteration "
+                           f"{out.iterations}", status=Status.FAILED)
         return Outcome(out.p, out.iterations, out.converged)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:

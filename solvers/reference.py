@@ -103,7 +103,7 @@ class BVLSReference(Solver):
             return Outcome(sol.p, sol.polish_rounds, sol.converged, w=sol.w)
         try:
             ref = constrained_exact_solution(H, ubar, c)
-        except (UncertifiedConstrainedSolution, np.linalg.LinAlgError, ValueError) as exc:
+        except (UncertifiedConstrainedSolution, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
             return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {exc}", status=Status.FAILED)
         ctx.info.update(polish_rounds=ref.rounds, displacement_solves=ref.solves)
         return Outcome(ref.p, ref.rounds, True, "certified exact solution", w=H @ ref.p - ubar,

@@ -163,3 +163,22 @@ def test_pk_does_not_stop_when_one_free_point_is_left(share: float) -> None:
     r = get_solver("pk").solve(qp, SolverSettings(tol=1e-10))
     assert r.status == "converged", r.message
     assert kkt_check(qp, r.p, r.multiplier).kkt_error <= 1e-10
+
+
+@pytest.mark.parametrize("name", PAPER + REFERENCES)
+@pytest.mark.parametrize("off", [1.0, np.nextafter(1.0, 0.0), 2.0], ids=["singular", "singular-less-1ulp", "indefinite"])
+def test_no_curvature_or_negative_curvature_ends_with_a_status(name: str, off: float) -> None:
+    """H = [[1, off], [off, 1]]: singular (a direction of zero curvature), an ulp from
+    it, or indefinite (negative curvature), with each constraint kind.  No solver
+    raises; a claim of convergence meets the check; a non-finite answer says "failed"."""
+    H = np.array([[1.0, off], [off, 1.0]])
+    kinds = (Constraints(), Constraints(np.full(2, 0.3)), Constraints(None, 0.5), Constraints(np.full(2, 0.3), 0.6))
+    for c in kinds:
+        qp = QP(DenseOperator(H), np.array([1.0, 0.5]), None, c)
+        if not poses(name, qp):
+            continue
+        r = get_solver(name).solve(qp, SolverSettings(time_limit=0.5, check_tol=CLAIM))
+        assert r.status in STATUSES and r.message, (name, c)
+        assert np.all(np.isfinite(r.p)) or r.status == Status.FAILED.value, (name, c, r.status)
+        if r.converged and not get_solver(name).refuted_on:
+            assert kkt_check(qp, r.p, r.multiplier).kkt_error <= CLAIM, (name, c, r.message)
