@@ -22,7 +22,8 @@ greedy on the paper's Example 1) is a strict expected failure there: the draw be
 (the draw no longer shows what it is here to show).
 
 Pairs the harness would skip (``harness.skips``: capabilities, memory or time model,
-missing package, the solver's own ``skip``) are skipped with the same reason.
+missing package, the solver's own ``skip``) are skipped with the same reason, and so is a
+solver whose declared accuracy floor is above the profile's check (``Profile.floor_skip``).
 """
 
 from __future__ import annotations
@@ -99,6 +100,9 @@ def test_solver(benchmark: Any, request: pytest.FixtureRequest, solver_name: str
     if decision.skip:
         pytest.skip(decision.reason)
     solver = get_solver(solver_name)
+    floor = get_profile(PROFILE).floor_skip(solver)
+    if floor:
+        pytest.skip(floor)
     family = inst.meta.get("family")
     if family in solver.refuted_on:
         request.applymarker(pytest.mark.xfail(strict=True, reason=(

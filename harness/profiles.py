@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.base import Solver, SolverSettings
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,16 @@ class Profile:
         ``check_tol`` (module doc), with the given limits and parameters."""
         return SolverSettings(tol=self.tol, max_iter=max_iter, time_limit=time_limit, params=dict(params or {}),
                               check_tol=self.check_tol)
+
+    def floor_skip(self, solver: Solver) -> str | None:
+        """Why ``solver`` is not run under this profile: its declared accuracy floor
+        (``Capabilities.promise``, a scaled KKT error it cannot go below) is above this
+        profile's check.  None: the check is within its reach."""
+        floor = solver.capabilities.accuracy_floor
+        if floor is None or self.check_tol >= floor:
+            return None
+        return (f"{solver.name} declares an accuracy floor of {floor:g} (scaled KKT error); the {self.name} "
+                f"profile checks {self.check_tol:g}, tighter than it can reach")
 
 
 PROFILES: dict[str, Profile] = {

@@ -271,3 +271,17 @@ def test_ecos_options_follow_the_requested_tolerance() -> None:
     assert ecos_options(Request(None, None, None)) == {}
     tols = [ecos_options(Request(t, None, None))["abstol"] for t in (1e-2, 1e-3, 1e-6, 1e-9)]
     assert tols == sorted(tols, reverse=True) and tols[-1] == ECOS_TIGHTEST and tols[0] <= 1e-8
+
+
+def test_a_profile_tighter_than_a_declared_floor_is_skipped_with_the_reason() -> None:
+    """ECOS declares a floor of 1e-7: the default profile's check (1e-6) is within reach,
+    the high profile's (1e-8) is not, and the reason names both numbers."""
+    from contactbench.harness.profiles import get_profile
+
+    _require("qp-ecos")
+    ecos = get_solver("qp-ecos")
+    assert ecos.capabilities.accuracy_floor == 1e-7
+    assert get_profile("default").floor_skip(ecos) is None
+    why = get_profile("high").floor_skip(ecos)
+    assert why is not None and "1e-07" in why and "1e-08" in why
+    assert get_profile("high").floor_skip(get_solver("qp-clarabel")) is None  # no floor declared
