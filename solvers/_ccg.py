@@ -88,6 +88,7 @@ import numpy as np
 from contactbench.problems.operators import ContactOperator
 
 from ._farfield import MAX_AGGREGATES
+from ._kit import matvec_seconds
 from ._preconditioners import ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
 from ._screen import solve_screened
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
@@ -437,9 +438,20 @@ def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:
     )
 
 
+#: The fast solvers' time model (``FastSolver.time_estimate``): a cold solve takes about
+#: ``FAST_TYPICAL_MATVECS`` products (the surface population's median matvecs are 47-94 at
+#: 512^2-4096^2), and their FFT product runs ``FAST_FFT_SPEEDUP`` times faster than
+#: ``_kit.matvec_seconds`` models an FFT product: calibrated on the 2-core population medians
+#: of results/perf/surface-population.md (0.60 s at 512^2, 51 s at 4096^2; the model gives
+#: 0.63 s and 52 s).
+FAST_TYPICAL_MATVECS = 60.0
+FAST_FFT_SPEEDUP = 7.5
+
+
 class FastSolver(Solver):
     """What the matrix-free fast solvers share: family, capabilities (exact, primal warm
-    start, dense or FFT operator), the default iteration limit and the memory model."""
+    start, dense or FFT operator), the default iteration limit, the memory and the time
+    model."""
 
     family = "fast"
     capabilities = Capabilities(operators=frozenset({"dense", "fft"}), needs_dense=False, warm_start="primal",
@@ -454,6 +466,10 @@ class FastSolver(Solver):
         # and the far field's m x m matrices (solvers/_farfield.py).
         blocks = 8.0 * MAX_BLOCK * n + 3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0
         return 8.0 * 8.0 * n + blocks
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        speedup = 1.0 if operator_kind == "dense" else FAST_FFT_SPEEDUP
+        return FAST_TYPICAL_MATVECS * matvec_seconds(n, operator_kind) / speedup
 
     def uses_islands(self) -> bool:
         """Whether the default preconditioner is the island one (memory model)."""

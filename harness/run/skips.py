@@ -18,11 +18,13 @@ words, with the estimate):
    After a timeout, larger steps of that solver are skipped.
 
 A solver's ``time_estimate(n, operator)`` models displacement control: a trial set of
-n unknowns inside a larger padded FFT grid, at its typical iteration count.  Under load
-control the trial set is the whole grid (n = N^2), whose FFT has
-``WHOLE_GRID_FFT_POINTS`` padded points per unknown instead of ``FFT_POINTS_PER_UNKNOWN``
-(28), and a solver may take another iteration count (``LOAD_CONTROL_ITERATION_RATIO``):
-the estimate is scaled by both ratios.
+n unknowns inside a padded FFT grid of ``FFT_POINTS_PER_UNKNOWN`` (28) points per unknown,
+at its typical iteration count.  A product costs the problem's whole padded grid whatever
+n is, so the estimate is scaled by that grid's matvec cost over the model's
+(``fft_points_per_unknown``: the first step of a sweep on an 8193^2 grid has n = 14,531 in
+a grid of 18,000 padded points per unknown); under load control the trial set is the whole
+grid (n = N^2, ``WHOLE_GRID_FFT_POINTS`` points per unknown), and a solver may take another
+iteration count (``LOAD_CONTROL_ITERATION_RATIO``).
 
 ``skip_decision`` answers one question; ``SkipPolicy`` adds the rows of the earlier
 steps of the same sequence, the same rows whether a run is resumed or not.
@@ -85,18 +87,31 @@ def extrapolated_time(history: Sequence[Observation], n: int) -> tuple[float, fl
     return t1 * max(1.0, n / n1) ** e, e
 
 
+def fft_points_per_unknown(traits: ProblemTraits) -> float:
+    """Padded FFT grid points per unknown of the problem ``traits`` describe: from its grid
+    where the side is known (2N x 2N padded, aperiodic; N x N, periodic), else the model's
+    typical figure (``FFT_POINTS_PER_UNKNOWN`` for a trial set, ``WHOLE_GRID_FFT_POINTS``
+    under load control, where the trial set is the whole grid)."""
+    pad = WHOLE_GRID_FFT_POINTS[bool(traits.periodic)]
+    if traits.surface_side > 0 and traits.n > 0:
+        return pad * traits.surface_side**2 / traits.n
+    return pad if traits.load_control else FFT_POINTS_PER_UNKNOWN
+
+
 def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) -> float | None:
     """The solver's ``time_estimate(n, operator)`` for the problem ``traits`` describe:
-    unchanged under displacement control; under load control scaled by the whole grid's
-    matvec cost over the model's and by ``LOAD_CONTROL_ITERATION_RATIO`` (module doc).
-    None when the solver has no model."""
+    scaled by the matvec cost of the problem's own FFT grid over the model's typical one (a
+    product costs the whole padded grid whatever n is: the first step of a sweep on a large
+    grid has a small n and a large grid), and under load control by
+    ``LOAD_CONTROL_ITERATION_RATIO`` (module doc).  None when the solver has no model."""
     t = solver.time_estimate(traits.n, operator)
-    if t is None or not traits.load_control:
+    if t is None:
         return t
     n = traits.n
-    whole = matvec_seconds(n, operator, WHOLE_GRID_FFT_POINTS[bool(traits.periodic)])
-    matvec_ratio = whole / matvec_seconds(n, operator, FFT_POINTS_PER_UNKNOWN)
-    return float(t) * matvec_ratio * LOAD_CONTROL_ITERATION_RATIO.get(solver.name, 1.0)
+    matvec_ratio = (matvec_seconds(n, operator, fft_points_per_unknown(traits))
+                    / matvec_seconds(n, operator, FFT_POINTS_PER_UNKNOWN))
+    iterations = LOAD_CONTROL_ITERATION_RATIO.get(solver.name, 1.0) if traits.load_control else 1.0
+    return float(t) * matvec_ratio * iterations
 
 
 def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_budget: float,
