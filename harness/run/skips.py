@@ -42,6 +42,7 @@ from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.registry import load_solver
 
+from ..profiles import get_profile
 from ..table.schema import ANSWERED
 
 GiB = float(2**30)
@@ -216,7 +217,9 @@ class SkipPolicy:
     * else the last two earlier steps with an answer (solved or inaccurate; one
       observation per step: the fastest of its answered repeats) feed
       ``extrapolated_time`` along a load history;
-    * else the solver's own time model.
+    * else the solver's own time model;
+    * and a solver whose declared accuracy floor is above the profile's check is skipped
+      (``Profile.floor_skip``).
     """
 
     time_limit: float
@@ -228,6 +231,9 @@ class SkipPolicy:
         """The decision for ``step`` of sequence ``key`` (class doc)."""
         observed = self.observations(key, step) if load_history else []
         d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed)
+        floor = None if d.skip else get_profile(key[1]).floor_skip(load_solver(base))
+        if floor:
+            return Decision(reason=floor)
         slow = self.first_timeout(key, step)
         if not d.skip and slow is not None and traits.n >= slow.n:
             return Decision(reason=f"predicted over the {self.time_limit:g} s limit: it timed out at step "

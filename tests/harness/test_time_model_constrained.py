@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import pytest
 
-from contactbench.harness.run.skips import LOAD_CONTROL_ITERATION_RATIO, problem_time_estimate, skip_decision
+from contactbench.harness.run.skips import (LOAD_CONTROL_ITERATION_RATIO, SkipPolicy, problem_time_estimate,
+                                            skip_decision)
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
 from contactbench.solvers.base import ProblemTraits
@@ -115,3 +116,13 @@ def test_the_fast_solvers_model_meets_its_calibration() -> None:
     for side, n, measured in ((512, 35_218, 0.60), (4096, 2_235_426, 51.3)):
         traits = ProblemTraits(n=n, operator="fft", has_surface=True, surface_side=side)
         assert problem_time_estimate(s, traits, "fft") == pytest.approx(measured, rel=0.25)
+
+
+def test_a_declared_accuracy_floor_above_the_profiles_check_is_a_recorded_skip() -> None:
+    """qp-ecos declares a floor of 1e-7: the run skips it under ``high`` (check 1e-8) with
+    the reason, and runs it under ``default`` (check 1e-6)."""
+    policy = SkipPolicy(60.0, 8 * GiB)
+    traits = ProblemTraits(n=100, operator="fft", has_surface=True, surface_side=16)
+    assert "accuracy floor" in policy.decide("qp-ecos", ("qp-ecos", "high"), traits, 0).reason
+    assert not policy.decide("qp-ecos", ("qp-ecos", "default"), traits, 0).skip
+    assert not policy.decide("qp-clarabel", ("qp-clarabel", "high"), traits, 0).skip
