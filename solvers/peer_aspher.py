@@ -264,8 +264,10 @@ class _AspherSolver(PeerSolver):
         why = super().skip(traits)
         if why:
             return why
-        # a rectangular grid or rectangular pixels are refused when posed (``square_grid``):
-        # the traits do not carry the grid's shape
+        if traits.has_surface and traits.surface_side == 0:  # the traits' side is 0 off a square grid
+            return ("ASPHER poses an N x N grid of square elements (grid_size, domain_size); this problem's grid "
+                    "or its pixels are rectangular")
+        # a problem without a surface is checked when posed (``square_grid``)
         return aspher_serves(traits.kernel, traits.periodic, traits.layer, traits.bounded) or displacement_served(
             traits.n, traits.load_control)
 

@@ -65,6 +65,8 @@ def test_what_it_poses_runs_and_the_rest_is_skipped_with_the_reason(name: str) -
     assert "load control only" in s.skip(_traits(load_control=False, n=EXACT_LOAD_MAX_N + 1))
     assert "hardness" in s.skip(_traits(bounded=True))
     assert "layer" in s.skip(_traits(layer=True))
+    assert "rectangular" in s.skip(_traits(has_surface=True, surface_side=0))  # a rectangular grid or pixels
+    assert s.skip(_traits(has_surface=True, surface_side=32)) is None
 
 
 def test_the_nested_levels_halve_down_to_the_coarsest() -> None:
