@@ -201,6 +201,12 @@ class CMRSolver(Solver):
         b = all_solvers().get(self.base_name)
         return b.memory_estimate(n) if b is not None else super().memory_estimate(n)
 
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        """The base's model at n: the finest level dominates, on a trial set pruned to at
+        most the fine one (the coarse levels add a geometric tail)."""
+        b = all_solvers().get(self.base_name)
+        return b.time_estimate(n, operator_kind) if b is not None else None
+
     def skip(self, traits: ProblemTraits) -> str | None:
         """Skipped (a declared capability, not a failure) where the surface has no coarse
         level of the default ``coarsest`` size: CMR would refuse the problem."""
