@@ -490,6 +490,7 @@ class ProblemTraits:
     load_control: bool = False  # the QP carries a load equality
     bounded: bool = False  # the QP carries finite upper bounds (a hardness)
     layer: bool = False  # the kernel is an elastic layer of finite thickness (not a half-space)
+    rectangular: bool = False  # the grid, or its elements, are known to be rectangular (not N x N squares)
 
 
 class Solver(ABC):

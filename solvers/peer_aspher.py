@@ -264,7 +264,7 @@ class _AspherSolver(PeerSolver):
         why = super().skip(traits)
         if why:
             return why
-        if traits.has_surface and traits.surface_side == 0:  # the traits' side is 0 off a square grid
+        if traits.rectangular:
             return ("ASPHER poses an N x N grid of square elements (grid_size, domain_size); this problem's grid "
                     "or its pixels are rectangular")
         # a problem without a surface is checked when posed (``square_grid``)

@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 
 from contactbench.harness.judging import judge
+from contactbench.harness.run.worker import problem_traits
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.mixed_lcp import constrained_exact_solution
+from contactbench.problems.scenes.battery_families import rectangular_instance
 from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.solvers import ProblemTraits, SolverSettings, WarmStart, get_solver
 from contactbench.solvers import _peers
@@ -65,8 +67,7 @@ def test_what_it_poses_runs_and_the_rest_is_skipped_with_the_reason(name: str) -
     assert "load control only" in s.skip(_traits(load_control=False, n=EXACT_LOAD_MAX_N + 1))
     assert "hardness" in s.skip(_traits(bounded=True))
     assert "layer" in s.skip(_traits(layer=True))
-    assert "rectangular" in s.skip(_traits(has_surface=True, surface_side=0))  # a rectangular grid or pixels
-    assert s.skip(_traits(has_surface=True, surface_side=32)) is None
+    assert "rectangular" in s.skip(_traits(rectangular=True))  # a rectangular grid or pixels
 
 
 def test_the_nested_levels_halve_down_to_the_coarsest() -> None:
@@ -153,3 +154,12 @@ def test_a_problem_it_does_not_pose_is_refused_before_solving(name: str) -> None
     for rect in (Surface(s.heights[:, :16].copy(), s.delta), Surface(s.heights.copy(), s.delta, delta1=2 * s.delta)):
         with pytest.raises(ProblemInputError, match="N x N grid of square elements"):
             get_solver(name).solve(InstanceBuilder(rect, 1e9, "love", periodic=False).build_load(1e-3).qp)
+
+
+@pytest.mark.parametrize("case, rectangular", [("love-aniso", True), ("bcc-square-pixels", True)])
+def test_the_workers_traits_say_when_a_grid_or_its_pixels_are_rectangular(case: str, rectangular: bool) -> None:
+    """The traits the skip policy reads (``harness.run.worker.problem_traits``): the
+    battery's 48 x 32 grids, anisotropic pixels or not, are rectangular; a square one is not."""
+    assert problem_traits(rectangular_instance(case, 0)).rectangular is rectangular
+    square = InstanceBuilder(rmd_surface_n(33, 0.7, seed=1), 1e9, "love", periodic=False).build_load(1e-3)
+    assert not problem_traits(square).rectangular
