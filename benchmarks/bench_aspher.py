@@ -56,7 +56,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from bench_surface_population import FAMILIES, THREAD_VARS, Member, code_commit, parse_seeds, plan, surface_of
+from bench_surface_population import (FAMILIES, THREAD_VARS, Member, check_choices, check_population_args, code_commit,
+                                      parse_seeds, plan, surface_of)
 from csv_rows import append_row, child_result, read_latest
 
 #: The load, P / (E* A), per unit of the member's rms slope.
@@ -392,23 +393,9 @@ def write_markdown(rows: list[AspherRow], path: Path) -> None:
 
 def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """One-line errors for bad input, before anything runs."""
-    bad = [f for f in args.families.split(",") if f not in FAMILIES]
-    if bad:
-        ap.error(f"unknown family {bad[0]!r}: choose from {', '.join(FAMILIES)}")
-    bad = [b for b in args.boundaries.split(",") if b not in BOUNDARIES]
-    if bad:
-        ap.error(f"unknown boundary {bad[0]!r}: choose from {', '.join(BOUNDARIES)}")
-    bad = [e for e in args.entries.split(",") if e not in BY_LABEL]
-    if bad:
-        ap.error(f"unknown entry {bad[0]!r}: choose from {', '.join(BY_LABEL)}")
-    if any(N < 16 or N & (N - 1) for N in args.sizes):
-        ap.error(f"--sizes must be powers of two >= 16 (the RMD families need N = 2^k), got {args.sizes}")
-    try:
-        seeds = parse_seeds(args.seeds)
-    except ValueError:
-        ap.error(f"--seeds must look like 512:3,1024:2, got {args.seeds!r}")
-    if any(k < 1 for k in seeds.values()):
-        ap.error("--seeds: at least one seed per size")
+    check_population_args(ap, args)
+    check_choices(ap, "boundary", args.boundaries, list(BOUNDARIES))
+    check_choices(ap, "entry", args.entries, list(BY_LABEL))
     try:
         parse_cells(args.cells)
     except ValueError:

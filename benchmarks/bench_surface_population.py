@@ -48,6 +48,7 @@ import resource
 import subprocess
 import sys
 import time
+from typing import Sequence
 import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -381,14 +382,16 @@ def parse_seeds(text: str) -> dict[int, int]:
     return parse_sizes_map(text, SEEDS)
 
 
-def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """One-line errors for bad input, before anything runs."""
-    bad = [f for f in args.families.split(",") if f not in FAMILIES]
+def check_choices(ap: argparse.ArgumentParser, what: str, text: str, allowed: Sequence[str]) -> None:
+    """A one-line error naming the first of the comma-separated ``text`` not in ``allowed``."""
+    bad = [x for x in text.split(",") if x not in allowed]
     if bad:
-        ap.error(f"unknown family {bad[0]!r}: choose from {', '.join(FAMILIES)}")
-    bad = [v for v in args.variants.split(",") if v not in VARIANTS]
-    if bad:
-        ap.error(f"unknown variant {bad[0]!r}: choose from {', '.join(VARIANTS)}")
+        ap.error(f"unknown {what} {bad[0]!r}: choose from {', '.join(allowed)}")
+
+
+def check_population_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """The checks every population benchmark shares: --families, --sizes, --seeds."""
+    check_choices(ap, "family", args.families, FAMILIES)
     if any(N < 16 or N & (N - 1) for N in args.sizes):
         ap.error(f"--sizes must be powers of two >= 16 (the RMD families need N = 2^k), got {args.sizes}")
     try:
@@ -397,6 +400,12 @@ def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(f"--seeds must look like 512:3,1024:2, got {args.seeds!r}")
     if any(k < 1 for k in seeds.values()):
         ap.error("--seeds: at least one seed per size")
+
+
+def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """One-line errors for bad input, before anything runs."""
+    check_population_args(ap, args)
+    check_choices(ap, "variant", args.variants, VARIANTS)
     try:
         repeats = parse_sizes_map(args.repeats, {})
     except ValueError:
