@@ -26,6 +26,7 @@ from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
+from contactbench.harness.cli import main as cli_main
 
 TESTS = Path(__file__).resolve().parent
 REPO = TESTS.parent
@@ -330,3 +331,14 @@ def write_out(tmp: Path, df: pd.DataFrame, meta: dict | None = META, fmt: str = 
     if meta is not None:
         (tmp / "meta.json").write_text(json.dumps(meta))
     return tmp
+
+
+def run_cli(args: list[str], capsys: Any) -> tuple[int, str, str]:
+    """(exit status, stdout, stderr) of ``contactbench ARGS`` run in this process
+    (``capsys``: pytest's capture fixture)."""
+    try:
+        rc = cli_main(args)
+    except SystemExit as exc:  # argparse: --version, --help and usage errors
+        rc = int(exc.code or 0)
+    out, err = capsys.readouterr()
+    return rc, out, err

@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from contactbench.harness.cli import main
-from tests.helpers import REPO
+from tests.helpers import REPO, run_cli
 
 ROOT = REPO
 DOC = ROOT / "docs" / "harness.md"
@@ -55,12 +54,7 @@ class Picky(Probe):
 
 def cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     """(exit status, stdout, stderr) of ``contactbench ARGS`` run in this process."""
-    try:
-        rc = main(args)
-    except SystemExit as exc:  # argparse: --version, --help and usage errors
-        rc = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return rc, out, err
+    return run_cli(args, capsys)
 
 
 def one_line(err: str) -> str:

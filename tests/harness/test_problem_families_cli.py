@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from contactbench.harness.cli import main
+from tests.helpers import run_cli
 from contactbench.harness.report.build import build_report
 
 pytestmark = pytest.mark.usefixtures("in_tmp")
@@ -20,11 +20,8 @@ TINY = ["--size", "16", "--seeds", "0", "--no-progress"]
 
 
 def cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    try:
-        rc = main(args)
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    return rc, capsys.readouterr().err
+    rc, _, err = run_cli(args, capsys)
+    return rc, err
 
 
 @pytest.mark.parametrize("args, needle", [

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from contactbench.harness.cli import main
+from tests.helpers import run_cli
 from contactbench.harness.report.build import build_report
 from contactbench.harness.report.core import fmt_num, problem_changes
 from contactbench.harness.run.plan import RunConfig, job_cell_ids, plan_run
@@ -44,11 +44,8 @@ def tilted_map_with_holes() -> np.ndarray:
 
 
 def cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    try:
-        rc = main(args)
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    return rc, capsys.readouterr().err
+    rc, _, err = run_cli(args, capsys)
+    return rc, err
 
 
 def run_args(path: str, out: str, *extra: str) -> list[str]:
