@@ -312,6 +312,9 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
         return RunFolder(out, "new")
     if not out.is_dir():
         raise RunFolderError(f"results folder {out} is not a folder; choose another --out")
+    held = live_lock_error(out)
+    if held is not None:  # a live run may not have written its marker yet: its lock is the reason
+        raise held
     marker = out / MARKER_FILE
     if marker.exists():
         try:
@@ -529,6 +532,30 @@ class RunLock:
         if self.created_dir:
             with contextlib.suppress(OSError):
                 self.out.rmdir()  # only succeeds when empty
+
+
+def live_lock_error(out: Path) -> FolderInUseError | None:
+    """The error a run gets for ``out`` while another process holds its lock, found without
+    writing anything (a shared ``flock`` probe on a read-only descriptor); None when the
+    lock is free, absent, or held by this process."""
+    path = out / LOCK_FILE
+    if str(out.resolve()) in _HELD_PATHS:
+        return None
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError as exc:
+        if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+            return None
+        return RunLock(out).in_use(LockHolder.parse(os.pread(fd, 65536, 0).decode("utf-8", "replace")))
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager

@@ -4,6 +4,7 @@ answer claimed as converged."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import socket
@@ -22,7 +23,8 @@ from contactbench.harness import cli
 from contactbench.harness.table.meta import read_meta
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
 from contactbench.harness import run_benchmark
-from contactbench.harness.table.store import LOCK_FILE, FolderInUseError, RunLock, load_table, write_table
+from contactbench.harness.table.store import (LOCK_FILE, FolderInUseError, RunLock, load_table, read_run_folder,
+                                              write_table)
 from contactbench.problems.scenes import SceneConfig
 from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.problems.units import (
@@ -64,6 +66,27 @@ class Blocking(Solver):
             time.sleep(0.05)
         return Outcome(np.zeros(ctx.n), 1, False, "released")
 '''
+
+
+def test_a_live_lock_is_the_reason_before_the_run_has_written_its_marker(tmp_path: Path) -> None:
+    """The window between a run taking its folder's lock and writing its marker: the folder
+    holds the lock and other files but no marker.  A second run is told the folder is in
+    use (naming the holder), not that it is foreign; once the lock is free, it is foreign."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "_cache").mkdir()
+    holder = {"pid": os.getpid(), "host": socket.gethostname(), "started": "now", "started_epoch": 0.0, "command": ""}
+    fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # another open file description: as another process
+        os.write(fd, json.dumps(holder).encode())
+        with pytest.raises(FolderInUseError, match=f"in use by another run: PID {os.getpid()} on host"):
+            read_run_folder(out, lambda config: config)
+        assert sorted(p.name for p in out.iterdir()) == ["_cache", LOCK_FILE]  # nothing written
+    finally:
+        os.close(fd)  # the lock is released with its descriptor
+    with pytest.raises(Exception, match="is not a contactbench run folder"):
+        read_run_folder(out, lambda config: config)
 
 
 @pytest.mark.slow
