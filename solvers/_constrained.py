@@ -264,16 +264,11 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         last = free
         ctx.record(first + it - 1 + extra, kkt)
         run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta if load else None, finish_rounds=extra)
-        if run.converged or ctx.expired() or not math.isfinite(kkt):
-            return run
-        if it - 1 + extra >= max_iter:  # the finish's rounds spent the rest
-            return run
-        if watch.stuck(kkt) and can_finish(state, delta, u):
-            watch.restart()
-            fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
-            if fin.converged:
-                return fin
-            extra, reset = fin.finish_rounds, True
+        done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter)
+        if done is not None:
+            return done
+        if finished is not None:  # an exact finish ran and did not converge: restart the direction
+            extra, reset = finished, True
             continue
         if not np.any(free):  # no point can move: degenerate set
             return _broke_down(ctx, state, u, run, first, max_iter)
@@ -305,6 +300,22 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         reset = bool(entering.size)
         G_old = G
     return replace(run, iterations=max_iter, converged=False)
+
+
+def _loop_head(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float, run: CCGRun, watch: Stagnation,
+               first: int, max_iter: int) -> tuple[CCGRun | None, int | None]:
+    """What both constrained loops decide at the head of an iteration, ``run`` just
+    recorded: (the run to return, None) when it converged, the deadline passed, the error
+    is not finite, the finish's rounds spent the iterations, or a stagnation's exact finish
+    converged; (None, the finish's rounds) when that finish ran and did not converge (the
+    caller restarts its direction); (None, None) to go on."""
+    if run.converged or ctx.expired() or not math.isfinite(run.kkt) or run.iterations >= max_iter:
+        return run, None
+    if watch.stuck(run.kkt) and can_finish(state, delta, u):
+        watch.restart()
+        fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
+        return (fin, None) if fin.converged else (None, fin.finish_rounds)
+    return None, None
 
 
 def _finish_inside(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float, run: CCGRun,
@@ -394,16 +405,11 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
         kkt, delta, _ = _checked(ctx, state, u)
         ctx.record(first + it - 1 + extra, kkt)
         run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta, finish_rounds=extra)
-        if run.converged or ctx.expired() or not math.isfinite(kkt):
-            return run
-        if it - 1 + extra >= max_iter:  # the finish's rounds spent the rest
-            return run
-        if watch.stuck(kkt) and can_finish(state, delta, u):
-            watch.restart()
-            fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
-            if fin.converged:
-                return fin
-            extra = fin.finish_rounds
+        done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter)
+        if done is not None:
+            return done
+        if finished is not None:  # an exact finish ran and did not converge: restart the direction
+            extra = finished
             _, res = _dual_residual(state, u, c)
             d = inward(-_dual_direction(M, res), state, res, u)
             continue
