@@ -43,6 +43,7 @@ from typing import Any, NoReturn, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import memory_budget_scope
+from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
 
 from contactbench.plugins import did_you_mean
@@ -251,8 +252,6 @@ def option_lines() -> list[str]:
     """``list options``: each record of ``problems.scenes.options.OPTIONS`` -- flag, kind,
     unit, ranges, what it requires or excludes -- and the scenes that read it (their
     ``Scene.options``)."""
-    from contactbench.problems.scenes import all_scenes
-
     scenes = all_scenes()
     lines = []
     for rec in OPTIONS:
