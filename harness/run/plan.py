@@ -36,8 +36,7 @@ from contactbench.problems.scenes.base import StepSizes
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers.base import ProblemTraits
 from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, load_solver,
-                                           parse_solver_spec,
-                                           register, split_solver_list)
+                                           parse_solver_spec, register, split_solver_list, split_solver_spec)
 
 from ..profiles import get_profile
 from ..table.files import canonical_json
@@ -223,8 +222,8 @@ def resolve_solver_names(requested: Sequence[str] | str | None, study_default: S
                 register(solver, replace=True)
             names.append(SolverSpec(solver.name, spec.params).label)
         return names
-    if study_default:
-        return [s for s in study_default if s in all_solvers()]
+    if study_default:  # a study's name[k=v] is kept when its base is registered
+        return [s for s in study_default if split_solver_spec(s)[0] in all_solvers()]
     return list(available_solvers())
 
 
