@@ -18,8 +18,11 @@ harness/judging.py at profile "high" (tol 1e-9, check 1e-8):
 
 * ASPHER: ``aspher-pcg``, ``aspher-nested``, ``aspher-nested-f32``, ``aspher-active-f32``
   (solvers/peer_aspher.py);
-* ours: ``fast-dual-pccg`` (its defaults) and ``fast-dual-pccg[precondition=fourier]``
-  (Vollebregt's |q| preconditioner: the idea ASPHER's preconditioner is built on);
+* ours: ``fast-dual-pccg`` (its defaults), ``fast-dual-pccg[precondition=fourier]``
+  (Vollebregt's |q| preconditioner: the idea ASPHER's preconditioner is built on),
+  ``fast-dual-pccg[precision=mixed]`` (float32 rounds at every size) and
+  ``fast-dual-pccg[whole-double]`` (no screening, float64: every point carried in double,
+  what screening and the float32 rounds save);
 * the field: ``cm-pk-ccg``, ``tamaas-pkr`` (both pose load control), ``cm-dual-ccg``;
 * the *displacement twin* (``posing = "twin"``): the displacement-controlled problem at the
   approach Delta of ``fast-dual-pccg``'s load-controlled answer -- the same solution, posed
@@ -92,6 +95,9 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("aspher-active-f32", "aspher-active-f32"),
     Entry("fast-dual-pccg", "fast-dual-pccg"),
     Entry("fast-dual-pccg[fourier]", "fast-dual-pccg", (("precondition", "fourier"),)),
+    Entry("fast-dual-pccg[mixed]", "fast-dual-pccg", (("precision", "mixed"),)),
+    # every point carried in float64: what screening and the float32 rounds save
+    Entry("fast-dual-pccg[whole-double]", "fast-dual-pccg", (("precision", "double"), ("screening", "none"))),
     Entry("cm-pk-ccg", "cm-pk-ccg"),
     Entry("tamaas-pkr", "tamaas-pkr"),
     Entry("cm-dual-ccg", "cm-dual-ccg"),
@@ -253,7 +259,8 @@ def solve_entry(pr: Problem, entry: Entry, delta: float | None, timeout: float, 
 def run_child(pr: Problem, entry: Entry, delta: float | None, args: argparse.Namespace, commit: str) -> AspherRow:
     """The row of one solve in a child process; a "timeout"/"failed" row when it gives none."""
     cmd = [sys.executable, __file__, "--child", f"{pr.key}#{entry.label}", "--timeout", str(args.timeout),
-           "--commit", commit] + (["--delta", repr(delta)] if delta is not None else [])
+           "--commit", commit, "--load-per-slope", repr(args.load_per_slope)] + \
+        (["--delta", repr(delta)] if delta is not None else [])
     env = dict(os.environ)
     if args.threads:
         env.update({v: str(args.threads) for v in THREAD_VARS})
@@ -446,6 +453,7 @@ def child(args: argparse.Namespace) -> None:
 
 
 def main() -> None:
+    global LOAD_PER_SLOPE
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES))
     ap.add_argument("--families", default=",".join(FAMILIES))
@@ -456,6 +464,8 @@ def main() -> None:
                     "bench_surface_population's)")
     ap.add_argument("--entries", default=",".join(BY_LABEL))
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit of one solve (s)")
+    ap.add_argument("--load-per-slope", type=float, default=LOAD_PER_SLOPE,
+                    help=f"P / (E* A) per unit of rms slope (default {LOAD_PER_SLOPE})")
     ap.add_argument("--threads", type=int, default=None, help="OpenMP/BLAS/FFT threads of every entry "
                     "(default: all cores)")
     ap.add_argument("--out", default="results/peers")
@@ -465,6 +475,7 @@ def main() -> None:
     ap.add_argument("--delta", type=float, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--commit", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    LOAD_PER_SLOPE = args.load_per_slope  # the problems' load, in this process and each child's
     if args.child:
         child(args)
         return

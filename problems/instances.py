@@ -145,18 +145,19 @@ class QP:
         geom = None if self.geometry is None else self.geometry.subset(pos)
         return QP(self.H.restrict(pos), self.ubar[pos], geom, self.constraints.restrict(pos))
 
-    def can_touch(self, load: float) -> np.ndarray | None:
+    def can_touch(self, load: float, approach: float = 0.0) -> np.ndarray | None:
         """Positions that can carry force in the solution if its total force sum(p) is at
-        most ``load`` (a safe screening rule): with f <= H_ij for all i, j
-        (``ContactOperator.entry_floor``) and p >= 0, w_i = (Hp)_i - ubar_i >= f sum(p) -
-        ubar_i >= f load - ubar_i, so w_i = 0 needs ubar_i >= f load.  With an
-        aperiodic kernel (f = 0) this is the rigid-body set {ubar >= 0}; with a periodic
-        one (f < 0, the surface rises between contacts) a margin below it.  None when the
-        operator has no entry floor."""
+        most ``load`` and its approach (the load equality's multiplier Delta; 0 without
+        one) at most ``approach`` (a safe screening rule): with f <= H_ij for all i, j
+        (``ContactOperator.entry_floor``) and p >= 0, w_i = (Hp)_i - ubar_i - Delta >=
+        f sum(p) - ubar_i - Delta >= f load - ubar_i - approach, so w_i = 0 needs
+        ubar_i >= f load - approach.  With an aperiodic kernel (f = 0) and no approach this
+        is the rigid-body set {ubar >= 0}; with a periodic one (f < 0, the surface rises
+        between contacts) a margin below it.  None when the operator has no entry floor."""
         floor = self.H.entry_floor()
         if floor is None:
             return None
-        return np.flatnonzero(self.ubar >= floor * max(float(load), 0.0))
+        return np.flatnonzero(self.ubar >= floor * max(float(load), 0.0) - float(approach))
 
 
 @dataclass

@@ -479,11 +479,9 @@ class FastSolver(Solver):
         return False
 
     def iterate(self, ctx: SolveContext) -> Outcome:
-        """``iterate_on`` the QP's screened set (solvers/_screen.py), or on the whole QP --
-        always the whole QP under load control: the screening rule bounds the gap at
-        Delta = 0, and the approach Delta is an unknown there."""
-        if ctx.constraints.load_control:
-            return self.iterate_on(ctx)
+        """``iterate_on`` the QP's screened set (solvers/_screen.py; under load control
+        bounded by the rounds' approach), or on the whole QP where screening is off or
+        does not pay."""
         return solve_screened(ctx, self.iterate_on)
 
     @abstractmethod

@@ -15,10 +15,10 @@ QP of Bemporad & Paggi 2015, eq. (5)):
    g + H32 d and float32 round-off scales with the correction, not with p;
 4. p <- max(p + d, 0) and repeat.
 
-Constraints beyond p >= 0 (a hardness, a load equality: ``problems.constraints``) run in
-double throughout, reported as ``info["precision"] = "double (constraints)"``: the
-anchored correction problem would need the box shifted by p and the load equality on the
-correction (sum d = 0) in each loop, which the float32 rounds do not pose.
+Constraints beyond p >= 0 (a hardness, a load equality: ``problems.constraints``) are
+posed by the same loops: the anchored state iterates on the variable p + d itself, so
+the box 0 <= p + d <= u and the load sum(p + d) = P are the loop's own constraints, and
+only the gap's update runs in float32.
 
 If a round fails to shrink the float64 error by ``MIN_ROUND_GAIN`` (float32 cannot go
 further, or the loop stalled), the same loop finishes in float64 from there, so the
@@ -142,13 +142,9 @@ def refine(ctx: SolveContext, state: GapState, loop: Loop, M: SetPreconditioner 
 def solve_in_precision(ctx: SolveContext, state: GapState, loop: Loop, M: SetPreconditioner | None,
                        first: int = 0) -> tuple[CCGRun, dict[str, Any]]:
     """``loop`` from ``state`` in the precision of ``ctx.params["precision"]`` (default
-    double; always double under constraints, module doc); the run and its matvecs by
-    precision.  The trace numbers iterations from ``first``."""
+    double); the run and its matvecs by precision.  The trace numbers iterations from
+    ``first``."""
     mixed = resolved_precision(ctx.params.get("precision", "double"), ctx.qp) == "mixed"
-    if mixed and not ctx.constraints.plain:
-        tally = MatvecTally(ctx.qp.H, None)
-        run = loop(ctx, state, M, first=first)
-        return run, {"precision": "double (constraints)", **tally.info()}
     H32 = low_precision(ctx.qp.H) if mixed else None
     if H32 is not None and H32 is not ctx.qp.H:
         ctx.track(H32)

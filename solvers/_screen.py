@@ -21,6 +21,16 @@ sum(p) <= L, only the points with ubar_i >= f L (f = min H_ij <= 0) can be in co
 4. else T grows by can_touch(``LOAD_MARGIN`` x the new load) and the points off T with
    w < 0, and the solve goes on from p, warm.
 
+Load control (sum(p) = P given, the approach Delta the unknown multiplier): the rule is
+``QP.can_touch(P, Delta_b)`` -- a point can touch only if ubar_i >= f P - Delta_b for any
+Delta_b >= Delta -- with Delta_b = ``LOAD_MARGIN`` x the round's Delta (``approach_bound``).
+The first round's Delta is a guess: ``COLD_APPROACH_FACTOR`` x ``approach_floor``, the
+approach at which the points, each pressed alone (stiffness 1/H_ii), would carry P; with
+an aperiodic kernel (H_ij >= 0) the true Delta is never below it (p_i <= (ubar_i + Delta)
+/ H_ii at a contact point).  The round's own Delta then bounds the next set.  A round on
+a set that cannot carry the load (a hardness: sum(u_T) < P) is not run: the set grows
+until it can, or the whole problem is solved.
+
 The answer is judged on the whole problem (step 3), so screening changes which points
 the loop carries, never the fixed point (a round solved on T whose answer fails on the
 whole problem while T cannot grow ends "stalled", never as if the iterations ran out): a solution of the restricted QP with w >= 0
@@ -34,7 +44,12 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any, Callable
 
+import math
+
 import numpy as np
+
+from contactbench.problems.constraints import fit_multiplier
+from contactbench.problems.instances import QP
 
 from .base import Outcome, Param, SolveContext, Status
 
@@ -47,6 +62,9 @@ MAX_SCREENED_FRACTION = 0.5
 #: A cold start's first round runs on the rigid-body set, a guess: it is solved only to
 #: this scaled KKT error, enough to bound the load for the next round.
 COLD_ROUND_TOL = 1e-3
+
+#: Load control: the first round's approach is this many times ``approach_floor``.
+COLD_APPROACH_FACTOR = 3.0
 
 #: The values of a fast solver's ``screening`` parameter.
 SCREENINGS = ("safe", "none")
@@ -61,17 +79,69 @@ def screening_param() -> Param:
                  choices=SCREENINGS)
 
 
-def touching(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
-    """can_touch(LOAD_MARGIN sum(p)) plus the support of p (None: the operator has no
-    entry floor)."""
-    touch = ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p)))
-    return None if touch is None else np.union1d(touch, np.flatnonzero(p > 0.0))
+def approach_floor(qp: QP) -> float:
+    """Under load control, the approach Delta_0 at which sum_i max(ubar_i + Delta_0, 0) /
+    H_ii = P: the load the points would carry each pressed alone (module doc); 0 without a
+    positive load.  Water-filling over the points in the order they touch, read from the
+    highest ``k`` only (a partition, not a sort of the grid), k widened until the level
+    falls inside them."""
+    load = qp.constraints.load
+    if load is None or not load > 0.0:
+        return 0.0
+    depth = -qp.ubar  # how far each point lies below the rigid body's first touch
+    reach = load * float(np.max(qp.H.diagonal()))  # P / stiffness, stiffness 1 / max H_ii
+    n = depth.size
+    k = min(n, max(1024, n // 64))
+    while True:
+        part = np.partition(depth, k - 1) if k < n else depth
+        top = np.sort(part[:k])
+        beyond = float(np.min(part[k:])) if k < n else math.inf
+        levels = (reach + np.cumsum(top)) / np.arange(1, k + 1)  # Delta when the first j points touch
+        inside = levels <= np.append(top[1:], beyond)
+        if inside.any():
+            return float(levels[np.argmax(inside)])
+        k = min(n, 8 * k)
+
+
+def approach_bound(delta: float) -> float:
+    """An approach a little beyond ``delta`` (``LOAD_MARGIN``, on either sign)."""
+    return delta + (LOAD_MARGIN - 1.0) * abs(delta)
+
+
+def touching(ctx: SolveContext, p: np.ndarray, approach: float | None = None) -> np.ndarray | None:
+    """The points that can touch plus the support of p (None: the operator has no entry
+    floor, or under a hardness the set cannot carry the load): can_touch(LOAD_MARGIN
+    sum(p)) under displacement control; under load control can_touch(P,
+    ``approach_bound(approach)``), the approach defaulting to the first round's guess
+    (module doc)."""
+    c = ctx.constraints
+    if c.load_control:
+        delta = COLD_APPROACH_FACTOR * approach_floor(ctx.qp) if approach is None else approach
+        touch = ctx.qp.can_touch(float(c.load), approach_bound(delta))
+    else:
+        touch = ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p)))
+    if touch is None:
+        return None
+    T = np.union1d(touch, np.flatnonzero(p > 0.0))
+    if c.load_control and c.upper is not None and float(np.sum(c.upper[T])) < float(c.load):
+        return None
+    return T
 
 
 def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
     """``touching`` at the start p, or None when it is unknown or not small enough to pay."""
     T = touching(ctx, p)
     return T if T is not None and T.size <= MAX_SCREENED_FRACTION * ctx.n else None
+
+
+def round_approach(ctx: SolveContext, out: Outcome, p: np.ndarray, w: np.ndarray) -> float | None:
+    """Under load control the round's Delta (its loop's multiplier, else fitted from the
+    whole problem's p and w); None without a load."""
+    if not ctx.constraints.load_control:
+        return None
+    if out.multiplier is not None and math.isfinite(out.multiplier):
+        return float(out.multiplier)
+    return float(fit_multiplier(w, p, ctx.constraints.upper))
 
 
 def merged_info(rounds: list[dict[str, Any]]) -> dict[str, Any]:
@@ -110,12 +180,16 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
         p = np.zeros(ctx.n)
         p[T] = np.maximum(out.p, 0.0)
         w = ctx.qp.H.matvec(p) - ctx.qp.ubar
-        kkt = ctx.kkt(p, w)
+        delta = round_approach(ctx, out, p, w)
+        kkt = ctx.kkt(p, w, delta)
         ctx.record(used, kkt)
         out_of_iterations = ctx.max_iter is not None and used >= ctx.max_iter
         if kkt <= ctx.tol or not out.converged or ctx.expired() or out_of_iterations:
             break
-        grown = np.union1d(touching(ctx, p), np.union1d(T, np.flatnonzero(w < 0.0)))
+        touch = touching(ctx, p, delta)
+        if touch is None:  # the grown set cannot carry the load: the whole problem
+            touch = np.arange(ctx.n)
+        grown = np.union1d(touch, np.union1d(T, np.flatnonzero(w - (delta or 0.0) < 0.0)))
         if grown.size == T.size and sub.tol == ctx.tol:  # solved on T, not on the whole: T cannot grow
             stuck = True
             break
@@ -124,4 +198,4 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
     status = None if kkt <= ctx.tol else Status.STALLED if stuck else out.status
     return Outcome(p, used, kkt <= ctx.tol, f"scaled KKT error {kkt:.3e} after {used} iterations "
                    f"on {T.size} of {ctx.n} points ({len(infos)} screening rounds)", w=w,
-                   status=status, info=info)
+                   status=status, info=info, multiplier=delta)

@@ -158,6 +158,11 @@ class ADMM(Solver):
                     break
         return Outcome(p, i, converged, message, w=w, status=status)
 
+    def memory_estimate(self, n: int) -> float:
+        """The dense path's Cholesky factor of H/rho + I (n^2 floats) and six vectors (the
+        matrix-free path needs the vectors only; the estimate is the larger)."""
+        return 8.0 * n * n + 6 * 8.0 * n
+
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         per = matvec_seconds(n, "dense") if operator_kind == "dense" else 20 * matvec_seconds(n, "fft")
         return TYPICAL_ADMM_ITERATIONS * per

@@ -32,9 +32,10 @@ Hardness and load (``problems.constraints``): all four pose a hardness (the box
 0 <= p <= u): the Polonsky-Keer ones with Almqvist's saturation, the Bugnicourt ones by
 projection onto the box (solvers/_ccg.py, ``bugnicourt``).  All four pose load control
 as well (sum(p) = P, the approach Delta reported as the multiplier: solvers/_constrained.py,
-``polonsky_keer_box`` and ``bugnicourt_load``).  Under constraints: precision is double (solvers/_refine.py), the coarse
-first guess is ignored, and a load-controlled QP is not screened (solvers/_ccg.py,
-``FastSolver.iterate``).  Without constraints: the same iterates as before they existed.
+``polonsky_keer_box`` and ``bugnicourt_load``).  Under constraints the float32 rounds pose
+them too (solvers/_refine.py), a load-controlled QP is screened by the approach
+(solvers/_screen.py), and the coarse first guess is ignored.  Without constraints: the
+same iterates as the plain loops.
 """
 
 from __future__ import annotations

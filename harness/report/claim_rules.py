@@ -185,6 +185,9 @@ def judge(measured: object, rule: Rule, evidence: str, spread: float = 0.0, test
 # The claims: one rule each (the ledger's table; docs/claims.md says how to add one)
 # ---------------------------------------------------------------------------
 
+#: The paper's largest problem, Figs. 4-6 (sec. 4, tex 1030-1031: "for the highest
+#: indentation we have n = 35555").
+PAPER_N = 35_555
 #: "Rare": a greedy failure share at most this.
 RARE = 0.05
 #: "Significantly reduces": at most this share of the cold iterations.

@@ -407,3 +407,39 @@ def test_a_near_tie_from_one_repeat_is_unresolved_not_holds() -> None:
     r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "dense")
     assert r["repeats"] == 1 and math.isnan(r["spread"])
     assert r["measured"] < 1.0 and r["verdict"] == "unresolved"
+
+
+def test_a_claim_measured_below_the_papers_n_says_what_the_papers_n_would_need() -> None:
+    """ADMM and the greedy solvers answered at n <= 200 only: each Fig. 4-5 claim that needs
+    them gets an ``unmeasured`` row at the paper's n naming them, their largest n and what
+    their models say; once each has answered there, the row is gone."""
+    led = cl.ledger(_table())
+    r = _one(led, "fig4-admm-over-nnlsgp", "dense", size=f"n = {cr.PAPER_N}")
+    assert r["verdict"] == "unmeasured" and "admm" in r["evidence"] and "GiB" in r["evidence"]
+    assert "largest n answered here 200" in r["evidence"]
+    r = _one(led, "fig5-chol-over-cg", "dense", size=f"n = {cr.PAPER_N}")
+    assert "greedy-chol" in r["evidence"] and "greedy-cg" in r["evidence"]
+    big = pd.DataFrame(_rows("greedy-linear-solvers", "dense", {"admm": [1.0]}))
+    big["n"] = cr.PAPER_N - 300
+    led = cl.ledger(pd.concat([_table(), big]))
+    assert not ((led["claim"] == "fig4-admm-over-nnlsgp") & led["n_or_size"].str.startswith("n = ")).any()
+    assert ((led["claim"] == "fig4-greedy-over-nnlsgp") & led["n_or_size"].str.startswith("n = ")).any()
+
+
+def test_a_paired_median_gets_its_spread_from_the_repeats() -> None:
+    """Fig. 5's median over steps of t(greedy-chol) / t(greedy-cg): 0.65 (inside the
+    paper's 0.6-0.7) from repeats reading 0.5, 0.65 and 0.8 is unresolved, never holds; the
+    same median from tight repeats holds."""
+    def fig5(chol: list[float]) -> pd.DataFrame:
+        out = []
+        for r, c in enumerate(chol):
+            for row in _rows("greedy-linear-solvers", "dense", {"greedy-chol": [c, c], "greedy-cg": [1.0, 1.0]}):
+                row["repeat"] = r
+                out.append(row)
+        return pd.DataFrame(out)
+
+    r = _one(cl.ledger(fig5([0.5, 0.65, 0.8])), "fig5-chol-over-cg", "dense")
+    assert r["repeats"] == 3 and r["spread"] == pytest.approx(0.3 / 0.65)
+    assert r["verdict"] == "unresolved"
+    r = _one(cl.ledger(fig5([0.649, 0.65, 0.651])), "fig5-chol-over-cg", "dense")
+    assert r["verdict"] == "holds"

@@ -13,6 +13,7 @@ from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings, WarmStart
 from contactbench.solvers.registry import get_solver
+from contactbench.solvers._screen import approach_floor
 
 CCGS = ["fast-ccg", "fast-dual-ccg", "fast-pccg", "fast-dual-pccg", "fast-pdas"]
 HIGH = 1e-9
@@ -108,3 +109,59 @@ def test_a_cold_first_round_is_only_a_guess_and_the_solve_still_converges(name):
     exact = solve(name, qp, "none").p
     assert kkt_check(qp, res.p).kkt_error <= HIGH
     assert relative_error(res.p, exact) <= 1e-6
+
+
+# ---------------------------------------------------------------------------
+# Load control: the approach bounds the set (QP.can_touch(P, Delta_b))
+# ---------------------------------------------------------------------------
+
+LOAD_CCGS = ["fast-ccg", "fast-dual-ccg", "fast-pccg", "fast-dual-pccg"]
+
+
+@pytest.fixture(scope="module", params=["aperiodic", "periodic"])
+def loaded(request):
+    """A 64^2 rough surface under load control on the whole grid (n = N^2), at the load
+    of the paper's top step, with its unscreened answer and approach."""
+    periodic = request.param == "periodic"
+    s = rmd_surface_n(64, 0.7, "periodic" if periodic else "saupe", length=100e-6, seed=5)
+    b = InstanceBuilder(s, 1e9, "spectral" if periodic else "bcc", periodic=periodic)
+    disp = solve("fast-dual-pccg", b.build(0.5 * paper_max_displacement(s)).qp, "none")
+    inst = b.build_load(float(disp.p.sum()))
+    exact = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=HIGH, params={"screening": "none"}))
+    assert exact.converged and "screened_size" not in exact.info
+    return inst, exact
+
+
+def test_the_approach_floor_is_below_the_approach(loaded):
+    """approach_floor (each point pressed alone) never exceeds the exact approach on a
+    kernel with no negative entry; the rule at the exact approach keeps the contact set."""
+    inst, exact = loaded
+    if inst.qp.H.entry_floor() == 0.0:
+        assert 0.0 < approach_floor(inst.qp) <= exact.multiplier
+    T = inst.qp.can_touch(float(inst.qp.constraints.load), exact.multiplier)
+    assert np.all(np.isin(np.flatnonzero(exact.p > 0.0), T)) and T.size < inst.n
+
+
+@pytest.mark.parametrize("name", LOAD_CCGS)
+def test_a_load_controlled_solve_is_screened_and_gives_the_whole_answer(loaded, name):
+    inst, exact = loaded
+    res = solve(name, inst.qp, "safe")
+    assert res.converged, res.message
+    assert res.info["screened_size"] < 0.5 * inst.n
+    assert kkt_check(inst, res.p, res.multiplier).kkt_error <= HIGH
+    assert relative_error(res.p, exact.p) <= 1e-6
+    assert res.multiplier == pytest.approx(exact.multiplier, rel=1e-6)
+    assert float(res.p.sum()) == pytest.approx(float(inst.qp.constraints.load), rel=1e-12)
+
+
+@pytest.mark.parametrize("factor", [1e-3, 0.3])
+def test_a_load_controlled_first_set_too_small_grows(loaded, factor, monkeypatch):
+    """A first guess of the approach far below the answer: the first round's set misses
+    contact points, its own approach bounds the next set, and the answer holds."""
+    import contactbench.solvers._screen as screen  # noqa: PLC0415 -- the guess's factor, patched
+    monkeypatch.setattr(screen, "COLD_APPROACH_FACTOR", factor)
+    inst, exact = loaded
+    res = solve("fast-dual-pccg", inst.qp, "safe")
+    assert res.converged and res.info["screened_rounds"] >= 2, res.message
+    assert relative_error(res.p, exact.p) <= 1e-6
+    assert res.multiplier == pytest.approx(exact.multiplier, rel=1e-6)
