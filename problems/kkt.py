@@ -227,6 +227,8 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
     delta = candidate_multiplier(g, p, constraints, multiplier)
     if not math.isfinite(delta):
         return _all_infinite(u_s, p_s, delta)
+    if constraints.upper is None:  # a load equality alone: the same figures in fewer passes
+        return _load_figures(p, g - delta, constraints, u_s, p_s, delta)
     u = constraints.upper_or_inf(p.size)
     bounded = np.isfinite(u)
     with np.errstate(all="ignore"):
@@ -242,6 +244,19 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
         comp = worst(float(np.max(lower, initial=0.0)), float(np.max(upper, initial=0.0)))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)
+    return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
+
+
+def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: float, p_s: float,
+                  delta: float) -> KKTFigures:
+    """``constrained_figures`` with no upper bound (u = inf everywhere), w = g - Delta:
+    primal from min(p), dual from max(-w), complementarity from max(|p| |w|), each scaled
+    as there."""
+    with np.errstate(all="ignore"):
+        primal = worse(float(np.float64(_negative_part(float(np.min(p, initial=0.0)))) / p_s))
+        dual = worse(float(np.maximum(-np.min(w, initial=0.0), 0.0) / np.float64(u_s)))
+        comp = worse(float(np.max(np.abs(p) / p_s * (np.abs(w) / u_s), initial=0.0)))
+    equality = _equality(p, constraints, p_s)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
 
 

@@ -210,13 +210,17 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
 
 def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
     """(KKT error, Delta, free set) of the state.  Under load control the error is the
-    worse of the two readings of Delta: the loop's (the mean gap over the interior) and
-    the one a judge fits from p alone (``fit_multiplier``, what ``SolveContext.kkt``
-    takes without one), so a converged answer passes either way."""
+    loop's reading of Delta (the mean gap over the interior) and, once that meets the
+    tolerance, the worse of it and the one a judge fits from p alone (``fit_multiplier``,
+    what ``SolveContext.kkt`` takes without one), so a converged answer passes either way;
+    above the tolerance the second reading, which cannot lower the error, is not taken."""
     delta, free = _approach_and_free_set(state, u, ctx.constraints)
     if not ctx.constraints.load_control:
         return ctx.kkt(state.p, state.g), delta, free
-    return max(ctx.kkt(state.p, state.g, delta), ctx.kkt(state.p, state.g)), delta, free
+    loops = ctx.kkt(state.p, state.g, delta)
+    if not loops <= ctx.tol:
+        return loops, delta, free
+    return max(loops, ctx.kkt(state.p, state.g)), delta, free
 
 
 def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:

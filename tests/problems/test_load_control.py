@@ -8,10 +8,13 @@ be fooled by a wrong, NaN or missing Delta, a load missed, or a non-finite answe
 from __future__ import annotations
 
 import math
+from dataclasses import astuple
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from contactbench.problems.constraints import Constraints, fit_multiplier, make_constraints, project_box_sum
 from contactbench.problems.errors import ProblemInputError
@@ -308,3 +311,20 @@ def test_peers_in_their_native_load_control(name: str) -> None:
     assert r.converged and rep.kkt_error <= 1e-7, (name, rep.kkt_error)
     assert np.max(np.abs(r.p - ref.p)) <= 1e-6 * np.max(ref.p)
     assert abs(r.multiplier - d) <= 1e-6 * d
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=12), st.floats(-1e3, 1e3), st.floats(0.0, 1e4),
+       st.sampled_from([1e-9, 1.0, 1e6]))
+def test_a_load_equality_alone_gives_the_general_figures(values: list[float], delta: float, load: float,
+                                                         scale: float) -> None:
+    """A load equality with no upper bound takes a shorter path through the figures
+    (``kkt._load_figures``); it must give the general path's figures (upper = inf given
+    explicitly) to the last digits, negative forces, NaN-free extremes and all."""
+    p = np.asarray(values) * scale
+    g = np.roll(p, 1) - 0.5 * scale
+    ubar = np.linspace(-1.0, 0.0, p.size) * scale
+    short = constrained_figures(p, g, ubar, 2.0, Constraints(None, load), delta)
+    general = constrained_figures(p, g, ubar, 2.0, Constraints(np.full(p.size, np.inf), load), delta)
+    for a, b in zip(astuple(short), astuple(general)):
+        assert a == pytest.approx(b, rel=1e-14, abs=0.0) or (math.isnan(a) and math.isnan(b)), (short, general)
