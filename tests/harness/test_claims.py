@@ -443,3 +443,11 @@ def test_a_paired_median_gets_its_spread_from_the_repeats() -> None:
     assert r["verdict"] == "unresolved"
     r = _one(cl.ledger(fig5([0.649, 0.65, 0.651])), "fig5-chol-over-cg", "dense")
     assert r["verdict"] == "holds"
+
+
+def test_claims_md_keeps_our_condition_in_its_own_section() -> None:
+    """claims.md: the paper's condition first, ours under "Beyond the paper", no row twice."""
+    md = rc.claims_markdown(cl.ledger(_table()))
+    paper, beyond = md.split("## Beyond the paper")[0], md.split("## Beyond the paper")[1].split("## Fails")[0]
+    assert "| dense |" in paper and "| fft |" not in paper.split("## Ledger")[1]
+    assert "| fft |" in beyond and "| dense |" not in beyond

@@ -127,7 +127,11 @@ def claims_markdown(df: pd.DataFrame) -> str:
            (f"Written by `contactbench report` from `{LEDGER_NAME}` alone: {len(df)} rows, "
            f"{df['claim'].nunique()} claims. Verdicts: {verdict_counts(df)}."), "",
            "Conditions:", *[f"- `{c}` -- {t}." for c, t in CONDITION_TEXT.items()], "", PAPER_SIZE_TEXT, "",
-           "## Ledger", "", ledger_table(df), "",
+           "## Ledger: the paper's condition", "", ledger_table(df[df["condition"] == "dense"]), "",
+           "## Beyond the paper: our condition", "",
+           ("The same claims on FFT operators beside our fast solvers: what the paper's findings become under "
+            "today's methods. A paper claim's verdict above uses the paper's methods only."), "",
+           ledger_table(df[df["condition"] != "dense"]), "",
            "## Fails under the paper's own condition", "", fails_under_paper(df),
            "## With n", "", with_n(df),
            "## Verdict rules", "",
