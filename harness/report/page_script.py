@@ -168,7 +168,7 @@ function build() {
     D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
     if (has) {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));
-      addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
+      if (D.rows.some(r => r.sc === scene && r.perr !== null)) addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
     }
     if (D.pp[scene]) addChart(grid, scene, ppChart(scene));
     if (D.sgm[scene]) {

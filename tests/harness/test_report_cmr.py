@@ -93,6 +93,23 @@ def test_each_cmr_row_is_paired_with_the_direct_solve_of_its_own_base() -> None:
         assert r.surface == "saupe" and r.h == 2.0 and r.coarsest == 16
 
 
+def test_each_base_is_paired_under_its_own_profile() -> None:
+    """The dense base and CMR over it under the paper's profile, the FFT base under another
+    (as paper-claims runs them): both bases are paired, each within its profile, never
+    across; with the dense base also under a second profile, the tightest one is kept."""
+    table, errors = fabricate_cmr()
+    dense = table["base_solver"].isin(["scipy-nnls", "cmr+scipy-nnls"])
+    table.loc[dense, "profile"] = "paper"
+    pairs = rc.cmr_pairs(table)
+    assert len(pairs) == len(errors) and set(pairs["base"]) == {"scipy-nnls", "fast-dual-pccg"}
+    assert set(pairs[pairs["base"] == "scipy-nnls"]["profile"]) == {"paper"}
+    twice = pd.concat([table, table[dense].assign(profile="high")])
+    pairs = rc.cmr_pairs(twice)
+    assert len(pairs) == len(errors)
+    tightest = rp.pick_profile(pd.DataFrame({"profile": ["paper", "high"]}))
+    assert set(pairs[pairs["base"] == "scipy-nnls"]["profile"]) == {tightest}
+
+
 def test_time_ratio_is_summed_over_the_history_and_the_error_is_the_top_steps() -> None:
     table, errors = fabricate_cmr()
     tot = rc.instance_totals(rc.cmr_pairs(table))

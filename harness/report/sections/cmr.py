@@ -181,13 +181,19 @@ def projected_share(cells: pd.DataFrame) -> pd.Series:
 
 
 def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
-    """One row per (instance, step, CMR variant) at the tightest profile where both the CMR
-    solve and its direct solve returned an answer (``ANSWERED``): the CMR solve's
+    """One row per (instance, step, CMR variant) where both the CMR solve and its direct
+    solve returned an answer (``ANSWERED``) under the same profile -- each base at the
+    tightest profile it ran under (``pick_profile``), so a study that ran the dense base
+    under the paper's profile and the FFT base under another shows both: the CMR solve's
     time, load and n_p/n beside its direct base solve's, the load error, the variant's
     base / coarse / h / coarsest and the surface's family / H / seed.  Empty when no CMR
     row has its direct solve."""
-    prof = pick_profile(attempted(rows))
-    cells = per_cell(attempted(rows[rows["profile"] == prof]))
+    done = attempted(rows)
+    if done.empty:
+        return pd.DataFrame()
+    base_of = done["base_solver"].map(wrapped_solver).fillna(done["base_solver"]).to_numpy()
+    tightest = done.groupby(base_of)["profile"].transform(lambda s: pick_profile(pd.DataFrame({"profile": s})))
+    cells = per_cell(done[(done["profile"] == tightest).to_numpy()])
     if cells.empty:
         return pd.DataFrame()
     cells = cells[cells["status"].isin(ANSWERED)]
@@ -199,7 +205,7 @@ def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
     cmr["base"] = inner[is_cmr]
     h, coarse, coarsest = zip(*(variant_params(b, p) for b, p in zip(cmr["base_solver"], cmr["params"])))
     cmr = cmr.assign(h=h, coarse=coarse, coarsest=coarsest, n_p_over_n=projected_share(cmr))
-    keys = ["instance", "step", "history"]
+    keys = ["instance", "step", "history", "profile"]
     d = direct[[*keys, "base_solver", "solve_time_s", "load", "build_time_s", "operator"]].rename(columns={
         "base_solver": "base", "solve_time_s": "direct_solve_s", "load": "direct_load",
         "build_time_s": "direct_build_s", "operator": "direct_operator"})
@@ -253,7 +259,8 @@ def variant_title(v: Variant) -> str:
 
 
 #: Short names of the bases for panel titles.
-BASE_SHORT = {"scipy-nnls": "dense NNLS base (paper)", "fast-dual-pccg": "FFT base fast-dual-pccg"}
+BASE_SHORT = {"scipy-nnls": "dense NNLS base, cold (paper's solver)", "nnls": "dense NNLS base, warm (paper's reference)",
+              "fast-dual-pccg": "FFT base fast-dual-pccg"}
 
 
 def panel_title(v: Variant) -> str:
