@@ -131,3 +131,24 @@ def test_tamaas_kato_is_judged_by_us_not_by_its_load() -> None:
     ref = get_solver("tamaas-pkr").solve(inst.qp, SolverSettings(tol=1e-12)).p
     assert float(np.sum(res.p)) == pytest.approx(float(np.sum(ref)), rel=1e-6)
     assert v.status == "inaccurate" and v.reading == "unconverged" and v.kkt_error > 1e-3
+
+
+def test_cm_pk_skips_periodic_load_control_with_the_reason() -> None:
+    """ContactMechanics' force-controlled PK on our mean-free periodic kernel stops at its
+    uniform start: skipped there with the reason, posed everywhere else (no package needed)."""
+    pk = get_solver("cm-pk-ccg")
+    traits = {"n": 1024, "operator": "fft", "kernel": "spectral"}
+    why = pk.skip(ProblemTraits(periodic=True, load_control=True, **traits))
+    assert why is not None and "stiffness_q0 = 0" in why and "uniform start" in why
+    assert pk.skip(ProblemTraits(periodic=True, load_control=False, **traits)) is None
+    assert pk.skip(ProblemTraits(periodic=False, load_control=True, **{**traits, "kernel": "love"})) is None
+
+
+@needs_cm
+def test_cm_pk_under_periodic_load_control_stops_at_its_uniform_start() -> None:
+    """The finding behind the skip, kept as a test: posed anyway (``iterate`` directly, past
+    the skip), one iteration, every point carrying P / n."""
+    s = rmd_surface_n(32, 0.7, "periodic", length=100e-6, seed=0)
+    inst = InstanceBuilder(s, 1e9, "spectral", periodic=True).build_load(1e-3)
+    r = get_solver("cm-pk-ccg").solve(inst.qp, SolverSettings(tol=1e-9))
+    assert r.iterations <= 1 and np.allclose(r.p, 1e-3 / inst.n, rtol=1e-9)
