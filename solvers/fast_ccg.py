@@ -163,8 +163,9 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     (``_preconditioners.LARGE_GRID_POINTS``, 2048^2 points): from there up, the islands'
     far-field correction ("farfield", solvers/_farfield.py) and mixed precision (float32
     inner sweeps, float64 iterative refinement judged by the float64 KKT error,
-    solvers/_refine.py); below, the islands alone in float64.  ``precondition`` and
-    ``precision`` fix either.  Warm start: primal."""
+    solvers/_refine.py); below, the islands alone in float64 -- except that a load-controlled
+    QP runs mixed from 1024^2 grid points (``_refine.LOAD_MIXED_POINTS``: its whole grid is
+    carried).  ``precondition`` and ``precision`` fix either.  Warm start: primal."""
 
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution
 from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.surfaces import Surface, fourier_synthesis
+from contactbench.solvers._refine import LOAD_MIXED_POINTS, resolved_precision
 from contactbench.solvers.base import SolverSettings, WarmStart
 from contactbench.solvers.registry import available_solvers, get_solver
 
@@ -350,3 +352,18 @@ def test_the_direction_keeps_the_load(square, loaded, name: str, precondition: s
     r = s.solve(nxt.qp, SolverSettings(tol=1e-12, params={"precondition": precondition}), warm=WarmStart(p=p_ref))
     assert r.status == "converged", r.message
     assert r.matvecs <= 1.5 * r.iterations + 2, (r.iterations, r.matvecs)
+
+
+def test_auto_precision_runs_mixed_under_load_control_from_1024_squared() -> None:
+    """The one rule of ``precision="auto"``: mixed from 2048^2 grid points, and from 1024^2
+    under load control (the whole grid carried); double below."""
+    def qp(N: int, load: float | None) -> SimpleNamespace:  # a stand-in: only the grid and constraints are read
+        return SimpleNamespace(geometry=SimpleNamespace(grid_shape=(N, N)), n=N * N,
+                               constraints=Constraints(None, load))
+
+    assert LOAD_MIXED_POINTS == 1024 * 1024
+    assert resolved_precision("auto", qp(1024, 1.0)) == "mixed"
+    assert resolved_precision("auto", qp(1024, None)) == "double"
+    assert resolved_precision("auto", qp(1023, 1.0)) == "double"
+    assert resolved_precision("auto", qp(2048, None)) == "mixed"
+    assert resolved_precision("double", qp(2048, 1.0)) == "double"
