@@ -41,10 +41,9 @@ most ``MAX_SCREENED_FRACTION`` of the unknowns (an aperiodic trial set already i
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Any, Callable
-
-import math
 
 import numpy as np
 

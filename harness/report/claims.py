@@ -488,10 +488,15 @@ def farthest_from_half(per_h: pd.Series) -> float:
     return float(per_h.iloc[int(np.argmax(np.abs(per_h.to_numpy() - 0.5)))]) if len(per_h) else math.nan
 
 
+def fig8_per_h(t8: pd.DataFrame) -> pd.Series:
+    """Fig. 8's median t(CMR) / t(direct) per H at h = 2 of ``instance_totals`` rows."""
+    return t8[t8["h"] == 2.0].groupby("H")["ratio"].median()
+
+
 def fig8_time(rows: pd.DataFrame, condition: str) -> float:
     """``farthest_from_half`` of the ``cmr`` rows given (one repeat's, for the spread)."""
     t8 = cmr_totals(rows, "cmr", condition)
-    return farthest_from_half(t8[t8["h"] == 2.0].groupby("H")["ratio"].median()) if len(t8) else math.nan
+    return farthest_from_half(fig8_per_h(t8)) if len(t8) else math.nan
 
 
 def fig9_time(rows: pd.DataFrame, condition: str, h: float) -> float:
@@ -513,7 +518,7 @@ def fig8_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     t8 = t8[t8["h"] == 2.0]
     size, seeds = f"{int(t8['N'].max())}^2, H = {', '.join(f'{h:g}' for h in sorted(t8['H'].unique()))}", \
         seeds_text(t8["seed"])
-    per_h = t8.groupby("H")["ratio"].median()
+    per_h = fig8_per_h(t8)
     r8 = of_condition(rows, "cmr", condition)
     worst, spread_ = over_repeats(r8, lambda g: fig8_time(g, condition))
     reps = Timing(int(per_cell(r8)["repeats"].min()), spread_)
@@ -551,7 +556,7 @@ def fig9_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     timed, spread_ = over_repeats(r9, lambda g: fig9_time(g, condition, 3.0))
     reps = Timing(int(per_cell(r9)["repeats"].min()), spread_)
     for claim, h, val in (("fig9-np-low-h", 1.25, med["n_p_over_n"]), ("fig9-np-high-h", 3.0, med["n_p_over_n"]),
-                          ("fig9-time-ratio", 3.0, pd.Series({3.0: timed}) if 3.0 in med.index else med["ratio"]),
+                          ("fig9-time-ratio", 3.0, pd.Series({3.0: timed}).dropna()),
                           ("fig9-error", 3.0, err), ("fig9-error-001pct", 3.0, err)):
         out.append(claim_row(claim, condition, float(val.get(h, math.nan)), size, seeds,
                              f"{where}{h:g}" if h in val.index else "",
