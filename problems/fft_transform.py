@@ -50,6 +50,22 @@ def operator_dtype(dtype: object) -> np.dtype:
     return dt
 
 
+def spectral_multiply(f: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """F^-1[m F[f]] for a real 2-D grid ``f`` (overwritten) and a multiplier ``m`` on its
+    rfft2 half-spectrum (the last axis N2 // 2 + 1), in the operator's FFT library
+    (``fft_backend``) on ``fft_workers()`` threads: the periodic convolution the
+    wave-number preconditioner applies (solvers/_preconditioners.py)."""
+    w = fft_workers()
+    if fft_backend() == "scipy":
+        F = sfft.rfft2(f, workers=w, overwrite_x=True)
+        F *= m
+        return sfft.irfft2(F, s=f.shape, workers=w, overwrite_x=True)
+    F = _ducc_fft.r2c(f, axes=(0, 1), nthreads=w)
+    F *= m
+    return _ducc_fft.c2r(F, axes=(0, 1), lastsize=f.shape[1], forward=False, inorm=2, out=f, nthreads=w,
+                         allow_overwriting_input=True)
+
+
 def fft_backend() -> str:
     """FFT library for the operator: "ducc" (ducc0, the default when it is importable)
     or "scipy" (scipy.fft/pocketfft); env CONTACTBENCH_FFT_BACKEND overrides."""

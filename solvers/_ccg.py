@@ -309,17 +309,17 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
             S = state.p > 0.0
             if not np.any(S):  # nothing in contact: the penetrating points enter
                 S = state.g < 0.0
-        r = np.where(S, state.g, 0.0)
+        r = on_set(state.g, S)
         if not np.any(r):  # S is at rest; let the penetrating points in and restart
             S = S | (state.g < 0.0)
-            r, reset = np.where(S, state.g, 0.0), True
+            r, reset = on_set(state.g, S), True
             if not np.any(r):
                 return CCGRun(it - 1, run.kkt, False, stalled=True)
         z = precondition_on(M, r, S)
         G = float(r @ z)
         if not math.isfinite(G):  # a non-finite gap: no step can be taken
             return CCGRun(it - 1, run.kkt, False, stalled=True)
-        t = z if reset or not G_old > 0.0 else np.where(S, z + (G / G_old) * t, 0.0)  # step 3.1
+        t = z if reset or not G_old > 0.0 else on_set(z + (G / G_old) * t, S)  # step 3.1
         q = state.H.matvec(t)
         tq = float(t @ q)
         tau = float(r @ t) / tq if tq > 0.0 else math.nan  # step 3.2
@@ -343,6 +343,13 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
     return CCGRun(max_iter, run.kkt, False)
 
 
+def on_set(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """x on ``mask``, 0 elsewhere, for a finite x: a product, several times faster than
+    np.where on the scattered masks of a contact set (a non-finite x off the mask gives
+    NaN there, which the loops' finiteness tests stop on)."""
+    return x * mask
+
+
 def at_rest(p: np.ndarray, g: np.ndarray, upper: np.ndarray | None = None) -> np.ndarray:
     """The points held by an admissible multiplier: at the lower bound with g >= 0, or at
     the upper bound with g <= 0 (g: the gap, less Delta under load control).  The one
@@ -356,17 +363,17 @@ def at_rest(p: np.ndarray, g: np.ndarray, upper: np.ndarray | None = None) -> np
 
 def dual_residual(state: GapState, upper: np.ndarray | None = None) -> np.ndarray:
     """Gap with the admissible multipliers removed (``at_rest``)."""
-    return np.where(at_rest(state.p, state.g, upper), 0.0, state.g)
+    return on_set(state.g, ~at_rest(state.p, state.g, upper))
 
 
 def inward(d: np.ndarray, state: GapState, res: np.ndarray, upper: np.ndarray | None = None) -> np.ndarray:
     """d, in place, with no component at a point at a bound that is at rest (res = 0) or
     that d would push out of the box (d < 0 at p = 0, d > 0 at p = upper): module doc,
     "Points at the bound"."""
-    np.copyto(d, 0.0, where=(state.p == 0.0) & ((res == 0.0) | (d < 0.0)))
+    keep = (state.p != 0.0) | ((res != 0.0) & (d >= 0.0))
     if upper is not None:
-        np.copyto(d, 0.0, where=(state.p >= upper) & ((res == 0.0) | (d > 0.0)))
-    return d
+        keep &= (state.p < upper) | ((res != 0.0) & (d <= 0.0))
+    return np.multiply(d, keep, out=d)
 
 
 def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,

@@ -79,7 +79,8 @@ import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
 
-from ._ccg import CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, polak_ribiere, precondition_on
+from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, on_set, polak_ribiere,
+                   precondition_on)
 from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
 from .base import SolveContext
@@ -94,7 +95,7 @@ def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray
 def mean_on(x: np.ndarray, mask: np.ndarray) -> float:
     """The mean of x over ``mask`` (0 on an empty mask)."""
     k = int(np.count_nonzero(mask))
-    return float(np.sum(x[mask])) / k if k else 0.0
+    return float(x @ mask) / k if k else 0.0
 
 
 def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
@@ -112,6 +113,10 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
     if c.load is None:
         return p
     load = float(c.load)
+    total = float(np.sum(p))
+    if c.upper is None and total > 0.0 and float(np.min(p)) >= 0.0:  # no box: every force scaled (the branch below, in one pass)
+        p *= load / total
+        return p
     sat = p >= u
     free = (p > 0.0) & ~sat
     rest, carried = load - float(np.sum(p[sat])), float(np.sum(p[free]))
@@ -180,15 +185,16 @@ def constrained_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
 
 
 def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """z (= M^-1 r on ``free``, 0 elsewhere) projected onto {sum over free = 0} in the
-    metric of M: z - (1'z / 1'M^-1 1) M^-1 1 (module doc); z - mean(z_free) without M."""
+    """z (= M^-1 r on ``free``, 0 elsewhere, M acting on ``free``) projected onto {sum over
+    free = 0} in the metric of M: z - (1'z / 1'M^-1 1) M^-1 1 (module doc); z - mean(z_free)
+    without M."""
     if M is None:
-        return np.where(free, z - mean_on(z, free), 0.0)
-    m1 = np.where(free, M.apply(free.astype(np.float64)), 0.0)
+        return on_set(z - mean_on(z, free), free)
+    m1 = on_set(M.ones(), free)
     den = float(np.sum(m1))
     if not den > 0.0:  # M^-1 not positive on 1 (cannot happen for an SPD M): plain projection
-        return np.where(free, z - mean_on(z, free), 0.0)
-    return np.where(free, z - (float(np.sum(z[free])) / den) * m1, 0.0)
+        return on_set(z - mean_on(z, free), free)
+    return on_set(z - (float(z @ free) / den) * m1, free)
 
 
 def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
@@ -198,14 +204,14 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
     interior and the plastic points that want to shed force, or when no point is inside
     every point that wants to move (module doc)."""
     p, g = state.p, state.g
-    interior = (p > 0.0) & (p < u)
+    interior = p > 0.0 if c.upper is None else (p > 0.0) & (p < u)
     inside = bool(np.any(interior))
     delta = 0.0
     if c.load is not None:
         delta = mean_on(g, interior) if inside else fit_multiplier(g, p, c.upper)
     if not inside:
         return delta, wants_to_move(p, g - delta, u)
-    return delta, interior | ((p >= u) & (g - delta > 0.0))
+    return delta, interior if c.upper is None else interior | ((p >= u) & (g - delta > 0.0))
 
 
 def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
@@ -217,10 +223,16 @@ def _kkt(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, floa
     delta, free = _approach_and_free_set(state, u, ctx.constraints)
     if not ctx.constraints.load_control:
         return ctx.kkt(state.p, state.g), delta, free
+    return _load_kkt(ctx, state, delta), delta, free
+
+
+def _load_kkt(ctx: SolveContext, state: GapState, delta: float) -> float:
+    """The KKT error under load control at the loop's Delta and, once that meets the
+    tolerance, the worse of it and the fitted one (``_kkt``)."""
     loops = ctx.kkt(state.p, state.g, delta)
     if not loops <= ctx.tol:
-        return loops, delta, free
-    return max(loops, ctx.kkt(state.p, state.g)), delta, free
+        return loops
+    return max(loops, ctx.kkt(state.p, state.g))
 
 
 def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, float, np.ndarray]:
@@ -276,16 +288,16 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
             continue
         if not np.any(free):  # no point can move: degenerate set
             return _broke_down(ctx, state, u, run, first, max_iter)
-        r = np.where(free, state.g - delta, 0.0)
-        z = np.where(free, precondition_on(M, r, free), 0.0)
+        r = on_set(state.g - delta, free)
+        z = on_set(precondition_on(M, r, free), free)
         if load:
             z = zero_sum(M, z, free)
         G = float(r @ z)
         if not math.isfinite(G):
             return _broke_down(ctx, state, u, run, first, max_iter)
-        t = z if reset or not G_old > 0.0 else np.where(free, z + (G / G_old) * t, 0.0)
+        t = z if reset or not G_old > 0.0 else on_set(z + (G / G_old) * t, free)
         if load and M is None and not reset:  # P & K: the direction itself sums to zero on F
-            t = np.where(free, t - mean_on(t, free), 0.0)
+            t = on_set(t - mean_on(t, free), free)
         q = state.H.matvec(t)
         tq = float(t @ q)
         tau = float(r @ t) / tq if tq > 0.0 else math.nan
@@ -373,13 +385,13 @@ def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[floa
     w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``)."""
     delta, _ = _approach_and_free_set(state, u, c)
     w = state.g - delta
-    return delta, np.where(at_rest(state.p, w, u), 0.0, w)
+    return delta, on_set(w, ~at_rest(state.p, w, u))
 
 
 def _dual_direction(M: SetPreconditioner | None, res: np.ndarray) -> np.ndarray:
     """z = M^-1 res on the free set {res != 0}, with zero sum there (``zero_sum``)."""
     free = res != 0.0
-    return zero_sum(M, np.where(free, precondition_on(M, res, free), 0.0), free)
+    return zero_sum(M, on_set(precondition_on(M, res, free), free), free)
 
 
 def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
@@ -401,12 +413,16 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     u = c.upper_or_inf(ctx.n)
     feasible_start(ctx, state, u)
     none = np.zeros(0, dtype=np.int64)
-    _, res = _dual_residual(state, u, c)
+    delta, res = _dual_residual(state, u, c)
     d = inward(-_dual_direction(M, res), state, res, u)
     run = CCGRun(0, math.inf, False)
     watch, extra = Stagnation(), 0
-    for it in range(1, max_iter + 1):
-        kkt, delta, _ = _checked(ctx, state, u)
+    for it in range(1, max_iter + 1):  # (delta, res) are the state's at the head of every iteration
+        kkt = _load_kkt(ctx, state, delta)
+        if kkt <= ctx.tol and state.confirm:  # confirmed on a recomputed gap
+            state.refresh()
+            delta, res = _dual_residual(state, u, c)
+            kkt = _load_kkt(ctx, state, delta)
         ctx.record(first + it - 1 + extra, kkt)
         run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta, finish_rounds=extra)
         done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter)
@@ -414,10 +430,9 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             return done
         if finished is not None:  # an exact finish ran and did not converge: restart the direction
             extra = finished
-            _, res = _dual_residual(state, u, c)
+            delta, res = _dual_residual(state, u, c)
             d = inward(-_dual_direction(M, res), state, res, u)
             continue
-        delta, res = _dual_residual(state, u, c)  # the gap may have been recomputed
         Hd = state.H.matvec(d)
         dHd = float(d @ Hd)
         alpha = -float(res @ d) / dHd if dHd > 0.0 else math.nan

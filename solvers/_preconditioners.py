@@ -66,7 +66,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
-from contactbench.problems.operators import ContactOperator, fft_workers
+from contactbench.problems.fft_transform import spectral_multiply
+from contactbench.problems.operators import ContactOperator
 
 from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
 from ._farfield import FarField, build_far_field
@@ -157,6 +158,31 @@ class SetPreconditioner(Protocol):
         """Drop a coarse part, if any, for the rest of the solve (True when one was dropped)."""
         ...
 
+    def ones(self) -> np.ndarray:
+        """M^-1 1 on the current set (``_OnesCache``)."""
+        ...
+
+
+class _OnesCache:
+    """``ones``: M^-1 1 on the set M acts on, computed once per set and factorisation (the
+    load-controlled loops project every direction with it, solvers/_constrained.py); a
+    subclass calls ``_forget_ones`` whenever its set or its factors change."""
+
+    _on: np.ndarray
+    _ones: np.ndarray | None = None
+
+    def apply(self, r: np.ndarray) -> np.ndarray:  # pragma: no cover - the subclasses'
+        raise NotImplementedError
+
+    def ones(self) -> np.ndarray:
+        if self._ones is None:
+            self._ones = self.apply(self._on.astype(np.float64))
+            self._ones.flags.writeable = False
+        return self._ones
+
+    def _forget_ones(self) -> None:
+        self._ones = None
+
 
 @dataclass
 class _Bucket:
@@ -166,7 +192,7 @@ class _Bucket:
     row_sums: np.ndarray  # (m, s) sum_l H_kl over the block (the far-field correction's)
 
 
-class IslandPreconditioner:
+class IslandPreconditioner(_OnesCache):
     """z = blockdiag(H_BB)^-1 r on a set S, zero outside S (see module doc)."""
 
     def __init__(self, H: ContactOperator, grid_shape: tuple[int, int], grid_idx: np.ndarray,
@@ -208,6 +234,7 @@ class IslandPreconditioner:
         the built set), which is still symmetric positive definite on S, so CG stays
         valid while the factorisation is reused."""
         S = np.asarray(S, dtype=bool)
+        self._forget_ones()
         self._on = S.copy()
         self._pos = np.flatnonzero(S)
         if drifted(S, self._built, self.rebuild_fraction):
@@ -277,6 +304,7 @@ class IslandPreconditioner:
     def simplify(self) -> bool:
         """Drop the far-field correction (the island blocks stay); True when there was one."""
         had = self.far_field
+        self._forget_ones()
         self.far_field, self._far, self._far_set = False, None, None
         return had
 
@@ -371,7 +399,7 @@ def patches(labels: np.ndarray, i: np.ndarray, j: np.ndarray, shape: tuple[int, 
     return np.unique(key, return_inverse=True)[1].ravel()
 
 
-class FourierPreconditioner:
+class FourierPreconditioner(_OnesCache):
     """z = R F^-1[|q| F[R r]] on the physical grid (see module doc)."""
 
     def __init__(self, grid_shape: tuple[int, int], grid_idx: np.ndarray) -> None:
@@ -394,6 +422,7 @@ class FourierPreconditioner:
         return self._on
 
     def update(self, S: np.ndarray) -> None:
+        self._forget_ones()
         self._on = np.asarray(S, dtype=bool).copy()
 
     def apply(self, r: np.ndarray) -> np.ndarray:
@@ -427,10 +456,7 @@ def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarr
     """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx)."""
     f = np.zeros(shape)
     f.ravel()[idx] = r
-    w = fft_workers()
-    F = sfft.rfft2(f, workers=w, overwrite_x=True)
-    F *= q
-    return sfft.irfft2(F, s=shape, workers=w, overwrite_x=True).ravel()[idx]
+    return spectral_multiply(f, q).ravel()[idx]
 
 
 def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64) -> SetPreconditioner | None:

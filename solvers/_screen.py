@@ -107,6 +107,14 @@ def approach_bound(delta: float) -> float:
     return delta + (LOAD_MARGIN - 1.0) * abs(delta)
 
 
+def mask_of(n: int, idx: np.ndarray) -> np.ndarray:
+    """The boolean mask over n points of the positions ``idx`` (a sorted union of such
+    sets is ``np.flatnonzero`` of their masks' or: O(n), where np.union1d sorts)."""
+    mask = np.zeros(n, dtype=bool)
+    mask[idx] = True
+    return mask
+
+
 def touching(ctx: SolveContext, p: np.ndarray, approach: float | None = None) -> np.ndarray | None:
     """The points that can touch plus the support of p (None: the operator has no entry
     floor, or under a hardness the set cannot carry the load): can_touch(LOAD_MARGIN
@@ -121,7 +129,7 @@ def touching(ctx: SolveContext, p: np.ndarray, approach: float | None = None) ->
         touch = ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p)))
     if touch is None:
         return None
-    T = np.union1d(touch, np.flatnonzero(p > 0.0))
+    T = np.flatnonzero(mask_of(ctx.n, touch) | (p > 0.0))
     if c.load_control and c.upper is not None and float(np.sum(c.upper[T])) < float(c.load):
         return None
     return T
@@ -188,7 +196,7 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
         touch = touching(ctx, p, delta)
         if touch is None:  # the grown set cannot carry the load: the whole problem
             touch = np.arange(ctx.n)
-        grown = np.union1d(touch, np.union1d(T, np.flatnonzero(w - (delta or 0.0) < 0.0)))
+        grown = np.flatnonzero(mask_of(ctx.n, touch) | mask_of(ctx.n, T) | (w - (delta or 0.0) < 0.0))
         if grown.size == T.size and sub.tol == ctx.tol:  # solved on T, not on the whole: T cannot grow
             stuck = True
             break
