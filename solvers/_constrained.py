@@ -16,7 +16,8 @@ multiplier (the rigid approach).
   points alone exceed P, the excess is shed by the largest gap first, ``shed_by_gap``,
   instead of scaling every force off its bound).
 * ``constrained_start`` -- the first iterate: the warm start scaled to the load, else P
-  spread evenly (capped by the box), else p = 0.
+  spread evenly (capped by the box), else p = 0 (``pk``'s); the fast loops start cold
+  from the summits (``winkler_start``).
 * ``polonsky_keer_box`` -- the fast loop (below);
 * ``bugnicourt_load`` -- Bugnicourt et al.'s loop under load control (its docstring).
 
@@ -83,6 +84,7 @@ from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, entering_force, inward
                    precondition_on)
 from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
+from ._screen import approach_floor
 from .base import SolveContext
 
 
@@ -244,11 +246,33 @@ def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, 
     return kkt, delta, free
 
 
-def feasible_start(ctx: SolveContext, state: GapState, u: np.ndarray) -> None:
-    """Move the state's p into the feasible set: ``constrained_start`` when it is 0, else
-    p capped by u and scaled to the load (its gap recomputed when p changed)."""
+def winkler_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray | None:
+    """Under load control from p = 0, the points pressed each alone to the approach where
+    they carry P (``_screen.approach_floor``: p_i = max(ubar_i + Delta_0, 0) / max H_ii),
+    capped by the box and scaled to the load: the summits carry the load from the first
+    iterate, where P spread evenly puts force on every point of the grid and the first
+    iterations take it off nearly all of them.  None without a load or where that puts no
+    force anywhere."""
     c = ctx.constraints
-    p = constrained_start(ctx, u) if not np.any(state.p > 0.0) else scale_to_load(np.minimum(state.p, u), c, u)
+    if c.load is None or not float(c.load) > 0.0:
+        return None
+    reach = np.maximum(ctx.qp.ubar + approach_floor(ctx.qp), 0.0)
+    if not np.any(reach > 0.0):
+        return None
+    p = np.minimum(reach / float(np.max(ctx.qp.H.diagonal())), u)
+    return scale_to_load(p, c, u)
+
+
+def feasible_start(ctx: SolveContext, state: GapState, u: np.ndarray) -> None:
+    """Move the state's p into the feasible set: from p = 0 the ``winkler_start`` (else
+    ``constrained_start``), else p capped by u and scaled to the load (its gap recomputed
+    when p changed)."""
+    c = ctx.constraints
+    if not np.any(state.p > 0.0):
+        p = winkler_start(ctx, u) if ctx.p0 is None else None
+        p = constrained_start(ctx, u) if p is None else p
+    else:
+        p = scale_to_load(np.minimum(state.p, u), c, u)
     if not np.array_equal(p, state.p):
         state.p = p
         state.refresh()

@@ -103,7 +103,7 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
 
 
 #: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner; "auto":
-#: "farfield" on grids of at least ``LARGE_GRID_POINTS`` points, "islands" below).
+#: ``resolved_kind``).
 KINDS = ("islands", "farfield", "fourier", "none", "auto")
 
 #: The grid size (points) from which the fast solvers' "auto" choices take the far-field
@@ -114,6 +114,16 @@ KINDS = ("islands", "farfield", "fourier", "none", "auto")
 #: (H 0.3, rms slope 1), the far field alone cost up to 1.4x the islands' time
 #: (results/perf/surface-population.md).
 LARGE_GRID_POINTS = 2048 * 2048
+
+#: Why "auto" is "fourier" under load control (without a hardness): there the free set moves
+#: with the approach at every iteration, the island blocks were refactored every few
+#: iterations (10 builds in 66 iterations, periodic RMD 512^2), and the wave-number
+#: preconditioner needs no build: measured with the same loop and cold start, side by side
+#: (results/peers/aspher.md), it is as fast or faster on 6 of 7 load-controlled problems
+#: (512^2-2048^2, both boundaries, P/(E* A) = 0.005 and 0.015; 2x on the periodic ones) and
+#: within 6 % on the seventh.  Displacement control keeps the islands (fewer matvecs,
+#: docs/fast-solvers.md).
+LOAD_FOURIER = "fourier"
 
 
 def grid_points(qp: QP) -> int:
@@ -129,10 +139,14 @@ def large_grid(qp: QP) -> bool:
 
 
 def resolved_kind(kind: str, qp: QP) -> str:
-    """``kind`` with "auto" decided by the grid (``large_grid``)."""
-    if kind == "auto":
-        return "farfield" if large_grid(qp) else "islands"
-    return kind
+    """``kind`` with "auto" decided: "fourier" under load control without a hardness
+    (``LOAD_FOURIER``), else by the grid (``large_grid``)."""
+    if kind != "auto":
+        return kind
+    c = qp.constraints
+    if c.load_control and c.upper is None:
+        return LOAD_FOURIER
+    return "farfield" if large_grid(qp) else "islands"
 
 
 #: The kinds built on the island blocks (``IslandPreconditioner``).

@@ -29,7 +29,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder
 from contactbench.problems.surfaces import Surface
 from contactbench.solvers._ccg import GapState, polak_ribiere
-from contactbench.solvers._constrained import feasible_start
+from contactbench.solvers._constrained import constrained_start
 from contactbench.solvers._finish import FINISH_MAX_ROUNDS, Stagnation, finish_exactly
 from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, constraint_skip
 from contactbench.solvers.registry import available_solvers, get_solver
@@ -248,7 +248,8 @@ def test_the_exact_finish_solves_a_nearly_saturated_case_from_a_poor_start(share
                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
     state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
     u = qp.constraints.upper_or_inf(qp.n)
-    feasible_start(ctx, state, u)
+    state.p = constrained_start(ctx, u)
+    state.refresh()
     assert ctx.kkt(state.p, state.g) > 1e-3  # a poor start
     fin = finish_exactly(ctx, state, u, float(np.mean(state.g)))
     assert fin is not None and fin.converged, fin

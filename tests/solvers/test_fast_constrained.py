@@ -24,7 +24,8 @@ from contactbench.problems.lcp import exact_solution
 from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.surfaces import Surface, fourier_synthesis
 from contactbench.solvers._refine import LOAD_MIXED_POINTS, resolved_precision
-from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers._constrained import winkler_start
+from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
 from contactbench.solvers.registry import available_solvers, get_solver
 
 E = 1e9
@@ -367,3 +368,28 @@ def test_auto_precision_runs_mixed_under_load_control_from_1024_squared() -> Non
     assert resolved_precision("auto", qp(1023, 1.0)) == "double"
     assert resolved_precision("auto", qp(2048, None)) == "mixed"
     assert resolved_precision("double", qp(2048, 1.0)) == "double"
+
+
+def test_the_cold_start_under_load_control_is_the_summits_carrying_the_load(square, loaded, loaded_plastic) -> None:
+    """``winkler_start``: p >= 0 on the points above the water level only, sum(p) = P, the
+    highest point carrying the most; under a hardness within the box and still carrying P;
+    None without a load."""
+    inst = loaded[0]
+    u = inst.qp.constraints.upper_or_inf(inst.n)
+    p = winkler_start(context_of(inst.qp), u)
+    assert p is not None and np.all(p >= 0.0)
+    assert float(np.sum(p)) == pytest.approx(float(inst.qp.constraints.load), rel=1e-12)
+    assert 0 < np.count_nonzero(p) < inst.n
+    assert int(np.argmax(p)) == int(np.argmax(inst.qp.ubar))
+    hard = loaded_plastic[0]
+    cap = hard.qp.constraints.upper_or_inf(hard.n)
+    capped = winkler_start(context_of(hard.qp), cap)
+    assert capped is not None and np.all(capped <= cap * (1 + 1e-12)) and np.any(capped >= cap)
+    assert float(np.sum(capped)) == pytest.approx(float(hard.qp.constraints.load), rel=1e-9)
+    b, d, _ = square
+    assert winkler_start(context_of(b.build(d).qp), u) is None
+
+
+def context_of(qp: QP) -> SolveContext:
+    return SolveContext(qp=qp, tol=1e-9, max_iter=100, params={}, p0=None, warm=None, deadline=Deadline(None),
+                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))

@@ -405,3 +405,47 @@ def test_default_solver_on_one_big_island_is_exact_and_beats_row_strips(precisio
     monkeypatch.setattr(_preconditioners, "patches", row_strips)
     strips = get_solver("fast-dual-pccg").solve(inst.qp, settings)
     assert res.matvecs < 0.9 * strips.matvecs, (res.matvecs, strips.matvecs)
+
+
+@pytest.mark.parametrize("kind", ["islands", "farfield", "fourier"])
+def test_ones_is_the_preconditioner_of_the_indicator_and_follows_the_set(kind):
+    """``ones`` (M^-1 1 on the set, cached) equals ``apply`` of the set's indicator, and a
+    new set or a dropped coarse part gives the new one, not the cached one."""
+    inst = build(33)
+    M = make_preconditioner(kind, inst.qp)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        S = rng.random(inst.n) < 0.3
+        M.update(S)
+        first = M.ones()
+        np.testing.assert_allclose(first, M.apply(S.astype(float)), rtol=1e-12, atol=0.0)
+        assert M.ones() is first
+    if M.simplify():
+        np.testing.assert_allclose(M.ones(), M.apply(S.astype(float)), rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("backend", ["ducc", "scipy"])
+def test_spectral_multiply_is_the_periodic_convolution(monkeypatch, backend):
+    from contactbench.problems.fft_transform import spectral_multiply
+
+    monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", backend)
+    rng = np.random.default_rng(1)
+    for shape in ((16, 16), (12, 10), (9, 7)):
+        f = rng.normal(size=shape)
+        m = rng.random((shape[0], shape[1] // 2 + 1))
+        want = np.fft.irfft2(np.fft.rfft2(f) * m, s=shape)
+        np.testing.assert_allclose(spectral_multiply(f.copy(), m), want, rtol=1e-10, atol=1e-12)
+
+
+def test_auto_is_the_wave_number_preconditioner_under_load_control_only():
+    from contactbench.solvers._preconditioners import resolved_kind
+
+    s = rmd_surface_n(33, 0.7, length=100e-6, seed=2)
+    b = InstanceBuilder(s, 1e9, "love")
+    disp = b.build(paper_max_displacement(s))
+    load = b.build_load(b.load_force(0.01))
+    hard = b.build_load(b.load_force(0.01), hardness=1e12)
+    assert resolved_kind("auto", load.qp) == "fourier"
+    assert resolved_kind("auto", disp.qp) == "islands"
+    assert resolved_kind("auto", hard.qp) == "islands"
+    assert resolved_kind("islands", load.qp) == "islands"
