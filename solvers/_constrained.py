@@ -188,8 +188,9 @@ def constrained_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
 
 def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np.ndarray:
     """z (= M^-1 r on ``free``, 0 elsewhere, M acting on ``free``) projected onto {sum over
-    free = 0} in the metric of M: z - (1'z / 1'M^-1 1) M^-1 1 (module doc); z - mean(z_free)
-    without M."""
+    free = 0} in the metric of M: z - (1'z / 1'v) v with v = M^-1 1 (module doc; v of a set
+    within ``_preconditioners.ONES_DRIFT`` of ``free``, ``SetPreconditioner.ones``: the sum
+    is zero for any v); z - mean(z_free) without M."""
     if M is None:
         return on_set(z - mean_on(z, free), free)
     m1 = on_set(M.ones(), free)

@@ -177,25 +177,35 @@ class SetPreconditioner(Protocol):
         ...
 
 
+#: ``ones`` is recomputed when the set has drifted by more than this fraction of its size
+#: from the set it was computed for (``drifted``).
+ONES_DRIFT = 0.01
+
+
 class _OnesCache:
-    """``ones``: M^-1 1 on the set M acts on, computed once per set and factorisation (the
-    load-controlled loops project every direction with it, solvers/_constrained.py); a
-    subclass calls ``_forget_ones`` whenever its set or its factors change."""
+    """``ones``: v = M^-1 1 on the set M acts on, for the load-controlled loops' zero-sum
+    projection z - (1'z / 1'v) v (solvers/_constrained.py).  That projection sums to zero
+    on the set for any v; v = M^-1 1 makes it the symmetric one of the preconditioned CG.
+    The set follows the approach and changes by a few points at most iterations, so v is
+    kept until the set has drifted by ``ONES_DRIFT`` or the factors change (the subclass
+    calls ``_forget_ones``): one application of M an iteration, not two."""
 
     _on: np.ndarray
     _ones: np.ndarray | None = None
+    _ones_set: np.ndarray | None = None
 
     def apply(self, r: np.ndarray) -> np.ndarray:  # pragma: no cover - the subclasses'
         raise NotImplementedError
 
     def ones(self) -> np.ndarray:
-        if self._ones is None:
+        if self._ones is None or drifted(self._on, self._ones_set, ONES_DRIFT):
+            self._ones_set = self._on.copy()
             self._ones = self.apply(self._on.astype(np.float64))
             self._ones.flags.writeable = False
         return self._ones
 
     def _forget_ones(self) -> None:
-        self._ones = None
+        self._ones = self._ones_set = None
 
 
 @dataclass
@@ -248,10 +258,10 @@ class IslandPreconditioner(_OnesCache):
         the built set), which is still symmetric positive definite on S, so CG stays
         valid while the factorisation is reused."""
         S = np.asarray(S, dtype=bool)
-        self._forget_ones()
         self._on = S.copy()
         self._pos = np.flatnonzero(S)
         if drifted(S, self._built, self.rebuild_fraction):
+            self._forget_ones()
             self.builds += 1
             self._built = S.copy()
             pos = self._pos
@@ -268,6 +278,7 @@ class IslandPreconditioner(_OnesCache):
         if not drifted(S, self._far_set, FAR_REBUILD_FRACTION):
             return
         self._far, self._far_set = None, S.copy()
+        self._forget_ones()
         lead = np.arange(self.n)
         sums = self._diag.copy()
         on = self._on
@@ -436,7 +447,6 @@ class FourierPreconditioner(_OnesCache):
         return self._on
 
     def update(self, S: np.ndarray) -> None:
-        self._forget_ones()
         self._on = np.asarray(S, dtype=bool).copy()
 
     def apply(self, r: np.ndarray) -> np.ndarray:
