@@ -450,9 +450,9 @@ class FourierPreconditioner(_OnesCache):
         self._on = np.asarray(S, dtype=bool).copy()
 
     def apply(self, r: np.ndarray) -> np.ndarray:
-        z = multiply_by_wavenumbers(self._q, self._shape, self._idx, np.where(self._on, r, 0.0))
-        z[~self._on] = 0.0
-        return z
+        # Masks as products (r finite): several times faster than np.where on a scattered set.
+        z = multiply_by_wavenumbers(self._q, self._shape, self._idx, r * self._on)
+        return np.multiply(z, self._on, out=z)
 
     def solo(self, r: np.ndarray) -> np.ndarray:
         """c r, c = F^-1[|q|] at offset 0 (the mean of |q| over the full spectrum)."""
