@@ -18,8 +18,10 @@ harness/judging.py at profile "high" (tol 1e-9, check 1e-8):
 
 * ASPHER: ``aspher-pcg``, ``aspher-nested``, ``aspher-nested-f32``, ``aspher-active-f32``
   (solvers/peer_aspher.py);
-* ours: ``fast-dual-pccg`` (its defaults), ``fast-dual-pccg[precondition=fourier]``
-  (Vollebregt's |q| preconditioner: the idea ASPHER's preconditioner is built on),
+* ours: ``fast-dual-pccg`` (its defaults: under load control the |q| preconditioner,
+  solvers/_preconditioners.LOAD_FOURIER), ``fast-dual-pccg[precondition=fourier]``
+  (Vollebregt's |q| preconditioner: the idea ASPHER's preconditioner is built on, named),
+  ``fast-dual-pccg[precondition=islands]`` (the island blocks instead),
   ``fast-dual-pccg[precision=mixed]`` (float32 rounds at every size) and
   ``fast-dual-pccg[whole-double]`` (no screening, float64: every point carried in double,
   what screening and the float32 rounds save);
@@ -95,6 +97,7 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("aspher-active-f32", "aspher-active-f32"),
     Entry("fast-dual-pccg", "fast-dual-pccg"),
     Entry("fast-dual-pccg[fourier]", "fast-dual-pccg", (("precondition", "fourier"),)),
+    Entry("fast-dual-pccg[islands]", "fast-dual-pccg", (("precondition", "islands"),)),
     Entry("fast-dual-pccg[mixed]", "fast-dual-pccg", (("precision", "mixed"),)),
     # every point carried in float64: what screening and the float32 rounds save
     Entry("fast-dual-pccg[whole-double]", "fast-dual-pccg", (("precision", "double"), ("screening", "none"))),
@@ -336,7 +339,7 @@ def medians(rows: list[AspherRow], entries: list[str]) -> list[str]:
 
 
 #: The two published ideas, each as (ASPHER's entry, our entry with the idea, our entry without).
-IDEAS = (("\\|q\\| preconditioner", "aspher-pcg", "fast-dual-pccg[fourier]", "fast-dual-pccg"),
+IDEAS = (("\\|q\\| preconditioner", "aspher-pcg", "fast-dual-pccg[fourier]", "fast-dual-pccg[islands]"),
          ("coarse-grid start", "aspher-nested", "twin:fast-dual-pccg[coarse]", "twin:fast-dual-pccg"))
 
 
