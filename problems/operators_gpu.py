@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import importlib.util
+import os
 import subprocess
 import sys
 from collections import OrderedDict
@@ -68,6 +69,80 @@ def gpu_unavailable_reason() -> str | None:
     if not counted or not counted[-1].isdigit() or int(counted[-1]) < 1:
         return "CuPy finds no CUDA device"
     return None
+
+
+#: Run in a child process, as ``_PROBE``: the device's total memory in bytes.
+_MEMORY_PROBE = "import cupy; print(int(cupy.cuda.Device(0).mem_info[1]))"
+
+#: CuPy's memory pool over the arrays a solve's convolutions allocate on the device
+#: (``device_model_nbytes``), fitted on the H200 measurements of results/perf/gpu.md
+#: (``fast-dual-pccg``'s cold top step, non-periodic, float64 and float32 products: the pool
+#: held 15.1 GiB at 8192^2, where the arrays come to 10.5 GiB; at 4096^2 the model gives 3.76
+#: GiB against 3.8 measured; at 2048^2 it over-states, 0.94 against 0.7).
+POOL_FACTOR = 1.43
+
+
+def convolution_work_nbytes(grid_shape: tuple[int, int], padded_shape: tuple[int, int],
+                            dtype: object = np.float64) -> int:
+    """Device bytes one convolution in ``dtype`` allocates on a grid of ``grid_shape``
+    padded to ``padded_shape``: the row field, the padded spectrum, the back rows and the
+    result rows."""
+    item = operator_dtype(dtype).itemsize
+    p0, p1 = padded_shape
+    n1 = grid_shape[0]
+    half = p1 // 2 + 1
+    return int(2 * item * n1 * p1 + 2 * item * (p0 + 2 * n1) * half)
+
+
+def device_model_nbytes(grid_shape: tuple[int, int], periodic: bool) -> int:
+    """The device memory a solve on the "gpu" operator takes on a grid of ``grid_shape``
+    (zero-padded to twice each side unless ``periodic``), before it is built: a real kernel
+    spectrum in float64 and float32 and the convolutions' work in both (the mixed-precision
+    rounds), times CuPy's ``POOL_FACTOR``."""
+    n0, n1 = int(grid_shape[0]), int(grid_shape[1])
+    padded = (n0, n1) if periodic else (2 * n0, 2 * n1)
+    spectrum = 8 * padded[0] * (padded[1] // 2 + 1)
+    work = sum(convolution_work_nbytes((n0, n1), padded, dt) for dt in (np.float64, np.float32))
+    return int(POOL_FACTOR * (1.5 * spectrum + work))
+
+
+@functools.lru_cache(maxsize=1)
+def device_total_bytes() -> int | None:
+    """The device's memory in bytes: env CONTACTBENCH_DEVICE_BYTES when set (a cap, or a
+    stand-in device for tests), else probed once in a child process (no CUDA context
+    here); None where there is no device."""
+    env = os.environ.get("CONTACTBENCH_DEVICE_BYTES", "").strip()
+    if env:
+        try:
+            value = int(float(env))
+        except ValueError as exc:
+            raise ProblemInputError(f"CONTACTBENCH_DEVICE_BYTES={env!r}: expected a number of bytes") from exc
+        if value <= 0:
+            raise ProblemInputError(f"CONTACTBENCH_DEVICE_BYTES={env!r}: expected a positive number of bytes")
+        return value
+    if gpu_unavailable_reason() is not None:
+        return None
+    try:
+        proc = subprocess.run([sys.executable, "-c", _MEMORY_PROBE], capture_output=True, text=True, timeout=120,
+                              check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    last = (proc.stdout.strip().splitlines() or [""])[-1]
+    return int(last) if proc.returncode == 0 and last.isdigit() else None
+
+
+def device_misfit(grid_shape: tuple[int, int], periodic: bool) -> str | None:
+    """None when a solve on ``grid_shape`` fits the device (``device_model_nbytes`` against
+    ``device_total_bytes``) or there is no device to ask; else why not (one line)."""
+    total = device_total_bytes()
+    if total is None:
+        return None
+    need = device_model_nbytes(grid_shape, periodic)
+    if need <= total:
+        return None
+    n0, n1 = grid_shape
+    return (f"a {n0} x {n1} {'periodic' if periodic else 'non-periodic'} grid needs about {need / 2**30:.1f} GiB "
+            f"on the device (operators_gpu.device_model_nbytes), the device has {total / 2**30:.1f} GiB")
 
 
 def array_module(name: str) -> ModuleType:
@@ -175,11 +250,7 @@ class ArrayKernelTransform(KernelTransform):
     def matvec_work_nbytes(self, dtype: object = np.float64) -> int:
         """Device bytes a convolution in ``dtype`` allocates: the row field, the padded
         spectrum, the back rows and the result rows."""
-        item = operator_dtype(dtype).itemsize
-        p0, p1 = self.padded_shape
-        n1 = self.grid_shape[0]
-        half = p1 // 2 + 1
-        return int(2 * item * n1 * p1 + 2 * item * (p0 + 2 * n1) * half)
+        return convolution_work_nbytes(self.grid_shape, self.padded_shape, dtype)
 
     def device_nbytes(self, dtype: object = np.float64) -> int:
         """Bytes on the device: the spectrum (and its float32 copy) and the work of ``dtype``."""

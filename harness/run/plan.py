@@ -31,6 +31,7 @@ from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.instances import check_operator_kind
+from contactbench.problems.operators_gpu import device_misfit
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.problems.scenes.base import StepSizes
 from contactbench.problems.scenes.options import config_problems
@@ -340,6 +341,8 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
     refs = study.reference_candidates(run.reference)
     jobs = [InstanceJob(spec, variants, profiles, bool(scene.load_history), refs, int(spec.params.get("steps") or 1))
             for spec in scene.instances(merged)]
+    if merged.operator == "gpu":
+        check_device_fit(jobs, sizes)
     rejected = model_rejections(jobs, sizes, run)
     if rejected:
         raise ProblemInputError(f"every cell would be skipped: {rejected}; choose a smaller --size, other --solvers, "
@@ -373,6 +376,23 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[b
         return False, d.reason
     t = time_decision(solver, traits, d.operator, run.timeout, None)
     return (False, t.reason) if t.skip else (True, "")
+
+
+def check_device_fit(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]) -> None:
+    """Refuse a "gpu" run, before anything runs, where an instance's square grid does not
+    fit the device by its memory model (``operators_gpu.device_misfit``); instances whose
+    sizes the scene does not tell are not checked."""
+    misfits = []
+    for job in jobs:
+        size = sizes.get(job.spec.instance)
+        if size is None or size.side <= 0:
+            continue
+        why = device_misfit((size.side, size.side), bool(job.spec.params.get("periodic")))
+        if why:
+            misfits.append(f"{job.spec.instance}: {why}")
+    if misfits:
+        more = f" (and {len(misfits) - 3} more)" if len(misfits) > 3 else ""
+        raise ProblemInputError("operator 'gpu': " + "; ".join(misfits[:3]) + more + "; choose a smaller --size")
 
 
 def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], run: RunConfig) -> str:

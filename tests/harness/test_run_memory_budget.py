@@ -53,3 +53,46 @@ def test_a_budget_scope_restores_the_process_budget_however_it_ends() -> None:
     assert operators.memory_budget() == before
     with operators.memory_budget_scope(None):
         assert operators.memory_budget() == before
+
+
+@pytest.fixture
+def device_of(monkeypatch: pytest.MonkeyPatch):
+    """A stand-in device of the given bytes: CuPy reported present, its memory from
+    CONTACTBENCH_DEVICE_BYTES (the probe's cache cleared before and after)."""
+    from contactbench.problems import instances, operators_gpu
+
+    monkeypatch.setattr(instances, "gpu_unavailable_reason", lambda: None)
+    operators_gpu.device_total_bytes.cache_clear()
+
+    def make(nbytes: float) -> None:
+        monkeypatch.setenv("CONTACTBENCH_DEVICE_BYTES", str(nbytes))
+        operators_gpu.device_total_bytes.cache_clear()
+
+    yield make
+    operators_gpu.device_total_bytes.cache_clear()
+
+
+def test_a_gpu_run_that_does_not_fit_the_device_is_refused_before_it_runs(device_of, tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.harness.cli import main
+    from contactbench.problems.operators_gpu import device_model_nbytes
+
+    need = device_model_nbytes((256, 256), periodic=False)
+    device_of(need // 2)
+    out = tmp_path / "o"
+    args = ["run", "paper-sweep", "--size", "256", "--steps", "1", "--seeds", "0", "--operator", "gpu",
+            "--solvers", "fast-dual-pccg", "--reference", "none", "--no-progress", "--out", str(out)]
+    rc = main(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert "operator 'gpu'" in err[0] and "256 x 256 non-periodic grid needs about" in err[0], err[0]
+    assert not (out / "rows.jsonl").exists()
+
+
+@pytest.mark.parametrize("bad", ["lots", "-5", "0"])
+def test_a_device_size_that_is_not_a_positive_number_is_refused(device_of, bad: str) -> None:
+    from contactbench.problems.operators_gpu import device_total_bytes
+
+    device_of(bad)
+    with pytest.raises(ProblemInputError, match="CONTACTBENCH_DEVICE_BYTES"):
+        device_total_bytes()
