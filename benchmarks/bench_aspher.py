@@ -338,6 +338,39 @@ def medians(rows: list[AspherRow], entries: list[str]) -> list[str]:
     return lines
 
 
+#: ASPHER's load-controlled entries: its fastest per problem is the race's reference.
+ASPHER_ENTRIES = ("aspher-pcg", "aspher-nested", "aspher-nested-f32", "aspher-active-f32")
+#: Our entry in the race: the fast solver with its defaults.
+OURS = "fast-dual-pccg"
+
+
+def race(rows: list[AspherRow]) -> list[str]:
+    """Per boundary and size, over the problems where ``OURS`` and an ASPHER entry passed:
+    our seconds over ASPHER's nested solve's and over its fastest passing entry's, median
+    and worst (the largest ratio), and the problems behind them."""
+    lines = ["| boundary | N | problems | ours / ASPHER nested: median | worst | ours / ASPHER's fastest: median | "
+             "worst |", "|---|---:|---:|---:|---:|---:|---:|"]
+    by = {(problem_of(r), r.entry): r for r in rows if r.reading == "pass"}
+    for b, N in sorted({(r.boundary, r.N) for r in rows}):
+        keys = sorted({problem_of(r) for r in rows if r.boundary == b and r.N == N})
+        fastest, nested = [], []
+        for k in keys:
+            theirs = [by[(k, e)].seconds for e in ASPHER_ENTRIES if (k, e) in by]
+            if (k, OURS) not in by or not theirs:
+                continue
+            ours = by[(k, OURS)].seconds
+            fastest.append(ours / min(theirs))
+            if (k, "aspher-nested") in by:
+                nested.append(ours / by[(k, "aspher-nested")].seconds)
+        if not fastest:
+            continue
+
+        def cells(x: list[float]) -> str:
+            return f"{np.median(x):.2f} | {max(x):.2f}" if x else "- | -"
+        lines.append(f"| {b} | {N} | {len(fastest)} | {cells(nested)} | {cells(fastest)} |")
+    return lines
+
+
 #: The two published ideas, each as (ASPHER's entry, our entry with the idea, our entry without).
 IDEAS = (("\\|q\\| preconditioner", "aspher-pcg", "fast-dual-pccg[fourier]", "fast-dual-pccg[islands]"),
          ("coarse-grid start", "aspher-nested", "twin:fast-dual-pccg[coarse]", "twin:fast-dual-pccg"))
@@ -389,7 +422,8 @@ def write_markdown(rows: list[AspherRow], path: Path) -> None:
     if smoke:
         lines += [f"**Smoke run**: rows below {TIMED_MIN_N}^2 (`smoke` = 1) check the script on a shared, loaded "
                   "machine; their seconds are not timings and nothing here is a finding about speed.", ""]
-    lines += ["## Per entry", "", *medians(rows, entries), "",
+    lines += ["## The race: our default against ASPHER, problem by problem", "", *race(rows), "",
+              "## Per entry", "", *medians(rows, entries), "",
               "## The published ideas: median matvecs where all three passed", "", *ideas(rows), "",
               "## Side by side", "",
               *side_by_side(rows, entries), "", "## Left out, with the reason", "", *(left_out(rows) or ["- none"])]

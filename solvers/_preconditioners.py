@@ -118,11 +118,10 @@ LARGE_GRID_POINTS = 2048 * 2048
 #: Why "auto" is "fourier" under load control (without a hardness): there the free set moves
 #: with the approach at every iteration, the island blocks were refactored every few
 #: iterations (10 builds in 66 iterations, periodic RMD 512^2), and the wave-number
-#: preconditioner needs no build: measured with the same loop and cold start, side by side
-#: (results/peers/aspher.md), it is as fast or faster on 6 of 7 load-controlled problems
-#: (512^2-2048^2, both boundaries, P/(E* A) = 0.005 and 0.015; 2x on the periodic ones) and
-#: within 6 % on the seventh.  Displacement control keeps the islands (fewer matvecs,
-#: docs/fast-solvers.md).
+#: preconditioner needs no build.  On the 14 load-controlled problems of the ASPHER race
+#: (results/peers/aspher.md: four families at 512^2 and 1024^2, 2048^2, both boundaries,
+#: P/(E* A) = 0.015; quiet 2-core vm, one run) it took 0.44-0.99x the islands' time, median
+#: 0.62x.  Displacement control keeps the islands (fewer matvecs, docs/fast-solvers.md).
 LOAD_FOURIER = "fourier"
 
 
