@@ -362,13 +362,14 @@ def race(rows: list[AspherRow]) -> list[str]:
             fastest.append(ours / min(theirs))
             if (k, "aspher-nested") in by:
                 nested.append(ours / by[(k, "aspher-nested")].seconds)
-        if not fastest:
-            continue
-
-        def cells(x: list[float]) -> str:
-            return f"{np.median(x):.2f} | {max(x):.2f}" if x else "- | -"
-        lines.append(f"| {b} | {N} | {len(fastest)} | {cells(nested)} | {cells(fastest)} |")
+        if fastest:
+            lines.append(f"| {b} | {N} | {len(fastest)} | {median_and_worst(nested)} | {median_and_worst(fastest)} |")
     return lines
+
+
+def median_and_worst(ratios: list[float]) -> str:
+    """Two table cells: the median and the largest of ``ratios`` ("-" when there are none)."""
+    return f"{np.median(ratios):.2f} | {max(ratios):.2f}" if ratios else "- | -"
 
 
 #: The two published ideas, each as (ASPHER's entry, our entry with the idea, our entry without).

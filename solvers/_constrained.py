@@ -115,10 +115,11 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
     if c.load is None:
         return p
     load = float(c.load)
-    total = float(np.sum(p))
-    if c.upper is None and total > 0.0 and float(np.min(p)) >= 0.0:  # no box: every force scaled (the branch below, in one pass)
-        p *= load / total
-        return p
+    if c.upper is None and float(np.min(p, initial=0.0)) >= 0.0:  # no box: the branch below, in one pass
+        total = float(np.sum(p))
+        if total > 0.0:
+            p *= load / total
+            return p
     sat = p >= u
     free = (p > 0.0) & ~sat
     rest, carried = load - float(np.sum(p[sat])), float(np.sum(p[free]))
