@@ -21,7 +21,7 @@ fi
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv; echo "cores: $(nproc)"; lscpu | grep 'Model name'
   python3 -c "import cupy, numpy, scipy, ducc0; print('cupy', cupy.__version__, 'numpy', numpy.__version__, 'scipy', scipy.__version__, 'ducc0', ducc0.__version__)"
 } > "$OUT/device.txt" 2>&1
-(cd /tmp && timeout 60 python3 -m pytest -q -p no:cacheprovider -o addopts= --import-mode=importlib -rs "$ROOT/tests/problems/test_operators_gpu.py" 2>&1 | tail -4) > "$OUT/pytest-gpu.txt"
+(cd /tmp && PYTHONPATH="${PYTHONPATH:+$PYTHONPATH:}$ROOT" timeout 90 python3 -m pytest -q -p no:cacheprovider -o addopts= --import-mode=importlib -rs "$ROOT/tests/problems/test_operators_gpu.py" "$ROOT/tests/solvers/test_device_resident.py" 2>&1 | tail -4) > "$OUT/pytest-gpu.txt"
 timeout "${MATVEC_S:-170}" python3 benchmarks/bench_gpu.py --sizes ${SIZES:-2048 4096 8192} --cpu-max 4096 --repeats 5 --out "$OUT/gpu-matvec.csv" 2>&1 | tee "$OUT/gpu-matvec.log"
 {
   timeout "${COST_S:-150}" python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${COST_SIZES:-2048 4096} --solvers fast-dual-pccg --timeout 120 --out "$OUT/cost"

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -162,6 +163,11 @@ def project_feasible(x: np.ndarray, constraints: Constraints) -> np.ndarray:
     return project_box(x, constraints.upper)
 
 
+def as_float64(x: Any) -> np.ndarray:
+    """x as a float64 array, in the array space it lives in (a device array stays there)."""
+    return x.astype(np.float64, copy=False) if hasattr(x, "astype") else np.asarray(x, dtype=np.float64)
+
+
 def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> float:
     """The approach Delta a candidate p implies, from g = Hp - ubar (w = g - Delta):
     the mean of g over the elements strictly inside their bounds, each weighted by its
@@ -169,11 +175,10 @@ def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> fl
     With none inside: the largest g over the elements at their upper bound (the least
     Delta that keeps them plastic), else the least g (the approach at which contact
     begins).  NaN when g or p is not finite or empty."""
-    g = np.asarray(g, dtype=np.float64)
-    p = np.asarray(p, dtype=np.float64)
+    g, p = as_float64(g), as_float64(p)
     if g.size == 0 or not (np.all(np.isfinite(g)) and np.all(np.isfinite(p))):
         return math.nan
-    u = np.full(p.shape, math.inf) if upper is None else upper
+    u = np.full_like(p, math.inf) if upper is None else upper
     with np.errstate(invalid="ignore"):
         v = np.minimum(p, u - p)
     v = np.where(v > 0.0, v, 0.0)

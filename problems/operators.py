@@ -26,6 +26,7 @@ import os
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
@@ -128,6 +129,9 @@ class ContactOperator(ABC):
     matvec_count: int
     #: The precision of the products (float64 unless made by ``with_precision``).
     dtype: np.dtype = np.dtype(np.float64)
+    #: Where a device-resident solve may keep its vectors (``operators_gpu.ArraySpace``, whose
+    #: arrays ``matvec`` then takes and returns); None: the host only.
+    space: Any = None
 
     @abstractmethod
     def matvec(self, x: np.ndarray) -> np.ndarray:

@@ -17,8 +17,15 @@ that are read; periodic grids have P = N and the same code is a plain rfft2 pair
 ``ArrayFFTOperator`` is ``FFTOperator`` on such a transform: ``submatrix``,
 ``entries``, ``blocks``, ``diagonal`` and the dense switch for small trial sets are the
 CPU operator's own (they read the kernel table on the host); only the convolutions
-run through ``xp``.  Inputs and outputs are numpy arrays (float64; float32 for an
-operator from ``with_precision(np.float32)``, computed in single precision on the device).
+run through ``xp``.  ``matvec`` of a numpy array returns a numpy array (float64; float32
+for an operator from ``with_precision(np.float32)``, computed in single precision on the
+device); ``matvec`` of an array of the operator's ``space`` returns one there, with no
+transfer: the product of a device-resident solve (solvers/_device.py).
+
+``ArraySpace`` names where a solve's vectors live: its array module and the two explicit
+transfers (``put``: host to device, ``get``: back).  ``named_space("numpy")`` is the host
+itself (the tested path of the device-resident loop), ``named_space("cupy")`` the GPU;
+a test may hand ``from_host`` a space of its own (tests/fake_device.py).
 
 CuPy is optional (the ``gpu`` extra, ``pip install -e .[gpu]``; never needed):
 ``gpu_unavailable_reason()`` says why the "gpu" operator cannot be built here, and
@@ -33,13 +40,14 @@ import os
 import subprocess
 import sys
 from collections import OrderedDict
+from dataclasses import dataclass
 from types import ModuleType
 from typing import Any, Callable
 
 import numpy as np
 
 from .errors import ProblemInputError
-from .operators import FFTOperator, KernelTransform, operator_dtype
+from .operators import PARTIAL_PRODUCT_CHUNK, FFTOperator, KernelTransform, operator_dtype
 
 #: The array modules the convolution is written against.
 ARRAY_MODULES = ("numpy", "cupy")
@@ -94,16 +102,39 @@ def convolution_work_nbytes(grid_shape: tuple[int, int], padded_shape: tuple[int
     return int(2 * item * n1 * p1 + 2 * item * (p0 + 2 * n1) * half)
 
 
-def device_model_nbytes(grid_shape: tuple[int, int], periodic: bool) -> int:
-    """The device memory a solve on the "gpu" operator takes on a grid of ``grid_shape``
-    (zero-padded to twice each side unless ``periodic``), before it is built: a real kernel
-    spectrum in float64 and float32 and the convolutions' work in both (the mixed-precision
-    rounds), times CuPy's ``POOL_FACTOR``."""
+#: Float64 vectors of the unknowns a device-resident solve holds beside the operator's
+#: (solvers/_device.py), counted in the load-controlled loop, the larger: ubar, p, the gap,
+#: the direction, its product, the residual and the last one, z, the bounds, M^-1 1 and
+#: three temporaries.  A count, not a fit: no device-resident pool has been measured yet.
+RESIDENT_VECTORS = 13
+#: ... and float64 arrays of the whole grid: the kernel table's quarter the partial
+#: products read (``ArrayFFTOperator.partial_product``) and the wave numbers with the grid
+#: indices.  The wave-number preconditioner's transforms are transient, smaller than the
+#: operator's padded work, and reuse its blocks in the pool.
+RESIDENT_GRIDS = 2
+
+
+def operator_model_nbytes(grid_shape: tuple[int, int], periodic: bool) -> int:
+    """The device memory of the "gpu" operator on a grid of ``grid_shape`` (zero-padded to
+    twice each side unless ``periodic``): a real kernel spectrum in float64 and float32 and
+    the convolutions' work in both (the mixed-precision rounds), times CuPy's
+    ``POOL_FACTOR`` (fitted on pools measured with the loop on the host)."""
     n0, n1 = int(grid_shape[0]), int(grid_shape[1])
     padded = (n0, n1) if periodic else (2 * n0, 2 * n1)
     spectrum = 8 * padded[0] * (padded[1] // 2 + 1)
     work = sum(convolution_work_nbytes((n0, n1), padded, dt) for dt in (np.float64, np.float32))
     return int(POOL_FACTOR * (1.5 * spectrum + work))
+
+
+def device_model_nbytes(grid_shape: tuple[int, int], periodic: bool, points: int | None = None) -> int:
+    """The device memory a device-resident solve takes on a grid of ``grid_shape``, before
+    it is built: the operator's (``operator_model_nbytes``), ``RESIDENT_VECTORS`` float64
+    vectors of its ``points`` unknowns (default: every grid point, as a load-controlled
+    solve carries) and ``RESIDENT_GRIDS`` of the whole grid, in CuPy's pool."""
+    n0, n1 = int(grid_shape[0]), int(grid_shape[1])
+    points = n0 * n1 if points is None else min(int(points), n0 * n1)
+    resident = 8 * (RESIDENT_VECTORS * points + RESIDENT_GRIDS * n0 * n1)
+    return operator_model_nbytes(grid_shape, periodic) + int(POOL_FACTOR * resident)
 
 
 @functools.lru_cache(maxsize=1)
@@ -131,13 +162,14 @@ def device_total_bytes() -> int | None:
     return int(last) if proc.returncode == 0 and last.isdigit() else None
 
 
-def device_misfit(grid_shape: tuple[int, int], periodic: bool) -> str | None:
-    """None when a solve on ``grid_shape`` fits the device (``device_model_nbytes`` against
-    ``device_total_bytes``) or there is no device to ask; else why not (one line)."""
+def device_misfit(grid_shape: tuple[int, int], periodic: bool, points: int | None = None) -> str | None:
+    """None when a solve of ``points`` unknowns (default: the whole grid) on ``grid_shape``
+    fits the device (``device_model_nbytes`` against ``device_total_bytes``) or there is
+    no device to ask; else why not (one line)."""
     total = device_total_bytes()
     if total is None:
         return None
-    need = device_model_nbytes(grid_shape, periodic)
+    need = device_model_nbytes(grid_shape, periodic, points)
     if need <= total:
         return None
     n0, n1 = grid_shape
@@ -166,6 +198,37 @@ def to_host(a: Any) -> np.ndarray:
     return np.asarray(get() if callable(get) else a)
 
 
+def on_host(a: Any) -> bool:
+    """Whether ``a`` is a host (numpy) array, not one on a device."""
+    return isinstance(a, np.ndarray)
+
+
+@dataclass(frozen=True)
+class ArraySpace:
+    """Where a solve's vectors live (module doc): the array module ``xp`` and the two
+    explicit transfers, ``put`` (a host array onto the space) and ``get`` (back)."""
+
+    name: str
+    xp: Any
+    put: Callable[[np.ndarray], Any]
+    get: Callable[[Any], np.ndarray]
+
+    @property
+    def host(self) -> bool:
+        """Whether the space is the host's own memory (numpy)."""
+        return self.xp is np
+
+
+#: The host's own memory: where every solve keeps its vectors unless its operator has a space.
+HOST = ArraySpace("numpy", np, np.asarray, np.asarray)
+
+
+def named_space(name: str) -> ArraySpace:
+    """The space of the array module ``name`` (one of ``ARRAY_MODULES``)."""
+    xp = array_module(name)
+    return HOST if xp is np else ArraySpace(name, xp, xp.asarray, to_host)
+
+
 class ArrayKernelTransform(KernelTransform):
     """A ``KernelTransform`` whose convolutions run through the array module ``xp``.
 
@@ -177,14 +240,18 @@ class ArrayKernelTransform(KernelTransform):
     """
 
     xp_name: str
+    _space: ArraySpace | None = None
 
     @classmethod
-    def from_host(cls, host: KernelTransform, xp: str = "cupy") -> "ArrayKernelTransform":
-        if xp not in ARRAY_MODULES:
+    def from_host(cls, host: KernelTransform, xp: str | ArraySpace = "cupy") -> "ArrayKernelTransform":
+        """The transform on the array module named ``xp`` (one of ``ARRAY_MODULES``), or on
+        a space of the caller's (not sent to another process)."""
+        if not isinstance(xp, ArraySpace) and xp not in ARRAY_MODULES:
             raise ProblemInputError(f"array module must be one of {ARRAY_MODULES}, got {xp!r}")
         self = cls.__new__(cls)
         self.__setstate__(host.__getstate__())
-        self.xp_name = xp
+        self.xp_name = xp.name if isinstance(xp, ArraySpace) else xp
+        self._space = xp if isinstance(xp, ArraySpace) else None
         self._device = None
         return self
 
@@ -194,8 +261,13 @@ class ArrayKernelTransform(KernelTransform):
         return state
 
     @property
-    def xp(self) -> ModuleType:
-        return array_module(self.xp_name)
+    def space(self) -> ArraySpace:
+        """Where the convolutions run (module doc)."""
+        return self._space if self._space is not None else named_space(self.xp_name)
+
+    @property
+    def xp(self) -> Any:
+        return self.space.xp
 
     def _state(self) -> "_DeviceState":
         if self._device is None:
@@ -272,6 +344,7 @@ class _DeviceState:
         self.xp = xp
         self._khat = khat
         self._spectra: dict[str, Any] = {}
+        self._quarter: Any = None
         self._indices: OrderedDict[int, tuple[np.ndarray, Any]] = OrderedDict()
 
     def spectrum(self, dtype: Any) -> Any:
@@ -282,6 +355,14 @@ class _DeviceState:
             target = np.result_type(real, np.complex64) if np.iscomplexobj(self._khat) else real
             got = self._spectra[real.name] = self.xp.asarray(self._khat.astype(target, copy=False))
         return got
+
+    def quarter_table(self, table: np.ndarray, grid_shape: tuple[int, int]) -> tuple[Any, int]:
+        """The kernel table at offsets |di| < N1, |dj| < N2 on the device, flat, and its row
+        width (what an even table's partial products read)."""
+        if self._quarter is None:
+            n0, n1 = grid_shape
+            self._quarter = self.xp.asarray(np.ascontiguousarray(table[:n0, :n1]).ravel())
+        return self._quarter, int(grid_shape[1])
 
     def indices(self, pidx: np.ndarray) -> Any:
         key = id(pidx)
@@ -311,7 +392,38 @@ class ArrayFFTOperator(FFTOperator):
 
     @property
     def kind(self) -> str:
-        return "gpu" if self.transform.xp_name == "cupy" else "ArrayFFTOperator[numpy]"
+        return "gpu" if self.transform.xp_name == "cupy" else f"ArrayFFTOperator[{self.transform.xp_name}]"
+
+    @property
+    def space(self) -> ArraySpace:
+        """Where a device-resident solve keeps its vectors (``matvec`` takes them there)."""
+        return self.transform.space
+
+    def matvec(self, x: Any) -> Any:
+        """H_II x: a numpy array in and out (module doc), or an array of ``space`` in and
+        out with no transfer (in the operator's precision; no dense switch there)."""
+        if on_host(x) or self.space.host:
+            return super().matvec(x)
+        self.matvec_count += 1
+        return self.transform.device_apply(self.pidx, x.astype(self.dtype, copy=False))
+
+    def partial_product(self, rows: Any, cols: Any, x: Any) -> Any:
+        """``FFTOperator.partial_product``; with rows, cols and x in ``space``, there: the
+        entries gathered from the kernel table's quarter on the device (an even table,
+        K(di, dj) = table[|di|, |dj|]; else the host's)."""
+        if on_host(rows) or self.space.host or np.iscomplexobj(self.transform.khat):
+            return super().partial_product(rows, cols, x)
+        with self.transform._lock:
+            dev = self.transform._state()
+            table, width = dev.quarter_table(self.transform.table, self.transform.grid_shape)
+            pi, pj = dev.indices(self._pi)[rows], dev.indices(self._pj)[rows]
+            qi, qj = dev.indices(self._pi)[cols], dev.indices(self._pj)[cols]
+        out = dev.xp.zeros(int(rows.size))
+        step = max(1, PARTIAL_PRODUCT_CHUNK // max(int(rows.size), 1))
+        for c0 in range(0, int(cols.size), step):
+            flat = abs(qi[c0:c0 + step, None] - pi[None, :]) * width + abs(qj[c0:c0 + step, None] - pj[None, :])
+            out += x[c0:c0 + step] @ table[flat]
+        return out
 
     def _same_kind(self, op: FFTOperator) -> "ArrayFFTOperator":
         """``op`` (made by an inherited method) as an operator of this class."""
@@ -351,10 +463,15 @@ def array_fft_operator(host: KernelTransform, grid_idx: np.ndarray, xp: str = "c
 
 __all__ = [
     "ARRAY_MODULES",
+    "ArraySpace",
+    "HOST",
     "ArrayFFTOperator",
     "ArrayKernelTransform",
     "array_fft_operator",
     "device_floor_pair",
     "array_module",
     "gpu_unavailable_reason",
+    "named_space",
+    "operator_model_nbytes",
+    "on_host",
 ]

@@ -86,6 +86,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from contactbench.problems.operators import ContactOperator
+from contactbench.problems.operators_gpu import HOST, ArraySpace
 
 from ._farfield import MAX_AGGREGATES
 from ._kit import matvec_seconds
@@ -114,7 +115,7 @@ class GapState:
     """Iterate p (>= 0) and its gap g = Hp - ubar, kept consistent at one matvec per
     linear step, and through a projection by ``raise_forces`` (module doc, "Raised
     forces").  With an ``anchor`` the gap is g0 + H (p - p0) (``Anchor``) and starts at
-    g0 without a matvec."""
+    g0 without a matvec.  ``space``: where ubar, p and g live (solvers/_device.py)."""
 
     H: ContactOperator
     ubar: np.ndarray
@@ -124,6 +125,7 @@ class GapState:
     #: Whether a loop confirms convergence on a recomputed gap (``converged_now``); an
     #: anchored round of iterative refinement leaves that to its float64 refresh.
     confirm: bool = True
+    space: ArraySpace = HOST
     g: np.ndarray = field(init=False)
     _since_refresh: int = field(init=False, default=0)
     #: Forces raised since g was last exact everywhere: (positions, amounts >= 0) ...
@@ -143,7 +145,7 @@ class GapState:
         (p, g): the correction problem min 1/2 d'Hd + g'd, p + d >= 0, in the variable
         p + d, so the CCG loops run on it unchanged."""
         return cls(H, base.ubar, base.p.copy(), base.refresh_every, Anchor(base.p.copy(), base.g.copy()),
-                   confirm=False)
+                   confirm=False, space=base.space)
 
     @classmethod
     def start(cls, ctx: SolveContext) -> GapState:
@@ -202,7 +204,7 @@ class GapState:
             self.refresh()
             return
         if self._upto is None:
-            self._upto = np.zeros(self.p.size, dtype=np.int32)
+            self._upto = np.zeros_like(self.p, dtype=np.int32)
         if floor < 0.0:  # every gap takes its share of the negative entries now
             self.g += floor * float(np.sum(amounts))
         self._raised.append((cols, amounts))

@@ -94,6 +94,12 @@ def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray
     return ((p <= 0.0) | (p >= upper)) & ~at_rest(p, w, upper)
 
 
+def upper_bounds(c: Constraints, p: np.ndarray) -> np.ndarray:
+    """The upper bounds beside ``p`` (in its array space): inf everywhere without a
+    hardness, else the constraints' own (host) array."""
+    return np.full_like(p, math.inf, dtype=np.float64) if c.upper is None else c.upper
+
+
 def mean_on(x: np.ndarray, mask: np.ndarray) -> float:
     """The mean of x over ``mask`` (0 on an empty mask)."""
     k = int(np.count_nonzero(mask))
@@ -183,8 +189,8 @@ def constrained_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:
     if ctx.p0 is not None and np.any(ctx.p0 > 0.0):
         return scale_to_load(np.minimum(ctx.p0, u), c, u)
     if c.load is None:
-        return np.zeros(ctx.n)
-    return scale_to_load(np.minimum(np.full(ctx.n, float(c.load) / ctx.n), u), c, u)
+        return np.zeros_like(u)
+    return scale_to_load(np.minimum(np.full_like(u, float(c.load) / ctx.n), u), c, u)
 
 
 def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -248,17 +254,17 @@ def _checked(ctx: SolveContext, state: GapState, u: np.ndarray) -> tuple[float, 
     return kkt, delta, free
 
 
-def winkler_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray | None:
+def winkler_start(ctx: SolveContext, u: np.ndarray, ubar: np.ndarray | None = None) -> np.ndarray | None:
     """Under load control from p = 0, the points pressed each alone to the approach where
     they carry P (``_screen.approach_floor``: p_i = max(ubar_i + Delta_0, 0) / max H_ii),
     capped by the box and scaled to the load: the summits carry the load from the first
     iterate, where P spread evenly puts force on every point of the grid and the first
     iterations take it off nearly all of them.  None without a load or where that puts no
-    force anywhere."""
+    force anywhere.  ``ubar``: the QP's, where the state keeps it (default ``ctx.qp.ubar``)."""
     c = ctx.constraints
     if c.load is None or not float(c.load) > 0.0:
         return None
-    reach = np.maximum(ctx.qp.ubar + approach_floor(ctx.qp), 0.0)
+    reach = np.maximum((ctx.qp.ubar if ubar is None else ubar) + approach_floor(ctx.qp), 0.0)
     if not np.any(reach > 0.0):
         return None
     p = np.minimum(reach / float(np.max(ctx.qp.H.diagonal())), u)
@@ -271,7 +277,7 @@ def feasible_start(ctx: SolveContext, state: GapState, u: np.ndarray) -> None:
     when p changed)."""
     c = ctx.constraints
     if not np.any(state.p > 0.0):
-        p = winkler_start(ctx, u) if ctx.p0 is None else None
+        p = winkler_start(ctx, u, state.ubar) if ctx.p0 is None else None
         p = constrained_start(ctx, u) if p is None else p
     else:
         p = scale_to_load(np.minimum(state.p, u), c, u)
@@ -292,13 +298,13 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
     from ``first``."""
     c = ctx.constraints
     max_iter = ctx.max_iter if max_iter is None else max_iter
-    u = c.upper_or_inf(ctx.n)
+    u = upper_bounds(c, state.p)
     load = c.load_control
     feasible_start(ctx, state, u)
     t = np.zeros_like(state.p)
     G_old, reset = 1.0, True
     run = CCGRun(0, math.inf, False)
-    last = np.zeros(ctx.n, dtype=bool)
+    last = np.zeros_like(state.p, dtype=bool)
     watch, extra = Stagnation(), 0
     for it in range(1, max_iter + 1):
         kkt, delta, free = _checked(ctx, state, u)
@@ -436,9 +442,9 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     if not c.load_control:
         return bugnicourt(ctx, state, M, max_iter=max_iter, first=first)
     max_iter = ctx.max_iter if max_iter is None else max_iter
-    u = c.upper_or_inf(ctx.n)
+    u = upper_bounds(c, state.p)
     feasible_start(ctx, state, u)
-    none = np.zeros(0, dtype=np.int64)
+    none = np.zeros_like(state.p, shape=0, dtype=np.int64)
     delta, res = _dual_residual(state, u, c)
     d = inward(-_dual_direction(M, res), state, res, u)
     run = CCGRun(0, math.inf, False)

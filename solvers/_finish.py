@@ -145,21 +145,23 @@ def _solve_on(ctx: SolveContext, state: GapState, C: np.ndarray, u: np.ndarray,
     """(p_C, Delta) of the sub-problem on the positions ``C`` (module doc, step 3), or None
     when it cannot be solved (a singular block, a non-finite answer)."""
     c = ctx.constraints
-    H_CC = state.H.submatrix(C, C)
-    ubar_C = H_CC @ state.p[C] - state.g[C]
-    u_C = u[C]
+    get = state.space.get  # C is small: its rows cross to the host (a device state)
+    pos = get(C)
+    p_C, g_C, u_C = get(state.p[C]), get(state.g[C]), get(u[C])
+    H_CC = state.H.submatrix(pos, pos)
+    ubar_C = H_CC @ p_C - g_C
     load = None
     if c.load is not None:
-        pinned = float(np.sum(state.p)) - float(np.sum(state.p[C]))
+        pinned = float(np.sum(state.p)) - float(np.sum(p_C))
         load = min(max(float(c.load) - pinned, 0.0), float(np.sum(u_C)))
     sub = Constraints(None if not np.any(np.isfinite(u_C)) else u_C, load)
     tol = _solve_tol(ctx, ubar_C, H_CC, sub)
     steps = SUBSOLVE_STEPS_PER_POINT * C.size + 10
     try:
         if load is None:
-            p_C, mult = bvls(H_CC, ubar_C, sub.upper, state.p[C], max_iter=steps, tol=tol).p, 0.0
+            p_C, mult = bvls(H_CC, ubar_C, sub.upper, p_C, max_iter=steps, tol=tol).p, 0.0
         else:
-            out = load_active_set(H_CC, ubar_C, sub, state.p[C], max_iter=steps, tol=tol)
+            out = load_active_set(H_CC, ubar_C, sub, p_C, max_iter=steps, tol=tol)
             p_C, mult = out.p, out.multiplier
     except (np.linalg.LinAlgError, ValueError, FloatingPointError):
         return None
@@ -192,7 +194,7 @@ def finish_exactly(ctx: SolveContext, state: GapState, u: np.ndarray, delta: flo
         if solved is None:
             break
         before = state.p.copy()
-        state.p[pos] = solved[0]
+        state.p[pos] = state.space.put(solved[0])
         state.refresh()
         new_delta = solved[1] if math.isfinite(solved[1]) else fit_multiplier(state.g, state.p, ctx.constraints.upper)
         new_kkt = _kkt_of(ctx, state, new_delta if load else 0.0)

@@ -58,7 +58,7 @@ padded matvec), gathered on S.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 import scipy.fft as sfft
@@ -68,6 +68,7 @@ from scipy.sparse.csgraph import connected_components
 from contactbench.problems.instances import QP
 from contactbench.problems.fft_transform import spectral_multiply
 from contactbench.problems.operators import ContactOperator
+from contactbench.problems.operators_gpu import HOST, ArraySpace
 
 from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
 from ._farfield import FarField, build_far_field
@@ -125,6 +126,12 @@ LARGE_GRID_POINTS = 2048 * 2048
 LOAD_FOURIER = "fourier"
 
 
+#: Why "auto" is "fourier" on a device (``ContactOperator.space`` not the host): it is FFTs
+#: there, where the island kinds' block factorisations and far field are host work
+#: (solvers/_device.py).  Its products on a device are not yet measured against the islands'.
+DEVICE_FOURIER = "fourier"
+
+
 def grid_points(qp: QP) -> int:
     """Points of the physical grid the QP's unknowns sit on (its own size without a geometry)."""
     geo = getattr(qp, "geometry", None)
@@ -138,10 +145,13 @@ def large_grid(qp: QP) -> bool:
 
 
 def resolved_kind(kind: str, qp: QP) -> str:
-    """``kind`` with "auto" decided: "fourier" under load control without a hardness
-    (``LOAD_FOURIER``), else by the grid (``large_grid``)."""
+    """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
+    load control without a hardness (``LOAD_FOURIER``), else by the grid (``large_grid``)."""
     if kind != "auto":
         return kind
+    space = qp.H.space
+    if space is not None and not space.host:
+        return DEVICE_FOURIER
     c = qp.constraints
     if c.load_control and c.upper is None:
         return LOAD_FOURIER
@@ -200,7 +210,8 @@ class _OnesCache:
         if self._ones is None or drifted(self._on, self._ones_set, ONES_DRIFT):
             self._ones_set = self._on.copy()
             self._ones = self.apply(self._on.astype(np.float64))
-            self._ones.flags.writeable = False
+            if isinstance(self._ones, np.ndarray):  # a device array has no flags
+                self._ones.flags.writeable = False
         return self._ones
 
     def _forget_ones(self) -> None:
@@ -424,39 +435,42 @@ def patches(labels: np.ndarray, i: np.ndarray, j: np.ndarray, shape: tuple[int, 
 
 
 class FourierPreconditioner(_OnesCache):
-    """z = R F^-1[|q| F[R r]] on the physical grid (see module doc)."""
+    """z = R F^-1[|q| F[R r]] on the physical grid (see module doc), with r, z, the set,
+    the wave numbers and the grid indices in the array ``space`` (the host by default;
+    a device's FFTs there: solvers/_device.py)."""
 
-    def __init__(self, grid_shape: tuple[int, int], grid_idx: np.ndarray) -> None:
+    def __init__(self, grid_shape: tuple[int, int], grid_idx: np.ndarray, space: ArraySpace = HOST) -> None:
         self._shape = (int(grid_shape[0]), int(grid_shape[1]))
-        self._q = floored_wavenumbers(self._shape)
-        self._idx = np.asarray(grid_idx)
-        self._on = np.zeros(self._idx.size, dtype=bool)
+        self._space = space
+        self._q = space.put(floored_wavenumbers(self._shape))
+        self._idx = space.put(np.asarray(grid_idx))
+        self._on = space.xp.zeros(int(np.asarray(grid_idx).size), dtype=bool)
         self._solo: float | None = None
         self.builds = 0
 
     @classmethod
-    def build(cls, qp: QP) -> FourierPreconditioner | None:
+    def build(cls, qp: QP, space: ArraySpace = HOST) -> FourierPreconditioner | None:
         g = qp.geometry
         if g is None or g.indices is None or np.asarray(g.indices).size != qp.n:
             return None
-        return cls(tuple(g.grid_shape), np.asarray(g.indices))
+        return cls(tuple(g.grid_shape), np.asarray(g.indices), space)
 
     @property
     def on(self) -> np.ndarray:
         return self._on
 
     def update(self, S: np.ndarray) -> None:
-        self._on = np.asarray(S, dtype=bool).copy()
+        self._on = S.astype(bool)  # a copy
 
     def apply(self, r: np.ndarray) -> np.ndarray:
         # Masks as products (r finite): several times faster than np.where on a scattered set.
-        z = multiply_by_wavenumbers(self._q, self._shape, self._idx, r * self._on)
+        z = multiply_by_wavenumbers(self._q, self._shape, self._idx, r * self._on, self._space.xp)
         return np.multiply(z, self._on, out=z)
 
     def solo(self, r: np.ndarray) -> np.ndarray:
         """c r, c = F^-1[|q|] at offset 0 (the mean of |q| over the full spectrum)."""
         if self._solo is None:
-            self._solo = float(sfft.irfft2(self._q, s=self._shape)[0, 0])
+            self._solo = float(sfft.irfft2(floored_wavenumbers(self._shape), s=self._shape)[0, 0])
         return self._solo * r
 
     def simplify(self) -> bool:
@@ -475,23 +489,31 @@ def floored_wavenumbers(shape: tuple[int, int]) -> np.ndarray:
     return q
 
 
-def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx)."""
-    f = np.zeros(shape)
+def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarray, r: np.ndarray,
+                            xp: Any = np) -> np.ndarray:
+    """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx), in
+    the array module ``xp`` (numpy: the operator's FFT library, ``spectral_multiply``)."""
+    f = xp.zeros(shape)
     f.ravel()[idx] = r
-    return spectral_multiply(f, q).ravel()[idx]
+    if xp is np:
+        return spectral_multiply(f, q).ravel()[idx]
+    F = xp.fft.rfft2(f)
+    F *= q
+    return xp.fft.irfft2(F, s=shape).ravel()[idx]
 
 
-def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64) -> SetPreconditioner | None:
+def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64,
+                        space: ArraySpace = HOST) -> SetPreconditioner | None:
     """The preconditioner ``kind`` (one of ``KINDS``) for CG on sets of ``qp``'s unknowns;
     None for "none", and also when the QP has no grid positions (``QP.geometry``), which
     both preconditioners need: the caller then runs unpreconditioned.  ``block_dtype``:
-    the precision of the island blocks' inverses (module doc)."""
+    the precision of the island blocks' inverses (module doc).  ``space``: where its
+    vectors live (the Fourier one runs on a device; the islands on the host only)."""
     kind = resolved_kind(kind, qp)
     if kind in ISLAND_KINDS:
         return IslandPreconditioner.build(qp, dtype=block_dtype, far_field=kind == "farfield")
     if kind == "fourier":
-        return FourierPreconditioner.build(qp)
+        return FourierPreconditioner.build(qp, space)
     if kind == "none":
         return None
     raise ValueError(f"unknown preconditioner {kind!r}: expected one of {', '.join(KINDS)}")

@@ -24,7 +24,8 @@ sum(p) <= L, only the points with ubar_i >= f L (f = min H_ij <= 0) can be in co
 Load control (sum(p) = P given, the approach Delta the unknown multiplier): the rule is
 ``QP.can_touch(P, Delta_b)`` -- a point can touch only if ubar_i >= f P - Delta_b for any
 Delta_b >= Delta -- with Delta_b = ``LOAD_MARGIN`` x the round's Delta (``approach_bound``).
-The first round's Delta is a guess: ``COLD_APPROACH_FACTOR`` x ``approach_floor``, the
+The first round's Delta is a guess (``cold_approach``): ``COLD_APPROACH_FACTOR`` times as
+far in from the first touch (Delta = -max ubar) as ``approach_floor``, the
 approach at which the points, each pressed alone (stiffness 1/H_ii), would carry P; with
 an aperiodic kernel (H_ij >= 0) the true Delta is never below it (p_i <= (ubar_i + Delta)
 / H_ii at a contact point).  The round's own Delta then bounds the next set.  A round on
@@ -62,7 +63,8 @@ MAX_SCREENED_FRACTION = 0.5
 #: this scaled KKT error, enough to bound the load for the next round.
 COLD_ROUND_TOL = 1e-3
 
-#: Load control: the first round's approach is this many times ``approach_floor``.
+#: Load control: the first round's approach is this many times as far in from the first
+#: touch as ``approach_floor`` (``cold_approach``).
 COLD_APPROACH_FACTOR = 3.0
 
 #: The values of a fast solver's ``screening`` parameter.
@@ -102,6 +104,16 @@ def approach_floor(qp: QP) -> float:
         k = min(n, 8 * k)
 
 
+def cold_approach(qp: QP) -> float:
+    """The first round's guess of the approach (module doc): ``COLD_APPROACH_FACTOR`` times
+    as far in from the first touch, -max(ubar), as ``approach_floor``.  A scene's ubar
+    touches at 0 (so it is the factor times the floor); a QP whose ubar is positive
+    somewhere (a displacement instance posed under a load) has a negative floor, which
+    a plain multiple would move outward, to fewer points -- none at all."""
+    first = -float(np.max(qp.ubar, initial=-math.inf))
+    return first + COLD_APPROACH_FACTOR * (approach_floor(qp) - first)
+
+
 def approach_bound(delta: float) -> float:
     """An approach a little beyond ``delta`` (``LOAD_MARGIN``, on either sign)."""
     return delta + (LOAD_MARGIN - 1.0) * abs(delta)
@@ -123,7 +135,7 @@ def touching(ctx: SolveContext, p: np.ndarray, approach: float | None = None) ->
     (module doc)."""
     c = ctx.constraints
     if c.load_control:
-        delta = COLD_APPROACH_FACTOR * approach_floor(ctx.qp) if approach is None else approach
+        delta = cold_approach(ctx.qp) if approach is None else approach
         touch = ctx.qp.can_touch(float(c.load), approach_bound(delta))
     else:
         touch = ctx.qp.can_touch(LOAD_MARGIN * float(np.sum(p)))
@@ -138,7 +150,7 @@ def touching(ctx: SolveContext, p: np.ndarray, approach: float | None = None) ->
 def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
     """``touching`` at the start p, or None when it is unknown or not small enough to pay."""
     T = touching(ctx, p)
-    return T if T is not None and T.size <= MAX_SCREENED_FRACTION * ctx.n else None
+    return T if T is not None and 0 < T.size <= MAX_SCREENED_FRACTION * ctx.n else None
 
 
 def round_approach(ctx: SolveContext, out: Outcome, p: np.ndarray, w: np.ndarray) -> float | None:

@@ -44,10 +44,11 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome, polonsky_keer
+from ._ccg import CCGRun, FastSolver, bugnicourt, outcome, polonsky_keer
 from ._constrained import bugnicourt_load, polonsky_keer_box
+from ._device import bring_home, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess
-from ._preconditioners import KINDS, make_preconditioner
+from ._preconditioners import KINDS, make_preconditioner, resolved_kind
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
 from .base import Capabilities, Outcome, Param, SolveContext, Solver
@@ -65,21 +66,22 @@ def first_guess_param() -> Param:
                  choices=FIRST_GUESSES)
 
 
-def starting_state(solver: Solver, ctx: SolveContext) -> tuple[GapState, dict[str, Any]]:
-    """The state at the warm start, else at the first guess of ``params["first_guess"]``
-    (the coarse solve's matvecs are counted, and reported as "coarse_matvecs").  Under
-    constraints (a hardness, a load) the coarse grid poses the plain problem, so the
-    first guess is ignored there ("first_guess": "zero (constraints)")."""
+def starting_point(solver: Solver, ctx: SolveContext) -> tuple[np.ndarray, dict[str, Any]]:
+    """The first p on the host: the warm start, else the first guess of
+    ``params["first_guess"]`` (the coarse solve's matvecs are counted, and reported as
+    "coarse_matvecs").  Under constraints (a hardness, a load) the coarse grid poses the
+    plain problem, so the first guess is ignored there ("first_guess": "zero (constraints)")."""
     wanted = ctx.params.get("first_guess", "zero")
-    if ctx.p0 is not None or wanted == "zero":
-        return GapState.start(ctx), {}
+    if ctx.p0 is not None:
+        return ctx.p0.copy(), {}
+    if wanted == "zero":
+        return np.zeros(ctx.n), {}
     if not ctx.constraints.plain:
-        return GapState.start(ctx), {"first_guess": "zero (constraints)"}
+        return np.zeros(ctx.n), {"first_guess": "zero (constraints)"}
     guess = coarse_first_guess(solver, ctx)
     ctx.add_matvecs(guess.matvecs)
     info = {"first_guess": guess.note, "coarse_matvecs": guess.matvecs, "coarse_iterations": guess.iterations}
-    p0 = np.zeros(ctx.n) if guess.p is None else guess.p
-    return GapState(ctx.qp.H, ctx.qp.ubar, p0), info
+    return (np.zeros(ctx.n) if guess.p is None else guess.p), info
 
 
 class _FastCCG(FastSolver):
@@ -97,12 +99,17 @@ class _FastCCG(FastSolver):
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
-        M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(precision))
+        kind = resolved_kind(ctx.params["precondition"], ctx.qp)
+        space, where = resident_space(ctx, kind)
+        M = make_preconditioner(kind, ctx.qp, block_dtype(precision), space)
         ctx.mark_setup_done()
-        state, info = starting_state(self, ctx)
+        p0, info = starting_point(self, ctx)
+        state = resident_state(ctx, space, p0)
         loop = self.loop if ctx.constraints.plain or self.constrained_loop is None else self.constrained_loop
         run, more = solve_in_precision(ctx, state, loop, M)
+        bring_home(ctx, state)
         info.update(more)
+        info.update(where)
         if M is not None:
             info["preconditioner_builds"] = M.builds
         return outcome(state, run, info)

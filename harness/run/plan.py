@@ -379,15 +379,17 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[b
 
 
 def check_device_fit(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]) -> None:
-    """Refuse a "gpu" run, before anything runs, where an instance's square grid does not
-    fit the device by its memory model (``operators_gpu.device_misfit``); instances whose
-    sizes the scene does not tell are not checked."""
+    """Refuse a "gpu" run, before anything runs, where an instance's square grid and its
+    largest step's trial set do not fit the device by its memory model
+    (``operators_gpu.device_misfit``); instances whose sizes the scene does not tell are
+    not checked."""
     misfits = []
     for job in jobs:
         size = sizes.get(job.spec.instance)
         if size is None or size.side <= 0:
             continue
-        why = device_misfit((size.side, size.side), bool(job.spec.params.get("periodic")))
+        points = max(size.n) if size.n else None
+        why = device_misfit((size.side, size.side), bool(job.spec.params.get("periodic")), points)
         if why:
             misfits.append(f"{job.spec.instance}: {why}")
     if misfits:

@@ -236,20 +236,36 @@ def test_a_failing_device_probe_is_a_reason_not_a_crash(monkeypatch) -> None:
     assert gpu.gpu_unavailable_reason.__wrapped__() == "CuPy finds no CUDA device"
 
 
-def test_the_device_memory_model_against_the_measured_pools() -> None:
-    """``device_model_nbytes`` against CuPy's pool measured on an H200 (results/perf/gpu.md):
-    15.1 GiB at 8192^2 and 3.8 GiB at 4096^2 non-periodic, within 2 %; at 2048^2 (0.7 GiB)
-    it may over-state, never under-state by more than that; it grows as N^2, and a periodic
-    grid (no padding) needs less than half."""
-    from contactbench.problems.operators_gpu import device_model_nbytes
+def test_the_operator_memory_model_against_the_measured_pools() -> None:
+    """``operator_model_nbytes`` against CuPy's pool measured on an H200 with the loop on the
+    host (results/perf/gpu.md): 15.1 GiB at 8192^2 and 3.8 GiB at 4096^2 non-periodic,
+    within 2 %; at 2048^2 (0.7 GiB) it may over-state, never under-state by more than
+    that; it grows as N^2, and a periodic grid (no padding) needs less than half."""
+    from contactbench.problems.operators_gpu import operator_model_nbytes
 
     gib = 2.0**30
     for N, measured in ((8192, 15.1), (4096, 3.8)):
-        assert abs(device_model_nbytes((N, N), False) / gib - measured) <= 0.02 * measured
-    assert device_model_nbytes((2048, 2048), False) / gib >= 0.98 * 0.7
-    ratio = device_model_nbytes((16384, 16384), False) / device_model_nbytes((8192, 8192), False)
+        assert abs(operator_model_nbytes((N, N), False) / gib - measured) <= 0.02 * measured
+    assert operator_model_nbytes((2048, 2048), False) / gib >= 0.98 * 0.7
+    ratio = operator_model_nbytes((16384, 16384), False) / operator_model_nbytes((8192, 8192), False)
     assert 3.99 <= ratio <= 4.01
-    assert device_model_nbytes((4096, 4096), True) < 0.5 * device_model_nbytes((4096, 4096), False)
+    assert operator_model_nbytes((4096, 4096), True) < 0.5 * operator_model_nbytes((4096, 4096), False)
+
+
+def test_a_device_resident_solve_adds_its_vectors_to_the_operator() -> None:
+    """``device_model_nbytes``: the operator's bytes and the resident arrays, which grow
+    with the unknowns (a screened trial set costs less than the whole grid, never more)."""
+    from contactbench.problems.operators_gpu import (POOL_FACTOR, RESIDENT_GRIDS, RESIDENT_VECTORS,
+                                                     device_model_nbytes, operator_model_nbytes)
+
+    shape, grid = (1024, 1024), 1024 * 1024
+    op = operator_model_nbytes(shape, False)
+    whole = device_model_nbytes(shape, False)
+    assert whole == device_model_nbytes(shape, False, grid) == device_model_nbytes(shape, False, 10 * grid)
+    assert abs(whole - op - POOL_FACTOR * 8 * (RESIDENT_VECTORS + RESIDENT_GRIDS) * grid) <= 1
+    few = device_model_nbytes(shape, False, grid // 8)
+    assert op < few < whole
+    assert abs((whole - few) - POOL_FACTOR * 8 * RESIDENT_VECTORS * (grid - grid // 8)) <= 2
 
 
 def test_device_misfit_says_why_and_stays_quiet_without_a_device(monkeypatch) -> None:
@@ -258,6 +274,7 @@ def test_device_misfit_says_why_and_stays_quiet_without_a_device(monkeypatch) ->
     monkeypatch.setattr(gpu, "device_total_bytes", lambda: None)
     assert gpu.device_misfit((65536, 65536), False) is None  # no device to ask: nothing to refuse
     monkeypatch.setattr(gpu, "device_total_bytes", lambda: 80 * 2**30)
-    assert gpu.device_misfit((16384, 16384), False) is None  # ~60 GiB fits 80 GiB
+    assert gpu.device_misfit((16384, 16384), False, 36_000_000) is None  # the trial set of n = 36 M fits
+    assert "16384 x 16384 non-periodic grid needs about" in gpu.device_misfit((16384, 16384), False)  # the whole
     why = gpu.device_misfit((32768, 32768), False)
-    assert why is not None and "needs about 240" in why and "has 80.0 GiB" in why
+    assert why is not None and "needs about 411" in why and "has 80.0 GiB" in why

@@ -165,3 +165,26 @@ def test_a_load_controlled_first_set_too_small_grows(loaded, factor, monkeypatch
     assert res.converged and res.info["screened_rounds"] >= 2, res.message
     assert relative_error(res.p, exact.p) <= 1e-6
     assert res.multiplier == pytest.approx(exact.multiplier, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-ccg"])
+def test_a_load_on_a_displacement_instance_is_screened_from_its_own_first_touch(name):
+    """A displacement instance posed under a load: its ubar is positive at the points the
+    rigid body already presses (the first touch is at Delta = -max ubar < 0), so the
+    approach floor is negative.  The cold guess reaches in from that first touch
+    (``cold_approach``), never outward to an empty set, and the answer is the
+    unscreened one."""
+    from contactbench.problems.constraints import make_constraints
+    from contactbench.solvers._screen import cold_approach
+
+    s = rmd_surface_n(64, 0.7, length=100e-6, seed=3)
+    inst = InstanceBuilder(s, 1e9).build(paper_max_displacement(s))
+    free = solve("fast-dual-pccg", inst.qp, "none")
+    qp = QP(inst.qp.H, inst.qp.ubar, inst.qp.geometry,
+            make_constraints(inst.qp.n, None, 0.5 * float(np.sum(free.p))))
+    assert approach_floor(qp) < 0.0 and cold_approach(qp) > approach_floor(qp)
+    whole = solve(name, qp, "none")
+    res = solve(name, qp, "safe")
+    assert whole.converged and res.converged, res.message
+    assert relative_error(res.p, whole.p) <= 1e-6
+    assert kkt_check(qp, res.p, res.multiplier).kkt_error <= 10 * HIGH

@@ -1,0 +1,163 @@
+"""The fast CCGs with their vectors in the operator's array space (solvers/_device.py).
+
+On a device that is not there (tests/fake_device.py: arrays that refuse every implicit
+trip to the host, as CuPy's do) each fast CCG solves the plain and the load-controlled
+problem to the same answer as on the host, with the same products under load control,
+and moves whole arrays only a fixed number of times per solve -- however many
+iterations it runs.  On the NumPy space (the host itself) the iterates are the host
+operator's.  A preconditioner or a bound that runs on the host only keeps the loop on
+the host, and says so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from contactbench.problems.constraints import make_constraints
+from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
+from contactbench.problems.kkt import kkt_check
+from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers.base import SolverSettings
+from contactbench.solvers.registry import get_solver
+from tests.fake_device import SPACE, TRANSFERS, DeviceArray
+
+E = 1e9
+TOL = 1e-10
+#: Arrays a solve moves: up, ubar, the start, the wave numbers, the grid indices, the
+#: kernel spectrum, the trial set's padded indices, its grid rows and columns and the
+#: kernel table's quarter (the partial products'); down, p and its gap.
+FIXED_TRANSFERS = 11
+#: And in mixed precision: the float32 spectrum and the float32 twin's padded indices.
+MIXED_TRANSFERS = 2
+
+
+@pytest.fixture(scope="module")
+def builder_and_instance():
+    surf = rmd_surface_n(64, 0.7, length=1e-4, seed=3)
+    builder = InstanceBuilder(surf, E)
+    return builder, builder.build(paper_max_displacement(surf))
+
+
+def on_space(builder, qp: QP, space) -> QP:
+    op = ArrayFFTOperator(ArrayKernelTransform.from_host(builder.transform, space), qp.geometry.indices,
+                          auto_dense=False)
+    return QP(op, qp.ubar, qp.geometry, qp.constraints)
+
+
+def loaded(qp: QP) -> QP:
+    """``qp`` under half the load of its displacement-controlled answer."""
+    ref = get_solver("fast-dual-pccg").solve(qp, SolverSettings(tol=TOL))
+    return QP(qp.H, qp.ubar, qp.geometry, make_constraints(qp.n, None, 0.5 * float(np.sum(ref.p))))
+
+
+def solve(name: str, qp: QP, **params):
+    return get_solver(name).solve(qp, SolverSettings(tol=TOL, params=params or None))
+
+
+def test_the_fake_device_refuses_implicit_transfers() -> None:
+    """The fake holds: a host array mixed in, an implicit conversion or a host index is
+    refused; scalars cross and are counted."""
+    x = SPACE.put(np.arange(4.0))
+    assert isinstance(x * 2.0 + np.sum(x), DeviceArray)
+    for bad in (lambda: x + np.ones(4), lambda: np.asarray(x), lambda: x[np.array([0, 1])], lambda: float(x)):
+        with pytest.raises(TypeError):
+            bad()
+    before = TRANSFERS.scalars
+    assert float(x @ x) == 14.0 and TRANSFERS.scalars == before + 1
+    assert np.array_equal(SPACE.get(x), np.arange(4.0))
+
+
+@pytest.mark.parametrize("control", ["displacement", "load"])
+@pytest.mark.parametrize("name, params", [
+    ("fast-dual-pccg", {}),
+    ("fast-dual-pccg", {"precision": "mixed"}),
+    ("fast-pccg", {"precondition": "fourier"}),
+    ("fast-dual-ccg", {}),
+    ("fast-ccg", {}),
+])
+def test_a_device_solve_keeps_its_vectors_there(builder_and_instance, control, name, params) -> None:
+    builder, inst = builder_and_instance
+    qp = inst.qp if control == "displacement" else loaded(inst.qp)
+    same = {"precondition": "fourier"} if name.endswith("pccg") else {}  # what "auto" is on a device
+    host = solve(name, qp, **{**params, **same})
+    before = dataclasses.replace(TRANSFERS)
+    dev = solve(name, on_space(builder, qp, SPACE), **params)
+    moved = TRANSFERS.arrays() - before.arrays()
+    assert dev.status == "converged", dev.message
+    assert dev.info["array_space"] == "fake"
+    fixed = FIXED_TRANSFERS + (MIXED_TRANSFERS if dev.info["precision"] == "mixed" else 0)
+    assert dev.iterations >= 10 and moved <= fixed * dev.info.get("screened_rounds", 1), moved
+    assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
+    assert kkt_check(qp, dev.p, dev.multiplier).kkt_error <= 10 * TOL
+    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs, (dev.matvecs, host.matvecs)
+    if control == "load":
+        assert dev.multiplier == pytest.approx(host.multiplier, rel=1e-6)
+
+
+@pytest.mark.parametrize("control", ["displacement", "load"])
+@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-ccg"])
+def test_the_numpy_space_is_the_host_loop(builder_and_instance, control, name) -> None:
+    """On the NumPy space the loop is the host's: the same products (+-5 %) and answer."""
+    builder, inst = builder_and_instance
+    qp = inst.qp if control == "displacement" else loaded(inst.qp)
+    host = solve(name, qp, precondition="fourier") if name == "fast-dual-pccg" else solve(name, qp)
+    kw = {"precondition": "fourier"} if name == "fast-dual-pccg" else {}
+    arr = solve(name, on_space(builder, qp, "numpy"), **kw)
+    assert arr.info["array_space"] == "numpy" and arr.status == "converged"
+    assert abs(arr.matvecs - host.matvecs) <= 0.05 * host.matvecs
+    assert np.max(np.abs(arr.p - host.p)) <= 1e-8 * np.max(host.p)
+
+
+def test_host_only_work_keeps_the_loop_on_the_host_and_says_why(builder_and_instance) -> None:
+    builder, inst = builder_and_instance
+    qp = on_space(builder, inst.qp, SPACE)
+    islands = solve("fast-dual-pccg", qp, precondition="islands")
+    assert islands.status == "converged" and islands.info["array_space"].startswith("host (the 'islands'")
+    hard = QP(qp.H, qp.ubar, qp.geometry, make_constraints(qp.n, 0.5 * float(np.max(solve("fast-ccg", inst.qp).p))))
+    bounded = solve("fast-dual-ccg", hard)
+    assert bounded.status == "converged" and bounded.info["array_space"].startswith("host (a hardness")
+
+
+def test_auto_is_the_fourier_preconditioner_on_a_device(builder_and_instance) -> None:
+    """The default's islands are host work; on a device "auto" is the wave-number kind,
+    on the host (and the NumPy space) it stays the islands."""
+    builder, inst = builder_and_instance
+    dev = solve("fast-dual-pccg", on_space(builder, inst.qp, SPACE))
+    assert dev.info["array_space"] == "fake" and dev.info["preconditioner_builds"] == 0
+    host = solve("fast-dual-pccg", on_space(builder, inst.qp, "numpy"))
+    assert host.info["preconditioner_builds"] > 0
+
+
+def test_a_screened_device_solve_moves_its_arrays_once_a_round() -> None:
+    """Under a light load the solve is screened (solvers/_screen.py): each round's
+    sub-problem runs on the device, its arrays cross once a round, and the products are
+    the host's."""
+    surf = rmd_surface_n(128, 0.7, length=1e-4, seed=3)
+    builder = InstanceBuilder(surf, E)
+    qp = loaded(builder.build(paper_max_displacement(surf)).qp)
+    qp = QP(qp.H, qp.ubar, qp.geometry, make_constraints(qp.n, None, 0.4 * float(qp.constraints.load)))
+    host = solve("fast-dual-pccg", qp, precondition="fourier")
+    before = dataclasses.replace(TRANSFERS)
+    dev = solve("fast-dual-pccg", on_space(builder, qp, SPACE))
+    rounds = dev.info["screened_rounds"]
+    assert dev.status == "converged" and rounds >= 2 and dev.info["array_space"] == "fake"
+    assert TRANSFERS.arrays() - before.arrays() <= FIXED_TRANSFERS * rounds
+    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs
+    assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
+
+
+@pytest.mark.skipif(gpu_unavailable_reason() is not None, reason=f"no CUDA device: {gpu_unavailable_reason()}")
+@pytest.mark.parametrize("control", ["displacement", "load"])
+def test_the_cuda_device_gives_the_host_answer(builder_and_instance, control) -> None:
+    """On a lent GPU: the same solve on CuPy, the host's answer and products."""
+    builder, inst = builder_and_instance
+    qp = inst.qp if control == "displacement" else loaded(inst.qp)
+    host = solve("fast-dual-pccg", qp, precondition="fourier")
+    dev = solve("fast-dual-pccg", on_space(builder, qp, "cupy"))
+    assert dev.status == "converged" and dev.info["array_space"] == "cupy"
+    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs
+    assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
