@@ -17,7 +17,8 @@ Every surface is scaled to its cell's rms slope (``with_rms_slope``).  Instance:
 paper's, BCC kernel, non-periodic, E = the paper's, top step Delta = (z_max - z_mean)/2,
 cold start, tol 1e-9 (profile "high", judged by harness/judging.py).  Variants (``VARIANTS``):
 "default" -- ``fast-dual-pccg`` with its defaults -- and "double-islands" --
-``precision=double, precondition=islands``.
+``precision=double, precondition=islands``; "fourier" is the wave-number preconditioner,
+what "auto" is on a device (solvers/_device.py), so its matvecs there are these.
 
 Each solve runs in its own process (``--in-process`` runs them in this one: matvec counts
 only, no per-solve peak memory) with ``SolverSettings(time_limit=--timeout)`` and a hard
@@ -73,6 +74,7 @@ VARIANTS: dict[str, dict[str, str]] = {
     "double": {"precision": "double"},
     "islands": {"precondition": "islands"},
     "auto": {"precision": "auto"},
+    "fourier": {"precondition": "fourier"},
 }
 #: A default solve may need at most this many times the median matvecs of its size ...
 STALL_FACTOR = 2.0

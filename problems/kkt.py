@@ -131,6 +131,23 @@ def worst(*xs: float) -> float:
     return max(worse(x) for x in xs)
 
 
+def min_below_zero(x: Any) -> float:
+    """min(min x, 0) as a float, NaN when x holds a NaN, 0 for an empty x: ``np.min(x,
+    initial=0.0)`` in any array module (CuPy's reductions take no ``initial``)."""
+    if x.size == 0:
+        return 0.0
+    m = float(np.min(x))
+    return m if not m >= 0.0 else 0.0
+
+
+def max_above_zero(x: Any) -> float:
+    """max(max x, 0) as a float, NaN when x holds a NaN, 0 for an empty x (``min_below_zero``)."""
+    if x.size == 0:
+        return 0.0
+    m = float(np.max(x))
+    return m if not m <= 0.0 else 0.0
+
+
 def _negative_part(x: float) -> float:
     """max(0, -x), NaN for NaN."""
     return math.nan if math.isnan(x) else max(0.0, -x)
@@ -164,11 +181,11 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
     A non-finite entry of p or w, or a product that overflows, gives inf."""
     u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
     with np.errstate(all="ignore"):
-        primal = _negative_part(float(np.min(p, initial=0.0))) / p_s
-        dual = _negative_part(float(np.min(w, initial=0.0))) / u_s
+        primal = _negative_part(min_below_zero(p)) / p_s
+        dual = _negative_part(min_below_zero(w)) / u_s
         t = np.multiply(p, 1.0 / p_s)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow
         np.multiply(t, w, out=t)
-        comp = worst(float(np.max(t, initial=0.0)), -float(np.min(t, initial=0.0))) / u_s
+        comp = worst(max_above_zero(t), -min_below_zero(t)) / u_s
     primal, dual, comp = worse(primal), worse(dual), worse(comp)
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(w))):
         primal = dual = comp = math.inf  # an answer or gap with inf or NaN entries is no answer
@@ -234,14 +251,13 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
     with np.errstate(all="ignore"):
         w = g - delta
         slack = u - p
-        primal = worst(_negative_part(float(np.min(p, initial=0.0))),
-                       _negative_part(float(np.min(slack, initial=0.0)))) / p_s
+        primal = worst(_negative_part(min_below_zero(p)), _negative_part(min_below_zero(slack))) / p_s
         neg = np.maximum(-w, 0.0) / u_s
-        dual = worse(float(np.max(np.minimum(neg, np.maximum(slack, 0.0) / p_s), initial=0.0)))
+        dual = worse(max_above_zero(np.minimum(neg, np.maximum(slack, 0.0) / p_s)))
         pos = np.maximum(w, 0.0) / u_s
         lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
         upper = np.where(bounded, np.abs(slack) / p_s * neg, 0.0)
-        comp = worst(float(np.max(lower, initial=0.0)), float(np.max(upper, initial=0.0)))
+        comp = worst(max_above_zero(lower), max_above_zero(upper))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
@@ -253,9 +269,9 @@ def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: f
     primal from min(p), dual from max(-w), complementarity from max(|p| |w|), each scaled
     as there."""
     with np.errstate(all="ignore"):
-        primal = worse(float(np.float64(_negative_part(float(np.min(p, initial=0.0)))) / p_s))
-        dual = worse(float(np.maximum(-np.min(w, initial=0.0), 0.0) / np.float64(u_s)))
-        comp = worse(float(np.max(np.abs(p) / p_s * (np.abs(w) / u_s), initial=0.0)))
+        primal = worse(float(np.float64(_negative_part(min_below_zero(p))) / p_s))
+        dual = worse(float(np.float64(_negative_part(min_below_zero(w))) / np.float64(u_s)))
+        comp = worse(max_above_zero(np.abs(p) / p_s * (np.abs(w) / u_s)))
     equality = _equality(p, constraints, p_s)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
 

@@ -85,6 +85,7 @@ from abc import abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
+from contactbench.problems.kkt import min_below_zero
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
 
@@ -183,7 +184,7 @@ class GapState:
             np.clip(self.p, 0.0, upper, out=self.p)
             self.refresh()
             return True
-        clipped = float(np.min(self.p, initial=0.0)) < 0.0
+        clipped = min_below_zero(self.p) < 0.0
         if clipped:
             cols = np.flatnonzero(self.p < 0.0)
             self.raise_forces(cols, -self.p[cols])

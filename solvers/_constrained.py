@@ -79,6 +79,7 @@ from dataclasses import replace
 import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
+from contactbench.problems.kkt import min_below_zero
 
 from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, on_set, polak_ribiere,
                    precondition_on)
@@ -121,7 +122,7 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
     if c.load is None:
         return p
     load = float(c.load)
-    if c.upper is None and float(np.min(p, initial=0.0)) >= 0.0:  # no box: the branch below, in one pass
+    if c.upper is None and min_below_zero(p) >= 0.0:  # no box: the branch below, in one pass
         total = float(np.sum(p))
         if total > 0.0:
             p *= load / total
@@ -143,11 +144,8 @@ def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | 
         if g is None:
             p[off] = np.minimum(rest / max(off.size, 1), u[off])
             return p
-        for i in off[np.argsort(g[off], kind="stable")]:
-            if rest <= 0.0:
-                break
-            p[i] = min(rest, u[i])
-            rest -= p[i]
+        order = off[np.argsort(g[off], kind="stable")]
+        p[order] = taken_in_order(rest, u[order])
         return p
     lo, hi = 0.0, 1.0
     while float(np.sum(np.minimum(hi * p, u))) < load:
@@ -173,13 +171,20 @@ def shed_by_gap(p: np.ndarray, excess: float, g: np.ndarray) -> np.ndarray:
     their gap ``g``, the largest first (the points the contact holds least), each down
     to 0 at most: near saturation this keeps the plastic set, where scaling every force
     would move every point off its bound."""
-    for i in np.flatnonzero(p > 0.0)[np.argsort(-g[p > 0.0], kind="stable")]:
-        if excess <= 0.0:
-            break
-        take = min(excess, float(p[i]))
-        p[i] -= take
-        excess -= take
+    carrying = np.flatnonzero(p > 0.0)
+    order = carrying[np.argsort(-g[carrying], kind="stable")]
+    p[order] -= taken_in_order(excess, p[order])
     return p
+
+
+def taken_in_order(amount: float, caps: np.ndarray) -> np.ndarray:
+    """``amount`` dealt out to points in their order, each up to its cap (>= 0, inf for
+    none), the first filled first: the part of each, min(cap, amount - the caps before it)
+    and never below 0 -- a greedy pass, in one vector pass."""
+    if caps.size == 0:
+        return np.zeros(0)
+    before = np.concatenate(([0.0], np.cumsum(caps)[:-1]))
+    return np.clip(amount - before, 0.0, caps)
 
 
 def constrained_start(ctx: SolveContext, u: np.ndarray) -> np.ndarray:

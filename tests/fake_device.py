@@ -2,8 +2,9 @@
 
 ``DeviceArray`` wraps a NumPy array the way a CuPy array holds device memory: NumPy's
 functions and ufuncs dispatch to it (NEP 13/18) and return ``DeviceArray``; a host array
-of one or more dimensions mixed into an operation, a host index array, or an implicit
-conversion (``np.asarray``) raises ``TypeError``, as CuPy does.  A scalar may cross
+of one or more dimensions mixed into an operation, a host index array, an implicit
+conversion (``np.asarray``) or a keyword CuPy's functions lack (``CUPY_LACKS``) raises
+``TypeError``, as CuPy does.  A scalar may cross
 (``float``, ``int``, ``bool``, ``item``: what a device loop synchronises on); whole
 arrays cross only through ``SPACE.put`` (``xp.asarray``) and ``get``, and ``TRANSFERS``
 counts both.  So a solve run on ``SPACE`` proves that its loop keeps its vectors where
@@ -36,6 +37,9 @@ class Transfers:
 
 
 TRANSFERS = Transfers()
+
+#: Keywords NumPy's functions take and CuPy's do not (its reductions: ``initial``, ``where``).
+CUPY_LACKS = frozenset({"initial", "where"})
 
 
 def _strip(x: Any) -> Any:
@@ -85,6 +89,9 @@ class DeviceArray(NDArrayOperatorsMixin):
         return _wrap(result)
 
     def __array_function__(self, func: Any, types: Any, args: Any, kwargs: Any) -> Any:
+        unsupported = CUPY_LACKS & set(kwargs)
+        if unsupported:
+            raise TypeError(f"np.{func.__name__}: CuPy takes no {sorted(unsupported)}")
         return _wrap(func(*_strip(args), **_strip(kwargs)))
 
     # -- attributes and methods a loop uses --------------------------------------------

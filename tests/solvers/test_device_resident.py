@@ -59,11 +59,12 @@ def solve(name: str, qp: QP, **params):
 
 
 def test_the_fake_device_refuses_implicit_transfers() -> None:
-    """The fake holds: a host array mixed in, an implicit conversion or a host index is
-    refused; scalars cross and are counted."""
+    """The fake holds: a host array mixed in, an implicit conversion, a host index or a
+    keyword CuPy lacks is refused; scalars cross and are counted."""
     x = SPACE.put(np.arange(4.0))
     assert isinstance(x * 2.0 + np.sum(x), DeviceArray)
-    for bad in (lambda: x + np.ones(4), lambda: np.asarray(x), lambda: x[np.array([0, 1])], lambda: float(x)):
+    for bad in (lambda: x + np.ones(4), lambda: np.asarray(x), lambda: x[np.array([0, 1])], lambda: float(x),
+                lambda: np.min(x, initial=0.0)):
         with pytest.raises(TypeError):
             bad()
     before = TRANSFERS.scalars

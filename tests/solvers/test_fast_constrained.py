@@ -393,3 +393,32 @@ def test_the_cold_start_under_load_control_is_the_summits_carrying_the_load(squa
 def context_of(qp: QP) -> SolveContext:
     return SolveContext(qp=qp, tol=1e-9, max_iter=100, params={}, p0=None, warm=None, deadline=Deadline(None),
                         trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+
+
+def greedy_in_order(amount: float, caps: np.ndarray) -> np.ndarray:
+    """The greedy pass ``taken_in_order`` replaces, one point at a time."""
+    out = np.zeros(caps.size)
+    for i, cap in enumerate(caps):
+        if amount <= 0.0:
+            break
+        out[i] = min(amount, cap)
+        amount -= out[i]
+    return out
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_dealing_out_in_order_is_the_greedy_pass(seed: int) -> None:
+    """``taken_in_order`` (the fill and the shed of ``scale_to_load``) against the loop:
+    caps with infinities and zeros, amounts of nothing, part and more than all."""
+    from contactbench.solvers._constrained import taken_in_order
+
+    rng = np.random.default_rng(seed)
+    caps = rng.exponential(1.0, rng.integers(0, 30))
+    caps[rng.random(caps.size) < 0.1] = 0.0
+    if seed % 3 == 0 and caps.size:
+        caps[rng.integers(caps.size)] = math.inf
+    total = float(np.sum(caps[np.isfinite(caps)]))
+    for amount in (0.0, 0.3 * total, total, 2.0 * total + 1.0):
+        got, want = taken_in_order(amount, caps), greedy_in_order(amount, caps)
+        assert got.shape == caps.shape and np.all(got >= 0.0) and np.all(got <= caps)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * max(total, 1.0)), (amount, got, want)
