@@ -95,6 +95,10 @@ from ._preconditioners import ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
 from ._screen import solve_screened
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 
+#: Polak-Ribiere's |beta| above this restarts the Bugnicourt loops (``polak_ribiere``): on the
+#: surface population's solves |beta| stays below 12, at a negative curvature 0.07-0.7.
+MAX_BETA = 1e6
+
 #: Polonsky-Keer iterations without halving the KKT error before its preconditioner drops
 #: its coarse part (module doc, "Cycling").
 CYCLE_PATIENCE = 25
@@ -424,11 +428,16 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
 def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curvature: float) -> float:
     """Polak-Ribiere's beta of the Bugnicourt loops (preconditioned: z = M^-1 res),
     (z'res - z'res_old) / (alpha d'Hd) with alpha d'Hd = -res_old'd; 0 (a restart along
-    -z) where the step's curvature ``step_curvature`` is not positive or beta not finite."""
-    if not step_curvature > 0.0:
+    -z) where the step's curvature ``step_curvature`` is 0 or not finite, or |beta| is
+    above ``MAX_BETA`` (a curvature lost to round-off).  A negative curvature is kept: after
+    ``inward`` or a projection d need not descend, the step then goes back along it (alpha
+    < 0; one or two steps a solve), and restarting there cost the plain loop 17 % more
+    products over ten 1024^2 members of the surface population (709 against 606;
+    results/perf/device-choice/README.md)."""
+    if step_curvature == 0.0 or not math.isfinite(step_curvature):
         return 0.0
     beta = (float(z @ res) - float(z @ res_old)) / step_curvature
-    return beta if math.isfinite(beta) else 0.0
+    return beta if abs(beta) <= MAX_BETA else 0.0
 
 
 def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:

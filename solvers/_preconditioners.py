@@ -122,7 +122,10 @@ LARGE_GRID_POINTS = 2048 * 2048
 #: preconditioner needs no build.  On the 14 load-controlled problems of the ASPHER race
 #: (results/peers/aspher.md: four families at 512^2 and 1024^2, 2048^2, both boundaries,
 #: P/(E* A) = 0.015; quiet 2-core vm, one run) it took 0.44-0.99x the islands' time, median
-#: 0.62x.  Displacement control keeps the islands (fewer matvecs, docs/fast-solvers.md).
+#: 0.62x.  Held out on 54 problems of three other cells (results/peers/held-out): median
+#: 0.79-0.88x non-periodic and 0.45-0.48x periodic, worst 1.25x (H 0.3, rms slope 1, where it
+#: needs 1.77x the products).  Displacement control keeps the islands (fewer matvecs,
+#: docs/fast-solvers.md).
 LOAD_FOURIER = "fourier"
 
 

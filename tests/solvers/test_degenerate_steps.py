@@ -28,7 +28,7 @@ from contactbench.problems.constraints import Constraints
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder
 from contactbench.problems.surfaces import Surface
-from contactbench.solvers._ccg import GapState, polak_ribiere
+from contactbench.solvers._ccg import MAX_BETA, GapState, polak_ribiere
 from contactbench.solvers._constrained import constrained_start
 from contactbench.solvers._finish import FINISH_MAX_ROUNDS, Stagnation, finish_exactly
 from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, constraint_skip
@@ -216,16 +216,20 @@ def test_the_other_solvers_end_honestly_at_the_knife_edges(name: str, k: Knife) 
 # ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("curvature", [0.0, -1e-300, math.nan, 5e-324])
+@pytest.mark.parametrize("curvature", [0.0, -1e-300, math.nan, math.inf, 5e-324, -2.0])
 def test_polak_ribiere_restarts_where_a_step_has_no_curvature(curvature: float) -> None:
     """alpha d'Hd = 0 divided a float by zero (a ZeroDivisionError on another machine's
-    rounding); a curvature that is not positive, or a beta that is not finite, restarts."""
+    rounding); a curvature of 0, not finite or lost to round-off (|beta| > MAX_BETA)
+    restarts; a plain negative one (a step back along d) keeps its beta."""
     z, res, old = np.array([1.0, -2.0]), np.array([3.0, 1.0]), np.array([1.0, 1.0])
     beta = polak_ribiere(z, res, old, curvature)
-    assert math.isfinite(beta)
+    assert math.isfinite(beta) and abs(beta) <= MAX_BETA
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        if not curvature > 0.0 or not math.isfinite((z @ res - z @ old) / curvature):
-            assert beta == 0.0
+        plain = (z @ res - z @ old) / curvature
+    if curvature == 0.0 or not math.isfinite(curvature) or not abs(plain) <= MAX_BETA:
+        assert beta == 0.0
+    else:
+        assert beta == pytest.approx(plain)
     assert polak_ribiere(z, res, old, 2.0) == pytest.approx((z @ res - z @ old) / 2.0)
 
 
