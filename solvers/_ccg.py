@@ -431,9 +431,9 @@ def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curv
     -z) where the step's curvature ``step_curvature`` is 0 or not finite, or |beta| is
     above ``MAX_BETA`` (a curvature lost to round-off).  A negative curvature is kept: after
     ``inward`` or a projection d need not descend, the step then goes back along it (alpha
-    < 0; one or two steps a solve), and restarting there cost the plain loop 17 % more
-    products over ten 1024^2 members of the surface population (709 against 606;
-    results/perf/device-choice/README.md)."""
+    < 0; one or two steps a solve), and restarting there cost the plain loop 13 % more
+    products at 1024^2 on the surface population (median 68.5 against 60.5 matvecs on 32
+    members; results/perf/device-choice/README.md)."""
     if step_curvature == 0.0 or not math.isfinite(step_curvature):
         return 0.0
     beta = (float(z @ res) - float(z @ res_old)) / step_curvature

@@ -131,7 +131,10 @@ LOAD_FOURIER = "fourier"
 
 #: Why "auto" is "fourier" on a device (``ContactOperator.space`` not the host): it is FFTs
 #: there, where the island kinds' block factorisations and far field are host work
-#: (solvers/_device.py).  Its products on a device are not yet measured against the islands'.
+#: (solvers/_device.py), and it takes the islands' products: over the surface population
+#: (results/perf/device-choice) median 51.5 / 63 matvecs against 48 / 62 at 512^2 / 1024^2,
+#: worst 110 / 145 against 109 / 126.  On the CPU the same products take 1.18-1.26x the
+#: islands' time, so the host keeps the islands.
 DEVICE_FOURIER = "fourier"
 
 
