@@ -59,9 +59,12 @@ class Constraints:
         """Neither bounds nor a load equality: the displacement-controlled problem."""
         return not self.bounded and not self.load_control
 
-    def upper_or_inf(self, n: int) -> np.ndarray:
-        """The upper bounds as an array of length n (inf where there is none)."""
-        return np.full(n, math.inf) if self.upper is None else self.upper
+    def upper_or_inf(self, n: int, like: Any = None) -> np.ndarray:
+        """The upper bounds as an array of length n (inf where there is none); without a
+        bound, in the array space of ``like`` when given (a device-resident solve's p)."""
+        if self.upper is not None:
+            return self.upper
+        return np.full(n, math.inf) if like is None else np.full_like(like, math.inf, dtype=np.float64)
 
     def restrict(self, pos: np.ndarray) -> "Constraints":
         """The constraints on the unknowns at positions ``pos`` (the others held at p = 0:

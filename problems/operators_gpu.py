@@ -357,8 +357,8 @@ class _DeviceState:
         return got
 
     def quarter_table(self, table: np.ndarray, grid_shape: tuple[int, int]) -> tuple[Any, int]:
-        """The kernel table at offsets |di| < N1, |dj| < N2 on the device, flat, and its row
-        width (what an even table's partial products read)."""
+        """The kernel table at the offsets within the grid (|di| < N0, |dj| < N1) on the
+        device, flat, and its row width: what an even table's partial products read."""
         if self._quarter is None:
             n0, n1 = grid_shape
             self._quarter = self.xp.asarray(np.ascontiguousarray(table[:n0, :n1]).ravel())
@@ -410,9 +410,13 @@ class ArrayFFTOperator(FFTOperator):
     def partial_product(self, rows: Any, cols: Any, x: Any) -> Any:
         """``FFTOperator.partial_product``; with rows, cols and x in ``space``, there: the
         entries gathered from the kernel table's quarter on the device (an even table,
-        K(di, dj) = table[|di|, |dj|]; else the host's)."""
-        if on_host(rows) or self.space.host or np.iscomplexobj(self.transform.khat):
+        K(di, dj) = table[|di|, |dj|]); for a table that is not even, the host's, its few
+        rows and columns moved explicitly."""
+        if on_host(rows) or self.space.host:
             return super().partial_product(rows, cols, x)
+        if np.iscomplexobj(self.transform.khat):
+            get = self.space.get
+            return self.space.put(super().partial_product(get(rows), get(cols), get(x)))
         with self.transform._lock:
             dev = self.transform._state()
             table, width = dev.quarter_table(self.transform.table, self.transform.grid_shape)

@@ -95,12 +95,6 @@ def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray
     return ((p <= 0.0) | (p >= upper)) & ~at_rest(p, w, upper)
 
 
-def upper_bounds(c: Constraints, p: np.ndarray) -> np.ndarray:
-    """The upper bounds beside ``p`` (in its array space): inf everywhere without a
-    hardness, else the constraints' own (host) array."""
-    return np.full_like(p, math.inf, dtype=np.float64) if c.upper is None else c.upper
-
-
 def mean_on(x: np.ndarray, mask: np.ndarray) -> float:
     """The mean of x over ``mask`` (0 on an empty mask)."""
     k = int(np.count_nonzero(mask))
@@ -303,7 +297,7 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
     from ``first``."""
     c = ctx.constraints
     max_iter = ctx.max_iter if max_iter is None else max_iter
-    u = upper_bounds(c, state.p)
+    u = c.upper_or_inf(ctx.n, state.p)
     load = c.load_control
     feasible_start(ctx, state, u)
     t = np.zeros_like(state.p)
@@ -447,7 +441,7 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     if not c.load_control:
         return bugnicourt(ctx, state, M, max_iter=max_iter, first=first)
     max_iter = ctx.max_iter if max_iter is None else max_iter
-    u = upper_bounds(c, state.p)
+    u = c.upper_or_inf(ctx.n, state.p)
     feasible_start(ctx, state, u)
     none = np.zeros_like(state.p, shape=0, dtype=np.int64)
     delta, res = _dual_residual(state, u, c)

@@ -9,10 +9,10 @@ host array).  The loops of solvers/_ccg.py and solvers/_constrained.py are writt
 NumPy's functions dispatch to the arrays' own module (NEP 18), arrays are made "like"
 the state's, and inside the loop only scalars (inner products, norms, the KKT figures)
 are read on the host.  Per solve -- per screening round, solvers/_screen.py -- ubar and
-the start go to the space once, and p and its gap come back once.  Two exceptions cross
-with a few entries: the exact finish's set (at most ``_finish.FINISH_MAX_POINTS``) and,
-off the host, a raised force recomputes the gap with a product instead of the partial
-product gathered from the host's kernel table (``GapState.raise_forces``).
+the start go to the space once, and p and its gap come back once.  The exact finish's set
+crosses when a loop calls it (at most ``_finish.FINISH_MAX_POINTS`` entries); the partial
+products of raised forces gather from the kernel table's quarter on the device
+(``ArrayFFTOperator.partial_product``), uploaded once per operator.
 
 On an operator with a space a solve whose preconditioner cannot run there (the island
 kinds: dense block factorisations on the host) runs its loop on the host, each product

@@ -68,7 +68,7 @@ from scipy.sparse.csgraph import connected_components
 from contactbench.problems.instances import QP
 from contactbench.problems.fft_transform import spectral_multiply
 from contactbench.problems.operators import ContactOperator
-from contactbench.problems.operators_gpu import HOST, ArraySpace
+from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 
 from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
 from ._farfield import FarField, build_far_field
@@ -216,7 +216,7 @@ class _OnesCache:
         if self._ones is None or drifted(self._on, self._ones_set, ONES_DRIFT):
             self._ones_set = self._on.copy()
             self._ones = self.apply(self._on.astype(np.float64))
-            if isinstance(self._ones, np.ndarray):  # a device array has no flags
+            if on_host(self._ones):  # a device array has no flags
                 self._ones.flags.writeable = False
         return self._ones
 
