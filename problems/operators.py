@@ -307,6 +307,26 @@ class DenseOperator(ContactOperator):
         return int(self.H.nbytes)
 
 
+def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tuple[Any, Any], x: Any) -> Any:
+    """sum_j K(rows, cols_j) x_j for an even kernel table (K(di, dj) = table[|di| width +
+    |dj|], flat), rows and cols given by their grid (row, column) positions: gathered a few
+    columns at a time (``PARTIAL_PRODUCT_CHUNK`` entries), so for one column the rows'
+    offsets are sorted and the reads of the table stay close together.  In the array
+    module of its arguments (NumPy's functions dispatch: the device's partial products
+    too, ``operators_gpu.ArrayFFTOperator.partial_product``)."""
+    (ri, rj), (ci, cj) = rows, cols
+    out = np.zeros_like(x, shape=int(ri.size))
+    if ci.size == 0 or ri.size == 0:
+        return out
+    step = max(1, PARTIAL_PRODUCT_CHUNK // int(ri.size))
+    for c0 in range(0, int(ci.size), step):
+        flat = np.abs(ci[c0:c0 + step, None] - ri[None, :])
+        flat *= width
+        flat += np.abs(cj[c0:c0 + step, None] - rj[None, :])
+        out += x[c0:c0 + step] @ np.take(table, flat)
+    return out
+
+
 class FFTOperator(ContactOperator):
     """Matrix-free H_II: scatter to the physical grid, convolve by FFT, gather; the
     products run in ``dtype`` (float64, or float32 from ``with_precision``)."""
@@ -429,21 +449,10 @@ class FFTOperator(ContactOperator):
         if np.iscomplexobj(self.transform.khat):
             return super().partial_product(rows, cols, x)
         rows, cols = np.asarray(rows), np.asarray(cols)
-        x = np.asarray(x, dtype=np.float64)
-        out = np.zeros(rows.size)
-        if cols.size == 0 or rows.size == 0:
-            return out
-        table = self.transform.table.ravel()
-        p1 = np.int32(self.transform.padded_shape[1])
         ri, rj = self._pi[rows].astype(np.int32), self._pj[rows].astype(np.int32)
         ci, cj = self._pi[cols].astype(np.int32), self._pj[cols].astype(np.int32)
-        step = max(1, PARTIAL_PRODUCT_CHUNK // rows.size)
-        for c0 in range(0, cols.size, step):
-            flat = np.abs(ci[c0:c0 + step, None] - ri[None, :])
-            flat *= p1
-            flat += np.abs(cj[c0:c0 + step, None] - rj[None, :])
-            out += x[c0:c0 + step] @ np.take(table, flat)
-        return out
+        return even_table_product(self.transform.table.ravel(), np.int32(self.transform.padded_shape[1]),
+                                  (ri, rj), (ci, cj), np.asarray(x, dtype=np.float64))
 
     def partial_product_pays(self, entries: int) -> bool:
         P = int(np.prod(self.transform.padded_shape))

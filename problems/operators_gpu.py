@@ -47,7 +47,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import ProblemInputError
-from .operators import PARTIAL_PRODUCT_CHUNK, FFTOperator, KernelTransform, operator_dtype
+from .operators import FFTOperator, KernelTransform, even_table_product, operator_dtype
 
 #: The array modules the convolution is written against.
 ARRAY_MODULES = ("numpy", "cupy")
@@ -420,14 +420,9 @@ class ArrayFFTOperator(FFTOperator):
         with self.transform._lock:
             dev = self.transform._state()
             table, width = dev.quarter_table(self.transform.table, self.transform.grid_shape)
-            pi, pj = dev.indices(self._pi)[rows], dev.indices(self._pj)[rows]
-            qi, qj = dev.indices(self._pi)[cols], dev.indices(self._pj)[cols]
-        out = dev.xp.zeros(int(rows.size))
-        step = max(1, PARTIAL_PRODUCT_CHUNK // max(int(rows.size), 1))
-        for c0 in range(0, int(cols.size), step):
-            flat = abs(qi[c0:c0 + step, None] - pi[None, :]) * width + abs(qj[c0:c0 + step, None] - pj[None, :])
-            out += x[c0:c0 + step] @ table[flat]
-        return out
+            pi, pj = dev.indices(self._pi), dev.indices(self._pj)
+        return even_table_product(table, width, (pi[rows], pj[rows]), (pi[cols], pj[cols]),
+                                  x.astype(np.float64, copy=False))
 
     def _same_kind(self, op: FFTOperator) -> "ArrayFFTOperator":
         """``op`` (made by an inherited method) as an operator of this class."""
