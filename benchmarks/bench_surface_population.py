@@ -75,6 +75,7 @@ VARIANTS: dict[str, dict[str, str]] = {
     "islands": {"precondition": "islands"},
     "auto": {"precision": "auto"},
     "fourier": {"precondition": "fourier"},
+    "farfield": {"precondition": "farfield"},
 }
 #: A default solve may need at most this many times the median matvecs of its size ...
 STALL_FACTOR = 2.0
