@@ -30,7 +30,7 @@ its size, and none slower than the double-islands variant by more than ``SLOWER_
 
 Usage:
   python benchmarks/bench_surface_population.py [--sizes 512 1024 2048 4096] [--families saupe,...]
-      [--seeds 512:3,1024:3,2048:2,4096:1] [--variants default,double-islands] [--threads 2]
+      [--seeds 512:3,1024:3,2048:2,4096:1] [--first-seed 0] [--variants default,double-islands] [--threads 2]
       [--timeout 900] [--out results/perf] [--fresh] [--in-process] [--table-only]
 The scale check (one cold top step at 8192^2 per RMD family, ``LARGE_CELLS``):
   python benchmarks/bench_surface_population.py --fresh --sizes 8192 --families saupe,periodic
@@ -135,13 +135,14 @@ class PopulationRow:
     repeats: int = 1
 
 
-def plan(sizes: list[int], families: list[str], seeds: dict[int, int]) -> list[Member]:
-    """The population, smallest sizes first."""
+def plan(sizes: list[int], families: list[str], seeds: dict[int, int], first_seed: int = 0) -> list[Member]:
+    """The population, smallest sizes first: seeds ``first_seed``, ``first_seed + 1``, ... (a
+    held-out population is the same cells on seeds the committed tables did not use)."""
     out = []
     for N in sizes:
         for H, slope in (LARGE_CELLS if N >= LARGE_N else CELLS):
             for fam in families:
-                out += [Member(fam, N, H, slope, s) for s in range(seeds.get(N, 1))]
+                out += [Member(fam, N, H, slope, s) for s in range(first_seed, first_seed + seeds.get(N, 1))]
     return out
 
 
@@ -415,6 +416,8 @@ def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(f"--repeats must look like 512:3,1024:2, got {args.repeats!r}")
     if any(k < 1 for k in repeats.values()):
         ap.error("--repeats: at least one solve per member")
+    if args.first_seed < 0:
+        ap.error(f"--first-seed must be >= 0, got {args.first_seed}")
     if not (args.timeout > 0):
         ap.error(f"--timeout must be > 0 s, got {args.timeout}")
 
@@ -425,6 +428,8 @@ def main() -> None:
     ap.add_argument("--families", default=",".join(FAMILIES))
     ap.add_argument("--seeds", default="", help="seeds per size, e.g. 512:3,2048:1 (default: " +
                     ",".join(f"{k}:{v}" for k, v in SEEDS.items()) + ")")
+    ap.add_argument("--first-seed", type=int, default=0, help="the first seed of every member "
+                    "(default 0; a held-out population starts past the seeds of the committed tables)")
     ap.add_argument("--variants", default="default,double-islands")
     ap.add_argument("--repeats", default="", help="solves per member by size, the fastest recorded, "
                     "e.g. 512:3,1024:2 (default: 1)")
@@ -456,7 +461,7 @@ def main() -> None:
         commit = code_commit()
         if args.in_process and args.threads:
             os.environ.update({v: str(args.threads) for v in THREAD_VARS})
-        for m in plan(args.sizes, args.families.split(","), parse_seeds(args.seeds)):
+        for m in plan(args.sizes, args.families.split(","), parse_seeds(args.seeds), args.first_seed):
             for variant in args.variants.split(","):
                 row = (solve_member(m, variant, args.timeout, commit, repeats_of(m, args.repeats)) if args.in_process
                        else run_child(m, variant, args, commit))
