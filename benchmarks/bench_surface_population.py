@@ -273,10 +273,11 @@ def member_of(r: PopulationRow) -> tuple:
 
 def same_configuration(r: PopulationRow) -> bool:
     """Whether the default ran the double-islands configuration itself on ``r``'s grid: its
-    ``auto`` choices take the far field and float32 only from ``LARGE_GRID_POINTS`` points."""
-    from contactbench.solvers._preconditioners import LARGE_GRID_POINTS
+    ``auto`` choices take the far field only from ``FAR_FIELD_GRID_POINTS`` points and float32
+    from ``LARGE_GRID_POINTS``."""
+    from contactbench.solvers._preconditioners import FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS
 
-    return r.N * r.N < LARGE_GRID_POINTS
+    return r.N * r.N < min(FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS)
 
 
 def checks(rows: list[PopulationRow], metric: str = "matvecs") -> list[Flag]:
@@ -315,7 +316,7 @@ def noise_lines(rows: list[PopulationRow]) -> list[str]:
         same_mv = sum(a.matvecs == b.matvecs for a, b in pairs)
         ratios = [a.seconds / b.seconds for a, b in pairs if b.seconds > 0]
         out.append(f"- N = {N}: the default is `precision=double, precondition=islands` here (`auto` below "
-                   f"2048^2 grid points); {same_mv} of {len(pairs)} members with the same matvecs; seconds ratio "
+                   f"1024^2 grid points); {same_mv} of {len(pairs)} members with the same matvecs; seconds ratio "
                    f"{min(ratios):.2f}-{max(ratios):.2f} (median {np.median(ratios):.2f}): the machine's spread on "
                    f"identical work")
     return out

@@ -155,7 +155,7 @@ class GapState:
     @classmethod
     def start(cls, ctx: SolveContext) -> GapState:
         """The state at the warm start ``ctx.p0``, or at p = 0 (cold)."""
-        p0 = np.zeros(ctx.n) if ctx.p0 is None else ctx.p0.copy()
+        p0 = ctx.first_p()
         return cls(ctx.qp.H, ctx.qp.ubar, p0)
 
     @property

@@ -107,14 +107,22 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
 #: ``resolved_kind``).
 KINDS = ("islands", "farfield", "fourier", "none", "auto")
 
-#: The grid size (points) from which the fast solvers' "auto" choices take the far-field
-#: correction (here) and float32 (solvers/_refine.py): 2048^2.  Both have set-up costs that do
-#: not shrink with the solve -- the far field's near-tile sums and m x m eigendecomposition
-#: per build, float32's twin and its refinement products -- and a cold solve on a 512^2 or
-#: 1024^2 grid needs only 25-80 matvecs: there, on rough members of the surface population
-#: (H 0.3, rms slope 1), the far field alone cost up to 1.4x the islands' time
-#: (results/perf/surface-population.md).
+#: The grid size (points) from which the fast solvers' "auto" precision is float32
+#: (solvers/_refine.py): 2048^2.  Its set-up does not shrink with the solve -- the float32
+#: twin and the refinement's float64 products -- and a cold solve on a 512^2 or 1024^2 grid
+#: needs only 25-80 matvecs (results/perf/surface-population.md).
 LARGE_GRID_POINTS = 2048 * 2048
+
+#: The grid size (points) from which "auto" takes the far-field correction: 1024^2.  Its
+#: builds (near-tile sums, an m x m eigendecomposition) cost what a few iterations save on
+#: rough surfaces (many small islands), and it removes a third of the products on smooth ones
+#: (few large islands cut into patches).  Over the surface population at 1024^2
+#: (results/perf/farfield-1024: 48 members, and 32 held-out ones on seeds 3-4; quiet 2-core
+#: vm, one run): median / worst matvecs 62 / 126 -> 50.5 / 83 (held out 70 / 204 -> 53 / 142),
+#: seconds median 0.90x the islands alone (held out 0.90x), worst member 1.56x (1.36x held
+#: out; H 0.3, where the products barely change).  At 512^2 the products fall too
+#: (48 / 109 -> 42 / 65) but the time does not (median 1.01x), so the islands stay there.
+FAR_FIELD_GRID_POINTS = 1024 * 1024
 
 #: Why "auto" is "fourier" under load control (without a hardness): there the free set moves
 #: with the approach at every iteration, the island blocks were refactored every few
@@ -145,14 +153,15 @@ def grid_points(qp: QP) -> int:
 
 
 def large_grid(qp: QP) -> bool:
-    """The one rule of the fast solvers' "auto" choices: the QP's grid has at least
+    """The rule of the fast solvers' "auto" precision: the QP's grid has at least
     ``LARGE_GRID_POINTS`` points."""
     return grid_points(qp) >= LARGE_GRID_POINTS
 
 
 def resolved_kind(kind: str, qp: QP) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
-    load control without a hardness (``LOAD_FOURIER``), else by the grid (``large_grid``)."""
+    load control without a hardness (``LOAD_FOURIER``), else by the grid: the far field from
+    ``FAR_FIELD_GRID_POINTS`` points, the islands alone below."""
     if kind != "auto":
         return kind
     space = qp.H.space
@@ -161,7 +170,7 @@ def resolved_kind(kind: str, qp: QP) -> str:
     c = qp.constraints
     if c.load_control and c.upper is None:
         return LOAD_FOURIER
-    return "farfield" if large_grid(qp) else "islands"
+    return "farfield" if grid_points(qp) >= FAR_FIELD_GRID_POINTS else "islands"
 
 
 #: The kinds built on the island blocks (``IslandPreconditioner``).

@@ -181,7 +181,7 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
     """``solve`` on the screened set, grown until the answer holds on the whole problem
     (module doc); on the whole problem when screening is off or does not apply
     (``screened_set``)."""
-    p = np.zeros(ctx.n) if ctx.p0 is None else ctx.p0.copy()
+    p = ctx.first_p()
     T = None if ctx.params.get("screening", "safe") == "none" else screened_set(ctx, p)
     if T is None:
         return solve(ctx)

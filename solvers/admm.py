@@ -125,7 +125,7 @@ class ADMM(Solver):
         ctx.info.update(rho=rho, alpha=alpha)
         apply_m = resolvent(ctx, rho, ctx.params["linear"], absolute_tol(ctx, 1e-2 * tol).force)
         ctx.mark_setup_done()
-        p = np.zeros(qp.n) if ctx.p0 is None else ctx.p0.copy()
+        p = ctx.first_p()
         u = np.zeros(qp.n) if ctx.p0 is None else initial_scaled_dual(ctx, p, rho)
         s = p.copy()
         project = projection_of(ctx)

@@ -379,6 +379,10 @@ class SolveContext:
     def warm_started(self) -> bool:
         return self.p0 is not None
 
+    def first_p(self) -> np.ndarray:
+        """A fresh copy of the start: the warm start ``p0``, or zeros (a cold start)."""
+        return np.zeros(self.n) if self.p0 is None else self.p0.copy()
+
     def expired(self) -> bool:
         return self.deadline.expired()
 

@@ -72,10 +72,8 @@ def starting_point(solver: Solver, ctx: SolveContext) -> tuple[np.ndarray, dict[
     "coarse_matvecs").  Under constraints (a hardness, a load) the coarse grid poses the
     plain problem, so the first guess is ignored there ("first_guess": "zero (constraints)")."""
     wanted = ctx.params.get("first_guess", "zero")
-    if ctx.p0 is not None:
-        return ctx.p0.copy(), {}
-    if wanted == "zero":
-        return np.zeros(ctx.n), {}
+    if ctx.p0 is not None or wanted == "zero":
+        return ctx.first_p(), {}
     if not ctx.constraints.plain:
         return np.zeros(ctx.n), {"first_guess": "zero (constraints)"}
     guess = coarse_first_guess(solver, ctx)
@@ -166,15 +164,15 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
 class FastBugnicourtIslands(FastBugnicourtCCG):
     """Bugnicourt et al. (2018) CCG without restart, with the island block-Jacobi
     preconditioner on the free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
-    Both choices are ``auto`` by default, decided by the grid
-    (``_preconditioners.LARGE_GRID_POINTS``, 2048^2 points): from there up, the islands'
-    far-field correction ("farfield", solvers/_farfield.py) and mixed precision (float32
-    inner sweeps, float64 iterative refinement judged by the float64 KKT error,
-    solvers/_refine.py); below, the islands alone in float64 -- except that a load-controlled
-    QP runs mixed from 1024^2 grid points (``_refine.LOAD_MIXED_POINTS``: its whole grid is
-    carried).  ``precondition`` and ``precision`` fix either.  Warm start: primal."""
+    Both choices are ``auto`` by default, decided by the grid: the islands' far-field
+    correction ("farfield", solvers/_farfield.py) from 1024^2 grid points
+    (``_preconditioners.FAR_FIELD_GRID_POINTS``), the islands alone below; mixed precision
+    (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
+    solvers/_refine.py) from 2048^2 (``_preconditioners.LARGE_GRID_POINTS``), float64 below --
+    except that a load-controlled QP runs mixed from 1024^2 grid points
+    (``_refine.LOAD_MIXED_POINTS``: its whole grid is carried).  ``precondition`` and ``precision`` fix either.  Warm start: primal."""
 
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    #: auto by default: the far field and float32 where they pay for their set-up (from 2048^2 grid points)
+    #: auto by default: the far field and float32 where they pay for their set-up (1024^2 and 2048^2 grid points up)
     params = (precondition_param("auto"), precision_param("auto"), first_guess_param(), screening_param())

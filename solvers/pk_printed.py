@@ -163,7 +163,7 @@ class PrintedConstrainedCG(Solver):
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         projection = ctx.params["projection"]
-        p = np.zeros(ctx.n) if ctx.p0 is None else ctx.p0.copy()
+        p = ctx.first_p()
         w = ctx.qp.H.matvec(p) - ctx.qp.ubar  # step 2
         s = PrintedState(p, w, np.ones(ctx.n, dtype=bool), np.zeros(ctx.n), float(np.linalg.norm(w)))
         eps, kmax = float(ctx.tol if ctx.tol is not None else self.default_tol), int(ctx.max_iter or 0)

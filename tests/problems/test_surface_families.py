@@ -245,7 +245,7 @@ def test_population_checks_flag_a_stall_a_slower_default_and_a_failure():
     why = sorted(f.why.split(" ")[0] + ":" + str(f.row.seed) + f.row.family for f in bench.checks(rows))
     # median 42: 90 > 84 is a stall; 50 > 1.1 x 44; the timeout is reported; 42 vs 40 (1.05x) is not.
     assert why == ["matvecs:3periodic", "matvecs:4periodic", "status:0fourier"]
-    # below 2048^2 the default is the double-islands configuration itself: its seconds against the
+    # below 1024^2 the default is the double-islands configuration itself: its seconds against the
     # reference are the machine's spread, reported, not checked; a stall still is
     small = [fake_row(bench, "saupe", seed, variant, count, N=512)
              for seed, (mv, ref) in enumerate([(40, 40), (50, 44), (41, 41)])
@@ -261,6 +261,8 @@ def test_population_plan_and_member_keys():
     assert len(members) == len(bench.CELLS) * 4 * 2 + len(bench.LARGE_CELLS) * 4
     assert all(bench.Member.parse(m.key) == m for m in members)
     assert {m.family for m in members} == set(bench.FAMILIES)
+    held_out = bench.plan([512], ["saupe"], {512: 2}, first_seed=3)
+    assert {m.seed for m in held_out} == {3, 4} and len(held_out) == len(bench.CELLS) * 2
 
 
 def bench_script(name: str):

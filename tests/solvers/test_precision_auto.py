@@ -1,7 +1,7 @@
 """``precision="auto"`` (solvers/_refine.py) and ``precondition="auto"``
-(solvers/_preconditioners.py): mixed and the far field from ``LARGE_GRID_POINTS`` grid points
-up, double and the islands alone below; decided by the grid the unknowns sit on, not by
-their count."""
+(solvers/_preconditioners.py): mixed from ``LARGE_GRID_POINTS`` grid points up and the far
+field from ``FAR_FIELD_GRID_POINTS``, double and the islands alone below; decided by the grid
+the unknowns sit on, not by their count."""
 
 from __future__ import annotations
 
@@ -56,9 +56,13 @@ def test_a_solve_reports_the_precision_auto_chose(monkeypatch: pytest.MonkeyPatc
 
 def test_auto_preconditioner_takes_the_far_field_from_the_threshold() -> None:
     qp = small_qp()
-    big = replace(qp, geometry=replace(qp.geometry, grid_shape=(2048, 2048)))
+    big = replace(qp, geometry=replace(qp.geometry, grid_shape=(1024, 1024)))
+    just_below = replace(qp, geometry=replace(qp.geometry, grid_shape=(1024, 1023)))
     assert _preconditioners.resolved_kind("auto", qp) == "islands"
+    assert _preconditioners.resolved_kind("auto", just_below) == "islands"
     assert _preconditioners.resolved_kind("auto", big) == "farfield"
+    # the far field's threshold is below float32's: a 1024^2 grid runs double with the far field
+    assert _refine.resolved_precision("auto", big) == "double"
     for k in ("islands", "farfield", "fourier", "none"):
         assert _preconditioners.resolved_kind(k, qp) == k == _preconditioners.resolved_kind(k, big)
 
@@ -70,6 +74,7 @@ def test_the_default_below_the_threshold_is_the_islands_in_double(monkeypatch: p
     precondition=islands; from it, those of mixed with the far field (the same counts, p to
     round-off: two solves of one configuration differ in the last bits with threads)."""
     monkeypatch.setattr(_preconditioners, "LARGE_GRID_POINTS", threshold)
+    monkeypatch.setattr(_preconditioners, "FAR_FIELD_GRID_POINTS", threshold)
     qp = small_qp()
     solve = get_solver("fast-dual-pccg").solve
     default = solve(qp, SolverSettings(tol=1e-9))
