@@ -319,3 +319,28 @@ def test_cost_law_per_family_recovers_known_exponents(tmp_path):
     plot.write_markdown(rows, ["default"], tmp_path)
     text = (tmp_path / f"{plot.STEM}.md").read_text()
     assert "| saupe | default | 256, 512, 1024 | 6 | 0.25 |" in text and "Host(s): h" in text
+
+
+def test_side_by_side_summary_pairs_members_and_names_where_the_head_needs_more(tmp_path):
+    side = bench_script("bench_side_by_side")
+    table = tmp_path / "side.csv"
+    rows = [("a:1", "base", 50, 1.0, "solved"), ("a:1", "head", 40, 0.8, "solved"),
+            ("b:1", "base", 60, 2.0, "solved"), ("b:1", "head", 66, 2.2, "solved"),
+            ("c:1", "base", 70, 3.0, "solved"), ("c:1", "head", 0, float("nan"), "failed")]
+    table.write_text(",".join(side.COLUMNS) + "\n" + "".join(
+        f"{m},{c},{mv},{mv},1,{s},{st},100\n" for m, c, mv, s, st in rows))
+    lines = side.summary(table)
+    assert lines[0].startswith("base: matvecs median 55, worst 60")
+    assert lines[1].startswith("head: matvecs median 53, worst 66")
+    assert "median 0.950, range 0.80-1.10; 2 members solved by both, 1 not" in lines[2]
+    assert lines[3] == "head needs more matvecs on 1: b:1"
+
+
+def test_side_by_side_refuses_a_checkout_without_its_environment(tmp_path):
+    import subprocess
+
+    script = REPO / "benchmarks" / "bench_side_by_side.py"
+    proc = subprocess.run([sys.executable, str(script), "--base", str(tmp_path), "--out", str(tmp_path / "o.csv")],
+                          capture_output=True, text=True, check=False, timeout=120)
+    assert proc.returncode == 2 and "--base" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "o.csv").exists()

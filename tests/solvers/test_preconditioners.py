@@ -14,6 +14,9 @@ from contactbench.problems.operators import DenseOperator
 from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.solvers._preconditioners import (
     KINDS,
+    REBUILD_FRACTION,
+    SETTLED_REBUILD_FRACTION,
+    SETTLING_FRACTION,
     IslandPreconditioner,
     block_width,
     make_preconditioner,
@@ -102,6 +105,36 @@ def test_reuse_between_rebuilds_restricts_to_the_current_set():
     assert M.builds == 1
     z = M.apply(np.ones(H.n))
     assert not np.any(z[~S2]) and np.all(z[S2] != 0)
+
+
+def test_a_settling_set_gets_blocks_of_its_own():
+    """A jump of 10 % of the set keeps the blocks (below REBUILD_FRACTION); once the set settles
+    (one point changed since the last update) 10 % away from the built set, they are
+    refactored, once, and act as blocks built for that set; a settling set within
+    SETTLED_REBUILD_FRACTION of the built one keeps them."""
+    inst = build(129)
+    H = inst.qp.H
+    S = inst.qp.ubar > np.quantile(inst.qp.ubar, 0.5)
+    pos = np.flatnonzero(S)
+    assert pos.size * SETTLING_FRACTION >= 1 and 0.1 < REBUILD_FRACTION and 0.1 > SETTLED_REBUILD_FRACTION
+    M = IslandPreconditioner.build(inst.qp)
+    M.update(S)
+    jumped = S.copy()
+    jumped[pos[: pos.size // 10]] = False
+    M.update(jumped)
+    assert M.builds == 1
+    settling = jumped.copy()
+    settling[pos[-1]] = False
+    M.update(settling)
+    assert M.builds == 2
+    fresh = IslandPreconditioner.build(inst.qp)
+    fresh.update(settling)
+    r = np.random.default_rng(3).normal(size=H.n)
+    np.testing.assert_allclose(M.apply(r), fresh.apply(r), rtol=1e-12, atol=0)
+    still = settling.copy()
+    still[pos[-2]] = False
+    M.update(still)
+    assert M.builds == 2
 
 
 def test_block_widths_pad_little():

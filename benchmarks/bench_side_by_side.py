@@ -1,0 +1,142 @@
+"""Two checkouts of this repository side by side on the surface population: for every member,
+one cold top-step solve with each checkout's own code (its ``bench_surface_population.py``,
+variant "default"), the two alternating member by member in one run, so that a change's
+matvecs and seconds are compared on the same machine at the same time.
+
+Each solve runs in a fresh process of the checkout's own virtual environment
+(``CHECKOUT/.venv/bin/python``) with the thread variables set to ``--threads``; rows are
+appended to ``--out`` (CSV: member, code, matvecs, iterations, builds, seconds, status, n) as
+they finish, and the summary -- median and worst matvecs and seconds of each, the head / base
+time ratio per member (median and range) and the members where the head needs more
+products -- is printed at the end (``--summary-only`` prints it from the CSV alone).
+
+Usage:
+  python benchmarks/bench_side_by_side.py --base ../base-checkout --head . --size 1024
+      [--seeds 3] [--first-seed 0] [--families saupe,...] [--threads 2] --out side.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+from bench_surface_population import CELLS, FAMILIES, THREAD_VARS, Member, check_choices
+
+COLUMNS = ("member", "code", "matvecs", "iterations", "builds", "seconds", "status", "n")
+
+#: Run in the checkout's own interpreter: its code solves the member (argv: checkout, member key).
+CHILD = """
+import json, sys
+sys.path.insert(0, sys.argv[1] + "/benchmarks")
+import bench_surface_population as bp
+row = bp.solve_member(bp.Member.parse(sys.argv[2]), "default", float(sys.argv[3]), "side-by-side")
+print("RESULT " + json.dumps({"matvecs": row.matvecs, "iterations": row.iterations,
+                              "builds": row.preconditioner_builds, "seconds": row.seconds,
+                              "status": row.status, "n": row.n}))
+"""
+
+
+def members(size: int, families: list[str], first_seed: int, seeds: int) -> list[Member]:
+    """The population's cells at one size, on seeds ``first_seed`` .. ``first_seed + seeds - 1``."""
+    return [Member(fam, size, H, slope, s) for H, slope in CELLS for fam in families
+            for s in range(first_seed, first_seed + seeds)]
+
+
+def solve_in(checkout: Path, m: Member, threads: int, timeout: float) -> dict:
+    """One solve of ``m`` by ``checkout``'s code in a fresh process; a "failed" row without a result."""
+    env = dict(os.environ, **{v: str(threads) for v in THREAD_VARS})
+    try:
+        proc = subprocess.run([str(checkout / ".venv" / "bin" / "python"), "-c", CHILD, str(checkout), m.key,
+                               str(timeout)], capture_output=True, text=True, env=env, cwd=checkout,
+                              timeout=timeout + 120)
+        lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+    except subprocess.TimeoutExpired:
+        lines = []
+    if not lines:
+        return {"matvecs": 0, "iterations": 0, "builds": 0, "seconds": float("nan"), "status": "failed", "n": 0}
+    return json.loads(lines[-1][len("RESULT "):])
+
+
+def summary(path: Path) -> list[str]:
+    """The comparison of the CSV's member pairs (module doc)."""
+    by: dict[str, dict[str, dict]] = defaultdict(dict)
+    with path.open() as f:
+        for r in csv.DictReader(f):
+            by[r["member"]][r["code"]] = r
+    pairs = [(v["base"], v["head"]) for v in by.values() if "base" in v and "head" in v
+             and v["base"]["status"] == v["head"]["status"] == "solved"]
+    if not pairs:
+        return ["no member solved by both"]
+    out = []
+    for code, k in (("base", 0), ("head", 1)):
+        mv = [int(p[k]["matvecs"]) for p in pairs]
+        s = [float(p[k]["seconds"]) for p in pairs]
+        med = statistics.median(mv)
+        out.append(f"{code}: matvecs median {med:g}, worst {max(mv)} ({max(mv) / med:.2f}x the median); "
+                   f"seconds median {statistics.median(s):.3f}, worst {max(s):.3f}")
+    ratio = [float(h["seconds"]) / float(b["seconds"]) for b, h in pairs]
+    more = [b["member"] for b, h in pairs if int(h["matvecs"]) > int(b["matvecs"])]
+    out.append(f"head / base seconds per member: median {statistics.median(ratio):.3f}, "
+               f"range {min(ratio):.2f}-{max(ratio):.2f}; {len(pairs)} members solved by both, "
+               f"{len(by) - len(pairs)} not")
+    out.append(f"head needs more matvecs on {len(more)}: {', '.join(more) or '-'}")
+    return out
+
+
+def checked_args(ap: argparse.ArgumentParser) -> argparse.Namespace:
+    """The arguments, with one-line errors (exit 2) for bad input before anything runs."""
+    args = ap.parse_args()
+    if args.summary_only:
+        if not Path(args.out).is_file():
+            ap.error(f"--summary-only: no table at {args.out}")
+        return args
+    for name in ("base", "head"):
+        if not (Path(getattr(args, name)) / ".venv" / "bin" / "python").is_file():
+            ap.error(f"--{name} {getattr(args, name)}: no .venv/bin/python there (run `make` in that checkout)")
+    check_choices(ap, "family", args.families, FAMILIES)
+    if args.size < 16 or args.size & (args.size - 1):
+        ap.error(f"--size must be a power of two >= 16, got {args.size}")
+    if args.seeds < 1 or args.first_seed < 0 or args.threads < 1 or not args.timeout > 0:
+        ap.error("--seeds and --threads must be >= 1, --first-seed >= 0 and --timeout > 0")
+    return args
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--base", default="", help="the checkout to compare against")
+    ap.add_argument("--head", default=".", help="the checkout with the change (default: this one)")
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--families", default=",".join(FAMILIES))
+    ap.add_argument("--seeds", type=int, default=3, help="seeds per cell (default 3)")
+    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--timeout", type=float, default=900.0, help="time limit of one solve (s)")
+    ap.add_argument("--out", required=True, help="the CSV (appended to)")
+    ap.add_argument("--summary-only", action="store_true", help="print the summary of --out and exit")
+    args = checked_args(ap)
+    out = Path(args.out)
+    if not args.summary_only:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fresh = not out.exists()
+        with out.open("a", newline="") as f:
+            w = csv.writer(f)
+            if fresh:
+                w.writerow(COLUMNS)
+            for m in members(args.size, args.families.split(","), args.first_seed, args.seeds):
+                for code in ("base", "head"):
+                    r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout)
+                    w.writerow([m.key, code] + [r[c] for c in COLUMNS[2:]])
+                    f.flush()
+                    print(m.key, code, r, flush=True)
+    print("\n".join(summary(out)))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
