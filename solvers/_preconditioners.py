@@ -155,10 +155,13 @@ LOAD_FOURIER = "fourier"
 
 #: Why "auto" is "fourier" on a device (``ContactOperator.space`` not the host): it is FFTs
 #: there, where the island kinds' block factorisations and far field are host work
-#: (solvers/_device.py), and it takes the islands' products: over the surface population
+#: (solvers/_device.py), and it took the islands' products then: over the surface population
 #: (results/perf/device-choice) median 51.5 / 63 matvecs against 48 / 62 at 512^2 / 1024^2,
 #: worst 110 / 145 against 109 / 126.  On the CPU the same products take 1.18-1.26x the
-#: islands' time, so the host keeps the islands.
+#: islands' time, so the host keeps the islands.  The host's defaults have since gained (the
+#: far field at 1024^2, the settled-set rebuild: median 47 / 44, worst 99 / 66,
+#: results/perf/settled-rebuild), so the islands' blocks on the device (batched
+#: factorisations) are the open lever there.
 DEVICE_FOURIER = "fourier"
 
 
