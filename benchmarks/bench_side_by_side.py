@@ -1,4 +1,5 @@
-"""Two checkouts of this repository side by side on the surface population: for every member,
+"""Two checkouts of this repository side by side on the surface population (``plan`` of
+bench_surface_population.py: its cells at the size, on the chosen seeds): for every member,
 one cold top-step solve with each checkout's own code (its ``bench_surface_population.py``,
 variant "default"), the two alternating member by member in one run, so that a change's
 matvecs and seconds are compared on the same machine at the same time.
@@ -27,7 +28,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-from bench_surface_population import CELLS, FAMILIES, THREAD_VARS, Member, check_choices
+from bench_surface_population import FAMILIES, THREAD_VARS, Member, check_choices, plan
 
 COLUMNS = ("member", "code", "matvecs", "iterations", "builds", "seconds", "status", "n")
 
@@ -41,12 +42,6 @@ print("RESULT " + json.dumps({"matvecs": row.matvecs, "iterations": row.iteratio
                               "builds": row.preconditioner_builds, "seconds": row.seconds,
                               "status": row.status, "n": row.n}))
 """
-
-
-def members(size: int, families: list[str], first_seed: int, seeds: int) -> list[Member]:
-    """The population's cells at one size, on seeds ``first_seed`` .. ``first_seed + seeds - 1``."""
-    return [Member(fam, size, H, slope, s) for H, slope in CELLS for fam in families
-            for s in range(first_seed, first_seed + seeds)]
 
 
 def solve_in(checkout: Path, m: Member, threads: int, timeout: float) -> dict:
@@ -129,7 +124,7 @@ def main() -> None:
             w = csv.writer(f)
             if fresh:
                 w.writerow(COLUMNS)
-            for m in members(args.size, args.families.split(","), args.first_seed, args.seeds):
+            for m in plan([args.size], args.families.split(","), {args.size: args.seeds}, args.first_seed):
                 for code in ("base", "head"):
                     r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout)
                     w.writerow([m.key, code] + [r[c] for c in COLUMNS[2:]])
