@@ -174,6 +174,34 @@ def test_fourier_preconditioner_option_reaches_the_same_answer(name):
     assert np.linalg.norm(res.p - ref.p) <= 1e-6 * np.linalg.norm(ref.p)
 
 
+def test_the_fourier_preconditioner_of_a_mixed_solve_runs_in_float32():
+    """Its transforms in float32 (``make_preconditioner``'s block_dtype): within float32's
+    round-off of the float64 one, nearly symmetric on the set, returned in the residual's
+    precision; a mixed load-controlled solve with it reaches the double one's answer."""
+    inst = build(65)
+    n = inst.n
+    S = inst.qp.ubar > np.quantile(inst.qp.ubar, 0.6)
+    apply = {}
+    for dt in (np.float64, np.float32):
+        M = make_preconditioner("fourier", inst.qp, dt)
+        M.update(S)
+        apply[dt] = M.apply
+    rng = np.random.default_rng(5)
+    r, v = rng.normal(size=n), rng.normal(size=n)
+    z64, z32 = apply[np.float64](r), apply[np.float32](r)
+    assert z32.dtype == np.float64 and not np.any(z32[~S])
+    assert 1e-10 * np.linalg.norm(z64) < np.linalg.norm(z32 - z64) <= 1e-5 * np.linalg.norm(z64)  # float32's
+    assert abs(v @ apply[np.float32](r) - r @ apply[np.float32](v)) <= 1e-5 * abs(v @ z64) + 1e-5 * np.linalg.norm(
+        v) * np.linalg.norm(z64)
+    surf = rmd_surface_n(65, 0.7, length=100e-6, seed=2)
+    builder = InstanceBuilder(surf, 1e9, "bcc", periodic=False)
+    loaded = builder.build_load(builder.load_force(0.01)).qp
+    out = {p: get_solver("fast-dual-pccg").solve(loaded, SolverSettings(tol=1e-9, params={
+        "precondition": "fourier", "precision": p})) for p in ("mixed", "double")}
+    assert all(o.converged for o in out.values()) and out["mixed"].info["matvecs_float32"] > 0
+    assert np.linalg.norm(out["mixed"].p - out["double"].p) <= 1e-6 * np.linalg.norm(out["double"].p)
+
+
 def test_unknown_preconditioner_is_a_clear_error():
     inst = build(33)
     with pytest.raises(ParamError, match="'precondition' must be one of 'islands', 'farfield', 'fourier', 'none'"):
