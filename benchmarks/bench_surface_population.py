@@ -18,7 +18,9 @@ paper's, BCC kernel, non-periodic, E = the paper's, top step Delta = (z_max - z_
 cold start, tol 1e-9 (profile "high", judged by harness/judging.py).  Variants (``VARIANTS``):
 "default" -- ``fast-dual-pccg`` with its defaults -- and "double-islands" --
 ``precision=double, precondition=islands``; "fourier" is the wave-number preconditioner,
-what "auto" is on a device (solvers/_device.py), so its matvecs there are these.
+what "auto" is on a device (solvers/_device.py), so its matvecs there are these; "farfield"
+the island blocks with the far-field coupling at every size (``FAR_FIELD_GRID_POINTS``'s
+evidence: results/perf/farfield-1024).
 
 Each solve runs in its own process (``--in-process`` runs them in this one: matvec counts
 only, no per-solve peak memory) with ``SolverSettings(time_limit=--timeout)`` and a hard
