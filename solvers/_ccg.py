@@ -155,8 +155,7 @@ class GapState:
     @classmethod
     def start(cls, ctx: SolveContext) -> GapState:
         """The state at the warm start ``ctx.p0``, or at p = 0 (cold)."""
-        p0 = ctx.first_p()
-        return cls(ctx.qp.H, ctx.qp.ubar, p0)
+        return cls(ctx.qp.H, ctx.qp.ubar, ctx.first_p())
 
     @property
     def exact(self) -> bool:
