@@ -482,7 +482,9 @@ class FourierPreconditioner(_OnesCache):
         self._shape = (int(grid_shape[0]), int(grid_shape[1]))
         self._space = space
         self._q = space.put(floored_wavenumbers(self._shape).astype(dtype))
-        self._idx = space.put(np.asarray(grid_idx))
+        idx = np.asarray(grid_idx)
+        whole = idx.size == self._shape[0] * self._shape[1] and bool(np.all(idx == np.arange(idx.size)))
+        self._idx = None if whole else space.put(idx)  # None: the whole grid in order, no scatter
         self._on = space.xp.zeros(int(np.asarray(grid_idx).size), dtype=bool)
         self._solo: float | None = None
         self.builds = 0
@@ -528,17 +530,23 @@ def floored_wavenumbers(shape: tuple[int, int]) -> np.ndarray:
     return q
 
 
-def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarray, r: np.ndarray,
+def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarray | None, r: np.ndarray,
                             xp: Any = np) -> np.ndarray:
-    """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx), in
-    the array module ``xp`` (numpy: the operator's FFT library, ``spectral_multiply``)."""
-    f = xp.zeros(shape, dtype=q.dtype)
-    f.ravel()[idx] = r
+    """gather_idx F^-1[ q F[scatter_idx r] ] on a grid of ``shape`` (flat indices idx; None:
+    r is the whole grid in row-major order), in q's precision and the array module ``xp``
+    (numpy: the operator's FFT library, ``spectral_multiply``)."""
+    if idx is None:
+        f = r.reshape(shape).astype(q.dtype)  # a copy: the transform overwrites it
+    else:
+        f = xp.zeros(shape, dtype=q.dtype)
+        f.ravel()[idx] = r
     if xp is np:
-        return spectral_multiply(f, q).ravel()[idx]
-    F = xp.fft.rfft2(f)
-    F *= q
-    return xp.fft.irfft2(F, s=shape).ravel()[idx]
+        z = spectral_multiply(f, q).ravel()
+    else:
+        F = xp.fft.rfft2(f)
+        F *= q
+        z = xp.fft.irfft2(F, s=shape).ravel()
+    return z if idx is None else z[idx]
 
 
 def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64,

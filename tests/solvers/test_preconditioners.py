@@ -15,6 +15,9 @@ from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.solvers._preconditioners import (
     KINDS,
     REBUILD_FRACTION,
+    FourierPreconditioner,
+    floored_wavenumbers,
+    multiply_by_wavenumbers,
     SETTLED_REBUILD_FRACTION,
     SETTLING_FRACTION,
     IslandPreconditioner,
@@ -200,6 +203,23 @@ def test_the_fourier_preconditioner_of_a_mixed_solve_runs_in_float32():
         "precondition": "fourier", "precision": p})) for p in ("mixed", "double")}
     assert all(o.converged for o in out.values()) and out["mixed"].info["matvecs_float32"] > 0
     assert np.linalg.norm(out["mixed"].p - out["double"].p) <= 1e-6 * np.linalg.norm(out["double"].p)
+
+
+def test_the_whole_grid_skips_the_scatter_and_gives_the_same_product():
+    """A preconditioner on the whole grid in order (load control's trial set) transforms r
+    itself, unmodified; it equals the scatter-and-gather product."""
+    shape = (24, 20)
+    q = floored_wavenumbers(shape)
+    r = np.random.default_rng(7).normal(size=shape[0] * shape[1])
+    kept = r.copy()
+    whole = multiply_by_wavenumbers(q, shape, None, r)
+    np.testing.assert_array_equal(r, kept)
+    np.testing.assert_allclose(whole, multiply_by_wavenumbers(q, shape, np.arange(r.size), r), rtol=1e-13, atol=1e-13)
+    M = FourierPreconditioner(shape, np.arange(r.size))
+    S = r > 0
+    M.update(S)
+    np.testing.assert_allclose(M.apply(r), multiply_by_wavenumbers(q, shape, np.arange(r.size), r * S) * S,
+                               rtol=1e-13, atol=1e-13)
 
 
 def test_unknown_preconditioner_is_a_clear_error():
