@@ -78,6 +78,7 @@ VARIANTS: dict[str, dict[str, str]] = {
     "auto": {"precision": "auto"},
     "fourier": {"precondition": "fourier"},
     "farfield": {"precondition": "farfield"},
+    "mixed": {"precision": "mixed"},
 }
 #: A default solve may need at most this many times the median matvecs of its size ...
 STALL_FACTOR = 2.0
@@ -273,13 +274,18 @@ def member_of(r: PopulationRow) -> tuple:
     return (r.family, r.N, r.hurst, r.rms_slope, r.seed)
 
 
-def same_configuration(r: PopulationRow) -> bool:
-    """Whether the default ran the double-islands configuration itself on ``r``'s grid: its
-    ``auto`` choices take the far field only from ``FAR_FIELD_GRID_POINTS`` points and float32
-    from ``LARGE_GRID_POINTS``."""
+def double_islands_below() -> int:
+    """The grid points below which the default's ``auto`` choices are the double-islands
+    configuration itself: the far field from ``FAR_FIELD_GRID_POINTS``, float32 from
+    ``LARGE_GRID_POINTS``."""
     from contactbench.solvers._preconditioners import FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS
 
-    return r.N * r.N < min(FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS)
+    return min(FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS)
+
+
+def same_configuration(r: PopulationRow) -> bool:
+    """Whether the default ran the double-islands configuration itself on ``r``'s grid."""
+    return r.N * r.N < double_islands_below()
 
 
 def checks(rows: list[PopulationRow], metric: str = "matvecs") -> list[Flag]:
@@ -318,7 +324,7 @@ def noise_lines(rows: list[PopulationRow]) -> list[str]:
         same_mv = sum(a.matvecs == b.matvecs for a, b in pairs)
         ratios = [a.seconds / b.seconds for a, b in pairs if b.seconds > 0]
         out.append(f"- N = {N}: the default is `precision=double, precondition=islands` here (`auto` below "
-                   f"1024^2 grid points); {same_mv} of {len(pairs)} members with the same matvecs; seconds ratio "
+                   f"{int(np.sqrt(double_islands_below()))}^2 grid points); {same_mv} of {len(pairs)} members with the same matvecs; seconds ratio "
                    f"{min(ratios):.2f}-{max(ratios):.2f} (median {np.median(ratios):.2f}): the machine's spread on "
                    f"identical work")
     return out

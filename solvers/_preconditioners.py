@@ -123,11 +123,15 @@ def block_width(sizes: np.ndarray) -> np.ndarray:
 #: ``resolved_kind``).
 KINDS = ("islands", "farfield", "fourier", "none", "auto")
 
-#: The grid size (points) from which the fast solvers' "auto" precision is float32
-#: (solvers/_refine.py): 2048^2.  Its set-up does not shrink with the solve -- the float32
-#: twin and the refinement's float64 products -- and a cold solve on a 512^2 or 1024^2 grid
-#: needs only 25-80 matvecs (results/perf/surface-population.md).
-LARGE_GRID_POINTS = 2048 * 2048
+#: The grid size (points) from which the fast solvers' "auto" precision is mixed (float32
+#: inner rounds, solvers/_refine.py): 512^2, the smallest size measured.  Over the surface
+#: population with the island blocks of today (results/perf/mixed-512: quiet 2-core vm, one
+#: run, the same window) mixed / double seconds median 0.95x at 512^2 (48 members, worst
+#: 1.23x) and 0.88x at 1024^2 (32 members, worst 1.09x), the median and worst members' times
+#: no higher; the 512^2 warm paper sweep 0.82-0.83x (the same 355-356 matvecs); load control
+#: at 512^2 0.50-0.87x on three problems.  Its set-up (the float32 twin, the refinement's
+#: float64 products) once made it lose below 2048^2 (results/perf/surface-population.md).
+LARGE_GRID_POINTS = 512 * 512
 
 #: The grid size (points) from which "auto" takes the far-field correction: 1024^2.  Its
 #: builds (near-tile sums, an m x m eigendecomposition) cost what a few iterations save on

@@ -40,7 +40,7 @@ from contactbench.problems.instances import QP
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, GapState
-from ._preconditioners import SetPreconditioner, grid_points, large_grid
+from ._preconditioners import SetPreconditioner, large_grid
 from .base import Param, SolveContext
 
 #: The precisions a fast solver runs in ("mixed": float32 inner, float64 outer; "auto":
@@ -58,23 +58,15 @@ def precision_param(default: str = "double") -> Param:
     """The one declaration of the fast solvers' ``precision`` parameter."""
     return Param("precision", str, default,
                  "double: float64 throughout; mixed: float32 inner CCG, float64 iterative refinement; "
-                 "auto: mixed from 2048^2 grid points up (from 1024^2 under load control), else double",
+                 "auto: mixed from 512^2 grid points up, else double",
                  choices=PRECISIONS)
-
-
-#: Under load control "auto" runs mixed from this many grid points (a whole-grid problem:
-#: results/peers/load-mixed-1024, 12 held-out members at 1024^2, mixed / double median 0.81x,
-#: worst 1.08x, fewer products on 12 of 12).
-LOAD_MIXED_POINTS = 1024 * 1024
 
 
 def resolved_precision(precision: str, qp: QP) -> str:
     """"double" or "mixed": ``precision`` with "auto" decided by the grid -- mixed on a
-    large grid (``_preconditioners.large_grid``), and under load control from
-    ``LOAD_MIXED_POINTS`` grid points -- else double."""
+    large grid (``_preconditioners.large_grid``), else double."""
     if precision == "auto":
-        loaded = qp.constraints.load_control and grid_points(qp) >= LOAD_MIXED_POINTS
-        return "mixed" if large_grid(qp) or loaded else "double"
+        return "mixed" if large_grid(qp) else "double"
     return precision
 
 

@@ -168,11 +168,10 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     correction ("farfield", solvers/_farfield.py) from 1024^2 grid points
     (``_preconditioners.FAR_FIELD_GRID_POINTS``), the islands alone below; mixed precision
     (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
-    solvers/_refine.py) from 2048^2 (``_preconditioners.LARGE_GRID_POINTS``), float64 below --
-    except that a load-controlled QP runs mixed from 1024^2 grid points
-    (``_refine.LOAD_MIXED_POINTS``: its whole grid is carried).  ``precondition`` and ``precision`` fix either.  Warm start: primal."""
+    solvers/_refine.py) from 512^2 (``_preconditioners.LARGE_GRID_POINTS``), float64 below.
+    ``precondition`` and ``precision`` fix either.  Warm start: primal."""
 
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
-    #: auto by default: the far field and float32 where they pay for their set-up (1024^2 and 2048^2 grid points up)
+    #: auto by default: the far field and float32 where they pay for their set-up (1024^2 and 512^2 grid points up)
     params = (precondition_param("auto"), precision_param("auto"), first_guess_param(), screening_param())

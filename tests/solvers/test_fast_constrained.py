@@ -23,7 +23,8 @@ from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution
 from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.surfaces import Surface, fourier_synthesis
-from contactbench.solvers._refine import LOAD_MIXED_POINTS, resolved_precision
+from contactbench.solvers._preconditioners import LARGE_GRID_POINTS
+from contactbench.solvers._refine import resolved_precision
 from contactbench.solvers._constrained import winkler_start
 from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
 from contactbench.solvers.registry import available_solvers, get_solver
@@ -355,19 +356,19 @@ def test_the_direction_keeps_the_load(square, loaded, name: str, precondition: s
     assert r.matvecs <= 1.5 * r.iterations + 2, (r.iterations, r.matvecs)
 
 
-def test_auto_precision_runs_mixed_under_load_control_from_1024_squared() -> None:
-    """The one rule of ``precision="auto"``: mixed from 2048^2 grid points, and from 1024^2
-    under load control (the whole grid carried); double below."""
+def test_auto_precision_is_the_grid_s_under_load_control_too() -> None:
+    """The one rule of ``precision="auto"``: mixed from ``LARGE_GRID_POINTS`` grid points
+    (512^2), with or without a load; double below."""
     def qp(N: int, load: float | None) -> SimpleNamespace:  # a stand-in: only the grid and constraints are read
         return SimpleNamespace(geometry=SimpleNamespace(grid_shape=(N, N)), n=N * N,
                                constraints=Constraints(None, load))
 
-    assert LOAD_MIXED_POINTS == 1024 * 1024
-    assert resolved_precision("auto", qp(1024, 1.0)) == "mixed"
-    assert resolved_precision("auto", qp(1024, None)) == "double"
-    assert resolved_precision("auto", qp(1023, 1.0)) == "double"
-    assert resolved_precision("auto", qp(2048, None)) == "mixed"
-    assert resolved_precision("double", qp(2048, 1.0)) == "double"
+    assert LARGE_GRID_POINTS == 512 * 512
+    for load in (1.0, None):
+        assert resolved_precision("auto", qp(512, load)) == "mixed"
+        assert resolved_precision("auto", qp(511, load)) == "double"
+        assert resolved_precision("auto", qp(2048, load)) == "mixed"
+        assert resolved_precision("double", qp(2048, load)) == "double"
 
 
 def test_the_cold_start_under_load_control_is_the_summits_carrying_the_load(square, loaded, loaded_plastic) -> None:

@@ -27,9 +27,9 @@ def test_auto_is_double_below_the_threshold_and_mixed_from_it() -> None:
     assert qp.geometry is not None and _preconditioners.grid_points(qp) == 32 * 32
     assert _refine.resolved_precision("auto", qp) == "double"
     geo = qp.geometry
-    big = replace(qp, geometry=replace(geo, grid_shape=(2048, 2048)))
+    big = replace(qp, geometry=replace(geo, grid_shape=(512, 512)))
     assert _refine.resolved_precision("auto", big) == "mixed"
-    just_below = replace(qp, geometry=replace(geo, grid_shape=(2048, 2047)))
+    just_below = replace(qp, geometry=replace(geo, grid_shape=(512, 511)))
     assert _refine.resolved_precision("auto", just_below) == "double"
     # the explicit choices are never changed by the grid
     for p in ("double", "mixed"):
@@ -61,8 +61,11 @@ def test_auto_preconditioner_takes_the_far_field_from_the_threshold() -> None:
     assert _preconditioners.resolved_kind("auto", qp) == "islands"
     assert _preconditioners.resolved_kind("auto", just_below) == "islands"
     assert _preconditioners.resolved_kind("auto", big) == "farfield"
-    # the far field's threshold is below float32's: a 1024^2 grid runs double with the far field
-    assert _refine.resolved_precision("auto", big) == "double"
+    # float32's threshold is below the far field's: a 1024^2 grid runs mixed with the far field
+    assert _refine.resolved_precision("auto", big) == "mixed"
+    assert _refine.resolved_precision("auto", replace(qp, geometry=replace(qp.geometry, grid_shape=(512, 512)))) \
+        == "mixed" and _preconditioners.resolved_kind("auto", replace(
+            qp, geometry=replace(qp.geometry, grid_shape=(512, 512)))) == "islands"
     for k in ("islands", "farfield", "fourier", "none"):
         assert _preconditioners.resolved_kind(k, qp) == k == _preconditioners.resolved_kind(k, big)
 
