@@ -277,10 +277,10 @@ def member_of(r: PopulationRow) -> tuple:
 def double_islands_below() -> int:
     """The grid points below which the default's ``auto`` choices are the double-islands
     configuration itself: the far field from ``FAR_FIELD_GRID_POINTS``, float32 from
-    ``LARGE_GRID_POINTS``."""
-    from contactbench.solvers._preconditioners import FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS
+    ``MIXED_GRID_POINTS``."""
+    from contactbench.solvers._preconditioners import FAR_FIELD_GRID_POINTS, MIXED_GRID_POINTS
 
-    return min(FAR_FIELD_GRID_POINTS, LARGE_GRID_POINTS)
+    return min(FAR_FIELD_GRID_POINTS, MIXED_GRID_POINTS)
 
 
 def same_configuration(r: PopulationRow) -> bool:

@@ -131,7 +131,7 @@ KINDS = ("islands", "farfield", "fourier", "none", "auto")
 #: no higher; the 512^2 warm paper sweep 0.82-0.83x (the same 355-356 matvecs); load control
 #: at 512^2 0.50-0.87x on three problems.  Its set-up (the float32 twin, the refinement's
 #: float64 products) once made it lose below 2048^2 (results/perf/surface-population.md).
-LARGE_GRID_POINTS = 512 * 512
+MIXED_GRID_POINTS = 512 * 512
 
 #: The grid size (points) from which "auto" takes the far-field correction: 1024^2.  Its
 #: builds (near-tile sums, an m x m eigendecomposition) cost what a few iterations save on
@@ -175,10 +175,10 @@ def grid_points(qp: QP) -> int:
     return int(np.prod(geo.grid_shape)) if geo is not None else int(qp.n)
 
 
-def large_grid(qp: QP) -> bool:
+def mixed_grid(qp: QP) -> bool:
     """The rule of the fast solvers' "auto" precision: the QP's grid has at least
-    ``LARGE_GRID_POINTS`` points."""
-    return grid_points(qp) >= LARGE_GRID_POINTS
+    ``MIXED_GRID_POINTS`` points."""
+    return grid_points(qp) >= MIXED_GRID_POINTS
 
 
 def resolved_kind(kind: str, qp: QP) -> str:

@@ -40,7 +40,7 @@ from contactbench.problems.instances import QP
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, GapState
-from ._preconditioners import SetPreconditioner, large_grid
+from ._preconditioners import SetPreconditioner, mixed_grid
 from .base import Param, SolveContext
 
 #: The precisions a fast solver runs in ("mixed": float32 inner, float64 outer; "auto":
@@ -64,9 +64,9 @@ def precision_param(default: str = "double") -> Param:
 
 def resolved_precision(precision: str, qp: QP) -> str:
     """"double" or "mixed": ``precision`` with "auto" decided by the grid -- mixed on a
-    large grid (``_preconditioners.large_grid``), else double."""
+    grid of at least ``_preconditioners.MIXED_GRID_POINTS`` points (``mixed_grid``), else double."""
     if precision == "auto":
-        return "mixed" if large_grid(qp) else "double"
+        return "mixed" if mixed_grid(qp) else "double"
     return precision
 
 

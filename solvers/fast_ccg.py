@@ -75,7 +75,7 @@ def starting_point(solver: Solver, ctx: SolveContext) -> tuple[np.ndarray, dict[
     if ctx.p0 is not None or wanted == "zero":
         return ctx.first_p(), {}
     if not ctx.constraints.plain:
-        return np.zeros(ctx.n), {"first_guess": "zero (constraints)"}
+        return ctx.first_p(), {"first_guess": "zero (constraints)"}
     guess = coarse_first_guess(solver, ctx)
     ctx.add_matvecs(guess.matvecs)
     info = {"first_guess": guess.note, "coarse_matvecs": guess.matvecs, "coarse_iterations": guess.iterations}
@@ -168,7 +168,7 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     correction ("farfield", solvers/_farfield.py) from 1024^2 grid points
     (``_preconditioners.FAR_FIELD_GRID_POINTS``), the islands alone below; mixed precision
     (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
-    solvers/_refine.py) from 512^2 (``_preconditioners.LARGE_GRID_POINTS``), float64 below.
+    solvers/_refine.py) from 512^2 (``_preconditioners.MIXED_GRID_POINTS``), float64 below.
     ``precondition`` and ``precision`` fix either.  Warm start: primal."""
 
     name = "fast-dual-pccg"

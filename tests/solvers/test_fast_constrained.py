@@ -23,7 +23,7 @@ from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution
 from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.surfaces import Surface, fourier_synthesis
-from contactbench.solvers._preconditioners import LARGE_GRID_POINTS
+from contactbench.solvers._preconditioners import MIXED_GRID_POINTS
 from contactbench.solvers._refine import resolved_precision
 from contactbench.solvers._constrained import winkler_start
 from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
@@ -357,13 +357,13 @@ def test_the_direction_keeps_the_load(square, loaded, name: str, precondition: s
 
 
 def test_auto_precision_is_the_grid_s_under_load_control_too() -> None:
-    """The one rule of ``precision="auto"``: mixed from ``LARGE_GRID_POINTS`` grid points
+    """The one rule of ``precision="auto"``: mixed from ``MIXED_GRID_POINTS`` grid points
     (512^2), with or without a load; double below."""
     def qp(N: int, load: float | None) -> SimpleNamespace:  # a stand-in: only the grid and constraints are read
         return SimpleNamespace(geometry=SimpleNamespace(grid_shape=(N, N)), n=N * N,
                                constraints=Constraints(None, load))
 
-    assert LARGE_GRID_POINTS == 512 * 512
+    assert MIXED_GRID_POINTS == 512 * 512
     for load in (1.0, None):
         assert resolved_precision("auto", qp(512, load)) == "mixed"
         assert resolved_precision("auto", qp(511, load)) == "double"

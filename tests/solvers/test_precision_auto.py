@@ -1,5 +1,5 @@
 """``precision="auto"`` (solvers/_refine.py) and ``precondition="auto"``
-(solvers/_preconditioners.py): mixed from ``LARGE_GRID_POINTS`` grid points up and the far
+(solvers/_preconditioners.py): mixed from ``MIXED_GRID_POINTS`` grid points up and the far
 field from ``FAR_FIELD_GRID_POINTS``, double and the islands alone below; decided by the grid
 the unknowns sit on, not by their count."""
 
@@ -45,7 +45,7 @@ def test_auto_without_a_geometry_reads_the_unknowns() -> None:
 @pytest.mark.parametrize("threshold,expected", [(1, "mixed"), (10**12, "double")])
 def test_a_solve_reports_the_precision_auto_chose(monkeypatch: pytest.MonkeyPatch, threshold: int,
                                                    expected: str) -> None:
-    monkeypatch.setattr(_preconditioners, "LARGE_GRID_POINTS", threshold)
+    monkeypatch.setattr(_preconditioners, "MIXED_GRID_POINTS", threshold)
     qp = small_qp()
     res = get_solver("fast-dual-pccg").solve(qp, SolverSettings(tol=1e-9, params={"precision": "auto"}))
     assert res.converged and res.info["precision"] == expected, res.info
@@ -76,7 +76,7 @@ def test_the_default_below_the_threshold_is_the_islands_in_double(monkeypatch: p
     """Below the threshold the default takes the iterates of precision=double,
     precondition=islands; from it, those of mixed with the far field (the same counts, p to
     round-off: two solves of one configuration differ in the last bits with threads)."""
-    monkeypatch.setattr(_preconditioners, "LARGE_GRID_POINTS", threshold)
+    monkeypatch.setattr(_preconditioners, "MIXED_GRID_POINTS", threshold)
     monkeypatch.setattr(_preconditioners, "FAR_FIELD_GRID_POINTS", threshold)
     qp = small_qp()
     solve = get_solver("fast-dual-pccg").solve
