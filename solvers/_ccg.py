@@ -90,7 +90,7 @@ from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
 
 from ._farfield import MAX_AGGREGATES
-from ._kit import matvec_seconds
+from ._kit import matvec_seconds, serial_blas
 from ._preconditioners import ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
 from ._screen import solve_screened
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
@@ -499,8 +499,9 @@ class FastSolver(Solver):
     def iterate(self, ctx: SolveContext) -> Outcome:
         """``iterate_on`` the QP's screened set (solvers/_screen.py; under load control
         bounded by the rounds' approach), or on the whole QP where screening is off or
-        does not pay."""
-        return solve_screened(ctx, self.iterate_on)
+        does not pay; with BLAS on one thread (``_kit.serial_blas``)."""
+        with serial_blas():
+            return solve_screened(ctx, self.iterate_on)
 
     @abstractmethod
     def iterate_on(self, ctx: SolveContext) -> Outcome:

@@ -12,6 +12,7 @@
 * ``is_dense``.
 * ``coarse_first_guess`` -- a cold start's first guess from the same solver on the
   block-averaged 2x-coarser grid (``problems.coarsen``), prolonged by injection.
+* ``serial_blas`` -- BLAS on one thread for the span of a matrix-free loop (its doc).
 * ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``
   (``WHOLE_GRID_FFT_POINTS``, ``TYPICAL_PK_LOAD_ITERATIONS``: its load-control terms).
 
@@ -22,11 +23,13 @@ harness's own formula (``contactbench.problems.kkt``).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 import scipy.linalg as sla
+from threadpoolctl import ThreadpoolController
 
 from contactbench.problems import operators
 from contactbench.problems.coarsen import block_average, coarse_qp, level_trial_set
@@ -260,3 +263,22 @@ def matvec_seconds(n: int, kind: str, points_per_unknown: float = FFT_POINTS_PER
 
 def cholesky_seconds(n: int) -> float:
     return (n**3 / 3.0) / (5.0 * DENSE_FLOPS)
+
+
+_BLAS: ThreadpoolController | None = None
+
+
+@contextmanager
+def serial_blas() -> Iterator[None]:
+    """BLAS (and only BLAS) on one thread inside the block, the solve's other threads as
+    they were.  For the matrix-free loops, whose BLAS calls are level-1 (dot products over
+    n, memory bound): a threaded OpenBLAS keeps its threads spinning after each call, and on
+    the cores the FFT pool then needs they slow the next product (measured on 2 cores: a
+    1024^2 float32 product in a load-controlled solve 27-34 ms with BLAS on 2 threads,
+    23-25 ms on 1; results/perf/serial-blas).  The controller is made once (the BLAS
+    libraries are loaded by then: numpy's and scipy's)."""
+    global _BLAS
+    if _BLAS is None:
+        _BLAS = ThreadpoolController()
+    with _BLAS.limit(limits=1, user_api="blas"):
+        yield
