@@ -11,7 +11,7 @@ import pytest
 from contactbench.problems.instances import QP, Geometry, InstanceBuilder, paper_max_displacement, rigid_body_ubar
 from contactbench.problems.kkt import kkt_check, relative_error
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers.base import SolverSettings, WarmStart
+from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
 from contactbench.solvers.registry import get_solver
 from contactbench.solvers._screen import approach_floor
 
@@ -188,3 +188,66 @@ def test_a_load_on_a_displacement_instance_is_screened_from_its_own_first_touch(
     assert whole.converged and res.converged, res.message
     assert relative_error(res.p, whole.p) <= 1e-6
     assert kkt_check(qp, res.p, res.multiplier).kkt_error <= 10 * HIGH
+
+
+def test_a_cold_load_round_narrows_to_the_points_near_contact(loaded):
+    """After the cold round the set is read from its answer (``near_contact``): smaller
+    than the safe rule's set at the exact approach, which the rounds used to carry, and
+    the answer is the unscreened one."""
+    inst, exact = loaded
+    res = solve("fast-dual-pccg", inst.qp, "safe")
+    safe = inst.qp.can_touch(float(inst.qp.constraints.load), exact.multiplier)
+    assert res.converged and res.info["screened_rounds"] >= 2, res.message
+    assert res.info["screened_size"] < safe.size
+    assert relative_error(res.p, exact.p) <= 1e-6
+
+
+@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-ccg"])
+def test_a_narrowed_set_with_no_margin_still_gives_the_answer(loaded, name, monkeypatch):
+    """No margin at all: the narrowed set is the support of p and the penetrating points
+    only; any point of the answer it misses is added by the rounds, and the answer holds."""
+    import contactbench.solvers._screen as screen  # noqa: PLC0415 -- the margin, patched
+
+    monkeypatch.setattr(screen, "NEAR_GAP_FACTOR", 0.0)
+    inst, exact = loaded
+    res = solve(name, inst.qp, "safe")
+    assert res.converged, res.message
+    assert relative_error(res.p, exact.p) <= 1e-6
+    assert res.multiplier == pytest.approx(exact.multiplier, rel=1e-6)
+
+
+def test_a_cold_load_solve_whose_first_set_would_not_pay_starts_on_the_whole_grid(loaded, monkeypatch):
+    """Where the safe rule's first set is too large to pay, the cold round runs on every
+    point (to the cold round's tolerance) and the rounds after it on the narrowed set."""
+    import contactbench.solvers._screen as screen  # noqa: PLC0415 -- the threshold, patched
+
+    monkeypatch.setattr(screen, "MAX_SCREENED_FRACTION", 1e-9)
+    inst, exact = loaded
+    res = solve("fast-dual-pccg", inst.qp, "safe")
+    assert res.converged and res.info["screened_rounds"] >= 2, res.message
+    assert res.info["screened_size"] < 0.5 * inst.n
+    assert relative_error(res.p, exact.p) <= 1e-6
+    warm = solve("fast-dual-pccg", inst.qp, "safe", exact.p)  # a warm start is not narrowed from the whole grid
+    assert warm.converged and "screened_rounds" not in warm.info
+
+
+def bare_context(qp: QP) -> SolveContext:
+    """A solve's context on ``qp`` outside any solver (for the screening helpers)."""
+    return SolveContext(qp, HIGH, 100, {}, None, None, Deadline(None, 0.0), Trace(t0=0.0), 1.0)
+
+
+def test_a_near_set_that_cannot_carry_the_load_is_refused(loaded):
+    """Under a hardness whose bounds over the near points sum below P, ``near_contact``
+    gives None (the caller solves the whole problem); with room for the load, the set."""
+    from contactbench.problems.constraints import make_constraints  # noqa: PLC0415
+    from contactbench.solvers._screen import near_contact  # noqa: PLC0415
+
+    inst, exact = loaded
+    qp = inst.qp
+    load = float(qp.constraints.load)
+    w = qp.H.matvec(exact.p) - qp.ubar
+    near = (exact.p > 0.0) | (w - exact.multiplier < 0.0)
+    for share, refused in ((0.999, True), (2.0, False)):
+        bounds = make_constraints(qp.n, np.full(qp.n, share * load / np.count_nonzero(near)), load)
+        got = near_contact(bare_context(QP(qp.H, qp.ubar, qp.geometry, bounds)), exact.p, w, exact.multiplier, 0.0)
+        assert (got is None) if refused else np.array_equal(got, near)
