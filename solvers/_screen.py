@@ -36,7 +36,11 @@ elastic deformation lifts most of those points off (on a 1024^2 RMD surface at P
 0.005: 82 % of the grid can touch at the answer's approach, 3.6 % does).  So after a round
 the next set is read from the round's own answer (``near_contact``): the support of p and
 the points whose gap less the approach, w - Delta, is below ``NEAR_GAP_FACTOR`` times the
-round's whole-problem KKT error (in the displacement scale, ``SolveContext.ubar_scale``).
+round's tolerance (in the displacement scale, ``SolveContext.ubar_scale``), the penetrating
+points off the round's set among them.  The round's tolerance, not the whole problem's error
+after it: where the first set was too small, that error is the penetration off the set (0.07
+on the 2048^2 Saupe problem of results/peers/load-0.005), and a margin of ten times it took
+the whole grid.
 After a cold round this set replaces the round's (it narrows: 12 % of the grid in that
 example); after any later round it is added to it, so the sets only grow from there and
 the rounds end.  A set that cannot carry the load (a hardness: sum(u_T) < P) is not run:
@@ -78,7 +82,7 @@ COLD_ROUND_TOL = 1e-3
 COLD_APPROACH_FACTOR = 3.0
 
 #: Load control: after a round, the next set holds the points within this many times the
-#: round's KKT error of touching (``near_contact``).
+#: round's tolerance of touching (``near_contact``).
 NEAR_GAP_FACTOR = 10.0
 
 #: The values of a fast solver's ``screening`` parameter.
@@ -169,11 +173,11 @@ def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
     return np.arange(ctx.n) if ctx.constraints.load_control and ctx.p0 is None else None
 
 
-def near_contact(ctx: SolveContext, p: np.ndarray, w: np.ndarray, delta: float, kkt: float) -> np.ndarray | None:
+def near_contact(ctx: SolveContext, p: np.ndarray, w: np.ndarray, delta: float, tol: float) -> np.ndarray | None:
     """Under load control, the mask of the support of p and of the points whose gap less
-    the approach is below ``NEAR_GAP_FACTOR`` x ``kkt`` x the displacement scale (module
+    the approach is below ``NEAR_GAP_FACTOR`` x ``tol`` x the displacement scale (module
     doc); None when those points cannot carry the load (a hardness)."""
-    margin = NEAR_GAP_FACTOR * kkt * ctx.ubar_scale() if math.isfinite(kkt) else math.inf
+    margin = NEAR_GAP_FACTOR * tol * ctx.ubar_scale()
     near = (p > 0.0) | (w - delta < margin)
     c = ctx.constraints
     if c.upper is not None and float(np.sum(c.upper[near])) < float(c.load):
@@ -206,13 +210,13 @@ def merged_info(rounds: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def next_set(ctx: SolveContext, T: np.ndarray, p: np.ndarray, w: np.ndarray, delta: float | None,
-             kkt: float, narrow: bool) -> np.ndarray | None:
-    """The set after a round on T whose whole-problem answer (p, w, Delta) has KKT error
-    ``kkt`` (module doc, step 4): T and its points' growth, or under load control
+             tol: float, narrow: bool) -> np.ndarray | None:
+    """The set after a round on T solved to ``tol``, whose whole-problem answer is (p, w,
+    Delta) (module doc, step 4): T and its points' growth, or under load control
     ``near_contact``, added to T, or in its place when ``narrow`` (after a cold round);
     None when the set cannot carry the load."""
     if delta is not None:
-        near = near_contact(ctx, p, w, delta, kkt)
+        near = near_contact(ctx, p, w, delta, tol)
         if near is None:
             return None
         return np.flatnonzero(near if narrow else near | mask_of(ctx.n, T))
@@ -250,7 +254,7 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
         out_of_iterations = ctx.max_iter is not None and used >= ctx.max_iter
         if kkt <= ctx.tol or not out.converged or ctx.expired() or out_of_iterations:
             break
-        grown = next_set(ctx, T, p, w, delta, kkt, narrow=cold)
+        grown = next_set(ctx, T, p, w, delta, kkt if sub.tol is None else sub.tol, narrow=cold)
         if grown is None:  # the grown set cannot carry the load: the whole problem
             grown = np.arange(ctx.n)
         if grown.size == T.size and sub.tol == ctx.tol:  # solved on T, not on the whole: T cannot grow
