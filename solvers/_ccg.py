@@ -498,8 +498,9 @@ class FastSolver(Solver):
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         """``iterate_on`` the QP's screened set (solvers/_screen.py; under load control
-        bounded by the rounds' approach), or on the whole QP where screening is off or
-        does not pay; with BLAS on one thread (``_kit.serial_blas``)."""
+        narrowed to the points near contact after the cold round), or on the whole QP
+        where screening is off or does not pay; with BLAS on one thread
+        (``_kit.serial_blas``)."""
         with serial_blas():
             return solve_screened(ctx, self.iterate_on)
 

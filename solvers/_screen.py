@@ -40,10 +40,9 @@ round's tolerance (in the displacement scale, ``SolveContext.ubar_scale``), the 
 points off the round's set among them.  The round's tolerance, not the whole problem's error
 after it: where the first set was too small, that error is the penetration off the set (0.07
 on the 2048^2 Saupe problem of results/peers/load-0.005), and a margin of ten times it took
-the whole grid.
-After a cold round this set replaces the round's (it narrows: 12 % of the grid in that
-example); after any later round it is added to it, so the sets only grow from there and
-the rounds end.  A set that cannot carry the load (a hardness: sum(u_T) < P) is not run:
+the whole grid.  After a cold round this set replaces the round's (it narrows: 12 % of the
+grid in that example); after any later round it is added to it, so the sets only grow from
+there and the rounds end.  A set that cannot carry the load (a hardness: sum(u_T) < P) is not run:
 the whole problem is solved instead.
 
 The answer is judged on the whole problem (step 3), so screening changes which points
