@@ -285,3 +285,43 @@ def test_coarse_first_guess_needs_a_surface_and_a_big_enough_grid():
     inst = InstanceBuilder(s, 1e9, "bcc", periodic=False).build(paper_max_displacement(s))
     res = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"first_guess": "coarse"}))
     assert res.converged and res.info["coarse_matvecs"] == 0 and "no coarse level" in res.info["first_guess"]
+
+
+def blas_threads() -> dict[str, int]:
+    """Threads of each loaded BLAS library, by its file."""
+    from threadpoolctl import threadpool_info  # noqa: PLC0415
+
+    return {p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+
+
+def test_a_fast_solve_runs_blas_on_one_thread_and_gives_the_threads_back(monkeypatch):
+    """``_kit.serial_blas``: inside a fast solve every BLAS library runs on one thread (read
+    from threadpoolctl during the solve), and after it each library the caller had set to
+    two threads has two again, whether the solve returned or raised."""
+    import contactbench.solvers._ccg as ccg  # noqa: PLC0415 -- the screened entry point, wrapped
+
+    seen: list[dict[str, int]] = []
+    inner = ccg.solve_screened
+
+    def watched(ctx, solve):
+        seen.append(blas_threads())
+        return inner(ctx, solve)
+
+    def crashing(ctx, solve):
+        seen.append(blas_threads())
+        raise ZeroDivisionError("a solver's crash")
+
+    inst = counterexample(100, 0)
+    with threadpool_limits(2, user_api="blas"):
+        before = blas_threads()
+        monkeypatch.setattr(ccg, "solve_screened", watched)
+        res = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings())
+        after = blas_threads()
+        monkeypatch.setattr(ccg, "solve_screened", crashing)
+        with pytest.raises(ZeroDivisionError):
+            get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings())
+        raised = blas_threads()
+    assert res.converged and len(seen) == 2 and before
+    assert all(set(threads.values()) == {1} for threads in seen), seen
+    for lib, n in before.items():
+        assert after[lib] == raised[lib] == n == 2, (lib, n, after, raised)
