@@ -296,8 +296,9 @@ def blas_threads() -> dict[str, int]:
 
 def test_a_fast_solve_runs_blas_on_one_thread_and_gives_the_threads_back(monkeypatch):
     """``_kit.serial_blas``: inside a fast solve every BLAS library runs on one thread (read
-    from threadpoolctl during the solve), and after it each library the caller had set to
-    two threads has two again, whether the solve returned or raised."""
+    from threadpoolctl during the solve), and after it each library has the threads the
+    caller set again (two, or one where a library was loaded single-threaded), whether the
+    solve returned or raised."""
     import contactbench.solvers._ccg as ccg  # noqa: PLC0415 -- the screened entry point, wrapped
 
     seen: list[dict[str, int]] = []
@@ -321,7 +322,7 @@ def test_a_fast_solve_runs_blas_on_one_thread_and_gives_the_threads_back(monkeyp
         with pytest.raises(ZeroDivisionError):
             get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings())
         raised = blas_threads()
-    assert res.converged and len(seen) == 2 and before
+    assert res.converged and len(seen) == 2 and any(n > 1 for n in before.values()), before
     assert all(set(threads.values()) == {1} for threads in seen), seen
-    for lib, n in before.items():
-        assert after[lib] == raised[lib] == n == 2, (lib, n, after, raised)
+    for lib, n in before.items():  # a library loaded single-threaded stays at 1
+        assert after[lib] == raised[lib] == n, (lib, n, after, raised)
