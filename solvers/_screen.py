@@ -157,9 +157,14 @@ def touching(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
     if touch is None:
         return None
     T = np.flatnonzero(mask_of(ctx.n, touch) | (p > 0.0))
-    if c.load_control and c.upper is not None and float(np.sum(c.upper[T])) < float(c.load):
-        return None
-    return T
+    return T if carries_the_load(ctx, T) else None
+
+
+def carries_the_load(ctx: SolveContext, T: np.ndarray) -> bool:
+    """Whether the points ``T`` (indices or a mask) can carry the load under the
+    hardness's bounds, sum(u_T) >= P (True without a load or a hardness)."""
+    c = ctx.constraints
+    return not (c.load_control and c.upper is not None and float(np.sum(c.upper[T])) < float(c.load))
 
 
 def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
@@ -178,10 +183,7 @@ def near_contact(ctx: SolveContext, p: np.ndarray, w: np.ndarray, delta: float, 
     doc); None when those points cannot carry the load (a hardness)."""
     margin = NEAR_GAP_FACTOR * tol * ctx.ubar_scale()
     near = (p > 0.0) | (w - delta < margin)
-    c = ctx.constraints
-    if c.upper is not None and float(np.sum(c.upper[near])) < float(c.load):
-        return None
-    return near
+    return near if carries_the_load(ctx, near) else None
 
 
 def round_approach(ctx: SolveContext, out: Outcome, p: np.ndarray, w: np.ndarray) -> float | None:
