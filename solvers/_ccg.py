@@ -307,6 +307,8 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
         if run.converged or ctx.expired():
             return run
         best, since = (run.kkt, 0) if run.kkt < 0.5 * best else (best, since + 1)
+        if M is not None and M.progress(run.kkt):  # a new stage (solvers/_opening.py)
+            reset = True
         if since >= CYCLE_PATIENCE and M is not None and M.simplify():  # module doc, "Cycling"
             since, reset = 0, True
         if domain is not None and it == 1:
@@ -417,8 +419,9 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         state.step(alpha, d, Hd, u)
         res_old = res
         res = dual_residual(state, u)
+        staged = M is not None and M.progress(run.kkt)  # a new stage (solvers/_opening.py): restart along -z
         z = precondition_on(M, res, res != 0.0)
-        d *= polak_ribiere(z, res, res_old, alpha * dHd)  # d <- -z + beta d, in place (the loop's own array)
+        d *= 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)  # d <- -z + beta d, in place
         d -= z
         inward(d, state, res, u)
     return CCGRun(max_iter, run.kkt, False)

@@ -317,6 +317,7 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         if finished is not None:  # an exact finish ran and did not converge: restart the direction
             extra, reset = finished, True
             continue
+        reset |= M is not None and M.progress(kkt)  # a new stage (solvers/_opening.py)
         if not np.any(free):  # no point can move: degenerate set
             return _broke_down(ctx, state, u, run, first, max_iter)
         r = on_set(state.g - delta, free)
@@ -480,6 +481,7 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             state.refresh()
         res_old = res
         delta, res = _dual_residual(state, u, c)
+        staged = M is not None and M.progress(kkt)  # a new stage (solvers/_opening.py): restart along -z
         z = _dual_direction(M, res)
-        d = inward(polak_ribiere(z, res, res_old, alpha * dHd) * d - z, state, res, u)
+        d = inward((0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)) * d - z, state, res, u)
     return replace(run, iterations=max_iter, converged=False)

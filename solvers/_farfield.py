@@ -48,7 +48,9 @@ MIN_TILE = 16
 REBUILD_FRACTION = 0.05
 
 #: Built only on sets of at most this fraction of the unknowns: a contact set, not the
-#: shrinking trial sets of a cold start's first iterations (there it costs iterations).
+#: shrinking trial sets of a cold start's first iterations (there it costs iterations).  A
+#: solve opened by the wave numbers (solvers/_opening.py) comes to the islands with those
+#: iterations behind it and takes its own fraction (``_opening.OPENED_FAR_FRACTION``).
 MAX_SET_FRACTION = 0.2
 
 
@@ -78,15 +80,17 @@ def tile_size(i: np.ndarray, j: np.ndarray) -> int:
 
 
 def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, lead: np.ndarray,
-                    v: np.ndarray, block_sums: np.ndarray, budget: float) -> FarField | None:
+                    v: np.ndarray, block_sums: np.ndarray, budget: float,
+                    max_fraction: float = MAX_SET_FRACTION) -> FarField | None:
     """The correction for the set ``pos`` (sorted positions in H's set; ``i``, ``j``: grid row
     and column of every position).  ``lead[k]``: the point whose tile point k's block takes
     (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
-    ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None when the near-tile
+    ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None on a set of more
+    than ``max_fraction`` of the unknowns, when the near-tile
     sums would gather more than ``budget`` entries, there is one aggregate, or an
     aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
     divides by its square root)."""
-    if pos.size < 2 or pos.size > MAX_SET_FRACTION * i.size:
+    if pos.size < 2 or pos.size > max_fraction * i.size:
         return None
     T = tile_size(i[pos], j[pos])
     lp = lead[pos]

@@ -82,7 +82,7 @@ from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 
 from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
-from ._farfield import FarField, build_far_field
+from ._farfield import MAX_SET_FRACTION, FarField, build_far_field
 
 #: Islands above this many points are cut into strips (keeps a block inverse cheap).
 MAX_BLOCK = 128
@@ -219,6 +219,11 @@ class SetPreconditioner(Protocol):
         """Drop a coarse part, if any, for the rest of the solve (True when one was dropped)."""
         ...
 
+    def progress(self, kkt: float) -> bool:
+        """Told the loop's scaled KKT error at each of its checks; True when M changed its
+        stage, and the loop restarts its conjugacy (solvers/_opening.py)."""
+        ...
+
     def ones(self) -> np.ndarray:
         """M^-1 1 on the current set (``_OnesCache``)."""
         ...
@@ -287,6 +292,8 @@ class IslandPreconditioner(_OnesCache):
         self._built: np.ndarray | None = None
         self._diag = H.diagonal()
         self.rebuild_fraction = REBUILD_FRACTION
+        #: The far field is built on sets of at most this fraction of the unknowns.
+        self.far_fraction = MAX_SET_FRACTION
         self.builds = 0
 
     @classmethod
@@ -342,7 +349,7 @@ class IslandPreconditioner(_OnesCache):
         ones[self._pos] = 1.0
         v = self.apply(ones)
         budget = BUILD_BUDGET * self._shape[0] * self._shape[1]
-        self._far = build_far_field(self.H, self._i, self._j, self._pos, lead, v, sums, budget)
+        self._far = build_far_field(self.H, self._i, self._j, self._pos, lead, v, sums, budget, self.far_fraction)
 
     def block_limit(self, size: int) -> int:
         """The largest block for a build on ``size`` points: s with s^2 size <= BUILD_BUDGET
@@ -383,6 +390,10 @@ class IslandPreconditioner(_OnesCache):
         self._forget_ones()
         self.far_field, self._far, self._far_set = False, None, None
         return had
+
+    def progress(self, kkt: float) -> bool:
+        """One stage: never changes."""
+        return False
 
     # -- partition -------------------------------------------------------------------
 
@@ -520,6 +531,10 @@ class FourierPreconditioner(_OnesCache):
 
     def simplify(self) -> bool:
         """Nothing to drop."""
+        return False
+
+    def progress(self, kkt: float) -> bool:
+        """One stage: never changes."""
         return False
 
 

@@ -48,6 +48,7 @@ from ._ccg import CCGRun, FastSolver, bugnicourt, outcome, polonsky_keer
 from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._device import bring_home, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess
+from ._opening import StagedPreconditioner, opened, opening_param
 from ._preconditioners import KINDS, make_preconditioner, resolved_kind
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
@@ -87,7 +88,8 @@ class _FastCCG(FastSolver):
     ``params["precondition"]``, in the precision of ``params["precision"]``, from the
     first guess of ``params["first_guess"]``."""
 
-    params = (precondition_param("none"), precision_param(), first_guess_param(), screening_param())
+    params = (precondition_param("none"), precision_param(), first_guess_param(), screening_param(),
+              opening_param())
 
     #: The loop of solvers/_ccg.py (``staticmethod(polonsky_keer)`` or ``(bugnicourt)``).
     loop: ClassVar[CCGLoop]
@@ -99,7 +101,8 @@ class _FastCCG(FastSolver):
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
         kind = resolved_kind(ctx.params["precondition"], ctx.qp)
         space, where = resident_space(ctx, kind)
-        M = make_preconditioner(kind, ctx.qp, block_dtype(precision), space)
+        M = opened(make_preconditioner(kind, ctx.qp, block_dtype(precision), space), ctx, block_dtype(precision),
+                   space)
         ctx.mark_setup_done()
         p0, info = starting_point(self, ctx)
         state = resident_state(ctx, space, p0)
@@ -110,6 +113,8 @@ class _FastCCG(FastSolver):
         info.update(where)
         if M is not None:
             info["preconditioner_builds"] = M.builds
+        if isinstance(M, StagedPreconditioner):
+            info["opening"] = "fourier"
         return outcome(state, run, info)
 
 
@@ -157,7 +162,8 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
     name = "fast-pccg"
     description = "Polonsky-Keer CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
     #: farfield by default: 0.81-0.88x the islands' time on the paper's cold top step, 1024^2-4096^2
-    params = (precondition_param("farfield"), precision_param(), first_guess_param(), screening_param())
+    params = (precondition_param("farfield"), precision_param(), first_guess_param(), screening_param(),
+              opening_param())
 
 
 @register
@@ -174,4 +180,6 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
     #: auto by default: the far field and float32 where they pay for their set-up (1024^2 and 512^2 grid points up)
-    params = (precondition_param("auto"), precision_param("auto"), first_guess_param(), screening_param())
+    #: and a cold, unconstrained solve opened by the wave numbers (solvers/_opening.py)
+    params = (precondition_param("auto"), precision_param("auto"), first_guess_param(), screening_param(),
+              opening_param("auto"))

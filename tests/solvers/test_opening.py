@@ -1,0 +1,131 @@
+"""The opening of a cold solve (solvers/_opening.py): the wave-number preconditioner until the
+KKT error is OPENING_KKT, the island blocks after; the stages checked against the solves that
+use either alone."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from contactbench.problems.constraints import make_constraints
+from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.kkt import kkt_check, relative_error
+from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers import _opening
+from contactbench.solvers._farfield import MAX_SET_FRACTION
+from contactbench.solvers._opening import (
+    OPENED_FAR_FRACTION,
+    OPENING_KKT,
+    StagedPreconditioner,
+    opened,
+    resolved_opening,
+)
+from contactbench.solvers._preconditioners import FourierPreconditioner, IslandPreconditioner, make_preconditioner
+from contactbench.solvers.base import Deadline, ParamError, SolveContext, SolverSettings, Trace
+from contactbench.solvers.registry import get_solver
+
+
+def build(N: int = 65, hurst: float = 0.9, seed: int = 3):
+    s = rmd_surface_n(N, hurst, length=100e-6, seed=seed)
+    return InstanceBuilder(s, 1e9, "bcc").build(paper_max_displacement(s))
+
+
+def context_of(qp) -> SolveContext:
+    return SolveContext(qp=qp, tol=1e-9, max_iter=100, params={}, p0=None, warm=None, deadline=Deadline(None),
+                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+
+
+def solve(inst, name: str = "fast-dual-pccg", **params):
+    return get_solver(name).solve(inst.qp, SolverSettings(tol=1e-9, params=params))
+
+
+def test_the_staged_preconditioner_is_its_first_stage_until_the_kkt_error_falls_to_the_threshold():
+    inst = build()
+    F = FourierPreconditioner.build(inst.qp)
+    I = make_preconditioner("islands", inst.qp)
+    M = StagedPreconditioner(F, I)
+    S = inst.qp.ubar > 0.5 * inst.qp.ubar.max()
+    r = np.random.default_rng(0).standard_normal(inst.qp.n)
+    M.update(S)
+    assert M.opening and np.array_equal(M.on, S)
+    F.update(S)
+    np.testing.assert_array_equal(M.apply(r), F.apply(r))
+    assert not M.progress(1.0) and not M.progress(np.nextafter(OPENING_KKT, 1.0)) and M.opening
+    assert not M.simplify()  # the opening has no coarse part to drop
+    assert M.progress(OPENING_KKT) and not M.opening
+    assert not M.progress(0.0)  # it switches once, and stays
+    M.update(S)
+    I.update(S)
+    np.testing.assert_allclose(M.apply(r), I.apply(r), rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(M.solo(r), I.solo(r))
+    assert M.builds == I.builds == 1
+
+
+@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-pccg"])
+def test_an_opening_that_never_ends_is_the_wave_number_solve(name, monkeypatch):
+    inst = build()
+    fourier = solve(inst, name, precondition="fourier", opening="none", precision="double")
+    monkeypatch.setattr(_opening, "OPENING_KKT", 0.0)  # never switches before convergence
+    opened = solve(inst, name, precondition="islands", opening="fourier", precision="double")
+    assert opened.status == fourier.status == "converged"
+    assert opened.matvecs == fourier.matvecs and opened.iterations == fourier.iterations
+
+
+def test_an_opening_that_ends_at_once_is_the_island_solve(monkeypatch):
+    """Polonsky-Keer takes its first direction after the first check, so it never uses the
+    opening's preconditioner (Bugnicourt's first step is along the opening's direction)."""
+    inst = build()
+    islands = solve(inst, "fast-pccg", precondition="islands", opening="none", precision="double")
+    monkeypatch.setattr(_opening, "OPENING_KKT", np.inf)  # switches at the first check
+    opened = solve(inst, "fast-pccg", precondition="islands", opening="fourier", precision="double")
+    assert opened.matvecs == islands.matvecs and opened.iterations == islands.iterations
+    np.testing.assert_allclose(opened.p, islands.p, rtol=0, atol=1e-9 * np.abs(islands.p).max())
+
+
+@pytest.mark.parametrize("precision", ["double", "mixed"])
+def test_an_opened_solve_reaches_the_answer_of_the_unopened_one(precision):
+    inst = build()
+    plain = solve(inst, opening="none", precision=precision, precondition="farfield")
+    opened = solve(inst, opening="fourier", precision=precision, precondition="farfield")
+    assert opened.info["opening"] == "fourier" and "opening" not in plain.info
+    assert kkt_check(inst, opened.p).kkt_error <= 1e-9
+    assert relative_error(opened.p, plain.p) < 1e-6
+
+
+def test_the_opened_island_stage_builds_its_far_field_on_larger_sets():
+    inst = build()
+    M = make_preconditioner("farfield", inst.qp)
+    assert M.far_fraction == MAX_SET_FRACTION
+    staged = opened(M, replace(context_of(inst.qp), params={"opening": "fourier"}))
+    assert isinstance(staged, StagedPreconditioner) and staged.then is M and M.far_fraction == OPENED_FAR_FRACTION
+    big = np.zeros(inst.qp.n, dtype=bool)
+    big[: int(0.45 * inst.qp.n)] = True  # between the two fractions
+    M.update(big)
+    assert M._far is not None
+    M.far_fraction = MAX_SET_FRACTION
+    M.update(~big)  # a new set: the far field is rebuilt, or refused
+    M.update(big)
+    assert M._far is None
+
+
+def test_auto_opens_a_cold_unconstrained_island_solve_only():
+    inst = build()
+    M = make_preconditioner("islands", inst.qp)
+    cold = context_of(inst.qp)
+    assert resolved_opening("auto", M, cold) == "fourier"
+    assert resolved_opening("none", M, cold) == "none"
+    assert resolved_opening("auto", None, cold) == resolved_opening("fourier", None, cold) == "none"
+    assert resolved_opening("auto", make_preconditioner("fourier", inst.qp), cold) == "none"
+    assert isinstance(M, IslandPreconditioner)
+    warm = replace(cold, p0=np.zeros(inst.qp.n))
+    assert resolved_opening("auto", M, warm) == "none"
+    loaded = context_of(replace(inst.qp, constraints=make_constraints(inst.qp.n, load=1e-3)))
+    assert resolved_opening("auto", M, loaded) == "none"
+    assert resolved_opening("fourier", M, loaded) == "fourier"  # asked for, it is given
+
+
+def test_an_unknown_opening_is_a_parameter_error():
+    with pytest.raises(ParamError, match="opening"):
+        solve(build(17), opening="sometimes")
