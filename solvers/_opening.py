@@ -15,9 +15,9 @@ iterations.  Left on for the whole solve it is slower on a settled set, where th
 and their far field win (134 iterations against 75 on that member).
 
 So a staged preconditioner (``StagedPreconditioner``) runs the wave-number one until the
-loop tells it (``progress``) that the scaled KKT error is at most ``OPENING_KKT``, then the
-island kind the solver would have used from the start; the loop restarts its conjugacy at
-the switch.  "auto" opens this way where it was measured to pay: a cold start (no warm
+loop tells it (``progress``) that the scaled KKT error is at most ``OPENING_KKT`` while the
+free set has stopped shedding fast (``OPENING_SETTLED``), then the island kind the solver
+would have used from the start; the loop restarts its conjugacy at the switch.  "auto" opens this way where it was measured to pay: a cold start (no warm
 start: a warm start begins near its answer), no constraints beyond p >= 0, the island
 kinds on the host.  Figures: results/perf/opening.
 """
@@ -28,11 +28,16 @@ import numpy as np
 
 from contactbench.problems.operators_gpu import HOST, ArraySpace
 
-from ._preconditioners import FourierPreconditioner, IslandPreconditioner, SetPreconditioner
+from ._preconditioners import FourierPreconditioner, IslandPreconditioner, SetPreconditioner, drifted
 from .base import Param, SolveContext
 
 #: The opening's preconditioner runs until the loop's scaled KKT error is at most this.
 OPENING_KKT = 0.03
+
+#: ... and the free set has changed in at most this fraction of its points since the last
+#: check: the KKT error of a set still shedding can dip below the threshold for an iteration
+#: (results/perf/opening).
+OPENING_SETTLED = 0.3
 
 #: The island stage of an opened solve builds its far field on sets of up to this fraction of
 #: the unknowns (``IslandPreconditioner.far_fraction``; unopened: ``_farfield.MAX_SET_FRACTION``,
@@ -79,13 +84,15 @@ def opened(M: SetPreconditioner | None, ctx: SolveContext, dtype: type = np.floa
 
 
 class StagedPreconditioner:
-    """``first`` until ``progress`` is told a scaled KKT error of at most ``OPENING_KKT``,
+    """``first`` until ``progress`` is told a scaled KKT error of at most ``OPENING_KKT`` with
+    the free set changed in at most ``OPENING_SETTLED`` of its points since the last call,
     then ``then`` for the rest of the solve (module doc).  Each stage is symmetric positive
     definite on the set, so the loop's CG stays valid between the switch and its restart."""
 
     def __init__(self, first: SetPreconditioner, then: SetPreconditioner) -> None:
         self.first, self.then = first, then
         self.now = first
+        self._seen: np.ndarray | None = None  # the free set at the last check
 
     @property
     def builds(self) -> int:
@@ -117,9 +124,14 @@ class StagedPreconditioner:
         return not self.opening and self.then.simplify()
 
     def progress(self, kkt: float) -> bool:
-        """Switch to the second stage at a KKT error of at most ``OPENING_KKT``; True when
-        this call switched (the loop restarts its conjugacy)."""
-        if self.opening and kkt <= OPENING_KKT:
+        """Switch to the second stage at a KKT error of at most ``OPENING_KKT`` on a set that
+        has settled (class doc); True when this call switched (the loop restarts its
+        conjugacy)."""
+        if not self.opening:
+            return False
+        settled = not drifted(self.on, self._seen, OPENING_SETTLED)
+        self._seen = self.on.copy()
+        if kkt <= OPENING_KKT and settled:
             self.now = self.then
             return True
         return False

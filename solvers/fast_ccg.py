@@ -19,7 +19,9 @@ fast-pccg, fast-dual-pccg
 All four take ``params={"precondition": "farfield" | "islands" | "fourier" | "none"}`` (a QP without
 grid positions runs unpreconditioned), ``"precision": "double" | "mixed"`` (mixed: float32
 inner CCG rounds under float64 iterative refinement, solvers/_refine.py; same fixed point,
-tolerance judged in float64) and ``"first_guess": "zero" | "coarse"`` (a cold start begins
+tolerance judged in float64), ``"opening": "fourier" | "none" | "auto"`` (a cold solve's first
+iterations preconditioned by the wave numbers, the island blocks after: solvers/_opening.py)
+and ``"first_guess": "zero" | "coarse"`` (a cold start begins
 from the same solver's answer on the block-averaged 2x-coarser grid, recursively,
 ``_kit.coarse_first_guess``; ignored when warm-started; measured on the paper's cold top
 step, 1024^2: it does not cut the fine matvecs -- 87 -> 85 with fast-pccg, 201 -> 197 with

@@ -73,15 +73,17 @@ def test_an_opening_that_never_ends_is_the_wave_number_solve(name, monkeypatch):
     assert opened.matvecs == fourier.matvecs and opened.iterations == fourier.iterations
 
 
-def test_an_opening_that_ends_at_once_is_the_island_solve(monkeypatch):
-    """Polonsky-Keer takes its first direction after the first check, so it never uses the
-    opening's preconditioner (Bugnicourt's first step is along the opening's direction)."""
+def test_the_switch_waits_for_a_set_that_has_stopped_shedding():
     inst = build()
-    islands = solve(inst, "fast-pccg", precondition="islands", opening="none", precision="double")
-    monkeypatch.setattr(_opening, "OPENING_KKT", np.inf)  # switches at the first check
-    opened = solve(inst, "fast-pccg", precondition="islands", opening="fourier", precision="double")
-    assert opened.matvecs == islands.matvecs and opened.iterations == islands.iterations
-    np.testing.assert_allclose(opened.p, islands.p, rtol=0, atol=1e-9 * np.abs(islands.p).max())
+    M = StagedPreconditioner(FourierPreconditioner.build(inst.qp), make_preconditioner("islands", inst.qp))
+    order = np.argsort(-inst.qp.ubar)
+    sets = [np.isin(np.arange(inst.qp.n), order[:k]) for k in (400, 200, 180)]
+    M.update(sets[0])
+    assert not M.progress(0.0)  # nothing seen before: not known to have settled
+    M.update(sets[1])  # half the set shed since the last check
+    assert not M.progress(0.0) and M.opening
+    M.update(sets[2])  # 10 % shed: settled
+    assert M.progress(OPENING_KKT) and not M.opening
 
 
 @pytest.mark.parametrize("precision", ["double", "mixed"])
@@ -90,6 +92,7 @@ def test_an_opened_solve_reaches_the_answer_of_the_unopened_one(precision):
     plain = solve(inst, opening="none", precision=precision, precondition="farfield")
     opened = solve(inst, opening="fourier", precision=precision, precondition="farfield")
     assert opened.info["opening"] == "fourier" and "opening" not in plain.info
+    assert opened.info["preconditioner_builds"] > 0  # the island stage came on
     assert kkt_check(inst, opened.p).kkt_error <= 1e-9
     assert relative_error(opened.p, plain.p) < 1e-6
 
