@@ -17,9 +17,10 @@ and their far field win (134 iterations against 75 on that member).
 So a staged preconditioner (``StagedPreconditioner``) runs the wave-number one until the
 loop tells it (``progress``) that the scaled KKT error is at most ``OPENING_KKT`` while the
 free set has stopped shedding fast (``OPENING_SETTLED``), then the island kind the solver
-would have used from the start; the loop restarts its conjugacy at the switch.  "auto" opens this way where it was measured to pay: a cold start (no warm
-start: a warm start begins near its answer), no constraints beyond p >= 0, the island
-kinds on the host.  Figures: results/perf/opening.
+would have used from the start; the loop restarts its conjugacy at the switch.  "auto"
+opens this way where it was measured to pay: a cold start (a warm start begins near its
+answer), no constraints beyond p >= 0, the island kinds on the host.  Figures:
+results/perf/opening.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def opening_param(default: str = "none") -> Param:
     """The one declaration of the fast CCGs' ``opening`` parameter."""
     return Param("opening", str, default,
                  "a cold solve's first iterations: fourier (the wave-number preconditioner until the "
-                 "KKT error is 0.03, the island blocks after), none (the preconditioner throughout); "
+                 f"KKT error is {OPENING_KKT}, the island blocks after), none (the preconditioner throughout); "
                  "auto: fourier for a cold, unconstrained solve with the island blocks on the host",
                  choices=OPENINGS)
 
@@ -77,7 +78,7 @@ def opened(M: SetPreconditioner | None, ctx: SolveContext, dtype: type = np.floa
     if resolved_opening(ctx.params.get("opening", "none"), M, ctx) != "fourier":
         return M
     first = FourierPreconditioner.build(ctx.qp, space, dtype)
-    if first is None or not isinstance(M, IslandPreconditioner):
+    if first is None or not isinstance(M, IslandPreconditioner):  # (the second: as resolved_opening)
         return M
     M.far_fraction = OPENED_FAR_FRACTION
     return StagedPreconditioner(first, M)
