@@ -83,6 +83,7 @@ def test_the_switch_waits_for_a_set_that_has_stopped_shedding():
     M.update(sets[1])  # half the set shed since the last check
     assert not M.progress(0.0) and M.opening
     M.update(sets[2])  # 10 % shed: settled
+    assert not M.progress(float("nan")) and not M.progress(np.inf) and M.opening  # no error to trust
     assert M.progress(OPENING_KKT) and not M.opening
 
 
