@@ -80,13 +80,13 @@ def tile_size(i: np.ndarray, j: np.ndarray) -> int:
 
 
 def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, lead: np.ndarray,
-                    v: np.ndarray, block_sums: np.ndarray, budget: float,
-                    max_fraction: float = MAX_SET_FRACTION) -> FarField | None:
+                    v: np.ndarray, block_sums: np.ndarray, budget: float, max_fraction: float) -> FarField | None:
     """The correction for the set ``pos`` (sorted positions in H's set; ``i``, ``j``: grid row
     and column of every position).  ``lead[k]``: the point whose tile point k's block takes
     (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
     ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None on a set of more
-    than ``max_fraction`` of the unknowns, when the near-tile
+    than ``max_fraction`` of the unknowns (``MAX_SET_FRACTION`` unless the solve was opened,
+    ``IslandPreconditioner.far_fraction``), when the near-tile
     sums would gather more than ``budget`` entries, there is one aggregate, or an
     aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
     divides by its square root)."""
