@@ -103,8 +103,8 @@ class _FastCCG(FastSolver):
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
         kind = resolved_kind(ctx.params["precondition"], ctx.qp)
         space, where = resident_space(ctx, kind)
-        M = opened(make_preconditioner(kind, ctx.qp, block_dtype(precision), space), ctx, block_dtype(precision),
-                   space)
+        dtype = block_dtype(precision)
+        M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space)
         ctx.mark_setup_done()
         p0, info = starting_point(self, ctx)
         state = resident_state(ctx, space, p0)
