@@ -53,7 +53,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import resource
 import sys
 import time
@@ -63,7 +62,7 @@ from pathlib import Path
 import numpy as np
 from bench_surface_population import (FAMILIES, THREAD_VARS, Member, check_choices, check_population_args, code_commit,
                                       parse_seeds, plan, surface_of)
-from csv_rows import append_row, child_result, read_latest
+from csv_rows import append_row, child_result, read_latest, host_name
 
 #: The load, P / (E* A), per unit of the member's rms slope.
 LOAD_PER_SLOPE = 0.05
@@ -223,7 +222,7 @@ def row_of(pr: Problem, entry: Entry, name: str, n: int, status: str, note: str,
     base.update(kw)
     return AspherRow(pr.boundary, kernel, m.family, m.N, m.hurst, m.rms_slope, m.seed, name, n, load_over_EA(pr),
                      entry.label, entry.solver, json.dumps(dict(entry.params), sort_keys=True), entry.posing, status,
-                     note=note[:300], threads=fft_workers(), smoke=int(m.N < TIMED_MIN_N), host=platform.node(),
+                     note=note[:300], threads=fft_workers(), smoke=int(m.N < TIMED_MIN_N), host=host_name(),
                      commit=commit, timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"), **base)
 
 

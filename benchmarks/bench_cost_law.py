@@ -29,7 +29,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import resource
 import sys
 import time
@@ -39,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from contactbench.harness.run.isolation import set_parent_death_signal
-from csv_rows import append_row, child_result, read_latest
+from csv_rows import append_row, child_result, read_latest, host_name, refuse_missing_device
 
 FAST_SOLVERS = ("fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "fast-pdas")
 DEFAULT_SIZES = (256, 512, 1024, 2048)
@@ -107,7 +106,7 @@ def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: floa
         seconds=round(step.seconds, 3), ms_per_matvec=round(1e3 * step.seconds / max(matvecs, 1), 2),
         kkt=float(f"{step.kkt_error:.3e}"), load_N=float(f"{inst.load(res.p):.10e}") if res is not None else math.nan,
         setup_s=round(setup, 2), peak_rss_mib=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
-        device_pool_mib=device_pool_mib(operator), host=platform.node(), timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"),
+        device_pool_mib=device_pool_mib(operator), host=host_name(), timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"),
     )
 
 
@@ -141,7 +140,7 @@ def run_child(N: int, solver: str, args: argparse.Namespace) -> CostRow:
     return CostRow(N=N, instance="", n=0, solver=solver, operator=args.operator, threads=int(args.threads or fft_workers()),
                    params=json.dumps(json.loads(args.params), sort_keys=True), status=status, iterations=0,
                    matvecs=0, seconds=math.nan, ms_per_matvec=math.nan, kkt=math.nan, load_N=math.nan,
-                   setup_s=math.nan, peak_rss_mib=math.nan, device_pool_mib=math.nan, host=platform.node(),
+                   setup_s=math.nan, peak_rss_mib=math.nan, device_pool_mib=math.nan, host=host_name(),
                    timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"))
 
 
@@ -317,14 +316,7 @@ def main() -> None:
     if args.fresh and (out / "cost-law.csv").exists():
         (out / "cost-law.csv").replace(out / "cost-law.csv.old")
     if not args.plot_only:
-        if args.operator == "gpu":
-            from contactbench.problems.errors import ProblemInputError
-            from contactbench.problems.instances import check_operator_kind
-
-            try:
-                check_operator_kind("gpu")  # a clear error here, not one per child
-            except ProblemInputError as exc:
-                sys.exit(f"bench_cost_law: error: {exc}")
+        refuse_missing_device(ap, args.operator)
         for N in args.sizes:
             for solver in args.solvers.split(","):
                 row = run_child(N, solver, args)

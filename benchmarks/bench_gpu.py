@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
-import platform
 import sys
 import time
 from dataclasses import asdict, dataclass, fields
@@ -37,6 +35,7 @@ from typing import Callable
 
 import numpy as np
 
+from csv_rows import host_name
 from bench_matvec import TRIAL_SETS, interleaved_best, trial_set
 from contactbench.problems.instances import InstanceBuilder
 from contactbench.problems.operators import FFTOperator, fft_workers
@@ -126,7 +125,7 @@ def measure_size(cupy: ModuleType, N: int, cpu_max: int, repeats: int, out: Path
             diff = float(np.linalg.norm(gpu.matvec(x) - y64) / np.linalg.norm(y64))
             row = GpuRow(N, label, idx.size, np.dtype(dtype).name, device, ms["gpu"], ms["device"], ms["floor"],
                          cpu_ms, fft_workers(), ms["device"] / ms["floor"], cpu_ms / ms["gpu"], diff,
-                         cupy.get_default_memory_pool().total_bytes() / 2**20, platform.node())
+                         cupy.get_default_memory_pool().total_bytes() / 2**20, host_name())
             append(out, row)
             print(f"N={N} {label} {row.dtype}: gpu {row.gpu_ms:.2f} ms, device {row.device_ms:.2f}, floor "
                   f"{row.floor_ms:.2f} ({row.device_over_floor:.2f}x), cpu {cpu_ms:.1f} ({row.cpu_over_gpu:.1f}x), "
@@ -146,7 +145,7 @@ def main() -> None:
         sys.exit(2)
     if any(n < 8 for n in args.sizes):
         ap.error("--sizes: every N must be at least 8")
-    print(f"host {platform.node()}, {os.cpu_count()} cores; CPU operator on {fft_workers()} threads", flush=True)
+    print(f"host {host_name()}; CPU operator on {fft_workers()} threads", flush=True)
     for N in args.sizes:
         t0 = time.perf_counter()
         bench_size(N, args.cpu_max, args.repeats, args.out)

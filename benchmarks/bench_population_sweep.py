@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import platform
 import subprocess
 import sys
 import time
@@ -36,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 from contactbench.harness import load_table
+from csv_rows import host_name
 from bench_surface_population import FAMILIES, LENGTH, Member, code_commit, surface_of
 
 CB = str(Path(sys.executable).with_name("contactbench"))
@@ -109,7 +109,7 @@ def summary(members: list[Member], args: argparse.Namespace) -> str:
     ours = args.ours
     lines = [f"# {ours} against {CM}: {args.steps}-step sweeps at {args.size}^2 on population members",
              "", "Written by `benchmarks/bench_population_sweep.py` (its module doc: instance, profile, ratio rule).",
-             (f"Host {platform.node()}, {args.threads} thread(s), commit {code_commit()}, "
+             (f"Host {host_name()}, {args.threads} thread(s), commit {code_commit()}, "
               f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."), "",
              (f"| member | {ours} s | {ours} solved | {ours} matvecs | {CM} s | {CM} solved | {CM} matvecs "
               f"| ours / {CM} | max load diff |"), "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]

@@ -46,7 +46,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import resource
 import subprocess
 import sys
@@ -57,7 +56,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from csv_rows import append_row, child_result, read_latest
+from csv_rows import append_row, child_result, read_latest, host_name, refuse_missing_device
 
 FAMILIES = ("saupe", "periodic", "fourier", "measured")
 #: (Hurst exponent, rms slope) cells below 4096^2 ...
@@ -136,6 +135,7 @@ class PopulationRow:
     commit: str
     timestamp: str
     repeats: int = 1
+    operator: str = "fft"  # the instance's operator ("gpu": the device-resident solve)
 
 
 def plan(sizes: list[int], families: list[str], seeds: dict[int, int], first_seed: int = 0) -> list[Member]:
@@ -174,13 +174,14 @@ def surface_of(m: Member):
     return Surface(z, base.delta, name=name, periodic=False, meta=meta)
 
 
-def top_step(m: Member):
-    """The paper's instance on the member's surface at its top step, and the surface's name."""
+def top_step(m: Member, operator: str = "fft"):
+    """The paper's instance on the member's surface at its top step (its products by
+    ``operator``), and the surface's name."""
     from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
     from contactbench.problems.scenes.core import PAPER_E
 
     s = surface_of(m)
-    return InstanceBuilder(s, PAPER_E, "bcc", periodic=False).build(paper_max_displacement(s)), s.name
+    return InstanceBuilder(s, PAPER_E, "bcc", periodic=False, operator=operator).build(paper_max_displacement(s)), s.name
 
 
 def code_commit() -> str:
@@ -196,8 +197,9 @@ def code_commit() -> str:
     return head + ("+dirty" if dirty else "")
 
 
-def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: int = 1) -> PopulationRow:
-    """One cold solve, in this process, ``repeats`` times, each on a freshly built instance
+def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: int = 1,
+                 operator: str = "fft") -> PopulationRow:
+    """One cold solve by ``operator``, in this process, ``repeats`` times, each on a freshly built instance
     (no operator cache carries over): the row of the first, with the fastest of the repeats'
     seconds (the iterates, and so the counts, are the same each time; checked)."""
     from contactbench.harness import get_profile
@@ -206,14 +208,14 @@ def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: 
     from contactbench.solvers.base import SolverSettings
 
     profile = get_profile("high")
-    inst, name = top_step(m)
+    inst, name = top_step(m, operator)
     params = VARIANTS[variant]
     settings = SolverSettings(tol=profile.tol, time_limit=timeout, params=dict(params))
     (step,) = solve_sequence(SOLVER, [inst], settings, warm=False, check_tol=profile.check_tol)
     res = step.result
     seconds = step.seconds
     for _ in range(repeats - 1):  # a fresh instance each time: no operator cache carries over
-        (again,) = solve_sequence(SOLVER, [top_step(m)[0]], settings, warm=False, check_tol=profile.check_tol)
+        (again,) = solve_sequence(SOLVER, [top_step(m, operator)[0]], settings, warm=False, check_tol=profile.check_tol)
         if res is not None and (again.result is None or again.result.matvecs != res.matvecs):
             raise RuntimeError(f"{name} {variant}: a repeat took another path ({again.result and again.result.matvecs} "
                                f"matvecs against {res.matvecs})")
@@ -228,19 +230,22 @@ def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: 
         preconditioner_builds=int(info.get("preconditioner_builds", 0)), seconds=round(seconds, 3),
         kkt=float(f"{step.kkt_error:.3e}"), load_N=float(f"{inst.load(res.p):.10e}") if res is not None else math.nan,
         peak_rss_mib=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1), threads=fft_workers(),
-        host=platform.node(), commit=commit, timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"), repeats=repeats)
+        host=host_name(), commit=commit, timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"), repeats=repeats,
+        operator=operator)
 
 
-def failed_row(m: Member, variant: str, status: str, commit: str, threads: int) -> PopulationRow:
+def failed_row(m: Member, variant: str, status: str, commit: str, threads: int, operator: str = "fft") -> PopulationRow:
     return PopulationRow(m.family, m.N, m.hurst, m.rms_slope, m.seed, "", 0, variant,
                          json.dumps(VARIANTS[variant], sort_keys=True), status, 0, 0, 0, 0, 0, math.nan, math.nan,
-                         math.nan, math.nan, threads, platform.node(), commit, time.strftime("%Y-%m-%dT%H:%M:%S"))
+                         math.nan, math.nan, threads, host_name(), commit, time.strftime("%Y-%m-%dT%H:%M:%S"),
+                         operator=operator)
 
 
 def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) -> PopulationRow:
     """The row of one solve in a child process; a "timeout"/"failed" row when it gives none."""
     cmd = [sys.executable, __file__, "--child", f"{m.key}@{variant}", "--timeout", str(args.timeout),
-           "--commit", commit, "--repeats", str(repeats_of(m, args.repeats))]
+           "--commit", commit, "--repeats", str(repeats_of(m, args.repeats)),
+           "--operator", args.operator]
     env = dict(os.environ)
     if args.threads:
         env.update({v: str(args.threads) for v in THREAD_VARS})
@@ -248,7 +253,7 @@ def run_child(m: Member, variant: str, args: argparse.Namespace, commit: str) ->
     if result is not None:
         return PopulationRow(**result)
     print(f"  {m.key} {variant}: {status}: {detail}", file=sys.stderr, flush=True)
-    return failed_row(m, variant, status, commit, int(args.threads or 0))
+    return failed_row(m, variant, status, commit, int(args.threads or 0), args.operator)
 
 
 def repeats_of(m: Member, spec: dict[int, int]) -> int:
@@ -258,7 +263,7 @@ def repeats_of(m: Member, spec: dict[int, int]) -> int:
 
 def read_rows(path: Path) -> list[PopulationRow]:
     """The CSV's rows, the latest of each (member, variant)."""
-    return read_latest(path, PopulationRow, key=lambda r: (r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant),
+    return read_latest(path, PopulationRow, key=lambda r: (r.family, r.N, r.hurst, r.rms_slope, r.seed, r.variant, r.operator),
                        order=lambda r: (r.N, r.family, r.hurst, r.seed, r.variant))
 
 
@@ -429,6 +434,7 @@ def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         ap.error(f"--first-seed must be >= 0, got {args.first_seed}")
     if not (args.timeout > 0):
         ap.error(f"--timeout must be > 0 s, got {args.timeout}")
+    refuse_missing_device(ap, args.operator)
 
 
 def main() -> None:
@@ -448,8 +454,10 @@ def main() -> None:
     ap.add_argument("--fresh", action="store_true", help="start a new CSV (the old one is renamed to .csv.old)")
     ap.add_argument("--in-process", action="store_true", help="solve in this process (no per-solve peak RSS)")
     ap.add_argument("--table-only", action="store_true", help="rebuild the table from the CSV")
+    ap.add_argument("--operator", default="fft", choices=("fft", "gpu"),
+                    help="the instances' operator (gpu: CuPy on a CUDA device, the solve resident there)")
+    ap.add_argument("--commit", default=None, help="the commit the rows record (default: HEAD of this checkout)")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
-    ap.add_argument("--commit", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         from contactbench.harness.run.isolation import set_parent_death_signal
@@ -457,7 +465,7 @@ def main() -> None:
         set_parent_death_signal()  # a killed run takes its solve with it
         key, variant = args.child.split("@")
         row = solve_member(Member.parse(key), variant, args.timeout, args.commit or code_commit(),
-                           int(args.repeats or 1))
+                           int(args.repeats or 1), args.operator)
         print("RESULT " + json.dumps(asdict(row)), flush=True)
         return
     check_args(ap, args)
@@ -467,12 +475,13 @@ def main() -> None:
     if args.fresh and csv_path.exists():
         csv_path.replace(out / "surface-population.csv.old")
     if not args.table_only:
-        commit = code_commit()
+        commit = args.commit or code_commit()
         if args.in_process and args.threads:
             os.environ.update({v: str(args.threads) for v in THREAD_VARS})
         for m in plan(args.sizes, args.families.split(","), parse_seeds(args.seeds), args.first_seed):
             for variant in args.variants.split(","):
-                row = (solve_member(m, variant, args.timeout, commit, repeats_of(m, args.repeats)) if args.in_process
+                row = (solve_member(m, variant, args.timeout, commit, repeats_of(m, args.repeats), args.operator)
+                       if args.in_process
                        else run_child(m, variant, args, commit))
                 append_row(csv_path, row)
                 print(f"{m.key} {variant}: {row.status} n={row.n} it={row.iterations} mv={row.matvecs} "

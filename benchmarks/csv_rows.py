@@ -4,14 +4,50 @@ of each key back as the dataclass, int and float fields converted)."""
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
+import os
+import platform
 import subprocess
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 Row = TypeVar("Row")
+
+
+def cpu_model() -> str:
+    """The processor's model name (Linux's /proc/cpuinfo), or the platform's word for it."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def refuse_missing_device(ap: argparse.ArgumentParser, operator: str) -> None:
+    """Exit 2 with the reason in one line when ``operator`` is "gpu" and CuPy or a CUDA
+    device is missing, before any solve (not once per child)."""
+    if operator != "gpu":
+        return
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.problems.instances import check_operator_kind
+
+    try:
+        check_operator_kind("gpu")
+    except ProblemInputError as exc:
+        ap.error(str(exc))
+
+
+def host_name() -> str:
+    """What the rows' ``host`` column says of the machine: env CONTACTBENCH_HOST when set
+    (e.g. the accelerator's name), else the node's name with its processor and cores."""
+    named = os.environ.get("CONTACTBENCH_HOST", "").strip()
+    return named or f"{platform.node()} ({cpu_model()}, {os.cpu_count()} cores)"
 
 
 def child_result(cmd: list[str], env: dict[str, str] | None, limit_s: float) -> tuple[dict[str, Any] | None, str, str]:

@@ -1,15 +1,24 @@
 #!/usr/bin/env bash
-# The GPU measurements of results/perf/gpu.md, as run on a lent GPU machine (an image with
+# The device measurements of results/perf/gpu.md, as run on a lent GPU machine (an image with
 # CuPy, numpy, scipy, pandas and matplotlib but not this project): ducc0 comes as a wheel in
 # .whl/, the package is put on the path without installing it, and every output goes to
-# OUT (default results/perf/gpu).  Each step has its own time limit, the cheap ones first; the
-# limits add up to 470 s, one device call of under 8 minutes.  The solves' rows go to
-# OUT/cost-law.csv (bench_cost_law.py: one row per solve, the host's name in "host").
+# OUT (default results/perf/gpu).  Each step has its own time limit, the most telling first;
+# the limits add up to 550 s, one device call of under 8 minutes.  COMMIT names the code's
+# commit in the rows that carry one (a copy of the tree may have no .git).
+#   OUT/device.txt               the GPU, the CPU, the packages
+#   OUT/pytest-gpu.txt           the CuPy tests (operator and device-resident solves)
+#   OUT/cost-law.csv             bench_cost_law.py: the paper-sweep cold top step, one row per
+#                                solve: --operator gpu at 2048^2-16384^2, the CPU at 4096^2 on
+#                                every core and at 2048^2 on 2, 4, 8 and 16 threads
+#   OUT/surface-population.csv   the four surface families at 4096^2, --operator gpu
+#   OUT/steps.log                every step's output, with profile_solve.py's profile of a 4096^2 solve
 set -o pipefail
 export PYTHONUNBUFFERED=1
 OUT=${OUT:-results/perf/gpu}
 ROOT=$(pwd)
+COMMIT=${COMMIT:-unknown}
 mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
 WHEELS=${WHEELS:-.whl}
 if ls "$WHEELS"/*.whl >/dev/null 2>&1; then
   python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site "$WHEELS"/*.whl || exit 3
@@ -20,13 +29,33 @@ if ! python3 -c "import contactbench.problems" 2>/dev/null; then
   cp contactbench/*.py /tmp/cbroot/contactbench/
   export PYTHONPATH=/tmp/cbroot:/tmp/site${PYTHONPATH:+:$PYTHONPATH}
 fi
-{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv; echo "cores: $(nproc)"; lscpu | grep 'Model name'
-  python3 -c "import cupy, numpy, scipy, ducc0; print('cupy', cupy.__version__, 'numpy', numpy.__version__, 'scipy', scipy.__version__, 'ducc0', ducc0.__version__)"
+GPU=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
+CPU=$(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -1)
+export CONTACTBENCH_HOST=${CONTACTBENCH_HOST:-"${GPU:-no GPU} + ${CPU:-CPU} x$(nproc)"}
+{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv; echo "cores: $(nproc)"; echo "cpu: $CPU"
+  echo "commit: $COMMIT"; date -u +"date: %Y-%m-%dT%H:%M:%SZ"
+  python3 -c "import sys, cupy, numpy, scipy, ducc0; print('python', sys.version.split()[0], 'cupy', cupy.__version__, 'numpy', numpy.__version__, 'scipy', scipy.__version__, 'ducc0', ducc0.__version__)"
 } > "$OUT/device.txt" 2>&1
-(cd /tmp && PYTHONPATH="${PYTHONPATH:+$PYTHONPATH:}$ROOT" timeout 70 python3 -m pytest -q -p no:cacheprovider -o addopts= --import-mode=importlib -rs "$ROOT/tests/problems/test_operators_gpu.py" "$ROOT/tests/solvers/test_device_resident.py" 2>&1 | tail -4) > "$OUT/pytest-gpu.txt"
-timeout "${MATVEC_S:-80}" python3 benchmarks/bench_gpu.py --sizes ${SIZES:-2048 4096 8192} --cpu-max 4096 --repeats 5 --out "$OUT/gpu-matvec.csv" 2>&1 | tee "$OUT/gpu-matvec.log"
+step() {  # step LIMIT_S LABEL COMMAND...: one time-limited step, its output kept in OUT/steps.log
+  local limit=$1 label=$2; shift 2
+  echo "== $label ($(date -u +%H:%M:%S), limit ${limit} s)"
+  timeout "$limit" "$@"; echo "== $label: exit $?"
+}
 {
-  timeout "${COST_S:-100}" python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${COST_SIZES:-2048 4096} --solvers fast-dual-pccg --timeout 90 --out "$OUT"
-  timeout "${COST_S:-100}" python3 benchmarks/bench_cost_law.py --operator fft --threads "$(nproc)" --sizes ${COST_SIZES:-2048 4096} --solvers fast-dual-pccg --timeout 90 --out "$OUT"
-  timeout "${BIG_S:-120}" python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${BIG_SIZES:-8192} --solvers fast-dual-pccg --timeout 110 --out "$OUT"
-} 2>&1 | tee "$OUT/cost.log"
+  step 35 pytest-gpu bash -c "cd /tmp && PYTHONPATH='${PYTHONPATH:+$PYTHONPATH:}$ROOT' python3 -m pytest -q -p no:cacheprovider \
+    -o addopts= --import-mode=importlib -rs '$ROOT/tests/problems/test_operators_gpu.py' \
+    '$ROOT/tests/solvers/test_device_resident.py' 2>&1 | tail -6 > '$OUT/pytest-gpu.txt'; cat '$OUT/pytest-gpu.txt'"
+  step 100 gpu-2048-8192 python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${GPU_SIZES:-2048 4096 8192} \
+    --solvers fast-dual-pccg --timeout 60 --out "$OUT"
+  step 45 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30
+  step 140 gpu-16384 python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${BIG_SIZES:-16384} \
+    --solvers fast-dual-pccg --timeout 90 --out "$OUT"
+  step 60 gpu-families python3 benchmarks/bench_surface_population.py --operator gpu --sizes ${FAMILY_SIZE:-4096} \
+    --seeds ${FAMILY_SIZE:-4096}:1 --variants default --timeout 30 --commit "$COMMIT" --out "$OUT"
+  step 70 cpu-all-cores python3 benchmarks/bench_cost_law.py --operator fft --threads "$(nproc)" --sizes ${CPU_SIZE:-4096} \
+    --solvers fast-dual-pccg --timeout 60 --out "$OUT"
+  for t in ${SCALING_THREADS:-2 4 8 16}; do
+    step 30 "cpu-threads-$t" python3 benchmarks/bench_cost_law.py --operator fft --threads "$t" --sizes ${SCALING_SIZE:-2048} \
+      --solvers fast-dual-pccg --timeout 25 --out "$OUT"
+  done
+} 2>&1 | tee "$OUT/steps.log"

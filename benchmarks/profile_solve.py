@@ -1,0 +1,58 @@
+"""Where one cold top-step solve spends its time: ``cProfile`` of ``fast-dual-pccg`` (or
+--solver) on the paper-sweep scene's top step at --size, by --operator, the functions with
+the largest own time first.  On a GPU a function's own time includes the device work it
+waits for: the first host read after a kernel (a scalar, a transfer) carries it.
+
+Usage:
+  python benchmarks/profile_solve.py [--size 2048] [--operator fft|gpu] [--solver fast-dual-pccg]
+      [--params '{}'] [--top 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import pstats
+import time
+
+from bench_cost_law import top_step
+from csv_rows import host_name, refuse_missing_device
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--size", type=int, default=2048)
+    ap.add_argument("--operator", default="fft", choices=("fft", "gpu"))
+    ap.add_argument("--solver", default="fast-dual-pccg")
+    ap.add_argument("--params", default="{}", help="solver params as JSON")
+    ap.add_argument("--top", type=int, default=30, help="functions listed")
+    args = ap.parse_args()
+    params = json.loads(args.params)
+    if not isinstance(params, dict):
+        ap.error("--params must be a JSON object")
+    if args.size < 16 or args.size & (args.size - 1):
+        ap.error(f"--size must be a power of two >= 16, got {args.size}")
+    refuse_missing_device(ap, args.operator)
+    from contactbench.solvers.base import SolverSettings
+    from contactbench.solvers.registry import get_solver
+
+    t0 = time.perf_counter()
+    inst, recipe = top_step(args.size, 10, args.operator)
+    setup = time.perf_counter() - t0
+    solver = get_solver(args.solver)
+    settings = SolverSettings(tol=1e-9, params=params or None)
+    prof = cProfile.Profile()
+    t0 = time.perf_counter()
+    prof.enable()
+    res = solver.solve(inst.qp, settings)
+    prof.disable()
+    seconds = time.perf_counter() - t0
+    print(f"{recipe} n={inst.n} {args.solver} {args.operator} on {host_name()}: {res.status}, "
+          f"{res.iterations} iterations, {res.matvecs} matvecs, {seconds:.2f} s (setup {setup:.1f} s); "
+          f"info: { {k: v for k, v in res.info.items() if not hasattr(v, '__len__') or isinstance(v, str)} }")
+    pstats.Stats(prof).sort_stats("tottime").print_stats(args.top)
+
+
+if __name__ == "__main__":
+    main()
