@@ -230,7 +230,7 @@ def rmd_grid_of(N: object, family: str | None = None) -> tuple[int, bool, bool]:
 
 def check_rmd_size(N: object) -> tuple[int, bool]:
     """(k, periodic) of an RMD grid of N points per side: N = 2^k (periodic) or 2^k + 1
-    (non-periodic), k = 1..13.  Anything else -- not a power of two (plus one), below 2,
+    (non-periodic), k = 1..``RMD_MAX_LEVEL``.  Anything else -- not a power of two (plus one), below 2,
     not an integer -- is a one-line ``ProblemInputError``; cheap, for planning."""
     bad = ProblemInputError(f"an RMD surface needs N = 2^k (periodic) or 2^k + 1 (non-periodic) points per "
                             f"side with k = 1..{RMD_MAX_LEVEL} (e.g. 512 or 513), got N = {N!r}")
@@ -360,8 +360,8 @@ def rmd_surface(
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
-    if int(k) != k or k < 1 or k > 13:
-        raise ProblemInputError(f"RMD level k must be an integer in 1..13, got {k}")
+    if int(k) != k or k < 1 or k > RMD_MAX_LEVEL:
+        raise ProblemInputError(f"RMD level k must be an integer in 1..{RMD_MAX_LEVEL}, got {k}")
     check_positive("length L", length)
     check_positive("rms height", rms_height)
     if crop and periodic:

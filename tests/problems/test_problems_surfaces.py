@@ -7,6 +7,7 @@ import pytest
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.surfaces import (
+    RMD_MAX_LEVEL,
     Surface,
     check_grid_size,
     check_not_flat,
@@ -178,6 +179,17 @@ def test_bad_grid_spacing_is_refused(bad: float) -> None:
                                              (65536, 16, True)])
 def test_rmd_sizes_are_powers_of_two_or_one_more(N: int, k: int, periodic: bool) -> None:
     assert check_rmd_size(N) == (k, periodic)
+
+
+@pytest.mark.parametrize("k", [14, 16])
+def test_the_generator_takes_every_level_the_size_check_admits(k: int) -> None:
+    """A level past 13 is refused by neither check: the first complaint is about the length
+    (checked after the level, before any grid is allocated)."""
+    assert check_rmd_size(2**k + 1) == (k, False)
+    with pytest.raises(ProblemInputError, match="length L"):
+        rmd_surface(k, 0.7, length=-1.0)
+    with pytest.raises(ProblemInputError, match=f"RMD level k must be an integer in 1..{RMD_MAX_LEVEL}, got {RMD_MAX_LEVEL + 1}"):
+        rmd_surface(RMD_MAX_LEVEL + 1, 0.7)
 
 
 @pytest.mark.parametrize("bad", [1000, 1, 0, -4, 6, 131072, 131073, 512.5, "512", True])
