@@ -12,6 +12,9 @@
 #                                every core and at 2048^2 on 2, 4, 8 and 16 threads
 #   OUT/surface-population.csv   the four surface families at 4096^2, --operator gpu
 #   OUT/steps.log                every step's output, with profile_solve.py's profile of a 4096^2 solve
+# STEPS picks steps by label (pytest-gpu gpu-sizes profile-gpu gpu-16384 gpu-families cpu-all-cores
+# cpu-threads); GPU_SIZES, BIG_SIZES, FAMILY_SIZE, PROFILE_SIZE, CPU_SIZE, SCALING_SIZE and
+# SCALING_THREADS change sizes and threads, PYTEST_K selects tests (pytest -k) and PYTEST_S is their limit.
 set -o pipefail
 export PYTHONUNBUFFERED=1
 OUT=${OUT:-results/perf/gpu}
@@ -36,16 +39,18 @@ export CONTACTBENCH_HOST=${CONTACTBENCH_HOST:-"${GPU:-no GPU} + ${CPU:-CPU} x$(n
   echo "commit: $COMMIT"; date -u +"date: %Y-%m-%dT%H:%M:%SZ"
   python3 -c "import sys, cupy, numpy, scipy, ducc0; print('python', sys.version.split()[0], 'cupy', cupy.__version__, 'numpy', numpy.__version__, 'scipy', scipy.__version__, 'ducc0', ducc0.__version__)"
 } > "$OUT/device.txt" 2>&1
+STEPS=${STEPS:-all}  # the steps to run, by label (e.g. "pytest-gpu gpu-sizes"), or all
 step() {  # step LIMIT_S LABEL COMMAND...: one time-limited step, its output kept in OUT/steps.log
   local limit=$1 label=$2; shift 2
+  [[ $STEPS == all || " $STEPS " == *" ${label%%-threads-*} "* ]] || return 0
   echo "== $label ($(date -u +%H:%M:%S), limit ${limit} s)"
   timeout "$limit" "$@"; echo "== $label: exit $?"
 }
 {
-  step 35 pytest-gpu bash -c "cd /tmp && PYTHONPATH='${PYTHONPATH:+$PYTHONPATH:}$ROOT' python3 -m pytest -q -p no:cacheprovider \
-    -o addopts= --import-mode=importlib -rs '$ROOT/tests/problems/test_operators_gpu.py' \
+  step ${PYTEST_S:-35} pytest-gpu bash -c "cd /tmp && PYTHONPATH='${PYTHONPATH:+$PYTHONPATH:}$ROOT' python3 -m pytest -q -p no:cacheprovider \
+    -o addopts= --import-mode=importlib -rs ${PYTEST_K:+-k '$PYTEST_K'} '$ROOT/tests/problems/test_operators_gpu.py' \
     '$ROOT/tests/solvers/test_device_resident.py' 2>&1 | tail -6 > '$OUT/pytest-gpu.txt'; cat '$OUT/pytest-gpu.txt'"
-  step 100 gpu-2048-8192 python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${GPU_SIZES:-2048 4096 8192} \
+  step 100 gpu-sizes python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${GPU_SIZES:-2048 4096 8192} \
     --solvers fast-dual-pccg --timeout 60 --out "$OUT"
   step 45 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30
   step 140 gpu-16384 python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${BIG_SIZES:-16384} \

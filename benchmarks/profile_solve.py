@@ -5,7 +5,7 @@ waits for: the first host read after a kernel (a scalar, a transfer) carries it.
 
 Usage:
   python benchmarks/profile_solve.py [--size 2048] [--operator fft|gpu] [--solver fast-dual-pccg]
-      [--params '{}'] [--top 30]
+      [--params '{}'] [--top 30] [--callers 0]
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ def main() -> None:
     ap.add_argument("--solver", default="fast-dual-pccg")
     ap.add_argument("--params", default="{}", help="solver params as JSON")
     ap.add_argument("--top", type=int, default=30, help="functions listed")
+    ap.add_argument("--callers", type=int, default=0, help="... and the callers of this many of them")
     args = ap.parse_args()
     params = json.loads(args.params)
     if not isinstance(params, dict):
@@ -51,7 +52,10 @@ def main() -> None:
     print(f"{recipe} n={inst.n} {args.solver} {args.operator} on {host_name()}: {res.status}, "
           f"{res.iterations} iterations, {res.matvecs} matvecs, {seconds:.2f} s (setup {setup:.1f} s); "
           f"info: { {k: v for k, v in res.info.items() if not hasattr(v, '__len__') or isinstance(v, str)} }")
-    pstats.Stats(prof).sort_stats("tottime").print_stats(args.top)
+    stats = pstats.Stats(prof).sort_stats("tottime")
+    stats.print_stats(args.top)
+    if args.callers > 0:
+        stats.print_callers(args.callers)
 
 
 if __name__ == "__main__":

@@ -307,18 +307,19 @@ class DenseOperator(ContactOperator):
         return int(self.H.nbytes)
 
 
-def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tuple[Any, Any], x: Any) -> Any:
+def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tuple[Any, Any], x: Any,
+                       chunk: int = PARTIAL_PRODUCT_CHUNK) -> Any:
     """sum_j K(rows, cols_j) x_j for an even kernel table (K(di, dj) = table[|di| width +
     |dj|], flat), rows and cols given by their grid (row, column) positions: gathered a few
-    columns at a time (``PARTIAL_PRODUCT_CHUNK`` entries), so for one column the rows'
-    offsets are sorted and the reads of the table stay close together.  In the array
+    columns at a time (about ``chunk`` entries, at least one column), so for one column the
+    rows' offsets are sorted and the reads of the table stay close together.  In the array
     module of its arguments (NumPy's functions dispatch: the device's partial products
-    too, ``operators_gpu.ArrayFFTOperator.partial_product``)."""
+    too, ``operators_gpu.ArrayFFTOperator.partial_product``, with a device's chunk)."""
     (ri, rj), (ci, cj) = rows, cols
     out = np.zeros_like(x, shape=int(ri.size))
     if ci.size == 0 or ri.size == 0:
         return out
-    step = max(1, PARTIAL_PRODUCT_CHUNK // int(ri.size))
+    step = max(1, chunk // int(ri.size))
     for c0 in range(0, int(ci.size), step):
         flat = np.abs(ci[c0:c0 + step, None] - ri[None, :])
         flat *= width

@@ -53,6 +53,11 @@ from .operators import FFTOperator, KernelTransform, even_table_product, operato
 ARRAY_MODULES = ("numpy", "cupy")
 #: Device copies of index sets kept per transform (one per operator in use, about).
 INDEX_CACHE_SIZE = 8
+#: Entries a device partial product gathers at a time (``operators.even_table_product``):
+#: the host's cache-sized chunk took one column a pass on the sets of a 4096^2 solve, some
+#: 30 passes of six kernels each a product and a third of the solve (results/perf/gpu.md);
+#: 2^24 entries hold 128 MiB of offsets and 128 MiB of entries in the pool.
+DEVICE_PARTIAL_CHUNK = 1 << 24
 
 
 #: Run in a child process: it initialises CUDA there, not here (the harness forks its
@@ -422,7 +427,7 @@ class ArrayFFTOperator(FFTOperator):
             table, width = dev.quarter_table(self.transform.table, self.transform.grid_shape)
             pi, pj = dev.indices(self._pi), dev.indices(self._pj)
         return even_table_product(table, width, (pi[rows], pj[rows]), (pi[cols], pj[cols]),
-                                  x.astype(np.float64, copy=False))
+                                  x.astype(np.float64, copy=False), chunk=DEVICE_PARTIAL_CHUNK)
 
     def _same_kind(self, op: FFTOperator) -> "ArrayFFTOperator":
         """``op`` (made by an inherited method) as an operator of this class."""

@@ -16,6 +16,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, check_operator_kind
 from contactbench.problems.kernels import kernel_table
 from contactbench.problems.operators import FFTOperator, KernelTransform
+from contactbench.problems import operators_gpu
 from contactbench.problems.operators_gpu import (
     ArrayFFTOperator,
     ArrayKernelTransform,
@@ -25,6 +26,7 @@ from contactbench.problems.operators_gpu import (
     to_host,
 )
 from contactbench.problems.surfaces import rmd_surface_n
+from tests.fake_device import SPACE
 
 DELTA, E = 1.5e-6, 2.0e9
 CASES = [("bcc", False), ("love", False), ("bcc", True), ("spectral", True)]
@@ -148,6 +150,25 @@ def test_device_floor_pair_is_the_bare_transform_pair(xp: str, periodic: bool) -
     field = np.random.default_rng(0).random((n1, p1))
     assert out.shape == (n1, p1) and np.allclose(out, field, atol=1e-12)
     assert to_host(device_floor_pair(arr.transform, np.float32)()).dtype == np.float32
+
+
+@pytest.mark.parametrize("chunk", [1, 7 * 64, operators_gpu.DEVICE_PARTIAL_CHUNK])
+@pytest.mark.parametrize("where", ["fake", pytest.param("cupy", marks=needs_gpu)])
+def test_partial_products_in_the_space_are_the_hosts_whatever_the_chunk(where: str, chunk: int,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The device's partial product (the kernel table's quarter gathered there, a column a
+    pass, several, or all at once) gives the host's, on a device that refuses transfers."""
+    monkeypatch.setattr(operators_gpu, "DEVICE_PARTIAL_CHUNK", chunk)
+    rng = np.random.default_rng(21)
+    idx = np.sort(rng.choice(24 * 24, 300, replace=False))
+    host = host_transform("bcc", False, (24, 24))
+    space = SPACE if where == "fake" else operators_gpu.named_space("cupy")
+    cpu = FFTOperator(host, idx, auto_dense=False)
+    arr = ArrayFFTOperator(ArrayKernelTransform.from_host(host, space), idx, auto_dense=False)
+    rows, cols = np.sort(rng.choice(300, 64, replace=False)), rng.choice(300, 40, replace=False)
+    x = rng.random(cols.size)
+    got = arr.partial_product(space.put(rows), space.put(cols), space.put(x))
+    assert_close(space.get(got), cpu.partial_product(rows, cols, x), rtol=1e-13)
 
 
 def test_pickles_after_use_without_device_state() -> None:
