@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from contactbench.harness.run.isolation import set_parent_death_signal
+from device_warmup import warm_up_device
 from csv_rows import append_row, child_result, read_latest, host_name, refuse_missing_device
 
 FAST_SOLVERS = ("fast-ccg", "fast-pccg", "fast-dual-ccg", "fast-dual-pccg", "fast-pdas")
@@ -70,6 +71,7 @@ class CostRow:
     device_pool_mib: float  # CuPy's memory pool after the solve (--operator gpu; NaN otherwise)
     host: str
     timestamp: str
+    warmup_s: float = math.nan  # the untimed solve before it (--operator gpu: device_warmup.py)
 
 
 def top_step(N: int, steps: int, operator: str):
@@ -91,6 +93,7 @@ def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: floa
     from contactbench.solvers.base import SolverSettings
 
     profile = get_profile("high")
+    warmup = warm_up_device(solver, params, operator)
     t0 = time.perf_counter()
     inst, recipe = top_step(N, steps, operator)
     setup = time.perf_counter() - t0
@@ -107,6 +110,7 @@ def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: floa
         kkt=float(f"{step.kkt_error:.3e}"), load_N=float(f"{inst.load(res.p):.10e}") if res is not None else math.nan,
         setup_s=round(setup, 2), peak_rss_mib=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
         device_pool_mib=device_pool_mib(operator), host=host_name(), timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"),
+        warmup_s=round(warmup, 2) if operator == "gpu" else math.nan,
     )
 
 

@@ -56,6 +56,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from device_warmup import warm_up_device
 from csv_rows import append_row, child_result, read_latest, host_name, refuse_missing_device
 
 FAMILIES = ("saupe", "periodic", "fourier", "measured")
@@ -208,6 +209,7 @@ def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: 
     from contactbench.solvers.base import SolverSettings
 
     profile = get_profile("high")
+    warm_up_device(SOLVER, VARIANTS[variant], operator)
     inst, name = top_step(m, operator)
     params = VARIANTS[variant]
     settings = SolverSettings(tol=profile.tol, time_limit=timeout, params=dict(params))

@@ -17,7 +17,8 @@ import pstats
 import time
 
 from bench_cost_law import top_step
-from csv_rows import host_name, refuse_missing_device
+from csv_rows import host_name
+from device_warmup import warm_up_device, refuse_missing_device
 
 
 def main() -> None:
@@ -38,6 +39,7 @@ def main() -> None:
     from contactbench.solvers.base import SolverSettings
     from contactbench.solvers.registry import get_solver
 
+    warm_up_device(args.solver, params, args.operator)
     t0 = time.perf_counter()
     inst, recipe = top_step(args.size, 10, args.operator)
     setup = time.perf_counter() - t0

@@ -110,13 +110,15 @@ def convolution_work_nbytes(grid_shape: tuple[int, int], padded_shape: tuple[int
 #: Float64 vectors of the unknowns a device-resident solve holds beside the operator's
 #: (solvers/_device.py), counted in the load-controlled loop, the larger: ubar, p, the gap,
 #: the direction, its product, the residual and the last one, z, the bounds, M^-1 1 and
-#: three temporaries.  A count, not a fit: no device-resident pool has been measured yet.
+#: three temporaries.  A count (the pools measured below fix only the sum with the next).
 RESIDENT_VECTORS = 13
 #: ... and float64 arrays of the whole grid: the kernel table's quarter the partial
-#: products read (``ArrayFFTOperator.partial_product``) and the wave numbers with the grid
-#: indices.  The wave-number preconditioner's transforms are transient, smaller than the
-#: operator's padded work, and reuse its blocks in the pool.
-RESIDENT_GRIDS = 2
+#: products read (``ArrayFFTOperator.partial_product``), the wave numbers with the grid
+#: indices, and what the pool keeps of the wave-number preconditioner's transforms and the
+#: judge's whole-grid check.  Fitted so that the model bounds the pools of the
+#: device-resident cold top steps measured on an H200 (results/perf/gpu.md: 0.80, 4.2, 17.4
+#: and 77.4 GiB at 2048^2-16384^2, where 2 grids gave 1.1, 4.4, 17.7 and 70.7).
+RESIDENT_GRIDS = 6
 
 
 def operator_model_nbytes(grid_shape: tuple[int, int], periodic: bool) -> int:

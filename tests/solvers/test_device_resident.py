@@ -154,11 +154,14 @@ def test_a_screened_device_solve_moves_its_arrays_once_a_round() -> None:
 @pytest.mark.skipif(gpu_unavailable_reason() is not None, reason=f"no CUDA device: {gpu_unavailable_reason()}")
 @pytest.mark.parametrize("control", ["displacement", "load"])
 def test_the_cuda_device_gives_the_host_answer(builder_and_instance, control) -> None:
-    """On a lent GPU: the same solve on CuPy, the host's answer and products."""
+    """On a lent GPU: the same solve on CuPy, the host's answer and products (the answer
+    checked first, so a failure on the products says whether the answer held)."""
     builder, inst = builder_and_instance
     qp = inst.qp if control == "displacement" else loaded(inst.qp)
     host = solve("fast-dual-pccg", qp, precondition="fourier")
     dev = solve("fast-dual-pccg", on_space(builder, qp, "cupy"))
     assert dev.status == "converged" and dev.info["array_space"] == "cupy"
-    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs
     assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
+    assert kkt_check(qp, dev.p, dev.multiplier).kkt_error <= 10 * TOL
+    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs, (dev.matvecs, dev.iterations, dev.info,
+                                                                    host.matvecs, host.iterations, host.info)
