@@ -17,8 +17,8 @@ import pstats
 import time
 
 from bench_cost_law import top_step
-from csv_rows import host_name
-from device_warmup import warm_up_device, refuse_missing_device
+from csv_rows import host_name, refuse_missing_device
+from device_warmup import warm_up_device
 
 
 def main() -> None:
