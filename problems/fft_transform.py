@@ -176,7 +176,7 @@ def blocked_columns(p0: int, complex_itemsize: int) -> bool:
 
 class _BlockPool:
     """Threads that share the row and column blocks of one convolution (ducc0 and numpy's
-    copies release the GIL).  Made on first use; a forked child forgets its parent's pool."""
+    copies release the GIL), and a partial product's column groups (``share_out``).  Made on first use; a forked child forgets its parent's pool."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -208,10 +208,12 @@ def _block_chunks(stop: int, step: int, parts: int) -> tuple[np.ndarray, ...]:
     return chunks
 
 
-def _share(jobs: list[Callable[[], None]]) -> None:
-    """Run ``jobs``, one thread of the pool each (in this thread when there is one)."""
-    if len(jobs) == 1:
-        jobs[0]()
+def share_out(jobs: list[Callable[[], None]]) -> None:
+    """Run ``jobs``, one thread of the pool each (in this thread when there is one): work
+    that releases the GIL (ducc0's transforms, NumPy's copies, gathers and small products)."""
+    if len(jobs) <= 1:
+        for job in jobs:
+            job()
         return
     pool = _POOL.get(len(jobs))
     for done in [pool.submit(job) for job in jobs]:
@@ -401,9 +403,9 @@ class KernelTransform:
             x, out = np.reshape(x, self.grid_shape), np.reshape(out, self.grid_shape)
         chunks = _block_chunks(work.row_blocks, 1, row_threads(work.n1, work.p1, w))
         buffers = work.row_buffers(len(chunks))
-        _share([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
+        share_out([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
         self._column_pass(work, w)
-        _share([partial(_rows_back, work, plan, out, c, b) for c, b in zip(chunks, buffers)])
+        share_out([partial(_rows_back, work, plan, out, c, b) for c, b in zip(chunks, buffers)])
 
     def _column_pass(self, work: "_DuccWork", workers: int) -> None:
         """work.rows <- first N1 rows of iFFT_0(khat * FFT_0(rows zero-padded to P0)): for
@@ -421,7 +423,7 @@ class KernelTransform:
         khat_t = self.transposed_spectrum(work.dtype)
         chunks = _block_chunks(work.rows.shape[1], work.block, workers)
         buffers = work.buffers(len(chunks))
-        _share([partial(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)])
+        share_out([partial(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)])
 
     def matvec_work_nbytes(self, dtype: object = np.float64) -> int:
         """Bytes of the work arrays of one precision (what a matvec touches besides the spectrum)."""
@@ -484,13 +486,13 @@ def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layou
         w = fft_workers()
         chunks = _block_chunks(n1, rb, row_threads(n1, p1, w))
         if blocks:
-            _share([partial(forward, c) for c in chunks])
+            share_out([partial(forward, c) for c in chunks])
         else:
             _ducc_fft.r2c(field_, axes=(1,), out=rows, nthreads=w)
         _ducc_fft.c2c(spec, axes=(axis,), forward=True, out=spec, nthreads=w)
         _ducc_fft.c2c(spec, axes=(axis,), forward=False, inorm=2, out=spec, nthreads=w)
         if blocks:
-            _share([partial(back, c) for c in chunks])
+            share_out([partial(back, c) for c in chunks])
         else:
             _ducc_fft.c2r(rows, axes=(1,), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
 

@@ -26,6 +26,7 @@ import os
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,7 @@ from .fft_transform import (  # noqa: F401 -- re-exported: the operator's public
     fft_floor_pair,
     fft_workers,
     operator_dtype,
+    share_out,
 )
 
 
@@ -102,6 +104,12 @@ PARTIAL_PRODUCT_FACTOR = 0.04
 #: Entries gathered at a time by a partial product: a chunk's index and entries stay in the
 #: core's cache (64 Ki entries: ~3 ns an entry at 2048^2, against ~12 ns for 4 Mi entries).
 PARTIAL_PRODUCT_CHUNK = 1 << 16
+
+#: A host partial product of at least ``PARALLEL_PARTIAL_ENTRIES`` entries is cut into this
+#: many column groups, gathered on the FFT threads (NumPy's gathers release the GIL: 1.86x
+#: on two threads) and added in group order -- so the answer does not depend on the threads.
+PARTIAL_PRODUCT_GROUPS = 8
+PARALLEL_PARTIAL_ENTRIES = 1 << 20
 
 
 def dense_switch_enabled() -> bool:
@@ -308,10 +316,11 @@ class DenseOperator(ContactOperator):
 
 
 def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tuple[Any, Any], x: Any,
-                       chunk: int = PARTIAL_PRODUCT_CHUNK) -> Any:
+                       chunk: int | None = None) -> Any:
     """sum_j K(rows, cols_j) x_j for an even kernel table (K(di, dj) = table[|di| width +
     |dj|], flat), rows and cols given by their grid (row, column) positions: gathered a few
-    columns at a time (about ``chunk`` entries, at least one column), so for one column the
+    columns at a time (about ``chunk`` entries, default ``PARTIAL_PRODUCT_CHUNK``; at least
+    one column), so for one column the
     rows' offsets are sorted and the reads of the table stay close together.  In the array
     module of its arguments (NumPy's functions dispatch: the device's partial products
     too, ``operators_gpu.ArrayFFTOperator.partial_product``, with a device's chunk)."""
@@ -319,7 +328,7 @@ def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tupl
     out = np.zeros_like(x, shape=int(ri.size))
     if ci.size == 0 or ri.size == 0:
         return out
-    step = max(1, chunk // int(ri.size))
+    step = max(1, (PARTIAL_PRODUCT_CHUNK if chunk is None else chunk) // int(ri.size))
     for c0 in range(0, int(ci.size), step):
         flat = np.abs(ci[c0:c0 + step, None] - ri[None, :])
         flat *= width
@@ -452,8 +461,24 @@ class FFTOperator(ContactOperator):
         rows, cols = np.asarray(rows), np.asarray(cols)
         ri, rj = self._pi[rows].astype(np.int32), self._pj[rows].astype(np.int32)
         ci, cj = self._pi[cols].astype(np.int32), self._pj[cols].astype(np.int32)
-        return even_table_product(self.transform.table.ravel(), np.int32(self.transform.padded_shape[1]),
-                                  (ri, rj), (ci, cj), np.asarray(x, dtype=np.float64))
+        table, width = self.transform.table.ravel(), np.int32(self.transform.padded_shape[1])
+        x = np.asarray(x, dtype=np.float64)
+        if rows.size * cols.size < PARALLEL_PARTIAL_ENTRIES or cols.size < PARTIAL_PRODUCT_GROUPS:
+            return even_table_product(table, width, (ri, rj), (ci, cj), x)
+        groups = np.array_split(np.arange(cols.size), PARTIAL_PRODUCT_GROUPS)
+        sums: list[np.ndarray] = [np.empty(0)] * len(groups)
+
+        def gather(mine: range) -> None:
+            for k in mine:
+                c = groups[k]
+                sums[k] = even_table_product(table, width, (ri, rj), (ci[c], cj[c]), x[c])
+
+        w = min(fft_workers(), len(groups))
+        share_out([partial(gather, range(t, len(groups), w)) for t in range(w)])
+        out = sums[0]
+        for more in sums[1:]:
+            out += more
+        return out
 
     def partial_product_pays(self, entries: int) -> bool:
         P = int(np.prod(self.transform.padded_shape))

@@ -371,3 +371,30 @@ def test_partial_product_is_the_block_times_x_and_signs_are_known(kernel: str, p
     P = int(np.prod(op.transform.padded_shape))
     budget = operators.PARTIAL_PRODUCT_FACTOR * P * np.log2(P)
     assert op.partial_product_pays(int(budget)) and not op.partial_product_pays(int(budget) + 1)
+
+
+@pytest.mark.parametrize("kernel,periodic", [("bcc", False), ("love", True)])
+def test_a_large_partial_product_is_shared_out_the_same_on_any_threads(kernel: str, periodic: bool,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past ``PARALLEL_PARTIAL_ENTRIES`` the columns go out in ``PARTIAL_PRODUCT_GROUPS``
+    groups over the FFT threads and come back in group order: the formula's answer, and the
+    same numbers on 1, 2 or 3 threads (and with fewer columns than groups, one pass)."""
+    from contactbench.problems import operators
+
+    rng = np.random.default_rng(8)
+    idx = random_subset(rng, 0.8)
+    op = FFTOperator(KernelTransform(kernel_table(kernel, (N, N), DELTA, E, periodic), (N, N)), idx)
+    H = dense_from_formula(kernel, periodic, idx)
+    rows = np.sort(rng.choice(idx.size, idx.size // 2, replace=False))
+    cols = rng.choice(idx.size, 21, replace=False)
+    x = rng.random(cols.size)
+    monkeypatch.setattr(operators, "PARALLEL_PARTIAL_ENTRIES", 1)
+    answers = []
+    for workers in ("1", "2", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        answers.append(op.partial_product(rows, cols, x))
+    np.testing.assert_allclose(answers[0], H[np.ix_(rows, cols)] @ x, rtol=1e-13, atol=0)
+    assert all(np.array_equal(answers[0], a) for a in answers[1:])
+    few = cols[:operators.PARTIAL_PRODUCT_GROUPS - 1]
+    np.testing.assert_allclose(op.partial_product(rows, few, x[:few.size]), H[np.ix_(rows, few)] @ x[:few.size],
+                               rtol=1e-13, atol=0)

@@ -83,6 +83,29 @@ def test_apply_is_the_inverse_of_the_island_blocks():
     assert not np.any(z[~S])
 
 
+def test_a_large_bucket_is_applied_on_threads_to_the_same_numbers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every bucket shared out over 1, 2 or 3 threads (``PARALLEL_BUCKET_BYTES`` 0): each
+    block is its own product, so the numbers are those of one thread, after a drift too
+    (members that left the set count as 0)."""
+    from contactbench.solvers import _preconditioners
+
+    inst = build(65)
+    S = inst.qp.ubar > np.quantile(inst.qp.ubar, 0.3)
+    M = IslandPreconditioner(inst.qp.H, inst.qp.geometry.grid_shape, inst.qp.geometry.indices, max_block=16)
+    M.update(S)
+    S2 = S.copy()
+    S2[np.flatnonzero(S)[::40]] = False  # a drift under the rebuild fraction: the blocks stay
+    M.update(S2)
+    assert M.builds == 1
+    r = np.random.default_rng(4).normal(size=inst.n)
+    serial = M.apply(r)
+    monkeypatch.setattr(_preconditioners, "PARALLEL_BUCKET_BYTES", 0)
+    for workers in ("1", "2", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        assert np.array_equal(M.apply(r), serial)
+    assert not np.any(serial[~S2]) and np.all(serial[S2] != 0)
+
+
 def test_big_islands_are_cut_and_the_preconditioner_stays_spd():
     inst = build(65)
     H = inst.qp.H
