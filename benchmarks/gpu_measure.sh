@@ -14,7 +14,8 @@
 #   OUT/steps.log                every step's output, with profile_solve.py's profile of a 4096^2 solve
 # STEPS picks steps by label (pytest-gpu gpu-sizes profile-gpu gpu-16384 gpu-families cpu-all-cores
 # cpu-threads); GPU_SIZES, BIG_SIZES, FAMILY_SIZE, PROFILE_SIZE, CPU_SIZE, SCALING_SIZE and
-# SCALING_THREADS change sizes and threads, PYTEST_K selects tests (pytest -k) and PYTEST_S is their limit.
+# SCALING_THREADS change sizes and threads, PYTEST_K selects tests (pytest -k; default the CuPy cases: the
+# NumPy ones run everywhere) and PYTEST_S is their limit (a cold kernel cache took 39 s for the CuPy cases).
 set -o pipefail
 export PYTHONUNBUFFERED=1
 OUT=${OUT:-results/perf/gpu}
@@ -42,25 +43,25 @@ export CONTACTBENCH_HOST=${CONTACTBENCH_HOST:-"${GPU:-no GPU} + ${CPU:-CPU} x$(n
 STEPS=${STEPS:-all}  # the steps to run, by label (e.g. "pytest-gpu gpu-sizes"), or all
 step() {  # step LIMIT_S LABEL COMMAND...: one time-limited step, its output kept in OUT/steps.log
   local limit=$1 label=$2; shift 2
-  [[ $STEPS == all || " $STEPS " == *" ${label%%-threads-*} "* ]] || return 0
+  [[ $STEPS == all || " $STEPS " == *" ${label%%:*} "* ]] || return 0  # "cpu-threads:4" is step cpu-threads
   echo "== $label ($(date -u +%H:%M:%S), limit ${limit} s)"
   timeout "$limit" "$@"; echo "== $label: exit $?"
 }
 {
-  step ${PYTEST_S:-35} pytest-gpu bash -c "cd /tmp && PYTHONPATH='${PYTHONPATH:+$PYTHONPATH:}$ROOT' python3 -m pytest -q -p no:cacheprovider \
-    -o addopts= --import-mode=importlib -rs ${PYTEST_K:+-k '$PYTEST_K'} '$ROOT/tests/problems/test_operators_gpu.py' \
+  step ${PYTEST_S:-75} pytest-gpu bash -c "cd /tmp && PYTHONPATH='${PYTHONPATH:+$PYTHONPATH:}$ROOT' python3 -m pytest -q -p no:cacheprovider \
+    -o addopts= --import-mode=importlib -rs -k '${PYTEST_K:-cupy or cuda}' '$ROOT/tests/problems/test_operators_gpu.py' \
     '$ROOT/tests/solvers/test_device_resident.py' 2>&1 | tail -6 > '$OUT/pytest-gpu.txt'; cat '$OUT/pytest-gpu.txt'"
   step 100 gpu-sizes python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${GPU_SIZES:-2048 4096 8192} \
     --solvers fast-dual-pccg --timeout 60 --out "$OUT"
-  step 45 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30
+  step 30 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30 --callers 8
   step 140 gpu-16384 python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${BIG_SIZES:-16384} \
     --solvers fast-dual-pccg --timeout 90 --out "$OUT"
-  step 60 gpu-families python3 benchmarks/bench_surface_population.py --operator gpu --sizes ${FAMILY_SIZE:-4096} \
+  step 65 gpu-families python3 benchmarks/bench_surface_population.py --operator gpu --sizes ${FAMILY_SIZE:-4096} \
     --seeds ${FAMILY_SIZE:-4096}:1 --variants default --timeout 30 --commit "$COMMIT" --out "$OUT"
-  step 70 cpu-all-cores python3 benchmarks/bench_cost_law.py --operator fft --threads "$(nproc)" --sizes ${CPU_SIZE:-4096} \
+  step 60 cpu-all-cores python3 benchmarks/bench_cost_law.py --operator fft --threads "$(nproc)" --sizes ${CPU_SIZE:-4096} \
     --solvers fast-dual-pccg --timeout 60 --out "$OUT"
   for t in ${SCALING_THREADS:-2 4 8 16}; do
-    step 30 "cpu-threads-$t" python3 benchmarks/bench_cost_law.py --operator fft --threads "$t" --sizes ${SCALING_SIZE:-2048} \
-      --solvers fast-dual-pccg --timeout 25 --out "$OUT"
+    step 20 "cpu-threads:$t" python3 benchmarks/bench_cost_law.py --operator fft --threads "$t" --sizes ${SCALING_SIZE:-2048} \
+      --solvers fast-dual-pccg --timeout 15 --out "$OUT"
   done
 } 2>&1 | tee "$OUT/steps.log"
