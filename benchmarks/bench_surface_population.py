@@ -385,7 +385,9 @@ def write_markdown(rows: list[PopulationRow], path: Path) -> None:
         flags = checks(rows, metric)
         lines.append(f"- {metric}: " + ("none broken" if not flags else f"{len(flags)} broken"))
         lines += [f"  - {f.row.surface or f.row.family} (N = {f.row.N}): {f.why}" for f in flags]
-    lines += ["", "Where the two configurations are the same:", "", *noise_lines(rows)]
+    noise = noise_lines(rows)
+    if noise:  # only with both variants on a member
+        lines += ["", "Where the two configurations are the same:", "", *noise]
     path.write_text("\n".join(lines) + "\n")
 
 
