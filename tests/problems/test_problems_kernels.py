@@ -84,3 +84,27 @@ def test_periodic_image_sum_converges(kernel: str) -> None:
     t2 = periodic_table(kernel, (16, 16), DELTA, E, images=2)
     t12 = periodic_table(kernel, (16, 16), DELTA, E, images=12)
     assert np.max(np.abs(t2 - t12)) < 1e-4 * t12[0, 0]
+
+
+@pytest.mark.parametrize("kernel, shape, delta", [("bcc", (16, 16), 1e-6), ("love", (12, 20), (1e-6, 2e-6)),
+                                                  ("bcc", (2, 2), 1e-6)])
+def test_an_embedded_kernel_spectrum_from_its_quarter_is_the_full_transform(kernel, shape, delta) -> None:
+    """The aperiodic embedding's spectrum by a DCT-I of its quarter equals rfft2 of the whole
+    table to round-off; a table that is not exactly even, a periodic one and a grid of one
+    row take the full transform (None)."""
+    import scipy.fft as sfft
+
+    from contactbench.problems.fft_transform import KernelTransform, embedded_even_spectrum
+
+    table = kernel_table(kernel, shape, delta, 1e9, False)
+    full = sfft.rfft2(table)
+    quarter = embedded_even_spectrum(table, shape)
+    assert quarter is not None and quarter.shape == full.shape and quarter.dtype == np.float64
+    np.testing.assert_allclose(quarter, full.real, rtol=0, atol=1e-14 * np.abs(full).max())
+    np.testing.assert_array_equal(KernelTransform(table, shape).khat, quarter)
+    odd = table.copy()
+    odd[1, 1] *= 1.0 + 1e-12  # its mirror [2 N1 - 1, 1] is left as it was
+    assert embedded_even_spectrum(odd, shape) is None
+    assert np.iscomplexobj(KernelTransform(odd, shape).khat) or np.abs(sfft.rfft2(odd).imag).max() <= 1e-12
+    assert embedded_even_spectrum(kernel_table("bcc", (8, 8), 1e-6, 1e9, True), (8, 8)) is None
+    assert embedded_even_spectrum(kernel_table("love", (1, 5), 1e-6, 1e9, False), (1, 5)) is None

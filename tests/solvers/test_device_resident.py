@@ -35,6 +35,17 @@ FIXED_TRANSFERS = 11
 MIXED_TRANSFERS = 2
 
 
+#: Products two FFT libraries may differ by on these ~30-product solves: the fake device's
+#: transforms are NumPy's, the host's ducc0's, and in float32 (mixed precision) their
+#: rounding moves a load-controlled 64^2 solve by up to 2 (32 against 34); else 5 %.
+PRODUCT_SLACK = 2
+
+
+def same_products(dev, host) -> bool:
+    """The device solve took the host's products, within ``PRODUCT_SLACK`` or 5 %."""
+    return abs(dev.matvecs - host.matvecs) <= max(PRODUCT_SLACK, 0.05 * host.matvecs)
+
+
 @pytest.fixture(scope="module")
 def builder_and_instance():
     surf = rmd_surface_n(64, 0.7, length=1e-4, seed=3)
@@ -94,7 +105,7 @@ def test_a_device_solve_keeps_its_vectors_there(builder_and_instance, control, n
     assert dev.iterations >= 10 and moved <= fixed * dev.info.get("screened_rounds", 1), moved
     assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
     assert kkt_check(qp, dev.p, dev.multiplier).kkt_error <= 10 * TOL
-    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs, (dev.matvecs, host.matvecs)
+    assert same_products(dev, host), (dev.matvecs, host.matvecs)
     if control == "load":
         assert dev.multiplier == pytest.approx(host.multiplier, rel=1e-6)
 
@@ -109,7 +120,7 @@ def test_the_numpy_space_is_the_host_loop(builder_and_instance, control, name) -
     kw = {"precondition": "fourier"} if name == "fast-dual-pccg" else {}
     arr = solve(name, on_space(builder, qp, "numpy"), **kw)
     assert arr.info["array_space"] == "numpy" and arr.status == "converged"
-    assert abs(arr.matvecs - host.matvecs) <= 0.05 * host.matvecs
+    assert same_products(arr, host), (arr.matvecs, host.matvecs)
     assert np.max(np.abs(arr.p - host.p)) <= 1e-8 * np.max(host.p)
 
 
@@ -147,7 +158,7 @@ def test_a_screened_device_solve_moves_its_arrays_once_a_round() -> None:
     rounds = dev.info["screened_rounds"]
     assert dev.status == "converged" and rounds >= 2 and dev.info["array_space"] == "fake"
     assert TRANSFERS.arrays() - before.arrays() <= FIXED_TRANSFERS * rounds
-    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs
+    assert same_products(dev, host), (dev.matvecs, host.matvecs)
     assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
 
 
@@ -163,5 +174,4 @@ def test_the_cuda_device_gives_the_host_answer(builder_and_instance, control) ->
     assert dev.status == "converged" and dev.info["array_space"] == "cupy"
     assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
     assert kkt_check(qp, dev.p, dev.multiplier).kkt_error <= 10 * TOL
-    assert abs(dev.matvecs - host.matvecs) <= 0.05 * host.matvecs, (dev.matvecs, dev.iterations, dev.info,
-                                                                    host.matvecs, host.iterations, host.info)
+    assert same_products(dev, host), (dev.matvecs, dev.iterations, dev.info, host.matvecs, host.iterations, host.info)
