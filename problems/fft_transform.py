@@ -176,7 +176,8 @@ def blocked_columns(p0: int, complex_itemsize: int) -> bool:
 
 class _BlockPool:
     """Threads that share the row and column blocks of one convolution (ducc0 and numpy's
-    copies release the GIL), and a partial product's column groups (``share_out``).  Made on first use; a forked child forgets its parent's pool."""
+    copies release the GIL), a large partial product's column groups and an island bucket's
+    blocks (``share_out``).  Made on first use; a forked child forgets its parent's pool."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -228,7 +229,8 @@ def embedded_even_spectrum(table: np.ndarray, grid_shape: tuple[int, int]) -> np
     n1, n2 = grid_shape
     if table.shape != (2 * n1, 2 * n2) or n1 < 2 or n2 < 2 or table[n1].any() or table[:, n2].any():
         return None
-    if not (np.array_equal(table[n1 + 1:], table[n1 - 1:0:-1]) and np.array_equal(table[:, n2 + 1:], table[:, n2 - 1:0:-1])):
+    mirrored = np.array_equal(table[n1 + 1:], table[n1 - 1:0:-1])
+    if not (mirrored and np.array_equal(table[:, n2 + 1:], table[:, n2 - 1:0:-1])):
         return None
     quarter = sfft.dctn(table[: n1 + 1, : n2 + 1], type=1, workers=fft_workers())
     out = np.empty((2 * n1, n2 + 1))

@@ -320,8 +320,8 @@ def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tupl
     """sum_j K(rows, cols_j) x_j for an even kernel table (K(di, dj) = table[|di| width +
     |dj|], flat), rows and cols given by their grid (row, column) positions: gathered a few
     columns at a time (about ``chunk`` entries, default ``PARTIAL_PRODUCT_CHUNK``; at least
-    one column), so for one column the
-    rows' offsets are sorted and the reads of the table stay close together.  In the array
+    one column), so for one column the rows' offsets are sorted and the reads of the table
+    stay close together.  In the array
     module of its arguments (NumPy's functions dispatch: the device's partial products
     too, ``operators_gpu.ArrayFFTOperator.partial_product``, with a device's chunk)."""
     (ri, rj), (ci, cj) = rows, cols
