@@ -29,7 +29,7 @@ import numpy as np
 
 from contactbench.problems.operators_gpu import HOST, ArraySpace
 
-from ._preconditioners import FourierPreconditioner, IslandPreconditioner, SetPreconditioner, drifted
+from ._preconditioners import FourierPreconditioner, IslandPreconditioner, SetPreconditioner, drifted, grid_points
 from .base import Param, SolveContext
 
 #: The opening's preconditioner runs until the loop's scaled KKT error is at most this.
@@ -46,6 +46,15 @@ OPENING_SETTLED = 0.3
 #: opening's island stage went without its far field for most of a large set's last shedding
 #: (results/perf/opening).
 OPENED_FAR_FRACTION = 0.5
+
+#: An opened solve whose preconditioner "auto" chose takes the far field from this many grid
+#: points (an unopened one: ``_preconditioners.FAR_FIELD_GRID_POINTS``, 1024^2).  Over the
+#: surface population at 512^2 (results/perf/opened-farfield-512, quiet 2-core vm, 32 members
+#: on seeds 0-1 and 32 held out on seeds 3-4): matvecs median / worst 44 / 77 -> 37 / 47 and
+#: 44.5 / 115 -> 39.5 / 58, seconds per member median 0.94x and 0.87x, no member with more
+#: products.  A warm step is not opened: the 512^2 paper sweep, with 20 % fewer products, took
+#: as long or longer (BCC 0.06 -> 0.065x ContactMechanics), so it keeps the islands alone.
+OPENED_FAR_FIELD_GRID_POINTS = 512 * 512
 
 #: The openings a fast CCG takes: "fourier" (module doc), "none" (the solver's
 #: preconditioner from the start), "auto" (``resolved_opening``).
@@ -72,15 +81,18 @@ def resolved_opening(opening: str, M: SetPreconditioner | None, ctx: SolveContex
 
 
 def opened(M: SetPreconditioner | None, ctx: SolveContext, dtype: type = np.float64,
-           space: ArraySpace = HOST) -> SetPreconditioner | None:
+           space: ArraySpace = HOST, auto_kind: bool = False) -> SetPreconditioner | None:
     """M, or M opened by the wave-number preconditioner (in ``dtype``, on ``space``) when
-    ``ctx.params["opening"]`` resolves to "fourier"."""
+    ``ctx.params["opening"]`` resolves to "fourier"; then, where M's kind was "auto"'s
+    (``auto_kind``), with the far field from ``OPENED_FAR_FIELD_GRID_POINTS``."""
     if resolved_opening(ctx.params.get("opening", "none"), M, ctx) != "fourier":
         return M
     first = FourierPreconditioner.build(ctx.qp, space, dtype)
     if first is None or not isinstance(M, IslandPreconditioner):  # (the second: as resolved_opening)
         return M
     M.far_fraction = OPENED_FAR_FRACTION
+    if auto_kind and grid_points(ctx.qp) >= OPENED_FAR_FIELD_GRID_POINTS:
+        M.far_field = True
     return StagedPreconditioner(first, M)
 
 

@@ -104,7 +104,8 @@ class _FastCCG(FastSolver):
         kind = resolved_kind(ctx.params["precondition"], ctx.qp)
         space, where = resident_space(ctx, kind)
         dtype = block_dtype(precision)
-        M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space)
+        M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space,
+                   auto_kind=ctx.params["precondition"] == "auto")
         ctx.mark_setup_done()
         p0, info = starting_point(self, ctx)
         state = resident_state(ctx, space, p0)

@@ -130,6 +130,23 @@ def test_auto_opens_a_cold_unconstrained_island_solve_only():
     assert resolved_opening("fourier", M, loaded) == "fourier"  # asked for, it is given
 
 
+def test_an_opened_auto_solve_takes_the_far_field_from_its_own_grid_size(monkeypatch):
+    """From ``OPENED_FAR_FIELD_GRID_POINTS`` an opened solve whose islands "auto" chose gets
+    the far field; below it, when the islands were asked for, or when the solve is not opened
+    (a warm step), the islands stay alone; and a default solve at the size builds one."""
+    inst = build()
+    points = int(np.prod(inst.qp.geometry.grid_shape))
+    cold = {**context_of(inst.qp).params, "opening": "auto"}
+    ctx = replace(context_of(inst.qp), params=cold)
+    for threshold, auto_kind, far in ((points, True, True), (points + 1, True, False), (points, False, False)):
+        monkeypatch.setattr(_opening, "OPENED_FAR_FIELD_GRID_POINTS", threshold)
+        M = opened(make_preconditioner("islands", inst.qp), ctx, auto_kind=auto_kind)
+        assert isinstance(M, StagedPreconditioner) and M.then.far_field is far
+    monkeypatch.setattr(_opening, "OPENED_FAR_FIELD_GRID_POINTS", points)
+    warm = opened(make_preconditioner("islands", inst.qp), replace(ctx, p0=np.zeros(inst.qp.n)), auto_kind=True)
+    assert isinstance(warm, IslandPreconditioner) and not warm.far_field
+
+
 def test_an_unknown_opening_is_a_parameter_error():
     with pytest.raises(ParamError, match="opening"):
         solve(build(17), opening="sometimes")
