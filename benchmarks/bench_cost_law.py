@@ -110,7 +110,7 @@ def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: floa
         kkt=float(f"{step.kkt_error:.3e}"), load_N=float(f"{inst.load(res.p):.10e}") if res is not None else math.nan,
         setup_s=round(setup, 2), peak_rss_mib=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
         device_pool_mib=device_pool_mib(operator), host=host_name(), timestamp=time.strftime("%Y-%m-%dT%H:%M:%S"),
-        warmup_s=round(warmup, 2) if operator == "gpu" else math.nan,
+        warmup_s=round(warmup, 2),
     )
 
 

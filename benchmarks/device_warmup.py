@@ -10,6 +10,7 @@ paper's instance, mixed from ``MIXED_GRID_POINTS``), so its seconds are the solv
 
 from __future__ import annotations
 
+import math
 import time
 
 #: The warm-up's grid: the smallest where precision "auto" is mixed, as on every timed size.
@@ -18,9 +19,9 @@ WARMUP_N = 512
 
 def warm_up_device(solver: str, params: dict, operator: str) -> float:
     """Seconds of one untimed ``solver`` solve (its ``params``) on a ``WARMUP_N``^2 instance
-    by the "gpu" operator; 0 and nothing done for any other ``operator``."""
+    by the "gpu" operator; NaN, and nothing done, for any other ``operator``."""
     if operator != "gpu":
-        return 0.0
+        return math.nan
     from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
     from contactbench.problems.scenes.core import PAPER_E
     from contactbench.problems.surfaces import rmd_surface_n

@@ -377,8 +377,11 @@ class IslandPreconditioner(_OnesCache):
         pos = self._pos
         z[pos] = r[pos] / self._diag[pos]
         for b in self._buckets:  # each block on its own: shared out over the FFT threads when large
-            parts = fft_workers() if b.inverse.nbytes >= PARALLEL_BUCKET_BYTES else 1
-            cuts = np.linspace(0, len(b.members), min(parts, len(b.members)) + 1).astype(int)
+            parts = min(fft_workers(), len(b.members)) if b.inverse.nbytes >= PARALLEL_BUCKET_BYTES else 1
+            if parts <= 1:
+                self._apply_blocks(b, slice(None), r, z)
+                continue
+            cuts = np.linspace(0, len(b.members), parts + 1).astype(int)
             share_out([partial(self._apply_blocks, b, slice(lo, hi), r, z) for lo, hi in zip(cuts[:-1], cuts[1:])])
         if self._far is not None:
             self._far.correct(z, r, pos)

@@ -4,6 +4,7 @@ runs, and the profile script runs a solve end to end."""
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 
@@ -49,4 +50,4 @@ def test_the_rows_name_the_machine_and_the_warm_up_is_device_only(monkeypatch: p
     assert host_name() == "NVIDIA H200 + 16 cores"
     monkeypatch.delenv("CONTACTBENCH_HOST")
     assert "cores)" in host_name() and host_name() != "vm"
-    assert warm_up_device("fast-dual-pccg", {}, "fft") == 0.0
+    assert math.isnan(warm_up_device("fast-dual-pccg", {}, "fft"))
