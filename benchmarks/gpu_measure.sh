@@ -3,7 +3,8 @@
 # CuPy, numpy, scipy, pandas and matplotlib but not this project): ducc0 comes as a wheel in
 # .whl/, the package is put on the path without installing it, and every output goes to
 # OUT (default results/perf/gpu).  Each step has its own time limit, the most telling first;
-# the limits add up to 550 s, one device call of under 8 minutes.  COMMIT names the code's
+# the limits add up to 630 s: all of them do not fit one device call of under 8 minutes,
+# so a call picks its STEPS.  COMMIT names the code's
 # commit in the rows that carry one (a copy of the tree may have no .git).
 #   OUT/device.txt               the GPU, the CPU, the packages
 #   OUT/pytest-gpu.txt           the CuPy tests (operator and device-resident solves)
@@ -11,9 +12,12 @@
 #                                solve: --operator gpu at 2048^2-16384^2, the CPU at 4096^2 on
 #                                every core and at 2048^2 on 2, 4, 8 and 16 threads
 #   OUT/surface-population.csv   the four surface families at 4096^2, --operator gpu
-#   OUT/steps.log                every step's output, with profile_solve.py's profile of a 4096^2 solve
-# STEPS picks steps by label (pytest-gpu gpu-sizes profile-gpu gpu-16384 gpu-families cpu-all-cores
-# cpu-threads); GPU_SIZES, BIG_SIZES, FAMILY_SIZE, PROFILE_SIZE, CPU_SIZE, SCALING_SIZE and
+#   OUT/device-partial.csv       bench_device_partial.py: partial products against matvecs at 4096^2
+#   OUT/steps.log                every step's output, with profile_solve.py's profiles of a 4096^2 solve
+#                                (profile-blocking: each kernel launch waited for, CUDA_LAUNCH_BLOCKING=1,
+#                                so the device time lands on the call that launched it)
+# STEPS picks steps by label (pytest-gpu gpu-sizes profile-gpu profile-blocking device-partial gpu-16384
+# gpu-families cpu-all-cores cpu-threads); GPU_SIZES, BIG_SIZES, FAMILY_SIZE, PROFILE_SIZE, CPU_SIZE, SCALING_SIZE and
 # SCALING_THREADS change sizes and threads, PYTEST_K selects tests (pytest -k; default the CuPy cases: the
 # NumPy ones run everywhere) and PYTEST_S is their limit (a cold kernel cache took 39 s for the CuPy cases).
 set -o pipefail
@@ -54,6 +58,9 @@ step() {  # step LIMIT_S LABEL COMMAND...: one time-limited step, its output kep
   step 100 gpu-sizes python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${GPU_SIZES:-2048 4096 8192} \
     --solvers fast-dual-pccg --timeout 60 --out "$OUT"
   step 30 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30 --callers 8
+  step 40 profile-blocking env CUDA_LAUNCH_BLOCKING=1 python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} \
+    --operator gpu --top 40
+  step 40 device-partial python3 benchmarks/bench_device_partial.py --size ${PROFILE_SIZE:-4096} --out "$OUT/device-partial.csv"
   step 140 gpu-16384 python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${BIG_SIZES:-16384} \
     --solvers fast-dual-pccg --timeout 90 --out "$OUT"
   step 65 gpu-families python3 benchmarks/bench_surface_population.py --operator gpu --sizes ${FAMILY_SIZE:-4096} \

@@ -58,6 +58,34 @@ INDEX_CACHE_SIZE = 8
 #: 30 passes of six kernels each a product and a third of the solve (results/perf/gpu.md);
 #: 2^24 entries hold 128 MiB of offsets and 128 MiB of entries in the pool.
 DEVICE_PARTIAL_CHUNK = 1 << 24
+#: Whether CuPy's partial products run as one kernel (``device_even_product``): no offset
+#: or entry array in the pool, one pass over the rows.  Otherwise (and on any other array
+#: module: a test's fake device) in chunks of array operations (``even_table_product``).
+FUSED_GATHER = True
+#: Threads a fused partial product aims for, rows x column groups (an H100 or H200 holds
+#: 132 x 2048 resident threads): fewer rows than that split the columns into groups.
+GATHER_THREADS = 1 << 18
+
+#: ``device_even_product``'s kernel (CuPy's ElementwiseKernel): element (group, row) sums
+#: table[|a - ci| width + |b - cj|] x over the group's span of the columns, in order.
+_EVEN_GATHER = (
+    "I a, I b, I grp, raw T table, int64 width, raw I ci, raw I cj, raw float64 x, int64 ncols, int64 span",
+    "float64 out",
+    """
+    const long long lo = grp * span;
+    const long long hi = lo + span < ncols ? lo + span : ncols;
+    double acc = 0.0;
+    for (long long k = lo; k < hi; ++k) {
+        long long di = a - ci[k];
+        long long dj = b - cj[k];
+        di = di < 0 ? -di : di;
+        dj = dj < 0 ? -dj : dj;
+        acc += (double)table[di * width + dj] * x[k];
+    }
+    out = acc;
+    """,
+    "contactbench_even_gather",
+)
 
 
 #: Run in a child process: it initialises CUDA there, not here (the harness forks its
@@ -384,6 +412,30 @@ class _DeviceState:
         return dev
 
 
+@functools.lru_cache(maxsize=1)
+def _even_gather_kernel(xp: ModuleType) -> Any:
+    """The fused partial product's kernel on CuPy ``xp`` (compiled on its first call)."""
+    return xp.ElementwiseKernel(*_EVEN_GATHER)
+
+
+def device_even_product(xp: ModuleType, table: Any, width: int, rows: tuple[Any, Any], cols: tuple[Any, Any],
+                        x: Any) -> Any:
+    """``operators.even_table_product`` as one CuPy kernel: each (column group, row) element
+    sums its row's entries over a span of the columns in column order, and the groups'
+    sums are added in group order, so the answer does not depend on the launch.  rows and
+    cols are grid (row, column) positions of one integer dtype; x float64."""
+    (ri, rj), (ci, cj) = rows, cols
+    nrows, ncols = int(ri.size), int(ci.size)
+    if nrows == 0 or ncols == 0:
+        return xp.zeros(nrows, dtype=np.float64)
+    span = -(-ncols // min(ncols, max(1, -(-GATHER_THREADS // nrows))))
+    groups = -(-ncols // span)
+    out = xp.empty((groups, nrows), dtype=np.float64)
+    grp = xp.arange(groups, dtype=ri.dtype)[:, None]
+    _even_gather_kernel(xp)(ri, rj, grp, table, width, ci, cj, x, ncols, span, out)
+    return out[0] if groups == 1 else out.sum(axis=0)
+
+
 class ArrayFFTOperator(FFTOperator):
     """``FFTOperator`` whose convolutions run through ``xp`` (CuPy on a GPU); every
     dense gather (submatrix, entries, blocks) and the precision handling are the CPU
@@ -417,7 +469,8 @@ class ArrayFFTOperator(FFTOperator):
     def partial_product(self, rows: Any, cols: Any, x: Any) -> Any:
         """``FFTOperator.partial_product``; with rows, cols and x in ``space``, there: the
         entries gathered from the kernel table's quarter on the device (an even table,
-        K(di, dj) = table[|di|, |dj|]); for a table that is not even, the host's, its few
+        K(di, dj) = table[|di|, |dj|]; on CuPy by one kernel, ``device_even_product``,
+        unless ``FUSED_GATHER`` is off); for a table that is not even, the host's, its few
         rows and columns moved explicitly."""
         if on_host(rows) or self.space.host:
             return super().partial_product(rows, cols, x)
@@ -428,8 +481,10 @@ class ArrayFFTOperator(FFTOperator):
             dev = self.transform._state()
             table, width = dev.quarter_table(self.transform.table, self.transform.grid_shape)
             pi, pj = dev.indices(self._pi), dev.indices(self._pj)
-        return even_table_product(table, width, (pi[rows], pj[rows]), (pi[cols], pj[cols]),
-                                  x.astype(np.float64, copy=False), chunk=DEVICE_PARTIAL_CHUNK)
+        rows_at, cols_at, x = (pi[rows], pj[rows]), (pi[cols], pj[cols]), x.astype(np.float64, copy=False)
+        if FUSED_GATHER and self.transform.xp_name == "cupy":
+            return device_even_product(dev.xp, table, width, rows_at, cols_at, x)
+        return even_table_product(table, width, rows_at, cols_at, x, chunk=DEVICE_PARTIAL_CHUNK)
 
     def _same_kind(self, op: FFTOperator) -> "ArrayFFTOperator":
         """``op`` (made by an inherited method) as an operator of this class."""
@@ -474,6 +529,7 @@ __all__ = [
     "ArrayFFTOperator",
     "ArrayKernelTransform",
     "array_fft_operator",
+    "device_even_product",
     "device_floor_pair",
     "array_module",
     "gpu_unavailable_reason",

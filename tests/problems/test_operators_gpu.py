@@ -152,13 +152,18 @@ def test_device_floor_pair_is_the_bare_transform_pair(xp: str, periodic: bool) -
     assert to_host(device_floor_pair(arr.transform, np.float32)()).dtype == np.float32
 
 
-@pytest.mark.parametrize("chunk", [1, 7 * 64, operators_gpu.DEVICE_PARTIAL_CHUNK])
-@pytest.mark.parametrize("where", ["fake", pytest.param("cupy", marks=needs_gpu)])
-def test_partial_products_in_the_space_are_the_hosts_whatever_the_chunk(where: str, chunk: int,
+@pytest.mark.parametrize("chunk,threads", [(1, 1), (7 * 64, 64 * 7), (operators_gpu.DEVICE_PARTIAL_CHUNK, 1 << 18)])
+@pytest.mark.parametrize("where,fused", [("fake", False), pytest.param("cupy", False, marks=needs_gpu),
+                                         pytest.param("cupy", True, marks=needs_gpu)])
+def test_partial_products_in_the_space_are_the_hosts_whatever_the_chunk(where: str, fused: bool, chunk: int,
+                                                                       threads: int,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """The device's partial product (the kernel table's quarter gathered there, a column a
-    pass, several, or all at once) gives the host's, on a device that refuses transfers."""
+    pass, several, or all at once; or by the fused kernel, its columns in one group, a
+    few or one each) gives the host's, on a device that refuses transfers."""
     monkeypatch.setattr(operators_gpu, "DEVICE_PARTIAL_CHUNK", chunk)
+    monkeypatch.setattr(operators_gpu, "GATHER_THREADS", threads)
+    monkeypatch.setattr(operators_gpu, "FUSED_GATHER", fused)
     rng = np.random.default_rng(21)
     idx = np.sort(rng.choice(24 * 24, 300, replace=False))
     host = host_transform("bcc", False, (24, 24))
@@ -169,6 +174,7 @@ def test_partial_products_in_the_space_are_the_hosts_whatever_the_chunk(where: s
     x = rng.random(cols.size)
     got = arr.partial_product(space.put(rows), space.put(cols), space.put(x))
     assert_close(space.get(got), cpu.partial_product(rows, cols, x), rtol=1e-13)
+    assert space.get(arr.partial_product(space.put(rows[:0]), space.put(cols), space.put(x))).shape == (0,)
 
 
 def test_pickles_after_use_without_device_state() -> None:
