@@ -18,7 +18,8 @@
 #                                so the device time lands on the call that launched it)
 # STEPS picks steps by label (pytest-gpu gpu-sizes profile-gpu profile-blocking device-partial gpu-16384
 # gpu-families cpu-all-cores cpu-threads); GPU_SIZES, BIG_SIZES, FAMILY_SIZE, PROFILE_SIZE, CPU_SIZE, SCALING_SIZE and
-# SCALING_THREADS change sizes and threads, PYTEST_K selects tests (pytest -k; default the CuPy cases: the
+# SCALING_THREADS change sizes and threads, PROFILE_CHAINS the functions whose callers the profile
+# traces (a regex; default CuPy's asarray: what moves host arrays to the device), PYTEST_K selects tests (pytest -k; default the CuPy cases: the
 # NumPy ones run everywhere) and PYTEST_S is their limit (a cold kernel cache took 39 s for the CuPy cases).
 set -o pipefail
 export PYTHONUNBUFFERED=1
@@ -57,7 +58,8 @@ step() {  # step LIMIT_S LABEL COMMAND...: one time-limited step, its output kep
     '$ROOT/tests/solvers/test_device_resident.py' 2>&1 | tail -6 > '$OUT/pytest-gpu.txt'; cat '$OUT/pytest-gpu.txt'"
   step 100 gpu-sizes python3 benchmarks/bench_cost_law.py --operator gpu --sizes ${GPU_SIZES:-2048 4096 8192} \
     --solvers fast-dual-pccg --timeout 60 --out "$OUT"
-  step 30 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30 --callers 8
+  step 30 profile-gpu python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} --operator gpu --top 30 --callers 8 \
+    --chains "${PROFILE_CHAINS:-from_data.py:.*asarray}" --depth 6
   step 40 profile-blocking env CUDA_LAUNCH_BLOCKING=1 python3 benchmarks/profile_solve.py --size ${PROFILE_SIZE:-4096} \
     --operator gpu --top 40
   step 40 device-partial python3 benchmarks/bench_device_partial.py --size ${PROFILE_SIZE:-4096} --out "$OUT/device-partial.csv"

@@ -5,7 +5,11 @@ waits for: the first host read after a kernel (a scalar, a transfer) carries it.
 
 Usage:
   python benchmarks/profile_solve.py [--size 2048] [--operator fft|gpu] [--solver fast-dual-pccg]
-      [--params '{}'] [--top 30] [--callers 0]
+      [--params '{}'] [--top 30] [--callers 0] [--chains REGEX] [--depth 5]
+
+--chains prints, for each function whose name matches REGEX, the chains of its callers
+up to --depth frames, each with its calls and cumulative seconds (who, through a
+library's own functions, reaches a call).
 """
 
 from __future__ import annotations
@@ -14,11 +18,34 @@ import argparse
 import cProfile
 import json
 import pstats
+import re
 import time
 
 from bench_cost_law import top_step
 from csv_rows import host_name, refuse_missing_device
 from device_warmup import warm_up_device
+
+
+def caller_chains(stats: pstats.Stats, pattern: str, depth: int) -> list[str]:
+    """Lines naming each function matching ``pattern`` and the chains of its callers, a
+    caller indented under its callee, ``depth`` frames at most."""
+    table = stats.stats  # type: ignore[attr-defined]
+    lines: list[str] = []
+
+    def name(func: tuple) -> str:
+        return f"{func[0].split('/')[-1]}:{func[1]}({func[2]})"
+
+    def walk(func: tuple, level: int, seen: frozenset) -> None:
+        for caller, (cc, nc, tt, ct) in sorted(table[func][4].items(), key=lambda kv: -kv[1][3]):
+            lines.append(f"{'  ' * level}<- {nc:6d} calls {ct:8.3f} s  {name(caller)}")
+            if level < depth and caller in table and caller not in seen:
+                walk(caller, level + 1, seen | {caller})
+
+    for func in sorted(table, key=lambda f: -table[f][3]):
+        if re.search(pattern, name(func)):
+            lines.append(f"{name(func)}: {table[func][1]} calls, {table[func][3]:.3f} s cumulative")
+            walk(func, 1, frozenset({func}))
+    return lines
 
 
 def main() -> None:
@@ -29,6 +56,8 @@ def main() -> None:
     ap.add_argument("--params", default="{}", help="solver params as JSON")
     ap.add_argument("--top", type=int, default=30, help="functions listed")
     ap.add_argument("--callers", type=int, default=0, help="... and the callers of this many of them")
+    ap.add_argument("--chains", default=None, help="regex: the caller chains of the functions it names")
+    ap.add_argument("--depth", type=int, default=5, help="frames of a --chains chain")
     args = ap.parse_args()
     params = json.loads(args.params)
     if not isinstance(params, dict):
@@ -58,6 +87,8 @@ def main() -> None:
     stats.print_stats(args.top)
     if args.callers > 0:
         stats.print_callers(args.callers)
+    if args.chains:
+        print("\n".join(caller_chains(stats, args.chains, args.depth)))
 
 
 if __name__ == "__main__":

@@ -325,7 +325,7 @@ def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tupl
     module of its arguments (NumPy's functions dispatch: the device's partial products
     too, ``operators_gpu.ArrayFFTOperator.partial_product``, with a device's chunk)."""
     (ri, rj), (ci, cj) = rows, cols
-    out = np.zeros_like(x, shape=int(ri.size))
+    out = np.zeros_like(x, shape=(int(ri.size),))
     if ci.size == 0 or ri.size == 0:
         return out
     step = max(1, (PARTIAL_PRODUCT_CHUNK if chunk is None else chunk) // int(ri.size))

@@ -444,7 +444,7 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     max_iter = ctx.max_iter if max_iter is None else max_iter
     u = c.upper_or_inf(ctx.n, state.p)
     feasible_start(ctx, state, u)
-    none = np.zeros_like(state.p, shape=0, dtype=np.int64)
+    none = np.zeros_like(state.p, shape=(0,), dtype=np.int64)
     delta, res = _dual_residual(state, u, c)
     d = inward(-_dual_direction(M, res), state, res, u)
     run = CCGRun(0, math.inf, False)

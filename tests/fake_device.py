@@ -4,7 +4,8 @@
 functions and ufuncs dispatch to it (NEP 13/18) and return ``DeviceArray``; a host array
 of one or more dimensions mixed into an operation, a host index array, an implicit
 conversion (``np.asarray``) or a keyword CuPy's functions lack (``CUPY_LACKS``) raises
-``TypeError``, as CuPy does.  A scalar may cross
+``TypeError``, as CuPy does; so does ``np.zeros_like(a, shape=0)``, which CuPy would
+answer with an array of a's shape.  A scalar may cross
 (``float``, ``int``, ``bool``, ``item``: what a device loop synchronises on); whole
 arrays cross only through ``SPACE.put`` (``xp.asarray``) and ``get``, and ``TRANSFERS``
 counts both.  So a solve run on ``SPACE`` proves that its loop keeps its vectors where
@@ -92,6 +93,9 @@ class DeviceArray(NDArrayOperatorsMixin):
         unsupported = CUPY_LACKS & set(kwargs)
         if unsupported:
             raise TypeError(f"np.{func.__name__}: CuPy takes no {sorted(unsupported)}")
+        if func.__name__.endswith("_like") and "shape" in kwargs and not kwargs["shape"] and kwargs["shape"] is not None:
+            raise TypeError(f"np.{func.__name__}(shape={kwargs['shape']!r}): CuPy reads a false shape as the "
+                            "array's own (give a tuple: shape=(0,))")
         return _wrap(func(*_strip(args), **_strip(kwargs)))
 
     # -- attributes and methods a loop uses --------------------------------------------
