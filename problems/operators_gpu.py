@@ -58,34 +58,54 @@ INDEX_CACHE_SIZE = 8
 #: 30 passes of six kernels each a product and a third of the solve (results/perf/gpu.md);
 #: 2^24 entries hold 128 MiB of offsets and 128 MiB of entries in the pool.
 DEVICE_PARTIAL_CHUNK = 1 << 24
-#: Whether CuPy's partial products run as one kernel (``device_even_product``): no offset
-#: or entry array in the pool, one pass over the rows.  Otherwise (and on any other array
-#: module: a test's fake device) in chunks of array operations (``even_table_product``).
+#: Whether CuPy's partial products run as CUDA kernels (``device_even_product``): no offset
+#: or entry array in the pool, one pass over the rows (against the chunks: 10x less time,
+#: results/perf/gpu/device-partial.csv).  Otherwise (and on any other array module: a
+#: test's fake device) in chunks of array operations (``even_table_product``).
 FUSED_GATHER = True
 #: Threads a fused partial product aims for, rows x column groups (an H100 or H200 holds
 #: 132 x 2048 resident threads): fewer rows than that split the columns into groups.
 GATHER_THREADS = 1 << 18
 
-#: ``device_even_product``'s kernel (CuPy's ElementwiseKernel): element (group, row) sums
-#: table[|a - ci| width + |b - cj|] x over the group's span of the columns, in order.
-_EVEN_GATHER = (
-    "I a, I b, I grp, raw T table, int64 width, raw I ci, raw I cj, raw float64 x, int64 ncols, int64 span",
-    "float64 out",
-    """
-    const long long lo = grp * span;
-    const long long hi = lo + span < ncols ? lo + span : ncols;
+#: ``device_even_product``'s kernels (one CUDA module, compiled once per machine: CuPy keeps
+#: it on disk): thread t = (group g, row r) sums table[|a - ci| width + |b - cj|] x over the
+#: columns of g's span, in order; then one thread a row adds the groups' sums, in order.
+_EVEN_GATHER_SOURCE = r"""
+extern "C" __global__ void contactbench_even_gather(
+    const double* table, long long width, const long long* ri, const long long* rj, long long nrows,
+    const long long* ci, const long long* cj, const double* x, long long ncols, long long span,
+    long long cells, double* out)
+{
+    long long t = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= cells) return;
+    long long g = t / nrows;
+    long long r = t - g * nrows;
+    long long a = ri[r], b = rj[r];
+    long long lo = g * span;
+    long long hi = lo + span < ncols ? lo + span : ncols;
     double acc = 0.0;
     for (long long k = lo; k < hi; ++k) {
         long long di = a - ci[k];
         long long dj = b - cj[k];
         di = di < 0 ? -di : di;
         dj = dj < 0 ? -dj : dj;
-        acc += (double)table[di * width + dj] * x[k];
+        acc += table[di * width + dj] * x[k];
     }
-    out = acc;
-    """,
-    "contactbench_even_gather",
-)
+    out[t] = acc;
+}
+
+extern "C" __global__ void contactbench_group_sum(const double* parts, long long groups, long long nrows,
+                                                   double* out)
+{
+    long long r = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= nrows) return;
+    double acc = 0.0;
+    for (long long g = 0; g < groups; ++g) acc += parts[g * nrows + r];
+    out[r] = acc;
+}
+"""
+#: Threads a block of ``device_even_product``'s kernels.
+GATHER_BLOCK = 256
 
 
 #: Run in a child process: it initialises CUDA there, not here (the harness forks its
@@ -383,12 +403,16 @@ class _DeviceState:
         self._indices: OrderedDict[int, tuple[np.ndarray, Any]] = OrderedDict()
 
     def spectrum(self, dtype: Any) -> Any:
-        """The kernel spectrum on the device in the precision of a real ``dtype``."""
+        """The kernel spectrum on the device in the precision of a real ``dtype``: the host's
+        copied once as it is, another precision converted from it there (no host copy)."""
         real = np.dtype(dtype)
         got = self._spectra.get(real.name)
         if got is None:
+            stored = self._spectra.get("stored")
+            if stored is None:
+                stored = self._spectra["stored"] = self.xp.asarray(self._khat)
             target = np.result_type(real, np.complex64) if np.iscomplexobj(self._khat) else real
-            got = self._spectra[real.name] = self.xp.asarray(self._khat.astype(target, copy=False))
+            got = self._spectra[real.name] = stored if stored.dtype == target else stored.astype(target)
         return got
 
     def quarter_table(self, table: np.ndarray, grid_shape: tuple[int, int]) -> tuple[Any, int]:
@@ -413,27 +437,38 @@ class _DeviceState:
 
 
 @functools.lru_cache(maxsize=1)
-def _even_gather_kernel(xp: ModuleType) -> Any:
-    """The fused partial product's kernel on CuPy ``xp`` (compiled on its first call)."""
-    return xp.ElementwiseKernel(*_EVEN_GATHER)
+def _even_gather_module(xp: ModuleType) -> Any:
+    """``_EVEN_GATHER_SOURCE`` as a CuPy module of ``xp`` (compiled on its first call)."""
+    return xp.RawModule(code=_EVEN_GATHER_SOURCE)
 
 
 def device_even_product(xp: ModuleType, table: Any, width: int, rows: tuple[Any, Any], cols: tuple[Any, Any],
                         x: Any) -> Any:
-    """``operators.even_table_product`` as one CuPy kernel: each (column group, row) element
-    sums its row's entries over a span of the columns in column order, and the groups'
-    sums are added in group order, so the answer does not depend on the launch.  rows and
-    cols are grid (row, column) positions of one integer dtype; x float64."""
+    """``operators.even_table_product`` by CUDA kernels of CuPy ``xp``: each (column group,
+    row) thread sums its row's entries over a span of the columns in column order, and the
+    groups' sums are added in group order, so the answer does not depend on the launch.
+    rows and cols are grid (row, column) positions; x the columns' amounts."""
     (ri, rj), (ci, cj) = rows, cols
     nrows, ncols = int(ri.size), int(ci.size)
     if nrows == 0 or ncols == 0:
         return xp.zeros(nrows, dtype=np.float64)
     span = -(-ncols // min(ncols, max(1, -(-GATHER_THREADS // nrows))))
     groups = -(-ncols // span)
-    out = xp.empty((groups, nrows), dtype=np.float64)
-    grp = xp.arange(groups, dtype=ri.dtype)[:, None]
-    _even_gather_kernel(xp)(ri, rj, grp, table, width, ci, cj, x, ncols, span, out)
-    return out[0] if groups == 1 else out.sum(axis=0)
+    cells = groups * nrows
+    ri, rj, ci, cj = (xp.ascontiguousarray(v, dtype=np.int64) for v in (ri, rj, ci, cj))
+    table, x = xp.ascontiguousarray(table, dtype=np.float64), xp.ascontiguousarray(x, dtype=np.float64)
+    module = _even_gather_module(xp)
+    parts = xp.empty(cells, dtype=np.float64)
+    module.get_function("contactbench_even_gather")(
+        (-(-cells // GATHER_BLOCK),), (GATHER_BLOCK,),
+        (table, np.int64(width), ri, rj, np.int64(nrows), ci, cj, x, np.int64(ncols), np.int64(span),
+         np.int64(cells), parts))
+    if groups == 1:
+        return parts
+    out = xp.empty(nrows, dtype=np.float64)
+    module.get_function("contactbench_group_sum")(
+        (-(-nrows // GATHER_BLOCK),), (GATHER_BLOCK,), (parts, np.int64(groups), np.int64(nrows), out))
+    return out
 
 
 class ArrayFFTOperator(FFTOperator):
