@@ -71,7 +71,7 @@ class CostRow:
     device_pool_mib: float  # CuPy's memory pool after the solve (--operator gpu; NaN otherwise)
     host: str
     timestamp: str
-    warmup_s: float = math.nan  # the untimed solve before it (--operator gpu: device_warmup.py)
+    warmup_s: float = math.nan  # the untimed solve of a twin before it: the cold figure (--operator gpu: device_warmup.py)
 
 
 def top_step(N: int, steps: int, operator: str):
@@ -93,7 +93,7 @@ def solve_top_step(N: int, solver: str, steps: int, operator: str, timeout: floa
     from contactbench.solvers.base import SolverSettings
 
     profile = get_profile("high")
-    warmup = warm_up_device(solver, params, operator)
+    warmup = warm_up_device(solver, params, operator, lambda: top_step(N, steps, operator)[0].qp)
     t0 = time.perf_counter()
     inst, recipe = top_step(N, steps, operator)
     setup = time.perf_counter() - t0

@@ -209,7 +209,7 @@ def solve_member(m: Member, variant: str, timeout: float, commit: str, repeats: 
     from contactbench.solvers.base import SolverSettings
 
     profile = get_profile("high")
-    warm_up_device(SOLVER, VARIANTS[variant], operator)
+    warm_up_device(SOLVER, VARIANTS[variant], operator, lambda: top_step(m, operator)[0].qp)
     inst, name = top_step(m, operator)
     params = VARIANTS[variant]
     settings = SolverSettings(tol=profile.tol, time_limit=timeout, params=dict(params))

@@ -51,3 +51,4 @@ def test_the_rows_name_the_machine_and_the_warm_up_is_device_only(monkeypatch: p
     monkeypatch.delenv("CONTACTBENCH_HOST")
     assert "cores)" in host_name() and host_name() != "vm"
     assert math.isnan(warm_up_device("fast-dual-pccg", {}, "fft"))
+    assert math.isnan(warm_up_device("fast-dual-pccg", {}, "fft", lambda: pytest.fail("a twin built off the device")))
