@@ -219,10 +219,14 @@ def write_markdown(rows: list[CostRow], path: Path, png: Path) -> None:
     ]
     lines += [f"| {label} | {fmt_fit(fm)} | {fmt_fit(fs)} |" for label, (fm, fs) in fits_of(rows).items()]
     lines += ["", "## Solves", "",
-              "| solver | operator | threads | params | N | n | status | iterations | matvecs | seconds | ms/matvec | kkt | peak RSS MiB | device pool MiB |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| solver | operator | threads | params | N | n | status | iterations | matvecs | seconds | ms/matvec | kkt | "
+              "peak RSS MiB | device pool MiB | cold twin s |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r.solver} | {r.operator} | {r.threads} | `{r.params}` | {r.N} | {r.n} | {r.status} | {r.iterations} | "
-              f"{r.matvecs} | {r.seconds:.2f} | {r.ms_per_matvec:.1f} | {r.kkt:.2e} | {r.peak_rss_mib:.0f} | {fmt_mib(r.device_pool_mib)} |" for r in rows]
+              f"{r.matvecs} | {r.seconds:.2f} | {r.ms_per_matvec:.1f} | {r.kkt:.2e} | {r.peak_rss_mib:.0f} | {fmt_mib(r.device_pool_mib)} | "
+              f"{'-' if math.isnan(r.warmup_s) else f'{r.warmup_s:.2f}'} |" for r in rows]
+    lines += ["", "A device row's seconds are a warm solve: it follows an untimed solve of a twin instance "
+              "(benchmarks/device_warmup.py), whose seconds, the cold figure, are the last column.", ""]
     lines += ["", f"![cost law]({png.name})", ""]
     path.write_text("\n".join(lines))
 
