@@ -23,7 +23,7 @@ from typing import Any, Callable
 import numpy as np
 
 from bench_cost_law import top_step
-from csv_rows import host_name, refuse_missing_device
+from csv_rows import host_name, refuse_bad_grid_sizes, refuse_missing_device
 
 
 def device_seconds(run: Callable[[], Any], sync: Callable[[], None], repeats: int) -> float:
@@ -46,8 +46,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", type=Path, default=Path("results/perf/gpu/device-partial.csv"))
     args = ap.parse_args()
-    if args.size < 16 or args.repeats < 1 or min(args.cols) < 1:
-        ap.error("--size must be >= 16, --repeats and every --cols >= 1")
+    refuse_bad_grid_sizes(ap, "--size", [args.size])
+    if args.repeats < 1 or min(args.cols) < 1:
+        ap.error("--repeats and every --cols must be >= 1")
     refuse_missing_device(ap, "gpu")
     from contactbench.problems import operators_gpu
 

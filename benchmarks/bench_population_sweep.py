@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 from contactbench.harness import load_table
-from csv_rows import host_name
+from csv_rows import host_name, refuse_bad_grid_sizes
 from bench_surface_population import FAMILIES, LENGTH, Member, code_commit, surface_of
 
 CB = str(Path(sys.executable).with_name("contactbench"))
@@ -137,8 +137,7 @@ def summary(members: list[Member], args: argparse.Namespace) -> str:
 
 def check_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> list[Member]:
     """One-line errors for bad input, before anything runs; the members."""
-    if args.size < 16 or args.size & (args.size - 1):
-        ap.error(f"--size must be a power of two >= 16 (the RMD families need N = 2^k), got {args.size}")
+    refuse_bad_grid_sizes(ap, "--size", [args.size])
     if args.steps < 1:
         ap.error(f"--steps must be >= 1, got {args.steps}")
     if not (args.timeout > 0):

@@ -29,6 +29,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from bench_surface_population import FAMILIES, THREAD_VARS, Member, check_choices, plan
+from csv_rows import refuse_bad_grid_sizes
 
 COLUMNS = ("member", "code", "matvecs", "iterations", "builds", "seconds", "status", "n")
 
@@ -96,8 +97,7 @@ def checked_args(ap: argparse.ArgumentParser) -> argparse.Namespace:
         if not (Path(getattr(args, name)) / ".venv" / "bin" / "python").is_file():
             ap.error(f"--{name} {getattr(args, name)}: no .venv/bin/python there (run `make` in that checkout)")
     check_choices(ap, "family", args.families, FAMILIES)
-    if args.size < 16 or args.size & (args.size - 1):
-        ap.error(f"--size must be a power of two >= 16, got {args.size}")
+    refuse_bad_grid_sizes(ap, "--size", [args.size])
     if args.seeds < 1 or args.first_seed < 0 or args.threads < 1 or not args.timeout > 0:
         ap.error("--seeds and --threads must be >= 1, --first-seed >= 0 and --timeout > 0")
     return args

@@ -57,7 +57,7 @@ from pathlib import Path
 
 import numpy as np
 from device_warmup import warm_up_device
-from csv_rows import append_row, child_result, read_latest, host_name, refuse_missing_device
+from csv_rows import append_row, child_result, host_name, read_latest, refuse_bad_grid_sizes, refuse_missing_device
 
 FAMILIES = ("saupe", "periodic", "fourier", "measured")
 #: (Hurst exponent, rms slope) cells below 4096^2 ...
@@ -414,8 +414,7 @@ def check_choices(ap: argparse.ArgumentParser, what: str, text: str, allowed: Se
 def check_population_args(ap: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """The checks every population benchmark shares: --families, --sizes, --seeds."""
     check_choices(ap, "family", args.families, FAMILIES)
-    if any(N < 16 or N & (N - 1) for N in args.sizes):
-        ap.error(f"--sizes must be powers of two >= 16 (the RMD families need N = 2^k), got {args.sizes}")
+    refuse_bad_grid_sizes(ap, "--sizes", args.sizes)
     try:
         seeds = parse_seeds(args.seeds)
     except ValueError:

@@ -29,6 +29,14 @@ def cpu_model() -> str:
     return platform.processor() or "unknown CPU"
 
 
+def refuse_bad_grid_sizes(ap: argparse.ArgumentParser, flag: str, sizes: list[int]) -> None:
+    """Exit 2 in one line unless every size is a power of two >= 16 (the RMD recipes the
+    benchmarks pose need N = 2^k)."""
+    if any(N < 16 or N & (N - 1) for N in sizes):
+        shown = sizes if len(sizes) > 1 else sizes[0]
+        ap.error(f"{flag} must be a power of two >= 16 (the RMD surfaces need N = 2^k), got {shown}")
+
+
 def refuse_missing_device(ap: argparse.ArgumentParser, operator: str) -> None:
     """Exit 2 with the reason in one line when ``operator`` is "gpu" and CuPy or a CUDA
     device is missing, before any solve (not once per child)."""

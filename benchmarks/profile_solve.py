@@ -22,7 +22,7 @@ import re
 import time
 
 from bench_cost_law import top_step
-from csv_rows import host_name, refuse_missing_device
+from csv_rows import host_name, refuse_bad_grid_sizes, refuse_missing_device
 from device_warmup import warm_up_device
 
 
@@ -56,14 +56,13 @@ def main() -> None:
     ap.add_argument("--params", default="{}", help="solver params as JSON")
     ap.add_argument("--top", type=int, default=30, help="functions listed")
     ap.add_argument("--callers", type=int, default=0, help="... and the callers of this many of them")
-    ap.add_argument("--chains", default=None, help="regex: the caller chains of the functions it names")
+    ap.add_argument("--chains", default=None, help="regex on 'file:line(function)': those functions' caller chains")
     ap.add_argument("--depth", type=int, default=5, help="frames of a --chains chain")
     args = ap.parse_args()
     params = json.loads(args.params)
     if not isinstance(params, dict):
         ap.error("--params must be a JSON object")
-    if args.size < 16 or args.size & (args.size - 1):
-        ap.error(f"--size must be a power of two >= 16, got {args.size}")
+    refuse_bad_grid_sizes(ap, "--size", [args.size])
     refuse_missing_device(ap, args.operator)
     from contactbench.solvers.base import SolverSettings
     from contactbench.solvers.registry import get_solver

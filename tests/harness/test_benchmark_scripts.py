@@ -25,11 +25,15 @@ def last_line(text: str) -> str:
 
 
 def test_profile_solve_profiles_a_solve_and_refuses_a_bad_size() -> None:
-    done = run_script("profile_solve.py", "--size", "64", "--top", "3", "--callers", "1")
+    done = run_script("profile_solve.py", "--size", "64", "--top", "3", "--callers", "1", "--chains", r"\(matvec\)",
+                      "--depth", "2")
     assert done.returncode == 0, done.stderr
     assert "converged" in done.stdout and "was called by" in done.stdout
+    chain = done.stdout[done.stdout.index("(matvec): "):]  # the chains: a callee, then its callers indented
+    assert "calls" in chain and "\n  <- " in chain
     bad = run_script("profile_solve.py", "--size", "100")
-    assert bad.returncode == 2 and "--size must be a power of two >= 16, got 100" in last_line(bad.stderr)
+    line = last_line(bad.stderr)
+    assert bad.returncode == 2 and "--size must be a power of two >= 16" in line and "got 100" in line
 
 
 @pytest.mark.skipif(gpu_unavailable_reason() is None, reason="CuPy and a CUDA device are present")
