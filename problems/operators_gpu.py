@@ -59,7 +59,7 @@ INDEX_CACHE_SIZE = 8
 #: 2^24 entries hold 128 MiB of offsets and 128 MiB of entries in the pool.
 DEVICE_PARTIAL_CHUNK = 1 << 24
 #: Whether CuPy's partial products run as CUDA kernels (``device_even_product``): no offset
-#: or entry array in the pool, one pass over the rows (against the chunks: 10x less time,
+#: or entry array in the pool, one pass over the rows (6-16x faster than the chunks,
 #: results/perf/gpu/device-partial.csv).  Otherwise (and on any other array module: a
 #: test's fake device) in chunks of array operations (``even_table_product``).
 FUSED_GATHER = True
@@ -504,7 +504,7 @@ class ArrayFFTOperator(FFTOperator):
     def partial_product(self, rows: Any, cols: Any, x: Any) -> Any:
         """``FFTOperator.partial_product``; with rows, cols and x in ``space``, there: the
         entries gathered from the kernel table's quarter on the device (an even table,
-        K(di, dj) = table[|di|, |dj|]; on CuPy by one kernel, ``device_even_product``,
+        K(di, dj) = table[|di|, |dj|]; on CuPy by CUDA kernels, ``device_even_product``,
         unless ``FUSED_GATHER`` is off); for a table that is not even, the host's, its few
         rows and columns moved explicitly."""
         if on_host(rows) or self.space.host:
