@@ -152,15 +152,18 @@ def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
         _ducc_fft.c2r(src[a : a + step], axes=(1,), lastsize=dst.shape[1], forward=False, inorm=2, out=dst[a : a + step], nthreads=1)
 
 
-#: Row blocks are shared over threads only for grids of at least this many padded-row
-#: entries per thread (N1 x P1): below, one thread does them (a thread's dispatch costs
-#: more than its share of a small grid's rows).
-ROW_THREAD_ENTRIES = 1 << 17
+#: A convolution's row blocks and column pass are shared over threads only for at least
+#: this many bytes of padded-row field (N1 x P1 x itemsize) per thread: below, one thread
+#: does them (a thread's dispatch costs more than its share of a small grid).  On two cores
+#: two threads took 1.23-1.39x one thread's time on a 256^2-512^2 periodic product, about
+#: the same on a 512^2 non-periodic one and 1.02-1.47x less from 1024^2 (4 MiB and more).
+ROW_THREAD_BYTES = 4 << 20
 
 
-def row_threads(n1: int, p1: int, workers: int) -> int:
-    """Threads for the row blocks of an N1 x P1 padded-row field (``ROW_THREAD_ENTRIES``)."""
-    return int(min(max(1, workers), max(1, n1 * p1 // ROW_THREAD_ENTRIES)))
+def row_threads(n1: int, p1: int, workers: int, itemsize: int = 8) -> int:
+    """Threads for the row blocks and column pass of an N1 x P1 padded-row field of
+    ``itemsize``-byte reals (``ROW_THREAD_BYTES``), at most ``workers``."""
+    return int(min(max(1, workers), max(1, n1 * p1 * itemsize // ROW_THREAD_BYTES)))
 
 
 def column_block(p0: int, complex_itemsize: int) -> int:
@@ -255,7 +258,8 @@ class KernelTransform:
     columns at a time in a small buffer that stays in cache (zero-padded there, so
     only the N1 x (P1/2+1) half spectrum is held and nothing is cleared in memory);
     the blocks are copied in transposed, so each column is a contiguous row of the
-    buffer, and shared out over ``fft_workers()`` threads; short columns
+    buffer, and shared out over up to ``fft_workers()`` threads (``row_threads``: one for a
+    small grid); short columns
     (``blocked_columns``) take one call per direction over the whole spectrum instead.
     The row transforms run block by block of rows (``ROW_BLOCK_BYTES``, ``_RowPlan``): the
     block's input is copied or scattered into a small buffer and transformed from there,
@@ -418,13 +422,13 @@ class KernelTransform:
         """out <- gather (K * scatter x) with ducc0: x and out hold the values at the padded
         flat indices ``pidx``, or the whole physical grid when ``pidx`` is None or is the
         whole grid in row-major order.  Row blocks (``_RowPlan``) and the column pass are
-        shared out over ``fft_workers()`` threads."""
-        w = fft_workers()
+        shared out over ``row_threads`` of the ``fft_workers()`` threads."""
+        w = row_threads(work.n1, work.p1, fft_workers(), work.dtype.itemsize)
         self.fft_count += 2
         plan = work.plan(pidx)
         if plan.whole:
             x, out = np.reshape(x, self.grid_shape), np.reshape(out, self.grid_shape)
-        chunks = _block_chunks(work.row_blocks, 1, row_threads(work.n1, work.p1, w))
+        chunks = _block_chunks(work.row_blocks, 1, w)
         buffers = work.row_buffers(len(chunks))
         share_out([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
         self._column_pass(work, w)
@@ -506,8 +510,8 @@ def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layou
             _c2r_rows(rows[a : a + rb], out[a : a + rb], batch)
 
     def pair() -> None:
-        w = fft_workers()
-        chunks = _block_chunks(n1, rb, row_threads(n1, p1, w))
+        w = row_threads(n1, p1, fft_workers(), dt.itemsize)
+        chunks = _block_chunks(n1, rb, w)
         if blocks:
             share_out([partial(forward, c) for c in chunks])
         else:

@@ -398,3 +398,30 @@ def test_a_large_partial_product_is_shared_out_the_same_on_any_threads(kernel: s
     few = cols[:operators.PARTIAL_PRODUCT_GROUPS - 1]
     np.testing.assert_allclose(op.partial_product(rows, few, x[:few.size]), H[np.ix_(rows, few)] @ x[:few.size],
                                rtol=1e-13, atol=0)
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_a_product_is_the_same_on_any_threads_and_a_small_grid_takes_one(periodic: bool,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """The row blocks and the column pass go out over ``row_threads`` of the FFT threads: one
+    thread for a field under ``ROW_THREAD_BYTES`` a thread (a float32 field counts half a
+    float64 one), never more than the workers; with the threshold at one byte the products
+    on 1, 2 and 3 threads are the one-thread product, in both precisions."""
+    from contactbench.problems import fft_transform
+
+    small, big = fft_transform.ROW_THREAD_BYTES // 8, fft_transform.ROW_THREAD_BYTES
+    assert fft_transform.row_threads(1, small, 16) == 1 and fft_transform.row_threads(1, 2 * big // 4, 16, 4) == 2
+    assert fft_transform.row_threads(1, 2 * big // 8, 16, 4) == 1 and fft_transform.row_threads(1024, big, 3) == 3
+    assert fft_transform.row_threads(1, 1, 0) == 1
+    rng = np.random.default_rng(12)
+    idx = random_subset(rng, 0.7)
+    op = FFTOperator(KernelTransform(kernel_table("bcc", (N, N), DELTA, E, periodic), (N, N)), idx, auto_dense=False)
+    x = rng.random(idx.size)
+    monkeypatch.setattr(fft_transform, "ROW_THREAD_BYTES", 1)
+    for dtype in (np.float64, np.float32):
+        answers = []
+        for workers in ("1", "2", "3"):
+            monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+            answers.append(op.with_precision(dtype).matvec(x))
+        for a in answers[1:]:
+            np.testing.assert_allclose(a, answers[0], rtol=1e-6 if dtype == np.float32 else 1e-13, atol=0)
