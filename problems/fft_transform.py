@@ -155,8 +155,8 @@ def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
 #: A convolution's row blocks and column pass are shared over threads only for at least
 #: this many bytes of padded-row field (N1 x P1 x itemsize) per thread: below, one thread
 #: does them (a thread's dispatch costs more than its share of a small grid).  On two cores
-#: two threads took 1.23-1.39x one thread's time on a 256^2-512^2 periodic product, about
-#: the same on a 512^2 non-periodic one and 1.02-1.47x less from 1024^2 (4 MiB and more).
+#: two threads took up to 1.39x one thread's time on a 256^2-512^2 product and up to 1.47x
+#: less from 1024^2 (results/perf/small-grid-threads).
 ROW_THREAD_BYTES = 4 << 20
 
 
