@@ -86,8 +86,9 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
     ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None on a set of more
     than ``max_fraction`` of the unknowns (``MAX_SET_FRACTION`` unless the solve was opened,
-    ``IslandPreconditioner.far_fraction``), when the near-tile
-    sums would gather more than ``budget`` entries, there is one aggregate, or an
+    ``IslandPreconditioner.far_fraction``), when the near-tile sums of both orders would
+    gather more than ``budget`` entries (each pair is gathered once: about half), there is
+    one aggregate, or an
     aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
     divides by its square root)."""
     if pos.size < 2 or pos.size > max_fraction * i.size:
@@ -107,10 +108,11 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     aggregate = np.full(i.size, -1, dtype=np.int64)
     aggregate[pos] = agg
     A = galerkin_far(H, i, j, pos, agg, count)
-    for a in range(m):  # exact sums over neighbouring tiles
-        cols = np.concatenate([members_of[b] for b in near[a]])
+    for a in range(m):  # exact sums over neighbouring tiles, each pair once (H is symmetric)
+        later = near[a][near[a] >= a]
+        cols = np.concatenate([members_of[b] for b in later])
         col_sums = H.partial_product(cols, members_of[a], np.ones(members_of[a].size))
-        A[a, near[a]] = np.bincount(aggregate[cols], weights=col_sums, minlength=m)[near[a]]
+        A[a, later] = A[later, a] = np.bincount(aggregate[cols], weights=col_sums, minlength=m)[later]
     A = 0.5 * (A + A.T)
     w = 1.0 / count
     E = w[:, None] * (A - np.diag(np.bincount(agg, weights=block_sums[pos], minlength=m))) * w[None, :]
