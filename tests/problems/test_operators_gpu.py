@@ -15,7 +15,7 @@ import pytest
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import InstanceBuilder, check_operator_kind
 from contactbench.problems.kernels import kernel_table
-from contactbench.problems.operators import FFTOperator, KernelTransform
+from contactbench.problems.operators import FFTOperator, KernelTransform, even_table_product
 from contactbench.problems import operators_gpu
 from contactbench.problems.operators_gpu import (
     ArrayFFTOperator,
@@ -307,3 +307,58 @@ def test_device_misfit_says_why_and_stays_quiet_without_a_device(monkeypatch) ->
     assert "16384 x 16384 non-periodic grid needs about" in gpu.device_misfit((16384, 16384), False)  # the whole
     why = gpu.device_misfit((32768, 32768), False)
     assert why is not None and "needs about 457" in why and "has 80.0 GiB" in why
+
+
+class _KernelStandIn:
+    """CuPy's RawModule for ``device_even_product``'s source, its two kernels done in NumPy
+    from the launch's arguments (what the CUDA code computes, checked here for the launch:
+    the argument order and types, the grid covering every cell, the column groups)."""
+
+    def __init__(self, code: str) -> None:
+        assert "contactbench_even_gather" in code and "contactbench_group_sum" in code
+
+    def get_function(self, name: str):
+        def gather(grid, block, args):
+            table, width, ri, rj, nrows, ci, cj, x, ncols, span, cells, out = args
+            assert all(isinstance(v, np.int64) for v in (width, nrows, ncols, span, cells))
+            assert table.dtype == x.dtype == out.dtype == np.float64
+            assert ri.dtype == rj.dtype == ci.dtype == cj.dtype == np.int64
+            assert grid[0] * block[0] >= cells == out.size and cells % nrows == 0
+            for g in range(int(cells // nrows)):
+                k = np.arange(g * span, min(g * span + span, int(ncols)))
+                entries = table[np.abs(ri[:, None] - ci[k]) * width + np.abs(rj[:, None] - cj[k])]
+                out[g * nrows:(g + 1) * nrows] = entries @ x[k]
+
+        def group_sum(grid, block, args):
+            parts, groups, nrows, out = args
+            assert grid[0] * block[0] >= nrows == out.size
+            out[:] = parts.reshape(int(groups), int(nrows)).sum(axis=0)
+
+        return {"contactbench_even_gather": gather, "contactbench_group_sum": group_sum}[name]
+
+
+@pytest.mark.parametrize("threads", [1, 64 * 5, 1 << 18])
+def test_the_fused_partial_products_launch_gives_the_formula(threads: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``device_even_product`` on a NumPy stand-in for CuPy's kernels: its columns in one
+    group, a few or one each, the groups added back; the chunked formula's answer, and no
+    rows or no columns give zeros of the rows' length."""
+    class StandInCuPy:  # hashable, as a module is (the kernel module is cached per array module)
+        zeros, empty, ascontiguousarray = staticmethod(np.zeros), staticmethod(np.empty), staticmethod(np.ascontiguousarray)
+        RawModule = _KernelStandIn
+
+    monkeypatch.setattr(operators_gpu, "GATHER_THREADS", threads)
+    xp = StandInCuPy()
+    operators_gpu._even_gather_module.cache_clear()
+    rng = np.random.default_rng(5)
+    table, width = rng.random(24 * 24), 24
+    ri, rj = np.divmod(np.sort(rng.choice(24 * 24, 60, replace=False)), 24)
+    ci, cj = np.divmod(rng.choice(24 * 24, 37, replace=False), 24)
+    x = rng.random(37)
+    try:
+        got = operators_gpu.device_even_product(xp, table, width, (ri, rj), (ci, cj), x)
+        none = operators_gpu.device_even_product(xp, table, width, (ri, rj), (ci[:0], cj[:0]), x[:0])
+    finally:
+        operators_gpu._even_gather_module.cache_clear()
+    want = even_table_product(table, width, (ri, rj), (ci, cj), x)
+    np.testing.assert_allclose(got, want, rtol=1e-13, atol=0)
+    assert none.shape == (60,) and not none.any()
