@@ -53,7 +53,8 @@ from .operators import FFTOperator, KernelTransform, even_table_product, operato
 ARRAY_MODULES = ("numpy", "cupy")
 #: Device copies of index sets kept per transform (one per operator in use, about).
 INDEX_CACHE_SIZE = 8
-#: Entries a device partial product gathers at a time (``operators.even_table_product``):
+#: Entries a device partial product gathers at a time where it runs as array operations
+#: (``FUSED_GATHER`` off, or a test's fake device; ``operators.even_table_product``):
 #: the host's cache-sized chunk took one column a pass on the sets of a 4096^2 solve, some
 #: 30 passes of six kernels each a product and a third of the solve (results/perf/gpu.md);
 #: 2^24 entries hold 128 MiB of offsets and 128 MiB of entries in the pool.
@@ -398,6 +399,7 @@ class _DeviceState:
     def __init__(self, xp: ModuleType, khat: np.ndarray) -> None:
         self.xp = xp
         self._khat = khat
+        self._stored: Any = None  # the spectrum as the host holds it, copied once
         self._spectra: dict[str, Any] = {}
         self._quarter: Any = None
         self._indices: OrderedDict[int, tuple[np.ndarray, Any]] = OrderedDict()
@@ -408,11 +410,10 @@ class _DeviceState:
         real = np.dtype(dtype)
         got = self._spectra.get(real.name)
         if got is None:
-            stored = self._spectra.get("stored")
-            if stored is None:
-                stored = self._spectra["stored"] = self.xp.asarray(self._khat)
+            if self._stored is None:
+                self._stored = self.xp.asarray(self._khat)
             target = np.result_type(real, np.complex64) if np.iscomplexobj(self._khat) else real
-            got = self._spectra[real.name] = stored if stored.dtype == target else stored.astype(target)
+            got = self._spectra[real.name] = self._stored if self._stored.dtype == target else self._stored.astype(target)
         return got
 
     def quarter_table(self, table: np.ndarray, grid_shape: tuple[int, int]) -> tuple[Any, int]:
