@@ -86,8 +86,8 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
     ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None on a set of more
     than ``max_fraction`` of the unknowns (``MAX_SET_FRACTION`` unless the solve was opened,
-    ``IslandPreconditioner.far_fraction``), when the near-tile sums of both orders would
-    gather more than ``budget`` entries (each pair is gathered once: about half), there is
+    ``IslandPreconditioner.far_fraction``), when the near-tile sums would
+    gather more than ``budget`` entries (``gathered_entries``: each pair once), there is
     one aggregate, or an
     aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
     divides by its square root)."""
@@ -99,8 +99,8 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     m = labels.size
     count = np.bincount(agg, minlength=m).astype(float)
     ti, tj = labels // (1 << 32), labels % (1 << 32)
-    near = [np.flatnonzero((np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1)) for a in range(m)]
-    if m < 2 or sum(count[a] * count[nb].sum() for a, nb in enumerate(near)) > budget:
+    later = later_neighbours(ti, tj)
+    if m < 2 or gathered_entries(count, later) > budget:
         return None
     order = np.argsort(agg, kind="stable")
     starts = np.r_[0, np.cumsum(count.astype(np.int64))]
@@ -108,11 +108,10 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     aggregate = np.full(i.size, -1, dtype=np.int64)
     aggregate[pos] = agg
     A = galerkin_far(H, i, j, pos, agg, count)
-    for a in range(m):  # exact sums over neighbouring tiles, each pair once (H is symmetric)
-        later = near[a][near[a] >= a]
-        cols = np.concatenate([members_of[b] for b in later])
+    for a, nb in enumerate(later):  # exact sums over neighbouring tiles, each pair once (H is symmetric)
+        cols = np.concatenate([members_of[b] for b in nb])
         col_sums = H.partial_product(cols, members_of[a], np.ones(members_of[a].size))
-        A[a, later] = A[later, a] = np.bincount(aggregate[cols], weights=col_sums, minlength=m)[later]
+        A[a, nb] = A[nb, a] = np.bincount(aggregate[cols], weights=col_sums, minlength=m)[nb]
     A = 0.5 * (A + A.T)
     w = 1.0 / count
     E = w[:, None] * (A - np.diag(np.bincount(agg, weights=block_sums[pos], minlength=m))) * w[None, :]
@@ -124,6 +123,19 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     mu = np.maximum(mu, 0.0)
     K = (Q * (mu / (1.0 + mu))) @ Q.T / d[:, None] / d[None, :]
     return FarField(aggregate, v, K)
+
+
+def later_neighbours(ti: np.ndarray, tj: np.ndarray) -> list[np.ndarray]:
+    """For each aggregate a (tile row ``ti[a]``, column ``tj[a]``), the aggregates b >= a on
+    the tiles around it and its own: each neighbouring pair once."""
+    return [np.flatnonzero((np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1) & (np.arange(ti.size) >= a))
+            for a in range(ti.size)]
+
+
+def gathered_entries(count: np.ndarray, later: list[np.ndarray]) -> float:
+    """The operator entries the near-tile sums gather: |a| x |b| for each pair of
+    ``later_neighbours`` (``count``: the aggregates' sizes)."""
+    return float(sum(count[a] * count[nb].sum() for a, nb in enumerate(later)))
 
 
 def galerkin_far(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, agg: np.ndarray,

@@ -341,6 +341,34 @@ def test_far_field_correction_is_symmetric_positive_definite_on_its_set_and_a_su
         assert np.min(np.linalg.eigvalsh(0.5 * (P + P.T))) > 0
 
 
+def test_far_field_budget_counts_the_entries_it_gathers(monkeypatch):
+    """The near-tile sums gather each neighbouring pair of aggregates once; the build budget
+    is compared with that count (``gathered_entries``), not with both orders' (twice it):
+    a budget one entry short refuses the correction, the exact count builds it."""
+    from contactbench.solvers import _farfield
+    from contactbench.solvers import _preconditioners as prec_mod
+
+    inst, S = far_field_case(128)
+    calls = []
+    monkeypatch.setattr(prec_mod, "build_far_field", lambda *a: calls.append(a) or _farfield.build_far_field(*a))
+    M = make_preconditioner("farfield", inst.qp)
+    M.update(S)
+    H, i, j, pos, lead, v, sums, _budget, fraction = calls[-1]
+    T = _farfield.tile_size(i[pos], j[pos])
+    labels, agg = np.unique((i[lead[pos]] // T) * (1 << 32) + j[lead[pos]] // T, return_inverse=True)
+    count = np.bincount(agg).astype(float)
+    later = _farfield.later_neighbours(labels // (1 << 32), labels % (1 << 32))
+    entries = _farfield.gathered_entries(count, later)
+    ti, tj = labels // (1 << 32), labels % (1 << 32)
+    both_orders = sum(count[a] * count[(np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1)].sum()
+                      for a in range(count.size))
+    assert entries == pytest.approx(0.5 * (both_orders + np.sum(count**2)))  # pairs once, each tile with itself
+    assert entries < both_orders
+    assert all(b.size >= 1 and b[0] == a for a, b in enumerate(later))  # its own tile first, then later ones
+    assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, entries - 1, fraction) is None
+    assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, entries, fraction) is not None
+
+
 def pcg_iterations(H: np.ndarray, b: np.ndarray, prec) -> int:
     x, r = np.zeros_like(b), b.copy()
     z = prec(r)
