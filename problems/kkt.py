@@ -60,6 +60,7 @@ With no bounds and no load equality the plain figures above are computed, unchan
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass
 from typing import Any, Protocol
 
@@ -131,21 +132,34 @@ def worst(*xs: float) -> float:
     return max(worse(x) for x in xs)
 
 
+def read_scalars(*values: Any) -> list[float]:
+    """Zero-dimensional results of one array module (NumPy's, or a device's) as floats,
+    read together: on a device, one transfer and one wait instead of one per value
+    (a bool reads as 0.0 or 1.0)."""
+    if all(isinstance(v, (np.generic, numbers.Number)) for v in values):  # the host's: read already
+        return [float(v) for v in values]
+    return [float(v) for v in np.stack([v.astype(np.float64) for v in values]).tolist()]
+
+
+def below_zero(m: float) -> float:
+    """min(m, 0), NaN for NaN."""
+    return m if not m >= 0.0 else 0.0
+
+
+def above_zero(m: float) -> float:
+    """max(m, 0), NaN for NaN."""
+    return m if not m <= 0.0 else 0.0
+
+
 def min_below_zero(x: Any) -> float:
     """min(min x, 0) as a float, NaN when x holds a NaN, 0 for an empty x: ``np.min(x,
     initial=0.0)`` in any array module (CuPy's reductions take no ``initial``)."""
-    if x.size == 0:
-        return 0.0
-    m = float(np.min(x))
-    return m if not m >= 0.0 else 0.0
+    return below_zero(float(np.min(x))) if x.size else 0.0
 
 
 def max_above_zero(x: Any) -> float:
     """max(max x, 0) as a float, NaN when x holds a NaN, 0 for an empty x (``min_below_zero``)."""
-    if x.size == 0:
-        return 0.0
-    m = float(np.max(x))
-    return m if not m <= 0.0 else 0.0
+    return above_zero(float(np.max(x))) if x.size else 0.0
 
 
 def _negative_part(x: float) -> float:
@@ -181,15 +195,26 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
     A non-finite entry of p or w, or a product that overflows, gives inf."""
     u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
     with np.errstate(all="ignore"):
-        primal = _negative_part(min_below_zero(p)) / p_s
-        dual = _negative_part(min_below_zero(w)) / u_s
         t = np.multiply(p, 1.0 / p_s)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow
         np.multiply(t, w, out=t)
-        comp = worst(max_above_zero(t), -min_below_zero(t)) / u_s
-    primal, dual, comp = worse(primal), worse(dual), worse(comp)
-    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(w))):
+        p_min, w_min, t_max, t_min, finite = _extremes(p, w, t)
+        primal = worse(_negative_part(below_zero(p_min)) / p_s)
+        dual = worse(_negative_part(below_zero(w_min)) / u_s)
+        comp = worse(worst(above_zero(t_max), -below_zero(t_min)) / u_s)
+    if not finite:
         primal = dual = comp = math.inf  # an answer or gap with inf or NaN entries is no answer
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp), u_s, p_s)
+
+
+def _extremes(p: Any, w: Any, t: Any) -> tuple[float, float, float, float, bool]:
+    """min p, min w, max t, min t (0 for an empty array; NaN propagates) and whether p and
+    w are finite, read in one transfer (``read_scalars``)."""
+    if p.size == 0 or w.size == 0:
+        finite = bool(np.all(np.isfinite(p)) and np.all(np.isfinite(w)))
+        return min_below_zero(p), min_below_zero(w), max_above_zero(t), min_below_zero(t), finite
+    p_min, w_min, t_max, t_min, finite = read_scalars(np.min(p), np.min(w), np.max(t), np.min(t),
+                                                      np.all(np.isfinite(p)) & np.all(np.isfinite(w)))
+    return p_min, w_min, t_max, t_min, finite == 1.0
 
 
 def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,

@@ -85,7 +85,7 @@ from abc import abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
-from contactbench.problems.kkt import min_below_zero
+from contactbench.problems.kkt import min_below_zero, read_scalars
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
 
@@ -405,8 +405,7 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         if run.converged or ctx.expired():
             return run
         Hd = state.H.matvec(d)
-        dHd = float(d @ Hd)
-        alpha = -float(res @ d) / dHd if dHd > 0.0 else math.nan
+        alpha, dHd = exact_step(res, d, Hd)
         if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
             state.refresh()
             res = dual_residual(state, u)
@@ -427,6 +426,13 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
     return CCGRun(max_iter, run.kkt, False)
 
 
+def exact_step(res: np.ndarray, d: np.ndarray, Hd: np.ndarray) -> tuple[float, float]:
+    """(alpha, d'Hd): the exact line-search step -res'd / d'Hd along d (NaN where the
+    curvature d'Hd is not positive), both products read in one transfer."""
+    dHd, rd = read_scalars(d @ Hd, res @ d)
+    return (-rd / dHd if dHd > 0.0 else math.nan), dHd
+
+
 def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curvature: float) -> float:
     """Polak-Ribiere's beta of the Bugnicourt loops (preconditioned: z = M^-1 res),
     (z'res - z'res_old) / (alpha d'Hd) with alpha d'Hd = -res_old'd; 0 (a restart along
@@ -438,7 +444,8 @@ def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curv
     members; results/perf/device-choice/README.md)."""
     if step_curvature == 0.0 or not math.isfinite(step_curvature):
         return 0.0
-    beta = (float(z @ res) - float(z @ res_old)) / step_curvature
+    z_res, z_res_old = read_scalars(z @ res, z @ res_old)
+    beta = (z_res - z_res_old) / step_curvature
     return beta if abs(beta) <= MAX_BETA else 0.0
 
 

@@ -79,9 +79,9 @@ from dataclasses import replace
 import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
-from contactbench.problems.kkt import min_below_zero
+from contactbench.problems.kkt import min_below_zero, read_scalars
 
-from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, entering_force, inward, on_set, polak_ribiere,
+from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, entering_force, exact_step, inward, on_set, polak_ribiere,
                    precondition_on)
 from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
@@ -398,8 +398,8 @@ def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarr
     """p, in place, back in the feasible set after a step (module doc): clipped to the box,
     the entering points moved by ``force`` (a raise at p = 0, a cut at p = u), scaled to
     the load.  Whether p changed."""
-    before = float(np.sum(p))
-    clipped = bool(np.any(p < 0.0) or np.any(p > u))
+    before, outside = read_scalars(np.sum(p), np.any(p < 0.0) | np.any(p > u))
+    clipped = outside == 1.0
     np.clip(p, 0.0, u, out=p)
     if entering.size:
         p[entering] = np.clip(p[entering] + force, 0.0, u[entering])
@@ -466,8 +466,7 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             d = inward(-_dual_direction(M, res), state, res, u)
             continue
         Hd = state.H.matvec(d)
-        dHd = float(d @ Hd)
-        alpha = -float(res @ d) / dHd if dHd > 0.0 else math.nan
+        alpha, dHd = exact_step(res, d, Hd)
         if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
             state.refresh()
             delta, res = _dual_residual(state, u, c)

@@ -78,6 +78,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
+from contactbench.problems.kkt import read_scalars
 from contactbench.problems.fft_transform import fft_workers, share_out, spectral_multiply
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
@@ -116,7 +117,8 @@ def drifted(S: np.ndarray, reference: np.ndarray | None, fraction: float) -> boo
     ``fraction`` of |S| points: the rebuild test of the island blocks and of the far field."""
     if reference is None:
         return True
-    return int(np.count_nonzero(S != reference)) > fraction * max(1, int(np.count_nonzero(S)))
+    changed, size = read_scalars(np.count_nonzero(S != reference), np.count_nonzero(S))
+    return changed > fraction * max(1.0, size)
 
 
 def block_width(sizes: np.ndarray) -> np.ndarray:

@@ -134,6 +134,12 @@ class DeviceArray(NDArrayOperatorsMixin):
     def item(self) -> Any:
         return self._scalar()
 
+    def tolist(self) -> Any:
+        """A small array read on the host in one transfer (what a loop waits on once for
+        several scalars): counted as one scalar read."""
+        TRANSFERS.scalars += 1
+        return self.a.tolist()
+
     def get(self) -> np.ndarray:
         """The explicit download (CuPy's ``ndarray.get``)."""
         TRANSFERS.downloads += 1

@@ -110,6 +110,33 @@ def test_a_device_solve_keeps_its_vectors_there(builder_and_instance, control, n
         assert dev.multiplier == pytest.approx(host.multiplier, rel=1e-6)
 
 
+#: Host waits an iteration of the displacement-controlled device loop may cost: the KKT
+#: figures, the exact step, the clip test, the Polak-Ribiere beta and a clip's settling --
+#: each a single read of its scalars (``kkt.read_scalars``), not one read per scalar.
+SCALAR_READS_PER_ITERATION = 7
+
+
+def test_a_device_iteration_waits_on_the_host_a_few_times(builder_and_instance) -> None:
+    builder, inst = builder_and_instance
+    before = TRANSFERS.scalars
+    dev = solve("fast-dual-pccg", on_space(builder, inst.qp, SPACE))
+    reads = TRANSFERS.scalars - before
+    assert dev.status == "converged" and dev.iterations >= 10
+    assert reads <= SCALAR_READS_PER_ITERATION * dev.iterations + 10, (reads, dev.iterations)
+
+
+def test_read_scalars_reads_a_device_s_values_at_once() -> None:
+    from contactbench.problems.kkt import read_scalars
+
+    x = SPACE.put(np.array([1.0, -2.0, np.nan]))
+    before = TRANSFERS.scalars
+    got = read_scalars(np.min(x[:2]), np.max(x), np.all(np.isfinite(x[:2])), np.count_nonzero(x > 0.0))
+    assert TRANSFERS.scalars == before + 1
+    assert got[0] == -2.0 and np.isnan(got[1]) and got[2:] == [1.0, 1.0]
+    host = read_scalars(np.float32(0.5), np.bool_(False), 3)
+    assert host == [0.5, 0.0, 3.0] and all(type(v) is float for v in host)
+
+
 @pytest.mark.parametrize("control", ["displacement", "load"])
 @pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-ccg"])
 def test_the_numpy_space_is_the_host_loop(builder_and_instance, control, name) -> None:
