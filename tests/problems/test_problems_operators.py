@@ -425,3 +425,14 @@ def test_a_product_is_the_same_on_any_threads_and_a_small_grid_takes_one(periodi
             answers.append(op.with_precision(dtype).matvec(x))
         for a in answers[1:]:
             np.testing.assert_allclose(a, answers[0], rtol=1e-6 if dtype == np.float32 else 1e-13, atol=0)
+
+
+@pytest.mark.parametrize("shape", [(40, 40), (300, 170)])
+def test_the_transposed_spectrum_is_the_spectrum_transposed(shape: tuple[int, int]) -> None:
+    """Tile by tile (``fft_transform.TRANSPOSE_TILE``), ragged edges included, in each precision."""
+    transform = KernelTransform(kernel_table("bcc", shape, DELTA, E, False), shape)
+    assert transform.khat.shape[0] > 256 or shape == (40, 40)
+    for dtype in (np.float64, np.float32):
+        got = transform.transposed_spectrum(dtype)
+        assert got.flags.c_contiguous and got.dtype == transform.spectrum(dtype).dtype
+        np.testing.assert_array_equal(got, transform.spectrum(dtype).T)
