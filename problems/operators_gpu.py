@@ -170,43 +170,85 @@ RESIDENT_VECTORS = 13
 RESIDENT_GRIDS = 6
 
 
-def operator_model_nbytes(grid_shape: tuple[int, int], periodic: bool) -> int:
+def operator_model_nbytes(grid_shape: tuple[int, int], periodic: bool, tight: bool = False) -> int:
     """The device memory of the "gpu" operator on a grid of ``grid_shape`` (zero-padded to
     twice each side unless ``periodic``): a real kernel spectrum in float64 and float32 and
     the convolutions' work in both (the mixed-precision rounds), times CuPy's
-    ``POOL_FACTOR`` (fitted on pools measured with the loop on the host)."""
+    ``POOL_FACTOR`` (fitted on pools measured with the loop on the host).  ``tight``: the
+    pool gives back its unused blocks whenever the products change precision
+    (``memory_tight``), so only the larger precision's work is held at a time."""
     n0, n1 = int(grid_shape[0]), int(grid_shape[1])
     padded = (n0, n1) if periodic else (2 * n0, 2 * n1)
     spectrum = 8 * padded[0] * (padded[1] // 2 + 1)
-    work = sum(convolution_work_nbytes((n0, n1), padded, dt) for dt in (np.float64, np.float32))
-    return int(POOL_FACTOR * (1.5 * spectrum + work))
+    works = [convolution_work_nbytes((n0, n1), padded, dt) for dt in (np.float64, np.float32)]
+    return int(POOL_FACTOR * (1.5 * spectrum + (max(works) if tight else sum(works))))
 
 
-def device_model_nbytes(grid_shape: tuple[int, int], periodic: bool, points: int | None = None) -> int:
+def device_model_nbytes(grid_shape: tuple[int, int], periodic: bool, points: int | None = None,
+                        tight: bool = False) -> int:
     """The device memory a device-resident solve takes on a grid of ``grid_shape``, before
-    it is built: the operator's (``operator_model_nbytes``), ``RESIDENT_VECTORS`` float64
-    vectors of its ``points`` unknowns (default: every grid point, as a load-controlled
+    it is built: the operator's (``operator_model_nbytes``, ``tight`` or not), ``RESIDENT_VECTORS``
+    float64 vectors of its ``points`` unknowns (default: every grid point, as a load-controlled
     solve carries) and ``RESIDENT_GRIDS`` of the whole grid, in CuPy's pool."""
     n0, n1 = int(grid_shape[0]), int(grid_shape[1])
     points = n0 * n1 if points is None else min(int(points), n0 * n1)
     resident = 8 * (RESIDENT_VECTORS * points + RESIDENT_GRIDS * n0 * n1)
-    return operator_model_nbytes(grid_shape, periodic) + int(POOL_FACTOR * resident)
+    return operator_model_nbytes(grid_shape, periodic, tight) + int(POOL_FACTOR * resident)
+
+
+def memory_tight(grid_shape: tuple[int, int], periodic: bool, total: int | None) -> bool:
+    """Whether a solve on the grid runs tight on a device of ``total`` bytes (None: unknown,
+    never tight): the model with both precisions' work held (``device_model_nbytes`` of the
+    whole grid) does not fit, so the device state releases what the pool and the FFT plans
+    hold unused at each change of precision (``_DeviceState.convolving_in``), at the price of
+    allocating that work and planning those transforms again."""
+    return total is not None and device_model_nbytes(grid_shape, periodic) > total
+
+
+def release_cached_blocks(xp: Any) -> None:
+    """Give the device back what CuPy's memory pool and FFT plan cache hold and no array
+    uses; a module without them (NumPy) has nothing to give back."""
+    pool = getattr(xp, "get_default_memory_pool", None)
+    if callable(pool):
+        pool().free_all_blocks()
+    plans = getattr(getattr(getattr(xp, "fft", None), "config", None), "get_plan_cache", None)
+    if callable(plans):
+        plans().clear()
+
+
+def capped_device_bytes() -> int | None:
+    """env CONTACTBENCH_DEVICE_BYTES (a cap on the device's memory, or a stand-in device for
+    tests) in bytes; None when unset."""
+    env = os.environ.get("CONTACTBENCH_DEVICE_BYTES", "").strip()
+    if not env:
+        return None
+    try:
+        value = int(float(env))
+    except ValueError as exc:
+        raise ProblemInputError(f"CONTACTBENCH_DEVICE_BYTES={env!r}: expected a number of bytes") from exc
+    if value <= 0:
+        raise ProblemInputError(f"CONTACTBENCH_DEVICE_BYTES={env!r}: expected a positive number of bytes")
+    return value
+
+
+def device_bytes_here(xp: Any) -> int | None:
+    """The device's memory as a process already computing on it sees it: the cap
+    (``capped_device_bytes``), else the array module's device (CuPy's ``mem_info``); None
+    for a module without one."""
+    cap = capped_device_bytes()
+    if cap is not None:
+        return cap
+    device = getattr(getattr(xp, "cuda", None), "Device", None)
+    return int(device().mem_info[1]) if callable(device) else None
 
 
 @functools.lru_cache(maxsize=1)
 def device_total_bytes() -> int | None:
-    """The device's memory in bytes: env CONTACTBENCH_DEVICE_BYTES when set (a cap, or a
-    stand-in device for tests), else probed once in a child process (no CUDA context
-    here); None where there is no device."""
-    env = os.environ.get("CONTACTBENCH_DEVICE_BYTES", "").strip()
-    if env:
-        try:
-            value = int(float(env))
-        except ValueError as exc:
-            raise ProblemInputError(f"CONTACTBENCH_DEVICE_BYTES={env!r}: expected a number of bytes") from exc
-        if value <= 0:
-            raise ProblemInputError(f"CONTACTBENCH_DEVICE_BYTES={env!r}: expected a positive number of bytes")
-        return value
+    """The device's memory in bytes: the cap (``capped_device_bytes``) when set, else probed
+    once in a child process (no CUDA context here); None where there is no device."""
+    cap = capped_device_bytes()
+    if cap is not None:
+        return cap
     if gpu_unavailable_reason() is not None:
         return None
     try:
@@ -225,12 +267,13 @@ def device_misfit(grid_shape: tuple[int, int], periodic: bool, points: int | Non
     total = device_total_bytes()
     if total is None:
         return None
-    need = device_model_nbytes(grid_shape, periodic, points)
+    need = device_model_nbytes(grid_shape, periodic, points, tight=memory_tight(grid_shape, periodic, total))
     if need <= total:
         return None
     n0, n1 = grid_shape
     return (f"a {n0} x {n1} {'periodic' if periodic else 'non-periodic'} grid needs about {need / 2**30:.1f} GiB "
-            f"on the device (operators_gpu.device_model_nbytes), the device has {total / 2**30:.1f} GiB")
+            f"on the device (operators_gpu.device_model_nbytes, releasing the pool when the precision changes), "
+            f"the device has {total / 2**30:.1f} GiB")
 
 
 def array_module(name: str) -> ModuleType:
@@ -327,7 +370,8 @@ class ArrayKernelTransform(KernelTransform):
 
     def _state(self) -> "_DeviceState":
         if self._device is None:
-            self._device = _DeviceState(self.xp, self.khat)
+            xp = self.xp
+            self._device = _DeviceState(xp, self.khat, memory_tight(self.grid_shape, self.periodic, device_bytes_here(xp)))
         return self._device
 
     def apply_on_set(self, pidx: np.ndarray, x: np.ndarray, dtype: object = np.float64) -> np.ndarray:
@@ -365,6 +409,7 @@ class ArrayKernelTransform(KernelTransform):
         """K * field for a field on the N1 physical rows of the padded grid (N1 x P1,
         zero beyond the physical columns), in the field's precision: the pruned
         transform pair; returns the N1 x P1 result rows."""
+        dev.convolving_in(field.dtype)
         fft = dev.xp.fft
         n1 = self.grid_shape[0]
         p0, p1 = self.padded_shape
@@ -394,15 +439,26 @@ class ArrayKernelTransform(KernelTransform):
 class _DeviceState:
     """What one process holds on the device for one transform: the spectrum in each
     precision used and the padded indices of recently used operators (an upload per
-    operator, not per matvec)."""
+    operator, not per matvec).  ``tight`` (``memory_tight``): the unused blocks are given
+    back whenever the convolutions change precision."""
 
-    def __init__(self, xp: ModuleType, khat: np.ndarray) -> None:
+    def __init__(self, xp: ModuleType, khat: np.ndarray, tight: bool = False) -> None:
         self.xp = xp
+        self.tight = tight
+        self._precision: str | None = None  # of the last convolution
         self._khat = khat
         self._stored: Any = None  # the spectrum as the host holds it, copied once
         self._spectra: dict[str, Any] = {}
         self._quarter: Any = None
         self._indices: OrderedDict[int, tuple[np.ndarray, Any]] = OrderedDict()
+
+    def convolving_in(self, dtype: Any) -> None:
+        """Before each convolution, in ``dtype``: when tight and the precision changed, the
+        pool's and the FFT plans' unused blocks go back first (``release_cached_blocks``)."""
+        name = np.dtype(dtype).name
+        if self.tight and self._precision not in (None, name):
+            release_cached_blocks(self.xp)
+        self._precision = name
 
     def spectrum(self, dtype: Any) -> Any:
         """The kernel spectrum on the device in the precision of a real ``dtype``: the host's

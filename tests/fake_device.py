@@ -175,8 +175,21 @@ class _Namespace:
         return lambda *args, **kwargs: _wrap(attr(*_strip(args), **_strip(kwargs)))
 
 
+class _Pool:
+    """CuPy's memory pool as far as a device state uses it: ``released`` counts the calls
+    that give its unused blocks back."""
+
+    released = 0
+
+    def free_all_blocks(self) -> None:
+        self.released += 1
+
+
+POOL = _Pool()
+
 #: The fake device's array module: ``asarray`` uploads, ``fft`` runs NumPy's FFT on it.
-xp = SimpleNamespace(asarray=_upload, fft=_Namespace(np.fft), __name__="fake_device")
+xp = SimpleNamespace(asarray=_upload, fft=_Namespace(np.fft), __name__="fake_device",
+                     get_default_memory_pool=lambda: POOL)
 for _name in ("zeros", "ones", "empty", "full", "arange", "zeros_like", "ones_like", "empty_like", "full_like"):
     setattr(xp, _name, getattr(_Namespace(np), _name))
 for _name in ("float32", "float64", "complex64", "complex128", "bool_", "int64", "int32"):

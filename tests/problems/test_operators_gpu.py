@@ -303,10 +303,51 @@ def test_device_misfit_says_why_and_stays_quiet_without_a_device(monkeypatch) ->
     monkeypatch.setattr(gpu, "device_total_bytes", lambda: 139 * 2**30)  # an H200
     assert gpu.device_misfit((16384, 16384), False, 36_000_000) is None  # the trial set of n = 36 M fits
     monkeypatch.setattr(gpu, "device_total_bytes", lambda: 80 * 2**30)  # an H100: its pool took 77.4 GiB on an H200
-    assert "16384 x 16384 non-periodic grid needs about 82" in gpu.device_misfit((16384, 16384), False, 36_000_000)
-    assert "16384 x 16384 non-periodic grid needs about" in gpu.device_misfit((16384, 16384), False)  # the whole
+    # 82 GiB with both precisions' work held; 65 GiB tight (the pool released when the precision changes)
+    assert gpu.device_model_nbytes((16384, 16384), False, 36_000_000) > 80 * 2**30
+    assert gpu.device_misfit((16384, 16384), False, 36_000_000) is None
+    assert "16384 x 16384 non-periodic grid needs about 97" in gpu.device_misfit((16384, 16384), False)  # the whole
     why = gpu.device_misfit((32768, 32768), False)
-    assert why is not None and "needs about 457" in why and "has 80.0 GiB" in why
+    assert why is not None and "needs about 389" in why and "has 80.0 GiB" in why
+
+
+def test_the_tight_model_holds_one_precision_s_work() -> None:
+    """Tight, the two precisions' convolution work is not held at once: the model drops the
+    smaller (float32) one's, and nothing else."""
+    from contactbench.problems.operators_gpu import (POOL_FACTOR, convolution_work_nbytes, device_model_nbytes,
+                                                     memory_tight, operator_model_nbytes)
+
+    for shape, periodic in (((16384, 16384), False), ((1000, 600), True)):
+        padded = shape if periodic else (2 * shape[0], 2 * shape[1])
+        float32_work = convolution_work_nbytes(shape, padded, np.float32)
+        assert float32_work < convolution_work_nbytes(shape, padded, np.float64)
+        drop = operator_model_nbytes(shape, periodic) - operator_model_nbytes(shape, periodic, tight=True)
+        assert abs(drop - POOL_FACTOR * float32_work) <= 2
+        assert (device_model_nbytes(shape, periodic) - device_model_nbytes(shape, periodic, tight=True)) == drop
+    need = device_model_nbytes((256, 256), False)
+    assert memory_tight((256, 256), False, need - 1) and not memory_tight((256, 256), False, need)
+    assert not memory_tight((256, 256), False, None)
+
+
+@pytest.mark.parametrize("tight", [True, False])
+def test_a_tight_device_gives_its_pool_back_when_the_precision_changes(monkeypatch, tight: bool) -> None:
+    """A device state made where the model does not fit with both precisions held releases
+    the pool's unused blocks and the FFT plans once per change of precision (not per
+    product); one where it fits never does.  The products are the same."""
+    from contactbench.problems.operators_gpu import ArrayKernelTransform, device_model_nbytes
+    from tests.fake_device import POOL, SPACE
+
+    host = KernelTransform(kernel_table("bcc", (32, 32), 1e-6, 1e9, False), (32, 32))
+    need = device_model_nbytes((32, 32), False)
+    monkeypatch.setenv("CONTACTBENCH_DEVICE_BYTES", str(need - 1 if tight else need))
+    dev = ArrayKernelTransform.from_host(host, SPACE)
+    pidx = host.padded_index(np.arange(0, 32 * 32, 3))
+    x = np.linspace(0.0, 1.0, pidx.size)
+    before = POOL.released
+    got = [dev.apply_on_set(pidx, x, dt) for dt in (np.float32, np.float32, np.float64, np.float64, np.float32)]
+    assert POOL.released - before == (2 if tight else 0)
+    for dt, y in zip((np.float32, np.float32, np.float64, np.float64, np.float32), got):
+        np.testing.assert_allclose(y, host.apply_on_set(pidx, x, dt), rtol=1e-5 if dt == np.float32 else 1e-12)
 
 
 class _KernelStandIn:
