@@ -247,12 +247,19 @@ def equality_scale(load: float, p_s: float) -> float:
     return load if load > 0.0 else p_s
 
 
-def _equality(p: np.ndarray, constraints: Constraints, p_s: float) -> float:
+def _equality(p: np.ndarray, constraints: Constraints, p_s: float, total: float | None = None) -> float:
+    """The scaled load residual |sum p - P| (``total``: sum p when the caller has read it)."""
     if not constraints.load_control:
         return 0.0
     load = float(constraints.load)  # type: ignore[arg-type]
+    total = float(np.sum(p)) if total is None else total
     with np.errstate(all="ignore"):
-        return worse(abs(float(np.sum(p)) - load) / equality_scale(load, p_s))
+        return worse(abs(total - load) / equality_scale(load, p_s))
+
+
+def _finite(p: Any, g: Any) -> bool:
+    """Whether p and g hold only finite entries (one read)."""
+    return read_scalars(np.all(np.isfinite(p)) & np.all(np.isfinite(g)))[0] == 1.0
 
 
 def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max: float, constraints: Constraints,
@@ -264,7 +271,7 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
     if constraints.plain:
         return kkt_figures(p, g, ubar, diag_max, ubar_max)
     u_s, p_s = constrained_scales(ubar, diag_max, constraints, ubar_max)
-    if p.shape != g.shape or not (np.all(np.isfinite(p)) and np.all(np.isfinite(g))):
+    if p.shape != g.shape or not _finite(p, g):
         return _all_infinite(u_s, p_s)
     delta = candidate_multiplier(g, p, constraints, multiplier)
     if not math.isfinite(delta):
@@ -294,10 +301,15 @@ def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: f
     primal from min(p), dual from max(-w), complementarity from max(|p| |w|), each scaled
     as there."""
     with np.errstate(all="ignore"):
-        primal = worse(float(np.float64(_negative_part(min_below_zero(p))) / p_s))
-        dual = worse(float(np.float64(_negative_part(min_below_zero(w))) / np.float64(u_s)))
-        comp = worse(max_above_zero(np.abs(p) / p_s * (np.abs(w) / u_s)))
-    equality = _equality(p, constraints, p_s)
+        t = np.abs(p) / p_s * (np.abs(w) / u_s)
+        if p.size and w.size:  # the four reductions in one read
+            p_min, w_min, t_max, total = read_scalars(np.min(p), np.min(w), np.max(t), np.sum(p))
+        else:
+            p_min, w_min, t_max, total = min_below_zero(p), min_below_zero(w), max_above_zero(t), 0.0
+        primal = worse(float(np.float64(_negative_part(below_zero(p_min))) / p_s))
+        dual = worse(float(np.float64(_negative_part(below_zero(w_min))) / np.float64(u_s)))
+        comp = worse(above_zero(t_max))
+    equality = _equality(p, constraints, p_s, total)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
 
 

@@ -97,8 +97,8 @@ def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray
 
 def mean_on(x: np.ndarray, mask: np.ndarray) -> float:
     """The mean of x over ``mask`` (0 on an empty mask)."""
-    k = int(np.count_nonzero(mask))
-    return float(x @ mask) / k if k else 0.0
+    k, total = read_scalars(np.count_nonzero(mask), x @ mask)
+    return total / k if k else 0.0
 
 
 def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
@@ -200,10 +200,10 @@ def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np
     if M is None:
         return on_set(z - mean_on(z, free), free)
     m1 = on_set(M.ones(), free)
-    den = float(np.sum(m1))
+    den, z_free = read_scalars(np.sum(m1), z @ free)
     if not den > 0.0:  # M^-1 not positive on 1 (cannot happen for an SPD M): plain projection
         return on_set(z - mean_on(z, free), free)
-    return on_set(z - (float(z @ free) / den) * m1, free)
+    return on_set(z - (z_free / den) * m1, free)
 
 
 def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
@@ -214,10 +214,11 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
     every point that wants to move (module doc)."""
     p, g = state.p, state.g
     interior = p > 0.0 if c.upper is None else (p > 0.0) & (p < u)
-    inside = bool(np.any(interior))
+    count, g_inside = read_scalars(np.count_nonzero(interior), g @ interior)  # one read: the mean gap inside
+    inside = count > 0
     delta = 0.0
     if c.load is not None:
-        delta = mean_on(g, interior) if inside else fit_multiplier(g, p, c.upper)
+        delta = g_inside / count if inside else fit_multiplier(g, p, c.upper)
     if not inside:
         return delta, wants_to_move(p, g - delta, u)
     return delta, interior if c.upper is None else interior | ((p >= u) & (g - delta > 0.0))
