@@ -15,6 +15,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from contactbench.problems.constraints import make_constraints
 from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
@@ -206,3 +208,31 @@ def test_the_cuda_device_gives_the_host_answer(builder_and_instance, control) ->
     assert np.max(np.abs(dev.p - host.p)) <= 1e-6 * np.max(host.p)
     assert kkt_check(qp, dev.p, dev.multiplier).kkt_error <= 10 * TOL
     assert same_products(dev, host), (dev.matvecs, dev.iterations, dev.info, host.matvecs, host.iterations, host.info)
+
+
+_ENTRIES = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=64),
+                     st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 1e308, -1e308, 5e-324]))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.integers(0, 6).flatmap(lambda n: st.tuples(st.lists(_ENTRIES, min_size=n, max_size=n),
+                                                     st.lists(_ENTRIES, min_size=n, max_size=n))),
+       st.booleans())
+def test_the_kkt_figures_on_a_device_are_the_host_s(pw, loaded_: bool) -> None:
+    """The figures a device loop stops on (one read of their reductions, ``read_scalars``)
+    are the host's, figure by figure, for any entries: NaN, inf, 1e308, signed zeros,
+    subnormals, empty; with a load equality too."""
+    from contactbench.problems.kkt import constrained_figures
+
+    p, w = (np.array(v, dtype=np.float64) for v in pw)
+    ubar = np.linspace(1.0, 2.0, p.size)
+    constraints = make_constraints(p.size, None, 1.0 if loaded_ and p.size else None)
+    multiplier = 0.5 if loaded_ else None
+    with np.errstate(all="ignore"):
+        host = constrained_figures(p, w, ubar, 3.0, constraints, multiplier)
+        # a loop hands over ||ubar||_inf, read once (CuPy's max takes no initial=)
+        dev = constrained_figures(SPACE.put(p), SPACE.put(w), SPACE.put(ubar), 3.0, constraints, multiplier,
+                                  ubar_max=float(np.max(ubar, initial=0.0)))
+    for name in ("primal", "dual", "complementarity", "kkt_error", "equality"):
+        a, b = getattr(host, name), getattr(dev, name)
+        assert (np.isnan(a) and np.isnan(b)) or a == b, (name, a, b)
