@@ -83,10 +83,8 @@ def fft_backend() -> str:
 #: one write of the spectrum rows per matvec instead of one per pass; results/perf/matvec.md).
 COLUMN_BLOCK_BYTES = 1 << 19
 
-#: The spectrum's one-off transposition (``KernelTransform.transposed_spectrum``) copies
-#: square tiles of this side: both tiles stay in cache, where whole column blocks read the
-#: source a cache line per entry (8192 x 4097 float64, 2-core AMD EPYC: 1.38 s by 256-column
-#: blocks, 0.12 s by 256 x 256 tiles; float32 0.83 -> 0.09 s).
+#: The spectrum's one-off transposition (``KernelTransform.transposed_spectrum``) copies square
+#: tiles of this side, both in cache (8192 x 4097 float64: 1.38 s by column blocks, 0.12 s so).
 TRANSPOSE_TILE = 256
 
 
