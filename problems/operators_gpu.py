@@ -206,14 +206,15 @@ def memory_tight(grid_shape: tuple[int, int], periodic: bool, total: int | None)
 
 
 def release_cached_blocks(xp: Any) -> None:
-    """Give the device back what CuPy's memory pool and FFT plan cache hold and no array
-    uses; a module without them (NumPy) has nothing to give back."""
-    pool = getattr(xp, "get_default_memory_pool", None)
-    if callable(pool):
-        pool().free_all_blocks()
+    """Give the device back what CuPy's FFT plan cache and memory pool hold and no array
+    uses -- the plans first, so that their work areas return to the pool before it is
+    emptied; a module without them (NumPy) has nothing to give back."""
     plans = getattr(getattr(getattr(xp, "fft", None), "config", None), "get_plan_cache", None)
     if callable(plans):
         plans().clear()
+    pool = getattr(xp, "get_default_memory_pool", None)
+    if callable(pool):
+        pool().free_all_blocks()
 
 
 def capped_device_bytes() -> int | None:

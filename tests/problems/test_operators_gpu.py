@@ -329,6 +329,23 @@ def test_the_tight_model_holds_one_precision_s_work() -> None:
     assert not memory_tight((256, 256), False, None)
 
 
+def test_release_gives_the_fft_plans_back_before_emptying_the_pool() -> None:
+    """The plans' work areas go back to the pool first, then the pool to the device; NumPy
+    has neither and nothing happens."""
+    from types import SimpleNamespace
+
+    from contactbench.problems.operators_gpu import release_cached_blocks
+
+    calls: list[str] = []
+    cache = SimpleNamespace(clear=lambda: calls.append("plans"))
+    pool = SimpleNamespace(free_all_blocks=lambda: calls.append("pool"))
+    xp = SimpleNamespace(fft=SimpleNamespace(config=SimpleNamespace(get_plan_cache=lambda: cache)),
+                         get_default_memory_pool=lambda: pool)
+    release_cached_blocks(xp)
+    assert calls == ["plans", "pool"]
+    release_cached_blocks(np)
+
+
 @pytest.mark.parametrize("tight", [True, False])
 def test_a_tight_device_gives_its_pool_back_when_the_precision_changes(monkeypatch, tight: bool) -> None:
     """A device state made where the model does not fit with both precisions held releases
