@@ -210,8 +210,7 @@ def _extremes(p: Any, w: Any, t: Any) -> tuple[float, float, float, float, bool]
     """min p, min w, max t, min t (0 for an empty array; NaN propagates) and whether p and
     w are finite, read in one transfer (``read_scalars``)."""
     if p.size == 0 or w.size == 0:
-        finite = bool(np.all(np.isfinite(p)) and np.all(np.isfinite(w)))
-        return min_below_zero(p), min_below_zero(w), max_above_zero(t), min_below_zero(t), finite
+        return min_below_zero(p), min_below_zero(w), max_above_zero(t), min_below_zero(t), _finite(p, w)
     p_min, w_min, t_max, t_min, finite = read_scalars(np.min(p), np.min(w), np.max(t), np.min(t),
                                                       np.all(np.isfinite(p)) & np.all(np.isfinite(w)))
     return p_min, w_min, t_max, t_min, finite == 1.0

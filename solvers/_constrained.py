@@ -95,10 +95,15 @@ def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray
     return ((p <= 0.0) | (p >= upper)) & ~at_rest(p, w, upper)
 
 
+def count_and_mean(x: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
+    """The points of ``mask`` and the mean of x over them (0 on an empty mask), in one read."""
+    k, total = read_scalars(np.count_nonzero(mask), x @ mask)
+    return k, (total / k if k else 0.0)
+
+
 def mean_on(x: np.ndarray, mask: np.ndarray) -> float:
     """The mean of x over ``mask`` (0 on an empty mask)."""
-    k, total = read_scalars(np.count_nonzero(mask), x @ mask)
-    return total / k if k else 0.0
+    return count_and_mean(x, mask)[1]
 
 
 def scale_to_load(p: np.ndarray, c: Constraints, u: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
@@ -214,11 +219,11 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
     every point that wants to move (module doc)."""
     p, g = state.p, state.g
     interior = p > 0.0 if c.upper is None else (p > 0.0) & (p < u)
-    count, g_inside = read_scalars(np.count_nonzero(interior), g @ interior)  # one read: the mean gap inside
+    count, mean_gap = count_and_mean(g, interior)
     inside = count > 0
     delta = 0.0
     if c.load is not None:
-        delta = g_inside / count if inside else fit_multiplier(g, p, c.upper)
+        delta = mean_gap if inside else fit_multiplier(g, p, c.upper)
     if not inside:
         return delta, wants_to_move(p, g - delta, u)
     return delta, interior if c.upper is None else interior | ((p >= u) & (g - delta > 0.0))
