@@ -2,7 +2,12 @@
 bench_surface_population.py: its cells at the size, on the chosen seeds): for every member,
 one cold top-step solve with each checkout's own code (its ``bench_surface_population.py``,
 variant "default"), the two alternating member by member in one run, so that a change's
-matvecs and seconds are compared on the same machine at the same time.
+matvecs and seconds are compared on the same machine at the same time.  With ``--sweep K``
+each member's solve is instead its K-step load sweep: the paper's instance (BCC,
+non-periodic, L = 100 um) on the member's surface, every step warm-started from the last by
+the harness (``contactbench.harness.solve_sequence``) and judged at the "high" profile;
+matvecs, iterations, builds and seconds are the steps' sums, and the status is "solved"
+when every step is.
 
 Each solve runs in a fresh process of the checkout's own virtual environment
 (``CHECKOUT/.venv/bin/python``) with the thread variables set to ``--threads``; rows are
@@ -13,7 +18,7 @@ products -- is printed at the end (``--summary-only`` prints it from the CSV alo
 
 Usage:
   python benchmarks/bench_side_by_side.py --base ../base-checkout --head . --size 1024
-      [--seeds 3] [--first-seed 0] [--families saupe,...] [--threads 2] --out side.csv
+      [--seeds 3] [--first-seed 0] [--families saupe,...] [--threads 2] [--sweep K] --out side.csv
 """
 
 from __future__ import annotations
@@ -44,14 +49,43 @@ print("RESULT " + json.dumps({"matvecs": row.matvecs, "iterations": row.iteratio
                               "status": row.status, "n": row.n}))
 """
 
+#: The same for a K-step sweep (argv: checkout, member key, time limit of a step, K).
+SWEEP_CHILD = """
+import json, sys, tempfile
+import numpy as np
+sys.path.insert(0, sys.argv[1] + "/benchmarks")
+import bench_surface_population as bp
+from contactbench.harness import get_profile, solve_sequence
+from contactbench.problems.scenes import SceneConfig, get_scene
+from contactbench.solvers.base import SolverSettings
+m = bp.Member.parse(sys.argv[2])
+with tempfile.NamedTemporaryFile(suffix=".npy") as f:
+    np.save(f.name, bp.surface_of(m).heights)
+    scene = get_scene("paper-sweep")
+    (spec,) = scene.instances(scene.config(SceneConfig(size=m.N, steps=int(sys.argv[4]), surface_path=f.name,
+                                                       length=bp.LENGTH)))
+    seq = scene.build(spec)
+high = get_profile("high")
+steps = solve_sequence("fast-dual-pccg", seq, SolverSettings(tol=high.tol, time_limit=float(sys.argv[3])),
+                       check_tol=high.check_tol)
+done = [s.result for s in steps if s.result is not None]
+solved = len(done) == len(steps) == int(sys.argv[4]) and all(s.verdict.status == "solved" for s in steps)
+print("RESULT " + json.dumps({"matvecs": sum(r.matvecs for r in done), "iterations": sum(r.iterations for r in done),
+                              "builds": sum(r.info.get("preconditioner_builds", 0) for r in done),
+                              "seconds": sum(s.seconds for s in steps), "status": "solved" if solved else "failed",
+                              "n": max(s.inst.qp.n for s in steps)}))
+"""
 
-def solve_in(checkout: Path, m: Member, threads: int, timeout: float) -> dict:
-    """One solve of ``m`` by ``checkout``'s code in a fresh process; a "failed" row without a result."""
+
+def solve_in(checkout: Path, m: Member, threads: int, timeout: float, sweep: int = 0) -> dict:
+    """One solve of ``m`` (its ``sweep``-step sweep when ``sweep``) by ``checkout``'s code in a
+    fresh process; a "failed" row without a result."""
     env = dict(os.environ, **{v: str(threads) for v in THREAD_VARS})
+    argv = ["-c", SWEEP_CHILD, str(checkout), m.key, str(timeout), str(sweep)] if sweep else \
+        ["-c", CHILD, str(checkout), m.key, str(timeout)]
     try:
-        proc = subprocess.run([str(checkout / ".venv" / "bin" / "python"), "-c", CHILD, str(checkout), m.key,
-                               str(timeout)], capture_output=True, text=True, env=env, cwd=checkout,
-                              timeout=timeout + 120)
+        proc = subprocess.run([str(checkout / ".venv" / "bin" / "python"), *argv], capture_output=True, text=True,
+                              env=env, cwd=checkout, timeout=timeout * max(sweep, 1) + 120)
         lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
     except subprocess.TimeoutExpired:
         lines = []
@@ -98,8 +132,8 @@ def checked_args(ap: argparse.ArgumentParser) -> argparse.Namespace:
             ap.error(f"--{name} {getattr(args, name)}: no .venv/bin/python there (run `make` in that checkout)")
     check_choices(ap, "family", args.families, FAMILIES)
     refuse_bad_grid_sizes(ap, "--size", [args.size])
-    if args.seeds < 1 or args.first_seed < 0 or args.threads < 1 or not args.timeout > 0:
-        ap.error("--seeds and --threads must be >= 1, --first-seed >= 0 and --timeout > 0")
+    if args.seeds < 1 or args.first_seed < 0 or args.threads < 1 or not args.timeout > 0 or args.sweep < 0:
+        ap.error("--seeds and --threads must be >= 1, --first-seed and --sweep >= 0 and --timeout > 0")
     return args
 
 
@@ -113,6 +147,7 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit of one solve (s)")
+    ap.add_argument("--sweep", type=int, default=0, help="K > 0: each member's K-step paper sweep (module doc)")
     ap.add_argument("--out", required=True, help="the CSV (appended to)")
     ap.add_argument("--summary-only", action="store_true", help="print the summary of --out and exit")
     args = checked_args(ap)
@@ -126,7 +161,7 @@ def main() -> None:
                 w.writerow(COLUMNS)
             for m in plan([args.size], args.families.split(","), {args.size: args.seeds}, args.first_seed):
                 for code in ("base", "head"):
-                    r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout)
+                    r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout, args.sweep)
                     w.writerow([m.key, code] + [r[c] for c in COLUMNS[2:]])
                     f.flush()
                     print(m.key, code, r, flush=True)

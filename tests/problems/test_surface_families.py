@@ -346,3 +346,26 @@ def test_side_by_side_refuses_a_checkout_without_its_environment(tmp_path):
                           capture_output=True, text=True, check=False, timeout=120)
     assert proc.returncode == 2 and "--base" in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_side_by_side_sweep_child_sums_a_judged_warm_sweep():
+    """``--sweep K``: the child solves the member's K-step paper sweep in the checkout's own
+    interpreter and reports the steps' sums, "solved" when every step passes the judge."""
+    side = bench_script("bench_side_by_side")
+    if not (REPO / ".venv" / "bin" / "python").is_file():
+        pytest.skip("no .venv in this checkout (the child runs in the checkout's own environment)")
+    member = side.Member.parse("saupe:64:0.7:0.3:0")
+    row = side.solve_in(REPO, member, 1, 120.0, sweep=3)
+    assert row["status"] == "solved", row
+    assert row["matvecs"] >= 3 and row["iterations"] >= 3 and row["seconds"] > 0.0
+    single = side.solve_in(REPO, member, 1, 120.0)
+    assert single["status"] == "solved" and single["matvecs"] < row["matvecs"]
+
+
+def test_side_by_side_refuses_a_negative_sweep(tmp_path):
+    import subprocess
+
+    script = REPO / "benchmarks" / "bench_side_by_side.py"
+    proc = subprocess.run([sys.executable, str(script), "--base", str(REPO), "--sweep", "-1",
+                           "--out", str(tmp_path / "o.csv")], capture_output=True, text=True, check=False, timeout=120)
+    assert proc.returncode == 2 and "--sweep" in proc.stderr and "Traceback" not in proc.stderr
