@@ -40,11 +40,14 @@ OPENING_KKT = 0.03
 #: (results/perf/opening).
 OPENING_SETTLED = 0.3
 
-#: The island stage of an opened solve builds its far field on sets of up to this fraction of
-#: the unknowns (``IslandPreconditioner.far_fraction``; unopened: ``_farfield.MAX_SET_FRACTION``,
-#: which keeps it off the shrinking trial sets that the opening now serves).  Without it the
-#: opening's island stage went without its far field for most of a large set's last shedding
-#: (results/perf/opening).
+#: The island stage of an opened solve, and a warm solve, build their far field on sets of up
+#: to this fraction of the unknowns (``IslandPreconditioner.far_fraction``; a cold unopened
+#: solve: ``_farfield.MAX_SET_FRACTION``, which keeps it off the shrinking trial sets that the
+#: opening now serves).  Without it the opening's island stage went without its far field for
+#: most of a large set's last shedding (results/perf/opening); a warm start's sets are contact
+#: sets from its first step (solvers/_ccg.py, "A warm start's first iterations"), and on the
+#: smooth members of the population's 512^2 sweeps (H 0.9, contact above a fifth of the trial
+#: set) the far field came only with this fraction (results/perf/warm-far-field).
 OPENED_FAR_FRACTION = 0.5
 
 #: An opened solve whose preconditioner "auto" chose takes the far field from this many grid
@@ -84,7 +87,10 @@ def opened(M: SetPreconditioner | None, ctx: SolveContext, dtype: type = np.floa
            space: ArraySpace = HOST, auto_kind: bool = False) -> SetPreconditioner | None:
     """M, or M opened by the wave-number preconditioner (in ``dtype``, on ``space``) when
     ``ctx.params["opening"]`` resolves to "fourier"; then, where M's kind was "auto"'s
-    (``auto_kind``), with the far field from ``OPENED_FAR_FIELD_GRID_POINTS``."""
+    (``auto_kind``), with the far field from ``OPENED_FAR_FIELD_GRID_POINTS``.  Opened or
+    warm-started, island blocks take their far field on sets of up to ``OPENED_FAR_FRACTION``."""
+    if isinstance(M, IslandPreconditioner) and ctx.p0 is not None:
+        M.far_fraction = OPENED_FAR_FRACTION
     if resolved_opening(ctx.params.get("opening", "none"), M, ctx) != "fourier":
         return M
     first = FourierPreconditioner.build(ctx.qp, space, dtype)

@@ -152,6 +152,15 @@ MIXED_GRID_POINTS = 512 * 512
 #: (48 / 109 -> 42 / 65) but the time does not (median 1.01x), so the islands stay there.
 FAR_FIELD_GRID_POINTS = 1024 * 1024
 
+#: The grid size (points) from which "auto" takes the far field for a warm start of a problem
+#: with no constraint beyond p >= 0: 512^2.  A warm start's first steps are held on its
+#: contact set (solvers/_ccg.py, "A warm start's first iterations"), so the blocks and their
+#: far field are built on contact sets, not on the band of penetrating points a deeper
+#: approach makes.  On the paper's 512^2 sweeps: BCC 323 -> 225 products at 0.81-0.89x the
+#: seconds, periodic 277 -> 206 at the same seconds; over the population's 512^2 sweeps:
+#: results/perf/warm-far-field.
+WARM_FAR_FIELD_GRID_POINTS = 512 * 512
+
 #: Why "auto" is "fourier" under load control (without a hardness): there the free set moves
 #: with the approach at every iteration, the island blocks were refactored every few
 #: iterations (10 builds in 66 iterations, periodic RMD 512^2), and the wave-number
@@ -189,10 +198,11 @@ def mixed_grid(qp: QP) -> bool:
     return grid_points(qp) >= MIXED_GRID_POINTS
 
 
-def resolved_kind(kind: str, qp: QP) -> str:
+def resolved_kind(kind: str, qp: QP, warm: bool = False) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
     load control without a hardness (``LOAD_FOURIER``), else by the grid: the far field from
-    ``FAR_FIELD_GRID_POINTS`` points, the islands alone below."""
+    ``FAR_FIELD_GRID_POINTS`` points (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm``
+    start of a QP with no constraint beyond p >= 0), the islands alone below."""
     if kind != "auto":
         return kind
     space = qp.H.space
@@ -201,7 +211,8 @@ def resolved_kind(kind: str, qp: QP) -> str:
     c = qp.constraints
     if c.load_control and c.upper is None:
         return LOAD_FOURIER
-    return "farfield" if grid_points(qp) >= FAR_FIELD_GRID_POINTS else "islands"
+    far_from = WARM_FAR_FIELD_GRID_POINTS if warm and c.plain else FAR_FIELD_GRID_POINTS
+    return "farfield" if grid_points(qp) >= far_from else "islands"
 
 
 #: The kinds built on the island blocks (``IslandPreconditioner``).

@@ -101,7 +101,7 @@ class _FastCCG(FastSolver):
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
-        kind = resolved_kind(ctx.params["precondition"], ctx.qp)
+        kind = resolved_kind(ctx.params["precondition"], ctx.qp, warm=ctx.p0 is not None)
         space, where = resident_space(ctx, kind)
         dtype = block_dtype(precision)
         M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space,

@@ -147,6 +147,19 @@ def test_an_opened_auto_solve_takes_the_far_field_from_its_own_grid_size(monkeyp
     assert isinstance(warm, IslandPreconditioner) and not warm.far_field
 
 
+def test_a_warm_solve_builds_its_far_field_on_sets_of_the_opened_fraction():
+    """Warm-started (its first steps held on its contact set), the island blocks take their far
+    field on sets of up to ``OPENED_FAR_FRACTION``, as an opened solve's; a cold unopened
+    solve keeps ``MAX_SET_FRACTION``."""
+    inst = build()
+    ctx = context_of(inst.qp)
+    cold = opened(make_preconditioner("farfield", inst.qp), ctx)
+    warm = opened(make_preconditioner("farfield", inst.qp), replace(ctx, p0=np.zeros(inst.qp.n)))
+    assert isinstance(cold, IslandPreconditioner) and cold.far_fraction == MAX_SET_FRACTION
+    assert isinstance(warm, IslandPreconditioner) and warm.far_fraction == OPENED_FAR_FRACTION
+    assert OPENED_FAR_FRACTION > MAX_SET_FRACTION
+
+
 def test_an_unknown_opening_is_a_parameter_error():
     with pytest.raises(ParamError, match="opening"):
         solve(build(17), opening="sometimes")

@@ -86,3 +86,39 @@ def test_the_default_below_the_threshold_is_the_islands_in_double(monkeypatch: p
     same = solve(qp, SolverSettings(tol=1e-9, params=fixed))
     assert default.iterations == same.iterations and default.matvecs == same.matvecs
     np.testing.assert_allclose(default.p, same.p, rtol=1e-12, atol=1e-12 * float(np.max(same.p)))
+
+
+def test_a_warm_start_of_a_plain_problem_takes_the_far_field_from_its_own_threshold() -> None:
+    """``WARM_FAR_FIELD_GRID_POINTS`` (512^2) for a warm start with no constraint beyond p >= 0;
+    a cold start, and a warm one with a hardness, keep ``FAR_FIELD_GRID_POINTS``."""
+    from contactbench.problems.constraints import make_constraints
+
+    qp = small_qp()
+    at_512 = replace(qp, geometry=replace(qp.geometry, grid_shape=(512, 512)))
+    below = replace(qp, geometry=replace(qp.geometry, grid_shape=(512, 511)))
+    assert _preconditioners.resolved_kind("auto", at_512, warm=True) == "farfield"
+    assert _preconditioners.resolved_kind("auto", below, warm=True) == "islands"
+    assert _preconditioners.resolved_kind("auto", at_512) == "islands"
+    hard = replace(at_512, constraints=make_constraints(qp.n, upper=np.full(qp.n, 1e9)))
+    assert hard.constraints.bounded
+    assert _preconditioners.resolved_kind("auto", hard, warm=True) == "islands"
+    for k in ("islands", "fourier", "none"):
+        assert _preconditioners.resolved_kind(k, at_512, warm=True) == k
+
+
+@pytest.mark.parametrize("threshold,far", [(1, True), (10**12, False)])
+def test_a_warm_solve_builds_the_far_field_the_rule_gives(monkeypatch: pytest.MonkeyPatch, threshold: int,
+                                                          far: bool) -> None:
+    """The warm solve's preconditioner is the rule's: the iterates of precondition=farfield
+    from the threshold, of precondition=islands below it; a cold solve keeps the islands."""
+    from contactbench.solvers.base import WarmStart
+
+    monkeypatch.setattr(_preconditioners, "WARM_FAR_FIELD_GRID_POINTS", threshold)
+    qp = small_qp()
+    solve = get_solver("fast-dual-pccg").solve
+    answer = solve(qp, SolverSettings(tol=1e-9)).p
+    start = WarmStart(0.8 * answer)
+    default = solve(qp, SolverSettings(tol=1e-9), start)
+    same = solve(qp, SolverSettings(tol=1e-9, params={"precondition": "farfield" if far else "islands"}), start)
+    assert default.converged and default.iterations == same.iterations and default.matvecs == same.matvecs
+    np.testing.assert_allclose(default.p, same.p, rtol=1e-12, atol=1e-12 * float(np.max(same.p)))
