@@ -152,13 +152,15 @@ MIXED_GRID_POINTS = 512 * 512
 #: (48 / 109 -> 42 / 65) but the time does not (median 1.01x), so the islands stay there.
 FAR_FIELD_GRID_POINTS = 1024 * 1024
 
-#: The grid size (points) from which "auto" takes the far field for a warm start of a problem
-#: with no constraint beyond p >= 0: 512^2.  A warm start's first steps are held on its
-#: contact set (solvers/_ccg.py, "A warm start's first iterations"), so the blocks and their
-#: far field are built on contact sets, not on the band of penetrating points a deeper
-#: approach makes.  On the paper's 512^2 sweeps: BCC 323 -> 225 products at 0.81-0.89x the
-#: seconds, periodic 277 -> 206 at the same seconds; over the population's 512^2 sweeps:
-#: results/perf/warm-far-field.
+#: The grid size (points) from which "auto" takes the far field for a warm start of a
+#: non-periodic problem with no constraint beyond p >= 0: 512^2.  A warm start's first steps
+#: are held on its contact set (solvers/_ccg.py, "A warm start's first iterations"), so the
+#: blocks and their far field are built on contact sets, not on the band of penetrating points
+#: a deeper approach makes.  The paper's 512^2 BCC sweep: 323 -> 225 products, 0.78-0.79x the
+#: seconds; the population's 512^2 sweeps: results/perf/warm-far-field.  A periodic grid is
+#: not padded, so its products cost a quarter and the builds weigh more: on the paper's
+#: periodic 512^2 sweep 277 -> 206 products took 1.1-1.5x the seconds, so it keeps
+#: ``FAR_FIELD_GRID_POINTS``.
 WARM_FAR_FIELD_GRID_POINTS = 512 * 512
 
 #: Why "auto" is "fourier" under load control (without a hardness): there the free set moves
@@ -202,7 +204,7 @@ def resolved_kind(kind: str, qp: QP, warm: bool = False) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
     load control without a hardness (``LOAD_FOURIER``), else by the grid: the far field from
     ``FAR_FIELD_GRID_POINTS`` points (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm``
-    start of a QP with no constraint beyond p >= 0), the islands alone below."""
+    start of a non-periodic QP with no constraint beyond p >= 0), the islands alone below."""
     if kind != "auto":
         return kind
     space = qp.H.space
@@ -211,7 +213,9 @@ def resolved_kind(kind: str, qp: QP, warm: bool = False) -> str:
     c = qp.constraints
     if c.load_control and c.upper is None:
         return LOAD_FOURIER
-    far_from = WARM_FAR_FIELD_GRID_POINTS if warm and c.plain else FAR_FIELD_GRID_POINTS
+    geo = getattr(qp, "geometry", None)
+    padded = not (geo is not None and geo.periodic)
+    far_from = WARM_FAR_FIELD_GRID_POINTS if warm and c.plain and padded else FAR_FIELD_GRID_POINTS
     return "farfield" if grid_points(qp) >= far_from else "islands"
 
 

@@ -89,8 +89,9 @@ def test_the_default_below_the_threshold_is_the_islands_in_double(monkeypatch: p
 
 
 def test_a_warm_start_of_a_plain_problem_takes_the_far_field_from_its_own_threshold() -> None:
-    """``WARM_FAR_FIELD_GRID_POINTS`` (512^2) for a warm start with no constraint beyond p >= 0;
-    a cold start, and a warm one with a hardness, keep ``FAR_FIELD_GRID_POINTS``."""
+    """``WARM_FAR_FIELD_GRID_POINTS`` (512^2) for a warm start of a non-periodic problem with no
+    constraint beyond p >= 0; a cold start, a periodic grid and a hardness keep
+    ``FAR_FIELD_GRID_POINTS``."""
     from contactbench.problems.constraints import make_constraints
 
     qp = small_qp()
@@ -99,6 +100,8 @@ def test_a_warm_start_of_a_plain_problem_takes_the_far_field_from_its_own_thresh
     assert _preconditioners.resolved_kind("auto", at_512, warm=True) == "farfield"
     assert _preconditioners.resolved_kind("auto", below, warm=True) == "islands"
     assert _preconditioners.resolved_kind("auto", at_512) == "islands"
+    periodic = replace(at_512, geometry=replace(at_512.geometry, periodic=True))
+    assert _preconditioners.resolved_kind("auto", periodic, warm=True) == "islands"
     hard = replace(at_512, constraints=make_constraints(qp.n, upper=np.full(qp.n, 1e9)))
     assert hard.constraints.bounded
     assert _preconditioners.resolved_kind("auto", hard, warm=True) == "islands"
