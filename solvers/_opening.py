@@ -55,8 +55,9 @@ OPENED_FAR_FRACTION = 0.5
 #: surface population at 512^2 (results/perf/opened-farfield-512, quiet 2-core vm, 32 members
 #: on seeds 0-1 and 32 held out on seeds 3-4): matvecs median / worst 44 / 77 -> 37 / 47 and
 #: 44.5 / 115 -> 39.5 / 58, seconds per member median 0.94x and 0.87x, no member with more
-#: products.  A warm step is not opened: the 512^2 paper sweep, with 20 % fewer products, took
-#: as long or longer (BCC 0.06 -> 0.065x ContactMechanics), so it keeps the islands alone.
+#: products.  A warm step is not opened; its far field is
+#: ``_preconditioners.WARM_FAR_FIELD_GRID_POINTS``'s (it paid only once its first steps were
+#: held on its contact set).
 OPENED_FAR_FIELD_GRID_POINTS = 512 * 512
 
 #: The openings a fast CCG takes: "fourier" (module doc), "none" (the solver's

@@ -175,7 +175,8 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     preconditioner on the free set {res != 0} (Polak-Ribiere beta on z = M^-1 res).
     Both choices are ``auto`` by default, decided by the grid: the islands' far-field
     correction ("farfield", solvers/_farfield.py) from 1024^2 grid points
-    (``_preconditioners.FAR_FIELD_GRID_POINTS``), the islands alone below; mixed precision
+    (``_preconditioners.FAR_FIELD_GRID_POINTS``; from 512^2 for a warm step of a non-periodic
+    problem, ``WARM_FAR_FIELD_GRID_POINTS``), the islands alone below; mixed precision
     (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
     solvers/_refine.py) from 512^2 (``_preconditioners.MIXED_GRID_POINTS``), float64 below.
     ``precondition`` and ``precision`` fix either.  Warm start: primal."""
