@@ -449,8 +449,8 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
             hold = now < HOLD_SHEDDING * penetrating and it < HOLD_MAX
             released, penetrating = not hold, now
         res = held_residual(state) if hold else dual_residual(state, u)
-        staged = M is not None and M.progress(run.kkt)  # a new stage (solvers/_opening.py): restart along -z
-        staged = staged or released
+        # a new stage (solvers/_opening.py) or the hold's end: restart along -z
+        staged = (M is not None and M.progress(run.kkt)) or released
         z = precondition_on(M, res, res != 0.0)
         d *= 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)  # d <- -z + beta d, in place
         d -= z
