@@ -1,9 +1,9 @@
 """The FFT machinery of the matrix-free operator (problems/operators.py): the kernel's
 transform shared by every restriction of one instance (``KernelTransform``), its pruned
 ducc0 convolution in cached work arrays, the row and column passes done in cache-sized
-blocks, the
-thread and precision settings, and ``fft_floor_pair`` -- the bare transform pair one
-matvec needs, the floor its cost is compared with (benchmarks/bench_matvec.py).
+blocks (a periodic grid with short columns: one 2-D transform pair), and the thread and
+precision settings.  The bare transform pair one matvec needs, the floor its cost is
+compared with, is problems/fft_floor.py.
 """
 
 from __future__ import annotations
@@ -155,6 +155,13 @@ def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
     for a in range(0, src.shape[0], step):
         _ducc_fft.c2r(src[a : a + step], axes=(1,), lastsize=dst.shape[1], forward=False, inorm=2, out=dst[a : a + step], nthreads=1)
 
+
+#: A periodic grid (not padded) whose spectrum is held whole (short columns, not
+#: ``blocked_columns``) is convolved by one 2-D ducc0 transform pair on an N1 x N2 field
+#: (``KernelTransform._periodic_pair``): no row of it is empty, so the row blocks save no
+#: transform, and their Python work and the separate column pass cost more.  512^2 float32,
+#: a set of 31,000 points: 1.67 against 2.33 ms median (results/perf/periodic-pair).
+WHOLE_PERIODIC_PAIR = True
 
 #: A convolution's row blocks and column pass are shared over threads only for at least
 #: this many bytes of padded-row field (N1 x P1 x itemsize) per thread: below, one thread
@@ -431,6 +438,9 @@ class KernelTransform:
         w = row_threads(work.n1, work.p1, fft_workers(), work.dtype.itemsize)
         self.fft_count += 2
         plan = work.plan(pidx)
+        if WHOLE_PERIODIC_PAIR and self.periodic and work.whole is not None:
+            self._periodic_pair(work, plan, x, out, w)
+            return
         if plan.whole:
             x, out = np.reshape(x, self.grid_shape), np.reshape(out, self.grid_shape)
         chunks = _block_chunks(work.row_blocks, 1, w)
@@ -438,6 +448,25 @@ class KernelTransform:
         share_out([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
         self._column_pass(work, w)
         share_out([partial(_rows_back, work, plan, out, c, b) for c, b in zip(chunks, buffers)])
+
+    def _periodic_pair(self, work: "_DuccWork", plan: "_RowPlan", x: np.ndarray, out: np.ndarray, workers: int) -> None:
+        """out <- gather (K * scatter x) on an unpadded grid (``WHOLE_PERIODIC_PAIR``): x copied
+        or scattered into the N1 x N2 field, one 2-D rFFT into the whole spectrum, the
+        spectrum product, one 2-D irFFT, and the result copied or gathered out."""
+        field_, spec = work.field(), work.whole
+        flat = field_.ravel()
+        if plan.whole:
+            field_[...] = np.reshape(x, field_.shape)
+        else:
+            flat[...] = 0.0
+            flat[plan.key] = x
+        _ducc_fft.r2c(field_, axes=(0, 1), out=spec, nthreads=workers)
+        spec *= self.spectrum(work.dtype)
+        _ducc_fft.c2r(spec, axes=(0, 1), lastsize=work.n2, forward=False, inorm=2, out=field_, nthreads=workers)
+        if plan.whole:
+            np.copyto(np.reshape(out, field_.shape), field_)
+        else:
+            np.take(flat, plan.key, out=out)
 
     def _column_pass(self, work: "_DuccWork", workers: int) -> None:
         """work.rows <- first N1 rows of iFFT_0(khat * FFT_0(rows zero-padded to P0)): for
@@ -477,60 +506,6 @@ class KernelTransform:
 #: threads, or, with "-row-blocks", the matvec's row blocks (``row_block`` rows a call,
 #: shared over the threads).  Which is fastest depends on the size and the precision; the
 #: floor of a matvec is the fastest of them (benchmarks/bench_matvec.py).
-FLOOR_LAYOUTS: tuple[str, ...] = ("strided", "transposed", "strided-row-blocks", "transposed-row-blocks")
-
-
-def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layout: str = "strided") -> Callable[[], None]:
-    """The FFT floor of a matvec: a function that runs only the transform pair a ducc0
-    matvec needs, on arrays of its own -- row rFFTs on the N1 rows, column FFTs and
-    iFFTs over the whole spectrum, row irFFTs back on the N1 rows, in ``layout`` (one of
-    ``FLOOR_LAYOUTS``) -- with ``fft_workers()`` threads, no scatter, gather, clearing or
-    spectrum product.  Benchmarks time it beside the matvec (results/perf/matvec.md)."""
-    if _ducc_fft is None:  # pragma: no cover - ducc0 is a declared dependency
-        raise ProblemInputError("the FFT floor is measured with ducc0, which is not importable")
-    if layout not in FLOOR_LAYOUTS:
-        raise ProblemInputError(f"FFT floor layout {layout!r}: expected one of {', '.join(FLOOR_LAYOUTS)}")
-    dt = operator_dtype(dtype)
-    n1, _ = transform.grid_shape
-    p0, p1 = transform.padded_shape
-    m = p1 // 2 + 1
-    field_ = np.random.default_rng(0).random((n1, p1)).astype(dt)
-    cdt = np.result_type(dt, np.complex64)
-    out = np.empty((n1, p1), dtype=dt)
-    if layout.startswith("strided"):
-        spec = np.empty((p0, m), dtype=cdt)
-        rows, axis = spec[:n1], 0
-    else:
-        spec = np.empty((m, p0), dtype=cdt)
-        rows, axis = spec[:, :n1].T, 1
-    blocks = layout.endswith("-row-blocks")
-    rb, batch = row_block(p1), row_batch(p1, dt.itemsize)
-
-    def forward(starts: np.ndarray) -> None:
-        for a in starts.tolist():
-            _r2c_rows(field_[a : a + rb], rows[a : a + rb], batch)
-
-    def back(starts: np.ndarray) -> None:
-        for a in starts.tolist():
-            _c2r_rows(rows[a : a + rb], out[a : a + rb], batch)
-
-    def pair() -> None:
-        w = row_threads(n1, p1, fft_workers(), dt.itemsize)
-        chunks = _block_chunks(n1, rb, w)
-        if blocks:
-            share_out([partial(forward, c) for c in chunks])
-        else:
-            _ducc_fft.r2c(field_, axes=(1,), out=rows, nthreads=w)
-        _ducc_fft.c2c(spec, axes=(axis,), forward=True, out=spec, nthreads=w)
-        _ducc_fft.c2c(spec, axes=(axis,), forward=False, inorm=2, out=spec, nthreads=w)
-        if blocks:
-            share_out([partial(back, c) for c in chunks])
-        else:
-            _ducc_fft.c2r(rows, axes=(1,), lastsize=p1, forward=False, inorm=2, out=out, nthreads=w)
-
-    return pair
-
-
 def _transform_column_blocks(rows: np.ndarray, khat_t: np.ndarray, buf: np.ndarray, starts: np.ndarray, n1: int) -> None:
     """For each block of columns [c, c + b) with c in ``starts``: copy the N1 rows in
     transposed into ``buf`` (b x P0, each column a contiguous row), zero the padding,
@@ -645,6 +620,7 @@ class _DuccWork:
         self._row_buffers: list[tuple[np.ndarray, np.ndarray]] = []
         self._plan = _RowPlan(None, True)  # the whole grid
         self._last: _RowPlan | None = None
+        self._field: np.ndarray | None = None
 
     @staticmethod
     def nbytes_for(grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype, workers: int) -> int:
@@ -654,8 +630,15 @@ class _DuccWork:
         threads = max(1, workers)
         row_buffers = threads * 2 * item * row_block(p1) * p1
         if not blocked_columns(p0, 2 * item):  # whole spectrum, no column-block buffers
-            return int(2 * item * p0 * (p1 // 2 + 1) + row_buffers)
+            periodic_field = item * n1 * p1 if (n1, p1) == (p0, grid_shape[1]) else 0  # the 2-D pair's
+            return int(2 * item * p0 * (p1 // 2 + 1) + row_buffers + periodic_field)
         return int(2 * item * n1 * (p1 // 2 + 1) + threads * 2 * item * p0 * column_block(p0, 2 * item) + row_buffers)
+
+    def field(self) -> np.ndarray:
+        """The N1 x N2 real field of a periodic 2-D pair (``KernelTransform._periodic_pair``)."""
+        if self._field is None:
+            self._field = np.empty((self.n1, self.n2), dtype=self.dtype)
+        return self._field
 
     def buffers(self, count: int) -> list[np.ndarray]:
         """``count`` column-block buffers (block x P0 complex), one per thread."""

@@ -33,13 +33,12 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
 from .errors import MemoryBudgetError, ProblemInputError
+from .fft_floor import FLOOR_LAYOUTS, fft_floor_pair  # noqa: F401 -- re-exported with the FFT names
 from .fft_transform import (  # noqa: F401 -- re-exported: the operator's public FFT names
-    FLOOR_LAYOUTS,
     PRECISIONS,
     KernelTransform,
     _ducc_fft,
     fft_backend,
-    fft_floor_pair,
     fft_workers,
     operator_dtype,
     share_out,

@@ -21,8 +21,11 @@ def column_pass(request, monkeypatch) -> str:
     """Every test of this module runs with both column passes of the ducc0 matvec -- one
     call per direction over the whole spectrum (short columns) and block by block in
     transposed buffers (long columns) -- and with the rows in one block, one row a block
-    ("blocked"), or blocks of 2-8 rows with a short last one ("row-blocks")."""
+    ("blocked"), or blocks of 2-8 rows with a short last one ("row-blocks"); a periodic grid
+    with short columns takes the 2-D pair (``WHOLE_PERIODIC_PAIR``) in "whole" only."""
     from contactbench.problems import fft_transform
+
+    monkeypatch.setattr(fft_transform, "WHOLE_PERIODIC_PAIR", request.param == "whole")
 
     monkeypatch.setattr(fft_transform, "TRANSPOSED_COLUMN_BYTES", 0 if request.param == "blocked" else 1 << 62)
     row_bytes = {"whole": fft_transform.ROW_BLOCK_BYTES, "blocked": 1, "row-blocks": 600}[request.param]
@@ -436,3 +439,37 @@ def test_the_transposed_spectrum_is_the_spectrum_transposed(shape: tuple[int, in
         got = transform.transposed_spectrum(dtype)
         assert got.flags.c_contiguous and got.dtype == transform.spectrum(dtype).dtype
         np.testing.assert_array_equal(got, transform.spectrum(dtype).T)
+
+
+def test_a_periodic_grid_with_short_columns_takes_one_2d_pair_with_the_same_products(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``WHOLE_PERIODIC_PAIR``: on an unpadded grid whose spectrum is held whole, the product
+    runs as one 2-D transform pair (and only there); its products on a set, a permuted whole
+    grid and the whole grid are the row blocks' to round-off, in both precisions."""
+    from contactbench.problems import fft_transform
+
+    monkeypatch.setattr(fft_transform, "TRANSPOSED_COLUMN_BYTES", 1 << 62)  # short columns
+    calls: list[int] = []
+    pair = fft_transform.KernelTransform._periodic_pair
+
+    def spy(self, *args):
+        calls.append(1)
+        return pair(self, *args)
+
+    monkeypatch.setattr(fft_transform.KernelTransform, "_periodic_pair", spy)
+    rng = np.random.default_rng(5)
+    whole = np.arange(N * N)
+    for periodic in (True, False):
+        transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, periodic), (N, N))
+        for idx in (random_subset(rng, 0.3), rng.permutation(N * N), whole):
+            x = rng.random(idx.size)
+            for dtype, rtol in ((np.float64, 1e-12), (np.float32, 1e-5)):
+                op = FFTOperator(transform, idx, auto_dense=False).with_precision(dtype)
+                calls.clear()
+                monkeypatch.setattr(fft_transform, "WHOLE_PERIODIC_PAIR", True)
+                got = op.matvec(x)
+                assert len(calls) == (1 if periodic else 0)
+                monkeypatch.setattr(fft_transform, "WHOLE_PERIODIC_PAIR", False)
+                want = op.matvec(x)
+                assert len(calls) == (1 if periodic else 0)
+                np.testing.assert_allclose(got, want, rtol=rtol, atol=rtol * float(np.max(np.abs(want))))
