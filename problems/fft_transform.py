@@ -156,11 +156,13 @@ def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
         _ducc_fft.c2r(src[a : a + step], axes=(1,), lastsize=dst.shape[1], forward=False, inorm=2, out=dst[a : a + step], nthreads=1)
 
 
-#: A periodic grid (not padded) whose spectrum is held whole (short columns, not
-#: ``blocked_columns``) is convolved by one 2-D ducc0 transform pair on an N1 x N2 field
+#: A float32 product on a periodic grid (not padded) whose spectrum is held whole (short
+#: columns, not ``blocked_columns``) runs as one 2-D ducc0 transform pair on an N1 x N2 field
 #: (``KernelTransform._periodic_pair``): no row of it is empty, so the row blocks save no
-#: transform, and their Python work and the separate column pass cost more.  512^2 float32,
-#: a set of 31,000 points: 1.67 against 2.33 ms median (results/perf/periodic-pair).
+#: transform, and their Python work and the separate column pass cost more -- 0.77-0.88x
+#: their time on sets of 12 % of a 512^2 or 1024^2 grid, 0.92-0.97x on the whole grid.  Not
+#: in float64, where the pair's field and spectrum leave the cache: 0.95-1.06x
+#: (results/perf/periodic-pair).
 WHOLE_PERIODIC_PAIR = True
 
 #: A convolution's row blocks and column pass are shared over threads only for at least
@@ -438,7 +440,7 @@ class KernelTransform:
         w = row_threads(work.n1, work.p1, fft_workers(), work.dtype.itemsize)
         self.fft_count += 2
         plan = work.plan(pidx)
-        if WHOLE_PERIODIC_PAIR and self.periodic and work.whole is not None:
+        if WHOLE_PERIODIC_PAIR and self.periodic and work.whole is not None and work.dtype.itemsize == 4:
             self._periodic_pair(work, plan, x, out, w)
             return
         if plan.whole:

@@ -1,0 +1,84 @@
+"""The periodic product as one 2-D transform pair (``fft_transform.WHOLE_PERIODIC_PAIR``) against
+the row blocks and column pass, interleaved in one process.
+
+The operator is the paper-sweep scene's periodic top step (spectral kernel, the whole grid)
+restricted to random sets of a few fractions of the grid; for each set the two paths take
+turns in float32 (float64 always runs the row blocks), ``--rounds`` rounds of ``--reps`` products each, and the median and least
+milliseconds per product of each are printed as a Markdown table (host, date, commit) and
+written to ``--out`` when given.
+
+Usage: python benchmarks/bench_periodic_pair.py [--size 512] [--fractions 1,0.12,0.02]
+       [--rounds 30] [--reps 10] [--threads 1] [--out results/perf/periodic-pair/pair.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+from csv_rows import host_name, refuse_bad_grid_sizes
+from bench_surface_population import code_commit
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--fractions", default="1,0.12,0.02")
+    ap.add_argument("--rounds", type=int, default=30)
+    ap.add_argument("--reps", type=int, default=10)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--out", default="")
+    args = ap.parse_args()
+    refuse_bad_grid_sizes(ap, "--size", [args.size])
+    try:
+        fractions = [float(f) for f in args.fractions.split(",")]
+    except ValueError:
+        ap.error(f"--fractions {args.fractions!r}: expected a comma list of numbers in (0, 1]")
+    if not all(0.0 < f <= 1.0 for f in fractions) or args.rounds < 1 or args.reps < 1 or args.threads < 1:
+        ap.error("--fractions must lie in (0, 1], --rounds, --reps and --threads be >= 1")
+    os.environ["CONTACTBENCH_FFT_WORKERS"] = str(args.threads)
+    from contactbench.harness.run.sequence import instances_of
+    from contactbench.problems import fft_transform
+    from contactbench.problems.scenes import SceneConfig, get_scene
+
+    scene = get_scene("paper-sweep")
+    (spec,) = scene.instances(scene.config(SceneConfig(size=args.size, steps=1, periodic=True, kernel="spectral")))
+    H = next(iter(instances_of(scene.build(spec)))).qp.H
+    rng = np.random.default_rng(0)
+    lines = [f"# One 2-D pair against the row blocks, periodic {args.size}^2 (benchmarks/bench_periodic_pair.py)", "",
+             f"Host {host_name()}, {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, commit {code_commit()}, "
+             f"{args.threads} FFT thread(s), {args.rounds} rounds of {args.reps} products, paths taking turns.", "",
+             "| set / grid | points | precision | 2-D pair ms median (least) | row blocks ms median (least) | pair / blocks |",
+             "|---:|---:|---|---:|---:|---:|"]
+    for fraction in fractions:
+        idx = np.sort(rng.choice(H.n, int(fraction * H.n), replace=False))
+        for dtype in (np.float32,):
+            op = H.restrict(idx).with_precision(dtype)
+            x = rng.random(idx.size)
+            times: dict[bool, list[float]] = {True: [], False: []}
+            for _ in range(args.rounds):
+                for pair in (True, False):
+                    fft_transform.WHOLE_PERIODIC_PAIR = pair
+                    t = time.perf_counter()
+                    for _ in range(args.reps):
+                        op.matvec(x)
+                    times[pair].append((time.perf_counter() - t) / args.reps * 1e3)
+            on, off = statistics.median(times[True]), statistics.median(times[False])
+            lines.append(f"| {fraction:g} | {idx.size} | {np.dtype(dtype).name} | {on:.3f} ({min(times[True]):.3f}) | "
+                         f"{off:.3f} ({min(times[False]):.3f}) | {on / off:.2f} |")
+    fft_transform.WHOLE_PERIODIC_PAIR = True
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
