@@ -159,10 +159,10 @@ def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
 #: A float32 product on a periodic grid (not padded) whose spectrum is held whole (short
 #: columns, not ``blocked_columns``) runs as one 2-D ducc0 transform pair on an N1 x N2 field
 #: (``KernelTransform._periodic_pair``): no row of it is empty, so the row blocks save no
-#: transform, and their Python work and the separate column pass cost more -- 0.77-0.88x
-#: their time on sets of 12 % of a 512^2 or 1024^2 grid, 0.92-0.97x on the whole grid.  Not
-#: in float64, where the pair's field and spectrum leave the cache: 0.95-1.06x
-#: (results/perf/periodic-pair).
+#: transform, and their Python work and the separate column pass cost more -- at 512^2
+#: 0.78-0.80x their time on sets of 2-12 % of the grid and 0.90x on the whole grid, at 1024^2
+#: 0.93-0.96x.  Not in float64, where the pair's field and spectrum leave the cache:
+#: 0.95-1.12x (results/perf/periodic-pair).
 WHOLE_PERIODIC_PAIR = True
 
 #: A convolution's row blocks and column pass are shared over threads only for at least
@@ -632,7 +632,7 @@ class _DuccWork:
         threads = max(1, workers)
         row_buffers = threads * 2 * item * row_block(p1) * p1
         if not blocked_columns(p0, 2 * item):  # whole spectrum, no column-block buffers
-            periodic_field = item * n1 * p1 if (n1, p1) == (p0, grid_shape[1]) else 0  # the 2-D pair's
+            periodic_field = item * n1 * p1 if item == 4 and (n1, p1) == (p0, grid_shape[1]) else 0  # 2-D pair
             return int(2 * item * p0 * (p1 // 2 + 1) + row_buffers + periodic_field)
         return int(2 * item * n1 * (p1 // 2 + 1) + threads * 2 * item * p0 * column_block(p0, 2 * item) + row_buffers)
 
