@@ -470,8 +470,8 @@ def held_residual(state: GapState) -> np.ndarray:
 
 
 def penetrating_count(state: GapState) -> int:
-    """Points at the bound with a negative gap (one read)."""
-    (count,) = read_scalars(np.count_nonzero((state.p <= 0.0) & (state.g < 0.0)))
+    """Points at the bound that no multiplier holds (``at_rest``): a negative gap (one read)."""
+    (count,) = read_scalars(np.count_nonzero((state.p <= 0.0) & ~at_rest(state.p, state.g)))
     return int(count)
 
 
