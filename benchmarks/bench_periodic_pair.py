@@ -1,11 +1,14 @@
 """The periodic product as one 2-D transform pair (``fft_transform.WHOLE_PERIODIC_PAIR``) against
-the row blocks and column pass, interleaved in one process.
+the row blocks and column pass, interleaved in one process; and the whole-grid convolution
+(``fft_threads.periodic_convolve``, the wave-number preconditioner's) with its float32 rows in
+``row_batch`` calls against one 2-D call each way.
 
 The operator is the paper-sweep scene's periodic top step (spectral kernel, the whole grid)
 restricted to random sets of a few fractions of the grid; for each set the two paths take
 turns in float32 (float64 always runs the row blocks), ``--rounds`` rounds of ``--reps`` products each, and the median and least
 milliseconds per product of each are printed as a Markdown table (host, date, commit) and
-written to ``--out`` when given.
+written to ``--out`` when given.  Where the rule keeps long rows in the row blocks (rows of
+``FLOAT32_LONG_ROW`` points or more) both columns of the first table are the row blocks.
 
 Usage: python benchmarks/bench_periodic_pair.py [--size 512] [--fractions 1,0.12,0.02]
        [--rounds 30] [--reps 10] [--threads 1] [--out results/perf/periodic-pair/pair.md]
@@ -73,11 +76,39 @@ def main() -> None:
         lines.append(f"| {fraction:g} | {idx.size} | float32 | {on:.3f} ({min(times[True]):.3f}) | "
                      f"{off:.3f} ({min(times[False]):.3f}) | {on / off:.2f} |")
     fft_transform.WHOLE_PERIODIC_PAIR = default
+    lines += convolution_lines(args.size, args.rounds)
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text)
+
+
+def convolution_lines(size: int, rounds: int) -> list[str]:
+    """The float32 whole-grid convolution of a ``size``^2 grid with its rows in ``row_batch``
+    calls (as the rule has it for long rows) and in one 2-D call each way (the row limit
+    lifted), taking turns: a Markdown table."""
+    from contactbench.problems import fft_threads
+
+    rng = np.random.default_rng(1)
+    f0 = rng.standard_normal((size, size)).astype(np.float32)
+    m = rng.random((size, size // 2 + 1)).astype(np.float32)
+    spec = np.empty(m.shape, np.complex64)
+    limit = fft_threads.FLOAT32_LONG_ROW
+    times: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(rounds):
+        for batched in (True, False):
+            fft_threads.FLOAT32_LONG_ROW = 1 if batched else 1 << 62
+            f = f0.copy()
+            t = time.perf_counter()
+            fft_threads.periodic_convolve(f, spec, m, fft_threads.fft_workers())
+            times[batched].append((time.perf_counter() - t) * 1e3)
+    fft_threads.FLOAT32_LONG_ROW = limit
+    on, off = statistics.median(times[True]), statistics.median(times[False])
+    return ["", f"The whole-grid float32 convolution (`periodic_convolve`), {size}^2, {rounds} rounds:", "",
+            "| rows in batches of 8, ms median (least) | one 2-D call each way, ms median (least) | batched / 2-D |",
+            "|---:|---:|---:|",
+            f"| {on:.3f} ({min(times[True]):.3f}) | {off:.3f} ({min(times[False]):.3f}) | {on / off:.2f} |"]
 
 
 if __name__ == "__main__":

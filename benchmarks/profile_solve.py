@@ -72,7 +72,7 @@ def main() -> None:
     inst, recipe = top_step(args.size, 10, args.operator)
     setup = time.perf_counter() - t0
     solver = get_solver(args.solver)
-    settings = SolverSettings(tol=1e-9, params=params or None)
+    settings = SolverSettings(tol=1e-9, params=params)
     prof = cProfile.Profile()
     t0 = time.perf_counter()
     prof.enable()

@@ -10,19 +10,8 @@ from typing import Callable
 import numpy as np
 
 from .errors import ProblemInputError
-from .fft_transform import (
-    KernelTransform,
-    _block_chunks,
-    _c2r_rows,
-    _ducc_fft,
-    _r2c_rows,
-    fft_workers,
-    operator_dtype,
-    row_batch,
-    row_block,
-    row_threads,
-    share_out,
-)
+from .fft_threads import _ducc_fft, block_chunks, fft_workers, irfft_rows, rfft_rows, row_batch, share_out
+from .fft_transform import KernelTransform, operator_dtype, row_block, row_threads
 
 FLOOR_LAYOUTS: tuple[str, ...] = ("strided", "transposed", "strided-row-blocks", "transposed-row-blocks")
 
@@ -55,15 +44,15 @@ def fft_floor_pair(transform: KernelTransform, dtype: object = np.float64, layou
 
     def forward(starts: np.ndarray) -> None:
         for a in starts.tolist():
-            _r2c_rows(field_[a : a + rb], rows[a : a + rb], batch)
+            rfft_rows(field_[a : a + rb], rows[a : a + rb], batch)
 
     def back(starts: np.ndarray) -> None:
         for a in starts.tolist():
-            _c2r_rows(rows[a : a + rb], out[a : a + rb], batch)
+            irfft_rows(rows[a : a + rb], out[a : a + rb], batch)
 
     def pair() -> None:
         w = row_threads(n1, p1, fft_workers(), dt.itemsize)
-        chunks = _block_chunks(n1, rb, w)
+        chunks = block_chunks(n1, rb, w)
         if blocks:
             share_out([partial(forward, c) for c in chunks])
         else:

@@ -1,39 +1,35 @@
 """The FFT machinery of the matrix-free operator (problems/operators.py): the kernel's
 transform shared by every restriction of one instance (``KernelTransform``), its pruned
 ducc0 convolution in cached work arrays, the row and column passes done in cache-sized
-blocks (a periodic grid with short columns: one 2-D transform pair), and the thread and
-precision settings.  The bare transform pair one matvec needs, the floor its cost is
-compared with, is problems/fft_floor.py.
+blocks (a periodic grid with short columns and short rows: one 2-D transform pair), and
+the precision settings.  The threads, the FFT library and the row-call batching under it
+are problems/fft_threads.py; the bare transform pair one matvec needs, the floor its cost
+is compared with, is problems/fft_floor.py.
 """
 
 from __future__ import annotations
 
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from functools import lru_cache, partial
-from typing import Callable
+from functools import partial
 
 import numpy as np
 import scipy.fft as sfft
 
 from .errors import ProblemInputError
-
-try:  # ducc0: the faster FFT (see KernelTransform); scipy.fft is the fallback
-    from ducc0 import fft as _ducc_fft
-    from ducc0.misc import transpose as _ducc_transpose
-except ImportError:  # pragma: no cover - ducc0 is a declared dependency
-    _ducc_fft = _ducc_transpose = None
-
-
-def fft_workers() -> int:
-    """Threads used by scipy.fft (env CONTACTBENCH_FFT_WORKERS, default: all cores)."""
-    env = os.environ.get("CONTACTBENCH_FFT_WORKERS")
-    if env:
-        return max(1, int(env))
-    return os.cpu_count() or 1
-
+from .fft_threads import (
+    _ducc_fft,
+    _ducc_transpose,
+    block_chunks,
+    fft_backend,
+    fft_workers,
+    irfft_rows,
+    periodic_convolve,
+    rfft_rows,
+    row_batch,
+    share_out,
+)
 
 #: The precisions an operator can run in (``ContactOperator.with_precision``).
 PRECISIONS: tuple[type, ...] = (np.float64, np.float32)
@@ -48,33 +44,6 @@ def operator_dtype(dtype: object) -> np.dtype:
     if dt not in tuple(np.dtype(p) for p in PRECISIONS):
         raise ProblemInputError(f"operator precision {dt}: expected float64 or float32")
     return dt
-
-
-def spectral_multiply(f: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """F^-1[m F[f]] for a real 2-D grid ``f`` (overwritten) and a multiplier ``m`` on its
-    rfft2 half-spectrum (the last axis N2 // 2 + 1), in the operator's FFT library
-    (``fft_backend``) on ``fft_workers()`` threads: the periodic convolution the
-    wave-number preconditioner applies (solvers/_preconditioners.py)."""
-    w = fft_workers()
-    if fft_backend() == "scipy":
-        F = sfft.rfft2(f, workers=w, overwrite_x=True)
-        F *= m
-        return sfft.irfft2(F, s=f.shape, workers=w, overwrite_x=True)
-    F = _ducc_fft.r2c(f, axes=(0, 1), nthreads=w)
-    F *= m
-    return _ducc_fft.c2r(F, axes=(0, 1), lastsize=f.shape[1], forward=False, inorm=2, out=f, nthreads=w,
-                         allow_overwriting_input=True)
-
-
-def fft_backend() -> str:
-    """FFT library for the operator: "ducc" (ducc0, the default when it is importable)
-    or "scipy" (scipy.fft/pocketfft); env CONTACTBENCH_FFT_BACKEND overrides."""
-    env = os.environ.get("CONTACTBENCH_FFT_BACKEND", "").strip().lower()
-    if env not in ("", "ducc", "scipy"):
-        raise ProblemInputError(f"CONTACTBENCH_FFT_BACKEND={env!r}: expected 'ducc' or 'scipy'")
-    if env == "scipy" or _ducc_fft is None:
-        return "scipy"
-    return "ducc"
 
 
 #: Long columns are transformed one block at a time: b columns copied (transposed) into a
@@ -127,42 +96,15 @@ def row_block(p1: int) -> int:
     return int(min(64, max(MIN_ROW_BLOCK, 1 << (b.bit_length() - 1))))
 
 
-#: Rows per ducc0 call in float32 for rows of at least ``FLOAT32_LONG_ROW`` points.  ducc0
-#: 0.42 on AVX-512 transforms 16 float32 rows at a time in its vector lanes, and that path
-#: is slow for long rows: the irFFT of the 2048 rows of a 2048^2 product takes 10.7 ms in
-#: one call and 3.4 ms in calls of 8 rows (rFFT 3.8 -> 3.1 ms; 4096^2 irFFT 44 -> 13 ms;
-#: 512^2 1.26 -> 0.38 ms; results/perf/matvec.md).  On shorter rows the calls'
-#: own cost outweighs it.
-FLOAT32_ROW_BATCH = 8
-FLOAT32_LONG_ROW = 1024
-
-
-def row_batch(p1: int, itemsize: int) -> int:
-    """Rows per ducc0 row-transform call (0: no limit)."""
-    return FLOAT32_ROW_BATCH if itemsize == 4 and p1 >= FLOAT32_LONG_ROW else 0
-
-
-def _r2c_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
-    """dst <- the rFFTs of the rows of src, ``batch`` rows a ducc0 call (0: one call)."""
-    step = batch or max(1, src.shape[0])
-    for a in range(0, src.shape[0], step):
-        _ducc_fft.r2c(src[a : a + step], axes=(1,), out=dst[a : a + step], nthreads=1)
-
-
-def _c2r_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
-    """dst <- the normalised irFFTs (length dst.shape[1]) of the rows of src, ``batch`` rows a call."""
-    step = batch or max(1, src.shape[0])
-    for a in range(0, src.shape[0], step):
-        _ducc_fft.c2r(src[a : a + step], axes=(1,), lastsize=dst.shape[1], forward=False, inorm=2, out=dst[a : a + step], nthreads=1)
-
-
 #: A float32 product on a periodic grid (not padded) whose spectrum is held whole (short
-#: columns, not ``blocked_columns``) runs as one 2-D ducc0 transform pair on an N1 x N2 field
+#: columns, not ``blocked_columns``) and whose rows ducc0 takes in one call (``row_batch``: rows
+#: shorter than ``FLOAT32_LONG_ROW``) runs as one 2-D ducc0 transform pair on an N1 x N2 field
 #: (``KernelTransform._periodic_pair``): no row of it is empty, so the row blocks save no
 #: transform, and their Python work and the separate column pass cost more -- at 512^2
-#: 0.78-0.80x their time on sets of 2-12 % of the grid and 0.90x on the whole grid, at 1024^2
-#: 0.93-0.96x.  Not in float64, where the pair's field and spectrum leave the cache:
-#: 0.95-1.12x (results/perf/periodic-pair).
+#: 0.78-0.90x their time on an AMD EPYC (AVX2), 0.95-1.05x on an AVX-512 Xeon.  Longer rows
+#: keep the row blocks: on the Xeon the 2-D pair took 1.39-1.48x their time at 1024^2 and 2048^2,
+#: and 0.96-1.19x with its rows in ``row_batch`` calls.  Not in float64, where the pair's
+#: field and spectrum leave the cache: 0.95-1.12x (results/perf/periodic-pair).
 WHOLE_PERIODIC_PAIR = True
 
 #: A convolution's row blocks and column pass are shared over threads only for at least
@@ -188,53 +130,6 @@ def column_block(p0: int, complex_itemsize: int) -> int:
 def blocked_columns(p0: int, complex_itemsize: int) -> bool:
     """Whether the column pass runs block by block on transposed buffers (``TRANSPOSED_COLUMN_BYTES``)."""
     return p0 * complex_itemsize >= TRANSPOSED_COLUMN_BYTES
-
-
-class _BlockPool:
-    """Threads that share the row and column blocks of one convolution (ducc0 and numpy's
-    copies release the GIL), a large partial product's column groups and an island bucket's
-    blocks (``share_out``).  Made on first use; a forked child forgets its parent's pool."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._pool: ThreadPoolExecutor | None = None
-        self._size = 0
-
-    def get(self, workers: int) -> ThreadPoolExecutor:
-        with self._lock:
-            if self._pool is None or self._size < workers:
-                self._pool, self._size = ThreadPoolExecutor(workers, thread_name_prefix="contactbench-fft"), workers
-            return self._pool
-
-    def forget(self) -> None:
-        self._lock, self._pool, self._size = threading.Lock(), None, 0
-
-
-_POOL = _BlockPool()
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_POOL.forget)
-
-
-@lru_cache(maxsize=64)
-def _block_chunks(stop: int, step: int, parts: int) -> tuple[np.ndarray, ...]:
-    """The block starts range(0, stop, step) cut into at most ``parts`` non-empty runs, one
-    per thread (cached: the same few shapes recur on every matvec; read-only)."""
-    chunks = tuple(c for c in np.array_split(np.arange(0, stop, step), max(1, parts)) if c.size)
-    for c in chunks:
-        c.flags.writeable = False
-    return chunks
-
-
-def share_out(jobs: list[Callable[[], None]]) -> None:
-    """Run ``jobs``, one thread of the pool each (in this thread when there is one): work
-    that releases the GIL (ducc0's transforms, NumPy's copies, gathers and small products)."""
-    if len(jobs) <= 1:
-        for job in jobs:
-            job()
-        return
-    pool = _POOL.get(len(jobs))
-    for done in [pool.submit(job) for job in jobs]:
-        done.result()
 
 
 def embedded_even_spectrum(table: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray | None:
@@ -440,12 +335,13 @@ class KernelTransform:
         w = row_threads(work.n1, work.p1, fft_workers(), work.dtype.itemsize)
         self.fft_count += 2
         plan = work.plan(pidx)
-        if WHOLE_PERIODIC_PAIR and self.periodic and work.whole is not None and work.dtype.itemsize == 4:
+        short_rows = work.dtype.itemsize == 4 and not work.batch  # float32 rows ducc0 takes in one call
+        if WHOLE_PERIODIC_PAIR and self.periodic and work.whole is not None and short_rows:
             self._periodic_pair(work, plan, x, out, w)
             return
         if plan.whole:
             x, out = np.reshape(x, self.grid_shape), np.reshape(out, self.grid_shape)
-        chunks = _block_chunks(work.row_blocks, 1, w)
+        chunks = block_chunks(work.row_blocks, 1, w)
         buffers = work.row_buffers(len(chunks))
         share_out([partial(_rows_forward, work, plan, x, c, b) for c, b in zip(chunks, buffers)])
         self._column_pass(work, w)
@@ -453,8 +349,8 @@ class KernelTransform:
 
     def _periodic_pair(self, work: "_DuccWork", plan: "_RowPlan", x: np.ndarray, out: np.ndarray, workers: int) -> None:
         """out <- gather (K * scatter x) on an unpadded grid (``WHOLE_PERIODIC_PAIR``): x copied
-        or scattered into the N1 x N2 field, one 2-D rFFT into the whole spectrum, the
-        spectrum product, one 2-D irFFT, and the result copied or gathered out."""
+        or scattered into the N1 x N2 field, convolved through the whole spectrum
+        (``periodic_convolve``), and the result copied or gathered out."""
         field_, spec = work.field(), work.whole
         flat = field_.ravel()
         if plan.whole:
@@ -462,9 +358,7 @@ class KernelTransform:
         else:
             flat[...] = 0.0
             flat[plan.key] = x
-        _ducc_fft.r2c(field_, axes=(0, 1), out=spec, nthreads=workers)
-        spec *= self.spectrum(work.dtype)
-        _ducc_fft.c2r(spec, axes=(0, 1), lastsize=work.n2, forward=False, inorm=2, out=field_, nthreads=workers)
+        periodic_convolve(field_, spec, self.spectrum(work.dtype), workers)
         if plan.whole:
             np.copyto(np.reshape(out, field_.shape), field_)
         else:
@@ -484,7 +378,7 @@ class KernelTransform:
             _ducc_fft.c2c(spec, axes=(0,), forward=False, inorm=2, out=spec, nthreads=workers)
             return
         khat_t = self.transposed_spectrum(work.dtype)
-        chunks = _block_chunks(work.rows.shape[1], work.block, workers)
+        chunks = block_chunks(work.rows.shape[1], work.block, workers)
         buffers = work.buffers(len(chunks))
         share_out([partial(_transform_column_blocks, work.rows, khat_t, buf, c, n1) for buf, c in zip(buffers, chunks)])
 
@@ -566,7 +460,7 @@ def _rows_forward(work: "_DuccWork", plan: _RowPlan, x: np.ndarray, blocks: np.n
             lo, hi = int(loc[nz[0]]) // p1, int(loc[nz[-1]]) // p1 + 1
             rows[a : a + lo] = 0.0
             rows[a + hi : b] = 0.0
-        _r2c_rows(buf[lo:hi], rows[a + lo : a + hi], work.batch)
+        rfft_rows(buf[lo:hi], rows[a + lo : a + hi], work.batch)
         if plan.whole:  # the buffer goes back to zero for the next call (in cache)
             buf[: b - a, : work.n2] = 0.0
         else:
@@ -581,7 +475,7 @@ def _rows_back(work: "_DuccWork", plan: _RowPlan, out: np.ndarray, blocks: np.nd
         a = k * rb
         b = min(a + rb, work.n1)
         if plan.whole:
-            _c2r_rows(rows[a:b], buf[: b - a], work.batch)
+            irfft_rows(rows[a:b], buf[: b - a], work.batch)
             out[a:b] = buf[: b - a, : work.n2]
             continue
         s, e = plan.seg[k], plan.seg[k + 1]
@@ -589,7 +483,7 @@ def _rows_back(work: "_DuccWork", plan: _RowPlan, out: np.ndarray, blocks: np.nd
             continue
         loc = plan.local[s:e]
         lo, hi = int(loc[0]) // p1, int(loc[-1]) // p1 + 1
-        _c2r_rows(rows[a + lo : a + hi], buf[lo:hi], work.batch)
+        irfft_rows(rows[a + lo : a + hi], buf[lo:hi], work.batch)
         if plan.order is None:
             np.take(buf.ravel(), loc, out=out[s:e])
         else:

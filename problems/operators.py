@@ -17,7 +17,8 @@ budget), ``with_precision`` (the same operator with float32 products, for
 mixed-precision solvers; ``restrict`` keeps the precision) and memory estimates.
 Every operator counts its matvecs in ``matvec_count``.  The FFT machinery (the shared
 kernel transform, its pruned ducc0/scipy convolution, ``fft_floor_pair``) is in
-problems/fft_transform.py; its public names are re-exported here.
+problems/fft_transform.py, its threads and FFT library in problems/fft_threads.py; their
+public names are re-exported here.
 """
 
 from __future__ import annotations
@@ -34,15 +35,8 @@ from scipy.sparse.linalg import LinearOperator
 
 from .errors import MemoryBudgetError, ProblemInputError
 from .fft_floor import FLOOR_LAYOUTS, fft_floor_pair  # noqa: F401 -- re-exported with the FFT names
-from .fft_transform import (  # noqa: F401 -- re-exported: the operator's public FFT names
-    PRECISIONS,
-    KernelTransform,
-    _ducc_fft,
-    fft_backend,
-    fft_workers,
-    operator_dtype,
-    share_out,
-)
+from .fft_threads import _ducc_fft, fft_backend, fft_workers, share_out  # noqa: F401 -- re-exported FFT names
+from .fft_transform import PRECISIONS, KernelTransform, operator_dtype  # noqa: F401 -- re-exported FFT names
 
 
 #: Default memory budget for assembling dense matrices (bytes).  Overridable by the

@@ -79,7 +79,7 @@ from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
 from contactbench.problems.kkt import read_scalars
-from contactbench.problems.fft_transform import fft_workers, share_out, spectral_multiply
+from contactbench.problems.fft_threads import fft_workers, share_out, spectral_multiply
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 

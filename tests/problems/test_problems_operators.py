@@ -270,7 +270,8 @@ def test_row_pruned_transforms_agree_with_dense_for_sparse_inputs(periodic: bool
 def test_row_plan_puts_every_point_in_its_block(increasing: bool) -> None:
     """The row plan of an index set: block k's points, taken in increasing index order,
     are the set's points on its rows, at their offsets inside the block."""
-    from contactbench.problems.fft_transform import _DuccWork, row_batch, row_block
+    from contactbench.problems.fft_threads import row_batch
+    from contactbench.problems.fft_transform import _DuccWork, row_block
 
     assert all(row_block(p1) in (1, 2, 4, 8, 16, 32, 64) for p1 in (2, 28, 1000, 1 << 14, 1 << 20))
     assert row_batch(1 << 12, 4) == 8 and row_batch(1 << 12, 8) == 0 and row_batch(64, 4) == 0
@@ -444,10 +445,11 @@ def test_the_transposed_spectrum_is_the_spectrum_transposed(shape: tuple[int, in
 def test_a_periodic_grid_with_short_columns_takes_one_2d_pair_with_the_same_products(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """``WHOLE_PERIODIC_PAIR``: a float32 product on an unpadded grid whose spectrum is held
-    whole runs as one 2-D transform pair (and only there); its products on a set, a permuted
-    whole grid and the whole grid are the row blocks' to round-off; float64 keeps the row
-    blocks."""
-    from contactbench.problems import fft_transform
+    whole and whose rows ducc0 takes in one call runs as one 2-D transform pair (and only
+    there); its products on a set, a permuted whole grid and the whole grid are the row
+    blocks' to round-off; float64, and float32 rows long enough for ``row_batch``, keep the
+    row blocks."""
+    from contactbench.problems import fft_threads, fft_transform
 
     monkeypatch.setattr(fft_transform, "TRANSPOSED_COLUMN_BYTES", 1 << 62)  # short columns
     calls: list[int] = []
@@ -460,7 +462,8 @@ def test_a_periodic_grid_with_short_columns_takes_one_2d_pair_with_the_same_prod
     monkeypatch.setattr(fft_transform.KernelTransform, "_periodic_pair", spy)
     rng = np.random.default_rng(5)
     whole = np.arange(N * N)
-    for periodic in (True, False):
+    for periodic, long_rows in ((True, False), (False, False), (True, True)):
+        monkeypatch.setattr(fft_threads, "FLOAT32_LONG_ROW", N if long_rows else 1 << 62)
         transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, periodic), (N, N))
         for idx in (random_subset(rng, 0.3), rng.permutation(N * N), whole):
             x = rng.random(idx.size)
@@ -469,7 +472,7 @@ def test_a_periodic_grid_with_short_columns_takes_one_2d_pair_with_the_same_prod
                 calls.clear()
                 monkeypatch.setattr(fft_transform, "WHOLE_PERIODIC_PAIR", True)
                 got = op.matvec(x)
-                taken = 1 if periodic and dtype == np.float32 else 0
+                taken = 1 if periodic and dtype == np.float32 and not long_rows else 0
                 assert len(calls) == taken
                 monkeypatch.setattr(fft_transform, "WHOLE_PERIODIC_PAIR", False)
                 want = op.matvec(x)

@@ -564,7 +564,7 @@ def test_ones_is_the_preconditioner_of_the_indicator_and_follows_the_set(kind):
 
 @pytest.mark.parametrize("backend", ["ducc", "scipy"])
 def test_spectral_multiply_is_the_periodic_convolution(monkeypatch, backend):
-    from contactbench.problems.fft_transform import spectral_multiply
+    from contactbench.problems.fft_threads import spectral_multiply
 
     monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", backend)
     rng = np.random.default_rng(1)
@@ -573,6 +573,27 @@ def test_spectral_multiply_is_the_periodic_convolution(monkeypatch, backend):
         m = rng.random((shape[0], shape[1] // 2 + 1))
         want = np.fft.irfft2(np.fft.rfft2(f) * m, s=shape)
         np.testing.assert_allclose(spectral_multiply(f.copy(), m), want, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("workers", ["1", "3"])
+def test_a_float32_convolution_with_its_rows_in_batches_is_the_periodic_convolution(monkeypatch, workers):
+    """``periodic_convolve`` where ``row_batch`` limits a ducc0 call (long float32 rows,
+    here every row): the row transforms in batches shared over the threads, the columns
+    whole -- the same convolution, on row counts that are and are not a batch's multiple."""
+    from contactbench.problems import fft_threads
+
+    monkeypatch.setattr(fft_threads, "FLOAT32_LONG_ROW", 1)
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+    monkeypatch.setenv("CONTACTBENCH_FFT_BACKEND", "ducc")
+    rng = np.random.default_rng(2)
+    for shape in ((16, 16), (27, 10), (9, 7), (3, 12)):
+        assert fft_threads.row_batch(shape[1], 4) > 0
+        f = rng.normal(size=shape).astype(np.float32)
+        m = rng.random((shape[0], shape[1] // 2 + 1)).astype(np.float32)
+        want = np.fft.irfft2(np.fft.rfft2(f.astype(np.float64)) * m, s=shape)
+        got = fft_threads.spectral_multiply(f.copy(), m)
+        assert got.dtype == np.float32
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5 * float(np.max(np.abs(want))))
 
 
 def test_auto_is_the_wave_number_preconditioner_under_load_control_only():

@@ -1,0 +1,157 @@
+"""The threads and the row-call batching under every FFT of the package: how many threads
+(``fft_workers``), the pool that shares a transform's blocks out over them (``share_out``),
+which FFT library runs (``fft_backend``), how many float32 rows one ducc0 call takes
+(``row_batch``), and the periodic convolution on a whole grid (``periodic_convolve``) that the
+wave-number preconditioner and a periodic float32 product both run.  The operator's
+convolution itself is problems/fft_transform.py.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from functools import lru_cache, partial
+from typing import Callable
+
+import numpy as np
+import scipy.fft as sfft
+
+from .errors import ProblemInputError
+
+try:  # ducc0: the faster FFT (see KernelTransform); scipy.fft is the fallback
+    from ducc0 import fft as _ducc_fft
+    from ducc0.misc import transpose as _ducc_transpose
+except ImportError:  # pragma: no cover - ducc0 is a declared dependency
+    _ducc_fft = _ducc_transpose = None
+
+
+def fft_workers() -> int:
+    """Threads used by scipy.fft (env CONTACTBENCH_FFT_WORKERS, default: all cores)."""
+    env = os.environ.get("CONTACTBENCH_FFT_WORKERS")
+    if env:
+        return max(1, int(env))
+    return os.cpu_count() or 1
+
+
+def fft_backend() -> str:
+    """FFT library for the operator: "ducc" (ducc0, the default when it is importable)
+    or "scipy" (scipy.fft/pocketfft); env CONTACTBENCH_FFT_BACKEND overrides."""
+    env = os.environ.get("CONTACTBENCH_FFT_BACKEND", "").strip().lower()
+    if env not in ("", "ducc", "scipy"):
+        raise ProblemInputError(f"CONTACTBENCH_FFT_BACKEND={env!r}: expected 'ducc' or 'scipy'")
+    if env == "scipy" or _ducc_fft is None:
+        return "scipy"
+    return "ducc"
+
+
+#: Rows per ducc0 call in float32 for rows of at least ``FLOAT32_LONG_ROW`` points.  ducc0
+#: 0.42 on AVX-512 transforms 16 float32 rows at a time in its vector lanes, and that path
+#: is slow for long rows: the irFFT of the 2048 rows of a 2048^2 product takes 10.7 ms in
+#: one call and 3.4 ms in calls of 8 rows (rFFT 3.8 -> 3.1 ms; 4096^2 irFFT 44 -> 13 ms;
+#: 512^2 1.26 -> 0.38 ms; results/perf/matvec.md).  On shorter rows the calls'
+#: own cost outweighs it.
+FLOAT32_ROW_BATCH = 8
+FLOAT32_LONG_ROW = 1024
+
+
+def row_batch(p1: int, itemsize: int) -> int:
+    """Rows per ducc0 row-transform call (0: no limit)."""
+    return FLOAT32_ROW_BATCH if itemsize == 4 and p1 >= FLOAT32_LONG_ROW else 0
+
+
+def rfft_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
+    """dst <- the rFFTs of the rows of src, ``batch`` rows a ducc0 call (0: one call)."""
+    step = batch or max(1, src.shape[0])
+    for a in range(0, src.shape[0], step):
+        _ducc_fft.r2c(src[a : a + step], axes=(1,), out=dst[a : a + step], nthreads=1)
+
+
+def irfft_rows(src: np.ndarray, dst: np.ndarray, batch: int) -> None:
+    """dst <- the normalised irFFTs (length dst.shape[1]) of the rows of src, ``batch`` rows a call."""
+    step = batch or max(1, src.shape[0])
+    for a in range(0, src.shape[0], step):
+        _ducc_fft.c2r(src[a : a + step], axes=(1,), lastsize=dst.shape[1], forward=False, inorm=2, out=dst[a : a + step], nthreads=1)
+
+
+class _BlockPool:
+    """Threads that share the row and column blocks of one convolution (ducc0 and numpy's
+    copies release the GIL), a large partial product's column groups and an island bucket's
+    blocks (``share_out``).  Made on first use; a forked child forgets its parent's pool."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._size = 0
+
+    def get(self, workers: int) -> ThreadPoolExecutor:
+        with self._lock:
+            if self._pool is None or self._size < workers:
+                self._pool, self._size = ThreadPoolExecutor(workers, thread_name_prefix="contactbench-fft"), workers
+            return self._pool
+
+    def forget(self) -> None:
+        self._lock, self._pool, self._size = threading.Lock(), None, 0
+
+
+_POOL = _BlockPool()
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_POOL.forget)
+
+
+@lru_cache(maxsize=64)
+def block_chunks(stop: int, step: int, parts: int) -> tuple[np.ndarray, ...]:
+    """The block starts range(0, stop, step) cut into at most ``parts`` non-empty runs, one
+    per thread (cached: the same few shapes recur on every matvec; read-only)."""
+    chunks = tuple(c for c in np.array_split(np.arange(0, stop, step), max(1, parts)) if c.size)
+    for c in chunks:
+        c.flags.writeable = False
+    return chunks
+
+
+def share_out(jobs: list[Callable[[], None]]) -> None:
+    """Run ``jobs``, one thread of the pool each (in this thread when there is one): work
+    that releases the GIL (ducc0's transforms, NumPy's copies, gathers and small products)."""
+    if len(jobs) <= 1:
+        for job in jobs:
+            job()
+        return
+    pool = _POOL.get(len(jobs))
+    for done in [pool.submit(job) for job in jobs]:
+        done.result()
+
+
+def periodic_convolve(f: np.ndarray, spec: np.ndarray, m: np.ndarray, workers: int) -> np.ndarray:
+    """f <- F^-1[m F[f]] (normalised), in place, for a real N1 x N2 grid ``f`` and a multiplier
+    ``m`` on its half spectrum, through ``spec`` (N1 x (N2/2+1) complex, overwritten), with
+    ducc0 on ``workers`` threads: one 2-D call each way, or, where ``row_batch`` limits a
+    call (long float32 rows), the row transforms in such calls shared out over the threads
+    and the column transforms one call each way (the 2-D call transforms all its rows in one
+    go: at 4096^2 on AVX-512 a 2-D float32 pair took 1.27x this one)."""
+    n1, n2 = f.shape
+    batch = row_batch(n2, f.dtype.itemsize)
+    if not batch:
+        _ducc_fft.r2c(f, axes=(0, 1), out=spec, nthreads=workers)
+        spec *= m
+        return _ducc_fft.c2r(spec, axes=(0, 1), lastsize=n2, forward=False, inorm=2, out=f, nthreads=workers)
+    runs = [(int(c[0]), min(n1, int(c[-1]) + batch)) for c in block_chunks(n1, batch, workers)]
+    share_out([partial(rfft_rows, f[a:b], spec[a:b], batch) for a, b in runs])
+    _ducc_fft.c2c(spec, axes=(0,), forward=True, out=spec, nthreads=workers)
+    spec *= m
+    _ducc_fft.c2c(spec, axes=(0,), forward=False, inorm=2, out=spec, nthreads=workers)
+    share_out([partial(irfft_rows, spec[a:b], f[a:b], batch) for a, b in runs])
+    return f
+
+
+def spectral_multiply(f: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """F^-1[m F[f]] for a real 2-D grid ``f`` (overwritten) and a multiplier ``m`` on its
+    rfft2 half-spectrum (the last axis N2 // 2 + 1), in the operator's FFT library
+    (``fft_backend``) on ``fft_workers()`` threads: the periodic convolution the
+    wave-number preconditioner applies (solvers/_preconditioners.py)."""
+    w = fft_workers()
+    if fft_backend() == "scipy":
+        F = sfft.rfft2(f, workers=w, overwrite_x=True)
+        F *= m
+        return sfft.irfft2(F, s=f.shape, workers=w, overwrite_x=True)
+    spec = np.empty((f.shape[0], f.shape[1] // 2 + 1), dtype=np.result_type(f.dtype, np.complex64))
+    return periodic_convolve(f, spec, m, w)
