@@ -431,9 +431,13 @@ def test_a_product_is_the_same_on_any_threads_and_a_small_grid_takes_one(periodi
             np.testing.assert_allclose(a, answers[0], rtol=1e-6 if dtype == np.float32 else 1e-13, atol=0)
 
 
+@pytest.mark.parametrize("workers", ["1", "3"])
 @pytest.mark.parametrize("shape", [(40, 40), (300, 170)])
-def test_the_transposed_spectrum_is_the_spectrum_transposed(shape: tuple[int, int]) -> None:
-    """Tile by tile (``fft_transform.TRANSPOSE_TILE``), ragged edges included, in each precision."""
+def test_the_transposed_spectrum_is_the_spectrum_transposed(shape: tuple[int, int], workers: str,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tile by tile (``fft_transform.TRANSPOSE_TILE``), ragged edges included, in each precision,
+    the bands of tiles on one thread or shared over three."""
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
     transform = KernelTransform(kernel_table("bcc", shape, DELTA, E, False), shape)
     assert transform.khat.shape[0] > 256 or shape == (40, 40)
     for dtype in (np.float64, np.float32):
