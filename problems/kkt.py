@@ -208,12 +208,14 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
 
 def _extremes(p: Any, w: Any, t: Any) -> tuple[float, float, float, float, bool]:
     """min p, min w, max t, min t (0 for an empty array; NaN propagates) and whether p and
-    w are finite, read in one transfer (``read_scalars``)."""
+    w are finite, read in one transfer (``read_scalars``).  An array is finite when its
+    least and greatest entries are (a NaN makes both NaN): two reductions where a finiteness
+    mask took two passes and a temporary."""
     if p.size == 0 or w.size == 0:
         return min_below_zero(p), min_below_zero(w), max_above_zero(t), min_below_zero(t), _finite(p, w)
-    p_min, w_min, t_max, t_min, finite = read_scalars(np.min(p), np.min(w), np.max(t), np.min(t),
-                                                      np.all(np.isfinite(p)) & np.all(np.isfinite(w)))
-    return p_min, w_min, t_max, t_min, finite == 1.0
+    p_min, w_min, t_max, t_min, p_max, w_max = read_scalars(np.min(p), np.min(w), np.max(t), np.min(t),
+                                                            np.max(p), np.max(w))
+    return p_min, w_min, t_max, t_min, all(math.isfinite(v) for v in (p_min, p_max, w_min, w_max))
 
 
 def scaled_kkt_error(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,

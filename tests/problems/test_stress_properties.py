@@ -76,3 +76,23 @@ def test_scaled_kkt_figures_are_unit_invariant(n: int, s: int, length: float, fo
     a, b = kkt_check(inst, p), kkt_check(scaled, p * force)
     for name in ("primal", "dual", "complementarity", "complementarity_sum", "kkt_error"):
         assert abs(getattr(a, name) - getattr(b, name)) <= 1e-8 * max(1.0, abs(getattr(a, name)))
+
+
+@seed(20151128)
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(n=st.integers(min_value=1, max_value=40), s=seeds, where=st.sampled_from(["p", "w"]),
+       bad=st.sampled_from([np.nan, np.inf, -np.inf]), finite=st.booleans())
+def test_a_non_finite_entry_anywhere_makes_every_figure_infinite(n: int, s: int, where: str, bad: float,
+                                                                 finite: bool) -> None:
+    """``kkt_figures`` reads finiteness from each array's least and greatest entries: one
+    NaN or infinity in p or in w, at any position, makes all three figures inf; finite
+    arrays of moderate size give finite figures."""
+    from contactbench.problems.kkt import kkt_figures
+
+    rng = np.random.default_rng(s)
+    p, w, ubar = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+    if not finite:
+        (p if where == "p" else w)[rng.integers(n)] = bad
+    f = kkt_figures(p, w, ubar, 1.0)
+    figures = (f.primal, f.dual, f.complementarity)
+    assert all(v == np.inf for v in figures) if not finite else all(np.isfinite(v) for v in figures)
