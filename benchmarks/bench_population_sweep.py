@@ -6,7 +6,7 @@ For each member (``MEMBERS``, or ``--members`` keys family:N:H:slope:seed of
 benchmarks/bench_surface_population.py, whose ``surface_of`` builds them), the surface is
 written as OUT/surfaces/<key>.npy (heights in m) and swept by
 
-    contactbench run paper-sweep --surface <file> --length 1e-4 --steps K
+    contactbench run paper-sweep --surface <file> --length 1e-4 --steps K --allow-steep
         --solvers <ours>,cm-dual-ccg --profile high --threads T --out OUT/<key>
 
 -- the paper's instance (BCC, non-periodic, E, L = 100 um) on that surface, K warm-started
@@ -15,7 +15,10 @@ instances, load loop, warm starts, time limits and judge in one run.  The summar
 written to OUT/summary.md, with host, date and commit) gives per member each solver's total
 solve time over the steps, steps solved and total matvecs, the ratio ours / cm-dual-ccg, the
 largest relative load difference between the two, and the median ratio over the members.  A
-ratio counts only when both solved every step.
+ratio counts only when both solved every step.  ``--allow-steep``: the files are the
+population's own surfaces in metres, whose steepest cell has an rms slope of 1, at the edge of
+the range the CLI's unit check takes for a measured map.  A member the CLI refuses (exit 2) is
+recorded with its one-line reason (OUT/<key>.refused) and the run goes on.
 
 Usage:
   python benchmarks/bench_population_sweep.py [--size 512] [--steps 10] [--threads 2]
@@ -62,19 +65,28 @@ def members_of(text: str, size: int) -> list[Member]:
     return [replace(Member.parse(k), N=size) for k in filter(None, text.split(","))]
 
 
-def sweep_member(m: Member, args: argparse.Namespace) -> Path:
-    """Write the member's surface and run the sweep of both solvers on it (module doc)."""
+def sweep_member(m: Member, args: argparse.Namespace) -> str:
+    """Write the member's surface and run the sweep of both solvers on it (module doc): "",
+    or the CLI's one-line refusal of the member (exit 2), also written to OUT/<key>.refused.
+    Any other failure stops the run."""
     out = Path(args.out)
     (out / "surfaces").mkdir(parents=True, exist_ok=True)
-    path = out / "surfaces" / f"{m.key.replace(':', '_')}.npy"
+    name = m.key.replace(":", "_")
+    path = out / "surfaces" / f"{name}.npy"
     np.save(path, np.asarray(surface_of(m).heights, dtype=np.float64))
-    run_dir = out / m.key.replace(":", "_")
     cmd = [CB, "run", "paper-sweep", "--surface", str(path), "--length", repr(LENGTH), "--steps", str(args.steps),
-           "--solvers", f"{args.ours},{CM}", "--threads", str(args.threads), "--profile", "high",
-           "--timeout", str(args.timeout), "--out", str(run_dir), "--no-progress", "--reference", "none"]
+           "--allow-steep", "--solvers", f"{args.ours},{CM}", "--threads", str(args.threads), "--profile", "high",
+           "--timeout", str(args.timeout), "--out", str(out / name), "--no-progress", "--reference", "none"]
     print("+ " + " ".join(cmd), flush=True)
-    subprocess.run(cmd, check=True)
-    return run_dir
+    proc = subprocess.run(cmd, stderr=subprocess.PIPE, text=True)
+    sys.stderr.write(proc.stderr)
+    if proc.returncode == 2:
+        reason = ([ln for ln in proc.stderr.splitlines() if ln.strip()] or ["refused (exit 2)"])[-1]
+        (out / f"{name}.refused").write_text(reason + "\n")
+        return reason
+    if proc.returncode != 0:
+        raise subprocess.CalledProcessError(proc.returncode, cmd, stderr=proc.stderr)
+    return ""
 
 
 def totals(run_dir: Path) -> tuple[list[SweepTotals], float]:
@@ -116,8 +128,10 @@ def summary(members: list[Member], args: argparse.Namespace) -> str:
     ratios = []
     for m in members:
         run_dir = Path(args.out) / m.key.replace(":", "_")
+        refused = run_dir.with_name(run_dir.name + ".refused")
         if not run_dir.exists():
-            lines.append(f"| {m.key} | not run |||||||")
+            why = f"refused: {refused.read_text().strip()}" if refused.exists() else "not run"
+            lines.append(f"| {m.key} | {why} |||||||")
             continue
         rows, diff = totals(run_dir)
         by = {r.solver: r for r in rows}

@@ -303,6 +303,28 @@ def test_sweep_refuses_bad_input_in_one_line_before_running(argv, what, tmp_path
     assert not (tmp_path / "o").exists()
 
 
+def test_a_member_the_cli_refuses_is_recorded_with_its_reason_and_a_crash_stops_the_run(tmp_path, monkeypatch):
+    """``sweep_member``: the CLI's exit 2 (a surface it does not take) is the member's
+    one-line reason, in OUT/<key>.refused and the summary, and the run goes on; any other
+    failure stops it."""
+    import argparse
+    import subprocess
+
+    sweep = bench_script("bench_population_sweep")
+    fake = tmp_path / "contactbench"
+    args = argparse.Namespace(out=str(tmp_path / "o"), steps=2, ours="fast-dual-pccg", threads=1, timeout=10.0,
+                              size=256)
+    (m,) = sweep.members_of("saupe:256:0.7:0.3:0", 256)
+    monkeypatch.setattr(sweep, "CB", str(fake))
+    fake.write_text("#!/bin/sh\necho 'contactbench: error: paper-sweep: too steep' >&2\nexit 2\n")
+    fake.chmod(0o755)
+    assert sweep.sweep_member(m, args) == "contactbench: error: paper-sweep: too steep"
+    assert "| saupe:256:0.7:0.3:0 | refused: contactbench: error: paper-sweep: too steep |" in sweep.summary([m], args)
+    fake.write_text("#!/bin/sh\nexit 1\n")
+    with pytest.raises(subprocess.CalledProcessError):
+        sweep.sweep_member(m, args)
+
+
 def test_cost_law_per_family_recovers_known_exponents(tmp_path):
     bench = population_script()
     plot = bench_script("plot_population_cost_law")
