@@ -23,6 +23,7 @@ import sys
 import time
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from csv_rows import host_name, refuse_bad_grid_sizes
@@ -64,17 +65,12 @@ def main() -> None:
         idx = np.sort(rng.choice(H.n, int(fraction * H.n), replace=False))
         op = H.restrict(idx).with_precision(np.float32)
         x = rng.random(idx.size)
-        times: dict[bool, list[float]] = {True: [], False: []}
-        for _ in range(args.rounds):
-            for pair in (True, False):
-                fft_transform.WHOLE_PERIODIC_PAIR = pair
-                t = time.perf_counter()
-                for _ in range(args.reps):
-                    op.matvec(x)
-                times[pair].append((time.perf_counter() - t) / args.reps * 1e3)
-        on, off = statistics.median(times[True]), statistics.median(times[False])
-        lines.append(f"| {fraction:g} | {idx.size} | float32 | {on:.3f} ({min(times[True]):.3f}) | "
-                     f"{off:.3f} ({min(times[False]):.3f}) | {on / off:.2f} |")
+
+        def use_pair(on: bool) -> None:
+            fft_transform.WHOLE_PERIODIC_PAIR = on
+
+        times = taking_turns(use_pair, lambda: op.matvec(x), args.rounds, args.reps)
+        lines.append(f"| {fraction:g} | {idx.size} | float32 | {compared(times)} |")
     fft_transform.WHOLE_PERIODIC_PAIR = default
     lines += convolution_lines(args.size, args.rounds)
     text = "\n".join(lines) + "\n"
@@ -94,21 +90,40 @@ def convolution_lines(size: int, rounds: int) -> list[str]:
     f0 = rng.standard_normal((size, size)).astype(np.float32)
     m = rng.random((size, size // 2 + 1)).astype(np.float32)
     spec = np.empty(m.shape, np.complex64)
+    f = f0.copy()
     limit = fft_threads.FLOAT32_LONG_ROW
-    times: dict[bool, list[float]] = {True: [], False: []}
-    for _ in range(rounds):
-        for batched in (True, False):
-            fft_threads.FLOAT32_LONG_ROW = 1 if batched else 1 << 62
-            f = f0.copy()
-            t = time.perf_counter()
-            fft_threads.periodic_convolve(f, spec, m, fft_threads.fft_workers())
-            times[batched].append((time.perf_counter() - t) * 1e3)
+
+    def batch_rows(on: bool) -> None:  # and a fresh input: the convolution overwrites it
+        fft_threads.FLOAT32_LONG_ROW = 1 if on else 1 << 62
+        np.copyto(f, f0)
+
+    times = taking_turns(batch_rows, lambda: fft_threads.periodic_convolve(f, spec, m, fft_threads.fft_workers()),
+                         rounds, 1)
     fft_threads.FLOAT32_LONG_ROW = limit
-    on, off = statistics.median(times[True]), statistics.median(times[False])
     return ["", f"The whole-grid float32 convolution (`periodic_convolve`), {size}^2, {rounds} rounds:", "",
             "| rows in batches of 8, ms median (least) | one 2-D call each way, ms median (least) | batched / 2-D |",
-            "|---:|---:|---:|",
-            f"| {on:.3f} ({min(times[True]):.3f}) | {off:.3f} ({min(times[False]):.3f}) | {on / off:.2f} |"]
+            "|---:|---:|---:|", f"| {compared(times)} |"]
+
+
+def taking_turns(switch: Callable[[bool], None], run: Callable[[], object], rounds: int,
+                 reps: int) -> dict[bool, list[float]]:
+    """Milliseconds per ``run``, after ``switch(True)`` and ``switch(False)`` in turn: ``rounds``
+    rounds of ``reps`` runs on each side (``switch`` is outside the clock)."""
+    times: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(rounds):
+        for on in (True, False):
+            switch(on)
+            t = time.perf_counter()
+            for _ in range(reps):
+                run()
+            times[on].append((time.perf_counter() - t) / reps * 1e3)
+    return times
+
+
+def compared(times: dict[bool, list[float]]) -> str:
+    """The table cells "on: median (least) | off: median (least) | on / off" of ``taking_turns``."""
+    on, off = statistics.median(times[True]), statistics.median(times[False])
+    return f"{on:.3f} ({min(times[True]):.3f}) | {off:.3f} ({min(times[False]):.3f}) | {on / off:.2f}"
 
 
 if __name__ == "__main__":
