@@ -67,6 +67,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .constraints import Constraints, fit_multiplier
+from .fft_threads import each_band
 
 
 class _HasQP(Protocol):
@@ -194,10 +195,8 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
     ||ubar||_inf when the caller already has it (a solver testing every iteration).
     A non-finite entry of p or w, or a product that overflows, gives inf."""
     u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+    p_min, w_min, t_max, t_min, finite = _extremes(p, w, 1.0 / p_s)
     with np.errstate(all="ignore"):
-        t = np.multiply(p, 1.0 / p_s)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow
-        np.multiply(t, w, out=t)
-        p_min, w_min, t_max, t_min, finite = _extremes(p, w, t)
         primal = worse(_negative_part(below_zero(p_min)) / p_s)
         dual = worse(_negative_part(below_zero(w_min)) / u_s)
         comp = worse(worst(above_zero(t_max), -below_zero(t_min)) / u_s)
@@ -206,15 +205,30 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp), u_s, p_s)
 
 
-def _extremes(p: Any, w: Any, t: Any) -> tuple[float, float, float, float, bool]:
-    """min p, min w, max t, min t (0 for an empty array; NaN propagates) and whether p and
-    w are finite, read in one transfer (``read_scalars``).  An array is finite when its
-    least and greatest entries are (a NaN makes both NaN): two reductions where a finiteness
-    mask took two passes and a temporary."""
+def _extremes(p: Any, w: Any, scale: float) -> tuple[float, float, float, float, bool]:
+    """min p, min w, max t, min t for t = (p scale) w, the scaled complementarity (0 for an
+    empty array; NaN propagates), and whether p and w are finite, read in one transfer
+    (``read_scalars``), in bands on the threads (``each_band``: min and max are exact, so the
+    same figures on any thread count).  An array is finite when its least and greatest
+    entries are (a NaN makes both NaN): two reductions where a finiteness mask took two
+    passes and a temporary."""
     if p.size == 0 or w.size == 0:
-        return min_below_zero(p), min_below_zero(w), max_above_zero(t), min_below_zero(t), _finite(p, w)
-    p_min, w_min, t_max, t_min, p_max, w_max = read_scalars(np.min(p), np.min(w), np.max(t), np.min(t),
-                                                            np.max(p), np.max(w))
+        return min_below_zero(p), min_below_zero(w), 0.0, 0.0, _finite(p, w)
+
+    def part(s: slice) -> tuple[Any, ...]:
+        ps, ws = p[s], w[s]
+        with np.errstate(all="ignore"):
+            t = np.multiply(ps, scale)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow
+            np.multiply(t, ws, out=t)
+        return np.min(ps), np.min(ws), np.max(t), np.min(t), np.max(ps), np.max(ws)
+
+    bands = each_band(part, p)
+    if len(bands) == 1:
+        p_min, w_min, t_max, t_min, p_max, w_max = read_scalars(*bands[0])
+    else:  # host bands: NumPy's min and max propagate a NaN
+        lowest, highest = np.min(bands, axis=0), np.max(bands, axis=0)
+        p_min, w_min, t_min, t_max, p_max, w_max = (float(v) for v in (lowest[0], lowest[1], lowest[3],
+                                                                      highest[2], highest[4], highest[5]))
     return p_min, w_min, t_max, t_min, all(math.isfinite(v) for v in (p_min, p_max, w_min, w_max))
 
 

@@ -25,9 +25,8 @@ from __future__ import annotations
 
 import os
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from functools import partial
 from typing import Any
 
 import numpy as np
@@ -35,7 +34,7 @@ from scipy.sparse.linalg import LinearOperator
 
 from .errors import MemoryBudgetError, ProblemInputError
 from .fft_floor import FLOOR_LAYOUTS, fft_floor_pair  # noqa: F401 -- re-exported with the FFT names
-from .fft_threads import _ducc_fft, fft_backend, fft_workers, share_out  # noqa: F401 -- re-exported FFT names
+from .fft_threads import _ducc_fft, each_on_pool, fft_backend, fft_workers, share_out  # noqa: F401 -- re-exported FFT names
 from .fft_transform import PRECISIONS, KernelTransform, operator_dtype  # noqa: F401 -- re-exported FFT names
 
 
@@ -208,6 +207,11 @@ class ContactOperator(ABC):
         for b0 in range(0, rows.size, step):
             out[b0:b0 + step] = self.submatrix(rows[b0:b0 + step], cols) @ x
         return out
+
+    def partial_products(self, items: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        """[``partial_product``(rows, cols, x) for each item]: the same sums, the items on
+        the threads where the operator can (here: in turn)."""
+        return [self.partial_product(rows, cols, x) for rows, cols, x in items]
 
     def partial_product_pays(self, entries: int) -> bool:
         """Whether a ``partial_product`` gathering ``entries`` entries costs well under a
@@ -451,6 +455,19 @@ class FFTOperator(ContactOperator):
         # rows' offsets are sorted, so the reads of the table stay close together.
         if np.iscomplexobj(self.transform.khat):
             return super().partial_product(rows, cols, x)
+        return self._even_product(rows, cols, x, workers=None)
+
+    def partial_products(self, items: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        # Host arrays and an even table: each product whole on one thread of the pool, its
+        # column groups in turn -- the sums ``partial_product`` gives, on every thread count.
+        if np.iscomplexobj(self.transform.khat) or not all(isinstance(a, np.ndarray) for it in items for a in it):
+            return super().partial_products(items)
+        return each_on_pool(lambda k: self._even_product(*items[k], workers=1), len(items))
+
+    def _even_product(self, rows: np.ndarray, cols: np.ndarray, x: np.ndarray, workers: int | None) -> np.ndarray:
+        """H[rows, cols] x from the even table: one run of column chunks, or, from
+        ``PARALLEL_PARTIAL_ENTRIES`` entries, ``PARTIAL_PRODUCT_GROUPS`` column groups on
+        ``workers`` threads (None: ``fft_workers()``) added in group order."""
         rows, cols = np.asarray(rows), np.asarray(cols)
         ri, rj = self._pi[rows].astype(np.int32), self._pj[rows].astype(np.int32)
         ci, cj = self._pi[cols].astype(np.int32), self._pj[cols].astype(np.int32)
@@ -459,15 +476,12 @@ class FFTOperator(ContactOperator):
         if rows.size * cols.size < PARALLEL_PARTIAL_ENTRIES or cols.size < PARTIAL_PRODUCT_GROUPS:
             return even_table_product(table, width, (ri, rj), (ci, cj), x)
         groups = np.array_split(np.arange(cols.size), PARTIAL_PRODUCT_GROUPS)
-        sums: list[np.ndarray] = [np.empty(0)] * len(groups)
 
-        def gather(mine: range) -> None:
-            for k in mine:
-                c = groups[k]
-                sums[k] = even_table_product(table, width, (ri, rj), (ci[c], cj[c]), x[c])
+        def gather(k: int) -> np.ndarray:
+            c = groups[k]
+            return even_table_product(table, width, (ri, rj), (ci[c], cj[c]), x[c])
 
-        w = min(fft_workers(), len(groups))
-        share_out([partial(gather, range(t, len(groups), w)) for t in range(w)])
+        sums = each_on_pool(gather, len(groups), workers)
         out = sums[0]
         for more in sums[1:]:
             out += more

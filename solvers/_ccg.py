@@ -101,6 +101,7 @@ from abc import abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
+from contactbench.problems.fft_threads import each_band
 from contactbench.problems.kkt import min_below_zero, read_scalars
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
@@ -196,9 +197,16 @@ class GapState:
         self._raised, self._upto = [], None
 
     def advance(self, alpha: float, d: np.ndarray, Hd: np.ndarray) -> None:
-        """The linear step p <- p + alpha d, g <- g + alpha Hd (no projection)."""
-        self.p += alpha * d
-        self.g += alpha * Hd
+        """The linear step p <- p + alpha d, g <- g + alpha Hd (no projection), in bands
+        (``each_band``)."""
+        p, g = self.p, self.g
+
+        def part(s: slice) -> None:
+            ps, gs = p[s], g[s]
+            ps += alpha * d[s]
+            gs += alpha * Hd[s]
+
+        each_band(part, p)
         self._since_refresh += 1
 
     def step(self, alpha: float, d: np.ndarray, Hd: np.ndarray, upper: np.ndarray | None = None) -> bool:
@@ -374,11 +382,11 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
     return CCGRun(max_iter, run.kkt, False)
 
 
-def on_set(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """x on ``mask``, 0 elsewhere, for a finite x: a product, several times faster than
-    np.where on the scattered masks of a contact set (a non-finite x off the mask gives
-    NaN there, which the loops' finiteness tests stop on)."""
-    return x * mask
+def on_set(x: np.ndarray, mask: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """x on ``mask``, 0 elsewhere (into ``out`` when given), for a finite x: a product,
+    several times faster than np.where on the scattered masks of a contact set (a
+    non-finite x off the mask gives NaN there, which the loops' finiteness tests stop on)."""
+    return np.multiply(x, mask, out=out)
 
 
 def at_rest(p: np.ndarray, g: np.ndarray, upper: np.ndarray | None = None) -> np.ndarray:
@@ -393,18 +401,32 @@ def at_rest(p: np.ndarray, g: np.ndarray, upper: np.ndarray | None = None) -> np
 
 
 def dual_residual(state: GapState, upper: np.ndarray | None = None) -> np.ndarray:
-    """Gap with the admissible multipliers removed (``at_rest``)."""
-    return on_set(state.g, ~at_rest(state.p, state.g, upper))
+    """Gap with the admissible multipliers removed (``at_rest``), in bands (``each_band``)."""
+    p, g = state.p, state.g
+    res = np.empty_like(g)
+
+    def part(s: slice) -> None:
+        on_set(g[s], ~at_rest(p[s], g[s], None if upper is None else upper[s]), out=res[s])
+
+    each_band(part, g)
+    return res
 
 
 def inward(d: np.ndarray, state: GapState, res: np.ndarray, upper: np.ndarray | None = None) -> np.ndarray:
     """d, in place, with no component at a point at a bound that is at rest (res = 0) or
     that d would push out of the box (d < 0 at p = 0, d > 0 at p = upper): module doc,
     "Points at the bound"."""
-    keep = (state.p != 0.0) | ((res != 0.0) & (d >= 0.0))
-    if upper is not None:
-        keep &= (state.p < upper) | ((res != 0.0) & (d <= 0.0))
-    return np.multiply(d, keep, out=d)
+    p = state.p
+
+    def part(s: slice) -> None:
+        moves = res[s] != 0.0
+        keep = (p[s] != 0.0) | (moves & (d[s] >= 0.0))
+        if upper is not None:
+            keep &= (p[s] < upper[s]) | (moves & (d[s] <= 0.0))
+        np.multiply(d[s], keep, out=d[s])
+
+    each_band(part, d)
+    return d
 
 
 def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None = None,
@@ -452,10 +474,21 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         # a new stage (solvers/_opening.py) or the hold's end: restart along -z
         staged = (M is not None and M.progress(run.kkt)) or released
         z = precondition_on(M, res, res != 0.0)
-        d *= 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)  # d <- -z + beta d, in place
-        d -= z
-        inward(d, state, res, u)
+        beta = 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)
+        inward(conjugate(d, z, beta), state, res, u)
     return CCGRun(max_iter, run.kkt, False)
+
+
+def conjugate(d: np.ndarray, z: np.ndarray, beta: float) -> np.ndarray:
+    """d <- beta d - z, in place, in bands (``each_band``): the next direction."""
+
+    def part(s: slice) -> None:
+        ds = d[s]
+        ds *= beta
+        ds -= z[s]
+
+    each_band(part, d)
+    return d
 
 
 def holds(ctx: SolveContext, first: int, upper: np.ndarray | None) -> bool:

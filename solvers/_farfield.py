@@ -108,10 +108,11 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     aggregate = np.full(i.size, -1, dtype=np.int64)
     aggregate[pos] = agg
     A = galerkin_far(H, i, j, pos, agg, count)
-    for a, nb in enumerate(later):  # exact sums over neighbouring tiles, each pair once (H is symmetric)
-        cols = np.concatenate([members_of[b] for b in nb])
-        col_sums = H.partial_product(cols, members_of[a], np.ones(members_of[a].size))
-        A[a, nb] = A[nb, a] = np.bincount(aggregate[cols], weights=col_sums, minlength=m)[nb]
+    # Exact sums over neighbouring tiles, each pair once (H is symmetric), on the threads.
+    near = [np.concatenate([members_of[b] for b in nb]) for nb in later]
+    sums = H.partial_products([(cols, members_of[a], np.ones(members_of[a].size)) for a, cols in enumerate(near)])
+    for a, nb in enumerate(later):
+        A[a, nb] = A[nb, a] = np.bincount(aggregate[near[a]], weights=sums[a], minlength=m)[nb]
     A = 0.5 * (A + A.T)
     w = 1.0 / count
     E = w[:, None] * (A - np.diag(np.bincount(agg, weights=block_sums[pos], minlength=m))) * w[None, :]

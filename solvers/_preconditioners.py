@@ -79,7 +79,7 @@ from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
 from contactbench.problems.kkt import read_scalars
-from contactbench.problems.fft_threads import fft_workers, share_out, spectral_multiply
+from contactbench.problems.fft_threads import each_on_pool, fft_workers, share_out, spectral_multiply
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 
@@ -476,18 +476,26 @@ class IslandPreconditioner(_OnesCache):
         m, s = members.shape
         if s == 1:
             return None
-        # Gather and invert in chunks, so the temporaries stay near 32 MiB.
+        # Gather and invert in chunks on the threads, so the temporaries stay near 32 MiB
+        # in all (each block is inverted on its own: the same inverses on every thread count).
         inverse = np.empty((m, s, s), dtype=self.dtype)
         row_sums = np.empty((m, s))
         valid = members >= 0
-        step = max(1, BUILD_CHUNK_ENTRIES // (s * s))
-        for k0 in range(0, m, step):
-            blocks = self.H.blocks(members[k0:k0 + step])
-            row_sums[k0:k0 + step] = np.einsum("mkl,ml->mk", blocks, valid[k0:k0 + step])
+        workers = fft_workers()
+        step = max(1, BUILD_CHUNK_ENTRIES // (s * s * workers))
+
+        def factor_chunk(k: int) -> bool:
+            part = slice(k * step, (k + 1) * step)
+            blocks = self.H.blocks(members[part])
+            row_sums[part] = np.einsum("mkl,ml->mk", blocks, valid[part])
             try:
-                inverse[k0:k0 + step] = np.linalg.inv(blocks.astype(self.dtype, copy=False))
+                inverse[part] = np.linalg.inv(blocks.astype(self.dtype, copy=False))
             except np.linalg.LinAlgError:  # a singular block (a periodic whole grid's): the diagonal there
-                return None
+                return False
+            return True
+
+        if not all(each_on_pool(factor_chunk, -(-m // step), workers)):
+            return None
         if self.dtype != np.float64:  # LU's inverse is symmetric only up to round-off: make M symmetric
             inverse += np.swapaxes(inverse, 1, 2)
             inverse *= 0.5

@@ -404,6 +404,62 @@ def test_a_large_partial_product_is_shared_out_the_same_on_any_threads(kernel: s
                                rtol=1e-13, atol=0)
 
 
+@pytest.mark.parametrize("kernel,periodic", [("bcc", False), ("love", True)])
+def test_many_partial_products_on_the_threads_are_each_one_alone(kernel: str, periodic: bool,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """``partial_products`` runs each product whole on one thread: the numbers of one
+    ``partial_product`` each, items large (column groups) and small, empty ones too, on 1 or
+    3 threads; the generic operator's is the same loop."""
+    from contactbench.problems import operators
+    from contactbench.problems.operators import ContactOperator
+
+    rng = np.random.default_rng(9)
+    idx = random_subset(rng, 0.8)
+    op = FFTOperator(KernelTransform(kernel_table(kernel, (N, N), DELTA, E, periodic), (N, N)), idx)
+    H = dense_from_formula(kernel, periodic, idx)
+    monkeypatch.setattr(operators, "PARALLEL_PARTIAL_ENTRIES", 200)
+    items = []
+    for size in (3, 40, 0, 25, 90, 1):
+        rows = np.sort(rng.choice(idx.size, max(size, 1), replace=False))
+        cols = rng.choice(idx.size, size, replace=False)
+        items.append((rows, cols, rng.normal(size=size)))
+    for workers in ("1", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        got = op.partial_products(items)
+        assert len(got) == len(items)
+        for (rows, cols, x), y in zip(items, got):
+            np.testing.assert_allclose(y, op.partial_product(rows, cols, x), rtol=1e-15, atol=0)
+            np.testing.assert_allclose(y, H[np.ix_(rows, cols)] @ x, rtol=1e-12, atol=1e-30)
+    generic = ContactOperator.partial_products(op, items)
+    assert all(np.array_equal(a, op.partial_product(*it)) for a, it in zip(generic, items))
+    assert op.partial_products([]) == []
+
+
+def test_each_on_pool_keeps_the_order_and_every_item_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Items of unequal cost come back in their order, each computed once, on more threads
+    than items, fewer, or one; no items, no call."""
+    import threading
+    import time
+
+    from contactbench.problems.fft_threads import each_on_pool
+
+    for workers in (1, 3, 8):
+        calls: list[int] = []
+        lock = threading.Lock()
+
+        def compute(k: int) -> int:
+            time.sleep(0.002 * (k % 3))
+            with lock:
+                calls.append(k)
+            return k * k
+
+        assert each_on_pool(compute, 7, workers) == [k * k for k in range(7)]
+        assert sorted(calls) == list(range(7))
+        assert each_on_pool(compute, 0, workers) == []
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", "2")
+    assert each_on_pool(lambda k: -k, 5) == [0, -1, -2, -3, -4]
+
+
 @pytest.mark.parametrize("periodic", [False, True])
 def test_a_product_is_the_same_on_any_threads_and_a_small_grid_takes_one(periodic: bool,
                                                                           monkeypatch: pytest.MonkeyPatch) -> None:

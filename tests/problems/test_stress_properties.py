@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from unittest import mock
+
 import numpy as np
 from hypothesis import given, seed, settings
 from hypothesis import strategies as st
 
 from contactbench.harness.conformance.battery import exact_reference
+from contactbench.problems import fft_threads
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DenseOperator
@@ -86,7 +89,8 @@ def test_a_non_finite_entry_anywhere_makes_every_figure_infinite(n: int, s: int,
                                                                  finite: bool) -> None:
     """``kkt_figures`` reads finiteness from each array's least and greatest entries: one
     NaN or infinity in p or in w, at any position, makes all three figures inf; finite
-    arrays of moderate size give finite figures."""
+    arrays of moderate size give finite figures -- the same figures read in bands on the
+    threads, the bad entry in any band."""
     from contactbench.problems.kkt import kkt_figures
 
     rng = np.random.default_rng(s)
@@ -96,3 +100,6 @@ def test_a_non_finite_entry_anywhere_makes_every_figure_infinite(n: int, s: int,
     f = kkt_figures(p, w, ubar, 1.0)
     figures = (f.primal, f.dual, f.complementarity)
     assert all(v == np.inf for v in figures) if not finite else all(np.isfinite(v) for v in figures)
+    with mock.patch.multiple(fft_threads, BANDED_VECTOR_MIN=1, VECTOR_BAND=3):  # bands of 3 on the threads
+        banded = kkt_figures(p, w, ubar, 1.0)
+    assert (banded.primal, banded.dual, banded.complementarity) == figures

@@ -423,3 +423,25 @@ def test_dealing_out_in_order_is_the_greedy_pass(seed: int) -> None:
         got, want = taken_in_order(amount, caps), greedy_in_order(amount, caps)
         assert got.shape == caps.shape and np.all(got >= 0.0) and np.all(got <= caps)
         assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * max(total, 1.0)), (amount, got, want)
+
+
+@pytest.mark.parametrize("case", ["elastic", "plastic", "loaded", "loaded_plastic"])
+@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-pccg"])
+def test_the_loops_vector_work_in_bands_on_the_threads_takes_the_same_steps(
+        name: str, case: str, square, request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The loops' elementwise work and the KKT figures' extremes run in bands on the pool
+    (``fft_threads.each_band``): bands of 7 on 1 or 3 threads give the iterates of the whole
+    vectors -- the same products, iterations and answer, under displacement, a hardness,
+    load control and both."""
+    from contactbench.problems import fft_threads
+
+    inst = square[0].build(square[1]) if case == "elastic" else request.getfixturevalue(case)[0]
+    whole = get_solver(name).solve(inst.qp, TIGHT)
+    assert whole.status == "converged", whole.message
+    monkeypatch.setattr(fft_threads, "BANDED_VECTOR_MIN", 1)
+    monkeypatch.setattr(fft_threads, "VECTOR_BAND", 7)
+    for workers in ("1", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        banded = get_solver(name).solve(inst.qp, TIGHT)
+        assert (banded.status, banded.matvecs, banded.iterations) == (whole.status, whole.matvecs, whole.iterations)
+        np.testing.assert_allclose(banded.p, whole.p, rtol=0, atol=1e-12 * np.max(whole.p))

@@ -341,6 +341,34 @@ def test_far_field_correction_is_symmetric_positive_definite_on_its_set_and_a_su
         assert np.min(np.linalg.eigvalsh(0.5 * (P + P.T))) > 0
 
 
+def test_blocks_and_far_field_built_on_the_threads_are_those_of_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The island factorisation goes out in chunks (``BUILD_CHUNK_ENTRIES`` small: many) and
+    the far field's near-tile sums one aggregate a thread: the same inverses, row sums and
+    coarse matrix on 1, 2 or 3 threads; a singular block still gives the diagonal."""
+    from contactbench.solvers import _preconditioners
+
+    inst, S = far_field_case(128)
+    monkeypatch.setattr(_preconditioners, "BUILD_CHUNK_ENTRIES", 1024)
+    built = []
+    for workers in ("1", "2", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        M = make_preconditioner("farfield", inst.qp)
+        M.update(S)
+        built.append(M)
+    one = built[0]
+    assert one._far is not None and len(one._buckets) > 1
+    assert max(b.members.shape[0] for b in one._buckets) > 4  # several chunks a bucket
+    for M in built[1:]:
+        for a, b in zip(one._buckets, M._buckets, strict=True):
+            np.testing.assert_allclose(b.inverse, a.inverse, rtol=1e-13, atol=1e-13 * np.abs(a.inverse).max())
+            np.testing.assert_allclose(b.row_sums, a.row_sums, rtol=1e-13, atol=0)
+        np.testing.assert_allclose(M._far.K, one._far.K, rtol=1e-12, atol=1e-12 * np.abs(one._far.K).max())
+    members = one._buckets[-1].members
+    singular = np.where(members >= 0, members[:, :1], members)  # a block of one point repeated
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", "3")
+    assert one._factor(members) is not None and one._factor(singular) is None
+
+
 def test_far_field_budget_counts_the_entries_it_gathers(monkeypatch):
     """The near-tile sums gather each neighbouring pair of aggregates once; the build budget
     is compared with that count (``gathered_entries``), not with both orders' (twice it):
