@@ -79,7 +79,7 @@ from scipy.sparse.csgraph import connected_components
 
 from contactbench.problems.instances import QP
 from contactbench.problems.kkt import read_scalars
-from contactbench.problems.fft_threads import each_on_pool, fft_workers, share_out, spectral_multiply
+from contactbench.problems.fft_threads import each_band, each_on_pool, fft_workers, share_out, spectral_multiply
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 
@@ -597,16 +597,29 @@ def multiply_by_wavenumbers(q: np.ndarray, shape: tuple[int, int], idx: np.ndarr
     (numpy: the operator's FFT library, ``spectral_multiply``)."""
     if idx is None:
         f = r.reshape(shape).astype(q.dtype)  # a copy: the transform overwrites it
-    else:
+    else:  # scattered and gathered in bands of the set (``each_band``; idx has no repeats)
         f = xp.zeros(shape, dtype=q.dtype)
-        f.ravel()[idx] = r
+        flat = f.ravel()
+
+        def scatter(s: slice) -> None:
+            flat[idx[s]] = r[s]
+
+        each_band(scatter, r)
     if xp is np:
         z = spectral_multiply(f, q).ravel()
     else:
         F = xp.fft.rfft2(f)
         F *= q
         z = xp.fft.irfft2(F, s=shape).ravel()
-    return z if idx is None else z[idx]
+    if idx is None:
+        return z
+    out = xp.empty(idx.shape, dtype=z.dtype)
+
+    def gather(s: slice) -> None:
+        np.take(z, idx[s], out=out[s])
+
+    each_band(gather, out)
+    return out
 
 
 def make_preconditioner(kind: str, qp: QP, block_dtype: type = np.float64,

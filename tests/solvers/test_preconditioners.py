@@ -245,6 +245,29 @@ def test_the_whole_grid_skips_the_scatter_and_gives_the_same_product():
                                rtol=1e-13, atol=1e-13)
 
 
+def test_a_scattered_set_is_scattered_and_gathered_in_bands_to_the_same_product(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a set of the grid (shuffled positions) the scatter and the gather go in bands over
+    the threads (``fft_threads.each_band``, bands of 7 on 1 or 3 threads): the product of the
+    whole set, equal to the dense periodic convolution by |q| restricted to the set."""
+    from contactbench.problems import fft_threads
+
+    shape = (24, 20)
+    q = floored_wavenumbers(shape)
+    rng = np.random.default_rng(8)
+    idx = rng.permutation(shape[0] * shape[1])[:300]
+    r = rng.normal(size=idx.size)
+    f = np.zeros(shape[0] * shape[1])
+    f[idx] = r
+    want = np.fft.irfft2(np.fft.rfft2(f.reshape(shape)) * q, s=shape).ravel()[idx]
+    whole = multiply_by_wavenumbers(q, shape, idx, r)
+    np.testing.assert_allclose(whole, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    monkeypatch.setattr(fft_threads, "BANDED_VECTOR_MIN", 1)
+    monkeypatch.setattr(fft_threads, "VECTOR_BAND", 7)
+    for workers in ("1", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        np.testing.assert_allclose(multiply_by_wavenumbers(q, shape, idx, r), whole, rtol=1e-15, atol=0)
+
+
 def test_unknown_preconditioner_is_a_clear_error():
     inst = build(33)
     with pytest.raises(ParamError, match="'precondition' must be one of 'islands', 'farfield', 'fourier', 'none'"):
