@@ -400,13 +400,15 @@ def at_rest(p: np.ndarray, g: np.ndarray, upper: np.ndarray | None = None) -> np
     return rest
 
 
-def dual_residual(state: GapState, upper: np.ndarray | None = None) -> np.ndarray:
-    """Gap with the admissible multipliers removed (``at_rest``), in bands (``each_band``)."""
+def dual_residual(state: GapState, upper: np.ndarray | None = None, approach: float | None = None) -> np.ndarray:
+    """Gap with the admissible multipliers removed (``at_rest``), in bands (``each_band``);
+    under load control the gap less the ``approach`` Delta."""
     p, g = state.p, state.g
     res = np.empty_like(g)
 
     def part(s: slice) -> None:
-        on_set(g[s], ~at_rest(p[s], g[s], None if upper is None else upper[s]), out=res[s])
+        w = g[s] if approach is None else g[s] - approach
+        on_set(w, ~at_rest(p[s], w, None if upper is None else upper[s]), out=res[s])
 
     each_band(part, g)
     return res

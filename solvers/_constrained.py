@@ -81,8 +81,8 @@ import numpy as np
 from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import min_below_zero, read_scalars
 
-from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, entering_force, exact_step, inward, on_set, polak_ribiere,
-                   precondition_on)
+from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, conjugate, dual_residual, entering_force, exact_step, inward,
+                   on_set, polak_ribiere, precondition_on)
 from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
 from ._screen import approach_floor
@@ -422,8 +422,7 @@ def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[floa
     """(Delta, residual): Delta as in ``_approach_and_free_set``; the residual is
     w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``)."""
     delta, _ = _approach_and_free_set(state, u, c)
-    w = state.g - delta
-    return delta, on_set(w, ~at_rest(state.p, w, u))
+    return delta, dual_residual(state, u, delta)
 
 
 def _dual_direction(M: SetPreconditioner | None, res: np.ndarray) -> np.ndarray:
@@ -488,5 +487,5 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
         delta, res = _dual_residual(state, u, c)
         staged = M is not None and M.progress(kkt)  # a new stage (solvers/_opening.py): restart along -z
         z = _dual_direction(M, res)
-        d = inward((0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)) * d - z, state, res, u)
+        d = inward(conjugate(d, z, 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)), state, res, u)
     return replace(run, iterations=max_iter, converged=False)
