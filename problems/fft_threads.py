@@ -164,6 +164,18 @@ def each_band(work: Callable[[slice], T], x: object) -> list[T]:
     return each_on_pool(lambda k: work(slice(k * VECTOR_BAND, (k + 1) * VECTOR_BAND)), -(-n // VECTOR_BAND))
 
 
+def flatnonzero_in_bands(mask_of: Callable[[slice], np.ndarray], x: object) -> np.ndarray:
+    """np.flatnonzero of the mask over range(len(x)) whose band s is ``mask_of(s)``, the
+    bands on the threads (``each_band``): the same positions, in order."""
+
+    def positions(s: slice) -> np.ndarray:
+        found = np.flatnonzero(mask_of(s))
+        return found + s.start if s.start else found
+
+    parts = each_band(positions, x)
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
 def periodic_convolve(f: np.ndarray, spec: np.ndarray, m: np.ndarray, workers: int) -> np.ndarray:
     """f <- F^-1[m F[f]] (normalised), in place, for a real N1 x N2 grid ``f`` and a multiplier
     ``m`` on its half spectrum, through ``spec`` (N1 x (N2/2+1) complex, overwritten), with

@@ -155,7 +155,10 @@ def above_zero(m: float) -> float:
 def min_below_zero(x: Any) -> float:
     """min(min x, 0) as a float, NaN when x holds a NaN, 0 for an empty x: ``np.min(x,
     initial=0.0)`` in any array module (CuPy's reductions take no ``initial``)."""
-    return below_zero(float(np.min(x))) if x.size else 0.0
+    if not x.size:
+        return 0.0
+    lows = each_band(lambda s: np.min(x[s]), x)  # min is exact: the whole's in bands
+    return below_zero(float(lows[0] if len(lows) == 1 else np.min(lows)))
 
 
 def max_above_zero(x: Any) -> float:

@@ -101,7 +101,7 @@ from abc import abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
-from contactbench.problems.fft_threads import each_band
+from contactbench.problems.fft_threads import each_band, flatnonzero_in_bands
 from contactbench.problems.kkt import min_below_zero, read_scalars
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
@@ -220,7 +220,8 @@ class GapState:
             return True
         clipped = min_below_zero(self.p) < 0.0
         if clipped:
-            cols = np.flatnonzero(self.p < 0.0)
+            p = self.p
+            cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p)
             self.raise_forces(cols, -self.p[cols])
         else:
             self.settle()
@@ -254,7 +255,8 @@ class GapState:
         """Make g exact on the points that need it, {p > 0} U {g < 0}: each gets the
         raises since the last refresh that its gap does not include yet."""
         assert self._upto is not None
-        need = np.flatnonzero((self.p > 0.0) | (self.g < 0.0))
+        p, g = self.p, self.g
+        need = flatnonzero_in_bands(lambda s: (p[s] > 0.0) | (g[s] < 0.0), p)
         done = len(self._raised)
         behind = self._upto[need]
         groups = [(k, need[behind == k]) for k in np.unique(behind[behind < done]).tolist()]

@@ -476,13 +476,14 @@ class IslandPreconditioner(_OnesCache):
         m, s = members.shape
         if s == 1:
             return None
-        # Gather and invert in chunks on the threads, so the temporaries stay near 32 MiB
-        # in all (each block is inverted on its own: the same inverses on every thread count).
+        # Gather and invert in chunks on the threads, at least one a thread, so the
+        # temporaries stay near 32 MiB in all (each block is inverted on its own: the same
+        # inverses on every thread count).
         inverse = np.empty((m, s, s), dtype=self.dtype)
         row_sums = np.empty((m, s))
         valid = members >= 0
         workers = fft_workers()
-        step = max(1, BUILD_CHUNK_ENTRIES // (s * s * workers))
+        step = max(1, min(BUILD_CHUNK_ENTRIES // (s * s * workers), -(-m // workers)))
 
         def factor_chunk(k: int) -> bool:
             part = slice(k * step, (k + 1) * step)

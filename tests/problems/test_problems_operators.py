@@ -460,6 +460,31 @@ def test_each_on_pool_keeps_the_order_and_every_item_once(monkeypatch: pytest.Mo
     assert each_on_pool(lambda k: -k, 5) == [0, -1, -2, -3, -4]
 
 
+def test_positions_and_least_entries_read_in_bands_are_those_of_the_whole(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``flatnonzero_in_bands`` and ``kkt.min_below_zero`` in bands of 7 on 1 or 3 threads:
+    the positions of the whole mask in order (none, some, all) and its least entry, a NaN
+    in any band included."""
+    from contactbench.problems import fft_threads
+    from contactbench.problems.fft_threads import flatnonzero_in_bands
+    from contactbench.problems.kkt import min_below_zero
+
+    rng = np.random.default_rng(10)
+    x = rng.normal(size=100)
+    monkeypatch.setattr(fft_threads, "BANDED_VECTOR_MIN", 1)
+    monkeypatch.setattr(fft_threads, "VECTOR_BAND", 7)
+    for workers in ("1", "3"):
+        monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", workers)
+        for cut in (-np.inf, 0.5, np.inf):
+            got = flatnonzero_in_bands(lambda s: x[s] < cut, x)
+            assert got.tolist() == np.flatnonzero(x < cut).tolist()
+        assert min_below_zero(x) == min(0.0, float(np.min(x)))
+        assert min_below_zero(np.abs(x)) == 0.0
+        for k in (0, 50, 99):
+            bad = x.copy()
+            bad[k] = np.nan
+            assert np.isnan(min_below_zero(bad))
+
+
 @pytest.mark.parametrize("periodic", [False, True])
 def test_a_product_is_the_same_on_any_threads_and_a_small_grid_takes_one(periodic: bool,
                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
