@@ -164,6 +164,18 @@ def each_band(work: Callable[[slice], T], x: object) -> list[T]:
     return each_on_pool(lambda k: work(slice(k * VECTOR_BAND, (k + 1) * VECTOR_BAND)), -(-n // VECTOR_BAND))
 
 
+def dots_in_bands(pairs: list[tuple[np.ndarray, np.ndarray]]) -> list[object]:
+    """The inner products x @ y of ``pairs`` (vectors of one length): for NumPy vectors of at
+    least ``BANDED_VECTOR_MIN`` elements, floats summed from the bands' products in band
+    order (``each_band``: the same sums on every thread count, rounded otherwise than one
+    whole product); otherwise the whole products as the array module gives them (for
+    ``kkt.read_scalars``)."""
+    parts = each_band(lambda s: [x[s] @ y[s] for x, y in pairs], pairs[0][0])
+    if len(parts) == 1:
+        return parts[0]
+    return [sum(float(band[k]) for band in parts) for k in range(len(pairs))]
+
+
 def flatnonzero_in_bands(mask_of: Callable[[slice], np.ndarray], x: object) -> np.ndarray:
     """np.flatnonzero of the mask over range(len(x)) whose band s is ``mask_of(s)``, the
     bands on the threads (``each_band``): the same positions, in order."""

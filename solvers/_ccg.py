@@ -101,7 +101,7 @@ from abc import abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
-from contactbench.problems.fft_threads import each_band, flatnonzero_in_bands
+from contactbench.problems.fft_threads import dots_in_bands, each_band, flatnonzero_in_bands
 from contactbench.problems.kkt import min_below_zero, read_scalars
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
@@ -515,7 +515,7 @@ def penetrating_count(state: GapState) -> int:
 def exact_step(res: np.ndarray, d: np.ndarray, Hd: np.ndarray) -> tuple[float, float]:
     """(alpha, d'Hd): the exact line-search step -res'd / d'Hd along d (NaN where the
     curvature d'Hd is not positive), both products read in one transfer."""
-    dHd, rd = read_scalars(d @ Hd, res @ d)
+    dHd, rd = read_scalars(*dots_in_bands([(d, Hd), (res, d)]))
     return (-rd / dHd if dHd > 0.0 else math.nan), dHd
 
 
@@ -530,7 +530,7 @@ def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curv
     members; results/perf/device-choice/README.md)."""
     if step_curvature == 0.0 or not math.isfinite(step_curvature):
         return 0.0
-    z_res, z_res_old = read_scalars(z @ res, z @ res_old)
+    z_res, z_res_old = read_scalars(*dots_in_bands([(z, res), (z, res_old)]))
     beta = (z_res - z_res_old) / step_curvature
     return beta if abs(beta) <= MAX_BETA else 0.0
 

@@ -460,12 +460,13 @@ def test_each_on_pool_keeps_the_order_and_every_item_once(monkeypatch: pytest.Mo
     assert each_on_pool(lambda k: -k, 5) == [0, -1, -2, -3, -4]
 
 
-def test_positions_and_least_entries_read_in_bands_are_those_of_the_whole(monkeypatch: pytest.MonkeyPatch) -> None:
-    """``flatnonzero_in_bands`` and ``kkt.min_below_zero`` in bands of 7 on 1 or 3 threads:
-    the positions of the whole mask in order (none, some, all) and its least entry, a NaN
-    in any band included."""
+def test_positions_extremes_and_inner_products_read_in_bands(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``flatnonzero_in_bands``, ``kkt.min_below_zero`` and ``dots_in_bands`` in bands of 7 on
+    1 or 3 threads: the positions of the whole mask in order (none, some, all), its least
+    entry, a NaN in any band included, and inner products summed in band order (within
+    round-off of the whole product, the same on any thread count)."""
     from contactbench.problems import fft_threads
-    from contactbench.problems.fft_threads import flatnonzero_in_bands
+    from contactbench.problems.fft_threads import dots_in_bands, flatnonzero_in_bands
     from contactbench.problems.kkt import min_below_zero
 
     rng = np.random.default_rng(10)
@@ -483,6 +484,15 @@ def test_positions_and_least_entries_read_in_bands_are_those_of_the_whole(monkey
             bad = x.copy()
             bad[k] = np.nan
             assert np.isnan(min_below_zero(bad))
+            assert np.isnan(dots_in_bands([(bad, x)])[0])
+        y = rng.normal(size=100)
+        got = dots_in_bands([(x, y), (y, y)])
+        assert all(isinstance(v, float) for v in got)
+        np.testing.assert_allclose(got, [x @ y, y @ y], rtol=1e-13)
+        assert got == [sum(float(x[a:a + 7] @ y[a:a + 7]) for a in range(0, 100, 7)),
+                       sum(float(y[a:a + 7] @ y[a:a + 7]) for a in range(0, 100, 7))]  # band order
+    monkeypatch.setattr(fft_threads, "BANDED_VECTOR_MIN", 101)
+    assert dots_in_bands([(x, x)]) == [x @ x]  # a short vector: the whole product
 
 
 @pytest.mark.parametrize("periodic", [False, True])
