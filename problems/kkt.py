@@ -155,15 +155,19 @@ def above_zero(m: float) -> float:
 def min_below_zero(x: Any) -> float:
     """min(min x, 0) as a float, NaN when x holds a NaN, 0 for an empty x: ``np.min(x,
     initial=0.0)`` in any array module (CuPy's reductions take no ``initial``)."""
-    if not x.size:
-        return 0.0
-    lows = each_band(lambda s: np.min(x[s]), x)  # min is exact: the whole's in bands
-    return below_zero(float(lows[0] if len(lows) == 1 else np.min(lows)))
+    return below_zero(_exact_reduction(np.min, x)) if x.size else 0.0
 
 
 def max_above_zero(x: Any) -> float:
     """max(max x, 0) as a float, NaN when x holds a NaN, 0 for an empty x (``min_below_zero``)."""
-    return above_zero(float(np.max(x))) if x.size else 0.0
+    return above_zero(_exact_reduction(np.max, x)) if x.size else 0.0
+
+
+def _exact_reduction(reduce: Any, x: Any) -> float:
+    """``reduce`` (np.min or np.max: exact, NaN propagating) of a non-empty x, in bands on
+    the threads (``each_band``): the whole's value on any thread count."""
+    parts = each_band(lambda s: reduce(x[s]), x)
+    return float(parts[0] if len(parts) == 1 else reduce(parts))
 
 
 def _negative_part(x: float) -> float:

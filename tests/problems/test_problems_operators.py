@@ -461,13 +461,13 @@ def test_each_on_pool_keeps_the_order_and_every_item_once(monkeypatch: pytest.Mo
 
 
 def test_positions_extremes_and_inner_products_read_in_bands(monkeypatch: pytest.MonkeyPatch) -> None:
-    """``flatnonzero_in_bands``, ``kkt.min_below_zero`` and ``dots_in_bands`` in bands of 7 on
+    """``flatnonzero_in_bands``, ``kkt.min_below_zero`` / ``max_above_zero`` and ``dots_in_bands`` in bands of 7 on
     1 or 3 threads: the positions of the whole mask in order (none, some, all), its least
     entry, a NaN in any band included, and inner products summed in band order (within
     round-off of the whole product, the same on any thread count)."""
     from contactbench.problems import fft_threads
     from contactbench.problems.fft_threads import dots_in_bands, flatnonzero_in_bands
-    from contactbench.problems.kkt import min_below_zero
+    from contactbench.problems.kkt import max_above_zero, min_below_zero
 
     rng = np.random.default_rng(10)
     x = rng.normal(size=100)
@@ -480,10 +480,12 @@ def test_positions_extremes_and_inner_products_read_in_bands(monkeypatch: pytest
             assert got.tolist() == np.flatnonzero(x < cut).tolist()
         assert min_below_zero(x) == min(0.0, float(np.min(x)))
         assert min_below_zero(np.abs(x)) == 0.0
+        assert max_above_zero(x) == max(0.0, float(np.max(x)))
+        assert max_above_zero(-np.abs(x)) == 0.0
         for k in (0, 50, 99):
             bad = x.copy()
             bad[k] = np.nan
-            assert np.isnan(min_below_zero(bad))
+            assert np.isnan(min_below_zero(bad)) and np.isnan(max_above_zero(bad))
             assert np.isnan(dots_in_bands([(bad, x)])[0])
         y = rng.normal(size=100)
         got = dots_in_bands([(x, y), (y, y)])
