@@ -10,7 +10,8 @@ QP of Bemporad & Paggi 2015, eq. (5)):
 3. otherwise solve the correction problem  min 1/2 d'Hd + g'd  s.t.  p + d >= 0  with the
    *same* CCG loop of solvers/_ccg.py on the float32 operator
    (``ContactOperator.with_precision(np.float32)``), loosely: until its KKT error is
-   ``INNER_REDUCTION`` times the round's starting one.  The loop runs on the variable
+   ``INNER_REDUCTION`` times the round's starting one, or until tol itself when that would
+   stop within ``LAST_ROUND_REACH`` x tol (``round_tolerance``).  The loop runs on the variable
    p + d with the state anchored at (p, g) (``_ccg.Anchor``), so its gap is
    g + H32 d and float32 round-off scales with the correction, not with p;
 4. p <- max(p + d, 0) and repeat.
@@ -49,6 +50,11 @@ PRECISIONS = ("double", "mixed", "auto")
 
 #: A round's inner tolerance, relative to the round's starting float64 KKT error.
 INNER_REDUCTION = 1e-4
+
+#: A round whose loose tolerance would be within this factor of the solve's tol is asked for
+#: the tol itself: stopped just short of it, it would leave a further round -- a float64
+#: product and a restart of the conjugacy -- to cover the rest.
+LAST_ROUND_REACH = 10.0
 
 #: A round must shrink the float64 KKT error at least by this factor, else float64 finishes.
 MIN_ROUND_GAIN = 0.5
@@ -108,9 +114,17 @@ class RefinementRun:
     finished_in_double: bool
 
 
+def round_tolerance(tol: float, kkt: float) -> float:
+    """The KKT error a round started at ``kkt`` is asked for: ``INNER_REDUCTION`` x kkt, or
+    ``tol`` where that is below ``LAST_ROUND_REACH`` x tol (module doc)."""
+    loose = INNER_REDUCTION * kkt
+    return tol if loose <= LAST_ROUND_REACH * tol else loose
+
+
 def inner_context(ctx: SolveContext, kkt: float, used: int) -> SolveContext:
-    """The round's context: loose tolerance, the iterations left; same deadline and trace."""
-    return replace(ctx, tol=max(ctx.tol, INNER_REDUCTION * kkt), max_iter=max(1, ctx.max_iter - used))
+    """The round's context: its tolerance (``round_tolerance``), the iterations left; same
+    deadline and trace."""
+    return replace(ctx, tol=round_tolerance(ctx.tol, kkt), max_iter=max(1, ctx.max_iter - used))
 
 
 def refine(ctx: SolveContext, state: GapState, loop: Loop, M: SetPreconditioner | None,

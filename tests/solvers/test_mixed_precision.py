@@ -14,6 +14,7 @@ from contactbench.problems.instances import InstanceBuilder, paper_max_displacem
 from contactbench.problems.kkt import scaled_kkt_error
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.solvers import _refine
 from contactbench.solvers.base import Solver, SolverSettings
 from contactbench.solvers.registry import get_solver
 
@@ -66,6 +67,39 @@ def test_mixed_counts_both_precisions_and_spends_few_float64_matvecs() -> None:
     assert info["matvecs_float64"] <= 2 * info["refinement_rounds"] + 2
     assert info["matvecs_float32"] > info["matvecs_float64"]
     assert res.matvecs >= info["matvecs_float32"] + info["matvecs_float64"]
+
+
+@pytest.mark.parametrize("kkt", [1.0, 1e-3, 1.01e-4, 1e-4, 1e-5, 1e-8, 1e-12, float("inf")])
+def test_a_round_is_asked_for_tol_when_its_loose_target_is_within_reach(kkt: float) -> None:
+    tol = 1e-9
+    asked = _refine.round_tolerance(tol, kkt)
+    loose = _refine.INNER_REDUCTION * kkt
+    assert asked >= tol
+    assert asked == (tol if loose <= _refine.LAST_ROUND_REACH * tol else loose)
+
+
+def test_a_round_near_tol_saves_the_third_round(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On this instance the second round starts near 8e-5: asked 8e-9, it stops short of
+    1e-9 and a third round follows; asked 1e-9, two rounds do."""
+    inst = instance(128, False)
+    asked: list[tuple[float, float]] = []
+    plain = _refine.inner_context
+
+    def spy(ctx, kkt, used):
+        out = plain(ctx, kkt, used)
+        asked.append((kkt, out.tol))
+        return out
+
+    monkeypatch.setattr(_refine, "inner_context", spy)
+    near = solve("fast-dual-pccg", inst.qp, 1e-9, "mixed")
+    fired = [(k, t) for k, t in asked if t == 1e-9 and _refine.INNER_REDUCTION * k > 1e-9]
+    assert fired, asked
+    monkeypatch.setattr(_refine, "LAST_ROUND_REACH", 0.0)
+    short = solve("fast-dual-pccg", inst.qp, 1e-9, "mixed")
+    assert near.converged and short.converged
+    assert float64_kkt(inst.qp, near.p) <= 1e-9
+    assert near.info["refinement_rounds"] < short.info["refinement_rounds"]
+    assert near.matvecs < short.matvecs
 
 
 def test_mixed_warm_start_is_primal_and_cheaper() -> None:
