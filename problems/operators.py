@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
+from . import window_sums
 from .errors import MemoryBudgetError, ProblemInputError
 from .fft_floor import FLOOR_LAYOUTS, fft_floor_pair  # noqa: F401 -- re-exported with the FFT names
 from .fft_threads import _ducc_fft, each_on_pool, fft_backend, fft_workers, share_out  # noqa: F401 -- re-exported FFT names
@@ -212,6 +213,15 @@ class ContactOperator(ABC):
         """[``partial_product``(rows, cols, x) for each item]: the same sums, the items on
         the threads where the operator can (here: in turn)."""
         return [self.partial_product(rows, cols, x) for rows, cols, x in items]
+
+    def unit_sums(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        """[H[rows, cols] 1 for each item (rows, cols)] (float64): the displacements at
+        ``rows`` of unit forces on ``cols`` (here: ``partial_products``)."""
+        return self.partial_products([(rows, cols, np.ones(np.asarray(cols).size)) for rows, cols in items])
+
+    def unit_sums_cost(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
+        """The work of ``unit_sums(items)`` in entries read (here: |rows| |cols| each)."""
+        return float(sum(np.asarray(rows).size * np.asarray(cols).size for rows, cols in items))
 
     def partial_product_pays(self, entries: int) -> bool:
         """Whether a ``partial_product`` gathering ``entries`` entries costs well under a
@@ -486,6 +496,34 @@ class FFTOperator(ContactOperator):
         for more in sums[1:]:
             out += more
         return out
+
+    def unit_sums(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        # On the host: the items of compact, populous groups through small FFT windows
+        # (problems/window_sums.py), the others gathered as ``partial_products``.
+        if not isinstance(self.transform.table, np.ndarray):
+            return super().unit_sums(items)
+        by_index = [(np.asarray(rows), np.asarray(cols)) for rows, cols in items]
+
+        def gather(which: list[int]) -> list[np.ndarray]:
+            return super(FFTOperator, self).unit_sums([by_index[k] for k in which])
+
+        return window_sums.unit_sums(self.transform.table, self._positions(by_index), gather, self._window_spectrum)
+
+    def unit_sums_cost(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
+        if not isinstance(self.transform.table, np.ndarray):
+            return super().unit_sums_cost(items)
+        return window_sums.sums_cost(self._positions([(np.asarray(r), np.asarray(c)) for r, c in items]))
+
+    def _positions(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[tuple[window_sums.Positions, ...]]:
+        """The items' rows and cols as (row, column) positions on the padded grid."""
+        return [((self._pi[r], self._pj[r]), (self._pi[c], self._pj[c])) for r, c in items]
+
+    def _window_spectrum(self, shape: tuple[int, int]) -> np.ndarray:
+        """The kernel's spectrum on a window of ``shape`` (``window_sums``), kept per shape."""
+        spectra = self.__dict__.setdefault("_window_spectra", {})
+        if shape not in spectra:
+            spectra[shape] = window_sums.kernel_window_spectrum(self.transform.table, shape)
+        return spectra[shape]
 
     def partial_product_pays(self, entries: int) -> bool:
         P = int(np.prod(self.transform.padded_shape))

@@ -86,8 +86,9 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     (the block's first point; k itself for a one-point block); ``v`` = B^-1 1 and
     ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None on a set of more
     than ``max_fraction`` of the unknowns (``MAX_SET_FRACTION`` unless the solve was opened,
-    ``IslandPreconditioner.far_fraction``), when the near-tile sums would
-    gather more than ``budget`` entries (``gathered_entries``: each pair once), there is
+    ``IslandPreconditioner.far_fraction``), when the near-tile sums (each pair once) would
+    cost more than ``budget`` entries read (``ContactOperator.unit_sums_cost``: on an FFT
+    operator, compact populous aggregates are summed by small FFT windows), there is
     one aggregate, or an
     aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
     divides by its square root)."""
@@ -99,18 +100,22 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     m = labels.size
     count = np.bincount(agg, minlength=m).astype(float)
     ti, tj = labels // (1 << 32), labels % (1 << 32)
-    later = later_neighbours(ti, tj)
-    if m < 2 or gathered_entries(count, later) > budget:
+    if m < 2:
         return None
+    later = later_neighbours(ti, tj)
     order = np.argsort(agg, kind="stable")
     starts = np.r_[0, np.cumsum(count.astype(np.int64))]
     members_of = [pos[order[starts[a]:starts[a + 1]]] for a in range(m)]
+    # Exact sums over neighbouring tiles, each pair once (H is symmetric): the displacement
+    # of unit forces on each aggregate at the members of its later neighbours.
+    near = [np.concatenate([members_of[b] for b in nb]) for nb in later]
+    items = [(cols, members_of[a]) for a, cols in enumerate(near)]
+    if H.unit_sums_cost(items) > budget:
+        return None
     aggregate = np.full(i.size, -1, dtype=np.int64)
     aggregate[pos] = agg
     A = galerkin_far(H, i, j, pos, agg, count)
-    # Exact sums over neighbouring tiles, each pair once (H is symmetric), on the threads.
-    near = [np.concatenate([members_of[b] for b in nb]) for nb in later]
-    sums = H.partial_products([(cols, members_of[a], np.ones(members_of[a].size)) for a, cols in enumerate(near)])
+    sums = H.unit_sums(items)
     for a, nb in enumerate(later):
         A[a, nb] = A[nb, a] = np.bincount(aggregate[near[a]], weights=sums[a], minlength=m)[nb]
     A = 0.5 * (A + A.T)
@@ -131,12 +136,6 @@ def later_neighbours(ti: np.ndarray, tj: np.ndarray) -> list[np.ndarray]:
     the tiles around it and its own: each neighbouring pair once."""
     return [np.flatnonzero((np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1) & (np.arange(ti.size) >= a))
             for a in range(ti.size)]
-
-
-def gathered_entries(count: np.ndarray, later: list[np.ndarray]) -> float:
-    """The operator entries the near-tile sums gather: |a| x |b| for each pair of
-    ``later_neighbours`` (``count``: the aggregates' sizes)."""
-    return float(sum(count[a] * count[nb].sum() for a, nb in enumerate(later)))
 
 
 def galerkin_far(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, agg: np.ndarray,

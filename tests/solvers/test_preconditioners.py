@@ -392,10 +392,12 @@ def test_blocks_and_far_field_built_on_the_threads_are_those_of_one(monkeypatch:
     assert one._factor(members) is not None and one._factor(singular) is None
 
 
-def test_far_field_budget_counts_the_entries_it_gathers(monkeypatch):
-    """The near-tile sums gather each neighbouring pair of aggregates once; the build budget
-    is compared with that count (``gathered_entries``), not with both orders' (twice it):
-    a budget one entry short refuses the correction, the exact count builds it."""
+def test_far_field_budget_counts_the_work_of_its_near_sums(monkeypatch):
+    """The near-tile sums take each neighbouring pair of aggregates once; the build budget
+    is compared with their cost (``ContactOperator.unit_sums_cost``: entries read, or a
+    window's work where that is less), never more than the pairs-once gather: a budget
+    one entry short refuses the correction, the exact cost builds it."""
+    from contactbench.problems.operators import ContactOperator
     from contactbench.solvers import _farfield
     from contactbench.solvers import _preconditioners as prec_mod
 
@@ -408,16 +410,20 @@ def test_far_field_budget_counts_the_entries_it_gathers(monkeypatch):
     T = _farfield.tile_size(i[pos], j[pos])
     labels, agg = np.unique((i[lead[pos]] // T) * (1 << 32) + j[lead[pos]] // T, return_inverse=True)
     count = np.bincount(agg).astype(float)
-    later = _farfield.later_neighbours(labels // (1 << 32), labels % (1 << 32))
-    entries = _farfield.gathered_entries(count, later)
     ti, tj = labels // (1 << 32), labels % (1 << 32)
+    later = _farfield.later_neighbours(ti, tj)
+    members = [pos[agg == a] for a in range(count.size)]
+    items = [(np.concatenate([members[b] for b in nb]), members[a]) for a, nb in enumerate(later)]
+    gather = ContactOperator.unit_sums_cost(H, items)
     both_orders = sum(count[a] * count[(np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1)].sum()
                       for a in range(count.size))
-    assert entries == pytest.approx(0.5 * (both_orders + np.sum(count**2)))  # pairs once, each tile with itself
-    assert entries < both_orders
+    assert gather == pytest.approx(0.5 * (both_orders + np.sum(count**2)))  # pairs once, each tile with itself
+    assert gather < both_orders
     assert all(b.size >= 1 and b[0] == a for a, b in enumerate(later))  # its own tile first, then later ones
-    assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, entries - 1, fraction) is None
-    assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, entries, fraction) is not None
+    cost = H.unit_sums_cost(items)
+    assert 0 < cost <= gather
+    assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, cost - 1, fraction) is None
+    assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, cost, fraction) is not None
 
 
 def pcg_iterations(H: np.ndarray, b: np.ndarray, prec) -> int:

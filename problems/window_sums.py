@@ -1,0 +1,130 @@
+"""Displacements of unit forces on compact groups of grid points, by small FFTs.
+
+For a translation-invariant kernel K on a grid (``FFTOperator``: H_kl = K(x_k - x_l), read
+from the kernel table at offsets modulo the padded grid), the item (rows, cols) asks for
+
+    u_r = sum_{c in cols} K(x_r - x_c)    for r in rows,
+
+the displacement at ``rows`` of unit forces on ``cols``.  Gathered entry by entry this
+costs |rows| |cols| table reads: for the far field's neighbouring tiles of a large contact
+patch (solvers/_farfield.py), thousands of points a tile, that is hundreds of millions.
+
+A *window* does it in two FFTs of a small F0 x F1 grid instead: the indicator of ``cols``,
+placed relative to the smallest (row, column) of ``cols``, circularly convolved with the
+kernel on the offsets -h..h of each axis (F >= 2h + 1, h the largest offset between a row
+and a col), read at the rows' places.  Every offset the sum needs falls in exactly one
+residue class of the window, so the convolution is the sum itself up to the FFT's
+round-off (a few ulps of the largest u).  The kernel's window spectrum is one per
+(F0, F1); items share it.
+
+``WINDOW_ENTRY_FACTOR``: an item goes through a window when it would gather more than this
+many times F0 x F1 entries (on a 2-core AVX-512 Xeon, a table read took 3-5 ns and a
+window 6-9 ns per point of F0 x F1, both transforms and the product included).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import scipy.fft as sfft
+
+from .fft_threads import _ducc_fft, each_on_pool
+
+#: An item is summed through a window when |rows| |cols| > this x F0 F1 (module doc).
+WINDOW_ENTRY_FACTOR = 2.0
+
+#: Windows transformed together, at most this many bytes of spectrum a batch.
+WINDOW_BATCH_BYTES = 1 << 23
+
+#: (row, column) grid positions of a set of points.
+Positions = tuple[np.ndarray, np.ndarray]
+
+
+def window_side(rows: np.ndarray, cols: np.ndarray) -> int:
+    """The FFT length along one axis for rows' and cols' coordinates on it: the next fast
+    length of 2h + 1, h the largest |row - col|."""
+    h = max(int(rows.max()) - int(cols.min()), int(cols.max()) - int(rows.min()), 0)
+    return int(sfft.next_fast_len(2 * h + 1, real=True))
+
+
+def window_shape(rows: Positions, cols: Positions) -> tuple[int, int]:
+    """(F0, F1): the window of one item (``window_side`` on each axis)."""
+    return window_side(rows[0], cols[0]), window_side(rows[1], cols[1])
+
+
+def windowed(items: Sequence[tuple[Positions, Positions]]) -> tuple[list[int], tuple[int, int]]:
+    """The items worth a window, and the one window shape they share: an item joins when
+    its gather exceeds ``WINDOW_ENTRY_FACTOR`` x the points of the shared window (the
+    largest of the joining items' own, decided again with it)."""
+    sizes = [(r[0].size * c[0].size, window_shape(r, c) if r[0].size and c[0].size else (0, 0)) for r, c in items]
+    own = [k for k, (entries, (f0, f1)) in enumerate(sizes) if entries > WINDOW_ENTRY_FACTOR * f0 * f1]
+    if not own:
+        return [], (0, 0)
+    shape = (max(sizes[k][1][0] for k in own), max(sizes[k][1][1] for k in own))
+    return [k for k in own if sizes[k][0] > WINDOW_ENTRY_FACTOR * shape[0] * shape[1]], shape
+
+
+def sums_cost(items: Sequence[tuple[Positions, Positions]]) -> float:
+    """The work of the items' sums in table reads: each item's gather, or for the items
+    worth a window (``windowed``) ``WINDOW_ENTRY_FACTOR`` x its points."""
+    chosen, (f0, f1) = windowed(items)
+    cost = float(sum(r[0].size * c[0].size for r, c in items))
+    return cost - sum(items[k][0][0].size * items[k][1][0].size - WINDOW_ENTRY_FACTOR * f0 * f1 for k in chosen)
+
+
+def kernel_window_spectrum(table: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The rfft2 of the kernel on a window: entry (a, b) holds K at the offsets
+    (a, b) taken into -F/2 .. F/2 - 1, read from ``table`` (the padded grid's circulant
+    table) modulo its shape."""
+    (f0, f1), (p0, p1) = shape, table.shape
+    o0 = (np.arange(f0) + f0 // 2) % f0 - f0 // 2
+    o1 = (np.arange(f1) + f1 // 2) % f1 - f1 // 2
+    return sfft.rfft2(table[(o0 % p0)[:, None], (o1 % p1)[None, :]])
+
+
+def window_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]], shape: tuple[int, int],
+                spectrum: np.ndarray) -> list[np.ndarray]:
+    """The item sums (module doc) through windows of ``shape`` whose kernel spectrum is
+    ``spectrum`` (``kernel_window_spectrum``); each item's window must hold its offsets
+    (``window_shape`` <= shape).  Batches of windows run on the FFT pool's threads, one
+    thread a batch, so the numbers do not depend on the thread count."""
+    f0, f1 = shape
+    per = max(1, WINDOW_BATCH_BYTES // (16 * f0 * (f1 // 2 + 1)))
+    batches = [list(range(b, min(len(items), b + per))) for b in range(0, len(items), per)]
+
+    def batch(k: int) -> list[np.ndarray]:
+        which = batches[k]
+        field = np.zeros((len(which), f0, f1))
+        for slot, item in enumerate(which):
+            (ci, cj) = items[item][1]
+            field[slot, ci - ci.min(), cj - cj.min()] = 1.0
+        spec = _ducc_fft.r2c(field, axes=(1, 2), nthreads=1)
+        spec *= spectrum
+        _ducc_fft.c2r(spec, axes=(1, 2), lastsize=f1, forward=False, inorm=2, out=field, nthreads=1,
+                      allow_overwriting_input=True)
+        out = []
+        for slot, item in enumerate(which):
+            (ri, rj), (ci, cj) = items[item]
+            out.append(field[slot, (ri - ci.min()) % f0, (rj - cj.min()) % f1])
+        return out
+
+    return [u for part in each_on_pool(batch, len(batches)) for u in part]
+
+
+def unit_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
+              gather: Callable[[list[int]], list[np.ndarray]],
+              spectrum_of: Callable[[tuple[int, int]], np.ndarray]) -> list[np.ndarray]:
+    """The sums of every item (module doc): the items worth a window (``windowed``) through
+    ``window_sums``, the others by ``gather`` (given their indices, their sums in order).
+    ``spectrum_of(shape)``: the kernel's window spectrum (a caller's cache of
+    ``kernel_window_spectrum``)."""
+    chosen, shape = windowed(items)
+    out: list[np.ndarray | None] = [None] * len(items)
+    if chosen:
+        for k, u in zip(chosen, window_sums(table, [items[k] for k in chosen], shape, spectrum_of(shape))):
+            out[k] = u
+    rest = [k for k in range(len(items)) if out[k] is None]
+    for k, u in zip(rest, gather(rest) if rest else []):
+        out[k] = u
+    return out  # type: ignore[return-value]
