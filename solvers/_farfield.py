@@ -17,7 +17,8 @@ with v = B^-1 1.  M^-1 follows from the Woodbury identity with no product with H
 
 where D = Z' B^-1 Z (diagonal), D^1/2 E D^1/2 = Q diag(mu) Q' with the negative mu clipped
 to 0 (E+ is positive semidefinite, so M is SPD and K < D^-1 keeps M^-1 positive definite).
-Z'HZ is summed exactly over neighbouring tiles (entries gathered from the operator) and
+Z'HZ is summed exactly over neighbouring tiles (``ContactOperator.unit_sums``: gathered from
+the kernel table, or by small FFT windows for populous aggregates) and
 taken as point masses |I| |J| H(c_I, c_J) between farther ones (c: the member nearest the
 aggregate's centroid).  Measured offline on the fixed contact set (results/perf/two-level.md):
 37 -> 25 iterations at 1024^2, 50 -> 28 at 2048^2.
@@ -25,7 +26,7 @@ aggregate's centroid).  Measured offline on the fixed contact set (results/perf/
 The tile T is the smallest of 16, 32, 64, ... giving at most ``MAX_AGGREGATES`` aggregates.
 The correction is built only on sets of at most ``MAX_SET_FRACTION`` of the unknowns (a
 contact set, not a cold start's first, shrinking trial sets) and while the exact near-tile
-sums gather at most the island build's budget of entries, and rebuilt when the set has
+sums cost at most the island build's budget of entries read (``unit_sums_cost``), and rebuilt when the set has
 drifted by ``REBUILD_FRACTION`` since.  In fast-dual-pccg (its default), the paper's cold
 top step: 77 -> 57 iterations at 2048^2, 116 -> 74 at 4096^2 (results/perf/large-cold-top-step.md).
 """
