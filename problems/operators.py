@@ -23,6 +23,7 @@ public names are re-exported here.
 
 from __future__ import annotations
 
+import math
 import os
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
@@ -214,14 +215,18 @@ class ContactOperator(ABC):
         the threads where the operator can (here: in turn)."""
         return [self.partial_product(rows, cols, x) for rows, cols, x in items]
 
-    def unit_sums(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+    def unit_sums(self, items: Sequence[tuple[np.ndarray, np.ndarray]],
+                  budget: float = math.inf) -> list[np.ndarray] | None:
         """[H[rows, cols] 1 for each item (rows, cols)] (float64): the displacements at
-        ``rows`` of unit forces on ``cols`` (here: ``partial_products``)."""
-        return self.partial_products([(rows, cols, np.ones(np.asarray(cols).size)) for rows, cols in items])
+        ``rows`` of unit forces on ``cols``; None, before any is computed, when they would
+        cost more than ``budget`` (``unit_sums_cost``).  Here: ``partial_products``."""
+        if gathered_entries(items) > budget:
+            return None
+        return self.partial_products(unit_forces(items))
 
     def unit_sums_cost(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
-        """The work of ``unit_sums(items)`` in entries read (here: |rows| |cols| each)."""
-        return float(sum(np.asarray(rows).size * np.asarray(cols).size for rows, cols in items))
+        """The work of ``unit_sums(items)`` in entries read (here: ``gathered_entries``)."""
+        return gathered_entries(items)
 
     def partial_product_pays(self, entries: int) -> bool:
         """Whether a ``partial_product`` gathering ``entries`` entries costs well under a
@@ -254,6 +259,16 @@ class ContactOperator(ABC):
     @property
     def shape(self) -> tuple[int, int]:
         return (self.n, self.n)
+
+
+def gathered_entries(items: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
+    """The entries the items (rows, cols) read gathered one by one: |rows| |cols| each."""
+    return float(sum(np.asarray(rows).size * np.asarray(cols).size for rows, cols in items))
+
+
+def unit_forces(items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The items (rows, cols) as ``partial_products`` items with unit forces on cols."""
+    return [(rows, cols, np.ones(np.asarray(cols).size)) for rows, cols in items]
 
 
 def _pad_identity(blocks: np.ndarray, members: np.ndarray) -> np.ndarray:
@@ -359,6 +374,7 @@ class FFTOperator(ContactOperator):
         self.pidx = transform.padded_index(self.grid_idx)
         self.n = int(self.grid_idx.size)
         self.matvec_count = 0
+        self._window_spectra: dict[tuple[int, int], np.ndarray] = {}  # ``_window_spectrum``
         p0, p1 = transform.padded_shape
         pi, pj = np.divmod(self.pidx, p1)
         self._pi, self._pj = pi, pj
@@ -497,22 +513,27 @@ class FFTOperator(ContactOperator):
             out += more
         return out
 
-    def unit_sums(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+    def unit_sums(self, items: Sequence[tuple[np.ndarray, np.ndarray]],
+                  budget: float = math.inf) -> list[np.ndarray] | None:
         # On the host: the items of compact, populous groups through small FFT windows
         # (problems/window_sums.py), the others gathered as ``partial_products``.
         if not isinstance(self.transform.table, np.ndarray):
-            return super().unit_sums(items)
+            return super().unit_sums(items, budget)
         by_index = [(np.asarray(rows), np.asarray(cols)) for rows, cols in items]
+        positions = self._positions(by_index)
+        chosen = window_sums.plan(positions)
+        if chosen.cost > budget:
+            return None
 
         def gather(which: list[int]) -> list[np.ndarray]:
-            return super(FFTOperator, self).unit_sums([by_index[k] for k in which])
+            return self.partial_products(unit_forces([by_index[k] for k in which]))
 
-        return window_sums.unit_sums(self.transform.table, self._positions(by_index), gather, self._window_spectrum)
+        return window_sums.unit_sums(self.transform.table, positions, chosen, gather, self._window_spectrum)
 
     def unit_sums_cost(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
         if not isinstance(self.transform.table, np.ndarray):
             return super().unit_sums_cost(items)
-        return window_sums.sums_cost(self._positions([(np.asarray(r), np.asarray(c)) for r, c in items]))
+        return window_sums.plan(self._positions([(np.asarray(r), np.asarray(c)) for r, c in items])).cost
 
     def _positions(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[tuple[window_sums.Positions, ...]]:
         """The items' rows and cols as (row, column) positions on the padded grid."""
@@ -520,10 +541,9 @@ class FFTOperator(ContactOperator):
 
     def _window_spectrum(self, shape: tuple[int, int]) -> np.ndarray:
         """The kernel's spectrum on a window of ``shape`` (``window_sums``), kept per shape."""
-        spectra = self.__dict__.setdefault("_window_spectra", {})
-        if shape not in spectra:
-            spectra[shape] = window_sums.kernel_window_spectrum(self.transform.table, shape)
-        return spectra[shape]
+        if shape not in self._window_spectra:
+            self._window_spectra[shape] = window_sums.kernel_window_spectrum(self.transform.table, shape)
+        return self._window_spectra[shape]
 
     def partial_product_pays(self, entries: int) -> bool:
         P = int(np.prod(self.transform.padded_shape))

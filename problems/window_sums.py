@@ -25,6 +25,7 @@ window 6-9 ns per point of F0 x F1, both transforms and the product included).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
@@ -53,24 +54,28 @@ def window_shape(rows: Positions, cols: Positions) -> tuple[int, int]:
     return window_side(rows[0], cols[0]), window_side(rows[1], cols[1])
 
 
-def windowed(items: Sequence[tuple[Positions, Positions]]) -> tuple[list[int], tuple[int, int]]:
-    """The items worth a window, and the one window shape they share: an item joins when
-    its gather exceeds ``WINDOW_ENTRY_FACTOR`` x the points of the shared window (the
-    largest of the joining items' own, decided again with it)."""
-    sizes = [(r[0].size * c[0].size, window_shape(r, c) if r[0].size and c[0].size else (0, 0)) for r, c in items]
-    own = [k for k, (entries, (f0, f1)) in enumerate(sizes) if entries > WINDOW_ENTRY_FACTOR * f0 * f1]
-    if not own:
-        return [], (0, 0)
-    shape = (max(sizes[k][1][0] for k in own), max(sizes[k][1][1] for k in own))
-    return [k for k in own if sizes[k][0] > WINDOW_ENTRY_FACTOR * shape[0] * shape[1]], shape
+@dataclass(frozen=True)
+class WindowPlan:
+    """Which items go through windows, the one window shape they share, and the work of all
+    the items' sums in table reads (``WINDOW_ENTRY_FACTOR`` x F0 F1 for a windowed item,
+    |rows| |cols| for a gathered one)."""
+
+    chosen: list[int]
+    shape: tuple[int, int]
+    cost: float
 
 
-def sums_cost(items: Sequence[tuple[Positions, Positions]]) -> float:
-    """The work of the items' sums in table reads: each item's gather, or for the items
-    worth a window (``windowed``) ``WINDOW_ENTRY_FACTOR`` x its points."""
-    chosen, (f0, f1) = windowed(items)
-    cost = float(sum(r[0].size * c[0].size for r, c in items))
-    return cost - sum(items[k][0][0].size * items[k][1][0].size - WINDOW_ENTRY_FACTOR * f0 * f1 for k in chosen)
+def plan(items: Sequence[tuple[Positions, Positions]]) -> WindowPlan:
+    """The items worth a window: an item joins when its gather exceeds
+    ``WINDOW_ENTRY_FACTOR`` x the points of the shared window (the largest of the joining
+    items' own, decided again with it)."""
+    gathers = [r[0].size * c[0].size for r, c in items]
+    shapes = [window_shape(r, c) if r[0].size and c[0].size else (0, 0) for r, c in items]
+    own = [k for k, (f0, f1) in enumerate(shapes) if gathers[k] > WINDOW_ENTRY_FACTOR * f0 * f1]
+    shape = (max((shapes[k][0] for k in own), default=0), max((shapes[k][1] for k in own), default=0))
+    window = WINDOW_ENTRY_FACTOR * shape[0] * shape[1]
+    chosen = [k for k in own if gathers[k] > window]
+    return WindowPlan(chosen, shape, float(sum(gathers)) - sum(gathers[k] - window for k in chosen))
 
 
 def kernel_window_spectrum(table: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -112,17 +117,17 @@ def window_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
     return [u for part in each_on_pool(batch, len(batches)) for u in part]
 
 
-def unit_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
+def unit_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]], chosen: WindowPlan,
               gather: Callable[[list[int]], list[np.ndarray]],
               spectrum_of: Callable[[tuple[int, int]], np.ndarray]) -> list[np.ndarray]:
-    """The sums of every item (module doc): the items worth a window (``windowed``) through
+    """The sums of every item (module doc): the items ``chosen.chosen`` (``plan``) through
     ``window_sums``, the others by ``gather`` (given their indices, their sums in order).
     ``spectrum_of(shape)``: the kernel's window spectrum (a caller's cache of
     ``kernel_window_spectrum``)."""
-    chosen, shape = windowed(items)
     out: list[np.ndarray | None] = [None] * len(items)
-    if chosen:
-        for k, u in zip(chosen, window_sums(table, [items[k] for k in chosen], shape, spectrum_of(shape))):
+    if chosen.chosen:
+        spectrum = spectrum_of(chosen.shape)
+        for k, u in zip(chosen.chosen, window_sums(table, [items[k] for k in chosen.chosen], chosen.shape, spectrum)):
             out[k] = u
     rest = [k for k in range(len(items)) if out[k] is None]
     for k, u in zip(rest, gather(rest) if rest else []):

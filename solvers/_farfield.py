@@ -88,7 +88,7 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     ``block_sums[k]`` = sum_l H_kl over k's block, both on the set.  None on a set of more
     than ``max_fraction`` of the unknowns (``MAX_SET_FRACTION`` unless the solve was opened,
     ``IslandPreconditioner.far_fraction``), when the near-tile sums (each pair once) would
-    cost more than ``budget`` entries read (``ContactOperator.unit_sums_cost``: on an FFT
+    cost more than ``budget`` entries read (``ContactOperator.unit_sums``' cost: on an FFT
     operator, compact populous aggregates are summed by small FFT windows), there is
     one aggregate, or an
     aggregate's 1'B^-1 1 is not positive (round-off in float32 blocks: the Woodbury form
@@ -110,13 +110,12 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     # Exact sums over neighbouring tiles, each pair once (H is symmetric): the displacement
     # of unit forces on each aggregate at the members of its later neighbours.
     near = [np.concatenate([members_of[b] for b in nb]) for nb in later]
-    items = [(cols, members_of[a]) for a, cols in enumerate(near)]
-    if H.unit_sums_cost(items) > budget:
+    sums = H.unit_sums([(cols, members_of[a]) for a, cols in enumerate(near)], budget)
+    if sums is None:
         return None
     aggregate = np.full(i.size, -1, dtype=np.int64)
     aggregate[pos] = agg
     A = galerkin_far(H, i, j, pos, agg, count)
-    sums = H.unit_sums(items)
     for a, nb in enumerate(later):
         A[a, nb] = A[nb, a] = np.bincount(aggregate[near[a]], weights=sums[a], minlength=m)[nb]
     A = 0.5 * (A + A.T)

@@ -44,7 +44,7 @@ def test_windows_give_the_gathered_sums(kernel: str, periodic: bool, monkeypatch
     far = (np.flatnonzero(idx < 40), np.flatnonzero(idx >= N * N - 40))  # rows and cols at opposite corners
     items += [(items[0][0], items[0][1][:3]), (np.arange(0), items[1][1]), (items[1][0], np.arange(0)), far]
     pos = op._positions(items)
-    chosen, shape = window_sums.windowed(pos)
+    chosen, shape = window_sums.plan(pos).chosen, window_sums.plan(pos).shape
     assert set(range(5)) <= set(chosen) and len(items) - 1 not in chosen
     assert all(np.all(np.array(window_sums.window_shape(*pos[k])) <= shape) for k in chosen)
     answers = []
@@ -66,7 +66,7 @@ def test_a_window_too_small_for_its_offsets_would_alias(monkeypatch: pytest.Monk
     op = operator("bcc", True, idx)
     items = tile_items(idx, rng, 3, 12)
     pos = op._positions(items)
-    chosen, shape = window_sums.windowed(pos)
+    chosen, shape = window_sums.plan(pos).chosen, window_sums.plan(pos).shape
     assert chosen == [0, 1, 2]
     want = [op.partial_product(r, c, np.ones(c.size)) for r, c in items]
     small = (shape[0] // 2, shape[1] // 2)
@@ -76,18 +76,22 @@ def test_a_window_too_small_for_its_offsets_would_alias(monkeypatch: pytest.Monk
 
 def test_the_cost_is_the_gather_less_what_the_windows_save() -> None:
     """Gathered items cost |rows| |cols|, windowed ones WINDOW_ENTRY_FACTOR x F0 F1; never
-    more than the gather.  A generic operator, which has no windows, costs the gather."""
+    more than the gather.  A generic operator, which has no windows, costs the gather.  A
+    budget one short of the cost refuses the sums (None)."""
     rng = np.random.default_rng(6)
     idx = np.arange(N * N)
     op = operator("love", False, idx)
     items = tile_items(idx, rng, 4, 12) + [(np.arange(5), np.arange(3))]
     gather = float(sum(r.size * c.size for r, c in items))
-    chosen, (f0, f1) = window_sums.windowed(op._positions(items))
+    planned = window_sums.plan(op._positions(items))
+    chosen, (f0, f1) = planned.chosen, planned.shape
     assert chosen and 4 not in chosen
     cost = op.unit_sums_cost(items)
     assert cost == pytest.approx(gather - sum(items[k][0].size * items[k][1].size for k in chosen)
                                  + len(chosen) * window_sums.WINDOW_ENTRY_FACTOR * f0 * f1)
-    assert cost < gather
+    assert cost < gather and cost == planned.cost
     assert ContactOperator.unit_sums_cost(op, items) == gather
+    assert op.unit_sums(items, cost - 1) is None and op.unit_sums(items, cost) is not None
+    assert ContactOperator.unit_sums(op, items, gather - 1) is None
     for got, want in zip(op.unit_sums(items), ContactOperator.unit_sums(op, items)):
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
