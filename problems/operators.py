@@ -521,14 +521,14 @@ class FFTOperator(ContactOperator):
             return super().unit_sums(items, budget)
         by_index = [(np.asarray(rows), np.asarray(cols)) for rows, cols in items]
         positions = self._positions(by_index)
-        chosen = window_sums.plan(positions)
-        if chosen.cost > budget:
+        planned = window_sums.plan(positions)
+        if planned.cost > budget:
             return None
 
         def gather(which: list[int]) -> list[np.ndarray]:
             return self.partial_products(unit_forces([by_index[k] for k in which]))
 
-        return window_sums.unit_sums(self.transform.table, positions, chosen, gather, self._window_spectrum)
+        return window_sums.unit_sums(self.transform.table, positions, planned, gather, self._window_spectrum)
 
     def unit_sums_cost(self, items: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
         if not isinstance(self.transform.table, np.ndarray):

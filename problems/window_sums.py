@@ -117,17 +117,17 @@ def window_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
     return [u for part in each_on_pool(batch, len(batches)) for u in part]
 
 
-def unit_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]], chosen: WindowPlan,
+def unit_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]], planned: WindowPlan,
               gather: Callable[[list[int]], list[np.ndarray]],
               spectrum_of: Callable[[tuple[int, int]], np.ndarray]) -> list[np.ndarray]:
-    """The sums of every item (module doc): the items ``chosen.chosen`` (``plan``) through
+    """The sums of every item (module doc): the items ``planned.chosen`` (``plan``) through
     ``window_sums``, the others by ``gather`` (given their indices, their sums in order).
     ``spectrum_of(shape)``: the kernel's window spectrum (a caller's cache of
     ``kernel_window_spectrum``)."""
     out: list[np.ndarray | None] = [None] * len(items)
-    if chosen.chosen:
-        spectrum = spectrum_of(chosen.shape)
-        for k, u in zip(chosen.chosen, window_sums(table, [items[k] for k in chosen.chosen], chosen.shape, spectrum)):
+    if planned.chosen:
+        windows = window_sums(table, [items[k] for k in planned.chosen], planned.shape, spectrum_of(planned.shape))
+        for k, u in zip(planned.chosen, windows):
             out[k] = u
     rest = [k for k in range(len(items)) if out[k] is None]
     for k, u in zip(rest, gather(rest) if rest else []):

@@ -44,7 +44,8 @@ def test_windows_give_the_gathered_sums(kernel: str, periodic: bool, monkeypatch
     far = (np.flatnonzero(idx < 40), np.flatnonzero(idx >= N * N - 40))  # rows and cols at opposite corners
     items += [(items[0][0], items[0][1][:3]), (np.arange(0), items[1][1]), (items[1][0], np.arange(0)), far]
     pos = op._positions(items)
-    chosen, shape = window_sums.plan(pos).chosen, window_sums.plan(pos).shape
+    planned = window_sums.plan(pos)
+    chosen, shape = planned.chosen, planned.shape
     assert set(range(5)) <= set(chosen) and len(items) - 1 not in chosen
     assert all(np.all(np.array(window_sums.window_shape(*pos[k])) <= shape) for k in chosen)
     answers = []
@@ -66,7 +67,8 @@ def test_a_window_too_small_for_its_offsets_would_alias(monkeypatch: pytest.Monk
     op = operator("bcc", True, idx)
     items = tile_items(idx, rng, 3, 12)
     pos = op._positions(items)
-    chosen, shape = window_sums.plan(pos).chosen, window_sums.plan(pos).shape
+    planned = window_sums.plan(pos)
+    chosen, shape = planned.chosen, planned.shape
     assert chosen == [0, 1, 2]
     want = [op.partial_product(r, c, np.ones(c.size)) for r, c in items]
     small = (shape[0] // 2, shape[1] // 2)
