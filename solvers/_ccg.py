@@ -155,6 +155,9 @@ class GapState:
     #: anchored round of iterative refinement leaves that to its float64 refresh.
     confirm: bool = True
     space: ArraySpace = HOST
+    #: The loops read the gap at a point with p = 0 where it is below this level: 0, or the
+    #: approach Delta under load control (``_constrained.bugnicourt_load`` sets it).
+    level: float = 0.0
     g: np.ndarray = field(init=False)
     _since_refresh: int = field(init=False, default=0)
     #: Forces raised since g was last exact everywhere: (positions, amounts >= 0) ...
@@ -246,17 +249,33 @@ class GapState:
         self._raised.append((cols, amounts))
         self._settle()
 
+    def scale(self, factor: float) -> None:
+        """p <- factor p (factor > 0) without a matvec: H p scales with p, so g <- factor g +
+        (factor - 1) ubar -- anchored too, since g0 = H p0 - ubar -- and the raises a row
+        has yet to take scale with it.  A gap that was a lower bound stays one."""
+        p, g, ubar = self.p, self.g, self.ubar
+
+        def part(s: slice) -> None:
+            ps, gs = p[s], g[s]
+            ps *= factor
+            gs *= factor
+            gs += (factor - 1.0) * ubar[s]
+
+        each_band(part, p)
+        self._raised = [(cols, amounts * factor) for cols, amounts in self._raised]
+
     def settle(self) -> None:
-        """After a linear step with no projection: make g exact where it newly needs to be."""
+        """After a linear step with no projection, or a new ``level``: make g exact where
+        it newly needs to be."""
         if self._raised:
             self._settle()
 
     def _settle(self) -> None:
-        """Make g exact on the points that need it, {p > 0} U {g < 0}: each gets the
+        """Make g exact on the points that need it, {p > 0} U {g < level}: each gets the
         raises since the last refresh that its gap does not include yet."""
         assert self._upto is not None
-        p, g = self.p, self.g
-        need = flatnonzero_in_bands(lambda s: (p[s] > 0.0) | (g[s] < 0.0), p)
+        p, g, level = self.p, self.g, self.level
+        need = flatnonzero_in_bands(lambda s: (p[s] > 0.0) | (g[s] < level), p)
         done = len(self._raised)
         behind = self._upto[need]
         groups = [(k, need[behind == k]) for k in np.unique(behind[behind < done]).tolist()]

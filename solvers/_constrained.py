@@ -81,12 +81,18 @@ import numpy as np
 from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import min_below_zero, read_scalars
 
+from contactbench.problems.fft_threads import flatnonzero_in_bands
+
 from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, conjugate, dual_residual, entering_force, exact_step, inward,
                    on_set, polak_ribiere, precondition_on)
 from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
 from ._screen import approach_floor
 from .base import SolveContext
+
+
+#: A projection rescales p to the load P when sum(p) is off P by more than this fraction.
+LOAD_DRIFT = 1e-14
 
 
 def wants_to_move(p: np.ndarray, w: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -412,16 +418,36 @@ def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarr
     if c.load is None:
         return clipped or bool(entering.size)
     total = float(np.sum(p))
-    off = abs(total - float(c.load)) > 1e-14 * max(float(c.load), abs(before))
+    off = abs(total - float(c.load)) > LOAD_DRIFT * max(float(c.load), abs(before))
     if off:
         p[:] = scale_to_load(p, c, u, w)
     return clipped or bool(entering.size) or off
 
 
+def _project_raised(state: GapState, load: float) -> None:
+    """``_project`` without a box and without a matvec where the partial products pay: the
+    points below 0 raised to 0 (``GapState.raise_forces``), then p scaled to the load
+    (``GapState.scale``: the gap follows p without a product)."""
+    p = state.p
+    if min_below_zero(p) < 0.0:
+        cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p)
+        state.raise_forces(cols, -p[cols])
+    else:
+        state.settle()
+    (total,) = read_scalars(np.sum(state.p))
+    if total > 0.0 and abs(total - load) > LOAD_DRIFT * load:
+        state.scale(load / total)
+
+
 def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
     """(Delta, residual): Delta as in ``_approach_and_free_set``; the residual is
-    w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``)."""
+    w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``),
+    the gap first made exact wherever it is now read, {p > 0} U {g < Delta}
+    (``GapState.level``: raised forces)."""
     delta, _ = _approach_and_free_set(state, u, c)
+    if c.load is not None:
+        state.level = delta
+        state.settle()
     return delta, dual_residual(state, u, delta)
 
 
@@ -481,7 +507,9 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             d = steepest
             continue
         state.advance(alpha, d, Hd)
-        if _project(state.p, u, none, none, c, state.g - delta):
+        if c.upper is None:
+            _project_raised(state, float(c.load))
+        elif _project(state.p, u, none, none, c, state.g - delta):
             state.refresh()
         res_old = res
         delta, res = _dual_residual(state, u, c)

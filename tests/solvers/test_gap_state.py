@@ -132,3 +132,34 @@ def test_an_anchored_round_leaves_the_confirmation_to_its_refinement() -> None:
     inner = GapState.anchored(H32, plain)
     count32 = H32.matvec_count
     assert converged_now(ctx, inner)[0] and H32.matvec_count == count32
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+@pytest.mark.parametrize("anchored", [False, True])
+def test_a_scaled_state_keeps_its_gap_without_a_matvec(periodic: bool, anchored: bool, monkeypatch) -> None:
+    """``GapState.scale`` after raises still pending: the gap is H (s p) - ubar on the rows
+    read and a lower bound elsewhere, the pending raises scale with p, and a raised
+    ``level`` makes the rows below it exact -- all without a product."""
+    monkeypatch.setattr(operators, "PARTIAL_PRODUCT_FACTOR", 1e9)
+    qp = qp_of(32, periodic)
+    base = GapState(qp.H, qp.ubar, np.zeros(qp.n))
+    state = GapState.anchored(qp.H.with_precision(np.float32), base) if anchored else base
+    state.refresh_every = 10**6
+    projected_steps(state, np.random.default_rng(3), 12)
+    assert not state.exact
+    H, rel = state.H, (1e-9 if state.H.dtype == np.float64 else 1e-5)
+    before = H.matvec_count
+    for factor in (0.8, 1.15):
+        state.scale(factor)
+        state.settle()
+        g = true_gap(state)
+        tol = rel * np.max(np.abs(g))
+        need = (state.p > 0) | (state.g < state.level)
+        assert np.max(np.abs(state.g - g)[need]) <= tol
+        assert np.all(state.g[~need] <= g[~need] + tol)
+    state.level = float(np.quantile(state.g[state.p == 0], 0.5))
+    state.settle()
+    g = true_gap(state)
+    below = (state.p == 0) & (g < state.level - rel * np.max(np.abs(g)))
+    assert below.any() and np.max(np.abs(state.g - g)[below]) <= rel * np.max(np.abs(g))
+    assert H.matvec_count == before
