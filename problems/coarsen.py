@@ -191,6 +191,17 @@ def coarse_qp(level: Surface, fine: Geometry, indices: np.ndarray, operator: Ope
     return QP(builder.operator_on(idx), ubar, geom)
 
 
+def coarse_load_qp(level: Surface, fine: Geometry, load: float, operator: OperatorKind = "fft") -> QP:
+    """The QP of a coarse representation ``level`` under load control at the fine problem's
+    total force ``load`` (P, the same force on a coarser grid): the whole level's grid, the
+    same material, kernel and boundary condition as ``fine`` (``InstanceBuilder.build_load``)."""
+    if fine.E is None or fine.kernel is None:
+        raise ProblemInputError("a coarse level needs the fine geometry's E and kernel")
+    builder = InstanceBuilder(level, float(fine.E), kernel=str(fine.kernel), periodic=bool(fine.periodic),
+                              operator=operator, layer=fine.layer)
+    return builder.build_load(float(load)).qp
+
+
 def _far_field(g: Geometry) -> float:
     if g.far_field is None:
         raise ProblemInputError("a coarse level needs the fine geometry's far-field displacement Delta")

@@ -464,8 +464,10 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     in the Polonsky-Keer loop) less the admissible multipliers at both bounds; the
     direction is -z + beta d (Polak-Ribiere) with z = M^-1 res projected to zero sum on
     the free set (``zero_sum``) and no component out of the box (``_ccg.inward``); a step
-    is projected onto the box and scaled to the load (``_project``), the gap recomputed
-    when that changed p.  A direction with no descent (d'Hd or the step not positive,
+    is projected onto the box and scaled to the load: without a box by raised forces and
+    a scaling that carry the gap along (``_project_raised``: a matvec only where a partial
+    product does not pay), with one by ``_project``, the gap recomputed when that changed
+    p.  A direction with no descent (d'Hd or the step not positive,
     not finite) restarts from the steepest one; where that is zero too, or the error has
     not halved in ``_finish.FINISH_PATIENCE`` iterations, the exact finish is tried as in
     ``polonsky_keer_box``.  Without a load: ``_ccg.bugnicourt``."""

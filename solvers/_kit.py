@@ -32,7 +32,7 @@ import scipy.linalg as sla
 from threadpoolctl import ThreadpoolController
 
 from contactbench.problems import operators
-from contactbench.problems.coarsen import block_average, coarse_qp, level_trial_set
+from contactbench.problems.coarsen import block_average, coarse_load_qp, coarse_qp, level_trial_set
 from contactbench.problems.errors import MemoryBudgetError
 from contactbench.problems.kkt import constrained_scales, kkt_figures
 from contactbench.problems.operators import (
@@ -181,13 +181,19 @@ def is_dense(op: ContactOperator) -> bool:
     return isinstance(op, DenseOperator)
 
 
-#: The choices of the fast solvers' ``first_guess`` for a cold start.
-FIRST_GUESSES = ("zero", "coarse")
+#: The choices of the fast solvers' ``first_guess`` for a cold start ("auto":
+#: ``resolved_first_guess``).
+FIRST_GUESSES = ("zero", "coarse", "auto")
 #: No coarse level is made of a grid with fewer points per side than this.
 COARSE_MIN_SIDE = 128
 #: The coarse solve's tolerance (at most): the coarse grid's own discretisation error is
 #: far larger, so solving it tighter buys nothing.
 COARSE_TOL = 1e-4
+#: ... under load control: the first guess only has to place the load on the right patches
+#: for the fine grid's cold round (solvers/_screen.py), which stops at 1e-3 itself.  On the
+#: ASPHER race's Fourier problem at 1024^2 the fine solve took the same products after a
+#: coarse chain to 1e-2 as to 1e-3 or 1e-4 (58 / 57 / 57), the chain 47 against 58 products.
+COARSE_LOAD_TOL = 1e-2
 
 
 @dataclass
@@ -216,20 +222,40 @@ def prolong(fine_idx: np.ndarray, fine_shape: tuple[int, int], coarse_idx: np.nd
     return out
 
 
+def resolved_first_guess(wanted: str, ctx: SolveContext) -> str:
+    """"zero" or "coarse": ``wanted`` with "auto" decided -- "coarse" for a cold solve under
+    load control without a box, whose own cold round otherwise sheds the load from most of
+    the grid (docs/fast-solvers.md, "Coarse first guess"), "zero" elsewhere."""
+    if wanted != "auto":
+        return wanted
+    c = ctx.constraints
+    return "coarse" if ctx.p0 is None and c.load_control and c.upper is None else "zero"
+
+
 def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     """``solver`` (with the same parameters, so recursively down to ``COARSE_MIN_SIDE``)
-    on the block-averaged 2x-coarser grid at the same far-field displacement, to
-    ``COARSE_TOL``, prolonged (``prolong``); no guess when the QP carries no surface or
-    its grid is too small."""
+    on the block-averaged 2x-coarser grid -- at the same far-field displacement to
+    ``COARSE_TOL``, or under load control at the same total force on the whole level to
+    ``COARSE_LOAD_TOL`` -- prolonged (``prolong``); no guess when the QP carries no surface
+    (or, under load control, a box), or its grid is too small."""
     g = ctx.qp.geometry
-    if g is None or not g.has_surface or min(g.grid_shape) < 2 * COARSE_MIN_SIDE:
-        return FirstGuess(None, note="no coarse level (no surface, or grid below 2 x COARSE_MIN_SIDE)")
+    c = ctx.constraints
+    posed = g is not None and (g.surface is not None and g.E is not None and g.kernel is not None
+                               and tuple(g.grid_shape) == g.surface.shape if c.load_control else g.has_surface)
+    if not posed or min(g.grid_shape) < 2 * COARSE_MIN_SIDE or c.upper is not None:
+        return FirstGuess(None, note="no coarse level (no surface or a box, or grid below 2 x COARSE_MIN_SIDE)")
     level = block_average(g.surface)
-    idx = level_trial_set(level, g)
-    if idx.size == 0:
-        return FirstGuess(None, note="empty coarse trial set")
-    qp = coarse_qp(level, g, idx, "dense" if is_dense(ctx.qp.H) else "fft")
-    tol = COARSE_TOL if ctx.tol is None else max(ctx.tol, COARSE_TOL)
+    kind = "dense" if is_dense(ctx.qp.H) else "fft"
+    if c.load_control:
+        qp = coarse_load_qp(level, g, float(c.load), kind)
+        idx = np.asarray(qp.geometry.indices)
+    else:
+        idx = level_trial_set(level, g)
+        if idx.size == 0:
+            return FirstGuess(None, note="empty coarse trial set")
+        qp = coarse_qp(level, g, idx, kind)
+    least = COARSE_LOAD_TOL if c.load_control else COARSE_TOL
+    tol = least if ctx.tol is None else max(ctx.tol, least)
     res = solver.solve(qp, SolverSettings(tol=tol, max_iter=ctx.max_iter, time_limit=ctx.deadline.remaining(),
                                           params=dict(ctx.params)), None)
     p = prolong(g.indices, g.grid_shape, idx, level.shape, np.asarray(res.p, dtype=np.float64))

@@ -49,7 +49,7 @@ import numpy as np
 from ._ccg import CCGRun, FastSolver, bugnicourt, outcome, polonsky_keer
 from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._device import bring_home, resident_space, resident_state
-from ._kit import FIRST_GUESSES, coarse_first_guess
+from ._kit import FIRST_GUESSES, coarse_first_guess, resolved_first_guess
 from ._opening import StagedPreconditioner, opened, opening_param
 from ._preconditioners import KINDS, make_preconditioner, resolved_kind
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
@@ -64,20 +64,21 @@ def precondition_param(default: str) -> Param:
     return Param("precondition", str, default, "CG direction preconditioned on the free set", choices=KINDS)
 
 
-def first_guess_param() -> Param:
-    return Param("first_guess", str, "zero", "cold start: zero, or the solver's answer on the 2x-coarser grid",
-                 choices=FIRST_GUESSES)
+def first_guess_param(default: str = "zero") -> Param:
+    return Param("first_guess", str, default, "cold start: zero, or the solver's answer on the 2x-coarser grid; "
+                 "auto: coarse under load control without a box, zero elsewhere", choices=FIRST_GUESSES)
 
 
 def starting_point(solver: Solver, ctx: SolveContext) -> tuple[np.ndarray, dict[str, Any]]:
     """The first p on the host: the warm start, else the first guess of
-    ``params["first_guess"]`` (the coarse solve's matvecs are counted, and reported as
-    "coarse_matvecs").  Under constraints (a hardness, a load) the coarse grid poses the
-    plain problem, so the first guess is ignored there ("first_guess": "zero (constraints)")."""
-    wanted = ctx.params.get("first_guess", "zero")
+    ``params["first_guess"]`` (``resolved_first_guess``; the coarse solve's matvecs are
+    counted, and reported as "coarse_matvecs").  Under a hardness the coarse grid would
+    pose another box, so the first guess is ignored there ("first_guess": "zero
+    (constraints)")."""
+    wanted = resolved_first_guess(ctx.params.get("first_guess", "zero"), ctx)
     if ctx.p0 is not None or wanted == "zero":
         return ctx.first_p(), {}
-    if not ctx.constraints.plain:
+    if ctx.constraints.upper is not None:
         return ctx.first_p(), {"first_guess": "zero (constraints)"}
     guess = coarse_first_guess(solver, ctx)
     ctx.add_matvecs(guess.matvecs)
@@ -184,6 +185,7 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     name = "fast-dual-pccg"
     description = "Bugnicourt et al. 2018 CCG preconditioned by exact inverses of the contact islands' blocks, FFT operator"
     #: auto by default: the far field and float32 where they pay for their set-up (1024^2 and 512^2 grid points up)
-    #: and a cold, unconstrained solve opened by the wave numbers (solvers/_opening.py)
-    params = (precondition_param("auto"), precision_param("auto"), first_guess_param(), screening_param(),
+    #: and a cold, unconstrained solve opened by the wave numbers (solvers/_opening.py); a cold
+    #: load-controlled one started from the coarser grids (``_kit.resolved_first_guess``)
+    params = (precondition_param("auto"), precision_param("auto"), first_guess_param("auto"), screening_param(),
               opening_param("auto"))

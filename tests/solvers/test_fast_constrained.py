@@ -485,3 +485,39 @@ def test_load_controlled_projections_cost_no_product_where_partial_products_pay(
     assert abs(float(np.sum(on.p)) - float(inst.qp.constraints.load)) <= 1e-12 * float(inst.qp.constraints.load)
     assert kkt_check(inst, on.p, on.multiplier).kkt_error <= 1e-9
     assert on.matvecs < off.matvecs, (on.matvecs, off.matvecs)
+
+
+def test_auto_first_guess_is_coarse_for_a_cold_load_without_a_box() -> None:
+    """``resolved_first_guess``: "auto" is the coarse grids' answer only for a cold solve
+    under load control without a box; a choice made by name stays."""
+    from contactbench.solvers._kit import resolved_first_guess
+
+    def ctx(constraints, p0=None):
+        return SimpleNamespace(constraints=constraints, p0=p0)
+
+    load, box = make_constraints(4, None, 1.0), make_constraints(4, np.ones(4), 1.0)
+    assert resolved_first_guess("auto", ctx(load)) == "coarse"
+    assert resolved_first_guess("auto", ctx(load, np.ones(4))) == "zero"
+    assert resolved_first_guess("auto", ctx(box)) == "zero"
+    assert resolved_first_guess("auto", ctx(Constraints())) == "zero"
+    assert resolved_first_guess("zero", ctx(load)) == "zero" and resolved_first_guess("coarse", ctx(box)) == "coarse"
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_a_load_controlled_solve_from_the_coarse_grid_gives_the_same_answer(periodic: bool) -> None:
+    """A cold load-controlled 256^2 solve started from the 128^2 grid's answer at the same
+    force (``first_guess`` auto) meets the tolerance, the judge and the load, and gives the
+    answer of a cold start from zero, with fewer products on the fine grid."""
+    s = fourier_synthesis(256, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    builder = InstanceBuilder(s, E, periodic=periodic)
+    inst = builder.build_load(builder.load_force(0.005))
+    runs = {guess: get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"first_guess": guess}))
+            for guess in ("zero", "auto")}
+    zero, auto = runs["zero"], runs["auto"]
+    assert zero.converged and auto.converged
+    assert auto.info["first_guess"].startswith("coarse 128^2") and auto.info["coarse_matvecs"] > 0
+    assert "first_guess" not in zero.info
+    assert np.max(np.abs(auto.p - zero.p)) <= 1e-6 * np.max(zero.p)
+    assert abs(float(np.sum(auto.p)) - float(inst.qp.constraints.load)) <= 1e-12 * float(inst.qp.constraints.load)
+    assert judge(inst, auto.p, True, 1e-8).status == "solved"
+    assert auto.matvecs - auto.info["coarse_matvecs"] < zero.matvecs
