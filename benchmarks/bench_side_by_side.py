@@ -7,7 +7,10 @@ each member's solve is instead its K-step load sweep: the paper's instance (BCC,
 non-periodic, L = 100 um) on the member's surface, every step warm-started from the last by
 the harness (``contactbench.harness.solve_sequence``) and judged at the "high" profile;
 matvecs, iterations, builds and seconds are the steps' sums, and the status is "solved"
-when every step is.
+when every step is.  With ``--load-per-slope X`` it is instead the member's cold
+load-controlled problem of bench_aspher.py (non-periodic Love kernel, P / (E* A) = X x rms
+slope), solved and judged as there (``bench_aspher.solve_entry``); ``--cells`` keeps the
+(Hurst, rms slope) cells given.
 
 Each solve runs in a fresh process of the checkout's own virtual environment
 (``CHECKOUT/.venv/bin/python``) with the thread variables set to ``--threads``; rows are
@@ -33,6 +36,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+from bench_aspher import parse_cells
 from bench_surface_population import FAMILIES, THREAD_VARS, Member, check_choices, plan
 from csv_rows import refuse_bad_grid_sizes
 
@@ -76,13 +80,36 @@ print("RESULT " + json.dumps({"matvecs": sum(r.matvecs for r in done), "iteratio
                               "n": max(s.inst.qp.n for s in steps)}))
 """
 
+#: The same for the member's load-controlled problem (argv: checkout, member key, time limit,
+#: P / (E* A) per unit of rms slope).
+LOAD_CHILD = """
+import json, sys
+sys.path.insert(0, sys.argv[1] + "/benchmarks")
+import bench_aspher as ba
+ba.LOAD_PER_SLOPE = float(sys.argv[4])
+row = ba.solve_entry(ba.Problem.parse("nonperiodic@" + sys.argv[2]), ba.BY_LABEL["fast-dual-pccg"], None,
+                     float(sys.argv[3]), "side-by-side")
+print("RESULT " + json.dumps({"matvecs": row.matvecs, "iterations": row.iterations, "builds": 0,
+                              "seconds": row.seconds, "status": row.status, "n": row.n}))
+"""
 
-def solve_in(checkout: Path, m: Member, threads: int, timeout: float, sweep: int = 0) -> dict:
-    """One solve of ``m`` (its ``sweep``-step sweep when ``sweep``) by ``checkout``'s code in a
-    fresh process; a "failed" row without a result."""
+
+def child_argv(checkout: Path, m: Member, timeout: float, sweep: int, load_per_slope: float) -> list[str]:
+    """The child's ``-c`` program and arguments for one solve of ``m`` (module doc)."""
+    if load_per_slope > 0.0:
+        return ["-c", LOAD_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope)]
+    if sweep:
+        return ["-c", SWEEP_CHILD, str(checkout), m.key, str(timeout), str(sweep)]
+    return ["-c", CHILD, str(checkout), m.key, str(timeout)]
+
+
+def solve_in(checkout: Path, m: Member, threads: int, timeout: float, sweep: int = 0,
+             load_per_slope: float = 0.0) -> dict:
+    """One solve of ``m`` (its ``sweep``-step sweep when ``sweep``, its load-controlled problem
+    when ``load_per_slope``) by ``checkout``'s code in a fresh process; a "failed" row
+    without a result."""
     env = dict(os.environ, **{v: str(threads) for v in THREAD_VARS})
-    argv = ["-c", SWEEP_CHILD, str(checkout), m.key, str(timeout), str(sweep)] if sweep else \
-        ["-c", CHILD, str(checkout), m.key, str(timeout)]
+    argv = child_argv(checkout, m, timeout, sweep, load_per_slope)
     try:
         proc = subprocess.run([str(checkout / ".venv" / "bin" / "python"), *argv], capture_output=True, text=True,
                               env=env, cwd=checkout, timeout=timeout * max(sweep, 1) + 120)
@@ -134,6 +161,12 @@ def checked_args(ap: argparse.ArgumentParser) -> argparse.Namespace:
     refuse_bad_grid_sizes(ap, "--size", [args.size])
     if args.seeds < 1 or args.first_seed < 0 or args.threads < 1 or not args.timeout > 0 or args.sweep < 0:
         ap.error("--seeds and --threads must be >= 1, --first-seed and --sweep >= 0 and --timeout > 0")
+    if not args.load_per_slope >= 0.0 or (args.load_per_slope > 0.0 and args.sweep):
+        ap.error("--load-per-slope must be >= 0, and is not taken with --sweep")
+    try:
+        args.cells = parse_cells(args.cells)
+    except ValueError:
+        ap.error(f"--cells {args.cells!r}: give Hurst:rms-slope pairs, e.g. 0.7:0.3")
     return args
 
 
@@ -148,6 +181,9 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--timeout", type=float, default=900.0, help="time limit of one solve (s)")
     ap.add_argument("--sweep", type=int, default=0, help="K > 0: each member's K-step paper sweep (module doc)")
+    ap.add_argument("--load-per-slope", type=float, default=0.0,
+                    help="X > 0: each member's load-controlled problem at P / (E* A) = X x rms slope (module doc)")
+    ap.add_argument("--cells", default="", help="Hurst:rms-slope cells to keep, e.g. 0.7:0.3 (default: all)")
     ap.add_argument("--out", required=True, help="the CSV (appended to)")
     ap.add_argument("--summary-only", action="store_true", help="print the summary of --out and exit")
     args = checked_args(ap)
@@ -160,8 +196,11 @@ def main() -> None:
             if fresh:
                 w.writerow(COLUMNS)
             for m in plan([args.size], args.families.split(","), {args.size: args.seeds}, args.first_seed):
+                if args.cells is not None and (m.hurst, m.rms_slope) not in args.cells:
+                    continue
                 for code in ("base", "head"):
-                    r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout, args.sweep)
+                    r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout, args.sweep,
+                                 args.load_per_slope)
                     w.writerow([m.key, code] + [r[c] for c in COLUMNS[2:]])
                     f.flush()
                     print(m.key, code, r, flush=True)

@@ -384,6 +384,29 @@ def test_side_by_side_sweep_child_sums_a_judged_warm_sweep():
     assert single["status"] == "solved" and single["matvecs"] < row["matvecs"]
 
 
+def test_side_by_side_load_child_solves_the_judged_load_problem():
+    """``--load-per-slope X``: the child solves the member's load-controlled problem of
+    bench_aspher.py in the checkout's own interpreter, judged there."""
+    side = bench_script("bench_side_by_side")
+    if not (REPO / ".venv" / "bin" / "python").is_file():
+        pytest.skip("no .venv in this checkout (the child runs in the checkout's own environment)")
+    row = side.solve_in(REPO, side.Member.parse("fourier:64:0.7:0.3:0"), 1, 120.0, load_per_slope=0.0166667)
+    assert row["status"] == "solved", row
+    assert row["matvecs"] >= 3 and row["n"] == 64 * 64 and row["seconds"] > 0.0
+
+
+@pytest.mark.parametrize("bad", [["--load-per-slope", "-1"], ["--load-per-slope", "0.01", "--sweep", "2"],
+                                 ["--cells", "0.7-0.3"]])
+def test_side_by_side_refuses_a_bad_load_or_cell(tmp_path, bad):
+    import subprocess
+
+    script = REPO / "benchmarks" / "bench_side_by_side.py"
+    proc = subprocess.run([sys.executable, str(script), "--base", str(REPO), *bad, "--out", str(tmp_path / "o.csv")],
+                          capture_output=True, text=True, check=False, timeout=120)
+    assert proc.returncode == 2 and bad[0] in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "o.csv").exists()
+
+
 def test_side_by_side_refuses_a_negative_sweep(tmp_path):
     import subprocess
 
