@@ -109,8 +109,14 @@ class Geometry:
         """Whether the QP can be rebuilt from its surface: the surface (on this grid), the
         far-field displacement, E and the kernel are all known.  The cascade
         multi-resolution method needs this (``ProblemTraits.has_surface``)."""
-        return (self.surface is not None and self.far_field is not None and self.E is not None
-                and self.kernel is not None and tuple(self.grid_shape) == self.surface.shape)
+        return self.far_field is not None and self.has_surface_under_load
+
+    @property
+    def has_surface_under_load(self) -> bool:
+        """``has_surface`` for a QP under load control, which poses no far-field
+        displacement: the surface (on this grid), E and the kernel are known."""
+        return (self.surface is not None and self.E is not None and self.kernel is not None
+                and tuple(self.grid_shape) == self.surface.shape)
 
     def subset(self, pos: np.ndarray) -> "Geometry":
         """The geometry of the unknowns at positions ``pos`` (0..n-1) of this one."""

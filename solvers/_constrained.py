@@ -79,9 +79,8 @@ from dataclasses import replace
 import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
-from contactbench.problems.kkt import min_below_zero, read_scalars
-
 from contactbench.problems.fft_threads import flatnonzero_in_bands
+from contactbench.problems.kkt import min_below_zero, read_scalars
 
 from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, conjugate, dual_residual, entering_force, exact_step, inward,
                    on_set, polak_ribiere, precondition_on)

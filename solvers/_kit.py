@@ -240,8 +240,7 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     (or, under load control, a box), or its grid is too small."""
     g = ctx.qp.geometry
     c = ctx.constraints
-    posed = g is not None and (g.surface is not None and g.E is not None and g.kernel is not None
-                               and tuple(g.grid_shape) == g.surface.shape if c.load_control else g.has_surface)
+    posed = g is not None and (g.has_surface_under_load if c.load_control else g.has_surface)
     if not posed or min(g.grid_shape) < 2 * COARSE_MIN_SIDE or c.upper is not None:
         return FirstGuess(None, note="no coarse level (no surface or a box, or grid below 2 x COARSE_MIN_SIDE)")
     level = block_average(g.surface)
