@@ -51,9 +51,11 @@ with g = Hp - ubar kept by the cheap update g -= tau Ht:
 * projection: p clipped to [0, u]; the penetrating points at rest outside F (p = 0,
   w < 0) get p = -tau m_j (g_j - Delta) (m_j = 1, or the preconditioner's solo inverse
   1/H_jj: ``_ccg.entering_force``); under load control the forces are scaled to P.
-  Whenever the projection changed p, g is recomputed (one matvec); a point entering or a
-  plastic point rejoining F resets the conjugacy (a point only leaving does not, as in
-  P & K).
+  Without a box the clipped and entering forces are raised forces and the scaling carries
+  the gap along (``_project_raised``: a matvec only where a partial product does not pay);
+  with one, whenever the projection changed p, g is recomputed (one matvec).  A point
+  entering or a plastic point rejoining F resets the conjugacy (a point only leaving does
+  not, as in P & K).
 
 Why the plastic points rejoin F instead of shedding by a jump as in ``pk`` (p_j -= tau
 w_j): preconditioned, tau is dimensionless and the jump is m_j w_j = w_j / H_jj, each
@@ -64,8 +66,8 @@ the elastic peak: fast-pccg at max_iter with 115 of 178 points plastic against 1
 F they move along the preconditioned direction, which sees the coupling (same case: 23
 iterations, 34 matvecs).
 
-So one matvec per iteration while the projection is inactive, two otherwise (pk: two
-always).  It stops on the harness's scaled KKT error of (p, g, Delta) -- under load
+So one matvec per iteration while the projection is inactive or its partial products
+pay, two otherwise (pk: two always).  It stops on the harness's scaled KKT error of (p, g, Delta) -- under load
 control the worse of the loop's Delta and the one fitted from p (``_kkt``) -- confirmed
 on a recomputed g, and reports the loop's Delta as the multiplier.  A load the box
 cannot carry (sum(u) < P) is refused before any solve (``Constraints.check``).
@@ -219,7 +221,9 @@ def zero_sum(M: SetPreconditioner | None, z: np.ndarray, free: np.ndarray) -> np
 def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
     """Delta and the CG set: under load control Delta is the mean gap over the interior
     {0 < p < u} (P & K), or, with no point inside, the one fitted from p
-    (``fit_multiplier``: every point at a bound); 0 without a load.  The CG set is the
+    (``fit_multiplier``: every point at a bound), and the gap is then made exact wherever
+    the loops read it, {p > 0} U {g < Delta} (``GapState.level``: raised forces); 0
+    without a load.  The CG set is the
     interior and the plastic points that want to shed force, or when no point is inside
     every point that wants to move (module doc)."""
     p, g = state.p, state.g
@@ -229,6 +233,8 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
     delta = 0.0
     if c.load is not None:
         delta = mean_gap if inside else fit_multiplier(g, p, c.upper)
+        state.level = delta  # the gap made exact wherever it is now read (raised forces)
+        state.settle()
     if not inside:
         return delta, wants_to_move(p, g - delta, u)
     return delta, interior if c.upper is None else interior | ((p >= u) & (g - delta > 0.0))
@@ -353,8 +359,9 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         entering = np.flatnonzero((state.p <= 0.0) & (state.g - delta < 0.0) & ~free)
         force = entering_force(M, tau, state.g - delta, entering)
         state.advance(-tau, t, q)
-        moved = _project(state.p, u, entering, force, c, state.g - delta)
-        if moved:
+        if load and c.upper is None:
+            _project_raised(state, float(c.load), entering, force)
+        elif _project(state.p, u, entering, force, c, state.g - delta):
             state.refresh()
         reset = bool(entering.size)
         G_old = G
@@ -423,16 +430,23 @@ def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarr
     return clipped or bool(entering.size) or off
 
 
-def _project_raised(state: GapState, load: float) -> None:
+def _project_raised(state: GapState, load: float, entering: np.ndarray | None = None,
+                    force: np.ndarray | None = None) -> None:
     """``_project`` without a box and without a matvec where the partial products pay: the
-    points below 0 raised to 0 (``GapState.raise_forces``), then p scaled to the load
+    points below 0 raised to 0 and the ``entering`` points (at p = 0) by their ``force``
+    where it is positive (``GapState.raise_forces``), then p scaled to the load
     (``GapState.scale``: the gap follows p without a product)."""
     p = state.p
-    if min_below_zero(p) < 0.0:
-        cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p)
-        state.raise_forces(cols, -p[cols])
-    else:
+    cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p) if min_below_zero(p) < 0.0 else None
+    amounts = None if cols is None else -p[cols]
+    if entering is not None and entering.size:
+        lift = np.maximum(force, 0.0)
+        cols = entering if cols is None else np.concatenate([cols, entering])
+        amounts = lift if amounts is None else np.concatenate([amounts, lift])
+    if cols is None:
         state.settle()
+    else:
+        state.raise_forces(cols, amounts)
     (total,) = read_scalars(np.sum(state.p))
     if total > 0.0 and abs(total - load) > LOAD_DRIFT * load:
         state.scale(load / total)
@@ -440,13 +454,8 @@ def _project_raised(state: GapState, load: float) -> None:
 
 def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
     """(Delta, residual): Delta as in ``_approach_and_free_set``; the residual is
-    w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``),
-    the gap first made exact wherever it is now read, {p > 0} U {g < Delta}
-    (``GapState.level``: raised forces)."""
+    w = g - Delta with the admissible multipliers at both bounds removed (``at_rest``)."""
     delta, _ = _approach_and_free_set(state, u, c)
-    if c.load is not None:
-        state.level = delta
-        state.settle()
     return delta, dual_residual(state, u, delta)
 
 

@@ -462,7 +462,7 @@ def test_the_loops_vector_work_in_bands_on_the_threads_takes_the_same_steps(
     assert np.max(np.abs(one.p - whole.p)) <= 1e-8 * np.max(whole.p)
 
 
-@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-dual-ccg"])
+@pytest.mark.parametrize("name", ["fast-dual-pccg", "fast-dual-ccg", "fast-pccg", "fast-ccg"])
 @pytest.mark.parametrize("periodic", [False, True])
 def test_load_controlled_projections_cost_no_product_where_partial_products_pay(name: str, periodic: bool,
                                                                                  monkeypatch) -> None:
