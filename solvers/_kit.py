@@ -237,12 +237,13 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     on the block-averaged 2x-coarser grid -- at the same far-field displacement to
     ``COARSE_TOL``, or under load control at the same total force on the whole level to
     ``COARSE_LOAD_TOL`` -- prolonged (``prolong``); no guess when the QP carries no surface
-    (or, under load control, a box), or its grid is too small."""
+    or its grid is too small.  A box is not posed on the coarse level (the caller,
+    ``fast_ccg.starting_point``, takes no guess under one)."""
     g = ctx.qp.geometry
     c = ctx.constraints
     posed = g is not None and (g.has_surface_under_load if c.load_control else g.has_surface)
-    if not posed or min(g.grid_shape) < 2 * COARSE_MIN_SIDE or c.upper is not None:
-        return FirstGuess(None, note="no coarse level (no surface or a box, or grid below 2 x COARSE_MIN_SIDE)")
+    if not posed or min(g.grid_shape) < 2 * COARSE_MIN_SIDE:
+        return FirstGuess(None, note="no coarse level (no surface, or grid below 2 x COARSE_MIN_SIDE)")
     level = block_average(g.surface)
     kind = "dense" if is_dense(ctx.qp.H) else "fft"
     if c.load_control:
