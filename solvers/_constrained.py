@@ -359,9 +359,8 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         entering = np.flatnonzero((state.p <= 0.0) & (state.g - delta < 0.0) & ~free)
         force = entering_force(M, tau, state.g - delta, entering)
         state.advance(-tau, t, q)
-        if load and c.upper is None:
-            _project_raised(state, float(c.load), entering, force)
-        elif _project(state.p, u, entering, force, c, state.g - delta):
+        raised = load and c.upper is None and _project_raised(state, float(c.load), entering, force)
+        if not raised and _project(state.p, u, entering, force, c, state.g - delta):
             state.refresh()
         reset = bool(entering.size)
         G_old = G
@@ -431,11 +430,13 @@ def _project(p: np.ndarray, u: np.ndarray, entering: np.ndarray, force: np.ndarr
 
 
 def _project_raised(state: GapState, load: float, entering: np.ndarray | None = None,
-                    force: np.ndarray | None = None) -> None:
+                    force: np.ndarray | None = None) -> bool:
     """``_project`` without a box and without a matvec where the partial products pay: the
     points below 0 raised to 0 and the ``entering`` points (at p = 0) by their ``force``
     where it is positive (``GapState.raise_forces``), then p scaled to the load
-    (``GapState.scale``: the gap follows p without a product)."""
+    (``GapState.scale``: the gap follows p without a product).  False where p carries no
+    positive total to scale (a step keeps sum(p) = P and a raise only adds, so only a
+    non-finite step gets there): the caller's ``_project`` then places the load."""
     p = state.p
     cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p) if min_below_zero(p) < 0.0 else None
     amounts = None if cols is None else -p[cols]
@@ -448,8 +449,11 @@ def _project_raised(state: GapState, load: float, entering: np.ndarray | None = 
     else:
         state.raise_forces(cols, amounts)
     (total,) = read_scalars(np.sum(state.p))
-    if total > 0.0 and abs(total - load) > LOAD_DRIFT * load:
+    if not total > 0.0:
+        return False
+    if abs(total - load) > LOAD_DRIFT * load:
         state.scale(load / total)
+    return True
 
 
 def _dual_residual(state: GapState, u: np.ndarray, c: Constraints) -> tuple[float, np.ndarray]:
@@ -517,9 +521,8 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             d = steepest
             continue
         state.advance(alpha, d, Hd)
-        if c.upper is None:
-            _project_raised(state, float(c.load))
-        elif _project(state.p, u, none, none, c, state.g - delta):
+        raised = c.upper is None and _project_raised(state, float(c.load))
+        if not raised and _project(state.p, u, none, none, c, state.g - delta):
             state.refresh()
         res_old = res
         delta, res = _dual_residual(state, u, c)

@@ -521,3 +521,22 @@ def test_a_load_controlled_solve_from_the_coarse_grid_gives_the_same_answer(peri
     assert abs(float(np.sum(auto.p)) - float(inst.qp.constraints.load)) <= 1e-12 * float(inst.qp.constraints.load)
     assert judge(inst, auto.p, True, 1e-8).status == "solved"
     assert auto.matvecs - auto.info["coarse_matvecs"] < zero.matvecs
+
+
+def test_a_projection_with_nothing_to_scale_leaves_the_load_to_the_box_projection() -> None:
+    """``_project_raised`` on a p that carries no positive total (only a non-finite step
+    gets there) clips it and says so, so the caller places the load (``_project``)."""
+    from contactbench.solvers._ccg import GapState
+    from contactbench.solvers._constrained import _project_raised
+
+    s = fourier_synthesis(32, 0.7, rms_slope=0.3, length=1e-4, seed=5)
+    qp = InstanceBuilder(s, E).build_load(1.0).qp
+    state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
+    state.p[:] = -1e-9
+    assert _project_raised(state, 1.0) is False and np.all(state.p >= 0.0)
+    state.p[:] = np.nan
+    assert _project_raised(state, 1.0) is False
+    state.p[:] = 0.0
+    state.p[3] = 2.0
+    state.refresh()
+    assert _project_raised(state, 1.0) is True and np.isclose(np.sum(state.p), 1.0, rtol=1e-14)
