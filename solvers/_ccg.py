@@ -221,15 +221,26 @@ class GapState:
             np.clip(self.p, 0.0, upper, out=self.p)
             self.refresh()
             return True
-        clipped = min_below_zero(self.p) < 0.0
-        if clipped:
-            p = self.p
-            cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p)
-            self.raise_forces(cols, -self.p[cols])
-        else:
-            self.settle()
+        clipped = self.clip()
         if self._since_refresh >= self.refresh_every:
             self.refresh()
+        return clipped
+
+    def clip(self, cols: np.ndarray | None = None, amounts: np.ndarray | None = None) -> bool:
+        """The projection's raises after a linear step: p < 0 raised to 0, and ``cols`` by
+        ``amounts`` (>= 0) when given, in one ``raise_forces``; else g made exact where it
+        newly needs to be (``settle``).  Whether p was below 0 anywhere."""
+        p = self.p
+        clipped = min_below_zero(p) < 0.0
+        if clipped:
+            below = flatnonzero_in_bands(lambda s: p[s] < 0.0, p)
+            lift = -p[below]
+            cols, amounts = (below, lift) if cols is None else (np.concatenate([below, cols]),
+                                                               np.concatenate([lift, amounts]))
+        if cols is None or cols.size == 0:
+            self.settle()
+        else:
+            self.raise_forces(cols, amounts)
         return clipped
 
     def raise_forces(self, cols: np.ndarray, amounts: np.ndarray) -> None:

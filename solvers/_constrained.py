@@ -81,7 +81,6 @@ from dataclasses import replace
 import numpy as np
 
 from contactbench.problems.constraints import Constraints, fit_multiplier
-from contactbench.problems.fft_threads import flatnonzero_in_bands
 from contactbench.problems.kkt import min_below_zero, read_scalars
 
 from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, conjugate, dual_residual, entering_force, exact_step, inward,
@@ -437,17 +436,7 @@ def _project_raised(state: GapState, load: float, entering: np.ndarray | None = 
     (``GapState.scale``: the gap follows p without a product).  False where p carries no
     positive total to scale (a step keeps sum(p) = P and a raise only adds, so only a
     non-finite step gets there): the caller's ``_project`` then places the load."""
-    p = state.p
-    cols = flatnonzero_in_bands(lambda s: p[s] < 0.0, p) if min_below_zero(p) < 0.0 else None
-    amounts = None if cols is None else -p[cols]
-    if entering is not None and entering.size:
-        lift = np.maximum(force, 0.0)
-        cols = entering if cols is None else np.concatenate([cols, entering])
-        amounts = lift if amounts is None else np.concatenate([amounts, lift])
-    if cols is None:
-        state.settle()
-    else:
-        state.raise_forces(cols, amounts)
+    state.clip(entering, None if force is None else np.maximum(force, 0.0))
     (total,) = read_scalars(np.sum(state.p))
     if not total > 0.0:
         return False
