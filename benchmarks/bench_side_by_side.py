@@ -10,7 +10,11 @@ matvecs, iterations, builds and seconds are the steps' sums, and the status is "
 when every step is.  With ``--load-per-slope X`` it is instead the member's cold
 load-controlled problem of bench_aspher.py (non-periodic Love kernel, P / (E* A) = X x rms
 slope), solved and judged as there (``bench_aspher.solve_entry``); ``--cells`` keeps the
-(Hurst, rms slope) cells given.
+(Hurst, rms slope) cells given.  ``--hardness-over-pressure R`` adds a hardness to that problem:
+every pressure bounded by R times the nominal mean pressure P / A (R = 1 would saturate the
+whole grid; near 1 most of the contact is plastic).  Both checkouts pose it through their
+own ``InstanceBuilder.build_load(..., hardness=)`` and solve it with ``solve_sequence`` at the
+"high" profile, so a base without this option compares as well.
 
 Each solve runs in a fresh process of the checkout's own virtual environment
 (``CHECKOUT/.venv/bin/python``) with the thread variables set to ``--threads``; rows are
@@ -93,9 +97,40 @@ print("RESULT " + json.dumps({"matvecs": row.matvecs, "iterations": row.iteratio
                               "seconds": row.seconds, "status": row.status, "n": row.n}))
 """
 
+#: The same with a hardness (argv: checkout, member key, time limit, P / (E* A) per unit of rms
+#: slope, hardness over the mean pressure): posed with the checkout's own builder; its result
+#: also gives the share of the contact at the bound ("plastic", printed, not a column).
+BOUNDED_CHILD = """
+import json, sys
+sys.path.insert(0, sys.argv[1] + "/benchmarks")
+import bench_aspher as ba
+from contactbench.harness import get_profile, solve_sequence
+from contactbench.problems.scenes.core import PAPER_E
+from contactbench.solvers.base import SolverSettings
+pr = ba.Problem.parse("nonperiodic@" + sys.argv[2])
+load = float(sys.argv[4]) * pr.member.rms_slope
+b, _ = ba.builder_of(pr)
+inst = b.build_load(b.load_force(load), hardness=float(sys.argv[5]) * load * PAPER_E)
+high = get_profile("high")
+(step,) = solve_sequence("fast-dual-pccg", [inst], SolverSettings(tol=high.tol, time_limit=float(sys.argv[3])),
+                         warm=False, check_tol=high.check_tol)
+r = step.result
+u = inst.qp.constraints.upper
+touch = int((r.p > 0).sum()) if r else 0
+plastic = int((r.p >= u * (1 - 1e-9)).sum()) / max(touch, 1) if r else 0.0
+print("RESULT " + json.dumps({"matvecs": r.matvecs if r else 0, "iterations": r.iterations if r else 0,
+                              "builds": r.info.get("preconditioner_builds", 0) if r else 0, "seconds": step.seconds,
+                              "status": step.verdict.status if step.verdict else "failed", "n": inst.n,
+                              "plastic": plastic}))
+"""
 
-def child_argv(checkout: Path, m: Member, timeout: float, sweep: int, load_per_slope: float) -> list[str]:
+
+def child_argv(checkout: Path, m: Member, timeout: float, sweep: int, load_per_slope: float,
+               hardness_over_pressure: float = 0.0) -> list[str]:
     """The child's ``-c`` program and arguments for one solve of ``m`` (module doc)."""
+    if load_per_slope > 0.0 and hardness_over_pressure > 0.0:
+        return ["-c", BOUNDED_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope),
+                repr(hardness_over_pressure)]
     if load_per_slope > 0.0:
         return ["-c", LOAD_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope)]
     if sweep:
@@ -104,12 +139,12 @@ def child_argv(checkout: Path, m: Member, timeout: float, sweep: int, load_per_s
 
 
 def solve_in(checkout: Path, m: Member, threads: int, timeout: float, sweep: int = 0,
-             load_per_slope: float = 0.0) -> dict:
+             load_per_slope: float = 0.0, hardness_over_pressure: float = 0.0) -> dict:
     """One solve of ``m`` (its ``sweep``-step sweep when ``sweep``, its load-controlled problem
-    when ``load_per_slope``) by ``checkout``'s code in a fresh process; a "failed" row
-    without a result."""
+    when ``load_per_slope``, bounded by a hardness when ``hardness_over_pressure``) by
+    ``checkout``'s code in a fresh process; a "failed" row without a result."""
     env = dict(os.environ, **{v: str(threads) for v in THREAD_VARS})
-    argv = child_argv(checkout, m, timeout, sweep, load_per_slope)
+    argv = child_argv(checkout, m, timeout, sweep, load_per_slope, hardness_over_pressure)
     try:
         proc = subprocess.run([str(checkout / ".venv" / "bin" / "python"), *argv], capture_output=True, text=True,
                               env=env, cwd=checkout, timeout=timeout * max(sweep, 1) + 120)
@@ -163,6 +198,9 @@ def checked_args(ap: argparse.ArgumentParser) -> argparse.Namespace:
         ap.error("--seeds and --threads must be >= 1, --first-seed and --sweep >= 0 and --timeout > 0")
     if not args.load_per_slope >= 0.0 or (args.load_per_slope > 0.0 and args.sweep):
         ap.error("--load-per-slope must be >= 0, and is not taken with --sweep")
+    if not args.hardness_over_pressure >= 0.0 or (args.hardness_over_pressure > 0.0 and (
+            args.load_per_slope == 0.0 or args.hardness_over_pressure <= 1.0)):
+        ap.error("--hardness-over-pressure must be 0 (none) or above 1, and needs --load-per-slope")
     try:
         args.cells = parse_cells(args.cells)
     except ValueError:
@@ -183,6 +221,8 @@ def main() -> None:
     ap.add_argument("--sweep", type=int, default=0, help="K > 0: each member's K-step paper sweep (module doc)")
     ap.add_argument("--load-per-slope", type=float, default=0.0,
                     help="X > 0: each member's load-controlled problem at P / (E* A) = X x rms slope (module doc)")
+    ap.add_argument("--hardness-over-pressure", type=float, default=0.0,
+                    help="R > 1: bound every pressure by R x P / A in the load-controlled problem (module doc)")
     ap.add_argument("--cells", default="", help="Hurst:rms-slope cells to keep, e.g. 0.7:0.3 (default: all)")
     ap.add_argument("--out", required=True, help="the CSV (appended to)")
     ap.add_argument("--summary-only", action="store_true", help="print the summary of --out and exit")
@@ -200,7 +240,7 @@ def main() -> None:
                     continue
                 for code in ("base", "head"):
                     r = solve_in(Path(getattr(args, code)).resolve(), m, args.threads, args.timeout, args.sweep,
-                                 args.load_per_slope)
+                                 args.load_per_slope, args.hardness_over_pressure)
                     w.writerow([m.key, code] + [r[c] for c in COLUMNS[2:]])
                     f.flush()
                     print(m.key, code, r, flush=True)

@@ -395,8 +395,24 @@ def test_side_by_side_load_child_solves_the_judged_load_problem():
     assert row["matvecs"] >= 3 and row["n"] == 64 * 64 and row["seconds"] > 0.0
 
 
+def test_side_by_side_bounded_child_solves_a_mostly_plastic_load_problem():
+    """``--hardness-over-pressure R``: the child poses the load problem with every pressure
+    bounded by R P / A, and the judge passes it; near R = 1 most of the contact is plastic,
+    far above it little is."""
+    side = bench_script("bench_side_by_side")
+    if not (REPO / ".venv" / "bin" / "python").is_file():
+        pytest.skip("no .venv in this checkout (the child runs in the checkout's own environment)")
+    member = side.Member.parse("fourier:64:0.7:0.3:0")
+    near = side.solve_in(REPO, member, 1, 120.0, load_per_slope=0.05, hardness_over_pressure=1.5)
+    far = side.solve_in(REPO, member, 1, 120.0, load_per_slope=0.05, hardness_over_pressure=50.0)
+    assert near["status"] == far["status"] == "solved", (near, far)
+    assert near["plastic"] > 0.5 > far["plastic"] and near["n"] == 64 * 64
+
+
 @pytest.mark.parametrize("bad", [["--load-per-slope", "-1"], ["--load-per-slope", "0.01", "--sweep", "2"],
-                                 ["--cells", "0.7-0.3"]])
+                                 ["--cells", "0.7-0.3"], ["--hardness-over-pressure", "3"],
+                                 ["--hardness-over-pressure", "0.9", "--load-per-slope", "0.01"],
+                                 ["--hardness-over-pressure", "nan", "--load-per-slope", "0.01"]])
 def test_side_by_side_refuses_a_bad_load_or_cell(tmp_path, bad):
     import subprocess
 

@@ -661,7 +661,9 @@ def test_auto_is_the_wave_number_preconditioner_under_load_control_only():
     disp = b.build(paper_max_displacement(s))
     load = b.build_load(b.load_force(0.01))
     hard = b.build_load(b.load_force(0.01), hardness=1e12)
+    plastic = b.build(paper_max_displacement(s), hardness=1e8)
     assert resolved_kind("auto", load.qp) == "fourier"
+    assert resolved_kind("auto", hard.qp) == "fourier"  # a hardness under load control too
     assert resolved_kind("auto", disp.qp) == "islands"
-    assert resolved_kind("auto", hard.qp) == "islands"
+    assert resolved_kind("auto", plastic.qp) == "islands"  # displacement control keeps the islands
     assert resolved_kind("islands", load.qp) == "islands"
