@@ -171,10 +171,12 @@ def level_trial_set(level: Surface, fine: Geometry) -> np.ndarray:
     return trial_set(level.heights, float(_far_field(fine)))
 
 
-def coarse_qp(level: Surface, fine: Geometry, indices: np.ndarray, operator: OperatorKind = "fft") -> QP:
+def coarse_qp(level: Surface, fine: Geometry, indices: np.ndarray, operator: OperatorKind = "fft",
+              hardness: float | None = None) -> QP:
     """The QP of a coarse representation ``level`` on ``indices`` (flat indices into its
     grid, a subset of ``level_trial_set``): the same material, kernel and boundary
-    condition as the fine problem ``fine``, at its far-field displacement Delta.
+    condition as the fine problem ``fine``, at its far-field displacement Delta, and the
+    same ``hardness`` (a pressure; None: none), whose bounds are the level's elements'.
 
     ubar = max(Delta - xi_max(s) + xi, 0) -- on every level, periodic kernels included,
     since a coarse level is posed on its rigid-body trial set (paper Alg. 6, step 1.1);
@@ -188,18 +190,20 @@ def coarse_qp(level: Surface, fine: Geometry, indices: np.ndarray, operator: Ope
     ubar = np.maximum(rigid_body_ubar(level.heights, Delta, idx), 0.0)
     geom = Geometry(level.shape, level.delta, idx, surface=level, far_field=Delta, E=fine.E,
                     kernel=fine.kernel, periodic=fine.periodic, delta1=level.delta1, layer=fine.layer)
-    return QP(builder.operator_on(idx), ubar, geom)
+    return QP(builder.operator_on(idx), ubar, geom, builder.constraints(idx.size, hardness))
 
 
-def coarse_load_qp(level: Surface, fine: Geometry, load: float, operator: OperatorKind = "fft") -> QP:
+def coarse_load_qp(level: Surface, fine: Geometry, load: float, operator: OperatorKind = "fft",
+                   hardness: float | None = None) -> QP:
     """The QP of a coarse representation ``level`` under load control at the fine problem's
     total force ``load`` (P, the same force on a coarser grid): the whole level's grid, the
-    same material, kernel and boundary condition as ``fine`` (``InstanceBuilder.build_load``)."""
+    same material, kernel and boundary condition as ``fine`` and the same ``hardness``
+    (``InstanceBuilder.build_load``)."""
     if fine.E is None or fine.kernel is None:
         raise ProblemInputError("a coarse level needs the fine geometry's E and kernel")
     builder = InstanceBuilder(level, float(fine.E), kernel=str(fine.kernel), periodic=bool(fine.periodic),
                               operator=operator, layer=fine.layer)
-    return builder.build_load(float(load)).qp
+    return builder.build_load(float(load), hardness=hardness).qp
 
 
 def _far_field(g: Geometry) -> float:

@@ -6,7 +6,8 @@ parts generalise the displacement-controlled problem  min 1/2 p'Hp - ubar'p, p >
 
 * ``upper`` -- per-element upper bounds u (a force per element; ``inf`` = none): the box
   0 <= p <= u.  A hardness H_A (a pressure) bounds every element's mean pressure p_i /
-  delta^2, so u_i = H_A delta^2 (``hardness_bounds``); an element at its bound is
+  delta^2, so u_i = H_A delta^2 (``hardness_bounds``; ``uniform_hardness`` reads H_A back,
+  e.g. to pose the same hardness on a coarser grid); an element at its bound is
   *plastic* (Almqvist et al. 2007).
 * ``load`` -- the total force P: the equality sum(p) = P (load control, Polonsky & Keer
   1999).  Its Lagrange multiplier is the rigid-body approach Delta: stationarity reads
@@ -115,6 +116,26 @@ def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int)
     if len(sides) != 2 or not all(math.isfinite(float(d)) and float(d) > 0.0 for d in sides):
         raise ProblemInputError(f"grid spacing must be finite and > 0, got {delta!r}")
     return np.full(n, h * float(sides[0]) * float(sides[1]))
+
+
+#: Bounds within this relative spread of each other are one hardness (``uniform_hardness``).
+UNIFORM_BOUND_RTOL = 1e-12
+
+
+def uniform_hardness(upper: np.ndarray | None, delta: float | tuple[float, float]) -> float | None:
+    """The hardness H_A of a box posed by ``hardness_bounds`` on elements of sides ``delta``:
+    u_i / (d0 d1) when every bound is finite and equal (to ``UNIFORM_BOUND_RTOL``); None for
+    no box, or one that no single hardness poses."""
+    if upper is None:
+        return None
+    u = np.asarray(upper, dtype=np.float64)
+    if u.size == 0 or not np.all(np.isfinite(u)):
+        return None
+    lo, hi = float(np.min(u)), float(np.max(u))
+    if not (lo > 0.0 and hi - lo <= UNIFORM_BOUND_RTOL * hi):
+        return None
+    sides = (delta, delta) if np.ndim(delta) == 0 else tuple(delta)  # type: ignore[arg-type]
+    return hi / (float(sides[0]) * float(sides[1]))
 
 
 def project_box(x: np.ndarray, upper: np.ndarray | None) -> np.ndarray:

@@ -33,6 +33,7 @@ from threadpoolctl import ThreadpoolController
 
 from contactbench.problems import operators
 from contactbench.problems.coarsen import block_average, coarse_load_qp, coarse_qp, level_trial_set
+from contactbench.problems.constraints import uniform_hardness
 from contactbench.problems.errors import MemoryBudgetError
 from contactbench.problems.kkt import constrained_scales, kkt_figures
 from contactbench.problems.operators import (
@@ -224,12 +225,11 @@ def prolong(fine_idx: np.ndarray, fine_shape: tuple[int, int], coarse_idx: np.nd
 
 def resolved_first_guess(wanted: str, ctx: SolveContext) -> str:
     """"zero" or "coarse": ``wanted`` with "auto" decided -- "coarse" for a cold solve under
-    load control without a box, whose own cold round otherwise sheds the load from most of
-    the grid (docs/fast-solvers.md, "Coarse first guess"), "zero" elsewhere."""
+    load control, with or without a hardness, whose own cold round otherwise sheds the load
+    from most of the grid (docs/fast-solvers.md, "Coarse first guess"), "zero" elsewhere."""
     if wanted != "auto":
         return wanted
-    c = ctx.constraints
-    return "coarse" if ctx.p0 is None and c.load_control and c.upper is None else "zero"
+    return "coarse" if ctx.p0 is None and ctx.constraints.load_control else "zero"
 
 
 def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
@@ -237,23 +237,29 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     on the block-averaged 2x-coarser grid -- at the same far-field displacement to
     ``COARSE_TOL``, or under load control at the same total force on the whole level to
     ``COARSE_LOAD_TOL`` -- prolonged (``prolong``); no guess when the QP carries no surface
-    or its grid is too small.  A box is not posed on the coarse level (the caller,
-    ``fast_ccg.starting_point``, takes no guess under one)."""
+    or its grid is too small.  A hardness is posed on the coarse level as the same pressure
+    (``uniform_hardness``), so the prolonged forces, a quarter of a coarse element's, keep
+    under the fine bounds; a box that no single hardness poses gives no guess."""
     g = ctx.qp.geometry
     c = ctx.constraints
     posed = g is not None and (g.has_surface_under_load if c.load_control else g.has_surface)
     if not posed or min(g.grid_shape) < 2 * COARSE_MIN_SIDE:
         return FirstGuess(None, note="no coarse level (no surface, or grid below 2 x COARSE_MIN_SIDE)")
+    hardness = uniform_hardness(c.upper, g.surface.spacing)
+    if c.bounded and hardness is None:
+        return FirstGuess(None, note="no coarse level (the box is not one hardness)")
     level = block_average(g.surface)
     kind = "dense" if is_dense(ctx.qp.H) else "fft"
+    if c.load_control and hardness is not None and hardness * level.area < float(c.load):
+        return FirstGuess(None, note="no coarse level (its box cannot carry the load: an odd row or column dropped)")
     if c.load_control:
-        qp = coarse_load_qp(level, g, float(c.load), kind)
+        qp = coarse_load_qp(level, g, float(c.load), kind, hardness)
         idx = np.asarray(qp.geometry.indices)
     else:
         idx = level_trial_set(level, g)
         if idx.size == 0:
             return FirstGuess(None, note="empty coarse trial set")
-        qp = coarse_qp(level, g, idx, kind)
+        qp = coarse_qp(level, g, idx, kind, hardness)
     least = COARSE_LOAD_TOL if c.load_control else COARSE_TOL
     tol = least if ctx.tol is None else max(ctx.tol, least)
     res = solver.solve(qp, SolverSettings(tol=tol, max_iter=ctx.max_iter, time_limit=ctx.deadline.remaining(),

@@ -23,9 +23,10 @@ tolerance judged in float64), ``"opening": "fourier" | "none" | "auto"`` (a cold
 iterations preconditioned by the wave numbers, the island blocks after: solvers/_opening.py)
 and ``"first_guess": "zero" | "coarse"`` (a cold start begins
 from the same solver's answer on the block-averaged 2x-coarser grid, recursively,
-``_kit.coarse_first_guess``; ignored when warm-started; measured on the paper's cold top
-step, 1024^2: it does not cut the fine matvecs -- 87 -> 85 with fast-pccg, 201 -> 197 with
-fast-ccg, plus the coarse solves' -- so "zero" stays the default).  They minimise the paper's QP (eq. (5)),
+``_kit.coarse_first_guess``, a hardness posed there as the same pressure; ignored when
+warm-started; "auto" takes it for a cold load-controlled solve only: on the paper's cold top
+step, 1024^2, it does not cut the fine matvecs -- 87 -> 85 with fast-pccg, 201 -> 197 with
+fast-ccg, plus the coarse solves' -- docs/fast-solvers.md, "Coarse first guess").  They minimise the paper's QP (eq. (5)),
 min 1/2 p'Hp - ubar'p, p >= 0, stop on the harness's scaled KKT error
 (``SolveContext.kkt``) confirmed on a freshly recomputed gap, and are exact.
 Warm start: primal (``ctx.p0``), and its support is the first contact set.
@@ -66,20 +67,17 @@ def precondition_param(default: str) -> Param:
 
 def first_guess_param(default: str = "zero") -> Param:
     return Param("first_guess", str, default, "cold start: zero, or the solver's answer on the 2x-coarser grid; "
-                 "auto: coarse under load control without a box, zero elsewhere", choices=FIRST_GUESSES)
+                 "auto: coarse under load control (a hardness posed there too), zero elsewhere", choices=FIRST_GUESSES)
 
 
 def starting_point(solver: Solver, ctx: SolveContext) -> tuple[np.ndarray, dict[str, Any]]:
     """The first p on the host: the warm start, else the first guess of
     ``params["first_guess"]`` (``resolved_first_guess``; the coarse solve's matvecs are
-    counted, and reported as "coarse_matvecs").  Under a hardness the coarse grid would
-    pose another box, so the first guess is ignored there ("first_guess": "zero
-    (constraints)")."""
+    counted, and reported as "coarse_matvecs"; under a hardness the coarse grids pose the
+    same one, ``_kit.coarse_first_guess``)."""
     wanted = resolved_first_guess(ctx.params.get("first_guess", "zero"), ctx)
     if ctx.p0 is not None or wanted == "zero":
         return ctx.first_p(), {}
-    if ctx.constraints.upper is not None:
-        return ctx.first_p(), {"first_guess": "zero (constraints)"}
     guess = coarse_first_guess(solver, ctx)
     ctx.add_matvecs(guess.matvecs)
     info = {"first_guess": guess.note, "coarse_matvecs": guess.matvecs, "coarse_iterations": guess.iterations}

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from contactbench.problems.constraints import Constraints, hardness_bounds, make_constraints
+from contactbench.problems.constraints import Constraints, hardness_bounds, make_constraints, uniform_hardness
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
 from contactbench.problems.kkt import kkt_check
@@ -239,3 +239,21 @@ def test_nnls_gp_poses_bounds_within_the_dense_budget_and_skips_beyond() -> None
     why = s.skip(ProblemTraits(n=10**6, operator="fft", bounded=True))  # 7.3 TiB of dense H
     assert why is not None and "memory budget" in why and "n = 1000000" in why
     assert s.skip(ProblemTraits(n=10**6, operator="fft")) is None  # the plain problem never needs the dense H
+
+
+@pytest.mark.parametrize("delta", [1e-6, (1e-6, 1.5e-6)])
+def test_uniform_hardness_reads_back_the_hardness_of_its_bounds(delta) -> None:
+    """``uniform_hardness`` inverts ``hardness_bounds`` (square and rectangular elements), and
+    says None where no single hardness poses the box: none, an infinite, a NaN, a zero or
+    a varying bound, or no points."""
+    for h in (3e7, 2e9, 1e12):
+        assert uniform_hardness(hardness_bounds(h, delta, 5), delta) == pytest.approx(h, rel=1e-14)
+    u = hardness_bounds(2e9, delta, 5)
+    assert uniform_hardness(None, delta) is None and uniform_hardness(u[:0], delta) is None
+    for bad in (np.inf, np.nan, 0.0, 1.5 * u[0]):
+        v = u.copy()
+        v[2] = bad
+        assert uniform_hardness(v, delta) is None, bad
+    v = u.copy()
+    v[1] *= 1.0 + 1e-15  # round-off between equal bounds is still one hardness
+    assert uniform_hardness(v, delta) == pytest.approx(2e9, rel=1e-14)

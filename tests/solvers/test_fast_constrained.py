@@ -27,6 +27,7 @@ from contactbench.solvers._preconditioners import MIXED_GRID_POINTS
 from contactbench.solvers._refine import resolved_precision
 from contactbench.solvers._constrained import winkler_start
 from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
+from contactbench.solvers import fast_ccg
 from contactbench.solvers.registry import available_solvers, get_solver
 
 E = 1e9
@@ -180,11 +181,11 @@ def test_mixed_precision_poses_the_constraints_in_its_float32_rounds(plastic, lo
 
 
 @pytest.mark.parametrize("name", FAST)
-def test_the_coarse_first_guess_is_ignored_under_constraints(plastic, name: str) -> None:
+def test_the_coarse_first_guess_under_a_hardness_on_a_grid_too_small_starts_from_zero(plastic, name: str) -> None:
     inst, p_ref, _ = plastic
     r = assert_meets(name, inst, p_ref, None, first_guess="coarse")
-    assert r.info["first_guess"] == "zero (constraints)"
-    assert "coarse_matvecs" not in r.info
+    assert r.info["first_guess"].startswith("no coarse level (no surface, or grid below")
+    assert r.info["coarse_matvecs"] == 0
 
 
 @pytest.mark.parametrize("name", FAST)
@@ -487,9 +488,9 @@ def test_load_controlled_projections_cost_no_product_where_partial_products_pay(
     assert on.matvecs < off.matvecs, (on.matvecs, off.matvecs)
 
 
-def test_auto_first_guess_is_coarse_for_a_cold_load_without_a_box() -> None:
+def test_auto_first_guess_is_coarse_for_a_cold_load() -> None:
     """``resolved_first_guess``: "auto" is the coarse grids' answer only for a cold solve
-    under load control without a box; a choice made by name stays."""
+    under load control, with or without a box; a choice made by name stays."""
     from contactbench.solvers._kit import resolved_first_guess
 
     def ctx(constraints, p0=None):
@@ -498,7 +499,9 @@ def test_auto_first_guess_is_coarse_for_a_cold_load_without_a_box() -> None:
     load, box = make_constraints(4, None, 1.0), make_constraints(4, np.ones(4), 1.0)
     assert resolved_first_guess("auto", ctx(load)) == "coarse"
     assert resolved_first_guess("auto", ctx(load, np.ones(4))) == "zero"
-    assert resolved_first_guess("auto", ctx(box)) == "zero"
+    assert resolved_first_guess("auto", ctx(box)) == "coarse"
+    assert resolved_first_guess("auto", ctx(box, np.ones(4))) == "zero"
+    assert resolved_first_guess("auto", ctx(make_constraints(4, np.ones(4)))) == "zero"
     assert resolved_first_guess("auto", ctx(Constraints())) == "zero"
     assert resolved_first_guess("zero", ctx(load)) == "zero" and resolved_first_guess("coarse", ctx(box)) == "coarse"
 
@@ -521,6 +524,77 @@ def test_a_load_controlled_solve_from_the_coarse_grid_gives_the_same_answer(peri
     assert abs(float(np.sum(auto.p)) - float(inst.qp.constraints.load)) <= 1e-12 * float(inst.qp.constraints.load)
     assert judge(inst, auto.p, True, 1e-8).status == "solved"
     assert auto.matvecs - auto.info["coarse_matvecs"] < zero.matvecs
+
+
+@pytest.mark.parametrize("posing", ["load", "displacement"])
+def test_a_plastic_solve_from_the_coarse_grid_under_the_same_hardness_gives_the_same_answer(posing: str,
+                                                                                           monkeypatch) -> None:
+    """A cold 256^2 solve with a hardness (under load control, where "auto" takes it, and at
+    a displacement, named) from the 128^2 grid's answer under the same hardness: the answer
+    of a cold start from zero, within the box, judged solved, a plastic share; under load
+    control with fewer products on the fine grid (at a displacement it saves none here,
+    which is why "auto" does not take it there)."""
+    s = fourier_synthesis(256, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    builder = InstanceBuilder(s, E)
+    if posing == "load":
+        inst = builder.build_load(builder.load_force(0.005), hardness=3.0 * 0.005 * E)
+    else:
+        inst = builder.build(paper_max_displacement(s), hardness=0.05 * E)
+    guess = "auto" if posing == "load" else "coarse"
+    guesses = []
+    real = fast_ccg.coarse_first_guess
+
+    def spy(solver, ctx):
+        out = real(solver, ctx)
+        guesses.append(None if out.p is None else out.p.copy())  # the solve moves p in place
+        return out
+
+    monkeypatch.setattr(fast_ccg, "coarse_first_guess", spy)
+    runs = {g: get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9, params={"first_guess": g}))
+            for g in ("zero", guess)}
+    u = inst.qp.constraints.upper
+    # the coarse grids posed the same hardness: the prolonged guess keeps under the fine
+    # bounds and reaches them on the coarse plastic points
+    (first,) = [p for p in guesses if p is not None and p.size == inst.qp.n]
+    assert np.all(first <= u * (1.0 + 1e-12)) and np.mean(first >= u * (1.0 - 1e-12)) > 0.01
+    zero, coarse = runs["zero"], runs[guess]
+    assert zero.converged and coarse.converged
+    assert coarse.info["first_guess"].startswith("coarse 128^2") and coarse.info["coarse_matvecs"] > 0
+    assert np.all(coarse.p <= u) and inst.plastic_fraction(coarse.p) > 0.2
+    assert np.max(np.abs(coarse.p - zero.p)) <= 1e-6 * np.max(zero.p)
+    assert judge(inst, coarse.p, True, 1e-8).status == "solved"
+    if posing == "load":
+        assert coarse.matvecs - coarse.info["coarse_matvecs"] < zero.matvecs
+
+
+def test_a_box_no_single_hardness_poses_gives_no_coarse_guess() -> None:
+    """Bounds that differ from point to point (not ``hardness_bounds``): the coarse grid
+    cannot pose them, so the solve starts from zero and says why, and still meets."""
+    s = fourier_synthesis(256, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    builder = InstanceBuilder(s, E)
+    inst = builder.build_load(builder.load_force(0.005), hardness=3.0 * 0.005 * E)
+    qp = inst.qp
+    upper = qp.constraints.upper * np.linspace(1.0, 1.5, qp.n)
+    odd = replace(qp, constraints=make_constraints(qp.n, upper, qp.constraints.load))
+    r = get_solver("fast-dual-pccg").solve(odd, SolverSettings(tol=1e-9))
+    assert r.converged and r.info["first_guess"] == "no coarse level (the box is not one hardness)"
+    assert np.all(r.p <= upper) and abs(float(np.sum(r.p)) - qp.constraints.load) <= 1e-9 * qp.constraints.load
+
+
+def test_a_coarse_box_that_cannot_carry_the_load_gives_no_guess() -> None:
+    """An odd grid loses its last row and column on the coarse level, so under a hardness
+    that barely carries the load (sum(u) = 1.001 P) the coarse box could not carry it:
+    no guess, and the fine solve still meets, inside its box and at its load."""
+    base = fourier_synthesis(258, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    s = Surface(base.heights[:257, :257], base.delta)
+    builder = InstanceBuilder(s, E)
+    load = builder.load_force(0.005)
+    inst = builder.build_load(load, hardness=1.001 * load / s.area)
+    r = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9))
+    assert r.info["first_guess"].startswith("no coarse level (its box cannot carry the load")
+    assert r.converged and np.all(r.p <= inst.qp.constraints.upper)
+    assert abs(float(np.sum(r.p)) - load) <= 1e-9 * load
+    assert judge(inst, r.p, True, 1e-8).status == "solved"
 
 
 def test_a_projection_with_nothing_to_scale_leaves_the_load_to_the_box_projection() -> None:
