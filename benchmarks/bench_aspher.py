@@ -28,8 +28,8 @@ harness/judging.py at profile "high" (tol 1e-9, check 1e-8):
 * the field: ``cm-pk-ccg``, ``tamaas-pkr`` (both pose load control), ``cm-dual-ccg``;
 * the *displacement twin* (``posing = "twin"``): the displacement-controlled problem at the
   approach Delta of ``fast-dual-pccg``'s load-controlled answer -- the same solution, posed
-  as ContactMechanics' dual CCG and our coarse first guess take it (both need an approach,
-  not a load: the coarse first guess is ignored under load control, solvers/fast_ccg.py):
+  as ContactMechanics' dual CCG takes it (it needs an approach, not a load), and our solver
+  from zero and from the coarse grids at that approach:
   ``fast-dual-pccg[first_guess=zero]``, ``fast-dual-pccg[first_guess=coarse]``,
   ``cm-dual-ccg``.  A twin row says so in its ``posing`` column.
 

@@ -37,7 +37,8 @@ projection onto the box (solvers/_ccg.py, ``bugnicourt``).  All four pose load c
 as well (sum(p) = P, the approach Delta reported as the multiplier: solvers/_constrained.py,
 ``polonsky_keer_box`` and ``bugnicourt_load``).  Under constraints the float32 rounds pose
 them too (solvers/_refine.py), a load-controlled QP is screened by the approach
-(solvers/_screen.py), and the coarse first guess is ignored.  Without constraints: the
+(solvers/_screen.py), and the coarse first guess poses them on the coarse grids (a
+hardness as the same pressure, ``_kit.coarse_first_guess``).  Without constraints: the
 same iterates as the plain loops.
 """
 
