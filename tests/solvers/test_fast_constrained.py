@@ -526,8 +526,9 @@ def test_a_load_controlled_solve_from_the_coarse_grid_gives_the_same_answer(peri
     assert auto.matvecs - auto.info["coarse_matvecs"] < zero.matvecs
 
 
-@pytest.mark.parametrize("posing", ["load", "displacement"])
+@pytest.mark.parametrize("posing,periodic", [("load", False), ("load", True), ("displacement", False)])
 def test_a_plastic_solve_from_the_coarse_grid_under_the_same_hardness_gives_the_same_answer(posing: str,
+                                                                                           periodic: bool,
                                                                                            monkeypatch) -> None:
     """A cold 256^2 solve with a hardness (under load control, where "auto" takes it, and at
     a displacement, named) from the 128^2 grid's answer under the same hardness: the answer
@@ -535,7 +536,7 @@ def test_a_plastic_solve_from_the_coarse_grid_under_the_same_hardness_gives_the_
     control with fewer products on the fine grid (at a displacement it saves none here,
     which is why "auto" does not take it there)."""
     s = fourier_synthesis(256, 0.7, rms_slope=0.3, length=1e-4, seed=8)
-    builder = InstanceBuilder(s, E)
+    builder = InstanceBuilder(s, E, periodic=periodic)
     if posing == "load":
         inst = builder.build_load(builder.load_force(0.005), hardness=3.0 * 0.005 * E)
     else:
@@ -561,7 +562,8 @@ def test_a_plastic_solve_from_the_coarse_grid_under_the_same_hardness_gives_the_
     assert zero.converged and coarse.converged
     assert coarse.info["first_guess"].startswith("coarse 128^2") and coarse.info["coarse_matvecs"] > 0
     assert np.all(coarse.p <= u) and inst.plastic_fraction(coarse.p) > 0.2
-    assert np.max(np.abs(coarse.p - zero.p)) <= 1e-6 * np.max(zero.p)
+    # two answers at a KKT error of 1e-9: on the periodic kernel p differs by 2e-6 of its largest
+    assert np.max(np.abs(coarse.p - zero.p)) <= 1e-5 * np.max(zero.p)
     assert judge(inst, coarse.p, True, 1e-8).status == "solved"
     if posing == "load":
         assert coarse.matvecs - coarse.info["coarse_matvecs"] < zero.matvecs
