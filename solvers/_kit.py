@@ -250,9 +250,10 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
         return FirstGuess(None, note="no coarse level (the box is not one hardness)")
     level = block_average(g.surface)
     kind = "dense" if is_dense(ctx.qp.H) else "fft"
-    if c.load_control and hardness is not None and hardness * level.area < float(c.load):
-        return FirstGuess(None, note="no coarse level (its box cannot carry the load: an odd row or column dropped)")
     if c.load_control:
+        if hardness is not None and hardness * level.area < float(c.load):
+            return FirstGuess(None, note="no coarse level (its box cannot carry the load: an odd row or column "
+                                         "dropped)")
         qp = coarse_load_qp(level, g, float(c.load), kind, hardness)
         idx = np.asarray(qp.geometry.indices)
     else:

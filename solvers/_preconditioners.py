@@ -166,15 +166,16 @@ WARM_FAR_FIELD_GRID_POINTS = 512 * 512
 #: Why "auto" is "fourier" under load control, with or without a hardness: there the free set
 #: moves with the approach at every iteration, the island blocks were refactored every few
 #: iterations (10 builds in 66 iterations, periodic RMD 512^2), and the wave-number
-#: preconditioner needs no build.  A hardness moves the set further (points reach and leave
-#: the bound): 0.51-0.73x the islands' or far field's seconds (medians of four tables, 64
-#: members at 512^2 and 1024^2, hardness 1.5-20 times the mean pressure, faster on every
-#: member; results/perf/load-hardness), with more products where most of the contact is plastic.  On the 14 load-controlled problems of the ASPHER race
+#: preconditioner needs no build.  On the 14 load-controlled problems of the ASPHER race
 #: (results/peers/aspher.md: four families at 512^2 and 1024^2, 2048^2, both boundaries,
 #: P/(E* A) = 0.015; quiet 2-core vm, one run) it took 0.44-0.99x the islands' time, median
 #: 0.62x.  Held out on 54 problems of three other cells (results/peers/held-out): median
 #: 0.79-0.88x non-periodic and 0.45-0.48x periodic, worst 1.25x (H 0.3, rms slope 1, where it
-#: needs 1.77x the products).  Displacement control keeps the islands (fewer matvecs,
+#: needs 1.77x the products).  A hardness moves the set further (points reach and leave the
+#: bound): 0.51-0.73x the islands' or far field's seconds (medians of four tables, 64 members
+#: at 512^2 and 1024^2, hardness 1.5-20 times the mean pressure, faster on every member;
+#: results/perf/load-hardness), with more products where most of the contact is plastic.
+#: Displacement control keeps the islands, with a hardness too (fewer matvecs,
 #: docs/fast-solvers.md).
 LOAD_FOURIER = "fourier"
 
@@ -205,8 +206,8 @@ def mixed_grid(qp: QP) -> bool:
 
 def resolved_kind(kind: str, qp: QP, warm: bool = False) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
-    load control, with or without a hardness (``LOAD_FOURIER``), else by the grid: the far field from
-    ``FAR_FIELD_GRID_POINTS`` points (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm``
+    load control, with or without a hardness (``LOAD_FOURIER``), else by the grid: the far
+    field from ``FAR_FIELD_GRID_POINTS`` points (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm``
     start of a non-periodic QP with no constraint beyond p >= 0), the islands alone below."""
     if kind != "auto":
         return kind
