@@ -583,6 +583,32 @@ def test_a_box_no_single_hardness_poses_gives_no_coarse_guess() -> None:
     assert np.all(r.p <= upper) and abs(float(np.sum(r.p)) - qp.constraints.load) <= 1e-9 * qp.constraints.load
 
 
+def test_the_coarse_guess_under_a_hardness_on_rectangular_pixels_keeps_under_the_bounds(monkeypatch) -> None:
+    """Pixels of 1.5:1 (``delta1``): the hardness read back from the fine bounds
+    (u / (d0 d1)) and posed on the coarse level's larger elements gives a prolonged guess
+    within the fine box and plastic where the coarse answer is; the solve meets."""
+    base = fourier_synthesis(256, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    s = Surface(base.heights, base.delta, delta1=1.5 * base.delta)
+    builder = InstanceBuilder(s, E, "love")
+    load = builder.load_force(0.005)
+    inst = builder.build_load(load, hardness=2.0 * load / s.area)
+    guesses = []
+    real = fast_ccg.coarse_first_guess
+
+    def spy(solver, ctx):
+        out = real(solver, ctx)
+        guesses.append(None if out.p is None else out.p.copy())
+        return out
+
+    monkeypatch.setattr(fast_ccg, "coarse_first_guess", spy)
+    r = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9))
+    u = inst.qp.constraints.upper
+    (first,) = [p for p in guesses if p is not None and p.size == inst.qp.n]
+    assert np.all(first <= u * (1.0 + 1e-12)) and np.mean(first >= u * (1.0 - 1e-12)) > 0.01
+    assert r.converged and r.info["first_guess"].startswith("coarse 128^2") and np.all(r.p <= u)
+    assert judge(inst, r.p, True, 1e-8).status == "solved"
+
+
 def test_a_coarse_box_that_cannot_carry_the_load_gives_no_guess() -> None:
     """An odd grid loses its last row and column on the coarse level, so under a hardness
     that barely carries the load (sum(u) = 1.001 P) the coarse box could not carry it:
