@@ -9,10 +9,12 @@ the harness (``contactbench.harness.solve_sequence``) and judged at the "high" p
 matvecs, iterations, builds and seconds are the steps' sums, and the status is "solved"
 when every step is.  With ``--load-per-slope X`` it is instead the member's cold
 load-controlled problem of bench_aspher.py (non-periodic Love kernel, P / (E* A) = X x rms
-slope), solved and judged as there (``bench_aspher.solve_entry``); ``--cells`` keeps the
+slope), solved and judged as there (``bench_aspher.solve_entry``); with ``--sweep K`` too,
+its K-step load sweep (step k at k / K of that load, warm-started from the last by the
+harness, the sums as for the paper sweep); ``--cells`` keeps the
 (Hurst, rms slope) cells given.  ``--hardness-over-pressure R`` adds a hardness to that problem:
-every pressure bounded by R times the nominal mean pressure P / A (R = 1 would saturate the
-whole grid; near 1 most of the contact is plastic).  Both checkouts pose it through their
+every pressure bounded by R times the nominal mean pressure P / A (of the last step in a
+sweep; R = 1 would saturate the whole grid; near 1 most of the contact is plastic).  Both checkouts pose it through their
 own ``InstanceBuilder.build_load(..., hardness=)`` and solve it with ``solve_sequence`` at the
 "high" profile, so a base without this option compares as well.
 
@@ -125,9 +127,40 @@ print("RESULT " + json.dumps({"matvecs": r.matvecs if r else 0, "iterations": r.
 """
 
 
+#: A K-step load sweep of the member's load-controlled problem (argv: checkout, member key,
+#: time limit of a step, P / (E* A) per unit of rms slope at the last step, K, hardness over
+#: the last step's mean pressure or 0): step k carries k / K of the last load, every step
+#: warm-started from the last by the harness; sums as ``SWEEP_CHILD``.
+LOAD_SWEEP_CHILD = """
+import json, sys
+sys.path.insert(0, sys.argv[1] + "/benchmarks")
+import bench_aspher as ba
+from contactbench.harness import get_profile, solve_sequence
+from contactbench.problems.scenes.core import PAPER_E
+from contactbench.solvers.base import SolverSettings
+pr = ba.Problem.parse("nonperiodic@" + sys.argv[2])
+top, K, R = float(sys.argv[4]) * pr.member.rms_slope, int(sys.argv[5]), float(sys.argv[6])
+b, _ = ba.builder_of(pr)
+hardness = R * top * PAPER_E if R > 0 else None
+seq = [b.build_load(b.load_force(top * (k + 1) / K), hardness=hardness) for k in range(K)]
+high = get_profile("high")
+steps = solve_sequence("fast-dual-pccg", seq, SolverSettings(tol=high.tol, time_limit=float(sys.argv[3])),
+                       check_tol=high.check_tol)
+done = [s.result for s in steps if s.result is not None]
+solved = len(done) == len(steps) == K and all(s.verdict.status == "solved" for s in steps)
+print("RESULT " + json.dumps({"matvecs": sum(r.matvecs for r in done), "iterations": sum(r.iterations for r in done),
+                              "builds": sum(r.info.get("preconditioner_builds", 0) for r in done),
+                              "seconds": sum(s.seconds for s in steps), "status": "solved" if solved else "failed",
+                              "n": seq[0].n}))
+"""
+
+
 def child_argv(checkout: Path, m: Member, timeout: float, sweep: int, load_per_slope: float,
                hardness_over_pressure: float = 0.0) -> list[str]:
     """The child's ``-c`` program and arguments for one solve of ``m`` (module doc)."""
+    if load_per_slope > 0.0 and sweep:
+        return ["-c", LOAD_SWEEP_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope), str(sweep),
+                repr(hardness_over_pressure)]
     if load_per_slope > 0.0 and hardness_over_pressure > 0.0:
         return ["-c", BOUNDED_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope),
                 repr(hardness_over_pressure)]
@@ -196,8 +229,8 @@ def checked_args(ap: argparse.ArgumentParser) -> argparse.Namespace:
     refuse_bad_grid_sizes(ap, "--size", [args.size])
     if args.seeds < 1 or args.first_seed < 0 or args.threads < 1 or not args.timeout > 0 or args.sweep < 0:
         ap.error("--seeds and --threads must be >= 1, --first-seed and --sweep >= 0 and --timeout > 0")
-    if not args.load_per_slope >= 0.0 or (args.load_per_slope > 0.0 and args.sweep):
-        ap.error("--load-per-slope must be >= 0, and is not taken with --sweep")
+    if not args.load_per_slope >= 0.0:
+        ap.error("--load-per-slope must be >= 0")
     if not args.hardness_over_pressure >= 0.0 or (args.hardness_over_pressure > 0.0 and (
             args.load_per_slope == 0.0 or args.hardness_over_pressure <= 1.0)):
         ap.error("--hardness-over-pressure must be 0 (none) or above 1, and needs --load-per-slope")

@@ -114,6 +114,7 @@ class _FastCCG(FastSolver):
         bring_home(ctx, state)
         info.update(more)
         info.update(where)
+        info["preconditioner"] = kind
         if M is not None:
             info["preconditioner_builds"] = M.builds
         if isinstance(M, StagedPreconditioner):

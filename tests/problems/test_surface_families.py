@@ -409,7 +409,21 @@ def test_side_by_side_bounded_child_solves_a_mostly_plastic_load_problem():
     assert near["plastic"] > 0.5 > far["plastic"] and near["n"] == 64 * 64
 
 
-@pytest.mark.parametrize("bad", [["--load-per-slope", "-1"], ["--load-per-slope", "0.01", "--sweep", "2"],
+def test_side_by_side_load_sweep_child_sums_a_judged_warm_load_sweep():
+    """``--sweep K --load-per-slope X`` (and a hardness): the child solves the member's K-step
+    load sweep, warm-started, and sums it; solved only when every step is."""
+    side = bench_script("bench_side_by_side")
+    if not (REPO / ".venv" / "bin" / "python").is_file():
+        pytest.skip("no .venv in this checkout (the child runs in the checkout's own environment)")
+    member = side.Member.parse("fourier:64:0.7:0.3:0")
+    for hardness in (0.0, 3.0):
+        sweep = side.solve_in(REPO, member, 1, 120.0, sweep=3, load_per_slope=0.05, hardness_over_pressure=hardness)
+        single = side.solve_in(REPO, member, 1, 120.0, load_per_slope=0.05, hardness_over_pressure=hardness)
+        assert sweep["status"] == single["status"] == "solved", (sweep, single)
+        assert sweep["matvecs"] > single["matvecs"] and sweep["n"] == 64 * 64
+
+
+@pytest.mark.parametrize("bad", [["--load-per-slope", "-1"], ["--load-per-slope", "nan", "--sweep", "2"],
                                  ["--cells", "0.7-0.3"], ["--hardness-over-pressure", "3"],
                                  ["--hardness-over-pressure", "0.9", "--load-per-slope", "0.01"],
                                  ["--hardness-over-pressure", "nan", "--load-per-slope", "0.01"]])

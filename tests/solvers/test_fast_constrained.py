@@ -609,6 +609,25 @@ def test_the_coarse_guess_under_a_hardness_on_rectangular_pixels_keeps_under_the
     assert judge(inst, r.p, True, 1e-8).status == "solved"
 
 
+def test_the_solve_reports_the_preconditioner_auto_took() -> None:
+    """``info["preconditioner"]``: the kind "auto" resolved to -- the wave numbers for a
+    load step, cold or warm-started from the last, with or without a hardness (results/perf/
+    load-hardness: the islands lost on warm load sweeps too); the islands at a displacement."""
+    s = fourier_synthesis(64, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    builder = InstanceBuilder(s, E)
+    solver = get_solver("fast-dual-pccg")
+    load = builder.load_force(0.005)
+    for h in (None, 1.5 * load / s.area):
+        first, second = (builder.build_load(f * load, hardness=h) for f in (0.9, 1.0))
+        cold = solver.solve(first.qp, SolverSettings(tol=1e-9))
+        warm = solver.solve(second.qp, SolverSettings(tol=1e-9), WarmStart(p=cold.p))
+        assert cold.converged and warm.converged
+        assert cold.info["preconditioner"] == warm.info["preconditioner"] == "fourier"
+        assert judge(second, warm.p, True, 1e-8).status == "solved"
+    disp = solver.solve(builder.build(paper_max_displacement(s)).qp, SolverSettings(tol=1e-9))
+    assert disp.info["preconditioner"] == "islands"
+
+
 def test_a_coarse_box_that_cannot_carry_the_load_gives_no_guess() -> None:
     """An odd grid loses its last row and column on the coarse level, so under a hardness
     that barely carries the load (sum(u) = 1.001 P) the coarse box could not carry it:
