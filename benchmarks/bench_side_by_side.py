@@ -99,38 +99,12 @@ print("RESULT " + json.dumps({"matvecs": row.matvecs, "iterations": row.iteratio
                               "seconds": row.seconds, "status": row.status, "n": row.n}))
 """
 
-#: The same with a hardness (argv: checkout, member key, time limit, P / (E* A) per unit of rms
-#: slope, hardness over the mean pressure): posed with the checkout's own builder; its result
-#: also gives the share of the contact at the bound ("plastic", printed, not a column).
-BOUNDED_CHILD = """
-import json, sys
-sys.path.insert(0, sys.argv[1] + "/benchmarks")
-import bench_aspher as ba
-from contactbench.harness import get_profile, solve_sequence
-from contactbench.problems.scenes.core import PAPER_E
-from contactbench.solvers.base import SolverSettings
-pr = ba.Problem.parse("nonperiodic@" + sys.argv[2])
-load = float(sys.argv[4]) * pr.member.rms_slope
-b, _ = ba.builder_of(pr)
-inst = b.build_load(b.load_force(load), hardness=float(sys.argv[5]) * load * PAPER_E)
-high = get_profile("high")
-(step,) = solve_sequence("fast-dual-pccg", [inst], SolverSettings(tol=high.tol, time_limit=float(sys.argv[3])),
-                         warm=False, check_tol=high.check_tol)
-r = step.result
-u = inst.qp.constraints.upper
-touch = int((r.p > 0).sum()) if r else 0
-plastic = int((r.p >= u * (1 - 1e-9)).sum()) / max(touch, 1) if r else 0.0
-print("RESULT " + json.dumps({"matvecs": r.matvecs if r else 0, "iterations": r.iterations if r else 0,
-                              "builds": r.info.get("preconditioner_builds", 0) if r else 0, "seconds": step.seconds,
-                              "status": step.verdict.status if step.verdict else "failed", "n": inst.n,
-                              "plastic": plastic}))
-"""
-
-
 #: A K-step load sweep of the member's load-controlled problem (argv: checkout, member key,
 #: time limit of a step, P / (E* A) per unit of rms slope at the last step, K, hardness over
 #: the last step's mean pressure or 0): step k carries k / K of the last load, every step
-#: warm-started from the last by the harness; sums as ``SWEEP_CHILD``.
+#: warm-started from the last by the harness; sums as ``SWEEP_CHILD``, and also gives the
+#: last step's plastic share of the contact ("plastic", printed, not a column).  K = 1 is the
+#: bounded problem's cold solve.
 LOAD_SWEEP_CHILD = """
 import json, sys
 sys.path.insert(0, sys.argv[1] + "/benchmarks")
@@ -151,18 +125,15 @@ solved = len(done) == len(steps) == K and all(s.verdict.status == "solved" for s
 print("RESULT " + json.dumps({"matvecs": sum(r.matvecs for r in done), "iterations": sum(r.iterations for r in done),
                               "builds": sum(r.info.get("preconditioner_builds", 0) for r in done),
                               "seconds": sum(s.seconds for s in steps), "status": "solved" if solved else "failed",
-                              "n": seq[0].n}))
+                              "n": seq[0].n, "plastic": seq[-1].plastic_fraction(done[-1].p) if solved else 0.0}))
 """
 
 
 def child_argv(checkout: Path, m: Member, timeout: float, sweep: int, load_per_slope: float,
                hardness_over_pressure: float = 0.0) -> list[str]:
     """The child's ``-c`` program and arguments for one solve of ``m`` (module doc)."""
-    if load_per_slope > 0.0 and sweep:
-        return ["-c", LOAD_SWEEP_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope), str(sweep),
-                repr(hardness_over_pressure)]
-    if load_per_slope > 0.0 and hardness_over_pressure > 0.0:
-        return ["-c", BOUNDED_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope),
+    if load_per_slope > 0.0 and (sweep or hardness_over_pressure > 0.0):
+        return ["-c", LOAD_SWEEP_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope), str(max(sweep, 1)),
                 repr(hardness_over_pressure)]
     if load_per_slope > 0.0:
         return ["-c", LOAD_CHILD, str(checkout), m.key, str(timeout), repr(load_per_slope)]
