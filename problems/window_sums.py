@@ -46,12 +46,44 @@ def window_side(rows: np.ndarray, cols: np.ndarray) -> int:
     """The FFT length along one axis for rows' and cols' coordinates on it: the next fast
     length of 2h + 1, h the largest |row - col|."""
     h = max(int(rows.max()) - int(cols.min()), int(cols.max()) - int(rows.min()), 0)
+    return fast_side(h)
+
+
+def fast_side(h: int) -> int:
+    """The window length for a largest offset h: the next fast length of 2h + 1."""
     return int(sfft.next_fast_len(2 * h + 1, real=True))
 
 
 def window_shape(rows: Positions, cols: Positions) -> tuple[int, int]:
     """(F0, F1): the window of one item (``window_side`` on each axis)."""
     return window_side(rows[0], cols[0]), window_side(rows[1], cols[1])
+
+
+def extents(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The minimum and the maximum of each of ``arrays`` (1-D, none empty), in two reductions."""
+    lengths = np.fromiter((a.size for a in arrays), dtype=np.int64, count=len(arrays))
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    flat = np.concatenate(arrays)
+    return np.minimum.reduceat(flat, starts), np.maximum.reduceat(flat, starts)
+
+
+def window_shapes(items: Sequence[tuple[Positions, Positions]]) -> list[tuple[int, int]]:
+    """``window_shape`` of every item, (0, 0) for an item with no rows or no cols: the
+    extents of all items in a few array reductions, not eight per item."""
+    full = [k for k, (r, c) in enumerate(items) if r[0].size and c[0].size]
+    shapes = [(0, 0)] * len(items)
+    if not full:
+        return shapes
+    sides = []
+    for axis in (0, 1):
+        rmin, rmax = extents([items[k][0][axis] for k in full])
+        cmin, cmax = extents([items[k][1][axis] for k in full])
+        h = np.maximum(np.maximum(rmax.astype(np.int64) - cmin, cmax.astype(np.int64) - rmin), 0)
+        values, where = np.unique(h, return_inverse=True)
+        sides.append(np.array([fast_side(int(v)) for v in values], dtype=np.int64)[where])
+    for slot, k in enumerate(full):
+        shapes[k] = (int(sides[0][slot]), int(sides[1][slot]))
+    return shapes
 
 
 @dataclass(frozen=True)
@@ -70,7 +102,7 @@ def plan(items: Sequence[tuple[Positions, Positions]]) -> WindowPlan:
     ``WINDOW_ENTRY_FACTOR`` x the points of the shared window (the largest of the joining
     items' own, decided again with it)."""
     gathers = [r[0].size * c[0].size for r, c in items]
-    shapes = [window_shape(r, c) if r[0].size and c[0].size else (0, 0) for r, c in items]
+    shapes = window_shapes(items)
     own = [k for k, (f0, f1) in enumerate(shapes) if gathers[k] > WINDOW_ENTRY_FACTOR * f0 * f1]
     shape = (max((shapes[k][0] for k in own), default=0), max((shapes[k][1] for k in own), default=0))
     window = WINDOW_ENTRY_FACTOR * shape[0] * shape[1]

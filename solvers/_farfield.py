@@ -103,22 +103,11 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     ti, tj = labels // (1 << 32), labels % (1 << 32)
     if m < 2:
         return None
-    later = later_neighbours(ti, tj)
-    order = np.argsort(agg, kind="stable")
-    starts = np.r_[0, np.cumsum(count.astype(np.int64))]
-    members_of = [pos[order[starts[a]:starts[a + 1]]] for a in range(m)]
-    # Exact sums over neighbouring tiles, each pair once (H is symmetric): the displacement
-    # of unit forces on each aggregate at the members of its later neighbours.
-    near = [np.concatenate([members_of[b] for b in nb]) for nb in later]
-    sums = H.unit_sums([(cols, members_of[a]) for a, cols in enumerate(near)], budget)
-    if sums is None:
+    A = coarse_matrix(H, i, j, pos, agg, count, later_neighbours(ti, tj), budget)
+    if A is None:
         return None
     aggregate = np.full(i.size, -1, dtype=np.int64)
     aggregate[pos] = agg
-    A = galerkin_far(H, i, j, pos, agg, count)
-    for a, nb in enumerate(later):
-        A[a, nb] = A[nb, a] = np.bincount(aggregate[near[a]], weights=sums[a], minlength=m)[nb]
-    A = 0.5 * (A + A.T)
     w = 1.0 / count
     E = w[:, None] * (A - np.diag(np.bincount(agg, weights=block_sums[pos], minlength=m))) * w[None, :]
     d2 = np.bincount(agg, weights=v[pos], minlength=m)
@@ -131,11 +120,58 @@ def build_far_field(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.nd
     return FarField(aggregate, v, K)
 
 
+def coarse_matrix(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, agg: np.ndarray,
+                  count: np.ndarray, later: list[np.ndarray], budget: float) -> np.ndarray | None:
+    """Z'HZ over the aggregates ``agg`` of the set ``pos`` (``count`` members each): the exact
+    sums 1_a' H 1_b between neighbouring aggregates (``later``: ``later_neighbours``), and
+    the point masses of ``galerkin_far`` between farther ones, made symmetric; None when the
+    exact sums would read more than ``budget`` entries (``ContactOperator.unit_sums``)."""
+    m = count.size
+    order = np.argsort(agg, kind="stable")
+    starts = np.r_[0, np.cumsum(count.astype(np.int64))]
+    members_of = [pos[order[starts[a]:starts[a + 1]]] for a in range(m)]
+    # Exact sums over neighbouring tiles, each pair once (H is symmetric): the displacement
+    # of unit forces on each aggregate at the members of its later neighbours.
+    near = [np.concatenate([members_of[b] for b in nb]) for nb in later]
+    sums = H.unit_sums([(cols, members_of[a]) for a, cols in enumerate(near)], budget)
+    if sums is None:
+        return None
+    aggregate = np.full(i.size, -1, dtype=np.int64)
+    aggregate[pos] = agg
+    A = galerkin_far(H, i, j, pos, agg, count)
+    a_of = np.repeat(np.arange(m), [rows.size for rows in near])
+    near_sums = np.bincount(a_of * m + aggregate[np.concatenate(near)], weights=np.concatenate(sums),
+                            minlength=m * m).reshape(m, m)
+    pa = np.repeat(np.arange(m), [nb.size for nb in later])
+    pb = np.concatenate(later)
+    A[pa, pb] = A[pb, pa] = near_sums[pa, pb]
+    return 0.5 * (A + A.T)
+
+
 def later_neighbours(ti: np.ndarray, tj: np.ndarray) -> list[np.ndarray]:
-    """For each aggregate a (tile row ``ti[a]``, column ``tj[a]``), the aggregates b >= a on
-    the tiles around it and its own: each neighbouring pair once."""
-    return [np.flatnonzero((np.abs(ti - ti[a]) <= 1) & (np.abs(tj - tj[a]) <= 1) & (np.arange(ti.size) >= a))
-            for a in range(ti.size)]
+    """For each aggregate a (tile row ``ti[a]``, column ``tj[a]``; one aggregate a tile), the
+    aggregates b >= a on the tiles around it and its own, in increasing order: each
+    neighbouring pair once.  Looked up tile by tile among the sorted tile keys, not
+    compared with every aggregate."""
+    ti, tj = np.asarray(ti, dtype=np.int64), np.asarray(tj, dtype=np.int64)
+    m = ti.size
+    key = (ti + 1) * (1 << 32) + (tj + 1)  # + 1: a neighbour's row or column -1 keys above 0
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    pairs_a, pairs_b = [], []
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            want = (ti + 1 + di) * (1 << 32) + (tj + 1 + dj)
+            at = np.minimum(np.searchsorted(sorted_key, want), max(m - 1, 0))
+            hit = sorted_key[at] == want
+            a, b = np.flatnonzero(hit), order[at[hit]]
+            keep = b >= a
+            pairs_a.append(a[keep])
+            pairs_b.append(b[keep])
+    a, b = np.concatenate(pairs_a), np.concatenate(pairs_b)
+    sort = np.lexsort((b, a))
+    a, b = a[sort], b[sort]
+    return np.split(b, np.searchsorted(a, np.arange(1, m)))
 
 
 def galerkin_far(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarray, agg: np.ndarray,

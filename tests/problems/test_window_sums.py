@@ -97,3 +97,19 @@ def test_the_cost_is_the_gather_less_what_the_windows_save() -> None:
     assert ContactOperator.unit_sums(op, items, gather - 1) is None
     for got, want in zip(op.unit_sums(items), ContactOperator.unit_sums(op, items)):
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
+
+
+def test_window_shapes_are_each_items_own_window() -> None:
+    """``window_shapes`` (all items' extents in a few reductions) gives each item's
+    ``window_shape``, and (0, 0) where it has no rows or no cols, on items of any extent."""
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        items = []
+        for _ in range(int(rng.integers(1, 25))):
+            nr, nc = rng.integers(0, 15, 2)
+            spread = int(rng.integers(1, 400))
+            items.append(((rng.integers(0, spread, nr), rng.integers(0, spread, nr)),
+                          (rng.integers(0, spread, nc), rng.integers(0, spread, nc))))
+        want = [window_sums.window_shape(r, c) if r[0].size and c[0].size else (0, 0) for r, c in items]
+        assert window_sums.window_shapes(items) == want
+    assert window_sums.window_shapes([]) == []

@@ -426,6 +426,53 @@ def test_far_field_budget_counts_the_work_of_its_near_sums(monkeypatch):
     assert _farfield.build_far_field(H, i, j, pos, lead, v, sums, cost, fraction) is not None
 
 
+
+def test_later_neighbours_are_the_tiles_around_each_aggregate_once() -> None:
+    """The far field's neighbour lists (looked up among sorted tile keys) are, for every
+    aggregate a, the aggregates b >= a whose tiles touch a's, in increasing order: the
+    brute-force comparison with every aggregate, on random occupied tiles (row and column 0
+    included, one aggregate, none touching)."""
+    from contactbench.solvers import _farfield
+
+    rng = np.random.default_rng(3)
+    cases = [np.array([0]), np.array([0, 2, 4 * 30 + 1]), np.arange(30)]
+    cases += [np.sort(rng.choice(900, int(rng.integers(1, 120)), replace=False)) for _ in range(40)]
+    for keys in cases:
+        ti, tj = np.divmod(keys, 30)
+        got = _farfield.later_neighbours(ti, tj)
+        a = np.arange(keys.size)
+        want = [np.flatnonzero((np.abs(ti - ti[k]) <= 1) & (np.abs(tj - tj[k]) <= 1) & (a >= k)) for k in a]
+        assert len(got) == len(want)
+        assert all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
+def test_coarse_matrix_sums_neighbouring_aggregates_exactly_and_farther_ones_as_point_masses() -> None:
+    """The far field's Z'HZ (``coarse_matrix``): 1_a' H 1_b to round-off (against the dense
+    H) for aggregates on touching tiles, both orders; the point masses of ``galerkin_far``
+    for farther ones; symmetric."""
+    from contactbench.solvers import _farfield
+
+    inst, S = far_field_case(64)
+    H = inst.qp.H
+    g = inst.qp.geometry
+    i, j = np.divmod(np.asarray(g.indices), g.grid_shape[1])
+    pos = np.flatnonzero(S)
+    T = 16
+    labels, agg = np.unique((i[pos] // T) * (1 << 32) + j[pos] // T, return_inverse=True)
+    m = labels.size
+    count = np.bincount(agg, minlength=m).astype(float)
+    ti, tj = labels // (1 << 32), labels % (1 << 32)
+    A = _farfield.coarse_matrix(H, i, j, pos, agg, count, _farfield.later_neighbours(ti, tj), np.inf)
+    Z = np.zeros((inst.qp.n, m))
+    Z[pos, agg] = 1.0
+    exact = Z.T @ H.to_dense() @ Z
+    point_masses = _farfield.galerkin_far(H, i, j, pos, agg, count)
+    touching = (np.abs(ti[:, None] - ti[None, :]) <= 1) & (np.abs(tj[:, None] - tj[None, :]) <= 1)
+    assert m > 4 and touching.any() and (~touching).any()
+    np.testing.assert_allclose(A[touching], exact[touching], rtol=1e-10, atol=1e-12 * np.abs(exact).max())
+    np.testing.assert_allclose(A[~touching], (0.5 * (point_masses + point_masses.T))[~touching], rtol=1e-12)
+    np.testing.assert_array_equal(A, A.T)
+
 def pcg_iterations(H: np.ndarray, b: np.ndarray, prec) -> int:
     x, r = np.zeros_like(b), b.copy()
     z = prec(r)
