@@ -136,14 +136,12 @@ def coarse_matrix(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndar
     sums = H.unit_sums([(cols, members_of[a]) for a, cols in enumerate(near)], budget)
     if sums is None:
         return None
-    aggregate = np.full(i.size, -1, dtype=np.int64)
-    aggregate[pos] = agg
     A = galerkin_far(H, i, j, pos, agg, count)
-    a_of = np.repeat(np.arange(m), [rows.size for rows in near])
-    near_sums = np.bincount(a_of * m + aggregate[np.concatenate(near)], weights=np.concatenate(sums),
-                            minlength=m * m).reshape(m, m)
-    pa = np.repeat(np.arange(m), [nb.size for nb in later])
+    pa = np.repeat(np.arange(m), [nb.size for nb in later])  # the neighbouring pairs (a, b), in near's order
     pb = np.concatenate(later)
+    members = count.astype(np.int64)
+    into = np.repeat(pa * m + pb, members[pb])  # the pair of each sum: item a's rows are b's members
+    near_sums = np.bincount(into, weights=np.concatenate(sums), minlength=m * m).reshape(m, m)
     A[pa, pb] = A[pb, pa] = near_sums[pa, pb]
     return 0.5 * (A + A.T)
 
