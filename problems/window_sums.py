@@ -67,6 +67,14 @@ def extents(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return np.minimum.reduceat(flat, starts), np.maximum.reduceat(flat, starts)
 
 
+def stacked(positions: Sequence[Positions]) -> tuple[Positions, np.ndarray, np.ndarray]:
+    """Several position sets end to end: their rows and columns, the set each entry came
+    from, and where each set ends."""
+    slot = np.repeat(np.arange(len(positions)), [p[0].size for p in positions])
+    ends = np.cumsum([p[0].size for p in positions])
+    return (np.concatenate([p[0] for p in positions]), np.concatenate([p[1] for p in positions])), slot, ends
+
+
 def window_shapes(items: Sequence[tuple[Positions, Positions]]) -> list[tuple[int, int]]:
     """``window_shape`` of every item, (0, 0) for an item with no rows or no cols: the
     extents of all items in a few array reductions, not eight per item."""
@@ -133,18 +141,16 @@ def window_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
     def batch(k: int) -> list[np.ndarray]:
         which = batches[k]
         field = np.zeros((len(which), f0, f1))
-        for slot, item in enumerate(which):
-            (ci, cj) = items[item][1]
-            field[slot, ci - ci.min(), cj - cj.min()] = 1.0
+        (ci, cj), col_slot, _ = stacked([items[item][1] for item in which])
+        i0, _ = extents([items[item][1][0] for item in which])  # each window's origin: its cols' least row
+        j0, _ = extents([items[item][1][1] for item in which])
+        field[col_slot, ci - i0[col_slot], cj - j0[col_slot]] = 1.0
         spec = _ducc_fft.r2c(field, axes=(1, 2), nthreads=1)
         spec *= spectrum
         _ducc_fft.c2r(spec, axes=(1, 2), lastsize=f1, forward=False, inorm=2, out=field, nthreads=1,
                       allow_overwriting_input=True)
-        out = []
-        for slot, item in enumerate(which):
-            (ri, rj), (ci, cj) = items[item]
-            out.append(field[slot, (ri - ci.min()) % f0, (rj - cj.min()) % f1])
-        return out
+        (ri, rj), row_slot, ends = stacked([items[item][0] for item in which])
+        return np.split(field[row_slot, (ri - i0[row_slot]) % f0, (rj - j0[row_slot]) % f1], ends[:-1])
 
     return [u for part in each_on_pool(batch, len(batches)) for u in part]
 

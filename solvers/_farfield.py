@@ -179,9 +179,18 @@ def galerkin_far(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndarr
     ci = np.bincount(agg, weights=i[pos], minlength=m) / count
     cj = np.bincount(agg, weights=j[pos], minlength=m) / count
     dist = (i[pos] - ci[agg]) ** 2 + (j[pos] - cj[agg]) ** 2
-    order = np.lexsort((dist, agg))
-    first = np.r_[True, agg[order][1:] != agg[order][:-1]]
-    rep = pos[order[first]]  # one per aggregate, in aggregate order
+    rep = pos[first_nearest(agg, dist, m)]  # one per aggregate, in aggregate order
     rows = np.repeat(rep, m)
     cols = np.tile(rep, m)
     return (count[:, None] * count[None, :]) * H.entries(rows, cols).reshape(m, m)
+
+
+def first_nearest(agg: np.ndarray, dist: np.ndarray, m: int) -> np.ndarray:
+    """For each of the ``m`` aggregates (every one occupied), the first position k in the
+    set with ``agg[k]`` = a at its least ``dist``: the minima by ``np.minimum.at``, then the
+    first position at its aggregate's minimum."""
+    least = np.full(m, np.inf)
+    np.minimum.at(least, agg, dist)
+    at = np.flatnonzero(dist == least[agg])
+    _, first = np.unique(agg[at], return_index=True)
+    return at[first]

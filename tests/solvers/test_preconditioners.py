@@ -473,6 +473,23 @@ def test_coarse_matrix_sums_neighbouring_aggregates_exactly_and_farther_ones_as_
     np.testing.assert_allclose(A[~touching], (0.5 * (point_masses + point_masses.T))[~touching], rtol=1e-12)
     np.testing.assert_array_equal(A, A.T)
 
+
+def test_first_nearest_is_the_first_member_at_the_least_distance() -> None:
+    """The far field's representative of each aggregate (``first_nearest``) is the member
+    a stable sort by (aggregate, distance) puts first: the least distance, ties to the first
+    position, on inputs with many ties and one-member aggregates."""
+    from contactbench.solvers import _farfield
+
+    rng = np.random.default_rng(11)
+    for _ in range(30):
+        m = int(rng.integers(1, 40))
+        agg = np.concatenate([np.arange(m), rng.integers(0, m, int(rng.integers(0, 200)))])
+        rng.shuffle(agg)
+        dist = rng.integers(0, 5, agg.size).astype(float) / 4.0  # few values: many ties
+        order = np.lexsort((dist, agg))
+        first = np.r_[True, agg[order][1:] != agg[order][:-1]]
+        np.testing.assert_array_equal(_farfield.first_nearest(agg, dist, m), order[first])
+
 def pcg_iterations(H: np.ndarray, b: np.ndarray, prec) -> int:
     x, r = np.zeros_like(b), b.copy()
     z = prec(r)
