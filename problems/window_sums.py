@@ -141,9 +141,9 @@ def window_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
     def batch(k: int) -> list[np.ndarray]:
         which = batches[k]
         field = np.zeros((len(which), f0, f1))
-        (ci, cj), col_slot, _ = stacked([items[item][1] for item in which])
-        i0, _ = extents([items[item][1][0] for item in which])  # each window's origin: its cols' least row
-        j0, _ = extents([items[item][1][1] for item in which])
+        (ci, cj), col_slot, col_ends = stacked([items[item][1] for item in which])
+        starts = np.concatenate([[0], col_ends[:-1]])
+        i0, j0 = np.minimum.reduceat(ci, starts), np.minimum.reduceat(cj, starts)  # each window's origin
         field[col_slot, ci - i0[col_slot], cj - j0[col_slot]] = 1.0
         spec = _ducc_fft.r2c(field, axes=(1, 2), nthreads=1)
         spec *= spectrum
