@@ -59,20 +59,13 @@ def window_shape(rows: Positions, cols: Positions) -> tuple[int, int]:
     return window_side(rows[0], cols[0]), window_side(rows[1], cols[1])
 
 
-def extents(arrays: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """The minimum and the maximum of each of ``arrays`` (1-D, none empty), in two reductions."""
-    lengths = np.fromiter((a.size for a in arrays), dtype=np.int64, count=len(arrays))
-    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
-    flat = np.concatenate(arrays)
-    return np.minimum.reduceat(flat, starts), np.maximum.reduceat(flat, starts)
-
-
 def stacked(positions: Sequence[Positions]) -> tuple[Positions, np.ndarray, np.ndarray]:
     """Several position sets end to end: their rows and columns, the set each entry came
-    from, and where each set ends."""
-    slot = np.repeat(np.arange(len(positions)), [p[0].size for p in positions])
-    ends = np.cumsum([p[0].size for p in positions])
-    return (np.concatenate([p[0] for p in positions]), np.concatenate([p[1] for p in positions])), slot, ends
+    from, and where each set starts."""
+    sizes = [p[0].size for p in positions]
+    slot = np.repeat(np.arange(len(positions)), sizes)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    return (np.concatenate([p[0] for p in positions]), np.concatenate([p[1] for p in positions])), slot, starts
 
 
 def window_shapes(items: Sequence[tuple[Positions, Positions]]) -> list[tuple[int, int]]:
@@ -82,10 +75,12 @@ def window_shapes(items: Sequence[tuple[Positions, Positions]]) -> list[tuple[in
     shapes = [(0, 0)] * len(items)
     if not full:
         return shapes
+    rows, _, rs = stacked([items[k][0] for k in full])
+    cols, _, cs = stacked([items[k][1] for k in full])
     sides = []
-    for axis in (0, 1):
-        rmin, rmax = extents([items[k][0][axis] for k in full])
-        cmin, cmax = extents([items[k][1][axis] for k in full])
+    for r, c in zip(rows, cols):
+        rmin, rmax = np.minimum.reduceat(r, rs), np.maximum.reduceat(r, rs)
+        cmin, cmax = np.minimum.reduceat(c, cs), np.maximum.reduceat(c, cs)
         h = np.maximum(np.maximum(rmax.astype(np.int64) - cmin, cmax.astype(np.int64) - rmin), 0)
         values, where = np.unique(h, return_inverse=True)
         sides.append(np.array([fast_side(int(v)) for v in values], dtype=np.int64)[where])
@@ -141,16 +136,15 @@ def window_sums(table: np.ndarray, items: Sequence[tuple[Positions, Positions]],
     def batch(k: int) -> list[np.ndarray]:
         which = batches[k]
         field = np.zeros((len(which), f0, f1))
-        (ci, cj), col_slot, col_ends = stacked([items[item][1] for item in which])
-        starts = np.concatenate([[0], col_ends[:-1]])
+        (ci, cj), col_slot, starts = stacked([items[item][1] for item in which])
         i0, j0 = np.minimum.reduceat(ci, starts), np.minimum.reduceat(cj, starts)  # each window's origin
         field[col_slot, ci - i0[col_slot], cj - j0[col_slot]] = 1.0
         spec = _ducc_fft.r2c(field, axes=(1, 2), nthreads=1)
         spec *= spectrum
         _ducc_fft.c2r(spec, axes=(1, 2), lastsize=f1, forward=False, inorm=2, out=field, nthreads=1,
                       allow_overwriting_input=True)
-        (ri, rj), row_slot, ends = stacked([items[item][0] for item in which])
-        return np.split(field[row_slot, (ri - i0[row_slot]) % f0, (rj - j0[row_slot]) % f1], ends[:-1])
+        (ri, rj), row_slot, row_starts = stacked([items[item][0] for item in which])
+        return np.split(field[row_slot, (ri - i0[row_slot]) % f0, (rj - j0[row_slot]) % f1], row_starts[1:])
 
     return [u for part in each_on_pool(batch, len(batches)) for u in part]
 

@@ -127,8 +127,9 @@ def coarse_matrix(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndar
     the point masses of ``galerkin_far`` between farther ones, made symmetric; None when the
     exact sums would read more than ``budget`` entries (``ContactOperator.unit_sums``)."""
     m = count.size
+    members = count.astype(np.int64)
     order = np.argsort(agg, kind="stable")
-    starts = np.r_[0, np.cumsum(count.astype(np.int64))]
+    starts = np.r_[0, np.cumsum(members)]
     members_of = [pos[order[starts[a]:starts[a + 1]]] for a in range(m)]
     # Exact sums over neighbouring tiles, each pair once (H is symmetric): the displacement
     # of unit forces on each aggregate at the members of its later neighbours.
@@ -139,7 +140,6 @@ def coarse_matrix(H: ContactOperator, i: np.ndarray, j: np.ndarray, pos: np.ndar
     A = galerkin_far(H, i, j, pos, agg, count)
     pa = np.repeat(np.arange(m), [nb.size for nb in later])  # the neighbouring pairs (a, b), in near's order
     pb = np.concatenate(later)
-    members = count.astype(np.int64)
     into = np.repeat(pa * m + pb, members[pb])  # the pair of each sum: item a's rows are b's members
     near_sums = np.bincount(into, weights=np.concatenate(sums), minlength=m * m).reshape(m, m)
     A[pa, pb] = A[pb, pa] = near_sums[pa, pb]
