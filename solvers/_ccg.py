@@ -68,6 +68,19 @@ out of the feasible set at a point at the bound (``inward``): there d_j < 0 is s
 as at the points at rest.  It stays a descent direction (the dropped terms only ascended)
 and the projection only clips points that leave the contact set.
 
+Points kept out (Bugnicourt with a preconditioner)
+--------------------------------------------------
+``inward`` can keep a penetrating point at the bound out for good: when z_j keeps the sign
+opposite to res_j, d_j is cut to 0 at every iteration, the point never takes a force, and
+the rest of the set converges around it with the KKT error frozen at its penetration.  With
+islands of up to 512 points as single blocks (solvers/_partition.py) it happened on one
+population member at 2048^2 (Saupe RMD, H 0.7, rms slope 0.3, seed 0): 140 points at a gap
+of -5e-10 had d_j < 0 for 110 iterations, the error stayed at 1.15e-3, 173 products against
+60 with those islands cut.  So when the error has not moved by 1 % (``STALL_FLAT``) for ``STALL_PATIENCE``
+iterations, those points take the direction of a point alone, -M_solo res_j > 0 (``let_in``):
+a descent direction there, and they enter.  The test never fires on the surface population
+at 512^2 and 1024^2; on that member, 69 products (results/perf/whole-islands).
+
 A warm start's first iterations (Bugnicourt)
 --------------------------------------------
 A warm start is the answer of a nearby problem: on a load sweep, the previous step's, under
@@ -108,7 +121,8 @@ from contactbench.problems.operators_gpu import HOST, ArraySpace
 
 from ._farfield import MAX_AGGREGATES
 from ._kit import matvec_seconds, serial_blas
-from ._preconditioners import ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
+from ._partition import WHOLE_BUDGET
+from ._preconditioners import BUILD_BUDGET, ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
 from ._screen import solve_screened
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 
@@ -126,6 +140,12 @@ HOLD_MAX = 8
 #: Polonsky-Keer iterations without halving the KKT error before its preconditioner drops
 #: its coarse part (module doc, "Cycling").
 CYCLE_PATIENCE = 25
+
+#: A Bugnicourt loop whose KKT error stayed above ``STALL_FLAT`` times the last one for this
+#: many iterations lets the points at the bound in that its direction keeps out (module doc,
+#: "Points kept out").
+STALL_PATIENCE = 5
+STALL_FLAT = 0.99
 
 
 @dataclass(frozen=True)
@@ -481,10 +501,12 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
     res = held_residual(state) if hold else dual_residual(state, u)
     d = inward(-precondition_on(M, res, res != 0.0), state, res, u)
     run = CCGRun(0, np.inf, False)
+    flat, last = 0, math.inf  # iterations with the KKT error within STALL_FLAT of the last
     for it in range(1, max_iter + 1):
         run = checkpoint(ctx, state, it - 1, first)
         if run.converged or ctx.expired():
             return run
+        flat, last = (flat + 1 if run.kkt >= STALL_FLAT * last else 0), run.kkt
         Hd = state.H.matvec(d)
         alpha, dHd = exact_step(res, d, Hd)
         if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
@@ -509,8 +531,24 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         staged = (M is not None and M.progress(run.kkt)) or released
         z = precondition_on(M, res, res != 0.0)
         beta = 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)
-        inward(conjugate(d, z, beta), state, res, u)
+        conjugate(d, z, beta)
+        if flat >= STALL_PATIENCE and let_in(d, state, res, M):
+            flat = 0
+        inward(d, state, res, u)
     return CCGRun(max_iter, run.kkt, False)
+
+
+def let_in(d: np.ndarray, state: GapState, res: np.ndarray, M: SetPreconditioner | None) -> bool:
+    """d, in place, along -M_solo res (``SetPreconditioner.solo``; -res without M) at the
+    points at the bound that penetrate (res < 0) and that d would keep out (d < 0): module
+    doc, "Points kept out".  Whether there were any."""
+    out = (state.p <= 0.0) & (res < 0.0) & (d < 0.0)
+    (count,) = read_scalars(np.count_nonzero(out))
+    if not count:
+        return False
+    solo = res if M is None else M.solo(res)
+    d[out] = -solo[out]
+    return True
 
 
 def conjugate(d: np.ndarray, z: np.ndarray, beta: float) -> np.ndarray:
@@ -607,8 +645,11 @@ class FastSolver(Solver):
     def memory_estimate(self, n: int) -> float:
         # Eight vectors; with the island preconditioner, block inverses of up to
         # MAX_BLOCK entries per point of the set (the set can be the whole trial set early),
+        # the whole islands' blocks above that (solvers/_partition.py: sum s^2 <= sum s^3 / 16
+        # <= WHOLE_BUDGET x BUILD_BUDGET / 16 a grid point, counted here a point of the set),
         # and the far field's m x m matrices (solvers/_farfield.py).
-        blocks = 8.0 * MAX_BLOCK * n + 3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0
+        entries = MAX_BLOCK + WHOLE_BUDGET * BUILD_BUDGET / 16
+        blocks = 8.0 * entries * n + 3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0
         return 8.0 * 8.0 * n + blocks
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:

@@ -20,8 +20,9 @@ matvecs, 47 with the continuous |q| E*/2 Fourier preconditioner of Vollebregt (2
 and 33 with this one (docs/fast-solvers.md).
 
 Islands larger than the block limit -- ``max_block`` (128), smaller when the set is large
-(``BUILD_BUDGET``: a build costs a few matvecs at most) -- are cut into compact grid patches
-(``patches``, "Blocks of big islands" below).  The block
+(``BUILD_BUDGET``: a build costs a few matvecs at most) -- are cut into compact grid patches,
+and islands of up to a few hundred points stay whole where the build can afford them
+(solvers/_partition.py: ``patches``, ``whole_limit``).  The block
 inverses are held in float64, or in float32 for the mixed-precision solves
 (``block_dtype``): a preconditioner only has to be SPD and fixed, not exact, so the fixed
 point and the float64 KKT test are unchanged, while the batched inversion (most of a
@@ -31,18 +32,6 @@ grouped by size into buckets of powers of two, padded with the identity and
 inverted batch-wise, so neither the build nor ``apply`` loops over islands in
 Python.  Needs the unknowns' grid positions (``QP.geometry``); without them
 ``IslandPreconditioner.build`` returns None and callers run unpreconditioned.
-
-Blocks of big islands: on smooth surfaces (Saupe RMD, H 0.9, rms slope 0.1) the contact set
-is a few islands of hundreds to thousands of points (1024^2: 11,382 points, the largest
-islands 3,350 and 696; 54 % of the set in islands above 128 points), far above the block
-limit (48 on that set).  Cut into runs of consecutive row-major points, as they once were,
-such an island's blocks are pieces of single grid rows: they hold the coupling along a row
-and none across rows, and CG on the fixed contact set crawled (the default needed 158
-matvecs there, 3.2x the population's median; float64 with the islands alone 157).  Cut by
-the grid into h x w patches (``patch_shape``: h = floor(sqrt(limit)), w = limit // h; 6 x 8
-for 48), every block holds a point's nearest neighbours in both directions: 158 -> 84
-matvecs on that member; on a disk of 1,804 points at 64^2 with 16-point blocks, CG on the
-fixed set needs 35 iterations instead of 66.
 
 Settled sets: the blocks are refactored when the set has drifted by ``REBUILD_FRACTION`` (20 %)
 from the set they were built for -- a cold start's set shrinks by thousands of points an
@@ -85,8 +74,10 @@ from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 
 from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
 from ._farfield import MAX_SET_FRACTION, FarField, build_far_field
+from ._partition import block_width, patches, whole_limit
 
-#: Islands above this many points are cut into strips (keeps a block inverse cheap).
+#: Islands above this many points are cut into patches (keeps a block inverse cheap), but
+#: for the whole islands of solvers/_partition.py.
 MAX_BLOCK = 128
 
 #: Block entries gathered and inverted at a time (bounds the build's temporaries).
@@ -119,12 +110,6 @@ def drifted(S: np.ndarray, reference: np.ndarray | None, fraction: float) -> boo
         return True
     changed, size = read_scalars(np.count_nonzero(S != reference), np.count_nonzero(S))
     return changed > fraction * max(1.0, size)
-
-
-def block_width(sizes: np.ndarray) -> np.ndarray:
-    """Padded block size: powers of two up to 16, then multiples of 16 (little padding)."""
-    small = 1 << np.ceil(np.log2(np.maximum(sizes, 1))).astype(np.int64)
-    return np.where(sizes <= 16, small, 16 * ((sizes + 15) // 16))
 
 
 #: The preconditioners ``make_preconditioner`` knows ("none": no preconditioner; "auto":
@@ -458,7 +443,9 @@ class IslandPreconditioner(_OnesCache):
 
     def _blocks(self, pos: np.ndarray):
         """Yield (m, s) member arrays, one per padded size s (see ``block_width``)."""
-        labels = patches(self._components(pos), self._i[pos], self._j[pos], self._shape, self._limit)
+        islands = self._components(pos)
+        whole = whole_limit(np.bincount(islands), self._limit, BUILD_BUDGET * self._shape[0] * self._shape[1])
+        labels = patches(islands, self._i[pos], self._j[pos], self._shape, self._limit, whole)
         order = np.argsort(labels, kind="stable")  # pos is sorted, so row-major within a block
         labels = labels[order]
         starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
@@ -505,31 +492,6 @@ class IslandPreconditioner(_OnesCache):
             inverse += np.swapaxes(inverse, 1, 2)
             inverse *= 0.5
         return _Bucket(members, inverse, valid, row_sums)
-
-
-def patch_shape(limit: int) -> tuple[int, int]:
-    """Rows and columns of the grid patches a big island is cut into: h = floor(sqrt(limit)),
-    w = limit // h, so a patch holds at most ``limit`` points and is as square as that allows."""
-    h = max(1, int(np.sqrt(limit)))
-    return h, max(1, limit // h)
-
-
-def patches(labels: np.ndarray, i: np.ndarray, j: np.ndarray, shape: tuple[int, int], limit: int) -> np.ndarray:
-    """Block labels of a set's points: the island ``labels`` (one per point, grid row ``i``
-    and column ``j``), with every island above ``limit`` points cut by the grid into
-    ``patch_shape(limit)`` patches (module doc, "Blocks of big islands").  Labels are
-    0..k-1; no block holds more than ``limit`` points."""
-    labels = np.asarray(labels, dtype=np.int64)
-    if labels.size == 0:
-        return labels
-    big = np.bincount(labels)[labels] > limit
-    if not big.any():
-        return labels
-    h, w = patch_shape(limit)
-    cols = -(-shape[1] // w)
-    tiles = (-(-shape[0] // h)) * cols
-    key = np.where(big, labels.max() + 1 + labels * tiles + (i // h) * cols + j // w, labels)
-    return np.unique(key, return_inverse=True)[1].ravel()
 
 
 class FourierPreconditioner(_OnesCache):

@@ -155,7 +155,8 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
     """Polonsky-Keer CCG with the island block-Jacobi preconditioner (solvers/_preconditioners.py):
     the CG direction on the contact set S is z = B_S^-1 r with B_S the blocks of H over the
     8-connected islands of S (cut into compact grid patches of at most 128 points, fewer while the set
-    is large), refactored when S drifts by 20 %; an entering point gets the force
+    is large; islands of up to 512 points whole where the build affords it: solvers/_partition.py),
+    refactored when S drifts by 20 %; an entering point gets the force
     -tau g_j / H_jj (solvers/_ccg.py, "Preconditioned entry"), plus by default the far-field
     coupling between the blocks (solvers/_farfield.py, ``precondition="farfield"``), which
     the loop drops if it stops making progress (solvers/_ccg.py, "Cycling");

@@ -21,11 +21,9 @@ from contactbench.solvers._preconditioners import (
     SETTLED_REBUILD_FRACTION,
     SETTLING_FRACTION,
     IslandPreconditioner,
-    block_width,
     make_preconditioner,
-    patch_shape,
-    patches,
 )
+from contactbench.solvers._partition import block_width, patch_shape, patches
 from contactbench.solvers.base import ParamError, SolverSettings
 from contactbench.solvers.registry import get_solver
 
@@ -567,7 +565,7 @@ def test_polonsky_keer_drops_a_coarse_part_it_stalls_with():
 # -- blocks of big islands ---------------------------------------------------------------
 
 
-def row_strips(labels, i, j, shape, limit):
+def row_strips(labels, i, j, shape, limit, whole=None):
     """The cut the island blocks were once made with: runs of ``limit`` consecutive points
     of an island in row-major order -- on an island wider than ``limit``, a piece of one
     grid row (the counterexample of "Blocks of big islands")."""
