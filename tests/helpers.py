@@ -198,6 +198,25 @@ class MissingStub(ExactStub):
 SWEEP_FACTORS = {"nnls-gp": 1.0, "nnls": 3.0, "pk": 26.0, "greedy-cg": 100.0, "admm": 90.0, "fast-pdas": 0.25}
 
 
+def pcg_iterations(H: np.ndarray, b: np.ndarray, prec, tol: float = 1e-10, max_iter: int = 400) -> int:
+    """Preconditioned CG iterations on the dense SPD system H x = b from 0 until the
+    residual's 2-norm falls by ``tol`` (``prec``: r -> z); ``max_iter`` where it does not."""
+    x, r = np.zeros_like(b), b.copy()
+    z = prec(r)
+    d, rz = z.copy(), r @ z
+    for it in range(1, max_iter):
+        q = H @ d
+        a = rz / (d @ q)
+        x += a * d
+        r -= a * q
+        if np.linalg.norm(r) <= tol * np.linalg.norm(b):
+            return it
+        z = prec(r)
+        rz, rz_old = r @ z, rz
+        d = z + (rz / rz_old) * d
+    return max_iter
+
+
 def report_row(**kw: Any) -> dict[str, Any]:
     """One judged row with every schema column: plausible defaults, ``kw`` on top; a
     skipped row has no figures, and ``correct_claim`` follows status and claim."""

@@ -24,6 +24,7 @@ from contactbench.solvers._preconditioners import (
     make_preconditioner,
 )
 from contactbench.solvers._partition import block_width, patch_shape, patches
+from tests.helpers import pcg_iterations
 from contactbench.solvers.base import ParamError, SolverSettings
 from contactbench.solvers.registry import get_solver
 
@@ -487,22 +488,6 @@ def test_first_nearest_is_the_first_member_at_the_least_distance() -> None:
         order = np.lexsort((dist, agg))
         first = np.r_[True, agg[order][1:] != agg[order][:-1]]
         np.testing.assert_array_equal(_farfield.first_nearest(agg, dist, m), order[first])
-
-def pcg_iterations(H: np.ndarray, b: np.ndarray, prec) -> int:
-    x, r = np.zeros_like(b), b.copy()
-    z = prec(r)
-    d, rz = z.copy(), r @ z
-    for it in range(1, 400):
-        q = H @ d
-        a = rz / (d @ q)
-        x += a * d
-        r -= a * q
-        if np.linalg.norm(r) <= 1e-10 * np.linalg.norm(b):
-            return it
-        z = prec(r)
-        rz, rz_old = r @ z, rz
-        d = z + (rz / rz_old) * d
-    return 400
 
 
 def test_far_field_correction_cuts_the_cg_iterations_on_a_contact_set():
