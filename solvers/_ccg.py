@@ -76,10 +76,11 @@ the rest of the set converges around it with the KKT error frozen at its penetra
 islands of up to 512 points as single blocks (solvers/_partition.py) it happened on one
 population member at 2048^2 (Saupe RMD, H 0.7, rms slope 0.3, seed 0): 140 points at a gap
 of -5e-10 had d_j < 0 for 110 iterations, the error stayed at 1.15e-3, 173 products against
-60 with those islands cut.  So when the error has not moved by 1 % (``STALL_FLAT``) for ``STALL_PATIENCE``
-iterations, those points take the direction of a point alone, -M_solo res_j > 0 (``let_in``):
-a descent direction there, and they enter.  The test never fires on the surface population
-at 512^2 and 1024^2; on that member, 69 products (results/perf/whole-islands).
+60 with those islands cut.  So when the error has not moved by 1 % (``STALL_FLAT``) for
+``STALL_PATIENCE`` iterations, those points take the direction of a point alone,
+-M_solo res_j > 0 (``let_in``): a descent direction there, and they enter.  The test never
+fires on the surface population at 512^2 and 1024^2; on that member, 69 products
+(results/perf/whole-islands).
 
 A warm start's first iterations (Bugnicourt)
 --------------------------------------------
@@ -645,8 +646,9 @@ class FastSolver(Solver):
     def memory_estimate(self, n: int) -> float:
         # Eight vectors; with the island preconditioner, block inverses of up to
         # MAX_BLOCK entries per point of the set (the set can be the whole trial set early),
-        # the whole islands' blocks above that (solvers/_partition.py: sum s^2 <= sum s^3 / 16
-        # <= WHOLE_BUDGET x BUILD_BUDGET / 16 a grid point, counted here a point of the set),
+        # the whole islands' blocks above that (solvers/_partition.py: their entries, sum s^2,
+        # are at most sum s^3 / 16 <= WHOLE_BUDGET x BUILD_BUDGET / 16 a grid point; taken
+        # here per unknown),
         # and the far field's m x m matrices (solvers/_farfield.py).
         entries = MAX_BLOCK + WHOLE_BUDGET * BUILD_BUDGET / 16
         blocks = 8.0 * entries * n + 3 * 8.0 * MAX_AGGREGATES**2 if self.uses_islands() else 0.0
