@@ -33,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface_population as bp  # noqa: E402
 
 from contactbench.harness import get_profile, solve_sequence  # noqa: E402
+from contactbench.solvers._kit import conjugate_gradient  # noqa: E402
 from contactbench.solvers._preconditioners import make_preconditioner  # noqa: E402
 from contactbench.solvers.base import SolverSettings  # noqa: E402
 
@@ -52,25 +53,15 @@ class SetFindingRow:
 
 def fixed_set_cg(qp, S: np.ndarray, reduction: float, max_iter: int = 1000) -> int:
     """CG iterations on H_SS p = ubar_S from 0 until the max-norm residual falls by
-    ``reduction`` (module doc); ``max_iter`` where it does not."""
+    ``reduction`` (module doc; ``_kit.conjugate_gradient``); ``max_iter`` where it does not."""
     M = make_preconditioner("farfield", qp)
     M.far_fraction = 1.0  # the far field on S whatever its share of the trial set
     M.update(S)
     b = np.where(S, qp.ubar, 0.0)
-    x, r = np.zeros(qp.n), b.copy()
-    z = np.where(S, M.apply(r), 0.0)
-    d, rz, r0 = z.copy(), float(r @ z), float(np.abs(r).max())
-    for k in range(1, max_iter + 1):
-        q = np.where(S, qp.H.matvec(d), 0.0)
-        a = rz / float(d @ q)
-        x += a * d
-        r -= a * q
-        if float(np.abs(r).max()) <= reduction * r0:
-            return k
-        z = np.where(S, M.apply(r), 0.0)
-        rz, rz_old = float(r @ z), rz
-        d = z + (rz / rz_old) * d
-    return max_iter
+    run = conjugate_gradient(lambda d: np.where(S, qp.H.matvec(d), 0.0), b, None,
+                             atol=reduction * float(np.abs(b).max()), max_iter=max_iter,
+                             precond=lambda r: np.where(S, M.apply(r), 0.0))
+    return run.iterations
 
 
 def measure(m: bp.Member, reduction: float) -> SetFindingRow:
