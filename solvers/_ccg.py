@@ -82,6 +82,15 @@ of -5e-10 had d_j < 0 for 110 iterations, the error stayed at 1.15e-3, 173 produ
 fires on the surface population at 512^2 and 1024^2; on that member, 69 products
 (results/perf/whole-islands).
 
+A refactored preconditioner (Bugnicourt)
+----------------------------------------
+Polak-Ribiere's beta joins z = M^-1 res to the last direction, which the last M shaped.  The
+island preconditioner refactors its blocks when the free set drifts and rebuilds its far
+field (solvers/_farfield.py), and M^-1 is then another operator.  So when M's ``version``
+has changed since the last direction, the loop restarts along -z.  On the surface
+population's slowest members at 1024^2 (H 0.9), 3-4 fewer products; the median the same
+(results/perf/refactored-restart).
+
 A warm start's first iterations (Bugnicourt)
 --------------------------------------------
 A warm start is the answer of a nearby problem: on a load sweep, the previous step's, under
@@ -501,6 +510,7 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
     penetrating = penetrating_count(state) if hold else 0
     res = held_residual(state) if hold else dual_residual(state, u)
     d = inward(-precondition_on(M, res, res != 0.0), state, res, u)
+    version = version_of(M)
     run = CCGRun(0, np.inf, False)
     flat, last = 0, math.inf  # iterations with the KKT error within STALL_FLAT of the last
     for it in range(1, max_iter + 1):
@@ -528,15 +538,21 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
             hold = now < HOLD_SHEDDING * penetrating and it < HOLD_MAX
             released, penetrating = not hold, now
         res = held_residual(state) if hold else dual_residual(state, u)
-        # a new stage (solvers/_opening.py) or the hold's end: restart along -z
+        # a new stage (solvers/_opening.py), the hold's end or new factors: restart along -z
         staged = (M is not None and M.progress(run.kkt)) or released
         z = precondition_on(M, res, res != 0.0)
-        beta = 0.0 if staged else polak_ribiere(z, res, res_old, alpha * dHd)
+        refactored, version = version_of(M) != version, version_of(M)
+        beta = 0.0 if staged or refactored else polak_ribiere(z, res, res_old, alpha * dHd)
         conjugate(d, z, beta)
         if flat >= STALL_PATIENCE and let_in(d, state, res, M):
             flat = 0
         inward(d, state, res, u)
     return CCGRun(max_iter, run.kkt, False)
+
+
+def version_of(M: SetPreconditioner | None) -> int:
+    """``SetPreconditioner.version`` (0 without a preconditioner)."""
+    return 0 if M is None else M.version
 
 
 def let_in(d: np.ndarray, state: GapState, res: np.ndarray, M: SetPreconditioner | None) -> bool:

@@ -119,6 +119,10 @@ class StagedPreconditioner:
         return self.first.builds + self.then.builds
 
     @property
+    def version(self) -> int:
+        return self.first.version + self.then.version
+
+    @property
     def opening(self) -> bool:
         """Whether the first stage is still on."""
         return self.now is self.first

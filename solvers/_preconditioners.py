@@ -217,6 +217,10 @@ class SetPreconditioner(Protocol):
     ``solo``: z_j = m_j r_j, what M^-1 does to each point j as a one-point set."""
 
     builds: int
+    #: Changes whenever M^-1 itself changes beyond its restriction to a new set (a block
+    #: factorisation, a far-field build): the Bugnicourt loop restarts its conjugacy then
+    #: (solvers/_ccg.py, "A refactored preconditioner").
+    version: int
 
     @property
     def on(self) -> np.ndarray: ...
@@ -307,6 +311,7 @@ class IslandPreconditioner(_OnesCache):
         #: The far field is built on sets of at most this fraction of the unknowns.
         self.far_fraction = MAX_SET_FRACTION
         self.builds = 0
+        self.version = 0
 
     @classmethod
     def build(cls, qp: QP, max_block: int | None = None, dtype: type = np.float64,
@@ -333,6 +338,7 @@ class IslandPreconditioner(_OnesCache):
         if drifted(S, self._built, limit):
             self._forget_ones()
             self.builds += 1
+            self.version += 1
             self._built = S.copy()
             pos = self._pos
             self._limit = self.block_limit(pos.size)
@@ -347,6 +353,7 @@ class IslandPreconditioner(_OnesCache):
         ``farfield.REBUILD_FRACTION`` from the set it was built for, or the blocks changed."""
         if not drifted(S, self._far_set, FAR_REBUILD_FRACTION):
             return
+        had = self._far is not None
         self._far, self._far_set = None, S.copy()
         self._forget_ones()
         lead = np.arange(self.n)
@@ -362,6 +369,7 @@ class IslandPreconditioner(_OnesCache):
         v = self.apply(ones)
         budget = BUILD_BUDGET * self._shape[0] * self._shape[1]
         self._far = build_far_field(self.H, self._i, self._j, self._pos, lead, v, sums, budget, self.far_fraction)
+        self.version += had or self._far is not None
 
     def block_limit(self, size: int) -> int:
         """The largest block for a build on ``size`` points: s with s^2 size <= BUILD_BUDGET
@@ -410,6 +418,7 @@ class IslandPreconditioner(_OnesCache):
         """Drop the far-field correction (the island blocks stay); True when there was one."""
         had = self.far_field
         self._forget_ones()
+        self.version += self._far is not None
         self.far_field, self._far, self._far_set = False, None, None
         return had
 
@@ -511,6 +520,7 @@ class FourierPreconditioner(_OnesCache):
         self._on = space.xp.zeros(int(np.asarray(grid_idx).size), dtype=bool)
         self._solo: float | None = None
         self.builds = 0
+        self.version = 0  # no factors
 
     @classmethod
     def build(cls, qp: QP, space: ArraySpace = HOST, dtype: type = np.float64) -> FourierPreconditioner | None:
