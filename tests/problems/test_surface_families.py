@@ -189,9 +189,10 @@ def old_inward(d, state, res, upper=None):
     return d
 
 
-#: A measured-like 128^2 map on which the old rule kept clipping the same points (old:
-#: 35 / 36 matvecs in mixed / double, now 23 / 21), and the bound with margin.
-STALL_CASE_BOUND = 30
+#: A measured-like 128^2 map on which the old rule kept clipping the same points (old, and no
+#: restart on new factors: 31 / 32 matvecs in mixed / double; now 22 / 22, and 23 / 21 without
+#: those restarts), and a bound between them with a margin of four.
+STALL_CASE_BOUND = 27
 
 
 @pytest.mark.parametrize("precision", ["mixed", "double"])
@@ -203,6 +204,11 @@ def test_constructed_case_converges_within_its_matvec_bound(precision, monkeypat
     settings = SolverSettings(tol=1e-9, params={"precision": precision, "opening": "none"})
     res = solver.solve(inst.qp, settings)
     assert res.converged and res.matvecs <= STALL_CASE_BOUND
+    # Restarts on new factors (solvers/_ccg.py, "A refactored preconditioner") break the
+    # old rule's clipping cycle on this case too; without them the rule alone must hold.
+    monkeypatch.setattr(_ccg, "version_of", lambda M: 0)
+    alone = solver.solve(inst.qp, settings)
+    assert alone.converged and alone.matvecs <= STALL_CASE_BOUND
     monkeypatch.setattr(_ccg, "inward", old_inward)
     old = solver.solve(inst.qp, settings)
     assert old.matvecs > STALL_CASE_BOUND  # the case still tells the two rules apart

@@ -125,6 +125,10 @@ class _KeepsOut:
     def builds(self) -> int:
         return self.inner.builds
 
+    @property
+    def version(self) -> int:
+        return self.inner.version
+
     def update(self, S):
         self.inner.update(S)
 
