@@ -80,7 +80,9 @@ of -5e-10 had d_j < 0 for 110 iterations, the error stayed at 1.15e-3, 173 produ
 ``STALL_PATIENCE`` iterations, those points take the direction of a point alone,
 -M_solo res_j > 0 (``let_in``): a descent direction there, and they enter.  The test never
 fires on the surface population at 512^2 and 1024^2; on that member, 69 products
-(results/perf/whole-islands).
+(results/perf/whole-islands).  Under load control a direction must keep the load, so
+``_constrained.bugnicourt_load`` has no ``let_in``: its stagnation test hands such a frozen
+run to the exact finish (solvers/_finish.py), which converges.
 
 A refactored preconditioner (Bugnicourt)
 ----------------------------------------

@@ -167,3 +167,52 @@ def test_bugnicourt_lets_in_the_points_its_direction_keeps_out(monkeypatch):
     monkeypatch.setattr(_ccg, "STALL_PATIENCE", 10**9)  # never let them in
     kept_out, state = run(400)
     assert not kept_out.converged and kept_out.kkt > 1e-6
+
+
+class _KeepsOutUnderLoad(_KeepsOut):
+    """``_KeepsOut`` with what the load-controlled loop also asks of a preconditioner."""
+
+    def ones(self):
+        return self.inner.ones()
+
+    def solo(self, r):
+        return self.inner.solo(r)
+
+    def progress(self, kkt: float) -> bool:
+        return False
+
+
+def test_load_controlled_bugnicourt_finishes_past_the_points_kept_out(monkeypatch):
+    """Under load control the loop has no ``let_in`` (a direction there must keep the load);
+    its stagnation test hands a frozen run to the exact finish (solvers/_finish.py), which
+    converges where the lying preconditioner keeps points out."""
+    from contactbench.solvers import _constrained
+    from contactbench.solvers._constrained import bugnicourt_load
+
+    s = rmd_surface_n(33, 0.7, length=100e-6, seed=4)
+    b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
+    disp = b.build(2.0 * paper_max_displacement(s)).qp
+    ctx = SolveContext(qp=disp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
+                       trace=Trace(), diag_max=float(np.max(disp.H.diagonal())))
+    state = GapState(disp.H, disp.ubar, np.zeros(disp.n))
+    assert bugnicourt(ctx, state).converged
+    inst = b.build_load(float(np.sum(state.p)))  # the load that approach carries
+    qp = inst.qp
+
+    def run():
+        state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
+        ctx = SolveContext(qp=qp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
+                           trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+        return bugnicourt_load(ctx, state, _KeepsOutUnderLoad(qp, state)), state
+
+    done, state = run()
+    assert done.converged and done.finish_rounds >= 1
+    assert kkt_check(inst, state.p, multiplier=done.multiplier).kkt_error <= 1e-8
+
+    class Never(_constrained.Stagnation):
+        def stuck(self, kkt: float) -> bool:
+            return False
+
+    monkeypatch.setattr(_constrained, "Stagnation", Never)  # no finish: the run stays frozen
+    frozen, _ = run()
+    assert not frozen.converged and frozen.kkt > 1e-6
