@@ -1,0 +1,225 @@
+"""Exploration (the held-out worst member's products): how many CG iterations a deflated
+two-level preconditioner would take on a solve's final contact set, against the default
+island blocks and far field.
+
+For each member (keys of bench_surface_population.py) this solves the cold top step with
+``fast-dual-pccg``'s defaults, takes the answer's contact set S, and runs preconditioned CG
+(``_kit.conjugate_gradient``) on H_SS p = ubar_S from 0 until the max-norm residual falls by
+1e-9, as bench_set_finding.py does, with:
+
+* ``default``: ``make_preconditioner("farfield")`` on S -- the island blocks B and the far
+  field's Woodbury correction (solvers/_farfield.py);
+* ``bnn blocks``: the balancing (BNN) form of deflation, z = P' B^-1 P r + Q r, with
+  Q = Z E^-1 Z', P = I - AZ E^-1 Z', E = Z' AZ, Z the far field's aggregates (T x T tiles,
+  whole blocks) -- symmetric for any AZ, so a projected loop's changing residual keeps it
+  valid, unlike A-DEF2, which needs its start;
+* ``bnn overlap``: the same over additive Schwarz blocks, each island block grown by one
+  ring of its grid neighbours in S (the Woodbury form cannot take overlapping blocks);
+* with AZ exact (one product per aggregate: ``--exact``) or approximated: exact sums over
+  the aggregate's members for the points within ``--near`` tiles of its centroid, a point
+  mass |a| H(x_i, c_a) beyond (what a build could afford).
+
+Not a solver: AZ is an |S| x m dense array, and the overlapping blocks are factored one by
+one.  Usage:
+  python benchmarks/explore_deflation.py saupe:1024:0.9:0.1:3 periodic:1024:0.9:0.1:6 [--exact]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_surface_population as bp  # noqa: E402
+
+from contactbench.harness import get_profile, solve_sequence  # noqa: E402
+from contactbench.solvers._farfield import tile_size  # noqa: E402
+from contactbench.solvers._kit import conjugate_gradient  # noqa: E402
+from contactbench.solvers._preconditioners import IslandPreconditioner, make_preconditioner  # noqa: E402
+from contactbench.solvers.base import SolverSettings  # noqa: E402
+
+Map = Callable[[np.ndarray], np.ndarray]
+NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
+
+
+def cg_iterations(qp, S: np.ndarray, precond: Map, reduction: float = 1e-9) -> int:
+    b = np.where(S, qp.ubar, 0.0)
+    run = conjugate_gradient(lambda d: np.where(S, qp.H.matvec(d), 0.0), b, None,
+                             atol=reduction * float(np.abs(b).max()), max_iter=500,
+                             precond=lambda r: np.where(S, precond(r), 0.0))
+    return run.iterations
+
+
+def island_blocks(M: IslandPreconditioner) -> list[np.ndarray]:
+    """The positions of each block M built, and each point of its set outside them alone."""
+    blocks = [members[valid] for b in M._buckets for members, valid in zip(b.members, b.valid)]
+    covered = np.zeros(M.n, dtype=bool)
+    for blk in blocks:
+        covered[blk] = True
+    return blocks + [np.array([k]) for k in M._pos[~covered[M._pos]]]
+
+
+def one_ring(M: IslandPreconditioner, S: np.ndarray, block: np.ndarray) -> np.ndarray:
+    """``block`` and its grid neighbours (8-connected) in S."""
+    rows, cols = M._i[block], M._j[block]
+    grown = [block]
+    for di, dj in NEIGHBOURS:
+        ii, jj = rows + di, cols + dj
+        ok = (ii >= 0) & (ii < M._shape[0]) & (jj >= 0) & (jj < M._shape[1])
+        where = M._where[ii[ok] * M._shape[1] + jj[ok]]
+        grown.append(where[(where >= 0) & S[np.maximum(where, 0)]])
+    return np.unique(np.concatenate(grown))
+
+
+def schwarz(qp, blocks: list[np.ndarray]) -> Map:
+    """Additive Schwarz: sum over the (overlapping) blocks of R' H_bb^-1 R r."""
+    inverses = [np.linalg.inv(qp.H.submatrix(b, b)) for b in blocks]
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        z = np.zeros_like(r)
+        for b, inv in zip(blocks, inverses):
+            z[b] += inv @ r[b]
+        return z
+
+    return apply
+
+
+def approximate_AZ(qp, M: IslandPreconditioner, pos: np.ndarray, agg: np.ndarray, m: int, tile: int,
+                   near: float) -> np.ndarray:
+    """AZ on S: exact member sums within ``near`` tiles of each aggregate's centroid, a
+    point mass at its member nearest the centroid beyond."""
+    i, j = M._i[pos].astype(float), M._j[pos].astype(float)
+    count = np.bincount(agg, minlength=m).astype(float)
+    ci, cj = np.bincount(agg, weights=i, minlength=m) / count, np.bincount(agg, weights=j, minlength=m) / count
+    AZ = np.empty((pos.size, m))
+    for a in range(m):
+        members = np.flatnonzero(agg == a)
+        rep = pos[members[np.argmin((i[members] - ci[a]) ** 2 + (j[members] - cj[a]) ** 2)]]
+        close = np.hypot(i - ci[a], j - cj[a]) <= near * tile
+        AZ[close, a] = qp.H.submatrix(pos[close], pos[members]).sum(axis=1)
+        far = np.flatnonzero(~close)
+        AZ[far, a] = count[a] * qp.H.entries(pos[far], np.full(far.size, rep))
+    return AZ
+
+
+def exact_AZ(qp, pos: np.ndarray, agg: np.ndarray, m: int) -> np.ndarray:
+    AZ = np.empty((pos.size, m))
+    for a in range(m):
+        e = np.zeros(qp.n)
+        e[pos[agg == a]] = 1.0
+        AZ[:, a] = qp.H.matvec(e)[pos]
+    return AZ
+
+
+def balancing(pos: np.ndarray, agg: np.ndarray, AZ: np.ndarray, inner: Map) -> Map:
+    """z = P' inner(P r) + Q r (module doc), on the positions ``pos``."""
+    m = AZ.shape[1]
+    E = np.zeros((m, m))
+    np.add.at(E, agg, AZ)  # Z' AZ
+    Einv = np.linalg.inv(0.5 * (E + E.T))
+
+    def coarse(x: np.ndarray) -> np.ndarray:  # E^-1 Z' x
+        return Einv @ np.bincount(agg, weights=x, minlength=m)
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        rs = r[pos]
+        c = coarse(rs)
+        Pr = np.zeros_like(r)
+        Pr[pos] = rs - AZ @ c
+        y = inner(Pr)[pos]
+        z = np.zeros_like(r)
+        z[pos] = y - (Einv @ (AZ.T @ y))[agg] + c[agg]
+        return z
+
+    return apply
+
+
+def balancing_dense(pos: np.ndarray, Z: np.ndarray, AZ: np.ndarray, inner: Map) -> Map:
+    """``balancing`` with a dense coarse basis Z (|S| x m) and AZ = H_SS Z."""
+    E = Z.T @ AZ
+    Einv = np.linalg.inv(0.5 * (E + E.T))
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        rs = r[pos]
+        c = Einv @ (Z.T @ rs)
+        Pr = np.zeros_like(r)
+        Pr[pos] = rs - AZ @ c
+        y = inner(Pr)[pos]
+        z = np.zeros_like(r)
+        z[pos] = y - Z @ (Einv @ (AZ.T @ y)) + Z @ c
+        return z
+
+    return apply
+
+
+def smoothed_basis(qp, pos: np.ndarray, agg: np.ndarray, AZ: np.ndarray, smoother: Map,
+                   omega: float) -> tuple[np.ndarray, np.ndarray]:
+    """Z_s = Z - omega B^-1 AZ (the aggregates smoothed once by the island blocks) and
+    H_SS Z_s, one product per column (exact)."""
+    m = AZ.shape[1]
+    Zs = np.zeros((pos.size, m))
+    Zs[np.arange(pos.size), agg] = 1.0
+    AZs = np.empty_like(Zs)
+    for a in range(m):
+        col = np.zeros(qp.n)
+        col[pos] = AZ[:, a]
+        Zs[:, a] -= omega * smoother(col)[pos]
+        full = np.zeros(qp.n)
+        full[pos] = Zs[:, a]
+        AZs[:, a] = qp.H.matvec(full)[pos]
+    return Zs, AZs
+
+
+def explore(key: str, exact: bool, near: float) -> None:
+    inst, _ = bp.top_step(bp.Member.parse(key))
+    qp = inst.qp
+    prof = get_profile("high")
+    (step,) = solve_sequence("fast-dual-pccg", [inst], SolverSettings(tol=prof.tol), warm=False,
+                             check_tol=prof.check_tol)
+    S = step.result.p > 0.0
+    pos = np.flatnonzero(S)
+    far = make_preconditioner("farfield", qp)
+    far.far_fraction = 1.0
+    far.update(S)
+    blocks_only = make_preconditioner("islands", qp)
+    blocks_only.update(S)
+    agg = far._far.aggregate[pos]
+    m = int(agg.max()) + 1
+    tile = tile_size(far._i[pos], far._j[pos])
+    print(f"{key}: |S| {pos.size}, trial set {qp.n}, solve {step.result.matvecs} products, "
+          f"{m} aggregates on {tile} x {tile} tiles")
+    print(f"  default (blocks + far field): {cg_iterations(qp, S, far.apply)}")
+    print(f"  blocks alone: {cg_iterations(qp, S, blocks_only.apply)}")
+    overlap = schwarz(qp, [one_ring(blocks_only, S, b) for b in island_blocks(blocks_only)])
+    print(f"  one-ring overlapping blocks alone: {cg_iterations(qp, S, overlap)}")
+    kinds = [("approximated", approximate_AZ(qp, far, pos, agg, m, tile, near))]
+    if exact:
+        kinds.insert(0, ("exact", exact_AZ(qp, pos, agg, m)))
+    for name, AZ in kinds:
+        print(f"  bnn blocks, AZ {name}: {cg_iterations(qp, S, balancing(pos, agg, AZ, blocks_only.apply))}")
+        print(f"  bnn overlap, AZ {name}: {cg_iterations(qp, S, balancing(pos, agg, AZ, overlap))}")
+    if exact:
+        for omega in (0.5, 1.0):
+            Zs, AZs = smoothed_basis(qp, pos, agg, kinds[0][1], blocks_only.apply, omega)
+            print(f"  bnn overlap, smoothed aggregates (omega {omega}, exact): "
+                  f"{cg_iterations(qp, S, balancing_dense(pos, Zs, AZs, overlap))}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("members", nargs="+", help="member keys, e.g. saupe:1024:0.9:0.1:3")
+    ap.add_argument("--exact", action="store_true", help="also AZ exact, one product per aggregate")
+    ap.add_argument("--near", type=float, default=1.5, help="exact sums within this many tiles (default 1.5)")
+    args = ap.parse_args()
+    if args.near <= 0.0:
+        ap.exit(2, "explore_deflation: --near must be > 0\n")
+    for key in args.members:
+        explore(key, args.exact, args.near)
+
+
+if __name__ == "__main__":
+    main()
