@@ -17,19 +17,28 @@ For each member (keys of bench_surface_population.py) this solves the cold top s
   ring of its grid neighbours in S (the Woodbury form cannot take overlapping blocks);
 * with AZ exact (one product per aggregate: ``--exact``) or approximated: exact sums over
   the aggregate's members for the points within ``--near`` tiles of its centroid, a point
-  mass |a| H(x_i, c_a) beyond (what a build could afford).
+  mass |a| H(x_i, c_a) beyond (what a build could afford); with ``--exact`` also the
+  aggregates smoothed once by the blocks, Z_s = Z - omega B^-1 AZ, and H Z_s exact.
+
+``--point-tiles T ...`` adds a table of the balancing deflation with Z the points' own T x T
+tiles (aggregates may split blocks, which the Woodbury form cannot take), over three kinds of
+blocks: today's (islands above ``_partition.WHOLE_ISLAND`` points cut into patches), patches
+of up to 512 points (the build budget lifted), and every island whole (a dense block each:
+slow where islands hold thousands of points).
 
 Not a solver: AZ is an |S| x m dense array, and the overlapping blocks are factored one by
 one.  Usage:
   python benchmarks/explore_deflation.py saupe:1024:0.9:0.1:3 periodic:1024:0.9:0.1:6 [--exact]
+      [--point-tiles 16 8]
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -37,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface_population as bp  # noqa: E402
 
 from contactbench.harness import get_profile, solve_sequence  # noqa: E402
+from contactbench.solvers import _partition, _preconditioners  # noqa: E402
 from contactbench.solvers._farfield import tile_size  # noqa: E402
 from contactbench.solvers._kit import conjugate_gradient  # noqa: E402
 from contactbench.solvers._preconditioners import IslandPreconditioner, make_preconditioner  # noqa: E402
@@ -174,7 +184,7 @@ def smoothed_basis(qp, pos: np.ndarray, agg: np.ndarray, AZ: np.ndarray, smoothe
     return Zs, AZs
 
 
-def explore(key: str, exact: bool, near: float) -> None:
+def explore(key: str, exact: bool, near: float, tiles: list[int]) -> None:
     inst, _ = bp.top_step(bp.Member.parse(key))
     qp = inst.qp
     prof = get_profile("high")
@@ -207,6 +217,50 @@ def explore(key: str, exact: bool, near: float) -> None:
             Zs, AZs = smoothed_basis(qp, pos, agg, kinds[0][1], blocks_only.apply, omega)
             print(f"  bnn overlap, smoothed aggregates (omega {omega}, exact): "
                   f"{cg_iterations(qp, S, balancing_dense(pos, Zs, AZs, overlap))}")
+    if tiles:
+        point_tiles(qp, S, tiles, near)
+
+
+#: The blocks under the point-tile deflation: module constants to set while they are built.
+BLOCK_KINDS = {
+    "today's": {},
+    "patches of up to 512 points": {(_preconditioners, "BUILD_BUDGET"): 1e4, (_preconditioners, "MAX_BLOCK"): 512},
+    "every island whole": {(_partition, "WHOLE_ISLAND"): 10**6, (_partition, "WHOLE_BUDGET"): 1e12,
+                           (_partition, "WHOLE_SHARE"): 1.0},
+}
+
+
+@contextmanager
+def patched(values: dict) -> Iterator[None]:
+    saved = {key: getattr(*key) for key in values}
+    for (module, name), value in values.items():
+        setattr(module, name, value)
+    try:
+        yield
+    finally:
+        for (module, name), value in saved.items():
+            setattr(module, name, value)
+
+
+def point_tiles(qp, S: np.ndarray, tiles: list[int], near: float) -> None:
+    """The ``--point-tiles`` table (module doc) for the set S."""
+    pos = np.flatnonzero(S)
+    print("  | blocks | default | blocks alone | " + " | ".join(f"bnn, {T} x {T} point tiles" for T in tiles) + " |")
+    for kind, values in BLOCK_KINDS.items():
+        with patched(values):
+            blocks = IslandPreconditioner.build(qp, max_block=_preconditioners.MAX_BLOCK)
+            blocks.update(S)
+            far = IslandPreconditioner.build(qp, max_block=_preconditioners.MAX_BLOCK, far_field=True)
+            far.far_fraction = 1.0
+            far.update(S)
+        cells = [cg_iterations(qp, S, far.apply), cg_iterations(qp, S, blocks.apply)]
+        for T in tiles:
+            i, j = blocks._i[pos], blocks._j[pos]
+            agg = np.unique((i // T) * (1 << 32) + j // T, return_inverse=True)[1].ravel()
+            m = int(agg.max()) + 1
+            AZ = approximate_AZ(qp, blocks, pos, agg, m, T, near)
+            cells.append(cg_iterations(qp, S, balancing(pos, agg, AZ, blocks.apply)))
+        print(f"  | {kind} | " + " | ".join(str(c) for c in cells) + " |", flush=True)
 
 
 def main() -> None:
@@ -214,11 +268,12 @@ def main() -> None:
     ap.add_argument("members", nargs="+", help="member keys, e.g. saupe:1024:0.9:0.1:3")
     ap.add_argument("--exact", action="store_true", help="also AZ exact, one product per aggregate")
     ap.add_argument("--near", type=float, default=1.5, help="exact sums within this many tiles (default 1.5)")
+    ap.add_argument("--point-tiles", type=int, nargs="*", default=[], help="tile sides T of the point-tile table")
     args = ap.parse_args()
-    if args.near <= 0.0:
-        ap.exit(2, "explore_deflation: --near must be > 0\n")
+    if args.near <= 0.0 or any(T < 1 for T in args.point_tiles):
+        ap.exit(2, "explore_deflation: --near must be > 0 and --point-tiles >= 1\n")
     for key in args.members:
-        explore(key, args.exact, args.near)
+        explore(key, args.exact, args.near, args.point_tiles)
 
 
 if __name__ == "__main__":
