@@ -273,6 +273,11 @@ def main() -> None:
     if args.near <= 0.0 or any(T < 1 for T in args.point_tiles):
         ap.exit(2, "explore_deflation: --near must be > 0 and --point-tiles >= 1\n")
     for key in args.members:
+        try:
+            bp.Member.parse(key)
+        except ValueError as err:
+            ap.exit(2, f"explore_deflation: member {key!r} is not family:size:hurst:rms-slope:seed ({err})\n")
+    for key in args.members:
         explore(key, args.exact, args.near, args.point_tiles)
 
 
