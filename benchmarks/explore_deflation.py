@@ -26,10 +26,18 @@ blocks: today's (islands above ``_partition.WHOLE_ISLAND`` points cut into patch
 of up to 512 points (the build budget lifted), and every island whole (a dense block each:
 slow where islands hold thousands of points).
 
+``--inner K ...`` adds, under the same deflation on the first ``--point-tiles`` T, blocks
+that approximate every island's exact solve: islands of up to ``_partition.WHOLE_ISLAND``
+points whole (the whole-island budgets lifted), and on each bigger island K iterations of
+PCG on H_II with today's patch blocks (``_kit.conjugate_gradient`` from 0; its products
+restricted to the island, so on the island's padded bounding box they would cost that box's
+share of a product).  Printed: the outer iterations, and outer x (1 + K x the boxes' share of
+the padded grid) -- the work in products.
+
 Not a solver: AZ is an |S| x m dense array, and the overlapping blocks are factored one by
 one.  Usage:
   python benchmarks/explore_deflation.py saupe:1024:0.9:0.1:3 periodic:1024:0.9:0.1:6 [--exact]
-      [--point-tiles 16 8]
+      [--point-tiles 16 8] [--inner 2 3]
 """
 
 from __future__ import annotations
@@ -184,7 +192,7 @@ def smoothed_basis(qp, pos: np.ndarray, agg: np.ndarray, AZ: np.ndarray, smoothe
     return Zs, AZs
 
 
-def explore(key: str, exact: bool, near: float, tiles: list[int]) -> None:
+def explore(key: str, exact: bool, near: float, tiles: list[int], inners: list[int]) -> None:
     inst, _ = bp.top_step(bp.Member.parse(key))
     qp = inst.qp
     prof = get_profile("high")
@@ -219,12 +227,15 @@ def explore(key: str, exact: bool, near: float, tiles: list[int]) -> None:
                   f"{cg_iterations(qp, S, balancing_dense(pos, Zs, AZs, overlap))}")
     if tiles:
         point_tiles(qp, S, tiles, near)
+    if inners:
+        inner_table(qp, S, (tiles or [8])[0], inners, near)
 
 
 #: The blocks under the point-tile deflation: module constants to set while they are built.
 BLOCK_KINDS = {
     "today's": {},
     "patches of up to 512 points": {(_preconditioners, "BUILD_BUDGET"): 1e4, (_preconditioners, "MAX_BLOCK"): 512},
+    "islands up to WHOLE_ISLAND whole": {(_partition, "WHOLE_BUDGET"): 1e12, (_partition, "WHOLE_SHARE"): 1.0},
     "every island whole": {(_partition, "WHOLE_ISLAND"): 10**6, (_partition, "WHOLE_BUDGET"): 1e12,
                            (_partition, "WHOLE_SHARE"): 1.0},
 }
@@ -263,22 +274,68 @@ def point_tiles(qp, S: np.ndarray, tiles: list[int], near: float) -> None:
         print(f"  | {kind} | " + " | ".join(str(c) for c in cells) + " |", flush=True)
 
 
+def island_solves(qp, S: np.ndarray, K: int) -> tuple[Map, float]:
+    """The ``--inner`` blocks (module doc) on S, and the padded bounding boxes' share of the
+    padded grid over the islands above ``WHOLE_ISLAND`` points."""
+    with patched(BLOCK_KINDS["islands up to WHOLE_ISLAND whole"]):
+        blocks = make_preconditioner("islands", qp)
+        blocks.update(S)
+    pos = np.flatnonzero(S)
+    islands = blocks._components(pos)
+    sizes = np.bincount(islands)
+    big = [pos[islands == c] for c in np.flatnonzero(sizes > _partition.WHOLE_ISLAND)]
+    i, j = blocks._i, blocks._j
+    share = sum(float((np.ptp(i[b]) + 1) * (np.ptp(j[b]) + 1)) for b in big) / float(np.prod(blocks._shape))
+    masks = []
+    for b in big:
+        mask = np.zeros(qp.n, dtype=bool)
+        mask[b] = True
+        masks.append(mask)
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        z = blocks.apply(r)
+        for b, mask in zip(big, masks):
+            run = conjugate_gradient(lambda d, mask=mask: np.where(mask, qp.H.matvec(d), 0.0), np.where(mask, r, 0.0),
+                                     None, atol=0.0, max_iter=K, precond=lambda v, mask=mask: np.where(mask, blocks.apply(v), 0.0))
+            z[b] = run.x[b]
+        return z
+
+    return apply, share
+
+
+def inner_table(qp, S: np.ndarray, T: int, inners: list[int], near: float) -> None:
+    """The ``--inner`` rows (module doc) for the set S under the deflation on T x T point tiles."""
+    pos = np.flatnonzero(S)
+    grid = make_preconditioner("islands", qp)
+    i, j = grid._i[pos], grid._j[pos]
+    agg = np.unique((i // T) * (1 << 32) + j // T, return_inverse=True)[1].ravel()
+    m = int(agg.max()) + 1
+    AZ = approximate_AZ(qp, grid, pos, agg, m, T, near)
+    for K in inners:
+        apply, share = island_solves(qp, S, K)
+        outer = cg_iterations(qp, S, balancing(pos, agg, AZ, apply))
+        print(f"  bnn on {T} x {T} point tiles, islands whole up to {_partition.WHOLE_ISLAND} points and {K} inner "
+              f"iterations on the bigger ones (their boxes: {share:.3f} of the grid): {outer} outer, "
+              f"{outer * (1 + K * share):.1f} products' work", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("members", nargs="+", help="member keys, e.g. saupe:1024:0.9:0.1:3")
     ap.add_argument("--exact", action="store_true", help="also AZ exact, one product per aggregate")
     ap.add_argument("--near", type=float, default=1.5, help="exact sums within this many tiles (default 1.5)")
     ap.add_argument("--point-tiles", type=int, nargs="*", default=[], help="tile sides T of the point-tile table")
+    ap.add_argument("--inner", type=int, nargs="*", default=[], help="inner iterations K on the big islands")
     args = ap.parse_args()
-    if args.near <= 0.0 or any(T < 1 for T in args.point_tiles):
-        ap.exit(2, "explore_deflation: --near must be > 0 and --point-tiles >= 1\n")
+    if args.near <= 0.0 or any(T < 1 for T in args.point_tiles) or any(K < 1 for K in args.inner):
+        ap.exit(2, "explore_deflation: --near must be > 0, --point-tiles and --inner >= 1\n")
     for key in args.members:
         try:
             bp.Member.parse(key)
         except ValueError as err:
             ap.exit(2, f"explore_deflation: member {key!r} is not family:size:hurst:rms-slope:seed ({err})\n")
     for key in args.members:
-        explore(key, args.exact, args.near, args.point_tiles)
+        explore(key, args.exact, args.near, args.point_tiles, args.inner)
 
 
 if __name__ == "__main__":
