@@ -6,7 +6,8 @@
   the repository on ``PYTHONPATH`` registers them too) and ``DummySolver`` (not
   registered: tests register and unregister it);
 * a fabricated tidy table for the report tests (``fabricate_table``, ``report_row``,
-  ``trace_json``, ``write_out``).
+  ``trace_json``, ``write_out``);
+* ``loop_context``: the solve context the tests hand a solver loop directly.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
+from contactbench.solvers.base import Deadline, Trace
 from contactbench.harness.cli import main as cli_main
 
 TESTS = Path(__file__).resolve().parent
@@ -196,6 +198,13 @@ class MissingStub(ExactStub):
 
 # Time factors against NNLS+GP in the fabricated paper-sweep (the paper's claims).
 SWEEP_FACTORS = {"nnls-gp": 1.0, "nnls": 3.0, "pk": 26.0, "greedy-cg": 100.0, "admm": 90.0, "fast-pdas": 0.25}
+
+
+def loop_context(qp: QP, max_iter: int = 400, tol: float = 1e-9, p0: np.ndarray | None = None) -> SolveContext:
+    """A context for calling a solver loop (``_ccg.bugnicourt`` and the like) directly: no
+    deadline, a fresh trace, ``diag_max`` from H's diagonal."""
+    return SolveContext(qp=qp, tol=tol, max_iter=max_iter, params={}, p0=p0, warm=None, deadline=Deadline(None),
+                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
 
 
 def pcg_iterations(H: np.ndarray, b: np.ndarray, prec, tol: float = 1e-10, max_iter: int = 400) -> int:

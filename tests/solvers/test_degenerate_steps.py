@@ -31,7 +31,8 @@ from contactbench.problems.surfaces import Surface
 from contactbench.solvers._ccg import MAX_BETA, GapState, polak_ribiere
 from contactbench.solvers._constrained import constrained_start
 from contactbench.solvers._finish import FINISH_MAX_ROUNDS, Stagnation, finish_exactly
-from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, constraint_skip
+from contactbench.solvers.base import SolverSettings, constraint_skip
+from tests.helpers import loop_context
 from contactbench.solvers.registry import available_solvers, get_solver
 
 E = 1e9
@@ -248,8 +249,7 @@ def test_the_exact_finish_solves_a_nearly_saturated_case_from_a_poor_start(share
     k = Knife((8, 8), "rough", False, True, 0.5, share, 0, 1)
     inst = instance(k)
     qp = inst.qp
-    ctx = SolveContext(qp=qp, tol=1e-10, max_iter=100, params={}, p0=None, warm=None, deadline=Deadline(None),
-                       trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    ctx = loop_context(qp, 100, tol=1e-10)
     state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
     u = qp.constraints.upper_or_inf(qp.n)
     state.p = constrained_start(ctx, u)

@@ -26,7 +26,8 @@ from contactbench.problems.surfaces import Surface, fourier_synthesis
 from contactbench.solvers._preconditioners import MIXED_GRID_POINTS
 from contactbench.solvers._refine import resolved_precision
 from contactbench.solvers._constrained import winkler_start
-from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
+from contactbench.solvers.base import SolveContext, SolverSettings, WarmStart
+from tests.helpers import loop_context
 from contactbench.solvers import fast_ccg
 from contactbench.solvers.registry import available_solvers, get_solver
 
@@ -395,8 +396,7 @@ def test_the_cold_start_under_load_control_is_the_summits_carrying_the_load(squa
 
 
 def context_of(qp: QP) -> SolveContext:
-    return SolveContext(qp=qp, tol=1e-9, max_iter=100, params={}, p0=None, warm=None, deadline=Deadline(None),
-                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    return loop_context(qp, 100)
 
 
 def greedy_in_order(amount: float, caps: np.ndarray) -> np.ndarray:

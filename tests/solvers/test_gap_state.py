@@ -14,7 +14,8 @@ from contactbench.problems.instances import InstanceBuilder, paper_max_displacem
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers._ccg import GapState, converged_now
-from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace
+from contactbench.solvers.base import SolverSettings
+from tests.helpers import loop_context
 from contactbench.solvers.registry import get_solver
 
 
@@ -123,8 +124,7 @@ def test_an_anchored_round_leaves_the_confirmation_to_its_refinement() -> None:
     anchored float32 round, whose float64 refresh judges it."""
     qp = qp_of(17, False)
     exact = get_solver("fast-dual-ccg").solve(qp, SolverSettings(tol=1e-12)).p
-    ctx = SolveContext(qp=qp, tol=1e-9, max_iter=10, params={}, p0=None, warm=None, deadline=Deadline(None),
-                       trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    ctx = loop_context(qp, 10)
     plain = GapState(qp.H, qp.ubar, exact.copy())
     count = qp.H.matvec_count
     assert converged_now(ctx, plain)[0] and qp.H.matvec_count == count + 1

@@ -23,7 +23,8 @@ from contactbench.solvers._opening import (
     resolved_opening,
 )
 from contactbench.solvers._preconditioners import FourierPreconditioner, IslandPreconditioner, make_preconditioner
-from contactbench.solvers.base import Deadline, ParamError, SolveContext, SolverSettings, Trace
+from contactbench.solvers.base import ParamError, SolveContext, SolverSettings
+from tests.helpers import loop_context
 from contactbench.solvers.registry import get_solver
 
 
@@ -33,8 +34,7 @@ def build(N: int = 65, hurst: float = 0.9, seed: int = 3):
 
 
 def context_of(qp) -> SolveContext:
-    return SolveContext(qp=qp, tol=1e-9, max_iter=100, params={}, p0=None, warm=None, deadline=Deadline(None),
-                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    return loop_context(qp, 100)
 
 
 def solve(inst, name: str = "fast-dual-pccg", **params):

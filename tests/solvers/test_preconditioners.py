@@ -24,7 +24,7 @@ from contactbench.solvers._preconditioners import (
     make_preconditioner,
 )
 from contactbench.solvers._partition import block_width, patch_shape, patches
-from tests.helpers import pcg_iterations
+from tests.helpers import loop_context, pcg_iterations
 from contactbench.solvers.base import ParamError, SolverSettings
 from contactbench.solvers.registry import get_solver
 
@@ -534,11 +534,9 @@ def test_polonsky_keer_drops_a_coarse_part_it_stalls_with():
     """Without halving the KKT error for CYCLE_PATIENCE iterations, Polonsky-Keer asks its
     preconditioner to drop its coarse part (solvers/_ccg.py, "Cycling") and converges."""
     from contactbench.solvers._ccg import CYCLE_PATIENCE, GapState, polonsky_keer
-    from contactbench.solvers.base import Deadline, SolveContext, Trace
 
     qp = build(33).qp
-    ctx = SolveContext(qp=qp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
-                       trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    ctx = loop_context(qp)
     M = _Stalling(qp)
     run = polonsky_keer(ctx, GapState(qp.H, qp.ubar, np.zeros(qp.n)), M)
     assert run.converged and M.dropped == 1

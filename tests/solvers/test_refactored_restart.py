@@ -12,7 +12,7 @@ from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import _ccg
 from contactbench.solvers._ccg import GapState, bugnicourt
 from contactbench.solvers._preconditioners import IslandPreconditioner, make_preconditioner
-from contactbench.solvers.base import Deadline, SolveContext, Trace
+from tests.helpers import loop_context
 
 
 def instance(size: int = 65, seed: int = 2):
@@ -75,9 +75,7 @@ def betas_after_refactoring(monkeypatch, qp) -> tuple[list[float], list[float], 
 
     monkeypatch.setattr(_ccg, "conjugate", spy)
     state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
-    ctx = SolveContext(qp=qp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
-                       trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
-    run = bugnicourt(ctx, state, M)
+    run = bugnicourt(loop_context(qp), state, M)
     return [b for new, b in seen if new], [b for new, b in seen if not new], run, state
 
 

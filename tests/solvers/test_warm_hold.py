@@ -13,7 +13,8 @@ from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import _ccg
 from contactbench.solvers._ccg import GapState, bugnicourt, holds
 from contactbench.solvers._preconditioners import make_preconditioner
-from contactbench.solvers.base import Deadline, SolveContext, SolverSettings, Trace, WarmStart
+from contactbench.solvers.base import SolveContext, SolverSettings, WarmStart
+from tests.helpers import loop_context
 from contactbench.solvers.registry import get_solver
 
 HIGH = SolverSettings(tol=1e-9)
@@ -34,8 +35,7 @@ def sweep_pair():
 
 
 def context(qp, p0: np.ndarray | None, max_iter: int = 500) -> SolveContext:
-    return SolveContext(qp=qp, tol=1e-9, max_iter=max_iter, params={}, p0=p0, warm=None, deadline=Deadline(None),
-                        trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
+    return loop_context(qp, max_iter, p0=p0)
 
 
 def first_steps(inst, p0: np.ndarray, iterations: int, kind: str = "islands") -> np.ndarray:

@@ -14,8 +14,7 @@ from contactbench.solvers import _ccg, _partition
 from contactbench.solvers._ccg import GapState, bugnicourt
 from contactbench.solvers._partition import WHOLE_BUDGET, WHOLE_ISLAND, WHOLE_SHARE, patches, whole_limit
 from contactbench.solvers._preconditioners import IslandPreconditioner, make_preconditioner
-from contactbench.solvers.base import Deadline, SolveContext, Trace
-from tests.helpers import pcg_iterations
+from tests.helpers import loop_context, pcg_iterations
 
 
 def brute_whole_limit(sizes: np.ndarray, limit: int, budget: float) -> int:
@@ -158,9 +157,7 @@ def test_bugnicourt_lets_in_the_points_its_direction_keeps_out(monkeypatch):
 
     def run(max_iter: int):
         state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
-        ctx = SolveContext(qp=qp, tol=1e-9, max_iter=max_iter, params={}, p0=None, warm=None,
-                           deadline=Deadline(None), trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
-        return bugnicourt(ctx, state, _KeepsOut(qp, state)), state
+        return bugnicourt(loop_context(qp, max_iter), state, _KeepsOut(qp, state)), state
 
     done, state = run(400)
     assert done.converged and kkt_check(inst, state.p).kkt_error <= 1e-8
@@ -192,18 +189,14 @@ def test_load_controlled_bugnicourt_finishes_past_the_points_kept_out(monkeypatc
     s = rmd_surface_n(33, 0.7, length=100e-6, seed=4)
     b = InstanceBuilder(s, 1e9, "bcc", periodic=False)
     disp = b.build(2.0 * paper_max_displacement(s)).qp
-    ctx = SolveContext(qp=disp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
-                       trace=Trace(), diag_max=float(np.max(disp.H.diagonal())))
     state = GapState(disp.H, disp.ubar, np.zeros(disp.n))
-    assert bugnicourt(ctx, state).converged
+    assert bugnicourt(loop_context(disp), state).converged
     inst = b.build_load(float(np.sum(state.p)))  # the load that approach carries
     qp = inst.qp
 
     def run():
         state = GapState(qp.H, qp.ubar, np.zeros(qp.n))
-        ctx = SolveContext(qp=qp, tol=1e-9, max_iter=400, params={}, p0=None, warm=None, deadline=Deadline(None),
-                           trace=Trace(), diag_max=float(np.max(qp.H.diagonal())))
-        return bugnicourt_load(ctx, state, _KeepsOutUnderLoad(qp, state)), state
+        return bugnicourt_load(loop_context(qp), state, _KeepsOutUnderLoad(qp, state)), state
 
     done, state = run()
     assert done.converged and done.finish_rounds >= 1
