@@ -543,7 +543,8 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         # a new stage (solvers/_opening.py), the hold's end or new factors: restart along -z
         staged = (M is not None and M.progress(run.kkt)) or released
         z = precondition_on(M, res, res != 0.0)
-        refactored, version = version_of(M) != version, version_of(M)
+        now = version_of(M)
+        refactored, version = now != version, now
         beta = 0.0 if staged or refactored else polak_ribiere(z, res, res_old, alpha * dHd)
         conjugate(d, z, beta)
         if flat >= STALL_PATIENCE and let_in(d, state, res, M):
