@@ -45,6 +45,7 @@ from __future__ import annotations
 import argparse
 import sys
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -133,42 +134,44 @@ def exact_AZ(qp, pos: np.ndarray, agg: np.ndarray, m: int) -> np.ndarray:
     return AZ
 
 
-def balancing(pos: np.ndarray, agg: np.ndarray, AZ: np.ndarray, inner: Map) -> Map:
-    """z = P' inner(P r) + Q r (module doc), on the positions ``pos``."""
-    m = AZ.shape[1]
-    E = np.zeros((m, m))
-    np.add.at(E, agg, AZ)  # Z' AZ
-    Einv = np.linalg.inv(0.5 * (E + E.T))
+@dataclass(frozen=True)
+class Basis:
+    """A coarse basis Z (|S| x m) by its two actions: Z' x (x a vector or an |S| x k array)
+    and Z c."""
 
-    def coarse(x: np.ndarray) -> np.ndarray:  # E^-1 Z' x
-        return Einv @ np.bincount(agg, weights=x, minlength=m)
+    transpose: Map
+    times: Map
+
+
+def aggregates(agg: np.ndarray, m: int) -> Basis:
+    """Z the indicators of the aggregates ``agg`` (one label in 0..m-1 a position)."""
+
+    def transpose(x: np.ndarray) -> np.ndarray:
+        out = np.zeros((m,) + x.shape[1:])
+        np.add.at(out, agg, x)
+        return out
+
+    return Basis(transpose, lambda c: c[agg])
+
+
+def dense(Z: np.ndarray) -> Basis:
+    return Basis(lambda x: Z.T @ x, lambda c: Z @ c)
+
+
+def balancing(pos: np.ndarray, Z: Basis, AZ: np.ndarray, inner: Map) -> Map:
+    """z = P' inner(P r) + Q r (module doc), on the positions ``pos``; AZ = H_SS Z (or its
+    approximation)."""
+    E = Z.transpose(AZ)
+    Einv = np.linalg.inv(0.5 * (E + E.T))
 
     def apply(r: np.ndarray) -> np.ndarray:
         rs = r[pos]
-        c = coarse(rs)
+        c = Einv @ Z.transpose(rs)
         Pr = np.zeros_like(r)
         Pr[pos] = rs - AZ @ c
         y = inner(Pr)[pos]
         z = np.zeros_like(r)
-        z[pos] = y - (Einv @ (AZ.T @ y))[agg] + c[agg]
-        return z
-
-    return apply
-
-
-def balancing_dense(pos: np.ndarray, Z: np.ndarray, AZ: np.ndarray, inner: Map) -> Map:
-    """``balancing`` with a dense coarse basis Z (|S| x m) and AZ = H_SS Z."""
-    E = Z.T @ AZ
-    Einv = np.linalg.inv(0.5 * (E + E.T))
-
-    def apply(r: np.ndarray) -> np.ndarray:
-        rs = r[pos]
-        c = Einv @ (Z.T @ rs)
-        Pr = np.zeros_like(r)
-        Pr[pos] = rs - AZ @ c
-        y = inner(Pr)[pos]
-        z = np.zeros_like(r)
-        z[pos] = y - Z @ (Einv @ (AZ.T @ y)) + Z @ c
+        z[pos] = y - Z.times(Einv @ (AZ.T @ y)) + Z.times(c)
         return z
 
     return apply
@@ -218,13 +221,13 @@ def explore(key: str, exact: bool, near: float, tiles: list[int], inners: list[i
     if exact:
         kinds.insert(0, ("exact", exact_AZ(qp, pos, agg, m)))
     for name, AZ in kinds:
-        print(f"  bnn blocks, AZ {name}: {cg_iterations(qp, S, balancing(pos, agg, AZ, blocks_only.apply))}")
-        print(f"  bnn overlap, AZ {name}: {cg_iterations(qp, S, balancing(pos, agg, AZ, overlap))}")
+        print(f"  bnn blocks, AZ {name}: {cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, blocks_only.apply))}")
+        print(f"  bnn overlap, AZ {name}: {cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, overlap))}")
     if exact:
         for omega in (0.5, 1.0):
             Zs, AZs = smoothed_basis(qp, pos, agg, kinds[0][1], blocks_only.apply, omega)
             print(f"  bnn overlap, smoothed aggregates (omega {omega}, exact): "
-                  f"{cg_iterations(qp, S, balancing_dense(pos, Zs, AZs, overlap))}")
+                  f"{cg_iterations(qp, S, balancing(pos, dense(Zs), AZs, overlap))}")
     if tiles:
         point_tiles(qp, S, tiles, near)
     if inners:
@@ -270,7 +273,7 @@ def point_tiles(qp, S: np.ndarray, tiles: list[int], near: float) -> None:
             agg = np.unique((i // T) * (1 << 32) + j // T, return_inverse=True)[1].ravel()
             m = int(agg.max()) + 1
             AZ = approximate_AZ(qp, blocks, pos, agg, m, T, near)
-            cells.append(cg_iterations(qp, S, balancing(pos, agg, AZ, blocks.apply)))
+            cells.append(cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, blocks.apply)))
         print(f"  | {kind} | " + " | ".join(str(c) for c in cells) + " |", flush=True)
 
 
@@ -313,7 +316,7 @@ def inner_table(qp, S: np.ndarray, T: int, inners: list[int], near: float) -> No
     AZ = approximate_AZ(qp, grid, pos, agg, m, T, near)
     for K in inners:
         apply, share = island_solves(qp, S, K)
-        outer = cg_iterations(qp, S, balancing(pos, agg, AZ, apply))
+        outer = cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, apply))
         print(f"  bnn on {T} x {T} point tiles, islands whole up to {_partition.WHOLE_ISLAND} points and {K} inner "
               f"iterations on the bigger ones (their boxes: {share:.3f} of the grid): {outer} outer, "
               f"{outer * (1 + K * share):.1f} products' work", flush=True)
