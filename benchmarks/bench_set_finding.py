@@ -51,17 +51,25 @@ class SetFindingRow:
     status: str
 
 
+def cg_on_set(qp, S: np.ndarray, precond, b: np.ndarray | None = None, reduction: float = 1e-9,
+              max_iter: int = 1000) -> int:
+    """CG iterations on H_SS p = b_S (default ubar_S) from 0, preconditioned by ``precond``
+    restricted to S, until the max-norm residual falls by ``reduction``
+    (``_kit.conjugate_gradient``); ``max_iter`` where it does not."""
+    b = np.where(S, qp.ubar if b is None else b, 0.0)
+    run = conjugate_gradient(lambda d: np.where(S, qp.H.matvec(d), 0.0), b, None,
+                             atol=reduction * float(np.abs(b).max()), max_iter=max_iter,
+                             precond=lambda r: np.where(S, precond(r), 0.0))
+    return run.iterations
+
+
 def fixed_set_cg(qp, S: np.ndarray, reduction: float, max_iter: int = 1000) -> int:
-    """CG iterations on H_SS p = ubar_S from 0 until the max-norm residual falls by
-    ``reduction`` (module doc; ``_kit.conjugate_gradient``); ``max_iter`` where it does not."""
+    """``cg_on_set`` with the island preconditioner and its far field built once on S (module
+    doc)."""
     M = make_preconditioner("farfield", qp)
     M.far_fraction = 1.0  # the far field on S whatever its share of the trial set
     M.update(S)
-    b = np.where(S, qp.ubar, 0.0)
-    run = conjugate_gradient(lambda d: np.where(S, qp.H.matvec(d), 0.0), b, None,
-                             atol=reduction * float(np.abs(b).max()), max_iter=max_iter,
-                             precond=lambda r: np.where(S, M.apply(r), 0.0))
-    return run.iterations
+    return cg_on_set(qp, S, M.apply, reduction=reduction, max_iter=max_iter)
 
 
 def measure(m: bp.Member, reduction: float) -> SetFindingRow:

@@ -4,7 +4,7 @@ island blocks and far field.
 
 For each member (keys of bench_surface_population.py) this solves the cold top step with
 ``fast-dual-pccg``'s defaults, takes the answer's contact set S, and runs preconditioned CG
-(``_kit.conjugate_gradient``) on H_SS p = ubar_S from 0 until the max-norm residual falls by
+(``bench_set_finding.cg_on_set``) on H_SS p = ubar_S from 0 until the max-norm residual falls by
 1e-9, as bench_set_finding.py does, with:
 
 * ``default``: ``make_preconditioner("farfield")`` on S -- the island blocks B and the far
@@ -53,6 +53,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface_population as bp  # noqa: E402
+from bench_set_finding import cg_on_set  # noqa: E402
 
 from contactbench.harness import get_profile, solve_sequence  # noqa: E402
 from contactbench.solvers import _partition, _preconditioners  # noqa: E402
@@ -63,14 +64,6 @@ from contactbench.solvers.base import SolverSettings  # noqa: E402
 
 Map = Callable[[np.ndarray], np.ndarray]
 NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
-
-
-def cg_iterations(qp, S: np.ndarray, precond: Map, reduction: float = 1e-9) -> int:
-    b = np.where(S, qp.ubar, 0.0)
-    run = conjugate_gradient(lambda d: np.where(S, qp.H.matvec(d), 0.0), b, None,
-                             atol=reduction * float(np.abs(b).max()), max_iter=500,
-                             precond=lambda r: np.where(S, precond(r), 0.0))
-    return run.iterations
 
 
 def island_blocks(M: IslandPreconditioner) -> list[np.ndarray]:
@@ -213,21 +206,21 @@ def explore(key: str, exact: bool, near: float, tiles: list[int], inners: list[i
     tile = tile_size(far._i[pos], far._j[pos])
     print(f"{key}: |S| {pos.size}, trial set {qp.n}, solve {step.result.matvecs} products, "
           f"{m} aggregates on {tile} x {tile} tiles")
-    print(f"  default (blocks + far field): {cg_iterations(qp, S, far.apply)}")
-    print(f"  blocks alone: {cg_iterations(qp, S, blocks_only.apply)}")
+    print(f"  default (blocks + far field): {cg_on_set(qp, S, far.apply)}")
+    print(f"  blocks alone: {cg_on_set(qp, S, blocks_only.apply)}")
     overlap = schwarz(qp, [one_ring(blocks_only, S, b) for b in island_blocks(blocks_only)])
-    print(f"  one-ring overlapping blocks alone: {cg_iterations(qp, S, overlap)}")
+    print(f"  one-ring overlapping blocks alone: {cg_on_set(qp, S, overlap)}")
     kinds = [("approximated", approximate_AZ(qp, far, pos, agg, m, tile, near))]
     if exact:
         kinds.insert(0, ("exact", exact_AZ(qp, pos, agg, m)))
     for name, AZ in kinds:
-        print(f"  bnn blocks, AZ {name}: {cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, blocks_only.apply))}")
-        print(f"  bnn overlap, AZ {name}: {cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, overlap))}")
+        print(f"  bnn blocks, AZ {name}: {cg_on_set(qp, S, balancing(pos, aggregates(agg, m), AZ, blocks_only.apply))}")
+        print(f"  bnn overlap, AZ {name}: {cg_on_set(qp, S, balancing(pos, aggregates(agg, m), AZ, overlap))}")
     if exact:
         for omega in (0.5, 1.0):
             Zs, AZs = smoothed_basis(qp, pos, agg, kinds[0][1], blocks_only.apply, omega)
             print(f"  bnn overlap, smoothed aggregates (omega {omega}, exact): "
-                  f"{cg_iterations(qp, S, balancing(pos, dense(Zs), AZs, overlap))}")
+                  f"{cg_on_set(qp, S, balancing(pos, dense(Zs), AZs, overlap))}")
     if tiles:
         point_tiles(qp, S, tiles, near)
     if inners:
@@ -267,13 +260,13 @@ def point_tiles(qp, S: np.ndarray, tiles: list[int], near: float) -> None:
             far = IslandPreconditioner.build(qp, max_block=_preconditioners.MAX_BLOCK, far_field=True)
             far.far_fraction = 1.0
             far.update(S)
-        cells = [cg_iterations(qp, S, far.apply), cg_iterations(qp, S, blocks.apply)]
+        cells = [cg_on_set(qp, S, far.apply), cg_on_set(qp, S, blocks.apply)]
         for T in tiles:
             i, j = blocks._i[pos], blocks._j[pos]
             agg = np.unique((i // T) * (1 << 32) + j // T, return_inverse=True)[1].ravel()
             m = int(agg.max()) + 1
             AZ = approximate_AZ(qp, blocks, pos, agg, m, T, near)
-            cells.append(cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, blocks.apply)))
+            cells.append(cg_on_set(qp, S, balancing(pos, aggregates(agg, m), AZ, blocks.apply)))
         print(f"  | {kind} | " + " | ".join(str(c) for c in cells) + " |", flush=True)
 
 
@@ -316,7 +309,7 @@ def inner_table(qp, S: np.ndarray, T: int, inners: list[int], near: float) -> No
     AZ = approximate_AZ(qp, grid, pos, agg, m, T, near)
     for K in inners:
         apply, share = island_solves(qp, S, K)
-        outer = cg_iterations(qp, S, balancing(pos, aggregates(agg, m), AZ, apply))
+        outer = cg_on_set(qp, S, balancing(pos, aggregates(agg, m), AZ, apply))
         print(f"  bnn on {T} x {T} point tiles, islands whole up to {_partition.WHOLE_ISLAND} points and {K} inner "
               f"iterations on the bigger ones (their boxes: {share:.3f} of the grid): {outer} outer, "
               f"{outer * (1 + K * share):.1f} products' work", flush=True)

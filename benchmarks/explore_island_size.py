@@ -2,7 +2,7 @@
 contact set of radius R, against R, with the island blocks alone and with their far field.
 
 The set S is a disk of radius R (grid points) at the centre of an N x N non-periodic BCC grid
-whose trial set is the whole grid; CG (``_kit.conjugate_gradient``) solves H_SS p = b_S from
+whose trial set is the whole grid; CG (``bench_set_finding.cg_on_set``) solves H_SS p = b_S from
 0 until the max-norm residual falls by 1e-9, for a flat punch (b = 1) and a parabolic
 displacement (b = 1 - (r/R)^2), preconditioned by ``make_preconditioner("islands")`` and
 ``("farfield")`` (the far field on any set size).  A disk of up to ``_partition.WHOLE_ISLAND``
@@ -14,13 +14,17 @@ Usage: python benchmarks/explore_island_size.py [--size 1024]
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 
-from contactbench.problems.instances import InstanceBuilder
-from contactbench.problems.surfaces import Surface
-from contactbench.solvers._kit import conjugate_gradient
-from contactbench.solvers._preconditioners import make_preconditioner
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_set_finding import cg_on_set  # noqa: E402
+
+from contactbench.problems.instances import InstanceBuilder  # noqa: E402
+from contactbench.problems.surfaces import Surface  # noqa: E402
+from contactbench.solvers._preconditioners import make_preconditioner  # noqa: E402
 
 RADII = (4, 8, 12, 16, 24, 32, 64, 128, 256, 400)
 
@@ -47,12 +51,7 @@ def main() -> None:
             M = make_preconditioner(kind, qp)
             M.far_fraction = 1.0
             M.update(S)
-            counts = []
-            for b in (np.where(S, 1.0, 0.0), np.where(S, 1.0 - (r / R) ** 2, 0.0)):
-                run = conjugate_gradient(lambda d: np.where(S, qp.H.matvec(d), 0.0), b, None,
-                                         atol=1e-9 * float(np.abs(b).max()), max_iter=1000,
-                                         precond=lambda v, M=M: np.where(S, M.apply(v), 0.0))
-                counts.append(str(run.iterations))
+            counts = [str(cg_on_set(qp, S, M.apply, b)) for b in (np.ones(qp.n), 1.0 - (r / R) ** 2)]
             cells.append(" / ".join(counts))
         print(f"| {R} | {int(S.sum())} | {cells[0]} | {cells[1]} |", flush=True)
 
