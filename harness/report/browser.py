@@ -20,6 +20,18 @@ DRIVER_PATHS = ("/usr/bin/chromedriver", "/usr/lib/chromium/chromedriver")
 #: Count of the traces Plotly has drawn (lines, markers and bars).
 VISIBLE_TRACES_JS = ("return document.querySelectorAll('.js-plotly-plot .scatterlayer .trace, "
                      ".js-plotly-plot .barlayer .trace').length;")
+#: Titles of the charts that hold a point to draw (a drawn trace with a y value) but show no mark:
+#: no marker, no line and no bar with a path (a bar on the wrong kind of axis is dropped).
+EMPTY_CHARTS_JS = """
+return [...document.querySelectorAll('.js-plotly-plot')].filter(d =>
+  (d.data || []).some(t => t.visible !== 'legendonly' && (t.y || []).some(v => v !== null && v !== undefined)) &&
+  ![...d.querySelectorAll('.scatterlayer path.point, .scatterlayer path.js-line, .barlayer .point path')]
+    .some(p => { const s = p.getAttribute('d') || ''; return s !== '' && s !== 'M0,0Z'; })
+).map(d => (d.querySelector('.gtitle') || {}).textContent || '(untitled)');
+"""
+#: The most series any one chart draws (its legend may list more that it does not draw).
+MOST_DRAWN_JS = ("return Math.max(0, ...[...document.querySelectorAll('.js-plotly-plot')].map(d => "
+                 "d.querySelectorAll('.scatterlayer .trace, .barlayer .trace').length));")
 
 
 def _first(paths: tuple[str, ...], name: str) -> str | None:
@@ -47,6 +59,8 @@ class PageCheck:
     charts: int
     expected_charts: int
     traces: int
+    empty_charts: list[str] = field(default_factory=list)
+    most_drawn: int = 0
     console_errors: list[str] = field(default_factory=list)
     traces_after_toggle: int | None = None
 
@@ -95,8 +109,8 @@ def only_family(driver: Any, family: str) -> None:
 
 
 def check_page(html: Path, screenshot: Path | None = None, family: str | None = None) -> PageCheck:
-    """Open the page, count charts and visible traces, untick ``family`` (when given)
-    and count again, and save a screenshot."""
+    """Open the page, count charts and visible traces, name the charts with data but no
+    mark, find the most series one chart draws, untick ``family`` (when given) and count again, and save a screenshot."""
     driver = open_driver()
     try:
         load_s = load_page(driver, html)
@@ -104,7 +118,8 @@ def check_page(html: Path, screenshot: Path | None = None, family: str | None = 
         expected = int(driver.execute_script(
             "return window.contactbenchReport.charts.filter(c => c.div).length;"))
         traces = int(driver.execute_script(VISIBLE_TRACES_JS))
-        check = PageCheck(load_s, charts, expected, traces)
+        check = PageCheck(load_s, charts, expected, traces, list(driver.execute_script(EMPTY_CHARTS_JS)),
+                          int(driver.execute_script(MOST_DRAWN_JS)))
         if family is not None:
             toggle_family(driver, family)
             check.traces_after_toggle = int(driver.execute_script(VISIBLE_TRACES_JS))

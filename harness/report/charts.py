@@ -117,13 +117,16 @@ class RowChart:
     """An interactive chart that report.html draws from the scene's rows, so that the
     page's solver and profile pickers filter it (a ``Chart`` is fixed data instead).
     A section returns it in ``Section.page_charts``; the page knows only the drawers of
-    ``ROW_DRAWERS``, never a scene name.  ``by_instance`` draws one curve per instance."""
+    ``ROW_DRAWERS``, never a scene name.  ``by_instance`` draws one curve per instance;
+    ``reference`` (y, its legend name) draws a dashed horizontal line, e.g. a published
+    value the bars are read against."""
 
     title: str
     drawer: str = "time-against"
     x: str = "dl"
     x_title: str = "P/(E A) [-]"
     by_instance: bool = False
+    reference: tuple[float, str] | None = None
 
     def __post_init__(self) -> None:
         if self.drawer not in ROW_DRAWERS:

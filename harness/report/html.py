@@ -30,12 +30,12 @@ import numpy as np
 
 from ..table import aggregates as agg
 from .charts import Chart, RowChart
-from .core import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace
+from .core import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace, pick_profile
 from .sections.fields import load_area_series, trace_scene
 from .sections.generic import profile_taus, reached_accuracy
 from .sections.paper import k_of
 from .page_script import PAGE_SCRIPT
-from .style import sort_families
+from .style import MAX_SERIES, sort_families
 from ..table.files import write_text_atomic
 from ..table.schema import as_finite
 
@@ -59,14 +59,45 @@ def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
     return out
 
 
-def profiles_and_sgm(ctx: ReportContext) -> tuple[dict[str, Any], dict[str, Any]]:
+def scene_summaries(ctx: ReportContext) -> dict[str, list[agg.SolverSummary]]:
+    """Per scene, the aggregate of each solver (``table.aggregates.summarize``)."""
+    out = {}
+    for scene in ctx.scenes():
+        r = ctx.rows(scene)
+        out[scene] = agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique()))
+    return out
+
+
+def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]) -> dict[str, dict[str, Any]]:
+    """Per scene, what its charts draw first when they would hold more than ``MAX_SERIES``
+    series (the page's ``thin``; the other series stay in the legend, a click away):
+    ``order``, the scene's solvers ranked (the most problems solved, then the least SGM over
+    the best solver's, as in the scene's SGM table) with the best of each family first;
+    ``best``, how many of them to draw (the families, at most ``MAX_SERIES``); and
+    ``profile``, the report's profile for the scene (``pick_profile``)."""
+    out = {}
+    for scene, summ in summaries.items():
+        ranked = [s.solver for s in sorted(summ, key=lambda s: (-s.solved, s.sgm_rel if np.isfinite(s.sgm_rel)
+                                                                 else np.inf, natural_key(s.solver)))]
+        best: dict[str, str] = {}
+        for s in ranked:
+            best.setdefault(ctx.family(s), s)
+        firsts = [best[f] for f in sort_families(best)]
+        out[scene] = {"order": firsts + [s for s in ranked if s not in firsts],
+                      "best": min(len(firsts), MAX_SERIES),
+                      "profile": pick_profile(attempted(ctx.rows(scene)))}
+    return out
+
+
+def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]
+                     ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Per scene: the performance profile curves and the aggregate (SGM) table."""
     pp: dict[str, Any] = {}
     sgm: dict[str, Any] = {}
     for scene in ctx.scenes():
         r = ctx.rows(scene)
         solvers = natural_sorted(r["solver"].unique())
-        summ = agg.summarize(r, ctx.shift, solvers)
+        summ = summaries[scene]
         acc = reached_accuracy(r)
         sgm[scene] = {"columns": ["solver", "family", "solved", "attempted", "success", "SGM [s]", "SGM / best",
                                   "median kkt (solved)", "false claims"],
@@ -113,7 +144,8 @@ def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:
 def page_data(ctx: ReportContext) -> dict[str, Any]:
     t = ctx.table
     fams = sort_families(ctx.family(s) for s in t["solver"].unique())
-    pp, sgm = profiles_and_sgm(ctx)
+    summaries = scene_summaries(ctx)
+    pp, sgm = profiles_and_sgm(ctx, summaries)
     return {
         "title": str(ctx.meta.get("suite") or ", ".join(ctx.scenes())),
         "scenes": ctx.scenes(),
@@ -121,6 +153,8 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
         "families": [{"name": f, "solvers": [{"name": s, "color": ctx.styles.hex(s)} for s in
                                              natural_sorted(x for x in t["solver"].unique() if ctx.family(x) == f)]}
                      for f in fams],
+        "lead": scene_leads(ctx, summaries),
+        "maxSeries": MAX_SERIES,
         "rows": page_rows(ctx),
         "pp": pp,
         "sgm": sgm,
@@ -146,7 +180,8 @@ def render_html(ctx: ReportContext) -> str:
             f"<style>{PAGE_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
             f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
             f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "
-            f"profiles; hover a point for its instance, step, n, errors, time, iterations and status; click a "
+            f"profiles; a chart of more than {MAX_SERIES} series draws the best solver of each family and "
+            f"keeps the rest in its legend, a click away; hover a point for its instance, step, n, errors, time, iterations and status; click a "
             f"table header to sort.</p></header>\n"
             f"<div id=\"layout\"><nav id=\"picker\"></nav><main id=\"charts\"></main></div>\n"
             f"{tables_html(ctx)}"

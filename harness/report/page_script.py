@@ -39,6 +39,29 @@ function layout(title, xt, yt, xs, ys, extra) {
     yaxis: {title: {text: yt}, type: axisType(ys), exponentformat: 'power'},
     legend: {font: {size: 10}}, hovermode: 'closest'}, extra || {});
 }
+// A chart of more than D.maxSeries series draws the scene's first solvers in D.lead's order
+// (the best of each family, then the others by rank; as many as the lead has), and then, if
+// still more than D.maxSeries series, only those at the lead profile; the other series stay in
+// the legend ('legendonly'), a click away.  Each trace carries meta.so (its solver) and
+// meta.pr (its profile, where it has one).
+function thin(scene, traces, lay) {
+  const lead = D.lead[scene];
+  if (!lead || traces.length <= D.maxSeries) return [traces, lay];
+  const present = new Set(traces.map(t => t.meta.so));
+  let keep = t => true;
+  if (present.size > D.maxSeries) {
+    const first = new Set(lead.order.filter(s => present.has(s)).slice(0, lead.best));
+    keep = t => first.has(t.meta.so);
+  }
+  const bySolver = keep;
+  const atLead = t => bySolver(t) && (t.meta.pr === undefined || t.meta.pr === lead.profile);
+  if (traces.filter(bySolver).length > D.maxSeries && traces.some(atLead)) keep = atLead;
+  if (traces.every(keep)) return [traces, lay];
+  traces.forEach(t => { if (!keep(t)) t.visible = 'legendonly'; });
+  lay.legend.title = {text: traces.filter(keep).length + ' of ' + traces.length + ' drawn (the best of each family' +
+    (keep === atLead ? ' at ' + lead.profile : '') + '); click for more', font: {size: 10}};
+  return [traces, lay];
+}
 function lineChart(scene, title, xKey, xTitle, byInstance) {
   return () => {
     const rows = rowsOf(scene).filter(r => r.t !== null && r[xKey] !== null);
@@ -48,12 +71,12 @@ function lineChart(scene, title, xKey, xTitle, byInstance) {
     [...g.keys()].sort().forEach(k => {
       const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
       const so = rs[0].so;
-      traces.push({type: 'scatter', mode: 'lines+markers', name: k, x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
+      traces.push({type: 'scatter', mode: 'lines+markers', name: k, meta: {so: so, pr: rs[0].pr}, x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
         customdata: rs.map(custom), hovertemplate: HOVER, line: {color: COLOR[so], dash: rs[0].lab !== so ? 'dash' : 'solid'},
         marker: {color: rs.map(r => r.stt === 'solved' ? COLOR[so] : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
           symbol: rs.map(r => r.stt === 'solved' ? 'circle' : 'x')}});
     });
-    return [traces, layout(title, xTitle, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t))];
+    return thin(scene, traces, layout(title, xTitle, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t)));
   };
 }
 function wpChart(scene, key, yTitle) {
@@ -63,7 +86,7 @@ function wpChart(scene, key, yTitle) {
     const traces = [];
     [...g.keys()].sort().forEach(k => {
       const rs = g.get(k), so = rs[0].so, pr = rs[0].pr;
-      traces.push({type: 'scatter', mode: 'markers', name: so + (D.profiles.length > 1 ? ' [' + pr + ']' : ''),
+      traces.push({type: 'scatter', mode: 'markers', name: so + (D.profiles.length > 1 ? ' [' + pr + ']' : ''), meta: {so: so, pr: pr},
         x: rs.map(r => r.t), y: rs.map(r => Math.max(r[key], 1e-16)), customdata: rs.map(custom), hovertemplate: HOVER,
         marker: {color: rs.map(r => r.stt === 'solved' ? COLOR[so] : 'white'), line: {color: COLOR[so], width: 1},
           symbol: MARKERS[pr] || 'diamond', size: 7}});
@@ -71,36 +94,42 @@ function wpChart(scene, key, yTitle) {
     const lay = layout('run time against ' + yTitle + ' (' + scene + ')', 'solve time [s]', yTitle,
       rows.map(r => r.t), [1, 10, 100]);
     lay.yaxis.type = 'log';
-    return [traces, lay];
+    return thin(scene, traces, lay);
   };
 }
 function ppChart(scene) {
   return () => {
     const p = D.pp[scene];
     const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).map(s => ({type: 'scatter',
-      mode: 'lines', line: {shape: 'hv', color: COLOR[s]}, name: s, x: p.taus, y: p.curves[s],
+      mode: 'lines', line: {shape: 'hv', color: COLOR[s]}, name: s, meta: {so: s}, x: p.taus, y: p.curves[s],
       hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}));
     const lay = layout('performance profile (' + scene + ', ' + p.n + ' problems)', 'tau (times the best time)',
       'fraction of problems solved', p.taus, [0, 1]);
     lay.xaxis.type = 'log';
     lay.yaxis.range = [-0.02, 1.02];
-    return [traces, lay];
+    return thin(scene, traces, lay);
   };
 }
-function counterexampleChart(scene, title) {
+function counterexampleChart(scene, c) {
   return () => {
     const rows = rowsOf(scene);
     const g = groupBy(rows, r => r.so);
     const ns = [...new Set(rows.map(r => r.n))].sort((a, b) => a - b);
+    const cats = ns.map(n => 'n = ' + n);
     const traces = [...g.keys()].sort().map(so => {
       const rs = g.get(so);
       const y = ns.map(n => { const x = rs.filter(r => r.n === n); if (!x.length) return null;
         return 100 * x.filter(r => r.stt !== 'solved').length / x.length; });  // the judge's verdict, as the section
-      return {type: 'bar', name: so, x: ns.map(n => 'n = ' + n), y: y, marker: {color: COLOR[so]},
+      return {type: 'bar', name: so, meta: {so: so}, x: cats, y: y, marker: {color: COLOR[so]},
         hovertemplate: so + ': %{y:.0f} % of seeds violate the LCP (judge: not solved) at %{x}<extra></extra>'};
     });
-    return [traces, layout(title, 'problem size', 'seeds violating the LCP [%]',
-      [], [])];
+    if (c.reference && cats.length) traces.push({type: 'scatter', mode: 'lines', name: c.reference[1], x: cats,
+      y: cats.map(() => c.reference[0]), line: {color: 'gray', dash: 'dash'}, hoverinfo: 'skip'});
+    const lay = layout(c.title, c.x_title, 'seeds violating the LCP [%]', [], []);
+    lay.xaxis.type = 'category';  // one group of bars per n: a linear axis would drop them all
+    lay.yaxis.range = [0, 105];
+    const bars = traces.filter(t => t.type === 'bar');
+    return [thin(scene, bars, lay)[0].concat(traces.filter(t => t.type !== 'bar')), lay];
   };
 }
 function traceChart(useTime) {
@@ -108,7 +137,7 @@ function traceChart(useTime) {
     const T = D.traces;
     const traces = Object.keys(T.solvers).filter(s => state.solvers.has(s)).map(s => {
       const d = T.solvers[s];
-      return {type: 'scatter', mode: 'lines', name: s, x: useTime ? d.t : d.it, y: d.r,
+      return {type: 'scatter', mode: 'lines', name: s, meta: {so: s}, x: useTime ? d.t : d.it, y: d.r,
         line: {color: COLOR[s]}, legendgroup: FAMILY[s],
         hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
           (useTime ? '%{x:.3g} s' : 'iteration %{x}') + '<extra></extra>'};
@@ -118,7 +147,7 @@ function traceChart(useTime) {
       useTime ? 'elapsed [s]' : 'iteration', 'own residual', xs, [1, 100]);
     lay.yaxis.type = 'log';
     if (useTime) lay.xaxis.type = 'log';
-    return [traces, lay];
+    return thin(T.scene, traces, lay);
   };
 }
 function loadAreaChart() {
@@ -164,7 +193,7 @@ function build() {
     const grid = document.createElement('div'); grid.className = 'grid'; sec.appendChild(grid);
     const has = D.rows.some(r => r.sc === scene);
     D.rowcharts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, c.drawer === 'unsolved-share'
-      ? counterexampleChart(scene, c.title) : lineChart(scene, c.title, c.x, c.x_title, c.by_instance)));
+      ? counterexampleChart(scene, c) : lineChart(scene, c.title, c.x, c.x_title, c.by_instance)));
     D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
     if (has) {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));

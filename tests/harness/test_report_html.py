@@ -14,6 +14,7 @@ import pytest
 
 from contactbench.harness import build_report
 from contactbench.harness.report import core as rp
+from contactbench.harness.report import html as html_report
 from contactbench.harness.report.browser import browser_missing, check_page
 from contactbench.harness.report.style import MAX_SERIES, SolverStyles, family_panels, panels_note
 
@@ -92,6 +93,7 @@ def test_the_page_renders_in_headless_chromium(page: tuple[Path, pd.DataFrame], 
     check = check_page(path, shot, family="paper")
     assert check.console_errors == []
     assert check.charts == check.expected_charts
+    assert check.empty_charts == []  # every chart with a point to draw shows it (the counterexample's bars too)
     # scenes of the fabricated table: paper-sweep, greedy, gp-k-sweep, counterexample, hertz
     assert check.charts >= 5 * 3
     assert check.traces_after_toggle is not None and check.traces_after_toggle < check.traces
@@ -103,6 +105,44 @@ def test_the_page_renders_in_headless_chromium(page: tuple[Path, pd.DataFrame], 
     flat = img[..., :3].reshape(-1, 3)
     assert flat.std() > 0.05  # not blank
     assert len(np.unique((flat * 255).astype(np.uint8), axis=0)) > 50
+
+
+def crowded_table() -> pd.DataFrame:
+    """The fabricated table with 14 more solvers on paper-sweep (copies of nnls's rows, each
+    a little slower than the last, in the families qp and fast): 20 solvers in one scene."""
+    df = fabricate_table()
+    base = df[(df["scene"] == "paper-sweep") & (df["solver"] == "nnls")]
+    extra = [base.assign(solver=f"x{k:02d}", base_solver=f"x{k:02d}", family=("qp", "fast")[k % 2],
+                         solve_time_s=base["solve_time_s"] * (1.5 + 0.1 * k)) for k in range(14)]
+    return pd.concat([df, *extra], ignore_index=True)
+
+
+def test_a_crowded_scene_leads_with_the_best_of_each_family(tmp_path: Path) -> None:
+    """``scene_leads``: each family's best (most solved, then least SGM) first, one per family."""
+    ctx = rp.ReportContext(tmp_path, crowded_table(), {})
+    lead = html_report.scene_leads(ctx, html_report.scene_summaries(ctx))["paper-sweep"]
+    fams = [ctx.family(s) for s in lead["order"][:lead["best"]]]
+    assert len(fams) == len(set(fams)) == lead["best"] <= MAX_SERIES
+    assert set(fams) == {ctx.family(s) for s in lead["order"]}
+    firsts = lead["order"][:lead["best"]]
+    assert "x00" in firsts and not {"x02", "x13"} & set(firsts)  # qp's fastest copy leads it
+    assert lead["order"].index("x01") < lead["order"].index("x03") < lead["order"].index("x13")
+    assert lead["profile"] == "high" and len(lead["order"]) == 20
+
+
+@pytest.mark.slow
+def test_a_crowded_chart_draws_at_most_max_series(tmp_path: Path) -> None:
+    """20 solvers on a scene: each chart draws at most ``MAX_SERIES`` series (the others in
+    its legend), none is empty, and unticking a drawn family brings the next ones in."""
+    why = browser_missing()
+    if why:
+        pytest.skip(f"browser test skipped: {why}")
+    out = write_out(tmp_path, crowded_table())
+    build_report(out)
+    check = check_page(out / "report.html", family="qp")
+    assert check.console_errors == [] and check.empty_charts == []
+    assert check.most_drawn <= MAX_SERIES + 1  # + the counterexample's reference line
+    assert check.traces_after_toggle is not None and check.traces_after_toggle > 0
 
 
 def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> None:
