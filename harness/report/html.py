@@ -32,7 +32,7 @@ from ..table import aggregates as agg
 from .charts import Chart, RowChart
 from .core import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace, pick_profile
 from .sections.fields import load_area_series, trace_scene
-from .sections.generic import profile_taus, reached_accuracy
+from .sections.generic import best_of_family, profile_taus, reached_accuracy
 from .sections.paper import k_of
 from .page_script import PAGE_SCRIPT
 from .style import MAX_SERIES, sort_families
@@ -71,20 +71,18 @@ def scene_summaries(ctx: ReportContext) -> dict[str, list[agg.SolverSummary]]:
 def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]) -> dict[str, dict[str, Any]]:
     """Per scene, what its charts draw first when they would hold more than ``MAX_SERIES``
     series (the page's ``thin``; the other series stay in the legend, a click away):
-    ``order``, the scene's solvers ranked (the most problems solved, then the least SGM over
-    the best solver's, as in the scene's SGM table) with the best of each family first;
-    ``best``, how many of them to draw (the families, at most ``MAX_SERIES``); and
-    ``profile``, the report's profile for the scene (``pick_profile``)."""
+    ``order``, the scene's solvers with the best of each family by SGM first
+    (``best_of_family``, as the report's performance-profile panels), then the others by SGM;
+    ``best``, how many to draw (the families, at most ``MAX_SERIES``); and ``profile``, the
+    report's profile for the scene (``pick_profile``)."""
     out = {}
     for scene, summ in summaries.items():
-        ranked = [s.solver for s in sorted(summ, key=lambda s: (-s.solved, s.sgm_rel if np.isfinite(s.sgm_rel)
-                                                                 else np.inf, natural_key(s.solver)))]
-        best: dict[str, str] = {}
-        for s in ranked:
-            best.setdefault(ctx.family(s), s)
+        sgm = {s.solver: s.sgm_s for s in summ}
+        best = best_of_family(ctx, sgm)
         firsts = [best[f] for f in sort_families(best)]
-        out[scene] = {"order": firsts + [s for s in ranked if s not in firsts],
-                      "best": min(len(firsts), MAX_SERIES),
+        rest = sorted((s for s in sgm if s not in firsts),
+                      key=lambda s: (sgm[s] if np.isfinite(sgm[s]) else np.inf, natural_key(s)))
+        out[scene] = {"order": firsts + rest, "best": min(len(firsts), MAX_SERIES),
                       "profile": pick_profile(attempted(ctx.rows(scene)))}
     return out
 

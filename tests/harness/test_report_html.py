@@ -118,7 +118,7 @@ def crowded_table() -> pd.DataFrame:
 
 
 def test_a_crowded_scene_leads_with_the_best_of_each_family(tmp_path: Path) -> None:
-    """``scene_leads``: each family's best (most solved, then least SGM) first, one per family."""
+    """``scene_leads``: each family's best by SGM first, one per family, then the rest by SGM."""
     ctx = rp.ReportContext(tmp_path, crowded_table(), {})
     lead = html_report.scene_leads(ctx, html_report.scene_summaries(ctx))["paper-sweep"]
     fams = [ctx.family(s) for s in lead["order"][:lead["best"]]]
