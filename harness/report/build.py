@@ -47,9 +47,6 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     if table.empty:
         raise ReportInputError(f"the results table in {out} has no rows")
     ctx = ReportContext(out, table, load_meta(out), shift=shift)
-    if ctx.fig_dir.is_dir():
-        for old in ctx.fig_dir.glob("*.png"):
-            old.unlink()
     sections = registered_sections()
     doc = [header_section(ctx)]
     for sp in _in_order(sections, "lead"):  # whole-table sections that lead the report
@@ -69,7 +66,18 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     write_text_atomic(out / REPORT_NAME, "\n".join(d.rstrip() + "\n" for d in doc))
     if html:
         write_html_report(ctx)
+    drop_stale_figures(ctx)
     return ctx
+
+
+def drop_stale_figures(ctx: ReportContext) -> None:
+    """Remove the PNGs of OUT/figures that this report did not write: only once the report is
+    written, so that a report that fails part-way leaves the last report's figures in place."""
+    written = {Path(rel).name for rel in ctx.figures}
+    if ctx.fig_dir.is_dir():
+        for old in ctx.fig_dir.glob("*.png"):
+            if old.name not in written:
+                old.unlink()
 
 
 def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:

@@ -428,3 +428,24 @@ def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_p
     reading = text.split("### Fig. 4")[1].split("**Reading.**")[1].split("\n")[0]
     assert re.search(r"fastest solver over the whole sweep here is `[^`]+` with [0-9.]+ s at worst kkt \d\.\de-\d+",
                      reading)
+
+
+def test_a_report_failing_part_way_keeps_the_last_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The figures of the last report stay until a new report is written; then a PNG it did not
+    write (stale) goes."""
+    out = write_out(tmp_path, fabricate_table())
+    build_report(out)
+    before = {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")}
+    assert len(before) > 5
+
+    def broken(*args: Any, **kwargs: Any) -> Any:
+        raise RuntimeError("a section failed part-way")
+
+    with monkeypatch.context() as m:
+        m.setattr(rce, "violation_counts", broken)
+        with pytest.raises(RuntimeError, match="part-way"):
+            build_report(out)
+    assert {p.name for p in (out / "figures").glob("*.png")} == set(before)
+    (out / "figures" / "stale.png").write_bytes(next(iter(before.values())))
+    build_report(out)
+    assert {p.name for p in (out / "figures").glob("*.png")} == set(before)

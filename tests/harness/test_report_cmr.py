@@ -175,6 +175,18 @@ def test_the_report_states_the_surface_family_and_reads_the_claim_in_numbers(
     assert f"time CMR / direct {rp.fmt_num(ratio)} [" in section
 
 
+def test_a_table_without_the_hurst_exponent_says_why_fig8_is_not_drawn(tmp_path: Path) -> None:
+    """A table written before the ``hurst`` column: the section says why Fig. 8 (against H) is
+    not drawn instead of failing on an axis of NaN; the totals still carry the top step's error."""
+    table, errors = fabricate_cmr()
+    old = table.drop(columns=["hurst"])
+    tot = rc.instance_totals(rc.cmr_pairs(old))
+    assert tot["H"].isna().all() and np.isfinite(tot["err"]).all()
+    assert sorted(tot["err"]) == pytest.approx(sorted(rc.instance_totals(rc.cmr_pairs(table))["err"]))
+    out, section = _section(tmp_path, old, rcf.cmr_section)
+    assert "no `hurst` column" in section and not (out / "figures").exists()
+
+
 @pytest.mark.slow
 def test_the_h_sweep_section_tables_h_and_the_first_level(tmp_path: Path) -> None:
     parts = []

@@ -220,8 +220,9 @@ def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
     out["N"] = out["N"].fillna(0).astype(int)
     fams = out["surface_family"] if "surface_family" in out.columns else pd.Series("", index=out.index)
     out["surface"] = [family_name(f) or NO_FAMILY for f in fams]
-    out["H"] = pd.to_numeric(out.get("hurst", np.nan), errors="coerce").astype(float)
-    out["seed"] = pd.to_numeric(out.get("seed", -1), errors="coerce").fillna(-1).astype(int)
+    absent = pd.Series(np.nan, index=out.index)  # a table written before the instance columns
+    out["H"] = pd.to_numeric(out.get("hurst", absent), errors="coerce").astype(float)
+    out["seed"] = pd.to_numeric(out.get("seed", absent), errors="coerce").fillna(-1).astype(int)
     return out
 
 
@@ -233,8 +234,10 @@ def instance_totals(pairs: pd.DataFrame) -> pd.DataFrame:
     tot = g.agg(cmr_s=("solve_time_s", "sum"), direct_s=("direct_time_s", "sum"),
                 assembly_s=("direct_assembly_s", "sum"), steps=("step", "size"))
     tot["ratio"] = tot["cmr_s"] / tot["direct_s"]
-    top = pairs.loc[g["step"].idxmax()].set_index(keys)[["err", "n_p_over_n", "n", "step"]]
-    return tot.join(top).reset_index()
+    # the top step's row of each group, by position (a join on the keys would miss a key
+    # holding NaN: a table without the Hurst exponent)
+    top = pairs.loc[g["step"].idxmax().to_numpy(), ["err", "n_p_over_n", "n", "step"]]
+    return pd.concat([tot.reset_index(), top.reset_index(drop=True)], axis=1)
 
 
 #: What tells the CMR runs of a scene apart in every table and figure: the base, the

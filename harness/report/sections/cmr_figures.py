@@ -213,6 +213,10 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     pairs = cmr_pairs(rows)
     if pairs.empty:
         return Section(title, "No CMR row could be paired with its direct base solve.\n", page_charts=FIG8_PAGE)
+    if not np.isfinite(pairs["H"]).any():
+        return Section(title, "Fig. 8 is drawn against the Hurst exponent H, and this table gives no instance one "
+                              "(no `hurst` column: a table written before it existed); re-run the scene to draw "
+                              "it.\n", page_charts=FIG8_PAGE)
     body = [surface_family_note(pairs), DESIGN_NOTE]
     for family, fp in by_family(pairs):
         tot = instance_totals(fp)
