@@ -34,10 +34,15 @@ restricted to the island, so on the island's padded bounding box they would cost
 share of a product).  Printed: the outer iterations, and outer x (1 + K x the boxes' share of
 the padded grid) -- the work in products.
 
+``--in-loop T`` measures the whole cold solve instead, with the far field replaced *in the
+solver's loop* by the balancing deflation on T x T point tiles around the island blocks
+(``balancing_in_loop``: built where the far field would be built, applied on the loop's
+changing set), beside the default; ``--whole`` adds the same with every island one block.
+
 Not a solver: AZ is an |S| x m dense array, and the overlapping blocks are factored one by
 one.  Usage:
   python benchmarks/explore_deflation.py saupe:1024:0.9:0.1:3 periodic:1024:0.9:0.1:6 [--exact]
-      [--point-tiles 16 8] [--inner 2 3]
+      [--point-tiles 16 8] [--inner 2 3] [--in-loop 8 [--whole]]
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ import sys
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -315,6 +321,97 @@ def inner_table(qp, S: np.ndarray, T: int, inners: list[int], near: float) -> No
               f"{outer * (1 + K * share):.1f} products' work", flush=True)
 
 
+class LoopBalancing:
+    """The balancing deflation on T x T point tiles (approximated AZ), built on the set S and
+    applied on the loop's current set ``pos``: its points outside S take no coarse part, so
+    the operator stays z = P' inner(P r) + Q r, symmetric positive definite for any AZ."""
+
+    def __init__(self, M: IslandPreconditioner, S: np.ndarray, tile: int, near: float) -> None:
+        pos = np.flatnonzero(S)
+        T = tile
+        while True:  # at most 2048 aggregates (an m x m inverse per build)
+            labels, agg = np.unique((M._i[pos] // T) * (1 << 32) + M._j[pos] // T, return_inverse=True)
+            if labels.size <= 2048:
+                break
+            T *= 2
+        self.agg, self.m = agg.ravel(), labels.size
+        self.AZ = approximate_AZ(SimpleNamespace(H=M.H), M, pos, self.agg, self.m, T, near)
+        E = np.zeros((self.m, self.m))
+        np.add.at(E, self.agg, self.AZ)
+        self.Einv = np.linalg.inv(0.5 * (E + E.T))
+        self.row = np.full(M.n, -1)
+        self.row[pos] = np.arange(pos.size)
+
+    def apply(self, r: np.ndarray, pos: np.ndarray, inner: Map) -> np.ndarray:
+        row = self.row[pos]
+        keep = row >= 0
+        p, rw = pos[keep], row[keep]
+        a = self.agg[rw]
+        c = self.Einv @ np.bincount(a, weights=r[p], minlength=self.m)
+        Pr = np.zeros_like(r)
+        Pr[pos] = r[pos]
+        Pr[p] -= self.AZ[rw] @ c
+        z = inner(Pr)
+        g = self.Einv @ (self.AZ[rw].T @ z[p])
+        z[p] += c[a] - g[a]
+        return z
+
+
+@contextmanager
+def balancing_in_loop(tile: int, near: float) -> Iterator[None]:
+    """While on, an island preconditioner builds a ``LoopBalancing`` wherever it would build
+    its far field, and applies it around its blocks instead of the Woodbury correction."""
+    cls = IslandPreconditioner
+    saved = cls.apply, cls._update_far_field, cls.simplify
+
+    def apply(self: IslandPreconditioner, r: np.ndarray) -> np.ndarray:
+        bal = getattr(self, "_balancing", None)
+        if bal is None:
+            return saved[0](self, r)
+        far, self._far = self._far, None
+        try:
+            return bal.apply(r, self._pos, lambda x: saved[0](self, x))
+        finally:
+            self._far = far
+
+    def update_far_field(self: IslandPreconditioner, S: np.ndarray) -> None:
+        before = self._far_set
+        saved[1](self, S)
+        if self._far_set is not before:  # the far field was (re)built, or dropped
+            self._balancing = LoopBalancing(self, S, tile, near) if self._far is not None else None
+
+    def simplify(self: IslandPreconditioner) -> bool:
+        self._balancing = None
+        return saved[2](self)
+
+    cls.apply, cls._update_far_field, cls.simplify = apply, update_far_field, simplify
+    try:
+        yield
+    finally:
+        cls.apply, cls._update_far_field, cls.simplify = saved
+
+
+def in_loop(key: str, tile: int, near: float, whole: bool) -> None:
+    """The ``--in-loop`` line of one member: products of the whole cold solve (module doc)."""
+    inst, _ = bp.top_step(bp.Member.parse(key))
+    prof = get_profile("high")
+
+    def products() -> str:
+        (step,) = solve_sequence("fast-dual-pccg", [inst], SolverSettings(tol=prof.tol), warm=False,
+                                 check_tol=prof.check_tol)
+        return f"{step.result.matvecs} ({step.verdict.status})"
+
+    cells = [f"default {products()}"]
+    with balancing_in_loop(tile, near):
+        cells.append(f"bnn on {tile} x {tile} point tiles {products()}")
+    if whole:
+        with patched(BLOCK_KINDS["every island whole"]):
+            cells.append(f"every island whole {products()}")
+            with balancing_in_loop(tile, near):
+                cells.append(f"every island whole + bnn {products()}")
+    print(f"{key}: whole-solve products: " + ", ".join(cells), flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("members", nargs="+", help="member keys, e.g. saupe:1024:0.9:0.1:3")
@@ -322,16 +419,22 @@ def main() -> None:
     ap.add_argument("--near", type=float, default=1.5, help="exact sums within this many tiles (default 1.5)")
     ap.add_argument("--point-tiles", type=int, nargs="*", default=[], help="tile sides T of the point-tile table")
     ap.add_argument("--inner", type=int, nargs="*", default=[], help="inner iterations K on the big islands")
+    ap.add_argument("--in-loop", type=int, default=0, help="the whole solve with bnn on T x T point tiles in the loop")
+    ap.add_argument("--whole", action="store_true", help="with --in-loop: also every island one block")
     args = ap.parse_args()
-    if args.near <= 0.0 or any(T < 1 for T in args.point_tiles) or any(K < 1 for K in args.inner):
-        ap.exit(2, "explore_deflation: --near must be > 0, --point-tiles and --inner >= 1\n")
+    if args.near <= 0.0 or any(T < 1 for T in args.point_tiles) or any(K < 1 for K in args.inner) \
+            or args.in_loop < 0:
+        ap.exit(2, "explore_deflation: --near must be > 0, --point-tiles, --inner and --in-loop >= 1\n")
     for key in args.members:
         try:
             bp.Member.parse(key)
         except ValueError as err:
             ap.exit(2, f"explore_deflation: member {key!r} is not family:size:hurst:rms-slope:seed ({err})\n")
     for key in args.members:
-        explore(key, args.exact, args.near, args.point_tiles, args.inner)
+        if args.in_loop:
+            in_loop(key, args.in_loop, args.near, args.whole)
+        else:
+            explore(key, args.exact, args.near, args.point_tiles, args.inner)
 
 
 if __name__ == "__main__":
