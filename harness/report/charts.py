@@ -119,7 +119,10 @@ class RowChart:
     A section returns it in ``Section.page_charts``; the page knows only the drawers of
     ``ROW_DRAWERS``, never a scene name.  ``by_instance`` draws one curve per instance;
     ``reference`` (y, its legend name) draws a dashed horizontal line, e.g. a published
-    value the bars are read against."""
+    value the bars are read against; ``colors`` ((solver, CSS colour), ...) draws those
+    solvers first, in that order and colour, in every chart of the scene on the page (a
+    section whose PNG colours its solvers by a parameter gives the page the same), the
+    others in their family colours."""
 
     title: str
     drawer: str = "time-against"
@@ -127,6 +130,7 @@ class RowChart:
     x_title: str = "P/(E A) [-]"
     by_instance: bool = False
     reference: tuple[float, str] | None = None
+    colors: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if self.drawer not in ROW_DRAWERS:

@@ -9,6 +9,18 @@ const D = JSON.parse(document.getElementById('report-data').textContent);
 const COLOR = {}, FAMILY = {};
 D.families.forEach(f => f.solvers.forEach(s => { COLOR[s.name] = s.color; FAMILY[s.name] = f.name; }));
 const state = {solvers: new Set(Object.keys(COLOR)), scenes: new Set(D.scenes), profiles: new Set(D.profiles)};
+// A scene whose row chart gives colours ((solver, colour) pairs in drawing order: Fig. 6's K from
+// light to dark, as its PNG) draws those solvers in them, first and in that order, in every one
+// of its charts; other solvers take their family colours and follow by name.
+const OWN = {};
+D.rowcharts.filter(c => c.colors && c.colors.length).forEach(c => {
+  OWN[c.scene] = new Map(c.colors.map(([s, col], i) => [s, [i, col]])); });
+const colorIn = (scene, so) => OWN[scene] && OWN[scene].has(so) ? OWN[scene].get(so)[1] : COLOR[so];
+const rankIn = (scene, so) => OWN[scene] && OWN[scene].has(so) ? OWN[scene].get(so)[0] : Infinity;
+function bySceneOrder(scene, solverOf) {
+  return (a, b) => { const ra = rankIn(scene, solverOf(a)), rb = rankIn(scene, solverOf(b));
+    return ra !== rb ? (ra < rb ? -1 : 1) : (a < b ? -1 : a > b ? 1 : 0); };
+}
 const charts = [];   // {div, scene, draw: () => [traces, layout]}
 const MARKERS = {low: 'triangle-down', 'default': 'circle', mid: 'square', high: 'triangle-up'};
 const fmt = v => (v === null || v === undefined) ? '-' : Number.isInteger(v) && Math.abs(v) < 1e6 ? String(v) : (Math.abs(v) >= 1e-3 && Math.abs(v) < 1e5 ?
@@ -62,21 +74,22 @@ function thin(scene, traces, lay) {
     (keep === atLead ? ' at ' + lead.profile : '') + '); click for more', font: {size: 10}};
   return [traces, lay];
 }
-function lineChart(scene, title, xKey, xTitle, byInstance) {
+function lineChart(scene, c) {
   return () => {
+    const xKey = c.x;
     const rows = rowsOf(scene).filter(r => r.t !== null && r[xKey] !== null);
     const multiProf = new Set(rows.map(r => r.pr)).size > 1;
-    const g = groupBy(rows, r => r.lab + (multiProf ? ' [' + r.pr + ']' : '') + (byInstance ? ' ' + r.inst : ''));
+    const g = groupBy(rows, r => r.lab + (multiProf ? ' [' + r.pr + ']' : '') + (c.by_instance ? ' ' + r.inst : ''));
     const traces = [];
-    [...g.keys()].sort().forEach(k => {
+    [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
       const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
-      const so = rs[0].so;
+      const so = rs[0].so, col = colorIn(scene, so);
       traces.push({type: 'scatter', mode: 'lines+markers', name: k, meta: {so: so, pr: rs[0].pr}, x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
-        customdata: rs.map(custom), hovertemplate: HOVER, line: {color: COLOR[so], dash: rs[0].lab !== so ? 'dash' : 'solid'},
-        marker: {color: rs.map(r => r.stt === 'solved' ? COLOR[so] : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
+        customdata: rs.map(custom), hovertemplate: HOVER, line: {color: col, dash: rs[0].lab !== so ? 'dash' : 'solid'},
+        marker: {color: rs.map(r => r.stt === 'solved' ? col : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
           symbol: rs.map(r => r.stt === 'solved' ? 'circle' : 'x')}});
     });
-    return thin(scene, traces, layout(title, xTitle, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t)));
+    return thin(scene, traces, layout(c.title, c.x_title, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t)));
   };
 }
 function wpChart(scene, key, yTitle) {
@@ -84,11 +97,11 @@ function wpChart(scene, key, yTitle) {
     const rows = rowsOf(scene).filter(r => r.t !== null && r[key] !== null);
     const g = groupBy(rows, r => r.so + '|' + r.pr);
     const traces = [];
-    [...g.keys()].sort().forEach(k => {
-      const rs = g.get(k), so = rs[0].so, pr = rs[0].pr;
+    [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
+      const rs = g.get(k), so = rs[0].so, pr = rs[0].pr, col = colorIn(scene, so);
       traces.push({type: 'scatter', mode: 'markers', name: so + (D.profiles.length > 1 ? ' [' + pr + ']' : ''), meta: {so: so, pr: pr},
         x: rs.map(r => r.t), y: rs.map(r => Math.max(r[key], 1e-16)), customdata: rs.map(custom), hovertemplate: HOVER,
-        marker: {color: rs.map(r => r.stt === 'solved' ? COLOR[so] : 'white'), line: {color: COLOR[so], width: 1},
+        marker: {color: rs.map(r => r.stt === 'solved' ? col : 'white'), line: {color: col, width: 1},
           symbol: MARKERS[pr] || 'diamond', size: 7}});
     });
     const lay = layout('run time against ' + yTitle + ' (' + scene + ')', 'solve time [s]', yTitle,
@@ -100,8 +113,8 @@ function wpChart(scene, key, yTitle) {
 function ppChart(scene) {
   return () => {
     const p = D.pp[scene];
-    const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).map(s => ({type: 'scatter',
-      mode: 'lines', line: {shape: 'hv', color: COLOR[s]}, name: s, meta: {so: s}, x: p.taus, y: p.curves[s],
+    const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).sort(bySceneOrder(scene, s => s)).map(s => ({type: 'scatter',
+      mode: 'lines', line: {shape: 'hv', color: colorIn(scene, s)}, name: s, meta: {so: s}, x: p.taus, y: p.curves[s],
       hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}));
     const lay = layout('performance profile (' + scene + ', ' + p.n + ' problems)', 'tau (times the best time)',
       'fraction of problems solved', p.taus, [0, 1]);
@@ -193,7 +206,7 @@ function build() {
     const grid = document.createElement('div'); grid.className = 'grid'; sec.appendChild(grid);
     const has = D.rows.some(r => r.sc === scene);
     D.rowcharts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, c.drawer === 'unsolved-share'
-      ? counterexampleChart(scene, c) : lineChart(scene, c.title, c.x, c.x_title, c.by_instance)));
+      ? counterexampleChart(scene, c) : lineChart(scene, c)));
     D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
     if (has) {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));

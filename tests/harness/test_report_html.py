@@ -56,6 +56,19 @@ def test_page_is_one_offline_file_with_every_row_and_family(page: tuple[Path, pd
     assert set(data["pp"]) >= {"paper-sweep", "counterexample"} and set(data["sgm"]) == set(df["scene"])
 
 
+def test_fig6_gives_the_page_its_k_colours_in_k_order(page: tuple[Path, pd.DataFrame]) -> None:
+    """The gp-k-sweep scene's variants, one family's seven shades otherwise, are drawn on the
+    page in the PNG's colours: one per K, in the order of K."""
+    from contactbench.harness.report.sections.paper import k_of
+
+    path, df = page
+    (chart,) = [c for c in _data(path.read_text())["rowcharts"] if c["scene"] == "gp-k-sweep"]
+    solvers = [s for s, _ in chart["colors"]]
+    k = {r["solver"]: k_of(r) for _, r in df[df["scene"] == "gp-k-sweep"].iterrows()}
+    assert set(solvers) == set(k) and [k[s] for s in solvers] == sorted(k.values())
+    assert len({c for _, c in chart["colors"]}) == len(solvers)
+
+
 def test_solver_colours_are_fixed_and_a_family_shares_a_hue() -> None:
     import colorsys
 

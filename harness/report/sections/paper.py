@@ -12,11 +12,12 @@ never by the solver's label.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
+from matplotlib.colors import to_hex
 
 from contactbench.problems.surfaces import RMD_FAMILIES
 
@@ -531,7 +532,9 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                          [(int(k), fmt_num(tot.loc[k, "total_s"]), "yes" if tot.loc[k, "complete"] else "no")
                           for k in tot.index], "rrl"))
     body.append(_fig6_reading(tot))
-    return Section(title, "\n".join(body), page_charts=FIG6_PAGE)
+    page = replace(FIG6_PAGE[0], colors=tuple((s, to_hex(kcol[label_of_solver[s]]))
+                                               for s in sorted(label_of_solver, key=label_of_solver.get)))
+    return Section(title, "\n".join(body), page_charts=(page,))
 
 
 def _fig6_reading(tot: pd.DataFrame) -> str:
