@@ -24,8 +24,10 @@ from typing import Callable, Iterable, Mapping, Sequence
 #: The most series one panel draws (more are not told apart by colour and legend).
 MAX_SERIES = 10
 #: Families in the order panels and legends list them; others follow alphabetically.
-FAMILY_ORDER: tuple[str, ...] = ("paper", "fast", "qp", "wrapper", "reference", "external", "other")
-#: Hue (0-1) and saturation of each known family.
+FAMILY_ORDER: tuple[str, ...] = ("paper", "fast", "qp", "wrapper", "reference", "external", "peer", "other")
+#: Hue (0-1) and saturation of each known family: hue centres at least 0.1 apart, so that with
+#: ``HUE_BAND`` no two families' bands meet (two solvers of different families at least 10 apart
+#: in CIE L*a*b*, tests/harness/test_report_html.py).
 FAMILY_HUES: dict[str, tuple[float, float]] = {
     "paper": (0.60, 0.75),      # blue
     "fast": (0.33, 0.70),       # green
@@ -33,10 +35,15 @@ FAMILY_HUES: dict[str, tuple[float, float]] = {
     "wrapper": (0.08, 0.85),    # orange
     "reference": (0.0, 0.0),    # grey
     "external": (0.98, 0.75),   # red
-    "other": (0.98, 0.75),      # red: a solver registered from outside
+    "peer": (0.47, 0.70),       # teal: the field's codes (solvers/_peers.py)
+    "other": (0.88, 0.75),      # magenta: a solver registered from outside
 }
-#: Hues for families not listed above (teal, olive, magenta, brown, ...).
-SPARE_HUES: tuple[float, ...] = (0.50, 0.17, 0.88, 0.05, 0.55, 0.70)
+#: Hues for families not listed above (olive, indigo, ...): between the known bands.
+SPARE_HUES: tuple[float, ...] = (0.20, 0.69, 0.53, 0.40, 0.93, 0.14)
+#: The share of the hue circle a family's members drift across ...
+HUE_BAND = 0.10
+#: ... while their lightness steps through these levels (neighbours differ in both).
+LIGHTNESS_LEVELS: tuple[float, ...] = (0.22, 0.35, 0.48, 0.61, 0.72)
 #: Markers cycled within a family (so two shades of one hue still differ in shape).
 MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*")
 #: The colour of the solvers a panel draws only as context.
@@ -55,14 +62,14 @@ def sort_families(families: Iterable[str]) -> list[str]:
 
 
 def _shades(hue: float, sat: float, k: int) -> list[tuple[float, float, float]]:
-    """``k`` colours of one family's hue band: the hue drifts across the band (0.18 of the
-    circle, so the family still reads as one) and the lightness steps through three levels,
-    so neighbours differ in both."""
+    """``k`` colours of one family's hue band: the hue drifts across ``HUE_BAND`` of the circle
+    (so the family still reads as one, and apart from the others) and the lightness steps
+    through ``LIGHTNESS_LEVELS``, so neighbours differ in both."""
     out = []
     for i in range(k):
         frac = i / (k - 1) if k > 1 else 0.5
-        light = (0.28, 0.52, 0.70)[i % 3] if k > 1 else 0.4
-        h = (hue + 0.18 * (frac - 0.5)) % 1.0
+        light = LIGHTNESS_LEVELS[i % len(LIGHTNESS_LEVELS)] if k > 1 else 0.4
+        h = (hue + HUE_BAND * (frac - 0.5)) % 1.0
         out.append(colorsys.hls_to_rgb(h, light, sat))
     return out
 

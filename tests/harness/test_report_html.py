@@ -83,6 +83,36 @@ def test_solver_colours_are_fixed_and_a_family_shares_a_hue() -> None:
     assert len({st.color(s) for s in fams}) == len(fams)
 
 
+def _lab(rgb: tuple[float, float, float]) -> np.ndarray:
+    """CIE L*a*b* (D65) of an sRGB colour."""
+    c = np.asarray(rgb, dtype=float)
+    c = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    xyz = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]) @ c
+    x, y, z = xyz / np.array([0.95047, 1.0, 1.08883])
+    f = lambda t: np.cbrt(t) if t > 0.008856 else 7.787 * t + 16 / 116  # noqa: E731
+    return np.array([116 * f(y) - 16, 500 * (f(x) - f(y)), 200 * (f(y) - f(z))])
+
+
+def test_two_families_never_share_a_colour() -> None:
+    """Every solver of the project (peers included), three external programs and three solvers
+    registered from outside: two solvers of different families at least 10 apart in CIE
+    L*a*b* (2 is the same colour to the eye: a peer once took the shade of a paper solver),
+    two of one family at least 4 apart (markers tell those apart too)."""
+    from itertools import combinations
+
+    from contactbench.solvers.registry import all_solvers
+
+    fams = {name: s.family for name, s in all_solvers().items() if s.family != "test"}  # not the tests' own
+    fams.update({f"ext{i}": "external" for i in range(3)} | {f"mine{i}": "other" for i in range(3)})
+    st = SolverStyles(fams, rp.natural_key)
+    lab = {s: _lab(st.color(s)) for s in fams}
+    dist = {(a, b): float(np.linalg.norm(lab[a] - lab[b])) for a, b in combinations(fams, 2)}
+    cross = min((d, p) for p, d in dist.items() if st.family(p[0]) != st.family(p[1]))
+    within = min((d, p) for p, d in dist.items() if st.family(p[0]) == st.family(p[1]))
+    assert cross[0] >= 10.0, cross
+    assert within[0] >= 4.0, within
+
+
 def test_panels_hold_at_most_ten_series_and_cover_every_solver() -> None:
     solvers = [f"s{i:02d}" for i in range(33)]
     fam = {s: ("paper", "fast", "qp", "wrapper", "other")[i % 5] if i < 30 else "qp" for i, s in enumerate(solvers)}
