@@ -96,7 +96,7 @@ def _lab(rgb: tuple[float, float, float]) -> np.ndarray:
 def test_two_families_never_share_a_colour() -> None:
     """Every solver of the project (peers included), three external programs and three solvers
     registered from outside: two solvers of different families at least 10 apart in CIE
-    L*a*b* (2 is the same colour to the eye: a peer once took the shade of a paper solver),
+    L*a*b* (2 apart is one colour to the eye),
     two of one family at least 4 apart (markers tell those apart too)."""
     from itertools import combinations
 
