@@ -29,6 +29,9 @@ return [...document.querySelectorAll('.js-plotly-plot')].filter(d =>
     .some(p => { const s = p.getAttribute('d') || ''; return s !== '' && s !== 'M0,0Z'; })
 ).map(d => (d.querySelector('.gtitle') || {}).textContent || '(untitled)');
 """
+#: The longest legend entry on the page, in characters.
+LONGEST_LEGEND_JS = ("return Math.max(0, ...[...document.querySelectorAll('.js-plotly-plot .legendtext')]"
+                     ".map(e => e.textContent.length));")
 #: The most series any one chart draws (its legend may list more that it does not draw).
 MOST_DRAWN_JS = ("return Math.max(0, ...[...document.querySelectorAll('.js-plotly-plot')].map(d => "
                  "d.querySelectorAll('.scatterlayer .trace, .barlayer .trace').length));")
@@ -61,6 +64,7 @@ class PageCheck:
     traces: int
     empty_charts: list[str] = field(default_factory=list)
     most_drawn: int = 0
+    longest_legend: int = 0
     console_errors: list[str] = field(default_factory=list)
     traces_after_toggle: int | None = None
 
@@ -110,7 +114,7 @@ def only_family(driver: Any, family: str) -> None:
 
 def check_page(html: Path, screenshot: Path | None = None, family: str | None = None) -> PageCheck:
     """Open the page, count charts and visible traces, name the charts with data but no
-    mark, find the most series one chart draws, untick ``family`` (when given) and count again, and save a screenshot."""
+    mark, find the most series one chart draws and the longest legend entry, untick ``family`` (when given) and count again, and save a screenshot."""
     driver = open_driver()
     try:
         load_s = load_page(driver, html)
@@ -119,7 +123,7 @@ def check_page(html: Path, screenshot: Path | None = None, family: str | None = 
             "return window.contactbenchReport.charts.filter(c => c.div).length;"))
         traces = int(driver.execute_script(VISIBLE_TRACES_JS))
         check = PageCheck(load_s, charts, expected, traces, list(driver.execute_script(EMPTY_CHARTS_JS)),
-                          int(driver.execute_script(MOST_DRAWN_JS)))
+                          int(driver.execute_script(MOST_DRAWN_JS)), int(driver.execute_script(LONGEST_LEGEND_JS)))
         if family is not None:
             toggle_family(driver, family)
             check.traces_after_toggle = int(driver.execute_script(VISIBLE_TRACES_JS))

@@ -51,27 +51,43 @@ function layout(title, xt, yt, xs, ys, extra) {
     yaxis: {title: {text: yt}, type: axisType(ys), exponentformat: 'power'},
     legend: {font: {size: 10}}, hovermode: 'closest'}, extra || {});
 }
-// A chart of more than D.maxSeries series draws the scene's first solvers in D.lead's order
-// (the best of each family, then the others by rank; as many as the lead has), and then, if
-// still more than D.maxSeries series, only those at the lead profile; the other series stay in
-// the legend ('legendonly'), a click away.  Each trace carries meta.so (its solver) and
-// meta.pr (its profile, where it has one).
+// A chart of more than D.maxSeries series draws fewer, narrowing step by step while it still has
+// too many: the scene's first solvers in D.lead's order (the best of each family, then the others
+// by rank; as many as the lead has), then only the lead profile, then the first instances (a
+// chart of one curve per instance), then the first D.maxSeries; the other series stay in the
+// legend ('legendonly'), a click away, and the legend's title says what is drawn.  Each trace
+// carries meta.so (its solver; none: no solver narrowing), meta.pr (its profile) and meta.inst
+// (its instance) where it has them.
 function thin(scene, traces, lay) {
+  if (traces.length <= D.maxSeries) return [traces, lay];
   const lead = D.lead[scene];
-  if (!lead || traces.length <= D.maxSeries) return [traces, lay];
-  const present = new Set(traces.map(t => t.meta.so));
+  const why = [];
   let keep = t => true;
-  if (present.size > D.maxSeries) {
-    const first = new Set(lead.order.filter(s => present.has(s)).slice(0, lead.best));
-    keep = t => first.has(t.meta.so);
+  const narrow = (test, word) => {
+    const k0 = keep, k1 = t => k0(t) && test(t);
+    if (traces.filter(k0).length > D.maxSeries && traces.some(k1)) { keep = k1; why.push(word); }
+  };
+  if (lead) {
+    const present = new Set(traces.map(t => t.meta.so).filter(s => s !== undefined));
+    if (present.size > D.maxSeries) {
+      const first = new Set(lead.order.filter(s => present.has(s)).slice(0, lead.best));
+      narrow(t => first.has(t.meta.so), 'the best of each family');
+    }
+    narrow(t => t.meta.pr === undefined || t.meta.pr === lead.profile, 'at ' + lead.profile);
   }
-  const bySolver = keep;
-  const atLead = t => bySolver(t) && (t.meta.pr === undefined || t.meta.pr === lead.profile);
-  if (traces.filter(bySolver).length > D.maxSeries && traces.some(atLead)) keep = atLead;
+  const kept = traces.filter(keep);
+  if (kept.length > D.maxSeries && kept.every(t => t.meta.inst !== undefined)) {
+    const insts = [...new Set(kept.map(t => t.meta.inst))];
+    const most = Math.max(...insts.map(i => kept.filter(t => t.meta.inst === i).length));
+    const first = new Set(insts.slice(0, Math.max(1, Math.floor(D.maxSeries / most))));
+    narrow(t => first.has(t.meta.inst), 'the first ' + first.size + ' of ' + insts.length + ' instances');
+  }
+  const shown = new Set(traces.filter(keep).slice(0, D.maxSeries));
+  narrow(t => shown.has(t), 'the first ' + D.maxSeries);
   if (traces.every(keep)) return [traces, lay];
   traces.forEach(t => { if (!keep(t)) t.visible = 'legendonly'; });
-  lay.legend.title = {text: traces.filter(keep).length + ' of ' + traces.length + ' drawn (the best of each family' +
-    (keep === atLead ? ' at ' + lead.profile : '') + '); click for more', font: {size: 10}};
+  lay.legend.title = {text: traces.filter(keep).length + ' of ' + traces.length + ' drawn (' + why.join(', ') +
+    '); click for more', font: {size: 10}};
   return [traces, lay];
 }
 function lineChart(scene, c) {
@@ -84,7 +100,8 @@ function lineChart(scene, c) {
     [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
       const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
       const so = rs[0].so, col = colorIn(scene, so);
-      traces.push({type: 'scatter', mode: 'lines+markers', name: k, meta: {so: so, pr: rs[0].pr}, x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
+      traces.push({type: 'scatter', mode: 'lines+markers', name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined},
+        x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
         customdata: rs.map(custom), hovertemplate: HOVER, line: {color: col, dash: rs[0].lab !== so ? 'dash' : 'solid'},
         marker: {color: rs.map(r => r.stt === 'solved' ? col : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
           symbol: rs.map(r => r.stt === 'solved' ? 'circle' : 'x')}});
@@ -166,11 +183,11 @@ function traceChart(useTime) {
 function loadAreaChart() {
   return () => {
     const traces = D.loadarea.filter(s => state.scenes.has(s.scene)).map((s, i) => ({type: 'scatter',
-      mode: 'lines+markers', name: s.scene + ' ' + s.instance, x: s.x, y: s.y, customdata: s.step,
+      mode: 'lines+markers', name: s.scene + ' ' + s.instance, meta: {}, x: s.x, y: s.y, customdata: s.step,
       hovertemplate: 'step %{customdata}: P/(E* A0) = %{x:.3g}, A/A0 = %{y:.3g}<extra></extra>'}));
     const lay = layout('load-area curve', 'P / (E* A0)', 'A / A0', [1, 100], [1, 100]);
     lay.xaxis.type = 'log'; lay.yaxis.type = 'log';
-    return [traces, lay];
+    return thin('', traces, lay);
   };
 }
 function sgmTable(scene, holder) {
@@ -233,6 +250,12 @@ function build() {
     field.appendChild(f); });
   main.appendChild(field);
 }
+// A legend entry of at most LEGEND_CHARS characters (its middle elided; the hover names the
+// solver, profile and instance in full): Plotly sizes the legend to its longest entry, and
+// names of a solver, its parameters, a profile and an instance left the plot a sliver.
+const LEGEND_CHARS = 44;
+const legendName = n => typeof n === 'string' && n.length > LEGEND_CHARS
+  ? n.slice(0, LEGEND_CHARS / 2 - 1) + '\u2026' + n.slice(n.length - LEGEND_CHARS / 2) : n;
 function redraw() {
   document.querySelectorAll('section.scene').forEach(s => {
     if (s.dataset.scene) s.classList.toggle('hidden', !state.scenes.has(s.dataset.scene)); });
@@ -240,6 +263,7 @@ function redraw() {
     if (c.scene && !state.scenes.has(c.scene)) return;
     if (c.table) { c.table.render(); return; }
     const [traces, lay] = c.draw();
+    traces.forEach(t => { t.name = legendName(t.name); });
     Plotly.react(c.div, traces, lay, {responsive: true, displayModeBar: false});
   });
 }
