@@ -100,7 +100,9 @@ function lineChart(scene, c) {
     [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
       const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
       const so = rs[0].so, col = colorIn(scene, so);
-      traces.push({type: 'scatter', mode: 'lines+markers', name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined},
+      // a line joins the steps of one load history; points of several instances stay unjoined
+      const mode = new Set(rs.map(r => r.inst)).size > 1 ? 'markers' : 'lines+markers';
+      traces.push({type: 'scatter', mode: mode, name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined},
         x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
         customdata: rs.map(custom), hovertemplate: HOVER, line: {color: col, dash: rs[0].lab !== so ? 'dash' : 'solid'},
         marker: {color: rs.map(r => r.stt === 'solved' ? col : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
