@@ -70,11 +70,11 @@ def scene_summaries(ctx: ReportContext) -> dict[str, list[agg.SolverSummary]]:
 
 def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]) -> dict[str, dict[str, Any]]:
     """Per scene, what its charts draw first when they would hold more than ``MAX_SERIES``
-    series (the page's ``thin``; the other series stay in the legend, a click away):
-    ``order``, the scene's solvers with the best of each family by SGM first
-    (``best_of_family``, as the report's performance-profile panels), then the others by SGM;
-    ``best``, how many to draw (the families, at most ``MAX_SERIES``); and ``profile``, the
-    report's profile for the scene (``pick_profile``)."""
+    series (the page's ``thin`` draws the first ``MAX_SERIES`` solvers of ``order``; the other
+    series stay in the legend, a click away): ``order``, the scene's solvers with the best of
+    each family by SGM first (``best_of_family``, as the report's performance-profile panels;
+    ``best`` of them), then the others by SGM; and ``profile``, the report's profile for the
+    scene (``pick_profile``)."""
     out = {}
     for scene, summ in summaries.items():
         sgm = {s.solver: s.sgm_s for s in summ}
@@ -82,7 +82,7 @@ def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]
         firsts = [best[f] for f in sort_families(best)]
         rest = sorted((s for s in sgm if s not in firsts),
                       key=lambda s: (sgm[s] if np.isfinite(sgm[s]) else np.inf, natural_key(s)))
-        out[scene] = {"order": firsts + rest, "best": min(len(firsts), MAX_SERIES),
+        out[scene] = {"order": firsts + rest, "best": len(firsts),
                       "profile": pick_profile(attempted(ctx.rows(scene)))}
     return out
 
@@ -178,8 +178,8 @@ def render_html(ctx: ReportContext) -> str:
             f"<style>{PAGE_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
             f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
             f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "
-            f"profiles; a chart of more than {MAX_SERIES} series draws the best solver of each family and "
-            f"keeps the rest in its legend, a click away; hover a point for its instance, step, n, errors, time, iterations and status; click a "
+            f"profiles; a chart of more than {MAX_SERIES} series draws the best solver of each family first "
+            f"(by SGM) and keeps the rest in its legend, a click away; hover a point for its instance, step, n, errors, time, iterations and status; click a "
             f"table header to sort.</p></header>\n"
             f"<div id=\"layout\"><nav id=\"picker\"></nav><main id=\"charts\"></main></div>\n"
             f"{tables_html(ctx)}"

@@ -52,8 +52,8 @@ function layout(title, xt, yt, xs, ys, extra) {
     legend: {font: {size: 10}}, hovermode: 'closest'}, extra || {});
 }
 // A chart of more than D.maxSeries series draws fewer, narrowing step by step while it still has
-// too many: the scene's first solvers in D.lead's order (the best of each family, then the others
-// by rank; as many as the lead has), then only the lead profile, then the first instances (a
+// too many: the scene's first D.maxSeries solvers in D.lead's order (the best of each family, then
+// the others by SGM), then only the lead profile, then the first instances (a
 // chart of one curve per instance), then the first D.maxSeries; the other series stay in the
 // legend ('legendonly'), a click away, and the legend's title says what is drawn.  Each trace
 // carries meta.so (its solver; none: no solver narrowing), meta.pr (its profile) and meta.inst
@@ -70,8 +70,8 @@ function thin(scene, traces, lay) {
   if (lead) {
     const present = new Set(traces.map(t => t.meta.so).filter(s => s !== undefined));
     if (present.size > D.maxSeries) {
-      const first = new Set(lead.order.filter(s => present.has(s)).slice(0, lead.best));
-      narrow(t => first.has(t.meta.so), 'the best of each family');
+      const first = new Set(lead.order.filter(s => present.has(s)).slice(0, D.maxSeries));
+      narrow(t => first.has(t.meta.so), 'the best of each family first');
     }
     narrow(t => t.meta.pr === undefined || t.meta.pr === lead.profile, 'at ' + lead.profile);
   }
@@ -100,8 +100,9 @@ function lineChart(scene, c) {
     [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
       const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
       const so = rs[0].so, col = colorIn(scene, so);
-      // a line joins the steps of one load history; points of several instances stay unjoined
-      const mode = new Set(rs.map(r => r.inst)).size > 1 ? 'markers' : 'lines+markers';
+      // against the load a line joins the steps of one load history: the points of several
+      // instances stay unjoined (against n, the instances are the sizes the line runs through)
+      const mode = xKey === 'dl' && new Set(rs.map(r => r.inst)).size > 1 ? 'markers' : 'lines+markers';
       traces.push({type: 'scatter', mode: mode, name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined},
         x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
         customdata: rs.map(custom), hovertemplate: HOVER, line: {color: col, dash: rs[0].lab !== so ? 'dash' : 'solid'},
