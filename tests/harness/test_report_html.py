@@ -192,6 +192,24 @@ def test_a_crowded_chart_draws_at_most_max_series(tmp_path: Path) -> None:
     assert check.traces_after_toggle is not None and check.traces_after_toggle > 0
 
 
+@pytest.mark.slow
+def test_a_scene_of_one_family_draws_max_series_not_one(tmp_path: Path) -> None:
+    """14 solvers of one family on one scene at one profile: its charts draw ``MAX_SERIES`` of
+    them (the best of the family first, then the next by SGM), not the family's best alone."""
+    why = browser_missing()
+    if why:
+        pytest.skip(f"browser test skipped: {why}")
+    df = fabricate_table()
+    base = df[(df["scene"] == "paper-sweep") & (df["solver"] == "nnls") & (df["profile"] == "high")]
+    one = pd.concat([base.assign(solver=f"q{k:02d}", base_solver=f"q{k:02d}", family="qp",
+                                 solve_time_s=base["solve_time_s"] * (1.0 + 0.1 * k)) for k in range(14)],
+                    ignore_index=True)
+    out = write_out(tmp_path, one)
+    build_report(out)
+    check = check_page(out / "report.html")
+    assert check.empty_charts == [] and check.most_drawn == MAX_SERIES
+
+
 def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> None:
     """save_field keeps a solved top step (and only that); the report draws the surface,
     pressure and gap from it and fits kappa on the table's load-area points."""
