@@ -10,7 +10,7 @@ const COLOR = {}, FAMILY = {};
 D.families.forEach(f => f.solvers.forEach(s => { COLOR[s.name] = s.color; FAMILY[s.name] = f.name; }));
 const state = {solvers: new Set(Object.keys(COLOR)), scenes: new Set(D.scenes), profiles: new Set(D.profiles)};
 // A scene whose row chart gives colours ((solver, colour) pairs in drawing order: Fig. 6's K from
-// light to dark, as its PNG) draws those solvers in them, first and in that order, in every one
+// dark to light (viridis), as its PNG) draws those solvers in them, first and in that order, in every one
 // of its charts; other solvers take their family colours and follow by name.
 const OWN = {};
 D.rowcharts.filter(c => c.colors && c.colors.length).forEach(c => {
