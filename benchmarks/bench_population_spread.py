@@ -4,8 +4,9 @@ by each solver in turn in this process and judged by the harness at profile "hig
 the median and worst products over the members and the worst over the median.
 
 A worst-over-median ratio of products is a property of the solver *and* of the population: a
-peer's spread on the same members says how much of it the members themselves carry.  Products are the solver's own count (``SolveResult.matvecs``); rows go to
-``OUT/population-spread.csv`` as they finish, with the host, the time and the code's commit.
+peer's spread on the same members says how much of it the members themselves carry.  Products
+are the solver's own count (``SolveResult.matvecs``); rows go to ``OUT/population-spread.csv``
+as they finish, with the host, the time and the code's commit.
 
 Usage:
   python benchmarks/bench_population_spread.py --size 1024 --seeds 2 --first-seed 3
@@ -25,10 +26,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface_population as bp  # noqa: E402
+from bench_set_finding import cold_solve  # noqa: E402
 from csv_rows import append_row, host_name, read_latest  # noqa: E402
 
-from contactbench.harness import get_profile, solve_sequence  # noqa: E402
-from contactbench.solvers.base import SolverSettings  # noqa: E402
 from contactbench.solvers.registry import available_solvers  # noqa: E402
 
 CSV_NAME = "population-spread.csv"
@@ -55,8 +55,7 @@ class SpreadRow:
 
 def solve(m: bp.Member, solver: str, threads: int, commit: str) -> SpreadRow:
     inst, _ = bp.top_step(m)
-    prof = get_profile("high")
-    (step,) = solve_sequence(solver, [inst], SolverSettings(tol=prof.tol), warm=False, check_tol=prof.check_tol)
+    step = cold_solve(inst, solver)
     r = step.result
     return SpreadRow(m.key, m.hurst, solver, step.verdict.status if step.verdict else "failed",
                      int(r.matvecs) if r else -1, int(r.iterations) if r else -1, round(step.seconds, 3),

@@ -33,6 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface_population as bp  # noqa: E402
 
 from contactbench.harness import get_profile, solve_sequence  # noqa: E402
+from contactbench.harness.run.sequence import StepSolve  # noqa: E402
+from contactbench.problems.instances import ContactInstance  # noqa: E402
 from contactbench.solvers._kit import conjugate_gradient  # noqa: E402
 from contactbench.solvers._preconditioners import make_preconditioner  # noqa: E402
 from contactbench.solvers.base import SolverSettings  # noqa: E402
@@ -72,10 +74,17 @@ def fixed_set_cg(qp, S: np.ndarray, reduction: float, max_iter: int = 1000) -> i
     return cg_on_set(qp, S, M.apply, reduction=reduction, max_iter=max_iter)
 
 
+def cold_solve(inst: ContactInstance, solver: str = SOLVER) -> StepSolve:
+    """``inst`` solved from p = 0 by ``solver`` with its defaults at the "high" profile's
+    tolerance, and judged by the harness at that profile."""
+    prof = get_profile("high")
+    (step,) = solve_sequence(solver, [inst], SolverSettings(tol=prof.tol), warm=False, check_tol=prof.check_tol)
+    return step
+
+
 def measure(m: bp.Member, reduction: float) -> SetFindingRow:
     inst, _ = bp.top_step(m)
-    prof = get_profile("high")
-    (step,) = solve_sequence(SOLVER, [inst], SolverSettings(tol=prof.tol), warm=False, check_tol=prof.check_tol)
+    step = cold_solve(inst)
     S = step.result.p > 0.0
     k = fixed_set_cg(inst.qp, S, reduction)
     mv = int(step.result.matvecs)

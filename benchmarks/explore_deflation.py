@@ -59,14 +59,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface_population as bp  # noqa: E402
-from bench_set_finding import cg_on_set  # noqa: E402
+from bench_set_finding import cg_on_set, cold_solve  # noqa: E402
 
-from contactbench.harness import get_profile, solve_sequence  # noqa: E402
 from contactbench.solvers import _partition, _preconditioners  # noqa: E402
 from contactbench.solvers._farfield import tile_size  # noqa: E402
 from contactbench.solvers._kit import conjugate_gradient  # noqa: E402
 from contactbench.solvers._preconditioners import IslandPreconditioner, make_preconditioner  # noqa: E402
-from contactbench.solvers.base import SolverSettings  # noqa: E402
 
 Map = Callable[[np.ndarray], np.ndarray]
 NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
@@ -197,9 +195,7 @@ def smoothed_basis(qp, pos: np.ndarray, agg: np.ndarray, AZ: np.ndarray, smoothe
 def explore(key: str, exact: bool, near: float, tiles: list[int], inners: list[int]) -> None:
     inst, _ = bp.top_step(bp.Member.parse(key))
     qp = inst.qp
-    prof = get_profile("high")
-    (step,) = solve_sequence("fast-dual-pccg", [inst], SolverSettings(tol=prof.tol), warm=False,
-                             check_tol=prof.check_tol)
+    step = cold_solve(inst)
     S = step.result.p > 0.0
     pos = np.flatnonzero(S)
     far = make_preconditioner("farfield", qp)
@@ -394,11 +390,9 @@ def balancing_in_loop(tile: int, near: float) -> Iterator[None]:
 def in_loop(key: str, tile: int, near: float, whole: bool) -> None:
     """The ``--in-loop`` line of one member: products of the whole cold solve (module doc)."""
     inst, _ = bp.top_step(bp.Member.parse(key))
-    prof = get_profile("high")
 
     def products() -> str:
-        (step,) = solve_sequence("fast-dual-pccg", [inst], SolverSettings(tol=prof.tol), warm=False,
-                                 check_tol=prof.check_tol)
+        step = cold_solve(inst)
         return f"{step.result.matvecs} ({step.verdict.status})"
 
     cells = [f"default {products()}"]
