@@ -114,7 +114,8 @@ def only_family(driver: Any, family: str) -> None:
 
 def check_page(html: Path, screenshot: Path | None = None, family: str | None = None) -> PageCheck:
     """Open the page, count charts and visible traces, name the charts with data but no
-    mark, find the most series one chart draws and the longest legend entry, untick ``family`` (when given) and count again, and save a screenshot."""
+    mark, find the most series one chart draws and the longest legend entry, untick
+    ``family`` (when given) and count again, and save a screenshot."""
     driver = open_driver()
     try:
         load_s = load_page(driver, html)

@@ -153,7 +153,7 @@ function counterexampleChart(scene, c) {
       const rs = g.get(so);
       const y = ns.map(n => { const x = rs.filter(r => r.n === n); if (!x.length) return null;
         return 100 * x.filter(r => r.stt !== 'solved').length / x.length; });  // the judge's verdict, as the section
-      return {type: 'bar', name: so, meta: {so: so}, x: cats, y: y, marker: {color: COLOR[so]},
+      return {type: 'bar', name: so, meta: {so: so}, x: cats, y: y, marker: {color: colorIn(scene, so)},
         hovertemplate: so + ': %{y:.0f} % of seeds violate the LCP (judge: not solved) at %{x}<extra></extra>'};
     });
     if (c.reference && cats.length) traces.push({type: 'scatter', mode: 'lines', name: c.reference[1], x: cats,
@@ -171,7 +171,7 @@ function traceChart(useTime) {
     const traces = Object.keys(T.solvers).filter(s => state.solvers.has(s)).map(s => {
       const d = T.solvers[s];
       return {type: 'scatter', mode: 'lines', name: s, meta: {so: s}, x: useTime ? d.t : d.it, y: d.r,
-        line: {color: COLOR[s]}, legendgroup: FAMILY[s],
+        line: {color: colorIn(T.scene, s)}, legendgroup: FAMILY[s],
         hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
           (useTime ? '%{x:.3g} s' : 'iteration %{x}') + '<extra></extra>'};
     });
