@@ -52,7 +52,10 @@ zero).  It keeps p feasible (0 <= p <= u, sum p = P): a free solution that leave
 box is cut at the first bound reached (the load is kept along the step) and the
 elements there are fixed; on a feasible free solution the bounded element whose gap
 w = Hp - ubar - Delta has the wrong sign by most (w < 0 at p = 0, w > 0 at p = u) is
-freed, until none is.  It starts from an accelerated projected-gradient answer
+freed, until none is.  Where no element is free, one freed alone could not move (its force
+is the load left over, which the others fix), so it is freed with its exchange partner
+(``exchange_partner``): the element at the other bound whose gap favours handing force
+across most.  It starts from an accelerated projected-gradient answer
 (``projected_gradient_guess``), projected onto the feasible set, and ``box_polish``
 repairs the final sets if the certificate fails.
 """
@@ -310,6 +313,19 @@ class LoadActiveSetOutcome:
     converged: bool
 
 
+def exchange_partner(g: np.ndarray, state: np.ndarray, j: int) -> int | None:
+    """The element to free with ``j`` when no element is free (module doc): for j at 0 the
+    one at u with the largest gap g (the most ready to shed force), for j at u the one at 0
+    with the smallest; None when there is none.  Moving force from the partner to j lowers
+    the objective by g_partner - g_j per unit, which is positive wherever no single
+    multiplier holds both at their bounds."""
+    other = S if state[j] == Z else Z
+    cand = np.flatnonzero(state == other)
+    if cand.size == 0:
+        return None
+    return int(cand[np.argmax(g[cand])] if other == S else cand[np.argmin(g[cand])])
+
+
 def load_active_set(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np.ndarray,
                     max_iter: int | None = None, tol: float = 1e-12) -> LoadActiveSetOutcome:
     """The primal active-set method on min 1/2 p'Hp - ubar'p, 0 <= p <= u, sum p = P
@@ -344,7 +360,10 @@ def load_active_set(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p
         j = int(np.argmax(score))
         if score[j] <= tol * u_s or it == limit:
             return LoadActiveSetOutcome(p, delta, it, inner, bool(score[j] <= tol * u_s))
+        partner = exchange_partner(g, state, j) if not np.any(state == F) else None
         state[j] = F
+        if partner is not None:
+            state[partner] = F
     return LoadActiveSetOutcome(p, delta, limit, inner, False)
 
 
@@ -436,4 +455,4 @@ def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, 
 
 __all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "LoadActiveSetOutcome", "bvls",
            "UncertifiedConstrainedSolution", "box_polish", "constant_null_space", "constrained_exact_solution",
-           "load_active_set", "projected_gradient_guess", "solve_on_sets"]
+           "exchange_partner", "load_active_set", "projected_gradient_guess", "solve_on_sets"]

@@ -17,6 +17,9 @@ products of raised forces gather from the kernel table's quarter on the device
 On an operator with a space a solve whose preconditioner cannot run there (the island
 kinds: dense block factorisations on the host) runs its loop on the host, each product
 crossing the bus, and says so in ``info["array_space"]``.
+
+Where the state starts: ``resident_state`` at the start the solver chose, and
+``cold_if_worse`` back at p = 0 when a warm start is farther from the answer than that.
 """
 
 from __future__ import annotations
@@ -52,6 +55,24 @@ def resident_state(ctx: SolveContext, space: ArraySpace, p0: np.ndarray) -> GapS
     """The state at the host start ``p0`` with ubar and p moved to ``space`` (the host: as
     they are)."""
     return GapState(ctx.qp.H, space.put(ctx.qp.ubar), space.put(p0), space=space)
+
+
+def cold_if_worse(ctx: SolveContext, state: GapState) -> dict[str, str]:
+    """Move ``state`` (at the warm start, its gap exact) to p = 0 when the warm start's
+    scaled KKT error is not below the cold start's -- a start farther from the answer than
+    no force at all (or not finite): on a periodic grid a uniform p0 of 1e30 left every fast
+    CCG stalled at an error of 1e50, where a cold start converges.  Only without constraints
+    (under a load or a hardness the loops first move p0 into the feasible set, which undoes
+    its size).  The gap at p = 0 is -ubar: no matvec.  What ``info`` records of it (nothing
+    when the warm start stands)."""
+    if ctx.p0 is None or not ctx.constraints.plain:
+        return {}
+    zero = state.space.xp.zeros_like(state.p)
+    if ctx.kkt(state.p, state.g) <= ctx.kkt(zero, -state.ubar):
+        return {}
+    state.p = zero
+    state.refresh()
+    return {"warm_start": "dropped: its KKT error was not below a cold start's"}
 
 
 def bring_home(ctx: SolveContext, state: GapState) -> None:

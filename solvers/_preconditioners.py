@@ -558,12 +558,13 @@ class FourierPreconditioner(_OnesCache):
 
 def floored_wavenumbers(shape: tuple[int, int]) -> np.ndarray:
     """|q| on the rfft2 half-spectrum of a grid, |q(0, 0)| floored at the lowest
-    non-zero wave number (so the multiplier below is positive definite)."""
+    non-zero |wave number| (so the multiplier below is positive definite; on a side of 2
+    points the only non-zero frequency is the Nyquist one, -pi)."""
     p0, p1 = shape
     q0 = 2.0 * np.pi * sfft.fftfreq(p0)
     q1 = 2.0 * np.pi * sfft.rfftfreq(p1)
     q = np.hypot(q0[:, None], q1[None, :])
-    q[0, 0] = min(q0[1] if p0 > 1 else 1.0, q1[1] if q1.size > 1 else 1.0)
+    q[0, 0] = min(abs(q0[1]) if p0 > 1 else 1.0, q1[1] if q1.size > 1 else 1.0)
     return q
 
 

@@ -47,7 +47,8 @@ the whole problem is solved instead.
 
 The answer is judged on the whole problem (step 3), so screening changes which points
 the loop carries, never the fixed point (a round solved on T whose answer fails on the
-whole problem while T cannot grow ends "stalled", never as if the iterations ran out): a solution of the restricted QP with w >= 0
+whole problem while T cannot grow is solved once more on T to a tighter tolerance,
+``RETRY_FACTOR``, then ends "stalled", never as if the iterations ran out): a solution of the restricted QP with w >= 0
 off T is the solution of the whole one.  It is used only where the screened set is at
 most ``MAX_SCREENED_FRACTION`` of the unknowns (an aperiodic trial set already is
 {ubar >= 0}, so there it never applies).
@@ -83,6 +84,12 @@ COLD_APPROACH_FACTOR = 3.0
 #: Load control: after a round, the next set holds the points within this many times the
 #: round's tolerance of touching (``near_contact``).
 NEAR_GAP_FACTOR = 10.0
+
+#: A round solved on T whose answer misses the tolerance on the whole problem while T cannot
+#: grow -- the two errors differ by round-off and the load's multiplier reading, e.g. 9.95e-9 on
+#: T against 1.04e-8 on the whole -- runs once more on T, asked for this factor times
+#: tol^2 / (the whole problem's error); a second miss ends "stalled" (module doc).
+RETRY_FACTOR = 0.5
 
 #: The values of a fast solver's ``screening`` parameter.
 SCREENINGS = ("safe", "none")
@@ -235,12 +242,14 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
     T = None if ctx.params.get("screening", "safe") == "none" else screened_set(ctx, p)
     if T is None:
         return solve(ctx)
-    used, infos, stuck = 0, [], False
+    used, infos, stuck, tighter = 0, [], False, None
     while True:
         cold = ctx.p0 is None and not infos  # a cold first round stays cold (its first guess)
         sub = ctx.restricted(T, None if cold else p[T], first=used)
         if cold and ctx.tol is not None:  # its set is a guess: it only has to find the load
             sub = replace(sub, tol=max(ctx.tol, COLD_ROUND_TOL))
+        if tighter is not None:
+            sub = replace(sub, tol=tighter)
         out = solve(sub)
         if ctx.setup_time is None:
             ctx.setup_time = sub.setup_time
@@ -258,9 +267,11 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
         grown = next_set(ctx, T, p, w, delta, kkt if sub.tol is None else sub.tol, narrow=cold)
         if grown is None:  # the grown set cannot carry the load: the whole problem
             grown = np.arange(ctx.n)
-        if grown.size == T.size and sub.tol == ctx.tol:  # solved on T, not on the whole: T cannot grow
-            stuck = True
-            break
+        if grown.size == T.size and sub.tol is not None and sub.tol <= ctx.tol:  # solved on T, not on the whole
+            if tighter is not None:  # T cannot grow, and solving it further did not do
+                stuck = True
+                break
+            tighter = RETRY_FACTOR * ctx.tol * ctx.tol / kkt
         T = grown
     info = {**merged_info(infos), "screened_rounds": len(infos), "screened_size": int(T.size)}
     status = None if kkt <= ctx.tol else Status.STALLED if stuck else out.status

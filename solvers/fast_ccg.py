@@ -50,7 +50,7 @@ import numpy as np
 
 from ._ccg import CCGRun, FastSolver, bugnicourt, outcome, polonsky_keer
 from ._constrained import bugnicourt_load, polonsky_keer_box
-from ._device import bring_home, resident_space, resident_state
+from ._device import bring_home, cold_if_worse, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess, resolved_first_guess
 from ._opening import StagedPreconditioner, opened, opening_param
 from ._preconditioners import KINDS, make_preconditioner, resolved_kind
@@ -109,6 +109,7 @@ class _FastCCG(FastSolver):
         ctx.mark_setup_done()
         p0, info = starting_point(self, ctx)
         state = resident_state(ctx, space, p0)
+        info.update(cold_if_worse(ctx, state))
         loop = self.loop if ctx.constraints.plain or self.constrained_loop is None else self.constrained_loop
         run, more = solve_in_precision(ctx, state, loop, M)
         bring_home(ctx, state)

@@ -37,6 +37,7 @@ from contactbench.problems.kkt import kkt_figures
 from contactbench.problems.operators import ContactOperator
 
 from ._ccg import CCGRun, FastSolver, GapState, bugnicourt, outcome
+from ._device import cold_if_worse
 from ._refine import block_dtype, low_precision, precision_param, resolved_precision, solve_in_precision
 from ._kit import conjugate_gradient
 from ._preconditioners import KINDS, SetPreconditioner, make_preconditioner, on_subset
@@ -109,6 +110,7 @@ class FastPDAS(FastSolver):
         """Newton steps on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         before = ctx.matvecs()
         state = GapState.start(ctx)
+        dropped = cold_if_worse(ctx, state)
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
         M = make_preconditioner(ctx.params["precondition"], ctx.qp, block_dtype(precision))
         H32 = low_precision(ctx.qp.H) if precision == "mixed" else None
@@ -133,7 +135,7 @@ class FastPDAS(FastSolver):
             if stall >= STALL_STEPS:
                 break
         ctx.add_matvecs(count.float64 + count.float32)
-        info = {"outer_iterations": outer, "inner_matvecs": count.float64 + count.float32,
+        info = {**dropped, "outer_iterations": outer, "inner_matvecs": count.float64 + count.float32,
                 "inner_matvecs_float32": count.float32, "finished_by_ccg": False}
         run = CCGRun(outer, kkt, kkt <= ctx.tol and not np.any(state.p < 0.0))
         if not run.converged and np.any(state.p < 0.0):

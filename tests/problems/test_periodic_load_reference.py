@@ -14,11 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.problems.constraints import project_feasible
+from contactbench.problems.constraints import Constraints, project_feasible
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution_on_subset
-from contactbench.problems.mixed_lcp import (constant_null_space, constrained_exact_solution, load_active_set)
+from contactbench.problems.mixed_lcp import (constant_null_space, constrained_exact_solution, exchange_partner,
+                                            load_active_set)
 from contactbench.problems.surfaces import fourier_synthesis
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import get_solver
@@ -121,3 +122,18 @@ def test_the_null_space_test_and_the_refusals() -> None:
     plain = periodic_builder().build(1e-7)
     with pytest.raises(ValueError, match="load equality"):
         load_active_set(plain.qp.H.to_dense(), plain.qp.ubar, plain.qp.constraints, np.zeros(plain.qp.n))
+
+
+def test_an_element_freed_alone_trades_force_with_its_exchange_partner() -> None:
+    """Every element at a bound and the load carried by the saturated ones: the element at
+    0 whose gap asks for force cannot move alone (its force is what the load leaves, 0), so
+    it is freed with the saturated element most ready to shed force; the active set then
+    reaches the answer instead of freeing it again and again until its step limit."""
+    H = np.eye(4) + 0.1
+    ubar = np.array([0.0, 0.0, 0.0, 1.0])
+    c = Constraints(np.ones(4), 2.0)
+    out = load_active_set(H, ubar, c, np.array([1.0, 1.0, 0.0, 0.0]), max_iter=20)
+    assert out.converged, out
+    assert out.p[3] == pytest.approx(1.0) and np.sum(out.p) == pytest.approx(2.0)
+    np.testing.assert_allclose(out.p[:3], 1.0 / 3.0, rtol=1e-12)
+    assert exchange_partner(H @ np.array([1.0, 1.0, 0.0, 0.0]) - ubar, np.array([2, 2, 0, 0], dtype=np.int8), 3) in (0, 1)

@@ -31,7 +31,9 @@ from contactbench.problems.surfaces import Surface
 from contactbench.solvers._ccg import MAX_BETA, GapState, polak_ribiere
 from contactbench.solvers._constrained import constrained_start
 from contactbench.solvers._finish import FINISH_MAX_ROUNDS, Stagnation, finish_exactly
-from contactbench.solvers.base import SolverSettings, constraint_skip
+from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
+from contactbench.solvers.base import SolverSettings, WarmStart, constraint_skip
+from tests.fake_device import SPACE
 from tests.helpers import loop_context
 from contactbench.solvers.registry import available_solvers, get_solver
 
@@ -194,6 +196,69 @@ def test_the_fast_solvers_end_honestly_at_the_knife_edges(k: Knife) -> None:
         return
     for name in posing(inst, FAST):
         assert_ends_honestly(name, inst)
+
+
+#: Warm starts a caller may hand a solver: none, all zero, the scale of the problem's own
+#: forces perturbed at random, and absurdly large (a scaled KKT error of 1e50).
+WARM_KINDS = ("cold", "zeros", "random", "huge")
+
+
+def warm_start(kind: str, inst: ContactInstance, seed: int) -> WarmStart | None:
+    if kind == "cold":
+        return None
+    if kind == "zeros":
+        return WarmStart(p=np.zeros(inst.n))
+    if kind == "huge":
+        return WarmStart(p=np.full(inst.n, 1e30))
+    scale = float(np.max(np.abs(inst.qp.ubar))) / float(np.max(inst.qp.H.diagonal()))
+    return WarmStart(p=scale * np.abs(np.random.default_rng(seed).standard_normal(inst.n)))
+
+
+def on_fake_device(k: Knife, inst: ContactInstance) -> ContactInstance:
+    """The instance with its products on the fake device (tests/fake_device.py): the loops'
+    array-module paths (solvers/_device.py) at the same knife edge."""
+    b = InstanceBuilder(Surface(heights(k), SPACING), E, "bcc" if not k.periodic else "spectral",
+                        periodic=k.periodic, operator="fft")
+    qp = inst.qp
+    op = ArrayFFTOperator(ArrayKernelTransform.from_host(b.transform, SPACE), qp.geometry.indices, auto_dense=False)
+    return replace(inst, qp=QP(op, qp.ubar, qp.geometry, qp.constraints))
+
+
+def drawn_options(data: st.DataObject, name: str) -> dict[str, object]:
+    """One value of each of the solver's declared options that has a list of choices."""
+    return {p.name: data.draw(st.sampled_from(p.choices), label=f"{name}.{p.name}")
+            for p in get_solver(name).params if p.choices}
+
+
+@settings(PROPERTY, max_examples=60)
+@given(knives, st.sampled_from(WARM_KINDS), st.booleans(), st.data())
+@example(Knife((2, 6), "flat", False, False, 0.3, None, 3, 0), "cold", False, None)  # the 2 x 6 flat punch
+@example(Knife((10, 7), "rough", True, True, 1e-3, 0.5, -2, 3), "zeros", True, None)  # every point at a bound
+@example(Knife((3, 10), "peak", True, False, 1e-3, None, 3, 1), "huge", False, None)
+def test_every_option_of_the_fast_solvers_ends_honestly_and_converges_without_constraints(
+        k: Knife, warm: str, device: bool, data: st.DataObject | None) -> None:
+    """Each fast solver with options drawn from its own declarations (the preconditioners,
+    the precision, the opening, the first guess, screening), from each kind of warm start,
+    with the products on the host or on the fake device: it ends honestly (as above), and
+    where displacement control poses no constraint it converges -- a 2 x 6 flat punch once
+    stalled there at a KKT error of 1 (the wave numbers' floor was -pi on a side of 2), a
+    warm start of 1e30 at 1e50.  An ``@example`` runs each solver's defaults."""
+    inst = drawn(k)
+    if inst is None:
+        return
+    run_on = on_fake_device(k, inst) if device else inst
+    for name in posing(inst, FAST):
+        params = drawn_options(data, name) if data is not None else {}
+        try:
+            r = get_solver(name).solve(run_on.qp, replace(LIMITED, params=params), warm_start(warm, inst, k.seed))
+        except ProblemInputError:
+            continue
+        assert np.all(np.isfinite(r.p)), (name, params, r.message)
+        if r.converged:
+            verdict = judge(inst, np.asarray(r.p), True, CHECK)
+            assert verdict.status == "solved", (name, params, verdict.message())
+        if inst.qp.constraints.plain:
+            assert r.converged, (name, params, warm, r.message)
 
 
 OTHER_PARAMS = [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN_FAILURES[n], strict=False))

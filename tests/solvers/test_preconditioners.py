@@ -712,3 +712,24 @@ def test_auto_is_the_wave_number_preconditioner_under_load_control_only():
     assert resolved_kind("auto", disp.qp) == "islands"
     assert resolved_kind("auto", plastic.qp) == "islands"  # displacement control keeps the islands
     assert resolved_kind("islands", load.qp) == "islands"
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 2), (2, 1), (2, 2), (2, 6), (3, 2), (5, 4), (6, 2)])
+def test_the_wave_number_multiplier_is_positive_on_every_grid(shape) -> None:
+    """|q| with its zero mode floored is positive everywhere, so M is SPD: on a side of 2
+    points the only non-zero frequency is the Nyquist one, -pi, which once floored the
+    zero mode to a negative value."""
+    assert np.all(floored_wavenumbers(shape) > 0.0)
+
+
+def test_a_flat_punch_on_a_two_row_grid_is_solved_with_the_wave_numbers() -> None:
+    """All 12 points of a 2 x 6 flat punch in contact, the opening's wave-number
+    preconditioner first: fast-dual-pccg's defaults stalled there at a KKT error of 1."""
+    b = InstanceBuilder(Surface(np.zeros((2, 6)), 1e-6), 1e9, "bcc", periodic=False)
+    qp = b.build(3e-7).qp
+    assert qp.n == 12
+    for params in ({}, {"precondition": "fourier"}):
+        r = get_solver("fast-dual-pccg").solve(qp, SolverSettings(tol=1e-10, params=params))
+        assert r.converged, (params, r.message)
+        assert kkt_check(qp, r.p).kkt_error <= 1e-10
+        assert np.all(r.p > 0.0)

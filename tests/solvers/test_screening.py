@@ -5,6 +5,8 @@ whole problem, and the trace and matvec count span every round."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -251,3 +253,47 @@ def test_a_near_set_that_cannot_carry_the_load_is_refused(loaded):
         bounds = make_constraints(qp.n, np.full(qp.n, share * load / np.count_nonzero(near)), load)
         got = near_contact(bare_context(QP(qp.H, qp.ubar, qp.geometry, bounds)), exact.p, w, exact.multiplier, 0.0)
         assert (got is None) if refused else np.array_equal(got, near)
+
+
+@pytest.mark.parametrize("name", ["fast-ccg", "fast-dual-pccg"])
+def test_a_warm_start_worse_than_a_cold_one_is_dropped(name, periodic):
+    """A uniform warm start of 1e30 (its scaled KKT error 1e50) left every fast CCG stalled;
+    it is dropped for p = 0 and said so, while a warm start near the answer is kept."""
+    inst, exact = periodic
+    r = solve(name, inst.qp, "safe", np.full(inst.n, 1e30))
+    assert r.converged, r.message
+    assert r.info["warm_start"].startswith("dropped")
+    assert relative_error(r.p, exact) <= 1e-6
+    near = solve(name, inst.qp, "safe", 1.01 * exact)
+    assert near.converged and "warm_start" not in near.info
+
+
+@pytest.mark.parametrize("misses", [1, 2])
+def test_a_round_that_misses_on_the_whole_problem_is_solved_once_more_on_its_set(periodic, monkeypatch, misses):
+    """A round on T that meets the tolerance there but not on the whole problem, while T
+    cannot grow (round-off and the reading of Delta), runs once more on T at a tighter
+    tolerance (``RETRY_FACTOR``); a second miss ends "stalled".  The round's answer is made
+    to miss by scaling it by 1 + 50 tol."""
+    from contactbench.solvers import _screen
+
+    inst, exact = periodic
+    cls = type(get_solver("fast-dual-pccg"))
+    real = cls.iterate_on
+    asked: list[float] = []
+
+    def missing(self, ctx):
+        out = real(self, ctx)
+        if ctx.tol <= HIGH:
+            asked.append(ctx.tol)
+            if len(asked) <= misses:
+                out = dataclasses.replace(out, p=out.p * (1.0 + 50.0 * HIGH))
+        return out
+
+    monkeypatch.setattr(cls, "iterate_on", missing)
+    r = solve("fast-dual-pccg", inst.qp, "safe", exact)
+    assert len(asked) == 2 and asked[0] == HIGH
+    assert asked[1] < _screen.RETRY_FACTOR * HIGH
+    if misses == 1:
+        assert r.converged and kkt_check(inst.qp, r.p).kkt_error <= HIGH
+    else:
+        assert r.status == "stalled" and not r.converged
