@@ -31,7 +31,9 @@ exactly (``_finish.finish_exactly``), converged only on its own KKT test.
 The fast loop, ``polonsky_keer_box``
 ------------------------------------
 Each iteration, on the CG set F = {0 < p < u} plus the plastic points that want to shed
-force (p = u, w > 0; when no point is inside the box: every point that wants to move),
+force (p = u, w > 0; when no point is inside the box -- or under load control one alone,
+whose force no direction that keeps the load can move -- that point and every point that
+wants to move),
 with g = Hp - ubar kept by the cheap update g -= tau Ht:
 
 * Delta = the mean gap over {0 < p < u} under load control (P & K eq. (9); with no point
@@ -224,7 +226,8 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
     the loops read it, {p > 0} U {g < Delta} (``GapState.level``: raised forces); 0
     without a load.  The CG set is the
     interior and the plastic points that want to shed force, or when no point is inside
-    every point that wants to move (module doc)."""
+    (under load control: at most one) the interior and every point that wants to move
+    (module doc)."""
     p, g = state.p, state.g
     interior = p > 0.0 if c.upper is None else (p > 0.0) & (p < u)
     count, mean_gap = count_and_mean(g, interior)
@@ -234,8 +237,8 @@ def _approach_and_free_set(state: GapState, u: np.ndarray, c: Constraints) -> tu
         delta = mean_gap if inside else fit_multiplier(g, p, c.upper)
         state.level = delta  # the gap made exact wherever it is now read (raised forces)
         state.settle()
-    if not inside:
-        return delta, wants_to_move(p, g - delta, u)
+    if count < (2 if c.load is not None else 1):
+        return delta, interior | wants_to_move(p, g - delta, u)
     return delta, interior if c.upper is None else interior | ((p >= u) & (g - delta > 0.0))
 
 

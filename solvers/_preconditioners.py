@@ -189,11 +189,12 @@ def mixed_grid(qp: QP) -> bool:
     return grid_points(qp) >= MIXED_GRID_POINTS
 
 
-def resolved_kind(kind: str, qp: QP, warm: bool = False) -> str:
+def resolved_kind(kind: str, qp: QP, warm: bool = False, far_from: int | None = None) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
     load control, with or without a hardness (``LOAD_FOURIER``), else by the grid: the far
-    field from ``FAR_FIELD_GRID_POINTS`` points (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm``
-    start of a non-periodic QP with no constraint beyond p >= 0), the islands alone below."""
+    field from ``far_from`` grid points when given (a solver's own rule), else from
+    ``FAR_FIELD_GRID_POINTS`` (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm`` start of a
+    non-periodic QP with no constraint beyond p >= 0), the islands alone below."""
     if kind != "auto":
         return kind
     space = qp.H.space
@@ -204,7 +205,8 @@ def resolved_kind(kind: str, qp: QP, warm: bool = False) -> str:
         return LOAD_FOURIER
     geo = getattr(qp, "geometry", None)
     padded = not (geo is not None and geo.periodic)
-    far_from = WARM_FAR_FIELD_GRID_POINTS if warm and c.plain and padded else FAR_FIELD_GRID_POINTS
+    if far_from is None:
+        far_from = WARM_FAR_FIELD_GRID_POINTS if warm and c.plain and padded else FAR_FIELD_GRID_POINTS
     return "farfield" if grid_points(qp) >= far_from else "islands"
 
 

@@ -22,7 +22,7 @@ from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displ
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution
 from contactbench.problems.mixed_lcp import constrained_exact_solution
-from contactbench.problems.surfaces import Surface, fourier_synthesis
+from contactbench.problems.surfaces import Surface, fourier_synthesis, rmd_surface_n
 from contactbench.solvers._preconditioners import MIXED_GRID_POINTS
 from contactbench.solvers._refine import resolved_precision
 from contactbench.solvers._constrained import winkler_start
@@ -663,3 +663,24 @@ def test_a_projection_with_nothing_to_scale_leaves_the_load_to_the_box_projectio
     state.p[3] = 2.0
     state.refresh()
     assert _project_raised(state, 1.0) is True and np.isclose(np.sum(state.p), 1.0, rtol=1e-14)
+
+
+@pytest.mark.parametrize("name, precondition", [("fast-ccg", "islands"), ("fast-pccg", "farfield"),
+                                                ("fast-pccg", "fourier")])
+def test_a_load_on_one_summit_under_a_box_finds_its_contact_set(name: str, precondition: str) -> None:
+    """One summit would carry the load alone; the box makes a few share it.  From the summits'
+    start one step leaves a single point inside the box, the rest at 0 or u: a direction that
+    keeps the load cannot move one point's force, and the Polonsky-Keer loop stopped "stalled"
+    at a KKT error of 0.5-0.8 (the undecided points, 2,077, too many for the exact finish).
+    Its CG set then takes every point that wants to move, as when no point is inside."""
+    s = rmd_surface_n(64, 0.5, length=1e-4, seed=78)
+    b = InstanceBuilder(s, E, "bcc", periodic=False)
+    one = get_solver("fast-dual-pccg").solve(b.build(0.05 * paper_max_displacement(s)).qp, TIGHT)
+    assert np.count_nonzero(one.p) == 1
+    load = float(np.sum(one.p))
+    inst = b.build_load(load)
+    qp = QP(inst.qp.H, inst.qp.ubar, inst.qp.geometry, make_constraints(inst.n, np.full(inst.n, 0.9 * load), load))
+    r = get_solver(name).solve(qp, SolverSettings(tol=1e-9, params={"precondition": precondition, "screening": "none"}))
+    assert r.converged, r.message
+    assert judge(replace(inst, qp=qp), r.p, True, 2e-9).status == "solved"
+    assert np.count_nonzero(r.p) >= 2 and np.max(r.p) <= 0.9 * load

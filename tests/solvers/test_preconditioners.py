@@ -699,6 +699,10 @@ def test_a_float32_convolution_with_its_rows_in_batches_is_the_periodic_convolut
 
 
 def test_auto_is_the_wave_number_preconditioner_under_load_control_only():
+    """"auto" under load control is the wave numbers, with a hardness too; under displacement
+    control the grid's rule, or a solver's own: fast-pccg takes the far field at every size
+    and the wave numbers under load control (with the island blocks its loop cycled on the
+    256^2 load sweep: results/perf/load-pk-default)."""
     from contactbench.solvers._preconditioners import resolved_kind
 
     s = rmd_surface_n(33, 0.7, length=100e-6, seed=2)
@@ -712,6 +716,11 @@ def test_auto_is_the_wave_number_preconditioner_under_load_control_only():
     assert resolved_kind("auto", disp.qp) == "islands"
     assert resolved_kind("auto", plastic.qp) == "islands"  # displacement control keeps the islands
     assert resolved_kind("islands", load.qp) == "islands"
+    assert resolved_kind("auto", disp.qp, far_from=0) == "farfield"  # a solver's own grid rule
+    assert resolved_kind("auto", load.qp, far_from=0) == "fourier"
+    for inst, kind in ((disp, "farfield"), (plastic, "farfield"), (load, "fourier"), (hard, "fourier")):
+        r = get_solver("fast-pccg").solve(inst.qp, SolverSettings(tol=1e-9))
+        assert r.converged and r.info["preconditioner"] == kind, (kind, r.message)
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 2), (2, 1), (2, 2), (2, 6), (3, 2), (5, 4), (6, 2)])
