@@ -26,7 +26,12 @@ CG set, a zero or non-finite direction, curvature or step restarts once from the
 steepest direction and then stops "stalled"; before a stop that is not convergence
 (and when the error has not halved in ``_finish.FINISH_PATIENCE`` iterations) the
 undecided points -- nearly all plastic near saturation, so a handful -- are solved
-exactly (``_finish.finish_exactly``), converged only on its own KKT test.
+exactly (``_finish.finish_exactly``), converged only on its own KKT test.  Where they are
+too many for that, a stagnation makes the preconditioner drop its coarse part
+(``SetPreconditioner.simplify``, as solvers/_ccg.py's "Cycling") and the direction
+restarts: on the 256^2 load sweep the Polonsky-Keer loop with the island blocks and their
+far field cycled at a KKT error of 0.05-0.14 until its iteration limit; without the far
+field it converges (results/perf/load-pk-default).
 
 The fast loop, ``polonsky_keer_box``
 ------------------------------------
@@ -330,10 +335,10 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         last = free
         ctx.record(first + it - 1 + extra, kkt)
         run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta if load else None, finish_rounds=extra)
-        done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter)
+        done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter, M)
         if done is not None:
             return done
-        if finished is not None:  # an exact finish ran and did not converge: restart the direction
+        if finished is not None:  # an exact finish ran and did not converge, or M dropped its coarse part
             extra, reset = finished, True
             continue
         reset |= M is not None and M.progress(kkt)  # a new stage (solvers/_opening.py)
@@ -370,18 +375,24 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
 
 
 def _loop_head(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float, run: CCGRun, watch: Stagnation,
-               first: int, max_iter: int) -> tuple[CCGRun | None, int | None]:
+               first: int, max_iter: int, M: SetPreconditioner | None) -> tuple[CCGRun | None, int | None]:
     """What both constrained loops decide at the head of an iteration, ``run`` just
     recorded: (the run to return, None) when it converged, the deadline passed, the error
     is not finite, the finish's rounds spent the iterations, or a stagnation's exact finish
-    converged; (None, the finish's rounds) when that finish ran and did not converge (the
-    caller restarts its direction); (None, None) to go on."""
+    converged; (None, the finish's rounds) when that finish ran and did not converge, or
+    when a stagnation too large to finish made M drop its coarse part (module doc; the
+    caller restarts its direction either way); (None, None) to go on."""
     if run.converged or ctx.expired() or not math.isfinite(run.kkt) or run.iterations >= max_iter:
         return run, None
-    if watch.stuck(run.kkt) and can_finish(state, delta, u):
+    if not watch.stuck(run.kkt):
+        return None, None
+    if can_finish(state, delta, u):
         watch.restart()
         fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
         return (fin, None) if fin.converged else (None, fin.finish_rounds)
+    if M is not None and M.simplify():
+        watch.restart()
+        return None, run.finish_rounds
     return None, None
 
 
@@ -494,10 +505,10 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             kkt = _load_kkt(ctx, state, delta)
         ctx.record(first + it - 1 + extra, kkt)
         run = CCGRun(it - 1 + extra, kkt, kkt <= ctx.tol, multiplier=delta, finish_rounds=extra)
-        done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter)
+        done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter, M)
         if done is not None:
             return done
-        if finished is not None:  # an exact finish ran and did not converge: restart the direction
+        if finished is not None:  # an exact finish ran and did not converge, or M dropped its coarse part
             extra = finished
             delta, res = _dual_residual(state, u, c)
             d = inward(-_dual_direction(M, res), state, res, u)

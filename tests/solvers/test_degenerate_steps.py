@@ -28,9 +28,10 @@ from contactbench.problems.constraints import Constraints
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder
 from contactbench.problems.surfaces import Surface
-from contactbench.solvers._ccg import MAX_BETA, GapState, polak_ribiere
-from contactbench.solvers._constrained import constrained_start
-from contactbench.solvers._finish import FINISH_MAX_ROUNDS, Stagnation, finish_exactly
+from contactbench.problems.operators import DenseOperator
+from contactbench.solvers._ccg import MAX_BETA, CCGRun, GapState, polak_ribiere
+from contactbench.solvers._constrained import _loop_head, constrained_start
+from contactbench.solvers._finish import FINISH_MAX_POINTS, FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
 from contactbench.solvers.base import SolverSettings, WarmStart, constraint_skip
 from tests.fake_device import SPACE
@@ -305,6 +306,33 @@ def test_stagnation_counts_iterations_without_halving() -> None:
     assert watch.stuck(0.21)  # three since 0.4 without halving it
     watch.restart()
     assert not watch.stuck(0.19) and not watch.stuck(0.18)
+
+
+def test_a_stagnation_too_large_to_finish_drops_the_coarse_part() -> None:
+    """A constrained loop stuck on more undecided points than the exact finish takes asks its
+    preconditioner to drop its coarse part and restarts its direction (its finish rounds
+    unchanged); with nothing left to drop it goes on."""
+
+    class Coarse:
+        def __init__(self) -> None:
+            self.dropped = 0
+
+        def simplify(self) -> bool:
+            self.dropped += 1
+            return self.dropped == 1
+
+    n = FINISH_MAX_POINTS + 44
+    qp = QP(DenseOperator(np.eye(n)), np.ones(n))
+    state = GapState(qp.H, qp.ubar, np.zeros(n))  # every point penetrates: all undecided
+    u = np.full(n, np.inf)
+    assert not can_finish(state, 0.0, u)
+    watch, M = Stagnation(patience=1), Coarse()
+    run = CCGRun(7, 0.5, False, finish_rounds=2)
+    assert watch.stuck(1.0) is False
+    assert _loop_head(loop_context(qp), state, u, 0.0, run, watch, 0, 100, M) == (None, 2)
+    assert M.dropped == 1 and watch.since == 0
+    assert _loop_head(loop_context(qp), state, u, 0.0, run, watch, 0, 100, M) == (None, None)
+    assert M.dropped == 2
 
 
 @pytest.mark.parametrize("share", [0.9, 0.99, 0.999])
