@@ -26,6 +26,7 @@ from scipy.optimize import nnls
 from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import QP
 from contactbench.problems.operators import spectral_norm_estimate
+from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
 from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
 from contactbench.solvers.base import Deadline, Trace
 from contactbench.harness.cli import main as cli_main
@@ -370,3 +371,11 @@ def run_cli(args: list[str], capsys: Any) -> tuple[int, str, str]:
         rc = int(exc.code or 0)
     out, err = capsys.readouterr()
     return rc, out, err
+
+
+def on_space(builder: Any, qp: QP, space: Any) -> QP:
+    """``qp`` with its products in the array ``space`` (an ``ArraySpace``, or a name:
+    "numpy", "cupy"), the kernel of ``builder`` (an ``InstanceBuilder``): the device path."""
+    op = ArrayFFTOperator(ArrayKernelTransform.from_host(builder.transform, space), qp.geometry.indices,
+                          auto_dense=False)
+    return QP(op, qp.ubar, qp.geometry, qp.constraints)

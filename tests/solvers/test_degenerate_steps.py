@@ -32,10 +32,9 @@ from contactbench.problems.operators import DenseOperator
 from contactbench.solvers._ccg import MAX_BETA, CCGRun, GapState, polak_ribiere
 from contactbench.solvers._constrained import _loop_head, constrained_start
 from contactbench.solvers._finish import FINISH_MAX_POINTS, FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
-from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
 from contactbench.solvers.base import SolverSettings, WarmStart, constraint_skip
 from tests.fake_device import SPACE
-from tests.helpers import loop_context
+from tests.helpers import loop_context, on_space
 from contactbench.solvers.registry import available_solvers, get_solver
 
 E = 1e9
@@ -220,9 +219,7 @@ def on_fake_device(k: Knife, inst: ContactInstance) -> ContactInstance:
     array-module paths (solvers/_device.py) at the same knife edge."""
     b = InstanceBuilder(Surface(heights(k), SPACING), E, "bcc" if not k.periodic else "spectral",
                         periodic=k.periodic, operator="fft")
-    qp = inst.qp
-    op = ArrayFFTOperator(ArrayKernelTransform.from_host(b.transform, SPACE), qp.geometry.indices, auto_dense=False)
-    return replace(inst, qp=QP(op, qp.ubar, qp.geometry, qp.constraints))
+    return replace(inst, qp=on_space(b, inst.qp, SPACE))
 
 
 def drawn_options(data: st.DataObject, name: str) -> dict[str, object]:

@@ -21,11 +21,12 @@ from hypothesis import strategies as st
 from contactbench.problems.constraints import make_constraints
 from contactbench.problems.instances import QP, InstanceBuilder, paper_max_displacement
 from contactbench.problems.kkt import kkt_check
-from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
+from contactbench.problems.operators_gpu import gpu_unavailable_reason
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import get_solver
 from tests.fake_device import SPACE, TRANSFERS, DeviceArray
+from tests.helpers import on_space
 
 E = 1e9
 TOL = 1e-10
@@ -63,12 +64,6 @@ def builder_and_instance():
     surf = rmd_surface_n(64, 0.7, length=1e-4, seed=3)
     builder = InstanceBuilder(surf, E)
     return builder, builder.build(paper_max_displacement(surf))
-
-
-def on_space(builder, qp: QP, space) -> QP:
-    op = ArrayFFTOperator(ArrayKernelTransform.from_host(builder.transform, space), qp.geometry.indices,
-                          auto_dense=False)
-    return QP(op, qp.ubar, qp.geometry, qp.constraints)
 
 
 def loaded(qp: QP) -> QP:
