@@ -268,7 +268,7 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
         if grown is None:  # the grown set cannot carry the load: the whole problem
             grown = np.arange(ctx.n)
         if grown.size == T.size and sub.tol is not None and sub.tol <= ctx.tol:  # solved on T, not on the whole
-            if tighter is not None:  # T cannot grow, and solving it further did not do
+            if tighter is not None or not math.isfinite(kkt):  # T cannot grow, and solving it further did not do
                 stuck = True
                 break
             tighter = RETRY_FACTOR * ctx.tol * ctx.tol / kkt
