@@ -109,7 +109,10 @@ def lipschitz_of(ctx: SolveContext) -> float:
 
 def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
     """NNLS's exact step under bounds and a load row (module doc): block principal pivoting
-    from the GP point ``p`` on the dense H; iterations = K + pivoting rounds."""
+    from the GP point ``p`` on the dense H; iterations = K + pivoting rounds.  Converged
+    when pivoting reached a violation-free set *and* the answer's scaled KKT error
+    (``SolveContext.kkt``, at the pivoting's multiplier under a load) meets the tolerance,
+    as the plain NNLS claims; a set whose solve round-off leaves it above is "stalled"."""
     H = dense_matrix(ctx.qp)
     c = ctx.constraints
     ctx.mark_setup_done()
@@ -121,8 +124,15 @@ def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
         return Outcome(p, K, False, f"block pivoting broke down on a singular system ({exc}); the GP point is "
                        "returned", status=Status.STALLED)
     ctx.info.update(K=K, gp_iterations=K, pivoting_rounds=sol.rounds)
-    return Outcome(sol.p, K + sol.rounds, sol.converged, multiplier=sol.multiplier if c.load_control else None,
-                   message="" if sol.converged else "block pivoting did not reach a violation-free set")
+    multiplier = sol.multiplier if c.load_control else None
+    if not sol.converged:
+        return Outcome(sol.p, K + sol.rounds, False, "block pivoting did not reach a violation-free set",
+                       multiplier=multiplier)
+    kkt = ctx.kkt(sol.p, H @ sol.p - ctx.qp.ubar, multiplier)  # a violation-free set, to round-off: the claim
+    if kkt <= ctx.tol:
+        return Outcome(sol.p, K + sol.rounds, True, multiplier=multiplier)
+    return Outcome(sol.p, K + sol.rounds, False, f"block pivoting reached a violation-free set at a scaled KKT "
+                   f"error of {kkt:.3e}, above tol", status=Status.STALLED, multiplier=multiplier)
 
 
 def start_point(ctx: SolveContext) -> np.ndarray:
