@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from hypothesis import strategies as st
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
@@ -29,6 +30,7 @@ from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
 from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
 from contactbench.solvers.base import Deadline, Trace
+from contactbench.solvers.registry import get_solver
 from contactbench.harness.cli import main as cli_main
 
 TESTS = Path(__file__).resolve().parent
@@ -379,3 +381,12 @@ def on_space(builder: Any, qp: QP, space: Any) -> QP:
     op = ArrayFFTOperator(ArrayKernelTransform.from_host(builder.transform, space), qp.geometry.indices,
                           auto_dense=False)
     return QP(op, qp.ubar, qp.geometry, qp.constraints)
+
+
+def drawn_options(data: Any, name: str) -> dict[str, object]:
+    """One value of each option solver ``name`` declares with a list of choices, drawn by a
+    hypothesis ``DataObject``; none (the defaults) when ``data`` is None (an ``@example``)."""
+    if data is None:
+        return {}
+    return {p.name: data.draw(st.sampled_from(p.choices), label=f"{name}.{p.name}")
+            for p in get_solver(name).params if p.choices}

@@ -34,7 +34,7 @@ from contactbench.solvers._constrained import _loop_head, constrained_start
 from contactbench.solvers._finish import FINISH_MAX_POINTS, FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from contactbench.solvers.base import SolverSettings, WarmStart, constraint_skip
 from tests.fake_device import SPACE
-from tests.helpers import loop_context, on_space
+from tests.helpers import drawn_options, loop_context, on_space
 from contactbench.solvers.registry import available_solvers, get_solver
 
 E = 1e9
@@ -222,12 +222,6 @@ def on_fake_device(k: Knife, inst: ContactInstance) -> ContactInstance:
     return replace(inst, qp=on_space(b, inst.qp, SPACE))
 
 
-def drawn_options(data: st.DataObject, name: str) -> dict[str, object]:
-    """One value of each of the solver's declared options that has a list of choices."""
-    return {p.name: data.draw(st.sampled_from(p.choices), label=f"{name}.{p.name}")
-            for p in get_solver(name).params if p.choices}
-
-
 @settings(PROPERTY, max_examples=60)
 @given(knives, st.sampled_from(WARM_KINDS), st.booleans(), st.data())
 @example(Knife((2, 6), "flat", False, False, 0.3, None, 3, 0), "cold", False, None)  # the 2 x 6 flat punch
@@ -246,7 +240,7 @@ def test_every_option_of_the_fast_solvers_ends_honestly_and_converges_without_co
         return
     run_on = on_fake_device(k, inst) if device else inst
     for name in posing(inst, FAST):
-        params = drawn_options(data, name) if data is not None else {}
+        params = drawn_options(data, name)
         try:
             r = get_solver(name).solve(run_on.qp, replace(LIMITED, params=params), warm_start(warm, inst, k.seed))
         except ProblemInputError:

@@ -25,6 +25,7 @@ from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder
 from contactbench.problems.surfaces import fourier_synthesis, rmd_surface_n
 from contactbench.solvers.base import SolverSettings, WarmStart, constraint_skip
 from contactbench.solvers.registry import get_solver
+from tests.helpers import drawn_options
 
 E = 1e9
 TOL = 1e-9
@@ -101,8 +102,7 @@ def test_every_option_converges_on_rough_surfaces(r: Rough, warm: bool, data: st
         solver = get_solver(name)
         if constraint_skip(solver.capabilities, c.load_control, c.bounded) is not None:
             continue
-        params = ({p.name: data.draw(st.sampled_from(p.choices), label=f"{name}.{p.name}")
-                   for p in solver.params if p.choices} if data is not None else {})
+        params = drawn_options(data, name)
         start = None
         if shallower is not None:
             prev = get_solver(name).solve(shallower.qp, SolverSettings(tol=TOL, params=params))
