@@ -111,6 +111,15 @@ def dense_switch_enabled() -> bool:
     return os.environ.get("CONTACTBENCH_DENSE_SWITCH", "1") not in ("0", "false", "no")
 
 
+def dense_block_pays(n: int, padded_points: float) -> bool:
+    """Whether the FFT operator of n unknowns on a padded grid of ``padded_points`` points
+    switches to a dense H_II block (``DENSE_SWITCH_*``): n^2 entries within the entry limit
+    and under ``DENSE_SWITCH_FACTOR`` x P log2 P.  The operator's rule and the time model's
+    (``solvers._kit.matvec_seconds``)."""
+    P = max(float(padded_points), 2.0)
+    return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_FACTOR * P * np.log2(P))
+
+
 def dense_nbytes(n: int) -> int:
     return 8 * int(n) * int(n)
 
@@ -384,8 +393,7 @@ class FFTOperator(ContactOperator):
     def dense_pays(self) -> bool:
         """Whether a dense H_II matvec (n^2 entries streamed) is cheaper than the FFT pair
         on the padded grid (P points) and small enough to hold."""
-        P = int(np.prod(self.transform.padded_shape))
-        return self.n * self.n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_FACTOR * P * np.log2(max(P, 2)))
+        return dense_block_pays(self.n, int(np.prod(self.transform.padded_shape)))
 
     def _maybe_switch_to_dense(self) -> None:
         # After a few matvecs a small trial set on a large grid is cheaper as a dense

@@ -40,7 +40,9 @@ from contactbench.problems.operators import (
     ContactOperator,
     DenseOperator,
     check_dense_budget,
+    dense_block_pays,
     dense_nbytes,
+    dense_switch_enabled,
     spectral_norm_estimate,
 )
 
@@ -287,10 +289,12 @@ TYPICAL_PK_LOAD_ITERATIONS = 100
 def matvec_seconds(n: int, kind: str, points_per_unknown: float = FFT_POINTS_PER_UNKNOWN) -> float:
     """Rough wall time of one H matvec at size n on one core; the FFT operator's grid has
     ``points_per_unknown`` padded points per unknown (default: a trial set,
-    ``FFT_POINTS_PER_UNKNOWN``; the whole grid: ``WHOLE_GRID_FFT_POINTS``)."""
-    if kind == "dense":
-        return 2.0 * n * n / DENSE_FLOPS
+    ``FFT_POINTS_PER_UNKNOWN``; the whole grid: ``WHOLE_GRID_FFT_POINTS``).  A set small
+    enough for the FFT operator's dense block (``operators.dense_block_pays``: a sweep's
+    first steps on a large grid) costs that block's product."""
     pts = points_per_unknown * n
+    if kind == "dense" or (dense_switch_enabled() and dense_block_pays(n, pts)):
+        return 2.0 * n * n / DENSE_FLOPS
     return FFT_SECONDS_PER_POINT * pts * max(1.0, np.log2(pts)) / 10.0
 
 

@@ -11,13 +11,18 @@ that step (2 x 300 matvecs at 28 padded FFT points per unknown) and skipped pk a
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from contactbench.harness.run.skips import (LOAD_CONTROL_ITERATION_RATIO, SkipPolicy, problem_time_estimate,
                                             skip_decision)
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
+from contactbench.problems.instances import InstanceBuilder
+from contactbench.problems.operators import DENSE_SWITCH_AFTER, dense_block_pays, dense_switch_enabled
+from contactbench.problems.surfaces import fourier_synthesis
 from contactbench.solvers.base import ProblemTraits
+from contactbench.solvers.gp import typical_gp_products
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.registry import get_solver
 
@@ -126,3 +131,43 @@ def test_a_declared_accuracy_floor_above_the_profiles_check_is_a_recorded_skip()
     assert "accuracy floor" in policy.decide("qp-ecos", ("qp-ecos", "high"), traits, 0).reason
     assert not policy.decide("qp-ecos", ("qp-ecos", "default"), traits, 0).skip
     assert not policy.decide("qp-clarabel", ("qp-clarabel", "high"), traits, 0).skip
+
+
+#: The first step of ``plastic-sweep`` (256^2, hardness 0.3 E*): n = 30 on a padded grid of
+#: 512^2 points.  Recorded (2-core vm): gp 0.012 s and 155 products, greedy-cg 0.0016 s and
+#: 88; the last step (n = 8,803) gp 2,388 products.  The model once costed each product at
+#: the whole padded grid and gp at a flat 5,000 of them: 94 s and 23 s, over the scene's
+#: 20 s limit, so both were skipped at every step.
+PLASTIC_FIRST_STEP = ProblemTraits(n=30, operator="fft", has_surface=True, surface_side=256, bounded=True)
+
+
+@pytest.mark.parametrize("solver", ["gp", "greedy-cg"])
+def test_a_sweeps_first_step_on_a_dense_block_is_not_skipped(solver: str) -> None:
+    pred = problem_time_estimate(get_solver(solver), PLASTIC_FIRST_STEP, "fft")
+    assert pred is not None and pred < 1.0
+    assert not skip_decision(solver, PLASTIC_FIRST_STEP, 20.0, 8 * GiB).skip
+
+
+def test_gps_product_count_follows_the_recorded_growth() -> None:
+    """gp's model (``typical_gp_products``) within 3x of the recorded counts at both ends
+    of the plastic sweep, and growing between them as they do (155 -> 2,388, x15 for n x293)."""
+    for n, recorded in ((30, 155), (8_803, 2_388)):
+        assert recorded / 3 <= typical_gp_products(n) <= 3 * recorded
+    assert 5 < typical_gp_products(8_803) / typical_gp_products(30) < 30
+
+
+@pytest.mark.parametrize("light", [0.02, 0.1, 0.5])
+def test_the_model_prices_the_product_the_operator_runs(light: float) -> None:
+    """The model's product (``matvec_seconds``) is the dense block's exactly where the FFT
+    operator switches to it (``operators.dense_block_pays``, after ``DENSE_SWITCH_AFTER``
+    products), the FFT pair's elsewhere: a 64^2 surface pressed to a share of its relief."""
+    surface = fourier_synthesis(64, 0.8, 0.1, length=1e-4, seed=2)
+    inst = InstanceBuilder(surface, 1e9, operator="fft").build(light * float(np.ptp(surface.heights)))
+    op, n = inst.qp.H, inst.n
+    points = float(np.prod(op.transform.padded_shape))
+    for _ in range(DENSE_SWITCH_AFTER + 1):
+        op.matvec(np.ones(n))
+    dense = op.uses_dense
+    assert dense == (dense_switch_enabled() and dense_block_pays(n, points))
+    priced = matvec_seconds(n, "fft", points / n)
+    assert (priced == matvec_seconds(n, "dense")) == dense

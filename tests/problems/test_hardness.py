@@ -151,6 +151,43 @@ def test_greedy_with_saturation_is_judged_not_trusted(elastic) -> None:
     assert np.all(r.p >= 0.0) and np.all(r.p <= inst.qp.constraints.upper)
 
 
+GREEDY = ("greedy-cg", "greedy-gs", "greedy-chol")
+
+
+@pytest.mark.parametrize("name", GREEDY)
+@pytest.mark.parametrize("share", [0.3, 0.05, 1e-3])
+def test_greedy_claims_a_saturated_end_only_where_the_judge_agrees(elastic, name: str, share: float) -> None:
+    """The saturation fixes elements irreversibly (``greedy.saturation_claim``): a loop that
+    ends with plastic elements claims convergence only at a scaled KKT error within tol.
+    A plastic sweep's step once claimed it at 0.05-0.16; here the hardness is a share of
+    the largest elastic force, and whichever way a variant ends, its claim agrees with the
+    judge, and a refused claim says why."""
+    b, d, p_el = elastic
+    inst = b.build(d, hardness=share * float(np.max(p_el)) / b.surface.delta ** 2)
+    r = get_solver(name).solve(inst.qp, SolverSettings(tol=1e-10))
+    rep = kkt_check(inst, r.p)
+    assert r.info["plastic"] > 0
+    assert r.converged == rep.passes(1e-8), (r.message, rep.kkt_error)
+    if not r.converged:
+        assert r.status == "stalled" and "saturation" in r.message and "KKT error" in r.message
+
+
+def test_greedy_refuses_the_claim_on_a_box_it_saturates_wrongly() -> None:
+    """An 8 x 8 surface pressed to 0.3 of its relief under a bound of 0.2 of its largest
+    elastic force: the greedy variants end their passes with no negative p and a wrong
+    plastic set (scaled KKT error 0.46), which they once claimed; now "stalled".  bvls
+    solves it exactly."""
+    b = builder(8, seed=0)
+    d = 0.3 * float(np.ptp(b.surface.heights))
+    p_el = get_solver("bvls").solve(b.build(d).qp).p
+    inst = b.build(d, hardness=0.2 * float(np.max(p_el)) / b.surface.delta ** 2)
+    assert kkt_check(inst, get_solver("bvls").solve(inst.qp).p).kkt_error <= 1e-12
+    for name in GREEDY:
+        r = get_solver(name).solve(inst.qp)
+        assert not kkt_check(inst, r.p).passes(1e-2), name
+        assert r.status == "stalled" and not r.converged, (name, r.message)
+
+
 def test_bounded_solvers_skip_and_refuse_correctly() -> None:
     b = builder(8)
     inst = b.build(1e-7, hardness=1e6)
