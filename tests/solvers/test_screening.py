@@ -297,3 +297,27 @@ def test_a_round_that_misses_on_the_whole_problem_is_solved_once_more_on_its_set
         assert r.converged and kkt_check(inst.qp, r.p).kkt_error <= HIGH
     else:
         assert r.status == "stalled" and not r.converged
+
+
+def test_a_round_whose_whole_problem_error_is_not_finite_ends_stalled_without_a_retry(periodic, monkeypatch):
+    """A round on T whose answer gives a non-finite error on the whole problem (an
+    overflowed force) while T cannot grow: no retry (its tighter tolerance, tol^2 / error,
+    would not be finite, 0 here): it ends unconverged -- "failed", as an answer that is
+    not finite is -- never an exception."""
+    inst, exact = periodic
+    cls = type(get_solver("fast-dual-pccg"))
+    real = cls.iterate_on
+    asked: list[float] = []
+
+    def overflowing(self, ctx):
+        out = real(self, ctx)
+        if ctx.tol <= HIGH:
+            asked.append(ctx.tol)
+            out = dataclasses.replace(out, p=np.where(out.p > 0.0, np.inf, out.p))
+        return out
+
+    monkeypatch.setattr(cls, "iterate_on", overflowing)
+    with np.errstate(invalid="ignore", over="ignore"):
+        r = solve("fast-dual-pccg", inst.qp, "safe", exact)
+    assert asked and all(t == HIGH for t in asked), asked
+    assert r.status in ("stalled", "failed") and not r.converged, (r.status, r.message)
