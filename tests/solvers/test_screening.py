@@ -268,6 +268,24 @@ def test_a_warm_start_worse_than_a_cold_one_is_dropped(name, periodic):
     assert near.converged and "warm_start" not in near.info
 
 
+def spoiled_rounds(monkeypatch, spoil) -> list[float]:
+    """Make fast-dual-pccg's rounds at the high tolerance return ``spoil(p, k)`` for their
+    k-th answer p (k from 1); the tolerances those rounds were asked for, as they come."""
+    cls = type(get_solver("fast-dual-pccg"))
+    real = cls.iterate_on
+    asked: list[float] = []
+
+    def spoiled(self, ctx):
+        out = real(self, ctx)
+        if ctx.tol <= HIGH:
+            asked.append(ctx.tol)
+            out = dataclasses.replace(out, p=spoil(out.p, len(asked)))
+        return out
+
+    monkeypatch.setattr(cls, "iterate_on", spoiled)
+    return asked
+
+
 @pytest.mark.parametrize("misses", [1, 2])
 def test_a_round_that_misses_on_the_whole_problem_is_solved_once_more_on_its_set(periodic, monkeypatch, misses):
     """A round on T that meets the tolerance there but not on the whole problem, while T
@@ -277,19 +295,7 @@ def test_a_round_that_misses_on_the_whole_problem_is_solved_once_more_on_its_set
     from contactbench.solvers import _screen
 
     inst, exact = periodic
-    cls = type(get_solver("fast-dual-pccg"))
-    real = cls.iterate_on
-    asked: list[float] = []
-
-    def missing(self, ctx):
-        out = real(self, ctx)
-        if ctx.tol <= HIGH:
-            asked.append(ctx.tol)
-            if len(asked) <= misses:
-                out = dataclasses.replace(out, p=out.p * (1.0 + 50.0 * HIGH))
-        return out
-
-    monkeypatch.setattr(cls, "iterate_on", missing)
+    asked = spoiled_rounds(monkeypatch, lambda p, k: p * (1.0 + 50.0 * HIGH) if k <= misses else p)
     r = solve("fast-dual-pccg", inst.qp, "safe", exact)
     assert len(asked) == 2 and asked[0] == HIGH
     assert asked[1] < _screen.RETRY_FACTOR * HIGH
@@ -305,18 +311,7 @@ def test_a_round_whose_whole_problem_error_is_not_finite_ends_stalled_without_a_
     would not be finite, 0 here): it ends unconverged -- "failed", as an answer that is
     not finite is -- never an exception."""
     inst, exact = periodic
-    cls = type(get_solver("fast-dual-pccg"))
-    real = cls.iterate_on
-    asked: list[float] = []
-
-    def overflowing(self, ctx):
-        out = real(self, ctx)
-        if ctx.tol <= HIGH:
-            asked.append(ctx.tol)
-            out = dataclasses.replace(out, p=np.where(out.p > 0.0, np.inf, out.p))
-        return out
-
-    monkeypatch.setattr(cls, "iterate_on", overflowing)
+    asked = spoiled_rounds(monkeypatch, lambda p, k: np.where(p > 0.0, np.inf, p))
     with np.errstate(invalid="ignore", over="ignore"):
         r = solve("fast-dual-pccg", inst.qp, "safe", exact)
     assert asked and all(t == HIGH for t in asked), asked
