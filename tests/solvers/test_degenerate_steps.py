@@ -54,10 +54,13 @@ OTHERS = ("pk", "pk-printed", "gp", "nnls", "nnls-gp", "admm", "greedy-cg", "gre
 #: (solver, reason) of the other solvers known to fail a property here (their own fix is
 #: pending); expected failures, not strict.
 KNOWN_FAILURES: dict[str, str] = {
-    **{name: ("the paper's stop, no negative p, is not optimality (its Example 1): a 3 x 3 rough grid with no "
-              "element plastic ends at kkt 0.04 and claims it") for name in ("greedy-cg", "greedy-gs", "greedy-chol")},
     "bvls": "returns an all-NaN p (status failed) on a periodic whole grid, where H 1 = 0 (3 x 3, one peak)",
 }
+
+#: The greedy variants claim the paper's stop, no negative p, which is not optimality (its
+#: Example 1: a 3 x 3 rough grid ends at kkt 0.04): a false claim is excused there, and only
+#: there -- an end with plastic elements is claimed only within tol (``greedy.saturation_claim``).
+GREEDY = ("greedy-cg", "greedy-gs", "greedy-chol")
 
 RELIEFS = ("flat", "peak", "rough")
 
@@ -153,7 +156,7 @@ def assert_ends_honestly(name: str, inst: ContactInstance) -> None:
     assert np.all(np.isfinite(r.p)), (name, r.message)
     if inst.qp.constraints.load_control and r.multiplier is not None:
         assert not math.isnan(r.multiplier), (name, r.message)
-    if r.converged:
+    if r.converged and not (name in GREEDY and r.info.get("plastic") == 0):
         verdict = judge(inst, r.p, True, CHECK)
         assert verdict.status == "solved", (name, r.message, verdict.message())
 
@@ -264,6 +267,7 @@ OTHER_PARAMS = [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN_FAILURES[n]
 @example(Knife((4, 4), "rough", False, True, 0.5, 1.0, 0, 0))
 @example(Knife((4, 4), "rough", False, True, 0.5, 0.999, 1, 1))
 @example(Knife((6, 10), "rough", False, True, 1.0, 1e-6, -2, 1))  # nnls-gp claimed a set at kkt 4e-8
+@example(Knife((2, 3), "rough", False, False, 0.3, 1e-6, 0, 0))  # greedy claimed a saturation at kkt 0.21
 def test_the_other_solvers_end_honestly_at_the_knife_edges(name: str, k: Knife) -> None:
     inst = drawn(k)
     if inst is None or not posing(inst, (name,)):
