@@ -75,7 +75,9 @@ def conjugate_gradient(
     """Solve (scale A + shift I) x = b by (preconditioned) CG from x0 until
     ||b - (scale A + shift I) x||_inf <= atol.  ``matvec`` is a function or an operator
     (its ``matvec``); ``precond`` applies M^-1 (SPD).  On reaching atol the residual is
-    recomputed from x once to confirm it (recurrence drift)."""
+    recomputed from x once to confirm it (recurrence drift).  A run whose residual has not
+    halved in ``cg_stagnation_window(n)`` iterations stops there, unconverged (a singular,
+    inconsistent system: a periodic whole grid's H 1 = 0 took greedy-cg 100,000 iterations)."""
     n = b.size
     if n == 0:
         return CGResult(np.zeros(0), 0, 0.0, True, 0)
@@ -99,7 +101,10 @@ def conjugate_gradient(
     d = z.copy()
     rz = float(r @ z)
     it = 0
+    window, halved, last = cg_stagnation_window(n), res, 0
     while res > atol and it < max_iter and not (deadline is not None and deadline.expired()):
+        if it - last > window:
+            break
         q = amul(d)
         dq = float(d @ q)
         if not dq > 0.0:  # d = 0, loss of positive definiteness by round-off, or NaN: stop here
@@ -109,6 +114,8 @@ def conjugate_gradient(
         r -= alpha * q
         res = float(np.max(np.abs(r)))
         it += 1
+        if res <= 0.5 * halved:
+            halved, last = res, it
         if res <= atol:  # confirm on the true residual
             r = b - amul(x)
             res = float(np.max(np.abs(r)))
@@ -124,6 +131,13 @@ def conjugate_gradient(
         d += z
         rz = rz_new
     return CGResult(x, it, res, res <= atol, mv)
+
+
+def cg_stagnation_window(n: int) -> int:
+    """Iterations ``conjugate_gradient`` runs without halving its residual before it stops:
+    2n + 100, twice what exact arithmetic needs to finish on n unknowns, with a margin for
+    round-off's loss of conjugacy."""
+    return 2 * int(n) + 100
 
 
 def lipschitz_constant(op: ContactOperator, method: str) -> float:
