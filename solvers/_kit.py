@@ -76,7 +76,7 @@ def conjugate_gradient(
     ||b - (scale A + shift I) x||_inf <= atol.  ``matvec`` is a function or an operator
     (its ``matvec``); ``precond`` applies M^-1 (SPD).  On reaching atol the residual is
     recomputed from x once to confirm it (recurrence drift).  A run whose residual has not
-    halved in ``cg_stagnation_window(n)`` iterations stops there, unconverged (a singular,
+    halved in ``stagnation_window(n)`` iterations stops there, unconverged (a singular,
     inconsistent system: a periodic whole grid's H 1 = 0 took greedy-cg 100,000 iterations)."""
     n = b.size
     if n == 0:
@@ -101,7 +101,7 @@ def conjugate_gradient(
     d = z.copy()
     rz = float(r @ z)
     it = 0
-    window, halved, last = cg_stagnation_window(n), res, 0
+    window, halved, last = stagnation_window(n), res, 0
     while res > atol and it < max_iter and not (deadline is not None and deadline.expired()):
         if it - last > window:
             break
@@ -133,10 +133,12 @@ def conjugate_gradient(
     return CGResult(x, it, res, res <= atol, mv)
 
 
-def cg_stagnation_window(n: int) -> int:
-    """Iterations ``conjugate_gradient`` runs without halving its residual before it stops:
-    2n + 100, twice what exact arithmetic needs to finish on n unknowns, with a margin for
-    round-off's loss of conjugacy."""
+def stagnation_window(n: int) -> int:
+    """CG steps ``conjugate_gradient`` runs on n unknowns without halving its residual
+    before it stops: 2n + 100, twice what exact arithmetic needs for CG to finish, with a
+    margin for round-off's loss of conjugacy.  (Not for Gauss-Seidel, whose sweeps to halve
+    a residual grow with the condition number: a random SPD H of condition 2e4 on 30
+    unknowns took 81,668 sweeps to converge.)"""
     return 2 * int(n) + 100
 
 

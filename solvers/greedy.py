@@ -270,7 +270,11 @@ class GreedyCholesky(GreedySolver):
             L = cholesky_of_h(op, what="greedy-chol: dense block H_II for the Cholesky factor")
         except np.linalg.LinAlgError as exc:  # H_II not numerically positive definite
             return ReducedSolve(x0, 1, False, True, f"Cholesky of H_II failed: {exc}")
-        return ReducedSolve(cholesky_solve(L, b), 1, True)
+        x = cholesky_solve(L, b)
+        res = float(np.max(np.abs(b - op.matvec(x)))) if b.size else 0.0
+        if not res <= atol:  # factored, but too near singular for its solve (a periodic whole grid: H 1 = 0)
+            return ReducedSolve(x, 1, False, True, f"the Cholesky solve left a residual {res:.3g} > {atol:.3g}")
+        return ReducedSolve(x, 1, True)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return TYPICAL_PASSES * cholesky_seconds(n)
