@@ -47,7 +47,7 @@ import scipy.linalg as sla
 from contactbench.problems.operators import ContactOperator, dense_nbytes, memory_budget
 
 from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, cholesky_seconds, conjugate_gradient, matvec_seconds
-from .base import Capabilities, Deadline, Outcome, Param, SolveContext, Solver, Status
+from .base import Capabilities, Deadline, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
 from .registry import register
 
 #: Typical number of outer passes and inner iterations per pass (for time_estimate).
@@ -87,6 +87,18 @@ class GreedySolver(Solver):
         Param("max_passes", int, None, "outer passes at most (None: n + 1)", low=1),
         Param("literal_one_pass", bool, False, "stop after one pass, as Algorithm 1 is printed (a test aid)"),
     )
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        """Also a periodic grid whose trial set is the whole grid: the first pass solves
+        H p = ubar on it, and H 1 = 0 there (the q = 0 mode removed), so that system has no
+        solution unless ubar sums to 0 (greedy-gs ran to its time limit on it)."""
+        why = super().skip(traits)
+        if why:
+            return why
+        if traits.periodic and traits.surface_side > 0 and traits.n >= traits.surface_side**2:
+            return (f"{self.name}'s first pass solves H p = ubar on the whole periodic grid, where H is singular "
+                    "(H 1 = 0)")
+        return None
 
     @abstractmethod
     def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
