@@ -294,6 +294,8 @@ class IslandPreconditioner(_OnesCache):
                  max_block: int | None = None, dtype: type = np.float64, far_field: bool = False) -> None:
         self.H = H
         self.far_field = far_field
+        #: Whether the island blocks are built (``simplify`` may turn them off: z = r / H_jj).
+        self.blocks = True
         self._far: FarField | None = None
         self._far_set: np.ndarray | None = None
         self.dtype = np.dtype(dtype)
@@ -344,7 +346,7 @@ class IslandPreconditioner(_OnesCache):
             self._built = S.copy()
             pos = self._pos
             self._limit = self.block_limit(pos.size)
-            buckets = (self._factor(members) for members in self._blocks(pos)) if pos.size else ()
+            buckets = (self._factor(members) for members in self._blocks(pos)) if pos.size and self.blocks else ()
             self._buckets = [b for b in buckets if b is not None]
             self._far_set = None
         if self.far_field:
@@ -417,12 +419,20 @@ class IslandPreconditioner(_OnesCache):
         return r / self._diag
 
     def simplify(self) -> bool:
-        """Drop the far-field correction (the island blocks stay); True when there was one."""
-        had = self.far_field
+        """Drop the far-field correction, the island blocks staying; with none to drop, the
+        blocks too (z = r / H_jj on the set from then on: a load-controlled warm step of the
+        P&K loop cycled on its blocks for 900 iterations, rebuilding them at each).  True
+        when something was dropped."""
         self._forget_ones()
-        self.version += self._far is not None
-        self.far_field, self._far, self._far_set = False, None, None
-        return had
+        if self.far_field:
+            self.version += self._far is not None
+            self.far_field, self._far, self._far_set = False, None, None
+            return True
+        if not self.blocks:
+            return False
+        self.blocks, self._buckets = False, []
+        self.version += 1
+        return True
 
     def progress(self, kkt: float) -> bool:
         """One stage: never changes."""

@@ -742,3 +742,28 @@ def test_a_flat_punch_on_a_two_row_grid_is_solved_with_the_wave_numbers() -> Non
         assert r.converged, (params, r.message)
         assert kkt_check(qp, r.p).kkt_error <= 1e-10
         assert np.all(r.p > 0.0)
+
+
+def test_simplify_drops_the_far_field_then_the_blocks():
+    """A stagnation the exact finish cannot take asks M to ``simplify``: the far field goes
+    first (the blocks alone after it), then the blocks (z = r / H_jj on the set, and no
+    blocks built again), then nothing is left to drop."""
+    inst = build(33)
+    rng = np.random.default_rng(4)
+    S = rng.random(inst.n) < 0.4
+    r = rng.standard_normal(inst.n)
+    M = IslandPreconditioner.build(inst.qp, far_field=True)
+    M.far_fraction = 1.0
+    M.update(S)
+    assert M._far is not None
+    blocks_alone = IslandPreconditioner.build(inst.qp)
+    blocks_alone.update(S)
+    assert M.simplify() and not M.far_field and M.blocks
+    np.testing.assert_allclose(M.apply(r), blocks_alone.apply(r), rtol=1e-12, atol=0.0)
+    diagonal = np.where(S, r / inst.qp.H.diagonal(), 0.0)
+    assert M.simplify() and not M.blocks
+    np.testing.assert_allclose(M.apply(r), diagonal, rtol=1e-12, atol=0.0)
+    T = rng.random(inst.n) < 0.4
+    M.update(T)
+    np.testing.assert_allclose(M.apply(r), np.where(T, r / inst.qp.H.diagonal(), 0.0), rtol=1e-12, atol=0.0)
+    assert not M.simplify()
