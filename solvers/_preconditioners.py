@@ -165,6 +165,14 @@ WARM_FAR_FIELD_GRID_POINTS = 512 * 512
 LOAD_FOURIER = "fourier"
 
 
+#: ... but a warm step of a non-periodic load-controlled sweep without a hardness moves its set
+#: little, and there the island kinds won for the Bugnicourt loop (``fast-dual-pccg``, which
+#: sets ``_FastCCG.warm_load_islands``; the P&K loop cycles on blocks under a load,
+#: results/perf/load-pk-default): the load-sweep recipe over the families' surfaces (H
+#: 0.3-0.9), 10 steps, the first cold, the island kind of the warm displacement rule
+#: (``WARM_FAR_FIELD_GRID_POINTS``) against the wave numbers: results/perf/warm-load.
+WARM_LOAD_ISLANDS = True
+
 #: Why "auto" is "fourier" on a device (``ContactOperator.space`` not the host): it is FFTs
 #: there, where the island kinds' block factorisations and far field are host work
 #: (solvers/_device.py), and it took the islands' products then: over the surface population
@@ -189,24 +197,29 @@ def mixed_grid(qp: QP) -> bool:
     return grid_points(qp) >= MIXED_GRID_POINTS
 
 
-def resolved_kind(kind: str, qp: QP, warm: bool = False, far_from: int | None = None) -> str:
+def resolved_kind(kind: str, qp: QP, warm: bool = False, far_from: int | None = None,
+                  warm_load_islands: bool = False) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
-    load control, with or without a hardness (``LOAD_FOURIER``), else by the grid: the far
-    field from ``far_from`` grid points when given (a solver's own rule), else from
+    load control, with or without a hardness (``LOAD_FOURIER``), except a ``warm`` step of a
+    non-periodic QP under a load alone where the solver's loop takes the island kinds there
+    (``warm_load_islands``, ``WARM_LOAD_ISLANDS``); else by the grid: the far field from
+    ``far_from`` grid points when given (a solver's own rule), else from
     ``FAR_FIELD_GRID_POINTS`` (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm`` start of a
-    non-periodic QP with no constraint beyond p >= 0), the islands alone below."""
+    non-periodic QP with no constraint beyond p >= 0, or under a load alone), the islands
+    alone below."""
     if kind != "auto":
         return kind
     space = qp.H.space
     if space is not None and not space.host:
         return DEVICE_FOURIER
     c = qp.constraints
-    if c.load_control:
-        return LOAD_FOURIER
     geo = getattr(qp, "geometry", None)
     padded = not (geo is not None and geo.periodic)
+    warm_padded = warm and padded and not c.bounded
+    if c.load_control and not (warm_padded and warm_load_islands):
+        return LOAD_FOURIER
     if far_from is None:
-        far_from = WARM_FAR_FIELD_GRID_POINTS if warm and c.plain and padded else FAR_FIELD_GRID_POINTS
+        far_from = WARM_FAR_FIELD_GRID_POINTS if warm_padded else FAR_FIELD_GRID_POINTS
     return "farfield" if grid_points(qp) >= far_from else "islands"
 
 

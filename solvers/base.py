@@ -379,6 +379,12 @@ class SolveContext:
     def warm_started(self) -> bool:
         return self.p0 is not None
 
+    @property
+    def caller_warm_started(self) -> bool:
+        """Whether the caller warm-started the solve this context is part of (a restricted
+        round of a cold solve starts from the earlier round's answer: not the caller's)."""
+        return self.p0 is not None if self._parent is None else self._parent.caller_warm_started
+
     def first_p(self) -> np.ndarray:
         """A fresh copy of the start: the warm start ``p0``, or zeros (a cold start)."""
         return np.zeros(self.n) if self.p0 is None else self.p0.copy()

@@ -53,7 +53,7 @@ from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._device import bring_home, cold_if_worse, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess, resolved_first_guess
 from ._opening import StagedPreconditioner, opened, opening_param
-from ._preconditioners import KINDS, make_preconditioner, resolved_kind
+from ._preconditioners import KINDS, WARM_LOAD_ISLANDS, make_preconditioner, resolved_kind
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
 from .base import Capabilities, Outcome, Param, SolveContext, Solver
@@ -100,11 +100,16 @@ class _FastCCG(FastSolver):
     #: Grid points from which ``precondition="auto"`` takes the far field on the host
     #: (``_preconditioners.resolved_kind``; None: that module's rule).
     far_field_from: ClassVar[int | None] = None
+    #: Whether "auto" takes the island kinds for a non-periodic step under a load alone that
+    #: the caller warm-started (``_preconditioners.WARM_LOAD_ISLANDS``: the Bugnicourt loop's
+    #: measurement; a cold solve's screening rounds keep the wave numbers, as measured).
+    warm_load_islands: ClassVar[bool] = False
 
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
-        kind = resolved_kind(ctx.params["precondition"], ctx.qp, warm=ctx.p0 is not None, far_from=self.far_field_from)
+        kind = resolved_kind(ctx.params["precondition"], ctx.qp, warm=ctx.p0 is not None, far_from=self.far_field_from,
+                             warm_load_islands=self.warm_load_islands and ctx.caller_warm_started)
         space, where = resident_space(ctx, kind)
         dtype = block_dtype(precision)
         M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space,
@@ -193,7 +198,8 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     Both choices are ``auto`` by default, decided by the grid: the islands' far-field
     correction ("farfield", solvers/_farfield.py) from 1024^2 grid points
     (``_preconditioners.FAR_FIELD_GRID_POINTS``; from 512^2 for a warm step of a non-periodic
-    problem, ``WARM_FAR_FIELD_GRID_POINTS``), the islands alone below; mixed precision
+    problem, ``WARM_FAR_FIELD_GRID_POINTS``), the islands alone below; under load control the
+    wave numbers, but for a warm non-periodic step without a hardness (``WARM_LOAD_ISLANDS``); mixed precision
     (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
     solvers/_refine.py) from 512^2 (``_preconditioners.MIXED_GRID_POINTS``), float64 below.
     ``precondition`` and ``precision`` fix either.  Warm start: primal."""
@@ -205,3 +211,4 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     #: load-controlled one started from the coarser grids (``_kit.resolved_first_guess``)
     params = (precondition_param("auto"), precision_param("auto"), first_guess_param("auto"), screening_param(),
               opening_param("auto"))
+    warm_load_islands = WARM_LOAD_ISLANDS
