@@ -172,6 +172,11 @@ LOAD_FOURIER = "fourier"
 #: 0.3-0.9), 10 steps, the first cold, the island kind of the warm displacement rule
 #: (``WARM_FAR_FIELD_GRID_POINTS``) against the wave numbers: results/perf/warm-load.
 WARM_LOAD_ISLANDS = True
+#: ... where at most this share of the warm start's unknowns is in contact: with more, the
+#: island kinds lost (at ten times the load-sweep's loads, 256^2: 1.27-1.59x per step on a
+#: H 0.9 surface from 5.5 % in contact, 1.15-1.19x on a H 0.7 one from 18 %; 0.73-0.89x
+#: below 9 %; results/perf/warm-load).
+WARM_LOAD_MAX_CONTACT = 0.03
 
 #: Why "auto" is "fourier" on a device (``ContactOperator.space`` not the host): it is FFTs
 #: there, where the island kinds' block factorisations and far field are host work

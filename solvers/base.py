@@ -379,11 +379,13 @@ class SolveContext:
     def warm_started(self) -> bool:
         return self.p0 is not None
 
-    @property
-    def caller_warm_started(self) -> bool:
-        """Whether the caller warm-started the solve this context is part of (a restricted
-        round of a cold solve starts from the earlier round's answer: not the caller's)."""
-        return self.p0 is not None if self._parent is None else self._parent.caller_warm_started
+    def caller_warm_contact(self) -> float | None:
+        """The share of its unknowns in contact (p > 0) in the warm start the caller gave the
+        solve this context is part of; None for a cold solve (a restricted round of a cold
+        solve starts from the earlier round's answer: not the caller's)."""
+        if self._parent is not None:
+            return self._parent.caller_warm_contact()
+        return None if self.p0 is None else float(np.count_nonzero(self.p0 > 0.0)) / max(self.n, 1)
 
     def first_p(self) -> np.ndarray:
         """A fresh copy of the start: the warm start ``p0``, or zeros (a cold start)."""

@@ -53,7 +53,7 @@ from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._device import bring_home, cold_if_worse, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess, resolved_first_guess
 from ._opening import StagedPreconditioner, opened, opening_param
-from ._preconditioners import KINDS, WARM_LOAD_ISLANDS, make_preconditioner, resolved_kind
+from ._preconditioners import KINDS, WARM_LOAD_ISLANDS, WARM_LOAD_MAX_CONTACT, make_preconditioner, resolved_kind
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
 from .base import Capabilities, Outcome, Param, SolveContext, Solver
@@ -101,15 +101,18 @@ class _FastCCG(FastSolver):
     #: (``_preconditioners.resolved_kind``; None: that module's rule).
     far_field_from: ClassVar[int | None] = None
     #: Whether "auto" takes the island kinds for a non-periodic step under a load alone that
-    #: the caller warm-started (``_preconditioners.WARM_LOAD_ISLANDS``: the Bugnicourt loop's
-    #: measurement; a cold solve's screening rounds keep the wave numbers, as measured).
+    #: the caller warm-started with at most ``WARM_LOAD_MAX_CONTACT`` of it in contact
+    #: (``_preconditioners.WARM_LOAD_ISLANDS``: the Bugnicourt loop's measurement; a cold
+    #: solve's screening rounds keep the wave numbers, as measured).
     warm_load_islands: ClassVar[bool] = False
 
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
+        contact = ctx.caller_warm_contact()
         kind = resolved_kind(ctx.params["precondition"], ctx.qp, warm=ctx.p0 is not None, far_from=self.far_field_from,
-                             warm_load_islands=self.warm_load_islands and ctx.caller_warm_started)
+                             warm_load_islands=self.warm_load_islands and contact is not None
+                             and contact <= WARM_LOAD_MAX_CONTACT)
         space, where = resident_space(ctx, kind)
         dtype = block_dtype(precision)
         M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space,

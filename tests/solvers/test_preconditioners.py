@@ -770,26 +770,34 @@ def test_simplify_drops_the_far_field_then_the_blocks():
 
 
 def test_auto_takes_the_island_kinds_for_a_warm_load_step_of_the_bugnicourt_loop():
-    """A warm step of a non-periodic problem under a load alone: fast-dual-pccg's "auto" is
-    the warm displacement rule's island kind (the islands below 512^2 grid points); cold,
-    with a hardness, on a periodic grid or in the P&K loop (fast-pccg) it stays the wave
-    numbers (``WARM_LOAD_ISLANDS``, results/perf/warm-load)."""
-    from contactbench.solvers._preconditioners import resolved_kind
+    """A step of a non-periodic problem under a load alone, warm-started by the caller with
+    at most ``WARM_LOAD_MAX_CONTACT`` of it in contact: fast-dual-pccg's "auto" is the warm
+    displacement rule's island kind (the islands below 512^2 grid points); cold (its
+    screening rounds too), with more contact, with a hardness, on a periodic grid or in the
+    P&K loop (fast-pccg) it stays the wave numbers (``WARM_LOAD_ISLANDS``,
+    results/perf/warm-load)."""
+    from contactbench.solvers._preconditioners import WARM_LOAD_MAX_CONTACT, resolved_kind
 
     s = rmd_surface_n(33, 0.7, length=100e-6, seed=2)
     b = InstanceBuilder(s, 1e9, "love")
-    load = b.build_load(b.load_force(0.01))
-    hard = b.build_load(b.load_force(0.01), hardness=1e12)
+    load = b.build_load(b.load_force(0.0005))
+    hard = b.build_load(b.load_force(0.0005), hardness=1e12)
     pb = InstanceBuilder(rmd_surface_n(32, 0.7, family="periodic", length=100e-6, seed=2), 1e9, "spectral",
                          periodic=True)
-    periodic = pb.build_load(pb.load_force(0.01))
+    periodic = pb.build_load(pb.load_force(0.0005))
     assert resolved_kind("auto", load.qp, warm=True, warm_load_islands=True) == "islands"
     assert resolved_kind("auto", load.qp, warm=False, warm_load_islands=True) == "fourier"
     assert resolved_kind("auto", load.qp, warm=True) == "fourier"
     assert resolved_kind("auto", hard.qp, warm=True, warm_load_islands=True) == "fourier"
     assert resolved_kind("auto", periodic.qp, warm=True, warm_load_islands=True) == "fourier"
-    cold = get_solver("fast-dual-pccg").solve(load.qp, SolverSettings(tol=1e-9))
-    assert cold.converged and cold.info["preconditioner"] == "fourier"
-    for name, kind in (("fast-dual-pccg", "islands"), ("fast-pccg", "fourier")):
-        warm = get_solver(name).solve(load.qp, SolverSettings(tol=1e-9), WarmStart(p=0.9 * cold.p))
-        assert warm.converged and warm.info["preconditioner"] == kind, (name, warm.message)
+    settings = SolverSettings(tol=1e-9)
+    for force, kind in ((0.0005, "islands"), (0.01, "fourier")):
+        inst = b.build_load(b.load_force(force))
+        cold = get_solver("fast-dual-pccg").solve(inst.qp, settings)
+        assert cold.converged and cold.info["preconditioner"] == "fourier"
+        share = float(np.mean(cold.p > 0.0))
+        assert (share <= WARM_LOAD_MAX_CONTACT) == (kind == "islands"), share
+        start = WarmStart(p=0.9 * cold.p)
+        for name, want in (("fast-dual-pccg", kind), ("fast-pccg", "fourier")):
+            warm = get_solver(name).solve(inst.qp, settings, start)
+            assert warm.converged and warm.info["preconditioner"] == want, (name, force, warm.message)
