@@ -165,12 +165,13 @@ WARM_FAR_FIELD_GRID_POINTS = 512 * 512
 LOAD_FOURIER = "fourier"
 
 
-#: ... but a warm step of a non-periodic load-controlled sweep without a hardness moves its set
-#: little, and there the island kinds won for the Bugnicourt loop (``fast-dual-pccg``, which
-#: sets ``_FastCCG.warm_load_islands``; the P&K loop cycles on blocks under a load,
-#: results/perf/load-pk-default): the load-sweep recipe over the families' surfaces (H
-#: 0.3-0.9), 10 steps, the first cold, the island kind of the warm displacement rule
-#: (``WARM_FAR_FIELD_GRID_POINTS``) against the wave numbers: results/perf/warm-load.
+#: ... but a warm step of a non-periodic load-controlled sweep without a hardness, with
+#: little contact, moves its set little, and there the island kinds won for the Bugnicourt
+#: loop (``fast-dual-pccg``, which sets ``_FastCCG.warm_load_islands``; the P&K loop cycles
+#: on blocks under a load, results/perf/load-pk-default): the load-sweep recipe over the
+#: families' surfaces (H 0.3-0.9), 10 steps, the first cold, the island kind of the warm
+#: displacement rule (``WARM_FAR_FIELD_GRID_POINTS``) against the wave numbers, median
+#: 0.67-0.75x the seconds at 256^2-1024^2: results/perf/warm-load.
 WARM_LOAD_ISLANDS = True
 #: ... where at most this share of the warm start's unknowns is in contact: with more, the
 #: island kinds lost (at ten times the load-sweep's loads, 256^2: 1.27-1.59x per step on a

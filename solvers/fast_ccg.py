@@ -202,7 +202,8 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     correction ("farfield", solvers/_farfield.py) from 1024^2 grid points
     (``_preconditioners.FAR_FIELD_GRID_POINTS``; from 512^2 for a warm step of a non-periodic
     problem, ``WARM_FAR_FIELD_GRID_POINTS``), the islands alone below; under load control the
-    wave numbers, but for a warm non-periodic step without a hardness (``WARM_LOAD_ISLANDS``); mixed precision
+    wave numbers, but for a warm non-periodic step without a hardness and with little contact
+    (``WARM_LOAD_ISLANDS``); mixed precision
     (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
     solvers/_refine.py) from 512^2 (``_preconditioners.MIXED_GRID_POINTS``), float64 below.
     ``precondition`` and ``precision`` fix either.  Warm start: primal."""
