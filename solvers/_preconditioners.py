@@ -171,12 +171,10 @@ LOAD_FOURIER = "fourier"
 #: on blocks under a load, results/perf/load-pk-default): the load-sweep recipe over the
 #: families' surfaces (H 0.3-0.9), 10 steps, the first cold, the island kind of the warm
 #: displacement rule (``WARM_FAR_FIELD_GRID_POINTS``) against the wave numbers, median
-#: 0.67-0.75x the seconds at 256^2-1024^2: results/perf/warm-load.
-WARM_LOAD_ISLANDS = True
-#: ... where at most this share of the warm start's unknowns is in contact: with more, the
-#: island kinds lost (at ten times the load-sweep's loads, 256^2: 1.27-1.59x per step on a
-#: H 0.9 surface from 5.5 % in contact, 1.15-1.19x on a H 0.7 one from 18 %; 0.73-0.89x
-#: below 9 %; results/perf/warm-load).
+#: 0.67-0.75x the seconds at 256^2-1024^2.  The rule holds where at most this share of the
+#: caller's warm start is in contact: with more the island kinds lost (at ten times the
+#: load-sweep's loads, 256^2: 1.27-1.59x per step on a H 0.9 surface from 5.5 % in contact,
+#: 1.15-1.19x on a H 0.7 one from 18 %; 0.73-0.89x below 9 %; results/perf/warm-load).
 WARM_LOAD_MAX_CONTACT = 0.03
 
 #: Why "auto" is "fourier" on a device (``ContactOperator.space`` not the host): it is FFTs
@@ -204,11 +202,12 @@ def mixed_grid(qp: QP) -> bool:
 
 
 def resolved_kind(kind: str, qp: QP, warm: bool = False, far_from: int | None = None,
-                  warm_load_islands: bool = False) -> str:
+                  warm_load_contact: float | None = None) -> str:
     """``kind`` with "auto" decided: "fourier" on a device (``DEVICE_FOURIER``) and under
     load control, with or without a hardness (``LOAD_FOURIER``), except a ``warm`` step of a
-    non-periodic QP under a load alone where the solver's loop takes the island kinds there
-    (``warm_load_islands``, ``WARM_LOAD_ISLANDS``); else by the grid: the far field from
+    non-periodic QP under a load alone whose caller's warm start has at most
+    ``WARM_LOAD_MAX_CONTACT`` of it in contact (``warm_load_contact``; None: the solver's
+    loop keeps the wave numbers under a load); else by the grid: the far field from
     ``far_from`` grid points when given (a solver's own rule), else from
     ``FAR_FIELD_GRID_POINTS`` (from ``WARM_FAR_FIELD_GRID_POINTS`` for a ``warm`` start of a
     non-periodic QP with no constraint beyond p >= 0, or under a load alone), the islands
@@ -222,7 +221,8 @@ def resolved_kind(kind: str, qp: QP, warm: bool = False, far_from: int | None = 
     geo = getattr(qp, "geometry", None)
     padded = not (geo is not None and geo.periodic)
     warm_padded = warm and padded and not c.bounded
-    if c.load_control and not (warm_padded and warm_load_islands):
+    little_contact = warm_load_contact is not None and warm_load_contact <= WARM_LOAD_MAX_CONTACT
+    if c.load_control and not (warm_padded and little_contact):
         return LOAD_FOURIER
     if far_from is None:
         far_from = WARM_FAR_FIELD_GRID_POINTS if warm_padded else FAR_FIELD_GRID_POINTS
@@ -442,13 +442,14 @@ class IslandPreconditioner(_OnesCache):
         blocks too (z = r / H_jj on the set from then on: a load-controlled warm step of the
         P&K loop cycled on its blocks for 900 iterations, rebuilding them at each).  True
         when something was dropped."""
-        self._forget_ones()
         if self.far_field:
+            self._forget_ones()
             self.version += self._far is not None
             self.far_field, self._far, self._far_set = False, None, None
             return True
         if not self.blocks:
             return False
+        self._forget_ones()
         self.blocks, self._buckets = False, []
         self.version += 1
         return True

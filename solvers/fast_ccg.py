@@ -53,7 +53,7 @@ from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._device import bring_home, cold_if_worse, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess, resolved_first_guess
 from ._opening import StagedPreconditioner, opened, opening_param
-from ._preconditioners import KINDS, WARM_LOAD_ISLANDS, WARM_LOAD_MAX_CONTACT, make_preconditioner, resolved_kind
+from ._preconditioners import KINDS, make_preconditioner, resolved_kind
 from ._refine import block_dtype, precision_param, resolved_precision, solve_in_precision
 from ._screen import screening_param
 from .base import Capabilities, Outcome, Param, SolveContext, Solver
@@ -101,18 +101,16 @@ class _FastCCG(FastSolver):
     #: (``_preconditioners.resolved_kind``; None: that module's rule).
     far_field_from: ClassVar[int | None] = None
     #: Whether "auto" takes the island kinds for a non-periodic step under a load alone that
-    #: the caller warm-started with at most ``WARM_LOAD_MAX_CONTACT`` of it in contact
-    #: (``_preconditioners.WARM_LOAD_ISLANDS``: the Bugnicourt loop's measurement; a cold
-    #: solve's screening rounds keep the wave numbers, as measured).
+    #: the caller warm-started with little of it in contact (``_preconditioners.
+    #: WARM_LOAD_MAX_CONTACT``: the Bugnicourt loop's measurement; a cold solve's screening
+    #: rounds keep the wave numbers, as measured).
     warm_load_islands: ClassVar[bool] = False
 
     def iterate_on(self, ctx: SolveContext) -> Outcome:
         """The loop on ``ctx``'s QP as it is (``FastSolver.iterate`` screens it first)."""
         precision = resolved_precision(ctx.params["precision"], ctx.qp)
-        contact = ctx.caller_warm_contact()
         kind = resolved_kind(ctx.params["precondition"], ctx.qp, warm=ctx.p0 is not None, far_from=self.far_field_from,
-                             warm_load_islands=self.warm_load_islands and contact is not None
-                             and contact <= WARM_LOAD_MAX_CONTACT)
+                             warm_load_contact=ctx.caller_warm_contact() if self.warm_load_islands else None)
         space, where = resident_space(ctx, kind)
         dtype = block_dtype(precision)
         M = opened(make_preconditioner(kind, ctx.qp, dtype, space), ctx, dtype, space,
@@ -203,7 +201,7 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     (``_preconditioners.FAR_FIELD_GRID_POINTS``; from 512^2 for a warm step of a non-periodic
     problem, ``WARM_FAR_FIELD_GRID_POINTS``), the islands alone below; under load control the
     wave numbers, but for a warm non-periodic step without a hardness and with little contact
-    (``WARM_LOAD_ISLANDS``); mixed precision
+    (``WARM_LOAD_MAX_CONTACT``); mixed precision
     (float32 inner sweeps, float64 iterative refinement judged by the float64 KKT error,
     solvers/_refine.py) from 512^2 (``_preconditioners.MIXED_GRID_POINTS``), float64 below.
     ``precondition`` and ``precision`` fix either.  Warm start: primal."""
@@ -215,4 +213,4 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     #: load-controlled one started from the coarser grids (``_kit.resolved_first_guess``)
     params = (precondition_param("auto"), precision_param("auto"), first_guess_param("auto"), screening_param(),
               opening_param("auto"))
-    warm_load_islands = WARM_LOAD_ISLANDS
+    warm_load_islands = True

@@ -774,8 +774,7 @@ def test_auto_takes_the_island_kinds_for_a_warm_load_step_of_the_bugnicourt_loop
     at most ``WARM_LOAD_MAX_CONTACT`` of it in contact: fast-dual-pccg's "auto" is the warm
     displacement rule's island kind (the islands below 512^2 grid points); cold (its
     screening rounds too), with more contact, with a hardness, on a periodic grid or in the
-    P&K loop (fast-pccg) it stays the wave numbers (``WARM_LOAD_ISLANDS``,
-    results/perf/warm-load)."""
+    P&K loop (fast-pccg) it stays the wave numbers (results/perf/warm-load)."""
     from contactbench.solvers._preconditioners import WARM_LOAD_MAX_CONTACT, resolved_kind
 
     s = rmd_surface_n(33, 0.7, length=100e-6, seed=2)
@@ -785,11 +784,13 @@ def test_auto_takes_the_island_kinds_for_a_warm_load_step_of_the_bugnicourt_loop
     pb = InstanceBuilder(rmd_surface_n(32, 0.7, family="periodic", length=100e-6, seed=2), 1e9, "spectral",
                          periodic=True)
     periodic = pb.build_load(pb.load_force(0.0005))
-    assert resolved_kind("auto", load.qp, warm=True, warm_load_islands=True) == "islands"
-    assert resolved_kind("auto", load.qp, warm=False, warm_load_islands=True) == "fourier"
-    assert resolved_kind("auto", load.qp, warm=True) == "fourier"
-    assert resolved_kind("auto", hard.qp, warm=True, warm_load_islands=True) == "fourier"
-    assert resolved_kind("auto", periodic.qp, warm=True, warm_load_islands=True) == "fourier"
+    assert resolved_kind("auto", load.qp, warm=True, warm_load_contact=0.01) == "islands"
+    assert resolved_kind("auto", load.qp, warm=True, warm_load_contact=WARM_LOAD_MAX_CONTACT) == "islands"
+    assert resolved_kind("auto", load.qp, warm=True, warm_load_contact=0.05) == "fourier"  # much in contact
+    assert resolved_kind("auto", load.qp, warm=False, warm_load_contact=0.01) == "fourier"
+    assert resolved_kind("auto", load.qp, warm=True) == "fourier"  # a loop that keeps the wave numbers
+    assert resolved_kind("auto", hard.qp, warm=True, warm_load_contact=0.01) == "fourier"
+    assert resolved_kind("auto", periodic.qp, warm=True, warm_load_contact=0.01) == "fourier"
     settings = SolverSettings(tol=1e-9)
     for force, kind in ((0.0005, "islands"), (0.01, "fourier")):
         inst = b.build_load(b.load_force(force))
