@@ -376,9 +376,9 @@ def balancing_in_loop(tile: int, near: float) -> Iterator[None]:
         if self._far_set is not before:  # the far field was (re)built, or dropped
             self._balancing = LoopBalancing(self, S, tile, near) if self._far is not None else None
 
-    def simplify(self: IslandPreconditioner) -> bool:
+    def simplify(self: IslandPreconditioner, blocks: bool = False) -> bool:
         self._balancing = None
-        return saved[2](self)
+        return saved[2](self, blocks)
 
     cls.apply, cls._update_far_field, cls.simplify = apply, update_far_field, simplify
     try:

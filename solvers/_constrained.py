@@ -27,11 +27,12 @@ steepest direction and then stops "stalled"; before a stop that is not convergen
 (and when the error has not halved in ``_finish.FINISH_PATIENCE`` iterations) the
 undecided points -- nearly all plastic near saturation, so a handful -- are solved
 exactly (``_finish.finish_exactly``), converged only on its own KKT test.  Where they are
-too many for that, a stagnation makes the preconditioner drop its coarse part
-(``SetPreconditioner.simplify``, as solvers/_ccg.py's "Cycling") and the direction
-restarts: on the 256^2 load sweep the Polonsky-Keer loop with the island blocks and their
-far field cycled at a KKT error of 0.05-0.14 until its iteration limit; without the far
-field it converges (results/perf/load-pk-default).
+too many for that, a stagnation makes the preconditioner drop its coarse part, and a later
+one its island blocks (``SetPreconditioner.simplify(blocks=True)``; solvers/_ccg.py's
+"Cycling" keeps the blocks), and the direction restarts.  On the 256^2 load sweep the
+Polonsky-Keer loop with the island blocks and their far field cycled at a KKT error of
+0.05-0.14 until its iteration limit, and with the blocks alone for 900 iterations of a step;
+without them it converges (results/perf/load-pk-default).
 
 The fast loop, ``polonsky_keer_box``
 ------------------------------------
@@ -338,7 +339,7 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter, M)
         if done is not None:
             return done
-        if finished is not None:  # an exact finish ran and did not converge, or M dropped its coarse part
+        if finished is not None:  # an exact finish ran and did not converge, or M dropped its coarse part or blocks
             extra, reset = finished, True
             continue
         reset |= M is not None and M.progress(kkt)  # a new stage (solvers/_opening.py)
@@ -380,7 +381,7 @@ def _loop_head(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float, 
     recorded: (the run to return, None) when it converged, the deadline passed, the error
     is not finite, the finish's rounds spent the iterations, or a stagnation's exact finish
     converged; (None, the finish's rounds) when that finish ran and did not converge, or
-    when a stagnation too large to finish made M drop its coarse part (module doc; the
+    when a stagnation too large to finish made M drop its coarse part or blocks (module doc; the
     caller restarts its direction either way); (None, None) to go on."""
     if run.converged or ctx.expired() or not math.isfinite(run.kkt) or run.iterations >= max_iter:
         return run, None
@@ -390,7 +391,7 @@ def _loop_head(ctx: SolveContext, state: GapState, u: np.ndarray, delta: float, 
         watch.restart()
         fin = _finish_inside(ctx, state, u, delta, run, first, max_iter)
         return (fin, None) if fin.converged else (None, fin.finish_rounds)
-    if M is not None and M.simplify():
+    if M is not None and M.simplify(blocks=True):
         watch.restart()
         return None, run.finish_rounds
     return None, None
@@ -508,7 +509,7 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
         done, finished = _loop_head(ctx, state, u, delta, run, watch, first, max_iter, M)
         if done is not None:
             return done
-        if finished is not None:  # an exact finish ran and did not converge, or M dropped its coarse part
+        if finished is not None:  # an exact finish ran and did not converge, or M dropped its coarse part or blocks
             extra = finished
             delta, res = _dual_residual(state, u, c)
             d = inward(-_dual_direction(M, res), state, res, u)

@@ -143,9 +143,9 @@ class StagedPreconditioner:
     def ones(self) -> np.ndarray:
         return self.now.ones()
 
-    def simplify(self) -> bool:
-        """The second stage's coarse part, once it is on (the first has none)."""
-        return not self.opening and self.then.simplify()
+    def simplify(self, blocks: bool = False) -> bool:
+        """The second stage's coarse part (or blocks), once it is on (the first has none)."""
+        return not self.opening and self.then.simplify(blocks)
 
     def progress(self, kkt: float) -> bool:
         """Switch to the second stage at a KKT error of at most ``OPENING_KKT`` on a set that

@@ -252,8 +252,9 @@ class SetPreconditioner(Protocol):
 
     def solo(self, r: np.ndarray) -> np.ndarray: ...
 
-    def simplify(self) -> bool:
-        """Drop a coarse part, if any, for the rest of the solve (True when one was dropped)."""
+    def simplify(self, blocks: bool = False) -> bool:
+        """Drop a coarse part, if any, for the rest of the solve; with ``blocks`` and no
+        coarse part left, the island blocks too (True when something was dropped)."""
         ...
 
     def progress(self, kkt: float) -> bool:
@@ -437,17 +438,18 @@ class IslandPreconditioner(_OnesCache):
         """r / H_jj: the inverse of a one-point island."""
         return r / self._diag
 
-    def simplify(self) -> bool:
-        """Drop the far-field correction, the island blocks staying; with none to drop, the
-        blocks too (z = r / H_jj on the set from then on: a load-controlled warm step of the
-        P&K loop cycled on its blocks for 900 iterations, rebuilding them at each).  True
-        when something was dropped."""
+    def simplify(self, blocks: bool = False) -> bool:
+        """Drop the far-field correction, the island blocks staying; with none to drop and
+        ``blocks``, the blocks too (z = r / H_jj on the set from then on: a load-controlled
+        warm step of the P&K loop cycled on its blocks for 900 iterations, rebuilding them at
+        each; the constrained loops ask for it, solvers/_constrained.py).  True when
+        something was dropped."""
         if self.far_field:
             self._forget_ones()
             self.version += self._far is not None
             self.far_field, self._far, self._far_set = False, None, None
             return True
-        if not self.blocks:
+        if not (blocks and self.blocks):
             return False
         self._forget_ones()
         self.blocks, self._buckets = False, []
@@ -579,7 +581,7 @@ class FourierPreconditioner(_OnesCache):
             self._solo = float(sfft.irfft2(floored_wavenumbers(self._shape), s=self._shape)[0, 0])
         return self._solo * r
 
-    def simplify(self) -> bool:
+    def simplify(self, blocks: bool = False) -> bool:
         """Nothing to drop."""
         return False
 

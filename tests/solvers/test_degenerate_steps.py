@@ -314,7 +314,7 @@ def test_a_stagnation_too_large_to_finish_drops_the_coarse_part() -> None:
         def __init__(self) -> None:
             self.dropped = 0
 
-        def simplify(self) -> bool:
+        def simplify(self, blocks: bool = False) -> bool:
             self.dropped += 1
             return self.dropped == 1
 

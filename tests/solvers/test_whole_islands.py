@@ -143,7 +143,7 @@ class _KeepsOut:
     def ones(self):
         return self.inner.ones()
 
-    def simplify(self) -> bool:
+    def simplify(self, blocks: bool = False) -> bool:
         return False
 
     def progress(self, kkt: float) -> bool:
