@@ -87,8 +87,7 @@ class Constraints:
                 raise ProblemInputError(f"the load must be a finite float >= 0, got {self.load!r}")
             cap = float(np.sum(self.upper_or_inf(n)))
             if cap < self.load:
-                raise ProblemInputError(f"the load {self.load:g} exceeds what the bounds can carry ({cap:g}): "
-                                        "every element plastic cannot balance it")
+                raise ProblemInputError(overload_message(f"the load {self.load:g}", "the bounds", f"{cap:g}"))
 
 
 def make_constraints(n: int, upper: np.ndarray | float | None = None, load: float | None = None) -> Constraints:
@@ -116,6 +115,26 @@ def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int)
     if len(sides) != 2 or not all(math.isfinite(float(d)) and float(d) > 0.0 for d in sides):
         raise ProblemInputError(f"grid spacing must be finite and > 0, got {delta!r}")
     return np.full(n, h * float(sides[0]) * float(sides[1]))
+
+
+def overload_message(load: str, carrier: str, capacity: str) -> str:
+    """The one-line refusal of a load beyond what every element plastic carries."""
+    return f"{load} exceeds what {carrier} can carry ({capacity}): every element plastic cannot balance it"
+
+
+def check_load_under_hardness(loads: list[float], hardness: float | None, E: float) -> None:
+    """``ProblemInputError`` when a dimensionless load P / (E* A) of a load-controlled recipe
+    on the whole grid exceeds H_A / E*, the load of every element plastic: sum(u) of
+    ``hardness_bounds`` over the nominal area A, which ``Constraints.check`` would refuse
+    when the step is built.  Checked from the options, before anything runs."""
+    if hardness is None or not loads:
+        return
+    top = max(float(x) for x in loads)
+    if top * float(E) > float(hardness):
+        raise ProblemInputError(overload_message(f"--loads: the load P/(E* A) = {top:g}",
+                                                 f"--hardness {float(hardness):g} Pa",
+                                                 f"H_A/E* = {float(hardness) / float(E):.4g}")
+                                + "; lower the loads or raise the hardness")
 
 
 #: Bounds within this relative spread of each other are one hardness (``uniform_hardness``).

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..constraints import CONTROLS
+from ..constraints import CONTROLS, check_load_under_hardness
 from ..errors import ProblemInputError
 from ..instances import (
     InstanceBuilder,
@@ -141,6 +141,14 @@ def load_steps(params: dict[str, Any]) -> list[float]:
     return [float(x) for x in params["loads"]]
 
 
+def check_control(params: dict[str, Any]) -> None:
+    """A recipe's control and hardness, checked before anything runs: the load steps
+    (``load_steps``) within what its hardness can carry (``check_load_under_hardness``)."""
+    if params.get("control") == CONTROLS[1]:
+        hardness = None if params.get("hardness") is None else float(params["hardness"])
+        check_load_under_hardness(load_steps(params), hardness, float(params["E"]))
+
+
 def control_suffix(params: dict[str, Any]) -> str:
     """The instance-name suffix of a recipe's control and hardness (the "control" records'
     rules): "" for the default (displacement control, no hardness), "-load" and "-HA<Pa>"
@@ -194,6 +202,7 @@ class RampScene(Scene):
         def check(spec: InstanceSpec) -> None:
             surface, deltas = self.loads(spec)
             check_grid(spec.params, checked_units(spec, surface, cfg))
+            check_control(spec.params)
             sizes[spec.instance] = step_sizes(spec.params, surface, deltas)
 
         validate_each(self.instances(cfg), check)

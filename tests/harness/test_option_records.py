@@ -21,7 +21,7 @@ from contactbench.harness.run.plan import PlanError, RunConfig, option_problems,
 from contactbench.harness.run.runner import run_benchmark
 from contactbench.harness.table.store import load_table
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.scenes import SceneConfig
+from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.problems.scenes.options import (ALLOW_IMPLAUSIBLE, BY_NAME, CONFIG_FIELDS, OPTIONS, OptionRecord,
                                                   Range)
 
@@ -212,6 +212,30 @@ def test_a_load_sweep_takes_loads_without_control_and_refuses_them_with_steps(ca
     assert jobs[0].steps_hint == 2 and jobs[0].spec.params["loads"] == (0.001, 0.002)
     rc, line = cli_line(["run", "load-sweep", "--steps", "3", "--loads", "0.001", "--out", "o"], capsys)
     assert rc == 2 and "--steps and --loads exclude each other" in line
+
+
+@pytest.mark.parametrize("over", [1.0 - 1e-6, 1.0 + 1e-6])
+def test_a_load_beyond_what_the_hardness_carries_is_refused_before_anything_runs(
+        over: float, in_tmp: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The plan refuses a load P/(E* A) over H_A/E* from the options, exactly where the
+    step's own build (``Constraints.check``) would refuse it mid-run."""
+    hardness, E = 5e6, 1e9
+    loads = (0.001, over * hardness / E)
+    cfg = SceneConfig(size=17, E=E, extra={"control": "load", "loads": loads, "hardness": hardness})
+    args = ["run", "paper-sweep", "--size", "17", "--E", f"{E:g}", "--control", "load", "--loads",
+            ",".join(f"{x!r}" for x in loads), "--hardness", f"{hardness:g}", "--solvers", "bvls", "--out", "o"]
+    if over < 1.0:
+        (job,) = plan_run(["paper-sweep"], cfg, ["bvls"]).jobs
+        assert job.spec.build().at(1).qp.constraints.load > 0.0
+        return
+    with pytest.raises(ProblemInputError, match="exceeds what --hardness 5e\\+06 Pa can carry"):
+        plan_run(["paper-sweep"], cfg, ["bvls"])
+    (spec,) = get_scene("paper-sweep").instances(get_scene("paper-sweep").config(cfg))
+    with pytest.raises(ProblemInputError, match="exceeds what the bounds can carry"):
+        spec.build().at(1)
+    rc, line = cli_line(args, capsys)
+    assert rc == 2 and "--loads: the load P/(E* A)" in line and "\n" not in line
+    assert not (in_tmp / "o").exists()
 
 
 def test_nu_states_its_rule(capsys: pytest.CaptureFixture[str]) -> None:
