@@ -28,11 +28,11 @@ steepest direction and then stops "stalled"; before a stop that is not convergen
 undecided points -- nearly all plastic near saturation, so a handful -- are solved
 exactly (``_finish.finish_exactly``), converged only on its own KKT test.  Where they are
 too many for that, a stagnation makes the preconditioner drop its coarse part, and a later
-one its island blocks (``SetPreconditioner.simplify(blocks=True)``; solvers/_ccg.py's
-"Cycling" keeps the blocks), and the direction restarts.  On the 256^2 load sweep the
-Polonsky-Keer loop with the island blocks and their far field cycled at a KKT error of
-0.05-0.14 until its iteration limit, and with the blocks alone for 900 iterations of a step;
-without them it converges (results/perf/load-pk-default).
+one its island blocks or its wave numbers (``SetPreconditioner.simplify(blocks=True)``;
+solvers/_ccg.py's "Cycling" keeps them), and the direction restarts.  On the 256^2 load
+sweep the Polonsky-Keer loop with the island blocks and their far field cycled at a KKT
+error of 0.05-0.14 until its iteration limit, and with the blocks alone for 900 iterations
+of a step; without them it converges (results/perf/load-pk-default).
 
 The fast loop, ``polonsky_keer_box``
 ------------------------------------

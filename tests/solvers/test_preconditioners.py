@@ -13,7 +13,7 @@ from contactbench.problems.lcp import exact_solution_on_subset
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.solvers._preconditioners import (
-    KINDS,
+    ISLAND_KINDS,
     REBUILD_FRACTION,
     FourierPreconditioner,
     floored_wavenumbers,
@@ -244,6 +244,44 @@ def test_the_whole_grid_skips_the_scatter_and_gives_the_same_product():
                                rtol=1e-13, atol=1e-13)
 
 
+def test_the_wave_numbers_solo_is_their_inverse_on_a_one_point_set():
+    """``solo`` is M's inverse on a one-point set, as the island blocks' r / H_jj: M =
+    F^-1[1/|q|] F (M^-1 multiplies by |q|), so 1 / M_jj = 1 / mean(1/|q|) over the full
+    spectrum (numpy's full 2-D transform here), below the diagonal of M^-1 (mean |q|)."""
+    shape = (24, 20)
+    q0 = 2.0 * np.pi * np.fft.fftfreq(shape[0])
+    q1 = 2.0 * np.pi * np.fft.fftfreq(shape[1])
+    q = np.hypot(q0[:, None], q1[None, :])
+    q[0, 0] = np.min(q[q > 0])  # floored as floored_wavenumbers does
+    M = FourierPreconditioner(shape, np.arange(shape[0] * shape[1]))
+    r = np.random.default_rng(3).normal(size=shape[0] * shape[1])
+    np.testing.assert_allclose(M.solo(r), r / np.mean(1.0 / q), rtol=1e-12)
+    assert np.mean(1.0 / q) * np.mean(q) > 1.2  # the diagonal of M^-1 would overshoot
+
+
+def test_the_wave_numbers_are_dropped_only_when_the_constrained_loops_ask():
+    """Without ``blocks`` (the displacement loop's "Cycling") nothing is dropped; with it
+    (a constrained loop's stagnation) the wave numbers go once: z = c r on the set (the
+    unpreconditioned direction, ``solo``'s scale), the version moves so a loop restarts its
+    conjugacy, and nothing is left to drop."""
+    shape = (24, 20)
+    rng = np.random.default_rng(5)
+    r = rng.normal(size=shape[0] * shape[1])
+    M = FourierPreconditioner(shape, np.arange(r.size))
+    S = rng.random(r.size) < 0.4
+    M.update(S)
+    full = M.apply(r)
+    assert not M.simplify() and M.version == 0
+    np.testing.assert_array_equal(M.apply(r), full)
+    assert M.simplify(blocks=True) and M.version == 1
+    np.testing.assert_allclose(M.apply(r), M.solo(np.where(S, r, 0.0)), rtol=1e-15)
+    T = ~S
+    M.update(T)
+    np.testing.assert_allclose(M.apply(r), M.solo(np.where(T, r, 0.0)), rtol=1e-15)
+    np.testing.assert_allclose(M.ones(), M.solo(T.astype(float)), rtol=1e-15)
+    assert not M.simplify(blocks=True) and M.version == 1
+
+
 def test_a_scattered_set_is_scattered_and_gathered_in_bands_to_the_same_product(monkeypatch: pytest.MonkeyPatch) -> None:
     """On a set of the grid (shuffled positions) the scatter and the gather go in bands over
     the threads (``fft_threads.each_band``, bands of 7 on 1 or 3 threads): the product of the
@@ -275,10 +313,11 @@ def test_unknown_preconditioner_is_a_clear_error():
         make_preconditioner("ilu", inst.qp)
 
 
-@pytest.mark.parametrize("kind", [k for k in KINDS if k != "none"])
+@pytest.mark.parametrize("kind", ISLAND_KINDS)
 def test_solo_is_the_preconditioner_of_a_one_point_set(kind):
-    """``solo`` (the entering force's scale in Polonsky-Keer) is what apply does to a
-    point that forms a set alone."""
+    """``solo`` (the entering force's scale in Polonsky-Keer) is M's inverse on a one-point
+    set; on the island blocks that is what apply does to a point that forms a set alone
+    (the wave numbers': ``test_the_wave_numbers_solo_is_their_inverse_on_a_one_point_set``)."""
     inst = build(33)
     M = make_preconditioner(kind, inst.qp)
     r = np.random.default_rng(3).normal(size=inst.n)
