@@ -27,6 +27,7 @@ import numpy as np
 from contactbench.problems.lcp import default_nnls_max_iter, exact_solution
 from contactbench.problems.mixed_lcp import UncertifiedConstrainedSolution, constrained_exact_solution
 
+from ._kit import cholesky_seconds
 from ._scaling import dense_matrix
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
@@ -66,6 +67,14 @@ class ScipyNNLS(EquilibratedAdapter):
         )
 
 
+#: ``bvls``'s time model, in Cholesky factorisations of the n x n dense H
+#: (``_kit.cholesky_seconds``): with a box or with nothing but p >= 0, 4-10 measured at n =
+#: 2,858-6,731; under a load (the regula falsi over the approach, each an exact solve) 6-22
+#: at n = 1,089-4,225 (RMD H 0.7 on BCC, the 2-core vm).  A margin over the largest.
+BVLS_FACTORISATIONS = 10
+BVLS_LOAD_FACTORISATIONS = 25
+
+
 @register
 class BVLSReference(Solver):
     """The exact reference of the bounded and load-controlled families
@@ -89,6 +98,11 @@ class BVLSReference(Solver):
 
     def memory_estimate(self, n: int) -> float:
         return 4.0 * 8.0 * n * n
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        """``BVLS_FACTORISATIONS`` dense factorisations (a load's count: the skip policy's
+        ``LOAD_CONTROL_ITERATION_RATIO``), whatever the operator: it runs on the dense H."""
+        return BVLS_FACTORISATIONS * cholesky_seconds(n)
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         H = dense_matrix(ctx.qp)

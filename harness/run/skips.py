@@ -40,6 +40,7 @@ from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_I
                                        matvec_seconds)
 from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
+from contactbench.solvers.reference import BVLS_FACTORISATIONS, BVLS_LOAD_FACTORISATIONS
 from contactbench.solvers.registry import load_solver
 
 from ..profiles import get_profile
@@ -58,7 +59,8 @@ OBSERVED_SKIP_FRACTION = 1.0
 
 #: Iterations under load control over those the solver's ``time_estimate`` assumes, by
 #: registry name (a solver not named keeps its model's count).
-LOAD_CONTROL_ITERATION_RATIO: dict[str, float] = {"pk": TYPICAL_PK_LOAD_ITERATIONS / TYPICAL_PK_ITERATIONS}
+LOAD_CONTROL_ITERATION_RATIO: dict[str, float] = {"pk": TYPICAL_PK_LOAD_ITERATIONS / TYPICAL_PK_ITERATIONS,
+                                                  "bvls": BVLS_LOAD_FACTORISATIONS / BVLS_FACTORISATIONS}
 
 Observation = tuple[int, float]  # (n, solve seconds) of one finished step
 
