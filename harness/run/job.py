@@ -49,7 +49,7 @@ from .isolation import ChildProcess, ChildReply
 from .plan import InstanceJob, RunConfig
 from ..profiles import get_profile
 from .rows import RowFactory, answer_columns
-from .skips import Decision, SkipPolicy, extrapolated_time, skip_decision
+from .skips import Decision, SkipPolicy, extrapolated_time, problem_time_estimate, skip_decision
 from ..table.files import safe_name
 from ..table.store import ResultStore
 from .studies import SolverVariant
@@ -319,14 +319,15 @@ class JobDriver:
 
     def predicted_seconds(self, ctx: StepContext, v: SolverVariant, profile: str, operator: str) -> float:
         """The predicted time of this solve: extrapolated from the variant's own finished
-        steps (``harness.run.skips``), else the solver's time model, else at least
-        ``MIN_PREDICTED_MATVECS`` products with H."""
+        steps (``harness.run.skips``), else the solver's time model for this problem (the
+        skip policy's ``problem_time_estimate``: the step's own FFT grid and control), else
+        at least ``MIN_PREDICTED_MATVECS`` products with H."""
         n = ctx.info.n
         seen = self.policy.observations((v.name, profile), ctx.k) if self.job.load_history else []
         if seen:
             return extrapolated_time(seen, n)[0]
         try:
-            t = load_solver(v.base).time_estimate(n, operator)
+            t = problem_time_estimate(load_solver(v.base), ctx.info.traits, operator)
         except Exception:
             t = None
         return float(t) if t is not None else MIN_PREDICTED_MATVECS * matvec_seconds(n, operator)
