@@ -86,6 +86,13 @@ DENSE_SWITCH_MAX_ENTRIES = 1 << 24
 #: matvec) 3.51-3.59 s, 0.2 3.54-3.78 s, 0.1 3.24-3.54 s, 0.05 3.34-3.39 s, no switch
 #: 3.58-3.60 s.
 DENSE_SWITCH_FACTOR = 0.1
+#: ... and at the first matvec, not after ``DENSE_SWITCH_AFTER``, when the block has at most
+#: this factor x P log2 P entries: gathering it costs about one FFT pair or less (measured at
+#: 512^2, 2 threads: 20-30 ns an entry; one float64 FFT pair 3 ms periodic, 8 ms on the padded
+#: grid; break-even near 0.02), so no FFT product is spent first.  A sweep's first steps
+#: screen to a few dozen points: the periodic 512^2 sweep's first step took 12 FFT pairs
+#: (four per operator and precision before the switch) and 41 ms, 2 pairs and 21 ms at once.
+DENSE_SWITCH_AT_ONCE_FACTOR = 0.02
 
 
 #: A partial product H[rows, cols] x (``ContactOperator.partial_product``) pays instead of an
@@ -118,6 +125,12 @@ def dense_block_pays(n: int, padded_points: float) -> bool:
     (``solvers._kit.matvec_seconds``)."""
     P = max(float(padded_points), 2.0)
     return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_FACTOR * P * np.log2(P))
+
+
+def dense_block_at_once(n: int, padded_points: float) -> bool:
+    """Whether that switch comes at the first matvec (``DENSE_SWITCH_AT_ONCE_FACTOR``)."""
+    P = max(float(padded_points), 2.0)
+    return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_AT_ONCE_FACTOR * P * np.log2(P))
 
 
 def dense_nbytes(n: int) -> int:
@@ -393,14 +406,20 @@ class FFTOperator(ContactOperator):
     def dense_pays(self) -> bool:
         """Whether a dense H_II matvec (n^2 entries streamed) is cheaper than the FFT pair
         on the padded grid (P points) and small enough to hold."""
-        return dense_block_pays(self.n, int(np.prod(self.transform.padded_shape)))
+        return dense_block_pays(self.n, self._padded_points())
 
     def _maybe_switch_to_dense(self) -> None:
-        # After a few matvecs a small trial set on a large grid is cheaper as a dense
-        # block gathered from the kernel table: same numbers, no FFT.
-        if self._dense is None and self.auto_dense and self.matvec_count >= DENSE_SWITCH_AFTER and self.dense_pays():
+        # After a few matvecs (at once for a block no dearer than an FFT pair) a small trial
+        # set on a large grid is cheaper as a dense block gathered from the kernel table:
+        # same numbers, no FFT.
+        if self._dense is not None or not self.auto_dense or not self.dense_pays():
+            return
+        if self.matvec_count >= DENSE_SWITCH_AFTER or dense_block_at_once(self.n, self._padded_points()):
             idx = np.arange(self.n)
             self._dense = self.submatrix(idx, idx).astype(self.dtype, copy=False)
+
+    def _padded_points(self) -> int:
+        return int(np.prod(self.transform.padded_shape))
 
     @property
     def uses_dense(self) -> bool:

@@ -346,6 +346,28 @@ def test_small_trial_sets_switch_to_the_dense_block_with_the_same_numbers() -> N
         assert op.uses_dense is switches
 
 
+def test_a_block_no_dearer_than_an_fft_pair_is_taken_at_the_first_product() -> None:
+    """At most ``DENSE_SWITCH_AT_ONCE_FACTOR`` x P log2 P entries: the block is gathered at
+    the first matvec and no FFT runs; above it (within ``dense_pays``) the FFT runs for the
+    first ``DENSE_SWITCH_AFTER`` products.  The same numbers either way."""
+    from contactbench.problems.operators import DENSE_SWITCH_AFTER, DENSE_SWITCH_AT_ONCE_FACTOR, DENSE_SWITCH_FACTOR
+
+    transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, False), (N, N))
+    P = int(np.prod(transform.padded_shape))
+    at_once = int(np.sqrt(DENSE_SWITCH_AT_ONCE_FACTOR * P * np.log2(P)))
+    later = int(np.sqrt(DENSE_SWITCH_FACTOR * P * np.log2(P)))
+    rng = np.random.default_rng(4)
+    for n, ffts_before in ((at_once, 0), (at_once + 1, DENSE_SWITCH_AFTER), (later, DENSE_SWITCH_AFTER)):
+        idx = np.sort(rng.choice(N * N, n, replace=False))
+        op = FFTOperator(transform, idx, auto_dense=True)
+        H = dense_from_formula("bcc", False, idx)
+        count0 = transform.fft_count
+        for _ in range(DENSE_SWITCH_AFTER + 2):
+            x = rng.normal(size=n)
+            assert np.linalg.norm(op.matvec(x) - H @ x) <= 1e-12 * np.linalg.norm(H @ x)
+        assert op.uses_dense and transform.fft_count - count0 == 2 * ffts_before, n
+
+
 @pytest.mark.parametrize("kernel,periodic", CASES)
 def test_partial_product_is_the_block_times_x_and_signs_are_known(kernel: str, periodic: bool) -> None:
     """H[rows, cols] x without the block, against the formula's dense H: the FFT operator

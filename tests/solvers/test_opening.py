@@ -130,6 +130,26 @@ def test_auto_opens_a_cold_unconstrained_island_solve_only():
     assert resolved_opening("fourier", M, loaded) == "fourier"  # asked for, it is given
 
 
+def test_auto_does_not_open_a_set_whose_products_are_a_dense_block():
+    """A set small for its grid (a sweep's first steps, screened to a few dozen points:
+    ``operators.dense_block_pays``) is not opened: a wave-number application is an FFT pair
+    on the whole grid, dearer than the product.  Asked for, the opening is given."""
+    from contactbench.problems.operators import FFTOperator
+
+    inst = build(129)
+    M = make_preconditioner("islands", inst.qp)
+    assert isinstance(inst.qp.H, FFTOperator) and not inst.qp.H.dense_pays()
+    assert resolved_opening("auto", M, context_of(inst.qp)) == "fourier"
+    few = np.argsort(inst.qp.ubar)[-40:]
+    small = inst.qp.restrict(np.sort(few))
+    assert small.H.dense_pays()
+    M_small = make_preconditioner("islands", small)
+    assert resolved_opening("auto", M_small, context_of(small)) == "none"
+    assert resolved_opening("fourier", M_small, context_of(small)) == "fourier"
+    r = get_solver("fast-dual-pccg").solve(small, SolverSettings(tol=1e-9))
+    assert r.converged and "opening" not in r.info
+
+
 def test_an_opened_auto_solve_takes_the_far_field_from_its_own_grid_size(monkeypatch):
     """From ``OPENED_FAR_FIELD_GRID_POINTS`` an opened solve whose islands "auto" chose gets
     the far field; below it, when the islands were asked for, or when the solve is not opened
