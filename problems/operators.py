@@ -133,6 +133,15 @@ def dense_block_at_once(n: int, padded_points: float) -> bool:
     return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_AT_ONCE_FACTOR * P * np.log2(P))
 
 
+def runs_dense_blocks(H: Any) -> bool:
+    """Whether operator H multiplies as a dense block of its set: an FFT operator whose
+    switch (``dense_block_pays``) applies, as on a sweep's first screened steps.  There a
+    wave-number preconditioner's FFT pair on the whole grid costs more than a product, and
+    a float32 twin saves nothing worth its refinement."""
+    pays = getattr(H, "dense_pays", None)
+    return bool(getattr(H, "auto_dense", False)) and callable(pays) and bool(pays())
+
+
 def dense_nbytes(n: int) -> int:
     return 8 * int(n) * int(n)
 

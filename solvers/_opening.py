@@ -20,13 +20,14 @@ free set has stopped shedding fast (``OPENING_SETTLED``), then the island kind t
 would have used from the start; the loop restarts its conjugacy at the switch.  "auto"
 opens this way where it was measured to pay: a cold start (a warm start begins near its
 answer), no constraints beyond p >= 0, the island kinds on the host, and products that
-are not a dense block (``products_are_blocks``).  Figures: results/perf/opening.
+are not a dense block (``operators.runs_dense_blocks``).  Figures: results/perf/opening.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from contactbench.problems.operators import runs_dense_blocks
 from contactbench.problems.operators_gpu import HOST, ArraySpace
 
 from ._preconditioners import FourierPreconditioner, IslandPreconditioner, SetPreconditioner, drifted, grid_points
@@ -77,26 +78,16 @@ def opening_param(default: str = "none") -> Param:
 
 def resolved_opening(opening: str, M: SetPreconditioner | None, ctx: SolveContext) -> str:
     """"fourier" or "none": ``opening`` with "auto" decided (module doc; not where the
-    products are dense blocks, ``products_are_blocks``); "none" wherever M is not an
+    products are dense blocks, ``operators.runs_dense_blocks``: a wave-number application,
+    an FFT pair on the whole grid, costs more than the product; on the periodic 512^2
+    sweep's first step, 47 points, 10 ms of its 28); "none" wherever M is not an
     island preconditioner (nothing to open for)."""
     if not isinstance(M, IslandPreconditioner):
         return "none"
     if opening == "auto":
         cold_plain = ctx.p0 is None and ctx.constraints.plain
-        return "fourier" if cold_plain and not products_are_blocks(ctx) else "none"
+        return "fourier" if cold_plain and not runs_dense_blocks(ctx.qp.H) else "none"
     return opening
-
-
-def products_are_blocks(ctx: SolveContext) -> bool:
-    """Whether the solve's products are a dense block (the FFT operator's switch,
-    ``operators.dense_block_pays``): a set small for its grid, e.g. a sweep's first steps'
-    screened sets.  A wave-number application is an FFT pair on the whole grid, so there it
-    costs more than the product it preconditions, and the island blocks of so few points
-    are close to exact: on the periodic 512^2 sweep's first step (48 points) fast-dual-pccg
-    took 11 FFT pairs with the opening and 34 ms, against fast-ccg's 8 and 19 ms."""
-    H = ctx.qp.H
-    pays = getattr(H, "dense_pays", None)
-    return bool(getattr(H, "auto_dense", False)) and callable(pays) and bool(pays())
 
 
 def opened(M: SetPreconditioner | None, ctx: SolveContext, dtype: type = np.float64,

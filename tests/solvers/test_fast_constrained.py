@@ -363,8 +363,8 @@ def test_the_direction_keeps_the_load(square, loaded, name: str, precondition: s
 def test_auto_precision_is_the_grid_s_under_load_control_too() -> None:
     """The one rule of ``precision="auto"``: mixed from ``MIXED_GRID_POINTS`` grid points
     (512^2), with or without a load; double below."""
-    def qp(N: int, load: float | None) -> SimpleNamespace:  # a stand-in: only the grid and constraints are read
-        return SimpleNamespace(geometry=SimpleNamespace(grid_shape=(N, N)), n=N * N,
+    def qp(N: int, load: float | None) -> SimpleNamespace:  # a stand-in: the grid, constraints and no dense block
+        return SimpleNamespace(geometry=SimpleNamespace(grid_shape=(N, N)), n=N * N, H=None,
                                constraints=Constraints(None, load))
 
     assert MIXED_GRID_POINTS == 512 * 512

@@ -5,12 +5,14 @@ the unknowns sit on, not by their count."""
 
 from __future__ import annotations
 
+import copy
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+from contactbench.problems.operators import runs_dense_blocks
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import _preconditioners, _refine
 from contactbench.solvers.base import SolverSettings
@@ -18,8 +20,12 @@ from contactbench.solvers.registry import get_solver
 
 
 def small_qp():
+    """A 32^2 problem whose products run through the FFT (no dense switch): the stand-in,
+    with its grid's shape replaced, for a set on a large grid."""
     surf = rmd_surface_n(32, 0.7, length=100e-6, seed=3)
-    return InstanceBuilder(surf, 1e9, "bcc", periodic=False).build(paper_max_displacement(surf)).qp
+    qp = InstanceBuilder(surf, 1e9, "bcc", periodic=False).build(paper_max_displacement(surf)).qp
+    qp.H.auto_dense = False
+    return qp
 
 
 def test_auto_is_double_below_the_threshold_and_mixed_from_it() -> None:
@@ -29,8 +35,14 @@ def test_auto_is_double_below_the_threshold_and_mixed_from_it() -> None:
     geo = qp.geometry
     big = replace(qp, geometry=replace(geo, grid_shape=(512, 512)))
     assert _refine.resolved_precision("auto", big) == "mixed"
-    just_below = replace(qp, geometry=replace(geo, grid_shape=(512, 511)))
+    just_below = replace(big, geometry=replace(geo, grid_shape=(512, 511)))
     assert _refine.resolved_precision("auto", just_below) == "double"
+    # products that are a dense block of the set (a sweep's first screened steps): double
+    switching = copy.copy(qp.H)
+    switching.auto_dense = True
+    blocks = replace(big, H=switching)
+    assert runs_dense_blocks(blocks.H) and not runs_dense_blocks(big.H)
+    assert _refine.resolved_precision("auto", blocks) == "double"
     # the explicit choices are never changed by the grid
     for p in ("double", "mixed"):
         assert _refine.resolved_precision(p, qp) == p and _refine.resolved_precision(p, big) == p
