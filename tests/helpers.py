@@ -7,7 +7,8 @@
   registered: tests register and unregister it);
 * a fabricated tidy table for the report tests (``fabricate_table``, ``report_row``,
   ``trace_json``, ``write_out``);
-* ``loop_context``: the solve context the tests hand a solver loop directly.
+* ``loop_context``: the solve context the tests hand a solver loop directly;
+* ``top_step``: the paper's top displacement step on a small RMD surface.
 """
 
 from __future__ import annotations
@@ -25,9 +26,10 @@ import scipy.linalg as sla
 from scipy.optimize import nnls
 
 from contactbench.harness.table.schema import ALL_COLUMNS
-from contactbench.problems.instances import QP
+from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
+from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
 from contactbench.solvers.base import Deadline, Trace
 from contactbench.solvers.registry import get_solver
@@ -201,6 +203,12 @@ class MissingStub(ExactStub):
 
 # Time factors against NNLS+GP in the fabricated paper-sweep (the paper's claims).
 SWEEP_FACTORS = {"nnls-gp": 1.0, "nnls": 3.0, "pk": 26.0, "greedy-cg": 100.0, "admm": 90.0, "fast-pdas": 0.25}
+
+
+def top_step(N: int, kernel: str = "bcc", periodic: bool = False, seed: int = 2) -> ContactInstance:
+    """The paper's top displacement step on an N^2 RMD surface (H 0.7, L = 100 um, E* = 1 GPa)."""
+    s = rmd_surface_n(N, 0.7, length=100e-6, seed=seed)
+    return InstanceBuilder(s, 1e9, kernel, periodic=periodic).build(paper_max_displacement(s))
 
 
 def loop_context(qp: QP, max_iter: int = 400, tol: float = 1e-9, p0: np.ndarray | None = None) -> SolveContext:
