@@ -348,8 +348,8 @@ def test_small_trial_sets_switch_to_the_dense_block_with_the_same_numbers() -> N
 
 def test_a_block_no_dearer_than_an_fft_pair_is_taken_at_the_first_product() -> None:
     """At most ``DENSE_SWITCH_AT_ONCE_FACTOR`` x P log2 P entries: the block is gathered at
-    the first matvec and no FFT runs; above it (within ``dense_pays``) the FFT runs for the
-    first ``DENSE_SWITCH_AFTER`` products.  The same numbers either way."""
+    the first matvec and no FFT runs; above it (within ``dense_pays``) the FFT runs until
+    the ``DENSE_SWITCH_AFTER``-th product, which is the block's.  The same numbers either way."""
     from contactbench.problems.operators import DENSE_SWITCH_AFTER, DENSE_SWITCH_AT_ONCE_FACTOR, DENSE_SWITCH_FACTOR
 
     transform = KernelTransform(kernel_table("bcc", (N, N), DELTA, E, False), (N, N))
@@ -357,7 +357,8 @@ def test_a_block_no_dearer_than_an_fft_pair_is_taken_at_the_first_product() -> N
     at_once = int(np.sqrt(DENSE_SWITCH_AT_ONCE_FACTOR * P * np.log2(P)))
     later = int(np.sqrt(DENSE_SWITCH_FACTOR * P * np.log2(P)))
     rng = np.random.default_rng(4)
-    for n, ffts_before in ((at_once, 0), (at_once + 1, DENSE_SWITCH_AFTER), (later, DENSE_SWITCH_AFTER)):
+    fft_products = DENSE_SWITCH_AFTER - 1
+    for n, ffts_before in ((at_once, 0), (at_once + 1, fft_products), (later, fft_products)):
         idx = np.sort(rng.choice(N * N, n, replace=False))
         op = FFTOperator(transform, idx, auto_dense=True)
         H = dense_from_formula("bcc", False, idx)
