@@ -152,3 +152,22 @@ def test_cm_pk_under_periodic_load_control_stops_at_its_uniform_start() -> None:
     inst = InstanceBuilder(s, 1e9, "spectral", periodic=True).build_load(1e-3)
     r = get_solver("cm-pk-ccg").solve(inst.qp, SolverSettings(tol=1e-9))
     assert r.iterations <= 1 and np.allclose(r.p, 1e-3 / inst.n, rtol=1e-9)
+
+
+@needs_cm
+def test_cm_pk_that_never_meets_its_own_test_ends_at_the_cg_limit() -> None:
+    """On a 16^2 periodic BCC step (our kernel; 2 of 256 points touch) ContactMechanics'
+    Polonsky-Keer CCG never passes its own convergence test, which divides by a total force
+    of 0.  With the base limit (100,000) it ran into the harness's time limit; now it stops
+    at ``cg_iteration_limit`` with an honest "max_iter", and the judge rejects its answer."""
+    from contactbench.problems.scenes import SceneConfig, get_scene
+    from contactbench.solvers.base import cg_iteration_limit
+
+    scene = get_scene("paper-sweep")
+    cfg = SceneConfig(size=16, steps=4, seeds=(888,), kernel="bcc", periodic=True,
+                      extra={"surface_family": "periodic"})
+    (spec,) = scene.instances(scene.config(cfg))
+    inst = spec.build().at(0)
+    r = get_solver("cm-pk-ccg").solve(inst.qp, SolverSettings(tol=1e-9))
+    assert r.status == "max_iter" and r.iterations == cg_iteration_limit(inst.qp.n) < 100_000
+    assert judge(inst, r.p, bool(r.converged), 1e-8).status != "solved"
