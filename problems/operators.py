@@ -123,14 +123,18 @@ def dense_block_pays(n: int, padded_points: float) -> bool:
     switches to a dense H_II block (``DENSE_SWITCH_*``): n^2 entries within the entry limit
     and under ``DENSE_SWITCH_FACTOR`` x P log2 P.  The operator's rule and the time model's
     (``solvers._kit.matvec_seconds``)."""
-    P = max(float(padded_points), 2.0)
-    return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_FACTOR * P * np.log2(P))
+    return _block_within(n, padded_points, DENSE_SWITCH_FACTOR)
 
 
 def dense_block_at_once(n: int, padded_points: float) -> bool:
     """Whether that switch comes at the first matvec (``DENSE_SWITCH_AT_ONCE_FACTOR``)."""
+    return _block_within(n, padded_points, DENSE_SWITCH_AT_ONCE_FACTOR)
+
+
+def _block_within(n: int, padded_points: float, factor: float) -> bool:
+    """n^2 entries within the entry limit and ``factor`` x P log2 P."""
     P = max(float(padded_points), 2.0)
-    return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, DENSE_SWITCH_AT_ONCE_FACTOR * P * np.log2(P))
+    return n * n <= min(DENSE_SWITCH_MAX_ENTRIES, factor * P * np.log2(P))
 
 
 def runs_dense_blocks(H: Any) -> bool:
