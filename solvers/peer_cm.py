@@ -50,7 +50,7 @@ import numpy as np
 from contactbench.problems.constraints import Constraints
 
 from ._peers import GridProblem, PeerSolver, captured, full_field, grid_problem, package_availability
-from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Status, cg_iteration_limit
+from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Status
 from .registry import register
 
 GREEN_CHOICES = ("auto", "ours")
@@ -135,12 +135,6 @@ class _CMSolver(PeerSolver):
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return None
-
-    def default_max_iter(self, n: int) -> int:
-        """``cg_iteration_limit``: on a 16^2 periodic BCC step its Polonsky-Keer CCG never met
-        its own test (it divides by a total force of 0) and ran 100,000 iterations into the
-        harness's 30 s limit; now it ends "max_iter" in 2,320."""
-        return cg_iteration_limit(n)
 
     def posed(self, ctx: SolveContext) -> tuple[GridProblem, Any, str]:
         gp = grid_problem(ctx.qp)
