@@ -503,6 +503,8 @@ class ProblemTraits:
     bounded: bool = False  # the QP carries finite upper bounds (a hardness)
     layer: bool = False  # the kernel is an elastic layer of finite thickness (not a half-space)
     rectangular: bool = False  # the grid, or its elements, are known to be rectangular (not N x N squares)
+    #: periodic with the whole grid as its trial set: H 1 = 0 there (the q = 0 mode removed), H singular
+    whole_periodic_grid: bool = False
 
 
 def cg_iteration_limit(n: int) -> int:

@@ -95,7 +95,7 @@ class GreedySolver(Solver):
         why = super().skip(traits)
         if why:
             return why
-        if traits.periodic and traits.surface_side > 0 and traits.n >= traits.surface_side**2:
+        if traits.whole_periodic_grid:
             return (f"{self.name}'s first pass solves H p = ubar on the whole periodic grid, where H is singular "
                     "(H 1 = 0)")
         return None

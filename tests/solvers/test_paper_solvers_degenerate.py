@@ -234,7 +234,26 @@ def test_greedy_declines_a_periodic_whole_grid_and_nothing_else(name: str) -> No
     it with that reason (greedy-gs ran to its time limit there); a part of a periodic grid,
     or the whole of a non-periodic one, it still poses."""
     s = get_solver(name)
-    whole = ProblemTraits(n=32 * 32, operator="dense", has_surface=True, surface_side=32, periodic=True)
+    whole = ProblemTraits(n=32 * 32, operator="dense", has_surface=True, surface_side=32, periodic=True,
+                          whole_periodic_grid=True)
     assert "singular" in (s.skip(whole) or "")
-    assert s.skip(dataclasses.replace(whole, n=300)) is None
-    assert s.skip(dataclasses.replace(whole, periodic=False)) is None
+    assert s.skip(dataclasses.replace(whole, n=300, whole_periodic_grid=False)) is None
+    assert s.skip(dataclasses.replace(whole, periodic=False, whole_periodic_grid=False)) is None
+
+
+def test_the_traits_tell_a_whole_periodic_grid_of_any_shape() -> None:
+    """``problem_traits`` marks a periodic problem whose trial set is its whole grid, square
+    or not (a 24 x 16 map has no ``surface_side``; greedy-cg ran on its singular H before),
+    and nothing else."""
+    from contactbench.harness.run.worker import problem_traits
+    from contactbench.problems.surfaces import Surface
+
+    h = rmd_surface_n(32, 0.7, length=100e-6, seed=1).heights
+    for shape in ((32, 32), (24, 16)):
+        s = Surface(np.array(h[: shape[0], : shape[1]]), 100e-6 / 32)
+        d = 0.5 * float(np.max(s.heights) - np.mean(s.heights))
+        periodic = InstanceBuilder(s, 1e9, "spectral", periodic=True).build(d)
+        assert periodic.n == shape[0] * shape[1] and problem_traits(periodic).whole_periodic_grid
+        assert "singular" in (get_solver("greedy-cg").skip(problem_traits(periodic)) or "")
+        plain = InstanceBuilder(s, 1e9, "bcc").build(d)
+        assert not problem_traits(plain).whole_periodic_grid
