@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from contactbench.problems.lcp import default_nnls_max_iter, exact_solution
+from contactbench.problems.lcp import default_nnls_max_iter, exact_solution, exact_solution_on_subset
 from contactbench.problems.mixed_lcp import UncertifiedConstrainedSolution, constrained_exact_solution
 
 from ._kit import cholesky_seconds
@@ -113,7 +113,7 @@ class BVLSReference(Solver):
             try:
                 sol = exact_solution(H, ubar)
             except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:  # H not numerically SPD, LH cut short
-                return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {exc}", status=Status.FAILED)
+                return on_a_subset(ctx, str(exc))
             return Outcome(sol.p, sol.polish_rounds, sol.converged, w=sol.w)
         try:
             ref = constrained_exact_solution(H, ubar, c)
@@ -122,3 +122,17 @@ class BVLSReference(Solver):
         ctx.info.update(polish_rounds=ref.rounds, displacement_solves=ref.solves)
         return Outcome(ref.p, ref.rounds, True, "certified exact solution", w=H @ ref.p - ubar,
                        multiplier=ref.multiplier if c.load_control else None)
+
+
+def on_a_subset(ctx: SolveContext, why: str) -> Outcome:
+    """Where the whole problem's factorisation failed (``why``): the exact solve on a
+    growing proper subset (``lcp.exact_solution_on_subset``), for an H positive definite on
+    proper subsets only, as a periodic whole grid's (H 1 = 0, where the Cholesky passes or
+    fails on round-off: a 64 x 48 map failed); certified there, else failed with both reasons."""
+    try:
+        sub = exact_solution_on_subset(ctx.qp)
+    except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
+        return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {why}; on a proper subset: {exc}",
+                       status=Status.FAILED)
+    ctx.info.update(subset_size=int(sub.subset.size), subset_rounds=int(sub.rounds))
+    return Outcome(sub.p, sub.rounds, True, f"certified exact solution on a proper subset ({why})")

@@ -54,7 +54,8 @@ OTHERS = ("pk", "pk-printed", "gp", "nnls", "nnls-gp", "admm", "greedy-cg", "gre
 #: (solver, reason) of the other solvers known to fail a property here (their own fix is
 #: pending); expected failures, not strict.
 KNOWN_FAILURES: dict[str, str] = {
-    "bvls": "returns an all-NaN p (status failed) on a periodic whole grid, where H 1 = 0 (3 x 3, one peak)",
+    "bvls": "returns an all-NaN p (status failed) where its certification fails at a knife edge (a load of 1e-6 "
+            "of what the box carries, 6 x 10 rough grid); the periodic whole grid it solves on a proper subset",
 }
 
 #: The greedy variants claim the paper's stop, no negative p, which is not optimality (its

@@ -257,3 +257,24 @@ def test_the_traits_tell_a_whole_periodic_grid_of_any_shape() -> None:
         assert "singular" in (get_solver("greedy-cg").skip(problem_traits(periodic)) or "")
         plain = InstanceBuilder(s, 1e9, "bcc").build(d)
         assert not problem_traits(plain).whole_periodic_grid
+
+
+def test_bvls_solves_a_periodic_whole_grid_on_a_proper_subset_where_its_cholesky_fails(monkeypatch) -> None:
+    """On a periodic whole grid H 1 = 0, and whether the whole problem's Cholesky passes is
+    round-off (a 64 x 48 map failed it: "failed", p all NaN).  Made to fail here, bvls
+    solves on a growing proper subset instead (``reference.on_a_subset``) and certifies."""
+    from contactbench.harness.judging import judge
+    from contactbench.solvers import reference
+
+    s = rmd_surface_n(32, 0.7, length=100e-6, seed=3, family="periodic")
+    inst = InstanceBuilder(s, 1e9, "spectral", periodic=True).build(
+        0.5 * float(np.max(s.heights) - np.mean(s.heights)))
+    assert inst.n == 32 * 32
+
+    def not_spd(H: np.ndarray, ubar: np.ndarray) -> None:
+        raise np.linalg.LinAlgError("H is not positive definite (Cholesky failed)")
+
+    monkeypatch.setattr(reference, "exact_solution", not_spd)
+    r = get_solver("bvls").solve(inst.qp, SolverSettings())
+    assert r.status == "converged" and "proper subset" in r.message and r.info["subset_size"] < inst.n
+    assert judge(inst, r.p, True, 1e-10).status == "solved"
