@@ -207,7 +207,7 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
                          rectangular=geom is not None and (geom.grid_shape[0] != geom.grid_shape[1]
                                                            or geom.spacing[0] != geom.spacing[1]),
                          whole_periodic_grid=geom is not None and bool(inst.periodic)
-                         and inst.n == int(geom.grid_shape[0]) * int(geom.grid_shape[1]))
+                         and inst.n == inst.total_elements)
 
 
 def thin_trace(trace: Iterable[Sequence[float]], limit: int = MAX_TRACE_POINTS) -> list[list[float]]:
