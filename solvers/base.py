@@ -507,15 +507,6 @@ class ProblemTraits:
     whole_periodic_grid: bool = False
 
 
-def cg_iteration_limit(n: int) -> int:
-    """The default iteration limit of the fast CCGs on n unknowns: 20 sqrt(n) + 2000 (far
-    above the 30-150 they take at 512^2-4096^2), so that a loop that cycles ends with an
-    honest "max_iter" instead of running to the harness's time limit.  Not the peers': under
-    a hardness ContactMechanics' Polonsky-Keer CCG converged in 2,106 iterations at n = 256
-    and 2,353 at n = 4,225, near this limit, so the peers keep their own."""
-    return 20 * int(math.sqrt(max(n, 1))) + 2000
-
-
 class Solver(ABC):
     """Base class (module doc).  Subclasses set ``name``, ``family``, ``description``,
     ``capabilities`` and ``params`` and implement ``iterate``; they may refine

@@ -157,7 +157,7 @@ def test_cm_pk_under_periodic_load_control_stops_at_its_uniform_start() -> None:
 
 @needs_cm
 def test_contactmechanics_keeps_its_own_iteration_limit() -> None:
-    """A peer is not cut short by our loops' limit (``base.cg_iteration_limit``, 2,320 at
+    """A peer is not cut short by our loops' limit (``FastSolver.default_max_iter``, 2,320 at
     n = 256): ContactMechanics' Polonsky-Keer CCG under a load and a hardness on a 16^2
     non-periodic BCC grid takes about 2,100 iterations to an answer the judge accepts."""
     from contactbench.problems.scenes import SceneConfig, get_scene
