@@ -42,6 +42,28 @@ HandlerFactory = Callable[[], Handler]
 ChildReplyKind = Literal["ok", "error", "timeout", "crashed"]
 
 
+def raised_at(exc: BaseException, frames: int = 2) -> str:
+    """Where ``exc`` was raised: its innermost ``frames`` frames, innermost first, each as
+    ``path:line in function`` with the path cut below ``site-packages`` (a peer's own
+    module) or to its file name -- so a row tells a solver's bug from a dependency's."""
+    stack = traceback.extract_tb(exc.__traceback__)[-frames:]
+    return " <- ".join(f"{_short_path(f.filename)}:{f.lineno} in {f.name}" for f in reversed(stack))
+
+
+def _short_path(path: str) -> str:
+    head, sep, tail = path.rpartition("site-packages" + os.sep)
+    if sep:
+        return tail
+    parts = path.split(os.sep)
+    return os.sep.join(parts[-2:])
+
+
+def error_text(exc: BaseException) -> str:
+    """One line for a row: the exception, its message and where it was raised."""
+    where = raised_at(exc)
+    return f"{type(exc).__name__}: {exc}" + (f" [at {where}]" if where else "")
+
+
 @dataclass
 class ChildReply:
     """What came back from one message: the handler's value, or why nothing did."""

@@ -38,7 +38,7 @@ from contactbench.solvers.registry import load_solver
 
 from ..table.fields import save_field
 from ..table.files import write_npz_atomic
-from .isolation import PeakMemory
+from .isolation import PeakMemory, error_text
 from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
 from .sequence import WarmState, warm_start_from
@@ -398,7 +398,7 @@ class SolveServer:
             except SolveAborted as exc:
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=str(exc), aborted=exc.status)
             except Exception as exc:
-                return SolveReply(time.perf_counter() - t0, warm is not None, error=f"{type(exc).__name__}: {exc}")
+                return SolveReply(time.perf_counter() - t0, warm is not None, error=error_text(exc))
             elapsed = time.perf_counter() - t0
         facts = SolverFacts(
             iterations=int(res.iterations), solver_status=str(res.status), solver_converged=bool(res.converged),

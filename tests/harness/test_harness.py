@@ -59,13 +59,27 @@ def test_crash_hang_and_raise_cost_only_their_own_rows(tmp_path: Path) -> None:
     assert "timed out at step 0" in hang.iloc[1]["skip_reason"]
     crash = df[df.solver == "test-crash"].iloc[0]
     assert "SIGABRT" in crash["error"]
-    assert "deliberate failure" in df[df.solver == "test-raise"].iloc[0]["error"]
+    raised = df[df.solver == "test-raise"].iloc[0]["error"]
+    assert "deliberate failure" in raised and "[at tests/helpers.py:" in raised and "in iterate" in raised
     ok = df[df.status == "solved"]
     assert (ok["kkt_error"] <= ok["check_tol"]).all()
     assert (ok["p_rel_error"] < 1e-6).all() and (ok["reference_solver"] == "test-exact").all()
     assert set(df["status"]) <= set(STATUSES)
     assert list(df.columns[: len(ALL_COLUMNS)]) == list(ALL_COLUMNS)
     assert df["cell_id"].is_unique
+
+
+def test_an_error_names_the_dependency_that_raised_it() -> None:
+    from scipy.optimize import bisect
+
+    from contactbench.harness.run.isolation import error_text
+
+    try:
+        bisect(lambda x: x * x + 1.0, -1.0, 1.0)  # no sign change: raised inside scipy
+    except ValueError as exc:
+        text = error_text(exc)
+    assert text.startswith("ValueError: f(a) and f(b) must have different signs [at scipy/optimize/")
+    assert "<- harness/test_harness.py:" in text and "\n" not in text  # and who called it
 
 
 def test_skips_are_recorded_with_reasons_and_not_attempted(tmp_path: Path) -> None:
