@@ -39,7 +39,8 @@ PolonskyKeerRey pressure/pressure at the mean pressure P / A; non-periodic Love:
 same, without the load search), and so do the three frictional solvers below, at the
 QP's own load.  Hardness: ``tamaas.KatoSaturated`` (``tamaas-kato-saturated``; Kato's
 projected gradient with the pressure capped at pmax = the bound / delta^2), periodic
-spectral under load control only.  The approach Delta is fitted from the answer.
+spectral under load control only.  The approach Delta is fitted from the answer.  The
+four first-order solvers run in reduced units (``reduced_units``: E* = 1, L0 = 1); PKR in SI.
 
 The three load-controlled solvers (periodic spectral only, Tamaas' ``surface_2d`` model)
 on a displacement-controlled QP get the load P that Tamaas' own PolonskyKeerRey finds
@@ -76,13 +77,25 @@ def tamaas_serves(kernel: str, periodic: bool, layer: bool = False) -> str | Non
             "(its operators: periodic 2/(E*|q|), non-periodic Love)")
 
 
-def _model(gp: GridProblem, kind: str = "basic_2d") -> Any:
+def _model(gp: GridProblem, kind: str = "basic_2d", reduced: bool = False) -> Any:
+    """Tamaas' model of ``gp``: in SI units, or ``reduced`` (``reduced_units``)."""
     import tamaas as tm
 
     tm.set_log_level(tm.LogLevel.error)
-    model = tm.ModelFactory.createModel(getattr(tm.model_type, kind), list(gp.sizes), list(gp.shape))
-    model.E, model.nu = gp.E, 0.0  # E* = E / (1 - nu^2) = E
+    L0, E = reduced_units(gp) if reduced else (1.0, 1.0)
+    model = tm.ModelFactory.createModel(getattr(tm.model_type, kind), [x / L0 for x in gp.sizes], list(gp.shape))
+    model.E, model.nu = gp.E / E, 0.0  # E* = E / (1 - nu^2) = E
     return model
+
+
+def reduced_units(gp: GridProblem) -> tuple[float, float]:
+    """(length, pressure) units of the reduced posing: the side L0 along axis 0 and E*, so
+    that the model has E* = 1 and L0 = 1 (heights / L0, pressures / E*; small-slope
+    elasticity is unchanged by the scaling).  Tamaas' Kato, BeckTeboulle and Condat take
+    steps that are not scale-free: posed in SI units (E* = 1e9 Pa, L0 = 1e-4 m) Condat
+    diverges to NaN and Kato stalls at a uniform pressure on a sinusoid they solve in
+    reduced units (``tests/solvers/test_peers.py``)."""
+    return float(gp.sizes[0]), float(gp.E)
 
 
 def _normal_traction(model: Any, gp: GridProblem) -> np.ndarray:
@@ -273,9 +286,10 @@ class _TamaasLoadControlled(_TamaasSolver):
             return f"Tamaas' {self.tamaas_class} runs on its periodic surface model only"
         return why
 
-    def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
-        """The Tamaas solver object (mu = 0)."""
-        return getattr(tm, self.tamaas_class)(model, np.ascontiguousarray(gp.U), tol, 0.0)
+    def make(self, tm: Any, model: Any, surface: np.ndarray, pressure_unit: float, tol: float,
+             ctx: SolveContext) -> Any:
+        """The Tamaas solver object (mu = 0) on ``surface`` in the model's units."""
+        return getattr(tm, self.tamaas_class)(model, surface, tol, 0.0)
 
     def run(self, solver: Any, mean_pressure: float) -> Any:
         return solver.solve([0.0, 0.0, mean_pressure])
@@ -293,15 +307,16 @@ class _TamaasLoadControlled(_TamaasSolver):
             calib, calib_err = pkr_displacement_control(gp, tol, 100_000, "gap")
             load = float(np.sum(calib))
         ctx.mark_setup_done()
-        model = _model(gp, "surface_2d")
-        solver = self.make(tm, model, gp, tol, ctx)
+        L0, E = reduced_units(gp)
+        model = _model(gp, "surface_2d", reduced=True)
+        solver = self.make(tm, model, np.ascontiguousarray(gp.U / L0), E, tol, ctx)
         if ctx.max_iter is not None:
             solver.max_iter = int(ctx.max_iter)
-        returned = self.run(solver, load / (gp.sizes[0] * gp.sizes[1]))
-        force = _normal_traction(model, gp)
+        returned = self.run(solver, load / (gp.sizes[0] * gp.sizes[1]) / E)
+        force = _normal_traction(model, gp) * E
         return tamaas_outcome(gp, force, _cost(solver, returned), tol,
-                              {"posing": "load control at the load of Tamaas' PKR", "load": load,
-                               "calibration_error": calib_err})
+                              {"posing": "load control at the load of Tamaas' PKR, in reduced units (E* = L0 = 1)",
+                               "load": load, "calibration_error": calib_err})
 
 
 @register
@@ -352,12 +367,14 @@ class TamaasKatoSaturated(_TamaasLoadControlled):
             return "Tamaas' KatoSaturated poses load control only"
         return why
 
-    def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
+    def make(self, tm: Any, model: Any, surface: np.ndarray, pressure_unit: float, tol: float,
+             ctx: SolveContext) -> Any:
         c = ctx.constraints
         if not c.load_control:
             raise ProblemInputError("Tamaas' KatoSaturated poses load control only")
         u = c.upper_or_inf(ctx.n)
         if not np.all(u == u[0]):
             raise ProblemInputError("Tamaas' KatoSaturated takes one hardness for every element")
-        pmax = float(u[0]) / gp.area if np.isfinite(u[0]) else float(np.finfo(float).max)
-        return tm.KatoSaturated(model, np.ascontiguousarray(gp.U), tol, pmax)
+        gp = grid_problem(ctx.qp)
+        pmax = float(u[0]) / gp.area / pressure_unit if np.isfinite(u[0]) else float(np.finfo(float).max)
+        return tm.KatoSaturated(model, surface, tol, pmax)
