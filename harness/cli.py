@@ -37,6 +37,7 @@ import logging
 import os
 import re
 import sys
+import warnings
 from importlib import metadata
 from pathlib import Path
 from typing import Any, NoReturn, Sequence
@@ -477,8 +478,20 @@ def forwarded_validate(argv: list[str]) -> list[str] | None:
     return None
 
 
+def show_warning_on_one_line(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                             file: Any = None, line: str | None = None) -> None:
+    """A warning as one ``contactbench: warning:`` line on stderr (not Python's two, with
+    the source line that raised it)."""
+    print(f"contactbench: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
+    with warnings.catch_warnings():
+        warnings.showwarning = show_warning_on_one_line
+        return _main(list(sys.argv[1:] if argv is None else argv))
+
+
+def _main(argv: list[str]) -> int:
     forwarded = forwarded_validate(argv)
     verbose = any(a in ("-v", "--verbose") for a in argv[: len(argv) - len(forwarded or [])])
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format="%(message)s", stream=sys.stderr)

@@ -98,8 +98,10 @@ def test_a_tilted_map_with_holes_states_its_plane_and_filled_points_everywhere(i
                                                                                     "fill-mean", "none")
     assert row["nan_filled"] == len(HOLES) and row["surface_hash"] == rec["raw_sha256"][:16]
     assert (row["removed_slope0"], row["removed_slope1"]) == pytest.approx(SLOPE, abs=2e-3)
-    # each warning printed once
+    # each warning printed once, on one line of its own
     assert err.count("3 missing points") == 1 and err.count("mean plane is tilted") == 1, err
+    warned = [ln for ln in err.splitlines() if "missing points" in ln or "mean plane is tilted" in ln]
+    assert all(ln.startswith("contactbench: warning: ") for ln in warned) and "UserWarning" not in err, err
     # the report's header names the removed plane and the filled points
     report = build_report(in_tmp / "o", html=False).read_text()
     (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
