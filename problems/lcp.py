@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 import scipy.linalg as sla
@@ -234,6 +234,12 @@ class SubsetSolution:
     kkt_error: float
     subset: np.ndarray
     rounds: int
+    multiplier: float | None = None  # Delta under a load equality (None: no load equality)
+
+
+#: The exact solve on positions T of a QP, with the others held at p = 0: (p on T, the
+#: multiplier Delta under a load equality, else None).
+SubsetSolve = Callable[[np.ndarray], tuple[np.ndarray, "float | None"]]
 
 
 def top_half_subset(ubar: np.ndarray) -> np.ndarray:
@@ -245,25 +251,30 @@ def top_half_subset(ubar: np.ndarray) -> np.ndarray:
 
 
 def exact_solution_on_subset(qp: "QP", subset: np.ndarray | None = None, tol: float = CERTIFY_KKT,
-                             max_rounds: int = MAX_SUBSET_ROUNDS) -> SubsetSolution:
+                             max_rounds: int = MAX_SUBSET_ROUNDS, solve: SubsetSolve | None = None) -> SubsetSolution:
     """The exact solution of the LCP of ``qp`` (any H positive definite on proper
     subsets: a periodic whole-grid problem) by solves on a growing proper subset T
     (module doc), starting from ``subset`` (positions; default ``top_half_subset``).
+    ``solve`` is the exact solve on T (default: ``exact_solution`` of the plain LCP; the
+    bounded and load-controlled one: ``mixed_lcp.constrained_solution_on_subset``).
     Certified when the whole-problem scaled KKT error is at most ``tol``; else
     ``UncertifiedSolutionError`` saying why (T would be the whole problem, no point off
     T penetrates yet the check fails, or ``max_rounds`` solves did not do)."""
     u = np.asarray(qp.ubar, dtype=np.float64)
     n = u.size
     T = top_half_subset(u) if subset is None else np.unique(np.asarray(subset, dtype=np.int64))
+    if solve is None:
+        def solve(T: np.ndarray) -> tuple[np.ndarray, float | None]:
+            return exact_solution(qp.H.submatrix(T, T), u[T]).p, None
     err = float("inf")
     for rnd in range(1, max_rounds + 1):
-        sol = exact_solution(qp.H.submatrix(T, T), u[T])
+        p_T, delta = solve(T)
         p = np.zeros(n)
-        p[T] = sol.p
-        err = kkt_check(qp, p).kkt_error
+        p[T] = p_T
+        err = kkt_check(qp, p, delta).kkt_error
         if err <= tol:
-            return SubsetSolution(p, err, T, rnd)
-        w = qp.H.matvec(p) - u
+            return SubsetSolution(p, err, T, rnd, delta)
+        w = qp.H.matvec(p) - u - (delta or 0.0)
         off = np.ones(n, dtype=bool)
         off[T] = False
         missed = np.flatnonzero(off & (w < 0.0))

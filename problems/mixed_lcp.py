@@ -64,13 +64,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
 
 from .constraints import Constraints, fit_multiplier, project_box, project_feasible
 from .kkt import constrained_figures, constrained_scales
-from .lcp import BLOCK_PATIENCE, exact_solution
+from .lcp import BLOCK_PATIENCE, SubsetSolution, exact_solution, exact_solution_on_subset
+
+if TYPE_CHECKING:
+    from .instances import QP
 
 #: Scaled KKT error at which ``constrained_exact_solution`` certifies its answer.
 CERTIFY_KKT = 1e-10
@@ -270,6 +274,23 @@ def _displacement_solution(H: np.ndarray, ubar: np.ndarray, constraints: Constra
     return bvls(H, ubar + delta, constraints.upper, p).p
 
 
+def constrained_solution_on_subset(qp: "QP", tol: float = CERTIFY_KKT) -> SubsetSolution:
+    """The certified exact solution of a bounded or load-controlled ``qp`` whose H is
+    positive definite on proper subsets only (a periodic whole grid, whose Cholesky fails
+    on round-off): ``constrained_exact_solution`` on a growing proper subset
+    (``lcp.exact_solution_on_subset``), the bounds restricted to it and the load kept.
+    Raises as those do (``UncertifiedSolutionError``, ``UncertifiedConstrainedSolution``,
+    ``ProblemInputError`` when a subset cannot carry the load)."""
+    u = np.asarray(qp.ubar, dtype=np.float64)
+    c = qp.constraints
+
+    def solve(T: np.ndarray) -> tuple[np.ndarray, float | None]:
+        sol = constrained_exact_solution(qp.H.submatrix(T, T), u[T], c.restrict(T), tol)
+        return sol.p, (sol.multiplier if c.load_control else None)
+
+    return exact_solution_on_subset(qp, tol=tol, solve=solve)
+
+
 def constant_null_space(H: np.ndarray) -> bool:
     """H 1 = 0 to round-off (``NULL_SPACE_TOL``): a periodic kernel on the whole grid,
     its mean mode removed (module doc)."""
@@ -453,6 +474,7 @@ def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, 
         f"no certified solution after {solves} solves (last kkt {math.inf if last is None else last.kkt_error:.2e})")
 
 
-__all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "LoadActiveSetOutcome", "bvls",
-           "UncertifiedConstrainedSolution", "box_polish", "constant_null_space", "constrained_exact_solution",
-           "exchange_partner", "load_active_set", "projected_gradient_guess", "solve_on_sets"]
+__all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "LoadActiveSetOutcome",
+           "UncertifiedConstrainedSolution", "box_polish", "bvls", "constant_null_space",
+           "constrained_exact_solution", "constrained_solution_on_subset", "exchange_partner", "load_active_set",
+           "projected_gradient_guess", "solve_on_sets"]

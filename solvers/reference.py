@@ -25,7 +25,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from contactbench.problems.lcp import default_nnls_max_iter, exact_solution, exact_solution_on_subset
-from contactbench.problems.mixed_lcp import UncertifiedConstrainedSolution, constrained_exact_solution
+from contactbench.problems.mixed_lcp import (UncertifiedConstrainedSolution, constrained_exact_solution,
+                                             constrained_solution_on_subset)
 
 from ._kit import cholesky_seconds
 from ._scaling import dense_matrix
@@ -117,7 +118,9 @@ class BVLSReference(Solver):
             return Outcome(sol.p, sol.polish_rounds, sol.converged, w=sol.w)
         try:
             ref = constrained_exact_solution(H, ubar, c)
-        except (UncertifiedConstrainedSolution, np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
+        except np.linalg.LinAlgError as exc:  # H not numerically SPD: a periodic whole grid's
+            return on_a_subset(ctx, str(exc))
+        except (UncertifiedConstrainedSolution, RuntimeError, ValueError) as exc:
             return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {exc}", status=Status.FAILED)
         ctx.info.update(polish_rounds=ref.rounds, displacement_solves=ref.solves)
         return Outcome(ref.p, ref.rounds, True, "certified exact solution", w=H @ ref.p - ubar,
@@ -126,13 +129,16 @@ class BVLSReference(Solver):
 
 def on_a_subset(ctx: SolveContext, why: str) -> Outcome:
     """Where the whole problem's factorisation failed (``why``): the exact solve on a
-    growing proper subset (``lcp.exact_solution_on_subset``), for an H positive definite on
-    proper subsets only, as a periodic whole grid's (H 1 = 0, where the Cholesky passes or
-    fails on round-off: a 64 x 48 map failed); certified there, else failed with both reasons."""
+    growing proper subset (``lcp.exact_solution_on_subset``; bounded or load-controlled:
+    ``mixed_lcp.constrained_solution_on_subset``), for an H positive definite on proper
+    subsets only, as a periodic whole grid's (H 1 = 0, where the Cholesky passes or fails
+    on round-off: a 64 x 48 map failed); certified there, else failed with both reasons."""
+    c = ctx.constraints
     try:
-        sub = exact_solution_on_subset(ctx.qp)
+        sub = exact_solution_on_subset(ctx.qp) if c.plain else constrained_solution_on_subset(ctx.qp)
     except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
         return Outcome(np.full(ctx.n, np.nan), 0, False, f"bvls: {why}; on a proper subset: {exc}",
                        status=Status.FAILED)
     ctx.info.update(subset_size=int(sub.subset.size), subset_rounds=int(sub.rounds))
-    return Outcome(sub.p, sub.rounds, True, f"certified exact solution on a proper subset ({why})")
+    return Outcome(sub.p, sub.rounds, True, f"certified exact solution on a proper subset ({why})",
+                   multiplier=sub.multiplier if c.load_control else None)

@@ -18,8 +18,8 @@ from contactbench.problems.constraints import Constraints, project_feasible
 from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
 from contactbench.problems.kkt import kkt_check
 from contactbench.problems.lcp import exact_solution_on_subset
-from contactbench.problems.mixed_lcp import (constant_null_space, constrained_exact_solution, exchange_partner,
-                                            load_active_set)
+from contactbench.problems.mixed_lcp import (constant_null_space, constrained_exact_solution,
+                                            constrained_solution_on_subset, exchange_partner, load_active_set)
 from contactbench.problems.surfaces import fourier_synthesis
 from contactbench.solvers.base import SolverSettings
 from contactbench.solvers.registry import get_solver
@@ -137,3 +137,17 @@ def test_an_element_freed_alone_trades_force_with_its_exchange_partner() -> None
     assert out.p[3] == pytest.approx(1.0) and np.sum(out.p) == pytest.approx(2.0)
     np.testing.assert_allclose(out.p[:3], 1.0 / 3.0, rtol=1e-12)
     assert exchange_partner(H @ np.array([1.0, 1.0, 0.0, 0.0]) - ubar, np.array([2, 2, 0, 0], dtype=np.int8), 3) in (0, 1)
+
+
+@pytest.mark.parametrize("hardness", [None, 0.03 * E])
+def test_the_subset_solve_under_a_load_agrees_with_the_active_set(displacement_step, hardness: float | None) -> None:
+    """``constrained_solution_on_subset`` (bvls's way out where the whole grid's Cholesky
+    fails) gives the active set's answer and multiplier under a load, with and without a
+    hardness, on a proper subset."""
+    _, p_disp = displacement_step
+    inst = periodic_builder("spectral").build_load(float(np.sum(p_disp)), hardness=hardness)
+    ref = reference(inst)
+    sub = constrained_solution_on_subset(inst.qp)
+    assert sub.subset.size < inst.n and kkt_check(inst, sub.p, sub.multiplier).kkt_error <= 1e-10
+    assert np.linalg.norm(sub.p - ref.p) <= 1e-8 * np.linalg.norm(ref.p)
+    assert sub.multiplier == pytest.approx(ref.multiplier, rel=1e-8)

@@ -278,3 +278,29 @@ def test_bvls_solves_a_periodic_whole_grid_on_a_proper_subset_where_its_cholesky
     r = get_solver("bvls").solve(inst.qp, SolverSettings())
     assert r.status == "converged" and "proper subset" in r.message and r.info["subset_size"] < inst.n
     assert judge(inst, r.p, True, 1e-10).status == "solved"
+
+
+def test_bvls_solves_a_bounded_periodic_whole_grid_on_a_proper_subset_where_its_cholesky_fails(monkeypatch) -> None:
+    """The same under a hardness (the constrained path): a 77 x 48 periodic Love map with a
+    hardness failed every step ("failed", p all NaN).  Made to fail here on the whole
+    problem, bvls solves the bounded problem on a growing proper subset
+    (``mixed_lcp.constrained_solution_on_subset``) and certifies, the hardness binding."""
+    from contactbench.harness.judging import judge
+    from contactbench.solvers import reference
+
+    s = rmd_surface_n(32, 0.7, length=100e-6, seed=3, family="periodic")
+    hardness = 2e7
+    inst = InstanceBuilder(s, 1e9, "spectral", periodic=True).build(
+        0.5 * float(np.max(s.heights) - np.mean(s.heights)), hardness=hardness)
+    whole = inst.n
+
+    def not_spd(H: np.ndarray, ubar: np.ndarray, constraints: object, tol: float = 0.0) -> None:
+        assert ubar.size == whole  # only the whole problem's solve is made to fail
+        raise np.linalg.LinAlgError("H is not positive definite (Cholesky failed)")
+
+    monkeypatch.setattr(reference, "constrained_exact_solution", not_spd)
+    r = get_solver("bvls").solve(inst.qp, SolverSettings())
+    assert r.status == "converged" and "proper subset" in r.message and r.info["subset_size"] < inst.n
+    assert judge(inst, r.p, True, 1e-10).status == "solved"
+    bound = inst.qp.constraints.upper_or_inf(inst.n)
+    assert int(np.sum(np.isclose(r.p, bound, rtol=1e-9))) > 0  # the hardness carries some elements
