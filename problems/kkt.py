@@ -45,8 +45,11 @@ u_s and p_s:
   allowed only as far as the element sits at its upper bound (for u_i = inf this is the
   plain figure max(0, -w_i) / u_s);
 * complementarity = max_i of (|w_i| p_i) on an unbounded element (the plain figure) and
-  of max(max(0, w_i) |p_i|, max(0, -w_i) |u_i - p_i|) on a bounded one, scaled by
-  u_s p_s: the lower and the upper bound's products;
+  of max(max(0, w_i) |p_i|, max(0, -w_i) min(|u_i - p_i|, p_s)) on a bounded one, scaled
+  by u_s p_s: the lower and the upper bound's products, the slack capped at the force
+  scale.  Beyond it the dual figure reads the same negative gap in full, so a bound far
+  above every force is judged as no bound: uncapped, round-off in w on the free set
+  (4e-15 u_s) times a box a million times the load read 4e-9;
 * kkt_error = max(primal, equality, dual, complementarity).
 
 The force scale is capped by the bounds: p_s = min(u_s / max diag H, min u)
@@ -310,7 +313,7 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
         dual = worse(max_above_zero(np.minimum(neg, np.maximum(slack, 0.0) / p_s)))
         pos = np.maximum(w, 0.0) / u_s
         lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
-        upper = np.where(bounded, np.abs(slack) / p_s * neg, 0.0)
+        upper = np.where(bounded, np.minimum(np.abs(slack) / p_s, 1.0) * neg, 0.0)
         comp = worst(max_above_zero(lower), max_above_zero(upper))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)

@@ -328,3 +328,31 @@ def test_a_load_equality_alone_gives_the_general_figures(values: list[float], de
     general = constrained_figures(p, g, ubar, 2.0, Constraints(np.full(p.size, np.inf), load), delta)
     for a, b in zip(astuple(short), astuple(general)):
         assert a == pytest.approx(b, rel=1e-14, abs=0.0) or (math.isnan(a) and math.isnan(b)), (short, general)
+
+
+@settings(max_examples=100, deadline=None, derandomize=True)
+@given(st.lists(st.floats(0.0, 3.0), min_size=2, max_size=10), st.floats(-1e-14, 1e-14), st.sampled_from([1e2, 1e6, 1e12]))
+def test_a_bound_far_above_every_force_is_judged_as_no_bound(forces: list[float], noise: float, far: float) -> None:
+    """Round-off in w on the free set, times a bound a million times the forces, read as a
+    complementarity violation of 1e-8 and more (a load of 1e-6 of what the box carries: bvls
+    could not certify its exact answer).  The upper product's slack is capped at the force
+    scale, so a far bound gives the unbounded figures' reading of the same w, never more."""
+    p = np.asarray(forces)
+    ubar = np.linspace(-1.0, 0.0, p.size)
+    g = np.where(np.arange(p.size) % 2 == 0, noise, -noise)  # w = g: round-off on every element
+    free = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(p.size, np.inf), None))
+    boxed = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(p.size, far * (1.0 + float(np.max(p)))), None))
+    assert boxed.kkt_error <= free.kkt_error + 1e-300 and boxed.kkt_error <= 1e-13
+
+
+@pytest.mark.parametrize("far", [1e2, 1e6])
+def test_a_negative_gap_far_below_its_bound_is_still_read_in_full(far: float) -> None:
+    """The cap cannot hide a violation: w = -1e-3 u_s on an element far below its bound is
+    the dual figure's 1e-3, as without the bound."""
+    p = np.array([1.0, 0.5, 0.0])
+    ubar = np.array([-1.0, -0.5, 0.0])
+    g = np.array([-1e-3, 0.0, 0.5])  # u_s = max |ubar| = 1
+    free = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(3, np.inf), None))
+    boxed = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(3, far), None))
+    assert boxed.kkt_error == pytest.approx(1e-3 / boxed.u_scale, rel=1e-9)
+    assert free.kkt_error >= boxed.kkt_error

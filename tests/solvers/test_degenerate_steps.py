@@ -53,10 +53,7 @@ OTHERS = ("pk", "pk-printed", "gp", "nnls", "nnls-gp", "admm", "greedy-cg", "gre
           "scipy-nnls", "cmr+fast-ccg", "cmr+fast-dual-pccg", "cmr+pk", "cmr+nnls")
 #: (solver, reason) of the other solvers known to fail a property here (their own fix is
 #: pending); expected failures, not strict.
-KNOWN_FAILURES: dict[str, str] = {
-    "bvls": "returns an all-NaN p (status failed) where its certification fails at a knife edge (a load of 1e-6 "
-            "of what the box carries, 6 x 10 rough grid); the periodic whole grid it solves on a proper subset",
-}
+KNOWN_FAILURES: dict[str, str] = {}
 
 #: The greedy variants claim the paper's stop, no negative p, which is not optimality (its
 #: Example 1: a 3 x 3 rough grid ends at kkt 0.04): a false claim is excused there, and only
