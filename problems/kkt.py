@@ -41,9 +41,14 @@ u_s and p_s:
 * primal = max(0, -min p, max(p - u)) / p_s;
 * equality = |sum p - P| / P  (the relative load error; scaled by p_s when P = 0, and 0
   without a load equality);
-* dual = max_i min(max(0, -w_i) / u_s, max(0, u_i - p_i) / p_s): a negative gap is
-  allowed only as far as the element sits at its upper bound (for u_i = inf this is the
-  plain figure max(0, -w_i) / u_s);
+* dual = max_i max(0, -w_i) / u_s x min(max(0, u_i - p_i) / p_s, 1): a negative gap is
+  allowed only as far as the element sits at its upper bound, weighted by its distance
+  below the bound in the force scale, capped at 1 (for u_i = inf, or a bound far above every
+  force, the plain figure max(0, -w_i) / u_s).  Near its bound an element is judged as
+  the plain figures judge one near p = 0: a gap of the sign its bound allows (w < 0 below
+  u, w > 0 above 0) counts as the product of that gap and the distance, so an interior-point
+  answer is read the same at either bound (its products near 1e-7 had read 3e-4 at the upper
+  bound through min(-w / u_s, (u - p) / p_s));
 * complementarity = max_i of (|w_i| p_i) on an unbounded element (the plain figure) and
   of max(max(0, w_i) |p_i|, max(0, -w_i) min(|u_i - p_i|, p_s)) on a bounded one, scaled
   by u_s p_s: the lower and the upper bound's products, the slack capped at the force
@@ -310,7 +315,8 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
         slack = u - p
         primal = worst(_negative_part(min_below_zero(p)), _negative_part(min_below_zero(slack))) / p_s
         neg = np.maximum(-w, 0.0) / u_s
-        dual = worse(max_above_zero(np.minimum(neg, np.maximum(slack, 0.0) / p_s)))
+        below = np.minimum(np.maximum(slack, 0.0) / p_s, 1.0)  # distance below the bound, capped
+        dual = worse(max_above_zero(neg * below))
         pos = np.maximum(w, 0.0) / u_s
         lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
         upper = np.where(bounded, np.minimum(np.abs(slack) / p_s, 1.0) * neg, 0.0)

@@ -356,3 +356,22 @@ def test_a_negative_gap_far_below_its_bound_is_still_read_in_full(far: float) ->
     boxed = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(3, far), None))
     assert boxed.kkt_error == pytest.approx(1e-3 / boxed.u_scale, rel=1e-9)
     assert free.kkt_error >= boxed.kkt_error
+
+
+@pytest.mark.parametrize("eps", [1e-4, 1e-6])
+def test_a_gap_of_the_allowed_sign_near_either_bound_reads_as_its_product(eps: float) -> None:
+    """Mirror images read alike: an element eps p_s above 0 with w = +eps u_s (an interior-
+    point answer near p = 0), and one eps p_s below its bound with w = -eps u_s, both read
+    eps^2, the product; the natural residual min(-w / u_s, (u - p) / p_s) had read the
+    second eps (interior-point solvers' plastic answers at kkt 3e-4 for products of 6e-7)."""
+    ubar = np.array([-1.0, -0.5, 0.0])  # u_s = 1 and, with diag 1 and u = 5, p_s = 1
+    c = Constraints(np.full(3, 5.0), None)
+    lower = constrained_figures(np.array([eps, 2.0, 3.0]), np.array([eps, 0.0, 0.0]), ubar, 1.0, c)
+    upper = constrained_figures(np.array([5.0 - eps, 2.0, 3.0]), np.array([-eps, 0.0, 0.0]), ubar, 1.0, c)
+    assert (lower.u_scale, lower.p_scale) == (1.0, 1.0)
+    assert lower.kkt_error == pytest.approx(eps * eps, rel=1e-6)
+    assert upper.kkt_error == pytest.approx(lower.kkt_error, rel=1e-6)
+    # the wrong sign near either bound is read in full: w < 0 near 0, w > 0 near u
+    assert constrained_figures(np.array([eps, 2.0, 3.0]), np.array([-1e-3, 0.0, 0.0]), ubar, 1.0, c).kkt_error >= 1e-3
+    assert constrained_figures(np.array([5.0 - eps, 2.0, 3.0]), np.array([1e-3, 0.0, 0.0]), ubar, 1.0,
+                               c).kkt_error >= 1e-3
