@@ -155,6 +155,9 @@ class ReportContext:
     def marker(self, solver: str) -> str:
         return self.styles.marker(solver.removesuffix(WARM_SUFFIX))
 
+    def dash(self, solver: str) -> str:
+        return self.styles.dash(solver.removesuffix(WARM_SUFFIX))
+
     def family(self, solver: str) -> str:
         return self.styles.family(solver.removesuffix(WARM_SUFFIX))
 

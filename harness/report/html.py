@@ -103,8 +103,8 @@ def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSum
                                 as_finite(s.sgm_s), as_finite(s.sgm_rel), as_finite(acc.get(s.solver)), s.false_claims]
                                for s in summ]}
         cells = agg.cell_table(r, solvers)
-        if len(cells.solvers) >= 2 and cells.problems:
-            prof = agg.performance_profile(cells)
+        prof = agg.performance_profile(cells)
+        if len(prof.solvers) >= 2 and cells.problems:
             taus, _ = profile_taus(prof, 120)
             pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
                          "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}

@@ -1,9 +1,9 @@
 """Legible figures at 30+ solvers: one colour per solver for the whole report (a family
 shares a hue), and the split of many series into panels of at most ``MAX_SERIES``.
 
-* ``SolverStyles`` gives each solver a colour and a marker.  Solvers of one family
-  (the table's ``family`` column: paper, fast, qp, wrapper, reference, external, other,
-  ...) share the family's hue and differ in lightness and marker; the assignment depends
+* ``SolverStyles`` gives each solver a colour, a marker and a line dash.  Solvers of one
+  family (the table's ``family`` column: paper, fast, qp, wrapper, reference, external,
+  other, ...) share the family's hue and differ in lightness, marker and dash; the assignment depends
   only on the table, so the same solver looks the same in every figure of a report (and
   on the interactive page, which reads the same styles).
 * ``family_panels`` splits a solver list into panels: one panel when it holds at most
@@ -46,6 +46,9 @@ HUE_BAND = 0.10
 LIGHTNESS_LEVELS: tuple[float, ...] = (0.22, 0.35, 0.48, 0.61, 0.72)
 #: Markers cycled within a family (so two shades of one hue still differ in shape).
 MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*")
+#: Line dashes cycled within a family, for the figures that draw solvers as lines (a
+#: period prime to the lightness levels': two lines of one panel differ in both).
+DASHES: tuple[str, ...] = ("-", "--", "-.", ":")
 #: The colour of the solvers a panel draws only as context.
 GREY = (0.80, 0.80, 0.80)
 #: The family label of a solver whose row names none.
@@ -79,6 +82,7 @@ class SolverStyle:
     family: str
     color: tuple[float, float, float]
     marker: str
+    dash: str = "-"
 
 
 class SolverStyles:
@@ -94,7 +98,7 @@ class SolverStyles:
             hue, sat = FAMILY_HUES.get(f) or (next(spare), 0.7)
             members = sorted((s for s in fam if fam[s] == f), key=key)
             for i, (s, c) in enumerate(zip(members, _shades(hue, sat, len(members)))):
-                self.styles[s] = SolverStyle(f, c, MARKERS[i % len(MARKERS)])
+                self.styles[s] = SolverStyle(f, c, MARKERS[i % len(MARKERS)], DASHES[i % len(DASHES)])
 
     def family(self, solver: str) -> str:
         st = self.styles.get(solver)
@@ -107,6 +111,10 @@ class SolverStyles:
     def marker(self, solver: str) -> str:
         st = self.styles.get(solver)
         return st.marker if st else "o"
+
+    def dash(self, solver: str) -> str:
+        st = self.styles.get(solver)
+        return st.dash if st else "-"
 
     def hex(self, solver: str) -> str:
         r, g, b = self.color(solver)

@@ -183,18 +183,28 @@ class PerformanceProfile:
         return max(vals) if vals else 1.0
 
 
+def never_attempted(cells: CellTable) -> tuple[str, ...]:
+    """The solvers of ``cells`` skipped on every problem (their skip reasons say why)."""
+    f = cells.frame
+    tried = f.groupby("solver", sort=False)["attempted"].any()
+    return tuple(s for s in cells.solvers if not bool(tried.get(s, False)))
+
+
 def performance_profile(cells: CellTable) -> PerformanceProfile:
-    """r_ps = t_ps / min_s t_ps over the solvers of ``cells`` (inf for unsolved cells,
-    and for every solver on a problem that none solves)."""
+    """r_ps = t_ps / min_s t_ps over the solvers of ``cells`` attempted on at least one
+    problem (``never_attempted`` would draw a flat zero: left out, the others' ratios
+    unchanged); inf for unsolved cells, and for every solver on a problem that none solves."""
     m = solved_times(cells)
     best = m.min(axis=1).to_numpy()
+    skipped = set(never_attempted(cells))
+    solvers = tuple(s for s in cells.solvers if s not in skipped)
     ratios: dict[str, np.ndarray] = {}
     with np.errstate(invalid="ignore", divide="ignore"):
-        for s in cells.solvers:
+        for s in solvers:
             r = m[s].to_numpy() / best
             r[~np.isfinite(best)] = np.inf
             ratios[s] = np.sort(r)
-    return PerformanceProfile(cells.solvers, len(m.index), ratios)
+    return PerformanceProfile(solvers, len(m.index), ratios)
 
 
 @dataclass(frozen=True)

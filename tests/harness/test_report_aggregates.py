@@ -131,6 +131,22 @@ def test_problem_nobody_solves_stays_in_the_denominator() -> None:
     assert prof.fraction("A", 1e9) == pytest.approx(3 / 5)
 
 
+def test_a_solver_skipped_on_every_problem_is_left_out_of_the_profile() -> None:
+    """It would draw a flat zero (a panel of them looked empty); the others' ratios and the
+    problem count are unchanged, and ``never_attempted`` names it for the caption."""
+    t = hand_table()
+    skipped = pd.DataFrame([_row(p, "D", float("nan"), "skipped", None) for p in ("P1", "P2", "P3", "P4")],
+                           columns=list(ALL_COLUMNS))
+    cells = agg.cell_table(pd.concat([t, skipped], ignore_index=True))
+    prof = agg.performance_profile(cells)
+    assert agg.never_attempted(cells) == ("D",) and "D" in cells.solvers and prof.solvers == ("A", "B", "C")
+    base = agg.performance_profile(agg.cell_table(t))
+    assert prof.n_problems == base.n_problems == 4
+    for s in base.solvers:
+        np.testing.assert_array_equal(prof.ratios[s], base.ratios[s])
+    assert agg.never_attempted(agg.cell_table(t)) == ()  # C, skipped on one problem, is drawn
+
+
 def test_absent_pairs_count_as_unsolved_at_the_limit() -> None:
     t = hand_table()
     t = t[~((t["solver"] == "C") & (t["instance"] == "P2"))]  # drop the skipped row: now simply absent

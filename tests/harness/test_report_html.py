@@ -83,6 +83,19 @@ def test_solver_colours_are_fixed_and_a_family_shares_a_hue() -> None:
     assert len({st.color(s) for s in fams}) == len(fams)
 
 
+def test_neighbours_in_a_family_differ_in_shade_and_dash() -> None:
+    """Ten shades of one hue are hard to tell apart as lines: neighbours in a family differ
+    in lightness and in line dash too (a panel draws at most MAX_SERIES of them)."""
+    import colorsys
+
+    st = SolverStyles({f"q{i:02d}": "qp" for i in range(10)}, lambda s: (s,))
+    names = [f"q{i:02d}" for i in range(10)]
+    for a, b in zip(names, names[1:]):
+        assert st.dash(a) != st.dash(b)
+        assert abs(colorsys.rgb_to_hls(*st.color(a))[1] - colorsys.rgb_to_hls(*st.color(b))[1]) > 0.05
+    assert len({(st.color(s), st.dash(s)) for s in names}) == 10 and st.dash("unknown") == "-"
+
+
 def _lab(rgb: tuple[float, float, float]) -> np.ndarray:
     """CIE L*a*b* (D65) of an sRGB colour."""
     c = np.asarray(rgb, dtype=float)

@@ -356,14 +356,17 @@ def _trace_figure(ctx: ReportContext) -> str:
             ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
             ok2 = ok & (tr[:, 1] > 0)
             # a trace of one point (a backend that reports its final residual only) is a marker
-            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), label=s, **_point_style(int(ok.sum())))
-            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), label=s, **_point_style(int(ok2.sum())))
+            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s,
+                    **_point_style(int(ok.sum())))
+            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s,
+                    **_point_style(int(ok2.sum())))
             its += list(tr[ok, 0])
             secs += list(tr[ok2, 1])
             res += list(tr[ok, 2])
-        fam = ctx.family(panel.solvers[0]) if panel.solvers else ""
-        a1.set_title(f"family {fam}: residual against iteration", fontsize=9)
-        a2.set_title(f"family {fam}: residual against time", fontsize=9)
+        # a family's panel names it (and its part, "(1/2)"); a family in one panel is "all solvers"
+        title = panel.title if panel.family or not panel.solvers else f"family {ctx.family(panel.solvers[0])}"
+        a1.set_title(f"{title}: residual against iteration", fontsize=9)
+        a2.set_title(f"{title}: residual against time", fontsize=9)
         for a, xl in ((a1, "iteration  [-]"), (a2, "elapsed  [s]")):
             _log_axis(a, "y", res)
             a.set_xlabel(xl)

@@ -182,8 +182,10 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
                               ["solver", "problems", "attempted", "solved", "success", "correct (rows)",
                                "false claims", "SGM [s]", "SGM / best", "median kkt (solved)"], rows_t,
                               "lrrrrrrrrr"))
-        if len(cells.solvers) >= 2 and cells.problems:
-            parts.append(_profile_figure(ctx, scene, agg.performance_profile(cells), {x.solver: x.sgm_s for x in summ}))
+        prof = agg.performance_profile(cells)
+        if len(prof.solvers) >= 2 and cells.problems:
+            parts.append(_profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ},
+                                         agg.never_attempted(cells)))
     parts.append("### All scenes\n")
     t = table
     summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
@@ -219,7 +221,8 @@ def profile_taus(prof: agg.PerformanceProfile, points: int) -> tuple[np.ndarray,
     return taus[(taus >= 1.0) & (taus <= hi)], hi
 
 
-def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float]) -> str:
+def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float],
+                    left_out: tuple[str, ...] = ()) -> str:
     taus, hi = profile_taus(prof, 200)
     panels = family_panels(list(prof.solvers), ctx.family, best_of_family(ctx, sgm))
     ncols = 1 if len(panels) == 1 else 2
@@ -234,7 +237,7 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
                 if s not in panel.solvers:
                     ax.step(taus, curves[s], where="post", color=GREY, lw=0.8)
         for s in panel.solvers:
-            ax.step(taus, curves[s], where="post", color=ctx.color(s), lw=1.5, label=s)
+            ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5, label=s)
         ax.set_xscale("log", base=2)
         ax.set_xlim(1.0, hi)
         ax.set_ylim(-0.02, 1.02)
@@ -250,7 +253,9 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
     note = panels_note(panels).replace("best solver of each family", "best solver of each family by SGM")
     return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
                               f"which a solver is fastest among those that pass the same KKT check; the right "
-                              f"end is its success share.{note}")
+                              f"end is its success share.{note}"
+                              + (f" Not drawn, skipped on every problem (the skips say why): {', '.join(left_out)}."
+                                 if left_out else ""))
 
 
 # ---------------------------------------------------------------------------
