@@ -74,7 +74,7 @@ from contactbench.problems.operators_gpu import HOST, ArraySpace, on_host
 
 from ._farfield import REBUILD_FRACTION as FAR_REBUILD_FRACTION
 from ._farfield import MAX_SET_FRACTION, FarField, build_far_field
-from ._partition import block_width, patches, whole_limit
+from ._partition import block_inverses, block_width, by_cholesky, patches, whole_limit
 
 #: Islands above this many points are cut into patches (keeps a block inverse cheap), but
 #: for the whole islands of solvers/_partition.py.
@@ -91,6 +91,8 @@ BUILD_BUDGET = 40
 #: its blocks cut evenly (NumPy's batched products release the GIL: 1.33x on two threads
 #: for 16-point blocks, memory-bound); smaller ones in this thread.
 PARALLEL_BUCKET_BYTES = 1 << 22
+#: A bucket's blocks are inverted on the threads from this much work (m s^3) up.
+POOL_MIN_WORK = 1 << 22
 
 #: Refactor when the set has changed in more than this fraction of its points ...
 REBUILD_FRACTION = 0.2
@@ -511,13 +513,16 @@ class IslandPreconditioner(_OnesCache):
         m, s = members.shape
         if s == 1:
             return None
-        # Gather and invert in chunks on the threads, at least one a thread, so the
-        # temporaries stay near 32 MiB in all (each block is inverted on its own: the same
-        # inverses on every thread count).
+        # Gather and invert in chunks, so the temporaries stay near 32 MiB in all: on the
+        # threads, at least one a thread, where the work pays the pool's round trip and the
+        # inversion releases the GIL (batched LU; Cholesky's calls hold it).  Each block is
+        # inverted on its own, the method chosen for the bucket: the same inverses on every
+        # thread count.
         inverse = np.empty((m, s, s), dtype=self.dtype)
         row_sums = np.empty((m, s))
         valid = members >= 0
-        workers = fft_workers()
+        cholesky = by_cholesky(m, s)
+        workers = 1 if cholesky or m * s ** 3 < POOL_MIN_WORK else fft_workers()
         step = max(1, min(BUILD_CHUNK_ENTRIES // (s * s * workers), -(-m // workers)))
 
         def factor_chunk(k: int) -> bool:
@@ -525,16 +530,13 @@ class IslandPreconditioner(_OnesCache):
             blocks = self.H.blocks(members[part])
             row_sums[part] = np.einsum("mkl,ml->mk", blocks, valid[part])
             try:
-                inverse[part] = np.linalg.inv(blocks.astype(self.dtype, copy=False))
+                inverse[part] = block_inverses(blocks.astype(self.dtype, copy=False), cholesky)
             except np.linalg.LinAlgError:  # a singular block (a periodic whole grid's): the diagonal there
                 return False
             return True
 
         if not all(each_on_pool(factor_chunk, -(-m // step), workers)):
             return None
-        if self.dtype != np.float64:  # LU's inverse is symmetric only up to round-off: make M symmetric
-            inverse += np.swapaxes(inverse, 1, 2)
-            inverse *= 0.5
         return _Bucket(members, inverse, valid, row_sums)
 
 

@@ -605,3 +605,42 @@ def test_simplify_drops_the_far_field_then_the_blocks():
     M.update(T)
     np.testing.assert_allclose(M.apply(r), np.where(T, r / inst.qp.H.diagonal(), 0.0), rtol=1e-12, atol=0.0)
     assert not M.simplify(blocks=True)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("m,s", [(70, 16), (46, 32), (6, 64), (1, 192), (100, 48)])
+def test_block_inverses_invert_each_block_symmetrically(dtype: type, m: int, s: int) -> None:
+    """Short batches of wide blocks by Cholesky (``by_cholesky``), the rest by batched LU:
+    either way each block's inverse, symmetric, the same whichever way the batch is cut."""
+    from contactbench.solvers._partition import block_inverses, by_cholesky
+
+    rng = np.random.default_rng(s)
+    a = rng.standard_normal((m, s, s))
+    blocks = (a @ np.swapaxes(a, 1, 2) / s + np.eye(s)).astype(dtype)
+    cholesky = by_cholesky(m, s)
+    assert cholesky == (s >= 48 and m <= 64)
+    inv = block_inverses(blocks, cholesky)
+    assert inv.dtype == dtype and np.array_equal(inv, np.swapaxes(inv, 1, 2))
+    eye = np.broadcast_to(np.eye(s), blocks.shape)
+    tol = 1e-4 if dtype == np.float32 else 1e-11
+    assert np.max(np.abs(blocks.astype(np.float64) @ inv.astype(np.float64) - eye)) < tol
+    half = max(1, m // 2)  # a bucket cut into batches: the same inverses
+    np.testing.assert_array_equal(block_inverses(blocks[:half], cholesky), inv[:half])
+    other = block_inverses(blocks, not cholesky)  # the other way: the same to round-off
+    assert np.max(np.abs(other.astype(np.float64) - inv)) < 1e3 * tol * np.max(np.abs(inv))
+
+
+def test_block_inverses_fall_back_and_refuse_as_lu_does() -> None:
+    """A block Cholesky cannot factor (indefinite) is inverted by LU; a singular one raises
+    ``LinAlgError``, as ``np.linalg.inv`` did (the caller then keeps the diagonal)."""
+    from contactbench.solvers._partition import block_inverses
+
+    s = 64
+    indefinite = np.eye(s)[None].copy()
+    indefinite[0, 0, 0] = -2.0
+    inv = block_inverses(indefinite, True)
+    assert inv[0, 0, 0] == pytest.approx(-0.5) and np.allclose(inv[0, 1:, 1:], np.eye(s - 1))
+    singular = np.ones((1, s, s))
+    for cholesky in (True, False):
+        with pytest.raises(np.linalg.LinAlgError):
+            block_inverses(singular, cholesky)
