@@ -29,8 +29,8 @@ point and the float64 KKT test are unchanged, while the batched inversion (most 
 cold 1024^2 solve's preconditioner time) and ``apply`` move half the bytes.  The
 blocks are gathered from the operator's kernel table (``ContactOperator.submatrix``),
 grouped by size into buckets of powers of two, padded with the identity and
-inverted batch-wise, so neither the build nor ``apply`` loops over islands in
-Python.  Needs the unknowns' grid positions (``QP.geometry``); without them
+inverted batch-wise (``_partition.block_inverses``), so neither the build nor ``apply``
+loops over islands in Python (but over the few wide blocks Cholesky inverts).  Needs the unknowns' grid positions (``QP.geometry``); without them
 ``IslandPreconditioner.build`` returns None and callers run unpreconditioned.
 
 Settled sets: the blocks are refactored when the set has drifted by ``REBUILD_FRACTION`` (20 %)
