@@ -171,6 +171,20 @@ def level_trial_set(level: Surface, fine: Geometry) -> np.ndarray:
     return trial_set(level.heights, float(_far_field(fine)))
 
 
+def posable(level: Surface, fine: Geometry) -> bool:
+    """Whether the fine problem ``fine`` can be posed on the coarse representation
+    ``level``: an elastic layer's real-space kernel needs T >= the level's spacing
+    (``Layer.check_kernel``), which a coarse level can break where the fine grid keeps it."""
+    if fine.layer is None or fine.kernel is None:
+        return True
+    spacing = (float(level.delta), float(level.delta if level.delta1 is None else level.delta1))
+    try:
+        fine.layer.check_kernel(str(fine.kernel), bool(fine.periodic), spacing)
+    except ProblemInputError:
+        return False
+    return True
+
+
 def coarse_qp(level: Surface, fine: Geometry, indices: np.ndarray, operator: OperatorKind = "fft",
               hardness: float | None = None) -> QP:
     """The QP of a coarse representation ``level`` on ``indices`` (flat indices into its
@@ -290,6 +304,7 @@ __all__ = [
     "level_strides",
     "level_trial_set",
     "mean_level",
+    "posable",
     "power_law_check",
     "subsample_level",
 ]

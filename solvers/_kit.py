@@ -32,7 +32,7 @@ import scipy.linalg as sla
 from threadpoolctl import ThreadpoolController
 
 from contactbench.problems import operators
-from contactbench.problems.coarsen import block_average, coarse_load_qp, coarse_qp, level_trial_set
+from contactbench.problems.coarsen import block_average, coarse_load_qp, coarse_qp, level_trial_set, posable
 from contactbench.problems.constraints import uniform_hardness
 from contactbench.problems.errors import MemoryBudgetError
 from contactbench.problems.kkt import constrained_scales, kkt_figures
@@ -257,7 +257,8 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     ``COARSE_LOAD_TOL`` -- prolonged (``prolong``); no guess when the QP carries no surface
     or its grid is too small.  A hardness is posed on the coarse level as the same pressure
     (``uniform_hardness``), so the prolonged forces, a quarter of a coarse element's, keep
-    under the fine bounds; a box that no single hardness poses gives no guess."""
+    under the fine bounds; a box that no single hardness poses gives no guess, nor does a
+    layer thinner than the coarse spacing (``coarsen.posable``)."""
     g = ctx.qp.geometry
     c = ctx.constraints
     posed = g is not None and (g.has_surface_under_load if c.load_control else g.has_surface)
@@ -267,6 +268,8 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     if c.bounded and hardness is None:
         return FirstGuess(None, note="no coarse level (the box is not one hardness)")
     level = block_average(g.surface)
+    if not posable(level, g):
+        return FirstGuess(None, note="no coarse level (the layer is thinner than its spacing)")
     kind = "dense" if is_dense(ctx.qp.H) else "fft"
     if c.load_control:
         if hardness is not None and hardness * level.area < float(c.load):

@@ -57,6 +57,7 @@ from contactbench.problems.coarsen import (
     grid_positions,
     level_sizes,
     level_trial_set,
+    posable,
     power_law_check,
 )
 from contactbench.problems.errors import ProblemInputError
@@ -225,8 +226,10 @@ class CMRSolver(Solver):
         if base.capabilities.warm_start == "none":
             ctx.p0 = None  # a warm start the base cannot take is not used, and the result says so
         h = float(ctx.params["h"])
-        coarse = cascade_surfaces(g.surface, int(ctx.params["coarsest"]), ctx.params["levels"],
-                                  kind=str(ctx.params["coarse"]))
+        cascade = cascade_surfaces(g.surface, int(ctx.params["coarsest"]), ctx.params["levels"],
+                                   kind=str(ctx.params["coarse"]))
+        coarse = [surf for surf in cascade if posable(surf, g)]  # a layer thinner than a level's spacing: not posed
+        dropped = [surf.shape[0] for surf in cascade if not posable(surf, g)]
         period = g.surface.length if (g.periodic and g.surface.periodic) else None
         op_kind: OperatorKind = "dense" if ctx.qp.H.kind == "DenseOperator" else "fft"
 
@@ -256,6 +259,9 @@ class CMRSolver(Solver):
         }
         summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g} coarse={ctx.params['coarse']}: n_p/n={fine.record.n_p_over_n:.4f} "
                    f"coarse-loads=[{', '.join(f'{r.load:.6g}' for r in records[:-1])}]")
+        if dropped:
+            info["levels_not_posed"] = dropped
+            summary = f"{summary}; levels {dropped} not posed (the layer is thinner than their spacing)"
         msg = f"{summary}; base: {fine.result.message}" if fine.result.message else summary
         if not power_law:
             info["warnings"] = [psd_message]

@@ -95,6 +95,20 @@ def test_large_h_reproduces_the_direct_solution(periodic: bool) -> None:
     assert kkt_check(inst, r.p).kkt_error < 1e-8
 
 
+def test_levels_a_layer_cannot_be_posed_on_are_left_out_and_named() -> None:
+    """A layer thicker than the fine spacing but thinner than a coarse level's: that level
+    cannot be posed ('love' needs T >= the spacing), and the solve had failed on it.  The
+    cascade leaves such levels out, says which, and still answers exactly (large h)."""
+    from contactbench.problems.layers import Layer
+
+    s = rmd_surface_n(32, 0.7, seed=0)
+    inst = InstanceBuilder(s, 1e9, "love", layer=Layer(3.0 * s.delta, 0.3)).build(paper_max_displacement(s))
+    r = CMRSolver(BASE).solve(inst.qp, SolverSettings(params={"h": 1e4, "coarsest": 4}))
+    assert [lv["N"] for lv in r.info["levels"]] == [16, 32]  # 4 and 8 have spacings of 8 and 4 deltas
+    assert r.info["levels_not_posed"] == [4, 8] and "levels [4, 8] not posed" in r.message
+    np.testing.assert_allclose(r.p, direct(inst), rtol=1e-8, atol=1e-12 * float(np.max(r.p)))
+
+
 @pytest.mark.parametrize("coarse", ["subsample", "mean"])
 def test_large_h_on_a_surface_without_generator_stages(coarse: str) -> None:
     s = spectral_surface(64, 0.7, seed=5)

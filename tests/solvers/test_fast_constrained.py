@@ -689,3 +689,17 @@ def test_a_load_on_one_summit_under_a_box_finds_its_contact_set(name: str, preco
     assert r.converged, r.message
     assert judge(replace(inst, qp=qp), r.p, True, 2e-9).status == "solved"
     assert np.count_nonzero(r.p) >= 2 and np.max(r.p) <= 0.9 * load
+
+
+def test_a_layer_thinner_than_the_coarse_spacing_gives_no_coarse_guess() -> None:
+    """A layer between one and two fine spacings thick: the 2x-coarser grid cannot pose
+    its 'love' kernel (T >= the spacing), and the default solve under a load raised that
+    as an error.  It starts from zero, says why, and meets."""
+    from contactbench.problems.layers import Layer
+
+    s = fourier_synthesis(256, 0.7, rms_slope=0.3, length=1e-4, seed=8)
+    builder = InstanceBuilder(s, E, "love", layer=Layer(1.5 * s.delta, 0.3))
+    inst = builder.build_load(builder.load_force(0.005))
+    r = get_solver("fast-dual-pccg").solve(inst.qp, SolverSettings(tol=1e-9))
+    assert r.converged and r.info["first_guess"] == "no coarse level (the layer is thinner than its spacing)"
+    assert kkt_check(inst, r.p, r.multiplier).kkt_error <= 1e-8
