@@ -41,7 +41,8 @@ scaling to the load and the first iterate are solvers/_constrained.py's
 (``wants_to_move``, ``scale_to_load``, ``constrained_start``), shared with the fast
 CCGs' loops.  Cold start: P spread evenly
 over the trial set (load control), else p = 0 with the whole set as the first I_c; warm:
-the previous p (scaled to the load).
+the previous p (scaled to the load), the whole set again the first I_c under displacement
+control.
 """
 
 from __future__ import annotations
@@ -105,7 +106,10 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
     t = np.zeros(ctx.n)
     G_old, conj = 1.0, False
     delta = 0.0
-    first = ctx.p0 is None and not load  # displacement control from p = 0: the whole set is I_c
+    # Displacement control: the whole set is the first I_c, from p = 0 or from the warm start.
+    # From a warm start's own free set (0 < p < u), a step that let thousands of points enter
+    # swung them between 0 and the bound on alternate iterations, for ever (a plastic 256^2 step).
+    first = not load
     status, why = None, ""
     for it in range(int(ctx.max_iter or 0) + 1):
         g = H.matvec(p) - ubar

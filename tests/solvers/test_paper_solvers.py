@@ -367,3 +367,23 @@ def test_admm_printed_stop_follows_the_listing(ramp32) -> None:
     res = solve("admm", inst, rho=1e12, rho_relative=False, stop="printed")
     assert res.converged and res.iterations <= 2
     assert kkt_check(inst, res.p).kkt_error > 1e-2
+
+
+def test_pk_warm_started_on_a_plastic_step_converges() -> None:
+    """A displacement step under a hardness, warm-started from the step before: from the
+    warm start's own free set (a few points) the step let thousands enter at once, and
+    they swung between 0 and the bound on alternate iterations for ever (400 of 400, kkt
+    stuck).  The whole set is the first I_c again, as from p = 0."""
+    from contactbench.harness import get_profile, solve_sequence
+    from contactbench.problems.scenes import SceneConfig, get_scene
+
+    scene = get_scene("paper-sweep")
+    cfg = SceneConfig(size=128, steps=2, seeds=(4,), kernel="love", E=1e9, extra={"family": "periodic", "hardness": 1e8})
+    (spec,) = scene.instances(scene.config(cfg))
+    seq = scene.build(spec)
+    high = get_profile("high")
+    steps = solve_sequence("pk", [seq.at(k) for k in range(len(seq))], SolverSettings(tol=high.tol, max_iter=400),
+                           check_tol=high.check_tol)
+    assert steps[1].warm_started and steps[1].result.warm_started
+    assert [s.verdict.status for s in steps] == ["solved", "solved"]
+    assert steps[1].result.iterations < 100
