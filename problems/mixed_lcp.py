@@ -213,7 +213,7 @@ def _cut_to_box(p: np.ndarray, z: np.ndarray, u: np.ndarray, state: np.ndarray) 
     high = free & (z >= u)
     if not (np.any(low) or np.any(high)):
         return z, True
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a far bound: inf, not taken
         a_low = np.where(low, p / (p - z), np.inf)
         a_high = np.where(high, (u - p) / (z - p), np.inf)
     alpha = float(min(np.min(a_low), np.min(a_high)))
