@@ -228,8 +228,9 @@ class CMRSolver(Solver):
         h = float(ctx.params["h"])
         cascade = cascade_surfaces(g.surface, int(ctx.params["coarsest"]), ctx.params["levels"],
                                    kind=str(ctx.params["coarse"]))
-        coarse = [surf for surf in cascade if posable(surf, g)]  # a layer thinner than a level's spacing: not posed
-        dropped = [surf.shape[0] for surf in cascade if not posable(surf, g)]
+        posed = [posable(surf, g) for surf in cascade]  # not where a layer is thinner than the spacing
+        coarse = [surf for surf, ok in zip(cascade, posed) if ok]
+        dropped = [surf.shape[0] for surf, ok in zip(cascade, posed) if not ok]
         period = g.surface.length if (g.periodic and g.surface.periodic) else None
         op_kind: OperatorKind = "dense" if ctx.qp.H.kind == "DenseOperator" else "fft"
 
