@@ -46,15 +46,13 @@ u_s and p_s:
   below the bound in the force scale, capped at 1 (for u_i = inf, or a bound far above every
   force, the plain figure max(0, -w_i) / u_s).  Near its bound an element is judged as
   the plain figures judge one near p = 0: a gap of the sign its bound allows (w < 0 below
-  u, w > 0 above 0) counts as the product of that gap and the distance, so an interior-point
-  answer is read the same at either bound (its products near 1e-7 had read 3e-4 at the upper
-  bound through min(-w / u_s, (u - p) / p_s));
+  u, w > 0 above 0) counts as the product of that gap and the distance, so an answer is
+  read the same at either bound;
 * complementarity = max_i of (|w_i| p_i) on an unbounded element (the plain figure) and
   of max(max(0, w_i) |p_i|, max(0, -w_i) min(|u_i - p_i|, p_s)) on a bounded one, scaled
   by u_s p_s: the lower and the upper bound's products, the slack capped at the force
   scale.  Beyond it the dual figure reads the same negative gap in full, so a bound far
-  above every force is judged as no bound: uncapped, round-off in w on the free set
-  (4e-15 u_s) times a box a million times the load read 4e-9;
+  above every force is judged as no bound (not as round-off in w times the bound);
 * kkt_error = max(primal, equality, dual, complementarity).
 
 The force scale is capped by the bounds: p_s = min(u_s / max diag H, min u)

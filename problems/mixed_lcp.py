@@ -141,8 +141,7 @@ def solve_on_sets(H: np.ndarray, ubar: np.ndarray, u: np.ndarray, load: float | 
         return p, math.nan
     m = free.size
     # The bordered system, its border in H's units (d = the largest diagonal entry, the
-    # unknown Delta / d): with a border of ones beside H's entries, w on the free set came
-    # out to 5e-14 of the gap scale, 4e-15 scaled (a 6 x 10 rough grid under a load).
+    # unknown Delta / d), so that LU's pivoting sees entries of one scale.
     H_FF = H[np.ix_(free, free)]
     d = float(np.max(np.diag(H_FF)))
     K = np.zeros((m + 1, m + 1))

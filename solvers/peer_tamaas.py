@@ -92,10 +92,14 @@ def reduced_units(gp: GridProblem) -> tuple[float, float]:
     """(length, pressure) units of the reduced posing: the side L0 along axis 0 and E*, so
     that the model has E* = 1 and L0 = 1 (heights / L0, pressures / E*; small-slope
     elasticity is unchanged by the scaling).  Tamaas' Kato, BeckTeboulle and Condat take
-    steps that are not scale-free: posed in SI units (E* = 1e9 Pa, L0 = 1e-4 m) Condat
-    diverges to NaN and Kato stalls at a uniform pressure on a sinusoid they solve in
-    reduced units (``tests/solvers/test_peers.py``)."""
+    steps that are not scale-free: in SI units Condat diverges
+    (``test_tamaas_condat_posed_in_si_units_diverges``)."""
     return float(gp.sizes[0]), float(gp.E)
+
+
+def reduced_surface(gp: GridProblem) -> np.ndarray:
+    """The heights U in the reduced posing's length unit (``reduced_units``)."""
+    return np.ascontiguousarray(gp.U / reduced_units(gp)[0])
 
 
 def _normal_traction(model: Any, gp: GridProblem) -> np.ndarray:
@@ -286,10 +290,9 @@ class _TamaasLoadControlled(_TamaasSolver):
             return f"Tamaas' {self.tamaas_class} runs on its periodic surface model only"
         return why
 
-    def make(self, tm: Any, model: Any, surface: np.ndarray, pressure_unit: float, tol: float,
-             ctx: SolveContext) -> Any:
-        """The Tamaas solver object (mu = 0) on ``surface`` in the model's units."""
-        return getattr(tm, self.tamaas_class)(model, surface, tol, 0.0)
+    def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
+        """The Tamaas solver object (mu = 0), in reduced units."""
+        return getattr(tm, self.tamaas_class)(model, reduced_surface(gp), tol, 0.0)
 
     def run(self, solver: Any, mean_pressure: float) -> Any:
         return solver.solve([0.0, 0.0, mean_pressure])
@@ -307,9 +310,9 @@ class _TamaasLoadControlled(_TamaasSolver):
             calib, calib_err = pkr_displacement_control(gp, tol, 100_000, "gap")
             load = float(np.sum(calib))
         ctx.mark_setup_done()
-        L0, E = reduced_units(gp)
+        E = reduced_units(gp)[1]
         model = _model(gp, "surface_2d", reduced=True)
-        solver = self.make(tm, model, np.ascontiguousarray(gp.U / L0), E, tol, ctx)
+        solver = self.make(tm, model, gp, tol, ctx)
         if ctx.max_iter is not None:
             solver.max_iter = int(ctx.max_iter)
         returned = self.run(solver, load / (gp.sizes[0] * gp.sizes[1]) / E)
@@ -367,14 +370,12 @@ class TamaasKatoSaturated(_TamaasLoadControlled):
             return "Tamaas' KatoSaturated poses load control only"
         return why
 
-    def make(self, tm: Any, model: Any, surface: np.ndarray, pressure_unit: float, tol: float,
-             ctx: SolveContext) -> Any:
+    def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
         c = ctx.constraints
         if not c.load_control:
             raise ProblemInputError("Tamaas' KatoSaturated poses load control only")
         u = c.upper_or_inf(ctx.n)
         if not np.all(u == u[0]):
             raise ProblemInputError("Tamaas' KatoSaturated takes one hardness for every element")
-        gp = grid_problem(ctx.qp)
-        pmax = float(u[0]) / gp.area / pressure_unit if np.isfinite(u[0]) else float(np.finfo(float).max)
-        return tm.KatoSaturated(model, surface, tol, pmax)
+        pmax = float(u[0]) / gp.area / reduced_units(gp)[1] if np.isfinite(u[0]) else float(np.finfo(float).max)
+        return tm.KatoSaturated(model, reduced_surface(gp), tol, pmax)
