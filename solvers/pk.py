@@ -89,6 +89,12 @@ class PolonskyKeer(Solver):
         return 2 * TYPICAL_PK_ITERATIONS * matvec_seconds(n, operator_kind)
 
 
+#: Iterations without the KKT error falling below ``STALL_GAIN`` of its least that make
+#: ``pk_constrained`` let the points at a bound that want to move into its CG set.
+STALL_WINDOW = 10
+STALL_GAIN = 0.9
+
+
 def pk_constrained(ctx: SolveContext) -> Outcome:
     """Polonsky & Keer (1999) under load control with Almqvist's saturation (module doc).
 
@@ -107,10 +113,11 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
     G_old, conj = 1.0, False
     delta = 0.0
     # Displacement control: the whole set is the first I_c, from p = 0 or from the warm start.
-    # From a warm start's own free set (0 < p < u), a step that let thousands of points enter
-    # swung them between 0 and the bound on alternate iterations, for ever (a plastic 256^2 step).
+    # From a warm start's own free set (0 < p < u), a step that lets thousands of points enter
+    # can swing them between 0 and the bound on alternate iterations, for ever.
     first = not load
     status, why = None, ""
+    best, since = math.inf, 0  # the least KKT error, and the iterations since it last fell
     for it in range(int(ctx.max_iter or 0) + 1):
         g = H.matvec(p) - ubar
         free = np.ones(ctx.n, dtype=bool) if first else (p > 0.0) & (p < u)
@@ -125,7 +132,9 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
         if it == ctx.max_iter or ctx.expired() or not math.isfinite(res):
             break
         first = False
-        free, delta, widened = cg_set(p, g, delta, free, u, load, atol)
+        best, since = (res, 0) if res < STALL_GAIN * best else (best, since + 1)
+        free, delta, widened = cg_set(p, g, delta, free, u, load, atol, since >= STALL_WINDOW)
+        since = 0 if widened else since
         r_g = np.where(free, g - delta, 0.0)
         G = float(r_g @ r_g)
         if not G > 0.0:
@@ -161,13 +170,16 @@ def pk_constrained(ctx: SolveContext) -> Outcome:
 
 
 def cg_set(p: np.ndarray, g: np.ndarray, delta: float, free: np.ndarray, u: np.ndarray, load: bool,
-           atol: float) -> tuple[np.ndarray, float, bool]:
+           atol: float, stalled: bool = False) -> tuple[np.ndarray, float, bool]:
     """(CG set, Delta, widened): ``free`` and Delta as they are while the free set's own
     residual max |g - Delta| exceeds ``atol`` (the tolerance in displacement units); once
     it does not, the free set is solved on its own and the error lies at the bounds, so
     the points at a bound that want to move (``wants_to_move``) join it and Delta is
-    the mean gap over the widened set (under load control)."""
-    if np.any(free) and float(np.max(np.abs(g[free] - delta))) > atol:
+    the mean gap over the widened set (under load control).  ``stalled`` (the KKT error
+    has not fallen for ``STALL_WINDOW`` iterations) widens it too: a few free points
+    beside thousands at the bound, a handful of them stepping off and back on alternate
+    iterations, can keep the free set's residual from ever falling."""
+    if not stalled and np.any(free) and float(np.max(np.abs(g[free] - delta))) > atol:
         return free, delta, False
     wants = wants_to_move(p, g - delta, u) & ~free
     if not np.any(wants):

@@ -387,3 +387,22 @@ def test_pk_warm_started_on_a_plastic_step_converges() -> None:
     assert steps[1].warm_started and steps[1].result.warm_started
     assert [s.verdict.status for s in steps] == ["solved", "solved"]
     assert steps[1].result.iterations < 100
+
+
+def test_pk_under_a_load_and_a_hardness_widens_its_set_when_it_stalls() -> None:
+    """A 257^2 periodic Love map under a load at a third of what its hardness carries: 18
+    free points beside 21,290 at the bound, a handful stepping off and back on alternate
+    iterations, kept the free set's residual from falling and the KKT error at 3.9e-4 for
+    7,000 iterations (a timeout).  Once stalled, the points that want to move join the
+    CG set, and it converges."""
+    from contactbench.harness import get_profile, solve_sequence
+    from contactbench.problems.scenes import SceneConfig, get_scene
+
+    scene = get_scene("paper-sweep")
+    cfg = SceneConfig(size=257, seeds=(666,), kernel="love", E=1e9, periodic=True,
+                      extra={"family": "saupe", "control": "load", "loads": (0.00132,), "hardness": 4.0928e6})
+    (spec,) = scene.instances(scene.config(cfg))
+    prof = get_profile("default")
+    (step,) = solve_sequence("pk", [scene.build(spec).at(0)], SolverSettings(tol=prof.tol, max_iter=300),
+                             check_tol=prof.check_tol, warm=False)
+    assert step.verdict.status == "solved" and step.result.iterations < 100
