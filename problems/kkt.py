@@ -312,12 +312,13 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
         w = g - delta
         slack = u - p
         primal = worst(_negative_part(min_below_zero(p)), _negative_part(min_below_zero(slack))) / p_s
-        neg = np.maximum(-w, 0.0) / u_s
-        below = np.minimum(np.maximum(slack, 0.0) / p_s, 1.0)  # distance below the bound, capped
-        dual = worse(max_above_zero(neg * below))
+        # a negative gap times the distance from the bound, capped at the force scale: the
+        # dual figure below the bound, the upper product on a bounded element
+        weighted = np.maximum(-w, 0.0) / u_s * np.minimum(np.abs(slack) / p_s, 1.0)
+        dual = worse(max_above_zero(np.where(slack > 0.0, weighted, 0.0)))
         pos = np.maximum(w, 0.0) / u_s
         lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
-        upper = np.where(bounded, np.minimum(np.abs(slack) / p_s, 1.0) * neg, 0.0)
+        upper = np.where(bounded, weighted, 0.0)
         comp = worst(max_above_zero(lower), max_above_zero(upper))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)

@@ -141,4 +141,4 @@ def on_a_subset(ctx: SolveContext, why: str) -> Outcome:
                        status=Status.FAILED)
     ctx.info.update(subset_size=int(sub.subset.size), subset_rounds=int(sub.rounds))
     return Outcome(sub.p, sub.rounds, True, f"certified exact solution on a proper subset ({why})",
-                   multiplier=sub.multiplier if c.load_control else None)
+                   multiplier=sub.multiplier)

@@ -170,6 +170,7 @@ class PerformanceProfile:
     solvers: tuple[str, ...]
     n_problems: int
     ratios: dict[str, np.ndarray] = field(default_factory=dict)
+    left_out: tuple[str, ...] = ()  # ``never_attempted``: not drawn
 
     def fraction(self, solver: str, tau: float) -> float:
         r = self.ratios[solver]
@@ -196,7 +197,7 @@ def performance_profile(cells: CellTable) -> PerformanceProfile:
     unchanged); inf for unsolved cells, and for every solver on a problem that none solves."""
     m = solved_times(cells)
     best = m.min(axis=1).to_numpy()
-    skipped = set(never_attempted(cells))
+    skipped = never_attempted(cells)
     solvers = tuple(s for s in cells.solvers if s not in skipped)
     ratios: dict[str, np.ndarray] = {}
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -204,7 +205,7 @@ def performance_profile(cells: CellTable) -> PerformanceProfile:
             r = m[s].to_numpy() / best
             r[~np.isfinite(best)] = np.inf
             ratios[s] = np.sort(r)
-    return PerformanceProfile(solvers, len(m.index), ratios)
+    return PerformanceProfile(solvers, len(m.index), ratios, skipped)
 
 
 @dataclass(frozen=True)

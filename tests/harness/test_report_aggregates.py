@@ -140,6 +140,7 @@ def test_a_solver_skipped_on_every_problem_is_left_out_of_the_profile() -> None:
     cells = agg.cell_table(pd.concat([t, skipped], ignore_index=True))
     prof = agg.performance_profile(cells)
     assert agg.never_attempted(cells) == ("D",) and "D" in cells.solvers and prof.solvers == ("A", "B", "C")
+    assert prof.left_out == ("D",)
     base = agg.performance_profile(agg.cell_table(t))
     assert prof.n_problems == base.n_problems == 4
     for s in base.solvers:

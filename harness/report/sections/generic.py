@@ -184,8 +184,7 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
                               "lrrrrrrrrr"))
         prof = agg.performance_profile(cells)
         if len(prof.solvers) >= 2 and cells.problems:
-            parts.append(_profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ},
-                                         agg.never_attempted(cells)))
+            parts.append(_profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ}))
     parts.append("### All scenes\n")
     t = table
     summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
@@ -221,8 +220,7 @@ def profile_taus(prof: agg.PerformanceProfile, points: int) -> tuple[np.ndarray,
     return taus[(taus >= 1.0) & (taus <= hi)], hi
 
 
-def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float],
-                    left_out: tuple[str, ...] = ()) -> str:
+def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float]) -> str:
     taus, hi = profile_taus(prof, 200)
     panels = family_panels(list(prof.solvers), ctx.family, best_of_family(ctx, sgm))
     ncols = 1 if len(panels) == 1 else 2
@@ -254,8 +252,8 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
     return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
                               f"which a solver is fastest among those that pass the same KKT check; the right "
                               f"end is its success share.{note}"
-                              + (f" Not drawn, skipped on every problem (the skips say why): {', '.join(left_out)}."
-                                 if left_out else ""))
+                              + (f" Not drawn, skipped on every problem (the skips say why): "
+                                 f"{', '.join(prof.left_out)}." if prof.left_out else ""))
 
 
 # ---------------------------------------------------------------------------
