@@ -44,8 +44,11 @@ SPARE_HUES: tuple[float, ...] = (0.20, 0.69, 0.53, 0.40, 0.93, 0.14)
 HUE_BAND = 0.10
 #: ... while their lightness steps through these levels (neighbours differ in both).
 LIGHTNESS_LEVELS: tuple[float, ...] = (0.22, 0.35, 0.48, 0.61, 0.72)
-#: Markers cycled within a family (so two shades of one hue still differ in shape).
+#: Markers cycled within a family (so two shades of one hue still differ in shape), each family
+#: starting ``MARKER_STEP`` further along the cycle (so the first members of two families differ
+#: in shape too, where their dark shades come close).
 MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*")
+MARKER_STEP = 5
 #: Line dashes cycled within a family, for the figures that draw solvers as lines (a
 #: period prime to the lightness levels': two lines of one panel differ in both).
 DASHES: tuple[str, ...] = ("-", "--", "-.", ":")
@@ -94,11 +97,12 @@ class SolverStyles:
         self.families = sort_families(fam.values())
         spare = iter(SPARE_HUES * 4)
         self.styles: dict[str, SolverStyle] = {}
-        for f in self.families:
+        for k, f in enumerate(self.families):
             hue, sat = FAMILY_HUES.get(f) or (next(spare), 0.7)
             members = sorted((s for s in fam if fam[s] == f), key=key)
             for i, (s, c) in enumerate(zip(members, _shades(hue, sat, len(members)))):
-                self.styles[s] = SolverStyle(f, c, MARKERS[i % len(MARKERS)], DASHES[i % len(DASHES)])
+                shape = MARKERS[(i + MARKER_STEP * k) % len(MARKERS)]
+                self.styles[s] = SolverStyle(f, c, shape, DASHES[i % len(DASHES)])
 
     def family(self, solver: str) -> str:
         st = self.styles.get(solver)

@@ -449,3 +449,58 @@ def test_a_report_failing_part_way_keeps_the_last_figures(tmp_path: Path, monkey
     (out / "figures" / "stale.png").write_bytes(next(iter(before.values())))
     build_report(out)
     assert {p.name for p in (out / "figures").glob("*.png")} == set(before)
+
+
+def test_a_run_without_a_reference_draws_no_empty_error_panel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run with ``--reference none`` has no error in p: its work-precision figure is the KKT
+    panel alone (no empty box beside it), the caption says why, and with one profile each
+    solver's points take its own marker, so the first solvers of two families -- whose dark
+    shades come close -- differ in shape as well as hue."""
+    from contactbench.harness.report.panels import blank_panels
+
+    solvers = {"fast-a": "fast", "fast-b": "fast", "peer-a": "peer", "paper-a": "paper"}
+    rows = [report_row(scene="paper-sweep", instance="i0", step=k, n=100, N=64, solver=s, family=f, profile="default",
+                       solve_time_s=1e-3 * (k + 1 + i), trace=trace_json(1e-3), kkt_error=1e-9, p_rel_error=np.nan,
+                       warm_start=False)
+            for k in range(3) for i, (s, f) in enumerate(solvers.items())]
+    out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    figures: dict[str, Any] = {}
+    real_save = rp.ReportContext.save_figure
+
+    def spy(self: rp.ReportContext, fig: Any, name: str) -> str:
+        figures[name] = (fig, {s: self.marker(s) for s in solvers})
+        return real_save(self, fig, name)
+
+    monkeypatch.setattr(rp.ReportContext, "save_figure", spy)
+    text = build_report(out, html=False).read_text()
+    fig, markers = figures["wp-paper-sweep"]
+    visible = [ax for ax in fig.axes if ax.get_visible() and ax.axison]
+    assert [ax.get_title() for ax in visible] == ["paper-sweep: KKT error"]
+    assert blank_panels(fig) == []
+    assert "no reference solution (`--reference none`)" in text
+    assert markers["fast-a"] != markers["peer-a"] and markers["fast-a"] != markers["paper-a"]
+    _, labels = visible[0].get_legend_handles_labels()
+    assert not any(lab.startswith("profile ") for lab in labels)  # one profile: nothing to key
+
+
+def test_a_trace_of_one_point_is_named_not_drawn(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A solver that reports only its final residual (a one-point trace) gets no panel of
+    its own in the trace figure -- a row with a single dot -- but is named in the caption."""
+    solvers = {"fast-a": "fast", "fast-b": "fast", "peer-a": "peer"}
+    rows = [report_row(scene="paper-sweep", instance="i0", step=0, n=100, N=64, solver=s, family=f, profile="default",
+                       solve_time_s=1e-2, trace=trace_json(1e-2, iters=1 if f == "peer" else 12), kkt_error=1e-9,
+                       warm_start=False)
+            for s, f in solvers.items()]
+    out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    figures: dict[str, Any] = {}
+    real_save = rp.ReportContext.save_figure
+
+    def spy(self: rp.ReportContext, fig: Any, name: str) -> str:
+        figures[name] = fig
+        return real_save(self, fig, name)
+
+    monkeypatch.setattr(rp.ReportContext, "save_figure", spy)
+    text = build_report(out, html=False).read_text()
+    titles = [ax.get_title() for ax in figures["traces-paper-sweep"].axes]
+    assert titles and all("fast" in t for t in titles)
+    assert "single point (their final residual only: `peer-a`)" in text

@@ -318,6 +318,12 @@ def _point_style(points: int) -> dict[str, object]:
     return {"marker": "o", "ms": 4} if points < 2 else {}
 
 
+def _trace_points(trace: str) -> int:
+    """The points of a stored trace with a positive finite residual (what the figure draws)."""
+    tr = parse_trace(trace)
+    return int((np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)).sum())
+
+
 #: A log axis whose data span less than a decade is widened by this factor each side, so
 #: that at least two of its 1-2-5 labels fall on it.
 NARROW_LOG_MARGIN = 3.0
@@ -341,9 +347,10 @@ def _trace_figure(ctx: ReportContext) -> str:
     """Per family, the representative solve's trace of every solver: residual against
     iteration and against time, in the first scene with traces (trace_scene)."""
     scene, reps = trace_scene(ctx)
-    if not reps:
+    short = sorted((s for s in reps if _trace_points(reps[s]["trace"]) < 2), key=natural_key)
+    solvers = sorted(set(reps) - set(short), key=lambda s: (natural_key(ctx.family(s)), natural_key(s)))
+    if not solvers:
         return ""
-    solvers = sorted(reps, key=lambda s: (natural_key(ctx.family(s)), natural_key(s)))
     panels = [q for f in sort_families(ctx.family(s) for s in solvers)
               for q in family_panels([s for s in solvers if ctx.family(s) == f], ctx.family)]
     fig, axes = grid_figure(len(panels), 2, width=4.6, height=3.2, wspace=0.30)
@@ -356,10 +363,9 @@ def _trace_figure(ctx: ReportContext) -> str:
             ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
             ok2 = ok & (tr[:, 1] > 0)
             # a trace of one point (a backend that reports its final residual only) is a marker
-            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s,
-                    **_point_style(int(ok.sum())))
+            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s)
             a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s,
-                    **_point_style(int(ok2.sum())))
+                    **_point_style(int(ok2.sum())))  # a trace with one timed point
             its += list(tr[ok, 0])
             secs += list(tr[ok2, 1])
             res += list(tr[ok, 2])
@@ -384,7 +390,9 @@ def _trace_figure(ctx: ReportContext) -> str:
     return ctx.figure_md(rel, f"convergence traces per solver family, scene `{scene}`: each solver's own residual "
                               f"(the figure it stops on, not the harness's kkt_error) against iteration (left) and "
                               f"elapsed time (right) for one representative solve, the largest n at the tightest "
-                              f"profile ({where}). Solvers without a stored trace are not drawn.")
+                              f"profile ({where}). Solvers without a stored trace are not drawn"
+                              + (f", nor those whose trace is a single point (their final residual only: "
+                                 f"{', '.join(f'`{s}`' for s in short)})." if short else "."))
 
 
 @register_section("fields", title="The contact fields", group="summary", order=5)

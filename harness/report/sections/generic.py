@@ -6,13 +6,12 @@ harness/table/aggregates.py), skips and failures, and one table per scene.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
 
 from ...table import aggregates as agg
-from ..panels import mark_empty
 from ..style import GREY, MAX_SERIES, Panel, family_panels, panels_note
 from ..core import (
     LOG_FLOOR,
@@ -57,7 +56,8 @@ _PROFILE_MARKERS = {"low": "v", "default": "o", "mid": "s", "high": "^"}
 @register_section("work-precision", title="Run time against error", group="summary", order=10)
 def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     parts = ["Each point is one solve: solve time against the harness's scaled `kkt_error` (left) and against "
-             "the error in p relative to the scene's reference (right); marker shape = profile. Lines are "
+             "the error in p relative to the scene's reference (right, where the run had a reference); marker "
+             "shape = profile where a scene ran several, else the solver's own. Lines are "
              "the solver's own convergence trace (its residual, which is not the same figure as kkt_error) "
              "for one representative solve: the largest n at the tightest profile. Values below "
              f"{LOG_FLOOR:g} are drawn at {LOG_FLOOR:g}. Colours are fixed per solver in the whole report; a "
@@ -71,18 +71,18 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
             continue
         solvers = natural_sorted(r["solver"].unique())
         panels = family_panels(solvers, ctx.family)
-        fig, axes = grid_figure(len(panels), 2, width=4.8, height=3.5, wspace=0.35)
+        referenced = bool(r["p_rel_error"].notna().any())
+        fig, axes = grid_figure(len(panels), 2 if referenced else 1, width=4.8, height=3.5, wspace=0.35)
         traced: dict[str, str] = {}
-        for (a1, a2), panel in zip(axes, panels):
-            _wp_panel(ctx, a1, a2, r, panel, traced)
-            if len(panels) > 1:
-                a1.set_title(f"{scene}, {panel.title}: KKT error", fontsize=9)
-                a2.set_title(f"{scene}, {panel.title}: error against reference", fontsize=9)
-            else:
-                a1.set_title(f"{scene}: KKT error", fontsize=9)
-                a2.set_title(f"{scene}: error against reference", fontsize=9)
+        for row, panel in zip(axes, panels):
+            _wp_panel(ctx, row, r, panel, traced)
+            where = f"{scene}, {panel.title}" if len(panels) > 1 else scene
+            for a, what in zip(row, ("KKT error", "error against reference")):
+                a.set_title(f"{where}: {what}", fontsize=9)
         rel = ctx.save_figure(fig, f"wp-{scene}")
         cap = f"run time against error, scene `{scene}` ({len(r)} solves, {len(solvers)} solvers)."
+        if not referenced:
+            cap += " The run had no reference solution (`--reference none`): the error in p is not drawn."
         cap += panels_note(panels)
         if traced:
             cap += " Traces: " + ", ".join(traced[s] for s in solvers if s in traced) + "."
@@ -90,63 +90,74 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     return Section("Run time against error", "\n".join(parts))
 
 
-def _wp_points(ctx: ReportContext, a1: Any, a2: Any, c: pd.DataFrame, color: Any, size: float, alpha: float,
-               hollow_failed: bool = True) -> None:
-    for prof in natural_sorted(c["profile"].unique()):
-        cp = c[c["profile"] == prof]
-        mk = _PROFILE_MARKERS.get(prof, "D")
+#: The columns of the work-precision panels, left to right, and their axis labels.
+_WP_ERRORS = (("kkt_error", "scaled KKT error  [-]"), ("p_rel_error", "||p - p_ref||_inf / ||p_ref||_inf  [-]"))
+
+
+def _wp_markers(ctx: ReportContext, r: pd.DataFrame) -> Callable[[str, str], str]:
+    """(solver, profile) -> the marker of its points: the profile's where ``r`` ran several
+    profiles, else the solver's own (so that two solvers of one hue differ in shape)."""
+    if r["profile"].nunique() > 1:
+        return lambda _s, prof: _PROFILE_MARKERS.get(prof, "D")
+    return lambda s, _prof: ctx.marker(s)
+
+
+def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: float, alpha: float,
+               marker: Callable[[str, str], str], hollow_failed: bool = True) -> None:
+    for (s, prof), cp in c.groupby(["solver", "profile"], sort=True):
         for ok, face in ((True, color), (False, "none" if hollow_failed else color)):
             cs = cp[(cp["status"] == "solved") == ok]
             if cs.empty:
                 continue
-            for a, col in ((a1, "kkt_error"), (a2, "p_rel_error")):
-                a.scatter(cs["solve_time_s"], floor_log(cs[col]), s=size, marker=mk, facecolors=face,
-                          edgecolors=color, linewidths=0.8, alpha=alpha)
+            for a, (col, _) in zip(axes, _WP_ERRORS):
+                a.scatter(cs["solve_time_s"], floor_log(cs[col]), s=size, marker=marker(str(s), str(prof)),
+                          facecolors=face, edgecolors=color, linewidths=0.8, alpha=alpha)
 
 
-def _wp_panel(ctx: ReportContext, a1: Any, a2: Any, r: pd.DataFrame, panel: Panel, traced: dict[str, str]) -> None:
-    """One row of the work-precision figure: every solve of the scene in grey, the
+def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel, traced: dict[str, str]) -> None:
+    """One row of the work-precision figure (``axes``: the KKT error's panel, then the error
+    against the reference where the run had one): every solve of the scene in grey, the
     panel's solvers in their colours with their representative traces."""
+    a1, marker = axes[0], _wp_markers(ctx, r)
     others = r[~r["solver"].isin(panel.solvers)]
     if len(others):
-        _wp_points(ctx, a1, a2, others, GREY, 8, 0.6, hollow_failed=False)
-    xs, y1, y2 = list(r["solve_time_s"]), list(floor_log(r["kkt_error"])), list(floor_log(r["p_rel_error"]))
+        _wp_points(axes, others, GREY, 8, 0.6, marker, hollow_failed=False)
+    xs = list(r["solve_time_s"])
+    ys = [list(floor_log(r[col])) for col, _ in _WP_ERRORS]
     for s in panel.solvers:
         c = r[r["solver"] == s]
-        _wp_points(ctx, a1, a2, c, ctx.color(s), 16, 0.8)
+        _wp_points(axes, c, ctx.color(s), 16, 0.8, marker)
         rep = representative_traces(c).get(s)
         if rep is not None:
             tr = parse_trace(rep["trace"])
             ok = (tr[:, 1] > 0) & np.isfinite(tr[:, 2])
             a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s), alpha=0.8)
             xs += list(tr[ok, 1])
-            y1 += list(floor_log(tr[ok, 2]))
+            ys[0] += list(floor_log(tr[ok, 2]))
             traced[s] = f"`{s}` ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})"
-        a1.plot([], [], ls="none", marker="s", color=ctx.color(s), label=s)
-    for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
-            natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
-        a1.plot([], [], ls="none", marker=_PROFILE_MARKERS.get(prof, "D"), color="gray", label=f"profile {prof}")
+        shape = marker(s, "") if r["profile"].nunique() == 1 else "s"
+        a1.plot([], [], ls="none", marker=shape, color=ctx.color(s), label=s)
+    if r["profile"].nunique() > 1:
+        for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
+                natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
+            a1.plot([], [], ls="none", marker=_PROFILE_MARKERS.get(prof, "D"), color="gray", label=f"profile {prof}")
     if (r["status"] != "solved").any():
         a1.plot([], [], ls="none", marker="o", mfc="none", color="gray", label="hollow: not solved")
     if panel.solvers and any(s in traced for s in panel.solvers):
         a1.plot([], [], color="gray", lw=1.0, label="trace (own residual)")
     if len(others):
         a1.plot([], [], ls="none", marker="o", color=GREY, label="other families")
-    for a, lab, ys in ((a1, "scaled KKT error  [-]", y1), (a2, "||p - p_ref||_inf / ||p_ref||_inf  [-]", y2)):
+    for a, (_, lab), y in zip(axes, _WP_ERRORS, ys):
         a.set_xlabel("solve time  [s]")
         a.set_ylabel(lab, fontsize=8)
         a.grid(True, which="major", alpha=0.3)
-        if not np.any(np.isfinite(ys)):
-            continue  # nothing drawn here (no reference error): log axes would have no limits
+        if not np.any(np.isfinite(y)):
+            continue  # nothing drawn here (no finite error): log axes would have no limits
         log_if_wide(a, "x", xs)
-        if not log_if_wide(a, "y", ys, decades=0.0):
+        if not log_if_wide(a, "y", y, decades=0.0):
             a.set_yscale("log")  # a single error level: still an error axis
-    if r["p_rel_error"].notna().sum() == 0:  # no axes to read: say why the panel is empty
-        a2.set_xlabel("")
-        a2.set_ylabel("")
-        mark_empty(a2, "no reference solution in this run\n(run without --reference none\nto see the error in p)")
     h, lbl = a1.get_legend_handles_labels()
-    a2.legend(h, lbl, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
+    axes[-1].legend(h, lbl, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
 
 
 # ---------------------------------------------------------------------------
