@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..table import aggregates as agg
 from ..table.files import write_text_atomic
+from ..table.meta import read_meta
 from .core import (
     REPORT_NAME,
     PageChart,
@@ -20,10 +21,10 @@ from .core import (
     Section,
     SectionSpec,
     header_section,
-    load_meta,
     read_table,
     registered_sections,
 )
+from .figure_files import discard, publish
 from .html import write_html_report
 
 
@@ -46,7 +47,20 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     table = read_table(out)
     if table.empty:
         raise ReportInputError(f"the results table in {out} has no rows")
-    ctx = ReportContext(out, table, load_meta(out), shift=shift)
+    ctx = ReportContext(out, table, read_meta(out), shift=shift)
+    discard(out)  # what a report that was killed part-way staged
+    try:
+        _write(ctx, html)
+    except BaseException:
+        discard(out)
+        raise
+    publish(out, [Path(rel).name for rel in ctx.figures])
+    return ctx
+
+
+def _write(ctx: ReportContext, html: bool) -> None:
+    """report.md and (``html``) report.html, the figures rendered into the staging folder."""
+    out = ctx.out_dir
     sections = registered_sections()
     doc = [header_section(ctx)]
     for sp in _in_order(sections, "lead"):  # whole-table sections that lead the report
@@ -66,18 +80,6 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     write_text_atomic(out / REPORT_NAME, "\n".join(d.rstrip() + "\n" for d in doc))
     if html:
         write_html_report(ctx)
-    drop_stale_figures(ctx)
-    return ctx
-
-
-def drop_stale_figures(ctx: ReportContext) -> None:
-    """Remove the PNGs of OUT/figures that this report did not write: only once the report is
-    written, so that a report that fails part-way leaves the last report's figures in place."""
-    written = {Path(rel).name for rel in ctx.figures}
-    if ctx.fig_dir.is_dir():
-        for old in ctx.fig_dir.glob("*.png"):
-            if old.name not in written:
-                old.unlink()
 
 
 def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:

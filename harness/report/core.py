@@ -50,15 +50,15 @@ from contactbench.plugins import PluginRegistry
 from contactbench.problems.scenes import all_scenes
 
 from ..table import aggregates as agg
-from ..table.meta import commands_of
+from ..table.meta import commands_of, planned_runs
 from .charts import Chart, RowChart
+from .figure_files import FIGURE_DIR, staging_dir
 from .panels import blank_panels
 from .style import DEFAULT_FAMILY, SolverStyles
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finite, as_text, bool_series
 from ..table.store import load_table
 
 REPORT_NAME = "report.md"
-FIGURE_DIR = "figures"
 #: Values below this are drawn at this floor on log axes (exact zeros, round-off).
 LOG_FLOOR = 1e-16
 #: Profiles from tightest to loosest: figures of the paper use the first one present
@@ -132,8 +132,8 @@ class ReportContext:
     _fig_no: int = 0
 
     @property
-    def fig_dir(self) -> Path:
-        return self.out_dir / FIGURE_DIR
+    def fig_dir(self) -> Path:  # where this report renders its figures (figure_files.py)
+        return staging_dir(self.out_dir)
 
     def rows(self, scene: str) -> pd.DataFrame:
         return self.table[self.table["scene"] == scene]
@@ -388,17 +388,6 @@ def report_view(df: pd.DataFrame) -> pd.DataFrame:
     return d
 
 
-def load_meta(out_dir: str | Path) -> dict[str, Any]:
-    p = Path(out_dir) / "meta.json"
-    if not p.is_file():
-        return {}
-    try:
-        meta = json.loads(p.read_text())
-    except json.JSONDecodeError as e:
-        raise ReportInputError(f"{p} is not valid JSON: {e}") from None
-    return meta if isinstance(meta, dict) else {"meta": meta}
-
-
 def parse_json(text: Any, default: Any) -> Any:
     if not isinstance(text, str) or not text.strip():
         return default
@@ -589,26 +578,27 @@ def _threads_text(v: Any) -> str | None:
     return ", ".join(parts) or None
 
 
-def planned_cells(meta: dict[str, Any]) -> int | None:
-    """How many cells the run's plan has (meta.json ``config.cells``, written by the
-    runner); None for a folder written before it was recorded."""
-    cells = (meta.get("config") or {}).get("cells")
-    return int(cells) if isinstance(cells, (int, float)) and not isinstance(cells, bool) else None
-
-
 def cells_text(meta: dict[str, Any], t: pd.DataFrame) -> str | None:
-    """The header's "Cells" line: the cells with a row against the plan's, and "partial
+    """The header's "Cells" line: the cells with a row against the plans', and "partial
     run" when fewer (an interrupted run, or one still to be resumed); None without a
-    recorded plan.  A folder added to with ``--append`` holds the cells of several plans;
-    it is compared with the last one's."""
-    planned = planned_cells(meta)
-    if planned is None:
+    recorded plan.  A folder added to with ``--append`` holds the cells of several plans,
+    which may share cells: it is complete when its cells reach the plans' sum, partial when
+    they fall short of the largest plan, and otherwise not decided here."""
+    plans = planned_runs(meta)
+    if not plans:
         return None
     done = int(t["cell_id"].nunique()) if "cell_id" in t.columns else len(t)
-    if done < planned:
-        return (f"PARTIAL RUN: {done} of {planned} planned cells have a row ({planned - done} missing: the run "
+    largest, total = max(plans), sum(plans)
+    if done < largest:
+        return (f"PARTIAL RUN: {done} of {largest} planned cells have a row ({largest - done} missing: the run "
                 "was interrupted or has not finished; run the same command again to resume it)")
-    return f"{done} of {planned} planned cells (complete)"
+    if len(plans) == 1:
+        return f"{done} of {largest} planned cells (complete)"
+    if done >= total:
+        return f"{done} of {total} planned cells over {len(plans)} runs added with --append (complete)"
+    return (f"{done} cells with a row; {len(plans)} runs added with --append planned {' + '.join(map(str, plans))} "
+            "cells, some of them perhaps the same: complete only if every run finished (resume one with its own "
+            "command)")
 
 
 def status_counts(t: pd.DataFrame) -> str:

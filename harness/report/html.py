@@ -134,7 +134,7 @@ def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:
 def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:
     out = []
     for rel in ctx.page_figures:  # the figures a section saved with on_page=True
-        data = base64.b64encode((ctx.out_dir / rel).read_bytes()).decode("ascii")
+        data = base64.b64encode((ctx.fig_dir / Path(rel).name).read_bytes()).decode("ascii")
         out.append({"name": Path(rel).name, "src": f"data:image/png;base64,{data}"})
     return out
 

@@ -37,7 +37,7 @@ from typing import Any, Sequence
 from contactbench.problems.scenes import SceneConfig
 
 from .executors import Executor, local_executor
-from ..table.meta import build_meta, surface_preprocessing, write_meta
+from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
 from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
 
@@ -101,7 +101,7 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     """Plan, check the folder, run the missing cells on ``executor`` (default: serial, or
     a process pool for ``run.jobs > 1``), write the tidy table and meta.json (module doc).
 
-    Refusals (``PlanError``, ``RunFolderError``, ``FolderInUseError``: all
+    Refusals (``PlanError``, ``RunFolderError``, ``FolderInUseError``, ``MetaError``: all
     ``ProblemInputError``) come before anything is written; the lock is held only while
     the run writes.  ``append``: add to a folder that holds a run of another
     configuration."""
@@ -114,6 +114,7 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     config = run_config_record(scenes, cfg, plan, run)
     identity = run_identity(config)
     check_run_folder(out_dir, identity, append, run_identity)
+    read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
     with holding_lock(out_dir):
         folder = check_run_folder(out_dir, identity, append, run_identity)  # again, now that we hold the lock
         for w in plan.warnings:

@@ -14,6 +14,7 @@ command that wrote to the folder, in order: ``commands_of``).
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import socket
@@ -25,12 +26,17 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Iterable
 
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import InstanceSpec, SceneConfig
 from contactbench.problems.scenes.core import surface_from_params
 
 from .files import write_text_atomic
 
 META_FILE = "meta.json"
+
+
+class MetaError(ProblemInputError):
+    """OUT/meta.json that is not a JSON object (the run's record): named, never replaced."""
 
 PACKAGES = (
     "contactbench", "numpy", "scipy", "pandas", "pyarrow", "qpsolvers", "osqp", "clarabel", "proxsuite", "piqp",
@@ -163,14 +169,10 @@ def build_meta(command: list[str] | None = None, config: dict[str, Any] | None =
 
 def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
     """Write OUT/meta.json; a resumed run keeps the first record and lists itself under
-    ``invocations``."""
+    ``invocations``.  A record that cannot be read is not replaced (``read_meta``'s
+    ``MetaError``)."""
     path = Path(out_dir) / META_FILE
-    previous: dict[str, Any] = {}
-    if path.exists():
-        try:
-            previous = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
-            previous = {}
+    previous = read_meta(out_dir)
     invocations = list(previous.get("invocations", []))
     invocations.append({k: record.get(k) for k in ("date", "command", "git", "config")})
     merged = {**record, **{k: v for k, v in previous.items() if k in ("date", "command")}}
@@ -193,9 +195,41 @@ def commands_of(meta: dict[str, Any]) -> list[str]:
     return [c for c in dict.fromkeys(found) if c]
 
 
+def planned_cells(config: Any) -> int | None:
+    """How many cells a run's plan has (its meta.json ``config.cells``, written by the
+    runner); None for a folder written before it was recorded, or a count that is not one."""
+    cells = (config if isinstance(config, dict) else {}).get("cells")
+    ok = isinstance(cells, (int, float)) and not isinstance(cells, bool) and math.isfinite(cells) and cells >= 1
+    return int(cells) if ok else None
+
+
+def planned_runs(meta: dict[str, Any]) -> list[int]:
+    """The cells of each distinct plan that wrote to the folder (``invocations``' configs; a
+    resume of a plan is the same plan), or of ``config`` alone in a record without them."""
+    configs = [inv.get("config") for inv in meta.get("invocations") or [] if isinstance(inv, dict)]
+    plans: dict[str, int] = {}
+    for config in configs or [meta.get("config")]:
+        cells = planned_cells(config)
+        if cells is not None:
+            what = {k: config.get(k) for k in ("scenes", "scene_config", "solvers", "profiles", "cells")}
+            plans.setdefault(json.dumps(what, sort_keys=True, default=str), cells)
+    return list(plans.values())
+
+
 def read_meta(out_dir: str | os.PathLike[str]) -> dict[str, Any]:
+    """OUT/meta.json ({} where there is none); ``MetaError`` naming the file where it is not
+    a JSON object."""
     path = Path(out_dir) / META_FILE
-    return json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    if not path.exists():
+        return {}
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise MetaError(f"{path} is not valid JSON ({exc}); repair or remove it") from None
+    if not isinstance(meta, dict):
+        raise MetaError(f"{path} holds a JSON {type(meta).__name__}, not a run's record (an object); "
+                        "repair or remove it")
+    return meta
 
 
 def scene_config_from_meta(meta: dict[str, Any]) -> SceneConfig:

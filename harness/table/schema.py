@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Final
 
+import numpy as np
 import pandas as pd
 
 
@@ -272,3 +273,26 @@ def check_table(df: pd.DataFrame, source: object = "the table") -> None:
         if bad:
             raise TableError(f"unknown verdict value(s) {bad} in {source}; expected one of {', '.join(VERDICTS)} "
                              f"or empty")
+    for c in COLUMNS.values():
+        if c.name in df.columns and c.dtype in ("float64", "Int64"):
+            check_numbers(df[c.name], c.name, source)
+
+
+def check_numbers(col: pd.Series, name: str, source: object) -> None:
+    """Raise TableError for an entry of a numeric column that is text but no number (a
+    corrupted or hand-edited table: never read as missing), or a negative duration (the
+    ``_s`` columns: seconds)."""
+    if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
+        values = col.astype("float64")
+    else:
+        blank = col.map(lambda v: _missing(v) or as_text(v).strip() == "").to_numpy(dtype=bool)
+        values = pd.to_numeric(col.where(~blank, None), errors="coerce")
+        unread = np.flatnonzero(~blank & values.isna().to_numpy())
+        if unread.size:
+            raise TableError(f"column {name} of {source} holds {col.iloc[unread[0]]!r}, not a number "
+                             f"(row {int(unread[0]) + 1}; {unread.size} such row(s))")
+    if name.endswith("_s"):
+        below = np.flatnonzero((values < 0).to_numpy(dtype=bool, na_value=False))
+        if below.size:
+            raise TableError(f"column {name} of {source} holds a negative duration, {values.iloc[below[0]]} s "
+                             f"(row {int(below[0]) + 1})")

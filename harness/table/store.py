@@ -46,6 +46,7 @@ import fcntl
 import hashlib
 import json
 import logging
+import csv
 import os
 import socket
 import time
@@ -594,9 +595,36 @@ os.register_at_fork(after_in_child=_close_held_in_child)
 
 
 def _read_csv(path: Path) -> pd.DataFrame:
-    text = {c: "string" for c in columns_of("string")}
-    head = pd.read_csv(path, nrows=0).columns
-    return pd.read_csv(path, dtype={c: t for c, t in text.items() if c in head}, keep_default_na=True)
+    """results.csv as written; ``TableError`` naming the file for one that cannot be read as
+    such (not text, not CSV) or whose last row is cut short (``cut_short``)."""
+    try:
+        text = {c: "string" for c in columns_of("string")}
+        head = pd.read_csv(path, nrows=0).columns
+        df = pd.read_csv(path, dtype={c: t for c, t in text.items() if c in head}, keep_default_na=True)
+        if cut_short(path, len(head)):
+            raise TableError(f"{path} ends in the middle of its row {len(df)} (a truncated table?): "
+                             "restore it, or remove it to read the run's rows.jsonl")
+        return df
+    except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        lines = str(exc).splitlines()
+        raise TableError(f"{path} cannot be read as a results table ({type(exc).__name__}"
+                         f"{': ' + lines[0] if lines else ''})") from None
+
+
+def cut_short(path: Path, fields: int) -> bool:
+    """Whether the CSV file's last record has fewer than ``fields`` fields: a file that does
+    not end its last row with a newline, read to its last record."""
+    with open(path, "rb") as f:
+        if f.seek(0, os.SEEK_END) == 0:
+            return False
+        f.seek(-1, os.SEEK_END)
+        if f.read(1) == b"\n":
+            return False
+    with open(path, newline="", encoding="utf-8") as f:
+        last: list[str] = []
+        for last in csv.reader(f):
+            pass
+    return len(last) < fields
 
 
 def _read_run_dir(out: Path) -> pd.DataFrame:

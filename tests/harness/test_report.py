@@ -203,6 +203,43 @@ def test_bad_tables_give_clear_errors(tmp_path: Path) -> None:
         build_report(tmp_path)
 
 
+def test_a_corrupted_csv_is_named_not_read_as_rows(tmp_path: Path) -> None:
+    """A results.csv cut off in a row, with text in a number column, a negative time or bytes
+    that are not text: one error naming the file (and row), no report from half a row."""
+    df = fabricate_table()
+    whole = tmp_path / "whole"
+    write_out(whole, df, fmt="csv")
+    text = (whole / "results.csv").read_text()
+    cases = {
+        "cut": (text[: len(text) * 2 // 3], "ends in the middle of its row"),
+        "word": (None, "not a number"),
+        "negative": (None, "negative duration"),
+        "binary": (b"\xff\xfe\x00\x01garbage\n", "cannot be read as a results table"),
+    }
+    for name, (content, match) in cases.items():
+        out = tmp_path / name
+        if name == "word":
+            bad = df.astype({"step": "object"})
+            bad.loc[3, "step"] = "x"
+            write_out(out, bad, fmt="csv")
+        elif name == "negative":
+            bad = df.copy()
+            bad.loc[2, "solve_time_s"] = -1.0
+            write_out(out, bad, fmt="csv")
+        else:
+            write_out(out, df, fmt="csv")
+            f = out / "results.csv"
+            f.write_bytes(content) if isinstance(content, bytes) else f.write_text(content)
+        with pytest.raises(rp.ReportInputError, match=match) as err:
+            build_report(out, html=False)
+        assert f"{name}" in str(err.value), name  # the folder or its results.csv
+        assert not (out / "report.md").exists() and not list(out.glob("figures/*.png")), name
+    no_newline = tmp_path / "no-newline"
+    write_out(no_newline, df, fmt="csv")
+    (no_newline / "results.csv").write_text(text.rstrip("\n"))  # a whole last row without its newline: read
+    assert load_table(no_newline).shape[0] == len(df)
+
+
 def test_a_registered_section_is_rendered_for_its_scene(tmp_path: Path) -> None:
     df = fabricate_table()
     new = df[(df["scene"] == "hertz") & (df["solver"] == "nnls")].assign(scene="test-new-scene")
@@ -431,8 +468,9 @@ def test_at_33_solvers_no_panel_draws_more_than_ten_and_no_family_vanishes(tmp_p
 
 
 def test_a_report_failing_part_way_keeps_the_last_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The figures of the last report stay until a new report is written; then a PNG it did not
-    write (stale) goes."""
+    """The figures of the last report stay, byte for byte, until a new report is written, and
+    a report that fails part-way leaves no figure of its own; then a PNG the last report
+    wrote and the new one does not (stale) goes, and a PNG no report wrote (the user's) stays."""
     out = write_out(tmp_path, fabricate_table())
     build_report(out)
     before = {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")}
@@ -445,10 +483,18 @@ def test_a_report_failing_part_way_keeps_the_last_figures(tmp_path: Path, monkey
         m.setattr(rce, "violation_counts", broken)
         with pytest.raises(RuntimeError, match="part-way"):
             build_report(out)
-    assert {p.name for p in (out / "figures").glob("*.png")} == set(before)
-    (out / "figures" / "stale.png").write_bytes(next(iter(before.values())))
+    assert {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")} == before
+    assert sorted(p.name for p in (out / "figures").iterdir() if p.is_dir()) == []  # nothing staged is left
+    (out / "figures" / "mine.png").write_bytes(b"the user's own figure")
+    gone = "wp-hertz.png"
+    assert gone in before
+    table = fabricate_table()
+    write_out(out, table[table["scene"] != "hertz"])
     build_report(out)
-    assert {p.name for p in (out / "figures").glob("*.png")} == set(before)
+    after = {p.name for p in (out / "figures").glob("*.png")}
+    assert gone not in after and "mine.png" in after
+    assert (out / "figures" / "mine.png").read_bytes() == b"the user's own figure"
+    assert set(before) - after == {n for n in before if "hertz" in n}
 
 
 def test_a_run_without_a_reference_draws_no_empty_error_panel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from contactbench.harness import run_benchmark
-from contactbench.harness.report.core import ReportContext, header_section, load_meta, read_table
+from contactbench.harness.report.core import ReportContext, header_section, read_table
 from contactbench.harness.run.plan import RunConfig
-from contactbench.harness.table.meta import META_FILE
+from contactbench.harness.table.meta import META_FILE, read_meta
 from contactbench.harness.table.store import ROWS_FILE
 from contactbench.problems.scenes import SceneConfig
 
@@ -31,7 +31,7 @@ def whole(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def header(out: Path) -> str:
     """report.md's header (``header_section``, as ``build_report`` writes it first)."""
-    return header_section(ReportContext(out, read_table(out), load_meta(out))).split("*Table 1", 1)[0]
+    return header_section(ReportContext(out, read_table(out), read_meta(out))).split("*Table 1", 1)[0]
 
 
 def test_the_plan_records_its_cells_and_a_whole_run_says_complete(whole: Path) -> None:
@@ -56,5 +56,45 @@ def test_a_folder_without_a_recorded_plan_says_nothing_of_cells(whole: Path, tmp
     shutil.copytree(whole, out)
     meta = json.loads((out / META_FILE).read_text())
     del meta["config"]["cells"]
+    for inv in meta["invocations"]:
+        del inv["config"]["cells"]
     (out / META_FILE).write_text(json.dumps(meta))
     assert "| Cells |" not in header(out)
+
+
+def test_a_run_appended_to_an_interrupted_one_leaves_the_folder_partial(whole: Path, tmp_path: Path) -> None:
+    """--append adds a plan of its own: the folder is complete only when the first plan is too
+    (the count is not compared with the last plan alone)."""
+    out = tmp_path / "appended"
+    shutil.copytree(whole, out)
+    lines = (out / ROWS_FILE).read_text(encoding="utf-8").splitlines(keepends=True)
+    (out / ROWS_FILE).write_text("".join(lines[:2]), encoding="utf-8")
+    for name in ("results.parquet", "results.csv"):
+        (out / name).unlink()
+    small = SceneConfig(size=16, steps=1, seeds=(0,))
+    run_benchmark(["hertz"], SceneConfig(size=16), ["scipy-nnls"], RUN, out, command=["pytest", "hertz"], append=True)
+    top = header(out)
+    assert "PARTIAL RUN: 3 of 6 planned cells have a row" in top and "(complete)" not in top
+    whole2 = tmp_path / "two-whole"
+    shutil.copytree(whole, whole2)
+    run_benchmark(["paper-sweep"], small, ["pk"], RUN, whole2, command=["pytest", "pk"], append=True)
+    assert "| Cells | 7 of 7 planned cells over 2 runs added with --append (complete) |" in header(whole2)
+
+
+@pytest.mark.parametrize("text", ["[1, 2]", "not json", '{"config": {"cells": -5}}'])
+def test_a_broken_meta_json_is_named_or_read_as_no_plan(whole: Path, tmp_path: Path, text: str) -> None:
+    """A meta.json that is not a run's record: the report and a resumed run refuse it in one
+    line naming the file, and it is left as it was; a plan of -5 cells is no plan."""
+    from contactbench.harness.cli import main
+
+    out = tmp_path / "broken"
+    shutil.copytree(whole, out)
+    (out / META_FILE).write_text(text)
+    if text.startswith("{"):
+        assert "| Cells |" not in header(out)
+        return
+    assert main(["report", str(out)]) == 2
+    argv = ["run", "paper-sweep", "--size", "16", "--steps", "3", "--seeds", "0", "--solvers", ",".join(SOLVERS),
+            "--reference", "none", "--no-warmup", "--no-progress", "--out", str(out)]
+    assert main(argv) == 2
+    assert (out / META_FILE).read_text() == text

@@ -10,6 +10,7 @@ line (what a kill mid-write leaves)."""
 
 from __future__ import annotations
 
+import json
 import shutil
 import types
 from pathlib import Path
@@ -162,3 +163,28 @@ def test_policy_reads_only_earlier_steps_whatever_the_order_rows_arrive() -> Non
         assert not policy.decide("fake-growing", ("fake-growing", "default"), small, step=3).skip
     assert forward.observations(("fake-growing", "default"), 4) == [(7, 0.06), (16, 0.256)]
     assert forward.first_timeout(("fake-growing", "default"), 6).step == 5
+
+
+def test_a_resumed_step_keeps_the_reference_its_first_answer_served(tmp_path: Path) -> None:
+    """The run's own exact answer serves as a step's reference, and its row comes first.  A
+    run interrupted just after that row finds the stored answer on resume (it is no longer
+    among the solvers to run), so every row of the step is measured against the same
+    reference as in the uninterrupted run."""
+    cfg = SceneConfig(size=16, steps=2, seeds=(0,))
+    run = RunConfig(reference="auto", warmup=False, progress=False)
+    solvers = ["pk", "nnls", "bvls"]
+    whole = tmp_path / "whole"
+    run_benchmark(["paper-sweep"], cfg, solvers, run, whole, command=["pytest"])
+    first = load_table(whole)
+    order = [(r["step"], r["solver"]) for r in map(json.loads, (whole / ROWS_FILE).read_text().splitlines())]
+    served = first.set_index(["step", "solver"])["reference_solver"]
+    server = served[order[len(solvers)]].split("@")[0]  # the server of step 1 runs first there
+    assert order[len(solvers)] == (1, server)
+    out = tmp_path / "cut"
+    interrupted_copy(whole, out, len(solvers) + 1)  # step 0, and the server's row of step 1
+    run_benchmark(["paper-sweep"], cfg, solvers, run, out, command=["pytest"])
+    again = load_table(out).set_index(["step", "solver"]).sort_index()
+    before = first.set_index(["step", "solver"]).sort_index()
+    assert (again["reference_solver"] == before["reference_solver"]).all(), again["reference_solver"]
+    assert (again.loc[1, "reference_solver"] == f"{server}@default").all()
+    pd.testing.assert_series_equal(again["p_rel_error"], before["p_rel_error"], rtol=1e-6, atol=1e-15)
