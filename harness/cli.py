@@ -508,7 +508,11 @@ def _main(argv: list[str]) -> int:
         if args.command == "export":
             return cmd_export(args)
     except KeyboardInterrupt:
-        print("interrupted: rows so far are kept; run the same command again to finish", file=sys.stderr)
+        if args.command == "export":
+            print(f"interrupted: the export in {args.out} is incomplete (its manifest.json says so); run the same "
+                  "command again to finish it", file=sys.stderr)
+        else:
+            print("interrupted: rows so far are kept; run the same command again to finish", file=sys.stderr)
         return 130
     except (ProblemInputError, KeyError, ValueError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc

@@ -26,12 +26,24 @@ says what was skipped.  A step with no unknown (n = 0) is skipped too.
 folder an export wrote (its manifest.json names the tool) is written over, and any other
 non-empty folder is refused and left as it is (``check_export_folder``).  The scene
 options are checked first by the same rules as a run's (``scenes.options.check_config``).
+
+The manifest is written before anything else, marked ``"complete": false`` and listing
+what of the folder is an export's (``owned_folders``: problem directories, each added
+before it is written; ``owned_files``: ``problems.h5`` or a Parquet file), so a folder
+whose export was interrupted is still an export's folder and the same command can be
+run again into it.  At the end the manifest is rewritten with ``"complete": true`` and
+the QP list; before that, whatever an earlier export wrote there and this one does not
+is removed: its problem directories that hold nothing but files of the problem
+directory format (``qpfile.PROBLEM_DIR_FILES``) and its ``problems.h5`` or Parquet
+file.  Nothing else in the folder is touched; a problem directory that is written
+again holds only the new QP's files (``qpfile.write_problem_dir``).
 """
 
 from __future__ import annotations
 
 import itertools
 import json
+import os
 import re
 import tempfile
 from dataclasses import asdict, dataclass, field
@@ -42,7 +54,14 @@ import numpy as np
 
 from .errors import ProblemInputError
 from .instances import ContactInstance
-from .qpfile import DENSE_LIMIT, problem_json, problem_payload, read_problem_dir, write_problem_dir
+from .qpfile import (
+    DENSE_LIMIT,
+    PROBLEM_DIR_FILES,
+    problem_json,
+    problem_payload,
+    read_problem_dir,
+    write_problem_dir,
+)
 from .scenes import SceneConfig, get_scene
 from .scenes.options import check_config
 
@@ -50,6 +69,8 @@ FORMATS = ("problem-dir", "hdf5", "qpbenchmark")
 #: The manifest's ``tool``: what marks a folder as an export's (``check_export_folder``).
 EXPORT_TOOL = "contactbench export"
 MANIFEST_FILE = "manifest.json"
+#: The file of the hdf5 format.
+HDF5_FILE = "problems.h5"
 #: qpbenchmark's ProblemList columns, in its order.
 QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
 
@@ -123,8 +144,12 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
     first = next(steps, None)  # the options and inputs are checked before the folder is made
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = ExportSummary(scene_name, fmt, str(out_dir), limit)
+    folders, files = owned_paths(out_dir)
+    format_file = _format_file(fmt, scene_name)
+    files |= set() if format_file is None else {format_file}
+    write_progress(summary, folders, files)
     rows: dict[str, list[Any]] = {k: [] for k in QPBENCHMARK_KEYS}
-    h5 = h5py.File(out_dir / "problems.h5", "w") if fmt == "hdf5" else None
+    h5 = h5py.File(out_dir / HDF5_FILE, "w") if fmt == "hdf5" else None
     try:
         for instance, k, inst in itertools.chain([] if first is None else [first], steps):
             name = problem_name(instance, k)
@@ -136,6 +161,9 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
                 summary.skipped.append({"name": name, "n": inst.n, "reason": f"n > dense limit {limit} (P must be dense)"})
                 continue
             if fmt == "problem-dir":
+                if name not in folders:  # listed before it exists, so an interrupted export still owns it
+                    folders.add(name)
+                    write_progress(summary, folders, files)
                 write_problem_dir(inst, out_dir / name, tol=tol, time_limit=None, dense_limit=limit)
             elif fmt == "hdf5":
                 write_hdf5_group(h5, name, inst, tol=tol, dense_limit=limit)
@@ -146,9 +174,62 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
         if h5 is not None:
             h5.close()
     if fmt == "qpbenchmark":
-        write_parquet(rows, out_dir / f"{_file_safe(scene_name)}.parquet")
+        write_parquet(rows, out_dir / str(format_file))
+    written = {q.name for q in summary.written} if fmt == "problem-dir" else set()
+    remove_owned(out_dir, folders - written, files - {format_file})
     write_manifest(summary, out_dir / MANIFEST_FILE)
     return summary
+
+
+def _format_file(fmt: str, scene_name: str) -> str | None:
+    """The one file a format writes in the folder (None: problem-dir writes folders)."""
+    return {"hdf5": HDF5_FILE, "qpbenchmark": f"{_file_safe(scene_name)}.parquet"}.get(fmt)
+
+
+def _own_name(name: Any) -> bool:
+    """Whether ``name`` can be the name of something an export wrote in its folder (a plain
+    file-safe name: never a path, ``.`` or ``..``)."""
+    return isinstance(name, str) and name not in ("", ".", "..") and _file_safe(name) == name
+
+
+def owned_paths(out_dir: Path) -> tuple[set[str], set[str]]:
+    """(problem directory names, file names) in ``out_dir`` that the export whose manifest
+    is there wrote (module doc): the lists of an incomplete manifest, else the QPs of a
+    problem-dir export or the file of an hdf5 or qpbenchmark one; empty sets without an
+    export's manifest."""
+    try:
+        doc = json.loads((out_dir / MANIFEST_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return set(), set()
+    if not isinstance(doc, dict) or doc.get("tool") != EXPORT_TOOL:
+        return set(), set()
+    if doc.get("complete") is False:
+        folders, files = doc.get("owned_folders"), doc.get("owned_files")
+    else:
+        qps = doc.get("qps") if doc.get("format") == "problem-dir" else None
+        folders = [q.get("name") for q in qps if isinstance(q, dict)] if isinstance(qps, list) else []
+        files = [_format_file(str(doc.get("format")), str(doc.get("scene")))]
+    return ({n for n in folders if _own_name(n)} if isinstance(folders, list) else set(),
+            {n for n in files if _own_name(n)} if isinstance(files, list) else set())
+
+
+def remove_owned(out_dir: Path, folders: set[str], files: set[str]) -> None:
+    """Remove the problem directories ``folders`` of ``out_dir`` that hold nothing but
+    regular files of the problem directory format, and the regular files ``files``;
+    anything else is left as it is."""
+    for name in sorted(folders):
+        d = out_dir / name
+        if not d.is_dir() or d.is_symlink():
+            continue
+        entries = list(d.iterdir())
+        if all(e.name in PROBLEM_DIR_FILES and e.is_file() and not e.is_symlink() for e in entries):
+            for e in entries:
+                e.unlink()
+            d.rmdir()
+    for name in sorted(files):
+        f = out_dir / name
+        if f.is_file() and not f.is_symlink():
+            f.unlink()
 
 
 def _finite(x: float) -> float | None:
@@ -259,7 +340,8 @@ def check_export_folder(out: str | Path) -> Path:
 
 
 def is_export_folder(out_dir: Path) -> bool:
-    """Whether ``out_dir`` holds the manifest of an export (``EXPORT_TOOL``)."""
+    """Whether ``out_dir`` holds the manifest of an export (``EXPORT_TOOL``), complete or
+    not (module doc)."""
     try:
         doc = json.loads((out_dir / MANIFEST_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -268,9 +350,26 @@ def is_export_folder(out_dir: Path) -> bool:
 
 
 def write_manifest(summary: ExportSummary, path: Path) -> Path:
-    doc = {"tool": EXPORT_TOOL, "scene": summary.scene, "format": summary.fmt, "dense_limit": summary.dense_limit,
-           "qps": [asdict(q) for q in summary.written], "skipped": summary.skipped}
-    path.write_text(json.dumps(doc, indent=2) + "\n")
+    """The complete manifest of a finished export (module doc)."""
+    doc = {"tool": EXPORT_TOOL, "complete": True, "scene": summary.scene, "format": summary.fmt,
+           "dense_limit": summary.dense_limit, "qps": [asdict(q) for q in summary.written],
+           "skipped": summary.skipped}
+    return _write_json(path, doc)
+
+
+def write_progress(summary: ExportSummary, folders: set[str], files: set[str]) -> Path:
+    """The manifest of an export under way (module doc): ``"complete": false`` and what of
+    the folder is an export's."""
+    doc = {"tool": EXPORT_TOOL, "complete": False, "scene": summary.scene, "format": summary.fmt,
+           "dense_limit": summary.dense_limit, "owned_folders": sorted(folders), "owned_files": sorted(files)}
+    return _write_json(Path(summary.out) / MANIFEST_FILE, doc)
+
+
+def _write_json(path: Path, doc: dict[str, Any]) -> Path:
+    """``doc`` into ``path`` whole or not at all (written beside it, then renamed over it)."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
     return path
 
 

@@ -11,8 +11,12 @@ Problem directory
 ``problem.json``::
 
     {"format": "contactbench-qp/1", "n": 400, "grid": [20, 20], "spacing": 1.0,
-     "E": 0.01, "kernel": "bcc", "periodic": false, "tol": 1e-08, "time_limit": 60.0,
+     "spacing1": 1.0, "E": 0.01, "kernel": "bcc", "periodic": false, "tol": 1e-08, "time_limit": 60.0,
      "arrays": {"ubar": {"file": "ubar.f64", "dtype": "<f8", "shape": [400]}, ...}}
+
+``grid`` is [N1, N2]: N1 points along axis 0 (grid index i), N2 along axis 1 (index j);
+``spacing`` is the grid spacing along axis 0 and ``spacing1`` the one along axis 1 (a
+reader of a file without ``spacing1`` takes it equal to ``spacing``: square pixels).
 
 The arrays (each listed under ``"arrays"`` with its file, dtype and shape):
 
@@ -36,7 +40,8 @@ Its ``problem.json`` adds ``"load"``: null, or the total force P of the equality
 w = Hp - ubar - Delta with w >= 0 where p = 0, w <= 0 where p = upper, w = 0 in between.
 
 A QP without a grid (a generic SPD matrix of the conformance battery) has ``"grid":
-null``, ``"kernel": null`` and no ``index`` or ``kernel_table``: only ``H``.
+null``, ``"spacing": null``, ``"spacing1": null``, ``"kernel": null`` and no ``index`` or
+``kernel_table``: only ``H``.
 
 Solution directory
 ------------------
@@ -74,6 +79,11 @@ DENSE_LIMIT = int(os.environ.get("CONTACTBENCH_QPFILE_DENSE_LIMIT", "4096"))
 #: File names of the arrays in a problem directory.
 ARRAY_FILES = {"ubar": "ubar.f64", "index": "index.i64", "H": "H.f64", "kernel_table": "kernel_table.f64",
                "p0": "p0.f64", "upper": "upper.f64"}
+#: The file of a problem directory that describes it.
+PROBLEM_JSON = "problem.json"
+#: Every file name the format defines for a problem directory: what ``write_problem_dir``
+#: may write (and remove) there.
+PROBLEM_DIR_FILES = frozenset({PROBLEM_JSON, *ARRAY_FILES.values()})
 #: File names of a solution directory.
 SOLUTION_P, SOLUTION_W, SOLUTION_JSON = "p.f64", "w.f64", "solution.json"
 #: Statuses of solution.json that claim convergence (no status at all claims it too).
@@ -131,7 +141,7 @@ def problem_kernel_table(qp: QP, phys: _Physics) -> np.ndarray | None:
     g = qp.geometry
     if g is None or phys.kernel not in KERNELS or phys.E is None:
         return None
-    table = kernel_table(phys.kernel, g.grid_shape, g.delta, phys.E, phys.periodic)
+    table = kernel_table(phys.kernel, g.grid_shape, g.spacing, phys.E, phys.periodic)
     return table if _table_matches(table, g, qp.H) else None
 
 
@@ -178,7 +188,8 @@ def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, 
         "format": FORMAT if c.plain else FORMAT_CONSTRAINED,
         "n": int(n),
         "grid": None if g is None else [int(s) for s in g.grid_shape],
-        "spacing": None if g is None else float(g.delta),
+        "spacing": None if g is None else g.spacing[0],
+        "spacing1": None if g is None else g.spacing[1],
         "E": _finite_or_none(phys.E),
         "kernel": phys.kernel if table is not None else None,
         "periodic": bool(phys.periodic),
@@ -201,13 +212,24 @@ def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.
                       dense_limit: int = DENSE_LIMIT) -> Path:
     """Write the problem directory of a QP (module doc) into ``directory`` (created if
     needed) and return its path.  ``tol`` is the scaled KKT error to reach and
-    ``time_limit`` the seconds allowed (either may be None: written as null)."""
+    ``time_limit`` the seconds allowed (either may be None: written as null).
+
+    The directory ends up holding exactly this QP's files of the format: a file of
+    ``PROBLEM_DIR_FILES`` that this QP does not write (an array of a QP written there
+    before) is removed; files of other names are left as they are.  ``problem.json`` is
+    removed first and written last, so a directory whose writing stopped part-way has
+    none."""
     doc, arrays = problem_payload(qp_or_instance, tol=tol, time_limit=time_limit, p0=p0, dense_limit=dense_limit)
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
+    written = {ARRAY_FILES[name] for name in arrays}
+    for file in sorted(PROBLEM_DIR_FILES - written):
+        path = out / file
+        if path.is_file() and not path.is_symlink():
+            path.unlink()
     for name, a in arrays.items():
         a.tofile(out / ARRAY_FILES[name])
-    (out / "problem.json").write_text(problem_json(doc))
+    (out / PROBLEM_JSON).write_text(problem_json(doc))
     return out
 
 
@@ -236,6 +258,8 @@ class ProblemFile:
     extra: dict[str, Any] = field(default_factory=dict)
     upper: np.ndarray | None = None
     load: float | None = None
+    #: The spacing along axis 1 (``spacing`` is axis 0's); None: equal to ``spacing``.
+    spacing1: float | None = None
 
     def constraints(self) -> Constraints:
         """The QP's bounds and load equality (none for format 1)."""
@@ -253,8 +277,9 @@ class ProblemFile:
         flat = self.flat_indices
         if flat is None or self.grid is None:
             return None
-        return Geometry(self.grid, float(self.spacing or 1.0), flat, E=self.E, kernel=self.kernel,
-                        periodic=self.periodic)
+        d0 = float(self.spacing or 1.0)
+        d1 = None if self.spacing1 is None or float(self.spacing1) == d0 else float(self.spacing1)
+        return Geometry(self.grid, d0, flat, E=self.E, kernel=self.kernel, periodic=self.periodic, delta1=d1)
 
     def operator(self) -> ContactOperator:
         """H as an operator: dense from ``H`` when present, else the FFT operator of the
@@ -303,7 +328,7 @@ def read_problem_dir(directory: str | os.PathLike[str]) -> ProblemFile:
     """Read a problem directory written by ``write_problem_dir`` (or by anyone following
     the layout); bad content is a ``ProblemInputError`` naming the problem."""
     d = Path(directory)
-    doc = _read_json(d / "problem.json", "problem directory")
+    doc = _read_json(d / PROBLEM_JSON, "problem directory")
     if doc.get("format") not in READABLE_FORMATS:
         raise ProblemInputError(f"problem.json: format {doc.get('format')!r}, expected one of "
                                 f"{', '.join(map(repr, READABLE_FORMATS))}")
@@ -322,14 +347,26 @@ def read_problem_dir(directory: str | os.PathLike[str]) -> ProblemFile:
     upper = got.get("upper") if doc["format"] == FORMAT_CONSTRAINED else None
     if upper is not None and upper.shape != (n,):
         raise ProblemInputError(f"problem.json: upper has shape {list(upper.shape)}, n = {n}")
+    spacing, spacing1 = (_spacing(doc, key) for key in ("spacing", "spacing1"))
     return ProblemFile(
-        n=n, grid=None if grid is None else (int(grid[0]), int(grid[1])), spacing=doc.get("spacing"),
+        n=n, grid=None if grid is None else (int(grid[0]), int(grid[1])), spacing=spacing,
         E=doc.get("E"), kernel=doc.get("kernel"), periodic=bool(doc.get("periodic", False)),
         tol=doc.get("tol"), time_limit=doc.get("time_limit"), ubar=got["ubar"], index=got.get("index"),
         H=got.get("H"), kernel_table=got.get("kernel_table"), p0=got.get("p0"),
         extra={k: v for k, v in got.items() if k not in known},
         upper=None if upper is None else np.asarray(upper, dtype=np.float64),
-        load=None if load is None else float(load))
+        load=None if load is None else float(load),
+        spacing1=spacing if spacing1 is None else spacing1)
+
+
+def _spacing(doc: dict[str, Any], key: str) -> float | None:
+    """``doc[key]``: a positive number or null/absent (None); else a ``ProblemInputError``."""
+    v = doc.get(key)
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise ProblemInputError(f"problem.json: {key} must be a positive number or null, got {v!r}")
+    return float(v)
 
 
 # ---------------------------------------------------------------------------

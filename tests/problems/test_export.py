@@ -127,3 +127,114 @@ def test_cli_export_and_its_bad_input(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "error" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli.main(["export", "paper-sweep", "--format", "mps", "--out", str(out)])
+
+
+# ---------------------------------------------------------------------------
+# Writing into a folder written before; an interrupted export; rectangular pixels
+# ---------------------------------------------------------------------------
+
+
+def _files(d: Path) -> set[str]:
+    return {p.name for p in d.iterdir()}
+
+
+def test_a_problem_dir_written_again_holds_only_the_new_problems_files(tmp_path: Path) -> None:
+    from contactbench.problems.scenes.battery_families import constrained_instance
+    from contactbench.problems.qpfile import write_problem_dir
+
+    bounded = constrained_instance("hardness", 0)
+    d = write_problem_dir(bounded, tmp_path / "qp", tol=1e-8, time_limit=None, p0=np.ones(bounded.n))
+    assert {"H.f64", "p0.f64", "upper.f64"} <= _files(d)
+    (d / "notes.txt").write_text("not the harness's")
+    inst = next(iter(originals("counterexample", COUNTER).values()))
+    write_problem_dir(inst, d, tol=None, time_limit=None, dense_limit=inst.n - 1)
+    listed = {e["file"] for e in json.loads((d / "problem.json").read_text())["arrays"].values()}
+    assert _files(d) == listed | {"problem.json", "notes.txt"} and "H.f64" not in listed
+    pf = read_problem_dir(d)
+    assert pf.H is None and pf.p0 is None and pf.upper is None and pf.n == inst.n
+
+
+def test_exporting_again_removes_what_the_earlier_export_wrote_and_this_one_does_not(tmp_path: Path) -> None:
+    hertz = tmp_path / "N16-bcc-step0"
+    export_scene("hertz", SceneConfig(size=16), "problem-dir", tmp_path)
+    assert "H.f64" in _files(hertz)
+    export_scene("hertz", SceneConfig(size=16, E=2e9), "problem-dir", tmp_path, dense_limit=10)
+    assert "H.f64" not in _files(hertz) and read_problem_dir(hertz).E == 2e9
+    (tmp_path / "mine.txt").write_text("kept")
+    export_scene("counterexample", COUNTER, "problem-dir", tmp_path)  # this export does not write the hertz folder
+    assert _files(tmp_path) == {"manifest.json", "mine.txt", "n25-s0-step0", "n25-s1-step0"}
+    (tmp_path / "n25-s1-step0" / "notes.txt").write_text("not ours: the folder is kept whole")
+    export_scene("counterexample", COUNTER, "qpbenchmark", tmp_path)
+    assert _files(tmp_path) == {"manifest.json", "mine.txt", "n25-s1-step0", "counterexample.parquet"}
+    assert _files(tmp_path / "n25-s1-step0") >= {"notes.txt", "problem.json", "ubar.f64"}
+    export_scene("paper-sweep", SWEEP, "qpbenchmark", tmp_path)
+    assert "counterexample.parquet" not in _files(tmp_path) and "paper-sweep.parquet" in _files(tmp_path)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["complete"] is True and manifest["scene"] == "paper-sweep"
+
+
+def test_an_interrupted_export_leaves_a_folder_that_the_same_export_writes_again(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.harness import cli
+    from contactbench.problems import export
+
+    real_write = export.write_problem_dir
+    calls: list[Path] = []
+
+    def interrupted_write(inst: Any, directory: Path, **kw: Any) -> Path:
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        calls.append(Path(directory))
+        return real_write(inst, directory, **kw)
+
+    monkeypatch.setattr(export, "write_problem_dir", interrupted_write)
+    out = tmp_path / "pd"
+    argv = ["export", "counterexample", "--size", "5", "--seeds", "0,1", "--format", "problem-dir", "--out", str(out)]
+    assert cli.main(argv) == 130
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] is False and manifest["owned_folders"] == ["n25-s0-step0", "n25-s1-step0"]
+    assert export.check_export_folder(out) == out
+    monkeypatch.setattr(export, "write_problem_dir", real_write)
+    capsys.readouterr()
+    assert cli.main(argv) == 0, capsys.readouterr().err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] is True and [q["name"] for q in manifest["qps"]] == ["n25-s0-step0", "n25-s1-step0"]
+    # an interrupted export's folders go when another export is written there
+    monkeypatch.setattr(export, "write_problem_dir", interrupted_write)
+    calls.clear()
+    with pytest.raises(KeyboardInterrupt):
+        export_scene("paper-sweep", SWEEP, "problem-dir", out)
+    assert len(calls) == 1 and calls[0].is_dir()
+    monkeypatch.setattr(export, "write_problem_dir", real_write)
+    export_scene("hertz", SceneConfig(size=16), "problem-dir", out)
+    assert _files(out) == {"manifest.json", "N16-bcc-step0"}
+
+
+def test_rectangular_pixels_are_described_by_both_spacings(tmp_path: Path) -> None:
+    from contactbench.problems.instances import InstanceBuilder, paper_max_displacement
+    from contactbench.problems.surfaces import Surface, rmd_surface_n
+    from contactbench.problems.qpfile import write_problem_dir
+
+    scene = SceneConfig()
+    export_scene("stress-rectangular", scene, "problem-dir", tmp_path, dense_limit=10)
+    for name, inst in originals("stress-rectangular", scene).items():
+        d0, d1 = inst.qp.geometry.spacing
+        doc = json.loads((tmp_path / name / "problem.json").read_text())
+        assert doc["grid"] == [48, 32] and (doc["spacing"], doc["spacing1"]) == (d0, d1)
+        pf = read_problem_dir(tmp_path / name)
+        assert pf.geometry().spacing == (d0, d1)
+        np.testing.assert_allclose(pf.geometry().positions, inst.qp.geometry.positions)
+        assert_same_answer(pf.qp().H.to_dense(), pf.ubar, inst)
+    assert {json.loads((tmp_path / n / "problem.json").read_text())["spacing1"] / i.qp.geometry.delta
+            for n, i in originals("stress-rectangular", scene).items()} == {1.0, 1.5}
+    # a dense operator on rectangular pixels gets its kernel table too
+    square = rmd_surface_n(16, 0.7, length=100e-6, rms_height=1e-6, seed=0)
+    surf = Surface(np.array(square.heights[:12, :8]), square.delta, delta1=1.5 * square.delta)
+    dense = InstanceBuilder(surf, 1e9, "love", operator="dense").build(paper_max_displacement(surf))
+    pf = read_problem_dir(write_problem_dir(dense, tmp_path / "dense", tol=None, time_limit=None))
+    assert pf.kernel_table is not None and pf.spacing1 == 1.5 * square.delta
+    # a file without spacing1 (square pixels) reads as square
+    doc = json.loads((tmp_path / "dense" / "problem.json").read_text())
+    del doc["spacing1"]
+    (tmp_path / "dense" / "problem.json").write_text(json.dumps(doc))
+    assert read_problem_dir(tmp_path / "dense").geometry().spacing == (square.delta, square.delta)
