@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import re
 import shlex
 import shutil
 import signal
@@ -69,7 +70,8 @@ import numpy as np
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.kernels import KERNELS
-from contactbench.problems.qpfile import DENSE_LIMIT, SolutionFile, read_solution_dir, write_problem_dir
+from contactbench.problems.qpfile import (DENSE_LIMIT, SolutionFile, SolutionFileError, read_solution_dir,
+                                         write_problem_dir)
 
 from .base import (Capabilities, Outcome, ProblemTraits, Promise, SolveAborted, SolveContext, Solver, Status,
                    check_promise)
@@ -102,6 +104,11 @@ class ExternalSolverError(RuntimeError):
 # ---------------------------------------------------------------------------
 
 
+#: What an external solver's name may be: it is a row's label, a ``--solvers`` entry (where
+#: ',', '[' and ':' have meanings) and part of a folder's name (no '/').
+SOLVER_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]*")
+
+
 @dataclass(frozen=True)
 class ExternalSpec:
     """One manifest entry (module doc)."""
@@ -121,9 +128,10 @@ class ExternalSpec:
 
     def __post_init__(self) -> None:
         where = f" ({self.source})" if self.source else ""
-        if not self.name or any(c.isspace() for c in self.name) or ":" in self.name or "," in self.name:
-            raise ProblemInputError(f"external solver name {self.name!r}{where} must be non-empty, without "
-                                    "spaces, ':' or ','")
+        if not SOLVER_NAME.fullmatch(self.name):
+            raise ProblemInputError(f"external solver name {self.name!r}{where} must be letters, digits and "
+                                    "'.', '_', '+', '-', starting with a letter or digit (it names rows, "
+                                    "--solvers entries and folders)")
         if self.inputs not in INPUTS:
             raise ProblemInputError(f"external solver {self.name!r}{where}: inputs must be 'dense' or 'kernel', "
                                     f"got {self.inputs!r}")
@@ -330,6 +338,19 @@ def program_outcome(proc: ProcessResult, name: str, limit: float | None) -> None
         raise ExternalSolverError(f"external solver {name!r} exited with code {rc}{suffix}")
 
 
+def solution_of(proc: ProcessResult, solution: Path, n: int) -> SolutionFile:
+    """The answer a program that exited 0 wrote (``read_solution_dir``, p as written); a
+    ``SolutionFileError`` that says what is wrong with it carries the program's output tail,
+    as a failed exit does."""
+    try:
+        return read_solution_dir(solution, n, as_written=True)
+    except SolutionFileError as exc:
+        tail = proc.tail()
+        if not tail:
+            raise
+        raise SolutionFileError(f"{exc}\n{tail}") from None
+
+
 def solution_status(sol: SolutionFile) -> tuple[bool, Status, str]:
     """(claims convergence, Status, note) of an outside program's report (its status is
     one of the protocol's words: ``read_solution_dir`` refuses any other)."""
@@ -419,7 +440,7 @@ class ExternalSolver(Solver):
                 info["external_version"] = self.version()
             ctx.info.update(info)
             program_outcome(proc, self.name, limit)
-            sol = read_solution_dir(solution, ctx.n, as_written=True)
+            sol = solution_of(proc, solution, ctx.n)
         claimed, status, note = solution_status(sol)
         ctx.info.update({"external_status": sol.status, "external_time_reported_s": sol.time_s})
         message = f"external: exit 0 in {proc.elapsed:.3g} s, status {sol.status or 'none'}"

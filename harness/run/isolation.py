@@ -18,6 +18,9 @@ counter to know).  The child:
   ``kill -9`` of the runner leaves no orphan writing rows;
 * optionally limits BLAS (threadpoolctl) and FFT (``CONTACTBENCH_FFT_WORKERS``) threads,
   so J workers do not oversubscribe the cores.
+* keeps its temporary files, and those of the programs it runs (``TMPDIR``), in a folder
+  of its own, which the parent removes whenever the worker ends -- killed at a time limit
+  or an interrupt included.
 
 Workers are started with the ``fork`` method on Linux: a child inherits everything
 registered in the parent (solvers registered by a test or given as ``module:NAME``).
@@ -29,8 +32,10 @@ import ctypes
 import faulthandler
 import multiprocessing as mp
 import os
+import shutil
 import signal
 import sys
+import tempfile
 import time
 import traceback
 from dataclasses import dataclass
@@ -106,8 +111,10 @@ def limit_threads(threads: int | None) -> Any:
         return None
 
 
-def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None) -> None:
+def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None, scratch: str | None = None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if scratch is not None:  # the worker's temporary files (and its programs'), removed by the parent
+        tempfile.tempdir = os.environ["TMPDIR"] = scratch
     set_parent_death_signal()
     if not os.environ.get("CONTACTBENCH_FAULTHANDLER"):
         faulthandler.disable()  # a crashing solver is reported as a row, not a stack dump
@@ -153,6 +160,7 @@ class ChildProcess:
         self.ctx = mp.get_context(method)
         self.proc: Any = None
         self.conn: Connection | None = None
+        self.scratch: str | None = None  # the live worker's temporary folder (``start``)
         self.generation = 0  # bumped at every (re)start: worker state does not survive it
 
     @property
@@ -161,7 +169,9 @@ class ChildProcess:
 
     def start(self) -> None:
         parent, child = self.ctx.Pipe(duplex=True)
-        proc = self.ctx.Process(target=_worker_main, args=(child, self.factory, self.threads), daemon=True)
+        self.scratch = tempfile.mkdtemp(prefix="contactbench-worker-")
+        proc = self.ctx.Process(target=_worker_main, args=(child, self.factory, self.threads, self.scratch),
+                                daemon=True)
         proc.start()
         child.close()
         self.proc, self.conn = proc, parent
@@ -204,14 +214,17 @@ class ChildProcess:
         return ChildReply("crashed", elapsed=elapsed, detail=describe_exit(code))
 
     def kill(self) -> None:
-        """Stop the child at once (SIGKILL) and release the pipe."""
+        """Stop the child at once (SIGKILL), release the pipe and remove its temporary folder
+        (what a killed solver, or a program it ran, left there)."""
         if self.proc is not None:
             if self.proc.is_alive():
                 self.proc.kill()
             self.proc.join(5.0)
         if self.conn is not None:
             self.conn.close()
-        self.proc, self.conn = None, None
+        if self.scratch is not None:
+            shutil.rmtree(self.scratch, ignore_errors=True)
+        self.proc, self.conn, self.scratch = None, None, None
 
     def close(self) -> None:
         """Ask the child to exit, then make sure it has."""

@@ -11,6 +11,7 @@ import re
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -22,6 +23,7 @@ import pytest
 
 from contactbench.harness import cli
 from contactbench.harness.table.meta import read_meta
+from contactbench.harness.run.isolation import ChildProcess
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
 from contactbench.harness import run_benchmark
 from contactbench.harness.table.store import (LOCK_FILE, FolderInUseError, RunLock, load_table, read_run_folder,
@@ -421,3 +423,23 @@ def test_the_benchmark_fails_a_wrong_answer_claimed_as_converged(tmp_path: Path)
     xfailed = [line for line in text.splitlines() if line.startswith("XFAIL")]
     assert xfailed and all("test-honest" in line for line in xfailed), text
     assert "2 failed, 2 passed" in text and "2 xfailed" in text  # scipy-nnls passes on both
+
+
+def _leave_a_file(_msg: object) -> str:
+    """A worker's handler: a file left in its temporary folder, as a killed solve leaves one."""
+    fd, path = tempfile.mkstemp(prefix="left-")
+    os.close(fd)
+    return path
+
+
+def test_a_workers_temporary_files_go_with_it() -> None:
+    """A worker (and what it runs) keeps its temporary files in a folder of its own, which
+    the parent removes when the worker ends -- killed or closed."""
+    for end in ("kill", "close"):
+        child = ChildProcess(lambda: _leave_a_file)
+        reply = child.call("go", 30.0)
+        assert reply.ok, reply
+        left = Path(reply.value)
+        assert left.is_file() and left.parent == Path(str(child.scratch))
+        getattr(child, end)()
+        assert not left.parent.exists(), end

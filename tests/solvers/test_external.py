@@ -167,6 +167,9 @@ def write_manifest(path: Path, entries: list[dict[str, object]]) -> Path:
     ({"name": "x", "command": "prog {problem} {solution}", "warm_start": "yes"}, "true or false"),
     ({"name": "x", "command": "prog {problem} {solution}", "promise": "approximate"}, "a positive scaled KKT floor"),
     ({"name": "x", "command": "prog {problem} {solution}", "promise": -1e-7}, "a positive scaled KKT floor"),
+    ({"name": "lab/pgs", "command": "prog {problem} {solution}"}, "must be letters, digits"),
+    ({"name": "pgs[fast]", "command": "prog {problem} {solution}"}, "must be letters, digits"),
+    ({"name": "pgs@1", "command": "prog {problem} {solution}"}, "must be letters, digits"),
 ])
 def test_a_bad_manifest_entry_is_named(tmp_path: Path, entry: dict[str, object], words: str) -> None:
     with pytest.raises(ProblemInputError) as err:
@@ -274,6 +277,15 @@ def test_a_direct_solve_keeps_the_output_tail_and_the_claim(pgs_binary: Path) ->
     assert res.converged and res.status == "converged" and res.iterations > 0
     assert "pgs: n = 100" in res.info["external_output_tail"] and "pgs: n = 100" in res.message
     assert res.setup_time > 0 and res.info["external_time_s"] > 0
+
+
+def test_a_program_that_exits_0_without_an_answer_keeps_its_output_tail() -> None:
+    """What the program said on stderr travels with the error that p.f64 is missing, as it
+    does with a failed exit."""
+    solver = command_solver("sh -c 'echo cannot-open-the-licence-file >&2' {problem} {solution}")
+    with pytest.raises(Exception) as err:
+        solver.solve(counterexample(16, 0).qp, SolverSettings(time_limit=10.0))
+    assert "p.f64" in str(err.value) and "cannot-open-the-licence-file" in str(err.value)
 
 
 def test_the_process_group_is_killed_at_the_time_limit(tmp_path: Path) -> None:
