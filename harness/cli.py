@@ -34,13 +34,11 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
-import re
 import sys
 import warnings
 from importlib import metadata
 from pathlib import Path
-from typing import Any, NoReturn, Sequence
+from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import memory_budget_scope
@@ -49,48 +47,10 @@ from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionR
 
 from contactbench.plugins import did_you_mean
 
+from .arguments import EXIT_BAD_INPUT, InputError, Parser, check_out_dir, positive_float, positive_number
+
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
-#: Exit status of bad input (module doc).
-EXIT_BAD_INPUT = 2
-#: A number, negative ones and exponents included: the value of an option, never an
-#: option itself (argparse's own pattern misses ``-1e-6``).
-NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
-
-
-class InputError(ProblemInputError):
-    """Bad command-line input found by the command line itself (one line)."""
-
-
-class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """``--help`` with each option's default, where it has one (None and False defaults
-    are "the scene's" / "off" and say so in their own help)."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        if action.default is None or action.default is False or action.default == argparse.SUPPRESS \
-                or "%(default)" in (action.help or ""):
-            return action.help
-        return super()._get_help_string(action)
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse with the house rules: a usage error is one line on stderr (exit 2), an
-    unknown choice names the closest ones, and a negative number (``-1e-6``) is an
-    option's value, so ``--length -1e-6`` is refused as not > 0."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        kwargs.setdefault("formatter_class", HelpFormatter)
-        super().__init__(*args, **kwargs)
-        self._negative_number_matcher = NUMBER
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-    def _check_value(self, action: argparse.Action, value: Any) -> None:
-        if action.choices is not None and value not in action.choices:
-            choices = [str(c) for c in action.choices]
-            raise argparse.ArgumentError(action, f"invalid choice {value!r}{did_you_mean(str(value), choices)}; "
-                                                 f"choose from {', '.join(choices)}")
 
 
 def package_version() -> str:
@@ -137,21 +97,6 @@ def parse_profiles(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(f"unknown profile {', '.join(bad) or text!r}{hint}; "
                                          f"choose from {', '.join(PROFILES)}")
     return names
-
-
-def positive_number(text: str, kind: type, what: str) -> Any:
-    """``text`` as a number of ``kind`` that is > 0, else an argparse error naming it."""
-    try:
-        v = kind(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return v
-
-
-def positive_float(text: str) -> float:
-    return float(positive_number(text, float, "a number"))
 
 
 def number_list(text: str) -> tuple[float, ...]:
@@ -353,23 +298,6 @@ def check_solver_list(text: str | None) -> None:
 
     if text is not None and not split_solver_list(text):
         raise InputError(f"--solvers {text!r} names no solver; give names (contactbench list solvers) or 'all'")
-
-
-def check_out_dir(path: str, option: str = "--out") -> Path:
-    """``path`` if it is, or can be made, a folder we may write: else one ``InputError``
-    naming it (an existing file, a path under a file, a folder we may not write).  Creates
-    nothing."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise InputError(f"{option} {path}: exists and is not a folder")
-    probe = p
-    while not probe.exists():
-        probe = probe.parent
-    if not probe.is_dir():
-        raise InputError(f"{option} {path}: {probe} is a file, not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise InputError(f"{option} {path}: cannot write in {probe} (permission denied)")
-    return p
 
 
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:

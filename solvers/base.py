@@ -210,12 +210,15 @@ Promise = Literal["exact"] | float
 
 
 def check_promise(promise: Any) -> Promise:
-    """``promise`` if it is "exact" or a positive finite float, else ``ValueError``."""
+    """``promise`` if it is "exact" or a float f with 0 < f < 1, else ``ValueError``
+    naming the rule.  A floor of 1 or more is refused: the trivial answer p = 0 has
+    scaled KKT error exactly 1, so such a floor would accept it on every case."""
     if promise == "exact" and isinstance(promise, str):
         return "exact"
-    if isinstance(promise, (int, float)) and not isinstance(promise, bool) and math.isfinite(promise) and promise > 0:
+    if isinstance(promise, (int, float)) and not isinstance(promise, bool) and 0 < promise < 1:  # NaN fails too
         return float(promise)
-    raise ValueError(f"a solver's promise is \"exact\" or a positive scaled KKT floor (a float), got {promise!r}")
+    raise ValueError(f"a solver's promise is \"exact\" or a positive scaled KKT floor (a float) below 1, got "
+                     f"{promise!r} (the trivial answer p = 0 has scaled KKT error 1: a floor >= 1 would accept it)")
 
 
 def promised_tol(promise: Promise, check_tol: float) -> float:

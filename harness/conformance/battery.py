@@ -39,7 +39,9 @@ Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 ``conforms``     neither: every case solved to what the solver promises, or skipped for
                  a capability it declares (exit 0).
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
-unknown solver, an import path that does not load, no case selected) exits 2.
+unknown solver, an import path that does not load, no case selected, a promise that is
+not "exact" or a floor below 1, a --timeout that is not a finite number > 0, a --csv or
+--out that cannot be written) exits 2 with one line, before anything runs.
 
 ``--command 'CMD {problem} {solution}' [--inputs dense|kernel]`` validates an outside
 program over the file protocol (``contactbench.solvers.external``,
@@ -48,7 +50,8 @@ reason, and listed after the table ("left out").  An external program claims
 convergence with ``"status"`` "converged", "solved" or "optimal", or no status
 (``contactbench.solvers.external``).
 ``--out DIR`` writes the conformance report (``harness.conformance.report``:
-DIR/verdicts.csv and DIR/conformance.md); the exit status is the same.
+DIR/verdicts.csv and DIR/conformance.md) into a new or empty folder or a conformance
+report folder, never into another one; the exit status is the same.
 
 For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
 ``assert_conforms(solver)`` raises AssertionError with the verdict table unless the
@@ -78,6 +81,7 @@ from .cases import (
     CaseAnswer,
     CaseRunner,
     cached_reference,
+    check_timeout,
     conformance_cases,
     exact_reference,
 )
@@ -101,9 +105,8 @@ ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
 UNSOLVED = ("unconverged", "timeout", "crashed")
 #: Statuses that ``--strict`` also fails on.
 STRICT_FAILING = ("crashed", "timeout", "flagged")
-#: Exit code of each outcome (``main``); 2 is bad input.
+#: Exit code of each outcome (``main``); bad input is ``arguments.EXIT_BAD_INPUT``.
 EXIT_CODES = {"conforms": 0, "wrong": 1, "strict": 1, "incomplete": 3}
-USAGE_ERROR = 2
 
 
 # ---------------------------------------------------------------------------
@@ -400,14 +403,15 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
              params: dict[str, Any] | None = None) -> VerdictTable:
     """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
     battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
-    its declared ``Param``s first) and return the verdict table."""
+    its declared ``Param``s first) and return the verdict table.  ``timeout``: seconds
+    per solve (``check_timeout``; None: the mode's default)."""
+    limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else check_timeout(timeout)
     s = load_solver(solver) if isinstance(solver, str) else solver
     table = VerdictTable(s.name, mode, promise=s.capabilities.promise)
     available, why = s.availability()
     if not available:
         table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
         return table
-    limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else timeout
     s.resolve_params(params)  # unknown or bad parameters: a ParamError before anything runs
     runner = CaseRunner(s, limit, isolate=isolate, params=params)
     try:

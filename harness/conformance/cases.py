@@ -18,6 +18,7 @@ The verdicts are ``harness.conformance.battery``'s business, through ``harness.j
 from __future__ import annotations
 
 import fnmatch
+import math
 import time
 import traceback
 from dataclasses import dataclass
@@ -42,6 +43,19 @@ from ..run.worker import instance_operator_kind, problem_traits
 
 #: Default per-solve time limits (s) by battery mode.
 DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
+
+
+def check_timeout(seconds: float | None) -> float | None:
+    """A per-solve time limit: None (the mode's default) or a finite number of seconds
+    > 0, else ``ValueError`` naming the value."""
+    if seconds is None:
+        return None
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) \
+            or not (math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"a time limit is a finite number of seconds > 0, got {seconds!r}")
+    return float(seconds)
+
+
 #: Grace beyond the solver's own time limit before its worker is killed: a solver that
 #: honours ``time_limit`` returns an honest answer, only a hanging one is killed.
 KILL_GRACE = (2.0, 0.25)  # seconds + fraction of the limit
@@ -89,9 +103,10 @@ class ConformanceCase:
 def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
                       pattern: str | None = None) -> list[ConformanceCase]:
     """The battery's recipes: ``mode`` "fast" (the test-suite subset, seconds per solver)
-    or "full"; optionally only some ``groups`` or names matching ``pattern`` (fnmatch,
-    e.g. ``"edge/*"``; a group name matches its whole group)."""
-    specs = battery_specs(mode, tuple(groups) if groups else GROUPS, scene="stress")
+    or "full"; optionally only some ``groups`` (each case once, however often its group
+    is named) or names matching ``pattern`` (fnmatch, e.g. ``"edge/*"``; a group name
+    matches its whole group)."""
+    specs = battery_specs(mode, tuple(dict.fromkeys(groups)) if groups else GROUPS, scene="stress")
     cases = [ConformanceCase(s) for s in specs]
     if pattern:
         cases = [c for c in cases if fnmatch.fnmatch(c.name, pattern) or fnmatch.fnmatch(c.group, pattern)]
@@ -202,7 +217,10 @@ def is_refusal(exc: BaseException, group: str) -> bool:
 
 
 def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:
-    """Worker side: rebuild the instance from its recipe, solve, report plain data."""
+    """Worker side: rebuild the instance from its recipe, solve, report plain data.  A
+    solver that raises -- ``SystemExit`` included (``sys.exit`` in a solver is a crash,
+    not the end of ``validate``) -- gives a "refused" or "crashed" answer; a
+    ``KeyboardInterrupt`` propagates."""
     spec, step, time_limit, params = msg
     case = ConformanceCase(spec)
     inst = build_battery_spec(spec).at(step)
@@ -217,7 +235,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     except SolveAborted as exc:  # killed at its limit, or died (an external program)
         return {"kind": exc.status, "time_s": time.perf_counter() - t0,
                 "message": str(exc).strip().splitlines()[0], "detail": str(exc)}
-    except Exception as exc:  # a row, not a harness failure
+    except (Exception, SystemExit) as exc:  # a row, not a harness failure (Ctrl-C still interrupts)
         refused = is_refusal(exc, case.group)
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
                 "message": f"{type(exc).__name__}: {exc}".strip().splitlines()[0],
@@ -238,7 +256,8 @@ class _SolverHandler:
 
 class CaseRunner:
     """Runs the solves of one solver with a hard time limit: in a forked worker
-    (``harness.run.isolation``) when ``isolate``, else in-process (no limit)."""
+    (``harness.run.isolation``) when ``isolate``, else in-process -- no time limit, and no
+    protection against a solver that ends the process itself (``os._exit``, a signal)."""
 
     def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
                  params: dict[str, Any] | None = None) -> None:

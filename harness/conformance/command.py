@@ -11,14 +11,17 @@ import argparse
 import json
 import os
 import sys
+from pathlib import Path
 from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
 from contactbench.solvers.registry import all_solvers, load_solver
 
-from .battery import GROUPS, USAGE_ERROR, conformance_cases, left_out_lines, validate
-from .report import write_conformance_report
+from ..arguments import EXIT_BAD_INPUT, Parser, positive_float
+from ..arguments import check_out_dir as check_writable_dir
+from .battery import GROUPS, conformance_cases, left_out_lines, validate
+from .report import check_report_folder, write_conformance_report
 
 
 # ---------------------------------------------------------------------------
@@ -27,28 +30,34 @@ from .report import write_conformance_report
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = Parser(
         prog="contactbench validate",
         description="Run solvers through the conformance battery and judge every answer with the harness's "
                     "judge (the scaled KKT check of `contactbench run`).",
         epilog="exit status: 0 conforms (every case solved to the solver's promise, or skipped for a declared "
                "capability); 1 wrong: an answer claimed as converged that fails, or a solver that wrote into its "
-               "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input (unknown solver, import "
-               "path that does not load, no case selected, solver not available); 3 incomplete: cases left "
-               "unsolved (docs/verdicts.md).")
+               "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input, refused before anything "
+               "runs (unknown solver, import path that does not load, no case selected, solver not available, a "
+               "bad --timeout, a --csv or --out that cannot be written); 3 incomplete: cases left unsolved "
+               "(docs/verdicts.md).")
     ap.add_argument("solvers", nargs="*", metavar="SOLVER",
                     help="registry name, or import path module:NAME (the current directory is importable)")
     ap.add_argument("--all", action="store_true", help="every available registered solver")
     ap.add_argument("--full", action="store_true", help="the full battery (default: the fast subset)")
     ap.add_argument("--group", action="append", choices=GROUPS, help="only these groups (repeatable)")
-    ap.add_argument("--cases", metavar="GLOB", help="only cases whose name or group matches, e.g. 'edge/*'")
-    ap.add_argument("--timeout", type=float, help="seconds per solve (default: 20 fast, 60 full)")
+    ap.add_argument("--cases", metavar="GLOB", type=case_glob,
+                    help="only cases whose name or group matches, e.g. 'edge/*'")
+    ap.add_argument("--timeout", type=positive_float, help="seconds per solve, finite and > 0 (default: 20 fast, "
+                                                            "60 full)")
     ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged rows")
-    ap.add_argument("--no-isolate", action="store_true", help="solve in-process (no time limit; for debugging)")
+    ap.add_argument("--no-isolate", action="store_true",
+                    help="solve in-process, for debugging: no time limit, and no protection against a solver that "
+                         "ends the process itself (os._exit, a fatal signal ends validate; sys.exit is a crash row)")
     ap.add_argument("--list", action="store_true", help="list the selected cases and exit")
-    ap.add_argument("--csv", metavar="PATH", help="also write the verdict rows as CSV")
+    ap.add_argument("--csv", metavar="PATH", help="also write the verdict rows as CSV (a file in an existing folder)")
     ap.add_argument("--out", metavar="DIR", help="write the conformance report: DIR/verdicts.csv and DIR/conformance.md "
-                                                  "(the exit status is the same)")
+                                                  "(the exit status is the same); DIR is new, empty or a report "
+                                                  "folder of validate")
     ap.add_argument("--command", metavar="'CMD {problem} {solution}'",
                     help="validate an outside program over the file protocol (docs/external-solvers.md)")
     ap.add_argument("--inputs", choices=("dense", "kernel"), default=None,
@@ -58,6 +67,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help='solver parameters for every solve, e.g. \'{"precision": "mixed"}\' (checked against the '
                          "solver's declared parameters: `contactbench list solvers --params`)")
     return ap
+
+
+def case_glob(text: str) -> str:
+    """``--cases``: a non-empty glob (an empty one would select every case)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} names no case; give a glob such as 'edge/*'")
+    return text
 
 
 def json_object(text: str) -> dict[str, Any]:
@@ -71,7 +87,11 @@ def json_object(text: str) -> dict[str, Any]:
     return value
 
 
-class SolverLoadError(ValueError):
+class CommandLineError(ValueError):
+    """Bad command-line input found before anything runs (one line)."""
+
+
+class SolverLoadError(CommandLineError):
     """A solver named on the command line that cannot be loaded or run here."""
 
 
@@ -126,30 +146,35 @@ def _combined_exit(codes: Sequence[int]) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``contactbench validate`` (module doc for the exit status)."""
+    """``contactbench validate`` (module doc for the exit status).  Every input -- the
+    options, the cases, the solvers and their parameters, the --csv and --out paths --
+    is checked before anything runs: bad input is one line on stderr and exit 2."""
+    arguments = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = build_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+        args = build_parser().parse_args(arguments)
     except SystemExit as exc:  # --help (0) or a usage error (2), as a return value
-        return exc.code if isinstance(exc.code, int) else USAGE_ERROR
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     mode = "full" if args.full else "fast"
-    cases = conformance_cases(mode, args.group, args.cases)
-    if args.list:
-        width = max([len(c.name) for c in cases] + [4])
-        for c in cases:
-            print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
-        return 0
     try:
+        cases = conformance_cases(mode, args.group, args.cases)
         if not cases:
-            raise SolverLoadError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
+            raise CommandLineError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
+        if args.list:
+            width = max([len(c.name) for c in cases] + [4])
+            for c in cases:
+                print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
+            return 0
         command_solvers = command_solver_of(args.command, args.inputs)
         solvers = _selected_solvers(args.solvers, args.all, command_solvers)
         for solver in solvers:
             solver.resolve_params(args.params)
+        if args.csv:
+            check_csv_path(args.csv)
         if args.out:
             check_out_dir(args.out)
-    except (SolverLoadError, ProblemInputError, ParamError) as exc:
+    except (CommandLineError, ProblemInputError, ParamError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
-        return USAGE_ERROR
+        return EXIT_BAD_INPUT
     codes, tables = [], []
     for solver in solvers:
         table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
@@ -160,24 +185,41 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("\n".join(left) + "\n", flush=True)
         codes.append(table.exit_code(args.strict))
         tables.append(table)
-    if args.csv and tables:
-        import pandas as pd
+    try:
+        if args.out:
+            path = write_conformance_report(tables, args.out, strict=args.strict, command=arguments)
+            print(f"conformance report: {path}")
+        if args.csv and tables:
+            import pandas as pd
 
-        pd.concat([t.to_frame() for t in tables], ignore_index=True).to_csv(args.csv, index=False)
-    if args.out:
-        path = write_conformance_report(tables, args.out, strict=args.strict, command=list(argv or sys.argv[1:]))
-        print(f"conformance report: {path}")
+            pd.concat([t.to_frame() for t in tables], ignore_index=True).to_csv(args.csv, index=False)
+    except (OSError, ProblemInputError) as exc:  # the folder changed while the battery ran
+        where = f"{exc.filename}: " if isinstance(exc, OSError) and exc.filename else ""
+        text = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        print(f"contactbench validate: error: cannot write {where}{text}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return _combined_exit(codes)
 
 
+def check_csv_path(path: str) -> None:
+    """``--csv PATH`` must name a file that can be written, in a folder that exists
+    (checked before anything runs)."""
+    p = Path(path)
+    if p.is_dir():
+        raise CommandLineError(f"--csv {path!r}: is a folder; give the name of a file")
+    folder = p.parent
+    if not folder.is_dir():
+        raise CommandLineError(f"--csv {path!r}: no such folder {str(folder)!r}")
+    if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise CommandLineError(f"--csv {path!r}: cannot write it (permission denied)")
+
+
 def check_out_dir(path: str) -> None:
-    """``--out DIR`` must be a folder that can be written (checked before anything runs)."""
-    try:
-        os.makedirs(path, exist_ok=True)
-    except OSError as exc:
-        raise SolverLoadError(f"--out {path!r}: cannot create the folder ({exc.strerror or exc})") from None
-    if not os.access(path, os.W_OK):
-        raise SolverLoadError(f"--out {path!r}: the folder is not writable")
+    """``--out DIR`` must be a folder that can be written (``arguments.check_out_dir``) and
+    that is new, empty or a conformance report folder (``report.check_report_folder``);
+    checked before anything runs."""
+    check_report_folder(path)
+    check_writable_dir(path)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,7 +7,15 @@ Two files, from the verdict tables of ``harness.conformance.battery`` (nothing i
 ``conformance.md``    one short page: per solver its headline and exit status, then one
                       line per case -- the verdict (the worst row status of its steps),
                       the worst scaled KKT error, the worst error in p against the exact
-                      reference, and the solver's time against the reference's.
+                      reference, and the solver's time against the reference's;
+``.contactbench-conformance``
+                      the marker: this folder is a conformance report folder.
+
+Nothing that is not ours is overwritten (``check_report_folder``, before anything runs):
+the report goes into a missing or empty folder, or into a conformance report folder --
+one with the marker, or one that holds nothing but a ``conformance.md`` whose first
+line is the page's heading and a ``verdicts.csv``; any other folder (a user's, a
+``contactbench run`` results folder) or a file is refused.
 """
 
 from __future__ import annotations
@@ -19,11 +27,55 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
+from contactbench.problems.errors import ProblemInputError
+
 from .battery import VerdictRow, VerdictTable, left_out_lines
 
 #: Row statuses from worst to best: a case's verdict is the worst of its rows.
 SEVERITY = ("WRONG", "crashed", "timeout", "flagged", "unconverged", "refused", "skipped", "pass")
-CSV_NAME, MD_NAME = "verdicts.csv", "conformance.md"
+CSV_NAME, MD_NAME, MARKER_NAME = "verdicts.csv", "conformance.md", ".contactbench-conformance"
+#: The first line of the page (``markdown_page``).
+PAGE_HEADING = "# Conformance report"
+MARKER_TEXT = f"a conformance report folder of `contactbench validate` ({CSV_NAME}, {MD_NAME})\n"
+
+
+class ReportFolderError(ProblemInputError):
+    """A report folder that ``validate`` may not write into (one line naming it)."""
+
+
+def _first_line(path: Path) -> str:
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            return fh.readline().rstrip("\n")
+    except OSError:
+        return ""
+
+
+def is_report_folder(folder: Path) -> bool:
+    """Whether ``folder`` (an existing folder) is empty or a conformance report folder
+    (module doc)."""
+    names = {p.name for p in folder.iterdir()}
+    if not names or MARKER_NAME in names:
+        return True
+    return names <= {CSV_NAME, MD_NAME} and MD_NAME in names and _first_line(folder / MD_NAME) == PAGE_HEADING
+
+
+def check_report_folder(out_dir: str | Path, option: str = "--out") -> Path:
+    """``out_dir`` if the report may be written there (module doc), else a
+    ``ReportFolderError`` naming it and ``option``.  Reads only; creates nothing."""
+    out = Path(out_dir)
+    if not out.exists():
+        return out
+    if not out.is_dir():
+        raise ReportFolderError(f"{option} {out_dir}: exists and is not a folder")
+    try:
+        ours = is_report_folder(out)
+    except OSError as exc:
+        raise ReportFolderError(f"{option} {out_dir}: cannot read the folder ({exc.strerror or exc})") from None
+    if not ours:
+        raise ReportFolderError(f"{option} {out_dir}: the folder is not empty and is not a conformance report "
+                                f"folder (no {MARKER_NAME}); choose an empty or new folder")
+    return out
 
 
 @dataclass(frozen=True)
@@ -92,7 +144,7 @@ def _cell(text: str, width: int = 160) -> str:
 
 
 def markdown_page(tables: Sequence[VerdictTable], strict: bool = False, command: Sequence[str] = ()) -> str:
-    lines = ["# Conformance report", ""]
+    lines = [PAGE_HEADING, ""]
     if command:
         lines += ["`contactbench validate " + shlex.join(command) + "`", ""]
     lines += ["Every answer is judged by the harness's scaled KKT check (problems/kkt.py) at the case's "
@@ -118,9 +170,11 @@ def markdown_page(tables: Sequence[VerdictTable], strict: bool = False, command:
 
 def write_conformance_report(tables: Sequence[VerdictTable], out_dir: str | Path, *, strict: bool = False,
                              command: Sequence[str] = ()) -> Path:
-    """Write DIR/verdicts.csv and DIR/conformance.md; return the page's path."""
-    out = Path(out_dir)
+    """Write the marker, DIR/verdicts.csv and DIR/conformance.md and return the page's
+    path; a folder that is not ours is a ``ReportFolderError`` (``check_report_folder``)."""
+    out = check_report_folder(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER_NAME).write_text(MARKER_TEXT)
     write_csv(tables, out / CSV_NAME)
     page = out / MD_NAME
     page.write_text(markdown_page(tables, strict, command))

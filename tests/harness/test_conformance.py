@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -386,3 +387,198 @@ def test_every_exact_registered_solver_solves_every_case_of_the_fast_battery(nam
     table = cf.validate(solver)
     assert table.outcome() == "conforms", table.format()
     assert table.count("pass") > 0 and not table.unsolved, table.format()
+
+
+# ---------------------------------------------------------------------------
+# The command line refuses bad input in one line before anything runs
+# ---------------------------------------------------------------------------
+
+QUICK_CASE = "edge/single-point*"
+
+
+class ExitingSolver(Solver):
+    """Calls sys.exit(0) in the middle of a solve."""
+
+    name = "test-conf-exit"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise SystemExit(0)
+
+
+class InterruptedSolver(Solver):
+    """A solve interrupted by Ctrl-C."""
+
+    name = "test-conf-interrupt"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise KeyboardInterrupt
+
+
+def nothing_may_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make any solve of the command line fail the test."""
+    from contactbench.harness.conformance import command
+
+    def ran(*args: object, **kw: object) -> None:
+        raise AssertionError("the battery ran before the input was checked")
+
+    monkeypatch.setattr(command, "validate", ran)
+
+
+def refused_in_one_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    assert validate_main(argv) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), captured.err
+    assert "Traceback" not in captured.err and not captured.out
+    return lines[0]
+
+
+def test_a_promise_of_one_or_more_is_refused_because_p0_meets_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.solvers.base import check_promise
+    from contactbench.solvers.external import load_manifest
+
+    assert check_promise(0.5) == 0.5
+    for bad in (1, 1.0, 10.0, float("inf")):
+        with pytest.raises(ValueError, match=r"p = 0 has scaled KKT error 1"):
+            check_promise(bad)
+    with pytest.raises(ValueError, match=r"floor \(a float\) below 1"):
+        Capabilities(promise=10.0)
+    manifest = tmp_path / "m.toml"
+    manifest.write_text('[[solver]]\nname = "zero-ext"\ncommand = "prog {problem} {solution}"\npromise = 1.0\n')
+    with pytest.raises(ProblemInputError, match=r"entry 1: .*p = 0 has scaled KKT error 1"):
+        load_manifest(manifest)
+    (tmp_path / "cb_promise_ten.py").write_text(
+        "import numpy as np\n"
+        "from contactbench.solvers import Capabilities, Outcome, Solver\n"
+        "class Zero(Solver):\n"
+        "    name = 'cb-zero'\n"
+        "    capabilities = Capabilities(promise=10.0)\n"
+        "    def iterate(self, ctx):\n"
+        "        return Outcome(np.zeros(ctx.n), 1, True)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    nothing_may_run(monkeypatch)
+    assert "floor (a float) below 1" in refused_in_one_line(["cb_promise_ten:Zero", "--cases", QUICK_CASE], capsys)
+
+
+def test_the_trivial_answer_claimed_as_converged_is_wrong_under_any_legal_promise() -> None:
+    class Zero(Solver):
+        name = "test-conf-zero"
+        family = "test"
+        capabilities = Capabilities(promise=0.999)
+
+        def iterate(self, ctx: SolveContext) -> Outcome:
+            return Outcome(np.zeros(ctx.n), 1, True)
+
+    table = cf.validate(Zero(), cases(QUICK_CASE), isolate=False)
+    assert [r.status for r in table.rows] == ["WRONG"] and table.rows[0].kkt_error == pytest.approx(1.0)
+    assert table.exit_code() == 1
+
+
+@pytest.mark.parametrize("where", ["missing-folder", "a-folder"])
+def test_a_csv_path_that_cannot_be_written_is_refused_before_anything_runs(
+        where: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "no" / "such" / "x.csv" if where == "missing-folder" else tmp_path
+    out = tmp_path / "report"
+    nothing_may_run(monkeypatch)
+    line = refused_in_one_line([f"{HERE}:GoodSolver", "--cases", QUICK_CASE, "--csv", str(path), "--out", str(out)],
+                               capsys)
+    assert "--csv" in line and ("no such folder" in line if where == "missing-folder" else "is a folder" in line)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "0", "-1", "abc"])
+def test_a_timeout_that_is_not_a_finite_positive_number_is_refused(
+        value: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    nothing_may_run(monkeypatch)
+    line = refused_in_one_line([f"{HERE}:GoodSolver", "--cases", QUICK_CASE, f"--timeout={value}"], capsys)
+    assert "--timeout" in line and ("finite number > 0" in line or "not a number" in line) and value in line
+
+
+def test_the_python_api_refuses_a_non_finite_timeout_too() -> None:
+    for bad in (float("nan"), float("inf"), 0.0, -1.0):
+        with pytest.raises(ValueError, match="finite number of seconds > 0"):
+            cf.validate(GoodSolver(), cases(QUICK_CASE), timeout=bad)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--bogus"], "unrecognized arguments: --bogus"),
+    (["--params", "not json"], "argument --params: not JSON"),
+    (["--group", "nosuch"], "argument --group: invalid choice 'nosuch'"),
+    (["--timeout", "abc"], "argument --timeout"),
+    (["--cases", ""], "argument --cases: '' names no case"),
+])
+def test_usage_errors_are_one_line(argv: list[str], words: str, monkeypatch: pytest.MonkeyPatch,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    nothing_may_run(monkeypatch)
+    assert words in refused_in_one_line([f"{HERE}:GoodSolver", *argv], capsys)
+
+
+def test_out_refuses_a_folder_that_is_not_a_conformance_report_folder(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.harness.conformance.report import ReportFolderError, write_conformance_report
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "conformance.md").write_text("my own notes\n")
+    (mine / "verdicts.csv").write_text("a,b\n1,2\n")
+    results = tmp_path / "results"  # what `contactbench run` leaves
+    results.mkdir()
+    (results / ".contactbench-run.json").write_text('{"format": 1, "runs": []}')
+    (results / "rows.jsonl").write_text("")
+    a_file = tmp_path / "a-file"
+    a_file.write_text("mine\n")
+    with monkeypatch.context() as m:
+        nothing_may_run(m)
+        for folder in (mine, results, a_file):
+            line = refused_in_one_line([f"{HERE}:GoodSolver", "--cases", QUICK_CASE, "--out", str(folder)], capsys)
+            assert f"--out {folder}" in line
+    assert (mine / "conformance.md").read_text() == "my own notes\n"
+    assert sorted(p.name for p in results.iterdir()) == [".contactbench-run.json", "rows.jsonl"]
+    with pytest.raises(ReportFolderError, match="not a conformance report folder"):
+        write_conformance_report([], mine)
+    assert (mine / "conformance.md").read_text() == "my own notes\n"
+
+
+def test_out_writes_again_into_its_own_report_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "report"
+    argv = [f"{HERE}:GoodSolver", "--cases", QUICK_CASE, "--quiet", "--no-isolate", "--out", str(out)]
+    assert validate_main(argv) == 0
+    assert sorted(p.name for p in out.iterdir()) == [".contactbench-conformance", "conformance.md", "verdicts.csv"]
+    (out / "notes.txt").write_text("the user's, beside the marker\n")
+    assert validate_main(argv) == 0
+    (out / "notes.txt").unlink()
+    (out / ".contactbench-conformance").unlink()  # validate's two files and nothing else: still its folder
+    assert validate_main(argv) == 0
+    assert (out / "conformance.md").read_text().startswith("# Conformance report")
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_a_solver_that_calls_sys_exit_is_a_crash_row(isolate: bool) -> None:
+    table = cf.validate(ExitingSolver(), cases(QUICK_CASE), isolate=isolate)
+    row = table.rows[0]
+    assert row.status == "crashed" and row.message == "SystemExit: 0", table.format()
+    assert table.exit_code() == 3
+
+
+def test_no_isolate_lets_ctrl_c_interrupt_and_its_help_warns_of_a_process_exit(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(KeyboardInterrupt):
+        cf.validate(InterruptedSolver(), cases(QUICK_CASE), isolate=False)
+    assert validate_main(["--help"]) == 0
+    assert "os._exit" in " ".join(capsys.readouterr().out.split())
+
+
+def test_case_selection_each_case_once_and_list_refuses_an_empty_selection(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    once = cf.conformance_cases("fast", ["edge"])
+    assert cf.conformance_cases("fast", ["edge", "edge"]) == once
+    assert validate_main(["--list", "--group", "edge", "--group", "edge"]) == 0
+    listed = capsys.readouterr().out.strip().splitlines()
+    assert len(listed) == len(once) == len(set(listed))
+    nothing_may_run(monkeypatch)
+    for argv in (["--list", "--cases", "nomatch"], [f"{HERE}:GoodSolver", "--cases", "nomatch"]):
+        assert "no case matches --cases 'nomatch'" in refused_in_one_line(argv, capsys)

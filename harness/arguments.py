@@ -1,0 +1,89 @@
+"""The command lines' shared rules (``contactbench`` in harness/cli.py and ``contactbench
+validate`` in harness/conformance/command.py): the exit status of bad input, the parser
+whose usage error is one line, the number types, and the check of an output folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any, NoReturn
+
+from contactbench.plugins import did_you_mean
+from contactbench.problems.errors import ProblemInputError
+
+#: Exit status of bad input: refused before anything runs, in one line per problem.
+EXIT_BAD_INPUT = 2
+#: A number, negative ones and exponents included: the value of an option, never an
+#: option itself (argparse's own pattern misses ``-1e-6``).
+NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
+
+
+class InputError(ProblemInputError):
+    """Bad command-line input found by the command line itself (one line)."""
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``--help`` with each option's default, where it has one (None and False defaults
+    are "the scene's" / "off" and say so in their own help)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None or action.default is False or action.default == argparse.SUPPRESS \
+                or "%(default)" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with the house rules: a usage error is one line on stderr (exit 2), an
+    unknown choice names the closest ones, and a negative number (``-1e-6``) is an
+    option's value, so ``--length -1e-6`` is refused as not > 0."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NUMBER
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
+        if action.choices is not None and value not in action.choices:
+            choices = [str(c) for c in action.choices]
+            raise argparse.ArgumentError(action, f"invalid choice {value!r}{did_you_mean(str(value), choices)}; "
+                                                 f"choose from {', '.join(choices)}")
+
+
+def positive_number(text: str, kind: type, what: str) -> Any:
+    """``text`` as a finite number of ``kind`` that is > 0, else an argparse error naming it."""
+    try:
+        v = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+    if not (v > 0 and math.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def positive_float(text: str) -> float:
+    return float(positive_number(text, float, "a number"))
+
+
+def check_out_dir(path: str, option: str = "--out") -> Path:
+    """``path`` if it is, or can be made, a folder we may write: else one ``InputError``
+    naming it (an existing file, a path under a file, a folder we may not write).  Creates
+    nothing."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{option} {path}: exists and is not a folder")
+    probe = p
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise InputError(f"{option} {path}: {probe} is a file, not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {path}: cannot write in {probe} (permission denied)")
+    return p
