@@ -104,9 +104,10 @@ class ADMM(Solver):
     capabilities = Capabilities(warm_start="primal-dual", exact=False, promise=1e-6, load_control=True, bounds=True)
     default_tol = 1e-6
     params = (
-        Param("rho", float, 1.0, "penalty (> 0); relative to mean diag H unless rho_relative is False", low=0.0),
+        Param("rho", float, 1.0, "penalty (> 0); relative to mean diag H unless rho_relative is False", low=0.0,
+              open="low"),
         Param("rho_relative", bool, True, "rho is a multiple of mean diag H (the paper's rho = 1 has units)"),
-        Param("alpha", float, 1.5, "over-relaxation, 0 < alpha < 2", low=0.0, high=2.0),
+        Param("alpha", float, 1.5, "over-relaxation, 0 < alpha < 2", low=0.0, high=2.0, open="both"),
         Param("linear", str, "auto", "(H/rho + I)^-1 by a cached Cholesky factor, CG, or auto (Cholesky when dense)",
               choices=("auto", "cholesky", "cg")),
         Param("check_every", int, 1, "iterations between two KKT checks (one matvec each)", low=1),

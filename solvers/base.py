@@ -90,7 +90,8 @@ class ParamError(ValueError):
 @dataclass(frozen=True)
 class Param:
     """One declared solver parameter: name, type, default, and its allowed values
-    (``choices``) or range [``low``, ``high``]."""
+    (``choices``) or range from ``low`` to ``high``, each end included unless it is
+    ``open`` there ("low", "high" or "both": ADMM's penalty is > 0, not >= 0)."""
 
     name: str
     kind: type
@@ -99,6 +100,7 @@ class Param:
     low: float | None = None
     high: float | None = None
     choices: tuple[Any, ...] | None = None
+    open: str = ""  # "", "low", "high" or "both": the ends the range leaves out
 
     def check(self, value: Any) -> Any:
         """``value`` converted to ``kind`` if it is acceptable, else ``ParamError``."""
@@ -106,9 +108,25 @@ class Param:
         if self.choices is not None and v not in self.choices:
             raise ParamError(f"parameter {self.name!r} must be one of {', '.join(map(repr, self.choices))}, "
                              f"got {value!r}")
-        if self.low is not None and v < self.low or self.high is not None and v > self.high:
-            raise ParamError(f"parameter {self.name!r} must lie in [{self.low}, {self.high}], got {value!r}")
+        if not self.in_range(v):
+            raise ParamError(f"parameter {self.name!r} must lie in {self.range_text()}, got {value!r}")
         return v
+
+    def in_range(self, v: Any) -> bool:
+        """Whether ``v`` lies in the declared range (its open ends left out)."""
+        low_out = self.open in ("low", "both")
+        high_out = self.open in ("high", "both")
+        if self.low is not None and (v < self.low or low_out and v == self.low):
+            return False
+        return not (self.high is not None and (v > self.high or high_out and v == self.high))
+
+    def range_text(self) -> str:
+        """The range as an interval: "[1, inf)", "(0, 2)"."""
+        left = "(" if self.low is None or self.open in ("low", "both") else "["
+        right = ")" if self.high is None or self.open in ("high", "both") else "]"
+        lo = "-inf" if self.low is None else f"{self.low:g}"
+        hi = "inf" if self.high is None else f"{self.high:g}"
+        return f"{left}{lo}, {hi}{right}"
 
     def _coerce(self, value: Any) -> Any:
         bad = ParamError(f"parameter {self.name!r} takes a {self.kind.__name__}, got {value!r}")
@@ -132,8 +150,7 @@ class Param:
 
     def describe(self) -> str:
         allowed = (f" one of {'|'.join(map(str, self.choices))}" if self.choices is not None else
-                   f" in [{self.low if self.low is not None else '-inf'}, {self.high if self.high is not None else 'inf'}]"
-                   if self.low is not None or self.high is not None else "")
+                   f" in {self.range_text()}" if self.low is not None or self.high is not None else "")
         return f"{self.name}: {self.kind.__name__} = {self.default!r}{allowed}" + (f"  ({self.doc})" if self.doc else "")
 
 

@@ -298,7 +298,11 @@ def test_report_of_a_missing_or_empty_folder_is_one_line(in_tmp: Path, capsys: p
     ("fast-dual-pccg[precision]", ("write key=value",)),
     ("fast-dual-pccg[]", ("empty parameter list",)),
     ("fast-dual-pccg[precision=double,precision=mixed]", ("given twice",)),
-], ids=["bad-choice", "unknown-key", "bad-int", "unclosed", "no-value", "empty", "twice"])
+    ("admm[rho=0]", ("parameter 'rho' must lie in (0, inf), got 0",)),
+    ("admm[alpha=2.0]", ("parameter 'alpha' must lie in (0, 2), got 2.0",)),
+    ("nnls-gp[K=-1]", ("parameter 'K' must lie in [0, inf), got -1",)),
+], ids=["bad-choice", "unknown-key", "bad-int", "unclosed", "no-value", "empty", "twice", "open-low", "open-high",
+        "closed-low"])
 def test_bad_solver_parameters_are_refused_in_one_line(spec: str, needles: tuple[str, ...], in_tmp: Path,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
     refused(["run", "paper-sweep", *TINY, "--solvers", spec, "--out", "o"], capsys, *needles)
