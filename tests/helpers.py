@@ -91,6 +91,16 @@ class SleepyStub(ExactStub):
         return super().iterate(ctx)
 
 
+class HangingStub(ExactStub):
+    """The exact solver, hanging for five minutes: a run can only end it by killing it."""
+
+    name = "test-hanging"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        time.sleep(300.0)
+        return super().iterate(ctx)
+
+
 @register(replace=True)
 class WarmPGStub(Solver):
     """Matrix-free projected gradient (Nesterov-accelerated, restart on increase),

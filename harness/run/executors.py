@@ -20,7 +20,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
-from .isolation import set_parent_death_signal
+from .isolation import remove_orphan_scratch, set_parent_death_signal
 from .job import JobDriver, run_instance_job
 from .plan import InstanceJob, RunConfig
 from ..table.store import ResultStore
@@ -106,10 +106,25 @@ class PoolExecutor:
                     now = store.count_lines() - lines0
                     progress.update(max(0, now - seen))
                     seen = max(seen, now)
-            except BaseException:
+            except BaseException:  # an interrupt (or a job's error): no job may run on after it
                 for f in futures:
                     f.cancel()
+                stop_workers(pool)
                 raise
+
+
+def stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill the pool's processes at once -- the jobs they are running and the solver workers
+    those started (``PR_SET_PDEATHSIG``) -- so that leaving the pool does not wait for them.
+    The rows they stored are kept; a row cut short by the kill is read as never written."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for proc in procs:
+        if proc.is_alive():
+            proc.kill()
+    for proc in procs:
+        proc.join(5.0)
+    pool.shutdown(wait=False, cancel_futures=True)
+    remove_orphan_scratch()  # what their solver workers kept in their temporary folders
 
 
 def local_executor(run: RunConfig, jobs: int) -> Executor:

@@ -40,7 +40,10 @@ import time
 import traceback
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any, Callable, Literal
+
+from ..table.files import pid_exists
 
 Handler = Callable[[Any], Any]
 HandlerFactory = Callable[[], Handler]
@@ -150,6 +153,19 @@ def describe_exit(exitcode: int | None) -> str:
     return f"worker exited with code {exitcode}"
 
 
+#: A worker's temporary folder is ``<tmp>/<prefix><owner's pid>-<random>``.
+SCRATCH_PREFIX = "contactbench-worker-"
+
+
+def remove_orphan_scratch() -> None:
+    """Remove the workers' temporary folders whose owner -- the process that started the
+    worker -- is no longer alive (it was killed before it could remove them)."""
+    for d in Path(tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*-*"):
+        pid = d.name[len(SCRATCH_PREFIX):].split("-", 1)[0]
+        if pid.isdigit() and not pid_exists(int(pid)) and d.is_dir() and not d.is_symlink():
+            shutil.rmtree(d, ignore_errors=True)
+
+
 class ChildProcess:
     """One child process running ``factory()``'s handler on each message sent to it."""
 
@@ -169,7 +185,8 @@ class ChildProcess:
 
     def start(self) -> None:
         parent, child = self.ctx.Pipe(duplex=True)
-        self.scratch = tempfile.mkdtemp(prefix="contactbench-worker-")
+        remove_orphan_scratch()
+        self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
         proc = self.ctx.Process(target=_worker_main, args=(child, self.factory, self.threads, self.scratch),
                                 daemon=True)
         proc.start()

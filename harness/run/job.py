@@ -221,8 +221,10 @@ class JobDriver:
     def plan_reference(self, ctx: StepContext, running: list[tuple[SolverVariant, str]]) -> None:
         """A stored reference, else a run's own answer to come (module doc, step 4), else
         a reference solve now."""
-        server = self.reference_server(running) if self.run_cfg.reference == "auto" else None
-        if self.use_stored_reference(ctx, [*self.job.reference_candidates, *self.served_names(server)]):
+        auto = self.run_cfg.reference == "auto"
+        server = self.reference_server(running) if auto else None
+        served = self.served_names(server) if auto else []
+        if self.use_stored_reference(ctx, [*self.job.reference_candidates, *served]):
             return
         if server is not None:
             ctx.serving = server
@@ -232,18 +234,16 @@ class JobDriver:
 
     def served_names(self, server: tuple[str, str] | None) -> list[str]:
         """The labels under which a run's own answer may have served this step's reference:
-        without a ``server`` none; else those of every exact (variant, profile) of the job,
-        in the order ``reference_server`` takes them, then ``server``'s.  A resumed step
+        those of every exact (variant, profile) of the job, in the order ``reference_server``
+        takes them, then ``server``'s (None: no exact solver left to run).  A resumed step
         finds the answer that served before it was interrupted, as the uninterrupted run
         would have used it (the pairs with a stored row are no longer running)."""
-        if server is None:
-            return []
         every = [(v, prof) for v in self.job.variants for prof in self.job.profiles]
         names = []
         while (first := self.reference_server(every)) is not None:
             names.append(served_name(*first))
             every = [(v, prof) for v, prof in every if (v.name, prof) != first]
-        return [*dict.fromkeys([*names, served_name(*server)])]
+        return [*dict.fromkeys([*names, *([served_name(*server)] if server else [])])]
 
     def reference_server(self, running: list[tuple[SolverVariant, str]]) -> tuple[str, str] | None:
         """The (label, profile) of the exact solver in the run whose answer is to serve as

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import errno
 import os
 import uuid
 from pathlib import Path
@@ -66,3 +67,16 @@ def safe_name(text: str) -> str:
 def canonical_json(obj: Any) -> str:
     """JSON with sorted keys, non-JSON values as ``str``: equal dicts, equal texts."""
     return json.dumps(obj, sort_keys=True, default=str)
+
+
+def pid_exists(pid: int) -> bool:
+    """Whether a process ``pid`` exists on this machine (one of another user's included)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OSError as exc:  # pragma: no cover - EINVAL and the like
+        return exc.errno != errno.ESRCH
+    return True

@@ -60,7 +60,7 @@ from contactbench.problems.errors import ProblemInputError
 import numpy as np
 import pandas as pd
 
-from .files import canonical_json, replace_atomically
+from .files import canonical_json, pid_exists, replace_atomically
 from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, columns_of
 
 ROWS_FILE = "rows.jsonl"
@@ -411,14 +411,8 @@ def process_state(holder: LockHolder) -> str:
     PID) or "unknown" (another host: its processes cannot be seen from here)."""
     if holder.host != socket.gethostname():
         return "unknown"
-    try:
-        os.kill(holder.pid, 0)
-    except ProcessLookupError:
+    if not pid_exists(holder.pid):
         return "gone"
-    except PermissionError:
-        pass  # it exists, under another user
-    except OSError as exc:  # pragma: no cover - EINVAL etc.
-        return "gone" if exc.errno == errno.ESRCH else "running"
     try:
         import psutil
 

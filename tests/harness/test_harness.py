@@ -3,6 +3,7 @@ store, the reference cache and the CLI round trip.  Small grids only (8^2-16^2).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -247,6 +248,31 @@ def test_sigkill_mid_run_then_rerun_gives_exactly_the_full_table(tmp_path: Path)
     for cid, row in before.items():  # rows written before the kill are kept as they were
         assert after[cid]["timestamp"] == row["timestamp"]
         assert after[cid]["solve_time_s"] == row["solve_time_s"]
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_a_parallel_run_without_waiting_for_its_jobs(tmp_path: Path) -> None:
+    """SIGINT to the runner of --jobs 2 (the process alone, as a signal from another shell)
+    stops it at once: the jobs its pool is running are killed with their solvers, not
+    waited for (each hangs for five minutes here), and it exits 130."""
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "contactbench.harness.cli", "run", "counterexample", "--size", "3", "--seeds", "0-3",
+           "--solvers", f"{SOLVER_MODULE}:HangingStub", "--reference", "none", "--no-warmup", "--jobs", "2",
+           "--timeout", "600", "--no-progress", "--out", str(out)]
+    proc = subprocess.Popen(cmd, env=cli_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(list(out.glob("_cache"))) == 0 and proc.poll() is None:
+            time.sleep(0.05)
+        time.sleep(2.0)  # the pool's jobs are in their solves
+        assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+        os.kill(proc.pid, signal.SIGINT)
+        assert proc.wait(timeout=60) == 130
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert "interrupted" in (proc.stderr.read().decode() if proc.stderr else "")
 
 
 def test_cli_run_then_report_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -165,14 +165,15 @@ def test_policy_reads_only_earlier_steps_whatever_the_order_rows_arrive() -> Non
     assert forward.first_timeout(("fake-growing", "default"), 6).step == 5
 
 
-def test_a_resumed_step_keeps_the_reference_its_first_answer_served(tmp_path: Path) -> None:
+@pytest.mark.parametrize("solvers", [["pk", "nnls", "bvls"], ["nnls", "gp", "admm"]],
+                         ids=["exact-solvers-left", "no-exact-solver-left"])
+def test_a_resumed_step_keeps_the_reference_its_first_answer_served(tmp_path: Path, solvers: list[str]) -> None:
     """The run's own exact answer serves as a step's reference, and its row comes first.  A
     run interrupted just after that row finds the stored answer on resume (it is no longer
-    among the solvers to run), so every row of the step is measured against the same
-    reference as in the uninterrupted run."""
+    among the solvers to run, and the others may not be exact), so every row of the step is
+    measured against the same reference as in the uninterrupted run."""
     cfg = SceneConfig(size=16, steps=2, seeds=(0,))
     run = RunConfig(reference="auto", warmup=False, progress=False)
-    solvers = ["pk", "nnls", "bvls"]
     whole = tmp_path / "whole"
     run_benchmark(["paper-sweep"], cfg, solvers, run, whole, command=["pytest"])
     first = load_table(whole)

@@ -8,6 +8,7 @@ import fcntl
 import json
 import os
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -443,3 +444,23 @@ def test_a_workers_temporary_files_go_with_it() -> None:
         assert left.is_file() and left.parent == Path(str(child.scratch))
         getattr(child, end)()
         assert not left.parent.exists(), end
+
+
+def test_a_killed_owners_worker_folder_is_removed_by_the_next_worker() -> None:
+    """The owner of a worker killed before it could remove the worker's temporary folder (a
+    pool job killed at Ctrl-C, a runner killed by kill -9): the next worker started on the
+    machine removes it, and leaves those of living owners."""
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    tmp = Path(tempfile.gettempdir())
+    dead = Path(tempfile.mkdtemp(prefix=f"contactbench-worker-{gone.pid}-", dir=tmp))
+    (dead / "problem.f64").write_bytes(b"left behind")
+    alive = Path(tempfile.mkdtemp(prefix=f"contactbench-worker-{os.getpid()}-", dir=tmp))
+    try:
+        child = ChildProcess(lambda: _leave_a_file)
+        assert child.call("go", 30.0).ok
+        child.close()
+        assert not dead.exists() and alive.is_dir()
+    finally:
+        for d in (dead, alive):
+            shutil.rmtree(d, ignore_errors=True)
