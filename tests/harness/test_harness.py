@@ -579,7 +579,7 @@ def test_list_solvers_params_prints_declared_parameters_and_grid(capsys: pytest.
         unregister("test-declared")
     out = capsys.readouterr().out
     block = out[out.index("test-declared"):].splitlines()[:4]
-    assert any("param K: int = 10 in [0, inf]  (gradient steps)" in line for line in block), block
+    assert any("param K: int = 10 in [0, inf)  (gradient steps)" in line for line in block), block
     assert any("grid  K = 0, 10" in line for line in block), block
 
 
