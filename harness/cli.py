@@ -27,13 +27,15 @@ Exit status (docs/harness.md, "Exit status"):
   traceback: an unknown name (with the closest known ones), an option the scene would
   ignore, a configuration that cannot run (``--kernel spectral`` without
   ``--periodic``, an implausible ``--E``), or a path that cannot be read or written;
-* 130 -- interrupted (the rows so far are kept).
+* 130 -- interrupted (the rows so far are kept);
+* 141 -- the reader of the output went away (``contactbench list solvers | head``), silently.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import warnings
 from importlib import metadata
@@ -51,6 +53,8 @@ from .arguments import EXIT_BAD_INPUT, InputError, Parser, check_out_dir, positi
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
+#: Exit status when the reader of the output closed it (128 + SIGPIPE, as a shell reports it).
+EXIT_BROKEN_PIPE = 141
 
 
 def package_version() -> str:
@@ -181,13 +185,16 @@ def build_parser() -> argparse.ArgumentParser:
     exp = sub.add_parser("export", help="write every (instance, step) QP of a scene to files (problems/export.py)")
     exp.add_argument("scene", metavar="SCENE", help="scene name (contactbench list scenes)")
     add_scene_options(exp)
-    exp.add_argument("--format", dest="fmt", choices=("problem-dir", "hdf5", "qpbenchmark"), required=True)
+    exp.add_argument("--format", dest="fmt", choices=("problem-dir", "hdf5", "qpbenchmark"), required=True,
+                     help="problem-dir: one folder per QP in the external-solver format (docs/external-solvers.md); "
+                          "hdf5: one problems.h5; qpbenchmark: one <scene>.parquet in qpbenchmark's ProblemList")
     exp.add_argument("--out", required=True, metavar="DIR", help="output directory")
     exp.add_argument("--dense-limit", type=positive_int, default=None,
                      help="largest n whose dense H is written (default: problems/export.py's)")
 
     rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
-    rep.add_argument("dir")
+    rep.add_argument("dir", help="a run's --out folder (its results table and meta.json), or a folder holding a "
+                                 "results.csv or results.parquet")
 
     sub.add_parser("validate", help="run a solver through the conformance battery (contactbench validate --help)",
                    add_help=False)
@@ -447,6 +454,9 @@ def _main(argv: list[str]) -> int:
         for line in str(msg).splitlines() or [""]:
             print(f"contactbench: error: {line}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # the reader of our output has gone (`contactbench list solvers | head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
+        return EXIT_BROKEN_PIPE
     except OSError as exc:  # a path that cannot be read or written: one line naming it
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"contactbench: error: {where}{exc.strerror or exc}", file=sys.stderr)

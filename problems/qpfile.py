@@ -393,9 +393,24 @@ class SolutionFile:
         return self.status is None or self.status in CLAIM_STATUSES
 
 
-def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: bool = True) -> np.ndarray:
+#: The most bytes a solution.json may hold: its report is a few fields.
+MAX_REPORT_BYTES = 1 << 20
+
+
+def _regular_file(path: Path, what: str, most: int) -> None:
+    """``SolutionFileError`` unless ``path`` is a regular file of at most ``most`` bytes (a
+    FIFO would block the reader, a folder or device cannot be an answer)."""
     if not path.exists():
         raise SolutionFileError(f"{what} ({path.name}) is missing")
+    if not path.is_file():
+        raise SolutionFileError(f"{what} ({path.name}) is not a regular file")
+    size = path.stat().st_size
+    if size > most:
+        raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, more than the {most} it may hold")
+
+
+def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: bool = True) -> np.ndarray:
+    _regular_file(path, what, 8 * (4 * max(n, 1) + 1024))  # a wrong length is read, within reason
     try:
         a = np.fromfile(path, dtype="<f8")
     except (OSError, ValueError) as exc:
@@ -420,6 +435,7 @@ def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: b
 def _read_report(path: Path) -> dict[str, Any]:
     if not path.exists():
         return {}
+    _regular_file(path, "the report", MAX_REPORT_BYTES)
     try:
         doc = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:

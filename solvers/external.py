@@ -52,6 +52,7 @@ One solve (``ExternalSolver.iterate``):
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import re
@@ -288,7 +289,8 @@ def _read_text(path: Path) -> str:
 
 def run_program(argv: Sequence[str], workdir: str | None, timeout: float | None, scratch: Path) -> ProcessResult:
     """Run ``argv`` in its own process group with stdout/stderr to files in ``scratch``;
-    kill the group after ``timeout`` seconds (None: no limit)."""
+    kill the group after ``timeout`` seconds (None: no limit), and once the program has
+    exited (a child it left behind, still running)."""
     out_path, err_path = scratch / "stdout.txt", scratch / "stderr.txt"
     with open(out_path, "wb") as out, open(err_path, "wb") as err:
         t0 = time.perf_counter()
@@ -301,6 +303,8 @@ def run_program(argv: Sequence[str], workdir: str | None, timeout: float | None,
         try:
             rc: int | None = proc.wait(timeout=timeout)
             timed_out = False
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(proc.pid, signal.SIGKILL)  # what it left running in its group: its solve is over
         except subprocess.TimeoutExpired:
             _kill_group(proc)
             rc, timed_out = None, True

@@ -421,3 +421,14 @@ def test_each_docs_command_exits_as_stated(command: str, status: int, capsys: py
     assert rc == status, (command, err)
     if status:
         one_line(err)
+
+
+def test_a_reader_that_goes_away_ends_the_listing_quietly() -> None:
+    """`contactbench list solvers --params | head -1`: no error line when head stops reading
+    (here the reader is gone before the listing starts, so the first write meets it)."""
+    proc = subprocess.Popen([sys.executable, "-m", "contactbench.harness.cli", "list", "solvers", "--params"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141 and err.decode() == ""

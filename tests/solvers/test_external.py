@@ -351,3 +351,33 @@ def test_the_python_reading_snippet_of_the_docs_works(tmp_path: Path) -> None:
     space["write_solution"](str(tmp_path / "s"), np.ones(16), 3, "max_iter")
     sol = read_solution_dir(tmp_path / "s", 16)
     assert sol.iterations == 3 and not sol.claims_converged
+
+
+def test_an_answer_that_is_not_a_regular_file_or_is_oversized_is_refused_without_reading_it(tmp_path: Path) -> None:
+    """A FIFO at p.f64 would block the reader until the hard limit; a huge solution.json
+    would be read whole: both are refused by what the file is."""
+    fifo = tmp_path / "fifo"
+    fifo.mkdir()
+    os.mkfifo(fifo / "p.f64")
+    with pytest.raises(SolutionFileError, match="not a regular file"):
+        read_solution_dir(fifo, 4)
+    big = tmp_path / "big"
+    big.mkdir()
+    np.zeros(4).tofile(big / "p.f64")
+    (big / "solution.json").write_text('{"status": "converged", "pad": "' + "x" * (2 << 20) + '"}')
+    with pytest.raises(SolutionFileError, match="more than the"):
+        read_solution_dir(big, 4)
+    np.zeros(10**6).tofile(big / "p.f64")
+    with pytest.raises(SolutionFileError, match="more than the"):
+        read_solution_dir(big, 4, as_written=True)
+
+
+def test_a_child_left_running_by_a_program_that_exited_is_killed(tmp_path: Path) -> None:
+    pidfile = tmp_path / "child.pid"
+    solver = command_solver(f"sh -c 'sleep 30 & echo $! > {pidfile}; exit 0' {{problem}} {{solution}}")
+    with pytest.raises(Exception):
+        solver.solve(counterexample(16, 0).qp, SolverSettings(time_limit=10.0))
+    pid = int(pidfile.read_text())
+    time.sleep(0.2)
+    stat = Path(f"/proc/{pid}/stat")
+    assert not stat.exists() or stat.read_text().split()[2] == "Z"
