@@ -222,6 +222,9 @@ def option_lines() -> list[str]:
 
 
 def cmd_list(what: str, params: bool = False) -> int:
+    if params and what != "solvers":
+        raise InputError(f"--params lists the solvers' parameters: `contactbench list solvers --params`, not "
+                         f"`list {what}`")
     if what == "options":
         print("\n".join(option_lines()))
         return 0
@@ -399,7 +402,11 @@ def has_results_table(out_dir: str) -> bool:
 def cmd_validate(args: Sequence[str]) -> int:
     from .conformance.command import main as validate_main
 
-    return int(validate_main(list(args)) or 0)
+    try:
+        return int(validate_main(list(args)) or 0)
+    except KeyboardInterrupt:
+        print("interrupted: no conformance report was written", file=sys.stderr)
+        return 130
 
 
 def forwarded_validate(argv: list[str]) -> list[str] | None:

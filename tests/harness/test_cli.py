@@ -432,3 +432,7 @@ def test_a_reader_that_goes_away_ends_the_listing_quietly() -> None:
     proc.stdout.close()
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 141 and err.decode() == ""
+
+
+def test_params_of_a_listing_without_parameters_is_refused(capsys: pytest.CaptureFixture[str], in_tmp: Path) -> None:
+    refused(["list", "scenes", "--params"], capsys, "--params lists the solvers' parameters")
