@@ -44,6 +44,9 @@ once per process for each file and message):
    ``"fill-min"`` by the lowest measured height (never brought into contact before every
    measured point is); ``"error"`` refuses the file.  A file with no measured point is
    always an error.  (Masked points of a SurfaceTopography channel are missing points.)
+   Where the plane is removed (step 2), the plane is fitted through the measured points
+   and the rule acts on the heights above it: a hole in a tilted map is filled along the
+   tilt, so that a filled point is never the map's summit because of the tilt.
 2. Tilt (``detrend=``): ``"plane"`` (default), ``"mean"`` or ``"none"``: subtract the
    least-squares mean plane z = a + b j + c i over the grid (i rows, j columns), the mean,
    or nothing.  The plane's slope in physical units (``plane_tilt``, rise per length) is
@@ -166,14 +169,16 @@ def load_surface(
         meta["height_unit"] = height_unit
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
     named = p.resolve()  # the file a link names: its base name is the map's (MapPreprocessing.source)
-    z = fill_missing(z, nan, named, meta)
-    z = remove_tilt(z, detrend, meta, spacing, named)
+    measured = ~np.isnan(z)
+    z = fill_missing(z, nan, named, meta, relative_to_plane=detrend == "plane")
+    z = remove_tilt(z, detrend, meta, spacing, named, measured if detrend == "plane" else None)
     z = crop_map(z, crop, named, meta)
     meta["spacing"] = list(spacing)
     chosen = None if raw.info.get("channel") is None else str(raw.info["channel"])
     raw_hash = raw_heights_sha256(raw.z)
+    relative = meta["nan_points"] > 0 and detrend == "plane"
     key = options_key(raw_hash, key_options(nan=nan, detrend=detrend, crop=crop, metres_per_unit=metres,
-                                            spacing=spacing, channel=chosen))
+                                            spacing=spacing, channel=chosen, filled_above_plane=relative))
     record = preprocessing_record(p, raw, meta, z.shape, (raw_hash, key), (height_unit, unit_from, metres))
     d0, d1 = spacing
     return Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1,
@@ -200,7 +205,8 @@ def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tupl
         spacing=spacing, spacing_from=str(meta["spacing_from"]), nan_rule=str(meta["nan_rule"]), filled=filled,
         filled_fraction=filled / (n0 * n1), fill_value=meta.get("fill_value"), detrend=str(meta["detrend"]),
         tilt=float(meta["tilt"]), removed_mean=removed_mean, removed_slope=slope, crop=str(meta["crop_rule"]),
-        crop_done=str(meta["crop"]), warnings=tuple(meta["warnings"]))
+        crop_done=str(meta["crop"]), warnings=tuple(meta["warnings"]),
+        fill_relative_to=str(meta.get("fill_relative_to", "zero")))
 
 
 def announce(message: str, meta: dict[str, Any]) -> None:
@@ -521,8 +527,12 @@ def write_text(path: str | Path, z: np.ndarray, delimiter: str = ",") -> Path:
 # ---------------------------------------------------------------------------
 
 
-def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:
-    """Replace NaN points by the documented rule (module doc, step 1)."""
+def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str, Any],
+                 relative_to_plane: bool = False) -> np.ndarray:
+    """Replace NaN points by the documented rule (module doc, step 1); ``relative_to_plane``:
+    the rule acts on the heights above the measured points' least-squares plane, and the
+    plane is added back (so that on a tilted map a hole is filled along the tilt, not at
+    one level that may rise above every measured point)."""
     missing = np.isnan(z)
     n_missing = int(missing.sum())
     meta["nan_points"] = n_missing
@@ -533,7 +543,8 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
         raise SurfaceFileError(path, f"NaN-only: none of the {z.size} points was measured")
     if rule == "error":
         raise SurfaceFileError(path, f"{n_missing} missing (NaN) points and nan='error'")
-    z = z.copy()
+    plane = measured_plane(z, ~missing) if relative_to_plane else np.zeros_like(z)
+    z = z - plane
     if rule == "fill-mean":
         z[missing] = float(np.mean(z[~missing]))
     elif rule == "fill-min":
@@ -544,14 +555,32 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
         _, (ii, jj) = distance_transform_edt(missing, return_indices=True)
         z = z[ii, jj]
     if rule != "fill-nearest":
-        meta["fill_value"] = float(z[missing][0])
-    announce(f"{Path(path).name}: {n_missing} missing points ({n_missing / z.size:.1%}) filled by rule {rule!r}", meta)
-    return z
+        meta["fill_value"] = float(z[missing][0])  # above the plane, where filled relative to it
+    meta["fill_relative_to"] = "the measured points' plane" if relative_to_plane else "zero"
+    basis = " relative to the measured points' plane" if relative_to_plane else ""
+    announce(f"{Path(path).name}: {n_missing} missing points ({n_missing / z.size:.1%}) filled by rule {rule!r}"
+             f"{basis}", meta)
+    return z + plane
 
 
-def plane_fit(z: np.ndarray) -> tuple[float, float, float]:
+def measured_plane(z: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """The least-squares plane through the ``measured`` points of ``z`` (``plane_fit``), on
+    the whole grid."""
+    a, c, b = plane_fit(z, measured)
+    return a + c * np.arange(z.shape[0])[:, None] + b * np.arange(z.shape[1])[None, :]
+
+
+def plane_fit(z: np.ndarray, measured: np.ndarray | None = None) -> tuple[float, float, float]:
     """(a, c, b) of the least-squares plane z = a + c i + b j (i rows, j columns; a at
-    i = j = 0)."""
+    i = j = 0) through every point, or through the ``measured`` ones (a mask; the mean
+    level where they fix no plane: fewer than three, or on one line)."""
+    if measured is not None and not measured.all():
+        i, j = np.nonzero(measured)
+        basis = np.stack([np.ones(i.size), i.astype(np.float64), j.astype(np.float64)], axis=1)
+        coef, _, rank, _ = np.linalg.lstsq(basis, z[measured], rcond=None)
+        if rank < 3:
+            return float(np.mean(z[measured])), 0.0, 0.0
+        return float(coef[0]), float(coef[1]), float(coef[2])
     n0, n1 = z.shape
     i = np.arange(n0, dtype=np.float64) - 0.5 * (n0 - 1)
     j = np.arange(n1, dtype=np.float64) - 0.5 * (n1 - 1)
@@ -568,12 +597,13 @@ def plane_tilt(z: np.ndarray, spacing: tuple[float, float]) -> float:
 
 
 def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing: tuple[float, float] = (1.0, 1.0),
-                path: str | Path = "map") -> np.ndarray:
+                path: str | Path = "map", measured: np.ndarray | None = None) -> np.ndarray:
     """Subtract nothing, the mean, or the least-squares mean plane (module doc, step 2),
-    on the filled map (no point is missing); warn when the plane's tilt exceeds the rms
-    slope of the map without it."""
+    on the filled map (no point is missing), the plane fitted through the ``measured``
+    points (a mask; None: every point); warn when the plane's tilt exceeds the rms slope
+    of the map without it."""
     meta["detrend"] = rule
-    a, c, b = plane_fit(z)
+    a, c, b = plane_fit(z, measured)
     n0, n1 = z.shape
     plane = a + c * np.arange(n0)[:, None] + b * np.arange(n1)[None, :]
     tilt = float(np.hypot(c / spacing[0], b / spacing[1]))

@@ -94,6 +94,9 @@ class MapPreprocessing:
     crop: str
     crop_done: str
     warnings: tuple[str, ...] = ()
+    #: What the filled points' ``fill_value`` is measured from: "zero" (the heights as read)
+    #: or "the measured points' plane" (io.fill_missing, with detrend "plane").
+    fill_relative_to: str = "zero"
 
     @property
     def lengths(self) -> tuple[float, float]:
@@ -126,10 +129,15 @@ class MapPreprocessing:
 
 
 def key_options(*, nan: str, detrend: str, crop: str, metres_per_unit: float, spacing: tuple[float, float],
-                channel: str | None) -> dict[str, Any]:
-    """The options of a map's preparation that change the problem (hashed into ``key``)."""
-    return {"nan": nan, "detrend": detrend, "crop": crop, "metres_per_unit": float(metres_per_unit),
-            "spacing": [float(spacing[0]), float(spacing[1])], "channel": channel}
+                channel: str | None, filled_above_plane: bool = False) -> dict[str, Any]:
+    """The options of a map's preparation that change the problem (hashed into ``key``);
+    ``filled_above_plane``: missing points were filled relative to the measured points'
+    plane (``io.fill_missing``), which names another problem than a fill on the raw heights."""
+    out = {"nan": nan, "detrend": detrend, "crop": crop, "metres_per_unit": float(metres_per_unit),
+           "spacing": [float(spacing[0]), float(spacing[1])], "channel": channel}
+    if filled_above_plane:
+        out["fill"] = "above the measured plane"
+    return out
 
 
 def plane_in_lengths(plane: dict[str, float], shape: tuple[int, int],

@@ -224,6 +224,30 @@ def test_nan_rules(tmp_path: Path) -> None:
         load_surface(tmp_path / "a.npy", length=4.0, nan="error", detrend="none")
 
 
+@pytest.mark.parametrize("rule", ["fill-mean", "fill-min", "fill-nearest"])
+def test_a_hole_in_a_tilted_map_is_filled_along_the_tilt_not_above_it(tmp_path: Path, rule: str) -> None:
+    """A tilt below the rms slope (no warning) and a hole at the high corner: filled at one
+    level, the hole became the summit once the plane was removed, and a small load touched
+    only filled points.  Filled relative to the measured points' plane, the filled points
+    lie within the measured heights (fill-min: at the lowest), and the record says so."""
+    rough = random_map((32, 32), seed=7)
+    rough *= 1e-6 / rough.std()
+    yy, xx = np.mgrid[0:32, 0:32]
+    z = rough + 0.16 * 1e-6 * xx  # rise per column: a tilt of 0.16 of the spacing 1 um
+    z[:4, 28:] = np.nan  # the high corner
+    np.save(tmp_path / "tilted.npy", z)
+    with pytest.warns(UserWarning, match="relative to the measured points' plane"):
+        s = load_surface(tmp_path / "tilted.npy", length=32e-6, nan=rule)
+    filled, measured = s.heights[:4, 28:], np.delete(s.heights.ravel(), (yy[:4, 28:] * 32 + xx[:4, 28:]).ravel())
+    assert filled.max() < measured.max()
+    if rule == "fill-min":
+        assert filled.max() <= measured.min() + 1e-9 * measured.std()
+    assert s.meta["fill_relative_to"] == s.preprocessing.fill_relative_to == "the measured points' plane"
+    flat = load_surface(tmp_path / "tilted.npy", length=32e-6, nan=rule, detrend="none")
+    assert flat.meta["fill_relative_to"] == "zero"  # the tilt is kept, and the fill is on the heights as read
+    assert s.preprocessing.key != flat.preprocessing.key
+
+
 def test_plane_detrend_removes_tilt_exactly(tmp_path: Path) -> None:
     rough = random_map((16, 16), seed=4)
     yy, xx = np.mgrid[0:16, 0:16]
