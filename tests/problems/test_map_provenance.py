@@ -163,6 +163,24 @@ def test_two_paths_to_one_map_give_one_name_and_the_same_cell_ids(tmp_path: Path
     assert planned(str(tmp_path / "other.npy"))[1] != ids  # another map: other cells
 
 
+def test_a_map_changed_after_the_plan_is_refused_when_its_steps_are_built(tmp_path: Path) -> None:
+    """The plan names the instance by the map's content; a file replaced before its steps
+    are built (during a run, between planning and a worker, or before a resume) does not
+    give that instance, and building it says so instead of solving another map under the
+    planned name."""
+    from contactbench.problems.errors import ProblemInputError
+
+    np.save(tmp_path / "m.npy", tilted_map_with_holes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        (job,) = plan_run(["paper-sweep"], SceneConfig(surface_path=str(tmp_path / "m.npy"),
+                                                      length=(N0 * D, N1 * D), steps=2), ["pk"]).jobs
+        job.spec.build()  # the file as planned
+        np.save(tmp_path / "m.npy", tilted_map_with_holes() * 1.5)
+        with pytest.raises(ProblemInputError, match="has changed since the run was planned"):
+            job.spec.build()
+
+
 def test_the_record_follows_the_options_and_the_heights(tmp_path: Path) -> None:
     z = tilted_map_with_holes()
     np.save(tmp_path / "a.npy", z)
