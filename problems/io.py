@@ -63,7 +63,6 @@ Coarsening and the PSD power-law test are not I/O: they live in ``problems/coars
 from __future__ import annotations
 
 import hashlib
-import io as _stdio
 import warnings
 import zipfile
 from dataclasses import dataclass, field
@@ -75,6 +74,7 @@ import numpy as np
 from .errors import ProblemInputError, check_positive
 from .preprocessing import MapPreprocessing, key_options, options_key, plane_in_lengths, raw_heights_sha256
 from .surfaces import Surface
+from .map_files import write_text, write_topography, write_x3p
 from .units import HEIGHT_UNITS
 
 CropRule = Literal["none", "square", "pad-square"]
@@ -172,6 +172,7 @@ def load_surface(
     measured = ~np.isnan(z)
     z = fill_missing(z, nan, named, meta, relative_to_plane=detrend == "plane")
     z = remove_tilt(z, detrend, meta, spacing, named, measured if detrend == "plane" else None)
+    check_not_flat(z, raw.z[measured] * scale, spacing, named)
     z = crop_map(z, crop, named, meta)
     meta["spacing"] = list(spacing)
     chosen = None if raw.info.get("channel") is None else str(raw.info["channel"])
@@ -482,47 +483,6 @@ def _st_version() -> str:
 
 
 # ---------------------------------------------------------------------------
-# Writer (test data, samples): through SurfaceTopography
-# ---------------------------------------------------------------------------
-
-
-def write_topography(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], fmt: str = "x3p",
-                     **kw: Any) -> Path:
-    """Write a height map (ny x nx, metres; ``spacing`` one float or (axis 0, axis 1)) with
-    SurfaceTopography's writer ``to_<fmt>`` (x3p, gwy, netcdf); ``kw`` go to the writer
-    (x3p: ``dtype`` D, F, L or I)."""
-    from SurfaceTopography import Topography
-
-    z = np.asarray(z, dtype=np.float64)
-    if z.ndim != 2:
-        raise ProblemInputError(f"the {fmt} writer needs a 2-D map, got shape {z.shape}")
-    ny, nx = z.shape
-    h = np.ma.masked_invalid(z.T) if np.isnan(z).any() else z.T
-    dy, dx = (spacing, spacing) if np.ndim(spacing) == 0 else spacing  # type: ignore[misc]
-    topo = Topography(h, physical_sizes=(nx * float(dx), ny * float(dy)), unit="m")
-    writer = getattr(topo, f"to_{fmt}", None)
-    if writer is None:
-        raise ProblemInputError(f"SurfaceTopography has no writer for {fmt!r} (x3p, gwy, netcdf)")
-    writer(str(path), **kw)
-    return Path(path)
-
-
-def write_x3p(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], *, data_type: str = "D") -> Path:
-    """An ISO 25178-71 .x3p file (SurfaceTopography's writer; integer types L, I are
-    scaled over their full range)."""
-    return write_topography(path, z, spacing, "x3p", dtype=data_type)
-
-
-def write_text(path: str | Path, z: np.ndarray, delimiter: str = ",") -> Path:
-    """Write a height map as a text matrix (full float precision)."""
-    buf = _stdio.StringIO()
-    np.savetxt(buf, np.asarray(z, dtype=np.float64), delimiter=delimiter, fmt="%.17g")
-    out = Path(path)
-    out.write_text(buf.getvalue(), encoding="utf-8")
-    return out
-
-
-# ---------------------------------------------------------------------------
 # Cleaning
 # ---------------------------------------------------------------------------
 
@@ -620,6 +580,27 @@ def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing:
         return z - float(np.mean(z))
     meta["removed_plane"] = {"a": a, "b_per_column": b, "c_per_row": c}
     return z - plane
+
+
+#: A map whose heights, as solved, vary by at most this fraction of the largest height read
+#: is flat: what is left is the round-off of a constant or of the plane removed.
+FLAT_RTOL = 1e-10
+
+
+def check_not_flat(z: np.ndarray, read: np.ndarray, spacing: tuple[float, float], path: str | Path) -> None:
+    """``SurfaceFileError`` for a map with no relief to solve on (``z``: as solved; ``read``:
+    the measured heights as read, in metres): its heights vary by no more than the round-off
+    of the heights read (``FLAT_RTOL``: a constant, or a plane once removed), or its rms
+    slope is 0 in float64 (heights so small their slopes underflow)."""
+    relief = float(np.ptp(z))
+    scale = float(np.max(np.abs(read))) if read.size else 0.0
+    if relief <= FLAT_RTOL * scale or relief == 0.0:
+        raise SurfaceFileError(path, f"flat: its heights vary by {relief:.3g} m as solved, the round-off of heights "
+                                     f"up to {scale:.3g} m (a constant map, or a plane once its tilt is removed); "
+                                     "there is no roughness to make contact on")
+    if Surface(z, spacing[0], delta1=spacing[1]).rms_slope() == 0.0:
+        raise SurfaceFileError(path, f"flat in float64: its heights vary by {relief:.3g} m, so small that its "
+                                     "slopes underflow to 0 (a unit slip? see --height-unit)")
 
 
 def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:

@@ -148,16 +148,19 @@ class Surface:
         return float(self.heights.max()) == float(self.heights.min())
 
     def rms_slope(self) -> float:
-        """sqrt(<|grad h|^2>) by forward differences (periodic wrap when periodic)."""
+        """sqrt(<|grad h|^2>) by forward differences (periodic wrap when periodic): inf
+        where the slopes' squares overflow, 0 where they underflow (no warning: the callers
+        judge the figure)."""
         h = self.heights
         d0, d1 = self.spacing
-        if self.periodic:
-            gx = (np.roll(h, -1, 0) - h) / d0
-            gy = (np.roll(h, -1, 1) - h) / d1
-        else:
-            gx = np.diff(h, axis=0)[:, :-1] / d0
-            gy = np.diff(h, axis=1)[:-1, :] / d1
-        return float(np.sqrt(np.mean(gx**2 + gy**2)))
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            if self.periodic:
+                gx = (np.roll(h, -1, 0) - h) / d0
+                gy = (np.roll(h, -1, 1) - h) / d1
+            else:
+                gx = np.diff(h, axis=0)[:, :-1] / d0
+                gy = np.diff(h, axis=1)[:-1, :] / d1
+            return float(np.sqrt(np.mean(gx**2 + gy**2)))
 
     def scaled(self, length_factor: float) -> Surface:
         """The same surface with every length multiplied by ``length_factor``."""

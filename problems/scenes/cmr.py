@@ -123,7 +123,7 @@ class CMRCutoff(RampScene):
             params = {**base, "surface_path": cfg.surface_path, "seed": 0}
             record = surface_from_params(params).preprocessing  # names the map by its base name and content
             return [InstanceSpec(self.name, record.instance_name,
-                                 {**params, "surface_path": record.path, "surface_key": record.key})]
+                                 {**params, "surface_path": record.path, "surface_sha256": record.raw_sha256})]
         kinds = {"rolloff": float(cfg.extra["rolloff_fraction"]), "power-law": None}
         return [InstanceSpec(self.name, f"{kind}-H{base['hurst']:g}-N{cfg.size}-s{s}",
                              {**base, "surface": kind, "rolloff_fraction": frac, "seed": int(s)})

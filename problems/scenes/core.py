@@ -89,11 +89,11 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
         surface = load_surface(params["surface_path"], length=tuple(length) if isinstance(length, list) else length,
                                channel=params.get("channel"), height_unit=None if unit is None else str(unit),
                                **cleaning)  # type: ignore[arg-type]
-        planned = params.get("surface_key")
-        if planned is not None and surface.preprocessing is not None and surface.preprocessing.key != planned:
+        planned = params.get("surface_sha256")
+        if planned is not None and surface.preprocessing is not None and surface.preprocessing.raw_sha256 != planned:
             raise ProblemInputError(f"surface file {params['surface_path']} has changed since the run was planned "
-                                    f"(its heights or their preparation no longer give instance "
-                                    f"file-...-{str(planned)[:8]}); restore it, or run the new map into another --out")
+                                    f"(its heights' sha256 {surface.preprocessing.raw_sha256[:12]}..., planned "
+                                    f"{str(planned)[:12]}...); restore it, or run the new map into another --out")
         return surface
     if np.ndim(params.get("length")) != 0:
         raise ProblemInputError(f"a generated surface is square: give one length, not {params.get('length')!r} "
@@ -261,7 +261,7 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))
         record = surface_from_params(file_params).preprocessing  # names the map by its base name and content
         file_params["surface_path"] = record.path
-        file_params["surface_key"] = record.key  # what the map must still give when a step is built
+        file_params["surface_sha256"] = record.raw_sha256  # what the file must still hold when a step is built
         return [InstanceSpec(scene, f"{record.instance_name}{layer_suffix(base)}{control_suffix(base)}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
     bc = "per" if cfg.periodic else "np"

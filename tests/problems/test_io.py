@@ -440,3 +440,37 @@ def test_cli_runs_a_gwy_file_without_length(tmp_path: Path, capsys: pytest.Captu
     rc = cli.main(["run", "paper-sweep", "--surface", str(path), "--length", "1e-3", "--steps", "2",
                    "--solvers", "nnls", "--out", str(tmp_path / "bad")])
     assert rc == 2 and "disagrees" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("what", ["constant", "plane", "tiny"])
+def test_a_map_with_no_relief_to_solve_on_is_refused(tmp_path: Path, what: str) -> None:
+    """A constant map, an exact plane (flat once its tilt is removed: round-off is left) and
+    heights so small their slopes underflow: refused naming the file, not solved on noise."""
+    yy, xx = np.mgrid[0:16, 0:16].astype(float)
+    z = {"constant": np.full((16, 16), 1e-6), "plane": 1e-6 + 3e-8 * xx - 2e-8 * yy,
+         "tiny": 1e-300 * random_map((16, 16), seed=2) / 1e-6}[what]
+    np.save(tmp_path / f"{what}.npy", z)
+    with pytest.raises(SurfaceFileError, match="flat") as err, warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the tilt warning of the plane
+        load_surface(tmp_path / f"{what}.npy", length=16e-6)
+    assert f"{what}.npy" in str(err.value)
+    rough = 1e-6 + 3e-8 * xx + 1e-12 * random_map((16, 16), seed=3) / 1e-6  # a pm of roughness on a um offset: kept
+    np.save(tmp_path / "rough.npy", rough)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert np.ptp(load_surface(tmp_path / "rough.npy", length=16e-6).heights) > 0
+
+
+def test_a_slope_that_overflows_reads_inf_without_a_warning() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert Surface(1e300 * random_map((8, 8)) / 1e-6, 1e-9).rms_slope() == np.inf
+
+
+@pytest.mark.parametrize("spacing", [float("nan"), -1.0, 0.0, (1e-6, float("inf"))])
+def test_the_writer_refuses_a_spacing_its_readers_would(tmp_path: Path, spacing: object) -> None:
+    from contactbench.problems.io import write_topography
+
+    with pytest.raises(ProblemInputError, match="spacing"):
+        write_topography(tmp_path / "w.nc", random_map((8, 8)), spacing, "netcdf")  # type: ignore[arg-type]
+    assert not (tmp_path / "w.nc").exists()

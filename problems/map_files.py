@@ -1,0 +1,65 @@
+"""Height-map writers (test data, the bundled samples), the counterpart of problems/io.py's
+readers: SurfaceTopography's writers for x3p, gwy and NetCDF, and a text matrix.  A map
+they write is one the readers take: a 2-D map of finite heights or NaN (missing points),
+and finite spacings > 0.
+"""
+
+from __future__ import annotations
+
+import io as _stdio
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import ProblemInputError
+
+
+def _spacings(spacing: float | tuple[float, float]) -> tuple[float, float]:
+    """(axis 0, axis 1) spacings: finite and > 0, else ``ProblemInputError``."""
+    pair = (spacing, spacing) if np.ndim(spacing) == 0 else tuple(spacing)  # type: ignore[arg-type]
+    if len(pair) != 2 or not all(isinstance(d, (int, float, np.floating)) and math.isfinite(d) and d > 0
+                                 for d in pair):
+        raise ProblemInputError(f"a map's spacing is one or two finite numbers > 0 (metres), got {spacing!r}")
+    return float(pair[0]), float(pair[1])
+
+
+
+
+def write_topography(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], fmt: str = "x3p",
+                     **kw: Any) -> Path:
+    """Write a height map (ny x nx, metres; ``spacing`` one float or (axis 0, axis 1)) with
+    SurfaceTopography's writer ``to_<fmt>`` (x3p, gwy, netcdf); ``kw`` go to the writer
+    (x3p: ``dtype`` D, F, L or I)."""
+    from SurfaceTopography import Topography
+
+    z = np.asarray(z, dtype=np.float64)
+    if z.ndim != 2:
+        raise ProblemInputError(f"the {fmt} writer needs a 2-D map, got shape {z.shape}")
+    if np.isinf(z).any():
+        raise ProblemInputError("a map's heights are finite numbers or NaN (missing), got inf")
+    dy, dx = _spacings(spacing)
+    ny, nx = z.shape
+    h = np.ma.masked_invalid(z.T) if np.isnan(z).any() else z.T
+    topo = Topography(h, physical_sizes=(nx * float(dx), ny * float(dy)), unit="m")
+    writer = getattr(topo, f"to_{fmt}", None)
+    if writer is None:
+        raise ProblemInputError(f"SurfaceTopography has no writer for {fmt!r} (x3p, gwy, netcdf)")
+    writer(str(path), **kw)
+    return Path(path)
+
+
+def write_x3p(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], *, data_type: str = "D") -> Path:
+    """An ISO 25178-71 .x3p file (SurfaceTopography's writer; integer types L, I are
+    scaled over their full range)."""
+    return write_topography(path, z, spacing, "x3p", dtype=data_type)
+
+
+def write_text(path: str | Path, z: np.ndarray, delimiter: str = ",") -> Path:
+    """Write a height map as a text matrix (full float precision)."""
+    buf = _stdio.StringIO()
+    np.savetxt(buf, np.asarray(z, dtype=np.float64), delimiter=delimiter, fmt="%.17g")
+    out = Path(path)
+    out.write_text(buf.getvalue(), encoding="utf-8")
+    return out
