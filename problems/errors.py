@@ -23,16 +23,27 @@ class MemoryBudgetError(MemoryError):
         )
 
 
+def real_number(name: str, value: object, rule: str) -> float:
+    """``value`` as a float if it is a real number (not a bool, a string or None), else a
+    ``ProblemInputError`` naming ``name`` and ``rule``."""
+    if isinstance(value, (bool, str, bytes)) or value is None:
+        raise ProblemInputError(f"{name} must be {rule}, got {value!r}")
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ProblemInputError(f"{name} must be {rule}, got {value!r}") from None
+
+
 def check_positive(name: str, value: float) -> float:
-    """Return ``value`` as float if finite and > 0, else raise a clear error."""
-    v = float(value)
+    """Return ``value`` as float if it is a finite real number > 0, else raise a clear error."""
+    v = real_number(name, value, "a finite positive number")
     if not (v > 0.0) or v != v or v == float("inf"):
         raise ProblemInputError(f"{name} must be a finite positive number, got {value!r}")
     return v
 
 
 def check_nonnegative(name: str, value: float) -> float:
-    v = float(value)
+    v = real_number(name, value, "a finite number >= 0")
     if not (v >= 0.0) or v == float("inf"):
         raise ProblemInputError(f"{name} must be a finite number >= 0, got {value!r}")
     return v

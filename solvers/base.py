@@ -174,6 +174,20 @@ class SolverSettings:
     params: dict[str, Any] = field(default_factory=dict)
     check_tol: float | None = None
 
+    def __post_init__(self) -> None:
+        """``ProblemInputError`` naming the field: tol and check_tol finite and > 0,
+        max_iter an integer >= 0, time_limit finite and >= 0 (each or None)."""
+        for name in ("tol", "check_tol", "time_limit"):
+            v = getattr(self, name)
+            low_ok = (lambda x: x >= 0) if name == "time_limit" else (lambda x: x > 0)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float, np.floating))
+                                  or not (math.isfinite(v) and low_ok(v))):
+                raise ProblemInputError(f"SolverSettings.{name} is a finite number {'>=' if name == 'time_limit' else '>'}"
+                                        f" 0 or None, got {v!r}")
+        m = self.max_iter
+        if m is not None and (isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 0):
+            raise ProblemInputError(f"SolverSettings.max_iter is an integer >= 0 or None, got {m!r}")
+
 
 @dataclass
 class WarmStart:

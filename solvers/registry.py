@@ -149,6 +149,8 @@ def get_solver(name: str) -> Solver:
     """The solver called ``name``: a discovered one, else one of the late sources
     (external manifests, read now); else ``UnknownSolverError`` listing the known ones
     and, first, the error of any late source that failed to load."""
+    if not isinstance(name, str):
+        raise UnknownSolverError(f"a solver is named by a string (contactbench list solvers), got {name!r}")
     if name in _SOLVERS:
         return _SOLVERS.get(name)
     _LATE.load()

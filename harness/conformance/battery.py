@@ -67,6 +67,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
@@ -373,9 +374,15 @@ def _num(x: float | None, fmt: str = "9.2e") -> str:
 
 
 def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec] | None, mode: str) -> list[ConformanceCase]:
+    """The cases to run: the ``mode``'s battery, or ``cases``; ``ProblemInputError`` for an
+    empty selection (a battery of no case would conform vacuously)."""
     if cases is None:
         return conformance_cases(mode)
-    return [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
+    out = [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
+    if not out:
+        raise ProblemInputError("no conformance case was given (an empty selection: check its filter); "
+                                "a battery of no case tests nothing")
+    return out
 
 
 def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Promise = "exact") -> list[VerdictRow]:
@@ -404,8 +411,10 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
     battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
     its declared ``Param``s first) and return the verdict table.  ``timeout``: seconds
-    per solve (``check_timeout``; None: the mode's default)."""
+    per solve (``check_timeout``; None: the mode's default).  An empty ``cases`` is a
+    ``ProblemInputError``."""
     limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else check_timeout(timeout)
+    selected = _as_cases(cases, mode)
     s = load_solver(solver) if isinstance(solver, str) else solver
     table = VerdictTable(s.name, mode, promise=s.capabilities.promise)
     available, why = s.availability()
@@ -415,7 +424,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     s.resolve_params(params)  # unknown or bad parameters: a ParamError before anything runs
     runner = CaseRunner(s, limit, isolate=isolate, params=params)
     try:
-        for case in _as_cases(cases, mode):
+        for case in selected:
             new = run_case(runner, case, s.name, s.capabilities.promise)
             table.rows.extend(new)
             if progress is not None:

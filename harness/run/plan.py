@@ -447,17 +447,28 @@ def option_problems(scenes: Sequence[str], cfg: SceneConfig | None) -> list[str]
     return list(dict.fromkeys(problems))
 
 
-def plan_run(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
+def plan_run(scenes: Sequence[str] | str, cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
              run: RunConfig | None = None) -> RunPlan:
     """Expand scene names into instance jobs; raise ``PlanError`` listing every bad
     input (module doc) before anything runs."""
     run = run or RunConfig()
-    plan = RunPlan(jobs=[], scenes=list(scenes))
+    scenes = [scenes] if isinstance(scenes, str) else list(scenes)  # one scene's name, or several
+    if not scenes:
+        raise PlanError(["no scene to run: name one or more (contactbench list scenes)"])
+    if solvers is not None and not isinstance(solvers, str) and not list(solvers):
+        raise PlanError(["an empty solver list names no solver: give names (contactbench list solvers), 'all', "
+                         "or None for the scenes' own"])
+    plan = RunPlan(jobs=[], scenes=scenes)
     problems = option_problems(scenes, cfg)
     if problems:  # (each scene's own checks would repeat them)
         raise PlanError(problems)
     for name in scenes:
-        for study, part_cfg in expand(name, cfg):
+        try:
+            parts = expand(name, cfg)
+        except KeyError as exc:  # an unknown scene or mix: named with the closest ones
+            problems.append(str(exc.args[0]) if exc.args else str(exc))
+            continue
+        for study, part_cfg in parts:
             try:
                 names = resolve_solver_names(solvers, study.solvers)
                 jobs, warnings = scene_jobs(study, part_cfg, names, run)

@@ -342,3 +342,27 @@ def test_docs_verdicts_shell_commands_run_with_their_exit_status() -> None:
         proc = subprocess.run(command, shell=True, cwd=ROOT, capture_output=True, text=True, timeout=300, env=env,
                               check=False)
         assert proc.returncode == code, (command, proc.stdout[-2000:], proc.stderr[-2000:])
+
+
+@pytest.mark.parametrize("field, value", [("tol", float("nan")), ("tol", -1.0), ("tol", 0.0), ("check_tol", float("inf")),
+                                          ("max_iter", -5), ("max_iter", 2.5), ("max_iter", "10"),
+                                          ("time_limit", float("nan")), ("time_limit", -1.0)])
+def test_settings_that_cannot_be_meant_are_refused_naming_the_field(field: str, value: object) -> None:
+    """nnls at tol -1 crashed inside numpy; pk at tol NaN ran 100,000 iterations; max_iter -5
+    gave iterations = -5; time_limit NaN meant no limit."""
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.solvers import SolverSettings
+
+    with pytest.raises(ProblemInputError, match=f"SolverSettings.{field}"):
+        SolverSettings(**{field: value})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("check_tol", [float("inf"), float("nan"), -1.0, 0.0])
+def test_the_judge_refuses_a_check_tol_that_would_pass_or_fail_everything(check_tol: float) -> None:
+    from contactbench.harness.judging import judge
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.problems.instances import counterexample
+
+    inst = counterexample(16, 0)
+    with pytest.raises(ProblemInputError, match="check_tol"):
+        judge(inst, np.zeros(inst.n), True, check_tol=check_tol)

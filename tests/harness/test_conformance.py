@@ -582,3 +582,15 @@ def test_case_selection_each_case_once_and_list_refuses_an_empty_selection(
     nothing_may_run(monkeypatch)
     for argv in (["--list", "--cases", "nomatch"], [f"{HERE}:GoodSolver", "--cases", "nomatch"]):
         assert "no case matches --cases 'nomatch'" in refused_in_one_line(argv, capsys)
+
+
+def test_an_empty_selection_of_cases_is_refused_not_passed() -> None:
+    """A filter with a typo selects nothing: the battery of no case would conform (greedy-cg,
+    WRONG on Example 1, passed); the API refuses it as the command line does."""
+    from contactbench.problems.errors import ProblemInputError
+
+    nothing = [c for c in cf.conformance_cases("fast") if c.name.startswith("counterexmaple")]
+    with pytest.raises(ProblemInputError, match="no conformance case"):
+        cf.assert_conforms("greedy-cg", nothing)
+    with pytest.raises(ProblemInputError, match="no conformance case"):
+        cf.validate("pk", [])

@@ -587,3 +587,19 @@ def test_validate_forwards_every_argument_to_the_conformance_module() -> None:
     assert cli.forwarded_validate(["validate", "--list"]) == ["--list"]
     assert cli.forwarded_validate(["-v", "validate", "--all", "--quiet"]) == ["--all", "--quiet"]
     assert cli.forwarded_validate(["run", "validate"]) is None
+
+
+def test_the_api_reads_one_scene_name_and_refuses_empty_lists_and_unknown_names(tmp_path: Path) -> None:
+    """run_benchmark("hertz") walked the string letter by letter ("unknown scene 'h'"), an
+    empty solver list ran every solver, no scene wrote an empty folder, and an unknown
+    scene was a bare KeyError: one scene's name is read as that scene, the rest are
+    ``PlanError``s (``ProblemInputError``) naming the problem, and nothing is written."""
+    from contactbench.harness.run.plan import PlanError, plan_run
+
+    cfg = SceneConfig(size=8)
+    assert [j.spec.scene for j in plan_run("hertz", cfg, ["test-exact"]).jobs] == ["hertz"]
+    for scenes, solvers, words in ((["hertz"], [], "empty solver list"), ([], ["test-exact"], "no scene"),
+                                   (["hertzz"], ["test-exact"], "hertz")):
+        with pytest.raises(PlanError, match=words):
+            run_benchmark(scenes, cfg, solvers, RunConfig(progress=False), tmp_path / "o", command=["pytest"])
+    assert not (tmp_path / "o").exists()

@@ -224,3 +224,15 @@ def test_has_surface_tells_which_problems_can_be_rebuilt_from_their_surface(surf
     inst = InstanceBuilder(surface, E).build(paper_max_displacement(surface))
     assert inst.geometry.has_surface
     assert not counterexample(25, 0).geometry.has_surface  # a grid, but no surface (paper Example 1)
+
+
+@pytest.mark.parametrize("bad", ["1e-6", True, None])
+def test_a_number_given_as_text_a_bool_or_none_is_refused_naming_it(bad: object) -> None:
+    """load_ramp("1e-6", 3) failed inside NumPy ("string multiply"); a length of True was 1 m."""
+    from contactbench.problems.errors import ProblemInputError, check_positive
+    from contactbench.problems.instances import load_ramp
+
+    with pytest.raises(ProblemInputError, match="maximum displacement must be a finite positive number"):
+        load_ramp(bad, 3)  # type: ignore[arg-type]
+    with pytest.raises(ProblemInputError, match="surface length"):
+        check_positive("surface length", bad)  # type: ignore[arg-type]
