@@ -595,12 +595,12 @@ def check_not_flat(z: np.ndarray, read: np.ndarray, spacing: tuple[float, float]
     relief = float(np.ptp(z))
     scale = float(np.max(np.abs(read))) if read.size else 0.0
     if relief <= FLAT_RTOL * scale or relief == 0.0:
-        raise SurfaceFileError(path, f"flat: its heights vary by {relief:.3g} m as solved, the round-off of heights "
-                                     f"up to {scale:.3g} m (a constant map, or a plane once its tilt is removed); "
-                                     "there is no roughness to make contact on")
+        raise SurfaceFileError(path, f"the map is flat: its heights vary by {relief:.3g} m as solved, the round-off "
+                                     f"of heights up to {scale:.3g} m (a constant map, or a plane once its tilt is "
+                                     "removed), so no step makes contact")
     if Surface(z, spacing[0], delta1=spacing[1]).rms_slope() == 0.0:
-        raise SurfaceFileError(path, f"flat in float64: its heights vary by {relief:.3g} m, so small that its "
-                                     "slopes underflow to 0 (a unit slip? see --height-unit)")
+        raise SurfaceFileError(path, f"the map is flat in float64: its heights vary by {relief:.3g} m, so little "
+                                     "that its slopes underflow to 0 (a unit slip? see --height-unit)")
 
 
 def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:
