@@ -659,6 +659,7 @@ __all__ = [
     "build_instance",
     "CONTACT_BAND",
     "CONTACT_TOL",
+    "CONTACT_THRESHOLD",
     "relative_contact_mask",
     "counterexample",
     "flat_punch_load",

@@ -616,10 +616,15 @@ def grid_sizes(r: pd.DataFrame) -> list[str]:
     return [str(a) if a == b else f"{a} x {b}" for a, b in pairs]
 
 
-def map_changes(r: pd.Series) -> str:
+def map_changes(r: pd.Series, record: dict[str, Any] | None = None) -> str:
     """What was done to one instance's measured map, from its table columns
-    (``schema.MAP_COLUMNS``): the removed plane or mean, the filled points, the crop."""
-    shape = f"{fmt_num(r['N0'])} x {fmt_num(r['N1'])}"
+    (``schema.MAP_COLUMNS``) and its meta.json record (``record``: the unit's scale, the
+    shape read and the crop done, where the run recorded them): the heights' unit, the
+    removed plane or mean, the filled points, the crop."""
+    rec, shape = record or {}, f"{fmt_num(r['N0'])} x {fmt_num(r['N1'])}"
+    scale, unit = as_finite(rec.get("metres_per_unit")), as_text(r["height_unit"]) or as_text(rec.get("height_unit"))
+    units = (f"heights in {unit} ({rec.get('unit_from', 'as given')}), scaled by {fmt_num(scale)} to metres; "
+             if unit and unit != "m" and scale is not None else "")
     detrend = as_text(r["detrend"])
     if detrend == "plane":
         removed = (f"plane removed ({fmt_num(r['removed_mean'])} m at the centre, slopes "
@@ -631,18 +636,23 @@ def map_changes(r: pd.Series) -> str:
         removed = "nothing removed (detrend none)"
     filled = as_finite(r["nan_filled"]) or 0
     fill = f"{int(filled)} missing points filled ({as_text(r['nan_rule'])})" if filled else "no missing point"
+    if filled and rec.get("fill_relative_to") not in (None, "zero"):
+        fill = fill[:-1] + f", relative to {rec['fill_relative_to']})"
     crop = as_text(r["crop"])
-    return (f"`{r['scene']}/{r['instance']}` ({as_text(r['surface_source'])}, {shape}): {removed}; {fill}"
-            f"{'' if crop in ('', 'none') else f'; crop {crop}'}")
+    cropped = "" if crop in ("", "none") else f"; {as_text(rec.get('crop_done')) or f'crop {crop}'}"
+    return (f"`{r['scene']}/{r['instance']}` ({as_text(r['surface_source'])}, {shape}): {units}{removed}; {fill}"
+            f"{cropped}")
 
 
-def problem_changes(t: pd.DataFrame) -> str:
-    """One clause per instance on a measured map (``map_changes``); "" when every surface
-    was generated."""
+def problem_changes(t: pd.DataFrame, meta: dict[str, Any] | None = None) -> str:
+    """One clause per instance on a measured map (``map_changes``, with its meta.json
+    ``surface_preprocessing`` record); "" when every surface was generated."""
     if "surface_source" not in t.columns:
         return ""
+    records = (meta or {}).get("surface_preprocessing") or {}
     maps = t[t["surface_source"].map(as_text) != ""].drop_duplicates(["scene", "instance"])
-    return "; ".join(map_changes(r) for _, r in maps.sort_values(["scene", "instance"]).iterrows())
+    return "; ".join(map_changes(r, records.get(f"{r['scene']}/{r['instance']}"))
+                     for _, r in maps.sort_values(["scene", "instance"]).iterrows())
 
 
 def header_section(ctx: ReportContext) -> str:
@@ -668,7 +678,7 @@ def header_section(ctx: ReportContext) -> str:
         ("Platform", _meta_get(m, "platform", "os", "machine.platform")),
         ("Python", _meta_get(m, "python", "python_version", "machine.python")),
         ("Package versions", _meta_get(m, "versions", "packages", "package_versions")),
-        ("Problem changes", problem_changes(t)),
+        ("Problem changes", problem_changes(t, m)),
         ("Run warnings", "; ".join(str(w) for w in m.get("warnings", []) or [])),
         ("Report sections that failed to load", ", ".join(section_import_errors())),
     ]

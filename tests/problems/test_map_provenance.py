@@ -105,8 +105,22 @@ def test_a_tilted_map_with_holes_states_its_plane_and_filled_points_everywhere(i
     # the report's header names the removed plane and the filled points
     report = build_report(in_tmp / "o", html=False).read_text()
     (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
-    assert name in line and "plane removed" in line and "3 missing points filled (fill-mean)" in line
+    assert name in line and "plane removed" in line
+    assert "3 missing points filled (fill-mean, relative to the measured points' plane)" in line
     assert f"slopes {fmt_num(row['removed_slope0'])} and {fmt_num(row['removed_slope1'])}" in line
+
+
+def test_the_header_states_the_heights_unit_and_the_crop_done(in_tmp: Path) -> None:
+    """A map of micrometres padded to a square: the header's "Problem changes" says the
+    heights were scaled to metres and how the map was padded, not only "crop pad-square"."""
+    z = tilted_map_with_holes()[:, :N1 - 2]
+    z[np.isnan(z)] = 0.0
+    np.save(in_tmp / "um.npy", z / 1e-6)
+    run_fresh(in_tmp, "um.npy", "o", "--height-unit", "um", "--crop", "pad-square", "--kernel", "love")
+    report = build_report(in_tmp / "o", html=False).read_text()
+    (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
+    assert "heights in um (height_unit argument), scaled by 1.00e-06 to metres" in line, line
+    assert f"padded {N0}x{N1 - 2} to" in line, line
 
 
 @pytest.mark.slow
