@@ -603,3 +603,32 @@ def test_the_api_reads_one_scene_name_and_refuses_empty_lists_and_unknown_names(
         with pytest.raises(PlanError, match=words):
             run_benchmark(scenes, cfg, solvers, RunConfig(progress=False), tmp_path / "o", command=["pytest"])
     assert not (tmp_path / "o").exists()
+
+
+def test_backfill_rebuilds_a_map_run_from_another_folder_and_names_what_it_cannot(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """A --surface run given a relative path, backfilled from another folder: rebuilt from
+    the path the run resolved; the map changed since: the instance is named, exit 1 (it was
+    silently dropped); bad usage: one line, exit 2."""
+    import shutil
+
+    from contactbench.harness.run.backfill import main as backfill
+
+    work = tmp_path / "work"
+    work.mkdir()
+    z = np.random.default_rng(3).normal(0.0, 1e-6, (16, 16))
+    np.save(work / "m.npy", z)
+    monkeypatch.chdir(work)
+    run_benchmark(["paper-sweep"], SceneConfig(surface_path="m.npy", length=1e-4, steps=2), ["test-exact"],
+                  RunConfig(reference="none", progress=False, warmup=False), "o", command=["pytest"])
+    shutil.rmtree(work / "o" / "arrays")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert backfill([str(work / "o"), "test-exact"]) == 0
+    assert list((work / "o" / "arrays").glob("field-*.npz"))
+    np.save(work / "m.npy", 1.5 * z)
+    capsys.readouterr()
+    assert backfill([str(work / "o"), "test-exact"]) == 1
+    assert "not rebuilt: paper-sweep/file-m.npy-" in capsys.readouterr().err
+    assert backfill([]) == 2 and capsys.readouterr().err.count("\n") == 1
