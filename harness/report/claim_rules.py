@@ -169,10 +169,13 @@ def as_float(measured: object) -> float:
 
 def judge(measured: object, rule: Rule, evidence: str, spread: float = 0.0, testable: bool = True) -> str:
     """The verdict (module doc) of ``measured`` under ``rule``, its repeats' relative spread
-    ``spread`` (NaN or negative: none known, read as 0)."""
+    ``spread`` (NaN or negative: none known, read as 0; infinite: any value, "unresolved")."""
     m = as_float(measured)
-    if rule.kind == "untestable" or not testable or not str(evidence).strip() or not math.isfinite(m):
+    if rule.kind == "untestable" or not testable or evidence is None or not str(evidence).strip() \
+            or not math.isfinite(m):
         return "unmeasured"
+    if spread == math.inf:
+        return "unresolved"
     s = spread if math.isfinite(spread) and spread > 0.0 else 0.0
     at_m = rule.at(m)
     if s == 0.0:

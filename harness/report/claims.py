@@ -14,9 +14,9 @@ table (the ``paper-claims`` study, ``harness/run/studies.py``); ``write_ledger``
 measured value and the relative spread of its timed repeats (``repeats``, ``spread``:
 every timed total is the median over repeats, and a verdict whose margin lies inside the
 spread is ``unresolved``; a timing from one repeat is judged with
-``SINGLE_REPEAT_SPREAD``).  A claim the table holds no measurement of gets one
-``unmeasured`` row saying what it needs -- never ``holds``, never left out.
-"""
+``SINGLE_REPEAT_SPREAD``).  A claim the table holds no measurement of -- an answer
+lacking a finite time, load or count is none (``with_numbers``) -- gets one ``unmeasured``
+row saying what it needs: never ``holds``, never left out."""
 
 from __future__ import annotations
 
@@ -158,11 +158,12 @@ def totals(rows: pd.DataFrame) -> pd.DataFrame:
     g = cells.groupby("solver")
     nan = pd.Series(math.nan, index=g.size().index)
     out = pd.DataFrame({"matvecs": g["matvecs"].sum(min_count=1) if "matvecs" in cells.columns else nan,
-                        "iterations": g["iterations"].sum(min_count=1) if "iterations" in cells.columns else nan,
+                        "iterations": g["iterations"].agg(lambda v: v.sum(skipna=False))
+                        if "iterations" in cells.columns else nan,
                         "steps": g.size(), "answered": g["status"].agg(lambda s: int(s.isin(ANSWERED).sum())),
                         "solved": g["solved"].sum()})
     rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
-    per = rep.groupby(["solver", "repeat"])["solve_time_s"].sum(min_count=1).groupby(level=0)
+    per = rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False)).groupby(level=0)
     out["total_s"], out["repeats"], out["spread"] = per.median(), per.size(), per.agg(relative_range)
     out["comparable"] = (out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
     return out[cols]
@@ -194,7 +195,7 @@ def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s") -> tuple[float
     words = f"{one(a, ta)}, {one(b, tb)}"
     timing = Timing(int(min(ta["repeats"], tb["repeats"])),
                     float(ta["spread"] + tb["spread"]) if of == "total_s" else 0.0)
-    if not (ta["comparable"] and tb["comparable"]) or not tb[of] > 0:
+    if not (ta["comparable"] and tb["comparable"]) or not tb[of] > 0 or not np.isfinite([ta[of], tb[of]]).all():
         return math.nan, words + "; not every step answered", timing
     return float(ta[of] / tb[of]), words, timing
 
@@ -292,8 +293,8 @@ def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, wh
     for claim, col in (("fig4-same-load", "load"), ("fig4-same-contact", "contact_fraction")):
         if col not in top.columns:
             continue
-        per_inst = [spread(g[col]) for _, g in top.groupby("instance")]
-        m = max(per_inst) if per_inst else math.nan
+        per_inst = [spread(g[col]) for _, g in top.groupby("instance") if g["solver"].nunique() > 1]
+        m = max(per_inst) if per_inst and all(np.isfinite(per_inst)) else math.nan  # (NaN: not the order's pick)
         solvers = sorted(set(top["solver"]))
         out.append(claim_row(claim, condition, m, size, seeds,
                              f"{where}; top step, the largest relative spread over instances among the answers of "
@@ -376,6 +377,9 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
         answered = chol[chol["status"].isin(ANSWERED)]
         largest = float(answered["n"].max()) if len(answered) else math.nan
         limit = math.isqrt(int(DEFAULT_MEMORY_BUDGET // 8))
+        above = chol[~chol["status"].isin(ANSWERED) & (chol["n"] > largest if len(answered) else True)]
+        if len(above) and not above.get("error", above["status"]).fillna("").astype(str).str.contains("emory").all():
+            largest = math.nan  # above the largest answered, a failure that is not the memory's: not the claim
         tried = float(chol["n"].max())
         out.append(claim_row("fig5-chol-memory", condition, largest, f"n <= {int(tried)} tried; our dense limit "
                              f"n = {limit} ({DEFAULT_MEMORY_BUDGET / 2**30:g} GiB a matrix: H and its factor "
@@ -395,9 +399,12 @@ def example1_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     for _, f in violation_counts(seed_readings(r)).iterrows():
         sub = r[r["n"] == f["n"]]
         seeds = seeds_of(sub)
-        out.append(claim_row("ex1-greedy-fails", condition, float(f["fraction"]), f"n = {int(f['n'])}", seeds,
-                             f"results.csv: counterexample operator {condition}, greedy-cg rejected on "
-                             f"{int(f['violations'])} of {int(f['seeds'])} seeds (wrong {int(f['wrong'])})"))
+        answered = int(f["seeds"]) - (int(f["violations"]) - int(f["wrong"]))  # a crash or timeout is no answer
+        out.append(claim_row("ex1-greedy-fails", condition, int(f["wrong"]) / answered if answered else math.nan,
+                             f"n = {int(f['n'])}", seeds,
+                             f"results.csv: counterexample operator {condition}, greedy-cg's answer violates the "
+                             f"LCP (read wrong) on {int(f['wrong'])} of the {answered} seeds it answered "
+                             f"({int(f['violations'])} of {int(f['seeds'])} rejected in all)"))
     return out
 
 
@@ -456,7 +463,7 @@ def fig6_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     how = "greedy-linear-solvers (cold: every K from p = 0)" if cold else "gp-k-sweep (warm along the history)"
     where = f"results.csv: {how} operator {condition}, K = {', '.join(f'{k:g}' for k in sorted(tot['K']))}"
     out = []
-    if len(comp):
+    if len(comp) and set(tot["K"]) <= set(comp.index):  # every K answered: else the least is not known
         best = float(comp["total_s"].idxmin())
         rep = Timing(int(comp["repeats"].min()), float(comp["spread"].max()))
         out.append(claim_row("fig6-best-k", condition, best, size, seeds, where, timing=rep))
@@ -649,17 +656,29 @@ READERS: tuple[Callable[[pd.DataFrame, str], list[ClaimRow]], ...] = (
 def unmeasured_rows(found: set[str]) -> list[ClaimRow]:
     """One ``unmeasured`` row (condition dense) for every claim no reader measured: the
     untestable claim's reason, else what the table lacks."""
-    out = []
-    for c in CLAIMS.values():
-        if c.id not in found:
-            why = c.rule.reason or f"not in this table: {c.measures}"
-            out.append(claim_row(c.id, "dense", math.nan, "", "", why, testable=False))
-    return out
+    return [claim_row(c.id, "dense", math.nan, "", "", c.rule.reason or f"not in this table: {c.measures}",
+                      testable=False) for c in CLAIMS.values() if c.id not in found]
+
+
+#: The numbers of an answer a claim rests on (``with_numbers``).
+MEASURED_COLUMNS: tuple[str, ...] = ("solve_time_s", "iterations", "load", "contact_fraction")
+
+
+def with_numbers(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with each answered row lacking a finite ``MEASURED_COLUMNS`` number (or with
+    a negative time) read as failed: a sum or median over the rest would be a verdict."""
+    cols = [c for c in MEASURED_COLUMNS if c in rows.columns]
+    values = rows[cols].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
+    times = values[:, cols.index("solve_time_s")] if "solve_time_s" in cols else np.zeros(len(rows))
+    lacking = ~np.isfinite(values).all(axis=1) | (times < 0)
+    bad = rows["status"].isin(ANSWERED).to_numpy() & lacking
+    return rows.assign(status=rows["status"].mask(bad, "failed"))
 
 
 def ledger(rows: pd.DataFrame) -> pd.DataFrame:
     """The ledger of a results table: one row per (claim, condition, size), ``LEDGER_COLUMNS``;
-    every claim of ``CLAIMS`` at least once."""
+    every claim of ``CLAIMS`` at least once (module doc)."""
+    rows = with_numbers(rows)
     out: list[ClaimRow] = []
     for cond in CONDITIONS:
         for read in READERS:

@@ -209,9 +209,49 @@ def test_a_lying_solver_does_not_make_the_loads_agree() -> None:
     assert _one(led, "fig4-same-load", "fft")["verdict"] == "holds"
 
 
+@pytest.mark.parametrize("corrupt", ["nan-time", "inf-time", "negative-time", "nan-load", "nan-iterations"])
+def test_a_corrupted_answer_is_no_answer_not_a_better_verdict(corrupt: str) -> None:
+    """A NaN time counted as 0 s (P&K cold over NNLS+GP: fails 2.06 -> holds 26 on a copy of
+    the committed table), an infinite one as a ratio of 0, a NaN load dropped from a spread:
+    an answered row lacking its numbers is read as no answer, so the claim it would rest on
+    is unmeasured, never a verdict."""
+    t = _table()
+    t["iterations"] = 5.0
+    at = (t["scene"] == "paper-sweep") & (t["solver"] == "nnls-gp") & (t["operator"] == "dense") & (t["step"] == 0)
+    col, value = {"nan-time": ("solve_time_s", math.nan), "inf-time": ("solve_time_s", math.inf),
+                  "negative-time": ("solve_time_s", -1.0), "nan-load": ("load", math.nan),
+                  "nan-iterations": ("iterations", math.nan)}[corrupt]
+    t.loc[at, col] = value
+    led = cl.ledger(t)
+    r = _one(led, "fig4-pk-cold-over-nnlsgp", "dense")
+    assert r["verdict"] == "unmeasured" and "not every step answered" in r["evidence"], r
+    assert _one(cl.ledger(_table()), "fig4-pk-cold-over-nnlsgp", "dense")["verdict"] == "holds"  # the intact table
+
+
+def test_the_methods_agree_only_where_two_answered_and_an_infinite_spread_is_unresolved() -> None:
+    t = _table()
+    t.loc[(t["operator"] == "dense") & (t["solver"] != "nnls-gp"), "status"] = "failed"
+    led = cl.ledger(t)  # one method left at the dense top step: nothing to compare
+    assert _one(led, "fig4-same-load", "dense")["verdict"] == "unmeasured"
+    rule = cr.CLAIMS["fig4-nnlsgp-fastest"].rule
+    assert cr.judge(1.12, rule, "x", math.inf) == "unresolved"
+    assert cr.judge(26.0, cr.CLAIMS["fig4-pk-cold-over-nnlsgp"].rule, None) == "unmeasured"  # type: ignore[arg-type]
+
+
 def test_cholesky_memory_claim_is_unmeasured_below_the_paper_limit() -> None:
     r = _one(cl.ledger(_table()), "fig5-chol-memory", "dense", "n <=")
     assert r["verdict"] == "unmeasured" and "our dense limit" in r["n_or_size"]
+
+
+def test_a_cholesky_timeout_above_the_paper_limit_is_not_its_memory() -> None:
+    """A greedy-chol row at n = 25,000 that timed out read as "out of memory": holds."""
+    t = _table()
+    big = t[(t["solver"] == "greedy-chol") & (t["step"] == 1)].assign(n=25_000, status="timeout", error="killed at 60 s")
+    led = cl.ledger(pd.concat([t, big], ignore_index=True))
+    assert _one(led, "fig5-chol-memory", "dense", "n <=")["verdict"] == "unmeasured"
+    oom = big.assign(status="failed", error="MemoryBudgetError: dense H needs 4.7 GiB")
+    assert _one(cl.ledger(pd.concat([t, oom], ignore_index=True)), "fig5-chol-memory", "dense", "n <=")[
+        "verdict"] == "holds"
 
 
 # ---------------------------------------------------------------------------
