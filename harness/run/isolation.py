@@ -153,6 +153,9 @@ def describe_exit(exitcode: int | None) -> str:
     return f"worker exited with code {exitcode}"
 
 
+#: The longest single wait on a worker's pipe (``ChildProcess._answered_within``).
+POLL_CHUNK_S = 86_400.0
+
 #: A worker's temporary folder is ``<tmp>/<prefix><owner's pid>-<random>``.
 SCRATCH_PREFIX = "contactbench-worker-"
 
@@ -208,7 +211,7 @@ class ChildProcess:
             self.conn.send(message)
         except (BrokenPipeError, OSError):
             return self._crashed(t0)
-        if not self.conn.poll(timeout):
+        if not self._answered_within(timeout):
             elapsed = time.perf_counter() - t0
             self.kill()
             return ChildReply("timeout", elapsed=elapsed, detail=f"no answer within the hard limit of {timeout:.3g} s; worker killed")
@@ -220,6 +223,18 @@ class ChildProcess:
         if kind == "error":
             return ChildReply("error", elapsed=elapsed, detail=str(value))
         return ChildReply("ok", value=value, elapsed=elapsed)
+
+    def _answered_within(self, timeout: float | None) -> bool:
+        """Whether the reply arrives within ``timeout`` s (None: waits for it), in waits of at
+        most ``POLL_CHUNK_S`` (the pipe's poll takes milliseconds as a C int: about 25 days)."""
+        assert self.conn is not None
+        if timeout is None:
+            return bool(self.conn.poll(None))
+        end = time.monotonic() + timeout
+        while (left := end - time.monotonic()) > 0:
+            if self.conn.poll(min(left, POLL_CHUNK_S)):
+                return True
+        return bool(self.conn.poll(0))
 
     def _crashed(self, t0: float) -> ChildReply:
         elapsed = time.perf_counter() - t0

@@ -151,7 +151,7 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
         operator = "dense"
     else:
         operator = "dense" if wants_dense else "fft"
-    dense_bytes = 8.0 * n * n if operator == "dense" and traits.operator != "dense" else 0.0
+    dense_bytes = 8.0 * n * n if operator == "dense" else 0.0  # the step's dense H, the scene's own included
     try:
         own_bytes = float(solver.memory_estimate(n))
     except Exception as exc:

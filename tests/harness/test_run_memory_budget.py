@@ -96,3 +96,26 @@ def test_a_device_size_that_is_not_a_positive_number_is_refused(device_of, bad: 
     device_of(bad)
     with pytest.raises(ProblemInputError, match="CONTACTBENCH_DEVICE_BYTES"):
         device_total_bytes()
+
+
+def test_a_scene_built_dense_counts_its_h_against_the_budget_before_anything_runs(tmp_path: Path) -> None:
+    """--operator dense with a budget below the step's dense H: the build failed in the
+    worker, every row 'failed' with a traceback, exit 1; the plan now sees the n x n H and
+    refuses (every cell would be skipped), in one line, exit 2, writing nothing."""
+    out = tmp_path / "dense"
+    cmd = [sys.executable, "-m", "contactbench.harness.cli", "run", "paper-sweep", "--size", "65", "--steps", "1",
+           "--operator", "dense", "--solvers", "pk", "--memory-budget-gb", "0.002", "--no-progress", "--out", str(out)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    assert res.returncode == 2, res.stderr
+    (line,) = res.stderr.strip().splitlines()
+    assert "every cell would be skipped" in line and "needs dense H" in line
+    assert not out.exists()
+
+
+def test_a_time_limit_beyond_the_pipes_longest_wait_is_waited_in_parts() -> None:
+    """--timeout 1e9 crashed run and validate (OverflowError from the pipe's poll)."""
+    from contactbench.harness.run.isolation import ChildProcess
+
+    with ChildProcess(lambda: (lambda msg: msg)) as child:
+        reply = child.call("echo", 1e9)
+    assert reply.ok and reply.value == "echo"
