@@ -111,3 +111,16 @@ def test_the_peers_pose_what_they_do_not_skip(name: str, case: str) -> None:
     ref = _reference(inst)
     assert kkt_check(inst, r.p).kkt_error <= 1e-8
     assert np.max(np.abs(r.p - ref)) <= 1e-7 * np.max(ref)
+
+
+def test_cm_pk_ccg_skips_a_periodic_real_space_kernel_with_the_reason() -> None:
+    """It stayed at p = 0 until its iteration limit there (a 16^2 periodic 'love' step timed
+    out at 30 s): skipped and said why, where cm-dual-ccg and the spectral kernel are run."""
+    pk, dual = get_solver("cm-pk-ccg"), get_solver("cm-dual-ccg")
+    for kernel in ("love", "bcc"):
+        traits = ProblemTraits(n=256, operator="fft", kernel=kernel, periodic=True)
+        why = pk.skip(traits)
+        assert why is not None and "periodic real-space kernel" in why
+        assert dual.skip(traits) is None
+    assert pk.skip(ProblemTraits(n=256, operator="fft", kernel="spectral", periodic=True)) is None
+    assert pk.skip(ProblemTraits(n=256, operator="fft", kernel="love", periodic=False)) is None
