@@ -389,4 +389,8 @@ class AspherActiveF32(_AspherNested):
         why = super().skip(traits)
         if why is None and traits.periodic:
             return "ASPHER's active set runs on its H^2 operator only, which is free-space (non-periodic)"
+        side = traits.surface_side
+        if why is None and side and coarsest_level(side) == side:
+            return (f"ASPHER's active set needs a coarser nested level below the finest, and an N = {side} side "
+                    "cannot be halved (N = coarsest 2^k)")
         return why

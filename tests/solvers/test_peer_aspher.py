@@ -163,3 +163,13 @@ def test_the_workers_traits_say_when_a_grid_or_its_pixels_are_rectangular(case: 
     assert problem_traits(rectangular_instance(case, 0)).rectangular is rectangular
     square = InstanceBuilder(rmd_surface_n(33, 0.7, seed=1), 1e9, "love", periodic=False).build_load(1e-3)
     assert not problem_traits(square).rectangular
+
+
+def test_the_active_set_skips_a_side_it_cannot_halve_with_the_reason() -> None:
+    """A 33^2 load-controlled Love step was a failed row ("active_set needs a coarse level")."""
+    solver = get_solver("aspher-active-f32")
+    odd = ProblemTraits(n=500, operator="fft", kernel="love", periodic=False, load_control=True, surface_side=33)
+    why = solver.skip(odd)
+    assert why is not None and "cannot be halved" in why
+    even = ProblemTraits(n=500, operator="fft", kernel="love", periodic=False, load_control=True, surface_side=32)
+    assert solver.skip(even) is None or "cannot be halved" not in str(solver.skip(even))
