@@ -269,7 +269,8 @@ CLAIMS: dict[str, Claim] = {c.id: c for c in (
     Claim("fig4-same-contact", "Fig. 4", "1039-1042", "every method gives the same contact domain (round-off)",
           at_most(SAME), "largest relative spread of the top step's contact fraction over every answer"),
     Claim("fig5-chol-over-cg", "Fig. 5", "1068-1071", "t(greedy Cholesky) / t(greedy CG) = 0.6-0.7, any n",
-          ratio(0.6, 0.7), "median over the steps both solve of t(greedy-chol) / t(greedy-cg)"),
+          ratio(0.6, 0.7, partly=0.95 / 0.7),  # "a reduction": partly needs a saving of 5 % at least
+          "median over the steps both solve of t(greedy-chol) / t(greedy-cg)"),
     Claim("fig5-chol-far-from-nnls", "Fig. 5", "1071-1073",
           "greedy Cholesky is still quite far from NNLS", at_least(SLOW), "t(greedy-chol cold) / t(nnls)"),
     Claim("fig5-chol-memory", "Fig. 5", "1074-1076", "Cholesky out of memory above n ~ 20,000 (128 GB machine)",
