@@ -7,22 +7,20 @@ and finite spacings > 0.
 from __future__ import annotations
 
 import io as _stdio
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import ProblemInputError
+from .errors import ProblemInputError, check_positive
 
 
 def _spacings(spacing: float | tuple[float, float]) -> tuple[float, float]:
-    """(axis 0, axis 1) spacings: finite and > 0, else ``ProblemInputError``."""
+    """(axis 0, axis 1) spacings: finite and > 0 (``check_positive``), else ``ProblemInputError``."""
     pair = (spacing, spacing) if np.ndim(spacing) == 0 else tuple(spacing)  # type: ignore[arg-type]
-    if len(pair) != 2 or not all(isinstance(d, (int, float, np.floating)) and math.isfinite(d) and d > 0
-                                 for d in pair):
-        raise ProblemInputError(f"a map's spacing is one or two finite numbers > 0 (metres), got {spacing!r}")
-    return float(pair[0]), float(pair[1])
+    if len(pair) != 2:
+        raise ProblemInputError(f"a map's spacing is one or two numbers (metres), got {spacing!r}")
+    return check_positive("a map's spacing", pair[0]), check_positive("a map's spacing", pair[1])
 
 
 
