@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.errors import check_positive
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 
@@ -157,9 +157,7 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     ``tampered`` what ``ProblemSeal.broken`` found the solver changed ("" nothing).
     ``inst`` must be the harness's own copy of the problem; ``check_tol`` a finite number
     > 0 (``ProblemInputError``: an infinite one would pass p = 0, a NaN fail everything)."""
-    if isinstance(check_tol, bool) or not isinstance(check_tol, (int, float, np.floating)) \
-            or not (math.isfinite(check_tol) and check_tol > 0):
-        raise ProblemInputError(f"the judge's check_tol is a finite number > 0, got {check_tol!r}")
+    check_positive("the judge's check_tol", check_tol)
     claimed = bool(claimed)
     if tampered:
         verdict = _failed(claimed, tampered, reading="wrong")

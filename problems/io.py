@@ -524,10 +524,13 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
 
 
 def measured_plane(z: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """The least-squares plane through the ``measured`` points of ``z`` (``plane_fit``), on
-    the whole grid."""
-    a, c, b = plane_fit(z, measured)
-    return a + c * np.arange(z.shape[0])[:, None] + b * np.arange(z.shape[1])[None, :]
+    """The least-squares plane through the ``measured`` points of ``z`` (``plane_fit``), on its grid."""
+    return plane_on_grid(z.shape, *plane_fit(z, measured))
+
+
+def plane_on_grid(shape: tuple[int, ...], a: float, c: float, b: float) -> np.ndarray:
+    """The plane a + c i + b j on an N0 x N1 grid (i rows, j columns)."""
+    return a + c * np.arange(shape[0])[:, None] + b * np.arange(shape[1])[None, :]
 
 
 def plane_fit(z: np.ndarray, measured: np.ndarray | None = None) -> tuple[float, float, float]:
@@ -564,8 +567,7 @@ def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing:
     of the map without it."""
     meta["detrend"] = rule
     a, c, b = plane_fit(z, measured)
-    n0, n1 = z.shape
-    plane = a + c * np.arange(n0)[:, None] + b * np.arange(n1)[None, :]
+    plane = plane_on_grid(z.shape, a, c, b)
     tilt = float(np.hypot(c / spacing[0], b / spacing[1]))
     rough = Surface(z - plane, spacing[0], delta1=spacing[1]).rms_slope()
     meta["tilt"] = tilt

@@ -23,8 +23,6 @@ def _spacings(spacing: float | tuple[float, float]) -> tuple[float, float]:
     return check_positive("a map's spacing", pair[0]), check_positive("a map's spacing", pair[1])
 
 
-
-
 def write_topography(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], fmt: str = "x3p",
                      **kw: Any) -> Path:
     """Write a height map (ny x nx, metres; ``spacing`` one float or (axis 0, axis 1)) with

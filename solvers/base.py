@@ -48,7 +48,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.errors import ProblemInputError, check_nonnegative, check_positive
 from contactbench.problems.instances import QP
 from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import constrained_kkt_error
@@ -177,13 +177,9 @@ class SolverSettings:
     def __post_init__(self) -> None:
         """``ProblemInputError`` naming the field: tol and check_tol finite and > 0,
         max_iter an integer >= 0, time_limit finite and >= 0 (each or None)."""
-        for name in ("tol", "check_tol", "time_limit"):
-            v = getattr(self, name)
-            low_ok = (lambda x: x >= 0) if name == "time_limit" else (lambda x: x > 0)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float, np.floating))
-                                  or not (math.isfinite(v) and low_ok(v))):
-                raise ProblemInputError(f"SolverSettings.{name} is a finite number {'>=' if name == 'time_limit' else '>'}"
-                                        f" 0 or None, got {v!r}")
+        for name, check in (("tol", check_positive), ("check_tol", check_positive), ("time_limit", check_nonnegative)):
+            if getattr(self, name) is not None:
+                check(f"SolverSettings.{name}", getattr(self, name))
         m = self.max_iter
         if m is not None and (isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 0):
             raise ProblemInputError(f"SolverSettings.max_iter is an integer >= 0 or None, got {m!r}")

@@ -18,6 +18,8 @@ import os
 import shutil
 from pathlib import Path
 
+from ..table.files import write_text_atomic
+
 #: The folder of a report's figures, relative to OUT (the Markdown links read it).
 FIGURE_DIR = "figures"
 #: Where a report renders its figures until it is written, inside ``FIGURE_DIR``.
@@ -56,9 +58,7 @@ def publish(out: Path, written: list[str]) -> None:
         os.replace(stage / name, final / name)
     for old in sorted(recorded(out) - set(names)):
         (final / old).unlink(missing_ok=True)
-    tmp = final / (MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(names, indent=0) + "\n")
-    os.replace(tmp, final / MANIFEST)
+    write_text_atomic(final / MANIFEST, json.dumps(names, indent=0) + "\n")
     discard(out)
 
 

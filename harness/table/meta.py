@@ -38,6 +38,7 @@ META_FILE = "meta.json"
 class MetaError(ProblemInputError):
     """OUT/meta.json that is not a JSON object (the run's record): named, never replaced."""
 
+
 PACKAGES = (
     "contactbench", "numpy", "scipy", "pandas", "pyarrow", "qpsolvers", "osqp", "clarabel", "proxsuite", "piqp",
     "cvxpy", "scs", "ecos", "highspy", "matplotlib", "threadpoolctl", "psutil", "dask", "distributed",
