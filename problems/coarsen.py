@@ -62,23 +62,30 @@ def level_sizes(N: int) -> dict[int, int]:
     return out
 
 
+def missing_level(N: int, coarsest: int, sizes: list[int] | tuple[int, ...] | None = None) -> tuple[str, int] | None:
+    """The first coarse level a cascade asks of an N-point side that the side cannot give
+    (``level_sizes``), as ("coarse level" | "coarsest level", its size); None when it gives all."""
+    avail = level_sizes(N)
+    wanted = [("coarse level", int(v)) for v in sorted({int(v) for v in sizes})] if sizes is not None \
+        else [("coarsest level", int(coarsest))]
+    return next(((what, n) for what, n in wanted if n not in avail), None)
+
+
 def level_strides(surface: Surface, coarsest: int, sizes: list[int] | tuple[int, ...] | None = None) -> list[int]:
     """Strides of the cascade's coarse levels, coarsest first: every level from ``coarsest``
     points per side up to the fine surface (excluded), or exactly the sizes listed in
-    ``sizes``.  A size the surface cannot give is a ``ProblemInputError`` listing those it can."""
+    ``sizes``.  A size the surface cannot give (``missing_level``) is a
+    ``ProblemInputError`` listing those it can."""
     avail = level_sizes(surface.N)
-
-    def stride_of(n: int, what: str) -> int:
-        if int(n) not in avail:
-            raise ProblemInputError(
-                f"CMR {what} {int(n)} is not available on the {surface.N} x {surface.N} surface {surface.name!r}: "
-                f"its coarse levels have {sorted(avail)} points per side (N // s for strides s = 2, 4, 8, ...)")
-        return avail[int(n)]
-
+    missing = missing_level(surface.N, coarsest, sizes)
+    if missing is not None:
+        raise ProblemInputError(
+            f"CMR {missing[0]} {missing[1]} is not available on the {surface.N} x {surface.N} surface "
+            f"{surface.name!r}: its coarse levels have {sorted(avail)} points per side (N // s for strides "
+            "s = 2, 4, 8, ...)")
     if sizes is not None:
-        return sorted((stride_of(n, "level") for n in {int(v) for v in sizes}), reverse=True)
-    top = stride_of(coarsest, "coarsest level")
-    return [s for s in sorted(avail.values(), reverse=True) if s <= top]
+        return sorted((avail[int(n)] for n in {int(v) for v in sizes}), reverse=True)
+    return [s for s in sorted(avail.values(), reverse=True) if s <= avail[int(coarsest)]]
 
 
 def subsample_level(surface: Surface, stride: int) -> Surface:
@@ -304,6 +311,7 @@ __all__ = [
     "level_strides",
     "level_trial_set",
     "mean_level",
+    "missing_level",
     "posable",
     "power_law_check",
     "subsample_level",

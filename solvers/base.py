@@ -580,6 +580,12 @@ class Solver(ABC):
             return f"{self.name} needs the instance's surface and its coarse levels; this problem has none"
         return None
 
+    def skip_params(self, traits: ProblemTraits, params: dict[str, Any]) -> str | None:
+        """A reason not to run with these resolved parameters (``resolve_params``) on a
+        problem with these traits (None: run it); the harness asks it after ``skip`` for
+        a variant's own parameters."""
+        return None
+
     def memory_estimate(self, n: int) -> float:
         """Peak extra bytes the solve needs beyond the operator."""
         if self.capabilities.needs_dense:

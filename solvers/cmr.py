@@ -57,6 +57,7 @@ from contactbench.problems.coarsen import (
     grid_positions,
     level_sizes,
     level_trial_set,
+    missing_level,
     posable,
     power_law_check,
 )
@@ -211,13 +212,19 @@ class CMRSolver(Solver):
     def skip(self, traits: ProblemTraits) -> str | None:
         """Skipped (a declared capability, not a failure) where the surface has no coarse
         level of the default ``coarsest`` size: CMR would refuse the problem."""
-        why = super().skip(traits)
-        coarsest = next(p.default for p in self.params if p.name == "coarsest")
-        sizes = level_sizes(traits.surface_side) if traits.surface_side else {}
-        if why is None and traits.surface_side and coarsest not in sizes:
-            why = (f"{self.name} needs a coarse level of {coarsest} points per side (its default coarsest); the "
-                   f"{traits.surface_side} x {traits.surface_side} surface has {sorted(sizes)}")
-        return why
+        return super().skip(traits) or self.skip_params(traits, self.resolve_params(None))
+
+    def skip_params(self, traits: ProblemTraits, params: dict[str, Any]) -> str | None:
+        """Skipped where the surface cannot give the coarse levels ``params`` ask
+        (``coarsest``, or the explicit ``levels``)."""
+        if not traits.surface_side:
+            return None
+        missing = missing_level(traits.surface_side, int(params["coarsest"]), params["levels"])
+        if missing is None:
+            return None
+        what, size = missing
+        return (f"{self.name} needs a {what} of {size} points per side; the {traits.surface_side} x "
+                f"{traits.surface_side} surface has {sorted(level_sizes(traits.surface_side))}")
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         g = require_surface(ctx.qp)

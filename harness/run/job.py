@@ -197,7 +197,8 @@ class JobDriver:
 
     def run_step(self, ctx: StepContext, todo: Todo) -> None:
         traits = ctx.info.traits
-        decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits, ctx.k, self.job.load_history)
+        decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits, ctx.k, self.job.load_history,
+                                                           v.params)
                      for v, prof, _ in todo}
         running = [(v, prof) for v, prof, _ in todo if not decisions[(v.name, prof)].skip]
         if running:

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Sequence
 
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
@@ -118,12 +118,12 @@ def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) 
 
 
 def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_budget: float,
-                  observed: Sequence[Observation] | None = None) -> Decision:
+                  observed: Sequence[Observation] | None = None, params: dict[str, Any] | None = None) -> Decision:
     """Whether solver ``base`` (registry name or ``module:NAME``) can serve a problem
     with these traits within the limits (module doc, steps 1-6).  ``observed`` = the
     (n', seconds) of the same solver's last one or two finished steps of the load
     sequence: when given it replaces the static time model (which cannot know about
-    warm starts)."""
+    warm starts).  ``params``: the variant's own parameters (``capability_decision``)."""
     try:
         solver = load_solver(base)
     except Exception as exc:
@@ -131,15 +131,17 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
     ok, why = solver.availability()
     if not ok:
         return Decision(reason=f"not available: {why}")
-    d = capability_decision(solver, traits, memory_budget)
+    d = capability_decision(solver, traits, memory_budget, params)
     if d.skip:
         return d
     return time_decision(solver, traits, d.operator, time_limit, observed)
 
 
-def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: float) -> Decision:
+def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: float,
+                        params: dict[str, Any] | None = None) -> Decision:
     """Steps 2-5 of the module doc for a loaded, available solver: max_n, the operator
-    it is given, memory, and its own ``skip``.  No time model (``validate`` uses this:
+    it is given, memory, and its own ``skip`` (and ``skip_params`` for the variant's
+    ``params``, where given).  No time model (``validate`` uses this:
     a solver cannot skip its way out of a conformance case)."""
     n, caps = traits.n, solver.capabilities
     if caps.max_n is not None and n > caps.max_n:
@@ -163,7 +165,8 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
         return Decision(reason=(f"memory estimate {(dense_bytes + own_bytes) / GiB:.3g} GiB at n = {n} "
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
     try:
-        own_reason = solver.skip(traits)
+        own_reason = solver.skip(traits) or (solver.skip_params(traits, solver.resolve_params(params))
+                                              if params else None)
     except Exception as exc:
         return Decision(reason=f"skip check failed: {exc}")
     if own_reason:
@@ -229,10 +232,11 @@ class SkipPolicy:
     seen: dict[tuple[str, str], dict[int, list[StepRecord]]] = field(default_factory=dict)
 
     def decide(self, base: str, key: tuple[str, str], traits: ProblemTraits, step: int,
-               load_history: bool = True) -> Decision:
-        """The decision for ``step`` of sequence ``key`` (class doc)."""
+               load_history: bool = True, params: dict[str, Any] | None = None) -> Decision:
+        """The decision for ``step`` of sequence ``key`` (class doc) for the variant of
+        solver ``base`` with ``params``."""
         observed = self.observations(key, step) if load_history else []
-        d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed)
+        d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed, params)
         floor = None if d.skip else get_profile(key[1]).floor_skip(load_solver(base))
         if floor:
             return Decision(reason=floor)

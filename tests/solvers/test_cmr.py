@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -435,3 +436,23 @@ def test_cmr_over_scipy_nnls_never_claims_a_pruned_answer() -> None:
     inst = seq.at(len(seq) - 1)
     r = all_solvers()["cmr+scipy-nnls"].solve(inst.qp, SolverSettings())
     assert r.converged is (kkt_check(inst, r.p).kkt_error <= 1e-8), r.message
+
+
+def test_a_variant_whose_coarse_levels_the_grid_cannot_give_is_skipped_not_failed(tmp_path: Path) -> None:
+    """cmr-cutoff at 32^2 runs its CMR variant with coarsest = 64: the harness asks the
+    variant's own parameters (``skip_params``), so the row is a skip naming the level, not
+    a failed solve; explicit ``levels`` are checked the same way."""
+    from contactbench.harness import run_benchmark
+    from contactbench.harness.table.store import load_table
+    from contactbench.solvers import ProblemTraits
+
+    run_benchmark(["cmr-cutoff"], SceneConfig(size=32), out_dir=tmp_path / "run")
+    rows = load_table(tmp_path / "run")
+    cmr = rows[rows["base_solver"] == "cmr+nnls"]
+    assert len(cmr) == 2 and set(cmr["status"]) == {"skipped"}
+    assert cmr["skip_reason"].str.contains("coarsest level of 64 points per side").all()
+    assert set(rows[rows["base_solver"] == "nnls"]["status"]) == {"solved"}
+    s, traits = CMRSolver("nnls"), ProblemTraits(n=500, operator="fft", has_surface=True, surface_side=32)
+    assert s.skip_params(traits, s.resolve_params({"coarsest": 8})) is None
+    assert "coarse level of 5" in (s.skip_params(traits, s.resolve_params({"levels": (4, 5)})) or "")
+    assert s.skip(traits) is None  # the default coarsest, 16, is there
