@@ -36,8 +36,10 @@ Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 ``wrong``        any WRONG row (exit 1);
 ``incomplete``   solves left unsolved -- unconverged, timeout, crashed, or refused
                  outside the float32 case -- by any solver: exit 3, listing them;
-``conforms``     neither: every case solved to what the solver promises, or skipped for
-                 a capability it declares (exit 0).
+``untested``     none of these, and no solve run: every selected case skipped for a
+                 capability the solver declares, so nothing was judged (exit 4);
+``conforms``     none of these: every case solved to what the solver promises, or skipped
+                 for a capability it declares, at least one case solved (exit 0).
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
 unknown solver, an import path that does not load, no case selected, a promise that is
 not "exact" or a floor below 1, a --timeout that is not a finite number > 0, a --csv or
@@ -55,7 +57,7 @@ report folder, never into another one; the exit status is the same.
 
 For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
 ``assert_conforms(solver)`` raises AssertionError with the verdict table unless the
-solver conforms.
+solver conforms (an untested solver does not).
 """
 
 from __future__ import annotations
@@ -107,7 +109,7 @@ UNSOLVED = ("unconverged", "timeout", "crashed")
 #: Statuses that ``--strict`` also fails on.
 STRICT_FAILING = ("crashed", "timeout", "flagged")
 #: Exit code of each outcome (``main``); bad input is ``arguments.EXIT_BAD_INPUT``.
-EXIT_CODES = {"conforms": 0, "wrong": 1, "strict": 1, "incomplete": 3}
+EXIT_CODES = {"conforms": 0, "wrong": 1, "strict": 1, "incomplete": 3, "untested": 4}
 
 
 # ---------------------------------------------------------------------------
@@ -292,14 +294,15 @@ class VerdictTable:
                 or (r.status == "refused" and r.group not in REFUSABLE_GROUPS)]
 
     def outcome(self, strict: bool = False) -> str:
-        """"wrong", "strict" (only with ``strict``), "incomplete" or "conforms" (module doc)."""
+        """"wrong", "strict" (only with ``strict``), "incomplete", "untested" or "conforms"
+        (module doc)."""
         if self.wrong:
             return "wrong"
         if strict and any(r.status in STRICT_FAILING for r in self.rows):
             return "strict"
         if self.unsolved:
             return "incomplete"
-        return "conforms"
+        return "conforms" if self.solves else "untested"
 
     @property
     def ok(self) -> bool:
@@ -320,8 +323,9 @@ class VerdictTable:
             return f"FAILS (--strict): {len(bad)} crashed, timed-out or flagged row(s): {', '.join(bad)}"
         if outcome == "incomplete":
             return f"INCOMPLETE: leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
-        if not solves:
-            return "CONFORMS: no case was run (every case skipped for a declared capability)"
+        if outcome == "untested":
+            return ("UNTESTED: no case was run -- every selected case skipped for a declared capability; "
+                    "nothing was judged")
         return f"CONFORMS: every solve correct to its promise ({solves} of {solves})"
 
     def summary(self, strict: bool = False) -> str:
@@ -438,7 +442,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
 def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
                     mode: str = "fast", strict: bool = False, **kw: Any) -> VerdictTable:
     """For a user's pytest: raise AssertionError (with the table) unless ``solver``
-    conforms -- a WRONG row, or a case left unsolved (``strict``: also crashes, timeouts
+    conforms -- a WRONG row, a case left unsolved, or no case run (``strict``: also crashes, timeouts
     and flagged rows)."""
     table = validate(solver, cases, mode=mode, **kw)
     if not table.available:

@@ -1,8 +1,9 @@
 """``contactbench validate``: the command line of the conformance battery (argument
 parsing, the solvers it names, the exit status, the optional CSV and report).
 
-Exit status: 0 every solver conforms, 1 a verdict fails, 2 bad input, 3 a solver is
-inconclusive under ``--strict`` (``VerdictTable.exit_code``).
+Exit status (``VerdictTable.exit_code``, combined over the solvers by ``_combined_exit``):
+0 conforms, 1 wrong (with ``--strict`` also crashes, timeouts, flagged rows), 2 bad input,
+3 incomplete, 4 untested (no case run on any solver).
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
                "capability); 1 wrong: an answer claimed as converged that fails, or a solver that wrote into its "
                "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input, refused before anything "
                "runs (unknown solver, import path that does not load, no case selected, solver not available, a "
-               "bad --timeout, a --csv or --out that cannot be written); 3 incomplete: cases left unsolved "
+               "bad --timeout, a --csv or --out that cannot be written); 3 incomplete: cases left unsolved; 4 untested: "
+               "every selected case skipped for a declared capability, by every solver, so nothing was judged "
                "(docs/verdicts.md).")
     ap.add_argument("solvers", nargs="*", metavar="SOLVER",
                     help="registry name, or import path module:NAME (the current directory is importable)")
@@ -141,8 +143,11 @@ def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver]
 
 
 def _combined_exit(codes: Sequence[int]) -> int:
-    """Wrong answers first (1), then incomplete solvers (3), else 0."""
-    return 1 if 1 in codes else (3 if 3 in codes else 0)
+    """Wrong answers first (1), then incomplete solvers (3); 4 when no solver was run on
+    any case (nothing judged); else 0 (solvers the selection left untested are named in
+    their lines, but others were judged)."""
+    first = next((c for c in (1, 3) if c in codes), 0)
+    return first or (4 if codes and all(c == 4 for c in codes) else 0)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -297,7 +297,27 @@ def test_list_help_and_all_quiet(capsys: pytest.CaptureFixture[str]) -> None:
     assert validate_main(["--all", "--quiet", "--cases", "edge/delta0*"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == sum(s.availability()[0] for s in all_solvers().values())
-    assert all("CONFORMS" in line for line in lines)
+    assert all("CONFORMS" in line or "UNTESTED" in line for line in lines)
+    assert any("CONFORMS" in line for line in lines)
+
+
+def test_a_solver_that_skips_every_case_is_untested_not_conforming() -> None:
+    """A solver whose declared capabilities skip every selected case (max_n = 1 here) was
+    judged on nothing: "UNTESTED", exit 4 -- it read CONFORMS with exit 0, so a solver could
+    declare its way past the battery; assert_conforms refuses it too."""
+
+    class Tiny(Solver):
+        name = "test-tiny"
+        capabilities = Capabilities(max_n=1)
+
+        def iterate(self, ctx: SolveContext) -> Outcome:
+            raise AssertionError("never handed a case")
+
+    table = cf.validate(Tiny(), cases("random/spd-n30-s0*"))
+    assert table.outcome() == "untested" and table.exit_code() == 4, table.format()
+    assert "UNTESTED" in table.headline() and "CONFORMS" not in table.summary()
+    with pytest.raises(AssertionError, match="UNTESTED"):
+        cf.assert_conforms(Tiny(), cases("random/spd-n30-s0*"))
 
 
 def test_hanging_solver_times_out_without_hanging_validate() -> None:
