@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -166,6 +167,28 @@ class RaiseStub(Solver):
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         raise RuntimeError("deliberate failure in test-raise")
+
+
+@register(replace=True)
+class InterruptStub(Solver):
+    """Raises KeyboardInterrupt from its own code (no Ctrl-C was pressed)."""
+
+    name = "test-interrupt"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise KeyboardInterrupt
+
+
+@register(replace=True)
+class ExitStub(Solver):
+    """Calls sys.exit in its own code."""
+
+    name = "test-exit"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        sys.exit(3)
 
 
 @register(replace=True)

@@ -50,6 +50,12 @@ HandlerFactory = Callable[[], Handler]
 ChildReplyKind = Literal["ok", "error", "timeout", "crashed"]
 
 
+#: What a solver may raise inside a worker, each recorded as the row's error: the worker
+#: ignores SIGINT (the parent handles Ctrl-C), so a ``KeyboardInterrupt`` or ``SystemExit``
+#: there is the solver's own doing, not the user's.
+SOLVER_RAISES: tuple[type[BaseException], ...] = (Exception, KeyboardInterrupt, SystemExit)
+
+
 def raised_at(exc: BaseException, frames: int = 2) -> str:
     """Where ``exc`` was raised: its innermost ``frames`` frames, innermost first, each as
     ``path:line in function`` with the path cut below ``site-packages`` (a peer's own

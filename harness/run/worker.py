@@ -38,7 +38,7 @@ from contactbench.solvers.registry import load_solver
 
 from ..table.fields import save_field
 from ..table.files import write_npz_atomic
-from .isolation import PeakMemory, error_text
+from .isolation import SOLVER_RAISES, PeakMemory, error_text
 from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
 from .sequence import WarmState, warm_start_from
@@ -381,7 +381,7 @@ class SolveServer:
         _, qp, solver, warm = self.prepare(task)
         try:
             solver.solve(qp, solver_settings(task), warm)
-        except Exception:
+        except SOLVER_RAISES:
             return False  # the timed solve fails the same way and records it
         return True
 
@@ -397,7 +397,7 @@ class SolveServer:
                 res = solver.solve(qp, settings, warm)
             except SolveAborted as exc:
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=str(exc), aborted=exc.status)
-            except Exception as exc:
+            except SOLVER_RAISES as exc:
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=error_text(exc))
             elapsed = time.perf_counter() - t0
         facts = SolverFacts(

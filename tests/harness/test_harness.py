@@ -70,6 +70,19 @@ def test_crash_hang_and_raise_cost_only_their_own_rows(tmp_path: Path) -> None:
     assert df["cell_id"].is_unique
 
 
+def test_a_solver_raising_keyboardinterrupt_or_exit_is_a_failed_row_not_a_worker_traceback(
+        tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """The worker ignores SIGINT, so a KeyboardInterrupt (or SystemExit) there is the
+    solver's own: it is the row's error, named with where it was raised; the worker
+    printed a traceback and died ("worker exited with code 1") before."""
+    df = run(tmp_path, ["test-exact", "test-exit", "test-interrupt"])
+    assert by_solver(df) == {"test-exact": {"solved"}, "test-exit": {"failed"}, "test-interrupt": {"failed"}}
+    for name, kind in (("test-interrupt", "KeyboardInterrupt"), ("test-exit", "SystemExit: 3")):
+        assert df[df.solver == name]["error"].str.startswith(kind).all()
+        assert df[df.solver == name]["error"].str.contains("tests/helpers.py").all()
+    assert "Traceback" not in capfd.readouterr().err
+
+
 def test_an_error_names_the_dependency_that_raised_it() -> None:
     from scipy.optimize import bisect
 
