@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 import re
 import tempfile
 from dataclasses import asdict, dataclass, field
@@ -52,6 +51,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from .atomic_files import write_text_atomic
 from .errors import ProblemInputError
 from .instances import ContactInstance
 from .qpfile import (
@@ -366,10 +366,8 @@ def write_progress(summary: ExportSummary, folders: set[str], files: set[str]) -
 
 
 def _write_json(path: Path, doc: dict[str, Any]) -> Path:
-    """``doc`` into ``path`` whole or not at all (written beside it, then renamed over it)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    """``doc`` into ``path`` whole or not at all (``write_text_atomic``)."""
+    write_text_atomic(path, json.dumps(doc, indent=2) + "\n")
     return path
 
 
