@@ -170,8 +170,9 @@ def load_surface(
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
     named = p.resolve()  # the file a link names: its base name is the map's (MapPreprocessing.source)
     measured = ~np.isnan(z)
-    z = fill_missing(z, nan, named, meta, relative_to_plane=detrend == "plane")
-    z = remove_tilt(z, detrend, meta, spacing, named, measured if detrend == "plane" else None)
+    fitted = plane_fit(z, measured) if detrend == "plane" else None  # once, through the measured points
+    z = fill_missing(z, nan, named, meta, plane=fitted)
+    z = remove_tilt(z, detrend, meta, spacing, named, fitted)
     check_not_flat(z, raw.z[measured] * scale, spacing, named)
     z = crop_map(z, crop, named, meta)
     meta["spacing"] = list(spacing)
@@ -488,11 +489,11 @@ def _st_version() -> str:
 
 
 def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str, Any],
-                 relative_to_plane: bool = False) -> np.ndarray:
-    """Replace NaN points by the documented rule (module doc, step 1); ``relative_to_plane``:
-    the rule acts on the heights above the measured points' least-squares plane, and the
-    plane is added back (so that on a tilted map a hole is filled along the tilt, not at
-    one level that may rise above every measured point)."""
+                 plane: tuple[float, float, float] | None = None) -> np.ndarray:
+    """Replace NaN points by the documented rule (module doc, step 1); ``plane``: the
+    measured points' least-squares plane (a, c, b) of ``plane_fit``, where the rule acts on
+    the heights above it and the plane is added back (so that on a tilted map a hole is
+    filled along the tilt, not at one level that may rise above every measured point)."""
     missing = np.isnan(z)
     n_missing = int(missing.sum())
     meta["nan_points"] = n_missing
@@ -503,8 +504,9 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
         raise SurfaceFileError(path, f"NaN-only: none of the {z.size} points was measured")
     if rule == "error":
         raise SurfaceFileError(path, f"{n_missing} missing (NaN) points and nan='error'")
-    plane = measured_plane(z, ~missing) if relative_to_plane else np.zeros_like(z)
-    z = z - plane
+    relative_to_plane = plane is not None
+    level = plane_on_grid(z.shape, *plane) if plane is not None else np.zeros_like(z)
+    z = z - level
     if rule == "fill-mean":
         z[missing] = float(np.mean(z[~missing]))
     elif rule == "fill-min":
@@ -520,12 +522,7 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
     basis = " relative to the measured points' plane" if relative_to_plane else ""
     announce(f"{Path(path).name}: {n_missing} missing points ({n_missing / z.size:.1%}) filled by rule {rule!r}"
              f"{basis}", meta)
-    return z + plane
-
-
-def measured_plane(z: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """The least-squares plane through the ``measured`` points of ``z`` (``plane_fit``), on its grid."""
-    return plane_on_grid(z.shape, *plane_fit(z, measured))
+    return z + level
 
 
 def plane_on_grid(shape: tuple[int, ...], a: float, c: float, b: float) -> np.ndarray:
@@ -560,13 +557,13 @@ def plane_tilt(z: np.ndarray, spacing: tuple[float, float]) -> float:
 
 
 def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing: tuple[float, float] = (1.0, 1.0),
-                path: str | Path = "map", measured: np.ndarray | None = None) -> np.ndarray:
+                path: str | Path = "map", fitted: tuple[float, float, float] | None = None) -> np.ndarray:
     """Subtract nothing, the mean, or the least-squares mean plane (module doc, step 2),
-    on the filled map (no point is missing), the plane fitted through the ``measured``
-    points (a mask; None: every point); warn when the plane's tilt exceeds the rms slope
-    of the map without it."""
+    on the filled map (no point is missing): ``fitted``, the plane (a, c, b) already fitted
+    through the measured points, or (None) the plane through every point; warn when the
+    plane's tilt exceeds the rms slope of the map without it."""
     meta["detrend"] = rule
-    a, c, b = plane_fit(z, measured)
+    a, c, b = plane_fit(z) if fitted is None else fitted
     plane = plane_on_grid(z.shape, a, c, b)
     tilt = float(np.hypot(c / spacing[0], b / spacing[1]))
     rough = Surface(z - plane, spacing[0], delta1=spacing[1]).rms_slope()
