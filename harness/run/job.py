@@ -25,8 +25,11 @@ whose handler (``harness.run.worker.SolveServer``) builds the instance's
    killing the worker; every answer is judged by ``harness.judging.judge``.
 
 Warm starts: along a load history each solver starts from its own previous-step answer
-(``harness.run.sequence``) when its capabilities allow and the run asks; after a worker
-restart (or on resume) the previous step is re-solved, untimed, to recover it.
+(``harness.run.sequence``) when its capabilities allow and the run asks.  The answer a
+next step starts from is kept in the run's cache folder until that step's cells are
+recorded (``warm_path``), so after a worker restart or on resume a step starts from the
+same point as in an uninterrupted run; where that file is missing, the previous step is
+re-solved, untimed, from p = 0.
 
 Every row goes through ``harness.run.rows.RowFactory`` and then to ``sink``.
 """
@@ -160,8 +163,17 @@ class JobDriver:
                         n_steps = ctx.info.steps
                         self.run_step(ctx, todo)
                 k += 1
+            self.forget_all_warm(n_steps)
         finally:
             self.worker.close()
+
+    def forget_all_warm(self, n_steps: int) -> None:
+        """The job's cells are all recorded: no kept answer of it is needed any more (one
+        may be left where an interruption came between a step's rows and ``forget_warm``)."""
+        for k in range(n_steps):
+            for v in self.job.variants:
+                for profile in self.job.profiles:
+                    self.warm_path(k, v, profile).unlink(missing_ok=True)
 
     def prepare_step(self, k: int) -> StepContext | None:
         out = self.worker.call(BuildStep(k), self.run_cfg.build_timeout)
@@ -326,11 +338,23 @@ class JobDriver:
         spec = self.job.spec
         arrays = self.cache_dir.parent / "arrays" / safe_name(f"{spec.scene}-{spec.instance}-{v.name}.npz")
         serve = ctx.serving == (v.name, profile) and ctx.reference_path is None
+        keep = self.want_warm(v, ctx.k + 1) and ctx.k + 1 < ctx.info.steps
         return SolveTask(step=ctx.k, base=v.base, params=dict(v.params), label=v.name, profile=profile,
                          operator=operator, check_tol=get_profile(profile).check_tol, time_limit=self.run_cfg.timeout,
                          warm=warm, reference_path=ctx.reference_path, arrays_path=str(arrays),
                          reference_out=str(self.reference_path(ctx.k, served_name(v.name, profile))) if serve else None,
-                         reference_max_kkt=ctx.serve_max_kkt)
+                         reference_max_kkt=ctx.serve_max_kkt,
+                         warm_out=str(self.warm_path(ctx.k, v, profile)) if keep else None,
+                         warm_in=str(self.warm_path(ctx.k - 1, v, profile)) if ctx.k > 0 else None)
+
+    def warm_path(self, k: int, v: SolverVariant, profile: str) -> Path:
+        """Where the answer of step ``k`` of (variant, profile) is kept as the next step's
+        warm start (``WarmState.save``) until that step's cells are all recorded: a resumed
+        run starts from it, not from a re-solve."""
+        spec = self.job.spec
+        key = json.dumps([spec.scene, spec.instance, spec.params_json(), v.name, v.params, profile], default=str)
+        digest = hashlib.sha1(key.encode("utf-8")).hexdigest()[:16]
+        return self.cache_dir / f"warm-{safe_name(spec.instance)[:60]}-{safe_name(v.name)[:60]}-{digest}-k{k}.npz"
 
     def predicted_seconds(self, ctx: StepContext, v: SolverVariant, profile: str, operator: str) -> float:
         """The predicted time of this solve: extrapolated from the variant's own finished
@@ -397,6 +421,15 @@ class JobDriver:
             if note:
                 values["warmup"] = note
             self.emit(self.row(ctx, ctx.k, v, profile, r, operator=operator, build_time_s=build, **values))
+        self.forget_warm(ctx, v, profile)
+
+    def forget_warm(self, ctx: StepContext, v: SolverVariant, profile: str) -> None:
+        """Step ``ctx.k``'s cells of (variant, profile) are recorded: the previous step's kept
+        answer is needed no more, nor this step's on the last step."""
+        done = [ctx.k - 1] + ([ctx.k] if ctx.k + 1 >= ctx.info.steps else [])
+        for k in done:
+            if k >= 0:
+                self.warm_path(k, v, profile).unlink(missing_ok=True)
 
 
 def served_name(label: str, profile: str) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
@@ -23,6 +24,7 @@ from contactbench.solvers.registry import load_solver
 
 from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
+from ..table.files import write_npz_atomic
 
 
 def map_by_grid_index(values: np.ndarray, from_idx: np.ndarray, to_idx: np.ndarray, fill: float = 0.0) -> np.ndarray:
@@ -65,6 +67,31 @@ class WarmState:
             if w_arr.shape != p.shape:
                 w_arr = None
         return cls(step, np.asarray(geom.indices), p.copy(), w_arr)
+
+    def save(self, path: str | Path) -> None:
+        """Keep this state in ``path`` (npz, no pickles; p as its support and values, the
+        grid indices as the instance gives them again), written whole or not at all."""
+        support = np.flatnonzero(self.p)
+        extra = {} if self.w is None else {"w": self.w}
+        write_npz_atomic(path, step=np.int64(self.step), n=np.int64(self.p.size), support=support,
+                         values=self.p[support], **extra)
+
+    @classmethod
+    def load(cls, path: str | Path, step: int, inst: ContactInstance) -> "WarmState | None":
+        """The state ``save`` kept in ``path`` for ``step`` of ``inst``, or None where the file
+        is missing, unreadable or holds another step's or another size's answer."""
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                if int(f["step"]) != step or int(f["n"]) != inst.n:
+                    return None
+                support, p = np.asarray(f["support"], dtype=np.int64), np.zeros(inst.n)
+                if support.size and not 0 <= support.min() <= support.max() < inst.n:
+                    return None
+                p[support] = f["values"]
+                w = f["w"] if "w" in f.files else None
+        except (OSError, ValueError, KeyError, IndexError):
+            return None
+        return cls.of(step, inst, p, w)
 
 
 def warm_start_from(state: WarmState | None, inst: ContactInstance, step: int, kind: str) -> WarmStart | None:

@@ -10,11 +10,13 @@ The parent (``harness.run.job.JobDriver``) sends one message at a time:
                         ``ReferenceReply``;
 ``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped;
 ``Solve(task)``         one timed solve, judged by ``harness.judging.judge`` -> ``SolveReply``;
-``Regenerate(task)``    re-solve the previous step, untimed, to recover this solver's
-                        warm start after a worker restart or on resume -> bool.
+``Regenerate(task)``    recover this solver's warm start after a worker restart or on
+                        resume: the previous step's answer as the run kept it on disk
+                        (``task.warm_in``), else that step re-solved, untimed -> bool.
 
 Warm starts are kept here, per (variant label, profile, step), as ``WarmState`` and
-mapped by ``harness.run.sequence.warm_start_from``.  The table row is built by the parent
+mapped by ``harness.run.sequence.warm_start_from``; a solve whose answer the next step
+starts from also keeps it on disk (``task.warm_out``, the driver's ``warm_path``).  The table row is built by the parent
 (``harness.run.rows``) from the reply.
 """
 
@@ -92,6 +94,8 @@ class SolveTask:
     arrays_path: str | None = None  # where a wrong answer on a small instance is kept for the report
     reference_out: str | None = None  # keep this answer as the step's reference here when it passes
     reference_max_kkt: float = REFERENCE_MAX_KKT  # ... with a scaled KKT error at most this (harness.run.job)
+    warm_out: str | None = None  # keep this answer here as the next step's warm start, for a resume
+    warm_in: str | None = None  # the previous step's answer kept so (``Regenerate`` reads it before re-solving)
 
 
 @dataclass(frozen=True)
@@ -360,9 +364,14 @@ class SolveServer:
         return True
 
     def regenerate(self, task: SolveTask) -> bool:
-        """Re-solve the previous step (untimed) to recover this solver's warm start."""
+        """Recover this solver's warm start: the previous step's answer as the run kept it
+        (``task.warm_in``), so a resumed run starts each step where the uninterrupted one
+        did; else that step re-solved from p = 0 (untimed)."""
         prev = replace(task, step=task.step - 1, warm=False, reference_path=None)
         inst, _ = self.ensure_step(prev.step)
+        kept = WarmState.load(task.warm_in, prev.step, inst) if task.warm_in else None
+        if kept is not None:
+            return self.remember(prev, inst, kept.p, kept.w)
         res = load_solver(prev.base).solve(self.qp_for(prev.step, prev.operator), solver_settings(prev), None)
         return self.remember(prev, inst, res.p, res.w)
 
@@ -423,6 +432,8 @@ class SolveServer:
                    task.label, reply.verdict.status)  # the report's field pictures (harness/table/fields.py)
         if task.record_warm:
             reply.kept_warm = self.remember(task, inst, p, res.w)
+        if reply.kept_warm and task.warm_out:
+            self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
         return reply
 
 

@@ -8,7 +8,8 @@ Layout of a run directory ``OUT/``::
                       read it with ``schema.load_table`` (also importable from here)
     results.csv       the same table as CSV
     meta.json         run metadata (harness/table/meta.py)
-    _cache/           reference solutions, one file per instance-step
+    _cache/           reference solutions, one file per instance-step, and the answers a next
+                      step starts from (removed once the job is done)
     run.lock          while a run is writing: its PID, host and start time (``RunLock``)
     .contactbench-run.json
                       the marker: this is a contactbench run folder (format version, and

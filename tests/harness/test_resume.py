@@ -11,8 +11,10 @@ line (what a kill mid-write leaves)."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import types
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -22,7 +24,7 @@ from contactbench.harness.run import worker
 from contactbench.harness.run.plan import RunConfig, StoredCell
 from contactbench.harness import run_benchmark
 from contactbench.harness.run.skips import SkipPolicy
-from contactbench.harness.table.store import ROWS_FILE, load_table
+from contactbench.harness.table.store import ROWS_FILE, ResultStore, load_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import Outcome, SolveContext, register
 from contactbench.solvers.base import ProblemTraits
@@ -189,3 +191,79 @@ def test_a_resumed_step_keeps_the_reference_its_first_answer_served(tmp_path: Pa
     assert (again["reference_solver"] == before["reference_solver"]).all(), again["reference_solver"]
     assert (again.loc[1, "reference_solver"] == f"{server}@default").all()
     pd.testing.assert_series_equal(again["p_rel_error"], before["p_rel_error"], rtol=1e-6, atol=1e-15)
+
+
+@register(replace=True)
+class LoggedExact(ExactStub):
+    """The exact solver, warm-startable, logging each solve's start ("cold" / "warm") to the
+    file ``SOLVE_LOG`` names (the run's workers are other processes)."""
+
+    name = "fake-logged"
+    capabilities = replace(ExactStub.capabilities, warm_start="primal")
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        with open(os.environ[SOLVE_LOG], "a", encoding="utf-8") as fh:
+            fh.write(f"{ctx.n} {'warm' if ctx.warm else 'cold'}\n")
+        return super().iterate(ctx)
+
+
+SOLVE_LOG = "CONTACTBENCH_TEST_SOLVE_LOG"
+
+
+def run_cut_after(rows: int, monkeypatch: pytest.MonkeyPatch, *args: object) -> None:
+    """``run_benchmark(*args)`` interrupted by Ctrl-C just after its ``rows``-th row."""
+    append, written = ResultStore.append, [0]
+
+    def interrupted_after(store: ResultStore, row: dict[str, object]) -> None:
+        append(store, row)
+        written[0] += 1
+        if written[0] == rows:
+            raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(ResultStore, "append", interrupted_after)
+        with pytest.raises(KeyboardInterrupt):
+            run_benchmark(*args)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("keep_rows", [1, 3, 4])
+def test_a_resumed_run_starts_from_the_kept_answer_not_a_re_solve(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, keep_rows: int) -> None:
+    """The answer a next step starts from is kept in the run's cache folder until that step
+    is recorded: the resumed run solves only its missing cells, each warm from the first
+    run's answer (the previous step was re-solved from p = 0 before, so its start, and the
+    digits after it, were another run's).  The kept answers are removed once the job is done."""
+    cfg = SceneConfig(size=32, steps=5, seeds=(0,))
+    run = RunConfig(reference="none", warmup=False, progress=False)
+    log = tmp_path / "solves.log"
+    monkeypatch.setenv(SOLVE_LOG, str(log))
+    args = (["paper-sweep"], cfg, ["fake-logged"], run, tmp_path / "cut", ["pytest"])
+    run_cut_after(keep_rows, monkeypatch, *args)
+    assert any((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
+    log.unlink()
+    run_benchmark(*args)  # type: ignore[arg-type]
+    starts = [line.split()[1] for line in log.read_text().splitlines()]
+    assert starts == ["warm"] * (5 - keep_rows)  # no cold re-solve of the previous step
+    assert len(load_table(tmp_path / "cut")) == 5
+    assert not any((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
+
+
+@pytest.mark.parametrize("keep_rows", [4, 7, 10])
+def test_a_resumed_run_of_the_fast_solvers_matches_the_uninterrupted_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, keep_rows: int) -> None:
+    """Interrupted after ``keep_rows`` rows and resumed, three warm-started solvers end each
+    step as the uninterrupted run did: the same products, to one iteration (the operator's
+    caches, which the solvers share in a worker, differ after a restart: rounding, not
+    another start), and errors and loads to 1e-6."""
+    cfg = SceneConfig(size=64, steps=5, seeds=(0,))
+    run = RunConfig(reference="none", warmup=False, progress=False)
+    solvers = ["fast-dual-pccg", "fast-ccg", "pk"]
+    run_benchmark(["paper-sweep"], cfg, solvers, run, tmp_path / "whole", command=["pytest"])
+    args = (["paper-sweep"], cfg, solvers, run, tmp_path / "cut", ["pytest"])
+    run_cut_after(keep_rows, monkeypatch, *args)
+    run_benchmark(*args)  # type: ignore[arg-type]
+    whole, cut = (load_table(tmp_path / d).set_index(["solver", "step"]).sort_index() for d in ("whole", "cut"))
+    assert (cut["status"] == "solved").all() and len(cut) == 15
+    assert ((cut["iterations"] - whole["iterations"]).abs() <= 1).all()
+    for col in ("kkt_error", "load"):
+        pd.testing.assert_series_equal(cut[col], whole[col], rtol=1e-6 if col == "load" else 1e-2, atol=0.0)
