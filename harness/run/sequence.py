@@ -89,7 +89,7 @@ class WarmState:
                     return None
                 p[support] = f["values"]
                 w = f["w"] if "w" in f.files else None
-        except (OSError, ValueError, KeyError, IndexError):
+        except Exception:  # cut short, not an archive, another layout: not a warm start
             return None
         return cls.of(step, inst, p, w)
 

@@ -17,6 +17,7 @@ import types
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -246,6 +247,34 @@ def test_a_resumed_run_starts_from_the_kept_answer_not_a_re_solve(
     assert starts == ["warm"] * (5 - keep_rows)  # no cold re-solve of the previous step
     assert len(load_table(tmp_path / "cut")) == 5
     assert not any((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
+
+
+@pytest.mark.parametrize("damage", ["truncated", "another step's", "not finite"])
+def test_a_kept_answer_that_cannot_be_read_is_re_solved_not_trusted(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, damage: str) -> None:
+    """A kept answer that is cut short, holds another step's answer or a non-finite one is
+    not a warm start: the previous step is re-solved from p = 0, and every row is solved."""
+    cfg = SceneConfig(size=32, steps=4, seeds=(0,))
+    run = RunConfig(reference="none", warmup=False, progress=False)
+    log = tmp_path / "solves.log"
+    monkeypatch.setenv(SOLVE_LOG, str(log))
+    args = (["paper-sweep"], cfg, ["fake-logged"], run, tmp_path / "cut", ["pytest"])
+    run_cut_after(2, monkeypatch, *args)
+    (kept,) = (tmp_path / "cut" / "_cache").glob("warm-*-k1.npz")
+    if damage == "truncated":
+        kept.write_bytes(kept.read_bytes()[:40])
+    else:
+        with np.load(kept) as f:
+            items = dict(f)
+        if damage == "another step's":
+            items["step"] = np.int64(0)
+        else:
+            items["values"] = np.full_like(items["values"], np.nan)
+        np.savez(kept, **items)
+    log.unlink()
+    run_benchmark(*args)  # type: ignore[arg-type]
+    assert [line.split()[1] for line in log.read_text().splitlines()] == ["cold", "warm", "warm"]
+    assert (load_table(tmp_path / "cut")["status"] == "solved").all()
 
 
 @pytest.mark.parametrize("keep_rows", [4, 7, 10])
