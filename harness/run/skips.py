@@ -166,7 +166,7 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
     try:
         own_reason = solver.skip(traits) or (solver.skip_params(traits, solver.resolve_params(params))
-                                              if params else None)
+                                              if params is not None else None)
     except Exception as exc:
         return Decision(reason=f"skip check failed: {exc}")
     if own_reason:

@@ -16,8 +16,8 @@ The parent (``harness.run.job.JobDriver``) sends one message at a time:
 
 Warm starts are kept here, per (variant label, profile, step), as ``WarmState`` and
 mapped by ``harness.run.sequence.warm_start_from``; a solve whose answer the next step
-starts from also keeps it on disk (``task.warm_out``, the driver's ``warm_path``).  The table row is built by the parent
-(``harness.run.rows``) from the reply.
+starts from also keeps it on disk (``task.warm_out``, the driver's ``warm_path``).  The
+table row is built by the parent (``harness.run.rows``) from the reply.
 """
 
 from __future__ import annotations
