@@ -194,6 +194,11 @@ class WarmStart:
     w: np.ndarray | None = None
 
 
+#: ``SolveResult.info`` key of an answer the lifecycle gave without calling ``iterate``
+#: (ubar <= 0 and no load imposed: p = 0): it says nothing of the solver.
+WITHOUT_ITERATE = "answered_without_iterate"
+
+
 @dataclass
 class SolveResult:
     """One record for every solver (like scipy's OptimizeResult).
@@ -630,7 +635,7 @@ class Solver(ABC):
                            diag_max=float(np.max(qp.H.diagonal())), check_tol=settings.check_tol)
         ctx.track(qp.H)
         if np.max(qp.ubar, initial=0.0) <= 0.0 and not qp.constraints.load_control:
-            out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0")
+            out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0", info={WITHOUT_ITERATE: True})
         else:
             out = self.iterate(ctx)
         return finish(ctx, out)

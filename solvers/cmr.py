@@ -34,7 +34,8 @@ never runs past its limit; coarse levels not reached in time are dropped.
 
 Skip policy: ``capabilities.needs_geometry`` -- a problem without a surface
 (``ProblemTraits.has_surface`` False, e.g. the counterexample) is skipped, not failed;
-so is a surface without a coarse level of the default ``coarsest`` size (``skip``).
+so is a surface without the coarse levels a variant asks (``skip_params``: its
+``coarsest``, or its ``levels``).
 Warm start: a primal warm start for the fine problem is restricted to the projected set
 and handed to the base solver when the base accepts one; coarse levels start cold.
 The base solver is looked up by registry name at solve time; ``cmr+<base>`` is
@@ -209,14 +210,10 @@ class CMRSolver(Solver):
         b = all_solvers().get(self.base_name)
         return b.time_estimate(n, operator_kind) if b is not None else None
 
-    def skip(self, traits: ProblemTraits) -> str | None:
-        """Skipped (a declared capability, not a failure) where the surface has no coarse
-        level of the default ``coarsest`` size: CMR would refuse the problem."""
-        return super().skip(traits) or self.skip_params(traits, self.resolve_params(None))
-
     def skip_params(self, traits: ProblemTraits, params: dict[str, Any]) -> str | None:
-        """Skipped where the surface cannot give the coarse levels ``params`` ask
-        (``coarsest``, or the explicit ``levels``)."""
+        """Skipped (a declared capability, not a failure) where the surface cannot give the
+        coarse levels ``params`` ask (``coarsest``, or the explicit ``levels``): CMR would
+        refuse the problem."""
         if not traits.surface_side:
             return None
         missing = missing_level(traits.surface_side, int(params["coarsest"]), params["levels"])

@@ -14,11 +14,11 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import os
-import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -31,7 +31,7 @@ from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder
 from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
 from contactbench.problems.surfaces import rmd_surface_n
-from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, register
+from contactbench.solvers import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, register
 from contactbench.solvers.base import Deadline, Trace
 from contactbench.solvers.registry import get_solver
 from contactbench.harness.cli import main as cli_main
@@ -169,26 +169,43 @@ class RaiseStub(Solver):
         raise RuntimeError("deliberate failure in test-raise")
 
 
-@register(replace=True)
-class InterruptStub(Solver):
-    """Raises KeyboardInterrupt from its own code (no Ctrl-C was pressed)."""
+class OwnExitStub(Solver):
+    """Raises ``raised`` from its own code: an exception that is not an Exception (no Ctrl-C
+    was pressed, nothing called os._exit)."""
 
+    family = "test"
+    raised: ClassVar[type[BaseException]] = KeyboardInterrupt
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise self.raised(3) if self.raised is SystemExit else self.raised()
+
+
+@register(replace=True)
+class InterruptStub(OwnExitStub):
     name = "test-interrupt"
-    family = "test"
-
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        raise KeyboardInterrupt
 
 
 @register(replace=True)
-class ExitStub(Solver):
-    """Calls sys.exit in its own code."""
-
+class ExitStub(OwnExitStub):
     name = "test-exit"
-    family = "test"
+    raised = SystemExit
 
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        sys.exit(3)
+
+@register(replace=True)
+class GeneratorExitStub(OwnExitStub):
+    name = "test-generator-exit"
+    raised = GeneratorExit
+
+
+@register(replace=True)
+class BuggySkipStub(ExactStub):
+    """The exact solver whose own ``skip`` raises: a defect of the solver, not a capability."""
+
+    name = "test-buggy-skip"
+    capabilities = replace(ExactStub.capabilities, exact=False)  # not in the exact solvers' battery
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        raise RuntimeError("a bug in skip")
 
 
 @register(replace=True)

@@ -36,10 +36,13 @@ Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 ``wrong``        any WRONG row (exit 1);
 ``incomplete``   solves left unsolved -- unconverged, timeout, crashed, or refused
                  outside the float32 case -- by any solver: exit 3, listing them;
-``untested``     none of these, and no solve run: every selected case skipped for a
-                 capability the solver declares, so nothing was judged (exit 4);
+``untested``     none of these, and no answer of the solver's own judged
+                 (``VerdictTable.judged``): every selected case skipped for a capability
+                 it declares, refused where refusing is allowed (float32), or answered by
+                 the lifecycle without calling it (ubar <= 0: p = 0) -- exit 4;
 ``conforms``     none of these: every case solved to what the solver promises, or skipped
-                 for a capability it declares, at least one case solved (exit 0).
+                 for a capability it declares, and at least one answer of its own
+                 accepted (exit 0).
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
 unknown solver, an import path that does not load, no case selected, a promise that is
 not "exact" or a floor below 1, a --timeout that is not a finite number > 0, a --csv or
@@ -139,6 +142,7 @@ class VerdictRow:
     kkt: dict[str, float] = field(default_factory=dict)
     message: str = ""
     detail: str = ""
+    iterated: bool = True  # False: answered by the lifecycle, without calling the solver
 
     @property
     def label(self) -> str:
@@ -180,7 +184,7 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
     p_ref = ref.p if ref is not None and ref.trusted else None
     p_tol = p_tolerance(ref.cond, check_tol) if ref is not None and p_ref is not None else None
     v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol, tampered=out.tampered)
-    row.claimed, row.iterations = bool(out.converged), out.iterations
+    row.claimed, row.iterations, row.iterated = bool(out.converged), out.iterations, out.iterated
     row.kkt_error = v.kkt_error
     row.p_rel_error = float(v.figures.get("p_rel_error", float("nan")))
     row.dim_load = float(v.figures.get("dim_load", float("nan")))
@@ -284,6 +288,12 @@ class VerdictTable:
         return [r for r in self.rows if r.step >= 0 and r.status != "skipped"]
 
     @property
+    def judged(self) -> list[VerdictRow]:
+        """The solves that judged the solver itself: answers of its own (not the
+        lifecycle's p = 0 where ubar <= 0) that the judge accepted."""
+        return [r for r in self.solves if r.status in ("pass", "flagged") and r.iterated]
+
+    @property
     def wrong(self) -> list[VerdictRow]:
         return [r for r in self.rows if r.status == "WRONG"]
 
@@ -302,7 +312,7 @@ class VerdictTable:
             return "strict"
         if self.unsolved:
             return "incomplete"
-        return "conforms" if self.solves else "untested"
+        return "conforms" if self.judged else "untested"
 
     @property
     def ok(self) -> bool:
@@ -324,8 +334,9 @@ class VerdictTable:
         if outcome == "incomplete":
             return f"INCOMPLETE: leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
         if outcome == "untested":
-            return ("UNTESTED: no case was run -- every selected case skipped for a declared capability; "
-                    "nothing was judged")
+            return (f"UNTESTED: no answer of the solver's own was judged ({solves} solves) -- every selected case "
+                    "skipped for a declared capability, refused where refusing is allowed, or answered without "
+                    "calling the solver (ubar <= 0: p = 0)")
         return f"CONFORMS: every solve correct to its promise ({solves} of {solves})"
 
     def summary(self, strict: bool = False) -> str:

@@ -34,11 +34,11 @@ from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from contactbench.solvers.base import SolveAborted, Solver
+from contactbench.solvers.base import WITHOUT_ITERATE, SolveAborted, Solver
 
 from ..judging import ProblemSeal
 from ..profiles import get_profile
-from ..run.skips import capability_decision
+from ..run.skips import Decision, capability_decision
 from ..run.worker import instance_operator_kind, problem_traits
 
 #: Default per-solve time limits (s) by battery mode.
@@ -191,16 +191,18 @@ class CaseAnswer:
     detail: str = ""
     time_s: float = float("nan")
     tampered: str = ""
+    iterated: bool = True  # False: the lifecycle answered without calling the solver (``WITHOUT_ITERATE``)
 
 
-def adapt_to_solver(inst: ContactInstance, solver: Solver) -> QP | str:
-    """The QP in a form the solver accepts, or the reason it cannot take it: steps 2, 3
-    and 5 of ``harness.run.skips`` (max_n, operator kind, the solver's own ``skip``); the
+def adapt_to_solver(inst: ContactInstance, solver: Solver, params: dict[str, Any] | None = None) -> QP | Decision:
+    """The QP in a form the solver accepts, or the decision not to solve it: steps 2, 3
+    and 5 of ``harness.run.skips`` (max_n, operator kind, the solver's own ``skip`` and
+    ``skip_params`` with ``params``; a check that raised is a failed decision); the
     battery applies no time model, so a solver cannot skip its way out of a case."""
     qp = inst.qp
-    d = capability_decision(solver, problem_traits(inst), BATTERY_MEMORY_BUDGET)
+    d = capability_decision(solver, problem_traits(inst), BATTERY_MEMORY_BUDGET, params)
     if d.skip:
-        return d.reason
+        return d
     if d.operator == "dense" and instance_operator_kind(inst) != "dense":
         return QP(DenseOperator(qp.H.to_dense()), qp.ubar, qp.geometry, qp.constraints)
     return qp
@@ -224,9 +226,9 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     spec, step, time_limit, params = msg
     case = ConformanceCase(spec)
     inst = build_battery_spec(spec).at(step)
-    qp = adapt_to_solver(inst, solver)
-    if isinstance(qp, str):
-        return {"kind": "skipped", "message": qp}
+    qp = adapt_to_solver(inst, solver, params)
+    if isinstance(qp, Decision):  # a skip check that raised is the solver's crash
+        return {"kind": "crashed" if qp.failed else "skipped", "message": qp.reason, "detail": qp.reason}
     settings = get_profile(case.profile).solver_settings(time_limit, params)
     seal = ProblemSeal.of(qp)
     t0 = time.perf_counter()
@@ -243,7 +245,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     elapsed = time.perf_counter() - t0
     return {"kind": "ok", "p": res.p, "converged": bool(res.converged), "iterations": int(res.iterations),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
-            "tampered": seal.broken(qp)}
+            "tampered": seal.broken(qp), "iterated": not res.info.get(WITHOUT_ITERATE)}
 
 
 class _SolverHandler:

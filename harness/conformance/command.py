@@ -40,7 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
                "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input, refused before anything "
                "runs (unknown solver, import path that does not load, no case selected, solver not available, a "
                "bad --timeout, a --csv or --out that cannot be written); 3 incomplete: cases left unsolved; 4 untested: "
-               "every selected case skipped for a declared capability, by every solver, so nothing was judged "
+               "no answer of any solver's own was judged (every case skipped for a declared capability, refused "
+               "where refusing is allowed, or answered without calling the solver) "
                "(docs/verdicts.md).")
     ap.add_argument("solvers", nargs="*", metavar="SOLVER",
                     help="registry name, or import path module:NAME (the current directory is importable)")

@@ -50,10 +50,10 @@ HandlerFactory = Callable[[], Handler]
 ChildReplyKind = Literal["ok", "error", "timeout", "crashed"]
 
 
-#: What a solver may raise inside a worker, each recorded as the row's error: the worker
-#: ignores SIGINT (the parent handles Ctrl-C), so a ``KeyboardInterrupt`` or ``SystemExit``
-#: there is the solver's own doing, not the user's.
-SOLVER_RAISES: tuple[type[BaseException], ...] = (Exception, KeyboardInterrupt, SystemExit)
+#: What a solver may raise inside a worker, each recorded as the row's error: anything.
+#: The worker ignores SIGINT (the parent handles Ctrl-C), so a ``KeyboardInterrupt``,
+#: ``SystemExit`` or ``GeneratorExit`` there is the solver's own doing, not the user's.
+SOLVER_RAISES: tuple[type[BaseException], ...] = (BaseException,)
 
 
 def raised_at(exc: BaseException, frames: int = 2) -> str:

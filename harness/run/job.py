@@ -36,6 +36,7 @@ Every row goes through ``harness.run.rows.RowFactory`` and then to ``sink``.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -173,7 +174,7 @@ class JobDriver:
         for k in range(n_steps):
             for v in self.job.variants:
                 for profile in self.job.profiles:
-                    self.warm_path(k, v, profile).unlink(missing_ok=True)
+                    forget_file(self.warm_path(k, v, profile))
 
     def prepare_step(self, k: int) -> StepContext | None:
         out = self.worker.call(BuildStep(k), self.run_cfg.build_timeout)
@@ -220,6 +221,9 @@ class JobDriver:
             i = next((j for j, (v, prof, _) in enumerate(pending) if (v.name, prof) == ctx.serving), 0)
             v, prof, reps = pending.pop(i)
             d = decisions[(v.name, prof)]
+            if d.failed:
+                self.emit_rows(ctx, ctx.k, v, prof, reps, status="failed", error=d.reason)
+                continue
             if d.skip:
                 self.emit_rows(ctx, ctx.k, v, prof, reps, status="skipped", skip_reason=d.reason)
                 continue
@@ -429,7 +433,14 @@ class JobDriver:
         done = [ctx.k - 1] + ([ctx.k] if ctx.k + 1 >= ctx.info.steps else [])
         for k in done:
             if k >= 0:
-                self.warm_path(k, v, profile).unlink(missing_ok=True)
+                forget_file(self.warm_path(k, v, profile))
+
+
+def forget_file(path: Path) -> None:
+    """Remove a kept answer of ours if it is there; what cannot be removed (a folder put in
+    its place, a read-only disk) stays, costing nothing but its space."""
+    with contextlib.suppress(OSError):
+        path.unlink(missing_ok=True)
 
 
 def served_name(label: str, profile: str) -> str:

@@ -11,7 +11,8 @@ words, with the estimate):
 4. memory: the dense H (if the harness must assemble it) plus ``memory_estimate(n)``
    against the memory budget;
 5. the solver's own ``skip(traits)`` on the problem's ``ProblemTraits`` (n, operator,
-   geometry, surface, periodicity, kernel) -- e.g. CMR needs the surface's coarse levels;
+   geometry, surface, periodicity, kernel), then its ``skip_params(traits, params)`` with
+   the variant's resolved parameters -- e.g. a CMR variant needs the coarse levels it asks;
 6. time: along a load history the solver's own finished steps, extrapolated by the
    measured growth (``extrapolated_time``); else its ``time_estimate(n, operator)``,
    under load control corrected by ``problem_time_estimate``; against the time limit.
@@ -67,10 +68,13 @@ Observation = tuple[int, float]  # (n, solve seconds) of one finished step
 
 @dataclass(frozen=True)
 class Decision:
-    """Run the variant with ``operator`` ("fft"/"dense"), or skip it for ``reason``."""
+    """Run the variant with ``operator`` ("fft"/"dense"), or skip it for ``reason``; or,
+    ``failed``, record it as failed for ``reason``: the solver's own model or skip check
+    raised (a defect of the solver, not a capability it declares)."""
 
     operator: str = ""
     reason: str = ""
+    failed: bool = False
 
     @property
     def skip(self) -> bool:
@@ -140,8 +144,8 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
 def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: float,
                         params: dict[str, Any] | None = None) -> Decision:
     """Steps 2-5 of the module doc for a loaded, available solver: max_n, the operator
-    it is given, memory, and its own ``skip`` (and ``skip_params`` for the variant's
-    ``params``, where given).  No time model (``validate`` uses this:
+    it is given, memory, and its own ``skip`` and ``skip_params`` (with ``params``
+    resolved: the variant's, or the defaults).  No time model (``validate`` uses this:
     a solver cannot skip its way out of a conformance case)."""
     n, caps = traits.n, solver.capabilities
     if caps.max_n is not None and n > caps.max_n:
@@ -157,7 +161,7 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
     try:
         own_bytes = float(solver.memory_estimate(n))
     except Exception as exc:
-        return Decision(reason=f"memory model failed: {exc}")
+        return Decision(reason=f"memory model failed: {type(exc).__name__}: {exc}", failed=True)
     if dense_bytes > memory_budget:
         return Decision(reason=(f"needs dense H: {n} x {n} float64 = {dense_bytes / GiB:.3g} GiB "
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
@@ -165,10 +169,9 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
         return Decision(reason=(f"memory estimate {(dense_bytes + own_bytes) / GiB:.3g} GiB at n = {n} "
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
     try:
-        own_reason = solver.skip(traits) or (solver.skip_params(traits, solver.resolve_params(params))
-                                              if params is not None else None)
+        own_reason = solver.skip(traits) or solver.skip_params(traits, solver.resolve_params(params))
     except Exception as exc:
-        return Decision(reason=f"skip check failed: {exc}")
+        return Decision(reason=f"skip check failed: {type(exc).__name__}: {exc}", failed=True)
     if own_reason:
         return Decision(reason=str(own_reason))
     return Decision(operator=operator)
@@ -189,7 +192,7 @@ def time_decision(solver: object, traits: ProblemTraits, operator: str, time_lim
     try:
         t_est = problem_time_estimate(solver, traits, operator)  # type: ignore[arg-type]
     except Exception as exc:
-        return Decision(reason=f"time model failed: {exc}")
+        return Decision(reason=f"time model failed: {type(exc).__name__}: {exc}", failed=True)
     if t_est is not None and t_est > time_limit:
         control = ", load control" if traits.load_control else ""
         return Decision(reason=(f"predicted solve time {t_est:.3g} s at n = {n} ({operator} operator{control}) "

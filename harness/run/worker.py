@@ -22,6 +22,7 @@ table row is built by the parent (``harness.run.rows``) from the reply.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import math
@@ -372,7 +373,10 @@ class SolveServer:
         kept = WarmState.load(task.warm_in, prev.step, inst) if task.warm_in else None
         if kept is not None:
             return self.remember(prev, inst, kept.p, kept.w)
-        res = load_solver(prev.base).solve(self.qp_for(prev.step, prev.operator), solver_settings(prev), None)
+        try:
+            res = load_solver(prev.base).solve(self.qp_for(prev.step, prev.operator), solver_settings(prev), None)
+        except SOLVER_RAISES:
+            return False  # no warm start: the step runs cold, and its row says so
         return self.remember(prev, inst, res.p, res.w)
 
     def prepare(self, task: SolveTask) -> tuple[ContactInstance, QP, Any, WarmStart | None]:
@@ -433,7 +437,8 @@ class SolveServer:
         if task.record_warm:
             reply.kept_warm = self.remember(task, inst, p, res.w)
         if reply.kept_warm and task.warm_out:
-            self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
+            with contextlib.suppress(OSError):  # a full disk costs a resume its exact start, not this row
+                self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
         return reply
 
 

@@ -72,15 +72,28 @@ def test_crash_hang_and_raise_cost_only_their_own_rows(tmp_path: Path) -> None:
 
 def test_a_solver_raising_keyboardinterrupt_or_exit_is_a_failed_row_not_a_worker_traceback(
         tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
-    """The worker ignores SIGINT, so a KeyboardInterrupt (or SystemExit) there is the
-    solver's own: it is the row's error, named with where it was raised; the worker
+    """The worker ignores SIGINT, so a KeyboardInterrupt (or SystemExit, GeneratorExit) there
+    is the solver's own: it is the row's error, named with where it was raised; the worker
     printed a traceback and died ("worker exited with code 1") before."""
-    df = run(tmp_path, ["test-exact", "test-exit", "test-interrupt"])
-    assert by_solver(df) == {"test-exact": {"solved"}, "test-exit": {"failed"}, "test-interrupt": {"failed"}}
-    for name, kind in (("test-interrupt", "KeyboardInterrupt"), ("test-exit", "SystemExit: 3")):
+    df = run(tmp_path, ["test-exact", "test-exit", "test-generator-exit", "test-interrupt"])
+    assert by_solver(df) == {"test-exact": {"solved"}, "test-exit": {"failed"}, "test-generator-exit": {"failed"},
+                             "test-interrupt": {"failed"}}
+    for name, kind in (("test-interrupt", "KeyboardInterrupt"), ("test-exit", "SystemExit: 3"),
+                       ("test-generator-exit", "GeneratorExit")):
         assert df[df.solver == name]["error"].str.startswith(kind).all()
         assert df[df.solver == name]["error"].str.contains("tests/helpers.py").all()
     assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_solver_whose_skip_raises_has_failed_rows_not_skips(tmp_path: Path) -> None:
+    """A ``skip`` (or a memory or time model) that raises is a defect of the solver: its rows
+    are failed, naming the exception; they read "skipped" before, as if it were a declared
+    capability."""
+    df = run(tmp_path, ["test-exact", "test-buggy-skip"])
+    buggy = df[df.solver == "test-buggy-skip"]
+    assert set(buggy["status"]) == {"failed"}
+    assert buggy["error"].str.contains("skip check failed: RuntimeError: a bug in skip").all()
+    assert set(df[df.solver == "test-exact"]["status"]) == {"solved"}
 
 
 def test_an_error_names_the_dependency_that_raised_it() -> None:

@@ -249,6 +249,25 @@ def test_a_resumed_run_starts_from_the_kept_answer_not_a_re_solve(
     assert not any((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
 
 
+def test_a_kept_answer_that_cannot_be_written_or_removed_costs_no_row(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where a kept answer cannot be written or removed (a folder in its place, as a full or
+    read-only disk would refuse it), the solve's row stands and the run goes on: a solved
+    cell was recorded failed, and the run ended with exit 2, before."""
+    cfg = SceneConfig(size=32, steps=5, seeds=(0,))
+    run = RunConfig(reference="none", warmup=False, progress=False)
+    monkeypatch.setenv(SOLVE_LOG, str(tmp_path / "solves.log"))
+    args = (["paper-sweep"], cfg, ["fake-logged"], run, tmp_path / "cut", ["pytest"])
+    run_cut_after(1, monkeypatch, *args)
+    (first,) = (tmp_path / "cut" / "_cache").glob("warm-*-k0.npz")
+    for k in range(5):
+        Path(str(first).replace("-k0.npz", f"-k{k}.npz")).unlink(missing_ok=True)
+        Path(str(first).replace("-k0.npz", f"-k{k}.npz")).mkdir()
+    run_benchmark(*args)  # type: ignore[arg-type]
+    rows = load_table(tmp_path / "cut")
+    assert len(rows) == 5 and (rows["status"] == "solved").all()
+
+
 @pytest.mark.parametrize("damage", ["truncated", "another step's", "not finite"])
 def test_a_kept_answer_that_cannot_be_read_is_re_solved_not_trusted(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, damage: str) -> None:

@@ -444,7 +444,6 @@ def test_a_variant_whose_coarse_levels_the_grid_cannot_give_is_skipped_not_faile
     a failed solve; explicit ``levels`` are checked the same way."""
     from contactbench.harness import run_benchmark
     from contactbench.harness.table.store import load_table
-    from contactbench.solvers import ProblemTraits
 
     run_benchmark(["cmr-cutoff"], SceneConfig(size=32), out_dir=tmp_path / "run")
     rows = load_table(tmp_path / "run")
@@ -455,4 +454,19 @@ def test_a_variant_whose_coarse_levels_the_grid_cannot_give_is_skipped_not_faile
     s, traits = CMRSolver("nnls"), ProblemTraits(n=500, operator="fft", has_surface=True, surface_side=32)
     assert s.skip_params(traits, s.resolve_params({"coarsest": 8})) is None
     assert "coarse level of 5" in (s.skip_params(traits, s.resolve_params({"levels": (4, 5)})) or "")
-    assert s.skip(traits) is None  # the default coarsest, 16, is there
+
+
+@pytest.mark.parametrize(("side", "params", "skipped_for"), [
+    (48, {"coarsest": 12}, None), (48, {}, "coarsest level of 16"), (48, {"coarsest": 64}, "coarsest level of 64"),
+    (16, {"coarsest": 4}, None), (48, {"levels": (6, 12)}, None), (48, {"levels": (6, 16)}, "coarse level of 16")])
+def test_a_variant_is_judged_by_its_own_levels_not_the_default(side: int, params: dict, skipped_for: str | None) -> None:
+    """The harness's skip decision for a CMR variant reads the variant's own ``coarsest`` or
+    ``levels``: at 48^2 (levels 3, 6, 12, 24) coarsest = 12 runs and coarsest = 64 is skipped
+    naming 64 -- the default coarsest (16) decided both before, skipping the first and naming
+    16 for the second."""
+    from contactbench.harness.run.skips import capability_decision
+
+    traits = ProblemTraits(n=500, operator="fft", has_surface=True, surface_side=side)
+    d = capability_decision(CMRSolver("nnls"), traits, float("inf"), params)
+    assert d.skip == (skipped_for is not None) and not d.failed, d.reason
+    assert skipped_for is None or skipped_for in d.reason
