@@ -144,9 +144,11 @@ def register_solver_specs(specs: Sequence[str]) -> None:
 
 
 def worker_cache_dir(shared_out: str | None) -> Path:
-    """Where a worker keeps reference solutions: the run directory's ``_cache`` when the
-    worker sees it (a shared file system), else a per-user temporary directory (the
-    cache is keyed by a hash of the recipe and step, so sharing it is safe)."""
+    """Where a worker keeps reference solutions and the answers a next step starts from:
+    the run directory's ``_cache`` when the worker sees it (a shared file system), else a
+    per-user temporary directory.  Both are keyed by a hash of the recipe (and variant)
+    and the step, so sharing it is safe: another run's file of the same key holds the same
+    problem's answer, and one it removed costs a resume a re-solve, not a wrong start."""
     if shared_out and Path(shared_out).is_dir():
         d = Path(shared_out) / "_cache"
     else:
