@@ -194,8 +194,7 @@ class WarmStart:
     w: np.ndarray | None = None
 
 
-#: ``SolveResult.info`` key of an answer the lifecycle gave without calling ``iterate``
-#: (ubar <= 0 and no load imposed: p = 0): it says nothing of the solver.
+#: ``SolveResult.info`` key of the lifecycle's own answer (ubar <= 0, no load: p = 0, no ``iterate``).
 WITHOUT_ITERATE = "answered_without_iterate"
 
 
@@ -586,9 +585,8 @@ class Solver(ABC):
         return None
 
     def skip_params(self, traits: ProblemTraits, params: dict[str, Any]) -> str | None:
-        """A reason not to run with these resolved parameters (``resolve_params``) on a
-        problem with these traits (None: run it); the harness asks it after ``skip`` for
-        a variant's own parameters."""
+        """A reason not to run a variant with these resolved parameters (``resolve_params``) on
+        a problem with these traits (None: run it); the harness asks it after ``skip``."""
         return None
 
     def memory_estimate(self, n: int) -> float:
