@@ -197,6 +197,8 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
         row.message = f"{v.message()} (solver status: {out.solver_status})"
     else:
         row.message = v.message()
+    if not out.iterated:
+        row.message = "ubar <= 0: p = 0 given by the lifecycle, the solver not called (judges nothing of it)"
     return row
 
 
