@@ -209,6 +209,29 @@ class BuggySkipStub(ExactStub):
 
 
 @register(replace=True)
+class SkipExitStub(BuggySkipStub):
+    """Its ``skip`` calls sys.exit: a fault of the solver, not the end of the run."""
+
+    name = "test-skip-exit"
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        raise SystemExit(2)
+
+
+@register(replace=True)
+class TimeModelRaiseStub(BuggySkipStub):
+    """Its time model raises (its ``skip`` is the base's)."""
+
+    name = "test-time-raise"
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        return None
+
+    def time_estimate(self, n: int, operator_kind: str) -> float | None:
+        raise RuntimeError("a bug in the time model")
+
+
+@register(replace=True)
 class TinyStub(ExactStub):
     """Dense-only with a hard size limit of 10 unknowns."""
 

@@ -363,20 +363,22 @@ class VerdictTable:
         lines.append(self.summary(strict))
         return "\n".join(lines)
 
-    def records(self) -> list[dict[str, Any]]:
+    def records(self, strict: bool = False) -> list[dict[str, Any]]:
+        """One dict a row, with the table's ``outcome`` under ``strict`` as the exit status reads it."""
+        outcome = self.outcome(strict)
         out = []
         for r in self.rows:
             d = asdict(r)
             d.pop("kkt")
             d["label"] = r.label
-            d["outcome"] = self.outcome()
+            d["outcome"] = outcome
             out.append(d)
         return out
 
-    def to_frame(self) -> Any:
+    def to_frame(self, strict: bool = False) -> Any:
         import pandas as pd
 
-        return pd.DataFrame(self.records())
+        return pd.DataFrame(self.records(strict))
 
 
 def _num(x: float | None, fmt: str = "9.2e") -> str:

@@ -38,6 +38,7 @@ from contactbench.solvers.base import WITHOUT_ITERATE, SolveAborted, Solver
 
 from ..judging import ProblemSeal
 from ..profiles import get_profile
+from ..run.isolation import SOLVER_FAULTS
 from ..run.skips import Decision, capability_decision
 from ..run.worker import instance_operator_kind, problem_traits
 
@@ -220,9 +221,9 @@ def is_refusal(exc: BaseException, group: str) -> bool:
 
 def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:
     """Worker side: rebuild the instance from its recipe, solve, report plain data.  A
-    solver that raises -- ``SystemExit`` included (``sys.exit`` in a solver is a crash,
-    not the end of ``validate``) -- gives a "refused" or "crashed" answer; a
-    ``KeyboardInterrupt`` propagates."""
+    solver that raises -- ``SystemExit`` and ``GeneratorExit`` included (``sys.exit`` in a
+    solver is a crash, not the end of ``validate``), in its skip check too -- gives a
+    "refused" or "crashed" answer; a ``KeyboardInterrupt`` propagates."""
     spec, step, time_limit, params = msg
     case = ConformanceCase(spec)
     inst = build_battery_spec(spec).at(step)
@@ -237,7 +238,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     except SolveAborted as exc:  # killed at its limit, or died (an external program)
         return {"kind": exc.status, "time_s": time.perf_counter() - t0,
                 "message": str(exc).strip().splitlines()[0], "detail": str(exc)}
-    except (Exception, SystemExit) as exc:  # a row, not a harness failure (Ctrl-C still interrupts)
+    except SOLVER_FAULTS as exc:  # a row, not a harness failure (Ctrl-C still interrupts)
         refused = is_refusal(exc, case.group)
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
                 "message": f"{type(exc).__name__}: {exc}".strip().splitlines()[0],

@@ -198,7 +198,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.csv and tables:
             import pandas as pd
 
-            pd.concat([t.to_frame() for t in tables], ignore_index=True).to_csv(args.csv, index=False)
+            pd.concat([t.to_frame(args.strict) for t in tables], ignore_index=True).to_csv(args.csv, index=False)
     except (OSError, ProblemInputError) as exc:  # the folder changed while the battery ran
         where = f"{exc.filename}: " if isinstance(exc, OSError) and exc.filename else ""
         text = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc

@@ -125,8 +125,8 @@ def case_lines(table: VerdictTable) -> list[CaseLine]:
     return out
 
 
-def write_csv(tables: Sequence[VerdictTable], path: Path) -> None:
-    records: list[dict[str, Any]] = [rec for t in tables for rec in t.records()]
+def write_csv(tables: Sequence[VerdictTable], path: Path, strict: bool = False) -> None:
+    records: list[dict[str, Any]] = [rec for t in tables for rec in t.records(strict)]
     fields = list(records[0]) if records else ["solver", "case", "status"]
     with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=fields)
@@ -175,7 +175,7 @@ def write_conformance_report(tables: Sequence[VerdictTable], out_dir: str | Path
     out = check_report_folder(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / MARKER_NAME).write_text(MARKER_TEXT)
-    write_csv(tables, out / CSV_NAME)
+    write_csv(tables, out / CSV_NAME, strict)
     page = out / MD_NAME
     page.write_text(markdown_page(tables, strict, command))
     return page

@@ -55,6 +55,11 @@ ChildReplyKind = Literal["ok", "error", "timeout", "crashed"]
 #: ``SystemExit`` or ``GeneratorExit`` there is the solver's own doing, not the user's.
 SOLVER_RAISES: tuple[type[BaseException], ...] = (BaseException,)
 
+#: What a solver's code may raise where Ctrl-C is not ignored (the parent's skip decisions,
+#: an in-process ``validate``), each recorded as the solver's fault: anything but a
+#: ``KeyboardInterrupt``, which there is the user's and stops the run.
+SOLVER_FAULTS: tuple[type[BaseException], ...] = (Exception, SystemExit, GeneratorExit)
+
 
 def raised_at(exc: BaseException, frames: int = 2) -> str:
     """Where ``exc`` was raised: its innermost ``frames`` frames, innermost first, each as

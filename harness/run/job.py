@@ -170,11 +170,16 @@ class JobDriver:
 
     def forget_all_warm(self, n_steps: int) -> None:
         """The job's cells are all recorded: no kept answer of it is needed any more (one
-        may be left where an interruption came between a step's rows and ``forget_warm``)."""
-        for k in range(n_steps):
-            for v in self.job.variants:
-                for profile in self.job.profiles:
-                    forget_file(self.warm_path(k, v, profile))
+        may be left where an interruption came between a step's rows and ``forget_warm``),
+        nor a part of one an interrupted write left (``.<name>.<pid>.<random>.tmp``)."""
+        names = {self.warm_path(k, v, profile).name for k in range(n_steps) for v in self.job.variants
+                 for profile in self.job.profiles}
+        for name in names:
+            forget_file(self.cache_dir / name)
+        with contextlib.suppress(OSError):
+            for part in self.cache_dir.glob(".warm-*.tmp"):
+                if part.name[1:].rsplit(".", 3)[0] in names:
+                    forget_file(part)
 
     def prepare_step(self, k: int) -> StepContext | None:
         out = self.worker.call(BuildStep(k), self.run_cfg.build_timeout)

@@ -364,18 +364,23 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[b
     """(whether solver ``base`` would run on a step with ``traits``, the memory or time
     model's reason when that model alone rejects it).  A solver that cannot be loaded, is
     unavailable or skips for another reason (its ``max_n``, operator, own ``skip``) is
-    neither: the run records that skip with its reason, as before."""
+    neither: the run records that skip with its reason, as before; one whose model or
+    skip check raised (``Decision.failed``) would run, to record its failed rows."""
     try:
         solver = load_solver(base)
     except Exception:  # (the plan names an unloadable solver elsewhere)
         return False, ""
-    if not solver.availability()[0] or capability_decision(solver, traits, float("inf")).skip:
+    if not solver.availability()[0]:
         return False, ""
+    free = capability_decision(solver, traits, float("inf"))
+    if free.skip:  # a model or skip check that raised runs, to record its failed rows
+        return free.failed, ""
     d = capability_decision(solver, traits, run.memory_budget)
-    if d.skip:
+    if not d.skip:
+        d = time_decision(solver, traits, d.operator, run.timeout, None)
+    if d.skip and not d.failed:
         return False, d.reason
-    t = time_decision(solver, traits, d.operator, run.timeout, None)
-    return (False, t.reason) if t.skip else (True, "")
+    return True, ""
 
 
 def check_device_fit(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]) -> None:

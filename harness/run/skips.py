@@ -46,6 +46,7 @@ from contactbench.solvers.registry import load_solver
 
 from ..profiles import get_profile
 from ..table.schema import ANSWERED
+from .isolation import SOLVER_FAULTS
 
 GiB = float(2**30)
 
@@ -160,7 +161,7 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
     dense_bytes = 8.0 * n * n if operator == "dense" else 0.0  # the step's dense H, the scene's own included
     try:
         own_bytes = float(solver.memory_estimate(n))
-    except Exception as exc:
+    except SOLVER_FAULTS as exc:
         return Decision(reason=f"memory model failed: {type(exc).__name__}: {exc}", failed=True)
     if dense_bytes > memory_budget:
         return Decision(reason=(f"needs dense H: {n} x {n} float64 = {dense_bytes / GiB:.3g} GiB "
@@ -170,7 +171,7 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
                                 f"exceeds the memory budget of {memory_budget / GiB:.3g} GiB"))
     try:
         own_reason = solver.skip(traits) or solver.skip_params(traits, solver.resolve_params(params))
-    except Exception as exc:
+    except SOLVER_FAULTS as exc:
         return Decision(reason=f"skip check failed: {type(exc).__name__}: {exc}", failed=True)
     if own_reason:
         return Decision(reason=str(own_reason))
@@ -191,7 +192,7 @@ def time_decision(solver: object, traits: ProblemTraits, operator: str, time_lim
         return Decision(operator=operator)
     try:
         t_est = problem_time_estimate(solver, traits, operator)  # type: ignore[arg-type]
-    except Exception as exc:
+    except SOLVER_FAULTS as exc:
         return Decision(reason=f"time model failed: {type(exc).__name__}: {exc}", failed=True)
     if t_est is not None and t_est > time_limit:
         control = ", load control" if traits.load_control else ""

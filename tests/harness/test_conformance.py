@@ -328,6 +328,10 @@ def test_validate_judges_a_variant_by_its_own_parameters_and_a_raising_skip_as_a
     buggy = cf.validate("test-buggy-skip", cases("random/spd-n30-s0*"))
     assert {r.status for r in buggy.solves} == {"crashed"} and buggy.exit_code() == 3, buggy.format()
     assert "skip check failed: RuntimeError: a bug in skip" in buggy.rows[0].message
+    quitting = cf.validate("test-skip-exit", cases("random/spd-n30-s0*"), isolate=False)  # sys.exit in skip
+    assert {r.status for r in quitting.solves} == {"crashed"} and quitting.exit_code() == 3, quitting.format()
+    records = quitting.records(strict=True)
+    assert {r["outcome"] for r in records} == {"strict"} and quitting.exit_code(strict=True) == 1  # as the CSV says
 
 
 def test_a_solver_that_skips_every_case_is_untested_not_conforming() -> None:

@@ -86,14 +86,18 @@ def test_a_solver_raising_keyboardinterrupt_or_exit_is_a_failed_row_not_a_worker
 
 
 def test_a_solver_whose_skip_raises_has_failed_rows_not_skips(tmp_path: Path) -> None:
-    """A ``skip`` (or a memory or time model) that raises is a defect of the solver: its rows
-    are failed, naming the exception; they read "skipped" before, as if it were a declared
-    capability."""
-    df = run(tmp_path, ["test-exact", "test-buggy-skip"])
-    buggy = df[df.solver == "test-buggy-skip"]
-    assert set(buggy["status"]) == {"failed"}
-    assert buggy["error"].str.contains("skip check failed: RuntimeError: a bug in skip").all()
-    assert set(df[df.solver == "test-exact"]["status"]) == {"solved"}
+    """A ``skip`` (or a memory or time model) that raises -- sys.exit included -- is a defect
+    of the solver: its rows are failed, naming the exception, and the other solvers' rows
+    are all there.  They read "skipped" before, as if it were a declared capability; a
+    sys.exit in ``skip`` ended the run with exit 0 and rows lost, and a raising time model
+    refused the run as bad input."""
+    df = run(tmp_path, ["test-exact", "test-buggy-skip", "test-skip-exit", "test-time-raise"])
+    assert by_solver(df) == {"test-exact": {"solved"}, "test-buggy-skip": {"failed"}, "test-skip-exit": {"failed"},
+                             "test-time-raise": {"failed"}}
+    errors = df.groupby("solver")["error"].first()
+    assert "skip check failed: RuntimeError: a bug in skip" in errors["test-buggy-skip"]
+    assert "skip check failed: SystemExit: 2" in errors["test-skip-exit"]  # it ended the run, rows lost, exit 0
+    assert "time model failed: RuntimeError: a bug in the time model" in errors["test-time-raise"]  # bad input
 
 
 def test_an_error_names_the_dependency_that_raised_it() -> None:

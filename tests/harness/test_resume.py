@@ -240,13 +240,15 @@ def test_a_resumed_run_starts_from_the_kept_answer_not_a_re_solve(
     monkeypatch.setenv(SOLVE_LOG, str(log))
     args = (["paper-sweep"], cfg, ["fake-logged"], run, tmp_path / "cut", ["pytest"])
     run_cut_after(keep_rows, monkeypatch, *args)
-    assert any((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
+    kept = next((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
+    part = kept.with_name(f".{kept.name}.999999.0123456789ab.tmp")  # what a write cut by a kill leaves
+    part.write_bytes(b"half")
     log.unlink()
     run_benchmark(*args)  # type: ignore[arg-type]
     starts = [line.split()[1] for line in log.read_text().splitlines()]
     assert starts == ["warm"] * (5 - keep_rows)  # no cold re-solve of the previous step
     assert len(load_table(tmp_path / "cut")) == 5
-    assert not any((tmp_path / "cut" / "_cache").glob("warm-*.npz"))
+    assert not any((tmp_path / "cut" / "_cache").glob("warm-*.npz")) and not part.exists()
 
 
 def test_a_kept_answer_that_cannot_be_written_or_removed_costs_no_row(tmp_path: Path,
