@@ -217,6 +217,15 @@ def planned_runs(meta: dict[str, Any]) -> list[int]:
     return list(plans.values())
 
 
+def references_asked(meta: dict[str, Any]) -> bool | None:
+    """Whether any run that wrote to the folder asked for reference solutions (its
+    ``config.run.reference`` is not "none"); None where no record says."""
+    configs = [inv.get("config") for inv in meta.get("invocations") or [] if isinstance(inv, dict)]
+    asked = [c["run"].get("reference") for c in configs or [meta.get("config")]
+             if isinstance(c, dict) and isinstance(c.get("run"), dict) and "reference" in c["run"]]
+    return any(str(a) != "none" for a in asked) if asked else None
+
+
 def read_meta(out_dir: str | os.PathLike[str]) -> dict[str, Any]:
     """OUT/meta.json ({} where there is none); ``MetaError`` naming the file where it is not
     a JSON object."""

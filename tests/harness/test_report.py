@@ -23,7 +23,7 @@ from contactbench.harness.report import core as rp
 from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.report.sections import paper as rpp
 from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS
-from tests.helpers import fabricate_table, report_row, trace_json, write_out
+from tests.helpers import META, fabricate_table, report_row, trace_json, write_out
 
 
 def write_counterexample_arrays(out: Path, instance: str = "n100-s1", solver: str = "greedy-cg",
@@ -510,7 +510,8 @@ def test_a_run_without_a_reference_draws_no_empty_error_panel(tmp_path: Path, mo
                        solve_time_s=1e-3 * (k + 1 + i), trace=trace_json(1e-3), kkt_error=1e-9, p_rel_error=np.nan,
                        warm_start=False)
             for k in range(3) for i, (s, f) in enumerate(solvers.items())]
-    out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)),
+                    {**META, "config": {"run": {"reference": "none"}}})
     figures: dict[str, Any] = {}
     real_save = rp.ReportContext.save_figure
 
@@ -525,6 +526,10 @@ def test_a_run_without_a_reference_draws_no_empty_error_panel(tmp_path: Path, mo
     assert [ax.get_title() for ax in visible] == ["paper-sweep: KKT error"]
     assert blank_panels(fig) == []
     assert "no reference solution (`--reference none`)" in text
+    # a run that asked for a reference none of whose candidates served says that, not "none"
+    write_out(out, pd.DataFrame(rows, columns=list(ALL_COLUMNS)), {**META, "config": {"run": {"reference": "auto"}}})
+    text = build_report(out, html=False).read_text()
+    assert "`--reference none`" not in text and "the run asked for one, but no candidate served" in text
     assert markers["fast-a"] != markers["peer-a"] and markers["fast-a"] != markers["paper-a"]
     _, labels = visible[0].get_legend_handles_labels()
     assert not any(lab.startswith("profile ") for lab in labels)  # one profile: nothing to key

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from ...table import aggregates as agg
+from ...table.meta import references_asked
 from ..style import GREY, MAX_SERIES, Panel, family_panels, panels_note
 from ..core import (
     LOG_FLOOR,
@@ -82,7 +83,7 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         rel = ctx.save_figure(fig, f"wp-{scene}")
         cap = f"run time against error, scene `{scene}` ({len(r)} solves, {len(solvers)} solvers)."
         if not referenced:
-            cap += " The run had no reference solution (`--reference none`): the error in p is not drawn."
+            cap += no_reference_note(references_asked(ctx.meta))
         cap += panels_note(panels)
         if traced:
             cap += " Traces: " + ", ".join(traced[s] for s in solvers if s in traced) + "."
@@ -92,6 +93,16 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
 
 #: The columns of the work-precision panels, left to right, and their axis labels.
 _WP_ERRORS = (("kkt_error", "scaled KKT error  [-]"), ("p_rel_error", "||p - p_ref||_inf / ||p_ref||_inf  [-]"))
+
+
+def no_reference_note(asked: bool | None) -> str:
+    """Why a work-precision figure draws no error in p, by whether the run asked for a
+    reference (``meta.references_asked``; None: the record does not say)."""
+    if asked is False:
+        return " The run had no reference solution (`--reference none`): the error in p is not drawn."
+    why = (" (the run asked for one, but no candidate served: each was skipped or failed, and the rows' "
+           "`reference_solver` is empty)") if asked else ""
+    return f" No answer of this scene was measured against a reference solution{why}: the error in p is not drawn."
 
 
 def _wp_markers(ctx: ReportContext, r: pd.DataFrame) -> Callable[[str, str], str]:
