@@ -457,7 +457,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
 def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
                     mode: str = "fast", strict: bool = False, **kw: Any) -> VerdictTable:
     """For a user's pytest: raise AssertionError (with the table) unless ``solver``
-    conforms -- a WRONG row, a case left unsolved, or no case run (``strict``: also crashes, timeouts
+    conforms -- a WRONG row, a case left unsolved, or nothing judged (``strict``: also crashes, timeouts
     and flagged rows)."""
     table = validate(solver, cases, mode=mode, **kw)
     if not table.available:

@@ -3,7 +3,7 @@ parsing, the solvers it names, the exit status, the optional CSV and report).
 
 Exit status (``VerdictTable.exit_code``, combined over the solvers by ``_combined_exit``):
 0 conforms, 1 wrong (with ``--strict`` also crashes, timeouts, flagged rows), 2 bad input,
-3 incomplete, 4 untested (no case run on any solver).
+3 incomplete, 4 untested (no answer of any solver's own judged).
 """
 
 from __future__ import annotations
@@ -144,9 +144,9 @@ def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver]
 
 
 def _combined_exit(codes: Sequence[int]) -> int:
-    """Wrong answers first (1), then incomplete solvers (3); 4 when no solver was run on
-    any case (nothing judged); else 0 (solvers the selection left untested are named in
-    their lines, but others were judged)."""
+    """Wrong answers first (1), then incomplete solvers (3); 4 when every solver is
+    untested (no answer of any one's own judged); else 0 (solvers the selection left
+    untested are named in their lines, but others were judged)."""
     first = next((c for c in (1, 3) if c in codes), 0)
     return first or (4 if codes and all(c == 4 for c in codes) else 0)
 
