@@ -1,6 +1,6 @@
 # The two commands of the README: `make bench` and `make test`.
 # Both create .venv if missing and install the project into it, with its `docs` extra (the
-# user's guide and its tests) and its `test` extra (hypothesis, selenium and the pinned
+# user's guide and its tests) and its `test` extra (hypothesis, pytest-xdist, selenium and the pinned
 # ruff); nothing is installed by hand.  A change to pyproject.toml reinstalls.
 PYTHON ?= python3
 VENV := .venv
@@ -60,13 +60,19 @@ setup-eigen:
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
+# The suite's pytest workers (pytest-xdist, the `test` extra; one test module a worker, so that a
+# module's fixtures are built once): the CPUs this process may run on (its affinity, not the
+# host's count, which xdist's "auto" reads), at most 8.  `make test TEST_JOBS=0` runs in one process.
+TEST_JOBS ?= $(shell $(PYTHON) -c 'import os; n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(); print(min(8, n or 1))' 2>/dev/null || echo 1)
+PYTEST := $(PY) -m pytest -q -rs -n $(TEST_JOBS) --dist loadscope
+
 # The whole suite, after the linter.
 test: lint setup-browser
-	$(PY) -m pytest -q -rs
+	$(PYTEST)
 
 # The suite without the tests marked slow (pyproject.toml's markers), after the linter.
 test-quick: lint
-	$(PY) -m pytest -q -rs -m "not slow"
+	$(PYTEST) -m "not slow"
 
 # The user's guide, built offline into site/ (mkdocs.yml; strict: any warning fails; the tutorial
 # notebook is executed, so its page shows its outputs).

@@ -293,8 +293,19 @@ class JobDriver:
         traits = ctx.info.traits
         for cand in self.job.reference_candidates:
             d = skip_decision(cand, traits, self.run_cfg.ref_timeout, self.run_cfg.memory_budget)
-            if not d.skip and self.reference_from(ctx, cand, d):
+            if d.skip:
+                self.pass_over_reference(ctx, cand, d)
+            elif self.reference_from(ctx, cand, d):
                 return
+
+    def pass_over_reference(self, ctx: StepContext, cand: str, d: Decision) -> None:
+        """Say why a reference candidate is not asked on this step: a warning where its own
+        skip check or model raised (a defect of the solver), else its declared skip."""
+        where = (self.job.spec.instance, ctx.k, cand, d.reason)
+        if d.failed:
+            log.warning("%s step %d: reference %s passed over (%s)", *where)
+        else:
+            log.info("%s step %d: reference %s skipped (%s)", *where)
 
     def reference_from(self, ctx: StepContext, cand: str, d: Decision) -> bool:
         if d.operator == "dense" and not self.ensure_dense(ctx):

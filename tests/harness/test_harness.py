@@ -100,6 +100,18 @@ def test_a_solver_whose_skip_raises_has_failed_rows_not_skips(tmp_path: Path) ->
     assert "time model failed: RuntimeError: a bug in the time model" in errors["test-time-raise"]  # bad input
 
 
+def test_a_reference_candidate_whose_skip_raises_is_named_not_passed_over_silently(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A --reference candidate whose skip check raises serves no reference, and the run says
+    so in a warning naming it and the exception; it was passed over without a word, and the
+    rows read as if the run had no reference."""
+    with caplog.at_level("INFO", logger="contactbench"):
+        df = run(tmp_path, ["test-warm-pg"], reference="test-buggy-skip")
+    assert set(df["status"]) == {"solved"} and (df["reference_solver"].fillna("") == "").all()
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert any("reference test-buggy-skip passed over" in m and "a bug in skip" in m for m in warned), warned
+
+
 def test_an_error_names_the_dependency_that_raised_it() -> None:
     from scipy.optimize import bisect
 

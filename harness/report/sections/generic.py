@@ -115,6 +115,7 @@ def _wp_markers(ctx: ReportContext, r: pd.DataFrame) -> Callable[[str, str], str
 
 def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: float, alpha: float,
                marker: Callable[[str, str], str], hollow_failed: bool = True) -> None:
+    c = c[["solver", "profile", "status", "solve_time_s", *(col for col, _ in _WP_ERRORS)]]  # the columns drawn
     for (s, prof), cp in c.groupby(["solver", "profile"], sort=True):
         for ok, face in ((True, color), (False, "none" if hollow_failed else color)):
             cs = cp[(cp["status"] == "solved") == ok]
