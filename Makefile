@@ -62,8 +62,9 @@ lint: $(STAMP)
 
 # The suite's pytest workers (pytest-xdist, the `test` extra; one test module a worker, so that a
 # module's fixtures are built once): the CPUs this process may run on (its affinity, not the
-# host's count, which xdist's "auto" reads), at most 8.  `make test TEST_JOBS=0` runs in one process.
-TEST_JOBS ?= $(shell $(PYTHON) -c 'import os; n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(); print(min(8, n or 1))' 2>/dev/null || echo 1)
+# host's count, which xdist's "auto" reads), at most 8; with one CPU, none (0: the suite runs in
+# pytest's own process, as `make test TEST_JOBS=0` asks anywhere).
+TEST_JOBS ?= $(shell $(PYTHON) -c 'import os; n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(); print(min(8, n) if (n or 1) > 1 else 0)' 2>/dev/null || echo 0)
 PYTEST := $(PY) -m pytest -q -rs -n $(TEST_JOBS) --dist loadscope
 
 # The whole suite, after the linter.
