@@ -301,19 +301,9 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
         add_option(p, rec)
 
 
-def check_solver_list(text: str | None) -> None:
-    """Refuse an empty ``--solvers`` (it would run every solver); the names themselves
-    are checked by the planner (unknown ones with the closest known names)."""
-    from contactbench.solvers.registry import split_solver_list
-
-    if text is not None and not split_solver_list(text):
-        raise InputError(f"--solvers {text!r} names no solver; give names (contactbench list solvers) or 'all'")
-
-
 def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .run.runner import RunConfig, run_benchmark
 
-    check_solver_list(args.solvers)
     cfg = scene_config(args)
     kw = {}
     if args.memory_budget_gb:
@@ -392,6 +382,20 @@ def cmd_report(out_dir: str) -> int:
     return 0
 
 
+def interrupted_text(args: argparse.Namespace) -> str:
+    """What a command stopped by Ctrl-C leaves behind, for the line it prints."""
+    if args.command == "export":
+        from contactbench.problems.export import MANIFEST_FILE
+
+        if not (Path(args.out) / MANIFEST_FILE).is_file():
+            return f"nothing was exported to {args.out}"
+        return (f"the export in {args.out} is incomplete (its {MANIFEST_FILE} says so); run the same command "
+                "again to finish it")
+    if args.command == "report":
+        return "no report was written; the last one and its figures are as they were"
+    return "rows so far are kept; run the same command again to finish"
+
+
 def has_results_table(out_dir: str) -> bool:
     """Whether a folder holds a stored results table (not only a claims ledger)."""
     from .table.store import CSV_FILE, PARQUET_FILE, ROWS_FILE
@@ -450,11 +454,7 @@ def _main(argv: list[str]) -> int:
         if args.command == "export":
             return cmd_export(args)
     except KeyboardInterrupt:
-        if args.command == "export":
-            print(f"interrupted: the export in {args.out} is incomplete (its manifest.json says so); run the same "
-                  "command again to finish it", file=sys.stderr)
-        else:
-            print("interrupted: rows so far are kept; run the same command again to finish", file=sys.stderr)
+        print(f"interrupted: {interrupted_text(args)}", file=sys.stderr)
         return 130
     except (ProblemInputError, KeyError, ValueError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc

@@ -5,7 +5,8 @@ module level.
 Fixtures
 --------
 ``contact_instance``  factory: ``contact_instance("rmd", N=32, step=-1)`` or
-                      ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance.
+                      ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance;
+                      an unknown keyword or a step outside the sequence is refused.
 ``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
 ``contactbench_settle``  ``settle(verdict, what, solver_message)``: a pytest outcome from
                       the judge's verdict, the rule pytest-benchmark runs use (below).
@@ -20,6 +21,7 @@ Fixtures
 
 from __future__ import annotations
 
+import operator
 from typing import Any, Callable
 
 import pytest
@@ -48,32 +50,79 @@ def contactbench_settle() -> Callable[..., None]:
     return settle
 
 
+#: The keywords ``contact_instance`` takes for each kind, with their defaults.
+INSTANCE_KEYWORDS: dict[str, dict[str, Any]] = {
+    "rmd": {"N": 32, "steps": 3, "seed": 0, "step": -1, "operator": None},
+    "counterexample": {"n": 100, "seed": 0, "operator": "dense"},
+}
+
+
+def instance_options(kind: str, kw: dict[str, Any]) -> dict[str, Any]:
+    """The keywords of ``contact_instance(kind, **kw)`` with the defaults filled in;
+    ``ValueError`` for an unknown kind, ``ProblemInputError`` naming any keyword the kind
+    does not take (a typo never silently runs the default)."""
+    from contactbench.problems.errors import ProblemInputError
+
+    if kind not in INSTANCE_KEYWORDS:
+        raise ValueError(f"unknown instance kind {kind!r}: use 'rmd' or 'counterexample'")
+    known = INSTANCE_KEYWORDS[kind]
+    unknown = sorted(set(kw) - set(known))
+    if unknown:
+        raise ProblemInputError(f"contact_instance({kind!r}): unknown keyword(s) {', '.join(unknown)}; "
+                                f"it takes {', '.join(known)}")
+    return {**known, **kw}
+
+
+def step_index(step: Any, steps: int) -> int:
+    """Load step ``step`` of a sequence of ``steps`` as an index in [0, steps): an integer
+    in [-steps, steps), negative ones counted from the end; ``ProblemInputError`` else."""
+    from contactbench.problems.errors import ProblemInputError
+
+    try:
+        k = operator.index(step)
+    except TypeError:
+        raise ProblemInputError(f"contact_instance: step {step!r} is not an integer") from None
+    if not -steps <= k < steps:
+        raise ProblemInputError(f"contact_instance: step {k} is outside the {steps} load step(s) of the instance "
+                                f"(0 to {steps - 1}, or -{steps} to -1 counted from the end)")
+    return k % steps
+
+
 @pytest.fixture
 def contact_instance() -> Callable[..., Any]:
+    """``make(kind="rmd", **kw)`` -> a ContactInstance: "rmd" (a paper-sweep instance;
+    keywords N, steps, seed, step, operator) or "counterexample" (keywords n, seed,
+    operator); ``INSTANCE_KEYWORDS`` gives the defaults.  An unknown keyword or a step
+    outside the sequence raises ``ProblemInputError`` naming it."""
+
     def make(kind: str = "rmd", **kw: Any) -> Any:
+        o = instance_options(kind, kw)
         if kind == "counterexample":
             from contactbench.problems.instances import counterexample
 
-            return counterexample(int(kw.get("n", 100)), int(kw.get("seed", 0)), operator=kw.get("operator", "dense"))
-        if kind == "rmd":
-            from contactbench.problems.scenes import SceneConfig, get_scene
+            return counterexample(int(o["n"]), int(o["seed"]), operator=o["operator"])
+        from contactbench.problems.scenes import SceneConfig, get_scene
 
-            scene = get_scene("paper-sweep")
-            cfg = scene.config(SceneConfig(size=int(kw.get("N", 32)), steps=int(kw.get("steps", 3)),
-                                           seeds=(int(kw.get("seed", 0)),), operator=kw.get("operator")))
-            seq = scene.build(scene.instances(cfg)[0])
-            return seq.at(int(kw.get("step", -1)) % len(seq))
-        raise ValueError(f"unknown instance kind {kind!r}: use 'rmd' or 'counterexample'")
+        scene = get_scene("paper-sweep")
+        cfg = scene.config(SceneConfig(size=int(o["N"]), steps=int(o["steps"]), seeds=(int(o["seed"]),),
+                                       operator=o["operator"]))
+        seq = scene.build(scene.instances(cfg)[0])
+        return seq.at(step_index(o["step"], len(seq)))
 
     return make
 
 
 @pytest.fixture
 def run_harness(tmp_path: Any) -> Callable[..., Any]:
+    """``run(scenes, solvers=None, out=None, **options)`` -> the tidy table of
+    ``run_benchmark`` into ``out`` (default: a temporary folder); the options are split
+    between ``SceneConfig`` and ``RunConfig``.  ``run_benchmark`` checks the folder, then
+    holds its lock while it writes: a folder it refuses is left as it is."""
+
     def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
         from contactbench.harness.run.plan import RunConfig
         from contactbench.harness.run.runner import run_benchmark
-        from contactbench.harness.table.store import RunLock, load_table
+        from contactbench.harness.table.store import load_table
         from contactbench.problems.scenes import SceneConfig
         from contactbench.problems.scenes.options import CONFIG_FIELDS
 
@@ -81,8 +130,7 @@ def run_harness(tmp_path: Any) -> Callable[..., Any]:
         cfg = SceneConfig(**{k: v for k, v in options.items() if k in scene_keys})
         run_cfg = RunConfig(progress=False, **{k: v for k, v in options.items() if k not in scene_keys})
         out_dir = out or tmp_path / "run"
-        with RunLock(out_dir):  # one writer per results folder, as `contactbench run`
-            run_benchmark(scenes, cfg, solvers, run_cfg, out_dir, command=["pytest"])
+        run_benchmark(scenes, cfg, solvers, run_cfg, out_dir, command=["pytest"])
         return load_table(out_dir)
 
     return run
@@ -91,8 +139,9 @@ def run_harness(tmp_path: Any) -> Callable[..., Any]:
 @pytest.fixture
 def contactbench_conformance() -> Callable[..., Any]:
     """``contactbench_conformance(solver)`` runs the conformance battery (fast subset) on a
-    solver (instance, registry name or ``module:NAME``) and fails the test on a wrong
-    answer claimed as converged.  See docs/adding-a-solver.md."""
+    solver (instance, registry name or ``module:NAME``) and fails the test unless it
+    conforms (``battery.assert_conforms``: a wrong answer claimed as converged, a case
+    left unsolved, or nothing judged).  See docs/adding-a-solver.md."""
     from contactbench.harness.conformance.battery import assert_conforms
 
     return assert_conforms

@@ -6,15 +6,20 @@ project (problems' exports and the harness's tables, reports and answers alike).
   then rename it over ``path``.  A reader sees the old file or the new one, never a
   part; the temporary file is removed if anything fails.
 * ``write_text_atomic`` / ``write_npz_atomic``: the same for text and numpy archives.
+* ``folder_lock(folder)``: an exclusive, non-blocking ``flock`` on the folder itself for
+  the length of a ``with`` block (no lock file: nothing is added to the folder; the
+  kernel drops the lock when the process dies); ``FolderLockedError`` at once when
+  another process holds it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import uuid
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -51,4 +56,23 @@ def write_npz_atomic(path: str | os.PathLike[str], compressed: bool = False, **a
     replace_atomically(path, write)
 
 
-__all__ = ["replace_atomically", "write_npz_atomic", "write_text_atomic"]
+class FolderLockedError(BlockingIOError):
+    """Another process holds the lock of the folder (``folder_lock``)."""
+
+
+@contextlib.contextmanager
+def folder_lock(folder: str | os.PathLike[str]) -> Iterator[None]:
+    """Hold an exclusive ``flock`` on the existing folder ``folder`` for the ``with``
+    block; ``FolderLockedError`` at once when another process holds it."""
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise FolderLockedError(f"{folder} is locked by another process") from None
+        yield
+    finally:
+        os.close(fd)  # (closing the last descriptor releases the lock)
+
+
+__all__ = ["FolderLockedError", "folder_lock", "replace_atomically", "write_npz_atomic", "write_text_atomic"]

@@ -24,8 +24,15 @@ says what was skipped.  A step with no unknown (n = 0) is skipped too.
 
 ``DIR`` follows the rule of a run's results folder: a missing or empty folder is new, a
 folder an export wrote (its manifest.json names the tool) is written over, and any other
-non-empty folder is refused and left as it is (``check_export_folder``).  The scene
-options are checked first by the same rules as a run's (``scenes.options.check_config``).
+non-empty folder is refused and left as it is (``check_export_folder``; an empty
+``--out`` too).  The scene options are checked first by the same rules as a run's
+(``scenes.options.check_config``), and the count of QPs (instances x steps) is bounded
+by ``MAX_QPS`` before any recipe of the whole range is made (``check_scene``).  The
+whole export holds an exclusive lock on ``DIR`` (``atomic_files.folder_lock``): a second
+export into it meanwhile is refused and touches nothing.  An export never writes through
+a symbolic link, nor over an entry of ``DIR`` that the manifest does not list as an
+export's: either is refused, naming it (``check_target``); ``problems.h5`` and the
+Parquet file are written whole or not at all (``atomic_files.replace_atomically``).
 
 The manifest is written before anything else, marked ``"complete": false`` and listing
 what of the folder is an export's (``owned_folders``: problem directories, each added
@@ -41,17 +48,18 @@ again holds only the new QP's files (``qpfile.write_problem_dir``).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import re
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from .atomic_files import write_text_atomic
+from .atomic_files import FolderLockedError, folder_lock, replace_atomically, write_text_atomic
 from .errors import ProblemInputError
 from .instances import ContactInstance
 from .qpfile import (
@@ -63,6 +71,7 @@ from .qpfile import (
     write_problem_dir,
 )
 from .scenes import SceneConfig, get_scene
+from .scenes.base import scene_counts
 from .scenes.options import check_config
 
 FORMATS = ("problem-dir", "hdf5", "qpbenchmark")
@@ -73,6 +82,9 @@ MANIFEST_FILE = "manifest.json"
 HDF5_FILE = "problems.h5"
 #: qpbenchmark's ProblemList columns, in its order.
 QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
+#: The most QPs (instances x steps) one export may write (``export_scene``'s ``max_qps``),
+#: counted before anything is built (``scene_counts``).
+MAX_QPS = 100_000
 
 
 @dataclass
@@ -118,13 +130,32 @@ def _file_safe(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", text)
 
 
-def scene_steps(scene_name: str, cfg: Any) -> Iterator[tuple[str, int, ContactInstance]]:
-    """(instance name, step, instance) of every QP of a scene under ``cfg`` (a
-    ``SceneConfig``; its options and inputs checked first, as the planner does)."""
+
+
+def check_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[Any, SceneConfig]:
+    """(scene, merged configuration) of an export of ``scene_name`` under ``cfg`` (a
+    ``SceneConfig``), its options and inputs checked as the planner does and its QPs
+    counted (``scene_counts``): more than ``max_qps`` is a one-line ``ProblemInputError``
+    before any recipe of the whole range is made."""
     scene = get_scene(scene_name)
     check_config(scene_name, [scene], [cfg or SceneConfig()], cfg)
     merged = scene.config(cfg)
+    limit = int(max_qps)
+    if limit < 1:
+        raise ProblemInputError(f"the most QPs an export may write must be >= 1, got {max_qps!r}")
+    size = scene_counts(scene, merged)
+    if size.steps > limit:
+        raise ProblemInputError(f"the export of {scene_name} has {size.steps:,} QPs ({size.instances:,} instance"
+                                f"{'' if size.instances == 1 else 's'} x their steps), over the limit of {limit:,}; "
+                                "choose fewer --steps or --seeds")
     scene.validate(merged)
+    return scene, merged
+
+
+def scene_steps(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> Iterator[tuple[str, int, ContactInstance]]:
+    """(instance name, step, instance) of every QP of a scene under ``cfg`` (a
+    ``SceneConfig``; checked first by ``check_scene``)."""
+    scene, merged = check_scene(scene_name, cfg, max_qps)
     for spec in scene.instances(merged):
         seq = scene.build(spec)
         for k in range(len(seq)):
@@ -132,26 +163,50 @@ def scene_steps(scene_name: str, cfg: Any) -> Iterator[tuple[str, int, ContactIn
 
 
 def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_limit: int | None = None,
-                 tol: float | None = None) -> ExportSummary:
-    """Write every (instance, step) QP of a scene in ``fmt`` under ``out`` (module doc)."""
+                 tol: float | None = None, max_qps: int = MAX_QPS) -> ExportSummary:
+    """Write every (instance, step) QP of a scene in ``fmt`` under ``out`` (module doc).
+
+    Bad input is a one-line ``ProblemInputError`` before anything is written: the format,
+    the folder (``check_export_folder``), the scene's options and inputs and its count of
+    QPs (at most ``max_qps``, ``check_scene``).  The whole export holds the folder's
+    lock (``atomic_files.folder_lock``): a second export into the folder meanwhile is a
+    ``ProblemInputError`` and touches nothing.  A target that is a symbolic link, or an
+    entry of the folder that the export would write and that its manifest does not list
+    as an export's, is a ``ProblemInputError`` naming it (``check_target``)."""
     if fmt not in FORMATS:
         raise ProblemInputError(f"export format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     limit = DENSE_LIMIT if dense_limit is None else int(dense_limit)
     if fmt == "hdf5":
-        h5py = require_h5py()
+        require_h5py()
     out_dir = check_export_folder(out)
-    steps = scene_steps(scene_name, cfg)
+    steps = scene_steps(scene_name, cfg, max_qps)
     first = next(steps, None)  # the options and inputs are checked before the folder is made
     out_dir.mkdir(parents=True, exist_ok=True)
+    with contextlib.ExitStack() as held:
+        try:
+            held.enter_context(folder_lock(out_dir))
+        except FolderLockedError:
+            raise ProblemInputError(f"export folder {out_dir} is in use by another export; wait for it to finish or "
+                                    "choose another --out") from None
+        check_export_folder(out_dir)  # again, now that no other export can change it
+        qps = itertools.chain([] if first is None else [first], steps)
+        return _export_locked(scene_name, qps, fmt, out_dir, limit, tol)
+
+
+def _export_locked(scene_name: str, qps: Iterator[tuple[str, int, ContactInstance]], fmt: str, out_dir: Path,
+                   limit: int, tol: float | None) -> ExportSummary:
+    """``export_scene``'s writing, with the folder's lock held."""
     summary = ExportSummary(scene_name, fmt, str(out_dir), limit)
     folders, files = owned_paths(out_dir)
     format_file = _format_file(fmt, scene_name)
-    files |= set() if format_file is None else {format_file}
+    if format_file is not None:
+        check_target(out_dir, format_file, files, directory=False)
+        files.add(format_file)
     write_progress(summary, folders, files)
     rows: dict[str, list[Any]] = {k: [] for k in QPBENCHMARK_KEYS}
-    h5 = h5py.File(out_dir / HDF5_FILE, "w") if fmt == "hdf5" else None
-    try:
-        for instance, k, inst in itertools.chain([] if first is None else [first], steps):
+
+    def write_all(h5: Any) -> None:
+        for instance, k, inst in qps:
             name = problem_name(instance, k)
             entry = ExportedQP(name, scene_name, instance, k, inst.n, _finite(inst.delta), inst.n <= limit)
             if inst.n == 0:
@@ -161,6 +216,7 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
                 summary.skipped.append({"name": name, "n": inst.n, "reason": f"n > dense limit {limit} (P must be dense)"})
                 continue
             if fmt == "problem-dir":
+                check_target(out_dir, name, folders, directory=True)
                 if name not in folders:  # listed before it exists, so an interrupted export still owns it
                     folders.add(name)
                     write_progress(summary, folders, files)
@@ -170,15 +226,43 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
             else:
                 append_qpbenchmark_row(rows, name, inst)
             summary.written.append(entry)
-    finally:
-        if h5 is not None:
-            h5.close()
+
+    if fmt == "hdf5":
+        replace_atomically(out_dir / HDF5_FILE, _in_hdf5(write_all))
+    else:
+        write_all(None)
     if fmt == "qpbenchmark":
         write_parquet(rows, out_dir / str(format_file))
     written = {q.name for q in summary.written} if fmt == "problem-dir" else set()
     remove_owned(out_dir, folders - written, files - {format_file})
     write_manifest(summary, out_dir / MANIFEST_FILE)
     return summary
+
+
+def _in_hdf5(write: Callable[[Any], None]) -> Callable[[str], None]:
+    """A writer of a new HDF5 file at a path: ``write`` given the open file."""
+    def to(path: str) -> None:
+        with require_h5py().File(path, "w") as h5:
+            write(h5)
+    return to
+
+
+def check_target(out_dir: Path, name: str, owned: set[str], *, directory: bool) -> None:
+    """A one-line ``ProblemInputError`` naming ``out_dir/name`` unless an export may write
+    it: absent, or one of ``owned`` (the entries the folder's manifest lists as an
+    export's) that is a folder (``directory``) or a regular file, never a symbolic link."""
+    path = out_dir / name
+    if path.is_symlink():
+        raise ProblemInputError(f"{path} is a symbolic link; an export never writes through one: remove it or "
+                                "choose another --out")
+    if not path.exists():
+        return
+    if name not in owned:
+        raise ProblemInputError(f"{path} exists and is not an export's (its folder's {MANIFEST_FILE} does not list "
+                                "it); move it away or choose another --out")
+    if path.is_dir() != directory or not (path.is_dir() or path.is_file()):
+        raise ProblemInputError(f"{path} is not a {'folder' if directory else 'regular file'}, as an export writes "
+                                "it; move it away or choose another --out")
 
 
 def _format_file(fmt: str, scene_name: str) -> str | None:
@@ -286,9 +370,12 @@ def append_qpbenchmark_row(rows: dict[str, list[Any]], name: str, inst: ContactI
 
 
 def write_parquet(rows: dict[str, list[Any]], path: Path) -> Path:
+    """The rows as qpbenchmark's Parquet file ``path``, whole or not at all
+    (``replace_atomically``: a link at ``path`` is replaced, never followed)."""
     import pandas as pd
 
-    pd.DataFrame(rows, columns=list(QPBENCHMARK_KEYS)).to_parquet(path, engine="pyarrow", index=False)
+    frame = pd.DataFrame(rows, columns=list(QPBENCHMARK_KEYS))
+    replace_atomically(path, lambda tmp: frame.to_parquet(tmp, engine="pyarrow", index=False))
     return path
 
 
@@ -327,12 +414,18 @@ def read_qpbenchmark_constraints(path: str | Path, name: str) -> tuple[np.ndarra
 def check_export_folder(out: str | Path) -> Path:
     """``out`` as a Path if an export may write there: missing, empty, or written by an
     export before (its manifest names ``EXPORT_TOOL``); else a ``ProblemInputError``
-    naming it (the rule of a run's results folder).  Touches nothing."""
+    naming it (the rule of a run's results folder; an empty name and a folder whose
+    manifest is a symbolic link are refused too).  Touches nothing."""
+    if not str(out).strip():
+        raise ProblemInputError(f"the export folder (--out) must be named, got {str(out)!r}")
     out_dir = Path(out)
     if not out_dir.exists():
         return out_dir
     if not out_dir.is_dir():
         raise ProblemInputError(f"export folder {out_dir} is not a folder; choose another --out")
+    if (out_dir / MANIFEST_FILE).is_symlink():
+        raise ProblemInputError(f"{out_dir / MANIFEST_FILE} is a symbolic link; an export never writes through one: "
+                                "remove it or choose another --out")
     if not any(out_dir.iterdir()) or is_export_folder(out_dir):
         return out_dir
     raise ProblemInputError(f"export folder {out_dir} is not empty and is not a contactbench export folder "
@@ -375,7 +468,10 @@ __all__ = [
     "FORMATS",
     "ExportSummary",
     "ExportedQP",
+    "MAX_QPS",
     "check_export_folder",
+    "check_scene",
+    "check_target",
     "export_scene",
     "problem_name",
     "read_hdf5_problem",

@@ -94,6 +94,37 @@ def check_element_shape(kernel: str, delta: Spacing) -> tuple[float, float]:
     return d1, d2
 
 
+def compliance_scale(E: float, length: float, factor: float) -> float:
+    """``factor / (pi E length)``, the scale of a real-space kernel's coefficients, if it
+    is a finite float64 of at least the smallest normal one; else a one-line
+    ``ProblemInputError`` naming E (an E so small or so large, for the grid, that every
+    coefficient overflows to inf or underflows to 0)."""
+    with np.errstate(all="ignore"):
+        scale = float(np.float64(factor) / (np.pi * np.float64(E) * np.float64(length)))
+    if not (np.isfinite(scale) and scale >= np.finfo(np.float64).tiny):
+        raise ProblemInputError(_scale_problem(E, f"{factor:g}/(pi E delta) = {scale:g} (delta = {length:g})"))
+    return scale
+
+
+def _scale_problem(E: float, what: str) -> str:
+    """The one line for an E whose influence coefficients float64 cannot hold."""
+    return (f"E (composite modulus) = {E:g} gives influence coefficients float64 cannot hold: {what}; they must "
+            f"be finite and at least {np.finfo(np.float64).tiny:g} (give E in Pa and lengths in m)")
+
+
+def check_table(table: np.ndarray, E: float) -> np.ndarray:
+    """``table`` if every coefficient is finite and the largest is at least the smallest
+    normal float64, else a one-line ``ProblemInputError`` naming E (``_scale_problem``)."""
+    with np.errstate(all="ignore"):
+        top = float(np.max(np.abs(table))) if table.size else 0.0
+    if not np.all(np.isfinite(table)):
+        raise ProblemInputError(_scale_problem(E, f"{int(np.count_nonzero(~np.isfinite(table)))} of "
+                                                  f"{table.size} coefficients are NaN or inf"))
+    if not top >= np.finfo(np.float64).tiny:
+        raise ProblemInputError(_scale_problem(E, f"the largest coefficient is {top:g}"))
+    return table
+
+
 def bcc_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) -> np.ndarray:
     """BCC rounded-patch influence coefficients for grid offsets (dx, dy) (in cells);
     square elements only (a rectangular spacing is a ``ProblemInputError``)."""
@@ -101,7 +132,7 @@ def bcc_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) -
     r = np.hypot(dx, dy) * d1
     out = np.empty(np.broadcast(dx, dy).shape, dtype=np.float64)
     diag = r == 0.0
-    scale = 2.0 / (np.pi * E * d1)
+    scale = compliance_scale(E, d1, 2.0)
     with np.errstate(divide="ignore"):
         out[...] = scale * np.arcsin(np.minimum(1.0, d1 / (2.0 * np.where(diag, 1.0, r))))
     out[diag] = scale
@@ -132,6 +163,7 @@ def love_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) 
         - _love_term(x - a, y, b)
         - _love_term(y - b, x, a)
     )
+    compliance_scale(E, d1 * d2, 1.0)  # (refuses an E whose scale float64 cannot hold)
     return u / (np.pi * E * d1 * d2)
 
 
@@ -253,21 +285,25 @@ def kernel_table(
     ``delta``: the spacing, one float (square elements) or (d1, d2) along axis 0 and
     axis 1.  ``layer``: None for the elastic half-space, else the elastic layer of finite
     thickness on a rigid base (``problems.layers``; which kernels take one:
-    ``Layer.check_kernel``)."""
+    ``Layer.check_kernel``).  An E for which float64 cannot hold the coefficients (any
+    NaN or inf, or all below the smallest normal float64) is a one-line
+    ``ProblemInputError`` naming E (``check_table``), even where E itself passes."""
     check_kernel(kernel, periodic, layer)
     check_positive("E (composite modulus)", E)
     spacing = grid_spacing(delta)
     n1, n2 = (int(s) for s in shape)
     if n1 < 1 or n2 < 1 or n1 * n2 < 2:
         raise ProblemInputError(f"grid shape {shape} has fewer than two points")
-    if periodic and kernel == "spectral":
-        return spectral_layer_table((n1, n2), spacing, E, layer)
-    if periodic:
-        table = periodic_table(kernel, (n1, n2), spacing, E, images=images)
-        return table if layer is None else table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer)
-    table = aperiodic_table(kernel, (n1, n2), spacing, E)
-    if layer is not None:
-        table = table + aperiodic_layer_correction((n1, n2), spacing, E, layer)
-        table[n1, :] = 0.0
-        table[:, n2] = 0.0
-    return table
+    with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):  # (check_table judges)
+        if periodic and kernel == "spectral":
+            return check_table(spectral_layer_table((n1, n2), spacing, E, layer), E)
+        if periodic:
+            table = periodic_table(kernel, (n1, n2), spacing, E, images=images)
+            return check_table(table if layer is None else
+                               table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer), E)
+        table = aperiodic_table(kernel, (n1, n2), spacing, E)
+        if layer is not None:
+            table = table + aperiodic_layer_correction((n1, n2), spacing, E, layer)
+            table[n1, :] = 0.0
+            table[:, n2] = 0.0
+    return check_table(table, E)

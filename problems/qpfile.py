@@ -218,19 +218,33 @@ def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.
     ``PROBLEM_DIR_FILES`` that this QP does not write (an array of a QP written there
     before) is removed; files of other names are left as they are.  ``problem.json`` is
     removed first and written last, so a directory whose writing stopped part-way has
-    none."""
+    none.  Each file is written as a new file (``_write_new``): a symbolic or hard link
+    of its name is replaced, and what it points to is never written."""
     doc, arrays = problem_payload(qp_or_instance, tol=tol, time_limit=time_limit, p0=p0, dense_limit=dense_limit)
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
+    if (out / PROBLEM_JSON).is_symlink():
+        (out / PROBLEM_JSON).unlink()
     written = {ARRAY_FILES[name] for name in arrays}
     for file in sorted(PROBLEM_DIR_FILES - written):
         path = out / file
         if path.is_file() and not path.is_symlink():
             path.unlink()
     for name, a in arrays.items():
-        a.tofile(out / ARRAY_FILES[name])
-    (out / PROBLEM_JSON).write_text(problem_json(doc))
+        _write_new(out / ARRAY_FILES[name], memoryview(a))
+    _write_new(out / PROBLEM_JSON, problem_json(doc).encode("utf-8"))
     return out
+
+
+def _write_new(path: Path, data: bytes | memoryview) -> None:
+    """``data`` (a C-contiguous buffer) as a new regular file ``path``: a file or link there is removed first (a
+    link is removed, never followed) and the file is created exclusively, so nothing
+    else is written; a folder there is an ``OSError`` naming it."""
+    if path.is_symlink() or path.is_file():
+        path.unlink()
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
 
 
 # ---------------------------------------------------------------------------

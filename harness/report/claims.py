@@ -36,7 +36,7 @@ from .claim_rules import CLAIMS, PAPER_N, SINGLE_REPEAT_SPREAD, VERDICTS, Claim,
 from .core import parse_json, per_cell
 from .sections.cmr import cmr_pairs, instance_totals
 from .sections.counterexample import seed_readings, violation_counts
-from .sections.paper import k_of
+from .sections.paper import LEDGER_ROLES, by_role, k_of
 
 __all__ = ["CLAIMS", "VERDICTS", "Claim", "judge"]
 
@@ -120,8 +120,7 @@ def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame
 
 
 #: The paper's methods (registry names): "fastest" and "the same load" compare these only.
-PAPER_METHODS: frozenset[str] = frozenset({"pk", "pk-printed", "nnls", "nnls-gp", "gp", "admm", "greedy-cg",
-                                           "greedy-gs", "greedy-chol"})
+PAPER_METHODS: frozenset[str] = frozenset(r.base_solver for r in LEDGER_ROLES.values())
 #: The suffix of a label read from the independent (cold) solves of ``greedy-linear-solvers``.
 COLD = " cold"
 
@@ -200,17 +199,15 @@ def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s") -> tuple[float
     return float(ta[of] / tb[of]), words, timing
 
 
-def paper_labels(tot: pd.DataFrame, rows: pd.DataFrame) -> list[str]:
-    """The labels of ``tot`` that run one of the paper's methods (``PAPER_METHODS``, read
-    from the rows' ``base_solver``), the K sweep's other variants left out."""
-    base = dict(zip(rows["solver"], rows["base_solver"]))
-    return [s for s in tot.index if base.get(s) in PAPER_METHODS and not (s.startswith("nnls-gp[") and
-                                                                          not s.startswith("nnls-gp[K=100]"))]
+def paper_labels(tot: pd.DataFrame) -> list[str]:
+    """The labels of ``tot`` that play one of the paper's methods (``by_role``: the keys of
+    ``LEDGER_ROLES``, warm or cold), other variants of theirs left out."""
+    return [s for s in tot.index if s.removesuffix(COLD) in LEDGER_ROLES]
 
 
 def nnlsgp_cold(tot: pd.DataFrame) -> str:
     """The label of NNLS+GP (K = 100) from p = 0 (the cold K sweep), else the warm one."""
-    return next((s for s in tot.index if s.startswith("nnls-gp[K=100]") and s.endswith(COLD)), "nnls-gp")
+    return "nnls-gp" + COLD if "nnls-gp" + COLD in tot.index else "nnls-gp"
 
 
 def admm_label(tot: pd.DataFrame, rows: pd.DataFrame) -> str:
@@ -262,7 +259,7 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             if a in tot.index and b in tot.index:
                 m, words, timing = ratio(tot, a, b, of="iterations")
                 out.append(claim_row(claim, condition, m, size, seeds, f"{where}; iterations: {words}", timing=timing))
-        out += fastest_rows(tot, paper_labels(tot, both), condition, size, seeds, where)
+        out += fastest_rows(tot, paper_labels(tot), condition, size, seeds, where)
         out += agreement_rows(both, condition, size, seeds, where)
     return out
 
@@ -272,7 +269,7 @@ def fastest_rows(tot: pd.DataFrame, labels: list[str], condition: str, size: str
     """"NNLS+GP is the fastest": t(nnls-gp) / t(the fastest other paper method)."""
     if "nnls-gp" not in labels or len(labels) < 2:
         return []
-    others = tot.loc[[s for s in labels if s != "nnls-gp" and not s.startswith("nnls-gp[")]]
+    others = tot.loc[[s for s in labels if s.removesuffix(COLD) != "nnls-gp"]]
     others = others[others["comparable"]]
     if others.empty:
         return [claim_row("fig4-nnlsgp-fastest", condition, math.nan, size, seeds, f"{where}; no other paper method "
@@ -678,7 +675,7 @@ def with_numbers(rows: pd.DataFrame) -> pd.DataFrame:
 def ledger(rows: pd.DataFrame) -> pd.DataFrame:
     """The ledger of a results table: one row per (claim, condition, size), ``LEDGER_COLUMNS``;
     every claim of ``CLAIMS`` at least once (module doc)."""
-    rows = with_numbers(rows)
+    rows = by_role(with_numbers(rows))  # the paper's methods by base_solver and params, never by label
     out: list[ClaimRow] = []
     for cond in CONDITIONS:
         for read in READERS:

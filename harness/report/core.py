@@ -50,7 +50,7 @@ from contactbench.plugins import PluginRegistry
 from contactbench.problems.scenes import all_scenes
 
 from ..table import aggregates as agg
-from ..table.meta import commands_of, planned_runs
+from ..table.meta import cells_text, commands_of, listed
 from .charts import Chart, RowChart
 from .figure_files import FIGURE_DIR, staging_dir
 from .panels import blank_panels
@@ -335,8 +335,15 @@ def fmt_ratio(v: float) -> str:
     return "-" if not math.isfinite(v) else f"{v:.3g}x"
 
 
+#: A "<" that would open an HTML tag, comment or declaration in Markdown.
+_TAG_OPEN = re.compile(r"<(?=[A-Za-z/!?])")
+
+
 def md_escape(text: Any) -> str:
-    return str(text).replace("|", "\\|").replace("\n", " ")
+    """``text`` as a Markdown table cell: "|" escaped, a newline a space, and a "<" that
+    would open an HTML tag written "&lt;" (a solver or scene name is text, never markup;
+    "n <= 10" stays as it is)."""
+    return _TAG_OPEN.sub("&lt;", str(text).replace("|", "\\|").replace("\n", " "))
 
 
 def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], align: str | None = None) -> str:
@@ -578,29 +585,6 @@ def _threads_text(v: Any) -> str | None:
     return ", ".join(parts) or None
 
 
-def cells_text(meta: dict[str, Any], t: pd.DataFrame) -> str | None:
-    """The header's "Cells" line: the cells with a row against the plans', and "partial
-    run" when fewer (an interrupted run, or one still to be resumed); None without a
-    recorded plan.  A folder added to with ``--append`` holds the cells of several plans,
-    which may share cells: it is complete when its cells reach the plans' sum, partial when
-    they fall short of the largest plan, and otherwise not decided here."""
-    plans = planned_runs(meta)
-    if not plans:
-        return None
-    done = int(t["cell_id"].nunique()) if "cell_id" in t.columns else len(t)
-    largest, total = max(plans), sum(plans)
-    if done < largest:
-        return (f"PARTIAL RUN: {done} of {largest} planned cells have a row ({largest - done} missing: the run "
-                "was interrupted or has not finished; run the same command again to resume it)")
-    if len(plans) == 1:
-        return f"{done} of {largest} planned cells (complete)"
-    if done >= total:
-        return f"{done} of {total} planned cells over {len(plans)} runs added with --append (complete)"
-    return (f"{done} cells with a row; {len(plans)} runs added with --append planned {' + '.join(map(str, plans))} "
-            "cells, some of them perhaps the same: complete only if every run finished (resume one with its own "
-            "command)")
-
-
 def status_counts(t: pd.DataFrame) -> str:
     """"solved 12, skipped 3, ..." in STATUSES order."""
     counts = t["status"].value_counts()
@@ -679,7 +663,7 @@ def header_section(ctx: ReportContext) -> str:
         ("Python", _meta_get(m, "python", "python_version", "machine.python")),
         ("Package versions", _meta_get(m, "versions", "packages", "package_versions")),
         ("Problem changes", problem_changes(t, m)),
-        ("Run warnings", "; ".join(str(w) for w in m.get("warnings", []) or [])),
+        ("Run warnings", "; ".join(str(w) for w in listed(m.get("warnings")))),
         ("Report sections that failed to load", ", ".join(section_import_errors())),
     ]
     lines.append(markdown_table(["", ""], [(k, _fmt_value(v)) for k, v in info if v not in (None, "")], "ll"))

@@ -193,6 +193,8 @@ function loadAreaChart() {
     return thin('', traces, lay);
   };
 }
+// Text of the table (a solver, scene or figure name) as HTML text: never markup.
+const esc = v => String(v).replace(/[&<>"']/g, c => ({'&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;'})[c]);
 function sgmTable(scene, holder) {
   const T = D.sgm[scene];
   let sortCol = 6, asc = true;
@@ -201,9 +203,9 @@ function sgmTable(scene, holder) {
       const x = a[sortCol], y = b[sortCol];
       if (x === y) return 0; if (x === null) return 1; if (y === null) return -1;
       return (x < y ? -1 : 1) * (asc ? 1 : -1); });
-    const head = '<tr>' + T.columns.map((c, i) => '<th data-i="' + i + '">' + c + (i === sortCol ? (asc ? ' &#9650;' : ' &#9660;') : '') + '</th>').join('') + '</tr>';
+    const head = '<tr>' + T.columns.map((c, i) => '<th data-i="' + i + '">' + esc(c) + (i === sortCol ? (asc ? ' &#9650;' : ' &#9660;') : '') + '</th>').join('') + '</tr>';
     const body = rows.map(r => '<tr>' + r.map((v, i) => '<td>' + (i === 4 && v !== null ? Math.round(100 * v) + ' %' :
-      (typeof v === 'number' ? fmt(v) : (v === null ? '-' : String(v)))) + '</td>').join('') + '</tr>').join('');
+      (typeof v === 'number' ? fmt(v) : (v === null ? '-' : esc(v)))) + '</td>').join('') + '</tr>').join('');
     holder.innerHTML = '<table class="sgm">' + head + body + '</table>';
     holder.querySelectorAll('th').forEach(th => th.addEventListener('click', () => {
       const i = +th.dataset.i; if (i === sortCol) asc = !asc; else { sortCol = i; asc = true; } render(); }));
@@ -222,7 +224,7 @@ function build() {
   D.scenes.forEach(scene => {
     const sec = document.createElement('section');
     sec.className = 'scene'; sec.dataset.scene = scene;
-    sec.innerHTML = '<h2>' + scene + '</h2>';
+    sec.innerHTML = '<h2>' + esc(scene) + '</h2>';
     const grid = document.createElement('div'); grid.className = 'grid'; sec.appendChild(grid);
     const has = D.rows.some(r => r.sc === scene);
     D.rowcharts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, c.drawer === 'unsolved-share'
@@ -249,7 +251,7 @@ function build() {
   if (D.loadarea.length) addChart(grid, '', loadAreaChart());
   if (D.traces.solvers) { addChart(grid, '', traceChart(false)); addChart(grid, '', traceChart(true)); }
   D.images.forEach(im => { const f = document.createElement('figure');
-    f.innerHTML = '<img class="static" alt="' + im.name + '" src="' + im.src + '"><figcaption>' + im.name + ' (static, as in report.md)</figcaption>';
+    f.innerHTML = '<img class="static" alt="' + esc(im.name) + '" src="' + esc(im.src) + '"><figcaption>' + esc(im.name) + ' (static, as in report.md)</figcaption>';
     field.appendChild(f); });
   main.appendChild(field);
 }

@@ -13,7 +13,8 @@ pytest plugin and Dask runs all come through here), a plan too big to run (more 
 ``estimate_scene``, computed from sizes and counts before any surface is generated),
 every scene's ``validate`` (sizes, surfaces, loads), a scene whose every cell the solvers'
 time and memory models reject (``model_rejections``: from the trial-set sizes the scene
-tells, ``Scene.validate_sizes``, as the run's skip policy would), every solver name,
+tells, ``Scene.validate_sizes``, as the run's skip policy would), a solver list that
+names no solver (``names_no_solver``: ``[]``, ``""``, ``","``), every solver name,
 profile and reference name.  All problems found
 are raised together as one ``PlanError`` (a ``ProblemInputError``), one line each; the
 command line turns it into exit status 2 and writes no table.
@@ -33,7 +34,7 @@ from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.operators_gpu import device_misfit
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
-from contactbench.problems.scenes.base import StepSizes
+from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers.base import ProblemTraits
 from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, load_solver,
@@ -202,6 +203,20 @@ def job_cell_ids(job: InstanceJob, run: RunConfig) -> list[str]:
 # ---------------------------------------------------------------------------
 
 
+def names_no_solver(requested: Sequence[str] | str | None) -> bool:
+    """Whether ``requested`` (not None: None means the scenes' own solvers) names no
+    solver: an empty sequence, or a comma list with no name ("", ",", " , ").  A list the
+    registry cannot split is left to ``resolve_solver_names``, which names its fault."""
+    if requested is None:
+        return False
+    if not isinstance(requested, str):
+        return not list(requested)
+    try:
+        return not split_solver_list(requested)
+    except ValueError:
+        return False
+
+
 def resolve_solver_names(requested: Sequence[str] | str | None, study_default: Sequence[str] | None) -> list[str]:
     """Registry names to run: "all" (every registered solver, unavailable ones are
     recorded as skipped), an explicit list (``module:NAME`` entries are loaded and
@@ -265,40 +280,12 @@ def instance_nbytes(params: dict[str, Any]) -> float:
     return 0.0
 
 
-def _probe(scene: Any, cfg: SceneConfig, steps: int | None, seeds: Any) -> list[InstanceSpec]:
-    return list(scene.instances(replace(cfg, steps=steps, seeds=None if seeds is None else tuple(seeds))))
-
-
 def estimate_scene(scene: Any, cfg: SceneConfig, per_step: int) -> SceneEstimate:
     """The plan size of ``scene`` under ``cfg`` (merged) with ``per_step`` cells per
-    instance step (variants x profiles x repeats).  With more than three steps or two
-    seeds it is computed from the recipes at 2 and 3 steps and 1 and 2 seeds (the cell count is
-    bilinear in steps and seeds: every scene's recipes are one per seed, each with
-    ``steps`` load steps or a fixed number), so a huge ``--steps`` or ``--seeds`` is
-    never expanded."""
-    steps, seeds = cfg.steps, cfg.seeds
-    big_steps = steps is not None and int(steps) > 3
-    big_seeds = seeds is not None and len(seeds) > 2
-    if not (big_steps or big_seeds):  # (cheap: at most three steps and two seeds)
-        specs = list(scene.instances(cfg))
-        cells = per_step * sum(int(s.params.get("steps") or 1) for s in specs)
-        return _estimate(len(specs), cells, specs)
-    s_pts = (2, 3) if big_steps else (steps,)
-    k_pts = ((seeds[0],), (seeds[0], seeds[1])) if big_seeds else (seeds,)
-    grid = {(i, j): _probe(scene, cfg, s, k) for i, s in enumerate(s_pts) for j, k in enumerate(k_pts)}
-
-    def at(i: int, j: int, what: str) -> int:
-        specs = grid[(min(i, len(s_pts) - 1), min(j, len(k_pts) - 1))]
-        return len(specs) if what == "instances" else sum(int(s.params.get("steps") or 1) for s in specs)
-
-    ds = int(steps) - 2 if big_steps else 0
-    dk = len(seeds) - 1 if big_seeds else 0
-
-    def bilinear(what: str) -> int:
-        c00, c10, c01, c11 = at(0, 0, what), at(1, 0, what), at(0, 1, what), at(1, 1, what)
-        return c00 + (c10 - c00) * ds + (c01 - c00) * dk + (c11 - c10 - c01 + c00) * ds * dk
-
-    return _estimate(bilinear("instances"), per_step * bilinear("steps"), [s for v in grid.values() for s in v])
+    instance step (variants x profiles x repeats), counted from the recipes without
+    expanding a huge ``--steps`` or ``--seeds`` (``scenes.base.scene_counts``)."""
+    count = scene_counts(scene, cfg)
+    return _estimate(count.instances, per_step * count.steps, count.specs)
 
 
 def _estimate(instances: int, cells: int, specs: list[InstanceSpec]) -> SceneEstimate:
@@ -460,9 +447,11 @@ def plan_run(scenes: Sequence[str] | str, cfg: SceneConfig | None = None, solver
     scenes = [scenes] if isinstance(scenes, str) else list(scenes)  # one scene's name, or several
     if not scenes:
         raise PlanError(["no scene to run: name one or more (contactbench list scenes)"])
-    if solvers is not None and not isinstance(solvers, str) and not list(solvers):
-        raise PlanError(["an empty solver list names no solver: give names (contactbench list solvers), 'all', "
-                         "or None for the scenes' own"])
+    if solvers is not None and not isinstance(solvers, str):
+        solvers = list(solvers)  # (an iterator is read once)
+    if names_no_solver(solvers):
+        raise PlanError([f"an empty solver list (--solvers {solvers!r}) names no solver; give names (contactbench "
+                         "list solvers) or 'all' (None: the scenes' own)"])
     plan = RunPlan(jobs=[], scenes=scenes)
     problems = option_problems(scenes, cfg)
     if problems:  # (each scene's own checks would repeat them)

@@ -26,11 +26,14 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Iterable
 
+import pandas as pd
+
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import InstanceSpec, SceneConfig
 from contactbench.problems.scenes.core import surface_from_params
 
 from .files import write_text_atomic
+from .schema import CELL_COLUMNS, as_text
 
 META_FILE = "meta.json"
 
@@ -174,12 +177,12 @@ def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
     ``MetaError``)."""
     path = Path(out_dir) / META_FILE
     previous = read_meta(out_dir)
-    invocations = list(previous.get("invocations", []))
+    invocations = list(listed(previous.get("invocations")))
     invocations.append({k: record.get(k) for k in ("date", "command", "git", "config")})
     merged = {**record, **{k: v for k, v in previous.items() if k in ("date", "command")}}
     merged["invocations"] = invocations
     merged["commands"] = commands_of(merged)
-    merged["warnings"] = sorted(set(previous.get("warnings", [])) | set(record.get("warnings", [])))
+    merged["warnings"] = sorted({str(w) for w in [*listed(previous.get("warnings")), *record.get("warnings", [])]})
     write_text_atomic(path, json.dumps(merged, indent=2, default=str))
     return path
 
@@ -188,11 +191,17 @@ def command_text(command: Any) -> str:
     return " ".join(str(a) for a in command) if isinstance(command, (list, tuple)) else str(command or "")
 
 
+def listed(value: Any) -> list[Any]:
+    """A meta.json field that is a list (``invocations``, ``warnings``) as that list; anything
+    else (absent, or a hand-edited number or text) as no entry."""
+    return value if isinstance(value, list) else []
+
+
 def commands_of(meta: dict[str, Any]) -> list[str]:
     """Every distinct command that wrote to the run folder, first first: ``command`` and
     those of ``invocations`` (meta.json of any age)."""
     found = [command_text(meta.get("command"))]
-    found += [command_text(inv.get("command")) for inv in meta.get("invocations", []) or [] if isinstance(inv, dict)]
+    found += [command_text(inv.get("command")) for inv in listed(meta.get("invocations")) if isinstance(inv, dict)]
     return [c for c in dict.fromkeys(found) if c]
 
 
@@ -207,7 +216,7 @@ def planned_cells(config: Any) -> int | None:
 def planned_runs(meta: dict[str, Any]) -> list[int]:
     """The cells of each distinct plan that wrote to the folder (``invocations``' configs; a
     resume of a plan is the same plan), or of ``config`` alone in a record without them."""
-    configs = [inv.get("config") for inv in meta.get("invocations") or [] if isinstance(inv, dict)]
+    configs = [inv.get("config") for inv in listed(meta.get("invocations")) if isinstance(inv, dict)]
     plans: dict[str, int] = {}
     for config in configs or [meta.get("config")]:
         cells = planned_cells(config)
@@ -217,10 +226,39 @@ def planned_runs(meta: dict[str, Any]) -> list[int]:
     return list(plans.values())
 
 
+def cells_text(meta: dict[str, Any], t: pd.DataFrame) -> str | None:
+    """The report header's "Cells" line: the cells with a row against the plans', and
+    "partial run" when fewer (an interrupted run, or one still to be resumed); None without
+    a recorded plan.  A cell is a distinct ``cell_id`` (``schema.CELL_COLUMNS`` where the
+    table carries none).  A folder added to with ``--append`` holds the cells of several
+    plans, which may share cells: it is complete when its cells reach the plans' sum,
+    partial when they fall short of the largest plan, and otherwise not decided here."""
+    plans = planned_runs(meta)
+    if not plans:
+        return None
+    ids = t["cell_id"].map(as_text) if "cell_id" in t.columns else pd.Series("", index=t.index)
+    keys = [c for c in CELL_COLUMNS if c in t.columns]
+    done = int(ids[ids != ""].nunique()) if (ids != "").any() else len(t.drop_duplicates(keys) if keys else t)
+    largest, total = max(plans), sum(plans)
+    if done < largest:
+        return (f"PARTIAL RUN: {done} of {largest} planned cells have a row ({largest - done} missing: the run "
+                "was interrupted or has not finished; run the same command again to resume it)")
+    if len(plans) == 1 and done > largest:
+        return (f"{done} cells with a row, {largest} planned: {done - largest} more than the plan has (rows not of "
+                "this run's plan), so whether each planned cell has one is not decided here")
+    if len(plans) == 1:
+        return f"{done} of {largest} planned cells (complete)"
+    if done >= total:
+        return f"{done} of {total} planned cells over {len(plans)} runs added with --append (complete)"
+    return (f"{done} cells with a row; {len(plans)} runs added with --append planned {' + '.join(map(str, plans))} "
+            "cells, some of them perhaps the same: complete only if every run finished (resume one with its own "
+            "command)")
+
+
 def references_asked(meta: dict[str, Any]) -> bool | None:
     """Whether any run that wrote to the folder asked for reference solutions (its
     ``config.run.reference`` is not "none"); None where no record says."""
-    configs = [inv.get("config") for inv in meta.get("invocations") or [] if isinstance(inv, dict)]
+    configs = [inv.get("config") for inv in listed(meta.get("invocations")) if isinstance(inv, dict)]
     asked = [c["run"].get("reference") for c in configs or [meta.get("config")]
              if isinstance(c, dict) and isinstance(c.get("run"), dict) and "reference" in c["run"]]
     return any(str(a) != "none" for a in asked) if asked else None

@@ -276,12 +276,54 @@ def check_table(df: pd.DataFrame, source: object = "the table") -> None:
     for c in COLUMNS.values():
         if c.name in df.columns and c.dtype in ("float64", "Int64"):
             check_numbers(df[c.name], c.name, source)
+    check_readings(df, source)
+
+
+def check_readings(df: pd.DataFrame, source: object) -> None:
+    """Raise TableError for a row whose reading its own figures contradict (a hand-edited
+    or forged row: the judge writes none of these): a negative ``kkt_error``; "solved" with
+    a ``kkt_error`` that is not a finite number at most its ``check_tol`` (where the row has
+    one), or with no finite ``solve_time_s``; "inaccurate" with a ``kkt_error`` at most its
+    ``check_tol``; the reading "pass" on a row that is neither "solved" nor "timeout" (a
+    solve judged and finished past the limit).  The checks run on the numeric columns
+    already checked by ``check_numbers``."""
+    status = df["status"].map(as_text).to_numpy()
+    kkt = _numbers(df, "kkt_error")
+    tol = _numbers(df, "check_tol")
+    seconds = _numbers(df, "solve_time_s")
+    solved, inaccurate = status == "solved", status == "inaccurate"
+    with np.errstate(invalid="ignore"):
+        within = np.isfinite(kkt) & (np.isnan(tol) | (kkt <= tol))
+        rules = [
+            (kkt < 0, "a negative kkt_error {kkt}"),
+            (solved & ~within, "status solved with kkt_error {kkt} above its check_tol {tol} (or not a number)"),
+            (solved & ~np.isfinite(seconds), "status solved with solve_time_s {seconds}, not a finite time"),
+            (inaccurate & (kkt <= tol), "status inaccurate with kkt_error {kkt} within its check_tol {tol}"),
+        ]
+    if "verdict" in df.columns:
+        late = status == "timeout"  # judged, and finished past the time limit: its reading stands
+        rules.append(((df["verdict"].map(as_text).to_numpy() == "pass") & ~(solved | late),
+                      "the reading pass on a row whose status is neither solved nor timeout"))
+    for rows, what in rules:
+        hit = np.flatnonzero(rows)
+        if hit.size:
+            i = int(hit[0])
+            text = what.format(kkt=kkt[i], tol=tol[i], seconds=seconds[i])
+            raise TableError(f"row {i + 1} of {source} contradicts its own figures: {text} "
+                             f"({hit.size} such row(s)); the judge writes no such row")
+
+
+def _numbers(df: pd.DataFrame, name: str) -> np.ndarray:
+    """Column ``name`` as float64 (NaN where absent or missing)."""
+    if name not in df.columns:
+        return np.full(len(df), np.nan)
+    return pd.to_numeric(df[name], errors="coerce").to_numpy(dtype="float64", na_value=np.nan)
 
 
 def check_numbers(col: pd.Series, name: str, source: object) -> None:
     """Raise TableError for an entry of a numeric column that is text but no number (a
-    corrupted or hand-edited table: never read as missing), or a negative duration (the
-    ``_s`` columns: seconds)."""
+    corrupted or hand-edited table: never read as missing), or a negative or infinite
+    duration (the ``_s`` columns: seconds; missing is NaN)."""
     if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
         values = col.astype("float64")
     else:
@@ -292,7 +334,9 @@ def check_numbers(col: pd.Series, name: str, source: object) -> None:
             raise TableError(f"column {name} of {source} holds {col.iloc[unread[0]]!r}, not a number "
                              f"(row {int(unread[0]) + 1}; {unread.size} such row(s))")
     if name.endswith("_s"):
-        below = np.flatnonzero((values < 0).to_numpy(dtype=bool, na_value=False))
-        if below.size:
-            raise TableError(f"column {name} of {source} holds a negative duration, {values.iloc[below[0]]} s "
-                             f"(row {int(below[0]) + 1})")
+        seconds = values.to_numpy(dtype="float64", na_value=np.nan)
+        for wrong, what in ((seconds < 0, "a negative"), (np.isinf(seconds), "an infinite")):
+            hit = np.flatnonzero(wrong)
+            if hit.size:
+                raise TableError(f"column {name} of {source} holds {what} duration, {seconds[hit[0]]} s "
+                                 f"(row {int(hit[0]) + 1})")

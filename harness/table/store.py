@@ -35,8 +35,10 @@ reader sees the old table or the new one, never half of one.
 Crash safety: a row is appended with one ``write`` under an exclusive ``flock`` and
 fsync'ed, so concurrent writers (``--jobs``, Dask workers on a shared file system) do not
 interleave.  A ``kill -9`` can leave at most a partial last line; it is cut off when
-the store is next opened.  Rows are identified by ``cell_id``; reading keeps the first
-row of each cell, so a cell is never counted twice.
+the store is next opened.  Rows are identified by ``cell_id``; reading keeps the first row
+of each cell (``first_of_each_cell``: journal and ``load_table``), so a cell is never counted
+twice.  The journal is read checked (``checked_journal``): a line that is not a JSON object
+is ignored; a row without ``cell_id`` or against the table contract is a ``JournalError``.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ import logging
 import csv
 import os
 import socket
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
@@ -62,7 +65,8 @@ import numpy as np
 import pandas as pd
 
 from .files import canonical_json, pid_exists, replace_atomically
-from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, columns_of
+from .schema import (CELL_COLUMNS, REQUIRED_COLUMNS, MissingTableError, TableError, apply_schema, as_text,
+                     check_table, columns_of)
 
 ROWS_FILE = "rows.jsonl"
 PARQUET_FILE = "results.parquet"
@@ -79,11 +83,7 @@ GROUP_COLUMNS = CELL_COLUMNS  # (the schema names what identifies a cell)
 
 
 def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
+    return obj.tolist() if isinstance(obj, (np.generic, np.ndarray)) else str(obj)
 
 
 def encode_row(row: dict[str, Any]) -> str:
@@ -108,41 +108,79 @@ def repair_journal(path: Path) -> int:
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def read_journal(path: Path) -> list[dict[str, Any]]:
-    """Rows of a journal, first occurrence per cell_id, unparsable lines ignored."""
-    rows: list[dict[str, Any]] = []
+class JournalError(TableError, ProblemInputError):
+    """A journal row breaks the contract (module doc); the command line exits 2."""
+
+
+def first_of_each_cell(cell_ids: Iterable[Any]) -> list[bool]:
+    """For each row, in order, whether reading keeps it: the first row of each cell id; a
+    row with no cell id (missing or "": a table without the column) is always kept."""
     seen: set[str] = set()
+    keep = []
+    for text in map(as_text, cell_ids):
+        keep.append(text == "" or text not in seen)
+        seen.add(text)
+    return keep
+
+
+def read_journal(path: Path) -> list[dict[str, Any]]:
+    """Rows of a journal, the first of each cell (``first_of_each_cell``); lines that are not
+    a JSON object are ignored; a row without a text ``cell_id`` is a ``JournalError``."""
+    rows: list[dict[str, Any]] = []
     if not path.exists():
         return rows
     with open(path, encoding="utf-8") as fh:
-        for line in fh:
-            line = line.strip()
-            if not line:
-                continue
+        for number, line in enumerate(fh, 1):
             try:
                 row = json.loads(line)
-            except json.JSONDecodeError:
+            except json.JSONDecodeError:  # (a blank line too)
+                continue
+            if not isinstance(row, dict):
                 continue
             cid = row.get("cell_id")
-            if cid in seen:
-                continue
-            seen.add(cid)
+            if not (isinstance(cid, str) and cid):
+                raise JournalError(f"{path} line {number}: the row has no cell_id (the text id of its cell, which "
+                                   "every row the run writes has); restore the line as the run wrote it")
             rows.append(row)
+    return [row for row, keep in zip(rows, first_of_each_cell(r["cell_id"] for r in rows)) if keep]
+
+
+def check_journal(rows: list[dict[str, Any]], path: Path) -> None:
+    """``JournalError`` naming ``path`` for rows against ``schema.check_table`` (text in a
+    number column is never read as missing); "row k" counts the rows ``read_journal`` keeps."""
+    try:
+        df = pd.DataFrame(rows)  # (a column no row has is read as empty, as the table reader does)
+        check_table(df.reindex(columns=[*df.columns, *(c for c in REQUIRED_COLUMNS if c not in df)]), path)
+    except TableError as exc:
+        raise JournalError(f"{exc}; restore the row as the run wrote it") from None
+
+
+#: Journal -> the (inode, size, mtime) it had when its rows last passed ``check_journal``.
+_CHECKED: dict[Path, tuple[int, int, int]] = {}
+
+
+def checked_journal(path: Path) -> list[dict[str, Any]]:
+    """``read_journal``, the rows checked (``check_journal``, once per state of the file)."""
+    st = path.stat() if path.exists() else None  # (stat first: a row appended while reading changes the key)
+    key = (st.st_ino, st.st_size, st.st_mtime_ns) if st else (0, 0, 0)
+    rows = read_journal(path)
+    if _CHECKED.get(path.absolute()) != key:
+        check_journal(rows, path)
+        _CHECKED[path.absolute()] = key
     return rows
 
 
 class ResultStore:
-    """Append-only journal of rows with the set of finished cells."""
+    """Append-only journal of rows with the set of finished cells; its rows are read
+    checked (``checked_journal``), so ``load`` refuses a journal against the contract."""
 
     def __init__(self, out_dir: str | os.PathLike[str], load: bool = True) -> None:
         self.out = Path(out_dir)
         self.out.mkdir(parents=True, exist_ok=True)
         self.path = self.out / ROWS_FILE
-        self._status: dict[str, str] = {}
         if load:
             repair_journal(self.path)
-            for row in read_journal(self.path):
-                self._status[row["cell_id"]] = row.get("status", "")
+        self._status = {r["cell_id"]: str(r.get("status", "")) for r in (self.rows() if load else ())}
 
     @property
     def cache_dir(self) -> Path:
@@ -189,10 +227,11 @@ class ResultStore:
             return sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 20), b""))
 
     def rows(self) -> list[dict[str, Any]]:
-        return read_journal(self.path)
+        """The journal's rows (``checked_journal``)."""
+        return checked_journal(self.path)
 
     def finalize(self) -> pd.DataFrame:
-        """Regenerate results.parquet and results.csv from the journal."""
+        """Regenerate results.parquet and results.csv from the checked journal (or neither)."""
         table = tidy_table(self.rows())
         write_table(table, self.out)
         return table
@@ -243,18 +282,14 @@ def canonical(identity: dict[str, Any]) -> dict[str, Any]:
 
 def fingerprint(identity: dict[str, Any]) -> str:
     """A short hash of a run configuration (``canonical`` JSON)."""
-    text = json.dumps(canonical(identity), sort_keys=True)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+    return hashlib.sha256(json.dumps(canonical(identity), sort_keys=True).encode("utf-8")).hexdigest()[:16]
 
 
 def flatten(d: Any, prefix: str = "") -> dict[str, Any]:
     """Nested dicts as dotted keys ("run.timeout")."""
     if not isinstance(d, dict):
         return {prefix: d}
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
-    return out
+    return {key: x for k, v in d.items() for key, x in flatten(v, f"{prefix}.{k}" if prefix else str(k)).items()}
 
 
 def differences(recorded: dict[str, Any], wanted: dict[str, Any]) -> list[str]:
@@ -307,8 +342,9 @@ Identity = Callable[[dict[str, Any]], dict[str, Any]]  # a meta.json ``config`` 
 
 def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> RunFolder:
     """Inspect ``out_dir`` without touching it; raise ``RunFolderError`` for a path that
-    is not a folder, a foreign non-empty folder or an unreadable marker.  ``identity_of``
-    turns a legacy meta.json ``config`` into a run configuration."""
+    is not a folder, a foreign non-empty folder or an unreadable marker (``JournalError``
+    for a journal against the contract, ``checked_journal``).  ``identity_of`` turns a
+    legacy meta.json ``config`` into a run configuration."""
     out = Path(out_dir)
     if not out.exists():
         return RunFolder(out, "new")
@@ -330,6 +366,7 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
         if fmt > MARKER_FORMAT:
             raise RunFolderError(f"results folder {out} was written by a newer contactbench (marker format {fmt}); "
                                  "choose another --out")
+        checked_journal(out / ROWS_FILE)
         return RunFolder(out, "marked", runs)
     if not [p for p in out.iterdir() if p.name != LOCK_FILE]:
         return RunFolder(out, "new")
@@ -337,6 +374,7 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
     if config is None:
         raise RunFolderError(f"results folder {out} is not empty and is not a contactbench run folder "
                              f"(no {MARKER_FILE}); choose an empty or new --out")
+    checked_journal(out / ROWS_FILE)
     identity = identity_of(config)
     return RunFolder(out, "legacy", [{"fingerprint": fingerprint(identity), "config": canonical(identity)}])
 
@@ -391,8 +429,6 @@ class LockHolder:
 
     @classmethod
     def me(cls) -> "LockHolder":
-        import sys
-
         now = time.time()
         started = datetime.fromtimestamp(now, timezone.utc).isoformat(timespec="seconds")
         return cls(os.getpid(), socket.gethostname(), started, now, " ".join(sys.argv)[:500])
@@ -431,7 +467,8 @@ class RunLock:
     kernel drops it when the process dies, however it dies), with the holder's PID, host
     and start time written in the file for the message a second run gets.  Released by
     removing the file; a folder the lock itself created and that stayed empty is removed
-    too (a run refused at planning leaves nothing behind)."""
+    too (a run refused at planning leaves nothing behind).  A run.lock that is neither
+    empty nor a lock record is not ours: ``RunFolderError``, the file left as it is."""
 
     def __init__(self, out_dir: str | os.PathLike[str]) -> None:
         self.out = Path(out_dir)
@@ -479,7 +516,11 @@ class RunLock:
             raise self.in_use(LockHolder.parse(os.pread(fd, 65536, 0).decode("utf-8", "replace"))) from None
         if not self._is_current(fd):
             return False
-        previous = LockHolder.parse(os.pread(fd, 65536, 0).decode("utf-8", "replace"))
+        text = os.pread(fd, 65536, 0).decode("utf-8", "replace")
+        previous = LockHolder.parse(text)
+        if previous is None and text.strip():
+            raise RunFolderError(f"results folder {self.out} holds a file {LOCK_FILE} that is not a contactbench "
+                                 "lock; it is left as it is: move it, or choose another --out")
         if previous is not None:
             state = process_state(previous)
             if state != "gone":
@@ -630,7 +671,7 @@ def _read_run_dir(out: Path) -> pd.DataFrame:
     if pq.is_file() and not (journal.is_file() and journal.stat().st_mtime > pq.stat().st_mtime):
         return pd.read_parquet(pq)
     if journal.is_file():
-        return tidy_table(read_journal(journal))
+        return tidy_table(checked_journal(journal))
     if csv.is_file():
         return _read_csv(csv)
     raise MissingTableError(f"no results table in {out}: expected {PARQUET_FILE}, {CSV_FILE} or {ROWS_FILE}")
@@ -640,7 +681,8 @@ def load_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     """The one reader of a stored tidy table, with the schema checked and applied.
 
     ``path`` is a run directory (see ``_read_run_dir``) or a ``.parquet`` / ``.csv``
-    file.  Reading never writes."""
+    file; the first row of each cell is kept (``first_of_each_cell``).  Reading never
+    writes."""
     p = Path(path)
     if p.is_dir():
         df = _read_run_dir(p)
@@ -653,4 +695,6 @@ def load_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     else:
         raise TableError(f"{p} is not a stored table (a run directory, .parquet or .csv)")
     check_table(df, p)
+    if "cell_id" in df.columns:
+        df = df[first_of_each_cell(df["cell_id"])].reset_index(drop=True)
     return apply_schema(df)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -195,3 +195,44 @@ def scene_import_errors() -> dict[str, str]:
 def get_scene(name: str) -> Scene:
     """The scene called ``name``, or a ``KeyError`` listing the known ones."""
     return _SCENES.get(name)
+
+
+class SceneCount(NamedTuple):
+    """The size of a scene under one configuration, counted from its recipes alone."""
+
+    instances: int
+    steps: int  # instance steps: the QPs of an export
+    specs: list[Any]  # the recipes the count was read from (all of them, or the probes)
+
+
+def scene_counts(scene: Any, cfg: SceneConfig) -> SceneCount:
+    """The instances and instance steps of ``scene`` under ``cfg`` (merged), from the
+    recipes (``params["steps"]``, 1 where absent) and nothing built.  With more than
+    three steps or two seeds they are counted from the recipes at 2 and 3 steps and 1 and
+    2 seeds (both counts are bilinear in steps and seeds: every scene's recipes are one
+    per seed, each with ``steps`` load steps or a fixed number), so a huge ``--steps`` or
+    ``--seeds`` is never expanded."""
+    steps, seeds = cfg.steps, cfg.seeds
+    big_steps = steps is not None and int(steps) > 3
+    big_seeds = seeds is not None and len(seeds) > 2
+
+    def count(specs: list[Any]) -> tuple[int, int]:
+        return len(specs), sum(int(s.params.get("steps") or 1) for s in specs)
+
+    if not (big_steps or big_seeds):
+        specs = list(scene.instances(cfg))
+        return SceneCount(*count(specs), specs)
+    s_pts = (2, 3) if big_steps else (steps,)
+    k_pts = ((seeds[0],), (seeds[0], seeds[1])) if big_seeds else (seeds,)
+    probes = {(i, j): list(scene.instances(replace(cfg, steps=s, seeds=None if k is None else tuple(k))))
+              for i, s in enumerate(s_pts) for j, k in enumerate(k_pts)}
+    ds = int(steps) - 2 if big_steps else 0
+    dk = len(seeds) - 1 if big_seeds else 0
+
+    def bilinear(what: int) -> int:
+        c = {ij: count(probes[(min(ij[0], len(s_pts) - 1), min(ij[1], len(k_pts) - 1))])[what]
+             for ij in ((0, 0), (1, 0), (0, 1), (1, 1))}
+        return (c[0, 0] + (c[1, 0] - c[0, 0]) * ds + (c[0, 1] - c[0, 0]) * dk
+                + (c[1, 1] - c[1, 0] - c[0, 1] + c[0, 0]) * ds * dk)
+
+    return SceneCount(bilinear(0), bilinear(1), [s for v in probes.values() for s in v])

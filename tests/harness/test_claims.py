@@ -201,6 +201,24 @@ def test_ledger_reads_each_condition_apart() -> None:
     assert set(led["verdict"]) <= set(cr.VERDICTS)
 
 
+def test_the_ledger_finds_the_papers_methods_by_base_solver_and_params_not_by_label() -> None:
+    """Labels swapped between ADMM and NNLS+GP (their ``base_solver`` and ``params`` kept) and
+    a non-paper solver labelled "pk" change no measured figure; the ledger read the labels,
+    so the swap made ADMM's times NNLS+GP's and the impostor P&K."""
+    plain = cl.ledger(_table())
+    t = _table()
+    swap = {"admm": "nnls-gp", "nnls-gp": "admm"}
+    t["solver"] = t["solver"].map(lambda s: swap.get(s, s))
+    impostor = pd.DataFrame(_rows("greedy-linear-solvers", "dense", {"pk": [0.001, 0.001]})).assign(base_solver="bvls")
+    t = pd.concat([t.replace({"solver": {"pk": "pk[own]"}}), impostor], ignore_index=True)
+    swapped = cl.ledger(t)
+    key = ["claim", "condition", "n_or_size"]
+    both = plain.merge(swapped, on=key, suffixes=("", "_swapped"))
+    assert len(both) == len(plain)
+    assert np.allclose(both["measured"].astype(float), both["measured_swapped"].astype(float), equal_nan=True)
+    assert (both["verdict"] == both["verdict_swapped"]).all()
+
+
 def test_a_lying_solver_does_not_make_the_loads_agree() -> None:
     t = _table()
     t.loc[(t["scene"] == "paper-sweep") & (t["solver"] == "admm") & (t["step"] == 1), "load"] = 1.5

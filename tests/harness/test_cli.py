@@ -436,3 +436,18 @@ def test_a_reader_that_goes_away_ends_the_listing_quietly() -> None:
 
 def test_params_of_a_listing_without_parameters_is_refused(capsys: pytest.CaptureFixture[str], in_tmp: Path) -> None:
     refused(["list", "scenes", "--params"], capsys, "--params lists the solvers' parameters")
+
+
+def test_an_interrupted_command_says_what_it_left(tmp_path: Path) -> None:
+    """Ctrl-C: a report says no report was written (it said "rows so far are kept", the
+    run's line); an export that made no folder says nothing was exported (it pointed to a
+    manifest.json that does not exist)."""
+    from argparse import Namespace
+
+    from contactbench.harness.cli import interrupted_text
+
+    assert interrupted_text(Namespace(command="report")).startswith("no report was written")
+    assert interrupted_text(Namespace(command="export", out=str(tmp_path / "none"))).startswith("nothing was exported")
+    (tmp_path / "manifest.json").write_text("{}")
+    assert "incomplete" in interrupted_text(Namespace(command="export", out=str(tmp_path)))
+    assert interrupted_text(Namespace(command="run")).startswith("rows so far are kept")

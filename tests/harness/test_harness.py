@@ -235,7 +235,8 @@ def test_analytic_load_columns_on_hertz(tmp_path: Path) -> None:
 
 def test_store_cuts_a_partial_last_line_and_keeps_first_rows(tmp_path: Path) -> None:
     path = tmp_path / ROWS_FILE
-    path.write_text(json.dumps({"cell_id": "a", "status": "solved"}) + "\n"
+    solved = {"cell_id": "a", "status": "solved", "kkt_error": 1e-10, "check_tol": 1e-8, "solve_time_s": 0.01}
+    path.write_text(json.dumps(solved) + "\n"
                     + json.dumps({"cell_id": "a", "status": "failed"}) + "\n" + '{"cell_id": "b", "sta')
     store = ResultStore(tmp_path)
     assert store.done_statuses() == {"a": "solved"}

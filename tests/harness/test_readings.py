@@ -27,12 +27,14 @@ from contactbench.solvers import SolverSettings, get_solver
 CHECK_TOL = 1e-6
 
 
-def _judged_row(inst_name: str, n: int, solver: str, verdict: Any, repeat: int = 0) -> dict[str, Any]:
+def _judged_row(inst_name: str, n: int, solver: str, verdict: Any, repeat: int = 0,
+                check_tol: float = CHECK_TOL) -> dict[str, Any]:
+    """The row of ``verdict``, judged at ``check_tol``, as the harness writes it."""
     row: dict[str, Any] = {c: np.nan for c in ALL_COLUMNS}
     row.update(scene="counterexample", instance=inst_name, step=0, n=n, solver=solver, base_solver=solver,
-               params="{}", profile="default", repeat=repeat, check_tol=CHECK_TOL, status=verdict.status,
-               verdict=verdict.reading, solver_converged=verdict.claimed,
-               p_rel_error=verdict.figures.get("p_rel_error", np.nan))
+               params="{}", profile="default", repeat=repeat, check_tol=check_tol, status=verdict.status,
+               verdict=verdict.reading, solver_converged=verdict.claimed, kkt_error=verdict.kkt_error,
+               solve_time_s=1e-3, p_rel_error=verdict.figures.get("p_rel_error", np.nan))
     return row
 
 
@@ -55,12 +57,12 @@ def _counterexample_table() -> tuple[pd.DataFrame, dict[tuple[str, int], int]]:
     assert far.status == "solved" and far.figures["p_rel_error"] > 1e-4  # accepted at a loose tolerance
     near = judge(inst, ref - 1e-9 * ref.max(), True, 1e-15, p_ref=ref)
     assert near.status == "inaccurate" and near.figures["p_rel_error"] < 1e-6  # rejected, yet close
-    rows.append(_judged_row("n25-s0", 25, "loose", far))
-    rows.append(_judged_row("n25-s0", 25, "strict", near))
+    rows.append(_judged_row("n25-s0", 25, "loose", far, check_tol=1.0))
+    rows.append(_judged_row("n25-s0", 25, "strict", near, check_tol=1e-15))
     rows.append({**_judged_row("n25-s0", 25, "broken", near), "status": "failed", "verdict": "",
-                 "p_rel_error": np.nan})
-    rows.append(_judged_row("n25-s0", 25, "flaky", far))
-    rows.append(_judged_row("n25-s0", 25, "flaky", near, repeat=1))
+                 "p_rel_error": np.nan, "kkt_error": np.nan, "solve_time_s": np.nan})
+    rows.append(_judged_row("n25-s0", 25, "flaky", far, check_tol=1.0))
+    rows.append(_judged_row("n25-s0", 25, "flaky", near, repeat=1, check_tol=1e-15))
     table = pd.DataFrame(rows, columns=list(ALL_COLUMNS))
     expected: dict[tuple[str, int], int] = {}
     for (s, n), g in table.groupby(["solver", "n"]):

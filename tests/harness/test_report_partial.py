@@ -98,3 +98,42 @@ def test_a_broken_meta_json_is_named_or_read_as_no_plan(whole: Path, tmp_path: P
             "--reference", "none", "--no-warmup", "--no-progress", "--out", str(out)]
     assert main(argv) == 2
     assert (out / META_FILE).read_text() == text
+
+
+def test_cells_are_counted_without_cell_ids_and_foreign_rows_are_not_called_complete(whole: Path,
+                                                                                      tmp_path: Path) -> None:
+    """A table without ``cell_id`` counts its cells by ``CELL_COLUMNS`` (it read "PARTIAL
+    RUN: 1 of 6": the empty ids counted as one cell); a row not of the plan is not read as
+    the plan complete (it read "7 of 6 planned cells (complete)")."""
+    import pandas as pd
+
+    no_ids = tmp_path / "no-ids"
+    shutil.copytree(whole, no_ids)
+    (no_ids / ROWS_FILE).unlink()
+    table = pd.read_parquet(whole / "results.parquet")
+    table.drop(columns=["cell_id"]).to_parquet(no_ids / "results.parquet", index=False)
+    (no_ids / "results.csv").unlink()
+    assert "| Cells | 6 of 6 planned cells (complete) |" in header(no_ids)
+    extra = tmp_path / "extra"
+    shutil.copytree(no_ids, extra)
+    foreign = table.iloc[[0]].assign(solver="elsewhere", base_solver="elsewhere", cell_id="foreign-1")
+    pd.concat([table, foreign]).to_parquet(extra / "results.parquet", index=False)
+    top = header(extra)
+    assert "7 cells with a row, 6 planned: 1 more than the plan has" in top and "(complete)" not in top
+
+
+@pytest.mark.parametrize("key", ["invocations", "warnings"])
+def test_a_meta_record_whose_list_is_a_number_reads_as_no_entry(whole: Path, tmp_path: Path, key: str) -> None:
+    """A hand-edited meta.json with ``invocations`` or ``warnings`` a number: the report and a
+    resumed run's record read it as no entry (both ended in a TypeError traceback)."""
+    from contactbench.harness.table.meta import write_meta
+
+    out = tmp_path / "meta"
+    shutil.copytree(whole, out)
+    meta = json.loads((out / META_FILE).read_text())
+    meta[key] = 5
+    (out / META_FILE).write_text(json.dumps(meta))
+    assert "| Cells |" in header(out)
+    write_meta(out, {"command": ["again"], "warnings": ["w"]})
+    again = read_meta(out)
+    assert isinstance(again["invocations"], list) and "w" in again["warnings"]

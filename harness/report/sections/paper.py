@@ -130,14 +130,14 @@ def _params_match(params: Any, wanted: dict[str, Any]) -> bool:
     return isinstance(p, dict) and all(p.get(k, v) == v for k, v in wanted.items())
 
 
-def resolve_role(curves: pd.DataFrame, role: str) -> str | None:
-    """The ``solver`` label that plays ``role`` (see PAPER_ROLES), or None.
+def resolve_role(curves: pd.DataFrame, role: str | PaperRole) -> str | None:
+    """The ``solver`` label that plays ``role`` (a key of PAPER_ROLES, or a role), or None.
 
     ``curves`` has one row per label (or more; duplicates are ignored) with columns
     ``solver``, ``base_solver``, ``params`` and, optionally, ``warm`` (the label is a
     warm-started run).  Among the role's base solver's labels the one with the paper's
     parameters wins, then the natural order of the labels."""
-    r = PAPER_ROLES[role]
+    r = PAPER_ROLES[role] if isinstance(role, str) else role
     c = curves[curves["base_solver"] == r.base_solver]
     warm = c["warm"].astype(bool) if "warm" in c.columns else pd.Series(False, index=c.index)
     if r.warm:
@@ -150,6 +150,27 @@ def resolve_role(curves: pd.DataFrame, role: str) -> str | None:
 def paper_roles(curves: pd.DataFrame) -> dict[str, str | None]:
     """Every role of PAPER_ROLES resolved in ``curves`` (see resolve_role)."""
     return {k: resolve_role(curves, k) for k in PAPER_ROLES}
+
+
+#: The paper's methods as the claims ledger compares them: its algorithms (PAPER_ROLES but
+#: the warm-started P&K) and pure accelerated GP; each key is the method's registry name.
+LEDGER_ROLES: dict[str, PaperRole] = {**{k: r for k, r in PAPER_ROLES.items() if not r.warm},
+                                      "gp": PaperRole("accelerated GP", "gp")}
+
+
+def by_role(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with, in each scene, the label of each of the paper's methods (``LEDGER_ROLES``,
+    found by ``base_solver`` and ``params``: ``resolve_role``) replaced by the role's key,
+    and any other label that spells a key marked with its base solver (``"pk (bvls)"``):
+    a label is never taken for the method it names."""
+    parts = []
+    for _, r in rows.groupby("scene", sort=False, dropna=False):
+        curves = r.drop_duplicates("solver")
+        players = {s: k for k, role in LEDGER_ROLES.items() if (s := resolve_role(curves, role)) is not None}
+        bases = dict(zip(curves["solver"], curves["base_solver"]))
+        name = {s: players.get(s, f"{s} ({bases[s]})" if s in LEDGER_ROLES else s) for s in curves["solver"]}
+        parts.append(r.assign(solver=r["solver"].map(name)))
+    return pd.concat(parts) if parts else rows
 
 
 @dataclass(frozen=True)

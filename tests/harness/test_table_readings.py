@@ -1,0 +1,83 @@
+"""A stored row whose reading its own figures contradict is refused on reading, in one
+line naming the table and the row: the report never counts a forged "solved"."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from contactbench.harness.table.schema import TableError
+from contactbench.harness.table.store import load_table
+from tests.helpers import fabricate_table, run_cli, write_out
+
+
+def first(df: pd.DataFrame, status: str) -> int:
+    return int(np.flatnonzero(df["status"] == status)[0])
+
+
+def forged(df: pd.DataFrame, case: str) -> pd.DataFrame:
+    """``df`` with one row (solved, inaccurate or crashed) edited as a user, or a broken
+    tool, might."""
+    bad = df.copy()
+    solved, inaccurate, failed = first(bad, "solved"), first(bad, "inaccurate"), first(bad, "crashed")
+    edits = {
+        "solved-above-tol": (solved, {"kkt_error": 1e3, "solve_time_s": 1e-9}),
+        "solved-inf-kkt": (solved, {"kkt_error": np.inf}),
+        "solved-nan-kkt": (solved, {"kkt_error": np.nan}),
+        "negative-kkt": (inaccurate, {"kkt_error": -5.0}),
+        "solved-nan-time": (solved, {"solve_time_s": np.nan}),
+        "inf-time": (solved, {"solve_time_s": np.inf}),
+        "inf-build-time": (failed, {"build_time_s": np.inf}),
+        "inaccurate-within-tol": (inaccurate, {"kkt_error": 1e-12}),
+        "pass-on-crashed": (failed, {"verdict": "pass"}),
+    }
+    row, values = edits[case]
+    bad = bad.astype({col: "object" for col, value in values.items() if isinstance(value, str)})
+    for col, value in values.items():
+        bad.loc[row, col] = value
+    return bad
+
+
+CASES = {
+    "solved-above-tol": "status solved with kkt_error 1000.0 above its check_tol",
+    "solved-inf-kkt": "status solved with kkt_error inf",
+    "solved-nan-kkt": "status solved with kkt_error nan",
+    "negative-kkt": "a negative kkt_error -5.0",
+    "solved-nan-time": "status solved with solve_time_s nan",
+    "inf-time": "column solve_time_s of .* holds an infinite duration",
+    "inf-build-time": "column build_time_s of .* holds an infinite duration",
+    "inaccurate-within-tol": "status inaccurate with kkt_error 1e-12 within its check_tol",
+    "pass-on-crashed": "the reading pass on a row whose status is neither solved nor timeout",
+}
+
+
+def test_the_fabricated_table_is_consistent() -> None:
+    """The table the forgeries start from reads (so each refusal below is the edit's)."""
+    df = fabricate_table()
+    assert {"solved", "inaccurate", "crashed"} <= set(df["status"])
+    load_table_of(df)
+
+
+def load_table_of(df: pd.DataFrame, tmp: Path | None = None) -> pd.DataFrame:
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(dir=tmp))
+    return load_table(write_out(folder, df))
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_a_row_its_own_figures_contradict_is_refused_on_reading(case: str, tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A forged "solved" (kkt 1e3, inf, NaN; no time), a negative KKT error, an infinite
+    duration, "inaccurate" within its tolerance, or the reading "pass" on a crashed row:
+    the report counted the forged solve as the fastest correct one, 100 % success."""
+    df = forged(fabricate_table(), case)
+    with pytest.raises(TableError, match=CASES[case]):
+        load_table_of(df, tmp_path)
+    out = write_out(tmp_path / "forged", df)
+    code, stdout, err = run_cli(["report", str(out)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "forged" in err and not (out / "report.md").exists()
