@@ -362,6 +362,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     # export_scene checks the options (the plan's rules), the scene's inputs and the folder before writing
     summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit)
     print(summary.line())
+    if summary.skipped:  # exit 0 says every QP is written
+        total = len(summary.written) + len(summary.skipped)
+        print(f"contactbench export: {len(summary.skipped)} of {total} QPs not written (the line above says why)",
+              file=sys.stderr)
+        return 1
     return 0
 
 

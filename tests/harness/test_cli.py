@@ -451,3 +451,13 @@ def test_an_interrupted_command_says_what_it_left(tmp_path: Path) -> None:
     (tmp_path / "manifest.json").write_text("{}")
     assert "incomplete" in interrupted_text(Namespace(command="export", out=str(tmp_path)))
     assert interrupted_text(Namespace(command="run")).startswith("rows so far are kept")
+
+
+def test_an_export_that_skips_a_qp_exits_1_not_0(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Exit 0 says every QP is written: a qpbenchmark export whose dense limit leaves QPs out
+    exits 1 with one line counting them (it exited 0 having written none)."""
+    args = ["export", "paper-sweep", "--size", "16", "--steps", "2", "--format", "qpbenchmark", "--dense-limit", "1",
+            "--out", str(tmp_path / "ex")]
+    code, out, err = run_cli(args, capsys)
+    assert code == 1 and "exported 0 QPs" in out and "skipped 2" in out, (out, err)
+    assert err.strip() == "contactbench export: 2 of 2 QPs not written (the line above says why)"
