@@ -275,8 +275,19 @@ def check_table(df: pd.DataFrame, source: object = "the table") -> None:
                              f"or empty")
     for c in COLUMNS.values():
         if c.name in df.columns and c.dtype in ("float64", "Int64"):
-            check_numbers(df[c.name], c.name, source)
+            check_numbers(df[c.name], c.name, source, whole=c.dtype == "Int64")
+        elif c.name in df.columns and c.dtype == "boolean":
+            check_booleans(df[c.name], c.name, source)
     check_readings(df, source)
+
+
+def check_booleans(col: pd.Series, name: str, source: object) -> None:
+    """Raise TableError for an entry of a true/false column that ``as_bool`` cannot read
+    (text such as "maybe": never read as missing)."""
+    unread = [i for i, v in enumerate(col) if as_bool(v) is pd.NA and as_text(v).strip() != ""]
+    if unread:
+        raise TableError(f"column {name} of {source} holds {col.iloc[unread[0]]!r}, not true or false "
+                         f"(row {unread[0] + 1}; {len(unread)} such row(s))")
 
 
 def check_readings(df: pd.DataFrame, source: object) -> None:
@@ -320,10 +331,11 @@ def _numbers(df: pd.DataFrame, name: str) -> np.ndarray:
     return pd.to_numeric(df[name], errors="coerce").to_numpy(dtype="float64", na_value=np.nan)
 
 
-def check_numbers(col: pd.Series, name: str, source: object) -> None:
+def check_numbers(col: pd.Series, name: str, source: object, whole: bool = False) -> None:
     """Raise TableError for an entry of a numeric column that is text but no number (a
-    corrupted or hand-edited table: never read as missing), or a negative or infinite
-    duration (the ``_s`` columns: seconds; missing is NaN)."""
+    corrupted or hand-edited table: never read as missing), a number that is not whole in
+    a ``whole`` (count) column (never rounded), or a negative or infinite duration (the
+    ``_s`` columns: seconds; missing is NaN)."""
     if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
         values = col.astype("float64")
     else:
@@ -333,6 +345,12 @@ def check_numbers(col: pd.Series, name: str, source: object) -> None:
         if unread.size:
             raise TableError(f"column {name} of {source} holds {col.iloc[unread[0]]!r}, not a number "
                              f"(row {int(unread[0]) + 1}; {unread.size} such row(s))")
+    if whole:
+        x = values.to_numpy(dtype="float64", na_value=np.nan)
+        with np.errstate(invalid="ignore"):
+            hit = np.flatnonzero(np.isfinite(x) & (x != np.round(x)))
+        if hit.size:
+            raise TableError(f"column {name} of {source} holds {x[hit[0]]}, not a whole number (row {int(hit[0]) + 1})")
     if name.endswith("_s"):
         seconds = values.to_numpy(dtype="float64", na_value=np.nan)
         for wrong, what in ((seconds < 0, "a negative"), (np.isinf(seconds), "an infinite")):

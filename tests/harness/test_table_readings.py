@@ -33,9 +33,11 @@ def forged(df: pd.DataFrame, case: str) -> pd.DataFrame:
         "inf-build-time": (failed, {"build_time_s": np.inf}),
         "inaccurate-within-tol": (inaccurate, {"kkt_error": 1e-12}),
         "pass-on-crashed": (failed, {"verdict": "pass"}),
+        "bool-junk": (solved, {"warm_start": "maybe"}),
+        "count-fraction": (solved, {"n": 2.4}),
     }
     row, values = edits[case]
-    bad = bad.astype({col: "object" for col, value in values.items() if isinstance(value, str)})
+    bad = bad.astype({col: "object" for col in values})
     for col, value in values.items():
         bad.loc[row, col] = value
     return bad
@@ -51,6 +53,8 @@ CASES = {
     "inf-build-time": "column build_time_s of .* holds an infinite duration",
     "inaccurate-within-tol": "status inaccurate with kkt_error 1e-12 within its check_tol",
     "pass-on-crashed": "the reading pass on a row whose status is neither solved nor timeout",
+    "bool-junk": "column warm_start of .* holds 'maybe', not true or false",
+    "count-fraction": "column n of .* holds 2.4, not a whole number",
 }
 
 
@@ -65,19 +69,20 @@ def load_table_of(df: pd.DataFrame, tmp: Path | None = None) -> pd.DataFrame:
     import tempfile
 
     folder = Path(tempfile.mkdtemp(dir=tmp))
-    return load_table(write_out(folder, df))
+    return load_table(write_out(folder, df, fmt="csv"))  # (CSV: a hand-edited table keeps any text)
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_a_row_its_own_figures_contradict_is_refused_on_reading(case: str, tmp_path: Path,
                                                                 capsys: pytest.CaptureFixture[str]) -> None:
     """A forged "solved" (kkt 1e3, inf, NaN; no time), a negative KKT error, an infinite
-    duration, "inaccurate" within its tolerance, or the reading "pass" on a crashed row:
-    the report counted the forged solve as the fastest correct one, 100 % success."""
+    duration, "inaccurate" within its tolerance, the reading "pass" on a crashed row, text in
+    a true/false column or a fraction in a count: the report counted the forged solve as the
+    fastest correct one, 100 % success, and read the others as missing or rounded."""
     df = forged(fabricate_table(), case)
     with pytest.raises(TableError, match=CASES[case]):
         load_table_of(df, tmp_path)
-    out = write_out(tmp_path / "forged", df)
+    out = write_out(tmp_path / "forged", df, fmt="csv")
     code, stdout, err = run_cli(["report", str(out)], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "forged" in err and not (out / "report.md").exists()
