@@ -54,6 +54,7 @@ from ..table.meta import cells_text, commands_of, listed
 from .charts import Chart, RowChart
 from .figure_files import FIGURE_DIR, staging_dir
 from .panels import blank_panels
+from .markdown_text import md_escape
 from .style import DEFAULT_FAMILY, SolverStyles
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finite, as_text, bool_series
 from ..table.store import load_table
@@ -333,17 +334,6 @@ def fmt_pct(v: float) -> str:
 
 def fmt_ratio(v: float) -> str:
     return "-" if not math.isfinite(v) else f"{v:.3g}x"
-
-
-#: A "<" that would open an HTML tag, comment or declaration in Markdown.
-_TAG_OPEN = re.compile(r"<(?=[A-Za-z/!?])")
-
-
-def md_escape(text: Any) -> str:
-    """``text`` as a Markdown table cell: "|" escaped, a newline a space, and a "<" that
-    would open an HTML tag written "&lt;" (a solver or scene name is text, never markup;
-    "n <= 10" stays as it is)."""
-    return _TAG_OPEN.sub("&lt;", str(text).replace("|", "\\|").replace("\n", " "))
 
 
 def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], align: str | None = None) -> str:

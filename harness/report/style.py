@@ -21,6 +21,8 @@ import colorsys
 from dataclasses import dataclass
 from typing import Callable, Iterable, Mapping, Sequence
 
+from .markdown_text import md_code
+
 #: The most series one panel draws (more are not told apart by colour and legend).
 MAX_SERIES = 10
 #: Families in the order panels and legends list them; others follow alphabetically.
@@ -173,5 +175,5 @@ def panels_note(panels: Sequence[Panel], what: str = "solvers") -> str:
             f"grey for context.")
     if not panels[0].family:
         text += (f" The first panel shows the best {what[:-1] if what.endswith('s') else what} of each family "
-                 f"({', '.join(f'`{s}`' for s in panels[0].solvers)}).")
+                 f"({', '.join(md_code(s) for s in panels[0].solvers)}).")
     return text

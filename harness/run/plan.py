@@ -22,6 +22,8 @@ command line turns it into exit status 2 and writes no table.
 
 from __future__ import annotations
 
+import math
+
 import hashlib
 import json
 import os
@@ -96,8 +98,8 @@ class RunConfig:
     def __post_init__(self) -> None:
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        if not self.timeout > 0:
-            raise ValueError(f"timeout must be > 0 seconds, got {self.timeout}")
+        if not (math.isfinite(self.timeout) and self.timeout > 0):  # (its rows record it: time_limit_s)
+            raise ValueError(f"timeout must be a finite number of seconds > 0, got {self.timeout}")
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
         if self.max_cells < 1:

@@ -217,6 +217,12 @@ def test_the_ledger_finds_the_papers_methods_by_base_solver_and_params_not_by_la
     assert len(both) == len(plain)
     assert np.allclose(both["measured"].astype(float), both["measured_swapped"].astype(float), equal_nan=True)
     assert (both["verdict"] == both["verdict_swapped"]).all()
+    other_k = _table()  # NNLS+GP run only at K = 10: no variant but the paper's plays the method
+    ran = other_k["solver"] == "nnls-gp"
+    other_k.loc[ran, "solver"], other_k.loc[ran, "params"] = "nnls-gp[K=10]", '{"K": 10}'
+    led = cl.ledger(other_k)
+    hits = led[(led["claim"] == "fig4-admm-over-nnlsgp") & (led["condition"] == "dense")]
+    assert (hits["verdict"] == "unmeasured").all(), hits
 
 
 def test_a_lying_solver_does_not_make_the_loads_agree() -> None:

@@ -9,7 +9,7 @@ import pytest
 
 from contactbench.harness.report.browser import browser_missing, load_page, open_driver
 from contactbench.harness.report.build import build_report
-from contactbench.harness.report.core import md_escape
+from contactbench.harness.report.markdown_text import md_code, md_escape
 from tests.helpers import fabricate_table, write_out
 
 HOSTILE = "<img src=x onerror=\"document.title='PWNED'\">"
@@ -28,6 +28,21 @@ def hostile_report(tmp: Path) -> Path:
 def test_a_tag_in_a_markdown_cell_is_text() -> None:
     assert md_escape(HOSTILE).startswith("&lt;img") and md_escape("n <= 10 | a") == "n <= 10 \\| a"
     assert md_escape("</script><!-- x") == "&lt;/script>&lt;!-- x"
+    assert md_code("pk") == "`pk`" and md_code("a`b") == "``a`b``" and md_code("`x") == "`` `x ``"
+
+
+def test_a_backtick_in_a_name_cannot_end_its_code_span(tmp_path: Path) -> None:
+    """A solver name with a backtick is still one code span in report.md's prose (it ended
+    the span, and the rest of the name was read as a live tag)."""
+    df = fabricate_table()
+    df = df[df["scene"] == "counterexample"].copy()
+    name = "x` <img src=x onerror=alert(1)> `y"
+    df.loc[df["solver"] == df["solver"].iloc[0], "solver"] = name
+    out = write_out(tmp_path, df)
+    build_report(out, html=False)
+    md = (out / "report.md").read_text()
+    assert "``x` <img src=x onerror=alert(1)> `y``" in md
+    assert all(line.count("``x`") == line.count("`y``") for line in md.splitlines())
 
 
 def test_a_hostile_solver_name_is_text_on_the_page_and_in_report_md(tmp_path: Path) -> None:

@@ -34,6 +34,9 @@ def forged(df: pd.DataFrame, case: str) -> pd.DataFrame:
         "inaccurate-within-tol": (inaccurate, {"kkt_error": 1e-12}),
         "pass-on-crashed": (failed, {"verdict": "pass"}),
         "bool-junk": (solved, {"warm_start": "maybe"}),
+        "tol-infinite": (solved, {"kkt_error": 0.5, "check_tol": np.inf}),
+        "tol-negative": (inaccurate, {"kkt_error": 0.0, "check_tol": -1.0}),
+        "timeout-pass-above-tol": (first(bad, "timeout"), {"verdict": "pass", "kkt_error": 1.0}),
         "count-fraction": (solved, {"n": 2.4}),
     }
     row, values = edits[case]
@@ -54,6 +57,9 @@ CASES = {
     "inaccurate-within-tol": "status inaccurate with kkt_error 1e-12 within its check_tol",
     "pass-on-crashed": "the reading pass on a row whose status is neither solved nor timeout",
     "bool-junk": "column warm_start of .* holds 'maybe', not true or false",
+    "tol-infinite": "a check_tol inf, not a finite number > 0",
+    "tol-negative": "a check_tol -1.0, not a finite number > 0",
+    "timeout-pass-above-tol": "the reading pass with kkt_error 1.0 above its check_tol",
     "count-fraction": "column n of .* holds 2.4, not a whole number",
 }
 
@@ -61,7 +67,7 @@ CASES = {
 def test_the_fabricated_table_is_consistent() -> None:
     """The table the forgeries start from reads (so each refusal below is the edit's)."""
     df = fabricate_table()
-    assert {"solved", "inaccurate", "crashed"} <= set(df["status"])
+    assert {"solved", "inaccurate", "crashed", "timeout"} <= set(df["status"])
     load_table_of(df)
 
 
@@ -86,3 +92,14 @@ def test_a_row_its_own_figures_contradict_is_refused_on_reading(case: str, tmp_p
     code, stdout, err = run_cli(["report", str(out)], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "forged" in err and not (out / "report.md").exists()
+
+
+def test_a_run_cannot_record_an_infinite_time_limit() -> None:
+    """``RunConfig(timeout=inf)`` is refused: its rows would record ``time_limit_s`` = inf,
+    an infinite duration, and the run could not read its own journal back."""
+    import math
+
+    from contactbench.harness.run.plan import RunConfig
+
+    with pytest.raises(ValueError, match="timeout must be a finite number of seconds"):
+        RunConfig(timeout=math.inf)

@@ -24,6 +24,7 @@ from contactbench.problems.instances import CONTACT_TOL, counterexample
 from matplotlib.figure import Figure
 
 from ..charts import RowChart
+from ..markdown_text import md_code
 from ..core import (
     ReportContext,
     ReportInputError,
@@ -192,17 +193,17 @@ def _counterexample_reading(frac: pd.DataFrame, cells: pd.DataFrame) -> str:
         total = float(f["violations"].sum() / f["seeds"].sum())
         verdict = ("agrees with the paper's ~40 %" if 0.25 <= total <= 0.55 else
                    "is below the paper's ~40 %" if total < 0.25 else "is above the paper's ~40 %")
-        parts.append(f"`{s}` violates it in {desc} ({fmt_pct(total)} overall), which {verdict}.")
+        parts.append(f"{md_code(s)} violates it in {desc} ({fmt_pct(total)} overall), which {verdict}.")
     if not greedy:
         parts.append("No greedy solver is in this table.")
     others = frac[~frac["solver"].isin(greedy)]
     clean = natural_sorted(others.groupby("solver")["violations"].sum().loc[lambda v: v == 0].index)
     bad = natural_sorted(others.groupby("solver")["violations"].sum().loc[lambda v: v > 0].index)
     if clean:
-        parts.append(f"Never violating (as the paper proves for NNLS): {', '.join(f'`{s}`' for s in clean)}.")
+        parts.append(f"Never violating (as the paper proves for NNLS): {', '.join(md_code(s) for s in clean)}.")
     if bad:
         parts.append(f"Non-greedy solvers the judge rejects on some seed (a finding): "
-                     f"{', '.join(f'`{s}`' for s in bad)}.")
+                     f"{', '.join(md_code(s) for s in bad)}.")
     return " ".join(parts) + "\n"
 
 

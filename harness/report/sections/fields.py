@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ...table.fields import ContactField, find_fields, load_field
+from ..markdown_text import md_code
 from ..core import (
     ReportContext,
     Section,
@@ -385,14 +386,14 @@ def _trace_figure(ctx: ReportContext) -> str:
             if not xs:
                 mark_empty(a, "no trace point with a positive residual" + (" and time" if a is a2 else ""))
     rel = ctx.save_figure(fig, f"traces-{scene}")
-    where = ", ".join(f"`{s}`: {reps[s]['instance']} step {int(reps[s]['step'])} ({reps[s]['profile']})"
+    where = ", ".join(f"{md_code(s)}: {reps[s]['instance']} step {int(reps[s]['step'])} ({reps[s]['profile']})"
                       for s in solvers)
     return ctx.figure_md(rel, f"convergence traces per solver family, scene `{scene}`: each solver's own residual "
                               f"(the figure it stops on, not the harness's kkt_error) against iteration (left) and "
                               f"elapsed time (right) for one representative solve, the largest n at the tightest "
                               f"profile ({where}). Solvers without a stored trace are not drawn"
                               + (f", nor those whose trace is a single point (their final residual only: "
-                                 f"{', '.join(f'`{s}`' for s in short)})." if short else "."))
+                                 f"{', '.join(md_code(s) for s in short)})." if short else "."))
 
 
 @register_section("fields", title="The contact fields", group="summary", order=5)
@@ -421,7 +422,7 @@ def fields_section(ctx: ReportContext, table: pd.DataFrame) -> Section | None:
                      "`python -m contactbench.harness.run.backfill OUT` re-solves the top steps to add them).\n")
     elif len({s for s, _ in top}) > drawn:
         rest = [s for s in sort_scenes({s for s, _ in top}) if not any(f"field-{s}-" in x for x in ctx.figures)]
-        parts.append(f"Fields are stored but not drawn for scene(s) {', '.join(f'`{s}`' for s in rest)} "
+        parts.append(f"Fields are stored but not drawn for scene(s) {', '.join(md_code(s) for s in rest)} "
                      f"(at most {MAX_FIELD_SCENES} field figures per report).\n")
     la = _load_area_figure(ctx, top)
     if la:

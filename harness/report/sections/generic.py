@@ -14,6 +14,7 @@ import pandas as pd
 from ...table import aggregates as agg
 from ...table.meta import references_asked
 from ..style import GREY, MAX_SERIES, Panel, family_panels, panels_note
+from ..markdown_text import md_code
 from ..core import (
     LOG_FLOOR,
     PROFILE_PREFERENCE,
@@ -146,7 +147,7 @@ def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel
             a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s), alpha=0.8)
             xs += list(tr[ok, 1])
             ys[0] += list(floor_log(tr[ok, 2]))
-            traced[s] = f"`{s}` ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})"
+            traced[s] = f"{md_code(s)} ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})"
         shape = marker(s, "") if r["profile"].nunique() == 1 else "s"
         a1.plot([], [], ls="none", marker=shape, color=ctx.color(s), label=s)
     if r["profile"].nunique() > 1:

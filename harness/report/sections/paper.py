@@ -23,6 +23,7 @@ from contactbench.problems.surfaces import RMD_FAMILIES
 
 from ..style import GREY, family_panels, panels_note, sort_families
 from ..charts import RowChart
+from ..markdown_text import md_code
 from ..core import (
     WARM_SUFFIX,
     ReportContext,
@@ -160,13 +161,16 @@ LEDGER_ROLES: dict[str, PaperRole] = {**{k: r for k, r in PAPER_ROLES.items() if
 
 def by_role(rows: pd.DataFrame) -> pd.DataFrame:
     """``rows`` with, in each scene, the label of each of the paper's methods (``LEDGER_ROLES``,
-    found by ``base_solver`` and ``params``: ``resolve_role``) replaced by the role's key,
-    and any other label that spells a key marked with its base solver (``"pk (bvls)"``):
-    a label is never taken for the method it names."""
+    found by ``base_solver`` and ``params``: ``resolve_role``, with the paper's parameter
+    values only, never another variant) replaced by the role's key, and any other label
+    that spells a key marked with its base solver (``"pk (bvls)"``): a label is never taken
+    for the method it names."""
     parts = []
     for _, r in rows.groupby("scene", sort=False, dropna=False):
         curves = r.drop_duplicates("solver")
-        players = {s: k for k, role in LEDGER_ROLES.items() if (s := resolve_role(curves, role)) is not None}
+        params = dict(zip(curves["solver"], curves["params"]))
+        players = {s: k for k, role in LEDGER_ROLES.items()
+                   if (s := resolve_role(curves, role)) is not None and _params_match(params[s], role.params)}
         bases = dict(zip(curves["solver"], curves["base_solver"]))
         name = {s: players.get(s, f"{s} ({bases[s]})" if s in LEDGER_ROLES else s) for s in curves["solver"]}
         parts.append(r.assign(solver=r["solver"].map(name)))
@@ -369,7 +373,7 @@ ACCURACY_LEVELS = (1e-6, 1e-8, 1e-10, 1e-12)
 
 def _at(tot: pd.DataFrame, s: str) -> str:
     """"`s` (12.3 s, kkt <= 4.0e-09)": a time always comes with the accuracy it bought."""
-    return f"`{s}` ({fmt_num(tot.loc[s, 'total_s'])} s, worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])})"
+    return f"{md_code(s)} ({fmt_num(tot.loc[s, 'total_s'])} s, worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])})"
 
 
 def fastest_at_accuracy(tot: pd.DataFrame) -> list[tuple[float, str]]:
@@ -425,7 +429,7 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) ->
         extra = ""
         if ref and best != ref and ref in complete.index:
             extra = f", {fmt_ratio(_ratio(tot, ref, best))} faster than NNLS+GP's {_at(tot, ref)}"
-        parts.append(f"The fastest solver over the whole sweep here is `{best}` with "
+        parts.append(f"The fastest solver over the whole sweep here is {md_code(best)} with "
                      f"{fmt_num(complete.loc[best, 'total_s'])} s at worst kkt "
                      f"{fmt_err(complete.loc[best, 'worst_kkt'])}{extra}.")
         levels = fastest_at_accuracy(tot)

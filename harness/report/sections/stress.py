@@ -16,6 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..core import ReportContext, Section, markdown_table, natural_key, register_section, table_md
+from ..markdown_text import md_code
 from ...table.schema import VERDICTS
 
 #: The battery's scenes: "stress" and its parts "stress-<group>".
@@ -41,7 +42,7 @@ def stress_section(ctx: ReportContext, table: pd.DataFrame) -> Section | None:
                               "claimed as converged; unconverged = not solved, and the solver said so; not judged = "
                               "skipped, failed, timed out or crashed (or a table without verdicts).",
                          ["solver", "rows", *VERDICTS, "not judged"], lines, "lrrrrr"))
-    wrong = [f"`{s}`" for s, _n, _p, w, *_ in lines if w]
+    wrong = [md_code(s) for s, _n, _p, w, *_ in lines if w]
     body.append("**Reading.** " + (f"Wrong answers claimed as converged: {', '.join(wrong)}." if wrong else
                                    "No solver claimed convergence on a wrong answer.") + "\n")
     return Section("Stress battery", "\n".join(body))
