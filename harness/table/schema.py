@@ -294,8 +294,8 @@ def check_readings(df: pd.DataFrame, source: object) -> None:
     """Raise TableError for a row whose reading its own figures contradict (a hand-edited
     or forged row: the judge writes none of these): a negative ``kkt_error``; "solved" with
     a ``kkt_error`` that is not a finite number at most its ``check_tol`` (where the row has
-    one: every run writes it), or with no finite ``solve_time_s``; "inaccurate" with a ``kkt_error`` at most its
-    ``check_tol``; the reading "pass" above its ``check_tol``, or on a row that is neither
+    one: every run writes it), or with no finite ``solve_time_s``; "inaccurate" with a
+    ``kkt_error`` at most its ``check_tol``; the reading "pass" above its ``check_tol``, or on a row that is neither
     "solved" nor "timeout" (a solve judged and finished past the limit); a ``check_tol``
     that is not a finite number > 0.  The checks run on the numeric columns already
     checked by ``check_numbers``."""
@@ -304,6 +304,7 @@ def check_readings(df: pd.DataFrame, source: object) -> None:
     tol = _numbers(df, "check_tol")
     seconds = _numbers(df, "solve_time_s")
     solved, inaccurate = status == "solved", status == "inaccurate"
+    late = status == "timeout"  # judged, and finished past the time limit: its reading stands
     passed = df["verdict"].map(as_text).to_numpy() == "pass" if "verdict" in df.columns else np.zeros(len(df), bool)
     with np.errstate(invalid="ignore"):
         within = np.isfinite(kkt) & (np.isnan(tol) | (kkt <= tol))
@@ -313,10 +314,9 @@ def check_readings(df: pd.DataFrame, source: object) -> None:
             (solved & ~within, "status solved with kkt_error {kkt} above its check_tol {tol} (or not a number)"),
             (solved & ~np.isfinite(seconds), "status solved with solve_time_s {seconds}, not a finite time"),
             (inaccurate & (kkt <= tol), "status inaccurate with kkt_error {kkt} within its check_tol {tol}"),
+            (passed & ~(solved | late), "the reading pass on a row whose status is neither solved nor timeout"),
+            (passed & ~within, "the reading pass with kkt_error {kkt} above its check_tol {tol}"),
         ]
-    late = status == "timeout"  # judged, and finished past the time limit: its reading stands
-    rules.append((passed & ~(solved | late), "the reading pass on a row whose status is neither solved nor timeout"))
-    rules.append((passed & ~within, "the reading pass with kkt_error {kkt} above its check_tol {tol}"))
     for rows, what in rules:
         hit = np.flatnonzero(rows)
         if hit.size:
