@@ -357,6 +357,12 @@ def common_reason(out: str) -> str:
 def cmd_export(args: argparse.Namespace) -> int:
     from contactbench.problems.export import export_scene
 
+    from .run.studies import COMPOSITES
+
+    composite = COMPOSITES.get(args.scene)
+    if composite is not None:  # `list scenes` lists it: say what it is, not "unknown scene"
+        scenes = ", ".join(dict.fromkeys(p.study.scene for p in composite.parts))
+        raise InputError(f"export {args.scene}: a composite of the scenes {scenes}; export one scene at a time")
     cfg = scene_config(args)
     check_out_dir(args.out)
     # export_scene checks the options (the plan's rules), the scene's inputs and the folder before writing

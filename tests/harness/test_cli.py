@@ -461,3 +461,11 @@ def test_an_export_that_skips_a_qp_exits_1_not_0(tmp_path: Path, capsys: pytest.
     code, out, err = run_cli(args, capsys)
     assert code == 1 and "exported 0 QPs" in out and "skipped 2" in out, (out, err)
     assert err.strip() == "contactbench export: 2 of 2 QPs not written (the line above says why)"
+
+
+def test_exporting_a_composite_names_its_scenes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``list scenes`` lists the composite ``default``; ``export default`` says what it is and
+    which scenes to export (it said "unknown scene 'default'"), exit 2, nothing written."""
+    code, _out, err = run_cli(["export", "default", "--format", "hdf5", "--out", str(tmp_path / "ex")], capsys)
+    assert code == 2 and "a composite of the scenes paper-sweep, counterexample" in err, err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "ex").exists()
