@@ -48,7 +48,6 @@ again holds only the new QP's files (``qpfile.write_problem_dir``).
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import json
 import re
@@ -130,8 +129,6 @@ def _file_safe(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", text)
 
 
-
-
 def check_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[Any, SceneConfig]:
     """(scene, merged configuration) of an export of ``scene_name`` under ``cfg`` (a
     ``SceneConfig``), its options and inputs checked as the planner does and its QPs
@@ -182,15 +179,14 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
     steps = scene_steps(scene_name, cfg, max_qps)
     first = next(steps, None)  # the options and inputs are checked before the folder is made
     out_dir.mkdir(parents=True, exist_ok=True)
-    with contextlib.ExitStack() as held:
-        try:
-            held.enter_context(folder_lock(out_dir))
-        except FolderLockedError:
-            raise ProblemInputError(f"export folder {out_dir} is in use by another export; wait for it to finish or "
-                                    "choose another --out") from None
-        check_export_folder(out_dir)  # again, now that no other export can change it
-        qps = itertools.chain([] if first is None else [first], steps)
-        return _export_locked(scene_name, qps, fmt, out_dir, limit, tol)
+    qps = itertools.chain([] if first is None else [first], steps)
+    try:
+        with folder_lock(out_dir):
+            check_export_folder(out_dir)  # again, now that no other export can change it
+            return _export_locked(scene_name, qps, fmt, out_dir, limit, tol)
+    except FolderLockedError:  # (raised by folder_lock alone)
+        raise ProblemInputError(f"export folder {out_dir} is in use by another export; wait for it to finish or "
+                                "choose another --out") from None
 
 
 def _export_locked(scene_name: str, qps: Iterator[tuple[str, int, ContactInstance]], fmt: str, out_dir: Path,

@@ -163,8 +163,7 @@ def love_coefficients(dx: np.ndarray, dy: np.ndarray, delta: Spacing, E: float) 
         - _love_term(x - a, y, b)
         - _love_term(y - b, x, a)
     )
-    compliance_scale(E, d1 * d2, 1.0)  # (refuses an E whose scale float64 cannot hold)
-    return u / (np.pi * E * d1 * d2)
+    return u * compliance_scale(E, d1 * d2, 1.0)
 
 
 _REAL_SPACE: dict[str, Callable[[np.ndarray, np.ndarray, Spacing, float], np.ndarray]] = {
