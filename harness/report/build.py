@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from contactbench.problems.atomic_files import FolderLockedError, folder_lock
+
 from ..table import aggregates as agg
 from ..table.files import write_text_atomic
 from ..table.meta import read_meta
@@ -24,7 +26,7 @@ from .core import (
     read_table,
     registered_sections,
 )
-from .figure_files import discard, publish
+from .figure_files import discard, figure_dir, publish
 from .html import write_html_report
 
 
@@ -42,20 +44,35 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
 
 def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: bool = True) -> ReportContext:
     """``build_report``, returning the context it filled: its figures, tables, charts and
-    ``blank_panels`` (the panels saved with nothing on them and no note: none is right)."""
+    ``blank_panels`` (the panels saved with nothing on them and no note: none is right).
+    One report writes in a folder at a time: it holds a lock on OUT/figures/ while it
+    stages and publishes, and a second one is refused at once (``ReportInputError``)."""
     out = Path(out_dir)
     table = read_table(out)
     if table.empty:
         raise ReportInputError(f"the results table in {out} has no rows")
     ctx = ReportContext(out, table, read_meta(out), shift=shift)
-    discard(out)  # what a report that was killed part-way staged
+    figure_dir(out).mkdir(parents=True, exist_ok=True)
+    try:
+        with folder_lock(figure_dir(out)):
+            _write_locked(ctx, html)
+    except FolderLockedError:  # (raised by folder_lock alone)
+        raise ReportInputError(f"report {out}: another report is writing in this folder; run this one again "
+                               "when it has finished") from None
+    return ctx
+
+
+def _write_locked(ctx: ReportContext, html: bool) -> None:
+    """``write_report``'s writing, with the folder's report lock held: whatever a report
+    killed part-way staged is discarded first, and this one's staging on failure."""
+    out = ctx.out_dir
+    discard(out)
     try:
         _write(ctx, html)
     except BaseException:
         discard(out)
         raise
     publish(out, [Path(rel).name for rel in ctx.figures])
-    return ctx
 
 
 def _write(ctx: ReportContext, html: bool) -> None:

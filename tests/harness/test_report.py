@@ -498,6 +498,50 @@ def test_a_report_failing_part_way_keeps_the_last_figures(tmp_path: Path, monkey
     assert set(before) - after == {n for n in before if "hertz" in n}
 
 
+def test_a_second_report_in_a_folder_is_refused_and_the_first_one_s_figures_stay(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """While a report writes in a folder (its lock on OUT/figures/ held), another report of
+    that folder is refused in one line, exit 2, before it stages anything: the first one's
+    staged figures and the published ones stay as they were."""
+    from contactbench.harness.cli import main
+    from contactbench.harness.report.figure_files import staging_dir
+    from contactbench.problems.atomic_files import folder_lock
+
+    table = fabricate_table()
+    out = write_out(tmp_path, table[table["scene"] == "hertz"])
+    build_report(out)
+    before = {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")}
+    staged = staging_dir(out)
+    staged.mkdir()
+    (staged / "wp-hertz.png").write_bytes(b"the first report's staged figure")
+    capsys.readouterr()
+    with folder_lock(out / "figures"):  # the first report, part-way
+        assert main(["report", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "another report is writing" in err[0] and str(out) in err[0]
+    assert (staged / "wp-hertz.png").read_bytes() == b"the first report's staged figure"
+    assert {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")} == before
+    assert main(["report", str(out)]) == 0  # the lock released: the next one runs
+    assert not staged.exists()
+
+
+def test_a_claims_csv_that_is_not_a_ledger_is_left_alone(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """Outside a claims run, a user's own claims.csv (few of the ledger's columns) is not read
+    as a ledger: the report is written, the file stays byte for byte, no claims.md is
+    written, and a warning names the file."""
+    from contactbench.harness.cli import main
+
+    table = fabricate_table()
+    out = write_out(tmp_path, table[table["scene"] == "hertz"])
+    mine = b"claim,owner,verdict\nthe mesh converges,me,maybe\n"
+    (out / "claims.csv").write_bytes(mine)
+    assert main(["report", str(out)]) == 0
+    assert (out / "claims.csv").read_bytes() == mine
+    assert not (out / "claims.md").exists()
+    assert "ledger" not in (out / "report.md").read_text().split("##")[1]  # no ledger section leads it
+    assert "claims.csv: not a claims ledger" in caplog.text
+
+
 def test_a_run_without_a_reference_draws_no_empty_error_panel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A run with ``--reference none`` has no error in p: its work-precision figure is the KKT
     panel alone (no empty box beside it), the caption says why, and with one profile each

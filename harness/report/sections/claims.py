@@ -4,13 +4,17 @@ the section that leads ``report.md`` of a folder holding a ledger.
 ``write_claims_report(DIR)`` is what ``contactbench report DIR`` does first: in a folder
 of a ``paper-claims`` run (its meta names the study) it (re)computes ``claims.csv`` from
 the results table (``harness/report/claims.py``); wherever ``claims.csv`` is, it writes
-``claims.md`` from that file and nothing else.  A ``claims.csv`` that lacks a column of
-``LEDGER_COLUMNS`` or holds a verdict outside ``VERDICTS`` is refused with one line.
+``claims.md`` from that file and nothing else.  Outside a claims run, a ``claims.csv``
+whose header shares fewer than ``LEDGER_MIN_SHARED`` columns with ``LEDGER_COLUMNS`` is
+not a ledger: it is someone else's file, left as it is and not read (``ledger_in``; a
+warning says so).  A ledger that lacks a column or holds a verdict or a condition outside
+its lists is refused with one line.
 """
 
 from __future__ import annotations
 
 import math
+import logging
 from pathlib import Path
 
 import pandas as pd
@@ -29,8 +33,14 @@ from ..core import (
     register_section,
 )
 
+log = logging.getLogger(__name__)
+
 #: The document written beside ``claims.csv``.
 CLAIMS_MD = "claims.md"
+#: A claims.csv outside a claims run is read as a ledger (and refused when it is a broken
+#: one) when its header names at least this many of ``LEDGER_COLUMNS``; with fewer it is
+#: another file of that name (module doc).
+LEDGER_MIN_SHARED = len(LEDGER_COLUMNS) // 2
 #: The study whose run folders get their ledger (re)computed by ``contactbench report``.
 CLAIMS_STUDY = "paper-claims"
 #: What each condition is, for the reader.
@@ -155,13 +165,39 @@ def is_claims_run(out_dir: str | Path) -> bool:
     return any(CLAIMS_STUDY in cmd.split() for cmd in commands_of(read_meta(out_dir)))
 
 
+def has_ledger_header(path: Path) -> bool:
+    """Whether the first line of the file ``path`` names at least ``LEDGER_MIN_SHARED`` of
+    the columns of ``LEDGER_COLUMNS``."""
+    try:
+        with path.open(encoding="utf-8", errors="replace") as fh:
+            header = fh.readline()
+    except OSError:
+        return False
+    named = {c.strip().strip('"') for c in header.rstrip("\r\n").split(",")}
+    return len(named & set(LEDGER_COLUMNS)) >= LEDGER_MIN_SHARED
+
+
+def ledger_in(out: Path, warn: bool = True) -> Path | None:
+    """OUT/claims.csv when it is a ledger -- the folder is a claims run, or the file's header
+    has most of the ledger's columns -- else None (module doc: another file of that name is not read;
+    with ``warn``, a warning names it)."""
+    path = out / LEDGER_NAME
+    if not path.is_file():
+        return None
+    if is_claims_run(out) or has_ledger_header(path):
+        return path
+    if warn:
+        log.warning("%s: not a claims ledger (its header has few of the ledger's columns); left as it is", path)
+    return None
+
+
 def write_claims_report(out_dir: str | Path) -> Path | None:
     """For a ``paper-claims`` run folder: claims.csv from its results table; then, wherever
-    claims.csv is, claims.md from it.  None for a folder with neither."""
+    claims.csv is a ledger (``ledger_in``), claims.md from it.  None for a folder with neither."""
     out = Path(out_dir)
     if is_claims_run(out):
         write_ledger(read_table(out), out)
-    if not (out / LEDGER_NAME).is_file():
+    if ledger_in(out) is None:
         return None
     return write_claims_md(out)
 
@@ -169,8 +205,8 @@ def write_claims_report(out_dir: str | Path) -> Path | None:
 @register_section("claims-ledger", title="The paper's claims ledger", group="lead", order=0)
 def claims_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     """The ledger at the head of report.md, when the folder holds one (else no section)."""
-    path = ctx.out_dir / LEDGER_NAME
-    if not path.is_file():
+    path = ledger_in(ctx.out_dir, warn=False)  # (write_claims_report warned)
+    if path is None:
         return None
     df = read_ledger(path)
     body = [(f"Each quantitative claim of the paper under the paper's condition (`dense`) and ours (`fft`); "
