@@ -581,7 +581,7 @@ def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, opera
     poses the problem on a grid, such as the peers, can pose it); it has no surface and
     no far-field displacement (ubar is drawn, not derived from heights), so
     ``Geometry.has_surface`` is False."""
-    N = int(round(np.sqrt(n)))
+    N = int(round(np.sqrt(n))) if isinstance(n, (int, np.integer)) and n >= 0 else -1
     if N * N != n or N < 2:
         raise ProblemInputError(f"counterexample needs n = N^2 with N >= 2, got n = {n}")
     check_kernel(kernel, periodic)

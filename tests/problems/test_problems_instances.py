@@ -3,6 +3,8 @@ greedy counterexample (Example 1), analytic scenes, KKT unit invariance, bad inp
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -236,3 +238,13 @@ def test_a_number_given_as_text_a_bool_or_none_is_refused_naming_it(bad: object)
         load_ramp(bad, 3)  # type: ignore[arg-type]
     with pytest.raises(ProblemInputError, match="surface length"):
         check_positive("surface length", bad)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("n", [-5, 0, 3, 2.5, 4.0, float("nan"), True])
+def test_the_counterexample_refuses_a_size_that_is_no_square_count_in_one_line(n: object) -> None:
+    """n must be an integer N^2 with N >= 2: anything else is named, with no NumPy warning on
+    the way (a negative n once took a square root of it and raised an unrelated ValueError)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ProblemInputError, match=r"counterexample needs n = N\^2 with N >= 2, got n = "):
+            counterexample(n, 0)  # type: ignore[arg-type]
