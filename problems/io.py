@@ -3,8 +3,8 @@ text), and cleaning.
 
 Formats read by :func:`load_surface`:
 
-* ``.npy``  -- ``numpy.load(..., allow_pickle=False)``: pickled/object arrays are refused,
-  never loaded.  The array is (rows = y, columns = x).
+* ``.npy``  -- ``numpy.load(..., allow_pickle=False)``: pickled/object arrays and files
+  without NumPy's header are refused, never loaded.  The array is (rows = y, columns = x).
 * text      -- a plain matrix of numbers, one row per line; the delimiter (comma,
   semicolon, tab or white space) is detected from the first data line; ``#`` starts a
   comment; ``nan`` marks a missing point.
@@ -21,7 +21,7 @@ Formats read by :func:`load_surface`:
   in -- except bare-matrix containers (.mat, .npz), whose matrix is taken as it is,
   like a .npy.  Refused with a clear error: non-uniform line scans, 1-D profiles,
   multi-channel files without a chosen ``channel``, units that do not convert to
-  metres.  For .x3p the MD5 checksum of the point data stated in
+  metres, heights so large that sums over the map overflow (``HEIGHT_CEILING``).  For .x3p the MD5 checksum of the point data stated in
   main.xml is verified (SurfaceTopography does not); this module parses no XML itself.
 
 The lateral size: a file that states its physical size (x3p, gwy, nc, most instrument
@@ -91,6 +91,9 @@ NPY_MAGIC = b"\x93NUMPY"
 TEXT_SUFFIXES = (".txt", ".csv", ".tsv")
 #: SurfaceTopography formats that hold a bare matrix: taken as (rows, columns) like a .npy.
 MATRIX_FORMATS = ("mat", "npz")
+#: A map's heights are refused above this over its point count: sqrt(the largest float), so
+#: the cleaning's sums of squares stay finite.
+HEIGHT_CEILING = float(np.sqrt(np.finfo(np.float64).max))
 #: Relative disagreement allowed between a given length and the file's own lateral size.
 LENGTH_RTOL = 1e-6
 #: The cleaning warnings announced so far in this process (``announce``).
@@ -119,9 +122,7 @@ class RawMap:
     unit_known: bool = False
 
 
-# ---------------------------------------------------------------------------
-# Public entry point
-# ---------------------------------------------------------------------------
+# --- Public entry point ---
 
 
 def load_surface(
@@ -274,14 +275,14 @@ def _only_channel(p: Path, channel: int | str | None) -> None:
         raise SurfaceFileError(p, f"has a single channel; channel {channel!r} does not exist")
 
 
-# ---------------------------------------------------------------------------
-# Readers of our own: .npy and text
-# ---------------------------------------------------------------------------
+# --- Readers of our own: .npy and text ---
 
 
 def read_npy(path: str | Path) -> RawMap:
     """A 2-D numeric .npy array; pickles are never loaded."""
     p = Path(path)
+    if not _read_head(p).startswith(NPY_MAGIC):
+        raise SurfaceFileError(p, "not a .npy file: it lacks NumPy's header")
     try:
         a = np.load(p, allow_pickle=False)
     except ValueError as e:
@@ -353,13 +354,16 @@ def _numeric_matrix(p: Path, a: np.ndarray) -> np.ndarray:
     a = a.astype(np.float64)
     if np.isinf(a).any():
         raise SurfaceFileError(p, f"{int(np.isinf(a).sum())} infinite heights; only NaN may mark a missing point")
+    top, ceiling = float(np.nanmax(np.abs(a), initial=0.0)), HEIGHT_CEILING / a.size
+    if top > ceiling:  # (the cleaning's sums of squares would overflow to inf)
+        at = np.unravel_index(int(np.nanargmax(np.abs(a))), a.shape)
+        raise SurfaceFileError(p, f"a height of {top:.3g} at index {tuple(map(int, at))}: above {ceiling:.3g}, "
+                                  "where sums over the map overflow; not a height map in any unit")
     return a
 
 
 
-# ---------------------------------------------------------------------------
-# Every other format: SurfaceTopography's readers
-# ---------------------------------------------------------------------------
+# --- Every other format: SurfaceTopography's readers ---
 
 
 def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | None = None) -> RawMap:
@@ -483,9 +487,7 @@ def _st_version() -> str:
     return str(getattr(SurfaceTopography, "__version__", "?"))
 
 
-# ---------------------------------------------------------------------------
-# Cleaning
-# ---------------------------------------------------------------------------
+# --- Cleaning ---
 
 
 def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str, Any],
