@@ -86,7 +86,7 @@ def parse_seeds(text: str) -> Sequence[int]:
     if len(parts) == 1:
         return parts[0]
     most = 10**6  # a list of several parts is expanded here (one range is not: the plan bounds it)
-    if sum(len(r) for r in parts) > most:
+    if sum(r.stop - r.start for r in parts) > most:
         raise argparse.ArgumentTypeError(f"seed list {text!r} has over {most:,} seeds; give one range (e.g. 0-99)")
     return tuple(dict.fromkeys(s for r in parts for s in r))
 

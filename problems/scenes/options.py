@@ -55,6 +55,8 @@ PLAUSIBLE_HARDNESS: tuple[float, float] = (1e4, 1e12)
 PLAUSIBLE_LOAD: tuple[float, float] = (1e-9, 1.0)
 #: Plausible lengths (metres), of a surface's side or a layer's thickness: 1 nm to 1 km.
 PLAUSIBLE_LENGTH: tuple[float, float] = (1e-9, 1e3)
+#: The largest seed: a seed is stored in the results table's Int64 ``seed`` column.
+MAX_SEED = 2**63 - 1
 #: The option that lifts every plausibility range (``--allow-implausible``).
 ALLOW_IMPLAUSIBLE = "allow_implausible"
 
@@ -351,12 +353,15 @@ def value_problem(rec: OptionRecord, value: Any, allow: set[str]) -> str | None:
                         f"{did_you_mean(str(value), rec.choices)}")
             return None
         if rec.kind == "seeds":
+            given = (f"{value.start}" + (f"-{value.stop - 1}" if value.stop - value.start > 1 else "")
+                     if isinstance(value, range) else value)
+            wrong = f"{rec.flag} takes integers from 0 to {MAX_SEED} (2^63 - 1), got {given}"
             if isinstance(value, range):  # (a lazy range stays lazy: the plan bounds its size)
-                return None if len(value) and value.start >= 0 and value.step > 0 else \
-                    f"{rec.flag} takes integers >= 0, got {value!r}"
+                ok = value.start < value.stop and value.start >= 0 and value.step > 0 and value.stop - 1 <= MAX_SEED
+                return None if ok else wrong
             seeds = list(value)
-            if not seeds or any(isinstance(s, bool) or int(s) != s or s < 0 for s in seeds):
-                return f"{rec.flag} takes integers >= 0, got {value!r}"
+            if not seeds or any(isinstance(s, bool) or int(s) != s or not 0 <= s <= MAX_SEED for s in seeds):
+                return wrong
             return None
         if rec.kind in ("text", "switch"):
             return None

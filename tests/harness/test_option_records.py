@@ -294,3 +294,13 @@ def test_a_lazy_seed_range_is_checked_without_expanding_it() -> None:
     assert option_problems(["paper-sweep"], SceneConfig(seeds=range(0)))  # type: ignore[arg-type]
     with pytest.raises(PlanError, match="--max-cells"):
         plan_run(["paper-sweep"], SceneConfig(size=16, seeds=huge), ["pk"])  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("seeds", [(2**63,), range(2**63, 2**63 + 1), range(0, 10**20), (0, 10**20)])
+def test_a_seed_the_table_cannot_store_is_refused_before_anything_runs(seeds: object) -> None:
+    """Seeds are stored in the table's Int64 column: one above 2^63 - 1 is refused in one
+    line before anything runs (else every cell is solved and the table cannot be written,
+    nor the folder read again); a range longer than a machine integer is sized without len()."""
+    problems = option_problems(["paper-sweep"], SceneConfig(seeds=seeds))  # type: ignore[arg-type]
+    assert len(problems) == 1 and "--seeds takes integers from 0 to 9223372036854775807" in problems[0]
+    assert option_problems(["paper-sweep"], SceneConfig(seeds=(2**63 - 1,))) == []  # type: ignore[arg-type]
