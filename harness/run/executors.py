@@ -15,6 +15,7 @@ they run.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
@@ -128,5 +129,13 @@ def stop_workers(pool: ProcessPoolExecutor) -> None:
 
 
 def local_executor(run: RunConfig, jobs: int) -> Executor:
-    """Serial for ``--jobs 1`` or a single job, else a process pool."""
-    return SerialExecutor() if run.jobs <= 1 or jobs <= 1 else PoolExecutor(run.jobs)
+    """Serial for ``--jobs 1`` or a single job, else a process pool of ``--jobs`` processes,
+    never more than there are ``jobs`` to run; a warning when ``--jobs`` is above the CPUs
+    (the workers then share them, and their timings contend)."""
+    if run.jobs <= 1 or jobs <= 1:
+        return SerialExecutor()
+    cpus = os.cpu_count() or 1
+    if run.jobs > cpus:
+        log.warning("--jobs %d is above the %d CPUs of this machine: the workers share them, and their timings "
+                    "contend", run.jobs, cpus)
+    return PoolExecutor(min(run.jobs, jobs))

@@ -464,3 +464,18 @@ def test_a_killed_owners_worker_folder_is_removed_by_the_next_worker() -> None:
     finally:
         for d in (dead, alive):
             shutil.rmtree(d, ignore_errors=True)
+
+
+def test_a_pool_never_has_more_processes_than_jobs_and_too_many_is_warned(caplog: pytest.LogCaptureFixture) -> None:
+    """--jobs 100000 on four instance jobs starts four processes (a pool starts every worker
+    at once), with a warning that --jobs is above the machine's CPUs; one job runs serially."""
+    from contactbench.harness.run.executors import PoolExecutor, SerialExecutor, local_executor
+    from contactbench.harness.run.plan import RunConfig
+
+    pool = local_executor(RunConfig(jobs=100_000), 4)
+    assert isinstance(pool, PoolExecutor) and pool.workers == 4 and pool.describe()["workers"] == 4
+    assert "--jobs 100000 is above the" in caplog.text
+    assert isinstance(local_executor(RunConfig(jobs=100_000), 1), SerialExecutor)
+    caplog.clear()
+    assert local_executor(RunConfig(jobs=2), 9).workers == 2  # type: ignore[attr-defined]
+    assert "above the" not in caplog.text or (os.cpu_count() or 1) < 2
