@@ -35,6 +35,7 @@ ANALYTIC_OPTIONS: frozenset[str] = frozenset({"size", "steps", "length", "E", "k
 
 PAPER_SEED = 5  # RMD seed of the paper-sweep default surface (see PaperSweep)
 PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
+PAPER_LENGTH = 100e-6  # the paper's lateral size L (metres), the rough-surface scenes' default
 
 #: The keywords of a measured surface file's cleaning (``problems.io.load_surface``'s
 #: ``detrend``, ``nan`` and ``crop``; options of the "surface-file" group, ``options.OPTIONS``).
@@ -237,10 +238,26 @@ def layer_suffix(params: dict[str, Any]) -> str:
     return name_suffix(params, "layer")
 
 
+def length_suffix(length: float | tuple[float, float] | None) -> str:
+    """"" for the paper's lateral size (``PAPER_LENGTH``, and None: the scene's), else
+    "-L<metres>" ("-L<L0>x<L1>" for two): the same seed at another size is another problem."""
+    sizes = tuple(length) if isinstance(length, (list, tuple)) else (length,)
+    if all(x is None or float(x) == PAPER_LENGTH for x in sizes):
+        return ""
+    return "-L" + "x".join(f"{float(x):g}" for x in sizes if x is not None)
+
+
+def modulus_suffix(E: float | None) -> str:
+    """"" for the paper's modulus (``PAPER_E``, and None: the scene's), else "-E<Pa>"."""
+    return "" if E is None or float(E) == PAPER_E else "-E" + f"{float(E):g}".replace("e+0", "e").replace("e+", "e")
+
+
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
     """One recipe per seed (or one for a measured surface).  Generated surfaces are RMD of
     the run's family (``surface_family``), which their params and names carry, e.g.
-    "saupe-H0.7-N512-bcc-np-s5"; an unknown family is refused here, before anything runs."""
+    "saupe-H0.7-N512-bcc-np-s5", with "-L<metres>" and "-E<Pa>" where the lateral size and the
+    modulus are not the paper's (a measured map's name carries its spacing already); an
+    unknown family is refused here, before anything runs."""
     base = {
         "size": cfg.size,
         "hurst": hurst,
@@ -255,6 +272,7 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
     }
     if base.get("control") == CONTROLS[1]:
         base["steps"] = len(load_steps(base))
+    material = modulus_suffix(cfg.E)
     if cfg.surface_path:
         file_params = {**base, "surface_path": cfg.surface_path, "seed": 0, **recipe_params(cfg.extra, "surface-file")}
         if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
@@ -262,12 +280,13 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         record = surface_from_params(file_params).preprocessing  # names the map by its base name and content
         file_params["surface_path"] = record.path
         file_params["surface_sha256"] = record.raw_sha256  # what the file must still hold when a step is built
-        return [InstanceSpec(scene, f"{record.instance_name}{layer_suffix(base)}{control_suffix(base)}", file_params)]
+        return [InstanceSpec(scene, f"{record.instance_name}{material}{layer_suffix(base)}{control_suffix(base)}",
+                             file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
     bc = "per" if cfg.periodic else "np"
     return [
-        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}{layer_suffix(base)}"
-                            f"{control_suffix(base)}",
+        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}{length_suffix(cfg.length)}"
+                            f"{material}{layer_suffix(base)}{control_suffix(base)}",
                      {**base, "family": family, "seed": int(s)})
         for s in seeds_of(cfg)
     ]

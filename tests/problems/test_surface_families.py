@@ -450,3 +450,24 @@ def test_side_by_side_refuses_a_negative_sweep(tmp_path):
     proc = subprocess.run([sys.executable, str(script), "--base", str(REPO), "--sweep", "-1",
                            "--out", str(tmp_path / "o.csv")], capture_output=True, text=True, check=False, timeout=120)
     assert proc.returncode == 2 and "--sweep" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("scene", ["paper-sweep", "load-sweep", "cmr"])
+def test_a_surface_at_another_size_or_modulus_is_another_instance(scene: str) -> None:
+    """The report reads problems by instance name: one seed at another lateral size or
+    modulus is another problem, so its name says so ("-L", "-E"); at the paper's L and E
+    (given or not) the name is the paper's."""
+    from contactbench.problems.scenes import SceneConfig, get_scene
+    from contactbench.problems.scenes.core import PAPER_E, PAPER_LENGTH
+
+    sc = get_scene(scene)
+
+    def names(**kw: object) -> list[str]:
+        return [s.instance for s in sc.instances(sc.config(SceneConfig(size=32, seeds=(0,), **kw)))]  # type: ignore[arg-type]
+
+    plain = names()
+    assert names(length=PAPER_LENGTH, E=PAPER_E) == plain
+    longer, stiffer, both = names(length=1e-3), names(E=2e9), names(length=1e-3, E=2e9)
+    assert all(a != b for a, b in zip(longer, plain)) and all("-L0.001" in n for n in longer)
+    assert all("-E2e9" in n for n in stiffer) and all(n != m for n, m in zip(stiffer, plain))
+    assert len({*plain, *longer, *stiffer, *both}) == 4 * len(plain)
