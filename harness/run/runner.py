@@ -77,21 +77,30 @@ def under_ci() -> bool:
 
 def run_config_record(scenes: Sequence[str], cfg: SceneConfig, plan: RunPlan, run: RunConfig) -> dict[str, Any]:
     """meta.json's ``config`` (less the executor); ``cells``: how many cells the plan
-    has (a report of a folder with fewer says the run is partial)."""
+    has (a report of a folder with fewer says the run is partial); ``surface_sha256``, where
+    the run reads measured maps: the raw heights' hashes its recipes pin (``surface_hashes``)."""
+    hashes = surface_hashes(plan)
     return {"scenes": list(scenes), "scene_config": asdict(cfg), "run": asdict(run),
             "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
             "profiles": sorted({p for j in plan.jobs for p in j.profiles}),
-            "cells": plan.n_cells(run.repeats)}
+            "cells": plan.n_cells(run.repeats), **({"surface_sha256": hashes} if hashes else {})}
+
+
+def surface_hashes(plan: RunPlan) -> list[str]:
+    """The hashes of the measured maps the plan's recipes read (none for generated surfaces)."""
+    return sorted({str(j.spec.params["surface_sha256"]) for j in plan.jobs if j.spec.params.get("surface_sha256")})
 
 
 def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     """The configuration a results folder pins (its marker), from a meta.json ``config``
     (``run_config_record``, of this run or of a folder written before the marker):
-    scenes, scene options, solvers, profiles and ``IDENTITY_RUN_FIELDS``."""
+    scenes, scene options, solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured
+    maps' contents where it reads any (a map edited between two runs is another run)."""
     run = config.get("run") or {}
+    maps = {"surface_sha256": config["surface_sha256"]} if config.get("surface_sha256") else {}
     return {"scenes": config.get("scenes"), "scene_config": config.get("scene_config"),
             "solvers": config.get("solvers"), "profiles": config.get("profiles"),
-            "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}}
+            "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}, **maps}
 
 
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,

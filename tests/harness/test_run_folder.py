@@ -86,6 +86,29 @@ def test_another_configuration_is_refused_unless_appended(tmp_path: Path, capsys
     assert "| Commands |" in header and all(c in header for c in meta["commands"])
 
 
+def test_a_measured_map_edited_between_two_runs_is_another_configuration(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The folder pins the maps' contents: the same command after one height of the file
+    changed is refused (naming the hash), and resumes while the file holds what it held."""
+    import numpy as np
+
+    heights = np.random.default_rng(1).normal(size=(16, 16)) * 1e-6
+    np.save(tmp_path / "s.npy", heights)
+    out = tmp_path / "run"
+    common = ["paper-sweep", "--surface", str(tmp_path / "s.npy"), "--length", "1e-4", "--steps", "2",
+              "--solvers", SOLVER, "--reference", "none", "--out", str(out)]
+    assert cli_run(capsys, *common)[0] == 0
+    assert cli_run(capsys, *common)[0] == 0  # the same map: resumed
+    before = snapshot(out)
+    heights[3, 3] += 1e-7
+    np.save(tmp_path / "s.npy", heights)
+    code, err = cli_run(capsys, *common)
+    assert code == 2 and err.count("\n") == 1 and "surface_sha256" in err and "--append" in err
+    assert snapshot(out) == before
+    assert cli_run(capsys, *common, "--append")[0] == 0
+    assert load_table(out)["instance"].nunique() == 2
+
+
 def test_a_folder_written_before_the_marker_is_resumed(tmp_path: Path) -> None:
     out = tmp_path / "old"
     run_benchmark(["paper-sweep"], small(), [SOLVER], RUN, out, command=["pytest"])
