@@ -575,6 +575,13 @@ def _threads_text(v: Any) -> str | None:
     return ", ".join(parts) or None
 
 
+def _worker_threads_text(meta: dict[str, Any]) -> str | None:
+    """The BLAS/FFT threads each solve worker was held to (meta ``config.worker_threads``),
+    where the run held them (--threads, or --jobs above 1); else None: the line above holds."""
+    k = _meta_get(meta, "config.worker_threads")
+    return None if k is None else f"{k} (BLAS and FFT threads of each solve worker; the line above is the parent's)"
+
+
 def status_counts(t: pd.DataFrame) -> str:
     """"solved 12, skipped 3, ..." in STATUSES order."""
     counts = t["status"].value_counts()
@@ -649,6 +656,7 @@ def header_section(ctx: ReportContext) -> str:
         ("CPU", _meta_get(m, "cpu", "machine.cpu", "processor", "cpu_model")),
         ("Cores", _cores_text(m)),
         ("Threads (BLAS/FFT)", _threads_text(_meta_get(m, "threads", "thread_settings", "machine.threads"))),
+        ("Threads of each solve", _worker_threads_text(m)),
         ("Platform", _meta_get(m, "platform", "os", "machine.platform")),
         ("Python", _meta_get(m, "python", "python_version", "machine.python")),
         ("Package versions", _meta_get(m, "versions", "packages", "package_versions")),

@@ -141,7 +141,8 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     statuses = {c: str(r.get("status", "")) for c, r in stored.items()}
     pending = [j.with_stored(stored, run) for j in plan.jobs if not all(c in statuses for c in job_cell_ids(j, run))]
     executor = executor or local_executor(run, len(pending))
-    config = {**config, "run": asdict(executor.run_config(run)), "executor": executor.describe()}
+    ran = executor.run_config(run)  # (what each solve worker's BLAS/FFT threads are held to: the report's header)
+    config = {**config, "run": asdict(ran), "executor": executor.describe(), "worker_threads": ran.worker_threads()}
     write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
                                      surfaces=surface_preprocessing(j.spec for j in plan.jobs)))
     total = sum(j.n_cells(run.repeats) for j in pending)

@@ -234,3 +234,16 @@ def test_a_lazy_seed_range_runs_like_a_tuple(tmp_path: Path) -> None:
     summary = run_benchmark(["paper-sweep"], SceneConfig(size=8, steps=1, seeds=(0, 1)), [SOLVER], RUN, b,
                             command=["t"])
     assert summary.new_rows == 0  # the same configuration: a resume with nothing left to do
+
+
+def test_the_header_says_the_threads_each_solve_was_held_to(tmp_path: Path) -> None:
+    """--threads 1 holds every solve worker's BLAS and FFT threads to 1: the header says so
+    beside the parent's thread record; a run that held nothing adds no such line."""
+    from dataclasses import replace
+
+    held, free = tmp_path / "held", tmp_path / "free"
+    run_benchmark(["paper-sweep"], small(), [SOLVER], replace(RUN, threads_per_worker=1), held, command=["pytest"])
+    run_benchmark(["paper-sweep"], small(), [SOLVER], RUN, free, command=["pytest"])
+    text = header_section(ReportContext(held, load_table(held), read_meta(held)))
+    assert "| Threads of each solve | 1 (" in text
+    assert "Threads of each solve" not in header_section(ReportContext(free, load_table(free), read_meta(free)))
