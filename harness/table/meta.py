@@ -232,7 +232,8 @@ def cells_text(meta: dict[str, Any], t: pd.DataFrame) -> str | None:
     a recorded plan.  A cell is a distinct ``cell_id`` (``schema.CELL_COLUMNS`` where the
     table carries none).  A folder added to with ``--append`` holds the cells of several
     plans, which may share cells: it is complete when its cells reach the plans' sum,
-    partial when they fall short of the largest plan, and otherwise not decided here."""
+    partial when they fall short of the largest plan (its missing cells then bounded from
+    below, not counted: rows are not told apart by plan), and otherwise not decided here."""
     plans = planned_runs(meta)
     if not plans:
         return None
@@ -240,9 +241,13 @@ def cells_text(meta: dict[str, Any], t: pd.DataFrame) -> str | None:
     keys = [c for c in CELL_COLUMNS if c in t.columns]
     done = int(ids[ids != ""].nunique()) if (ids != "").any() else len(t.drop_duplicates(keys) if keys else t)
     largest, total = max(plans), sum(plans)
-    if done < largest:
+    if done < largest and len(plans) == 1:
         return (f"PARTIAL RUN: {done} of {largest} planned cells have a row ({largest - done} missing: the run "
                 "was interrupted or has not finished; run the same command again to resume it)")
+    if done < largest:  # (the rows of the several plans are not told apart: a bound, not a count)
+        return (f"PARTIAL RUN: {done} cells have a row over {len(plans)} runs added with --append, which planned "
+                f"{' + '.join(map(str, plans))} cells: at least {largest - done} of the largest run's are missing "
+                "(interrupted or not finished; resume each run with its own command)")
     if len(plans) == 1 and done > largest:
         return (f"{done} cells with a row, {largest} planned: {done - largest} more than the plan has (rows not of "
                 "this run's plan), so whether each planned cell has one is not decided here")
