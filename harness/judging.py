@@ -33,7 +33,8 @@ from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, rela
 
 from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
-__all__ = ["READINGS", "ProblemSeal", "Verdict", "answer_figures", "judge", "read_answer"]
+__all__ = ["READINGS", "ProblemSeal", "UnreadAnswer", "Verdict", "answer_figures", "judge", "portable_answer",
+           "read_answer", "shown_apart"]
 
 
 @dataclass
@@ -127,11 +128,30 @@ class ProblemSeal:
 # ---------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class UnreadAnswer:
+    """An answer ``read_answer`` refuses in the process that made it (a worker), carried as
+    the reason alone: what it held may not cross a process boundary (an object array of
+    functions).  ``read_answer`` reads it as no answer, for that reason."""
+
+    why: str
+
+
+def portable_answer(p: Any, n: int) -> np.ndarray | UnreadAnswer:
+    """``p`` as a worker sends it to be judged: the plain array ``read_answer`` reads (its
+    dtype kept, which the judge notes), or an ``UnreadAnswer`` with the reason it refuses
+    it -- so the verdict is the same whether the solve ran in a worker or in-process."""
+    pf, why = read_answer(p, n)
+    return UnreadAnswer(why) if pf is None else np.asarray(p)
+
+
 def read_answer(p: Any, n: int) -> tuple[np.ndarray | None, str]:
     """(p as float64, "") when ``p`` is a length-``n`` vector of finite real numbers
     (float or integer dtype), else (None, what is wrong with it)."""
     if p is None:
         return None, "returned no p"
+    if isinstance(p, UnreadAnswer):
+        return None, p.why
     try:
         arr = np.asarray(p)
     except Exception as exc:  # an object that numpy cannot even wrap
@@ -175,11 +195,24 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
         figures = answer_figures(inst, pf, kkt, p_ref, analytic_load, check_tol)
     solved = kkt.passes(check_tol)
     if not solved:
-        problems.append(f"kkt_error {kkt.kkt_error:.2e} > check_tol {check_tol:.0e}")
+        value, limit = shown_apart(kkt.kkt_error, check_tol)
+        problems.append(f"kkt_error {value} > check_tol {limit}")
     if p_ref is not None and p_tol is not None and not figures["p_rel_error"] <= p_tol:
-        problems.append(f"p is {figures['p_rel_error']:.2e} off the exact reference (allowed {p_tol:.1e})")
+        value, limit = shown_apart(figures["p_rel_error"], p_tol)
+        problems.append(f"p is {value} off the exact reference (allowed {limit})")
     reading = "pass" if not problems else ("wrong" if claimed else "unconverged")
     return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems)
+
+
+def shown_apart(value: float, limit: float) -> tuple[str, str]:
+    """``value`` and the ``limit`` it is compared with, each to the same number of
+    significant digits -- 3, or as many more as tell them apart -- so that a message
+    "value > limit" never reads as its opposite or as a tie."""
+    for digits in range(3, 18):
+        shown = f"{value:.{digits}g}", f"{limit:.{digits}g}"
+        if shown[0] != shown[1]:
+            return shown
+    return repr(float(value)), repr(float(limit))
 
 
 def _failed(claimed: bool, why: str, reading: str | None = None) -> Verdict:

@@ -27,6 +27,9 @@ A solver *spec* on the command line (``run --solvers``, ``validate``) is one of
 
 ``split_solver_list`` splits a comma list of specs (commas inside ``[...]`` belong to
 the spec).
+
+Every solver the registry takes (``register``) or loads by import path (``load_solver``)
+passes ``check_declaration`` first: a declaration it cannot use is refused in one line.
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ from typing import Any, Callable, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 
-from .base import Param, ParamError, Solver
+from .base import Capabilities, Param, ParamError, Solver
 
 S = TypeVar("S")
 
@@ -103,8 +106,40 @@ def add_late_source(name: str, load: Callable[[], object]) -> None:
     _LATE.add(name, load)
 
 
+class SolverDeclarationError(ValueError):
+    """A solver whose declaration cannot be used (``check_declaration``; one line)."""
+
+
+def check_declaration(solver: Solver) -> Solver:
+    """``solver`` if its declaration can be used, else a ``SolverDeclarationError`` naming
+    the solver and what is wrong: its ``name`` is a non-empty string, its ``capabilities``
+    a ``Capabilities``, its ``params`` a tuple (or list) of ``Param``, and each default
+    None (the solver works it out) or a value its own ``Param.check`` accepts."""
+    name = getattr(solver, "name", None)
+    if not isinstance(name, str) or not name.strip():
+        raise SolverDeclarationError(f"solver class {type(solver).__name__} has no name (its `name` is {name!r}; "
+                                     "a solver is named by a non-empty string)")
+    caps = getattr(solver, "capabilities", None)
+    if not isinstance(caps, Capabilities):
+        raise SolverDeclarationError(f"solver {name!r}: its `capabilities` is {caps!r}, not a Capabilities(...)")
+    params = getattr(solver, "params", None)
+    if not isinstance(params, (tuple, list)) or not all(isinstance(q, Param) for q in params):
+        raise SolverDeclarationError(f"solver {name!r}: its `params` is {params!r}, not a tuple of "
+                                     "Param(name, type, default, ...)")
+    for q in params:
+        if q.default is None:
+            continue
+        try:
+            q.check(q.default)
+        except ParamError as exc:
+            raise SolverDeclarationError(f"solver {name!r}: the default of a declared parameter does not pass its "
+                                         f"own declaration: {exc}") from None
+    return solver
+
+
 def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S], S]:
-    """Register a Solver subclass (instantiated with no arguments) or instance.
+    """Register a Solver subclass (instantiated with no arguments) or instance whose
+    declaration passes ``check_declaration``.
 
     Usable as ``@register`` on a class or ``register(instance)``.
     """
@@ -113,8 +148,7 @@ def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S]
         inst = o() if isinstance(o, type) else o
         if not isinstance(inst, Solver):
             raise TypeError(f"{o!r} is not a Solver")
-        if not inst.name:
-            raise ValueError(f"{o!r} has no name")
+        check_declaration(inst)
         _SOLVERS.add(inst.name, inst, replace=replace)
         return o
 
@@ -176,19 +210,20 @@ def import_user_module(name: str) -> Any:
 
 def load_solver(spec: str) -> Solver:
     """A solver by registry name or by import path ``module:NAME`` (a Solver subclass,
-    instance or factory; ``import_user_module`` finds the module)."""
+    instance or factory; ``import_user_module`` finds the module), its declaration
+    checked (``check_declaration``)."""
     if ":" not in spec:
         return get_solver(spec)
     mod_name, attr = spec.split(":", 1)
     obj = getattr(import_user_module(mod_name), attr)
     if isinstance(obj, type) and issubclass(obj, Solver):
-        return obj()
+        return check_declaration(obj())
     if isinstance(obj, Solver):
-        return obj
+        return check_declaration(obj)
     if callable(obj):
         out = obj()
         if isinstance(out, Solver):
-            return out
+            return check_declaration(out)
     raise TypeError(f"{spec} is not a Solver subclass, instance or factory")
 
 

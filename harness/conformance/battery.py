@@ -26,7 +26,8 @@ Row statuses (one row per solve):
                  moved p by more than 10 cond(H) x 1e-6 (a chaotic active set).
 ``refused``      it raised ProblemInputError / MemoryBudgetError / NotImplementedError
                  (or, for float32 input, a ValueError/TypeError naming the dtype).
-``crashed``      any other exception, or the worker process died.
+``crashed``      any other exception (a ``SolveAborted`` with a status that class does not
+                 allow included), or the worker process died.
 ``timeout``      no answer within the time limit (the worker is killed).
 ``skipped``      the solver cannot take the case (operator kind, max_n, its own
                  ``skip``), or a comparison row whose steps did not all pass.
@@ -42,11 +43,13 @@ Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
                  the lifecycle without calling it (ubar <= 0: p = 0) -- exit 4;
 ``conforms``     none of these: every case solved to what the solver promises, or skipped
                  for a capability it declares, and at least one answer of its own
-                 accepted (exit 0).
+                 accepted (exit 0); the headline states the promise and, when rows are
+                 flagged, how many of them.
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
-unknown solver, an import path that does not load, no case selected, a promise that is
-not "exact" or a floor below 1, a --timeout that is not a finite number > 0, a --csv or
---out that cannot be written) exits 2 with one line, before anything runs.
+unknown solver, an import path that does not load, a solver declaration that cannot be
+used (``solvers.registry.check_declaration``), no case selected, a promise that is not
+"exact" or a floor below 1, a --timeout that is not a finite number > 0, a --csv or --out
+that is empty or cannot be written) exits 2 with one line, before anything runs.
 
 ``--command 'CMD {problem} {solution}' [--inputs dense|kernel]`` validates an outside
 program over the file protocol (``contactbench.solvers.external``,
@@ -339,7 +342,11 @@ class VerdictTable:
             return (f"UNTESTED: no answer of the solver's own was judged ({solves} solves) -- every selected case "
                     "skipped for a declared capability, refused where refusing is allowed, or answered without "
                     "calling the solver (ubar <= 0: p = 0)")
-        return f"CONFORMS: every solve correct to its promise ({solves} of {solves})"
+        flagged = self.count("flagged")
+        if flagged:
+            return (f"CONFORMS to its promise ({describe_promise(self.promise)}): {flagged} of {len(self.rows)} "
+                    "rows flagged -- accepted by the KKT test, but off the exact reference or failing a comparison")
+        return f"CONFORMS: every solve correct to its promise ({describe_promise(self.promise)}; {solves} of {solves})"
 
     def summary(self, strict: bool = False) -> str:
         statuses = ("pass", "WRONG", "unconverged", "flagged", "refused", "crashed", "timeout", "skipped")

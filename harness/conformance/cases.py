@@ -36,9 +36,9 @@ from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
 from contactbench.solvers.base import WITHOUT_ITERATE, SolveAborted, Solver
 
-from ..judging import ProblemSeal
+from ..judging import ProblemSeal, portable_answer
 from ..profiles import get_profile
-from ..run.isolation import SOLVER_FAULTS
+from ..run.isolation import SOLVER_FAULTS, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
 from ..run.worker import instance_operator_kind, problem_traits
 
@@ -214,16 +214,38 @@ def is_refusal(exc: BaseException, group: str) -> bool:
     or, for float32 input, a ValueError/TypeError naming the dtype."""
     if isinstance(exc, (ProblemInputError, MemoryBudgetError, NotImplementedError)):
         return True
-    text = str(exc).lower()
+    text = exception_message(exc).lower()
     return group in REFUSABLE_GROUPS and isinstance(exc, (ValueError, TypeError)) and any(
         w in text for w in ("float32", "dtype", "precision", "single"))
 
 
+def first_line(text: str, fallback: str) -> str:
+    """The first line of ``text`` with text on it, stripped; ``fallback`` when there is none."""
+    return next((line.strip() for line in text.splitlines() if line.strip()), fallback)
+
+
+def aborted_status(exc: SolveAborted) -> str | None:
+    """The row status ``exc`` carries: its ``status`` where ``SolveAborted`` itself accepts
+    it (the class's own rule, asked by building one), else None -- a status set after
+    construction ("pass") is not the solver's to give."""
+    status = getattr(exc, "status", None)
+    if type(status) is not str:
+        return None
+    try:
+        SolveAborted(status, "")
+    except ValueError:
+        return None
+    return status
+
+
 def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:
-    """Worker side: rebuild the instance from its recipe, solve, report plain data.  A
+    """Worker side: rebuild the instance from its recipe, solve, report plain data (the
+    answer as ``harness.judging.portable_answer`` gives it, so that it can be sent).  A
     solver that raises -- ``SystemExit`` and ``GeneratorExit`` included (``sys.exit`` in a
     solver is a crash, not the end of ``validate``), in its skip check too -- gives a
-    "refused" or "crashed" answer; a ``KeyboardInterrupt`` propagates."""
+    "refused" or "crashed" answer, and a ``SolveAborted`` its own status when the class
+    allows it ("crashed" otherwise); a ``KeyboardInterrupt`` propagates.  Every message is
+    one line, whatever the exception's text (empty, or a ``__str__`` that raises)."""
     spec, step, time_limit, params = msg
     case = ConformanceCase(spec)
     inst = build_battery_spec(spec).at(step)
@@ -236,15 +258,20 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     try:
         res = solver.solve(qp, settings, None)
     except SolveAborted as exc:  # killed at its limit, or died (an external program)
-        return {"kind": exc.status, "time_s": time.perf_counter() - t0,
-                "message": str(exc).strip().splitlines()[0], "detail": str(exc)}
+        elapsed, text, status = time.perf_counter() - t0, exception_message(exc), aborted_status(exc)
+        if status is None:
+            return {"kind": "crashed", "time_s": elapsed, "detail": text,
+                    "message": f"raised SolveAborted with status {getattr(exc, 'status', None)!r}, which is not "
+                               f"a status SolveAborted may carry: {first_line(text, '(no message)')}"}
+        return {"kind": status, "time_s": elapsed, "message": first_line(text, status), "detail": text}
     except SOLVER_FAULTS as exc:  # a row, not a harness failure (Ctrl-C still interrupts)
         refused = is_refusal(exc, case.group)
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
-                "message": f"{type(exc).__name__}: {exc}".strip().splitlines()[0],
+                "message": first_line(exception_text(exc), type(exc).__name__),
                 "detail": "" if refused else traceback.format_exc(limit=6)}
     elapsed = time.perf_counter() - t0
-    return {"kind": "ok", "p": res.p, "converged": bool(res.converged), "iterations": int(res.iterations),
+    return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
+            "iterations": int(res.iterations),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
             "tampered": seal.broken(qp), "iterated": not res.info.get(WITHOUT_ITERATE)}
 
@@ -259,8 +286,10 @@ class _SolverHandler:
 
 class CaseRunner:
     """Runs the solves of one solver with a hard time limit: in a forked worker
-    (``harness.run.isolation``) when ``isolate``, else in-process -- no time limit, and no
-    protection against a solver that ends the process itself (``os._exit``, a signal)."""
+    (``harness.run.isolation``; what the solver prints is captured there, and the
+    processes it starts end with the worker) when ``isolate``, else in-process -- no time
+    limit, and no protection against a solver that ends the process itself (``os._exit``,
+    a signal)."""
 
     def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
                  params: dict[str, Any] | None = None) -> None:
@@ -270,7 +299,7 @@ class CaseRunner:
         if isolate:
             from contactbench.harness.run.isolation import ChildProcess
 
-            self.worker = ChildProcess(lambda: _SolverHandler(solver))
+            self.worker = ChildProcess(lambda: _SolverHandler(solver), capture_output=True)
 
     def solve(self, spec: InstanceSpec, step: int) -> CaseAnswer:
         msg = (spec, step, self.timeout, self.params)
@@ -281,8 +310,7 @@ class CaseRunner:
         if out.kind == "ok":
             return CaseAnswer(**out.value)
         kind = "timeout" if out.kind == "timeout" else "crashed"
-        return CaseAnswer(kind, message=str(out.detail).strip().splitlines()[0] if out.detail else kind,
-                            detail=str(out.detail), time_s=out.elapsed)
+        return CaseAnswer(kind, message=first_line(str(out.detail), kind), detail=str(out.detail), time_s=out.elapsed)
 
     def close(self) -> None:
         if self.worker is not None:

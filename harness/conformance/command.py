@@ -17,10 +17,11 @@ from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import all_solvers, load_solver
+from contactbench.solvers.registry import SolverDeclarationError, all_solvers, load_solver
 
 from ..arguments import EXIT_BAD_INPUT, Parser, positive_float
 from ..arguments import check_out_dir as check_writable_dir
+from ..run.isolation import SOLVER_FAULTS, exception_text
 from .battery import GROUPS, conformance_cases, left_out_lines, validate
 from .report import check_report_folder, write_conformance_report
 
@@ -39,7 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
                "capability); 1 wrong: an answer claimed as converged that fails, or a solver that wrote into its "
                "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input, refused before anything "
                "runs (unknown solver, import path that does not load, no case selected, solver not available, a "
-               "bad --timeout, a --csv or --out that cannot be written); 3 incomplete: cases left unsolved; 4 untested: "
+               "bad --timeout, a --csv or --out that cannot be written, a solver declaration that cannot be used); "
+               "3 incomplete: cases left unsolved; 4 untested: "
                "no answer of any solver's own was judged (every case skipped for a declared capability, refused "
                "where refusing is allowed, or answered without calling the solver) "
                "(docs/verdicts.md).")
@@ -56,11 +58,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-isolate", action="store_true",
                     help="solve in-process, for debugging: no time limit, and no protection against a solver that "
                          "ends the process itself (os._exit, a fatal signal ends validate; sys.exit is a crash row)")
-    ap.add_argument("--list", action="store_true", help="list the selected cases and exit")
-    ap.add_argument("--csv", metavar="PATH", help="also write the verdict rows as CSV (a file in an existing folder)")
-    ap.add_argument("--out", metavar="DIR", help="write the conformance report: DIR/verdicts.csv and DIR/conformance.md "
-                                                  "(the exit status is the same); DIR is new, empty or a report "
-                                                  "folder of validate")
+    ap.add_argument("--list", action="store_true", help="list the selected cases and exit (the solvers named, "
+                                                        "their --params, --csv and --out are checked first)")
+    ap.add_argument("--csv", metavar="PATH", type=path_text,
+                    help="also write the verdict rows as CSV (a file in an existing folder)")
+    ap.add_argument("--out", metavar="DIR", type=path_text,
+                    help="write the conformance report: DIR/verdicts.csv and DIR/conformance.md (the exit status is "
+                         "the same); DIR is new, empty or a report folder of validate")
     ap.add_argument("--command", metavar="'CMD {problem} {solution}'",
                     help="validate an outside program over the file protocol (docs/external-solvers.md)")
     ap.add_argument("--inputs", choices=("dense", "kernel"), default=None,
@@ -76,6 +80,13 @@ def case_glob(text: str) -> str:
     """``--cases``: a non-empty glob (an empty one would select every case)."""
     if not text.strip():
         raise argparse.ArgumentTypeError(f"{text!r} names no case; give a glob such as 'edge/*'")
+    return text
+
+
+def path_text(text: str) -> str:
+    """``--csv`` and ``--out``: a path with something in it (an empty one names nothing)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} names no file or folder; give a path")
     return text
 
 
@@ -100,22 +111,53 @@ class SolverLoadError(CommandLineError):
 
 def load_named_solver(name: str) -> Solver:
     """The solver called ``name`` (registry name or ``module:NAME``), or a
-    ``SolverLoadError`` that says what is wrong in one line."""
+    ``SolverLoadError`` that says what is wrong in one line: a file path where a module
+    name goes (and the import path to give instead), a module that is not found, a
+    dependency of the module that is not installed, a missing attribute, a declaration
+    the registry refuses (``check_declaration``), or whatever importing the module or
+    building the solver raised -- ``SystemExit`` included, never the end of ``validate``."""
     if ":" not in name:
         try:
             return load_solver(name)
         except KeyError as exc:
             raise SolverLoadError(f"{exc.args[0] if exc.args else exc} (or give an import path module:NAME)") from None
     module, attr = name.split(":", 1)
+    hint = file_path_hint(module, attr)
+    if hint:
+        raise SolverLoadError(f"cannot load solver {name!r}: {hint}")
     try:  # a module in the current folder loads, as with `python -m` (solvers/registry.py)
         return load_solver(name)
     except ModuleNotFoundError as exc:
+        missing = exc.name or ""
+        if missing and module != missing and not module.startswith(missing + "."):  # not the module: its import
+            raise SolverLoadError(f"cannot load solver {name!r}: module {module!r} imports {missing!r}, which is "
+                                  "not installed here") from None
         raise SolverLoadError(f"cannot import {module!r} for solver {name!r}: {exc}; run from the folder that "
                               "holds it or put that folder on PYTHONPATH") from None
-    except AttributeError:
-        raise SolverLoadError(f"module {module!r} has no attribute {attr!r} (solver {name!r})") from None
-    except Exception as exc:  # the user's module failed to import or to build its solver
-        raise SolverLoadError(f"cannot load solver {name!r}: {type(exc).__name__}: {exc}") from None
+    except AttributeError as exc:
+        loaded = sys.modules.get(module)
+        if loaded is not None and not hasattr(loaded, attr):
+            raise SolverLoadError(f"module {module!r} has no attribute {attr!r} (solver {name!r})") from None
+        raise SolverLoadError(f"cannot load solver {name!r}: {exception_text(exc)}") from None
+    except SolverDeclarationError as exc:  # it names the solver and what is wrong
+        raise SolverLoadError(f"cannot load solver {name!r}: {exc}") from None
+    except SOLVER_FAULTS as exc:  # the user's module failed to import or to build its solver
+        raise SolverLoadError(f"cannot load solver {name!r}: {exception_text(exc)}") from None
+
+
+def file_path_hint(module: str, attr: str) -> str:
+    """How to name a solver whose module part is a file path (``x.py``, ``./x``,
+    ``/abs/dir/x.py``) or a relative module name (``.x``) by its import path instead; ""
+    when ``module`` is a module name."""
+    if not (module.endswith(".py") or "/" in module or os.sep in module or module.startswith(".")):
+        return ""
+    path = Path(module)
+    if "/" not in module and os.sep not in module and not module.endswith(".py"):
+        return f"{module!r} is a relative module name; give the module's full name, package.module:{attr}"
+    stem = path.name[:-3] if path.name.endswith(".py") else path.name
+    there = "" if path.is_file() or path.with_name(stem + ".py").is_file() else " (there is no such file)"
+    return (f"{module!r} is a file path, not a module name{there}; name it {stem}:{attr} and run from "
+            f"{path.parent.resolve()} (or put that folder on PYTHONPATH)")
 
 
 def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:
@@ -129,16 +171,28 @@ def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:
     return [command_solver(command, inputs or "dense")]
 
 
-def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = ()) -> list[Solver]:
+def availability(solver: Solver) -> tuple[bool, str]:
+    """``solver.availability()``, or a ``SolverLoadError`` naming the solver when it fails."""
+    try:
+        ok, why = solver.availability()
+    except SOLVER_FAULTS as exc:
+        raise SolverLoadError(f"solver {solver.name!r}: its availability() failed: {exception_text(exc)}") from None
+    return bool(ok), str(why)
+
+
+def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = (),
+                      required: bool = True) -> list[Solver]:
+    """The solvers named, the ``--command`` one and with ``every`` each available
+    registered one; none at all is an error when ``required``."""
     solvers = [load_named_solver(n) for n in dict.fromkeys(names)] + list(extra)
     for s in solvers:
-        ok, why = s.availability()
+        ok, why = availability(s)
         if not ok:
             raise SolverLoadError(f"solver {s.name!r} is not available here: {why}")
     if every:
         seen = {s.name for s in solvers}
-        solvers += [s for n, s in all_solvers().items() if n not in seen and s.availability()[0]]
-    if not solvers:
+        solvers += [s for n, s in all_solvers().items() if n not in seen and availability(s)[0]]
+    if not solvers and required:
         raise SolverLoadError("name a solver (registry name or module:NAME), pass --all, or give --command")
     return solvers
 
@@ -165,22 +219,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         cases = conformance_cases(mode, args.group, args.cases)
         if not cases:
             raise CommandLineError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
-        if args.list:
-            width = max([len(c.name) for c in cases] + [4])
-            for c in cases:
-                print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
-            return 0
         command_solvers = command_solver_of(args.command, args.inputs)
-        solvers = _selected_solvers(args.solvers, args.all, command_solvers)
+        solvers = _selected_solvers(args.solvers, args.all, command_solvers, required=not args.list)
         for solver in solvers:
             solver.resolve_params(args.params)
-        if args.csv:
+        if args.csv is not None:
             check_csv_path(args.csv)
-        if args.out:
+        if args.out is not None:
             check_out_dir(args.out)
     except (CommandLineError, ProblemInputError, ParamError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.list:
+        width = max([len(c.name) for c in cases] + [4])
+        for c in cases:
+            print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
+        return 0
     codes, tables = [], []
     for solver in solvers:
         table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
@@ -209,12 +263,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def check_csv_path(path: str) -> None:
     """``--csv PATH`` must name a file that can be written, in a folder that exists
-    (checked before anything runs)."""
+    (checked before anything runs; a file where a folder of the path goes is named)."""
     p = Path(path)
     if p.is_dir():
         raise CommandLineError(f"--csv {path!r}: is a folder; give the name of a file")
     folder = p.parent
     if not folder.is_dir():
+        probe = folder
+        while not probe.exists() and probe != probe.parent:
+            probe = probe.parent
+        if probe.exists() and not probe.is_dir():
+            raise CommandLineError(f"--csv {path!r}: {str(probe)!r} is a file, not a folder")
         raise CommandLineError(f"--csv {path!r}: no such folder {str(folder)!r}")
     if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise CommandLineError(f"--csv {path!r}: cannot write it (permission denied)")

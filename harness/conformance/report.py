@@ -4,7 +4,8 @@ Two files, from the verdict tables of ``harness.conformance.battery`` (nothing i
 
 ``verdicts.csv``      every verdict row (one per solve, plus the comparison rows), with
                       the solver's outcome and the exact reference's time;
-``conformance.md``    one short page: per solver its headline and exit status, then one
+``conformance.md``    one short page: per solver its headline and exit status, the scaled
+                      KKT threshold its answers were judged at (its promise), then one
                       line per case -- the verdict (the worst row status of its steps),
                       the worst scaled KKT error, the worst error in p against the exact
                       reference, and the solver's time against the reference's;
@@ -28,6 +29,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
+from contactbench.solvers.base import describe_promise
 
 from .battery import VerdictRow, VerdictTable, left_out_lines
 
@@ -143,16 +145,28 @@ def _cell(text: str, width: int = 160) -> str:
     return one if len(one) <= width else one[: width - 1] + "…"
 
 
+def threshold_line(table: VerdictTable) -> str:
+    """The scaled KKT threshold the answers of ``table`` were judged at: the case's profile
+    threshold for the promise "exact", else the solver's floor where it is above that."""
+    used = sorted({r.check_tol for r in table.solves if math.isfinite(r.check_tol)})
+    at = ", ".join(f"{x:.3g}" for x in used) or "none (no solve judged)"
+    if table.promise == "exact":
+        return f"Promise: exact -- judged at the case's profile threshold (here {at})."
+    return (f"Promise: {describe_promise(table.promise)} -- judged at max(the case's profile threshold, "
+            f"{float(table.promise):.3g}) (here {at}).")
+
+
 def markdown_page(tables: Sequence[VerdictTable], strict: bool = False, command: Sequence[str] = ()) -> str:
     lines = [PAGE_HEADING, ""]
     if command:
         lines += ["`contactbench validate " + shlex.join(command) + "`", ""]
-    lines += ["Every answer is judged by the harness's scaled KKT check (problems/kkt.py) at the case's "
-              "profile threshold; `p error` is max ||p - p_ref||_inf / ||p_ref||_inf against the exact "
-              "reference; `time / ref` compares the solver's seconds (all steps) with the exact reference's.", ""]
+    lines += ["Every answer is judged by the harness's scaled KKT check (problems/kkt.py) at the threshold "
+              "its solver promises (stated under each solver); `p error` is max ||p - p_ref||_inf / "
+              "||p_ref||_inf against the exact reference; `time / ref` compares the solver's seconds (all "
+              "steps) with the exact reference's.", ""]
     for t in tables:
         lines += [f"## {t.solver} ({t.mode} battery)", "",
-                  f"**{t.headline(strict)}** -- exit status {t.exit_code(strict)}", ""]
+                  f"**{t.headline(strict)}** -- exit status {t.exit_code(strict)}", "", threshold_line(t), ""]
         if t.note:
             lines += [t.note, ""]
         lines += ["| case | n | verdict | worst KKT | p error | time (s) | ref (s) | time / ref | note |",

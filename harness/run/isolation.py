@@ -14,13 +14,18 @@ state -- built instances, warm starts -- is lost; callers track a ``generation``
 counter to know).  The child:
 
 * ignores SIGINT, so Ctrl-C reaches only the parent, which stops cleanly;
+* leads a process group of its own, which the parent kills whenever the worker ends, so
+  the processes a solver started do not outlive it (``kill_process_group``);
 * asks the kernel to SIGKILL it when the parent dies (``PR_SET_PDEATHSIG``), so a
   ``kill -9`` of the runner leaves no orphan writing rows;
 * optionally limits BLAS (threadpoolctl) and FFT (``CONTACTBENCH_FFT_WORKERS``) threads,
   so J workers do not oversubscribe the cores.
 * keeps its temporary files, and those of the programs it runs (``TMPDIR``), in a folder
   of its own, which the parent removes whenever the worker ends -- killed at a time limit
-  or an interrupt included.
+  or an interrupt included;
+* optionally (``capture_output``) writes what the handler prints -- file descriptors 1
+  and 2, so C libraries' output too -- to a file in that folder instead of the parent's
+  terminal; a reply of a worker that died, timed out or failed quotes its last lines.
 
 Workers are started with the ``fork`` method on Linux: a child inherits everything
 registered in the parent (solvers registered by a test or given as ``module:NAME``).
@@ -28,6 +33,7 @@ registered in the parent (solvers registered by a test or given as ``module:NAME
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import faulthandler
 import multiprocessing as mp
@@ -41,7 +47,7 @@ import traceback
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any, Callable, Literal
+from typing import Any, Callable, Iterator, Literal
 
 from ..table.files import pid_exists
 
@@ -77,10 +83,26 @@ def _short_path(path: str) -> str:
     return os.sep.join(parts[-2:])
 
 
+def exception_message(exc: BaseException) -> str:
+    """``str(exc)``, or a note naming its type where its ``__str__`` raises (a solver's
+    own exception class): reading a solver's error never fails."""
+    try:
+        return str(exc)
+    except SOLVER_FAULTS:
+        return f"<the message of {type(exc).__name__} cannot be read: its __str__ raised>"
+
+
+def exception_text(exc: BaseException) -> str:
+    """``Type: message`` of ``exc`` (``exception_message``), the type alone when the
+    message is empty."""
+    text = exception_message(exc)
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
 def error_text(exc: BaseException) -> str:
     """One line for a row: the exception, its message and where it was raised."""
     where = raised_at(exc)
-    return f"{type(exc).__name__}: {exc}" + (f" [at {where}]" if where else "")
+    return exception_text(exc) + (f" [at {where}]" if where else "")
 
 
 @dataclass
@@ -125,14 +147,79 @@ def limit_threads(threads: int | None) -> Any:
         return None
 
 
-def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None, scratch: str | None = None) -> None:
+#: The file, in a worker's temporary folder, that holds what its handler printed
+#: (``ChildProcess(capture_output=True)``), one message's worth at a time.
+OUTPUT_NAME = "handler-output.txt"
+#: How many of its last lines a reply of a worker that died, timed out or failed quotes.
+OUTPUT_TAIL_LINES = 5
+#: How much of the end of that file is read for them (bytes).
+OUTPUT_TAIL_BYTES = 4096
+
+
+def _flush_output() -> None:
+    """Flush Python's stdout and stderr and C's stdio buffers (best effort: a handler may
+    have replaced or closed the streams)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:  # a stream a solver replaced or closed
+            pass
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # pragma: no cover - no C library to flush
+        pass
+
+
+@contextlib.contextmanager
+def output_to(path: str) -> Iterator[None]:
+    """File descriptors 1 and 2 (stdout and stderr, of Python and of C libraries alike)
+    point at ``path`` (truncated; the null device where it cannot be opened) for the
+    block, and ``sys.stdout``/``sys.stderr`` write there too (whatever they were: a test
+    runner's capture); then all is put back.  Any other descriptor -- a worker's result
+    pipe -- is untouched."""
+    _flush_output()
+    saved = (os.dup(1), os.dup(2))
+    streams = (sys.stdout, sys.stderr)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    except OSError:  # the folder is gone (a solver emptied its TMPDIR): the output is dropped
+        fd = os.open(os.devnull, os.O_WRONLY)
+    text = open(fd, "w", buffering=1, encoding="utf-8", errors="replace", closefd=False)
+    try:
+        os.dup2(fd, 1)
+        os.dup2(fd, 2)
+        sys.stdout = sys.stderr = text
+        yield
+    finally:
+        _flush_output()
+        sys.stdout, sys.stderr = streams
+        text.close()
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for f in (fd, *saved):
+            os.close(f)
+
+
+def kill_process_group(pgid: int) -> None:
+    """SIGKILL every process of group ``pgid`` (a worker's: the worker and what it started);
+    nothing when the group is gone."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(pgid, signal.SIGKILL)
+
+
+def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None, scratch: str | None = None,
+                 capture_output: bool = False) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (the command's own handler is its process's)
+    with contextlib.suppress(OSError):  # a group of its own, killed with it (``kill_process_group``)
+        os.setpgid(0, 0)
     if scratch is not None:  # the worker's temporary files (and its programs'), removed by the parent
         tempfile.tempdir = os.environ["TMPDIR"] = scratch
     set_parent_death_signal()
     if not os.environ.get("CONTACTBENCH_FAULTHANDLER"):
         faulthandler.disable()  # a crashing solver is reported as a row, not a stack dump
     _limits = limit_threads(threads)  # noqa: F841 - held for the process lifetime
+    output = os.path.join(scratch, OUTPUT_NAME) if scratch is not None else os.devnull
     handler = factory()
     while True:
         try:
@@ -142,13 +229,19 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         if msg is None:
             return
         try:
-            reply: tuple[str, Any] = ("ok", handler(msg))
+            with output_to(output) if capture_output else contextlib.nullcontext():
+                reply: tuple[str, Any] = ("ok", handler(msg))
         except Exception as exc:  # the handler's own failure; solver errors are rows
-            reply = ("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=6)}")
+            reply = ("error", f"{exception_text(exc)}\n{traceback.format_exc(limit=6)}")
         try:
             conn.send(reply)
         except (BrokenPipeError, OSError):
             return
+        except Exception as exc:  # a reply that cannot be pickled: the handler's failure, said so
+            try:
+                conn.send(("error", f"the handler's reply cannot be sent to the parent: {exception_text(exc)}"))
+            except (BrokenPipeError, OSError):
+                return
 
 
 def describe_exit(exitcode: int | None) -> str:
@@ -183,9 +276,11 @@ def remove_orphan_scratch() -> None:
 class ChildProcess:
     """One child process running ``factory()``'s handler on each message sent to it."""
 
-    def __init__(self, factory: HandlerFactory, threads: int | None = None, start_method: str | None = None) -> None:
+    def __init__(self, factory: HandlerFactory, threads: int | None = None, start_method: str | None = None,
+                 capture_output: bool = False) -> None:
         self.factory = factory
         self.threads = threads
+        self.capture_output = capture_output  # the handler's stdout/stderr to a file (module doc)
         method = start_method or ("fork" if sys.platform.startswith("linux") else "spawn")
         self.ctx = mp.get_context(method)
         self.proc: Any = None
@@ -201,9 +296,11 @@ class ChildProcess:
         parent, child = self.ctx.Pipe(duplex=True)
         remove_orphan_scratch()
         self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
-        proc = self.ctx.Process(target=_worker_main, args=(child, self.factory, self.threads, self.scratch),
-                                daemon=True)
+        proc = self.ctx.Process(target=_worker_main, daemon=True,
+                                args=(child, self.factory, self.threads, self.scratch, self.capture_output))
         proc.start()
+        with contextlib.suppress(OSError):  # as the worker does: its group exists before any kill
+            os.setpgid(proc.pid, proc.pid)
         child.close()
         self.proc, self.conn = proc, parent
         self.generation += 1
@@ -224,15 +321,16 @@ class ChildProcess:
             return self._crashed(t0)
         if not self._answered_within(timeout):
             elapsed = time.perf_counter() - t0
+            detail = f"no answer within the hard limit of {timeout:.3g} s; worker killed" + self.output_tail()
             self.kill()
-            return ChildReply("timeout", elapsed=elapsed, detail=f"no answer within the hard limit of {timeout:.3g} s; worker killed")
+            return ChildReply("timeout", elapsed=elapsed, detail=detail)
         try:
             kind, value = self.conn.recv()
         except (EOFError, OSError):
             return self._crashed(t0)
         elapsed = time.perf_counter() - t0
         if kind == "error":
-            return ChildReply("error", elapsed=elapsed, detail=str(value))
+            return ChildReply("error", elapsed=elapsed, detail=str(value) + self.output_tail())
         return ChildReply("ok", value=value, elapsed=elapsed)
 
     def _answered_within(self, timeout: float | None) -> bool:
@@ -253,13 +351,32 @@ class ChildProcess:
         if self.proc is not None:
             self.proc.join(5.0)
             code = self.proc.exitcode
+        detail = describe_exit(code) + self.output_tail()
         self.kill()
-        return ChildReply("crashed", elapsed=elapsed, detail=describe_exit(code))
+        return ChildReply("crashed", elapsed=elapsed, detail=detail)
+
+    def output_tail(self) -> str:
+        """The last ``OUTPUT_TAIL_LINES`` lines the handler printed during the latest message,
+        as lines to append to a reply's detail ("" when it printed nothing or the output is
+        not captured)."""
+        if not self.capture_output or self.scratch is None:
+            return ""
+        try:
+            with open(os.path.join(self.scratch, OUTPUT_NAME), "rb") as fh:
+                fh.seek(max(0, fh.seek(0, os.SEEK_END) - OUTPUT_TAIL_BYTES))
+                lines = fh.read().decode("utf-8", errors="replace").strip().splitlines()
+        except OSError:
+            return ""
+        tail = lines[-OUTPUT_TAIL_LINES:]
+        return "\n[last output]\n" + "\n".join(tail) if tail else ""
 
     def kill(self) -> None:
-        """Stop the child at once (SIGKILL), release the pipe and remove its temporary folder
-        (what a killed solver, or a program it ran, left there)."""
+        """Stop the child and every process of its group at once (SIGKILL), release the pipe
+        and remove its temporary folder (what a killed solver, or a program it ran, left
+        there)."""
         if self.proc is not None:
+            if self.proc.pid is not None:  # before the worker is reaped: its group id is still its own
+                kill_process_group(self.proc.pid)
             if self.proc.is_alive():
                 self.proc.kill()
             self.proc.join(5.0)

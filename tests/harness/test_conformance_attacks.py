@@ -1,0 +1,367 @@
+"""`contactbench validate` against solvers that misbehave on purpose: none of them can
+forge a verdict, flood the terminal, leave processes behind or end ``validate`` with a
+traceback; a solver declaration it cannot use is one line and exit 2."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contactbench.harness.conformance import battery as cf
+from contactbench.harness.conformance.command import main as validate_main
+from contactbench.harness.conformance.report import markdown_page
+from contactbench.harness.judging import judge
+from contactbench.harness.run.isolation import ChildProcess
+from contactbench.problems.lcp import exact_solution
+from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
+from contactbench.solvers import Capabilities, Outcome, Param, SolveAborted, SolveContext, Solver
+from contactbench.solvers.registry import register
+
+HERE = __name__  # the import path of the solvers below
+ROOT = Path(__file__).resolve().parents[2]
+CASE = "counterexample/example1-n400-s0"
+
+
+def cases() -> list[cf.ConformanceCase]:
+    out = cf.conformance_cases("fast", pattern=CASE)
+    assert len(out) == 1
+    return out
+
+
+def exact_p(ctx: SolveContext) -> np.ndarray:
+    return exact_solution(ctx.qp.H.to_dense(), np.asarray(ctx.qp.ubar, dtype=np.float64)).p
+
+
+class ExactSolver(Solver):
+    name = "test-attack-exact"
+    family = "test"
+    capabilities = Capabilities(needs_dense=True, exact=True)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(exact_p(ctx), 1, True)
+
+
+class ForgedPass(ExactSolver):
+    name = "test-attack-forged-pass"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        exc = SolveAborted("crashed", "forged")
+        exc.status = "pass"
+        raise exc
+
+
+class EmptyTimeout(ExactSolver):
+    name = "test-attack-empty-timeout"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise SolveAborted("timeout", "")
+
+
+class UnreadableError(Exception):
+    def __str__(self) -> str:
+        raise ValueError("the message cannot be read")
+
+
+class RaisesUnreadable(ExactSolver):
+    name = "test-attack-unreadable-error"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise UnreadableError()
+
+
+class Unpicklable(ExactSolver):
+    name = "test-attack-unpicklable"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        p = np.empty(ctx.n, dtype=object)
+        p[:] = [lambda: 0.0] * ctx.n
+        return Outcome(p, 1, True)
+
+
+class Printer(ExactSolver):
+    name = "test-attack-printer"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        print("PRINTED-BY-THE-SOLVER")
+        print("PRINTED-BY-THE-SOLVER", file=sys.stderr)
+        os.write(1, b"WRITTEN-TO-FD-1\n")  # as a C library writes
+        os.write(2, b"WRITTEN-TO-FD-2\n")
+        return super().iterate(ctx)
+
+
+class PrintsThenAborts(ExactSolver):
+    name = "test-attack-prints-then-aborts"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        os.write(2, b"LAST-WORDS-OF-THE-SOLVER\n")
+        os.abort()
+
+
+class LooseHalf(ExactSolver):
+    """Half the exact answer, within a loose promise: the KKT test accepts it, the reference does not."""
+
+    name = "test-attack-loose-half"
+    capabilities = Capabilities(needs_dense=True, promise=0.9)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(0.5 * exact_p(ctx), 1, True)
+
+
+class ExitsInConstructor(ExactSolver):
+    name = "test-attack-exits-in-init"
+
+    def __init__(self) -> None:
+        raise SystemExit(0)
+
+
+class AvailabilityRaises(ExactSolver):
+    name = "test-attack-availability-raises"
+
+    def availability(self) -> tuple[bool, str]:
+        raise RuntimeError("availability broke")
+
+
+class ParamsOfStrings(ExactSolver):
+    name = "test-attack-params-of-strings"
+    params = ("step_scale",)  # type: ignore[assignment]
+
+
+class CapabilitiesNone(ExactSolver):
+    name = "test-attack-capabilities-none"
+    capabilities = None  # type: ignore[assignment]
+
+
+class CapabilitiesDict(ExactSolver):
+    name = "test-attack-capabilities-dict"
+    capabilities = {"promise": "exact"}  # type: ignore[assignment]
+
+
+class DefaultOutOfRange(ExactSolver):
+    name = "test-attack-default-out-of-range"
+    params = (Param("step_scale", float, 5.0, "step = step_scale / L", low=0.1, high=1.0),)
+
+
+class EmptyName(ExactSolver):
+    name = ""
+
+
+class NoneName(ExactSolver):
+    name = None  # type: ignore[assignment]
+
+
+def refused_in_one_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    assert validate_main(argv) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), captured.err
+    assert "Traceback" not in captured.err and not captured.out
+    return lines[0]
+
+
+# ---------------------------------------------------------------------------
+# What a solve can do to its row
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_a_solve_aborted_status_set_after_construction_is_a_crash_not_a_pass(isolate: bool) -> None:
+    table = cf.validate(ForgedPass(), cases(), isolate=isolate)
+    row = table.rows[0]
+    assert row.status == "crashed" and "'pass'" in row.message and "forged" in row.message, table.format()
+    assert table.exit_code() == 3
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_a_solve_aborted_without_a_message_is_a_timeout_row(isolate: bool) -> None:
+    table = cf.validate(EmptyTimeout(), cases(), isolate=isolate)
+    assert [(r.status, r.message) for r in table.rows] == [("timeout", "timeout")], table.format()
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_an_exception_whose_str_raises_is_a_crash_row_naming_its_type(isolate: bool) -> None:
+    table = cf.validate(RaisesUnreadable(), cases(), isolate=isolate)
+    row = table.rows[0]
+    assert row.status == "crashed" and row.message.startswith("UnreadableError"), table.format()
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_an_answer_that_cannot_be_pickled_is_wrong_in_a_worker_as_in_process(isolate: bool) -> None:
+    table = cf.validate(Unpicklable(), cases(), isolate=isolate)
+    row = table.rows[0]
+    assert row.status == "WRONG" and "dtype object" in row.message, table.format()
+    assert "Traceback" not in row.detail and table.exit_code() == 1
+
+
+def test_what_a_solver_prints_in_its_worker_stays_there(capfd: pytest.CaptureFixture[str]) -> None:
+    table = cf.validate(Printer(), cases())
+    assert table.exit_code() == 0, table.format()
+    crashed = cf.validate(PrintsThenAborts(), cases())
+    out, err = capfd.readouterr()
+    for text in ("PRINTED-BY-THE-SOLVER", "WRITTEN-TO-FD-1", "WRITTEN-TO-FD-2", "LAST-WORDS"):
+        assert text not in out + err
+    row = crashed.rows[0]
+    assert row.status == "crashed" and "LAST-WORDS-OF-THE-SOLVER" in row.detail, crashed.format()
+
+
+def _start_a_sleeper_or_hang(msg: str) -> int:
+    """"start": start a process that outlives this reply and give its pid; else hang."""
+    if msg == "start":
+        return subprocess.Popen(["sleep", "60"]).pid
+    time.sleep(600)
+    return 0
+
+
+def _gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (gone, or a zombie waiting to be reaped)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True
+    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups and /proc: Linux")
+def test_the_processes_a_killed_worker_started_are_killed_with_it() -> None:
+    with ChildProcess(lambda: _start_a_sleeper_or_hang) as child:
+        started = child.call("start", timeout=None)
+        assert started.kind == "ok", started
+        pid = int(started.value)
+        assert not _gone(pid)
+        assert child.call("hang", timeout=0.5).kind == "timeout"
+    deadline = time.monotonic() + 10.0  # a bounded wait for the kernel, not a claim on speed
+    while not _gone(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    survived = not _gone(pid)
+    if survived:
+        os.kill(pid, 9)
+    assert not survived, "the worker's child outlived it"
+
+
+def test_the_judge_never_prints_a_threshold_that_contradicts_its_comparison() -> None:
+    inst = build_battery_spec(cases()[0].spec).at(0)
+    v = judge(inst, np.zeros(inst.n), True, check_tol=0.96)  # p = 0: scaled KKT error exactly 1
+    match = re.search(r"kkt_error (\S+) > check_tol (\S+)", v.message())
+    assert match and float(match[1]) > float(match[2]), v.message()
+
+
+def test_a_loose_promise_with_flagged_rows_says_so_and_states_its_threshold() -> None:
+    table = cf.validate(LooseHalf(), cases())
+    assert table.exit_code() == 0 and table.count("flagged") == 1, table.format()
+    line = table.summary()
+    assert "every solve correct" not in line
+    assert "scaled KKT floor 0.9" in line and "1 of 1 rows flagged" in line, line
+    page = markdown_page([table])
+    assert "1 of 1 rows flagged" in page and "judged at max(the case's profile threshold, 0.9)" in page
+
+
+def test_the_summary_of_an_exact_solver_states_its_promise() -> None:
+    table = cf.validate(ExactSolver(), cases(), isolate=False)
+    assert "CONFORMS: every solve correct to its promise (exact; 1 of 1)" in table.summary()
+
+
+# ---------------------------------------------------------------------------
+# Solvers that cannot be loaded or used: one line, exit 2
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cls, words", [
+    ("ExitsInConstructor", "SystemExit: 0"),
+    ("AvailabilityRaises", "'test-attack-availability-raises': its availability() failed: RuntimeError"),
+    ("ParamsOfStrings", "'test-attack-params-of-strings': its `params` is ('step_scale',)"),
+    ("CapabilitiesNone", "'test-attack-capabilities-none': its `capabilities` is None"),
+    ("CapabilitiesDict", "'test-attack-capabilities-dict': its `capabilities` is {'promise': 'exact'}"),
+    ("DefaultOutOfRange", "parameter 'step_scale' must lie in [0.1, 1], got 5.0"),
+    ("EmptyName", "EmptyName has no name"),
+    ("NoneName", "NoneName has no name"),
+])
+def test_a_solver_declaration_that_cannot_be_used_is_one_line_and_exit_2(
+        cls: str, words: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert words in refused_in_one_line([f"{HERE}:{cls}", "--cases", CASE], capsys)
+
+
+def test_the_registry_refuses_a_default_outside_its_declared_range() -> None:
+    with pytest.raises(ValueError, match=r"'test-attack-default-out-of-range'.*'step_scale'.*5\.0"):
+        register(DefaultOutOfRange)
+
+
+def test_a_module_that_exits_at_import_is_one_line_and_exit_2(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "cb_exits_at_import.py").write_text("import sys\nsys.exit(0)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    line = refused_in_one_line(["cb_exits_at_import:Solver", "--cases", CASE], capsys)
+    assert "cannot load solver 'cb_exits_at_import:Solver': SystemExit: 0" in line
+
+
+@pytest.mark.parametrize("module", ["cb_here.py", "./cb_here.py", "./cb_here", "ABS"])
+def test_a_file_path_for_the_module_says_how_to_name_it(
+        module: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "cb_here.py").write_text("")
+    monkeypatch.chdir(tmp_path)
+    module = str(tmp_path / "cb_here.py") if module == "ABS" else module
+    line = refused_in_one_line([f"{module}:Solver", "--cases", CASE], capsys)
+    assert "is a file path" in line and "name it cb_here:Solver" in line and str(tmp_path.resolve()) in line
+
+
+def test_a_missing_dependency_is_told_apart_from_a_missing_module(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "cb_needs_a_dependency.py").write_text("import cb_no_such_dependency_xyz\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    line = refused_in_one_line(["cb_needs_a_dependency:Solver", "--cases", CASE], capsys)
+    assert "imports 'cb_no_such_dependency_xyz', which is not installed" in line
+    assert "run from the folder" not in line
+
+
+# ---------------------------------------------------------------------------
+# The command line
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("option", ["--csv", "--out"])
+def test_an_empty_csv_or_out_is_refused(option: str, capsys: pytest.CaptureFixture[str]) -> None:
+    line = refused_in_one_line([f"{HERE}:ExactSolver", "--cases", CASE, option, ""], capsys)
+    assert f"argument {option}: '' names no file or folder" in line
+
+
+def test_a_csv_under_a_file_says_it_is_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "afile").write_text("")
+    line = refused_in_one_line([f"{HERE}:ExactSolver", "--cases", CASE, "--csv", str(tmp_path / "afile" / "x.csv")],
+                               capsys)
+    assert "afile' is a file, not a folder" in line
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["no-such-solver"], "unknown solver 'no-such-solver'"),
+    ([f"{HERE}:ExactSolver", "--params", '{"nope": 1}'], "has no parameter 'nope'"),
+])
+def test_list_refuses_what_a_run_refuses(argv: list[str], words: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert words in refused_in_one_line([*argv, "--list", "--cases", CASE], capsys)
+
+
+def test_validate_list_into_a_closed_pipe_exits_quietly() -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "contactbench.harness.cli", "validate", "--list"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader went away (`| head`) before the first line
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 141 and "Traceback" not in err, err
+
+
+# ---------------------------------------------------------------------------
+# docs/adding-a-solver.md says what the command does
+# ---------------------------------------------------------------------------
+
+
+def test_the_doc_names_every_group_of_the_battery_and_shows_todays_summary_line() -> None:
+    text = (ROOT / "docs" / "adding-a-solver.md").read_text()
+    section = text[text.index("It runs the solver through the battery"):text.index("Every answer is judged")]
+    assert f"The groups, for `--group`: {', '.join(GROUPS)}." in " ".join(section.split()), section
+    summary = next(line.strip() for line in text.splitlines() if line.strip().startswith("example-apg [fast]:"))
+    assert re.fullmatch(r"example-apg \[fast\]: CONFORMS: every solve correct to its promise \(exact; (\d+) of \1\) "
+                        r"\(rows: pass \d+(, skipped \d+)?\)", summary), summary
