@@ -27,7 +27,8 @@ Exit status (docs/harness.md, "Exit status"):
   traceback: an unknown name (with the closest known ones), an option the scene would
   ignore, a configuration that cannot run (``--kernel spectral`` without
   ``--periodic``, an implausible ``--E``), or a path that cannot be read or written;
-* 130 -- interrupted (the rows so far are kept);
+* 130 -- interrupted by Ctrl-C, 143 -- stopped by SIGTERM (``Terminated``): the same stop,
+  the rows so far kept, the table written from them and the folder's lock released;
 * 141 -- the reader of the output went away (``contactbench list solvers | head``), silently.
 """
 
@@ -36,11 +37,14 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
+import threading
 import warnings
+from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import memory_budget_scope
@@ -55,6 +59,49 @@ from .arguments import EXIT_BAD_INPUT, InputError, Parser, check_out_dir, positi
 EXIT_NOTHING_JUDGED = 1
 #: Exit status when the reader of the output closed it (128 + SIGPIPE, as a shell reports it).
 EXIT_BROKEN_PIPE = 141
+#: Exit status of a command stopped by SIGTERM (128 + SIGTERM, as a shell reports it).
+EXIT_TERMINATED = 143
+#: ... and by Ctrl-C (128 + SIGINT).
+EXIT_INTERRUPTED = 130
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a batch scheduler's, ``kill``'s), raised where Ctrl-C raises
+    ``KeyboardInterrupt``: the command stops as it does on Ctrl-C, its rows and the
+    folder's lock dealt with the same way (``terminate_as_interrupt``)."""
+
+
+@contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """SIGTERM raises ``Terminated`` in the main thread for the block (elsewhere: nothing
+    changes); the handler before is put back after.  The processes this one starts set
+    SIGTERM back to its default (harness/run/executors.py, harness/run/isolation.py)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def raise_terminated(signum: int, frame: Any) -> None:
+        raise Terminated()
+
+    before = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+def output_reader_gone() -> int:
+    """``EXIT_BROKEN_PIPE``, with stdout pointed at the null device so that nothing more is
+    flushed at exit (`contactbench list solvers | head`)."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return EXIT_BROKEN_PIPE
+
+
+def stopped(exc: KeyboardInterrupt, what: str) -> int:
+    """The line and exit status of a command stopped by Ctrl-C or SIGTERM (``Terminated``)."""
+    word, code = ("terminated", EXIT_TERMINATED) if isinstance(exc, Terminated) else ("interrupted", EXIT_INTERRUPTED)
+    print(f"{word}: {what}", file=sys.stderr)
+    return code
 
 
 def package_version() -> str:
@@ -415,13 +462,17 @@ def has_results_table(out_dir: str) -> bool:
 
 
 def cmd_validate(args: Sequence[str]) -> int:
+    """``contactbench validate``: harness/conformance/command.py's ``main``, with the exit
+    statuses of the other commands for an interrupt (``stopped``) and for a reader of the output
+    that went away (``EXIT_BROKEN_PIPE``, silently, as ``_main`` does)."""
     from .conformance.command import main as validate_main
 
     try:
         return int(validate_main(list(args)) or 0)
-    except KeyboardInterrupt:
-        print("interrupted: no conformance report was written", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return stopped(exc, "no conformance report was written")
+    except BrokenPipeError:  # `contactbench validate --list | head`
+        return output_reader_gone()
 
 
 def forwarded_validate(argv: list[str]) -> list[str] | None:
@@ -443,7 +494,7 @@ def show_warning_on_one_line(message: Warning | str, category: type[Warning], fi
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), terminate_as_interrupt():
         warnings.showwarning = show_warning_on_one_line
         return _main(list(sys.argv[1:] if argv is None else argv))
 
@@ -464,17 +515,15 @@ def _main(argv: list[str]) -> int:
             return cmd_report(args.dir)
         if args.command == "export":
             return cmd_export(args)
-    except KeyboardInterrupt:
-        print(f"interrupted: {interrupted_text(args)}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return stopped(exc, interrupted_text(args))
     except (ProblemInputError, KeyError, ValueError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         for line in str(msg).splitlines() or [""]:
             print(f"contactbench: error: {line}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except BrokenPipeError:  # the reader of our output has gone (`contactbench list solvers | head`)
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
-        return EXIT_BROKEN_PIPE
+        return output_reader_gone()
     except OSError as exc:  # a path that cannot be read or written: one line naming it
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"contactbench: error: {where}{exc.strerror or exc}", file=sys.stderr)

@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+import threading
+from concurrent.futures import FIRST_COMPLETED, InvalidStateError, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
@@ -71,6 +73,7 @@ class SerialExecutor:
 
 
 def _pool_init() -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (the command's own handler is its process's)
     set_parent_death_signal()
 
 
@@ -119,13 +122,33 @@ def stop_workers(pool: ProcessPoolExecutor) -> None:
     those started (``PR_SET_PDEATHSIG``) -- so that leaving the pool does not wait for them.
     The rows they stored are kept; a row cut short by the kill is read as never written."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
-    for proc in procs:
-        if proc.is_alive():
-            proc.kill()
-    for proc in procs:
-        proc.join(5.0)
-    pool.shutdown(wait=False, cancel_futures=True)
+    manager = getattr(pool, "_executor_manager_thread", None)  # (shutdown drops the pool's reference)
+    before = threading.excepthook
+    threading.excepthook = _quiet_on_cancelled(before)
+    try:
+        for proc in procs:
+            if proc.is_alive():
+                proc.kill()
+        for proc in procs:
+            proc.join(5.0)
+        pool.shutdown(wait=False, cancel_futures=True)
+        if manager is not None:
+            manager.join(5.0)
+    finally:
+        threading.excepthook = before
     remove_orphan_scratch()  # what their solver workers kept in their temporary folders
+
+
+def _quiet_on_cancelled(hook: Any) -> Any:
+    """``hook``, less the traceback of the pool's manager thread when it marks a future the
+    interrupt cancelled as broken (``InvalidStateError``: CPython's executor tells the
+    cancelled futures of a pool whose workers were killed so, on its own thread)."""
+
+    def quiet(args: Any) -> None:
+        if not isinstance(args.exc_value, InvalidStateError):
+            hook(args)
+
+    return quiet
 
 
 def local_executor(run: RunConfig, jobs: int) -> Executor:
