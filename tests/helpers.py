@@ -471,3 +471,16 @@ def drawn_options(data: Any, name: str) -> dict[str, object]:
         return {}
     return {p.name: data.draw(st.sampled_from(p.choices), label=f"{name}.{p.name}")
             for p in get_solver(name).params if p.choices}
+
+
+def refused_in_one_line(argv: list[str], capsys: Any) -> str:
+    """The one stderr line of ``contactbench validate ARGV`` refusing its input (exit 2,
+    nothing on stdout, no traceback)."""
+    from contactbench.harness.conformance.command import main as validate_main
+
+    assert validate_main(argv) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), captured.err
+    assert "Traceback" not in captured.err and not captured.out
+    return lines[0]

@@ -16,6 +16,7 @@ from contactbench.problems.lcp import exact_solution, exact_solution_on_subset
 from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 from contactbench.solvers.registry import all_solvers, register, unregister
+from tests.helpers import refused_in_one_line
 
 HERE = __name__  # "tests.test_conformance": the import path of the solvers below
 
@@ -478,15 +479,6 @@ def nothing_may_run(monkeypatch: pytest.MonkeyPatch) -> None:
         raise AssertionError("the battery ran before the input was checked")
 
     monkeypatch.setattr(command, "validate", ran)
-
-
-def refused_in_one_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
-    assert validate_main(argv) == 2
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), captured.err
-    assert "Traceback" not in captured.err and not captured.out
-    return lines[0]
 
 
 def test_a_promise_of_one_or_more_is_refused_because_p0_meets_it(

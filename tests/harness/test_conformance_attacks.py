@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from contactbench.harness.conformance import battery as cf
-from contactbench.harness.conformance.command import main as validate_main
 from contactbench.harness.conformance.report import markdown_page
 from contactbench.harness.judging import judge
 from contactbench.harness.run.isolation import ChildProcess
@@ -23,6 +22,7 @@ from contactbench.problems.lcp import exact_solution
 from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
 from contactbench.solvers import Capabilities, Outcome, Param, SolveAborted, SolveContext, Solver
 from contactbench.solvers.registry import register
+from tests.helpers import refused_in_one_line
 
 HERE = __name__  # the import path of the solvers below
 ROOT = Path(__file__).resolve().parents[2]
@@ -154,15 +154,6 @@ class EmptyName(ExactSolver):
 
 class NoneName(ExactSolver):
     name = None  # type: ignore[assignment]
-
-
-def refused_in_one_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
-    assert validate_main(argv) == 2
-    captured = capsys.readouterr()
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), captured.err
-    assert "Traceback" not in captured.err and not captured.out
-    return lines[0]
 
 
 # ---------------------------------------------------------------------------
