@@ -153,12 +153,13 @@ def _quiet_on_cancelled(hook: Any) -> Any:
 
 def local_executor(run: RunConfig, jobs: int) -> Executor:
     """Serial for ``--jobs 1`` or a single job, else a process pool of ``--jobs`` processes,
-    never more than there are ``jobs`` to run; a warning when ``--jobs`` is above the CPUs
-    (the workers then share them, and their timings contend)."""
+    never more than there are ``jobs`` to run; a warning when ``--jobs`` or ``--threads`` is
+    above the CPUs (the workers, or the threads, then share them, and their timings contend)."""
+    cpus = os.cpu_count() or 1
+    for flag, asked in (("--jobs", run.jobs), ("--threads", run.threads_per_worker or 0)):
+        if asked > cpus:
+            log.warning("%s %d is above the %d CPUs of this machine: they share them, and the timings contend",
+                        flag, asked, cpus)
     if run.jobs <= 1 or jobs <= 1:
         return SerialExecutor()
-    cpus = os.cpu_count() or 1
-    if run.jobs > cpus:
-        log.warning("--jobs %d is above the %d CPUs of this machine: the workers share them, and their timings "
-                    "contend", run.jobs, cpus)
     return PoolExecutor(min(run.jobs, jobs))

@@ -468,7 +468,8 @@ def test_a_killed_owners_worker_folder_is_removed_by_the_next_worker() -> None:
 
 def test_a_pool_never_has_more_processes_than_jobs_and_too_many_is_warned(caplog: pytest.LogCaptureFixture) -> None:
     """--jobs 100000 on four instance jobs starts four processes (a pool starts every worker
-    at once), with a warning that --jobs is above the machine's CPUs; one job runs serially."""
+    at once), with a warning that --jobs is above the machine's CPUs; one job runs serially;
+    --threads above the CPUs is warned too."""
     from contactbench.harness.run.executors import PoolExecutor, SerialExecutor, local_executor
     from contactbench.harness.run.plan import RunConfig
 
@@ -479,3 +480,5 @@ def test_a_pool_never_has_more_processes_than_jobs_and_too_many_is_warned(caplog
     caplog.clear()
     assert local_executor(RunConfig(jobs=2), 9).workers == 2  # type: ignore[attr-defined]
     assert "above the" not in caplog.text or (os.cpu_count() or 1) < 2
+    local_executor(RunConfig(threads_per_worker=100_000), 1)
+    assert "--threads 100000 is above the" in caplog.text
