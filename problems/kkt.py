@@ -365,19 +365,23 @@ def infinite_report(u_s: float = math.nan, p_s: float = math.nan) -> KKTReport:
 def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> KKTReport:
     """KKT figures of candidate ``p`` for ``problem`` (a QP or a ContactInstance),
     recomputing w = Hp - ubar (- Delta) from the problem; ``ValueError`` when p has the
-    wrong shape.  Non-finite entries in p (or in Hp) give an all-inf report.  Under load
-    control ``multiplier`` is the candidate's Delta (None: ``fit_multiplier``); without a
-    load equality it is not used.  A QP without bounds and load equality is judged by the
-    plain figures."""
+    wrong shape, and ``ProblemInputError`` when the problem's constraints cannot be posed on
+    it (``Constraints.check``: a bound <= 0 would turn the scales' signs).  Non-finite
+    entries in p (or in Hp), and a p that is not real (a complex entry), give an all-inf
+    report.  Under load control ``multiplier`` is the candidate's Delta (None:
+    ``fit_multiplier``); without a load equality it is not used.  A QP without bounds and
+    load equality is judged by the plain figures."""
     qp = _as_qp(problem)
-    p = np.asarray(p, dtype=np.float64)
+    real = not np.iscomplexobj(p) or not np.any(np.imag(p))
+    p = np.asarray(np.real(p) if np.iscomplexobj(p) else p, dtype=np.float64)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
     if p.shape != ubar.shape:
         raise ValueError(f"candidate p has shape {p.shape}, the problem has n = {ubar.size}")
     constraints = _constraints_of(qp)
+    constraints.check(ubar.size)
     diag_max = float(np.max(qp.H.diagonal()))
     u_s, p_s = constrained_scales(ubar, diag_max, constraints)
-    if not np.all(np.isfinite(p)):
+    if not (real and np.all(np.isfinite(p))):
         return infinite_report(u_s, p_s)
     with np.errstate(all="ignore"):
         Hp = np.asarray(qp.H.matvec(p), dtype=np.float64)

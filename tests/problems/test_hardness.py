@@ -294,3 +294,27 @@ def test_uniform_hardness_reads_back_the_hardness_of_its_bounds(delta) -> None:
     v = u.copy()
     v[1] *= 1.0 + 1e-15  # round-off between equal bounds is still one hardness
     assert uniform_hardness(v, delta) == pytest.approx(2e9, rel=1e-14)
+
+
+@pytest.mark.parametrize("upper", [-1.0, 0.0, math.nan])
+def test_the_judge_refuses_bounds_that_cannot_be_posed(elastic, upper: float) -> None:
+    """A QP whose upper bounds are <= 0 (or NaN) is refused by kkt_check in one line (with a
+    bound of -1 the force scale would turn negative, and every answer -- the exact one, p =
+    0 -- would score 0)."""
+    b, d, p_exact = elastic
+    qp = b.build(d).qp
+    bounds = np.ones(qp.n)
+    bad = QP(qp.H, qp.ubar, qp.geometry, Constraints(bounds, None))
+    bounds[:] = upper  # (an array changed after the constraints were posed)
+    for p in (p_exact, np.zeros(qp.n)):
+        with pytest.raises(ProblemInputError, match="upper bounds"):
+            kkt_check(bad, p)
+
+
+def test_a_complex_answer_is_no_answer(elastic) -> None:
+    """A candidate with an imaginary part scores inf (not its real part's figures); a complex
+    dtype with zero imaginary parts is read as the real answer it is."""
+    b, d, p = elastic
+    qp = b.build(d).qp
+    assert kkt_check(qp, p + 1j).kkt_error == math.inf
+    assert kkt_check(qp, p + 0j).kkt_error == pytest.approx(kkt_check(qp, p).kkt_error, abs=1e-15)
