@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ProblemInputError
+from .errors import ProblemInputError, check_nonnegative, real_number
 
 #: How a contact problem is driven: the far-field displacement Delta given (the
 #: default), or the total force P given (``Constraints.load``).
@@ -41,10 +41,22 @@ class Constraints:
     """The optional bounds and load equality of a contact QP (module doc).
 
     upper : None (no upper bounds) or a float64 array of length n, entries in (0, inf];
-    load  : None (displacement control) or the total force P >= 0 (load control)."""
+    load  : None (displacement control) or the total force P >= 0 (load control).
+    Construction refuses, in one line, an ``upper`` that is not a 1-D array of entries > 0
+    (NaN refused) and a ``load`` that is not a finite real number >= 0 (a bool or a string
+    refused); ``check(n)`` adds the length and the capacity."""
 
     upper: np.ndarray | None = None
     load: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.upper is not None:
+            u = self.upper
+            if getattr(u, "ndim", None) != 1 or not bool((u > 0.0).all()):
+                raise ProblemInputError(f"upper bounds must be a 1-D array of entries > 0 (inf for none), got "
+                                        f"shape {getattr(u, 'shape', None)} with min {np.nanmin(np.asarray(u), initial=np.inf)!r}")
+        if self.load is not None:
+            check_nonnegative("the load", self.load)
 
     @property
     def bounded(self) -> bool:
@@ -99,7 +111,7 @@ def make_constraints(n: int, upper: np.ndarray | float | None = None, load: floa
         u = np.broadcast_to(np.asarray(upper, dtype=np.float64), (n,)).copy()
         if np.all(np.isposinf(u)):
             u = None
-    c = Constraints(u, None if load is None else float(load))
+    c = Constraints(u, None if load is None else check_nonnegative("the load", load))
     c.check(n)
     return c
 
@@ -108,7 +120,7 @@ def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int)
     """u_i = H_A d0 d1 for n elements of sides ``delta`` = (d0, d1) (one number: square
     elements): the force at which an element's mean pressure reaches the hardness
     ``hardness`` (inf: no bound)."""
-    h = float(hardness)
+    h = real_number("hardness", hardness, "> 0 (inf for none)")
     if math.isnan(h) or h <= 0.0:
         raise ProblemInputError(f"hardness must be > 0 (inf for none), got {hardness!r}")
     sides = (delta, delta) if np.ndim(delta) == 0 else tuple(delta)  # type: ignore[arg-type]

@@ -289,7 +289,8 @@ class KernelTransform:
     def apply_on_set(self, pidx: np.ndarray, x: np.ndarray, dtype: object = np.float64) -> np.ndarray:
         """gather_I (K * scatter_I x) for the points with padded flat indices ``pidx``:
         the matvec of H_II in precision ``dtype``, without building the physical field
-        when ducc is used."""
+        when ducc is used.  ``pidx`` must not repeat (the scatter writes each point once;
+        ``FFTOperator`` checks its indices)."""
         dt = operator_dtype(dtype)
         if fft_backend() == "ducc":
             out = np.empty(pidx.size, dtype=dt)

@@ -37,12 +37,13 @@ from .operators import (
     DenseOperator,
     FFTOperator,
     KernelTransform,
+    budget_or_default,
     check_dense_budget,
+    check_positions,
 )
-from .operators import memory_budget as operator_memory_budget
 from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
 from .preprocessing import MapPreprocessing
-from .surfaces import Surface, check_grid_size, check_not_flat
+from .surfaces import Surface, check_grid_size, check_not_flat, check_seed, check_whole
 
 OperatorKind = Literal["fft", "dense", "gpu"]
 #: The operator kinds an instance can be built with: the matrix-free FFT operator, the
@@ -129,13 +130,18 @@ class QP:
 
     ``geometry`` is optional and read only by solvers that need positions (CMR).
     ``constraints``: upper bounds and a load equality beyond p >= 0
-    (``problems.constraints``; the default poses none).
+    (``problems.constraints``; the default poses none); its bounds have ubar's shape.
     """
 
     H: ContactOperator
     ubar: np.ndarray
     geometry: Geometry | None = None
     constraints: Constraints = field(default_factory=Constraints)
+
+    def __post_init__(self) -> None:
+        up = self.constraints.upper
+        if up is not None and up.shape != self.ubar.shape:
+            raise ProblemInputError(f"upper bounds must have the shape of ubar {self.ubar.shape}, got {up.shape}")
 
     @property
     def n(self) -> int:
@@ -146,8 +152,9 @@ class QP:
 
     def restrict(self, pos: np.ndarray) -> "QP":
         """The QP on the unknowns at positions ``pos`` (0..n-1): H_PP, ubar_P and their
-        geometry (the others held at p = 0)."""
-        pos = np.asarray(pos)
+        geometry (the others held at p = 0).  ``pos``: distinct positions or a boolean mask
+        of length n (``check_positions``)."""
+        pos = check_positions(pos, self.n)
         geom = None if self.geometry is None else self.geometry.subset(pos)
         return QP(self.H.restrict(pos), self.ubar[pos], geom, self.constraints.restrict(pos))
 
@@ -378,7 +385,7 @@ class InstanceBuilder:
         self.kernel = kernel
         self.periodic = periodic
         self.operator_kind = check_operator_kind(operator)
-        self.memory_budget = operator_memory_budget() if memory_budget is None else memory_budget
+        self.memory_budget = budget_or_default(memory_budget)
         self.images = images
         self._transform: KernelTransform | None = None
         self._device_transform: ArrayKernelTransform | None = None
@@ -503,19 +510,25 @@ class InstanceBuilder:
                                surface=self.surface, meta={"load": float(load), **(meta or {})})
 
     def _candidate_indices(self, candidates: np.ndarray) -> np.ndarray:
-        """Flat grid indices from an index array or an N x N boolean mask."""
+        """Sorted distinct flat grid indices from ``candidates``: flat grid indices (1-D
+        integers in 0..N1 N2 - 1, repeats allowed) or an N1 x N2 boolean mask; anything
+        else is a one-line ``ProblemInputError``."""
         c = np.asarray(candidates)
+        size = self.surface.heights.size
         if c.dtype == bool:
             if c.shape != self.surface.shape:
                 raise ProblemInputError(
                     f"candidate mask has shape {c.shape}, the surface grid is {self.surface.shape}"
                 )
             return np.flatnonzero(c)
-        c = c.astype(np.int64).ravel()
-        if c.size and (c.min() < 0 or c.max() >= self.surface.heights.size):
+        if c.ndim != 1 or (c.size and not np.issubdtype(c.dtype, np.integer)):
             raise ProblemInputError(
-                f"candidate indices must lie in 0..{self.surface.heights.size - 1}, got {c.min()}..{c.max()}"
+                f"candidates must be flat grid indices (1-D integers) or a {self.surface.shape} boolean mask, "
+                f"got dtype {c.dtype} and shape {c.shape}"
             )
+        c = c.astype(np.int64)
+        if c.size and (c.min() < 0 or c.max() >= size):
+            raise ProblemInputError(f"candidate indices must lie in 0..{size - 1}, got {c.min()}..{c.max()}")
         return np.unique(c)
 
 
@@ -545,15 +558,16 @@ def paper_max_displacement(surface: Surface) -> float:
 
 
 def load_ramp(delta_max: float, steps: int) -> np.ndarray:
-    """Delta_k = (k / K) * delta_max for k = 1..K."""
+    """Delta_k = (k / K) * delta_max for k = 1..K (K = ``steps``, a whole number >= 1)."""
     check_positive("maximum displacement", delta_max)
-    if int(steps) != steps or steps < 1:
-        raise ProblemInputError(f"number of load steps must be a positive integer, got {steps}")
+    steps = check_whole("number of load steps", steps, 1)
     return delta_max * np.arange(1, int(steps) + 1) / int(steps)
 
 
 def load_unload_cycle(delta_max: float, steps: int, cycles: int = 1) -> np.ndarray:
-    """Up in ``steps`` steps to delta_max, down to delta_max/steps, repeated ``cycles`` times."""
+    """Up in ``steps`` steps to delta_max, down to delta_max/steps, repeated ``cycles``
+    (a whole number >= 1) times."""
+    cycles = check_whole("cycles", cycles, 1)
     up = load_ramp(delta_max, steps)
     one = np.concatenate([up, up[-2::-1]])
     return np.concatenate([one] + [one[1:] for _ in range(int(cycles) - 1)])
@@ -585,7 +599,7 @@ def counterexample(n: int, seed: int, E: float = 0.01, delta: float = 1.0, opera
     if N * N != n or N < 2:
         raise ProblemInputError(f"counterexample needs n = N^2 with N >= 2, got n = {n}")
     check_kernel(kernel, periodic)
-    ubar = np.random.default_rng(seed).random(n)
+    ubar = np.random.default_rng(check_seed(seed)).random(n)
     surf = Surface(np.zeros((N, N)), delta, unit="a.u.", name=f"counterexample-n{n}")
     builder = InstanceBuilder(surf, E, kernel, periodic=periodic, operator=operator, layer=layer)
     idx = np.arange(n)
@@ -615,17 +629,19 @@ class HertzSolution:
 def hertz_solution(radius: float, E: float, delta_disp: float) -> HertzSolution:
     """Rigid sphere of radius R on an elastic half-space (composite modulus E*),
     indentation Delta: a = sqrt(R Delta), P = 4/3 E* sqrt(R) Delta^{3/2},
-    p0 = 2 E* a / (pi R)."""
+    p0 = 2 E* a / (pi R); R > 0, E* > 0, Delta >= 0 (finite; else ``ProblemInputError``)."""
+    radius, E = check_positive("sphere radius", radius), check_positive("modulus E*", E)
+    delta_disp = check_nonnegative("far-field displacement Delta", delta_disp)
     a = np.sqrt(radius * delta_disp)
     return HertzSolution(a, 4.0 / 3.0 * E * np.sqrt(radius) * delta_disp**1.5, 2.0 * E * a / (np.pi * radius))
 
 
 def hertz_surface(N: int, radius: float, length: float) -> Surface:
     """Paraboloid cap xi = -r^2 / (2R) centred on an N x N grid of side ``length``
-    (the element centres of an even N straddle the apex symmetrically)."""
+    (the element centres of an even N straddle the apex symmetrically); R, length > 0."""
     N = check_grid_size(N, "hertz surface")
     check_positive("sphere radius", radius)
-    delta = length / N
+    delta = check_positive("side length", length) / N
     x = (np.arange(N) - (N - 1) / 2.0) * delta
     r2 = x[:, None] ** 2 + x[None, :] ** 2
     return Surface(-r2 / (2.0 * radius), delta, name=f"hertz-N{N}", meta={"radius": radius})
@@ -633,18 +649,23 @@ def hertz_surface(N: int, radius: float, length: float) -> Surface:
 
 def flat_punch_surface(N: int, punch_radius: float, length: float, depth: float | None = None) -> Surface:
     """A rigid flat circular punch of radius a: xi = 0 inside r <= a, -depth outside
-    (depth default: the side length, far beyond any displacement used)."""
+    (depth default: the side length, far beyond any displacement used); a <= length / 2
+    (the punch fits on the grid), length > 0, depth > 0."""
     N = check_grid_size(N, "flat-punch surface")
-    check_positive("punch radius", punch_radius)
+    length = check_positive("side length", length)
+    if check_positive("punch radius", punch_radius) > length / 2.0:
+        raise ProblemInputError(f"punch radius must be <= half the side length {length / 2.0!r}, got {punch_radius!r}")
     delta = length / N
     x = (np.arange(N) - (N - 1) / 2.0) * delta
     r = np.hypot(x[:, None], x[None, :])
-    d = length if depth is None else depth
+    d = length if depth is None else check_positive("punch depth", depth)
     return Surface(np.where(r <= punch_radius, 0.0, -d), delta, name=f"flat-punch-N{N}", meta={"punch_radius": punch_radius})
 
 
 def flat_punch_load(punch_radius: float, E: float, delta_disp: float) -> float:
-    """P = 2 a E* Delta."""
+    """P = 2 a E* Delta; a > 0, E* > 0, Delta >= 0 (finite; else ``ProblemInputError``)."""
+    check_positive("punch radius", punch_radius), check_positive("modulus E*", E)
+    check_nonnegative("far-field displacement Delta", delta_disp)
     return 2.0 * punch_radius * E * delta_disp
 
 

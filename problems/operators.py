@@ -34,7 +34,7 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
 from . import window_sums
-from .errors import MemoryBudgetError, ProblemInputError
+from .errors import MemoryBudgetError, ProblemInputError, real_number
 from .fft_floor import FLOOR_LAYOUTS, fft_floor_pair  # noqa: F401 -- re-exported with the FFT names
 from .fft_threads import _ducc_fft, each_on_pool, fft_backend, fft_workers, share_out  # noqa: F401 -- re-exported FFT names
 from .fft_transform import PRECISIONS, KernelTransform, operator_dtype  # noqa: F401 -- re-exported FFT names
@@ -150,12 +150,52 @@ def dense_nbytes(n: int) -> int:
     return 8 * int(n) * int(n)
 
 
+def budget_or_default(budget: float | None) -> float:
+    """``budget`` (bytes: a number > 0, inf for no limit), or this process's
+    ``memory_budget()`` for None; anything else (NaN, <= 0, a bool, a string) is a one-line
+    ``ProblemInputError``."""
+    if budget is None:
+        return memory_budget()
+    b = real_number("memory budget", budget, "a number of bytes > 0")
+    if not b > 0.0:
+        raise ProblemInputError(f"memory budget must be a number of bytes > 0, got {budget!r}")
+    return b
+
+
 def check_dense_budget(n: int, budget: float | None = None, what: str = "dense H") -> None:
-    """Raise MemoryBudgetError if an n x n float64 matrix would exceed the budget."""
-    b = memory_budget() if budget is None else budget
+    """Raise MemoryBudgetError if an n x n float64 matrix would exceed the budget
+    (``budget_or_default``)."""
+    b = budget_or_default(budget)
     need = dense_nbytes(n)
     if need > b:
         raise MemoryBudgetError(f"{what} ({n} x {n} float64)", need, b)
+
+
+def check_positions(idx: object, n: int, what: str = "positions") -> np.ndarray:
+    """``idx`` as distinct int64 positions in 0..n-1 (a 1-D integer array in any order, or a
+    boolean mask of length n read as its True positions); else a one-line
+    ``ProblemInputError`` naming ``what`` and the offending value.  O(len(idx)) for sorted
+    positions, one ``bincount`` otherwise."""
+    a = np.asarray(idx)
+    if a.dtype == np.bool_:
+        if a.shape != (n,):
+            raise ProblemInputError(f"{what} as a boolean mask must have shape ({n},), got shape {a.shape}")
+        return np.flatnonzero(a)
+    if a.ndim != 1 or (a.size and not np.issubdtype(a.dtype, np.integer)):
+        raise ProblemInputError(f"{what} must be 1-D integer positions in 0..{n - 1} or a boolean mask of "
+                                f"length {n}, got dtype {a.dtype} and shape {a.shape}")
+    a = a.astype(np.int64, copy=False)
+    if a.size == 0:
+        return a
+    lo, hi = int(a.min()), int(a.max())
+    if lo < 0 or hi >= n:
+        raise ProblemInputError(f"{what} must lie in 0..{n - 1}, got {lo if lo < 0 else hi}")
+    if a.size > 1 and not bool(np.all(a[1:] > a[:-1])):
+        counts = np.bincount(a)
+        if int(counts.max()) > 1:
+            k = int(np.argmax(counts))
+            raise ProblemInputError(f"{what} must not repeat, got {k} repeated {int(counts[k])} times")
+    return a
 
 
 class ContactOperator(ABC):
@@ -197,7 +237,8 @@ class ContactOperator(ABC):
 
     @abstractmethod
     def restrict(self, idx: np.ndarray) -> "ContactOperator":
-        """Operator on the subset ``idx`` (positions 0..n-1) of this operator's set."""
+        """Operator on the subset ``idx`` of this operator's set: distinct positions in
+        0..n-1 or a boolean mask of length n (``check_positions``)."""
 
     @property
     @abstractmethod
@@ -343,10 +384,11 @@ class DenseOperator(ContactOperator):
         return self.H[np.ix_(np.asarray(rows), np.asarray(cols))].astype(np.float64, copy=False)
 
     def restrict(self, idx: np.ndarray) -> "DenseOperator":
-        idx = np.asarray(idx)
+        idx = check_positions(idx, self.n)
         return DenseOperator(self.H[np.ix_(idx, idx)], dtype=self.dtype)
 
     def to_dense(self, budget: float | None = None) -> np.ndarray:
+        budget_or_default(budget)
         return self.H if self.dtype == np.float64 else self.H.astype(np.float64)
 
     def entries(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -396,7 +438,8 @@ def even_table_product(table: Any, width: Any, rows: tuple[Any, Any], cols: tupl
 
 class FFTOperator(ContactOperator):
     """Matrix-free H_II: scatter to the physical grid, convolve by FFT, gather; the
-    products run in ``dtype`` (float64, or float32 from ``with_precision``)."""
+    products run in ``dtype`` (float64, or float32 from ``with_precision``).  ``grid_idx``:
+    distinct flat indices of the physical grid (``check_positions``)."""
 
     def __init__(
         self, transform: KernelTransform, grid_idx: np.ndarray, auto_dense: bool | None = None, dtype: object = np.float64
@@ -405,7 +448,8 @@ class FFTOperator(ContactOperator):
         self.dtype = operator_dtype(dtype)
         # Transforms that predate precisions (operators_gpu) are called without it in float64.
         self._precision_kw: dict[str, np.dtype] = {} if self.dtype == np.float64 else {"dtype": self.dtype}
-        self.grid_idx = np.asarray(grid_idx, dtype=np.int64)
+        n0, n1 = transform.grid_shape
+        self.grid_idx = check_positions(grid_idx, int(n0) * int(n1), "grid indices")
         self.pidx = transform.padded_index(self.grid_idx)
         self.n = int(self.grid_idx.size)
         self.matvec_count = 0
@@ -593,7 +637,7 @@ class FFTOperator(ContactOperator):
         return self.transform.floor
 
     def restrict(self, idx: np.ndarray) -> "FFTOperator":
-        idx = np.asarray(idx)
+        idx = check_positions(idx, self.n)
         op = FFTOperator(self.transform, self.grid_idx[idx], auto_dense=self.auto_dense, dtype=self.dtype)
         if self._dense is not None:
             op._dense = self._dense[np.ix_(idx, idx)]

@@ -195,6 +195,26 @@ def check_grid_size(N: object, what: str = "surface") -> int:
     return int(N)  # type: ignore[arg-type]
 
 
+def check_seed(seed: object) -> int:
+    """``seed`` as an int when it is an integer >= 0 (not a bool, not None: a surface's name
+    records its seed, so the same name is the same surface), else a one-line
+    ``ProblemInputError``."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ProblemInputError(f"seed must be an integer >= 0, got {seed!r}")
+    return int(seed)
+
+
+def check_whole(name: str, value: object, minimum: int) -> int:
+    """``value`` as an int when it is a whole number >= ``minimum`` (an int, or a float with
+    an integer value; not a bool), else a one-line ``ProblemInputError`` naming ``name``."""
+    ok = isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_)) \
+        and bool(np.isfinite(value)) and int(value) == value and value >= minimum
+    if not ok:
+        rule = "a positive integer" if minimum == 1 else f"a whole number >= {minimum}"
+        raise ProblemInputError(f"{name} must be {rule}, got {value!r}")
+    return int(value)  # type: ignore[arg-type]
+
+
 #: RMD levels k allowed: 2^1 .. 2^16 (65536) points per side.  The generator itself has no
 #: limit of its own: past 8192^2 what decides is the grid's memory (8 B a point) and the time
 #: to build it (about a minute at 8193^2 on 2 cores).
@@ -359,12 +379,14 @@ def rmd_surface(
     ``crop`` (non-periodic only): drop the last row and column of the 2^k + 1 grid and of
     every level, so the surface has 2^k points per side (spacing L / 2^k) and each level is
     still the fine grid sub-sampled; the rms and mean are those of the cropped grid.
-    Family (``meta["family"]``, the name's prefix): "periodic" or "saupe".
+    Family (``meta["family"]``, the name's prefix): "periodic" or "saupe".  ``k`` and
+    ``min_level`` are whole numbers, ``seed`` an integer >= 0 (``check_seed``).
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
-    if int(k) != k or k < 1 or k > RMD_MAX_LEVEL:
-        raise ProblemInputError(f"RMD level k must be an integer in 1..{RMD_MAX_LEVEL}, got {k}")
+    if check_whole("RMD level k", k, 1) > RMD_MAX_LEVEL:
+        raise ProblemInputError(f"RMD level k must be an integer in 1..{RMD_MAX_LEVEL}, got {k!r}")
+    k, min_level, seed = int(k), check_whole("min_level", min_level, 0), check_seed(seed)
     check_positive("length L", length)
     check_positive("rms height", rms_height)
     if crop and periodic:
@@ -429,21 +451,29 @@ def spectral_surface(
 
     C(q) ~ q^(-2(1+H)) between q_r = 2 pi / rolloff_wavelength (default: the system
     size, i.e. no plateau) and q_s = 2 pi / short_cutoff_wavelength (default: the grid
-    Nyquist); C is constant (a roll-off plateau) below q_r and zero above q_s.
+    Nyquist); C is constant (a roll-off plateau) below q_r and zero above q_s.  Given
+    wavelengths are finite and > 0, and some wave number 0 < q <= q_s must remain (else a
+    one-line ``ProblemInputError``).
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
     N = check_grid_size(N, "spectral surface")
     check_positive("length L", length)
     check_positive("rms height", rms_height)
+    seed = check_seed(seed)
     delta = length / N
     q = wavevectors(N, delta)
-    q_r = 2.0 * np.pi / (rolloff_wavelength if rolloff_wavelength else length)
-    q_s = 2.0 * np.pi / short_cutoff_wavelength if short_cutoff_wavelength else np.inf
+    roll = length if rolloff_wavelength is None else check_positive("rolloff wavelength", rolloff_wavelength)
+    q_r = 2.0 * np.pi / roll
+    q_s = np.inf if short_cutoff_wavelength is None else \
+        2.0 * np.pi / check_positive("short cutoff wavelength", short_cutoff_wavelength)
     qq = np.maximum(q, q_r)
     amp = qq ** (-(1.0 + hurst))
     amp[q == 0] = 0.0
     amp[q > q_s] = 0.0
+    if not np.any(amp > 0.0):
+        raise ProblemInputError(f"no wave number is left between the cutoffs: short cutoff wavelength "
+                                f"{short_cutoff_wavelength!r} removes every mode of an N = {N} grid of side {length!r}")
     rng = np.random.default_rng(seed)
     noise = np.fft.fft2(rng.normal(size=(N, N)))
     z = np.real(np.fft.ifft2(noise * amp))
@@ -477,8 +507,8 @@ def fourier_synthesis(N: int, hurst: float, rms_slope: float, length: float = 10
     check_positive("rms slope", rms_slope)
     N = check_grid_size(N, "Fourier-synthesis surface")
     check_positive("length L", length)
-    rolloff = rolloff_wavelength if rolloff_wavelength else ROLLOFF_FRACTION * length
-    cutoff = short_cutoff_wavelength if short_cutoff_wavelength else SHORT_CUTOFF_SPACINGS * length / N
+    rolloff = ROLLOFF_FRACTION * length if rolloff_wavelength is None else rolloff_wavelength
+    cutoff = SHORT_CUTOFF_SPACINGS * length / N if short_cutoff_wavelength is None else short_cutoff_wavelength
     s = spectral_surface(N, hurst, length=length, seed=seed, rolloff_wavelength=rolloff,
                          short_cutoff_wavelength=cutoff)
     s = replace(s, name=f"fourier-H{hurst:g}-N{N}-s{seed}", meta={**s.meta, "family": "fourier"})
@@ -510,7 +540,7 @@ def measured_like_heights(surface: Surface, tilt: float, missing_fraction: float
         raise ProblemInputError(f"missing fraction must lie in [0, 0.5), got {missing_fraction!r}")
     if int(hole_radius) != hole_radius or hole_radius < 0:
         raise ProblemInputError(f"hole radius must be an integer >= 0 points, got {hole_radius!r}")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed(seed))
     n0, n1 = surface.shape
     d0, d1 = surface.spacing
     angle = rng.uniform(0.0, 2.0 * np.pi)
