@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 
 class ProblemInputError(ValueError):
     """Invalid input to a problem builder (surface, material, load, file)."""
@@ -47,3 +49,19 @@ def check_nonnegative(name: str, value: float) -> float:
     if not (v >= 0.0) or v == float("inf"):
         raise ProblemInputError(f"{name} must be a finite number >= 0, got {value!r}")
     return v
+
+
+def is_whole(value: object, minimum: int) -> bool:
+    """Whether ``value`` is a whole number >= ``minimum``: an int, or a finite float with an
+    integer value; not a bool."""
+    return isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_)) \
+        and bool(np.isfinite(value)) and int(value) == value and value >= minimum
+
+
+def check_whole(name: str, value: object, minimum: int) -> int:
+    """``value`` as an int when it is a whole number >= ``minimum`` (``is_whole``), else a
+    one-line ``ProblemInputError`` naming ``name``."""
+    if not is_whole(value, minimum):
+        rule = "a positive integer" if minimum == 1 else f"a whole number >= {minimum}"
+        raise ProblemInputError(f"{name} must be {rule}, got {value!r}")
+    return int(value)  # type: ignore[arg-type]

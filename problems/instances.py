@@ -28,7 +28,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .constraints import CONTROLS, Constraints, fit_multiplier, hardness_bounds, make_constraints
-from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive
+from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, check_positive, check_whole
 from .kernels import check_kernel, kernel_table
 from .kkt import constrained_scales, problem_scales
 from .layers import Layer
@@ -43,7 +43,7 @@ from .operators import (
 )
 from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
 from .preprocessing import MapPreprocessing
-from .surfaces import Surface, check_grid_size, check_not_flat, check_seed, check_whole
+from .surfaces import Surface, check_grid_size, check_not_flat, check_seed
 
 OperatorKind = Literal["fft", "dense", "gpu"]
 #: The operator kinds an instance can be built with: the matrix-free FFT operator, the

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ProblemInputError, check_positive
+from .errors import ProblemInputError, check_positive, check_whole, is_whole
 from .preprocessing import MapPreprocessing
 
 
@@ -188,9 +188,7 @@ def check_not_flat(surface: Surface) -> Surface:
 def check_grid_size(N: object, what: str = "surface") -> int:
     """N as an int when it is an integer >= 2 (points per side), else a one-line
     ``ProblemInputError``."""
-    ok = isinstance(N, (int, np.integer, float, np.floating)) and not isinstance(N, (bool, np.bool_)) \
-        and np.isfinite(N) and int(N) == N and N >= 2
-    if not ok:
+    if not is_whole(N, 2):
         raise ProblemInputError(f"a {what} needs an integer N >= 2 points per side, got N = {N!r}")
     return int(N)  # type: ignore[arg-type]
 
@@ -202,17 +200,6 @@ def check_seed(seed: object) -> int:
     if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ProblemInputError(f"seed must be an integer >= 0, got {seed!r}")
     return int(seed)
-
-
-def check_whole(name: str, value: object, minimum: int) -> int:
-    """``value`` as an int when it is a whole number >= ``minimum`` (an int, or a float with
-    an integer value; not a bool), else a one-line ``ProblemInputError`` naming ``name``."""
-    ok = isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_)) \
-        and bool(np.isfinite(value)) and int(value) == value and value >= minimum
-    if not ok:
-        rule = "a positive integer" if minimum == 1 else f"a whole number >= {minimum}"
-        raise ProblemInputError(f"{name} must be {rule}, got {value!r}")
-    return int(value)  # type: ignore[arg-type]
 
 
 #: RMD levels k allowed: 2^1 .. 2^16 (65536) points per side.  The generator itself has no
