@@ -34,9 +34,10 @@ import time
 from dataclasses import asdict, dataclass, replace
 from typing import Any, Sequence
 
-from contactbench.problems.scenes import SceneConfig
+from contactbench.problems.scenes import SceneConfig, get_scene
 
 from .executors import Executor, local_executor
+from ..table.files import canonical_json
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
 from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
@@ -96,11 +97,29 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     (``run_config_record``, of this run or of a folder written before the marker):
     scenes, scene options, solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured
     maps' contents where it reads any (a map edited between two runs is another run)."""
-    run = config.get("run") or {}
+    run = dict(config.get("run") or {})
+    if run.get("profiles") is not None and sorted(run["profiles"]) == config.get("profiles"):
+        run["profiles"] = None  # (the profiles the study would run: the same cells)
     maps = {"surface_sha256": config["surface_sha256"]} if config.get("surface_sha256") else {}
-    return {"scenes": config.get("scenes"), "scene_config": config.get("scene_config"),
+    return {"scenes": config.get("scenes"), "scene_config": given_apart(config.get("scene_config"), config.get("scenes")),
             "solvers": config.get("solvers"), "profiles": config.get("profiles"),
             "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}, **maps}
+
+
+def given_apart(scene_config: Any, scenes: Any) -> Any:
+    """A run's scene options with those that only spell out a default taken back to None:
+    an option equal to the default of every scene the run names (each a registered scene;
+    a composite's parts have their own) says what leaving it out says, so ``--kernel bcc``
+    resumes the folder that a run without it wrote.  ``extra`` options are kept as given."""
+    if not isinstance(scene_config, dict) or not isinstance(scenes, list) or not scenes:
+        return scene_config
+    try:
+        defaults = [asdict(get_scene(str(name)).defaults) for name in scenes]
+    except KeyError:
+        return scene_config
+    return {k: None if k != "extra" and v is not None and all(canonical_json(d.get(k)) == canonical_json(v)
+                                                              for d in defaults) else v
+            for k, v in scene_config.items()}
 
 
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,

@@ -266,9 +266,7 @@ def write_table(table: pd.DataFrame, out_dir: str | os.PathLike[str]) -> None:
     replace_atomically(out / CSV_FILE, lambda tmp: table.to_csv(tmp, index=False))
 
 
-# ---------------------------------------------------------------------------
-# What a results folder is (the marker)
-# ---------------------------------------------------------------------------
+# --- What a results folder is (the marker) ---
 
 
 class RunFolderError(ProblemInputError):
@@ -344,7 +342,8 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
     """Inspect ``out_dir`` without touching it; raise ``RunFolderError`` for a path that
     is not a folder, a foreign non-empty folder or an unreadable marker (``JournalError``
     for a journal against the contract, ``checked_journal``).  ``identity_of`` turns a
-    legacy meta.json ``config`` into a run configuration."""
+    legacy meta.json ``config``, and each configuration the marker records, into a run
+    configuration as this version reads one."""
     out = Path(out_dir)
     if not out.exists():
         return RunFolder(out, "new")
@@ -367,7 +366,8 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
             raise RunFolderError(f"results folder {out} was written by a newer contactbench (marker format {fmt}); "
                                  "choose another --out")
         checked_journal(out / ROWS_FILE)
-        return RunFolder(out, "marked", runs)
+        configs = [identity_of(r.get("config") or {}) for r in runs]  # (read as this version reads a run)
+        return RunFolder(out, "marked", [{"fingerprint": fingerprint(c), "config": c} for c in configs])
     if not [p for p in out.iterdir() if p.name != LOCK_FILE]:
         return RunFolder(out, "new")
     config = legacy_config(out)
@@ -405,9 +405,7 @@ def record_run(folder: RunFolder, identity: dict[str, Any]) -> Path:
     return path
 
 
-# ---------------------------------------------------------------------------
-# One writer per results folder
-# ---------------------------------------------------------------------------
+# --- One writer per results folder ---
 
 
 class FolderInUseError(ProblemInputError):
@@ -625,9 +623,7 @@ def _close_held_in_child() -> None:
 os.register_at_fork(after_in_child=_close_held_in_child)
 
 
-# ---------------------------------------------------------------------------
-# The one reader of a stored table
-# ---------------------------------------------------------------------------
+# --- The one reader of a stored table ---
 
 
 def _read_csv(path: Path) -> pd.DataFrame:

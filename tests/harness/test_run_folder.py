@@ -109,6 +109,29 @@ def test_a_measured_map_edited_between_two_runs_is_another_configuration(
     assert load_table(out)["instance"].nunique() == 2
 
 
+def test_a_default_written_out_resumes_the_folder_written_without_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An option that only spells out the scene's default (--kernel bcc, --operator fft,
+    --length 1e-4, --E 1e9, the study's own --profile) is the same configuration: it resumes
+    the folder a run without it wrote, and the other way round; another value is still
+    another configuration."""
+    plain, spelled = tmp_path / "plain", tmp_path / "spelled"
+    common = ["paper-sweep", "--size", "8", "--steps", "2", "--solvers", SOLVER, "--reference", "none"]
+    defaults = ["--kernel", "bcc", "--operator", "fft", "--length", "1e-4", "--E", "1e9", "--seeds", "5"]
+    assert cli_run(capsys, *common, "--out", str(plain))[0] == 0
+    profiles = sorted(set(load_table(plain)["profile"]))
+    spell = [*defaults, "--profile", ",".join(profiles)]
+    code, err = cli_run(capsys, *common, *spell, "--out", str(plain))
+    assert code == 0, err
+    assert len(load_table(plain)) == 2 * len(profiles)  # nothing new was solved
+    assert cli_run(capsys, *common, *spell, "--out", str(spelled))[0] == 0
+    assert cli_run(capsys, *common, "--out", str(spelled))[0] == 0
+    before = snapshot(plain)
+    code, err = cli_run(capsys, *common, "--kernel", "love", "--out", str(plain))
+    assert code == 2 and "scene_config.kernel" in err
+    assert snapshot(plain) == before
+
+
 def test_a_folder_written_before_the_marker_is_resumed(tmp_path: Path) -> None:
     out = tmp_path / "old"
     run_benchmark(["paper-sweep"], small(), [SOLVER], RUN, out, command=["pytest"])
