@@ -32,7 +32,7 @@ from contactbench.problems.operators import spectral_norm_estimate
 from contactbench.problems.operators_gpu import ArrayFFTOperator, ArrayKernelTransform
 from contactbench.problems.surfaces import rmd_surface_n
 from contactbench.solvers import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, register
-from contactbench.solvers.base import Deadline, Trace
+from contactbench.solvers.base import Deadline, SolveAborted, Trace
 from contactbench.solvers.registry import get_solver
 from contactbench.harness.cli import main as cli_main
 
@@ -167,6 +167,19 @@ class RaiseStub(Solver):
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         raise RuntimeError("deliberate failure in test-raise")
+
+
+@register(replace=True)
+class ForgedAbortStub(Solver):
+    """Raises a ``SolveAborted`` whose status it set to "solved" after building it."""
+
+    name = "test-forged-abort"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        exc = SolveAborted("crashed", "forged status")
+        exc.status = "solved"
+        raise exc
 
 
 class OwnExitStub(Solver):

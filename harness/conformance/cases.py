@@ -40,7 +40,7 @@ from ..judging import ProblemSeal, portable_answer
 from ..profiles import get_profile
 from ..run.isolation import SOLVER_FAULTS, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
-from ..run.worker import instance_operator_kind, problem_traits
+from ..run.worker import aborted_status, instance_operator_kind, problem_traits
 
 #: Default per-solve time limits (s) by battery mode.
 DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
@@ -222,20 +222,6 @@ def is_refusal(exc: BaseException, group: str) -> bool:
 def first_line(text: str, fallback: str) -> str:
     """The first line of ``text`` with text on it, stripped; ``fallback`` when there is none."""
     return next((line.strip() for line in text.splitlines() if line.strip()), fallback)
-
-
-def aborted_status(exc: SolveAborted) -> str | None:
-    """The row status ``exc`` carries: its ``status`` where ``SolveAborted`` itself accepts
-    it (the class's own rule, asked by building one), else None -- a status set after
-    construction ("pass") is not the solver's to give."""
-    status = getattr(exc, "status", None)
-    if type(status) is not str:
-        return None
-    try:
-        SolveAborted(status, "")
-    except ValueError:
-        return None
-    return status
 
 
 def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:

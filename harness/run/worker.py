@@ -41,7 +41,7 @@ from contactbench.solvers.registry import load_solver
 
 from ..table.fields import save_field
 from ..table.files import write_npz_atomic
-from .isolation import SOLVER_RAISES, PeakMemory, error_text
+from .isolation import SOLVER_RAISES, PeakMemory, error_text, exception_message
 from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
 from .sequence import WarmState, warm_start_from
@@ -227,6 +227,21 @@ def solver_settings(task: SolveTask) -> SolverSettings:
     return get_profile(task.profile).solver_settings(task.time_limit, copy.deepcopy(task.params))
 
 
+def aborted_status(exc: SolveAborted) -> str | None:
+    """The row status ``exc`` carries: its ``status`` where ``SolveAborted`` itself accepts
+    it (the class's own rule, asked by building one), else None -- a status set after
+    construction ("pass", "solved") is not the solver's to give.  Both the run's solves
+    and validate's read it here."""
+    status = getattr(exc, "status", None)
+    if type(status) is not str:
+        return None
+    try:
+        SolveAborted(status, "")
+    except ValueError:
+        return None
+    return status
+
+
 class SolveServer:
     """Message handler living in the isolated worker: builds the instance from its
     recipe once, steps in order, the dense H once per step, and runs solves."""
@@ -408,8 +423,9 @@ class SolveServer:
             t0 = time.perf_counter()
             try:
                 res = solver.solve(qp, settings, warm)
-            except SolveAborted as exc:
-                return SolveReply(time.perf_counter() - t0, warm is not None, error=str(exc), aborted=exc.status)
+            except SolveAborted as exc:  # (a status the class does not allow is a crash: ``aborted_status``)
+                return SolveReply(time.perf_counter() - t0, warm is not None, error=exception_message(exc),
+                                  aborted=aborted_status(exc) or "crashed")
             except SOLVER_RAISES as exc:
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=error_text(exc))
             elapsed = time.perf_counter() - t0

@@ -85,6 +85,15 @@ def test_a_solver_raising_keyboardinterrupt_or_exit_is_a_failed_row_not_a_worker
     assert "Traceback" not in capfd.readouterr().err
 
 
+def test_a_solve_aborted_status_set_after_construction_is_a_crashed_row(tmp_path: Path) -> None:
+    """A run reads a ``SolveAborted``'s status by the class's own rule, as validate does: a
+    status set after construction ("solved") makes a crashed row naming the exception's
+    message, never a solved one."""
+    df = run(tmp_path, ["test-exact", "test-forged-abort"])
+    assert by_solver(df) == {"test-exact": {"solved"}, "test-forged-abort": {"crashed"}}
+    assert df[df.solver == "test-forged-abort"]["error"].str.contains("forged status").all()
+
+
 def test_a_solver_whose_skip_raises_has_failed_rows_not_skips(tmp_path: Path) -> None:
     """A ``skip`` (or a memory or time model) that raises -- sys.exit included -- is a defect
     of the solver: its rows are failed, naming the exception, and the other solvers' rows
