@@ -441,7 +441,7 @@ def cmd_report(out_dir: str) -> int:
 
 
 def interrupted_text(args: argparse.Namespace) -> str:
-    """What a command stopped by Ctrl-C leaves behind, for the line it prints."""
+    """What a command stopped by Ctrl-C or SIGTERM leaves behind, for the line it prints."""
     if args.command == "export":
         from contactbench.problems.export import MANIFEST_FILE
 

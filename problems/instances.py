@@ -664,7 +664,8 @@ def flat_punch_surface(N: int, punch_radius: float, length: float, depth: float 
 
 def flat_punch_load(punch_radius: float, E: float, delta_disp: float) -> float:
     """P = 2 a E* Delta; a > 0, E* > 0, Delta >= 0 (finite; else ``ProblemInputError``)."""
-    check_positive("punch radius", punch_radius), check_positive("modulus E*", E)
+    check_positive("punch radius", punch_radius)
+    check_positive("modulus E*", E)
     check_nonnegative("far-field displacement Delta", delta_disp)
     return 2.0 * punch_radius * E * delta_disp
 

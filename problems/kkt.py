@@ -372,8 +372,10 @@ def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> K
     ``fit_multiplier``); without a load equality it is not used.  A QP without bounds and
     load equality is judged by the plain figures."""
     qp = _as_qp(problem)
-    real = not np.iscomplexobj(p) or not np.any(np.imag(p))
-    p = np.asarray(np.real(p) if np.iscomplexobj(p) else p, dtype=np.float64)
+    real = True
+    if np.iscomplexobj(p):  # (a real answer in a complex dtype is read as the real answer)
+        real, p = not np.any(np.imag(p)), np.real(p)
+    p = np.asarray(p, dtype=np.float64)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
     if p.shape != ubar.shape:
         raise ValueError(f"candidate p has shape {p.shape}, the problem has n = {ubar.size}")

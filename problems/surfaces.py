@@ -371,9 +371,9 @@ def rmd_surface(
     """
     if not (0.0 < hurst < 1.0):
         raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
-    if check_whole("RMD level k", k, 1) > RMD_MAX_LEVEL:
+    k, min_level, seed = check_whole("RMD level k", k, 1), check_whole("min_level", min_level, 0), check_seed(seed)
+    if k > RMD_MAX_LEVEL:
         raise ProblemInputError(f"RMD level k must be an integer in 1..{RMD_MAX_LEVEL}, got {k!r}")
-    k, min_level, seed = int(k), check_whole("min_level", min_level, 0), check_seed(seed)
     check_positive("length L", length)
     check_positive("rms height", rms_height)
     if crop and periodic:
@@ -525,7 +525,7 @@ def measured_like_heights(surface: Surface, tilt: float, missing_fraction: float
         raise ProblemInputError(f"tilt must be a finite slope >= 0, got {tilt!r}")
     if not (0.0 <= missing_fraction < 0.5):
         raise ProblemInputError(f"missing fraction must lie in [0, 0.5), got {missing_fraction!r}")
-    if int(hole_radius) != hole_radius or hole_radius < 0:
+    if not is_whole(hole_radius, 0):
         raise ProblemInputError(f"hole radius must be an integer >= 0 points, got {hole_radius!r}")
     rng = np.random.default_rng(check_seed(seed))
     n0, n1 = surface.shape
