@@ -147,6 +147,28 @@ def test_unknown_fft_backend_is_a_clear_error(monkeypatch) -> None:
         fft_backend()
 
 
+@pytest.mark.parametrize("value", ["two", "1.5", "1e3"])
+def test_fft_workers_not_a_whole_number_is_a_clear_error(value: str, monkeypatch) -> None:
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.problems.fft_threads import fft_workers
+
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", value)
+    with pytest.raises(ProblemInputError, match="CONTACTBENCH_FFT_WORKERS"):
+        fft_workers()
+
+
+def test_fft_workers_default_is_the_cores_this_process_may_use(monkeypatch) -> None:
+    import os
+
+    from contactbench.problems.fft_threads import fft_workers
+
+    monkeypatch.delenv("CONTACTBENCH_FFT_WORKERS", raising=False)
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert fft_workers() == usable
+    monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", " 3 ")
+    assert fft_workers() == 3
+
+
 def test_fft_operator_pickles_after_use_and_still_agrees() -> None:
     """Instances travel to worker processes (harness --jobs, Dask): the transform's lock and
     work arrays must not stop that, and the copy must give the same products."""
