@@ -12,12 +12,25 @@ Three formats (``contactbench export SCENE ... --format F --out DIR``):
 * ``qpbenchmark`` -- ``DIR/<scene>.parquet`` in qpbenchmark's ``ProblemList`` layout
   (columns P, q, G, h, A, b, lb, ub, name; matrices flattened row-major, absent
   entries null), with P = H (dense), q = -ubar, lb = 0 and no other constraint, so
-  ``qpbenchmark.ParquetTestSet`` reads it as is.
+  ``qpbenchmark.ParquetTestSet`` reads it as is.  The file is written one QP (one row
+  group) at a time (``QPBenchmarkWriter``), so an export holds one QP's P at a time.
+
+Arrays are written in the dtype the instance holds them in where the format allows it
+(``data_dtype``: ubar is float64 or float32, a float32 stress case keeps float32): in
+hdf5 the ``ubar`` dataset has that dtype (and its ``problem_json`` says so); in
+qpbenchmark q and lb have it (a column holds one dtype: the widest of its QPs, float32
+widened exactly to float64 when the file mixes both) and the file's key-value metadata
+``PARQUET_DTYPES_KEY`` maps every QP to its dtype.  The problem-dir format is float64
+only (``qpfile``), so there a float32 ubar is written widened, exactly.  The manifest
+records each QP's dtype.
 
 Every QP is named ``<instance>-step<k>`` (characters other than letters, digits and
 ``._-`` replaced by ``_``).  The dense H is written only for n <= ``dense_limit``
 (default ``qpfile.DENSE_LIMIT``, 4096: 128 MiB per matrix); above it problem-dir and
-hdf5 keep the FFT kernel table only and qpbenchmark (which needs P) skips the QP.
+hdf5 keep the FFT kernel table only and qpbenchmark (which needs P) skips the QP.  A
+dense H within the dense limit but over the process's memory budget for dense matrices
+(``operators.memory_budget``) is refused with a one-line ``ProblemInputError`` before it
+is allocated (``check_dense_fits``).
 ``DIR/manifest.json`` lists every QP -- name, scene, instance, step, n, far-field
 displacement, objective-free facts -- and every skip with its reason; the summary line
 says what was skipped.  A step with no unknown (n = 0) is skipped too.
@@ -48,8 +61,10 @@ again holds only the new QP's files (``qpfile.write_problem_dir``).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
+import os
 import re
 import tempfile
 from dataclasses import asdict, dataclass, field
@@ -59,8 +74,9 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from .atomic_files import FolderLockedError, folder_lock, replace_atomically, write_text_atomic
-from .errors import ProblemInputError
+from .errors import MemoryBudgetError, ProblemInputError
 from .instances import ContactInstance
+from .operators import PRECISIONS, check_dense_budget
 from .qpfile import (
     DENSE_LIMIT,
     PROBLEM_DIR_FILES,
@@ -81,6 +97,11 @@ MANIFEST_FILE = "manifest.json"
 HDF5_FILE = "problems.h5"
 #: qpbenchmark's ProblemList columns, in its order.
 QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
+#: The array columns of those (each a list of floats; ``name`` is a string).
+QPBENCHMARK_ARRAYS = QPBENCHMARK_KEYS[:-1]
+#: The key of the qpbenchmark file's key-value metadata that maps every QP to the dtype
+#: of its data (JSON: name -> dtype name, ``data_dtype``).
+PARQUET_DTYPES_KEY = "contactbench.dtypes"
 #: The most QPs (instances x steps) one export may write (``export_scene``'s ``max_qps``),
 #: counted before anything is built (``scene_counts``).
 MAX_QPS = 100_000
@@ -97,6 +118,8 @@ class ExportedQP:
     n: int
     delta: float | None
     dense_H: bool
+    #: The dtype of the QP's data as the instance holds it (``data_dtype``), e.g. float32.
+    dtype: str
 
 
 @dataclass
@@ -199,18 +222,20 @@ def _export_locked(scene_name: str, qps: Iterator[tuple[str, int, ContactInstanc
         check_target(out_dir, format_file, files, directory=False)
         files.add(format_file)
     write_progress(summary, folders, files)
-    rows: dict[str, list[Any]] = {k: [] for k in QPBENCHMARK_KEYS}
 
-    def write_all(h5: Any) -> None:
+    def write_all(sink: Any) -> None:
         for instance, k, inst in qps:
             name = problem_name(instance, k)
-            entry = ExportedQP(name, scene_name, instance, k, inst.n, _finite(inst.delta), inst.n <= limit)
+            entry = ExportedQP(name, scene_name, instance, k, inst.n, _finite(inst.delta), inst.n <= limit,
+                               data_dtype(inst).name)
             if inst.n == 0:
                 summary.skipped.append({"name": name, "n": 0, "reason": "no unknown (n = 0)"})
                 continue
             if fmt == "qpbenchmark" and inst.n > limit:
                 summary.skipped.append({"name": name, "n": inst.n, "reason": f"n > dense limit {limit} (P must be dense)"})
                 continue
+            if entry.dense_H:
+                check_dense_fits(name, inst.n)
             if fmt == "problem-dir":
                 check_target(out_dir, name, folders, directory=True)
                 if name not in folders:  # listed before it exists, so an interrupted export still owns it
@@ -218,17 +243,17 @@ def _export_locked(scene_name: str, qps: Iterator[tuple[str, int, ContactInstanc
                     write_progress(summary, folders, files)
                 write_problem_dir(inst, out_dir / name, tol=tol, time_limit=None, dense_limit=limit)
             elif fmt == "hdf5":
-                write_hdf5_group(h5, name, inst, tol=tol, dense_limit=limit)
+                write_hdf5_group(sink, name, inst, tol=tol, dense_limit=limit)
             else:
-                append_qpbenchmark_row(rows, name, inst)
+                sink.write(qpbenchmark_row(name, inst))
             summary.written.append(entry)
 
     if fmt == "hdf5":
         replace_atomically(out_dir / HDF5_FILE, _in_hdf5(write_all))
+    elif fmt == "qpbenchmark":
+        replace_atomically(out_dir / str(format_file), _in_parquet(write_all))
     else:
         write_all(None)
-    if fmt == "qpbenchmark":
-        write_parquet(rows, out_dir / str(format_file))
     written = {q.name for q in summary.written} if fmt == "problem-dir" else set()
     remove_owned(out_dir, folders - written, files - {format_file})
     write_manifest(summary, out_dir / MANIFEST_FILE)
@@ -241,6 +266,40 @@ def _in_hdf5(write: Callable[[Any], None]) -> Callable[[str], None]:
         with require_h5py().File(path, "w") as h5:
             write(h5)
     return to
+
+
+def _in_parquet(write: Callable[[Any], None]) -> Callable[[str], None]:
+    """A writer of a new qpbenchmark Parquet file at a path: ``write`` given its
+    ``QPBenchmarkWriter``."""
+    def to(path: str) -> None:
+        sink = QPBenchmarkWriter(path)
+        try:
+            write(sink)
+        except BaseException:
+            with contextlib.suppress(Exception):  # the file is discarded: its first error is the one raised
+                sink.close()
+            raise
+        sink.close()
+    return to
+
+
+def data_dtype(inst: ContactInstance) -> np.dtype:
+    """The dtype an export writes a QP's data (ubar, and qpbenchmark's q and lb) in where
+    the format allows it: the dtype the instance holds ubar in when it is one of the
+    operator precisions (``operators.PRECISIONS``: float64, float32), else float64."""
+    dt = np.asarray(inst.qp.ubar).dtype
+    return dt if any(dt == p for p in PRECISIONS) else np.dtype(np.float64)
+
+
+def check_dense_fits(name: str, n: int) -> None:
+    """A one-line ``ProblemInputError`` unless the dense H of QP ``name`` (n x n float64)
+    fits this process's memory budget for dense matrices (``operators.check_dense_budget``,
+    ``CONTACTBENCH_MEMORY_BUDGET_GB``); nothing is allocated."""
+    try:
+        check_dense_budget(n, what=f"the dense H of {name}")
+    except MemoryBudgetError as exc:
+        raise ProblemInputError(f"{exc}; choose a --dense-limit below {n} (kernel table only, or the QP skipped "
+                                "for qpbenchmark) or a larger CONTACTBENCH_MEMORY_BUDGET_GB") from None
 
 
 def check_target(out_dir: Path, name: str, owned: set[str], *, directory: bool) -> None:
@@ -327,8 +386,13 @@ def require_h5py() -> Any:
 
 def write_hdf5_group(h5: Any, name: str, inst: ContactInstance, *, tol: float | None, dense_limit: int) -> None:
     """One QP as an HDF5 group: its problem directory's arrays and problem.json
-    (``qpfile.problem_payload``, the builder of the directory itself)."""
+    (``qpfile.problem_payload``, the builder of the directory itself), with ``ubar`` in
+    the dtype the instance holds it in (``data_dtype``; ``problem_json`` lists it)."""
     doc, arrays = problem_payload(inst, tol=tol, time_limit=None, dense_limit=dense_limit)
+    held = data_dtype(inst)
+    if held != arrays["ubar"].dtype:  # the payload holds the problem directory's float64
+        arrays["ubar"] = np.ascontiguousarray(inst.qp.ubar, dtype=held.newbyteorder("<"))
+        doc["arrays"]["ubar"]["dtype"] = arrays["ubar"].dtype.str
     g = h5.create_group(name)
     g.attrs["problem_json"] = problem_json(doc)
     for key, a in arrays.items():
@@ -337,7 +401,9 @@ def write_hdf5_group(h5: Any, name: str, inst: ContactInstance, *, tol: float | 
 
 def read_hdf5_problem(path: str | Path, name: str) -> Any:
     """A QP group of ``problems.h5`` back as a ``qpfile.ProblemFile`` (unpacked to a
-    temporary problem directory and read by ``read_problem_dir``)."""
+    temporary problem directory and read by ``read_problem_dir``; a float32 dataset is
+    widened, exactly, to the directory format's float64: read the dataset itself for the
+    dtype it holds)."""
     h5py = require_h5py()
     with h5py.File(path, "r") as h5, tempfile.TemporaryDirectory() as tmp:
         if name not in h5:
@@ -346,62 +412,161 @@ def read_hdf5_problem(path: str | Path, name: str) -> Any:
         doc = json.loads(g.attrs["problem_json"])
         d = Path(tmp)
         for key, entry in doc["arrays"].items():
+            stored = np.dtype(entry["dtype"])
+            entry["dtype"] = (np.dtype("<f8") if stored.kind == "f" else stored).str
             np.asarray(g[key][...], dtype=np.dtype(entry["dtype"])).tofile(d / entry["file"])
         (d / "problem.json").write_text(json.dumps(doc))
         return read_problem_dir(d)
 
 
-def append_qpbenchmark_row(rows: dict[str, list[Any]], name: str, inst: ContactInstance) -> None:
-    """min 1/2 p'Hp - ubar'p, p >= 0 as qpbenchmark's row: P = H, q = -ubar, lb = 0; with
-    bounds ub = the upper bounds, with a load equality A = 1' (one row, stored flat like
-    P) and b = [P] (``problems.constraints``)."""
-    H = np.asarray(inst.qp.H.to_dense(), dtype=np.float64)
-    ubar = np.asarray(inst.qp.ubar, dtype=np.float64)
+def qpbenchmark_row(name: str, inst: ContactInstance) -> dict[str, Any]:
+    """min 1/2 p'Hp - ubar'p, p >= 0 as qpbenchmark's row: P = H (float64, flattened; the
+    one dense copy, checked against the memory budget by ``to_dense``), q = -ubar and
+    lb = 0 in ``data_dtype``; with bounds ub = the upper bounds, with a load equality
+    A = 1' (one row, stored flat like P) and b = [P] (``problems.constraints``)."""
+    held = data_dtype(inst)
+    ubar = np.asarray(inst.qp.ubar, dtype=held)
     c = inst.qp.constraints
-    row = {"P": H.ravel(), "q": -ubar, "G": None, "h": None,
-           "A": None if c.load is None else np.ones(ubar.size), "b": None if c.load is None else np.array([c.load]),
-           "lb": np.zeros_like(ubar), "ub": c.upper_or_inf(ubar.size) if c.bounded else None, "name": name}
+    return {"P": inst.qp.H.to_dense().ravel(), "q": -ubar, "G": None, "h": None,
+            "A": None if c.load is None else np.ones(ubar.size), "b": None if c.load is None else np.array([c.load]),
+            "lb": np.zeros(ubar.size, dtype=held), "ub": c.upper_or_inf(ubar.size) if c.bounded else None,
+            "name": name}
+
+
+def append_qpbenchmark_row(rows: dict[str, list[Any]], name: str, inst: ContactInstance) -> None:
+    """``qpbenchmark_row`` appended to ``rows`` (column -> list of cells, ``write_parquet``)."""
+    row = qpbenchmark_row(name, inst)
     for key in QPBENCHMARK_KEYS:
         rows[key].append(row[key])
 
 
-def write_parquet(rows: dict[str, list[Any]], path: Path) -> Path:
-    """The rows as qpbenchmark's Parquet file ``path``, whole or not at all
-    (``replace_atomically``: a link at ``path`` is replaced, never followed)."""
-    import pandas as pd
+class QPBenchmarkWriter:
+    """qpbenchmark's Parquet file at ``path`` (written new), one row group per QP.
 
-    frame = pd.DataFrame(rows, columns=list(QPBENCHMARK_KEYS))
-    replace_atomically(path, lambda tmp: frame.to_parquet(tmp, engine="pyarrow", index=False))
+    Each array column is a list of the widest dtype of the arrays written to it (float64
+    while it holds none): a float32 q stays float32 while every QP's is; when a wider QP
+    comes, the QPs written so far are copied once, a row group at a time, into the wider
+    type (exact).  ``close`` records each QP's data dtype (its q's) under
+    ``PARQUET_DTYPES_KEY`` and ends the file; a writer with no QP leaves a file of no
+    rows.  It holds one row at a time (and, while widening, one row group read back)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = str(path)
+        self.seen: dict[str, np.dtype | None] = {k: None for k in QPBENCHMARK_ARRAYS}
+        self.dtypes: dict[str, str] = {}
+        self._schema: Any = None
+        self._writer: Any = None
+
+    def schema(self) -> Any:
+        """The file's Arrow schema for the dtypes seen so far."""
+        import pyarrow as pa
+
+        return pa.schema([(k, pa.list_(pa.from_numpy_dtype(self.seen[k] or np.dtype(np.float64))))
+                          for k in QPBENCHMARK_ARRAYS] + [("name", pa.string())])
+
+    def write(self, row: dict[str, Any]) -> None:
+        """One QP (a ``qpbenchmark_row``) as the next row group."""
+        import pyarrow as pa
+
+        for k in QPBENCHMARK_ARRAYS:
+            if row[k] is not None:
+                dt = np.asarray(row[k]).dtype
+                self.seen[k] = dt if self.seen[k] is None else np.result_type(self.seen[k], dt)
+        self._open(self.schema())
+        cells = [_list_cell(row[k], self._schema.field(k).type) for k in QPBENCHMARK_ARRAYS]
+        self._writer.write_table(pa.Table.from_arrays(cells + [pa.array([row["name"]], pa.string())],
+                                                      schema=self._schema))
+        self.dtypes[str(row["name"])] = np.asarray(row["q"]).dtype.name
+
+    def close(self) -> None:
+        """Record the QPs' dtypes and end the file."""
+        self._open(self.schema())
+        self._writer.add_key_value_metadata({PARQUET_DTYPES_KEY: json.dumps(self.dtypes)})
+        self._writer.close()
+
+    def _open(self, schema: Any) -> None:
+        """The writer of ``schema``: the one open, or a new file holding the rows written so
+        far cast to it."""
+        import pyarrow.parquet as pq
+
+        if self._writer is not None and schema.equals(self._schema):
+            return
+        self._schema = schema
+        if self._writer is None:
+            self._writer = pq.ParquetWriter(self.path, schema)
+            return
+        self._writer.close()
+        narrow = f"{self.path}.narrow"
+        os.replace(self.path, narrow)
+        try:
+            self._writer = pq.ParquetWriter(self.path, schema)
+            with pq.ParquetFile(narrow) as source:
+                for i in range(source.num_row_groups):
+                    self._writer.write_table(source.read_row_group(i).cast(schema))
+        finally:
+            os.unlink(narrow)
+
+
+def _list_cell(a: np.ndarray | None, list_type: Any) -> Any:
+    """``a`` (None: null) as a one-cell Arrow list array of ``list_type``; the values are
+    not copied when ``a`` is contiguous and of the list's value type."""
+    import pyarrow as pa
+
+    if a is None:
+        return pa.nulls(1, list_type)
+    values = pa.array(np.ravel(np.asarray(a, dtype=list_type.value_type.to_pandas_dtype())))
+    return pa.ListArray.from_arrays(pa.array([0, len(values)], pa.int32()), values, type=list_type)
+
+
+def write_parquet(rows: dict[str, list[Any]], path: Path) -> Path:
+    """The rows as qpbenchmark's Parquet file ``path`` (``QPBenchmarkWriter``), whole or
+    not at all (``replace_atomically``: a link at ``path`` is replaced, never followed)."""
+    def write(sink: QPBenchmarkWriter) -> None:
+        for i in range(len(rows["name"])):
+            sink.write({k: rows[k][i] for k in QPBENCHMARK_KEYS})
+
+    replace_atomically(path, _in_parquet(write))
     return path
 
 
-def read_qpbenchmark_row(path: str | Path, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(P, q, lb) of one exported problem, read as qpbenchmark's ParquetTestSet does."""
+def read_qpbenchmark_dtypes(path: str | Path) -> dict[str, str]:
+    """name -> data dtype of every QP of an exported Parquet file (``PARQUET_DTYPES_KEY``)."""
+    import pyarrow.parquet as pq
+
+    meta = pq.read_metadata(path).metadata or {}
+    raw = meta.get(PARQUET_DTYPES_KEY.encode())
+    if raw is None:
+        raise ProblemInputError(f"{path}: no {PARQUET_DTYPES_KEY} metadata (not a contactbench export)")
+    return dict(json.loads(raw))
+
+
+def _qpbenchmark_cells(path: str | Path, name: str) -> Any:
+    """The row of problem ``name``, read as qpbenchmark's ParquetTestSet reads it."""
     import pandas as pd
 
     df = pd.read_parquet(path, engine="pyarrow")
     hit = df[df["name"] == name]
     if len(hit) != 1:
         raise ProblemInputError(f"{path}: no problem named {name!r}")
-    row = hit.iloc[0]
-    q = np.asarray(row["q"], dtype=np.float64)
-    return np.asarray(row["P"], dtype=np.float64).reshape(q.size, q.size), q, np.asarray(row["lb"], dtype=np.float64)
+    return hit.iloc[0]
+
+
+def read_qpbenchmark_row(path: str | Path, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(P, q, lb) of one exported problem, read as qpbenchmark's ParquetTestSet does (in
+    the dtypes stored)."""
+    row = _qpbenchmark_cells(path, name)
+    q = np.asarray(row["q"])
+    return np.asarray(row["P"]).reshape(q.size, q.size), q, np.asarray(row["lb"])
 
 
 def read_qpbenchmark_constraints(path: str | Path, name: str) -> tuple[np.ndarray | None, np.ndarray | None,
                                                                        np.ndarray | None]:
     """(ub, A, b) of one exported problem (None where it has none); A as a 1 x n matrix."""
-    import pandas as pd
-
-    df = pd.read_parquet(path, engine="pyarrow")
-    hit = df[df["name"] == name]
-    if len(hit) != 1:
-        raise ProblemInputError(f"{path}: no problem named {name!r}")
-    row = hit.iloc[0]
+    row = _qpbenchmark_cells(path, name)
 
     def arr(key: str) -> np.ndarray | None:
         v = row[key]
-        return None if v is None else np.asarray(v, dtype=np.float64)
+        return None if v is None else np.asarray(v)
 
     A = arr("A")
     return arr("ub"), None if A is None else A.reshape(1, -1), arr("b")
@@ -465,13 +630,18 @@ __all__ = [
     "ExportSummary",
     "ExportedQP",
     "MAX_QPS",
+    "PARQUET_DTYPES_KEY",
+    "QPBenchmarkWriter",
+    "check_dense_fits",
     "check_export_folder",
     "check_scene",
     "check_target",
+    "data_dtype",
     "export_scene",
     "problem_name",
     "read_hdf5_problem",
     "read_qpbenchmark_constraints",
+    "read_qpbenchmark_dtypes",
     "read_qpbenchmark_row",
     "scene_steps",
 ]
