@@ -1,6 +1,7 @@
 """The command lines' shared rules (``contactbench`` in harness/cli.py and ``contactbench
 validate`` in harness/conformance/command.py): the exit status of bad input, the parser
-whose usage error is one line, the number types, and the check of an output folder.
+whose usage error is one line, the number types, the items of a comma list, and the check of an
+output folder.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, Callable, NoReturn
 
 from contactbench.plugins import did_you_mean
 from contactbench.problems.errors import ProblemInputError
@@ -70,6 +71,27 @@ def positive_number(text: str, kind: type, what: str) -> Any:
 
 def positive_float(text: str) -> float:
     return float(positive_number(text, float, "a number"))
+
+
+def comma_items(text: str, split: Callable[[str], list[str]] | None = None, repeats: bool = False) -> list[str]:
+    """The items of the comma list ``text``, stripped, in order; [] when it names none
+    ("", ",", " , ": each option says what that means).  An empty item ("a,,b", "a,") is
+    an ``argparse.ArgumentTypeError`` naming the list, and so is an item given twice,
+    unless ``repeats`` (a list whose positions mean something, e.g. L0,L1).  ``split``
+    splits a list whose items hold commas of their own (``--solvers`` name[k=v,...]);
+    the empty items it drops are found in the text.  Default: at every comma."""
+    bare = "".join(text.split())
+    if not bare.strip(","):
+        return []
+    if ",," in bare or bare.startswith(",") or bare.endswith(","):
+        raise argparse.ArgumentTypeError(f"empty item in {text!r}")
+    items = split(text) if split is not None else [item.strip() for item in text.split(",")]
+    seen: set[str] = set()
+    for item in items:
+        if item in seen and not repeats:
+            raise argparse.ArgumentTypeError(f"{item!r} twice in {text!r}")
+        seen.add(item)
+    return items
 
 
 def check_out_dir(path: str, option: str = "--out") -> Path:

@@ -24,7 +24,8 @@ Exit status (docs/harness.md, "Exit status"):
 * 1 -- ``run`` wrote its table but the judge could read no row: every one failed,
   timed out, crashed or was skipped (the summary line and the table say why);
 * 2 -- bad input, refused before anything runs, in one line per problem and no
-  traceback: an unknown name (with the closest known ones), an option the scene would
+  traceback: an unknown name (with the closest known ones), an empty or repeated item of
+  a comma list (``--solvers pk,,nnls``, ``--profile low,low``), an option the scene would
   ignore, a configuration that cannot run (``--kernel spectral`` without
   ``--periodic``, an implausible ``--E``), or a path that cannot be read or written;
 * 130 -- interrupted by Ctrl-C, 143 -- stopped by SIGTERM (``Terminated``): the same stop,
@@ -47,13 +48,14 @@ from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.operators import memory_budget_scope
+from contactbench.problems.operators import fft_backend, fft_workers, memory_budget_scope
 from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
 
 from contactbench.plugins import did_you_mean
 
-from .arguments import EXIT_BAD_INPUT, InputError, Parser, check_out_dir, positive_float, positive_number
+from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float,
+                        positive_number)
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
@@ -114,12 +116,11 @@ def package_version() -> str:
 
 def parse_seeds(text: str) -> Sequence[int]:
     """'0-9' -> 0..9, '0,3,5' -> (0, 3, 5), '0-2,7' -> (0, 1, 2, 7).  One range stays a
-    lazy ``range`` (the plan bounds its size before anything expands it)."""
+    lazy ``range`` (the plan bounds its size before anything expands it).  An empty item
+    or an item given twice is refused (``comma_items``); ranges that overlap give each
+    seed once."""
     parts: list[range] = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            continue
+    for part in comma_items(text):
         try:
             a, b = part.split("-", 1) if "-" in part else (part, part)
             lo, hi = int(a), int(b)
@@ -139,9 +140,10 @@ def parse_seeds(text: str) -> Sequence[int]:
 
 
 def parse_profiles(text: str) -> tuple[str, ...]:
+    """``--profile``: profile names, each once (``comma_items``), each a known profile."""
     from .profiles import PROFILES
 
-    names = tuple(p.strip() for p in text.split(",") if p.strip())
+    names = tuple(comma_items(text))
     bad = [p for p in names if p not in PROFILES]
     if bad or not names:
         hint = did_you_mean(bad[0], PROFILES) if bad else ""
@@ -151,11 +153,30 @@ def parse_profiles(text: str) -> tuple[str, ...]:
 
 
 def number_list(text: str) -> tuple[float, ...]:
-    """A comma list of numbers (``--loads``, ``--length``); their rules are the plan's."""
+    """A comma list of numbers (``--loads``, ``--length``) with no empty item
+    (``comma_items``); a value may repeat (L0,L1 of a square), and every other rule on
+    them (``--loads`` increasing) is the plan's."""
     try:
-        return tuple(float(t) for t in text.split(","))
+        values = tuple(float(t) for t in comma_items(text, repeats=True))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"takes numbers separated by commas, got {text!r}") from None
+        values = ()
+    if not values:
+        raise argparse.ArgumentTypeError(f"takes numbers separated by commas, got {text!r}")
+    return values
+
+
+def solver_list(text: str) -> str:
+    """``--solvers``: the list as given, once no item of it is empty or given twice
+    (``comma_items``, split as ``solvers.registry.split_solver_list`` splits it).  The
+    plan resolves it, and refuses a list that names no solver or has an unbalanced
+    bracket."""
+    from contactbench.solvers.registry import SolverSpecError, split_solver_list
+
+    try:
+        comma_items(text, split=split_solver_list)
+    except SolverSpecError:  # (the plan names it)
+        pass
+    return text
 
 
 def length_value(text: str) -> float | tuple[float, ...]:
@@ -201,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run scenes and write a tidy table")
     run.add_argument("scenes", nargs="+", metavar="SCENE", help="scene or mix name (contactbench list scenes)")
-    run.add_argument("--solvers", default=None, metavar="LIST",
+    run.add_argument("--solvers", type=solver_list, default=None, metavar="LIST",
                      help="comma list of registry names or MODULE:NAME, each optionally with parameters "
                           "NAME[key=value,...] (contactbench list solvers --params), or 'all' "
                           "(default: the scene's study, else every available solver)")
@@ -238,6 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--out", required=True, metavar="DIR", help="output directory")
     exp.add_argument("--dense-limit", type=positive_int, default=None,
                      help="largest n whose dense H is written (default: problems/export.py's)")
+    exp.add_argument("--max-qps", type=positive_int, default=None,
+                     help="most QPs (instances x steps) one export may write (default: problems/export.py's MAX_QPS)")
 
     rep = sub.add_parser("report", help="build the report of a run directory (solves nothing)")
     rep.add_argument("dir", help="a run's --out folder (its results table and meta.json), or a folder holding a "
@@ -352,6 +375,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .run.runner import RunConfig, run_benchmark
 
     cfg = scene_config(args)
+    fft_workers(), fft_backend()  # the threads and the FFT library of every product: refused here, not in a worker
     kw = {}
     if args.memory_budget_gb:
         kw["memory_budget"] = args.memory_budget_gb * 2**30
@@ -413,7 +437,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     cfg = scene_config(args)
     check_out_dir(args.out)
     # export_scene checks the options (the plan's rules), the scene's inputs and the folder before writing
-    summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit)
+    cap = {} if args.max_qps is None else {"max_qps": args.max_qps}
+    summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit, **cap)
     print(summary.line())
     if summary.skipped:  # exit 0 says every QP is written
         total = len(summary.written) + len(summary.skipped)

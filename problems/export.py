@@ -167,7 +167,7 @@ def check_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[Any,
     if size.steps > limit:
         raise ProblemInputError(f"the export of {scene_name} has {size.steps:,} QPs ({size.instances:,} instance"
                                 f"{'' if size.instances == 1 else 's'} x their steps), over the limit of {limit:,}; "
-                                "choose fewer --steps or --seeds")
+                                "choose fewer --steps or --seeds, or a larger --max-qps")
     scene.validate(merged)
     return scene, merged
 

@@ -34,12 +34,15 @@ import time
 from dataclasses import asdict, dataclass, replace
 from typing import Any, Sequence
 
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig, get_scene
+from contactbench.problems.scenes.options import BY_NAME
 
 from .executors import Executor, local_executor
 from ..table.files import canonical_json
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
+from .studies import expand
 from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
@@ -107,12 +110,18 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
 
 
 def given_apart(scene_config: Any, scenes: Any) -> Any:
-    """A run's scene options with those that only spell out a default taken back to None:
-    an option equal to the default of every scene the run names (each a registered scene;
-    a composite's parts have their own) says what leaving it out says, so ``--kernel bcc``
-    resumes the folder that a run without it wrote.  ``extra`` options are kept as given."""
+    """A run's scene options with those that only spell out a default taken back: a field
+    equal to the default of every scene the run names (each a registered scene; a
+    composite's parts have their own) goes back to None, so ``--kernel bcc`` resumes the
+    folder that a run without it wrote; an ``extra`` option is left out where leaving it
+    out gives the same recipes (``spelled_out_extras``), so ``--surface-family saupe``
+    resumes the folder of a non-periodic run without it."""
     if not isinstance(scene_config, dict) or not isinstance(scenes, list) or not scenes:
         return scene_config
+    extra = scene_config.get("extra")
+    if isinstance(extra, dict) and extra:
+        dropped = spelled_out_extras(scene_config, [str(name) for name in scenes])
+        scene_config = {**scene_config, "extra": {k: v for k, v in extra.items() if k not in dropped}}
     try:
         defaults = [asdict(get_scene(str(name)).defaults) for name in scenes]
     except KeyError:
@@ -120,6 +129,48 @@ def given_apart(scene_config: Any, scenes: Any) -> Any:
     return {k: None if k != "extra" and v is not None and all(canonical_json(d.get(k)) == canonical_json(v)
                                                               for d in defaults) else v
             for k, v in scene_config.items()}
+
+
+def spelled_out_extras(scene_config: dict[str, Any], scenes: list[str]) -> set[str]:
+    """The ``extra`` scene options (records of ``problems.scenes.options.OPTIONS``) of a
+    run's ``scene_config`` (``asdict`` of its ``SceneConfig``) whose value is the one in
+    effect without them: leaving one out gives every scene the run names (a composite's
+    parts included) the same recipes, so the same cells (``make_cell_id``), and so does
+    leaving them all out.  None of them where the config reads a surface file (its recipes
+    read the file; its options are recorded in them) or cannot be planned.  The first seed
+    stands for all (an option's effect on a recipe is the same for every seed)."""
+    try:
+        cfg = SceneConfig(**scene_config)
+    except TypeError:
+        return set()
+    if cfg.surface_path:
+        return set()
+    if cfg.seeds:
+        cfg = replace(cfg, seeds=tuple(cfg.seeds)[:1])
+    try:
+        given = recipes(scenes, cfg)
+    except (ProblemInputError, KeyError, TypeError, ValueError):
+        return set()
+    dropped: set[str] = set()
+    for key in [k for k in cfg.extra if k in BY_NAME]:
+        without = replace(cfg, extra={k: v for k, v in cfg.extra.items() if k != key and k not in dropped})
+        try:
+            if recipes(scenes, without) == given:
+                dropped.add(key)
+        except (ProblemInputError, KeyError, TypeError, ValueError):
+            continue
+    return dropped
+
+
+def recipes(scenes: Sequence[str], cfg: SceneConfig) -> list[tuple[str, str, str]]:
+    """(scene, instance, ``InstanceSpec.params_json``) of every recipe the plan builds for
+    ``scenes`` under ``cfg`` (``plan.scene_jobs``: each part's merged config)."""
+    out: list[tuple[str, str, str]] = []
+    for name in scenes:
+        for study, part in expand(name, cfg):
+            scene = get_scene(study.scene)
+            out += [(spec.scene, spec.instance, spec.params_json()) for spec in scene.instances(scene.config(part))]
+    return out
 
 
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
