@@ -73,6 +73,32 @@ def positive_float(text: str) -> float:
     return float(positive_number(text, float, "a number"))
 
 
+#: The longest time limit of one solve, seconds (``run --timeout`` and
+#: ``--reference-timeout``, ``RunConfig``, ``validate --timeout``): a week; beyond it a
+#: value is a slip (a unit, an exponent), not a limit.
+MAX_TIMEOUT_S = 7 * 24 * 3600.0
+
+
+def check_time_limit(seconds: float, what: str) -> float:
+    """``seconds`` if it is a finite number of seconds in (0, ``MAX_TIMEOUT_S``], else a
+    ``ValueError`` naming ``what`` (the setting and its flag)."""
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) \
+            or not (math.isfinite(seconds) and 0 < seconds <= MAX_TIMEOUT_S):
+        raise ValueError(f"{what} must be a finite number of seconds > 0 and at most {MAX_TIMEOUT_S:g} (a week), "
+                         f"got {seconds!r}")
+    return float(seconds)
+
+
+def time_limit(text: str) -> float:
+    """An option's time limit, seconds: a finite number > 0 and at most ``MAX_TIMEOUT_S``,
+    else an argparse error naming it."""
+    seconds = positive_float(text)
+    if seconds > MAX_TIMEOUT_S:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0 and at most {MAX_TIMEOUT_S:g} s (a week), "
+                                         f"got {text}")
+    return seconds
+
+
 def comma_items(text: str, split: Callable[[str], list[str]] | None = None, repeats: bool = False) -> list[str]:
     """The items of the comma list ``text``, stripped, in order; [] when it names none
     ("", ",", " , ": each option says what that means).  An empty item ("a,,b", "a,") is

@@ -54,7 +54,7 @@ from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionR
 
 from contactbench.plugins import did_you_mean
 
-from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float,
+from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float, time_limit,
                         positive_number)
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
@@ -230,13 +230,13 @@ def build_parser() -> argparse.ArgumentParser:
                      help="profile(s): default, low, mid, high (comma list; default: the scene's study)")
     add_scene_options(run)
     run.add_argument("--repeats", type=positive_int, default=1, help="timed solves per cell (min and median reported)")
-    run.add_argument("--timeout", type=positive_float, default=60.0, help="hard limit per solve, seconds")
+    run.add_argument("--timeout", type=time_limit, default=60.0, help="hard limit per solve, seconds")
     run.add_argument("--out", default=None, metavar="DIR", help="output directory (default: results/<scenes>)")
     run.add_argument("--jobs", type=positive_int, default=1, help="instances run concurrently")
     run.add_argument("--cold", action="store_true", help="no warm starts along load histories")
     run.add_argument("--no-warmup", action="store_true", help="skip the untimed warm-up solve")
     run.add_argument("--reference", default="auto", help="reference solver: auto, none, or a name")
-    run.add_argument("--reference-timeout", type=positive_float, default=None,
+    run.add_argument("--reference-timeout", type=time_limit, default=None,
                      help="limit for a reference solve (default: 5 x timeout)")
     run.add_argument("--memory-budget-gb", type=positive_float, default=None,
                      help="memory a solve, and an instance, may use, GiB (default: the harness's budget)")

@@ -18,7 +18,6 @@ The verdicts are ``harness.conformance.battery``'s business, through ``harness.j
 from __future__ import annotations
 
 import fnmatch
-import math
 import time
 import traceback
 from dataclasses import dataclass
@@ -37,6 +36,7 @@ from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_bat
 from contactbench.solvers.base import WITHOUT_ITERATE, SolveAborted, Solver
 
 from ..judging import ProblemSeal, portable_answer
+from ..arguments import check_time_limit
 from ..profiles import get_profile
 from ..run.isolation import SOLVER_FAULTS, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
@@ -48,13 +48,8 @@ DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
 
 def check_timeout(seconds: float | None) -> float | None:
     """A per-solve time limit: None (the mode's default) or a finite number of seconds
-    > 0, else ``ValueError`` naming the value."""
-    if seconds is None:
-        return None
-    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) \
-            or not (math.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"a time limit is a finite number of seconds > 0, got {seconds!r}")
-    return float(seconds)
+    in (0, a week] (``arguments.check_time_limit``), else ``ValueError`` naming the value."""
+    return None if seconds is None else check_time_limit(seconds, "a time limit (--timeout)")
 
 
 #: Grace beyond the solver's own time limit before its worker is killed: a solver that

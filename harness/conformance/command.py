@@ -19,7 +19,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
 from contactbench.solvers.registry import SolverDeclarationError, all_solvers, load_solver
 
-from ..arguments import EXIT_BAD_INPUT, Parser, positive_float
+from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
 from ..run.isolation import SOLVER_FAULTS, exception_text
 from .battery import GROUPS, conformance_cases, left_out_lines, validate
@@ -52,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--group", action="append", choices=GROUPS, help="only these groups (repeatable)")
     ap.add_argument("--cases", metavar="GLOB", type=case_glob,
                     help="only cases whose name or group matches, e.g. 'edge/*'")
-    ap.add_argument("--timeout", type=positive_float, help="seconds per solve, finite and > 0 (default: 20 fast, "
+    ap.add_argument("--timeout", type=time_limit, help="seconds per solve, finite and > 0 (default: 20 fast, "
                                                             "60 full)")
     ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged rows")
     ap.add_argument("--no-isolate", action="store_true",

@@ -22,7 +22,6 @@ command line turns it into exit status 2 and writes no table.
 
 from __future__ import annotations
 
-import math
 
 import hashlib
 import json
@@ -42,6 +41,7 @@ from contactbench.solvers.base import ProblemTraits
 from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, load_solver,
                                            parse_solver_spec, register, split_solver_list, split_solver_spec)
 
+from ..arguments import check_time_limit
 from ..profiles import get_profile
 from ..table.files import canonical_json
 from ..table.schema import as_finite
@@ -51,10 +51,6 @@ from .studies import SolverVariant, Study, expand
 
 #: Default of ``RunConfig.max_cells`` (``--max-cells``).
 DEFAULT_MAX_CELLS = 100_000
-#: The longest time limit of one solve, seconds (``RunConfig.timeout`` and
-#: ``reference_timeout``, ``--timeout`` and ``--reference-timeout``): a week; beyond it a
-#: value is a slip (a unit, an exponent), not a limit.
-MAX_TIMEOUT_S = 7 * 24 * 3600.0
 #: Lower bound of an instance's memory on an N x N grid (``instance_nbytes``): float64 or
 #: int64 arrays per grid point (heights, gap, pressure, grid index), and complex128
 #: half-spectra of the (padded) grid (the kernel's and one work buffer).
@@ -68,7 +64,7 @@ class RunConfig:
 
     profiles          : accuracy profiles (None: the study's profiles).
     repeats           : timed solves per cell group (min and median are reported).
-    timeout           : hard wall-clock limit per solve, seconds (at most ``MAX_TIMEOUT_S``).
+    timeout           : hard wall-clock limit per solve, seconds (at most ``arguments.MAX_TIMEOUT_S``).
     warm              : warm-start along load histories where the solver supports it.
     warmup            : one untimed solve the first time a worker meets a variant, unless
                         the solve is predicted to take longer than ``warmup_limit``
@@ -76,7 +72,7 @@ class RunConfig:
     jobs              : instance jobs run concurrently (process pool).
     reference         : "auto", "none" or a solver name.
     reference_timeout : limit for one reference solve (None: 5 x timeout; at most
-                        ``MAX_TIMEOUT_S``).
+                        ``arguments.MAX_TIMEOUT_S``).
     build_timeout     : limit for building one instance step in the worker.
     memory_budget     : bytes a solve may use (dense H + the solver's own estimate), and
                         the most one instance may need (``estimate_scene``).
@@ -103,9 +99,9 @@ class RunConfig:
     def __post_init__(self) -> None:
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        check_time_limit("timeout", "--timeout", self.timeout)  # (its rows record it: time_limit_s)
+        check_time_limit(self.timeout, "timeout (--timeout)")  # (its rows record it: time_limit_s)
         if self.reference_timeout is not None:
-            check_time_limit("reference_timeout", "--reference-timeout", self.reference_timeout)
+            check_time_limit(self.reference_timeout, "reference_timeout (--reference-timeout)")
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
         if self.max_cells < 1:
@@ -123,14 +119,6 @@ class RunConfig:
         if self.jobs > 1:
             return max(1, (os.cpu_count() or 1) // self.jobs)
         return None
-
-
-def check_time_limit(name: str, flag: str, seconds: float) -> None:
-    """Refuse a time limit that is not a finite number of seconds in (0, ``MAX_TIMEOUT_S``]
-    (``ValueError`` naming the setting and its flag)."""
-    if not (math.isfinite(seconds) and 0 < seconds <= MAX_TIMEOUT_S):
-        raise ValueError(f"{name} must be a finite number of seconds > 0 and at most {MAX_TIMEOUT_S:g} (a week), "
-                         f"got {seconds:g} ({flag})")
 
 
 @dataclass(frozen=True)

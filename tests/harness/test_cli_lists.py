@@ -68,7 +68,7 @@ def test_a_time_limit_above_a_week_is_refused(option: str, in_tmp: Path, capsys:
     line = refused_in_one_line([*SMALL, "--solvers", "test-exact", option, "1e300"], capsys, in_tmp)
     assert option in line and "at most 604800" in line, line
     week = 7 * 24 * 3600.0
-    assert getattr(plan, "MAX_TIMEOUT_S", None) == week
+    assert getattr(arguments, "MAX_TIMEOUT_S", None) == week
     assert plan.RunConfig(timeout=week, reference_timeout=week).timeout == week
 
 
