@@ -1,6 +1,7 @@
 """Assembly of a report: ``build_report(OUT)`` writes OUT/report.md with its figures
 under OUT/figures/ and (``html``) the interactive OUT/report.html, from the stored
-table and OUT/meta.json.  It never solves anything.
+table and OUT/meta.json.  It never solves anything, and it writes over no file of those
+names that a report did not write (harness/report/owned_files.py): it refuses instead.
 
 The sections are the registered ones (harness/report/core.py ``registered_sections``):
 a scene section is rendered when its scene has rows, in the order of its group.
@@ -28,6 +29,7 @@ from .core import (
 )
 from .figure_files import discard, figure_dir, publish
 from .html import write_html_report
+from .owned_files import page_names, refuse_foreign
 
 
 # ---------------------------------------------------------------------------
@@ -46,12 +48,15 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     """``build_report``, returning the context it filled: its figures, tables, charts and
     ``blank_panels`` (the panels saved with nothing on them and no note: none is right).
     One report writes in a folder at a time: it holds a lock on OUT/figures/ while it
-    stages and publishes, and a second one is refused at once (``ReportInputError``)."""
+    stages and publishes, and a second one is refused at once (``ReportInputError``).
+    A page or a figure of this report's names that no report wrote is refused too
+    (``ReportInputError``, owned_files.py), before anything is written."""
     out = Path(out_dir)
     table = read_table(out)
     if table.empty:
         raise ReportInputError(f"the results table in {out} has no rows")
     ctx = ReportContext(out, table, read_meta(out), shift=shift)
+    refuse_foreign(out, page_names(html))  # (before the figures folder is made; again under the lock)
     figure_dir(out).mkdir(parents=True, exist_ok=True)
     try:
         with folder_lock(figure_dir(out)):
@@ -64,20 +69,26 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
 
 def _write_locked(ctx: ReportContext, html: bool) -> None:
     """``write_report``'s writing, with the folder's report lock held: whatever a report
-    killed part-way staged is discarded first, and this one's staging on failure."""
+    killed part-way staged is discarded first, and this one's staging on failure.  Once the
+    figures are rendered, a page or a figure of this report's names that no report wrote
+    is refused (``refuse_foreign``) before report.md is written."""
     out = ctx.out_dir
     discard(out)
+    pages = page_names(html)
     try:
-        _write(ctx, html)
+        text = _render(ctx)
+        refuse_foreign(out, pages + ctx.figures)
+        write_text_atomic(out / REPORT_NAME, text)
+        if html:
+            write_html_report(ctx)
     except BaseException:
         discard(out)
         raise
     publish(out, [Path(rel).name for rel in ctx.figures])
 
 
-def _write(ctx: ReportContext, html: bool) -> None:
-    """report.md and (``html``) report.html, the figures rendered into the staging folder."""
-    out = ctx.out_dir
+def _render(ctx: ReportContext) -> str:
+    """report.md's text, the figures rendered into the staging folder."""
     sections = registered_sections()
     doc = [header_section(ctx)]
     for sp in _in_order(sections, "lead"):  # whole-table sections that lead the report
@@ -94,9 +105,7 @@ def _write(ctx: ReportContext, html: bool) -> None:
         sec = sp.fn(ctx, ctx.table)
         if sec is not None:
             doc.append(f"## {sec.title}\n\n{sec.body}{charts_md(ctx, '', sec)}")
-    write_text_atomic(out / REPORT_NAME, "\n".join(d.rstrip() + "\n" for d in doc))
-    if html:
-        write_html_report(ctx)
+    return "\n".join(d.rstrip() + "\n" for d in doc)
 
 
 def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:

@@ -60,6 +60,8 @@ from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finit
 from ..table.store import load_table
 
 REPORT_NAME = "report.md"
+#: The title report.md and report.html begin with ("<title>: <suite>").
+REPORT_TITLE = "contactbench report"
 #: Values below this are drawn at this floor on log axes (exact zeros, round-off).
 LOG_FLOOR = 1e-16
 #: Profiles from tightest to loosest: figures of the paper use the first one present
@@ -640,7 +642,7 @@ def header_section(ctx: ReportContext) -> str:
     m, t = ctx.meta, ctx.table
     scenes = ctx.scenes()
     suite = _meta_get(m, "suite", "name") or ", ".join(scenes)
-    lines = [f"# contactbench report: {suite}", ""]
+    lines = [f"# {REPORT_TITLE}: {suite}", ""]
     info = [
         ("Scenes", ", ".join(scenes)),
         ("Solvers", ", ".join(natural_sorted(t["solver"].unique()))),

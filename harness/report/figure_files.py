@@ -8,7 +8,9 @@ report replaces the last one's without touching anything else.
   OUT/figures/, removes those the last report wrote that this one did not, and records the
   names it wrote in OUT/figures/.report-figures.json (``MANIFEST``).
 * A PNG that no report of ours recorded -- the user's own, or one in a folder written before
-  the manifest existed -- is never removed; one of ours with the same name is replaced.
+  the manifest existed -- is never removed; a report that would write one of its name is
+  refused before it writes anything (harness/report/owned_files.py), except in a folder
+  with no manifest, where the PNGs the last report.md links are the report's own.
 """
 
 from __future__ import annotations

@@ -30,7 +30,8 @@ import numpy as np
 
 from ..table import aggregates as agg
 from .charts import Chart, RowChart
-from .core import WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace, pick_profile
+from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace,
+                   pick_profile)
 from .sections.fields import load_area_series, trace_scene
 from .sections.generic import best_of_family, profile_taus, reached_accuracy
 from .sections.paper import k_of
@@ -40,6 +41,8 @@ from ..table.files import write_text_atomic
 from ..table.schema import as_finite
 
 HTML_NAME = "report.html"
+#: What report.html begins with, up to its title (``REPORT_TITLE``: the suite).
+HTML_HEAD = "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>"
 
 
 def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
@@ -173,8 +176,8 @@ def render_html(ctx: ReportContext) -> str:
     from plotly.offline import get_plotlyjs
 
     data = page_data(ctx)
-    title = html.escape(f"contactbench report: {data['title']}")
-    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\n"
+    title = html.escape(f"{REPORT_TITLE}: {data['title']}")
+    return (f"{HTML_HEAD}{title}</title>\n"
             f"<style>{PAGE_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
             f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
             f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "

@@ -325,8 +325,28 @@ def skips_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     return Section("Skips and failures", "\n".join(parts))
 
 
+#: The first line of a Python traceback (``traceback.format_exc``).
+TRACEBACK_HEAD = "Traceback (most recent call last):"
+
+
+def error_line(text: str) -> str:
+    """The line of a multi-line error message that says the most, stripped: for a Python
+    traceback (its first line ``TRACEBACK_HEAD``) the exception's line -- the first
+    unindented line after the last ``  File`` frame (in a chain, the last exception's),
+    else its last line; for any other message its first line with text ("" for none)."""
+    lines = [line for line in str(text).splitlines() if line.strip()]
+    if not lines:
+        return ""
+    if lines[0].strip() != TRACEBACK_HEAD:
+        return lines[0].strip()
+    frames = [i for i, line in enumerate(lines) if line.startswith("  File ")]
+    after = lines[frames[-1] + 1:] if frames else lines[1:]
+    return next((line.strip() for line in after if not line[:1].isspace()), lines[-1].strip())
+
+
 def _short(text: str, n: int = 90) -> str:
-    line = str(text).strip().splitlines()[-1] if str(text).strip() else ""
+    """An error cell: ``error_line(text)``, cut to ``n`` characters."""
+    line = error_line(text)
     return line if len(line) <= n else line[: n - 3] + "..."
 
 

@@ -1,0 +1,117 @@
+"""A report writes over none but its own files (harness/report/owned_files.py): in a folder
+never reported, a user's report.md, report.html or figure of a name the report writes is
+refused with one line naming it (exit 2), and left byte for byte; a folder reported before
+is reported again in place."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from contactbench.harness.report import build
+from contactbench.harness.report.core import ReportInputError
+from contactbench.harness.report.figure_files import MANIFEST
+from tests.helpers import fabricate_table, run_cli, write_out
+
+MINE = b"my own notes, not a report\n"
+
+
+def hertz_out(tmp: Path) -> Path:
+    """A results folder of the fabricated table's hertz rows, never reported."""
+    df = fabricate_table()
+    return write_out(tmp, df[df["scene"] == "hertz"])
+
+
+def only_hertz_section(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The report renders the hertz section alone (one figure, analytic-hertz.png: fast)."""
+    every = build.registered_sections
+    monkeypatch.setattr(build, "registered_sections", lambda: {k: v for k, v in every().items() if k == "hertz"})
+
+
+def pngs(out: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")} if (out / "figures").is_dir() else {}
+
+
+@pytest.mark.parametrize("name", ["report.md", "report.html"])
+def test_a_user_s_page_of_a_report_s_name_is_refused_and_left_as_it_is(
+        tmp_path: Path, capsys: pytest.CaptureFixture, name: str) -> None:
+    out = hertz_out(tmp_path)
+    (out / name).write_bytes(MINE)
+    rc, _, err = run_cli(["report", str(out)], capsys)
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and str(out / name) in lines[0] and "not written by a report" in lines[0], err
+    assert (out / name).read_bytes() == MINE
+    assert {p.name for p in out.iterdir()} == {"results.parquet", "meta.json", name}  # nothing written
+
+
+def test_a_user_s_figure_of_a_report_s_name_is_refused_and_left_as_it_is(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The figure's name is known once rendered: the report is refused then, before report.md
+    is written or any figure published, and its staging is discarded.  With the file moved
+    away the report is written, and written again in place (its figures are its own); a
+    user's figure of another name stays."""
+    only_hertz_section(monkeypatch)
+    out = hertz_out(tmp_path)
+    (out / "figures").mkdir()
+    (out / "figures" / "analytic-hertz.png").write_bytes(MINE)
+    (out / "figures" / "mine.png").write_bytes(MINE)
+    with pytest.raises(ReportInputError, match="analytic-hertz.png was not written by a report"):
+        build.build_report(out, html=False)
+    assert pngs(out) == {"analytic-hertz.png": MINE, "mine.png": MINE}
+    assert sorted(p.name for p in (out / "figures").iterdir()) == ["analytic-hertz.png", "mine.png"]  # no staging
+    assert not (out / "report.md").exists()
+    (out / "figures" / "analytic-hertz.png").rename(out / "moved.png")
+    build.build_report(out, html=False)
+    first = (out / "report.md").read_bytes(), pngs(out)
+    assert first[1]["mine.png"] == MINE and first[1]["analytic-hertz.png"] != MINE
+    build.build_report(out, html=False)
+    assert ((out / "report.md").read_bytes(), pngs(out)) == first
+
+
+def _report_md(links: list[str]) -> str:
+    from contactbench.harness.report.owned_files import page_starts
+
+    return page_starts()["report.md"].decode() + "x\n\n" + "".join(f"![Figure 1](figures/{n})\n" for n in links)
+
+
+def test_a_figure_is_ours_when_the_record_lists_it_or_with_no_record_when_report_md_links_it(tmp_path: Path) -> None:
+    from contactbench.harness.report.owned_files import foreign_files
+
+    fig = tmp_path / "figures"
+    fig.mkdir()
+    for n in ("a.png", "b.png"):
+        (fig / n).write_bytes(MINE)
+    (tmp_path / "report.md").write_text(_report_md(["a.png"]))
+    names = ["report.md", "figures/a.png", "figures/b.png", "figures/absent.png"]
+    assert foreign_files(tmp_path, names) == [fig / "b.png"]  # no record: report.md's links
+    (fig / MANIFEST).write_text('["b.png"]\n')
+    assert foreign_files(tmp_path, names) == [fig / "a.png"]  # the record, once there, alone
+    (fig / MANIFEST).write_text("not json")
+    assert foreign_files(tmp_path, names) == [fig / "a.png", fig / "b.png"]  # an unreadable record: none ours
+    (fig / MANIFEST).unlink()
+    (tmp_path / "report.md").write_text("# my report\n\n![Figure 1](figures/a.png)\n")
+    assert foreign_files(tmp_path, names) == [tmp_path / "report.md", fig / "a.png", fig / "b.png"]
+
+
+def test_a_page_is_ours_when_it_begins_as_a_report_s_page_begins(tmp_path: Path) -> None:
+    from contactbench.harness.report.owned_files import foreign_files, page_starts
+
+    starts = page_starts()
+    (tmp_path / "report.html").write_bytes(starts["report.html"] + b"suite</title>\n")
+    (tmp_path / "report.md").write_bytes(starts["report.html"])  # the other page's start: not ours
+    assert foreign_files(tmp_path, ["report.html", "report.md"]) == [tmp_path / "report.md"]
+    (tmp_path / "report.md").unlink()
+    (tmp_path / "report.md").symlink_to(tmp_path / "report.html")  # a link is the user's, whatever it points at
+    assert foreign_files(tmp_path, ["report.md", "report.html"]) == [tmp_path / "report.md"]
+
+
+def test_the_pages_a_report_wrote_begin_as_page_starts_says(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``page_starts`` and the writers agree: a report's own pages are recognised as its own."""
+    from contactbench.harness.report.owned_files import foreign_files
+
+    only_hertz_section(monkeypatch)
+    out = hertz_out(tmp_path)
+    build.build_report(out)
+    assert foreign_files(out, ["report.md", "report.html", "figures/analytic-hertz.png"]) == []
