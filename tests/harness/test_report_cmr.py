@@ -188,6 +188,15 @@ def test_a_table_without_the_hurst_exponent_says_why_fig8_is_not_drawn(tmp_path:
     assert "no `hurst` column" in section and not out.exists()
 
 
+def test_a_table_naming_no_surface_family_is_captioned_all_surfaces(tmp_path: Path) -> None:
+    """A table whose rows name no surface family (written before the column): every caption
+    and table title says "all surfaces", none an empty "()"."""
+    table, _ = fabricate_cmr(family="")
+    _, section = _section(tmp_path, table, rcf.cmr_section)
+    assert "Fig. 8 (all surfaces): against H" in section and "load error along the load history (all surfaces)" in section
+    assert "()" not in section
+
+
 @pytest.mark.slow
 def test_the_h_sweep_section_tables_h_and_the_first_level(tmp_path: Path) -> None:
     parts = []

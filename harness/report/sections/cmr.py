@@ -72,6 +72,11 @@ BASE_TEXT = {"scipy-nnls": "dense Cholesky + NNLS (the paper's base)", "nnls": "
 NO_FAMILY = ""
 
 
+def family_label(family: str) -> str:
+    """A surface family as a caption names it: "all surfaces" where the table names none."""
+    return family or "all surfaces"
+
+
 def wrapped_solver(base_solver: str) -> str | None:
     """The base solver a CMR wrapper runs ("cmr+nnls" -> "nnls"), None for other solvers."""
     return base_solver[len(CMR_PREFIX):] if base_solver.startswith(CMR_PREFIX) else None
@@ -324,7 +329,7 @@ def fig8_table(tot: pd.DataFrame, family: str) -> Table:
     rows = [(BASE_TEXT.get(b, b), c, str(N), fmt_num(H), str(v.err.count), fmt_band(v.ratio),
              fmt_band(v.err, pct=True), fmt_pct1(v.worst), fmt_pct1(v.share), fmt_band(v.np_n))
             for (b, c, N, H), v in s.items()]
-    return Table(f"Fig. 8 ({family or 'all surfaces'}): per base, coarse reading and H over the seeds -- time "
+    return Table(f"Fig. 8 ({family_label(family)}): per base, coarse reading and H over the seeds -- time "
                  f"CMR / direct summed over the load history, error in the load at the top step, its worst "
                  f"case, the share of seeds with |error| < {100 * ERROR_TOL:g} %, and n_p/n at the top step; "
                  f"median [{100 * BAND[0]:g} %, {100 * BAND[1]:g} %].",
@@ -345,7 +350,7 @@ def history_table(pairs: pd.DataFrame, family: str) -> Table:
     groups = sorted({k[:4] for k in hb}, key=lambda k: (order.index(k[:3]), k[3]))
     rows = [(BASE_TEXT.get(g[0], g[0]), g[1], str(g[2]), fmt_num(g[3]),
              *(fmt_band(hb[(*g, k)], pct=True) if (*g, k) in hb else "-" for k in steps)) for g in groups]
-    return Table(f"Load error along the load history ({family or 'all surfaces'}): median [{100 * BAND[0]:g} %, "
+    return Table(f"Load error along the load history ({family_label(family)}): median [{100 * BAND[0]:g} %, "
                  f"{100 * BAND[1]:g} %] over the seeds at each step (step 1: the lowest load).",
                  ("base", "coarse", "N", "H", *(f"step {k + 1}" for k in steps)), rows, "llrr" + "r" * len(steps))
 
@@ -354,7 +359,7 @@ def h_table(tot: pd.DataFrame, family: str) -> Table:
     s = summaries(tot, [*VARIANT, "h"])
     rows = [(BASE_TEXT.get(b, b), c, str(N), fmt_num(h), str(v.err.count), fmt_band(v.np_n), fmt_band(v.ratio),
              fmt_band(v.err, pct=True), fmt_pct1(v.worst), fmt_pct1(v.share)) for (b, c, N, h), v in s.items()]
-    return Table(f"Fig. 9 ({family or 'all surfaces'}): against h, first level {CMR_COARSEST} -- n_p/n, time "
+    return Table(f"Fig. 9 ({family_label(family)}): against h, first level {CMR_COARSEST} -- n_p/n, time "
                  f"CMR / direct and load error at the top step over the seeds; median "
                  f"[{100 * BAND[0]:g} %, {100 * BAND[1]:g} %].",
                  ("base", "coarse", "N", "h", "seeds", "n_p/n", "time ratio", "load error", "worst",
@@ -366,7 +371,7 @@ def coarsest_table(tot: pd.DataFrame, family: str) -> Table:
     rows = [(BASE_TEXT.get(b, b), c, str(N), fmt_num(H), str(k), str(v.err.count), fmt_band(v.err, pct=True),
              fmt_pct1(v.worst), fmt_pct1(v.share), fmt_band(v.ratio), fmt_band(v.np_n))
             for (b, c, N, H, k), v in s.items()]
-    return Table(f"Where the cascade starts ({family or 'all surfaces'}), h = {CMR_H:g}: load error (worst case "
+    return Table(f"Where the cascade starts ({family_label(family)}), h = {CMR_H:g}: load error (worst case "
                  f"over the seeds), share under {100 * ERROR_TOL:g} %, time ratio and n_p/n per first level.",
                  ("base", "coarse", "N", "H", "first level", "seeds", "load error", "worst", "share < 2 %",
                   "time ratio", "n_p/n"), rows, "llrrrrrrrrr")

@@ -33,6 +33,7 @@ from .cmr import (
     Table,
     by_family,
     cmr_pairs,
+    family_label,
     coarsest_table,
     fig8_reading,
     fig8_table,
@@ -223,7 +224,7 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
         if len(by_family(pairs)) > 1:
             body.append(f"#### Surface family `{family or 'other'}`\n")
         body.append(ctx.figure_md(fig8_figure(ctx, tot, family),
-                                  f"Fig. 8 ({family}): against H, per base and coarse reading: (top) time CMR / "
+                                  f"Fig. 8 ({family_label(family)}): against H, per base and coarse reading: (top) time CMR / "
                                   f"direct summed over the load history (dotted: the paper's ~{PAPER_TIME_RATIO:g}); "
                                   f"(middle) error in the load at the top step (dashed: +-{100 * ERROR_TOL:g} %); "
                                   f"line: median, band: {100 * BAND[0]:g}-{100 * BAND[1]:g} %, dots: seeds; "
@@ -231,7 +232,7 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                                   f"{100 * ROBUST_SHARE:g} %)."))
         body.append(fig8_table(tot, family).md(ctx))
         body.append(ctx.figure_md(history_figure(ctx, fp, family),
-                                  f"load error along the load history ({family}) per H: median and "
+                                  f"load error along the load history ({family_label(family)}) per H: median and "
                                   f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band over the seeds."))
         body.append(history_table(fp, family).md(ctx))
         body.append(fig8_reading(tot, fp))
@@ -252,14 +253,14 @@ def cmr_h_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
         hs = tot[tot["coarsest"] == CMR_COARSEST]
         if hs["h"].nunique() > 1:
             body.append(ctx.figure_md(fig9_figure(ctx, hs, family),
-                                      f"Fig. 9 ({family}): n_p/n, time CMR / direct and load error at the top step "
+                                      f"Fig. 9 ({family_label(family)}): n_p/n, time CMR / direct and load error at the top step "
                                       f"against h, first level {CMR_COARSEST}; median and "
                                       f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band over the seeds."))
         body.append(h_table(hs, family).md(ctx))
         starts = tot[np.isclose(tot["h"], CMR_H)]
         if starts["coarsest"].nunique() > 1:
             body.append(ctx.figure_md(coarsest_figure(ctx, starts, family),
-                                      f"where the cascade starts ({family}), h = {CMR_H:g}, H = {FIG9_H:g} (else the "
+                                      f"where the cascade starts ({family_label(family)}), h = {CMR_H:g}, H = {FIG9_H:g} (else the "
                                       f"largest H that ran): load error at the top step per first level; median, "
                                       f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band, seeds and the worst seed."))
             body.append(coarsest_table(starts, family).md(ctx))
