@@ -79,13 +79,13 @@ def positive_float(text: str) -> float:
 MAX_TIMEOUT_S = 7 * 24 * 3600.0
 
 
-def check_time_limit(seconds: float, what: str) -> float:
+def check_time_limit(seconds: float, what: str, flag: str = "") -> float:
     """``seconds`` if it is a finite number of seconds in (0, ``MAX_TIMEOUT_S``], else a
-    ``ValueError`` naming ``what`` (the setting and its flag)."""
+    ``ValueError`` naming the setting ``what`` (and its command-line ``flag``)."""
     if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) \
             or not (math.isfinite(seconds) and 0 < seconds <= MAX_TIMEOUT_S):
         raise ValueError(f"{what} must be a finite number of seconds > 0 and at most {MAX_TIMEOUT_S:g} (a week), "
-                         f"got {seconds!r}")
+                         f"got {seconds!r}" + (f" ({flag})" if flag else ""))
     return float(seconds)
 
 

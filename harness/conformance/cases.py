@@ -49,7 +49,7 @@ DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
 def check_timeout(seconds: float | None) -> float | None:
     """A per-solve time limit: None (the mode's default) or a finite number of seconds
     in (0, a week] (``arguments.check_time_limit``), else ``ValueError`` naming the value."""
-    return None if seconds is None else check_time_limit(seconds, "a time limit (--timeout)")
+    return None if seconds is None else check_time_limit(seconds, "a time limit", "--timeout")
 
 
 #: Grace beyond the solver's own time limit before its worker is killed: a solver that

@@ -99,9 +99,9 @@ class RunConfig:
     def __post_init__(self) -> None:
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        check_time_limit(self.timeout, "timeout (--timeout)")  # (its rows record it: time_limit_s)
+        check_time_limit(self.timeout, "timeout", "--timeout")  # (its rows record it: time_limit_s)
         if self.reference_timeout is not None:
-            check_time_limit(self.reference_timeout, "reference_timeout (--reference-timeout)")
+            check_time_limit(self.reference_timeout, "reference_timeout", "--reference-timeout")
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
         if self.max_cells < 1:
