@@ -239,9 +239,12 @@ def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequenc
               with_time: bool = True) -> list[SolverSummary]:
     """The aggregate table of ``df`` (usually one scene): one SolverSummary per solver.
     ``with_time=False`` leaves the time aggregate NaN (for tables mixing scenes, where
-    solvers do not all run on the same problems)."""
+    solvers do not all run on the same problems); so does a solver skipped on every problem
+    (``never_attempted``: it has no time to aggregate, and the limit it would count at is
+    no measurement; its skip reasons say why)."""
     cells = cell_table(df, solvers)
     sgm = shifted_geomean_table(cells, shift) if with_time else {s: float("nan") for s in cells.solvers}
+    sgm.update({s: float("nan") for s in never_attempted(cells)})
     rel = relative_to_best(sgm)
     attempted_rows = df[df["status"].astype(str) != "skipped"]
     agree = claim_agreement(attempted_rows)

@@ -148,6 +148,22 @@ def test_a_solver_skipped_on_every_problem_is_left_out_of_the_profile() -> None:
     assert agg.never_attempted(agg.cell_table(t)) == ()  # C, skipped on one problem, is drawn
 
 
+def test_a_solver_skipped_on_every_problem_has_no_time_aggregate() -> None:
+    """Its cells would all count at the time limit: an SGM that reads as a time it never
+    took.  It gets none (NaN, "-" in the report), the others' figures and the best are
+    unchanged, and one skipped on some problems still counts those at the limit."""
+    t = hand_table()
+    skipped = pd.DataFrame([_row(p, "D", float("nan"), "skipped", None) for p in ("P1", "P2", "P3", "P4")],
+                           columns=list(ALL_COLUMNS))
+    with_d = {s.solver: s for s in agg.summarize(pd.concat([t, skipped], ignore_index=True), SHIFT)}
+    base = {s.solver: s for s in agg.summarize(t, SHIFT)}
+    assert np.isnan(with_d["D"].sgm_s) and np.isnan(with_d["D"].sgm_rel) and with_d["D"].attempted == 0
+    for s in base:
+        assert with_d[s].sgm_s == pytest.approx(base[s].sgm_s, rel=1e-12)
+        assert with_d[s].sgm_rel == pytest.approx(base[s].sgm_rel, rel=1e-12)
+    assert np.isfinite(base["C"].sgm_s)  # C, skipped on one problem, is timed
+
+
 def test_absent_pairs_count_as_unsolved_at_the_limit() -> None:
     t = hand_table()
     t = t[~((t["solver"] == "C") & (t["instance"] == "P2"))]  # drop the skipped row: now simply absent

@@ -186,7 +186,7 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
              f"**false claims** count rows claiming convergence that fail the check. **SGM**: shifted geometric "
              f"mean of solve time, shift s = {fmt_num(ctx.shift)} s, exp(mean(log(t + s))) - s, relative to the "
              f"best solver of the scene; every cell that is not solved (failed, inaccurate, timeout, crashed, "
-             f"skipped or not run) counts at its time limit. Repeats: a cell is solved when every repeat is, at "
+             f"skipped or not run) counts at its time limit; a solver skipped on every problem has no SGM (-). Repeats: a cell is solved when every repeat is, at "
              f"the minimum time. **Performance profile** (Dolan & More 2002): the fraction of problems a "
              f"solver solves within tau times the best solver's time.\n"]
     for scene in ctx.scenes():
