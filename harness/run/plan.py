@@ -37,7 +37,7 @@ from contactbench.problems.operators_gpu import device_misfit
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
-from contactbench.solvers.base import ProblemTraits
+from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, load_solver,
                                            parse_solver_spec, register, split_solver_list, split_solver_spec)
 
@@ -239,12 +239,31 @@ def resolve_solver_names(requested: Sequence[str] | str | None, study_default: S
             except (ImportError, AttributeError, TypeError) as exc:
                 raise ProblemInputError(f"cannot load solver {text.strip()!r}: {type(exc).__name__}: {exc}") from None
             if ":" in spec.name:
-                register(solver, replace=True)
+                refuse_name_clash(text.strip(), solver)
+                register(solver, replace=True)  # (the same class again: each worker loads it too)
             names.append(SolverSpec(solver.name, spec.params).label)
         return names
     if study_default:  # a study's name[k=v] is kept when its base is registered
         return [s for s in study_default if split_solver_spec(s)[0] in all_solvers()]
     return list(available_solvers())
+
+
+def refuse_name_clash(text: str, solver: Solver) -> None:
+    """A one-line ``ProblemInputError`` when the solver loaded from ``text`` (MODULE:NAME)
+    carries the name of a registered solver of another class: it would run in that one's
+    place and its rows would read as that one's (external manifests are refused the same
+    way, ``solvers.registry``)."""
+    known = all_solvers().get(solver.name)
+    if known is None or _class_path(known) == _class_path(solver):
+        return
+    raise ProblemInputError(f"solver {text!r} is named {solver.name!r}, the name of the registered solver "
+                            f"{_class_path(known)}; give it a name of its own")
+
+
+def _class_path(solver: Solver) -> str:
+    """module.QualifiedName of a solver's class."""
+    cls = type(solver)
+    return f"{cls.__module__}.{cls.__qualname__}"
 
 
 # ---------------------------------------------------------------------------

@@ -88,3 +88,30 @@ def test_export_takes_its_cap_of_qps_from_the_command_line(in_tmp: Path, capsys:
     assert "over the limit of 3" in line and "--max-qps" in line, line
     rc, _, err = run_cli([*args, "--max-qps", "4"], capsys)
     assert rc == 0, err
+
+
+def test_a_solver_loaded_by_path_with_a_registered_solver_s_name_is_refused(
+        in_tmp: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """MODULE:NAME whose class calls itself "pk" would run in pk's place, its rows read as
+    pk's (and a resume would keep them): one line, exit 2, nothing run or written."""
+    from contactbench.solvers.registry import get_solver, register
+
+    real = get_solver("pk")
+    (in_tmp / "impostor.py").write_text(
+        "from contactbench.solvers.base import Outcome, Solver\n"
+        "class FakePK(Solver):\n"
+        "    name = 'pk'\n"
+        "    family = 'audit'\n"
+        "    def iterate(self, ctx):\n"
+        "        return Outcome(ctx.qp.ubar * 0.0, 1, True)\n")
+    monkeypatch.syspath_prepend(str(in_tmp))
+    try:
+        rc, _, err = run_cli(["run", "counterexample", "--size", "10", "--seeds", "0", "--reference", "none",
+                              "--no-progress", "--out", "o", "--solvers", "pk,impostor:FakePK"], capsys)
+        lines = err.strip().splitlines()
+        assert rc == 2 and len(lines) == 1 and "'pk'" in lines[0] and "name of its own" in lines[0], err
+        assert not (in_tmp / "o").exists()
+        assert type(get_solver("pk")) is type(real)
+    finally:
+        register(real, replace=True)
+
