@@ -84,15 +84,9 @@ def _defining_arrays(qp: Any) -> list[tuple[str, np.ndarray]]:
     upper = getattr(getattr(qp, "constraints", None), "upper", None)
     if upper is not None:
         out.append(("upper", np.asarray(upper)))
-    H = qp.H
-    for name, value in sorted(vars(H).items()):
-        if name.startswith("_"):
-            continue
-        if isinstance(value, np.ndarray):
-            out.append((f"H.{name}", value))
-        elif hasattr(value, "__dict__") and not isinstance(value, type):
-            out += [(f"H.{name}.{k}", v) for k, v in sorted(vars(value).items())
-                    if not k.startswith("_") and isinstance(v, np.ndarray)]
+    for where, part in _operator_parts(qp):
+        out += [(f"{where}.{k}", v) for k, v in sorted(vars(part).items())
+                if not k.startswith("_") and isinstance(v, np.ndarray)]
     return out
 
 
@@ -103,24 +97,75 @@ def _digest(arr: np.ndarray) -> str:
     return h.hexdigest()
 
 
+def _operator_parts(qp: Any) -> list[tuple[str, Any]]:
+    """The operator and its public helper objects (an FFT operator's kernel transform),
+    named as the seal names them."""
+    H = qp.H
+    return [("H", H)] + [(f"H.{name}", value) for name, value in sorted(vars(H).items())
+                         if not name.startswith("_") and hasattr(value, "__dict__") and not isinstance(value, type)]
+
+
+def _methods(qp: Any) -> tuple[tuple[type, str, Any], ...]:
+    """(class, name, attribute) of every method and descriptor the classes of the operator
+    and its helpers define (their MROs, ``object`` aside): what a product runs."""
+    classes = dict.fromkeys(c for _, part in _operator_parts(qp) for c in type(part).__mro__ if c is not object)
+    return tuple((c, name, value) for c in classes for name, value in vars(c).items()
+                 if callable(value) or isinstance(value, (staticmethod, classmethod, property)))
+
+
+def _shadowing(qp: Any) -> tuple[tuple[Any, str, str, Any], ...]:
+    """(object, attribute, seal name, value) of each attribute set on the operator or a
+    helper object that hides a method of its class (``H.matvec = ...``)."""
+    return tuple((part, name, f"{where}.{name}", value) for where, part in _operator_parts(qp)
+                 for name, value in vars(part).items() if callable(getattr(type(part), name, None)))
+
+
 @dataclass(frozen=True)
 class ProblemSeal:
     """A fingerprint of the problem handed to a solver -- ubar and the operator's
-    defining arrays (``_defining_arrays``) -- taken before the solve; ``broken(qp)``
-    after it says what the solver changed ("" when nothing)."""
+    defining arrays (``_defining_arrays``), and the methods its products run (``_methods``)
+    -- taken before the solve; ``broken(qp)`` after it says what the solver changed ("" when
+    nothing): an array written into, a method of the operator's classes replaced, or one
+    hidden by an attribute of the object (``_shadowing``).  ``mend(qp)`` puts the methods
+    back, so the solves after it in the same process run the code they were written for."""
 
     digests: tuple[tuple[str, str], ...]
+    methods: tuple[tuple[type, str, Any], ...] = ()
+    hiding: tuple[tuple[str, Any], ...] = ()  # (seal name, value): what hid a method when sealed
 
     @classmethod
     def of(cls, qp: Any) -> ProblemSeal:
-        return cls(tuple((name, _digest(a)) for name, a in _defining_arrays(qp)))
+        hiding = tuple((where, value) for _, _, where, value in _shadowing(qp))
+        return cls(tuple((name, _digest(a)) for name, a in _defining_arrays(qp)), _methods(qp), hiding)
+
+    def _new_hiding(self, qp: Any) -> list[tuple[Any, str, str, Any]]:
+        """``_shadowing``'s entries that were not there, as they are, when sealed."""
+        sealed = dict(self.hiding)
+        return [entry for entry in _shadowing(qp) if sealed.get(entry[2], entry) is not entry[3]]
 
     def broken(self, qp: Any) -> str:
         now = dict(ProblemSeal.of(qp).digests)
         before = dict(self.digests)
         changed = [name for name in before if now.get(name) != before[name]]
         changed += [name for name in now if name not in before]
+        changed += [f"{c.__qualname__}.{name}" for c, name, value in self.methods
+                    if vars(c).get(name) is not value]
+        changed += [where for _, _, where, _ in self._new_hiding(qp)]
         return f"the solver wrote into the problem it was handed ({', '.join(changed)} changed)" if changed else ""
+
+    def mend(self, qp: Any) -> None:
+        """The operator's methods as they were sealed: class attributes put back, attributes
+        of the object that hide one removed (its arrays stay as the solver left them: the
+        harness drops that problem)."""
+        for c, name, value in self.methods:
+            if vars(c).get(name) is not value:
+                setattr(c, name, value)
+        sealed = dict(self.hiding)
+        for part, name, where, _ in self._new_hiding(qp):
+            if where in sealed:
+                setattr(part, name, sealed[where])
+            else:
+                delattr(part, name)
 
 
 # ---------------------------------------------------------------------------

@@ -251,10 +251,12 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
                 "message": first_line(exception_text(exc), type(exc).__name__),
                 "detail": "" if refused else traceback.format_exc(limit=6)}
     elapsed = time.perf_counter() - t0
+    tampered = seal.broken(qp)
+    seal.mend(qp)  # (the judge's products, and the next case's in this process, run the sealed code)
     return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
             "iterations": int(res.iterations),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
-            "tampered": seal.broken(qp), "iterated": not res.info.get(WITHOUT_ITERATE)}
+            "tampered": tampered, "iterated": not res.info.get(WITHOUT_ITERATE)}
 
 
 class _SolverHandler:

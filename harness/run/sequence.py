@@ -166,7 +166,9 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
             break
         seconds = time.perf_counter() - t0
         p_ref = references[k] if references is not None and k < len(references) else None
-        verdict = judge(inst, res.p, bool(res.converged), tol, p_ref=p_ref, tampered=seal.broken(inst.qp))
+        tampered = seal.broken(inst.qp)
+        seal.mend(inst.qp)
+        verdict = judge(inst, res.p, bool(res.converged), tol, p_ref=p_ref, tampered=tampered)
         step = StepSolve(k, inst, res, seconds, start is not None, verdict)
         out.append(step)
         if on_step is not None:

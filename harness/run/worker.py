@@ -29,7 +29,7 @@ import math
 import os
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Iterable, Sequence, Union
+from typing import Any, Iterable, Iterator, Sequence, Union
 
 import numpy as np
 
@@ -255,6 +255,7 @@ class SolveServer:
         self.dense: dict[int, DenseOperator] = {}
         self.refs: dict[str, np.ndarray] = {}
         self.warm: dict[tuple[str, str, int], WarmState] = {}  # (label, profile, step)
+        self.wrote_untimed: dict[str, str] = {}  # label -> what its untimed solve wrote into the problem
 
     def __call__(self, msg: Message) -> Any:
         if isinstance(msg, BuildStep):
@@ -388,11 +389,28 @@ class SolveServer:
         kept = WarmState.load(task.warm_in, prev.step, inst) if task.warm_in else None
         if kept is not None:
             return self.remember(prev, inst, kept.p, kept.w)
-        try:
-            res = load_solver(prev.base).solve(self.qp_for(prev.step, prev.operator), solver_settings(prev), None)
-        except SOLVER_RAISES:
-            return False  # no warm start: the step runs cold, and its row says so
+        qp = self.qp_for(prev.step, prev.operator)
+        with self.sealed(task, qp, "re-solving the step before"):
+            try:
+                res = load_solver(prev.base).solve(qp, solver_settings(prev), None)
+            except SOLVER_RAISES:
+                return False  # no warm start: the step runs cold, and its row says so
         return self.remember(prev, inst, res.p, res.w)
+
+    @contextlib.contextmanager
+    def sealed(self, task: SolveTask, qp: QP, what: str) -> Iterator[None]:
+        """An untimed solve of ``task``'s solver on ``qp``, sealed (``ProblemSeal``): a
+        problem it wrote into is dropped, so the solves after it get the problem rebuilt,
+        and the task's timed row is judged as having written into it (``solve``)."""
+        seal = ProblemSeal.of(qp)
+        try:
+            yield
+        finally:
+            broken = seal.broken(qp)
+            if broken:
+                self.wrote_untimed[task.label] = f"{broken}, {what}"
+                seal.mend(qp)
+                self.forget_problems()
 
     def prepare(self, task: SolveTask) -> tuple[ContactInstance, QP, Any, WarmStart | None]:
         inst, _ = self.ensure_step(task.step)
@@ -407,10 +425,11 @@ class SolveServer:
     def warmup(self, task: SolveTask) -> bool:
         """The untimed warm-up solve (imports, JIT, caches); its answer is discarded."""
         _, qp, solver, warm = self.prepare(task)
-        try:
-            solver.solve(qp, solver_settings(task), warm)
-        except SOLVER_RAISES:
-            return False  # the timed solve fails the same way and records it
+        with self.sealed(task, qp, "in its untimed warm-up"):
+            try:
+                solver.solve(qp, solver_settings(task), warm)
+            except SOLVER_RAISES:
+                return False  # the timed solve fails the same way and records it
         return True
 
     def solve(self, task: SolveTask) -> SolveReply:
@@ -437,8 +456,11 @@ class SolveServer:
         )
         reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
         p_ref = self.reference_p(task.reference_path)
+        tampered = seal.broken(qp)
+        seal.mend(qp)  # (before the judge reads the problem: its products run the sealed code)
         reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
-                              analytic_load=self.analytic(task.step).get("load"), tampered=seal.broken(qp))
+                              analytic_load=self.analytic(task.step).get("load"),
+                              tampered=tampered or self.wrote_untimed.pop(task.label, ""))
         if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
             reply.error = reply.verdict.message()
             if reply.verdict.tampered:

@@ -366,3 +366,60 @@ def test_the_judge_refuses_a_check_tol_that_would_pass_or_fail_everything(check_
     inst = counterexample(16, 0)
     with pytest.raises(ProblemInputError, match="check_tol"):
         judge(inst, np.zeros(inst.n), True, check_tol=check_tol)
+
+
+# ---------------------------------------------------------------------------
+# Methods replaced, and writes in the untimed solves of a run
+# ---------------------------------------------------------------------------
+
+
+def test_a_product_replaced_on_the_operator_or_its_class_is_caught_and_put_back(ex1) -> None:
+    """A solver that swaps the product the judge runs (on the object, or on its class for
+    the whole process) would make any answer pass: the seal names it, and ``mend`` puts the
+    sealed code back for the judge and the solves after it."""
+    inst, p = ex1
+    qp = QP(DenseOperator(inst.qp.H.to_dense()), inst.qp.ubar.copy(), inst.qp.geometry)
+    honest = qp.H.matvec(p)
+    seal = ProblemSeal.of(qp)
+    qp.H.matvec = lambda x: qp.ubar.copy()  # every candidate has w = 0
+    assert "H.matvec" in seal.broken(qp)
+    seal.mend(qp)
+    assert seal.broken(qp) == "" and np.array_equal(qp.H.matvec(p), honest)
+    original = DenseOperator.matvec
+    try:
+        seal = ProblemSeal.of(qp)
+        DenseOperator.matvec = lambda self, x: qp.ubar.copy()
+        assert "DenseOperator.matvec" in seal.broken(qp)
+        seal.mend(qp)
+        assert DenseOperator.matvec is original and seal.broken(qp) == ""
+    finally:
+        DenseOperator.matvec = original
+
+
+class WritesInItsWarmUp(Solver):
+    """Doubles the dense H it is handed the first time it runs in a process (the untimed
+    warm-up of a run), then answers the problem it was handed, claimed."""
+
+    name = "test-writes-in-warm-up"
+    family = "test"
+    capabilities = Capabilities(operators=frozenset({"dense"}), needs_dense=True)
+    wrote = False
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        H = ctx.qp.H.to_dense()
+        if not WritesInItsWarmUp.wrote:
+            WritesInItsWarmUp.wrote = True
+            H *= 2.0  # DenseOperator.to_dense: the operator's own matrix
+        return Outcome(exact_of(H, ctx.qp.ubar), 1, True)
+
+
+def test_a_write_in_the_untimed_warm_up_is_the_solver_s_and_no_other_solver_s(run_harness) -> None:
+    """The warm-up is sealed as the timed solve is: the writer's row is wrong, and the
+    solver after it in the same worker gets the problem rebuilt (its error in p small, not 0.5)."""
+    table = run_harness(["counterexample"], solvers=[f"{HERE}:WritesInItsWarmUp", "pk"], size=10, seeds=(0,),
+                        profiles=("mid",), reference="nnls", warmup=True, timeout=60.0)
+    writer = table[table["solver"] == WritesInItsWarmUp.name]
+    assert set(zip(writer["status"], writer["verdict"])) == {("failed", "wrong")}, writer["error"].tolist()
+    assert writer["error"].str.contains("wrote into the problem").all()
+    pk = table[table["solver"] == "pk"]
+    assert (pk["status"] == "solved").all() and (pk["p_rel_error"].astype(float) < 1e-3).all()  # (0.5 on 2H)
