@@ -305,7 +305,7 @@ def read_text(path: str | Path) -> RawMap:
     """A plain text/CSV matrix; the delimiter is detected from the first data line."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # (a byte-order mark, as spreadsheets write one, is no value)
     except UnicodeDecodeError:
         raise SurfaceFileError(p, "binary content that is not .npy and not a text matrix") from None
     except OSError as e:
@@ -457,7 +457,7 @@ def _metres_per_unit(p: Path, unit: str | None) -> float | None:
 def _file_spacing(p: Path, sizes: Any, nb: Any) -> tuple[float, float]:
     """The grid spacings (x, y) the file states (file units); pixels equal to LENGTH_RTOL
     are made exactly square."""
-    dx, dy = float(sizes[0]) / int(nb[0]), float(sizes[1]) / int(nb[1])
+    dx, dy = (float(size) / int(n) if int(n) > 0 else np.nan for size, n in zip(sizes[:2], nb[:2]))  # 0 points: NaN
     try:
         dx, dy = check_positive("file grid spacing x", dx), check_positive("file grid spacing y", dy)
     except ProblemInputError as e:

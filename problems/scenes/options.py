@@ -345,7 +345,8 @@ def _numbers(rec: OptionRecord, value: Any) -> list[float]:
 
 def value_problem(rec: OptionRecord, value: Any, allow: set[str]) -> str | None:
     """The one-line problem with ``value`` for option ``rec``, None when it passes:
-    its type, choices, hard range, order and (unless allowed) plausible range."""
+    its type, choices, hard range, order and (unless allowed) plausible range; a text
+    option that is empty or blank."""
     try:
         if rec.kind == "choice":
             if value not in rec.choices:
@@ -363,7 +364,9 @@ def value_problem(rec: OptionRecord, value: Any, allow: set[str]) -> str | None:
             if not seeds or any(isinstance(s, bool) or int(s) != s or not 0 <= s <= MAX_SEED for s in seeds):
                 return wrong
             return None
-        if rec.kind in ("text", "switch"):
+        if rec.kind == "text":
+            return f"{rec.flag} is empty (a script's unset variable?)" if not str(value).strip() else None
+        if rec.kind == "switch":
             return None
         xs = _numbers(rec, value)
     except (ProblemInputError, TypeError, ValueError) as exc:

@@ -171,6 +171,11 @@ def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     out["x3p missing data"] = (_x3p_with_xml(tmp / "nodata.x3p", drop="bindata/data.bin"), "missing")
     out["x3p profile"] = (_x3p_with_xml(tmp / "prf.x3p", ("<FeatureType>SUR", "<FeatureType>PRF")), "'SUR'")
     out["x3p bad xml"] = (_x3p_with_xml(tmp / "xml.x3p", ("</Record1>", "")), "not well-formed")
+    out["x3p of no points"] = (_x3p_with_xml(tmp / "zero.x3p", ("<SizeX>6</SizeX>\n      <SizeY>6</SizeY>",
+                                                                "<SizeX>0</SizeX>\n      <SizeY>0</SizeY>"), data=b""),
+                               "grid spacing")
+    (tmp / "bom.csv").write_text("\ufeff1,2\n3,x\n", encoding="utf-8")
+    out["byte-order mark, then a bad value"] = (tmp / "bom.csv", "non-numeric value 'x' on line 2")
     out["x3p entities"] = (_x3p_with_xml(tmp / "dtd.x3p", ("<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\" ?>",
                                                           '<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "b">]>')), "DTD")
     out.update(topography_bad_files(tmp))
@@ -206,6 +211,14 @@ def test_every_bad_file_class_gives_a_clear_error(tmp_path: Path) -> None:
         assert str(path) in msg, what
         assert phrase.lower() in msg.lower(), f"{what}: {msg}"
         assert isinstance(e.value, ProblemInputError)
+
+
+def test_a_byte_order_mark_is_no_value(tmp_path: Path) -> None:
+    """Spreadsheets write CSV UTF-8 with a byte-order mark: the map reads as without it."""
+    z = random_map((8, 8))
+    (tmp_path / "bom.csv").write_text("\ufeff" + "\n".join(",".join(repr(float(v)) for v in row) for row in z),
+                                      encoding="utf-8")
+    assert np.array_equal(read_height_map(tmp_path / "bom.csv").z, z)
 
 
 def test_text_or_npy_without_length_asks_for_it(tmp_path: Path) -> None:
