@@ -345,7 +345,8 @@ class SolveServer:
         qp = self.qp_for(msg.step, msg.operator)
         settings = SolverSettings(tol=get_profile(REFERENCE_PROFILE).tol, time_limit=msg.time_limit)
         t0 = time.perf_counter()
-        res = load_solver(msg.base).solve(qp, settings, None)
+        with process_state_kept():
+            res = load_solver(msg.base).solve(qp, settings, None)
         elapsed = time.perf_counter() - t0
         p = np.asarray(res.p, dtype=np.float64).reshape(-1)
         verdict = judge(inst, p, bool(res.converged), REFERENCE_MAX_KKT)
@@ -404,7 +405,8 @@ class SolveServer:
         and the task's timed row is judged as having written into it (``solve``)."""
         seal = ProblemSeal.of(qp)
         try:
-            yield
+            with process_state_kept():
+                yield
         finally:
             broken = seal.broken(qp)
             if broken:
@@ -441,7 +443,8 @@ class SolveServer:
         with PeakMemory() as mem:
             t0 = time.perf_counter()
             try:
-                res = solver.solve(qp, settings, warm)
+                with process_state_kept():
+                    res = solver.solve(qp, settings, warm)
             except SolveAborted as exc:  # (a status the class does not allow is a crash: ``aborted_status``)
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=exception_message(exc),
                                   aborted=aborted_status(exc) or "crashed")
@@ -478,6 +481,24 @@ class SolveServer:
             with contextlib.suppress(OSError):  # a full disk costs a resume its exact start, not this row
                 self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
         return reply
+
+
+@contextlib.contextmanager
+def process_state_kept() -> Iterator[None]:
+    """The working folder, the environment and NumPy's floating-point error handling put
+    back after a solve as they were before it: a solver that changes them (``os.chdir``,
+    ``os.environ``, ``np.seterr``) changes them for itself, not for the harness's writes
+    (relative to the working folder) or for the solves after it in this worker."""
+    cwd, env, errors = os.getcwd(), dict(os.environ), np.geterr()
+    try:
+        yield
+    finally:
+        np.seterr(**errors)
+        if dict(os.environ) != env:
+            os.environ.clear()
+            os.environ.update(env)
+        with contextlib.suppress(OSError):  # (a folder gone meanwhile: the harness's writes say so)
+            os.chdir(cwd)
 
 
 def save_wrong_answer(path: str | None, inst: ContactInstance, p: np.ndarray, p_ref: np.ndarray | None,

@@ -423,3 +423,48 @@ def test_a_write_in_the_untimed_warm_up_is_the_solver_s_and_no_other_solver_s(ru
     assert writer["error"].str.contains("wrote into the problem").all()
     pk = table[table["solver"] == "pk"]
     assert (pk["status"] == "solved").all() and (pk["p_rel_error"].astype(float) < 1e-3).all()  # (0.5 on 2H)
+
+
+class ChangesProcessState(Solver):
+    """Answers right, claimed, after moving the working folder, raising on every floating
+    point error and setting an environment variable: its own business, not the run's."""
+
+    name = "test-changes-process-state"
+    family = "test"
+    capabilities = Capabilities(needs_dense=False)
+    elsewhere = ""
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        os.chdir(self.elsewhere or os.path.expanduser("~"))
+        np.seterr(all="raise")
+        os.environ["CONTACTBENCH_TEST_LEFT_BEHIND"] = "1"
+        return Outcome(exact_of(ctx.qp.H.to_dense(), ctx.qp.ubar), 1, True)
+
+
+class UnderflowsHarmlessly(Solver):
+    """Answers right, claimed, after an underflow NumPy ignores by default."""
+
+    name = "test-underflows-harmlessly"
+    family = "test"
+    capabilities = Capabilities(needs_dense=False)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        np.exp(-1000.0 * np.ones(3))
+        assert "CONTACTBENCH_TEST_LEFT_BEHIND" not in os.environ
+        return Outcome(exact_of(ctx.qp.H.to_dense(), ctx.qp.ubar), 1, True)
+
+
+def test_what_a_solver_changes_in_its_worker_is_put_back_after_it(run_harness, tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """A solver's os.chdir, np.seterr and os.environ stay its own: the harness's own writes
+    after it (references, field arrays, relative to the working folder) land in the run's
+    folder, and the solver after it in the same worker runs as it would alone."""
+    monkeypatch.chdir(tmp_path)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.setattr(ChangesProcessState, "elsewhere", str(elsewhere))
+    table = run_harness(["paper-sweep"], solvers=[f"{HERE}:ChangesProcessState", f"{HERE}:UnderflowsHarmlessly", "pk"], out="run",
+                        size=16, steps=2, profiles=("mid",), reference="nnls", warmup=False, timeout=60.0)
+    assert (table["status"] == "solved").all(), table[["solver", "status", "error"]].to_string()
+    assert table["p_rel_error"].astype(float).notna().all()
+    assert not any(elsewhere.iterdir()), sorted(p.name for p in elsewhere.rglob("*"))
