@@ -88,6 +88,8 @@ NAN_RULES = ("fill-mean", "fill-nearest", "fill-min", "error")
 DETREND_RULES = ("none", "mean", "plane")
 
 NPY_MAGIC = b"\x93NUMPY"
+#: Bytes of one height of each x3p DataType (ISO 25178-72: int16, int32, float32, float64).
+X3P_BYTES = {"I": 2, "L": 4, "F": 4, "D": 8}
 TEXT_SUFFIXES = (".txt", ".csv", ".tsv")
 #: SurfaceTopography formats that hold a bare matrix: taken as (rows, columns) like a .npy.
 MATRIX_FORMATS = ("mat", "npz")
@@ -291,14 +293,10 @@ def read_npy(path: str | Path) -> RawMap:
         raise SurfaceFileError(p, f"truncated or corrupt .npy data ({e})") from None
     except (EOFError, OSError) as e:
         raise SurfaceFileError(p, f"truncated or corrupt .npy data ({e})") from None
-    return RawMap(_numeric_matrix(p, a), None, "npy")
-
-
-def _detect_delimiter(line: str) -> str | None:
-    for d in (",", ";", "\t"):
-        if d in line:
-            return d
-    return None  # any white space
+    z = _numeric_matrix(p, a)  # (NumPy reads the count its header states: more data is a header that lies)
+    if p.stat().st_size > np.load(p, mmap_mode="r").offset + a.nbytes:
+        raise SurfaceFileError(p, f"it holds more data than its header's {a.shape[0]} x {a.shape[1]} values")
+    return RawMap(z, None, "npy")
 
 
 def read_text(path: str | Path) -> RawMap:
@@ -314,7 +312,7 @@ def read_text(path: str | Path) -> RawMap:
     rows_text = [(k + 1, ln) for k, ln in enumerate(lines) if ln]
     if not rows_text:
         raise SurfaceFileError(p, "no data rows (empty file or only comments)")
-    delim = _detect_delimiter(rows_text[0][1])
+    delim = next((d for d in (",", ";", "\t") if d in rows_text[0][1]), None)  # None: any white space
     rows: list[list[float]] = []
     for lineno, ln in rows_text:
         cells = [c.strip() for c in (ln.split(delim) if delim else ln.split())]
@@ -466,17 +464,20 @@ def _file_spacing(p: Path, sizes: Any, nb: Any) -> tuple[float, float]:
 
 
 def _x3p_checks(p: Path, raw_meta: dict[str, Any]) -> dict[str, Any]:
-    """Verify the point data against the MD5 that main.xml states (read from
+    """Verify the point data against the MD5 and the size that main.xml states (read from
     SurfaceTopography's parsed metadata); return the x3p facts kept in meta."""
     axes = raw_meta.get("Record1", {}).get("Axes", {})
     link = raw_meta.get("Record3", {}).get("DataLink", {})
     member, md5 = link.get("PointDataLink"), link.get("MD5ChecksumPointData")
-    if member and md5:
+    cz, size = axes.get("CZ", {}), raw_meta.get("Record3", {}).get("MatrixDimension", {})
+    if member:
         with zipfile.ZipFile(p) as zf:
-            digest = hashlib.md5(zf.read(str(member))).hexdigest()
-        if digest.lower() != str(md5).strip().lower():
+            data = zf.read(str(member))
+        if md5 and hashlib.md5(data).hexdigest().lower() != str(md5).strip().lower():
             raise SurfaceFileError(p, f"MD5 checksum of {member} does not match main.xml (corrupt data)")
-    cz = axes.get("CZ", {})
+        stated = int(np.prod([int(size.get(k, 1)) for k in ("SizeX", "SizeY", "SizeZ")])) * X3P_BYTES.get(cz.get("DataType"), 0)
+        if stated and len(data) != stated:
+            raise SurfaceFileError(p, f"{member} holds {len(data)} bytes where main.xml states {stated}")
     incs = [axes.get(a, {}).get("Increment") for a in ("CX", "CY")] + [cz.get("Increment", 1.0)]
     return {"x3p_data_type": cz.get("DataType"), "x3p_increments": [float(v) for v in incs if v is not None]}
 

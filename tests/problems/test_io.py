@@ -171,6 +171,12 @@ def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     out["x3p missing data"] = (_x3p_with_xml(tmp / "nodata.x3p", drop="bindata/data.bin"), "missing")
     out["x3p profile"] = (_x3p_with_xml(tmp / "prf.x3p", ("<FeatureType>SUR", "<FeatureType>PRF")), "'SUR'")
     out["x3p bad xml"] = (_x3p_with_xml(tmp / "xml.x3p", ("</Record1>", "")), "not well-formed")
+    out["x3p data longer than stated"] = (_x3p_with_xml(tmp / "small.x3p", ("<SizeX>6</SizeX>", "<SizeX>4</SizeX>")),
+                                          "holds 288 bytes where main.xml states 192")
+    np.save(tmp / "lie.npy", random_map((8, 8)))
+    raw = (tmp / "lie.npy").read_bytes()
+    (tmp / "lie.npy").write_bytes(raw.replace(b"(8, 8)", b"(4, 8)", 1))
+    out["npy data longer than its header states"] = (tmp / "lie.npy", "more data than its header's 4 x 8 values")
     out["x3p of no points"] = (_x3p_with_xml(tmp / "zero.x3p", ("<SizeX>6</SizeX>\n      <SizeY>6</SizeY>",
                                                                 "<SizeX>0</SizeX>\n      <SizeY>0</SizeY>"), data=b""),
                                "grid spacing")
