@@ -173,8 +173,9 @@ def build_meta(command: list[str] | None = None, config: dict[str, Any] | None =
 
 def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
     """Write OUT/meta.json; a resumed run keeps the first record and lists itself under
-    ``invocations``.  A record that cannot be read is not replaced (``read_meta``'s
-    ``MetaError``)."""
+    ``invocations``; the maps' records (``surface_preprocessing``) and the warnings of the
+    runs before it stay beside its own (a map's rows outlive the run that read it).  A
+    record that cannot be read is not replaced (``read_meta``'s ``MetaError``)."""
     path = Path(out_dir) / META_FILE
     previous = read_meta(out_dir)
     invocations = list(listed(previous.get("invocations")))
@@ -183,6 +184,9 @@ def write_meta(out_dir: str | os.PathLike[str], record: dict[str, Any]) -> Path:
     merged["invocations"] = invocations
     merged["commands"] = commands_of(merged)
     merged["warnings"] = sorted({str(w) for w in [*listed(previous.get("warnings")), *record.get("warnings", [])]})
+    earlier = previous.get("surface_preprocessing")
+    merged["surface_preprocessing"] = {**(earlier if isinstance(earlier, dict) else {}),
+                                       **(record.get("surface_preprocessing") or {})}
     write_text_atomic(path, json.dumps(merged, indent=2, default=str))
     return path
 

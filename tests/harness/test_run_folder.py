@@ -107,6 +107,8 @@ def test_a_measured_map_edited_between_two_runs_is_another_configuration(
     assert snapshot(out) == before
     assert cli_run(capsys, *common, "--append")[0] == 0
     assert load_table(out)["instance"].nunique() == 2
+    records = read_meta(out)["surface_preprocessing"]  # each map's record, the first one's too
+    assert sorted(records) == sorted(f"paper-sweep/{i}" for i in load_table(out)["instance"].unique())
 
 
 def test_a_default_written_out_resumes_the_folder_written_without_it(
