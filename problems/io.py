@@ -360,7 +360,6 @@ def _numeric_matrix(p: Path, a: np.ndarray) -> np.ndarray:
     return a
 
 
-
 # --- Every other format: SurfaceTopography's readers ---
 
 
@@ -376,7 +375,8 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
         info = _pick_channel(p, reader, channel)
         kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
         topo = reader.topography(channel_index=info.index, **kw)
-        heights = np.ma.filled(np.ma.asarray(topo.heights(), dtype=np.float64), np.nan)
+        h = np.ma.asarray(topo.heights(), dtype=np.float64)
+        heights = np.where(np.isinf(h.data), h.data, np.ma.filled(h, np.nan))  # an inf stays one (refused), no hole
     except SurfaceFileError:
         raise
     except Exception as e:  # the readers raise many kinds; each becomes one clear line

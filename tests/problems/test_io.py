@@ -219,6 +219,22 @@ def test_every_bad_file_class_gives_a_clear_error(tmp_path: Path) -> None:
         assert isinstance(e.value, ProblemInputError)
 
 
+def test_an_infinite_height_in_an_x3p_is_refused_as_in_npy_and_text(tmp_path: Path) -> None:
+    """SurfaceTopography masks an inf as an undefined point; filled as a hole it ran, where
+    .npy and text refuse it: refused here too."""
+    import hashlib
+
+    path = _x3p_with_xml(tmp_path / "inf.x3p")
+    with zipfile.ZipFile(path) as zf:
+        data = zf.read("bindata/data.bin")
+    values = np.frombuffer(data, dtype="<f8").copy()
+    values[7] = np.inf
+    md5 = (hashlib.md5(data).hexdigest().upper(), hashlib.md5(values.tobytes()).hexdigest().upper())
+    _x3p_with_xml(path, md5, data=values.tobytes())
+    with pytest.raises(SurfaceFileError, match="1 infinite heights"):
+        load_surface(path, detrend="none")
+
+
 def test_a_byte_order_mark_is_no_value(tmp_path: Path) -> None:
     """Spreadsheets write CSV UTF-8 with a byte-order mark: the map reads as without it."""
     z = random_map((8, 8))
