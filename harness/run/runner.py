@@ -98,13 +98,18 @@ def surface_hashes(plan: RunPlan) -> list[str]:
 def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     """The configuration a results folder pins (its marker), from a meta.json ``config``
     (``run_config_record``, of this run or of a folder written before the marker):
-    scenes, scene options, solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured
-    maps' contents where it reads any (a map edited between two runs is another run)."""
+    scenes, scene options (a ``--surface`` path resolved: one file however it is spelled),
+    solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured maps' contents where it
+    reads any (a map edited between two runs is another run)."""
     run = dict(config.get("run") or {})
     if run.get("profiles") is not None and sorted(run["profiles"]) == config.get("profiles"):
         run["profiles"] = None  # (the profiles the study would run: the same cells)
     maps = {"surface_sha256": config["surface_sha256"]} if config.get("surface_sha256") else {}
-    return {"scenes": config.get("scenes"), "scene_config": given_apart(config.get("scene_config"), config.get("scenes")),
+    scene_config = given_apart(config.get("scene_config"), config.get("scenes"))
+    if isinstance(scene_config, dict) and isinstance(scene_config.get("surface_path"), str) and scene_config["surface_path"]:
+        # one file, however it is spelled (relative, absolute, through a link): its recipe holds the resolved path
+        scene_config = {**scene_config, "surface_path": os.path.realpath(scene_config["surface_path"])}
+    return {"scenes": config.get("scenes"), "scene_config": scene_config,
             "solvers": config.get("solvers"), "profiles": config.get("profiles"),
             "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}, **maps}
 

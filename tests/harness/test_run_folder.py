@@ -111,6 +111,25 @@ def test_a_measured_map_edited_between_two_runs_is_another_configuration(
     assert sorted(records) == sorted(f"paper-sweep/{i}" for i in load_table(out)["instance"].unique())
 
 
+def test_one_map_file_spelled_another_way_resumes_the_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A relative path, the absolute one and a link to the file name one map (docs/problems.md):
+    each resumes the folder the first wrote, adding nothing."""
+    import numpy as np
+
+    np.save(tmp_path / "s.npy", np.random.default_rng(2).normal(size=(16, 16)) * 1e-6)
+    (tmp_path / "link.npy").symlink_to(tmp_path / "s.npy")
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "run"
+    common = ["paper-sweep", "--length", "1e-4", "--steps", "2", "--solvers", SOLVER, "--reference", "none",
+              "--out", str(out)]
+    assert cli_run(capsys, *common, "--surface", "s.npy")[0] == 0
+    rows = len(load_table(out))
+    for spelling in (str(tmp_path / "s.npy"), "./link.npy"):
+        code, err = cli_run(capsys, *common, "--surface", spelling)
+        assert code == 0 and len(load_table(out)) == rows, (spelling, err)
+
+
 def test_a_default_written_out_resumes_the_folder_written_without_it(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """An option that only spells out the scene's default (--kernel bcc, --operator fft,
