@@ -119,8 +119,8 @@ def test_a_solver_loaded_by_path_with_a_registered_solver_s_name_is_refused(
 
 def test_an_empty_surface_path_is_refused_not_read_as_no_surface(in_tmp: Path,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:
-    """``--surface "$MAP"`` with MAP unset ran the generated surface, its cleaning options
-    ignored: refused in one line."""
+    """``--surface "$MAP"`` with MAP unset must not read as no ``--surface`` (the generated
+    surface, its cleaning options ignored): refused in one line."""
     line = refused_in_one_line([*SMALL, "--solvers", "test-exact", "--surface", "", "--detrend", "none"], capsys,
                                in_tmp)
     assert "--surface is empty" in line, line

@@ -220,8 +220,8 @@ def test_every_bad_file_class_gives_a_clear_error(tmp_path: Path) -> None:
 
 
 def test_an_infinite_height_in_an_x3p_is_refused_as_in_npy_and_text(tmp_path: Path) -> None:
-    """SurfaceTopography masks an inf as an undefined point; filled as a hole it ran, where
-    .npy and text refuse it: refused here too."""
+    """SurfaceTopography masks an inf as an undefined point, which is not a measured hole to
+    fill: refused, as .npy and text refuse it."""
     import hashlib
 
     path = _x3p_with_xml(tmp_path / "inf.x3p")
