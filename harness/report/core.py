@@ -602,8 +602,8 @@ def grid_sizes(r: pd.DataFrame) -> list[str]:
 def map_changes(r: pd.Series, record: dict[str, Any] | None = None) -> str:
     """What was done to one instance's measured map, from its table columns
     (``schema.MAP_COLUMNS``) and its meta.json record (``record``: the unit's scale, the
-    shape read and the crop done, where the run recorded them): the heights' unit, the
-    removed plane or mean, the filled points, the crop."""
+    shape read, the crop done and the channel read, where the run recorded them): the
+    heights' unit, the removed plane or mean, the filled points, the crop."""
     rec, shape = record or {}, f"{fmt_num(r['N0'])} x {fmt_num(r['N1'])}"
     scale, unit = as_finite(rec.get("metres_per_unit")), as_text(r["height_unit"]) or as_text(rec.get("height_unit"))
     units = (f"heights in {unit} ({rec.get('unit_from', 'as given')}), scaled by {fmt_num(scale)} to metres; "
@@ -623,8 +623,9 @@ def map_changes(r: pd.Series, record: dict[str, Any] | None = None) -> str:
         fill = fill[:-1] + f", relative to {rec['fill_relative_to']})"
     crop = as_text(r["crop"])
     cropped = "" if crop in ("", "none") else f"; {as_text(rec.get('crop_done')) or f'crop {crop}'}"
-    return (f"`{r['scene']}/{r['instance']}` ({as_text(r['surface_source'])}, {shape}): {units}{removed}; {fill}"
-            f"{cropped}")
+    channel = f", channel {as_text(rec.get('channel'))!r}" if as_text(rec.get("channel")) else ""
+    return (f"`{r['scene']}/{r['instance']}` ({as_text(r['surface_source'])}{channel}, {shape}): {units}{removed}; "
+            f"{fill}{cropped}")
 
 
 def problem_changes(t: pd.DataFrame, meta: dict[str, Any] | None = None) -> str:

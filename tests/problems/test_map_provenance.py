@@ -251,3 +251,20 @@ def test_a_row_rebuilds_its_problem_from_the_file(capsys: pytest.CaptureFixture[
     assert inst.n == row["n"] and inst.problem_columns()["removed_mean"] == pytest.approx(row["removed_mean"])
     assert (row["N0"], row["N1"], row["crop"]) == (N1, N1, "square")  # the central square, the spacing kept
     assert inst.problem_columns()["N0"] == row["N0"] and inst.problem_columns()["N1"] == row["N1"]
+
+
+def test_the_header_names_the_channel_read_from_a_file_of_several(capsys: pytest.CaptureFixture[str],
+                                                                   in_tmp: Path) -> None:
+    """Two channels in one file: which one was solved is part of the problem, so the
+    header's "Problem changes" names it (meta.json records it too)."""
+    import scipy.io
+
+    z = tilted_map_with_holes()
+    z[np.isnan(z)] = 0.0
+    scipy.io.savemat(in_tmp / "two.mat", {"height": z, "intensity": np.abs(z) + 1e-6})
+    _, meta, _ = run("two.mat", "o", capsys, "--channel", "height", "--kernel", "love")
+    (rec,) = meta["surface_preprocessing"].values()
+    assert rec["channel"] == "height"
+    report = build_report(in_tmp / "o", html=False).read_text()
+    (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
+    assert "channel 'height'" in line, line
