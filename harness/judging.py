@@ -141,10 +141,11 @@ class ProblemSeal:
     def _new_hiding(self, qp: Any) -> list[tuple[Any, str, str, Any]]:
         """``_shadowing``'s entries that were not there, as they are, when sealed."""
         sealed = dict(self.hiding)
-        return [entry for entry in _shadowing(qp) if sealed.get(entry[2], entry) is not entry[3]]
+        return [(part, name, where, value) for part, name, where, value in _shadowing(qp)
+                if where not in sealed or sealed[where] is not value]
 
     def broken(self, qp: Any) -> str:
-        now = dict(ProblemSeal.of(qp).digests)
+        now = {name: _digest(a) for name, a in _defining_arrays(qp)}  # (the arrays; the methods below)
         before = dict(self.digests)
         changed = [name for name in before if now.get(name) != before[name]]
         changed += [name for name in now if name not in before]

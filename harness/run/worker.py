@@ -440,11 +440,10 @@ class SolveServer:
         settings = solver_settings(task)
         count0 = qp.H.matvec_count
         seal = ProblemSeal.of(qp)  # untimed: what the solver is handed, to catch writes into it
-        with PeakMemory() as mem:
+        with process_state_kept(), PeakMemory() as mem:  # (the state put back outside the clock)
             t0 = time.perf_counter()
             try:
-                with process_state_kept():
-                    res = solver.solve(qp, settings, warm)
+                res = solver.solve(qp, settings, warm)
             except SolveAborted as exc:  # (a status the class does not allow is a crash: ``aborted_status``)
                 return SolveReply(time.perf_counter() - t0, warm is not None, error=exception_message(exc),
                                   aborted=aborted_status(exc) or "crashed")
