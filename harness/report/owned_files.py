@@ -10,6 +10,11 @@ is left as it is).
 * A figure is a report's when the record of the last report's figures lists it
   (figure_files.py ``recorded``); in a folder with no such record (one reported before the
   record was kept), when the report's report.md there links it.
+
+The other pages the report's writers make (claims.md, population.md, the stress
+battery's README.md) follow the same rule: ``write_own_page`` writes one only where no
+file of its name is there, or where the one there begins with the page's own title line
+(``title_line``: the page that writer makes); it refuses any other.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import re
 from pathlib import Path
 from typing import Iterable
 
+from ..table.files import write_text_atomic
 from .core import REPORT_NAME, REPORT_TITLE, ReportInputError
 from .figure_files import FIGURE_DIR, MANIFEST, figure_dir, recorded
 from .html import HTML_HEAD, HTML_NAME
@@ -86,3 +92,27 @@ def refuse_foreign(out: Path, names: Iterable[str]) -> None:
         more = f" (and {len(foreign) - 1} more such file{'s' if len(foreign) > 2 else ''})" if len(foreign) > 1 else ""
         raise ReportInputError(f"report {out}: {foreign[0]} was not written by a report and would be written over"
                                f"{more}; move it away to report in this folder (nothing was written)")
+
+
+def title_line(title: str) -> str:
+    """The first line of a page titled ``title``: its Markdown heading."""
+    return f"# {title}\n"
+
+
+def refuse_foreign_page(path: Path, title: str) -> None:
+    """``ReportInputError`` (one line naming ``path``) when a file is there that is not a
+    page titled ``title`` (it does not begin with ``title_line``, or it is a link or a
+    folder): nothing is written or removed."""
+    if not os.path.lexists(path):
+        return
+    if path.is_symlink() or not _begins_with(path, title_line(title).encode()):
+        raise ReportInputError(f"report {path.parent}: {path} was not written by a report and would be written over; "
+                               "move it away to report in this folder (nothing was written)")
+
+
+def write_own_page(path: Path, title: str, body: str) -> Path:
+    """Write the page ``title_line(title) + body`` at ``path`` (whole or not at all),
+    unless a file there is not such a page (``refuse_foreign_page``).  Returns ``path``."""
+    refuse_foreign_page(path, title)
+    write_text_atomic(path, title_line(title) + body)
+    return path

@@ -4,7 +4,9 @@ An executor takes the jobs with missing cells and makes their rows reach the sto
 Every executor runs a job the same way -- ``harness.run.job.JobDriver``: the instance is
 built from its picklable recipe where the job runs, each solve is isolated with a hard
 time limit and judged by the harness -- so the same cells give the same rows wherever
-they run.
+they run.  What the solvers print goes to the run folder's solver-output log
+(``harness.run.output_log``), not to the terminal (on Dask: where each worker's own
+output goes).
 
 * ``SerialExecutor``  -- one job after another in this process (``--jobs 1``);
 * ``PoolExecutor``    -- a local ``concurrent.futures`` process pool (``--jobs J``); each
@@ -24,7 +26,9 @@ from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
 from .isolation import remove_orphan_scratch, set_parent_death_signal
+from .interrupts import signals_deferred
 from .job import JobDriver, run_instance_job
+from .output_log import OUTPUT_LOG
 from .plan import InstanceJob, RunConfig
 from ..table.store import ResultStore
 
@@ -67,7 +71,7 @@ class SerialExecutor:
 
         for job in jobs:
             n_before = len(store)
-            JobDriver(job, run, statuses, store.cache_dir, sink).run()
+            JobDriver(job, run, statuses, store.cache_dir, sink, store.out / OUTPUT_LOG).run()
             if verbose:
                 log.info("%s/%s: %d rows", job.spec.scene, job.spec.instance, len(store) - n_before)
 
@@ -113,7 +117,8 @@ class PoolExecutor:
             except BaseException:  # an interrupt (or a job's error): no job may run on after it
                 for f in futures:
                     f.cancel()
-                stop_workers(pool)
+                with signals_deferred():  # (a second Ctrl-C does not leave the pool's processes running)
+                    stop_workers(pool)
                 raise
 
 
@@ -149,6 +154,12 @@ def _quiet_on_cancelled(hook: Any) -> Any:
             hook(args)
 
     return quiet
+
+
+def output_log_name(executor: Executor) -> str | None:
+    """The run folder's file that holds what the solvers print (meta.json ``solver_output``)
+    where ``executor`` writes one (this module's executors), else None."""
+    return OUTPUT_LOG if isinstance(executor, (SerialExecutor, PoolExecutor)) else None
 
 
 def local_executor(run: RunConfig, jobs: int) -> Executor:

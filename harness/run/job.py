@@ -44,12 +44,13 @@ import os
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, ContextManager
 
 from contactbench.solvers._kit import matvec_seconds
 from contactbench.solvers.registry import load_solver
 
 from .isolation import ChildProcess, ChildReply
+from .output_log import OUTPUT_LOG, OutputLog, SolverOutput
 from .plan import InstanceJob, RunConfig
 from ..profiles import get_profile
 from .rows import RowFactory, answer_columns
@@ -62,6 +63,7 @@ from .worker import (
     AssembleDense,
     BuildStep,
     ComputeReference,
+    Message,
     SolveServer,
     ReferenceReply,
     Regenerate,
@@ -70,6 +72,7 @@ from .worker import (
     SolveTask,
     StepInfo,
     WarmUp,
+    message_title,
 )
 
 log = logging.getLogger("contactbench")
@@ -100,10 +103,13 @@ class StepContext:
 class JobDriver:
     """Drives one ``InstanceJob`` from the parent process: sends the missing cells'
     solves to an isolated child (``ChildProcess``, whose handler is worker.py's
-    ``SolveServer``), serves reference answers, and hands each finished row to ``sink``."""
+    ``SolveServer``), serves reference answers, and hands each finished row to ``sink``.
+    With ``output_log``, what the solvers print -- in the worker and in the solver code
+    the driver runs itself -- goes to that file (``harness.run.output_log``); without it,
+    where this process's output goes."""
 
     def __init__(self, job: InstanceJob, run: RunConfig, statuses: dict[str, str], cache_dir: Path,
-                 sink: Callable[[dict[str, Any]], None]) -> None:
+                 sink: Callable[[dict[str, Any]], None], output_log: Path | None = None) -> None:
         self.job = job
         self.run_cfg = run
         self.statuses = dict(statuses)
@@ -113,7 +119,10 @@ class JobDriver:
         self.policy = SkipPolicy(run.timeout, run.memory_budget)
         for cell in job.stored:  # a resumed job: the stored rows count as if seen live
             self.policy.note((cell.label, cell.profile), cell.step, cell.n, cell.status, cell.seconds)
-        self.worker = ChildProcess(partial(SolveServer, job.spec, run.memory_budget), threads=run.worker_threads())
+        self.output = SolverOutput(OutputLog(Path(output_log))) if output_log is not None else None
+        worker_file = str(self.output.worker_file) if self.output is not None else None
+        self.worker = ChildProcess(partial(SolveServer, job.spec, run.memory_budget, worker_file),
+                                   threads=run.worker_threads())
         self.warmed: set[tuple[int, str]] = set()
         self.warm_have: set[tuple[int, str, str, int]] = set()  # (generation, label, profile, step) held by the worker
         self._step_error = ""
@@ -165,8 +174,30 @@ class JobDriver:
                         self.run_step(ctx, todo)
                 k += 1
             self.forget_all_warm(n_steps)
+        except BaseException:  # an interrupt: the worker is killed at once, not asked to finish its solve
+            self.worker.kill()
+            raise
         finally:
             self.worker.close()
+            if self.output is not None:
+                self.output.close()
+
+    def call(self, msg: Message, timeout: float | None) -> ChildReply:
+        """Send ``msg`` to the worker; what it printed joins the solver-output log."""
+        out = self.worker.call(msg, timeout)
+        if self.output is not None:
+            self.output.collect(f"{self.where} {message_title(msg)}{'' if out.ok else f' ({out.kind})'}")
+        return out
+
+    def solver_code(self, what: str) -> ContextManager[None]:
+        """Around solver code run in this process: its output joins the solver-output log."""
+        if self.output is None:
+            return contextlib.nullcontext()
+        return self.output.captured(f"{self.where} {what} (in the harness's process)")
+
+    @property
+    def where(self) -> str:
+        return f"{self.job.spec.scene}/{self.job.spec.instance}"
 
     def forget_all_warm(self, n_steps: int) -> None:
         """The job's cells are all recorded: no kept answer of it is needed any more (one
@@ -182,7 +213,7 @@ class JobDriver:
                     forget_file(part)
 
     def prepare_step(self, k: int) -> StepContext | None:
-        out = self.worker.call(BuildStep(k), self.run_cfg.build_timeout)
+        out = self.call(BuildStep(k), self.run_cfg.build_timeout)
         if not out.ok:
             self._step_error = f"building step {k} failed ({out.kind}): {out.detail}"
             log.warning("%s %s", self.job.spec.instance, self._step_error)
@@ -206,7 +237,7 @@ class JobDriver:
             return True
         if not self.refresh(ctx):
             return False
-        out = self.worker.call(AssembleDense(ctx.k), self.run_cfg.build_timeout)
+        out = self.call(AssembleDense(ctx.k), self.run_cfg.build_timeout)
         if not out.ok:
             return False
         if ctx.dense_time is None:
@@ -215,9 +246,10 @@ class JobDriver:
 
     def run_step(self, ctx: StepContext, todo: Todo) -> None:
         traits = ctx.info.traits
-        decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits, ctx.k, self.job.load_history,
-                                                           v.params)
-                     for v, prof, _ in todo}
+        with self.solver_code(f"step {ctx.k}: skip checks"):
+            decisions = {(v.name, prof): self.policy.decide(v.base, (v.name, prof), traits, ctx.k,
+                                                               self.job.load_history, v.params)
+                         for v, prof, _ in todo}
         running = [(v, prof) for v, prof, _ in todo if not decisions[(v.name, prof)].skip]
         if running:
             self.plan_reference(ctx, running)
@@ -292,7 +324,8 @@ class JobDriver:
             return
         traits = ctx.info.traits
         for cand in self.job.reference_candidates:
-            d = skip_decision(cand, traits, self.run_cfg.ref_timeout, self.run_cfg.memory_budget)
+            with self.solver_code(f"step {ctx.k}: skip check of reference {cand}"):
+                d = skip_decision(cand, traits, self.run_cfg.ref_timeout, self.run_cfg.memory_budget)
             if d.skip:
                 self.pass_over_reference(ctx, cand, d)
             elif self.reference_from(ctx, cand, d):
@@ -314,7 +347,7 @@ class JobDriver:
             return False
         path = self.reference_path(ctx.k, cand)
         msg = ComputeReference(ctx.k, cand, d.operator, str(path), self.run_cfg.ref_timeout)
-        out = self.worker.call(msg, self.run_cfg.ref_timeout * 1.1 + 5.0)
+        out = self.call(msg, self.run_cfg.ref_timeout * 1.1 + 5.0)
         reply: ReferenceReply | None = out.value if out.ok else None
         if reply is not None and not reply.error:
             ctx.reference_solver, ctx.reference_path = cand, str(path)
@@ -347,7 +380,7 @@ class JobDriver:
         if previous not in ("solved", "inaccurate") or not self.refresh(ctx):
             return False
         task = self.solve_task(ctx, v, profile, operator, warm=False)
-        out = self.worker.call(Regenerate(task), self.run_cfg.timeout * 1.1 + 5.0)
+        out = self.call(Regenerate(task), self.run_cfg.timeout * 1.1 + 5.0)
         if out.ok and out.value:
             self.warm_have.add((self.worker.generation, v.name, profile, ctx.k - 1))
             return True
@@ -386,7 +419,8 @@ class JobDriver:
         if seen:
             return extrapolated_time(seen, n)[0]
         try:
-            t = problem_time_estimate(load_solver(v.base), ctx.info.traits, operator)
+            with self.solver_code(f"step {ctx.k} {v.name}: time model"):
+                t = problem_time_estimate(load_solver(v.base), ctx.info.traits, operator)
         except Exception:
             t = None
         return float(t) if t is not None else MIN_PREDICTED_MATVECS * matvec_seconds(n, operator)
@@ -402,12 +436,12 @@ class JobDriver:
                 note = (f"no warm-up solve: predicted {t:.3g} s > {self.run_cfg.warmup_limit:g} s, so the timed "
                         "solve includes one-time costs")
             else:
-                w_out = self.worker.call(WarmUp(task), deadline)
+                w_out = self.call(WarmUp(task), deadline)
                 if w_out.kind in ("timeout", "crashed"):
                     w_out.detail = "in the untimed warm-up solve: " + w_out.detail
                     return w_out, note
             self.warmed.add((self.worker.generation, v.name))
-        return self.worker.call(Solve(task), deadline), note
+        return self.call(Solve(task), deadline), note
 
     def run_group(self, ctx: StepContext, v: SolverVariant, profile: str, reps: list[int], operator: str) -> None:
         lost: tuple[str, str] | None = None  # (status, why) once a repeat timed out or crashed
@@ -475,7 +509,8 @@ def is_exact(base: str) -> bool:
 def run_instance_job(job: InstanceJob, run: RunConfig, out_dir: str | os.PathLike[str],
                      statuses: dict[str, str] | None = None,
                      sink: Callable[[dict[str, Any]], None] | None = None) -> int:
-    """Run one job, appending its rows to OUT/rows.jsonl.  Returns rows written.
+    """Run one job, appending its rows to OUT/rows.jsonl and what its solvers print to
+    OUT/solver-output.log.  Returns rows written.
 
     Usable from any process (a pool worker, another scheduler's worker): it opens the
     store for appending only."""
@@ -494,5 +529,5 @@ def run_instance_job(job: InstanceJob, run: RunConfig, out_dir: str | os.PathLik
         known, job = {c: str(r.get("status", "")) for c, r in stored.items()}, job.with_stored(stored, run)
     else:
         known = statuses
-    JobDriver(job, run, known, store.cache_dir, write).run()
+    JobDriver(job, run, known, store.cache_dir, write, store.out / OUTPUT_LOG).run()
     return count

@@ -46,6 +46,7 @@ from ..profiles import get_profile
 from ..table.files import canonical_json
 from ..table.schema import as_finite
 from .skips import capability_decision, time_decision
+from .spelled_out import left_out
 from .studies import SolverVariant, Study, expand
 
 
@@ -166,9 +167,14 @@ class InstanceJob:
 
 @dataclass
 class RunPlan:
+    """The instance jobs of a run; ``scene_config``: the user's scene options the recipes
+    were built from, those that only spell out what is in effect without them taken back
+    (``spelled_out.left_out``)."""
+
     jobs: list[InstanceJob]
     warnings: list[str] = field(default_factory=list)
     scenes: list[str] = field(default_factory=list)
+    scene_config: SceneConfig = field(default_factory=SceneConfig)
 
     def n_cells(self, repeats: int) -> int:
         return sum(j.n_cells(repeats) for j in self.jobs)
@@ -475,10 +481,11 @@ def plan_run(scenes: Sequence[str] | str, cfg: SceneConfig | None = None, solver
     if names_no_solver(solvers):
         raise PlanError([f"an empty solver list (--solvers {solvers!r}) names no solver; give names (contactbench "
                          "list solvers) or 'all' (None: the scenes' own)"])
-    plan = RunPlan(jobs=[], scenes=scenes)
     problems = option_problems(scenes, cfg)
     if problems:  # (each scene's own checks would repeat them)
         raise PlanError(problems)
+    cfg = left_out(cfg or SceneConfig(), scenes)  # (checked as given; planned as the same run without them)
+    plan = RunPlan(jobs=[], scenes=scenes, scene_config=cfg)
     for name in scenes:
         try:
             parts = expand(name, cfg)

@@ -13,7 +13,8 @@
    process pool, or Dask in ``harness.run.distributed``); each job is run by
    ``harness.run.job.JobDriver``: skip policy (``harness.run.skips``), isolated worker
    (``harness.run.worker``), judge (``harness.judging``), one row per cell (``harness.run.rows``);
-4. write the tidy table.
+4. write the tidy table -- after an interrupt too, with a further Ctrl-C held back until it
+   is written (``harness.run.interrupts``).
 
 Rows are appended to the store as they finish; rerunning the same command runs only the
 cells whose ``cell_id`` is missing.  Each job carries the stored rows of its own cells
@@ -34,15 +35,13 @@ import time
 from dataclasses import asdict, dataclass, replace
 from typing import Any, Sequence
 
-from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.problems.scenes.options import BY_NAME
+from contactbench.problems.scenes import SceneConfig
 
-from .executors import Executor, local_executor
-from ..table.files import canonical_json
+from .executors import Executor, local_executor, output_log_name
+from .interrupts import signals_deferred
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
-from .studies import expand
+from .spelled_out import given_apart
 from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
@@ -100,7 +99,8 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     (``run_config_record``, of this run or of a folder written before the marker):
     scenes, scene options (a ``--surface`` path resolved: one file however it is spelled),
     solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured maps' contents where it
-    reads any (a map edited between two runs is another run)."""
+    reads any (a map edited between two runs is another run); an option that only spells
+    out what is in effect without it is left out (``spelled_out.given_apart``)."""
     run = dict(config.get("run") or {})
     if run.get("profiles") is not None and sorted(run["profiles"]) == config.get("profiles"):
         run["profiles"] = None  # (the profiles the study would run: the same cells)
@@ -112,70 +112,6 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     return {"scenes": config.get("scenes"), "scene_config": scene_config,
             "solvers": config.get("solvers"), "profiles": config.get("profiles"),
             "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}, **maps}
-
-
-def given_apart(scene_config: Any, scenes: Any) -> Any:
-    """A run's scene options with those that only spell out a default taken back: a field
-    equal to the default of every scene the run names (each a registered scene; a
-    composite's parts have their own) goes back to None, so ``--kernel bcc`` resumes the
-    folder that a run without it wrote; an ``extra`` option is left out where leaving it
-    out gives the same recipes (``spelled_out_extras``), so ``--surface-family saupe``
-    resumes the folder of a non-periodic run without it."""
-    if not isinstance(scene_config, dict) or not isinstance(scenes, list) or not scenes:
-        return scene_config
-    extra = scene_config.get("extra")
-    if isinstance(extra, dict) and extra:
-        dropped = spelled_out_extras(scene_config, [str(name) for name in scenes])
-        scene_config = {**scene_config, "extra": {k: v for k, v in extra.items() if k not in dropped}}
-    try:
-        defaults = [asdict(get_scene(str(name)).defaults) for name in scenes]
-    except KeyError:
-        return scene_config
-    return {k: None if k != "extra" and v is not None and all(canonical_json(d.get(k)) == canonical_json(v)
-                                                              for d in defaults) else v
-            for k, v in scene_config.items()}
-
-
-def spelled_out_extras(scene_config: dict[str, Any], scenes: list[str]) -> set[str]:
-    """The ``extra`` scene options (records of ``problems.scenes.options.OPTIONS``) of a
-    run's ``scene_config`` (``asdict`` of its ``SceneConfig``) whose value is the one in
-    effect without them: leaving one out gives every scene the run names (a composite's
-    parts included) the same recipes, so the same cells (``make_cell_id``), and so does
-    leaving them all out.  None of them where the config reads a surface file (its recipes
-    read the file; its options are recorded in them) or cannot be planned.  The first seed
-    stands for all (an option's effect on a recipe is the same for every seed)."""
-    try:
-        cfg = SceneConfig(**scene_config)
-    except TypeError:
-        return set()
-    if cfg.surface_path:
-        return set()
-    if cfg.seeds:
-        cfg = replace(cfg, seeds=tuple(cfg.seeds)[:1])
-    try:
-        given = recipes(scenes, cfg)
-    except (ProblemInputError, KeyError, TypeError, ValueError):
-        return set()
-    dropped: set[str] = set()
-    for key in [k for k in cfg.extra if k in BY_NAME]:
-        without = replace(cfg, extra={k: v for k, v in cfg.extra.items() if k != key and k not in dropped})
-        try:
-            if recipes(scenes, without) == given:
-                dropped.add(key)
-        except (ProblemInputError, KeyError, TypeError, ValueError):
-            continue
-    return dropped
-
-
-def recipes(scenes: Sequence[str], cfg: SceneConfig) -> list[tuple[str, str, str]]:
-    """(scene, instance, ``InstanceSpec.params_json``) of every recipe the plan builds for
-    ``scenes`` under ``cfg`` (``plan.scene_jobs``: each part's merged config)."""
-    out: list[tuple[str, str, str]] = []
-    for name in scenes:
-        for study, part in expand(name, cfg):
-            scene = get_scene(study.scene)
-            out += [(spec.scene, spec.instance, spec.params_json()) for spec in scene.instances(scene.config(part))]
-    return out
 
 
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
@@ -192,7 +128,7 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     run = run or RunConfig()
     t0 = time.perf_counter()
     plan = plan_run(scenes, cfg, solvers, run)
-    cfg = cfg or SceneConfig()
+    cfg = plan.scene_config
     if cfg.seeds is not None:  # (a lazy range of seeds: the plan has bounded it)
         cfg = replace(cfg, seeds=tuple(cfg.seeds))
     config = run_config_record(scenes, cfg, plan, run)
@@ -218,8 +154,10 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     executor = executor or local_executor(run, len(pending))
     ran = executor.run_config(run)  # (what each solve worker's BLAS/FFT threads are held to: the report's header)
     config = {**config, "run": asdict(ran), "executor": executor.describe(), "worker_threads": ran.worker_threads()}
+    log_name = output_log_name(executor)
     write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
-                                     surfaces=surface_preprocessing(j.spec for j in plan.jobs)))
+                                     surfaces=surface_preprocessing(j.spec for j in plan.jobs),
+                                     extra={"solver_output": log_name} if log_name else None))
     total = sum(j.n_cells(run.repeats) for j in pending)
     already = sum(1 for j in pending for c in job_cell_ids(j, run) if c in statuses)
     show_bar = run.progress if run.progress is not None else not under_ci()
@@ -228,7 +166,8 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
         executor.execute(pending, run, store, statuses, bar, verbose=not show_bar)
     finally:
         bar.close()
-        table = ResultStore(store.out).finalize()
+        with signals_deferred():  # (a second Ctrl-C while the table is written waits for it)
+            table = ResultStore(store.out).finalize()
     counts = {str(k): int(v) for k, v in table["status"].value_counts().items()} if len(table) else {}
     return RunSummary(str(store.out), len(table), len(table) - before, counts, time.perf_counter() - t0, plan.warnings)
 

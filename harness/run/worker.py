@@ -41,7 +41,7 @@ from contactbench.solvers.registry import load_solver
 
 from ..table.fields import save_field
 from ..table.files import write_npz_atomic
-from .isolation import SOLVER_RAISES, PeakMemory, error_text, exception_message
+from .isolation import SOLVER_RAISES, PeakMemory, error_text, exception_message, output_to
 from ..judging import ProblemSeal, Verdict, judge
 from ..profiles import get_profile
 from .sequence import WarmState, warm_start_from
@@ -115,6 +115,16 @@ class Regenerate:
 
 
 Message = Union[BuildStep, AssembleDense, ComputeReference, Solve, WarmUp, Regenerate]
+
+
+def message_title(msg: Message) -> str:
+    """What ``msg`` asks, in a few words (the solver-output log's entry titles)."""
+    if isinstance(msg, (Solve, WarmUp, Regenerate)):
+        what = {Solve: "timed solve", WarmUp: "warm-up solve", Regenerate: "warm start"}[type(msg)]
+        return f"step {msg.task.step} {msg.task.label} [{msg.task.profile}]: {what}"
+    if isinstance(msg, ComputeReference):
+        return f"step {msg.step}: reference {msg.base}"
+    return f"step {msg.step}: {'dense H' if isinstance(msg, AssembleDense) else 'build'}"
 
 
 @dataclass
@@ -244,11 +254,15 @@ def aborted_status(exc: SolveAborted) -> str | None:
 
 class SolveServer:
     """Message handler living in the isolated worker: builds the instance from its
-    recipe once, steps in order, the dense H once per step, and runs solves."""
+    recipe once, steps in order, the dense H once per step, and runs solves.  With
+    ``output_path``, what each message prints (descriptors 1 and 2) goes to that file
+    (emptied at each message; ``harness.run.output_log``), not to the terminal."""
 
-    def __init__(self, spec: InstanceSpec, memory_budget: float = DEFAULT_MEMORY_BUDGET) -> None:
+    def __init__(self, spec: InstanceSpec, memory_budget: float = DEFAULT_MEMORY_BUDGET,
+                 output_path: str | None = None) -> None:
         self.spec = spec
         self.memory_budget = memory_budget
+        self.output_path = output_path
         set_memory_budget(memory_budget)  # the run's budget for every dense build in this worker
         self.seq: Any = None
         self.steps: dict[int, ContactInstance] = {}
@@ -258,6 +272,10 @@ class SolveServer:
         self.wrote_untimed: dict[str, str] = {}  # label -> what its untimed solve wrote into the problem
 
     def __call__(self, msg: Message) -> Any:
+        with output_to(self.output_path) if self.output_path else contextlib.nullcontext():
+            return self.handle(msg)
+
+    def handle(self, msg: Message) -> Any:
         if isinstance(msg, BuildStep):
             return self.step_info(msg.step)
         if isinstance(msg, AssembleDense):

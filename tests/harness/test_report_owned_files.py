@@ -12,6 +12,10 @@ import pytest
 from contactbench.harness.report import build
 from contactbench.harness.report.core import ReportInputError
 from contactbench.harness.report.figure_files import MANIFEST
+from contactbench.harness.report.owned_files import write_own_page
+from contactbench.harness.report.sections.claims import CLAIMS_TITLE, write_claims_md
+from contactbench.harness.report.sections.population import POPULATION_TITLE, write_population_report
+from contactbench.harness.report.sections.stress import STRESS_TITLE, write_stress_report
 from tests.helpers import fabricate_table, run_cli, write_out
 
 MINE = b"my own notes, not a report\n"
@@ -115,3 +119,39 @@ def test_the_pages_a_report_wrote_begin_as_page_starts_says(tmp_path: Path, monk
     out = hertz_out(tmp_path)
     build.build_report(out)
     assert foreign_files(out, ["report.md", "report.html", "figures/analytic-hertz.png"]) == []
+
+
+@pytest.mark.parametrize("name, title", [("claims.md", CLAIMS_TITLE), ("population.md", POPULATION_TITLE),
+                                         ("README.md", STRESS_TITLE)])
+def test_a_writer_s_page_is_written_over_only_when_it_wrote_it(tmp_path: Path, name: str, title: str) -> None:
+    """The report's other pages follow report.md's rule (owned_files.py ``write_own_page``):
+    a user's file of the page's name, or a link, is refused in one line and left as it is;
+    the page the writer made is written over."""
+    mine = tmp_path / name
+    mine.write_text("my own notes\n")
+    with pytest.raises(ReportInputError, match=f"{name} was not written by a report") as refused:
+        write_own_page(mine, title, "new\n")
+    assert str(refused.value).count("\n") == 0 and mine.read_text() == "my own notes\n"
+    link = tmp_path / "linked" / name
+    link.parent.mkdir()
+    link.symlink_to(mine)
+    with pytest.raises(ReportInputError):
+        write_own_page(link, title, "new\n")
+    fresh = tmp_path / "fresh" / name
+    fresh.parent.mkdir()
+    assert write_own_page(fresh, title, "first\n").read_text() == f"# {title}\nfirst\n"
+    assert write_own_page(fresh, title, "second\n").read_text() == f"# {title}\nsecond\n"
+
+
+@pytest.mark.parametrize("name", ["claims.md", "population.md", "README.md"])
+def test_the_claims_population_and_stress_writers_leave_a_user_s_page(tmp_path: Path, name: str) -> None:
+    """claims.md, population.md and the stress battery's README.md are written by their
+    writers only over a page of theirs: a user's file of that name stops the writer, in one
+    line, before it reads or writes anything."""
+    writer = {"claims.md": write_claims_md, "population.md": write_population_report,
+              "README.md": write_stress_report}[name]
+    (tmp_path / name).write_bytes(MINE)
+    with pytest.raises(ReportInputError, match=f"{name} was not written by a report") as refused:
+        writer(tmp_path)
+    assert "\n" not in str(refused.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name] and (tmp_path / name).read_bytes() == MINE

@@ -2,13 +2,14 @@
 (``--surface-family saupe`` on a non-periodic scene, ``--surface-family periodic`` with
 ``--periodic``) is the same configuration: it resumes the folder a run without it wrote,
 and the other way round; another value is still another configuration
-(harness/run/runner.py, ``given_apart``)."""
+(harness/run/spelled_out.py, ``given_apart``)."""
 
 from __future__ import annotations
 
 from dataclasses import asdict
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from contactbench.harness import cli
@@ -50,3 +51,53 @@ def test_the_family_in_effect_follows_the_other_options() -> None:
     assert extra(family="periodic", periodic=True) == {}
     assert extra(family="saupe", periodic=True) == {"family": "saupe"}
     assert extra(family="saupe", allow_implausible=True) == {}  # a switch that changes no recipe
+
+
+SPELLED_OUT = {
+    "control": (("--control", "displacement"), ()),
+    "layer": (("--thickness", "5e-5", "--nu", "0.3", "--interface", "bonded"), ("--thickness", "5e-5")),
+    "map": (("--detrend", "plane", "--nan", "fill-mean", "--crop", "none"), ()),
+}
+
+
+@pytest.mark.parametrize("which", sorted(SPELLED_OUT))
+@pytest.mark.parametrize("first_spelled", [True, False], ids=["spelled-out-first", "spelled-out-second"])
+def test_an_option_at_the_value_its_recipe_reads_without_it_resumes(which: str, first_spelled: bool, tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """``--control displacement``, a layer's ``--nu 0.3 --interface bonded``, a map's
+    ``--detrend plane --nan fill-mean --crop none``: the same cells as the run without
+    them, so either resumes the folder the other wrote and solves nothing new; the
+    options are checked as given, and another value is another configuration."""
+    spelled, plain = SPELLED_OUT[which]
+    base = COMMON
+    if which == "map":
+        np.save(tmp_path / "map.npy", np.random.default_rng(0).normal(size=(8, 8)) * 1e-7)
+        base = [a for a in COMMON if a not in ("--size", "8")] + ["--surface", str(tmp_path / "map.npy"),
+                                                                  "--length", "1e-4"]
+    out = str(tmp_path / "run")
+    first, second = (spelled, plain) if first_spelled else (plain, spelled)
+    assert cli.main([*base, *first, "--out", out]) == 0, capsys.readouterr().err
+    ids = sorted(load_table(out)["cell_id"])
+    assert cli.main([*base, *second, "--out", out]) == 0, capsys.readouterr().err
+    assert sorted(load_table(out)["cell_id"]) == ids  # the same cells: nothing new was solved
+    if which == "layer":  # checked as given (no layer: refused), and another value is another configuration
+        assert cli.main([*base, "--nu", "0.3", "--out", out]) == 2
+        assert "--nu describes an elastic layer" in capsys.readouterr().err
+        assert cli.main([*base, "--thickness", "5e-5", "--nu", "0.4", "--out", out]) == 2
+        assert "scene_config.extra.nu" in capsys.readouterr().err
+
+
+def test_an_option_overriding_its_scene_s_own_default_is_kept(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """``--control displacement`` is the reader's default but not the load sweep's: there
+    it is the user's choice, and the run is under displacement control."""
+    def extra(scene: str) -> dict[str, object]:
+        return dict(given_apart(asdict(SceneConfig(extra={"control": "displacement"})), [scene])["extra"])
+
+    assert extra("paper-sweep") == {}
+    assert extra("load-sweep") == {"control": "displacement"}
+    out = str(tmp_path / "run")
+    args = ["run", "load-sweep", "--size", "8", "--steps", "2", "--solvers", "test-exact", "--reference", "none",
+            "--no-progress", "--control", "displacement", "--out", out]
+    assert cli.main(args) == 0, capsys.readouterr().err
+    assert not any(str(name).endswith("-load") for name in load_table(out)["instance"])

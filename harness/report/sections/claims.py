@@ -22,6 +22,7 @@ import pandas as pd
 from ..claims import CLAIMS, CONDITIONS, LEDGER_COLUMNS, LEDGER_NAME, VERDICTS, write_ledger
 from ...table.files import write_text_atomic
 from ...table.meta import commands_of, read_meta
+from ..owned_files import refuse_foreign_page, title_line
 from ..core import (
     ReportContext,
     ReportInputError,
@@ -37,6 +38,8 @@ log = logging.getLogger(__name__)
 
 #: The document written beside ``claims.csv``.
 CLAIMS_MD = "claims.md"
+#: claims.md's title (its first line: how a report knows the page as its own).
+CLAIMS_TITLE = "The paper's claims ledger (Bemporad & Paggi 2015)"
 #: A claims.csv outside a claims run is read as a ledger (and refused when it is a broken
 #: one) when its header names at least this many of ``LEDGER_COLUMNS``; with fewer it is
 #: another file of that name (module doc).
@@ -133,7 +136,7 @@ def rules_table() -> str:
 
 def claims_markdown(df: pd.DataFrame) -> str:
     """The whole ``claims.md`` of a ledger (a pure function of ``df``)."""
-    doc = ["# The paper's claims ledger (Bemporad & Paggi 2015)", "",
+    doc = [title_line(CLAIMS_TITLE),
            (f"Written by `contactbench report` from `{LEDGER_NAME}` alone: {len(df)} rows, "
            f"{df['claim'].nunique()} claims. Verdicts: {verdict_counts(df)}."), "",
            "Conditions:", *[f"- `{c}` -- {t}." for c, t in CONDITION_TEXT.items()], "", PAPER_SIZE_TEXT, "",
@@ -153,9 +156,11 @@ def claims_markdown(df: pd.DataFrame) -> str:
 
 
 def write_claims_md(out_dir: str | Path) -> Path:
-    """Write OUT/claims.md from OUT/claims.csv; return its path."""
+    """Write OUT/claims.md from OUT/claims.csv; return its path.  A claims.md that is not
+    such a page is left as it is: ``ReportInputError`` (``owned_files.refuse_foreign_page``)."""
     out = Path(out_dir)
     path = out / CLAIMS_MD
+    refuse_foreign_page(path, CLAIMS_TITLE)
     write_text_atomic(path, claims_markdown(read_ledger(out / LEDGER_NAME)))
     return path
 

@@ -33,6 +33,7 @@ from contactbench.problems.scenes import SceneConfig, get_scene
 
 from ...table.meta import read_meta, scene_config_from_meta
 from ..core import ReportContext, Section, markdown_table, register_section
+from ..owned_files import refuse_foreign_page, write_own_page
 from ...table.store import load_table
 
 SCENE = "population"
@@ -40,6 +41,8 @@ SCENE = "population"
 QUANTITIES: tuple[str, ...] = ("load", "dim_load", "contact_fraction", "kappa", "solve_time_s")
 PERSSON_KAPPA = math.sqrt(8.0 / math.pi)
 HYUN_ROBBINS_KAPPA = 2.0
+#: population.md's title (its first line: how a report knows the page as its own).
+POPULATION_TITLE = "Population statistics"
 
 
 @dataclass(frozen=True)
@@ -164,15 +167,14 @@ def population_table(stats: pd.DataFrame) -> str:
 
 def write_population_report(out_dir: str | Path, dest: str | Path | None = None,
                             cfg: SceneConfig | None = None) -> Path:
-    """OUT/population.md and OUT/population_stats.csv (or under ``dest``)."""
+    """OUT/population.md and OUT/population_stats.csv (or under ``dest``); a population.md
+    that is not such a page stops it before it writes (``owned_files.write_own_page``)."""
+    refuse_foreign_page(Path(dest or out_dir) / "population.md", POPULATION_TITLE)
     stats = population_summary(out_dir, cfg)
     dest = Path(dest or out_dir)
     dest.mkdir(parents=True, exist_ok=True)
     stats.to_csv(dest / "population_stats.csv", index=False)
-    text = f"# Population statistics\n\n{_intro()}\n\n{population_table(stats)}\n"
-    path = dest / "population.md"
-    path.write_text(text, encoding="utf-8")
-    return path
+    return write_own_page(dest / "population.md", POPULATION_TITLE, f"\n{_intro()}\n\n{population_table(stats)}\n")
 
 
 def _intro() -> str:

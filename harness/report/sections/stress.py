@@ -17,10 +17,14 @@ import pandas as pd
 
 from ..core import ReportContext, Section, markdown_table, natural_key, register_section, table_md
 from ..markdown_text import md_code
+from ..owned_files import refuse_foreign_page, title_line
+from ...table.files import write_text_atomic
 from ...table.schema import VERDICTS
 
 #: The battery's scenes: "stress" and its parts "stress-<group>".
 STRESS_SCENE = "stress"
+#: The battery's README.md title (its first line: how a report knows the page as its own).
+STRESS_TITLE = "Numerical stability stress battery"
 
 
 def is_stress_scene(scene: str) -> bool:
@@ -134,7 +138,7 @@ def _md(df: pd.DataFrame, floatfmt: str = ".3g") -> str:
 
 def render_stress_section(results: Path) -> str:
     results = Path(results)
-    parts = ["# Numerical stability stress battery", ""]
+    parts = [title_line(STRESS_TITLE)]
     for rows, mode in load_survival(results):
         parts += [f"## Which solver survives which case ({mode} battery)", "",
                   "Cells: passed/solves per group; `W` = wrong answers claimed as converged, "
@@ -158,10 +162,13 @@ def render_stress_section(results: Path) -> str:
 
 
 def write_stress_report(results: Path) -> Path:
+    """RESULTS/README.md and the survival matrices; a README.md that is not the battery's
+    page stops it before it writes (``owned_files.refuse_foreign_page``)."""
     results = Path(results)
+    refuse_foreign_page(results / "README.md", STRESS_TITLE)
     text = render_stress_section(results)
     for rows, mode in load_survival(results):
         survival_matrix(rows).to_csv(results / f"survival_matrix-{mode}.csv")
     path = results / "README.md"
-    path.write_text(text)
+    write_text_atomic(path, text)
     return path

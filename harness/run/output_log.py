@@ -1,0 +1,125 @@
+"""What solvers print during a run: kept in OUT/solver-output.log, off the terminal.
+
+A solver's output (file descriptors 1 and 2, so a C extension's and a program's it runs
+too) goes, one worker message at a time, to a file of the job's own
+(``SolverOutput.worker_file``: the isolated worker's handler writes there,
+``harness.run.worker.SolveServer``); after each message the job's driver
+(``harness.run.job.JobDriver``) moves its head into the run's log
+(``OutputLog.append``) and empties it.  The solver code the driver runs in its own
+process -- a solver's skip check and time, memory and capability models -- is captured
+the same way (``SolverOutput.captured``).  The terminal keeps the progress bar and the
+harness's own messages.
+
+The log is bounded: each entry keeps the first ``ENTRY_HEAD_BYTES`` bytes of one
+message's output and says how many it dropped; once the log holds ``LOG_CAP_BYTES`` it
+takes no more entries and its last line counts what was dropped since
+(``dropped_line``, rewritten in place).  Pool processes append to one log under an
+exclusive ``flock``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import re
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+from .isolation import SCRATCH_PREFIX, output_to
+
+#: The run folder's file of what the solvers printed (meta.json ``solver_output`` names it).
+OUTPUT_LOG = "solver-output.log"
+#: The bytes of one message's output an entry keeps (its head).
+ENTRY_HEAD_BYTES = 64 * 1024
+#: The size past which the log takes no more entries (its last line then counts them).
+LOG_CAP_BYTES = 16 * 1024 * 1024
+
+_DROPPED = re.compile(rb"\[the log is full \((\d+) bytes\): +(\d+) bytes of +(\d+) more outputs dropped\]\n\Z")
+
+
+def dropped_line(cap: int, dropped_bytes: int, outputs: int) -> bytes:
+    """The log's last line once it is full: fixed width, so it is rewritten in place."""
+    return f"[the log is full ({cap} bytes): {dropped_bytes:20d} bytes of {outputs:12d} more outputs dropped]\n" \
+        .encode("ascii")
+
+
+def entry(title: str, head: bytes, size: int) -> bytes:
+    """One entry: a title line, the output's head, and what was dropped of it."""
+    body = head if head.endswith(b"\n") else head + b"\n"
+    cut = f"[... {size - len(head)} more bytes dropped: an entry keeps the first {len(head)}]\n" \
+        if size > len(head) else ""
+    return f"==> {title} ({size} bytes) <==\n".encode("utf-8", "replace") + body + cut.encode("ascii")
+
+
+@dataclass(frozen=True)
+class OutputLog:
+    """OUT/solver-output.log (module doc)."""
+
+    path: Path
+    entry_head: int = ENTRY_HEAD_BYTES
+    cap: int = LOG_CAP_BYTES
+
+    def append(self, title: str, source: Path) -> None:
+        """Add the head of ``source`` (one message's output) under ``title``; nothing when it
+        is empty or unreadable."""
+        try:
+            with open(source, "rb") as fh:
+                size = os.fstat(fh.fileno()).st_size
+                head = fh.read(self.entry_head) if size else b""
+        except OSError:
+            return
+        if not size:
+            return
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            self._write(fd, entry(title, head, size), size)
+        finally:
+            os.close(fd)  # (closing releases the lock)
+
+    def _write(self, fd: int, text: bytes, size: int) -> None:
+        end = os.fstat(fd).st_size
+        width = len(dropped_line(self.cap, 0, 0))
+        last = os.pread(fd, width, end - width) if end >= width else b""
+        full = _DROPPED.search(last)
+        if full:
+            os.pwrite(fd, dropped_line(self.cap, int(full[2]) + size, int(full[3]) + 1), end - width)
+        elif end + len(text) <= self.cap:
+            os.pwrite(fd, text, end)
+        else:
+            os.pwrite(fd, dropped_line(self.cap, size, 1), end)
+
+
+class SolverOutput:
+    """The files that take a job's solver output before it joins the run's ``log``: a
+    temporary folder of the driver's (named as a worker's, so one left by a killed run is
+    removed as theirs: ``isolation.remove_orphan_scratch``)."""
+
+    def __init__(self, log: OutputLog) -> None:
+        self.log = log
+        self.folder = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-output-"))
+        self.worker_file = self.folder / "worker.txt"
+        self.own_file = self.folder / "driver.txt"
+
+    def collect(self, title: str, source: Path | None = None) -> None:
+        """Move what ``source`` (default: the worker's file) holds into the log, and empty it."""
+        path = source or self.worker_file
+        self.log.append(title, path)
+        with contextlib.suppress(OSError):
+            os.truncate(path, 0)
+
+    @contextlib.contextmanager
+    def captured(self, title: str) -> Iterator[None]:
+        """The block's output (this process's descriptors 1 and 2) into the log under ``title``."""
+        try:
+            with output_to(str(self.own_file)):
+                yield
+        finally:
+            self.collect(title, self.own_file)
+
+    def close(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)

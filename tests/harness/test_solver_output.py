@@ -1,0 +1,110 @@
+"""What a solver prints during ``run`` goes to the run folder's solver-output log, bounded
+(the head of each output kept, what was dropped counted), never to the terminal; the
+harness's own messages and the summary stay on the terminal."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import pytest
+
+from contactbench.harness import run_benchmark
+from contactbench.harness.run.executors import PoolExecutor
+from contactbench.harness.run.output_log import ENTRY_HEAD_BYTES, OUTPUT_LOG, OutputLog, dropped_line
+from contactbench.harness.run.plan import RunConfig
+from contactbench.problems.scenes import SceneConfig
+from contactbench.solvers import Capabilities, Outcome, ProblemTraits, SolveContext, Solver, register, unregister
+
+#: How much the test solver prints to Python's stdout in one solve (over an entry's head).
+LOUD_BYTES = 200_000
+
+
+class Chatty(Solver):
+    """Prints through every route a solver has: Python's streams, the descriptors, a child
+    process, and its skip check (run in the harness's process); answers p = 0, unclaimed."""
+
+    name = "test-chatty"
+    family = "test"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}))
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        print("chatty-skip-check")
+        return None
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        print("chatty-stderr", file=sys.stderr, flush=True)
+        os.write(1, b"chatty-descriptor\n")
+        os.system("echo chatty-child-process")
+        sys.stdout.write("y" * LOUD_BYTES)
+        return Outcome(np.zeros(ctx.n), 1, False)
+
+
+@pytest.fixture
+def chatty() -> Iterator[str]:
+    register(Chatty, replace=True)
+    yield Chatty.name
+    unregister(Chatty.name)
+
+
+def small_run(out: Path, solver: str, **executor: object) -> None:
+    run_benchmark(["counterexample"], SceneConfig(size=10, seeds=(0,)), [solver],
+                  RunConfig(progress=False, warmup=False, reference="none"), out, command=["pytest"], **executor)
+
+
+def test_a_solvers_output_goes_to_the_run_log_not_the_terminal(tmp_path: Path, chatty: str,
+                                                              capfd: pytest.CaptureFixture[str]) -> None:
+    small_run(tmp_path / "r", chatty)
+    seen = capfd.readouterr()
+    assert "chatty" not in seen.out + seen.err and "yyyy" not in seen.out + seen.err
+    text = (tmp_path / "r" / OUTPUT_LOG).read_text()
+    for said in ("chatty-stderr", "chatty-descriptor", "chatty-child-process", "chatty-skip-check"):
+        assert said in text, said
+    assert f"more bytes dropped: an entry keeps the first {ENTRY_HEAD_BYTES}" in text
+    assert os.path.getsize(tmp_path / "r" / OUTPUT_LOG) < LOUD_BYTES  # the head only
+    assert json.loads((tmp_path / "r" / "meta.json").read_text())["solver_output"] == OUTPUT_LOG
+
+
+def test_a_pool_process_writes_its_solvers_output_to_the_same_log(tmp_path: Path, chatty: str,
+                                                                  capfd: pytest.CaptureFixture[str]) -> None:
+    run_benchmark(["counterexample"], SceneConfig(size=10, seeds=(0, 1)), [chatty],
+                  RunConfig(progress=False, warmup=False, reference="none", jobs=2), tmp_path / "r",
+                  command=["pytest"], executor=PoolExecutor(2))
+    seen = capfd.readouterr()
+    assert "chatty" not in seen.out + seen.err
+    text = (tmp_path / "r" / OUTPUT_LOG).read_text()
+    assert text.count("chatty-child-process") == 2 and "n100-s0" in text and "n100-s1" in text
+
+
+def test_an_entry_keeps_the_head_and_counts_what_it_dropped(tmp_path: Path) -> None:
+    source = tmp_path / "out.txt"
+    source.write_bytes(b"a" * 100 + b"b" * 50)
+    log = OutputLog(tmp_path / "log", entry_head=100, cap=10_000)
+    log.append("one", source)
+    text = log.path.read_text()
+    assert "a" * 100 in text and "b" not in text.replace("bytes", "")
+    assert "(150 bytes)" in text and "50 more bytes dropped" in text
+
+
+def test_a_full_log_takes_no_more_entries_and_counts_them_in_its_last_line(tmp_path: Path) -> None:
+    source = tmp_path / "out.txt"
+    source.write_bytes(b"z" * 300)
+    log = OutputLog(tmp_path / "log", entry_head=400, cap=1000)
+    for _ in range(5):
+        log.append("again", source)
+    data = log.path.read_bytes()
+    assert data.count(b"==> again") == 3  # three entries fit under the cap
+    assert data.endswith(dropped_line(1000, 600, 2))
+    assert len(data) <= 1000 + len(dropped_line(1000, 0, 0))
+
+
+def test_an_empty_output_adds_no_entry(tmp_path: Path) -> None:
+    source = tmp_path / "out.txt"
+    source.write_bytes(b"")
+    log = OutputLog(tmp_path / "log")
+    log.append("quiet", source)
+    assert not log.path.exists()
