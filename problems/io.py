@@ -1,33 +1,17 @@
-"""Measured height maps: reading (every format SurfaceTopography knows, plus .npy and
-text), and cleaning.
+"""Measured height maps: reading and cleaning.  :func:`load_surface` reads a map with
+``problems.map_readers`` (the formats: .npy, text matrices and x,y,z columns, and every
+format SurfaceTopography knows; what each refuses: that module's doc) and cleans it.
 
-Formats read by :func:`load_surface`:
-
-* ``.npy``  -- ``numpy.load(..., allow_pickle=False)``: pickled/object arrays and files
-  without NumPy's header are refused, never loaded.  The array is (rows = y, columns = x).
-* text      -- a plain matrix of numbers, one row per line; the delimiter (comma,
-  semicolon, tab or white space) is detected from the first data line; ``#`` starts a
-  comment; ``nan`` marks a missing point.
-* everything else -- through SurfaceTopography's readers (about 40 instrument formats:
-  ISO 25178-71 .x3p, Gwyddion .gwy, NetCDF .nc, MATLAB .mat, Keyence .vk4, Zygo .datx,
-  Wyko .opd, Sensofar .plu, Digital Surf .sur, Bruker .spm, Olympus .lext, Alicona
-  .al3d, ...).  The reader is chosen by the file's extension when SurfaceTopography
-  knows it (so a damaged file gets that format's own error), else by content.  Heights
-  and the lateral size are converted to metres from the file's own unit; a file with no
-  unit (.npy, text, .mat, .npz) is read in ``height_unit`` (default metres), and a
-  ``height_unit`` given for a file that states its own unit is refused (it would be
-  ignored).  SurfaceTopography indexes heights
-  [x, y]; a :class:`Surface` is [y, x] (rows = y), so maps are transposed on the way
-  in -- except bare-matrix containers (.mat, .npz), whose matrix is taken as it is,
-  like a .npy.  Refused with a clear error: non-uniform line scans, 1-D profiles,
-  multi-channel files without a chosen ``channel``, units that do not convert to
-  metres, heights so large that sums over the map overflow (``HEIGHT_CEILING``).  For .x3p the MD5 checksum of the point data stated in
-  main.xml is verified (SurfaceTopography does not); this module parses no XML itself.
+Units: heights and the lateral size of a file that states its unit are converted to
+metres from it; a file with no unit (.npy, text, .mat, .npz) is read in ``height_unit``
+(default metres: lengths of x,y,z columns too), and a ``height_unit`` given for a file
+that states its own unit is refused (it would be ignored).
 
 The lateral size: a file that states its physical size (x3p, gwy, nc, most instrument
 formats) gives the spacings (rectangular pixels kept), so ``length`` may be omitted; when
 both are given they must agree (relative 1e-6: NetCDF stores sizes in float32) and the
-given length is used.  Files that state no size (.npy, text, .mat, .npz) need ``length``:
+given length is used (x,y,z columns state theirs: the coordinates' steps).  Files that
+state no size (.npy, a text matrix, .mat, .npz) need ``length``:
 L0 (the size along the array's axis 0, rows: square pixels L0 / N0) or (L0, L1) (axis 0
 and axis 1: spacings L0 / N0 and L1 / N1).  The length describes the map as read; a crop
 keeps the spacing.
@@ -42,8 +26,11 @@ once per process for each file and message):
 1. NaN rule (``nan=``): ``"fill-mean"`` (default) replaces each missing point by the mean
    of the measured points; ``"fill-nearest"`` by its nearest measured neighbour;
    ``"fill-min"`` by the lowest measured height (never brought into contact before every
-   measured point is); ``"error"`` refuses the file.  A file with no measured point is
-   always an error.  (Masked points of a SurfaceTopography channel are missing points.)
+   measured point is); ``"error"`` refuses the file.  A map with no measured point, or
+   with more than ``MAX_MISSING_FRACTION`` (half) of its points missing, is always an
+   error: the filled points would be most of the surface solved on.  (Masked points of a
+   SurfaceTopography channel are missing points.)  The filled share is printed so that it
+   reads 0 % or 100 % only when it is exactly that (``share_text``).
    Where the plane is removed (step 2), the plane is fitted through the measured points
    and the rule acts on the heights above it: a hole in a tilted map is filled along the
    tilt, so that a filled point is never the map's summit because of the tilt.
@@ -56,25 +43,36 @@ once per process for each file and message):
 3. Crop (``crop=``): ``"none"`` (default) keeps every point, rectangular maps included;
    ``"square"`` keeps the central min(N0, N1) square; ``"pad-square"`` pads to max(N0, N1)
    with the lowest height, the data kept in the top-left corner.  Either keeps the spacing.
+   Padding changes the problem, not only its shape: the nominal area A0 (N0 N1 d0 d1)
+   grows by max(N0, N1)^2 / (N0 N1) (twice for a 2:1 map), the mean height drops towards
+   the lowest one (so load steps measured from it, like the paper's ramp, grow), and the
+   padded edge adds a cliff to the slopes; the crop's record (``meta["crop"]``, the report's
+   "Problem changes") states the factor.
 
 Coarsening and the PSD power-law test are not I/O: they live in ``problems/coarsen.py``.
 """
 
 from __future__ import annotations
 
-import hashlib
 import warnings
-import zipfile
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
+from .map_files import write_text, write_topography, write_x3p
+from .map_readers import (
+    LENGTH_RTOL,
+    RawMap,
+    SurfaceFileError,
+    read_height_map,
+    read_npy,
+    read_text,
+    read_with_surfacetopography,
+)
 from .preprocessing import MapPreprocessing, key_options, options_key, plane_in_lengths, raw_heights_sha256
 from .surfaces import Surface
-from .map_files import write_text, write_topography, write_x3p
 from .units import HEIGHT_UNITS
 
 CropRule = Literal["none", "square", "pad-square"]
@@ -87,41 +85,8 @@ CROP_RULES = ("none", "square", "pad-square")
 NAN_RULES = ("fill-mean", "fill-nearest", "fill-min", "error")
 DETREND_RULES = ("none", "mean", "plane")
 
-NPY_MAGIC = b"\x93NUMPY"
-#: Bytes of one height of each x3p DataType (ISO 25178-72: int16, int32, float32, float64).
-X3P_BYTES = {"I": 2, "L": 4, "F": 4, "D": 8}
-TEXT_SUFFIXES = (".txt", ".csv", ".tsv")
-#: SurfaceTopography formats that hold a bare matrix: taken as (rows, columns) like a .npy.
-MATRIX_FORMATS = ("mat", "npz")
-#: A map's heights are refused above this over its point count: sqrt(the largest float), so
-#: the cleaning's sums of squares stay finite.
-HEIGHT_CEILING = float(np.sqrt(np.finfo(np.float64).max))
-#: Relative disagreement allowed between a given length and the file's own lateral size.
-LENGTH_RTOL = 1e-6
 #: The cleaning warnings announced so far in this process (``announce``).
 _ANNOUNCED: set[tuple[str, str]] = set()
-
-
-class SurfaceFileError(ProblemInputError):
-    """A height-map file that cannot be used; the message names the file and the problem."""
-
-    def __init__(self, path: str | Path, problem: str) -> None:
-        self.path = str(path)
-        self.problem = problem
-        super().__init__(f"cannot use surface file {self.path!r}: {problem}")
-
-
-@dataclass
-class RawMap:
-    """A height map as read from a file, before cleaning: z (ny x nx, metres once
-    ``unit_known``, NaN for missing points) and the spacings (axis 0, axis 1) the file
-    states (None when it states none)."""
-
-    z: np.ndarray
-    spacing: tuple[float, float] | None
-    fmt: str
-    info: dict[str, Any] = field(default_factory=dict)
-    unit_known: bool = False
 
 
 # --- Public entry point ---
@@ -172,7 +137,7 @@ def load_surface(
         meta["height_unit"] = height_unit
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
     named = p.resolve()  # the file a link names: its base name is the map's (MapPreprocessing.source)
-    measured = ~np.isnan(z)
+    measured = check_measured(z, named)
     fitted = plane_fit(z, measured) if detrend == "plane" else None  # once, through the measured points
     z = fill_missing(z, nan, named, meta, plane=fitted)
     z = remove_tilt(z, detrend, meta, spacing, named, fitted)
@@ -228,266 +193,6 @@ def announce(message: str, meta: dict[str, Any]) -> None:
         warnings.warn(message, UserWarning, stacklevel=4)
 
 
-def read_height_map(path: str | Path, channel: int | str | None = None) -> RawMap:
-    """Read the raw map of any supported format (module doc)."""
-    p = Path(path)
-    head = _read_head(p)
-    suffix = p.suffix.lower()
-    if head.startswith(NPY_MAGIC) or suffix == ".npy":
-        _only_channel(p, channel)
-        return read_npy(p)
-    known = _topography_formats()
-    if suffix in TEXT_SUFFIXES or (suffix.lstrip(".") not in known and _looks_like_text(p)):
-        _only_channel(p, channel)
-        return read_text(p)
-    return read_with_surfacetopography(p, known.get(suffix.lstrip(".")), channel)
-
-
-def _read_head(p: Path) -> bytes:
-    try:
-        with open(p, "rb") as f:
-            return f.read(8)
-    except OSError as e:
-        raise SurfaceFileError(p, f"unreadable path ({e.strerror or e})") from None
-
-
-def _topography_formats() -> dict[str, str | None]:
-    """File extension -> SurfaceTopography format id (None where several formats share it)."""
-    from SurfaceTopography.IO import readers
-
-    out: dict[str, str | None] = {}
-    for reader in readers:
-        for ext in getattr(reader, "_file_extensions", None) or ():
-            e = str(ext).lower()
-            out[e] = reader.format() if e not in out else None
-    return out
-
-
-def _looks_like_text(p: Path) -> bool:
-    try:
-        with open(p, "rb") as f:
-            f.read(4096).decode("utf-8")
-    except UnicodeDecodeError:
-        return False
-    return True
-
-
-def _only_channel(p: Path, channel: int | str | None) -> None:
-    if channel not in (None, 0, "0"):
-        raise SurfaceFileError(p, f"has a single channel; channel {channel!r} does not exist")
-
-
-# --- Readers of our own: .npy and text ---
-
-
-def read_npy(path: str | Path) -> RawMap:
-    """A 2-D numeric .npy array; pickles are never loaded."""
-    p = Path(path)
-    if not _read_head(p).startswith(NPY_MAGIC):
-        raise SurfaceFileError(p, "not a .npy file: it lacks NumPy's header")
-    try:
-        a = np.load(p, allow_pickle=False)
-    except ValueError as e:
-        if "pickle" in str(e).lower() or "object" in str(e).lower():
-            raise SurfaceFileError(p, "the array holds Python objects (a pickle); refused, never unpickled") from None
-        raise SurfaceFileError(p, f"truncated or corrupt .npy data ({e})") from None
-    except (EOFError, OSError) as e:
-        raise SurfaceFileError(p, f"truncated or corrupt .npy data ({e})") from None
-    z = _numeric_matrix(p, a)  # (NumPy reads the count its header states: more data is a header that lies)
-    if p.stat().st_size > np.load(p, mmap_mode="r").offset + a.nbytes:
-        raise SurfaceFileError(p, f"it holds more data than its header's {a.shape[0]} x {a.shape[1]} values")
-    return RawMap(z, None, "npy")
-
-
-def read_text(path: str | Path) -> RawMap:
-    """A plain text/CSV matrix; the delimiter is detected from the first data line."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig")  # (a byte-order mark, as spreadsheets write one, is no value)
-    except UnicodeDecodeError:
-        raise SurfaceFileError(p, "binary content that is not .npy and not a text matrix") from None
-    except OSError as e:
-        raise SurfaceFileError(p, f"unreadable path ({e.strerror or e})") from None
-    lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
-    rows_text = [(k + 1, ln) for k, ln in enumerate(lines) if ln]
-    if not rows_text:
-        raise SurfaceFileError(p, "no data rows (empty file or only comments)")
-    delim = next((d for d in (",", ";", "\t") if d in rows_text[0][1]), None)  # None: any white space
-    rows: list[list[float]] = []
-    for lineno, ln in rows_text:
-        cells = [c.strip() for c in (ln.split(delim) if delim else ln.split())]
-        if delim and cells and cells[-1] == "":
-            cells = cells[:-1]  # a trailing delimiter
-        try:
-            rows.append([float(c) for c in cells])
-        except ValueError:
-            bad = next(c for c in cells if not _is_float(c))
-            raise SurfaceFileError(p, f"non-numeric value {bad!r} on line {lineno}") from None
-    widths = {len(r) for r in rows}
-    if len(widths) != 1:
-        first = len(rows[0])
-        k = next(i for i, r in enumerate(rows) if len(r) != first)
-        raise SurfaceFileError(
-            p, f"wrong shape: rows of different lengths ({first} values on the first row, "
-               f"{len(rows[k])} on data row {k + 1}); truncated or not a matrix")
-    return RawMap(_numeric_matrix(p, np.array(rows, dtype=np.float64)), None, "text",
-                  {"delimiter": delim or "whitespace"})
-
-
-def _is_float(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
-
-
-def _numeric_matrix(p: Path, a: np.ndarray) -> np.ndarray:
-    if a.dtype.kind not in "biuf":
-        raise SurfaceFileError(p, f"non-numeric data (dtype {a.dtype}); need real numbers")
-    if a.ndim != 2:
-        raise SurfaceFileError(p, f"wrong shape: need a 2-D height map, got a {a.ndim}-D array of shape {a.shape}")
-    if min(a.shape) < 2:
-        raise SurfaceFileError(p, f"wrong shape: need at least 2 x 2 points, got {a.shape[0]} x {a.shape[1]}")
-    a = a.astype(np.float64)
-    if np.isinf(a).any():
-        raise SurfaceFileError(p, f"{int(np.isinf(a).sum())} infinite heights; only NaN may mark a missing point")
-    top, ceiling = float(np.nanmax(np.abs(a), initial=0.0)), HEIGHT_CEILING / a.size
-    if top > ceiling:  # (the cleaning's sums of squares would overflow to inf)
-        at = np.unravel_index(int(np.nanargmax(np.abs(a))), a.shape)
-        raise SurfaceFileError(p, f"a height of {top:.3g} at index {tuple(map(int, at))}: above {ceiling:.3g}, "
-                                  "where sums over the map overflow; not a height map in any unit")
-    return a
-
-
-# --- Every other format: SurfaceTopography's readers ---
-
-
-def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | None = None) -> RawMap:
-    """One channel of a file through SurfaceTopography (``fmt`` None: detect by content),
-    in metres when the file states its unit; every failure is a :class:`SurfaceFileError`."""
-    from SurfaceTopography.IO import open_topography
-
-    what = fmt or "the detected format"
-    try:
-        reader = open_topography(str(p), format=fmt)
-        what = f"{reader.name()} (.{reader.format()})"
-        info = _pick_channel(p, reader, channel)
-        kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
-        topo = reader.topography(channel_index=info.index, **kw)
-        h = np.ma.asarray(topo.heights(), dtype=np.float64)
-        heights = np.where(np.isinf(h.data), h.data, np.ma.filled(h, np.nan))  # an inf stays one (refused), no hole
-    except SurfaceFileError:
-        raise
-    except Exception as e:  # the readers raise many kinds; each becomes one clear line
-        raise SurfaceFileError(p, _reader_failure(e, what)) from None
-    fmt_id = reader.format()
-    z = heights if fmt_id in MATRIX_FORMATS else heights.T
-    meta: dict[str, Any] = {"reader": f"SurfaceTopography {_st_version()}", "channel": info.name,
-                            "file_unit": topo.unit}
-    factor = _metres_per_unit(p, topo.unit)
-    if factor is not None:
-        meta["metres_per_unit"] = factor
-    spacing = None
-    if info.physical_sizes is not None:
-        dx, dy = _file_spacing(p, topo.physical_sizes, topo.nb_grid_pts)
-        k = factor or 1.0
-        spacing = (dx * k, dy * k) if fmt_id in MATRIX_FORMATS else (dy * k, dx * k)  # (axis 0, axis 1) of z
-        meta["file_size_m" if factor else "file_size"] = [float(s) * (factor or 1.0) for s in topo.physical_sizes]
-    if fmt_id == "x3p":
-        meta.update(_x3p_checks(p, topo.info.get("raw_metadata", {})))
-    z = _numeric_matrix(p, z) * (factor or 1.0)
-    return RawMap(z, spacing, fmt_id, meta, unit_known=factor is not None)
-
-
-def _reader_failure(e: Exception, what: str) -> str:
-    from SurfaceTopography.Exceptions import CannotDetectFileFormat, CorruptFile, FileFormatMismatch
-
-    msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-    if isinstance(e, CannotDetectFileFormat):
-        return ("not a format contactbench reads (.npy, a text matrix) nor one SurfaceTopography "
-                "recognises (every reader tried)")
-    if isinstance(e, FileFormatMismatch):
-        return f"not a valid {what} file ({msg})"
-    if isinstance(e, CorruptFile):
-        return f"corrupt or truncated {what} file ({msg})"
-    if type(e).__name__ in ("EntitiesForbidden", "DTDForbidden", "ExternalReferenceForbidden"):
-        return f"{what}: its XML declares a DTD/entities; refused"
-    if type(e).__name__ == "ParseError":
-        return f"{what}: its XML is not well-formed ({msg})"
-    return f"{what} reader failed ({type(e).__name__}: {msg})"
-
-
-def _pick_channel(p: Path, reader: Any, channel: int | str | None) -> Any:
-    """The chosen channel's info; refuses an unchosen multi-channel file, line scans and
-    profiles."""
-    chans = list(reader.channels)
-    listing = "; ".join(f"{c.index}: {c.name!r}" for c in chans)
-    if channel is None:
-        if len(chans) > 1:
-            raise SurfaceFileError(p, f"{len(chans)} channels ({listing}); choose one with --channel INDEX|NAME")
-        info = chans[0]
-    else:
-        key = str(channel)
-        hits = [c for c in chans if str(c.index) == key] or [c for c in chans if c.name == key]
-        if len(hits) != 1:
-            raise SurfaceFileError(p, f"no channel {channel!r} (it has {listing})")
-        info = hits[0]
-    if not info.is_uniform:
-        raise SurfaceFileError(p, f"channel {info.name!r} is a non-uniform line scan; need a gridded 2-D height map")
-    if info.dim != 2:
-        raise SurfaceFileError(p, f"channel {info.name!r} is a {info.dim}-D profile (line scan); need a 2-D height map")
-    return info
-
-
-def _metres_per_unit(p: Path, unit: str | None) -> float | None:
-    """Metres per file unit (None: the file states no unit)."""
-    if unit is None:
-        return None
-    from SurfaceTopography.Support.UnitConversion import get_unit_conversion_factor
-
-    try:
-        return float(get_unit_conversion_factor(unit, "m"))
-    except ValueError as e:
-        raise SurfaceFileError(p, f"unit {unit!r} cannot be converted to metres ({e})") from None
-
-
-def _file_spacing(p: Path, sizes: Any, nb: Any) -> tuple[float, float]:
-    """The grid spacings (x, y) the file states (file units); pixels equal to LENGTH_RTOL
-    are made exactly square."""
-    dx, dy = (float(size) / int(n) if int(n) > 0 else np.nan for size, n in zip(sizes[:2], nb[:2]))  # 0 points: NaN
-    try:
-        dx, dy = check_positive("file grid spacing x", dx), check_positive("file grid spacing y", dy)
-    except ProblemInputError as e:
-        raise SurfaceFileError(p, str(e)) from None
-    return (dx, dx) if np.isclose(dx, dy, rtol=LENGTH_RTOL) else (dx, dy)
-
-
-def _x3p_checks(p: Path, raw_meta: dict[str, Any]) -> dict[str, Any]:
-    """Verify the point data against the MD5 and the size that main.xml states (read from
-    SurfaceTopography's parsed metadata); return the x3p facts kept in meta."""
-    axes = raw_meta.get("Record1", {}).get("Axes", {})
-    link = raw_meta.get("Record3", {}).get("DataLink", {})
-    member, md5 = link.get("PointDataLink"), link.get("MD5ChecksumPointData")
-    cz, size = axes.get("CZ", {}), raw_meta.get("Record3", {}).get("MatrixDimension", {})
-    if member:
-        with zipfile.ZipFile(p) as zf:
-            data = zf.read(str(member))
-        if md5 and hashlib.md5(data).hexdigest().lower() != str(md5).strip().lower():
-            raise SurfaceFileError(p, f"MD5 checksum of {member} does not match main.xml (corrupt data)")
-        stated = int(np.prod([int(size.get(k, 1)) for k in ("SizeX", "SizeY", "SizeZ")])) * X3P_BYTES.get(cz.get("DataType"), 0)
-        if stated and len(data) != stated:
-            raise SurfaceFileError(p, f"{member} holds {len(data)} bytes where main.xml states {stated}")
-    incs = [axes.get(a, {}).get("Increment") for a in ("CX", "CY")] + [cz.get("Increment", 1.0)]
-    return {"x3p_data_type": cz.get("DataType"), "x3p_increments": [float(v) for v in incs if v is not None]}
-
-
-def _st_version() -> str:
-    import SurfaceTopography
-
-    return str(getattr(SurfaceTopography, "__version__", "?"))
-
-
 # --- Cleaning ---
 
 
@@ -503,8 +208,7 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
     meta["nan_rule"] = rule
     if n_missing == 0:
         return z
-    if n_missing == z.size:
-        raise SurfaceFileError(path, f"NaN-only: none of the {z.size} points was measured")
+    check_measured(z, path)
     if rule == "error":
         raise SurfaceFileError(path, f"{n_missing} missing (NaN) points and nan='error'")
     relative_to_plane = plane is not None
@@ -523,9 +227,39 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
         meta["fill_value"] = float(z[missing][0])  # above the plane, where filled relative to it
     meta["fill_relative_to"] = "the measured points' plane" if relative_to_plane else "zero"
     basis = " relative to the measured points' plane" if relative_to_plane else ""
-    announce(f"{Path(path).name}: {n_missing} missing points ({n_missing / z.size:.1%}) filled by rule {rule!r}"
-             f"{basis}", meta)
+    announce(f"{Path(path).name}: {n_missing} missing points ({share_text(n_missing, z.size)}) filled by rule "
+             f"{rule!r}{basis}", meta)
     return z + level
+
+
+#: A map with more than this share of its points missing (NaN) is refused: the filled
+#: points would be most of the surface solved on.
+MAX_MISSING_FRACTION = 0.5
+
+
+def check_measured(z: np.ndarray, path: str | Path) -> np.ndarray:
+    """The mask of the measured (not NaN) points of ``z``; a ``SurfaceFileError`` when
+    none is measured or more than ``MAX_MISSING_FRACTION`` of the points are missing."""
+    measured = ~np.isnan(z)
+    n_missing = int(z.size - np.count_nonzero(measured))
+    if n_missing == z.size:
+        raise SurfaceFileError(path, f"NaN-only: none of the {z.size} points was measured")
+    if n_missing > MAX_MISSING_FRACTION * z.size:
+        raise SurfaceFileError(path, f"{n_missing} of its {z.size} points are missing (NaN, "
+                                     f"{share_text(n_missing, z.size)}), more than {MAX_MISSING_FRACTION:.0%}: the "
+                                     "filled points would be most of the surface; crop the map to its measured part")
+    return measured
+
+
+def share_text(part: int, whole: int) -> str:
+    """``part / whole`` as a percentage with one decimal, except that a share that is not
+    exactly 0 or 1 never reads "0.0%" or "100.0%" ("<0.1%", ">99.9%")."""
+    share = part / whole
+    if 0 < share < 0.0005:
+        return "<0.1%"
+    if 0.9995 <= share < 1:
+        return ">99.9%"
+    return f"{share:.1%}"
 
 
 def plane_on_grid(shape: tuple[int, ...], a: float, c: float, b: float) -> np.ndarray:
@@ -622,7 +356,8 @@ def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, An
         n = max(ny, nx)
         out = np.full((n, n), float(z.min()))
         out[:ny, :nx] = z
-        meta["crop"] = f"padded {ny}x{nx} to {n}x{n} with the lowest height {float(z.min()):.6g} (data top-left)"
+        meta["crop"] = (f"padded {ny}x{nx} to {n}x{n} with the lowest height {float(z.min()):.6g} (data top-left): "
+                        f"the nominal area A0 grows by a factor {n * n / (ny * nx):.4g} and the mean height drops")
     announce(f"{Path(path).name}: non-square map {meta['crop']}", meta)
     return out
 
@@ -679,10 +414,12 @@ def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
 __all__ = [
     "CROP_RULES",
     "DETREND_RULES",
+    "MAX_MISSING_FRACTION",
     "NAN_RULES",
     "RawMap",
     "SurfaceFileError",
     "crop_map",
+    "check_measured",
     "fill_missing",
     "load_surface",
     "map_spacing",
@@ -694,6 +431,7 @@ __all__ = [
     "read_text",
     "read_with_surfacetopography",
     "remove_tilt",
+    "share_text",
     "write_text",
     "write_topography",
     "write_x3p",

@@ -1,5 +1,6 @@
-"""Height-map writers (test data, the bundled samples), the counterpart of problems/io.py's
-readers: SurfaceTopography's writers for x3p, gwy and NetCDF, and a text matrix.  A map
+"""Height-map writers (test data, the bundled samples), the counterpart of
+problems/map_readers.py's readers: SurfaceTopography's writers for x3p, gwy and NetCDF, an
+ISO 25178-71 .sdf (binary or ASCII, float64 heights in metres) and a text matrix.  A map
 they write is one the readers take: a 2-D map of finite heights or NaN (missing points),
 and finite spacings > 0.
 """
@@ -7,6 +8,7 @@ and finite spacings > 0.
 from __future__ import annotations
 
 import io as _stdio
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +52,31 @@ def write_x3p(path: str | Path, z: np.ndarray, spacing: float | tuple[float, flo
     """An ISO 25178-71 .x3p file (SurfaceTopography's writer; integer types L, I are
     scaled over their full range)."""
     return write_topography(path, z, spacing, "x3p", dtype=data_type)
+
+
+def write_sdf(path: str | Path, z: np.ndarray, spacing: float | tuple[float, float], *, binary: bool = True) -> Path:
+    """An ISO 25178-71 .sdf of float64 heights in metres (DataType 7, Zscale 1): NumPoints
+    = the columns (x, spacing axis 1), NumProfiles = the rows (y, spacing axis 0), one
+    profile (row) after another; binary (little endian) or ASCII."""
+    z = np.asarray(z, dtype=np.float64)
+    if z.ndim != 2 or np.isinf(z).any():
+        raise ProblemInputError("the sdf writer needs a 2-D map of finite heights or NaN")
+    dy, dx = _spacings(spacing)
+    ny, nx = z.shape
+    out = Path(path)
+    stamp = "010120000000"
+    if binary:
+        header = struct.pack("<8s10s12s12sHHddddBBB", b"bISO-1.0", b"contactb", stamp.encode(), stamp.encode(),
+                             nx, ny, dx, dy, 1.0, -1.0, 0, 7, 0)
+        out.write_bytes(header + z.astype("<f8").tobytes())
+        return out
+    fields = {"ManufacID": "contactb", "CreateDate": stamp, "ModDate": stamp, "NumPoints": nx, "NumProfiles": ny,
+              "Xscale": repr(dx), "Yscale": repr(dy), "Zscale": 1.0, "Zresolution": -1, "Compression": 0,
+              "DataType": 7, "CheckType": 0}
+    lines = ["aISO-1.0", *(f"{k} = {v}" for k, v in fields.items()), "*"]
+    lines += [" ".join("BAD" if np.isnan(v) else repr(float(v)) for v in row) for row in z]
+    out.write_text("\n".join([*lines, "*", ""]), encoding="ascii")
+    return out
 
 
 def write_text(path: str | Path, z: np.ndarray, delimiter: str = ",") -> Path:

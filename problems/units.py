@@ -4,16 +4,22 @@ The boundary element model of this package (a rigid surface on an elastic half-s
 influence coefficients of Love / BCC) holds for *small slopes*: the surface must be
 nearly flat on the scale of its own lateral size.  A height map whose numbers are in
 micrometres but read as metres, with a side length of 100 um, has an rms slope of about
-10^4; every solver then "solves" a problem that describes nothing physical.
+10^4; every solver then "solves" a problem that describes nothing physical.  The other
+way round, a map whose heights are read 10^3 or 10^6 too small (metres read as
+micrometres), or whose side length is given 10^3 or 10^6 too large (``--length`` in
+micrometres as metres), has an rms slope far below that of any measured surface at its
+sampling.
 
 ``unit_figures`` computes what the check reads (rms slope by forward differences,
 ``Surface.rms_slope``; the height range z_max - z_min against the shorter side length,
-min(N0 d0, N1 d1)); ``check_plausible_units`` refuses a surface beyond the small-slope range --
-rms slope > ``MAX_RMS_SLOPE`` or a height range larger than the side length -- with one
-line that says what was found and which height unit was probably meant.  Scenes call it
+min(N0 d0, N1 d1)); ``check_plausible_units`` refuses a surface outside the plausible
+range -- rms slope > ``MAX_RMS_SLOPE``, a height range larger than the side length, or an
+rms slope < ``MIN_RMS_SLOPE`` -- with one line that says what was found and what was
+probably meant: a height unit (``probable_unit``), else the side length.  Scenes call it
 when they validate a measured (``--surface``) file, so ``contactbench run`` stops with
 exit 2 before anything runs; ``--height-unit m|mm|um|nm`` converts the heights of a file
-that states no unit, and ``--allow-steep`` skips the check for those who mean it.
+that states no unit, and ``--allow-steep`` skips the check (either bound) for those who
+mean it.
 
 The composite modulus: ``PLAUSIBLE_MODULUS`` (Pa) is the range outside which an E* is almost
 always a unit slip (MPa or GPa given as Pa); the ``--E`` option record
@@ -33,6 +39,10 @@ HEIGHT_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9}
 UNIT_NAMES: dict[str, str] = {"m": "metres", "mm": "millimetres", "um": "micrometres", "nm": "nanometres"}
 #: The small-slope range: rms slope at most this, and a height range at most the side length.
 MAX_RMS_SLOPE = 1.0
+#: The smoothest plausible map: an rms slope below this (at the map's own sampling) is a
+#: thousand times below that of ground, turned or polished surfaces measured at the usual
+#: samplings (1e-2 to 1), what a height unit or a side length off by 1e3 or 1e6 gives.
+MIN_RMS_SLOPE = 1e-5
 #: The composite modulus E* = E / (1 - nu^2) a run takes as plausible, Pa: from soft gels
 #: and elastomers (~1e3 Pa) to beyond diamond (E* ~ 1.2e12 Pa).  Outside it the value is
 #: almost surely in the wrong unit (and far outside it the influence coefficients under-
@@ -61,13 +71,17 @@ class UnitFigures:
         return self.height_range > self.side_length
 
     @property
+    def too_smooth(self) -> bool:
+        return self.rms_slope < MIN_RMS_SLOPE
+
+    @property
     def plausible(self) -> bool:
-        return not (self.too_steep or self.too_tall)
+        return not (self.too_steep or self.too_tall or self.too_smooth)
 
 
 class ImplausibleUnitsError(ProblemInputError):
-    """A surface beyond the small-slope range (module doc); the message names the figures
-    and the unit that was probably meant."""
+    """A surface outside the plausible range (module doc); the message names the figures
+    and the unit or the length that was probably meant."""
 
     def __init__(self, message: str, figures: UnitFigures, suggestion: str | None) -> None:
         self.figures = figures
@@ -82,12 +96,14 @@ def unit_figures(surface: Surface) -> UnitFigures:
 
 
 def probable_unit(figures: UnitFigures, height_unit: str = "m") -> str | None:
-    """The largest height unit, smaller than ``height_unit``, in which the file's numbers
+    """The largest height unit, other than ``height_unit``, in which the file's numbers
     would give a plausible surface (None when none does: the side length is the
-    likelier mistake)."""
+    likelier mistake).  For a surface too steep only a smaller unit can help, so this is
+    the largest smaller one that does; for one too smooth, the largest larger one (the
+    closest to the steep bound, where measured surfaces lie)."""
     given = HEIGHT_UNITS[height_unit]
     for unit, metres in sorted(HEIGHT_UNITS.items(), key=lambda kv: -kv[1]):
-        if metres < given and figures.scaled(metres / given).plausible:
+        if unit != height_unit and figures.scaled(metres / given).plausible:
             return unit
     return None
 
@@ -101,6 +117,9 @@ def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
                      f"(the half-space model needs small slopes, <= {MAX_RMS_SLOPE:g})")
     if figures.too_tall:
         found.append(f"height range {figures.height_range:.3g} m exceeds the side length {figures.side_length:.3g} m")
+    if figures.too_smooth:
+        found.append(f"rms slope {figures.rms_slope:.2g} (below {MIN_RMS_SLOPE:g}, smoother than any measured "
+                     "surface: a height unit or a side length off by 1e3 or 1e6?)")
     text = "; ".join(found)
     if height_unit is None:
         return (f"{text}: the heights or the lateral size stated by the file look wrong; check the file's units "
@@ -108,14 +127,14 @@ def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
     unit = probable_unit(figures, height_unit)
     if unit is None:
         return (f"{text}: no height unit makes this plausible, so the side length is the likelier mistake; check "
-                f"--length (metres), or pass --allow-steep to run it anyway")
+                f"--length (metres, the side of the map), or pass --allow-steep to run it anyway")
     return (f"{text}: heights look like {UNIT_NAMES[unit]} given as {UNIT_NAMES[height_unit]}; pass "
             f"--height-unit {unit} (or --allow-steep to run it anyway)")
 
 
 def check_plausible_units(surface: Surface, height_unit: str | None = "m") -> UnitFigures:
-    """The figures of ``surface`` when they are within the small-slope range, else an
-    ``ImplausibleUnitsError``.  ``height_unit`` is the unit the file's numbers were read
+    """The figures of ``surface`` when they are within the plausible range (module doc),
+    else an ``ImplausibleUnitsError``.  ``height_unit`` is the unit the file's numbers were read
     in (None when the file stated its own unit)."""
     figures = unit_figures(surface)
     if figures.plausible:

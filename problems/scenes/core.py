@@ -164,8 +164,9 @@ def control_suffix(params: dict[str, Any]) -> str:
 
 
 def checked_units(spec: InstanceSpec, surface: Surface, cfg: SceneConfig) -> Surface:
-    """A measured surface within the small-slope range (``problems.units``), unless the
-    run says ``--allow-steep``; generated surfaces are the scene's own and not checked."""
+    """A measured surface within the plausible slope range (``problems.units``: neither
+    too steep nor too smooth), unless the run says ``--allow-steep``; generated surfaces
+    are the scene's own and not checked."""
     if spec.params.get("surface_path") and not cfg.extra.get("allow_steep"):
         read_in = surface.meta.get("height_unit")  # absent: the file stated its own unit
         check_plausible_units(surface, None if read_in is None else str(read_in))

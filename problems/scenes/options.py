@@ -36,7 +36,7 @@ from ..io import CROP_RULES, DETREND_RULES, NAN_RULES
 from ..kernels import KERNELS
 from ..layers import DEFAULT_NU, INTERFACES, NU_RANGE
 from ..surfaces import RMD_FAMILIES
-from ..units import HEIGHT_UNITS, PLAUSIBLE_MODULUS
+from ..units import HEIGHT_UNITS, MAX_RMS_SLOPE, MIN_RMS_SLOPE, PLAUSIBLE_MODULUS
 
 
 class ReadsOptions(Protocol):
@@ -239,8 +239,9 @@ OPTIONS: tuple[OptionRecord, ...] = (
     OptionRecord("height_unit", "--height-unit", "choice", "unit of the heights of a --surface file that states "
                  "none (default: m; refused for a file that states its unit)", choices=tuple(HEIGHT_UNITS),
                  group="surface-file", requires=(_SURFACE,)),
-    OptionRecord("allow_steep", "--allow-steep", "switch", "run a --surface beyond the small-slope range (rms "
-                 "slope > 1 or heights > side length)", group="surface-file", requires=(_SURFACE,)),
+    OptionRecord("allow_steep", "--allow-steep", "switch", "run a --surface whose slope looks implausible (rms "
+                 f"slope > {MAX_RMS_SLOPE:g} or < {MIN_RMS_SLOPE:g}, or heights > side length)", group="surface-file",
+                 requires=(_SURFACE,)),
     OptionRecord("family", "--surface-family", "choice", "RMD surface family of the generated surfaces: saupe "
                  "(non-periodic MidPointFM2D, the paper's; default of non-periodic scenes) or periodic "
                  "(wrap-around diamond-square)", choices=RMD_FAMILIES, generated_only=True),

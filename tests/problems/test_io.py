@@ -3,6 +3,8 @@ rules.  (Coarsening and the PSD power-law check: tests/problems/test_problems_co
 
 from __future__ import annotations
 
+import re
+import struct
 import warnings
 import zipfile
 from pathlib import Path
@@ -19,6 +21,7 @@ from contactbench.problems.io import (
     write_text,
     write_x3p,
 )
+from contactbench.problems.map_files import write_sdf
 from contactbench.problems.surfaces import Surface
 from tests.helpers import REPO
 
@@ -128,6 +131,47 @@ def _x3p_with_xml(path: Path, xml_edit: tuple[str, str] | None = None, drop: str
     return path
 
 
+def _x3p_with_cz(path: Path, data_type: str, increment: str | None) -> Path:
+    """An x3p of ``data_type`` heights whose CZ axis states ``increment`` (None: no increment)."""
+    write_x3p(path, random_map((6, 6)), 1e-6, data_type=data_type)
+    with zipfile.ZipFile(path) as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    inc = "" if increment is None else f"<Increment>{increment}</Increment>"
+    cz = f"<CZ><AxisType>A</AxisType><DataType>{data_type}</DataType>{inc}</CZ>"
+    members["main.xml"] = re.sub(r"<CZ>.*?</CZ>", cz, members["main.xml"].decode(), flags=re.S).encode()
+    path.unlink()
+    with zipfile.ZipFile(path, "w") as zf:
+        for n, b in members.items():
+            zf.writestr(n, b)
+    return path
+
+
+def _sdf_stating_fewer_rows(tmp: Path, binary: bool) -> Path:
+    """A 6 x 6 .sdf whose header states 4 profiles (rows) of its 6."""
+    path = write_sdf(tmp / f"fewer-{'b' if binary else 'a'}.sdf", random_map((6, 6)), 1e-6, binary=binary)
+    if binary:
+        raw = bytearray(path.read_bytes())
+        raw[44:46] = struct.pack("<H", 4)  # NumProfiles, after the magic, the dates and NumPoints
+        path.write_bytes(bytes(raw))
+    else:
+        path.write_text(path.read_text().replace("NumProfiles = 6", "NumProfiles = 4"))
+    return path
+
+
+def _coordinate_files(tmp: Path) -> dict[str, tuple[Path, str]]:
+    """Text files of coordinate columns that are no map: an x,z profile, and x,y,z columns
+    with a point missing from their grid; and a map written with decimal commas."""
+    x = np.arange(32) * 1e-6
+    np.savetxt(tmp / "profile.csv", np.column_stack([x, random_map((32, 1))[:, 0]]), delimiter=",")
+    yy, xx = np.mgrid[0:6, 0:6] * 1e-6
+    cols = np.column_stack([xx.ravel(), yy.ravel(), random_map((6, 6)).ravel()])
+    np.savetxt(tmp / "gap.csv", np.delete(cols, 14, axis=0), delimiter=",")
+    (tmp / "euro.csv").write_text("-0,614752;-0,683930\n6,1e-07;-0,5\n")
+    return {"an x,z profile": (tmp / "profile.csv", "an x,z profile, not a 2-D height map"),
+            "x,y,z columns with a point missing": (tmp / "gap.csv", "do not fill a regular grid"),
+            "decimal commas": (tmp / "euro.csv", "decimal commas are not read ('-0,614752' on line 1)")}
+
+
 def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     """Each bad-file class -> (file, a phrase its error must contain)."""
     out: dict[str, tuple[Path, str]] = {}
@@ -184,6 +228,19 @@ def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     out["byte-order mark, then a bad value"] = (tmp / "bom.csv", "non-numeric value 'x' on line 2")
     out["x3p entities"] = (_x3p_with_xml(tmp / "dtd.x3p", ("<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"no\" ?>",
                                                           '<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "b">]>')), "DTD")
+    out["binary sdf data longer than its header states"] = (_sdf_stating_fewer_rows(tmp, True),
+                                                             "header states 6 x 4 values of 8 bytes")
+    out["ascii sdf data longer than its header states"] = (
+        _sdf_stating_fewer_rows(tmp, False), "its data region holds 36 values where its header states 6 x 4")
+    out["x3p integer heights with no CZ increment"] = (_x3p_with_cz(tmp / "noinc.x3p", "L", None),
+                                                       "no CZ increment")
+    out["x3p negative CZ increment"] = (_x3p_with_cz(tmp / "neg.x3p", "D", "-1.0"), "upside down")
+    out["x3p zero CZ increment"] = (_x3p_with_cz(tmp / "zero-z.x3p", "D", "0"), "finite number > 0")
+    out.update(_coordinate_files(tmp))
+    two = np.full((8, 8), np.nan)
+    two[2, 3], two[5, 6] = 1e-6, -1e-6
+    np.save(tmp / "two.npy", two)
+    out["all but two points missing"] = (tmp / "two.npy", "62 of its 64 points are missing (NaN, 96.9%), more than 50%")
     out.update(topography_bad_files(tmp))
     out["unreadable path"] = (tmp / "does-not-exist.npy", "unreadable path")
     out["directory"] = (tmp, "unreadable path")
@@ -241,6 +298,107 @@ def test_a_byte_order_mark_is_no_value(tmp_path: Path) -> None:
     (tmp_path / "bom.csv").write_text("\ufeff" + "\n".join(",".join(repr(float(v)) for v in row) for row in z),
                                       encoding="utf-8")
     assert np.array_equal(read_height_map(tmp_path / "bom.csv").z, z)
+
+
+def test_x_y_z_columns_of_a_regular_grid_are_read_as_that_grid(tmp_path: Path) -> None:
+    """3 columns of at least XYZ_MIN_ROWS rows whose x and y take evenly spaced values, every
+    point of the grid once (in any order), are that grid: rows in increasing y, columns in
+    increasing x, the spacings the coordinates' steps, x, y, z in one unit.  A narrow
+    matrix of heights (N x 3, N x 2, 3 x 3) stays a matrix."""
+    z = random_map((6, 10), seed=11)
+    yy, xx = np.mgrid[0:6, 0:10]
+    cols = np.column_stack([xx.ravel() * 2e-6, yy.ravel() * 1e-6 + 5e-6, z.ravel()])
+    np.savetxt(tmp_path / "xyz.csv", cols[np.random.default_rng(0).permutation(60)], delimiter=",", fmt="%.17g")
+    s = load_surface(tmp_path / "xyz.csv", detrend="none")
+    np.testing.assert_array_equal(s.heights, z)
+    assert s.spacing == pytest.approx((1e-6, 2e-6), rel=1e-12) and s.meta["spacing_from"] == "file"
+    with pytest.raises(SurfaceFileError, match="disagrees with the file's own side length"):
+        load_surface(tmp_path / "xyz.csv", length=1e-3, detrend="none")
+    np.savetxt(tmp_path / "xyz_um.txt", cols * 1e6, fmt="%.12g")  # micrometres, white space, rounded
+    um = load_surface(tmp_path / "xyz_um.txt", height_unit="um", detrend="none")
+    np.testing.assert_allclose(um.heights, z, rtol=0.0, atol=1e-17)
+    assert um.spacing == pytest.approx((1e-6, 2e-6), rel=1e-9)
+    for shape in [(40, 3), (40, 2), (3, 3)]:
+        write_text(tmp_path / "narrow.csv", random_map(shape, seed=12))
+        assert read_height_map(tmp_path / "narrow.csv").z.shape == shape
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_an_sdf_reads_back_with_its_spacings_and_a_binary_one_may_end_in_a_text_trailer(
+        tmp_path: Path, binary: bool) -> None:
+    z = random_map((6, 10), seed=13)
+    path = write_sdf(tmp_path / "a.sdf", z, (2e-6, 1e-6), binary=binary)
+    if binary:
+        path.write_bytes(path.read_bytes() + b"*\nComment = a trailer\n*\n")
+    s = load_surface(path, detrend="none")
+    np.testing.assert_allclose(s.heights, z, rtol=1e-14, atol=0.0)
+    assert s.spacing == pytest.approx((2e-6, 1e-6), rel=1e-12)
+
+
+def _gwy(path: Path, channels: list[tuple[str, np.ndarray]], side: float) -> Path:
+    """A Gwyddion .gwy file (a serialised GwyContainer) of 2-D channels (title, heights in
+    metres), each side x side metres."""
+    def cstr(text: str) -> bytes:
+        return text.encode() + b"\0"
+
+    def item(key: str, kind: str, payload: bytes) -> bytes:
+        return cstr(key) + kind.encode() + payload
+
+    def obj(cls: str, items: list[bytes]) -> bytes:
+        body = b"".join(items)
+        return cstr(cls) + struct.pack("<I", len(body)) + body
+
+    metre = obj("GwySIUnit", [item("unitstr", "s", cstr("m"))])
+    items = []
+    for k, (title, z) in enumerate(channels):
+        field = obj("GwyDataField", [
+            item("xres", "i", struct.pack("<i", z.shape[1])), item("yres", "i", struct.pack("<i", z.shape[0])),
+            item("xreal", "d", struct.pack("<d", side)), item("yreal", "d", struct.pack("<d", side)),
+            item("si_unit_xy", "o", metre), item("si_unit_z", "o", metre),
+            item("data", "D", struct.pack("<I", z.size) + z.astype("<f8").tobytes())])
+        items += [item(f"/{k}/data", "o", field), item(f"/{k}/data/title", "s", cstr(title))]
+    path.write_bytes(b"GWYP" + obj("GwyContainer", items))
+    return path
+
+
+def test_a_channel_name_two_channels_share_is_ambiguous_and_an_index_chooses(tmp_path: Path) -> None:
+    z, w = random_map((6, 6), seed=14), random_map((6, 6), seed=15)
+    path = _gwy(tmp_path / "two.gwy", [("Height", z), ("Height", w)], 6e-6)
+    with pytest.raises(SurfaceFileError, match=r"2 channels are named 'Height' \(indices 0, 1.*choose one by index"):
+        load_surface(path, channel="Height", detrend="none")
+    np.testing.assert_allclose(load_surface(path, channel=1, detrend="none").heights, w, rtol=1e-15)
+
+
+def test_a_mostly_missing_map_is_refused_and_a_share_never_rounds_to_0_or_100_percent(tmp_path: Path) -> None:
+    """More than half of the points missing (MAX_MISSING_FRACTION) is refused; half is
+    filled.  A share that is not exactly 0 or 1 reads "<0.1%" or ">99.9%"."""
+    from contactbench.problems.io import MAX_MISSING_FRACTION, share_text
+
+    assert MAX_MISSING_FRACTION == 0.5
+    assert (share_text(1, 4096), share_text(4095, 4096), share_text(0, 9), share_text(9, 9)) == (
+        "<0.1%", ">99.9%", "0.0%", "100.0%")
+    z = random_map((64, 64))
+    z[0, 0] = np.nan
+    np.save(tmp_path / "one.npy", z)
+    with pytest.warns(UserWarning, match=r"1 missing points \(<0\.1%\)"):
+        load_surface(tmp_path / "one.npy", length=64e-6, detrend="none")
+    z[:, :32] = np.nan  # half
+    np.save(tmp_path / "half.npy", z)
+    with pytest.warns(UserWarning, match=r"2048 missing points \(50\.0%\)"):
+        load_surface(tmp_path / "half.npy", length=64e-6, detrend="none")
+    z[:] = np.nan
+    z[3, 4], z[40, 50] = 1e-6, -1e-6
+    np.save(tmp_path / "two.npy", z)
+    with pytest.raises(SurfaceFileError, match=r"4094 of its 4096 points are missing \(NaN, >99\.9%\), more than 50%"):
+        load_surface(tmp_path / "two.npy", length=64e-6)
+
+
+def test_a_nan_only_map_is_refused_before_any_numpy_warning(tmp_path: Path) -> None:
+    np.save(tmp_path / "nan.npy", np.full((8, 8), np.nan))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SurfaceFileError, match="NaN-only"):
+            load_surface(tmp_path / "nan.npy", length=8e-6, detrend="plane")
 
 
 def test_text_or_npy_without_length_asks_for_it(tmp_path: Path) -> None:
@@ -316,6 +474,7 @@ def test_non_square_maps_are_kept_unless_a_crop_is_asked(tmp_path: Path) -> None
     with pytest.warns(UserWarning, match="padded"):
         p = load_surface(tmp_path / "a.npy", length=6.0, crop="pad-square", detrend="none")
     assert p.N == 10 and p.delta == 1.0
+    assert "the nominal area A0 grows by a factor 1.667" in p.meta["crop"]  # 10 x 10 over 6 x 10 points
     np.testing.assert_array_equal(p.heights[:6], z)
     assert np.all(p.heights[6:] == z.min())
 

@@ -112,7 +112,8 @@ def test_a_tilted_map_with_holes_states_its_plane_and_filled_points_everywhere(i
 
 def test_the_header_states_the_heights_unit_and_the_crop_done(in_tmp: Path) -> None:
     """A map of micrometres padded to a square: the header's "Problem changes" says the
-    heights were scaled to metres and how the map was padded, not only "crop pad-square"."""
+    heights were scaled to metres and how the map was padded, with the factor by which the
+    padding grows the nominal area, not only "crop pad-square"."""
     z = tilted_map_with_holes()[:, :N1 - 2]
     z[np.isnan(z)] = 0.0
     np.save(in_tmp / "um.npy", z / 1e-6)
@@ -121,6 +122,7 @@ def test_the_header_states_the_heights_unit_and_the_crop_done(in_tmp: Path) -> N
     (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
     assert "heights in um (height_unit argument), scaled by 1.00e-06 to metres" in line, line
     assert f"padded {N0}x{N1 - 2} to" in line, line
+    assert f"the nominal area A0 grows by a factor {N0 * N0 / (N0 * (N1 - 2)):.4g}" in line, line
 
 
 @pytest.mark.slow
@@ -268,3 +270,30 @@ def test_the_header_names_the_channel_read_from_a_file_of_several(capsys: pytest
     report = build_report(in_tmp / "o", html=False).read_text()
     (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
     assert "channel 'height'" in line, line
+
+
+def test_the_samples_provenance_states_the_shapes_and_spacings_they_load_with() -> None:
+    """Each ``load_surface`` line of problems/data/PROVENANCE.md whose comment states a
+    shape ("N0 x N1") and a spacing ("spacing L / N") loads with that shape and spacing."""
+    import ast
+    import re
+
+    from tests.helpers import REPO
+
+    text = (REPO / "problems" / "data" / "PROVENANCE.md").read_text(encoding="utf-8")
+    lines = [ln for ln in text.splitlines() if ln.startswith("load_surface(") and "#" in ln]
+    assert len(lines) >= 3
+    for ln in lines:
+        call, comment = ln.split("#", 1)
+        node = ast.parse(call.strip(), mode="eval").body
+        assert isinstance(node, ast.Call)
+        path, *args = (ast.literal_eval(a) for a in node.args)
+        kwargs = {k.arg: ast.literal_eval(k.value) for k in node.keywords}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            s = load_surface(REPO / path, *args, **kwargs)
+        n0, n1 = (int(v) for v in re.search(r"(\d+) x (\d+)", comment).groups())
+        assert s.shape == (n0, n1), ln
+        spacing = re.search(r"spacing ([\d.e-]+) / (\d+)", comment)
+        if spacing:
+            assert s.spacing[0] == pytest.approx(float(spacing.group(1)) / int(spacing.group(2)), rel=1e-12), ln
