@@ -40,7 +40,9 @@ __all__ = ["READINGS", "ProblemSeal", "UnreadAnswer", "Verdict", "answer_figures
 @dataclass
 class Verdict:
     """The judge's verdict on one answer (module doc).  ``usable``: the answer was a
-    length-n vector of finite real numbers and the problem was left as handed."""
+    length-n vector of finite real numbers and the problem was left as handed.
+    ``kinds`` names each of ``problems``, in order: "answer" (no answer), "tampered",
+    "dtype" (p not float64), "kkt" (above check_tol), "reference" (beyond p_tol)."""
 
     status: str  # "solved" | "inaccurate" | "failed"
     reading: str  # "pass" | "wrong" | "unconverged"
@@ -49,6 +51,7 @@ class Verdict:
     figures: dict[str, Any] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
     tampered: bool = False  # the solver wrote into the problem it was handed
+    kinds: list[str] = field(default_factory=list)
 
     @property
     def kkt_error(self) -> float:
@@ -226,16 +229,18 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     check_positive("the judge's check_tol", check_tol)
     claimed = bool(claimed)
     if tampered:
-        verdict = _failed(claimed, tampered, reading="wrong")
+        verdict = _failed(claimed, tampered, reading="wrong", kind="tampered")
         verdict.tampered = True
         return verdict
     pf, why = read_answer(p, inst.n)
     if pf is None:
         return _failed(claimed, why)
     problems: list[str] = []
+    kinds: list[str] = []
     ubar_dtype = np.asarray(inst.qp.ubar).dtype
     if np.asarray(p).dtype != np.float64:
         problems.append(f"returned {np.asarray(p).dtype} p (input ubar was {ubar_dtype})")
+        kinds.append("dtype")
     kkt = kkt_check(inst, pf)
     with np.errstate(all="ignore"):  # a huge answer's load may overflow: a figure, not a verdict
         figures = answer_figures(inst, pf, kkt, p_ref, analytic_load, check_tol)
@@ -243,11 +248,13 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     if not solved:
         value, limit = shown_apart(kkt.kkt_error, check_tol)
         problems.append(f"kkt_error {value} > check_tol {limit}")
+        kinds.append("kkt")
     if p_ref is not None and p_tol is not None and not figures["p_rel_error"] <= p_tol:
         value, limit = shown_apart(figures["p_rel_error"], p_tol)
         problems.append(f"p is {value} off the exact reference (allowed {limit})")
+        kinds.append("reference")
     reading = "pass" if not problems else ("wrong" if claimed else "unconverged")
-    return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems)
+    return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems, kinds=kinds)
 
 
 def shown_apart(value: float, limit: float) -> tuple[str, str]:
@@ -261,10 +268,11 @@ def shown_apart(value: float, limit: float) -> tuple[str, str]:
     return repr(float(value)), repr(float(limit))
 
 
-def _failed(claimed: bool, why: str, reading: str | None = None) -> Verdict:
+def _failed(claimed: bool, why: str, reading: str | None = None, kind: str = "answer") -> Verdict:
     """The verdict on no answer: status "failed", wrong if claimed (or ``reading``)."""
     figures = {"kkt_error": math.inf, "error": why}
-    return Verdict("failed", reading or ("wrong" if claimed else "unconverged"), claimed, None, figures, [why])
+    return Verdict("failed", reading or ("wrong" if claimed else "unconverged"), claimed, None, figures, [why],
+                   kinds=[kind])
 
 
 def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: np.ndarray | None,

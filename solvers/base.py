@@ -194,8 +194,14 @@ class WarmStart:
     w: np.ndarray | None = None
 
 
-#: ``SolveResult.info`` key of the lifecycle's own answer (ubar <= 0, no load: p = 0, no ``iterate``).
+#: ``SolveResult.info`` key of the lifecycle's own answer (a solver can set it: the harness asks the function below).
 WITHOUT_ITERATE = "answered_without_iterate"
+
+
+def answered_without_iterate(qp: QP) -> bool:
+    """Whether the lifecycle answers ``qp`` itself, p = 0, without calling ``iterate``
+    (module doc, step 4): ubar <= 0 (no contact) and no load imposed."""
+    return bool(np.max(qp.ubar, initial=0.0) <= 0.0) and not qp.constraints.load_control
 
 
 @dataclass
@@ -241,9 +247,8 @@ Promise = Literal["exact"] | float
 
 
 def check_promise(promise: Any) -> Promise:
-    """``promise`` if it is "exact" or a float f with 0 < f < 1, else ``ValueError``
-    naming the rule.  A floor of 1 or more is refused: the trivial answer p = 0 has
-    scaled KKT error exactly 1, so such a floor would accept it on every case."""
+    """``promise`` if it is "exact" or a float f with 0 < f < 1, else ``ValueError`` naming the rule (p = 0
+    has scaled KKT error exactly 1: a floor of 1 or more would accept it on every case)."""
     if promise == "exact" and isinstance(promise, str):
         return "exact"
     if isinstance(promise, (int, float)) and not isinstance(promise, bool) and 0 < promise < 1:  # NaN fails too
@@ -253,8 +258,8 @@ def check_promise(promise: Any) -> Promise:
 
 
 def promised_tol(promise: Promise, check_tol: float) -> float:
-    """The scaled KKT error a case with ``check_tol`` holds a solver with ``promise`` to:
-    check_tol for "exact", else max(check_tol, floor)."""
+    """The scaled KKT error a case with ``check_tol`` holds a solver with ``promise`` to: check_tol
+    for "exact", else max(check_tol, floor) (validate counts a floor up to its ``PROMISE_BOUND``)."""
     return float(check_tol) if promise == "exact" else max(float(check_tol), float(promise))
 
 
@@ -315,12 +320,8 @@ class Capabilities:
             "promise=" + (self.promise if self.promise == "exact" else f"floor {self.promise:g}"),
             f"input={self.input_format}",
         ]
-        if self.needs_geometry:
-            parts.append("needs-geometry")
-        if self.load_control:
-            parts.append("load-control")
-        if self.bounds:
-            parts.append("bounds")
+        parts += [flag for flag, on in (("needs-geometry", self.needs_geometry), ("load-control", self.load_control),
+                                        ("bounds", self.bounds)) if on]
         if self.max_n:
             parts.append(f"max_n={self.max_n}")
         return ", ".join(parts)
@@ -632,7 +633,7 @@ class Solver(ABC):
                            deadline=Deadline(settings.time_limit, t0), trace=Trace(t0=t0),
                            diag_max=float(np.max(qp.H.diagonal())), check_tol=settings.check_tol)
         ctx.track(qp.H)
-        if np.max(qp.ubar, initial=0.0) <= 0.0 and not qp.constraints.load_control:
+        if answered_without_iterate(qp):
             out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0", info={WITHOUT_ITERATE: True})
         else:
             out = self.iterate(ctx)
@@ -658,7 +659,7 @@ def readable_answer(p: Any) -> np.ndarray:
 
 def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
     """The SolveResult of an outcome (module doc, step 6).  The solver's claim
-    (``converged``) is passed on as made: an unusable p (wrong shape, non-finite,
+    (``converged``) is passed on as made, whatever status it gives: an unusable p (wrong shape, non-finite,
     unreadable) claimed as converged is the judge's to call wrong, not the lifecycle's to
     turn into an honest failure; unclaimed, its status is FAILED."""
     qp = ctx.qp
@@ -672,17 +673,15 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
         multiplier = out.multiplier
         if multiplier is None:
             multiplier = fit_multiplier(w, p, qp.constraints.upper)
-    status = out.status
-    if status is None:
-        status = (Status.CONVERGED if out.converged else
-                  Status.TIME_LIMIT if ctx.deadline.expired() else Status.MAX_ITER)
+    status = out.status or (Status.CONVERGED if out.converged else
+                            Status.TIME_LIMIT if ctx.deadline.expired() else Status.MAX_ITER)
     if not finite and status is not Status.CONVERGED:
         status = Status.FAILED
     if finite and w is not None:
         final = ctx.kkt(p, w, multiplier)
         if not ctx.trace.points or ctx.trace.points[-1][0] != out.iterations:
             ctx.trace.points.append((int(out.iterations), ctx.trace.elapsed(), float(final)))
-    converged = bool(out.converged) and status is Status.CONVERGED
+    converged = bool(out.converged)  # a claim beside another status word is still a claim, for the judge
     return SolveResult(
         p=p,
         iterations=int(out.iterations),

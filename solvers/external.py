@@ -37,7 +37,10 @@ One solve (``ExternalSolver.iterate``):
 1. write the problem directory into a temporary folder (set-up time, ``setup_time_s``);
 2. run the command -- split by ``shlex`` and run without a shell, the placeholders
    replaced inside each word -- in its own process group, timed from outside;
-3. at the time limit (``ctx.deadline``) kill the whole process group: ``SolveAborted("timeout")``;
+3. at the time limit (``ctx.deadline``) kill the program, its descendants and its whole process
+   group: ``SolveAborted("timeout")``; once it has exited, its group (a child it left behind;
+   one that left the group, ``setsid``, ends with the harness's isolated worker, which adopts
+   it: ``harness.run.isolation``);
    death by a signal (a segfault): ``SolveAborted("crashed")``; a non-zero exit:
    ``ExternalSolverError`` (the row's status "failed"), with the tail of stderr/stdout;
 4. read the solution directory (``read_solution_dir``, ``as_written``): a missing or
@@ -74,6 +77,7 @@ from contactbench.problems.kernels import KERNELS
 from contactbench.problems.qpfile import (DENSE_LIMIT, SolutionFile, SolutionFileError, read_solution_dir,
                                          write_problem_dir)
 
+from ._processes import end_descendants
 from .base import (Capabilities, Outcome, ProblemTraits, Promise, SolveAborted, SolveContext, Solver, Status,
                    check_promise)
 from .registry import all_solvers, register
@@ -245,7 +249,9 @@ class ProcessResult:
 
 
 def _kill_group(proc: subprocess.Popen[bytes]) -> None:
-    """SIGTERM to the process group, SIGKILL after TERM_GRACE seconds."""
+    """SIGTERM to the process group, SIGKILL after TERM_GRACE seconds; and SIGKILL, first,
+    to the program's descendants that left its group (``setsid``): found while it runs."""
+    end_descendants(proc.pid, except_group=proc.pid)
     for sig, wait in ((signal.SIGTERM, TERM_GRACE), (signal.SIGKILL, 5.0)):
         try:
             os.killpg(proc.pid, sig)

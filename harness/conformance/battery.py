@@ -3,12 +3,17 @@
 ``contactbench validate MODULE:NAME|NAME`` (``main``) and the Python API ``validate``
 run a solver -- registered, or given by import path -- on every case of the battery
 (``harness.conformance.cases``: conditioning, units, edge cases, random LCPs, float32
-input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids).
+input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids,
+constrained and rectangular problems, and a few cases solved from a warm start that is not
+their answer, ``warm-start``, for solvers that take one).
 Every answer is judged by the one judge, ``harness.judging.judge``, at the tolerance the
 solver promises (``Capabilities.promise``, docs/verdicts.md): "exact" -- the case's
 profile's ``check_tol``, the threshold ``run`` uses for "solved", so a solve that ``run``
 calls solved is never WRONG here, and a WRONG one is never solved there; a float floor
-f -- max(check_tol, f).  Beside the judge's KKT test, the answer is compared with the
+f -- max(check_tol, min(f, ``PROMISE_BOUND``)).  A promise loosens the KKT test, up to
+``PROMISE_BOUND``, the loosest threshold at which ``run`` calls an answer solved (its
+profiles' largest ``check_tol``); a floor declared above it is held to the bound, and the
+table says so.  Beside the judge's KKT test, the answer is compared with the
 exact reference (``p_tolerance``, a gross-error bound).  The problem is sealed before
 each solve (``harness.judging.ProblemSeal``): a solver that writes into it is WRONG.
 
@@ -21,30 +26,44 @@ Row statuses (one row per solve):
                  solver wrote into the problem it was handed.
 ``unconverged``  inaccurate or no answer, and the solver did not claim convergence.
 ``flagged``      the KKT test accepts the answer but a conformance extra does not: p is
-                 beyond ``p_tolerance`` of the exact reference; and on comparison rows,
-                 unit systems disagree by more than 1e-8, or a 1e-6 perturbation of ubar
-                 moved p by more than 10 cond(H) x 1e-6 (a chaotic active set).
+                 beyond ``p_tolerance`` of the exact reference, or not float64 (the
+                 judge's dtype note); and on comparison rows, unit systems disagree by
+                 more than 1e-8, or a 1e-6 perturbation of ubar moved p by more than
+                 10 cond(H) x 1e-6 (a chaotic active set).  The row and the headline
+                 name which (``VerdictRow.flags``).
 ``refused``      it raised ProblemInputError / MemoryBudgetError / NotImplementedError
                  (or, for float32 input, a ValueError/TypeError naming the dtype).
 ``crashed``      any other exception (a ``SolveAborted`` with a status that class does not
                  allow included), or the worker process died.
 ``timeout``      no answer within the time limit (the worker is killed).
-``skipped``      the solver cannot take the case (operator kind, max_n, its own
-                 ``skip``), or a comparison row whose steps did not all pass.
+``skipped``      the solver cannot take the case (operator kind, max_n, a warm start it
+                 does not take, its own ``skip``), or a comparison row whose steps did
+                 not all pass.  ``own_skip`` marks a skip the solver's own ``skip``,
+                 ``skip_params`` or memory model made, where the capabilities it
+                 declares alone would have run the case (``cases.declared_skip``).
 
 Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 
 ``wrong``        any WRONG row (exit 1);
 ``incomplete``   solves left unsolved -- unconverged, timeout, crashed, or refused
                  outside the float32 case -- by any solver: exit 3, listing them;
-``untested``     none of these, and no answer of the solver's own judged
+``untested``     none of these, and either no answer of the solver's own judged
                  (``VerdictTable.judged``): every selected case skipped for a capability
                  it declares, refused where refusing is allowed (float32), or answered by
-                 the lifecycle without calling it (ubar <= 0: p = 0) -- exit 4;
+                 the lifecycle without calling it (ubar <= 0: p = 0); or its own skips
+                 left a whole group of the selection untried (the coverage rule below)
+                 -- exit 4;
 ``conforms``     none of these: every case solved to what the solver promises, or skipped
-                 for a capability it declares, and at least one answer of its own
-                 accepted (exit 0); the headline states the promise and, when rows are
-                 flagged, how many of them.
+                 for a capability it declares, at least one answer of its own accepted,
+                 and every group of the selection tried (exit 0); the headline states the
+                 promise and, when rows are flagged, how many of them and why.
+
+Coverage: a solver must be handed at least one solve in each group of the selection
+(``cases.BATTERY_GROUPS``) that the capabilities it declares do not rule out.  A group
+whose every solve was skipped, at least one of them by the solver's own ``skip``,
+``skip_params`` or memory model (``own_skip``), is untried
+(``VerdictTable.untried_groups``): the solver is UNTESTED there, and the headline names
+the groups -- a ``skip`` can narrow the battery, never choose the part it is judged on.
 ``--strict`` also fails (exit 1) on crashes, timeouts and flagged rows.  Bad input (an
 unknown solver, an import path that does not load, a solver declaration that cannot be
 used (``solvers.registry.check_declaration``), no case selected, a promise that is not
@@ -83,6 +102,7 @@ from contactbench.solvers.base import Promise, Solver, describe_promise, promise
 from contactbench.solvers.registry import load_solver
 
 from .cases import (
+    BATTERY_GROUPS,
     DEFAULT_TIMEOUT,
     REFUSABLE_GROUPS,
     ConformanceCase,
@@ -93,11 +113,12 @@ from .cases import (
     check_timeout,
     conformance_cases,
     exact_reference,
+    warm_start_of,
 )
 from ..judging import Verdict, judge, read_answer
-from ..profiles import get_profile
+from ..profiles import PROFILES, get_profile
 
-__all__ = ["ConformanceCase", "GROUPS", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",
+__all__ = ["BATTERY_GROUPS", "ConformanceCase", "GROUPS", "PROMISE_BOUND", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",
            "build_battery_spec", "conformance_cases", "exact_reference", "p_tolerance", "validate"]
 
 #: Agreement required across unit systems (P/(E A) relative, scaled KKT figures absolute).
@@ -107,6 +128,12 @@ PERTURBATION_FACTOR = 10.0
 #: ``p_tolerance`` = clip(P_TOL_FACTOR cond sqrt(check_tol), P_TOL_RANGE).
 P_TOL_FACTOR = 10.0
 P_TOL_RANGE = (1e-4, 0.05)
+#: The loosest scaled KKT error a promise may hold a solver to: the loosest threshold at
+#: which ``run`` calls an answer solved (module doc).
+PROMISE_BOUND = max(profile.check_tol for profile in PROFILES.values())
+#: What a flagged row's ``flags`` name, in the headline's words.
+FLAG_WORDS = {"reference": "off the exact reference", "dtype": "not float64",
+              "comparison": "failing a comparison"}
 
 #: Statuses of a solve that produced an answer (the comparison rows need one per step).
 ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
@@ -146,10 +173,24 @@ class VerdictRow:
     message: str = ""
     detail: str = ""
     iterated: bool = True  # False: answered by the lifecycle, without calling the solver
+    own_skip: bool = False  # skipped by the solver's own skip, skip_params or memory model (module doc)
+    flags: str = ""  # a flagged row: what failed, ``FLAG_WORDS``' keys joined by "+"
 
     @property
     def label(self) -> str:
         return self.case if self.step < 0 else f"{self.case}@{self.step}"
+
+
+def held_promise(promise: Promise) -> Promise:
+    """The promise a solver is held to: "exact", or its floor up to ``PROMISE_BOUND``."""
+    return promise if promise == "exact" else min(float(promise), PROMISE_BOUND)
+
+
+def promise_text(promise: Promise) -> str:
+    """The promise in words, and the bound it is held to where it is looser."""
+    held = held_promise(promise)
+    text = describe_promise(promise)
+    return text if held == promise else f"{text}, held to {held:g}, the loosest threshold run calls solved"
 
 
 def p_tolerance(cond: float, check_tol: float) -> float:
@@ -177,11 +218,12 @@ def row_status(v: Verdict) -> str:
 def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, case: ConformanceCase,
                 step: int, solver: str, promise: Promise = "exact") -> VerdictRow:
     """The row of one solve: the judge's verdict at the promised tolerance (the case's
-    check_tol, or the solver's floor above it), read as in the module doc."""
-    check_tol = promised_tol(promise, get_profile(case.profile).check_tol)
+    check_tol, or the solver's floor above it, held to ``PROMISE_BOUND``), read as in the
+    module doc."""
+    check_tol = promised_tol(held_promise(promise), get_profile(case.profile).check_tol)
     row = VerdictRow(solver, case.name, case.group, step, inst.n, out.kind, time_s=out.time_s, check_tol=check_tol,
                      cond=ref.cond if ref else float("nan"), message=out.message, detail=out.detail,
-                     ref_time_s=ref.time_s if ref else float("nan"))
+                     ref_time_s=ref.time_s if ref else float("nan"), own_skip=out.own_skip)
     if out.kind != "ok":
         return row
     p_ref = ref.p if ref is not None and ref.trusted else None
@@ -195,6 +237,7 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
         row.kkt = {k: float(getattr(v.kkt, k)) for k in ("primal", "dual", "complementarity", "complementarity_sum")}
     row.status = row_status(v)
     if row.status == "flagged":
+        row.flags = "+".join(k for k in v.kinds if k in FLAG_WORDS)
         row.message = "the KKT test accepts it, but " + "; ".join(v.problems)
     elif row.status == "unconverged":
         row.message = f"{v.message()} (solver status: {out.solver_status})"
@@ -237,7 +280,7 @@ def units_agreement(rows: list[VerdictRow], case: ConformanceCase, solver: str) 
     kkt_spread = max(kkt_spread, float(np.ptp([r.kkt_error for r in rows])))
     v.kkt_error, v.p_rel_error = kkt_spread, load_spread
     ok = bool(load_spread <= UNITS_AGREEMENT and kkt_spread <= UNITS_AGREEMENT)
-    v.status = _steps_verdict(rows, ok)
+    v.status, v.flags = _steps_verdict(rows, ok), "" if ok else "comparison"
     v.message = (f"P/(EA) spread {load_spread:.1e}, scaled-KKT spread {kkt_spread:.1e} "
                  f"({'within' if ok else 'beyond'} {UNITS_AGREEMENT:g})" + _steps_note(rows))
     return v
@@ -261,7 +304,7 @@ def perturbation_check(rows: list[VerdictRow], ps: list[np.ndarray | None], inst
     v.kkt_error = max(r.kkt_error for r in rows)
     v.p_rel_error = move
     ok = bool(amplification <= PERTURBATION_FACTOR * refs[0].cond)
-    v.status = _steps_verdict(rows, ok)
+    v.status, v.flags = _steps_verdict(rows, ok), "" if ok else "comparison"
     v.message = (f"eps {eps:.0e}: p moved {move:.1e} (exact {ref_move:.1e}), amplification {amplification:.3g} "
                  f"vs cond {refs[0].cond:.3g}; active-set flips {flips} (exact {ref_flips})"
                  + ("" if ok else " -- chaotic") + _steps_note(rows))
@@ -303,6 +346,15 @@ class VerdictTable:
         return [r for r in self.rows if r.status == "WRONG"]
 
     @property
+    def untried_groups(self) -> list[str]:
+        """The groups of the selection in which the solver was handed no solve, at least one
+        of them skipped by its own skip, skip_params or memory model (module doc, coverage)."""
+        steps = [r for r in self.rows if r.step >= 0]
+        groups = [g for g in BATTERY_GROUPS if any(r.group == g for r in steps)]
+        return [g for g in groups if all(r.status == "skipped" for r in steps if r.group == g)
+                and any(r.own_skip for r in steps if r.group == g)]
+
+    @property
     def unsolved(self) -> list[VerdictRow]:
         """Solves without a correct answer (besides WRONG ones): what no solver may leave."""
         return [r for r in self.solves if r.status in UNSOLVED
@@ -317,7 +369,7 @@ class VerdictTable:
             return "strict"
         if self.unsolved:
             return "incomplete"
-        return "conforms" if self.judged else "untested"
+        return "conforms" if self.judged and not self.untried_groups else "untested"
 
     @property
     def ok(self) -> bool:
@@ -338,15 +390,23 @@ class VerdictTable:
             return f"FAILS (--strict): {len(bad)} crashed, timed-out or flagged row(s): {', '.join(bad)}"
         if outcome == "incomplete":
             return f"INCOMPLETE: leaves {len(unsolved)} of {solves} solves unsolved: {labels}"
+        untried = self.untried_groups
+        if outcome == "untested" and untried:
+            own = sum(r.own_skip for r in self.rows)
+            return (f"UNTESTED: its own skip left {len(untried)} group(s) of the battery untried, "
+                    f"{', '.join(untried)} ({own} solves skipped by its own skip, skip_params or memory model, "
+                    f"{len(self.judged)} of its answers judged) -- a skip may narrow the battery, not choose it")
         if outcome == "untested":
             return (f"UNTESTED: no answer of the solver's own was judged ({solves} solves) -- every selected case "
                     "skipped for a declared capability, refused where refusing is allowed, or answered without "
                     "calling the solver (ubar <= 0: p = 0)")
-        flagged = self.count("flagged")
+        flagged = [r for r in self.rows if r.status == "flagged"]
         if flagged:
-            return (f"CONFORMS to its promise ({describe_promise(self.promise)}): {flagged} of {len(self.rows)} "
-                    "rows flagged -- accepted by the KKT test, but off the exact reference or failing a comparison")
-        return f"CONFORMS: every solve correct to its promise ({describe_promise(self.promise)}; {solves} of {solves})"
+            kinds = {k for r in flagged for k in r.flags.split("+") if k}
+            why = " or ".join(FLAG_WORDS[k] for k in FLAG_WORDS if k in kinds) or "failing a conformance extra"
+            return (f"CONFORMS to its promise ({promise_text(self.promise)}): {len(flagged)} of {len(self.rows)} "
+                    f"rows flagged -- accepted by the KKT test, but {why}")
+        return f"CONFORMS: every solve correct to its promise ({promise_text(self.promise)}; {solves} of {solves})"
 
     def summary(self, strict: bool = False) -> str:
         statuses = ("pass", "WRONG", "unconverged", "flagged", "refused", "crashed", "timeout", "skipped")
@@ -357,7 +417,7 @@ class VerdictTable:
         width = max([len(r.label) for r in self.rows] + [4])
         head = (f"{'case':{width}s} {'n':>5s} {'status':11s} {'claim':5s} {'kkt_error':>9s} {'err_ref':>9s} "
                 f"{'iters':>6s} {'time_s':>7s}  note")
-        promise = describe_promise(self.promise)
+        promise = promise_text(self.promise)
         lines = [f"conformance of solver {self.solver!r} ({self.mode} battery, promise: {promise})"]
         if self.note:
             lines.append(self.note)
@@ -418,7 +478,7 @@ def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Prom
     for k in range(len(seq)):
         inst = seq.at(k)
         ref = cached_reference(case.spec, k, inst)
-        out = runner.solve(case.spec, k)
+        out = runner.solve(case.spec, k, warm_start_of(case, k, inst))
         rows.append(judge_solve(out, inst, ref, case, k, name, promise))
         ps.append(read_answer(out.p, inst.n)[0] if out.kind == "ok" else None)
         insts.append(inst)

@@ -1,7 +1,13 @@
 """What the conformance battery runs: its cases, their exact references, and the solves.
 
 * ``conformance_cases`` -- the recipes of the stress battery
-  (``contactbench.problems.scenes.stress``) as ``ConformanceCase`` records;
+  (``contactbench.problems.scenes.stress``) as ``ConformanceCase`` records, and the
+  battery's own group ``warm-start`` (``WARM_CASES``): a few small cases of it solved again
+  from a warm start that is not their answer -- the exact answer of the same H with ubar
+  shifted by a fraction of max|ubar| (a lighter load: the previous step of a loading sweep,
+  as ``run`` hands it; a heavier one: of an unloading sweep), with that problem's gap as w.
+  A solver that takes no warm start (``capabilities.warm_start`` "none") skips them, a
+  capability it declares;
 * ``exact_reference`` -- the exact solution of one instance, computed independently of
   the solver registry (a judge must not be a contestant): the known solution where a
   recipe is built from one or certifies one (a periodic whole grid, where H is singular:
@@ -10,7 +16,9 @@
   block principal pivoting), with cond(H);
 * ``CaseRunner`` -- one solver's solves, each in a forked worker
   (``harness.run.isolation.ChildProcess``) with a hard wall-clock limit, so that a
-  hanging solver cannot hang ``validate``.
+  hanging solver cannot hang ``validate``; each skip says whether a capability the
+  solver declares made it (``declared_skip``) or the solver's own refinements did (its
+  ``skip``, ``skip_params`` or memory model: ``CaseAnswer.own_skip``).
 
 The verdicts are ``harness.conformance.battery``'s business, through ``harness.judging``.
 """
@@ -21,7 +29,7 @@ import fnmatch
 import time
 import traceback
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 import numpy as np
 
@@ -33,7 +41,7 @@ from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
-from contactbench.solvers.base import WITHOUT_ITERATE, SolveAborted, Solver
+from contactbench.solvers.base import ProblemTraits, SolveAborted, Solver, WarmStart, answered_without_iterate
 
 from ..judging import ProblemSeal, portable_answer
 from ..arguments import check_time_limit
@@ -63,6 +71,17 @@ BATTERY_MEMORY_BUDGET = 4 * 8.0 * REFERENCE_MAX_N**2
 TRUSTED_REFERENCE_KKT = 1e-9
 #: Groups in which refusing the case is a legitimate answer (float32 input).
 REFUSABLE_GROUPS = ("precision",)
+#: The battery's own group: cases handed a warm start that is not their answer (module doc).
+WARM_GROUP = "warm-start"
+#: Every group of the battery: the stress groups, then ``WARM_GROUP``.
+BATTERY_GROUPS: tuple[str, ...] = (*GROUPS, WARM_GROUP)
+#: The warm-started cases: (a case of the fast stress battery, the shift of ubar, as a
+#: fraction of max|ubar|, of the problem whose exact answer is the warm start).
+WARM_CASES: tuple[tuple[str, float], ...] = (
+    ("random/spd-n30-s0", -0.3),  # dense H; a lighter load: a loading sweep's previous step
+    ("random/bcc-n64-d0.5-s0", 0.3),  # a heavier load: contact the answer releases
+    ("conditioning/bcc-n100-d1", -0.3),  # the matrix-free (FFT) operator
+)
 
 
 # ---------------------------------------------------------------------------
@@ -72,17 +91,19 @@ REFUSABLE_GROUPS = ("precision",)
 
 @dataclass(frozen=True)
 class ConformanceCase:
-    """One battery recipe (an InstanceSpec of the stress scenes) with its verdict profile."""
+    """One battery recipe (an InstanceSpec of the stress scenes) with its verdict profile;
+    with ``warm_shift``, the recipe solved from the warm start of ``WARM_GROUP`` (module doc)."""
 
     spec: InstanceSpec
+    warm_shift: float | None = None
 
     @property
     def name(self) -> str:
-        return self.spec.instance
+        return self.spec.instance if self.warm_shift is None else f"{WARM_GROUP}/{self.spec.instance}"
 
     @property
     def group(self) -> str:
-        return str(self.spec.params["group"])
+        return str(self.spec.params["group"]) if self.warm_shift is None else WARM_GROUP
 
     @property
     def profile(self) -> str:
@@ -90,20 +111,31 @@ class ConformanceCase:
 
     @property
     def compare(self) -> str:
-        return str(self.spec.params.get("compare", "none"))
+        return str(self.spec.params.get("compare", "none")) if self.warm_shift is None else "none"
 
     def __str__(self) -> str:
         return self.name
 
 
+def warm_cases() -> list[ConformanceCase]:
+    """The cases of ``WARM_GROUP`` (the same in every mode: they are few and small)."""
+    names = {name for name, _ in WARM_CASES}
+    groups = tuple(dict.fromkeys(name.split("/", 1)[0] for name in names))
+    specs = {s.instance: s for s in battery_specs("fast", groups, scene="stress") if s.instance in names}
+    return [ConformanceCase(specs[name], shift) for name, shift in WARM_CASES]
+
+
 def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
                       pattern: str | None = None) -> list[ConformanceCase]:
     """The battery's recipes: ``mode`` "fast" (the test-suite subset, seconds per solver)
-    or "full"; optionally only some ``groups`` (each case once, however often its group
-    is named) or names matching ``pattern`` (fnmatch, e.g. ``"edge/*"``; a group name
-    matches its whole group)."""
-    specs = battery_specs(mode, tuple(dict.fromkeys(groups)) if groups else GROUPS, scene="stress")
-    cases = [ConformanceCase(s) for s in specs]
+    or "full"; optionally only some ``groups`` (``BATTERY_GROUPS``; each case once, however
+    often its group is named) or names matching ``pattern`` (fnmatch, e.g. ``"edge/*"``; a
+    group name matches its whole group)."""
+    chosen = tuple(dict.fromkeys(groups)) if groups else BATTERY_GROUPS
+    stress = tuple(g for g in chosen if g != WARM_GROUP)
+    cases = [ConformanceCase(s) for s in battery_specs(mode, stress, scene="stress")] if stress else []
+    if WARM_GROUP in chosen:
+        cases += warm_cases()
     if pattern:
         cases = [c for c in cases if fnmatch.fnmatch(c.name, pattern) or fnmatch.fnmatch(c.group, pattern)]
     return cases
@@ -151,6 +183,24 @@ def exact_reference(inst: ContactInstance) -> Reference:
 
 
 _REFERENCES: dict[tuple[str, str, int], Reference] = {}
+_WARM_STARTS: dict[tuple[str, str, int, float], WarmStart] = {}
+
+
+def warm_start_of(case: ConformanceCase, step: int, inst: ContactInstance) -> WarmStart | None:
+    """The warm start of ``case`` at ``step`` (None: a case of the stress groups): the exact
+    answer p of H with ubar + shift max|ubar| and its gap w = Hp - that ubar (module doc);
+    computed once per process.  It is not the case's answer (``tests`` check its KKT error)."""
+    if case.warm_shift is None:
+        return None
+    key = (case.spec.instance, case.spec.params_json(), step, case.warm_shift)
+    if key not in _WARM_STARTS:
+        H = inst.qp.H.to_dense()
+        ubar = np.asarray(inst.qp.ubar, dtype=np.float64)
+        shifted = ubar + case.warm_shift * float(np.max(np.abs(ubar)))
+        p = exact_solution(H, shifted).p
+        _WARM_STARTS[key] = WarmStart(p=p, w=H @ p - shifted)
+    ws = _WARM_STARTS[key]
+    return WarmStart(p=np.array(ws.p), w=None if ws.w is None else np.array(ws.w))  # each solve its own copy
 
 
 def cached_reference(spec: InstanceSpec, step: int, inst: ContactInstance) -> Reference | None:
@@ -187,16 +237,53 @@ class CaseAnswer:
     detail: str = ""
     time_s: float = float("nan")
     tampered: str = ""
-    iterated: bool = True  # False: the lifecycle answered without calling the solver (``WITHOUT_ITERATE``)
+    iterated: bool = True  # False: the lifecycle answered without calling the solver (``answered_without_iterate``)
+    own_skip: bool = False  # skipped by the solver's own refinements, not a capability it declares
 
 
-def adapt_to_solver(inst: ContactInstance, solver: Solver, params: dict[str, Any] | None = None) -> QP | Decision:
-    """The QP in a form the solver accepts, or the decision not to solve it: steps 2, 3
-    and 5 of ``harness.run.skips`` (max_n, operator kind, the solver's own ``skip`` and
-    ``skip_params`` with ``params``; a check that raised is a failed decision); the
-    battery applies no time model, so a solver cannot skip its way out of a case."""
+class DeclaredView:
+    """A solver as its declaration alone describes it -- its name and ``capabilities``, the
+    base class's ``skip`` (constraints, geometry) and memory model -- without the skip,
+    skip_params or memory model it refines (what ``declared_skip`` asks)."""
+
+    def __init__(self, solver: Solver) -> None:
+        self.solver, self.name, self.capabilities = solver, solver.name, solver.capabilities
+
+    def memory_estimate(self, n: int) -> float:
+        return Solver.memory_estimate(self.solver, n)
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        return Solver.skip(self.solver, traits)
+
+    def skip_params(self, traits: ProblemTraits, params: dict[str, Any]) -> str | None:
+        return None
+
+    def resolve_params(self, given: dict[str, Any] | None) -> dict[str, Any]:
+        return {}
+
+
+def declared_skip(solver: Solver, traits: ProblemTraits, warm: bool) -> str | None:
+    """Why a capability ``solver`` declares keeps it from the case (None: none does): a warm
+    start it does not take, or ``capability_decision`` of its ``DeclaredView``."""
+    if warm and solver.capabilities.warm_start == "none":
+        return f"{solver.name} takes no warm start (capabilities.warm_start is 'none')"
+    d = capability_decision(cast(Solver, DeclaredView(solver)), traits, BATTERY_MEMORY_BUDGET)
+    return d.reason or None
+
+
+def adapt_to_solver(inst: ContactInstance, solver: Solver, params: dict[str, Any] | None = None,
+                    warm: bool = False) -> QP | Decision:
+    """The QP in a form the solver accepts, or the decision not to solve it: a warm start
+    it takes none of (``warm``), then steps 2, 3 and 5 of ``harness.run.skips`` (max_n,
+    operator kind, the solver's own ``skip`` and ``skip_params`` with ``params``; a check
+    that raised is a failed decision); the battery applies no time model, so a solver
+    cannot skip its way out of a case."""
     qp = inst.qp
-    d = capability_decision(solver, problem_traits(inst), BATTERY_MEMORY_BUDGET, params)
+    traits = problem_traits(inst)
+    declared = declared_skip(solver, traits, warm)
+    if declared:
+        return Decision(reason=declared)
+    d = capability_decision(solver, traits, BATTERY_MEMORY_BUDGET, params)
     if d.skip:
         return d
     if d.operator == "dense" and instance_operator_kind(inst) != "dense":
@@ -219,25 +306,41 @@ def first_line(text: str, fallback: str) -> str:
     return next((line.strip() for line in text.splitlines() if line.strip()), fallback)
 
 
-def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[str, Any]]) -> dict[str, Any]:
+@dataclass(frozen=True)
+class SolveOrder:
+    """One solve, as the parent sends it to the worker: the recipe and step, the time
+    limit, the parameters, and the warm start (None: a cold start)."""
+
+    spec: InstanceSpec
+    step: int
+    time_limit: float | None
+    params: dict[str, Any]
+    warm: WarmStart | None = None
+
+
+def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
     """Worker side: rebuild the instance from its recipe, solve, report plain data (the
     answer as ``harness.judging.portable_answer`` gives it, so that it can be sent).  A
     solver that raises -- ``SystemExit`` and ``GeneratorExit`` included (``sys.exit`` in a
     solver is a crash, not the end of ``validate``), in its skip check too -- gives a
     "refused" or "crashed" answer, and a ``SolveAborted`` its own status when the class
     allows it ("crashed" otherwise); a ``KeyboardInterrupt`` propagates.  Every message is
-    one line, whatever the exception's text (empty, or a ``__str__`` that raises)."""
-    spec, step, time_limit, params = msg
-    case = ConformanceCase(spec)
-    inst = build_battery_spec(spec).at(step)
-    qp = adapt_to_solver(inst, solver, params)
+    one line, whatever the exception's text (empty, or a ``__str__`` that raises).  Whether
+    the lifecycle answered without calling the solver is the harness's own reading of the
+    problem (``answered_without_iterate``), never what the solver wrote into its result."""
+    case = ConformanceCase(msg.spec)
+    inst = build_battery_spec(msg.spec).at(msg.step)
+    qp = adapt_to_solver(inst, solver, msg.params, warm=msg.warm is not None)
     if isinstance(qp, Decision):  # a skip check that raised is the solver's crash
-        return {"kind": "crashed" if qp.failed else "skipped", "message": qp.reason, "detail": qp.reason}
-    settings = get_profile(case.profile).solver_settings(time_limit, params)
+        own = not qp.failed and declared_skip(solver, problem_traits(inst), msg.warm is not None) is None
+        return {"kind": "crashed" if qp.failed else "skipped", "message": qp.reason, "detail": qp.reason,
+                "own_skip": own}
+    settings = get_profile(case.profile).solver_settings(msg.time_limit, msg.params)
     seal = ProblemSeal.of(qp)
+    lifecycle = answered_without_iterate(qp)
     t0 = time.perf_counter()
     try:
-        res = solver.solve(qp, settings, None)
+        res = solver.solve(qp, settings, msg.warm)
     except SolveAborted as exc:  # killed at its limit, or died (an external program)
         elapsed, text, status = time.perf_counter() - t0, exception_message(exc), aborted_status(exc)
         if status is None:
@@ -256,7 +359,7 @@ def solve_case(solver: Solver, msg: tuple[InstanceSpec, int, float | None, dict[
     return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
             "iterations": int(res.iterations),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
-            "tampered": tampered, "iterated": not res.info.get(WITHOUT_ITERATE)}
+            "tampered": tampered, "iterated": not lifecycle}
 
 
 class _SolverHandler:
@@ -270,7 +373,7 @@ class _SolverHandler:
 class CaseRunner:
     """Runs the solves of one solver with a hard time limit: in a forked worker
     (``harness.run.isolation``; what the solver prints is captured there, and the
-    processes it starts end with the worker) when ``isolate``, else in-process -- no time
+    processes it starts end with the solve) when ``isolate``, else in-process -- no time
     limit, and no protection against a solver that ends the process itself (``os._exit``,
     a signal)."""
 
@@ -284,8 +387,8 @@ class CaseRunner:
 
             self.worker = ChildProcess(lambda: _SolverHandler(solver), capture_output=True)
 
-    def solve(self, spec: InstanceSpec, step: int) -> CaseAnswer:
-        msg = (spec, step, self.timeout, self.params)
+    def solve(self, spec: InstanceSpec, step: int, warm: WarmStart | None = None) -> CaseAnswer:
+        msg = SolveOrder(spec, step, self.timeout, self.params, warm)
         if self.worker is None:
             return CaseAnswer(**solve_case(self.solver, msg))
         out = self.worker.call(msg, None if self.timeout is None else

@@ -3,7 +3,7 @@ parsing, the solvers it names, the exit status, the optional CSV and report).
 
 Exit status (``VerdictTable.exit_code``, combined over the solvers by ``_combined_exit``):
 0 conforms, 1 wrong (with ``--strict`` also crashes, timeouts, flagged rows), 2 bad input,
-3 incomplete, 4 untested (no answer of any solver's own judged).
+3 incomplete, 4 untested (no answer of any solver's own judged, or its own skip left a group untried).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from contactbench.solvers.registry import SolverDeclarationError, all_solvers, l
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
 from ..run.isolation import SOLVER_FAULTS, exception_text
-from .battery import GROUPS, conformance_cases, left_out_lines, validate
+from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, validate
 from .report import check_report_folder, write_conformance_report
 
 
@@ -43,13 +43,14 @@ def build_parser() -> argparse.ArgumentParser:
                "bad --timeout, a --csv or --out that cannot be written, a solver declaration that cannot be used); "
                "3 incomplete: cases left unsolved; 4 untested: "
                "no answer of any solver's own was judged (every case skipped for a declared capability, refused "
-               "where refusing is allowed, or answered without calling the solver) "
+               "where refusing is allowed, or answered without calling the solver), or its own skip left a whole "
+               "group of the selection untried "
                "(docs/verdicts.md).")
     ap.add_argument("solvers", nargs="*", metavar="SOLVER",
                     help="registry name, or import path module:NAME (the current directory is importable)")
     ap.add_argument("--all", action="store_true", help="every available registered solver")
     ap.add_argument("--full", action="store_true", help="the full battery (default: the fast subset)")
-    ap.add_argument("--group", action="append", choices=GROUPS, help="only these groups (repeatable)")
+    ap.add_argument("--group", action="append", choices=BATTERY_GROUPS, help="only these groups (repeatable)")
     ap.add_argument("--cases", metavar="GLOB", type=case_glob,
                     help="only cases whose name or group matches, e.g. 'edge/*'")
     ap.add_argument("--timeout", type=time_limit, help="seconds per solve, finite and > 0 (default: 20 fast, "

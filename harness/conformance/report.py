@@ -29,9 +29,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.solvers.base import describe_promise
-
-from .battery import VerdictRow, VerdictTable, left_out_lines
+from .battery import VerdictRow, VerdictTable, held_promise, left_out_lines, promise_text
 
 #: Row statuses from worst to best: a case's verdict is the worst of its rows.
 SEVERITY = ("WRONG", "crashed", "timeout", "flagged", "unconverged", "refused", "skipped", "pass")
@@ -147,13 +145,14 @@ def _cell(text: str, width: int = 160) -> str:
 
 def threshold_line(table: VerdictTable) -> str:
     """The scaled KKT threshold the answers of ``table`` were judged at: the case's profile
-    threshold for the promise "exact", else the solver's floor where it is above that."""
+    threshold for the promise "exact", else the solver's floor (held to ``PROMISE_BOUND``)
+    where it is above that."""
     used = sorted({r.check_tol for r in table.solves if math.isfinite(r.check_tol)})
     at = ", ".join(f"{x:.3g}" for x in used) or "none (no solve judged)"
     if table.promise == "exact":
         return f"Promise: exact -- judged at the case's profile threshold (here {at})."
-    return (f"Promise: {describe_promise(table.promise)} -- judged at max(the case's profile threshold, "
-            f"{float(table.promise):.3g}) (here {at}).")
+    return (f"Promise: {promise_text(table.promise)} -- judged at max(the case's profile threshold, "
+            f"{float(held_promise(table.promise)):.3g}) (here {at}).")
 
 
 def markdown_page(tables: Sequence[VerdictTable], strict: bool = False, command: Sequence[str] = ()) -> str:

@@ -16,6 +16,13 @@ counter to know).  The child:
 * ignores SIGINT, so Ctrl-C reaches only the parent, which stops cleanly;
 * leads a process group of its own, which the parent kills whenever the worker ends, so
   the processes a solver started do not outlive it (``kill_process_group``);
+* adopts the orphans among its descendants (Linux, ``PR_SET_CHILD_SUBREAPER``:
+  ``contactbench.solvers._processes``), so that a process a solver started stays its
+  descendant even after leaving that group (``setsid``) and its parent exiting; after each
+  message it kills every descendant left (what a solve started ends with the solve), and
+  the parent kills the worker's descendants, found by their parent links, before the
+  worker itself.  Only a process started after a worker died on its own (``os._exit``,
+  a signal) that has left its group escapes: its parent is gone, and so is the adopter;
 * asks the kernel to SIGKILL it when the parent dies (``PR_SET_PDEATHSIG``), so a
   ``kill -9`` of the runner leaves no orphan writing rows;
 * optionally limits BLAS (threadpoolctl) and FFT (``CONTACTBENCH_FFT_WORKERS``) threads,
@@ -48,6 +55,8 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any, Callable, Iterator, Literal
+
+from contactbench.solvers._processes import become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
 
@@ -216,6 +225,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
     if scratch is not None:  # the worker's temporary files (and its programs'), removed by the parent
         tempfile.tempdir = os.environ["TMPDIR"] = scratch
     set_parent_death_signal()
+    become_subreaper()  # the orphans of what a solver starts stay this worker's descendants
     if not os.environ.get("CONTACTBENCH_FAULTHANDLER"):
         faulthandler.disable()  # a crashing solver is reported as a row, not a stack dump
     _limits = limit_threads(threads)  # noqa: F841 - held for the process lifetime
@@ -233,6 +243,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
                 reply: tuple[str, Any] = ("ok", handler(msg))
         except Exception as exc:  # the handler's own failure; solver errors are rows
             reply = ("error", f"{exception_text(exc)}\n{traceback.format_exc(limit=6)}")
+        end_own_descendants()  # what the message started ends with it, before its reply
         try:
             conn.send(reply)
         except (BrokenPipeError, OSError):
@@ -371,10 +382,15 @@ class ChildProcess:
         return "\n[last output]\n" + "\n".join(tail) if tail else ""
 
     def kill(self) -> None:
-        """Stop the child and every process of its group at once (SIGKILL), release the pipe
-        and remove its temporary folder (what a killed solver, or a program it ran, left
-        there)."""
+        """Stop the child, every descendant of it and every process of its group (SIGKILL),
+        release the pipe and remove its temporary folder (what a killed solver, or a program
+        it ran, left there).  A live child is stopped first (SIGSTOP), so that it starts
+        nothing more while its descendants are found and killed."""
         if self.proc is not None:
+            if self.proc.pid is not None and self.proc.exitcode is None:  # alive and not reaped: its pid is ours
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.kill(self.proc.pid, signal.SIGSTOP)
+                end_descendants(self.proc.pid)
             if self.proc.pid is not None:  # before the worker is reaped: its group id is still its own
                 kill_process_group(self.proc.pid)
             if self.proc.is_alive():

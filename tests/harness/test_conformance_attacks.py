@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,8 +20,9 @@ from contactbench.harness.conformance.report import markdown_page
 from contactbench.harness.judging import judge
 from contactbench.harness.run.isolation import ChildProcess
 from contactbench.problems.lcp import exact_solution
-from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
-from contactbench.solvers import Capabilities, Outcome, Param, SolveAborted, SolveContext, Solver
+from contactbench.problems.scenes.stress import build_battery_spec
+from contactbench.solvers import Capabilities, Outcome, Param, SolveAborted, SolveContext, Solver, SolveResult, Status
+from contactbench.solvers.base import WITHOUT_ITERATE, ProblemTraits
 from contactbench.solvers.registry import register
 from tests.helpers import refused_in_one_line
 
@@ -105,7 +107,7 @@ class PrintsThenAborts(ExactSolver):
 
 
 class LooseHalf(ExactSolver):
-    """Half the exact answer, within a loose promise: the KKT test accepts it, the reference does not."""
+    """Half the exact answer, within a promise of 0.9: looser than the bound, which it is held to."""
 
     name = "test-attack-loose-half"
     capabilities = Capabilities(needs_dense=True, promise=0.9)
@@ -201,10 +203,12 @@ def test_what_a_solver_prints_in_its_worker_stays_there(capfd: pytest.CaptureFix
     assert row.status == "crashed" and "LAST-WORDS-OF-THE-SOLVER" in row.detail, crashed.format()
 
 
-def _start_a_sleeper_or_hang(msg: str) -> int:
-    """"start": start a process that outlives this reply and give its pid; else hang."""
-    if msg == "start":
-        return subprocess.Popen(["sleep", "60"]).pid
+def _start_a_sleeper_and_hang(pid_file: str) -> int:
+    """Start a process, write its pid into ``pid_file``, and hang ("" : answer at once)."""
+    if not pid_file:
+        return 0
+    pid = subprocess.Popen(["sleep", "60"]).pid
+    Path(pid_file).write_text(str(pid))
     time.sleep(600)
     return 0
 
@@ -219,13 +223,12 @@ def _gone(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups and /proc: Linux")
-def test_the_processes_a_killed_worker_started_are_killed_with_it() -> None:
-    with ChildProcess(lambda: _start_a_sleeper_or_hang) as child:
-        started = child.call("start", timeout=None)
-        assert started.kind == "ok", started
-        pid = int(started.value)
-        assert not _gone(pid)
-        assert child.call("hang", timeout=0.5).kind == "timeout"
+def test_the_processes_a_killed_worker_started_are_killed_with_it(tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    with ChildProcess(lambda: _start_a_sleeper_and_hang) as child:
+        assert child.call("", timeout=None).kind == "ok"  # the worker is up
+        assert child.call(str(pid_file), timeout=1.0).kind == "timeout"
+    pid = int(pid_file.read_text())
     deadline = time.monotonic() + 10.0  # a bounded wait for the kernel, not a claim on speed
     while not _gone(pid) and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -242,14 +245,111 @@ def test_the_judge_never_prints_a_threshold_that_contradicts_its_comparison() ->
     assert match and float(match[1]) > float(match[2]), v.message()
 
 
-def test_a_loose_promise_with_flagged_rows_says_so_and_states_its_threshold() -> None:
+def test_a_promise_looser_than_the_bound_is_held_to_the_bound_and_says_so() -> None:
     table = cf.validate(LooseHalf(), cases())
-    assert table.exit_code() == 0 and table.count("flagged") == 1, table.format()
-    line = table.summary()
-    assert "every solve correct" not in line
-    assert "scaled KKT floor 0.9" in line and "1 of 1 rows flagged" in line, line
+    assert [r.status for r in table.rows] == ["WRONG"] and table.exit_code() == 1, table.format()
+    assert table.rows[0].check_tol == cf.PROMISE_BOUND < 0.9
+    assert "scaled KKT floor 0.9, held to 0.001" in table.format()
     page = markdown_page([table])
-    assert "1 of 1 rows flagged" in page and "judged at max(the case's profile threshold, 0.9)" in page
+    assert "judged at max(the case's profile threshold, 0.001)" in page, page
+
+
+def test_the_promise_bound_is_the_loosest_threshold_run_calls_solved() -> None:
+    from contactbench.harness.profiles import PROFILES
+
+    assert cf.PROMISE_BOUND == max(p.check_tol for p in PROFILES.values()) < 0.01
+
+
+class Float32Answer(ExactSolver):
+    """Takes over ``solve`` and hands back the exact answer rounded to float32."""
+
+    name = "test-attack-float32-answer"
+
+    def solve(self, qp: Any, settings: Any = None, warm: Any = None) -> SolveResult:
+        res = super().solve(qp, settings, warm)
+        return SolveResult(p=res.p.astype(np.float32), iterations=1, converged=True, status="converged")
+
+
+def test_a_flagged_row_names_its_reason_in_the_headline() -> None:
+    table = cf.validate(Float32Answer(), cases(), isolate=False)
+    assert [r.status for r in table.rows] == ["flagged"] and table.rows[0].flags == "dtype", table.format()
+    line = table.summary()
+    assert "accepted by the KKT test, but not float64" in line and "off the exact reference" not in line, line
+
+
+class SkipsAllButTheSmallest(ExactSolver):
+    """Its own ``skip`` leaves it only dense problems of n <= 30."""
+
+    name = "test-attack-skips-all-but-the-smallest"
+
+    def skip(self, traits: ProblemTraits) -> str | None:
+        return None if traits.n <= 30 and traits.operator == "dense" else "not my kind of problem"
+
+
+class DeclaresASmallMaxN(ExactSolver):
+    name = "test-attack-declares-max-n-30"
+    capabilities = Capabilities(needs_dense=True, exact=True, max_n=30)
+
+
+def two_groups() -> list[cf.ConformanceCase]:
+    return cf.conformance_cases("fast", pattern="random/spd-n30-s0") + cases()
+
+
+def test_a_solver_whose_own_skip_leaves_a_group_untried_is_untested() -> None:
+    table = cf.validate(SkipsAllButTheSmallest(), two_groups(), isolate=False)
+    assert table.untried_groups == ["counterexample"] and table.exit_code() == 4, table.format()
+    assert table.summary().startswith(f"{SkipsAllButTheSmallest.name} [fast]: UNTESTED: its own skip left 1 group")
+    assert "counterexample" in table.summary()
+
+
+def test_a_group_ruled_out_by_a_declared_capability_leaves_the_solver_conforming() -> None:
+    table = cf.validate(DeclaresASmallMaxN(), two_groups(), isolate=False)
+    assert table.untried_groups == [] and table.outcome() == "conforms", table.format()
+
+
+class WrongClaimStalled(ExactSolver):
+    name = "test-attack-wrong-claim-stalled"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(1.5 * exact_p(ctx), 1, True, status=Status.STALLED)
+
+
+class RightClaimStalled(ExactSolver):
+    name = "test-attack-right-claim-stalled"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(exact_p(ctx), 1, True, status=Status.STALLED)
+
+
+def test_a_claim_of_convergence_is_judged_whatever_status_comes_with_it() -> None:
+    wrong = cf.validate(WrongClaimStalled(), cases(), isolate=False)
+    assert [r.status for r in wrong.rows] == ["WRONG"] and wrong.rows[0].claimed, wrong.format()
+    right = cf.validate(RightClaimStalled(), cases(), isolate=False)
+    assert [r.status for r in right.rows] == ["pass"] and right.exit_code() == 0, right.format()
+
+
+class ForgesTheLifecycle(ExactSolver):
+    """Writes the lifecycle's own marker into its result's info."""
+
+    name = "test-attack-forges-the-lifecycle"
+    factor = 1.5
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(self.factor * exact_p(ctx), 1, True, info={WITHOUT_ITERATE: True})
+
+
+class ForgesTheLifecycleRight(ForgesTheLifecycle):
+    name = "test-attack-forges-the-lifecycle-right"
+    factor = 1.0
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_a_solver_cannot_pass_its_answer_off_as_the_lifecycles(isolate: bool) -> None:
+    wrong = cf.validate(ForgesTheLifecycle(), cases(), isolate=isolate)
+    row = wrong.rows[0]
+    assert row.status == "WRONG" and row.iterated and "lifecycle" not in row.message, wrong.format()
+    right = cf.validate(ForgesTheLifecycleRight(), cases(), isolate=isolate)
+    assert right.outcome() == "conforms" and right.rows[0].iterated, right.format()
 
 
 def test_the_summary_of_an_exact_solver_states_its_promise() -> None:
@@ -352,7 +452,7 @@ def test_validate_list_into_a_closed_pipe_exits_quietly() -> None:
 def test_the_doc_names_every_group_of_the_battery_and_shows_todays_summary_line() -> None:
     text = (ROOT / "docs" / "adding-a-solver.md").read_text()
     section = text[text.index("It runs the solver through the battery"):text.index("Every answer is judged")]
-    assert f"The groups, for `--group`: {', '.join(GROUPS)}." in " ".join(section.split()), section
+    assert f"The groups, for `--group`: {', '.join(cf.BATTERY_GROUPS)}." in " ".join(section.split()), section
     summary = next(line.strip() for line in text.splitlines() if line.strip().startswith("example-apg [fast]:"))
     assert re.fullmatch(r"example-apg \[fast\]: CONFORMS: every solve correct to its promise \(exact; (\d+) of \1\) "
                         r"\(rows: pass \d+(, skipped \d+)?\)", summary), summary

@@ -1,0 +1,134 @@
+"""A process a solve starts ends with the solve, even one that leaves its process group
+(``setsid``) and whose parent exits: the isolated worker adopts it
+(``PR_SET_CHILD_SUBREAPER``) and kills every descendant left after each message, and the
+parent kills the worker's descendants before the worker at a time limit
+(``harness.run.isolation``, ``contactbench.solvers._processes``); ``validate`` and
+``run`` share that worker.  An outside program's descendants that left its group are
+killed with it at its time limit (``solvers.external.run_program``)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import numpy as np
+
+from contactbench.harness.conformance import battery as cf
+from contactbench.harness.run.isolation import ChildProcess
+from contactbench.problems.lcp import exact_solution
+from contactbench.solvers import Outcome, SolveContext, Solver
+from contactbench.solvers.external import run_program
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="subreaper and /proc: Linux")
+
+#: How long an escaped process lives at most (it must be killed long before).
+LIFETIME_S = 20
+#: The environment variable that tells ``EscapingSolver`` where to write its grandchild's pid.
+PID_FILE_VAR = "CONTACTBENCH_TEST_ESCAPE_PID_FILE"
+
+
+def gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (gone, or a zombie waiting to be reaped)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True
+    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
+
+
+def ended_in_time(pid: int, wait_s: float = 10.0) -> bool:
+    """Whether ``pid`` ends within ``wait_s`` (a bounded wait for the kernel, not a claim on
+    speed); a survivor is killed here, so that a failing test leaves nothing behind."""
+    deadline = time.monotonic() + wait_s
+    while not gone(pid) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    if gone(pid):
+        return True
+    os.kill(pid, 9)
+    return False
+
+
+def start_escaped_grandchild(pid_file: str) -> int:
+    """Fork a child that leaves the process group (``setsid``), forks a grandchild that
+    sleeps, and exits at once: the grandchild is an orphan outside the group.  Its pid is
+    written into ``pid_file`` and returned."""
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # pragma: no cover - runs in the forked child
+        try:
+            os.setsid()
+            grandchild = os.fork()
+            if grandchild == 0:
+                os.close(read)
+                os.close(write)
+                time.sleep(LIFETIME_S)
+                os._exit(0)
+            os.write(write, str(grandchild).encode())
+        finally:
+            os._exit(0)
+    os.close(write)
+    text = os.read(read, 32).decode()
+    os.close(read)
+    os.waitpid(child, 0)
+    Path(pid_file).write_text(text)
+    return int(text)
+
+
+def escape_then(msg: tuple[str, str]) -> int:
+    """A worker's handler: start an escaped grandchild, then answer ("return") or hang."""
+    pid = start_escaped_grandchild(msg[1])
+    if msg[0] == "hang":
+        time.sleep(600)
+    return pid
+
+
+def test_an_escaped_grandchild_ends_with_the_message_that_started_it(tmp_path: Path) -> None:
+    with ChildProcess(lambda: escape_then) as child:
+        reply = child.call(("return", str(tmp_path / "pid")), timeout=None)
+        assert reply.kind == "ok", reply
+        assert ended_in_time(int(reply.value)), "the grandchild outlived its message"
+        assert child.alive  # the worker itself goes on
+
+
+def test_an_escaped_grandchild_of_a_worker_killed_at_its_limit_is_killed_too(tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    with ChildProcess(lambda: escape_then) as child:
+        assert child.call(("return", str(tmp_path / "first")), timeout=None).kind == "ok"  # the worker is up
+        assert child.call(("hang", str(pid_file)), timeout=1.0).kind == "timeout"
+        assert ended_in_time(int(pid_file.read_text())), "the grandchild outlived the killed worker"
+
+
+class EscapingSolver(Solver):
+    """Starts a grandchild that leaves its group and outlives its parent, then answers."""
+
+    name = "test-escaping-solver"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        start_escaped_grandchild(os.environ[PID_FILE_VAR])
+        return Outcome(exact_solution(ctx.qp.H.to_dense(), np.asarray(ctx.qp.ubar, dtype=np.float64)).p, 1, True)
+
+
+def test_validate_leaves_no_escaped_grandchild_behind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pid_file = tmp_path / "pid"
+    monkeypatch.setenv(PID_FILE_VAR, str(pid_file))
+    table = cf.validate(EscapingSolver(), cf.conformance_cases("fast", pattern="random/spd-n30-s0"))
+    assert table.exit_code() == 0, table.format()
+    assert ended_in_time(int(pid_file.read_text())), "the solver's grandchild outlived validate"
+
+
+def test_an_outside_programs_child_that_left_its_group_is_killed_at_the_time_limit(tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    program = ("import os, sys, time\n"
+               "pid = os.fork()\n"
+               "if pid == 0:\n"
+               "    os.setsid(); time.sleep(%d); os._exit(0)\n"
+               "open(sys.argv[1], 'w').write(str(pid))\n"
+               "time.sleep(600)\n") % LIFETIME_S
+    result = run_program([sys.executable, "-c", program, str(pid_file)], None, 1.0, tmp_path)
+    assert result.timed_out and pid_file.exists(), result
+    assert ended_in_time(int(pid_file.read_text())), "the program's child outlived its time limit"
