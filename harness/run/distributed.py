@@ -57,6 +57,7 @@ from contactbench.problems.scenes import SceneConfig
 from .executors import Progress
 from .isolation import limit_threads
 from .job import JobDriver
+from .output_log import OUTPUT_LOG
 from .plan import InstanceJob, RunConfig, job_cell_ids
 from .runner import RunSummary, run_benchmark
 from ..table.store import ResultStore, encode_row
@@ -157,6 +158,15 @@ def worker_cache_dir(shared_out: str | None) -> Path:
     return d
 
 
+def worker_output_log(shared_out: str | None) -> Path:
+    """Where a worker's solvers' output goes (``harness.run.output_log``): the run
+    directory's log when the worker sees it (a shared file system; appends are locked),
+    else a per-user log in the worker's temporary directory."""
+    if shared_out and Path(shared_out).is_dir():
+        return Path(shared_out) / OUTPUT_LOG
+    return Path(tempfile.gettempdir()) / f"contactbench-{os.getuid()}-{OUTPUT_LOG}"
+
+
 def stream_row(topic: str | None) -> Callable[[dict[str, Any]], None] | None:
     """A sink that sends each finished row to the client at once (a Dask worker event
     on ``topic``), so rows finished before a worker dies are not recomputed-or-lost."""
@@ -195,7 +205,7 @@ def run_job_on_worker(job: InstanceJob, run: RunConfig, statuses: dict[str, str]
         if stream is not None:
             stream(row)
 
-    JobDriver(job, run, statuses, worker_cache_dir(shared_out), sink).run()
+    JobDriver(job, run, statuses, worker_cache_dir(shared_out), sink, worker_output_log(shared_out)).run()
     return JobResult(job.spec.instance, rows, socket.gethostname(), os.getpid(), time.perf_counter() - t0)
 
 

@@ -5,8 +5,8 @@ Every executor runs a job the same way -- ``harness.run.job.JobDriver``: the ins
 built from its picklable recipe where the job runs, each solve is isolated with a hard
 time limit and judged by the harness -- so the same cells give the same rows wherever
 they run.  What the solvers print goes to the run folder's solver-output log
-(``harness.run.output_log``), not to the terminal (on Dask: where each worker's own
-output goes).
+(``harness.run.output_log``), not to the terminal (on Dask: that log where the worker
+sees the run folder, else a log in the worker's temporary directory).
 
 * ``SerialExecutor``  -- one job after another in this process (``--jobs 1``);
 * ``PoolExecutor``    -- a local ``concurrent.futures`` process pool (``--jobs J``); each
