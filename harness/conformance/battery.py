@@ -393,9 +393,11 @@ class VerdictTable:
         untried = self.untried_groups
         if outcome == "untested" and untried:
             own = sum(r.own_skip for r in self.rows)
-            return (f"UNTESTED: its own skip left {len(untried)} group(s) of the battery untried, "
-                    f"{', '.join(untried)} ({own} solves skipped by its own skip, skip_params or memory model, "
-                    f"{len(self.judged)} of its answers judged) -- a skip may narrow the battery, not choose it")
+            groups = f"{len(untried)} groups" if len(untried) > 1 else "a group"
+            return (f"UNTESTED: its own skip left {groups} of the battery untried ({', '.join(untried)}; "
+                    f"{own} solves skipped by its own skip, skip_params or memory model, {len(self.judged)} of its "
+                    "answers judged) -- a skip may narrow the battery, not choose it; --group names the groups to "
+                    "validate")
         if outcome == "untested":
             return (f"UNTESTED: no answer of the solver's own was judged ({solves} solves) -- every selected case "
                     "skipped for a declared capability, refused where refusing is allowed, or answered without "
