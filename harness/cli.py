@@ -224,7 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenes", nargs="+", metavar="SCENE", help="scene or mix name (contactbench list scenes)")
     run.add_argument("--solvers", type=solver_list, default=None, metavar="LIST",
                      help="comma list of registry names or MODULE:NAME, each optionally with parameters "
-                          "NAME[key=value,...] (contactbench list solvers --params), or 'all' "
+                          "NAME[key=value,...] (contactbench list solvers --params) or NAME[grid] (one variant "
+                          "per point of the solver's declared grid; NAME[grid,key=value] fixes key), or 'all' "
                           "(default: the scene's study, else every available solver)")
     run.add_argument("--profile", type=parse_profiles, default=None,
                      help="profile(s): default, low, mid, high (comma list; default: the scene's study)")

@@ -23,24 +23,31 @@ A solver *spec* on the command line (``run --solvers``, ``validate``) is one of
   the current folder loads as with ``python -m`` (``load_solver``);
 * either with fixed parameters, ``fast-dual-pccg[precision=double]`` or
   ``name[k=v,k2=v2]``: each value is read as the declared ``Param``'s type and checked
-  by ``Solver.resolve_params`` (``parse_solver_spec``).
+  by ``Solver.resolve_params`` (``parse_solver_spec``);
+* either with the word ``grid`` among its brackets, ``nnls-gp[grid]`` or
+  ``name[grid,k=v]``: one variant per point of the solver's declared ``grid`` (the
+  cross product of its values, fixed keys left out; ``expand_solver_spec``), each a
+  spec ``name[k=v,...]`` as if written out, at most ``MAX_GRID_VARIANTS`` of them.
 
 ``split_solver_list`` splits a comma list of specs (commas inside ``[...]`` belong to
 the spec).
 
 Every solver the registry takes (``register``) or loads by import path (``load_solver``)
-passes ``check_declaration`` first: a declaration it cannot use is refused in one line.
+passes ``check_declaration`` first: a declaration it cannot use (a parameter of a kind
+outside ``PARAM_KINDS``, choices or a grid value its own ``Param.check`` refuses, a grid
+key that names no parameter, ...) is refused in one line.
 """
 
 from __future__ import annotations
 
 import importlib
+import itertools
 import math
 import os
 import sys
 import traceback
 from dataclasses import dataclass, field
-from typing import Any, Callable, TypeVar
+from typing import Any, Callable, Sequence, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 
@@ -110,11 +117,24 @@ class SolverDeclarationError(ValueError):
     """A solver whose declaration cannot be used (``check_declaration``; one line)."""
 
 
+#: The kinds a ``Param`` may declare: the scalars a spec's text is read as
+#: (``param_from_text``) and two structured kinds, given as values through the API or
+#: ``validate --params`` JSON.  A sequence is a ``tuple``, never a ``list``: a default
+#: is one object shared by every solve, and ``Param.check`` takes only its own kind.
+SCALAR_KINDS: tuple[type, ...] = (bool, int, float, str)
+PARAM_KINDS: tuple[type, ...] = (*SCALAR_KINDS, tuple, dict)
+#: The kinds a declared range (``low``, ``high``) applies to.
+NUMBER_KINDS: tuple[type, ...] = (int, float)
+#: The ends a range may leave out (``Param.open``).
+OPEN_ENDS: tuple[str, ...] = ("", "low", "high", "both")
+
+
 def check_declaration(solver: Solver) -> Solver:
     """``solver`` if its declaration can be used, else a ``SolverDeclarationError`` naming
-    the solver and what is wrong: its ``name`` is a non-empty string, its ``capabilities``
-    a ``Capabilities``, its ``params`` a tuple (or list) of ``Param``, and each default
-    None (the solver works it out) or a value its own ``Param.check`` accepts."""
+    the solver and everything that is wrong, in one line: its ``name`` is a non-empty
+    string, its ``capabilities`` a ``Capabilities``, its ``params`` a tuple (or list) of
+    ``Param`` (each as ``param_problems`` requires, names distinct) and its ``grid`` as
+    ``grid_problems`` requires."""
     name = getattr(solver, "name", None)
     if not isinstance(name, str) or not name.strip():
         raise SolverDeclarationError(f"solver class {type(solver).__name__} has no name (its `name` is {name!r}; "
@@ -126,15 +146,91 @@ def check_declaration(solver: Solver) -> Solver:
     if not isinstance(params, (tuple, list)) or not all(isinstance(q, Param) for q in params):
         raise SolverDeclarationError(f"solver {name!r}: its `params` is {params!r}, not a tuple of "
                                      "Param(name, type, default, ...)")
-    for q in params:
-        if q.default is None:
-            continue
-        try:
-            q.check(q.default)
-        except ParamError as exc:
-            raise SolverDeclarationError(f"solver {name!r}: the default of a declared parameter does not pass its "
-                                         f"own declaration: {exc}") from None
+    problems = [line for q in params for line in param_problems(q)]
+    names = [q.name for q in params]
+    problems += [f"parameter {k!r} is declared twice" for k in dict.fromkeys(names) if names.count(k) > 1]
+    problems += grid_problems(getattr(solver, "grid", None), params)
+    if problems:
+        raise SolverDeclarationError(f"solver {name!r}: " + "; ".join(problems))
     return solver
+
+
+def param_problems(param: Param) -> list[str]:
+    """What is wrong with one declared parameter (none: []): its name is a non-empty
+    string; its kind one of ``PARAM_KINDS``; a range (``low``, ``high``) only on a number
+    kind, its ends numbers with low <= high and ``open`` one of ``OPEN_ENDS``; its
+    ``choices`` a non-empty tuple of distinct values that each pass ``Param.check``; its
+    default None (the solver works it out) or a value ``Param.check`` accepts."""
+    if not isinstance(param.name, str) or not param.name.strip():
+        return [f"a declared parameter has no name (its name is {param.name!r})"]
+    what = f"parameter {param.name!r}"
+    if param.kind not in PARAM_KINDS:
+        kind = getattr(param.kind, "__name__", repr(param.kind))
+        return [f"{what} is of kind {kind}, not one of {', '.join(k.__name__ for k in PARAM_KINDS)} "
+                "(a sequence is a tuple)"]
+    problems = range_problems(param)
+    if param.choices is not None:
+        problems += value_list_problems(param, param.choices, f"{what}: its choices")
+    if param.default is not None and not problems:
+        try:
+            param.check(param.default)
+        except ParamError as exc:
+            problems.append(f"the default of a declared parameter does not pass its own declaration: {exc}")
+    return problems
+
+
+def range_problems(param: Param) -> list[str]:
+    """What is wrong with ``param``'s declared range (none: [], also where it has none)."""
+    what = f"parameter {param.name!r}"
+    if param.open not in OPEN_ENDS:
+        return [f"{what}: its open ends are {param.open!r}, not one of {', '.join(map(repr, OPEN_ENDS))}"]
+    if param.low is None and param.high is None:
+        return []
+    if param.kind not in NUMBER_KINDS:
+        return [f"{what} declares a range, but is a {param.kind.__name__}: a range is a number's (int or float)"]
+    ends = [e for e in (param.low, param.high) if e is not None]
+    if any(isinstance(e, bool) or not isinstance(e, (int, float)) or math.isnan(e) for e in ends):
+        return [f"{what}: its range ends low={param.low!r}, high={param.high!r} are not numbers"]
+    if param.low is not None and param.high is not None and param.low > param.high:
+        return [f"{what}: its range is empty (low={param.low!r} > high={param.high!r})"]
+    return []
+
+
+def value_list_problems(param: Param, values: Any, what: str) -> list[str]:
+    """What is wrong with a list of values of ``param`` (its choices, or a grid's values):
+    it is a non-empty tuple or list, each value passes ``param.check``, none twice (as
+    checked: 1 and 1.0 of a float are one value)."""
+    if not isinstance(values, (tuple, list)) or not values:
+        return [f"{what} are {values!r}, not a non-empty tuple of values"]
+    problems: list[str] = []
+    seen: list[Any] = []  # (dicts are values too: a list, not a set)
+    for v in values:
+        try:
+            checked = param.check(v)
+        except ParamError as exc:
+            problems.append(f"{what}: {exc}")
+            continue
+        if checked in seen:
+            problems.append(f"{what} list {v!r} twice")
+        seen.append(checked)
+    return problems
+
+
+def grid_problems(grid: Any, params: Sequence[Param]) -> list[str]:
+    """What is wrong with a solver's ``grid`` (none: []): a dict whose every key names a
+    declared parameter and whose every value is a list of that parameter's values
+    (``value_list_problems``)."""
+    if not isinstance(grid, dict):
+        return [f"its `grid` is {grid!r}, not a dict of parameter name -> tuple of values"]
+    declared = {q.name: q for q in params}
+    problems: list[str] = []
+    for key, values in grid.items():
+        if key not in declared:
+            problems.append(f"its grid names {key!r}, which is not a declared parameter (declared: "
+                            f"{', '.join(map(repr, declared)) or 'none'})")
+            continue
+        problems += value_list_problems(declared[key], values, f"its grid values of {key!r}")
+    return problems
 
 
 def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S], S]:
@@ -236,6 +332,14 @@ class SolverSpecError(ValueError):
     """A malformed solver spec or an unusable parameter in it (one line)."""
 
 
+#: The item of a spec's brackets that asks for every point of the solver's declared
+#: grid: ``name[grid]``, ``name[grid,key=value]`` (``expand_solver_spec``).
+GRID_WORD = "grid"
+#: The most variants one ``name[grid]`` entry may stand for (the product of its grid's
+#: value counts, fixed keys left out); beyond it the entry is refused.
+MAX_GRID_VARIANTS = 100
+
+
 @dataclass(frozen=True)
 class SolverSpec:
     """A solver named on the command line: ``name`` (registry name or ``module:NAME``)
@@ -274,29 +378,47 @@ def split_solver_list(text: str) -> list[str]:
     return [p.strip() for p in parts if p.strip()]
 
 
-def split_solver_spec(text: str) -> tuple[str, dict[str, str]]:
-    """``"name[k=v,k2=v2]"`` -> ``("name", {"k": "v", "k2": "v2"})`` (values as text)."""
+@dataclass(frozen=True)
+class SpecText:
+    """One spec as written (``split_solver_spec``): the solver's ``name``, the parameters'
+    texts by key (``raw``) and whether its brackets ask for the solver's grid (``grid``)."""
+
+    name: str
+    raw: dict[str, str] = field(default_factory=dict)
+    grid: bool = False
+
+
+def split_solver_spec(text: str) -> SpecText:
+    """``"name[k=v,k2=v2]"`` -> ``SpecText("name", {"k": "v", "k2": "v2"})`` (values as
+    text); the item ``GRID_WORD`` among the brackets (``"name[grid,k=v]"``) sets ``grid``."""
     text = text.strip()
     if "[" not in text:
         if "]" in text:
             raise SolverSpecError(f"unbalanced ']' in solver {text!r}")
-        return text, {}
+        return SpecText(text)
     name, _, rest = text.partition("[")
     if rest.strip() == "]":
         raise SolverSpecError(f"empty parameter list in solver {text!r}: write name[key=value] or just name")
     if not rest.endswith("]") or "[" in rest[:-1] or "]" in rest[:-1]:
         raise SolverSpecError(f"bad solver spec {text!r}: write name[key=value,key2=value2]")
     raw: dict[str, str] = {}
+    grid = False
     for item in rest[:-1].split(","):
+        if item.strip() == GRID_WORD:
+            if grid:
+                raise SolverSpecError(f"{GRID_WORD!r} given twice in solver {text!r}")
+            grid = True
+            continue
         key, eq, value = (s.strip() for s in item.partition("="))
         if not eq or not key or not value:
-            raise SolverSpecError(f"bad parameter {item.strip()!r} in solver {text!r}: write key=value")
+            raise SolverSpecError(f"bad parameter {item.strip()!r} in solver {text!r}: write key=value "
+                                  f"(or {GRID_WORD}: every point of the solver's grid)")
         if key in raw:
             raise SolverSpecError(f"parameter {key!r} given twice in solver {text!r}")
         raw[key] = value
-    if not name.strip() or not raw:
+    if not name.strip() or not (raw or grid):
         raise SolverSpecError(f"bad solver spec {text!r}: write name[key=value,key2=value2]")
-    return name.strip(), raw
+    return SpecText(name.strip(), raw, grid)
 
 
 _TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
@@ -327,16 +449,58 @@ def param_from_text(param: Param, text: str) -> Any:
 
 
 def parse_solver_spec(text: str) -> tuple[SolverSpec, Solver]:
-    """The spec of one ``--solvers`` entry and its solver (loaded by ``load_solver``).
-    Parameters are read against the solver's declared ``Param``s and checked by
-    ``resolve_params``, the check ``validate --params`` makes; a bad one is a
-    ``ParamError`` naming the allowed keys, a malformed spec a ``SolverSpecError``."""
-    name, raw = split_solver_spec(text)
-    solver = load_solver(name)
+    """The spec of one ``--solvers`` entry naming one variant and its solver (loaded by
+    ``load_solver``).  Parameters are read against the solver's declared ``Param``s and
+    checked by ``resolve_params``, the check ``validate --params`` makes; a bad one is a
+    ``ParamError`` naming the allowed keys, a malformed spec (or ``name[grid]``, which
+    names several: ``expand_solver_spec``) a ``SolverSpecError``."""
+    parts = split_solver_spec(text)
+    if parts.grid:
+        raise SolverSpecError(f"solver {text.strip()!r} names every point of a grid, not one variant")
+    return fixed_spec(parts, text)
+
+
+def fixed_spec(parts: SpecText, text: str) -> tuple[SolverSpec, Solver]:
+    """The solver of ``parts`` and the spec of its fixed parameters (``parts.raw``), each
+    read as its declared ``Param`` (``param_from_text``) and checked (``resolve_params``)."""
+    solver = load_solver(parts.name)
     declared = {p.name: p for p in solver.params}
     try:
-        params = {k: param_from_text(declared[k], v) if k in declared else v for k, v in raw.items()}
+        params = {k: param_from_text(declared[k], v) if k in declared else v for k, v in parts.raw.items()}
     except ParamError as exc:
         raise ParamError(f"solver {text.strip()!r}: {exc}") from None
     solver.resolve_params(params)  # an unknown key: the allowed ones, in one line
-    return SolverSpec(name, params), solver
+    return SolverSpec(parts.name, params), solver
+
+
+def expand_solver_spec(text: str) -> tuple[list[SolverSpec], Solver]:
+    """The specs one ``--solvers`` entry stands for, and its solver: one
+    (``parse_solver_spec``), or, with ``GRID_WORD`` among its brackets, one per point of
+    the solver's declared grid (``grid_points``) with the entry's fixed parameters in each
+    (a fixed key leaves the grid).  A solver that declares no grid, or a grid of more than
+    ``MAX_GRID_VARIANTS`` points, is a ``SolverSpecError`` (one line)."""
+    parts = split_solver_spec(text)
+    spec, solver = fixed_spec(parts, text)
+    if not parts.grid:
+        return [spec], solver
+    if not solver.grid:
+        raise SolverSpecError(f"solver {text.strip()!r}: {solver.name!r} declares no grid to expand "
+                              "(contactbench list solvers --params)")
+    free = {k: tuple(v) for k, v in solver.grid.items() if k not in spec.params}
+    count = math.prod(len(v) for v in free.values())
+    if count > MAX_GRID_VARIANTS:
+        raise SolverSpecError(f"solver {text.strip()!r}: its grid has {count:,} points, over the limit of "
+                              f"{MAX_GRID_VARIANTS} variants of one entry; fix some parameters, "
+                              f"{parts.name}[{GRID_WORD},key=value]")
+    return [SolverSpec(parts.name, {**spec.params, **point}) for point in grid_points(solver, spec.params)], solver
+
+
+def grid_points(solver: Solver, fixed: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """Every point of ``solver``'s declared grid, the keys of ``fixed`` left out: the
+    cross product of the grid's values (each as its ``Param.check`` reads it), keys in the
+    grid's order, the last varying fastest.  A grid that is empty once ``fixed`` is left
+    out has one point, {}."""
+    declared = {p.name: p for p in solver.params}
+    axes = [[(k, declared[k].check(v)) for v in values] for k, values in solver.grid.items()
+            if k not in (fixed or {})]
+    return [dict(point) for point in itertools.product(*axes)]

@@ -38,8 +38,8 @@ from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers.base import ProblemTraits, Solver
-from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, get_solver, load_solver,
-                                           parse_solver_spec, register, split_solver_list, split_solver_spec)
+from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, expand_solver_spec, get_solver,
+                                           load_solver, register, split_solver_list, split_solver_spec)
 
 from ..arguments import check_time_limit
 from ..profiles import get_profile
@@ -227,31 +227,48 @@ def names_no_solver(requested: Sequence[str] | str | None) -> bool:
         return False
 
 
-def resolve_solver_names(requested: Sequence[str] | str | None, study_default: Sequence[str] | None) -> list[str]:
-    """Registry names to run: "all" (every registered solver, unavailable ones are
-    recorded as skipped), an explicit list (``module:NAME`` entries are loaded and
-    registered; ``name[k=v]`` entries come back as the checked label, which
-    ``Study.variants`` turns into a variant with those parameters), or the study's
-    defaults, or every available solver."""
+def resolve_solver_names(requested: Sequence[str] | str | None,
+                         study_default: Sequence[str] | None) -> list[str | SolverSpec]:
+    """The solvers to run: "all" (every registered solver's name, unavailable ones are
+    recorded as skipped), an explicit list, or the study's defaults, or every available
+    solver's name.  In an explicit list ``module:NAME`` entries are loaded and registered,
+    and an entry with parameters, ``name[k=v]`` or ``name[grid]``, comes back as the
+    checked ``SolverSpec`` of each variant it names (``expand_solver_spec``), which
+    ``Study.variants`` runs as given; a variant named twice (by its label) is refused."""
     if isinstance(requested, str):
         requested = split_solver_list(requested)  # commas inside name[k=v,...] stay
     if requested:
         if list(requested) == ["all"]:
             return list(all_solvers())
-        names = []
+        names: list[str | SolverSpec] = []
         for text in requested:
             try:  # an unknown name is a clear KeyError; name[k=v] is Param-checked (solvers/registry.py)
-                spec, solver = parse_solver_spec(text)
+                specs, solver = expand_solver_spec(text)
             except (ImportError, AttributeError, TypeError) as exc:
                 raise ProblemInputError(f"cannot load solver {text.strip()!r}: {type(exc).__name__}: {exc}") from None
-            if ":" in spec.name:
+            parts = split_solver_spec(text)
+            if ":" in parts.name:
                 refuse_name_clash(text.strip(), solver)
                 register(solver, replace=True)  # (the same class again: each worker loads it too)
-            names.append(SolverSpec(solver.name, spec.params).label)
+            if parts.raw or parts.grid:
+                names += [SolverSpec(solver.name, spec.params) for spec in specs]
+            else:
+                names.append(solver.name)
+        refuse_twice(names)
         return names
     if study_default:  # a study's name[k=v] is kept when its base is registered
-        return [s for s in study_default if split_solver_spec(s)[0] in all_solvers()]
+        return [s for s in study_default if split_solver_spec(s).name in all_solvers()]
     return list(available_solvers())
+
+
+def refuse_twice(names: Sequence[str | SolverSpec]) -> None:
+    """A one-line ``ProblemInputError`` naming a variant that ``names`` holds twice (by its
+    label: ``nnls-gp[grid],nnls-gp[K=50]`` names ``nnls-gp[K=50]`` twice)."""
+    labels = [n.label if isinstance(n, SolverSpec) else n for n in names]
+    twice = [k for k in dict.fromkeys(labels) if labels.count(k) > 1]
+    if twice:
+        raise ProblemInputError(f"--solvers names the variant{'s' if len(twice) > 1 else ''} "
+                                f"{', '.join(map(repr, twice))} twice; name each variant once")
 
 
 def refuse_name_clash(text: str, solver: Solver) -> None:
@@ -341,7 +358,7 @@ def check_bounds(est: SceneEstimate, run: RunConfig) -> None:
         raise ProblemInputError("\n".join(problems))
 
 
-def scene_jobs(study: Study, cfg: SceneConfig, solvers: list[str],
+def scene_jobs(study: Study, cfg: SceneConfig, solvers: Sequence[str | SolverSpec],
                run: RunConfig) -> tuple[list[InstanceJob], list[str]]:
     """The jobs and warnings of one study on its scene under ``cfg`` (bounded by
     ``check_bounds``, then validated)."""

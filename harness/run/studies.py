@@ -13,7 +13,8 @@ sequences.  A ``Study`` says what the harness does with it -- one record per sce
                 entry of the sweep's ``over`` (a second, discrete choice such as the CMR
                 coarse reading).  A sweep's values are the study's own, else the solver's
                 declared ``grid``.  A solver matching several sweeps gets the variants of
-                all of them (each distinct parameter set once).
+                all of them (each distinct parameter set once).  A solver's whole grid runs
+                without a sweep as ``--solvers 'name[grid]'`` (``Study.variants``).
 
 A ``Composite`` (``default``, what ``make bench`` runs) is a mix of studies, each on a
 scene with its own options.  A scene with no record here gets ``Study(name)``: every
@@ -34,7 +35,7 @@ from typing import Any, Sequence
 from contactbench.problems.coarsen import COARSE_KINDS
 from contactbench.problems.scenes import SceneConfig, all_scenes, get_scene
 from contactbench.solvers.cmr import CMRSolver
-from contactbench.solvers.registry import load_solver, parse_solver_spec, split_solver_spec
+from contactbench.solvers.registry import SolverSpec, expand_solver_spec, load_solver, split_solver_spec
 
 from contactbench.plugins import did_you_mean
 
@@ -68,6 +69,13 @@ def solver_grid(solver: str, param: str) -> tuple[Any, ...]:
     if not values:
         raise KeyError(f"solver {solver!r} declares no grid for parameter {param!r}")
     return tuple(values)
+
+
+def spec_variant(spec: SolverSpec) -> SolverVariant:
+    """The variant of a spec with parameters: its parameters, labelled ``SolverSpec.label``
+    (``name[k=v,...]``, keys sorted), the table's ``solver``; ``base_solver`` and
+    ``params`` carry the parts."""
+    return SolverVariant(spec.name, dict(spec.params), spec.label)
 
 
 @dataclass(frozen=True)
@@ -131,16 +139,21 @@ class Study:
     reference: str | None = None
     sweeps: tuple[Sweep, ...] = ()
 
-    def variants(self, solvers: Sequence[str], extra: dict[str, Any] | None = None) -> list[SolverVariant]:
+    def variants(self, solvers: Sequence[str | SolverSpec], extra: dict[str, Any] | None = None) -> list[SolverVariant]:
         """Each solver once, or the variants of every sweep it matches, in the sweeps'
-        order (a parameter set two sweeps share runs once, under the first one's label);
-        a spec with parameters, ``name[k=v]`` (``solvers.registry.parse_solver_spec``),
-        runs once with exactly those, labelled ``SolverSpec.label``."""
+        order (a parameter set two sweeps share runs once, under the first one's label).
+        A ``SolverSpec`` (``harness.run.plan.resolve_solver_names``) runs once with exactly
+        its parameters, labelled ``SolverSpec.label``, and so does each variant of a name
+        with parameters, ``name[k=v]`` or ``name[grid]``
+        (``solvers.registry.expand_solver_spec``): no sweep."""
         out: list[SolverVariant] = []
         for s in solvers:
-            if split_solver_spec(s)[1]:  # name[k=v]: the user's parameters, no sweep
-                spec, _ = parse_solver_spec(s)
-                out.append(SolverVariant(spec.name, spec.params, spec.label))
+            if isinstance(s, SolverSpec):  # the user's parameters, no sweep
+                out.append(spec_variant(s))
+                continue
+            parts = split_solver_spec(s)
+            if parts.raw or parts.grid:  # a study's own name[k=v]
+                out += [spec_variant(spec) for spec in expand_solver_spec(s)[0]]
                 continue
             sweeps = [w for w in self.sweeps if w.matches(s)]
             if not sweeps:

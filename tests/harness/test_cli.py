@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from contactbench.solvers.registry import get_solver
 from tests.helpers import REPO, run_cli
 
 ROOT = REPO
@@ -301,8 +302,11 @@ def test_report_of_a_missing_or_empty_folder_is_one_line(in_tmp: Path, capsys: p
     ("admm[rho=0]", ("parameter 'rho' must lie in (0, inf), got 0",)),
     ("admm[alpha=2.0]", ("parameter 'alpha' must lie in (0, 2), got 2.0",)),
     ("nnls-gp[K=-1]", ("parameter 'K' must lie in [0, inf), got -1",)),
+    ("pk[grid]", ("solver 'pk[grid]': 'pk' declares no grid to expand",)),
+    ("nnls-gp[grid,K=0.5]", ("parameter 'K' takes a int, got '0.5'",)),
+    ("nnls-gp[grid],nnls-gp[K=50]", ("--solvers names the variant 'nnls-gp[K=50]' twice",)),
 ], ids=["bad-choice", "unknown-key", "bad-int", "unclosed", "no-value", "empty", "twice", "open-low", "open-high",
-        "closed-low"])
+        "closed-low", "no-grid", "grid-bad-fixed", "grid-variant-twice"])
 def test_bad_solver_parameters_are_refused_in_one_line(spec: str, needles: tuple[str, ...], in_tmp: Path,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
     refused(["run", "paper-sweep", *TINY, "--solvers", spec, "--out", "o"], capsys, *needles)
@@ -317,6 +321,67 @@ def test_solver_parameters_make_labelled_variants(capsys: pytest.CaptureFixture[
     got = {(r.solver, r.base_solver, r.params) for r in df.itertuples()}
     assert got == {("fast-dual-pccg[precision=double]", "fast-dual-pccg", '{"precision": "double"}'),
                    ("nnls-gp[K=5]", "nnls-gp", '{"K": 5}'), ("pk", "pk", "{}")}
+
+
+def test_a_solvers_grid_runs_one_labelled_variant_per_point(capsys: pytest.CaptureFixture[str],
+                                                            in_tmp: Path) -> None:
+    rc, _, err = cli(["run", "paper-sweep", *TINY, "--solvers", "nnls-gp[grid,restart=on],pk", "--out", "o"], capsys)
+    assert rc == 0, err
+    df = pd.read_parquet(in_tmp / "o" / "results.parquet")
+    got = {(r.solver, r.base_solver, r.params) for r in df.itertuples()}
+    grid = get_solver("nnls-gp").grid["K"]
+    assert got == {("pk", "pk", "{}")} | {(f"nnls-gp[K={k},restart=True]", "nnls-gp", f'{{"K": {k}, "restart": true}}')
+                                          for k in grid}
+    assert len(df) == 2 * (len(grid) + 1)  # every variant at each of the two steps
+
+
+#: A user's solver module whose declarations break the rules (solvers/registry.py
+#: ``check_declaration``), and one whose grid is over ``MAX_GRID_VARIANTS``.
+BAD_DECLARATIONS = '''
+from contactbench.solvers import Capabilities, Outcome, Param, Solver
+
+
+class Base(Solver):
+    family = "test"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}))
+
+    def iterate(self, ctx):
+        return Outcome(p=ctx.qp.ubar * 0.0, iterations=1, converged=False)
+
+
+class BadGrid(Base):
+    name = "bad-grid"
+    params = (Param("step", float, 1.0, low=0.1, high=1.0),)
+    grid = {"step": ("fast", 7.0), "nonexistent": (1, 2)}
+
+
+class BadParamKind(Base):
+    name = "bad-param-kind"
+    params = (Param("opts", list, [1, 2]), Param("choice", str, "a", choices=("a", 3)))
+
+
+class BigGrid(Base):
+    name = "big-grid"
+    params = (Param("a", int, 0), Param("b", int, 0))
+    grid = {"a": tuple(range(20)), "b": tuple(range(20))}
+'''
+
+
+@pytest.mark.parametrize(("cls", "needles"), [
+    ("BadGrid", ("solver 'bad-grid': ", "parameter 'step' takes a float, got 'fast'", "got 7.0",
+                 "its grid names 'nonexistent', which is not a declared parameter")),
+    ("BadParamKind", ("solver 'bad-param-kind': ", "parameter 'opts' is of kind list",
+                      "parameter 'choice' takes a str, got 3")),
+    ("BigGrid[grid]", ("its grid has 400 points, over the limit of 100",)),
+], ids=["grid", "kind", "grid-limit"])
+def test_a_solver_module_whose_declaration_breaks_the_rules_is_refused_in_one_line(
+        cls: str, needles: tuple[str, ...], in_tmp: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    (in_tmp / "cb_bad_declarations.py").write_text(BAD_DECLARATIONS)
+    monkeypatch.delitem(sys.modules, "cb_bad_declarations", raising=False)
+    refused(["run", "counterexample", "--size", "10", "--seeds", "0", "--no-progress",
+             "--solvers", f"cb_bad_declarations:{cls}", "--out", "o"], capsys, *needles)
+    assert written(in_tmp) == ["cb_bad_declarations.py"]
 
 
 def contactbench(args: list[str], cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:

@@ -23,7 +23,7 @@ from contactbench.harness.run.sequence import map_by_grid_index
 from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS, STATUSES
 from contactbench.harness.table.store import LOCK_FILE, ROWS_FILE, ResultStore, load_table, read_journal
 from contactbench.problems.scenes import SceneConfig
-from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver, SolverSettings
+from contactbench.solvers import Capabilities, Outcome, Param, SolveContext, Solver, SolverSettings
 from tests import helpers
 from tests.helpers import REPO
 
@@ -494,6 +494,7 @@ def test_a_sweep_reads_the_solvers_declared_grid() -> None:
 
     class Gridded(helpers.ExactStub):
         name = "test-gridded"
+        params = (*helpers.ExactStub.params, Param("K", int, 1, low=0))
         grid = {"K": (3, 7)}
 
     register(Gridded, replace=True)
