@@ -495,16 +495,18 @@ def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Prom
 def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
              mode: str = "fast", timeout: float | None = None, isolate: bool = True,
              progress: Callable[[VerdictRow], Any] | None = None,
-             params: dict[str, Any] | None = None) -> VerdictTable:
+             params: dict[str, Any] | None = None, label: str | None = None) -> VerdictTable:
     """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
     battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
-    its declared ``Param``s first) and return the verdict table.  ``timeout``: seconds
+    its declared ``Param``s first) and return the verdict table, its rows and summary
+    named ``label`` (a variant's, ``name[k=v]``; default the solver's name).  ``timeout``: seconds
     per solve (``check_timeout``; None: the mode's default).  An empty ``cases`` is a
     ``ProblemInputError``."""
     limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else check_timeout(timeout)
     selected = _as_cases(cases, mode)
     s = load_solver(solver) if isinstance(solver, str) else solver
-    table = VerdictTable(s.name, mode, promise=s.capabilities.promise)
+    name = label or s.name
+    table = VerdictTable(name, mode, promise=s.capabilities.promise)
     available, why = s.availability()
     if not available:
         table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
@@ -513,7 +515,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     runner = CaseRunner(s, limit, isolate=isolate, params=params)
     try:
         for case in selected:
-            new = run_case(runner, case, s.name, s.capabilities.promise)
+            new = run_case(runner, case, name, s.capabilities.promise)
             table.rows.extend(new)
             if progress is not None:
                 for r in new:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass
 import os
 import sys
 from pathlib import Path
@@ -17,7 +18,8 @@ from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import SolverDeclarationError, all_solvers, load_solver
+from contactbench.solvers.registry import (SolverDeclarationError, SolverSpecError, all_solvers, expand_solver_spec,
+                                           load_solver, split_solver_spec)
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
@@ -47,7 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
                "group of the selection untried "
                "(docs/verdicts.md).")
     ap.add_argument("solvers", nargs="*", metavar="SOLVER",
-                    help="registry name, or import path module:NAME (the current directory is importable)")
+                    help="registry name, or import path module:NAME (the current directory is importable); "
+                         "NAME[k=v,...] validates that variant, NAME[grid] each point of its declared grid")
     ap.add_argument("--all", action="store_true", help="every available registered solver")
     ap.add_argument("--full", action="store_true", help="the full battery (default: the fast subset)")
     ap.add_argument("--group", action="append", choices=BATTERY_GROUPS, help="only these groups (repeatable)")
@@ -181,21 +184,47 @@ def availability(solver: Solver) -> tuple[bool, str]:
     return bool(ok), str(why)
 
 
+@dataclass(frozen=True)
+class Candidate:
+    """One solver to validate: the solver, the parameters of the variant named
+    (``NAME[k=v]``, each point of ``NAME[grid]``; None: ``--params``) and its label."""
+
+    solver: Solver
+    params: dict[str, Any] | None = None
+    label: str | None = None
+
+
+def named_candidates(name: str) -> list[Candidate]:
+    """The candidates one SOLVER argument names: the solver, or with brackets each variant
+    it stands for (``solvers.registry.expand_solver_spec``: checked parameters, a grid's
+    points), each labelled as ``run`` labels it."""
+    if "[" not in name:
+        return [Candidate(load_named_solver(name))]
+    try:
+        base = split_solver_spec(name).name
+        load_named_solver(base)  # (its one-line load errors first)
+        specs, solver = expand_solver_spec(name)
+    except SolverSpecError as exc:
+        raise CommandLineError(str(exc)) from None
+    return [Candidate(solver, dict(spec.params), spec.label) for spec in specs]
+
+
 def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = (),
-                      required: bool = True) -> list[Solver]:
-    """The solvers named, the ``--command`` one and with ``every`` each available
-    registered one; none at all is an error when ``required``."""
-    solvers = [load_named_solver(n) for n in dict.fromkeys(names)] + list(extra)
-    for s in solvers:
-        ok, why = availability(s)
+                      required: bool = True) -> list[Candidate]:
+    """The solvers named (a variant each, ``named_candidates``), the ``--command`` one and
+    with ``every`` each available registered one; none at all is an error when
+    ``required``."""
+    chosen = [c for n in dict.fromkeys(names) for c in named_candidates(n)] + [Candidate(s) for s in extra]
+    for c in chosen:
+        ok, why = availability(c.solver)
         if not ok:
-            raise SolverLoadError(f"solver {s.name!r} is not available here: {why}")
+            raise SolverLoadError(f"solver {c.solver.name!r} is not available here: {why}")
     if every:
-        seen = {s.name for s in solvers}
-        solvers += [s for n, s in all_solvers().items() if n not in seen and availability(s)[0]]
-    if not solvers and required:
+        seen = {c.solver.name for c in chosen}
+        chosen += [Candidate(s) for n, s in all_solvers().items() if n not in seen and availability(s)[0]]
+    if not chosen and required:
         raise SolverLoadError("name a solver (registry name or module:NAME), pass --all, or give --command")
-    return solvers
+    return chosen
 
 
 def _combined_exit(codes: Sequence[int]) -> int:
@@ -222,8 +251,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise CommandLineError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
         command_solvers = command_solver_of(args.command, args.inputs)
         solvers = _selected_solvers(args.solvers, args.all, command_solvers, required=not args.list)
-        for solver in solvers:
-            solver.resolve_params(args.params)
+        if args.params is not None and any(c.params is not None for c in solvers):
+            raise CommandLineError("--params goes with plain solver names; a NAME[k=v] or NAME[grid] names its own")
+        for c in solvers:
+            c.solver.resolve_params(c.params if c.params is not None else args.params)
         if args.csv is not None:
             check_csv_path(args.csv)
         if args.out is not None:
@@ -237,9 +268,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{c.name:{width}s}  group={c.group:14s} profile={c.profile}")
         return 0
     codes, tables = [], []
-    for solver in solvers:
+    for c in solvers:
+        solver = c.solver
         table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
-                         params=args.params)
+                         params=c.params if c.params is not None else args.params, label=c.label)
         print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
         left = left_out_lines(table) if not args.quiet or solver in command_solvers else []
         if left:
