@@ -16,13 +16,25 @@ benchmark scripts all call ``judge``.  A verdict carries two readings of one ans
 
 Every figure is NaN- and overflow-safe (``problems.kkt``): nothing non-finite can make a
 verdict better.  The scales come from the problem, never from the candidate.
+
+The judge computes with the operator the solver was handed, checked by ``ProblemSeal``:
+everything the operator holds is sealed -- private caches by what the operator builds from
+the sealed state, work buffers by their layout (their content is written by every product
+before it is read), by the rules of ``contactbench.problems.operator_state`` -- and ``mend``
+drops a cache that is not its rebuild, so the judge builds its own.  Judging on a copy made
+before the solve, or on a rebuild, would be as sound but costs what the operator holds for
+every solve (hundreds of MB at 4096^2: the kernel table, its spectrum, the transposed copy,
+the work arrays); the seal reads them, and rebuilds a cache once when a solve built it.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import dataclass, field
+import re
+import types
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -30,6 +42,7 @@ import numpy as np
 from contactbench.problems.errors import check_positive
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
+from contactbench.problems.operator_state import Rebuild, SealRule, seal_rule
 
 from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
@@ -78,19 +91,192 @@ class Verdict:
 # The problem a solver was handed: sealed before the solve, checked after
 # ---------------------------------------------------------------------------
 
+#: What the seal reads as a value (by ``repr``), not as an object to look into.
+_SCALARS = (int, float, complex, str, bytes, bool, type(None), np.generic, np.dtype)
 
-def _defining_arrays(qp: Any) -> list[tuple[str, np.ndarray]]:
-    """ubar, the upper bounds (a hardness) and the numpy arrays that define the operator:
-    its public array attributes and those of its public helper objects (an FFT operator's
-    kernel transform)."""
-    out: list[tuple[str, np.ndarray]] = [("ubar", np.asarray(qp.ubar))]
+
+@dataclass(frozen=True)
+class _Context:
+    """Where the reader stands: the rules of the nearest object above (``seal_rule``), the
+    path from that object (for its work patterns), and the declared slot it is inside."""
+
+    rule: SealRule | None = None
+    rel: str = ""
+    cache: str = ""  # the outermost cache slot (``SealRule.caches``) above, "" none
+    per_product: str = ""  # the per-product attribute above, "" none
+
+    def into(self, step: str) -> _Context:
+        return replace(self, rel=self.rel + step)
+
+
+@dataclass(frozen=True)
+class _Entry:
+    """One piece of state as sealed: its fingerprint and the slot it lies in."""
+
+    fingerprint: tuple[Any, ...]
+    cache: str = ""
+    per_product: str = ""
+    opaque: bool = False
+
+
+@dataclass
+class _Slot:
+    """A declared place state lives in (``SealRule``): ``holder[key]`` for an entry of a
+    dict cache, else attribute ``key`` of ``holder``; a cache's ``rebuild`` is called as
+    rebuild(``owner``, ``entry``, current value)."""
+
+    holder: Any
+    key: Any
+    context: _Context
+    rebuild: Rebuild | None = None
+    owner: Any = None
+    entry: Any = None
+
+    @property
+    def value(self) -> Any:
+        if isinstance(self.holder, dict):
+            return self.holder.get(self.key)
+        return getattr(self.holder, self.key, None)
+
+    def put(self, value: Any) -> None:
+        """Put ``value`` back in the slot; None empties an entry of a dict cache."""
+        if isinstance(self.holder, dict):
+            if value is None:
+                self.holder.pop(self.key, None)
+            else:
+                self.holder[self.key] = value
+        else:
+            setattr(self.holder, self.key, value)
+
+
+@lru_cache(maxsize=None)
+def _pattern(work: str) -> re.Pattern[str]:
+    return re.compile(re.escape(work).replace(re.escape("[*]"), r"\[[^\]]+\]") + r"\Z")
+
+
+def _is_work(context: _Context) -> bool:
+    rule = context.rule
+    return rule is not None and any(_pattern(w).match(context.rel) for w in rule.work)
+
+
+def _opaque_value(value: Any) -> bool:
+    """What the seal names by identity: classes, modules, anything callable, and objects
+    with no attributes to read (a lock)."""
+    return isinstance(value, (type, types.ModuleType)) or callable(value) or not hasattr(value, "__dict__")
+
+
+class _Reader:
+    """Reads the state of a problem: ``entries`` (path -> ``_Entry``), the declared
+    ``slots`` (path -> ``_Slot``) and the ``parts`` (every object read, with its path)."""
+
+    def __init__(self) -> None:
+        self.entries: dict[str, _Entry] = {}
+        self.slots: dict[str, _Slot] = {}
+        self.parts: list[tuple[str, Any]] = []
+        self._arrays: list[tuple[str, np.ndarray, _Context, bool]] = []
+        self._first_path: dict[int, str] = {}
+        self._digests: dict[int, str] = {}
+        self._stack: set[int] = set()
+
+    def add(self, path: str, fingerprint: tuple[Any, ...], context: _Context, opaque: bool = False) -> None:
+        self.entries[path] = _Entry(fingerprint, context.cache, context.per_product, opaque)
+
+    def read(self, value: Any, path: str, context: _Context) -> None:
+        if isinstance(value, np.ndarray):
+            self._first_path.setdefault(id(value), path)
+            self._arrays.append((path, value, context, _is_work(context)))
+        elif isinstance(value, _SCALARS):
+            self.add(path, ("value", type(value).__qualname__, repr(value)), context)
+        elif type(value) in (list, tuple, dict) or isinstance(value, (list, tuple, dict)):
+            self.add(path, (type(value).__module__, type(value).__qualname__, id(type(value))), context)
+            items = value.items() if isinstance(value, dict) else enumerate(value)
+            for key, item in sorted(items, key=lambda kv: repr(kv[0])):
+                step = f"[{key!r}]"
+                self.read(item, path + step, context.into(step))
+        elif _opaque_value(value) or id(value) in self._stack:
+            self.add(path, ("identity", type(value).__qualname__, id(value)), context)
+        else:
+            self.read_object(value, path, context)
+
+    def read_object(self, obj: Any, path: str, context: _Context) -> None:
+        self.add(path, ("object", type(obj).__module__, type(obj).__qualname__, id(type(obj))), context)
+        self.parts.append((path, obj))
+        self._stack.add(id(obj))
+        rule = seal_rule(type(obj))
+        for name, value in sorted(vars(obj).items(), key=lambda kv: kv[0]):
+            if name in rule.counters:
+                continue
+            where, inner = f"{path}.{name}", replace(context, rule=rule, rel=name)
+            if name in rule.opaque:
+                self.slots[where] = _Slot(obj, name, inner)
+                self.add(where, ("identity", type(value).__qualname__, id(value)), inner, opaque=True)
+            elif name in rule.caches and not context.cache:
+                self.read_cache(obj, name, value, where, inner, rule.caches[name])
+            else:
+                if name in rule.per_product and not context.per_product:
+                    inner = replace(inner, per_product=where)
+                    self.slots[where] = _Slot(obj, name, inner, rule.per_product[name], obj, None)
+                self.read(value, where, inner)
+        self._stack.discard(id(obj))
+
+    def read_cache(self, obj: Any, name: str, value: Any, where: str, context: _Context, rebuild: Rebuild) -> None:
+        """A cache (``SealRule.caches``): an attribute, or each entry of a dict."""
+        if not isinstance(value, dict):
+            self.slots[where] = _Slot(obj, name, context, rebuild, obj, None)
+            self.read(value, where, replace(context, cache=where))
+            return
+        self.add(where, (type(value).__module__, type(value).__qualname__, id(type(value))), context)
+        for key, item in sorted(value.items(), key=lambda kv: repr(kv[0])):
+            step = f"[{key!r}]"
+            inner = replace(context.into(step), cache=where + step)
+            self.slots[where + step] = _Slot(value, key, inner, rebuild, obj, key)
+            self.read(item, where + step, inner)
+
+    def finish(self) -> _Reader:
+        """The arrays' fingerprints: a work buffer's layout, any other's content too."""
+        for path, arr, context, work in self._arrays:
+            layout = (arr.dtype.str, arr.shape, arr.strides, self._memory_of(arr))
+            if work:
+                self.add(path, ("work", *layout), context)
+            else:
+                self.add(path, ("array", *layout, self._digest(arr)), context)
+        return self
+
+    def _memory_of(self, arr: np.ndarray) -> str:
+        """Whose memory ``arr`` views: its own, an array read here (by its path, at an
+        offset), or memory from outside the problem."""
+        root = arr
+        while isinstance(root.base, np.ndarray):
+            root = root.base
+        if root is arr and arr.base is None:
+            return "own"
+        offset = arr.__array_interface__["data"][0] - root.__array_interface__["data"][0]
+        path = self._first_path.get(id(root))
+        return f"{path} at {offset}" if path is not None and root.base is None else "outside"
+
+    def _digest(self, arr: np.ndarray) -> str:
+        if id(arr) not in self._digests:
+            self._digests[id(arr)] = _digest(arr)
+        return self._digests[id(arr)]
+
+
+def _read(qp: Any) -> _Reader:
+    """The state of the problem handed to a solver: ubar, the upper bounds (a hardness),
+    and everything the operator holds (``_Reader``)."""
+    reader = _Reader()
+    reader.read(np.asarray(qp.ubar), "ubar", _Context())
     upper = getattr(getattr(qp, "constraints", None), "upper", None)
     if upper is not None:
-        out.append(("upper", np.asarray(upper)))
-    for where, part in _operator_parts(qp):
-        out += [(f"{where}.{k}", v) for k, v in sorted(vars(part).items())
-                if not k.startswith("_") and isinstance(v, np.ndarray)]
-    return out
+        reader.read(np.asarray(upper), "upper", _Context())
+    reader.read_object(qp.H, "H", _Context())
+    return reader.finish()
+
+
+def _read_slot(value: Any, slot: _Slot, path: str) -> dict[str, _Entry]:
+    """The entries of ``value`` read in place of what ``slot`` holds, at ``path``."""
+    reader = _Reader()
+    reader.read(value, path, slot.context)
+    return reader.finish().entries
 
 
 def _digest(arr: np.ndarray) -> str:
@@ -100,77 +286,143 @@ def _digest(arr: np.ndarray) -> str:
     return h.hexdigest()
 
 
-def _operator_parts(qp: Any) -> list[tuple[str, Any]]:
-    """The operator and its public helper objects (an FFT operator's kernel transform),
-    named as the seal names them."""
-    H = qp.H
-    return [("H", H)] + [(f"H.{name}", value) for name, value in sorted(vars(H).items())
-                         if not name.startswith("_") and hasattr(value, "__dict__") and not isinstance(value, type)]
-
-
-def _methods(qp: Any) -> tuple[tuple[type, str, Any], ...]:
-    """(class, name, attribute) of every method and descriptor the classes of the operator
-    and its helpers define (their MROs, ``object`` aside): what a product runs."""
-    classes = dict.fromkeys(c for _, part in _operator_parts(qp) for c in type(part).__mro__ if c is not object)
+def _methods(parts: list[tuple[str, Any]]) -> tuple[tuple[type, str, Any], ...]:
+    """(class, name, attribute) of every method and descriptor the classes of the objects
+    the operator holds define (their MROs, ``object`` aside): what a product runs."""
+    classes = dict.fromkeys(c for _, part in parts for c in type(part).__mro__ if c is not object)
     return tuple((c, name, value) for c in classes for name, value in vars(c).items()
                  if callable(value) or isinstance(value, (staticmethod, classmethod, property)))
 
 
-def _shadowing(qp: Any) -> tuple[tuple[Any, str, str, Any], ...]:
-    """(object, attribute, seal name, value) of each attribute set on the operator or a
-    helper object that hides a method of its class (``H.matvec = ...``)."""
-    return tuple((part, name, f"{where}.{name}", value) for where, part in _operator_parts(qp)
+def _shadowing(parts: list[tuple[str, Any]]) -> tuple[tuple[Any, str, str, Any], ...]:
+    """(object, attribute, seal name, value) of each attribute set on an object the
+    operator holds that hides a method of its class (``H.matvec = ...``)."""
+    return tuple((part, name, f"{where}.{name}", value) for where, part in parts
                  for name, value in vars(part).items() if callable(getattr(type(part), name, None)))
 
 
-@dataclass(frozen=True)
-class ProblemSeal:
-    """A fingerprint of the problem handed to a solver -- ubar and the operator's
-    defining arrays (``_defining_arrays``), and the methods its products run (``_methods``)
-    -- taken before the solve; ``broken(qp)`` after it says what the solver changed ("" when
-    nothing): an array written into, a method of the operator's classes replaced, or one
-    hidden by an attribute of the object (``_shadowing``).  ``mend(qp)`` puts the methods
-    back, so the solves after it in the same process run the code they were written for."""
+def _under(path: str, slot: str) -> bool:
+    return path == slot or path.startswith(slot + ".") or path.startswith(slot + "[")
 
-    digests: tuple[tuple[str, str], ...]
+
+@dataclass
+class _Findings:
+    """What a check found: the paths written (``changed``), the cache slots whose state
+    is not their rebuild (``bad_caches``), and the slots to put back (per-product state
+    a solve replaced that is not its rebuild, opaque state it replaced)."""
+
+    reader: _Reader
+    changed: list[str]
+    bad_caches: list[str]
+    per_product: list[str]
+    opaque: list[str]
+
+
+@dataclass(frozen=True, eq=False)  # (compared by identity: it holds the objects it put aside)
+class ProblemSeal:
+    """A fingerprint of the problem handed to a solver, taken before the solve: ubar, and
+    everything the operator holds -- its defining arrays, its private arrays and those of
+    the objects it holds, read by the rules of ``contactbench.problems.operator_state``
+    (work buffers by their layout, caches held to their rebuild, counters not at all) --
+    and the methods its products run (``_methods``).  ``broken(qp)`` after the solve says
+    what the solver changed ("" when nothing): an array written into (private ones
+    included), a cache that is not what the operator builds, a method of the operator's
+    classes replaced, or one hidden by an attribute of the object (``_shadowing``).
+    ``mend(qp)`` puts back what can be: the methods, the caches a solve built or changed
+    that are not their rebuild (dropped: the judge builds its own), the plans of the last
+    product that are not theirs (a solve's own plan is kept, for its timed solve after its
+    warm-up) and the opaque state; so the judge and the solves after it in the same process
+    compute with the problem as sealed -- its defining arrays aside, which a write
+    leaves as the solver left them (the harness then drops that problem)."""
+
+    state: dict[str, _Entry]
     methods: tuple[tuple[type, str, Any], ...] = ()
     hiding: tuple[tuple[str, Any], ...] = ()  # (seal name, value): what hid a method when sealed
+    opaque: tuple[tuple[str, Any], ...] = ()  # (seal name, value): opaque state when sealed
+    _found: dict[int, _Findings] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def of(cls, qp: Any) -> ProblemSeal:
-        hiding = tuple((where, value) for _, _, where, value in _shadowing(qp))
-        return cls(tuple((name, _digest(a)) for name, a in _defining_arrays(qp)), _methods(qp), hiding)
+        reader = _read(qp)
+        hiding = tuple((where, value) for _, _, where, value in _shadowing(reader.parts))
+        opaque = tuple((path, slot.value) for path, slot in reader.slots.items() if reader.entries[path].opaque)
+        return cls(reader.entries, _methods(reader.parts), hiding, opaque)
 
-    def _new_hiding(self, qp: Any) -> list[tuple[Any, str, str, Any]]:
+    def _new_hiding(self, parts: list[tuple[str, Any]]) -> list[tuple[Any, str, str, Any]]:
         """``_shadowing``'s entries that were not there, as they are, when sealed."""
         sealed = dict(self.hiding)
-        return [(part, name, where, value) for part, name, where, value in _shadowing(qp)
+        return [(part, name, where, value) for part, name, where, value in _shadowing(parts)
                 if where not in sealed or sealed[where] is not value]
 
+    def _check(self, qp: Any) -> _Findings:
+        reader = _read(qp)
+        now, before = reader.entries, self.state
+        changed, caches, per_product, opaque = [], set(), [], []
+        for path in [*before, *(p for p in now if p not in before)]:
+            old, new = before.get(path), now.get(path)
+            if old is not None and new is not None and old.fingerprint == new.fingerprint:
+                continue
+            entry = new or old
+            assert entry is not None
+            if entry.per_product or (old is not None and old.per_product):
+                per_product.append(entry.per_product or old.per_product)  # type: ignore[union-attr]
+            elif entry.opaque:
+                opaque.append(path)
+            elif entry.cache or (old is not None and old.cache):
+                caches.add(entry.cache or old.cache)  # type: ignore[union-attr]
+            else:
+                changed.append(path)
+        bad = [slot for slot in sorted(caches) if not self._rebuilt(slot, reader)]
+        stale = [slot for slot in sorted(set(per_product)) if not self._rebuilt(slot, reader, within=True)]
+        findings = _Findings(reader, changed, bad, stale, opaque)
+        self._found.clear()
+        self._found[id(qp)] = findings
+        return findings
+
+    @staticmethod
+    def _rebuilt(path: str, reader: _Reader, within: bool = False) -> bool:
+        """Whether the cache slot ``path`` holds what the operator builds there (or nothing:
+        a dropped cache is built again on use); the plans of the last product inside it
+        left out, unless ``within`` (``path`` is such a plan)."""
+        slot = reader.slots.get(path)
+        if slot is None or slot.value is None or slot.rebuild is None:
+            return slot is None or slot.value is None
+        try:
+            fresh = slot.rebuild(slot.owner, slot.entry, slot.value)
+        except Exception:  # a cache whose rebuild fails on what the solver left is not the operator's
+            return False
+        held = {p: e.fingerprint for p, e in reader.entries.items() if _under(p, path) and (within or not e.per_product)}
+        built = {p: e.fingerprint for p, e in _read_slot(fresh, slot, path).items() if within or not e.per_product}
+        return held == built
+
     def broken(self, qp: Any) -> str:
-        now = {name: _digest(a) for name, a in _defining_arrays(qp)}  # (the arrays; the methods below)
-        before = dict(self.digests)
-        changed = [name for name in before if now.get(name) != before[name]]
-        changed += [name for name in now if name not in before]
-        changed += [f"{c.__qualname__}.{name}" for c, name, value in self.methods
-                    if vars(c).get(name) is not value]
-        changed += [where for _, _, where, _ in self._new_hiding(qp)]
+        found = self._check(qp)
+        changed = found.changed + found.bad_caches
+        changed += [f"{c.__qualname__}.{name}" for c, name, value in self.methods if vars(c).get(name) is not value]
+        changed += [where for _, _, where, _ in self._new_hiding(found.reader.parts)]
         return f"the solver wrote into the problem it was handed ({', '.join(changed)} changed)" if changed else ""
 
     def mend(self, qp: Any) -> None:
-        """The operator's methods as they were sealed: class attributes put back, attributes
-        of the object that hide one removed (its arrays stay as the solver left them: the
-        harness drops that problem)."""
+        """Put back what can be put back (class doc); right after ``broken(qp)`` it acts on
+        what that read."""
+        found = self._found.pop(id(qp), None) or self._check(qp)
+        self._found.clear()
         for c, name, value in self.methods:
             if vars(c).get(name) is not value:
                 setattr(c, name, value)
         sealed = dict(self.hiding)
-        for part, name, where, _ in self._new_hiding(qp):
+        for part, name, where, _ in self._new_hiding(found.reader.parts):
             if where in sealed:
                 setattr(part, name, sealed[where])
             else:
                 delattr(part, name)
-
+        slots, opaque = found.reader.slots, dict(self.opaque)
+        for path in found.bad_caches + found.per_product:
+            if path in slots:
+                slots[path].put(None)
+        for path in found.opaque:
+            if path in slots:
+                slots[path].put(opaque.get(path))
 
 # ---------------------------------------------------------------------------
 # The verdict
@@ -223,7 +475,8 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     """The verdict on answer ``p`` of instance ``inst`` (module doc).  ``claimed`` is the
     solver's own convergence claim; ``p_ref`` an exact reference answer; ``p_tol`` the
     allowed ||p - p_ref||_inf / ||p_ref||_inf for a "pass" (None: not checked);
-    ``tampered`` what ``ProblemSeal.broken`` found the solver changed ("" nothing).
+    ``tampered`` what ``ProblemSeal.broken`` found the solver changed, or why the problem
+    is not the harness's to judge (threads the solver left running; "" nothing).
     ``inst`` must be the harness's own copy of the problem; ``check_tol`` a finite number
     > 0 (``ProblemInputError``: an infinite one would pass p = 0, a NaN fail everything)."""
     check_positive("the judge's check_tol", check_tol)

@@ -566,15 +566,17 @@ class _DuccWork:
         last = self._last
         if last is not None and last.key is pidx:
             return last
+        self._last = plan = self.fresh_plan(pidx)
+        return plan
+
+    def fresh_plan(self, pidx: np.ndarray) -> _RowPlan:
+        """The row plan of the padded flat indices ``pidx``, made afresh (not kept)."""
         pidx = np.asarray(pidx)
         if pidx.size == self.n1 * self.n2 and np.array_equal(
             pidx, (np.arange(self.n1)[:, None] * self.p1 + np.arange(self.n2)).ravel()
         ):
-            plan = _RowPlan(pidx, True)
-        else:
-            plan = self._points_plan(pidx)
-        self._last = plan
-        return plan
+            return _RowPlan(pidx, True)
+        return self._points_plan(pidx)
 
     def _points_plan(self, pidx: np.ndarray) -> _RowPlan:
         rb = self.row_rows

@@ -406,8 +406,11 @@ class DenseOperator(ContactOperator):
 
     def entry_floor(self) -> float | None:
         if getattr(self, "_floor", None) is None:
-            self._floor = min(0.0, float(np.min(self.H, initial=0.0)))
+            self._floor = self._fresh_floor()
         return self._floor
+
+    def _fresh_floor(self) -> float:
+        return min(0.0, float(np.min(self.H, initial=0.0)))
 
     @property
     def memory_nbytes(self) -> int:
@@ -472,8 +475,12 @@ class FFTOperator(ContactOperator):
         if self._dense is not None or not self.auto_dense or not self.dense_pays():
             return
         if self.matvec_count >= DENSE_SWITCH_AFTER or dense_block_at_once(self.n, self._padded_points()):
-            idx = np.arange(self.n)
-            self._dense = self.submatrix(idx, idx).astype(self.dtype, copy=False)
+            self._dense = self._dense_block()
+
+    def _dense_block(self) -> np.ndarray:
+        """H_II as a dense block in the operator's precision, gathered from the kernel table."""
+        idx = np.arange(self.n)
+        return self.submatrix(idx, idx).astype(self.dtype, copy=False)
 
     def _padded_points(self) -> int:
         return int(np.prod(self.transform.padded_shape))
@@ -626,8 +633,11 @@ class FFTOperator(ContactOperator):
     def _window_spectrum(self, shape: tuple[int, int]) -> np.ndarray:
         """The kernel's spectrum on a window of ``shape`` (``window_sums``), kept per shape."""
         if shape not in self._window_spectra:
-            self._window_spectra[shape] = window_sums.kernel_window_spectrum(self.transform.table, shape)
+            self._window_spectra[shape] = self._fresh_window_spectrum(shape)
         return self._window_spectra[shape]
+
+    def _fresh_window_spectrum(self, shape: tuple[int, int]) -> np.ndarray:
+        return window_sums.kernel_window_spectrum(self.transform.table, shape)
 
     def partial_product_pays(self, entries: int) -> bool:
         P = int(np.prod(self.transform.padded_shape))

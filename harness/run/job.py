@@ -22,7 +22,11 @@ whose handler (``harness.run.worker.SolveServer``) builds the instance's
    meets the variant -- dropped when the solve is predicted to take longer than
    ``RunConfig.warmup_limit`` (``predicted_seconds``; the row's ``warmup`` says so) --
    then ``repeats`` timed solves, each under a hard wall-clock limit enforced by
-   killing the worker; every answer is judged by ``harness.judging.judge``.
+   killing the worker; every answer is judged by ``harness.judging.judge``.  What an
+   untimed solve did to its problem (a write, threads left running: ``UntimedReply.fault``)
+   is the next timed row's of the same solver (``SolveTask.untimed``); a solve that left
+   threads running (``threads_left``) ends its worker, and the next message starts a fresh
+   one (a new ``generation``).
 
 Warm starts: along a load history each solver starts from its own previous-step answer
 (``harness.run.sequence``) when its capabilities allow and the run asks.  The answer a
@@ -41,7 +45,7 @@ import hashlib
 import json
 import logging
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any, Callable, ContextManager
@@ -71,6 +75,7 @@ from .worker import (
     SolveReply,
     SolveTask,
     StepInfo,
+    UntimedReply,
     WarmUp,
     message_title,
 )
@@ -125,6 +130,7 @@ class JobDriver:
                                    threads=run.worker_threads())
         self.warmed: set[tuple[int, str]] = set()
         self.warm_have: set[tuple[int, str, str, int]] = set()  # (generation, label, profile, step) held by the worker
+        self.untimed: dict[str, str] = {}  # label -> what its untimed solve did to its problem (``UntimedReply.fault``)
         self._step_error = ""
         self.build_times: dict[int, float] = {}
 
@@ -183,10 +189,17 @@ class JobDriver:
                 self.output.close()
 
     def call(self, msg: Message, timeout: float | None) -> ChildReply:
-        """Send ``msg`` to the worker; what it printed joins the solver-output log."""
+        """Send ``msg`` to the worker; what it printed joins the solver-output log.  A
+        reply that says the solve left threads running ends the worker: the next message
+        starts a fresh one."""
         out = self.worker.call(msg, timeout)
         if self.output is not None:
             self.output.collect(f"{self.where} {message_title(msg)}{'' if out.ok else f' ({out.kind})'}")
+        if out.ok and getattr(out.value, "threads_left", ""):
+            log.info("%s %s: %s; the worker is replaced", self.where, message_title(msg), out.value.threads_left)
+            self.worker.kill()
+        if out.ok and isinstance(out.value, UntimedReply) and out.value.fault and isinstance(msg, (WarmUp, Regenerate)):
+            self.untimed[msg.task.label] = out.value.fault
         return out
 
     def solver_code(self, what: str) -> ContextManager[None]:
@@ -381,7 +394,7 @@ class JobDriver:
             return False
         task = self.solve_task(ctx, v, profile, operator, warm=False)
         out = self.call(Regenerate(task), self.run_cfg.timeout * 1.1 + 5.0)
-        if out.ok and out.value:
+        if out.ok and out.value.ok and self.worker.alive:  # (not a worker ended for the threads left)
             self.warm_have.add((self.worker.generation, v.name, profile, ctx.k - 1))
             return True
         return False
@@ -441,6 +454,7 @@ class JobDriver:
                     w_out.detail = "in the untimed warm-up solve: " + w_out.detail
                     return w_out, note
             self.warmed.add((self.worker.generation, v.name))
+        task = replace(task, untimed=self.untimed.pop(v.name, ""))  # (the row's whatever worker it runs in)
         return self.call(Solve(task), deadline), note
 
     def run_group(self, ctx: StepContext, v: SolverVariant, profile: str, reps: list[int], operator: str) -> None:

@@ -8,11 +8,17 @@ The parent (``harness.run.job.JobDriver``) sends one message at a time:
 ``AssembleDense(k)``    assemble the dense H of step k once -> seconds it took;
 ``ComputeReference``    load the stored reference answer, or solve and store it ->
                         ``ReferenceReply``;
-``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped;
+``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped
+                        -> ``UntimedReply``;
 ``Solve(task)``         one timed solve, judged by ``harness.judging.judge`` -> ``SolveReply``;
 ``Regenerate(task)``    recover this solver's warm start after a worker restart or on
                         resume: the previous step's answer as the run kept it on disk
-                        (``task.warm_in``), else that step re-solved, untimed -> bool.
+                        (``task.warm_in``), else that step re-solved, untimed -> ``UntimedReply``.
+
+Every solve of a solver is watched for the threads it leaves running (``threads_left``):
+Python threads cannot be stopped, so a reply that names any (``threads_left``) tells the
+driver not to reuse this worker, and the solve's row is ``failed``/``wrong`` -- an answer
+is not judged while the solver's code still runs beside the judge.
 
 Warm starts are kept here, per (variant label, profile, step), as ``WarmState`` and
 mapped by ``harness.run.sequence.warm_start_from``; a solve whose answer the next step
@@ -22,12 +28,17 @@ table row is built by the parent (``harness.run.rows``) from the reply.
 
 from __future__ import annotations
 
+import concurrent.futures.thread
 import contextlib
 import copy
 import json
 import math
 import os
+import sys
+import threading
 import time
+from time import monotonic, sleep  # (the grace for threads left: not the solve's clock, ``time.perf_counter``)
+from types import FrameType
 from dataclasses import dataclass, field, replace
 from typing import Any, Iterable, Iterator, Sequence, Union
 
@@ -52,6 +63,8 @@ REFERENCE_MAX_KKT = 1e-6
 MAX_TRACE_POINTS = 200
 #: Wrong answers on instances up to this size are kept as arrays for the report's plots.
 MAX_SAVED_N = 5000
+#: How long a worker waits, after a solve, for the threads the solve started to end.
+THREAD_GRACE_S = 1.0
 
 # ---------------------------------------------------------------------------
 # Messages and replies
@@ -97,6 +110,7 @@ class SolveTask:
     reference_max_kkt: float = REFERENCE_MAX_KKT  # ... with a scaled KKT error at most this (harness.run.job)
     warm_out: str | None = None  # keep this answer here as the next step's warm start, for a resume
     warm_in: str | None = None  # the previous step's answer kept so (``Regenerate`` reads it before re-solving)
+    untimed: str = ""  # what this solver's untimed solve before it did to its problem (``UntimedReply.fault``)
 
 
 @dataclass(frozen=True)
@@ -197,6 +211,20 @@ class SolveReply:
     kept_warm: bool = False
     aborted: str = ""  # "timeout" / "crashed" when the solver raised SolveAborted
     reference_saved: bool = False  # this answer was kept as the step's reference (task.reference_out)
+    threads_left: str = ""  # the threads the solve left running ("" none): the worker is not reused
+
+
+@dataclass
+class UntimedReply:
+    """One untimed solve (a warm-up, or the re-solve of a warm start): ``ok`` -- it ran
+    (``Regenerate``: a warm start is held); ``fault`` -- what it did to the problem it was
+    handed ("" nothing: a write the seal found, threads left running), which the timed row
+    of the same solver is judged by (``SolveTask.untimed``); ``threads_left`` -- the worker
+    is not reused."""
+
+    ok: bool
+    fault: str = ""
+    threads_left: str = ""
 
 
 # ---------------------------------------------------------------------------
@@ -269,7 +297,6 @@ class SolveServer:
         self.dense: dict[int, DenseOperator] = {}
         self.refs: dict[str, np.ndarray] = {}
         self.warm: dict[tuple[str, str, int], WarmState] = {}  # (label, profile, step)
-        self.wrote_untimed: dict[str, str] = {}  # label -> what its untimed solve wrote into the problem
 
     def __call__(self, msg: Message) -> Any:
         with output_to(self.output_path) if self.output_path else contextlib.nullcontext():
@@ -399,7 +426,7 @@ class SolveServer:
         self.warm[(*key, task.step)] = state
         return True
 
-    def regenerate(self, task: SolveTask) -> bool:
+    def regenerate(self, task: SolveTask) -> UntimedReply:
         """Recover this solver's warm start: the previous step's answer as the run kept it
         (``task.warm_in``), so a resumed run starts each step where the uninterrupted one
         did; else that step re-solved from p = 0 (untimed)."""
@@ -407,30 +434,33 @@ class SolveServer:
         inst, _ = self.ensure_step(prev.step)
         kept = WarmState.load(task.warm_in, prev.step, inst) if task.warm_in else None
         if kept is not None:
-            return self.remember(prev, inst, kept.p, kept.w)
+            return UntimedReply(self.remember(prev, inst, kept.p, kept.w))
         qp = self.qp_for(prev.step, prev.operator)
-        with self.sealed(task, qp, "re-solving the step before"):
-            try:
-                res = load_solver(prev.base).solve(qp, solver_settings(prev), None)
-            except SOLVER_RAISES:
-                return False  # no warm start: the step runs cold, and its row says so
-        return self.remember(prev, inst, res.p, res.w)
+        reply = UntimedReply(False)
+        with self.sealed(qp, "re-solving the step before", reply):
+            res = load_solver(prev.base).solve(qp, solver_settings(prev), None)
+            reply.ok = True
+        if reply.ok:  # (else no warm start: the step runs cold, and its row says so)
+            reply.ok = self.remember(prev, inst, res.p, res.w)
+        return reply
 
     @contextlib.contextmanager
-    def sealed(self, task: SolveTask, qp: QP, what: str) -> Iterator[None]:
-        """An untimed solve of ``task``'s solver on ``qp``, sealed (``ProblemSeal``): a
-        problem it wrote into is dropped, so the solves after it get the problem rebuilt,
-        and the task's timed row is judged as having written into it (``solve``)."""
-        seal = ProblemSeal.of(qp)
-        try:
-            with process_state_kept():
-                yield
-        finally:
-            broken = seal.broken(qp)
-            if broken:
-                self.wrote_untimed[task.label] = f"{broken}, {what}"
-                seal.mend(qp)
-                self.forget_problems()
+    def sealed(self, qp: QP, what: str, reply: UntimedReply) -> Iterator[None]:
+        """An untimed solve on ``qp`` (what the solver raises is swallowed: ``reply.ok``
+        stays False), sealed (``ProblemSeal``) and watched for the threads it leaves
+        (``threads_left``): a problem it wrote into is dropped, so the solves after it get
+        the problem rebuilt; what it did is ``reply.fault``, which the timed row of the same
+        solver is judged by (``solve``)."""
+        seal, threads = ProblemSeal.of(qp), running_threads()
+        with contextlib.suppress(*SOLVER_RAISES), process_state_kept():
+            yield
+        reply.threads_left = threads_left(threads)
+        broken = seal.broken(qp)
+        seal.mend(qp)
+        if broken:
+            self.forget_problems()
+        if broken or reply.threads_left:
+            reply.fault = f"{broken or reply.threads_left}, {what}"
 
     def prepare(self, task: SolveTask) -> tuple[ContactInstance, QP, Any, WarmStart | None]:
         inst, _ = self.ensure_step(task.step)
@@ -442,15 +472,15 @@ class SolveServer:
                                    solver.capabilities.warm_start)
         return inst, qp, solver, warm
 
-    def warmup(self, task: SolveTask) -> bool:
-        """The untimed warm-up solve (imports, JIT, caches); its answer is discarded."""
+    def warmup(self, task: SolveTask) -> UntimedReply:
+        """The untimed warm-up solve (imports, JIT, caches); its answer is discarded (a
+        solver that raises here fails the same way in its timed solve, which records it)."""
         _, qp, solver, warm = self.prepare(task)
-        with self.sealed(task, qp, "in its untimed warm-up"):
-            try:
-                solver.solve(qp, solver_settings(task), warm)
-            except SOLVER_RAISES:
-                return False  # the timed solve fails the same way and records it
-        return True
+        reply = UntimedReply(False)
+        with self.sealed(qp, "in its untimed warm-up", reply):
+            solver.solve(qp, solver_settings(task), warm)
+            reply.ok = True
+        return reply
 
     def solve(self, task: SolveTask) -> SolveReply:
         """One timed solve, judged by the harness (never by the solver's claim)."""
@@ -458,16 +488,27 @@ class SolveServer:
         settings = solver_settings(task)
         count0 = qp.H.matvec_count
         seal = ProblemSeal.of(qp)  # untimed: what the solver is handed, to catch writes into it
+        threads = running_threads()
+        raised: SolveReply | None = None
         with process_state_kept(), PeakMemory() as mem:  # (the state put back outside the clock)
             t0 = time.perf_counter()
             try:
                 res = solver.solve(qp, settings, warm)
             except SolveAborted as exc:  # (a status the class does not allow is a crash: ``aborted_status``)
-                return SolveReply(time.perf_counter() - t0, warm is not None, error=exception_message(exc),
-                                  aborted=aborted_status(exc) or "crashed")
+                raised = SolveReply(time.perf_counter() - t0, warm is not None, error=exception_message(exc),
+                                    aborted=aborted_status(exc) or "crashed")
             except SOLVER_RAISES as exc:
-                return SolveReply(time.perf_counter() - t0, warm is not None, error=error_text(exc))
+                raised = SolveReply(time.perf_counter() - t0, warm is not None, error=error_text(exc))
             elapsed = time.perf_counter() - t0
+        left = threads_left(threads)
+        if raised is not None:  # (a problem it wrote into before raising is dropped all the same)
+            broken = seal.broken(qp)
+            seal.mend(qp)
+            if broken:
+                self.forget_problems()
+            raised.error = "; ".join(filter(None, (raised.error, broken, left)))
+            raised.threads_left = left
+            return raised
         facts = SolverFacts(
             iterations=int(res.iterations), solver_status=str(res.status), solver_converged=bool(res.converged),
             solver_message=str(res.message)[:500], solver_internal_time_s=float(res.solve_time),
@@ -477,10 +518,11 @@ class SolveServer:
         reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
         p_ref = self.reference_p(task.reference_path)
         tampered = seal.broken(qp)
-        seal.mend(qp)  # (before the judge reads the problem: its products run the sealed code)
+        seal.mend(qp)  # (before the judge reads the problem: its products run the sealed code and state)
+        reply.threads_left = left
         reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
                               analytic_load=self.analytic(task.step).get("load"),
-                              tampered=tampered or self.wrote_untimed.pop(task.label, ""))
+                              tampered=tampered or left or task.untimed)
         if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
             reply.error = reply.verdict.message()
             if reply.verdict.tampered:
@@ -498,6 +540,41 @@ class SolveServer:
             with contextlib.suppress(OSError):  # a full disk costs a resume its exact start, not this row
                 self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
         return reply
+
+
+def running_threads() -> set[int]:
+    """The threads of this process that run Python code (``sys._current_frames``: those
+    started by ``threading`` and by ``_thread`` alike), but the calling thread and idle
+    pool workers -- a ``concurrent.futures`` worker waiting on an empty queue runs nothing
+    until it is given work (the FFT threads' pool, a pool a solver keeps)."""
+    here = threading.get_ident()
+    return {ident for ident, frame in sys._current_frames().items()
+            if ident != here and not idle_pool_worker(frame)}
+
+
+def idle_pool_worker(frame: FrameType) -> bool:
+    """Whether ``frame``, a thread's innermost, is a ``concurrent.futures`` worker
+    waiting for work on an empty queue."""
+    code = frame.f_code
+    if code.co_name != "_worker" or code.co_filename != concurrent.futures.thread.__file__:
+        return False
+    queue = frame.f_locals.get("work_queue")
+    return queue is not None and hasattr(queue, "empty") and bool(queue.empty())
+
+
+def threads_left(before: set[int], grace: float | None = None) -> str:
+    """The threads running now that were not before a solve (``running_threads``), after
+    waiting up to ``grace`` seconds (default ``THREAD_GRACE_S``) for them to end; "" when
+    none is left, else a sentence naming them."""
+    end = monotonic() + (THREAD_GRACE_S if grace is None else grace)
+    while (left := running_threads() - before) and monotonic() < end:
+        sleep(0.01)
+    if not left:
+        return ""
+    names = {t.ident: t.name for t in threading.enumerate()}
+    shown = ", ".join(repr(names.get(ident, f"thread {ident}")) for ident in sorted(left))
+    return (f"the solver left {len(left)} thread{'s' if len(left) > 1 else ''} running after its solve ({shown}), "
+            "which could write into the problem it was handed while it is judged")
 
 
 @contextlib.contextmanager
