@@ -42,7 +42,7 @@ import numpy as np
 from contactbench.problems.errors import check_positive
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
-from contactbench.problems.operator_state import Rebuild, SealRule, seal_rule
+from contactbench.problems.operator_state import Rebuild, SealRule, Verify, seal_rule
 
 from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
@@ -131,6 +131,7 @@ class _Slot:
     rebuild: Rebuild | None = None
     owner: Any = None
     entry: Any = None
+    verify: Verify | None = None
 
     @property
     def value(self) -> Any:
@@ -208,7 +209,7 @@ class _Reader:
                 continue
             where, inner = f"{path}.{name}", replace(context, rule=rule, rel=name)
             if name in rule.opaque:
-                self.slots[where] = _Slot(obj, name, inner)
+                self.slots[where] = _Slot(obj, name, inner, owner=obj, verify=rule.opaque[name])
                 self.add(where, ("identity", type(value).__qualname__, id(value)), inner, opaque=True)
             elif name in rule.caches and not context.cache:
                 self.read_cache(obj, name, value, where, inner, rule.caches[name])
@@ -309,7 +310,8 @@ def _under(path: str, slot: str) -> bool:
 class _Findings:
     """What a check found: the paths written (``changed``), the cache slots whose state
     is not their rebuild (``bad_caches``), and the slots to put back (per-product state
-    a solve replaced that is not its rebuild, opaque state it replaced)."""
+    a solve replaced that is not its rebuild, opaque state that fails its check, which
+    ``changed`` names too)."""
 
     reader: _Reader
     changed: list[str]
@@ -326,27 +328,26 @@ class ProblemSeal:
     (work buffers by their layout, caches held to their rebuild, counters not at all) --
     and the methods its products run (``_methods``).  ``broken(qp)`` after the solve says
     what the solver changed ("" when nothing): an array written into (private ones
-    included), a cache that is not what the operator builds, a method of the operator's
+    included), a cache that is not what the operator builds, device state that is not what
+    the operator put there (``SealRule.opaque``'s check, run at every check), a method of the operator's
     classes replaced, or one hidden by an attribute of the object (``_shadowing``).
     ``mend(qp)`` puts back what can be: the methods, the caches a solve built or changed
     that are not their rebuild (dropped: the judge builds its own), the plans of the last
     product that are not theirs (a solve's own plan is kept, for its timed solve after its
-    warm-up) and the opaque state; so the judge and the solves after it in the same process
+    warm-up) and the device state that fails its check (dropped); so the judge and the solves after it in the same process
     compute with the problem as sealed -- its defining arrays aside, which a write
     leaves as the solver left them (the harness then drops that problem)."""
 
     state: dict[str, _Entry]
     methods: tuple[tuple[type, str, Any], ...] = ()
     hiding: tuple[tuple[str, Any], ...] = ()  # (seal name, value): what hid a method when sealed
-    opaque: tuple[tuple[str, Any], ...] = ()  # (seal name, value): opaque state when sealed
     _found: dict[int, _Findings] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def of(cls, qp: Any) -> ProblemSeal:
         reader = _read(qp)
         hiding = tuple((where, value) for _, _, where, value in _shadowing(reader.parts))
-        opaque = tuple((path, slot.value) for path, slot in reader.slots.items() if reader.entries[path].opaque)
-        return cls(reader.entries, _methods(reader.parts), hiding, opaque)
+        return cls(reader.entries, _methods(reader.parts), hiding)
 
     def _new_hiding(self, parts: list[tuple[str, Any]]) -> list[tuple[Any, str, str, Any]]:
         """``_shadowing``'s entries that were not there, as they are, when sealed."""
@@ -357,7 +358,7 @@ class ProblemSeal:
     def _check(self, qp: Any) -> _Findings:
         reader = _read(qp)
         now, before = reader.entries, self.state
-        changed, caches, per_product, opaque = [], set(), [], []
+        changed, caches, per_product = [], set(), []
         for path in [*before, *(p for p in now if p not in before)]:
             old, new = before.get(path), now.get(path)
             if old is not None and new is not None and old.fingerprint == new.fingerprint:
@@ -367,17 +368,30 @@ class ProblemSeal:
             if entry.per_product or (old is not None and old.per_product):
                 per_product.append(entry.per_product or old.per_product)  # type: ignore[union-attr]
             elif entry.opaque:
-                opaque.append(path)
+                continue  # (checked in full below, replaced or not)
             elif entry.cache or (old is not None and old.cache):
                 caches.add(entry.cache or old.cache)  # type: ignore[union-attr]
             else:
                 changed.append(path)
         bad = [slot for slot in sorted(caches) if not self._rebuilt(slot, reader)]
         stale = [slot for slot in sorted(set(per_product)) if not self._rebuilt(slot, reader, within=True)]
-        findings = _Findings(reader, changed, bad, stale, opaque)
+        foreign = [path for path, slot in reader.slots.items() if slot.verify is not None and not self._intact(path, reader)]
+        findings = _Findings(reader, changed + foreign, bad, stale, foreign)
         self._found.clear()
         self._found[id(qp)] = findings
         return findings
+
+    @staticmethod
+    def _intact(path: str, reader: _Reader) -> bool:
+        """Whether the opaque slot ``path`` holds nothing or what its owner puts there
+        (``SealRule.opaque``'s check)."""
+        slot = reader.slots.get(path)
+        if slot is None or slot.value is None:
+            return True
+        try:
+            return slot.verify is not None and bool(slot.verify(slot.owner, slot.value))
+        except Exception:  # a state its check cannot even read is not the operator's
+            return False
 
     @staticmethod
     def _rebuilt(path: str, reader: _Reader, within: bool = False) -> bool:
@@ -416,13 +430,10 @@ class ProblemSeal:
                 setattr(part, name, sealed[where])
             else:
                 delattr(part, name)
-        slots, opaque = found.reader.slots, dict(self.opaque)
-        for path in found.bad_caches + found.per_product:
+        slots = found.reader.slots
+        for path in found.bad_caches + found.per_product + found.opaque:
             if path in slots:
-                slots[path].put(None)
-        for path in found.opaque:
-            if path in slots:
-                slots[path].put(opaque.get(path))
+                slots[path].put(None)  # (built again on first use)
 
 # ---------------------------------------------------------------------------
 # The verdict

@@ -30,6 +30,9 @@ from .fft_transform import KernelTransform
 #: the sealed state -- ``key`` the entry of a dict cache (None for an attribute), ``current``
 #: what the cache holds now (whose sizes a rebuild may follow: the buffers of each thread).
 Rebuild = Callable[[Any, Any, Any], Any]
+#: verify(owner, value): whether opaque state ``value`` of ``owner`` holds what the owner
+#: itself puts there (``SealRule.opaque``).
+Verify = Callable[[Any, Any], bool]
 
 
 @dataclass(frozen=True)
@@ -47,15 +50,17 @@ class SealRule:
     * ``caches``: state built on first use from the sealed state, each with its ``Rebuild``
       (a dict cache: per entry): a cache a solve built or changed must equal its rebuild,
       else the solve wrote into the problem; one it dropped is built again on first use;
-    * ``opaque``: state the seal cannot read (device memory): put back when a solve
-      replaced it; what it holds is not sealed.
+    * ``opaque``: state the seal cannot read in place (device memory), each with its
+      ``Verify``: what a solve left there is kept where it holds what the operator puts
+      there (a copy back to the host, compared), so a timed solve reuses its warm-up's
+      upload; anything else is put back as sealed.
     """
 
     counters: frozenset[str] = frozenset()
     work: frozenset[str] = frozenset()
     per_product: dict[str, Rebuild] = field(default_factory=dict)
     caches: dict[str, Rebuild] = field(default_factory=dict)
-    opaque: frozenset[str] = frozenset()
+    opaque: dict[str, Verify] = field(default_factory=dict)
 
 
 def pristine_transform(transform: KernelTransform) -> KernelTransform:
@@ -94,7 +99,7 @@ SEAL_RULES: dict[str, SealRule] = {
     }),
     "_DuccWork": SealRule(work=frozenset({"whole", "rows", "_buffers[*]", "_row_buffers[*][1]", "_field"}),
                           per_product={"_last": lambda work, key, current: work.fresh_plan(current.key)}),
-    "ArrayKernelTransform": SealRule(opaque=frozenset({"_device"})),
+    "ArrayKernelTransform": SealRule(opaque={"_device": lambda t, state: t.device_state_intact(state)}),
 }
 
 
@@ -107,5 +112,5 @@ def seal_rule(cls: type) -> SealRule:
         work=frozenset().union(*(r.work for r in rules)),
         per_product={name: rebuild for r in rules for name, rebuild in r.per_product.items()},
         caches={name: rebuild for r in rules for name, rebuild in r.caches.items()},
-        opaque=frozenset().union(*(r.opaque for r in rules)),
+        opaque={name: verify for r in rules for name, verify in r.opaque.items()},
     )

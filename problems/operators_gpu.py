@@ -360,6 +360,13 @@ class ArrayKernelTransform(KernelTransform):
         state["_device"] = None  # device arrays stay in their process
         return state
 
+    def device_state_intact(self, state: Any) -> bool:
+        """Whether ``state`` holds what this transform puts on the device (``_DeviceState.holds``,
+        each array copied back and compared): the seal's check of it
+        (problems/operator_state.py)."""
+        return isinstance(state, _DeviceState) and state.xp is self.xp and state.holds(self.khat, self.table,
+                                                                                        self.grid_shape)
+
     @property
     def space(self) -> ArraySpace:
         """Where the convolutions run (module doc)."""
@@ -480,6 +487,20 @@ class _DeviceState:
             n0, n1 = grid_shape
             self._quarter = self.xp.asarray(np.ascontiguousarray(table[:n0, :n1]).ravel())
         return self._quarter, int(grid_shape[1])
+
+    def holds(self, khat: np.ndarray, table: np.ndarray, grid_shape: tuple[int, int]) -> bool:
+        """Whether every array held here is what ``spectrum``, ``quarter_table`` and
+        ``indices`` put here from ``khat``, ``table`` and the host indices (copied back)."""
+        if self._khat is not khat or (self._stored is not None and not np.array_equal(to_host(self._stored), khat)):
+            return False
+        for name, got in self._spectra.items():
+            target = np.result_type(np.dtype(name), np.complex64) if np.iscomplexobj(khat) else np.dtype(name)
+            if not np.array_equal(to_host(got), khat.astype(target)):
+                return False
+        n0, n1 = grid_shape
+        if self._quarter is not None and not np.array_equal(to_host(self._quarter), table[:n0, :n1].ravel()):
+            return False
+        return all(key == id(pidx) and np.array_equal(to_host(dev), pidx) for key, (pidx, dev) in self._indices.items())
 
     def indices(self, pidx: np.ndarray) -> Any:
         key = id(pidx)

@@ -23,6 +23,8 @@ from contactbench.problems.kernels import kernel_table
 from contactbench.problems.lcp import exact_solution
 from contactbench.problems.operator_state import seal_rule
 from contactbench.problems.operators import FFTOperator, KernelTransform
+from contactbench.problems.operators_gpu import ArrayKernelTransform
+from tests.fake_device import SPACE
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 
 HERE = __name__
@@ -284,3 +286,32 @@ def test_a_solve_s_own_plan_of_its_last_product_is_kept_and_a_forged_one_dropped
     assert seal.broken(qp) == ""  # (the solver's own products would be wrong, not the problem)
     seal.mend(qp)
     assert work._last is None
+
+
+def device_problem() -> QP:
+    """A QP on the fake device (tests/fake_device.py): its transform keeps a ``_DeviceState``."""
+    N = 24
+    host = KernelTransform(kernel_table("bcc", (N, N), 1e-6, 1e9, False), (N, N))
+    H = FFTOperator(ArrayKernelTransform.from_host(host, SPACE), np.arange(0, N * N, 2))
+    return QP(H, np.linspace(-1e-7, 1e-7, H.n))
+
+
+def test_device_state_a_solve_uploads_is_kept_and_one_written_into_is_the_solver_s() -> None:
+    """What an honest solve puts on the device (the spectrum, the indices) is kept, so a
+    timed solve after its warm-up does not upload it again inside its clock; device
+    memory written into in place is found at the next check (copied back, compared),
+    dropped and named as a write."""
+    qp = device_problem()
+    seal = ProblemSeal.of(qp)
+    qp.H.matvec(np.ones(qp.n))
+    state = qp.H.transform._device
+    assert state is not None and seal.broken(qp) == ""
+    seal.mend(qp)
+    assert qp.H.transform._device is state
+    seal = ProblemSeal.of(qp)
+    state._stored.a[0, 0] += 1.0  # a write into the device's copy of the spectrum, in place
+    assert "_device" in seal.broken(qp)
+    seal.mend(qp)
+    assert qp.H.transform._device is None
+    qp.H.matvec(np.ones(qp.n))  # built again, as the operator builds it
+    assert ProblemSeal.of(qp).broken(qp) == ""
