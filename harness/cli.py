@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.map_readers import plain_float
 from contactbench.problems.operators import fft_backend, fft_workers, memory_budget_scope
 from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
@@ -157,7 +158,7 @@ def number_list(text: str) -> tuple[float, ...]:
     (``comma_items``); a value may repeat (L0,L1 of a square), and every other rule on
     them (``--loads`` increasing) is the plan's."""
     try:
-        values = tuple(float(t) for t in comma_items(text, repeats=True))
+        values = tuple(plain_float(t) for t in comma_items(text, repeats=True))
     except ValueError:
         values = ()
     if not values:
@@ -186,14 +187,17 @@ def length_value(text: str) -> float | tuple[float, ...]:
 
 
 def number(text: str) -> float:
+    """A number written plainly (``problems.map_readers.plain_float``: "1_0" is none)."""
     try:
-        return float(text)
+        return plain_float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
 
 
 def integer(text: str) -> int:
+    """An integer written plainly (ASCII digits and a sign: "1_000" is none)."""
     try:
+        plain_float(text)
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None

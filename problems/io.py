@@ -66,6 +66,7 @@ from .map_readers import (
     LENGTH_RTOL,
     RawMap,
     SurfaceFileError,
+    plain_float,
     read_height_map,
     read_npy,
     read_text,
@@ -176,7 +177,8 @@ def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tupl
         filled_fraction=filled / (n0 * n1), fill_value=meta.get("fill_value"), detrend=str(meta["detrend"]),
         tilt=float(meta["tilt"]), removed_mean=removed_mean, removed_slope=slope, crop=str(meta["crop_rule"]),
         crop_done=str(meta["crop"]), warnings=tuple(meta["warnings"]),
-        fill_relative_to=str(meta.get("fill_relative_to", "zero")))
+        fill_relative_to=str(meta.get("fill_relative_to", "zero")),
+        channel_index=None if raw.info.get("channel_index") is None else int(raw.info["channel_index"]))
 
 
 def announce(message: str, meta: dict[str, Any]) -> None:
@@ -364,12 +366,13 @@ def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, An
 
 def parse_length(text: str) -> Length:
     """``"L0"`` or ``"L0,L1"`` (metres) as ``load_surface``'s ``length``; anything else
-    (not a number, not finite or > 0, three values) is a one-line ``ProblemInputError``."""
+    (not a plainly written number, ``plain_float``: "1_0e-7" is none; not finite or > 0;
+    three values) is a one-line ``ProblemInputError``."""
     parts = [t.strip() for t in str(text).split(",")]
     if len(parts) not in (1, 2):
         raise ProblemInputError(f"--length takes L0 or L0,L1 (metres), got {text!r}")
     try:
-        values = [float(t) for t in parts]
+        values = [plain_float(t) for t in parts]
     except ValueError:
         raise ProblemInputError(f"--length takes L0 or L0,L1 (metres), got {text!r}") from None
     out = [check_positive("--length", v) for v in values]

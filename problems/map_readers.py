@@ -7,8 +7,9 @@ Formats read by :func:`read_height_map`:
   without NumPy's header are refused, never loaded.  The array is (rows = y, columns = x).
 * text      -- a plain matrix of numbers, one row per line; the delimiter (comma,
   semicolon, tab or white space) is detected from the first data line; ``#`` starts a
-  comment; ``nan`` marks a missing point.  Numbers are written with a decimal point: a
-  decimal comma ("-0,61;...", a European spreadsheet's export) is refused in one line.
+  comment; ``nan`` marks a missing point.  Numbers are written plainly (``plain_float``)
+  with a decimal point: a decimal comma ("-0,61;...", a European spreadsheet's export) and
+  underscores between digits ("1_0e-7") are refused in one line.
 * x,y,z columns -- a text file of 3 columns and at least ``XYZ_MIN_ROWS`` rows whose
   first two columns look like coordinates is read as x, y, z, not as a matrix of 3
   columns.  A column looks like a coordinate when its distinct values (at least 2) are
@@ -20,8 +21,8 @@ Formats read by :func:`read_height_map`:
   regular grid (scattered or missing points), the file is refused in one line.  A file of
   2 columns and at least ``XYZ_MIN_ROWS`` rows whose column 0 is a monotone coordinate
   is an x,z profile: refused (a 1-D profile is no map).  A measured map's heights are
-  never evenly spaced, so a genuine narrow map (N x 2 or N x 3 heights) is read as a
-  matrix, and one of fewer than ``XYZ_MIN_ROWS`` rows always is.
+  never evenly spaced, so N x 2 or N x 3 heights are a matrix (refused as too narrow, as
+  follows), and a file of fewer than ``XYZ_MIN_ROWS`` rows always is.
 * everything else -- through SurfaceTopography's readers (about 40 instrument formats:
   ISO 25178-71 .x3p and .sdf, Gwyddion .gwy, NetCDF .nc, MATLAB .mat, Keyence .vk4,
   Zygo .datx, Wyko .opd, Sensofar .plu, Digital Surf .sur, Bruker .spm, Olympus .lext,
@@ -37,8 +38,9 @@ Refused with a ``SurfaceFileError`` (one line naming the file): non-uniform line
 1-D profiles, multi-channel files without a chosen ``channel`` (a channel name that two
 channels share is ambiguous: they are chosen by index), units that do not convert to
 metres, heights so large that sums over the map overflow (``HEIGHT_CEILING``), infinite
-heights.  A file holding more data than its header states is refused, not read as a
-smaller, scrambled map: .npy (the header's shape), .x3p (main.xml's sizes and data type,
+heights, true/false or complex values, maps of fewer than ``MIN_MAP_SIDE`` points along a
+side, and a zip archive that is no map (several map files, one to unzip, or none).  A file
+holding more data than its header states is refused, not read as a smaller, scrambled map: .npy (the header's shape), .x3p (main.xml's sizes and data type,
 and the MD5 checksum of the point data that main.xml states, which SurfaceTopography does
 not verify), binary .sdf (the header's NumPoints x NumProfiles values; bytes after them
 must be the text trailer the format allows) and ASCII .sdf (SurfaceTopography's reader
@@ -49,6 +51,7 @@ refused.  This module parses no XML itself (SurfaceTopography's parse is read).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import re
 import struct
@@ -94,6 +97,9 @@ COORD_RTOL = 1e-2
 COORD_TIE = 1e-9
 #: A number written with a decimal comma (a European spreadsheet's export): -0,61 or 6,1e-07.
 DECIMAL_COMMA = re.compile(r"^[-+]?\d*,\d+([eE][-+]?\d+)?$")
+#: The fewest points a map may have along each side: fewer fix no plane, no slope and no
+#: roughness to speak of (a 2 x N "map" is two profiles, not a surface).
+MIN_MAP_SIDE = 8
 
 
 class SurfaceFileError(ProblemInputError):
@@ -126,11 +132,11 @@ def read_height_map(path: str | Path, channel: int | str | None = None) -> RawMa
     if head.startswith(NPY_MAGIC) or suffix == ".npy":
         _only_channel(p, channel)
         return read_npy(p)
-    known = _topography_formats()
-    if suffix in TEXT_SUFFIXES or (suffix.lstrip(".") not in known and _looks_like_text(p)):
+    ext = suffix.lstrip(".")
+    if suffix in TEXT_SUFFIXES or (ext not in _topography_formats() and _looks_like_text(p)):
         _only_channel(p, channel)
         return read_text(p)
-    return read_with_surfacetopography(p, known.get(suffix.lstrip(".")), channel)
+    return read_with_surfacetopography(p, _topography_formats().get(ext), channel)
 
 
 def _read_head(p: Path) -> bytes:
@@ -141,8 +147,10 @@ def _read_head(p: Path) -> bytes:
         raise SurfaceFileError(p, f"unreadable path ({e.strerror or e})") from None
 
 
+@functools.cache
 def _topography_formats() -> dict[str, str | None]:
-    """File extension -> SurfaceTopography format id (None where several formats share it)."""
+    """File extension -> SurfaceTopography format id (None where several formats share it);
+    listed once per process (listing the readers takes a good part of a second)."""
     from SurfaceTopography.IO import readers
 
     out: dict[str, str | None] = {}
@@ -210,7 +218,7 @@ def read_text(path: str | Path) -> RawMap:
         if delim and cells and cells[-1] == "":
             cells = cells[:-1]  # a trailing delimiter
         try:
-            rows.append([float(c) for c in cells])
+            rows.append([plain_float(c) for c in cells])
         except ValueError:
             raise SurfaceFileError(p, _not_a_number(ln, cells, lineno)) from None
     widths = {len(r) for r in rows}
@@ -238,6 +246,8 @@ def _not_a_number(line: str, cells: list[str], lineno: int) -> str:
                 "point: export with '.' as the decimal separator, or replace each ',' by '.' in a file whose "
                 "columns are separated by ';', tabs or spaces")
     bad = next(c for c in cells if not _is_float(c))
+    if bad.isascii() and "_" in bad and _is_float(bad.replace("_", "")):
+        return f"{bad!r} on line {lineno} is not a plainly written number (no '_' between digits)"
     return f"non-numeric value {bad!r} on line {lineno}"
 
 
@@ -292,21 +302,37 @@ def xyz_grid(p: Path, a: np.ndarray) -> tuple[np.ndarray, tuple[float, float]] |
     return None
 
 
+def plain_float(text: str) -> float:
+    """``float(text)`` for a number written plainly: ASCII digits with an optional sign,
+    decimal point and exponent, or ``nan`` / ``inf``; what else ``float`` takes (underscores
+    between digits, "1_0e-7", and digits of other scripts) is a ``ValueError``."""
+    if not text.isascii() or "_" in text:
+        raise ValueError(f"not a plainly written number: {text!r}")
+    return float(text)
+
+
 def _is_float(s: str) -> bool:
     try:
-        float(s)
+        plain_float(s)
     except ValueError:
         return False
     return True
 
 
 def _numeric_matrix(p: Path, a: np.ndarray) -> np.ndarray:
-    if a.dtype.kind not in "biuf":
+    """``a`` as float64 heights: integer or float numbers (booleans and complex numbers are
+    no heights), 2-D, at least ``MIN_MAP_SIDE`` points along each side, no infinite value
+    and none so large that sums over the map overflow (``HEIGHT_CEILING``)."""
+    if a.dtype.kind in "bc":
+        what = "true/false values" if a.dtype.kind == "b" else "complex numbers"
+        raise SurfaceFileError(p, f"{what} (dtype {a.dtype}), not heights; need integer or float numbers")
+    if a.dtype.kind not in "iuf":
         raise SurfaceFileError(p, f"non-numeric data (dtype {a.dtype}); need real numbers")
     if a.ndim != 2:
         raise SurfaceFileError(p, f"wrong shape: need a 2-D height map, got a {a.ndim}-D array of shape {a.shape}")
-    if min(a.shape) < 2:
-        raise SurfaceFileError(p, f"wrong shape: need at least 2 x 2 points, got {a.shape[0]} x {a.shape[1]}")
+    if min(a.shape) < MIN_MAP_SIDE:
+        raise SurfaceFileError(p, f"wrong shape: {a.shape[0]} x {a.shape[1]} points; a map needs at least "
+                                  f"{MIN_MAP_SIDE} points along each side")
     a = a.astype(np.float64)
     if np.isinf(a).any():
         raise SurfaceFileError(p, f"{int(np.isinf(a).sum())} infinite heights; only NaN may mark a missing point")
@@ -338,11 +364,11 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
     except SurfaceFileError:
         raise
     except Exception as e:  # the readers raise many kinds; each becomes one clear line
-        raise SurfaceFileError(p, _reader_failure(e, what)) from None
+        raise SurfaceFileError(p, _archive_account(p, what) or _reader_failure(e, what)) from None
     fmt_id = reader.format()
     z = heights if fmt_id in MATRIX_FORMATS else heights.T
     meta: dict[str, Any] = {"reader": f"SurfaceTopography {_st_version()}", "channel": info.name,
-                            "file_unit": topo.unit}
+                            "channel_index": int(info.index), "file_unit": topo.unit}
     factor = _metres_per_unit(p, topo.unit)
     if factor is not None:
         meta["metres_per_unit"] = factor
@@ -376,6 +402,32 @@ def _reader_failure(e: Exception, what: str) -> str:
     if type(e).__name__ == "ParseError":
         return f"{what}: its XML is not well-formed ({msg})"
     return f"{what} reader failed ({type(e).__name__}: {msg})"
+
+
+def _archive_account(p: Path, what: str) -> str | None:
+    """Why a zip archive that is no ISO 25178 .x3p (no main.xml) failed its reader: it holds
+    several map files, or one (to unzip: members of a binary format a reader knows by its
+    extension), or none (the members named); an .x3p under another extension is named as
+    such.  None for a file that is no zip archive, and for an .x3p, whose own reader's
+    failure says more."""
+    if p.suffix.lower() == ".x3p" or not zipfile.is_zipfile(p):
+        return None
+    try:
+        with zipfile.ZipFile(p) as zf:
+            names = [n for n in zf.namelist() if not n.endswith("/")]
+    except (OSError, zipfile.BadZipFile):
+        return None
+    if "main.xml" in names:
+        return f"an ISO 25178 .x3p archive under the extension {p.suffix or '(none)'!r}: rename it to .x3p"
+    known = {*_topography_formats(), "npy"} - {"zip", *(s.lstrip(".") for s in TEXT_SUFFIXES)}
+    maps = [n for n in names if Path(n).suffix.lower().lstrip(".") in known]
+    listing = ", ".join(maps[:5] or names[:5]) + (", ..." if len(maps or names) > 5 else "")
+    if len(maps) > 1:
+        return f"a zip archive of {len(maps)} map files ({listing}), not one map: unzip it and give one of them"
+    if maps:
+        return f"a zip archive of one map file ({listing}): unzip it and give that file"
+    return (f"a zip archive with no map file in it that the {what} reader reads ({listing or 'empty'}); give the "
+            "map file itself, unzipped")
 
 
 def _pick_channel(p: Path, reader: Any, channel: int | str | None) -> Any:
@@ -507,9 +559,11 @@ __all__ = [
     "COORD_RTOL",
     "HEIGHT_CEILING",
     "LENGTH_RTOL",
+    "MIN_MAP_SIDE",
     "XYZ_MIN_ROWS",
     "RawMap",
     "SurfaceFileError",
+    "plain_float",
     "read_height_map",
     "read_npy",
     "read_text",

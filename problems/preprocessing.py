@@ -6,9 +6,11 @@ surface (``Surface.preprocessing``); a ``ContactInstance`` carries it through it
 It holds
 
 * which map: the file's base name (``source``) and where it was read (``path``, absolute,
-  links resolved: one file by any path), its format and channel, and a content hash
-  of the raw heights as read (``raw_sha256``: float64, C order, every missing point the
-  same NaN, with the shape), so the same map given by two paths is recognisably the same;
+  links resolved: one file by any path), its format and channel (its name, ``channel``,
+  and its index in the file, ``channel_index``: a name two channels share picks neither),
+  and a content hash of the raw heights as read (``raw_sha256``: float64, C order, every
+  missing point the same NaN, with the shape), so the same map given by two paths is
+  recognisably the same;
 * how it was read: the unit of the file's numbers and where it came from, the spacing per
   axis and where it came from, N0 x N1 as read and as solved, the lengths;
 * what was changed: the NaN rule with the count and share of filled points and the height
@@ -19,9 +21,9 @@ It holds
 
 ``key`` hashes ``raw_sha256`` with every option that changes the problem (``key_options``:
 the NaN, detrend and crop rules, the metres per file number, the spacing per axis, the
-channel).  It names the instance (``instance_name``): ``file-<base name>-<key[:8]>``, so
-``--detrend none`` and ``--detrend plane`` give different names and two paths to one map
-the same.  ``columns`` gives the table's columns of a map (harness/table/schema.py), from
+channel).  It names the instance (``instance_name``): ``file-<base name>-<key[:8]>`` (the
+base name in plain letters, ``name_text``), so ``--detrend none`` and ``--detrend plane``
+give different names and two paths to one map the same.  ``columns`` gives the table's columns of a map (harness/table/schema.py), from
 which, with the file, the problem is rebuilt: docs/columns.md.
 
 The removed plane, in the map's own coordinates x0 = i d0, x1 = j d1 (i rows, j columns,
@@ -36,6 +38,7 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import unicodedata
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -46,6 +49,9 @@ NAME_KEY_DIGITS = 8
 #: Hex digits of ``raw_sha256`` in the table's ``surface_hash`` column.
 TABLE_HASH_DIGITS = 16
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+#: Letters with no decomposition into a plain letter and a mark, written in plain letters.
+_LETTERS = str.maketrans({"µ": "u", "μ": "u", "ß": "ss", "æ": "ae", "Æ": "AE", "ø": "o", "Ø": "O", "œ": "oe",
+                          "Œ": "OE", "ł": "l", "Ł": "L", "đ": "d", "Đ": "D", "ð": "d", "þ": "th"})
 
 
 def raw_heights_sha256(z: np.ndarray) -> str:
@@ -97,6 +103,9 @@ class MapPreprocessing:
     #: What the filled points' ``fill_value`` is measured from: "zero" (the heights as read)
     #: or "the measured points' plane" (io.fill_missing, with detrend "plane").
     fill_relative_to: str = "zero"
+    #: The index of ``channel`` in the file (``load_surface``'s ``channel``); None for a file
+    #: of no channels (.npy, text).
+    channel_index: int | None = None
 
     @property
     def lengths(self) -> tuple[float, float]:
@@ -105,8 +114,9 @@ class MapPreprocessing:
 
     @property
     def instance_name(self) -> str:
-        """``file-<base name>-<key[:8]>``: the name of an instance on this map as prepared."""
-        return f"file-{_UNSAFE.sub('_', self.source)}-{self.key[:NAME_KEY_DIGITS]}"
+        """``file-<base name>-<key[:8]>``: the name of an instance on this map as prepared,
+        the base name as ``name_text`` writes it."""
+        return f"file-{name_text(self.source)}-{self.key[:NAME_KEY_DIGITS]}"
 
     def as_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (meta.json's ``surface_preprocessing`` entries), with the
@@ -125,7 +135,23 @@ class MapPreprocessing:
                 "height_unit": self.height_unit, "nan_rule": self.nan_rule, "nan_filled": self.filled,
                 "detrend": self.detrend,
                 "removed_mean": float("nan") if self.removed_mean is None else self.removed_mean,
-                "removed_slope0": slope[0], "removed_slope1": slope[1], "crop": self.crop}
+                "removed_slope0": slope[0], "removed_slope1": slope[1], "crop": self.crop,
+                "channel_index": self.channel_index}
+
+
+def name_text(base_name: str) -> str:
+    """A file's base name in the characters of an instance name (A-Z a-z 0-9 . _ -):
+    accented letters as their plain letter ("Höhe" -> "Hohe"; ``_LETTERS``: "µm" -> "um",
+    "ß" -> "ss", ...), every other run of characters as "_" (spaces, slashes, ...);
+    where a character had no plain letter (a name in another
+    script), followed by "-" and ``NAME_KEY_DIGITS`` hex digits of the name's sha256, so
+    that two such names stay apart."""
+    spelled = base_name.translate(_LETTERS)
+    plain = "".join(c for c in unicodedata.normalize("NFKD", spelled) if not unicodedata.combining(c))
+    text = _UNSAFE.sub("_", plain)
+    if plain.isascii():
+        return text
+    return f"{text}-{hashlib.sha256(base_name.encode('utf-8')).hexdigest()[:NAME_KEY_DIGITS]}"
 
 
 def key_options(*, nan: str, detrend: str, crop: str, metres_per_unit: float, spacing: tuple[float, float],
@@ -154,6 +180,7 @@ __all__ = [
     "NAME_KEY_DIGITS",
     "TABLE_HASH_DIGITS",
     "key_options",
+    "name_text",
     "options_key",
     "plane_in_lengths",
     "raw_heights_sha256",

@@ -97,8 +97,13 @@ def instance_columns(params: dict[str, Any]) -> dict[str, Any]:
     """The recipe's surface family, Hurst exponent, seed, control, hardness and variant
     (``InstanceSpec.params`` keys ``family``, ``hurst``, ``seed``, ``control``, ``hardness``,
     ``variant``)
-    as table columns; N, kernel and periodic come from the built instance (``StepInfo``)."""
-    hurst, seed, hardness = params.get("hurst"), params.get("seed"), params.get("hardness")
+    as table columns; N, kernel and periodic come from the built instance (``StepInfo``).
+    A recipe on a measured map (``surface_path``) has no Hurst exponent and no seed (NaN,
+    <NA>), whatever its scene's defaults put in its params."""
+    measured = bool(params.get("surface_path"))
+    hurst = None if measured else params.get("hurst")
+    seed = None if measured else params.get("seed")
+    hardness = params.get("hardness")
     return {"surface_family": str(params.get("family") or ""),
             "hurst": float(hurst) if hurst is not None else float("nan"),
             "seed": int(seed) if seed is not None else None,

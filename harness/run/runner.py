@@ -78,15 +78,19 @@ def under_ci() -> bool:
     return os.environ.get("CI", "").strip().lower() in ("1", "true", "yes") or not sys.stderr.isatty()
 
 
-def run_config_record(scenes: Sequence[str], cfg: SceneConfig, plan: RunPlan, run: RunConfig) -> dict[str, Any]:
+def run_config_record(scenes: Sequence[str], cfg: SceneConfig, plan: RunPlan, run: RunConfig,
+                      surfaces: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """meta.json's ``config`` (less the executor); ``cells``: how many cells the plan
-    has (a report of a folder with fewer says the run is partial); ``surface_sha256``, where
-    the run reads measured maps: the raw heights' hashes its recipes pin (``surface_hashes``)."""
-    hashes = surface_hashes(plan)
+    has (a report of a folder with fewer says the run is partial); where the run reads
+    measured maps, ``surface_sha256``: the raw heights' hashes its recipes pin
+    (``surface_hashes``), and ``surface_key``: each map as prepared (``surface_keys`` of
+    ``surfaces``, meta.json's ``surface_preprocessing`` records)."""
+    hashes, keys = surface_hashes(plan), surface_keys(surfaces or {})
     return {"scenes": list(scenes), "scene_config": asdict(cfg), "run": asdict(run),
             "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
             "profiles": sorted({p for j in plan.jobs for p in j.profiles}),
-            "cells": plan.n_cells(run.repeats), **({"surface_sha256": hashes} if hashes else {})}
+            "cells": plan.n_cells(run.repeats), **({"surface_sha256": hashes} if hashes else {}),
+            **({"surface_key": keys} if keys else {})}
 
 
 def surface_hashes(plan: RunPlan) -> list[str]:
@@ -94,17 +98,31 @@ def surface_hashes(plan: RunPlan) -> list[str]:
     return sorted({str(j.spec.params["surface_sha256"]) for j in plan.jobs if j.spec.params.get("surface_sha256")})
 
 
+#: Hex digits of a map's ``MapPreprocessing.key`` in a run's configuration (``surface_keys``).
+IDENTITY_KEY_DIGITS = 16
+
+
+def surface_keys(surfaces: dict[str, dict[str, Any]]) -> list[str]:
+    """Each measured map as prepared, "<base name> (key <key>)": its record's ``key`` (the raw
+    heights with every option and file-stated fact that makes the problem: the spacing per
+    axis, the unit, the channel, the cleaning), so that a map whose file states another
+    lateral size is another configuration, and the folder's refusal names the map."""
+    return sorted({f"{rec['source']} (key {str(rec['key'])[:IDENTITY_KEY_DIGITS]})" for rec in surfaces.values()
+                   if rec.get("key")})
+
+
 def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     """The configuration a results folder pins (its marker), from a meta.json ``config``
     (``run_config_record``, of this run or of a folder written before the marker):
     scenes, scene options (a ``--surface`` path resolved: one file however it is spelled),
     solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured maps' contents where it
-    reads any (a map edited between two runs is another run); an option that only spells
+    reads any (a map edited between two runs, or prepared otherwise, is another run:
+    ``surface_sha256``, ``surface_key``); an option that only spells
     out what is in effect without it is left out (``spelled_out.given_apart``)."""
     run = dict(config.get("run") or {})
     if run.get("profiles") is not None and sorted(run["profiles"]) == config.get("profiles"):
         run["profiles"] = None  # (the profiles the study would run: the same cells)
-    maps = {"surface_sha256": config["surface_sha256"]} if config.get("surface_sha256") else {}
+    maps = {k: config[k] for k in ("surface_sha256", "surface_key") if config.get(k)}
     scene_config = given_apart(config.get("scene_config"), config.get("scenes"))
     if isinstance(scene_config, dict) and isinstance(scene_config.get("surface_path"), str) and scene_config["surface_path"]:
         # one file, however it is spelled (relative, absolute, through a link): its recipe holds the resolved path
@@ -131,7 +149,8 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     cfg = plan.scene_config
     if cfg.seeds is not None:  # (a lazy range of seeds: the plan has bounded it)
         cfg = replace(cfg, seeds=tuple(cfg.seeds))
-    config = run_config_record(scenes, cfg, plan, run)
+    surfaces = surface_preprocessing(j.spec for j in plan.jobs)  # (the maps as prepared: their keys are pinned)
+    config = run_config_record(scenes, cfg, plan, run, surfaces)
     identity = run_identity(config)
     check_run_folder(out_dir, identity, append, run_identity)
     read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
@@ -141,12 +160,14 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
             log.warning("warning: %s", w)
         record_run(folder, identity)
         store = ResultStore(out_dir)
-        return execute_plan(plan, run, store, config, command, executor, t0)
+        return execute_plan(plan, run, store, config, command, executor, t0, surfaces)
 
 
 def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict[str, Any],
-                 command: list[str] | None, executor: Executor | None, t0: float) -> RunSummary:
-    """Run the plan's missing cells into ``store`` (its folder locked), meta.json first."""
+                 command: list[str] | None, executor: Executor | None, t0: float,
+                 surfaces: dict[str, dict[str, Any]] | None = None) -> RunSummary:
+    """Run the plan's missing cells into ``store`` (its folder locked), meta.json first
+    (``surfaces``: the plan's ``surface_preprocessing`` records, read here when None)."""
     before = len(store)
     stored = {r["cell_id"]: r for r in store.rows()}
     statuses = {c: str(r.get("status", "")) for c, r in stored.items()}
@@ -156,7 +177,8 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     config = {**config, "run": asdict(ran), "executor": executor.describe(), "worker_threads": ran.worker_threads()}
     log_name = output_log_name(executor)
     write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
-                                     surfaces=surface_preprocessing(j.spec for j in plan.jobs),
+                                     surfaces=surface_preprocessing(j.spec for j in plan.jobs) if surfaces is None
+                                     else surfaces,
                                      extra={"solver_output": log_name} if log_name else None))
     total = sum(j.n_cells(run.repeats) for j in pending)
     already = sum(1 for j in pending for c in job_cell_ids(j, run) if c in statuses)

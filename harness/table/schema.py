@@ -57,7 +57,7 @@ CELL_COLUMNS: Final = ("scene", "instance", "step", "solver", "base_solver", "pa
                        "history")
 #: The columns of a measured map's preparation (``problems.preprocessing.MapPreprocessing``).
 MAP_COLUMNS: Final = ("surface_source", "surface_hash", "height_unit", "nan_rule", "nan_filled", "detrend",
-                      "removed_mean", "removed_slope0", "removed_slope1", "crop")
+                      "removed_mean", "removed_slope0", "removed_slope1", "crop", "channel_index")
 #: The instance parameters the table carries as columns (read from the instance's
 #: recipe, ``InstanceSpec.params``, and the built instance), so no report parses a name.
 #: With ``E``, ``control``, ``hardness``, ``delta`` (or ``dim_load`` under load control) and,
@@ -150,8 +150,8 @@ _EXTRA = _columns(
                                      "contact_fraction"),
     ("surface_family", "string", "the instance's generated surface family (problems/surfaces.py RMD_FAMILIES, e.g. "
                                  "'saupe', 'periodic'); '' for other instances"),
-    ("hurst", "float64", "the instance's Hurst exponent H; NaN where the surface has none"),
-    ("seed", "Int64", "the instance's random seed; <NA> for deterministic instances"),
+    ("hurst", "float64", "the instance's Hurst exponent H; NaN where the surface has none (a measured map)"),
+    ("seed", "Int64", "the instance's random seed; <NA> for deterministic instances and measured maps"),
     ("control", "string", "one of CONTROLS: 'displacement' (Delta given, the default) or 'load' (total force P "
                           "given; delta is then the answer's approach, the load equality's multiplier)"),
     ("hardness", "float64", "the pressure bound H_A in Pa (0 <= p_i <= H_A x element area); NaN: none"),
@@ -179,6 +179,9 @@ _EXTRA = _columns(
     ("removed_slope0", "float64", "slope of the removed plane along axis 0, rise per length; NaN: no plane removed"),
     ("removed_slope1", "float64", "slope of the removed plane along axis 1, rise per length; NaN: no plane removed"),
     ("crop", "string", "the crop rule applied to the measured map: 'none', 'square' or 'pad-square'; ''"),
+    ("channel_index", "Int64", "the index of the channel read from the measured file (--channel INDEX, "
+                               "load_surface's channel=; its name is in meta.json's surface_preprocessing record); "
+                               "<NA> for a file of no channels (.npy, text) and a generated surface"),
 )
 
 #: Every column, by name, in table order.
@@ -188,6 +191,10 @@ REQUIRED_COLUMNS: Final = tuple(c.name for c in _REQUIRED)
 #: Further columns every row carries ("" / NaN / <NA> where not applicable).
 EXTRA_COLUMNS: Final = tuple(c.name for c in _EXTRA)
 ALL_COLUMNS: Final = REQUIRED_COLUMNS + EXTRA_COLUMNS
+#: The columns ``check_table`` reads (the required ones, every number and true/false column,
+#: and ``verdict``); the others it never checks.
+CHECKED_COLUMNS: Final = tuple(c.name for c in COLUMNS.values()
+                               if c.required or c.dtype in ("float64", "Int64", "boolean") or c.name == "verdict")
 
 
 def columns_of(dtype: str) -> tuple[str, ...]:
@@ -211,6 +218,14 @@ def _missing(v: Any) -> bool:
 
 def as_text(v: Any) -> str:
     return "" if _missing(v) else str(v)
+
+
+def text_values(col: pd.Series) -> np.ndarray:
+    """``as_text`` of every entry of ``col``, as an array; a column of text dtype is read at
+    once (its entries are text or missing)."""
+    if isinstance(col.dtype, pd.StringDtype):
+        return col.fillna("").to_numpy(dtype=object)
+    return col.map(as_text).to_numpy(dtype=object)
 
 
 def as_finite(v: Any) -> float | None:
@@ -265,11 +280,11 @@ def check_table(df: pd.DataFrame, source: object = "the table") -> None:
     missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
     if missing:
         raise TableError(f"results table in {source} lacks required column(s): {', '.join(missing)}")
-    bad = sorted(set(df["status"].map(as_text)) - set(STATUSES))
+    bad = sorted(set(text_values(df["status"])) - set(STATUSES))
     if bad:
         raise TableError(f"unknown status value(s) {bad} in {source}; expected one of {', '.join(STATUSES)}")
     if "verdict" in df.columns:
-        bad = sorted(set(df["verdict"].map(as_text)) - {"", *VERDICTS})
+        bad = sorted(set(text_values(df["verdict"])) - {"", *VERDICTS})
         if bad:
             raise TableError(f"unknown verdict value(s) {bad} in {source}; expected one of {', '.join(VERDICTS)} "
                              f"or empty")
@@ -283,8 +298,13 @@ def check_table(df: pd.DataFrame, source: object = "the table") -> None:
 
 def check_booleans(col: pd.Series, name: str, source: object) -> None:
     """Raise TableError for an entry of a true/false column that ``as_bool`` cannot read
-    (text such as "maybe": never read as missing)."""
-    unread = [i for i, v in enumerate(col) if as_bool(v) is pd.NA and as_text(v).strip() != ""]
+    (text such as "maybe": never read as missing).  Only the entries that are neither
+    missing nor equal to True or False (text, other objects) are read one by one."""
+    if pd.api.types.is_bool_dtype(col):
+        return
+    plain = (col.isna() | col.isin([True, False])).to_numpy(dtype=bool)
+    unread = [int(i) for i in np.flatnonzero(~plain) if as_bool(col.iloc[i]) is pd.NA
+              and as_text(col.iloc[i]).strip() != ""]
     if unread:
         raise TableError(f"column {name} of {source} holds {col.iloc[unread[0]]!r}, not true or false "
                          f"(row {unread[0] + 1}; {len(unread)} such row(s))")
@@ -299,13 +319,13 @@ def check_readings(df: pd.DataFrame, source: object) -> None:
     "solved" nor "timeout" (a solve judged and finished past the limit); a ``check_tol``
     that is not a finite number > 0.  The checks run on the numeric columns already
     checked by ``check_numbers``."""
-    status = df["status"].map(as_text).to_numpy()
+    status = text_values(df["status"])
     kkt = _numbers(df, "kkt_error")
     tol = _numbers(df, "check_tol")
     seconds = _numbers(df, "solve_time_s")
     solved, inaccurate = status == "solved", status == "inaccurate"
     late = status == "timeout"  # judged, and finished past the time limit: its reading stands
-    passed = df["verdict"].map(as_text).to_numpy() == "pass" if "verdict" in df.columns else np.zeros(len(df), bool)
+    passed = text_values(df["verdict"]) == "pass" if "verdict" in df.columns else np.zeros(len(df), bool)
     with np.errstate(invalid="ignore"):
         within = np.isfinite(kkt) & (np.isnan(tol) | (kkt <= tol))
         rules = [
@@ -341,9 +361,9 @@ def check_numbers(col: pd.Series, name: str, source: object, whole: bool = False
     if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
         values = col.astype("float64")
     else:
-        blank = col.map(lambda v: _missing(v) or as_text(v).strip() == "").to_numpy(dtype=bool)
-        values = pd.to_numeric(col.where(~blank, None), errors="coerce")
-        unread = np.flatnonzero(~blank & values.isna().to_numpy())
+        values = pd.to_numeric(col, errors="coerce")  # (missing and blank entries, and text, read NaN)
+        suspect = np.flatnonzero(values.isna().to_numpy() & col.notna().to_numpy())  # text, or no number
+        unread = np.array([i for i in suspect if as_text(col.iloc[i]).strip() != ""], dtype=np.int64)
         if unread.size:
             raise TableError(f"column {name} of {source} holds {col.iloc[unread[0]]!r}, not a number "
                              f"(row {int(unread[0]) + 1}; {unread.size} such row(s))")

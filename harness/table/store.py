@@ -37,8 +37,9 @@ fsync'ed, so concurrent writers (``--jobs``, Dask workers on a shared file syste
 interleave.  A ``kill -9`` can leave at most a partial last line; it is cut off when
 the store is next opened.  Rows are identified by ``cell_id``; reading keeps the first row
 of each cell (``first_of_each_cell``: journal and ``load_table``), so a cell is never counted
-twice.  The journal is read checked (``checked_journal``): a line that is not a JSON object
-is ignored; a row without ``cell_id`` or against the table contract is a ``JournalError``.
+twice.  The journal is read checked (``checked_journal``, harness/table/journal.py): a line
+that is not a JSON object is ignored; a row without ``cell_id`` or against the table
+contract is a ``JournalError``.
 """
 
 from __future__ import annotations
@@ -61,12 +62,12 @@ from typing import Any, Callable, Iterable
 
 from contactbench.problems.errors import ProblemInputError
 
-import numpy as np
 import pandas as pd
 
 from .files import canonical_json, pid_exists, replace_atomically
-from .schema import (CELL_COLUMNS, REQUIRED_COLUMNS, MissingTableError, TableError, apply_schema, as_text,
-                     check_table, columns_of)
+from .journal import JournalError as JournalError, checked_journal, encode_row as encode_row, first_of_each_cell
+from .journal import read_journal as read_journal, repair_journal
+from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, columns_of
 
 ROWS_FILE = "rows.jsonl"
 PARQUET_FILE = "results.parquet"
@@ -80,94 +81,6 @@ log = logging.getLogger("contactbench")
 
 #: Columns that identify a group of repeats: a cell (schema.CELL_COLUMNS).
 GROUP_COLUMNS = CELL_COLUMNS  # (the schema names what identifies a cell)
-
-
-def _json_default(obj: Any) -> Any:
-    return obj.tolist() if isinstance(obj, (np.generic, np.ndarray)) else str(obj)
-
-
-def encode_row(row: dict[str, Any]) -> str:
-    """One journal line (NaN is kept as the JSON extension ``NaN``)."""
-    return json.dumps(row, default=_json_default, allow_nan=True) + "\n"
-
-
-def repair_journal(path: Path) -> int:
-    """Cut a partial last line (left by a kill mid-write).  Returns bytes removed."""
-    if not path.exists():
-        return 0
-    with open(path, "rb+") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            data = fh.read()
-            if not data or data.endswith(b"\n"):
-                return 0
-            keep = data.rfind(b"\n") + 1
-            fh.truncate(keep)
-            return len(data) - keep
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
-
-
-class JournalError(TableError, ProblemInputError):
-    """A journal row breaks the contract (module doc); the command line exits 2."""
-
-
-def first_of_each_cell(cell_ids: Iterable[Any]) -> list[bool]:
-    """For each row, in order, whether reading keeps it: the first row of each cell id; a
-    row with no cell id (missing or "": a table without the column) is always kept."""
-    seen: set[str] = set()
-    keep = []
-    for text in map(as_text, cell_ids):
-        keep.append(text == "" or text not in seen)
-        seen.add(text)
-    return keep
-
-
-def read_journal(path: Path) -> list[dict[str, Any]]:
-    """Rows of a journal, the first of each cell (``first_of_each_cell``); lines that are not
-    a JSON object are ignored; a row without a text ``cell_id`` is a ``JournalError``."""
-    rows: list[dict[str, Any]] = []
-    if not path.exists():
-        return rows
-    with open(path, encoding="utf-8") as fh:
-        for number, line in enumerate(fh, 1):
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError:  # (a blank line too)
-                continue
-            if not isinstance(row, dict):
-                continue
-            cid = row.get("cell_id")
-            if not (isinstance(cid, str) and cid):
-                raise JournalError(f"{path} line {number}: the row has no cell_id (the text id of its cell, which "
-                                   "every row the run writes has); restore the line as the run wrote it")
-            rows.append(row)
-    return [row for row, keep in zip(rows, first_of_each_cell(r["cell_id"] for r in rows)) if keep]
-
-
-def check_journal(rows: list[dict[str, Any]], path: Path) -> None:
-    """``JournalError`` naming ``path`` for rows against ``schema.check_table`` (text in a
-    number column is never read as missing); "row k" counts the rows ``read_journal`` keeps."""
-    try:
-        df = pd.DataFrame(rows)  # (a column no row has is read as empty, as the table reader does)
-        check_table(df.reindex(columns=[*df.columns, *(c for c in REQUIRED_COLUMNS if c not in df)]), path)
-    except TableError as exc:
-        raise JournalError(f"{exc}; restore the row as the run wrote it") from None
-
-
-#: Journal -> the (inode, size, mtime) it had when its rows last passed ``check_journal``.
-_CHECKED: dict[Path, tuple[int, int, int]] = {}
-
-
-def checked_journal(path: Path) -> list[dict[str, Any]]:
-    """``read_journal``, the rows checked (``check_journal``, once per state of the file)."""
-    st = path.stat() if path.exists() else None  # (stat first: a row appended while reading changes the key)
-    key = (st.st_ino, st.st_size, st.st_mtime_ns) if st else (0, 0, 0)
-    rows = read_journal(path)
-    if _CHECKED.get(path.absolute()) != key:
-        check_journal(rows, path)
-        _CHECKED[path.absolute()] = key
-    return rows
 
 
 class ResultStore:
@@ -627,36 +540,47 @@ os.register_at_fork(after_in_child=_close_held_in_child)
 
 
 def _read_csv(path: Path) -> pd.DataFrame:
-    """results.csv as written; ``TableError`` naming the file for one that cannot be read as
-    such (not text, not CSV) or whose last row is cut short (``cut_short``)."""
+    """results.csv as written; ``TableError`` naming the file for one whose last row is cut
+    short (``cut_row``: a parser error too, where the cut falls inside a quoted field) or
+    that cannot be read as such (not text, not CSV)."""
+    head: Any = ()
     try:
         text = {c: "string" for c in columns_of("string")}
         head = pd.read_csv(path, nrows=0).columns
         df = pd.read_csv(path, dtype={c: t for c, t in text.items() if c in head}, keep_default_na=True)
-        if cut_short(path, len(head)):
-            raise TableError(f"{path} ends in the middle of its row {len(df)} (a truncated table?): "
-                             "restore it, or remove it to read the run's rows.jsonl")
-        return df
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        lines = str(exc).splitlines()
-        raise TableError(f"{path} cannot be read as a results table ({type(exc).__name__}"
-                         f"{': ' + lines[0] if lines else ''})") from None
+        cut = cut_row(path, len(head)) if len(head) and not isinstance(exc, UnicodeDecodeError) else None
+        if cut is None:
+            lines = str(exc).splitlines()
+            raise TableError(f"{path} cannot be read as a results table ({type(exc).__name__}"
+                             f"{': ' + lines[0] if lines else ''})") from None
+    else:
+        cut = cut_row(path, len(head))
+        if cut is None:
+            return df
+    raise TableError(f"{path} ends in the middle of its row {cut} (a truncated table?): "
+                     "restore it, or remove it to read the run's rows.jsonl")
 
 
-def cut_short(path: Path, fields: int) -> bool:
-    """Whether the CSV file's last record has fewer than ``fields`` fields: a file that does
-    not end its last row with a newline, read to its last record."""
+def cut_row(path: Path, fields: int) -> int | None:
+    """The data row (from 1) the CSV file ends in the middle of: a file that does not end its
+    last row with a newline, whose last record has fewer than ``fields`` fields; else None
+    (None too for a file the CSV reader cannot read to its end)."""
     with open(path, "rb") as f:
         if f.seek(0, os.SEEK_END) == 0:
-            return False
+            return None
         f.seek(-1, os.SEEK_END)
         if f.read(1) == b"\n":
-            return False
-    with open(path, newline="", encoding="utf-8") as f:
-        last: list[str] = []
-        for last in csv.reader(f):
-            pass
-    return len(last) < fields
+            return None
+    last: list[str] = []
+    records = 0
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            for records, last in enumerate(csv.reader(f), 1):
+                pass
+    except (csv.Error, UnicodeDecodeError):  # (no CSV text: not a cut row)
+        return None
+    return records - 1 if len(last) < fields else None
 
 
 def _read_run_dir(out: Path) -> pd.DataFrame:

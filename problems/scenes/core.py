@@ -275,6 +275,8 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         base["steps"] = len(load_steps(base))
     material = modulus_suffix(cfg.E)
     if cfg.surface_path:
+        # (its "hurst" and "seed" are the scene's, read by nothing: the table gives a measured map
+        # neither, harness/run/rows.py; they stay in the recipe, whose params make its cell ids)
         file_params = {**base, "surface_path": cfg.surface_path, "seed": 0, **recipe_params(cfg.extra, "surface-file")}
         if cfg.extra.get("height_unit") is not None:  # given: recorded (io.load_surface refuses it for a file with a unit)
             file_params["height_unit"] = check_height_unit(str(cfg.extra["height_unit"]))

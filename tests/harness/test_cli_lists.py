@@ -124,3 +124,13 @@ def test_an_empty_surface_path_is_refused_not_read_as_no_surface(in_tmp: Path,
     line = refused_in_one_line([*SMALL, "--solvers", "test-exact", "--surface", "", "--detrend", "none"], capsys,
                                in_tmp)
     assert "--surface is empty" in line, line
+
+
+@pytest.mark.parametrize(("option", "value"), [("--length", "1_0e-4"), ("--size", "1_6"), ("--E", "1_0e9"),
+                                               ("--loads", "0.001,0_002"), ("--length", "\u0661e-4")])
+def test_a_number_not_written_plainly_is_refused(option: str, value: str, capsys: pytest.CaptureFixture[str],
+                                                 in_tmp: Path) -> None:
+    """Numbers on the command line are written plainly, as in a map's text: Python's
+    ``float`` would take "1_0e-4" (underscores) and digits of other scripts."""
+    line = refused_in_one_line([*SMALL, option, value], capsys, in_tmp)
+    assert option in line and repr(value) in line

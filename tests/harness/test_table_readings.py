@@ -103,3 +103,17 @@ def test_a_run_cannot_record_an_infinite_time_limit() -> None:
 
     with pytest.raises(ValueError, match="timeout must be a finite number of seconds"):
         RunConfig(timeout=math.inf)
+
+
+def test_a_csv_cut_inside_a_quoted_field_ends_in_the_middle_of_its_row(tmp_path: Path) -> None:
+    """A results.csv cut off inside a quoted text field (a trace, a message) is a truncated
+    table, named as one, as a cut between fields is."""
+    df = fabricate_table()
+    write_out(tmp_path, df, fmt="csv")
+    path = tmp_path / "results.csv"
+    text = path.read_text()
+    row = 3
+    row_start = sum(len(ln) for ln in text.splitlines(keepends=True)[:row])  # (the header, then rows 1 .. row - 1)
+    path.write_text(text[:text.index('"', row_start) + 2])  # into the row's first quoted field
+    with pytest.raises(TableError, match=f"ends in the middle of its row {row} "):
+        load_table(path)

@@ -53,9 +53,13 @@ def test_text_round_trip_any_delimiter(tmp_path: Path, delim: str) -> None:
 
 
 def test_text_comments_and_units(tmp_path: Path) -> None:
-    (tmp_path / "a.csv").write_text("# exported heights in um\n1, 2, 3\n4, 5, 6 # row 2\n7, 8, 9,\n")
-    s = load_surface(tmp_path / "a.csv", length=3e-6, height_unit="um", detrend="none")
-    np.testing.assert_allclose(s.heights, np.arange(1, 10).reshape(3, 3) * 1e-6)
+    z = np.arange(1, 65).reshape(8, 8)
+    lines = [", ".join(map(str, row)) for row in z]
+    lines[1] += " # row 2"
+    lines[2] += ","  # a trailing delimiter
+    (tmp_path / "a.csv").write_text("# exported heights in um\n" + "\n".join(lines) + "\n")
+    s = load_surface(tmp_path / "a.csv", length=8e-6, height_unit="um", detrend="none")
+    np.testing.assert_allclose(s.heights, z * 1e-6)
 
 
 @pytest.mark.parametrize("dtype", ["D", "F", "L", "I"])
@@ -82,13 +86,13 @@ def test_x3p_missing_points_round_trip(tmp_path: Path, dtype: str) -> None:
 
 
 def test_x3p_axis_orientation_x_fastest(tmp_path: Path) -> None:
-    z = np.arange(12.0).reshape(3, 4) * 1e-6  # 3 rows (y), 4 columns (x)
+    z = np.arange(72.0).reshape(8, 9) * 1e-6  # 8 rows (y), 9 columns (x)
     write_x3p(tmp_path / "a.x3p", z, 1e-6)
     with zipfile.ZipFile(tmp_path / "a.x3p") as zf:
         xml = zf.read("main.xml").decode()
         raw = np.frombuffer(zf.read("bindata/data.bin"), "<f8")
-    assert "<SizeX>4</SizeX>" in xml and "<SizeY>3</SizeY>" in xml
-    np.testing.assert_array_equal(raw[:4], z[0])  # x runs fastest
+    assert "<SizeX>9</SizeX>" in xml and "<SizeY>8</SizeY>" in xml
+    np.testing.assert_array_equal(raw[:9], z[0])  # x runs fastest
     np.testing.assert_array_equal(read_height_map(tmp_path / "a.x3p").z, z)
 
 
@@ -114,8 +118,8 @@ def test_file_unit_is_converted_to_metres(tmp_path: Path) -> None:
 
 
 def _x3p_with_xml(path: Path, xml_edit: tuple[str, str] | None = None, drop: str | None = None,
-                  data: bytes | None = None) -> Path:
-    write_x3p(path, random_map((6, 6)), 1e-6)
+                  data: bytes | None = None, side: int = 6) -> Path:
+    write_x3p(path, random_map((side, side)), 1e-6)
     with zipfile.ZipFile(path) as zf:
         members = {n: zf.read(n) for n in zf.namelist()}
     if xml_edit:
@@ -187,13 +191,15 @@ def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     huge[3, 5] = 1e308
     np.save(tmp / "huge.npy", huge)
     out["a height whose square overflows"] = (tmp / "huge.npy", "1e+308 at index (3, 5)")
-    (tmp / "huge.csv").write_text("1,2\n3,1e200\n")
+    huge_text = np.ones((8, 8))
+    huge_text[7, 7] = 1e200
+    np.savetxt(tmp / "huge.csv", huge_text, delimiter=",")
     out["a height whose square overflows, text"] = (tmp / "huge.csv", "overflow")
     np.save(tmp / "vec.npy", np.arange(10.0))
     out["wrong shape npy"] = (tmp / "vec.npy", "wrong shape")
     np.save(tmp / "str.npy", np.array([["a", "b"], ["c", "d"]]))
     out["non-numeric npy"] = (tmp / "str.npy", "non-numeric")
-    np.save(tmp / "nan.npy", np.full((4, 4), np.nan))
+    np.save(tmp / "nan.npy", np.full((8, 8), np.nan))
     out["NaN-only"] = (tmp / "nan.npy", "NaN-only")
     (tmp / "ragged.csv").write_text("1,2,3\n4,5,6\n7,8\n")
     out["truncated text"] = (tmp / "ragged.csv", "wrong shape")
@@ -217,10 +223,10 @@ def bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     out["x3p bad xml"] = (_x3p_with_xml(tmp / "xml.x3p", ("</Record1>", "")), "not well-formed")
     out["x3p data longer than stated"] = (_x3p_with_xml(tmp / "small.x3p", ("<SizeX>6</SizeX>", "<SizeX>4</SizeX>")),
                                           "holds 288 bytes where main.xml states 192")
-    np.save(tmp / "lie.npy", random_map((8, 8)))
+    np.save(tmp / "lie.npy", random_map((16, 16)))
     raw = (tmp / "lie.npy").read_bytes()
-    (tmp / "lie.npy").write_bytes(raw.replace(b"(8, 8)", b"(4, 8)", 1))
-    out["npy data longer than its header states"] = (tmp / "lie.npy", "more data than its header's 4 x 8 values")
+    (tmp / "lie.npy").write_bytes(raw.replace(b"(16, 16)", b"(8, 16) ", 1))
+    out["npy data longer than its header states"] = (tmp / "lie.npy", "more data than its header's 8 x 16 values")
     out["x3p of no points"] = (_x3p_with_xml(tmp / "zero.x3p", ("<SizeX>6</SizeX>\n      <SizeY>6</SizeY>",
                                                                 "<SizeX>0</SizeX>\n      <SizeY>0</SizeY>"), data=b""),
                                "grid spacing")
@@ -281,13 +287,13 @@ def test_an_infinite_height_in_an_x3p_is_refused_as_in_npy_and_text(tmp_path: Pa
     fill: refused, as .npy and text refuse it."""
     import hashlib
 
-    path = _x3p_with_xml(tmp_path / "inf.x3p")
+    path = _x3p_with_xml(tmp_path / "inf.x3p", side=8)
     with zipfile.ZipFile(path) as zf:
         data = zf.read("bindata/data.bin")
     values = np.frombuffer(data, dtype="<f8").copy()
     values[7] = np.inf
     md5 = (hashlib.md5(data).hexdigest().upper(), hashlib.md5(values.tobytes()).hexdigest().upper())
-    _x3p_with_xml(path, md5, data=values.tobytes())
+    _x3p_with_xml(path, md5, data=values.tobytes(), side=8)
     with pytest.raises(SurfaceFileError, match="1 infinite heights"):
         load_surface(path, detrend="none")
 
@@ -304,11 +310,11 @@ def test_x_y_z_columns_of_a_regular_grid_are_read_as_that_grid(tmp_path: Path) -
     """3 columns of at least XYZ_MIN_ROWS rows whose x and y take evenly spaced values, every
     point of the grid once (in any order), are that grid: rows in increasing y, columns in
     increasing x, the spacings the coordinates' steps, x, y, z in one unit.  A narrow
-    matrix of heights (N x 3, N x 2, 3 x 3) stays a matrix."""
-    z = random_map((6, 10), seed=11)
-    yy, xx = np.mgrid[0:6, 0:10]
+    matrix of heights (N x 3, N x 2, 3 x 3) stays a matrix, refused as one: too narrow."""
+    z = random_map((8, 10), seed=11)
+    yy, xx = np.mgrid[0:8, 0:10]
     cols = np.column_stack([xx.ravel() * 2e-6, yy.ravel() * 1e-6 + 5e-6, z.ravel()])
-    np.savetxt(tmp_path / "xyz.csv", cols[np.random.default_rng(0).permutation(60)], delimiter=",", fmt="%.17g")
+    np.savetxt(tmp_path / "xyz.csv", cols[np.random.default_rng(0).permutation(80)], delimiter=",", fmt="%.17g")
     s = load_surface(tmp_path / "xyz.csv", detrend="none")
     np.testing.assert_array_equal(s.heights, z)
     assert s.spacing == pytest.approx((1e-6, 2e-6), rel=1e-12) and s.meta["spacing_from"] == "file"
@@ -320,13 +326,14 @@ def test_x_y_z_columns_of_a_regular_grid_are_read_as_that_grid(tmp_path: Path) -
     assert um.spacing == pytest.approx((1e-6, 2e-6), rel=1e-9)
     for shape in [(40, 3), (40, 2), (3, 3)]:
         write_text(tmp_path / "narrow.csv", random_map(shape, seed=12))
-        assert read_height_map(tmp_path / "narrow.csv").z.shape == shape
+        with pytest.raises(SurfaceFileError, match=f"wrong shape: {shape[0]} x {shape[1]} points; a map needs"):
+            read_height_map(tmp_path / "narrow.csv")
 
 
 @pytest.mark.parametrize("binary", [True, False])
 def test_an_sdf_reads_back_with_its_spacings_and_a_binary_one_may_end_in_a_text_trailer(
         tmp_path: Path, binary: bool) -> None:
-    z = random_map((6, 10), seed=13)
+    z = random_map((8, 10), seed=13)
     path = write_sdf(tmp_path / "a.sdf", z, (2e-6, 1e-6), binary=binary)
     if binary:
         path.write_bytes(path.read_bytes() + b"*\nComment = a trailer\n*\n")
@@ -362,8 +369,8 @@ def _gwy(path: Path, channels: list[tuple[str, np.ndarray]], side: float) -> Pat
 
 
 def test_a_channel_name_two_channels_share_is_ambiguous_and_an_index_chooses(tmp_path: Path) -> None:
-    z, w = random_map((6, 6), seed=14), random_map((6, 6), seed=15)
-    path = _gwy(tmp_path / "two.gwy", [("Height", z), ("Height", w)], 6e-6)
+    z, w = random_map((8, 8), seed=14), random_map((8, 8), seed=15)
+    path = _gwy(tmp_path / "two.gwy", [("Height", z), ("Height", w)], 8e-6)
     with pytest.raises(SurfaceFileError, match=r"2 channels are named 'Height' \(indices 0, 1.*choose one by index"):
         load_surface(path, channel="Height", detrend="none")
     np.testing.assert_allclose(load_surface(path, channel=1, detrend="none").heights, w, rtol=1e-15)
@@ -411,18 +418,18 @@ def test_text_or_npy_without_length_asks_for_it(tmp_path: Path) -> None:
 
 
 def test_nan_rules(tmp_path: Path) -> None:
-    z = np.arange(16.0).reshape(4, 4)
+    z = np.arange(64.0).reshape(8, 8)
     z[0, 0] = np.nan
     np.save(tmp_path / "a.npy", z)
     with pytest.warns(UserWarning, match="1 missing"):
-        s = load_surface(tmp_path / "a.npy", length=4.0, detrend="none")
+        s = load_surface(tmp_path / "a.npy", length=8.0, detrend="none")
     assert s.heights[0, 0] == pytest.approx(np.nanmean(z)) and s.meta["nan_points"] == 1
     with pytest.warns(UserWarning):
-        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-min", detrend="none").heights[0, 0] == 1.0
+        assert load_surface(tmp_path / "a.npy", length=8.0, nan="fill-min", detrend="none").heights[0, 0] == 1.0
     with pytest.warns(UserWarning):
-        assert load_surface(tmp_path / "a.npy", length=4.0, nan="fill-nearest", detrend="none").heights[0, 0] in (1.0, 4.0)
+        assert load_surface(tmp_path / "a.npy", length=8.0, nan="fill-nearest", detrend="none").heights[0, 0] in (1.0, 8.0)
     with pytest.raises(SurfaceFileError, match="nan='error'"):
-        load_surface(tmp_path / "a.npy", length=4.0, nan="error", detrend="none")
+        load_surface(tmp_path / "a.npy", length=8.0, nan="error", detrend="none")
 
 
 @pytest.mark.parametrize("rule", ["fill-mean", "fill-min", "fill-nearest"])
@@ -462,43 +469,43 @@ def test_plane_detrend_removes_tilt_exactly(tmp_path: Path) -> None:
 
 
 def test_non_square_maps_are_kept_unless_a_crop_is_asked(tmp_path: Path) -> None:
-    z = random_map((6, 10), seed=5)
+    z = random_map((8, 12), seed=5)
     np.save(tmp_path / "a.npy", z)
-    kept = load_surface(tmp_path / "a.npy", length=6.0, detrend="none")
+    kept = load_surface(tmp_path / "a.npy", length=8.0, detrend="none")
     np.testing.assert_array_equal(kept.heights, z)
-    assert kept.shape == (6, 10) and kept.spacing == (1.0, 1.0) and kept.lengths == (6.0, 10.0)
-    with pytest.warns(UserWarning, match="cropped 6x10"):
-        c = load_surface(tmp_path / "a.npy", length=6.0, crop="square", detrend="none")
-    np.testing.assert_array_equal(c.heights, z[:, 2:8])
+    assert kept.shape == (8, 12) and kept.spacing == (1.0, 1.0) and kept.lengths == (8.0, 12.0)
+    with pytest.warns(UserWarning, match="cropped 8x12"):
+        c = load_surface(tmp_path / "a.npy", length=8.0, crop="square", detrend="none")
+    np.testing.assert_array_equal(c.heights, z[:, 2:10])
     assert c.delta == 1.0 and "cropped" in c.meta["crop"]  # the length is the map's: the crop keeps the spacing
     with pytest.warns(UserWarning, match="padded"):
-        p = load_surface(tmp_path / "a.npy", length=6.0, crop="pad-square", detrend="none")
-    assert p.N == 10 and p.delta == 1.0
-    assert "the nominal area A0 grows by a factor 1.667" in p.meta["crop"]  # 10 x 10 over 6 x 10 points
-    np.testing.assert_array_equal(p.heights[:6], z)
-    assert np.all(p.heights[6:] == z.min())
+        p = load_surface(tmp_path / "a.npy", length=8.0, crop="pad-square", detrend="none")
+    assert p.N == 12 and p.delta == 1.0
+    assert "the nominal area A0 grows by a factor 1.5" in p.meta["crop"]  # 12 x 12 over 8 x 12 points
+    np.testing.assert_array_equal(p.heights[:8], z)
+    assert np.all(p.heights[8:] == z.min())
 
 
 def test_a_file_with_rectangular_pixels_keeps_them(tmp_path: Path) -> None:
-    """x is axis 1 of a Surface (rows = y): a file of 6 x 6 points over 6 um (x) by 12 um (y)
+    """x is axis 1 of a Surface (rows = y): a file of 8 x 8 points over 8 um (x) by 16 um (y)
     has spacings (2 um, 1 um) along (axis 0, axis 1)."""
     from SurfaceTopography import Topography
 
-    z = random_map((6, 6))
-    Topography(z.T, physical_sizes=(6e-6, 12e-6), unit="m").to_x3p(str(tmp_path / "pix.x3p"))
+    z = random_map((8, 8))
+    Topography(z.T, physical_sizes=(8e-6, 16e-6), unit="m").to_x3p(str(tmp_path / "pix.x3p"))
     s = load_surface(tmp_path / "pix.x3p", detrend="none")
-    assert s.spacing == pytest.approx((2e-6, 1e-6)) and s.lengths == pytest.approx((12e-6, 6e-6))
+    assert s.spacing == pytest.approx((2e-6, 1e-6)) and s.lengths == pytest.approx((16e-6, 8e-6))
     np.testing.assert_allclose(s.heights, z, rtol=0, atol=1e-15)
-    assert load_surface(tmp_path / "pix.x3p", length=(12e-6, 6e-6), detrend="none").spacing == pytest.approx(s.spacing)
+    assert load_surface(tmp_path / "pix.x3p", length=(16e-6, 8e-6), detrend="none").spacing == pytest.approx(s.spacing)
     with pytest.raises(SurfaceFileError, match="along axis 0 disagrees"):
-        load_surface(tmp_path / "pix.x3p", length=6e-6)  # square pixels: 6 um along axis 0, the file says 12
+        load_surface(tmp_path / "pix.x3p", length=8e-6)  # square pixels: 8 um along axis 0, the file says 16
 
 
 def test_length_per_axis_gives_rectangular_pixels(tmp_path: Path) -> None:
-    z = random_map((6, 10), seed=5)
+    z = random_map((8, 10), seed=5)
     np.save(tmp_path / "a.npy", z)
-    s = load_surface(tmp_path / "a.npy", length=(3.0, 20.0), detrend="none")
-    assert s.spacing == (0.5, 2.0) and s.lengths == (3.0, 20.0)
+    s = load_surface(tmp_path / "a.npy", length=(4.0, 20.0), detrend="none")
+    assert s.spacing == (0.5, 2.0) and s.lengths == (4.0, 20.0)
     with pytest.raises(ProblemInputError, match="L1"):
         load_surface(tmp_path / "a.npy", length=(3.0, -1.0), detrend="none")
     with pytest.raises(ProblemInputError, match="L0 or \\(L0, L1\\)"):
@@ -510,7 +517,8 @@ def test_parse_length(text: str, expected: object) -> None:
     assert parse_length(text) == expected
 
 
-@pytest.mark.parametrize("text", ["", "a", "1,2,3", "-1", "nan", "inf", "1e-4,0"])
+@pytest.mark.parametrize("text", ["", "a", "1,2,3", "-1", "nan", "inf", "1e-4,0", "1_0e-7", "1e-4,2_0e-5",
+                                  "\u0661e-4"])
 def test_parse_length_refuses_bad_text(text: str) -> None:
     with pytest.raises(ProblemInputError):
         parse_length(text)
@@ -619,13 +627,13 @@ def test_every_format_round_trips_heights_size_and_contact_solution(tmp_path: Pa
 def test_mat_channel_is_chosen_by_name_or_index(tmp_path: Path) -> None:
     import scipy.io
 
-    z, w = random_map((6, 6), seed=8), random_map((6, 6), seed=9)
+    z, w = random_map((8, 8), seed=8), random_map((8, 8), seed=9)
     scipy.io.savemat(tmp_path / "two.mat", {"height": z, "intensity": w})
-    np.testing.assert_array_equal(load_surface(tmp_path / "two.mat", 6e-6, channel="intensity", detrend="none").heights, w)
-    names = [load_surface(tmp_path / "two.mat", 6e-6, channel=i, detrend="none").meta["channel"] for i in (0, 1)]
+    np.testing.assert_array_equal(load_surface(tmp_path / "two.mat", 8e-6, channel="intensity", detrend="none").heights, w)
+    names = [load_surface(tmp_path / "two.mat", 8e-6, channel=i, detrend="none").meta["channel"] for i in (0, 1)]
     assert sorted(names) == ["height", "intensity"]
     with pytest.raises(SurfaceFileError, match="no channel 'depth'"):
-        load_surface(tmp_path / "two.mat", 6e-6, channel="depth", detrend="none")
+        load_surface(tmp_path / "two.mat", 8e-6, channel="depth", detrend="none")
 
 
 def test_cli_runs_a_gwy_file_without_length(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -239,6 +239,7 @@ def test_a_row_rebuilds_its_problem_from_the_file(capsys: pytest.CaptureFixture[
     np.save(in_tmp / "r.npy", tilted_map_with_holes())
     t, _, _ = run("r.npy", "o", capsys, "--detrend", "mean", "--nan", "fill-min", "--crop", "square")
     row = t[t["step"] == 1].iloc[0]
+    assert pd.isna(row["channel_index"])  # a .npy has no channels
     raw = read_height_map(in_tmp / row["surface_source"])
     n0, n1 = raw.z.shape
     with warnings.catch_warnings():
@@ -270,6 +271,49 @@ def test_the_header_names_the_channel_read_from_a_file_of_several(capsys: pytest
     report = build_report(in_tmp / "o", html=False).read_text()
     (line,) = [ln for ln in report.splitlines() if ln.startswith("| Problem changes |")]
     assert "channel 'height'" in line, line
+
+
+def test_a_row_of_a_file_of_channels_names_its_channel_and_no_hurst_or_seed(capsys: pytest.CaptureFixture[str],
+                                                                           in_tmp: Path) -> None:
+    """The channel solved is a column (its index: a name two channels may share), from which
+    with the other columns the problem rebuilds (docs/columns.md); a measured map has no
+    Hurst exponent and no seed, whatever the scene's defaults."""
+    import scipy.io
+
+    z = tilted_map_with_holes()
+    z[np.isnan(z)] = 0.0
+    scipy.io.savemat(in_tmp / "two.mat", {"height": z, "intensity": np.abs(z[::-1]) + 1e-6})
+    t, meta, _ = run("two.mat", "o", capsys, "--channel", "intensity", "--kernel", "love")
+    index = read_height_map(in_tmp / "two.mat", channel="intensity").info["channel_index"]
+    assert set(t["channel_index"]) == {index}
+    (rec,) = meta["surface_preprocessing"].values()
+    assert (rec["channel"], rec["channel_index"]) == ("intensity", index)
+    assert t["hurst"].isna().all() and t["seed"].isna().all()
+    row = t.iloc[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = load_surface(in_tmp / row["surface_source"], (N0 * row["delta0"], N1 * row["delta1"]),
+                         nan=row["nan_rule"], detrend=row["detrend"], crop=row["crop"],
+                         height_unit=row["height_unit"], channel=int(row["channel_index"]))
+    assert s.preprocessing is not None and s.preprocessing.raw_sha256.startswith(row["surface_hash"])
+
+
+def test_a_base_name_in_other_letters_gives_a_plain_and_distinct_instance_name(tmp_path: Path) -> None:
+    """Accented letters are written plainly; a name in another script, which has no plain
+    letters, keeps a hash of itself, so that two such files name two instances."""
+    z = tilted_map_with_holes()
+    names = {}
+    for base in ("Höhe-5µm.npy", "表面.npy", "粗さ.npy"):
+        np.save(tmp_path / base, z)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            record = load_surface(tmp_path / base, (N0 * D, N1 * D)).preprocessing
+        assert record is not None
+        names[base] = record.instance_name
+    key = names["Höhe-5µm.npy"].rsplit("-", 1)[1]
+    assert names["Höhe-5µm.npy"] == f"file-Hohe-5um.npy-{key}"
+    assert names["表面.npy"] != names["粗さ.npy"]
+    assert all(n.isascii() and n.startswith("file-") and n.endswith(f"-{key}") for n in names.values()), names
 
 
 def test_the_samples_provenance_states_the_shapes_and_spacings_they_load_with() -> None:

@@ -214,11 +214,18 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     pairs = cmr_pairs(rows)
     if pairs.empty:
         return Section(title, "No CMR row could be paired with its direct base solve.\n", page_charts=FIG8_PAGE)
+    sources = pairs["surface_source"] if "surface_source" in pairs else pd.Series("", index=pairs.index)
+    measured = sources.fillna("").astype(str) != ""  # (a measured map's instance has no Hurst exponent)
     if not np.isfinite(pairs["H"]).any():
-        return Section(title, "Fig. 8 is drawn against the Hurst exponent H, and this table gives no instance one "
-                              "(no `hurst` column: a table written before it existed); re-run the scene to draw "
-                              "it.\n", page_charts=FIG8_PAGE)
-    body = [surface_family_note(pairs), DESIGN_NOTE]
+        why = ("its instances are measured maps, which have none" if measured.all() else
+               "no `hurst` column: a table written before it existed; re-run the scene to draw it")
+        return Section(title, f"Fig. 8 is drawn against the Hurst exponent H, and this table gives no instance one "
+                              f"({why}).\n", page_charts=FIG8_PAGE)
+    unplaced = sorted(set(pairs.loc[~np.isfinite(pairs["H"]), "instance"]))
+    left_out = (f"Left out of Fig. 8: {len(unplaced)} instance(s) with no Hurst exponent ({', '.join(unplaced)}).\n"
+                if unplaced else "")
+    pairs = pairs[np.isfinite(pairs["H"])]
+    body = [surface_family_note(pairs), DESIGN_NOTE, left_out]
     for family, fp in by_family(pairs):
         tot = instance_totals(fp)
         if len(by_family(pairs)) > 1:
