@@ -48,7 +48,7 @@ from ..arguments import check_time_limit
 from ..profiles import get_profile
 from ..run.isolation import SOLVER_FAULTS, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
-from ..run.worker import aborted_status, instance_operator_kind, problem_traits
+from ..run.worker import aborted_status, instance_operator_kind, problem_traits, running_threads, threads_left
 
 #: Default per-solve time limits (s) by battery mode.
 DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
@@ -226,7 +226,9 @@ class CaseAnswer:
 
     kind: "ok", "refused", "crashed", "timeout" or "skipped"; ``message`` is one line,
     ``detail`` the traceback of a crash; ``tampered`` what the solver changed in the
-    problem it was handed (``harness.judging.ProblemSeal``; "" nothing)."""
+    problem it was handed (``harness.judging.ProblemSeal``; "" nothing), or the threads it
+    left running, which could change it while it is judged (``threads_left``: the worker is
+    then not reused)."""
 
     kind: str
     p: np.ndarray | None = None
@@ -239,6 +241,7 @@ class CaseAnswer:
     tampered: str = ""
     iterated: bool = True  # False: the lifecycle answered without calling the solver (``answered_without_iterate``)
     own_skip: bool = False  # skipped by the solver's own refinements, not a capability it declares
+    threads_left: str = ""  # the threads the solve left running ("" none)
 
 
 class DeclaredView:
@@ -336,7 +339,7 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
         return {"kind": "crashed" if qp.failed else "skipped", "message": qp.reason, "detail": qp.reason,
                 "own_skip": own}
     settings = get_profile(case.profile).solver_settings(msg.time_limit, msg.params)
-    seal = ProblemSeal.of(qp)
+    seal, threads = ProblemSeal.of(qp), running_threads()
     lifecycle = answered_without_iterate(qp)
     t0 = time.perf_counter()
     try:
@@ -354,12 +357,13 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
                 "message": first_line(exception_text(exc), type(exc).__name__),
                 "detail": "" if refused else traceback.format_exc(limit=6)}
     elapsed = time.perf_counter() - t0
-    tampered = seal.broken(qp)
+    left = threads_left(threads)
+    tampered = seal.broken(qp) or left
     seal.mend(qp)  # (the judge's products, and the next case's in this process, run the sealed code)
     return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
             "iterations": int(res.iterations),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
-            "tampered": tampered, "iterated": not lifecycle}
+            "tampered": tampered, "iterated": not lifecycle, "threads_left": left}
 
 
 class _SolverHandler:
@@ -394,7 +398,10 @@ class CaseRunner:
         out = self.worker.call(msg, None if self.timeout is None else
                                self.timeout + KILL_GRACE[0] + KILL_GRACE[1] * self.timeout)
         if out.kind == "ok":
-            return CaseAnswer(**out.value)
+            answer = CaseAnswer(**out.value)
+            if answer.threads_left:  # (its threads may still write: the next case gets a fresh worker)
+                self.worker.kill()
+            return answer
         kind = "timeout" if out.kind == "timeout" else "crashed"
         return CaseAnswer(kind, message=first_line(str(out.detail), kind), detail=str(out.detail), time_s=out.elapsed)
 

@@ -8,6 +8,7 @@ import os
 import re
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -456,3 +457,35 @@ def test_the_doc_names_every_group_of_the_battery_and_shows_todays_summary_line(
     summary = next(line.strip() for line in text.splitlines() if line.strip().startswith("example-apg [fast]:"))
     assert re.fullmatch(r"example-apg \[fast\]: CONFORMS: every solve correct to its promise \(exact; (\d+) of \1\) "
                         r"\(rows: pass \d+(, skipped \d+)?\)", summary), summary
+
+
+#: What the threads ``LeavesAThread`` starts wait on (never set: the worker's end ends them).
+NEVER = threading.Event()
+
+
+class LeavesAThread(ExactSolver):
+    """Right answers, and a thread left running after each solve; its message names the
+    process and how many such threads it found there at its start."""
+
+    name = "test-attack-leaves-a-thread"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        found = sum(t.name == "left-behind" for t in threading.enumerate())
+        threading.Thread(target=NEVER.wait, args=(120,), name="left-behind", daemon=True).start()
+        return Outcome(exact_p(ctx), 1, True, f"pid {os.getpid()}, found {found}")
+
+
+def test_a_solve_that_leaves_a_thread_running_is_wrong_and_the_next_case_gets_a_fresh_worker() -> None:
+    """A thread a solver leaves could write into its problem while the judge reads it: the
+    row is WRONG, naming the thread, and the worker is not reused (the next solve finds no
+    thread of the last one)."""
+    spec = two_groups()[0].spec
+    runner = cf.CaseRunner(LeavesAThread(), 20.0, isolate=True)
+    try:
+        first, second = runner.solve(spec, 0), runner.solve(spec, 0)
+    finally:
+        runner.close()
+    assert "left 1 thread" in first.threads_left and "'left-behind'" in first.tampered
+    assert second.message.endswith("found 0") and second.message.split(",")[0] != first.message.split(",")[0]
+    table = cf.validate(LeavesAThread(), two_groups()[:1])
+    assert [r.status for r in table.rows] == ["WRONG"] and table.exit_code() == 1, table.format()
