@@ -539,6 +539,13 @@ def _fmt_value(v: Any) -> str:
 
 
 def _git_text(m: dict[str, Any]) -> str | None:
+    """The commit of each command that wrote to the folder (meta.json's ``invocations``,
+    then its own record), distinct, first first: a resume at another commit is named too."""
+    commits = [_one_git_text(inv) for inv in listed(m.get("invocations")) if isinstance(inv, dict)]
+    return "; ".join(dict.fromkeys(c for c in [*commits, _one_git_text(m)] if c)) or None
+
+
+def _one_git_text(m: dict[str, Any]) -> str | None:
     commit = _meta_get(m, "git_commit", "git.commit", "commit")
     if commit is None and isinstance(m.get("git"), str):
         commit = m["git"]
@@ -644,6 +651,7 @@ def header_section(ctx: ReportContext) -> str:
     scenes = ctx.scenes()
     suite = _meta_get(m, "suite", "name") or ", ".join(scenes)
     lines = [f"# {REPORT_TITLE}: {suite}", ""]
+    git = _git_text(m)
     info = [
         ("Scenes", ", ".join(scenes)),
         ("Solvers", ", ".join(natural_sorted(t["solver"].unique()))),
@@ -654,7 +662,7 @@ def header_section(ctx: ReportContext) -> str:
         ("Commands" if len(commands_of(m)) > 1 else "Command",
          "; ".join(commands_of(m)) or _meta_get(m, "command", "command_line", "argv")),
         ("Date", _meta_get(m, "date", "started", "timestamp") or "unknown (no meta.json)"),
-        ("Git commit", _git_text(m)),
+        ("Git commits" if "; " in (git or "") else "Git commit", git),
         ("Host", _meta_get(m, "host", "hostname", "machine.host")),
         ("CPU", _meta_get(m, "cpu", "machine.cpu", "processor", "cpu_model")),
         ("Cores", _cores_text(m)),

@@ -22,6 +22,7 @@ from contactbench.harness import build_report, load_table
 from contactbench.harness.report import core as rp
 from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.report.sections import paper as rpp
+from contactbench.harness.table.meta import write_meta
 from contactbench.harness.table.schema import ALL_COLUMNS, REQUIRED_COLUMNS
 from tests.helpers import META, fabricate_table, report_row, trace_json, write_out
 
@@ -600,3 +601,17 @@ def test_a_trace_of_one_point_is_named_not_drawn(tmp_path: Path, monkeypatch: py
     titles = [ax.get_title() for ax in figures["traces-paper-sweep"].axes]
     assert titles and all("fast" in t for t in titles)
     assert "single point (their final residual only: `peer-a`)" in text
+
+
+def test_the_header_names_the_commit_of_every_command_that_wrote_to_the_folder(tmp_path: Path) -> None:
+    """meta.json's own ``git`` is the last command's: a resume at another commit (which may
+    add no row) must not hide the commit of the run that made the rows, so the header
+    lists every command's commit, first first, each once."""
+    first = {"date": "d0", "command": ["run", "a"], "git": {"commit": "aaaa111", "dirty": False}, "config": {}}
+    again = {**first, "date": "d1", "git": {"commit": "bbbb222", "dirty": True}}
+    for record in (first, again, first):
+        write_meta(tmp_path, record)
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    assert meta["git"]["commit"] == "aaaa111"
+    assert rp._git_text(meta) == "aaaa111; bbbb222 (with uncommitted changes)"
+    assert rp._git_text({"git": {"commit": "cccc333"}}) == "cccc333"  # a meta.json written before invocations
