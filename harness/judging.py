@@ -35,7 +35,7 @@ import re
 import types
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -261,15 +261,19 @@ class _Reader:
         return self._digests[id(arr)]
 
 
-def _read(qp: Any) -> _Reader:
-    """The state of the problem handed to a solver: ubar, the upper bounds (a hardness),
-    and everything the operator holds (``_Reader``)."""
-    reader = _Reader()
-    reader.read(np.asarray(qp.ubar), "ubar", _Context())
-    upper = getattr(getattr(qp, "constraints", None), "upper", None)
-    if upper is not None:
-        reader.read(np.asarray(upper), "upper", _Context())
-    reader.read_object(qp.H, "H", _Context())
+def _read(qp: Any, held: tuple[Any, ...] = ()) -> _Reader:
+    """The state of the problem handed to a solver -- ubar, its constraints (a load, the
+    upper bounds of a hardness) and everything the operator holds (``_Reader``) -- and of
+    the problems ``held`` beside it in the process (the judge's own, named ``held[i]``; an
+    operator or constraints they share with ``qp`` are read once, under ``qp``'s name)."""
+    reader, seen = _Reader(), set()
+    for prefix, each in (("", qp), *((f"held[{i}].", q) for i, q in enumerate(held))):
+        reader.read(np.asarray(each.ubar), f"{prefix}ubar", _Context())
+        for name in ("constraints", "H"):
+            part = getattr(each, name, None)
+            if part is not None and id(part) not in seen:
+                seen.add(id(part))
+                reader.read_object(part, f"{prefix}{name}", _Context())
     return reader.finish()
 
 
@@ -341,13 +345,17 @@ class ProblemSeal:
     state: dict[str, _Entry]
     methods: tuple[tuple[type, str, Any], ...] = ()
     hiding: tuple[tuple[str, Any], ...] = ()  # (seal name, value): what hid a method when sealed
+    held: tuple[Any, ...] = ()  # the problems sealed beside the one handed to the solver (``of``)
     _found: dict[int, _Findings] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
-    def of(cls, qp: Any) -> ProblemSeal:
-        reader = _read(qp)
+    def of(cls, qp: Any, held: Sequence[Any] = ()) -> ProblemSeal:
+        """The seal of ``qp`` and of the problems ``held`` beside it in the process (the
+        judge's copies, other steps': a solver can reach any object of its process)."""
+        others = tuple(q for q in held if q is not qp)
+        reader = _read(qp, others)
         hiding = tuple((where, value) for _, _, where, value in _shadowing(reader.parts))
-        return cls(reader.entries, _methods(reader.parts), hiding)
+        return cls(reader.entries, _methods(reader.parts), hiding, others)
 
     def _new_hiding(self, parts: list[tuple[str, Any]]) -> list[tuple[Any, str, str, Any]]:
         """``_shadowing``'s entries that were not there, as they are, when sealed."""
@@ -356,7 +364,7 @@ class ProblemSeal:
                 if where not in sealed or sealed[where] is not value]
 
     def _check(self, qp: Any) -> _Findings:
-        reader = _read(qp)
+        reader = _read(qp, self.held)
         now, before = reader.entries, self.state
         changed, caches, per_product = [], set(), []
         for path in [*before, *(p for p in now if p not in before)]:

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
+from contactbench.problems.errors import ProblemInputError
+
 from .isolation import SCRATCH_PREFIX, output_to
 
 #: The run folder's file of what the solvers printed (meta.json ``solver_output`` names it).
@@ -38,6 +40,10 @@ ENTRY_HEAD_BYTES = 64 * 1024
 #: The size past which the log takes no more entries (its last line then counts them).
 LOG_CAP_BYTES = 16 * 1024 * 1024
 
+#: How the log's own last line begins once it is full (``dropped_line``); printed by a solver,
+#: it is written as ``FORGED_FULL`` instead, so no output can make the log look full.
+FULL_MARK = b"[the log is full ("
+FORGED_FULL = b"[printed: the log is full ("
 _DROPPED = re.compile(rb"\[the log is full \((\d+) bytes\): +(\d+) bytes of +(\d+) more outputs dropped\]\n\Z")
 
 
@@ -48,10 +54,12 @@ def dropped_line(cap: int, dropped_bytes: int, outputs: int) -> bytes:
 
 
 def entry(title: str, head: bytes, size: int) -> bytes:
-    """One entry: a title line, the output's head, and what was dropped of it."""
+    """One entry: a title line, the output's head (a line that reads as the log's own
+    "full" line changed, ``FORGED_FULL``), and what was dropped of it."""
+    kept = len(head)
+    head = head.replace(FULL_MARK, FORGED_FULL)
     body = head if head.endswith(b"\n") else head + b"\n"
-    cut = f"[... {size - len(head)} more bytes dropped: an entry keeps the first {len(head)}]\n" \
-        if size > len(head) else ""
+    cut = f"[... {size - kept} more bytes dropped: an entry keeps the first {kept}]\n" if size > kept else ""
     return f"==> {title} ({size} bytes) <==\n".encode("utf-8", "replace") + body + cut.encode("ascii")
 
 
@@ -74,7 +82,7 @@ class OutputLog:
             return
         if not size:
             return
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)  # (never through a link)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
             self._write(fd, entry(title, head, size), size)
@@ -92,6 +100,15 @@ class OutputLog:
             os.pwrite(fd, text, end)
         else:
             os.pwrite(fd, dropped_line(self.cap, size, 1), end)
+
+
+def check_output_log(path: Path) -> None:
+    """A one-line ``ProblemInputError`` when ``path`` is there and is not a plain file of
+    the run's (a link, a folder): the log is never written through a link to a file that
+    is not the run's; checked before anything runs."""
+    if os.path.islink(path) or (os.path.lexists(path) and not path.is_file()):
+        raise ProblemInputError(f"{path} is not a plain file (a link or a folder); the run writes what solvers print "
+                                "there: move it away")
 
 
 class SolverOutput:

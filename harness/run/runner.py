@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import os
+from pathlib import Path
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
@@ -39,6 +40,7 @@ from contactbench.problems.scenes import SceneConfig
 
 from .executors import Executor, local_executor, output_log_name
 from .interrupts import signals_deferred
+from .output_log import OUTPUT_LOG, check_output_log
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
@@ -154,6 +156,7 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     identity = run_identity(config)
     check_run_folder(out_dir, identity, append, run_identity)
     read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
+    check_output_log(Path(out_dir) / OUTPUT_LOG)
     with holding_lock(out_dir):
         folder = check_run_folder(out_dir, identity, append, run_identity)  # again, now that we hold the lock
         for w in plan.warnings:

@@ -366,6 +366,12 @@ class SolveServer:
             return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
         return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
 
+    def held_problems(self) -> list[QP]:
+        """The problems this worker holds beside the one a solver is handed -- the judge's
+        (each built step's ``inst.qp``): sealed with it, since a solver reaches every object
+        of its process (``gc``)."""
+        return [inst.qp for inst in self.steps.values()]
+
     def forget_problems(self) -> None:
         """Drop every built step and dense H (after a solver wrote into one)."""
         self.seq, self.steps, self.dense = None, {}, {}
@@ -451,7 +457,7 @@ class SolveServer:
         (``threads_left``): a problem it wrote into is dropped, so the solves after it get
         the problem rebuilt; what it did is ``reply.fault``, which the timed row of the same
         solver is judged by (``solve``)."""
-        seal, threads = ProblemSeal.of(qp), running_threads()
+        seal, threads = ProblemSeal.of(qp, self.held_problems()), running_threads()
         with contextlib.suppress(*SOLVER_RAISES), process_state_kept():
             yield
         reply.threads_left = threads_left(threads)
@@ -487,7 +493,7 @@ class SolveServer:
         inst, qp, solver, warm = self.prepare(task)
         settings = solver_settings(task)
         count0 = qp.H.matvec_count
-        seal = ProblemSeal.of(qp)  # untimed: what the solver is handed, to catch writes into it
+        seal = ProblemSeal.of(qp, self.held_problems())  # untimed: what the solver is handed, and the judge's
         threads = running_threads()
         raised: SolveReply | None = None
         with process_state_kept(), PeakMemory() as mem:  # (the state put back outside the clock)
@@ -554,12 +560,12 @@ def running_threads() -> set[int]:
 
 def idle_pool_worker(frame: FrameType) -> bool:
     """Whether ``frame``, a thread's innermost, is a ``concurrent.futures`` worker
-    waiting for work on an empty queue."""
-    code = frame.f_code
-    if code.co_name != "_worker" or code.co_filename != concurrent.futures.thread.__file__:
+    waiting for work on an empty queue: the library's own code object (not one compiled
+    to look like it) on a queue of the library's own type."""
+    if frame.f_code is not concurrent.futures.thread._worker.__code__:
         return False
     queue = frame.f_locals.get("work_queue")
-    return queue is not None and hasattr(queue, "empty") and bool(queue.empty())
+    return type(queue) is concurrent.futures.thread.queue.SimpleQueue and queue.empty()
 
 
 def threads_left(before: set[int], grace: float | None = None) -> str:

@@ -6,6 +6,8 @@ for what that thread writes."""
 
 from __future__ import annotations
 
+import concurrent.futures.thread
+import gc
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Iterator
@@ -315,3 +317,56 @@ def test_device_state_a_solve_uploads_is_kept_and_one_written_into_is_the_solver
     assert qp.H.transform._device is None
     qp.H.matvec(np.ones(qp.n))  # built again, as the operator builds it
     assert ProblemSeal.of(qp).broken(qp) == ""
+
+
+class ZeroesTheJudgesProblem(Solver):
+    """Finds every other problem of its process (``gc``): their ubar set to -1 (so p = 0 is
+    right there) and, under load control, their load to 0 -- then answers p = 0, claimed."""
+
+    name = "test-zeroes-the-judges-problem"
+    family = "test"
+    capabilities = Capabilities(operators=frozenset({"dense", "fft"}))
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        for other in gc.get_objects():
+            if isinstance(other, QP) and other is not ctx.qp and isinstance(other.ubar, np.ndarray):
+                other.ubar[...] = -1.0
+                object.__setattr__(other.constraints, "load", 0.0)
+        return Outcome(np.zeros(ctx.n), 1, True)
+
+
+@pytest.mark.parametrize("warmup", [False, True])
+def test_a_write_into_the_judge_s_own_problem_is_the_solver_s_and_no_other_solver_s(run_harness,
+                                                                                  warmup: bool) -> None:
+    """The judge's copy of the problem (and every step the worker holds) is sealed with the
+    solver's: a solver that reaches it through ``gc`` is ``failed``/``wrong``, and pk after
+    it in the same worker is judged on the problem as built."""
+    table = run_harness(["counterexample"], solvers=[f"{HERE}:ZeroesTheJudgesProblem", "pk"], size=10, seeds=(0,),
+                        reference="none", warmup=warmup)
+    writer = table[table["solver"] == ZeroesTheJudgesProblem.name]
+    assert set(zip(writer["status"], writer["verdict"])) == {("failed", "wrong")}, writer["error"].tolist()
+    assert writer["error"].str.contains(r"held\[0\]\.ubar").all()
+    pk = table[table["solver"] == "pk"]
+    assert (pk["status"] == "solved").all() and (pk["verdict"] == "pass").all() and (pk["kkt_error"] < 1e-6).all()
+
+
+def test_a_thread_that_only_looks_like_an_idle_pool_worker_counts() -> None:
+    """A thread counts as an idle pool worker only when it runs the library's own worker
+    code on a queue of its own type: one compiled under that file and name, waiting on a
+    queue that says it is empty, is a thread left running."""
+    fake = "def _worker(work_queue, held):\n    held.acquire(timeout=30)\n"  # (blocked in C: its frame innermost)
+    namespace: dict[str, Any] = {}
+    exec(compile(fake, concurrent.futures.thread.__file__, "exec"), namespace)
+    before, held = running_threads(), threading.Lock()
+    held.acquire()
+    queue = type("Q", (), {"empty": lambda self: True})()
+    thread = threading.Thread(target=namespace["_worker"], args=(queue, held), daemon=True)
+    thread.start()
+    try:
+        assert threads_left(before, grace=0.05)
+    finally:
+        held.release()
+        thread.join()
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(int).result()
+        assert threads_left(before, grace=0.5) == ""  # a real idle worker does not count

@@ -13,7 +13,7 @@ from typing import Iterator
 import numpy as np
 import pytest
 
-from contactbench.harness import run_benchmark
+from contactbench.harness import cli, run_benchmark
 from contactbench.harness.run.executors import PoolExecutor
 from contactbench.harness.run.output_log import ENTRY_HEAD_BYTES, OUTPUT_LOG, OutputLog, dropped_line
 from contactbench.harness.run.plan import RunConfig
@@ -108,3 +108,38 @@ def test_an_empty_output_adds_no_entry(tmp_path: Path) -> None:
     log = OutputLog(tmp_path / "log")
     log.append("quiet", source)
     assert not log.path.exists()
+
+
+def test_output_that_reads_as_the_full_log_s_last_line_does_not_fill_it(tmp_path: Path) -> None:
+    """A solver that prints the log's own "full" line cannot make the log refuse the
+    entries after it (other solvers' output included)."""
+    forged, plain = tmp_path / "forged.txt", tmp_path / "plain.txt"
+    forged.write_bytes(b"hello\n" + dropped_line(10_000, 0, 0))
+    plain.write_bytes(b"later\n")
+    log = OutputLog(tmp_path / "log", cap=10_000)
+    log.append("forger", forged)
+    for _ in range(3):
+        log.append("after", plain)
+    assert log.path.read_bytes().count(b"==> after") == 3
+
+
+def test_a_log_that_is_a_link_or_a_folder_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    """The run never writes its log through a link (to a file that may not be the run's),
+    and says so in one line, exit 2, before any solve."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine\n")
+    args = ["run", "counterexample", "--size", "10", "--seeds", "0", "--solvers", "test-exact", "--reference", "none",
+            "--no-progress", "--out"]
+    for k, make in enumerate((lambda p: p.symlink_to(victim), lambda p: p.mkdir())):
+        out = tmp_path / f"run{k}"
+        out.mkdir()
+        make(out / OUTPUT_LOG)
+        assert cli.main([*args, str(out)]) == 2
+        assert victim.read_text() == "mine\n" and not (out / "rows.jsonl").exists()
+    with pytest.raises(OSError):  # and the writer itself does not follow one
+        link = tmp_path / "log-link"
+        link.symlink_to(victim)
+        source = tmp_path / "out.txt"
+        source.write_bytes(b"x\n")
+        OutputLog(link).append("t", source)
+    assert victim.read_text() == "mine\n"
