@@ -15,6 +15,7 @@ from typing import Any, Callable, NoReturn
 
 from contactbench.plugins import did_you_mean
 from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.map_readers import plain_float
 
 #: Exit status of bad input: refused before anything runs, in one line per problem.
 EXIT_BAD_INPUT = 2
@@ -58,10 +59,19 @@ class Parser(argparse.ArgumentParser):
                                                  f"choose from {', '.join(choices)}")
 
 
+def plain_number(text: str, kind: type) -> Any:
+    """``kind(text)`` for a number written plainly (``problems.map_readers.plain_float``:
+    ASCII digits, no underscores -- Python's ``float`` and ``int`` take "1_0" and other
+    scripts' digits); a ``ValueError`` otherwise."""
+    plain_float(text)
+    return kind(text)
+
+
 def positive_number(text: str, kind: type, what: str) -> Any:
-    """``text`` as a finite number of ``kind`` that is > 0, else an argparse error naming it."""
+    """``text`` as a finite number of ``kind`` that is > 0, written plainly
+    (``plain_number``), else an argparse error naming it."""
     try:
-        v = kind(text)
+        v = plain_number(text, kind)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
     if not (v > 0 and math.isfinite(v)):

@@ -48,7 +48,6 @@ from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.map_readers import plain_float
 from contactbench.problems.operators import fft_backend, fft_workers, memory_budget_scope
 from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
@@ -56,7 +55,7 @@ from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionR
 from contactbench.plugins import did_you_mean
 
 from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float, time_limit,
-                        positive_number)
+                        positive_number, plain_number)
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
@@ -124,7 +123,7 @@ def parse_seeds(text: str) -> Sequence[int]:
     for part in comma_items(text):
         try:
             a, b = part.split("-", 1) if "-" in part else (part, part)
-            lo, hi = int(a), int(b)
+            lo, hi = plain_number(a, int), plain_number(b, int)
             if hi < lo or lo < 0:
                 raise ValueError
         except ValueError:
@@ -158,7 +157,7 @@ def number_list(text: str) -> tuple[float, ...]:
     (``comma_items``); a value may repeat (L0,L1 of a square), and every other rule on
     them (``--loads`` increasing) is the plan's."""
     try:
-        values = tuple(plain_float(t) for t in comma_items(text, repeats=True))
+        values = tuple(plain_number(t, float) for t in comma_items(text, repeats=True))
     except ValueError:
         values = ()
     if not values:
@@ -187,18 +186,17 @@ def length_value(text: str) -> float | tuple[float, ...]:
 
 
 def number(text: str) -> float:
-    """A number written plainly (``problems.map_readers.plain_float``: "1_0" is none)."""
+    """A number written plainly (``arguments.plain_number``: "1_0" is none)."""
     try:
-        return plain_float(text)
+        return plain_number(text, float)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
 
 
 def integer(text: str) -> int:
-    """An integer written plainly (ASCII digits and a sign: "1_000" is none)."""
+    """An integer written plainly (``arguments.plain_number``: "1_000" is none)."""
     try:
-        plain_float(text)
-        return int(text)
+        return plain_number(text, int)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
 

@@ -127,7 +127,9 @@ def test_an_empty_surface_path_is_refused_not_read_as_no_surface(in_tmp: Path,
 
 
 @pytest.mark.parametrize(("option", "value"), [("--length", "1_0e-4"), ("--size", "1_6"), ("--E", "1_0e9"),
-                                               ("--loads", "0.001,0_002"), ("--length", "\u0661e-4")])
+                                               ("--loads", "0.001,0_002"), ("--length", "\u0661e-4"),
+                                               ("--timeout", "6_0"), ("--repeats", "1_0"), ("--seeds", "0_0"),
+                                               ("--memory-budget-gb", "1_0")])
 def test_a_number_not_written_plainly_is_refused(option: str, value: str, capsys: pytest.CaptureFixture[str],
                                                  in_tmp: Path) -> None:
     """Numbers on the command line are written plainly, as in a map's text: Python's
