@@ -178,6 +178,7 @@ class _Reader:
         self._first_path: dict[int, str] = {}
         self._digests: dict[int, str] = {}
         self._stack: set[int] = set()
+        self._objects: dict[int, str] = {}  # id -> the path each object was read under
 
     def add(self, path: str, fingerprint: tuple[Any, ...], context: _Context, opaque: bool = False) -> None:
         self.entries[path] = _Entry(fingerprint, context.cache, context.per_product, opaque)
@@ -200,6 +201,12 @@ class _Reader:
             self.read_object(value, path, context)
 
     def read_object(self, obj: Any, path: str, context: _Context) -> None:
+        """An object's state, read once: where it is met again (an operator's transform
+        that another step's operator shares) it is named by the path it was read under."""
+        first = self._objects.setdefault(id(obj), path)
+        if first != path:
+            self.add(path, ("same as", first), context)
+            return
         self.add(path, ("object", type(obj).__module__, type(obj).__qualname__, id(type(obj))), context)
         self.parts.append((path, obj))
         self._stack.add(id(obj))
@@ -266,13 +273,12 @@ def _read(qp: Any, held: tuple[Any, ...] = ()) -> _Reader:
     upper bounds of a hardness) and everything the operator holds (``_Reader``) -- and of
     the problems ``held`` beside it in the process (the judge's own, named ``held[i]``; an
     operator or constraints they share with ``qp`` are read once, under ``qp``'s name)."""
-    reader, seen = _Reader(), set()
+    reader = _Reader()
     for prefix, each in (("", qp), *((f"held[{i}].", q) for i, q in enumerate(held))):
         reader.read(np.asarray(each.ubar), f"{prefix}ubar", _Context())
         for name in ("constraints", "H"):
             part = getattr(each, name, None)
-            if part is not None and id(part) not in seen:
-                seen.add(id(part))
+            if part is not None:
                 reader.read_object(part, f"{prefix}{name}", _Context())
     return reader.finish()
 
