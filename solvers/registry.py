@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
+from contactbench.problems.map_readers import plain_float
 
 from .base import Capabilities, Param, ParamError, Solver
 
@@ -425,8 +426,9 @@ _TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
 
 
 def param_from_text(param: Param, text: str) -> Any:
-    """``text`` read as ``param``'s type (bool: true/false, yes/no, on/off, 1/0), then
-    checked by ``Param.check``; a ``ParamError`` names the parameter."""
+    """``text`` read as ``param``'s type (bool: true/false, yes/no, on/off, 1/0; a number
+    written plainly, ``problems.map_readers.plain_float``: "1_0" is none), then checked by
+    ``Param.check``; a ``ParamError`` names the parameter."""
     bad = ParamError(f"parameter {param.name!r} takes a {param.kind.__name__}, got {text!r}")
     value: Any = text
     if param.kind is bool:
@@ -435,12 +437,13 @@ def param_from_text(param: Param, text: str) -> Any:
         value = text.lower() in _TRUE
     elif param.kind is int:
         try:
+            plain_float(text)
             value = int(text)
         except ValueError:
             raise bad from None
     elif param.kind is float:
         try:
-            value = float(text)
+            value = plain_float(text)
         except ValueError:
             raise bad from None
         if not math.isfinite(value):

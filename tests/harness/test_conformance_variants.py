@@ -31,7 +31,8 @@ def test_a_variant_entry_validates_that_variant_beside_a_plain_name(capsys: pyte
     (["nnls-gp[K=-5]"], "parameter 'K' must lie in"),
     (["nnls-gp[K=5]", "--params", '{"K": 3}'], "--params goes with plain solver names"),
     (["no-such-solver[K=5]"], "no-such-solver"),
-], ids=["no-grid", "bad-value", "params-twice", "unknown"])
+    (["nnls-gp[K=1_0]"], "parameter 'K' takes a int, got '1_0'"),
+], ids=["no-grid", "bad-value", "params-twice", "unknown", "not-written-plainly"])
 def test_a_bad_variant_entry_is_refused_in_one_line(argv: list[str], says: str,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     assert validate_main([*argv, *SMALL]) == 2
