@@ -43,13 +43,13 @@ LOG_CAP_BYTES = 16 * 1024 * 1024
 #: How the log's own last line begins once it is full (``dropped_line``); printed by a solver,
 #: it is written as ``FORGED_FULL`` instead, so no output can make the log look full.
 FULL_MARK = b"[the log is full ("
-FORGED_FULL = b"[printed: the log is full ("
-_DROPPED = re.compile(rb"\[the log is full \((\d+) bytes\): +(\d+) bytes of +(\d+) more outputs dropped\]\n\Z")
+FORGED_FULL = b"[printed: " + FULL_MARK[1:]
+_DROPPED = re.compile(re.escape(FULL_MARK) + rb"(\d+) bytes\): +(\d+) bytes of +(\d+) more outputs dropped\]\n\Z")
 
 
 def dropped_line(cap: int, dropped_bytes: int, outputs: int) -> bytes:
     """The log's last line once it is full: fixed width, so it is rewritten in place."""
-    return f"[the log is full ({cap} bytes): {dropped_bytes:20d} bytes of {outputs:12d} more outputs dropped]\n" \
+    return FULL_MARK + f"{cap} bytes): {dropped_bytes:20d} bytes of {outputs:12d} more outputs dropped]\n" \
         .encode("ascii")
 
 
