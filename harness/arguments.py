@@ -15,7 +15,7 @@ from typing import Any, Callable, NoReturn
 
 from contactbench.plugins import did_you_mean
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.map_readers import plain_float
+from contactbench.problems.units import plain_float
 
 #: Exit status of bad input: refused before anything runs, in one line per problem.
 EXIT_BAD_INPUT = 2
@@ -60,7 +60,7 @@ class Parser(argparse.ArgumentParser):
 
 
 def plain_number(text: str, kind: type) -> Any:
-    """``kind(text)`` for a number written plainly (``problems.map_readers.plain_float``:
+    """``kind(text)`` for a number written plainly (``problems.units.plain_float``:
     ASCII digits, no underscores -- Python's ``float`` and ``int`` take "1_0" and other
     scripts' digits); a ``ValueError`` otherwise."""
     plain_float(text)

@@ -62,11 +62,11 @@ import numpy as np
 
 from .errors import ProblemInputError, check_positive
 from .map_files import write_text, write_topography, write_x3p
+from .units import plain_float
 from .map_readers import (
     LENGTH_RTOL,
     RawMap,
     SurfaceFileError,
-    plain_float,
     read_height_map,
     read_npy,
     read_text,

@@ -7,7 +7,7 @@ Formats read by :func:`read_height_map`:
   without NumPy's header are refused, never loaded.  The array is (rows = y, columns = x).
 * text      -- a plain matrix of numbers, one row per line; the delimiter (comma,
   semicolon, tab or white space) is detected from the first data line; ``#`` starts a
-  comment; ``nan`` marks a missing point.  Numbers are written plainly (``plain_float``)
+  comment; ``nan`` marks a missing point.  Numbers are written plainly (``problems.units.plain_float``)
   with a decimal point: a decimal comma ("-0,61;...", a European spreadsheet's export) and
   underscores between digits ("1_0e-7") are refused in one line.
 * x,y,z columns -- a text file of 3 columns and at least ``XYZ_MIN_ROWS`` rows whose
@@ -63,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ProblemInputError, check_positive
+from .units import plain_float
 
 NPY_MAGIC = b"\x93NUMPY"
 #: Bytes of one height of each x3p DataType (ISO 25178-72: int16, int32, float32, float64).
@@ -300,15 +301,6 @@ def xyz_grid(p: Path, a: np.ndarray) -> tuple[np.ndarray, tuple[float, float]] |
                                   f"points do not fill a regular grid ({found}); give a matrix (one row per y "
                                   "line) or x,y,z columns of a full regular grid")
     return None
-
-
-def plain_float(text: str) -> float:
-    """``float(text)`` for a number written plainly: ASCII digits with an optional sign,
-    decimal point and exponent, or ``nan`` / ``inf``; what else ``float`` takes (underscores
-    between digits, "1_0e-7", and digits of other scripts) is a ``ValueError``."""
-    if not text.isascii() or "_" in text:
-        raise ValueError(f"not a plainly written number: {text!r}")
-    return float(text)
 
 
 def _is_float(s: str) -> bool:
@@ -563,7 +555,6 @@ __all__ = [
     "XYZ_MIN_ROWS",
     "RawMap",
     "SurfaceFileError",
-    "plain_float",
     "read_height_map",
     "read_npy",
     "read_text",

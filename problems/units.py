@@ -149,3 +149,12 @@ def check_height_unit(height_unit: str) -> str:
     if height_unit not in HEIGHT_UNITS:
         raise ProblemInputError(f"unknown height unit {height_unit!r}; choose one of {', '.join(HEIGHT_UNITS)}")
     return height_unit
+
+
+def plain_float(text: str) -> float:
+    """``float(text)`` for a number written plainly: ASCII digits with an optional sign,
+    decimal point and exponent, or ``nan`` / ``inf``; what else ``float`` takes (underscores
+    between digits, "1_0e-7", and digits of other scripts) is a ``ValueError``."""
+    if not text.isascii() or "_" in text:
+        raise ValueError(f"not a plainly written number: {text!r}")
+    return float(text)

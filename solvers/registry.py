@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
-from contactbench.problems.map_readers import plain_float
+from contactbench.problems.units import plain_float
 
 from .base import Capabilities, Param, ParamError, Solver
 
@@ -427,7 +427,7 @@ _TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
 
 def param_from_text(param: Param, text: str) -> Any:
     """``text`` read as ``param``'s type (bool: true/false, yes/no, on/off, 1/0; a number
-    written plainly, ``problems.map_readers.plain_float``: "1_0" is none), then checked by
+    written plainly, ``problems.units.plain_float``: "1_0" is none), then checked by
     ``Param.check``; a ``ParamError`` names the parameter."""
     bad = ParamError(f"parameter {param.name!r} takes a {param.kind.__name__}, got {text!r}")
     value: Any = text
