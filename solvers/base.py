@@ -54,6 +54,8 @@ from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import constrained_kkt_error
 from contactbench.problems.operators import ContactOperator
 
+from ._params import ParamError, wrong_kind
+
 WarmKind = Literal["none", "primal", "primal-dual"]
 
 #: The default tolerance of a solver that declares none: the scaled KKT error of
@@ -81,10 +83,6 @@ class SolveAborted(RuntimeError):
             raise ValueError(f"SolveAborted status must be 'timeout' or 'crashed', got {status!r}")
         super().__init__(message)
         self.status = status
-
-
-class ParamError(ValueError):
-    """An unknown, ill-typed or out-of-range solver parameter."""
 
 
 @dataclass(frozen=True)
@@ -129,7 +127,7 @@ class Param:
         return f"{left}{lo}, {hi}{right}"
 
     def _coerce(self, value: Any) -> Any:
-        bad = ParamError(f"parameter {self.name!r} takes a {self.kind.__name__}, got {value!r}")
+        bad = wrong_kind(self.name, self.kind, value)
         if self.kind is bool:
             if isinstance(value, (bool, np.bool_)):
                 return bool(value)

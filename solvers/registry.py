@@ -35,7 +35,12 @@ the spec).
 Every solver the registry takes (``register``) or loads by import path (``load_solver``)
 passes ``check_declaration`` first: a declaration it cannot use (a parameter of a kind
 outside ``PARAM_KINDS``, choices or a grid value its own ``Param.check`` refuses, a grid
-key that names no parameter, ...) is refused in one line.
+key that names no parameter, a parameter name, choice or grid value that a label
+``name[k=v]`` cannot carry so that it reads back, ...) is refused in one line.
+
+The variants one command names are one each (``refuse_same_variants``): a label named
+twice, or two labels of one solver with the same parameters once defaults are filled in,
+is refused before anything runs.
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ from typing import Any, Callable, Sequence, TypeVar
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 from contactbench.problems.units import plain_float
 
+from ._params import wrong_kind
 from .base import Capabilities, Param, ParamError, Solver
 
 S = TypeVar("S")
@@ -158,20 +164,26 @@ def check_declaration(solver: Solver) -> Solver:
 
 def param_problems(param: Param) -> list[str]:
     """What is wrong with one declared parameter (none: []): its name is a non-empty
-    string; its kind one of ``PARAM_KINDS``; a range (``low``, ``high``) only on a number
-    kind, its ends numbers with low <= high and ``open`` one of ``OPEN_ENDS``; its
-    ``choices`` a non-empty tuple of distinct values that each pass ``Param.check``; its
-    default None (the solver works it out) or a value ``Param.check`` accepts."""
+    string that a spec's brackets read back as a key (``reads_back_as_key``); its kind one
+    of ``PARAM_KINDS``; a range (``low``, ``high``) only on a number kind, its ends numbers
+    with low <= high and ``open`` one of ``OPEN_ENDS``; its ``choices`` a non-empty tuple
+    of distinct values that each pass ``Param.check`` and, for a kind a spec's text is read
+    as (``SCALAR_KINDS``), read back from a label (``reads_back``); its default None (the
+    solver works it out) or a value ``Param.check`` accepts."""
     if not isinstance(param.name, str) or not param.name.strip():
         return [f"a declared parameter has no name (its name is {param.name!r})"]
     what = f"parameter {param.name!r}"
+    if not reads_back_as_key(param.name):
+        return [f"{what}: its name cannot be written as the key of name[key=value] and read back "
+                f"({WRITTEN_RULE})"]
     if param.kind not in PARAM_KINDS:
         kind = getattr(param.kind, "__name__", repr(param.kind))
         return [f"{what} is of kind {kind}, not one of {', '.join(k.__name__ for k in PARAM_KINDS)} "
                 "(a sequence is a tuple)"]
     problems = range_problems(param)
     if param.choices is not None:
-        problems += value_list_problems(param, param.choices, f"{what}: its choices")
+        problems += value_list_problems(param, param.choices, f"{what}: its choices",
+                                        labelled=param.kind in SCALAR_KINDS)
     if param.default is not None and not problems:
         try:
             param.check(param.default)
@@ -197,10 +209,11 @@ def range_problems(param: Param) -> list[str]:
     return []
 
 
-def value_list_problems(param: Param, values: Any, what: str) -> list[str]:
+def value_list_problems(param: Param, values: Any, what: str, labelled: bool = True) -> list[str]:
     """What is wrong with a list of values of ``param`` (its choices, or a grid's values):
     it is a non-empty tuple or list, each value passes ``param.check``, none twice (as
-    checked: 1 and 1.0 of a float are one value)."""
+    checked: 1 and 1.0 of a float are one value) and, where ``labelled``, each reads back
+    from a label ``name[key=value]`` as itself (``reads_back``)."""
     if not isinstance(values, (tuple, list)) or not values:
         return [f"{what} are {values!r}, not a non-empty tuple of values"]
     problems: list[str] = []
@@ -214,7 +227,41 @@ def value_list_problems(param: Param, values: Any, what: str) -> list[str]:
         if checked in seen:
             problems.append(f"{what} list {v!r} twice")
         seen.append(checked)
+        if labelled and not reads_back(param, checked):
+            written = f"{param.name}={value_label(checked)}"
+            problems.append(f"{what}: {v!r} does not read back from a label, written {written!r} ({WRITTEN_RULE})")
     return problems
+
+
+#: What a key or value written in a spec's brackets ``name[key=value]`` is, to read back.
+WRITTEN_RULE = ("a key or value written in name[key=value] is not empty, holds no ',', '[' or ']', has no space "
+                "at either end, and a value reads as its parameter's kind")
+
+
+def value_label(value: Any) -> str:
+    """A parameter's value as a variant's label writes it (``SolverSpec.label``)."""
+    return f"{value}"
+
+
+def reads_back_as_key(name: str) -> bool:
+    """Whether a parameter called ``name``, written as the key of a spec's brackets
+    ``x[name=1]``, reads back as that key (``split_solver_spec``)."""
+    try:
+        return split_solver_spec(f"x[{name}=1]").raw == {name: "1"}
+    except SolverSpecError:
+        return False
+
+
+def reads_back(param: Param, value: Any) -> bool:
+    """Whether ``value`` (as ``param.check`` reads it), written in a label
+    ``x[key=text]`` (``value_label``), reads back as itself: the brackets give the same
+    text (``split_solver_spec``) and the text reads as ``param``'s kind to an equal value
+    (``param_from_text``)."""
+    text = value_label(value)
+    try:
+        return split_solver_spec(f"x[k={text}]").raw == {"k": text} and param_from_text(param, text) == value
+    except (SolverSpecError, ParamError):
+        return False
 
 
 def grid_problems(grid: Any, params: Sequence[Param]) -> list[str]:
@@ -355,7 +402,7 @@ class SolverSpec:
         scheme of the study sweeps' ``{solver}[{param}={value}]``), or ``name``."""
         if not self.params:
             return self.name
-        return f"{self.name}[{','.join(f'{k}={v}' for k, v in sorted(self.params.items()))}]"
+        return f"{self.name}[{','.join(f'{k}={value_label(v)}' for k, v in sorted(self.params.items()))}]"
 
 
 def split_solver_list(text: str) -> list[str]:
@@ -429,7 +476,7 @@ def param_from_text(param: Param, text: str) -> Any:
     """``text`` read as ``param``'s type (bool: true/false, yes/no, on/off, 1/0; a number
     written plainly, ``problems.units.plain_float``: "1_0" is none), then checked by
     ``Param.check``; a ``ParamError`` names the parameter."""
-    bad = ParamError(f"parameter {param.name!r} takes a {param.kind.__name__}, got {text!r}")
+    bad = wrong_kind(param.name, param.kind, text)
     value: Any = text
     if param.kind is bool:
         if text.lower() not in _TRUE + _FALSE:
@@ -507,3 +554,34 @@ def grid_points(solver: Solver, fixed: dict[str, Any] | None = None) -> list[dic
     axes = [[(k, declared[k].check(v)) for v in values] for k, values in solver.grid.items()
             if k not in (fixed or {})]
     return [dict(point) for point in itertools.product(*axes)]
+
+
+@dataclass(frozen=True)
+class NamedVariant:
+    """One variant a command names: its ``label`` (as its rows or lines are labelled), its
+    ``solver`` and the parameters given it (None or {}: every default)."""
+
+    label: str
+    solver: Solver
+    params: dict[str, Any] | None = None
+
+
+def refuse_same_variants(variants: Sequence[NamedVariant], where: str) -> None:
+    """A one-line ``SolverSpecError`` when two of ``variants`` are one variant, before
+    anything is solved twice: a label named twice (``nnls-gp[grid],nnls-gp[K=50]`` names
+    ``nnls-gp[K=50]`` twice), or two labels of one solver (one name, one class) whose
+    parameters are equal once every default is filled in (``Solver.resolve_params``:
+    ``nnls-gp`` and ``nnls-gp[K=100]``), both labels named.  ``where`` names what named
+    them (``--solvers``); each variant's parameters are ones ``resolve_params`` takes."""
+    labels = [v.label for v in variants]
+    twice = [k for k in dict.fromkeys(labels) if labels.count(k) > 1]
+    if twice:
+        raise SolverSpecError(f"{where} names the variant{'s' if len(twice) > 1 else ''} "
+                              f"{', '.join(map(repr, twice))} twice; name each variant once")
+    full = [(v, v.solver.resolve_params(v.params)) for v in variants]
+    for i, (v, params) in enumerate(full):
+        for first, first_params in full[:i]:
+            if _same_class(first.solver, v.solver) and first.solver.name == v.solver.name and first_params == params:
+                raise SolverSpecError(f"{where} names one variant twice, as {first.label!r} and {v.label!r} (solver "
+                                      f"{v.solver.name!r} with the same parameters once defaults are filled in); "
+                                      "name each variant once")

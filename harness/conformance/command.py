@@ -18,8 +18,8 @@ from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import (SolverDeclarationError, SolverSpecError, all_solvers, expand_solver_spec,
-                                           load_solver, split_solver_spec)
+from contactbench.solvers.registry import (NamedVariant, SolverDeclarationError, SolverSpecError, all_solvers,
+                                           expand_solver_spec, load_solver, refuse_same_variants, split_solver_spec)
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
@@ -238,7 +238,8 @@ def _combined_exit(codes: Sequence[int]) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """``contactbench validate`` (module doc for the exit status).  Every input -- the
     options, the cases, the solvers and their parameters, the --csv and --out paths --
-    is checked before anything runs: bad input is one line on stderr and exit 2."""
+    is checked before anything runs: bad input is one line on stderr and exit 2 (two
+    SOLVER arguments that name one variant among them: ``refuse_same_variants``)."""
     arguments = list(sys.argv[1:] if argv is None else argv)
     try:
         args = build_parser().parse_args(arguments)
@@ -255,11 +256,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise CommandLineError("--params goes with plain solver names; a NAME[k=v] or NAME[grid] names its own")
         for c in solvers:
             c.solver.resolve_params(c.params if c.params is not None else args.params)
+        refuse_same_variants([NamedVariant(c.label or c.solver.name, c.solver,
+                                           c.params if c.params is not None else args.params) for c in solvers],
+                             "the command line")
         if args.csv is not None:
             check_csv_path(args.csv)
         if args.out is not None:
             check_out_dir(args.out)
-    except (CommandLineError, ProblemInputError, ParamError) as exc:
+    except (CommandLineError, ProblemInputError, ParamError, SolverSpecError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.list:

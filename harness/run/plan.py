@@ -38,8 +38,9 @@ from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers.base import ProblemTraits, Solver
-from contactbench.solvers.registry import (SolverSpec, all_solvers, available_solvers, expand_solver_spec, get_solver,
-                                           load_solver, register, split_solver_list, split_solver_spec)
+from contactbench.solvers.registry import (NamedVariant, SolverSpec, all_solvers, available_solvers, expand_solver_spec,
+                                           get_solver, load_solver, refuse_same_variants, register, split_solver_list,
+                                           split_solver_spec)
 
 from ..arguments import check_time_limit
 from ..profiles import get_profile
@@ -59,6 +60,11 @@ GRID_ARRAYS = 4
 SPECTRA = 2
 
 
+#: A reference solve's time limit where the run names none (``RunConfig.reference_timeout``
+#: None): this many times the limit of one solve (``RunConfig.timeout``).
+REFERENCE_TIMEOUT_FACTOR = 5.0
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """How to run (the scene options are in ``SceneConfig``).
@@ -72,8 +78,8 @@ class RunConfig:
                         seconds (harness.run.job: a big solve is paid once).
     jobs              : instance jobs run concurrently (process pool).
     reference         : "auto", "none" or a solver name.
-    reference_timeout : limit for one reference solve (None: 5 x timeout; at most
-                        ``arguments.MAX_TIMEOUT_S``).
+    reference_timeout : limit for one reference solve (None: ``REFERENCE_TIMEOUT_FACTOR`` x
+                        timeout; at most ``arguments.MAX_TIMEOUT_S``).
     build_timeout     : limit for building one instance step in the worker.
     memory_budget     : bytes a solve may use (dense H + the solver's own estimate), and
                         the most one instance may need (``estimate_scene``).
@@ -112,7 +118,7 @@ class RunConfig:
 
     @property
     def ref_timeout(self) -> float:
-        return float(self.reference_timeout or 5.0 * self.timeout)
+        return float(self.reference_timeout or REFERENCE_TIMEOUT_FACTOR * self.timeout)
 
     def worker_threads(self) -> int | None:
         if self.threads_per_worker:
@@ -234,13 +240,16 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
     solver's name.  In an explicit list ``module:NAME`` entries are loaded and registered,
     and an entry with parameters, ``name[k=v]`` or ``name[grid]``, comes back as the
     checked ``SolverSpec`` of each variant it names (``expand_solver_spec``), which
-    ``Study.variants`` runs as given; a variant named twice (by its label) is refused."""
+    ``Study.variants`` runs as given; a variant named twice (by its label, or as one
+    solver with the same parameters once defaults are filled in) is refused
+    (``refuse_same_variants``)."""
     if isinstance(requested, str):
         requested = split_solver_list(requested)  # commas inside name[k=v,...] stay
     if requested:
         if list(requested) == ["all"]:
             return list(all_solvers())
         names: list[str | SolverSpec] = []
+        variants: list[NamedVariant] = []
         for text in requested:
             try:  # an unknown name is a clear KeyError; name[k=v] is Param-checked (solvers/registry.py)
                 specs, solver = expand_solver_spec(text)
@@ -254,21 +263,12 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
                 names += [SolverSpec(solver.name, spec.params) for spec in specs]
             else:
                 names.append(solver.name)
-        refuse_twice(names)
+            variants += [NamedVariant(SolverSpec(solver.name, spec.params).label, solver, spec.params) for spec in specs]
+        refuse_same_variants(variants, "--solvers")
         return names
     if study_default:  # a study's name[k=v] is kept when its base is registered
         return [s for s in study_default if split_solver_spec(s).name in all_solvers()]
     return list(available_solvers())
-
-
-def refuse_twice(names: Sequence[str | SolverSpec]) -> None:
-    """A one-line ``ProblemInputError`` naming a variant that ``names`` holds twice (by its
-    label: ``nnls-gp[grid],nnls-gp[K=50]`` names ``nnls-gp[K=50]`` twice)."""
-    labels = [n.label if isinstance(n, SolverSpec) else n for n in names]
-    twice = [k for k in dict.fromkeys(labels) if labels.count(k) > 1]
-    if twice:
-        raise ProblemInputError(f"--solvers names the variant{'s' if len(twice) > 1 else ''} "
-                                f"{', '.join(map(repr, twice))} twice; name each variant once")
 
 
 def refuse_name_clash(text: str, solver: Solver) -> None:

@@ -294,7 +294,7 @@ def test_report_of_a_missing_or_empty_folder_is_one_line(in_tmp: Path, capsys: p
 @pytest.mark.parametrize(("spec", "needles"), [
     ("fast-dual-pccg[precision=quad]", ("solver 'fast-dual-pccg[precision=quad]'", "one of 'double', 'mixed'")),
     ("fast-dual-pccg[precison=double]", ("has no parameter 'precison'", "allowed: ")),
-    ("nnls-gp[K=1.5]", ("parameter 'K' takes a int, got '1.5'",)),
+    ("nnls-gp[K=1.5]", ("parameter 'K' takes a whole number, got '1.5'",)),
     ("fast-dual-pccg[precision=double", ("unclosed '['",)),
     ("fast-dual-pccg[precision]", ("write key=value",)),
     ("fast-dual-pccg[]", ("empty parameter list",)),
@@ -303,7 +303,7 @@ def test_report_of_a_missing_or_empty_folder_is_one_line(in_tmp: Path, capsys: p
     ("admm[alpha=2.0]", ("parameter 'alpha' must lie in (0, 2), got 2.0",)),
     ("nnls-gp[K=-1]", ("parameter 'K' must lie in [0, inf), got -1",)),
     ("pk[grid]", ("solver 'pk[grid]': 'pk' declares no grid to expand",)),
-    ("nnls-gp[grid,K=0.5]", ("parameter 'K' takes a int, got '0.5'",)),
+    ("nnls-gp[grid,K=0.5]", ("parameter 'K' takes a whole number, got '0.5'",)),
     ("nnls-gp[grid],nnls-gp[K=50]", ("--solvers names the variant 'nnls-gp[K=50]' twice",)),
 ], ids=["bad-choice", "unknown-key", "bad-int", "unclosed", "no-value", "empty", "twice", "open-low", "open-high",
         "closed-low", "no-grid", "grid-bad-fixed", "grid-variant-twice"])
@@ -368,10 +368,10 @@ class BigGrid(Base):
 
 
 @pytest.mark.parametrize(("cls", "needles"), [
-    ("BadGrid", ("solver 'bad-grid': ", "parameter 'step' takes a float, got 'fast'", "got 7.0",
+    ("BadGrid", ("solver 'bad-grid': ", "parameter 'step' takes a number, got 'fast'", "got 7.0",
                  "its grid names 'nonexistent', which is not a declared parameter")),
     ("BadParamKind", ("solver 'bad-param-kind': ", "parameter 'opts' is of kind list",
-                      "parameter 'choice' takes a str, got 3")),
+                      "parameter 'choice' takes text, got 3")),
     ("BigGrid[grid]", ("its grid has 400 points, over the limit of 100",)),
 ], ids=["grid", "kind", "grid-limit"])
 def test_a_solver_module_whose_declaration_breaks_the_rules_is_refused_in_one_line(

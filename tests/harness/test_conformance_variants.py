@@ -9,6 +9,7 @@ import pytest
 
 from contactbench.harness.conformance.command import main as validate_main
 from contactbench.solvers.registry import SolverSpec, get_solver, grid_points
+from tests.helpers import refused_in_one_line
 
 SMALL = ["--cases", "edge/single-point*", "--quiet"]
 
@@ -31,10 +32,21 @@ def test_a_variant_entry_validates_that_variant_beside_a_plain_name(capsys: pyte
     (["nnls-gp[K=-5]"], "parameter 'K' must lie in"),
     (["nnls-gp[K=5]", "--params", '{"K": 3}'], "--params goes with plain solver names"),
     (["no-such-solver[K=5]"], "no-such-solver"),
-    (["nnls-gp[K=1_0]"], "parameter 'K' takes a int, got '1_0'"),
+    (["nnls-gp[K=1_0]"], "parameter 'K' takes a whole number, got '1_0'"),
 ], ids=["no-grid", "bad-value", "params-twice", "unknown", "not-written-plainly"])
 def test_a_bad_variant_entry_is_refused_in_one_line(argv: list[str], says: str,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     assert validate_main([*argv, *SMALL]) == 2
     err = capsys.readouterr().err
     assert says in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["nnls-gp[K=100]", "nnls-gp"], "names one variant twice, as 'nnls-gp[K=100]' and 'nnls-gp'"),
+    (["nnls-gp", "pk", "nnls-gp[lipschitz=frobenius,restart=off]"],
+     "as 'nnls-gp' and 'nnls-gp[lipschitz=frobenius,restart=False]'"),
+    (["nnls-gp[grid]", "nnls-gp[K=50]"], "names the variant 'nnls-gp[K=50]' twice"),
+], ids=["default-given", "defaults-given", "grid-point-named-again"])
+def test_one_variant_named_twice_is_refused_naming_its_labels(argv: list[str], says: str,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    assert says in refused_in_one_line([*argv, *SMALL], capsys)

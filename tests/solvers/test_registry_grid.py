@@ -67,10 +67,10 @@ def test_a_grid_key_that_names_no_declared_parameter_is_refused() -> None:
 
 
 @pytest.mark.parametrize(("values", "needle"), [
-    (("fast", 0.5), "parameter 'step' takes a float, got 'fast'"),
+    (("fast", 0.5), "parameter 'step' takes a number, got 'fast'"),
     ((0.5, 7.0), "parameter 'step' must lie in [0.1, 1], got 7.0"),
-    ((0.5, float("nan")), "parameter 'step' takes a float, got nan"),
-    ((True,), "parameter 'step' takes a float, got True"),
+    ((0.5, float("nan")), "parameter 'step' takes a number, got nan"),
+    ((True,), "parameter 'step' takes a number, got True"),
 ], ids=["type", "range", "nan", "bool"])
 def test_a_grid_value_its_parameter_refuses_is_refused(values: tuple[Any, ...], needle: str) -> None:
     refused(declared({"step": values}), "its grid values of 'step'", needle)
@@ -115,7 +115,7 @@ def test_the_supported_kinds_are_the_scalars_and_tuple_and_dict() -> None:
 
 
 @pytest.mark.parametrize(("param", "needle"), [
-    (Param("choice", str, "a", choices=("a", 3)), "its choices: parameter 'choice' takes a str, got 3"),
+    (Param("choice", str, "a", choices=("a", 3)), "its choices: parameter 'choice' takes text, got 3"),
     (Param("choice", str, "a", choices=()), "its choices are (), not a non-empty tuple"),
     (Param("choice", str, "a", choices=("a", "a")), "its choices list 'a' twice"),
     (Param("k", int, 1, low=0, high=3, choices=(1, 5)), "parameter 'k' must lie in [0, 3], got 5"),
