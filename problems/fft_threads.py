@@ -19,6 +19,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .errors import ProblemInputError
+from .units import plain_int
 
 try:  # ducc0: the faster FFT (see KernelTransform); scipy.fft is the fallback
     from ducc0 import fft as _ducc_fft
@@ -45,15 +46,20 @@ USABLE_CORES = _usable_cores()
 
 def fft_workers() -> int:
     """Threads of the products, the FFTs and the preconditioners' pools: env
-    CONTACTBENCH_FFT_WORKERS (a whole number >= 1; anything else is a
-    ``ProblemInputError`` naming it), default ``USABLE_CORES``."""
+    CONTACTBENCH_FFT_WORKERS (a whole number >= 1 written plainly, as the command line's
+    numbers are: ``units.plain_int``; anything else is a ``ProblemInputError`` naming it),
+    default ``USABLE_CORES``."""
     env = os.environ.get("CONTACTBENCH_FFT_WORKERS", "").strip()
     if not env:
         return USABLE_CORES
     try:
-        return max(1, int(env))
+        workers = plain_int(env)
     except ValueError:
-        raise ProblemInputError(f"CONTACTBENCH_FFT_WORKERS={env!r}: expected a whole number of threads") from None
+        workers = 0
+    if workers < 1:
+        raise ProblemInputError(f"CONTACTBENCH_FFT_WORKERS={env!r}: expected a whole number of threads >= 1, "
+                                "written plainly")
+    return workers
 
 
 def fft_backend() -> str:

@@ -158,3 +158,12 @@ def plain_float(text: str) -> float:
     if not text.isascii() or "_" in text:
         raise ValueError(f"not a plainly written number: {text!r}")
     return float(text)
+
+
+def plain_int(text: str) -> int:
+    """``int(text)`` for a whole number written plainly (``plain_float``'s rule: ASCII
+    digits with an optional sign, no underscores, blanks around it taken as ``int`` takes
+    them); anything ``int`` refuses ("1e1", "1.5") or takes only beyond that rule ("1_0",
+    digits of other scripts) is a ``ValueError``."""
+    plain_float(text)
+    return int(text)

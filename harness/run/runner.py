@@ -29,6 +29,7 @@ folder's marker pins -- so deciding it again would give the same answer.
 from __future__ import annotations
 
 import logging
+import math
 import os
 from pathlib import Path
 import sys
@@ -42,7 +43,7 @@ from .executors import Executor, local_executor, output_log_name
 from .interrupts import signals_deferred
 from .output_log import OUTPUT_LOG, check_output_log
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
-from .plan import RunConfig, RunPlan, job_cell_ids, plan_run
+from .plan import REFERENCE_TIMEOUT_FACTOR, RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
 from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
 
@@ -120,8 +121,11 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     solvers, profiles and ``IDENTITY_RUN_FIELDS``, and the measured maps' contents where it
     reads any (a map edited between two runs, or prepared otherwise, is another run:
     ``surface_sha256``, ``surface_key``); an option that only spells
-    out what is in effect without it is left out (``spelled_out.given_apart``)."""
+    out what is in effect without it is left out (``spelled_out.given_apart``, and a
+    reference limit that is the one the run applies without it: ``reference_limit_in_effect``)."""
     run = dict(config.get("run") or {})
+    if reference_limit_in_effect(run):
+        run["reference_timeout"] = None
     if run.get("profiles") is not None and sorted(run["profiles"]) == config.get("profiles"):
         run["profiles"] = None  # (the profiles the study would run: the same cells)
     maps = {k: config[k] for k in ("surface_sha256", "surface_key") if config.get(k)}
@@ -132,6 +136,17 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     return {"scenes": config.get("scenes"), "scene_config": scene_config,
             "solvers": config.get("solvers"), "profiles": config.get("profiles"),
             "run": {k: run.get(k) for k in IDENTITY_RUN_FIELDS}, **maps}
+
+
+def reference_limit_in_effect(run: dict[str, Any]) -> bool:
+    """Whether a run record's (``asdict`` of a ``RunConfig``) ``reference_timeout`` is the
+    limit the run applies without it: ``REFERENCE_TIMEOUT_FACTOR`` x its ``timeout``
+    (``RunConfig.ref_timeout``), to rounding."""
+    limit, timeout = run.get("reference_timeout"), run.get("timeout")
+    if isinstance(limit, bool) or isinstance(timeout, bool) or not isinstance(limit, (int, float)) \
+            or not isinstance(timeout, (int, float)):
+        return False
+    return math.isclose(float(limit), REFERENCE_TIMEOUT_FACTOR * float(timeout), rel_tol=1e-12)
 
 
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,

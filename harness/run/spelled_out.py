@@ -14,13 +14,19 @@ taken back when
 * it is an ``extra`` option at the value a recipe's reader applies where the recipe
   names none (``READ_DEFAULTS``); or
 * it is an ``extra`` option that leaving out gives the same recipes
-  (``spelled_out_extras``: ``--surface-family saupe`` on a non-periodic scene).
+  (``spelled_out_extras``: ``--surface-family saupe`` on a non-periodic scene); or
+* it is an option of a ``--surface`` file that only states what the reader takes from the
+  file without it (``file_options_spelled_out``: ``--height-unit m`` on a file that states
+  no unit, a ``--length`` that agrees with the lateral size the file states).
 """
 
 from __future__ import annotations
 
 import inspect
+import json
+import os
 from dataclasses import asdict, replace
+from functools import lru_cache
 from typing import Any, Sequence
 
 from contactbench.problems.constraints import CONTROLS
@@ -28,7 +34,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.io import load_surface
 from contactbench.problems.layers import DEFAULT_NU, INTERFACES
 from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.problems.scenes.core import SURFACE_FILE_OPTIONS
+from contactbench.problems.scenes.core import SURFACE_FILE_OPTIONS, surface_from_params
 from contactbench.problems.scenes.options import BY_NAME
 
 from ..table.files import canonical_json
@@ -52,7 +58,8 @@ def given_apart(scene_config: Any, scenes: Any) -> Any:
     a record of named scenes is returned as it is."""
     if not isinstance(scene_config, dict) or not isinstance(scenes, list) or not scenes:
         return scene_config
-    scene_config = extras_given_apart(scene_config, [str(name) for name in scenes])
+    names = [str(name) for name in scenes]
+    scene_config = file_options_given_apart(extras_given_apart(scene_config, names), names)
     try:
         defaults = [asdict(get_scene(str(name)).defaults) for name in scenes]
     except KeyError:
@@ -73,13 +80,94 @@ def extras_given_apart(scene_config: dict[str, Any], scenes: list[str]) -> dict[
 
 
 def left_out(cfg: SceneConfig, scenes: Sequence[str]) -> SceneConfig:
-    """``cfg`` less the ``extra`` options that only spell out what is in effect without
-    them (``extras_given_apart``): the config the plan's recipes are built from, so they
-    never carry one.  Fields are left as given: one at its scene's default gives the
-    recipes None gives where the scene fills it in, and is needed where it does not (the
-    ``--length`` of a surface file)."""
-    kept = extras_given_apart(asdict(cfg), [str(name) for name in scenes])
-    return replace(cfg, extra=kept.get("extra", cfg.extra))
+    """``cfg`` less the options that only spell out what is in effect without them
+    (``extras_given_apart``, ``file_options_given_apart``): the config the plan's recipes
+    are built from, so they never carry one.  Other fields are left as given: one at its
+    scene's default gives the recipes None gives where the scene fills it in, and is
+    needed where it does not (the ``--length`` of a file that states no lateral size)."""
+    names = [str(name) for name in scenes]
+    kept = file_options_given_apart(extras_given_apart(asdict(cfg), names), names)
+    return replace(cfg, length=None if kept.get("length") is None else cfg.length,
+                   extra=kept.get("extra", cfg.extra))
+
+
+def file_options_given_apart(scene_config: dict[str, Any], scenes: list[str]) -> dict[str, Any]:
+    """``scene_config`` less the options of its ``--surface`` file that only state what the
+    reader takes from the file without them (``file_options_spelled_out``): the length
+    goes back to None, an ``extra`` key is left out."""
+    dropped = file_options_spelled_out(scene_config, scenes)
+    if not dropped:
+        return scene_config
+    extra = {k: v for k, v in scene_config["extra"].items() if k not in dropped}
+    return {**scene_config, "extra": extra, **({"length": None} if "length" in dropped else {})}
+
+
+def file_options_spelled_out(scene_config: dict[str, Any], scenes: list[str]) -> set[str]:
+    """The options of a run's ``--surface`` file (``scene_config``: ``asdict`` of its
+    ``SceneConfig``, or a folder's record of one) that only state what the recipe's reader
+    (``core.surface_from_params``: ``io.load_surface``) takes from the file without them:
+
+    * ``height_unit``, where leaving it out gives the same map (``map_key``): a file that
+      states no unit is read in metres, so ``--height-unit m`` on it;
+    * ``length``, where the file states a lateral size, the given one agrees with it (the
+      reader takes the map both with and without it: ``io.map_spacing``, within its
+      ``LENGTH_RTOL``) and every scene the run names reads the file's own size where it
+      is left out (``reads_file_length``).  The run then reads the file's spacing, which
+      the given length matches within that tolerance.
+
+    None where the config names no file, or the reader refuses the map as given (the plan
+    says why): the options are checked as given."""
+    path, extra = scene_config.get("surface_path"), scene_config.get("extra")
+    if not (isinstance(path, str) and path and isinstance(extra, dict)):
+        return set()
+    length, unit = scene_config.get("length"), extra.get("height_unit")
+    if (length is None and unit is None) or map_key(path, extra, length, unit) is None:
+        return set()
+    dropped: set[str] = set()
+    if unit is not None and map_key(path, extra, length, None) == map_key(path, extra, length, unit):
+        dropped.add("height_unit")
+    if length is not None and map_key(path, extra, None, unit) is not None \
+            and reads_file_length(scene_config, scenes):
+        dropped.add("length")
+    return dropped
+
+
+def map_key(path: str, extra: dict[str, Any], length: Any, height_unit: Any) -> str | None:
+    """The ``MapPreprocessing.key`` of the map at ``path`` as a recipe's reader reads it
+    (``core.surface_from_params``) with ``length``, ``height_unit`` and the run's channel
+    and cleaning (``extra``); None where the reader refuses it.  Read once per file state
+    and options (``read_map_key``)."""
+    try:
+        stat = os.stat(path)
+    except OSError:
+        return None
+    real = os.path.realpath(path)
+    params = {"surface_path": real, "length": length, "height_unit": height_unit,
+              **{k: extra.get(k) for k in ("channel", *SURFACE_FILE_OPTIONS)}}
+    return read_map_key(real, stat.st_mtime_ns, stat.st_size, canonical_json(params))
+
+
+@lru_cache(maxsize=32)
+def read_map_key(path: str, mtime_ns: int, size: int, params_json: str) -> str | None:
+    """``map_key`` of the recipe parameters ``params_json`` of the file ``path`` in the state
+    (``mtime_ns``, ``size``) it is read in."""
+    try:
+        record = surface_from_params(json.loads(params_json)).preprocessing
+    except (ProblemInputError, OSError, KeyError, TypeError, ValueError):
+        return None
+    return None if record is None else str(record.key)
+
+
+def reads_file_length(scene_config: dict[str, Any], scenes: list[str]) -> bool:
+    """Whether every scene ``scenes`` runs (a composite's parts each) reads its ``--surface``
+    file's own lateral size when ``--length`` is left out (its merged config keeps none:
+    ``PaperSweep.config``; the CMR scenes fill in their own)."""
+    try:
+        cfg = SceneConfig(**{**scene_config, "length": None})
+        parts = [part for name in scenes for part in expand(name, cfg)]
+        return bool(parts) and all(get_scene(study.scene).config(part).length is None for study, part in parts)
+    except (ProblemInputError, KeyError, TypeError, ValueError):
+        return False
 
 
 def at_read_default(extra: dict[str, Any], scenes: list[str]) -> set[str]:

@@ -14,6 +14,7 @@ import pytest
 
 from contactbench.harness import cli
 from contactbench.harness.run.runner import given_apart
+from contactbench.harness.run.spelled_out import left_out
 from contactbench.harness.table.store import load_table
 from contactbench.problems.scenes import SceneConfig
 
@@ -101,3 +102,89 @@ def test_an_option_overriding_its_scene_s_own_default_is_kept(tmp_path: Path,
             "--no-progress", "--control", "displacement", "--out", out]
     assert cli.main(args) == 0, capsys.readouterr().err
     assert not any(str(name).endswith("-load") for name in load_table(out)["instance"])
+
+
+def xyz_map(path: Path) -> Path:
+    """An 8 x 8 map as x,y,z columns of a regular 3 um grid written to 6 digits, so the
+    lateral size the file states (24 um) is 8 times the coordinates' step only within the
+    reader's tolerance; heights of about 0.3 um, in no unit of its own."""
+    n, step = 8, 3e-6
+    z = np.random.default_rng(0).normal(size=(n, n)) * 3e-7
+    y, x = np.meshgrid(np.arange(n) * step, np.arange(n) * step, indexing="ij")
+    np.savetxt(path, np.c_[x.ravel(), y.ravel(), z.ravel()], fmt="%.6g")
+    return path
+
+
+STATED_BY_THE_FILE = {
+    "length": ("--length", "2.4e-5"),
+    "length-per-axis": ("--length", "2.4e-5,2.4e-5"),
+    "height-unit": ("--height-unit", "m"),
+    "both": ("--length", "2.4e-5", "--height-unit", "m"),
+}
+
+
+@pytest.mark.parametrize("which", sorted(STATED_BY_THE_FILE))
+@pytest.mark.parametrize("first_spelled", [True, False], ids=["spelled-out-first", "spelled-out-second"])
+def test_a_file_option_at_what_the_file_states_resumes(which: str, first_spelled: bool, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """``--length`` at the lateral size an x,y,z map states (within the reader's
+    tolerance) and ``--height-unit m`` on a map that states no unit are what the reader
+    takes without them: the same cells, so either resumes the folder the other wrote and
+    solves nothing new; another unit is another configuration."""
+    base = [a for a in COMMON if a not in ("--size", "8")] + ["--surface", str(xyz_map(tmp_path / "map.txt"))]
+    spelled = STATED_BY_THE_FILE[which]
+    first, second = (spelled, ()) if first_spelled else ((), spelled)
+    out = str(tmp_path / "run")
+    assert cli.main([*base, *first, "--out", out]) == 0, capsys.readouterr().err
+    ids = sorted(load_table(out)["cell_id"])
+    assert cli.main([*base, *second, "--out", out]) == 0, capsys.readouterr().err
+    assert sorted(load_table(out)["cell_id"]) == ids  # the same cells: nothing new was solved
+    assert cli.main([*base, "--height-unit", "mm", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "scene_config.extra.height_unit" in err, err
+
+
+def test_a_file_option_is_kept_where_leaving_it_out_reads_otherwise(tmp_path: Path) -> None:
+    """The length of a file that states none, a length the scene fills in itself where it
+    is left out (the CMR scenes), and a unit other than the one the reader applies are
+    the user's choice: kept.  Leaving out what the file states is taken back."""
+    xyz = str(xyz_map(tmp_path / "map.txt"))
+    np.save(tmp_path / "map.npy", np.random.default_rng(0).normal(size=(8, 8)) * 1e-7)
+
+    def kept(scene: str, path: str, length: object, **extra: object) -> dict[str, object]:
+        cfg = SceneConfig(steps=2, surface_path=path, length=length, extra=dict(extra))  # type: ignore[arg-type]
+        given = given_apart(asdict(cfg), [scene])
+        planned = left_out(cfg, [scene])
+        assert (planned.length, dict(planned.extra)) == (given["length"], dict(given["extra"]))
+        return {"length": given["length"], **given["extra"]}
+
+    assert kept("paper-sweep", xyz, 2.4e-5, height_unit="m") == {"length": None}
+    assert kept("paper-sweep", xyz, (2.4e-5, 2.4e-5)) == {"length": None}
+    assert kept("paper-sweep", xyz, None, height_unit="mm") == {"length": None, "height_unit": "mm"}
+    assert kept("cmr", xyz, 2.4e-5) == {"length": 2.4e-5}
+    assert kept("paper-sweep", str(tmp_path / "map.npy"), 2e-4, height_unit="m") == {"length": 2e-4}
+    assert kept("paper-sweep", str(tmp_path / "missing.txt"), 2.4e-5, height_unit="m") == {"length": 2.4e-5,
+                                                                                          "height_unit": "m"}
+
+
+REFERENCE_LIMIT = {"default-timeout": ((), "300"), "given-timeout": (("--timeout", "10"), "50")}
+
+
+@pytest.mark.parametrize("which", sorted(REFERENCE_LIMIT))
+@pytest.mark.parametrize("first_spelled", [True, False], ids=["spelled-out-first", "spelled-out-second"])
+def test_the_reference_limit_in_effect_written_out_resumes(which: str, first_spelled: bool, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """``--reference-timeout`` at 5 x ``--timeout`` (its default, whether the timeout is
+    given or its own default) is the run without it: either resumes the folder the other
+    wrote and solves nothing new; another limit is another configuration."""
+    timeout, limit = REFERENCE_LIMIT[which]
+    spelled = (*timeout, "--reference-timeout", limit)
+    first, second = (spelled, timeout) if first_spelled else (timeout, spelled)
+    out = str(tmp_path / "run")
+    assert cli_run(capsys, *first, "--out", out)[0] == 0
+    rows = len(load_table(out))
+    code, err = cli_run(capsys, *second, "--out", out)
+    assert code == 0, err
+    assert len(load_table(out)) == rows  # nothing new was solved
+    code, err = cli_run(capsys, *timeout, "--reference-timeout", "7", "--out", out)
+    assert code == 2 and err.count("\n") == 1 and "run.reference_timeout" in err, err
