@@ -9,10 +9,12 @@ is compared with, is problems/fft_floor.py.
 
 from __future__ import annotations
 
+import copy
 import os
 import threading
 from dataclasses import dataclass, field
 from functools import partial
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.fft as sfft
@@ -30,6 +32,7 @@ from .fft_threads import (
     row_batch,
     share_out,
 )
+from .operator_state import SealRule
 
 #: The precisions an operator can run in (``ContactOperator.with_precision``).
 PRECISIONS: tuple[type, ...] = (np.float64, np.float32)
@@ -150,6 +153,27 @@ def embedded_even_spectrum(table: np.ndarray, grid_shape: tuple[int, int]) -> np
     return out
 
 
+def pristine_transform(transform: KernelTransform) -> KernelTransform:
+    """A twin of ``transform`` sharing its table and spectrum, with none of its caches
+    (its own pickling state: ``KernelTransform.__getstate__``)."""
+    twin = copy.copy(transform)
+    twin._floor = None
+    return twin
+
+
+def _fresh_work(transform: KernelTransform, name: str, current: Any) -> _DuccWork:
+    """The ducc0 work arrays of precision ``name`` made afresh, with as many per-thread
+    buffers as ``current`` holds (made on first use by as many threads): the seal's rebuild
+    of ``KernelTransform._works``."""
+    work = pristine_transform(transform)._ducc_work(np.dtype(name))
+    for attr, make in (("_buffers", work.buffers), ("_row_buffers", work.row_buffers)):
+        held = getattr(current, attr, None)
+        make(len(held) if type(held) is list else 0)
+    if isinstance(getattr(current, "_field", None), np.ndarray):
+        work.field()
+    return work
+
+
 @dataclass
 class KernelTransform:
     """The kernel's offset table and its FFT on the (padded) grid, shared by all
@@ -189,6 +213,14 @@ class KernelTransform:
     table: np.ndarray  # real-space circulant table, shape = padded grid
     grid_shape: tuple[int, int]  # physical N1 x N2
     khat: np.ndarray = field(init=False)
+    #: What the seal reads besides content (problems/operator_state.py): the transform
+    #: count, and the caches each rebuilt on a twin with none (``pristine_transform``).
+    SEAL_RULE: ClassVar[SealRule] = SealRule(counters=frozenset({"fft_count"}), caches={
+        "_khat32": lambda t, key, current: pristine_transform(t).spectrum(np.float32),
+        "_transposed": lambda t, name, current: pristine_transform(t).transposed_spectrum(np.dtype(name)),
+        "_floor": lambda t, key, current: pristine_transform(t).floor,
+        "_works": _fresh_work,
+    })
 
     def __post_init__(self) -> None:
         self.table = np.ascontiguousarray(self.table, dtype=np.float64)
@@ -508,6 +540,12 @@ class _DuccWork:
     two row buffers (``row_block`` rows x P1: input, zero beyond what a block writes, and
     output) and, for long columns, a column-block buffer.  The row plan of the last index
     set is kept (a solver's repeated products on one operator reuse it)."""
+
+    #: What the seal reads besides content (problems/operator_state.py): the buffers by their
+    #: layout, the last row plan held to the plan its key gives.
+    SEAL_RULE: ClassVar[SealRule] = SealRule(
+        work=frozenset({"whole", "rows", "_buffers[*]", "_row_buffers[*][1]", "_field"}),
+        per_product={"_last": lambda work, key, current: work.fresh_plan(current.key)})
 
     def __init__(self, grid_shape: tuple[int, int], padded_shape: tuple[int, int], dtype: np.dtype) -> None:
         n1, n2 = grid_shape

@@ -5,26 +5,24 @@ An operator object holds more than the arrays that define H: counts of its produ
 buffers every product rewrites, the plan of its last product, caches built on first use
 (the FFT operator's dense block, the kernel spectrum in float32 or transposed, the ducc0
 work arrays, window spectra, entry floors) and, on a device, memory the host cannot read.
-The seal reads everything an operator holds; ``SealRule`` names, per class, the state it
+The seal reads everything an operator holds; a ``SealRule`` names the state of a class it
 reads by another rule than "sealed by content".  What no rule names is sealed by content,
-so a cache or buffer added to a class without a rule here reads as a write into the problem
-the first time a solve changes it (tests/harness/test_seal_private.py runs every kind of
-product under a seal to hold this list complete).
+so a cache or buffer added to a class without naming it in its rule reads as a write into
+the problem the first time a solve changes it (tests/harness/test_seal_private.py runs
+every kind of product under a seal to hold the rules complete).
 
-The rules are keyed by class name (``type.__qualname__``, looked up along the MRO): the
-device classes (problems/operators_gpu.py) import this module's classes, not the reverse.
+Each class declares its own rule beside its code, as the class attribute ``SEAL_RULE``
+(``RULE_ATTRIBUTE``): ``seal_rule`` merges those its MRO declares, so a subclass is sealed
+by its bases' rules and its own, and a class whose MRO declares none is sealed wholly by
+content.  Nothing here names a class: the modules that declare rules import this one, which
+imports none of them.
 """
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Callable
-
-import numpy as np
-
-from .fft_transform import KernelTransform
 
 #: rebuild(owner, key, current): the value a cache of ``owner`` holds when built afresh from
 #: the sealed state -- ``key`` the entry of a dict cache (None for an attribute), ``current``
@@ -33,6 +31,9 @@ Rebuild = Callable[[Any, Any, Any], Any]
 #: verify(owner, value): whether opaque state ``value`` of ``owner`` holds what the owner
 #: itself puts there (``SealRule.opaque``).
 Verify = Callable[[Any, Any], bool]
+
+#: The class attribute a class declares its ``SealRule`` in (module doc).
+RULE_ATTRIBUTE = "SEAL_RULE"
 
 
 @dataclass(frozen=True)
@@ -63,50 +64,22 @@ class SealRule:
     opaque: dict[str, Verify] = field(default_factory=dict)
 
 
-def pristine_transform(transform: KernelTransform) -> KernelTransform:
-    """A twin of ``transform`` sharing its table and spectrum, with none of its caches
-    (its own pickling state: ``KernelTransform.__getstate__``)."""
-    twin = copy.copy(transform)
-    twin._floor = None
-    return twin
-
-
-def _fresh_work(transform: KernelTransform, name: str, current: Any) -> Any:
-    """The ducc0 work arrays of precision ``name`` made afresh, with as many per-thread
-    buffers as ``current`` holds (made on first use by as many threads)."""
-    work = pristine_transform(transform)._ducc_work(np.dtype(name))
-    for attr, make in (("_buffers", work.buffers), ("_row_buffers", work.row_buffers)):
-        held = getattr(current, attr, None)
-        make(len(held) if type(held) is list else 0)
-    if isinstance(getattr(current, "_field", None), np.ndarray):
-        work.field()
-    return work
-
-
-#: The rules, by class name (module doc).
-SEAL_RULES: dict[str, SealRule] = {
-    "ContactOperator": SealRule(counters=frozenset({"matvec_count"})),
-    "FFTOperator": SealRule(caches={
-        "_dense": lambda op, key, current: op._dense_block(),
-        "_window_spectra": lambda op, shape, current: op._fresh_window_spectrum(shape),
-    }),
-    "DenseOperator": SealRule(caches={"_floor": lambda op, key, current: op._fresh_floor()}),
-    "KernelTransform": SealRule(counters=frozenset({"fft_count"}), caches={
-        "_khat32": lambda t, key, current: pristine_transform(t).spectrum(np.float32),
-        "_transposed": lambda t, name, current: pristine_transform(t).transposed_spectrum(np.dtype(name)),
-        "_floor": lambda t, key, current: pristine_transform(t).floor,
-        "_works": _fresh_work,
-    }),
-    "_DuccWork": SealRule(work=frozenset({"whole", "rows", "_buffers[*]", "_row_buffers[*][1]", "_field"}),
-                          per_product={"_last": lambda work, key, current: work.fresh_plan(current.key)}),
-    "ArrayKernelTransform": SealRule(opaque={"_device": lambda t, state: t.device_state_intact(state)}),
-}
+def declared_rule(cls: type) -> SealRule | None:
+    """The rule ``cls`` itself declares (``RULE_ATTRIBUTE`` in its own namespace, not one it
+    inherits), None when it declares none; a declaration that is not a ``SealRule`` is a
+    ``TypeError`` naming the class."""
+    rule = vars(cls).get(RULE_ATTRIBUTE)
+    if rule is not None and not isinstance(rule, SealRule):
+        raise TypeError(f"{cls.__module__}.{cls.__qualname__}.{RULE_ATTRIBUTE} must be a SealRule, "
+                        f"got {type(rule).__qualname__}")
+    return rule
 
 
 @lru_cache(maxsize=None)
 def seal_rule(cls: type) -> SealRule:
-    """The rules of ``cls``: those of each class of its MRO, merged (module doc)."""
-    rules = [SEAL_RULES[c.__qualname__] for c in reversed(cls.__mro__) if c.__qualname__ in SEAL_RULES]
+    """The rules of ``cls``: those each class of its MRO declares, merged, a subclass's
+    over its bases' (module doc); none declared: the empty rule (all sealed by content)."""
+    rules = [rule for c in reversed(cls.__mro__) if (rule := declared_rule(c)) is not None]
     return SealRule(
         counters=frozenset().union(*(r.counters for r in rules)),
         work=frozenset().union(*(r.work for r in rules)),

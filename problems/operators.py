@@ -28,7 +28,7 @@ import os
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
@@ -38,7 +38,7 @@ from .errors import MemoryBudgetError, ProblemInputError, real_number
 from .fft_floor import FLOOR_LAYOUTS, fft_floor_pair  # noqa: F401 -- re-exported with the FFT names
 from .fft_threads import _ducc_fft, each_on_pool, fft_backend, fft_workers, share_out  # noqa: F401 -- re-exported FFT names
 from .fft_transform import PRECISIONS, KernelTransform, operator_dtype  # noqa: F401 -- re-exported FFT names
-
+from .operator_state import SealRule
 
 #: Default memory budget for assembling dense matrices (bytes).  Overridable by the
 #: environment variable CONTACTBENCH_MEMORY_BUDGET_GB.
@@ -93,7 +93,6 @@ DENSE_SWITCH_FACTOR = 0.1
 #: screen to a few dozen points: the periodic 512^2 sweep's first step took 12 FFT pairs
 #: (four per operator and precision before the switch) and 41 ms, 2 pairs and 21 ms at once.
 DENSE_SWITCH_AT_ONCE_FACTOR = 0.02
-
 
 #: A partial product H[rows, cols] x (``ContactOperator.partial_product``) pays instead of an
 #: FFT matvec when it gathers at most this factor x P log2 P entries.  Gathering an entry of
@@ -209,6 +208,7 @@ class ContactOperator(ABC):
     #: Where a device-resident solve may keep its vectors (``operators_gpu.ArraySpace``, whose
     #: arrays ``matvec`` then takes and returns); None: the host only.
     space: Any = None
+    SEAL_RULE: ClassVar[SealRule] = SealRule(counters=frozenset({"matvec_count"}))
 
     @abstractmethod
     def matvec(self, x: np.ndarray) -> np.ndarray:
@@ -359,6 +359,7 @@ def _pad_identity(blocks: np.ndarray, members: np.ndarray) -> np.ndarray:
 
 class DenseOperator(ContactOperator):
     """H_II held as a dense array."""
+    SEAL_RULE: ClassVar[SealRule] = SealRule(caches={"_floor": lambda op, key, current: op._fresh_floor()})
 
     def __init__(self, H: np.ndarray, dtype: object = np.float64) -> None:
         self.dtype = operator_dtype(dtype)
@@ -443,6 +444,9 @@ class FFTOperator(ContactOperator):
     """Matrix-free H_II: scatter to the physical grid, convolve by FFT, gather; the
     products run in ``dtype`` (float64, or float32 from ``with_precision``).  ``grid_idx``:
     distinct flat indices of the physical grid (``check_positions``)."""
+    SEAL_RULE: ClassVar[SealRule] = SealRule(caches={
+        "_dense": lambda op, key, current: op._dense_block(),
+        "_window_spectra": lambda op, shape, current: op._fresh_window_spectrum(shape)})
 
     def __init__(
         self, transform: KernelTransform, grid_idx: np.ndarray, auto_dense: bool | None = None, dtype: object = np.float64

@@ -42,11 +42,12 @@ import sys
 from collections import OrderedDict
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Any, Callable
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from .errors import ProblemInputError
+from .operator_state import SealRule
 from .operators import FFTOperator, KernelTransform, even_table_product, operator_dtype
 
 #: The array modules the convolution is written against.
@@ -341,6 +342,9 @@ class ArrayKernelTransform(KernelTransform):
 
     xp_name: str
     _space: ArraySpace | None = None
+    #: What the seal reads besides content (problems/operator_state.py): the device state,
+    #: which the host cannot read in place, held to what this transform puts there.
+    SEAL_RULE: ClassVar[SealRule] = SealRule(opaque={"_device": lambda t, state: t.device_state_intact(state)})
 
     @classmethod
     def from_host(cls, host: KernelTransform, xp: str | ArraySpace = "cupy") -> "ArrayKernelTransform":
@@ -362,8 +366,7 @@ class ArrayKernelTransform(KernelTransform):
 
     def device_state_intact(self, state: Any) -> bool:
         """Whether ``state`` holds what this transform puts on the device (``_DeviceState.holds``,
-        each array copied back and compared): the seal's check of it
-        (problems/operator_state.py)."""
+        each array copied back and compared): the seal's check of it (``SEAL_RULE``)."""
         return isinstance(state, _DeviceState) and state.xp is self.xp and state.holds(self.khat, self.table,
                                                                                         self.grid_shape)
 
