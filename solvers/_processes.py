@@ -1,7 +1,7 @@
 """The processes a solve starts, and ending them: what isolates a solve from what it leaves running.
 
 A solver (or an outside program) may start processes, and one of them may leave the process
-group it was started in (``setsid``) and so escape a kill of that group.  Two tools keep every
+group it was started in (``setsid``) and so escape a kill of that group.  Three tools keep every
 such process within reach:
 
 * ``become_subreaper`` -- Linux (``PR_SET_CHILD_SUBREAPER``): the calling process adopts the
@@ -10,24 +10,38 @@ such process within reach:
   elsewhere;
 * ``end_descendants(pid)`` -- SIGKILL every descendant of ``pid`` (found by their parent
   links, ``psutil``), round after round until no new one appears (one that forked while the
-  others were killed), and ``reap_children`` collects the calling process's dead children.
+  others were killed), and ``reap_children`` collects the calling process's dead children;
+* ``ends_what_it_starts()`` -- the same for a solve run in the caller's own process (which
+  has other children: a test runner's, a pool's): for the block, the caller adopts orphans,
+  and after it every process started during it -- each child of the caller that was not
+  there before (an orphan it adopted included), with its descendants -- is killed and
+  reaped; the caller's other children and theirs are left alone.  A process another thread
+  of the caller starts during the block counts as the block's.
 
 Only descendants of the given process are signalled, each checked against its start time
 before the signal (a pid reused by another process is left alone): nothing that is not the
-solve's is touched.
+solve's is touched.  Where ``PR_SET_CHILD_SUBREAPER`` is missing (``SUBREAPER_MISSING``), a
+process that leaves its group and whose parent exits is out of reach.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import sys
 import time
+from typing import Iterator
 
 import psutil
 
-#: ``prctl`` option that makes the caller adopt its descendants' orphans (linux/prctl.h).
+#: ``prctl`` options that set and read whether the caller adopts its descendants' orphans
+#: (linux/prctl.h).
 PR_SET_CHILD_SUBREAPER = 36
+PR_GET_CHILD_SUBREAPER = 37
+#: Why a process a solve starts may outlive it where orphans cannot be adopted.
+SUBREAPER_MISSING = ("no PR_SET_CHILD_SUBREAPER (a Linux prctl): a process a solve starts that leaves its process "
+                     "group (setsid) and whose parent exits is not adopted, and may outlive the solve")
 #: At most this many rounds of ``end_descendants`` (each ends everything found then).
 KILL_ROUNDS = 50
 #: Seconds ``reap_children`` waits at most for killed children to exit.
@@ -36,30 +50,50 @@ REAP_WAIT_S = 5.0
 
 def become_subreaper() -> bool:
     """Make this process adopt its descendants' orphans (module doc); whether it took effect
-    (False off Linux, or where the C library or the kernel refuses)."""
+    (False off Linux, or where the C library or the kernel refuses: ``SUBREAPER_MISSING``).
+    A forked child does not inherit it."""
+    return _set_subreaper(True)
+
+
+def _set_subreaper(on: bool) -> bool:
+    libc = _libc()
+    return libc is not None and int(libc.prctl(PR_SET_CHILD_SUBREAPER, int(on), 0, 0, 0)) == 0
+
+
+def is_subreaper() -> bool:
+    """Whether this process adopts its descendants' orphans (False where it cannot be asked)."""
+    libc, flag = _libc(), ctypes.c_int(0)
+    return libc is not None and int(libc.prctl(PR_GET_CHILD_SUBREAPER, ctypes.byref(flag), 0, 0, 0)) == 0 \
+        and flag.value != 0
+
+
+def _libc() -> ctypes.CDLL | None:
+    """The C library, on Linux (where ``prctl`` is); None elsewhere."""
     if not sys.platform.startswith("linux"):
-        return False
+        return None
     try:
         libc = ctypes.CDLL(None, use_errno=True)
-        return int(libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)) == 0
-    except (OSError, AttributeError):  # pragma: no cover - no C library to ask
-        return False
+    except OSError:  # pragma: no cover - no C library to ask
+        return None
+    return libc if hasattr(libc, "prctl") else None
 
 
 def descendants(pid: int) -> list[psutil.Process]:
     """The live (not yet exited) descendants of process ``pid``; none when it is gone."""
     try:
-        found = psutil.Process(pid).children(recursive=True)
+        return live(psutil.Process(pid).children(recursive=True))
     except (psutil.NoSuchProcess, psutil.AccessDenied):
         return []
-    live = []
-    for proc in found:
-        try:
+
+
+def live(procs: list[psutil.Process]) -> list[psutil.Process]:
+    """Those of ``procs`` that have not exited (a zombie, or one gone, is left out)."""
+    found = []
+    for proc in procs:
+        with contextlib.suppress(psutil.NoSuchProcess, psutil.AccessDenied):
             if proc.status() != psutil.STATUS_ZOMBIE:
-                live.append(proc)
-        except (psutil.NoSuchProcess, psutil.AccessDenied):
-            continue
-    return live
+                found.append(proc)
+    return found
 
 
 def _in_group(proc: psutil.Process, group: int | None) -> bool:
@@ -118,3 +152,92 @@ def end_own_descendants() -> int:
     count = end_descendants(os.getpid())
     reap_children()
     return count
+
+
+def snapshot(pid: int) -> frozenset[psutil.Process]:
+    """Every descendant of process ``pid`` now, exited ones not yet reaped included (each
+    known by its pid and start time)."""
+    with contextlib.suppress(psutil.NoSuchProcess, psutil.AccessDenied):
+        return frozenset(psutil.Process(pid).children(recursive=True))
+    return frozenset()
+
+
+def started_since(pid: int, before: frozenset[psutil.Process]) -> list[psutil.Process]:
+    """The processes of ``pid``'s tree started since ``before`` (its ``snapshot``): each child
+    of ``pid`` not in it -- started by ``pid``, or an orphan it adopted -- with its
+    descendants; not a new process under one that was there before (another's)."""
+    try:
+        children = psutil.Process(pid).children()
+    except (psutil.NoSuchProcess, psutil.AccessDenied):
+        return []
+    found = []
+    for child in children:
+        if child in before:
+            continue
+        found.append(child)
+        with contextlib.suppress(psutil.NoSuchProcess, psutil.AccessDenied):
+            found.extend(p for p in child.children(recursive=True) if p not in before)
+    return found
+
+
+def end_started_since(before: frozenset[psutil.Process], wait_s: float = REAP_WAIT_S) -> int:
+    """SIGKILL every process of this process's tree started since ``before`` (its
+    ``snapshot``: ``started_since``), round after round, then reap those that are its
+    children (by their pids: no other child's exit is collected), waiting at most ``wait_s``
+    seconds; how many were signalled."""
+    me = os.getpid()
+    found = started_since(me, before)
+    if not found:  # (nothing to kill or reap: no second look at the process table)
+        return 0
+    signalled: set[psutil.Process] = set()
+    for _ in range(KILL_ROUNDS):
+        new = [p for p in live(found) if p not in signalled]
+        if not new:
+            break
+        for proc in new:
+            with contextlib.suppress(psutil.NoSuchProcess, psutil.AccessDenied):
+                proc.kill()  # (psutil checks the start time first: a reused pid is not signalled)
+            signalled.add(proc)
+        found = started_since(me, before)
+    _reap_started(me, before, wait_s)
+    return len(signalled)
+
+
+def _reap_started(me: int, before: frozenset[psutil.Process], wait_s: float) -> None:
+    end = time.monotonic() + wait_s
+    while True:
+        try:
+            waiting = [c.pid for c in psutil.Process(me).children() if c not in before]
+        except (psutil.NoSuchProcess, psutil.AccessDenied):  # pragma: no cover - this process is there
+            return
+        reaped = [_reaped(pid) for pid in waiting]  # (each one asked: a list, not a short-circuit)
+        if all(reaped) or time.monotonic() > end:
+            return
+        time.sleep(0.005)
+
+
+def _reaped(pid: int) -> bool:
+    """Whether child ``pid`` has exited and is collected now (or is no child to collect)."""
+    try:
+        return os.waitpid(pid, os.WNOHANG)[0] != 0
+    except ChildProcessError:
+        return True
+
+
+@contextlib.contextmanager
+def ends_what_it_starts() -> Iterator[None]:
+    """Every process the block starts in this process -- one that leaves its group
+    (``setsid``) and whose parent exits included, where orphans can be adopted -- ends with
+    the block, however the block ends (module doc); this process adopts orphans for the
+    block only, unless it did before."""
+    before = snapshot(os.getpid())
+    adopting = is_subreaper()
+    took = not adopting and become_subreaper()
+    try:
+        yield
+    finally:
+        try:
+            end_started_since(before)
+        finally:
+            if took:
+                _set_subreaper(False)

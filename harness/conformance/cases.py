@@ -16,7 +16,8 @@
   block principal pivoting), with cond(H);
 * ``CaseRunner`` -- one solver's solves, each in a forked worker
   (``harness.run.isolation.ChildProcess``) with a hard wall-clock limit, so that a
-  hanging solver cannot hang ``validate``; each skip says whether a capability the
+  hanging solver cannot hang ``validate`` (or in-process, ``--no-isolate``); the
+  processes a solve starts end with it either way; each skip says whether a capability the
   solver declares made it (``declared_skip``) or the solver's own refinements did (its
   ``skip``, ``skip_params`` or memory model: ``CaseAnswer.own_skip``).
 
@@ -41,12 +42,13 @@ from contactbench.problems.mixed_lcp import constrained_exact_solution
 from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
+from contactbench.solvers._processes import ends_what_it_starts
 from contactbench.solvers.base import ProblemTraits, SolveAborted, Solver, WarmStart, answered_without_iterate
 
 from ..judging import ProblemSeal, portable_answer
 from ..arguments import check_time_limit
 from ..profiles import get_profile
-from ..run.isolation import SOLVER_FAULTS, exception_message, exception_text
+from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
 from ..run.worker import aborted_status, instance_operator_kind, problem_traits, running_threads, threads_left
 
@@ -376,25 +378,26 @@ class _SolverHandler:
 
 class CaseRunner:
     """Runs the solves of one solver with a hard time limit: in a forked worker
-    (``harness.run.isolation``; what the solver prints is captured there, and the
-    processes it starts end with the solve) when ``isolate``, else in-process -- no time
-    limit, and no protection against a solver that ends the process itself (``os._exit``,
-    a signal)."""
+    (``harness.run.isolation``; what the solver prints is captured there) when
+    ``isolate``, else in-process -- no time limit, and no protection against a solver that
+    ends the process itself (``os._exit``, a signal).  Either way the processes a solve
+    starts end with it, one that leaves its group (``setsid``) included: in-process, those
+    this process starts or adopts during the solve (``ends_what_it_starts``; its other
+    children are left alone)."""
 
     def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
                  params: dict[str, Any] | None = None) -> None:
         self.solver, self.timeout, self.isolate = solver, timeout, isolate
         self.params = dict(params or {})
-        self.worker: Any = None
+        self.worker: ChildProcess | None = None
         if isolate:
-            from contactbench.harness.run.isolation import ChildProcess
-
             self.worker = ChildProcess(lambda: _SolverHandler(solver), capture_output=True)
 
     def solve(self, spec: InstanceSpec, step: int, warm: WarmStart | None = None) -> CaseAnswer:
         msg = SolveOrder(spec, step, self.timeout, self.params, warm)
         if self.worker is None:
-            return CaseAnswer(**solve_case(self.solver, msg))
+            with ends_what_it_starts():
+                return CaseAnswer(**solve_case(self.solver, msg))
         out = self.worker.call(msg, None if self.timeout is None else
                                self.timeout + KILL_GRACE[0] + KILL_GRACE[1] * self.timeout)
         if out.kind == "ok":

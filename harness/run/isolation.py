@@ -21,8 +21,16 @@ counter to know).  The child:
   descendant even after leaving that group (``setsid``) and its parent exiting; after each
   message it kills every descendant left (what a solve started ends with the solve), and
   the parent kills the worker's descendants, found by their parent links, before the
-  worker itself.  Only a process started after a worker died on its own (``os._exit``,
-  a signal) that has left its group escapes: its parent is gone, and so is the adopter;
+  worker itself;
+* runs under a keeper where orphans can be adopted: the child the parent starts adopts
+  orphans too and forks the worker, its one child, so that what the worker started is
+  still the keeper's descendant when the worker dies on its own (``os._exit``, a signal)
+  -- the worker's orphans are re-parented to the keeper, and to no process that is not
+  the worker's.  When the worker exits the keeper kills every process left, collects
+  them, and ends as the worker did (its exit code, its signal: ``describe_exit`` names the
+  worker's).  In the worker, ``os.getppid()`` is the keeper's pid.  Elsewhere
+  (``SUBREAPER_MISSING``) the child is the worker, and a process that leaves its group and
+  whose parent exits is out of reach;
 * asks the kernel to SIGKILL it when the parent dies (``PR_SET_PDEATHSIG``), so a
   ``kill -9`` of the runner leaves no orphan writing rows;
 * optionally limits BLAS (threadpoolctl) and FFT (``CONTACTBENCH_FFT_WORKERS``) threads,
@@ -45,6 +53,7 @@ import ctypes
 import faulthandler
 import multiprocessing as mp
 import os
+import resource
 import shutil
 import signal
 import sys
@@ -54,7 +63,7 @@ import traceback
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any, Callable, Iterator, Literal
+from typing import Any, Callable, Iterator, Literal, NoReturn
 
 from contactbench.solvers._processes import become_subreaper, end_descendants, end_own_descendants
 
@@ -216,8 +225,15 @@ def kill_process_group(pgid: int) -> None:
         os.killpg(pgid, signal.SIGKILL)
 
 
+#: In a worker: the pid of the process that started it, on the harness's side (its parent,
+#: or its keeper's parent where a keeper holds its tree); None elsewhere.
+STARTED_BY: int | None = None
+
+
 def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None, scratch: str | None = None,
                  capture_output: bool = False) -> None:
+    global STARTED_BY
+    STARTED_BY = os.getppid()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (the command's own handler is its process's)
     with contextlib.suppress(OSError):  # a group of its own, killed with it (``kill_process_group``)
@@ -225,12 +241,26 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
     if scratch is not None:  # the worker's temporary files (and its programs'), removed by the parent
         tempfile.tempdir = os.environ["TMPDIR"] = scratch
     set_parent_death_signal()
-    become_subreaper()  # the orphans of what a solver starts stay this worker's descendants
+    if become_subreaper():  # this process keeps the worker's tree (``keep_worker_tree``); the worker is its child
+        keeper = os.getpid()
+        worker = os.fork()
+        if worker:
+            conn.close()  # (the worker's end of the pipe is the worker's alone: its death reads as EOF)
+            keep_worker_tree(worker)
+        set_parent_death_signal()
+        if os.getppid() != keeper:  # pragma: no cover - the keeper died before the line above
+            os._exit(1)
+        become_subreaper()  # the orphans of what a solver starts stay this worker's descendants
     if not os.environ.get("CONTACTBENCH_FAULTHANDLER"):
         faulthandler.disable()  # a crashing solver is reported as a row, not a stack dump
     _limits = limit_threads(threads)  # noqa: F841 - held for the process lifetime
     output = os.path.join(scratch, OUTPUT_NAME) if scratch is not None else os.devnull
-    handler = factory()
+    serve(conn, factory(), output if capture_output else None)
+
+
+def serve(conn: Connection, handler: Handler, output: str | None) -> None:
+    """The worker's loop: each message's reply, what it printed to ``output`` (None: where
+    the process's output goes), and what it started ended before the reply is sent."""
     while True:
         try:
             msg = conn.recv()
@@ -239,7 +269,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         if msg is None:
             return
         try:
-            with output_to(output) if capture_output else contextlib.nullcontext():
+            with output_to(output) if output is not None else contextlib.nullcontext():
                 reply: tuple[str, Any] = ("ok", handler(msg))
         except Exception as exc:  # the handler's own failure; solver errors are rows
             reply = ("error", f"{exception_text(exc)}\n{traceback.format_exc(limit=6)}")
@@ -253,6 +283,35 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
                 conn.send(("error", f"the handler's reply cannot be sent to the parent: {exception_text(exc)}"))
             except (BrokenPipeError, OSError):
                 return
+
+
+def keep_worker_tree(worker: int) -> NoReturn:
+    """The keeper's life (module doc): collect the orphans it adopts until its one child, the
+    worker, exits; then kill every process left -- each a descendant of the worker, however
+    it ended (``os._exit``, a signal) -- and end as the worker did, so that the parent reads
+    the worker's own exit."""
+    while True:
+        pid, status = os.waitpid(-1, 0)
+        if pid == worker:
+            break
+    end_own_descendants()
+    exit_as(os.waitstatus_to_exitcode(status))
+
+
+def exit_as(code: int) -> NoReturn:
+    """End this process with exit code ``code``, or by signal ``-code`` where it is negative
+    (no core dump of its own: the process that took the signal dumped one if any)."""
+    if code < 0:
+        sig = -code
+        with contextlib.suppress(ValueError, OSError):
+            resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        with contextlib.suppress(ValueError, OSError):
+            signal.signal(sig, signal.SIG_DFL)
+        with contextlib.suppress(ValueError, OSError):
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {sig})
+        os.kill(os.getpid(), sig)
+        code = 128 + sig  # (a signal that does not end a process: its number, as a shell says it)
+    os._exit(code)
 
 
 def describe_exit(exitcode: int | None) -> str:
@@ -384,12 +443,14 @@ class ChildProcess:
     def kill(self) -> None:
         """Stop the child, every descendant of it and every process of its group (SIGKILL),
         release the pipe and remove its temporary folder (what a killed solver, or a program
-        it ran, left there).  A live child is stopped first (SIGSTOP), so that it starts
-        nothing more while its descendants are found and killed."""
+        it ran, left there).  A live child's group -- the keeper, the worker and what stayed
+        in it -- is stopped first (SIGSTOP), so that it starts nothing more while the
+        descendants are found and killed."""
         if self.proc is not None:
             if self.proc.pid is not None and self.proc.exitcode is None:  # alive and not reaped: its pid is ours
-                with contextlib.suppress(ProcessLookupError, PermissionError):
-                    os.kill(self.proc.pid, signal.SIGSTOP)
+                for stop in (os.kill, os.killpg):  # (the child itself, should its group not be made)
+                    with contextlib.suppress(ProcessLookupError, PermissionError):
+                        stop(self.proc.pid, signal.SIGSTOP)
                 end_descendants(self.proc.pid)
             if self.proc.pid is not None:  # before the worker is reaped: its group id is still its own
                 kill_process_group(self.proc.pid)
@@ -458,8 +519,6 @@ class PeakMemory:
         if self.exact:
             self.before_kb = float(rss or 0.0)
         else:
-            import resource
-
             self.before_kb = float(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
         return self
 
@@ -468,6 +527,4 @@ class PeakMemory:
             peak = _proc_status_kb("VmHWM")
             self.mb = max(0.0, ((peak or 0.0) - self.before_kb) / 1024.0)
         else:
-            import resource
-
             self.mb = max(0.0, (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - self.before_kb) / 1024.0)

@@ -191,8 +191,15 @@ class JobDriver:
     def call(self, msg: Message, timeout: float | None) -> ChildReply:
         """Send ``msg`` to the worker; what it printed joins the solver-output log.  A
         reply that says the solve left threads running ends the worker: the next message
-        starts a fresh one."""
-        out = self.worker.call(msg, timeout)
+        starts a fresh one.  A run stopped in the message (Ctrl-C, SIGTERM) kills the worker,
+        and what it printed so far joins the log, marked so (``collect_stopped``)."""
+        try:
+            out = self.worker.call(msg, timeout)
+        except KeyboardInterrupt:
+            self.worker.kill()
+            if self.output is not None:
+                self.output.collect_stopped(f"{self.where} {message_title(msg)}")
+            raise
         if self.output is not None:
             self.output.collect(f"{self.where} {message_title(msg)}{'' if out.ok else f' ({out.kind})'}")
         if out.ok and getattr(out.value, "threads_left", ""):

@@ -10,6 +10,12 @@ process -- a solver's skip check and time, memory and capability models -- is ca
 the same way (``SolverOutput.captured``).  The terminal keeps the progress bar and the
 harness's own messages.
 
+A message the run is stopped in (Ctrl-C, SIGTERM) gets no reply; what it printed so far
+joins the log all the same, its entry's title ending "(interrupted)", with a further
+Ctrl-C held back until it is written (``harness.run.interrupts.signals_deferred``):
+``SolverOutput.collect_stopped`` under the message's own title, else -- what is left when
+the driver ends -- under ``STOPPED_TITLE`` (``SolverOutput.close``).
+
 The log is bounded: each entry keeps the first ``ENTRY_HEAD_BYTES`` bytes of one
 message's output and says how many it dropped; once the log holds ``LOG_CAP_BYTES`` it
 takes no more entries and its last line counts what was dropped since
@@ -31,6 +37,7 @@ from typing import Iterator
 
 from contactbench.problems.errors import ProblemInputError
 
+from .interrupts import signals_deferred
 from .isolation import SCRATCH_PREFIX, output_to
 
 #: The run folder's file of what the solvers printed (meta.json ``solver_output`` names it).
@@ -39,6 +46,12 @@ OUTPUT_LOG = "solver-output.log"
 ENTRY_HEAD_BYTES = 64 * 1024
 #: The size past which the log takes no more entries (its last line then counts them).
 LOG_CAP_BYTES = 16 * 1024 * 1024
+
+#: How an entry's title ends when the run was stopped in its message (Ctrl-C, SIGTERM).
+STOPPED = "(interrupted)"
+#: The title of what is left in the driver's files when it ends: the output of the message
+#: the run was stopped in, not collected under that message's own title.
+STOPPED_TITLE = "the message in progress when the run was stopped"
 
 #: How the log's own last line begins once it is full (``dropped_line``); printed by a solver,
 #: it is written as ``FORGED_FULL`` instead, so no output can make the log look full.
@@ -129,14 +142,31 @@ class SolverOutput:
         with contextlib.suppress(OSError):
             os.truncate(path, 0)
 
+    def collect_stopped(self, title: str, source: Path | None = None) -> None:
+        """``collect`` the output of a message the run was stopped in, its title marked
+        ``STOPPED``; a further Ctrl-C or SIGTERM meanwhile waits for it (module doc)."""
+        with signals_deferred():
+            self.collect(f"{title} {STOPPED}", source)
+
     @contextlib.contextmanager
     def captured(self, title: str) -> Iterator[None]:
-        """The block's output (this process's descriptors 1 and 2) into the log under ``title``."""
+        """The block's output (this process's descriptors 1 and 2) into the log under ``title``
+        (marked ``STOPPED`` where the run is stopped in the block)."""
+        stopped = False
         try:
             with output_to(str(self.own_file)):
                 yield
+        except KeyboardInterrupt:  # (Ctrl-C, and SIGTERM's ``Terminated``)
+            stopped = True
+            raise
         finally:
-            self.collect(title, self.own_file)
+            (self.collect_stopped if stopped else self.collect)(title, self.own_file)
 
     def close(self) -> None:
-        shutil.rmtree(self.folder, ignore_errors=True)
+        """Remove the files.  What they still hold -- the output of a message the run was
+        stopped in, its worker killed -- joins the log first, under ``STOPPED_TITLE``: each
+        reply's output is collected when it comes."""
+        with signals_deferred():
+            for source in (self.worker_file, self.own_file):
+                self.collect(f"{STOPPED_TITLE} {STOPPED}", source)
+            shutil.rmtree(self.folder, ignore_errors=True)

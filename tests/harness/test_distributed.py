@@ -23,6 +23,7 @@ pytest.importorskip("distributed")
 
 from distributed import Client  # noqa: E402
 
+from contactbench.harness.run import isolation  # noqa: E402
 from contactbench.harness.run.distributed import lost_job_rows, run_benchmark_on_dask, run_jobs_on_dask, start_local_cluster  # noqa: E402
 from contactbench.harness.run.plan import RunConfig, plan_run  # noqa: E402
 from contactbench.harness import run_benchmark  # noqa: E402
@@ -46,10 +47,11 @@ def seed_of(qp: QP) -> int | None:
 
 
 def kill_dask_worker(after_s: float = 0.0) -> None:
-    """SIGKILL the parent of this isolated solve process: the Dask worker (after
-    ``after_s`` seconds of "solving")."""
+    """SIGKILL the process that started this isolated solve process: the Dask worker
+    (after ``after_s`` seconds of "solving")."""
     time.sleep(after_s)
-    os.kill(os.getppid(), signal.SIGKILL)
+    assert isolation.STARTED_BY is not None
+    os.kill(isolation.STARTED_BY, signal.SIGKILL)
     time.sleep(30)  # PR_SET_PDEATHSIG ends this process with its parent
 
 

@@ -1,14 +1,19 @@
 """A process a solve starts ends with the solve, even one that leaves its process group
 (``setsid``) and whose parent exits: the isolated worker adopts it
 (``PR_SET_CHILD_SUBREAPER``) and kills every descendant left after each message, and the
-parent kills the worker's descendants before the worker at a time limit
-(``harness.run.isolation``, ``contactbench.solvers._processes``); ``validate`` and
-``run`` share that worker.  An outside program's descendants that left its group are
-killed with it at its time limit (``solvers.external.run_program``)."""
+parent kills the worker's descendants before the worker at a time limit; a worker that
+dies on its own (``os._exit``, a signal) leaves its orphans to its keeper, which kills
+them (``harness.run.isolation``, ``contactbench.solvers._processes``); ``validate`` and
+``run`` share that worker, and ``validate --no-isolate`` ends what a solve started in its
+own process, leaving the process's other children alone.  An outside program's
+descendants that left its group are killed with it at its time limit
+(``solvers.external.run_program``)."""
 
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -21,12 +26,16 @@ from contactbench.harness.conformance import battery as cf
 from contactbench.harness.run.isolation import ChildProcess
 from contactbench.problems.lcp import exact_solution
 from contactbench.solvers import Outcome, SolveContext, Solver
+from contactbench.solvers._processes import SUBREAPER_MISSING, is_subreaper
 from contactbench.solvers.external import run_program
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="subreaper and /proc: Linux")
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason=f"/proc, and {SUBREAPER_MISSING}")
 
 #: How long an escaped process lives at most (it must be killed long before).
 LIFETIME_S = 20
+#: How long a test waits at most for a killed process to be gone (the kernel's time, not a
+#: claim on speed).
+GONE_WAIT_S = 3.0
 #: The environment variable that tells ``EscapingSolver`` where to write its grandchild's pid.
 PID_FILE_VAR = "CONTACTBENCH_TEST_ESCAPE_PID_FILE"
 
@@ -54,8 +63,9 @@ def ended_in_time(pid: int, wait_s: float = 10.0) -> bool:
 
 def start_escaped_grandchild(pid_file: str) -> int:
     """Fork a child that leaves the process group (``setsid``), forks a grandchild that
-    sleeps, and exits at once: the grandchild is an orphan outside the group.  Its pid is
-    written into ``pid_file`` and returned."""
+    runs a program that sleeps (holding none of the worker's pipes), and exits at once: the
+    grandchild is an orphan outside the group.  Its pid is written into ``pid_file`` and
+    returned."""
     read, write = os.pipe()
     child = os.fork()
     if child == 0:  # pragma: no cover - runs in the forked child
@@ -63,10 +73,10 @@ def start_escaped_grandchild(pid_file: str) -> int:
             os.setsid()
             grandchild = os.fork()
             if grandchild == 0:
-                os.close(read)
-                os.close(write)
-                time.sleep(LIFETIME_S)
-                os._exit(0)
+                try:
+                    os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S})"])
+                finally:
+                    os._exit(1)
             os.write(write, str(grandchild).encode())
         finally:
             os._exit(0)
@@ -102,6 +112,32 @@ def test_an_escaped_grandchild_of_a_worker_killed_at_its_limit_is_killed_too(tmp
         assert ended_in_time(int(pid_file.read_text())), "the grandchild outlived the killed worker"
 
 
+def escape_then_die(msg: tuple[str, str]) -> int:
+    """A worker's handler: start an escaped grandchild, then end the worker itself --
+    ``os._exit(3)`` ("exit") or the signal named."""
+    pid = start_escaped_grandchild(msg[1])
+    if msg[0] == "exit":
+        os._exit(3)
+    os.kill(os.getpid(), signal.Signals[msg[0]])
+    time.sleep(600)
+    return pid
+
+
+@pytest.mark.parametrize("how, said", [("exit", "worker exited with code 3"),
+                                       ("SIGSEGV", "worker killed by signal SIGSEGV"),
+                                       ("SIGKILL", "worker killed by signal SIGKILL")])
+def test_an_escaped_grandchild_of_a_worker_that_died_on_its_own_is_killed(tmp_path: Path, how: str,
+                                                                         said: str) -> None:
+    """The worker's death is reported as its own (exit code, signal), and the process it
+    started that left its group ends with it."""
+    pid_file = tmp_path / "pid"
+    with ChildProcess(lambda: escape_then_die) as child:
+        reply = child.call((how, str(pid_file)), timeout=30.0)
+    survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()), GONE_WAIT_S)
+    assert reply.kind == "crashed" and said in reply.detail, reply
+    assert pid_file.exists() and not survived, "the grandchild outlived the worker that died"
+
+
 class EscapingSolver(Solver):
     """Starts a grandchild that leaves its group and outlives its parent, then answers."""
 
@@ -119,6 +155,27 @@ def test_validate_leaves_no_escaped_grandchild_behind(tmp_path: Path, monkeypatc
     table = cf.validate(EscapingSolver(), cf.conformance_cases("fast", pattern="random/spd-n30-s0"))
     assert table.exit_code() == 0, table.format()
     assert ended_in_time(int(pid_file.read_text())), "the solver's grandchild outlived validate"
+
+
+def test_validate_in_process_ends_what_a_solve_started_and_leaves_the_process_s_other_children(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``validate --no-isolate``: the solver's grandchild that left its group is killed with
+    its solve; a child this process started before is left running, and this process does
+    not adopt orphans after the solve."""
+    pid_file = tmp_path / "pid"
+    monkeypatch.setenv(PID_FILE_VAR, str(pid_file))
+    own = subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({LIFETIME_S})"])
+    try:
+        table = cf.validate(EscapingSolver(), cf.conformance_cases("fast", pattern="random/spd-n30-s0"),
+                            isolate=False)
+        survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()), GONE_WAIT_S)
+        assert table.exit_code() == 0, table.format()
+        assert pid_file.exists() and not survived, "the solver's grandchild outlived validate"
+        assert own.poll() is None, "a child of the process that is not the solve's was ended"
+        assert not is_subreaper()
+    finally:
+        own.kill()
+        own.wait()
 
 
 def test_an_outside_programs_child_that_left_its_group_is_killed_at_the_time_limit(tmp_path: Path) -> None:

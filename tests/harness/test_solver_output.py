@@ -1,12 +1,15 @@
 """What a solver prints during ``run`` goes to the run folder's solver-output log, bounded
-(the head of each output kept, what was dropped counted), never to the terminal; the
-harness's own messages and the summary stay on the terminal."""
+(the head of each output kept, what was dropped counted), never to the terminal -- the
+output of a solve the run is stopped in (Ctrl-C) too, marked so; the harness's own
+messages and the summary stay on the terminal."""
 
 from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
+import time
 from pathlib import Path
 from typing import Iterator
 
@@ -15,7 +18,8 @@ import pytest
 
 from contactbench.harness import cli, run_benchmark
 from contactbench.harness.run.executors import PoolExecutor
-from contactbench.harness.run.output_log import ENTRY_HEAD_BYTES, OUTPUT_LOG, OutputLog, dropped_line
+from contactbench.harness.run.output_log import ENTRY_HEAD_BYTES, OUTPUT_LOG, STOPPED, OutputLog, dropped_line
+from contactbench.harness.table.store import PARQUET_FILE
 from contactbench.harness.run.plan import RunConfig
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import Capabilities, Outcome, ProblemTraits, SolveContext, Solver, register, unregister
@@ -51,6 +55,32 @@ def chatty() -> Iterator[str]:
     unregister(Chatty.name)
 
 
+class Interrupting(Solver):
+    """Prints, over an entry's head, then stops the run as Ctrl-C does (SIGINT to the
+    harness's process, ``harness_pid``: set before the run, a forked worker inherits it)
+    and hangs until its worker is killed."""
+
+    name = "test-interrupting"
+    family = "test"
+    harness_pid = 0
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        print("printed-before-the-interrupt")
+        sys.stdout.write("y" * LOUD_BYTES)
+        sys.stdout.flush()
+        os.kill(self.harness_pid, signal.SIGINT)
+        time.sleep(60)
+        return Outcome(np.zeros(ctx.n), 1, False)
+
+
+@pytest.fixture
+def interrupting() -> Iterator[str]:
+    register(Interrupting, replace=True)
+    Interrupting.harness_pid = os.getpid()
+    yield Interrupting.name
+    unregister(Interrupting.name)
+
+
 def small_run(out: Path, solver: str, **executor: object) -> None:
     run_benchmark(["counterexample"], SceneConfig(size=10, seeds=(0,)), [solver],
                   RunConfig(progress=False, warmup=False, reference="none"), out, command=["pytest"], **executor)
@@ -78,6 +108,29 @@ def test_a_pool_process_writes_its_solvers_output_to_the_same_log(tmp_path: Path
     assert "chatty" not in seen.out + seen.err
     text = (tmp_path / "r" / OUTPUT_LOG).read_text()
     assert text.count("chatty-child-process") == 2 and "n100-s0" in text and "n100-s1" in text
+
+
+def test_the_output_of_a_solve_stopped_by_ctrl_c_reaches_the_log_marked_interrupted(
+        tmp_path: Path, interrupting: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A solve the run is stopped in: its output so far is an entry of the log (the head
+    only), its title marked interrupted; a second Ctrl-C while it is written waits for it,
+    and the run's table is written."""
+    appended = OutputLog.append
+
+    def interrupted_again(log: OutputLog, title: str, source: Path) -> None:
+        if title.endswith(STOPPED):
+            signal.raise_signal(signal.SIGINT)
+        appended(log, title, source)
+
+    monkeypatch.setattr(OutputLog, "append", interrupted_again)
+    with pytest.raises(KeyboardInterrupt):
+        small_run(tmp_path / "r", interrupting)
+    text = (tmp_path / "r" / OUTPUT_LOG).read_text() if (tmp_path / "r" / OUTPUT_LOG).exists() else ""
+    title = next((line for line in text.splitlines() if line.startswith("==> ")), "")
+    assert STOPPED in title and "printed-before-the-interrupt" in text, text[:500]
+    assert f"more bytes dropped: an entry keeps the first {ENTRY_HEAD_BYTES}" in text
+    assert os.path.getsize(tmp_path / "r" / OUTPUT_LOG) < LOUD_BYTES  # the head only
+    assert (tmp_path / "r" / PARQUET_FILE).exists()
 
 
 def test_an_entry_keeps_the_head_and_counts_what_it_dropped(tmp_path: Path) -> None:
