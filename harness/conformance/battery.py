@@ -101,6 +101,7 @@ from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
 from contactbench.solvers.base import Promise, Solver, describe_promise, promised_tol
 from contactbench.solvers.registry import load_solver
 
+from .declared import declaration_of, in_a_child
 from .cases import (
     BATTERY_GROUPS,
     DEFAULT_TIMEOUT,
@@ -501,21 +502,25 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     its declared ``Param``s first) and return the verdict table, its rows and summary
     named ``label`` (a variant's, ``name[k=v]``; default the solver's name).  ``timeout``: seconds
     per solve (``check_timeout``; None: the mode's default).  An empty ``cases`` is a
-    ``ProblemInputError``."""
+    ``ProblemInputError``.  A solver named by text is loaded, with ``isolate``, only in
+    child processes (``declared.in_a_child``, ``CaseRunner``: a ``declared.LoadFailed``
+    where it cannot be), so that nothing its module does reaches the judge."""
     limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else check_timeout(timeout)
     selected = _as_cases(cases, mode)
-    s = load_solver(solver) if isinstance(solver, str) else solver
-    name = label or s.name
-    table = VerdictTable(name, mode, promise=s.capabilities.promise)
-    available, why = s.availability()
-    if not available:
-        table.available, table.note = False, f"solver {s.name!r} is not available: {why}"
+    if isinstance(solver, str) and isolate:  # loaded in children only (harness/conformance/declared.py)
+        d = in_a_child(declaration_of, solver, params, what=f"loading solver {solver!r}")
+    else:
+        solver = load_solver(solver) if isinstance(solver, str) else solver
+        d = declaration_of(solver, params)
+    name = label or d.name
+    table = VerdictTable(name, mode, promise=d.promise)
+    if not d.available:
+        table.available, table.note = False, f"solver {d.name!r} is not available: {d.why}"
         return table
-    s.resolve_params(params)  # unknown or bad parameters: a ParamError before anything runs
-    runner = CaseRunner(s, limit, isolate=isolate, params=params)
+    runner = CaseRunner(solver, limit, isolate=isolate, params=params)
     try:
         for case in selected:
-            new = run_case(runner, case, name, s.capabilities.promise)
+            new = run_case(runner, case, name, d.promise)
             table.rows.extend(new)
             if progress is not None:
                 for r in new:

@@ -30,6 +30,7 @@ import fnmatch
 import time
 import traceback
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Sequence, cast
 
 import numpy as np
@@ -44,6 +45,7 @@ from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
 from contactbench.solvers._processes import ends_what_it_starts
 from contactbench.solvers.base import ProblemTraits, SolveAborted, Solver, WarmStart, answered_without_iterate
+from contactbench.solvers.registry import load_solver
 
 from ..judging import ProblemSeal, portable_answer
 from ..arguments import check_time_limit
@@ -369,8 +371,11 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
 
 
 class _SolverHandler:
-    def __init__(self, solver: Solver) -> None:
-        self.solver = solver
+    """A worker's handler: the solves of ``solver`` (a ``Solver``, or the text ``load_solver``
+    reads, loaded here: in the worker, never in the harness's process)."""
+
+    def __init__(self, solver: Solver | str) -> None:
+        self.solver = load_solver(solver) if isinstance(solver, str) else solver
 
     def __call__(self, msg: Any) -> dict[str, Any]:
         return solve_case(self.solver, msg)
@@ -385,17 +390,21 @@ class CaseRunner:
     this process starts or adopts during the solve (``ends_what_it_starts``; its other
     children are left alone)."""
 
-    def __init__(self, solver: Solver, timeout: float | None, isolate: bool = True,
+    def __init__(self, solver: Solver | str, timeout: float | None, isolate: bool = True,
                  params: dict[str, Any] | None = None) -> None:
-        self.solver, self.timeout, self.isolate = solver, timeout, isolate
+        self.timeout, self.isolate = timeout, isolate
         self.params = dict(params or {})
         self.worker: ChildProcess | None = None
-        if isolate:
-            self.worker = ChildProcess(lambda: _SolverHandler(solver), capture_output=True)
+        self.solver: Solver | None = None
+        if isolate:  # (a solver named by text is loaded in the worker alone)
+            self.worker = ChildProcess(partial(_SolverHandler, solver), capture_output=True)
+        else:
+            self.solver = load_solver(solver) if isinstance(solver, str) else solver
 
     def solve(self, spec: InstanceSpec, step: int, warm: WarmStart | None = None) -> CaseAnswer:
         msg = SolveOrder(spec, step, self.timeout, self.params, warm)
         if self.worker is None:
+            assert self.solver is not None
             with ends_what_it_starts():
                 return CaseAnswer(**solve_case(self.solver, msg))
         out = self.worker.call(msg, None if self.timeout is None else

@@ -24,6 +24,7 @@ from contactbench.solvers.registry import (NamedVariant, SolverDeclarationError,
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
 from ..run.isolation import SOLVER_FAULTS, exception_text
+from .declared import LoadFailed, OneLine, in_a_child
 from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, validate
 from .report import check_report_folder, write_conformance_report
 
@@ -60,8 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                             "60 full)")
     ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged rows")
     ap.add_argument("--no-isolate", action="store_true",
-                    help="solve in-process, for debugging: no time limit, and no protection against a solver that "
-                         "ends the process itself (os._exit, a fatal signal ends validate; sys.exit is a crash row)")
+                    help="solve in-process, for debugging: no time limit, no protection against a solver that "
+                         "ends the process itself (os._exit, a fatal signal ends validate; sys.exit is a crash row), "
+                         "and the solver's code runs where the judge does (docs/verdicts.md)")
     ap.add_argument("--list", action="store_true", help="list the selected cases and exit (the solvers named, "
                                                         "their --params, --csv and --out are checked first)")
     ap.add_argument("--csv", metavar="PATH", type=path_text,
@@ -105,7 +107,7 @@ def json_object(text: str) -> dict[str, Any]:
     return value
 
 
-class CommandLineError(ValueError):
+class CommandLineError(OneLine):
     """Bad command-line input found before anything runs (one line)."""
 
 
@@ -186,45 +188,57 @@ def availability(solver: Solver) -> tuple[bool, str]:
 
 @dataclass(frozen=True)
 class Candidate:
-    """One solver to validate: the solver, the parameters of the variant named
+    """One solver to validate: ``load``, the text ``load_solver`` reads it by (or the
+    ``--command`` solver itself), its ``name``, the parameters of the variant named
     (``NAME[k=v]``, each point of ``NAME[grid]``; None: ``--params``) and its label."""
 
-    solver: Solver
+    load: Solver | str
+    name: str
     params: dict[str, Any] | None = None
     label: str | None = None
 
 
-def named_candidates(name: str) -> list[Candidate]:
-    """The candidates one SOLVER argument names: the solver, or with brackets each variant
-    it stands for (``solvers.registry.expand_solver_spec``: checked parameters, a grid's
-    points), each labelled as ``run`` labels it."""
+def named_candidates(name: str) -> list[tuple[Candidate, Solver]]:
+    """The candidates one SOLVER argument names, each with its solver: the solver, or with
+    brackets each variant it stands for (``solvers.registry.expand_solver_spec``: checked
+    parameters, a grid's points), each labelled as ``run`` labels it."""
     if "[" not in name:
-        return [Candidate(load_named_solver(name))]
+        solver = load_named_solver(name)
+        return [(Candidate(name, solver.name), solver)]
     try:
         base = split_solver_spec(name).name
         load_named_solver(base)  # (its one-line load errors first)
         specs, solver = expand_solver_spec(name)
     except SolverSpecError as exc:
         raise CommandLineError(str(exc)) from None
-    return [Candidate(solver, dict(spec.params), spec.label) for spec in specs]
+    return [(Candidate(base, solver.name, dict(spec.params), spec.label), solver) for spec in specs]
 
 
-def _selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = (),
-                      required: bool = True) -> list[Candidate]:
+def selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] = (), required: bool = True,
+                     params: dict[str, Any] | None = None) -> list[Candidate]:
     """The solvers named (a variant each, ``named_candidates``), the ``--command`` one and
-    with ``every`` each available registered one; none at all is an error when
-    ``required``."""
-    chosen = [c for n in dict.fromkeys(names) for c in named_candidates(n)] + [Candidate(s) for s in extra]
-    for c in chosen:
-        ok, why = availability(c.solver)
+    with ``every`` each available registered one, checked: each available, its parameters
+    (a variant's own, else ``params``: ``--params``) taken by its declaration, no variant
+    named twice (``refuse_same_variants``); none at all is an error when ``required``.
+    ``validate`` runs it in a child (``declared.in_a_child``): it loads the solvers."""
+    chosen = [pair for n in dict.fromkeys(names) for pair in named_candidates(n)]
+    chosen += [(Candidate(s, s.name), s) for s in extra]
+    for c, solver in chosen:
+        ok, why = availability(solver)
         if not ok:
-            raise SolverLoadError(f"solver {c.solver.name!r} is not available here: {why}")
+            raise SolverLoadError(f"solver {solver.name!r} is not available here: {why}")
     if every:
-        seen = {c.solver.name for c in chosen}
-        chosen += [Candidate(s) for n, s in all_solvers().items() if n not in seen and availability(s)[0]]
+        seen = {solver.name for _, solver in chosen}
+        chosen += [(Candidate(n, s.name), s) for n, s in all_solvers().items() if n not in seen and availability(s)[0]]
     if not chosen and required:
         raise SolverLoadError("name a solver (registry name or module:NAME), pass --all, or give --command")
-    return chosen
+    if params is not None and any(c.params is not None for c, _ in chosen):
+        raise CommandLineError("--params goes with plain solver names; a NAME[k=v] or NAME[grid] names its own")
+    for c, solver in chosen:
+        solver.resolve_params(c.params if c.params is not None else params)
+    refuse_same_variants([NamedVariant(c.label or solver.name, solver, c.params if c.params is not None else params)
+                          for c, solver in chosen], "the command line")
+    return [c for c, _ in chosen]
 
 
 def _combined_exit(codes: Sequence[int]) -> int:
@@ -251,19 +265,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not cases:
             raise CommandLineError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
         command_solvers = command_solver_of(args.command, args.inputs)
-        solvers = _selected_solvers(args.solvers, args.all, command_solvers, required=not args.list)
-        if args.params is not None and any(c.params is not None for c in solvers):
-            raise CommandLineError("--params goes with plain solver names; a NAME[k=v] or NAME[grid] names its own")
-        for c in solvers:
-            c.solver.resolve_params(c.params if c.params is not None else args.params)
-        refuse_same_variants([NamedVariant(c.label or c.solver.name, c.solver,
-                                           c.params if c.params is not None else args.params) for c in solvers],
-                             "the command line")
+        choose = (args.solvers, args.all, command_solvers, not args.list, args.params)
+        solvers = selected_solvers(*choose) if args.no_isolate else in_a_child(selected_solvers, *choose)
         if args.csv is not None:
             check_csv_path(args.csv)
         if args.out is not None:
             check_out_dir(args.out)
-    except (CommandLineError, ProblemInputError, ParamError, SolverSpecError) as exc:
+    except (OneLine, ProblemInputError, ParamError, SolverSpecError) as exc:
         print(f"contactbench validate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.list:
@@ -273,11 +281,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     codes, tables = [], []
     for c in solvers:
-        solver = c.solver
-        table = validate(solver, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
-                         params=c.params if c.params is not None else args.params, label=c.label)
+        try:
+            table = validate(c.load, cases, mode=mode, timeout=args.timeout, isolate=not args.no_isolate,
+                             params=c.params if c.params is not None else args.params, label=c.label)
+        except LoadFailed as exc:  # (it loaded a moment ago, in another child)
+            print(f"contactbench validate: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
         print(table.summary(args.strict) if args.quiet else table.format(args.strict) + "\n", flush=True)
-        left = left_out_lines(table) if not args.quiet or solver in command_solvers else []
+        left = left_out_lines(table) if not args.quiet or not isinstance(c.load, str) else []
         if left:
             print("\n".join(left) + "\n", flush=True)
         codes.append(table.exit_code(args.strict))
