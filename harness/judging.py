@@ -212,9 +212,10 @@ class _Reader:
         self._stack.add(id(obj))
         rule = seal_rule(type(obj))
         for name, value in sorted(vars(obj).items(), key=lambda kv: kv[0]):
-            if name in rule.counters:
-                continue
             where, inner = f"{path}.{name}", replace(context, rule=rule, rel=name)
+            if name in rule.counters:  # any count, but a plain int: not a value that acts when counted
+                self.add(where, ("counter", type(value) is int), inner)
+                continue
             if name in rule.opaque:
                 self.slots[where] = _Slot(obj, name, inner, owner=obj, verify=rule.opaque[name])
                 self.add(where, ("identity", type(value).__qualname__, id(value)), inner, opaque=True)
@@ -335,7 +336,7 @@ class ProblemSeal:
     """A fingerprint of the problem handed to a solver, taken before the solve: ubar, and
     everything the operator holds -- its defining arrays, its private arrays and those of
     the objects it holds, read by the rules of ``contactbench.problems.operator_state``
-    (work buffers by their layout, caches held to their rebuild, counters not at all) --
+    (work buffers by their layout, caches held to their rebuild, counters by being plain ints) --
     and the methods its products run (``_methods``).  ``broken(qp)`` after the solve says
     what the solver changed ("" when nothing): an array written into (private ones
     included), a cache that is not what the operator builds, device state that is not what

@@ -40,7 +40,7 @@ RULE_ATTRIBUTE = "SEAL_RULE"
 class SealRule:
     """How the seal reads a class's state besides what it seals by content:
 
-    * ``counters``: counts of products -- not state, not read;
+    * ``counters``: counts of products -- any count, but a plain ``int``;
     * ``work``: work buffers that every product writes before it reads them (paths relative
       to the object, ``[*]`` for any entry): sealed by their layout (shape, dtype, strides,
       the memory they view), never by what they hold;

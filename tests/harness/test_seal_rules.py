@@ -139,3 +139,22 @@ def test_operator_state_names_no_class_and_imports_no_module_that_declares_rules
     imports = [node for node in ast.walk(tree) if isinstance(node, (ast.Import, ast.ImportFrom))]
     assert [ast.unparse(node) for node in imports if isinstance(node, ast.ImportFrom) and node.level > 0] == []
     assert [ast.unparse(node) for node in imports if "contactbench" in ast.unparse(node)] == []
+
+
+class SlowCount(int):
+    """A count that acts when counted (it would slow or break the next solve's products)."""
+
+    def __add__(self, other: object) -> "SlowCount":
+        return SlowCount(int(self) + int(other))  # type: ignore[call-overload]
+
+
+@pytest.mark.parametrize("left", [SlowCount(3), None, 2.0], ids=["int-subclass", "none", "float"])
+def test_a_counter_is_any_count_but_only_a_plain_int(left: object) -> None:
+    """Products add to an operator's counters and leave the seal whole; a counter left as
+    anything but a plain int -- a value that acts when the next solve counts -- breaks it."""
+    qp = fft_problem()
+    seal = ProblemSeal.of(qp)
+    honest_products(qp)
+    assert qp.H.matvec_count > 0 and seal.broken(qp) == ""
+    qp.H.matvec_count = left  # type: ignore[assignment]
+    assert "matvec_count" in seal.broken(qp)
