@@ -30,9 +30,12 @@ counter to know).  The child:
   them, and ends as the worker did (its exit code, its signal: ``describe_exit`` names the
   worker's).  In the worker, ``os.getppid()`` is the keeper's pid.  Elsewhere
   (``SUBREAPER_MISSING``) the child is the worker, and a process that leaves its group and
-  whose parent exits is out of reach;
-* asks the kernel to SIGKILL it when the parent dies (``PR_SET_PDEATHSIG``), so a
-  ``kill -9`` of the runner leaves no orphan writing rows;
+  whose parent exits is out of reach.  Out of reach as well: what a solve started and moved
+  out of its group when the solve itself kills its keeper (SIGKILL) -- a solver that does so
+  is not one ``run`` trusts (docs/verdicts.md);
+* asks the kernel to signal it when the parent dies (``PR_SET_PDEATHSIG``): the worker
+  SIGKILL, the keeper SIGTERM, on which it kills what it keeps (``_end_kept_tree``) -- so a
+  ``kill -9`` of the runner leaves no orphan writing rows, nor one a solve started;
 * optionally limits BLAS (threadpoolctl) and FFT (``CONTACTBENCH_FFT_WORKERS``) threads,
   so J workers do not oversubscribe the cores.
 * keeps its temporary files, and those of the programs it runs (``TMPDIR``), in a folder
@@ -231,9 +234,11 @@ STARTED_BY: int | None = None
 
 
 def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None, scratch: str | None = None,
-                 capture_output: bool = False) -> None:
+                 capture_output: bool = False, other_end: Connection | None = None) -> None:
     global STARTED_BY
     STARTED_BY = os.getppid()
+    if other_end is not None:  # (the parent's end, inherited by a fork: held here, the parent's close is no EOF)
+        other_end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (the command's own handler is its process's)
     with contextlib.suppress(OSError):  # a group of its own, killed with it (``kill_process_group``)
@@ -242,11 +247,14 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         tempfile.tempdir = os.environ["TMPDIR"] = scratch
     set_parent_death_signal()
     if become_subreaper():  # this process keeps the worker's tree (``keep_worker_tree``); the worker is its child
+        signal.signal(signal.SIGTERM, _end_kept_tree)
+        set_parent_death_signal(signal.SIGTERM)  # (the keeper's: what it keeps ends with it)
         keeper = os.getpid()
         worker = os.fork()
         if worker:
             conn.close()  # (the worker's end of the pipe is the worker's alone: its death reads as EOF)
             keep_worker_tree(worker)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
         set_parent_death_signal()
         if os.getppid() != keeper:  # pragma: no cover - the keeper died before the line above
             os._exit(1)
@@ -296,6 +304,13 @@ def keep_worker_tree(worker: int) -> NoReturn:
             break
     end_own_descendants()
     exit_as(os.waitstatus_to_exitcode(status))
+
+
+def _end_kept_tree(signum: int, frame: Any) -> NoReturn:
+    """The keeper's SIGTERM -- its death signal, sent when the process that started it dies
+    (a ``kill -9`` of the runner): every process it keeps is killed before it ends."""
+    end_own_descendants()
+    os._exit(128 + signum)
 
 
 def exit_as(code: int) -> NoReturn:
@@ -367,7 +382,7 @@ class ChildProcess:
         remove_orphan_scratch()
         self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
         proc = self.ctx.Process(target=_worker_main, daemon=True,
-                                args=(child, self.factory, self.threads, self.scratch, self.capture_output))
+                                args=(child, self.factory, self.threads, self.scratch, self.capture_output, parent))
         proc.start()
         with contextlib.suppress(OSError):  # as the worker does: its group exists before any kill
             os.setpgid(proc.pid, proc.pid)

@@ -138,6 +138,56 @@ def test_an_escaped_grandchild_of_a_worker_that_died_on_its_own_is_killed(tmp_pa
     assert pid_file.exists() and not survived, "the grandchild outlived the worker that died"
 
 
+#: A runner in its own process: a worker whose message starts an escaped grandchild (its pid
+#: into the file ``argv[1]``) and hangs; the test kills the runner with SIGKILL.
+RUNNER = """
+import sys
+from contactbench.harness.run.isolation import ChildProcess
+from tests.harness.test_escaping_children import escape_then
+ChildProcess(lambda: escape_then).call(("hang", sys.argv[1]), timeout=None)
+"""
+
+
+def test_a_kill_9_of_the_runner_ends_what_its_worker_s_solve_started(tmp_path: Path) -> None:
+    """The keeper's death signal is one it catches: it kills what it keeps, the grandchild
+    that left its group included, when the runner is killed outright."""
+    pid_file = tmp_path / "pid"
+    runner = subprocess.Popen([sys.executable, "-c", RUNNER, str(pid_file)], cwd=Path(__file__).parents[2])
+    try:
+        deadline = time.monotonic() + 60.0
+        while not (pid_file.exists() and pid_file.read_text()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert pid_file.exists(), "the runner's worker never started its grandchild"
+    finally:
+        runner.kill()
+        runner.wait()
+    assert ended_in_time(int(pid_file.read_text()), GONE_WAIT_S), "the grandchild outlived the killed runner"
+
+
+def leave_and_kill_the_keeper(pid_file: str) -> int:
+    """A worker's handler: drop its death signal, leave its group, kill its keeper (its pid
+    into ``pid_file``), then go on "solving" past its time limit."""
+    import ctypes
+
+    ctypes.CDLL(None).prctl(1, 0, 0, 0, 0)  # PR_SET_PDEATHSIG: none
+    os.setsid()
+    Path(pid_file).write_text(str(os.getpid()))
+    os.kill(os.getppid(), signal.SIGKILL)
+    time.sleep(2.0)
+    return os.getpid()
+
+
+def test_a_worker_that_left_its_keeper_ends_when_the_runner_lets_it_go(tmp_path: Path) -> None:
+    """Out of reach of the runner's kill, the worker holds no copy of the runner's end of its
+    pipe: once the runner has closed it, the worker's reply finds no reader and its wait for
+    the next message ends, and so does the worker."""
+    pid_file = tmp_path / "pid"
+    with ChildProcess(lambda: leave_and_kill_the_keeper) as child:
+        reply = child.call(str(pid_file), timeout=1.0)
+    assert reply.kind in ("timeout", "crashed"), reply
+    assert ended_in_time(int(pid_file.read_text()), 10.0), "the worker outlived the runner's end of its pipe"
+
+
 class EscapingSolver(Solver):
     """Starts a grandchild that leaves its group and outlives its parent, then answers."""
 
