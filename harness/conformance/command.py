@@ -221,7 +221,7 @@ def selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] 
     (a variant's own, else ``params``: ``--params``) taken by its declaration, no variant
     named twice (``refuse_same_variants``); none at all is an error when ``required``.
     ``validate`` runs it in a child (``declared.in_a_child``): it loads the solvers."""
-    chosen = [pair for n in dict.fromkeys(names) for pair in named_candidates(n)]
+    chosen = [pair for n in names for pair in named_candidates(n)]
     chosen += [(Candidate(s, s.name), s) for s in extra]
     for c, solver in chosen:
         ok, why = availability(solver)

@@ -139,9 +139,12 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
 
 
 def reference_limit_in_effect(run: dict[str, Any]) -> bool:
-    """Whether a run record's (``asdict`` of a ``RunConfig``) ``reference_timeout`` is the
-    limit the run applies without it: ``REFERENCE_TIMEOUT_FACTOR`` x its ``timeout``
-    (``RunConfig.ref_timeout``), to rounding."""
+    """Whether a run record's (``asdict`` of a ``RunConfig``) ``reference_timeout`` changes
+    nothing the run does without it: the limit it applies then, ``REFERENCE_TIMEOUT_FACTOR``
+    x its ``timeout`` (``RunConfig.ref_timeout``) to rounding, or any limit where the run
+    solves no reference (``reference`` "none")."""
+    if run.get("reference") == "none":
+        return True
     limit, timeout = run.get("reference_timeout"), run.get("timeout")
     if isinstance(limit, bool) or isinstance(timeout, bool) or not isinstance(limit, (int, float)) \
             or not isinstance(timeout, (int, float)):

@@ -46,7 +46,8 @@ def test_a_bad_variant_entry_is_refused_in_one_line(argv: list[str], says: str,
     (["nnls-gp", "pk", "nnls-gp[lipschitz=frobenius,restart=off]"],
      "as 'nnls-gp' and 'nnls-gp[lipschitz=frobenius,restart=False]'"),
     (["nnls-gp[grid]", "nnls-gp[K=50]"], "names the variant 'nnls-gp[K=50]' twice"),
-], ids=["default-given", "defaults-given", "grid-point-named-again"])
+    (["nnls-gp", "pk", "nnls-gp"], "names the variant 'nnls-gp' twice"),
+], ids=["default-given", "defaults-given", "grid-point-named-again", "name-given-twice"])
 def test_one_variant_named_twice_is_refused_naming_its_labels(argv: list[str], says: str,
                                                               capsys: pytest.CaptureFixture[str]) -> None:
     assert says in refused_in_one_line([*argv, *SMALL], capsys)

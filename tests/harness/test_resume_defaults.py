@@ -167,7 +167,8 @@ def test_a_file_option_is_kept_where_leaving_it_out_reads_otherwise(tmp_path: Pa
                                                                                           "height_unit": "m"}
 
 
-REFERENCE_LIMIT = {"default-timeout": ((), "300"), "given-timeout": (("--timeout", "10"), "50")}
+REFERENCE_LIMIT = {"default-timeout": (("--reference", "auto"), "300"),
+                   "given-timeout": (("--reference", "auto", "--timeout", "10"), "50")}
 
 
 @pytest.mark.parametrize("which", sorted(REFERENCE_LIMIT))
@@ -188,3 +189,13 @@ def test_the_reference_limit_in_effect_written_out_resumes(which: str, first_spe
     assert len(load_table(out)) == rows  # nothing new was solved
     code, err = cli_run(capsys, *timeout, "--reference-timeout", "7", "--out", out)
     assert code == 2 and err.count("\n") == 1 and "run.reference_timeout" in err, err
+
+
+def test_a_reference_limit_without_a_reference_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """With ``--reference none`` no reference is solved: any ``--reference-timeout`` is the
+    run without it."""
+    out = str(tmp_path / "run")
+    assert cli_run(capsys, "--reference", "none", "--out", out)[0] == 0
+    rows = len(load_table(out))
+    code, err = cli_run(capsys, "--reference", "none", "--reference-timeout", "7", "--out", out)
+    assert code == 0 and len(load_table(out)) == rows, err
