@@ -16,6 +16,10 @@ Reported:
   solve-time ratio    = median harness solve_time_s / median bare solve time (isolation must
                         not slow the solver itself)
   whole-run overhead  = the same with run_benchmark's fixed costs (plan, meta.json, parquet/csv)
+
+``--seal-only``: the seal's own cost at ``--size`` (outside the solve's clock, paid around
+every solve): ``ProblemSeal.of`` on the problem a solver is handed and the judge's copy,
+then ``broken`` after a product, in seconds.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from contactbench.harness.judging import ProblemSeal
+from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.kkt import kkt_check
 from contactbench.harness.profiles import PROFILES
 from contactbench.harness.run.job import JobDriver
@@ -52,6 +58,22 @@ class TopStep(PaperSweep):
         return LoadSequence(seq.instance, [seq.deltas[last]], lambda k: seq.at(last), surface=seq.surface)
 
 
+def seal_seconds(inst: ContactInstance) -> tuple[float, float]:
+    """(seconds of ``ProblemSeal.of``, seconds of ``broken``) on a solver's copy of ``inst``'s
+    problem with the judge's beside it, as the worker seals a solve; the seal must hold."""
+    qp = QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
+    qp.H.matvec(np.ones(qp.n))  # (the caches a product builds, as after a warm-up)
+    t0 = time.perf_counter()
+    seal = ProblemSeal.of(qp, [inst.qp])
+    t_of = time.perf_counter() - t0
+    qp.H.matvec(np.ones(qp.n))
+    t0 = time.perf_counter()
+    broken = seal.broken(qp)
+    t_broken = time.perf_counter() - t0
+    assert not broken, broken
+    return t_of, t_broken
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=256)
@@ -59,12 +81,17 @@ def main() -> None:
     ap.add_argument("--solver", default="pk")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--profile", default="default")
+    ap.add_argument("--seal-only", action="store_true", help="only the seal's cost at --size (module doc)")
     args = ap.parse_args()
 
     cfg = SceneConfig(size=args.size, steps=args.steps, seeds=(0,))
     scene = TopStep()
     spec = scene.instances(scene.config(cfg))[0]
     inst = scene.build(spec).at(0)
+    if args.seal_only:
+        t_of, t_broken = seal_seconds(inst)
+        print(f"paper-sweep top step, N = {args.size}, n = {inst.n}: seal {t_of:.3f} s, check {t_broken:.3f} s")
+        return
     solver = get_solver(args.solver)
     settings = SolverSettings(tol=PROFILES[args.profile].tol, time_limit=600)
     solver.solve(inst.qp, settings, None)  # warm-up
