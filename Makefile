@@ -83,5 +83,12 @@ docs: $(STAMP)
 benchmarks: $(STAMP)
 	$(PY) -m pytest --benchmark-only --benchmark-enable -q benchmarks
 
+# The paper-scale 512^2 sweep with every registered solver (results/paper: about 40 minutes on
+# 2 cores; the peers' rows need `make setup-peers`).  The folder's own command: a run that
+# finds every cell recorded adds none, and the report is written again.
+paper: $(STAMP)
+	$(VENV)/bin/contactbench run paper-sweep --solvers all --profile high --timeout 120 --out results/paper
+	$(VENV)/bin/contactbench report results/paper
+
 clean:
 	rm -rf $(VENV) site
