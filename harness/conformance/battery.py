@@ -101,7 +101,7 @@ from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
 from contactbench.solvers.base import Promise, Solver, describe_promise, promised_tol
 from contactbench.solvers.registry import load_solver
 
-from .declared import declaration_of, in_a_child
+from .declared import declaration_of, in_a_child, names_user_code
 from .cases import (
     BATTERY_GROUPS,
     DEFAULT_TIMEOUT,
@@ -502,12 +502,12 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     its declared ``Param``s first) and return the verdict table, its rows and summary
     named ``label`` (a variant's, ``name[k=v]``; default the solver's name).  ``timeout``: seconds
     per solve (``check_timeout``; None: the mode's default).  An empty ``cases`` is a
-    ``ProblemInputError``.  A solver named by text is loaded, with ``isolate``, only in
+    ``ProblemInputError``.  A solver named by import path is loaded, with ``isolate``, only in
     child processes (``declared.in_a_child``, ``CaseRunner``: a ``declared.LoadFailed``
     where it cannot be), so that nothing its module does reaches the judge."""
     limit = DEFAULT_TIMEOUT.get(mode, 60.0) if timeout is None else check_timeout(timeout)
     selected = _as_cases(cases, mode)
-    if isinstance(solver, str) and isolate:  # loaded in children only (harness/conformance/declared.py)
+    if isinstance(solver, str) and isolate and names_user_code(solver):  # loaded in children only (declared.py)
         d = in_a_child(declaration_of, solver, params, what=f"loading solver {solver!r}")
     else:
         solver = load_solver(solver) if isinstance(solver, str) else solver

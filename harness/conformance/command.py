@@ -24,7 +24,7 @@ from contactbench.solvers.registry import (NamedVariant, SolverDeclarationError,
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
 from ..run.isolation import SOLVER_FAULTS, exception_text
-from .declared import LoadFailed, OneLine, in_a_child
+from .declared import LoadFailed, OneLine, in_a_child, names_user_code
 from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, validate
 from .report import check_report_folder, write_conformance_report
 
@@ -220,7 +220,8 @@ def selected_solvers(names: Sequence[str], every: bool, extra: Sequence[Solver] 
     with ``every`` each available registered one, checked: each available, its parameters
     (a variant's own, else ``params``: ``--params``) taken by its declaration, no variant
     named twice (``refuse_same_variants``); none at all is an error when ``required``.
-    ``validate`` runs it in a child (``declared.in_a_child``): it loads the solvers."""
+    ``validate`` runs it in a child where a solver is named by import path
+    (``declared.in_a_child``, ``names_user_code``): it loads the solvers."""
     chosen = [pair for n in names for pair in named_candidates(n)]
     chosen += [(Candidate(s, s.name), s) for s in extra]
     for c, solver in chosen:
@@ -266,7 +267,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise CommandLineError(f"no case matches --cases {args.cases!r}; see `contactbench validate --list`")
         command_solvers = command_solver_of(args.command, args.inputs)
         choose = (args.solvers, args.all, command_solvers, not args.list, args.params)
-        solvers = selected_solvers(*choose) if args.no_isolate else in_a_child(selected_solvers, *choose)
+        in_child = not args.no_isolate and any(names_user_code(name) for name in args.solvers)
+        solvers = in_a_child(selected_solvers, *choose) if in_child else selected_solvers(*choose)
         if args.csv is not None:
             check_csv_path(args.csv)
         if args.out is not None:

@@ -1,15 +1,17 @@
 """What ``validate`` knows of a solver whose code it never runs: the declaration, read in a
 child process.
 
-``validate`` judges in its own process, so that what a solver's code does -- in its solve,
-or when its module is imported -- cannot reach the judge, the verdict table or the exit
-status.  A solver named by text (a registry name, ``module:NAME``) is therefore loaded only
-in child processes forked from ``validate``'s (``harness.run.isolation.ChildProcess``):
+``validate`` judges in its own process, so that what a new solver's code does -- in its
+solve, or when its module is imported -- cannot reach the judge, the verdict table or the
+exit status.  A solver named by import path (``module:NAME``, ``names_user_code``) is
+therefore loaded only in child processes forked from ``validate``'s
+(``harness.run.isolation.ChildProcess``):
 ``in_a_child`` runs one function there (loading, checking the parameters, availability) and
 brings back its plain result; the solves run in another such child
-(``cases.CaseRunner``), which loads the solver afresh.  A ``Solver`` object handed to the
-API, and every solver under ``--no-isolate``, is already in the harness's process: its code
-is trusted as any code that process imported (docs/verdicts.md).
+(``cases.CaseRunner``), which loads the solver afresh.  A registry name is the project's own
+solver or an installed plugin's, loaded where ``run`` loads it; a ``Solver`` object handed to
+the API, and every solver under ``--no-isolate``, is already in the harness's process: their
+code is trusted as any code that process imported (docs/verdicts.md).
 """
 
 from __future__ import annotations
@@ -26,6 +28,12 @@ from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_text
 
 #: Seconds a child may take to load the solvers named and read their declarations.
 LOAD_LIMIT_S = 300.0
+
+
+def names_user_code(spec: str) -> bool:
+    """Whether the solver spec ``spec`` (``NAME``, ``module:NAME``, either with ``[...]``)
+    names its solver by import path: code ``validate`` loads in a child only."""
+    return ":" in spec.split("[", 1)[0]
 
 
 @dataclass(frozen=True)
