@@ -27,7 +27,7 @@ from contactbench.solvers.registry import SolverDeclarationError, SolverSpecErro
 from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_text
 
 #: Seconds a child may take to load the solvers named and read their declarations.
-LOAD_LIMIT_S = 300.0
+LOAD_LIMIT_S = 120.0
 
 
 def names_user_code(spec: str) -> bool:
