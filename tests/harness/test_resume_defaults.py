@@ -27,17 +27,24 @@ def cli_run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
+def assert_resumes(capsys: pytest.CaptureFixture[str], first: tuple[str, ...], second: tuple[str, ...],
+                   out: str) -> None:
+    """A run with the options ``first`` into ``out``, then one with ``second``: the second
+    resumes the folder and solves nothing new."""
+    assert cli_run(capsys, *first, "--out", out)[0] == 0
+    rows = len(load_table(out))
+    code, err = cli_run(capsys, *second, "--out", out)
+    assert code == 0, err
+    assert len(load_table(out)) == rows  # nothing new was solved
+
+
 @pytest.mark.parametrize("first, second", [((), ("--surface-family", "saupe")),
                                            (("--surface-family", "saupe"), ())],
                          ids=["spelled-out-second", "spelled-out-first"])
 def test_the_family_in_effect_written_out_resumes(first: tuple[str, ...], second: tuple[str, ...], tmp_path: Path,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     out = str(tmp_path / "run")
-    assert cli_run(capsys, *first, "--out", out)[0] == 0
-    rows = len(load_table(out))
-    code, err = cli_run(capsys, *second, "--out", out)
-    assert code == 0, err
-    assert len(load_table(out)) == rows  # nothing new was solved
+    assert_resumes(capsys, first, second, out)
     code, err = cli_run(capsys, "--surface-family", "periodic", "--out", out)
     assert code == 2 and err.count("\n") == 1 and "scene_config.extra.family" in err and "--append" in err
 
@@ -182,11 +189,7 @@ def test_the_reference_limit_in_effect_written_out_resumes(which: str, first_spe
     spelled = (*timeout, "--reference-timeout", limit)
     first, second = (spelled, timeout) if first_spelled else (timeout, spelled)
     out = str(tmp_path / "run")
-    assert cli_run(capsys, *first, "--out", out)[0] == 0
-    rows = len(load_table(out))
-    code, err = cli_run(capsys, *second, "--out", out)
-    assert code == 0, err
-    assert len(load_table(out)) == rows  # nothing new was solved
+    assert_resumes(capsys, first, second, out)
     code, err = cli_run(capsys, *timeout, "--reference-timeout", "7", "--out", out)
     assert code == 2 and err.count("\n") == 1 and "run.reference_timeout" in err, err
 
@@ -194,8 +197,5 @@ def test_the_reference_limit_in_effect_written_out_resumes(which: str, first_spe
 def test_a_reference_limit_without_a_reference_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """With ``--reference none`` no reference is solved: any ``--reference-timeout`` is the
     run without it."""
-    out = str(tmp_path / "run")
-    assert cli_run(capsys, "--reference", "none", "--out", out)[0] == 0
-    rows = len(load_table(out))
-    code, err = cli_run(capsys, "--reference", "none", "--reference-timeout", "7", "--out", out)
-    assert code == 0 and len(load_table(out)) == rows, err
+    assert_resumes(capsys, ("--reference", "none"), ("--reference", "none", "--reference-timeout", "7"),
+                   str(tmp_path / "run"))
