@@ -15,7 +15,7 @@ from typing import Any, Callable, NoReturn
 
 from contactbench.plugins import did_you_mean
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.units import plain_float
+from contactbench.problems.units import plain_float, plain_int
 
 #: Exit status of bad input: refused before anything runs, in one line per problem.
 EXIT_BAD_INPUT = 2
@@ -62,7 +62,9 @@ class Parser(argparse.ArgumentParser):
 def plain_number(text: str, kind: type) -> Any:
     """``kind(text)`` for a number written plainly (``problems.units.plain_float``:
     ASCII digits, no underscores -- Python's ``float`` and ``int`` take "1_0" and other
-    scripts' digits); a ``ValueError`` otherwise."""
+    scripts' digits; a whole number: ``problems.units.plain_int``); a ``ValueError`` otherwise."""
+    if kind is int:
+        return plain_int(text)
     plain_float(text)
     return kind(text)
 

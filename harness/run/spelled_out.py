@@ -58,8 +58,7 @@ def given_apart(scene_config: Any, scenes: Any) -> Any:
     a record of named scenes is returned as it is."""
     if not isinstance(scene_config, dict) or not isinstance(scenes, list) or not scenes:
         return scene_config
-    names = [str(name) for name in scenes]
-    scene_config = file_options_given_apart(extras_given_apart(scene_config, names), names)
+    scene_config = options_given_apart(scene_config, [str(name) for name in scenes])
     try:
         defaults = [asdict(get_scene(str(name)).defaults) for name in scenes]
     except KeyError:
@@ -67,6 +66,13 @@ def given_apart(scene_config: Any, scenes: Any) -> Any:
     return {k: None if k != "extra" and v is not None and all(canonical_json(d.get(k)) == canonical_json(v)
                                                               for d in defaults) else v
             for k, v in scene_config.items()}
+
+
+def options_given_apart(scene_config: dict[str, Any], scenes: list[str]) -> dict[str, Any]:
+    """``scene_config`` less the ``extra`` options and the ``--surface`` file's options that
+    only spell out what is in effect without them (``extras_given_apart``,
+    ``file_options_given_apart``): what ``given_apart`` and ``left_out`` both take back."""
+    return file_options_given_apart(extras_given_apart(scene_config, scenes), scenes)
 
 
 def extras_given_apart(scene_config: dict[str, Any], scenes: list[str]) -> dict[str, Any]:
@@ -81,12 +87,11 @@ def extras_given_apart(scene_config: dict[str, Any], scenes: list[str]) -> dict[
 
 def left_out(cfg: SceneConfig, scenes: Sequence[str]) -> SceneConfig:
     """``cfg`` less the options that only spell out what is in effect without them
-    (``extras_given_apart``, ``file_options_given_apart``): the config the plan's recipes
+    (``options_given_apart``): the config the plan's recipes
     are built from, so they never carry one.  Other fields are left as given: one at its
     scene's default gives the recipes None gives where the scene fills it in, and is
     needed where it does not (the ``--length`` of a file that states no lateral size)."""
-    names = [str(name) for name in scenes]
-    kept = file_options_given_apart(extras_given_apart(asdict(cfg), names), names)
+    kept = options_given_apart(asdict(cfg), [str(name) for name in scenes])
     return replace(cfg, length=None if kept.get("length") is None else cfg.length,
                    extra=kept.get("extra", cfg.extra))
 
