@@ -352,11 +352,19 @@ def import_user_module(name: str) -> Any:
     return importlib.import_module(name)
 
 
-def load_solver(spec: str) -> Solver:
+def is_import_path(name: str) -> bool:
+    """Whether a solver's name (a spec's part before any ``[...]``) is an import path
+    ``module:NAME`` -- user code the harness imports -- rather than a registry name."""
+    return ":" in name
+
+
+def load_solver(spec: str | Solver) -> Solver:
     """A solver by registry name or by import path ``module:NAME`` (a Solver subclass,
     instance or factory; ``import_user_module`` finds the module), its declaration
-    checked (``check_declaration``)."""
-    if ":" not in spec:
+    checked (``check_declaration``); a ``Solver`` handed in is returned as it is."""
+    if isinstance(spec, Solver):
+        return spec
+    if not is_import_path(spec):
         return get_solver(spec)
     mod_name, attr = spec.split(":", 1)
     obj = getattr(import_user_module(mod_name), attr)

@@ -510,7 +510,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     if isinstance(solver, str) and isolate and names_user_code(solver):  # loaded in children only (declared.py)
         d = in_a_child(declaration_of, solver, params, what=f"loading solver {solver!r}")
     else:
-        solver = load_solver(solver) if isinstance(solver, str) else solver
+        solver = load_solver(solver)
         d = declaration_of(solver, params)
     name = label or d.name
     table = VerdictTable(name, mode, promise=d.promise)

@@ -375,7 +375,7 @@ class _SolverHandler:
     reads, loaded here: in the worker, never in the harness's process)."""
 
     def __init__(self, solver: Solver | str) -> None:
-        self.solver = load_solver(solver) if isinstance(solver, str) else solver
+        self.solver = load_solver(solver)
 
     def __call__(self, msg: Any) -> dict[str, Any]:
         return solve_case(self.solver, msg)
@@ -399,7 +399,7 @@ class CaseRunner:
         if isolate:  # (a solver named by text is loaded in the worker alone)
             self.worker = ChildProcess(partial(_SolverHandler, solver), capture_output=True)
         else:
-            self.solver = load_solver(solver) if isinstance(solver, str) else solver
+            self.solver = load_solver(solver)
 
     def solve(self, spec: InstanceSpec, step: int, warm: WarmStart | None = None) -> CaseAnswer:
         msg = SolveOrder(spec, step, self.timeout, self.params, warm)

@@ -19,7 +19,8 @@ from typing import Any, Sequence
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
 from contactbench.solvers.registry import (NamedVariant, SolverDeclarationError, SolverSpecError, all_solvers,
-                                           expand_solver_spec, load_solver, refuse_same_variants, split_solver_spec)
+                                           expand_solver_spec, is_import_path, load_solver, refuse_same_variants,
+                                           split_solver_spec)
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
@@ -122,7 +123,7 @@ def load_named_solver(name: str) -> Solver:
     dependency of the module that is not installed, a missing attribute, a declaration
     the registry refuses (``check_declaration``), or whatever importing the module or
     building the solver raised -- ``SystemExit`` included, never the end of ``validate``."""
-    if ":" not in name:
+    if not is_import_path(name):
         try:
             return load_solver(name)
         except KeyError as exc:

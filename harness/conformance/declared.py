@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import SolverDeclarationError, SolverSpecError, load_solver
+from contactbench.solvers.registry import SolverDeclarationError, SolverSpecError, is_import_path, load_solver
 
 from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_text
 
@@ -33,7 +33,7 @@ LOAD_LIMIT_S = 120.0
 def names_user_code(spec: str) -> bool:
     """Whether the solver spec ``spec`` (``NAME``, ``module:NAME``, either with ``[...]``)
     names its solver by import path: code ``validate`` loads in a child only."""
-    return ":" in spec.split("[", 1)[0]
+    return is_import_path(spec.split("[", 1)[0])
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ def declaration_of(solver: Solver | str, params: dict[str, Any] | None = None) -
     """The declaration of ``solver`` (a ``Solver``, or the text ``load_solver`` reads); where
     it is available, its parameters ``params`` checked (``Solver.resolve_params``: a
     ``ParamError``)."""
-    s = load_solver(solver) if isinstance(solver, str) else solver
+    s = load_solver(solver)
     try:
         available, why = s.availability()
     except SOLVER_FAULTS as exc:

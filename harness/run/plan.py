@@ -39,7 +39,7 @@ from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.registry import (NamedVariant, SolverSpec, all_solvers, available_solvers, expand_solver_spec,
-                                           get_solver, load_solver, refuse_same_variants, register, split_solver_list,
+                                           get_solver, is_import_path, load_solver, refuse_same_variants, register, split_solver_list,
                                            split_solver_spec)
 
 from ..arguments import check_time_limit
@@ -256,7 +256,7 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
             except (ImportError, AttributeError, TypeError) as exc:
                 raise ProblemInputError(f"cannot load solver {text.strip()!r}: {type(exc).__name__}: {exc}") from None
             parts = split_solver_spec(text)
-            if ":" in parts.name:
+            if is_import_path(parts.name):
                 refuse_name_clash(text.strip(), solver)
                 register(solver, replace=True)  # (the same class again: each worker loads it too)
             if parts.raw or parts.grid:

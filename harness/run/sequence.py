@@ -148,7 +148,7 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
     ``check_tol`` (default: the "default" profile's), against ``references[k]`` when
     given.  Stops after the step that brings the total solve time over ``budget_s``, or
     at a ``MemoryError`` (recorded as that step's ``error``)."""
-    s = load_solver(solver) if isinstance(solver, str) else solver
+    s = load_solver(solver)
     settings = settings or SolverSettings()
     tol = get_profile("default").check_tol if check_tol is None else float(check_tol)
     kind = s.capabilities.warm_start if warm else "none"
