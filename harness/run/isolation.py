@@ -6,6 +6,7 @@ for the answer; then
 
 * an answer            -> ``ChildReply(kind="ok")`` (or ``"error"`` if the handler raised),
 * no answer in time    -> the child is killed (SIGKILL) -> ``ChildReply(kind="timeout")``,
+  whose detail names where the worker was, read just before (``stacks.where_it_was``),
 * the child died       -> ``ChildReply(kind="crashed")`` with its signal / exit code
   (a segfault or ``os.abort`` in a solver costs only the message that caused it).
 
@@ -71,6 +72,7 @@ from typing import Any, Callable, Iterator, Literal, NoReturn
 from contactbench.solvers._processes import become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
+from .stacks import dump_stacks_on_signal, pass_stack_signal_to, short_path, where_it_was
 
 Handler = Callable[[Any], Any]
 HandlerFactory = Callable[[], Handler]
@@ -93,15 +95,7 @@ def raised_at(exc: BaseException, frames: int = 2) -> str:
     ``path:line in function`` with the path cut below ``site-packages`` (a peer's own
     module) or to its file name -- so a row tells a solver's bug from a dependency's."""
     stack = traceback.extract_tb(exc.__traceback__)[-frames:]
-    return " <- ".join(f"{_short_path(f.filename)}:{f.lineno} in {f.name}" for f in reversed(stack))
-
-
-def _short_path(path: str) -> str:
-    head, sep, tail = path.rpartition("site-packages" + os.sep)
-    if sep:
-        return tail
-    parts = path.split(os.sep)
-    return os.sep.join(parts[-2:])
+    return " <- ".join(f"{short_path(f.filename)}:{f.lineno} in {f.name}" for f in reversed(stack))
 
 
 def exception_message(exc: BaseException) -> str:
@@ -245,6 +239,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         os.setpgid(0, 0)
     if scratch is not None:  # the worker's temporary files (and its programs'), removed by the parent
         tempfile.tempdir = os.environ["TMPDIR"] = scratch
+        dump_stacks_on_signal(scratch)  # (read at a timeout, before the kill: ``where_it_was``)
     set_parent_death_signal()
     if become_subreaper():  # this process keeps the worker's tree (``keep_worker_tree``); the worker is its child
         signal.signal(signal.SIGTERM, _end_kept_tree)
@@ -253,6 +248,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         worker = os.fork()
         if worker:
             conn.close()  # (the worker's end of the pipe is the worker's alone: its death reads as EOF)
+            pass_stack_signal_to(worker)
             keep_worker_tree(worker)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         set_parent_death_signal()
@@ -406,7 +402,8 @@ class ChildProcess:
             return self._crashed(t0)
         if not self._answered_within(timeout):
             elapsed = time.perf_counter() - t0
-            detail = f"no answer within the hard limit of {timeout:.3g} s; worker killed" + self.output_tail()
+            where = where_it_was(self.proc.pid, self.scratch) if self.scratch is not None else ""
+            detail = f"no answer within the hard limit of {timeout:.3g} s; worker killed{where}" + self.output_tail()
             self.kill()
             return ChildReply("timeout", elapsed=elapsed, detail=detail)
         try:

@@ -58,6 +58,7 @@ def test_crash_hang_and_raise_cost_only_their_own_rows(tmp_path: Path) -> None:
     hang = df[df.solver == "test-hang"].sort_values("step")
     assert list(hang["status"]) == ["timeout", "skipped"]  # the larger step is predicted too slow
     assert "timed out at step 0" in hang.iloc[1]["skip_reason"]
+    assert "; it was at tests/helpers.py:" in hang.iloc[0]["error"] and "in iterate" in hang.iloc[0]["error"]
     crash = df[df.solver == "test-crash"].iloc[0]
     assert "SIGABRT" in crash["error"]
     raised = df[df.solver == "test-raise"].iloc[0]["error"]
