@@ -18,6 +18,9 @@ taken back when
 * it is an option of a ``--surface`` file that only states what the reader takes from the
   file without it (``file_options_spelled_out``: ``--height-unit m`` on a file that states
   no unit, a ``--length`` that agrees with the lateral size the file states).
+
+A ``--length L0,L1`` that reads its file as ``--length L0`` does is written L0
+(``one_length_where_it_reads_so``).
 """
 
 from __future__ import annotations
@@ -92,7 +95,8 @@ def left_out(cfg: SceneConfig, scenes: Sequence[str]) -> SceneConfig:
     scene's default gives the recipes None gives where the scene fills it in, and is
     needed where it does not (the ``--length`` of a file that states no lateral size)."""
     kept = options_given_apart(asdict(cfg), [str(name) for name in scenes])
-    return replace(cfg, length=None if kept.get("length") is None else cfg.length,
+    length = kept.get("length")
+    return replace(cfg, length=tuple(length) if isinstance(length, (list, tuple)) else length,
                    extra=kept.get("extra", cfg.extra))
 
 
@@ -101,10 +105,24 @@ def file_options_given_apart(scene_config: dict[str, Any], scenes: list[str]) ->
     reader takes from the file without them (``file_options_spelled_out``): the length
     goes back to None, an ``extra`` key is left out."""
     dropped = file_options_spelled_out(scene_config, scenes)
-    if not dropped:
-        return scene_config
-    extra = {k: v for k, v in scene_config["extra"].items() if k not in dropped}
-    return {**scene_config, "extra": extra, **({"length": None} if "length" in dropped else {})}
+    if dropped:
+        extra = {k: v for k, v in scene_config["extra"].items() if k not in dropped}
+        scene_config = {**scene_config, "extra": extra, **({"length": None} if "length" in dropped else {})}
+    return {**scene_config, "length": one_length_where_it_reads_so(scene_config)}
+
+
+def one_length_where_it_reads_so(scene_config: dict[str, Any]) -> Any:
+    """The ``length`` of ``scene_config``, written L0 where it is a pair L0,L1 that reads its
+    ``--surface`` file as L0 alone does (``map_key``: the same spacing per axis, so L1 is
+    what L0 implies): ``--length L`` and ``--length L,L`` on a square map are one
+    configuration.  Anything else is returned as it is."""
+    length, path, extra = scene_config.get("length"), scene_config.get("surface_path"), scene_config.get("extra")
+    if not (isinstance(length, (list, tuple)) and len(length) == 2 and isinstance(path, str) and path
+            and isinstance(extra, dict)):
+        return length
+    unit = extra.get("height_unit")
+    as_pair = map_key(path, extra, list(length), unit)
+    return length[0] if as_pair is not None and map_key(path, extra, length[0], unit) == as_pair else length
 
 
 def file_options_spelled_out(scene_config: dict[str, Any], scenes: list[str]) -> set[str]:

@@ -151,6 +151,27 @@ def test_a_file_option_at_what_the_file_states_resumes(which: str, first_spelled
     assert err.count("\n") == 1 and "scene_config.extra.height_unit" in err, err
 
 
+@pytest.mark.parametrize("first_pair", [True, False], ids=["pair-first", "pair-second"])
+def test_one_length_and_the_pair_it_implies_are_one_configuration(first_pair: bool, tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """On a square map that states no size, ``--length L`` and ``--length L,L`` read the
+    same spacing: either resumes the folder the other wrote and solves nothing new; a pair
+    that reads another spacing is another configuration."""
+    path = tmp_path / "map.npy"
+    np.save(path, np.random.default_rng(0).normal(size=(8, 8)) * 1e-7)
+    base = [a for a in COMMON if a not in ("--size", "8")] + ["--surface", str(path), "--height-unit", "m", "--kernel", "love"]
+    one, pair = ("--length", "2e-4"), ("--length", "2e-4,2e-4")
+    first, second = (pair, one) if first_pair else (one, pair)
+    out = str(tmp_path / "run")
+    assert cli.main([*base, *first, "--out", out]) == 0, capsys.readouterr().err
+    ids = sorted(load_table(out)["cell_id"])
+    assert cli.main([*base, *second, "--out", out]) == 0, capsys.readouterr().err
+    assert sorted(load_table(out)["cell_id"]) == ids
+    assert cli.main([*base, "--length", "2e-4,3e-4", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "scene_config.length" in err, err
+
+
 def test_a_file_option_is_kept_where_leaving_it_out_reads_otherwise(tmp_path: Path) -> None:
     """The length of a file that states none, a length the scene fills in itself where it
     is left out (the CMR scenes), and a unit other than the one the reader applies are
