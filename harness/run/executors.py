@@ -21,12 +21,13 @@ import os
 import signal
 import sys
 import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, InvalidStateError, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
 from .isolation import remove_orphan_scratch, set_parent_death_signal
-from .interrupts import signals_deferred
+from .interrupts import STOP_SIGNALS, signals_deferred
 from .job import JobDriver, run_instance_job
 from .output_log import OUTPUT_LOG
 from .plan import InstanceJob, RunConfig
@@ -76,13 +77,38 @@ class SerialExecutor:
                 log.info("%s/%s: %d rows", job.spec.scene, job.spec.instance, len(store) - n_before)
 
 
+#: Seconds ``stop_workers`` gives the pool's processes to stop their jobs -- each kills its
+#: solver worker and writes what the solve printed to the log -- before it kills them.
+STOP_GRACE_S = 10.0
+
+#: In a pool process: whether a job is running there (``_pool_run``).
+_IN_JOB = False
+
+
 def _pool_init() -> None:
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (the command's own handler is its process's)
+    for sig in STOP_SIGNALS:  # (the command's own handlers are its process's)
+        signal.signal(sig, _stop_pool_process)
     set_parent_death_signal()
 
 
+def _stop_pool_process(signum: int, frame: Any) -> None:
+    """A pool process's Ctrl-C or SIGTERM (``stop_workers``): a running job stops as the
+    serial run's does (``JobDriver.call``: its solve's output joins the log, marked
+    stopped) and the process then exits (``_pool_run``); an idle one exits at once."""
+    if _IN_JOB:
+        raise KeyboardInterrupt
+    os._exit(128 + signum)
+
+
 def _pool_run(job: InstanceJob, run: RunConfig, out_dir: str, statuses: dict[str, str]) -> int:
-    return run_instance_job(job, run, out_dir, statuses)
+    global _IN_JOB
+    _IN_JOB = True
+    try:
+        return run_instance_job(job, run, out_dir, statuses)
+    except KeyboardInterrupt:
+        os._exit(128 + signal.SIGINT)  # (no other job may start here: the run is stopping)
+    finally:
+        _IN_JOB = False
 
 
 @dataclass
@@ -123,14 +149,22 @@ class PoolExecutor:
 
 
 def stop_workers(pool: ProcessPoolExecutor) -> None:
-    """Kill the pool's processes at once -- the jobs they are running and the solver workers
-    those started (``PR_SET_PDEATHSIG``) -- so that leaving the pool does not wait for them.
+    """Stop the pool's processes: each is told to stop (SIGTERM: its running job kills its
+    solver worker and writes what the solve printed to the log, ``_stop_pool_process``), and
+    whichever has not exited within ``STOP_GRACE_S`` is killed -- with the solver workers it
+    started (``PR_SET_PDEATHSIG``) -- so that leaving the pool does not wait on a stuck one.
     The rows they stored are kept; a row cut short by the kill is read as never written."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     manager = getattr(pool, "_executor_manager_thread", None)  # (shutdown drops the pool's reference)
     before = threading.excepthook
     threading.excepthook = _quiet_on_cancelled(before)
     try:
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        end = time.monotonic() + STOP_GRACE_S
+        for proc in procs:
+            proc.join(max(0.0, end - time.monotonic()))
         for proc in procs:
             if proc.is_alive():
                 proc.kill()

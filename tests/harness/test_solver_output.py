@@ -133,6 +133,22 @@ def test_the_output_of_a_solve_stopped_by_ctrl_c_reaches_the_log_marked_interrup
     assert (tmp_path / "r" / PARQUET_FILE).exists()
 
 
+def test_the_output_of_a_pool_solve_stopped_by_ctrl_c_reaches_the_log_marked_interrupted(
+        tmp_path: Path, interrupting: str) -> None:
+    """With ``--jobs 2``, Ctrl-C stops each pool process's job as a serial run's is
+    stopped: the output of the solves it was in joins the log, marked interrupted, and the
+    run's table is written."""
+    with pytest.raises(KeyboardInterrupt):
+        run_benchmark(["counterexample"], SceneConfig(size=10, seeds=(0, 1)), [interrupting],
+                      RunConfig(progress=False, warmup=False, reference="none", jobs=2), tmp_path / "r",
+                      command=["pytest"], executor=PoolExecutor(2))
+    text = (tmp_path / "r" / OUTPUT_LOG).read_text() if (tmp_path / "r" / OUTPUT_LOG).exists() else ""
+    titles = [line for line in text.splitlines() if line.startswith("==> ")]
+    assert titles and all(STOPPED in title for title in titles), text[:500]
+    assert text.count("printed-before-the-interrupt") == len(titles)
+    assert (tmp_path / "r" / PARQUET_FILE).exists()
+
+
 def test_an_entry_keeps_the_head_and_counts_what_it_dropped(tmp_path: Path) -> None:
     source = tmp_path / "out.txt"
     source.write_bytes(b"a" * 100 + b"b" * 50)
