@@ -3,7 +3,9 @@
 Before a solve the harness asks, in order (the first "no" is the recorded reason, in
 words, with the estimate):
 
-1. can the solver be loaded, and is it available (``Solver.availability``)?
+1. can the solver be loaded, and is it available (``Solver.availability``)?  Then the
+   profile: a solver whose declared accuracy floor is above the profile's check is not run
+   under it (``Profile.floor_skip``), whatever n;
 2. ``capabilities.max_n`` against the trial-set size n;
 3. the operator: a solver that needs the dense H (``needs_dense``, or no "fft" among its
    ``operators``) is given one; a solver that needs the FFT operator cannot run on a
@@ -35,7 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
@@ -123,12 +125,15 @@ def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) 
 
 
 def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_budget: float,
-                  observed: Sequence[Observation] | None = None, params: dict[str, Any] | None = None) -> Decision:
+                  observed: Sequence[Observation] | None = None, params: dict[str, Any] | None = None,
+                  floor: Callable[[Solver], str | None] | None = None) -> Decision:
     """Whether solver ``base`` (registry name or ``module:NAME``) can serve a problem
     with these traits within the limits (module doc, steps 1-6).  ``observed`` = the
     (n', seconds) of the same solver's last one or two finished steps of the load
     sequence: when given it replaces the static time model (which cannot know about
-    warm starts).  ``params``: the variant's own parameters (``capability_decision``)."""
+    warm starts).  ``params``: the variant's own parameters (``capability_decision``).
+    ``floor``: why the profile does not run the solver (``Profile.floor_skip``), asked
+    once it is loaded and available, before steps 2-6 (a reason that holds at every n)."""
     try:
         solver = load_solver(base)
     except Exception as exc:
@@ -136,6 +141,9 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
     ok, why = solver.availability()
     if not ok:
         return Decision(reason=f"not available: {why}")
+    beyond_reach = floor(solver) if floor is not None else None
+    if beyond_reach:
+        return Decision(reason=beyond_reach)
     d = capability_decision(solver, traits, memory_budget, params)
     if d.skip:
         return d
@@ -227,8 +235,8 @@ class SkipPolicy:
       observation per step: the fastest of its answered repeats) feed
       ``extrapolated_time`` along a load history;
     * else the solver's own time model;
-    * and a solver whose declared accuracy floor is above the profile's check is skipped
-      (``Profile.floor_skip``).
+    * and, before any of these, a solver whose declared accuracy floor is above the
+      profile's check is skipped (``Profile.floor_skip``: the same reason on every step).
     """
 
     time_limit: float
@@ -240,10 +248,8 @@ class SkipPolicy:
         """The decision for ``step`` of sequence ``key`` (class doc) for the variant of
         solver ``base`` with ``params``."""
         observed = self.observations(key, step) if load_history else []
-        d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed, params)
-        floor = None if d.skip else get_profile(key[1]).floor_skip(load_solver(base))
-        if floor:
-            return Decision(reason=floor)
+        d = skip_decision(base, traits, self.time_limit, self.memory_budget, observed, params,
+                          floor=get_profile(key[1]).floor_skip)
         slow = self.first_timeout(key, step)
         if not d.skip and slow is not None and traits.n >= slow.n:
             return Decision(reason=f"predicted over the {self.time_limit:g} s limit: it timed out at step "

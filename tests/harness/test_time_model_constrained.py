@@ -133,6 +133,18 @@ def test_a_declared_accuracy_floor_above_the_profiles_check_is_a_recorded_skip()
     assert not policy.decide("qp-clarabel", ("qp-clarabel", "high"), traits, 0).skip
 
 
+def test_the_accuracy_floor_is_the_reason_whatever_the_time_model_says() -> None:
+    """admm (floor 1e-6) on the paper sweep's third step at 512^2: under ``high`` the floor
+    is the reason, as on the steps its time model passes; under ``mid`` the floor is within
+    reach and the time model decides."""
+    policy = SkipPolicy(60.0, 8 * GiB)
+    traits = ProblemTraits(n=1_881, operator="fft", has_surface=True, surface_side=512)
+    small = ProblemTraits(n=89, operator="fft", has_surface=True, surface_side=512)
+    assert "accuracy floor" in policy.decide("admm", ("admm", "high"), traits, 2).reason
+    assert "accuracy floor" in policy.decide("admm", ("admm", "high"), small, 0).reason
+    assert "predicted solve time" in policy.decide("admm", ("admm", "mid"), traits, 2).reason
+
+
 #: The first step of ``plastic-sweep`` (256^2, hardness 0.3 E*): n = 30 on a padded grid of
 #: 512^2 points.  Recorded (2-core vm): gp 0.012 s and 155 products, greedy-cg 0.0016 s and
 #: 88; the last step (n = 8,803) gp 2,388 products.  The model once costed each product at
