@@ -33,7 +33,7 @@ from .charts import Chart, RowChart
 from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace,
                    pick_profile)
 from .sections.fields import load_area_series, trace_scene
-from .sections.generic import best_of_family, profile_taus, reached_accuracy
+from .sections.generic import SOLVED_COLUMNS, best_of_family, profile_taus, reached_accuracy
 from .sections.paper import k_of
 from .page_script import PAGE_SCRIPT
 from .style import MAX_SERIES, sort_families
@@ -46,15 +46,17 @@ HTML_HEAD = "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><t
 
 
 def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
-    """The attempted rows, one dict each, with short keys (the page's data table)."""
+    """The attempted rows, one dict each, with short keys (the page's data table); ``ref``:
+    the row's answer served as its step's reference (``agg.own_reference``: its ``perr`` is
+    0 by construction, and the error-in-p chart leaves it out)."""
     t = attempted(ctx.table)
     warm = t.groupby(["scene", "solver", "profile", "history"])["warm_start"].transform("any").astype(bool)
     out = []
-    for (_, r), w in zip(t.iterrows(), warm):
+    for (_, r), w, own in zip(t.iterrows(), warm, agg.own_reference(t)):
         out.append(dict(sc=r["scene"], inst=r["instance"], st=as_finite(r["step"]), n=as_finite(r["n"]), so=r["solver"],
                         lab=f"{r['solver']}{WARM_SUFFIX}" if w else r["solver"], fa=ctx.family(r["solver"]),
                         pr=r["profile"], stt=r["status"], kkt=as_finite(r["kkt_error"]),
-                        perr=as_finite(r["p_rel_error"]), lerr=as_finite(r["load_rel_error"]),
+                        perr=as_finite(r["p_rel_error"]), ref=bool(own), lerr=as_finite(r["load_rel_error"]),
                         t=as_finite(r["solve_time_s"]), it=as_finite(r["iterations"]),
                         dl=as_finite(r["dim_load"]), cf=as_finite(r["contact_fraction"]), K=as_finite(k_of(r)),
                         base=r["base_solver"]))
@@ -90,6 +92,15 @@ def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]
     return out
 
 
+#: The page's aggregate table: its columns (a share's header names its denominator, as
+#: report.md's aggregates: sections/generic.py ``SOLVED_COLUMNS``), those shown in per cent,
+#: and the column it is sorted by at first.
+SGM_COLUMNS: tuple[str, ...] = ("solver", "family", *SOLVED_COLUMNS, "SGM [s]", "SGM / best",
+                                "median kkt (solved)", "false claims")
+SGM_PERCENT: tuple[str, ...] = ("solved / problems", "solved / attempted")
+SGM_SORT = "SGM / best"
+
+
 def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]
                      ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Per scene: the performance profile curves and the aggregate (SGM) table."""
@@ -100,10 +111,12 @@ def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSum
         solvers = natural_sorted(r["solver"].unique())
         summ = summaries[scene]
         acc = reached_accuracy(r)
-        sgm[scene] = {"columns": ["solver", "family", "solved", "attempted", "success", "SGM [s]", "SGM / best",
-                                  "median kkt (solved)", "false claims"],
-                      "rows": [[s.solver, ctx.family(s.solver), s.solved, s.attempted, as_finite(s.success_rate),
-                                as_finite(s.sgm_s), as_finite(s.sgm_rel), as_finite(acc.get(s.solver)), s.false_claims]
+        sgm[scene] = {"columns": [*SGM_COLUMNS],
+                      "percent": [SGM_COLUMNS.index(c) for c in SGM_PERCENT],
+                      "sort": SGM_COLUMNS.index(SGM_SORT),
+                      "rows": [[s.solver, ctx.family(s.solver), s.problems, s.attempted, s.solved,
+                                as_finite(s.solved_share), as_finite(s.success_rate), as_finite(s.sgm_s),
+                                as_finite(s.sgm_rel), as_finite(acc.get(s.solver)), s.false_claims]
                                for s in summ]}
         cells = agg.cell_table(r, solvers)
         prof = agg.performance_profile(cells)
@@ -177,8 +190,8 @@ def render_html(ctx: ReportContext) -> str:
 
     data = page_data(ctx)
     title = html.escape(f"{REPORT_TITLE}: {data['title']}")
-    return (f"{HTML_HEAD}{title}</title>\n"
-            f"<style>{PAGE_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
+    return (f"{HTML_HEAD}{title}</title>\n{VIEWPORT}\n"
+            f"<style>{PAGE_CSS}{NARROW_CSS}</style>\n<script>{get_plotlyjs()}</script>\n</head><body>\n"
             f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
             f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "
             f"profiles; a chart of more than {MAX_SERIES} series draws the best solver of each family first "
@@ -196,8 +209,8 @@ def tables_html(ctx: ReportContext) -> str:
     for t in (t for t in ctx.tables if t.on_page):
         head = "".join(f"<th>{html.escape(h)}</th>" for h in t.headers)
         body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in t.rows)
-        out.append(f'<table class="sgm"><caption>Table {t.number}: {html.escape(t.caption)}</caption>'
-                   f"<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+        out.append(f'<div class="tablebox"><table class="sgm"><caption>Table {t.number}: '
+                   f"{html.escape(t.caption)}</caption><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>")
     return f'<section id="tables"><h2>Tables (as in report.md)</h2>{"".join(out)}</section>\n' if out else ""
 
 
@@ -209,6 +222,7 @@ def write_html_report(ctx: ReportContext) -> Path:
 
 
 PAGE_CSS = """
+html{overflow-y:scroll}
 body{font-family:system-ui,sans-serif;margin:0;color:#222}
 header{padding:8px 16px;border-bottom:1px solid #ddd}
 header h1{font-size:1.2em;margin:4px 0}
@@ -224,7 +238,10 @@ header p{margin:4px 0;font-size:.85em;color:#555}
 .scene{margin-bottom:24px}
 .scene h2{font-size:1.05em;border-bottom:1px solid #eee}
 .chart{width:100%;height:420px}
-.grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(520px,1fr));gap:8px}
+.grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(min(520px,100%),1fr));gap:8px}
+.tablebox{overflow-x:auto;max-width:100%}
+.note{font-size:.8em;color:#555;margin:4px 0}
+#tables{padding:8px 16px}
 table.sgm{border-collapse:collapse;font-size:.8em;margin:8px 0}
 table.sgm th,table.sgm td{border:1px solid #ddd;padding:2px 6px;text-align:right}
 table.sgm th{cursor:pointer;background:#f6f6f6}
@@ -232,3 +249,21 @@ table.sgm td:first-child,table.sgm td:nth-child(2){text-align:left}
 img.static{max-width:100%;border:1px solid #eee}
 .hidden{display:none}
 """
+
+#: Below this page width (CSS pixels: a phone, a narrow window) the picker stops being a
+#: sidebar: it goes above the charts, a box of its own that scrolls, and the charts take the
+#: whole width, one per row (a wide table scrolls sideways in its ``.tablebox``).
+NARROW_MAX_PX = 800
+
+#: Lays the page out at the device's width (a phone's browser otherwise draws it ~980 px wide,
+#: zoomed out, and ``NARROW_CSS`` never applies).
+VIEWPORT = '<meta name="viewport" content="width=device-width, initial-scale=1">'
+NARROW_CSS = (f"@media (max-width:{NARROW_MAX_PX}px){{"
+              "#layout{display:block}"
+              "#picker{width:auto;position:static;max-height:40vh;border-right:none;border-bottom:1px solid #ddd}"
+              "#picker label{white-space:normal}"
+              "#charts{padding:8px}"
+              ".grid{grid-template-columns:1fr}"
+              ".chart{height:640px}"
+              "#tables{padding:8px}"
+              "}\n")

@@ -29,7 +29,10 @@ const HOVER = 'instance %{customdata[0]}, step %{customdata[1]}, n %{customdata[
   'solver %{customdata[9]} (%{customdata[10]})<br>kkt_error %{customdata[3]}, p error %{customdata[4]}, ' +
   'load error %{customdata[5]}<br>time %{customdata[6]} s, iterations %{customdata[7]}, status %{customdata[8]}' +
   '<extra></extra>';
-const custom = r => [r.inst, r.st, r.n, fmt(r.kkt), fmt(r.perr), fmt(r.lerr), fmt(r.t), r.it, r.stt, r.so, r.pr];
+// A row whose answer served as its step's reference (r.ref) has p error 0 by construction: the hover
+// says 'ref', and the p-error chart leaves it out (at the log floor it would read as exact).
+const custom = r => [r.inst, r.st, r.n, fmt(r.kkt), r.ref ? 'ref' : fmt(r.perr), fmt(r.lerr), fmt(r.t), r.it, r.stt, r.so, r.pr];
+const measured = (r, key) => r[key] !== null && !(key === 'perr' && r.ref);
 const base = lab => lab.replace(/ \(warm\)$/, '');
 
 function rowsOf(scene) {
@@ -114,7 +117,7 @@ function lineChart(scene, c) {
 }
 function wpChart(scene, key, yTitle) {
   return () => {
-    const rows = rowsOf(scene).filter(r => r.t !== null && r[key] !== null);
+    const rows = rowsOf(scene).filter(r => r.t !== null && measured(r, key));
     const g = groupBy(rows, r => r.so + '|' + r.pr);
     const traces = [];
     [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
@@ -124,7 +127,8 @@ function wpChart(scene, key, yTitle) {
         marker: {color: rs.map(r => r.stt === 'solved' ? col : 'white'), line: {color: col, width: 1},
           symbol: MARKERS[pr] || 'diamond', size: 7}});
     });
-    const lay = layout('run time against ' + yTitle + ' (' + scene + ')', 'solve time [s]', yTitle,
+    const refs = key === 'perr' && rowsOf(scene).some(r => r.ref) ? '; reference\'s own not drawn' : '';
+    const lay = layout('run time against ' + yTitle + ' (' + scene + refs + ')', 'solve time [s]', yTitle,
       rows.map(r => r.t), [1, 10, 100]);
     lay.yaxis.type = 'log';
     return thin(scene, traces, lay);
@@ -197,14 +201,15 @@ function loadAreaChart() {
 const esc = v => String(v).replace(/[&<>"']/g, c => ({'&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;'})[c]);
 function sgmTable(scene, holder) {
   const T = D.sgm[scene];
-  let sortCol = 6, asc = true;
+  let sortCol = T.sort, asc = true;
+  const pct = new Set(T.percent);
   function render() {
     const rows = T.rows.filter(r => state.solvers.has(r[0])).slice().sort((a, b) => {
       const x = a[sortCol], y = b[sortCol];
       if (x === y) return 0; if (x === null) return 1; if (y === null) return -1;
       return (x < y ? -1 : 1) * (asc ? 1 : -1); });
     const head = '<tr>' + T.columns.map((c, i) => '<th data-i="' + i + '">' + esc(c) + (i === sortCol ? (asc ? ' &#9650;' : ' &#9660;') : '') + '</th>').join('') + '</tr>';
-    const body = rows.map(r => '<tr>' + r.map((v, i) => '<td>' + (i === 4 && v !== null ? Math.round(100 * v) + ' %' :
+    const body = rows.map(r => '<tr>' + r.map((v, i) => '<td>' + (pct.has(i) && v !== null ? Math.round(100 * v) + ' %' :
       (typeof v === 'number' ? fmt(v) : (v === null ? '-' : esc(v)))) + '</td>').join('') + '</tr>').join('');
     holder.innerHTML = '<table class="sgm">' + head + body + '</table>';
     holder.querySelectorAll('th').forEach(th => th.addEventListener('click', () => {
@@ -232,13 +237,17 @@ function build() {
     D.charts.filter(c => c.scene === scene).forEach(c => addChart(grid, scene, () => [c.data, c.layout]));
     if (has) {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));
-      if (D.rows.some(r => r.sc === scene && r.perr !== null)) addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
+      if (D.rows.some(r => r.sc === scene && measured(r, 'perr'))) addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
     }
     if (D.pp[scene]) addChart(grid, scene, ppChart(scene));
     if (D.sgm[scene]) {
       const h = document.createElement('div');
-      h.innerHTML = '<h3>shifted geometric mean of solve time (click a header to sort)</h3>';
-      const t = document.createElement('div'); h.appendChild(t); sec.appendChild(h); sgmTable(scene, t);
+      h.innerHTML = '<h3>problems solved and shifted geometric mean of solve time (click a header to sort)</h3>' +
+        '<p class="note">solved / problems: of every problem of the scene, a skipped or not run cell counting as ' +
+        'not solved; solved / attempted: of the cells the solver ran. SGM: every unsolved cell counts at its time ' +
+        'limit, relative to the best solver that solved a problem; - where no solver solved one.</p>';
+      const t = document.createElement('div'); t.className = 'tablebox';
+      h.appendChild(t); sec.appendChild(h); sgmTable(scene, t);
       charts.push({div: null, scene: scene, table: t});
     }
     main.appendChild(sec);
@@ -259,6 +268,8 @@ function build() {
 // solver, profile and instance in full): Plotly sizes the legend to its longest entry, and
 // names of a solver, its parameters, a profile and an instance left the plot a sliver.
 const LEGEND_CHARS = 44;
+// A chart narrower than this (CSS pixels: a phone) puts its legend under the plot, not beside it.
+const NARROW_CHART_PX = 600;
 const legendName = n => typeof n === 'string' && n.length > LEGEND_CHARS
   ? n.slice(0, LEGEND_CHARS / 2 - 1) + '\u2026' + n.slice(n.length - LEGEND_CHARS / 2) : n;
 function redraw() {
@@ -269,6 +280,10 @@ function redraw() {
     if (c.table) { c.table.render(); return; }
     const [traces, lay] = c.draw();
     traces.forEach(t => { t.name = legendName(t.name); });
+    if (c.div.clientWidth < NARROW_CHART_PX) {  // a legend at the side would leave the plot a sliver
+      lay.legend = Object.assign({}, lay.legend, {orientation: 'h', x: 0, xanchor: 'left', y: -0.32, yanchor: 'top'});
+      if (lay.legend.title) lay.legend.title = Object.assign({}, lay.legend.title, {side: 'top'});
+    }
     Plotly.react(c.div, traces, lay, {responsive: true, displayModeBar: false});
   });
 }

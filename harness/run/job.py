@@ -59,6 +59,7 @@ from .plan import InstanceJob, RunConfig
 from ..profiles import get_profile
 from .rows import RowFactory, answer_columns
 from .skips import Decision, SkipPolicy, extrapolated_time, problem_time_estimate, skip_decision
+from ..table.aggregates import served_name
 from ..table.files import safe_name
 from ..table.store import ResultStore
 from .studies import SolverVariant
@@ -512,11 +513,6 @@ def forget_file(path: Path) -> None:
     its place, a read-only disk) stays, costing nothing but its space."""
     with contextlib.suppress(OSError):
         path.unlink(missing_ok=True)
-
-
-def served_name(label: str, profile: str) -> str:
-    """``reference_solver`` of a run's own answer that served as the reference."""
-    return f"{label}@{profile}"
 
 
 def is_exact(base: str) -> bool:

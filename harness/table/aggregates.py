@@ -12,8 +12,11 @@ Definitions (the report states them next to every number):
   base and parameters).  Repeats are folded into the cell: it is solved
   when every repeat is ``status == "solved"`` (the harness's KKT verdict at the
   profile's ``check_tol``), and its time is the minimum ``solve_time_s`` over repeats.
-* *Success rate*: solved cells / attempted cells (skipped cells are not attempted;
-  they are counted separately).
+* *Solved share*: solved cells / problems -- every problem of the table, so a skipped
+  cell and a cell not run count as not solved.  *Success rate*: solved cells / attempted
+  cells (skipped cells are not attempted; they are counted separately).  A report shows
+  the success rate only beside the solved share and the problem count: on its own, 100 %
+  of 3 attempted reads as 100 % of 10 problems.  (``SolverSummary`` computes both.)
 * *Correct rate*: attempted rows on which the solver's own claim ``solver_converged``
   agrees with the verdict ``status == "solved"``.  A *false claim* is a row where the
   solver claims convergence and the check says otherwise.
@@ -21,7 +24,15 @@ Definitions (the report states them next to every number):
   with shift ``s`` seconds; every cell that is not solved -- failed, inaccurate,
   timeout, crashed, skipped or absent -- counts at the time limit (``time_limit_s`` of
   the cell, else the largest in the scene, else the largest observed time).
-  Reported relative to the best solver (1.00 = best).
+  Reported relative to the best solver (1.00 = best): the smallest SGM among the solvers
+  that solved at least one cell.  Where no solver solved a cell, every cell counts at the
+  limit and the figure measures nothing: no solver gets an SGM (NaN, "-" in the report),
+  rather than a tie of everyone at "1 = best".
+* *Own reference*: a row whose answer served as its step's reference solution
+  (``reference_solver`` is ``served_name`` of the row itself, "<solver>@<profile>": the
+  name the runner gives a run's own answer that serves).  Its
+  ``p_rel_error`` is 0 by construction and measures nothing; reports show it as the
+  reference, not as an exact answer (``own_reference``).
 * *Performance profile* (Dolan & More, Math. Program. 91, 2002):
   ``rho_s(tau) = |{p : t_ps <= tau * min_s' t_ps'}| / n_p`` with ``t_ps = inf`` for
   cells that are not solved; problems no solver solves stay in ``n_p``.
@@ -47,6 +58,11 @@ PROBLEM_KEYS: tuple[str, ...] = ("scene", "instance", "step", "profile", "histor
 
 #: Floor applied to measured times before taking ratios (a 0.0 s timer reading).
 TIME_FLOOR_S: float = 1e-9
+
+def served_name(label: str, profile: str) -> str:
+    """``reference_solver`` of a row whose own answer served as its step's reference: the
+    solver's label and the profile it ran at, "<solver>@<profile>"."""
+    return f"{label}@{profile}"
 
 
 def shifted_geometric_mean(times: Iterable[float], shift: float = DEFAULT_SHIFT_S) -> float:
@@ -155,9 +171,12 @@ def shifted_geomean_table(cells: CellTable, shift: float = DEFAULT_SHIFT_S) -> d
     return {s: shifted_geometric_mean(m[s].to_numpy(), shift) for s in cells.solvers}
 
 
-def relative_to_best(values: dict[str, float]) -> dict[str, float]:
-    """Each value divided by the smallest finite positive one."""
-    finite = [v for v in values.values() if np.isfinite(v) and v > 0]
+def relative_to_best(values: dict[str, float], among: Iterable[str] | None = None) -> dict[str, float]:
+    """Each value divided by the smallest finite positive one of the keys ``among`` (default:
+    all; the aggregate table passes the solvers with a solve, so that one that solved nothing
+    is never the best); NaN for all where there is none."""
+    pool = values if among is None else {k: values[k] for k in among if k in values}
+    finite = [v for v in pool.values() if np.isfinite(v) and v > 0]
     best = min(finite) if finite else float("nan")
     return {k: (v / best if best == best else float("nan")) for k, v in values.items()}
 
@@ -213,10 +232,11 @@ class SolverSummary:
     """One line of the aggregate table."""
 
     solver: str
-    problems: int
+    problems: int  # every problem of the table (the solved share's denominator)
     attempted: int
     skipped: int
     solved: int
+    solved_share: float  # solved / problems: skipped and not run count as not solved
     success_rate: float  # solved / attempted
     claim_rows: int  # attempted rows with a known solver claim
     correct_rate: float  # claim agrees with verdict, over claim_rows
@@ -243,9 +263,8 @@ def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequenc
     (``never_attempted``: it has no time to aggregate, and the limit it would count at is
     no measurement; its skip reasons say why)."""
     cells = cell_table(df, solvers)
-    sgm = shifted_geomean_table(cells, shift) if with_time else {s: float("nan") for s in cells.solvers}
-    sgm.update({s: float("nan") for s in never_attempted(cells)})
-    rel = relative_to_best(sgm)
+    sgm = time_aggregate(cells, shift) if with_time else {s: float("nan") for s in cells.solvers}
+    rel = relative_to_best(sgm, among=solvers_with_a_solve(cells))
     attempted_rows = df[df["status"].astype(str) != "skipped"]
     agree = claim_agreement(attempted_rows)
     claim = bool_series(attempted_rows["solver_converged"]) if "solver_converged" in attempted_rows \
@@ -263,7 +282,57 @@ def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequenc
         out.append(SolverSummary(
             solver=s, problems=len(c), attempted=att,
             skipped=int(((~c["attempted"]) & c["solver"].notna()).sum()),
-            solved=solved, success_rate=solved / att if att else float("nan"),
+            solved=solved, solved_share=share(solved, len(c)), success_rate=share(solved, att),
             claim_rows=len(a), correct_rate=float(a.astype(bool).mean()) if len(a) else float("nan"),
             false_claims=false_claims, sgm_s=sgm[s], sgm_rel=rel[s]))
     return out
+
+
+def share(part: int, whole: int) -> float:
+    """``part / whole``; NaN for an empty ``whole``."""
+    return part / whole if whole else float("nan")
+
+
+def solvers_with_a_solve(cells: CellTable) -> tuple[str, ...]:
+    """The solvers of ``cells`` with at least one solved cell."""
+    f = cells.frame
+    won = f.groupby("solver", sort=False)["solved"].any()
+    return tuple(s for s in cells.solvers if bool(won.get(s, False)))
+
+
+def time_aggregate(cells: CellTable, shift: float = DEFAULT_SHIFT_S) -> dict[str, float]:
+    """Solver -> the SGM the aggregate table shows: ``shifted_geomean_table``, NaN for a
+    solver skipped on every problem (``never_attempted``: the limit it would count at is no
+    measurement) and for every solver where none solved a cell (each would count every
+    cell at the limit: a tie that reads as "1 = best")."""
+    if not solvers_with_a_solve(cells):
+        return {s: float("nan") for s in cells.solvers}
+    sgm = shifted_geomean_table(cells, shift)
+    sgm.update({s: float("nan") for s in never_attempted(cells)})
+    return sgm
+
+
+def own_reference(df: pd.DataFrame) -> pd.Series:
+    """Per row: did the row's own answer serve as its step's reference solution
+    (``reference_solver == "<solver>@<profile>"``, see the module's definitions)?  Such a
+    row's ``p_rel_error`` is 0 by construction.  False where the column is absent."""
+    if "reference_solver" not in df.columns or df.empty:
+        return pd.Series(False, index=df.index, dtype=bool)
+    served = pd.Series([served_name(s, prof) for s, prof in zip(df["solver"].astype(str), df["profile"].astype(str))],
+                       index=df.index, dtype="string")
+    return (df["reference_solver"].astype("string").fillna("") == served).astype(bool)
+
+
+def reference_steps(df: pd.DataFrame) -> dict[str, tuple[int, ...]]:
+    """Reference solver (``reference_solver``, as the rows name it) -> the steps on which it
+    served, in order of its first step; rows without a reference are left out."""
+    if "reference_solver" not in df.columns:
+        return {}
+    ref = df["reference_solver"].astype("string").fillna("")
+    have = df[ref != ""]
+    steps = pd.to_numeric(have["step"], errors="coerce")
+    out: dict[str, set[int]] = {}
+    for name, k in zip(ref[ref != ""], steps):
+        if pd.notna(k):
+            out.setdefault(str(name), set()).add(int(k))
+    return {name: tuple(sorted(ks)) for name, ks in sorted(out.items(), key=lambda kv: (min(kv[1]), kv[0]))}

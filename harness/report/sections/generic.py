@@ -6,7 +6,7 @@ harness/table/aggregates.py), skips and failures, and one table per scene.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 import pandas as pd
@@ -73,7 +73,8 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
             continue
         solvers = natural_sorted(r["solver"].unique())
         panels = family_panels(solvers, ctx.family)
-        referenced = bool(r["p_rel_error"].notna().any())
+        r = r.assign(**{OWN_REF: agg.own_reference(r)})
+        referenced = bool(r["p_rel_error"][~r[OWN_REF]].notna().any())
         fig, axes = grid_figure(len(panels), 2 if referenced else 1, width=4.8, height=3.5, wspace=0.35)
         traced: dict[str, str] = {}
         for row, panel in zip(axes, panels):
@@ -84,7 +85,10 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         rel = ctx.save_figure(fig, f"wp-{scene}")
         cap = f"run time against error, scene `{scene}` ({len(r)} solves, {len(solvers)} solvers)."
         if not referenced:
-            cap += no_reference_note(references_asked(ctx.meta))
+            cap += (own_reference_only_note(r) if r[OWN_REF].any() else
+                    no_reference_note(references_asked(ctx.meta)))
+        else:
+            cap += reference_note(r)
         cap += panels_note(panels)
         if traced:
             cap += " Traces: " + ", ".join(traced[s] for s in solvers if s in traced) + "."
@@ -94,6 +98,53 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
 
 #: The columns of the work-precision panels, left to right, and their axis labels.
 _WP_ERRORS = (("kkt_error", "scaled KKT error  [-]"), ("p_rel_error", "||p - p_ref||_inf / ||p_ref||_inf  [-]"))
+
+
+#: The column ``work_precision_section`` adds to its rows: the row's answer served as its
+#: step's reference (``agg.own_reference``).
+OWN_REF = "own_reference"
+#: A table's cell for an error in p measured against the row's own answer.
+REF_CELL = "ref"
+
+
+def step_ranges(steps: Iterable[int]) -> str:
+    """Steps as compact ranges: ``(0, 1, 2, 3, 5, 7, 8)`` -> ``"0-3, 5, 7-8"``."""
+    ks = sorted(set(int(k) for k in steps))
+    runs: list[list[int]] = []
+    for k in ks:
+        if runs and k == runs[-1][-1] + 1:
+            runs[-1].append(k)
+        else:
+            runs.append([k])
+    return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
+
+
+def references_served(rows: pd.DataFrame) -> str:
+    """Which solver served as the reference of ``rows``' error in p, and on which steps:
+    ``"`nnls@high` (steps 0-5), `pk@high` (steps 6-9)"`` ("" where no row names one)."""
+    by_ref = agg.reference_steps(rows)
+    if len(by_ref) == 1 and set(next(iter(by_ref.values()))) == set(pd.to_numeric(rows["step"]).dropna().astype(int)):
+        return md_code(next(iter(by_ref)))
+    return ", ".join(f"{md_code(name)} (step{'s' if len(ks) > 1 else ''} {step_ranges(ks)})"
+                     for name, ks in by_ref.items())
+
+
+def reference_note(rows: pd.DataFrame) -> str:
+    """The work-precision caption's words on the reference of the error in p: who served
+    (and where), and that the reference's own answers are not drawn."""
+    out = f" Error in p against the reference solution of {references_served(rows)}."
+    n_own = int(rows[OWN_REF].sum())
+    if n_own:
+        out += (f" The answers that served as the reference ({n_own} solve{'s' if n_own > 1 else ''}; error in p 0 "
+                f"by construction) are left out of the error-in-p panel.")
+    return out
+
+
+def own_reference_only_note(rows: pd.DataFrame) -> str:
+    """Why a work-precision figure draws no error in p although the run had a reference:
+    every answer measured against it is the reference's own."""
+    return (f" The only answers measured against the reference ({references_served(rows)}) are the "
+            f"reference's own (error in p 0 by construction): the error in p is not drawn.")
 
 
 def no_reference_note(asked: bool | None) -> str:
@@ -114,17 +165,28 @@ def _wp_markers(ctx: ReportContext, r: pd.DataFrame) -> Callable[[str, str], str
     return lambda s, _prof: ctx.marker(s)
 
 
+def drawn_errors(c: pd.DataFrame, col: str) -> pd.Series:
+    """The values of error column ``col`` a work-precision panel draws: the error in p of
+    the reference's own answers (``OWN_REF``: 0 by construction, at the log floor it would
+    read as exact) is left out (NaN)."""
+    v = pd.to_numeric(c[col], errors="coerce")
+    return v.mask(c[OWN_REF]) if col == "p_rel_error" and OWN_REF in c else v
+
+
 def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: float, alpha: float,
                marker: Callable[[str, str], str], hollow_failed: bool = True) -> None:
-    c = c[["solver", "profile", "status", "solve_time_s", *(col for col, _ in _WP_ERRORS)]]  # the columns drawn
+    c = c[["solver", "profile", "status", "solve_time_s", OWN_REF, *(col for col, _ in _WP_ERRORS)]]  # drawn
     for (s, prof), cp in c.groupby(["solver", "profile"], sort=True):
         for ok, face in ((True, color), (False, "none" if hollow_failed else color)):
             cs = cp[(cp["status"] == "solved") == ok]
             if cs.empty:
                 continue
             for a, (col, _) in zip(axes, _WP_ERRORS):
-                a.scatter(cs["solve_time_s"], floor_log(cs[col]), s=size, marker=marker(str(s), str(prof)),
-                          facecolors=face, edgecolors=color, linewidths=0.8, alpha=alpha)
+                y = drawn_errors(cs, col)
+                if y.notna().any():
+                    a.scatter(cs["solve_time_s"][y.notna()], floor_log(y[y.notna()]), s=size,
+                              marker=marker(str(s), str(prof)), facecolors=face, edgecolors=color, linewidths=0.8,
+                              alpha=alpha)
 
 
 def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel, traced: dict[str, str]) -> None:
@@ -136,7 +198,7 @@ def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel
     if len(others):
         _wp_points(axes, others, GREY, 8, 0.6, marker, hollow_failed=False)
     xs = list(r["solve_time_s"])
-    ys = [list(floor_log(r[col])) for col, _ in _WP_ERRORS]
+    ys = [list(floor_log(drawn_errors(r, col))) for col, _ in _WP_ERRORS]
     for s in panel.solvers:
         c = r[r["solver"] == s]
         _wp_points(axes, c, ctx.color(s), 16, 0.8, marker)
@@ -178,15 +240,30 @@ def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel
 # ---------------------------------------------------------------------------
 
 
+#: The aggregate tables' columns of solved cells: the count and its two shares, each header
+#: naming its denominator (harness/table/aggregates.py: ``SolverSummary``).
+SOLVED_COLUMNS = ("problems", "attempted", "solved", "solved / problems", "solved / attempted")
+
+
+def solved_cells(s: agg.SolverSummary) -> tuple[Any, ...]:
+    """A summary's cells under ``SOLVED_COLUMNS``."""
+    return s.problems, s.attempted, s.solved, fmt_pct(s.solved_share), fmt_pct(s.success_rate)
+
+
 @register_section("aggregates", title="Aggregates across instances", group="summary", order=20)
 def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
-    parts = [f"Per scene. A problem is one (instance, step, profile). **Success**: the harness's KKT check "
-             f"passes at the profile's `check_tol` (status `solved`), over attempted cells. **Correct**: the "
+    parts = [f"Per scene. A problem is one (instance, step, profile). A cell is solved when the harness's KKT "
+             f"check passes at the profile's `check_tol` (status `solved`). **solved / problems**: the share of "
+             f"all the scene's problems, a skipped or not run cell counting as not solved. **solved / "
+             f"attempted**: the share of the cells the solver ran (skipped cells are not attempted); read it "
+             f"beside the attempted count: 3 solved of 3 attempted is 100 % however many were skipped. **Correct**: the "
              f"solver's own convergence claim agrees with that verdict, over attempted rows with a claim; "
              f"**false claims** count rows claiming convergence that fail the check. **SGM**: shifted geometric "
              f"mean of solve time, shift s = {fmt_num(ctx.shift)} s, exp(mean(log(t + s))) - s, relative to the "
-             f"best solver of the scene; every cell that is not solved (failed, inaccurate, timeout, crashed, "
-             f"skipped or not run) counts at its time limit; a solver skipped on every problem has no SGM (-). Repeats: a cell is solved when every repeat is, at "
+             f"best solver of the scene that solved a problem; every cell that is not solved (failed, inaccurate, "
+             f"timeout, crashed, skipped or not run) counts at its time limit; a solver skipped on every problem "
+             f"has no SGM (-), nor has any solver of a scene where none solved a problem. Repeats: a cell is "
+             f"solved when every repeat is, at "
              f"the minimum time. **Performance profile** (Dolan & More 2002): the fraction of problems a "
              f"solver solves within tau times the best solver's time.\n"]
     for scene in ctx.scenes():
@@ -195,29 +272,31 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         cells = agg.cell_table(r, natural_sorted(r["solver"].unique()))
         parts.append(f"### {scene}\n")
         acc = reached_accuracy(r)
-        rows_t = [(s.solver, s.problems, s.attempted, s.solved, fmt_pct(s.success_rate),
-                   f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims, fmt_num(s.sgm_s),
-                   fmt_num(s.sgm_rel), fmt_err(acc.get(s.solver, np.nan)))
+        rows_t = [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims,
+                   fmt_num(s.sgm_s), fmt_num(s.sgm_rel), fmt_err(acc.get(s.solver, np.nan)))
                   for s in sorted(summ, key=lambda s: natural_key(s.solver))]
+        none_solved = " No solver solved a problem of this scene: no SGM (-)." if not any(s.solved for s in summ) \
+            else ""
         parts.append(table_md(ctx, f"aggregates, scene `{scene}` ({len(cells.problems)} problems; SGM shift "
                                    f"{fmt_num(ctx.shift)} s). A solved cell passed the profile's KKT check, but "
                                    f"solvers stop at their own tolerances: the last column is the median "
-                                   f"kkt_error of the solver's solved cells, the accuracy its times were bought at.",
-                              ["solver", "problems", "attempted", "solved", "success", "correct (rows)",
+                                   f"kkt_error of the solver's solved cells, the accuracy its times were bought at."
+                                   + none_solved,
+                              ["solver", *SOLVED_COLUMNS, "correct (rows)",
                                "false claims", "SGM [s]", "SGM / best", "median kkt (solved)"], rows_t,
-                              "lrrrrrrrrr"))
+                              "lrrrrrrrrrr"))
         prof = agg.performance_profile(cells)
         if len(prof.solvers) >= 2 and cells.problems:
             parts.append(_profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ}))
     parts.append("### All scenes\n")
     t = table
     summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
-    parts.append(table_md(ctx, "success and correct rates over every scene (no time aggregate across scenes: "
-                               "solvers do not all run on the same problems).",
-                          ["solver", "attempted", "solved", "success", "correct (rows)", "false claims"],
-                          [(s.solver, s.attempted, s.solved, fmt_pct(s.success_rate),
-                            f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims)
-                           for s in sorted(summ, key=lambda s: natural_key(s.solver))], "lrrrrr"))
+    parts.append(table_md(ctx, "solved shares and correct rates over every scene (no time aggregate across scenes: "
+                               "solvers do not all run on the same problems). problems: every problem of every "
+                               "scene, so a scene a solver did not run counts as not solved in solved / problems.",
+                          ["solver", *SOLVED_COLUMNS, "correct (rows)", "false claims"],
+                          [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims)
+                           for s in sorted(summ, key=lambda s: natural_key(s.solver))], "lrrrrrrr"))
     return Section("Aggregates across instances", "\n".join(parts))
 
 
@@ -275,7 +354,7 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
     note = panels_note(panels).replace("best solver of each family", "best solver of each family by SGM")
     return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
                               f"which a solver is fastest among those that pass the same KKT check; the right "
-                              f"end is its success share.{note}"
+                              f"end is its solved / problems share.{note}"
                               + (f" Not drawn, skipped on every problem (the skips say why): "
                                  f"{', '.join(prof.left_out)}." if prof.left_out else ""))
 
@@ -355,6 +434,27 @@ def _short(text: str, n: int = 90) -> str:
 # ---------------------------------------------------------------------------
 
 
+def reference_caption(cells: pd.DataFrame, column: str, meaning: str) -> str:
+    """A scene table's words on its error in p: the reference solution's solver (and steps),
+    and what a ``REF_CELL`` in ``column`` means (``meaning``) where one is shown ("" where no
+    row names a reference)."""
+    served = references_served(cells)
+    if not served:
+        return ""
+    own = f" {column} {md_code(REF_CELL)}: {meaning} (error in p 0 by construction)." if cells[OWN_REF].any() else ""
+    return f" The reference solution: {served}.{own}"
+
+
+def worst_p_error(cells: pd.DataFrame) -> str:
+    """The largest error in p of ``cells`` other than the reference's own (``OWN_REF``);
+    ``REF_CELL`` where every measured cell is the reference's own."""
+    p = pd.to_numeric(cells["p_rel_error"], errors="coerce")
+    others = p[~cells[OWN_REF]].dropna()
+    if others.empty and p[cells[OWN_REF]].notna().any():
+        return REF_CELL
+    return fmt_err(others.max() if len(others) else np.nan)
+
+
 @register_section("scene-tables", title="Tables per scene", group="summary", order=40)
 def scene_tables_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     parts = []
@@ -365,30 +465,36 @@ def scene_tables_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
             parts.append("Every pair was skipped (see Skips and failures).\n")
             continue
         cells = per_cell(r)
+        cells = cells.assign(**{OWN_REF: agg.own_reference(cells)})
         if len(cells) <= MAX_TABLE_ROWS:
+            ref = reference_caption(cells, "p err", "the cell's own answer is the reference")
             cells = cells.assign(_k=[(natural_key(i), s, natural_key(so), natural_key(p)) for i, s, so, p in
                                      zip(cells["instance"], cells["step"], cells["solver"], cells["profile"])])
             cells = cells.sort_values("_k", kind="stable")
             rows_t = [(c.instance, fmt_num(c.step), fmt_num(c.n), c.solver, c.profile, "yes" if c.warm_start else "no",
                        c.status, fmt_num(c.solve_time_s), fmt_num(c.iterations), fmt_err(c.kkt_error),
-                       fmt_err(c.p_rel_error), fmt_err(c.load_rel_error), fmt_num(c.contact_fraction))
+                       REF_CELL if getattr(c, OWN_REF) else fmt_err(c.p_rel_error), fmt_err(c.load_rel_error),
+                       fmt_num(c.contact_fraction))
                       for c in cells.itertuples()]
             parts.append(table_md(ctx, f"scene `{scene}`: one row per (instance, step, solver, profile), time = "
                                        f"minimum over repeats, status = worst over repeats; errors are relative "
-                                       f"to the scene's reference; contact = A/A0.",
+                                       f"to the scene's reference; contact = A/A0.{ref}",
                                   ["instance", "step", "n", "solver", "profile", "warm", "status", "time [s]",
                                    "iters", "kkt_error", "p err", "load err", "contact"], rows_t,
                                   "lrrlllrrrrrrr"))
         else:
+            ref = reference_caption(cells, "worst p err", "every cell of the line with an error in p is the "
+                                                          "reference's own answer")
             g = cells.groupby(["n", "solver", "profile"], sort=True)
             rows_t = []
             for (n, s, p), c in g:
                 rows_t.append((fmt_num(n), s, p, len(c), int(c["solved"].sum()), fmt_num(c["solve_time_s"].median()),
                                fmt_num(c["iterations"].median()), fmt_err(c["kkt_error"].median()),
-                               fmt_err(c["kkt_error"].max()), fmt_err(c["p_rel_error"].max())))
+                               fmt_err(c["kkt_error"].max()), worst_p_error(c)))
             rows_t.sort(key=lambda x: (float(x[0]) if x[0] != "-" else -1, natural_key(x[1]), natural_key(x[2])))
             parts.append(table_md(ctx, f"scene `{scene}` ({len(cells)} cells, summarised by n, solver and profile): "
-                                       f"median time and iterations, median and worst kkt_error, worst error in p.",
+                                       f"median time and iterations, median and worst kkt_error, worst error in p "
+                                       f"over the cells that are not the reference's own.{ref}",
                                   ["n", "solver", "profile", "cells", "solved", "median time [s]", "median iters",
                                    "median kkt", "worst kkt", "worst p err"], rows_t, "rllrrrrrrr"))
     return Section("Tables per scene", "\n".join(parts))

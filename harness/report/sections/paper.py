@@ -46,7 +46,20 @@ from ..core import (
     per_cell,
     pick_profile,
     register_section,
+    status_counts,
     table_md,
+)
+from .sweep_totals import (
+    BEST_RULE,
+    WORST_RULE,
+    best_per_family,
+    fastest_at_accuracy,
+    skipped_note,
+    sweep_steps,
+    sweep_totals,
+    time_at,
+    total_ratio,
+    totals_rows,
 )
 
 #: The page charts of the paper's figures (report.html draws them from the rows).
@@ -214,24 +227,37 @@ def claim_sentence(label: str, measured: float, claim: Claim) -> str:
 # Figs. 4, 5 and 6
 # ---------------------------------------------------------------------------
 
-#: Solver families drawn in Fig. 4 (the paper's algorithms and our matrix-free ones).
-FIG4_FAMILIES = frozenset({"paper", "fast"})
-
-
 def _curve_label(solver: str, warm: bool) -> str:
     return f"{solver}{WARM_SUFFIX}" if warm else solver
 
 
-def _sweep_totals(cells: pd.DataFrame) -> pd.DataFrame:
-    """Per solver: total solve time summed over instances and steps, whether every
-    step was solved, and the step count."""
-    g = cells.groupby("solver", sort=False)
-    n_cells = g.size()
-    # complete: every step of the sweep attempted (none skipped) and solved
-    complete = g["solved"].all() & (n_cells == n_cells.max())
-    return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": complete, "cells": n_cells,
-                         "solved_cells": g["solved"].sum(),
-                         "worst_kkt": g["kkt_error"].max(), "worst_p_err": g["p_rel_error"].max()})
+#: How a time plot marks a step that was not solved, by the cell's status (``unsolved_kind``):
+#: (marker, colour, legend label).  A timed-out or failed solve is drawn at the time it took.
+UNSOLVED_MARKS: dict[str, tuple[str, str, str]] = {
+    "inaccurate": ("x", "red", "not solved (KKT check)"),
+    "timeout": ("s", "darkorange", "timed out"),
+    "failed": ("D", "purple", "failed or crashed"),
+}
+
+
+def unsolved_kind(status: str) -> str:
+    """The key of ``UNSOLVED_MARKS`` for a cell that was not solved: "inaccurate" (the
+    answer failed the KKT check), "timeout", else "failed" (failed or crashed)."""
+    return status if status in UNSOLVED_MARKS else "failed"
+
+
+def _mark_unsolved(ax: Any, x: pd.Series, y: pd.Series, status: pd.Series) -> set[str]:
+    """Draw the ``UNSOLVED_MARKS`` marker of each point (x, y) by its status; return the
+    kinds drawn at a finite point."""
+    kinds = status.map(unsolved_kind)
+    drawn = set()
+    for kind, (marker, color, _) in UNSOLVED_MARKS.items():
+        sel = (kinds == kind) & np.isfinite(x.astype(float)) & np.isfinite(y.astype(float))
+        if sel.any():
+            ax.plot(x[sel], y[sel], ls="none", marker=marker, ms=8, mew=2, color=color,
+                    mfc=color if marker == "x" else "none")
+            drawn.add(kind)
+    return drawn
 
 
 def _plot_time_curves(ax: Any, cells: pd.DataFrame, x_of: Callable[[pd.DataFrame], pd.Series], sort_by: str,
@@ -239,9 +265,11 @@ def _plot_time_curves(ax: Any, cells: pd.DataFrame, x_of: Callable[[pd.DataFrame
                       label_of: Callable[[str], str] = str, background: pd.DataFrame | None = None,
                       marker_of: Callable[[str], str] = lambda s: "o") -> None:
     """Solve time against ``x_of(rows)``, one curve per solver (dashed when warm
-    started), red crosses on the answers that failed the KKT check; the solvers of
-    ``background`` drawn first as thin grey context lines."""
+    started), each step not solved marked by its status (``UNSOLVED_MARKS``: a red cross
+    on an answer that failed the KKT check, its own marker on a timeout or a failure);
+    the solvers of ``background`` drawn first as thin grey context lines."""
     xs_all, ys_all = [], []
+    kinds: set[str] = set()
     if background is not None and len(background):
         for s in natural_sorted(background["solver"].unique()):
             c = background[background["solver"] == s].sort_values(sort_by)
@@ -257,12 +285,13 @@ def _plot_time_curves(ax: Any, cells: pd.DataFrame, x_of: Callable[[pd.DataFrame
         ax.plot(x, y, marker=marker_of(s), ms=4, lw=1.3, color=color_of(s), label=label_of(s),
                 ls="--" if s.endswith(WARM_SUFFIX) else "-")
         bad = ~c["solved"]
-        if bad.any():
-            ax.plot(x[bad], y[bad], ls="none", marker="x", ms=8, mew=2, color="red")
+        kinds |= _mark_unsolved(ax, x[bad], y[bad], c.loc[bad, "status"])
         xs_all += list(x)
         ys_all += list(y)
-    if (~cells["solved"]).any():
-        ax.plot([], [], ls="none", marker="x", ms=8, mew=2, color="red", label="not solved (KKT check)")
+    for kind, (marker, color, label) in UNSOLVED_MARKS.items():
+        if kind in kinds:
+            ax.plot([], [], ls="none", marker=marker, ms=8, mew=2, color=color, mfc=color if marker == "x" else "none",
+                    label=label)
     log_if_wide(ax, "x", xs_all)
     log_if_wide(ax, "y", ys_all)
     ax.set_xlabel(xlabel)
@@ -270,17 +299,24 @@ def _plot_time_curves(ax: Any, cells: pd.DataFrame, x_of: Callable[[pd.DataFrame
     ax.grid(True, which="both", alpha=0.3)
 
 
+def load_abscissa(cells: pd.DataFrame, every: pd.DataFrame) -> pd.Series:
+    """The x of each of ``cells`` against the load: its step's median P/(E A) over the
+    solved answers of ``every`` at that (instance, step) (a wrong or late answer's own load
+    would put its point elsewhere); NaN where no answer there was solved or the load is
+    not positive."""
+    step_load = every[every["solved"]].groupby(["instance", "step"])["dim_load"].median()
+    x = pd.Series([step_load.get((i, k), np.nan) for i, k in zip(cells["instance"], cells["step"])],
+                  index=cells.index, dtype=float)
+    return x.where(x > 0)
+
+
 def _plot_time_vs_load(ax: Any, cells: pd.DataFrame, color_of: Callable[[str], Any],
                        label_of: Callable[[str], str] = str, background: pd.DataFrame | None = None,
                        marker_of: Callable[[str], str] = lambda s: "o") -> None:
-    # Abscissa: the step's load from the solved answers (a wrong or late answer's own
-    # load would put its point elsewhere).
     every = cells if background is None else pd.concat([cells, background])
-    step_load = every[every["solved"]].groupby(["instance", "step"])["dim_load"].median()
 
     def x_of(c: pd.DataFrame) -> pd.Series:
-        x = pd.Series([step_load.get((i, k), np.nan) for i, k in zip(c["instance"], c["step"])], index=c.index)
-        return x.where(x > 0)
+        return load_abscissa(c, every)
 
     _plot_time_curves(ax, cells, x_of, "step", color_of, "dimensionless load P/(E A)  [-]", label_of, background,
                       marker_of)
@@ -292,22 +328,58 @@ def _plot_time_vs_load(ax: Any, cells: pd.DataFrame, color_of: Callable[[str], A
             ax.xaxis.set_major_locator(MaxNLocator(4))
 
 
-@register_section("paper-sweep", title="Fig. 4: solve time against load (paper-sweep)", group="paper", order=10)
+FIG4_TITLE = "Fig. 4: solve time against load (paper-sweep)"
+#: What each ``UNSOLVED_MARKS`` marker means, as Fig. 4's caption says it.
+UNSOLVED_TEXT: dict[str, str] = {
+    "inaccurate": "red crosses: answers that failed the KKT check",
+    "timeout": "open orange squares: solves stopped at the time limit, drawn at the time they took",
+    "failed": "open purple diamonds: solves that failed or crashed, drawn at the time they took",
+}
+#: At most this many names in a caption's list of solvers not drawn.
+MAX_NAMED = 12
+
+
+@register_section("paper-sweep", title=FIG4_TITLE, group="paper", order=10)
 def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     prof = pick_profile(attempted(rows))
-    r = attempted(rows[rows["profile"] == prof])
+    at_prof = rows[rows["profile"] == prof]
+    r = attempted(at_prof)
     if r.empty:
-        return Section("Fig. 4: solve time against load (paper-sweep)", "Every pair of this scene was skipped.\n", page_charts=FIG4_PAGE)
+        return Section(FIG4_TITLE, "Every pair of this scene was skipped.\n", page_charts=FIG4_PAGE)
     cells = per_cell(r)
     # warm and cold runs of one solver are separate curves ("pk" and "pk (warm)")
     cells["warm"] = cells.groupby(["solver", "history"])["warm_start"].transform("any").astype(bool)
     cells["solver"] = [_curve_label(s, w) for s, w in zip(cells["solver"], cells["warm"])]
+    tot = sweep_totals(cells, sweep_steps(at_prof))
+    n_max = int(at_prof["n"].max()) if at_prof["n"].notna().any() else 0
     inst = natural_sorted(cells["instance"].unique())[0]
-    tot = _sweep_totals(cells)
-    n_max = int(r["n"].max()) if r["n"].notna().any() else 0
     sub = cells[cells["instance"] == inst]
+    body = [surface_family_note(r)]
+    placed = load_abscissa(sub, sub).notna() & sub["solve_time_s"].notna()
+    if placed.any():
+        body.append(_fig4_figure(ctx, sub, tot, at_prof, placed))
+    else:
+        body.append(f"**No figure.** Instance {inst} at profile `{prof}` has no time to draw against the load: the "
+                    f"load axis takes a step's load from its solved answers, and no step was solved "
+                    f"({status_counts(at_prof[at_prof['instance'] == inst])}).\n")
+    body.append(table_md(ctx, f"total solve time over the sweep's {int(tot['steps'].iloc[0])} steps (instances x load "
+                              f"steps), profile `{prof}`, with the accuracy it bought. A total is given only for a "
+                              f"solver that solved every step; the others show '-' and, in parentheses, their time "
+                              f"over the steps they ran, which is not comparable to a total. Rows: the solvers that "
+                              f"solved every step by total time, then the others by steps solved; {WORST_RULE}.",
+                         ["solver", "family", "steps solved", "total [s]", "worst kkt", "worst p err"],
+                         totals_rows(tot, ctx.family), "llrrrr"))
+    body.append(_fig4_reading(tot, n_max, paper_roles(cells)))
+    return Section(FIG4_TITLE, "\n".join(body), page_charts=FIG4_PAGE)
+
+
+def _fig4_figure(ctx: ReportContext, sub: pd.DataFrame, tot: pd.DataFrame, at_prof: pd.DataFrame,
+                 placed: pd.Series) -> str:
+    """Fig. 4 of one instance's cells ``sub`` (``placed``: those with a load and a time to
+    draw), saved, with its caption."""
+    inst, prof = sub["instance"].iloc[0], at_prof["profile"].iloc[0]
     labels = natural_sorted(sub["solver"].unique())
-    best = best_per_family(tot, ctx.family)
+    best = best_per_family(tot.loc[labels], ctx.family)
     panels = family_panels(labels, ctx.family, best)
     ncols = 1 if len(panels) == 1 else 2
     nrows = -(-len(panels) // ncols)
@@ -324,74 +396,43 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     for ax in flat[len(panels):]:
         ax.set_visible(False)
     rel = ctx.save_figure(fig, "fig4-paper-sweep")
-    body = [surface_family_note(r)]
-    body.append(ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
-                               f"{fmt_num(r['N'].max())}, n up to {n_max}), profile `{prof}`; dashed: warm "
-                               f"started; red crosses mark steps whose answer failed the KKT check. Every "
-                               f"solver of the scene is drawn (families: "
-                               f"{', '.join(sort_families(ctx.family(x) for x in labels))}).{panels_note(panels)} Paper Fig. 4 ran at "
-                               f"eps = 1e-8."))
-    rows_t = []
-    for s in natural_sorted(tot.index):
-        t = tot.loc[s]
-        rows_t.append((s, ctx.family(s), fmt_num(t["total_s"]), "yes" if t["complete"] else "no", int(t["cells"]),
-                       fmt_err(t["worst_kkt"]), fmt_err(t["worst_p_err"])))
-    body.append(table_md(ctx, f"total solve time over all steps and instances, profile `{prof}`, with the accuracy "
-                              f"it bought: the worst kkt_error and the worst error in p over the steps.",
-                         ["solver", "family", "total [s]", "all steps solved", "steps", "worst kkt", "worst p err"],
-                         rows_t, "llrlrrr"))
-    body.append(_fig4_reading(tot, n_max, paper_roles(cells)))
-    return Section("Fig. 4: solve time against load (paper-sweep)", "\n".join(body), page_charts=FIG4_PAGE)
+    n_max = int(at_prof["n"].max()) if at_prof["n"].notna().any() else 0
+    marks = [UNSOLVED_TEXT[k] for k in UNSOLVED_MARKS
+             if (placed & ~sub["solved"] & (sub["status"].map(unsolved_kind) == k)).any()]
+    best_rule = f" In the first panel {BEST_RULE}." if len(panels) > 1 and not panels[0].family else ""
+    return ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
+                              f"{fmt_num(at_prof['N'].max())}; the sweep's largest trial set has n = {n_max}), profile "
+                              f"`{prof}`; dashed: warm started"
+                              + "".join(f"; {m}" for m in marks) + ". "
+                              + _drawn_note(ctx, sub, at_prof, labels) + skipped_note(tot.loc[labels])
+                              + _unplaced_note(sub, placed) + panels_note(panels) + best_rule
+                              + " Paper Fig. 4 ran at eps = 1e-8.")
 
 
-def best_per_family(tot: pd.DataFrame, family_of: Callable[[str], str]) -> dict[str, str]:
-    """Family -> its best label in ``_sweep_totals``: most steps solved, then complete,
-    then the least total time."""
-    ranked: dict[str, tuple] = {}
-    best: dict[str, str] = {}
-    for lab in natural_sorted(tot.index):
-        t = tot.loc[lab]
-        total = float(t["total_s"]) if t["total_s"] == t["total_s"] else float("inf")
-        key = (not bool(t["complete"]), -int(t["solved_cells"]), total)
-        f = family_of(lab)
-        if f not in ranked or key < ranked[f]:
-            ranked[f], best[f] = key, lab
-    return best
+def _drawn_note(ctx: ReportContext, sub: pd.DataFrame, at_prof: pd.DataFrame, labels: list[str]) -> str:
+    """Caption text: which solvers of the scene at the profile the figure draws, and which
+    it does not (those that ran no step of the drawn instance)."""
+    fams = ", ".join(sort_families(ctx.family(x) for x in labels))
+    ran = {s.removesuffix(WARM_SUFFIX) for s in labels}
+    missing = [s for s in natural_sorted(at_prof["solver"].unique()) if s not in ran]
+    if not missing:
+        return f"Every solver of the scene is drawn (families: {fams})."
+    named = ", ".join(md_code(s) for s in missing[:MAX_NAMED])
+    more = f" and {len(missing) - MAX_NAMED} more" if len(missing) > MAX_NAMED else ""
+    return (f"Drawn: the {len(labels)} curves of the solvers that ran a step of this instance (families: {fams}); "
+            f"not drawn, {len(missing)} solvers that ran no step of it (skipped at every step; Skips and failures "
+            f"says why): {named}{more}.")
 
 
-def _ratio(tot: pd.DataFrame, a: str | None, b: str | None) -> float:
-    if a is None or b is None or a not in tot.index or b not in tot.index:
-        return float("nan")
-    if not (tot.loc[a, "complete"] and tot.loc[b, "complete"]):
-        return float("nan")
-    return float(tot.loc[a, "total_s"] / tot.loc[b, "total_s"])
-
-
-#: The accuracy levels at which the Fig. 4 reading names the fastest solver.
-ACCURACY_LEVELS = (1e-6, 1e-8, 1e-10, 1e-12)
-
-
-def _at(tot: pd.DataFrame, s: str) -> str:
-    """"`s` (12.3 s, kkt <= 4.0e-09)": a time always comes with the accuracy it bought."""
-    return f"{md_code(s)} ({fmt_num(tot.loc[s, 'total_s'])} s, worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])})"
-
-
-def fastest_at_accuracy(tot: pd.DataFrame) -> list[tuple[float, str]]:
-    """(level, solver): per accuracy level, the fastest solver whose every step is
-    solved with kkt_error <= level (levels no solver reaches are left out, and a level
-    is kept only when its winner differs from the next looser level's)."""
-    complete = tot[tot["complete"] & tot["worst_kkt"].notna()]
-    out: list[tuple[float, str]] = []
-    for level in ACCURACY_LEVELS:
-        ok = complete[complete["worst_kkt"] <= level]
-        if ok.empty:
-            break
-        best = str(ok["total_s"].idxmin())
-        if not out or out[-1][1] != best:
-            out.append((level, best))
-        else:
-            out[-1] = (level, best)
-    return out
+def _unplaced_note(sub: pd.DataFrame, placed: pd.Series) -> str:
+    """Caption text naming the solves with a time that no load places (no solver solved
+    their step); "" when none."""
+    off = sub[~placed & sub["solve_time_s"].notna()]
+    if off.empty:
+        return ""
+    what = ", ".join(f"{md_code(s)} step {fmt_num(k)} ({st})"
+                     for s, k, st in zip(off["solver"], off["step"], off["status"]))
+    return f" Not drawn, as no solver solved their step to give it a load: {what}."
 
 
 def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) -> str:
@@ -417,25 +458,28 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) ->
             elif not tot.loc[role[key], "complete"]:
                 parts.append(f"{label}: `{role[key]}` did not solve every step, so its ratio is not comparable.")
             else:
-                parts.append(claim_sentence(label, _ratio(tot, role[key], ref), claim).rstrip(".")
+                parts.append(claim_sentence(label, total_ratio(tot, role[key], ref), claim).rstrip(".")
                              + f" (worst kkt {fmt_err(tot.loc[role[key], 'worst_kkt'])} against "
                                f"{fmt_err(tot.loc[ref, 'worst_kkt'])}).")
         if role["pk-warm"] and role["pk"] and role["pk-warm"] != role["pk"]:
-            parts.append(f"Warm-started P&K takes {fmt_ratio(_ratio(tot, role['pk-warm'], role['pk']))} the time "
+            parts.append(f"Warm-started P&K takes {fmt_ratio(total_ratio(tot, role['pk-warm'], role['pk']))} the time "
                          f"of the cold one.")
     complete = tot[tot["complete"]]
     if len(complete):
         best = complete["total_s"].idxmin()
         extra = ""
         if ref and best != ref and ref in complete.index:
-            extra = f", {fmt_ratio(_ratio(tot, ref, best))} faster than NNLS+GP's {_at(tot, ref)}"
+            extra = f", {fmt_ratio(total_ratio(tot, ref, best))} faster than NNLS+GP's {time_at(tot, ref)}"
         parts.append(f"The fastest solver over the whole sweep here is {md_code(best)} with "
                      f"{fmt_num(complete.loc[best, 'total_s'])} s at worst kkt "
                      f"{fmt_err(complete.loc[best, 'worst_kkt'])}{extra}.")
         levels = fastest_at_accuracy(tot)
         if levels:
             parts.append("Fastest at a common accuracy (every step solved with kkt_error at most the level): "
-                         + "; ".join(f"<= {lv:.0e}: {_at(tot, s)}" for lv, s in levels) + ".")
+                         + "; ".join(f"<= {lv:.0e}: {time_at(tot, s)}" for lv, s in levels) + ".")
+    elif len(tot):
+        parts.append(f"No solver solved all {int(tot['steps'].iloc[0])} steps of the sweep, so none is named "
+                     f"fastest: a sum over part of the sweep is not a total.")
     return " ".join(parts) + "\n"
 
 
