@@ -9,8 +9,10 @@ size and render-time comparison with Bokeh and Vega-Lite is in docs/report.md).
 
 The page holds the table's attempted rows (instance, step, n, kkt_error, p error,
 load error, time, iterations, status for the hover) and draws from them, for every
-scene present: Fig. 4 / 6 and the CMR figures (time against load), Fig. 5 (time
-against n), the counterexample's violation shares, work-precision (kkt_error and p
+scene present: Fig. 4 / 6 and the CMR figures (time against load, a row at its step's
+load as the static figures place it), Fig. 5 (time against n), each step not solved
+marked by its status as the static figures mark it (``UNSOLVED_MARKS``), the
+counterexample's violation shares, work-precision (kkt_error and p
 error against time), the performance profiles and the sortable shifted-geometric-mean
 table; then the load-area curve and the convergence traces per family; and, as images,
 the static figures that have no interactive twin (the fields, the counterexample case,
@@ -27,6 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
+from matplotlib.colors import to_hex
 
 from ..table import aggregates as agg
 from .charts import Chart, RowChart
@@ -34,7 +38,7 @@ from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, natural_
                    pick_profile)
 from .sections.fields import load_area_series, trace_scene
 from .sections.generic import SOLVED_COLUMNS, best_of_family, profile_taus, reached_accuracy
-from .sections.paper import k_of
+from .sections.paper import UNSOLVED_MARKS, k_of, load_abscissa, unsolved_kind
 from .page_script import PAGE_SCRIPT
 from .style import MAX_SERIES, sort_families
 from ..table.files import write_text_atomic
@@ -48,20 +52,47 @@ HTML_HEAD = "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><t
 def page_rows(ctx: ReportContext) -> list[dict[str, Any]]:
     """The attempted rows, one dict each, with short keys (the page's data table); ``ref``:
     the row's answer served as its step's reference (``agg.own_reference``: its ``perr`` is
-    0 by construction, and the error-in-p chart leaves it out)."""
+    0 by construction, and the error-in-p chart leaves it out); ``dl``: where the load axis
+    places the row, its step's load (``step_loads``: None where no answer at the step was
+    solved, and the load charts leave the row out); ``uk``: the ``UNSOLVED_MARKS`` key of a
+    row not solved (``unsolved_kind``), None for a solved one."""
     t = attempted(ctx.table)
     warm = t.groupby(["scene", "solver", "profile", "history"])["warm_start"].transform("any").astype(bool)
+    loads = step_loads(t)
     out = []
-    for (_, r), w, own in zip(t.iterrows(), warm, agg.own_reference(t)):
+    for (_, r), w, own, dl in zip(t.iterrows(), warm, agg.own_reference(t), loads):
         out.append(dict(sc=r["scene"], inst=r["instance"], st=as_finite(r["step"]), n=as_finite(r["n"]), so=r["solver"],
                         lab=f"{r['solver']}{WARM_SUFFIX}" if w else r["solver"], fa=ctx.family(r["solver"]),
                         pr=r["profile"], stt=r["status"], kkt=as_finite(r["kkt_error"]),
+                        uk=None if r["status"] == "solved" else unsolved_kind(r["status"]),
                         perr=as_finite(r["p_rel_error"]), ref=bool(own), lerr=as_finite(r["load_rel_error"]),
                         t=as_finite(r["solve_time_s"]), it=as_finite(r["iterations"]),
-                        dl=as_finite(r["dim_load"]), cf=as_finite(r["contact_fraction"]), K=as_finite(k_of(r)),
+                        dl=as_finite(dl), cf=as_finite(r["contact_fraction"]), K=as_finite(k_of(r)),
                         base=r["base_solver"]))
     out.sort(key=lambda d: (d["sc"], natural_key(d["so"]), d["pr"], natural_key(d["inst"]), d["st"] or 0))
     return out
+
+
+def step_loads(rows: pd.DataFrame) -> pd.Series:
+    """Each of ``rows``' place on a load axis, as the static figures place it
+    (sections/paper.py ``load_abscissa``): the median P/(E A) of the solved answers at its
+    (instance, step) among the rows of its scene and profile; NaN where none there was
+    solved (a wrong or late answer's own load would put its point elsewhere)."""
+    r = rows.assign(solved=rows["status"] == "solved")
+    parts = [load_abscissa(g, g) for _, g in r.groupby(["scene", "profile"], sort=False, dropna=False)]
+    return (pd.concat(parts) if parts else pd.Series(dtype=float)).reindex(rows.index)
+
+
+#: The Plotly symbol of each matplotlib marker of ``UNSOLVED_MARKS`` (the static figure
+#: fills the cross and leaves the others open).
+PLOTLY_SYMBOLS: dict[str, str] = {"x": "x", "s": "square-open", "D": "diamond-open"}
+
+
+def unsolved_marks() -> dict[str, dict[str, str]]:
+    """``UNSOLVED_MARKS`` for the page: per kind its Plotly ``symbol``, ``color`` (hex) and
+    legend ``label``, in the static figure's order."""
+    return {kind: {"symbol": PLOTLY_SYMBOLS[marker], "color": to_hex(color), "label": label}
+            for kind, (marker, color, label) in UNSOLVED_MARKS.items()}
 
 
 def scene_summaries(ctx: ReportContext) -> dict[str, list[agg.SolverSummary]]:
@@ -170,6 +201,7 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
         "lead": scene_leads(ctx, summaries),
         "maxSeries": MAX_SERIES,
         "rows": page_rows(ctx),
+        "unsolved": unsolved_marks(),
         "pp": pp,
         "sgm": sgm,
         "traces": trace_data(ctx),

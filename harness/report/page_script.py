@@ -93,26 +93,56 @@ function thin(scene, traces, lay) {
     '); click for more', font: {size: 10}};
   return [traces, lay];
 }
+// A row not solved is marked by its status (r.uk: a key of D.unsolved, the static figures'
+// UNSOLVED_MARKS), with one legend entry per kind drawn; against the load (x 'dl') a row sits at its
+// step's load (the median of the step's solved answers), and a row whose step nobody solved is
+// left out, as in the static figures: the chart says how many, and says why when it draws nothing.
+function unsolvedMark(r, col) {
+  const m = r.uk === null ? null : D.unsolved[r.uk];
+  return m ? {symbol: m.symbol, color: m.color, size: 10} : {symbol: 'circle', color: col, size: 6};
+}
+function unsolvedLegend(rows) {
+  const kinds = new Set(rows.map(r => r.uk).filter(k => k !== null));
+  return Object.keys(D.unsolved).filter(k => kinds.has(k)).map(k => ({type: 'scatter', mode: 'markers',
+    name: D.unsolved[k].label, meta: {}, x: [null], y: [null], hoverinfo: 'skip',
+    marker: {symbol: D.unsolved[k].symbol, color: D.unsolved[k].color, size: 10, line: {width: 2}}}));
+}
+function emptyNote(lay, text) {
+  lay.annotations = (lay.annotations || []).concat([{text: text, showarrow: false, xref: 'paper', yref: 'paper',
+    x: 0.5, y: 0.5, font: {color: 'gray'}}]);
+  [lay.xaxis, lay.yaxis].forEach(a => Object.assign(a, {showticklabels: false, zeroline: false}));
+}
 function lineChart(scene, c) {
   return () => {
     const xKey = c.x;
-    const rows = rowsOf(scene).filter(r => r.t !== null && r[xKey] !== null);
+    const picked = rowsOf(scene).filter(r => r.t !== null);
+    const rows = picked.filter(r => r[xKey] !== null);
     const multiProf = new Set(rows.map(r => r.pr)).size > 1;
     const g = groupBy(rows, r => r.lab + (multiProf ? ' [' + r.pr + ']' : '') + (c.by_instance ? ' ' + r.inst : ''));
     const traces = [];
     [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
       const rs = g.get(k).slice().sort((a, b) => a[xKey] - b[xKey]);
-      const so = rs[0].so, col = colorIn(scene, so);
+      const so = rs[0].so, col = colorIn(scene, so), marks = rs.map(r => unsolvedMark(r, col));
       // against the load a line joins the steps of one load history: the points of several
       // instances stay unjoined (against n, the instances are the sizes the line runs through)
       const mode = xKey === 'dl' && new Set(rs.map(r => r.inst)).size > 1 ? 'markers' : 'lines+markers';
       traces.push({type: 'scatter', mode: mode, name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined},
         x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
         customdata: rs.map(custom), hovertemplate: HOVER, line: {color: col, dash: rs[0].lab !== so ? 'dash' : 'solid'},
-        marker: {color: rs.map(r => r.stt === 'solved' ? col : 'red'), size: rs.map(r => r.stt === 'solved' ? 6 : 10),
-          symbol: rs.map(r => r.stt === 'solved' ? 'circle' : 'x')}});
+        marker: {color: marks.map(m => m.color), size: marks.map(m => m.size), symbol: marks.map(m => m.symbol),
+          line: {width: marks.map(m => m.size > 6 ? 2 : 0), color: marks.map(m => m.color)}}});
     });
-    return thin(scene, traces, layout(c.title, c.x_title, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t)));
+    const off = picked.length - rows.length;
+    const unplaced = xKey === 'dl' && off > 0 && rows.length > 0;
+    const title = c.title + (unplaced ? '<br><span style="font-size:10px">' + off + ' solves not drawn: no answer at ' +
+      'their step was solved</span>' : '');
+    const lay = layout(title, c.x_title, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t));
+    if (unplaced) lay.margin.t = 60;
+    if (!rows.length) emptyNote(lay, !picked.length ? 'no solve of the picked solvers and profiles to draw' :
+      xKey === 'dl' ? 'nothing to draw: the load axis takes a step\'s load from its solved answers,<br>and none of ' +
+        'the ' + picked.length + ' solves here was solved' : 'no solve here has a value on the x axis');
+    const [drawn, lay2] = thin(scene, traces, lay);
+    return [drawn.concat(unsolvedLegend(rows)), lay2];
   };
 }
 function wpChart(scene, key, yTitle) {

@@ -37,6 +37,7 @@ from ..core import (
     register_section,
     representative_traces,
     sort_scenes,
+    status_counts,
     table_md,
     tidy_log_ticks,
 )
@@ -396,6 +397,28 @@ def _trace_figure(ctx: ReportContext) -> str:
                                  f"{', '.join(md_code(s) for s in short)})." if short else "."))
 
 
+def top_step_rows(table: pd.DataFrame) -> pd.DataFrame:
+    """The rows at the top step of their (scene, instance): its highest step in the table,
+    the step whose first solved answer the runner keeps as the field (harness/table/fields.py)."""
+    steps = pd.to_numeric(table["step"], errors="coerce")
+    top = steps.groupby([table["scene"], table["instance"]]).transform("max")
+    return table[steps == top]
+
+
+def no_fields_note(table: pd.DataFrame) -> str:
+    """Why a table has no field file: no answer at an instance's top step was solved (the
+    runner keeps only a solved one), or the folder kept none of those solved (the backfill
+    command adds them).  The table tells the two apart; meta.json records no field policy."""
+    top = top_step_rows(table)
+    solved = top[top["status"] == "solved"][["scene", "instance"]].drop_duplicates()
+    if solved.empty:
+        return ("No field arrays are stored with this table: the runner keeps the first solved answer at the top "
+                f"step of each instance, and no answer at a top step was solved (the top steps' rows: {status_counts(top)}).\n")
+    return (f"No field arrays are stored with this table, although {len(solved)} instance(s) have a solved answer "
+            f"at their top step: this folder keeps no `arrays/field-*.npz` for them. "
+            f"`python -m contactbench.harness.run.backfill OUT` re-solves the top steps to add them.\n")
+
+
 @register_section("fields", title="The contact fields", group="summary", order=5)
 def fields_section(ctx: ReportContext, table: pd.DataFrame) -> Section | None:
     keys = set(zip(table["scene"], table["instance"]))
@@ -418,8 +441,7 @@ def fields_section(ctx: ReportContext, table: pd.DataFrame) -> Section | None:
         parts.append(_field_figure(ctx, top[(scene, inst)]))
         drawn += 1
     if not top:
-        parts.append("No field arrays are stored with this table (runs before fields were kept: "
-                     "`python -m contactbench.harness.run.backfill OUT` re-solves the top steps to add them).\n")
+        parts.append(no_fields_note(table))
     elif len({s for s, _ in top}) > drawn:
         rest = [s for s in sort_scenes({s for s, _ in top}) if not any(f"field-{s}-" in x for x in ctx.figures)]
         parts.append(f"Fields are stored but not drawn for scene(s) {', '.join(md_code(s) for s in rest)} "

@@ -1,11 +1,12 @@
 """The report's summary sections, rendered for every table whatever its scenes: run time
-against error (work-precision, with solver traces), aggregates (success and correct
-rates, shifted geometric means and Dolan-More performance profiles from
+against error (work-precision, with solver traces), aggregates (solved / problems,
+solved / attempted and correct rates, shifted geometric means and Dolan-More performance profiles from
 harness/table/aggregates.py), skips and failures, and one table per scene.
 """
 
 from __future__ import annotations
 
+import re
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -364,6 +365,35 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
 # ---------------------------------------------------------------------------
 
 
+
+#: A number in a skip reason (an integer, a decimal, a float in e-notation).  The reason text
+#: is all a skip records of its cause, and a prediction or an estimate puts each step's own
+#: n and time in it; so the reasons of one cause are grouped by their text with the numbers
+#: masked (``reason_kind``), the only thing read from the text.
+REASON_NUMBER = re.compile(r"\d+(?:\.\d+)?(?:[eE][+-]?\d+)?")
+
+
+def reason_kind(reason: str) -> str:
+    """A skip reason with each number replaced by "#": the reasons of one cause at different
+    steps (n, predicted time) read the same."""
+    return REASON_NUMBER.sub("#", reason)
+
+
+def skip_rows(skipped: pd.DataFrame) -> list[tuple[Any, ...]]:
+    """The Skips table's rows: per (scene, solver, ``reason_kind``) of the skipped rows,
+    (scene, solver, rows, instances, steps as ranges, the reason of its first step in full,
+    "e.g. " in front where the group's reasons differ), by scene, solver and first step."""
+    sk = skipped.assign(_reason=skipped["skip_reason"].fillna("").astype(str))
+    sk = sk.assign(_kind=sk["_reason"].map(reason_kind)).sort_values(["step", "instance"], kind="stable")
+    out = []
+    for (sc, so, _), x in sk.groupby(["scene", "solver", "_kind"], sort=False):
+        first = x["_reason"].iloc[0] or "(no reason recorded)"
+        steps = pd.to_numeric(x["step"], errors="coerce").dropna()
+        out.append((sc, so, len(x), x["instance"].nunique(), step_ranges(steps) if len(steps) else "-",
+                    f"e.g. {first}" if x["_reason"].nunique() > 1 else first, steps.min() if len(steps) else -1))
+    out.sort(key=lambda r: (scene_rank(r[0]), natural_key(r[1]), r[-1], r[5]))
+    return [r[:-1] for r in out]
+
 @register_section("skips", title="Skips and failures", group="summary", order=30)
 def skips_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     t = table
@@ -372,13 +402,11 @@ def skips_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     if sk.empty:
         parts.append("No pair was skipped.\n")
     else:
-        g = sk.groupby(["scene", "solver", "skip_reason"], sort=False)
-        rows_t = sorted(((sc, so, len(x), x["instance"].nunique(), re_ or "(no reason recorded)")
-                         for (sc, so, re_), x in g),
-                        key=lambda r: (scene_rank(r[0]), natural_key(r[1]), r[4]))
-        parts.append(table_md(ctx, "skipped pairs, by scene, solver and reason (rows: skipped cells; instances: "
-                                   "distinct instances).", ["scene", "solver", "rows", "instances", "reason"],
-                              rows_t, "llrrl"))
+        parts.append(table_md(ctx, "skipped pairs, by scene, solver and kind of reason (the reason with its "
+                                   "numbers left out: a prediction for each step is one kind; rows: skipped cells; "
+                                   "instances: distinct instances; steps: the steps skipped for it; reason: that "
+                                   "of its first step, in full, 'e.g.' where the others differ in their numbers).",
+                              ["scene", "solver", "rows", "instances", "steps", "reason"], skip_rows(sk), "llrrll"))
     bad = t[t["status"].isin(["failed", "timeout", "crashed"])]
     if bad.empty:
         parts.append("No solve failed, timed out or crashed.\n")
