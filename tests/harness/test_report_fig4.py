@@ -18,6 +18,7 @@ import pytest
 
 from contactbench.harness.report import core as rp
 from contactbench.harness.report.sections import paper as rpp
+from contactbench.harness.table.aggregates import served_name
 from contactbench.harness.table.schema import ALL_COLUMNS
 from tests.helpers import META, report_row, write_out
 
@@ -159,3 +160,22 @@ def test_nothing_solved_says_so_instead_of_an_empty_figure(tmp_path: Path) -> No
     assert "fig4-paper-sweep" not in figures
     assert "**No figure.**" in body and "no step was solved" in body
     assert "timeout 2, skipped 10" in body
+
+
+def test_worst_p_err_leaves_out_the_answers_that_served_as_the_reference(tmp_path: Path) -> None:
+    """pk's answers served as the reference of steps 0-1 (p error 0 by construction): its
+    worst p err is that of step 2 against another reference, and a solver whose every
+    measured answer was the reference reads "ref", not 0."""
+    df = sweep_rows({"pk": [OK] * 3, "nnls": [OK] * 3, "gp": [OK] * 3})
+    served = served_name("pk", "high")
+    df["reference_solver"] = [served if k < 2 else "nnls@high" for k in df["step"]]
+    df["p_rel_error"] = [0.0 if (s == "pk" and k < 2) or (s == "nnls" and k == 2) else 3e-7 if s == "pk" else 1e-9
+                         for s, k in zip(df["solver"], df["step"])]
+    df.loc[(df["solver"] == "nnls") & (df["step"] < 2), "p_rel_error"] = 2e-8
+    only = sweep_rows({"pk": [OK] * 3, "gp": [OK] * 3})
+    only["reference_solver"] = served
+    only["p_rel_error"] = [0.0 if s == "pk" else 1e-9 for s in only["solver"]]
+    rows = {r[0]: r for r in totals_table(fig4(tmp_path / "a", df)[0])[1:]}
+    assert rows["pk"][5] == "3.0e-07" and rows["gp"][5] == "1.0e-09"
+    rows = {r[0]: r for r in totals_table(fig4(tmp_path / "b", only)[0])[1:]}
+    assert rows["pk"][5] == "ref" and rows["gp"][5] == "1.0e-09"

@@ -22,6 +22,7 @@ from matplotlib.colors import to_hex
 from contactbench.problems.surfaces import RMD_FAMILIES
 
 from ..style import GREY, family_panels, panels_note, sort_families
+from ...table import aggregates as agg
 from ..charts import RowChart
 from ..markdown_text import md_code
 from ..core import (
@@ -49,6 +50,7 @@ from ..core import (
     status_counts,
     table_md,
 )
+from .generic import OWN_REF
 from .sweep_totals import (
     BEST_RULE,
     WORST_RULE,
@@ -347,6 +349,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     if r.empty:
         return Section(FIG4_TITLE, "Every pair of this scene was skipped.\n", page_charts=FIG4_PAGE)
     cells = per_cell(r)
+    cells[OWN_REF] = agg.own_reference(cells)  # (read on the solver's own name, before the curve label)
     # warm and cold runs of one solver are separate curves ("pk" and "pk (warm)")
     cells["warm"] = cells.groupby(["solver", "history"])["warm_start"].transform("any").astype(bool)
     cells["solver"] = [_curve_label(s, w) for s, w in zip(cells["solver"], cells["warm"])]

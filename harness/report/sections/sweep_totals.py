@@ -16,6 +16,7 @@ import pandas as pd
 from ...table.schema import ANSWERED
 from ..core import fmt_err, fmt_num, natural_key, natural_sorted
 from ..markdown_text import md_code
+from .generic import OWN_REF, REF_CELL
 
 #: The rule ``best_per_family`` applies, as the figure's caption states it.
 BEST_RULE = ("the best of a family is its solver that solved the most steps, then the one with the least time "
@@ -23,7 +24,8 @@ BEST_RULE = ("the best of a family is its solver that solved the most steps, the
 #: Which answers the worst kkt and worst p error of the totals count (the "inaccurate
 #: answers" table of Skips and failures counts the same ones).
 WORST_RULE = ("worst kkt and worst p err are over the answers the judge read (solved and inaccurate); a timed-out, "
-              "failed or crashed solve is counted in the steps but not there")
+              "failed or crashed solve is counted in the steps but not there; worst p err leaves out the answers "
+              "that served as the reference (0 by construction), and is 'ref' where those are a solver's only ones")
 
 
 def sweep_steps(rows: pd.DataFrame) -> int:
@@ -42,8 +44,9 @@ def sweep_totals(cells: pd.DataFrame, n_steps: int) -> pd.DataFrame:
     curve), over a sweep of ``n_steps`` steps: ``steps`` (the sweep's), ``run`` (steps
     with a time), ``solved`` (steps solved), ``complete`` (every step of the sweep solved),
     ``total_s`` (solve time summed over the steps run), ``solved_s`` (over the steps
-    solved), ``worst_kkt`` and ``worst_p_err`` (over the answered cells, schema.ANSWERED;
-    NaN when none answered)."""
+    solved), ``worst_kkt`` and ``worst_p_err`` (over the answered cells, schema.ANSWERED,
+    the error in p leaving out the answers that served as the reference, ``OWN_REF``; NaN
+    when none answered) and ``reference_only`` (``reference_only``)."""
     labels = pd.Index(list(dict.fromkeys(cells["solver"])), name="solver")
     run = _steps_of(cells).reindex(labels, fill_value=0)
     solved = _steps_of(cells[cells["solved"]]).reindex(labels, fill_value=0)
@@ -54,7 +57,27 @@ def sweep_totals(cells: pd.DataFrame, n_steps: int) -> pd.DataFrame:
         "total_s": g["solve_time_s"].sum(min_count=1).reindex(labels),
         "solved_s": cells[cells["solved"]].groupby("solver")["solve_time_s"].sum().reindex(labels, fill_value=0.0),
         "worst_kkt": answered["kkt_error"].max().reindex(labels),
-        "worst_p_err": answered["p_rel_error"].max().reindex(labels)}, index=labels)
+        "worst_p_err": measured_p_errors(cells).groupby(cells["solver"], sort=False).max().reindex(labels),
+        "reference_only": reference_only(cells).reindex(labels, fill_value=False)}, index=labels)
+
+
+def measured_p_errors(cells: pd.DataFrame) -> pd.Series:
+    """The error in p of each answered cell (schema.ANSWERED) that measures something: NaN
+    for the others and for an answer that served as its step's reference (``OWN_REF``: 0
+    by construction)."""
+    own = cells[OWN_REF] if OWN_REF in cells else pd.Series(False, index=cells.index)
+    return cells["p_rel_error"].where(cells["status"].isin(ANSWERED) & ~own.astype(bool))
+
+
+def reference_only(cells: pd.DataFrame) -> pd.Series:
+    """Per solver label: its only answers with an error in p are those that served as the
+    reference (the totals table says "ref" there, not a worst error)."""
+    if OWN_REF not in cells:
+        return pd.Series(False, index=pd.Index(list(dict.fromkeys(cells["solver"]))))
+    has_p = cells["status"].isin(ANSWERED) & cells["p_rel_error"].notna()
+    g = pd.DataFrame({"solver": cells["solver"], "own": has_p & cells[OWN_REF].astype(bool),
+                      "other": has_p & ~cells[OWN_REF].astype(bool)}).groupby("solver", sort=False)
+    return g["own"].any() & ~g["other"].any()
 
 
 def ranked_labels(tot: pd.DataFrame) -> list[str]:
@@ -80,7 +103,8 @@ def totals_rows(tot: pd.DataFrame, family_of: Callable[[str], str]) -> list[tupl
     """The rows of Fig. 4's totals table, in ``ranked_labels`` order: solver, family,
     steps solved (of the sweep's), total [s] (``total_text``), worst kkt, worst p err."""
     return [(s, family_of(s), f"{int(tot.loc[s, 'solved'])} of {int(tot.loc[s, 'steps'])}",
-             total_text(tot.loc[s]), fmt_err(tot.loc[s, "worst_kkt"]), fmt_err(tot.loc[s, "worst_p_err"]))
+             total_text(tot.loc[s]), fmt_err(tot.loc[s, "worst_kkt"]),
+             REF_CELL if tot.loc[s, "reference_only"] else fmt_err(tot.loc[s, "worst_p_err"]))
             for s in ranked_labels(tot)]
 
 
