@@ -104,8 +104,8 @@ def _finite(v: float) -> float | None:
 
 
 #: The page's drawers of the table's own rows (report/page_script.py): "time-against"
-#: (solve time per row against a row field, one curve per solver label and profile, a
-#: cross where the judge did not read the answer as solved) and "unsolved-share" (the
+#: (solve time per row against a row field, one curve per solver label and profile, a row
+#: not solved marked by its status: sections/paper.py ``UNSOLVED_MARKS``) and "unsolved-share" (the
 #: share of rows not solved per solver against n).
 ROW_DRAWERS: tuple[str, ...] = ("time-against", "unsolved-share")
 #: The row fields a "time-against" chart may put on its x axis: dimensionless load, n.
