@@ -388,11 +388,11 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
                         warmup=not args.no_warmup, jobs=args.jobs, reference=args.reference,
                         reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
                         progress=False if args.no_progress else None, **kw)
-    out = args.out or "results/" + "-".join(args.scenes)
+    out = args.out if args.out is not None else "results/" + "-".join(args.scenes)  # ("" is refused, not the default)
     check_out_dir(out)
     # run_benchmark plans, checks the folder, then holds its lock (harness/table/store.py) while it writes
     with memory_budget_scope(kw.get("memory_budget")):  # the run's skips and builds read it too
-        if args.scheduler:
+        if args.scheduler is not None:  # (an empty address is refused, not read as a local run)
             from .run.distributed import run_benchmark_on_dask
 
             summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,

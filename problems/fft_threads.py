@@ -44,11 +44,25 @@ def _usable_cores() -> int:
 USABLE_CORES = _usable_cores()
 
 
+#: The most threads one process's products, FFTs and BLAS may be given
+#: (CONTACTBENCH_FFT_WORKERS, ``run --threads``): beyond any machine's cores, and far
+#: below the C int the FFT libraries take a thread count as.
+MAX_THREADS = 4096
+
+
+def threads_problem(threads: object) -> str:
+    """What is wrong with ``threads`` as a number of threads ("" when it is a whole
+    number from 1 to ``MAX_THREADS``; a bool is none)."""
+    if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
+        return f"expected a whole number of threads from 1 to {MAX_THREADS}, got {threads!r}"
+    return ""
+
+
 def fft_workers() -> int:
     """Threads of the products, the FFTs and the preconditioners' pools: env
-    CONTACTBENCH_FFT_WORKERS (a whole number >= 1 written plainly, as the command line's
-    numbers are: ``units.plain_int``; anything else is a ``ProblemInputError`` naming it),
-    default ``USABLE_CORES``."""
+    CONTACTBENCH_FFT_WORKERS (a whole number from 1 to ``MAX_THREADS`` written plainly, as
+    the command line's numbers are: ``units.plain_int``; anything else is a
+    ``ProblemInputError`` naming it), default ``USABLE_CORES``."""
     env = os.environ.get("CONTACTBENCH_FFT_WORKERS", "").strip()
     if not env:
         return USABLE_CORES
@@ -56,9 +70,9 @@ def fft_workers() -> int:
         workers = plain_int(env)
     except ValueError:
         workers = 0
-    if workers < 1:
-        raise ProblemInputError(f"CONTACTBENCH_FFT_WORKERS={env!r}: expected a whole number of threads >= 1, "
-                                "written plainly")
+    if threads_problem(workers):
+        raise ProblemInputError(f"CONTACTBENCH_FFT_WORKERS={env!r}: expected a whole number of threads from 1 to "
+                                f"{MAX_THREADS}, written plainly")
     return workers
 
 

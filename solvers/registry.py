@@ -20,7 +20,8 @@ A solver *spec* on the command line (``run --solvers``, ``validate``) is one of
 
 * a registry name, ``fast-dual-pccg``;
 * an import path ``module:NAME`` (a Solver subclass, instance or factory); a module in
-  the current folder loads as with ``python -m`` (``load_solver``);
+  the current folder loads as with ``python -m`` (``load_solver``); one that does not load
+  is one line whatever its module raised (``load_named_solver``, solvers/_loading.py);
 * either with fixed parameters, ``fast-dual-pccg[precision=double]`` or
   ``name[k=v,k2=v2]``: each value is read as the declared ``Param``'s type and checked
   by ``Solver.resolve_params`` (``parse_solver_spec``);
@@ -57,6 +58,7 @@ from typing import Any, Callable, Sequence, TypeVar
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 from contactbench.problems.units import plain_float
 
+from ._loading import SolverLoadError, file_path_hint, load_failure, user_code
 from ._params import wrong_kind
 from .base import Capabilities, Param, ParamError, Solver
 
@@ -361,22 +363,57 @@ def is_import_path(name: str) -> bool:
 def load_solver(spec: str | Solver) -> Solver:
     """A solver by registry name or by import path ``module:NAME`` (a Solver subclass,
     instance or factory; ``import_user_module`` finds the module), its declaration
-    checked (``check_declaration``); a ``Solver`` handed in is returned as it is."""
+    checked (``check_declaration``); a ``Solver`` handed in is returned as it is.  An
+    import path's code runs under ``solvers._loading.user_code``: an ``Exception`` it
+    raises passes as it is (a missing ``NAME``: ``AttributeError``; not a solver:
+    ``TypeError``), anything else but the user's Ctrl-C comes out as an ``ImportAborted``
+    (``load_named_solver`` words each in one line)."""
     if isinstance(spec, Solver):
         return spec
     if not is_import_path(spec):
         return get_solver(spec)
     mod_name, attr = spec.split(":", 1)
-    obj = getattr(import_user_module(mod_name), attr)
+    with user_code(spec, f"importing module {mod_name!r}"):
+        module = import_user_module(mod_name)
+    with user_code(spec, f"reading {attr!r} from module {mod_name!r}"):
+        obj = getattr(module, attr)
+    with user_code(spec, f"building solver {spec!r}"):
+        solver = _built(obj)
+    if solver is None:
+        raise TypeError(f"{spec} is not a Solver subclass, instance or factory")
+    return check_declaration(solver)
+
+
+def _built(obj: Any) -> Solver | None:
+    """The solver ``obj`` (a Solver subclass, instance or factory) gives, else None."""
     if isinstance(obj, type) and issubclass(obj, Solver):
-        return check_declaration(obj())
+        return obj()
     if isinstance(obj, Solver):
-        return check_declaration(obj)
+        return obj
     if callable(obj):
         out = obj()
         if isinstance(out, Solver):
-            return check_declaration(out)
-    raise TypeError(f"{spec} is not a Solver subclass, instance or factory")
+            return out
+    return None
+
+
+def load_named_solver(spec: str | Solver) -> Solver:
+    """``load_solver``, where a solver named by import path that does not load is one
+    ``SolverLoadError`` line (``solvers._loading.load_failure``; a file path where a module
+    name goes, ``file_path_hint``) whatever its module raised, and the user's Ctrl-C still
+    interrupts; a registry name that is unknown is ``load_solver``'s ``KeyError``."""
+    if isinstance(spec, Solver) or not is_import_path(spec):
+        return load_solver(spec)
+    mod_name, attr = spec.split(":", 1)
+    hint = file_path_hint(mod_name, attr)
+    if hint:
+        raise SolverLoadError(f"cannot load solver {spec!r}: {hint}")
+    try:
+        return load_solver(spec)
+    except SolverDeclarationError as exc:  # it names the solver and what is wrong
+        raise SolverLoadError(f"cannot load solver {spec!r}: {exc}") from None
+    except Exception as exc:
+        raise load_failure(spec, exc, sys.modules.get(mod_name)) from None
 
 
 # ---------------------------------------------------------------------------
@@ -508,7 +545,7 @@ def param_from_text(param: Param, text: str) -> Any:
 
 def parse_solver_spec(text: str) -> tuple[SolverSpec, Solver]:
     """The spec of one ``--solvers`` entry naming one variant and its solver (loaded by
-    ``load_solver``).  Parameters are read against the solver's declared ``Param``s and
+    ``load_named_solver``).  Parameters are read against the solver's declared ``Param``s and
     checked by ``resolve_params``, the check ``validate --params`` makes; a bad one is a
     ``ParamError`` naming the allowed keys, a malformed spec (or ``name[grid]``, which
     names several: ``expand_solver_spec``) a ``SolverSpecError``."""
@@ -521,7 +558,7 @@ def parse_solver_spec(text: str) -> tuple[SolverSpec, Solver]:
 def fixed_spec(parts: SpecText, text: str) -> tuple[SolverSpec, Solver]:
     """The solver of ``parts`` and the spec of its fixed parameters (``parts.raw``), each
     read as its declared ``Param`` (``param_from_text``) and checked (``resolve_params``)."""
-    solver = load_solver(parts.name)
+    solver = load_named_solver(parts.name)
     declared = {p.name: p for p in solver.params}
     try:
         params = {k: param_from_text(declared[k], v) if k in declared else v for k, v in parts.raw.items()}

@@ -89,7 +89,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -120,7 +120,7 @@ from ..judging import Verdict, judge, read_answer
 from ..profiles import PROFILES, get_profile
 
 __all__ = ["BATTERY_GROUPS", "ConformanceCase", "GROUPS", "PROMISE_BOUND", "Reference", "VerdictRow", "VerdictTable", "assert_conforms",
-           "build_battery_spec", "conformance_cases", "exact_reference", "p_tolerance", "validate"]
+           "build_battery_spec", "conformance_cases", "exact_reference", "p_tolerance", "record_columns", "validate"]
 
 #: Agreement required across unit systems (P/(E A) relative, scaled KKT figures absolute).
 UNITS_AGREEMENT = 1e-8
@@ -434,21 +434,25 @@ class VerdictTable:
         return "\n".join(lines)
 
     def records(self, strict: bool = False) -> list[dict[str, Any]]:
-        """One dict a row, with the table's ``outcome`` under ``strict`` as the exit status reads it."""
-        outcome = self.outcome(strict)
+        """One dict a row, keyed by ``record_columns`` (in that order), with the table's
+        ``outcome`` under ``strict`` as the exit status reads it."""
+        outcome, columns = self.outcome(strict), record_columns()
         out = []
         for r in self.rows:
-            d = asdict(r)
-            d.pop("kkt")
-            d["label"] = r.label
-            d["outcome"] = outcome
-            out.append(d)
+            d = {**asdict(r), "label": r.label, "outcome": outcome}
+            out.append({k: d[k] for k in columns})
         return out
 
     def to_frame(self, strict: bool = False) -> Any:
         import pandas as pd
 
-        return pd.DataFrame(self.records(strict))
+        return pd.DataFrame(self.records(strict), columns=record_columns())
+
+
+def record_columns() -> list[str]:
+    """The columns of a verdict record (``VerdictTable.records``: the rows of validate's
+    CSV files), in order: a row's fields but its KKT parts, its label, its table's outcome."""
+    return [f.name for f in fields(VerdictRow) if f.name != "kkt"] + ["label", "outcome"]
 
 
 def _num(x: float | None, fmt: str = "9.2e") -> str:

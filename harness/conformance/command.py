@@ -18,15 +18,17 @@ from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import (NamedVariant, SolverDeclarationError, SolverSpecError, all_solvers,
+from contactbench.solvers.registry import (NamedVariant, SolverSpecError, all_solvers,
                                            expand_solver_spec, is_import_path, load_solver, refuse_same_variants,
                                            split_solver_spec)
+from contactbench.solvers.registry import load_named_solver as load_import_path
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
 from ..run.isolation import SOLVER_FAULTS, exception_text
+from ..table.files import begins_with, replace_atomically
 from .declared import LoadFailed, OneLine, in_a_child, names_user_code
-from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, validate
+from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, record_columns, validate
 from .report import check_report_folder, write_conformance_report
 
 
@@ -44,7 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
                "capability); 1 wrong: an answer claimed as converged that fails, or a solver that wrote into its "
                "problem (with --strict also crashes, timeouts, flagged rows); 2 bad input, refused before anything "
                "runs (unknown solver, import path that does not load, no case selected, solver not available, a "
-               "bad --timeout, a --csv or --out that cannot be written, a solver declaration that cannot be used); "
+               "bad --timeout, a --csv or --out that cannot be written or holds what validate did not write, a "
+               "solver declaration that cannot be used); "
                "3 incomplete: cases left unsolved; 4 untested: "
                "no answer of any solver's own was judged (every case skipped for a declared capability, refused "
                "where refusing is allowed, or answered without calling the solver), or its own skip left a whole "
@@ -68,7 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--list", action="store_true", help="list the selected cases and exit (the solvers named, "
                                                         "their --params, --csv and --out are checked first)")
     ap.add_argument("--csv", metavar="PATH", type=path_text,
-                    help="also write the verdict rows as CSV (a file in an existing folder)")
+                    help="also write the verdict rows as CSV (a new file in an existing folder, or a CSV file "
+                         "validate wrote; never a link)")
     ap.add_argument("--out", metavar="DIR", type=path_text,
                     help="write the conformance report: DIR/verdicts.csv and DIR/conformance.md (the exit status is "
                          "the same); DIR is new, empty or a report folder of validate")
@@ -118,53 +122,20 @@ class SolverLoadError(CommandLineError):
 
 def load_named_solver(name: str) -> Solver:
     """The solver called ``name`` (registry name or ``module:NAME``), or a
-    ``SolverLoadError`` that says what is wrong in one line: a file path where a module
-    name goes (and the import path to give instead), a module that is not found, a
-    dependency of the module that is not installed, a missing attribute, a declaration
-    the registry refuses (``check_declaration``), or whatever importing the module or
-    building the solver raised -- ``SystemExit`` included, never the end of ``validate``."""
+    ``SolverLoadError`` that says what is wrong in one line: an unknown registry name, or
+    what ``registry.load_named_solver`` says of an import path that does not load (a file
+    path where a module name goes, a module not found, a missing attribute, a declaration
+    the registry refuses, whatever importing it or building the solver raised) -- never
+    the end of ``validate``."""
     if not is_import_path(name):
         try:
             return load_solver(name)
         except KeyError as exc:
             raise SolverLoadError(f"{exc.args[0] if exc.args else exc} (or give an import path module:NAME)") from None
-    module, attr = name.split(":", 1)
-    hint = file_path_hint(module, attr)
-    if hint:
-        raise SolverLoadError(f"cannot load solver {name!r}: {hint}")
-    try:  # a module in the current folder loads, as with `python -m` (solvers/registry.py)
-        return load_solver(name)
-    except ModuleNotFoundError as exc:
-        missing = exc.name or ""
-        if missing and module != missing and not module.startswith(missing + "."):  # not the module: its import
-            raise SolverLoadError(f"cannot load solver {name!r}: module {module!r} imports {missing!r}, which is "
-                                  "not installed here") from None
-        raise SolverLoadError(f"cannot import {module!r} for solver {name!r}: {exc}; run from the folder that "
-                              "holds it or put that folder on PYTHONPATH") from None
-    except AttributeError as exc:
-        loaded = sys.modules.get(module)
-        if loaded is not None and not hasattr(loaded, attr):
-            raise SolverLoadError(f"module {module!r} has no attribute {attr!r} (solver {name!r})") from None
-        raise SolverLoadError(f"cannot load solver {name!r}: {exception_text(exc)}") from None
-    except SolverDeclarationError as exc:  # it names the solver and what is wrong
-        raise SolverLoadError(f"cannot load solver {name!r}: {exc}") from None
-    except SOLVER_FAULTS as exc:  # the user's module failed to import or to build its solver
-        raise SolverLoadError(f"cannot load solver {name!r}: {exception_text(exc)}") from None
-
-
-def file_path_hint(module: str, attr: str) -> str:
-    """How to name a solver whose module part is a file path (``x.py``, ``./x``,
-    ``/abs/dir/x.py``) or a relative module name (``.x``) by its import path instead; ""
-    when ``module`` is a module name."""
-    if not (module.endswith(".py") or "/" in module or os.sep in module or module.startswith(".")):
-        return ""
-    path = Path(module)
-    if "/" not in module and os.sep not in module and not module.endswith(".py"):
-        return f"{module!r} is a relative module name; give the module's full name, package.module:{attr}"
-    stem = path.name[:-3] if path.name.endswith(".py") else path.name
-    there = "" if path.is_file() or path.with_name(stem + ".py").is_file() else " (there is no such file)"
-    return (f"{module!r} is a file path, not a module name{there}; name it {stem}:{attr} and run from "
-            f"{path.parent.resolve()} (or put that folder on PYTHONPATH)")
+    try:
+        return load_import_path(name)
+    except ProblemInputError as exc:  # (the registry's SolverLoadError: one line)
+        raise SolverLoadError(str(exc)) from None
 
 
 def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:
@@ -301,9 +272,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             path = write_conformance_report(tables, args.out, strict=args.strict, command=arguments)
             print(f"conformance report: {path}")
         if args.csv and tables:
-            import pandas as pd
-
-            pd.concat([t.to_frame(args.strict) for t in tables], ignore_index=True).to_csv(args.csv, index=False)
+            write_verdict_csv(tables, args.csv, args.strict)
     except (OSError, ProblemInputError) as exc:  # the folder changed while the battery ran
         where = f"{exc.filename}: " if isinstance(exc, OSError) and exc.filename else ""
         text = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
@@ -312,10 +281,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     return _combined_exit(codes)
 
 
+def csv_header() -> str:
+    """The first line of every CSV file validate writes (``--csv``; the report's
+    verdicts.csv too): the verdict record's columns (``battery.record_columns``)."""
+    return ",".join(record_columns())
+
+
+def is_verdict_csv(path: Path) -> bool:
+    """Whether ``path`` is a CSV file validate wrote: a plain file, not a link, that begins
+    with ``csv_header`` on a line of its own (``table.files.begins_with``)."""
+    return any(begins_with(path, f"{csv_header()}{end}".encode()) for end in ("\n", "\r\n"))
+
+
+def write_verdict_csv(tables: Sequence[Any], path: str, strict: bool) -> None:
+    """The verdict rows of ``tables`` as CSV at ``path``, written whole and renamed into
+    place (never through a link)."""
+    import pandas as pd
+
+    frame = pd.concat([t.to_frame(strict) for t in tables], ignore_index=True)
+    replace_atomically(path, lambda tmp: frame.to_csv(tmp, index=False))
+
+
 def check_csv_path(path: str) -> None:
-    """``--csv PATH`` must name a file that can be written, in a folder that exists
-    (checked before anything runs; a file where a folder of the path goes is named)."""
+    """``--csv PATH`` must name a file that can be written, in a folder that exists, and
+    that is new or a CSV file validate wrote (``is_verdict_csv``): a link, a folder or any
+    other file there is refused and left as it is (checked before anything runs; a file
+    where a folder of the path goes is named)."""
     p = Path(path)
+    if p.is_symlink():
+        raise CommandLineError(f"--csv {path!r}: is a symbolic link; validate never writes through one: "
+                               "give the path of a file")
     if p.is_dir():
         raise CommandLineError(f"--csv {path!r}: is a folder; give the name of a file")
     folder = p.parent
@@ -328,6 +323,10 @@ def check_csv_path(path: str) -> None:
         raise CommandLineError(f"--csv {path!r}: no such folder {str(folder)!r}")
     if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise CommandLineError(f"--csv {path!r}: cannot write it (permission denied)")
+    if os.path.lexists(p) and not is_verdict_csv(p):
+        raise CommandLineError(f"--csv {path!r}: the file there was not written by validate (its first line is "
+                               "not the verdict table's header) and would be written over; move it away or give "
+                               "a new path")
 
 
 def check_out_dir(path: str) -> None:

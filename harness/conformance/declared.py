@@ -22,7 +22,8 @@ from typing import Any, Callable
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import SolverDeclarationError, SolverSpecError, is_import_path, load_solver
+from contactbench.solvers.registry import (SolverDeclarationError, SolverLoadError, SolverSpecError, is_import_path,
+                                           load_named_solver)
 
 from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_text
 
@@ -48,10 +49,10 @@ class Declaration:
 
 
 def declaration_of(solver: Solver | str, params: dict[str, Any] | None = None) -> Declaration:
-    """The declaration of ``solver`` (a ``Solver``, or the text ``load_solver`` reads); where
-    it is available, its parameters ``params`` checked (``Solver.resolve_params``: a
-    ``ParamError``)."""
-    s = load_solver(solver)
+    """The declaration of ``solver`` (a ``Solver``, or the text ``load_named_solver`` reads:
+    a module that does not load is one ``SolverLoadError`` line); where it is available,
+    its parameters ``params`` checked (``Solver.resolve_params``: a ``ParamError``)."""
+    s = load_named_solver(solver)
     try:
         available, why = s.availability()
     except SOLVER_FAULTS as exc:
@@ -71,9 +72,12 @@ class LoadFailed(OneLine):
 
 
 #: The one-line errors a loading child sends back by kind, raised again in the harness's
-#: process as that kind (a ``OneLine`` of the caller's own kind as a ``LoadFailed``).
+#: process as that kind (a ``OneLine`` of the caller's own kind as a ``LoadFailed``); the
+#: first kind an error is an instance of is its kind (a ``SolverLoadError`` before the
+#: ``ProblemInputError`` it is).
 CARRIED_ERRORS: dict[str, type[Exception]] = {
-    "param": ParamError, "input": ProblemInputError, "spec": SolverSpecError, "declaration": SolverDeclarationError,
+    "load": SolverLoadError, "param": ParamError, "input": ProblemInputError, "spec": SolverSpecError,
+    "declaration": SolverDeclarationError,
     "line": LoadFailed,
 }
 

@@ -24,7 +24,7 @@ import re
 from pathlib import Path
 from typing import Iterable
 
-from ..table.files import write_text_atomic
+from ..table.files import begins_with, write_text_atomic
 from .core import REPORT_NAME, REPORT_TITLE, ReportInputError
 from .figure_files import FIGURE_DIR, MANIFEST, figure_dir, recorded
 from .html import HTML_HEAD, HTML_NAME
@@ -43,18 +43,10 @@ def page_names(html: bool) -> list[str]:
     return [REPORT_NAME, HTML_NAME] if html else [REPORT_NAME]
 
 
-def _begins_with(path: Path, start: bytes) -> bool:
-    try:
-        with path.open("rb") as fh:
-            return fh.read(len(start)) == start
-    except OSError:  # a folder, or a file that cannot be read: not one a report wrote
-        return False
-
-
 def linked_figures(out: Path) -> set[str]:
     """The figure file names OUT/report.md links, when a report wrote it (else none)."""
     path = out / REPORT_NAME
-    if not path.is_file() or not _begins_with(path, page_starts()[REPORT_NAME]):
+    if not begins_with(path, page_starts()[REPORT_NAME]):
         return set()
     return set(_FIGURE_LINK.findall(path.read_text(encoding="utf-8", errors="replace")))
 
@@ -71,7 +63,7 @@ def foreign_files(out: Path, names: Iterable[str]) -> list[Path]:
         if not os.path.lexists(path):
             continue
         if rel in starts:
-            ours = not path.is_symlink() and _begins_with(path, starts[rel])
+            ours = begins_with(path, starts[rel])
         elif Path(rel).parent == Path(FIGURE_DIR):
             if ours_figures is None:
                 has_record = os.path.lexists(figure_dir(out) / MANIFEST)
@@ -105,7 +97,7 @@ def refuse_foreign_page(path: Path, title: str) -> None:
     folder): nothing is written or removed."""
     if not os.path.lexists(path):
         return
-    if path.is_symlink() or not _begins_with(path, title_line(title).encode()):
+    if not begins_with(path, title_line(title).encode()):
         raise ReportInputError(f"report {path.parent}: {path} was not written by a report and would be written over; "
                                "move it away to report in this folder (nothing was written)")
 

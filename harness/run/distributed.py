@@ -52,6 +52,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig
 
 from .executors import Progress
@@ -60,7 +61,7 @@ from .job import JobDriver
 from .output_log import OUTPUT_LOG
 from .plan import InstanceJob, RunConfig, job_cell_ids
 from .runner import RunSummary, run_benchmark
-from ..table.store import ResultStore, encode_row
+from ..table.store import CACHE_DIR, ResultStore, encode_row
 
 if TYPE_CHECKING:  # pragma: no cover
     from distributed import Client
@@ -151,7 +152,7 @@ def worker_cache_dir(shared_out: str | None) -> Path:
     and the step, so sharing it is safe: another run's file of the same key holds the same
     problem's answer, and one it removed costs a resume a re-solve, not a wrong start."""
     if shared_out and Path(shared_out).is_dir():
-        d = Path(shared_out) / "_cache"
+        d = Path(shared_out) / CACHE_DIR
     else:
         d = Path(tempfile.gettempdir()) / f"contactbench-cache-{os.getuid()}"
     d.mkdir(parents=True, exist_ok=True)
@@ -230,15 +231,56 @@ class DaskRunReport:
     job_seconds: list[float] = field(default_factory=list)  # wall time of each returned job on its worker
 
 
+#: The protocol of a scheduler address that names none (as Dask reads one).
+DEFAULT_PROTOCOL = "tcp"
+#: The protocol whose addresses are names within one process, not HOST:PORT.
+IN_PROCESS = "inproc"
+
+
+def check_scheduler_address(address: object) -> str:
+    """``address`` (stripped) when it has the form of a Dask scheduler's address:
+    [PROTOCOL://]HOST:PORT with a protocol Dask has (``DEFAULT_PROTOCOL`` where none is
+    named) and a port in 1..65535, or ``inproc://NAME``; else a one-line
+    ``ProblemInputError`` naming it.  Contacts nothing (reaching it is ``connect``'s)."""
+    usage = f"--scheduler needs a Dask scheduler address such as tcp://host:8786, got {address!r}"
+    if not isinstance(address, str) or not address.strip():
+        raise ProblemInputError(usage)
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+        from distributed.comm.registry import backends
+    except ImportError:
+        raise ProblemInputError("--scheduler needs dask.distributed, which is not installed here") from None
+    text = address.strip()
+    try:
+        protocol, location = parse_address(text if "://" in text else f"{DEFAULT_PROTOCOL}://{text}")
+        if protocol not in backends:
+            raise ValueError(f"no Dask protocol {protocol!r} (known: {', '.join(sorted(backends))})")
+        if protocol == IN_PROCESS and not location:
+            raise ValueError("inproc:// needs a name")
+        if protocol != IN_PROCESS and not _is_host_port(location, parse_host_port):
+            raise ValueError(f"{location!r} is not HOST:PORT with a port in 1..65535")
+    except (ValueError, TypeError) as exc:
+        raise ProblemInputError(f"{usage}: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    return text
+
+
+def _is_host_port(location: str, parse: Callable[[str], tuple[str, Any]]) -> bool:
+    """Whether ``location`` is HOST:PORT (read by Dask's ``parse``) with a port in 1..65535."""
+    try:
+        host, port = parse(location)
+        return bool(host) and 1 <= int(port) <= 65535
+    except (ValueError, TypeError):
+        return False
+
+
 def connect(client_or_address: "Client | str") -> tuple["Client", bool]:
-    """A Client for an address (owned: close it when done) or the given Client."""
+    """A Client for an address (owned: close it when done; its form checked first,
+    ``check_scheduler_address``) or the given Client."""
     from distributed import Client
 
     if isinstance(client_or_address, Client):
         return client_or_address, False
-    if not isinstance(client_or_address, str) or not client_or_address.strip():
-        raise ValueError(f"--scheduler needs a Dask scheduler address such as tcp://host:8786, got {client_or_address!r}")
-    return Client(client_or_address.strip(), timeout="30s"), True
+    return Client(check_scheduler_address(client_or_address), timeout="30s"), True
 
 
 def start_local_cluster(n_workers: int = 2, threads_per_worker: int = 1, allowed_failures: int | None = None,
@@ -404,6 +446,21 @@ class DaskExecutor:
     scheduler: "Client | str"
     solver_specs: tuple[str, ...] = ()
     report: DaskRunReport | None = None
+    client: "Client | None" = None  # (the scheduler's, once ``connect`` has contacted it)
+    owns_client: bool = False
+
+    def connect(self) -> None:
+        """Contact the scheduler (a Client for an address; a Client given is used as it
+        is): a run calls this once its checks have passed, before it writes anything, so an
+        address it cannot reach leaves nothing behind."""
+        if self.client is None:
+            self.client, self.owns_client = connect(self.scheduler)
+
+    def close(self) -> None:
+        """Close the Client ``connect`` made for an address (a Client given stays open)."""
+        if self.client is not None and self.owns_client:
+            self.client.close()
+        self.client, self.owns_client = None, False
 
     def run_config(self, run: RunConfig) -> RunConfig:
         return dask_run_config(run)
@@ -415,8 +472,8 @@ class DaskExecutor:
 
     def execute(self, jobs: Sequence[InstanceJob], run: RunConfig, store: ResultStore, statuses: dict[str, str],
                 progress: Progress, verbose: bool = False) -> None:
-        report = run_jobs_on_dask(jobs, self.scheduler, store, run, self.solver_specs,
-                                  on_row=lambda row: progress.update(1))
+        report = run_jobs_on_dask(jobs, self.client if self.client is not None else self.scheduler, store, run,
+                                  self.solver_specs, on_row=lambda row: progress.update(1))
         self.report = report
         log.info("dask: %d jobs on %d workers, %d rows stored (%d duplicates dropped), hosts %s%s",
                  report.jobs_submitted, report.workers, report.rows_stored, report.duplicates_dropped, report.hosts,
@@ -428,7 +485,16 @@ def run_benchmark_on_dask(scenes: Sequence[str], cfg: SceneConfig | None = None,
                           out_dir: str | os.PathLike[str] = "results/run", scheduler: "Client | str" = "",
                           command: list[str] | None = None, append: bool = False) -> RunSummary:
     """``run_benchmark`` with the cells sent to a Dask scheduler (meta.json records the
-    scheduler).  The plan comes first, so bad scene options are refused as from the
-    command line (``ProblemInputError``) before the scheduler is contacted."""
+    scheduler).  An address is checked for its form first (``check_scheduler_address``);
+    the plan and the results folder come next, so bad scene options are refused as from
+    the command line (``ProblemInputError``) before the scheduler is contacted; the
+    scheduler is contacted before the folder is written (``DaskExecutor.connect``), so one
+    that cannot be reached leaves nothing there."""
+    if isinstance(scheduler, str):
+        scheduler = check_scheduler_address(scheduler)
     executor = DaskExecutor(scheduler, solver_import_specs(solvers))
-    return run_benchmark(scenes, cfg, solvers, run, out_dir, command=command, executor=executor, append=append)
+    try:
+        return run_benchmark(scenes, cfg, solvers, run, out_dir, command=command, executor=executor, append=append,
+                             ready=executor.connect)
+    finally:
+        executor.close()

@@ -20,7 +20,9 @@ The log is bounded: each entry keeps the first ``ENTRY_HEAD_BYTES`` bytes of one
 message's output and says how many it dropped; once the log holds ``LOG_CAP_BYTES`` it
 takes no more entries and its last line counts what was dropped since
 (``dropped_line``, rewritten in place).  Pool processes append to one log under an
-exclusive ``flock``.
+exclusive ``flock``.  The log is never written through a link: it is opened with
+``O_NOFOLLOW``, and a run whose log is a link or a folder is refused before anything runs
+(the rule of every entry of a results folder, ``harness.table.store.check_run_entries``).
 """
 
 from __future__ import annotations
@@ -34,8 +36,6 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
-
-from contactbench.problems.errors import ProblemInputError
 
 from .interrupts import signals_deferred
 from .isolation import SCRATCH_PREFIX, output_to
@@ -113,15 +113,6 @@ class OutputLog:
             os.pwrite(fd, text, end)
         else:
             os.pwrite(fd, dropped_line(self.cap, size, 1), end)
-
-
-def check_output_log(path: Path) -> None:
-    """A one-line ``ProblemInputError`` when ``path`` is there and is not a plain file of
-    the run's (a link, a folder): the log is never written through a link to a file that
-    is not the run's; checked before anything runs."""
-    if os.path.islink(path) or (os.path.lexists(path) and not path.is_file()):
-        raise ProblemInputError(f"{path} is not a plain file (a link or a folder); the run writes what solvers print "
-                                "there: move it away")
 
 
 class SolverOutput:

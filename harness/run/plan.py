@@ -25,12 +25,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
+import sys
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
 from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.fft_threads import threads_problem
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.operators_gpu import device_misfit
@@ -113,6 +116,9 @@ class RunConfig:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
         if self.max_cells < 1:
             raise ValueError(f"max_cells must be >= 1, got {self.max_cells}")
+        check_memory_budget(self.memory_budget)
+        if self.threads_per_worker is not None and threads_problem(self.threads_per_worker):
+            raise ValueError(f"threads_per_worker (--threads): {threads_problem(self.threads_per_worker)}")
         for p in self.profiles or ():
             get_profile(p)
 
@@ -126,6 +132,16 @@ class RunConfig:
         if self.jobs > 1:
             return max(1, (os.cpu_count() or 1) // self.jobs)
         return None
+
+
+def check_memory_budget(nbytes: float) -> None:
+    """A one-line ``ValueError`` naming ``--memory-budget-gb`` unless ``nbytes`` is a finite
+    number of bytes > 0; an infinite one says which sizes in GB overflow to it."""
+    if isinstance(nbytes, bool) or not isinstance(nbytes, (int, float)) or not 0 < nbytes < math.inf:
+        overflow = (f": a size of {sys.float_info.max / 2**30:.3g} GB or more is more bytes than a float holds"
+                    if nbytes == math.inf else "")
+        raise ValueError(f"memory_budget (--memory-budget-gb) must be a finite number of bytes > 0, got "
+                         f"{nbytes!r}{overflow}")
 
 
 @dataclass(frozen=True)
@@ -251,10 +267,9 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
         names: list[str | SolverSpec] = []
         variants: list[NamedVariant] = []
         for text in requested:
-            try:  # an unknown name is a clear KeyError; name[k=v] is Param-checked (solvers/registry.py)
-                specs, solver = expand_solver_spec(text)
-            except (ImportError, AttributeError, TypeError) as exc:
-                raise ProblemInputError(f"cannot load solver {text.strip()!r}: {type(exc).__name__}: {exc}") from None
+            # an unknown name is a clear KeyError, a module:NAME that does not load one line whatever its module
+            # raised (a ProblemInputError); name[k=v] is Param-checked (solvers/registry.py)
+            specs, solver = expand_solver_spec(text)
             parts = split_solver_spec(text)
             if is_import_path(parts.name):
                 refuse_name_clash(text.strip(), solver)

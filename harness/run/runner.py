@@ -6,8 +6,9 @@
    (``harness.run.studies``), every input validated and the plan's size bounded
    (``--max-cells``, ``--memory-budget-gb``) before anything runs;
 2. check the results folder (``harness.table.store.check_run_folder``: a new folder, or one
-   that records this run's configuration, ``run_identity``, or ``append``), still
-   touching nothing; then take its lock (``harness.table.store.RunLock``), write the marker,
+   that records this run's configuration, ``run_identity``, or ``append``; no entry it
+   reads or writes, the solvers' log included, a link or of the wrong kind:
+   ``check_run_entries``), still touching nothing; then take its lock (``harness.table.store.RunLock``), write the marker,
    open the store and write meta.json (``harness.table.meta``);
 3. hand the jobs with missing cells to an executor (``harness.run.executors``: serial, a
    process pool, or Dask in ``harness.run.distributed``); each job is run by
@@ -31,21 +32,20 @@ from __future__ import annotations
 import logging
 import math
 import os
-from pathlib import Path
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from contactbench.problems.scenes import SceneConfig
 
 from .executors import Executor, local_executor, output_log_name
 from .interrupts import signals_deferred
-from .output_log import OUTPUT_LOG, check_output_log
+from .output_log import OUTPUT_LOG
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import REFERENCE_TIMEOUT_FACTOR, RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
-from ..table.store import ResultStore, check_run_folder, holding_lock, record_run
+from ..table.store import ResultStore, check_run_entries, check_run_folder, holding_lock, record_run
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
 #: pins): those that change which cells exist, how they are judged or skipped.  The
@@ -155,14 +155,16 @@ def reference_limit_in_effect(run: dict[str, Any]) -> bool:
 def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,
                   run: RunConfig | None = None, out_dir: str | os.PathLike[str] = "results/run",
                   command: list[str] | None = None, executor: Executor | None = None,
-                  append: bool = False) -> RunSummary:
+                  append: bool = False, ready: Callable[[], None] | None = None) -> RunSummary:
     """Plan, check the folder, run the missing cells on ``executor`` (default: serial, or
     a process pool for ``run.jobs > 1``), write the tidy table and meta.json (module doc).
 
     Refusals (``PlanError``, ``RunFolderError``, ``FolderInUseError``, ``MetaError``: all
     ``ProblemInputError``) come before anything is written; the lock is held only while
     the run writes.  ``append``: add to a folder that holds a run of another
-    configuration."""
+    configuration.  ``ready``: called once every check has passed, before the folder is
+    locked or written (a Dask run contacts its scheduler there); what it raises ends the
+    run with nothing written."""
     run = run or RunConfig()
     t0 = time.perf_counter()
     plan = plan_run(scenes, cfg, solvers, run)
@@ -174,7 +176,9 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     identity = run_identity(config)
     check_run_folder(out_dir, identity, append, run_identity)
     read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
-    check_output_log(Path(out_dir) / OUTPUT_LOG)
+    check_run_entries(out_dir, {OUTPUT_LOG: False})  # (the solvers' log: never written through a link)
+    if ready is not None:
+        ready()
     with holding_lock(out_dir):
         folder = check_run_folder(out_dir, identity, append, run_identity)  # again, now that we hold the lock
         for w in plan.warnings:

@@ -6,6 +6,10 @@
 * ``canonical_json(obj)``: a JSON text with sorted keys (non-JSON values as ``str``),
   so two dicts with the same items give the same text -- the key of parameters in cell
   identities, stored rows and study variants.
+* ``begins_with(path, start)``: whether a file is one a writer of the harness wrote, by
+  how every such file begins: a plain file (never a link, a folder or a special file)
+  whose first bytes are ``start``.  A writer writes over an existing file of its name
+  only when it is its own by this rule.
 """
 
 from __future__ import annotations
@@ -31,6 +35,18 @@ def canonical_json(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, default=str)
 
 
+def begins_with(path: str | os.PathLike[str], start: bytes) -> bool:
+    """Whether ``path`` is a plain file, not a link, whose first bytes are ``start`` (module
+    doc); False for anything else, a file that cannot be read included."""
+    if os.path.islink(path) or not os.path.isfile(path):
+        return False
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(start)) == start
+    except OSError:
+        return False
+
+
 def pid_exists(pid: int) -> bool:
     """Whether a process ``pid`` exists on this machine (one of another user's included)."""
     try:
@@ -44,5 +60,5 @@ def pid_exists(pid: int) -> bool:
     return True
 
 
-__all__ = ["SAFE_CHARACTERS", "canonical_json", "pid_exists", "replace_atomically", "safe_name", "write_npz_atomic",
+__all__ = ["SAFE_CHARACTERS", "begins_with", "canonical_json", "pid_exists", "replace_atomically", "safe_name", "write_npz_atomic",
            "write_text_atomic"]

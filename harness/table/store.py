@@ -14,6 +14,14 @@ Layout of a run directory ``OUT/``::
     .contactbench-run.json
                       the marker: this is a contactbench run folder (format version, and
                       the configuration of each run that wrote to it; ``RunFolder``)
+    arrays/           contact fields and wrong answers kept for the report's pictures
+                      (harness/table/fields.py)
+
+(and what the solvers printed, harness/run/output_log.py).  A run never reads or writes
+through a link, and keeps each of these entries as the kind the layout gives it:
+``check_run_entries`` refuses a folder where one is a link, a folder where a file
+belongs or a file where a folder belongs (``entry_problem``: the one rule), before
+anything is written or locked.
 
 A results folder is safe to point at (``check_run_folder``, before anything is written or
 locked): a missing or empty folder is a new run; a marked folder accepts a run whose
@@ -65,6 +73,7 @@ from contactbench.problems.errors import ProblemInputError
 import pandas as pd
 
 from .files import canonical_json, pid_exists, replace_atomically
+from .meta import META_FILE
 from .journal import JournalError as JournalError, checked_journal, encode_row as encode_row, first_of_each_cell
 from .journal import read_journal as read_journal, repair_journal
 from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, columns_of
@@ -74,6 +83,11 @@ PARQUET_FILE = "results.parquet"
 CSV_FILE = "results.csv"
 LOCK_FILE = "run.lock"
 MARKER_FILE = ".contactbench-run.json"
+CACHE_DIR = "_cache"
+ARRAYS_DIR = "arrays"
+#: The entries of a results folder (module doc): name -> whether it is a folder.
+RUN_ENTRIES: dict[str, bool] = {ROWS_FILE: False, PARQUET_FILE: False, CSV_FILE: False, META_FILE: False,
+                                LOCK_FILE: False, MARKER_FILE: False, CACHE_DIR: True, ARRAYS_DIR: True}
 #: Version of the marker's format (``RunFolder``).
 MARKER_FORMAT = 1
 
@@ -97,7 +111,7 @@ class ResultStore:
 
     @property
     def cache_dir(self) -> Path:
-        d = self.out / "_cache"
+        d = self.out / CACHE_DIR
         d.mkdir(parents=True, exist_ok=True)
         return d
 
@@ -234,13 +248,36 @@ class RunFolder:
         return min(diffs, key=len) if diffs else []
 
 
+def entry_problem(path: Path, folder: bool) -> str | None:
+    """What makes ``path`` unfit as a results folder's entry that is a folder (``folder``)
+    or a plain file -- a link (the run never reads or writes through one), or the other
+    kind (a special file counts as neither) -- or None when it is fit or absent."""
+    if path.is_symlink():
+        return "is a symbolic link; a run never reads or writes through one"
+    if not path.exists() or (path.is_dir() if folder else path.is_file()):
+        return None
+    return "is not a folder, where a run keeps one" if folder else "is not a plain file, where a run keeps one"
+
+
+def check_run_entries(out_dir: str | os.PathLike[str], entries: dict[str, bool] | None = None) -> None:
+    """``RunFolderError`` (one line naming the first) when an entry of ``out_dir`` among
+    ``entries`` (name -> whether it is a folder; default ``RUN_ENTRIES``) is unfit
+    (``entry_problem``); reads only."""
+    out = Path(out_dir)
+    for name, folder in (RUN_ENTRIES if entries is None else entries).items():
+        problem = entry_problem(out / name, folder)
+        if problem is not None:
+            raise RunFolderError(f"results folder {out}: {out / name} {problem}; move it away or choose another "
+                                 "--out (nothing was written)")
+
+
 def legacy_config(out: Path) -> dict[str, Any] | None:
     """The ``config`` of a folder written by contactbench before the marker: meta.json
     with contactbench's ``command`` (a list) and ``config`` (a dict), and a rows.jsonl."""
     if not (out / ROWS_FILE).is_file():
         return None
     try:
-        meta = json.loads((out / "meta.json").read_text(encoding="utf-8"))
+        meta = json.loads((out / META_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     if isinstance(meta, dict) and isinstance(meta.get("command"), list) and isinstance(meta.get("config"), dict):
@@ -252,16 +289,21 @@ Identity = Callable[[dict[str, Any]], dict[str, Any]]  # a meta.json ``config`` 
 
 
 def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> RunFolder:
-    """Inspect ``out_dir`` without touching it; raise ``RunFolderError`` for a path that
-    is not a folder, a foreign non-empty folder or an unreadable marker (``JournalError``
-    for a journal against the contract, ``checked_journal``).  ``identity_of`` turns a
+    """Inspect ``out_dir`` without touching it; raise ``RunFolderError`` for an empty or
+    blank name (the rule of an export's folder, ``problems.export.check_export_folder``),
+    a path that is not a folder, an entry that is a link or of the wrong kind
+    (``check_run_entries``), a foreign non-empty folder or an unreadable marker
+    (``JournalError`` for a journal against the contract, ``checked_journal``).  ``identity_of`` turns a
     legacy meta.json ``config``, and each configuration the marker records, into a run
     configuration as this version reads one."""
+    if not os.fspath(out_dir).strip():  # (as Path, "" would be the current folder; " " a folder of that name)
+        raise RunFolderError(f"the results folder (--out) must be named, got {os.fspath(out_dir)!r}")
     out = Path(out_dir)
     if not out.exists():
         return RunFolder(out, "new")
     if not out.is_dir():
         raise RunFolderError(f"results folder {out} is not a folder; choose another --out")
+    check_run_entries(out)
     held = live_lock_error(out)
     if held is not None:  # a live run may not have written its marker yet: its lock is the reason
         raise held

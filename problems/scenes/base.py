@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, ClassVar, NamedTuple
+from typing import Any, Callable, ClassVar, NamedTuple, Sequence
 
 import numpy as np
 
@@ -205,6 +205,15 @@ class SceneCount(NamedTuple):
     specs: list[Any]  # the recipes the count was read from (all of them, or the probes)
 
 
+def seed_count(seeds: Sequence[int]) -> int:
+    """How many seeds ``seeds`` holds; a ``range`` is counted from its ends, whatever its
+    size (``len`` of a range of 2^63 or more seeds, ``--seeds 0-9223372036854775807``,
+    overflows)."""
+    if isinstance(seeds, range):
+        return max(0, -((seeds.start - seeds.stop) // seeds.step))
+    return len(seeds)
+
+
 def scene_counts(scene: Any, cfg: SceneConfig) -> SceneCount:
     """The instances and instance steps of ``scene`` under ``cfg`` (merged), from the
     recipes (``params["steps"]``, 1 where absent) and nothing built.  With more than
@@ -214,7 +223,7 @@ def scene_counts(scene: Any, cfg: SceneConfig) -> SceneCount:
     ``--seeds`` is never expanded."""
     steps, seeds = cfg.steps, cfg.seeds
     big_steps = steps is not None and int(steps) > 3
-    big_seeds = seeds is not None and len(seeds) > 2
+    big_seeds = seeds is not None and seed_count(seeds) > 2
 
     def count(specs: list[Any]) -> tuple[int, int]:
         return len(specs), sum(int(s.params.get("steps") or 1) for s in specs)
@@ -227,7 +236,7 @@ def scene_counts(scene: Any, cfg: SceneConfig) -> SceneCount:
     probes = {(i, j): list(scene.instances(replace(cfg, steps=s, seeds=None if k is None else tuple(k))))
               for i, s in enumerate(s_pts) for j, k in enumerate(k_pts)}
     ds = int(steps) - 2 if big_steps else 0
-    dk = len(seeds) - 1 if big_seeds else 0
+    dk = seed_count(seeds) - 1 if big_seeds else 0
 
     def bilinear(what: int) -> int:
         c = {ij: count(probes[(min(ij[0], len(s_pts) - 1), min(ij[1], len(k_pts) - 1))])[what]

@@ -388,7 +388,8 @@ def test_a_module_that_exits_at_import_is_one_line_and_exit_2(
     (tmp_path / "cb_exits_at_import.py").write_text("import sys\nsys.exit(0)\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     line = refused_in_one_line(["cb_exits_at_import:Solver", "--cases", CASE], capsys)
-    assert "cannot load solver 'cb_exits_at_import:Solver': SystemExit: 0" in line
+    assert "cannot load solver 'cb_exits_at_import:Solver': importing module 'cb_exits_at_import' raised " \
+           "SystemExit: 0" in line
 
 
 @pytest.mark.parametrize("module", ["cb_here.py", "./cb_here.py", "./cb_here", "ABS"])

@@ -119,3 +119,16 @@ def test_a_time_limit_beyond_the_pipes_longest_wait_is_waited_in_parts() -> None
     with ChildProcess(lambda: (lambda msg: msg)) as child:
         reply = child.call("echo", 1e9)
     assert reply.ok and reply.value == "echo"
+
+
+def test_a_memory_budget_that_overflows_to_infinite_bytes_is_refused_naming_the_option(
+        in_tmp: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from contactbench.harness.run.plan import RunConfig
+    from tests.helpers import run_cli
+
+    with pytest.raises(ValueError, match="--memory-budget-gb"):
+        RunConfig(memory_budget=1e308 * 2**30)
+    rc, _, err = run_cli(["run", "paper-sweep", "--size", "8", "--steps", "2", "--solvers", "pk", "--reference",
+                          "none", "--no-progress", "--memory-budget-gb", "1e308", "--out", "o"], capsys)
+    assert rc == 2 and len(err.strip().splitlines()) == 1, (rc, err)
+    assert "--memory-budget-gb" in err and "1.67e+299 GB" in err and not (in_tmp / "o").exists()

@@ -170,6 +170,17 @@ def test_a_huge_seed_range_is_refused_at_once(tmp_path: Path) -> None:
     assert not out.exists()
 
 
+def test_a_seed_range_of_2_63_seeds_is_counted_and_refused_in_one_line(tmp_path: Path) -> None:
+    seeds = range(2**63)  # --seeds 0-9223372036854775807: more seeds than len() can count
+    scene = get_scene("paper-sweep")
+    assert scene_counts(scene, scene.config(SceneConfig(size=16, steps=2, seeds=seeds))).instances == 2**63
+    out = tmp_path / "ex"
+    with pytest.raises(ProblemInputError) as exc:
+        export_scene("paper-sweep", SceneConfig(size=16, steps=2, seeds=seeds), "problem-dir", out)
+    assert f"{2**64:,} QPs" in _one_line(exc)
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("scene_name, cfg", [
     ("paper-sweep", SceneConfig(size=16, steps=5, seeds=(0, 1, 2, 3))),
     ("counterexample", SceneConfig(size=5, seeds=(0, 1, 2))),
