@@ -10,8 +10,9 @@ import argparse
 import math
 import os
 import re
+import sys
 from pathlib import Path
-from typing import Any, Callable, NoReturn
+from typing import Any, Callable, NoReturn, Sequence
 
 from contactbench.plugins import did_you_mean
 from contactbench.problems.errors import ProblemInputError
@@ -52,11 +53,46 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def parse_known_args(self, args: Sequence[str] | None = None, namespace: Any = None) -> Any:
+        """argparse's, once no option that takes one value is given twice (``given_twice``:
+        argparse would keep the last silently, and ``--size 8 --size 16`` runs 16)."""
+        tokens = list(sys.argv[1:] if args is None else args)
+        twice = given_twice(self, tokens)
+        if twice:
+            self.error(f"{twice} given twice; give it once")
+        return super().parse_known_args(tokens, namespace)
+
     def _check_value(self, action: argparse.Action, value: Any) -> None:
         if action.choices is not None and value not in action.choices:
             choices = [str(c) for c in action.choices]
             raise argparse.ArgumentError(action, f"invalid choice {value!r}{did_you_mean(str(value), choices)}; "
                                                  f"choose from {', '.join(choices)}")
+
+
+#: The argparse actions an option may be given more than once for (each use adds).
+REPEATABLE_ACTIONS: tuple[type, ...] = (argparse._AppendAction, argparse._AppendConstAction, argparse._CountAction,
+                                        argparse._HelpAction, argparse._VersionAction)
+
+
+def given_twice(parser: argparse.ArgumentParser, tokens: Sequence[str]) -> str | None:
+    """The first option of ``parser`` in ``tokens`` (the command line, up to a bare
+    ``--``) that is given a second time -- by the same spelling or another of the same
+    option, ``--opt value`` or ``--opt=value`` -- and that is not ``REPEATABLE_ACTIONS``;
+    None when there is none.  Tokens that are not this parser's own options (a
+    subcommand's, a value) are left to argparse."""
+    seen: dict[int, str] = {}
+    for token in tokens:
+        if token == "--":
+            break
+        option = token.split("=", 1)[0]
+        action = parser._option_string_actions.get(option) if option.startswith("-") else None
+        if action is None or isinstance(action, REPEATABLE_ACTIONS):
+            continue
+        if id(action) in seen:
+            first = seen[id(action)]
+            return option if first == option else f"{option} (as {first})"
+        seen[id(action)] = option
+    return None
 
 
 def plain_number(text: str, kind: type) -> Any:

@@ -508,6 +508,9 @@ def plan_run(scenes: Sequence[str] | str, cfg: SceneConfig | None = None, solver
     scenes = [scenes] if isinstance(scenes, str) else list(scenes)  # one scene's name, or several
     if not scenes:
         raise PlanError(["no scene to run: name one or more (contactbench list scenes)"])
+    twice = [name for k, name in enumerate(scenes) if name in scenes[:k]]
+    if twice:
+        raise PlanError([f"scene {twice[0]!r} named twice; name each scene once"])
     if solvers is not None and not isinstance(solvers, str):
         solvers = list(solvers)  # (an iterator is read once)
     if names_no_solver(solvers):

@@ -134,5 +134,11 @@ def test_a_number_not_written_plainly_is_refused(option: str, value: str, capsys
                                                  in_tmp: Path) -> None:
     """Numbers on the command line are written plainly, as in a map's text: Python's
     ``float`` would take "1_0e-4" (underscores) and digits of other scripts."""
-    line = refused_in_one_line([*SMALL, option, value], capsys, in_tmp)
+    line = refused_in_one_line([*without(SMALL, option), option, value], capsys, in_tmp)
     assert option in line and repr(value) in line
+
+
+def without(argv: list[str], option: str) -> list[str]:
+    """``argv`` less ``option`` and its value (an option is given once)."""
+    k = argv.index(option) if option in argv else len(argv)
+    return argv[:k] + argv[k + 2:]

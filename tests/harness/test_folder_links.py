@@ -88,7 +88,8 @@ def test_an_entry_that_is_a_link_or_of_the_wrong_kind_is_refused_and_nothing_is_
     make(out / name, elsewhere)
     before, theirs = snapshot(out), snapshot(elsewhere)
     capsys.readouterr()
-    code = cli.main([*RUN, "--out", str(out), "--steps", "3", "--append"])
+    k = RUN.index("--steps")
+    code = cli.main([*RUN[:k], *RUN[k + 2:], "--out", str(out), "--steps", "3", "--append"])
     err = capsys.readouterr().err
     assert code == 2, err
     assert err.count("\n") == 1 and str(out / name) in err and problem in err, err

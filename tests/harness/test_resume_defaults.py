@@ -23,7 +23,13 @@ COMMON = ["run", "paper-sweep", "--size", "8", "--steps", "2", "--solvers", "tes
 
 
 def cli_run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
-    code = cli.main([*COMMON, *args])
+    """``run`` with ``COMMON`` and ``args``; ``args`` giving ``--reference`` replaces COMMON's
+    (an option is given once)."""
+    common = COMMON
+    if "--reference" in args:
+        k = COMMON.index("--reference")
+        common = COMMON[:k] + COMMON[k + 2:]
+    code = cli.main([*common, *args])
     return code, capsys.readouterr().err
 
 
