@@ -54,7 +54,6 @@ Coarsening and the PSD power-law test are not I/O: they live in ``problems/coars
 
 from __future__ import annotations
 
-import math
 import stat
 import warnings
 from pathlib import Path
@@ -67,7 +66,6 @@ from .map_files import write_text, write_topography, write_x3p
 from .units import plain_float
 from .map_readers import (
     LENGTH_RTOL,
-    NPY_MAGIC,
     RawMap,
     SurfaceFileError,
     read_height_map,
@@ -422,9 +420,9 @@ NOT_FILE_KINDS: tuple[tuple[Any, str], ...] = (
 def check_surface_file(p: Path) -> None:
     """Refuse, in one ``SurfaceFileError`` line and before any of it is read, a surface
     path that is neither a regular file nor a folder (a named pipe, a device, a socket:
-    read without end, or waited on forever), and a .npy file whose header declares more
-    values than the file holds data for (``check_npy_size``).  A path that cannot be
-    looked at, or a folder, is left to the reader, which names why."""
+    read without end, or waited on forever).  A path that cannot be looked at, or a
+    folder, is left to the reader, which names why (a .npy header that declares more
+    than the file holds: ``map_readers.check_npy_size``, before NumPy allocates)."""
     try:
         mode = p.stat().st_mode
     except OSError:
@@ -434,33 +432,6 @@ def check_surface_file(p: Path) -> None:
     if not stat.S_ISREG(mode):
         kind = next((word for test, word in NOT_FILE_KINDS if test(mode)), "not a regular file")
         raise SurfaceFileError(p, f"it is {kind}, not a file; give a height-map file")
-    check_npy_size(p)
-
-
-def check_npy_size(p: Path) -> None:
-    """Refuse, in one ``SurfaceFileError`` line, a file with NumPy's header whose shape and
-    data type need more bytes than follow the header: NumPy would allocate the declared
-    array (terabytes for a 2 KB file) before finding the data short.  A file without the
-    header, or one whose header does not parse, is left to the reader (``read_npy``)."""
-    try:
-        with open(p, "rb") as f:
-            if not f.read(len(NPY_MAGIC)).startswith(NPY_MAGIC):
-                return
-            f.seek(0)
-            version = np.lib.format.read_magic(f)
-            read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
-                np.lib.format.read_array_header_2_0
-            shape, _, dtype = read_header(f)
-            held = p.stat().st_size - f.tell()
-    except (OSError, ValueError, TypeError, SyntaxError, UnicodeDecodeError):
-        return
-    if dtype.hasobject or any(not isinstance(n, int) or n < 0 for n in shape):
-        return
-    needed = math.prod(shape) * dtype.itemsize
-    if needed > held:
-        dims = " x ".join(str(n) for n in shape) or "one"
-        raise SurfaceFileError(p, f"its .npy header declares {dims} values of {dtype} ({needed:,} bytes), but only "
-                                  f"{max(held, 0):,} bytes of data follow it (a truncated file or a header that lies)")
 
 
 def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
@@ -477,7 +448,6 @@ __all__ = [
     "SurfaceFileError",
     "crop_map",
     "check_measured",
-    "check_npy_size",
     "check_surface_file",
     "fill_missing",
     "load_surface",

@@ -52,6 +52,7 @@ refused.  This module parses no XML itself (SurfaceTopography's parse is read).
 from __future__ import annotations
 
 import functools
+import math
 import hashlib
 import re
 import struct
@@ -179,11 +180,38 @@ def _only_channel(p: Path, channel: int | str | None) -> None:
 # --- Readers of our own: .npy and text ---
 
 
+def check_npy_size(p: Path) -> None:
+    """Refuse, in one ``SurfaceFileError`` line, a file with NumPy's header whose shape and
+    data type need more bytes than follow the header: NumPy would allocate the declared
+    array (terabytes for a 2 KB file) before finding the data short.  A file without the
+    header, or one whose header does not parse, is left to the reader (``read_npy``)."""
+    try:
+        with open(p, "rb") as f:
+            if not f.read(len(NPY_MAGIC)).startswith(NPY_MAGIC):
+                return
+            f.seek(0)
+            version = np.lib.format.read_magic(f)
+            read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+                np.lib.format.read_array_header_2_0
+            shape, _, dtype = read_header(f)
+            held = p.stat().st_size - f.tell()
+    except (OSError, ValueError, TypeError, SyntaxError, UnicodeDecodeError):
+        return
+    if dtype.hasobject or any(not isinstance(n, int) or n < 0 for n in shape):
+        return
+    needed = math.prod(shape) * dtype.itemsize
+    if needed > held:
+        dims = " x ".join(str(n) for n in shape) or "one"
+        raise SurfaceFileError(p, f"its .npy header declares {dims} values of {dtype} ({needed:,} bytes), but only "
+                                  f"{max(held, 0):,} bytes of data follow it (a truncated file or a header that lies)")
+
+
 def read_npy(path: str | Path) -> RawMap:
     """A 2-D numeric .npy array; pickles are never loaded."""
     p = Path(path)
     if not _read_head(p).startswith(NPY_MAGIC):
         raise SurfaceFileError(p, "not a .npy file: it lacks NumPy's header")
+    check_npy_size(p)
     try:
         a = np.load(p, allow_pickle=False)
     except ValueError as e:
@@ -555,6 +583,7 @@ __all__ = [
     "XYZ_MIN_ROWS",
     "RawMap",
     "SurfaceFileError",
+    "check_npy_size",
     "read_height_map",
     "read_npy",
     "read_text",
