@@ -49,6 +49,8 @@ from .base import Capabilities, Outcome, Param, ParamError, SolveContext, Solver
 from .registry import register
 
 TYPICAL_ADMM_ITERATIONS = 1000
+#: The smallest normal float: the effective penalty must be at least this (and finite).
+NORMAL_MIN = float(np.finfo(np.float64).tiny)
 #: The stopping rules (module doc).
 STOPS: tuple[str, ...] = ("kkt", "printed")
 #: CG iterations at most per resolvent application (matrix-free operator).
@@ -123,6 +125,10 @@ class ADMM(Solver):
         rho, alpha = checked_rho_alpha(ctx.params)
         if ctx.params["rho_relative"]:
             rho *= float(np.mean(qp.H.diagonal()))
+        if not (NORMAL_MIN <= rho < math.inf):  # (a subnormal or overflowing penalty divides by 0 or inf below)
+            raise ParamError(f"admm: the penalty rho = {ctx.params['rho']:g}"
+                             f"{' x mean diag H' if ctx.params['rho_relative'] else ''} is {rho:g}, outside the "
+                             f"normal floats [{NORMAL_MIN:g}, inf); give another rho")
         ctx.info.update(rho=rho, alpha=alpha)
         apply_m = resolvent(ctx, rho, ctx.params["linear"], absolute_tol(ctx, 1e-2 * tol).force)
         ctx.mark_setup_done()

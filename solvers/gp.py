@@ -62,10 +62,11 @@ class GPOutcome:
 
 def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float, K: int, tol: float | None = None,
                                     check_every: int = 10, restart: bool = False) -> GPOutcome:
-    """Algorithm 4 for at most K iterations; with ``tol``, stop early once the scaled
-    KKT error of p (``ctx.kkt``, one extra matvec) is <= tol, checked and recorded
-    every ``check_every`` iterations, as is the deadline.  A non-finite error at a check
-    ends the loop (``diverged``)."""
+    """Algorithm 4 for at most K iterations, and never past the solve's deadline (checked
+    at every iteration: K is the user's, 10^30 included); with ``tol``, stop early once
+    the scaled KKT error of p (``ctx.kkt``, one extra matvec) is <= tol, checked and
+    recorded every ``check_every`` iterations.  A non-finite error at a check ends the
+    loop (``diverged``)."""
     op, ubar = ctx.qp.H, ctx.qp.ubar
     project = projection_of(ctx)
     p = p0.copy()
@@ -85,8 +86,10 @@ def accelerated_gradient_projection(ctx: SolveContext, p0: np.ndarray, L: float,
             ctx.record(i + 1, res)
             if res <= tol:
                 return GPOutcome(p, i + 1, True, restarts)
-            if ctx.expired() or not math.isfinite(res):
-                return GPOutcome(p, i + 1, False, restarts, diverged=not math.isfinite(res))
+            if not math.isfinite(res):
+                return GPOutcome(p, i + 1, False, restarts, diverged=True)
+        if ctx.expired():
+            return GPOutcome(p, i + 1, False, restarts)
     return GPOutcome(p, K, False, restarts)
 
 

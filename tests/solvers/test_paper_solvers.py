@@ -406,3 +406,19 @@ def test_pk_under_a_load_and_a_hardness_widens_its_set_when_it_stalls() -> None:
     (step,) = solve_sequence("pk", [scene.build(spec).at(0)], SolverSettings(tol=prof.tol, max_iter=300),
                              check_tol=prof.check_tol, warm=False)
     assert step.verdict.status == "solved" and step.result.iterations < 100
+
+
+def test_nnls_gp_honours_the_deadline_whatever_its_k() -> None:
+    """K is the user's (``nnls-gp[K=...]``, up to 10^30): the GP phase stops at the solve's
+    deadline, not after K steps -- with a deadline already past, after one step."""
+    inst = counterexample(100, 0)
+    r = get_solver("nnls-gp").solve(inst.qp, SolverSettings(time_limit=1e-9, params={"K": 5000}))
+    assert not r.converged and r.matvecs <= 10, (r.status, r.matvecs)
+
+
+@pytest.mark.parametrize(("rho", "relative"), [(1e-320, True), (1e-310, False)])
+def test_admm_refuses_a_penalty_that_is_no_normal_float(rho: float, relative: bool) -> None:
+    """rho inside its declared range (> 0) whose effective penalty (x mean diag H where
+    relative) is subnormal is a ParamError naming it, not a ZeroDivisionError."""
+    with pytest.raises(ParamError, match="outside the normal floats"):
+        solve("admm", counterexample(16, 0), rho=rho, rho_relative=relative)
