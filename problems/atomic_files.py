@@ -10,6 +10,8 @@ project (problems' exports and the harness's tables, reports and answers alike).
   the length of a ``with`` block (no lock file: nothing is added to the folder; the
   kernel drops the lock when the process dies); ``FolderLockedError`` at once when
   another process holds it.
+* ``names_nothing(path)``: whether a path a writer is given is empty or blank ("" would
+  be the current folder, " " a file of that name): every writer refuses it.
 """
 
 from __future__ import annotations
@@ -22,6 +24,11 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import numpy as np
+
+
+def names_nothing(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is empty or only blanks (module doc)."""
+    return not os.fspath(path).strip()
 
 
 def replace_atomically(path: str | os.PathLike[str], write: Callable[[str], Any]) -> None:
@@ -75,4 +82,5 @@ def folder_lock(folder: str | os.PathLike[str]) -> Iterator[None]:
         os.close(fd)  # (closing the last descriptor releases the lock)
 
 
-__all__ = ["FolderLockedError", "folder_lock", "replace_atomically", "write_npz_atomic", "write_text_atomic"]
+__all__ = ["FolderLockedError", "folder_lock", "names_nothing", "replace_atomically", "write_npz_atomic",
+           "write_text_atomic"]

@@ -73,7 +73,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from .atomic_files import FolderLockedError, folder_lock, replace_atomically, write_text_atomic
+from .atomic_files import FolderLockedError, folder_lock, names_nothing, replace_atomically, write_text_atomic
 from .errors import MemoryBudgetError, ProblemInputError
 from .instances import ContactInstance
 from .operators import PRECISIONS, check_dense_budget
@@ -577,7 +577,7 @@ def check_export_folder(out: str | Path) -> Path:
     export before (its manifest names ``EXPORT_TOOL``); else a ``ProblemInputError``
     naming it (the rule of a run's results folder; an empty name and a folder whose
     manifest is a symbolic link are refused too).  Touches nothing."""
-    if not str(out).strip():
+    if names_nothing(out):
         raise ProblemInputError(f"the export folder (--out) must be named, got {str(out)!r}")
     out_dir = Path(out)
     if not out_dir.exists():

@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
+from contactbench.problems.atomic_files import names_nothing
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
 from contactbench.solvers.registry import (NamedVariant, SolverSpecError, all_solvers,
@@ -96,7 +97,7 @@ def case_glob(text: str) -> str:
 
 def path_text(text: str) -> str:
     """``--csv`` and ``--out``: a path with something in it (an empty one names nothing)."""
-    if not text.strip():
+    if names_nothing(text):
         raise argparse.ArgumentTypeError(f"{text!r} names no file or folder; give a path")
     return text
 

@@ -68,6 +68,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from contactbench.problems.atomic_files import names_nothing
 from contactbench.problems.errors import ProblemInputError
 
 import pandas as pd
@@ -296,7 +297,7 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
     (``JournalError`` for a journal against the contract, ``checked_journal``).  ``identity_of`` turns a
     legacy meta.json ``config``, and each configuration the marker records, into a run
     configuration as this version reads one."""
-    if not os.fspath(out_dir).strip():  # (as Path, "" would be the current folder; " " a folder of that name)
+    if names_nothing(out_dir):
         raise RunFolderError(f"the results folder (--out) must be named, got {os.fspath(out_dir)!r}")
     out = Path(out_dir)
     if not out.exists():
