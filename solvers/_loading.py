@@ -49,14 +49,27 @@ def one_line(text: str) -> str:
     return " / ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
-def exception_line(exc: BaseException) -> str:
-    """``Type: message`` of ``exc`` on one line (the type alone when the message is empty;
-    a message that cannot be read, its ``__str__`` raising, is said to be so)."""
+def exception_message(exc: BaseException) -> str:
+    """``str(exc)``, or a note naming its type where its ``__str__`` raises (a solver's
+    own exception class): reading a solver's error never fails."""
     try:
-        text = one_line(str(exc))
-    except Exception:
-        text = f"<the message of {type(exc).__name__} cannot be read: its __str__ raised>"
+        return str(exc)
+    except KeyboardInterrupt:  # (the user's: stops as anywhere)
+        raise
+    except BaseException:  # (a __str__ that raises anything else, SystemExit included)
+        return f"<the message of {type(exc).__name__} cannot be read: its __str__ raised>"
+
+
+def exception_text(exc: BaseException) -> str:
+    """``Type: message`` of ``exc`` (``exception_message``), the type alone when the
+    message is empty."""
+    text = exception_message(exc)
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def exception_line(exc: BaseException) -> str:
+    """``exception_text`` of ``exc`` on one line (``one_line``)."""
+    return one_line(exception_text(exc))
 
 
 def _noting(arrived: set[int], handler: Callable[[int, FrameType | None], Any]) -> Callable[..., Any]:

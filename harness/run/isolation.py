@@ -69,6 +69,8 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any, Callable, Iterator, Literal, NoReturn
 
+from contactbench.solvers._loading import exception_message as exception_message
+from contactbench.solvers._loading import exception_text as exception_text
 from contactbench.solvers._processes import become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
@@ -96,22 +98,6 @@ def raised_at(exc: BaseException, frames: int = 2) -> str:
     module) or to its file name -- so a row tells a solver's bug from a dependency's."""
     stack = traceback.extract_tb(exc.__traceback__)[-frames:]
     return " <- ".join(f"{short_path(f.filename)}:{f.lineno} in {f.name}" for f in reversed(stack))
-
-
-def exception_message(exc: BaseException) -> str:
-    """``str(exc)``, or a note naming its type where its ``__str__`` raises (a solver's
-    own exception class): reading a solver's error never fails."""
-    try:
-        return str(exc)
-    except SOLVER_FAULTS:
-        return f"<the message of {type(exc).__name__} cannot be read: its __str__ raised>"
-
-
-def exception_text(exc: BaseException) -> str:
-    """``Type: message`` of ``exc`` (``exception_message``), the type alone when the
-    message is empty."""
-    text = exception_message(exc)
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def error_text(exc: BaseException) -> str:
