@@ -48,13 +48,15 @@ USABLE_CORES = _usable_cores()
 #: (CONTACTBENCH_FFT_WORKERS, ``run --threads``): beyond any machine's cores, and far
 #: below the C int the FFT libraries take a thread count as.
 MAX_THREADS = 4096
+#: What a thread count must be, as the refusals say it.
+THREADS_RULE = f"a whole number of threads from 1 to {MAX_THREADS}"
 
 
 def threads_problem(threads: object) -> str:
     """What is wrong with ``threads`` as a number of threads ("" when it is a whole
     number from 1 to ``MAX_THREADS``; a bool is none)."""
     if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
-        return f"expected a whole number of threads from 1 to {MAX_THREADS}, got {threads!r}"
+        return f"expected {THREADS_RULE}, got {threads!r}"
     return ""
 
 
@@ -71,8 +73,7 @@ def fft_workers() -> int:
     except ValueError:
         workers = 0
     if threads_problem(workers):
-        raise ProblemInputError(f"CONTACTBENCH_FFT_WORKERS={env!r}: expected a whole number of threads from 1 to "
-                                f"{MAX_THREADS}, written plainly")
+        raise ProblemInputError(f"CONTACTBENCH_FFT_WORKERS={env!r}: expected {THREADS_RULE}, written plainly")
     return workers
 
 
