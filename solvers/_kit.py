@@ -13,8 +13,9 @@
 * ``coarse_first_guess`` -- a cold start's first guess from the same solver on the
   block-averaged 2x-coarser grid (``problems.coarsen``), prolonged by injection.
 * ``serial_blas`` -- BLAS on one thread for the span of a matrix-free loop (its doc).
-* ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model of ``time_estimate``
-  (``WHOLE_GRID_FFT_POINTS``, ``TYPICAL_PK_LOAD_ITERATIONS``: its load-control terms).
+* ``product_seconds`` / ``matvec_seconds`` / ``cholesky_seconds`` -- the rough cost model
+  of ``time_estimate`` (``WHOLE_GRID_FFT_POINTS``, ``TYPICAL_PK_LOAD_ITERATIONS``: its
+  load-control terms).
 
 The solve lifecycle itself (deadline, trace, matvec count, warm start, tolerance) is in
 ``contactbench.solvers.base``; the stopping residual is ``SolveContext.kkt``, the
@@ -290,9 +291,22 @@ def coarse_first_guess(solver: Solver, ctx: SolveContext) -> FirstGuess:
     return FirstGuess(p, res.matvecs, res.iterations, f"coarse {level.shape[0]}^2 solve: {res.status}")
 
 
-#: Effective dense GEMV throughput (flop/s) and FFT cost per padded point on one core.
-DENSE_FLOPS = 2.0e9
-FFT_SECONDS_PER_POINT = 4.0e-8
+#: The product model (``product_seconds``; its doc says where and how it was fitted, the
+#: measurements are in results/perf/time-model/README.md): the FFT operator's float64
+#: product costs ``FFT_PRODUCT_SECONDS`` plus ``FFT_SECONDS_PER_POINT_LOG`` per P log2 P
+#: (P: padded grid points); the dense product ``DENSE_PRODUCT_SECONDS`` plus 2 n^2 flops
+#: at ``DENSE_FLOPS``.
+FFT_PRODUCT_SECONDS = 1.0e-4
+FFT_SECONDS_PER_POINT_LOG = 4.0e-10
+DENSE_PRODUCT_SECONDS = 2.0e-6
+DENSE_FLOPS = 1.0e10
+#: A solver's loop around each product (``matvec_seconds``): Python's cost of one step,
+#: and its vector work per unknown (projections, dot products, the KKT check); fitted on
+#: recorded ``pk`` and fast-solver solves, less the product model (README above).
+LOOP_SECONDS = 3.0e-5
+LOOP_SECONDS_PER_UNKNOWN = 7.0e-8
+#: A dense Cholesky factorisation's throughput (``cholesky_seconds``; LAPACK on the BLAS's threads).
+CHOLESKY_FLOPS = 1.0e10
 #: Padded FFT grid points per trial-set unknown at the paper's top load step
 #: (trial set ~ 14 % of N^2, aperiodic padding x 4).
 FFT_POINTS_PER_UNKNOWN = 28.0
@@ -305,20 +319,38 @@ WHOLE_GRID_FFT_POINTS: dict[bool, float] = {False: 4.0, True: 1.0}
 TYPICAL_PK_LOAD_ITERATIONS = 100
 
 
-def matvec_seconds(n: int, kind: str, points_per_unknown: float = FFT_POINTS_PER_UNKNOWN) -> float:
-    """Rough wall time of one H matvec at size n on one core; the FFT operator's grid has
-    ``points_per_unknown`` padded points per unknown (default: a trial set,
-    ``FFT_POINTS_PER_UNKNOWN``; the whole grid: ``WHOLE_GRID_FFT_POINTS``).  A set small
-    enough for the FFT operator's dense block (``operators.dense_block_pays``: a sweep's
-    first steps on a large grid) costs that block's product."""
+def product_seconds(n: int, kind: str, points_per_unknown: float = FFT_POINTS_PER_UNKNOWN) -> float:
+    """Rough wall time of one float64 product with H at size n, no more: the FFT operator's
+    on a padded grid of ``points_per_unknown`` points per unknown (default: a trial set,
+    ``FFT_POINTS_PER_UNKNOWN``; the whole grid: ``WHOLE_GRID_FFT_POINTS``), or a dense
+    one.  A set small enough for the FFT operator's dense block (``operators.dense_block_pays``:
+    a sweep's first steps on a large grid) costs that block's product.
+
+    Fitted on a 2-core AMD EPYC VM that other work shared (results/perf/time-model/README.md:
+    host, date, commit and the table): the fastest of several short bursts of products of
+    the FFT operator (float64, two FFT threads, the FFT path forced) on the paper's trial
+    sets of 64^2-1024^2 grids, and of a dense H of n = 64-4,096 (BLAS on one and two
+    threads).  The FFT figure is at or above every grid's fastest product and within 2x of
+    it; the dense one within about 2x either way (the BLAS runs several times faster on a
+    matrix that fits the cache than on one that does not).  A rough, deliberately
+    conservative figure for the skip policy, not a prediction for another machine."""
     pts = points_per_unknown * n
     if kind == "dense" or (dense_switch_enabled() and dense_block_pays(n, pts)):
-        return 2.0 * n * n / DENSE_FLOPS
-    return FFT_SECONDS_PER_POINT * pts * max(1.0, np.log2(pts)) / 10.0
+        return DENSE_PRODUCT_SECONDS + 2.0 * n * n / DENSE_FLOPS
+    return FFT_PRODUCT_SECONDS + FFT_SECONDS_PER_POINT_LOG * pts * max(1.0, float(np.log2(pts)))
+
+
+def matvec_seconds(n: int, kind: str, points_per_unknown: float = FFT_POINTS_PER_UNKNOWN) -> float:
+    """Rough wall time of one product with H as a solver's loop spends it, the unit of
+    every ``time_estimate``: the product (``product_seconds``, same arguments) and the
+    loop's own work around it (``LOOP_SECONDS``, ``LOOP_SECONDS_PER_UNKNOWN``)."""
+    return product_seconds(n, kind, points_per_unknown) + LOOP_SECONDS + LOOP_SECONDS_PER_UNKNOWN * n
 
 
 def cholesky_seconds(n: int) -> float:
-    return (n**3 / 3.0) / (5.0 * DENSE_FLOPS)
+    """Rough wall time of a dense Cholesky factorisation of n x n (n^3 / 3 flops at
+    ``CHOLESKY_FLOPS``)."""
+    return (n**3 / 3.0) / CHOLESKY_FLOPS
 
 
 _BLAS: ThreadpoolController | None = None

@@ -48,7 +48,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ._ccg import CCGRun, FastSolver, bugnicourt, outcome, polonsky_keer
+from ._ccg import FAST_TYPICAL_MATVECS, CCGRun, FastSolver, bugnicourt, outcome, polonsky_keer
 from ._constrained import bugnicourt_load, polonsky_keer_box
 from ._device import bring_home, cold_if_worse, resident_space, resident_state
 from ._kit import FIRST_GUESSES, coarse_first_guess, resolved_first_guess
@@ -83,6 +83,12 @@ def starting_point(solver: Solver, ctx: SolveContext) -> tuple[np.ndarray, dict[
     ctx.add_matvecs(guess.matvecs)
     info = {"first_guess": guess.note, "coarse_matvecs": guess.matvecs, "coarse_iterations": guess.iterations}
     return (np.zeros(ctx.n) if guess.p is None else guess.p), info
+
+
+#: The products of a typical cold solve of the loops without a preconditioner
+#: (``FastSolver.typical_matvecs``; results/perf/cost-law.md: 85-363 at 256^2-4096^2, about
+#: 2.5x the preconditioned loops').
+PLAIN_TYPICAL_MATVECS = 150.0
 
 
 class _FastCCG(FastSolver):
@@ -144,6 +150,7 @@ class FastPolonskyKeer(_FastCCG):
 
     loop = staticmethod(polonsky_keer)
     constrained_loop = staticmethod(polonsky_keer_box)
+    typical_matvecs = PLAIN_TYPICAL_MATVECS
 
 
 @register
@@ -158,6 +165,7 @@ class FastBugnicourtCCG(_FastCCG):
 
     loop = staticmethod(bugnicourt)
     constrained_loop = staticmethod(bugnicourt_load)
+    typical_matvecs = PLAIN_TYPICAL_MATVECS
 
 
 @register
@@ -185,6 +193,7 @@ class FastPolonskyKeerIslands(FastPolonskyKeer):
     params = (precondition_param("auto"), precision_param(), first_guess_param(), screening_param(),
               opening_param())
     far_field_from = 0
+    typical_matvecs = FAST_TYPICAL_MATVECS
 
     def uses_islands(self) -> bool:
         """The memory model's blocks: "auto" is the far field on the host under displacement
@@ -214,3 +223,4 @@ class FastBugnicourtIslands(FastBugnicourtCCG):
     params = (precondition_param("auto"), precision_param("auto"), first_guess_param("auto"), screening_param(),
               opening_param("auto"))
     warm_load_islands = True
+    typical_matvecs = FAST_TYPICAL_MATVECS

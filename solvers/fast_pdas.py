@@ -103,6 +103,10 @@ class FastPDAS(FastSolver):
         screening_param(),
     )
 
+    #: The products of a typical cold solve (``FastSolver.typical_matvecs``;
+    #: results/perf/cost-law.md: 173-463 at 256^2-4096^2, 3-4x the preconditioned CCGs').
+    typical_matvecs = 200.0
+
     def memory_estimate(self, n: int) -> float:
         return 12.0 * 8.0 * n
 

@@ -41,7 +41,7 @@ from contactbench.problems.operators import dense_nbytes, memory_budget
 from ._kit import lipschitz_constant, matvec_seconds
 from ._scaling import dense_matrix
 from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
-from .nnls import FACTOR_MAX_N, LINEAR_PARAM, nnls_active_set, nnls_max_iter
+from .nnls import FACTOR_MAX_N, LINEAR_PARAM, NNLS_CG_PRODUCTS, nnls_active_set, nnls_max_iter
 from .registry import register
 
 LIPSCHITZ_PARAM = Param("lipschitz", str, "frobenius", "bound of lambda_max(H): ||H||_F (paper) or power iteration",
@@ -146,6 +146,12 @@ def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
 GP_PRODUCTS_PER_ROOT_N = 65.0
 
 
+#: ``nnls-gp``'s NNLS additions after its K gradient-projection steps, per unknown: cold
+#: paper-sweep steps took 1-15 at n = 1,163-8,803 (128^2, 256^2) and 253 at the 512^2 top
+#: step (n = 35,218, results/claims), 0.0017-0.0072 n; with a margin.
+NNLS_GP_ADDITIONS_PER_UNKNOWN = 0.01
+
+
 def typical_gp_products(n: int) -> float:
     """The products a typical ``gp`` solve of n unknowns takes (``GP_PRODUCTS_PER_ROOT_N``)."""
     return GP_PRODUCTS_PER_ROOT_N * float(np.sqrt(max(n, 1)))
@@ -233,5 +239,7 @@ class NNLSGP(Solver):
         return out
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
-        per = matvec_seconds(n, operator_kind) * (1 if operator_kind == "dense" or n <= FACTOR_MAX_N else 30)
-        return 100 * matvec_seconds(n, operator_kind) + 0.05 * n * per
+        """K = 100 gradient-projection products, then ``NNLS_GP_ADDITIONS_PER_UNKNOWN`` n NNLS
+        additions (``NNLS.time_estimate``'s cost each)."""
+        per = matvec_seconds(n, operator_kind) * (1 if operator_kind == "dense" or n <= FACTOR_MAX_N else NNLS_CG_PRODUCTS)
+        return 100 * matvec_seconds(n, operator_kind) + NNLS_GP_ADDITIONS_PER_UNKNOWN * n * per

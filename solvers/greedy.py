@@ -50,10 +50,22 @@ from ._kit import absolute_tol, cholesky_of_h, cholesky_solve, cholesky_seconds,
 from .base import Capabilities, Deadline, Outcome, Param, ProblemTraits, SolveContext, Solver, Status
 from .registry import register
 
-#: Typical number of outer passes and inner iterations per pass (for time_estimate).
-TYPICAL_PASSES = 20
-TYPICAL_CG_ITERS_PER_PASS = 60
-TYPICAL_GS_SWEEPS_PER_PASS = 200
+#: The time models (``time_estimate``), all passes together.  ``greedy-cg``: about
+#: ``CG_PRODUCTS_PER_ROOT4_N`` n^(1/4) products (paper sweep, cold: 106-718 at n = 86-35,218
+#: on 128^2-512^2 grids, 35-52 n^(1/4)).  ``greedy-gs``: about ``GS_SWEEPS_PER_ROOT4_N``
+#: n^(1/4) sweeps (124-512 at n = 86-2,227, 41-75 n^(1/4)), each costing about
+#: ``GS_SWEEP_PRODUCTS`` dense products (its row blocks and their triangular solves: 3-11
+#: measured).  ``greedy-chol``: ``CHOL_FACTORISATIONS`` Cholesky factors of the whole set
+#: (4-7 passes on shrinking sets, 1.0-1.4 whole-set factors' time at n = 4,497-8,803).
+CG_PRODUCTS_PER_ROOT4_N = 60.0
+GS_SWEEPS_PER_ROOT4_N = 80.0
+GS_SWEEP_PRODUCTS = 10.0
+CHOL_FACTORISATIONS = 3.0
+
+
+def root4(n: int) -> float:
+    """n^(1/4), the growth of the greedy methods' work (``CG_PRODUCTS_PER_ROOT4_N``)."""
+    return float(max(n, 1)) ** 0.25
 
 
 @dataclass
@@ -194,7 +206,7 @@ class GreedyCG(GreedySolver):
                             f"CG stopped at residual {r.residual:.3g} > {atol:.3g}" if broke else "")
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
-        return TYPICAL_PASSES * TYPICAL_CG_ITERS_PER_PASS * matvec_seconds(n, operator_kind)
+        return CG_PRODUCTS_PER_ROOT4_N * root4(n) * matvec_seconds(n, operator_kind)
 
 
 class RowBlocks:
@@ -258,7 +270,7 @@ class GreedyGS(GreedySolver):
         return gauss_seidel(rows, b, x0, atol, max_iter, ctx.deadline)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
-        return TYPICAL_PASSES * TYPICAL_GS_SWEEPS_PER_PASS * matvec_seconds(n, "dense")
+        return GS_SWEEPS_PER_ROOT4_N * root4(n) * GS_SWEEP_PRODUCTS * matvec_seconds(n, "dense")
 
 
 @register
@@ -289,4 +301,4 @@ class GreedyCholesky(GreedySolver):
         return ReducedSolve(x, 1, True)
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
-        return TYPICAL_PASSES * cholesky_seconds(n)
+        return CHOL_FACTORISATIONS * cholesky_seconds(n)

@@ -40,6 +40,12 @@ from .registry import register
 #: Under "auto", FFT operators use the incremental Cholesky backend while a full n x n
 #: factor would fit in 1/8 of the memory budget (8 GiB budget: n <= 11585).
 FACTOR_MAX_N = int(np.sqrt(DEFAULT_MEMORY_BUDGET / 8 / 8))
+#: ``nnls``'s time model: a cold solve adds about this share of its n unknowns one by one
+#: (cold paper-sweep steps: 0.09-0.13 n products at n = 1,163-8,803 on 128^2 and 256^2 grids),
+#: each addition one product, and beyond ``FACTOR_MAX_N`` a CG solve of about
+#: ``NNLS_CG_PRODUCTS`` products instead of a factor update.
+NNLS_ADDITIONS_PER_UNKNOWN = 0.15
+NNLS_CG_PRODUCTS = 30
 
 
 # ---------------------------------------------------------------------------
@@ -338,6 +344,7 @@ class NNLS(Solver):
         return nnls_active_set(ctx, p0, ctx.max_iter, ctx.params["linear"])
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
-        # cold start: ~0.3 n additions, each one matvec plus a factor update or a CG solve
-        per = matvec_seconds(n, operator_kind) * (1 if operator_kind == "dense" or n <= FACTOR_MAX_N else 30)
-        return 0.3 * n * per
+        """``NNLS_ADDITIONS_PER_UNKNOWN`` n additions, each one product plus a factor update
+        (or a CG solve of about ``NNLS_CG_PRODUCTS`` products beyond ``FACTOR_MAX_N``)."""
+        per = matvec_seconds(n, operator_kind) * (1 if operator_kind == "dense" or n <= FACTOR_MAX_N else NNLS_CG_PRODUCTS)
+        return NNLS_ADDITIONS_PER_UNKNOWN * n * per

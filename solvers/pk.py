@@ -59,7 +59,11 @@ from ._kit import absolute_tol, matvec_seconds
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
 
-TYPICAL_PK_ITERATIONS = 300
+#: The iterations ``pk``'s time model assumes, at two products each: cold displacement steps
+#: of the paper sweep took 31-94 products (about one an iteration) at n = 86-8,803 on its
+#: 128^2 and 256^2 grids, 132 at the 512^2 top step (n = 35,218); the model's 200 cover them.
+#: Under load control (two products an iteration): ``_kit.TYPICAL_PK_LOAD_ITERATIONS``.
+TYPICAL_PK_ITERATIONS = 100
 
 
 @register

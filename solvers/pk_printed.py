@@ -72,9 +72,10 @@ from .registry import register
 PAPER_KMAX = 100_000
 #: Iterations recorded one by one before the trace thins to one in ``TRACE_EVERY``.
 TRACE_EVERY = 100
-#: The iterations the time model assumes (tests/solvers/test_pk_printed.py: Example 1 at
-#: n = 100 takes 1e3-2e4; the paper's surfaces a few thousand).
-TYPICAL_PRINTED_ITERATIONS = 3000
+#: The iterations the time model assumes, at two products each (Example 1 at n = 100 takes
+#: 1e3-2e4, tests/solvers/test_pk_printed.py; cold paper-sweep steps at tol 1e-8 took
+#: 306-1,313 at n = 411-4,497 on 128^2 and 256^2 grids).
+TYPICAL_PRINTED_ITERATIONS = 1500
 #: The readings of step 3.4 (module doc).
 PROJECTIONS: tuple[str, ...] = ("all", "printed")
 
