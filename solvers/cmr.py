@@ -20,7 +20,10 @@ The last level is the QP the harness gave, restricted to the projected set
 (``QP.restrict``); the answer is returned on the FULL trial set, zeros outside the
 projected set, so the harness's KKT check judges the whole problem honestly (a wrongly
 excluded point shows up as a negative gap w_i < 0).  Every level's solution summary is
-returned in ``SolveResult.info["levels"]`` (the paper: coarse predictions come for free).
+returned in ``SolveResult.info["levels"]`` (the paper: coarse predictions come for free);
+``info["left_out"]`` counts the points outside the fine projected set whose gap is negative
+(contacts step 1.2 pruned that the fine answer needs), and where it is not 0 the message
+begins by saying so (``left_out_text``), the table's record of why such an answer fails.
 
 Parameters (``Param``s below): ``h`` (area-of-influence factor, default 2), ``coarse``
 (``"subsample"``, default: exact sub-samples; ``"mean"``: block means, the cell averages
@@ -132,7 +135,9 @@ class LevelSolution:
 @dataclass
 class FineSolution:
     """The fine level: p and its gap w on the full trial set, the last base solve, its
-    record, the repair rounds and the matvecs of the base solves."""
+    record, the repair rounds, the matvecs of the base solves, and ``left_out``: the points
+    outside the projected set whose gap is negative (``_missed_contacts``), contacts the
+    answer leaves out."""
 
     p: np.ndarray
     w: np.ndarray
@@ -140,6 +145,7 @@ class FineSolution:
     record: LevelRecord
     rounds: int
     matvecs: int
+    left_out: int
 
 
 def within_radius(points: np.ndarray, centres: np.ndarray, radius: float, period: float | None) -> np.ndarray:
@@ -261,6 +267,7 @@ class CMRSolver(Solver):
             "cascade": [r.N for r in records],
             "psd_power_law": power_law,
             "repair_rounds": fine.rounds,
+            "left_out": fine.left_out,
         }
         summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g} coarse={ctx.params['coarse']}: n_p/n={fine.record.n_p_over_n:.4f} "
                    f"coarse-loads=[{', '.join(f'{r.load:.6g}' for r in records[:-1])}]")
@@ -268,6 +275,8 @@ class CMRSolver(Solver):
             info["levels_not_posed"] = dropped
             summary = f"{summary}; levels {dropped} not posed (the layer is thinner than their spacing)"
         msg = f"{summary}; base: {fine.result.message}" if fine.result.message else summary
+        if fine.left_out:  # first: the worker keeps a message's first 500 characters
+            msg = f"{left_out_text(fine.left_out, bool(ctx.params['repair']))}; {msg}"
         if not power_law:
             info["warnings"] = [psd_message]
             msg = f"{msg}; WARNING: {psd_message}"
@@ -278,10 +287,17 @@ class CMRSolver(Solver):
             # The base converged on the pruned trial set only: CMR does not claim the full problem.
             converged, status = False, Status.STALLED
             msg = (f"{msg}; the pruned problem converged, but the full problem's scaled KKT error is "
-                   f"{full_kkt:.2e} > tol {claim_tol:.1e}: the cascade pruned points that come into contact "
-                   f"(repair=True makes it exact)")
+                   f"{full_kkt:.2e} > tol {claim_tol:.1e}")
         return Outcome(p=fine.p, iterations=sum(r.iterations for r in records), converged=converged,
                        message=msg, w=fine.w, status=status, info=info)
+
+
+def left_out_text(k: int, repair: bool) -> str:
+    """The message's first words when the answer leaves out ``k`` contact points
+    (``FineSolution.left_out``): where the cascade lost them, and what re-admits them."""
+    fix = "repair ran out of rounds or time" if repair else "repair=True re-admits them"
+    return (f"left out {k} contact points at a pruned level (negative gap outside the projected set: step 1.2 of "
+            f"Algorithm 6 as printed; {fix})")
 
 
 def claim_tolerance(ctx: SolveContext, base: Solver) -> float:
@@ -368,7 +384,7 @@ def _fine_level(ctx: SolveContext, s: int, g: Geometry, base: Solver, prev: Leve
         pos = np.union1d(pos, missed)
         warm = WarmStart(p=p_full[pos])  # a base that takes none is handed none by its lifecycle
     rec = _record(s, surf, qp.n, int(pos.size), time.perf_counter() - t, p_full, relative_contact_mask(p_full), res)
-    return FineSolution(p_full, w, res, rec, rounds, matvecs)
+    return FineSolution(p_full, w, res, rec, rounds, matvecs, int(_missed_contacts(qp, w, pos).size))
 
 
 def _restricted_warm(ctx: SolveContext, pos: np.ndarray) -> WarmStart | None:

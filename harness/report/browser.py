@@ -32,9 +32,13 @@ return [...document.querySelectorAll('.js-plotly-plot')].filter(d =>
 #: The longest legend entry on the page, in characters.
 LONGEST_LEGEND_JS = ("return Math.max(0, ...[...document.querySelectorAll('.js-plotly-plot .legendtext')]"
                      ".map(e => e.textContent.length));")
-#: The most series any one chart draws (its legend may list more that it does not draw).
-MOST_DRAWN_JS = ("return Math.max(0, ...[...document.querySelectorAll('.js-plotly-plot')].map(d => "
-                 "d.querySelectorAll('.scatterlayer .trace, .barlayer .trace').length));")
+#: The most series any one chart draws (its legend may list more that it does not draw, and a
+#: legend entry's stand-in of no point draws nothing: a trace counts where it has a drawn path).
+MOST_DRAWN_JS = """
+return Math.max(0, ...[...document.querySelectorAll('.js-plotly-plot')].map(d =>
+  [...d.querySelectorAll('.scatterlayer .trace, .barlayer .trace')].filter(t => [...t.querySelectorAll('path')]
+    .some(p => { const s = p.getAttribute('d') || ''; return s !== '' && s !== 'M0,0Z'; })).length));
+"""
 
 
 def _first(paths: tuple[str, ...], name: str) -> str | None:

@@ -30,6 +30,7 @@ from .core import (
 from .figure_files import discard, figure_dir, publish
 from .html import write_html_report
 from .owned_files import page_names, refuse_foreign
+from .panels import EMPTY_NOTE, no_figure
 
 
 # ---------------------------------------------------------------------------
@@ -110,11 +111,16 @@ def _render(ctx: ReportContext) -> str:
 
 def charts_md(ctx: ReportContext, scene: str, sec: Section) -> str:
     """Each of the section's charts as a PNG under its body, kept on the context for
-    report.html (under ``scene``) with the section's page charts."""
+    report.html (under ``scene``) with the section's page charts; a chart with no finite
+    point that says why (``Chart.notes[EMPTY_NOTE]``) is no PNG but that paragraph
+    (``no_figure``; the page writes the note on the chart)."""
     parts = []
     ctx.charts.extend(PageChart(scene, rc) for rc in sec.page_charts)
     for chart in sec.charts:
         ctx.charts.append(PageChart(scene, chart))
+        if not chart.has_data and chart.notes.get(EMPTY_NOTE):
+            parts.append(no_figure(f"{chart.title}: {str(chart.notes[EMPTY_NOTE]).rstrip('.')}."))
+            continue
         parts.append(ctx.figure_md(ctx.save_figure(chart.to_figure(), f"chart-{chart.name}"), chart.title))
     return "\n" + "\n".join(parts) if parts else ""
 

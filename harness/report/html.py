@@ -36,8 +36,8 @@ from ..table import aggregates as agg
 from .charts import Chart, RowChart
 from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace,
                    pick_profile)
-from .sections.fields import load_area_series, trace_scene
-from .sections.generic import SOLVED_COLUMNS, best_of_family, profile_taus, reached_accuracy
+from .sections.fields import load_area_series, short_traces, trace_scene, traces_empty_note
+from .sections.generic import SOLVED_COLUMNS, best_of_family, profile_empty_note, profile_taus, reached_accuracy
 from .sections.paper import UNSOLVED_MARKS, k_of, load_abscissa, unsolved_kind
 from .page_script import PAGE_SCRIPT
 from .style import MAX_SERIES, sort_families
@@ -151,26 +151,33 @@ def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSum
                                for s in summ]}
         cells = agg.cell_table(r, solvers)
         prof = agg.performance_profile(cells)
-        if len(prof.solvers) >= 2 and cells.problems:
-            taus, _ = profile_taus(prof, 120)
-            pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
-                         "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}
+        if len(prof.solvers) < 2 or not cells.problems:
+            continue
+        if empty := profile_empty_note(prof, r):  # the chart says why it has no curve, as report.md does
+            pp[scene] = {"taus": [], "n": prof.n_problems, "curves": {}, "empty": empty}
+            continue
+        taus, _ = profile_taus(prof, 120)
+        pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
+                     "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}
     return pp, sgm
 
 
 def trace_data(ctx: ReportContext) -> dict[str, Any]:
     """The representative trace of every solver (largest n, tightest profile) in the
-    first scene with traces (the Markdown report's trace figure: sections/fields.py ``trace_scene``)."""
+    first scene with traces (the Markdown report's trace figure: sections/fields.py ``trace_scene``),
+    but those of a single point (``short_traces``: no curve, as in report.md); where that
+    leaves none, ``empty`` says why (``traces_empty_note``) and the trace charts write it."""
     scene, reps = trace_scene(ctx)
     if not reps:
         return {}
     out = {}
-    for s, row in reps.items():
+    short = set(short_traces(reps))
+    for s, row in ((s, row) for s, row in reps.items() if s not in short):
         tr = parse_trace(row["trace"])
         ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
         out[s] = {"it": tr[ok, 0].tolist(), "t": tr[ok, 1].tolist(), "r": tr[ok, 2].tolist(),
                   "where": f"{row['instance']} step {int(row['step'])} ({row['profile']})"}
-    return {"scene": scene, "solvers": out}
+    return {"scene": scene, "solvers": out, **({"empty": empty} if (empty := traces_empty_note(reps)) else {})}
 
 
 def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:

@@ -107,8 +107,28 @@ function unsolvedLegend(rows) {
     name: D.unsolved[k].label, meta: {}, x: [null], y: [null], hoverinfo: 'skip',
     marker: {symbol: D.unsolved[k].symbol, color: D.unsolved[k].color, size: 10, line: {width: 2}}}));
 }
+// A series with an unsolved mark would show the mark of its first point as its legend icon (Plotly
+// draws a trace's legend icon from its first point's marker, and its size from their mean): the
+// series stays out of the legend, and a stand-in of no point, in its legend group (a click on it
+// shows or hides the series), shows the series' own line and marker there.
+function ownLegend(t) {
+  t.showlegend = false;
+  t.legendgroup = t.name;
+  return {type: 'scatter', mode: t.mode, name: t.name, meta: t.meta, legendgroup: t.name, visible: t.visible,
+    x: [null], y: [null], hoverinfo: 'skip', line: t.line, marker: {color: t.line.color, symbol: 'circle', size: 6}};
+}
+// A chart with nothing to draw says why on its (empty) plot, in lines of at most NOTE_CHARS
+// characters (an annotation does not wrap): the words of report.md's "No figure." (panels.py).
+const NOTE_CHARS = 70;
+function wrapNote(text) {
+  if (text.includes('<br>')) return text;
+  const lines = [''];
+  text.split(' ').forEach(w => { const i = lines.length - 1;
+    if (lines[i] && lines[i].length + w.length + 1 > NOTE_CHARS) lines.push(w); else lines[i] += (lines[i] ? ' ' : '') + w; });
+  return lines.join('<br>');
+}
 function emptyNote(lay, text) {
-  lay.annotations = (lay.annotations || []).concat([{text: text, showarrow: false, xref: 'paper', yref: 'paper',
+  lay.annotations = (lay.annotations || []).concat([{text: wrapNote(text), showarrow: false, xref: 'paper', yref: 'paper',
     x: 0.5, y: 0.5, font: {color: 'gray'}}]);
   [lay.xaxis, lay.yaxis].forEach(a => Object.assign(a, {showticklabels: false, zeroline: false}));
 }
@@ -126,7 +146,7 @@ function lineChart(scene, c) {
       // against the load a line joins the steps of one load history: the points of several
       // instances stay unjoined (against n, the instances are the sizes the line runs through)
       const mode = xKey === 'dl' && new Set(rs.map(r => r.inst)).size > 1 ? 'markers' : 'lines+markers';
-      traces.push({type: 'scatter', mode: mode, name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined},
+      traces.push({type: 'scatter', mode: mode, name: k, meta: {so: so, pr: rs[0].pr, inst: c.by_instance ? rs[0].inst : undefined, marked: rs.some(r => r.uk !== null)},
         x: rs.map(r => r[xKey]), y: rs.map(r => r.t),
         customdata: rs.map(custom), hovertemplate: HOVER, line: {color: col, dash: rs[0].lab !== so ? 'dash' : 'solid'},
         marker: {color: marks.map(m => m.color), size: marks.map(m => m.size), symbol: marks.map(m => m.symbol),
@@ -142,7 +162,8 @@ function lineChart(scene, c) {
       xKey === 'dl' ? 'nothing to draw: the load axis takes a step\'s load from its solved answers,<br>and none of ' +
         'the ' + picked.length + ' solves here was solved' : 'no solve here has a value on the x axis');
     const [drawn, lay2] = thin(scene, traces, lay);
-    return [drawn.concat(unsolvedLegend(rows)), lay2];
+    const standIns = drawn.filter(t => t.meta.marked).map(ownLegend);
+    return [drawn.concat(standIns, unsolvedLegend(rows)), lay2];
   };
 }
 function wpChart(scene, key, yTitle) {
@@ -174,6 +195,7 @@ function ppChart(scene) {
       'fraction of problems solved', p.taus, [0, 1]);
     lay.xaxis.type = 'log';
     lay.yaxis.range = [-0.02, 1.02];
+    if (p.empty) emptyNote(lay, p.empty);
     return thin(scene, traces, lay);
   };
 }
@@ -214,6 +236,7 @@ function traceChart(useTime) {
       useTime ? 'elapsed [s]' : 'iteration', 'own residual', xs, [1, 100]);
     lay.yaxis.type = 'log';
     if (useTime) lay.xaxis.type = 'log';
+    if (T.empty) emptyNote(lay, T.empty);
     return thin(T.scene, traces, lay);
   };
 }
@@ -288,7 +311,7 @@ function build() {
   const grid = document.createElement('div'); grid.className = 'grid'; field.appendChild(grid);
   D.charts.filter(c => !c.scene).forEach(c => addChart(grid, '', () => [c.data, c.layout]));
   if (D.loadarea.length) addChart(grid, '', loadAreaChart());
-  if (D.traces.solvers) { addChart(grid, '', traceChart(false)); addChart(grid, '', traceChart(true)); }
+  if (D.traces.scene) { addChart(grid, '', traceChart(false)); addChart(grid, '', traceChart(true)); }
   D.images.forEach(im => { const f = document.createElement('figure');
     f.innerHTML = '<img class="static" alt="' + esc(im.name) + '" src="' + esc(im.src) + '"><figcaption>' + esc(im.name) + ' (static, as in report.md)</figcaption>';
     field.appendChild(f); });

@@ -3,7 +3,9 @@
 A panel (a matplotlib axes of a report figure, or a ``Chart``) must show at least one
 finite point, or say why it is empty: ``mark_empty(ax, note)`` writes the note on the
 panel, drops its meaningless ticks and tags it, and ``Chart.notes[EMPTY_NOTE]`` does the
-same for a backend-neutral chart.  ``blank_panels(fig)`` and ``chart_is_blank(chart)``
+same for a backend-neutral chart.  A figure none of whose panels would show data is not
+drawn at all: report.md says why in its place (``no_figure``), and report.html writes the
+same words on the chart (page_script.py ``emptyNote``).  ``blank_panels(fig)`` and ``chart_is_blank(chart)``
 find the panels that do neither; the report records them (``ReportContext.blank_panels``)
 and the tests fail on any.
 
@@ -24,6 +26,12 @@ from matplotlib.figure import Figure
 EMPTY_GID = "contactbench-empty-panel"
 #: The key of ``Chart.notes`` that says why a chart has no finite point.
 EMPTY_NOTE = "empty"
+
+
+def no_figure(why: str) -> str:
+    """report.md's paragraph in place of a figure that would show no data: "**No figure.**"
+    and ``why`` (what the figure draws and what the table lacks for it)."""
+    return f"**No figure.** {why}\n"
 
 
 def mark_empty(ax: Any, note: str) -> None:

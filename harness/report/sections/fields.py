@@ -41,7 +41,7 @@ from ..core import (
     table_md,
     tidy_log_ticks,
 )
-from ..panels import mark_empty
+from ..panels import mark_empty, no_figure
 from ..style import family_panels, sort_families
 
 PERSSON_KAPPA = math.sqrt(8.0 / math.pi)
@@ -345,14 +345,32 @@ def _log_axis(ax: object, axis: str, values: list[float]) -> None:
     tidy_log_ticks(ax, axis, float(np.log10(hi / lo)))
 
 
+def short_traces(reps: dict[str, pd.Series]) -> list[str]:
+    """The solvers of ``reps`` (``trace_scene``) whose trace has fewer than two points to
+    draw (their final residual only): no curve; by name."""
+    return sorted((s for s in reps if _trace_points(reps[s]["trace"]) < 2), key=natural_key)
+
+
+def traces_empty_note(reps: dict[str, pd.Series]) -> str:
+    """Why the traces of ``reps`` draw no curve ("" when one is drawn, or when no solve
+    stored a trace): every one is a single point.  report.md writes it in place of the
+    figure, report.html on its trace charts."""
+    short = short_traces(reps)
+    if not reps or len(short) < len(reps):
+        return ""
+    return (f"every stored trace is a single point, its solver's final residual only ({', '.join(short)}), and a "
+            f"convergence curve needs two")
+
+
 def _trace_figure(ctx: ReportContext) -> str:
     """Per family, the representative solve's trace of every solver: residual against
     iteration and against time, in the first scene with traces (trace_scene)."""
     scene, reps = trace_scene(ctx)
-    short = sorted((s for s in reps if _trace_points(reps[s]["trace"]) < 2), key=natural_key)
+    short = short_traces(reps)
     solvers = sorted(set(reps) - set(short), key=lambda s: (natural_key(ctx.family(s)), natural_key(s)))
     if not solvers:
-        return ""
+        empty = traces_empty_note(reps)
+        return no_figure(f"Convergence traces, scene `{scene}`: {empty}.") if empty else ""
     panels = [q for f in sort_families(ctx.family(s) for s in solvers)
               for q in family_panels([s for s in solvers if ctx.family(s) == f], ctx.family)]
     fig, axes = grid_figure(len(panels), 2, width=4.6, height=3.2, wspace=0.30)

@@ -36,8 +36,10 @@ from ..core import (
     register_section,
     representative_traces,
     scene_rank,
+    status_counts,
     table_md,
 )
+from ..panels import no_figure
 
 MAX_TABLE_ROWS = 80
 MAX_FAILURE_ROWS = 40
@@ -288,7 +290,9 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
                               "lrrrrrrrrrr"))
         prof = agg.performance_profile(cells)
         if len(prof.solvers) >= 2 and cells.problems:
-            parts.append(_profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ}))
+            empty = profile_empty_note(prof, r)
+            parts.append(no_figure(f"Performance profile, scene `{scene}`: {empty}.") if empty
+                         else _profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ}))
     parts.append("### All scenes\n")
     t = table
     summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
@@ -312,6 +316,17 @@ def best_of_family(ctx: ReportContext, score: dict[str, float]) -> dict[str, str
         if f not in best or v < score[best[f]]:
             best[f] = s
     return best
+
+
+def profile_empty_note(prof: agg.PerformanceProfile, rows: pd.DataFrame) -> str:
+    """Why a scene's performance profile ``prof`` has nothing to draw ("" when it has): no
+    solver solved any of its problems, so every curve would lie at 0.  ``rows``: the
+    scene's rows, whose statuses the note counts.  report.md writes it in place of the
+    figure, report.html on the chart."""
+    if any(np.isfinite(r).any() for r in prof.ratios.values()):
+        return ""
+    return (f"no solver solved any of the scene's {prof.n_problems} problems ({status_counts(rows)}), and a "
+            f"performance profile compares the times of solved problems: every curve would lie at 0")
 
 
 def profile_taus(prof: agg.PerformanceProfile, points: int) -> tuple[np.ndarray, float]:
@@ -429,7 +444,34 @@ def skips_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         parts.append(table_md(ctx, "inaccurate answers (returned, but the KKT check failed at the profile's "
                                    "tolerance).", ["scene", "solver", "profile", "rows", "worst kkt_error",
                                                    "check_tol"], rows_t, "lllrrr"))
+        parts.append(own_accounts(ina))
     return Section("Skips and failures", "\n".join(parts))
+
+
+#: At most this many characters of a solver's own words in ``own_accounts``.
+ACCOUNT_CHARS = 200
+
+
+def own_accounts(inaccurate: pd.DataFrame) -> str:
+    """Why the inaccurate answers failed, in their solvers' own words: per (scene, solver,
+    profile), its answers that failed the check while the solver did not claim convergence
+    (``solver_converged`` False: it knew, and its ``solver_message`` says why), how many, and
+    the message of the worst of them (largest kkt_error), cut to ``ACCOUNT_CHARS``.  Read from
+    the table's columns only, whatever the solver; "" when no such answer has a message."""
+    msg = inaccurate["solver_message"].fillna("").astype(str).str.strip()
+    own = inaccurate[inaccurate["solver_converged"].eq(False).fillna(False).to_numpy(dtype=bool) & (msg != "")]
+    if own.empty:
+        return ""
+    lines = []
+    for (sc, so, pr), x in own.groupby(["scene", "solver", "profile"], sort=False):
+        worst = x.loc[x["kkt_error"].fillna(np.inf).idxmax()]
+        text = _short(worst["solver_message"], ACCOUNT_CHARS).replace("|", "/")
+        lines.append((natural_key(sc), natural_key(so), pr,
+                      f"- {md_code(so)} ({sc}, profile `{pr}`): {len(x)} of its answers; at the worst "
+                      f"(instance {worst['instance']}, step {int(worst['step'])}): \"{text}\""))
+    return ("**In the solvers' own words.** Why the answers above that their solver did not claim as converged "
+            "failed, as the solver's message says (column `solver_message`; the verdict is the judge's):\n\n"
+            + "\n".join(line for *_, line in sorted(lines, key=lambda r: r[:3])) + "\n")
 
 
 #: The first line of a Python traceback (``traceback.format_exc``).

@@ -24,6 +24,7 @@ from contactbench.problems.surfaces import RMD_FAMILIES
 from ..style import GREY, family_panels, panels_note, sort_families
 from ...table import aggregates as agg
 from ..charts import RowChart
+from ..panels import no_figure
 from ..markdown_text import md_code
 from ..core import (
     WARM_SUFFIX,
@@ -362,9 +363,9 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     if placed.any():
         body.append(_fig4_figure(ctx, sub, tot, at_prof, placed))
     else:
-        body.append(f"**No figure.** Instance {inst} at profile `{prof}` has no time to draw against the load: the "
-                    f"load axis takes a step's load from its solved answers, and no step was solved "
-                    f"({status_counts(at_prof[at_prof['instance'] == inst])}).\n")
+        body.append(no_figure(f"Instance {inst} at profile `{prof}` has no time to draw against the load: the "
+                              f"load axis takes a step's load from its solved answers, and no step was solved "
+                              f"({status_counts(at_prof[at_prof['instance'] == inst])})."))
     body.append(table_md(ctx, f"total solve time over the sweep's {int(tot['steps'].iloc[0])} steps (instances x load "
                               f"steps), profile `{prof}`, with the accuracy it bought. A total is given only for a "
                               f"solver that solved every step; the others show '-' and, in parentheses, their time "
