@@ -170,13 +170,17 @@ def comma_items(text: str, split: Callable[[str], list[str]] | None = None, repe
 
 def check_out_dir(path: str, option: str = "--out") -> Path:
     """``path`` if it is, or can be made, a folder we may write: else one ``InputError``
-    naming it (an existing file, a path under a file, a folder we may not write).  Creates
+    naming it (an existing file, a path under a file, a path through a symbolic link that
+    leads to nothing, where no folder can be made, a folder we may not write).  Creates
     nothing."""
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise InputError(f"{option} {path}: exists and is not a folder")
     probe = p
     while not probe.exists():
+        if probe.is_symlink():
+            raise InputError(f"{option} {path}: {probe} is a symbolic link to {os.readlink(probe)!r}, which leads "
+                             f"to no file or folder; remove the link or choose another {option}")
         probe = probe.parent
     if not probe.is_dir():
         raise InputError(f"{option} {path}: {probe} is a file, not a folder")

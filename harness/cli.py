@@ -44,6 +44,7 @@ import threading
 import warnings
 from contextlib import contextmanager
 from importlib import metadata
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
@@ -374,7 +375,59 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
         add_option(p, rec)
 
 
-def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+#: What a command refuses bad input with (``_main``: one line per problem, exit 2; an
+#: ``OSError``: a path that cannot be read or written); the warnings its checks raised are
+#: then not shown (``HeldWarnings``).
+INPUT_ERRORS: tuple[type[Exception], ...] = (ProblemInputError, KeyError, ValueError)
+BAD_INPUT_ERRORS: tuple[type[Exception], ...] = (*INPUT_ERRORS, OSError)
+
+
+@dataclass
+class HeldWarnings:
+    """A ``warnings.showwarning`` that holds the warnings a command raises while it checks
+    its input, so that bad input is refused in its one line with nothing before it: once
+    every check has passed the command calls ``release`` (the warnings held are shown, in
+    order, and any later one at once); warnings still held when the command refuses its
+    input are dropped (``held_warnings``)."""
+
+    show: Any
+    held: list[tuple[Any, ...]] = field(default_factory=list)
+    released: bool = False
+
+    def __call__(self, message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                 file: Any = None, line: str | None = None) -> None:
+        if self.released:
+            self.show(message, category, filename, lineno, file, line)
+        else:
+            self.held.append((message, category, filename, lineno, file, line))
+
+    def release(self) -> None:
+        """Show the warnings held, and from now on each warning at once."""
+        self.released = True
+        held, self.held = self.held, []
+        for args in held:
+            self.show(*args)
+
+
+@contextmanager
+def held_warnings() -> Iterator[HeldWarnings]:
+    """Hold the warnings shown in the block (``HeldWarnings``); at its end those still held
+    are shown, unless it ended by refusing bad input (``BAD_INPUT_ERRORS``)."""
+    holder = HeldWarnings(warnings.showwarning)
+    warnings.showwarning = holder
+    try:
+        yield holder
+    except BAD_INPUT_ERRORS:
+        holder.held.clear()
+        raise
+    finally:
+        warnings.showwarning = holder.show
+        holder.release()
+
+
+def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | None = None) -> int:
+    """``run``: plan, check the folder, run; ``held``: the command's held warnings, shown
+    once every check has passed (``run_benchmark``'s ``ready``; a Dask run's when it ends)."""
     from .run.runner import RunConfig, run_benchmark
 
     cfg = scene_config(args)
@@ -399,7 +452,9 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str]) -> int:
                                             command=["contactbench", *argv], append=args.append)
         else:
             summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
-                                    append=args.append)
+                                    append=args.append, ready=None if held is None else held.release)
+    if held is not None:
+        held.release()
     for w in summary.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(summary.line())
@@ -428,7 +483,9 @@ def common_reason(out: str) -> str:
     return f"; most common reason ({reasons.count(top)} of {len(table)}): {top}"
 
 
-def cmd_export(args: argparse.Namespace) -> int:
+def cmd_export(args: argparse.Namespace, held: HeldWarnings | None = None) -> int:
+    """``export``: check, then write every QP; ``held``: the command's held warnings, shown
+    once the export is written (its checks come first, ``export_scene``)."""
     from contactbench.problems.export import export_scene
 
     from .run.studies import COMPOSITES
@@ -442,6 +499,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     # export_scene checks the options (the plan's rules), the scene's inputs and the folder before writing
     cap = {} if args.max_qps is None else {"max_qps": args.max_qps}
     summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit, **cap)
+    if held is not None:
+        held.release()
     print(summary.line())
     if summary.skipped:  # exit 0 says every QP is written
         total = len(summary.written) + len(summary.skipped)
@@ -538,14 +597,16 @@ def _main(argv: list[str]) -> int:
         if args.command == "list":
             return cmd_list(args.what, args.params)
         if args.command == "run":
-            return cmd_run(args, argv)
+            with held_warnings() as held:
+                return cmd_run(args, argv, held)
         if args.command == "report":
             return cmd_report(args.dir)
         if args.command == "export":
-            return cmd_export(args)
+            with held_warnings() as held:
+                return cmd_export(args, held)
     except KeyboardInterrupt as exc:
         return stopped(exc, interrupted_text(args))
-    except (ProblemInputError, KeyError, ValueError) as exc:
+    except INPUT_ERRORS as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         for line in str(msg).splitlines() or [""]:
             print(f"contactbench: error: {line}", file=sys.stderr)
@@ -553,10 +614,21 @@ def _main(argv: list[str]) -> int:
     except BrokenPipeError:  # the reader of our output has gone (`contactbench list solvers | head`)
         return output_reader_gone()
     except OSError as exc:  # a path that cannot be read or written: one line naming it
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"contactbench: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        print(f"contactbench: error: {os_error_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     return 1
+
+
+def os_error_line(exc: OSError) -> str:
+    """The one line of a path that cannot be read or written: the path, and what is
+    wrong in our words where the system's are unclear (``FileExistsError``: something --
+    a file, a link, a link to nothing -- is where a folder or file was to be made)."""
+    where = f"{exc.filename}: " if exc.filename else ""
+    if isinstance(exc, FileExistsError) and exc.filename:
+        kind = "a symbolic link" if os.path.islink(exc.filename) else "a file" if os.path.isfile(exc.filename) \
+            else "something"
+        return f"{where}{kind} is in the way of what the command makes there; move it away"
+    return f"{where}{exc.strerror or exc}"
 
 
 if __name__ == "__main__":  # pragma: no cover

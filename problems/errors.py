@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
+
+#: The most characters of another program's words (a foreign reader's error or warning)
+#: that one of our lines quotes (``printable_excerpt``).
+EXCERPT_CHARS = 160
+#: A run of characters that are no printable ASCII (binary bytes a reader decoded, control
+#: characters, line ends): each run is written as one space.
+_NOT_PRINTABLE = re.compile(r"[^\x20-\x7e]+")
 
 
 class ProblemInputError(ValueError):
@@ -65,3 +74,11 @@ def check_whole(name: str, value: object, minimum: int) -> int:
         rule = "a positive integer" if minimum == 1 else f"a whole number >= {minimum}"
         raise ProblemInputError(f"{name} must be {rule}, got {value!r}")
     return int(value)  # type: ignore[arg-type]
+
+
+def printable_excerpt(text: str, limit: int = EXCERPT_CHARS) -> str:
+    """``text`` fit to quote in a one-line message: every run of characters that are not
+    printable ASCII (binary junk, control characters, line ends) one space, white space
+    collapsed, at most ``limit`` characters (cut with "...")."""
+    plain = " ".join(_NOT_PRINTABLE.sub(" ", text).split())
+    return plain if len(plain) <= limit else plain[: max(limit - 3, 0)].rstrip() + "..."

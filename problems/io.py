@@ -21,7 +21,8 @@ Cleaning, in this order.  Each step is recorded in ``Surface.meta`` and in the m
 base name, a hash of the raw heights and of the options that names the instance, the unit
 and the spacing per axis, the filled points, the removed plane, the crop, the warnings); a
 step that changes the data warns (``announce``: stored in the record, and a ``UserWarning``
-once per process for each file and message):
+once per process for each file and message, issued once the map has passed every check,
+so that a map refused warns of nothing first):
 
 1. NaN rule (``nan=``): ``"fill-mean"`` (default) replaces each missing point by the mean
    of the measured points; ``"fill-nearest"`` by its nearest measured neighbour;
@@ -136,6 +137,8 @@ def load_surface(
     file_spacing = None if raw.spacing is None else (raw.spacing[0] * scale, raw.spacing[1] * scale)
     meta: dict[str, Any] = {"source": str(p), "format": raw.fmt, "original_shape": list(z.shape), **raw.info,
                             "warnings": []}
+    for note in raw.reader_notes:  # (what a foreign reader said while it read the map)
+        announce(f"{p.resolve().name}: {note}", meta)
     if not raw.unit_known:
         meta["height_unit"] = height_unit
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
@@ -154,8 +157,10 @@ def load_surface(
                                             spacing=spacing, channel=chosen, filled_above_plane=relative))
     record = preprocessing_record(p, raw, meta, z.shape, (raw_hash, key), (height_unit, unit_from, metres))
     d0, d1 = spacing
-    return Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1,
-                   preprocessing=record)
+    surface = Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1,
+                      preprocessing=record)
+    announce_recorded(meta)  # (the map passed every check: a refused one warns of nothing)
+    return surface
 
 
 def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tuple[int, int], hashes: tuple[str, str],
@@ -185,16 +190,25 @@ def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tupl
 
 def announce(message: str, meta: dict[str, Any]) -> None:
     """Record a cleaning step's warning in ``meta["warnings"]`` (the map's
-    ``MapPreprocessing.warnings``) and announce it as a ``UserWarning``: for a file read by
-    ``load_surface`` (``meta["source"]``) once per process for each distinct message (a run
-    reads its map when it plans and again when it builds), else every time.  Messages name
+    ``MapPreprocessing.warnings``) and announce it as a ``UserWarning``: for a file being
+    read by ``load_surface`` (``meta["source"]``) once the map has passed every check
+    (``announce_recorded``: a map refused warns of nothing), else at once.  Messages name
     the file by its base name (``MapPreprocessing.source``)."""
     meta.setdefault("warnings", []).append(message)
-    key = (str(Path(str(meta["source"])).resolve()), message) if meta.get("source") else None
-    if key is None or key not in _ANNOUNCED:
-        if key is not None:
-            _ANNOUNCED.add(key)
-        warnings.warn(message, UserWarning, stacklevel=4)
+    if not meta.get("source"):
+        warnings.warn(message, UserWarning, stacklevel=3)
+
+
+def announce_recorded(meta: dict[str, Any]) -> None:
+    """Announce each warning recorded for the file ``meta["source"]`` (``announce``) as a
+    ``UserWarning``, once per process for each distinct message (a run reads its map when
+    it plans and again when it builds); ``load_surface`` calls it last, when the map has
+    passed every check."""
+    source = str(Path(str(meta["source"])).resolve())
+    for message in meta.get("warnings", []):
+        if (source, message) not in _ANNOUNCED:
+            _ANNOUNCED.add((source, message))
+            warnings.warn(message, UserWarning, stacklevel=3)
 
 
 # --- Cleaning ---

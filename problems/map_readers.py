@@ -63,7 +63,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ProblemInputError, check_positive
+from .errors import ProblemInputError, check_positive, printable_excerpt
+from .output_streams import ForeignOutput, foreign_output_held
 from .units import plain_float
 
 NPY_MAGIC = b"\x93NUMPY"
@@ -116,14 +117,17 @@ class SurfaceFileError(ProblemInputError):
 @dataclass
 class RawMap:
     """A height map as read from a file, before cleaning: z (ny x nx, metres once
-    ``unit_known``, NaN for missing points) and the spacings (axis 0, axis 1) the file
-    states, in the unit of z (None when it states none)."""
+    ``unit_known``, NaN for missing points), the spacings (axis 0, axis 1) the file
+    states, in the unit of z (None when it states none), and what its reader said."""
 
     z: np.ndarray
     spacing: tuple[float, float] | None
     fmt: str
     info: dict[str, Any] = field(default_factory=dict)
     unit_known: bool = False
+    #: What a foreign reader said while it read the map, as our one-line warnings
+    #: (``ForeignOutput.notes``): ``problems.io.load_surface`` announces them.
+    reader_notes: tuple[str, ...] = ()
 
 
 def read_height_map(path: str | Path, channel: int | str | None = None) -> RawMap:
@@ -296,9 +300,12 @@ def _lattice(values: np.ndarray) -> tuple[np.ndarray, float, int] | None:
 
 
 def _monotone_coordinate(values: np.ndarray) -> bool:
-    """Whether a column is an evenly spaced coordinate (``_lattice``) that never turns back."""
+    """Whether a column is an evenly spaced coordinate (``_lattice``: finite values) that
+    never turns back."""
+    if _lattice(values) is None:
+        return False
     d = np.diff(values)
-    return _lattice(values) is not None and bool(np.all(d >= 0) or np.all(d <= 0))
+    return bool(np.all(d >= 0) or np.all(d <= 0))
 
 
 def xyz_grid(p: Path, a: np.ndarray) -> tuple[np.ndarray, tuple[float, float]] | None:
@@ -369,22 +376,26 @@ def _numeric_matrix(p: Path, a: np.ndarray) -> np.ndarray:
 
 def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | None = None) -> RawMap:
     """One channel of a file through SurfaceTopography (``fmt`` None: detect by content),
-    in metres when the file states its unit; every failure is a :class:`SurfaceFileError`."""
+    in metres when the file states its unit; every failure is a :class:`SurfaceFileError`
+    whose reason is printable (``printable_excerpt``).  What the readers print, log or warn
+    while they run is held off the terminal (``foreign_output_held``); after a read that
+    succeeds it is kept as ``RawMap.reader_notes``."""
     from SurfaceTopography.IO import open_topography
 
-    what = fmt or "the detected format"
+    what, said = fmt or "the detected format", ForeignOutput()
     try:
-        reader = open_topography(str(p), format=fmt)
-        what = f"{reader.name()} (.{reader.format()})"
-        info = _pick_channel(p, reader, channel)
-        kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
-        topo = reader.topography(channel_index=info.index, **kw)
-        h = np.ma.asarray(topo.heights(), dtype=np.float64)
-        heights = np.where(np.isinf(h.data), h.data, np.ma.filled(h, np.nan))  # an inf stays one (refused), no hole
+        with foreign_output_held() as said:
+            reader = open_topography(str(p), format=fmt)
+            what = f"{reader.name()} (.{reader.format()})"
+            info = _pick_channel(p, reader, channel)
+            kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
+            topo = reader.topography(channel_index=info.index, **kw)
+            h = np.ma.asarray(topo.heights(), dtype=np.float64)
+            heights = np.where(np.isinf(h.data), h.data, np.ma.filled(h, np.nan))  # an inf stays one (refused)
     except SurfaceFileError:
         raise
     except Exception as e:  # the readers raise many kinds; each becomes one clear line
-        raise SurfaceFileError(p, _archive_account(p, what) or _reader_failure(e, what)) from None
+        raise SurfaceFileError(p, _archive_account(p, what) or _reader_failure(e, what, said.written)) from None
     fmt_id = reader.format()
     z = heights if fmt_id in MATRIX_FORMATS else heights.T
     meta: dict[str, Any] = {"reader": f"SurfaceTopography {_st_version()}", "channel": info.name,
@@ -403,13 +414,16 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
     if fmt_id == "sdf":
         _sdf_checks(p)
     z = _numeric_matrix(p, z) * (factor or 1.0)
-    return RawMap(z, spacing, fmt_id, meta, unit_known=factor is not None)
+    return RawMap(z, spacing, fmt_id, meta, unit_known=factor is not None, reader_notes=said.notes())
 
 
-def _reader_failure(e: Exception, what: str) -> str:
+def _reader_failure(e: Exception, what: str, written: str = "") -> str:
+    """The reason, in our words, a SurfaceTopography reader refused a file: with the
+    reader's own (its exception's message, else the start of what it ``written``), as
+    printable text (``printable_excerpt``)."""
     from SurfaceTopography.Exceptions import CannotDetectFileFormat, CorruptFile, FileFormatMismatch
 
-    msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    msg = printable_excerpt(str(e)) or printable_excerpt(written) or type(e).__name__
     if isinstance(e, CannotDetectFileFormat):
         return ("not a format contactbench reads (.npy, a text matrix) nor one SurfaceTopography "
                 "recognises (every reader tried)")

@@ -122,9 +122,14 @@ def user_code(spec: str, doing: str) -> Iterator[None]:
 
 
 def file_path_hint(module: str, attr: str) -> str:
-    """How to name a solver whose module part is a file path (``x.py``, ``./x``,
-    ``/abs/dir/x.py``) or a relative module name (``.x``) by its import path instead; ""
-    when ``module`` is a module name."""
+    """How to name a solver whose module part is empty (``:NAME``), a file path (``x.py``,
+    ``./x``, ``/abs/dir/x.py``) or a relative module name (``.x``), or whose ``NAME`` is
+    empty (``module:``), by its import path instead; "" when ``module:attr`` names a
+    module and a name in it."""
+    if not module.strip() or not attr.strip():
+        part = "module name before" if not module.strip() else "NAME after"
+        return (f"the {part} ':' is empty; name a solver by import path as module:NAME (e.g. my_solver:MySolver, "
+                "run from the folder that holds my_solver.py)")
     if not (module.endswith(".py") or "/" in module or os.sep in module or module.startswith(".")):
         return ""
     path = Path(module)

@@ -69,6 +69,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any, Callable, Iterator, Literal, NoReturn
 
+from contactbench.problems.output_streams import output_to_fd
 from contactbench.solvers._loading import exception_message as exception_message
 from contactbench.solvers._loading import exception_text as exception_text
 from contactbench.solvers._processes import become_subreaper, end_descendants, end_own_descendants
@@ -157,48 +158,21 @@ OUTPUT_TAIL_LINES = 5
 OUTPUT_TAIL_BYTES = 4096
 
 
-def _flush_output() -> None:
-    """Flush Python's stdout and stderr and C's stdio buffers (best effort: a handler may
-    have replaced or closed the streams)."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except Exception:  # a stream a solver replaced or closed
-            pass
-    try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):  # pragma: no cover - no C library to flush
-        pass
-
-
 @contextlib.contextmanager
 def output_to(path: str) -> Iterator[None]:
     """File descriptors 1 and 2 (stdout and stderr, of Python and of C libraries alike)
     point at ``path`` (truncated; the null device where it cannot be opened) for the
-    block, and ``sys.stdout``/``sys.stderr`` write there too (whatever they were: a test
-    runner's capture); then all is put back.  Any other descriptor -- a worker's result
-    pipe -- is untouched."""
-    _flush_output()
-    saved = (os.dup(1), os.dup(2))
-    streams = (sys.stdout, sys.stderr)
+    block, and ``sys.stdout``/``sys.stderr`` write there too (``output_to_fd``); then all
+    is put back."""
     try:
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     except OSError:  # the folder is gone (a solver emptied its TMPDIR): the output is dropped
         fd = os.open(os.devnull, os.O_WRONLY)
-    text = open(fd, "w", buffering=1, encoding="utf-8", errors="replace", closefd=False)
     try:
-        os.dup2(fd, 1)
-        os.dup2(fd, 2)
-        sys.stdout = sys.stderr = text
-        yield
+        with output_to_fd(fd):
+            yield
     finally:
-        _flush_output()
-        sys.stdout, sys.stderr = streams
-        text.close()
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for f in (fd, *saved):
-            os.close(f)
+        os.close(fd)
 
 
 def kill_process_group(pgid: int) -> None:
