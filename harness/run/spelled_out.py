@@ -12,7 +12,7 @@ taken back when
 
 * it is a ``SceneConfig`` field equal to the default of every scene the run names;
 * it is an ``extra`` option at the value a recipe's reader applies where the recipe
-  names none (``READ_DEFAULTS``); or
+  names none (``problems.scenes.core.READ_DEFAULTS``); or
 * it is an ``extra`` option that leaving out gives the same recipes
   (``spelled_out_extras``: ``--surface-family saupe`` on a non-periodic scene); or
 * it is an option of a ``--surface`` file that only states what the reader takes from the
@@ -25,34 +25,19 @@ A ``--length L0,L1`` that reads its file as ``--length L0`` does is written L0
 
 from __future__ import annotations
 
-import inspect
 import json
 import os
 from dataclasses import asdict, replace
 from functools import lru_cache
 from typing import Any, Sequence
 
-from contactbench.problems.constraints import CONTROLS
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.io import load_surface
-from contactbench.problems.layers import DEFAULT_NU, INTERFACES
 from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.problems.scenes.core import SURFACE_FILE_OPTIONS, surface_from_params
+from contactbench.problems.scenes.core import READ_DEFAULTS, SURFACE_FILE_OPTIONS, surface_from_params
 from contactbench.problems.scenes.options import BY_NAME
 
 from ..table.files import canonical_json
 from .studies import expand
-
-#: The value of an ``extra`` option that a recipe's reader applies where the recipe does
-#: not name it (``problems.scenes.core``: displacement control, the layer's Poisson's
-#: ratio and bonded interface, and ``problems.io.load_surface``'s cleaning of a map).
-READ_DEFAULTS: dict[str, Any] = {
-    "control": CONTROLS[0],
-    "nu": DEFAULT_NU,
-    "interface": INTERFACES[0],
-    **{name: inspect.signature(load_surface).parameters[name].default for name in SURFACE_FILE_OPTIONS},
-}
-
 
 def given_apart(scene_config: Any, scenes: Any) -> Any:
     """A run's scene options (``asdict`` of its ``SceneConfig``, or a folder's record of

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from abc import abstractmethod
 from dataclasses import replace
 from typing import Any
@@ -21,8 +22,9 @@ from ..instances import (
     paper_max_displacement,
     trial_set,
 )
+from ..io import load_surface
 from ..kernels import check_element_shape
-from ..layers import DEFAULT_NU, Layer
+from ..layers import DEFAULT_NU, INTERFACES, Layer
 from ..surfaces import Surface, check_rmd_family, rmd_surface_n
 from ..units import check_height_unit, check_plausible_units
 from . import register_scene
@@ -40,6 +42,15 @@ PAPER_LENGTH = 100e-6  # the paper's lateral size L (metres), the rough-surface 
 #: The keywords of a measured surface file's cleaning (``problems.io.load_surface``'s
 #: ``detrend``, ``nan`` and ``crop``; options of the "surface-file" group, ``options.OPTIONS``).
 SURFACE_FILE_OPTIONS: tuple[str, ...] = ("detrend", "nan", "crop")
+#: The value of an ``extra`` option that a recipe's reader applies where the recipe does
+#: not name it: displacement control, the layer's Poisson's ratio and bonded interface
+#: (``layer_from_params``), and ``problems.io.load_surface``'s cleaning of a map.
+READ_DEFAULTS: dict[str, Any] = {
+    "control": CONTROLS[0],
+    "nu": DEFAULT_NU,
+    "interface": INTERFACES[0],
+    **{name: inspect.signature(load_surface).parameters[name].default for name in SURFACE_FILE_OPTIONS},
+}
 
 
 def layer_from_params(params: dict[str, Any], surface: Surface | None = None) -> Layer | None:
@@ -53,7 +64,8 @@ def layer_from_params(params: dict[str, Any], surface: Surface | None = None) ->
         thickness = float(params["thickness_over_L"]) * min(surface.lengths)
     if thickness is None:
         return None
-    return Layer(float(thickness), float(params.get("nu", DEFAULT_NU)), str(params.get("interface", "bonded")))
+    return Layer(float(thickness), float(params.get("nu", READ_DEFAULTS["nu"])),
+                 str(params.get("interface", READ_DEFAULTS["interface"])))
 
 
 def check_grid(params: dict[str, Any], surface: Surface) -> Surface:
@@ -82,7 +94,6 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
     """Rebuild the surface a recipe names: a measured file, or an RMD surface of
     ``params["family"]`` from its seed (no family: the size picks, ``rmd_surface_n``)."""
     if params.get("surface_path"):
-        from ..io import load_surface  # measured height maps (issue: real surfaces)
 
         unit = params.get("height_unit")  # absent: metres for a file that states no unit
         length = params.get("length")

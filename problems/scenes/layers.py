@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import ProblemInputError
-from ..layers import DEFAULT_NU
+from ..layers import DEFAULT_NU, INTERFACES
 from ..surfaces import Surface
 from . import register_scene
 from .base import SCENE_OPTIONS, InstanceSpec, SceneConfig
@@ -46,7 +46,7 @@ class LayerSweep(RampScene):
     description = "paper sweep on elastic layers T = 0.1 L .. 10 L on a rigid base (bonded, nu 0.3) and the half-space"
     defaults = SceneConfig(size=128, steps=10, seeds=(PAPER_SEED,), length=100e-6, E=PAPER_E, kernel="bcc",
                            periodic=False, operator="fft",
-                           extra={"thicknesses": LAYER_THICKNESSES, "nu": DEFAULT_NU, "interface": "bonded"})
+                           extra={"thicknesses": LAYER_THICKNESSES, "nu": DEFAULT_NU, "interface": INTERFACES[0]})
     options = SCENE_OPTIONS - {"thickness"}  # the sweep sets the thickness itself
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
@@ -57,7 +57,7 @@ class LayerSweep(RampScene):
             specs.append(spec)  # the half-space
             for t in thicknesses_of(cfg):
                 params = {**spec.params, "thickness_over_L": t, "nu": float(cfg.extra.get("nu", DEFAULT_NU)),
-                          "interface": str(cfg.extra.get("interface", "bonded"))}
+                          "interface": str(cfg.extra.get("interface", INTERFACES[0]))}
                 specs.append(InstanceSpec(self.name, spec.instance + layer_suffix(params), params))
         return specs
 
