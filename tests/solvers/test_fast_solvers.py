@@ -251,13 +251,13 @@ def test_counterexample_is_unit_invariant(name):
 @pytest.mark.slow
 def test_fast_pccg_solves_the_counterexample_at_1_and_2_threads(monkeypatch):
     """fast-pccg, declared exact, must solve paper Example 1 (seeds 0-99 at
-    n = 25, 100, 400), and the same at 1 and 2 threads."""
+    n = 25, 100, 400 on 1 thread), and the same on 2 threads (seeds 0-19)."""
     loads = {}
-    for threads in (1, 2):
+    for threads, seeds in ((1, 100), (2, 20)):
         monkeypatch.setenv("CONTACTBENCH_FFT_WORKERS", str(threads))
         with threadpool_limits(threads):
             for n in (25, 100, 400):
-                for seed in range(100):
+                for seed in range(seeds):
                     inst = counterexample(n, seed)
                     res = get_solver("fast-pccg").solve(inst.qp, SolverSettings())
                     assert res.converged and kkt_check(inst, res.p).kkt_error <= 1e-8, (threads, n, seed)
