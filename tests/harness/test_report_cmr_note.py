@@ -72,3 +72,14 @@ def test_the_failures_section_prints_a_solvers_own_words_for_the_answers_it_did_
     assert why in note
     assert "greedy" not in note and "`pk`" not in note
 
+
+
+def test_a_long_message_keeps_its_first_and_last_words() -> None:
+    """A solver's message names what it did first and its verdict last: past the limit
+    its middle is left out, not its end."""
+    from contactbench.harness.report.sections.generic import ends_of
+
+    line = "CMR 16->32 " + "x" * 400 + " the cascade pruned points (repair=True makes it exact)"
+    cut = ends_of(line, 200)
+    assert len(cut) <= 200 and cut.startswith("CMR 16->32") and cut.endswith("(repair=True makes it exact)")
+    assert " ... " in cut and ends_of("short", 200) == "short"

@@ -456,7 +456,8 @@ def own_accounts(inaccurate: pd.DataFrame) -> str:
     """Why the inaccurate answers failed, in their solvers' own words: per (scene, solver,
     profile), its answers that failed the check while the solver did not claim convergence
     (``solver_converged`` False: it knew, and its ``solver_message`` says why), how many, and
-    the message of the worst of them (largest kkt_error), cut to ``ACCOUNT_CHARS``.  Read from
+    the message of the worst of them (largest kkt_error), its middle left out past
+    ``ACCOUNT_CHARS`` (``ends_of``).  Read from
     the table's columns only, whatever the solver; "" when no such answer has a message."""
     msg = inaccurate["solver_message"].fillna("").astype(str).str.strip()
     own = inaccurate[inaccurate["solver_converged"].eq(False).fillna(False).to_numpy(dtype=bool) & (msg != "")]
@@ -465,7 +466,7 @@ def own_accounts(inaccurate: pd.DataFrame) -> str:
     lines = []
     for (sc, so, pr), x in own.groupby(["scene", "solver", "profile"], sort=False):
         worst = x.loc[x["kkt_error"].fillna(np.inf).idxmax()]
-        text = _short(worst["solver_message"], ACCOUNT_CHARS).replace("|", "/")
+        text = ends_of(error_line(worst["solver_message"]), ACCOUNT_CHARS).replace("|", "/")
         lines.append((natural_key(sc), natural_key(so), pr,
                       f"- {md_code(so)} ({sc}, profile `{pr}`): {len(x)} of its answers; at the worst "
                       f"(instance {worst['instance']}, step {int(worst['step'])}): \"{text}\""))
@@ -491,6 +492,15 @@ def error_line(text: str) -> str:
     frames = [i for i, line in enumerate(lines) if line.startswith("  File ")]
     after = lines[frames[-1] + 1:] if frames else lines[1:]
     return next((line.strip() for line in after if not line[:1].isspace()), lines[-1].strip())
+
+
+def ends_of(line: str, n: int) -> str:
+    """``line`` cut to about ``n`` characters by leaving out its middle (" ... "): a solver's
+    message names what it did first and its verdict last."""
+    if len(line) <= n:
+        return line
+    half = max((n - 5) // 2, 1)
+    return f"{line[:half].rstrip()} ... {line[-half:].lstrip()}"
 
 
 def _short(text: str, n: int = 90) -> str:
