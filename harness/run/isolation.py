@@ -115,6 +115,7 @@ class ChildReply:
     value: Any = None
     elapsed: float = 0.0
     detail: str = ""
+    exitcode: int | None = None  # kind "crashed": the worker's exit code (minus its signal), None if unread
 
     @property
     def ok(self) -> bool:
@@ -285,17 +286,25 @@ def exit_as(code: int) -> NoReturn:
     os._exit(code)
 
 
-def describe_exit(exitcode: int | None) -> str:
-    """'killed by signal SIGABRT' / 'exited with code 3' / 'still running'."""
+def how_it_ended(exitcode: int | None) -> str:
+    """How a process whose exit code (``multiprocessing``'s: minus the signal that killed
+    it, None while it runs) is ``exitcode`` ended: 'killed by signal SIGABRT' / 'exited
+    with code 3' / 'did not exit'."""
     if exitcode is None:
-        return "worker did not exit"
+        return "did not exit"
     if exitcode < 0:
         try:
             name = signal.Signals(-exitcode).name
         except ValueError:
             name = str(-exitcode)
-        return f"worker killed by signal {name}"
-    return f"worker exited with code {exitcode}"
+        return f"killed by signal {name}"
+    return f"exited with code {exitcode}"
+
+
+def describe_exit(exitcode: int | None) -> str:
+    """'worker killed by signal SIGABRT' / 'worker exited with code 3' / 'worker did not
+    exit' (``how_it_ended``)."""
+    return f"worker {how_it_ended(exitcode)}"
 
 
 #: The longest single wait on a worker's pipe (``ChildProcess._answered_within``).
@@ -395,7 +404,7 @@ class ChildProcess:
             code = self.proc.exitcode
         detail = describe_exit(code) + self.output_tail()
         self.kill()
-        return ChildReply("crashed", elapsed=elapsed, detail=detail)
+        return ChildReply("crashed", elapsed=elapsed, detail=detail, exitcode=code)
 
     def output_tail(self) -> str:
         """The last ``OUTPUT_TAIL_LINES`` lines the handler printed during the latest message,

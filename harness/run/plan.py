@@ -23,6 +23,7 @@ command line turns it into exit status 2 and writes no table.
 from __future__ import annotations
 
 
+import contextlib
 import hashlib
 import json
 import math
@@ -40,15 +41,18 @@ from contactbench.problems.operators_gpu import device_misfit
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
+from contactbench.solvers._loading import file_path_hint, user_code
 from contactbench.solvers.base import ProblemTraits, Solver
-from contactbench.solvers.registry import (NamedVariant, SolverSpec, all_solvers, available_solvers, expand_solver_spec,
-                                           get_solver, is_import_path, load_solver, refuse_same_variants, register, split_solver_list,
+from contactbench.solvers.registry import (NamedVariant, SolverLoadError, SolverSpec, all_solvers, available_solvers,
+                                           expand_solver_spec, get_solver, import_user_module, is_import_path,
+                                           load_solver, refuse_same_variants, register, split_solver_list,
                                            split_solver_spec)
 
 from ..arguments import check_time_limit
 from ..profiles import get_profile
 from ..table.files import canonical_json
 from ..table.schema import as_finite
+from .child_call import ChildEnded, LoadFailed, in_a_child
 from .skips import capability_decision, time_decision
 from .spelled_out import left_out
 from .studies import SolverVariant, Study, expand
@@ -258,7 +262,8 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
     checked ``SolverSpec`` of each variant it names (``expand_solver_spec``), which
     ``Study.variants`` runs as given; a variant named twice (by its label, or as one
     solver with the same parameters once defaults are filled in) is refused
-    (``refuse_same_variants``)."""
+    (``refuse_same_variants``).  A ``module:NAME`` entry's module is imported in a child
+    first (``probe_import``)."""
     if isinstance(requested, str):
         requested = split_solver_list(requested)  # commas inside name[k=v,...] stay
     if requested:
@@ -269,8 +274,10 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
         for text in requested:
             # an unknown name is a clear KeyError, a module:NAME that does not load one line whatever its module
             # raised (a ProblemInputError); name[k=v] is Param-checked (solvers/registry.py)
-            specs, solver = expand_solver_spec(text)
             parts = split_solver_spec(text)
+            if is_import_path(parts.name):
+                probe_import(parts.name)
+            specs, solver = expand_solver_spec(text)
             if is_import_path(parts.name):
                 refuse_name_clash(text.strip(), solver)
                 register(solver, replace=True)  # (the same class again: each worker loads it too)
@@ -284,6 +291,37 @@ def resolve_solver_names(requested: Sequence[str] | str | None,
     if study_default:  # a study's name[k=v] is kept when its base is registered
         return [s for s in study_default if split_solver_spec(s).name in all_solvers()]
     return list(available_solvers())
+
+
+def probe_import(name: str) -> None:
+    """Import the module of the solver ``name`` (``module:NAME``) once in a forked child
+    (``child_call.in_a_child``, ``import_in_child``) before ``run`` imports it in its own
+    process: a module whose import ends the process that imports it (``os._exit``, a
+    signal, a segfault) is a one-line ``SolverLoadError`` saying how that process ended,
+    one that hangs past ``child_call.LOAD_LIMIT_S`` one saying so.  Nothing is forked for a
+    module already imported here (one probe per module, however many of its solvers or
+    variants are named) nor for a name ``load_named_solver`` refuses unread (a file path,
+    ``file_path_hint``).  The probe catches nothing else: what the import raises is left to
+    the load in this process, and a module that passes is trusted as any code ``run``
+    imports (docs/verdicts.md)."""
+    module, attr = name.split(":", 1)
+    if module in sys.modules or file_path_hint(module, attr):
+        return
+    doing = f"importing module {module!r}"
+    try:
+        in_a_child(import_in_child, module, what=doing)
+    except ChildEnded as exc:
+        raise SolverLoadError(f"cannot load solver {name!r}: {doing} ended its process ({exc.how})") from None
+    except LoadFailed as exc:
+        raise SolverLoadError(f"cannot load solver {name!r}: {exc}") from None
+
+
+def import_in_child(module: str) -> None:
+    """Import ``module`` (``registry.import_user_module``) in ``probe_import``'s child.
+    What the import raises is dropped there: the load in ``run``'s own process raises it
+    again, and ``registry.load_named_solver`` words it."""
+    with contextlib.suppress(Exception), user_code(module, f"importing module {module!r}"):
+        import_user_module(module)
 
 
 def refuse_name_clash(text: str, solver: Solver) -> None:
