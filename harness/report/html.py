@@ -86,6 +86,13 @@ def step_loads(rows: pd.DataFrame) -> pd.Series:
 #: The Plotly symbol of each matplotlib marker of ``UNSOLVED_MARKS`` (the static figure
 #: fills the cross and leaves the others open).
 PLOTLY_SYMBOLS: dict[str, str] = {"x": "x", "s": "square-open", "D": "diamond-open"}
+#: The Plotly symbol of each solver marker (``style.MARKERS``): a solved point on the page's
+#: line charts wears its solver's, as in the static figures, so that two shades of one family
+#: differ in shape too.  Filled, unlike the open unsolved marks; "X" is an hourglass, so that
+#: no solved point wears the KKT failure's cross.
+SOLVER_SYMBOLS: dict[str, str] = {"o": "circle", "s": "square", "^": "triangle-up", "D": "diamond",
+                                  "v": "triangle-down", "P": "cross", "X": "hourglass", "<": "triangle-left",
+                                  ">": "triangle-right", "p": "pentagon", "h": "hexagon", "*": "star"}
 
 
 def unsolved_marks() -> dict[str, dict[str, str]]:
@@ -202,7 +209,8 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
         "title": str(ctx.meta.get("suite") or ", ".join(ctx.scenes())),
         "scenes": ctx.scenes(),
         "profiles": natural_sorted(set(attempted(t)["profile"])),
-        "families": [{"name": f, "solvers": [{"name": s, "color": ctx.styles.hex(s)} for s in
+        "families": [{"name": f, "solvers": [{"name": s, "color": ctx.styles.hex(s),
+                                              "symbol": SOLVER_SYMBOLS[ctx.marker(s)]} for s in
                                              natural_sorted(x for x in t["solver"].unique() if ctx.family(x) == f)]}
                      for f in fams],
         "lead": scene_leads(ctx, summaries),

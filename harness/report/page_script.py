@@ -6,8 +6,9 @@ PAGE_SCRIPT = r"""
 (function () {
 'use strict';
 const D = JSON.parse(document.getElementById('report-data').textContent);
-const COLOR = {}, FAMILY = {};
-D.families.forEach(f => f.solvers.forEach(s => { COLOR[s.name] = s.color; FAMILY[s.name] = f.name; }));
+const COLOR = {}, FAMILY = {}, SYMBOL = {};
+D.families.forEach(f => f.solvers.forEach(s => { COLOR[s.name] = s.color; FAMILY[s.name] = f.name;
+  SYMBOL[s.name] = s.symbol; }));
 const state = {solvers: new Set(Object.keys(COLOR)), scenes: new Set(D.scenes), profiles: new Set(D.profiles)};
 // A scene whose row chart gives colours ((solver, colour) pairs in drawing order: Fig. 6's K from
 // dark to light (viridis), as its PNG) draws those solvers in them, first and in that order, in every one
@@ -94,12 +95,13 @@ function thin(scene, traces, lay) {
   return [traces, lay];
 }
 // A row not solved is marked by its status (r.uk: a key of D.unsolved, the static figures'
-// UNSOLVED_MARKS), with one legend entry per kind drawn; against the load (x 'dl') a row sits at its
+// UNSOLVED_MARKS), with one legend entry per kind drawn, a solved one by its solver's own symbol
+// (html.py SOLVER_SYMBOLS); against the load (x 'dl') a row sits at its
 // step's load (the median of the step's solved answers), and a row whose step nobody solved is
 // left out, as in the static figures: the chart says how many, and says why when it draws nothing.
 function unsolvedMark(r, col) {
   const m = r.uk === null ? null : D.unsolved[r.uk];
-  return m ? {symbol: m.symbol, color: m.color, size: 10} : {symbol: 'circle', color: col, size: 6};
+  return m ? {symbol: m.symbol, color: m.color, size: 10} : {symbol: SYMBOL[r.so] || 'circle', color: col, size: 6};
 }
 function unsolvedLegend(rows) {
   const kinds = new Set(rows.map(r => r.uk).filter(k => k !== null));
@@ -115,7 +117,7 @@ function ownLegend(t) {
   t.showlegend = false;
   t.legendgroup = t.name;
   return {type: 'scatter', mode: t.mode, name: t.name, meta: t.meta, legendgroup: t.name, visible: t.visible,
-    x: [null], y: [null], hoverinfo: 'skip', line: t.line, marker: {color: t.line.color, symbol: 'circle', size: 6}};
+    x: [null], y: [null], hoverinfo: 'skip', line: t.line, marker: {color: t.line.color, symbol: SYMBOL[t.meta.so] || 'circle', size: 6}};
 }
 // A chart with nothing to draw says why on its (empty) plot, in lines of at most NOTE_CHARS
 // characters (an annotation does not wrap): the words of report.md's "No figure." (panels.py).

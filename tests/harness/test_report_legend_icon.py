@@ -1,6 +1,6 @@
 """report.html's time-against-load charts (page_script.py): a series' legend icon is the
-series' own marker (a circle in its colour, the size of a solved step's), whatever its
-points' marks; the steps it did not solve keep their ``UNSOLVED_MARKS`` mark on the plot,
+series' own marker (its solver's symbol in its colour, the size of a solved step's),
+whatever its points' marks; the steps it did not solve keep their ``UNSOLVED_MARKS`` mark on the plot,
 and a click on the legend entry still shows or hides the series (one legend group)."""
 
 from __future__ import annotations
@@ -11,10 +11,11 @@ from typing import Any
 import pytest
 
 from contactbench.harness import build_report
+from contactbench.harness.report import core as rp
 from contactbench.harness.report import html as html_report
 from contactbench.harness.report.browser import browser_missing, load_page, open_driver
 from tests.harness.test_report_page_marks import SWEEP, sweep_table
-from tests.helpers import write_out
+from tests.helpers import META, write_out
 
 #: Per legend entry of the drawn Fig. 4 chart: its text, its marker's path and fill.
 LEGEND_JS = """
@@ -24,7 +25,9 @@ const icons = Object.fromEntries([...d.querySelectorAll('.legend .traces')].map(
   [...g.querySelectorAll('.legendpoints path')].map(p => [p.getAttribute('d'), p.style.fill])]));
 const groups = Object.fromEntries(d.data.filter(t => t.showlegend !== false).map(t => [t.name, t.legendgroup || '']));
 const series = d.data.filter(t => t.showlegend === false).map(t => [t.name, t.legendgroup, t.marker.symbol]);
-return {icons: icons, groups: groups, series: series};
+const standIns = Object.fromEntries(d.data.filter(t => t.showlegend !== false && t.meta && t.meta.so)
+  .map(t => [t.name, [t.marker.symbol, t.marker.size]]));
+return {icons: icons, groups: groups, series: series, standIns: standIns};
 """
 
 
@@ -46,11 +49,13 @@ def test_a_series_legend_icon_is_its_own_marker_not_its_first_steps_unsolved_mar
     finally:
         driver.quit()
     icons = seen["icons"]
-    solved_only = icons["a"][0][0]  # a: every drawn step solved, a circle of the solved size
     marks = {m["label"]: m for m in html_report.unsolved_marks().values()}
+    ctx = rp.ReportContext(tmp_path, sweep_table(SWEEP), dict(META))
     for name in ("b", "c"):
         (path, fill), = icons[name]
-        assert path == solved_only  # the circle of a solved step, not the first point's mark or their mean size
+        # its own symbol at a solved step's size, not the first point's mark or their mean size
+        assert seen["standIns"][name] == [html_report.SOLVER_SYMBOLS[ctx.marker(name)], 6]
+        assert path not in {icons[label][0][0] for label in marks if label in icons}
         assert fill not in {icons[label][0][1] for label in marks if label in icons}
     assert icons["c"][0][1] != icons["b"][0][1]  # each in its own colour
     # the series themselves, out of the legend, keep their marks and share the stand-in's legend group

@@ -73,6 +73,20 @@ def test_the_page_data_carries_the_marks(tmp_path: Path) -> None:
     assert html_report.page_data(ctx)["unsolved"] == html_report.unsolved_marks()
 
 
+def test_each_solver_wears_its_own_symbol_on_the_page_and_none_an_unsolved_mark(tmp_path: Path) -> None:
+    """Members of one family (shades of one hue) differ in shape on the page's line charts as
+    in the static figures: each solver's symbol is its style marker's, and no solved point
+    wears a mark of ``UNSOLVED_MARKS``."""
+    one_family = {f"q{i}": [("solved", 1e-4 * (i + 1))] for i in range(6)}
+    ctx = rp.ReportContext(tmp_path, sweep_table(one_family), dict(META))
+    members = [s for f in html_report.page_data(ctx)["families"] for s in f["solvers"]]
+    assert {s["name"] for s in members} == set(one_family)
+    assert all(s["symbol"] == html_report.SOLVER_SYMBOLS[ctx.marker(s["name"])] for s in members)
+    assert len({s["symbol"] for s in members}) == len(members)
+    unsolved = {m["symbol"] for m in html_report.unsolved_marks().values()}
+    assert not unsolved & set(html_report.SOLVER_SYMBOLS.values())
+
+
 def _fig4(driver: Any) -> dict[str, Any]:
     """The drawn Fig. 4 chart of the open page: its traces and layout."""
     return driver.execute_script("""
@@ -105,7 +119,8 @@ def test_the_page_fig4_marks_by_status_and_says_when_it_is_empty(tmp_path: Path)
     # b: solved at step 0, timeout at 1, inaccurate at 2; step 3 (nobody solved it) left out
     assert b["y"] == pytest.approx([0.1, 0.2, 0.3])
     assert b["x"] == pytest.approx([1.1e-4, 2.1e-4, 3.1e-4])
-    assert b["marker"]["symbol"] == ["circle", marks["timeout"]["symbol"], marks["inaccurate"]["symbol"]]
+    own = html_report.SOLVER_SYMBOLS[rp.ReportContext(tmp_path, sweep_table(SWEEP), dict(META)).marker("b")]
+    assert b["marker"]["symbol"] == [own, marks["timeout"]["symbol"], marks["inaccurate"]["symbol"]]
     assert b["marker"]["color"][1:] == [marks["timeout"]["color"], marks["inaccurate"]["color"]]
     c = next(t for t in fig["data"] if t["name"] == "c")
     assert c["marker"]["symbol"][0] == marks["failed"]["symbol"]
