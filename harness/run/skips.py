@@ -20,6 +20,10 @@ words, with the estimate):
    under load control corrected by ``problem_time_estimate``; against the time limit.
    After a timeout, larger steps of that solver are skipped.
 
+A model that raises, or gives what no estimate is (NaN, a negative number, a non-number:
+``model_value``), fails the solver's rows naming it: a defect of its declaration, neither a
+reason to skip nor leave to run.
+
 A solver's ``time_estimate(n, operator)`` models displacement control: a trial set of
 n unknowns inside a padded FFT grid of ``FFT_POINTS_PER_UNKNOWN`` (28) points per unknown,
 at its typical iteration count.  A product costs the problem's whole padded grid whatever
@@ -36,6 +40,7 @@ steps of the same sequence, the same rows whether a run is resumed or not.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -108,6 +113,24 @@ def fft_points_per_unknown(traits: ProblemTraits) -> float:
     return pad if traits.load_control else FFT_POINTS_PER_UNKNOWN
 
 
+class ModelValueError(ValueError):
+    """A solver's time or memory model gave what no estimate is (``model_value``)."""
+
+
+def model_value(value: object, what: str) -> float:
+    """``value``, what a solver's ``what`` model (``time_estimate``, ``memory_estimate``)
+    returned, as a float: a real number, not NaN and not negative (infinity says "never
+    within any limit"); else a ``ModelValueError`` naming it, which the policy records as
+    the model's failure (a bug of the solver's declaration, not a reason to run or skip)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ModelValueError(f"{what} returned {value!r} ({type(value).__name__}), not a number of "
+                              f"{'seconds' if what == 'time_estimate' else 'bytes'}")
+    out = float(value)
+    if math.isnan(out) or out < 0.0:
+        raise ModelValueError(f"{what} returned {out!r}; an estimate is a number >= 0")
+    return out
+
+
 def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) -> float | None:
     """The solver's ``time_estimate(n, operator)`` for the problem ``traits`` describe:
     scaled by the matvec cost of the problem's own FFT grid over the model's typical one (a
@@ -117,6 +140,7 @@ def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) 
     t = solver.time_estimate(traits.n, operator)
     if t is None:
         return t
+    t = model_value(t, "time_estimate")
     n = traits.n
     matvec_ratio = (matvec_seconds(n, operator, fft_points_per_unknown(traits))
                     / matvec_seconds(n, operator, FFT_POINTS_PER_UNKNOWN))
@@ -168,8 +192,8 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
         operator = "dense" if wants_dense else "fft"
     dense_bytes = 8.0 * n * n if operator == "dense" else 0.0  # the step's dense H, the scene's own included
     try:
-        own_bytes = float(solver.memory_estimate(n))
-    except SOLVER_FAULTS as exc:
+        own_bytes = model_value(solver.memory_estimate(n), "memory_estimate")
+    except (*SOLVER_FAULTS, ModelValueError) as exc:
         return Decision(reason=f"memory model failed: {type(exc).__name__}: {exc}", failed=True)
     if dense_bytes > memory_budget:
         return Decision(reason=(f"needs dense H: {n} x {n} float64 = {dense_bytes / GiB:.3g} GiB "
@@ -200,7 +224,7 @@ def time_decision(solver: object, traits: ProblemTraits, operator: str, time_lim
         return Decision(operator=operator)
     try:
         t_est = problem_time_estimate(solver, traits, operator)  # type: ignore[arg-type]
-    except SOLVER_FAULTS as exc:
+    except (*SOLVER_FAULTS, ModelValueError) as exc:
         return Decision(reason=f"time model failed: {type(exc).__name__}: {exc}", failed=True)
     if t_est is not None and t_est > time_limit:
         control = ", load control" if traits.load_control else ""
