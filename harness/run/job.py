@@ -86,8 +86,11 @@ log = logging.getLogger("contactbench")
 Todo = list[tuple[SolverVariant, str, list[int]]]  # (variant, profile, repeats still missing)
 
 #: Without a time model or an observed step, a solve is predicted to cost at least this
-#: many products with H (``predicted_seconds``; the warm-up rule only).
-MIN_PREDICTED_MATVECS = 20
+#: many products with H (``predicted_seconds``; the warm-up rule only): the field's CCGs,
+#: which declare none, take hundreds on a cold step (results/perf/cost-law.md: our plain CCGs
+#: 85-363 at 256^2-4096^2).  With ``_kit.matvec_seconds`` it keeps the warm-up of such a
+#: solve up to 512^2 and drops it from 1024^2 on the paper's trial sets.
+MIN_PREDICTED_MATVECS = 150
 
 
 @dataclass

@@ -53,3 +53,16 @@ def test_a_number_at_or_above_zero_is_an_estimate(value: Any) -> None:
 
 def test_no_time_model_is_no_prediction() -> None:
     assert not time_decision(Modelled(seconds=None), TRAITS, "fft", 60.0, None).skip
+
+
+def test_a_solve_without_a_time_model_keeps_its_warm_up_to_512_and_drops_it_from_1024() -> None:
+    """The warm-up rule's floor for a solver that declares no time model (the field's
+    codes): on the paper's top-step trial sets (n = 35,218 at 512^2, about 140,000 at
+    1024^2) its prediction is under the warm-up limit at 512^2 and over it from 1024^2."""
+    from contactbench.harness.run.job import MIN_PREDICTED_MATVECS
+    from contactbench.harness.run.plan import RunConfig
+    from contactbench.solvers._kit import matvec_seconds
+
+    limit = RunConfig().warmup_limit
+    assert MIN_PREDICTED_MATVECS * matvec_seconds(35_218, "fft") < limit
+    assert MIN_PREDICTED_MATVECS * matvec_seconds(140_000, "fft") > limit
