@@ -10,14 +10,16 @@ The lifecycle (``Solver.solve``, a template method; subclasses implement ``itera
 1. validate the QP (``check_qp``) and the parameters (``Solver.resolve_params``: an
    unknown or ill-typed key is refused with the allowed keys in the message);
 2. resolve one numeric tolerance (``SolverSettings.tol``, else the class's
-   ``default_tol``) and one iteration limit (``max_iter``, else ``default_max_iter(n)``);
+   ``default_tol``) and one iteration limit (``max_iter``, else ``default_max_iter(n)``,
+   None or an integer >= 0: ``read_max_iter``);
 3. apply the one warm-start policy (``warm_point``): a warm p must have length n and be
    finite (else ``ProblemInputError``), negative entries are clipped to 0; a solver
    whose ``capabilities.warm_start`` is "none" is handed no warm start, and its result
    says ``warm_started=False``;
 4. start one deadline, one trace and one matvec count (``SolveContext``); return p = 0
    at once when ubar <= 0 (no contact) and no load is imposed;
-5. call the solver's own ``iterate(ctx)``, which returns an ``Outcome``;
+5. call the solver's own ``iterate(ctx)``, which returns an ``Outcome`` whose fields are
+   of their kinds (``read_outcome``; its p is the judge's to read);
 6. build the ``SolveResult``: w = Hp - ubar (unless the outcome carries it), the status
    from the small ``Status`` enum, the matvec count, and a trace whose last point is the
    final iterate's scaled KKT error.
@@ -33,18 +35,25 @@ fits it from the answer (``problems.constraints.fit_multiplier``); ``SolveResult
 reports it as ``multiplier`` and its w is Hp - ubar - Delta.  A warm start is clipped
 to the box.
 
+What a solver's own methods answer is read as their contracts say, whoever asks: an
+answer that is none (``skip`` answering 1, ``availability`` a bare True) is a
+``SolverReturnError`` naming the solver, the method and the answer, which fails its rows.
+
 Adding a solver = one file in ``solvers/`` with a ``Solver`` subclass decorated by
 ``@register`` (``contactbench.solvers.register``); see docs/adding-a-solver.md.
 """
 
 from __future__ import annotations
 
-import math
+import functools
+import inspect
+import numbers
+import reprlib
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Any, ClassVar, Literal
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
@@ -54,9 +63,11 @@ from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import constrained_kkt_error
 from contactbench.problems.operators import ContactOperator
 
-from ._params import ParamError, wrong_kind
-
-WarmKind = Literal["none", "primal", "primal-dual"]
+from ._capabilities import Capabilities, WarmKind
+from ._capabilities import Promise as Promise, check_promise as check_promise, describe_promise as describe_promise
+from ._capabilities import promised_tol as promised_tol
+from ._loading import one_line
+from ._params import Param, ParamError
 
 #: The default tolerance of a solver that declares none: the scaled KKT error of
 #: ``contactbench.problems.kkt`` (the harness's "high" profile checks 1e-8).
@@ -83,73 +94,6 @@ class SolveAborted(RuntimeError):
             raise ValueError(f"SolveAborted status must be 'timeout' or 'crashed', got {status!r}")
         super().__init__(message)
         self.status = status
-
-
-@dataclass(frozen=True)
-class Param:
-    """One declared solver parameter: name, type, default, and its allowed values
-    (``choices``) or range from ``low`` to ``high``, each end included unless it is
-    ``open`` there ("low", "high" or "both": ADMM's penalty is > 0, not >= 0)."""
-
-    name: str
-    kind: type
-    default: Any
-    doc: str = ""
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[Any, ...] | None = None
-    open: str = ""  # "", "low", "high" or "both": the ends the range leaves out
-
-    def check(self, value: Any) -> Any:
-        """``value`` converted to ``kind`` if it is acceptable, else ``ParamError``."""
-        v = self._coerce(value)
-        if self.choices is not None and v not in self.choices:
-            raise ParamError(f"parameter {self.name!r} must be one of {', '.join(map(repr, self.choices))}, "
-                             f"got {value!r}")
-        if not self.in_range(v):
-            raise ParamError(f"parameter {self.name!r} must lie in {self.range_text()}, got {value!r}")
-        return v
-
-    def in_range(self, v: Any) -> bool:
-        """Whether ``v`` lies in the declared range (its open ends left out)."""
-        low_out = self.open in ("low", "both")
-        high_out = self.open in ("high", "both")
-        if self.low is not None and (v < self.low or low_out and v == self.low):
-            return False
-        return not (self.high is not None and (v > self.high or high_out and v == self.high))
-
-    def range_text(self) -> str:
-        """The range as an interval: "[1, inf)", "(0, 2)"."""
-        left = "(" if self.low is None or self.open in ("low", "both") else "["
-        right = ")" if self.high is None or self.open in ("high", "both") else "]"
-        lo = "-inf" if self.low is None else f"{self.low:g}"
-        hi = "inf" if self.high is None else f"{self.high:g}"
-        return f"{left}{lo}, {hi}{right}"
-
-    def _coerce(self, value: Any) -> Any:
-        bad = wrong_kind(self.name, self.kind, value)
-        if self.kind is bool:
-            if isinstance(value, (bool, np.bool_)):
-                return bool(value)
-            raise bad
-        if self.kind is int:
-            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-                raise bad
-            return int(value)
-        if self.kind is float:
-            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-                raise bad
-            if not math.isfinite(float(value)):
-                raise bad
-            return float(value)
-        if not isinstance(value, self.kind):
-            raise bad
-        return value
-
-    def describe(self) -> str:
-        allowed = (f" one of {'|'.join(map(str, self.choices))}" if self.choices is not None else
-                   f" in {self.range_text()}" if self.low is not None or self.high is not None else "")
-        return f"{self.name}: {self.kind.__name__} = {self.default!r}{allowed}" + (f"  ({self.doc})" if self.doc else "")
 
 
 @dataclass
@@ -237,92 +181,6 @@ class SolveResult:
     trace: list[tuple[int, float, float]] = field(default_factory=list)
     info: dict[str, Any] = field(default_factory=dict)
     multiplier: float | None = None
-
-
-#: What a solver promises the conformance battery (``Capabilities.promise``): "exact",
-#: or a float, the scaled KKT error it can reach.
-Promise = Literal["exact"] | float
-
-
-def check_promise(promise: Any) -> Promise:
-    """``promise`` if it is "exact" or a float f with 0 < f < 1, else ``ValueError`` naming the rule (p = 0
-    has scaled KKT error exactly 1: a floor of 1 or more would accept it on every case)."""
-    if promise == "exact" and isinstance(promise, str):
-        return "exact"
-    if isinstance(promise, (int, float)) and not isinstance(promise, bool) and 0 < promise < 1:  # NaN fails too
-        return float(promise)
-    raise ValueError(f"a solver's promise is \"exact\" or a positive scaled KKT floor (a float) below 1, got "
-                     f"{promise!r} (the trivial answer p = 0 has scaled KKT error 1: a floor >= 1 would accept it)")
-
-
-def promised_tol(promise: Promise, check_tol: float) -> float:
-    """The scaled KKT error a case with ``check_tol`` holds a solver with ``promise`` to: check_tol
-    for "exact", else max(check_tol, floor) (validate counts a floor up to its ``PROMISE_BOUND``)."""
-    return float(check_tol) if promise == "exact" else max(float(check_tol), float(promise))
-
-
-def describe_promise(promise: Promise) -> str:
-    return "exact" if promise == "exact" else f"scaled KKT floor {float(promise):g}"
-
-
-@dataclass(frozen=True)
-class Capabilities:
-    """What a solver can serve, and what it promises; the harness's skip policy and the
-    conformance battery read it.
-
-    operators    : operator kinds it accepts ("dense", "fft").
-    needs_dense  : it needs H assembled as an n x n array.
-    warm_start   : "none", "primal" or "primal-dual".
-    exact        : finite termination -- its answer is exact up to round-off (``run``
-                   may keep it as a step's reference answer).
-    promise      : what ``contactbench validate`` holds it to on every case it does not
-                   skip (docs/verdicts.md): "exact" -- solved to the case's ``check_tol``;
-                   a float f -- solved to scaled KKT error max(check_tol, f), the floor
-                   the method can reach (a backend that cannot reach 1e-8, say).
-    max_n        : hard size limit (None: none besides the memory model).
-    input_format : "operator", "dense" or "sparse".
-    needs_geometry : it needs the QP's grid geometry (positions, surface levels).
-    load_control : it poses the load equality sum(p) = P (load control).
-    bounds       : it poses finite upper bounds 0 <= p <= u (a hardness).
-    """
-
-    operators: frozenset[str] = frozenset({"dense", "fft"})
-    needs_dense: bool = False
-    warm_start: WarmKind = "none"
-    exact: bool = False
-    max_n: int | None = None
-    input_format: str = "operator"
-    needs_geometry: bool = False
-    promise: Promise = "exact"
-    load_control: bool = False
-    bounds: bool = False
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "promise", check_promise(self.promise))
-
-    @property
-    def accuracy_floor(self) -> float | None:
-        """The promised floor (None: "exact", the case's tolerance)."""
-        return None if self.promise == "exact" else float(self.promise)
-
-    def promised_tol(self, check_tol: float) -> float:
-        """The scaled KKT error a case with ``check_tol`` holds this solver to."""
-        return promised_tol(self.promise, check_tol)
-
-    def describe(self) -> str:
-        parts = [
-            "ops=" + "/".join(sorted(self.operators)),
-            "needs-dense-H" if self.needs_dense else "matrix-free",
-            f"warm={self.warm_start}",
-            "exact" if self.exact else "iterative",
-            "promise=" + (self.promise if self.promise == "exact" else f"floor {self.promise:g}"),
-            f"input={self.input_format}",
-        ]
-        parts += [flag for flag, on in (("needs-geometry", self.needs_geometry), ("load-control", self.load_control),
-                                        ("bounds", self.bounds)) if on]
-        if self.max_n:
-            parts.append(f"max_n={self.max_n}")
-        return ", ".join(parts)
 
 
 class Deadline:
@@ -540,11 +398,104 @@ class ProblemTraits:
     whole_periodic_grid: bool = False
 
 
+class SolverReturnError(TypeError):
+    """A solver's method answered what its contract does not allow (``read_availability``,
+    ``read_reason``, ``read_max_iter``, ``read_outcome``): one line naming the solver, the
+    method and the answer.  Raised where the answer is read, it fails that solver's rows."""
+
+
+def read_availability(name: str, method: str, answer: Any) -> tuple[bool, str]:
+    """``availability()``'s ``answer`` as (available, reason on one line) if it is a pair
+    of a bool and a str, else ``SolverReturnError``."""
+    if (isinstance(answer, tuple) and len(answer) == 2 and isinstance(answer[0], (bool, np.bool_))
+            and isinstance(answer[1], str)):
+        return bool(answer[0]), one_line(answer[1])
+    raise SolverReturnError(f"solver {name!r}: {method}() returned {reprlib.repr(answer)}, not a pair "
+                            "(available, reason) of a bool and a str")
+
+
+def read_reason(name: str, method: str, answer: Any) -> str | None:
+    """A reason not to run as ``skip`` or ``skip_params`` answers it: a str, on one line; None
+    (run it) for None, False or a blank str; anything else is ``SolverReturnError``."""
+    if isinstance(answer, str):
+        return one_line(answer) or None
+    if answer is None or (isinstance(answer, (bool, np.bool_)) and not answer):
+        return None
+    raise SolverReturnError(f"solver {name!r}: {method}() returned {reprlib.repr(answer)}, not a reason "
+                            "(a str) or None")
+
+
+def read_max_iter(name: str, n: int, answer: Any) -> int | None:
+    """``default_max_iter(n)``'s ``answer`` if it is None or an integer >= 0, the rule of
+    ``SolverSettings.max_iter``; else ``SolverReturnError``."""
+    if answer is None:
+        return None
+    if isinstance(answer, (bool, np.bool_)) or not isinstance(answer, (int, np.integer)) or answer < 0:
+        raise SolverReturnError(f"solver {name!r}: default_max_iter({n}) returned {reprlib.repr(answer)}, not an "
+                                "integer >= 0 or None")
+    return int(answer)
+
+
+def _is_real(value: Any) -> bool:
+    return isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def outcome_problems(out: Outcome, n: int) -> list[str]:
+    """What is wrong with the fields of ``out`` for a problem of n unknowns (none: []):
+    iterations an integer >= 0, converged a bool, status a ``Status`` or None, message a
+    str, info a dict, w None or an array of shape (n,), multiplier None or a real number.
+    Its p is the judge's to read (``finish``)."""
+    it, w = out.iterations, out.w
+    checks = (
+        ("iterations", not isinstance(it, (bool, np.bool_)) and isinstance(it, (int, np.integer)) and it >= 0,
+         "an integer >= 0"),
+        ("converged", isinstance(out.converged, (bool, np.bool_)), "True or False"),
+        ("status", out.status is None or isinstance(out.status, Status), "a Status or None"),
+        ("message", isinstance(out.message, str), "a str"),
+        ("info", isinstance(out.info, dict), "a dict"),
+        ("w", w is None or getattr(w, "shape", None) == (n,), f"None or an array of shape ({n},)"),
+        ("multiplier", out.multiplier is None or _is_real(out.multiplier), "None or a real number"),
+    )
+    return [f"{field_name} is {reprlib.repr(getattr(out, field_name))}, not {rule}"
+            for field_name, ok, rule in checks if not ok]
+
+
+def read_outcome(name: str, out: Any, n: int) -> Outcome:
+    """``out``, what ``iterate`` returned, if it is an ``Outcome`` whose fields are as
+    ``outcome_problems`` requires; else ``SolverReturnError`` naming each problem."""
+    if not isinstance(out, Outcome):
+        raise SolverReturnError(f"solver {name!r}: iterate() returned {reprlib.repr(out)}, not an Outcome")
+    problems = outcome_problems(out, n)
+    if problems:
+        raise SolverReturnError(f"solver {name!r}: iterate() returned an Outcome whose " + "; ".join(problems))
+    return out
+
+
+#: The methods a subclass may define whose every answer is read by the reader beside it,
+#: whoever asks (``Solver.__init_subclass__``).
+HOOK_READERS: dict[str, Callable[[str, str, Any], Any]] = {
+    "availability": read_availability, "skip": read_reason, "skip_params": read_reason}
+
+
+def _read_through(attr: str, method: Callable[..., Any], read: Callable[[str, str, Any], Any]) -> Callable[..., Any]:
+    """``method`` (the solver's ``attr``), its answer read by ``read`` (a ``SolverReturnError``
+    if it is not one)."""
+
+    @functools.wraps(method)
+    def hook(self: Solver, *args: Any, **kwargs: Any) -> Any:
+        return read(self.name, attr, method(self, *args, **kwargs))
+
+    return hook
+
+
 class Solver(ABC):
     """Base class (module doc).  Subclasses set ``name``, ``family``, ``description``,
     ``capabilities`` and ``params`` and implement ``iterate``; they may refine
     ``default_tol``, ``default_max_iter``, ``skip``, ``availability``,
-    ``memory_estimate`` and ``time_estimate``."""
+    ``memory_estimate`` and ``time_estimate``.  What ``availability``, ``skip`` and
+    ``skip_params`` answer is read as their contracts say (``HOOK_READERS``), and what
+    ``default_max_iter`` and ``iterate`` answer by the lifecycle (``read_max_iter``,
+    ``read_outcome``): an answer that is none fails with a ``SolverReturnError``."""
 
     name: ClassVar[str] = ""
     family: ClassVar[str] = "other"  # "paper", "qp", "fast", "wrapper", "reference", "external", ...
@@ -562,6 +513,14 @@ class Solver(ABC):
     #: defect of the code (greedy on the paper's Example 1).  A benchmark of a draw that
     #: shows it is an expected failure.
     refuted_on: ClassVar[frozenset[str]] = frozenset()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Each method of ``HOOK_READERS`` that ``cls`` defines answers through its reader."""
+        super().__init_subclass__(**kwargs)
+        for attr, read in HOOK_READERS.items():
+            method = cls.__dict__.get(attr)
+            if inspect.isfunction(method):
+                setattr(cls, attr, _read_through(attr, method, read))
 
     def default_max_iter(self, n: int) -> int | None:
         """Iteration limit when the settings give none (None: the backend's own)."""
@@ -623,8 +582,8 @@ class Solver(ABC):
         params = self.resolve_params(settings.params)
         tol = settings.tol if settings.tol is not None else self.default_tol
         tol = None if tol is None else float(tol)
-        max_iter = self.default_max_iter(qp.n) if settings.max_iter is None else settings.max_iter
-        max_iter = None if max_iter is None else int(max_iter)
+        max_iter = (read_max_iter(self.name, qp.n, self.default_max_iter(qp.n)) if settings.max_iter is None
+                    else int(settings.max_iter))
         p0 = warm_point(warm, qp.n, self.capabilities.warm_start, qp.constraints.upper)
         ctx = SolveContext(qp=qp, tol=tol, max_iter=max_iter, params=params, p0=p0,
                            warm=warm if self.capabilities.warm_start != "none" else None,
@@ -634,7 +593,7 @@ class Solver(ABC):
         if answered_without_iterate(qp):
             out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0", info={WITHOUT_ITERATE: True})
         else:
-            out = self.iterate(ctx)
+            out = read_outcome(self.name, self.iterate(ctx), qp.n)
         return finish(ctx, out)
 
     @abstractmethod

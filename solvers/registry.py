@@ -58,9 +58,9 @@ from typing import Any, Callable, Sequence, TypeVar
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 from contactbench.problems.units import plain_float
 
-from ._loading import SolverLoadError, file_path_hint, load_failure, user_code
+from ._loading import SolverLoadError, exception_text, file_path_hint, load_failure, user_code
 from ._params import wrong_kind
-from .base import Capabilities, Param, ParamError, Solver
+from .base import Capabilities, Param, ParamError, Solver, SolverReturnError, read_availability
 
 S = TypeVar("S")
 
@@ -141,13 +141,17 @@ OPEN_ENDS: tuple[str, ...] = ("", "low", "high", "both")
 def check_declaration(solver: Solver) -> Solver:
     """``solver`` if its declaration can be used, else a ``SolverDeclarationError`` naming
     the solver and everything that is wrong, in one line: its ``name`` is a non-empty
-    string, its ``capabilities`` a ``Capabilities``, its ``params`` a tuple (or list) of
-    ``Param`` (each as ``param_problems`` requires, names distinct) and its ``grid`` as
-    ``grid_problems`` requires."""
+    string that ``--solvers`` reads back (``reads_back_as_name``), its ``capabilities`` a
+    ``Capabilities``, its ``params`` a tuple (or list) of ``Param`` (each as
+    ``param_problems`` requires, names distinct), its other attributes as
+    ``attribute_problems`` requires and its ``grid`` as ``grid_problems`` requires."""
     name = getattr(solver, "name", None)
     if not isinstance(name, str) or not name.strip():
         raise SolverDeclarationError(f"solver class {type(solver).__name__} has no name (its `name` is {name!r}; "
                                      "a solver is named by a non-empty string)")
+    if not reads_back_as_name(name):
+        raise SolverDeclarationError(f"solver class {type(solver).__name__}: its `name` {name!r} cannot be named in "
+                                     f"--solvers and read back ({NAME_RULE})")
     caps = getattr(solver, "capabilities", None)
     if not isinstance(caps, Capabilities):
         raise SolverDeclarationError(f"solver {name!r}: its `capabilities` is {caps!r}, not a Capabilities(...)")
@@ -155,13 +159,61 @@ def check_declaration(solver: Solver) -> Solver:
     if not isinstance(params, (tuple, list)) or not all(isinstance(q, Param) for q in params):
         raise SolverDeclarationError(f"solver {name!r}: its `params` is {params!r}, not a tuple of "
                                      "Param(name, type, default, ...)")
-    problems = [line for q in params for line in param_problems(q)]
+    problems = attribute_problems(solver)
+    problems += [line for q in params for line in param_problems(q)]
     names = [q.name for q in params]
     problems += [f"parameter {k!r} is declared twice" for k in dict.fromkeys(names) if names.count(k) > 1]
     problems += grid_problems(getattr(solver, "grid", None), params)
     if problems:
         raise SolverDeclarationError(f"solver {name!r}: " + "; ".join(problems))
     return solver
+
+
+#: What a solver's name is, to be named in ``--solvers`` and read back (``reads_back_as_name``).
+NAME_RULE = "a name is one word: no space, no control character, none of ',', '[', ']', ':'"
+#: The methods a solver's class provides, each a method (a subclass overrides them as methods).
+METHODS: tuple[str, ...] = ("availability", "skip", "skip_params", "default_max_iter", "memory_estimate",
+                            "time_estimate", "iterate")
+
+
+def reads_back_as_name(name: str) -> bool:
+    """Whether a solver called ``name`` is named by it in ``--solvers``: the comma list
+    (``split_solver_list``) and a spec (``split_solver_spec``) read it back as itself, and
+    it is not an import path ``module:NAME`` (``is_import_path``) -- one word (``NAME_RULE``)."""
+    if not name.isprintable() or any(c.isspace() for c in name) or is_import_path(name):
+        return False
+    try:
+        return split_solver_list(name) == [name] and split_solver_spec(name) == SpecText(name)
+    except SolverSpecError:
+        return False
+
+
+def one_line_text(value: Any, empty: bool) -> bool:
+    """Whether ``value`` is a str on one line (no control character), non-empty unless ``empty``."""
+    return isinstance(value, str) and value.isprintable() and (empty or bool(value.strip()))
+
+
+def attribute_problems(solver: Solver) -> list[str]:
+    """What is wrong with a solver's attributes besides its name, capabilities and params
+    (none: []): its ``family`` a non-empty str on one line and its ``description`` a str on
+    one line (``one_line_text``); its ``default_tol`` None or a finite number > 0; its
+    ``refuted_on`` a frozenset of non-empty str; each of ``METHODS`` a method."""
+    problems: list[str] = []
+    family, description = getattr(solver, "family", None), getattr(solver, "description", None)
+    if not one_line_text(family, empty=False):
+        problems.append(f"its `family` is {family!r}, not a non-empty str on one line")
+    if not one_line_text(description, empty=True):
+        problems.append(f"its `description` is {description!r}, not a str on one line")
+    tol = getattr(solver, "default_tol", None)
+    if tol is not None and not (isinstance(tol, (int, float)) and not isinstance(tol, bool)
+                                and math.isfinite(tol) and tol > 0):
+        problems.append(f"its `default_tol` is {tol!r}, not None or a finite number > 0")
+    refuted = getattr(solver, "refuted_on", None)
+    if not isinstance(refuted, frozenset) or not all(one_line_text(f, empty=False) for f in refuted):
+        problems.append(f"its `refuted_on` is {refuted!r}, not a frozenset of problem families (str)")
+    problems += [f"its `{m}` is {getattr(solver, m, None)!r}, not a method" for m in METHODS
+                 if not callable(getattr(solver, m, None))]
+    return problems
 
 
 def param_problems(param: Param) -> list[str]:
@@ -363,7 +415,8 @@ def is_import_path(name: str) -> bool:
 def load_solver(spec: str | Solver) -> Solver:
     """A solver by registry name or by import path ``module:NAME`` (a Solver subclass,
     instance or factory; ``import_user_module`` finds the module), its declaration
-    checked (``check_declaration``); a ``Solver`` handed in is returned as it is.  An
+    checked (``check_declaration``) and, for an import path, its ``availability()`` asked once
+    (``check_availability``); a ``Solver`` handed in is returned as it is.  An
     import path's code runs under ``solvers._loading.user_code``: an ``Exception`` it
     raises passes as it is (a missing ``NAME``: ``AttributeError``; not a solver:
     ``TypeError``), anything else but the user's Ctrl-C comes out as an ``ImportAborted``
@@ -381,7 +434,22 @@ def load_solver(spec: str | Solver) -> Solver:
         solver = _built(obj)
     if solver is None:
         raise TypeError(f"{spec} is not a Solver subclass, instance or factory")
-    return check_declaration(solver)
+    check_declaration(solver)
+    with user_code(spec, f"asking solver {solver.name!r} its availability()"):
+        check_availability(solver)
+    return solver
+
+
+def check_availability(solver: Solver) -> None:
+    """A ``SolverDeclarationError`` naming the solver when its ``availability()`` raises an
+    ``Exception`` or answers what is not a pair (available, reason) (``base.read_availability``)."""
+    try:
+        read_availability(solver.name, "availability", solver.availability())
+    except SolverReturnError as exc:
+        raise SolverDeclarationError(str(exc)) from None
+    except Exception as exc:
+        raise SolverDeclarationError(f"solver {solver.name!r}: its availability() failed: "
+                                     f"{exception_text(exc)}") from None
 
 
 def _built(obj: Any) -> Solver | None:
