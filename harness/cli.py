@@ -314,9 +314,11 @@ def cmd_list(what: str, params: bool = False) -> int:
         return 0
     from contactbench.solvers.registry import all_solvers, import_errors
 
+    from .run.skips import checked_availability
+
     rows = []
     for name, solver in all_solvers().items():
-        ok, why = solver.availability()
+        ok, why, _ = checked_availability(solver)
         rows.append((name, solver.family, "yes" if ok else f"no ({why})", solver.capabilities.describe()))
     w0 = max([len(r[0]) for r in rows] + [6])
     w1 = max([len(r[1]) for r in rows] + [6])

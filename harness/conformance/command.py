@@ -26,7 +26,7 @@ from contactbench.solvers.registry import load_named_solver as load_import_path
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
-from ..run.isolation import SOLVER_FAULTS, exception_text
+from ..run.skips import checked_availability
 from ..table.files import begins_with, replace_atomically
 from .declared import LoadFailed, OneLine, in_a_child, names_user_code
 from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, record_columns, validate
@@ -152,11 +152,10 @@ def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:
 
 def availability(solver: Solver) -> tuple[bool, str]:
     """``solver.availability()``, or a ``SolverLoadError`` naming the solver when it fails."""
-    try:
-        ok, why = solver.availability()
-    except SOLVER_FAULTS as exc:
-        raise SolverLoadError(f"solver {solver.name!r}: its availability() failed: {exception_text(exc)}") from None
-    return bool(ok), str(why)
+    ok, why, failed = checked_availability(solver)
+    if failed:
+        raise SolverLoadError(f"solver {solver.name!r}: {why}")
+    return ok, why
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from contactbench.solvers.registry import is_import_path, load_named_solver
 from ..run.child_call import LoadFailed as LoadFailed
 from ..run.child_call import OneLine as OneLine
 from ..run.child_call import in_a_child as in_a_child
-from ..run.isolation import SOLVER_FAULTS, exception_text
+from ..run.skips import checked_availability
 
 
 def names_user_code(spec: str) -> bool:
@@ -50,10 +50,7 @@ def declaration_of(solver: Solver | str, params: dict[str, Any] | None = None) -
     a module that does not load is one ``SolverLoadError`` line); where it is available,
     its parameters ``params`` checked (``Solver.resolve_params``: a ``ParamError``)."""
     s = load_named_solver(solver)
-    try:
-        available, why = s.availability()
-    except SOLVER_FAULTS as exc:
-        available, why = False, f"its availability() failed: {exception_text(exc)}"
+    available, why, _ = checked_availability(s)
     if available:
         s.resolve_params(params)
     return Declaration(s.name, str(s.capabilities.promise), bool(available), str(why))

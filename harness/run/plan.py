@@ -53,7 +53,7 @@ from ..profiles import get_profile
 from ..table.files import canonical_json
 from ..table.schema import as_finite
 from .child_call import ChildEnded, LoadFailed, in_a_child
-from .skips import capability_decision, time_decision
+from .skips import capability_decision, checked_availability, time_decision
 from .spelled_out import left_out
 from .studies import SolverVariant, Study, expand
 
@@ -456,8 +456,9 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[b
         solver = load_solver(base)
     except Exception:  # (the plan names an unloadable solver elsewhere)
         return False, ""
-    if not solver.availability()[0]:
-        return False, ""
+    ok, _, failed = checked_availability(solver)
+    if not ok:  # an availability() that failed runs, to record its failed rows
+        return failed, ""
     free = capability_decision(solver, traits, float("inf"))
     if free.skip:  # a model or skip check that raised runs, to record its failed rows
         return free.failed, ""

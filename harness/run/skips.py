@@ -46,6 +46,7 @@ from typing import Any, Callable, Sequence
 
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
+from contactbench.solvers._loading import exception_text
 from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.reference import BVLS_FACTORISATIONS, BVLS_LOAD_FACTORISATIONS
@@ -113,6 +114,18 @@ def fft_points_per_unknown(traits: ProblemTraits) -> float:
     return pad if traits.load_control else FFT_POINTS_PER_UNKNOWN
 
 
+def checked_availability(solver: Solver) -> tuple[bool, str, bool]:
+    """(available, reason, failed): what ``solver.availability()`` answers, or, when it
+    raises (an answer that is no pair raises too: ``solvers.base.read_availability``),
+    (False, "its availability() failed: ...", True) -- a defect of the solver, whose rows
+    fail naming it, not a reason to skip them."""
+    try:
+        ok, why = solver.availability()
+    except SOLVER_FAULTS as exc:
+        return False, f"its availability() failed: {exception_text(exc)}", True
+    return bool(ok), str(why), False
+
+
 class ModelValueError(ValueError):
     """A solver's time or memory model gave what no estimate is (``model_value``)."""
 
@@ -162,7 +175,9 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
         solver = load_solver(base)
     except Exception as exc:
         return Decision(reason=f"solver {base!r} cannot be loaded: {exc}")
-    ok, why = solver.availability()
+    ok, why, failed = checked_availability(solver)
+    if failed:
+        return Decision(reason=why, failed=True)
     if not ok:
         return Decision(reason=f"not available: {why}")
     beyond_reach = floor(solver) if floor is not None else None
