@@ -641,13 +641,10 @@ def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:
     )
 
 
-#: The fast solvers' time model (``FastSolver.time_estimate``): a cold solve of a
-#: preconditioned loop takes about ``FAST_TYPICAL_MATVECS`` products (``_kit.matvec_seconds``;
-#: the surface population's median matvecs are 47-94 at 512^2-4096^2; the 2-core population
-#: medians of results/perf/surface-population.md are 0.60 s at 512^2 and 51 s at 4096^2, the
-#: model gives 0.66 s and 51 s).  A solver whose loop takes more says so
-#: (``FastSolver.typical_matvecs``; results/perf/cost-law.md: 2-3x for the plain CCGs,
-#: 3-4x for the active set).
+#: The fast solvers' time model (``FastSolver.time_estimate``): a preconditioned loop's cold
+#: solve takes about this many products (``_kit.matvec_seconds``; the population's medians are
+#: 47-94, 0.60 s at 512^2 and 51 s at 4096^2 on 2 cores, the model 0.66 s and 51 s:
+#: results/perf/surface-population.md); a loop that takes more says so (``typical_matvecs``).
 FAST_TYPICAL_MATVECS = 60.0
 
 
