@@ -26,6 +26,7 @@ from contactbench.solvers.registry import load_named_solver as load_import_path
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
+from ..run.plan import refuse_name_clash
 from ..run.skips import checked_availability
 from ..table.files import begins_with, replace_atomically
 from .declared import LoadFailed, OneLine, in_a_child, names_user_code
@@ -126,17 +127,19 @@ def load_named_solver(name: str) -> Solver:
     ``SolverLoadError`` that says what is wrong in one line: an unknown registry name, or
     what ``registry.load_named_solver`` says of an import path that does not load (a file
     path where a module name goes, a module not found, a missing attribute, a declaration
-    the registry refuses, whatever importing it or building the solver raised) -- never
-    the end of ``validate``."""
+    the registry refuses, whatever importing it or building the solver raised, a registered
+    solver's name: ``plan.refuse_name_clash``) -- never the end of ``validate``."""
     if not is_import_path(name):
         try:
             return load_solver(name)
         except KeyError as exc:
             raise SolverLoadError(f"{exc.args[0] if exc.args else exc} (or give an import path module:NAME)") from None
     try:
-        return load_import_path(name)
+        solver = load_import_path(name)
     except ProblemInputError as exc:  # (the registry's SolverLoadError: one line)
         raise SolverLoadError(str(exc)) from None
+    refuse_name_clash(name.strip(), solver)  # as run refuses it: its verdict would read as that one's
+    return solver
 
 
 def command_solver_of(command: str | None, inputs: str | None) -> list[Solver]:

@@ -278,3 +278,13 @@ def test_a_numpy_bool_is_a_claim_and_the_text_false_is_none() -> None:
     np.testing.assert_allclose(result.p, [1.0, 0.0, 2.0])
     with pytest.raises(SolverReturnError, match="whose converged is 'False', not True or False"):
         with_attrs(iterate=_changed(converged="False")).solve(identity_qp())
+
+
+def test_validate_refuses_a_user_solver_named_like_a_registered_one(in_tmp: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A module's solver named "pk" would be judged, and its verdict read, as the project's
+    pk: ``validate`` refuses it in one line, as ``run`` does (``plan.refuse_name_clash``)."""
+    (in_tmp / "cb_clash.py").write_text(MODULE.format(body="        return (True, 'here')").replace(
+        'name = "test-decl-probe"', 'name = "pk"'))
+    line = refused_in_one_line(["cb_clash:S", "--quiet"], capsys)
+    assert "is named 'pk', the name of the registered solver" in line
