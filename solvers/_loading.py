@@ -67,6 +67,12 @@ def exception_text(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
+def availability_failure(exc: BaseException) -> str:
+    """The words for a solver whose ``availability()`` raised ``exc`` (the registry's load
+    check and the harness's skip policy, listing and ``validate`` say it alike)."""
+    return f"its availability() failed: {exception_text(exc)}"
+
+
 def exception_line(exc: BaseException) -> str:
     """``exception_text`` of ``exc`` on one line (``one_line``)."""
     return one_line(exception_text(exc))

@@ -58,7 +58,7 @@ from typing import Any, Callable, Sequence, TypeVar
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 from contactbench.problems.units import plain_float
 
-from ._loading import SolverLoadError, exception_text, file_path_hint, load_failure, user_code
+from ._loading import SolverLoadError, availability_failure, file_path_hint, load_failure, user_code
 from ._params import wrong_kind
 from .base import Capabilities, Param, ParamError, Solver, SolverReturnError, read_availability
 
@@ -448,8 +448,7 @@ def check_availability(solver: Solver) -> None:
     except SolverReturnError as exc:
         raise SolverDeclarationError(str(exc)) from None
     except Exception as exc:
-        raise SolverDeclarationError(f"solver {solver.name!r}: its availability() failed: "
-                                     f"{exception_text(exc)}") from None
+        raise SolverDeclarationError(f"solver {solver.name!r}: {availability_failure(exc)}") from None
 
 
 def _built(obj: Any) -> Solver | None:

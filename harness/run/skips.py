@@ -46,7 +46,7 @@ from typing import Any, Callable, Sequence
 
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
-from contactbench.solvers._loading import exception_text
+from contactbench.solvers._loading import availability_failure
 from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.reference import BVLS_FACTORISATIONS, BVLS_LOAD_FACTORISATIONS
@@ -122,7 +122,7 @@ def checked_availability(solver: Solver) -> tuple[bool, str, bool]:
     try:
         ok, why = solver.availability()
     except SOLVER_FAULTS as exc:
-        return False, f"its availability() failed: {exception_text(exc)}", True
+        return False, availability_failure(exc), True
     return bool(ok), str(why), False
 
 
