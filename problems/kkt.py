@@ -111,6 +111,9 @@ class KKTReport:
         return bool(math.isfinite(self.kkt_error) and self.kkt_error <= tol)
 
 
+#: The scaled figures of a `KKTReport`, by field name.
+SCALED_PARTS = ("primal", "dual", "complementarity", "complementarity_sum")
+
 #: u_s when ubar = 0 (the only answer is p = 0; the figures are then absolute).
 U_SCALE_FALLBACK = 1.0
 

@@ -96,6 +96,7 @@ import numpy as np
 
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import ContactInstance
+from contactbench.problems.kkt import SCALED_PARTS
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, build_battery_spec
 from contactbench.solvers.base import Promise, Solver, describe_promise, promised_tol
@@ -235,7 +236,7 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
     row.p_rel_error = float(v.figures.get("p_rel_error", float("nan")))
     row.dim_load = float(v.figures.get("dim_load", float("nan")))
     if v.kkt is not None:
-        row.kkt = {k: float(getattr(v.kkt, k)) for k in ("primal", "dual", "complementarity", "complementarity_sum")}
+        row.kkt = {k: float(getattr(v.kkt, k)) for k in SCALED_PARTS}
     row.status = row_status(v)
     if row.status == "flagged":
         row.flags = "+".join(k for k in v.kinds if k in FLAG_WORDS)
@@ -275,9 +276,12 @@ def units_agreement(rows: list[VerdictRow], case: ConformanceCase, solver: str) 
         v.message = "not compared: not every unit system produced an answer"
         return v
     loads = np.array([r.dim_load for r in rows])
+    figures = [r.kkt_error for r in rows] + [r.kkt.get(k, np.nan) for r in rows for k in SCALED_PARTS]
+    if not (np.all(np.isfinite(loads)) and np.all(np.isfinite(figures))):
+        v.message = "not compared: a unit system's P/(EA) or scaled KKT figures are not finite" + _steps_note(rows)
+        return v
     load_spread = float(np.ptp(loads) / max(np.max(np.abs(loads)), 1e-300))
-    kkt_spread = max(float(np.ptp([r.kkt.get(k, np.nan) for r in rows])) for k in
-                     ("primal", "dual", "complementarity", "complementarity_sum"))
+    kkt_spread = max(float(np.ptp([r.kkt.get(k, np.nan) for r in rows])) for k in SCALED_PARTS)
     kkt_spread = max(kkt_spread, float(np.ptp([r.kkt_error for r in rows])))
     v.kkt_error, v.p_rel_error = kkt_spread, load_spread
     ok = bool(load_spread <= UNITS_AGREEMENT and kkt_spread <= UNITS_AGREEMENT)

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -151,6 +152,13 @@ class DefaultOutOfRange(ExactSolver):
     params = (Param("step_scale", float, 5.0, "step = step_scale / L", low=0.1, high=1.0),)
 
 
+class ShortAnswer(ExactSolver):
+    name = "test-attack-short-answer"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(exact_p(ctx)[:-1], 1, True)
+
+
 class EmptyName(ExactSolver):
     name = ""
 
@@ -191,6 +199,17 @@ def test_an_answer_that_cannot_be_pickled_is_wrong_in_a_worker_as_in_process(iso
     row = table.rows[0]
     assert row.status == "WRONG" and "dtype object" in row.message, table.format()
     assert "Traceback" not in row.detail and table.exit_code() == 1
+
+
+def test_a_comparison_of_answers_without_finite_figures_is_not_made_and_warns_nothing() -> None:
+    units = cf.conformance_cases("fast", groups=["units"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        table = cf.validate(ShortAnswer(), units, isolate=False)
+    compared = [r for r in table.rows if r.step == -1]
+    assert compared and all(r.status == "skipped" and r.message.startswith("not compared") for r in compared), \
+        table.format()
+    assert "nan" not in table.format() and table.exit_code() == 1
 
 
 def test_what_a_solver_prints_in_its_worker_stays_there(capfd: pytest.CaptureFixture[str]) -> None:
