@@ -283,6 +283,7 @@ class EquilibratedAdapter(Solver):
     memory_copies: ClassVar[float] = 4.0
     time_coef: ClassVar[float] = 1e-9
     time_exponent: ClassVar[float] = 3.0
+    time_scales_with_grid: ClassVar[bool] = False
 
     def default_max_iter(self, n: int) -> int:
         return BACKEND_DEFAULT_MAX_ITER

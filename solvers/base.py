@@ -513,6 +513,10 @@ class Solver(ABC):
     #: defect of the code (greedy on the paper's Example 1).  A benchmark of a draw that
     #: shows it is an expected failure.
     refuted_on: ClassVar[frozenset[str]] = frozenset()
+    #: Whether ``time_estimate`` prices products of the FFT operator on the typical trial-set
+    #: grid (``_kit.matvec_seconds``), so that the skip policy rescales it to the problem's own
+    #: padded grid; False for a model the grid does not move (dense rows, a factorisation).
+    time_scales_with_grid: ClassVar[bool] = True
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Each method of ``HOOK_READERS`` that ``cls`` defines answers through its reader."""

@@ -210,6 +210,12 @@ class CMRSolver(Solver):
         b = all_solvers().get(self.base_name)
         return b.memory_estimate(n) if b is not None else super().memory_estimate(n)
 
+    @property
+    def time_scales_with_grid(self) -> bool:  # type: ignore[override]
+        """As the base's model."""
+        b = all_solvers().get(self.base_name)
+        return b.time_scales_with_grid if b is not None else True
+
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         """The base's model at n: the finest level dominates, on a trial set pruned to at
         most the fine one (the coarse levels add a geometric tail)."""

@@ -263,6 +263,7 @@ class GreedyGS(GreedySolver):
 
     name = "greedy-gs"
     description = "Greedy + Gauss-Seidel (BCC); not exact"
+    time_scales_with_grid = False  # its sweeps read dense rows, whatever the FFT grid
 
     def solve_reduced(self, ctx: SolveContext, op: ContactOperator, b: np.ndarray, x0: np.ndarray, atol: float,
                       max_iter: int) -> ReducedSolve:
@@ -284,6 +285,7 @@ class GreedyCholesky(GreedySolver):
     name = "greedy-chol"
     description = "Greedy + Cholesky (mldivide); dense n^2; not exact"
     capabilities = Capabilities(warm_start="none", exact=False, needs_dense=True, bounds=True)
+    time_scales_with_grid = False  # priced in Cholesky factors
 
     def memory_estimate(self, n: int) -> float:
         return float(dense_nbytes(n))

@@ -93,6 +93,7 @@ class BVLSReference(Solver):
     capabilities = Capabilities(needs_dense=True, warm_start="none", exact=True, input_format="dense",
                                 load_control=True, bounds=True)
     default_tol = None
+    time_scales_with_grid = False  # priced in dense factorisations
 
     def default_max_iter(self, n: int) -> int | None:
         return None

@@ -31,7 +31,8 @@ n is, so the estimate is scaled by that grid's matvec cost over the model's
 (``fft_points_per_unknown``: the first step of a sweep on an 8193^2 grid has n = 14,531 in
 a grid of 18,000 padded points per unknown); under load control the trial set is the whole
 grid (n = N^2, ``WHOLE_GRID_FFT_POINTS`` points per unknown), and a solver may take another
-iteration count (``LOAD_CONTROL_ITERATION_RATIO``).
+iteration count (``LOAD_CONTROL_ITERATION_RATIO``).  A model not priced in FFT products
+(``Solver.time_scales_with_grid`` False: dense rows, a factorisation) is not rescaled.
 
 ``skip_decision`` answers one question; ``SkipPolicy`` adds the rows of the earlier
 steps of the same sequence, the same rows whether a run is resumed or not.
@@ -146,7 +147,7 @@ def model_value(value: object, what: str) -> float:
 
 def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) -> float | None:
     """The solver's ``time_estimate(n, operator)`` for the problem ``traits`` describe:
-    scaled by the matvec cost of the problem's own FFT grid over the model's typical one (a
+    unless its model is not in products (``Solver.time_scales_with_grid``), scaled by the matvec cost of the problem's own FFT grid over the model's typical one (a
     product costs the whole padded grid whatever n is: the first step of a sweep on a large
     grid has a small n and a large grid), and under load control by
     ``LOAD_CONTROL_ITERATION_RATIO`` (module doc).  None when the solver has no model."""
@@ -155,8 +156,10 @@ def problem_time_estimate(solver: Solver, traits: ProblemTraits, operator: str) 
         return t
     t = model_value(t, "time_estimate")
     n = traits.n
-    matvec_ratio = (matvec_seconds(n, operator, fft_points_per_unknown(traits))
-                    / matvec_seconds(n, operator, FFT_POINTS_PER_UNKNOWN))
+    matvec_ratio = 1.0
+    if solver.time_scales_with_grid:
+        matvec_ratio = (matvec_seconds(n, operator, fft_points_per_unknown(traits))
+                        / matvec_seconds(n, operator, FFT_POINTS_PER_UNKNOWN))
     iterations = LOAD_CONTROL_ITERATION_RATIO.get(solver.name, 1.0) if traits.load_control else 1.0
     return float(t) * matvec_ratio * iterations
 

@@ -112,6 +112,8 @@ def test_capabilities_within_their_values_are_kept() -> None:
     ({"default_tol": float("inf")}, "`default_tol` is inf"),
     ({"refuted_on": "paper"}, "`refuted_on` is 'paper'"),
     ({"refuted_on": ["paper"]}, "`refuted_on` is ['paper']"),
+    ({"time_scales_with_grid": "no"}, "`time_scales_with_grid` is 'no'"),
+    ({"time_scales_with_grid": None}, "`time_scales_with_grid` is None"),
     ({"availability": (True, "available")}, "`availability` is (True, 'available'), not a method"),
 ])
 def test_a_declaration_the_harness_cannot_use_is_refused_in_one_line(attrs: dict[str, Any], words: str) -> None:

@@ -204,3 +204,20 @@ def test_bvls_predicts_its_dense_solves_under_a_load() -> None:
     d = skip_decision("bvls", load_traits(n=4_225), 30.0, 16 * GiB)
     assert d.skip and "load control" in d.reason and "exceeds the time limit of 30 s" in d.reason
     assert not skip_decision("bvls", load_traits(n=1_089), 30.0, 16 * GiB).skip
+
+
+#: ``greedy-gs`` on a 256^2 sweep's step of n = 1,518 unknowns (results/perf/time-model/README.md):
+#: recorded seconds.  Its sweeps read dense rows, so the grid's padding does not price them.
+RECORDED_GREEDY_GS = (256, 1518, 2.46)
+
+
+def test_a_model_not_in_products_is_not_rescaled_by_the_problems_grid() -> None:
+    side, n, took = RECORDED_GREEDY_GS
+    early = ProblemTraits(n=n, operator="fft", has_surface=True, surface_side=side)
+    gs, cg = get_solver("greedy-gs"), get_solver("greedy-cg")
+    assert not gs.time_scales_with_grid and cg.time_scales_with_grid
+    assert problem_time_estimate(gs, early, "fft") == pytest.approx(gs.time_estimate(n, "fft"), rel=1e-12)
+    assert took / 3 <= problem_time_estimate(gs, early, "fft") <= 3 * took
+    assert problem_time_estimate(cg, early, "fft") > 2 * cg.time_estimate(n, "fft")  # 172 padded points an unknown
+    assert get_solver("cmr+scipy-nnls").time_scales_with_grid is False  # as its base, a dense QP adapter
+    assert get_solver("cmr+pk").time_scales_with_grid is True
