@@ -138,17 +138,16 @@ def load_surface(
     meta: dict[str, Any] = {"source": str(p), "format": raw.fmt, "original_shape": list(z.shape), **raw.info,
                             "warnings": []}
     for note in raw.reader_notes:  # (what a foreign reader said while it read the map)
-        announce(f"{p.resolve().name}: {note}", meta)
+        announce(f"{warned_name(p)}: {note}", meta)
     if not raw.unit_known:
         meta["height_unit"] = height_unit
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
-    named = p.resolve()  # the file a link names: its base name is the map's (MapPreprocessing.source)
-    measured = check_measured(z, named)
+    measured = check_measured(z, p)  # (a refusal names the file as given; a warning, the file a link names)
     fitted = plane_fit(z, measured) if detrend == "plane" else None  # once, through the measured points
-    z = fill_missing(z, nan, named, meta, plane=fitted)
-    z = remove_tilt(z, detrend, meta, spacing, named, fitted)
-    check_not_flat(z, raw.z[measured] * scale, spacing, named)
-    z = crop_map(z, crop, named, meta)
+    z = fill_missing(z, nan, p, meta, plane=fitted)
+    z = remove_tilt(z, detrend, meta, spacing, p, fitted)
+    check_not_flat(z, raw.z[measured] * scale, spacing, p)
+    z = crop_map(z, crop, p, meta)
     meta["spacing"] = list(spacing)
     chosen = None if raw.info.get("channel") is None else str(raw.info["channel"])
     raw_hash = raw_heights_sha256(raw.z)
@@ -161,6 +160,12 @@ def load_surface(
                       preprocessing=record)
     announce_recorded(meta)  # (the map passed every check: a refused one warns of nothing)
     return surface
+
+
+def warned_name(path: str | Path) -> str:
+    """How a map's warnings name it: the base name of the file (a link's target), as
+    ``MapPreprocessing.source``.  A refusal (``SurfaceFileError``) names the path as given."""
+    return Path(path).resolve().name
 
 
 def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tuple[int, int], hashes: tuple[str, str],
@@ -177,7 +182,7 @@ def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tupl
         removed_mean, slope = plane_in_lengths(meta["removed_plane"], (n0, n1), spacing)
     filled = int(meta["nan_points"])
     return MapPreprocessing(
-        source=p.resolve().name, path=str(p.resolve()), raw_sha256=hashes[0], key=hashes[1], format=raw.fmt,
+        source=warned_name(p), path=str(p.resolve()), raw_sha256=hashes[0], key=hashes[1], format=raw.fmt,
         channel=None if raw.info.get("channel") is None else str(raw.info["channel"]), height_unit=unit[0],
         unit_from=unit[1], metres_per_unit=unit[2], shape_read=(n0, n1), shape=(int(shape[0]), int(shape[1])),
         spacing=spacing, spacing_from=str(meta["spacing_from"]), nan_rule=str(meta["nan_rule"]), filled=filled,
@@ -245,7 +250,7 @@ def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str,
         meta["fill_value"] = float(z[missing][0])  # above the plane, where filled relative to it
     meta["fill_relative_to"] = "the measured points' plane" if relative_to_plane else "zero"
     basis = " relative to the measured points' plane" if relative_to_plane else ""
-    announce(f"{Path(path).name}: {n_missing} missing points ({share_text(n_missing, z.size)}) filled by rule "
+    announce(f"{warned_name(path)}: {n_missing} missing points ({share_text(n_missing, z.size)}) filled by rule "
              f"{rule!r}{basis}", meta)
     return z + level
 
@@ -325,7 +330,7 @@ def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing:
     meta["tilt"] = tilt
     if tilt > rough:
         what = "removed" if rule == "plane" else f"NOT removed (detrend={rule!r}): contact will gather on the high side"
-        announce(f"{Path(path).name}: the map's mean plane is tilted by {tilt:.3g} (rise per length), more than its rms "
+        announce(f"{warned_name(path)}: the map's mean plane is tilted by {tilt:.3g} (rise per length), more than its rms "
                  f"slope {rough:.3g} without the tilt; the tilt was {what}", meta)
     if rule == "none":
         return z
@@ -376,7 +381,7 @@ def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, An
         out[:ny, :nx] = z
         meta["crop"] = (f"padded {ny}x{nx} to {n}x{n} with the lowest height {float(z.min()):.6g} (data top-left): "
                         f"the nominal area A0 grows by a factor {n * n / (ny * nx):.4g} and the mean height drops")
-    announce(f"{Path(path).name}: non-square map {meta['crop']}", meta)
+    announce(f"{warned_name(path)}: non-square map {meta['crop']}", meta)
     return out
 
 

@@ -132,16 +132,17 @@ def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
             f"--height-unit {unit} (or --allow-steep to run it anyway)")
 
 
-def check_plausible_units(surface: Surface, height_unit: str | None = "m") -> UnitFigures:
+def check_plausible_units(surface: Surface, height_unit: str | None = "m", file: str | None = None) -> UnitFigures:
     """The figures of ``surface`` when they are within the plausible range (module doc),
     else an ``ImplausibleUnitsError``.  ``height_unit`` is the unit the file's numbers were read
-    in (None when the file stated its own unit)."""
+    in (None when the file stated its own unit); ``file``, the map's path as given, which the
+    refusal names as a map reader's does (else it names the surface)."""
     figures = unit_figures(surface)
     if figures.plausible:
         return figures
     suggestion = probable_unit(figures, height_unit) if height_unit is not None else None
-    raise ImplausibleUnitsError(f"surface {surface.name!r}: {implausibility(figures, height_unit)}", figures,
-                                suggestion)
+    what = f"cannot use surface file {file!r}" if file else f"surface {surface.name!r}"
+    raise ImplausibleUnitsError(f"{what}: {implausibility(figures, height_unit)}", figures, suggestion)
 
 
 def check_height_unit(height_unit: str) -> str:

@@ -180,7 +180,8 @@ def checked_units(spec: InstanceSpec, surface: Surface, cfg: SceneConfig) -> Sur
     are the scene's own and not checked."""
     if spec.params.get("surface_path") and not cfg.extra.get("allow_steep"):
         read_in = surface.meta.get("height_unit")  # absent: the file stated its own unit
-        check_plausible_units(surface, None if read_in is None else str(read_in))
+        named = cfg.surface_path or spec.params["surface_path"]  # the path as given, where the run has it
+        check_plausible_units(surface, None if read_in is None else str(read_in), str(named))
     return surface
 
 
