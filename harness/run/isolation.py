@@ -445,10 +445,13 @@ class ChildProcess:
         self.proc, self.conn, self.scratch = None, None, None
 
     def close(self) -> None:
-        """Ask the child to exit, then make sure it has."""
+        """Ask the child to exit, then make sure it has.  Its group is continued first
+        (SIGCONT): a keeper or worker a solve stopped ends on its own, not at the wait's end."""
         if self.conn is not None and self.alive:
             try:
                 self.conn.send(None)
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(self.proc.pid, signal.SIGCONT)
                 self.proc.join(2.0)
             except (BrokenPipeError, OSError):
                 pass

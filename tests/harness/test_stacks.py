@@ -74,3 +74,21 @@ def test_the_current_thread_is_named_and_a_dump_without_frames_names_nothing() -
     assert stacks.innermost_frames(dump, 1) == ["solvers/_ccg.py:12 in step"]
     assert stacks.innermost_frames(dump.split("Current")[0]) == ["python3.11/threading.py:320 in wait"]
     assert stacks.innermost_frames("") == [] and stacks.innermost_frames("garbage\n\x00") == []
+
+
+def _stops_its_keeper(runner: object) -> str:
+    if os.getppid() == runner:  # no keeper here: the worker's parent is the runner itself
+        return "no keeper"
+    os.kill(os.getppid(), signal.SIGSTOP)
+    return "answered"
+
+
+def test_a_worker_whose_solve_stopped_its_keeper_still_ends_on_its_own_at_close() -> None:
+    child = ChildProcess(lambda: _stops_its_keeper)
+    out = child.call(os.getpid(), 30.0)
+    keeper = child.proc
+    child.close()
+    if out.value == "no keeper":
+        pytest.skip("this platform runs the worker without a keeper (solvers._processes.SUBREAPER_MISSING)")
+    assert out.kind == "ok" and out.value == "answered", out
+    assert keeper is not None and keeper.exitcode == 0, keeper  # (-9: killed after the wait)
