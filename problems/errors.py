@@ -63,8 +63,22 @@ def check_nonnegative(name: str, value: float) -> float:
 def is_whole(value: object, minimum: int) -> bool:
     """Whether ``value`` is a whole number >= ``minimum``: an int, or a finite float with an
     integer value; not a bool."""
-    return isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_)) \
-        and bool(np.isfinite(value)) and int(value) == value and value >= minimum
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, (int, np.integer)):  # (however many digits: no float holds every int)
+        return bool(value >= minimum)
+    return isinstance(value, (float, np.floating)) and bool(np.isfinite(value)) and int(value) == value \
+        and value >= minimum
+
+
+#: The largest count a table's integer column holds (int64): an iteration or product count
+#: beyond it is no count a solver can have made.
+COUNT_MAX = 2**63 - 1
+
+
+def is_count(value: object) -> bool:
+    """Whether ``value`` is a whole number from 0 to ``COUNT_MAX`` (``is_whole``)."""
+    return is_whole(value, 0) and int(value) <= COUNT_MAX  # type: ignore[call-overload]
 
 
 def check_whole(name: str, value: object, minimum: int) -> int:

@@ -46,8 +46,9 @@ null``, ``"spacing": null``, ``"spacing1": null``, ``"kernel": null`` and no ``i
 Solution directory
 ------------------
 ``p.f64`` (n float64, little-endian) is required; ``w.f64`` (n float64) and
-``solution.json`` (``iterations``, ``status``, ``time_s``, and under load control
-``multiplier``: the approach Delta) are optional.
+``solution.json`` (``iterations``: a whole number from 0 to 2^63 - 1; ``status``;
+``time_s``: finite seconds >= 0; and under load control ``multiplier``, the approach
+Delta: a finite number; each key once) are optional.
 ``read_solution_dir`` checks them and says, in one line, what is wrong.
 """
 
@@ -56,6 +57,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from .constraints import Constraints, make_constraints
-from .errors import ProblemInputError
+from .errors import COUNT_MAX, ProblemInputError, is_count, printable_excerpt
 from .instances import QP, ContactInstance, Geometry
 from .kernels import KERNELS, kernel_table
 from .operators import ContactOperator, DenseOperator, FFTOperator, KernelTransform
@@ -411,27 +413,43 @@ class SolutionFile:
 MAX_REPORT_BYTES = 1 << 20
 
 
-def _regular_file(path: Path, what: str, most: int) -> None:
-    """``SolutionFileError`` unless ``path`` is a regular file of at most ``most`` bytes (a
-    FIFO would block the reader, a folder or device cannot be an answer)."""
-    if not path.exists():
-        raise SolutionFileError(f"{what} ({path.name}) is missing")
-    if not path.is_file():
-        raise SolutionFileError(f"{what} ({path.name}) is not a regular file")
-    size = path.stat().st_size
+def _bounded_bytes(path: Path, what: str, most: int) -> bytes:
+    """The bytes of ``path`` if it is a regular file of at most ``most`` bytes, else a
+    ``SolutionFileError``: a FIFO would block the reader, a folder or device cannot be an
+    answer.  One open file is looked at and read, at most ``most`` + 1 bytes of it, so a
+    file another process swaps or grows meanwhile is never read past the bound."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)  # (a FIFO opens without waiting for a writer)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError:
+        raise SolutionFileError(f"{what} ({path.name}) is missing") from None
+    except OSError as exc:
+        raise SolutionFileError(f"{what} ({path.name}) is unreadable: {exc.strerror or exc}") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise SolutionFileError(f"{what} ({path.name}) is not a regular file")
+        chunks, size = [], 0
+        while size <= most:
+            chunk = os.read(fd, min(1 << 20, most + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise SolutionFileError(f"{what} ({path.name}) is unreadable: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
     if size > most:
-        raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, more than the {most} it may hold")
+        raise SolutionFileError(f"{what} ({path.name}) has more than the {most} bytes it may hold")
+    return b"".join(chunks)
 
 
 def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: bool = True) -> np.ndarray:
-    _regular_file(path, what, 8 * (4 * max(n, 1) + 1024))  # a wrong length is read, within reason
-    try:
-        a = np.fromfile(path, dtype="<f8")
-    except (OSError, ValueError) as exc:
-        raise SolutionFileError(f"{what} ({path.name}) is unreadable: {exc}") from None
-    size = path.stat().st_size
+    data = _bounded_bytes(path, what, 8 * (4 * max(n, 1) + 1024))  # a wrong length is read, within reason
+    size = len(data)
     if size % 8:
         raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, not a whole number of float64 values")
+    a = np.frombuffer(data, dtype="<f8")
     if not checked:  # any length and any values: for the judge to see
         return a.astype(np.float64)
     if a.size != n:
@@ -446,17 +464,52 @@ def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: b
     return a.astype(np.float64)
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's members, each key once (a key given twice: ``ValueError``)."""
+    doc: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in doc:
+            raise ValueError(f"the key {key!r} is given twice")
+        doc[key] = value
+    return doc
+
+
 def _read_report(path: Path) -> dict[str, Any]:
-    if not path.exists():
+    if not os.path.lexists(path):
         return {}
-    _regular_file(path, "the report", MAX_REPORT_BYTES)
+    data = _bounded_bytes(path, "the report", MAX_REPORT_BYTES)
     try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise SolutionFileError(f"solution.json is unreadable: {exc}") from None
+        doc = json.loads(data.decode("utf-8"), object_pairs_hook=_unique_keys)
+    except (UnicodeDecodeError, ValueError) as exc:  # (JSON errors; a number of more digits than Python reads)
+        raise SolutionFileError(f"solution.json is unreadable: {printable_excerpt(str(exc))}") from None
+    except RecursionError:
+        raise SolutionFileError("solution.json is unreadable: its values nest deeper than a reader follows") from None
     if not isinstance(doc, dict):
         raise SolutionFileError("solution.json does not hold a JSON object")
     return doc
+
+
+def _report_number(report: dict[str, Any], key: str, rule: str) -> float | int | None:
+    """``report[key]`` (None when absent) if it is as ``rule`` says: "count" a whole number
+    from 0 to ``COUNT_MAX`` (12.0 is 12), "seconds" a finite number >= 0, "real" a finite
+    number; else a ``SolutionFileError`` naming the key."""
+    value = report.get(key)
+    if value is None:
+        return None
+    if rule == "count":
+        if not is_count(value):
+            raise SolutionFileError(f"solution.json: {key} {printable_excerpt(repr(value))} is not a whole number "
+                                    f"from 0 to {COUNT_MAX}")
+        return int(value)
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    try:
+        number = float(value) if ok else math.nan
+    except OverflowError:
+        number = math.nan
+    if not math.isfinite(number) or (rule == "seconds" and number < 0):
+        kind = "a finite number of seconds >= 0" if rule == "seconds" else "a finite number"
+        raise SolutionFileError(f"solution.json: {key} {printable_excerpt(repr(value))} is not {kind}")
+    return number
 
 
 def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: bool = False) -> SolutionFile:
@@ -470,19 +523,15 @@ def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: 
     w_path = d / SOLUTION_W
     w = _read_vector(w_path, n, "solution w", nonnegative=False) if w_path.exists() else None
     report = _read_report(d / SOLUTION_JSON)
-    it, status, t = report.get("iterations"), report.get("status"), report.get("time_s")
-    try:
-        iterations = None if it is None else int(it)
-        time_s = None if t is None else float(t)
-    except (TypeError, ValueError):
-        raise SolutionFileError(f"solution.json: iterations {it!r} / time_s {t!r} are not numbers") from None
-    mult = report.get("multiplier")
-    if mult is not None and (isinstance(mult, bool) or not isinstance(mult, (int, float))):
-        raise SolutionFileError(f"solution.json: multiplier {mult!r} is not a number")
+    iterations = _report_number(report, "iterations", "count")
+    time_s = _report_number(report, "time_s", "seconds")
+    mult = _report_number(report, "multiplier", "real")
+    status = report.get("status")
     if status is not None and not isinstance(status, str):
         raise SolutionFileError(f"solution.json: status {status!r} is not a string")
     word = None if status is None else status.strip().lower()
     if word is not None and word not in SOLUTION_STATUSES:
         raise SolutionFileError(f"solution.json: status {status!r} is not a protocol word; claims: "
                                 f"{', '.join(CLAIM_STATUSES)}; no claim: {', '.join(NON_CLAIM_STATUSES)}")
-    return SolutionFile(p, w, iterations, word, time_s, report, None if mult is None else float(mult))
+    return SolutionFile(p, w, None if iterations is None else int(iterations), word,
+                        None if time_s is None else float(time_s), report, None if mult is None else float(mult))

@@ -57,7 +57,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from contactbench.problems.errors import ProblemInputError, check_nonnegative, check_positive
+from contactbench.problems.errors import COUNT_MAX, ProblemInputError, check_nonnegative, check_positive, is_count
 from contactbench.problems.instances import QP
 from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import constrained_kkt_error
@@ -442,13 +442,12 @@ def _is_real(value: Any) -> bool:
 
 def outcome_problems(out: Outcome, n: int) -> list[str]:
     """What is wrong with the fields of ``out`` for a problem of n unknowns (none: []):
-    iterations an integer >= 0, converged a bool, status a ``Status`` or None, message a
+    iterations an integer from 0 to ``COUNT_MAX`` (a table's int64), converged a bool, status a ``Status`` or None, message a
     str, info a dict, w None or an array of shape (n,), multiplier None or a real number.
     Its p is the judge's to read (``finish``)."""
     it, w = out.iterations, out.w
     checks = (
-        ("iterations", not isinstance(it, (bool, np.bool_)) and isinstance(it, (int, np.integer)) and it >= 0,
-         "an integer >= 0"),
+        ("iterations", isinstance(it, (int, np.integer)) and is_count(it), f"an integer from 0 to {COUNT_MAX}"),
         ("converged", isinstance(out.converged, (bool, np.bool_)), "True or False"),
         ("status", out.status is None or isinstance(out.status, Status), "a Status or None"),
         ("message", isinstance(out.message, str), "a str"),

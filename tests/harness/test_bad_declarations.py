@@ -253,7 +253,8 @@ def _changed(**fields: Any) -> Any:
 @pytest.mark.parametrize("iterate, words", [
     (lambda self, ctx: None, "iterate() returned None, not an Outcome"),
     (lambda self, ctx: (np.ones(3), 1, True), "iterate() returned (array("),
-    (_changed(iterations=-5), "whose iterations is -5, not an integer >= 0"),
+    (_changed(iterations=-5), "whose iterations is -5, not an integer from 0 to 9223372036854775807"),
+    (_changed(iterations=2**63), "whose iterations is 9223372036854775808, not an integer from 0"),
     (_changed(iterations=float("nan")), "whose iterations is nan"),
     (_changed(iterations="5"), "whose iterations is '5'"),
     (_changed(iterations=5.5), "whose iterations is 5.5"),
@@ -264,7 +265,7 @@ def _changed(**fields: Any) -> Any:
     (_changed(info=[1]), "whose info is [1], not a dict"),
     (_changed(w=np.zeros(2)), "whose w is array("),
     (_changed(multiplier="x"), "whose multiplier is 'x', not None or a real number"),
-], ids=["none", "tuple", "iter-neg", "iter-nan", "iter-str", "iter-float", "conv-str", "status-str", "status-int",
+], ids=["none", "tuple", "iter-neg", "iter-past-int64", "iter-nan", "iter-str", "iter-float", "conv-str", "status-str", "status-int",
         "message-int", "info-list", "w-short", "mult-str"])
 def test_an_outcome_of_the_wrong_kind_fails_the_solve_naming_the_field(iterate: Any, words: str) -> None:
     with pytest.raises(SolverReturnError) as caught:
