@@ -38,6 +38,7 @@ from typing import Any, Final
 import numpy as np
 import pandas as pd
 
+from contactbench.problems.errors import COUNT_MAX
 
 STATUSES: Final = ("solved", "inaccurate", "failed", "timeout", "crashed", "skipped")
 #: The statuses of a solve that returned an answer the judge read (a time to compare).
@@ -356,7 +357,7 @@ def _numbers(df: pd.DataFrame, name: str) -> np.ndarray:
 def check_numbers(col: pd.Series, name: str, source: object, whole: bool = False) -> None:
     """Raise TableError for an entry of a numeric column that is text but no number (a
     corrupted or hand-edited table: never read as missing), a number that is not whole in
-    a ``whole`` (count) column (never rounded), or a negative or infinite duration (the
+    a ``whole`` (count) column (never rounded) or beyond its int64 (``COUNT_MAX``), or a negative or infinite duration (the
     ``_s`` columns: seconds; missing is NaN)."""
     if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
         values = col.astype("float64")
@@ -373,6 +374,11 @@ def check_numbers(col: pd.Series, name: str, source: object, whole: bool = False
             hit = np.flatnonzero(np.isfinite(x) & (x != np.round(x)))
         if hit.size:
             raise TableError(f"column {name} of {source} holds {x[hit[0]]}, not a whole number (row {int(hit[0]) + 1})")
+        with np.errstate(invalid="ignore"):
+            hit = np.flatnonzero(np.isfinite(x) & (np.abs(x) > COUNT_MAX))
+        if hit.size:
+            raise TableError(f"column {name} of {source} holds {x[hit[0]]:g}, beyond a count's range "
+                             f"(|value| <= {COUNT_MAX}; row {int(hit[0]) + 1})")
     if name.endswith("_s"):
         seconds = values.to_numpy(dtype="float64", na_value=np.nan)
         for wrong, what in ((seconds < 0, "a negative"), (np.isinf(seconds), "an infinite")):

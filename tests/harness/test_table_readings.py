@@ -38,6 +38,7 @@ def forged(df: pd.DataFrame, case: str) -> pd.DataFrame:
         "tol-negative": (inaccurate, {"kkt_error": 0.0, "check_tol": -1.0}),
         "timeout-pass-above-tol": (first(bad, "timeout"), {"verdict": "pass", "kkt_error": 1.0}),
         "count-fraction": (solved, {"n": 2.4}),
+        "count-past-int64": (solved, {"iterations": 1e300}),
     }
     row, values = edits[case]
     bad = bad.astype({col: "object" for col in values})
@@ -61,6 +62,7 @@ CASES = {
     "tol-negative": "a check_tol -1.0, not a finite number > 0",
     "timeout-pass-above-tol": "the reading pass with kkt_error 1.0 above its check_tol",
     "count-fraction": "column n of .* holds 2.4, not a whole number",
+    "count-past-int64": "column iterations of .* holds 1e\\+300, beyond a count's range",
 }
 
 
