@@ -16,9 +16,22 @@ An external solver is declared in a TOML manifest (docs/external-solvers.md)::
 
 Manifests are read from the files named by the environment variable
 ``CONTACTBENCH_EXTERNAL_SOLVERS`` (one or more paths separated by ``os.pathsep``) and from
-``./contactbench-solvers.toml`` when it exists.  Each entry becomes a registered solver
-of family "external": listed by ``contactbench list solvers``, runnable in every scene,
+``./contactbench-solvers.toml`` when anything has that name.  Each entry becomes a registered
+solver of family "external": listed by ``contactbench list solvers``, runnable in every scene,
 judged like any other.  A command runs in the folder of the manifest that declares it.
+Reading and checking a manifest -- its keys, the name (at most ``NAME_MAX_CHARS``
+characters), the command template and its placeholders (``{problem}``, ``{solution}``; a
+literal brace written ``{{`` or ``}}``), the version command -- is
+``solvers/_external_manifest.py``'s: a manifest that cannot be read or has a bad entry is
+refused whole, in one line naming the file, before anything runs.
+
+The version command is run once in a process, when its ``availability()`` is asked -- as
+the harness does before it runs a solver (``run``'s plan, ``validate``, ``list solvers``) --
+under its own limit (``VERSION_LIMIT_S``), never inside a solve: a solve records the text
+asked (``info["external_version"]``, and in its message, the row's ``solver_message``) --
+its worker, forked from the process that asked, holds it -- or, where it was not asked,
+``VERSION_NOT_ASKED``.  A command that fails, or gives no answer in time, gives a text in
+parentheses saying so, and never fails or times a solve.
 
 Constrained problems (``problems.constraints``) are written in format 2: ``upper.f64``
 and ``"load"`` in problem.json.  A program is handed them only when its manifest
@@ -34,13 +47,16 @@ reported as that source's error and this module stays importable, e.g. for
 
 One solve (``ExternalSolver.iterate``):
 
-1. write the problem directory into a temporary folder (set-up time, ``setup_time_s``);
+1. write the problem directory into a temporary folder (set-up time, ``setup_time_s``), named
+   after at most ``TEMP_NAME_CHARS`` characters of the solver's name; a removal of that
+   folder that fails afterwards is no failure of the row;
 2. run the command -- split by ``shlex`` and run without a shell, the placeholders
    replaced inside each word -- in its own process group, timed from outside;
 3. at the time limit (``ctx.deadline``) kill the program, its descendants and its whole process
-   group: ``SolveAborted("timeout")``; once it has exited, its group (a child it left behind;
-   one that left the group, ``setsid``, ends with the harness's isolated worker, which adopts
-   it: ``harness.run.isolation``);
+   group: ``SolveAborted("timeout")``.  However it ends, every process it started has
+   ended before its answer is read (``run_program``): what it left running in its group,
+   and what left the group (``setsid``) and was adopted by the solving process
+   (``_processes.ends_what_it_starts``; that process's other children are left alone);
    death by a signal (a segfault): ``SolveAborted("crashed")``; a non-zero exit:
    ``ExternalSolverError`` (the row's status "failed"), with the tail of stderr/stdout;
 4. read the solution directory (``read_solution_dir``, ``as_written``): a missing or
@@ -58,8 +74,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
-import re
-import shlex
 import shutil
 import signal
 import subprocess
@@ -68,7 +82,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -77,15 +91,13 @@ from contactbench.problems.kernels import KERNELS
 from contactbench.problems.qpfile import (DENSE_LIMIT, SolutionFile, SolutionFileError, read_solution_dir,
                                          write_problem_dir)
 
-from ._processes import end_descendants
-from .base import (Capabilities, Outcome, ProblemTraits, Promise, SolveAborted, SolveContext, Solver, Status,
-                   check_promise)
+from ._external_manifest import LOCAL_MANIFEST as LOCAL_MANIFEST  # (its callers read both names here)
+from ._external_manifest import MANIFEST_ENV as MANIFEST_ENV
+from ._external_manifest import ExternalSpec, filled_words, load_manifest, manifest_paths, split_command
+from ._processes import end_descendants, ends_what_it_starts
+from .base import Capabilities, Outcome, ProblemTraits, SolveAborted, SolveContext, Solver, Status
 from .registry import all_solvers, register
 
-#: Environment variable naming manifest files (os.pathsep-separated).
-MANIFEST_ENV = "CONTACTBENCH_EXTERNAL_SOLVERS"
-#: The manifest read from the current directory when present.
-LOCAL_MANIFEST = "contactbench-solvers.toml"
 #: Characters of stdout/stderr kept with a row.
 TAIL_CHARS = 2000
 #: Seconds a process group gets between SIGTERM and SIGKILL at the time limit.
@@ -93,138 +105,18 @@ TERM_GRACE = 0.5
 #: Exit codes a shell reports for a child killed by these signals (128 + signal).
 SIGNAL_EXITS = {128 + s: s.name for s in (signal.SIGSEGV, signal.SIGABRT, signal.SIGBUS, signal.SIGILL,
                                           signal.SIGFPE, signal.SIGKILL)}
-INPUTS = ("dense", "kernel")
-_KEYS = {"name", "command", "inputs", "warm_start", "version", "description", "exact", "promise", "load_control",
-         "bounds"}
-#: The manifest's true/false keys.
-_FLAGS = ("warm_start", "exact", "load_control", "bounds")
+#: Seconds the version command of a manifest may run (``ExternalSolver.version``).
+VERSION_LIMIT_S = 10.0
+#: Characters of the version command's first line that are recorded.
+VERSION_CHARS = 200
+#: The version text of a solve in a process that did not ask the version (``ExternalSolver.version``).
+VERSION_NOT_ASKED = "(version command not run in this process: its availability() was not asked)"
+#: Characters of a solver's name in the name of its solve's temporary folder.
+TEMP_NAME_CHARS = 32
 
 
 class ExternalSolverError(RuntimeError):
     """The external program exited with a non-zero code (the row's status "failed")."""
-
-
-# ---------------------------------------------------------------------------
-# The manifest
-# ---------------------------------------------------------------------------
-
-
-#: What an external solver's name may be: it is a row's label, a ``--solvers`` entry (where
-#: ',', '[' and ':' have meanings) and part of a folder's name (no '/').
-SOLVER_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]*")
-
-
-@dataclass(frozen=True)
-class ExternalSpec:
-    """One manifest entry (module doc)."""
-
-    name: str
-    command: str
-    inputs: str = "dense"
-    warm_start: bool = False
-    version: str | None = None
-    description: str = ""
-    exact: bool = False
-    promise: Promise = "exact"
-    load_control: bool = False  # it poses the load equality and may report its multiplier
-    bounds: bool = False  # it honours the upper bounds
-    workdir: str | None = None  # the folder the command runs in (None: the current one)
-    source: str = ""  # the manifest it came from
-
-    def __post_init__(self) -> None:
-        where = f" ({self.source})" if self.source else ""
-        if not SOLVER_NAME.fullmatch(self.name):
-            raise ProblemInputError(f"external solver name {self.name!r}{where} must be letters, digits and "
-                                    "'.', '_', '+', '-', starting with a letter or digit (it names rows, "
-                                    "--solvers entries and folders)")
-        if self.inputs not in INPUTS:
-            raise ProblemInputError(f"external solver {self.name!r}{where}: inputs must be 'dense' or 'kernel', "
-                                    f"got {self.inputs!r}")
-        words = split_command(self.command, self.name)
-        if "{solution}" not in self.command or "{problem}" not in self.command:
-            raise ProblemInputError(f"external solver {self.name!r}{where}: the command must contain {{problem}} "
-                                    f"and {{solution}}, got {self.command!r}")
-        if not words:
-            raise ProblemInputError(f"external solver {self.name!r}{where}: empty command")
-
-
-def split_command(template: str, name: str = "command") -> list[str]:
-    """The command template split into words as a POSIX shell would (no shell runs it)."""
-    try:
-        return shlex.split(str(template))
-    except ValueError as exc:
-        raise ProblemInputError(f"external solver {name!r}: cannot parse command {template!r}: {exc}") from None
-
-
-def _load_toml(path: Path) -> dict[str, Any]:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        try:
-            import tomli as tomllib  # type: ignore[no-redef]
-        except ModuleNotFoundError:
-            raise ProblemInputError(f"reading {path} needs Python >= 3.11 (tomllib) or the tomli package") from None
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ProblemInputError(f"external solver manifest {path} does not exist") from None
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ProblemInputError(f"external solver manifest {path} is unreadable: {exc}") from None
-
-
-def _spec_of(entry: Any, path: Path, k: int) -> ExternalSpec:
-    where = f"{path} entry {k + 1}"
-    if not isinstance(entry, dict):
-        raise ProblemInputError(f"{where}: each [[solver]] must be a table")
-    unknown = sorted(set(entry) - _KEYS)
-    if unknown:
-        raise ProblemInputError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(_KEYS))}")
-    for key in ("name", "command"):
-        if not isinstance(entry.get(key), str):
-            raise ProblemInputError(f"{where}: {key!r} is required and must be a string")
-    for key in _FLAGS:
-        if key in entry and not isinstance(entry[key], bool):
-            raise ProblemInputError(f"{where}: {key!r} must be true or false, got {entry[key]!r}")
-    try:
-        promise = check_promise(entry.get("promise", "exact"))
-    except ValueError as exc:
-        raise ProblemInputError(f"{where}: {exc}") from None
-    return ExternalSpec(name=entry["name"], command=entry["command"], inputs=str(entry.get("inputs", "dense")),
-                        warm_start=bool(entry.get("warm_start", False)), version=entry.get("version"),
-                        description=str(entry.get("description", "")), exact=bool(entry.get("exact", False)),
-                        promise=promise, load_control=bool(entry.get("load_control", False)),
-                        bounds=bool(entry.get("bounds", False)), workdir=str(path.resolve().parent), source=str(path))
-
-
-def load_manifest(path: str | os.PathLike[str]) -> list[ExternalSpec]:
-    """The entries of one manifest (``[[solver]]`` tables); bad content is a
-    ``ProblemInputError`` naming the file, the entry and the key."""
-    p = Path(path)
-    doc = _load_toml(p)
-    entries = doc.get("solver", [])
-    if not isinstance(entries, list):
-        raise ProblemInputError(f"{p}: 'solver' must be an array of tables ([[solver]])")
-    specs = [_spec_of(e, p, k) for k, e in enumerate(entries)]
-    names = [s.name for s in specs]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ProblemInputError(f"{p}: solver name(s) {', '.join(dup)} declared twice")
-    return specs
-
-
-def manifest_paths(environ: dict[str, str] | None = None, cwd: str | None = None) -> list[Path]:
-    """The manifests to read: those of ``CONTACTBENCH_EXTERNAL_SOLVERS``, then
-    ./contactbench-solvers.toml when it exists (each once)."""
-    env = os.environ if environ is None else environ
-    paths = [Path(s) for s in env.get(MANIFEST_ENV, "").split(os.pathsep) if s.strip()]
-    local = Path(cwd or os.getcwd()) / LOCAL_MANIFEST
-    if local.is_file():
-        paths.append(local)
-    seen: dict[Path, Path] = {}
-    for p in paths:
-        seen.setdefault(p.resolve(), p)
-    return list(seen.values())
 
 
 # ---------------------------------------------------------------------------
@@ -295,10 +187,12 @@ def _read_text(path: Path) -> str:
 
 def run_program(argv: Sequence[str], workdir: str | None, timeout: float | None, scratch: Path) -> ProcessResult:
     """Run ``argv`` in its own process group with stdout/stderr to files in ``scratch``;
-    kill the group after ``timeout`` seconds (None: no limit), and once the program has
-    exited (a child it left behind, still running)."""
+    kill the group after ``timeout`` seconds (None: no limit).  However it ends, every
+    process it started has ended when this returns (``ends_what_it_starts``): what it left
+    running in its group, and what left the group (``setsid``) and was adopted by this
+    process; this process's other children are left alone."""
     out_path, err_path = scratch / "stdout.txt", scratch / "stderr.txt"
-    with open(out_path, "wb") as out, open(err_path, "wb") as err:
+    with open(out_path, "wb") as out, open(err_path, "wb") as err, ends_what_it_starts():
         t0 = time.perf_counter()
         try:
             proc = subprocess.Popen(list(argv), cwd=workdir, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
@@ -309,22 +203,47 @@ def run_program(argv: Sequence[str], workdir: str | None, timeout: float | None,
         try:
             rc: int | None = proc.wait(timeout=timeout)
             timed_out = False
+            elapsed = time.perf_counter() - t0
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.killpg(proc.pid, signal.SIGKILL)  # what it left running in its group: its solve is over
         except subprocess.TimeoutExpired:
             _kill_group(proc)
             rc, timed_out = None, True
+            elapsed = time.perf_counter() - t0
         except BaseException:  # KeyboardInterrupt: leave nothing running behind
             _kill_group(proc)
             raise
-        elapsed = time.perf_counter() - t0
     return ProcessResult(rc, elapsed, _read_text(out_path), _read_text(err_path), timed_out)
 
 
 def command_words(template: str, problem: Path, solution: Path) -> list[str]:
-    """The template's words with {problem} and {solution} replaced by the directories."""
-    return [w.replace("{problem}", str(problem)).replace("{solution}", str(solution))
-            for w in split_command(template)]
+    """The template's words with {problem} and {solution} replaced by the directories (and
+    each doubled brace by one: ``solvers._external_manifest``)."""
+    return filled_words(template, {"problem": str(problem), "solution": str(solution)})
+
+
+def version_text(proc: ProcessResult) -> str:
+    """What a run of a version command says: the first line it printed (stdout, else
+    stderr), or, when it did not exit 0, a text in parentheses saying so."""
+    said = proc.stdout.strip() or proc.stderr.strip()
+    first = said.splitlines()[0][:VERSION_CHARS] if said else ""
+    if proc.timed_out:
+        return f"(version command gave no answer within {VERSION_LIMIT_S:g} s)"
+    if proc.returncode != 0:
+        return f"(version command exited {proc.returncode}{': ' + first if first else ''})"
+    return first or "(version command printed nothing)"
+
+
+def ask_version(command: str, workdir: str | None) -> str:
+    """The version text (``version_text``) of a version command (checked by ``ExternalSpec``),
+    run once in ``workdir`` under ``VERSION_LIMIT_S``; one that cannot start gives a text
+    saying so."""
+    with tempfile.TemporaryDirectory(prefix="contactbench-version-", ignore_cleanup_errors=True) as tmp:
+        try:
+            proc = run_program(split_command(command, what="version command"), workdir, VERSION_LIMIT_S, Path(tmp))
+        except ExternalSolverError as exc:
+            return f"(version command failed: {exc})"
+    return version_text(proc)
 
 
 def program_outcome(proc: ProcessResult, name: str, limit: float | None) -> None:
@@ -396,16 +315,17 @@ class ExternalSolver(Solver):
 
     # -- what the harness asks ----------------------------------------------
     def executable(self) -> str:
-        return split_command(self.spec.command, self.name)[0]
+        return split_command(self.spec.command, f"external solver {self.name!r}")[0]
 
     def availability(self) -> tuple[bool, str]:
         exe = self.executable()
         if os.sep in exe or (os.altsep and os.altsep in exe):
             path = Path(self.spec.workdir or ".") / exe
-            ok = path.is_file() and os.access(path, os.X_OK)
-            return (True, "available") if ok else (False, f"{path} is not an executable file")
-        if shutil.which(exe) is None:
+            if not (path.is_file() and os.access(path, os.X_OK)):
+                return False, f"{path} is not an executable file"
+        elif shutil.which(exe) is None:
             return False, f"{exe!r} is not on PATH"
+        self.version()  # (module doc: before any solve)
         return True, "available"
 
     def skip(self, traits: ProblemTraits) -> str | None:
@@ -421,22 +341,17 @@ class ExternalSolver(Solver):
         return None  # the program keeps its own
 
     def version(self) -> str:
-        """The output of the manifest's version command (once per process; "" without one)."""
+        """The version text of the manifest's version command (``ask_version``), asked once
+        in this process ("" without one).  ``availability`` asks it, so that it runs before
+        any solve and outside its time; a solve only records what was asked."""
         if self._version is None:
-            self._version = ""
-            if self.spec.version:
-                try:
-                    res = subprocess.run(split_command(self.spec.version, self.name), cwd=self.spec.workdir,
-                                         capture_output=True, text=True, timeout=10.0, stdin=subprocess.DEVNULL)
-                    said = res.stdout.strip() or res.stderr.strip()
-                    self._version = said.splitlines()[0][:200] if said else f"(exit {res.returncode})"
-                except (OSError, subprocess.TimeoutExpired) as exc:
-                    self._version = f"(version command failed: {exc})"
+            self._version = ask_version(self.spec.version, self.spec.workdir) if self.spec.version else ""
         return self._version
 
     # -- the solve ------------------------------------------------------------
     def iterate(self, ctx: SolveContext) -> Outcome:
-        with tempfile.TemporaryDirectory(prefix=f"contactbench-{self.name}-") as tmp:
+        with tempfile.TemporaryDirectory(prefix=f"contactbench-{self.name[:TEMP_NAME_CHARS]}-",
+                                         ignore_cleanup_errors=True) as tmp:  # (a removal that fails: not the row's)
             root = Path(tmp)
             problem, solution = root / "problem", root / "solution"
             solution.mkdir()
@@ -447,7 +362,7 @@ class ExternalSolver(Solver):
             info = {"external_command": self.spec.command, "external_time_s": proc.elapsed,
                     "external_returncode": proc.returncode, "external_output_tail": proc.tail()}
             if self.spec.version:
-                info["external_version"] = self.version()
+                info["external_version"] = self._version if self._version is not None else VERSION_NOT_ASKED
             ctx.info.update(info)
             program_outcome(proc, self.name, limit)
             sol = solution_of(proc, solution, ctx.n)
@@ -456,6 +371,8 @@ class ExternalSolver(Solver):
         message = f"external: exit 0 in {proc.elapsed:.3g} s, status {sol.status or 'none'}"
         if note:
             message += f" ({note})"
+        if "external_version" in ctx.info:
+            message += f"; version {ctx.info['external_version']}"
         tail = proc.tail(300).replace("\n", " | ")
         if tail:
             message += f"; {tail}"
