@@ -29,8 +29,8 @@ Every QP is named ``<instance>-step<k>`` (characters other than letters, digits 
 (default ``qpfile.DENSE_LIMIT``, 4096: 128 MiB per matrix); above it problem-dir and
 hdf5 keep the FFT kernel table only and qpbenchmark (which needs P) skips the QP.  A
 dense H within the dense limit but over the process's memory budget for dense matrices
-(``operators.memory_budget``) is refused with a one-line ``ProblemInputError`` before it
-is allocated (``check_dense_fits``).
+(``operators.memory_budget``) is refused with a one-line ``ProblemInputError`` before
+anything is written (``check_dense_fits``).
 ``DIR/manifest.json`` lists every QP -- name, scene, instance, step, n, far-field
 displacement, objective-free facts -- and every skip with its reason; the summary line
 says what was skipped.  A step with no unknown (n = 0) is skipped too.
@@ -40,9 +40,13 @@ folder an export wrote (its manifest.json names the tool) is written over, and a
 non-empty folder is refused and left as it is (``check_export_folder``; an empty
 ``--out`` too).  The scene options are checked first by the same rules as a run's
 (``scenes.options.check_config``), and the count of QPs (instances x steps) is bounded
-by ``MAX_QPS`` before any recipe of the whole range is made (``check_scene``).  The
-whole export holds an exclusive lock on ``DIR`` (``atomic_files.folder_lock``): a second
-export into it meanwhile is refused and touches nothing.  An export never writes through
+by ``MAX_QPS`` before any recipe of the whole range is made (``check_scene``).  Every
+refusal of a single QP -- its name, its dense H, its build, its kernel table, the entry
+of ``DIR`` it would be written to -- is raised in a pass over all of them before the
+first is written (``export_plan.plan_export``, then ``check_targets``), so a refused
+export leaves ``DIR`` as it was (a new one is not made).  The whole export holds an
+exclusive lock on ``DIR`` (``atomic_files.folder_lock``): a second export into it
+meanwhile is refused and touches nothing.  An export never writes through
 a symbolic link, nor over an entry of ``DIR`` that the manifest does not list as an
 export's: either is refused, naming it (``check_target``); ``problems.h5`` and the
 Parquet file are written whole or not at all (``atomic_files.replace_atomically``).
@@ -65,7 +69,6 @@ import contextlib
 import itertools
 import json
 import os
-import re
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -74,9 +77,20 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from .atomic_files import FolderLockedError, folder_lock, names_nothing, replace_atomically, write_text_atomic
-from .errors import MemoryBudgetError, ProblemInputError
+from .errors import ProblemInputError
+from .export_plan import (
+    MAX_QPS,
+    ExportPlan,
+    PlannedQP,
+    check_dense_fits,
+    check_scene,
+    file_safe,
+    plan_export,
+    problem_name,
+    scene_steps,
+)
 from .instances import ContactInstance
-from .operators import PRECISIONS, check_dense_budget
+from .operators import PRECISIONS
 from .qpfile import (
     DENSE_LIMIT,
     PROBLEM_DIR_FILES,
@@ -85,9 +99,6 @@ from .qpfile import (
     read_problem_dir,
     write_problem_dir,
 )
-from .scenes import SceneConfig, get_scene
-from .scenes.base import scene_counts
-from .scenes.options import check_config
 
 FORMATS = ("problem-dir", "hdf5", "qpbenchmark")
 #: The manifest's ``tool``: what marks a folder as an export's (``check_export_folder``).
@@ -102,9 +113,6 @@ QPBENCHMARK_ARRAYS = QPBENCHMARK_KEYS[:-1]
 #: The key of the qpbenchmark file's key-value metadata that maps every QP to the dtype
 #: of its data (JSON: name -> dtype name, ``data_dtype``).
 PARQUET_DTYPES_KEY = "contactbench.dtypes"
-#: The most QPs (instances x steps) one export may write (``export_scene``'s ``max_qps``),
-#: counted before anything is built (``scene_counts``).
-MAX_QPS = 100_000
 
 
 @dataclass
@@ -143,101 +151,65 @@ class ExportSummary:
         return text
 
 
-def problem_name(instance: str, step: int) -> str:
-    """The exported name of one QP: ``<instance>-step<k>``, file-name safe."""
-    return _file_safe(f"{instance}-step{step}")
-
-
-def _file_safe(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]", "_", text)
-
-
-def check_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[Any, SceneConfig]:
-    """(scene, merged configuration) of an export of ``scene_name`` under ``cfg`` (a
-    ``SceneConfig``), its options and inputs checked as the planner does and its QPs
-    counted (``scene_counts``): more than ``max_qps`` is a one-line ``ProblemInputError``
-    before any recipe of the whole range is made."""
-    scene = get_scene(scene_name)
-    check_config(scene_name, [scene], [cfg or SceneConfig()], cfg)
-    merged = scene.config(cfg)
-    limit = int(max_qps)
-    if limit < 1:
-        raise ProblemInputError(f"the most QPs an export may write must be >= 1, got {max_qps!r}")
-    size = scene_counts(scene, merged)
-    if size.steps > limit:
-        raise ProblemInputError(f"the export of {scene_name} has {size.steps:,} QPs ({size.instances:,} instance"
-                                f"{'' if size.instances == 1 else 's'} x their steps), over the limit of {limit:,}; "
-                                "choose fewer --steps or --seeds, or a larger --max-qps")
-    scene.validate(merged)
-    return scene, merged
-
-
-def scene_steps(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> Iterator[tuple[str, int, ContactInstance]]:
-    """(instance name, step, instance) of every QP of a scene under ``cfg`` (a
-    ``SceneConfig``; checked first by ``check_scene``)."""
-    scene, merged = check_scene(scene_name, cfg, max_qps)
-    for spec in scene.instances(merged):
-        seq = scene.build(spec)
-        for k in range(len(seq)):
-            yield spec.instance, k, seq.at(k)
-
-
 def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_limit: int | None = None,
                  tol: float | None = None, max_qps: int = MAX_QPS) -> ExportSummary:
     """Write every (instance, step) QP of a scene in ``fmt`` under ``out`` (module doc).
 
     Bad input is a one-line ``ProblemInputError`` before anything is written: the format,
     the folder (``check_export_folder``), the scene's options and inputs and its count of
-    QPs (at most ``max_qps``, ``check_scene``).  The whole export holds the folder's
-    lock (``atomic_files.folder_lock``): a second export into the folder meanwhile is a
+    QPs (at most ``max_qps``, ``check_scene``), and every refusal of a single QP
+    (``export_plan.plan_export``).  The whole export holds the folder's lock
+    (``atomic_files.folder_lock``): a second export into the folder meanwhile is a
     ``ProblemInputError`` and touches nothing.  A target that is a symbolic link, or an
     entry of the folder that the export would write and that its manifest does not list
-    as an export's, is a ``ProblemInputError`` naming it (``check_target``)."""
+    as an export's, is a ``ProblemInputError`` naming it (``check_targets``), before
+    anything is written."""
     if fmt not in FORMATS:
         raise ProblemInputError(f"export format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     limit = DENSE_LIMIT if dense_limit is None else int(dense_limit)
     if fmt == "hdf5":
         require_h5py()
     out_dir = check_export_folder(out)
-    steps = scene_steps(scene_name, cfg, max_qps)
-    first = next(steps, None)  # the options and inputs are checked before the folder is made
+    plan = plan_export(scene_name, cfg, limit, tables=fmt != "qpbenchmark", tol=tol, max_qps=max_qps)
+    steps = plan.built(lambda qp: qp.n > 0 and (fmt != "qpbenchmark" or qp.n <= limit))
+    first = next(steps, None)  # the first QP is built before the folder is made
     out_dir.mkdir(parents=True, exist_ok=True)
     qps = itertools.chain([] if first is None else [first], steps)
     try:
         with folder_lock(out_dir):
             check_export_folder(out_dir)  # again, now that no other export can change it
-            return _export_locked(scene_name, qps, fmt, out_dir, limit, tol)
+            return _export_locked(plan, scene_name, qps, fmt, out_dir, limit, tol)
     except FolderLockedError:  # (raised by folder_lock alone)
         raise ProblemInputError(f"export folder {out_dir} is in use by another export; wait for it to finish or "
                                 "choose another --out") from None
 
 
-def _export_locked(scene_name: str, qps: Iterator[tuple[str, int, ContactInstance]], fmt: str, out_dir: Path,
-                   limit: int, tol: float | None) -> ExportSummary:
-    """``export_scene``'s writing, with the folder's lock held."""
+def _export_locked(plan: ExportPlan, scene_name: str, qps: Iterator[tuple[PlannedQP, ContactInstance | None]],
+                   fmt: str, out_dir: Path, limit: int, tol: float | None) -> ExportSummary:
+    """``export_scene``'s writing of the checked ``plan``'s QPs (``qps``: each built where
+    it is written), with the folder's lock held: the folder's entries are checked
+    (``check_targets``) before anything is written."""
     summary = ExportSummary(scene_name, fmt, str(out_dir), limit)
     folders, files = owned_paths(out_dir)
     format_file = _format_file(fmt, scene_name)
+    check_targets(out_dir, plan, format_file, folders, files)
     if format_file is not None:
-        check_target(out_dir, format_file, files, directory=False)
         files.add(format_file)
     write_progress(summary, folders, files)
 
     def write_all(sink: Any) -> None:
-        for instance, k, inst in qps:
-            name = problem_name(instance, k)
-            entry = ExportedQP(name, scene_name, instance, k, inst.n, _finite(inst.delta), inst.n <= limit,
-                               data_dtype(inst).name)
-            if inst.n == 0:
+        for qp, inst in qps:
+            name = qp.name
+            if qp.n == 0:
                 summary.skipped.append({"name": name, "n": 0, "reason": "no unknown (n = 0)"})
                 continue
-            if fmt == "qpbenchmark" and inst.n > limit:
-                summary.skipped.append({"name": name, "n": inst.n, "reason": f"n > dense limit {limit} (P must be dense)"})
+            if inst is None:  # (qpbenchmark: n over the dense limit)
+                summary.skipped.append({"name": name, "n": qp.n, "reason": f"n > dense limit {limit} (P must be dense)"})
                 continue
-            if entry.dense_H:
-                check_dense_fits(name, inst.n)
+            entry = ExportedQP(name, scene_name, qp.instance, qp.step, inst.n, _finite(inst.delta), inst.n <= limit,
+                               data_dtype(inst).name)
             if fmt == "problem-dir":
-                check_target(out_dir, name, folders, directory=True)
+                check_target(out_dir, name, folders, directory=True)  # (again: only exports are locked out)
                 if name not in folders:  # listed before it exists, so an interrupted export still owns it
                     folders.add(name)
                     write_progress(summary, folders, files)
@@ -291,15 +263,18 @@ def data_dtype(inst: ContactInstance) -> np.dtype:
     return dt if any(dt == p for p in PRECISIONS) else np.dtype(np.float64)
 
 
-def check_dense_fits(name: str, n: int) -> None:
-    """A one-line ``ProblemInputError`` unless the dense H of QP ``name`` (n x n float64)
-    fits this process's memory budget for dense matrices (``operators.check_dense_budget``,
-    ``CONTACTBENCH_MEMORY_BUDGET_GB``); nothing is allocated."""
-    try:
-        check_dense_budget(n, what=f"the dense H of {name}")
-    except MemoryBudgetError as exc:
-        raise ProblemInputError(f"{exc}; choose a --dense-limit below {n} (kernel table only, or the QP skipped "
-                                "for qpbenchmark) or a larger CONTACTBENCH_MEMORY_BUDGET_GB") from None
+def check_targets(out_dir: Path, plan: ExportPlan, format_file: str | None, folders: set[str],
+                  files: set[str]) -> None:
+    """``check_target`` of everything of ``out_dir`` the export of ``plan`` would write:
+    its format's file (``format_file``, None for problem-dir, which is checked against
+    ``files``), else the problem directory of every QP with an unknown (against
+    ``folders``), in the plan's order; the first refusal is raised.  Touches nothing."""
+    if format_file is not None:
+        check_target(out_dir, format_file, files, directory=False)
+        return
+    for qp in plan.qps:
+        if qp.n > 0:
+            check_target(out_dir, qp.name, folders, directory=True)
 
 
 def check_target(out_dir: Path, name: str, owned: set[str], *, directory: bool) -> None:
@@ -322,13 +297,13 @@ def check_target(out_dir: Path, name: str, owned: set[str], *, directory: bool) 
 
 def _format_file(fmt: str, scene_name: str) -> str | None:
     """The one file a format writes in the folder (None: problem-dir writes folders)."""
-    return {"hdf5": HDF5_FILE, "qpbenchmark": f"{_file_safe(scene_name)}.parquet"}.get(fmt)
+    return {"hdf5": HDF5_FILE, "qpbenchmark": f"{file_safe(scene_name)}.parquet"}.get(fmt)
 
 
 def _own_name(name: Any) -> bool:
     """Whether ``name`` can be the name of something an export wrote in its folder (a plain
     file-safe name: never a path, ``.`` or ``..``)."""
-    return isinstance(name, str) and name not in ("", ".", "..") and _file_safe(name) == name
+    return isinstance(name, str) and name not in ("", ".", "..") and file_safe(name) == name
 
 
 def owned_paths(out_dir: Path) -> tuple[set[str], set[str]]:
