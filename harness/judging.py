@@ -15,7 +15,9 @@ benchmark scripts all call ``judge``.  A verdict carries two readings of one ans
   that wrote into its problem), or "unconverged" (not that, and the solver said so).
 
 Every figure is NaN- and overflow-safe (``problems.kkt``): nothing non-finite can make a
-verdict better.  The scales come from the problem, never from the candidate.
+verdict better.  The scales come from the problem, never from the candidate.  Under load
+control the figures are read at the approach the judge fits and at the one the solver
+reports, the smaller kept (``answer_report``: each is a certificate).
 
 The judge computes with the operator the solver was handed, checked by ``ProblemSeal``:
 everything the operator holds is sealed -- private caches by what the operator builds from
@@ -497,12 +499,15 @@ def read_answer(p: Any, n: int) -> tuple[np.ndarray | None, str]:
 
 
 def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref: np.ndarray | None = None,
-          p_tol: float | None = None, analytic_load: float | None = None, *, tampered: str = "") -> Verdict:
+          p_tol: float | None = None, analytic_load: float | None = None, *, tampered: str = "",
+          multiplier: float | None = None) -> Verdict:
     """The verdict on answer ``p`` of instance ``inst`` (module doc).  ``claimed`` is the
     solver's own convergence claim; ``p_ref`` an exact reference answer; ``p_tol`` the
     allowed ||p - p_ref||_inf / ||p_ref||_inf for a "pass" (None: not checked);
     ``tampered`` what ``ProblemSeal.broken`` found the solver changed, or why the problem
-    is not the harness's to judge (threads the solver left running; "" nothing).
+    is not the harness's to judge (threads the solver left running; "" nothing);
+    ``multiplier`` the approach Delta the solver reports with its answer under load
+    control (``answer_report``).
     ``inst`` must be the harness's own copy of the problem; ``check_tol`` a finite number
     > 0 (``ProblemInputError``: an infinite one would pass p = 0, a NaN fail everything)."""
     check_positive("the judge's check_tol", check_tol)
@@ -520,7 +525,7 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     if np.asarray(p).dtype != np.float64:
         problems.append(f"returned {np.asarray(p).dtype} p (input ubar was {ubar_dtype})")
         kinds.append("dtype")
-    kkt = kkt_check(inst, pf)
+    kkt = answer_report(inst, pf, multiplier)
     with np.errstate(all="ignore"):  # a huge answer's load may overflow: a figure, not a verdict
         figures = answer_figures(inst, pf, kkt, p_ref, analytic_load, check_tol)
     solved = kkt.passes(check_tol)
@@ -534,6 +539,20 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
         kinds.append("reference")
     reading = "pass" if not problems else ("wrong" if claimed else "unconverged")
     return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems, kinds=kinds)
+
+
+def answer_report(inst: ContactInstance, p: np.ndarray, multiplier: float | None = None) -> KKTReport:
+    """The KKT figures of answer ``p`` (``kkt_check``).  Under load control the approach
+    Delta is part of the answer: the figures at the Delta the judge fits from p
+    (``constraints.fit_multiplier``) and, where the solver reports a finite one, at that
+    Delta -- the one it stopped on -- whichever is smaller.  Either is a certificate: with
+    every figure small at some Delta, p is near the answer, whoever named the Delta."""
+    kkt = kkt_check(inst, p)
+    reported = isinstance(multiplier, (int, float)) and not isinstance(multiplier, bool) and math.isfinite(multiplier)
+    if not (reported and inst.qp.constraints.load_control):
+        return kkt
+    at_reported = kkt_check(inst, p, float(multiplier))  # type: ignore[arg-type]
+    return at_reported if at_reported.kkt_error < kkt.kkt_error else kkt
 
 
 def shown_apart(value: float, limit: float) -> tuple[str, str]:
@@ -574,7 +593,7 @@ def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: 
         "contact_uncertain": inst.contact_uncertain(p, check_tol),
     }
     constraints = inst.qp.constraints
-    if constraints.load_control:  # the answer's approach: the equality's multiplier as the judge fits it
+    if constraints.load_control:  # the answer's approach: the equality's multiplier the figures were read at
         out["delta"] = kkt.multiplier
         out["load_residual"] = kkt.equality
     if constraints.bounded:

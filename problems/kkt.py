@@ -211,7 +211,7 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
     ||ubar||_inf when the caller already has it (a solver testing every iteration).
     A non-finite entry of p or w, or a product that overflows, gives inf."""
     u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
-    p_min, w_min, t_max, t_min, finite = _extremes(p, w, 1.0 / p_s)
+    p_min, w_min, t_max, t_min, finite = _extremes(p, w, p_s)
     with np.errstate(all="ignore"):
         primal = worse(_negative_part(below_zero(p_min)) / p_s)
         dual = worse(_negative_part(below_zero(w_min)) / u_s)
@@ -221,8 +221,8 @@ def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp), u_s, p_s)
 
 
-def _extremes(p: Any, w: Any, scale: float) -> tuple[float, float, float, float, bool]:
-    """min p, min w, max t, min t for t = (p scale) w, the scaled complementarity (0 for an
+def _extremes(p: Any, w: Any, p_s: float) -> tuple[float, float, float, float, bool]:
+    """min p, min w, max t, min t for t = (p / p_s) w, the scaled complementarity (0 for an
     empty array; NaN propagates), and whether p and w are finite, read in one transfer
     (``read_scalars``), in bands on the threads (``each_band``: min and max are exact, so the
     same figures on any thread count).  An array is finite when its least and greatest
@@ -234,7 +234,8 @@ def _extremes(p: Any, w: Any, scale: float) -> tuple[float, float, float, float,
     def part(s: slice) -> tuple[Any, ...]:
         ps, ws = p[s], w[s]
         with np.errstate(all="ignore"):
-            t = np.multiply(ps, scale)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow
+            t = np.divide(ps, p_s)  # (w / u_s)(p / p_s) in scaled form: no spurious underflow, nor an
+            # overflow of 1 / p_s where p_s is subnormal
             np.multiply(t, ws, out=t)
         return np.min(ps), np.min(ws), np.max(t), np.min(t), np.max(ps), np.max(ws)
 
@@ -384,6 +385,8 @@ def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> K
         raise ValueError(f"candidate p has shape {p.shape}, the problem has n = {ubar.size}")
     constraints = _constraints_of(qp)
     constraints.check(ubar.size)
+    if ubar.size == 0:  # no unknown: every figure 0, as the solvers' own (``constrained_kkt_error``)
+        return KKTReport(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, U_SCALE_FALLBACK, math.nan)
     diag_max = float(np.max(qp.H.diagonal()))
     u_s, p_s = constrained_scales(ubar, diag_max, constraints)
     if not (real and np.all(np.isfinite(p))):

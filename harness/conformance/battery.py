@@ -230,7 +230,8 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
         return row
     p_ref = ref.p if ref is not None and ref.trusted else None
     p_tol = p_tolerance(ref.cond, check_tol) if ref is not None and p_ref is not None else None
-    v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol, tampered=out.tampered)
+    v = judge(inst, out.p, bool(out.converged), check_tol, p_ref, p_tol, tampered=out.tampered,
+              multiplier=out.multiplier)
     row.claimed, row.iterations, row.iterated = bool(out.converged), out.iterations, out.iterated
     row.kkt_error = v.kkt_error
     row.p_rel_error = float(v.figures.get("p_rel_error", float("nan")))

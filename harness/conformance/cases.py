@@ -246,6 +246,7 @@ class CaseAnswer:
     iterated: bool = True  # False: the lifecycle answered without calling the solver (``answered_without_iterate``)
     own_skip: bool = False  # skipped by the solver's own refinements, not a capability it declares
     threads_left: str = ""  # the threads the solve left running ("" none)
+    multiplier: float | None = None  # the approach Delta the solve reports (load control)
 
 
 class DeclaredView:
@@ -365,7 +366,7 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
     tampered = seal.broken(qp) or left
     seal.mend(qp)  # (the judge's products, and the next case's in this process, run the sealed code)
     return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
-            "iterations": int(res.iterations),
+            "iterations": int(res.iterations), "multiplier": res.multiplier,
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
             "tampered": tampered, "iterated": not lifecycle, "threads_left": left}
 

@@ -168,7 +168,8 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
         p_ref = references[k] if references is not None and k < len(references) else None
         tampered = seal.broken(inst.qp)
         seal.mend(inst.qp)
-        verdict = judge(inst, res.p, bool(res.converged), tol, p_ref=p_ref, tampered=tampered)
+        verdict = judge(inst, res.p, bool(res.converged), tol, p_ref=p_ref, tampered=tampered,
+                        multiplier=res.multiplier)
         step = StepSolve(k, inst, res, seconds, start is not None, verdict)
         out.append(step)
         if on_step is not None:

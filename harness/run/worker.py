@@ -528,7 +528,7 @@ class SolveServer:
         reply.threads_left = left
         reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
                               analytic_load=self.analytic(task.step).get("load"),
-                              tampered=tampered or left or task.untimed)
+                              tampered=tampered or left or task.untimed, multiplier=res.multiplier)
         if not reply.verdict.usable:  # no answer (status "failed"): nothing to keep or draw
             reply.error = reply.verdict.message()
             if reply.verdict.tampered:
