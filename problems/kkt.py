@@ -18,7 +18,8 @@ every length -> c length).  Their two scales come from the *problem*, never from
 candidate (a huge answer must not shrink its own residuals):
 
 * a displacement scale  u_s = ||ubar||_inf  (length; ``U_SCALE_FALLBACK`` = 1 when
-  ubar = 0, whose only answer is p = 0, so the figures are then absolute), and
+  ubar = 0, whose only answer is p = 0, so the figures are then absolute; under load
+  control the load gives the scales then, ``constrained_scales``), and
 * a force scale         p_s = u_s / max(diag H)  (the force that alone indents one
   element by u_s).
 
@@ -197,8 +198,16 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
                        ubar_max: float | None = None) -> tuple[float, float]:
     """(u_s, p_s) of a QP with constraints: ``problem_scales``, with p_s capped by the
     least finite upper bound (a force no element can exceed, so a violation of the bound is
-    read against the bound itself).  The plain scales without bounds."""
-    u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+    read against the bound itself).  The plain scales without bounds.  Under load control
+    with ubar = 0 (a flat surface), where ``problem_scales`` has no length to go by, the load
+    gives the scales: p_s = P / n, the mean force, and u_s = p_s max diag H, its indentation of
+    one element (``U_SCALE_FALLBACK`` would judge in absolute units)."""
+    top = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
+    mean_force = float(constraints.load) / ubar.size if constraints.load_control and ubar.size else 0.0
+    if top == 0.0 and 0.0 < mean_force * float(diag_max) < math.inf:
+        u_s, p_s = mean_force * float(diag_max), mean_force
+    else:
+        u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
     if constraints.bounded:
         p_s = min(p_s, float(np.min(constraints.upper)))
     return u_s, p_s
