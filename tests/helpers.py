@@ -497,3 +497,12 @@ def refused_in_one_line(argv: list[str], capsys: Any) -> str:
     assert len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), captured.err
     assert "Traceback" not in captured.err and not captured.out
     return lines[0]
+
+
+def process_gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (gone, or a zombie waiting to be reaped; Linux /proc)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True
+    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")

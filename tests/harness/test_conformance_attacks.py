@@ -26,7 +26,7 @@ from contactbench.problems.scenes.stress import build_battery_spec
 from contactbench.solvers import Capabilities, Outcome, Param, SolveAborted, SolveContext, Solver, SolveResult, Status
 from contactbench.solvers.base import WITHOUT_ITERATE, ProblemTraits
 from contactbench.solvers.registry import register
-from tests.helpers import refused_in_one_line
+from tests.helpers import process_gone, refused_in_one_line
 
 HERE = __name__  # the import path of the solvers below
 ROOT = Path(__file__).resolve().parents[2]
@@ -233,15 +233,6 @@ def _start_a_sleeper_and_hang(pid_file: str) -> int:
     return 0
 
 
-def _gone(pid: int) -> bool:
-    """Whether process ``pid`` has ended (gone, or a zombie waiting to be reaped)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return True
-    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups and /proc: Linux")
 def test_the_processes_a_killed_worker_started_are_killed_with_it(tmp_path: Path) -> None:
     pid_file = tmp_path / "pid"
@@ -250,9 +241,9 @@ def test_the_processes_a_killed_worker_started_are_killed_with_it(tmp_path: Path
         assert child.call(str(pid_file), timeout=1.0).kind == "timeout"
     pid = int(pid_file.read_text())
     deadline = time.monotonic() + 10.0  # a bounded wait for the kernel, not a claim on speed
-    while not _gone(pid) and time.monotonic() < deadline:
+    while not process_gone(pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    survived = not _gone(pid)
+    survived = not process_gone(pid)
     if survived:
         os.kill(pid, 9)
     assert not survived, "the worker's child outlived it"

@@ -28,6 +28,7 @@ from contactbench.problems.lcp import exact_solution
 from contactbench.solvers import Outcome, SolveContext, Solver
 from contactbench.solvers._processes import SUBREAPER_MISSING, is_subreaper
 from contactbench.solvers.external import run_program
+from tests.helpers import process_gone
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason=f"/proc, and {SUBREAPER_MISSING}")
 
@@ -40,22 +41,13 @@ GONE_WAIT_S = 3.0
 PID_FILE_VAR = "CONTACTBENCH_TEST_ESCAPE_PID_FILE"
 
 
-def gone(pid: int) -> bool:
-    """Whether process ``pid`` has ended (gone, or a zombie waiting to be reaped)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return True
-    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
-
-
 def ended_in_time(pid: int, wait_s: float = 10.0) -> bool:
     """Whether ``pid`` ends within ``wait_s`` (a bounded wait for the kernel, not a claim on
     speed); a survivor is killed here, so that a failing test leaves nothing behind."""
     deadline = time.monotonic() + wait_s
-    while not gone(pid) and time.monotonic() < deadline:
+    while not process_gone(pid) and time.monotonic() < deadline:
         time.sleep(0.02)
-    if gone(pid):
+    if process_gone(pid):
         return True
     os.kill(pid, 9)
     return False

@@ -33,7 +33,7 @@ from contactbench.solvers.external import (
     manifest_paths,
     register_manifests,
 )
-from tests.helpers import TESTS
+from tests.helpers import TESTS, process_gone
 
 PY = sys.executable
 SCRIPT = TESTS / "external" / "standalone_solver.py"
@@ -52,18 +52,9 @@ def entry(**keys: object) -> str:
     return "[[solver]]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in keys.items())
 
 
-def gone(pid: int) -> bool:
-    """Whether process ``pid`` has ended (gone, or a zombie waiting to be reaped)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return True
-    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
-
-
 def end(pid: int) -> None:
     """Kill ``pid`` if it still runs (a failing test leaves nothing behind)."""
-    if not gone(pid):
+    if not process_gone(pid):
         os.kill(pid, 9)
 
 
@@ -258,7 +249,7 @@ def test_what_a_program_left_running_ends_before_its_answer_is_read(
     read = external.read_solution_dir
 
     def read_after_checking(*args: Any, **kwargs: Any) -> Any:
-        seen.append(gone(int(pid_file.read_text())))
+        seen.append(process_gone(int(pid_file.read_text())))
         return read(*args, **kwargs)
 
     monkeypatch.setattr(external, "read_solution_dir", read_after_checking)
@@ -272,6 +263,6 @@ def test_what_a_program_left_running_ends_before_its_answer_is_read(
         if pid_file.exists():
             end(int(pid_file.read_text()))
     deadline = time.monotonic() + 5.0
-    while not gone(int(pid_file.read_text())) and time.monotonic() < deadline:  # (the kernel's time)
+    while not process_gone(int(pid_file.read_text())) and time.monotonic() < deadline:  # (the kernel's time)
         time.sleep(0.02)
-    assert gone(int(pid_file.read_text()))
+    assert process_gone(int(pid_file.read_text()))
