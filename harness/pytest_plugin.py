@@ -8,6 +8,8 @@ Fixtures
                       ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance;
                       an unknown keyword or a step outside the sequence is refused.
 ``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
+``case_conforms``     (a function) one case of the battery in a test, for a test
+                      parametrized over ``conformance_cases()`` (``ids=str``).
 ``contactbench_settle``  ``settle(verdict, what, solver_message)``: a pytest outcome from
                       the judge's verdict, the rule pytest-benchmark runs use (below).
 ``run_harness``       factory: run the harness into a temporary directory and return the
@@ -145,3 +147,24 @@ def contactbench_conformance() -> Callable[..., Any]:
     from contactbench.harness.conformance.battery import assert_conforms
 
     return assert_conforms
+
+
+def case_conforms(solver: Any, case: Any, *, strict: bool = False, **kw: Any) -> Any:
+    """One conformance case (``battery.ConformanceCase``) of ``solver`` (instance, registry
+    name or ``module:NAME``) as a pytest outcome: a failure, its verdict line first, on a
+    wrong answer claimed as converged or a case left unsolved (``strict``: also a crash, a
+    timeout or a flagged row); a skip with the reason where the solver is not available or
+    is not handed the case (a declared capability, its own skip, the lifecycle's answer:
+    the battery's coverage rule is ``assert_conforms``'s); else the verdict table."""
+    from contactbench.harness.conformance.battery import validate
+
+    table = validate(solver, [case], **kw)
+    if not table.available:
+        pytest.skip(table.note)
+    outcome = table.outcome(strict)
+    if outcome == "untested":
+        why = "; ".join(dict.fromkeys(r.message for r in table.rows if r.step >= 0)) or "no answer judged"
+        pytest.skip(f"{case}: not handed to {table.solver}: {why}")
+    if outcome != "conforms":
+        pytest.fail(f"{table.solver} on {case}: {table.headline(strict)}\n{table.format(strict)}", pytrace=False)
+    return table

@@ -80,9 +80,12 @@ convergence with ``"status"`` "converged", "solved" or "optimal", or no status
 DIR/verdicts.csv and DIR/conformance.md) into a new or empty folder or a conformance
 report folder, never into another one; the exit status is the same.
 
-For pytest: ``conformance_cases()`` lists the cases (parametrize over them) and
-``assert_conforms(solver)`` raises AssertionError with the verdict table unless the
-solver conforms (an untested solver does not).
+For pytest: ``assert_conforms(solver)`` raises AssertionError, its verdict line first and
+then the table, unless the solver conforms over the battery (an untested solver does
+not).  Case by case, parametrize over ``conformance_cases()`` (``ids=str``: each case by
+its name) and call ``harness.pytest_plugin.case_conforms(solver, case)``: a case the
+solver is not handed (a declared capability rules it out, its own skip, or the lifecycle
+answers it) is a pytest skip with the reason, as the coverage rule belongs to the battery.
 """
 
 from __future__ import annotations
@@ -548,7 +551,7 @@ def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | Inst
     if not table.available:
         raise AssertionError(table.note)
     if table.exit_code(strict):
-        raise AssertionError("\n" + table.format(strict))
+        raise AssertionError(f"{table.solver}: {table.headline(strict)}\n{table.format(strict)}")
     return table
 
 

@@ -132,16 +132,27 @@ def warm_cases() -> list[ConformanceCase]:
 def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
                       pattern: str | None = None) -> list[ConformanceCase]:
     """The battery's recipes: ``mode`` "fast" (the test-suite subset, seconds per solver)
-    or "full"; optionally only some ``groups`` (``BATTERY_GROUPS``; each case once, however
-    often its group is named) or names matching ``pattern`` (fnmatch, e.g. ``"edge/*"``; a
-    group name matches its whole group)."""
-    chosen = tuple(dict.fromkeys(groups)) if groups else BATTERY_GROUPS
+    or "full"; optionally only some ``groups`` (``BATTERY_GROUPS``; one group may be given
+    as its name alone; each case once, however often its group is named) or names matching
+    ``pattern`` (fnmatch, e.g. ``"edge/*"``; a group name matches its whole group).  An
+    unknown group, or a pattern that matches no case, is a one-line ``ProblemInputError``
+    (parametrized over nothing, a test would pass vacuously).  Each case reads as its name
+    (``str``): ``pytest.mark.parametrize("case", conformance_cases(), ids=str)``."""
+    named = (groups,) if isinstance(groups, str) else tuple(groups or ())
+    unknown = [g for g in named if g not in BATTERY_GROUPS]
+    if unknown:
+        raise ProblemInputError(f"unknown battery group(s) {', '.join(map(repr, unknown))}; choose from "
+                                f"{', '.join(BATTERY_GROUPS)}")
+    chosen = tuple(dict.fromkeys(named)) if named else BATTERY_GROUPS
     stress = tuple(g for g in chosen if g != WARM_GROUP)
     cases = [ConformanceCase(s) for s in battery_specs(mode, stress, scene="stress")] if stress else []
     if WARM_GROUP in chosen:
         cases += warm_cases()
     if pattern:
         cases = [c for c in cases if fnmatch.fnmatch(c.name, pattern) or fnmatch.fnmatch(c.group, pattern)]
+        if not cases:
+            raise ProblemInputError(f"no case matches {pattern!r} in the groups {', '.join(chosen)}; give a glob "
+                                    "such as 'edge/*'")
     return cases
 
 

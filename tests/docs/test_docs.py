@@ -105,3 +105,15 @@ def test_the_docs_pytest_snippet_passes(outside: Path, monkeypatch: pytest.Monke
     finally:  # importing the example registered it: leave the registry as it was
         unregister("example-apg")
         sys.modules.pop("example_solver", None)
+
+
+def test_the_docs_case_by_case_snippet_passes_and_skips_what_is_not_handed(outside: Path) -> None:
+    snippet = next(b for b in blocks("python") if "case_conforms" in b)
+    (outside / "test_cases_snippet.py").write_text(snippet)
+    env = {**os.environ, "PYTHONPATH": str(outside)}
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:randomly",
+                           "-rs", "test_cases_snippet.py", "-k", "delta0 or single-point or load-bcc"],
+                          cwd=outside, env=env, capture_output=True, text=True, timeout=300)
+    out = done.stdout + done.stderr
+    assert done.returncode == 0 and "passed" in out and "skipped" in out, out
+    assert "[edge/delta0-N16]" in out or "edge/delta0-N16" in out, out  # (each test named by its case)

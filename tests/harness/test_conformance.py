@@ -637,7 +637,7 @@ def test_case_selection_each_case_once_and_list_refuses_an_empty_selection(
     assert len(listed) == len(once) == len(set(listed))
     nothing_may_run(monkeypatch)
     for argv in (["--list", "--cases", "nomatch"], [f"{HERE}:GoodSolver", "--cases", "nomatch"]):
-        assert "no case matches --cases 'nomatch'" in refused_in_one_line(argv, capsys)
+        assert "no case matches 'nomatch' in the groups" in refused_in_one_line(argv, capsys)
 
 
 def test_an_empty_selection_of_cases_is_refused_not_passed() -> None:
