@@ -67,6 +67,12 @@ def check_timeout(seconds: float | None) -> float | None:
 #: Grace beyond the solver's own time limit before its worker is killed: a solver that
 #: honours ``time_limit`` returns an honest answer, only a hanging one is killed.
 KILL_GRACE = (2.0, 0.25)  # seconds + fraction of the limit
+
+
+def kill_limit(timeout: float) -> float:
+    """Seconds a solve with time limit ``timeout`` may run before it is stopped as a
+    timeout: the limit and ``KILL_GRACE``."""
+    return timeout + KILL_GRACE[0] + KILL_GRACE[1] * timeout
 #: Largest n the exact reference (and a dense-only solver) assembles densely.
 REFERENCE_MAX_N = 4096
 #: What a solve of the battery may use: a dense H at the reference limit plus its copies.
@@ -419,8 +425,7 @@ class CaseRunner:
             assert self.solver is not None
             with ends_what_it_starts():
                 return CaseAnswer(**solve_case(self.solver, msg))
-        out = self.worker.call(msg, None if self.timeout is None else
-                               self.timeout + KILL_GRACE[0] + KILL_GRACE[1] * self.timeout)
+        out = self.worker.call(msg, None if self.timeout is None else kill_limit(self.timeout))
         if out.kind == "ok":
             answer = CaseAnswer(**out.value)
             if answer.threads_left:  # (its threads may still write: the next case gets a fresh worker)
