@@ -63,15 +63,17 @@ def first_of_each_cell(cell_ids: Iterable[Any]) -> list[bool]:
 
 def read_journal(path: Path) -> list[dict[str, Any]]:
     """Rows of a journal, the first of each cell (``first_of_each_cell``); lines that are not
-    a JSON object are ignored; a row without a text ``cell_id`` is a ``JournalError``."""
+    a JSON object Python reads are ignored (a torn write, a blank line, bytes that are not
+    UTF-8, nesting or a number too deep or long to read: their cells run again); a row
+    without a text ``cell_id`` is a ``JournalError``."""
     rows: list[dict[str, Any]] = []
     if not path.exists():
         return rows
-    with open(path, encoding="utf-8") as fh:
+    with open(path, "rb") as fh:
         for number, line in enumerate(fh, 1):
             try:
-                row = json.loads(line)
-            except json.JSONDecodeError:  # (a blank line too)
+                row = json.loads(line.decode("utf-8"))
+            except (UnicodeDecodeError, ValueError, RecursionError):  # (JSONDecodeError is a ValueError)
                 continue
             if not isinstance(row, dict):
                 continue

@@ -4,7 +4,8 @@ value past the table contract, and a cell is never counted twice.
 * a resume of a folder whose rows.jsonl breaks the contract (an unknown status, text in a
   number column) is refused in one line naming rows.jsonl, exit 2, the folder untouched;
   the tables are never rewritten with text read as a missing number;
-* journal lines that are JSON but not an object are unparsable, so ignored; a row without
+* journal lines that are JSON but not an object, or that Python cannot read (not UTF-8, nested or
+  numbered past its reader), are ignored; a row without
   ``cell_id`` is refused in one line naming rows.jsonl and the line;
 * ``load_table`` keeps the first row of each cell of a results.parquet / results.csv, as
   the journal reader does; rows without a cell id are all kept;
@@ -98,6 +99,20 @@ def test_journal_lines_that_are_not_objects_are_ignored(genuine: Path, tmp_path:
     assert len(ResultStore(out)) == 2
     table = load_table(out)  # (the journal is newer than the table: it is read)
     assert sorted(table["cell_id"]) == sorted(r["cell_id"] for r in rows)
+
+
+@pytest.mark.parametrize("line", [b"caf\xe9\n", b"[" * 100_000 + b"\n", b'{"x": 1' + b"0" * 5000 + b"}\n"],
+                         ids=["not-utf8", "nested-deep", "number-too-long"])
+def test_journal_lines_python_cannot_read_are_ignored_and_resumed_over(genuine: Path, tmp_path: Path,
+                                                                        line: bytes) -> None:
+    out = copy_of(genuine, tmp_path)
+    rows = journal(out)
+    with open(out / ROWS_FILE, "ab") as fh:
+        fh.write(line)
+    assert len(ResultStore(out)) == 2
+    assert sorted(load_table(out)["cell_id"]) == sorted(r["cell_id"] for r in rows)
+    assert cli.main(["run", *ARGS, "--out", str(out)]) == 0  # (a resume: nothing left to run)
+    assert sorted(load_table(out)["cell_id"]) == sorted(r["cell_id"] for r in rows)
 
 
 @pytest.mark.parametrize("cell_id", [None, "", 7, "drop"])
