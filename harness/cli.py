@@ -22,7 +22,8 @@ Exit status (docs/harness.md, "Exit status"):
 
 * 0 -- done (``run``: at least one row was judged, solved or inaccurate);
 * 1 -- ``run`` wrote its table but the judge could read no row: every one failed,
-  timed out, crashed or was skipped (the summary line and the table say why);
+  timed out, crashed or was skipped (the summary line and the table say why); or a
+  ``--jobs`` process was killed and the run stopped, its rows kept (one line);
 * 2 -- bad input, refused before anything runs, in one line per problem and no
   traceback: an unknown name (with the closest known ones), an empty or repeated item of
   a comma list (``--solvers pk,,nnls``, ``--profile low,low``), an option the scene would
@@ -60,6 +61,8 @@ from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
+#: ... and of a run a lost ``--jobs`` process stopped, its rows kept (module doc).
+EXIT_POOL_LOST = 1
 #: Exit status when the reader of the output closed it (128 + SIGPIPE, as a shell reports it).
 EXIT_BROKEN_PIPE = 141
 #: Exit status of a command stopped by SIGTERM (128 + SIGTERM, as a shell reports it).
@@ -430,6 +433,7 @@ def held_warnings() -> Iterator[HeldWarnings]:
 def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | None = None) -> int:
     """``run``: plan, check the folder, run; ``held``: the command's held warnings, shown
     once every check has passed (``run_benchmark``'s ``ready``; a Dask run's when it ends)."""
+    from .run.executors import PoolProcessLost
     from .run.runner import RunConfig, run_benchmark
 
     cfg = scene_config(args)
@@ -453,8 +457,12 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | 
             summary = run_benchmark_on_dask(args.scenes, cfg, args.solvers, run_cfg, out, args.scheduler,
                                             command=["contactbench", *argv], append=args.append)
         else:
-            summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
-                                    append=args.append, ready=None if held is None else held.release)
+            try:
+                summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
+                                        append=args.append, ready=None if held is None else held.release)
+            except PoolProcessLost as exc:
+                print(f"contactbench: error: {exc}", file=sys.stderr)
+                return EXIT_POOL_LOST
     if held is not None:
         held.release()
     for w in summary.warnings:

@@ -23,6 +23,7 @@ import sys
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, InvalidStateError, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
@@ -111,6 +112,11 @@ def _pool_run(job: InstanceJob, run: RunConfig, out_dir: str, statuses: dict[str
         _IN_JOB = False
 
 
+class PoolProcessLost(RuntimeError):
+    """A ``--jobs`` process ended abruptly (killed: the out-of-memory killer, ``kill -9``);
+    the run stopped with the rows stored so far kept (one line, ``cli``)."""
+
+
 @dataclass
 class PoolExecutor:
     """A local process pool of ``workers`` processes (forked on Linux)."""
@@ -140,11 +146,15 @@ class PoolExecutor:
                     now = store.count_lines() - lines0
                     progress.update(max(0, now - seen))
                     seen = max(seen, now)
-            except BaseException:  # an interrupt (or a job's error): no job may run on after it
+            except BaseException as exc:  # an interrupt (or a job's error): no job may run on after it
                 for f in futures:
                     f.cancel()
                 with signals_deferred():  # (a second Ctrl-C does not leave the pool's processes running)
                     stop_workers(pool)
+                if isinstance(exc, BrokenProcessPool):
+                    raise PoolProcessLost("a --jobs process ended abruptly (killed: out of memory, or kill -9) and "
+                                          "the run stopped; the rows stored are kept: the same command resumes "
+                                          "the rest") from None
                 raise
 
 
