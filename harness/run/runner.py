@@ -29,6 +29,7 @@ folder's marker pins -- so deciding it again would give the same answer.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -211,10 +212,14 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     bar = progress_bar(total, already, show_bar)
     try:
         executor.execute(pending, run, store, statuses, bar, verbose=not show_bar)
-    finally:
+    except BaseException:  # (an interrupt, a full disk): the table from the rows kept, the first error told
         bar.close()
-        with signals_deferred():  # (a second Ctrl-C while the table is written waits for it)
-            table = ResultStore(store.out).finalize()
+        with signals_deferred(), contextlib.suppress(Exception):
+            ResultStore(store.out).finalize()
+        raise
+    bar.close()
+    with signals_deferred():  # (a second Ctrl-C while the table is written waits for it)
+        table = ResultStore(store.out).finalize()
     counts = {str(k): int(v) for k, v in table["status"].value_counts().items()} if len(table) else {}
     return RunSummary(str(store.out), len(table), len(table) - before, counts, time.perf_counter() - t0, plan.warnings)
 

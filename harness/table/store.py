@@ -133,14 +133,23 @@ class ResultStore:
         return len(self._status)
 
     def append(self, row: dict[str, Any]) -> None:
-        """Write one row durably (flock + single write + fsync)."""
+        """Write one row durably (flock + whole line + fsync), or not at all: a write that
+        fails part-way (a full disk) is cut back to the journal as it was, so no torn line
+        joins the next row, and the ``OSError`` names the journal."""
         line = encode_row(row).encode("utf-8")
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
+            size = os.fstat(fd).st_size
             try:
-                os.write(fd, line)
+                written = 0
+                while written < len(line):
+                    written += os.write(fd, line[written:])
                 os.fsync(fd)
+            except OSError as exc:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(fd, size)
+                raise OSError(exc.errno, exc.strerror, str(self.path)) from None
             finally:
                 fcntl.flock(fd, fcntl.LOCK_UN)
         finally:

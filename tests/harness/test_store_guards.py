@@ -13,7 +13,9 @@ value past the table contract, and a cell is never counted twice.
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import shutil
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,7 @@ import pytest
 
 from contactbench.harness import cli, run_benchmark
 from contactbench.harness.run.plan import RunConfig
+from contactbench.harness.table import store as store_module
 from contactbench.harness.table.store import LOCK_FILE, ROWS_FILE, ResultStore, RunLock, load_table
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig
@@ -164,3 +167,29 @@ def test_run_lock_leaves_a_file_that_is_not_a_lock_record(tmp_path: Path, text: 
         with RunLock(folder):
             pass
     assert (folder / LOCK_FILE).read_text() == text
+
+
+def test_a_row_the_disk_takes_only_part_of_is_cut_back_and_the_error_names_the_journal(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk mid-row: the part written is cut back (no torn line for the next row to
+    join) and the ``OSError`` names rows.jsonl."""
+    store = ResultStore(tmp_path)
+    store.append({"cell_id": "a", "status": "skipped", "skip_reason": "x"})
+    before = (tmp_path / ROWS_FILE).read_bytes()
+    calls: list[int] = []
+    real_write = os.write
+
+    def half_then_full(fd: int, data: bytes) -> int:
+        calls.append(len(data))
+        if len(calls) == 1:
+            return real_write(fd, data[: len(data) // 2])
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(store_module.os, "write", half_then_full)
+    with pytest.raises(OSError) as full:
+        store.append({"cell_id": "b", "status": "skipped", "skip_reason": "x"})
+    monkeypatch.undo()
+    assert full.value.errno == errno.ENOSPC and full.value.filename == str(tmp_path / ROWS_FILE)
+    assert (tmp_path / ROWS_FILE).read_bytes() == before
+    store.append({"cell_id": "c", "status": "skipped", "skip_reason": "x"})
+    assert [r["cell_id"] for r in ResultStore(tmp_path).rows()] == ["a", "c"]
