@@ -17,9 +17,15 @@ wheel and for the editable install of ``make`` alike.
 
 from __future__ import annotations
 
-from importlib import metadata as _metadata
 
-try:
-    __version__ = _metadata.version("contactbench")  # the one version: pyproject.toml
-except _metadata.PackageNotFoundError:  # pragma: no cover - not installed
-    __version__ = "unknown"
+def __getattr__(name: str) -> str:
+    """``__version__``, read when asked (the one version: pyproject.toml), so that importing
+    the package (the ``contactbench`` command's first step) reads no metadata."""
+    if name != "__version__":
+        raise AttributeError(f"module 'contactbench' has no attribute {name!r}")
+    from importlib import metadata
+
+    try:
+        return metadata.version("contactbench")
+    except metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"

@@ -54,6 +54,7 @@ from contactbench.problems.operators import fft_backend, fft_workers, memory_bud
 from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
 
+from contactbench.command import EXIT_INTERRUPTED, STARTING_TEXT
 from contactbench.plugins import did_you_mean
 
 from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float, time_limit,
@@ -67,8 +68,6 @@ EXIT_POOL_LOST = 1
 EXIT_BROKEN_PIPE = 141
 #: Exit status of a command stopped by SIGTERM (128 + SIGTERM, as a shell reports it).
 EXIT_TERMINATED = 143
-#: ... and by Ctrl-C (128 + SIGINT).
-EXIT_INTERRUPTED = 130
 
 
 class Terminated(KeyboardInterrupt):
@@ -591,9 +590,12 @@ def show_warning_on_one_line(message: Warning | str, category: type[Warning], fi
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    with warnings.catch_warnings(), terminate_as_interrupt():
-        warnings.showwarning = show_warning_on_one_line
-        return _main(list(sys.argv[1:] if argv is None else argv))
+    try:
+        with warnings.catch_warnings(), terminate_as_interrupt():
+            warnings.showwarning = show_warning_on_one_line
+            return _main(list(sys.argv[1:] if argv is None else argv))
+    except KeyboardInterrupt as exc:  # (stopped before a command ran: while its arguments and modules were read)
+        return stopped(exc, STARTING_TEXT)
 
 
 def _main(argv: list[str]) -> int:
