@@ -7,11 +7,7 @@ from __future__ import annotations
 
 import sys
 
-#: Exit status of a command stopped by Ctrl-C (128 + SIGINT), as ``harness.cli`` ends one.
-EXIT_INTERRUPTED = 130
-#: What a command stopped before it ran anything was doing (``harness.cli`` says it too, while
-#: it reads its arguments).
-STARTING_TEXT = "contactbench was starting; nothing was run"
+from contactbench.stops import EXIT_INTERRUPTED, STARTING_TEXT
 
 
 def main() -> int:

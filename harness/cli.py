@@ -54,7 +54,7 @@ from contactbench.problems.operators import fft_backend, fft_workers, memory_bud
 from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
 
-from contactbench.command import EXIT_INTERRUPTED, STARTING_TEXT
+from contactbench.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, STARTING_TEXT
 from contactbench.plugins import did_you_mean
 
 from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float, time_limit,
@@ -66,8 +66,6 @@ EXIT_NOTHING_JUDGED = 1
 EXIT_POOL_LOST = 1
 #: Exit status when the reader of the output closed it (128 + SIGPIPE, as a shell reports it).
 EXIT_BROKEN_PIPE = 141
-#: Exit status of a command stopped by SIGTERM (128 + SIGTERM, as a shell reports it).
-EXIT_TERMINATED = 143
 
 
 class Terminated(KeyboardInterrupt):
