@@ -187,3 +187,15 @@ def check_out_dir(path: str, option: str = "--out") -> Path:
     if not os.access(probe, os.W_OK | os.X_OK):
         raise InputError(f"{option} {path}: cannot write in {probe} (permission denied)")
     return p
+
+
+def os_error_line(exc: OSError) -> str:
+    """The one line of a path that cannot be read or written: the path, and what is
+    wrong in our words where the system's are unclear (``FileExistsError``: something --
+    a file, a link, a link to nothing -- is where a folder or file was to be made)."""
+    where = f"{exc.filename}: " if exc.filename else ""
+    if isinstance(exc, FileExistsError) and exc.filename:
+        kind = "a symbolic link" if os.path.islink(exc.filename) else "a file" if os.path.isfile(exc.filename) \
+            else "something"
+        return f"{where}{kind} is in the way of what the command makes there; move it away"
+    return f"{where}{exc.strerror or exc}"

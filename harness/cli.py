@@ -22,8 +22,9 @@ Exit status (docs/harness.md, "Exit status"):
 
 * 0 -- done (``run``: at least one row was judged, solved or inaccurate);
 * 1 -- ``run`` wrote its table but the judge could read no row: every one failed,
-  timed out, crashed or was skipped (the summary line and the table say why); or a
-  ``--jobs`` process was killed and the run stopped, its rows kept (one line);
+  timed out, crashed or was skipped (the summary line and the table say why); or the
+  run stopped once it ran -- a ``--jobs`` process killed, a write that failed (a full
+  disk) -- its rows kept (one line);
 * 2 -- bad input, refused before anything runs, in one line per problem and no
   traceback: an unknown name (with the closest known ones), an empty or repeated item of
   a comma list (``--solvers pk,,nnls``, ``--profile low,low``), an option the scene would
@@ -57,13 +58,14 @@ from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionR
 from contactbench.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, STARTING_TEXT
 from contactbench.plugins import did_you_mean
 
-from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, positive_float, time_limit,
-                        positive_number, plain_number)
+from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, os_error_line, positive_float,
+                        time_limit, positive_number, plain_number)
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
-#: ... and of a run a lost ``--jobs`` process stopped, its rows kept (module doc).
-EXIT_POOL_LOST = 1
+#: ... and of a run stopped once it ran -- a lost ``--jobs`` process, a write that failed (a
+#: full disk) -- its rows kept (module doc).
+EXIT_RUN_STOPPED = 1
 #: Exit status when the reader of the output closed it (128 + SIGPIPE, as a shell reports it).
 EXIT_BROKEN_PIPE = 141
 
@@ -430,7 +432,7 @@ def held_warnings() -> Iterator[HeldWarnings]:
 def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | None = None) -> int:
     """``run``: plan, check the folder, run; ``held``: the command's held warnings, shown
     once every check has passed (``run_benchmark``'s ``ready``; a Dask run's when it ends)."""
-    from .run.executors import PoolProcessLost
+    from .run.executors import RunStopped
     from .run.runner import RunConfig, run_benchmark
 
     cfg = scene_config(args)
@@ -457,9 +459,9 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | 
             try:
                 summary = run_benchmark(args.scenes, cfg, args.solvers, run_cfg, out, command=["contactbench", *argv],
                                         append=args.append, ready=None if held is None else held.release)
-            except PoolProcessLost as exc:
+            except RunStopped as exc:
                 print(f"contactbench: error: {exc}", file=sys.stderr)
-                return EXIT_POOL_LOST
+                return EXIT_RUN_STOPPED
     if held is not None:
         held.release()
     for w in summary.warnings:
@@ -627,18 +629,6 @@ def _main(argv: list[str]) -> int:
         print(f"contactbench: error: {os_error_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     return 1
-
-
-def os_error_line(exc: OSError) -> str:
-    """The one line of a path that cannot be read or written: the path, and what is
-    wrong in our words where the system's are unclear (``FileExistsError``: something --
-    a file, a link, a link to nothing -- is where a folder or file was to be made)."""
-    where = f"{exc.filename}: " if exc.filename else ""
-    if isinstance(exc, FileExistsError) and exc.filename:
-        kind = "a symbolic link" if os.path.islink(exc.filename) else "a file" if os.path.isfile(exc.filename) \
-            else "something"
-        return f"{where}{kind} is in the way of what the command makes there; move it away"
-    return f"{where}{exc.strerror or exc}"
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -112,9 +112,13 @@ def _pool_run(job: InstanceJob, run: RunConfig, out_dir: str, statuses: dict[str
         _IN_JOB = False
 
 
-class PoolProcessLost(RuntimeError):
-    """A ``--jobs`` process ended abruptly (killed: the out-of-memory killer, ``kill -9``);
-    the run stopped with the rows stored so far kept (one line, ``cli``)."""
+class RunStopped(RuntimeError):
+    """A run stopped once it ran -- its cells were being solved and stored -- with the rows
+    stored so far kept: one line, and the same command resumes (``cli``: exit 1)."""
+
+
+class PoolProcessLost(RunStopped):
+    """A ``--jobs`` process ended abruptly (killed: the out-of-memory killer, ``kill -9``)."""
 
 
 @dataclass

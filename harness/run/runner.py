@@ -40,7 +40,8 @@ from typing import Any, Callable, Sequence
 
 from contactbench.problems.scenes import SceneConfig
 
-from .executors import Executor, local_executor, output_log_name
+from ..arguments import os_error_line
+from .executors import Executor, RunStopped, local_executor, output_log_name
 from .interrupts import signals_deferred
 from .output_log import OUTPUT_LOG
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
@@ -212,10 +213,13 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     bar = progress_bar(total, already, show_bar)
     try:
         executor.execute(pending, run, store, statuses, bar, verbose=not show_bar)
-    except BaseException:  # (an interrupt, a full disk): the table from the rows kept, the first error told
+    except BaseException as exc:  # (an interrupt, a full disk): the table from the rows kept, the first error told
         bar.close()
         with signals_deferred(), contextlib.suppress(Exception):
             ResultStore(store.out).finalize()
+        if isinstance(exc, OSError):  # a write that failed as the cells ran: no bad input
+            raise RunStopped(f"{os_error_line(exc)}; the run stopped, the rows stored are kept: the same command "
+                             "resumes the rest") from None
         raise
     bar.close()
     with signals_deferred():  # (a second Ctrl-C while the table is written waits for it)
