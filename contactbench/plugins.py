@@ -22,6 +22,8 @@ import traceback
 from importlib import metadata
 from typing import Callable, Generic, Iterable, Iterator, TypeVar
 
+from contactbench.stops import raise_noted, signals_noted
+
 T = TypeVar("T")
 
 
@@ -89,20 +91,25 @@ class PluginRegistry(Generic[T]):
     # -- discovery -------------------------------------------------------------
 
     def discover(self) -> None:
-        """Import the package's plug-in modules and the entry points, once."""
+        """Import the package's plug-in modules and the entry points, once.  A user's stop
+        (Ctrl-C, SIGTERM) that an import swallowed -- a ``KeyboardInterrupt`` caught inside
+        a third-party module's import -- is raised once the imports are done
+        (``stops.raise_noted``)."""
         if self._discovered:
             return
         self._discovered = True  # set first: a plug-in module may read the registry
-        for module in self._plugin_modules():
-            try:
-                importlib.import_module(module)
-            except Exception:  # a broken module must not take the registry down
-                self._errors[module] = traceback.format_exc(limit=-4)
-        for ep in self._entry_points():
-            try:
-                ep.load()
-            except Exception:
-                self._errors[f"entry point {ep.name}"] = traceback.format_exc(limit=-4)
+        with signals_noted() as arrived:
+            for module in self._plugin_modules():
+                try:
+                    importlib.import_module(module)
+                except Exception:  # a broken module must not take the registry down
+                    self._errors[module] = traceback.format_exc(limit=-4)
+            for ep in self._entry_points():
+                try:
+                    ep.load()
+                except Exception:
+                    self._errors[f"entry point {ep.name}"] = traceback.format_exc(limit=-4)
+        raise_noted(arrived)
 
     def _plugin_modules(self) -> Iterator[str]:
         if self.package is None:

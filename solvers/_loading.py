@@ -19,14 +19,12 @@ raised -- ``SolverLoadError``, a bad-input error (``ProblemInputError``).
 from __future__ import annotations
 
 import os
-import signal
-import threading
 from contextlib import contextmanager
 from pathlib import Path
-from types import FrameType
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 from contactbench.problems.errors import ProblemInputError
+from contactbench.stops import raise_noted, signals_noted
 
 
 class SolverLoadError(ProblemInputError):
@@ -39,9 +37,6 @@ class ImportAborted(Exception):
     was built (``user_code``); the original is its ``__cause__``."""
 
 
-#: The signals whose arrival makes a ``KeyboardInterrupt`` the user's (Ctrl-C; SIGTERM,
-#: which the command line raises as one: harness/cli.py ``Terminated``).
-USER_STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM)
 
 
 def one_line(text: str) -> str:
@@ -78,44 +73,13 @@ def exception_line(exc: BaseException) -> str:
     return one_line(exception_text(exc))
 
 
-def _noting(arrived: set[int], handler: Callable[[int, FrameType | None], Any]) -> Callable[..., Any]:
-    """A signal handler that records its signal in ``arrived``, then runs ``handler``."""
-
-    def note(signum: int, frame: FrameType | None) -> Any:
-        arrived.add(signum)
-        return handler(signum, frame)
-
-    return note
-
-
-@contextmanager
-def signals_noted() -> Iterator[set[int]]:
-    """The set of ``USER_STOP_SIGNALS`` that arrive while the block runs, each still
-    handled by the handler it had.  Only the main thread's Python handlers raise
-    ``KeyboardInterrupt``; elsewhere (another thread, a signal ignored or left to its
-    default) nothing is watched, and none of them can raise one."""
-    arrived: set[int] = set()
-    before: dict[int, tuple[Any, Any]] = {}
-    if threading.current_thread() is threading.main_thread():
-        for signum in USER_STOP_SIGNALS:
-            handler = signal.getsignal(signum)
-            if callable(handler):
-                before[signum] = (handler, _noting(arrived, handler))
-                signal.signal(signum, before[signum][1])
-    try:
-        yield arrived
-    finally:
-        for signum, (handler, noting) in before.items():
-            if signal.getsignal(signum) is noting:  # (a handler the block set is left as it is)
-                signal.signal(signum, handler)
-
-
 @contextmanager
 def user_code(spec: str, doing: str) -> Iterator[None]:
     """Run the block, user code of the solver ``spec`` (``doing``: what it does, e.g.
     "importing module 'm'"): an ``Exception`` it raises passes as it is; anything else
     is raised as an ``ImportAborted`` (module doc), except a ``KeyboardInterrupt`` while a
-    ``USER_STOP_SIGNALS`` signal arrived, the user's, which passes."""
+    ``USER_STOP_SIGNALS`` signal arrived, the user's, which passes; and a user's stop the
+    block swallowed is raised after it (``stops.raise_noted``)."""
     with signals_noted() as arrived:
         try:
             yield
@@ -125,6 +89,7 @@ def user_code(spec: str, doing: str) -> Iterator[None]:
             if isinstance(exc, KeyboardInterrupt) and arrived:
                 raise
             raise ImportAborted(f"{doing} raised {exception_line(exc)}") from exc
+    raise_noted(arrived)
 
 
 def file_path_hint(module: str, attr: str) -> str:

@@ -1,15 +1,19 @@
 """A Ctrl-C (or SIGTERM) while the ``contactbench`` command is still loading its modules or
 reading its arguments ends it in one line, exit 130 (143), as one later does -- not in a
-traceback through the imports (``contactbench.command``, ``harness.cli.main``)."""
+traceback through the imports (``contactbench.command``, ``harness.cli.main``); and a stop
+that an import swallowed still stops the command (``stops.raise_noted``)."""
 
 from __future__ import annotations
 
+import signal
 import sys
 import types
+from pathlib import Path
 
 import pytest
 
 from contactbench import command
+from contactbench.plugins import PluginRegistry
 from contactbench.harness import cli
 
 
@@ -44,3 +48,31 @@ def test_the_installed_command_is_the_quiet_entry_point() -> None:
 
     (entry,) = [e for e in metadata.entry_points(group="console_scripts") if e.name == "contactbench"]
     assert entry.value == "contactbench.command:main"
+
+
+SWALLOWS_A_STOP = '''
+import os, signal, time
+try:  # (as a third-party import can: a KeyboardInterrupt caught where it landed)
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(2)
+except KeyboardInterrupt:
+    pass
+'''
+
+
+def test_a_stop_an_import_swallowed_still_stops_the_discovery(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    package = tmp_path / "cb_swallowing_plugins"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "swallows.py").write_text(SWALLOWS_A_STOP)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # (a test worker may ignore SIGINT)
+    try:
+        registry: PluginRegistry[object] = PluginRegistry("thing", package="cb_swallowing_plugins")
+        with pytest.raises(KeyboardInterrupt):
+            registry.discover()
+    finally:
+        signal.signal(signal.SIGINT, before)
+        sys.modules.pop("cb_swallowing_plugins.swallows", None)
+        sys.modules.pop("cb_swallowing_plugins", None)
