@@ -207,7 +207,7 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     if top == 0.0 and 0.0 < mean_force * float(diag_max) < math.inf:
         u_s, p_s = mean_force * float(diag_max), mean_force
     else:
-        u_s, p_s = problem_scales(ubar, diag_max, ubar_max)
+        u_s, p_s = problem_scales(ubar, diag_max, top)  # (||ubar||_inf read once)
     if constraints.bounded:
         p_s = min(p_s, float(np.min(constraints.upper)))
     return u_s, p_s
