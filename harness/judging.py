@@ -547,12 +547,8 @@ def answer_report(inst: ContactInstance, p: np.ndarray, multiplier: float | None
     (``constraints.fit_multiplier``) and, where the solver reports a finite one, at that
     Delta -- the one it stopped on -- whichever is smaller.  Either is a certificate: with
     every figure small at some Delta, p is near the answer, whoever named the Delta."""
-    kkt = kkt_check(inst, p)
     reported = isinstance(multiplier, (int, float)) and not isinstance(multiplier, bool) and math.isfinite(multiplier)
-    if not (reported and inst.qp.constraints.load_control):
-        return kkt
-    at_reported = kkt_check(inst, p, float(multiplier))  # type: ignore[arg-type]
-    return at_reported if at_reported.kkt_error < kkt.kkt_error else kkt
+    return kkt_check(inst, p, None, float(multiplier) if reported else None)  # type: ignore[arg-type]
 
 
 def shown_apart(value: float, limit: float) -> tuple[str, str]:

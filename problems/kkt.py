@@ -375,15 +375,18 @@ def infinite_report(u_s: float = math.nan, p_s: float = math.nan) -> KKTReport:
     return KKTReport(inf, inf, inf, inf, inf, inf, inf, inf, inf, nan, u_s, p_s, inf, inf, nan)
 
 
-def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> KKTReport:
+def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None,
+              also_at: float | None = None) -> KKTReport:
     """KKT figures of candidate ``p`` for ``problem`` (a QP or a ContactInstance),
     recomputing w = Hp - ubar (- Delta) from the problem; ``ValueError`` when p has the
     wrong shape, and ``ProblemInputError`` when the problem's constraints cannot be posed on
     it (``Constraints.check``: a bound <= 0 would turn the scales' signs).  Non-finite
     entries in p (or in Hp), and a p that is not real (a complex entry), give an all-inf
     report.  Under load control ``multiplier`` is the candidate's Delta (None:
-    ``fit_multiplier``); without a load equality it is not used.  A QP without bounds and
-    load equality is judged by the plain figures."""
+    ``fit_multiplier``); without a load equality it is not used.  ``also_at``: a second
+    candidate Delta, read from the same product H p; the report at whichever of the two gives
+    the smaller KKT error (the first on a tie).  A QP without bounds and load equality is
+    judged by the plain figures."""
     qp = _as_qp(problem)
     real = True
     if np.iscomplexobj(p):  # (a real answer in a complex dtype is read as the real answer)
@@ -404,6 +407,9 @@ def kkt_check(problem: Any, p: np.ndarray, multiplier: float | None = None) -> K
         Hp = np.asarray(qp.H.matvec(p), dtype=np.float64)
         g = Hp - ubar
         f = constrained_figures(p, g, ubar, diag_max, constraints, multiplier)
+        if also_at is not None and constraints.load_control:
+            f_also = constrained_figures(p, g, ubar, diag_max, constraints, also_at)
+            f = f_also if f_also.kkt_error < f.kkt_error else f
         if not math.isfinite(f.kkt_error):
             return infinite_report(u_s, p_s)
         objective = float(0.5 * p @ Hp - ubar @ p)

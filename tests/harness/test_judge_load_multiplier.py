@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contactbench.harness.judging import judge
+from contactbench.harness.judging import answer_report, judge
 from contactbench.problems.instances import ContactInstance, InstanceBuilder
 from contactbench.problems.kkt import constrained_figures
 from contactbench.problems.mixed_lcp import constrained_exact_solution
@@ -91,3 +91,22 @@ def test_without_load_control_a_reported_approach_is_not_read() -> None:
     p = constrained_exact_solution(inst.qp.H.to_dense(), np.asarray(inst.qp.ubar, dtype=np.float64),
                                    inst.qp.constraints).p
     assert judge(inst, p, True, TOL, multiplier=1e3).kkt.kkt_error == judge(inst, p, True, TOL).kkt.kkt_error
+
+
+def test_both_approaches_are_read_from_one_product(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fitted and the reported Delta share the answer's product H p: the judge's cost
+    does not double under load control (a 16384^2 product is seconds on the host)."""
+    inst = load_instance()
+    p, approach = interior_point_like(inst)
+    H = inst.qp.H
+    products = []
+    real_matvec = H.matvec
+
+    def counted(x: np.ndarray) -> np.ndarray:
+        products.append(x.size)
+        return real_matvec(x)
+
+    monkeypatch.setattr(H, "matvec", counted)
+    report = answer_report(inst, p, approach)
+    assert products == [inst.n]
+    assert report.multiplier == pytest.approx(approach, rel=1e-12)
