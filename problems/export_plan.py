@@ -20,7 +20,9 @@ What the check costs: a recipe whose scene tells its steps' sizes from surfaces 
 whose operator is matrix-free (any kind but "dense": it always has a kernel table, so
 every check above follows from n) is not built by the check at all.  Every other QP
 (scenes that tell no sizes, such as the synthetic batteries, and a dense operator) is
-built once by the check and dropped, so the export builds it twice.  A scene that tells
+built by the check and kept for the export while the kept QPs' operators hold at most
+``KEEP_SHARE`` of the memory budget (``operators.memory_budget``); a QP past that is
+dropped and built again when written.  A scene that tells
 its sizes builds each recipe with the operator its params name, at those sizes:
 ``ExportPlan.built`` refuses a built QP whose n differs from the plan's.
 """
@@ -28,12 +30,12 @@ its sizes builds each recipe with the operator its params name, at those sizes:
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
 from .errors import MemoryBudgetError, ProblemInputError
 from .instances import ContactInstance
-from .operators import check_dense_budget
+from .operators import check_dense_budget, memory_budget
 from .qpfile import problem_payload
 from .scenes import SceneConfig, get_scene
 from .scenes.base import InstanceSpec, LoadSequence, StepSizes, scene_counts
@@ -42,6 +44,9 @@ from .scenes.options import check_config
 #: The most QPs (instances x steps) one export may write (``export_scene``'s ``max_qps``),
 #: counted before anything is built (``scene_counts``).
 MAX_QPS = 100_000
+
+#: The share of the memory budget the QPs the check built may hold until they are written.
+KEEP_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -63,16 +68,23 @@ class ExportPlan:
     scene: Any
     specs: list[InstanceSpec]
     qps: list[PlannedQP]
+    #: Instances the check built, by (recipe, step), kept for the export (module doc).
+    kept: dict[tuple[int, int], ContactInstance] = field(default_factory=dict)
 
     def built(self, wanted: Callable[[PlannedQP], bool]) -> Iterator[tuple[PlannedQP, ContactInstance | None]]:
         """(QP, its instance) of every planned QP in order: the instance built where
         ``wanted`` (one load sequence per recipe at a time), None elsewhere.  A built QP
-        whose n is not the plan's is a ``RuntimeError`` (the plan's checks would not hold)."""
+        whose n is not the plan's is a ``RuntimeError`` (the plan's checks would not hold).
+        An instance the check kept is handed over once and forgotten."""
         seq: LoadSequence | None = None
         at = -1
         for qp in self.qps:
+            kept = self.kept.pop((qp.spec, qp.step), None)
             if not wanted(qp):
                 yield qp, None
+                continue
+            if kept is not None:
+                yield qp, kept
                 continue
             if seq is None or qp.spec != at:
                 seq, at = self.scene.build(self.specs[qp.spec]), qp.spec
@@ -140,12 +152,13 @@ def plan_export(scene_name: str, cfg: Any, dense_limit: int, *, tables: bool, to
     specs = list(scene.instances(merged))
     qps: list[PlannedQP] = []
     names: set[str] = set()
+    keep = Keeper(KEEP_SHARE * memory_budget())
     for i, spec in enumerate(specs):
         told = sizes.get(spec.instance)
         if told is not None and matrix_free(spec):
             steps = list(enumerate(told.n))
         else:
-            steps = built_sizes(scene, spec, dense_limit if tables else None, tol)
+            steps = built_sizes(scene, spec, dense_limit if tables else None, tol, lambda k, inst: keep(i, k, inst))
         for k, n in steps:
             qp = PlannedQP(problem_name(spec.instance, k), spec.instance, k, int(n), i)
             if qp.name in names:
@@ -155,7 +168,27 @@ def plan_export(scene_name: str, cfg: Any, dense_limit: int, *, tables: bool, to
             if 0 < qp.n <= dense_limit:
                 check_dense_fits(qp.name, qp.n)
             qps.append(qp)
-    return ExportPlan(scene, specs, qps)
+    return ExportPlan(scene, specs, qps, keep.kept)
+
+
+@dataclass
+class Keeper:
+    """The instances a plan's check built, kept while their operators' bytes
+    (``memory_nbytes``) stay within ``allowance``; the first that would pass it and every
+    later one are dropped (they are built again when written, in order)."""
+
+    allowance: float
+    held: int = 0
+    full: bool = False
+    kept: dict[tuple[int, int], ContactInstance] = field(default_factory=dict)
+
+    def __call__(self, spec: int, step: int, inst: ContactInstance) -> None:
+        size = int(inst.qp.H.memory_nbytes)
+        if self.full or self.held + size > self.allowance:
+            self.full = True
+            return
+        self.held += size
+        self.kept[(spec, step)] = inst
 
 
 def matrix_free(spec: InstanceSpec) -> bool:
@@ -165,9 +198,11 @@ def matrix_free(spec: InstanceSpec) -> bool:
     return spec.params.get("operator", "fft") != "dense"
 
 
-def built_sizes(scene: Any, spec: InstanceSpec, table_over: int | None, tol: float | None) -> list[tuple[int, int]]:
-    """(step, n) of every step of a recipe, each QP built (``build_checked``) and dropped;
-    with ``table_over``, a QP over it is checked to have a kernel table (``check_table``)."""
+def built_sizes(scene: Any, spec: InstanceSpec, table_over: int | None, tol: float | None,
+                keep: Callable[[int, ContactInstance], None] = lambda k, inst: None) -> list[tuple[int, int]]:
+    """(step, n) of every step of a recipe, each QP built (``build_checked``) and handed to
+    ``keep`` (step, instance); with ``table_over``, a QP over it is checked to have a kernel
+    table (``check_table``)."""
     seq = scene.build(spec)
     out = []
     for k in range(len(seq)):
@@ -176,6 +211,7 @@ def built_sizes(scene: Any, spec: InstanceSpec, table_over: int | None, tol: flo
         if table_over is not None and inst.n > table_over:
             check_table(name, inst, table_over, tol)
         out.append((k, int(inst.n)))
+        keep(k, inst)
     return out
 
 
@@ -212,6 +248,7 @@ def check_dense_fits(name: str, n: int) -> None:
 
 __all__ = [
     "ExportPlan",
+    "KEEP_SHARE",
     "MAX_QPS",
     "PlannedQP",
     "check_dense_fits",
