@@ -77,7 +77,8 @@ REPEATABLE_ACTIONS: tuple[type, ...] = (argparse._AppendAction, argparse._Append
 def given_twice(parser: argparse.ArgumentParser, tokens: Sequence[str]) -> str | None:
     """The first option of ``parser`` in ``tokens`` (the command line, up to a bare
     ``--``) that is given a second time -- by the same spelling or another of the same
-    option, ``--opt value`` or ``--opt=value`` -- and that is not ``REPEATABLE_ACTIONS``;
+    option, ``--opt value`` or ``--opt=value``, or a prefix argparse takes for it
+    (``option_action``) -- and that is not ``REPEATABLE_ACTIONS``;
     None when there is none.  Tokens that are not this parser's own options (a
     subcommand's, a value) are left to argparse."""
     seen: dict[int, str] = {}
@@ -85,7 +86,7 @@ def given_twice(parser: argparse.ArgumentParser, tokens: Sequence[str]) -> str |
         if token == "--":
             break
         option = token.split("=", 1)[0]
-        action = parser._option_string_actions.get(option) if option.startswith("-") else None
+        action = option_action(parser, option) if option.startswith("-") else None
         if action is None or isinstance(action, REPEATABLE_ACTIONS):
             continue
         if id(action) in seen:
@@ -93,6 +94,19 @@ def given_twice(parser: argparse.ArgumentParser, tokens: Sequence[str]) -> str |
             return option if first == option else f"{option} (as {first})"
         seen[id(action)] = option
     return None
+
+
+def option_action(parser: argparse.ArgumentParser, option: str) -> argparse.Action | None:
+    """The action of ``parser`` that argparse gives ``option``: its own spelling, or a
+    long option's unambiguous prefix (``--siz`` for ``--size``) where the parser allows
+    abbreviations; None for anything else (an ambiguous prefix is argparse's error)."""
+    actions = parser._option_string_actions
+    if option in actions:
+        return actions[option]
+    if not (parser.allow_abbrev and option.startswith("--")):
+        return None
+    found = {id(a): a for name, a in actions.items() if name.startswith(option)}
+    return next(iter(found.values())) if len(found) == 1 else None
 
 
 def plain_number(text: str, kind: type) -> Any:

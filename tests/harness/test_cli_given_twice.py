@@ -17,7 +17,8 @@ RUN = ["run", "paper-sweep", "--steps", "2", "--solvers", "pk", "--reference", "
 
 
 @pytest.mark.parametrize("twice", [["--size", "8", "--size", "16"], ["--size=8", "--size", "16"],
-                                   ["--solvers", "nnls"], ["--timeout", "5", "--timeout=9"]])
+                                   ["--solvers", "nnls"], ["--timeout", "5", "--timeout=9"],
+                                   ["--size", "8", "--siz", "17"], ["--size=8", "--siz=16"]])
 def test_a_one_value_option_given_twice_is_one_line_exit_2_and_writes_nothing(
         twice: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
@@ -36,6 +37,10 @@ def test_repeatable_options_and_values_that_look_alike_are_not_refused() -> None
     assert given_twice(ap, ["--group", "a", "--group", "b", "-v", "-v", "--size", "1"]) is None
     assert given_twice(ap, ["--size", "1", "--", "--size", "2"]) is None  # (after "--": values)
     assert given_twice(ap, ["--size", "1", "--size=2"]) == "--size"
+    assert given_twice(ap, ["--size", "1", "--siz=2"]) == "--siz (as --size)"  # (a prefix argparse takes)
+    assert given_twice(ap, ["--s", "1", "--size", "2"]) == "--size (as --s)"
+    ap.add_argument("--seed", type=int)
+    assert given_twice(ap, ["--s", "1", "--size", "2"]) is None  # (now ambiguous: argparse's own error)
     ns = ap.parse_args(["--group", "a", "--group", "b", "-vv"])
     assert ns.group == ["a", "b"] and ns.v == 2
 
