@@ -184,9 +184,11 @@ def comma_items(text: str, split: Callable[[str], list[str]] | None = None, repe
 
 def check_out_dir(path: str, option: str = "--out") -> Path:
     """``path`` if it is, or can be made, a folder we may write: else one ``InputError``
-    naming it (an existing file, a path under a file, a path through a symbolic link that
-    leads to nothing, where no folder can be made, a folder we may not write).  Creates
-    nothing."""
+    naming it (a name that is not UTF-8 text, which the table's writer cannot take; an
+    existing file, a path under a file, a path through a symbolic link that leads to
+    nothing, where no folder can be made, a folder we may not write).  A ``path`` that is
+    itself a link to a folder is that folder.  Creates nothing."""
+    check_utf8_path(path, option)
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise InputError(f"{option} {path}: exists and is not a folder")
@@ -201,6 +203,17 @@ def check_out_dir(path: str, option: str = "--out") -> Path:
     if not os.access(probe, os.W_OK | os.X_OK):
         raise InputError(f"{option} {path}: cannot write in {probe} (permission denied)")
     return p
+
+
+def check_utf8_path(path: str, option: str) -> None:
+    """One ``InputError`` naming ``path`` (its undecodable bytes escaped) unless it is UTF-8
+    text: a name the system gave as bytes that are not UTF-8 (``os.fsdecode``'s surrogate
+    escapes) cannot be written into the table's files (pyarrow takes UTF-8 paths only)."""
+    try:
+        path.encode("utf-8")
+    except UnicodeEncodeError:
+        shown = os.fsencode(path).decode("utf-8", "backslashreplace")
+        raise InputError(f"{option} {shown}: the name is not UTF-8 text; choose a name in UTF-8") from None
 
 
 def os_error_line(exc: OSError) -> str:

@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
+from contactbench.problems.atomic_files import names_nothing
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import fft_backend, fft_workers, memory_budget_scope
 from contactbench.problems.scenes import all_scenes
@@ -58,8 +59,8 @@ from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionR
 from contactbench.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, STARTING_TEXT
 from contactbench.plugins import did_you_mean
 
-from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, comma_items, os_error_line, positive_float,
-                        time_limit, positive_number, plain_number)
+from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, check_utf8_path, comma_items, os_error_line,
+                        positive_float, time_limit, positive_number, plain_number)
 
 #: Exit status of a run whose rows the judge could not read at all (module doc).
 EXIT_NOTHING_JUDGED = 1
@@ -520,6 +521,9 @@ def cmd_export(args: argparse.Namespace, held: HeldWarnings | None = None) -> in
 
 
 def cmd_report(out_dir: str) -> int:
+    if names_nothing(out_dir):  # ("" would read the current folder)
+        raise InputError(f"report: the folder must be named, got {out_dir!r}")
+    check_utf8_path(out_dir, "report")
     if not Path(out_dir).is_dir():
         raise InputError(f"report {out_dir}: no such folder (give the --out folder of a run)")
     from .report.build import build_report

@@ -6,7 +6,11 @@ is written, and nothing that is not the project's is touched:
   refused before the battery runs, and left as it is;
 * ``run --scheduler ADDRESS`` checks the address's form before the plan, and contacts the
   scheduler before the results folder is written: one it cannot reach leaves nothing;
-* ``run --out ''`` and ``--out ' '`` name no folder (as for ``export``)."""
+* ``run --out ''`` and ``--out ' '`` name no folder (as for ``export``), nor does
+  ``report ''`` (it would read the current folder);
+* an ``--out`` whose name is not UTF-8 text (bytes the table's writer cannot take) is
+  refused before the run, for ``run``, ``export`` and ``report``;
+* an ``--out`` that is a link to a folder is that folder."""
 
 from __future__ import annotations
 
@@ -97,3 +101,34 @@ def test_an_empty_or_blank_out_names_no_folder(in_tmp: Path, capsys: pytest.Capt
     assert cli.main([*RUN, "--out", out]) == 2
     assert "must be named" in one_line_error(capsys)
     assert list(in_tmp.iterdir()) == [] and not os.path.lexists(in_tmp / "results")
+
+
+@pytest.mark.parametrize("out", ["", " "])
+def test_report_of_an_empty_name_reads_no_folder(in_tmp: Path, capsys: pytest.CaptureFixture[str], out: str) -> None:
+    assert cli.main(["report", out]) == 2
+    assert "must be named" in one_line_error(capsys)
+    assert list(in_tmp.iterdir()) == []
+
+
+NOT_UTF8 = os.fsdecode(b"o_bad\xff")
+
+
+@pytest.mark.parametrize("argv", [[*RUN, "--out", NOT_UTF8],
+                                  ["export", "hertz", "--size", "8", "--format", "problem-dir", "--out", NOT_UTF8],
+                                  ["report", NOT_UTF8]])
+def test_a_name_that_is_not_utf8_is_refused_before_anything_runs(in_tmp: Path, capsys: pytest.CaptureFixture[str],
+                                                                 argv: list[str]) -> None:
+    if argv[0] == "report":
+        os.mkdir(NOT_UTF8)
+    before = sorted(os.listdir(in_tmp))
+    assert cli.main(argv) == 2
+    err = one_line_error(capsys)
+    assert "o_bad\\xff" in err and "UTF-8" in err, err
+    assert sorted(os.listdir(in_tmp)) == before
+
+
+def test_an_out_that_is_a_link_to_a_folder_is_that_folder(in_tmp: Path) -> None:
+    (in_tmp / "kept").mkdir()
+    (in_tmp / "link").symlink_to(in_tmp / "kept", target_is_directory=True)
+    assert cli.main([*RUN, "--out", "link"]) == 0
+    assert (in_tmp / "link").is_symlink() and (in_tmp / "kept" / "results.parquet").is_file()
