@@ -67,6 +67,29 @@ INSTANCE_COLUMNS: Final = ("surface_family", "hurst", "N", "seed", "kernel", "pe
                            "delta1", "thickness", "nu", "interface", *MAP_COLUMNS)
 
 
+_COUNTS = ("step", "n", "repeat", "iterations", "matvecs", "N", "N0", "N1", "seed", "nan_filled", "channel_index")
+_SHARES = ("contact_fraction", "contact_uncertain", "plastic_fraction")
+_FIGURES = ("primal_residual", "dual_residual", "complementarity", "complementarity_sum", "load_rel_error", "p_rel_error", "analytic_load_rel_error", "load_residual")
+_POSITIVE = ("E", "nominal_area", "hardness", "thickness")
+_FINITE = ("delta0", "delta1", "removed_mean", "removed_slope0", "removed_slope1")
+#: The numbers a column may hold where it has a rule (``check_numbers``; missing, NaN, is
+#: always allowed): (low, high, whether low itself is allowed).  What the harness writes never
+#: leaves these; a stored entry outside them is a hand edit or a forgery, and is refused.
+RANGES: Final[dict[str, tuple[float, float, bool]]] = {
+    **{c: (0.0, math.inf, True) for c in _COUNTS + _FIGURES},
+    **{c: (0.0, 1.0, True) for c in _SHARES},
+    **{c: (0.0, math.inf, False) for c in _POSITIVE},
+    **{c: (-math.inf, math.inf, False) for c in _FINITE},
+    "hurst": (0.0, 1.0, False),
+    "nu": (-1.0, 0.5, False),
+}
+#: The loosest ``check_tol`` a row may carry: a scaled KKT error of 1 is an answer as far off
+#: as the problem's own scales (``problems.kkt``), so no check is looser.
+MAX_CHECK_TOL: Final = 1.0
+#: The longest duration a ``_s`` column may hold: beyond any run (its longest time limit is a week).
+MAX_DURATION_S: Final = 1e9
+
+
 @dataclass(frozen=True)
 class Column:
     """One column of the tidy table."""
@@ -314,11 +337,12 @@ def check_booleans(col: pd.Series, name: str, source: object) -> None:
 def check_readings(df: pd.DataFrame, source: object) -> None:
     """Raise TableError for a row whose reading its own figures contradict (a hand-edited
     or forged row: the judge writes none of these): a negative ``kkt_error``; "solved" with
-    a ``kkt_error`` that is not a finite number at most its ``check_tol`` (where the row has
-    one: every run writes it), or with no finite ``solve_time_s``; "inaccurate" with a
+    a ``kkt_error`` that is not a finite number at most its ``check_tol`` (missing counts as
+    above it where the table has the column: every run writes it), or with no finite
+    ``solve_time_s``; "inaccurate" with a
     ``kkt_error`` at most its ``check_tol``; the reading "pass" above its ``check_tol``, or on a row that is neither
     "solved" nor "timeout" (a solve judged and finished past the limit); a ``check_tol``
-    that is not a finite number > 0.  The checks run on the numeric columns already
+    that is not a number > 0 and at most ``MAX_CHECK_TOL``.  The checks run on the numeric columns already
     checked by ``check_numbers``."""
     status = text_values(df["status"])
     kkt = _numbers(df, "kkt_error")
@@ -327,10 +351,12 @@ def check_readings(df: pd.DataFrame, source: object) -> None:
     solved, inaccurate = status == "solved", status == "inaccurate"
     late = status == "timeout"  # judged, and finished past the time limit: its reading stands
     passed = text_values(df["verdict"]) == "pass" if "verdict" in df.columns else np.zeros(len(df), bool)
+    told = "check_tol" in df.columns  # (every run writes it; a table without the column is read as it was)
     with np.errstate(invalid="ignore"):
-        within = np.isfinite(kkt) & (np.isnan(tol) | (kkt <= tol))
+        within = np.isfinite(kkt) & ((np.isnan(tol) & (not told)) | (kkt <= tol))
         rules = [
-            (~np.isnan(tol) & ~((tol > 0) & np.isfinite(tol)), "a check_tol {tol}, not a finite number > 0"),
+            (~np.isnan(tol) & ~((tol > 0) & (tol <= MAX_CHECK_TOL)),
+             f"a check_tol {{tol}}, not a number > 0 and at most {MAX_CHECK_TOL:g}"),
             (kkt < 0, "a negative kkt_error {kkt}"),
             (solved & ~within, "status solved with kkt_error {kkt} above its check_tol {tol} (or not a number)"),
             (solved & ~np.isfinite(seconds), "status solved with solve_time_s {seconds}, not a finite time"),
@@ -381,8 +407,27 @@ def check_numbers(col: pd.Series, name: str, source: object, whole: bool = False
                              f"(|value| <= {COUNT_MAX}; row {int(hit[0]) + 1})")
     if name.endswith("_s"):
         seconds = values.to_numpy(dtype="float64", na_value=np.nan)
-        for wrong, what in ((seconds < 0, "a negative"), (np.isinf(seconds), "an infinite")):
+        for wrong, what in ((seconds < 0, "a negative"), (np.isinf(seconds), "an infinite"),
+                            (seconds > MAX_DURATION_S, f"a longer than {MAX_DURATION_S:g} s")):
             hit = np.flatnonzero(wrong)
             if hit.size:
                 raise TableError(f"column {name} of {source} holds {what} duration, {seconds[hit[0]]} s "
                                  f"(row {int(hit[0]) + 1})")
+    if name in RANGES:
+        check_range(values.to_numpy(dtype="float64", na_value=np.nan), name, source)
+
+
+def check_range(x: np.ndarray, name: str, source: object) -> None:
+    """Raise TableError for an entry of column ``name`` outside its ``RANGES`` (NaN: missing)."""
+    low, high, low_allowed = RANGES[name]
+    with np.errstate(invalid="ignore"):
+        outside = ~np.isnan(x) & ((x < low) | (x > high) | (~np.isfinite(x)) | ((x == low) & (not low_allowed)))
+    if math.isinf(high) and name in _FIGURES:  # (a figure of no answer is inf: a failed row's)
+        with np.errstate(invalid="ignore"):
+            outside &= ~(x == math.inf)
+    hit = np.flatnonzero(outside)
+    if hit.size:
+        bounds = f"{'[' if low_allowed else '('}{low:g}, {high:g}]" if math.isfinite(high) else \
+            f"{'>=' if low_allowed else '>'} {low:g}" if math.isfinite(low) else "finite"
+        raise TableError(f"column {name} of {source} holds {x[hit[0]]:g}, outside its range ({bounds}; row "
+                         f"{int(hit[0]) + 1}; {hit.size} such row(s))")

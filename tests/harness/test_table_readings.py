@@ -39,6 +39,15 @@ def forged(df: pd.DataFrame, case: str) -> pd.DataFrame:
         "timeout-pass-above-tol": (first(bad, "timeout"), {"verdict": "pass", "kkt_error": 1.0}),
         "count-fraction": (solved, {"n": 2.4}),
         "count-past-int64": (solved, {"iterations": 1e300}),
+        "solved-no-tol": (solved, {"kkt_error": 5.0, "check_tol": np.nan}),
+        "tol-huge": (solved, {"kkt_error": 1e300, "check_tol": 1e308}),
+        "negative-count": (solved, {"n": -3}),
+        "negative-step": (solved, {"step": -1}),
+        "negative-iterations": (solved, {"iterations": -1}),
+        "fraction-above-one": (solved, {"contact_fraction": 5.0}),
+        "negative-E": (solved, {"E": -1e9}),
+        "huge-time": (solved, {"solve_time_s": 1e308}),
+        "negative-residual": (inaccurate, {"dual_residual": -1e-3}),
     }
     row, values = edits[case]
     bad = bad.astype({col: "object" for col in values})
@@ -58,11 +67,20 @@ CASES = {
     "inaccurate-within-tol": "status inaccurate with kkt_error 1e-12 within its check_tol",
     "pass-on-crashed": "the reading pass on a row whose status is neither solved nor timeout",
     "bool-junk": "column warm_start of .* holds 'maybe', not true or false",
-    "tol-infinite": "a check_tol inf, not a finite number > 0",
-    "tol-negative": "a check_tol -1.0, not a finite number > 0",
+    "tol-infinite": "a check_tol inf, not a number > 0 and at most 1",
+    "tol-negative": "a check_tol -1.0, not a number > 0 and at most 1",
     "timeout-pass-above-tol": "the reading pass with kkt_error 1.0 above its check_tol",
     "count-fraction": "column n of .* holds 2.4, not a whole number",
     "count-past-int64": "column iterations of .* holds 1e\\+300, beyond a count's range",
+    "solved-no-tol": "status solved with kkt_error 5.0 above its check_tol nan",
+    "tol-huge": "a check_tol 1e\\+308, not a number > 0 and at most 1",
+    "negative-count": "column n of .* holds -3, outside its range \\(>= 0",
+    "negative-step": "column step of .* holds -1, outside its range",
+    "negative-iterations": "column iterations of .* holds -1, outside its range",
+    "fraction-above-one": "column contact_fraction of .* holds 5, outside its range \\(\\[0, 1\\]",
+    "negative-E": "column E of .* holds -1e\\+09, outside its range \\(> 0",
+    "huge-time": "column solve_time_s of .* holds a longer than 1e\\+09 s duration",
+    "negative-residual": "column dual_residual of .* holds -0.001, outside its range",
 }
 
 
