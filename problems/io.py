@@ -44,6 +44,9 @@ so that a map refused warns of nothing first):
 3. Crop (``crop=``): ``"none"`` (default) keeps every point, rectangular maps included;
    ``"square"`` keeps the central min(N0, N1) square; ``"pad-square"`` pads to max(N0, N1)
    with the lowest height, the data kept in the top-left corner.  Either keeps the spacing.
+   Points filled in step 1 that the crop leaves out are not in the problem: the record
+   counts the filled points of the map as read (``filled``) and of the map as solved
+   (``filled_solved``, the table's ``nan_filled``).
    Padding changes the problem, not only its shape: the nominal area A0 (N0 N1 d0 d1)
    grows by max(N0, N1)^2 / (N0 N1) (twice for a 2:1 map), the mean height drops towards
    the lowest one (so load steps measured from it, like the paper's ramp, grow), and the
@@ -57,6 +60,8 @@ from __future__ import annotations
 
 import stat
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Literal
 
@@ -90,6 +95,8 @@ DETREND_RULES = ("none", "mean", "plane")
 
 #: The cleaning warnings announced so far in this process (``announce``).
 _ANNOUNCED: set[tuple[str, str]] = set()
+#: How many ``unannounced`` blocks are open: reads inside one announce nothing.
+_QUIET: list[int] = [0]
 
 
 # --- Public entry point ---
@@ -148,6 +155,7 @@ def load_surface(
     z = remove_tilt(z, detrend, meta, spacing, p, fitted)
     check_not_flat(z, raw.z[measured] * scale, spacing, p)
     z = crop_map(z, crop, p, meta)
+    meta["nan_points_solved"] = int(np.count_nonzero(~measured[kept_window(measured.shape, crop)]))
     meta["spacing"] = list(spacing)
     chosen = None if raw.info.get("channel") is None else str(raw.info["channel"])
     raw_hash = raw_heights_sha256(raw.z)
@@ -186,6 +194,7 @@ def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tupl
         channel=None if raw.info.get("channel") is None else str(raw.info["channel"]), height_unit=unit[0],
         unit_from=unit[1], metres_per_unit=unit[2], shape_read=(n0, n1), shape=(int(shape[0]), int(shape[1])),
         spacing=spacing, spacing_from=str(meta["spacing_from"]), nan_rule=str(meta["nan_rule"]), filled=filled,
+        filled_solved=int(meta["nan_points_solved"]),
         filled_fraction=filled / (n0 * n1), fill_value=meta.get("fill_value"), detrend=str(meta["detrend"]),
         tilt=float(meta["tilt"]), removed_mean=removed_mean, removed_slope=slope, crop=str(meta["crop_rule"]),
         crop_done=str(meta["crop"]), warnings=tuple(meta["warnings"]),
@@ -208,12 +217,28 @@ def announce_recorded(meta: dict[str, Any]) -> None:
     """Announce each warning recorded for the file ``meta["source"]`` (``announce``) as a
     ``UserWarning``, once per process for each distinct message (a run reads its map when
     it plans and again when it builds); ``load_surface`` calls it last, when the map has
-    passed every check."""
+    passed every check.  Inside ``unannounced`` nothing is announced nor counted as
+    announced (the record keeps its warnings)."""
+    if _QUIET[0]:
+        return
     source = str(Path(str(meta["source"])).resolve())
     for message in meta.get("warnings", []):
         if (source, message) not in _ANNOUNCED:
             _ANNOUNCED.add((source, message))
             warnings.warn(message, UserWarning, stacklevel=3)
+
+
+@contextmanager
+def unannounced() -> Iterator[None]:
+    """Reads of maps inside this block warn of nothing (``announce_recorded``): for reads
+    that only ask what a map would be under other options (``harness.run.spelled_out``,
+    another height unit or length than the run's), whose warnings are not the run's.  A
+    later read announces its own warnings as usual."""
+    _QUIET[0] += 1
+    try:
+        yield
+    finally:
+        _QUIET[0] -= 1
 
 
 # --- Cleaning ---
@@ -362,19 +387,33 @@ def check_not_flat(z: np.ndarray, read: np.ndarray, spacing: tuple[float, float]
                                      "that its slopes underflow to 0 (a unit slip? see --height-unit)")
 
 
+def kept_window(shape: tuple[int, ...], rule: CropRule) -> tuple[slice, slice]:
+    """The rows and columns of a map as read (N0 x N1 = ``shape``) that the map as solved
+    keeps under crop ``rule``: the central min(N0, N1) square for "square" on a non-square
+    map, every point otherwise ("pad-square" keeps them all and adds points)."""
+    ny, nx = shape[0], shape[1]
+    if rule != "square" or ny == nx:
+        return slice(0, ny), slice(0, nx)
+    n = min(ny, nx)
+    i0, j0 = (ny - n) // 2, (nx - n) // 2
+    return slice(i0, i0 + n), slice(j0, j0 + n)
+
+
 def crop_map(z: np.ndarray, rule: CropRule, path: str | Path, meta: dict[str, Any]) -> np.ndarray:
-    """Keep the map (``"none"``), crop it to its central square or pad it to a square with
-    the lowest height (module doc, step 3); the spacing is the map's either way."""
+    """Keep the map (``"none"``), crop it to its central square (``kept_window``) or pad it
+    to a square with the lowest height (module doc, step 3); the spacing is the map's
+    either way."""
     ny, nx = z.shape
     meta["crop_rule"] = rule
     if rule == "none" or ny == nx:
         meta["crop"] = "none" if ny != nx else "already square"
         return z
     if rule == "square":
-        n = min(ny, nx)
-        i0, j0 = (ny - n) // 2, (nx - n) // 2
-        out = z[i0:i0 + n, j0:j0 + n]
-        meta["crop"] = f"cropped {ny}x{nx} to the central {n}x{n} (rows {i0}:{i0 + n}, cols {j0}:{j0 + n})"
+        rows, cols = kept_window(z.shape, rule)
+        out = z[rows, cols]
+        n = out.shape[0]
+        meta["crop"] = (f"cropped {ny}x{nx} to the central {n}x{n} (rows {rows.start}:{rows.stop}, "
+                        f"cols {cols.start}:{cols.stop})")
     else:
         n = max(ny, nx)
         out = np.full((n, n), float(z.min()))

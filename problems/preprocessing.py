@@ -14,7 +14,8 @@ It holds
 * how it was read: the unit of the file's numbers and where it came from, the spacing per
   axis and where it came from, N0 x N1 as read and as solved, the lengths;
 * what was changed: the NaN rule with the count and share of filled points and the height
-  written into them; the detrend rule with the tilt measured, the mean removed and the
+  written into them, and how many of them lie in the map as solved (a crop may leave them
+  out: ``filled_solved``, the table's ``nan_filled``); the detrend rule with the tilt measured, the mean removed and the
   removed plane's slope per axis; the crop rule and what it did;
 * the warnings the loader raised (each also announced once per process as a
   ``UserWarning``).
@@ -106,6 +107,15 @@ class MapPreprocessing:
     #: The index of ``channel`` in the file (``load_surface``'s ``channel``); None for a file
     #: of no channels (.npy, text).
     channel_index: int | None = None
+    #: How many of the ``filled`` points lie in the map as solved (a crop may leave some or
+    #: all of them out of the problem); None: ``filled``.
+    filled_solved: int | None = None
+
+    @property
+    def filled_in_problem(self) -> int:
+        """The filled points of the map as solved (``filled_solved``; ``filled`` where not
+        recorded): the table's ``nan_filled``."""
+        return self.filled if self.filled_solved is None else self.filled_solved
 
     @property
     def lengths(self) -> tuple[float, float]:
@@ -132,7 +142,7 @@ class MapPreprocessing:
         """The table's columns of the map (harness/table/schema.py)."""
         slope = self.removed_slope or (float("nan"), float("nan"))
         return {"surface_source": self.source, "surface_hash": self.raw_sha256[:TABLE_HASH_DIGITS],
-                "height_unit": self.height_unit, "nan_rule": self.nan_rule, "nan_filled": self.filled,
+                "height_unit": self.height_unit, "nan_rule": self.nan_rule, "nan_filled": self.filled_in_problem,
                 "detrend": self.detrend,
                 "removed_mean": float("nan") if self.removed_mean is None else self.removed_mean,
                 "removed_slope0": slope[0], "removed_slope1": slope[1], "crop": self.crop,

@@ -44,6 +44,10 @@ class Surface:
               generator provides them (RMD) -- the cascade multi-resolution method uses
               them.  The last entry is *not* the surface itself.
     periodic: whether the heights are periodic (wrap-around) -- a hint for kernels.
+
+    Its nominal area ``area`` = L0 L1 must be a float64 of at least the smallest normal
+    one and finite (loads are P / (E* A)): lengths whose product under- or overflows are a
+    one-line ``ProblemInputError``.
     """
 
     heights: np.ndarray
@@ -78,6 +82,11 @@ class Surface:
         if self.delta1 is not None:
             check_positive("grid spacing delta1 (axis 1)", self.delta1)
         object.__setattr__(self, "heights", h)
+        L0, L1 = self.lengths
+        if not np.finfo(np.float64).tiny <= self.area < np.inf:
+            raise ProblemInputError(f"a surface of lengths L0 x L1 = {L0:g} x {L1:g} has a nominal area A of "
+                                    f"{self.area:g} in float64, which must be finite and at least "
+                                    f"{np.finfo(np.float64).tiny:g} (loads are P/(E* A)); give the lengths in metres")
 
     @property
     def spacing(self) -> tuple[float, float]:

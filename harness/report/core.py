@@ -610,7 +610,8 @@ def map_changes(r: pd.Series, record: dict[str, Any] | None = None) -> str:
     """What was done to one instance's measured map, from its table columns
     (``schema.MAP_COLUMNS``) and its meta.json record (``record``: the unit's scale, the
     shape read, the crop done and the channel read, where the run recorded them): the
-    heights' unit, the removed plane or mean, the filled points, the crop."""
+    heights' unit, the removed plane or mean, the filled points (of the map as read, and how
+    many of them the map as solved keeps), the crop."""
     rec, shape = record or {}, f"{fmt_num(r['N0'])} x {fmt_num(r['N1'])}"
     scale, unit = as_finite(rec.get("metres_per_unit")), as_text(r["height_unit"]) or as_text(rec.get("height_unit"))
     units = (f"heights in {unit} ({rec.get('unit_from', 'as given')}), scaled by {fmt_num(scale)} to metres; "
@@ -624,10 +625,13 @@ def map_changes(r: pd.Series, record: dict[str, Any] | None = None) -> str:
         removed = f"mean {fmt_num(r['removed_mean'])} m removed"
     else:
         removed = "nothing removed (detrend none)"
-    filled = as_finite(r["nan_filled"]) or 0
-    fill = f"{int(filled)} missing points filled ({as_text(r['nan_rule'])})" if filled else "no missing point"
-    if filled and rec.get("fill_relative_to") not in (None, "zero"):
+    filled, read = int(as_finite(r["nan_filled"]) or 0), int(as_finite(rec.get("filled")) or 0)
+    fill = f"{max(filled, read)} missing points filled ({as_text(r['nan_rule'])})" if filled or read else \
+        "no missing point"
+    if (filled or read) and rec.get("fill_relative_to") not in (None, "zero"):
         fill = fill[:-1] + f", relative to {rec['fill_relative_to']})"
+    if read > filled:  # (the table's nan_filled counts the map as solved: a crop left the others out)
+        fill += f", {filled or 'none'} of them in the map as solved (the crop left {read - filled} out)"
     crop = as_text(r["crop"])
     cropped = "" if crop in ("", "none") else f"; {as_text(rec.get('crop_done')) or f'crop {crop}'}"
     channel = f", channel {as_text(rec.get('channel'))!r}" if as_text(rec.get("channel")) else ""

@@ -11,7 +11,9 @@ would ignore, what an option requires or excludes -- the command line, the API, 
 pytest plugin and Dask runs all come through here), a plan too big to run (more cells than
 ``RunConfig.max_cells``, or an instance whose memory estimate exceeds the memory budget:
 ``estimate_scene``, computed from sizes and counts before any surface is generated),
-every scene's ``validate`` (sizes, surfaces, loads), a scene whose every cell the solvers'
+every scene's ``validate`` (sizes, surfaces, loads, and -- where a value is outside its
+plausible range or the surface is a measured map -- the kernel table and forces they make,
+``scenes.core.check_float_range``), a scene whose every cell the solvers'
 time and memory models reject (``model_rejections``: from the trial-set sizes the scene
 tells, ``Scene.validate_sizes``, as the run's skip policy would), a solver list that
 names no solver (``names_no_solver``: ``[]``, ``""``, ``","``), every solver name,

@@ -32,6 +32,7 @@ from functools import lru_cache
 from typing import Any, Sequence
 
 from contactbench.problems.errors import ProblemInputError
+from contactbench.problems.io import unannounced
 from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.problems.scenes.core import READ_DEFAULTS, SURFACE_FILE_OPTIONS, surface_from_params
 from contactbench.problems.scenes.options import BY_NAME
@@ -158,9 +159,11 @@ def map_key(path: str, extra: dict[str, Any], length: Any, height_unit: Any) -> 
 @lru_cache(maxsize=32)
 def read_map_key(path: str, mtime_ns: int, size: int, params_json: str) -> str | None:
     """``map_key`` of the recipe parameters ``params_json`` of the file ``path`` in the state
-    (``mtime_ns``, ``size``) it is read in."""
+    (``mtime_ns``, ``size``) it is read in.  The read warns of nothing (``io.unannounced``):
+    it asks what the map would be under these options, which need not be the run's."""
     try:
-        record = surface_from_params(json.loads(params_json)).preprocessing
+        with unannounced():
+            record = surface_from_params(json.loads(params_json)).preprocessing
     except (ProblemInputError, OSError, KeyError, TypeError, ValueError):
         return None
     return None if record is None else str(record.key)

@@ -196,7 +196,8 @@ _EXTRA = _columns(
     ("height_unit", "string", "the unit of the measured file's height numbers (the file's own, or the one given; 'm' "
                               "by default); ''"),
     ("nan_rule", "string", "how missing points of the measured map were filled (problems/io.py NAN_RULES); ''"),
-    ("nan_filled", "Int64", "missing points of the measured map filled by nan_rule; <NA> for a generated surface"),
+    ("nan_filled", "Int64", "missing points of the measured map filled by nan_rule that lie in the map as solved "
+                            "(a crop may leave others out: meta.json); <NA> for a generated surface"),
     ("detrend", "string", "what was removed from the measured map: 'plane', 'mean' or 'none'; ''"),
     ("removed_mean", "float64", "height removed at the map's centre (the mean, or the plane's height there); NaN: "
                                 "nothing removed"),

@@ -31,7 +31,8 @@ from ..coarsen import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
 from .base import CONTROL_SCENE_OPTIONS, LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
-from .core import PAPER_E, RampScene, check_relief, rough_surface_specs, surface_from_params
+from .core import (PAPER_E, RampScene, check_relief, grid_suffix, modulus_suffix, rough_surface_specs, square_length,
+                   surface_from_params)
 
 
 def psd_warnings(scene: Scene, cfg: SceneConfig, surface_of: Any) -> list[str]:
@@ -122,8 +123,10 @@ class CMRCutoff(RampScene):
         if cfg.surface_path:
             params = {**base, "surface_path": cfg.surface_path, "seed": 0}
             record = surface_from_params(params).preprocessing  # names the map by its base name and content
-            return [InstanceSpec(self.name, record.instance_name,
+            name = f"{record.instance_name}{grid_suffix(str(cfg.kernel), bool(cfg.periodic))}{modulus_suffix(cfg.E)}"
+            return [InstanceSpec(self.name, name,
                                  {**params, "surface_path": record.path, "surface_sha256": record.raw_sha256})]
+        square_length(cfg.length)  # (a pair L0,L1 is for a surface file)
         kinds = {"rolloff": float(cfg.extra["rolloff_fraction"]), "power-law": None}
         return [InstanceSpec(self.name, f"{kind}-H{base['hurst']:g}-N{cfg.size}-s{s}",
                              {**base, "surface": kind, "rolloff_fraction": frac, "seed": int(s)})
@@ -141,7 +144,7 @@ def cutoff_surface(params: dict[str, Any]) -> Surface:
     """The spectral surface of a cmr-cutoff recipe (or the measured file it names)."""
     if params.get("surface_path"):
         return surface_from_params(params)
-    L = float(params["length"])
+    L = square_length(params["length"])
     frac = params.get("rolloff_fraction")
     return spectral_surface(int(params["size"]), float(params["hurst"]), length=L, seed=int(params["seed"]),
                             rolloff_wavelength=None if frac is None else float(frac) * L)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..constraints import CONTROLS, check_load_under_hardness
-from ..errors import ProblemInputError
+from ..errors import ProblemInputError, check_nonnegative
 from ..instances import (
     InstanceBuilder,
     counterexample,
@@ -90,6 +90,18 @@ def surface_family(cfg: SceneConfig) -> str:
     return check_rmd_family(family)
 
 
+def square_length(length: Any) -> float:
+    """The one lateral size L (metres) of a surface a scene generates, which is square
+    (RMD, spectral, Hertz, flat punch); a pair L0,L1 -- for a surface file only -- is a
+    one-line ``ProblemInputError``.  Every scene that generates a surface reads its
+    length through here."""
+    if np.ndim(length) != 0:
+        shown = tuple(length) if isinstance(length, (list, tuple)) else length
+        raise ProblemInputError(f"a generated surface is square: give one length, not {shown!r} "
+                                "(L0,L1 is for a surface file)")
+    return float(length)
+
+
 def surface_from_params(params: dict[str, Any]) -> Surface:
     """Rebuild the surface a recipe names: a measured file, or an RMD surface of
     ``params["family"]`` from its seed (no family: the size picks, ``rmd_surface_n``)."""
@@ -107,30 +119,33 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
                                     f"(its heights' sha256 {surface.preprocessing.raw_sha256[:12]}..., planned "
                                     f"{str(planned)[:12]}...); restore it, or run the new map into another --out")
         return surface
-    if np.ndim(params.get("length")) != 0:
-        raise ProblemInputError(f"a generated surface is square: give one length, not {params.get('length')!r} "
-                                "(L0,L1 is for a surface file)")
     return rmd_surface_n(
         int(params["size"]),
         float(params["hurst"]),
-        length=float(params["length"]),
+        length=square_length(params.get("length")),
         rms_height=float(params.get("rms_height", 1e-6)),
         seed=int(params["seed"]),
         family=params.get("family"),
     )
 
 
+def recipe_builder(params: dict[str, Any], surface: Surface) -> InstanceBuilder:
+    """The ``InstanceBuilder`` of a ramp recipe on its surface: its modulus, kernel,
+    boundary, operator and layer."""
+    return InstanceBuilder(
+        surface,
+        float(params["E"]),
+        kernel=str(params["kernel"]),
+        periodic=bool(params["periodic"]),
+        operator=str(params.get("operator", "fft")),
+        layer=layer_from_params(params, surface),
+    )
+
+
 def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> LoadSequence:
     """A load sequence on one surface; every step shares one kernel transform."""
     p = spec.params
-    builder = InstanceBuilder(
-        surface,
-        float(p["E"]),
-        kernel=str(p["kernel"]),
-        periodic=bool(p["periodic"]),
-        operator=str(p.get("operator", "fft")),
-        layer=layer_from_params(p, surface),
-    )
+    builder = recipe_builder(p, surface)
     hardness = None if p.get("hardness") is None else float(p["hardness"])
     if p.get("control") == CONTROLS[1]:  # load control: the given loads, the approach is the answer's
         loads = load_steps(p)
@@ -165,6 +180,44 @@ def check_control(params: dict[str, Any]) -> None:
     if params.get("control") == CONTROLS[1]:
         hardness = None if params.get("hardness") is None else float(params["hardness"])
         check_load_under_hardness(load_steps(params), hardness, float(params["E"]))
+
+
+def check_float_range(params: dict[str, Any], surface: Surface, seen: set[Any]) -> None:
+    """What a recipe's build computes from its values, computed as the build does
+    (``recipe_builder``), so that values within their options' rules but beyond float64
+    (``--allow-any-E``, ``--allow-implausible``) are refused before anything runs: the
+    kernel table (``kernels.kernel_table``: influence coefficients float64 cannot hold, a
+    one-line ``ProblemInputError`` naming E) and, under load control, each step's force
+    P = load E* A (``InstanceBuilder.load_force``), which must be a finite number (the
+    check ``build_load`` makes).  (The nominal area A itself is ``Surface``'s check.)
+    ``seen``: the (kernel, grid, E, boundary, layer) keys whose table already passed."""
+    builder = recipe_builder(params, surface)
+    key = (builder.kernel, surface.shape, surface.spacing, builder.E, builder.periodic, builder.layer)
+    if key not in seen:
+        _ = builder.transform  # (the table the build makes, and its check)
+        seen.add(key)
+    if params.get("control") == CONTROLS[1]:
+        for load in load_steps(params):
+            force = builder.load_force(load)
+            try:
+                check_nonnegative("load P", force)
+            except ProblemInputError as exc:
+                raise ProblemInputError(f"load step {load:g} (P/(E* A)) on {surface.name!r} is a force float64 "
+                                        f"cannot hold: {exc}") from None
+
+
+#: The recipe values whose plausible ranges keep a build's numbers within float64.
+FLOAT_RANGE_OPTIONS = ("E", "length", "loads", "thickness")
+
+
+def outside_plausible(params: dict[str, Any]) -> bool:
+    """Whether a recipe holds a value of ``FLOAT_RANGE_OPTIONS`` outside its option's
+    plausible range (which ``--allow-any-E`` or ``--allow-implausible`` let through): only
+    then -- or on a measured map, whose spacing its file gives -- can a build meet a number
+    float64 cannot hold, and the planner builds a kernel table to find out
+    (``check_float_range``: seconds and gigabytes at 4096^2 and beyond, so not for every run)."""
+    return any(params.get(name) is not None and value_problem(BY_NAME[name], params[name], set()) is not None
+               for name in FLOAT_RANGE_OPTIONS)
 
 
 def control_suffix(params: dict[str, Any]) -> str:
@@ -203,8 +256,8 @@ def paper_ramp(spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
 class RampScene(Scene):
     """A scene whose recipes are one surface under a sequence of far-field displacements:
     subclasses give ``loads(spec)`` = (surface, displacements); ``build`` and
-    ``validate`` (the planner's up-front check: surfaces and loads, no operators) both
-    go through it."""
+    ``validate`` (the planner's up-front check: surfaces, loads, the kernel table and the
+    forces, ``check_float_range``; no operators) both go through it."""
 
     @abstractmethod
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
@@ -218,11 +271,14 @@ class RampScene(Scene):
 
     def validate_sizes(self, cfg: SceneConfig) -> dict[str, StepSizes]:
         sizes: dict[str, StepSizes] = {}
+        seen: set[Any] = set()
 
         def check(spec: InstanceSpec) -> None:
             surface, deltas = self.loads(spec)
             check_grid(spec.params, checked_units(spec, surface, cfg))
             check_control(spec.params)
+            if spec.params.get("surface_path") or outside_plausible(spec.params):
+                check_float_range(spec.params, surface, seen)
             sizes[spec.instance] = step_sizes(spec.params, surface, deltas)
 
         validate_each(self.instances(cfg), check)
@@ -265,12 +321,20 @@ def modulus_suffix(E: float | None) -> str:
     return "" if E is None or float(E) == PAPER_E else "-E" + f"{float(E):g}".replace("e+0", "e").replace("e+", "e")
 
 
+def grid_suffix(kernel: str, periodic: bool) -> str:
+    """"-<kernel>-per" or "-<kernel>-np": the kernel and the boundary of a problem, which
+    every rough-surface instance name carries (one map, wrapped or not, or under another
+    kernel, is another problem)."""
+    return f"-{kernel}-{'per' if periodic else 'np'}"
+
+
 def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
     """One recipe per seed (or one for a measured surface).  Generated surfaces are RMD of
     the run's family (``surface_family``), which their params and names carry, e.g.
     "saupe-H0.7-N512-bcc-np-s5", with "-L<metres>" and "-E<Pa>" where the lateral size and the
-    modulus are not the paper's (a measured map's name carries its spacing already); an
-    unknown family is refused here, before anything runs."""
+    modulus are not the paper's (a measured map's name carries its spacing already); a
+    measured map's, e.g. "file-m.npy-cecf1d20-bcc-per", carries the kernel and boundary too
+    (``grid_suffix``).  An unknown family is refused here, before anything runs."""
     base = {
         "size": cfg.size,
         "hurst": hurst,
@@ -295,12 +359,13 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         record = surface_from_params(file_params).preprocessing  # names the map by its base name and content
         file_params["surface_path"] = record.path
         file_params["surface_sha256"] = record.raw_sha256  # what the file must still hold when a step is built
-        return [InstanceSpec(scene, f"{record.instance_name}{material}{layer_suffix(base)}{control_suffix(base)}",
-                             file_params)]
+        return [InstanceSpec(scene, f"{record.instance_name}{grid_suffix(str(cfg.kernel), bool(cfg.periodic))}"
+                                    f"{material}{layer_suffix(base)}{control_suffix(base)}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
-    bc = "per" if cfg.periodic else "np"
+    square_length(cfg.length)  # (a pair L0,L1 is for a surface file)
+    grid = grid_suffix(str(cfg.kernel), bool(cfg.periodic))
     return [
-        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}-{cfg.kernel}-{bc}-s{s}{length_suffix(cfg.length)}"
+        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}{grid}-s{s}{length_suffix(cfg.length)}"
                             f"{material}{layer_suffix(base)}{control_suffix(base)}",
                      {**base, "family": family, "seed": int(s)})
         for s in seeds_of(cfg)
@@ -383,7 +448,7 @@ class Hertz(RampScene):
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
         sizes = (cfg.size,) if cfg.size else tuple(cfg.extra["sizes"])
         R = float(cfg.extra["radius"])
-        a = float(cfg.extra["a_over_L"]) * float(cfg.length)
+        a = float(cfg.extra["a_over_L"]) * square_length(cfg.length)
         return [
             InstanceSpec(self.name, f"N{N}-{cfg.kernel}", {"size": int(N), "length": cfg.length, "E": cfg.E,
                                                            "kernel": cfg.kernel, "periodic": False,
@@ -394,7 +459,7 @@ class Hertz(RampScene):
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         p = spec.params
-        surface = hertz_surface(int(p["size"]), float(p["radius"]), float(p["length"]))
+        surface = hertz_surface(int(p["size"]), float(p["radius"]), square_length(p["length"]))
         return surface, load_ramp(float(p["delta"]), int(p["steps"]))
 
     def build(self, spec: InstanceSpec) -> LoadSequence:
@@ -423,7 +488,7 @@ class FlatPunch(RampScene):
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
         sizes = (cfg.size,) if cfg.size else tuple(cfg.extra["sizes"])
-        a = float(cfg.extra["a_over_L"]) * float(cfg.length)
+        a = float(cfg.extra["a_over_L"]) * square_length(cfg.length)
         return [
             InstanceSpec(self.name, f"N{N}-{cfg.kernel}", {"size": int(N), "length": cfg.length, "E": cfg.E,
                                                            "kernel": cfg.kernel, "periodic": False,
@@ -435,7 +500,7 @@ class FlatPunch(RampScene):
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         p = spec.params
-        surface = flat_punch_surface(int(p["size"]), float(p["punch_radius"]), float(p["length"]))
+        surface = flat_punch_surface(int(p["size"]), float(p["punch_radius"]), square_length(p["length"]))
         return surface, load_ramp(float(p["delta"]), int(p["steps"]))
 
     def build(self, spec: InstanceSpec) -> LoadSequence:
