@@ -58,6 +58,7 @@ Coarsening and the PSD power-law test are not I/O: they live in ``problems/coars
 
 from __future__ import annotations
 
+import os
 import stat
 import warnings
 from collections.abc import Iterator
@@ -480,7 +481,15 @@ def check_surface_file(p: Path) -> None:
     path that is neither a regular file nor a folder (a named pipe, a device, a socket:
     read without end, or waited on forever).  A path that cannot be looked at, or a
     folder, is left to the reader, which names why (a .npy header that declares more
-    than the file holds: ``map_readers.check_npy_size``, before NumPy allocates)."""
+    than the file holds: ``map_readers.check_npy_size``, before NumPy allocates).  A path,
+    or the file a link leads to, whose name is not UTF-8 text is refused too: the map's
+    name and path are recorded in the results table and meta.json, which hold UTF-8 text."""
+    for name in (str(p), str(p.resolve())):
+        try:
+            name.encode("utf-8")
+        except UnicodeEncodeError:
+            raise SurfaceFileError(os.fsencode(name).decode("utf-8", "backslashreplace"),
+                                   "its name is not UTF-8 text (the results record it); rename the file") from None
     try:
         mode = p.stat().st_mode
     except OSError:

@@ -132,3 +132,19 @@ def test_an_out_that_is_a_link_to_a_folder_is_that_folder(in_tmp: Path) -> None:
     (in_tmp / "link").symlink_to(in_tmp / "kept", target_is_directory=True)
     assert cli.main([*RUN, "--out", "link"]) == 0
     assert (in_tmp / "link").is_symlink() and (in_tmp / "kept" / "results.parquet").is_file()
+
+
+@pytest.mark.parametrize("command", ["run", "export"])
+def test_a_surface_file_named_in_no_utf8_is_refused_naming_it(in_tmp: Path, capsys: pytest.CaptureFixture[str],
+                                                              command: str) -> None:
+    import numpy as np
+
+    name = os.fsdecode(b"map\xfe.npy")
+    np.save(name, np.random.default_rng(0).normal(size=(17, 17)) * 1e-7)
+    tail = ["--solvers", "pk", "--reference", "none", "--no-progress"] if command == "run" else ["--format",
+                                                                                                  "problem-dir"]
+    argv = [command, "paper-sweep", "--steps", "2", "--surface", name, "--length", "1e-4", *tail, "--out", "out"]
+    assert cli.main(argv) == 2
+    err = one_line_error(capsys)
+    assert "map\\\\xfe.npy" in err and "UTF-8" in err, err  # (the name as repr shows it)
+    assert sorted(os.listdir(in_tmp)) == [name]
