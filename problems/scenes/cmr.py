@@ -31,8 +31,8 @@ from ..coarsen import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
 from .base import CONTROL_SCENE_OPTIONS, LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
-from .core import (PAPER_E, RampScene, check_relief, grid_suffix, modulus_suffix, rough_surface_specs, square_length,
-                   surface_from_params)
+from .core import (PAPER_E, RampScene, check_relief, departure_suffix, grid_suffix, modulus_suffix, rough_surface_specs,
+                   square_length, surface_from_params)
 
 
 def psd_warnings(scene: Scene, cfg: SceneConfig, surface_of: Any) -> list[str]:
@@ -128,7 +128,7 @@ class CMRCutoff(RampScene):
                                  {**params, "surface_path": record.path, "surface_sha256": record.raw_sha256})]
         square_length(cfg.length)  # (a pair L0,L1 is for a surface file)
         kinds = {"rolloff": float(cfg.extra["rolloff_fraction"]), "power-law": None}
-        return [InstanceSpec(self.name, f"{kind}-H{base['hurst']:g}-N{cfg.size}-s{s}",
+        return [InstanceSpec(self.name, f"{kind}-H{base['hurst']:g}-N{cfg.size}-s{s}{departure_suffix(cfg, self.defaults)}",
                              {**base, "surface": kind, "rolloff_fraction": frac, "seed": int(s)})
                 for kind, frac in kinds.items() for s in seeds_of(cfg)]
 

@@ -307,18 +307,29 @@ def layer_suffix(params: dict[str, Any]) -> str:
     return name_suffix(params, "layer")
 
 
-def length_suffix(length: float | tuple[float, float] | None) -> str:
-    """"" for the paper's lateral size (``PAPER_LENGTH``, and None: the scene's), else
-    "-L<metres>" ("-L<L0>x<L1>" for two): the same seed at another size is another problem."""
+def length_suffix(length: float | tuple[float, float] | None, reference: float = PAPER_LENGTH) -> str:
+    """"" for the ``reference`` lateral size (the paper's, ``PAPER_LENGTH``, or a scene's own
+    default; and None: the scene's), else "-L<metres>" ("-L<L0>x<L1>" for two): the same
+    seed at another size is another problem."""
     sizes = tuple(length) if isinstance(length, (list, tuple)) else (length,)
-    if all(x is None or float(x) == PAPER_LENGTH for x in sizes):
+    if all(x is None or float(x) == reference for x in sizes):
         return ""
     return "-L" + "x".join(f"{float(x):g}" for x in sizes if x is not None)
 
 
-def modulus_suffix(E: float | None) -> str:
-    """"" for the paper's modulus (``PAPER_E``, and None: the scene's), else "-E<Pa>"."""
-    return "" if E is None or float(E) == PAPER_E else "-E" + f"{float(E):g}".replace("e+0", "e").replace("e+", "e")
+def modulus_suffix(E: float | None, reference: float = PAPER_E) -> str:
+    """"" for the ``reference`` modulus (the paper's, ``PAPER_E``, or a scene's own default;
+    and None: the scene's), else "-E<Pa>"."""
+    return "" if E is None or float(E) == reference else "-E" + f"{float(E):g}".replace("e+0", "e").replace("e+", "e")
+
+
+def departure_suffix(cfg: SceneConfig, defaults: SceneConfig) -> str:
+    """The lateral size's and the modulus's suffixes (``length_suffix``, ``modulus_suffix``)
+    of a run of a scene whose defaults are ``defaults``: "" at the scene's own values, so
+    that a run at another size or modulus -- another problem, e.g. appended into the same
+    folder -- is another instance."""
+    return (length_suffix(cfg.length, float(defaults.length)) if defaults.length is not None else "") + \
+        (modulus_suffix(cfg.E, float(defaults.E)) if defaults.E is not None else "")
 
 
 def grid_suffix(kernel: str, periodic: bool) -> str:
@@ -450,7 +461,8 @@ class Hertz(RampScene):
         R = float(cfg.extra["radius"])
         a = float(cfg.extra["a_over_L"]) * square_length(cfg.length)
         return [
-            InstanceSpec(self.name, f"N{N}-{cfg.kernel}", {"size": int(N), "length": cfg.length, "E": cfg.E,
+            InstanceSpec(self.name, f"N{N}-{cfg.kernel}{departure_suffix(cfg, self.defaults)}",
+                         {"size": int(N), "length": cfg.length, "E": cfg.E,
                                                            "kernel": cfg.kernel, "periodic": False,
                                                            "operator": cfg.operator, "radius": R,
                                                            "delta": a * a / R, "steps": int(cfg.steps)})
@@ -490,7 +502,8 @@ class FlatPunch(RampScene):
         sizes = (cfg.size,) if cfg.size else tuple(cfg.extra["sizes"])
         a = float(cfg.extra["a_over_L"]) * square_length(cfg.length)
         return [
-            InstanceSpec(self.name, f"N{N}-{cfg.kernel}", {"size": int(N), "length": cfg.length, "E": cfg.E,
+            InstanceSpec(self.name, f"N{N}-{cfg.kernel}{departure_suffix(cfg, self.defaults)}",
+                         {"size": int(N), "length": cfg.length, "E": cfg.E,
                                                            "kernel": cfg.kernel, "periodic": False,
                                                            "operator": cfg.operator, "punch_radius": a,
                                                            "delta": float(cfg.extra["delta_over_a"]) * a,
