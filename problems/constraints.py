@@ -223,24 +223,35 @@ def as_float64(x: Any) -> np.ndarray:
     return x.astype(np.float64, copy=False) if hasattr(x, "astype") else np.asarray(x, dtype=np.float64)
 
 
+#: How many units in the last place of its bound an element may sit below it and still
+#: be read as at the bound (``fit_multiplier``).
+AT_BOUND_ULPS = 16
+
+
 def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> float:
     """The approach Delta a candidate p implies, from g = Hp - ubar (w = g - Delta):
     the mean of g over the elements strictly inside their bounds, each weighted by its
     distance from the nearer bound (the exact answer has g = Delta on every one of them).
-    With none inside: the largest g over the elements at their upper bound (the least
-    Delta that keeps them plastic), else the least g (the approach at which contact
-    begins).  NaN when g or p is not finite or empty."""
+    An element within round-off of its upper bound (``AT_BOUND_ULPS`` units of its last
+    place) is at the bound: one a rounding below it does not set Delta alone.  With none
+    inside: the largest g over the elements at their upper bound (the least Delta that keeps
+    them plastic), else the least g (the approach at which contact begins).  The weights are
+    taken relative to the largest, so that neither tiny nor huge forces under- or overflow
+    their sum.  NaN when g or p is not finite or empty."""
     g, p = as_float64(g), as_float64(p)
     if g.size == 0 or not (np.all(np.isfinite(g)) and np.all(np.isfinite(p))):
         return math.nan
     u = np.full_like(p, math.inf) if upper is None else upper
-    with np.errstate(invalid="ignore"):
-        v = np.minimum(p, u - p)
+    with np.errstate(invalid="ignore", over="ignore"):
+        near = AT_BOUND_ULPS * np.spacing(np.where(np.isfinite(u), np.abs(u), 0.0))  # (0 where unbounded)
+        slack = u - p
+        v = np.minimum(p, np.where(slack > near, slack, 0.0))
     v = np.where(v > 0.0, v, 0.0)
-    sv = float(np.sum(v))
-    if sv > 0.0 and math.isfinite(sv):
-        return float(np.sum(v * g) / sv)
-    saturated = p >= u
+    top = float(np.max(v))
+    if top > 0.0:
+        v = v / top
+        return float(np.sum(v * g) / np.sum(v))
+    saturated = slack <= near
     if np.any(saturated):
         return float(np.max(g[saturated]))
     return float(np.min(g))

@@ -57,7 +57,14 @@ u_s and p_s:
 * kkt_error = max(primal, equality, dual, complementarity).
 
 The force scale is capped by the bounds: p_s = min(u_s / max diag H, min u)
-(``constrained_scales``), so a small hardness is not judged on a scale above it.
+(``constrained_scales``), so a small hardness is not judged on a scale above it.  Under load
+control u_s is at least (P / n) max diag H, the indentation of one element by the mean force
+(a heavy load on a low relief, or a flat surface, is judged on the load's length), and the
+complementarity figure also reads the products as a share of the load:
+complementarity = max(max_i of the products above, p_s sum_i of them / P) -- the load carried
+across open gaps (or pressed past a bound), weighted by the gap in u_s.  A max alone cannot
+see a light load spread thin: P / n per element is then far below p_s, and every product
+tiny, although the answer puts the load where the surface does not touch.
 
 Delta is the candidate's own (a solver reports it) or, when it gives none,
 ``constraints.fit_multiplier`` of the candidate; a non-finite Delta makes every figure inf.
@@ -199,13 +206,16 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     """(u_s, p_s) of a QP with constraints: ``problem_scales``, with p_s capped by the
     least finite upper bound (a force no element can exceed, so a violation of the bound is
     read against the bound itself).  The plain scales without bounds.  Under load control
-    with ubar = 0 (a flat surface), where ``problem_scales`` has no length to go by, the load
-    gives the scales: p_s = P / n, the mean force, and u_s = p_s max diag H, its indentation of
-    one element (``U_SCALE_FALLBACK`` would judge in absolute units)."""
+    the load's own length counts too: u_s = max(||ubar||_inf, (P / n) max diag H), the
+    indentation of one element by the mean force (module doc), so that a load heavy for the
+    surface's relief -- or any load on a flat surface, ubar = 0, where ``problem_scales``
+    has no length to go by -- is not judged against a relief round-off in w dwarfs
+    (``U_SCALE_FALLBACK`` would judge a flat surface in absolute units)."""
     top = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
     mean_force = float(constraints.load) / ubar.size if constraints.load_control and ubar.size else 0.0
-    if top == 0.0 and 0.0 < mean_force * float(diag_max) < math.inf:
-        u_s, p_s = mean_force * float(diag_max), mean_force
+    indentation = mean_force * float(diag_max)
+    if indentation > top and 0.0 < indentation < math.inf and mean_force > 0.0:
+        u_s, p_s = indentation, indentation / float(diag_max)
     else:
         u_s, p_s = problem_scales(ubar, diag_max, top)  # (||ubar||_inf read once)
     if constraints.bounded:
@@ -333,9 +343,21 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
         lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
         upper = np.where(bounded, weighted, 0.0)
         comp = worst(max_above_zero(lower), max_above_zero(upper))
+        if constraints.load_control:
+            comp = worst(comp, load_share(float(np.sum(lower + upper)), p_s, constraints))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
+
+
+def load_share(products_sum: float, p_s: float, constraints: Constraints) -> float:
+    """The complementarity products (scaled by u_s p_s) as a share of the load (module doc):
+    p_s sum / P under a load P > 0; 0 without one (P = 0 leaves only p = 0, which the
+    primal and equality figures judge).  NaN reads as inf."""
+    load = float(constraints.load) if constraints.load_control else 0.0
+    if not load > 0.0:
+        return 0.0
+    return worse(float(np.float64(products_sum) * np.float64(p_s) / np.float64(load)))
 
 
 def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: float, p_s: float,
@@ -345,13 +367,13 @@ def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: f
     as there."""
     with np.errstate(all="ignore"):
         t = np.abs(p) / p_s * (np.abs(w) / u_s)
-        if p.size and w.size:  # the four reductions in one read
-            p_min, w_min, t_max, total = read_scalars(np.min(p), np.min(w), np.max(t), np.sum(p))
+        if p.size and w.size:  # the five reductions in one read
+            p_min, w_min, t_max, t_sum, total = read_scalars(np.min(p), np.min(w), np.max(t), np.sum(t), np.sum(p))
         else:
-            p_min, w_min, t_max, total = min_below_zero(p), min_below_zero(w), max_above_zero(t), 0.0
+            p_min, w_min, t_max, t_sum, total = min_below_zero(p), min_below_zero(w), max_above_zero(t), 0.0, 0.0
         primal = worse(float(np.float64(_negative_part(below_zero(p_min))) / p_s))
         dual = worse(float(np.float64(_negative_part(below_zero(w_min))) / np.float64(u_s)))
-        comp = worse(above_zero(t_max))
+        comp = worst(worse(above_zero(t_max)), load_share(t_sum, p_s, constraints))
     equality = _equality(p, constraints, p_s, total)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
 

@@ -25,15 +25,17 @@ def load_instance(side: int = 24, load: float = 4e-4) -> ContactInstance:
 
 def interior_point_like(inst: ContactInstance) -> tuple[np.ndarray, float]:
     """An answer as an interior-point method leaves one: small forces on the clearly open
-    gaps, each product at 0.3 x the tolerance, the contact forces closing their gaps exactly
-    at an approach D with the load exact.  (p, D)."""
+    gaps, their products at 0.9 x the tolerance each and together (as a share of the load,
+    ``kkt.load_share``), the contact forces closing their gaps exactly at an approach D with
+    the load exact.  (p, D)."""
     H, ubar, c = inst.qp.H.to_dense(), np.asarray(inst.qp.ubar, dtype=np.float64), inst.qp.constraints
     ref = constrained_exact_solution(H, ubar, c)
     u_s, p_s = inst.problem_scales()
     w = H @ ref.p - ubar - ref.multiplier
     touch, open_ = ref.p > 0, (ref.p <= 0) & (w > 0.05 * u_s)
     p = np.zeros(inst.n)
-    p[open_] = 0.3 * TOL * u_s * p_s / w[open_]
+    each = 0.9 * TOL / max(1.0, p_s * int(open_.sum()) / float(c.load))
+    p[open_] = each * u_s * p_s / w[open_]
     HCC = H[np.ix_(touch, touch)]
     a = np.linalg.solve(HCC, ubar[touch] - H[np.ix_(touch, open_)] @ p[open_])
     e = np.linalg.solve(HCC, np.ones(int(touch.sum())))
