@@ -17,7 +17,8 @@ The lifecycle (``Solver.solve``, a template method; subclasses implement ``itera
    whose ``capabilities.warm_start`` is "none" is handed no warm start, and its result
    says ``warm_started=False``;
 4. start one deadline, one trace and one matvec count (``SolveContext``); return p = 0
-   at once when ubar <= 0 (no contact) and no load is imposed;
+   at once when ubar <= 0 (no contact) and no load is imposed, or when a load of 0 is
+   imposed (p = 0 is then the only feasible answer);
 5. call the solver's own ``iterate(ctx)``, which returns an ``Outcome`` whose fields are
    of their kinds (``read_outcome``; its p is the judge's to read);
 6. build the ``SolveResult``: w = Hp - ubar (unless the outcome carries it), the status
@@ -142,8 +143,16 @@ WITHOUT_ITERATE = "answered_without_iterate"
 
 def answered_without_iterate(qp: QP) -> bool:
     """Whether the lifecycle answers ``qp`` itself, p = 0, without calling ``iterate``
-    (module doc, step 4): ubar <= 0 (no contact) and no load imposed."""
-    return bool(np.max(qp.ubar, initial=0.0) <= 0.0) and not qp.constraints.load_control
+    (module doc, step 4): ubar <= 0 (no contact) and no load imposed, or a load of 0
+    imposed (sum p = 0 with p >= 0 leaves p = 0 alone)."""
+    if qp.constraints.load_control:
+        return float(qp.constraints.load) == 0.0
+    return bool(np.max(qp.ubar, initial=0.0) <= 0.0)
+
+
+def without_iterate_text(qp: QP) -> str:
+    """The message of the lifecycle's own answer p = 0 (``answered_without_iterate``)."""
+    return "load 0: p = 0, the only feasible answer" if qp.constraints.load_control else "ubar <= 0: no contact, p = 0"
 
 
 @dataclass
@@ -594,7 +603,7 @@ class Solver(ABC):
                            diag_max=float(np.max(qp.H.diagonal())), check_tol=settings.check_tol)
         ctx.track(qp.H)
         if answered_without_iterate(qp):
-            out = Outcome(np.zeros(qp.n), 0, True, "ubar <= 0: no contact, p = 0", info={WITHOUT_ITERATE: True})
+            out = Outcome(np.zeros(qp.n), 0, True, without_iterate_text(qp), info={WITHOUT_ITERATE: True})
         else:
             out = read_outcome(self.name, self.iterate(ctx), qp.n)
         return finish(ctx, out)
