@@ -10,7 +10,8 @@ benchmark scripts all call ``judge``.  A verdict carries two readings of one ans
   not a length-n vector of finite real numbers) or the solver wrote into the problem it
   was handed (``ProblemSeal``);
 * ``reading`` -- the conformance reading, which also weighs the solver's own claim:
-  "pass" (solved, and p within ``p_tol`` of the reference when one is given),
+  "pass" (solved, and p within ``p_tol`` of the reference when one is given: relatively,
+  or absolutely on the force scale, ``near_reference``),
   "wrong" (not that, while the solver claimed convergence; and any answer of a solver
   that wrote into its problem), or "unconverged" (not that, and the solver said so).
 
@@ -533,12 +534,25 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
         value, limit = shown_apart(kkt.kkt_error, check_tol)
         problems.append(f"kkt_error {value} > check_tol {limit}")
         kinds.append("kkt")
-    if p_ref is not None and p_tol is not None and not figures["p_rel_error"] <= p_tol:
+    if p_ref is not None and p_tol is not None and not near_reference(pf, p_ref, figures["p_rel_error"], p_tol,
+                                                                      kkt.p_scale):
         value, limit = shown_apart(figures["p_rel_error"], p_tol)
         problems.append(f"p is {value} off the exact reference (allowed {limit})")
         kinds.append("reference")
     reading = "pass" if not problems else ("wrong" if claimed else "unconverged")
     return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems, kinds=kinds)
+
+
+def near_reference(p: np.ndarray, p_ref: np.ndarray, rel_error: float, p_tol: float, p_s: float) -> bool:
+    """Whether ``p`` is within ``p_tol`` of the reference: relatively (``rel_error``,
+    ||p - p_ref||_inf / ||p_ref||_inf), or absolutely on the problem's force scale,
+    ||p - p_ref||_inf <= p_tol p_s -- a reference of forces far below p_s (a subnormal
+    one, say 2.5e-324 that its float64 answer rounds to 0) is not read digit by digit."""
+    if rel_error <= p_tol:
+        return True
+    with np.errstate(all="ignore"):
+        off = float(np.max(np.abs(p - np.asarray(p_ref, dtype=np.float64)), initial=0.0))
+    return math.isfinite(p_s) and off <= p_tol * p_s
 
 
 def answer_report(inst: ContactInstance, p: np.ndarray, multiplier: float | None = None) -> KKTReport:

@@ -71,3 +71,14 @@ def test_every_element_at_its_bound_within_a_rounding_passes() -> None:
         v = judge(inst, np.array(p), True, TOL)
         assert v.status == "solved" or v.kkt.primal > 0, (p, v.message())
     assert judge(inst, np.array([np.nextafter(1.0, 0.0), 1.0]), True, TOL).status == "solved"
+
+
+def test_a_reference_far_below_the_force_scale_is_not_read_digit_by_digit() -> None:
+    """ubar = [5e-324, 0]: the exact p_1 = 2.5e-324 is no float64; its rounding 0 passes,
+    while an answer off on the problem's force scale is still wrong."""
+    inst = dense(H2, [5e-324, 0.0])
+    v = judge(inst, np.zeros(2), True, TOL, p_ref=np.array([5e-324, 0.0]), p_tol=1e-6)
+    assert v.reading == "pass", v.message()
+    inst = dense(H2, [1.0, -1.0])
+    v = judge(inst, np.array([0.5 * (1 + 1e-3), 0.0]), True, TOL, p_ref=np.array([0.5, 0.0]), p_tol=1e-6)
+    assert v.reading == "wrong" and "off the exact reference" in v.message()
