@@ -158,8 +158,11 @@ def test_exporting_again_removes_what_the_earlier_export_wrote_and_this_one_does
     hertz = tmp_path / "N16-bcc-step0"
     export_scene("hertz", SceneConfig(size=16), "problem-dir", tmp_path)
     assert "H.f64" in _files(hertz)
-    export_scene("hertz", SceneConfig(size=16, E=2e9), "problem-dir", tmp_path, dense_limit=10)
-    assert "H.f64" not in _files(hertz) and read_problem_dir(hertz).E == 2e9
+    export_scene("hertz", SceneConfig(size=16), "problem-dir", tmp_path, dense_limit=10)
+    assert "H.f64" not in _files(hertz) and read_problem_dir(hertz).E == 1e9
+    export_scene("hertz", SceneConfig(size=16, E=2e9), "problem-dir", tmp_path)  # (another instance: its own folder)
+    assert _files(tmp_path) == {"manifest.json", "N16-bcc-E2e9-step0"}
+    assert read_problem_dir(tmp_path / "N16-bcc-E2e9-step0").E == 2e9
     (tmp_path / "mine.txt").write_text("kept")
     export_scene("counterexample", COUNTER, "problem-dir", tmp_path)  # this export does not write the hertz folder
     assert _files(tmp_path) == {"manifest.json", "mine.txt", "n25-s0-step0", "n25-s1-step0"}
