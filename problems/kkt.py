@@ -56,8 +56,10 @@ u_s and p_s:
   above every force is judged as no bound (not as round-off in w times the bound);
 * kkt_error = max(primal, equality, dual, complementarity).
 
-The force scale is capped by the bounds: p_s = min(u_s / max diag H, min u)
-(``constrained_scales``), so a small hardness is not judged on a scale above it.  Under load
+The force scale is capped by the bounds, element by element: element i is read on
+p_s,i = min(p_s, u_i) with p_s = u_s / max diag H (a uniform hardness: one scale,
+min(p_s, u), which ``constrained_scales`` reports), so a small hardness is not judged on a
+scale above it, and one element's small bound does not shrink the scale of the others.  Under load
 control u_s is at least (P / n) max diag H, the indentation of one element by the mean force
 (a heavy load on a low relief, or a flat surface, is judged on the load's length), and the
 complementarity figure also reads the products as a share of the load:
@@ -204,7 +206,9 @@ def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = N
 def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constraints,
                        ubar_max: float | None = None) -> tuple[float, float]:
     """(u_s, p_s) of a QP with constraints: ``problem_scales``, with p_s capped by the
-    least finite upper bound (a force no element can exceed, so a violation of the bound is
+    least finite upper bound -- the scale a uniform bound reads every element on; with
+    bounds that differ, ``constrained_figures`` reads each element on its own (module doc)
+    -- (a force no element can exceed, so a violation of the bound is
     read against the bound itself).  The plain scales without bounds.  Under load control
     the load's own length counts too: u_s = max(||ubar||_inf, (P / n) max diag H), the
     indentation of one element by the mean force (module doc), so that a load heavy for the
@@ -334,17 +338,18 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
     with np.errstate(all="ignore"):
         w = g - delta
         slack = u - p
-        primal = worst(_negative_part(min_below_zero(p)), _negative_part(min_below_zero(slack))) / p_s
+        ps = np.minimum(u_s / float(diag_max), u)  # each element's force scale (module doc): its bound if below
+        primal = worse(max_above_zero(np.maximum(-p, -slack) / ps))
         # a negative gap times the distance from the bound, capped at the force scale: the
         # dual figure below the bound, the upper product on a bounded element
-        weighted = np.maximum(-w, 0.0) / u_s * np.minimum(np.abs(slack) / p_s, 1.0)
+        weighted = np.maximum(-w, 0.0) / u_s * np.minimum(np.abs(slack) / ps, 1.0)
         dual = worse(max_above_zero(np.where(slack > 0.0, weighted, 0.0)))
         pos = np.maximum(w, 0.0) / u_s
-        lower = np.abs(p) / p_s * np.where(bounded, pos, np.abs(w) / u_s)
+        lower = np.abs(p) / ps * np.where(bounded, pos, np.abs(w) / u_s)
         upper = np.where(bounded, weighted, 0.0)
         comp = worst(max_above_zero(lower), max_above_zero(upper))
-        if constraints.load_control:
-            comp = worst(comp, load_share(float(np.sum(lower + upper)), p_s, constraints))
+        if constraints.load_control:  # (the products in force x length, over u_s P)
+            comp = worst(comp, load_share(float(np.sum((lower + upper) * ps)) / p_s, p_s, constraints))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)

@@ -82,3 +82,27 @@ def test_a_reference_far_below_the_force_scale_is_not_read_digit_by_digit() -> N
     inst = dense(H2, [1.0, -1.0])
     v = judge(inst, np.array([0.5 * (1 + 1e-3), 0.0]), True, TOL, p_ref=np.array([0.5, 0.0]), p_tol=1e-6)
     assert v.reading == "wrong" and "off the exact reference" in v.message()
+
+
+def dense_bounds(H: list[list[float]], ubar: list[float], upper: list[float]) -> ContactInstance:
+    c = make_constraints(len(ubar), np.asarray(upper, dtype=np.float64), None)
+    qp = QP(DenseOperator(np.asarray(H, dtype=np.float64)), np.asarray(ubar, dtype=np.float64), None, c)
+    return ContactInstance(qp, delta=float("nan"), E=1.0, kernel="dense", periodic=False)
+
+
+@pytest.mark.parametrize("bound", [1e-300, 1e-12, 1e-6])
+def test_one_small_bound_does_not_shrink_the_force_scale_of_the_others(bound: float) -> None:
+    """Bounds [b, inf] (a QP file may carry per-element bounds): the free element is read on
+    the problem's force scale, its own bound on b -- a rounding off passes, a tenth past
+    the small bound fails."""
+    inst = dense_bounds(H2, [1.5, 1.5], [bound, np.inf])
+    free = 0.75 - bound / 2
+    assert judge(inst, np.array([bound, free * (1 - 1e-12)]), True, TOL).status == "solved"
+    assert judge(inst, np.array([1.1 * bound, free]), True, TOL).status == "inaccurate"
+
+
+def test_a_uniform_bound_reads_every_element_on_it() -> None:
+    """Bounds [b, b]: the figures are those of the one scale min(p_s, b)."""
+    inst = dense_bounds(H2, [1.5, 1.5], [0.1, 0.1])
+    v = judge(inst, np.array([0.1, 0.1 * (1 - 1e-3)]), True, TOL)
+    assert v.kkt.p_scale == pytest.approx(0.1) and v.kkt.primal == 0.0 and v.status == "inaccurate"
