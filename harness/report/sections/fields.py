@@ -223,12 +223,31 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
             "the contact area (black)",
             "the contact pressure p/E* (log colour scale) in the most loaded window (dashed) with the contact "
             "area outlined in red"]
-    what.append(f"the distribution of the gap over the points out of contact (the contact points, "
-                f"{fmt_num(100 * f.contact_fraction)} % of the area, have g = 0)" if has_gap else
-                "no gap panel: the stored field has no gap")
+    what.append(f"the distribution of the gap over the points out of contact ({contact_gap_text(f)})" if has_gap
+                else "no gap panel: the stored field has no gap")
     return ctx.figure_md(rel, f"the contact field of `{f.scene}` instance `{f.instance}` at step {f.step} (of "
                               f"{f.steps}; {_approach_text(delta, control, f.unit)}, P/(E* A0) = "
                               f"{fmt_num(f.dim_load)}, answer of `{f.solver}`): " + "; ".join(what) + ".")
+
+
+#: A contact point whose gap is below -this x the heights' range is pressed past g = 0
+#: (an element at its hardness bound: plastic), not closed within round-off.
+PRESSED_GAP = 1e-9
+
+
+def contact_gap_text(f: ContactField) -> str:
+    """What the stored gap says of the contact points: "g = 0" where every one is closed
+    within round-off; otherwise the share pressed below g = 0 (elements at a hardness bound,
+    whose gap is negative) and how far, read from the field itself."""
+    share = f"the contact points, {fmt_num(100 * f.contact_fraction)} % of the area"
+    g = f.gap[f.contact]
+    g = g[np.isfinite(g)]
+    scale = float(np.ptp(f.heights)) if f.heights.size else 0.0
+    pressed = g < -PRESSED_GAP * scale if scale > 0 else np.zeros(g.shape, bool)
+    if not pressed.any():
+        return f"{share}, have g = 0"
+    return (f"{share}, have g = 0 where elastic; {fmt_num(100 * pressed.mean())} % of them are pressed below it "
+            f"(g down to {fmt_num(float(g.min()))} {f.unit}: elements at the hardness bound)")
 
 
 def load_area_series(ctx: ReportContext) -> list[tuple[str, str, pd.DataFrame]]:
@@ -257,40 +276,39 @@ def _load_area_figure(ctx: ReportContext, fields: dict[tuple[str, str], ContactF
         series.append((scene, inst, pi, f.rms_slope if f is not None else float("nan")))
     if not series:
         return ""
-    shown = series[:MAX_LOAD_AREA_SERIES]
+    sloped = [sr for sr in series if math.isfinite(sr[3]) and sr[3] > 0]  # (h'_rms from the stored field)
+    if not sloped:
+        return ""
+    shown = sloped[:MAX_LOAD_AREA_SERIES]
     fig, axes = grid_figure(1, 1, width=6.4, height=4.4)
     ax = axes[0][0]
-    fits = []
     xs_all: list[float] = []
     for i, (scene, inst, pi, hrms) in enumerate(shown):
         fit = fit_kappa(pi["dim_load"].to_numpy(), pi["area"].to_numpy(), hrms)
-        fits.append((scene, inst, fit, len(pi)))
-        c = f"C{i % 10}"
-        ax.plot(pi["dim_load"], pi["area"], "o-", ms=4, color=c, label=f"{scene} {inst}"
+        x = pi["dim_load"].to_numpy() / hrms  # the load over h'_rms: one law for every surface
+        ax.plot(x, pi["area"], "o-", ms=4, color=f"C{i % 10}", label=f"{scene} {inst}"
                 + (f" (kappa = {fmt_num(fit.kappa)})" if math.isfinite(fit.kappa) else ""))
-        xs_all += list(pi["dim_load"])
-    ref = next((f for f in fits if math.isfinite(f[2].rms_slope)), None)
-    if ref is not None:
-        x = np.geomspace(min(xs_all), max(xs_all), 50)
-        for k, name, ls in ((PERSSON_KAPPA, "Persson sqrt(8/pi)", "--"), (BGT_KAPPA, "BGT sqrt(2 pi)", ":")):
-            ax.plot(x, k / ref[2].rms_slope * x, ls=ls, color="black", lw=1,
-                    label=f"{name}, h'_rms of {ref[1]}")
+        xs_all += list(x)
+    x = np.geomspace(min(xs_all), max(xs_all), 50)
+    for k, name, ls in ((PERSSON_KAPPA, "Persson sqrt(8/pi)", "--"), (BGT_KAPPA, "BGT sqrt(2 pi)", ":")):
+        ax.plot(x, k * x, ls=ls, color="black", lw=1, label=name)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("P / (E* A0)  [-]")
+    ax.set_xlabel("P / (E* A0 h'_rms)  [-]")
     ax.set_ylabel("A / A0  [-]")
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title("load-area curve", fontsize=9)
     legend_outside(ax)
     rel = ctx.save_figure(fig, "load-area", on_page=True)
     left = len(series) - len(shown)
-    cap = ("the load-area curve: real contact area A/A0 against the dimensionless load P/(E* A0) per load step "
-           "(median over the solved answers of the tightest profile); kappa = h'_rms x the slope through the "
-           f"origin over the steps with A/A0 <= {SMALL_LOAD_AREA:g}; black lines: the small-load laws "
-           f"A/A0 = kappa/h'_rms P/(E* A0) of Persson (kappa = {PERSSON_KAPPA:.2f}) and Bush-Gibson-Thomas "
-           f"(kappa = {BGT_KAPPA:.2f}).")
+    cap = ("the load-area curve: real contact area A/A0 against the load P/(E* A0) over each surface's own rms "
+           "slope h'_rms, per load step (median over the solved answers of the tightest profile), so that one "
+           "small-load law A/A0 = kappa P/(E* A0 h'_rms) holds for every surface; black lines: Persson's "
+           f"(kappa = {PERSSON_KAPPA:.2f}) and Bush-Gibson-Thomas's (kappa = {BGT_KAPPA:.2f}); each curve's kappa "
+           f"is the slope through the origin over its steps with A/A0 <= {SMALL_LOAD_AREA:g}.")
     if left:
-        cap += f" {left} further instance(s) are not drawn; the table below lists them all."
+        cap += (f" {left} further instance(s) are not drawn (beyond {MAX_LOAD_AREA_SERIES}, or with no stored "
+                "field to give h'_rms); the table below lists them all.")
     body = [ctx.figure_md(rel, cap)]
     rows_t = []
     for scene, inst, pi, hrms in series:
