@@ -111,7 +111,7 @@ def test_the_counterexample_field_says_it_has_no_surface(tmp_path: Path) -> None
     assert np.isfinite(field.gap).all()  # w = Hp - ubar on the whole grid (every element is in the trial set)
     assert ctx.blank_panels == []
     text = (out / "report.md").read_text()
-    assert "no surface panel" in text and "no far-field displacement" in text
+    assert "no surface panel" in text and "no far-field displacement" in text and "index order" in text
 
 
 def test_the_plastic_field_figure_keeps_the_hardness_in_its_name(tmp_path: Path) -> None:

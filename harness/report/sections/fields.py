@@ -214,12 +214,14 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
         (zc.start * d, zr.start * d), (zc.stop - zc.start) * d, (zr.stop - zr.start) * d, fill=False,
         edgecolor="black", lw=0.8, ls="--"))
     for a in (a1, a2, a2z) if has_surface else (a2, a2z):
-        a.set_xlabel(f"x  [{ux}]")
-        a.set_ylabel(f"y  [{ux}]")
+        a.set_xlabel(f"x  [{ux}]" if has_surface else "element index mod N  (no position)")
+        a.set_ylabel(f"y  [{ux}]" if has_surface else "element index div N")
     has_gap = _gap_panel(a3, f)
     rel = ctx.save_figure(fig, f"field-{f.scene}-{f.instance}-k{f.step}", on_page=True)
     delta, control = field_approach(ctx, f)
-    what = [("the surface heights" if has_surface else "no surface panel (the problem has no height map)"),
+    what = [("the surface heights" if has_surface else "no surface panel (the problem has no height map: its "
+                                                       "elements have no positions, and are laid out N x N in "
+                                                       "index order only to be shown)"),
             "the contact area (black)",
             "the contact pressure p/E* (log colour scale) in the most loaded window (dashed) with the contact "
             "area outlined in red"]
