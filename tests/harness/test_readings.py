@@ -207,3 +207,17 @@ def test_peers_on_the_counterexample_solve_or_skip_never_fail(run_harness: Any) 
         assert st == ({"solved"} if CM_OK else {"skipped"}), (s, st)
     tm = table[table["solver"] == "tamaas-pkr"]
     assert (tm["status"] == "skipped").all() and tm["skip_reason"].str.len().gt(0).all()
+
+
+def test_the_counterexample_distance_table_marks_the_reference_own_answers(tmp_path: Any) -> None:
+    """The reference's own answers are at distance 0 by construction: the table says
+    ``ref``, as the scene tables do, not "0 / 0"."""
+    table, _ = _counterexample_table()
+    nnls = table["solver"] == "nnls"
+    table["reference_solver"] = ""
+    table.loc[nnls, "reference_solver"] = "nnls@" + table.loc[nnls, "profile"].astype(str)
+    table.loc[nnls, "p_rel_error"] = 0.0
+    table.to_parquet(tmp_path / "results.parquet", index=False)
+    table = rp.read_table(tmp_path)
+    section = rce.counterexample_section(rp.ReportContext(tmp_path, table, {}), table).body
+    assert "| nnls | - | ref |" in section and "the reference's own answers" in section

@@ -40,6 +40,8 @@ from ..core import (
     register_section,
     table_md,
 )
+from ...table.aggregates import own_reference
+from .generic import REF_CELL
 from .paper import resolve_role
 
 #: The share of seeds on which the paper saw greedy CG violate the LCP (sec. 3: "about 40 %"),
@@ -141,7 +143,7 @@ def counterexample_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | 
     body.append(table_md(ctx, f"LCP violations by solver and n, as the judge reads them: rejected seeds / seeds "
                               f"(of which wrong = claimed convergence, unconverged, no answer), profile `{prof}`.",
                          ["solver", *[f"n = {int(n)}" for n in ns]], rows_t, "l" + "r" * len(ns)))
-    body.append(_distance_table(ctx, cells, ns, solvers, prof))
+    body.append(_distance_table(ctx, cells, ns, solvers, prof, set(r.loc[own_reference(r), "solver"])))
     body.append(_counterexample_reading(frac, cells))
     body.append(_counterexample_case(ctx, cells))
     return Section(title, "\n".join(body), page_charts=EXAMPLE1_PAGE)
@@ -164,20 +166,27 @@ def _frac_cell(frac: pd.DataFrame, s: str, n: float) -> str:
             + (f": {split}" if split else "") + ")")
 
 
-def _distance_table(ctx: ReportContext, cells: pd.DataFrame, ns: list, solvers: list[str], prof: str) -> str:
-    """Median and largest p_rel_error of the accepted seeds: a distance, not a verdict."""
+def _distance_table(ctx: ReportContext, cells: pd.DataFrame, ns: list, solvers: list[str], prof: str,
+                    references: set[str]) -> str:
+    """Median and largest p_rel_error of the accepted seeds: a distance, not a verdict;
+    ``REF_CELL`` for the solvers whose answers are the reference (``references``)."""
     ok = cells[~cells["violates"] & cells["p_rel_error"].notna()]
     if ok.empty:
         return "No accepted answer has a distance from the exact answer in this table (no reference).\n"
 
     def cell(s: str, n: float) -> str:
         e = ok[(ok["solver"] == s) & (ok["n"] == n)]["p_rel_error"]
+        if s in references and not e.empty:
+            return REF_CELL
         return "-" if e.empty else f"{fmt_err(float(e.median()))} / {fmt_err(float(e.max()))}"
 
     rows_t = [(s, *[cell(s, n) for n in ns]) for s in solvers]
+    own = (f" {md_code(REF_CELL)}: the reference's own answers (distance 0 by construction)."
+           if references & set(ok["solver"]) else "")
     return table_md(ctx, f"Distance from the exact LCP answer (not a verdict): median / largest "
                          f"||p - p_exact||_inf / ||p_exact||_inf over the seeds the judge accepts, profile `{prof}`. "
-                         f"An accepted answer is exact to the judge's tolerance; this shows how close its forces are.",
+                         f"An accepted answer is exact to the judge's tolerance; this shows how close its forces are."
+                         + own,
                     ["solver", *[f"n = {int(n)}" for n in ns]], rows_t, "l" + "r" * len(ns))
 
 
