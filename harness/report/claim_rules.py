@@ -26,13 +26,19 @@ The kinds of rule (``RULE_KINDS``; docs/claims.md has the table):
 * ``untestable`` -- the table cannot test the claim: always ``unmeasured``, with the reason.
 
 The factors are the constants below, each in this one place; a claim names its kind and
-its paper value through the constructors (``ratio``, ``bound``, ``at_most``, ...).
+its paper value through the constructors (``ratio``, ``bound``, ``at_most``, ...).  The
+spread of a timed statistic over the repeats (``over_repeats``, ``relative_range``) is here
+too: the ledger and the report's paper section read a tie with the same rule.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
 
 #: The verdicts, in the order the ledger counts them.
 VERDICTS: tuple[str, ...] = ("holds", "partly", "fails", "unresolved", "unmeasured")
@@ -313,3 +319,22 @@ CLAIMS: dict[str, Claim] = {c.id: c for c in (
     Claim("real-cutoff-saving", "Fig. 11", "1297-1298", "PSD cut-off: almost no time saved (ratio ~ 1)",
           ratio(1.0, holds=RANGE_HOLDS, partly=RANGE_PARTLY), "median t(CMR) / t(direct)"),
 )}
+
+
+def relative_range(values: pd.Series) -> float:
+    """(max - min) / median of the values (NaN for fewer than two or a median <= 0)."""
+    v = pd.to_numeric(values, errors="coerce").dropna().to_numpy(float)
+    if len(v) < 2:
+        return math.nan
+    med = float(np.median(v))
+    return float((v.max() - v.min()) / med) if med > 0 else math.nan
+
+
+def over_repeats(rows: pd.DataFrame, statistic: Callable[[pd.DataFrame], float]) -> tuple[float, float]:
+    """A timed statistic over the repeats: ``statistic`` computed on each timed repeat's
+    rows alone, as (their median, their relative range); (the statistic of all rows, NaN)
+    with fewer than two repeats."""
+    if "repeat" not in rows.columns or rows["repeat"].nunique() < 2:
+        return statistic(rows), math.nan
+    values = pd.Series([statistic(g) for _, g in rows.groupby("repeat")], dtype=float)
+    return float(values.median()), relative_range(values)

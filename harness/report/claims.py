@@ -32,7 +32,7 @@ from contactbench.solvers.registry import get_solver
 
 from ..table.files import replace_atomically
 from ..table.schema import ANSWERED
-from .claim_rules import CLAIMS, PAPER_N, SINGLE_REPEAT_SPREAD, VERDICTS, Claim, judge
+from .claim_rules import CLAIMS, PAPER_N, SINGLE_REPEAT_SPREAD, VERDICTS, Claim, judge, over_repeats, relative_range
 from .core import parse_json, per_cell
 from .sections.cmr import cmr_pairs, instance_totals
 from .sections.counterexample import seed_readings, violation_counts
@@ -123,25 +123,6 @@ def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame
 PAPER_METHODS: frozenset[str] = frozenset(r.base_solver for r in LEDGER_ROLES.values())
 #: The suffix of a label read from the independent (cold) solves of ``greedy-linear-solvers``.
 COLD = " cold"
-
-
-def relative_range(values: pd.Series) -> float:
-    """(max - min) / median of the values (NaN for fewer than two or a median <= 0)."""
-    v = pd.to_numeric(values, errors="coerce").dropna().to_numpy(float)
-    if len(v) < 2:
-        return math.nan
-    med = float(np.median(v))
-    return float((v.max() - v.min()) / med) if med > 0 else math.nan
-
-
-def over_repeats(rows: pd.DataFrame, statistic: Callable[[pd.DataFrame], float]) -> tuple[float, float]:
-    """A timed statistic over the repeats: ``statistic`` computed on each timed repeat's
-    rows alone, as (their median, their relative range); (the statistic of all rows, NaN)
-    with fewer than two repeats."""
-    if "repeat" not in rows.columns or rows["repeat"].nunique() < 2:
-        return statistic(rows), math.nan
-    values = pd.Series([statistic(g) for _, g in rows.groupby("repeat")], dtype=float)
-    return float(values.median()), relative_range(values)
 
 
 def totals(rows: pd.DataFrame) -> pd.DataFrame:

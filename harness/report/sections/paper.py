@@ -11,7 +11,7 @@ never by the solver's label.
 
 from __future__ import annotations
 
-import math
+from collections.abc import Hashable
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
@@ -34,7 +34,6 @@ from ..core import (
     floor_log,
     fmt_err,
     fmt_num,
-    fmt_pct,
     fmt_ratio,
     grid_figure,
     integer_ticks,
@@ -52,6 +51,21 @@ from ..core import (
     table_md,
 )
 from .generic import OWN_REF
+from ..claim_rules import CLAIMS
+from .paper_readings import (
+    Claim,
+    Spread,
+    agreement as agreement,  # (the readings' words, re-exported)
+    claim_sentence,
+    fig6_reading,
+    k_totals,
+    ledger_claim,
+    paired_count_text,
+    paired_median_ratio,
+    tied_with,
+    ties_text,
+    timing_spread,
+)
 from .sweep_totals import (
     BEST_RULE,
     WORST_RULE,
@@ -193,39 +207,6 @@ def by_role(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(parts) if parts else rows
 
 
-@dataclass(frozen=True)
-class Claim:
-    """A ratio claimed by the paper, as an interval [lo, hi]; ``ledger``: its row in the
-    claims ledger (harness/report/claims.py ``CLAIMS``), where it is measured under the paper's
-    conditions."""
-
-    text: str
-    lo: float
-    hi: float
-    ledger: str = ""
-
-
-def agreement(measured: float, claim: Claim) -> str:
-    """Words for a measured ratio against the paper's interval."""
-    if not math.isfinite(measured):
-        return "cannot be checked from this table"
-    if claim.lo <= measured <= claim.hi:
-        return "agrees with the paper"
-    if claim.lo / 2 <= measured <= 2 * claim.hi:
-        return "is close to the paper (within a factor of 2 of its range)"
-    mid = math.sqrt(claim.lo * claim.hi)
-    if (measured > 1) == (mid > 1):
-        size = "smaller" if measured < claim.lo else "larger"
-        return f"points the same way as the paper but is {size} by a factor of {fmt_num(max(measured / claim.hi, claim.lo / measured), 2)}"
-    where = f"row `{claim.ledger}`" if claim.ledger else "its rows"
-    return (f"points the opposite way under this table's conditions; for the paper's (dense H, eps = 1e-8) see "
-            f"{where}, condition `dense`, of the claims ledger (`contactbench run paper-claims`, claims.md)")
-
-
-def claim_sentence(label: str, measured: float, claim: Claim) -> str:
-    return f"{label}: measured {fmt_ratio(measured)} against the paper's {claim.text} -- {agreement(measured, claim)}."
-
-
 # ---------------------------------------------------------------------------
 # Figs. 4, 5 and 6
 # ---------------------------------------------------------------------------
@@ -349,12 +330,13 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     r = attempted(at_prof)
     if r.empty:
         return Section(FIG4_TITLE, "Every pair of this scene was skipped.\n", page_charts=FIG4_PAGE)
-    cells = per_cell(r)
-    cells[OWN_REF] = agg.own_reference(cells)  # (read on the solver's own name, before the curve label)
-    # warm and cold runs of one solver are separate curves ("pk" and "pk (warm)")
-    cells["warm"] = cells.groupby(["solver", "history"])["warm_start"].transform("any").astype(bool)
-    cells["solver"] = [_curve_label(s, w) for s, w in zip(cells["solver"], cells["warm"])]
-    tot = sweep_totals(cells, sweep_steps(at_prof))
+    cells = _curve_cells(r, own_ref=True)
+    n_steps = sweep_steps(at_prof)
+    tot = sweep_totals(cells, n_steps)
+
+    def spread_of(a: str, b: str) -> Spread:
+        return timing_spread(r, lambda g: total_ratio(sweep_totals(_curve_cells(g), n_steps), a, b))
+
     n_max = int(at_prof["n"].max()) if at_prof["n"].notna().any() else 0
     inst = natural_sorted(cells["instance"].unique())[0]
     sub = cells[cells["instance"] == inst]
@@ -373,8 +355,20 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                               f"solved every step by total time, then the others by steps solved; {WORST_RULE}.",
                          ["solver", "family", "steps solved", "total [s]", "worst kkt", "worst p err"],
                          totals_rows(tot, ctx.family), "llrrrr"))
-    body.append(_fig4_reading(tot, n_max, paper_roles(cells)))
+    body.append(_fig4_reading(tot, n_max, paper_roles(cells), spread_of))
     return Section(FIG4_TITLE, "\n".join(body), page_charts=FIG4_PAGE)
+
+
+def _curve_cells(rows: pd.DataFrame, own_ref: bool = False) -> pd.DataFrame:
+    """``per_cell`` of ``rows`` with one label per curve: a solver's warm-started runs
+    are the label "pk (warm)" beside its cold "pk"; with ``own_ref``, the ``OWN_REF``
+    column, read on the solver's own name before the curve label."""
+    cells = per_cell(rows)
+    if own_ref:
+        cells[OWN_REF] = agg.own_reference(cells)
+    cells["warm"] = cells.groupby(["solver", "history"])["warm_start"].transform("any").astype(bool)
+    cells["solver"] = [_curve_label(s, w) for s, w in zip(cells["solver"], cells["warm"])]
+    return cells
 
 
 def _fig4_figure(ctx: ReportContext, sub: pd.DataFrame, tot: pd.DataFrame, at_prof: pd.DataFrame,
@@ -439,7 +433,12 @@ def _unplaced_note(sub: pd.DataFrame, placed: pd.Series) -> str:
     return f" Not drawn, as no solver solved their step to give it a load: {what}."
 
 
-def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) -> str:
+def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None],
+                  spread_of: Callable[[str, str], Spread]) -> str:
+    """Fig. 4's reading: the paper's speed-ups against NNLS+GP from the sweep totals
+    ``tot`` (paper_readings.py ``agreement``), and the fastest solver, overall and at each
+    common accuracy, named only when every other is slower by more than the timing spread
+    (``spread_of(a, b)``: the spread of the ratio of a's total to b's)."""
     ref = role["nnls-gp"]
     parts = [f"**Reading.** The paper (sec. 4, n up to 35555 at 512²) finds NNLS+GP (K = 100) fastest. "
              f"Here the largest trial set has n = {n_max}. Solvers stop at their own tolerances, so every time "
@@ -449,38 +448,55 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None]) ->
     if ref is None:
         parts.append("No NNLS+GP solver is in this table, so the paper's speed-ups cannot be checked.")
     else:
+        orders = " (two orders of magnitude)"
         checks = [("pk-printed", "P&K as printed (Algorithm 2) / NNLS+GP",
-                   Claim("~26x", 20.0, 33.0, "fig4-pkprinted-over-nnlsgp")),
-                  ("pk", "P&K 1999 / NNLS+GP", Claim("~26x", 20.0, 33.0, "fig4-pk-cold-over-nnlsgp")),
-                  ("greedy-cg", "greedy CG / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0,
-                                                               "fig4-greedy-over-nnlsgp")),
-                  ("admm", "ADMM / NNLS+GP", Claim("~100x (two orders of magnitude)", 50.0, 200.0,
-                                                     "fig4-admm-over-nnlsgp"))]
+                   ledger_claim("fig4-pkprinted-over-nnlsgp", 20.0, 33.0)),
+                  ("pk", "P&K 1999 / NNLS+GP", ledger_claim("fig4-pk-cold-over-nnlsgp", 20.0, 33.0)),
+                  ("greedy-cg", "greedy CG / NNLS+GP", ledger_claim("fig4-greedy-over-nnlsgp", 50.0, 200.0, orders)),
+                  ("admm", "ADMM / NNLS+GP", ledger_claim("fig4-admm-over-nnlsgp", 50.0, 200.0, orders))]
         for key, label, claim in checks:
-            if role[key] is None:
+            s = role[key]
+            if s is None:
                 parts.append(f"{PAPER_ROLES[key].label} is not in this table.")
-            elif not tot.loc[role[key], "complete"]:
-                parts.append(f"{label}: `{role[key]}` did not solve every step, so its ratio is not comparable.")
+            elif not tot.loc[s, "complete"]:
+                parts.append(f"{label}: `{s}` did not solve every step, so its ratio is not comparable.")
             else:
-                parts.append(claim_sentence(label, total_ratio(tot, role[key], ref), claim).rstrip(".")
-                             + f" (worst kkt {fmt_err(tot.loc[role[key], 'worst_kkt'])} against "
+                parts.append(claim_sentence(label, total_ratio(tot, s, ref), claim, spread_of(s, ref)).rstrip(".")
+                             + f" (worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])} against "
                                f"{fmt_err(tot.loc[ref, 'worst_kkt'])}).")
-        if role["pk-warm"] and role["pk"] and role["pk-warm"] != role["pk"]:
-            parts.append(f"Warm-started P&K takes {fmt_ratio(total_ratio(tot, role['pk-warm'], role['pk']))} the time "
-                         f"of the cold one.")
+        warm, cold = role["pk-warm"], role["pk"]
+        if warm and cold and warm != cold:
+            w = total_ratio(tot, warm, cold)
+            sp = spread_of(warm, cold)
+            parts.append(f"Warm-started P&K takes {fmt_ratio(w)} the time of the cold one"
+                         + (f": {sp.tie_text()}." if sp.ties(w) else "."))
     complete = tot[tot["complete"]]
     if len(complete):
-        best = complete["total_s"].idxmin()
-        extra = ""
-        if ref and best != ref and ref in complete.index:
-            extra = f", {fmt_ratio(total_ratio(tot, ref, best))} faster than NNLS+GP's {time_at(tot, ref)}"
-        parts.append(f"The fastest solver over the whole sweep here is {md_code(best)} with "
-                     f"{fmt_num(complete.loc[best, 'total_s'])} s at worst kkt "
-                     f"{fmt_err(complete.loc[best, 'worst_kkt'])}{extra}.")
+        times = complete["total_s"]
+        best = str(times.idxmin())
+        tied = tied_with(times, best, spread_of)
+        if tied:
+            parts.append(f"No solver is the fastest over the whole sweep here: the least total, "
+                         f"{time_at(tot, best)}, is "
+                         + ties_text(times, best, tied, spread_of(tied[0], best), lambda x: time_at(tot, x)) + ".")
+        else:
+            extra = ""
+            if ref and best != ref and ref in complete.index:
+                extra = f", {fmt_ratio(total_ratio(tot, ref, best))} faster than NNLS+GP's {time_at(tot, ref)}"
+            parts.append(f"The fastest solver over the whole sweep here is {md_code(best)} with "
+                         f"{fmt_num(complete.loc[best, 'total_s'])} s at worst kkt "
+                         f"{fmt_err(complete.loc[best, 'worst_kkt'])}{extra}.")
         levels = fastest_at_accuracy(tot)
         if levels:
-            parts.append("Fastest at a common accuracy (every step solved with kkt_error at most the level): "
-                         + "; ".join(f"<= {lv:.0e}: {time_at(tot, s)}" for lv, s in levels) + ".")
+            words = []
+            for lv, s in levels:
+                at_lv = times[complete["worst_kkt"] <= lv]
+                near = tied_with(at_lv, s, spread_of)
+                words.append(f"<= {lv:.0e}: {time_at(tot, s)}" + (
+                    f", {ties_text(at_lv, s, near, spread_of(near[0], s), lambda x: time_at(tot, x))}" if near else ""))
+            parts.append("Fastest at a common accuracy (every step solved with kkt_error at most the level; a "
+                         "solver within the timing spread of the fastest is named as tied): "
+                         + "; ".join(words) + ".")
     elif len(tot):
         parts.append(f"No solver solved all {int(tot['steps'].iloc[0])} steps of the sweep, so none is named "
                      f"fastest: a sum over part of the sweep is not a total.")
@@ -508,33 +524,29 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     return Section(title, "\n".join(body), page_charts=FIG5_PAGE)
 
 
-def _paired_median_ratio(cells: pd.DataFrame, a: str | None, b: str | None) -> tuple[float, int]:
-    """Median over common solved (instance, step) of t_a / t_b, and the pair count."""
-    if a is None or b is None:
-        return float("nan"), 0
-    ka = cells[(cells["solver"] == a) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
-    kb = cells[(cells["solver"] == b) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
-    j = pd.concat([ka.rename("a"), kb.rename("b")], axis=1, join="inner").dropna()
-    j = j[j["b"] > 0]
-    return (float(np.median(j["a"] / j["b"])) if len(j) else float("nan")), len(j)
-
-
 def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
+    """Fig. 5's reading: the paper's ratios of greedy Cholesky and Gauss-Seidel to greedy
+    CG (paper_readings.py ``agreement``) as the median of the paired per-step ratios of
+    ``cells`` (``per_cell`` of the attempted ``rows`` at one profile), each with the timing
+    spread of its repeats; and where Cholesky ran out of memory."""
     cg, gs, ch = (resolve_role(rows, k) for k in ("greedy-cg", "greedy-gs", "greedy-chol"))
     parts = ["**Reading.**"]
     if cg is None:
         parts.append("No greedy-CG solver is in this table, so the paper's ratios cannot be checked.")
-    for other, label, claim in ((ch, "greedy Cholesky / greedy CG time", Claim("0.6-0.7 (30-40 % faster)", 0.6, 0.7,
-                                                                                          "fig5-chol-over-cg")),
-                                (gs, "greedy Gauss-Seidel / greedy CG time", Claim("~3 (3x slower)", 2.4, 3.75,
-                                                                                    "fig5-gs-over-cg"))):
+    chol = CLAIMS["fig5-chol-over-cg"].rule
+    for other, label, claim in ((ch, "greedy Cholesky / greedy CG time",
+                                 Claim(f"{chol.lo:g}-{chol.hi:g} (30-40 % faster)", chol.lo, chol.hi,
+                                       "fig5-chol-over-cg")),
+                                (gs, "greedy Gauss-Seidel / greedy CG time",
+                                 ledger_claim("fig5-gs-over-cg", 2.4, 3.75, " slower"))):
         if cg is None:
             break
         if other is None:
             parts.append(f"{label.split(' /')[0]} is not in this table.")
             continue
-        m, k = _paired_median_ratio(cells, other, cg)
-        parts.append(claim_sentence(f"{label} (median over {k} common solved instances)", m, claim))
+        m, k, n_inst = paired_median_ratio(cells, other, cg)
+        spread = timing_spread(attempted(rows), lambda g, o=other: paired_median_ratio(per_cell(g), o, cg)[0])
+        parts.append(claim_sentence(f"{label} ({paired_count_text(k, n_inst)})", m, claim, spread))
     if ch is not None:
         sk = rows[(rows["solver"] == ch) & (rows["status"] == "skipped")]
         if len(sk):
@@ -560,11 +572,10 @@ def k_of(row: pd.Series) -> float:
 def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 6: NNLS+GP time against the number K of GP steps (gp-k-sweep)"
     prof = pick_profile(attempted(rows))
-    cells = per_cell(attempted(rows[rows["profile"] == prof]))
-    if cells.empty:
+    at_prof = attempted(rows[rows["profile"] == prof])
+    cells = _k_cells(at_prof)
+    if per_cell(at_prof).empty:
         return Section(title, "Every pair of this scene was skipped.\n", page_charts=FIG6_PAGE)
-    cells = cells.assign(K=cells.apply(k_of, axis=1))
-    cells = cells[cells["K"].notna()]
     if cells.empty:
         return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n", page_charts=FIG6_PAGE)
     import matplotlib
@@ -580,8 +591,7 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     _plot_time_vs_load(ax1, sub[sub["solver"].isin(order)], lambda s: kcol[label_of_solver[s]],
                        lambda s: f"K = {int(label_of_solver[s])}")
     ax1.set_title(f"per step, instance {inst}", fontsize=9)
-    g = cells.groupby("K")
-    tot = pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": g["solved"].all()})
+    tot = k_totals(cells)
     ax2.plot(tot.index, tot["total_s"], marker="o", color="tab:blue", label="total over steps")
     inc = tot[~tot["complete"]]
     if len(inc):
@@ -604,32 +614,24 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     body.append(table_md(ctx, f"total NNLS+GP time against K, profile `{prof}`.", ["K", "total [s]", "all solved"],
                          [(int(k), fmt_num(tot.loc[k, "total_s"]), "yes" if tot.loc[k, "complete"] else "no")
                           for k in tot.index], "rrl"))
-    body.append(_fig6_reading(tot))
+
+    def spread_of(k1: Hashable, k2: Hashable) -> Spread:
+        return timing_spread(at_prof, lambda g: float(k_totals(_k_cells(g))["total_s"].get(k1, np.nan)
+                                                      / k_totals(_k_cells(g))["total_s"].get(k2, np.nan)))
+
+    body.append(fig6_reading(tot, spread_of))
     page = replace(FIG6_PAGE[0], colors=tuple((s, to_hex(kcol[label_of_solver[s]]))
                                                for s in sorted(label_of_solver, key=label_of_solver.get)))
     return Section(title, "\n".join(body), page_charts=(page,))
 
 
-def _fig6_reading(tot: pd.DataFrame) -> str:
-    comp = tot[tot["complete"]]
-    if comp.empty:
-        return "**Reading.** No K solved every step, so the minimum cannot be placed.\n"
-    kbest = float(comp["total_s"].idxmin())
-    parts = [f"**Reading.** The total time is smallest at K = {int(kbest)} "
-             f"({fmt_num(comp.loc[kbest, 'total_s'])} s); the paper finds the minimum at K = 100 "
-             f"(no saving beyond it) -- "
-             + ("this agrees with the paper." if 50 <= kbest <= 150 else
-                "this does not agree with the paper." if comp.index.min() <= 100 <= comp.index.max() else
-                "the sweep does not bracket K = 100, so this cannot be compared directly.")]
-    if 0.0 in comp.index and kbest != 0.0:
-        parts.append(f"Going from K = 0 to K = {int(kbest)} saves "
-                     f"{fmt_pct(1 - comp.loc[kbest, 'total_s'] / comp.loc[0.0, 'total_s'])} of the time.")
-    above = comp[comp.index > kbest]
-    if len(above):
-        kmax = float(above.index.max())
-        parts.append(f"At K = {int(kmax)} the total is {fmt_ratio(comp.loc[kmax, 'total_s'] / comp.loc[kbest, 'total_s'])} "
-                     f"the minimum (the paper: more GP steps only add time).")
-    return " ".join(parts) + "\n"
+def _k_cells(rows: pd.DataFrame) -> pd.DataFrame:
+    """``per_cell`` of ``rows`` with column ``K`` (``k_of``), the cells without a K left out."""
+    cells = per_cell(rows)
+    if cells.empty:
+        return cells.assign(K=pd.Series(dtype=float))
+    cells = cells.assign(K=cells.apply(k_of, axis=1))
+    return cells[cells["K"].notna()]
 
 
 # ---------------------------------------------------------------------------

@@ -1,0 +1,267 @@
+"""Words for the readings of the paper's figures (sections/paper.py): a measured ratio
+against one of the paper's claims, and the timing spread that decides when two times are
+a tie.
+
+A ratio is read in this order (``agreement``):
+
+1. no finite ratio: it cannot be checked;
+2. a ratio the timing spread cannot tell from 1 -- within [1 / (1 + s), 1 + s], s the
+   relative spread of the timings (``Spread``) -- is unresolved: a tie says nothing of
+   which way the paper's claim goes;
+3. a ratio on the other side of 1 from the paper's points the opposite way, however near
+   it lies (the paper says faster, the table says slower, or the reverse);
+4. otherwise inside the paper's range it agrees, within a factor of 2 of the range it is
+   close, and beyond that it points the same way, smaller or larger by a factor taken
+   against the paper's stated value (``Claim.value``; the nearer end of a range the paper
+   states as a range).
+
+The spread of a timing from one repeat is ``SINGLE_REPEAT_SPREAD``, the claims ledger's
+(claim_rules.py); from several repeats it is the relative range of the ratio over the
+repeats (``timing_spread``).  "Fastest" is said of a solver only when every other one is
+slower by more than the spread (``tied_with``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from collections.abc import Hashable
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from ..claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, over_repeats
+from ..core import fmt_num, fmt_pct, fmt_ratio
+
+#: A ratio of two paper methods differs from the paper's by at most this factor beyond its
+#: range to read "close".
+CLOSE_FACTOR = 2.0
+
+
+@dataclass(frozen=True)
+class Spread:
+    """The relative spread ``s`` a time ratio is read with, and the number of timed
+    ``repeats`` it comes from (1: none measured, ``SINGLE_REPEAT_SPREAD``; 0: no timing)."""
+
+    s: float = 0.0
+    repeats: int = 0
+
+    @property
+    def source(self) -> str:
+        """Where the spread comes from, in words."""
+        return "single repeats" if self.repeats <= 1 else f"{self.repeats} repeats"
+
+    def ties(self, ratio: float) -> bool:
+        """Whether the spread cannot tell ``ratio`` from 1 (a tie): 1 / (1 + s) <= ratio
+        <= 1 + s, for a finite positive ratio and a positive spread."""
+        if not (self.s > 0.0 and math.isfinite(ratio) and ratio > 0.0):
+            return False
+        return abs(math.log(ratio)) <= math.log1p(self.s) * (1.0 + 1e-12)
+
+    def tie_text(self) -> str:
+        """The verdict of a tie."""
+        return f"unresolved (a tie within the timing spread of {self.source})"
+
+
+#: The spread of timings from a single repeat (no spread measured).
+SINGLE = Spread(SINGLE_REPEAT_SPREAD, 1)
+#: No timing spread: a ratio that is not a timing (iterations, a count).
+EXACT = Spread()
+
+
+def timing_spread(rows: pd.DataFrame, statistic: Callable[[pd.DataFrame], float]) -> Spread:
+    """The spread of a timed ``statistic`` (a ratio of times) of ``rows``: ``SINGLE`` when
+    the rows hold one repeat (column ``repeat``); else the relative range of the statistic
+    computed on each repeat's rows alone (``claim_rules.over_repeats``), ``SINGLE_REPEAT_SPREAD``
+    where fewer than two repeats give a finite value."""
+    n = int(rows["repeat"].nunique()) if "repeat" in rows.columns else 1
+    if n < 2:
+        return SINGLE
+    _, s = over_repeats(rows, statistic)
+    return Spread(s if math.isfinite(s) else SINGLE_REPEAT_SPREAD, n)
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A ratio claimed by the paper: ``text`` its words, [``lo``, ``hi``] the range a
+    measured ratio agrees within, ``value`` the number the paper states (NaN for a claim
+    the paper states as the range itself); ``ledger``: its row in the claims ledger
+    (harness/report/claims.py ``CLAIMS``), where it is measured under the paper's
+    conditions."""
+
+    text: str
+    lo: float
+    hi: float
+    ledger: str = ""
+    value: float = math.nan
+
+    @property
+    def direction(self) -> int:
+        """+1: the paper's ratio is above 1 (slower), -1: below 1 (faster), 0: its range
+        holds 1."""
+        return 1 if self.lo > 1.0 else -1 if self.hi < 1.0 else 0
+
+
+def ledger_claim(ledger: str, lo: float, hi: float, words: str = "") -> Claim:
+    """The claim of the ledger row ``ledger`` (claim_rules.py ``CLAIMS``) whose paper value
+    is one number v: stated "~v x" (then ``words``), with ``value`` v, agreeing within
+    [``lo``, ``hi``]."""
+    rule = CLAIMS[ledger].rule
+    if rule.lo != rule.hi:
+        raise ValueError(f"ledger row {ledger!r} states a range, not one value")
+    return Claim(f"~{rule.lo:g}x{words}", lo, hi, ledger, rule.lo)
+
+
+def _off_by(measured: float, claim: Claim) -> str:
+    """"smaller by a factor of 24.5" (against ``claim.value``), or against the nearer end
+    of the range the paper states."""
+    smaller = measured < claim.lo
+    if math.isfinite(claim.value):
+        factor, what = (claim.value / measured if smaller else measured / claim.value), ""
+    else:
+        factor, what = (claim.lo / measured if smaller else measured / claim.hi), " than its range"
+    return f"{'smaller' if smaller else 'larger'}{what} by a factor of {fmt_num(factor, 3)}"
+
+
+def agreement(measured: float, claim: Claim, spread: Spread = EXACT) -> str:
+    """Words for a measured ratio against the paper's claim, read in the order of the
+    module doc: a tie within ``spread`` is unresolved, the direction is checked before
+    closeness, and a factor is given against the paper's stated value."""
+    if not math.isfinite(measured):
+        return "cannot be checked from this table"
+    if spread.ties(measured):
+        return spread.tie_text()
+    way = 1 if measured > 1.0 else -1 if measured < 1.0 else 0
+    if claim.direction and way != claim.direction:
+        where = f"row `{claim.ledger}`" if claim.ledger else "its rows"
+        side = "shows no difference" if way == 0 else "points the opposite way"
+        return (f"{side} under this table's conditions; for the paper's (dense H, eps = 1e-8) see "
+                f"{where}, condition `dense`, of the claims ledger (`contactbench run paper-claims`, claims.md)")
+    if claim.lo <= measured <= claim.hi:
+        return "agrees with the paper"
+    if claim.lo / CLOSE_FACTOR <= measured <= CLOSE_FACTOR * claim.hi:
+        return f"is close to the paper (the same way, within a factor of {CLOSE_FACTOR:g} of its range)"
+    return f"points the same way as the paper but is {_off_by(measured, claim)}"
+
+
+def claim_sentence(label: str, measured: float, claim: Claim, spread: Spread = EXACT) -> str:
+    """"label: measured 1.06x against the paper's ~26x -- <agreement>."."""
+    return (f"{label}: measured {fmt_ratio(measured)} against the paper's {claim.text} -- "
+            f"{agreement(measured, claim, spread)}.")
+
+
+def tied_with(times: pd.Series, best: Hashable, spread_of: Callable[[Hashable, Hashable], Spread]) -> list[Hashable]:
+    """The labels of ``times`` (label -> time) other than ``best`` whose time the spread
+    (``spread_of(label, best)``, of the ratio of the label's time to best's) cannot tell
+    from ``best``'s, fastest first."""
+    t0 = float(times[best])
+    out = [(float(t), s) for s, t in times.items()
+           if s != best and t0 > 0 and spread_of(s, best).ties(float(t) / t0)]
+    return [s for _, s in sorted(out, key=lambda x: x[0])]
+
+
+def ties_text(times: pd.Series, best: Hashable, tied: list[Hashable], spread: Spread,
+              time_of: Callable[[Hashable], str]) -> str:
+    """"tied with `b` (0.00404 s, worst kkt ...) at 1.01x (within the timing spread of
+    single repeats)" for the ``tied`` labels of ``times`` (``time_of`` words a label's
+    time); "" when none."""
+    if not tied:
+        return ""
+    t0 = float(times[best])
+    each = ", ".join(f"{time_of(s)} at {fmt_ratio(float(times[s]) / t0)}" for s in tied)
+    return f"tied with {each} (within the timing spread of {spread.source})"
+
+
+# ---------------------------------------------------------------------------
+# Fig. 5: paired ratios; Fig. 6: the least total over K
+# ---------------------------------------------------------------------------
+
+
+def paired_median_ratio(cells: pd.DataFrame, a: str | None, b: str | None) -> tuple[float, int, int]:
+    """Median over the (instance, step) cells both ``a`` and ``b`` solved (b's time
+    positive) of t_a / t_b, the number of those cells, and the number of instances they
+    come from; (NaN, 0, 0) when either is None or none is common."""
+    if a is None or b is None:
+        return float("nan"), 0, 0
+    ka = cells[(cells["solver"] == a) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
+    kb = cells[(cells["solver"] == b) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
+    j = pd.concat([ka.rename("a"), kb.rename("b")], axis=1, join="inner").dropna()
+    j = j[j["b"] > 0]
+    if not len(j):
+        return float("nan"), 0, 0
+    return float(np.median(j["a"] / j["b"])), len(j), int(j.index.get_level_values("instance").nunique())
+
+
+def paired_count_text(steps: int, instances: int) -> str:
+    """What a paired median counts: "median over 4 common solved instances" when each
+    instance gives one step, else "median over 5 common solved steps (instance, load
+    step) of 2 instances"."""
+    if steps == instances:
+        return f"median over {steps} common solved instances"
+    return (f"median over {steps} common solved steps (instance, load step) of {instances} "
+            f"instance{'s' if instances != 1 else ''}")
+
+
+def k_totals(cells: pd.DataFrame) -> pd.DataFrame:
+    """Per K (column ``K`` of ``cells``, ``per_cell`` rows of one profile): ``total_s``, the
+    solve time summed over every step and instance, and ``complete``, every one solved."""
+    g = cells.groupby("K")
+    return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": g["solved"].all()})
+
+
+#: The K at which the paper finds NNLS+GP's total least (Fig. 6), and the Ks a least total
+#: agrees with it at.
+PAPER_BEST_K = 100.0
+PAPER_NEAR = (50.0, 150.0)
+
+
+def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Spread]) -> str:
+    """Fig. 6's reading of ``k_totals`` ``tot``: the K of least total time against the
+    paper's K = 100, with the Ks whose totals the timing spread cannot tell from the least
+    (``spread_of(k1, k2)``: the spread of t(k1) / t(k2)) named as tied.  It agrees when the
+    least total and every K tied with it lie in ``PAPER_NEAR``; it is unresolved when only
+    some of them do; a disagreement is said with the ratio t(K = 100) / t(least) it rests
+    on."""
+    comp = tot[tot["complete"]]
+    if comp.empty:
+        return "**Reading.** No K solved every step, so the minimum cannot be placed.\n"
+    times = comp["total_s"]
+    kbest = float(times.idxmin())
+    tied = [float(k) for k in tied_with(times, kbest, spread_of)]
+    sp = spread_of(tied[0], kbest) if tied else spread_of(PAPER_BEST_K, kbest)
+    near = (f", tied with {', '.join(f'K = {int(k)} ({fmt_num(times[k])} s)' for k in tied)} within the timing "
+            f"spread of {sp.source}" if tied else "")
+    head = (f"**Reading.** The total time is smallest at K = {int(kbest)} ({fmt_num(times[kbest])} s){near}; the "
+            f"paper finds the minimum at K = {int(PAPER_BEST_K)} (no saving beyond it) -- ")
+    at_paper = times.get(PAPER_BEST_K, float("nan")) / times[kbest]
+    cand = [kbest, *tied]  # the Ks the spread cannot tell from the least total
+    if all(PAPER_NEAR[0] <= k <= PAPER_NEAR[1] for k in cand):
+        verdict = "this agrees with the paper" + (
+            f" (K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum)." if kbest != PAPER_BEST_K
+            and math.isfinite(at_paper) else ".")
+    elif any(PAPER_NEAR[0] <= k <= PAPER_NEAR[1] for k in cand):
+        verdict = f"{sp.tie_text()}: the Ks tied for the least total lie both near K = {int(PAPER_BEST_K)} and far from it."
+    elif math.isfinite(at_paper):
+        verdict = (f"this does not agree with the paper: K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the "
+                   f"minimum, beyond the timing spread of {spread_of(PAPER_BEST_K, kbest).source}.")
+    elif comp.index.min() <= PAPER_BEST_K <= comp.index.max():
+        verdict = (f"this does not agree with the paper, though the sweep has no complete total at "
+                   f"K = {int(PAPER_BEST_K)} to compare with.")
+    else:
+        verdict = f"the sweep does not bracket K = {int(PAPER_BEST_K)}, so this cannot be compared directly."
+    parts = [head + verdict]
+    if 0.0 in times.index and kbest != 0.0:
+        r0 = times[kbest] / times[0.0]
+        s0 = spread_of(kbest, 0.0)
+        parts.append(f"Going from K = 0 to K = {int(kbest)} saves {fmt_pct(1 - r0)} of the time"
+                     + (f": {s0.tie_text()}." if s0.ties(r0) else "."))
+    above = times[times.index > kbest]
+    if len(above):
+        kmax = float(above.index.max())
+        rmax = times[kmax] / times[kbest]
+        smax = spread_of(kmax, kbest)
+        parts.append(f"At K = {int(kmax)} the total is {fmt_ratio(rmax)} the minimum"
+                     + (f", {smax.tie_text()}" if smax.ties(rmax) else "")
+                     + " (the paper: more GP steps only add time).")
+    return " ".join(parts) + "\n"
