@@ -4,7 +4,10 @@ report.html (Plotly, ``to_plotly``).
 
 A ``Chart`` is data, not drawing code: a title, the axis titles, whether each axis is
 logarithmic, and its ``Series`` (a named list of points drawn as a line with markers,
-or as markers only).  A section puts its charts in ``Section.charts``; the report
+or as markers only, each with its colour, marker and dash).  A series that names no marker
+or dash takes the chart's next one (``SERIES_MARKERS``, ``SERIES_DASHES``, by its place in
+the chart), so that two series of one chart differ in shape whatever their colours; both
+backends draw the same colour, marker and dash.  A section puts its charts in ``Section.charts``; the report
 assembly (harness/report/build.py) draws each one into report.md under the section and
 hands it to report.html under the section's scene.  Nothing is keyed by a scene name.
 """
@@ -21,24 +24,41 @@ from .panels import EMPTY_NOTE, mark_empty
 
 #: How a series is drawn: "lines" (lines and markers) or "markers" (markers only).
 SERIES_MODES: tuple[str, ...] = ("lines", "markers")
+#: Matplotlib marker -> Plotly symbol, for the markers a series may name.
+PLOTLY_SYMBOLS: dict[str, str] = {"o": "circle", "s": "square", "^": "triangle-up", "D": "diamond",
+                                  "v": "triangle-down", "P": "cross", "X": "x", "<": "triangle-left",
+                                  ">": "triangle-right", "p": "pentagon", "h": "hexagon", "*": "star"}
+#: Matplotlib line dash -> Plotly dash, for the dashes a series may name.
+PLOTLY_DASHES: dict[str, str] = {"-": "solid", "--": "dash", "-.": "dashdot", ":": "dot"}
+#: The markers and dashes of the series that name none, by their place in the chart (11 and 4
+#: are coprime: two series share both only 44 places apart).
+SERIES_MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h")
+SERIES_DASHES: tuple[str, ...] = ("-", "--", "-.", ":")
 
 
 @dataclass(frozen=True)
 class Series:
     """One named series of (x, y) points; ``color`` a CSS/matplotlib colour or None
-    (the backend's cycle)."""
+    (the backend's cycle); ``marker`` (a key of ``PLOTLY_SYMBOLS``) and ``dash`` (a key of
+    ``PLOTLY_DASHES``) or None (the chart's next: ``Chart.styled``)."""
 
     name: str
     x: tuple[float, ...]
     y: tuple[float, ...]
     mode: str = "lines"
     color: str | None = None
+    marker: str | None = None
+    dash: str | None = None
 
     def __post_init__(self) -> None:
         if len(self.x) != len(self.y):
             raise ValueError(f"series {self.name!r}: {len(self.x)} x values but {len(self.y)} y values")
         if self.mode not in SERIES_MODES:
             raise ValueError(f"series {self.name!r}: mode must be one of {SERIES_MODES}, got {self.mode!r}")
+        if self.marker is not None and self.marker not in PLOTLY_SYMBOLS:
+            raise ValueError(f"series {self.name!r}: marker must be one of {tuple(PLOTLY_SYMBOLS)}, got {self.marker!r}")
+        if self.dash is not None and self.dash not in PLOTLY_DASHES:
+            raise ValueError(f"series {self.name!r}: dash must be one of {tuple(PLOTLY_DASHES)}, got {self.dash!r}")
 
 
 @dataclass(frozen=True)
@@ -59,13 +79,20 @@ class Chart:
         """Whether any series has a finite (x, y) point."""
         return any(math.isfinite(float(x)) and math.isfinite(float(y)) for s in self.series for x, y in zip(s.x, s.y))
 
+    def styled(self) -> list[tuple[Series, str, str]]:
+        """Each series with the marker and dash it is drawn with: its own, else the one of
+        ``SERIES_MARKERS`` / ``SERIES_DASHES`` at its place in the chart."""
+        return [(s, s.marker or SERIES_MARKERS[i % len(SERIES_MARKERS)], s.dash or SERIES_DASHES[i % len(SERIES_DASHES)])
+                for i, s in enumerate(self.series)]
+
     def to_plotly(self) -> dict[str, Any]:
         """``{"data": [...], "layout": {...}}`` for ``Plotly.react`` (JSON-safe: NaN and
         inf become null, which Plotly leaves out)."""
         data = [{"type": "scatter", "mode": "lines+markers" if s.mode == "lines" else "markers", "name": s.name,
                  "x": [_finite(v) for v in s.x], "y": [_finite(v) for v in s.y],
-                 **({"line": {"color": s.color}, "marker": {"color": s.color}} if s.color else {})}
-                for s in self.series]
+                 "line": {"dash": PLOTLY_DASHES[dash], **({"color": s.color} if s.color else {})},
+                 "marker": {"symbol": PLOTLY_SYMBOLS[marker], **({"color": s.color} if s.color else {})}}
+                for s, marker, dash in self.styled()]
         layout = {"title": {"text": self.title, "font": {"size": 13}}, "margin": {"l": 60, "r": 10, "t": 40, "b": 50},
                   "xaxis": {"title": {"text": self.x_title}, "type": "log" if self.x_log else "linear",
                             "exponentformat": "power"},
@@ -81,9 +108,9 @@ class Chart:
         """The same chart as a matplotlib figure (report.md's PNG)."""
         fig = Figure(figsize=(6.4, 4.0))
         ax = fig.add_subplot(1, 1, 1)
-        for s in self.series:
-            style = "o-" if s.mode == "lines" else "o"
-            ax.plot(s.x, s.y, style, label=s.name, ms=4, **({"color": s.color} if s.color else {}))
+        for s, marker, dash in self.styled():
+            ax.plot(s.x, s.y, marker=marker, ls=dash if s.mode == "lines" else "none", label=s.name, ms=4,
+                    **({"color": s.color} if s.color else {}))
         ax.set_title(self.title)
         ax.set_xlabel(self.x_title)
         ax.set_ylabel(self.y_title)

@@ -23,7 +23,9 @@ function bySceneOrder(scene, solverOf) {
     return ra !== rb ? (ra < rb ? -1 : 1) : (a < b ? -1 : a > b ? 1 : 0); };
 }
 const charts = [];   // {div, scene, draw: () => [traces, layout]}
-const MARKERS = {low: 'triangle-down', 'default': 'circle', mid: 'square', high: 'triangle-up'};
+// A work-precision point's size by its profile (larger: tighter), as the static figure's; its shape
+// is its solver's own symbol, so that two solvers of one family differ in shape as well as in colour.
+const PROFILE_SIZES = {low: 5, 'default': 7, mid: 9, high: 11};
 const fmt = v => (v === null || v === undefined) ? '-' : Number.isInteger(v) && Math.abs(v) < 1e6 ? String(v) : (Math.abs(v) >= 1e-3 && Math.abs(v) < 1e5 ?
   Number(v.toPrecision(3)).toString() : v.toExponential(1));
 const HOVER = 'instance %{customdata[0]}, step %{customdata[1]}, n %{customdata[2]}<br>' +
@@ -178,7 +180,7 @@ function wpChart(scene, key, yTitle) {
       traces.push({type: 'scatter', mode: 'markers', name: so + (D.profiles.length > 1 ? ' [' + pr + ']' : ''), meta: {so: so, pr: pr},
         x: rs.map(r => r.t), y: rs.map(r => Math.max(r[key], 1e-16)), customdata: rs.map(custom), hovertemplate: HOVER,
         marker: {color: rs.map(r => r.stt === 'solved' ? col : 'white'), line: {color: col, width: 1},
-          symbol: MARKERS[pr] || 'diamond', size: 7}});
+          symbol: SYMBOL[so] || 'circle', size: D.profiles.length > 1 ? (PROFILE_SIZES[pr] || 8) : 7}});
     });
     const refs = key === 'perr' && rowsOf(scene).some(r => r.ref) ? '; reference\'s own not drawn' : '';
     const lay = layout('run time against ' + yTitle + ' (' + scene + refs + ')', 'solve time [s]', yTitle,

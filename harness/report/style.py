@@ -1,26 +1,36 @@
-"""Legible figures at 30+ solvers: one colour per solver for the whole report (a family
-shares a hue), and the split of many series into panels of at most ``MAX_SERIES``.
+"""Legible figures at 30+ solvers: one style (colour, marker, line dash) per solver, the same in
+every report, and the split of many series into panels of at most ``MAX_SERIES``.
 
-* ``SolverStyles`` gives each solver a colour, a marker and a line dash.  Solvers of one
-  family (the table's ``family`` column: paper, fast, qp, wrapper, reference, external,
-  other, ...) share the family's hue band and differ in colour, marker and dash: a family's
-  colours are chosen from its band (``HUE_BAND`` x ``LIGHTNESS_LEVELS`` x
-  ``SATURATION_SHARES``) as far apart (``delta_e``: CIE94 in CIE L*a*b*) as the band allows,
-  from each other and from the colours of the families before it (``_spread``).  The assignment
-  depends only on the table, so the same solver looks the same in every figure of a report
-  (and on the interactive page, which reads the same styles).
+* ``SolverStyles`` gives each solver a colour, a marker and a line dash.  A family (the table's
+  ``family`` column: paper, fast, qp, wrapper, reference, external, peer, other, ...) has a fixed
+  palette (``family_palette``): ``PALETTE_SIZE`` colours of the family's hue band, in an order
+  in which every prefix is spread as far apart as the band allows (CIEDE2000, ``delta_e00``),
+  each colour at least ``GREY_APART`` from the context grey ``GREY`` and at least ``FAMILY_APART``
+  from every colour of the known families before it.  A solver takes one *slot* of its family's
+  palette: the project's own solvers a fixed slot (``FAMILY_SLOTS``, so that ``pk`` is the same
+  blue in every report whatever else ran); a solver the project does not name takes the free
+  slots in name order.  Slot ``i`` is colour ``i % PALETTE_SIZE``, marker ``i % len(MARKERS)``
+  and dash ``(i + i // len(MARKERS)) % len(DASHES)``, so two slots of one family below
+  ``PALETTE_SIZE`` never share both marker and dash, and a palette colour is chosen far from
+  the colours of the slots that share its marker or its dash (``ALIKE_SLACK``).  The ``reference`` family is black and dark greys,
+  dashed: always clear of the light grey context lines.
+* Within one chart, any two series differ by at least ``COLOUR_APART`` (CIEDE2000) in colour or
+  differ in marker or dash (tests/harness/test_series_distinct.py holds it for every chart of a
+  fabricated report).
 * ``family_panels`` splits a solver list into panels: one panel when it holds at most
   ``MAX_SERIES`` series, else one panel per family (a family larger than ``MAX_SERIES``
   in several), optionally preceded by an overview with the best solver of each family.
   ``panels_note`` words the caption: what each panel shows and where the rest is.
 
-A registered section needs nothing of this beyond ``ctx.color(solver)`` and
-``ctx.marker(solver)``; sections/generic.py and sections/paper.py use the panels.
+A registered section needs nothing of this beyond ``ctx.color(solver)``, ``ctx.marker(solver)``
+and ``ctx.dash(solver)``; sections/generic.py and sections/paper.py use the panels.
 """
 
 from __future__ import annotations
 
 import colorsys
+import functools
+import zlib
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -32,50 +42,92 @@ from .markdown_text import md_code
 MAX_SERIES = 10
 #: Families in the order panels and legends list them; others follow alphabetically.
 FAMILY_ORDER: tuple[str, ...] = ("paper", "fast", "qp", "wrapper", "reference", "external", "peer", "other")
-#: Hue (0-1) and saturation of each known family: hue centres at least 0.1 apart (``HUE_BAND``
-#: wide bands, whose colours keep away from the families' before: ``_spread``), so that two
-#: solvers of different families are at least 10 apart in CIE L*a*b* (tests/harness/test_report_html.py).
+#: Hue (0-1) and saturation of each known family, hue centres at least 0.1 apart.  The
+#: reference family has no hue: black and dark greys (``REFERENCE_LIGHTNESS``).
 FAMILY_HUES: dict[str, tuple[float, float]] = {
     "paper": (0.60, 0.75),      # blue
     "fast": (0.33, 0.70),       # green
     "qp": (0.78, 0.55),         # purple
     "wrapper": (0.08, 0.85),    # orange
-    "reference": (0.0, 0.0),    # grey
+    "reference": (0.0, 0.0),    # black and dark grey
     "external": (0.98, 0.75),   # red
     "peer": (0.47, 0.70),       # teal: the field's codes (solvers/_peers.py)
     "other": (0.88, 0.75),      # magenta: a solver registered from outside
 }
-#: Hues for families not listed above (olive, indigo, ...): between the known bands.
+#: Hues for families not listed above (olive, indigo, ...): between the known bands; a family
+#: takes the one its name hashes to (``family_hue``), whatever other families are present.
 SPARE_HUES: tuple[float, ...] = (0.20, 0.69, 0.53, 0.40, 0.93, 0.14)
-#: The share of the hue circle a family's colours lie in (centred on its hue), in ``HUE_STEPS`` steps ...
-HUE_BAND = 0.10
-HUE_STEPS = 7
-#: ... at these lightness levels (HLS; neighbours in a family differ in lightness) ...
-LIGHTNESS_LEVELS: tuple[float, ...] = (0.30, 0.34, 0.38, 0.42, 0.46, 0.50, 0.54, 0.58, 0.62, 0.66, 0.70, 0.74)
+#: The share of the hue circle a family's palette lies in (centred on its hue), in ``HUE_STEPS`` steps ...
+HUE_BAND = 0.12
+HUE_STEPS = 9
+#: ... at these lightness levels (HLS) ...
+LIGHTNESS_LEVELS: tuple[float, ...] = tuple(round(0.26 + 0.025 * i, 3) for i in range(19))
 #: ... and these shares of the family's saturation.
-SATURATION_SHARES: tuple[float, ...] = (1.0, 0.75, 0.5)
-#: The lightness of a family's first colour (the colour of a family of one; one of the levels).
+SATURATION_SHARES: tuple[float, ...] = (1.0, 0.8, 0.6, 0.4)
+#: The lightness of a family's first colour (slot 0).
 BASE_LIGHTNESS = 0.42
-#: Markers cycled within a family (so two shades of one hue still differ in shape), each family
-#: starting ``MARKER_STEP`` further along the cycle (so the first members of two families differ
-#: in shape too, where their dark shades come close).
+#: The reference family's palette: greys of these lightnesses (0 is black).
+REFERENCE_LIGHTNESS: tuple[float, ...] = (0.0, 0.40, 0.20, 0.55)
+#: Colours in a family's palette; a family with more members reuses them with other markers and dashes.
+PALETTE_SIZE = 16
+#: Two colours at least this far apart (CIEDE2000) are told apart by colour alone, even as thin
+#: lines or small markers; two series of one chart closer than this differ in marker or dash.
+COLOUR_APART = 15.0
+#: Every palette colour lies at least this far (CIEDE2000) from the context grey ``GREY``.
+GREY_APART = 20.0
+#: A known family's colours lie at least this far (CIEDE2000) from every colour of the known
+#: families before it in ``FAMILY_ORDER`` (where the band allows; else as far as it allows).
+FAMILY_APART = 12.0
+#: A palette colour is chosen for its distance from the colours of the slots that share its
+#: marker or dash, and from all others less this slack (those differ in marker and dash).
+ALIKE_SLACK = 10.0
+#: Any two colours of a family's palette lie at least this far apart in CIE94 (``delta_e``),
+#: where the band allows: colour alone tells two members apart in a figure drawn without markers.
+FAMILY_FLOOR = 8.5
+#: (Never closer than ``FAMILY_FLOOR + 1`` in CIE94, whatever the relaxation below.)  The
+#: colours kept from are those of the slots the project's solvers hold (``FAMILY_SLOTS``), or the
+#: first ``OUTSIDE_SLOTS`` of a family of outside solvers.
+OUTSIDE_SLOTS = 4
+#: ``FAMILY_APART`` is relaxed (one step at a time) until the band keeps this many candidates
+#: per palette colour: a band crowded by its neighbours still spreads its own colours.
+CANDIDATE_ROOM = 12
+#: Two palette neighbours (slots i and i + 1) differ at least this much in HLS lightness.
+NEIGHBOUR_LIGHTNESS = 0.06
+#: Markers, taken by slot (the page draws each: html.py ``SOLVER_SYMBOLS``); each family starts
+#: ``MARKER_STEP`` further along, so that the first members of two families differ in shape too.
 MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*")
 MARKER_STEP = 5
-#: Line dashes cycled within a family, for the figures that draw solvers as lines (two
-#: neighbours in a family differ in dash and in lightness).
+#: Line dashes, taken by slot (the reference family one further: its first member dashed).
 DASHES: tuple[str, ...] = ("-", "--", "-.", ":")
 #: The colour of the solvers a panel draws only as context.
 GREY = (0.80, 0.80, 0.80)
 #: The family label of a solver whose row names none.
 DEFAULT_FAMILY = "other"
+#: The fixed slots of the project's own solvers (solvers/registry.py), per family: a solver's
+#: slot is its index here.  The solvers that figures draw side by side by colour alone come
+#: first (every prefix of a palette is spread as far apart as it allows): the greedy variants of
+#: Fig. 5, the solvers of the counterexample's bars and of the closed-form checks.
+FAMILY_SLOTS: dict[str, tuple[str, ...]] = {
+    "paper": ("pk", "greedy-cg", "nnls", "greedy-gs", "gp", "greedy-chol", "nnls-gp", "admm", "pk-printed"),
+    "fast": ("fast-ccg", "fast-dual-pccg", "fast-pdas", "fast-pccg", "fast-dual-ccg"),
+    "qp": ("cvxpy", "qp-clarabel", "qp-osqp", "qp-piqp", "qp-proxqp", "qp-highs", "qp-daqp", "qp-quadprog",
+           "qp-clarabel+polish", "qp-scs", "qp-ecos", "qp-piqp+polish", "qp-cvxopt", "qp-qpalm"),
+    "wrapper": ("cmr+pk", "cmr+nnls", "cmr+fast-ccg", "cmr+nnls-gp", "cmr+fast-dual-pccg", "cmr+scipy-nnls"),
+    "reference": ("scipy-nnls", "bvls"),
+    "peer": ("tamaas-pkr", "cm-pk-ccg", "aspher-nested", "tamaas-kato", "aspher-pcg", "cm-dual-ccg",
+             "tamaas-condat", "aspher-active-f32", "tamaas-beck-teboulle", "aspher-nested-f32",
+             "tamaas-kato-saturated"),
+}
 
 
 def family_rank(family: str) -> tuple:
+    """The sort key of a family: ``FAMILY_ORDER`` first, the others alphabetically after."""
     known = {f: i for i, f in enumerate(FAMILY_ORDER)}
     return (known.get(family, len(known)), family)
 
 
 def sort_families(families: Iterable[str]) -> list[str]:
+    """The distinct ``families`` in ``family_rank`` order."""
     return sorted(set(families), key=family_rank)
 
 
@@ -99,15 +151,49 @@ def cielab(rgb: Any) -> np.ndarray:
 def delta_e(lab: Any, ref: Any) -> np.ndarray:
     """The CIE94 colour difference (graphic arts weights) of the L*a*b* colours ``lab`` (last
     axis) from ``ref``, with the geometric mean of the two chromas as the weighting chroma so
-    that it is symmetric.  It weighs differences of chroma and hue down where the chroma is
-    high, where the Euclidean distance overstates them (two saturated dark blues look alike
-    more than their distance says); about 1 is a just noticeable difference."""
+    that it is symmetric; about 1 is a just noticeable difference."""
     a, b = np.asarray(lab, dtype=float), np.asarray(ref, dtype=float)
     c1, c2 = np.hypot(a[..., 1], a[..., 2]), np.hypot(b[..., 1], b[..., 2])
     d_chroma = c1 - c2
     d_hue_sq = np.maximum((a[..., 1] - b[..., 1]) ** 2 + (a[..., 2] - b[..., 2]) ** 2 - d_chroma ** 2, 0.0)
     c = np.sqrt(c1 * c2)
     return np.sqrt((a[..., 0] - b[..., 0]) ** 2 + (d_chroma / (1 + 0.045 * c)) ** 2 + d_hue_sq / (1 + 0.015 * c) ** 2)
+
+
+def delta_e00(lab: Any, ref: Any) -> np.ndarray:
+    """The CIEDE2000 colour difference of the L*a*b* colours ``lab`` (last axis) from ``ref``
+    (broadcast; symmetric); about 1 is a just noticeable difference.  It corrects CIE94 in
+    the blues, where saturated dark colours of near hues look more alike than CIE94 says."""
+    l1, a1, b1 = np.moveaxis(np.asarray(lab, dtype=float), -1, 0)
+    l2, a2, b2 = np.moveaxis(np.asarray(ref, dtype=float), -1, 0)
+    c_mean = (np.hypot(a1, b1) + np.hypot(a2, b2)) / 2
+    g = 0.5 * (1 - np.sqrt(c_mean ** 7 / (c_mean ** 7 + 25.0 ** 7)))
+    a1, a2 = (1 + g) * a1, (1 + g) * a2
+    c1, c2 = np.hypot(a1, b1), np.hypot(a2, b2)
+    h1, h2 = np.degrees(np.arctan2(b1, a1)) % 360, np.degrees(np.arctan2(b2, a2)) % 360
+    grey = c1 * c2 == 0
+    dh = (h2 - h1 + 180) % 360 - 180
+    dh = np.where(grey, 0.0, dh)
+    d_big_h = 2 * np.sqrt(c1 * c2) * np.sin(np.radians(dh / 2))
+    l_mean, c_mean = (l1 + l2) / 2, (c1 + c2) / 2
+    h_sum = h1 + h2
+    h_mean = np.where(grey, h_sum, np.where(np.abs(h1 - h2) <= 180, h_sum / 2,
+                                            np.where(h_sum < 360, (h_sum + 360) / 2, (h_sum - 360) / 2)))
+    t = (1 - 0.17 * np.cos(np.radians(h_mean - 30)) + 0.24 * np.cos(np.radians(2 * h_mean))
+         + 0.32 * np.cos(np.radians(3 * h_mean + 6)) - 0.20 * np.cos(np.radians(4 * h_mean - 63)))
+    rot = -np.sin(np.radians(60 * np.exp(-(((h_mean - 275) / 25) ** 2)))) * 2 * np.sqrt(
+        c_mean ** 7 / (c_mean ** 7 + 25.0 ** 7))
+    s_l = 1 + 0.015 * (l_mean - 50) ** 2 / np.sqrt(20 + (l_mean - 50) ** 2)
+    s_c, s_h = 1 + 0.045 * c_mean, 1 + 0.015 * c_mean * t
+    dl, dc, dhh = (l2 - l1) / s_l, (c2 - c1) / s_c, d_big_h / s_h
+    return np.sqrt(np.maximum(dl ** 2 + dc ** 2 + dhh ** 2 + rot * dc * dhh, 0.0))
+
+
+def family_hue(family: str) -> tuple[float, float]:
+    """(hue, saturation) of ``family``: ``FAMILY_HUES``, else the spare hue its name hashes to."""
+    if family in FAMILY_HUES:
+        return FAMILY_HUES[family]
+    return SPARE_HUES[zlib.crc32(family.encode()) % len(SPARE_HUES)], 0.7
 
 
 def _candidates(hue: float, sat: float) -> list[tuple[float, float, float]]:
@@ -119,84 +205,144 @@ def _candidates(hue: float, sat: float) -> list[tuple[float, float, float]]:
     return list(dict.fromkeys(out))
 
 
-def _spread(hue: float, sat: float, k: int, taken: np.ndarray) -> list[tuple[float, float, float]]:
-    """``k`` colours of a family's band (``_candidates``): the first at ``BASE_LIGHTNESS`` on the
-    family's hue at full saturation, then each the one farthest (``delta_e``) from those
-    chosen and from ``taken`` (the L*a*b* of the families before it; farthest-point choice,
-    ties to the first); ordered by lightness, darkest and lightest taking turns
-    (``_alternate``), so that neighbours differ in lightness.  A family of more than its
-    band's colours repeats some."""
-    if k == 0:
-        return []
+def _slot_marks(slot: int) -> set[tuple[str, str]]:
+    """The marks slot ``slot`` shares with another slot of its family: its marker and its dash
+    (``slot_style``); two slots that share one are told apart by colour in the figures that
+    draw the other mark alike (a scatter: no dash; a line without markers)."""
+    return {("marker", _slot_marker(slot, 0)), ("dash", _slot_dash(slot, False))}
+
+
+def _slot_marker(slot: int, offset: int) -> str:
+    """The marker of slot ``slot`` of a family whose markers start ``offset`` along ``MARKERS``
+    (each round of ``MARKERS`` shifted by half of it: slot 12 takes slot 6's marker, whose
+    colour the palette keeps far from slot 12's)."""
+    return MARKERS[(slot + offset + slot // len(MARKERS) * (len(MARKERS) // 2)) % len(MARKERS)]
+
+
+def _slot_dash(slot: int, reference: bool) -> str:
+    """The dash of slot ``slot`` (one further in the reference family, and one further for each
+    round of ``MARKERS``, so that two slots of one marker differ in dash)."""
+    return DASHES[(slot + slot // len(MARKERS) + reference) % len(DASHES)]
+
+
+@functools.lru_cache(maxsize=None)
+def family_palette(family: str) -> tuple[tuple[float, float, float], ...]:
+    """The ``PALETTE_SIZE`` colours of ``family``'s slots, fixed whatever the table holds.
+
+    The first is the family's hue at ``BASE_LIGHTNESS``; each next one the candidate of the
+    band (``_candidates``) farthest (``delta_e00``) from those chosen, among those at least
+    ``GREY_APART`` from ``GREY``, ``FAMILY_APART`` from the palettes of the known families
+    before it (relaxed step by step: ``CANDIDATE_ROOM``) and ``NEIGHBOUR_LIGHTNESS``
+    lighter or darker than the one before it.  So every prefix is spread as far as the band
+    allows, and two neighbours differ in lightness.  The reference family: black and greys."""
+    if family == "reference":
+        return tuple((v, v, v) for v in REFERENCE_LIGHTNESS)
+    hue, sat = family_hue(family)
     cands = _candidates(hue, sat)
     lab = cielab(cands)
-    picks = [int(np.argmin(delta_e(lab, cielab(colorsys.hls_to_rgb(hue, BASE_LIGHTNESS, sat)))))]
-    near = np.full(len(cands), np.inf)
-    for other in [*taken, lab[picks[0]]]:
-        near = np.minimum(near, delta_e(lab, other))
-    while len(picks) < k:
-        picks.append(int(np.argmax(near)))
-        near = np.minimum(near, delta_e(lab, lab[picks[-1]]))
-    chosen = sorted((cands[i] for i in picks), key=lambda c: colorsys.rgb_to_hls(*c)[1])
-    return [chosen[i] for i in _alternate(k)]
-
-
-def _alternate(k: int) -> list[int]:
-    """0, h, 1, h + 1, ... (h = ceil(k / 2)): each index of ``range(k)`` once, two neighbours
-    about k / 2 apart."""
-    h = (k + 1) // 2
-    return [i for j in range(h) for i in (j, j + h) if i < k]
+    light = np.array([colorsys.rgb_to_hls(*c)[1] for c in cands])
+    known = FAMILY_ORDER[:FAMILY_ORDER.index(family)] if family in FAMILY_ORDER else FAMILY_ORDER
+    before = [f for f in known if f != "reference"]
+    others = cielab([c for f in before for c in family_palette(f)[:len(FAMILY_SLOTS.get(f, ())) or OUTSIDE_SLOTS]]
+                    ) if before else np.empty((0, 3))
+    apart = np.min(delta_e00(lab[:, None, :], others[None, :, :]), axis=1) if len(others) else np.full(len(cands), np.inf)
+    apart94 = np.min(delta_e(lab[:, None, :], others[None, :, :]), axis=1) if len(others) else np.full(len(cands), np.inf)
+    ok = (delta_e00(lab, cielab(GREY)) >= GREY_APART) & (apart94 >= FAMILY_FLOOR + 1.0)
+    need = FAMILY_APART
+    while not (ok & (apart >= need)).sum() >= CANDIDATE_ROOM * PALETTE_SIZE and need > 0:
+        need -= 1.0
+    strict = ok & (apart >= need)
+    start = cielab(colorsys.hls_to_rgb(hue, BASE_LIGHTNESS, sat))
+    picks = [int(np.argmin(np.where(strict, delta_e00(lab, start), np.inf)))]
+    while len(picks) < PALETTE_SIZE:
+        slot = len(picks)
+        dist = [delta_e00(lab, lab[i]) for i in picks]
+        near = np.min(dist, axis=0)
+        alike = [d for j, d in enumerate(dist) if _slot_marks(j) & _slot_marks(slot)]
+        score = np.minimum(near + ALIKE_SLACK, np.min(alike, axis=0)) if alike else near
+        floor = np.min([delta_e(lab, lab[i]) for i in picks], axis=0) >= FAMILY_FLOOR
+        steps = np.abs(light - light[picks[-1]]) >= NEIGHBOUR_LIGHTNESS
+        fresh = ok & (near > 0)  # (never a colour chosen already)
+        # the first set that holds a candidate: the floor and the other families' distance first
+        for mask in (floor & strict & steps, floor & strict, floor & fresh & steps, floor & fresh,
+                     strict & steps & fresh, strict & fresh, fresh):
+            if mask.any():
+                break
+        picks.append(int(np.argmax(np.where(mask, score, -np.inf))))
+    return tuple(cands[i] for i in picks)
 
 
 @dataclass(frozen=True)
 class SolverStyle:
+    """How one solver is drawn: its family, colour (sRGB in [0, 1]), marker and line dash
+    (matplotlib codes)."""
+
     family: str
     color: tuple[float, float, float]
     marker: str
     dash: str = "-"
 
 
+def slot_style(family: str, slot: int) -> SolverStyle:
+    """The style of slot ``slot`` of ``family`` (module doc): colour ``slot % PALETTE_SIZE`` of
+    ``family_palette``, marker and dash by slot (the family's marker offset: its place in
+    ``FAMILY_ORDER``, else its name's hash)."""
+    palette = family_palette(family)
+    offset = FAMILY_ORDER.index(family) if family in FAMILY_ORDER else zlib.crc32(family.encode())
+    return SolverStyle(family, palette[slot % len(palette)], _slot_marker(slot, MARKER_STEP * offset),
+                       _slot_dash(slot, family == "reference"))
+
+
 class SolverStyles:
     """Solver -> SolverStyle for one report.  ``solvers`` maps each solver label to its
-    family (an empty family is ``DEFAULT_FAMILY``); labels are ordered by ``key``."""
+    family (an empty family is ``DEFAULT_FAMILY``).  A solver of ``FAMILY_SLOTS`` takes its
+    fixed slot (the same style in every report); the others of a family take the slots left
+    free, in the order of ``key``."""
 
     def __init__(self, solvers: Mapping[str, str], key: Callable[[str], tuple]) -> None:
         fam = {s: (f or DEFAULT_FAMILY) for s, f in solvers.items()}
         self.families = sort_families(fam.values())
-        spare = iter(SPARE_HUES * 4)
         self.styles: dict[str, SolverStyle] = {}
-        taken = np.empty((0, 3))
-        for k, f in enumerate(self.families):
-            hue, sat = FAMILY_HUES.get(f) or (next(spare), 0.7)
+        for f in self.families:
+            fixed = FAMILY_SLOTS.get(f, ())
             members = sorted((s for s in fam if fam[s] == f), key=key)
-            colours = _spread(hue, sat, len(members), taken)
-            taken = np.vstack([taken, cielab(colours).reshape(-1, 3)])
-            for i, (s, c) in enumerate(zip(members, colours)):
-                shape = MARKERS[(i + MARKER_STEP * k) % len(MARKERS)]
-                self.styles[s] = SolverStyle(f, c, shape, DASHES[i % len(DASHES)])
+            free = (i for i in range(len(fixed) + len(members)) if i >= len(fixed) or fixed[i] not in members)
+            for s in members:
+                self.styles[s] = slot_style(f, fixed.index(s) if s in fixed else next(free))
 
     def family(self, solver: str) -> str:
+        """The family of ``solver`` (``DEFAULT_FAMILY`` for one not in the table)."""
         st = self.styles.get(solver)
         return st.family if st else DEFAULT_FAMILY
 
     def color(self, solver: str) -> tuple[float, float, float]:
+        """The colour of ``solver`` (black for one not in the table)."""
         st = self.styles.get(solver)
         return st.color if st else (0.0, 0.0, 0.0)
 
     def marker(self, solver: str) -> str:
+        """The marker of ``solver`` ("o" for one not in the table)."""
         st = self.styles.get(solver)
         return st.marker if st else "o"
 
     def dash(self, solver: str) -> str:
+        """The line dash of ``solver`` ("-" for one not in the table)."""
         st = self.styles.get(solver)
         return st.dash if st else "-"
 
     def hex(self, solver: str) -> str:
-        r, g, b = self.color(solver)
-        return f"#{round(255 * r):02x}{round(255 * g):02x}{round(255 * b):02x}"
+        """The colour of ``solver`` as "#rrggbb"."""
+        return to_hex(self.color(solver))
 
     def members(self, family: str) -> list[str]:
+        """The solvers of ``family``, in the order styled."""
         return [s for s, st in self.styles.items() if st.family == family]
+
+
+def to_hex(rgb: Sequence[float]) -> str:
+    """An sRGB colour (components in [0, 1]) as "#rrggbb"."""
+    r, g, b = rgb
+    return f"#{round(255 * r):02x}{round(255 * g):02x}{round(255 * b):02x}"
 
 
 @dataclass(frozen=True)

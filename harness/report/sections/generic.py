@@ -55,18 +55,23 @@ def reached_accuracy(rows: pd.DataFrame) -> dict[str, float]:
 # Run time against error
 # ---------------------------------------------------------------------------
 
-_PROFILE_MARKERS = {"low": "v", "default": "o", "mid": "s", "high": "^"}
+#: The marker size (matplotlib scatter area) of a work-precision point by its profile, where a
+#: scene ran several: the shape stays the solver's own (style.py), so that two solvers of one
+#: family differ in shape as well as in colour.
+_PROFILE_SIZES = {"low": 9.0, "default": 18.0, "mid": 30.0, "high": 44.0}
+#: The size of a profile not in ``_PROFILE_SIZES``.
+_OTHER_PROFILE_SIZE = 24.0
 
 
 @register_section("work-precision", title="Run time against error", group="summary", order=10)
 def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     parts = ["Each point is one solve: solve time against the harness's scaled `kkt_error` (left) and against "
              "the error in p relative to the scene's reference (right, where the run had a reference); marker "
-             "shape = profile where a scene ran several, else the solver's own. Lines are "
+             "shape = the solver's own, marker size = profile where a scene ran several (larger: tighter). Lines are "
              "the solver's own convergence trace (its residual, which is not the same figure as kkt_error) "
              "for one representative solve: the largest n at the tightest profile. Values below "
-             f"{LOG_FLOOR:g} are drawn at {LOG_FLOOR:g}. Colours are fixed per solver in the whole report; a "
-             f"family shares a hue. A scene with more than {MAX_SERIES} solvers gets one row of panels per "
+             f"{LOG_FLOOR:g} are drawn at {LOG_FLOOR:g}. Each solver has one colour, marker and dash in "
+             f"every report; a family shares a hue. A scene with more than {MAX_SERIES} solvers gets one row of panels per "
              "family, the other families drawn in light grey.\n"]
     for scene in ctx.scenes():
         r = attempted(ctx.rows(scene))
@@ -160,12 +165,12 @@ def no_reference_note(asked: bool | None) -> str:
     return f" No answer of this scene was measured against a reference solution{why}: the error in p is not drawn."
 
 
-def _wp_markers(ctx: ReportContext, r: pd.DataFrame) -> Callable[[str, str], str]:
-    """(solver, profile) -> the marker of its points: the profile's where ``r`` ran several
-    profiles, else the solver's own (so that two solvers of one hue differ in shape)."""
+def _wp_sizes(r: pd.DataFrame, size: float) -> Callable[[str], float]:
+    """profile -> the scatter size of its points: ``size`` where ``r`` ran one profile, else
+    by the profile (``_PROFILE_SIZES``, scaled so that "default" is ``size``)."""
     if r["profile"].nunique() > 1:
-        return lambda _s, prof: _PROFILE_MARKERS.get(prof, "D")
-    return lambda s, _prof: ctx.marker(s)
+        return lambda prof: size * _PROFILE_SIZES.get(prof, _OTHER_PROFILE_SIZE) / _PROFILE_SIZES["default"]
+    return lambda _prof: size
 
 
 def drawn_errors(c: pd.DataFrame, col: str) -> pd.Series:
@@ -176,8 +181,11 @@ def drawn_errors(c: pd.DataFrame, col: str) -> pd.Series:
     return v.mask(c[OWN_REF]) if col == "p_rel_error" and OWN_REF in c else v
 
 
-def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: float, alpha: float,
-               marker: Callable[[str, str], str], hollow_failed: bool = True) -> None:
+def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: Callable[[str], float], alpha: float,
+               marker: Callable[[str], str], hollow_failed: bool = True) -> None:
+    """Scatter each solve of ``c`` on ``axes`` (one per ``_WP_ERRORS`` column): time against
+    error, the solver's ``marker``, its profile's ``size``, hollow where not solved (unless
+    ``hollow_failed`` is False)."""
     c = c[["solver", "profile", "status", "solve_time_s", OWN_REF, *(col for col, _ in _WP_ERRORS)]]  # drawn
     for (s, prof), cp in c.groupby(["solver", "profile"], sort=True):
         for ok, face in ((True, color), (False, "none" if hollow_failed else color)):
@@ -187,8 +195,8 @@ def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: float, alpha:
             for a, (col, _) in zip(axes, _WP_ERRORS):
                 y = drawn_errors(cs, col)
                 if y.notna().any():
-                    a.scatter(cs["solve_time_s"][y.notna()], floor_log(y[y.notna()]), s=size,
-                              marker=marker(str(s), str(prof)), facecolors=face, edgecolors=color, linewidths=0.8,
+                    a.scatter(cs["solve_time_s"][y.notna()], floor_log(y[y.notna()]), s=size(str(prof)),
+                              marker=marker(str(s)), facecolors=face, edgecolors=color, linewidths=0.8,
                               alpha=alpha)
 
 
@@ -196,15 +204,15 @@ def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel
     """One row of the work-precision figure (``axes``: the KKT error's panel, then the error
     against the reference where the run had one): every solve of the scene in grey, the
     panel's solvers in their colours with their representative traces."""
-    a1, marker = axes[0], _wp_markers(ctx, r)
+    a1 = axes[0]
     others = r[~r["solver"].isin(panel.solvers)]
     if len(others):
-        _wp_points(axes, others, GREY, 8, 0.6, marker, hollow_failed=False)
+        _wp_points(axes, others, GREY, _wp_sizes(r, 8.0), 0.6, ctx.marker, hollow_failed=False)
     xs = list(r["solve_time_s"])
     ys = [list(floor_log(drawn_errors(r, col))) for col, _ in _WP_ERRORS]
     for s in panel.solvers:
         c = r[r["solver"] == s]
-        _wp_points(axes, c, ctx.color(s), 16, 0.8, marker)
+        _wp_points(axes, c, ctx.color(s), _wp_sizes(r, 16.0), 0.8, ctx.marker)
         rep = representative_traces(c).get(s)
         if rep is not None:
             tr = parse_trace(rep["trace"])
@@ -213,12 +221,13 @@ def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel
             xs += list(tr[ok, 1])
             ys[0] += list(floor_log(tr[ok, 2]))
             traced[s] = f"{md_code(s)} ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})"
-        shape = marker(s, "") if r["profile"].nunique() == 1 else "s"
-        a1.plot([], [], ls="none", marker=shape, color=ctx.color(s), label=s)
+        a1.plot([], [], ls="none", marker=ctx.marker(s), color=ctx.color(s), label=s)
     if r["profile"].nunique() > 1:
         for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
                 natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
-            a1.plot([], [], ls="none", marker=_PROFILE_MARKERS.get(prof, "D"), color="gray", label=f"profile {prof}")
+            area = _PROFILE_SIZES.get(prof, _OTHER_PROFILE_SIZE) * 16.0 / _PROFILE_SIZES["default"]
+            a1.plot([], [], ls="none", marker="o", ms=float(np.sqrt(area)), color="gray",
+                    label=f"profile {prof} (marker size)")
     if (r["status"] != "solved").any():
         a1.plot([], [], ls="none", marker="o", mfc="none", color="gray", label="hollow: not solved")
     if panel.solvers and any(s in traced for s in panel.solvers):
@@ -354,7 +363,8 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
                 if s not in panel.solvers:
                     ax.step(taus, curves[s], where="post", color=GREY, lw=0.8)
         for s in panel.solvers:
-            ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5, label=s)
+            ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5, label=s,
+                    marker=ctx.marker(s), ms=4, markevery=0.1)
         ax.set_xscale("log", base=2)
         ax.set_xlim(1.0, hi)
         ax.set_ylim(-0.02, 1.02)

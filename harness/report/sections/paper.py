@@ -513,7 +513,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     if cells.empty:
         return Section(title, "Every pair of this scene was skipped.\n", page_charts=FIG5_PAGE)
     fig, (ax,) = new_figure(width=6.4, height=4.2)
-    _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]")
+    _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]", marker_of=ctx.marker)
     ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
     legend_outside(ax, "solver")
     rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
@@ -648,9 +648,11 @@ def _analytic_section(ctx: ReportContext, rows: pd.DataFrame, scene: str) -> Sec
     xcol = "N" if r["N"].notna().all() else "n"
     fig, (ax,) = new_figure(width=6.0, height=4.0)
     lines = []
-    for s in natural_sorted(r["solver"].unique()):
+    solvers = natural_sorted(r["solver"].unique())
+    for i, s in enumerate(solvers):  # (coinciding curves stay visible: each its marker, dash and a shrinking size)
         c = r[r["solver"] == s].groupby(xcol)["analytic_load_rel_error"].max().sort_index()
-        ax.plot(c.index, floor_log(c.to_numpy()), marker="o", ms=4, color=ctx.color(s), label=s)
+        ax.plot(c.index, floor_log(c.to_numpy()), marker=ctx.marker(s), ms=7 - 3 * i / max(len(solvers) - 1, 1),
+                mfc="none", ls=ctx.dash(s), color=ctx.color(s), label=s)
         order = _observed_order(c.index.to_numpy(float), c.to_numpy(float))
         lines.append((s, fmt_err(c.iloc[-1]), f"{int(c.index[-1])}", fmt_num(order, 2)))
     ax.set_xscale("log")
