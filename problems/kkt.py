@@ -219,7 +219,7 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     mean_force = float(constraints.load) / ubar.size if constraints.load_control and ubar.size else 0.0
     indentation = mean_force * float(diag_max)
     if indentation > top and 0.0 < indentation < math.inf and mean_force > 0.0:
-        u_s, p_s = indentation, indentation / float(diag_max)
+        u_s, p_s = indentation, mean_force
     else:
         u_s, p_s = problem_scales(ubar, diag_max, top)  # (||ubar||_inf read once)
     if constraints.bounded:
@@ -349,20 +349,21 @@ def constrained_figures(p: np.ndarray, g: np.ndarray, ubar: np.ndarray, diag_max
         upper = np.where(bounded, weighted, 0.0)
         comp = worst(max_above_zero(lower), max_above_zero(upper))
         if constraints.load_control:  # (the products in force x length, over u_s P)
-            comp = worst(comp, load_share(float(np.sum((lower + upper) * ps)) / p_s, p_s, constraints))
+            comp = worst(comp, load_share(float(np.sum((lower + upper) * ps)), constraints))
     equality = _equality(p, constraints, p_s)
     primal, dual, comp = worse(primal), worse(dual), worse(comp)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
 
 
-def load_share(products_sum: float, p_s: float, constraints: Constraints) -> float:
-    """The complementarity products (scaled by u_s p_s) as a share of the load (module doc):
-    p_s sum / P under a load P > 0; 0 without one (P = 0 leaves only p = 0, which the
-    primal and equality figures judge).  NaN reads as inf."""
+def load_share(force_sum: float, constraints: Constraints) -> float:
+    """The complementarity products as a share of the load (module doc): ``force_sum`` =
+    sum_i t_i p_s,i (each product t_i scaled by u_s p_s,i, times its force scale: a force,
+    weighted by its gap in u_s) over P, under a load P > 0; 0 without one (P = 0 leaves only
+    p = 0, which the primal and equality figures judge).  NaN reads as inf."""
     load = float(constraints.load) if constraints.load_control else 0.0
     if not load > 0.0:
         return 0.0
-    return worse(float(np.float64(products_sum) * np.float64(p_s) / np.float64(load)))
+    return worse(float(np.float64(force_sum) / np.float64(load)))
 
 
 def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: float, p_s: float,
@@ -378,7 +379,7 @@ def _load_figures(p: np.ndarray, w: np.ndarray, constraints: Constraints, u_s: f
             p_min, w_min, t_max, t_sum, total = min_below_zero(p), min_below_zero(w), max_above_zero(t), 0.0, 0.0
         primal = worse(float(np.float64(_negative_part(below_zero(p_min))) / p_s))
         dual = worse(float(np.float64(_negative_part(below_zero(w_min))) / np.float64(u_s)))
-        comp = worst(worse(above_zero(t_max)), load_share(t_sum, p_s, constraints))
+        comp = worst(worse(above_zero(t_max)), load_share(t_sum * p_s, constraints))
     equality = _equality(p, constraints, p_s, total)
     return KKTFigures(primal, dual, comp, worst(primal, dual, comp, equality), u_s, p_s, equality, delta)
 
