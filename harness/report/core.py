@@ -53,7 +53,7 @@ from ..table import aggregates as agg
 from ..table.meta import cells_text, commands_of, listed
 from .charts import Chart, RowChart
 from .figure_files import FIGURE_DIR, staging_dir
-from .panels import blank_panels
+from .panels import blank_panels, label_short_log_axes
 from .markdown_text import md_escape
 from .style import DEFAULT_FAMILY, SolverStyles
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finite, as_text, bool_series
@@ -171,6 +171,7 @@ class ReportContext:
         self.fig_dir.mkdir(parents=True, exist_ok=True)
         fname = f"{slug(name)}.png"
         self.blank_panels += [f"{fname}: {title}" for title in blank_panels(fig)]
+        label_short_log_axes(fig)
         fig.savefig(self.fig_dir / fname, dpi=110, bbox_inches="tight", metadata={"Software": None})
         rel = f"{FIGURE_DIR}/{fname}"
         self.figures.append(rel)

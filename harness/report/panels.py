@@ -21,11 +21,34 @@ from typing import Any
 import numpy as np
 from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
 #: The tag (matplotlib gid) of a panel marked empty on purpose.
 EMPTY_GID = "contactbench-empty-panel"
 #: The key of ``Chart.notes`` that says why a chart has no finite point.
 EMPTY_NOTE = "empty"
+
+
+#: The most labelled ticks on a log axis that spans less than a decade (``label_short_log_axes``).
+SHORT_LOG_TICKS = 4
+
+
+def label_short_log_axes(fig: Figure) -> None:
+    """Number every log axis of ``fig`` that shows fewer than two powers of ten: at most
+    ``SHORT_LOG_TICKS`` evenly placed ticks written plainly ("0.025"), its minor labels
+    dropped -- matplotlib labels only the powers of ten there, so an axis over 0.02-0.034 s
+    carried no number, or crowded minor labels over each other."""
+    for ax in fig.axes:
+        for axis, lims in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+            if axis.get_scale() != "log":
+                continue
+            lo, hi = sorted(lims)
+            majors = [t for t in axis.get_majorticklocs() if lo <= t <= hi]
+            if len(majors) >= 2 or not (0.0 < lo < hi):
+                continue
+            axis.set_major_locator(MaxNLocator(SHORT_LOG_TICKS))
+            axis.set_major_formatter(FormatStrFormatter("%.3g"))
+            axis.set_minor_formatter(NullFormatter())
 
 
 def no_figure(why: str) -> str:
