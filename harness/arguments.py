@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Callable, NoReturn, Sequence
 
 from contactbench.plugins import did_you_mean
+from contactbench.problems.atomic_files import not_utf8_text
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.units import plain_float, plain_int
 
@@ -208,12 +209,10 @@ def check_out_dir(path: str, option: str = "--out") -> Path:
 def check_utf8_path(path: str, option: str) -> None:
     """One ``InputError`` naming ``path`` (its undecodable bytes escaped) unless it is UTF-8
     text: a name the system gave as bytes that are not UTF-8 (``os.fsdecode``'s surrogate
-    escapes) cannot be written into the table's files (pyarrow takes UTF-8 paths only)."""
-    try:
-        path.encode("utf-8")
-    except UnicodeEncodeError:
-        shown = os.fsencode(path).decode("utf-8", "backslashreplace")
-        raise InputError(f"{option} {shown}: the name is not UTF-8 text; choose a name in UTF-8") from None
+    escapes) cannot be written into the table's files (``atomic_files.not_utf8_text``)."""
+    shown = not_utf8_text(path)
+    if shown is not None:
+        raise InputError(f"{option} {shown}: the name is not UTF-8 text; choose a name in UTF-8")
 
 
 def os_error_line(exc: OSError) -> str:

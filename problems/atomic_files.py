@@ -12,6 +12,10 @@ project (problems' exports and the harness's tables, reports and answers alike).
   another process holds it.
 * ``names_nothing(path)``: whether a path a writer is given is empty or blank ("" would
   be the current folder, " " a file of that name): every writer refuses it.
+* ``not_utf8_text(path)``: a path whose name is not UTF-8 text (bytes the system gave that
+  ``os.fsdecode`` escapes), shown with those bytes escaped; the results record names and
+  paths as UTF-8 text (pyarrow takes UTF-8 paths only), so every reader and writer of a
+  named path refuses it.
 """
 
 from __future__ import annotations
@@ -29,6 +33,17 @@ import numpy as np
 def names_nothing(path: str | os.PathLike[str]) -> bool:
     """Whether ``path`` is empty or only blanks (module doc)."""
     return not os.fspath(path).strip()
+
+
+def not_utf8_text(path: str | os.PathLike[str]) -> str | None:
+    """``path`` shown with its undecodable bytes escaped ("o_bad\\xff") where it is not
+    UTF-8 text, else None (module doc)."""
+    name = os.fspath(path)
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        return os.fsencode(name).decode("utf-8", "backslashreplace")
+    return None
 
 
 def replace_atomically(path: str | os.PathLike[str], write: Callable[[str], Any]) -> None:
@@ -82,5 +97,5 @@ def folder_lock(folder: str | os.PathLike[str]) -> Iterator[None]:
         os.close(fd)  # (closing the last descriptor releases the lock)
 
 
-__all__ = ["FolderLockedError", "folder_lock", "names_nothing", "replace_atomically", "write_npz_atomic",
+__all__ = ["FolderLockedError", "folder_lock", "names_nothing", "not_utf8_text", "replace_atomically", "write_npz_atomic",
            "write_text_atomic"]

@@ -58,7 +58,6 @@ Coarsening and the PSD power-law test are not I/O: they live in ``problems/coars
 
 from __future__ import annotations
 
-import os
 import stat
 import warnings
 from collections.abc import Iterator
@@ -68,6 +67,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .atomic_files import not_utf8_text
 from .errors import ProblemInputError, check_positive
 from .map_files import write_text, write_topography, write_x3p
 from .units import plain_float
@@ -484,12 +484,10 @@ def check_surface_file(p: Path) -> None:
     than the file holds: ``map_readers.check_npy_size``, before NumPy allocates).  A path,
     or the file a link leads to, whose name is not UTF-8 text is refused too: the map's
     name and path are recorded in the results table and meta.json, which hold UTF-8 text."""
-    for name in (str(p), str(p.resolve())):
-        try:
-            name.encode("utf-8")
-        except UnicodeEncodeError:
-            raise SurfaceFileError(os.fsencode(name).decode("utf-8", "backslashreplace"),
-                                   "its name is not UTF-8 text (the results record it); rename the file") from None
+    for name in (p, p.resolve()):
+        shown = not_utf8_text(name)
+        if shown is not None:
+            raise SurfaceFileError(shown, "its name is not UTF-8 text (the results record it); rename the file")
     try:
         mode = p.stat().st_mode
     except OSError:
