@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
+from contactbench.problems.scenes.cmr import POWER_LAW_FAMILY, ROLLOFF_FAMILY
 from contactbench.solvers.registry import get_solver
 
 from ..table.files import replace_atomically
@@ -565,9 +566,10 @@ def real_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     out: list[ClaimRow] = []
     if tc.empty:
         return out
-    for kind, err_id, time_id in (("power-law", "real-power-law-error", "real-power-law-saving"),
-                                  ("rolloff", "real-cutoff-error", "real-cutoff-saving")):
-        k = tc[tc["instance"].str.startswith(kind)]
+    family = tc["surface_family"] if "surface_family" in tc.columns else pd.Series("", index=tc.index)
+    for kind, err_id, time_id in ((POWER_LAW_FAMILY, "real-power-law-error", "real-power-law-saving"),
+                                  (ROLLOFF_FAMILY, "real-cutoff-error", "real-cutoff-saving")):
+        k = tc[family.fillna("").astype(str) == kind]
         if k.empty:
             continue
         size = f"{int(k['N'].max())}^2, one step, n <= {int(k['n'].max())}"

@@ -172,8 +172,9 @@ _EXTRA = _columns(
     ("contact_uncertain", "float64", "share of the N^2 elements whose contact state check_tol leaves open (force "
                                      "within a decade of the floor, or a contact with an open gap): the flag of "
                                      "contact_fraction"),
-    ("surface_family", "string", "the instance's generated surface family (problems/surfaces.py RMD_FAMILIES, e.g. "
-                                 "'saupe', 'periodic'); '' for other instances"),
+    ("surface_family", "string", "the instance's generated surface family: an RMD family (problems/surfaces.py RMD_FAMILIES, e.g. "
+                                 "'saupe', 'periodic'), or cmr-cutoff's spectral 'rolloff' or 'power-law' "
+                                 "(problems/scenes/cmr.py); '' for other instances"),
     ("hurst", "float64", "the instance's Hurst exponent H; NaN where the surface has none (a measured map)"),
     ("seed", "Int64", "the instance's random seed; <NA> for deterministic instances and measured maps"),
     ("control", "string", "one of CONTROLS: 'displacement' (Delta given, the default) or 'load' (total force P "

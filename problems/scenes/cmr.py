@@ -102,6 +102,12 @@ class CMRHSweep(_RMDCascadeScene):
     load_history = False
 
 
+#: The two spectral surfaces of ``cmr-cutoff`` (their ``params["family"]``, the table's
+#: ``surface_family``): C(q) with a roll-off plateau, and a pure power law.
+ROLLOFF_FAMILY = "rolloff"
+POWER_LAW_FAMILY = "power-law"
+
+
 @register_scene
 class CMRCutoff(RampScene):
     """Paper section 5.2, Figs. 10-11: a spectral surface with a PSD roll-off plateau
@@ -127,9 +133,9 @@ class CMRCutoff(RampScene):
             return [InstanceSpec(self.name, name,
                                  {**params, "surface_path": record.path, "surface_sha256": record.raw_sha256})]
         square_length(cfg.length)  # (a pair L0,L1 is for a surface file)
-        kinds = {"rolloff": float(cfg.extra["rolloff_fraction"]), "power-law": None}
+        kinds = {ROLLOFF_FAMILY: float(cfg.extra["rolloff_fraction"]), POWER_LAW_FAMILY: None}
         return [InstanceSpec(self.name, f"{kind}-H{base['hurst']:g}-N{cfg.size}-s{s}{departure_suffix(cfg, self.defaults)}",
-                             {**base, "surface": kind, "rolloff_fraction": frac, "seed": int(s)})
+                             {**base, "family": kind, "rolloff_fraction": frac, "seed": int(s)})
                 for kind, frac in kinds.items() for s in seeds_of(cfg)]
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
