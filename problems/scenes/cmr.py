@@ -32,7 +32,7 @@ from ..surfaces import Surface, spectral_surface
 from . import register_scene
 from .base import CONTROL_SCENE_OPTIONS, LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
 from .core import (PAPER_E, RampScene, check_relief, departure_suffix, grid_suffix, modulus_suffix, rough_surface_specs,
-                   square_length, surface_from_params)
+                   square_length, steps_suffix, surface_from_params)
 
 
 def psd_warnings(scene: Scene, cfg: SceneConfig, surface_of: Any) -> list[str]:
@@ -68,7 +68,7 @@ class _RMDCascadeScene(RampScene):
         hursts = tuple(cfg.extra.get("hursts", self.hursts))
         if cfg.surface_path:
             hursts = hursts[:1]
-        return [spec for H in hursts for spec in rough_surface_specs(self.name, cfg, float(H))]
+        return [spec for H in hursts for spec in rough_surface_specs(self, cfg, float(H))]
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         surface = check_relief(surface_from_params(spec.params))
@@ -129,7 +129,8 @@ class CMRCutoff(RampScene):
         if cfg.surface_path:
             params = {**base, "surface_path": cfg.surface_path, "seed": 0}
             record = surface_from_params(params).preprocessing  # names the map by its base name and content
-            name = f"{record.instance_name}{grid_suffix(str(cfg.kernel), bool(cfg.periodic))}{modulus_suffix(cfg.E)}"
+            name = (f"{record.instance_name}{grid_suffix(str(cfg.kernel), bool(cfg.periodic))}{modulus_suffix(cfg.E)}"
+                    f"{steps_suffix(cfg.steps, self.defaults.steps)}")
             return [InstanceSpec(self.name, name,
                                  {**params, "surface_path": record.path, "surface_sha256": record.raw_sha256})]
         square_length(cfg.length)  # (a pair L0,L1 is for a surface file)

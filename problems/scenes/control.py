@@ -51,7 +51,7 @@ class _PaperSurfaceScene(RampScene):
     options = SCENE_OPTIONS - LAYER_SCENE_OPTIONS
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
-        return rough_surface_specs(self.name, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
+        return rough_surface_specs(self, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         return paper_ramp(spec)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import inspect
 from abc import abstractmethod
 from dataclasses import replace
@@ -324,12 +325,40 @@ def modulus_suffix(E: float | None, reference: float = PAPER_E) -> str:
 
 
 def departure_suffix(cfg: SceneConfig, defaults: SceneConfig) -> str:
-    """The lateral size's and the modulus's suffixes (``length_suffix``, ``modulus_suffix``)
-    of a run of a scene whose defaults are ``defaults``: "" at the scene's own values, so
-    that a run at another size or modulus -- another problem, e.g. appended into the same
-    folder -- is another instance."""
+    """The lateral size's, the modulus's and the step count's suffixes (``length_suffix``,
+    ``modulus_suffix``, ``steps_suffix``) of a run of a scene whose defaults are
+    ``defaults``: "" at the scene's own values, so that a run at another size, modulus or
+    number of steps -- another problem, e.g. appended into the same folder -- is another
+    instance."""
     return (length_suffix(cfg.length, float(defaults.length)) if defaults.length is not None else "") + \
-        (modulus_suffix(cfg.E, float(defaults.E)) if defaults.E is not None else "")
+        (modulus_suffix(cfg.E, float(defaults.E)) if defaults.E is not None else "") + \
+        steps_suffix(cfg.steps, defaults.steps)
+
+
+def steps_suffix(steps: int | None, own: int | None) -> str:
+    """"" at the scene's own number of load steps ``own`` (or where either is not set), else
+    "-K<steps>": step k of a ramp of K steps is another displacement at every other K."""
+    return "" if steps is None or own is None or int(steps) == int(own) else f"-K{int(steps)}"
+
+
+#: Hex digits of the load steps' digest in a load-controlled instance's name.
+LOADS_KEY_DIGITS = 8
+
+
+def program_suffix(params: dict[str, Any], own: SceneConfig) -> str:
+    """The instance-name suffix of a recipe's load program against its scene's own (the
+    scene's config with nothing given, ``own``): under displacement control
+    ``steps_suffix``; under load control "" for the scene's own load steps, else
+    "-K<count>-P<digest>" (``LOADS_KEY_DIGITS`` hex digits of the steps as given, so that two
+    ``--loads`` of one count are two instances, never one step's repeats)."""
+    if params.get("control") != CONTROLS[1]:
+        return steps_suffix(params.get("steps"), own.steps)
+    loads = load_steps(params)
+    own_loads = own.extra.get("loads") if own.extra.get("control") == CONTROLS[1] else None
+    if own_loads is not None and [float(x) for x in own_loads] == loads:
+        return ""
+    text = ",".join(f"{x:.17g}" for x in loads)
+    return f"-K{len(loads)}-P{hashlib.sha256(text.encode('ascii')).hexdigest()[:LOADS_KEY_DIGITS]}"
 
 
 def grid_suffix(kernel: str, periodic: bool) -> str:
@@ -339,13 +368,15 @@ def grid_suffix(kernel: str, periodic: bool) -> str:
     return f"-{kernel}-{'per' if periodic else 'np'}"
 
 
-def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
-    """One recipe per seed (or one for a measured surface).  Generated surfaces are RMD of
-    the run's family (``surface_family``), which their params and names carry, e.g.
+def rough_surface_specs(scene: Scene, cfg: SceneConfig, hurst: float,
+                        extra: dict[str, Any] | None = None) -> list[InstanceSpec]:
+    """One recipe of ``scene`` per seed (or one for a measured surface).  Generated surfaces
+    are RMD of the run's family (``surface_family``), which their params and names carry, e.g.
     "saupe-H0.7-N512-bcc-np-s5", with "-L<metres>" and "-E<Pa>" where the lateral size and the
     modulus are not the paper's (a measured map's name carries its spacing already); a
     measured map's, e.g. "file-m.npy-cecf1d20-bcc-per", carries the kernel and boundary too
-    (``grid_suffix``).  An unknown family is refused here, before anything runs."""
+    (``grid_suffix``); both end with the load program's suffix where it is not the scene's own
+    (``program_suffix``).  An unknown family is refused here, before anything runs."""
     base = {
         "size": cfg.size,
         "hurst": hurst,
@@ -361,6 +392,7 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
     if base.get("control") == CONTROLS[1]:
         base["steps"] = len(load_steps(base))
     material = modulus_suffix(cfg.E)
+    program = control_suffix(base) + program_suffix(base, scene.config(None))
     if cfg.surface_path:
         # (its "hurst" and "seed" are the scene's, read by nothing: the table gives a measured map
         # neither, harness/run/rows.py; they stay in the recipe, whose params make its cell ids)
@@ -370,14 +402,14 @@ def rough_surface_specs(scene: str, cfg: SceneConfig, hurst: float, extra: dict[
         record = surface_from_params(file_params).preprocessing  # names the map by its base name and content
         file_params["surface_path"] = record.path
         file_params["surface_sha256"] = record.raw_sha256  # what the file must still hold when a step is built
-        return [InstanceSpec(scene, f"{record.instance_name}{grid_suffix(str(cfg.kernel), bool(cfg.periodic))}"
-                                    f"{material}{layer_suffix(base)}{control_suffix(base)}", file_params)]
+        return [InstanceSpec(scene.name, f"{record.instance_name}{grid_suffix(str(cfg.kernel), bool(cfg.periodic))}"
+                                         f"{material}{layer_suffix(base)}{program}", file_params)]
     family = surface_family(cfg)  # (a size the family cannot give is refused by validate, via loads)
     square_length(cfg.length)  # (a pair L0,L1 is for a surface file)
     grid = grid_suffix(str(cfg.kernel), bool(cfg.periodic))
     return [
-        InstanceSpec(scene, f"{family}-H{hurst:g}-N{cfg.size}{grid}-s{s}{length_suffix(cfg.length)}"
-                            f"{material}{layer_suffix(base)}{control_suffix(base)}",
+        InstanceSpec(scene.name, f"{family}-H{hurst:g}-N{cfg.size}{grid}-s{s}{length_suffix(cfg.length)}"
+                                 f"{material}{layer_suffix(base)}{program}",
                      {**base, "family": family, "seed": int(s)})
         for s in seeds_of(cfg)
     ]
@@ -408,7 +440,7 @@ class PaperSweep(RampScene):
         return merged
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
-        return rough_surface_specs(self.name, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
+        return rough_surface_specs(self, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:
         return paper_ramp(spec)

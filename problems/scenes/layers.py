@@ -53,7 +53,7 @@ class LayerSweep(RampScene):
         # The sweep sets the thickness itself: a single --thickness is not read here.
         base_cfg = replace(cfg, extra={k: v for k, v in cfg.extra.items() if k != "thickness"})
         specs = []
-        for spec in rough_surface_specs(self.name, base_cfg, hurst=float(cfg.extra.get("hurst", 0.7))):
+        for spec in rough_surface_specs(self, base_cfg, hurst=float(cfg.extra.get("hurst", 0.7))):
             specs.append(spec)  # the half-space
             for t in thicknesses_of(cfg):
                 params = {**spec.params, "thickness_over_L": t, "nu": float(cfg.extra.get("nu", DEFAULT_NU)),

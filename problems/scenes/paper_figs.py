@@ -50,7 +50,7 @@ class GreedyLinearSolvers(RampScene):
         hurst = float(cfg.extra.get("hurst", 0.7))
         specs: list[InstanceSpec] = []
         for N in sizes:
-            specs += rough_surface_specs(self.name, replace(cfg, size=int(N)), hurst=hurst)
+            specs += rough_surface_specs(self, replace(cfg, size=int(N)), hurst=hurst)
         return specs
 
     def loads(self, spec: InstanceSpec) -> tuple[Surface, np.ndarray]:

@@ -34,7 +34,7 @@ from ..errors import ProblemInputError
 from ..surfaces import Surface
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, SceneConfig, seeds_of
-from .core import PAPER_E, RampScene, ramp_sequence, surface_from_params
+from .core import PAPER_E, RampScene, departure_suffix, grid_suffix, ramp_sequence, surface_from_params
 
 DEFAULT_HURSTS: tuple[float, ...] = (0.5, 0.7, 0.9)
 #: Flat-to-mean-plane separations, in units of the rms height (small loads first).
@@ -70,8 +70,13 @@ def population_displacements(surface: Surface, separations: tuple[float, ...] | 
     return deltas
 
 
-def instance_name(hurst: float, size: int, seed: int) -> str:
-    return f"pop-H{hurst:g}-N{size}-s{seed}"
+def instance_name(hurst: float, size: int, seed: int, cfg: SceneConfig, own: SceneConfig) -> str:
+    """"pop-H<H>-N<N>-s<seed>", with the kernel and boundary (``grid_suffix``), the lateral
+    size, the modulus and the step count (``departure_suffix``) where ``cfg`` departs from
+    the scene's own ``own``: another problem is another instance."""
+    grid = (cfg.kernel, bool(cfg.periodic)) != (own.kernel, bool(own.periodic))
+    return (f"pop-H{hurst:g}-N{size}-s{seed}{grid_suffix(str(cfg.kernel), bool(cfg.periodic)) if grid else ''}"
+            f"{departure_suffix(cfg, own)}")
 
 
 @register_scene
@@ -82,6 +87,7 @@ class Population(RampScene):
     description = "Monte Carlo: N_s=20 seeded RMD surfaces per H in (0.5,0.7,0.9), 64^2, 3 small loads (kappa)"
     defaults = SceneConfig(
         size=64,
+        steps=len(DEFAULT_SEPARATIONS),
         seeds=tuple(range(DEFAULT_POPULATION)),
         length=100e-6,
         E=PAPER_E,
@@ -115,7 +121,7 @@ class Population(RampScene):
             "steps": len(seps),
         }
         return [
-            InstanceSpec(self.name, instance_name(h, size, s), {**base, "hurst": h, "seed": int(s)})
+            InstanceSpec(self.name, instance_name(h, size, s, cfg, self.defaults), {**base, "hurst": h, "seed": int(s)})
             for h in hursts
             for s in seeds_of(cfg, tuple(range(DEFAULT_POPULATION)))
         ]

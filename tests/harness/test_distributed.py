@@ -159,14 +159,14 @@ def test_a_worker_that_dies_on_every_attempt_leaves_its_cells_marked_crashed(cli
     report = run_jobs_on_dask(plan.jobs, client, store, RUN, solver_specs=(f"{__name__}:KillWorkerAlways",))
     df = store.finalize()
     assert_complete(df, 2 * 2 * 2)
-    assert report.killed_jobs == ["pop-H0.7-N16-s1"]
+    assert report.killed_jobs == ["pop-H0.7-N16-s1-K2"]
     bad = df[df["status"] != "solved"]
     # only the killer's step-1 cell of seed 1 is lost; the cells finished before the
     # worker died were streamed back and kept
     assert set(zip(bad["instance"], bad["solver"], bad["step"], bad["status"])) == {
-        ("pop-H0.7-N16-s1", "test-kill-worker-always", 1, "crashed")}
+        ("pop-H0.7-N16-s1-K2", "test-kill-worker-always", 1, "crashed")}
     assert "died on every attempt" in bad.iloc[0]["error"]
-    assert (df[df["instance"] == "pop-H0.7-N16-s0"]["status"] == "solved").all()
+    assert (df[df["instance"] == "pop-H0.7-N16-s0-K2"]["status"] == "solved").all()
 
 
 def test_lost_job_rows_mark_only_the_missing_cells() -> None:

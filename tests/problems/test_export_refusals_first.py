@@ -24,7 +24,7 @@ SWEEP = ["paper-sweep", "--size", "8"]
 #: over this budget.
 BUDGET_SWEEP = ["paper-sweep", "--size", "32", "--steps", "3"]
 BUDGET = 0.0001 * 2**30
-OVER_BUDGET_QP = "saupe-H0.7-N32-bcc-np-s5-step2"
+OVER_BUDGET_QP = "saupe-H0.7-N32-bcc-np-s5-K3-step2"
 
 
 def hashes(folder: Path) -> dict[str, str]:
@@ -64,7 +64,7 @@ def test_a_users_folder_named_like_a_later_step_is_refused_before_any_step_is_wr
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "ex"
     exported(export_argv([*SWEEP, "--steps", "1"], "problem-dir", out), capsys)
-    mine = out / "saupe-H0.7-N8-bcc-np-s5-step1"
+    mine = out / "saupe-H0.7-N8-bcc-np-s5-K2-step1"  # where the --steps 2 export below writes its second step
     mine.mkdir()
     (mine / "notes.txt").write_text("mine")
     before = hashes(out)

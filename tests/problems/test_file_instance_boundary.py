@@ -33,7 +33,7 @@ def map_file(in_tmp: Path) -> Path:
 def planned_instance(scene: str, path: Path, **options: object) -> str:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        (job,) = plan_run([scene], SceneConfig(surface_path=str(path), length=LENGTH, steps=1, **options),  # type: ignore[arg-type]
+        (job,) = plan_run([scene], SceneConfig(surface_path=str(path), length=LENGTH, **options),  # type: ignore[arg-type]
                           ["pk"]).jobs
     return job.spec.instance
 

@@ -164,7 +164,7 @@ def test_layer_sweep_scene_runs_the_half_space_and_each_thickness() -> None:
     scene = get_scene("layer-sweep")
     cfg = scene.config(SceneConfig(size=32, steps=2))
     specs = scene.instances(cfg)
-    assert len(specs) == 1 + len(LAYER_THICKNESSES) and specs[0].instance == "saupe-H0.7-N32-bcc-np-s5"
+    assert len(specs) == 1 + len(LAYER_THICKNESSES) and specs[0].instance == "saupe-H0.7-N32-bcc-np-s5-K2"
     assert [s.params.get("thickness_over_L") for s in specs] == [None, *LAYER_THICKNESSES]
     scene.validate(cfg)
     half, thin = specs[0].build(), specs[1].build()
@@ -184,7 +184,7 @@ def test_paper_sweep_takes_a_layer_from_the_config() -> None:
     scene = get_scene("paper-sweep")
     cfg = scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 2e-5, "nu": 0.45}))
     (spec,) = scene.instances(cfg)
-    assert spec.instance.endswith("-T2e-05-nu0.45")
+    assert spec.instance.endswith("-T2e-05-nu0.45-K2")
     assert spec.build().at(0).qp.geometry.layer == Layer(2e-5, 0.45)
     with pytest.raises(ProblemInputError, match="nu"):
         scene.instances(scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 2e-5, "nu": 0.7})))[0].build()

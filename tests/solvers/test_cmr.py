@@ -329,7 +329,7 @@ def test_cmr_scene_recipes_and_variants() -> None:
     cfg = sc.config(SceneConfig(size=32, steps=2, seeds=(0,)))
     specs = sc.instances(cfg)
     assert [sp.params["hurst"] for sp in specs] == [0.3, 0.5, 0.7, 0.9]
-    assert specs[0].instance == "saupe-H0.3-N32-bcc-np-s0" and specs[0].params["family"] == "saupe"
+    assert specs[0].instance == "saupe-H0.3-N32-bcc-np-s0-K2" and specs[0].params["family"] == "saupe"
     seq = specs[0].build()
     assert len(seq) == 2 and seq.deltas[-1] == pytest.approx(paper_max_displacement(seq.surface))
     assert [x.N for x in seq.surface.levels][-1] == 16 and seq.surface.meta["family"] == "saupe"
