@@ -151,7 +151,9 @@ def refine(ctx: SolveContext, state: GapState, loop: Loop, M: SetPreconditioner 
         new = ctx.kkt(state.p, state.g)
         ctx.record(first + used, new)
         if not new <= MIN_ROUND_GAIN * kkt and new > ctx.tol:  # float32 went as far as it can (or no finite gain)
-            tail = loop(ctx, state, M, max_iter=max(1, ctx.max_iter - used), first=first + used)
+            if used >= ctx.max_iter:  # the rounds took every iteration the solve was given
+                return RefinementRun(CCGRun(used, new, False), rounds, False)
+            tail = loop(ctx, state, M, max_iter=ctx.max_iter - used, first=first + used)
             return RefinementRun(CCGRun(used + tail.iterations, tail.kkt, tail.converged, tail.stalled), rounds, True)
         kkt = new
     return RefinementRun(CCGRun(used, kkt, kkt <= ctx.tol), rounds, False)

@@ -60,7 +60,7 @@ import importlib
 import sys
 import time
 from abc import abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -206,12 +206,28 @@ def request_of(ctx: SolveContext) -> Request:
     return Request(tol, max_iter, ctx.deadline.remaining())
 
 
+def finite_claim(out: Outcome) -> Outcome:
+    """``out`` unless it claims convergence with a p that is not finite; that claim is
+    withdrawn (FAILED, p kept as it came): an answer past float64's range (ubar / H near
+    1e310, or a scaled answer that overflows on the way back to the problem's units) is no
+    solution, whatever the solve's own check said of it.  An outcome that claims nothing
+    keeps its own status and message."""
+    bad = int(np.count_nonzero(~np.isfinite(out.p)))
+    if not out.converged or not bad:
+        return out
+    return replace(out, converged=False, status=Status.FAILED,
+                   message=f"{out.message}; the answer has {bad} non-finite entries of {np.size(out.p)} (beyond "
+                           "float64's range): not claimed")
+
+
 def checked_claim(ctx: SolveContext, out: Outcome) -> Outcome:
-    """``out`` with its claim of convergence withdrawn (status "stalled", the backend's
-    word kept in ``info``) when the answer's scaled KKT error (``SolveContext.kkt``, the
-    harness's formula) is above the check the caller will judge it at
-    (``ctx.check_tol``): a backend's own stopping test is in its own norms, so an adapter
-    verifies a claim before making it.  Unchanged without a check or a claim."""
+    """``out`` with its claim of convergence withdrawn: FAILED where its p is not finite
+    (``finite_claim``); status "stalled", the backend's word kept in ``info``, when the
+    answer's scaled KKT error (``SolveContext.kkt``, the harness's formula) is above the
+    check the caller will judge it at (``ctx.check_tol``): a backend's own stopping test is
+    in its own norms, so an adapter verifies a claim before making it.  Unchanged
+    without a claim, and but for finiteness without a check."""
+    out = finite_claim(out)
     if not out.converged or ctx.check_tol is None or out.w is None:
         return out
     kkt = ctx.kkt(out.p, out.w, out.multiplier)

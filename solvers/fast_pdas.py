@@ -29,7 +29,7 @@ solvers/_screen.py).  Warm start: primal (``ctx.p0``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -89,6 +89,16 @@ def newton_step(ctx: SolveContext, state: GapState, A: np.ndarray, kkt: float, M
     state.refresh()
 
 
+def iteration_limits(max_outer: int, max_iter: int | None, outer: int = 0) -> tuple[int, int | None]:
+    """(Newton steps allowed, iterations left to the CCG after ``outer`` Newton steps): the
+    Newton steps stop at ``min(max_outer, max_iter)``, and the CCG gets ``max_iter - outer``
+    (None: no limit), so that Newton steps and CCG iterations together never pass
+    ``max_iter``."""
+    if max_iter is None:
+        return max_outer, None
+    return min(max_outer, max_iter), max(0, max_iter - outer)
+
+
 @register
 class FastPDAS(FastSolver):
     """Primal-dual active set (semismooth Newton; Hintermueller, Ito & Kunisch 2002) + CG
@@ -123,7 +133,8 @@ class FastPDAS(FastSolver):
         outer, kkt = 0, ctx.kkt(state.p, state.g)
         best, stall = kkt, 0
         A_prev: np.ndarray | None = None
-        while kkt > ctx.tol and outer < ctx.params["max_outer"] and not ctx.expired():
+        newton_limit, _ = iteration_limits(ctx.params["max_outer"], ctx.max_iter)
+        while kkt > ctx.tol and outer < newton_limit and not ctx.expired():
             outer += 1
             A = active_set(state, ctx.diag_max)
             if A_prev is not None and np.array_equal(A, A_prev) and np.all(state.p[A] >= 0):
@@ -145,8 +156,9 @@ class FastPDAS(FastSolver):
         if not run.converged and np.any(state.p < 0.0):
             np.maximum(state.p, 0.0, out=state.p)
             state.refresh()
-        if not run.converged and not ctx.expired():  # finish with the CCG, same deadline
-            ccg, more = solve_in_precision(ctx, state, bugnicourt, None, first=outer)
+        _, left = iteration_limits(ctx.params["max_outer"], ctx.max_iter, outer)
+        if not run.converged and not ctx.expired() and left != 0:  # finish with the CCG, same deadline
+            ccg, more = solve_in_precision(replace(ctx, max_iter=left), state, bugnicourt, None, first=outer)
             info.update(finished_by_ccg=True, ccg_iterations=ccg.iterations, ccg_matvecs_by_precision=more)
             run = CCGRun(outer + ccg.iterations, ccg.kkt, ccg.converged, ccg.stalled)
         if M is not None:

@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from contactbench.problems.constraints import Constraints
+from contactbench.problems.kkt import constrained_scales
 
 from ._peers import GridProblem, PeerSolver, captured, full_field, grid_problem, package_availability
 from .base import Capabilities, Outcome, Param, ProblemTraits, SolveContext, Status
@@ -152,10 +153,14 @@ class _CMSolver(PeerSolver):
         return gp, sub, ("ours" if ours else "contactmechanics")
 
     def tolerance(self, ctx: SolveContext, gp: GridProblem) -> float:
-        """The peer's absolute gap tolerance: tol x max(ubar) (our scaled dual residual;
-        tol x max|ubar| = tol x u_s under load control, where ubar <= 0)."""
+        """The peer's absolute gap tolerance: tol x max(ubar) (our scaled dual residual);
+        under load control, where ubar <= 0, tol x u_s with the judge's own displacement
+        scale (``kkt.constrained_scales``: at least the indentation by the mean force), which
+        stays above 0 on a flat surface (ubar = 0), where a tolerance of 0 would keep
+        ContactMechanics' PK iterating to its limit."""
         if ctx.constraints.load_control:
-            return float(ctx.tol) * float(np.max(np.abs(gp.ubar)))
+            u_s, _ = constrained_scales(ctx.qp.ubar, ctx.diag_max, ctx.constraints, ctx.ubar_scale())
+            return float(ctx.tol) * u_s
         return float(ctx.tol) * float(np.max(gp.ubar))
 
 

@@ -39,7 +39,9 @@ PolonskyKeerRey pressure/pressure at the mean pressure P / A; non-periodic Love:
 same, without the load search), and so do the three frictional solvers below, at the
 QP's own load.  Hardness: ``tamaas.KatoSaturated`` (``tamaas-kato-saturated``; Kato's
 projected gradient with the pressure capped at pmax = the bound / delta^2), periodic
-spectral under load control only.  The approach Delta is fitted from the answer.  The
+spectral under load control only; on a flat field, where KatoSaturated does not return,
+the adapter answers without it (``flat_field_outcome``).  The approach Delta is fitted
+from the answer.  The
 four first-order solvers run in reduced units (``reduced_units``: E* = 1, L0 = 1); PKR in SI.
 
 The three load-controlled solvers (periodic spectral only, Tamaas' ``surface_2d`` model)
@@ -370,6 +372,15 @@ class TamaasKatoSaturated(_TamaasLoadControlled):
             return "Tamaas' KatoSaturated poses load control only"
         return why
 
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        """Tamaas' KatoSaturated (``_TamaasLoadControlled.iterate``), except on a flat field
+        U (every height equal), where its solve never returns whatever its ``max_iter``: the
+        adapter answers that case itself (``flat_field_outcome``) without calling it."""
+        gp = self.posed(ctx)
+        if gp.periodic and ctx.constraints.load_control and float(np.ptp(gp.U)) == 0.0:
+            return flat_field_outcome(gp, ctx)
+        return super().iterate(ctx)
+
     def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
         c = ctx.constraints
         if not c.load_control:
@@ -379,3 +390,24 @@ class TamaasKatoSaturated(_TamaasLoadControlled):
             raise ProblemInputError("Tamaas' KatoSaturated takes one hardness for every element")
         pmax = float(u[0]) / gp.area / reduced_units(gp)[1] if np.isfinite(u[0]) else float(np.finfo(float).max)
         return tm.KatoSaturated(model, reduced_surface(gp), tol, pmax)
+
+
+#: Why ``tamaas-kato-saturated`` does not call Tamaas on a flat field (``flat_field_outcome``).
+FLAT_FIELD_NOTE = ("flat field (every height equal): Tamaas' KatoSaturated does not return on it whatever its "
+                   "max_iter, so it was not called")
+
+
+def flat_field_outcome(gp: GridProblem, ctx: SolveContext) -> Outcome:
+    """The answer to a load-controlled periodic QP on a flat field without Tamaas: on the
+    whole grid the kernel is mean-free (H 1 = 0), so the uniform force P / n with Delta
+    = -ubar is exact (0 <= P / n <= the uniform bound: the load fits, ``Constraints.check``);
+    on a proper subset of the grid no answer is claimed (FAILED, p = NaN).  Zero
+    iterations; ``info["answered_by_adapter"]`` says who answered."""
+    info = {"posing": FLAT_FIELD_NOTE, "answered_by_adapter": True}
+    if gp.indices.size != gp.U.size:
+        return Outcome(np.full(ctx.n, np.nan), 0, False, f"{FLAT_FIELD_NOTE}; on a proper subset of the grid the "
+                       "uniform force is not the answer", status=Status.FAILED, info=info)
+    load = float(ctx.constraints.load)  # type: ignore[arg-type]
+    p = np.full(ctx.n, load / ctx.n)
+    return Outcome(p, 0, True, f"{FLAT_FIELD_NOTE}; the uniform force P / n is exact on the mean-free periodic kernel",
+                   multiplier=-float(gp.ubar[0]), info={**info, "load": load})
