@@ -617,10 +617,14 @@ class Solver(ABC):
         return f"<Solver {self.name} ({self.family})>"
 
 
-def readable_answer(p: Any) -> np.ndarray:
+def readable_answer(p: Any) -> Any:
     """``p`` as float64 where it can be read as real numbers; else as given (an object,
-    string or complex array), for the judge to refuse."""
-    arr = np.asarray(p)
+    string or complex array, or an object NumPy cannot wrap at all, e.g. a device array
+    that refuses an implicit copy), for the judge to refuse."""
+    try:
+        arr = np.asarray(p)
+    except Exception:  # (its __array__ raises: the judge names why, harness.judging.read_answer)
+        return p
     if arr.dtype.kind in "biuf":
         return arr.astype(np.float64, copy=False)
     return arr
@@ -633,7 +637,7 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
     turn into an honest failure; unclaimed, its status is FAILED."""
     qp = ctx.qp
     p = readable_answer(out.p)
-    finite = p.shape == (qp.n,) and p.dtype == np.float64 and bool(np.all(np.isfinite(p)))
+    finite = isinstance(p, np.ndarray) and p.shape == (qp.n,) and p.dtype == np.float64 and bool(np.all(np.isfinite(p)))
     w = out.w
     if w is None and finite:
         w = qp.H.matvec(p) - qp.ubar
