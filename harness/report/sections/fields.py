@@ -225,27 +225,42 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
             "the contact area (black)",
             "the contact pressure p/E* (log colour scale) in the most loaded window (dashed) with the contact "
             "area outlined in red"]
-    what.append(f"the distribution of the gap over the points out of contact ({contact_gap_text(f)})" if has_gap
+    what.append(f"the distribution of the gap over the points out of contact "
+                f"({contact_gap_text(f, *field_bound_and_check(ctx, f))})" if has_gap
                 else "no gap panel: the stored field has no gap")
     return ctx.figure_md(rel, f"the contact field of `{f.scene}` instance `{f.instance}` at step {f.step} (of "
                               f"{f.steps}; {_approach_text(delta, control, f.unit)}, P/(E* A0) = "
                               f"{fmt_num(f.dim_load)}, answer of `{f.solver}`): " + "; ".join(what) + ".")
 
 
-#: A contact point whose gap is below -this x the heights' range is pressed past g = 0
-#: (an element at its hardness bound: plastic), not closed within round-off.
+#: A contact point whose gap is below -this x the heights' range (or -check_tol x it, where
+#: that is larger) is pressed past g = 0 (an element at its hardness bound: plastic), not
+#: closed within the answer's tolerance.
 PRESSED_GAP = 1e-9
 
 
-def contact_gap_text(f: ContactField) -> str:
-    """What the stored gap says of the contact points: "g = 0" where every one is closed
-    within round-off; otherwise the share pressed below g = 0 (elements at a hardness bound,
-    whose gap is negative) and how far, read from the field itself."""
+def field_bound_and_check(ctx: ReportContext, f: ContactField) -> tuple[bool, float]:
+    """(whether the field's problem bounds the pressure by a hardness, the check its answer
+    was judged at; NaN: none recorded), read from the table's rows of the field's step and
+    solver (columns ``hardness``, ``check_tol``)."""
+    rows = field_rows(ctx, f)
+    own = rows[rows["solver"] == f.solver] if "solver" in rows else rows
+    hard = own["hardness"] if "hardness" in own else pd.Series(dtype=float)
+    tol = own["check_tol"].dropna() if "check_tol" in own else pd.Series(dtype=float)
+    return bool(pd.to_numeric(hard, errors="coerce").notna().any()), float(tol.iloc[0]) if len(tol) else math.nan
+
+
+def contact_gap_text(f: ContactField, bounded: bool, check_tol: float = math.nan) -> str:
+    """What the stored gap says of the contact points: "g = 0" where the problem has no
+    hardness (``bounded``: its contact is closed, within the answer's tolerance) or every
+    point is closed within it; otherwise the share pressed below g = 0 (elements at the
+    hardness bound, whose gap is negative) and how far, read from the field itself."""
     share = f"the contact points, {fmt_num(100 * f.contact_fraction)} % of the area"
     g = f.gap[f.contact]
     g = g[np.isfinite(g)]
     scale = float(np.ptp(f.heights)) if f.heights.size else 0.0
-    pressed = g < -PRESSED_GAP * scale if scale > 0 else np.zeros(g.shape, bool)
+    floor = max(PRESSED_GAP, check_tol if math.isfinite(check_tol) else 0.0) * scale
+    pressed = g < -floor if bounded and scale > 0 else np.zeros(g.shape, bool)
     if not pressed.any():
         return f"{share}, have g = 0"
     return (f"{share}, have g = 0 where elastic; {fmt_num(100 * pressed.mean())} % of them are pressed below it "
