@@ -46,13 +46,16 @@ is refused before anything runs.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import inspect
 import itertools
 import math
 import os
 import sys
 import traceback
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Sequence, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
@@ -405,6 +408,30 @@ def load_solver(spec: str | Solver) -> Solver:
     with user_code(spec, f"asking solver {solver.name!r} its availability()"):
         check_availability(solver)
     return solver
+
+
+#: Hex digits of a solver's source digest in a run's configuration (``source_digest``).
+SOURCE_DIGEST_DIGITS = 16
+#: The module prefix of the project's own solvers, which a source digest leaves out.
+PROJECT_MODULES = "contactbench."
+
+
+def source_digest(solver: Solver) -> str | None:
+    """The SHA-256 (``SOURCE_DIGEST_DIGITS`` hex digits) of the file that defines the class
+    of ``solver``, for a solver from outside this package (a user's module named by import
+    path or registered by a plugin): a results folder pins it, so that an edited solver is
+    never resumed as the code whose rows the folder holds.  None for the project's own
+    solvers (the package's version pins them) and for a class whose file cannot be read
+    (defined at an interactive prompt); its helpers in other files are not read."""
+    cls = type(solver)
+    if cls.__module__.startswith(PROJECT_MODULES):
+        return None
+    try:
+        path = inspect.getsourcefile(cls)
+        data = Path(path).read_bytes() if path else None
+    except (TypeError, OSError):
+        return None
+    return None if data is None else hashlib.sha256(data).hexdigest()[:SOURCE_DIGEST_DIGITS]
 
 
 def check_availability(solver: Solver) -> None:

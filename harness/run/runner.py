@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass, replace
 from typing import Any, Callable, Sequence
 
 from contactbench.problems.scenes import SceneConfig
+from contactbench.solvers.registry import get_solver, source_digest
 
 from ..arguments import os_error_line
 from .executors import Executor, RunStopped, local_executor, output_log_name
@@ -47,7 +48,8 @@ from .output_log import OUTPUT_LOG
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import REFERENCE_TIMEOUT_FACTOR, RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
-from ..table.store import ResultStore, check_run_entries, check_run_folder, holding_lock, record_run
+from ..table.store import (ResultStore, RunFolder, RunFolderError, check_run_entries, check_run_folder, holding_lock,
+                           read_run_folder, record_run)
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
 #: pins): those that change which cells exist, how they are judged or skipped.  The
@@ -90,12 +92,32 @@ def run_config_record(scenes: Sequence[str], cfg: SceneConfig, plan: RunPlan, ru
     measured maps, ``surface_sha256``: the raw heights' hashes its recipes pin
     (``surface_hashes``), and ``surface_key``: each map as prepared (``surface_keys`` of
     ``surfaces``, meta.json's ``surface_preprocessing`` records)."""
-    hashes, keys = surface_hashes(plan), surface_keys(surfaces or {})
+    hashes, keys, sources = surface_hashes(plan), surface_keys(surfaces or {}), solver_sources(plan)
     return {"scenes": list(scenes), "scene_config": asdict(cfg), "run": asdict(run),
             "solvers": sorted({v.name for j in plan.jobs for v in j.variants}),
             "profiles": sorted({p for j in plan.jobs for p in j.profiles}),
             "cells": plan.n_cells(run.repeats), **({"surface_sha256": hashes} if hashes else {}),
-            **({"surface_key": keys} if keys else {})}
+            **({"surface_key": keys} if keys else {}), **({"solver_sources": sources} if sources else {})}
+
+
+def solver_sources(plan: RunPlan) -> dict[str, str]:
+    """The source digest of each solver the plan runs from outside this package
+    (``registry.source_digest``), by registry name."""
+    digests = {base: source_digest(get_solver(base)) for base in sorted({v.base for j in plan.jobs for v in j.variants})}
+    return {base: d for base, d in digests.items() if d is not None}
+
+
+def check_solver_sources(folder: RunFolder, sources: dict[str, str]) -> None:
+    """``RunFolderError`` when a solver of this run from outside this package has another
+    source than the one a run recorded in ``folder`` wrote its rows with (``solver_sources``),
+    with ``--append`` too: the folder's rows would be read as the edited code's."""
+    for run in folder.runs:
+        recorded = (run.get("config") or {}).get("solver_sources") or {}
+        for name, digest in sorted(sources.items()):
+            if name in recorded and recorded[name] != digest:
+                raise RunFolderError(f"results folder {folder.out} holds rows of solver {name!r} from another source "
+                                     f"(sha256 {recorded[name]}, now {digest}: its file was edited); write the edited "
+                                     "solver's rows to another --out, or give it another name (nothing was written)")
 
 
 def surface_hashes(plan: RunPlan) -> list[str]:
@@ -130,7 +152,7 @@ def run_identity(config: dict[str, Any]) -> dict[str, Any]:
         run["reference_timeout"] = None
     if run.get("profiles") is not None and sorted(run["profiles"]) == config.get("profiles"):
         run["profiles"] = None  # (the profiles the study would run: the same cells)
-    maps = {k: config[k] for k in ("surface_sha256", "surface_key") if config.get(k)}
+    maps = {k: config[k] for k in ("surface_sha256", "surface_key", "solver_sources") if config.get(k)}
     scene_config = given_apart(config.get("scene_config"), config.get("scenes"))
     if isinstance(scene_config, dict) and isinstance(scene_config.get("surface_path"), str) and scene_config["surface_path"]:
         # one file, however it is spelled (relative, absolute, through a link): its recipe holds the resolved path
@@ -176,13 +198,15 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     surfaces = surface_preprocessing(j.spec for j in plan.jobs)  # (the maps as prepared: their keys are pinned)
     config = run_config_record(scenes, cfg, plan, run, surfaces)
     identity = run_identity(config)
+    check_solver_sources(read_run_folder(out_dir, run_identity), config.get("solver_sources", {}))
     check_run_folder(out_dir, identity, append, run_identity)
     read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
     check_run_entries(out_dir, {OUTPUT_LOG: False})  # (the solvers' log: never written through a link)
     if ready is not None:
         ready()
     with holding_lock(out_dir):
-        folder = check_run_folder(out_dir, identity, append, run_identity)  # again, now that we hold the lock
+        check_solver_sources(read_run_folder(out_dir, run_identity), config.get("solver_sources", {}))  # again, now
+        folder = check_run_folder(out_dir, identity, append, run_identity)  # that we hold the lock
         for w in plan.warnings:
             log.warning("warning: %s", w)
         record_run(folder, identity)
