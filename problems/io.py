@@ -19,10 +19,12 @@ keeps the spacing.
 Cleaning, in this order.  Each step is recorded in ``Surface.meta`` and in the map's
 ``MapPreprocessing`` record (``Surface.preprocessing``, problems/preprocessing.py: the file's
 base name, a hash of the raw heights and of the options that names the instance, the unit
-and the spacing per axis, the filled points, the removed plane, the crop, the warnings); a
-step that changes the data warns (``announce``: stored in the record, and a ``UserWarning``
-once per process for each file and message, issued once the map has passed every check,
-so that a map refused warns of nothing first):
+and the spacing per axis, the filled points, the removed plane, the crop, the warnings).
+Filling missing points and cropping or padding a non-square map warn; removing the tilt
+warns only when it exceeds the rms slope (step 2), though every removal is recorded
+(``announce``: stored in the record, and a ``UserWarning`` once per process for each file
+and message, issued once the map has passed every check, so that a map refused warns of
+nothing first):
 
 1. NaN rule (``nan=``): ``"fill-mean"`` (default) replaces each missing point by the mean
    of the measured points; ``"fill-nearest"`` by its nearest measured neighbour;
@@ -69,6 +71,7 @@ import numpy as np
 
 from .atomic_files import not_utf8_text
 from .errors import ProblemInputError, check_positive
+from .kernels import square_spacing
 from .map_files import write_text, write_topography, write_x3p
 from .units import plain_float
 from .map_readers import (
@@ -443,8 +446,9 @@ def parse_length(text: str) -> Length:
 def map_spacing(path: Path, shape: tuple[int, int], length: Length | None,
                 file_spacing: tuple[float, float] | None, meta: dict[str, Any]) -> tuple[float, float]:
     """The spacings (axis 0, axis 1) of the map as read: the given length (L0: square
-    pixels L0 / N0; (L0, L1): L0 / N0, L1 / N1), else the file's own; both given must agree
-    (LENGTH_RTOL) on every axis given."""
+    pixels L0 / N0; (L0, L1): L0 / N0, L1 / N1, made exactly square, L0 / N0 twice, when
+    they are equal to round-off: ``kernels.square_spacing``), else the file's own; both
+    given must agree (LENGTH_RTOL) on every axis given."""
     n0, n1 = shape
     if length is not None:
         if np.ndim(length) == 0:
@@ -455,6 +459,8 @@ def map_spacing(path: Path, shape: tuple[int, int], length: Length | None,
             if len(pair) != 2:
                 raise ProblemInputError(f"length must be L0 or (L0, L1), got {length!r}")
             given = (check_positive("surface length L0", pair[0]) / n0, check_positive("surface length L1", pair[1]) / n1)
+            square = square_spacing(given)  # (L0 / N0 and L1 / N1 equal to round-off: square pixels)
+            given = given if square is None else (square, square)
         if file_spacing is not None:
             for axis, (g, f, n) in enumerate(zip(given, file_spacing, shape)):
                 if not np.isclose(g * n, f * n, rtol=LENGTH_RTOL, atol=0.0):

@@ -24,7 +24,8 @@ Kernels
     2/(pi E delta) arcsin(delta / (2 r)) for (i, j) != (k, l).  (The paper prints
     "i != k, j != l"; it means (i, j) != (k, l).)
     Square elements only (the patch is a disc of the element's width; a rectangular
-    element has no such patch): a grid with d1 != d2 is refused.
+    element has no such patch): a grid with d1 != d2 is refused, beyond round-off
+    (``SQUARE_SPACING_RTOL``: then the spacing along axis 0 is the one used).
 ``love``
     Uniform pressure on the rectangular element (Love 1929; Johnson, Contact Mechanics,
     eq. 3.25, a rectangle of half-sides a = d1/2, b = d2/2), evaluated at the element
@@ -83,15 +84,33 @@ def grid_spacing(delta: Spacing, what: str = "delta (grid spacing)") -> tuple[fl
     return (float(check_positive(f"{what} along axis 0", pair[0])), float(check_positive(f"{what} along axis 1", pair[1])))
 
 
-def check_element_shape(kernel: str, delta: Spacing) -> tuple[float, float]:
-    """The spacings (d1, d2) when ``kernel`` takes elements of that shape, else a one-line
-    ``ProblemInputError``: 'bcc' needs square elements (d1 == d2)."""
+#: Two spacings that differ by at most this fraction of the larger are one spacing (square
+#: elements): the round-off of L0 / N0 against L1 / N1 for equal pixels (150e-6 / 48 and
+#: 100e-6 / 32 differ by one ulp), a few ulps; anything larger is a rectangular element.
+SQUARE_SPACING_RTOL = 4.0 * float(np.finfo(np.float64).eps)
+
+
+def square_spacing(delta: Spacing) -> float | None:
+    """The one spacing of a grid of square elements: d1 (the spacing along axis 0) when
+    |d1 - d2| <= ``SQUARE_SPACING_RTOL`` max(d1, d2), else None (rectangular elements).
+    A bad spacing is a one-line ``ProblemInputError`` (``grid_spacing``)."""
     d1, d2 = grid_spacing(delta)
-    if kernel == "bcc" and d1 != d2:
+    return d1 if abs(d1 - d2) <= SQUARE_SPACING_RTOL * max(d1, d2) else None
+
+
+def check_element_shape(kernel: str, delta: Spacing) -> tuple[float, float]:
+    """The spacings (d1, d2) of the elements ``kernel`` uses when it takes elements of that
+    shape, else a one-line ``ProblemInputError``: 'bcc' needs square elements (``square_spacing``:
+    equal to round-off), and uses (d, d), d the spacing along axis 0."""
+    d1, d2 = grid_spacing(delta)
+    if kernel != "bcc":
+        return d1, d2
+    d = square_spacing((d1, d2))
+    if d is None:
         raise ProblemInputError(f"the 'bcc' kernel needs square elements (its patch is a disc of the element's width); "
-                                f"the grid spacings are {d1:g} x {d2:g}: use the 'love' kernel (rectangular elements) "
+                                f"the grid spacings are {d1!r} x {d2!r}: use the 'love' kernel (rectangular elements) "
                                 "or 'spectral' (periodic)")
-    return d1, d2
+    return d, d
 
 
 def compliance_scale(E: float, length: float, factor: float) -> float:

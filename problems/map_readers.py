@@ -56,6 +56,7 @@ import math
 import hashlib
 import re
 import struct
+import warnings
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -382,16 +383,19 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
     succeeds it is kept as ``RawMap.reader_notes``."""
     from SurfaceTopography.IO import open_topography
 
-    what, said = fmt or "the detected format", ForeignOutput()
+    what, said, reader = fmt or "the detected format", ForeignOutput(), None
     try:
         with foreign_output_held() as said:
-            reader = open_topography(str(p), format=fmt)
-            what = f"{reader.name()} (.{reader.format()})"
-            info = _pick_channel(p, reader, channel)
-            kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
-            topo = reader.topography(channel_index=info.index, **kw)
-            h = np.ma.asarray(topo.heights(), dtype=np.float64)
-            heights = np.where(np.isinf(h.data), h.data, np.ma.filled(h, np.nan))  # an inf stays one (refused)
+            try:
+                reader = open_topography(str(p), format=fmt)
+                what = f"{reader.name()} (.{reader.format()})"
+                info = _pick_channel(p, reader, channel)
+                kw = {"physical_sizes": tuple(float(n) for n in info.nb_grid_pts)} if info.physical_sizes is None else {}
+                topo = reader.topography(channel_index=info.index, **kw)
+                h = np.ma.asarray(topo.heights(), dtype=np.float64)
+                heights = np.where(np.isinf(h.data), h.data, np.ma.filled(h, np.nan))  # an inf stays one (refused)
+            finally:
+                close_reader(reader)
     except SurfaceFileError:
         raise
     except Exception as e:  # the readers raise many kinds; each becomes one clear line
@@ -415,6 +419,24 @@ def read_with_surfacetopography(p: Path, fmt: str | None, channel: int | str | N
         _sdf_checks(p)
     z = _numeric_matrix(p, z) * (factor or 1.0)
     return RawMap(z, spacing, fmt_id, meta, unit_known=factor is not None, reader_notes=said.notes())
+
+
+#: The start of SciPy's RuntimeWarning when a netcdf_file opened with mmap=True (as
+#: SurfaceTopography's NetCDF reader opens one) is closed while arrays still refer to its
+#: data: about SciPy's own buffers, not the map, so never passed on (``close_reader``).
+NETCDF_MMAP_WARNING = "Cannot close a netcdf_file opened with mmap=True"
+
+
+def close_reader(reader: Any) -> None:
+    """Close a SurfaceTopography reader (None: nothing to close) at once, with exactly
+    SciPy's ``NETCDF_MMAP_WARNING`` silenced.  Closed here, not when the garbage collector
+    drops the reader, so that warning cannot surface later, outside any read, as a warning
+    of ours; every other warning of the close passes as usual."""
+    if reader is None:
+        return
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=re.escape(NETCDF_MMAP_WARNING), category=RuntimeWarning)
+        reader.close()
 
 
 def _reader_failure(e: Exception, what: str, written: str = "") -> str:
@@ -594,10 +616,12 @@ __all__ = [
     "HEIGHT_CEILING",
     "LENGTH_RTOL",
     "MIN_MAP_SIDE",
+    "NETCDF_MMAP_WARNING",
     "XYZ_MIN_ROWS",
     "RawMap",
     "SurfaceFileError",
     "check_npy_size",
+    "close_reader",
     "read_height_map",
     "read_npy",
     "read_text",
