@@ -149,7 +149,10 @@ class RowChart:
     value the bars are read against; ``colors`` ((solver, CSS colour), ...) draws those
     solvers first, in that order and colour, in every chart of the scene on the page (a
     section whose PNG colours its solvers by a parameter gives the page the same), the
-    others in their family colours."""
+    others in their family colours.  ``profile`` and ``instance``, where given, are the
+    only profile and instance it draws, those its section's PNG draws (a chart of one
+    profile mixed with another's rows reads as one solver's two speeds); it says so
+    under its title, and draws nothing when the page's picker leaves that profile out."""
 
     title: str
     drawer: str = "time-against"
@@ -158,6 +161,8 @@ class RowChart:
     by_instance: bool = False
     reference: tuple[float, str] | None = None
     colors: tuple[tuple[str, str], ...] = ()
+    profile: str | None = None
+    instance: str | None = None
 
     def __post_init__(self) -> None:
         if self.drawer not in ROW_DRAWERS:

@@ -306,7 +306,7 @@ def scene_rank(scene: str) -> tuple:
 
 
 def fmt_num(v: Any, digits: int = 3) -> str:
-    """Significant-figure format; '-' for missing."""
+    """Significant-figure format, a number of 10^digits to 1e5 whole ("3450"); '-' for missing."""
     try:
         x = float(v)
     except (TypeError, ValueError):
@@ -316,7 +316,7 @@ def fmt_num(v: Any, digits: int = 3) -> str:
     if x == 0:
         return "0"
     if 1e-3 <= abs(x) < 1e5:
-        return f"{x:.{digits}g}"
+        return f"{x:.0f}" if abs(x) >= 10 ** digits else f"{x:.{digits}g}"
     return f"{x:.{max(digits - 1, 0)}e}"
 
 

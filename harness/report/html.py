@@ -33,13 +33,14 @@ import pandas as pd
 from matplotlib.colors import to_hex
 
 from ..table import aggregates as agg
-from .charts import Chart, RowChart
+from .charts import PLOTLY_DASHES, Chart, RowChart
 from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace,
                    pick_profile)
 from .sections.fields import load_area_series, short_traces, trace_scene, traces_empty_note
 from .sections.generic import SOLVED_COLUMNS, best_of_family, profile_empty_note, profile_taus, reached_accuracy
 from .sections.paper import UNSOLVED_MARKS, k_of, load_abscissa, unsolved_kind
 from .page_script import PAGE_SCRIPT
+from .panels import MARK_EVERY
 from .style import MAX_SERIES, sort_families
 from ..table.files import write_text_atomic
 from ..table.schema import as_finite
@@ -210,11 +211,13 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
         "scenes": ctx.scenes(),
         "profiles": natural_sorted(set(attempted(t)["profile"])),
         "families": [{"name": f, "solvers": [{"name": s, "color": ctx.styles.hex(s),
-                                              "symbol": SOLVER_SYMBOLS[ctx.marker(s)]} for s in
+                                              "symbol": SOLVER_SYMBOLS[ctx.marker(s)],
+                                              "dash": PLOTLY_DASHES[ctx.dash(s)]} for s in
                                              natural_sorted(x for x in t["solver"].unique() if ctx.family(x) == f)]}
                      for f in fams],
         "lead": scene_leads(ctx, summaries),
         "maxSeries": MAX_SERIES,
+        "markEvery": MARK_EVERY,
         "rows": page_rows(ctx),
         "unsolved": unsolved_marks(),
         "pp": pp,

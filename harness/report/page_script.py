@@ -6,9 +6,39 @@ PAGE_SCRIPT = r"""
 (function () {
 'use strict';
 const D = JSON.parse(document.getElementById('report-data').textContent);
-const COLOR = {}, FAMILY = {}, SYMBOL = {};
+// Each solver's own colour, family, marker (Plotly symbol) and line dash (Plotly dash), as the PNGs
+// draw it (style.py SolverStyles).
+const COLOR = {}, FAMILY = {}, SYMBOL = {}, DASH = {};
 D.families.forEach(f => f.solvers.forEach(s => { COLOR[s.name] = s.color; FAMILY[s.name] = f.name;
-  SYMBOL[s.name] = s.symbol; }));
+  SYMBOL[s.name] = s.symbol; DASH[s.name] = s.dash; }));
+// A solver's line in its own dash and marker (the marker's sizes set by sparseMarks).
+const ownLine = (so, col, extra) => ({line: Object.assign({color: col, dash: DASH[so] || 'solid'}, extra || {}),
+  marker: {symbol: SYMBOL[so] || 'circle', color: col}});
+const MARK_SIZE = 6;
+// A line of many points wears its marker at points D.markEvery of the way apart along it, as the PNG's
+// matplotlib markevery (panels.py MARK_EVERY): the way measured on the chart's axes (log where an axis
+// is; the plot taken as a unit square, whose diagonal is the whole way), so that two solvers of one
+// shade differ in shape and the lines stay readable.  The other points get size 0.
+function sparseMarks(traces, xLog, yLog) {
+  const on = log => v => v === null || v === undefined || !(log ? v > 0 : Number.isFinite(v)) ? null :
+    (log ? Math.log10(v) : v);
+  const X = traces.map(t => t.x.map(on(xLog))), Y = traces.map(t => t.y.map(on(yLog)));
+  const span = vs => { const v = [].concat(...vs).filter(x => x !== null);
+    return v.length ? (v.reduce((a, b) => Math.max(a, b)) - v.reduce((a, b) => Math.min(a, b))) || 1 : 1; };
+  const sx = span(X), sy = span(Y), every = D.markEvery * Math.SQRT2;
+  traces.forEach((t, k) => {
+    let way = 0, last = null;
+    t.marker.size = X[k].map((x, i) => {
+      const y = Y[k][i];
+      if (x === null || y === null) return 0;
+      if (last) way += Math.hypot((x - last[0]) / sx, (y - last[1]) / sy);
+      const mark = !last || way >= every;
+      if (mark) way = 0;
+      last = [x, y];
+      return mark ? MARK_SIZE : 0;
+    });
+  });
+}
 const state = {solvers: new Set(Object.keys(COLOR)), scenes: new Set(D.scenes), profiles: new Set(D.profiles)};
 // A scene whose row chart gives colours ((solver, colour) pairs in drawing order: Fig. 6's K from
 // dark to light (viridis), as its PNG) draws those solvers in them, first and in that order, in every one
@@ -112,14 +142,15 @@ function unsolvedLegend(rows) {
     marker: {symbol: D.unsolved[k].symbol, color: D.unsolved[k].color, size: 10, line: {width: 2}}}));
 }
 // A series with an unsolved mark would show the mark of its first point as its legend icon (Plotly
-// draws a trace's legend icon from its first point's marker, and its size from their mean): the
-// series stays out of the legend, and a stand-in of no point, in its legend group (a click on it
-// shows or hides the series), shows the series' own line and marker there.
+// draws a trace's legend icon from its first point's marker, and its size from their mean; a series
+// of sparse marks, sparseMarks, would show a speck): the series stays out of the legend, and a
+// stand-in of no point, in its legend group (a click on it shows or hides the series), shows the
+// series' own line and marker there.
 function ownLegend(t) {
   t.showlegend = false;
   t.legendgroup = t.name;
   return {type: 'scatter', mode: t.mode, name: t.name, meta: t.meta, legendgroup: t.name, visible: t.visible,
-    x: [null], y: [null], hoverinfo: 'skip', line: t.line, marker: {color: t.line.color, symbol: SYMBOL[t.meta.so] || 'circle', size: 6}};
+    x: [null], y: [null], hoverinfo: 'skip', line: t.line, marker: {color: t.line.color, symbol: SYMBOL[t.meta.so] || 'circle', size: MARK_SIZE}};
 }
 // A chart with nothing to draw says why on its (empty) plot, in lines of at most NOTE_CHARS
 // characters (an annotation does not wrap): the words of report.md's "No figure." (panels.py).
@@ -139,7 +170,9 @@ function emptyNote(lay, text) {
 function lineChart(scene, c) {
   return () => {
     const xKey = c.x;
-    const picked = rowsOf(scene).filter(r => r.t !== null);
+    // only the profile and instance its section's PNG draws, where it names them
+    const picked = rowsOf(scene).filter(r => r.t !== null && (!c.profile || r.pr === c.profile) &&
+      (!c.instance || r.inst === c.instance));
     const rows = picked.filter(r => r[xKey] !== null);
     const multiProf = new Set(rows.map(r => r.pr)).size > 1;
     const g = groupBy(rows, r => r.lab + (multiProf ? ' [' + r.pr + ']' : '') + (c.by_instance ? ' ' + r.inst : ''));
@@ -158,11 +191,15 @@ function lineChart(scene, c) {
     });
     const off = picked.length - rows.length;
     const unplaced = xKey === 'dl' && off > 0 && rows.length > 0;
-    const title = c.title + (unplaced ? '<br><span style="font-size:10px">' + off + ' solves not drawn: no answer at ' +
-      'their step was solved</span>' : '');
+    const lines = [[c.instance ? 'instance ' + c.instance : '', c.profile ? 'profile ' + c.profile + ', as report.md' : '']
+      .filter(w => w).join(', '), unplaced ? off + ' solves not drawn: no answer at their step was solved' : '']
+      .filter(w => w);
+    const title = c.title + lines.map(w => '<br><span style="font-size:10px">' + esc(w) + '</span>').join('');
     const lay = layout(title, c.x_title, 'solve time [s]', rows.map(r => r[xKey]), rows.map(r => r.t));
-    if (unplaced) lay.margin.t = 60;
-    if (!rows.length) emptyNote(lay, !picked.length ? 'no solve of the picked solvers and profiles to draw' :
+    lay.margin.t += 20 * lines.length;
+    const unpicked = c.profile && !state.profiles.has(c.profile);
+    if (!rows.length) emptyNote(lay, unpicked ? 'this chart draws profile ' + esc(c.profile) + ' (report.md\'s): ' +
+      'tick it among the profiles' : !picked.length ? 'no solve of the picked solvers and profiles to draw' :
       xKey === 'dl' ? 'nothing to draw: the load axis takes a step\'s load from its solved answers,<br>and none of ' +
         'the ' + picked.length + ' solves here was solved' : 'no solve here has a value on the x axis');
     const [drawn, lay2] = thin(scene, traces, lay);
@@ -192,15 +229,17 @@ function wpChart(scene, key, yTitle) {
 function ppChart(scene) {
   return () => {
     const p = D.pp[scene];
-    const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).sort(bySceneOrder(scene, s => s)).map(s => ({type: 'scatter',
-      mode: 'lines', line: {shape: 'hv', color: colorIn(scene, s)}, name: s, meta: {so: s}, x: p.taus, y: p.curves[s],
-      hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}));
+    const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).sort(bySceneOrder(scene, s => s)).map(s => Object.assign({
+      type: 'scatter', mode: 'lines+markers', name: s, meta: {so: s}, x: p.taus, y: p.curves[s],
+      hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}, ownLine(s, colorIn(scene, s), {shape: 'hv'})));
     const lay = layout('performance profile (' + scene + ', ' + p.n + ' problems)', 'tau (times the best time)',
       'fraction of problems solved', p.taus, [0, 1]);
     lay.xaxis.type = 'log';
     lay.yaxis.range = [-0.02, 1.02];
     if (p.empty) emptyNote(lay, p.empty);
-    return thin(scene, traces, lay);
+    sparseMarks(traces, true, false);
+    const [drawn, lay2] = thin(scene, traces, lay);
+    return [drawn.concat(drawn.map(ownLegend)), lay2];
   };
 }
 function counterexampleChart(scene, c) {
@@ -230,10 +269,9 @@ function traceChart(useTime) {
     const T = D.traces;
     const traces = Object.keys(T.solvers).filter(s => state.solvers.has(s)).map(s => {
       const d = T.solvers[s];
-      return {type: 'scatter', mode: 'lines', name: s, meta: {so: s}, x: useTime ? d.t : d.it, y: d.r,
-        line: {color: colorIn(T.scene, s)}, legendgroup: FAMILY[s],
-        hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
-          (useTime ? '%{x:.3g} s' : 'iteration %{x}') + '<extra></extra>'};
+      return Object.assign({type: 'scatter', mode: 'lines+markers', name: s, meta: {so: s}, x: useTime ? d.t : d.it,
+        y: d.r, hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
+          (useTime ? '%{x:.3g} s' : 'iteration %{x}') + '<extra></extra>'}, ownLine(s, colorIn(T.scene, s)));
     });
     const xs = [].concat(...traces.map(t => t.x));
     const lay = layout('convergence traces (' + T.scene + '): own residual against ' + (useTime ? 'time' : 'iteration'),
@@ -241,7 +279,9 @@ function traceChart(useTime) {
     lay.yaxis.type = 'log';
     if (useTime) lay.xaxis.type = 'log';
     if (T.empty) emptyNote(lay, T.empty);
-    return thin(T.scene, traces, lay);
+    sparseMarks(traces, lay.xaxis.type === 'log', true);
+    const [drawn, lay2] = thin(T.scene, traces, lay);
+    return [drawn.concat(drawn.map(ownLegend)), lay2];
   };
 }
 function loadAreaChart() {
@@ -329,20 +369,46 @@ const LEGEND_CHARS = 44;
 const NARROW_CHART_PX = 600;
 const legendName = n => typeof n === 'string' && n.length > LEGEND_CHARS
   ? n.slice(0, LEGEND_CHARS / 2 - 1) + '\u2026' + n.slice(n.length - LEGEND_CHARS / 2) : n;
+// A legend under its plot starts LEGEND_GAP_PX below the x axis's tick labels and title.  Plotly puts
+// it a share of the plot's height below the axis (legend.y), and on a plot made short by a long legend
+// that share is less than the labels' own height: the legend's title sat on the axis title.  Once
+// drawn, the legend moves down by what it lacks, and the plot shrinks by as much (the legend sets the
+// bottom margin), so the share is taken of the plot's new height.
+const LEGEND_GAP_PX = 6;
+function lowestAxisText(div) {
+  const boxes = [...div.querySelectorAll('.xtick text, .g-xtitle text')].map(e => e.getBoundingClientRect())
+    .filter(b => b.height > 0);
+  return boxes.length ? Math.max(...boxes.map(b => b.bottom)) : null;
+}
+async function legendBelowAxis(div) {
+  for (let i = 0; i < 3; i++) {
+    const lg = div.querySelector('.legend'), bottom = lowestAxisText(div), size = div._fullLayout._size;
+    if (!lg || bottom === null) return;
+    const lack = bottom + LEGEND_GAP_PX - lg.getBoundingClientRect().top;
+    if (lack < 1 || size.h - lack < 1) return;
+    await Plotly.relayout(div, {'legend.y': -(-div._fullLayout.legend.y * size.h + lack) / (size.h - lack)});
+  }
+}
+// Draws every chart of the picked scenes; resolves once each is drawn and its legend placed.
 function redraw() {
   document.querySelectorAll('section.scene').forEach(s => {
     if (s.dataset.scene) s.classList.toggle('hidden', !state.scenes.has(s.dataset.scene)); });
+  const drawn = [];
   charts.forEach(c => {
     if (c.scene && !state.scenes.has(c.scene)) return;
     if (c.table) { c.table.render(); return; }
     const [traces, lay] = c.draw();
     traces.forEach(t => { t.name = legendName(t.name); });
-    if (c.div.clientWidth < NARROW_CHART_PX) {  // a legend at the side would leave the plot a sliver
+    const below = c.div.clientWidth < NARROW_CHART_PX;
+    if (below) {  // a legend at the side would leave the plot a sliver
       lay.legend = Object.assign({}, lay.legend, {orientation: 'h', x: 0, xanchor: 'left', y: -0.32, yanchor: 'top'});
       if (lay.legend.title) lay.legend.title = Object.assign({}, lay.legend.title, {side: 'top'});
     }
-    Plotly.react(c.div, traces, lay, {responsive: true, displayModeBar: false});
+    const div = c.div;
+    drawn.push(Plotly.react(div, traces, lay, {responsive: true, displayModeBar: false})
+      .then(() => below ? legendBelowAxis(div) : null));
   });
+  return Promise.all(drawn);
 }
 function checkbox(label, checked, onChange, swatch) {
   const l = document.createElement('label');
@@ -376,9 +442,12 @@ function picker() {
 const t0 = performance.now();
 picker();
 build();
-redraw();
-window.contactbenchDrawMs = performance.now() - t0;
 window.contactbenchReport = {state: state, charts: charts, redraw: redraw};
-document.body.dataset.ready = '1';
+redraw().then(() => {
+  window.contactbenchDrawMs = performance.now() - t0;
+  document.body.dataset.ready = '1';
+  let resized = null;  // a window of another width may move a legend between the side and the bottom
+  window.addEventListener('resize', () => { clearTimeout(resized); resized = setTimeout(redraw, 200); });
+});
 })();
 """

@@ -29,6 +29,12 @@ EMPTY_GID = "contactbench-empty-panel"
 EMPTY_NOTE = "empty"
 
 
+#: A line of many points wears its marker at points this share of the axes' diagonal apart
+#: along it (matplotlib ``markevery``; the page measures it alike: page_script.py
+#: ``sparseMarks``), so that a solver's shape tells it apart without hiding the line.
+MARK_EVERY = 0.1
+
+
 #: The most labelled ticks on a log axis that spans less than a decade (``label_short_log_axes``).
 SHORT_LOG_TICKS = 4
 

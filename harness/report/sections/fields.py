@@ -41,7 +41,7 @@ from ..core import (
     table_md,
     tidy_log_ticks,
 )
-from ..panels import mark_empty, no_figure
+from ..panels import MARK_EVERY, mark_empty, no_figure
 from ..style import family_panels, sort_families
 
 PERSSON_KAPPA = math.sqrt(8.0 / math.pi)
@@ -350,11 +350,6 @@ def trace_scene(ctx: ReportContext) -> tuple[str, dict[str, pd.Series]]:
     return scene, representative_traces(t[t["scene"] == scene])
 
 
-def _point_style(points: int) -> dict[str, object]:
-    """Markers for a series too short to show as a line."""
-    return {"marker": "o", "ms": 4} if points < 2 else {}
-
-
 def _trace_points(trace: str) -> int:
     """The points of a stored trace with a positive finite residual (what the figure draws)."""
     tr = parse_trace(trace)
@@ -417,10 +412,11 @@ def _trace_figure(ctx: ReportContext) -> str:
             tr = parse_trace(reps[s]["trace"])
             ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
             ok2 = ok & (tr[:, 1] > 0)
-            # a trace of one point (a backend that reports its final residual only) is a marker
-            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s)
-            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s,
-                    **_point_style(int(ok2.sum())))  # a trace with one timed point
+            # each line wears its solver's marker, sparsely (MARK_EVERY): two solvers of one shade
+            # and dash differ in shape; a trace with one timed point is that marker alone
+            mark = {"marker": ctx.marker(s), "ms": 4, "markevery": MARK_EVERY}
+            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s, **mark)
+            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s, **mark)
             its += list(tr[ok, 0])
             secs += list(tr[ok2, 1])
             res += list(tr[ok, 2])

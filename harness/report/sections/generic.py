@@ -6,6 +6,7 @@ harness/table/aggregates.py), skips and failures, and one table per scene.
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Any, Callable, Iterable
 
@@ -39,10 +40,21 @@ from ..core import (
     status_counts,
     table_md,
 )
-from ..panels import no_figure
+from ..panels import MARK_EVERY, no_figure
 
 MAX_TABLE_ROWS = 80
 MAX_FAILURE_ROWS = 40
+
+
+def fmt_int(v: Any) -> str:
+    """A whole number (a size n or N, a step, a count of iterations) written whole, "4096";
+    any other value as ``fmt_num`` writes it ('-' where missing), whose three significant
+    figures would write 4096 as "4.1e+03"."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return fmt_num(v)
+    return f"{int(x)}" if math.isfinite(x) and x.is_integer() else fmt_num(x)
 
 
 def reached_accuracy(rows: pd.DataFrame) -> dict[str, float]:
@@ -364,7 +376,7 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
                     ax.step(taus, curves[s], where="post", color=GREY, lw=0.8)
         for s in panel.solvers:
             ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5, label=s,
-                    marker=ctx.marker(s), ms=4, markevery=0.1)
+                    marker=ctx.marker(s), ms=4, markevery=MARK_EVERY)
         ax.set_xscale("log", base=2)
         ax.set_xlim(1.0, hi)
         ax.set_ylim(-0.02, 1.02)
@@ -438,7 +450,7 @@ def skips_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     else:
         bad = bad.sort_values(["scene", "solver", "profile", "instance", "step", "repeat"], kind="stable",
                               key=lambda c: c.map(natural_key) if c.dtype == object else c)
-        rows_t = [(r.scene, r.solver, r.profile, r.instance, fmt_num(r.step), r.status,
+        rows_t = [(r.scene, r.solver, r.profile, r.instance, fmt_int(r.step), r.status,
                    _short(r.error or r.solver_message)) for r in bad.head(MAX_FAILURE_ROWS).itertuples()]
         cap = "solves that failed (raised), timed out or crashed"
         if len(bad) > MAX_FAILURE_ROWS:
@@ -561,8 +573,8 @@ def scene_tables_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
             cells = cells.assign(_k=[(natural_key(i), s, natural_key(so), natural_key(p)) for i, s, so, p in
                                      zip(cells["instance"], cells["step"], cells["solver"], cells["profile"])])
             cells = cells.sort_values("_k", kind="stable")
-            rows_t = [(c.instance, fmt_num(c.step), fmt_num(c.n), c.solver, c.profile, "yes" if c.warm_start else "no",
-                       c.status, fmt_num(c.solve_time_s), fmt_num(c.iterations), fmt_err(c.kkt_error),
+            rows_t = [(c.instance, fmt_int(c.step), fmt_int(c.n), c.solver, c.profile, "yes" if c.warm_start else "no",
+                       c.status, fmt_num(c.solve_time_s), fmt_int(c.iterations), fmt_err(c.kkt_error),
                        REF_CELL if getattr(c, OWN_REF) else fmt_err(c.p_rel_error), fmt_err(c.load_rel_error),
                        fmt_num(c.contact_fraction))
                       for c in cells.itertuples()]
@@ -578,8 +590,8 @@ def scene_tables_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
             g = cells.groupby(["n", "solver", "profile"], sort=True)
             rows_t = []
             for (n, s, p), c in g:
-                rows_t.append((fmt_num(n), s, p, len(c), int(c["solved"].sum()), fmt_num(c["solve_time_s"].median()),
-                               fmt_num(c["iterations"].median()), fmt_err(c["kkt_error"].median()),
+                rows_t.append((fmt_int(n), s, p, len(c), int(c["solved"].sum()), fmt_num(c["solve_time_s"].median()),
+                               fmt_int(c["iterations"].median()), fmt_err(c["kkt_error"].median()),
                                fmt_err(c["kkt_error"].max()), worst_p_error(c)))
             rows_t.sort(key=lambda x: (float(x[0]) if x[0] != "-" else -1, natural_key(x[1]), natural_key(x[2])))
             parts.append(table_md(ctx, f"scene `{scene}` ({len(cells)} cells, summarised by n, solver and profile): "

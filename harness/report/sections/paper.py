@@ -50,7 +50,7 @@ from ..core import (
     status_counts,
     table_md,
 )
-from .generic import OWN_REF
+from .generic import OWN_REF, fmt_int
 from ..claim_rules import CLAIMS
 from .paper_readings import (
     Claim,
@@ -83,6 +83,12 @@ from .sweep_totals import (
 FIG4_PAGE = (RowChart("Fig. 4: solve time against load"),)
 FIG5_PAGE = (RowChart("Fig. 5: greedy solve time against n", x="n", x_title="trial-set size n"),)
 FIG6_PAGE = (RowChart("Fig. 6: NNLS+GP time per step, per K"),)
+
+
+def drawn_as_png(page: tuple[RowChart, ...], profile: str, instance: str | None = None) -> tuple[RowChart, ...]:
+    """``page`` drawing only the rows its section's PNG draws: those of ``profile`` (the
+    section's ``pick_profile``; "" where nothing ran: any) and, where given, ``instance``."""
+    return tuple(replace(c, profile=profile or None, instance=instance) for c in page)
 
 # ---------------------------------------------------------------------------
 # Which surfaces ran: the instance names of generated rough surfaces
@@ -329,7 +335,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     at_prof = rows[rows["profile"] == prof]
     r = attempted(at_prof)
     if r.empty:
-        return Section(FIG4_TITLE, "Every pair of this scene was skipped.\n", page_charts=FIG4_PAGE)
+        return Section(FIG4_TITLE, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG4_PAGE, prof))
     cells = _curve_cells(r, own_ref=True)
     n_steps = sweep_steps(at_prof)
     tot = sweep_totals(cells, n_steps)
@@ -356,7 +362,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                          ["solver", "family", "steps solved", "total [s]", "worst kkt", "worst p err"],
                          totals_rows(tot, ctx.family), "llrrrr"))
     body.append(_fig4_reading(tot, n_max, paper_roles(cells), spread_of))
-    return Section(FIG4_TITLE, "\n".join(body), page_charts=FIG4_PAGE)
+    return Section(FIG4_TITLE, "\n".join(body), page_charts=drawn_as_png(FIG4_PAGE, prof, inst))
 
 
 def _curve_cells(rows: pd.DataFrame, own_ref: bool = False) -> pd.DataFrame:
@@ -399,7 +405,7 @@ def _fig4_figure(ctx: ReportContext, sub: pd.DataFrame, tot: pd.DataFrame, at_pr
              if (placed & ~sub["solved"] & (sub["status"].map(unsolved_kind) == k)).any()]
     best_rule = f" In the first panel {BEST_RULE}." if len(panels) > 1 and not panels[0].family else ""
     return ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
-                              f"{fmt_num(at_prof['N'].max())}; the sweep's largest trial set has n = {n_max}), profile "
+                              f"{fmt_int(at_prof['N'].max())}; the sweep's largest trial set has n = {n_max}), profile "
                               f"`{prof}`; dashed: warm started"
                               + "".join(f"; {m}" for m in marks) + ". "
                               + _drawn_note(ctx, sub, at_prof, labels) + skipped_note(tot.loc[labels])
@@ -428,7 +434,7 @@ def _unplaced_note(sub: pd.DataFrame, placed: pd.Series) -> str:
     off = sub[~placed & sub["solve_time_s"].notna()]
     if off.empty:
         return ""
-    what = ", ".join(f"{md_code(s)} step {fmt_num(k)} ({st})"
+    what = ", ".join(f"{md_code(s)} step {fmt_int(k)} ({st})"
                      for s, k, st in zip(off["solver"], off["step"], off["status"]))
     return f" Not drawn, as no solver solved their step to give it a load: {what}."
 
@@ -511,7 +517,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     r = rows[rows["profile"] == prof]
     cells = per_cell(attempted(r))
     if cells.empty:
-        return Section(title, "Every pair of this scene was skipped.\n", page_charts=FIG5_PAGE)
+        return Section(title, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG5_PAGE, prof))
     fig, (ax,) = new_figure(width=6.4, height=4.2)
     _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]", marker_of=ctx.marker)
     ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
@@ -521,7 +527,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     body.append(ctx.figure_md(rel, f"greedy solve time against the trial-set size n, profile `{prof}` (paper "
                                f"Fig. 5: CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel)."))
     body.append(_fig5_reading(cells, r))
-    return Section(title, "\n".join(body), page_charts=FIG5_PAGE)
+    return Section(title, "\n".join(body), page_charts=drawn_as_png(FIG5_PAGE, prof))
 
 
 def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
@@ -551,7 +557,7 @@ def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
         sk = rows[(rows["solver"] == ch) & (rows["status"] == "skipped")]
         if len(sk):
             i = sk["n"].idxmin()
-            parts.append(f"Cholesky was skipped from n = {fmt_num(sk.loc[i, 'n'])} on "
+            parts.append(f"Cholesky was skipped from n = {fmt_int(sk.loc[i, 'n'])} on "
                          f"({md_escape(sk.loc[i, 'skip_reason'])}); the paper ran out of memory for n > 20000.")
         else:
             parts.append("Cholesky was not skipped for memory at any size in this table (the paper ran out of "
@@ -575,9 +581,10 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     at_prof = attempted(rows[rows["profile"] == prof])
     cells = _k_cells(at_prof)
     if per_cell(at_prof).empty:
-        return Section(title, "Every pair of this scene was skipped.\n", page_charts=FIG6_PAGE)
+        return Section(title, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG6_PAGE, prof))
     if cells.empty:
-        return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n", page_charts=FIG6_PAGE)
+        return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n",
+                       page_charts=drawn_as_png(FIG6_PAGE, prof))
     import matplotlib
 
     Ks = sorted(cells["K"].unique())
@@ -620,8 +627,8 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                                                       / k_totals(_k_cells(g))["total_s"].get(k2, np.nan)))
 
     body.append(fig6_reading(tot, spread_of))
-    page = replace(FIG6_PAGE[0], colors=tuple((s, to_hex(kcol[label_of_solver[s]]))
-                                               for s in sorted(label_of_solver, key=label_of_solver.get)))
+    page = replace(drawn_as_png(FIG6_PAGE, prof, inst)[0], colors=tuple(
+        (s, to_hex(kcol[label_of_solver[s]])) for s in sorted(label_of_solver, key=label_of_solver.get)))
     return Section(title, "\n".join(body), page_charts=(page,))
 
 
