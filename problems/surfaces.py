@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ProblemInputError, check_positive, check_whole, is_whole
+from .kernels import square_spacing
 from .preprocessing import MapPreprocessing
 
 
@@ -57,7 +58,8 @@ class Surface:
     levels: tuple[Surface, ...] = ()
     periodic: bool = False
     meta: dict[str, Any] = field(default_factory=dict, compare=False)
-    #: Grid spacing along axis 1 (columns); None: square pixels (``delta``).
+    #: Grid spacing along axis 1 (columns); None: square pixels (``delta``), which a spacing
+    #: equal to ``delta`` to round-off (``kernels.square_spacing``) is made.
     delta1: float | None = None
     #: What was done to a measured map between its file and these heights (``problems.io``);
     #: None for a generated surface.
@@ -81,6 +83,8 @@ class Surface:
         check_positive("grid spacing delta", self.delta)
         if self.delta1 is not None:
             check_positive("grid spacing delta1 (axis 1)", self.delta1)
+            if square_spacing((self.delta, self.delta1)) is not None:  # equal to round-off: square pixels
+                object.__setattr__(self, "delta1", None)
         object.__setattr__(self, "heights", h)
         L0, L1 = self.lengths
         if not np.finfo(np.float64).tiny <= self.area < np.inf:

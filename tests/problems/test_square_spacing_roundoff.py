@@ -12,7 +12,7 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.io import load_surface
 from contactbench.problems.kernels import SQUARE_SPACING_RTOL, check_element_shape, kernel_table, square_spacing
 from contactbench.problems.scenes import SceneConfig, get_scene
-from contactbench.problems.surfaces import rmd_surface_n
+from contactbench.problems.surfaces import Surface, rmd_surface_n
 
 E = 2.0e9
 SHAPE = (48, 32)
@@ -68,3 +68,9 @@ def test_paper_sweep_takes_the_map_with_lengths_of_equal_pixels(tmp_path: Path) 
     assert len(scene.instances(cfg)) == 1
     with pytest.raises(ProblemInputError, match="'bcc' kernel needs square elements"):
         scene.validate(scene.config(SceneConfig(surface_path=path, length=(150e-6, 150e-6), steps=2)))
+
+
+def test_a_surface_built_with_spacings_equal_to_round_off_has_square_pixels() -> None:
+    s = Surface(np.zeros((48, 32)), 150e-6 / 48, delta1=100e-6 / 32)
+    assert s.delta1 is None and s.square_pixels and s.spacing == (150e-6 / 48, 150e-6 / 48)
+    assert Surface(np.zeros((4, 4)), 1.0, delta1=1.0 + 1e-7).delta1 == 1.0 + 1e-7
