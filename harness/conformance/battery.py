@@ -26,8 +26,9 @@ Row statuses (one row per solve):
                  solver wrote into the problem it was handed.
 ``unconverged``  inaccurate or no answer, and the solver did not claim convergence.
 ``flagged``      the KKT test accepts the answer but a conformance extra does not: p is
-                 beyond ``p_tolerance`` of the exact reference, or not float64 (the
-                 judge's dtype note); and on comparison rows, unit systems disagree by
+                 beyond ``p_tolerance`` of the exact reference (a solver's p reaches the
+                 judge as float64, ``solvers.base.readable_answer``: the judge's dtype
+                 note is for an array judged directly); and on comparison rows, unit systems disagree by
                  more than 1e-8, or a 1e-6 perturbation of ubar moved p by more than
                  10 cond(H) x 1e-6 (a chaotic active set).  The row and the headline
                  name which (``VerdictRow.flags``).
