@@ -14,7 +14,10 @@ S (p = u) (Judice & Pires 1994, extended to the box): given the sets it solves
     H_FF p_F = ubar_F - H_FS u_S                                    (otherwise)
 
 and moves every violated element: a free p below 0 to Z, above u to S; an element of Z
-with w < 0 or of S with w > 0 to F.  After ``BLOCK_PATIENCE`` rounds without fewer
+with w < 0 or of S with w > 0 to F; with no free element, a load the bounded elements
+miss frees the one nearest to taking (or shedding) force (``_load_unmet``).  The load
+row's right side is shifted by its largest entry, so that a tiny load's p keeps its own
+precision.  After ``BLOCK_PATIENCE`` rounds without fewer
 violations it moves only the least violated index (Murty's rule).  It stops on a
 violation-free set: then p is the exact solution (up to round-off).  Violations are
 measured in the units of ``problems.kkt`` (tol x p_s, tol x u_s).
@@ -32,7 +35,8 @@ Lawson-Hanson) clipped to the box, and ``box_polish`` checks its final sets.
 ``constrained_exact_solution`` -- the reference: for a box, ``bvls`` from that point;
 under load control, the KKT solve with the multiplier: ``bvls`` at an approach Delta
 found by regula falsi (Illinois) on the total force P(Delta) (non-decreasing), and after
-each step ``box_polish`` with the load row from that point, until one converges.  Every
+each step ``box_polish`` with the load row from that point, until one converges or the
+search meets a degenerate step (``_load_controlled``).  Every
 answer is certified by ``problems.kkt.constrained_figures``.
 
 Periodic load control.  A periodic kernel on the whole grid has its mean mode removed:
@@ -78,7 +82,8 @@ if TYPE_CHECKING:
 
 #: Scaled KKT error at which ``constrained_exact_solution`` certifies its answer.
 CERTIFY_KKT = 1e-10
-#: Regula-falsi steps on Delta before ``constrained_exact_solution`` gives up.
+#: Approaches Delta (each a displacement-controlled solve and a polish) the load search of
+#: ``constrained_exact_solution`` tries, bracket and regula falsi together, before it gives up.
 MAX_MULTIPLIER_STEPS = 60
 #: Accelerated projected-gradient steps of ``projected_gradient_guess`` (the start of the
 #: periodic load-control active set: it need only find most of the contact set).
@@ -141,17 +146,33 @@ def solve_on_sets(H: np.ndarray, ubar: np.ndarray, u: np.ndarray, load: float | 
         return p, math.nan
     m = free.size
     # The bordered system, its border in H's units (d = the largest diagonal entry, the
-    # unknown Delta / d), so that LU's pivoting sees entries of one scale.
+    # unknown Delta / d), so that LU's pivoting sees entries of one scale.  Its right side
+    # is shifted by its largest entry (Delta = the unknown less the shift): a load
+    # far below the relief's force has p tiny beside ubar, and unshifted the solve would
+    # leave p with round-off of ubar's size, not of its own.
     H_FF = H[np.ix_(free, free)]
     d = float(np.max(np.diag(H_FF)))
+    shift = float(np.max(rhs))
     K = np.zeros((m + 1, m + 1))
     K[:m, :m] = H_FF
     K[:m, m] = -d
     K[m, :m] = d
-    b = np.append(rhs, d * (float(load) - float(np.sum(u[sat]))))
+    b = np.append(rhs - shift, d * (float(load) - float(np.sum(u[sat]))))
     x = sla.solve(K, b, check_finite=False)
     p[free] = x[:m]
-    return p, d * float(x[m])
+    return p, d * float(x[m]) - shift
+
+
+def _load_unmet(g: np.ndarray, p: np.ndarray, state: np.ndarray, load: float, slack: float) -> int | None:
+    """With no free element the load row is not solved, only met or not: the element to
+    free when sum(p) misses ``load`` by more than ``slack`` -- short, the element at 0 with
+    the least gap g (the first to take force as Delta grows); over, the one at u with the
+    largest (the first to shed it) -- else None (the load is met, or no element can move)."""
+    short = load - float(np.sum(p))
+    cand = np.flatnonzero(state == (Z if short > 0.0 else S))
+    if abs(short) <= slack or cand.size == 0:
+        return None
+    return int(cand[np.argmin(g[cand])] if short > 0.0 else cand[np.argmax(g[cand])])
 
 
 def box_polish(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np.ndarray,
@@ -175,6 +196,10 @@ def box_polish(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, p0: np
         moves[(state == F) & (p > u + tol * p_s)] = S
         moves[(state == Z) & (w < -tol * u_s)] = F
         moves[(state == S) & (w > tol * u_s)] = F
+        if load is not None and not np.any(state == F):
+            unmet = _load_unmet(g, p, state, load, tol * (load or p_s))
+            if unmet is not None:
+                moves[unmet] = F
         bad = np.flatnonzero(moves >= 0)
         if bad.size == 0:
             return ConstrainedSolution(project_box(p, constraints.upper), delta, 0.0, True, rnd)
@@ -434,39 +459,47 @@ def constrained_exact_solution(H: np.ndarray, ubar: np.ndarray, constraints: Con
 
 
 def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, tol: float) -> ConstrainedSolution:
+    """The load search of ``constrained_exact_solution`` (module doc): at each approach
+    Delta tried, the displacement-controlled solution, then ``box_polish`` with the load row
+    from it, returned as soon as one certifies.  The approaches: P(-max ubar) = 0, so the
+    bracket starts at [-max ubar, -max ubar + u_s] and its upper end steps up, each step
+    twice the bracket's width (``_bracket_step``), until P(hi) >= P; then regula falsi
+    (Illinois, ``_falsi_step``).  It ends on a degenerate step -- a Delta not strictly
+    inside the bracket (after the polish from the end it reached), a Delta tried already,
+    a bracket end not finite -- or after ``MAX_MULTIPLIER_STEPS`` solves, raising
+    ``UncertifiedConstrainedSolution``.  The polish, not the search, sets the answer's
+    precision: a load far below the relief's force has its approach within round-off of
+    -max ubar, where the search cannot resolve it, and the polish from there frees the
+    elements the load reaches first (``box_polish``)."""
     load = float(constraints.load)  # type: ignore[arg-type]
     u_s, _ = _scales(H, ubar)
     lo, hi = -float(np.max(ubar)), -float(np.max(ubar)) + u_s
-    solves = 0
-
-    def total(delta: float) -> tuple[float, np.ndarray]:
-        nonlocal solves
-        solves += 1
-        p = _displacement_solution(H, ubar, constraints, delta)
-        return float(np.sum(p)), p
-
-    f_lo = -load
-    f_hi, p = total(hi)
-    f_hi -= load
-    while f_hi < 0.0:  # grow the bracket until P(hi) >= P
-        lo, f_lo = hi, f_hi
-        hi += 2.0 * (hi - lo) + u_s
-        f_hi, p = total(hi)
-        f_hi -= load
-        if solves > MAX_MULTIPLIER_STEPS:
-            raise UncertifiedConstrainedSolution(f"no approach carries the load {load:g}")
-    delta, side = hi, 0
+    f_lo, f_hi = -load, math.nan
+    solves, side = 0, 0
     last: ConstrainedSolution | None = None
-    for _ in range(MAX_MULTIPLIER_STEPS):
+    delta, final = hi, False
+    tried: set[float] = set()
+    while solves < MAX_MULTIPLIER_STEPS and delta not in tried:
+        solves += 1
+        tried.add(delta)
+        p = _displacement_solution(H, ubar, constraints, delta)
         last = box_polish(H, ubar, constraints, p, delta)
         out = _certified(H, ubar, constraints, last, tol)
         if out is not None:
             out.solves = solves
             return out
-        delta = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
-        fd, p = total(delta)
-        fd -= load
-        if fd > 0.0:
+        if final:
+            break
+        fd = float(np.sum(p)) - load
+        if delta == hi and not f_hi >= 0.0:  # the bracket's upper end, not yet above the load
+            f_hi = fd
+            if fd < 0.0:
+                lo, f_lo, hi = hi, fd, _bracket_step(lo, hi)
+                delta = hi
+                if not math.isfinite(hi):
+                    break
+                continue
+        elif fd > 0.0:
             hi, f_hi = delta, fd
             f_lo = f_lo / 2.0 if side == 1 else f_lo
             side = 1
@@ -474,8 +507,29 @@ def _load_controlled(H: np.ndarray, ubar: np.ndarray, constraints: Constraints, 
             lo, f_lo = delta, fd
             f_hi = f_hi / 2.0 if side == -1 else f_hi
             side = -1
+        delta = _falsi_step(lo, hi, f_lo, f_hi)
+        final = not lo < delta < hi  # degenerate: the polish from the end it reached is the last
+        delta = min(max(delta, lo), hi)
     raise UncertifiedConstrainedSolution(
-        f"no certified solution after {solves} solves (last kkt {math.inf if last is None else last.kkt_error:.2e})")
+        f"no certified solution for the load {load:g} after {solves} solves "
+        f"(last kkt {math.inf if last is None else last.kkt_error:.2e})")
+
+
+def _bracket_step(lo: float, hi: float) -> float:
+    """The next upper end of a growing bracket [lo, hi]: hi + 2 (hi - lo), so that the
+    next bracket [hi, hi + 2 (hi - lo)] is twice as wide (inf once it overflows)."""
+    with np.errstate(over="ignore"):
+        return float(np.float64(hi) + 2.0 * (np.float64(hi) - np.float64(lo)))
+
+
+def _falsi_step(lo: float, hi: float, f_lo: float, f_hi: float) -> float:
+    """The regula-falsi point of the bracket [lo, hi] with f_lo <= 0 <= f_hi: the root of
+    the chord, written as a share of the width so that neither the products lo f_hi nor
+    the difference f_hi - f_lo can overflow (a share of 0 or 1 gives an end itself)."""
+    if f_hi <= 0.0:
+        return hi
+    share = 1.0 / (1.0 + (-f_lo) / f_hi)  # f_hi / (f_hi - f_lo)
+    return hi - share * (hi - lo)
 
 
 __all__ = ["BVLSOutcome", "CERTIFY_KKT", "ConstrainedSolution", "LoadActiveSetOutcome",

@@ -47,8 +47,10 @@ four first-order solvers run in reduced units (``reduced_units``: E* = 1, L0 = 1
 The three load-controlled solvers (periodic spectral only, Tamaas' ``surface_2d`` model)
 on a displacement-controlled QP get the load P that Tamaas' own PolonskyKeerRey finds
 under displacement control on the same problem (time counted); a load-controlled exact answer at that P is the
-displacement-controlled answer.  Their claim is Tamaas' own figure (the returned error or
-``computeCost``) <= tol.  None supports a warm start (warm_start "none").
+displacement-controlled answer.  Their claim is Tamaas' own figure (``_cost``: its
+``computeError``, else the returned error, else ``computeCost``) <= tol.  Tamaas reports
+no iteration count (``ITERATIONS_NOT_REPORTED``).  None supports a warm start (warm_start
+"none").
 """
 
 from __future__ import annotations
@@ -112,7 +114,12 @@ def _normal_traction(model: Any, gp: GridProblem) -> np.ndarray:
 
 
 def _cost(solver: Any, returned: Any) -> float:
-    """Tamaas' own error figure of a finished solve."""
+    """Tamaas' own error figure of a finished solve: its ``computeError`` where the solver
+    has one (the PolonskyKeerRey family, KatoSaturated among them, whose solve returns 0.0
+    whether it converged or was stopped at max_iter), else the value its solve returned
+    (BeckTeboulle's error), else its ``computeCost`` (Kato and Condat return nothing)."""
+    if hasattr(solver, "computeError"):
+        return float(solver.computeError())
     if returned is not None:
         return float(returned)
     try:
@@ -217,16 +224,25 @@ class _TamaasSolver(PeerSolver):
         return gp
 
 
+#: What a Tamaas outcome says of its iterations: Tamaas' solver objects expose no count
+#: (their solve returns an error figure or nothing), and the table they print -- every
+#: ``dump_freq`` iterations, only at its info log level, from its C++ side -- is no count
+#: either.  The outcome's ``iterations`` is then 0 (the field is a whole number) and
+#: ``info["peer_iterations"]`` is None: unknown, not zero.
+ITERATIONS_NOT_REPORTED = "Tamaas reports no iteration count"
+
+
 def tamaas_outcome(gp: GridProblem, force: np.ndarray, cost: float, tol: float, info: dict[str, Any]) -> Outcome:
-    """Tamaas' raw answer on the trial set and its own claim (cost <= tol)."""
+    """Tamaas' raw answer on the trial set and its own claim (cost <= tol); its iteration
+    count unknown (``ITERATIONS_NOT_REPORTED``)."""
     p = gp.on_set(force)
     off = gp.force_off_set(force)
     claimed = bool(np.isfinite(cost) and cost <= tol)
     status = Status.FAILED if not np.all(np.isfinite(p)) else (None if claimed else Status.MAX_ITER)
-    note = (f"Tamaas error {cost:.2e} {'<=' if claimed else '>'} tol {tol:.0e}"
+    note = (f"Tamaas error {cost:.2e} {'<=' if claimed else '>'} tol {tol:.0e}; {ITERATIONS_NOT_REPORTED}"
             + (f"; force off the trial set {off:.1e} of max" if off > 0 else ""))
-    return Outcome(p, int(info.pop("iterations", 0)), claimed, note, status=status,
-                   info={**info, "peer_error": cost, "force_off_set": off})
+    return Outcome(p, 0, claimed, note, status=status,
+                   info={**info, "peer_error": cost, "peer_iterations": None, "force_off_set": off})
 
 
 @register
