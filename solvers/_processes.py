@@ -10,7 +10,9 @@ such process within reach:
   elsewhere;
 * ``end_descendants(pid)`` -- SIGKILL every descendant of ``pid`` (found by their parent
   links, ``psutil``), round after round until no new one appears (one that forked while the
-  others were killed), and ``reap_children`` collects the calling process's dead children;
+  others were killed); ``end_own_descendants()`` does so for the calling process and collects
+  its dead children, pass after pass until it has no child left (a scan of the process table
+  is not atomic: one that missed a process is followed by another);
 * ``ends_what_it_starts()`` -- the same for a solve run in the caller's own process (which
   has other children: a test runner's, a pool's): for the block, the caller adopts orphans,
   and after it every process started during it -- each child of the caller that was not
@@ -44,8 +46,12 @@ SUBREAPER_MISSING = ("no PR_SET_CHILD_SUBREAPER (a Linux prctl): a process a sol
                      "group (setsid) and whose parent exits is not adopted, and may outlive the solve")
 #: At most this many rounds of ``end_descendants`` (each ends everything found then).
 KILL_ROUNDS = 50
-#: Seconds ``reap_children`` waits at most for killed children to exit.
+#: Seconds ``end_own_descendants`` and ``end_started_since`` wait at most for killed children
+#: to exit.
 REAP_WAIT_S = 5.0
+#: Seconds between two scans of the process table while they wait (each pass collects the
+#: exited children; one in this many seconds also kills what is left).
+RESCAN_S = 0.05
 
 
 def become_subreaper() -> bool:
@@ -107,6 +113,13 @@ def end_descendants(pid: int, except_group: int | None = None) -> int:
     """SIGKILL every descendant of process ``pid`` (module doc) -- but those in process group
     ``except_group``, which the caller signals itself; how many were signalled."""
     signalled: set[psutil.Process] = set()
+    _end_new_descendants(pid, except_group, signalled)
+    return len(signalled)
+
+
+def _end_new_descendants(pid: int, except_group: int | None, signalled: set[psutil.Process]) -> None:
+    """SIGKILL, round after round, every descendant of ``pid`` that is not in ``signalled``
+    (nor in group ``except_group``), adding each to ``signalled``."""
     for _ in range(KILL_ROUNDS):
         new = [p for p in descendants(pid) if p not in signalled and not _in_group(p, except_group)]
         if not new:
@@ -117,7 +130,6 @@ def end_descendants(pid: int, except_group: int | None = None) -> int:
             except (psutil.NoSuchProcess, psutil.AccessDenied):
                 pass
             signalled.add(proc)
-    return len(signalled)
 
 
 def has_children() -> bool:
@@ -129,29 +141,35 @@ def has_children() -> bool:
     return True
 
 
-def reap_children(wait_s: float = REAP_WAIT_S) -> None:
-    """Collect this process's exited children, waiting at most ``wait_s`` seconds for those
-    still exiting (after ``end_descendants``)."""
-    end = time.monotonic() + wait_s
+def _reap_exited() -> bool:
+    """Collect every exited child of this process; whether a child is left (still running)."""
     while True:
         try:
             pid, _ = os.waitpid(-1, os.WNOHANG)
         except ChildProcessError:
-            return
+            return False
         if pid == 0:
-            if time.monotonic() > end:
-                return
-            time.sleep(0.005)
+            return True
 
 
-def end_own_descendants() -> int:
-    """``end_descendants`` of this process, then ``reap_children``: what a solve left running
-    ends with it.  Cheap when there is nothing (no child: no scan of the process table)."""
+def end_own_descendants(wait_s: float = REAP_WAIT_S) -> int:
+    """SIGKILL every descendant of this process and collect its exited children until it has
+    no child left, waiting at most ``wait_s`` seconds for them to exit: what a solve left
+    running ends with it.  While it waits it scans the process table afresh every
+    ``RESCAN_S``, so a descendant one scan missed (read while a process of its chain was
+    exiting) is killed by a later one, not waited for.  How many were signalled.  Cheap when
+    there is nothing (no child: no scan of the process table)."""
     if not has_children():
         return 0
-    count = end_descendants(os.getpid())
-    reap_children()
-    return count
+    me, end, scan_at = os.getpid(), time.monotonic() + wait_s, 0.0
+    signalled: set[psutil.Process] = set()
+    while True:
+        if time.monotonic() >= scan_at:
+            _end_new_descendants(me, None, signalled)
+            scan_at = time.monotonic() + RESCAN_S
+        if not _reap_exited() or time.monotonic() > end:
+            return len(signalled)
+        time.sleep(0.005)
 
 
 def snapshot(pid: int) -> frozenset[psutil.Process]:
@@ -182,38 +200,51 @@ def started_since(pid: int, before: frozenset[psutil.Process]) -> list[psutil.Pr
 
 def end_started_since(before: frozenset[psutil.Process], wait_s: float = REAP_WAIT_S) -> int:
     """SIGKILL every process of this process's tree started since ``before`` (its
-    ``snapshot``: ``started_since``), round after round, then reap those that are its
-    children (by their pids: no other child's exit is collected), waiting at most ``wait_s``
-    seconds; how many were signalled."""
+    ``snapshot``: ``started_since``), round after round, and reap those that are its
+    children (by their pids: no other child's exit is collected) until none is left, waiting
+    at most ``wait_s`` seconds; while it waits it scans afresh every ``RESCAN_S`` and kills
+    what an earlier scan missed.  How many were signalled."""
     me = os.getpid()
     found = started_since(me, before)
     if not found:  # (nothing to kill or reap: no second look at the process table)
         return 0
     signalled: set[psutil.Process] = set()
+    end, scan_at = time.monotonic() + wait_s, time.monotonic() + RESCAN_S
+    _end_started(me, before, found, signalled)
+    while not _reaped_started(me, before) and time.monotonic() <= end:
+        time.sleep(0.005)
+        if time.monotonic() >= scan_at:
+            _end_started(me, before, started_since(me, before), signalled)
+            scan_at = time.monotonic() + RESCAN_S
+    return len(signalled)
+
+
+def _end_started(me: int, before: frozenset[psutil.Process], found: list[psutil.Process],
+                 signalled: set[psutil.Process]) -> None:
+    """SIGKILL, round after round, the live processes of ``found`` (and of each fresh
+    ``started_since`` scan) that are not in ``signalled``, adding each to it."""
     for _ in range(KILL_ROUNDS):
         new = [p for p in live(found) if p not in signalled]
         if not new:
-            break
+            return
         for proc in new:
             with contextlib.suppress(psutil.NoSuchProcess, psutil.AccessDenied):
                 proc.kill()  # (psutil checks the start time first: a reused pid is not signalled)
             signalled.add(proc)
         found = started_since(me, before)
-    _reap_started(me, before, wait_s)
-    return len(signalled)
 
 
-def _reap_started(me: int, before: frozenset[psutil.Process], wait_s: float) -> None:
-    end = time.monotonic() + wait_s
-    while True:
-        try:
-            waiting = [c.pid for c in psutil.Process(me).children() if c not in before]
-        except (psutil.NoSuchProcess, psutil.AccessDenied):  # pragma: no cover - this process is there
-            return
-        reaped = [_reaped(pid) for pid in waiting]  # (each one asked: a list, not a short-circuit)
-        if all(reaped) or time.monotonic() > end:
-            return
-        time.sleep(0.005)
+def _reaped_started(me: int, before: frozenset[psutil.Process]) -> bool:
+    """Whether this process (``me``) has no child left that is not in ``before``; each
+    exited one is collected here, and then False: one that exited may have left an orphan
+    adopted after the list was read, which the next call lists."""
+    try:
+        waiting = [c.pid for c in psutil.Process(me).children() if c not in before]
+    except (psutil.NoSuchProcess, psutil.AccessDenied):  # pragma: no cover - this process is there
+        return True
+    for pid in waiting:
+        _reaped(pid)
+    return not waiting
 
 
 def _reaped(pid: int) -> bool:

@@ -72,7 +72,7 @@ from typing import Any, Callable, Iterator, Literal, NoReturn
 from contactbench.problems.output_streams import output_to_fd
 from contactbench.solvers._loading import exception_message as exception_message
 from contactbench.solvers._loading import exception_text as exception_text
-from contactbench.solvers._processes import become_subreaper, end_descendants, end_own_descendants
+from contactbench.solvers._processes import REAP_WAIT_S, become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
 from .stacks import dump_stacks_on_signal, pass_stack_signal_to, short_path, where_it_was
@@ -307,6 +307,12 @@ def describe_exit(exitcode: int | None) -> str:
     return f"worker {how_it_ended(exitcode)}"
 
 
+#: Seconds the parent waits at most, once a worker's pipe is closed, for its process to end
+#: (``ChildReply.exitcode``): a keeper first kills and collects what it keeps, which takes up
+#: to ``REAP_WAIT_S`` and longer on a loaded machine.  A wait for the kernel, which returns as
+#: soon as the process ends, not a claim on speed.
+DIED_WAIT_S = REAP_WAIT_S + 25.0
+
 #: The longest single wait on a worker's pipe (``ChildProcess._answered_within``).
 POLL_CHUNK_S = 86_400.0
 
@@ -400,7 +406,7 @@ class ChildProcess:
         elapsed = time.perf_counter() - t0
         code = None
         if self.proc is not None:
-            self.proc.join(5.0)
+            self.proc.join(DIED_WAIT_S)
             code = self.proc.exitcode
         detail = describe_exit(code) + self.output_tail()
         self.kill()

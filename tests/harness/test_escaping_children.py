@@ -17,31 +17,50 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-
-import pytest
+from typing import Callable, TypeVar
 
 import numpy as np
+import psutil
+import pytest
 
 from contactbench.harness.conformance import battery as cf
+from contactbench.harness.run import isolation
 from contactbench.harness.run.isolation import ChildProcess
 from contactbench.problems.lcp import exact_solution
 from contactbench.solvers import Outcome, SolveContext, Solver
-from contactbench.solvers._processes import SUBREAPER_MISSING, is_subreaper
+from contactbench.solvers import _processes
+from contactbench.solvers._processes import REAP_WAIT_S, SUBREAPER_MISSING, is_subreaper
 from contactbench.solvers.external import run_program
 from tests.helpers import process_gone
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason=f"/proc, and {SUBREAPER_MISSING}")
 
-#: How long an escaped process lives at most (it must be killed long before).
-LIFETIME_S = 20
-#: How long a test waits at most for a killed process to be gone (the kernel's time, not a
-#: claim on speed).
-GONE_WAIT_S = 3.0
+#: How long a test waits at most for a killed process to be gone: a wait for the kernel, not
+#: a claim on speed (it returns as soon as the process is gone), generous for a loaded machine.
+GONE_WAIT_S = 30.0
+#: How long an escaped process lives at most: well past ``GONE_WAIT_S``, so that one that was
+#: not killed is still there when the wait ends (and a test that waits for it can fail).
+LIFETIME_S = 4 * GONE_WAIT_S
+T = TypeVar("T")
+
 #: The environment variable that tells ``EscapingSolver`` where to write its grandchild's pid.
 PID_FILE_VAR = "CONTACTBENCH_TEST_ESCAPE_PID_FILE"
 
 
-def ended_in_time(pid: int, wait_s: float = 10.0) -> bool:
+def within_growing_limits(attempt: Callable[[float], T], started: Path) -> T:
+    """``attempt(limit)`` -- a message or program that starts a process, writes its pid into
+    ``started`` and hangs past ``limit`` seconds -- with a limit of 1 s, doubled (up to
+    ``GONE_WAIT_S``) until ``started`` holds a pid when it returns: a loaded machine, slower
+    to start what the attempt starts, costs time, not the test.  The last attempt's value."""
+    limit = 1.0
+    while True:
+        value = attempt(limit)
+        if (started.exists() and started.read_text()) or limit >= GONE_WAIT_S:
+            return value
+        limit *= 2
+
+
+def ended_in_time(pid: int, wait_s: float = GONE_WAIT_S) -> bool:
     """Whether ``pid`` ends within ``wait_s`` (a bounded wait for the kernel, not a claim on
     speed); a survivor is killed here, so that a failing test leaves nothing behind."""
     deadline = time.monotonic() + wait_s
@@ -66,7 +85,7 @@ def start_escaped_grandchild(pid_file: str) -> int:
             grandchild = os.fork()
             if grandchild == 0:
                 try:
-                    os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S})"])
+                    os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S:g})"])
                 finally:
                     os._exit(1)
             os.write(write, str(grandchild).encode())
@@ -100,7 +119,8 @@ def test_an_escaped_grandchild_of_a_worker_killed_at_its_limit_is_killed_too(tmp
     pid_file = tmp_path / "pid"
     with ChildProcess(lambda: escape_then) as child:
         assert child.call(("return", str(tmp_path / "first")), timeout=None).kind == "ok"  # the worker is up
-        assert child.call(("hang", str(pid_file)), timeout=1.0).kind == "timeout"
+        hang = ("hang", str(pid_file))
+        assert within_growing_limits(lambda limit: child.call(hang, timeout=limit), pid_file).kind == "timeout"
         assert ended_in_time(int(pid_file.read_text())), "the grandchild outlived the killed worker"
 
 
@@ -125,15 +145,57 @@ def test_an_escaped_grandchild_of_a_worker_that_died_on_its_own_is_killed(tmp_pa
     pid_file = tmp_path / "pid"
     with ChildProcess(lambda: escape_then_die) as child:
         reply = child.call((how, str(pid_file)), timeout=30.0)
-    survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()), GONE_WAIT_S)
+    survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()))
     assert reply.kind == "crashed" and said in reply.detail, reply
     assert pid_file.exists() and not survived, "the grandchild outlived the worker that died"
+
+
+def test_a_grandchild_one_scan_of_the_keeper_missed_is_killed_by_the_next(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scan of the process table is not atomic (a chain read while a process in it exits):
+    the first scan of each process here -- the keeper's, after its worker died -- misses
+    every descendant, and the keeper's next pass still finds the grandchild and kills it,
+    rather than waiting for it to exit and leaving it behind."""
+    scanned: set[int] = set()
+    real = _processes.descendants
+
+    def first_misses(pid: int) -> list[psutil.Process]:
+        if os.getpid() in scanned:
+            return real(pid)
+        scanned.add(os.getpid())
+        return []
+
+    monkeypatch.setattr(_processes, "descendants", first_misses)  # (inherited by the forked keeper)
+    pid_file = tmp_path / "pid"
+    with ChildProcess(lambda: escape_then_die) as child:
+        reply = child.call(("SIGKILL", str(pid_file)), timeout=30.0)
+    survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()))
+    assert reply.kind == "crashed" and "worker killed by signal SIGKILL" in reply.detail, reply
+    assert pid_file.exists() and not survived, "the grandchild outlived the worker that died"
+
+
+def test_a_keeper_slow_to_end_is_still_read_as_the_worker_s_own_death(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a loaded machine the keeper may take all of ``REAP_WAIT_S`` and more to end what
+    it keeps: the parent waits for it, and says how the worker ended, not that it did not."""
+    real = isolation.end_own_descendants
+
+    def slow(wait_s: float = REAP_WAIT_S) -> int:
+        time.sleep(REAP_WAIT_S + 1.0)
+        return real(wait_s)
+
+    monkeypatch.setattr(isolation, "end_own_descendants", slow)  # (inherited by the forked keeper)
+    with ChildProcess(lambda: escape_then_die) as child:
+        reply = child.call(("SIGKILL", str(tmp_path / "pid")), timeout=30.0)
+    assert reply.kind == "crashed" and "worker killed by signal SIGKILL" in reply.detail, reply
+    assert ended_in_time(int((tmp_path / "pid").read_text())), "the grandchild outlived the worker that died"
 
 
 #: A runner in its own process: a worker whose message starts an escaped grandchild (its pid
 #: into the file ``argv[1]``) and hangs; the test kills the runner with SIGKILL.
 RUNNER = """
 import sys
+from contactbench.harness.run import isolation
 from contactbench.harness.run.isolation import ChildProcess
 from tests.harness.test_escaping_children import escape_then
 ChildProcess(lambda: escape_then).call(("hang", sys.argv[1]), timeout=None)
@@ -153,7 +215,7 @@ def test_a_kill_9_of_the_runner_ends_what_its_worker_s_solve_started(tmp_path: P
     finally:
         runner.kill()
         runner.wait()
-    assert ended_in_time(int(pid_file.read_text()), GONE_WAIT_S), "the grandchild outlived the killed runner"
+    assert ended_in_time(int(pid_file.read_text())), "the grandchild outlived the killed runner"
 
 
 def leave_and_kill_the_keeper(pid_file: str) -> int:
@@ -177,7 +239,7 @@ def test_a_worker_that_left_its_keeper_ends_when_the_runner_lets_it_go(tmp_path:
     with ChildProcess(lambda: leave_and_kill_the_keeper) as child:
         reply = child.call(str(pid_file), timeout=1.0)
     assert reply.kind in ("timeout", "crashed"), reply
-    assert ended_in_time(int(pid_file.read_text()), 10.0), "the worker outlived the runner's end of its pipe"
+    assert ended_in_time(int(pid_file.read_text())), "the worker outlived the runner's end of its pipe"
 
 
 class EscapingSolver(Solver):
@@ -206,11 +268,11 @@ def test_validate_in_process_ends_what_a_solve_started_and_leaves_the_process_s_
     not adopt orphans after the solve."""
     pid_file = tmp_path / "pid"
     monkeypatch.setenv(PID_FILE_VAR, str(pid_file))
-    own = subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({LIFETIME_S})"])
+    own = subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({LIFETIME_S:g})"])
     try:
         table = cf.validate(EscapingSolver(), cf.conformance_cases("fast", pattern="random/spd-n30-s0"),
                             isolate=False)
-        survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()), GONE_WAIT_S)
+        survived = pid_file.exists() and not ended_in_time(int(pid_file.read_text()))
         assert table.exit_code() == 0, table.format()
         assert pid_file.exists() and not survived, "the solver's grandchild outlived validate"
         assert own.poll() is None, "a child of the process that is not the solve's was ended"
@@ -220,14 +282,58 @@ def test_validate_in_process_ends_what_a_solve_started_and_leaves_the_process_s_
         own.wait()
 
 
+def start_child_and_grandchild() -> int:
+    """Fork a child that forks a grandchild running a program that sleeps, then sleeps
+    itself: the grandchild's pid (its parent is alive, in this process's group)."""
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # pragma: no cover - runs in the forked child
+        try:
+            grandchild = os.fork()
+            if grandchild == 0:
+                try:
+                    os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S:g})"])
+                finally:
+                    os._exit(1)
+            os.write(write, str(grandchild).encode())
+            time.sleep(LIFETIME_S)
+        finally:
+            os._exit(0)
+    os.close(write)
+    text = os.read(read, 32).decode()
+    os.close(read)
+    return int(text)
+
+
+def test_a_process_the_scans_at_an_in_process_solve_s_end_missed_is_killed_by_a_later_one(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``ends_what_it_starts``: the scans of its kill rounds miss the grandchild (as a scan
+    read while a process of its chain exits may); once its parent is killed it is this
+    process's orphan, and a later scan, while the block's end waits for its children, kills
+    it rather than waiting for it to exit."""
+    real = _processes.started_since
+    scans: list[int] = []
+    with _processes.ends_what_it_starts():
+        hidden = start_child_and_grandchild()
+
+        def hiding_it_twice(pid: int, before: frozenset[psutil.Process]) -> list[psutil.Process]:
+            scans.append(pid)
+            found = real(pid, before)
+            return found if len(scans) > 2 else [p for p in found if p.pid != hidden]
+
+        monkeypatch.setattr(_processes, "started_since", hiding_it_twice)
+    assert ended_in_time(hidden), "a process the solve started outlived it"
+
+
 def test_an_outside_programs_child_that_left_its_group_is_killed_at_the_time_limit(tmp_path: Path) -> None:
     pid_file = tmp_path / "pid"
     program = ("import os, sys, time\n"
                "pid = os.fork()\n"
                "if pid == 0:\n"
-               "    os.setsid(); time.sleep(%d); os._exit(0)\n"
+               "    os.setsid(); time.sleep(%g); os._exit(0)\n"
                "open(sys.argv[1], 'w').write(str(pid))\n"
                "time.sleep(600)\n") % LIFETIME_S
-    result = run_program([sys.executable, "-c", program, str(pid_file)], None, 1.0, tmp_path)
+    argv = [sys.executable, "-c", program, str(pid_file)]
+    result = within_growing_limits(lambda limit: run_program(argv, None, limit, tmp_path), pid_file)
     assert result.timed_out and pid_file.exists(), result
     assert ended_in_time(int(pid_file.read_text())), "the program's child outlived its time limit"
