@@ -429,6 +429,7 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: Sequence[str | SolverSpe
     refs = study.reference_candidates(run.reference)
     jobs = [InstanceJob(spec, variants, profiles, bool(scene.load_history), refs, int(spec.params.get("steps") or 1))
             for spec in scene.instances(merged)]
+    check_distinct_instances(jobs)
     if merged.operator == "gpu":
         check_device_fit(jobs, sizes)
     rejected = model_rejections(jobs, sizes, run)
@@ -539,6 +540,18 @@ def option_problems(scenes: Sequence[str], cfg: SceneConfig | None) -> list[str]
         problems += config_problems(name, [get_scene(study.scene) for study, _ in parts],
                                     [part for _, part in parts], cfg)
     return list(dict.fromkeys(problems))
+
+
+def check_distinct_instances(jobs: Sequence[InstanceJob]) -> None:
+    """A one-line ``ProblemInputError`` when two recipes of a scene share an instance name
+    (the report would read two problems' rows as one cell's repeats): a scene names each
+    of its problems once."""
+    seen: set[str] = set()
+    for job in jobs:
+        if job.spec.instance in seen:
+            raise ProblemInputError(f"the scene gives two recipes the one instance name {job.spec.instance!r}; a "
+                                    "scene must name each of its problems once (its instances())")
+        seen.add(job.spec.instance)
 
 
 def plan_run(scenes: Sequence[str] | str, cfg: SceneConfig | None = None, solvers: Sequence[str] | str | None = None,

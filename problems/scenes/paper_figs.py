@@ -46,6 +46,10 @@ class GreedyLinearSolvers(RampScene):
     load_history = False
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
+        """One recipe per size and seed; a measured map (``--surface``) is one recipe, at
+        its own grid (the sizes are the generated surfaces')."""
+        if cfg.surface_path:
+            return rough_surface_specs(self, cfg, hurst=float(cfg.extra.get("hurst", 0.7)))
         sizes = (cfg.size,) if cfg.size else tuple(int(s) for s in cfg.extra["sizes"])
         hurst = float(cfg.extra.get("hurst", 0.7))
         specs: list[InstanceSpec] = []

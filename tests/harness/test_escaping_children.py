@@ -72,6 +72,18 @@ def ended_in_time(pid: int, wait_s: float = GONE_WAIT_S) -> bool:
     return False
 
 
+def fork_sleeper() -> int:
+    """Fork a process that runs a program sleeping ``LIFETIME_S`` (holding none of this
+    process's pipes); its pid, in this process."""
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - runs in the forked child
+        try:
+            os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S:g})"])
+        finally:
+            os._exit(1)
+    return pid
+
+
 def start_escaped_grandchild(pid_file: str) -> int:
     """Fork a child that leaves the process group (``setsid``), forks a grandchild that
     runs a program that sleeps (holding none of the worker's pipes), and exits at once: the
@@ -82,12 +94,7 @@ def start_escaped_grandchild(pid_file: str) -> int:
     if child == 0:  # pragma: no cover - runs in the forked child
         try:
             os.setsid()
-            grandchild = os.fork()
-            if grandchild == 0:
-                try:
-                    os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S:g})"])
-                finally:
-                    os._exit(1)
+            grandchild = fork_sleeper()
             os.write(write, str(grandchild).encode())
         finally:
             os._exit(0)
@@ -289,12 +296,7 @@ def start_child_and_grandchild() -> int:
     child = os.fork()
     if child == 0:  # pragma: no cover - runs in the forked child
         try:
-            grandchild = os.fork()
-            if grandchild == 0:
-                try:
-                    os.execv(sys.executable, [sys.executable, "-c", f"import time; time.sleep({LIFETIME_S:g})"])
-                finally:
-                    os._exit(1)
+            grandchild = fork_sleeper()
             os.write(write, str(grandchild).encode())
             time.sleep(LIFETIME_S)
         finally:

@@ -35,7 +35,7 @@ def test_instances_are_seeded_recipes_per_hurst_and_size() -> None:
     assert {s.params["hurst"] for s in specs} == {0.5, 0.7, 0.9}
     assert {s.params["size"] for s in specs} == {64} and specs[0].params["steps"] == 3
     small = scene.instances(scene.config(TINY))
-    assert [s.instance for s in small] == ["pop-H0.6-N16-s0", "pop-H0.6-N16-s1", "pop-H0.6-N16-s2"]
+    assert [s.instance for s in small] == ["pop-H0.6-N16-s0-K2", "pop-H0.6-N16-s1-K2", "pop-H0.6-N16-s2-K2"]
     assert small[0].params["separations"] == [2.0, 1.0]
     # rebuilt from the seed alone: the same surface twice, another one for another seed
     a, b, c = population_surface(small[0]), population_surface(small[0]), population_surface(small[1])
