@@ -228,13 +228,22 @@ def flatten(d: Any, prefix: str = "") -> dict[str, Any]:
 
 
 def differences(recorded: dict[str, Any], wanted: dict[str, Any]) -> list[str]:
-    """One phrase per setting that differs: "run.timeout: 60.0 in the folder, 5.0 in this run"."""
+    """One phrase per setting that differs: "run.timeout: 60.0 in the folder, 5.0 in this run";
+    two lists by what only one holds: "solvers: only in the folder "a", "b"; only in this run
+    "c"" (a list of 50 solvers that differs by one is named by that one)."""
     a, b = flatten(canonical(recorded)), flatten(canonical(wanted))
     out = []
     for key in sorted(set(a) | set(b)):
-        if a.get(key, "(unset)") != b.get(key, "(unset)"):
-            out.append(f"{key}: {json.dumps(a.get(key, '(unset)'))} in the folder, "
-                       f"{json.dumps(b.get(key, '(unset)'))} in this run")
+        x, y = a.get(key, "(unset)"), b.get(key, "(unset)")
+        if x == y:
+            continue
+        if isinstance(x, list) and isinstance(y, list):
+            sides = [f"only {where} {', '.join(json.dumps(v) for v in only)}" for where, only in
+                     (("in the folder", [v for v in x if v not in y]), ("in this run", [v for v in y if v not in x]))
+                     if only]
+            out.append(f"{key}: {'; '.join(sides) or 'the same entries in another order'}")
+        else:
+            out.append(f"{key}: {json.dumps(x)} in the folder, {json.dumps(y)} in this run")
     return out
 
 
