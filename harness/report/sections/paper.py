@@ -53,18 +53,23 @@ from ..core import (
 from .generic import OWN_REF, fmt_int
 from ..claim_rules import CLAIMS
 from .paper_readings import (
+    SMALL_N_TEXT,
     Claim,
     Spread,
     agreement as agreement,  # (the readings' words, re-exported)
     claim_sentence,
     fig6_reading,
+    k_cells,
+    k_of as k_of,  # (read by claims.py and html.py)
     k_totals,
+    largest_n,
     ledger_claim,
     paired_count_text,
     paired_median_ratio,
     tied_with,
     ties_text,
     timing_spread,
+    too_small,
 )
 from .sweep_totals import (
     BEST_RULE,
@@ -81,7 +86,7 @@ from .sweep_totals import (
 
 #: The page charts of the paper's figures (report.html draws them from the rows).
 FIG4_PAGE = (RowChart("Fig. 4: solve time against load"),)
-FIG5_PAGE = (RowChart("Fig. 5: greedy solve time against n", x="n", x_title="trial-set size n"),)
+FIG5_PAGE = (RowChart("Fig. 5: solve time against n", x="n", x_title="trial-set size n"),)
 FIG6_PAGE = (RowChart("Fig. 6: NNLS+GP time per step, per K"),)
 
 
@@ -325,8 +330,16 @@ UNSOLVED_TEXT: dict[str, str] = {
     "timeout": "open orange squares: solves stopped at the time limit, drawn at the time they took",
     "failed": "open purple diamonds: solves that failed or crashed, drawn at the time they took",
 }
-#: At most this many names in a caption's list of solvers not drawn.
+#: At most this many names in a caption's list of solvers.
 MAX_NAMED = 12
+#: How a total over a sweep (per_cell) counts repeats, as the tables' captions say it.
+MIN_OVER_REPEATS = "each step's time the minimum over its repeats"
+
+
+def named(solvers: list[str]) -> str:
+    """Caption text naming ``solvers`` (at most ``MAX_NAMED``, then how many more)."""
+    more = f" and {len(solvers) - MAX_NAMED} more" if len(solvers) > MAX_NAMED else ""
+    return ", ".join(md_code(s) for s in solvers[:MAX_NAMED]) + more
 
 
 @register_section("paper-sweep", title=FIG4_TITLE, group="paper", order=10)
@@ -343,7 +356,7 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     def spread_of(a: str, b: str) -> Spread:
         return timing_spread(r, lambda g: total_ratio(sweep_totals(_curve_cells(g), n_steps), a, b))
 
-    n_max = int(at_prof["n"].max()) if at_prof["n"].notna().any() else 0
+    n_max = largest_n(at_prof)
     inst = natural_sorted(cells["instance"].unique())[0]
     sub = cells[cells["instance"] == inst]
     body = [surface_family_note(r)]
@@ -355,10 +368,11 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                               f"load axis takes a step's load from its solved answers, and no step was solved "
                               f"({status_counts(at_prof[at_prof['instance'] == inst])})."))
     body.append(table_md(ctx, f"total solve time over the sweep's {int(tot['steps'].iloc[0])} steps (instances x load "
-                              f"steps), profile `{prof}`, with the accuracy it bought. A total is given only for a "
-                              f"solver that solved every step; the others show '-' and, in parentheses, their time "
-                              f"over the steps they ran, which is not comparable to a total. Rows: the solvers that "
-                              f"solved every step by total time, then the others by steps solved; {WORST_RULE}.",
+                              f"steps), profile `{prof}`, {MIN_OVER_REPEATS}, with the accuracy it bought. A total "
+                              f"is given only for a solver that solved every step; the others show '-' and, in "
+                              f"parentheses, their time over the steps they ran, which is not comparable to a "
+                              f"total. Rows: the solvers that solved every step by total time, then the others by "
+                              f"steps solved; {WORST_RULE}.",
                          ["solver", "family", "steps solved", "total [s]", "worst kkt", "worst p err"],
                          totals_rows(tot, ctx.family), "llrrrr"))
     body.append(_fig4_reading(tot, n_max, paper_roles(cells), spread_of))
@@ -400,7 +414,7 @@ def _fig4_figure(ctx: ReportContext, sub: pd.DataFrame, tot: pd.DataFrame, at_pr
     for ax in flat[len(panels):]:
         ax.set_visible(False)
     rel = ctx.save_figure(fig, "fig4-paper-sweep")
-    n_max = int(at_prof["n"].max()) if at_prof["n"].notna().any() else 0
+    n_max = largest_n(at_prof)
     marks = [UNSOLVED_TEXT[k] for k in UNSOLVED_MARKS
              if (placed & ~sub["solved"] & (sub["status"].map(unsolved_kind) == k)).any()]
     best_rule = f" In the first panel {BEST_RULE}." if len(panels) > 1 and not panels[0].family else ""
@@ -421,11 +435,9 @@ def _drawn_note(ctx: ReportContext, sub: pd.DataFrame, at_prof: pd.DataFrame, la
     missing = [s for s in natural_sorted(at_prof["solver"].unique()) if s not in ran]
     if not missing:
         return f"Every solver of the scene is drawn (families: {fams})."
-    named = ", ".join(md_code(s) for s in missing[:MAX_NAMED])
-    more = f" and {len(missing) - MAX_NAMED} more" if len(missing) > MAX_NAMED else ""
     return (f"Drawn: the {len(labels)} curves of the solvers that ran a step of this instance (families: {fams}); "
             f"not drawn, {len(missing)} solvers that ran no step of it (skipped at every step; Skips and failures "
-            f"says why): {named}{more}.")
+            f"says why): {named(missing)}.")
 
 
 def _unplaced_note(sub: pd.DataFrame, placed: pd.Series) -> str:
@@ -449,8 +461,8 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None],
     parts = [f"**Reading.** The paper (sec. 4, n up to 35555 at 512²) finds NNLS+GP (K = 100) fastest. "
              f"Here the largest trial set has n = {n_max}. Solvers stop at their own tolerances, so every time "
              f"below comes with the worst kkt_error of its sweep."]
-    if n_max < 5000:
-        parts.append("At sizes this small fixed per-solve costs dominate, so the paper's ratios need not hold.")
+    if too_small(n_max):
+        parts.append(SMALL_N_TEXT)
     if ref is None:
         parts.append("No NNLS+GP solver is in this table, so the paper's speed-ups cannot be checked.")
     else:
@@ -509,6 +521,10 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None],
     return " ".join(parts) + "\n"
 
 
+#: The paper's greedy solvers (keys of PAPER_ROLES) that Fig. 5 compares: CG, Gauss-Seidel, Cholesky.
+GREEDY_ROLES = ("greedy-cg", "greedy-gs", "greedy-chol")
+
+
 @register_section("greedy-linear-solvers", title="Fig. 5: greedy with CG, Gauss-Seidel and Cholesky",
                   group="paper", order=20)
 def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
@@ -524,8 +540,12 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     legend_outside(ax, "solver")
     rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
     body = [surface_family_note(cells)]
-    body.append(ctx.figure_md(rel, f"greedy solve time against the trial-set size n, profile `{prof}` (paper "
-                               f"Fig. 5: CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel)."))
+    drawn = natural_sorted(cells["solver"].unique())
+    greedy = cells["base_solver"].isin([PAPER_ROLES[k].base_solver for k in GREEDY_ROLES]).any()
+    body.append(ctx.figure_md(rel, f"solve time against the trial-set size n of {named(drawn)}, profile `{prof}` "
+                              + ("(" if greedy else "-- no greedy solver ran in this scene, so this is not ")
+                              + "paper Fig. 5: greedy with CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel"
+                              + (")." if greedy else ".")))
     body.append(_fig5_reading(cells, r))
     return Section(title, "\n".join(body), page_charts=drawn_as_png(FIG5_PAGE, prof))
 
@@ -535,7 +555,7 @@ def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
     CG (paper_readings.py ``agreement``) as the median of the paired per-step ratios of
     ``cells`` (``per_cell`` of the attempted ``rows`` at one profile), each with the timing
     spread of its repeats; and where Cholesky ran out of memory."""
-    cg, gs, ch = (resolve_role(rows, k) for k in ("greedy-cg", "greedy-gs", "greedy-chol"))
+    cg, gs, ch = (resolve_role(rows, k) for k in GREEDY_ROLES)
     parts = ["**Reading.**"]
     if cg is None:
         parts.append("No greedy-CG solver is in this table, so the paper's ratios cannot be checked.")
@@ -565,25 +585,18 @@ def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
     return " ".join(parts) + "\n"
 
 
-def k_of(row: pd.Series) -> float:
-    """The GP step count K of a variant, from its ``params`` JSON {"K": ...}; NaN when absent."""
-    p = parse_json(row.get("params", ""), {})
-    try:
-        return float(p["K"]) if isinstance(p, dict) and "K" in p else float("nan")
-    except (TypeError, ValueError):
-        return float("nan")
-
-
 @register_section("gp-k-sweep", title="Fig. 6: NNLS+GP time against K", group="paper", order=30)
 def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 6: NNLS+GP time against the number K of GP steps (gp-k-sweep)"
     prof = pick_profile(attempted(rows))
     at_prof = attempted(rows[rows["profile"] == prof])
-    cells = _k_cells(at_prof)
+    cells = k_cells(at_prof)
     if per_cell(at_prof).empty:
         return Section(title, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG6_PAGE, prof))
     if cells.empty:
-        return Section(title, "No row of this scene names its K (params JSON {\"K\": ...}).\n",
+        return Section(title, f"No NNLS+GP K-variant was run in this scene (no row names its K, params JSON "
+                              f"{{\"K\": ...}}), so there is no K to plot; the solvers that ran: "
+                              f"{named(natural_sorted(at_prof['solver'].unique()))}.\n",
                        page_charts=drawn_as_png(FIG6_PAGE, prof))
     import matplotlib
 
@@ -618,27 +631,19 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     body = [surface_family_note(cells)]
     body.append(ctx.figure_md(rel, f"NNLS+GP against K, profile `{prof}`: (left) time per step against P/(E A); "
                                f"(right) total time summed over all steps and instances."))
-    body.append(table_md(ctx, f"total NNLS+GP time against K, profile `{prof}`.", ["K", "total [s]", "all solved"],
+    body.append(table_md(ctx, f"total NNLS+GP time against K, profile `{prof}`, {MIN_OVER_REPEATS}.",
+                         ["K", "total [s]", "all solved"],
                          [(int(k), fmt_num(tot.loc[k, "total_s"]), "yes" if tot.loc[k, "complete"] else "no")
                           for k in tot.index], "rrl"))
 
     def spread_of(k1: Hashable, k2: Hashable) -> Spread:
-        return timing_spread(at_prof, lambda g: float(k_totals(_k_cells(g))["total_s"].get(k1, np.nan)
-                                                      / k_totals(_k_cells(g))["total_s"].get(k2, np.nan)))
+        return timing_spread(at_prof, lambda g: float(k_totals(k_cells(g))["total_s"].get(k1, np.nan)
+                                                      / k_totals(k_cells(g))["total_s"].get(k2, np.nan)))
 
-    body.append(fig6_reading(tot, spread_of))
+    body.append(fig6_reading(tot, spread_of, largest_n(at_prof)))
     page = replace(drawn_as_png(FIG6_PAGE, prof, inst)[0], colors=tuple(
         (s, to_hex(kcol[label_of_solver[s]])) for s in sorted(label_of_solver, key=label_of_solver.get)))
     return Section(title, "\n".join(body), page_charts=(page,))
-
-
-def _k_cells(rows: pd.DataFrame) -> pd.DataFrame:
-    """``per_cell`` of ``rows`` with column ``K`` (``k_of``), the cells without a K left out."""
-    cells = per_cell(rows)
-    if cells.empty:
-        return cells.assign(K=pd.Series(dtype=float))
-    cells = cells.assign(K=cells.apply(k_of, axis=1))
-    return cells[cells["K"].notna()]
 
 
 # ---------------------------------------------------------------------------

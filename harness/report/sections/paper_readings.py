@@ -32,11 +32,28 @@ import numpy as np
 import pandas as pd
 
 from ..claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, over_repeats
-from ..core import fmt_num, fmt_pct, fmt_ratio
+from ..core import fmt_num, fmt_pct, fmt_ratio, parse_json, per_cell
 
 #: A ratio of two paper methods differs from the paper's by at most this factor beyond its
 #: range to read "close".
 CLOSE_FACTOR = 2.0
+#: Below this largest trial-set size n fixed per-solve costs dominate the solve times, so a
+#: ratio or an optimum the paper measured at its sizes (n up to 35555) need not hold: the
+#: readings of Figs. 4 and 6 say so (``SMALL_N_TEXT``), and Fig. 6 reads no disagreement.
+SMALL_N = 5000
+#: The readings' words for a table whose largest trial set is under ``SMALL_N``.
+SMALL_N_TEXT = "At sizes this small fixed per-solve costs dominate, so the paper's ratios need not hold."
+
+
+def largest_n(rows: pd.DataFrame) -> int:
+    """The largest trial-set size n of ``rows`` (column ``n``); 0 when no row has one."""
+    return int(rows["n"].max()) if rows["n"].notna().any() else 0
+
+
+def too_small(n_max: int) -> bool:
+    """Whether a table whose largest trial set has ``n_max`` points (``largest_n``; 0:
+    unknown) is under ``SMALL_N``, where the paper's ratios need not hold."""
+    return n_max < SMALL_N
 
 
 @dataclass(frozen=True)
@@ -203,6 +220,24 @@ def paired_count_text(steps: int, instances: int) -> str:
             f"instance{'s' if instances != 1 else ''}")
 
 
+def k_of(row: pd.Series) -> float:
+    """The GP step count K of a variant, from its ``params`` JSON {"K": ...}; NaN when absent."""
+    p = parse_json(row.get("params", ""), {})
+    try:
+        return float(p["K"]) if isinstance(p, dict) and "K" in p else float("nan")
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def k_cells(rows: pd.DataFrame) -> pd.DataFrame:
+    """``per_cell`` of ``rows`` with column ``K`` (``k_of``), the cells without a K left out."""
+    cells = per_cell(rows)
+    if cells.empty:
+        return cells.assign(K=pd.Series(dtype=float))
+    cells = cells.assign(K=cells.apply(k_of, axis=1))
+    return cells[cells["K"].notna()]
+
+
 def k_totals(cells: pd.DataFrame) -> pd.DataFrame:
     """Per K (column ``K`` of ``cells``, ``per_cell`` rows of one profile): ``total_s``, the
     solve time summed over every step and instance, and ``complete``, every one solved."""
@@ -216,13 +251,15 @@ PAPER_BEST_K = 100.0
 PAPER_NEAR = (50.0, 150.0)
 
 
-def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Spread]) -> str:
+def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Spread], n_max: int) -> str:
     """Fig. 6's reading of ``k_totals`` ``tot``: the K of least total time against the
     paper's K = 100, with the Ks whose totals the timing spread cannot tell from the least
     (``spread_of(k1, k2)``: the spread of t(k1) / t(k2)) named as tied.  It agrees when the
     least total and every K tied with it lie in ``PAPER_NEAR``; it is unresolved when only
     some of them do; a disagreement is said with the ratio t(K = 100) / t(least) it rests
-    on."""
+    on.  When the largest trial set ``n_max`` is ``too_small`` the reading says so
+    (``SMALL_N_TEXT``) and a least total away from K = 100 is unresolved at this size,
+    never a disagreement."""
     comp = tot[tot["complete"]]
     if comp.empty:
         return "**Reading.** No K solved every step, so the minimum cannot be placed.\n"
@@ -242,15 +279,19 @@ def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Sp
             and math.isfinite(at_paper) else ".")
     elif any(PAPER_NEAR[0] <= k <= PAPER_NEAR[1] for k in cand):
         verdict = f"{sp.tie_text()}: the Ks tied for the least total lie both near K = {int(PAPER_BEST_K)} and far from it."
+    elif not (comp.index.min() <= PAPER_BEST_K <= comp.index.max()):
+        verdict = f"the sweep does not bracket K = {int(PAPER_BEST_K)}, so this cannot be compared directly."
+    elif too_small(n_max):
+        verdict = (f"unresolved at this size: the largest trial set has n = {n_max}"
+                   + (f", where K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum."
+                      if math.isfinite(at_paper) else f" and no complete total at K = {int(PAPER_BEST_K)}."))
     elif math.isfinite(at_paper):
         verdict = (f"this does not agree with the paper: K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the "
                    f"minimum, beyond the timing spread of {spread_of(PAPER_BEST_K, kbest).source}.")
-    elif comp.index.min() <= PAPER_BEST_K <= comp.index.max():
+    else:
         verdict = (f"this does not agree with the paper, though the sweep has no complete total at "
                    f"K = {int(PAPER_BEST_K)} to compare with.")
-    else:
-        verdict = f"the sweep does not bracket K = {int(PAPER_BEST_K)}, so this cannot be compared directly."
-    parts = [head + verdict]
+    parts = [head + verdict] + ([SMALL_N_TEXT] if too_small(n_max) else [])
     if 0.0 in times.index and kbest != 0.0:
         r0 = times[kbest] / times[0.0]
         s0 = spread_of(kbest, 0.0)
