@@ -35,7 +35,7 @@ from ..table.files import replace_atomically
 from ..table.schema import ANSWERED
 from .claim_rules import CLAIMS, PAPER_N, SINGLE_REPEAT_SPREAD, VERDICTS, Claim, judge, over_repeats, relative_range
 from .core import parse_json, per_cell
-from .sections.cmr import cmr_pairs, instance_totals
+from .sections.cmr import cmr_pairs, instance_totals, recorded_families
 from .sections.counterexample import seed_readings, violation_counts
 from .sections.paper import LEDGER_ROLES, by_role, k_of
 
@@ -566,10 +566,10 @@ def real_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     out: list[ClaimRow] = []
     if tc.empty:
         return out
-    family = tc["surface_family"] if "surface_family" in tc.columns else pd.Series("", index=tc.index)
+    family = recorded_families(tc)
     for kind, err_id, time_id in ((POWER_LAW_FAMILY, "real-power-law-error", "real-power-law-saving"),
                                   (ROLLOFF_FAMILY, "real-cutoff-error", "real-cutoff-saving")):
-        k = tc[family.fillna("").astype(str) == kind]
+        k = tc[family == kind]
         if k.empty:
             continue
         size = f"{int(k['N'].max())}^2, one step, n <= {int(k['n'].max())}"

@@ -40,3 +40,12 @@ def test_the_scene_records_each_surface_s_family_in_the_table() -> None:
     scene = get_scene("cmr-cutoff")
     specs = scene.instances(scene.config(None))
     assert {instance_columns(s.params)["surface_family"] for s in specs} == {ROLLOFF_FAMILY, POWER_LAW_FAMILY}
+
+
+def test_a_table_written_before_the_family_was_recorded_reads_it_from_the_scene_s_recipe() -> None:
+    old = cutoff_table(POWER_LAW_FAMILY, "x")
+    old["surface_family"] = ""
+    old["N"], old["hurst"], old["seed"] = 256, 0.6, 0
+    named = old.assign(instance="power-law-H0.6-N256-s0")  # the scene's own name of that recipe
+    assert claim_ids(named) == {"real-power-law-error", "real-power-law-saving"}
+    assert claim_ids(old) == set()  # a name the scene gives no recipe is read as no surface

@@ -30,6 +30,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
+from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.solvers.cmr import CMRSolver
 
 from ..core import (
@@ -494,3 +495,27 @@ def fig9_reading(tot: pd.DataFrame) -> str:
 
 def by_family(pairs: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     return [(f, g) for f, g in sorted(pairs.groupby("surface"), key=lambda kv: kv[0])]
+
+
+def recorded_families(rows: pd.DataFrame) -> pd.Series:
+    """Each row's ``surface_family``; where a table written before ``cmr-cutoff`` recorded
+    its surfaces' families leaves it empty, the family of the scene's own recipe of that
+    instance name at the row's N, H and seed (``recipe_family``): the recipe, not the name,
+    says which surface it is."""
+    fam = rows["surface_family"].fillna("").astype(str) if "surface_family" in rows else pd.Series("", index=rows.index)
+    missing = (fam == "") & (rows["scene"] == "cmr-cutoff")
+    for i in rows.index[missing]:
+        r = rows.loc[i]
+        fam.loc[i] = recipe_family(str(r["instance"]), int(r["N"]), float(r["hurst"]), int(r["seed"])) \
+            if pd.notna(r["N"]) and pd.notna(r["hurst"]) and pd.notna(r["seed"]) else ""
+    return fam
+
+
+@lru_cache(maxsize=64)
+def recipe_family(instance: str, N: int, hurst: float, seed: int) -> str:
+    """The ``family`` of the cmr-cutoff recipe called ``instance`` at size N, Hurst exponent
+    and seed (the scene's other settings its own); "" when the scene names none so."""
+    scene = get_scene("cmr-cutoff")
+    cfg = scene.config(SceneConfig(size=N, seeds=(seed,), extra={"hurst": hurst}))
+    return next((str(s.params.get("family", "")) for s in scene.instances(cfg) if s.instance == instance), "")
+
