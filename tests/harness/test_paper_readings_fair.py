@@ -26,6 +26,11 @@ from tests.helpers import META, report_row, write_out
 
 def _section(tmp_path: Path, df: pd.DataFrame, scene: str) -> str:
     """The reading of the paper section of ``scene`` over the table ``df`` (figures not saved)."""
+    return section_body(tmp_path, df, scene).split("**Reading.**")[1]
+
+
+def section_body(tmp_path: Path, df: pd.DataFrame, scene: str) -> str:
+    """The body of the paper section of ``scene`` over the table ``df`` (figures not saved)."""
     out = write_out(tmp_path, df)
     ctx = rp.ReportContext(out, rp.read_table(out), META)
 
@@ -37,7 +42,7 @@ def _section(tmp_path: Path, df: pd.DataFrame, scene: str) -> str:
                "gp-k-sweep": rpp.fig6_section}[scene]
     sec = section(ctx, ctx.rows(scene))
     assert sec is not None
-    return sec.body.split("**Reading.**")[1]
+    return sec.body
 
 
 def sweep(times: dict[str, list[float]], repeats: int = 1, drift: float = 0.0) -> pd.DataFrame:

@@ -18,27 +18,16 @@ from typing import Any
 import pandas as pd
 import pytest
 
-from contactbench.harness.report import core as rp
 from contactbench.harness.report.sections import paper as rpp
 from contactbench.harness.report.sections import paper_readings as pr
 from contactbench.harness.table.schema import ALL_COLUMNS
-from tests.helpers import META, report_row, write_out
+from tests.harness.test_paper_readings_fair import section_body
+from tests.helpers import report_row
 
 
 def _body(tmp_path: Path, rows: list[dict[str, Any]], scene: str) -> str:
     """The body of the paper section of ``scene`` over the table of ``rows``."""
-    out = write_out(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
-    ctx = rp.ReportContext(out, rp.read_table(out), META)
-
-    def keep(fig: Any, name: str, on_page: bool = False) -> str:
-        return f"figures/{name}.png"
-
-    ctx.save_figure = keep  # type: ignore[method-assign]
-    section = {"paper-sweep": rpp.fig4_section, "greedy-linear-solvers": rpp.fig5_section,
-               "gp-k-sweep": rpp.fig6_section}[scene]
-    sec = section(ctx, ctx.rows(scene))
-    assert sec is not None
-    return sec.body
+    return section_body(tmp_path, pd.DataFrame(rows, columns=list(ALL_COLUMNS)), scene)
 
 
 def _caption(body: str) -> str:
