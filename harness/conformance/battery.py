@@ -28,7 +28,9 @@ Row statuses (one row per solve):
 ``flagged``      the KKT test accepts the answer but a conformance extra does not: p is
                  beyond ``p_tolerance`` of the exact reference (a solver's p reaches the
                  judge as float64, ``solvers.base.readable_answer``: the judge's dtype
-                 note is for an array judged directly); and on comparison rows, unit systems disagree by
+                 note is for an array judged directly), or the solver reports fewer
+                 iterations than its own trace records (the table's count would
+                 flatter it); and on comparison rows, unit systems disagree by
                  more than 1e-8, or a 1e-6 perturbation of ubar moved p by more than
                  10 cond(H) x 1e-6 (a chaotic active set).  The row and the headline
                  name which (``VerdictRow.flags``).
@@ -139,7 +141,7 @@ P_TOL_RANGE = (1e-4, 0.05)
 PROMISE_BOUND = max(profile.check_tol for profile in PROFILES.values())
 #: What a flagged row's ``flags`` name, in the headline's words.
 FLAG_WORDS = {"reference": "off the exact reference", "dtype": "not float64",
-              "comparison": "failing a comparison"}
+              "comparison": "failing a comparison", "count": "an iteration count below its own trace"}
 
 #: Statuses of a solve that produced an answer (the comparison rows need one per step).
 ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
@@ -243,6 +245,11 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
     if v.kkt is not None:
         row.kkt = {k: float(getattr(v.kkt, k)) for k in SCALED_PARTS}
     row.status = row_status(v)
+    undercount = out.iterations is not None and out.traced > out.iterations
+    if undercount and row.status in ("pass", "flagged"):  # (the count is the table's; the answer is right)
+        v.problems.append(f"it reports {out.iterations} iterations where its own trace reaches iteration {out.traced}")
+        v.kinds.append("count")
+        row.status = "flagged"
     if row.status == "flagged":
         row.flags = "+".join(k for k in v.kinds if k in FLAG_WORDS)
         row.message = "the KKT test accepts it, but " + "; ".join(v.problems)

@@ -264,6 +264,7 @@ class CaseAnswer:
     own_skip: bool = False  # skipped by the solver's own refinements, not a capability it declares
     threads_left: str = ""  # the threads the solve left running ("" none)
     multiplier: float | None = None  # the approach Delta the solve reports (load control)
+    traced: int = 0  # the largest iteration its own trace records (``SolveResult.trace``)
 
 
 class DeclaredView:
@@ -384,6 +385,7 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
     seal.mend(qp)  # (the judge's products, and the next case's in this process, run the sealed code)
     return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
             "iterations": int(res.iterations), "multiplier": res.multiplier,
+            "traced": max((int(pt[0]) for pt in res.trace), default=0),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
             "tampered": tampered, "iterated": not lifecycle, "threads_left": left}
 
