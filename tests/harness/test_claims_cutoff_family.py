@@ -49,3 +49,9 @@ def test_a_table_written_before_the_family_was_recorded_reads_it_from_the_scene_
     named = old.assign(instance="power-law-H0.6-N256-s0")  # the scene's own name of that recipe
     assert claim_ids(named) == {"real-power-law-error", "real-power-law-saving"}
     assert claim_ids(old) == set()  # a name the scene gives no recipe is read as no surface
+
+
+def test_a_row_no_recipe_could_have_written_reads_as_no_surface() -> None:
+    from contactbench.harness.report.sections.cmr import recipe_family
+
+    assert recipe_family("rolloff-H0.6-N256-s0", 0, 0.6, -1) == ""  # (N and seed unknown: 0, -1)

@@ -30,6 +30,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.scenes import SceneConfig, get_scene
 from contactbench.solvers.cmr import CMRSolver
 
@@ -516,6 +517,9 @@ def recipe_family(instance: str, N: int, hurst: float, seed: int) -> str:
     """The ``family`` of the cmr-cutoff recipe called ``instance`` at size N, Hurst exponent
     and seed (the scene's other settings its own); "" when the scene names none so."""
     scene = get_scene("cmr-cutoff")
-    cfg = scene.config(SceneConfig(size=N, seeds=(seed,), extra={"hurst": hurst}))
-    return next((str(s.params.get("family", "")) for s in scene.instances(cfg) if s.instance == instance), "")
+    try:
+        specs = scene.instances(scene.config(SceneConfig(size=N, seeds=(seed,), extra={"hurst": hurst})))
+    except ProblemInputError:  # (a row no recipe of the scene could have written: N 0, seed -1)
+        return ""
+    return next((str(s.params.get("family", "")) for s in specs if s.instance == instance), "")
 
