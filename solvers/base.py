@@ -539,6 +539,12 @@ class Solver(ABC):
         return 100_000
 
     # -- what the harness asks before solving --------------------------------
+    def pinned_source(self) -> bytes | None:
+        """What a results folder pins of this solver's code (``registry.source_digest``
+        hashes it): None, the file that defines its class (for a solver from outside the
+        package).  A solver whose code lives elsewhere (an outside program) returns it."""
+        return None
+
     def availability(self) -> tuple[bool, str]:
         """(available, reason).  Override to check optional imports."""
         return True, "available"

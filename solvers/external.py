@@ -73,6 +73,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import json
 import os
 import shutil
 import signal
@@ -80,7 +81,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Sequence
 
@@ -316,6 +317,23 @@ class ExternalSolver(Solver):
     # -- what the harness asks ----------------------------------------------
     def executable(self) -> str:
         return split_command(self.spec.command, f"external solver {self.name!r}")[0]
+
+    def pinned_source(self) -> bytes:
+        """The manifest entry (its command, inputs, workdir and version command) and the
+        bytes of every file its command names that exists -- the program, and a script an
+        interpreter runs (``python3 solve.py ...``): an edited program is another solver
+        to a results folder (``registry.source_digest``)."""
+        entry = json.dumps({k: v for k, v in asdict(self.spec).items() if k != "source"}, sort_keys=True)
+        return entry.encode("utf-8") + b"".join(p.read_bytes() for p in self.command_files())
+
+    def command_files(self) -> list[Path]:
+        """The regular files the command's words name: the first word on PATH or under the
+        workdir, the others under the workdir (placeholders and options name none)."""
+        words = split_command(self.spec.command, f"external solver {self.name!r}")
+        base = Path(self.spec.workdir or ".")
+        found = [base / w for w in words if "{" not in w and (base / w).is_file()]
+        on_path = shutil.which(words[0]) if words and os.sep not in words[0] else None
+        return ([Path(on_path)] if on_path and (base / words[0]) not in found else []) + found
 
     def availability(self) -> tuple[bool, str]:
         exe = self.executable()

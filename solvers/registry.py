@@ -419,18 +419,19 @@ PROJECT_MODULES = "contactbench."
 def source_digest(solver: Solver) -> str | None:
     """The SHA-256 (``SOURCE_DIGEST_DIGITS`` hex digits) of the file that defines the class
     of ``solver``, for a solver from outside this package (a user's module named by import
-    path or registered by a plugin): a results folder pins it, so that an edited solver is
-    never resumed as the code whose rows the folder holds.  None for the project's own
-    solvers (the package's version pins them) and for a class whose file cannot be read
+    path or registered by a plugin), or of what it pins itself (``Solver.pinned_source``: an
+    outside program's manifest entry and files): a results folder pins it, so that an edited
+    solver is never resumed as the code whose rows the folder holds.  None for the project's
+    own solvers (the package's version pins them) and for a class whose file cannot be read
     (defined at an interactive prompt); its helpers in other files are not read."""
+    data = solver.pinned_source()
     cls = type(solver)
-    if cls.__module__.startswith(PROJECT_MODULES):
-        return None
-    try:
-        path = inspect.getsourcefile(cls)
-        data = Path(path).read_bytes() if path else None
-    except (TypeError, OSError):
-        return None
+    if data is None and not cls.__module__.startswith(PROJECT_MODULES):
+        try:
+            path = inspect.getsourcefile(cls)
+            data = Path(path).read_bytes() if path else None
+        except (TypeError, OSError):
+            data = None
     return None if data is None else hashlib.sha256(data).hexdigest()[:SOURCE_DIGEST_DIGITS]
 
 
