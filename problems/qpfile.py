@@ -512,6 +512,10 @@ def _report_number(report: dict[str, Any], key: str, rule: str) -> float | int |
     return number
 
 
+#: The keys solution.json may hold (module doc); any other fails the solve, naming it.
+SOLUTION_KEYS: tuple[str, ...] = ("iterations", "status", "time_s", "multiplier")
+
+
 def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: bool = False) -> SolutionFile:
     """The answer in a solution directory (module doc): p.f64 must be n finite float64
     values >= 0 (``as_written``: p is kept as written -- any length, NaN, inf or negative
@@ -523,6 +527,13 @@ def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: 
     w_path = d / SOLUTION_W
     w = _read_vector(w_path, n, "solution w", nonnegative=False) if w_path.exists() else None
     report = _read_report(d / SOLUTION_JSON)
+    unknown = [k for k in report if k not in SOLUTION_KEYS]
+    if unknown:  # (a misspelt "status" read as absent would be a claim of convergence)
+        raise SolutionFileError(f"solution.json: unknown key(s) {printable_excerpt(', '.join(map(repr, unknown)))}; "
+                                f"the protocol's keys: {', '.join(SOLUTION_KEYS)}")
+    given_null = [k for k in SOLUTION_KEYS if k in report and report[k] is None]
+    if given_null:  # (a null status is no protocol word: only a status left out claims convergence)
+        raise SolutionFileError(f"solution.json: {given_null[0]} is null; leave a key out rather than give it null")
     iterations = _report_number(report, "iterations", "count")
     time_s = _report_number(report, "time_s", "seconds")
     mult = _report_number(report, "multiplier", "real")

@@ -87,3 +87,18 @@ def test_a_pipe_or_a_device_in_place_of_p_is_not_read(tmp_path: Path) -> None:
         (dev / "p.f64").symlink_to("/dev/zero")
         with pytest.raises(SolutionFileError, match="not a regular file"):
             read_solution_dir(dev, 3)
+
+
+@pytest.mark.parametrize("report, words", [
+    ('{"stauts": "max_iter"}', "unknown key(s) 'stauts'"),
+    ('{"Status": "max_iter"}', "unknown key(s) 'Status'"),
+    ('{"result": {"status": "max_iter"}}', "unknown key(s) 'result'"),
+    ('{"residual": 1e-9}', "unknown key(s) 'residual'"),
+    ('{"status": null}', "status is null"),
+    ('{"iterations": null, "status": "max_iter"}', "iterations is null"),
+])
+def test_a_key_the_protocol_does_not_know_or_a_null_is_named_not_read_as_a_claim(
+        tmp_path: Path, report: str, words: str) -> None:
+    with pytest.raises(SolutionFileError) as err:
+        read_solution_dir(solution(tmp_path / "s", report), 3)
+    assert words in str(err.value) and len(str(err.value).splitlines()) == 1, err.value
