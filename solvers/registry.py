@@ -346,6 +346,17 @@ def available_solvers() -> dict[str, Solver]:
     return {k: s for k, s in all_solvers().items() if s.availability()[0]}
 
 
+def check_late_sources() -> None:
+    """A one-line ``SolverLoadError`` when a late source (an external manifest: the
+    ``CONTACTBENCH_EXTERNAL_SOLVERS`` files, ./contactbench-solvers.toml) failed to load,
+    whichever solvers a run names: a bad manifest is refused before anything runs, never
+    left out in silence (its good entries, registered first, would run beside it)."""
+    _LATE.load()
+    failed = _LATE.messages()
+    if failed:
+        raise SolverLoadError(f"external solvers could not be read: {'; '.join(failed)}")
+
+
 def import_errors() -> dict[str, str]:
     """Module -> traceback of every solver module that failed to import, and of every
     late source (an external manifest) that failed to load."""

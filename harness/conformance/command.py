@@ -19,7 +19,7 @@ from typing import Any, Sequence
 from contactbench.problems.atomic_files import names_nothing
 from contactbench.problems.errors import ProblemInputError
 from contactbench.solvers.base import ParamError, Solver
-from contactbench.solvers.registry import (NamedVariant, SolverSpecError, all_solvers,
+from contactbench.solvers.registry import (NamedVariant, SolverSpecError, all_solvers, check_late_sources,
                                            expand_solver_spec, is_import_path, load_solver, refuse_same_variants,
                                            split_solver_spec)
 from contactbench.solvers.registry import load_named_solver as load_import_path
@@ -237,6 +237,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     mode = "full" if args.full else "fast"
     try:
+        check_late_sources()  # (a bad external manifest: refused whichever solvers are named)
         cases = conformance_cases(mode, args.group, args.cases)  # (a pattern that matches nothing: refused there)
         command_solvers = command_solver_of(args.command, args.inputs)
         choose = (args.solvers, args.all, command_solvers, not args.list, args.params)

@@ -46,6 +46,7 @@ from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers._loading import file_path_hint, user_code
 from contactbench.solvers.base import ProblemTraits, Solver
 from contactbench.solvers.registry import (NamedVariant, SolverLoadError, SolverSpec, all_solvers, available_solvers,
+                                           check_late_sources,
                                            expand_solver_spec, get_solver, import_user_module, is_import_path,
                                            load_solver, refuse_same_variants, register, split_solver_list,
                                            split_solver_spec)
@@ -573,6 +574,7 @@ def plan_run(scenes: Sequence[str] | str, cfg: SceneConfig | None = None, solver
     problems = option_problems(scenes, cfg)
     if problems:  # (each scene's own checks would repeat them)
         raise PlanError(problems)
+    check_late_sources()  # (a bad external manifest: refused whichever solvers are named)
     cfg = left_out(cfg or SceneConfig(), scenes)  # (checked as given; planned as the same run without them)
     plan = RunPlan(jobs=[], scenes=scenes, scene_config=cfg)
     for name in scenes:
