@@ -44,6 +44,7 @@ from contactbench.problems.operators import DenseOperator
 from contactbench.problems.scenes.base import InstanceSpec
 from contactbench.problems.scenes.stress import GROUPS, battery_specs, build_battery_spec, condition_number
 from contactbench.solvers._processes import ends_what_it_starts
+from contactbench.solvers._loading import one_line
 from contactbench.solvers.base import ProblemTraits, SolveAborted, Solver, WarmStart, answered_without_iterate
 from contactbench.solvers.registry import load_solver
 
@@ -373,11 +374,11 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
             return {"kind": "crashed", "time_s": elapsed, "detail": text,
                     "message": f"raised SolveAborted with status {getattr(exc, 'status', None)!r}, which is not "
                                f"a status SolveAborted may carry: {first_line(text, '(no message)')}"}
-        return {"kind": status, "time_s": elapsed, "message": first_line(text, status), "detail": text}
+        return {"kind": status, "time_s": elapsed, "message": one_line(text) or status, "detail": text}
     except SOLVER_FAULTS as exc:  # a row, not a harness failure (Ctrl-C still interrupts)
         refused = is_refusal(exc, case.group)
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
-                "message": first_line(exception_text(exc), type(exc).__name__),
+                "message": one_line(exception_text(exc)) or type(exc).__name__,  # (an outside program's tail too)
                 "detail": "" if refused else traceback.format_exc(limit=6)}
     elapsed = time.perf_counter() - t0
     left = threads_left(threads)
