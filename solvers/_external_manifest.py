@@ -84,6 +84,9 @@ class ExternalSpec:
         if not split_command(self.command, who):
             raise ProblemInputError(f"{who}: empty command")
         used = template_placeholders(self.command, who)
+        if any(field is not None for _, field in _fields(split_command(self.command, who)[0])):
+            raise ProblemInputError(f"{who}: the command's first word names the program; it holds a placeholder "
+                                    f"in {self.command!r}")
         if not set(PLACEHOLDERS) <= used:
             raise ProblemInputError(f"{who}: the command must contain {{problem}} and {{solution}}, "
                                     f"got {self.command!r}")

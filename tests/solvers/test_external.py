@@ -161,6 +161,8 @@ def write_manifest(path: Path, entries: list[dict[str, object]]) -> Path:
 
 @pytest.mark.parametrize("entry, words", [
     ({"name": "x", "command": "prog {problem}"}, "must contain {problem} and {solution}"),
+    ({"name": "x", "command": "{problem} {solution}"}, "first word names the program"),
+    ({"name": "x", "command": "x{problem} --out={solution}"}, "first word names the program"),
     ({"name": "x", "command": "prog {problem} {solution}", "inputs": "sparse"}, "inputs must be"),
     ({"name": "x", "command": "prog {problem} {solution}", "colour": 1}, "unknown key(s) colour"),
     ({"command": "prog {problem} {solution}"}, "'name' is required"),
