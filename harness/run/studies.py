@@ -189,14 +189,25 @@ class Part:
 @dataclass(frozen=True)
 class Composite:
     """A named mix of studies run as one (``default``).  Options the user sets override
-    every part's own; rows carry the part's scene name."""
+    every part's own, but a ``--surface`` and its ``--length`` (the map's size) go only to
+    the parts whose scene reads a surface file (``for_part``); rows carry the part's scene
+    name."""
 
     name: str
     description: str
     parts: tuple[Part, ...]
 
     def expand(self, user: SceneConfig | None) -> list[tuple[Study, SceneConfig]]:
-        return [(p.study, override(p.cfg, user)) for p in self.parts]
+        return [(p.study, override(p.cfg, for_part(user, p.study.scene))) for p in self.parts]
+
+
+def for_part(user: SceneConfig | None, scene: str) -> SceneConfig | None:
+    """The user's options as a composite's part on ``scene`` takes them: with a surface file
+    (``surface_path``) that the scene does not read, without it and without its length, which
+    sizes the map, not the scene's own domain (a Hertz sphere's)."""
+    if user is None or not user.surface_path or "surface_path" in get_scene(scene).options:
+        return user
+    return replace(user, surface_path=None, length=None)
 
 
 def override(base: SceneConfig, user: SceneConfig | None) -> SceneConfig:
