@@ -5,8 +5,9 @@
 1. plan (``harness.run.plan.plan_run``): scene names -> instance jobs through their studies
    (``harness.run.studies``), every input validated and the plan's size bounded
    (``--max-cells``, ``--memory-budget-gb``) before anything runs;
-2. check the results folder (``harness.table.store.check_run_folder``: a new folder, or one
-   that records this run's configuration, ``run_identity``, or ``append``; no entry it
+2. check the results folder (``checked_folder``: no rows of a solver edited since they were
+   written; a new folder, or one that records this run's configuration, ``run_identity``, or
+   ``append``; no entry it
    reads or writes, the solvers' log included, a link or of the wrong kind:
    ``check_run_entries``), still touching nothing; then take its lock (``harness.table.store.RunLock``), write the marker,
    open the store and write meta.json (``harness.table.meta``);
@@ -48,8 +49,8 @@ from .output_log import OUTPUT_LOG
 from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
 from .plan import REFERENCE_TIMEOUT_FACTOR, RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
-from ..table.store import (ResultStore, RunFolder, RunFolderError, check_run_entries, check_run_folder, holding_lock,
-                           read_run_folder, record_run)
+from ..table.store import (ResultStore, RunFolder, RunFolderError, check_run_entries, holding_lock, read_run_folder,
+                           record_run, refuse_unrecorded)
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
 #: pins): those that change which cells exist, how they are judged or skipped.  The
@@ -105,6 +106,16 @@ def solver_sources(plan: RunPlan) -> dict[str, str]:
     (``registry.source_digest``), by registry name."""
     digests = {base: source_digest(get_solver(base)) for base in sorted({v.base for j in plan.jobs for v in j.variants})}
     return {base: d for base, d in digests.items() if d is not None}
+
+
+def checked_folder(out_dir: str | os.PathLike[str], identity: dict[str, Any], append: bool,
+                   sources: dict[str, str]) -> RunFolder:
+    """The results folder, read once (``read_run_folder``), that this run may write: no
+    edited solver's rows (``check_solver_sources``) and, unless ``append``, this run's
+    configuration recorded (``refuse_unrecorded``)."""
+    folder = read_run_folder(out_dir, run_identity)
+    check_solver_sources(folder, sources)
+    return refuse_unrecorded(folder, identity, append)
 
 
 def check_solver_sources(folder: RunFolder, sources: dict[str, str]) -> None:
@@ -198,15 +209,13 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     surfaces = surface_preprocessing(j.spec for j in plan.jobs)  # (the maps as prepared: their keys are pinned)
     config = run_config_record(scenes, cfg, plan, run, surfaces)
     identity = run_identity(config)
-    check_solver_sources(read_run_folder(out_dir, run_identity), config.get("solver_sources", {}))
-    check_run_folder(out_dir, identity, append, run_identity)
+    checked_folder(out_dir, identity, append, config.get("solver_sources", {}))
     read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
     check_run_entries(out_dir, {OUTPUT_LOG: False})  # (the solvers' log: never written through a link)
     if ready is not None:
         ready()
     with holding_lock(out_dir):
-        check_solver_sources(read_run_folder(out_dir, run_identity), config.get("solver_sources", {}))  # again, now
-        folder = check_run_folder(out_dir, identity, append, run_identity)  # that we hold the lock
+        folder = checked_folder(out_dir, identity, append, config.get("solver_sources", {}))  # again, locked
         for w in plan.warnings:
             log.warning("warning: %s", w)
         record_run(folder, identity)

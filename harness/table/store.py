@@ -23,7 +23,7 @@ through a link, and keeps each of these entries as the kind the layout gives it:
 belongs or a file where a folder belongs (``entry_problem``: the one rule), before
 anything is written or locked.
 
-A results folder is safe to point at (``check_run_folder``, before anything is written or
+A results folder is safe to point at (``read_run_folder`` and ``refuse_unrecorded``, before anything is written or
 locked): a missing or empty folder is a new run; a marked folder accepts a run whose
 configuration it records (a resume), and a run with another configuration only when
 asked to add to it (``append``; the differences are named otherwise); a folder written
@@ -353,11 +353,9 @@ def read_run_folder(out_dir: str | os.PathLike[str], identity_of: Identity) -> R
     return RunFolder(out, "legacy", [{"fingerprint": fingerprint(identity), "config": canonical(identity)}])
 
 
-def check_run_folder(out_dir: str | os.PathLike[str], identity: dict[str, Any], append: bool,
-                     identity_of: Identity) -> RunFolder:
-    """``read_run_folder``, then refuse a run whose configuration the folder does not
-    record, unless ``append`` (``RunFolderError`` naming the differences)."""
-    folder = read_run_folder(out_dir, identity_of)
+def refuse_unrecorded(folder: RunFolder, identity: dict[str, Any], append: bool) -> RunFolder:
+    """``folder``, unless it does not record the run's configuration ``identity`` and the run
+    does not ``append``: then a ``RunFolderError`` naming the differences."""
     if folder.kind == "new" or append or folder.records(identity):
         return folder
     diffs = folder.closest(identity)
