@@ -315,12 +315,20 @@ class _TamaasLoadControlled(_TamaasSolver):
     def run(self, solver: Any, mean_pressure: float) -> Any:
         return solver.solve([0.0, 0.0, mean_pressure])
 
+    def without_tamaas(self, gp: GridProblem, ctx: SolveContext) -> Outcome | None:
+        """The answer to a problem Tamaas' solver cannot be called on, given by the adapter
+        (None: call it)."""
+        return None
+
     def iterate(self, ctx: SolveContext) -> Outcome:
         import tamaas as tm
 
         gp = self.posed(ctx)
         if not gp.periodic:
             raise ProblemInputError(f"Tamaas' {self.tamaas_class} runs on its periodic surface model only")
+        answered = self.without_tamaas(gp, ctx)
+        if answered is not None:
+            return answered
         tol = float(ctx.tol)
         if ctx.constraints.load_control:
             load, calib_err = float(ctx.constraints.load), None  # type: ignore[arg-type]
@@ -388,14 +396,13 @@ class TamaasKatoSaturated(_TamaasLoadControlled):
             return "Tamaas' KatoSaturated poses load control only"
         return why
 
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        """Tamaas' KatoSaturated (``_TamaasLoadControlled.iterate``), except on a flat field
-        U (every height equal), where its solve never returns whatever its ``max_iter``: the
-        adapter answers that case itself (``flat_field_outcome``) without calling it."""
-        gp = self.posed(ctx)
-        if gp.periodic and ctx.constraints.load_control and float(np.ptp(gp.U)) == 0.0:
+    def without_tamaas(self, gp: GridProblem, ctx: SolveContext) -> Outcome | None:
+        """A load-controlled flat field U (every height equal), where KatoSaturated's solve
+        never returns whatever its ``max_iter``, answered by the adapter
+        (``flat_field_outcome``); else None."""
+        if ctx.constraints.load_control and float(np.ptp(gp.U)) == 0.0:
             return flat_field_outcome(gp, ctx)
-        return super().iterate(ctx)
+        return None
 
     def make(self, tm: Any, model: Any, gp: GridProblem, tol: float, ctx: SolveContext) -> Any:
         c = ctx.constraints
