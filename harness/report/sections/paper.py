@@ -541,7 +541,7 @@ def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
     body = [surface_family_note(cells)]
     drawn = natural_sorted(cells["solver"].unique())
-    greedy = cells["base_solver"].isin([PAPER_ROLES[k].base_solver for k in GREEDY_ROLES]).any()
+    greedy = any(resolve_role(cells, k) is not None for k in GREEDY_ROLES)
     body.append(ctx.figure_md(rel, f"solve time against the trial-set size n of {named(drawn)}, profile `{prof}` "
                               + ("(" if greedy else "-- no greedy solver ran in this scene, so this is not ")
                               + "paper Fig. 5: greedy with CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel"
