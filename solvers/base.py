@@ -541,8 +541,9 @@ class Solver(ABC):
     # -- what the harness asks before solving --------------------------------
     def pinned_source(self) -> bytes | None:
         """What a results folder pins of this solver's code (``registry.source_digest``
-        hashes it): None, the file that defines its class (for a solver from outside the
-        package).  A solver whose code lives elsewhere (an outside program) returns it."""
+        hashes it): None, the files of its class and of the modules that file imports from its
+        source tree (for a solver from outside the package).  A solver whose code lives
+        elsewhere (an outside program) returns it."""
         return None
 
     def availability(self) -> tuple[bool, str]:

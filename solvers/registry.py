@@ -48,19 +48,18 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import inspect
 import itertools
 import math
 import os
 import sys
 import traceback
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable, Sequence, TypeVar
 
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 
 from ._loading import SolverLoadError, availability_failure, file_path_hint, load_failure, user_code
+from ._source_files import class_source_files
 from ._spec_text import (GRID_WORD, MAX_GRID_VARIANTS, WRITTEN_RULE, SolverSpec, SolverSpecError, SpecText,
                          is_import_path, param_from_text, reads_back, reads_back_as_key, split_solver_list,
                          split_solver_spec, value_label)
@@ -428,21 +427,20 @@ PROJECT_MODULES = "contactbench."
 
 
 def source_digest(solver: Solver) -> str | None:
-    """The SHA-256 (``SOURCE_DIGEST_DIGITS`` hex digits) of the file that defines the class
-    of ``solver``, for a solver from outside this package (a user's module named by import
-    path or registered by a plugin), or of what it pins itself (``Solver.pinned_source``: an
-    outside program's manifest entry and files): a results folder pins it, so that an edited
-    solver is never resumed as the code whose rows the folder holds.  None for the project's
-    own solvers (the package's version pins them) and for a class whose file cannot be read
-    (defined at an interactive prompt); its helpers in other files are not read."""
+    """The SHA-256 (``SOURCE_DIGEST_DIGITS`` hex digits) of the source of ``solver``, for a
+    solver from outside this package (a user's module named by import path or registered by
+    a plugin): the file that defines its class and the modules it imports from its own source
+    tree (``_source_files.class_source_files``), each with its path in that tree; or of what
+    it pins itself (``Solver.pinned_source``: an outside program's manifest entry and files).
+    A results folder pins it, so that an edited solver is never resumed as the code whose
+    rows the folder holds.  None for the project's own solvers (the package's version pins
+    them) and for a class whose file cannot be read (defined at an interactive prompt)."""
     data = solver.pinned_source()
     cls = type(solver)
     if data is None and not cls.__module__.startswith(PROJECT_MODULES):
-        try:
-            path = inspect.getsourcefile(cls)
-            data = Path(path).read_bytes() if path else None
-        except (TypeError, OSError):
-            data = None
+        files = class_source_files(cls)
+        data = None if files is None else b"".join(
+            f"{f.relative}\0{len(f.data)}\0".encode() + f.data for f in files)
     return None if data is None else hashlib.sha256(data).hexdigest()[:SOURCE_DIGEST_DIGITS]
 
 
