@@ -107,6 +107,14 @@ class Rule:
             return "holds" if d <= self.holds else "partly" if d <= self.partly else "fails"
         return "unmeasured"
 
+    def interval(self, verdict: str) -> tuple[float, float]:
+        """The values a ``ratio`` or ``band`` rule reads as ``verdict`` ("holds" or
+        "partly"): [lo / f, hi f] of a ratio, [v - d, v + d] of a band."""
+        if verdict not in ("holds", "partly") or self.kind not in ("ratio", "band"):
+            raise ValueError(f"a {self.kind} rule has no {verdict!r} interval")
+        f = self.holds if verdict == "holds" else self.partly
+        return (self.lo / f, self.hi * f) if self.kind == "ratio" else (self.lo - f, self.lo + f)
+
     def text(self) -> str:
         """The rule in words, for the ledger's rules table."""
         on = "|measured|" if self.absolute else "measured"

@@ -16,6 +16,8 @@ from typing import Any
 
 import pandas as pd
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from contactbench.harness.report import core as rp
 from contactbench.harness.report.claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD
@@ -70,16 +72,34 @@ def sentence(reading: str, start: str) -> str:
 
 def test_a_ratio_on_the_other_side_of_1_is_never_close() -> None:
     """The paper's greedy Cholesky is 30-40 % faster than CG (0.6-0.7); a measured 1.1x
-    or 1.3x, slower, lies within a factor of 2 of the range yet points the opposite way."""
-    rule = CLAIMS["fig5-chol-over-cg"].rule
-    chol = rpp.Claim("0.6-0.7", rule.lo, rule.hi, "fig5-chol-over-cg")
+    or 1.3x, slower, points the opposite way and is never read as close."""
+    chol = rpp.ledger_claim("fig5-chol-over-cg")
     for measured in (1.1, 1.3):
         words = rpp.agreement(measured, chol)
         assert words.startswith("points the opposite way") and "close" not in words, words
-    slower = rpp.Claim("~3", 2.4, 3.75)
+    slower = rpp.ledger_claim("fig5-gs-over-cg")
     assert rpp.agreement(0.8, slower).startswith("points the opposite way")
-    assert rpp.agreement(0.65, chol) == "agrees with the paper"
+    assert rpp.agreement(0.65, chol).startswith("agrees with the paper")
     assert rpp.agreement(0.45, chol).startswith("is close to the paper")  # faster, as the paper: close
+
+
+READING_WORDS = {"agrees with the paper": "holds", "is close to the paper": "partly", "points the same way": "fails"}
+
+
+@pytest.mark.parametrize("ledger", ["fig4-pkprinted-over-nnlsgp", "fig4-pk-cold-over-nnlsgp",
+                                    "fig4-greedy-over-nnlsgp", "fig4-admm-over-nnlsgp", "fig5-chol-over-cg",
+                                    "fig5-gs-over-cg"])
+@given(log_ratio=st.floats(min_value=-6.0, max_value=6.0))
+@settings(max_examples=60, deadline=None)
+def test_the_paper_section_reads_a_ratio_as_the_ledger_does(ledger: str, log_ratio: float) -> None:
+    """Every ratio on the paper's side of 1 gets the paper section's words of the ledger
+    row's verdict: agrees <-> holds, close <-> partly, the same way but off <-> fails."""
+    claim = rpp.ledger_claim(ledger)
+    measured = float(10.0 ** log_ratio)
+    assume(claim.direction * (1 if measured > 1.0 else -1 if measured < 1.0 else 0) > 0)
+    words = rpp.agreement(measured, claim)
+    read = [v for k, v in READING_WORDS.items() if words.startswith(k)]
+    assert read == [claim.rule.at(measured)], (measured, words)
 
 
 def test_fig5_reads_a_slower_cholesky_as_the_opposite_of_the_paper_and_counts_steps(tmp_path: Path) -> None:
@@ -180,5 +200,5 @@ def test_the_factor_is_taken_against_the_stated_value(tmp_path: Path, ratio: flo
 def test_a_range_gives_its_factor_against_the_nearer_end() -> None:
     """A claim stated as a range (no one value): the factor is against the range's nearer
     end, and the words say so."""
-    words = rpp.agreement(0.2, rpp.Claim("0.6-0.7", 0.6, 0.7))
+    words = rpp.agreement(0.2, rpp.ledger_claim("fig5-chol-over-cg"))
     assert words.endswith("smaller than its range by a factor of 3")

@@ -279,13 +279,13 @@ def test_roles_are_found_by_base_solver_and_params_not_by_label() -> None:
 
 
 def test_claim_agreement_words() -> None:
-    claim = rpp.Claim("~26x", 20.0, 33.0)
-    assert rpp.agreement(26.0, claim) == "agrees with the paper"
+    claim = rpp.ledger_claim("fig4-pk-cold-over-nnlsgp")
+    assert claim.text == "~26x"
+    assert rpp.agreement(26.0, claim).startswith("agrees with the paper")
     assert rpp.agreement(50.0, claim).startswith("is close to")
     assert "smaller" in rpp.agreement(3.0, claim)
     assert rpp.agreement(0.5, claim).startswith("points the opposite way")
-    assert "row `fig4-pk-cold-over-nnlsgp`, condition `dense`" in rpp.agreement(0.5, rpp.Claim("~26x", 20.0, 33.0,
-                                                                                              "fig4-pk-cold-over-nnlsgp"))
+    assert "row `fig4-pk-cold-over-nnlsgp`, condition `dense`" in rpp.agreement(0.5, claim)
     assert rpp.agreement(float("nan"), claim).startswith("cannot")
 
 

@@ -10,10 +10,11 @@ A ratio is read in this order (``agreement``):
    which way the paper's claim goes;
 3. a ratio on the other side of 1 from the paper's points the opposite way, however near
    it lies (the paper says faster, the table says slower, or the reverse);
-4. otherwise inside the paper's range it agrees, within a factor of 2 of the range it is
-   close, and beyond that it points the same way, smaller or larger by a factor taken
-   against the paper's stated value (``Claim.value``; the nearer end of a range the paper
-   states as a range).
+4. otherwise it is read by the claim's row of the claims ledger (claim_rules.py, the one
+   home of the paper's value and of the bands): inside the row's holds band it agrees,
+   inside its partly band it is close, and beyond that it points the same way, smaller or
+   larger by a factor taken against the paper's stated value (``Claim.value``; the nearer
+   end of a range the paper states as a range).
 
 The spread of a timing from one repeat is ``SINGLE_REPEAT_SPREAD``, the claims ledger's
 (claim_rules.py); from several repeats it is the relative range of the ratio over the
@@ -31,12 +32,9 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from ..claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, over_repeats
+from ..claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, Rule, over_repeats
 from ..core import fmt_num, fmt_pct, fmt_ratio, parse_json, per_cell
 
-#: A ratio of two paper methods differs from the paper's by at most this factor beyond its
-#: range to read "close".
-CLOSE_FACTOR = 2.0
 #: Below this largest trial-set size n fixed per-solve costs dominate the solve times, so a
 #: ratio or an optimum the paper measured at its sizes (n up to 35555) need not hold: the
 #: readings of Figs. 4 and 6 say so (``SMALL_N_TEXT``), and Fig. 6 reads no disagreement.
@@ -101,64 +99,79 @@ def timing_spread(rows: pd.DataFrame, statistic: Callable[[pd.DataFrame], float]
 
 @dataclass(frozen=True)
 class Claim:
-    """A ratio claimed by the paper: ``text`` its words, [``lo``, ``hi``] the range a
-    measured ratio agrees within, ``value`` the number the paper states (NaN for a claim
-    the paper states as the range itself); ``ledger``: its row in the claims ledger
-    (harness/report/claims.py ``CLAIMS``), where it is measured under the paper's
-    conditions."""
+    """A ratio claimed by the paper, read with its row ``ledger`` of the claims ledger
+    (claim_rules.py ``CLAIMS``, where it is measured under the paper's conditions): ``text``
+    its words; the ledger row's rule is the one home of the paper's value and of the bands
+    a measured ratio agrees (holds) or is close (partly) within."""
 
     text: str
-    lo: float
-    hi: float
-    ledger: str = ""
-    value: float = math.nan
+    ledger: str
+
+    @property
+    def rule(self) -> Rule:
+        """The ledger row's rule (a ``ratio``)."""
+        return CLAIMS[self.ledger].rule
+
+    @property
+    def value(self) -> float:
+        """The one number the paper states; NaN for a claim it states as a range."""
+        return self.rule.lo if self.rule.lo == self.rule.hi else math.nan
 
     @property
     def direction(self) -> int:
         """+1: the paper's ratio is above 1 (slower), -1: below 1 (faster), 0: its range
         holds 1."""
-        return 1 if self.lo > 1.0 else -1 if self.hi < 1.0 else 0
+        return 1 if self.rule.lo > 1.0 else -1 if self.rule.hi < 1.0 else 0
 
 
-def ledger_claim(ledger: str, lo: float, hi: float, words: str = "") -> Claim:
-    """The claim of the ledger row ``ledger`` (claim_rules.py ``CLAIMS``) whose paper value
-    is one number v: stated "~v x" (then ``words``), with ``value`` v, agreeing within
-    [``lo``, ``hi``]."""
+def ledger_claim(ledger: str, words: str = "") -> Claim:
+    """The claim of the ledger row ``ledger``, a ``ratio`` rule: stated "~v x" for one
+    value v, "lo-hi" for a range, then ``words``."""
     rule = CLAIMS[ledger].rule
-    if rule.lo != rule.hi:
-        raise ValueError(f"ledger row {ledger!r} states a range, not one value")
-    return Claim(f"~{rule.lo:g}x{words}", lo, hi, ledger, rule.lo)
+    if rule.kind != "ratio":
+        raise ValueError(f"ledger row {ledger!r} is a {rule.kind} rule, not a ratio")
+    stated = f"~{rule.lo:g}x" if rule.lo == rule.hi else f"{rule.lo:g}-{rule.hi:g}"
+    return Claim(stated + words, ledger)
 
 
 def _off_by(measured: float, claim: Claim) -> str:
     """"smaller by a factor of 24.5" (against ``claim.value``), or against the nearer end
     of the range the paper states."""
-    smaller = measured < claim.lo
+    rule = claim.rule
+    smaller = measured < rule.lo
     if math.isfinite(claim.value):
         factor, what = (claim.value / measured if smaller else measured / claim.value), ""
     else:
-        factor, what = (claim.lo / measured if smaller else measured / claim.hi), " than its range"
+        factor, what = (rule.lo / measured if smaller else measured / rule.hi), " than its range"
     return f"{'smaller' if smaller else 'larger'}{what} by a factor of {fmt_num(factor, 3)}"
+
+
+def band_text(claim: Claim, verdict: str) -> str:
+    """"18.4x-36.8x": the values the ledger row reads as ``verdict``."""
+    lo, hi = claim.rule.interval(verdict)
+    return f"{fmt_ratio(lo)}-{fmt_ratio(hi)}"
 
 
 def agreement(measured: float, claim: Claim, spread: Spread = EXACT) -> str:
     """Words for a measured ratio against the paper's claim, read in the order of the
     module doc: a tie within ``spread`` is unresolved, the direction is checked before
-    closeness, and a factor is given against the paper's stated value."""
+    closeness, closeness is the ledger row's rule (``Rule.at``), and a factor is given
+    against the paper's stated value."""
     if not math.isfinite(measured):
         return "cannot be checked from this table"
     if spread.ties(measured):
         return spread.tie_text()
     way = 1 if measured > 1.0 else -1 if measured < 1.0 else 0
     if claim.direction and way != claim.direction:
-        where = f"row `{claim.ledger}`" if claim.ledger else "its rows"
         side = "shows no difference" if way == 0 else "points the opposite way"
         return (f"{side} under this table's conditions; for the paper's (dense H, eps = 1e-8) see "
-                f"{where}, condition `dense`, of the claims ledger (`contactbench run paper-claims`, claims.md)")
-    if claim.lo <= measured <= claim.hi:
-        return "agrees with the paper"
-    if claim.lo / CLOSE_FACTOR <= measured <= CLOSE_FACTOR * claim.hi:
-        return f"is close to the paper (the same way, within a factor of {CLOSE_FACTOR:g} of its range)"
+                f"row `{claim.ledger}`, condition `dense`, of the claims ledger (`contactbench run paper-claims`, "
+                f"claims.md)")
+    verdict = claim.rule.at(measured)
+    if verdict == "holds":
+        return f"agrees with the paper (the claims ledger's holds band, {band_text(claim, verdict)})"
+    if verdict == "partly":
+        return f"is close to the paper (the same way, in the claims ledger's partly band, {band_text(claim, verdict)})"
     return f"points the same way as the paper but is {_off_by(measured, claim)}"
 
 
