@@ -61,7 +61,10 @@ p_s,i = min(p_s, u_i) with p_s = u_s / max diag H (a uniform hardness: one scale
 min(p_s, u), which ``constrained_scales`` reports), so a small hardness is not judged on a
 scale above it, and one element's small bound does not shrink the scale of the others.  Under load
 control u_s is at least (P / n) max diag H, the indentation of one element by the mean force
-(a heavy load on a low relief, or a flat surface, is judged on the load's length), and the
+(a heavy load on a low relief, or a flat surface, is judged on the load's length), and at
+most P max diag H, the most the load can displace any element (a light load on a high
+relief is judged on the load's length, not on gaps it never reaches; not below 1e-6 of the
+relief, ``RELIEF_SHARE``), p_s = u_s / max diag H with either; and the
 complementarity figure also reads the products as a share of the load:
 complementarity = max(max_i of the products above, p_s sum_i of them / P) -- the load carried
 across open gaps (or pressed past a bound), weighted by the gap in u_s.  A max alone cannot
@@ -210,21 +213,51 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     bounds that differ, ``constrained_figures`` reads each element on its own (module doc)
     -- (a force no element can exceed, so a violation of the bound is
     read against the bound itself).  The plain scales without bounds.  Under load control
-    the load's own length counts too: u_s = max(||ubar||_inf, (P / n) max diag H), the
-    indentation of one element by the mean force (module doc), so that a load heavy for the
+    the load's own lengths count too (``load_length``): u_s is at least (P / n) max diag H,
+    the indentation of one element by the mean force, so that a load heavy for the
     surface's relief -- or any load on a flat surface, ubar = 0, where ``problem_scales``
     has no length to go by -- is not judged against a relief round-off in w dwarfs
-    (``U_SCALE_FALLBACK`` would judge a flat surface in absolute units)."""
+    (``U_SCALE_FALLBACK`` would judge a flat surface in absolute units); and at most
+    P max diag H, the most any element can be displaced by the load, so that a load light
+    for the relief is not judged against a relief its gaps never reach."""
     top = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
-    mean_force = float(constraints.load) / ubar.size if constraints.load_control and ubar.size else 0.0
-    indentation = mean_force * float(diag_max)
-    if indentation > top and 0.0 < indentation < math.inf and mean_force > 0.0:
-        u_s, p_s = indentation, mean_force
+    length = load_length(top, diag_max, constraints, ubar.size)
+    if length is not None:
+        u_s, p_s = length, length / float(diag_max)
     else:
         u_s, p_s = problem_scales(ubar, diag_max, top)  # (||ubar||_inf read once)
     if constraints.bounded:
         p_s = min(p_s, float(np.min(constraints.upper)))
     return u_s, p_s
+
+
+#: The least share of the relief ||ubar||_inf a load-controlled QP's displacement scale
+#: goes down to (``load_length``): the round-off of w = Hp - ubar - Delta, a few ulps of
+#: the relief, then stays under 1e-9 of the scale.
+RELIEF_SHARE = 1e-6
+
+
+def load_length(top: float, diag_max: float, constraints: Constraints, n: int) -> float | None:
+    """The displacement scale of a load-controlled QP with relief ``top`` = ||ubar||_inf
+    on ``n`` elements, where the load sets it; None where the relief does (no load
+    control, no finite positive load, or a load whose lengths bracket the relief).
+
+    The load P displaces no element by more than P max diag H (|H_ij| <= max diag H for
+    a positive definite H, and p >= 0 sums to P), so its gaps are read on that length
+    when the relief exceeds it -- not below ``RELIEF_SHARE`` of the relief; and on the
+    mean force's indentation (P / n) max diag H when that exceeds the relief."""
+    if not (constraints.load_control and n):
+        return None
+    load = float(constraints.load)  # type: ignore[arg-type]
+    whole = load * float(diag_max)
+    if not (load > 0.0 and 0.0 < whole < math.inf):
+        return None
+    mean = whole / n
+    if mean > top and mean > 0.0:
+        return mean
+    if whole < top:
+        return max(whole, RELIEF_SHARE * top)
+    return None
 
 
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
