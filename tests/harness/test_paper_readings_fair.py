@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 from contactbench.harness.report import core as rp
 from contactbench.harness.report.claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD
 from contactbench.harness.report.sections import paper as rpp
+from contactbench.harness.report.sections.counterexample import share_verdict
 from contactbench.harness.table.schema import ALL_COLUMNS
 from tests.helpers import META, report_row, write_out
 
@@ -202,3 +203,19 @@ def test_a_range_gives_its_factor_against_the_nearer_end() -> None:
     end, and the words say so."""
     words = rpp.agreement(0.2, rpp.ledger_claim("fig5-chol-over-cg"))
     assert words.endswith("smaller than its range by a factor of 3")
+
+
+@given(share=st.floats(min_value=0.0, max_value=1.0))
+@settings(max_examples=80, deadline=None)
+def test_the_counterexample_share_is_read_as_the_ledger_reads_it(share: float) -> None:
+    """Greedy CG's share of rejected seeds against the paper's ~40 %: the section's words
+    follow the ledger row ``ex1-greedy-fails`` (0.27 and 0.52 are close, not agreeing)."""
+    words = share_verdict(share)
+    expected = CLAIMS["ex1-greedy-fails"].rule.at(share)
+    assert words.startswith({"holds": "agrees", "partly": "is close", "fails": "is "}[expected])
+    assert (expected == "fails") == (not words.startswith(("agrees", "is close")))
+
+
+def test_shares_near_the_old_band_edges_are_close_not_agreeing() -> None:
+    assert share_verdict(0.27).startswith("is close") and share_verdict(0.52).startswith("is close")
+    assert share_verdict(0.4).startswith("agrees") and share_verdict(0.1).startswith("is below")
