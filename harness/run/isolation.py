@@ -55,6 +55,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import faulthandler
+import math
 import multiprocessing as mp
 import os
 import resource
@@ -157,6 +158,25 @@ OUTPUT_NAME = "handler-output.txt"
 OUTPUT_TAIL_LINES = 5
 #: How much of the end of that file is read for them (bytes).
 OUTPUT_TAIL_BYTES = 4096
+#: The disk space (bytes) one message's output file may take while the parent waits for the
+#: reply: past it the parent drops all but the first ``KEPT_HEAD_BYTES`` (``bound_output``),
+#: so a solver printing without end cannot fill the disk before its time limit.
+OUTPUT_FILE_CAP = 64 * 1024 * 1024
+#: The head of a message's output that is kept (the run's log keeps no more of an entry).
+KEPT_HEAD_BYTES = 64 * 1024
+#: How often (seconds) a waiting parent checks the output files' size.
+OUTPUT_CHECK_S = 0.25
+
+
+def bound_output(path: str, cap: int = OUTPUT_FILE_CAP, head: int = KEPT_HEAD_BYTES) -> None:
+    """Cut the output file ``path`` back to its first ``head`` bytes when it takes more than
+    ``cap`` bytes of disk.  The writer keeps its offset (the file is not opened to append),
+    so what it writes next lands past a hole: the file's size still counts every byte
+    printed, its blocks hold only the head and what came since; nothing when it is gone."""
+    with contextlib.suppress(OSError):
+        st = os.stat(path)
+        if st.st_blocks * 512 > cap:
+            os.truncate(path, head)
 
 
 @contextlib.contextmanager
@@ -333,10 +353,13 @@ class ChildProcess:
     """One child process running ``factory()``'s handler on each message sent to it."""
 
     def __init__(self, factory: HandlerFactory, threads: int | None = None, start_method: str | None = None,
-                 capture_output: bool = False) -> None:
+                 capture_output: bool = False, output_files: tuple[str, ...] = (),
+                 output_cap: int = OUTPUT_FILE_CAP) -> None:
         self.factory = factory
         self.threads = threads
         self.capture_output = capture_output  # the handler's stdout/stderr to a file (module doc)
+        self.output_files = output_files  # other files the handler prints to (bounded as its own)
+        self.output_cap = output_cap
         method = start_method or ("fork" if sys.platform.startswith("linux") else "spawn")
         self.ctx = mp.get_context(method)
         self.proc: Any = None
@@ -392,15 +415,24 @@ class ChildProcess:
 
     def _answered_within(self, timeout: float | None) -> bool:
         """Whether the reply arrives within ``timeout`` s (None: waits for it), in waits of at
-        most ``POLL_CHUNK_S`` (the pipe's poll takes milliseconds as a C int: about 25 days)."""
+        most ``POLL_CHUNK_S`` (the pipe's poll takes milliseconds as a C int: about 25 days),
+        or of ``OUTPUT_CHECK_S`` where the handler's output goes to files, each cut back
+        after each wait (``bound_output``)."""
         assert self.conn is not None
-        if timeout is None:
-            return bool(self.conn.poll(None))
-        end = time.monotonic() + timeout
+        files = self.bounded_files()
+        chunk = OUTPUT_CHECK_S if files else POLL_CHUNK_S
+        end = math.inf if timeout is None else time.monotonic() + timeout
         while (left := end - time.monotonic()) > 0:
-            if self.conn.poll(min(left, POLL_CHUNK_S)):
+            if self.conn.poll(min(left, chunk)):
                 return True
+            for path in files:
+                bound_output(path, self.output_cap)
         return bool(self.conn.poll(0))
+
+    def bounded_files(self) -> tuple[str, ...]:
+        """The files the handler's output goes to, which a wait keeps under ``output_cap``."""
+        own = (os.path.join(self.scratch, OUTPUT_NAME),) if self.capture_output and self.scratch else ()
+        return own + self.output_files
 
     def _crashed(self, t0: float) -> ChildReply:
         elapsed = time.perf_counter() - t0
@@ -421,7 +453,7 @@ class ChildProcess:
         try:
             with open(os.path.join(self.scratch, OUTPUT_NAME), "rb") as fh:
                 fh.seek(max(0, fh.seek(0, os.SEEK_END) - OUTPUT_TAIL_BYTES))
-                lines = fh.read().decode("utf-8", errors="replace").strip().splitlines()
+                lines = fh.read().replace(b"\0", b"").decode("utf-8", errors="replace").strip().splitlines()
         except OSError:
             return ""
         tail = lines[-OUTPUT_TAIL_LINES:]

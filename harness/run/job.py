@@ -131,7 +131,7 @@ class JobDriver:
         self.output = SolverOutput(OutputLog(Path(output_log))) if output_log is not None else None
         worker_file = str(self.output.worker_file) if self.output is not None else None
         self.worker = ChildProcess(partial(SolveServer, job.spec, run.memory_budget, worker_file),
-                                   threads=run.worker_threads())
+                                   threads=run.worker_threads(), output_files=(worker_file,) if worker_file else ())
         self.warmed: set[tuple[int, str]] = set()
         self.warm_have: set[tuple[int, str, str, int]] = set()  # (generation, label, profile, step) held by the worker
         self.untimed: dict[str, str] = {}  # label -> what its untimed solve did to its problem (``UntimedReply.fault``)

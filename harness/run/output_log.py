@@ -38,12 +38,13 @@ from pathlib import Path
 from typing import Iterator
 
 from .interrupts import signals_deferred
-from .isolation import SCRATCH_PREFIX, output_to
+from .isolation import KEPT_HEAD_BYTES, SCRATCH_PREFIX, output_to
 
 #: The run folder's file of what the solvers printed (meta.json ``solver_output`` names it).
 OUTPUT_LOG = "solver-output.log"
-#: The bytes of one message's output an entry keeps (its head).
-ENTRY_HEAD_BYTES = 64 * 1024
+#: The bytes of one message's output an entry keeps (its head: what a waiting parent keeps
+#: of a message's output file, ``isolation.bound_output``).
+ENTRY_HEAD_BYTES = KEPT_HEAD_BYTES
 #: The size past which the log takes no more entries (its last line then counts them).
 LOG_CAP_BYTES = 16 * 1024 * 1024
 
