@@ -62,6 +62,9 @@ ADMM_PRODUCTS_PER_ITERATION = 25
 NORMAL_MIN = float(np.finfo(np.float64).tiny)
 #: The stopping rules (module doc).
 STOPS: tuple[str, ...] = ("kkt", "printed")
+#: ADMM as the paper states it: alpha 1.5 and rho = 1 as given, in H's units (sec. 4, tex
+#: 1027-1029), stopped on Algorithm 5's printed ||p - s||_inf <= eps (tex 951).
+PAPER_PARAMS: dict[str, float | bool | str] = {"alpha": 1.5, "rho": 1.0, "rho_relative": False, "stop": "printed"}
 #: CG iterations at most per resolvent application (matrix-free operator).
 RESOLVENT_CG_MAX_ITER = 1000
 

@@ -534,6 +534,11 @@ class Solver(ABC):
             if inspect.isfunction(method):
                 setattr(cls, attr, _read_through(attr, method, read))
 
+    @classmethod
+    def param_defaults(cls) -> dict[str, Any]:
+        """Each declared parameter's default, by name."""
+        return {p.name: p.default for p in cls.params}
+
     def default_max_iter(self, n: int) -> int | None:
         """Iteration limit when the settings give none (None: the backend's own)."""
         return 100_000

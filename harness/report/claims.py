@@ -21,7 +21,7 @@ row saying what it needs: never ``holds``, never left out."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Hashable, Iterable
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
 
@@ -29,15 +29,18 @@ import numpy as np
 import pandas as pd
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.scenes.cmr import POWER_LAW_FAMILY, ROLLOFF_FAMILY
+from contactbench.solvers.admm import PAPER_PARAMS
 from contactbench.solvers.registry import get_solver
 
 from ..table.files import replace_atomically
 from ..table.schema import ANSWERED
-from .claim_rules import CLAIMS, PAPER_N, SINGLE_REPEAT_SPREAD, VERDICTS, Claim, judge, over_repeats, relative_range
+from .claim_rules import (CLAIMS, PAPER_N, VERDICTS, Claim, Timing, falls, judge, judged_spread, over_repeats,
+                          relative_range, spread)
 from .core import parse_json, per_cell
 from .sections.cmr import cmr_pairs, instance_totals, recorded_families
 from .sections.counterexample import seed_readings, violation_counts
 from .sections.paper import LEDGER_ROLES, by_role, k_of
+from .sections.paper_readings import Spread, tied_with
 
 __all__ = ["CLAIMS", "VERDICTS", "Claim", "judge"]
 
@@ -73,22 +76,13 @@ class ClaimRow:
     evidence: str
 
 
-@dataclass(frozen=True)
-class Timing:
-    """How a measured ratio of times stands over the timed repeats."""
-
-    repeats: int = 0
-    spread: float = math.nan
-
-
 def claim_row(claim_id: str, condition: str, measured: float, n_or_size: str, seeds: str, evidence: str,
               testable: bool = True, timing: Timing = Timing()) -> ClaimRow:
     """The ledger row of one measurement, its verdict from the claim's rule and spread."""
     c = CLAIMS[claim_id]
-    judged = SINGLE_REPEAT_SPREAD if timing.repeats == 1 and not math.isfinite(timing.spread) else timing.spread
     return ClaimRow(c.id, c.figure, c.tex_lines, c.paper_value, condition, float(measured), n_or_size, seeds,
-                    int(timing.repeats), float(timing.spread), judge(measured, c.rule, evidence, judged, testable),
-                    evidence)
+                    int(timing.repeats), float(timing.spread),
+                    judge(measured, c.rule, evidence, judged_spread(timing), testable), evidence)
 
 
 # ---------------------------------------------------------------------------
@@ -126,6 +120,13 @@ PAPER_METHODS: frozenset[str] = frozenset(r.base_solver for r in LEDGER_ROLES.va
 COLD = " cold"
 
 
+def repeat_totals(rows: pd.DataFrame) -> pd.Series:
+    """Per (solver, repeat) of the rows: the repeat's total solve time over the steps (NaN
+    where a step has none; a table without ``repeat`` is one repeat, 0)."""
+    rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
+    return rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False))
+
+
 def totals(rows: pd.DataFrame) -> pd.DataFrame:
     """Per solver label of the (unfolded) rows: the total solve time over the steps, as the
     median over the timed repeats of each repeat's sum (``repeats``, ``spread``: their count
@@ -143,8 +144,7 @@ def totals(rows: pd.DataFrame) -> pd.DataFrame:
                         if "iterations" in cells.columns else nan,
                         "steps": g.size(), "answered": g["status"].agg(lambda s: int(s.isin(ANSWERED).sum())),
                         "solved": g["solved"].sum()})
-    rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
-    per = rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False)).groupby(level=0)
+    per = repeat_totals(rows).groupby(level=0)
     out["total_s"], out["repeats"], out["spread"] = per.median(), per.size(), per.agg(relative_range)
     out["comparable"] = (out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
     return out[cols]
@@ -192,16 +192,19 @@ def nnlsgp_cold(tot: pd.DataFrame) -> str:
     return "nnls-gp" + COLD if "nnls-gp" + COLD in tot.index else "nnls-gp"
 
 
-def admm_label(tot: pd.DataFrame, rows: pd.DataFrame) -> str:
-    """The label of ADMM as the paper states it (rho = 1 taken as given: ``rho_relative``
-    false) where the rows hold it, else the registry's ``admm``."""
+def admm_label(tot: pd.DataFrame, rows: pd.DataFrame) -> str | None:
+    """The label of ADMM as the paper states it (``PAPER_PARAMS``) where the rows hold it;
+    None where they do not: the registry's ``admm`` (rho relative to mean diag H, the KKT
+    stop) is another method, and the claim about the paper's ADMM is not read on it."""
     a = rows[(rows["base_solver"] == "admm") & rows["solver"].isin(tot.index)]
-    paper = [s for s, p in zip(a["solver"], a["params"]) if parse_json(p, {}).get("rho_relative") is False]
-    return paper[0] if paper else "admm"
+    default = get_solver("admm").param_defaults()
+    given = {s: parse_json(p, {}) for s, p in zip(a["solver"], a["params"])}
+    paper = [s for s, g in given.items() if isinstance(g, dict) and PAPER_PARAMS.items() <= {**default, **g}.items()]
+    return sorted(paper)[0] if paper else None
 
 
 #: Fig. 4's time ratios: (claim, numerator label, denominator label); "admm" stands for
-#: ``admm_label``.
+#: ``admm_label`` (where it is None, an ``unmeasured`` row says so).
 FIG4_RATIOS: tuple[tuple[str, str, str], ...] = (
     ("fig4-pkprinted-over-nnlsgp", "pk-printed" + COLD, "nnls-gp"),
     ("fig4-pk-cold-over-nnlsgp", "pk" + COLD, "nnls-gp"),
@@ -223,6 +226,8 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     the share of the trial set in contact."""
     warm = of_condition(rows, "paper-sweep", condition)
     cold = of_condition(rows, "greedy-linear-solvers", condition)
+    plan = rows[rows["scene"].isin(("paper-sweep", "greedy-linear-solvers")) & (rows["operator"] == condition)]
+    planned = sorted(set(plan["base_solver"]) & PAPER_METHODS)  # skipped ones too: the table planned them
     out: list[ClaimRow] = []
     for N in sorted(warm["N"].dropna().unique()):
         w = warm[warm["N"] == N]
@@ -233,7 +238,11 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
         seeds = seeds_of(w)
         where = f"results.csv: paper-sweep (warm) and greedy-linear-solvers (cold) N={int(N)} operator {condition}"
         for claim, a, b in FIG4_RATIOS + (("gp-pure-slow", "gp" + COLD, nnlsgp_cold(tot)),):
-            a = admm_label(tot, both) if a == "admm" else a
+            a = (admm_label(tot, both) or "") if a == "admm" else a
+            if claim == "fig4-admm-over-nnlsgp" and not a and "admm" in tot.index:
+                out.append(claim_row(claim, condition, math.nan, size, seeds, f"{where}; no ADMM as the paper states "
+                                     f"it ({PAPER_PARAMS}): the registry's admm (rho relative to mean diag H, the KKT "
+                                     "stop) is another method", testable=False))
             if a in tot.index and b in tot.index:
                 m, words, timing = ratio(tot, a, b)
                 out.append(claim_row(claim, condition, m, size, seeds, f"{where}; {words}", timing=timing))
@@ -242,7 +251,7 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
                 m, words, timing = ratio(tot, a, b, of="iterations")
                 out.append(claim_row(claim, condition, m, size, seeds, f"{where}; iterations: {words}", timing=timing))
         out += fastest_rows(tot, paper_labels(tot), condition, size, seeds, where)
-        out += agreement_rows(both, condition, size, seeds, where)
+        out += agreement_rows(both, condition, size, seeds, where, planned)
     return out
 
 
@@ -262,12 +271,19 @@ def fastest_rows(tot: pd.DataFrame, labels: list[str], condition: str, size: str
                       f"{best}; {words}", timing=timing)]
 
 
-def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, where: str) -> list[ClaimRow]:
+def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, where: str,
+                   planned: Iterable[str]) -> list[ClaimRow]:
     """The same load and contact domain at the top step over every paper method's answer
-    (a wrong answer counts: the claim is about the methods, not about the judge)."""
+    (a wrong answer counts: the claim is about the methods, not about the judge).  Where a
+    paper method the table plans (``planned``) gave no answer at an instance's top step,
+    the rest cannot hold a claim about every method: ``unmeasured``, unless they disagree
+    (``fails``, whatever the missing ones would give)."""
     r = both[both["base_solver"].isin(PAPER_METHODS)]
     cells = per_cell(r)
     top = cells[(cells["step"] == cells["step"].max()) & cells["status"].isin(ANSWERED)]
+    answered = {i: set(g["base_solver"]) for i, g in top.groupby("instance")}
+    missing = sorted({s for i in set(both["instance"]) for s in planned if s not in answered.get(i, set())})
+    partial = f"; no top-step answer of {', '.join(missing)}: the rest cannot hold 'every method'" if missing else ""
     out = []
     for claim, col in (("fig4-same-load", "load"), ("fig4-same-contact", "contact_fraction")):
         if col not in top.columns:
@@ -275,9 +291,9 @@ def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, wh
         per_inst = [spread(g[col]) for _, g in top.groupby("instance") if g["solver"].nunique() > 1]
         m = max(per_inst) if per_inst and all(np.isfinite(per_inst)) else math.nan  # (NaN: not the order's pick)
         solvers = sorted(set(top["solver"]))
-        out.append(claim_row(claim, condition, m, size, seeds,
-                             f"{where}; top step, the largest relative spread over instances among the answers of "
-                             f"{', '.join(solvers)}" if len(solvers) > 1 else ""))
+        out.append(claim_row(claim, condition, m, size, seeds, f"{where}; top step, the largest relative spread "
+                             f"over instances among the answers of {', '.join(solvers)}{partial}"
+                             if len(solvers) > 1 else "", testable=not missing or CLAIMS[claim].rule.at(m) == "fails"))
     sub = top[top["base_solver"] == "nnls"] if "contact_fraction" in top.columns else top.iloc[0:0]
     if len(sub):
         share = sub["contact_fraction"] * sub["N"] * sub["N"] / sub["n"]
@@ -311,16 +327,6 @@ def top_step_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             where = f"results.csv: greedy-linear-solvers N={int(N)} operator {condition}, {pk} and nnls-gp from p = 0"
             out.append(claim_row(claim, condition, m, size, seeds_of(here), f"{where}; {words}", timing=timing))
     return out
-
-
-def spread(values: pd.Series) -> float:
-    """max |v - median| / |median| over the values (NaN for fewer than two, a NaN value or a
-    zero median)."""
-    v = pd.to_numeric(values, errors="coerce").to_numpy(float)
-    if len(v) < 2 or not np.isfinite(v).all():
-        return math.nan
-    med = float(np.median(v))
-    return float(np.max(np.abs(v - med)) / abs(med)) if med != 0 else math.nan
 
 
 def paired_median(cells: pd.DataFrame, a: str, b: str) -> tuple[float, int]:
@@ -417,23 +423,42 @@ def greedy_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     return out
 
 
-def k_totals(rows: pd.DataFrame) -> tuple[pd.DataFrame, bool]:
+def k_totals(rows: pd.DataFrame) -> tuple[pd.DataFrame, bool, pd.Series]:
     """NNLS+GP's totals per K: from the cold K sweep of ``greedy-linear-solvers`` (p = 0 at
     K = 0, the paper's) when the rows hold one, else from ``gp-k-sweep`` (warm along the
-    history); the flag says which."""
+    history); the flag says which; and each label's ``repeat_totals``."""
     for scene, cold in (("greedy-linear-solvers", True), ("gp-k-sweep", False)):
         r = rows[(rows["scene"] == scene) & (rows["base_solver"] == "nnls-gp")]
         r = r.assign(K=r.apply(k_of, axis=1)) if len(r) else r
         r = r[r["K"].notna()] if len(r) else r
         if len(r) and r["K"].nunique() > 1:
             tot = totals(r).join(r.groupby("solver")["K"].first())
-            return tot.assign(N=int(r["N"].max()), n=int(r["n"].max()), seeds=seeds_of(r)), cold
-    return pd.DataFrame(), False
+            return tot.assign(N=int(r["N"].max()), n=int(r["n"].max()), seeds=seeds_of(r)), cold, repeat_totals(r)
+    return pd.DataFrame(), False, pd.Series(dtype=float)
+
+
+def best_k(tot: pd.DataFrame, per_repeat: pd.Series, label: dict[float, str]) -> tuple[float, list[float], Timing]:
+    """Fig. 6's K of least median total (``k_totals``' complete labels, ``label``: K -> label);
+    the Ks not told from it: a timed repeat's own least (``per_repeat``), a K whose ``ratio``
+    to the least its spread cannot tell from 1 (``paper_readings.tied_with``); the timing it
+    is judged with: spread 0 where they all read one verdict, else infinite (unresolved)."""
+    times = tot.set_index(tot["K"].astype(float))["total_s"]
+    best = float(times.idxmin())
+
+    def spread_of(k: Hashable, b: Hashable) -> Spread:
+        t = ratio(tot, label[float(k)], label[float(b)])[2]  # type: ignore[arg-type]
+        return Spread(judged_spread(t), t.repeats)
+
+    each = per_repeat[per_repeat.index.get_level_values(0).isin(tot.index)].unstack(0).dropna()  # repeat x label
+    firsts = [float(tot.loc[s, "K"]) for s in each.idxmin(axis=1)]
+    near = sorted({*map(float, tied_with(times, best, spread_of)), *firsts} - {best})
+    agree = len({CLAIMS["fig6-best-k"].rule.at(k) for k in (best, *near)}) == 1
+    return best, near, Timing(int(tot["repeats"].min()), 0.0 if agree else math.inf)
 
 
 def fig6_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     """Fig. 6: the K of least total time, t(K=200) / t(K=100), and t(K=100) / t(K=0)."""
-    tot, cold = k_totals(rows[(rows["operator"] == condition) & (rows["status"] != "skipped")])
+    tot, cold, per_repeat = k_totals(rows[(rows["operator"] == condition) & (rows["status"] != "skipped")])
     if tot.empty:
         return []
     comp = tot[tot["comparable"]].set_index("K")
@@ -442,11 +467,11 @@ def fig6_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     how = "greedy-linear-solvers (cold: every K from p = 0)" if cold else "gp-k-sweep (warm along the history)"
     where = f"results.csv: {how} operator {condition}, K = {', '.join(f'{k:g}' for k in sorted(tot['K']))}"
     out = []
-    if len(comp) and set(tot["K"]) <= set(comp.index):  # every K answered: else the least is not known
-        best = float(comp["total_s"].idxmin())
-        rep = Timing(int(comp["repeats"].min()), float(comp["spread"].max()))
-        out.append(claim_row("fig6-best-k", condition, best, size, seeds, where, timing=rep))
     label = {float(k): s for s, k in zip(tot.index, tot["K"])}
+    if len(comp) and set(tot["K"]) <= set(comp.index):  # every K answered: else the least is not known
+        best, near, rep = best_k(tot[tot["comparable"]], per_repeat, label)
+        words = f"; not told from K = {', '.join(f'{k:g}' for k in near)} (a repeat's least, or tied)" if near else ""
+        out.append(claim_row("fig6-best-k", condition, best, size, seeds, where + words, timing=rep))
     for claim, a, b, testable in (("fig6-k200-over-k100", 200.0, 100.0, True),
                                   ("gp-warm-start-benefit", 100.0, 0.0, cold)):
         if a in label and b in label:
@@ -461,12 +486,6 @@ def cmr_totals(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame:
     r = of_condition(rows, scene, condition)
     pairs = cmr_pairs(r) if len(r) else pd.DataFrame()
     return instance_totals(pairs) if len(pairs) else pd.DataFrame()
-
-
-def falls(by: pd.Series) -> float:
-    """The last value over the first (by the index's order): < 1 where it falls."""
-    by = by.sort_index()
-    return float(by.iloc[-1] / by.iloc[0]) if len(by) > 1 and by.iloc[0] > 0 else math.nan
 
 
 def farthest_from_half(per_h: pd.Series) -> float:
@@ -548,8 +567,8 @@ def fig9_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
                              f"{where}{h:g}" if h in val.index else "",
                              timing=reps if claim == "fig9-time-ratio" else Timing()))
     if 1.25 in err.index and 3.0 in err.index:
-        out.append(claim_row("fig9-error-falls-with-h", condition, float(err[3.0] / err[1.25]) if err[1.25] > 0
-                             else math.nan, size, seeds, f"{where}1.25 ({err[1.25]:.3g}) and 3 ({err[3.0]:.3g})"))
+        out.append(claim_row("fig9-error-falls-with-h", condition, falls(err), size, seeds,
+                             f"{where}" + ", ".join(f"{h:g} ({v:.3g})" for h, v in err.items())))
     return out
 
 

@@ -154,7 +154,7 @@ def wrapper_defaults(base_solver: str) -> dict[str, Any]:
     from contactbench.solvers.registry import load_solver
 
     try:
-        return {p.name: p.default for p in load_solver(base_solver).params}
+        return load_solver(base_solver).param_defaults()
     except Exception:
         return {}
 
