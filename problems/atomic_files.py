@@ -10,6 +10,8 @@ project (problems' exports and the harness's tables, reports and answers alike).
   the length of a ``with`` block (no lock file: nothing is added to the folder; the
   kernel drops the lock when the process dies); ``FolderLockedError`` at once when
   another process holds it.
+* ``literal_path(path)``: the path every reader and writer hands a library (absolute: a
+  leading "~" names a folder of that name, never the home folder).
 * ``names_nothing(path)``: whether a path a writer is given is empty or blank ("" would
   be the current folder, " " a file of that name): every writer refuses it.
 * ``not_utf8_text(path)``: a path whose name is not UTF-8 text (bytes the system gave that
@@ -46,10 +48,19 @@ def not_utf8_text(path: str | os.PathLike[str]) -> str | None:
     return None
 
 
+def literal_path(path: str | os.PathLike[str]) -> Path:
+    """``path`` as the file system reads it, made absolute so that no library reads it
+    otherwise: pandas and pyarrow expand a leading "~" of a relative path to the home
+    folder, where ``open`` and ``os.replace`` read a folder named "~" (a shell leaves the
+    "~" of ``--out=~/x`` as it is)."""
+    return Path(os.path.abspath(os.fspath(path)))
+
+
 def replace_atomically(path: str | os.PathLike[str], write: Callable[[str], Any]) -> None:
-    """``write(tmp)`` to a unique temporary file next to ``path``, fsync it, then rename
-    it over ``path``; the temporary file is removed if anything fails."""
-    p = Path(path)
+    """``write(tmp)`` to a unique temporary file next to ``path`` (``literal_path``: every
+    writer, ``write`` too, reads the one path), fsync it, then rename it over ``path``; the
+    temporary file is removed if anything fails."""
+    p = literal_path(path)
     tmp = str(p.with_name(f".{p.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"))  # (umask applies)
     try:
         write(tmp)

@@ -76,7 +76,8 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from .atomic_files import FolderLockedError, folder_lock, names_nothing, replace_atomically, write_text_atomic
+from .atomic_files import (FolderLockedError, folder_lock, literal_path, names_nothing, replace_atomically,
+                           write_text_atomic)
 from .errors import ProblemInputError
 from .export_plan import (
     MAX_QPS,
@@ -519,7 +520,7 @@ def _qpbenchmark_cells(path: str | Path, name: str) -> Any:
     """The row of problem ``name``, read as qpbenchmark's ParquetTestSet reads it."""
     import pandas as pd
 
-    df = pd.read_parquet(path, engine="pyarrow")
+    df = pd.read_parquet(literal_path(path), engine="pyarrow")
     hit = df[df["name"] == name]
     if len(hit) != 1:
         raise ProblemInputError(f"{path}: no problem named {name!r}")

@@ -68,7 +68,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from contactbench.problems.atomic_files import names_nothing
+from contactbench.problems.atomic_files import literal_path, names_nothing
 from contactbench.problems.errors import ProblemInputError
 
 import pandas as pd
@@ -605,8 +605,8 @@ def _read_csv(path: Path) -> pd.DataFrame:
     head: Any = ()
     try:
         text = {c: "string" for c in columns_of("string")}
-        head = pd.read_csv(path, nrows=0).columns
-        df = pd.read_csv(path, dtype={c: t for c, t in text.items() if c in head}, keep_default_na=True)
+        head = pd.read_csv(literal_path(path), nrows=0).columns
+        df = pd.read_csv(literal_path(path), dtype={c: t for c, t in text.items() if c in head}, keep_default_na=True)
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         cut = cut_row(path, len(head)) if len(head) and not isinstance(exc, UnicodeDecodeError) else None
         if cut is None:
@@ -648,7 +648,7 @@ def _read_run_dir(out: Path) -> pd.DataFrame:
     without writing anything), else results.csv."""
     pq, csv, journal = out / PARQUET_FILE, out / CSV_FILE, out / ROWS_FILE
     if pq.is_file() and not (journal.is_file() and journal.stat().st_mtime > pq.stat().st_mtime):
-        return pd.read_parquet(pq)
+        return pd.read_parquet(literal_path(pq))
     if journal.is_file():
         return tidy_table(checked_journal(journal))
     if csv.is_file():
@@ -666,7 +666,7 @@ def load_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     if p.is_dir():
         df = _read_run_dir(p)
     elif p.suffix == ".parquet" and p.is_file():
-        df = pd.read_parquet(p)
+        df = pd.read_parquet(literal_path(p))
     elif p.suffix == ".csv" and p.is_file():
         df = _read_csv(p)
     elif not p.exists():

@@ -18,6 +18,7 @@ import logging
 from pathlib import Path
 
 import pandas as pd
+from contactbench.problems.atomic_files import literal_path
 
 from ..claims import CLAIMS, CONDITIONS, LEDGER_COLUMNS, LEDGER_NAME, VERDICTS, write_ledger
 from ...table.files import write_text_atomic
@@ -63,7 +64,7 @@ def read_ledger(path: str | Path) -> pd.DataFrame:
     from their lists; ``measured`` as floats (blank: NaN)."""
     p = Path(path)
     try:
-        df = pd.read_csv(p, dtype=str, keep_default_na=False)
+        df = pd.read_csv(literal_path(p), dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise ReportInputError(f"{p}: not a readable CSV ledger ({exc})") from None
     missing = [c for c in LEDGER_COLUMNS if c not in df.columns]

@@ -28,6 +28,7 @@ from typing import Any, Sequence
 
 import numpy as np
 import pandas as pd
+from contactbench.problems.atomic_files import literal_path
 
 from contactbench.problems.scenes import SceneConfig, get_scene
 
@@ -173,7 +174,7 @@ def write_population_report(out_dir: str | Path, dest: str | Path | None = None,
     stats = population_summary(out_dir, cfg)
     dest = Path(dest or out_dir)
     dest.mkdir(parents=True, exist_ok=True)
-    stats.to_csv(dest / "population_stats.csv", index=False)
+    stats.to_csv(literal_path(dest / "population_stats.csv"), index=False)
     return write_own_page(dest / "population.md", POPULATION_TITLE, f"\n{_intro()}\n\n{population_table(stats)}\n")
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
+from contactbench.problems.atomic_files import literal_path
 
 from ..core import ReportContext, Section, markdown_table, natural_key, register_section, table_md
 from ..markdown_text import md_code
@@ -56,7 +57,7 @@ GOOD = ("pass", "refused", "skipped")
 
 def load_survival(results: Path) -> list[tuple[pd.DataFrame, str]]:
     """The verdict rows of each battery mode present ("fast", "full")."""
-    return [(pd.read_csv(results / f"survival-{m}.csv"), m) for m in ("fast", "full")
+    return [(pd.read_csv(literal_path(results / f"survival-{m}.csv")), m) for m in ("fast", "full")
             if (results / f"survival-{m}.csv").exists()]
 
 
@@ -154,7 +155,7 @@ def render_stress_section(results: Path) -> str:
                   _md(findings(rows).reset_index(drop=True)), ""]
     cond_paths = sorted(results.glob("conditioning*.csv"))
     if cond_paths:
-        cond = pd.concat([pd.read_csv(p) for p in cond_paths], ignore_index=True)
+        cond = pd.concat([pd.read_csv(literal_path(p)) for p in cond_paths], ignore_index=True)
         parts += ["## cond(H_II) against n (BCC and Love, aperiodic; random trial sets at packing density d)", "",
                   "Dense eigvalsh up to n = 2500, Lanczos (ARPACK eigsh) on the FFT operator beyond.", "",
                   _md(cond_table(cond)), ""]
@@ -168,7 +169,7 @@ def write_stress_report(results: Path) -> Path:
     refuse_foreign_page(results / "README.md", STRESS_TITLE)
     text = render_stress_section(results)
     for rows, mode in load_survival(results):
-        survival_matrix(rows).to_csv(results / f"survival_matrix-{mode}.csv")
+        survival_matrix(rows).to_csv(literal_path(results / f"survival_matrix-{mode}.csv"))
     path = results / "README.md"
     write_text_atomic(path, text)
     return path
