@@ -255,8 +255,12 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
                              "resumes the rest") from None
         raise
     bar.close()
-    with signals_deferred():  # (a second Ctrl-C while the table is written waits for it)
-        table = ResultStore(store.out).finalize()
+    try:
+        with signals_deferred():  # (a second Ctrl-C while the table is written waits for it)
+            table = ResultStore(store.out).finalize()
+    except OSError as exc:  # every cell ran, the table could not be written: no bad input
+        raise RunStopped(f"{os_error_line(exc)}; the table was not written, the rows stored are kept: the same "
+                         "command writes it") from None
     counts = {str(k): int(v) for k, v in table["status"].value_counts().items()} if len(table) else {}
     return RunSummary(str(store.out), len(table), len(table) - before, counts, time.perf_counter() - t0, plan.warnings)
 
