@@ -69,6 +69,7 @@ import contextlib
 import itertools
 import json
 import os
+import shutil
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -95,6 +96,7 @@ from .operators import PRECISIONS
 from .qpfile import (
     DENSE_LIMIT,
     PROBLEM_DIR_FILES,
+    payload_nbytes,
     problem_json,
     problem_payload,
     read_problem_dir,
@@ -207,6 +209,7 @@ def _export_locked(plan: ExportPlan, scene_name: str, qps: Iterator[tuple[Planne
             if inst is None:  # (qpbenchmark: n over the dense limit)
                 summary.skipped.append({"name": name, "n": qp.n, "reason": f"n > dense limit {limit} (P must be dense)"})
                 continue
+            check_room(out_dir, payload_nbytes(inst, limit), name)
             entry = ExportedQP(name, scene_name, qp.instance, qp.step, inst.n, _finite(inst.delta), inst.n <= limit,
                                data_dtype(inst).name)
             if fmt == "problem-dir":
@@ -254,6 +257,22 @@ def _in_parquet(write: Callable[[Any], None]) -> Callable[[str], None]:
             raise
         sink.close()
     return to
+
+
+#: The disk space (bytes) an export leaves free beyond what it writes (``check_room``).
+DISK_RESERVE_BYTES = 256 * 1024 * 1024
+
+
+def check_room(out_dir: Path, nbytes: int, name: str) -> None:
+    """A one-line ``ProblemInputError`` naming QP ``name`` unless its ``nbytes`` and
+    ``DISK_RESERVE_BYTES`` fit the free space of the disk that holds ``out_dir``, checked
+    before the QP is written: an export never fills a disk (what it wrote of a single file
+    is removed, ``replace_atomically``)."""
+    free = shutil.disk_usage(out_dir).free
+    if nbytes + DISK_RESERVE_BYTES > free:
+        raise ProblemInputError(f"{name}: writing it takes about {nbytes / 1e9:.3g} GB and the disk of {out_dir} "
+                                f"has {free / 1e9:.3g} GB free; free some space, choose another --out or a smaller "
+                                "scene")
 
 
 def data_dtype(inst: ContactInstance) -> np.dtype:

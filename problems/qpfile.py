@@ -156,6 +156,17 @@ def _finite_or_none(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(float(x)) else float(x)
 
 
+def payload_nbytes(qp_or_instance: QP | ContactInstance, dense_limit: int = DENSE_LIMIT) -> int:
+    """The bytes of ``problem_payload``'s arrays without a warm start, counted without
+    building them (the dense H is not made): what writing the QP takes on a disk, its
+    problem.json aside."""
+    qp, phys = _physics(qp_or_instance)
+    n = qp.n
+    vectors = 1 + (2 if qp.geometry is not None else 0) + (1 if qp.constraints.bounded else 0)
+    table = problem_kernel_table(qp, phys)
+    return 8 * (n * vectors + (n * n if n <= dense_limit else 0) + (0 if table is None else int(table.size)))
+
+
 def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, time_limit: float | None,
                     p0: np.ndarray | None = None,
                     dense_limit: int = DENSE_LIMIT) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
