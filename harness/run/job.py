@@ -338,7 +338,7 @@ class JobDriver:
         """Take the first of ``names`` whose reference of this step is stored in OUT/_cache/."""
         for name in names:
             path = self.reference_path(ctx.k, name)
-            if path.exists():
+            if path.is_file() and not path.is_symlink():  # (its content is read by the worker: ``read_reference``)
                 ctx.reference_solver, ctx.reference_path = name, str(path)
                 return True
         return False

@@ -37,6 +37,7 @@ import os
 import sys
 import threading
 import time
+import zipfile
 from time import monotonic, sleep  # (the grace for threads left: not the solve's clock, ``time.perf_counter``)
 from types import FrameType
 from dataclasses import dataclass, field, replace
@@ -376,23 +377,25 @@ class SolveServer:
         """Drop every built step and dense H (after a solver wrote into one)."""
         self.seq, self.steps, self.dense = None, {}, {}
 
-    def reference_p(self, path: str | None) -> np.ndarray | None:
+    def reference_p(self, path: str | None, n: int) -> np.ndarray | None:
+        """The stored reference answer of a step of ``n`` unknowns at ``path``
+        (``read_reference``), held once read; None where there is none to read."""
         if not path:
             return None
         if path not in self.refs:
-            if not os.path.exists(path):
+            p = read_reference(path, n)
+            if p is None:
                 return None
-            with np.load(path) as data:
-                self.refs[path] = np.asarray(data["p"], dtype=np.float64)
+            self.refs[path] = p
         return self.refs[path]
 
     # -- solving ----------------------------------------------------------
     def reference(self, msg: ComputeReference) -> ReferenceReply:
-        """Load the stored reference, or compute it once and store it."""
-        if os.path.exists(msg.path):
-            self.reference_p(msg.path)
-            return ReferenceReply(msg.base, cached=True)
+        """Load the stored reference, or compute it once and store it (over a stored file
+        that ``read_reference`` cannot read as this step's)."""
         inst, _ = self.ensure_step(msg.step)
+        if self.reference_p(msg.path, inst.n) is not None:
+            return ReferenceReply(msg.base, cached=True)
         qp = self.qp_for(msg.step, msg.operator)
         settings = SolverSettings(tol=get_profile(REFERENCE_PROFILE).tol, time_limit=msg.time_limit)
         t0 = time.perf_counter()
@@ -522,7 +525,7 @@ class SolveServer:
             trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
         )
         reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
-        p_ref = self.reference_p(task.reference_path)
+        p_ref = self.reference_p(task.reference_path, inst.n)
         tampered = seal.broken(qp)
         seal.mend(qp)  # (before the judge reads the problem: its products run the sealed code and state)
         reply.threads_left = left
@@ -546,6 +549,21 @@ class SolveServer:
             with contextlib.suppress(OSError):  # a full disk costs a resume its exact start, not this row
                 self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
         return reply
+
+
+def read_reference(path: str, n: int) -> np.ndarray | None:
+    """The reference answer stored at ``path`` for a step of ``n`` unknowns; None where
+    there is none to read: no file, a link or anything but a plain file (a run never reads
+    through a link), an archive that cannot be read (no pickles) or whose ``p`` is not n
+    finite numbers (a file edited by hand, cut short, or another step's)."""
+    if os.path.islink(path) or not os.path.isfile(path):
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            p = np.asarray(data["p"], dtype=np.float64)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    return p if p.shape == (n,) and bool(np.all(np.isfinite(p))) else None
 
 
 def running_threads() -> set[int]:

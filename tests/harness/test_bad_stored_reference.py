@@ -1,0 +1,66 @@
+"""A stored reference answer the run cannot read as its step's -- cut short, another
+step's, not finite, a link -- is no reference (``worker.read_reference``): the solves of
+that step are judged, never failed by a harness error put on their rows, and the
+reference is computed again where it is asked."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from contactbench.harness.run.worker import read_reference
+from tests.helpers import run_cli
+
+
+def test_read_reference_reads_only_a_step_s_own_finite_answer(tmp_path: Path) -> None:
+    good = tmp_path / "good.npz"
+    np.savez(good, p=np.arange(5.0))
+    assert np.array_equal(read_reference(str(good), 5), np.arange(5.0))
+    assert read_reference(str(good), 4) is None  # another step's length
+    nan = tmp_path / "nan.npz"
+    np.savez(nan, p=np.array([1.0, np.nan]))
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(good.read_bytes()[:40])
+    pickled = tmp_path / "pickled.npz"
+    np.savez(pickled, p=np.array([{"a": 1}], dtype=object))
+    nokey = tmp_path / "nokey.npz"
+    np.savez(nokey, q=np.arange(5.0))
+    link = tmp_path / "link.npz"
+    os.symlink(good, link)
+    for path, n in ((nan, 2), (empty, 5), (cut, 5), (pickled, 1), (nokey, 5), (link, 5), (tmp_path / "none.npz", 5)):
+        assert read_reference(str(path), n) is None, path
+    folder = tmp_path / "folder.npz"
+    folder.mkdir()
+    assert read_reference(str(folder), 5) is None
+
+
+def test_a_wrong_stored_reference_is_computed_again_not_charged_to_the_solvers(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    args = ["run", "paper-sweep", "--size", "16", "--steps", "3", "--solvers", "pk,nnls", "--no-progress",
+            "--no-warmup", "--out", str(out)]
+    rc, _, err = run_cli(args, capsys)
+    assert rc == 0, err
+    refs = sorted((out / "_cache").glob("ref-*-k2-*.npz"))
+    assert refs
+    first = sorted((out / "_cache").glob("ref-*-k0-*.npz"))[0]
+    for ref in refs:
+        ref.write_bytes(first.read_bytes())  # step 0's answer, of another length
+    journal = out / "rows.jsonl"
+    kept = [line for line in journal.read_text().splitlines() if json.loads(line).get("step") != 2]
+    journal.write_text("".join(line + "\n" for line in kept))
+    for name in ("results.parquet", "results.csv"):
+        (out / name).unlink(missing_ok=True)
+    rc, _, err = run_cli(args, capsys)
+    assert rc == 0, err
+    table = pd.read_csv(out / "results.csv")
+    top = table[table["step"] == 2]
+    assert len(top) == 2 and set(top["status"]) == {"solved"}, top[["solver", "status", "error"]]
+    assert top["error"].isna().all()
