@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import math
 from abc import abstractmethod
 from dataclasses import replace
 from typing import Any
@@ -188,11 +189,19 @@ def check_float_range(params: dict[str, Any], surface: Surface, seen: set[Any]) 
     (``recipe_builder``), so that values within their options' rules but beyond float64
     (``--allow-any-E``, ``--allow-implausible``) are refused before anything runs: the
     kernel table (``kernels.kernel_table``: influence coefficients float64 cannot hold, a
-    one-line ``ProblemInputError`` naming E) and, under load control, each step's force
+    one-line ``ProblemInputError`` naming E), E* A and a hardness's element bound (forces
+    float64 must hold: the judge reads loads as P / (E* A)) and, under load control, each step's force
     P = load E* A (``InstanceBuilder.load_force``), which must be a finite number (the
     check ``build_load`` makes).  (The nominal area A itself is ``Surface``'s check.)
     ``seen``: the (kernel, grid, E, boundary, layer) keys whose table already passed."""
     builder = recipe_builder(params, surface)
+    scale = builder.load_force(1.0)
+    if not 0.0 < scale < math.inf:
+        raise ProblemInputError(f"E* A on {surface.name!r} is a force float64 cannot hold ({scale!r}: E* "
+                                f"{builder.E:g} Pa times the nominal area); choose E and the lengths within their "
+                                "plausible ranges")
+    if params.get("hardness") is not None:
+        builder.constraints(1, float(params["hardness"]))  # (the bounds' own check: H_A times an element's area)
     key = (builder.kernel, surface.shape, surface.spacing, builder.E, builder.periodic, builder.layer)
     if key not in seen:
         _ = builder.transform  # (the table the build makes, and its check)
@@ -208,7 +217,7 @@ def check_float_range(params: dict[str, Any], surface: Surface, seen: set[Any]) 
 
 
 #: The recipe values whose plausible ranges keep a build's numbers within float64.
-FLOAT_RANGE_OPTIONS = ("E", "length", "loads", "thickness")
+FLOAT_RANGE_OPTIONS = ("E", "length", "loads", "thickness", "hardness")
 
 
 def outside_plausible(params: dict[str, Any]) -> bool:

@@ -1,5 +1,6 @@
 """``--allow-any-E`` and ``--allow-implausible`` lift plausibility, not float64: a value
-whose kernel table, nominal area or load-step force a float64 cannot hold is refused by
+whose kernel table, nominal area, E* A, hardness bound or load-step force a float64 cannot
+hold is refused by
 the plan in one line, exit 2, before the results folder is made
 (``scenes.core.check_float_range``, ``Surface``'s area), for ``run`` as for ``export``."""
 
@@ -21,6 +22,11 @@ CASES = {
     "loads-1e308": (["--control", "load", "--loads", "1e308", "--allow-implausible"], "a force float64 cannot hold"),
     "length-1e308": (["--steps", "2", "--length", "1e308", "--allow-implausible"], "nominal area"),
     "length-1e-300": (["--steps", "2", "--length", "1e-300", "--allow-implausible"], "nominal area"),
+    "hardness-1e-316": (["--steps", "2", "--hardness", "1e-316", "--allow-implausible"],
+                        "times the element area"),
+    "E-A-underflow": (["--steps", "2", "--length", "1e-150", "--E", "1e-100", "--allow-any-E", "--allow-implausible"],
+                      "E* A"),
+    "E-A-overflow": (["--steps", "2", "--length", "1e150", "--allow-implausible"], "E* A"),
 }
 
 
