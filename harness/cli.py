@@ -447,7 +447,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | 
                         warmup=not args.no_warmup, jobs=args.jobs, reference=args.reference,
                         reference_timeout=args.reference_timeout, threads_per_worker=args.threads,
                         progress=False if args.no_progress else None, **kw)
-    out = args.out if args.out is not None else "results/" + "-".join(args.scenes)  # ("" is refused, not the default)
+    out = run_out(args)
     check_out_dir(out)
     # run_benchmark plans, checks the folder, then holds its lock (harness/table/store.py) while it writes
     with memory_budget_scope(kw.get("memory_budget")):  # the run's skips and builds read it too
@@ -551,7 +551,15 @@ def interrupted_text(args: argparse.Namespace) -> str:
                 "again to finish it")
     if args.command == "report":
         return "no report was written; the last one and its figures are as they were"
+    if args.command == "run" and not has_results_table(run_out(args)):
+        return f"no row was written to {run_out(args)}; run the same command again to start"
     return "rows so far are kept; run the same command again to finish"
+
+
+def run_out(args: argparse.Namespace) -> str:
+    """The results folder of ``contactbench run``: ``--out``, else results/<scene names>
+    (an empty ``--out`` is refused, not read as the default)."""
+    return args.out if args.out is not None else "results/" + "-".join(args.scenes)
 
 
 def has_results_table(out_dir: str) -> bool:

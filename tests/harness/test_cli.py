@@ -506,7 +506,8 @@ def test_params_of_a_listing_without_parameters_is_refused(capsys: pytest.Captur
 def test_an_interrupted_command_says_what_it_left(tmp_path: Path) -> None:
     """Ctrl-C: a report says no report was written (it said "rows so far are kept", the
     run's line); an export that made no folder says nothing was exported (it pointed to a
-    manifest.json that does not exist)."""
+    manifest.json that does not exist); a run stopped before it wrote a row says so (it
+    said its rows were kept, with no folder made)."""
     from argparse import Namespace
 
     from contactbench.harness.cli import interrupted_text
@@ -515,7 +516,11 @@ def test_an_interrupted_command_says_what_it_left(tmp_path: Path) -> None:
     assert interrupted_text(Namespace(command="export", out=str(tmp_path / "none"))).startswith("nothing was exported")
     (tmp_path / "manifest.json").write_text("{}")
     assert "incomplete" in interrupted_text(Namespace(command="export", out=str(tmp_path)))
-    assert interrupted_text(Namespace(command="run")).startswith("rows so far are kept")
+    run = tmp_path / "run"
+    assert interrupted_text(Namespace(command="run", out=str(run), scenes=["hertz"])).startswith("no row was written")
+    run.mkdir()
+    (run / "rows.jsonl").write_text("{}\n")
+    assert interrupted_text(Namespace(command="run", out=str(run), scenes=["hertz"])).startswith("rows so far are kept")
 
 
 def test_an_export_that_skips_a_qp_exits_1_not_0(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
