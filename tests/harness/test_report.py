@@ -572,9 +572,15 @@ def test_a_run_without_a_reference_draws_no_empty_error_panel(tmp_path: Path, mo
     assert blank_panels(fig) == []
     assert "no reference solution (`--reference none`)" in text
     # a run that asked for a reference none of whose candidates served says that, not "none"
-    write_out(out, pd.DataFrame(rows, columns=list(ALL_COLUMNS)), {**META, "config": {"run": {"reference": "auto"}}})
+    none_served = pd.DataFrame(rows, columns=list(ALL_COLUMNS)).assign(reference_solver="")
+    write_out(out, none_served, {**META, "config": {"run": {"reference": "auto"}}})
     text = build_report(out, html=False).read_text()
     assert "`--reference none`" not in text and "the run asked for one, but no candidate served" in text
+    # a reference that served, with no answer measured against it, is named, not denied
+    served = pd.DataFrame(rows, columns=list(ALL_COLUMNS)).assign(reference_solver="scipy-nnls")
+    write_out(out, served, {**META, "config": {"run": {"reference": "auto"}}})
+    text = build_report(out, html=False).read_text()
+    assert "no candidate served" not in text and "(`scipy-nnls`) served, but no answer here" in text
     assert markers["fast-a"] != markers["peer-a"] and markers["fast-a"] != markers["paper-a"]
     _, labels = visible[0].get_legend_handles_labels()
     assert not any(lab.startswith("profile ") for lab in labels)  # one profile: nothing to key

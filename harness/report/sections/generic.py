@@ -105,8 +105,9 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         rel = ctx.save_figure(fig, f"wp-{scene}")
         cap = f"run time against error, scene `{scene}` ({len(r)} solves, {len(solvers)} solvers)."
         if not referenced:
+            asked = references_asked(ctx.meta)
             cap += (own_reference_only_note(r) if r[OWN_REF].any() else
-                    no_reference_note(references_asked(ctx.meta)))
+                    unmeasured_note(r) if asked is not False and references_served(r) else no_reference_note(asked))
         else:
             cap += reference_note(r)
         cap += panels_note(panels)
@@ -165,6 +166,13 @@ def own_reference_only_note(rows: pd.DataFrame) -> str:
     every answer measured against it is the reference's own."""
     return (f" The only answers measured against the reference ({references_served(rows)}) are the "
             f"reference's own (error in p 0 by construction): the error in p is not drawn.")
+
+
+def unmeasured_note(rows: pd.DataFrame) -> str:
+    """Why a work-precision figure draws no error in p although a reference served: no
+    answer of ``rows`` has one (each failed, or gave no answer to measure)."""
+    return (f" The reference solution ({references_served(rows)}) served, but no answer here has an error in p "
+            f"against it (none gave an answer to measure): the error in p is not drawn.")
 
 
 def no_reference_note(asked: bool | None) -> str:
