@@ -14,8 +14,8 @@ Every adapter solves, by default, the scaled problem
 
     p = s D p~,   D = diag(d),  d_i = 1 / sqrt(H_ii),
     H~ = D H D                       (unit diagonal: a symmetric Jacobi scaling),
-    u~ = D ubar / s,   s = max_i |(D ubar)_i|   (so max |u~| = 1; s = 1 when ubar = 0 or
-                                              so small that s D underflows),
+    u~ = D ubar / s,   s = max_i |(D ubar)_i|   (so max |u~| = 1; s = 1 where s D
+                                              underflows or s overflows),
 
     min 1/2 p~' H~ p~ - u~' p~,  p~ >= 0,
 
@@ -23,6 +23,13 @@ whose objective is the original one divided by s^2 and whose feasible set is the
 cone (D > 0, s > 0).  Then p = s D p~ and the gap w = Hp - ubar = s D^{-1} w~.  For the
 BCC and Love kernels diag(H) is constant, so D is a multiple of the identity and every
 scaled figure is order one: H~_ij in (0, 1], u~ in [0, 1], p~ = O(1).
+
+Under load control the relief is not always the problem's length: the judge's
+displacement scale u_s (``problems.kkt.constrained_scales``) is then the load's own where
+the load is heavy or light for the relief (or the surface flat), and s is max |D ubar|
+times u_s / ||ubar||_inf (``equilibration_for``), so w~ and p~ are read in the judge's
+scales and the load row below stays order one (on heights at 1e-300 under
+P / (E A) = 1e-3 the relief's s put its right-hand side at 1e292, past OSQP's 1e30).
 
 Bounds and a load equality (``problems.constraints``) scale with p: the box 0 <= p <= u
 is 0 <= p~ <= u / (s d) (``ScaledQP.ub``) and sum(p) = P is the row d'p~ = P / s,
@@ -66,8 +73,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from contactbench.problems.instances import QP
-from contactbench.problems.constraints import fit_multiplier
-from contactbench.problems.kkt import constrained_kkt_error
+from contactbench.problems.constraints import Constraints, fit_multiplier
+from contactbench.problems.kkt import constrained_kkt_error, constrained_scales
 from contactbench.problems.lcp import bpp_polish
 from contactbench.problems.mixed_lcp import box_polish
 from contactbench.problems.operators import DenseOperator, memory_budget
@@ -118,17 +125,33 @@ class Equilibration:
         return self.s * np.asarray(w_scaled, dtype=np.float64) / self.d
 
 
-def equilibration_for(diag_H: np.ndarray, ubar: np.ndarray, enabled: bool = True) -> Equilibration:
-    """The Jacobi-plus-rhs equilibration of the module doc (identity when disabled)."""
-    n = int(np.asarray(ubar).size)
+def equilibration_for(diag_H: np.ndarray, ubar: np.ndarray, enabled: bool = True,
+                      constraints: Constraints | None = None) -> Equilibration:
+    """The Jacobi-plus-rhs equilibration of the module doc (identity when disabled):
+    s = max |D ubar| u_s / ||ubar||_inf, the scaled relief with its length put to the
+    judge's displacement scale u_s (``kkt.constrained_scales`` of ``constraints``) --
+    max |D ubar| itself without a load, where u_s is the relief; the load's own length
+    where it sets u_s (a load heavy for the relief, a flat surface: then max(d) u_s),
+    so the load row's P / (s max d) is the load in force scales, not P over the relief's
+    (1e292 on heights at 1e-300).  s = 1 where s d underflows or s overflows."""
+    ubar = np.asarray(ubar, dtype=np.float64)
+    n = int(ubar.size)
     if not enabled:
         return Equilibration(np.ones(n), 1.0, False)
     diag_H = np.asarray(diag_H, dtype=np.float64)
     if np.any(~np.isfinite(diag_H)) or np.any(diag_H <= 0.0):
         raise ValueError("H must have a finite positive diagonal to be equilibrated")
     d = 1.0 / np.sqrt(diag_H)
-    s = float(np.max(np.abs(d * ubar), initial=0.0))
-    if not s * float(np.min(d)) >= np.finfo(np.float64).tiny:  # ubar = 0, or so small that s d underflows
+    top = float(np.max(np.abs(ubar), initial=0.0))
+    u_s, _ = constrained_scales(ubar, float(np.max(diag_H)), constraints or Constraints(), top)
+    relief = float(np.max(np.abs(d * ubar), initial=0.0))
+    if u_s == top:  # the relief is the length
+        s = relief
+    elif relief > 0.0:
+        s = relief * (u_s / top)
+    else:  # ubar = 0 (a flat surface under a load)
+        s = float(np.max(d)) * u_s
+    if not (s * float(np.min(d)) >= np.finfo(np.float64).tiny and s < np.inf):  # s d underflows, or s overflows
         s = 1.0
     return Equilibration(d, s, True)
 
@@ -163,7 +186,7 @@ def assemble_scaled(qp: QP, scaling: bool = True, p0: np.ndarray | None = None) 
     validated and clipped to p >= 0 by the lifecycle; the scaling keeps its sign)."""
     H = dense_matrix(qp)
     ubar = np.asarray(qp.ubar, dtype=np.float64)
-    eq = equilibration_for(np.diag(H), ubar, scaling)
+    eq = equilibration_for(np.diag(H), ubar, scaling, qp.constraints)
     Hs = eq.scale_matrix(H)
     us = eq.scale_rhs(ubar)
     x0 = None if p0 is None else eq.to_scaled(p0)

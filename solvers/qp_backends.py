@@ -22,16 +22,26 @@ KKT errors of 2e-6 to 1.1e-4 on a 32^2 rough case; mapped from 1e-6 they reach
 3e-7 so it is lowered with the tolerance, CVXOPT needs its tolerances at 1e-10 or
 below.  PIQP and ProxQP get dense input (10-20x faster at n ~ 3000).
 
+ProxQP is called through proxsuite's own ``proxqp.dense.QP``, posed as qpsolvers poses it
+(``proxqp_solve_problem``, ``BackendSpec.call``): qpsolvers' call cannot set its inner
+loop's limit ``max_iter_in``, which its ``max_iter`` (outer iterations) leaves at 1500 each.
+Its iterations are its outer ones (``PROXQP_ITERATIONS``); a limit bounds both loops.
+
+Iteration limits: ``max_iter`` goes to each backend's own limit (``_limits``); a limit of 0
+calls no backend (``ZERO_LIMIT_NOTE``): the start with 0 iterations, status max_iter.  A
+count the backend never set (refused settings) reads 0 (``_status_of``).
+
 Parameters: ``scaling`` (bool), ``input_format`` ("dense"/"sparse", default the
 backend's) and ``backend_options`` (dict of the backend's own options, applied last).
 The backend's status string is kept in ``info["backend_status"]``.
 
-Warm start: qpsolvers forwards the primal to OSQP, ProxQP, QPALM, SCS and CVXOPT
-(declared "primal"); Clarabel, PIQP, HiGHS, DAQP, quadprog and ECOS ignore it ("none").
+Warm start: the primal goes to OSQP, ProxQP, QPALM, SCS and CVXOPT (declared "primal");
+Clarabel, PIQP, HiGHS, DAQP, quadprog and ECOS ignore it ("none").
 """
 
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar
@@ -39,7 +49,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 import scipy.sparse as sp
 
-from .base import Capabilities, Param, SolveContext, WarmKind
+from .base import Capabilities, Outcome, Param, SolveContext, Status, WarmKind
 from .registry import register
 from ._scaling import (BACKEND_OPTIONS, SCALING, BackendOutcome, EquilibratedAdapter, Request, ScaledQP,
                        missing_package_message, request_of)
@@ -86,14 +96,70 @@ def clarabel_options(req: Request) -> dict[str, Any]:
     return out
 
 
+#: ProxQP's iteration limit when a tolerance is asked and no limit is: on its outer
+#: iterations (``PROXQP_ITERATIONS``) and on each inner loop.  It stops after 1 to 15 outer
+#: iterations and at most 45 Newton steps in all on 16^2-48^2 rough, periodic, hardness and
+#: load cases at 1e-3 to 1e-9; its own limits (10000 outer, 1500 inner each) let a solve that
+#: does not converge run 1.5e7 steps.
+PROXQP_MAX_ITER = 1000
+
+#: What this module counts as ProxQP's iterations: its outer (proximal multiplier)
+#: iterations, ``info.iter_ext``, the unit of its ``max_iter``.  Each runs an inner
+#: semi-smooth Newton loop of at most ``max_iter_in`` steps, all of them counted in
+#: ``info.iter`` (reported as ``info["inner_iterations"]``).
+PROXQP_ITERATIONS = "iter_ext"
+
+#: ``proxqp.dense.QP.init``'s own options (everything else is a ``proxqp.Settings`` field).
+PROXQP_INIT_KEYS = ("compute_preconditioner", "rho", "mu_eq", "mu_in", "manual_minimal_H_eigenvalue")
+
+
 def proxqp_options(req: Request) -> dict[str, Any]:
-    """Proximal augmented Lagrangian: eps_abs with eps_rel = 0, plus the duality gap."""
-    out = _limits(req, "max_iter", None)
+    """Proximal augmented Lagrangian: eps_abs with eps_rel = 0, plus the duality gap.  A
+    limit bounds both of ProxQP's loops (``max_iter`` outer, ``max_iter_in`` each inner
+    loop; ``PROXQP_MAX_ITER`` when a tolerance is asked without one), so the outer
+    iterations it reports (``PROXQP_ITERATIONS``) are at most the limit and its Newton
+    steps at most the limit squared."""
+    limit = req.max_iter if req.max_iter is not None else PROXQP_MAX_ITER if req.tol is not None else None
+    out: dict[str, Any] = {} if limit is None else {"max_iter": int(limit), "max_iter_in": int(limit)}
     if req.tol is not None:
         out.update(eps_abs=req.tol, eps_rel=0.0, check_duality_gap=True,
                    eps_duality_gap_abs=req.tol, eps_duality_gap_rel=0.0)
-        out.setdefault("max_iter", 100_000)
     return out
+
+
+def proxqp_solve_problem(problem: Any, initvals: np.ndarray | None = None, **options: Any) -> Any:
+    """ProxQP's dense solver on a qpsolvers ``Problem`` as qpsolvers' own ProxQP interface
+    poses it (the box stacked under the inequalities, ``combine_linear_box_inequalities``;
+    ``initvals`` the primal warm start), through a ``proxqp.dense.QP`` whose ``settings``
+    take every option by ProxQP's own name -- ``max_iter_in`` among them, which the
+    ``proxqp.dense.solve`` that qpsolvers calls does not take; ``PROXQP_INIT_KEYS`` go to
+    ``init``.  An option ProxQP does not have raises TypeError.  Returns a qpsolvers
+    ``Solution``: ``extras`` holds ProxQP's ``info``, its outer iterations as ``iter``
+    (``PROXQP_ITERATIONS``) and its Newton steps as ``inner_iterations``."""
+    import qpsolvers
+    from proxsuite import proxqp
+    from qpsolvers.conversions import combine_linear_box_inequalities
+
+    t0 = time.perf_counter()
+    P, q, G, h, A, b, lb, ub = problem.unpack()
+    n = int(q.shape[0])
+    C, u, l = combine_linear_box_inequalities(G, h, lb, ub, n, False)
+    qp = proxqp.dense.QP(n, 0 if A is None else int(A.shape[0]), 0 if C is None else int(C.shape[0]))
+    init = {key: options.pop(key) for key in PROXQP_INIT_KEYS if key in options}
+    for key, value in options.items():
+        if not hasattr(qp.settings, key):
+            raise TypeError(f"ProxQP has no setting {key!r}")
+        setattr(qp.settings, key, value)
+    t1 = time.perf_counter()
+    qp.init(P, q, A, b, C, l, u, **init)
+    qp.solve(initvals, None, None)
+    info = qp.results.info
+    sol = qpsolvers.Solution(problem)
+    sol.extras = {"info": info, "iter": getattr(info, PROXQP_ITERATIONS), "inner_iterations": info.iter}
+    sol.found = info.status == proxqp.QPSolverOutput.PROXQP_SOLVED
+    sol.x = qp.results.x
+    sol.build_time, sol.solve_time = t1 - t0, time.perf_counter() - t1
+    return sol
 
 
 def piqp_options(req: Request) -> dict[str, Any]:
@@ -195,12 +261,15 @@ class BackendSpec:
     time_coef: float  # t ~ coef * n^exponent seconds, fitted by bench_qp_backends.py
     time_exponent: float = 3.0
     accuracy_floor: float | None = None  # smallest scaled KKT error it reaches, if > 1e-8
+    #: how it is called: (problem, initvals, **options) -> qpsolvers Solution; None: qpsolvers.solve_problem
+    call: Callable[..., Any] | None = None
 
 
 BACKENDS: tuple[BackendSpec, ...] = (
     BackendSpec("osqp", "osqp", "ADMM", "sparse", "primal", osqp_options, 5.5, 1.4e-9),
     BackendSpec("clarabel", "clarabel", "interior point", "sparse", "none", clarabel_options, 5.5, 1.7e-9),
-    BackendSpec("proxqp", "proxsuite", "proximal augmented Lagrangian", "dense", "primal", proxqp_options, 9.0, 1.5e-9),
+    BackendSpec("proxqp", "proxsuite", "proximal augmented Lagrangian", "dense", "primal", proxqp_options, 9.0, 1.5e-9,
+                call=proxqp_solve_problem),
     BackendSpec("piqp", "piqp", "proximal interior point", "dense", "none", piqp_options, 6.0, 4e-10),
     BackendSpec("scs", "scs", "operator splitting", "sparse", "primal", scs_options, 5.5, 1e-9),
     BackendSpec("highs", "highspy", "active set", "sparse", "none", highs_options, 5.5, 1e-8),
@@ -213,8 +282,15 @@ BACKENDS: tuple[BackendSpec, ...] = (
 )
 
 
+#: Words of a backend's status saying it refused its settings and ran nothing (PIQP's
+#: PIQP_INVALID_SETTINGS): its iteration counter was never set, so it is not read.
+REFUSED_STATUS_WORDS = ("invalid",)
+
+
 def _status_of(sol: Any) -> tuple[str, int]:
-    """The backend's own status string and iteration count from a qpsolvers Solution."""
+    """The backend's own status string and iteration count from a qpsolvers Solution: 0
+    where the status says the backend refused its settings (``REFUSED_STATUS_WORDS``) or
+    the count is not a number >= 0 (a counter never set)."""
     extras = getattr(sol, "extras", None) or {}
     status: Any = None
     iters: Any = None
@@ -227,11 +303,18 @@ def _status_of(sol: Any) -> tuple[str, int]:
             iters = iters if iters is not None else getattr(info, "iter", getattr(info, "iterations", None))
     if status is None:
         status = "found" if getattr(sol, "found", False) else "not found"
+    word = str(status).rsplit(".", 1)[-1]  # "Status.PIQP_SOLVED" -> "PIQP_SOLVED"
     try:
         it = int(iters) if iters is not None else 0
     except (TypeError, ValueError):
         it = 0
-    return str(status).rsplit(".", 1)[-1], it  # "Status.PIQP_SOLVED" -> "PIQP_SOLVED"
+    if it < 0 or any(w in word.lower() for w in REFUSED_STATUS_WORDS):
+        it = 0
+    return word, it
+
+
+#: Why a zero iteration limit is answered without the backend (``QPSolversAdapter.iterate``).
+ZERO_LIMIT_NOTE = "max_iter 0, so the backend was not called"
 
 
 def _problem_matrix(sqp: ScaledQP, fmt: str) -> Any:
@@ -285,6 +368,17 @@ class QPSolversAdapter(EquilibratedAdapter):
         why = missing_package_message(self.name, self.spec.package)
         return False, why or f"failed to import: qpsolvers does not list backend {self.spec.backend!r}"
 
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        """The equilibrated solve (``EquilibratedAdapter.iterate``), but at ``max_iter`` 0
+        the start (the warm p, else 0) with 0 iterations, not converged, status max_iter:
+        the backend is not called (``ZERO_LIMIT_NOTE``), since some refuse a zero limit
+        (PIQP: PIQP_INVALID_SETTINGS) and others iterate regardless."""
+        if ctx.max_iter != 0:
+            return super().iterate(ctx)
+        self.require_available()
+        return Outcome(ctx.first_p(), 0, False, f"{self.name}: {ZERO_LIMIT_NOTE}", status=Status.MAX_ITER,
+                       info={"backend_status": "not called", "answered_by_adapter": True})
+
     def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> Any:
         """qpsolvers' Problem(P, -u~, lb=0[, ub=u~][, A=d', b=P/s]) with P in the
         requested input format (``_scaling``: the scaled bounds and load row)."""
@@ -307,10 +401,16 @@ class QPSolversAdapter(EquilibratedAdapter):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                sol = qpsolvers.solve_problem(prepared, solver=self.spec.backend, initvals=sqp.x0, **opts)
+                if self.spec.call is not None:
+                    sol = self.spec.call(prepared, initvals=sqp.x0, **opts)
+                else:
+                    sol = qpsolvers.solve_problem(prepared, solver=self.spec.backend, initvals=sqp.x0, **opts)
             except Exception as exc:  # the backend's own failure is a status, not a crash
                 return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False, info=info)
         status, iters = _status_of(sol)
+        extras = getattr(sol, "extras", None) or {}
+        if isinstance(extras, dict) and "inner_iterations" in extras:
+            info["inner_iterations"] = int(extras["inner_iterations"])
         x = None if sol.x is None else np.asarray(sol.x, dtype=np.float64)
         return BackendOutcome(
             x, status, bool(sol.found), iters,
