@@ -97,10 +97,9 @@ def clarabel_options(req: Request) -> dict[str, Any]:
 
 
 #: ProxQP's iteration limit when a tolerance is asked and no limit is: on its outer
-#: iterations (``PROXQP_ITERATIONS``) and on each inner loop.  It stops after 1 to 15 outer
-#: iterations and at most 45 Newton steps in all on 16^2-48^2 rough, periodic, hardness and
-#: load cases at 1e-3 to 1e-9; its own limits (10000 outer, 1500 inner each) let a solve that
-#: does not converge run 1.5e7 steps.
+#: iterations (``PROXQP_ITERATIONS``) and on each inner loop, far above what a converging
+#: solve takes; its own limits (10000 outer, 1500 inner each) let a solve that does not
+#: converge run 1.5e7 Newton steps.
 PROXQP_MAX_ITER = 1000
 
 #: What this module counts as ProxQP's iterations: its outer (proximal multiplier)
