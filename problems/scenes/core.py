@@ -195,6 +195,10 @@ def check_float_range(params: dict[str, Any], surface: Surface, seen: set[Any]) 
     check ``build_load`` makes).  (The nominal area A itself is ``Surface``'s check.)
     ``seen``: the (kernel, grid, E, boundary, layer) keys whose table already passed."""
     builder = recipe_builder(params, surface)
+    key = (builder.kernel, surface.shape, surface.spacing, builder.E, builder.periodic, builder.layer)
+    if key not in seen:
+        _ = builder.transform  # (the table the build makes, and its check)
+        seen.add(key)
     scale = builder.load_force(1.0)
     if not 0.0 < scale < math.inf:
         raise ProblemInputError(f"E* A on {surface.name!r} is a force float64 cannot hold ({scale!r}: E* "
@@ -202,10 +206,6 @@ def check_float_range(params: dict[str, Any], surface: Surface, seen: set[Any]) 
                                 "plausible ranges")
     if params.get("hardness") is not None:
         builder.constraints(1, float(params["hardness"]))  # (the bounds' own check: H_A times an element's area)
-    key = (builder.kernel, surface.shape, surface.spacing, builder.E, builder.periodic, builder.layer)
-    if key not in seen:
-        _ = builder.transform  # (the table the build makes, and its check)
-        seen.add(key)
     if params.get("control") == CONTROLS[1]:
         for load in load_steps(params):
             force = builder.load_force(load)
