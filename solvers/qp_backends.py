@@ -28,8 +28,8 @@ loop's limit ``max_iter_in``, which its ``max_iter`` (outer iterations) leaves a
 Its iterations are its outer ones (``PROXQP_ITERATIONS``); a limit bounds both loops.
 
 Iteration limits: ``max_iter`` goes to each backend's own limit (``_limits``); a limit of 0
-calls no backend (``ZERO_LIMIT_NOTE``): the start with 0 iterations, status max_iter.  A
-count the backend never set (refused settings) reads 0 (``_status_of``).
+calls no backend (``_scaling.ZERO_LIMIT_NOTE``): the start with 0 iterations, status
+max_iter.  A count the backend never set (refused settings) reads 0 (``_status_of``).
 
 Parameters: ``scaling`` (bool), ``input_format`` ("dense"/"sparse", default the
 backend's) and ``backend_options`` (dict of the backend's own options, applied last).
@@ -49,7 +49,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 import scipy.sparse as sp
 
-from .base import Capabilities, Outcome, Param, SolveContext, Status, WarmKind
+from .base import Capabilities, Param, SolveContext, WarmKind
 from .registry import register
 from ._scaling import (BACKEND_OPTIONS, SCALING, BackendOutcome, EquilibratedAdapter, Request, ScaledQP,
                        missing_package_message, request_of)
@@ -312,10 +312,6 @@ def _status_of(sol: Any) -> tuple[str, int]:
     return word, it
 
 
-#: Why a zero iteration limit is answered without the backend (``QPSolversAdapter.iterate``).
-ZERO_LIMIT_NOTE = "max_iter 0, so the backend was not called"
-
-
 def _problem_matrix(sqp: ScaledQP, fmt: str) -> Any:
     """P in the backend's format (a CSC copy for sparse backends)."""
     return sqp.H if fmt == "dense" else sp.csc_matrix(sqp.H)
@@ -366,17 +362,6 @@ class QPSolversAdapter(EquilibratedAdapter):
             return True, "available"
         why = missing_package_message(self.name, self.spec.package)
         return False, why or f"failed to import: qpsolvers does not list backend {self.spec.backend!r}"
-
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        """The equilibrated solve (``EquilibratedAdapter.iterate``), but at ``max_iter`` 0
-        the start (the warm p, else 0) with 0 iterations, not converged, status max_iter:
-        the backend is not called (``ZERO_LIMIT_NOTE``), since some refuse a zero limit
-        (PIQP: PIQP_INVALID_SETTINGS) and others iterate regardless."""
-        if ctx.max_iter != 0:
-            return super().iterate(ctx)
-        self.require_available()
-        return Outcome(ctx.first_p(), 0, False, f"{self.name}: {ZERO_LIMIT_NOTE}", status=Status.MAX_ITER,
-                       info={"backend_status": "not called", "answered_by_adapter": True})
 
     def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> Any:
         """qpsolvers' Problem(P, -u~, lb=0[, ub=u~][, A=d', b=P/s]) with P in the

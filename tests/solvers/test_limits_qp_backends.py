@@ -16,6 +16,7 @@ from contactbench.problems.instances import ContactInstance, InstanceBuilder
 from contactbench.problems.kkt import constrained_scales
 from contactbench.problems.surfaces import Surface
 from contactbench.solvers import _scaling, qp_backends
+from contactbench.solvers._scaling import EquilibratedAdapter
 from contactbench.solvers.base import SolverSettings, Status, WarmStart
 from contactbench.solvers.qp_backends import _status_of, proxqp_options
 from contactbench.solvers.registry import all_solvers, get_solver
@@ -23,6 +24,8 @@ from contactbench.solvers.registry import all_solvers, get_solver
 E = 1e9
 DX = 1e-6
 QP_ADAPTERS = sorted(n for n in all_solvers() if n.startswith("qp-"))
+#: Every adapter over an equilibrated backend: the QP backends, cvxpy and scipy's nnls.
+EQUILIBRATED = sorted(n for n, s in all_solvers().items() if isinstance(s, EquilibratedAdapter))
 
 
 def rough(n: int, scale: float = 1e-6, seed: int = 0) -> np.ndarray:
@@ -95,7 +98,7 @@ def test_proxqp_names_an_option_it_does_not_have() -> None:
 # --- a limit of 0, and counts a backend never set --------------------------------------
 
 
-@pytest.mark.parametrize("name", QP_ADAPTERS)
+@pytest.mark.parametrize("name", EQUILIBRATED)
 @pytest.mark.parametrize("periodic", [False, True])
 def test_zero_limit_is_an_honest_outcome(name: str, periodic: bool) -> None:
     require(name)
