@@ -65,6 +65,9 @@ BOUND_PARTLY = 2.0
 #: repeat is ``unresolved``, not ``holds``.
 SINGLE_REPEAT_SPREAD = 0.1
 INF = math.inf
+#: The round-off a ``band`` rule forgives at its edges: shares are counts over counts, and
+#: |0.3 - 0.4| is 0.10000000000000003 in float64.
+BAND_ROUNDOFF = 1e-12
 
 
 @dataclass(frozen=True)
@@ -105,7 +108,7 @@ class Rule:
         if self.kind == "bound":
             return "holds" if m <= self.hi else "partly" if m <= self.hi * self.partly else "fails"
         if self.kind == "band":
-            d = abs(m - self.lo)
+            d = abs(m - self.lo) - BAND_ROUNDOFF  # (a share at a band's edge, 0.3 of 0.4 +- 0.1, is inside it)
             return "holds" if d <= self.holds else "partly" if d <= self.partly else "fails"
         return "unmeasured"
 

@@ -219,3 +219,9 @@ def test_the_counterexample_share_is_read_as_the_ledger_reads_it(share: float) -
 def test_shares_near_the_old_band_edges_are_close_not_agreeing() -> None:
     assert share_verdict(0.27).startswith("is close") and share_verdict(0.52).startswith("is close")
     assert share_verdict(0.4).startswith("agrees") and share_verdict(0.1).startswith("is below")
+
+
+def test_a_share_at_a_band_s_edge_is_inside_it() -> None:
+    """0.3 of the paper's 0.4 +- 0.1 holds (|0.3 - 0.4| is 0.10000000000000003 in float64)."""
+    assert CLAIMS["ex1-greedy-fails"].rule.at(0.3) == "holds" and share_verdict(0.3).startswith("agrees")
+    assert CLAIMS["ex1-greedy-fails"].rule.at(0.2) == "partly" and CLAIMS["ex1-greedy-fails"].rule.at(0.19) == "fails"

@@ -197,11 +197,12 @@ def share_verdict(share: float) -> str:
     rule = CLAIMS["ex1-greedy-fails"].rule
     verdict = rule.at(share)
     side = "below" if share < rule.lo else "above"
+    paper = f"the paper's ~{fmt_pct(rule.lo)}"
     if verdict == "holds":
-        return f"agrees with the paper's ~{rule.lo:.0%} (the claims ledger's holds band, +-{rule.holds:.0%})"
+        return f"agrees with {paper} (the claims ledger's holds band, +-{fmt_pct(rule.holds)})"
     if verdict == "partly":
-        return f"is close to the paper's ~{rule.lo:.0%}, {side} it (the claims ledger's partly band, +-{rule.partly:.0%})"
-    return f"is {side} the paper's ~{rule.lo:.0%}"
+        return f"is close to {paper}, {side} it (the claims ledger's partly band, +-{fmt_pct(rule.partly)})"
+    return f"is {side} {paper}"
 
 
 def _counterexample_reading(frac: pd.DataFrame, cells: pd.DataFrame) -> str:
