@@ -52,8 +52,9 @@ def literal_path(path: str | os.PathLike[str]) -> Path:
     """``path`` as the file system reads it, made absolute so that no library reads it
     otherwise: pandas and pyarrow expand a leading "~" of a relative path to the home
     folder, where ``open`` and ``os.replace`` read a folder named "~" (a shell leaves the
-    "~" of ``--out=~/x`` as it is)."""
-    return Path(os.path.abspath(os.fspath(path)))
+    "~" of ``--out=~/x`` as it is).  Joined to the current folder as it is, ".." kept: the
+    system reads "link/.." past the link's target, where removing it as text would not."""
+    return Path(os.fspath(path)).absolute()
 
 
 def replace_atomically(path: str | os.PathLike[str], write: Callable[[str], Any]) -> None:

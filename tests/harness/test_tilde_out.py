@@ -42,3 +42,18 @@ def test_an_export_writes_under_a_folder_named_tilde(home: Path, capsys: pytest.
     assert rc == 0, err
     assert any((Path("~") / "mine" / "qps").iterdir())
     assert list((home / "mine").iterdir()) == []
+
+
+def test_a_path_through_a_link_and_up_is_read_as_the_system_reads_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """"lnk/../out" is "far/out" when lnk points at far/deep: every file of the run goes
+    there (removing ".." as text put the table in ./out and the journal in far/out)."""
+    (tmp_path / "far" / "deep").mkdir(parents=True)
+    (tmp_path / "lnk").symlink_to(tmp_path / "far" / "deep")
+    monkeypatch.chdir(tmp_path)
+    args = ["run", "counterexample", "--size", "6", "--seeds", "0", "--reference", "none", "--no-progress",
+            "--no-warmup", "--solvers", "nnls", "--out", "lnk/../out"]
+    rc, _, err = run_cli(args, capsys)
+    assert rc == 0, err
+    assert (tmp_path / "far" / "out" / "results.csv").is_file() and (tmp_path / "far" / "out" / "rows.jsonl").is_file()
+    assert not (tmp_path / "out").exists()
