@@ -64,7 +64,7 @@ control u_s is at least (P / n) max diag H, the indentation of one element by th
 (a heavy load on a low relief, or a flat surface, is judged on the load's length), and at
 most P max diag H, the most the load can displace any element (a light load on a high
 relief is judged on the load's length, not on gaps it never reaches; not below 1e-6 of the
-relief, ``RELIEF_SHARE``), p_s = u_s / max diag H with either; and the
+relief the load can reach, ``RELIEF_SHARE``), p_s = u_s / max diag H with either; and the
 complementarity figure also reads the products as a share of the load:
 complementarity = max(max_i of the products above, p_s sum_i of them / P) -- the load carried
 across open gaps (or pressed past a bound), weighted by the gap in u_s.  A max alone cannot
@@ -221,7 +221,7 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     P max diag H, the most any element can be displaced by the load, so that a load light
     for the relief is not judged against a relief its gaps never reach."""
     top = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
-    length = load_length(top, diag_max, constraints, ubar.size)
+    length = load_length(ubar, top, diag_max, constraints)
     if length is not None:
         u_s, p_s = length, length / float(diag_max)
     else:
@@ -231,33 +231,45 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     return u_s, p_s
 
 
-#: The least share of the relief ||ubar||_inf a load-controlled QP's displacement scale
-#: goes down to (``load_length``): the round-off of w = Hp - ubar - Delta, a few ulps of
-#: the relief, then stays under 1e-9 of the scale.
+#: The least share of the reachable relief (``reachable_relief``) a load-controlled QP's
+#: displacement scale goes down to (``load_length``): the round-off of w = Hp - ubar - Delta
+#: where the load can make contact, a few ulps of that relief, then stays under 1e-9 of the
+#: scale (a ubar offset by a constant, which Delta absorbs, moves no answer).
 RELIEF_SHARE = 1e-6
 
 
-def load_length(top: float, diag_max: float, constraints: Constraints, n: int) -> float | None:
-    """The displacement scale of a load-controlled QP with relief ``top`` = ||ubar||_inf
-    on ``n`` elements, where the load sets it; None where the relief does (no load
-    control, no finite positive load, or a load whose lengths bracket the relief).
+def load_length(ubar: np.ndarray, top: float, diag_max: float, constraints: Constraints) -> float | None:
+    """The displacement scale of a load-controlled QP with relief ``top`` = ||ubar||_inf,
+    where the load sets it; None where the relief does (no load control, no finite
+    positive load, or a load whose lengths bracket the relief).
 
     The load P displaces no element by more than P max diag H (|H_ij| <= max diag H for
     a positive definite H, and p >= 0 sums to P), so its gaps are read on that length
-    when the relief exceeds it -- not below ``RELIEF_SHARE`` of the relief; and on the
-    mean force's indentation (P / n) max diag H when that exceeds the relief."""
-    if not (constraints.load_control and n):
+    when the relief exceeds it -- not below ``RELIEF_SHARE`` of the relief the load can
+    reach (``reachable_relief``: a deep pit, which no answer touches, loosens nothing);
+    and on the mean force's indentation (P / n) max diag H when that exceeds the relief."""
+    if not (constraints.load_control and ubar.size):
         return None
     load = float(constraints.load)  # type: ignore[arg-type]
     whole = load * float(diag_max)
     if not (load > 0.0 and 0.0 < whole < math.inf):
         return None
-    mean = whole / n
+    mean = whole / ubar.size
     if mean > top and mean > 0.0:
         return mean
     if whole < top:
-        return max(whole, RELIEF_SHARE * top)
+        return max(whole, RELIEF_SHARE * reachable_relief(ubar, whole))
     return None
+
+
+def reachable_relief(ubar: np.ndarray, whole: float) -> float:
+    """max |ubar_i| over the elements a load displacing no element by more than ``whole``
+    can bring into contact: ubar_i >= max ubar - 2 whole (two elements in contact differ
+    in ubar by their displacements' difference, at most 2 whole, and the highest element
+    is in contact or clear of it)."""
+    u = np.asarray(ubar, dtype=np.float64)
+    reach = u >= float(np.max(u)) - 2.0 * whole
+    return float(np.max(np.abs(u[reach]), initial=0.0))
 
 
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,

@@ -66,10 +66,30 @@ def test_a_solver_that_stops_on_the_judge_s_figure_answers_tied_peaks(name: str)
 def test_the_scale_is_bracketed_by_the_load_s_lengths() -> None:
     ubar = np.array([0.0, -1.0, -2.0])
     diag = 0.5
-    for load, expected in ((1e-3, 0.5e-3), (1e-9, 2.0 * RELIEF_SHARE), (10.0, 2.0), (60.0, 10.0)):
+    for load, expected in ((1e-3, 0.5e-3), (1e-9, 0.5e-9), (10.0, 2.0), (60.0, 10.0)):
         u_s, p_s = constrained_scales(ubar, diag, Constraints(load=load))
         assert u_s == pytest.approx(expected, rel=1e-12) and p_s == pytest.approx(u_s / diag, rel=1e-12)
-    assert load_length(2.0, diag, Constraints(), 3) is None
+    assert load_length(ubar, 2.0, diag, Constraints()) is None
+
+
+def test_an_offset_relief_keeps_its_round_off_floor_and_a_deep_pit_adds_none() -> None:
+    """ubar offset by a constant (which Delta absorbs) is read no finer than 1e-6 of the
+    relief the load can reach; a pit no answer touches does not widen the scale."""
+    diag, load = 0.5, 1e-9
+    offset = np.array([5.0, 4.0, 3.0])
+    assert constrained_scales(offset, diag, Constraints(load=load))[0] == pytest.approx(5.0 * RELIEF_SHARE)
+    pit = np.array([0.0, -1e-10, -1e3])
+    assert constrained_scales(pit, diag, Constraints(load=load))[0] == pytest.approx(load * diag)
+
+
+@pytest.mark.parametrize("load", [1e-12, 1e-9])
+def test_a_uniform_pressure_on_a_deep_punch_under_the_lightest_loads_is_not_its_answer(load: float) -> None:
+    inst = punch(load)
+    qp = inst.qp
+    top = qp.ubar == qp.ubar.max()
+    uniform = np.where(top, qp.constraints.load / top.sum(), 0.0)
+    assert judge(inst, uniform, True, CHECK_TOL).status != "solved"
+    assert judge(inst, exact(inst), True, CHECK_TOL).status == "solved"
 
 
 @pytest.mark.parametrize("kernel", ["bcc", "love"])
