@@ -134,7 +134,7 @@ def module_chain(name: str, root: Path) -> list[tuple[str, Path]]:
         if spec is None:
             break
         if spec.has_location and spec.origin:  # (a namespace package has no file of its own)
-            file = Path(spec.origin).resolve()
+            file = Path(spec.origin).absolute()  # (as found in the tree: a link's target is read through it)
             if not file.is_relative_to(root) or installed(file):
                 break
             chain.append((".".join(parts[: i + 1]), file))

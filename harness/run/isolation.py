@@ -453,7 +453,8 @@ class ChildProcess:
         try:
             with open(os.path.join(self.scratch, OUTPUT_NAME), "rb") as fh:
                 fh.seek(max(0, fh.seek(0, os.SEEK_END) - OUTPUT_TAIL_BYTES))
-                lines = fh.read().replace(b"\0", b"").decode("utf-8", errors="replace").strip().splitlines()
+                tail_bytes = fh.read(OUTPUT_TAIL_BYTES)  # (a live writer may grow the file meanwhile)
+                lines = tail_bytes.replace(b"\0", b"").decode("utf-8", errors="replace").strip().splitlines()
         except OSError:
             return ""
         tail = lines[-OUTPUT_TAIL_LINES:]

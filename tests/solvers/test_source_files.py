@@ -115,3 +115,30 @@ def test_a_file_that_does_not_parse_is_hashed_and_imports_nothing(tmp_path: Path
 def test_relative_imports_resolve_against_the_package(module: str | None, level: int, package: str,
                                                       expected: str | None) -> None:
     assert absolute_from(module, level, package) == expected
+
+
+def test_a_helper_linked_into_the_tree_is_read_through_its_link(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A helper module that is a link to a file elsewhere is part of the tree where it is
+    imported: an edit of its target changes the digest."""
+    (tmp_path / "linkpkg").mkdir()
+    (tmp_path / "linkpkg" / "__init__.py").write_text("", encoding="utf-8")
+    (tmp_path / "linkpkg" / "solver.py").write_text(SOLVER.replace("from . import near\n", "from . import linked\n")
+                                                    .replace("from .deep.inner import scale\n", "")
+                                                    .replace("import sibling\n", "")
+                                                    .replace("* scale() * near.K * sibling.K * late.K", "* linked.K")
+                                                    .replace("        import late\n", ""), encoding="utf-8")
+    target = tmp_path / "elsewhere" / "target.py"
+    target.parent.mkdir()
+    target.write_text("K = 1.0\n", encoding="utf-8")
+    (tmp_path / "linkpkg" / "linked.py").symlink_to(target)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        module = importlib.import_module("linkpkg.solver")
+        first = source_digest(module.Mine())
+        assert "linked.py" in [f.relative.split("/")[-1] for f in class_source_files(module.Mine) or []]
+        target.write_text("K = 2.0\n", encoding="utf-8")
+        assert source_digest(module.Mine()) not in (None, first)
+    finally:
+        for name in [m for m in sys.modules if m.split(".")[0] == "linkpkg"]:
+            del sys.modules[name]
+        unregister("test-source-files-mine")
