@@ -120,6 +120,18 @@ class Rule:
         f = self.holds if verdict == "holds" else self.partly
         return (self.lo / f, self.hi * f) if self.kind == "ratio" else (self.lo - f, self.lo + f)
 
+    def edges(self) -> tuple[float, ...]:
+        """The values where the verdict of ``at`` may change (the ends of its bands, its
+        threshold), on the measured value's own scale."""
+        if self.kind in ("ratio", "band"):
+            return (*self.interval("holds"), *self.interval("partly"))
+        if self.kind == "bound":
+            return (self.hi, self.hi * self.partly, -self.hi, -self.hi * self.partly)
+        if self.kind in ("at-most", "at-least"):
+            edge = self.hi if self.kind == "at-most" else self.lo
+            return (edge, -edge) if self.absolute else (edge,)
+        return ()
+
     def text(self) -> str:
         """The rule in words, for the ledger's rules table."""
         on = "|measured|" if self.absolute else "measured"
@@ -199,8 +211,9 @@ def judge(measured: object, rule: Rule, evidence: str, spread: float = 0.0, test
     at_m = rule.at(m)
     if s == 0.0:
         return at_m
-    ends = {rule.at(m / (1.0 + s)), rule.at(m * (1.0 + s))}
-    return at_m if ends == {at_m} else "unresolved"
+    lo, hi = sorted((m / (1.0 + s), m * (1.0 + s)))
+    seen = {rule.at(x) for x in (lo, hi, *(e for e in rule.edges() if lo < e < hi))}
+    return at_m if seen == {at_m} else "unresolved"
 
 
 # ---------------------------------------------------------------------------

@@ -193,13 +193,14 @@ def nnlsgp_cold(tot: pd.DataFrame) -> str:
 
 
 def admm_label(tot: pd.DataFrame, rows: pd.DataFrame) -> str | None:
-    """The label of ADMM as the paper states it (``PAPER_PARAMS``) where the rows hold it;
+    """The label of ADMM as the paper states it (``PAPER_PARAMS``, every other parameter at
+    its default) where the rows hold it;
     None where they do not: the registry's ``admm`` (rho relative to mean diag H, the KKT
     stop) is another method, and the claim about the paper's ADMM is not read on it."""
     a = rows[(rows["base_solver"] == "admm") & rows["solver"].isin(tot.index)]
     default = get_solver("admm").param_defaults()
     given = {s: parse_json(p, {}) for s, p in zip(a["solver"], a["params"])}
-    paper = [s for s, g in given.items() if isinstance(g, dict) and PAPER_PARAMS.items() <= {**default, **g}.items()]
+    paper = [s for s, g in given.items() if isinstance(g, dict) and {**default, **g} == {**default, **PAPER_PARAMS}]
     return sorted(paper)[0] if paper else None
 
 

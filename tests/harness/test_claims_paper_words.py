@@ -184,3 +184,20 @@ def test_the_two_percent_error_is_cited_from_the_conclusion_that_prints_it() -> 
     assert c.tex_lines == "1349-1351" and "Conclusion" in c.figure
     assert "2 %" in c.paper_value and "read off" not in c.paper_value
     assert c.rule == cr.bound(0.02)
+
+
+def test_an_admm_with_the_papers_settings_and_another_inner_solve_is_not_the_papers() -> None:
+    """The paper's rho, rho_relative and stop, but CG inner solves checked every 50
+    iterations: another method, not read for the paper's ADMM."""
+    params = {"rho": 1.0, "rho_relative": False, "stop": "printed", "linear": "cg", "check_every": 50}
+    r = _one(cl.ledger(_admm("admm[cg]", params)), "fig4-admm-over-nnlsgp", "dense")
+    assert r["verdict"] == "unmeasured", r
+
+
+@pytest.mark.parametrize(("measured", "spread"), [(18.3, 1.1), (30.0, 3.0)])
+def test_repeats_whose_spread_spans_a_whole_band_are_unresolved(measured: float, spread: float) -> None:
+    """Both ends of the repeats' interval read the same verdict while the interval holds a
+    whole band between them: the repeats cannot tell the verdicts apart."""
+    rule = cr.CLAIMS["fig4-pk-cold-over-nnlsgp"].rule
+    assert cr.judge(measured, rule, "rows", spread=spread) == "unresolved"
+    assert cr.judge(26.0, rule, "rows", spread=0.05) == "holds"
