@@ -496,7 +496,7 @@ def common_reason(out: str) -> str:
 def cmd_export(args: argparse.Namespace, held: HeldWarnings | None = None) -> int:
     """``export``: check, then write every QP; ``held``: the command's held warnings, shown
     once the export is written (its checks come first, ``export_scene``)."""
-    from contactbench.problems.export import export_scene
+    from contactbench.problems.export import ExportStopped, export_scene
 
     from .run.studies import COMPOSITES
 
@@ -508,7 +508,11 @@ def cmd_export(args: argparse.Namespace, held: HeldWarnings | None = None) -> in
     check_out_dir(args.out)
     # export_scene checks the options (the plan's rules), the scene's inputs and the folder before writing
     cap = {} if args.max_qps is None else {"max_qps": args.max_qps}
-    summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit, **cap)
+    try:
+        summary = export_scene(args.scene, cfg, args.fmt, args.out, dense_limit=args.dense_limit, **cap)
+    except ExportStopped as exc:
+        print(f"contactbench: error: {exc}", file=sys.stderr)
+        return EXIT_RUN_STOPPED
     if held is not None:
         held.release()
     print(summary.line())

@@ -154,6 +154,11 @@ class ExportSummary:
         return text
 
 
+class ExportStopped(RuntimeError):
+    """An export that stopped once it was writing (a write that failed: a full disk), its
+    manifest saying it is incomplete (``cli``: one line, exit 1)."""
+
+
 def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_limit: int | None = None,
                  tol: float | None = None, max_qps: int = MAX_QPS) -> ExportSummary:
     """Write every (instance, step) QP of a scene in ``fmt`` under ``out`` (module doc).
@@ -185,6 +190,11 @@ def export_scene(scene_name: str, cfg: Any, fmt: str, out: str | Path, *, dense_
     except FolderLockedError:  # (raised by folder_lock alone)
         raise ProblemInputError(f"export folder {out_dir} is in use by another export; wait for it to finish or "
                                 "choose another --out") from None
+    except OSError as exc:  # a write that failed once the export was writing: no bad input
+        lines = str(exc).splitlines()
+        raise ExportStopped(f"the export into {out_dir} stopped: {lines[0] if lines else type(exc).__name__}; "
+                            "what it wrote is listed as incomplete in its manifest, and the same command "
+                            "finishes it") from None
 
 
 def _export_locked(plan: ExportPlan, scene_name: str, qps: Iterator[tuple[PlannedQP, ContactInstance | None]],
@@ -624,6 +634,7 @@ __all__ = [
     "FORMATS",
     "ExportSummary",
     "ExportedQP",
+    "ExportStopped",
     "MAX_QPS",
     "PARQUET_DTYPES_KEY",
     "QPBenchmarkWriter",

@@ -4,6 +4,7 @@ refused in one line naming the QP, not written until the disk is full."""
 
 from __future__ import annotations
 
+import errno
 import shutil
 from pathlib import Path
 from typing import Any
@@ -43,3 +44,18 @@ def test_an_export_the_disk_cannot_hold_is_refused_in_one_line(tmp_path: Path, c
     assert rc == 2 and len(lines) == 1 and "GB free" in lines[0], err
     left = [p for p in (tmp_path / "e").rglob("*") if p.is_file() and p.name.endswith(".tmp")]
     assert left == []
+
+
+def test_a_write_that_fails_once_the_export_writes_exits_1(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk met while writing is no bad input: one line, exit 1, the manifest left
+    incomplete so that the same command finishes the export."""
+    def full(*args: Any, **kwargs: Any) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(ex, "write_problem_dir", full)
+    rc, _, err = run_cli(["export", "hertz", "--size", "16", "--format", "problem-dir", "--out", str(tmp_path / "e")],
+                         capsys)
+    lines = err.strip().splitlines()
+    assert rc == 1 and len(lines) == 1 and "No space left on device" in lines[0], err
+    assert '"complete": false' in (tmp_path / "e" / "manifest.json").read_text()
