@@ -40,8 +40,9 @@ def exact(inst: ContactInstance) -> np.ndarray:
     return constrained_exact_solution(inst.qp.H.to_dense(), inst.qp.ubar, inst.qp.constraints).p
 
 
-@pytest.mark.parametrize("load", [1e-6, 1e-4])
+@pytest.mark.parametrize("load", [1e-12, 1e-9, 1e-6, 1e-4])
 def test_a_uniform_pressure_on_a_punch_is_not_its_answer(load: float) -> None:
+    """Down to the lightest loads, where the punch's depth is no floor of the scale."""
     inst = punch(load)
     qp = inst.qp
     top = qp.ubar == qp.ubar.max()
@@ -80,16 +81,6 @@ def test_an_offset_relief_keeps_its_round_off_floor_and_a_deep_pit_adds_none() -
     assert constrained_scales(offset, diag, Constraints(load=load))[0] == pytest.approx(5.0 * RELIEF_SHARE)
     pit = np.array([0.0, -1e-10, -1e3])
     assert constrained_scales(pit, diag, Constraints(load=load))[0] == pytest.approx(load * diag)
-
-
-@pytest.mark.parametrize("load", [1e-12, 1e-9])
-def test_a_uniform_pressure_on_a_deep_punch_under_the_lightest_loads_is_not_its_answer(load: float) -> None:
-    inst = punch(load)
-    qp = inst.qp
-    top = qp.ubar == qp.ubar.max()
-    uniform = np.where(top, qp.constraints.load / top.sum(), 0.0)
-    assert judge(inst, uniform, True, CHECK_TOL).status != "solved"
-    assert judge(inst, exact(inst), True, CHECK_TOL).status == "solved"
 
 
 @pytest.mark.parametrize("kernel", ["bcc", "love"])
