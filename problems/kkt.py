@@ -267,9 +267,8 @@ def reachable_relief(ubar: np.ndarray, whole: float) -> float:
     can bring into contact: ubar_i >= max ubar - 2 whole (two elements in contact differ
     in ubar by their displacements' difference, at most 2 whole, and the highest element
     is in contact or clear of it)."""
-    u = np.asarray(ubar, dtype=np.float64)
-    reach = u >= float(np.max(u)) - 2.0 * whole
-    return float(np.max(np.abs(u[reach]), initial=0.0))
+    near = ubar[ubar >= float(np.max(ubar)) - 2.0 * whole]  # (any array module: the highest is one of them)
+    return float(np.max(np.abs(near))) if near.size else 0.0
 
 
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,

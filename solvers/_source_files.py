@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from importlib.machinery import PathFinder
 from pathlib import Path
 
-__all__ = ["SourceFile", "class_source_files"]
+__all__ = ["PROJECT_PACKAGE", "SourceFile", "class_source_files"]
 
 #: The top-level name of this package, whose modules a solver's source never counts.
 PROJECT_PACKAGE = "contactbench"

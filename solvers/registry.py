@@ -59,7 +59,7 @@ from typing import Any, Callable, Sequence, TypeVar
 from contactbench.plugins import PluginRegistry, UnknownPluginError
 
 from ._loading import SolverLoadError, availability_failure, file_path_hint, load_failure, user_code
-from ._source_files import class_source_files
+from ._source_files import PROJECT_PACKAGE, class_source_files
 from ._spec_text import (GRID_WORD, MAX_GRID_VARIANTS, WRITTEN_RULE, SolverSpec, SolverSpecError, SpecText,
                          is_import_path, param_from_text, reads_back, reads_back_as_key, split_solver_list,
                          split_solver_spec, value_label)
@@ -423,7 +423,7 @@ def load_solver(spec: str | Solver) -> Solver:
 #: Hex digits of a solver's source digest in a run's configuration (``source_digest``).
 SOURCE_DIGEST_DIGITS = 16
 #: The module prefix of the project's own solvers, which a source digest leaves out.
-PROJECT_MODULES = "contactbench."
+PROJECT_MODULES = PROJECT_PACKAGE + "."
 
 
 def source_digest(solver: Solver) -> str | None:
