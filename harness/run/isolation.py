@@ -165,7 +165,7 @@ OUTPUT_FILE_CAP = 64 * 1024 * 1024
 #: The head of a message's output that is kept (the run's log keeps no more of an entry).
 KEPT_HEAD_BYTES = 64 * 1024
 #: How often (seconds) a waiting parent checks the output files' size.
-OUTPUT_CHECK_S = 0.25
+OUTPUT_CHECK_S = 0.1
 
 
 def bound_output(path: str, cap: int = OUTPUT_FILE_CAP, head: int = KEPT_HEAD_BYTES) -> None:
