@@ -100,16 +100,17 @@ class Rule:
             return "holds" if m <= self.hi else "fails"
         if self.kind == "at-least":
             return "holds" if m >= self.lo else "fails"
-        if self.kind == "ratio":
-            if not m > 0.0:
-                return "fails"
-            return ("holds" if self.lo / self.holds <= m <= self.hi * self.holds else
-                    "partly" if self.lo / self.partly <= m <= self.hi * self.partly else "fails")
         if self.kind == "bound":
             return "holds" if m <= self.hi else "partly" if m <= self.hi * self.partly else "fails"
-        if self.kind == "band":
-            d = abs(m - self.lo) - BAND_ROUNDOFF  # (a share at a band's edge, 0.3 of 0.4 +- 0.1, is inside it)
-            return "holds" if d <= self.holds else "partly" if d <= self.partly else "fails"
+        if self.kind in ("ratio", "band"):
+            if self.kind == "ratio" and not m > 0.0:
+                return "fails"
+            slack = BAND_ROUNDOFF if self.kind == "band" else 0.0  # (a share at a band's edge, 0.3 of 0.4 +- 0.1)
+            for verdict in ("holds", "partly"):
+                lo, hi = self.interval(verdict)
+                if lo - slack <= m <= hi + slack:
+                    return verdict
+            return "fails"
         return "unmeasured"
 
     def interval(self, verdict: str) -> tuple[float, float]:
@@ -141,9 +142,9 @@ class Rule:
             return f"yes/no: holds if {on} >= {self.lo:g}, else fails"
         if self.kind == "ratio":
             val = f"{self.lo:g}" if self.lo == self.hi else f"[{self.lo:g}, {self.hi:g}]"
-            return (f"ratio {val}: holds in [{self.lo / self.holds:.3g}, {self.hi * self.holds:.3g}] (x{self.holds:.3g}), "
-                    f"partly in [{self.lo / self.partly:.3g}, {self.hi * self.partly:.3g}] (x{self.partly:.3g}), "
-                    f"else fails")
+            (h0, h1), (p0, p1) = self.interval("holds"), self.interval("partly")
+            return (f"ratio {val}: holds in [{h0:.3g}, {h1:.3g}] (x{self.holds:.3g}), "
+                    f"partly in [{p0:.3g}, {p1:.3g}] (x{self.partly:.3g}), else fails")
         if self.kind == "bound":
             return f"bound: holds if {on} <= {self.hi:g}, partly <= {self.hi * self.partly:g}, else fails"
         if self.kind == "band":
