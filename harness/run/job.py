@@ -67,6 +67,7 @@ from .worker import (
     REFERENCE_MAX_KKT,
     AssembleDense,
     BuildStep,
+    CheckReference,
     ComputeReference,
     Message,
     SolveServer,
@@ -335,13 +336,23 @@ class JobDriver:
         return min(exact)[-1] if exact else None
 
     def use_stored_reference(self, ctx: StepContext, names: list[str] | tuple[str, ...]) -> bool:
-        """Take the first of ``names`` whose reference of this step is stored in OUT/_cache/."""
+        """Take the first of ``names`` whose reference of this step is stored in OUT/_cache/
+        and holds on the step (``stored_reference_holds``); one that does not is written
+        over when that reference is obtained again."""
         for name in names:
             path = self.reference_path(ctx.k, name)
-            if path.is_file() and not path.is_symlink():  # (its content is read by the worker: ``read_reference``)
+            if path.is_file() and not path.is_symlink() and self.stored_reference_holds(ctx, path):
                 ctx.reference_solver, ctx.reference_path = name, str(path)
                 return True
         return False
+
+    def stored_reference_holds(self, ctx: StepContext, path: Path) -> bool:
+        """Whether the worker reads the file at ``path`` as this step's answer and the judge
+        finds it solved (``Worker.reference_p``): its stored kkt is not trusted."""
+        if not self.refresh(ctx):
+            return False
+        out = self.call(CheckReference(ctx.k, str(path)), self.run_cfg.build_timeout)
+        return bool(out.ok and out.value is True)
 
     def obtain_reference(self, ctx: StepContext) -> None:
         if self.use_stored_reference(ctx, self.job.reference_candidates):

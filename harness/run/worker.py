@@ -8,6 +8,8 @@ The parent (``harness.run.job.JobDriver``) sends one message at a time:
 ``AssembleDense(k)``    assemble the dense H of step k once -> seconds it took;
 ``ComputeReference``    load the stored reference answer, or solve and store it ->
                         ``ReferenceReply``;
+``CheckReference``      whether the stored reference answer holds on its step
+                        (``Worker.reference_p``) -> bool;
 ``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped
                         -> ``UntimedReply``;
 ``Solve(task)``         one timed solve, judged by ``harness.judging.judge`` -> ``SolveReply``;
@@ -92,6 +94,12 @@ class ComputeReference:
 
 
 @dataclass(frozen=True)
+class CheckReference:
+    step: int
+    path: str
+
+
+@dataclass(frozen=True)
 class SolveTask:
     """One solve of one variant on one step."""
 
@@ -129,7 +137,7 @@ class Regenerate:
     task: SolveTask
 
 
-Message = Union[BuildStep, AssembleDense, ComputeReference, Solve, WarmUp, Regenerate]
+Message = Union[BuildStep, AssembleDense, ComputeReference, CheckReference, Solve, WarmUp, Regenerate]
 
 
 def message_title(msg: Message) -> str:
@@ -139,6 +147,8 @@ def message_title(msg: Message) -> str:
         return f"step {msg.task.step} {msg.task.label} [{msg.task.profile}]: {what}"
     if isinstance(msg, ComputeReference):
         return f"step {msg.step}: reference {msg.base}"
+    if isinstance(msg, CheckReference):
+        return f"step {msg.step}: stored reference"
     return f"step {msg.step}: {'dense H' if isinstance(msg, AssembleDense) else 'build'}"
 
 
@@ -310,6 +320,8 @@ class SolveServer:
             return self.ensure_dense(msg.step)
         if isinstance(msg, ComputeReference):
             return self.reference(msg)
+        if isinstance(msg, CheckReference):
+            return self.reference_p(msg.path, self.ensure_step(msg.step)[0]) is not None
         if isinstance(msg, Solve):
             return self.solve(msg.task)
         if isinstance(msg, Regenerate):
@@ -377,14 +389,16 @@ class SolveServer:
         """Drop every built step and dense H (after a solver wrote into one)."""
         self.seq, self.steps, self.dense = None, {}, {}
 
-    def reference_p(self, path: str | None, n: int) -> np.ndarray | None:
-        """The stored reference answer of a step of ``n`` unknowns at ``path``
-        (``read_reference``), held once read; None where there is none to read."""
+    def reference_p(self, path: str | None, inst: ContactInstance) -> np.ndarray | None:
+        """The stored reference answer of step ``inst`` at ``path`` (``read_reference``),
+        held once read; None where there is none to read, or where the judge does not find
+        it solved within ``REFERENCE_MAX_KKT`` on this step (a file edited by hand, or
+        another problem's of the same size): what the stored kkt says is not trusted."""
         if not path:
             return None
         if path not in self.refs:
-            p = read_reference(path, n)
-            if p is None:
+            p = read_reference(path, inst.n)
+            if p is None or judge(inst, p, True, REFERENCE_MAX_KKT).status != "solved":
                 return None
             self.refs[path] = p
         return self.refs[path]
@@ -394,7 +408,7 @@ class SolveServer:
         """Load the stored reference, or compute it once and store it (over a stored file
         that ``read_reference`` cannot read as this step's)."""
         inst, _ = self.ensure_step(msg.step)
-        if self.reference_p(msg.path, inst.n) is not None:
+        if self.reference_p(msg.path, inst) is not None:
             return ReferenceReply(msg.base, cached=True)
         qp = self.qp_for(msg.step, msg.operator)
         settings = SolverSettings(tol=get_profile(REFERENCE_PROFILE).tol, time_limit=msg.time_limit)
@@ -525,9 +539,9 @@ class SolveServer:
             trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
         )
         reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
-        p_ref = self.reference_p(task.reference_path, inst.n)
         tampered = seal.broken(qp)
         seal.mend(qp)  # (before the judge reads the problem: its products run the sealed code and state)
+        p_ref = self.reference_p(task.reference_path, inst)
         reply.threads_left = left
         reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
                               analytic_load=self.analytic(task.step).get("load"),

@@ -64,3 +64,30 @@ def test_a_wrong_stored_reference_is_computed_again_not_charged_to_the_solvers(
     top = table[table["step"] == 2]
     assert len(top) == 2 and set(top["status"]) == {"solved"}, top[["solver", "status", "error"]]
     assert top["error"].isna().all()
+
+
+def test_a_stored_reference_of_wrong_values_is_not_trusted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A file of the step's own length whose answer is wrong (its stored kkt_error says 0)
+    is judged on the step, found not solved, and computed again: the rows' error in p is
+    measured against the true answer, not the file's."""
+    out = tmp_path / "out"
+    args = ["run", "paper-sweep", "--size", "16", "--steps", "2", "--solvers", "pk,nnls", "--no-progress",
+            "--no-warmup", "--out", str(out)]
+    rc, _, err = run_cli(args, capsys)
+    assert rc == 0, err
+    refs = sorted((out / "_cache").glob("ref-*-k1-*.npz"))
+    assert refs
+    for ref in refs:
+        with np.load(ref) as data:
+            p = np.asarray(data["p"])
+        np.savez(ref, p=2.0 * p, solver="pk", kkt_error=0.0, time=0.0)  # the right length, twice the answer
+    journal = out / "rows.jsonl"
+    kept = [line for line in journal.read_text().splitlines() if json.loads(line).get("step") != 1]
+    journal.write_text("".join(line + "\n" for line in kept))
+    for name in ("results.parquet", "results.csv"):
+        (out / name).unlink(missing_ok=True)
+    rc, _, err = run_cli(args, capsys)
+    assert rc == 0, err
+    top = pd.read_csv(out / "results.csv").query("step == 1")
+    assert len(top) == 2 and set(top["status"]) == {"solved"}, top[["solver", "status", "error"]]
+    assert (top["p_rel_error"] < 1e-3).all(), top[["solver", "p_rel_error"]]
