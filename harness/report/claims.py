@@ -35,11 +35,13 @@ from contactbench.solvers.registry import get_solver
 from ..table.files import replace_atomically
 from ..table.schema import ANSWERED
 from .claim_rules import (CLAIMS, PAPER_N, VERDICTS, Claim, Timing, falls, judge, judged_spread, over_repeats,
-                          relative_range, spread)
+                          spread)
+from .claim_tables import (COLD, PAPER_METHODS, nnlsgp_cold, of_condition, paper_labels, ratio, repeat_totals,
+                           seeds_of, seeds_text, totals)
 from .core import parse_json, per_cell
 from .sections.cmr import cmr_pairs, instance_totals, recorded_families
 from .sections.counterexample import seed_readings, violation_counts
-from .sections.paper import LEDGER_ROLES, by_role, k_of
+from .sections.paper import by_role, k_of
 from .sections.paper_readings import Spread, tied_with
 
 __all__ = ["CLAIMS", "VERDICTS", "Claim", "judge"]
@@ -83,113 +85,6 @@ def claim_row(claim_id: str, condition: str, measured: float, n_or_size: str, se
     return ClaimRow(c.id, c.figure, c.tex_lines, c.paper_value, condition, float(measured), n_or_size, seeds,
                     int(timing.repeats), float(timing.spread),
                     judge(measured, c.rule, evidence, judged_spread(timing), testable), evidence)
-
-
-# ---------------------------------------------------------------------------
-# Reading the table
-# ---------------------------------------------------------------------------
-
-
-def seeds_text(seeds: Iterable[int]) -> str:
-    """"5", "0-99" or "0,3,7": the seeds a measurement rests on."""
-    s = sorted({int(x) for x in seeds})
-    if not s:
-        return ""
-    if len(s) > 2 and s == list(range(s[0], s[-1] + 1)):
-        return f"{s[0]}-{s[-1]}"
-    return ",".join(map(str, s))
-
-
-def seeds_of(rows: pd.DataFrame) -> str:
-    """``seeds_text`` of the rows' ``seed`` column (the instance's recipe; "" where the table
-    has none)."""
-    if "seed" not in rows.columns:
-        return ""
-    return seeds_text(pd.to_numeric(rows["seed"], errors="coerce").dropna().astype(int))
-
-
-def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame:
-    """The attempted rows of ``scene`` under ``condition`` (column ``operator``)."""
-    r = rows[(rows["scene"] == scene) & (rows["operator"] == condition)]
-    return r[r["status"] != "skipped"]
-
-
-#: The paper's methods (registry names): "fastest" and "the same load" compare these only.
-PAPER_METHODS: frozenset[str] = frozenset(r.base_solver for r in LEDGER_ROLES.values())
-#: The suffix of a label read from the independent (cold) solves of ``greedy-linear-solvers``.
-COLD = " cold"
-
-
-def repeat_totals(rows: pd.DataFrame) -> pd.Series:
-    """Per (solver, repeat) of the rows: the repeat's total solve time over the steps (NaN
-    where a step has none; a table without ``repeat`` is one repeat, 0)."""
-    rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
-    return rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False))
-
-
-def totals(rows: pd.DataFrame) -> pd.DataFrame:
-    """Per solver label of the (unfolded) rows: the total solve time over the steps, as the
-    median over the timed repeats of each repeat's sum (``repeats``, ``spread``: their count
-    and relative range); operator products and iterations (``matvecs``, ``iterations``: the
-    time's load-independent witnesses), steps, steps answered and steps solved.  A total is
-    ``comparable`` when every step of the largest count returned an answer."""
-    cols = ["total_s", "repeats", "spread", "matvecs", "iterations", "steps", "answered", "solved", "comparable"]
-    if rows.empty:
-        return pd.DataFrame(columns=cols)
-    cells = per_cell(rows)
-    g = cells.groupby("solver")
-    nan = pd.Series(math.nan, index=g.size().index)
-    out = pd.DataFrame({"matvecs": g["matvecs"].sum(min_count=1) if "matvecs" in cells.columns else nan,
-                        "iterations": g["iterations"].agg(lambda v: v.sum(skipna=False))
-                        if "iterations" in cells.columns else nan,
-                        "steps": g.size(), "answered": g["status"].agg(lambda s: int(s.isin(ANSWERED).sum())),
-                        "solved": g["solved"].sum()})
-    per = repeat_totals(rows).groupby(level=0)
-    out["total_s"], out["repeats"], out["spread"] = per.median(), per.size(), per.agg(relative_range)
-    out["comparable"] = (out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
-    return out[cols]
-
-
-def fmt_count(v: float) -> str:
-    """A count as an integer, "?" where the table has none."""
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return "?"
-    return f"{int(x)}" if math.isfinite(x) else "?"
-
-
-def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s") -> tuple[float, str, Timing]:
-    """a / b of column ``of`` (the median total time; or ``iterations``) with the words saying
-    what it rests on and its timing (NaN where either is missing or incomplete, or b is not
-    positive).  The spread of a time ratio is the sum of the two totals' spreads."""
-    missing = [s for s in (a, b) if s not in tot.index]
-    if missing:
-        return math.nan, f"no rows of {', '.join(missing)}", Timing()
-    ta, tb = tot.loc[a], tot.loc[b]
-
-    def one(label: str, t: pd.Series) -> str:
-        return (f"{label} {t['total_s']:.4g} s (median of {int(t['repeats'])}), {fmt_count(t.get('matvecs'))} "
-                f"matvecs, {fmt_count(t.get('iterations'))} iterations ({int(t['solved'])}/{int(t['steps'])} steps "
-                f"pass the KKT check)")
-
-    words = f"{one(a, ta)}, {one(b, tb)}"
-    timing = Timing(int(min(ta["repeats"], tb["repeats"])),
-                    float(ta["spread"] + tb["spread"]) if of == "total_s" else 0.0)
-    if not (ta["comparable"] and tb["comparable"]) or not tb[of] > 0 or not np.isfinite([ta[of], tb[of]]).all():
-        return math.nan, words + "; not every step answered", timing
-    return float(ta[of] / tb[of]), words, timing
-
-
-def paper_labels(tot: pd.DataFrame) -> list[str]:
-    """The labels of ``tot`` that play one of the paper's methods (``by_role``: the keys of
-    ``LEDGER_ROLES``, warm or cold), other variants of theirs left out."""
-    return [s for s in tot.index if s.removesuffix(COLD) in LEDGER_ROLES]
-
-
-def nnlsgp_cold(tot: pd.DataFrame) -> str:
-    """The label of NNLS+GP (K = 100) from p = 0 (the cold K sweep), else the warm one."""
-    return "nnls-gp" + COLD if "nnls-gp" + COLD in tot.index else "nnls-gp"
 
 
 def admm_label(tot: pd.DataFrame, rows: pd.DataFrame) -> str | None:
@@ -251,25 +146,40 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
             if a in tot.index and b in tot.index:
                 m, words, timing = ratio(tot, a, b, of="iterations")
                 out.append(claim_row(claim, condition, m, size, seeds, f"{where}; iterations: {words}", timing=timing))
-        out += fastest_rows(tot, paper_labels(tot), condition, size, seeds, where)
+        out += fastest_rows(tot, paper_labels(tot), planned, condition, size, seeds, where)
         out += agreement_rows(both, condition, size, seeds, where, planned)
     return out
 
 
-def fastest_rows(tot: pd.DataFrame, labels: list[str], condition: str, size: str, seeds: str,
-                 where: str) -> list[ClaimRow]:
-    """"NNLS+GP is the fastest": t(nnls-gp) / t(the fastest other paper method)."""
+def fastest_rows(tot: pd.DataFrame, labels: list[str], planned: Iterable[str], condition: str, size: str,
+                 seeds: str, where: str) -> list[ClaimRow]:
+    """"NNLS+GP is the fastest": t(nnls-gp) / t(the fastest other paper method that
+    answered every step).  A paper method that did not answer every step is slower only
+    where the time it spent (``spent_s``) already exceeds NNLS+GP's whole total: a lower
+    bound of its own.  One that stopped sooner, or that the table plans (``planned``) but
+    that ran no step, leaves the claim about every method ``unmeasured``, unless a method
+    that answered is faster already (``fails``, whatever the others would give)."""
     if "nnls-gp" not in labels or len(labels) < 2:
         return []
-    others = tot.loc[[s for s in labels if s.removesuffix(COLD) != "nnls-gp"]]
-    others = others[others["comparable"]]
+    everyone = tot.loc[[s for s in labels if s.removesuffix(COLD) != "nnls-gp"]]
+    others = everyone[everyone["comparable"]]
     if others.empty:
         return [claim_row("fig4-nnlsgp-fastest", condition, math.nan, size, seeds, f"{where}; no other paper method "
                           "answered every step")]
     best = str(others["total_s"].idxmin())
     m, words, timing = ratio(tot, "nnls-gp", best)
+    own = tot.loc["nnls-gp", "total_s"]
+    ran = {s.removesuffix(COLD) for s in tot.index}
+    stopped = sorted(str(s) for s, t in everyone[~everyone["comparable"]]["spent_s"].items() if not t > own)
+    never = sorted(s for s in planned if s not in ran)
+    unknown = stopped + never
+    if unknown:
+        words += "".join((f"; stopped short of every step in less time than NNLS+GP's total: {', '.join(stopped)}"
+                          if stopped else "", f"; no row at this size of: {', '.join(never)}" if never else "",
+                          ": the rest cannot hold 'the fastest'"))
     return [claim_row("fig4-nnlsgp-fastest", condition, m, size, seeds, f"{where}; fastest other paper method: "
-                      f"{best}; {words}", timing=timing)]
+                      f"{best}; {words}", timing=timing,
+                      testable=not unknown or CLAIMS["fig4-nnlsgp-fastest"].rule.at(m) == "fails")]
 
 
 def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, where: str,

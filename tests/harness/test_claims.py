@@ -527,3 +527,27 @@ def test_a_reduction_claim_is_never_partly_on_a_slowdown() -> None:
     rule = cr.CLAIMS["fig5-chol-over-cg"].rule
     assert cr.judge(0.65, rule, "x") == "holds" and cr.judge(0.9, rule, "x") == "partly"
     assert cr.judge(1.0, rule, "x") == "fails" and cr.judge(1.04, rule, "x") == "fails"
+
+
+def test_the_fastest_needs_every_paper_method_to_answer_or_to_have_spent_longer() -> None:
+    """A paper method that stopped (a timeout, a crash) is slower than NNLS+GP only where the
+    time it spent already exceeds NNLS+GP's total; one that stopped sooner, or was planned
+    and never ran, leaves "the fastest of the paper's methods" unmeasured."""
+    def verdict(times: dict[str, list[float]], status: dict) -> str:
+        return _one(cl.ledger(pd.DataFrame(_rows("paper-sweep", "dense", times, status=status))),
+                    "fig4-nnlsgp-fastest", "dense")["verdict"]
+
+    gp, pk = [0.1, 0.1], [0.3, 0.3]
+    assert verdict({"nnls-gp": gp, "pk": pk}, {}) == "holds"
+    # admm stopped at step 0 after 0.05 s: it could still have been the fastest
+    assert verdict({"nnls-gp": gp, "pk": pk, "admm": [0.05, math.nan]},
+                   {("admm", 0): "timeout", ("admm", 1): "skipped"}) == "unmeasured"
+    # ... after 5 s, 25 x NNLS+GP's whole total: slower, whatever the rest would take
+    assert verdict({"nnls-gp": gp, "pk": pk, "admm": [5.0, math.nan]},
+                   {("admm", 0): "timeout", ("admm", 1): "skipped"}) == "holds"
+    # planned but skipped on every step
+    assert verdict({"nnls-gp": gp, "pk": pk, "admm": [math.nan, math.nan]},
+                   {("admm", 0): "skipped", ("admm", 1): "skipped"}) == "unmeasured"
+    # a method that answered is faster: fails, whatever the stopped one would give
+    assert verdict({"nnls-gp": gp, "pk": [0.02, 0.02], "admm": [0.05, math.nan]},
+                   {("admm", 0): "timeout", ("admm", 1): "skipped"}) == "fails"
