@@ -304,10 +304,6 @@ def missing_package_message(solver_name: str, package: str) -> str | None:
     return None
 
 
-#: Why a zero iteration limit is answered without the backend (``EquilibratedAdapter.iterate``).
-ZERO_LIMIT_NOTE = "max_iter 0, so the backend was not called"
-
-
 class EquilibratedAdapter(Solver):
     """Base of every generic-QP adapter (module doc, "The adapter lifecycle"): dense H
     (shared or assembled), equilibration, one backend call in scaled units, optional
@@ -356,14 +352,8 @@ class EquilibratedAdapter(Solver):
         """Run the backend on sqp.H, sqp.u (scaled units) for ``request_of(ctx)``."""
 
     def iterate(self, ctx: SolveContext) -> Outcome:
-        """The equilibrated solve (module doc); at ``max_iter`` 0 the start (the warm p,
-        else 0) with 0 iterations, not converged, status max_iter, the backend not called
-        (``ZERO_LIMIT_NOTE``): some refuse a zero limit (PIQP: PIQP_INVALID_SETTINGS),
-        others iterate regardless (scipy's nnls reads 0 as its default)."""
+        """The equilibrated solve (module doc)."""
         self.require_available()
-        if ctx.max_iter == 0:
-            return Outcome(ctx.first_p(), 0, False, f"{self.name}: {ZERO_LIMIT_NOTE}", status=Status.MAX_ITER,
-                           info={"backend_status": "not called", "answered_by_adapter": True})
         t0 = time.perf_counter()
         sqp = assemble_scaled(ctx.qp, bool(ctx.params["scaling"]), ctx.p0)
         prepared = self.prepare(sqp, ctx)

@@ -246,8 +246,6 @@ def solve_screened(ctx: SolveContext, solve: Solve) -> Outcome:
     while True:
         cold = ctx.p0 is None and not infos  # a cold first round stays cold (its first guess)
         sub = ctx.restricted(T, None if cold else p[T], first=used)
-        if ctx.max_iter == 0:  # ``restricted`` grants a round at least one iteration: none is left
-            sub = replace(sub, max_iter=0)
         if cold and ctx.tol is not None:  # its set is a guess: it only has to find the load
             sub = replace(sub, tol=max(ctx.tol, COLD_ROUND_TOL))
         if tighter is not None:

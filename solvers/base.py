@@ -18,7 +18,9 @@ The lifecycle (``Solver.solve``, a template method; subclasses implement ``itera
    says ``warm_started=False``;
 4. start one deadline, one trace and one matvec count (``SolveContext``); return p = 0
    at once when ubar <= 0 (no contact) and no load is imposed, or when a load of 0 is
-   imposed (p = 0 is then the only feasible answer);
+   imposed (p = 0 is then the only feasible answer); at an iteration limit of 0, return
+   the start (the warm p, else 0) with 0 iterations, not converged, status max_iter,
+   ``iterate`` not called (``ZERO_LIMIT_NOTE``);
 5. call the solver's own ``iterate(ctx)``, which returns an ``Outcome`` whose fields are
    of their kinds (``read_outcome``; its p is the judge's to read);
 6. build the ``SolveResult``: w = Hp - ubar (unless the outcome carries it), the status
@@ -148,6 +150,12 @@ def answered_without_iterate(qp: QP) -> bool:
     if qp.constraints.load_control:
         return float(qp.constraints.load) == 0.0
     return bool(np.max(qp.ubar, initial=0.0) <= 0.0)
+
+
+#: The message of the lifecycle's answer at ``max_iter`` 0 (module doc, step 4): no solver
+#: is called, whatever it would make of a zero limit (some refuse it, some read it as their
+#: default, some take a step regardless).
+ZERO_LIMIT_NOTE = "max_iter 0: the start returned, the solver not called"
 
 
 def without_iterate_text(qp: QP) -> str:
@@ -525,6 +533,10 @@ class Solver(ABC):
     #: grid (``_kit.matvec_seconds``), so that the skip policy rescales it to the problem's own
     #: padded grid; False for a model the grid does not move (dense rows, a factorisation).
     time_scales_with_grid: ClassVar[bool] = True
+    #: Whether ``max_iter`` bounds each stage of the solve (a peer's own semantics: its
+    #: levels and precisions, listed in ``info["stages"]``) rather than the iterations it
+    #: reports in all, which may then reach max_iter x stages.
+    limit_per_stage: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Each method of ``HOOK_READERS`` that ``cls`` defines answers through its reader."""
@@ -616,6 +628,9 @@ class Solver(ABC):
         ctx.track(qp.H)
         if answered_without_iterate(qp):
             out = Outcome(np.zeros(qp.n), 0, True, without_iterate_text(qp), info={WITHOUT_ITERATE: True})
+        elif max_iter == 0:
+            out = Outcome(ctx.first_p(), 0, False, ZERO_LIMIT_NOTE, status=Status.MAX_ITER,
+                          info={WITHOUT_ITERATE: True})
         else:
             out = read_outcome(self.name, self.iterate(ctx), qp.n)
         return finish(ctx, out)

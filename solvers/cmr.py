@@ -184,6 +184,9 @@ class CMRSolver(Solver):
     grid: ClassVar[dict[str, tuple[Any, ...]]] = {"h": PAPER_H_SWEEP}
     #: None: each base solve uses the base's own tolerance unless one is asked.
     default_tol: ClassVar[float | None] = None
+    #: A limit bounds each base solve (a level, a repair round: ``info["stages"]``), as the
+    #: paper's Algorithm 6 runs its base at each level; the iterations are their sum.
+    limit_per_stage = True
 
     def default_max_iter(self, n: int) -> int | None:
         """None: each base solve uses the base's own iteration limit unless one is asked."""
@@ -274,6 +277,8 @@ class CMRSolver(Solver):
             "psd_power_law": power_law,
             "repair_rounds": fine.rounds,
             "left_out": fine.left_out,
+            "stages": " ".join([f"N{r.N}" for r in records[:-1]]
+                               + [f"N{fine.record.N}:round{k}" for k in range(fine.rounds + 1)]),
         }
         summary = (f"CMR {'->'.join(str(r.N) for r in records)} h={h:g} coarse={ctx.params['coarse']}: n_p/n={fine.record.n_p_over_n:.4f} "
                    f"coarse-loads=[{', '.join(f'{r.load:.6g}' for r in records[:-1])}]")

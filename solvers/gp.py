@@ -110,9 +110,10 @@ def lipschitz_of(ctx: SolveContext) -> float:
     return L
 
 
-def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
+def bounded_finish(ctx: SolveContext, p: np.ndarray, gp_steps: int, max_rounds: int) -> Outcome:
     """NNLS's exact step under bounds and a load row (module doc): block principal pivoting
-    from the GP point ``p`` on the dense H; iterations = K + pivoting rounds.  Converged
+    from the GP point ``p`` on the dense H, at most ``max_rounds`` rounds (at least one);
+    iterations = ``gp_steps`` + pivoting rounds.  Converged
     when pivoting reached a violation-free set *and* the answer's scaled KKT error
     (``SolveContext.kkt``, at the pivoting's multiplier under a load) meets the tolerance,
     as the plain NNLS claims; a set whose solve round-off leaves it above is "stalled"."""
@@ -121,20 +122,20 @@ def bounded_finish(ctx: SolveContext, p: np.ndarray, K: int) -> Outcome:
     ctx.mark_setup_done()
     delta0 = fit_multiplier(H @ p - ctx.qp.ubar, p, c.upper) if c.load_control else 0.0
     try:
-        sol = box_polish(H, ctx.qp.ubar, c, p, delta0, max_rounds=max(1, int(ctx.max_iter or 1)))
+        sol = box_polish(H, ctx.qp.ubar, c, p, delta0, max_rounds=max(1, max_rounds))
     except np.linalg.LinAlgError as exc:  # a block of H (or the bordered load system) numerically singular
-        ctx.info.update(K=K, gp_iterations=K, pivoting_rounds=0)
-        return Outcome(p, K, False, f"block pivoting broke down on a singular system ({exc}); the GP point is "
+        ctx.info.update(gp_iterations=gp_steps, pivoting_rounds=0)
+        return Outcome(p, gp_steps, False, f"block pivoting broke down on a singular system ({exc}); the GP point is "
                        "returned", status=Status.STALLED)
-    ctx.info.update(K=K, gp_iterations=K, pivoting_rounds=sol.rounds)
+    ctx.info.update(gp_iterations=gp_steps, pivoting_rounds=sol.rounds)
     multiplier = sol.multiplier if c.load_control else None
     if not sol.converged:
-        return Outcome(sol.p, K + sol.rounds, False, "block pivoting did not reach a violation-free set",
+        return Outcome(sol.p, gp_steps + sol.rounds, False, "block pivoting did not reach a violation-free set",
                        multiplier=multiplier)
     kkt = ctx.kkt(sol.p, H @ sol.p - ctx.qp.ubar, multiplier)  # a violation-free set, to round-off: the claim
     if kkt <= ctx.tol:
-        return Outcome(sol.p, K + sol.rounds, True, multiplier=multiplier)
-    return Outcome(sol.p, K + sol.rounds, False, f"block pivoting reached a violation-free set at a scaled KKT "
+        return Outcome(sol.p, gp_steps + sol.rounds, True, multiplier=multiplier)
+    return Outcome(sol.p, gp_steps + sol.rounds, False, f"block pivoting reached a violation-free set at a scaled KKT "
                    f"error of {kkt:.3e}, above tol", status=Status.STALLED, multiplier=multiplier)
 
 
@@ -198,9 +199,11 @@ class GradientProjection(Solver):
 class NNLSGP(Solver):
     """NNLS warm started by K accelerated GP steps (paper section 3.3.1: Algorithm 4 then
     Algorithm 3; Fig. 6 sweeps K, ``grid``).  Params: K (default 100, the paper's
-    section 4), lipschitz, restart, linear (NNLS step 6).  ``max_iter`` limits the NNLS
-    part; iterations = K + NNLS iterations.  Exact; warm start: primal (the GP steps
-    start from it)."""
+    section 4), lipschitz, restart, linear (NNLS step 6).  iterations = GP steps + NNLS
+    iterations, and ``max_iter`` limits that sum: the GP steps are min(K, max_iter), NNLS
+    has the rest (none left: the GP point, status max_iter).  The default limit leaves NNLS
+    its own default (``nnls_max_iter``) after the largest K of the grid.  Exact; warm
+    start: primal (the GP steps start from it)."""
 
     name = "nnls-gp"
     family = "paper"
@@ -212,7 +215,7 @@ class NNLSGP(Solver):
     grid = {"K": GP_K_VALUES}
 
     def default_max_iter(self, n: int) -> int:
-        return nnls_max_iter(n)
+        return nnls_max_iter(n) + max(GP_K_VALUES)
 
     def skip(self, traits: ProblemTraits) -> str | None:
         why = super().skip(traits)
@@ -225,17 +228,23 @@ class NNLSGP(Solver):
         return None
 
     def iterate(self, ctx: SolveContext) -> Outcome:
-        K = ctx.params["K"]
+        K, limit = ctx.params["K"], int(ctx.max_iter)
+        steps = min(K, limit)
         p = start_point(ctx)
         if not ctx.constraints.plain:
             p = project_feasible(p, ctx.constraints)
-        if K > 0:
-            p = accelerated_gradient_projection(ctx, p, lipschitz_of(ctx), K, restart=ctx.params["restart"]).p
+        if steps > 0:
+            p = accelerated_gradient_projection(ctx, p, lipschitz_of(ctx), steps, restart=ctx.params["restart"]).p
+        if steps == limit:
+            ctx.info.update(K=K, gp_iterations=steps, nnls_iterations=0)
+            return Outcome(p, steps, False, f"max_iter {limit} spent on the gradient-projection steps",
+                           status=Status.MAX_ITER)
         if not ctx.constraints.plain:
-            return bounded_finish(ctx, p, K)
-        out = nnls_active_set(ctx, p, ctx.max_iter, ctx.params["linear"], it_offset=K)
-        ctx.info.update(K=K, gp_iterations=K, nnls_iterations=out.iterations)
-        out.iterations += K
+            ctx.info.update(K=K)
+            return bounded_finish(ctx, p, steps, limit - steps)
+        out = nnls_active_set(ctx, p, limit - steps, ctx.params["linear"], it_offset=steps)
+        ctx.info.update(K=K, gp_iterations=steps, nnls_iterations=out.iterations)
+        out.iterations += steps
         return out
 
     def time_estimate(self, n: int, operator_kind: str) -> float | None:

@@ -321,6 +321,7 @@ class _AspherNested(_AspherSolver):
     free_backend: str = "fft"
     active_set: bool = False
     precision: str = "double"
+    limit_per_stage = True  # ``solve_nested``'s max_iter bounds each level and precision
 
     def solve_posed(self, pz: Posed, ctx: SolveContext) -> tuple[Any, dict[str, Any]]:
         import aspher

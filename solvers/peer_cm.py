@@ -39,7 +39,9 @@ neither (its ``dual_minimize_proxy`` takes an offset only) and is skipped on the
 
 Either way ContactMechanics solves exactly our problem (solvers/_peers.py: the QP posed on
 the full grid); its force field on the trial set is judged as it comes.  At ``max_iter`` 0
-neither is called (``ZERO_LIMIT_NOTE``): the start, 0 iterations, status max_iter.
+neither is called (the lifecycle answers it: ``base.ZERO_LIMIT_NOTE``; ContactMechanics
+fails on a zero limit: its PK CG reads a value it never set, its dual CCG returns no
+result).
 """
 
 from __future__ import annotations
@@ -74,11 +76,6 @@ PERIODIC_LOAD_SKIP = ("cm-pk-ccg does not pose periodic load control on our mean
 PERIODIC_REAL_SPACE_SKIP = ("cm-pk-ccg does not converge on a periodic real-space kernel ('love', 'bcc') as we pose "
                             "it (mean-free): it stays at p = 0 until its iteration limit; it is run on the periodic "
                             "'spectral' kernel and on non-periodic grids")
-
-
-#: Why a zero iteration limit is answered without ContactMechanics (``_CMSolver.without_peer``).
-ZERO_LIMIT_NOTE = ("max_iter 0: ContactMechanics fails on a zero limit (its PK CG reads a value it never set, its "
-                   "dual CCG returns no result), so it was not called")
 
 
 def native_green(kernel: str, periodic: bool, layer: bool = False) -> bool:
@@ -152,15 +149,6 @@ class _CMSolver(PeerSolver):
     def time_estimate(self, n: int, operator_kind: str) -> float | None:
         return None
 
-    def without_peer(self, ctx: SolveContext) -> Outcome | None:
-        """At ``max_iter`` 0 the start (the warm p, else 0) with 0 iterations, not
-        converged, status max_iter, ContactMechanics not called (``ZERO_LIMIT_NOTE``);
-        else None."""
-        if ctx.max_iter != 0:
-            return None
-        return Outcome(ctx.first_p(), 0, False, ZERO_LIMIT_NOTE, status=Status.MAX_ITER,
-                       info={"posing": ZERO_LIMIT_NOTE, "answered_by_adapter": True})
-
     def posed(self, ctx: SolveContext) -> tuple[GridProblem, Any, str]:
         gp = grid_problem(ctx.qp)
         ours = ctx.params["green"] == "ours" or not native_green(gp.kernel, gp.periodic, gp.layer is not None)
@@ -197,9 +185,6 @@ class CMDualCCG(_CMSolver):
         from ContactMechanics.Systems import NonSmoothContactSystem
         from SurfaceTopography import Topography
 
-        short = self.without_peer(ctx)
-        if short is not None:
-            return short
         gp, sub, green = self.posed(ctx)
         topo = Topography(gp.U, physical_sizes=gp.sizes, periodic=gp.periodic)
         system = NonSmoothContactSystem(sub, topo)
@@ -243,9 +228,6 @@ class CMPolonskyKeer(_CMSolver):
         from ContactMechanics.Optimization import constrained_conjugate_gradients
         from SurfaceTopography import Topography
 
-        short = self.without_peer(ctx)
-        if short is not None:
-            return short
         gp, sub, green = self.posed(ctx)
         topo = Topography(gp.U, physical_sizes=gp.sizes, periodic=gp.periodic)
         pentol = self.tolerance(ctx, gp)

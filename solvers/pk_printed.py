@@ -14,7 +14,9 @@ iteration, stopped on the harness's scaled KKT error.  The paper's Fig. 4 measur
 Line by line (tex line: what runs here):
 
 * 728-731 (input): H, ubar, an initial guess p >= 0 (a warm start, else p = 0: the
-  paper's cold start), I_C = {1, ..., n}, K_max (``ctx.max_iter``, default the paper's 1e5),
+  paper's cold start), I_C = {1, ..., n}, K_max = ``ctx.max_iter`` - 1 (default: the
+  paper's 1e5; the printed loop runs K_max + 1 iterations, so max_iter limits them as it
+  does every solver's),
   eps (``ctx.tol``, default the paper's 1e-8: the relative change of ||w||, *not* a KKT
   error);
 * 734 (step 1): i = 0, n_w,old = 1, d = 0, err = +inf;
@@ -160,14 +162,14 @@ class PrintedConstrainedCG(Solver):
     )
 
     def default_max_iter(self, n: int) -> int:
-        return PAPER_KMAX
+        return PAPER_KMAX + 1  # K_max = max_iter - 1 (module doc)
 
     def iterate(self, ctx: SolveContext) -> Outcome:
         projection = ctx.params["projection"]
         p = ctx.first_p()
         w = ctx.qp.H.matvec(p) - ctx.qp.ubar  # step 2
         s = PrintedState(p, w, np.ones(ctx.n, dtype=bool), np.zeros(ctx.n), float(np.linalg.norm(w)))
-        eps, kmax = float(ctx.tol if ctx.tol is not None else self.default_tol), int(ctx.max_iter or 0)
+        eps, kmax = float(ctx.tol if ctx.tol is not None else self.default_tol), int(ctx.max_iter) - 1
         i, status = 0, None
         while i <= kmax and s.err > eps:  # step 3
             if ctx.expired():

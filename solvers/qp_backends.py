@@ -28,8 +28,7 @@ loop's limit ``max_iter_in``, which its ``max_iter`` (outer iterations) leaves a
 Its iterations are its outer ones (``PROXQP_ITERATIONS``); a limit bounds both loops.
 
 Iteration limits: ``max_iter`` goes to each backend's own limit (``_limits``); a limit of 0
-calls no backend (``_scaling.ZERO_LIMIT_NOTE``): the start with 0 iterations, status
-max_iter.  A count the backend never set (refused settings) reads 0 (``_status_of``).
+calls no backend (the lifecycle answers it: ``base.ZERO_LIMIT_NOTE``).  A count the backend never set (refused settings) reads 0 (``_status_of``).
 
 Parameters: ``scaling`` (bool), ``input_format`` ("dense"/"sparse", default the
 backend's) and ``backend_options`` (dict of the backend's own options, applied last).

@@ -23,10 +23,10 @@ def qp_of(H: list[list[float]], ubar: list[float]) -> QP:
 
 
 def after(qp: QP, iterations: int, p0: list[float] | None = None, projection: str = "all"):
-    """The solve stopped after ``iterations`` iterations at most: K_max = iterations - 1,
-    since the printed loop runs while i <= K_max (tex line 736)."""
+    """The solve stopped after ``iterations`` iterations at most: max_iter = iterations, so
+    K_max = iterations - 1, as the printed loop runs while i <= K_max (tex line 736)."""
     warm = None if p0 is None else WarmStart(p=np.array(p0, dtype=float))
-    return SOLVER.solve(qp, SolverSettings(max_iter=iterations - 1, params={"projection": projection}), warm)
+    return SOLVER.solve(qp, SolverSettings(max_iter=iterations, params={"projection": projection}), warm)
 
 
 # ---------------------------------------------------------------------------
@@ -177,7 +177,7 @@ def test_example1_where_the_printed_algorithm_stops_against_the_exact_answer() -
 
 def test_registered_beside_pk_with_the_papers_settings() -> None:
     assert SOLVER.family == "paper" and SOLVER.default_tol == 1e-8
-    assert SOLVER.default_max_iter(10) == PAPER_KMAX == 100_000
+    assert SOLVER.default_max_iter(10) - 1 == PAPER_KMAX == 100_000  # K_max = max_iter - 1
     assert not SOLVER.capabilities.exact and SOLVER.capabilities.warm_start == "primal"
     assert get_solver("pk").name == "pk"
 
