@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 from bench_surface_population import (FAMILIES, THREAD_VARS, Member, check_choices, check_population_args, code_commit,
                                       parse_seeds, plan, surface_of)
-from csv_rows import append_row, child_result, read_latest, host_name
+from csv_rows import append_row, cell, child_result, read_latest, host_name
 
 #: The load, P / (E* A), per unit of the member's rms slope.
 LOAD_PER_SLOPE = 0.05
@@ -331,9 +331,9 @@ def medians(rows: list[AspherRow], entries: list[str]) -> list[str]:
                 continue
             ok = [r for r in ran if r.reading == "pass"]
             worst = max((r.kkt for r in ran if math.isfinite(r.kkt)), default=math.nan)
-            lines.append(f"| {b} | {N} | {e} | {len(ok)}/{len(ran)} | {median_of(ok, 'seconds'):.3g} | "
-                         f"{median_of(ok, 'matvecs'):.0f} | {median_of(ok, 'iterations'):.0f} | {worst:.1e} | "
-                         f"{median_of(ok, 'peak_rss_mib'):.0f} |")
+            lines.append(f"| {b} | {N} | {e} | {len(ok)}/{len(ran)} | {cell(median_of(ok, 'seconds'), '.3g')} | "
+                         f"{cell(median_of(ok, 'matvecs'), '.0f')} | {cell(median_of(ok, 'iterations'), '.0f')} | "
+                         f"{cell(worst, '.1e')} | {cell(median_of(ok, 'peak_rss_mib'), '.0f')} |")
     return lines
 
 
@@ -346,7 +346,8 @@ OURS = "fast-dual-pccg"
 def race(rows: list[AspherRow]) -> list[str]:
     """Per boundary and size, over the problems where ``OURS`` and an ASPHER entry passed:
     our seconds over ASPHER's nested solve's and over its fastest passing entry's, median
-    and worst (the largest ratio), and the problems behind them."""
+    and worst (the largest ratio), and the problems behind them; a line saying so where
+    no problem has both."""
     lines = ["| boundary | N | problems | ours / ASPHER nested: median | worst | ours / ASPHER's fastest: median | "
              "worst |", "|---|---:|---:|---:|---:|---:|---:|"]
     by = {(problem_of(r), r.entry): r for r in rows if r.reading == "pass"}
@@ -363,7 +364,7 @@ def race(rows: list[AspherRow]) -> list[str]:
                 nested.append(ours / by[(k, "aspher-nested")].seconds)
         if fastest:
             lines.append(f"| {b} | {N} | {len(fastest)} | {median_and_worst(nested)} | {median_and_worst(fastest)} |")
-    return lines
+    return lines if len(lines) > 2 else [f"No problem has both {OURS} and an ASPHER entry passing."]
 
 
 def median_and_worst(ratios: list[float]) -> str:

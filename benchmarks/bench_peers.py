@@ -35,6 +35,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from csv_rows import cell
+
 CB = str(Path(sys.executable).with_name("contactbench"))
 #: The peer every ratio is taken against.
 CM = "cm-dual-ccg"
@@ -107,8 +109,9 @@ def summary_lines(case: Case, threads: int, rows: list[SolverTotals], ours: str)
              f"| solver | total solve s | solved/run | time / {CM} | max load diff to {ours} | peak RSS growth in a solve, MiB |",
              "|---|---:|---:|---:|---:|---:|"]
     for r in sorted(rows, key=lambda r: r.seconds):
-        lines.append(f"| {r.solver} | {r.seconds:.2f} | {r.solved}/{r.ran} | {r.seconds / cm if cm > 0 else math.nan:.3f} | "
-                     f"{r.max_load_diff:.1e} | {r.peak_mem_mb:.0f} |")
+        lines.append(f"| {r.solver} | {r.seconds:.2f} | {r.solved}/{r.ran} | "
+                     f"{cell(r.seconds / cm if cm > 0 else math.nan, '.3f')} | {cell(r.max_load_diff, '.1e')} | "
+                     f"{cell(r.peak_mem_mb, '.0f')} |")
     return lines + [""]
 
 

@@ -1,12 +1,14 @@
 """The benchmark scripts' rows: one solve's row from a child process that prints
 ``RESULT <json>``, and the CSV tables of dataclass rows (append one row; read the latest row
-of each key back as the dataclass, int and float fields converted)."""
+of each key back as the dataclass, int and float fields converted); ``cell`` formats a
+number for their Markdown tables ("-" where there is none)."""
 
 from __future__ import annotations
 
 import argparse
 import csv
 import json
+import math
 import os
 import platform
 import subprocess
@@ -15,6 +17,16 @@ from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 Row = TypeVar("Row")
+
+
+def cell(value: float, spec: str) -> str:
+    """``value`` in format ``spec`` for a Markdown table, "-" where it is not a finite
+    number (nothing measured: a reader is never shown "nan")."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return "-"
+    return format(x, spec) if math.isfinite(x) else "-"
 
 
 def cpu_model() -> str:
