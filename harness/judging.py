@@ -274,13 +274,15 @@ class _Reader:
 
 def _read(qp: Any, held: tuple[Any, ...] = ()) -> _Reader:
     """The state of the problem handed to a solver -- ubar, its constraints (a load, the
-    upper bounds of a hardness) and everything the operator holds (``_Reader``) -- and of
-    the problems ``held`` beside it in the process (the judge's own, named ``held[i]``; an
-    operator or constraints they share with ``qp`` are read once, under ``qp``'s name)."""
+    upper bounds of a hardness), everything the operator holds (``_Reader``) and its
+    geometry (the unknowns' grid indices, the far field, the surface with its heights and
+    coarse levels, from which the steps after are built) -- and of the problems ``held``
+    beside it in the process (the judge's own, named ``held[i]``; an operator, constraints
+    or a surface they share with ``qp`` are read once, under ``qp``'s name)."""
     reader = _Reader()
     for prefix, each in (("", qp), *((f"held[{i}].", q) for i, q in enumerate(held))):
         reader.read(np.asarray(each.ubar), f"{prefix}ubar", _Context())
-        for name in ("constraints", "H"):
+        for name in ("constraints", "H", "geometry"):
             part = getattr(each, name, None)
             if part is not None:
                 reader.read_object(part, f"{prefix}{name}", _Context())
@@ -336,8 +338,9 @@ class _Findings:
 
 @dataclass(frozen=True, eq=False)  # (compared by identity: it holds the objects it put aside)
 class ProblemSeal:
-    """A fingerprint of the problem handed to a solver, taken before the solve: ubar, and
-    everything the operator holds -- its defining arrays, its private arrays and those of
+    """A fingerprint of the problem handed to a solver, taken before the solve: ubar, its
+    constraints and geometry (``_read``), and everything the operator holds -- its defining
+    arrays, its private arrays and those of
     the objects it holds, read by the rules of ``contactbench.problems.operator_state``
     (work buffers by their layout, caches held to their rebuild, counters by being plain ints) --
     and the methods its products run (``_methods``).  ``broken(qp)`` after the solve says
@@ -443,11 +446,11 @@ class ProblemSeal:
             if vars(c).get(name) is not value:
                 setattr(c, name, value)
         sealed = dict(self.hiding)
-        for part, name, where, _ in self._new_hiding(found.reader.parts):
+        for part, name, where, _ in self._new_hiding(found.reader.parts):  # (a frozen dataclass's too)
             if where in sealed:
-                setattr(part, name, sealed[where])
+                object.__setattr__(part, name, sealed[where])
             else:
-                delattr(part, name)
+                object.__delattr__(part, name)
         slots = found.reader.slots
         for path in found.bad_caches + found.per_product + found.opaque:
             if path in slots:

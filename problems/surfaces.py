@@ -34,11 +34,23 @@ from .kernels import square_spacing
 from .preprocessing import MapPreprocessing
 
 
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` as a float64 array no one writes through: its data an immutable ``bytes`` copy,
+    so ``flags.writeable = True`` fails on it and on every view of it (``a`` itself when it
+    is one already).  A solver handed a surface (``QP.geometry``) cannot change the steps
+    built from it after."""
+    if isinstance(a.base, bytes) and a.dtype == np.float64:
+        return a
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return np.ndarray(a.shape, np.float64, buffer=a.tobytes())
+
+
 @dataclass(frozen=True)
 class Surface:
     """A rigid rough surface sampled on a rectangular grid (module doc).
 
-    heights : N0 x N1 array of elevations xi_ij (the paper's average heights).
+    heights : N0 x N1 array of elevations xi_ij (the paper's average heights), read-only
+              (``read_only``: a copy of the array given).
     delta   : grid spacing along axis 0 (rows).
     unit    : length unit of heights and delta ("m" by default).
     levels  : coarser representations of the same surface (coarsest first), when the
@@ -85,7 +97,7 @@ class Surface:
             check_positive("grid spacing delta1 (axis 1)", self.delta1)
             if square_spacing((self.delta, self.delta1)) is not None:  # equal to round-off: square pixels
                 object.__setattr__(self, "delta1", None)
-        object.__setattr__(self, "heights", h)
+        object.__setattr__(self, "heights", read_only(h))
         L0, L1 = self.lengths
         if not np.finfo(np.float64).tiny <= self.area < np.inf:
             raise ProblemInputError(f"a surface of lengths L0 x L1 = {L0:g} x {L1:g} has a nominal area A of "

@@ -25,7 +25,9 @@ The lifecycle (``Solver.solve``, a template method; subclasses implement ``itera
    of their kinds (``read_outcome``; its p is the judge's to read);
 6. build the ``SolveResult``: w = Hp - ubar (unless the outcome carries it), the status
    from the small ``Status`` enum, the matvec count, and a trace whose last point is the
-   final iterate's scaled KKT error.
+   final iterate's scaled KKT error; a count or time the results table cannot hold (a
+   negative or float ``add_matvecs``, a NaN ``add_setup_time``: ``account_problems``) is
+   a ``SolverReturnError`` naming it, which fails the row.
 
 Bounds and load control (``problems.constraints``)
 --------------------------------------------------
@@ -48,15 +50,13 @@ Adding a solver = one file in ``solvers/`` with a ``Solver`` subclass decorated 
 
 from __future__ import annotations
 
-import functools
 import inspect
-import numbers
 import reprlib
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Any, Callable, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -66,10 +66,12 @@ from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import constrained_kkt_error
 from contactbench.problems.operators import ContactOperator
 
+from ._answers import COUNT_RULE, HOOK_READERS, account_problems, is_plain_count, is_real, is_seconds, read_through
+from ._answers import SolverReturnError as SolverReturnError, read_availability as read_availability
+from ._answers import read_max_iter as read_max_iter, read_reason as read_reason
 from ._capabilities import Capabilities, WarmKind
 from ._capabilities import Promise as Promise, check_promise as check_promise, describe_promise as describe_promise
 from ._capabilities import promised_tol as promised_tol
-from ._loading import one_line
 from ._params import Param, ParamError
 
 #: The default tolerance of a solver that declares none: the scaled KKT error of
@@ -340,24 +342,36 @@ class SolveContext:
         return op
 
     def add_matvecs(self, k: int) -> None:
-        """Count k products done outside a tracked operator."""
+        """Count k products done outside a tracked operator: an integer from 0 to ``COUNT_MAX``
+        (else ``SolverReturnError``, which fails the solve naming it)."""
+        if not is_plain_count(k):
+            raise SolverReturnError(f"the solver counted add_matvecs({reprlib.repr(k)}), not {COUNT_RULE}")
         if self._parent is not None:
             self._parent.add_matvecs(k)
         else:
             self._extra_matvecs += int(k)
 
     def matvecs(self) -> int:
-        """Products of the whole solve so far (a restricted solve's count is its parent's)."""
+        """Products of the whole solve so far (a restricted solve's count is its parent's);
+        ``SolverReturnError`` where the counts do not add up to one (a tracked operator's
+        count set back, or to a number that is no integer)."""
         if self._parent is not None:
             return self._parent.matvecs()
-        return int(sum(op.matvec_count - c0 for op, c0 in self._ops)) + self._extra_matvecs
+        total = sum((op.matvec_count - c0 for op, c0 in self._ops), self._extra_matvecs)
+        if not is_plain_count(total):
+            raise SolverReturnError(f"the solve's products with H add up to {reprlib.repr(total)}, not {COUNT_RULE}")
+        return int(total)
 
     def mark_setup_done(self) -> None:
         """Everything so far was set-up (factorisations, assembly): ``setup_time``."""
         self.setup_time = self.trace.elapsed()
 
     def add_setup_time(self, seconds: float) -> None:
-        """Count ``seconds`` spent later on set-up work (e.g. a modelling layer's compile)."""
+        """Count ``seconds`` spent later on set-up work (e.g. a modelling layer's compile): a
+        finite number >= 0 (else ``SolverReturnError``, which fails the solve naming it)."""
+        if not is_seconds(seconds):
+            raise SolverReturnError(f"the solver counted add_setup_time({reprlib.repr(seconds)}), not a finite "
+                                    "number of seconds >= 0")
         self.setup_time = (self.setup_time or 0.0) + float(seconds)
 
 
@@ -415,48 +429,6 @@ class ProblemTraits:
     whole_periodic_grid: bool = False
 
 
-class SolverReturnError(TypeError):
-    """A solver's method answered what its contract does not allow (``read_availability``,
-    ``read_reason``, ``read_max_iter``, ``read_outcome``): one line naming the solver, the
-    method and the answer.  Raised where the answer is read, it fails that solver's rows."""
-
-
-def read_availability(name: str, method: str, answer: Any) -> tuple[bool, str]:
-    """``availability()``'s ``answer`` as (available, reason on one line) if it is a pair
-    of a bool and a str, else ``SolverReturnError``."""
-    if (isinstance(answer, tuple) and len(answer) == 2 and isinstance(answer[0], (bool, np.bool_))
-            and isinstance(answer[1], str)):
-        return bool(answer[0]), one_line(answer[1])
-    raise SolverReturnError(f"solver {name!r}: {method}() returned {reprlib.repr(answer)}, not a pair "
-                            "(available, reason) of a bool and a str")
-
-
-def read_reason(name: str, method: str, answer: Any) -> str | None:
-    """A reason not to run as ``skip`` or ``skip_params`` answers it: a str, on one line; None
-    (run it) for None, False or a blank str; anything else is ``SolverReturnError``."""
-    if isinstance(answer, str):
-        return one_line(answer) or None
-    if answer is None or (isinstance(answer, (bool, np.bool_)) and not answer):
-        return None
-    raise SolverReturnError(f"solver {name!r}: {method}() returned {reprlib.repr(answer)}, not a reason "
-                            "(a str) or None")
-
-
-def read_max_iter(name: str, n: int, answer: Any) -> int | None:
-    """``default_max_iter(n)``'s ``answer`` if it is None or an integer >= 0, the rule of
-    ``SolverSettings.max_iter``; else ``SolverReturnError``."""
-    if answer is None:
-        return None
-    if isinstance(answer, (bool, np.bool_)) or not isinstance(answer, (int, np.integer)) or answer < 0:
-        raise SolverReturnError(f"solver {name!r}: default_max_iter({n}) returned {reprlib.repr(answer)}, not an "
-                                "integer >= 0 or None")
-    return int(answer)
-
-
-def _is_real(value: Any) -> bool:
-    return isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(value, (bool, np.bool_))
-
-
 def outcome_problems(out: Outcome, n: int) -> list[str]:
     """What is wrong with the fields of ``out`` for a problem of n unknowns (none: []):
     iterations an integer from 0 to ``COUNT_MAX`` (a table's int64), converged a bool, status a ``Status`` or None, message a
@@ -470,7 +442,7 @@ def outcome_problems(out: Outcome, n: int) -> list[str]:
         ("message", isinstance(out.message, str), "a str"),
         ("info", isinstance(out.info, dict), "a dict"),
         ("w", w is None or getattr(w, "shape", None) == (n,), f"None or an array of shape ({n},)"),
-        ("multiplier", out.multiplier is None or _is_real(out.multiplier), "None or a real number"),
+        ("multiplier", out.multiplier is None or is_real(out.multiplier), "None or a real number"),
     )
     return [f"{field_name} is {reprlib.repr(getattr(out, field_name))}, not {rule}"
             for field_name, ok, rule in checks if not ok]
@@ -485,23 +457,6 @@ def read_outcome(name: str, out: Any, n: int) -> Outcome:
     if problems:
         raise SolverReturnError(f"solver {name!r}: iterate() returned an Outcome whose " + "; ".join(problems))
     return out
-
-
-#: The methods a subclass may define whose every answer is read by the reader beside it,
-#: whoever asks (``Solver.__init_subclass__``).
-HOOK_READERS: dict[str, Callable[[str, str, Any], Any]] = {
-    "availability": read_availability, "skip": read_reason, "skip_params": read_reason}
-
-
-def _read_through(attr: str, method: Callable[..., Any], read: Callable[[str, str, Any], Any]) -> Callable[..., Any]:
-    """``method`` (the solver's ``attr``), its answer read by ``read`` (a ``SolverReturnError``
-    if it is not one)."""
-
-    @functools.wraps(method)
-    def hook(self: Solver, *args: Any, **kwargs: Any) -> Any:
-        return read(self.name, attr, method(self, *args, **kwargs))
-
-    return hook
 
 
 class Solver(ABC):
@@ -544,7 +499,7 @@ class Solver(ABC):
         for attr, read in HOOK_READERS.items():
             method = cls.__dict__.get(attr)
             if inspect.isfunction(method):
-                setattr(cls, attr, _read_through(attr, method, read))
+                setattr(cls, attr, read_through(attr, method, read))
 
     @classmethod
     def param_defaults(cls) -> dict[str, Any]:
@@ -661,7 +616,9 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
     """The SolveResult of an outcome (module doc, step 6).  The solver's claim
     (``converged``) is passed on as made, whatever status it gives: an unusable p (wrong shape, non-finite,
     unreadable) claimed as converged is the judge's to call wrong, not the lifecycle's to
-    turn into an honest failure; unclaimed, its status is FAILED."""
+    turn into an honest failure; unclaimed, its status is FAILED.  A count or time of the
+    solve's own account that a table cannot hold (``account_problems``) is a
+    ``SolverReturnError`` naming it."""
     qp = ctx.qp
     p = readable_answer(out.p)
     finite = isinstance(p, np.ndarray) and p.shape == (qp.n,) and p.dtype == np.float64 and bool(np.all(np.isfinite(p)))
@@ -682,14 +639,18 @@ def finish(ctx: SolveContext, out: Outcome) -> SolveResult:
         if not ctx.trace.points or ctx.trace.points[-1][0] != out.iterations:
             ctx.trace.points.append((int(out.iterations), ctx.trace.elapsed(), float(final)))
     converged = bool(out.converged)  # a claim beside another status word is still a claim, for the judge
+    setup_time, solve_time = 0.0 if ctx.setup_time is None else ctx.setup_time, ctx.trace.elapsed()
+    problems = account_problems(out.iterations, ctx.matvecs(), setup_time, solve_time)
+    if problems:  # (a count or time a table cannot hold: ``ctx.setup_time`` or the trace's clock set by hand)
+        raise SolverReturnError("the solve's own account: " + "; ".join(problems))
     return SolveResult(
         p=p,
         iterations=int(out.iterations),
         converged=converged,
         status=status.value,
         message=out.message or f"{status.value} after {out.iterations} iterations",
-        solve_time=ctx.trace.elapsed(),
-        setup_time=0.0 if ctx.setup_time is None else ctx.setup_time,
+        solve_time=solve_time,
+        setup_time=float(setup_time),
         matvecs=ctx.matvecs(),
         warm_started=ctx.warm_started,
         trace=list(ctx.trace.points),

@@ -53,7 +53,8 @@ from ..arguments import check_time_limit
 from ..profiles import get_profile
 from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
-from ..run.worker import aborted_status, instance_operator_kind, problem_traits, running_threads, threads_left
+from ..run.worker import aborted_status, instance_operator_kind, problem_traits, running_threads, solver_facts
+from ..run.worker import threads_left
 
 #: Default per-solve time limits (s) by battery mode.
 DEFAULT_TIMEOUT = {"fast": 20.0, "full": 60.0, "scene": 120.0}
@@ -354,7 +355,9 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
     allows it ("crashed" otherwise); a ``KeyboardInterrupt`` propagates.  Every message is
     one line, whatever the exception's text (empty, or a ``__str__`` that raises).  Whether
     the lifecycle answered without calling the solver is the harness's own reading of the
-    problem (``answered_without_iterate``), never what the solver wrote into its result."""
+    problem (``answered_without_iterate``), never what the solver wrote into its result.  A
+    result whose own account no results table holds (``harness.run.worker.solver_facts``) is
+    "crashed", as in a run."""
     case = ConformanceCase(msg.spec)
     inst = build_battery_spec(msg.spec).at(msg.step)
     qp = adapt_to_solver(inst, solver, msg.params, warm=msg.warm is not None)
@@ -384,8 +387,12 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
     left = threads_left(threads)
     tampered = seal.broken(qp) or left
     seal.mend(qp)  # (the judge's products, and the next case's in this process, run the sealed code)
-    return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": bool(res.converged),
-            "iterations": int(res.iterations), "multiplier": res.multiplier,
+    facts = solver_facts(res, 0)
+    if isinstance(facts, str):  # (the lifecycle refuses such an account: a solver that overrides ``solve``)
+        return {"kind": "crashed", "time_s": elapsed, "message": "; ".join(filter(None, (facts, tampered))),
+                "detail": facts, "threads_left": left}
+    return {"kind": "ok", "p": portable_answer(res.p, inst.n), "converged": facts.solver_converged,
+            "iterations": facts.iterations, "multiplier": res.multiplier,
             "traced": max((int(pt[0]) for pt in res.trace), default=0),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
             "tampered": tampered, "iterated": not lifecycle, "threads_left": left}

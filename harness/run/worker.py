@@ -50,6 +50,7 @@ import numpy as np
 from contactbench.problems.instances import QP, ContactInstance
 from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET, DenseOperator, set_memory_budget
 from contactbench.problems.scenes import InstanceSpec
+from contactbench.solvers._answers import account_problems, is_plain_count
 from contactbench.solvers.base import ProblemTraits, SolveAborted, SolverSettings, WarmStart
 from contactbench.solvers.registry import load_solver
 
@@ -532,15 +533,15 @@ class SolveServer:
             raised.error = "; ".join(filter(None, (raised.error, broken, left)))
             raised.threads_left = left
             return raised
-        facts = SolverFacts(
-            iterations=int(res.iterations), solver_status=str(res.status), solver_converged=bool(res.converged),
-            solver_message=str(res.message)[:500], solver_internal_time_s=float(res.solve_time),
-            setup_time_s=float(res.setup_time), matvecs=int(res.matvecs or (qp.H.matvec_count - count0)),
-            trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
-        )
-        reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
+        facts = solver_facts(res, qp.H.matvec_count - count0)
         tampered = seal.broken(qp)
         seal.mend(qp)  # (before the judge reads the problem: its products run the sealed code and state)
+        if isinstance(facts, str):  # an account no row can hold: the row fails naming it, never stored as given
+            if tampered:
+                self.forget_problems()
+            return SolveReply(elapsed, warm is not None, mem.mb, error="; ".join(filter(None, (facts, tampered, left))),
+                              threads_left=left)
+        reply = SolveReply(elapsed, warm is not None, mem.mb, facts)
         p_ref = self.reference_p(task.reference_path, inst)
         reply.threads_left = left
         reply.verdict = judge(inst, res.p, bool(res.converged), task.check_tol, p_ref=p_ref,
@@ -563,6 +564,28 @@ class SolveServer:
             with contextlib.suppress(OSError):  # a full disk costs a resume its exact start, not this row
                 self.warm[(task.label, task.profile, task.step)].save(task.warm_out)
         return reply
+
+
+def solver_facts(res: Any, counted: int) -> SolverFacts | str:
+    """The solver's own account of a solve (``res``, its ``SolveResult``; ``counted`` the
+    products the handed operator counted, its matvecs where the solver reports 0), or why
+    no row can take it: a count or time the table cannot hold (``account_problems``, which
+    the lifecycle applies too: this is for a solver that overrides ``solve``; a time not
+    reported, NaN, is missing in the row), or a result that cannot be read at all."""
+    try:
+        reported = res.matvecs
+        matvecs = counted if is_plain_count(reported) and reported == 0 else reported
+        problems = account_problems(res.iterations, matvecs, res.setup_time, res.solve_time, unreported=True)
+        if problems:
+            return "the solver's result holds what no results table can: " + "; ".join(problems)
+        return SolverFacts(
+            iterations=int(res.iterations), solver_status=str(res.status), solver_converged=bool(res.converged),
+            solver_message=str(res.message)[:500], solver_internal_time_s=float(res.solve_time),
+            setup_time_s=float(res.setup_time), matvecs=int(matvecs),
+            trace=json.dumps(thin_trace(res.trace)) if res.trace else "",
+        )
+    except SOLVER_RAISES as exc:  # (a result that is no SolveResult, a field whose conversion raises)
+        return f"the solver's result cannot be read: {exception_message(exc)}"
 
 
 def read_reference(path: str, n: int) -> np.ndarray | None:

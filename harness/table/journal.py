@@ -1,5 +1,6 @@
 """The journal of a results folder, OUT/rows.jsonl (harness/table/store.py's module doc):
-one JSON object per row, written by ``encode_row``, a partial last line cut by
+one JSON object per row, written by ``encode_row`` (a row that would not read back is
+stored as a failed row saying why, ``storable_row``), a partial last line cut by
 ``repair_journal``, read by ``read_journal`` (the first row of each cell,
 ``first_of_each_cell``) and checked against the table contract by ``check_journal``, once
 per state of the file (``checked_journal``).
@@ -17,16 +18,70 @@ from contactbench.problems.errors import ProblemInputError
 import numpy as np
 import pandas as pd
 
-from .schema import CHECKED_COLUMNS, TableError, as_text, check_table
+from .schema import CHECKED_COLUMNS, COLUMNS, TableError, as_text, check_booleans, check_numbers, check_table
 
 
 def _json_default(obj: Any) -> Any:
     return obj.tolist() if isinstance(obj, (np.generic, np.ndarray)) else str(obj)
 
 
-def encode_row(row: dict[str, Any]) -> str:
-    """One journal line (NaN is kept as the JSON extension ``NaN``)."""
+def _line(row: dict[str, Any]) -> str:
     return json.dumps(row, default=_json_default, allow_nan=True) + "\n"
+
+
+def encode_row(row: dict[str, Any]) -> str:
+    """One journal line (NaN is kept as the JSON extension ``NaN``) that the journal's
+    readers take: a row that would not read back (``row_problem``) is written as
+    ``storable_row`` makes it, never as given, and ``row`` is updated to what the line holds."""
+    stored = storable_row(row)
+    if stored is not row:
+        row.clear()
+        row.update(stored)
+    return _line(row)
+
+
+def row_problem(row: dict[str, Any]) -> str:
+    """Why ``row``, read back from its journal line, breaks the table contract
+    (``schema.check_table``, as ``check_journal`` reads it); "" where it does not."""
+    try:
+        check_table(pd.DataFrame.from_records([json.loads(_line(row))], columns=list(CHECKED_COLUMNS)), "the row")
+    except TableError as exc:
+        return str(exc)
+    return ""
+
+
+def _breaks(row: dict[str, Any], name: str) -> bool:
+    """Whether column ``name`` of ``row`` (as read back) alone breaks its number or
+    true/false rule (``schema.check_numbers``, ``schema.check_booleans``)."""
+    col = pd.DataFrame.from_records([json.loads(_line({name: row[name]}))], columns=[name])[name]
+    try:
+        if COLUMNS[name].dtype == "boolean":
+            check_booleans(col, name, "the row")
+        else:
+            check_numbers(col, name, "the row", whole=COLUMNS[name].dtype == "Int64")
+    except TableError:
+        return True
+    return False
+
+
+def storable_row(row: dict[str, Any]) -> dict[str, Any]:
+    """``row`` itself where it reads back (``row_problem``); else a copy stored as a failed
+    row, unjudged (status "failed", verdict ""), its error naming why, each number or
+    true/false column that breaks its rule emptied -- and, should the row still not read
+    back (a reading its figures contradict), every number and true/false column emptied.
+    The harness writes no such row: a value no table can hold came from a solver."""
+    why = row_problem(row)
+    if not why:
+        return row
+    checked = [c.name for c in COLUMNS.values() if c.dtype in ("float64", "Int64", "boolean") and c.name in row]
+    bad = [name for name in checked if _breaks(row, name)]
+    emptied = f" (emptied: {', '.join(bad)})" if bad else ""
+    stored = dict(row, status="failed", verdict="", **dict.fromkeys(bad),
+                  error="; ".join(filter(None, (f"the row as made would not read back: {why}; stored as failed"
+                                                f"{emptied}", as_text(row.get("error"))))))
+    if row_problem(stored):
+        stored.update(dict.fromkeys(checked))
+    return stored
 
 
 def repair_journal(path: Path) -> int:
