@@ -51,7 +51,7 @@ from contactbench.solvers.registry import load_solver
 from ..judging import ProblemSeal, portable_answer
 from ..arguments import check_time_limit
 from ..profiles import get_profile
-from ..run.isolation import SOLVER_FAULTS, ChildProcess, exception_message, exception_text
+from ..run.isolation import SOLVER_FAULTS, SOLVER_RAISES, ChildProcess, exception_message, exception_text
 from ..run.skips import Decision, capability_decision
 from ..run.worker import aborted_status, instance_operator_kind, problem_traits, running_threads, solver_facts
 from ..run.worker import threads_left
@@ -346,13 +346,16 @@ class SolveOrder:
     warm: WarmStart | None = None
 
 
-def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
+def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException], ...] = SOLVER_FAULTS
+               ) -> dict[str, Any]:
     """Worker side: rebuild the instance from its recipe, solve, report plain data (the
     answer as ``harness.judging.portable_answer`` gives it, so that it can be sent).  A
     solver that raises -- ``SystemExit`` and ``GeneratorExit`` included (``sys.exit`` in a
     solver is a crash, not the end of ``validate``), in its skip check too -- gives a
     "refused" or "crashed" answer, and a ``SolveAborted`` its own status when the class
-    allows it ("crashed" otherwise); a ``KeyboardInterrupt`` propagates.  Every message is
+    allows it ("crashed" otherwise); a ``KeyboardInterrupt`` propagates in-process (the
+    user's Ctrl-C) and is a crash in a worker (``faults`` ``SOLVER_RAISES``: the worker
+    ignores SIGINT, so it is the solver's own).  Every message is
     one line, whatever the exception's text (empty, or a ``__str__`` that raises).  Whether
     the lifecycle answered without calling the solver is the harness's own reading of the
     problem (``answered_without_iterate``), never what the solver wrote into its result.  A
@@ -378,7 +381,7 @@ def solve_case(solver: Solver, msg: SolveOrder) -> dict[str, Any]:
                     "message": f"raised SolveAborted with status {getattr(exc, 'status', None)!r}, which is not "
                                f"a status SolveAborted may carry: {first_line(text, '(no message)')}"}
         return {"kind": status, "time_s": elapsed, "message": one_line(text) or status, "detail": text}
-    except SOLVER_FAULTS as exc:  # a row, not a harness failure (Ctrl-C still interrupts)
+    except faults as exc:  # a row, not a harness failure (in-process, Ctrl-C still interrupts)
         refused = is_refusal(exc, case.group)
         return {"kind": "refused" if refused else "crashed", "time_s": time.perf_counter() - t0,
                 "message": one_line(exception_text(exc)) or type(exc).__name__,  # (an outside program's tail too)
@@ -406,7 +409,8 @@ class _SolverHandler:
         self.solver = load_solver(solver)
 
     def __call__(self, msg: Any) -> dict[str, Any]:
-        return solve_case(self.solver, msg)
+        # the worker ignores SIGINT: whatever the solver raises, a KeyboardInterrupt too, is its own
+        return solve_case(self.solver, msg, SOLVER_RAISES)
 
 
 class CaseRunner:

@@ -500,3 +500,19 @@ def test_a_solve_that_leaves_a_thread_running_is_wrong_and_the_next_case_gets_a_
     assert second.message.endswith("found 0") and second.message.split(",")[0] != first.message.split(",")[0]
     table = cf.validate(LeavesAThread(), two_groups()[:1])
     assert [r.status for r in table.rows] == ["WRONG"] and table.exit_code() == 1, table.format()
+
+
+class RaisesKeyboardInterrupt(ExactSolver):
+    """Raises KeyboardInterrupt itself: in a worker, which ignores SIGINT, no user pressed Ctrl-C."""
+
+    name = "test-attack-raises-keyboard-interrupt"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        raise KeyboardInterrupt
+
+
+def test_a_keyboard_interrupt_a_solver_raises_in_a_worker_is_its_crash(capfd: pytest.CaptureFixture[str]) -> None:
+    table = cf.validate(RaisesKeyboardInterrupt(), cases(), isolate=True)
+    row = table.rows[0]
+    assert row.status == "crashed" and "KeyboardInterrupt" in row.message, table.format()
+    assert "worker exited" not in row.message and "Traceback" not in capfd.readouterr().err
