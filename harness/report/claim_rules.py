@@ -381,8 +381,17 @@ class Timing:
 
 def judged_spread(timing: Timing) -> float:
     """The spread a timing is judged with: ``SINGLE_REPEAT_SPREAD`` for one repeat with none
-    measured, else its own."""
-    return SINGLE_REPEAT_SPREAD if timing.repeats == 1 and not math.isfinite(timing.spread) else timing.spread
+    measured (NaN), else its own -- an infinite spread (any value: ``unresolved``, as
+    ``claim_measures.best_k`` gives it) stays infinite whatever the repeats."""
+    return SINGLE_REPEAT_SPREAD if timing.repeats == 1 and math.isnan(timing.spread) else timing.spread
+
+
+def judge_timed(claim_id: str, measured: float, evidence: str, timing: Timing = Timing(),
+                testable: bool = True) -> str:
+    """The ledger's verdict on a measurement of the claim ``claim_id`` (``judge`` of its rule),
+    its timing judged with ``judged_spread``: what a ledger row and a report reading that
+    states the ledger's verdict both call."""
+    return judge(measured, CLAIMS[claim_id].rule, evidence, judged_spread(timing), testable)
 
 
 def spread(values: pd.Series) -> float:

@@ -1,19 +1,134 @@
-"""Reading a results table for the claims ledger (``harness.report.claims``): the seeds a
-measurement rests on, a condition's rows, and each solver label's totals over the steps
-(``totals``) and their ratios (``ratio``)."""
+"""Reading a results table for the claims ledger (``harness.report.claims``) and for the
+report's readings that state its verdicts: which label plays each of the paper's methods
+(``PAPER_ROLES``, ``LEDGER_ROLES``, ``by_role``), the rows the ledger reads
+(``ledger_rows``), the seeds a measurement rests on, a condition's rows, and each solver
+label's totals over the steps (``totals``) and their ratios (``ratio``).
+
+This module and claim_measures.py are the one home of these measurements: claims.py and
+the report's sections import them; they import no section."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ..table.schema import ANSWERED
 from .claim_rules import Timing, relative_range
-from .core import per_cell
-from .sections.paper import LEDGER_ROLES
+from .core import natural_key, parse_json, per_cell
+
+# ---------------------------------------------------------------------------
+# The paper's algorithms: found by base_solver and params, never by label
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PaperRole:
+    """How to find one of the paper's algorithms in a table: its registry name, the
+    paper's parameter values (keys absent from a row's ``params`` take the solver's
+    defaults, which are the paper's), and whether the role is the warm-started run.
+    ``warm=False``: cold runs first, a warm-started one only when there is no cold one;
+    ``warm=True``: warm-started runs only."""
+
+    label: str
+    base_solver: str
+    params: dict[str, Any] = field(default_factory=dict)
+    warm: bool = False
+
+
+PAPER_ROLES: dict[str, PaperRole] = {
+    "nnls-gp": PaperRole("NNLS+GP", "nnls-gp", {"K": 100}),
+    "nnls": PaperRole("NNLS", "nnls"),
+    "pk": PaperRole("P&K 1999", "pk"),
+    "pk-printed": PaperRole("P&K as printed (the paper's Algorithm 2)", "pk-printed"),
+    "pk-warm": PaperRole("P&K 1999 + warm start", "pk", warm=True),
+    "greedy-cg": PaperRole("greedy CG", "greedy-cg"),
+    "greedy-gs": PaperRole("greedy Gauss-Seidel", "greedy-gs"),
+    "greedy-chol": PaperRole("greedy Cholesky", "greedy-chol"),
+    "admm": PaperRole("ADMM", "admm"),
+}
+
+
+def _params_match(params: Any, wanted: dict[str, Any]) -> bool:
+    p = parse_json(params, {})
+    return isinstance(p, dict) and all(p.get(k, v) == v for k, v in wanted.items())
+
+
+def resolve_role(curves: pd.DataFrame, role: str | PaperRole) -> str | None:
+    """The ``solver`` label that plays ``role`` (a key of PAPER_ROLES, or a role), or None.
+
+    ``curves`` has one row per label (or more; duplicates are ignored) with columns
+    ``solver``, ``base_solver``, ``params`` and, optionally, ``warm`` (the label is a
+    warm-started run).  Among the role's base solver's labels the one with the paper's
+    parameters wins, then the natural order of the labels."""
+    r = PAPER_ROLES[role] if isinstance(role, str) else role
+    c = curves[curves["base_solver"] == r.base_solver]
+    warm = c["warm"].astype(bool) if "warm" in c.columns else pd.Series(False, index=c.index)
+    if r.warm:
+        c, warm = c[warm], warm[warm]
+    ranked = sorted(((bool(w) != r.warm, not _params_match(p, r.params), natural_key(s), s)
+                     for s, p, w in zip(c["solver"], c["params"], warm)))
+    return ranked[0][-1] if ranked else None
+
+
+def paper_roles(curves: pd.DataFrame) -> dict[str, str | None]:
+    """Every role of PAPER_ROLES resolved in ``curves`` (see resolve_role)."""
+    return {k: resolve_role(curves, k) for k in PAPER_ROLES}
+
+
+#: The paper's methods as the claims ledger compares them: its algorithms (PAPER_ROLES but
+#: the warm-started P&K) and pure accelerated GP; each key is the method's registry name.
+LEDGER_ROLES: dict[str, PaperRole] = {**{k: r for k, r in PAPER_ROLES.items() if not r.warm},
+                                      "gp": PaperRole("accelerated GP", "gp")}
+
+
+def by_role(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with, in each scene, the label of each of the paper's methods (``LEDGER_ROLES``,
+    found by ``base_solver`` and ``params``: ``resolve_role``, with the paper's parameter
+    values only, never another variant) replaced by the role's key, and any other label
+    that spells a key marked with its base solver (``"pk (bvls)"``): a label is never taken
+    for the method it names."""
+    parts = []
+    for _, r in rows.groupby("scene", sort=False, dropna=False):
+        curves = r.drop_duplicates("solver")
+        params = dict(zip(curves["solver"], curves["params"]))
+        players = {s: k for k, role in LEDGER_ROLES.items()
+                   if (s := resolve_role(curves, role)) is not None and _params_match(params[s], role.params)}
+        bases = dict(zip(curves["solver"], curves["base_solver"]))
+        name = {s: players.get(s, f"{s} ({bases[s]})" if s in LEDGER_ROLES else s) for s in curves["solver"]}
+        parts.append(r.assign(solver=r["solver"].map(name)))
+    return pd.concat(parts) if parts else rows
+
+
+#: The numbers of an answer a claim rests on (``with_numbers``).
+MEASURED_COLUMNS: tuple[str, ...] = ("solve_time_s", "iterations", "load", "contact_fraction")
+
+
+def with_numbers(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with each answered row lacking a finite ``MEASURED_COLUMNS`` number (or with
+    a negative time) read as failed: a sum or median over the rest would be a verdict."""
+    cols = [c for c in MEASURED_COLUMNS if c in rows.columns]
+    values = rows[cols].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
+    times = values[:, cols.index("solve_time_s")] if "solve_time_s" in cols else np.zeros(len(rows))
+    lacking = ~np.isfinite(values).all(axis=1) | (times < 0)
+    bad = rows["status"].isin(ANSWERED).to_numpy() & lacking
+    return rows.assign(status=rows["status"].mask(bad, "failed"))
+
+
+def ledger_rows(rows: pd.DataFrame) -> pd.DataFrame:
+    """The rows as the claims ledger reads them: ``with_numbers``, then ``by_role`` (the
+    paper's methods under their registry names, never by label)."""
+    return by_role(with_numbers(rows))
+
+
+# ---------------------------------------------------------------------------
+# Seeds, conditions, totals and ratios
+# ---------------------------------------------------------------------------
+
 
 def seeds_text(seeds: Iterable[int]) -> str:
     """"5", "0-99" or "0,3,7": the seeds a measurement rests on."""
@@ -41,7 +156,10 @@ def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame
 
 #: The paper's methods (registry names): "fastest" and "the same load" compare these only.
 PAPER_METHODS: frozenset[str] = frozenset(r.base_solver for r in LEDGER_ROLES.values())
-#: The suffix of a label read from the independent (cold) solves of ``greedy-linear-solvers``.
+#: The scene of the independent (cold, from p = 0) solves: the ledger reads Fig. 4's P&K, P&K
+#: as printed and greedy CG on it, and Fig. 6's K sweep where it has one.
+COLD_SCENE = "greedy-linear-solvers"
+#: The suffix of a label read from the independent (cold) solves of ``COLD_SCENE``.
 COLD = " cold"
 
 

@@ -15,13 +15,13 @@ measured value and the relative spread of its timed repeats (``repeats``, ``spre
 every timed total is the median over repeats, and a verdict whose margin lies inside the
 spread is ``unresolved``; a timing from one repeat is judged with
 ``SINGLE_REPEAT_SPREAD``).  A claim the table holds no measurement of -- an answer
-lacking a finite time, load or count is none (``with_numbers``) -- gets one ``unmeasured``
+lacking a finite time, load or count is none (``claim_tables.with_numbers``) -- gets one ``unmeasured``
 row saying what it needs: never ``holds``, never left out."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable, Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
 
@@ -34,17 +34,15 @@ from contactbench.solvers.registry import get_solver
 
 from ..table.files import replace_atomically
 from ..table.schema import ANSWERED
-from .claim_rules import (CLAIMS, PAPER_N, VERDICTS, Claim, Timing, falls, judge, judged_spread, over_repeats,
-                          spread)
-from .claim_tables import (COLD, PAPER_METHODS, nnlsgp_cold, of_condition, paper_labels, ratio, repeat_totals,
+from .claim_measures import FIG5_MIN_N, best_k, fig5_measure, k_sweep_rows, k_sweep_totals, papers_admm
+from .claim_rules import CLAIMS, PAPER_N, VERDICTS, Claim, Timing, falls, judge, judge_timed, over_repeats, spread
+from .claim_tables import (COLD, PAPER_METHODS, ledger_rows, nnlsgp_cold, of_condition, paper_labels, ratio,
                            seeds_of, seeds_text, totals)
-from .core import parse_json, per_cell
+from .core import per_cell
 from .sections.cmr import cmr_pairs, instance_totals, recorded_families
-from .sections.counterexample import seed_readings, violation_counts
-from .sections.paper import by_role, k_of
-from .sections.paper_readings import Spread, tied_with
+from .sections.counterexample import ledger_shares
 
-__all__ = ["CLAIMS", "VERDICTS", "Claim", "judge"]
+__all__ = ["CLAIMS", "FIG5_MIN_N", "VERDICTS", "Claim", "falls", "judge", "ratio", "spread"]
 
 #: The file the ledger is written to, in the run folder.
 LEDGER_NAME = "claims.csv"
@@ -53,9 +51,6 @@ LEDGER_COLUMNS: tuple[str, ...] = ("claim", "figure", "tex_lines", "paper_value"
                                    "n_or_size", "seeds", "repeats", "spread", "verdict", "evidence")
 #: The conditions, by the table's ``operator`` value.
 CONDITIONS: tuple[str, ...] = ("dense", "fft")
-#: Fig. 5's ratios are read over steps with at least this trial-set size (below it fixed
-#: per-solve costs dominate).
-FIG5_MIN_N = 100
 
 
 @dataclass(frozen=True)
@@ -84,23 +79,12 @@ def claim_row(claim_id: str, condition: str, measured: float, n_or_size: str, se
     c = CLAIMS[claim_id]
     return ClaimRow(c.id, c.figure, c.tex_lines, c.paper_value, condition, float(measured), n_or_size, seeds,
                     int(timing.repeats), float(timing.spread),
-                    judge(measured, c.rule, evidence, judged_spread(timing), testable), evidence)
-
-
-def admm_label(tot: pd.DataFrame, rows: pd.DataFrame) -> str | None:
-    """The label of ADMM as the paper states it (``PAPER_PARAMS``, every other parameter at
-    its default) where the rows hold it;
-    None where they do not: the registry's ``admm`` (rho relative to mean diag H, the KKT
-    stop) is another method, and the claim about the paper's ADMM is not read on it."""
-    a = rows[(rows["base_solver"] == "admm") & rows["solver"].isin(tot.index)]
-    default = get_solver("admm").param_defaults()
-    given = {s: parse_json(p, {}) for s, p in zip(a["solver"], a["params"])}
-    paper = [s for s, g in given.items() if isinstance(g, dict) and {**default, **g} == {**default, **PAPER_PARAMS}]
-    return sorted(paper)[0] if paper else None
+                    judge_timed(claim_id, measured, evidence, timing, testable), evidence)
 
 
 #: Fig. 4's time ratios: (claim, numerator label, denominator label); "admm" stands for
-#: ``admm_label`` (where it is None, an ``unmeasured`` row says so).
+#: ADMM as the paper states it (``claim_measures.papers_admm``; where the rows hold none,
+#: an ``unmeasured`` row says so).
 FIG4_RATIOS: tuple[tuple[str, str, str], ...] = (
     ("fig4-pkprinted-over-nnlsgp", "pk-printed" + COLD, "nnls-gp"),
     ("fig4-pk-cold-over-nnlsgp", "pk" + COLD, "nnls-gp"),
@@ -134,7 +118,7 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
         seeds = seeds_of(w)
         where = f"results.csv: paper-sweep (warm) and greedy-linear-solvers (cold) N={int(N)} operator {condition}"
         for claim, a, b in FIG4_RATIOS + (("gp-pure-slow", "gp" + COLD, nnlsgp_cold(tot)),):
-            a = (admm_label(tot, both) or "") if a == "admm" else a
+            a = (papers_admm(both[both["solver"].isin(tot.index)]) or "") if a == "admm" else a
             if claim == "fig4-admm-over-nnlsgp" and not a and "admm" in tot.index:
                 out.append(claim_row(claim, condition, math.nan, size, seeds, f"{where}; no ADMM as the paper states "
                                      f"it ({PAPER_PARAMS}): the registry's admm (rho relative to mean diag H, the KKT "
@@ -240,34 +224,25 @@ def top_step_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     return out
 
 
-def paired_median(cells: pd.DataFrame, a: str, b: str) -> tuple[float, int]:
-    """Median over the (instance, step) both solved, with n >= FIG5_MIN_N, of t_a / t_b."""
-    ok = cells[cells["solved"] & (cells["n"] >= FIG5_MIN_N)]
-    ta = ok[ok["solver"] == a].set_index(["instance", "step"])["solve_time_s"]
-    tb = ok[ok["solver"] == b].set_index(["instance", "step"])["solve_time_s"]
-    j = pd.concat([ta.rename("a"), tb.rename("b")], axis=1, join="inner").dropna()
-    j = j[j["b"] > 0]
-    return (float(np.median(j["a"] / j["b"])) if len(j) else math.nan), len(j)
-
-
 def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
-    """Fig. 5 per grid size: greedy Cholesky and Gauss-Seidel against greedy CG, and the
-    Cholesky memory limit (our n limit from the memory budget)."""
+    """Fig. 5 per grid size: greedy Cholesky and Gauss-Seidel against greedy CG
+    (``claim_measures.fig5_measure``), and the Cholesky memory limit (our n limit from the
+    memory budget)."""
     r = of_condition(rows, "greedy-linear-solvers", condition)
     out: list[ClaimRow] = []
     for N in sorted(r["N"].dropna().unique()):
-        cells = per_cell(r[r["N"] == N])
+        at_n = r[r["N"] == N]
+        cells = per_cell(at_n)
         size = f"{int(N)}^2, n <= {int(cells['n'].max())}"
         seeds = seeds_of(cells)
         for claim, other in (("fig5-chol-over-cg", "greedy-chol"), ("fig5-gs-over-cg", "greedy-gs")):
-            if other not in set(cells["solver"]) or "greedy-cg" not in set(cells["solver"]):
+            x = fig5_measure(at_n, other, "greedy-cg")
+            if x is None:
                 continue
-            k = paired_median(cells, other, "greedy-cg")[1]
-            m, spread_ = over_repeats(r[r["N"] == N], lambda g, o=other: paired_median(per_cell(g), o, "greedy-cg")[0])
-            reps = Timing(int(cells[cells["solver"].isin([other, "greedy-cg"])]["repeats"].min()), spread_)
-            out.append(claim_row(claim, condition, m, size, seeds,
+            out.append(claim_row(claim, condition, x.measured, size, seeds,
                                  f"results.csv: greedy-linear-solvers N={int(N)} operator {condition}; median over "
-                                 f"{k} steps with n >= {FIG5_MIN_N} both solved" if k else "", timing=reps))
+                                 f"{x.count} steps with n >= {FIG5_MIN_N} both solved" if x.count else "",
+                                 timing=x.timing))
     chol = rows[(rows["base_solver"] == "greedy-chol") & (rows["operator"] == condition) & (rows["status"] != "skipped")]
     if len(chol):
         answered = chol[chol["status"].isin(ANSWERED)]
@@ -292,11 +267,11 @@ def example1_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     if r.empty:
         return []
     out = []
-    for _, f in violation_counts(seed_readings(r)).iterrows():
+    for _, f in ledger_shares(r).iterrows():  # per solver and n; a crash or timeout is no answer
         sub = r[r["n"] == f["n"]]
         seeds = seeds_of(sub)
-        answered = int(f["seeds"]) - (int(f["violations"]) - int(f["wrong"]))  # a crash or timeout is no answer
-        out.append(claim_row("ex1-greedy-fails", condition, int(f["wrong"]) / answered if answered else math.nan,
+        answered = int(f["answered"])
+        out.append(claim_row("ex1-greedy-fails", condition, float(f["share"]) if answered else math.nan,
                              f"n = {int(f['n'])}", seeds,
                              f"results.csv: counterexample operator {condition}, greedy-cg's answer violates the "
                              f"LCP (read wrong) on {int(f['wrong'])} of the {answered} seeds it answered "
@@ -334,53 +309,22 @@ def greedy_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     return out
 
 
-def k_totals(rows: pd.DataFrame) -> tuple[pd.DataFrame, bool, pd.Series]:
-    """NNLS+GP's totals per K: from the cold K sweep of ``greedy-linear-solvers`` (p = 0 at
-    K = 0, the paper's) when the rows hold one, else from ``gp-k-sweep`` (warm along the
-    history); the flag says which; and each label's ``repeat_totals``."""
-    for scene, cold in (("greedy-linear-solvers", True), ("gp-k-sweep", False)):
-        r = rows[(rows["scene"] == scene) & (rows["base_solver"] == "nnls-gp")]
-        r = r.assign(K=r.apply(k_of, axis=1)) if len(r) else r
-        r = r[r["K"].notna()] if len(r) else r
-        if len(r) and r["K"].nunique() > 1:
-            tot = totals(r).join(r.groupby("solver")["K"].first())
-            return tot.assign(N=int(r["N"].max()), n=int(r["n"].max()), seeds=seeds_of(r)), cold, repeat_totals(r)
-    return pd.DataFrame(), False, pd.Series(dtype=float)
-
-
-def best_k(tot: pd.DataFrame, per_repeat: pd.Series, label: dict[float, str]) -> tuple[float, list[float], Timing]:
-    """Fig. 6's K of least median total (``k_totals``' complete labels, ``label``: K -> label);
-    the Ks not told from it: a timed repeat's own least (``per_repeat``), a K whose ``ratio``
-    to the least its spread cannot tell from 1 (``paper_readings.tied_with``); the timing it
-    is judged with: spread 0 where they all read one verdict, else infinite (unresolved)."""
-    times = tot.set_index(tot["K"].astype(float))["total_s"]
-    best = float(times.idxmin())
-
-    def spread_of(k: Hashable, b: Hashable) -> Spread:
-        t = ratio(tot, label[float(k)], label[float(b)])[2]  # type: ignore[arg-type]
-        return Spread(judged_spread(t), t.repeats)
-
-    each = per_repeat[per_repeat.index.get_level_values(0).isin(tot.index)].unstack(0).dropna()  # repeat x label
-    firsts = [float(tot.loc[s, "K"]) for s in each.idxmin(axis=1)]
-    near = sorted({*map(float, tied_with(times, best, spread_of)), *firsts} - {best})
-    agree = len({CLAIMS["fig6-best-k"].rule.at(k) for k in (best, *near)}) == 1
-    return best, near, Timing(int(tot["repeats"].min()), 0.0 if agree else math.inf)
-
-
 def fig6_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
-    """Fig. 6: the K of least total time, t(K=200) / t(K=100), and t(K=100) / t(K=0)."""
-    tot, cold, per_repeat = k_totals(rows[(rows["operator"] == condition) & (rows["status"] != "skipped")])
-    if tot.empty:
+    """Fig. 6 on the K sweep of ``claim_measures.k_sweep_rows``: the K of least total time
+    (``best_k``), t(K=200) / t(K=100), and t(K=100) / t(K=0)."""
+    sweep, cold = k_sweep_rows(rows[(rows["operator"] == condition) & (rows["status"] != "skipped")])
+    if sweep.empty:
         return []
-    comp = tot[tot["comparable"]].set_index("K")
-    size = f"{int(tot['N'].iloc[0])}^2, n <= {int(tot['n'].iloc[0])}"
-    seeds = str(tot["seeds"].iloc[0])
+    tot, per_repeat = k_sweep_totals(sweep)
+    size = f"{int(sweep['N'].max())}^2, n <= {int(sweep['n'].max())}"
+    seeds = seeds_of(sweep)
     how = "greedy-linear-solvers (cold: every K from p = 0)" if cold else "gp-k-sweep (warm along the history)"
     where = f"results.csv: {how} operator {condition}, K = {', '.join(f'{k:g}' for k in sorted(tot['K']))}"
     out = []
     label = {float(k): s for s, k in zip(tot.index, tot["K"])}
-    if len(comp) and set(tot["K"]) <= set(comp.index):  # every K answered: else the least is not known
-        best, near, rep = best_k(tot[tot["comparable"]], per_repeat, label)
+    least = best_k(tot, per_repeat)  # None: some K did not answer every step, so the least is not known
+    if least is not None:
+        best, near, rep = least
         words = f"; not told from K = {', '.join(f'{k:g}' for k in near)} (a repeat's least, or tied)" if near else ""
         out.append(claim_row("fig6-best-k", condition, best, size, seeds, where + words, timing=rep))
     for claim, a, b, testable in (("fig6-k200-over-k100", 200.0, 100.0, True),
@@ -570,25 +514,10 @@ def unmeasured_rows(found: set[str]) -> list[ClaimRow]:
                       testable=False) for c in CLAIMS.values() if c.id not in found]
 
 
-#: The numbers of an answer a claim rests on (``with_numbers``).
-MEASURED_COLUMNS: tuple[str, ...] = ("solve_time_s", "iterations", "load", "contact_fraction")
-
-
-def with_numbers(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with each answered row lacking a finite ``MEASURED_COLUMNS`` number (or with
-    a negative time) read as failed: a sum or median over the rest would be a verdict."""
-    cols = [c for c in MEASURED_COLUMNS if c in rows.columns]
-    values = rows[cols].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
-    times = values[:, cols.index("solve_time_s")] if "solve_time_s" in cols else np.zeros(len(rows))
-    lacking = ~np.isfinite(values).all(axis=1) | (times < 0)
-    bad = rows["status"].isin(ANSWERED).to_numpy() & lacking
-    return rows.assign(status=rows["status"].mask(bad, "failed"))
-
-
 def ledger(rows: pd.DataFrame) -> pd.DataFrame:
     """The ledger of a results table: one row per (claim, condition, size), ``LEDGER_COLUMNS``;
     every claim of ``CLAIMS`` at least once (module doc)."""
-    rows = by_role(with_numbers(rows))  # the paper's methods by base_solver and params, never by label
+    rows = ledger_rows(rows)  # the paper's methods by base_solver and params, never by label
     out: list[ClaimRow] = []
     for cond in CONDITIONS:
         for read in READERS:

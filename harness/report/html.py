@@ -24,6 +24,7 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -33,14 +34,17 @@ import pandas as pd
 from matplotlib.colors import to_hex
 
 from ..table import aggregates as agg
+from ..table.fields import find_fields
 from .charts import PLOTLY_DASHES, Chart, RowChart
-from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, natural_key, natural_sorted, parse_trace,
-                   pick_profile)
-from .sections.fields import load_area_series, short_traces, trace_scene, traces_empty_note
-from .sections.generic import SOLVED_COLUMNS, best_of_family, profile_empty_note, profile_taus, reached_accuracy
+from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, fmt_num, natural_key, natural_sorted,
+                   parse_trace, pick_profile)
+from .sections.fields import (BGT_KAPPA, MAX_LOAD_AREA_SERIES, PERSSON_KAPPA, fit_kappa, load_area_series,
+                              short_traces, trace_scene, traces_empty_note)
+from .sections.generic import (SGM_CAPTION, SOLVED_COLUMNS, best_of_family, page_marker_sizes, profile_empty_note,
+                               profile_taus, reached_accuracy)
 from .sections.paper import UNSOLVED_MARKS, k_of, load_abscissa, unsolved_kind
 from .page_script import PAGE_SCRIPT
-from .panels import MARK_EVERY
+from .panels import AT_ZERO, MARK_EVERY, curve_notes, iteration_axis
 from .style import MAX_SERIES, sort_families
 from ..table.files import write_text_atomic
 from ..table.schema import as_finite
@@ -104,7 +108,8 @@ def unsolved_marks() -> dict[str, dict[str, str]]:
 
 
 def scene_summaries(ctx: ReportContext) -> dict[str, list[agg.SolverSummary]]:
-    """Per scene, the aggregate of each solver (``table.aggregates.summarize``)."""
+    """Per scene, the aggregate of each solver (``table.aggregates.summarize``: its SGM over
+    the cells it was planned to run), as report.md's aggregate tables."""
     out = {}
     for scene in ctx.scenes():
         r = ctx.rows(scene)
@@ -134,7 +139,7 @@ def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]
 #: The page's aggregate table: its columns (a share's header names its denominator, as
 #: report.md's aggregates: sections/generic.py ``SOLVED_COLUMNS``), those shown in per cent,
 #: and the column it is sorted by at first.
-SGM_COLUMNS: tuple[str, ...] = ("solver", "family", *SOLVED_COLUMNS, "SGM [s]", "SGM / best",
+SGM_COLUMNS: tuple[str, ...] = ("solver", "family", *SOLVED_COLUMNS, "SGM [s]", "SGM / best", "SGM cells",
                                 "median kkt (solved)", "false claims")
 SGM_PERCENT: tuple[str, ...] = ("solved / problems", "solved / attempted")
 SGM_SORT = "SGM / best"
@@ -150,14 +155,15 @@ def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSum
         solvers = natural_sorted(r["solver"].unique())
         summ = summaries[scene]
         acc = reached_accuracy(r)
-        sgm[scene] = {"columns": [*SGM_COLUMNS],
+        cells = agg.cell_table(r, solvers)
+        sgm[scene] = {"columns": [*SGM_COLUMNS], "note": SGM_CAPTION,
                       "percent": [SGM_COLUMNS.index(c) for c in SGM_PERCENT],
                       "sort": SGM_COLUMNS.index(SGM_SORT),
                       "rows": [[s.solver, ctx.family(s.solver), s.problems, s.attempted, s.solved,
                                 as_finite(s.solved_share), as_finite(s.success_rate), as_finite(s.sgm_s),
-                                as_finite(s.sgm_rel), as_finite(acc.get(s.solver)), s.false_claims]
+                                as_finite(s.sgm_rel), s.sgm_cells,
+                                as_finite(acc.get(s.solver)), s.false_claims]
                                for s in summ]}
-        cells = agg.cell_table(r, solvers)
         prof = agg.performance_profile(cells)
         if len(prof.solvers) < 2 or not cells.problems:
             continue
@@ -165,8 +171,10 @@ def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSum
             pp[scene] = {"taus": [], "n": prof.n_problems, "curves": {}, "empty": empty}
             continue
         taus, _ = profile_taus(prof, 120)
+        curves = {s: prof.curve(s, taus) for s in prof.solvers}
         pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
-                     "curves": {s: [float(v) for v in prof.curve(s, taus)] for s in prof.solvers}}
+                     "curves": {s: [float(v) for v in c] for s, c in curves.items()},
+                     "notes": curve_notes(curves, prof.solvers)}  # a curve at 0 or under another, as report.md's
     return pp, sgm
 
 
@@ -174,23 +182,75 @@ def trace_data(ctx: ReportContext) -> dict[str, Any]:
     """The representative trace of every solver (largest n, tightest profile) in the
     first scene with traces (the Markdown report's trace figure: sections/fields.py ``trace_scene``),
     but those of a single point (``short_traces``: no curve, as in report.md); where that
-    leaves none, ``empty`` says why (``traces_empty_note``) and the trace charts write it."""
+    leaves none, ``empty`` says why (``traces_empty_note``) and the trace charts write it.
+    ``x`` is each point's place on the iteration axis (``iteration_axis``, in ``it_axis``);
+    ``same``, where a trace equals an earlier solver's point for point (drawn under it), names
+    that solver, and the legend says so."""
     scene, reps = trace_scene(ctx)
     if not reps:
         return {}
-    out = {}
+    out: dict[str, Any] = {}
     short = set(short_traces(reps))
     for s, row in ((s, row) for s, row in reps.items() if s not in short):
         tr = parse_trace(row["trace"])
         ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
         out[s] = {"it": tr[ok, 0].tolist(), "t": tr[ok, 1].tolist(), "r": tr[ok, 2].tolist(),
                   "where": f"{row['instance']} step {int(row['step'])} ({row['profile']})"}
-    return {"scene": scene, "solvers": out, **({"empty": empty} if (empty := traces_empty_note(reps)) else {})}
+    axis = iteration_axis([i for d in out.values() for i in d["it"]])
+    seen: list[str] = []
+    for s, d in out.items():
+        d["x"] = [i + axis["shift"] for i in d["it"]]
+        twin = next((t for t in seen if (out[t]["it"], out[t]["r"]) == (d["it"], d["r"])), None)
+        if twin is not None:
+            d["same"] = twin
+        seen.append(s)
+    return {"scene": scene, "solvers": out, "it_axis": axis,
+            **({"empty": empty} if (empty := traces_empty_note(reps)) else {})}
 
 
-def load_area_data(ctx: ReportContext) -> list[dict[str, Any]]:
-    return [{"scene": scene, "instance": inst, "x": pi["dim_load"].tolist(), "y": pi["area"].tolist(),
-             "step": pi["step"].tolist()} for scene, inst, pi in load_area_series(ctx)]
+#: The page's load-area chart: report.md's (sections/fields.py ``_load_area_figure``) title and axes.
+LOAD_AREA_TITLE = "load-area curve"
+LOAD_AREA_AXES = ("P / (E* A0 h'_rms)  [-]", "A / A0  [-]")
+
+
+def field_slopes(ctx: ReportContext) -> dict[tuple[str, str], float]:
+    """(scene, instance) -> h'_rms of its surface, from the field the report draws for it
+    (the highest step's ``arrays/field-*.npz``, as sections/fields.py ``fields_section``)."""
+    keys = set(zip(ctx.table["scene"].astype(str), ctx.table["instance"].astype(str)))
+    out: dict[tuple[str, str], float] = {}
+    for (scene, inst, _), path in sorted(find_fields(ctx.out_dir, keys).items(),
+                                         key=lambda kv: (kv[0][0], kv[0][1], -kv[0][2])):
+        if (scene, inst) not in out:
+            with np.load(path, allow_pickle=False) as z:
+                out[(scene, inst)] = float(z["rms_slope"])
+    return out
+
+
+def load_area_data(ctx: ReportContext) -> dict[str, Any]:
+    """The page's load-area chart, the numbers report.md's figure draws: per instance of a
+    load history with a stored field (``load_area_series``, at most ``MAX_LOAD_AREA_SERIES``),
+    A/A0 against P/(E* A0 h'_rms) by step, named with its kappa (``fit_kappa``), and the lines
+    of Persson and of Bush-Gibson-Thomas over the same loads; {} where none has a field."""
+    slopes = field_slopes(ctx)
+    series = []
+    for scene, inst, pi in load_area_series(ctx):
+        hrms = slopes.get((scene, inst), float("nan"))
+        if not (math.isfinite(hrms) and hrms > 0):
+            continue
+        fit = fit_kappa(pi["dim_load"].to_numpy(), pi["area"].to_numpy(), hrms)
+        series.append({"scene": scene, "instance": inst, "x": (pi["dim_load"].to_numpy() / hrms).tolist(),
+                       "y": pi["area"].tolist(), "step": pi["step"].tolist(),
+                       "name": f"{scene} {inst}" + (f" (kappa = {fmt_num(fit.kappa)})" if math.isfinite(fit.kappa)
+                                                    else "")})
+    series = series[:MAX_LOAD_AREA_SERIES]
+    xs = [x for sr in series for x in sr["x"] if math.isfinite(x) and x > 0]
+    if not xs:
+        return {}
+    x = np.geomspace(min(xs), max(xs), 2)
+    lines = [{"name": name, "x": x.tolist(), "y": (k * x).tolist(), "dash": dash}
+             for k, name, dash in ((PERSSON_KAPPA, "Persson sqrt(8/pi)", "dash"), (BGT_KAPPA, "BGT sqrt(2 pi)", "dot"))]
+    return {"title": LOAD_AREA_TITLE, "x_title": LOAD_AREA_AXES[0], "y_title": LOAD_AREA_AXES[1],
+            "series": series, "lines": lines}
 
 
 def embedded_images(ctx: ReportContext) -> list[dict[str, str]]:
@@ -217,7 +277,9 @@ def page_data(ctx: ReportContext) -> dict[str, Any]:
                      for f in fams],
         "lead": scene_leads(ctx, summaries),
         "maxSeries": MAX_SERIES,
+        "profileSizes": page_marker_sizes(),
         "markEvery": MARK_EVERY,
+        "atZero": AT_ZERO,
         "rows": page_rows(ctx),
         "unsolved": unsolved_marks(),
         "pp": pp,

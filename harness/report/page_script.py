@@ -53,9 +53,10 @@ function bySceneOrder(scene, solverOf) {
     return ra !== rb ? (ra < rb ? -1 : 1) : (a < b ? -1 : a > b ? 1 : 0); };
 }
 const charts = [];   // {div, scene, draw: () => [traces, layout]}
-// A work-precision point's size by its profile (larger: tighter), as the static figure's; its shape
-// is its solver's own symbol, so that two solvers of one family differ in shape as well as in colour.
-const PROFILE_SIZES = {low: 5, 'default': 7, mid: 9, high: 11};
+// A work-precision point's size by its profile (larger: tighter), as the static figure's
+// (D.profileSizes: sections/generic.py page_marker_sizes; key '': a profile it does not list); its
+// shape is its solver's own symbol, so that two solvers of one family differ in shape as well as in colour.
+const profileSize = pr => D.profileSizes[pr] || D.profileSizes[''];
 const fmt = v => (v === null || v === undefined) ? '-' : Number.isInteger(v) && Math.abs(v) < 1e6 ? String(v) : (Math.abs(v) >= 1e-3 && Math.abs(v) < 1e5 ?
   Number(v.toPrecision(3)).toString() : v.toExponential(1));
 const HOVER = 'instance %{customdata[0]}, step %{customdata[1]}, n %{customdata[2]}<br>' +
@@ -90,10 +91,13 @@ function layout(title, xt, yt, xs, ys, extra) {
 // A chart of more than D.maxSeries series draws fewer, narrowing step by step while it still has
 // too many: the scene's first D.maxSeries solvers in D.lead's order (the best of each family, then
 // the others by SGM), then only the lead profile, then the first instances (a
-// chart of one curve per instance), then the first D.maxSeries; the other series stay in the
-// legend ('legendonly'), a click away, and the legend's title says what is drawn.  Each trace
+// chart of one curve per instance), then the first D.maxSeries; the other series are hidden and
+// left out of the legend (a legend of 70 entries, 60 of them greyed, could not be read; nor could
+// 70 series drawn at once tell their solvers apart), and the legend's title says how many are drawn,
+// why those, and that ticking fewer solvers or profiles in the picker draws the others.  Each trace
 // carries meta.so (its solver; none: no solver narrowing), meta.pr (its profile) and meta.inst
 // (its instance) where it has them.
+const BEST_FIRST = 'the best of each family first';
 function thin(scene, traces, lay) {
   if (traces.length <= D.maxSeries) return [traces, lay];
   const lead = D.lead[scene];
@@ -107,7 +111,7 @@ function thin(scene, traces, lay) {
     const present = new Set(traces.map(t => t.meta.so).filter(s => s !== undefined));
     if (present.size > D.maxSeries) {
       const first = new Set(lead.order.filter(s => present.has(s)).slice(0, D.maxSeries));
-      narrow(t => first.has(t.meta.so), 'the best of each family first');
+      narrow(t => first.has(t.meta.so), BEST_FIRST);
     }
     narrow(t => t.meta.pr === undefined || t.meta.pr === lead.profile, 'at ' + lead.profile);
   }
@@ -121,9 +125,14 @@ function thin(scene, traces, lay) {
   const shown = new Set(traces.filter(keep).slice(0, D.maxSeries));
   narrow(t => shown.has(t), 'the first ' + D.maxSeries);
   if (traces.every(keep)) return [traces, lay];
-  traces.forEach(t => { if (!keep(t)) t.visible = 'legendonly'; });
-  lay.legend.title = {text: traces.filter(keep).length + ' of ' + traces.length + ' drawn (' + why.join(', ') +
-    '); click for more', font: {size: 10}};
+  traces.forEach(t => { if (!keep(t)) { t.visible = false; t.showlegend = false; } });
+  // counted in solvers where the narrowing is by solver alone (a solver's profiles and instances are one)
+  const bySolver = why.length === 1 && why[0] === BEST_FIRST;
+  const count = ts => bySolver ? new Set(ts.map(t => t.meta.so)).size : ts.length;
+  const shownNow = traces.filter(keep);
+  lay.legend.title = {text: count(shownNow) + ' of ' + count(traces) + (bySolver ? ' solvers' : ' series') + ' drawn (' +
+    why.join(', ') + ');<br>tick fewer ' + (bySolver ? 'solvers or profiles' : 'profiles') + ' on the left for the others',
+    font: {size: 10}};
   return [traces, lay];
 }
 // A row not solved is marked by its status (r.uk: a key of D.unsolved, the static figures'
@@ -210,27 +219,40 @@ function lineChart(scene, c) {
 function wpChart(scene, key, yTitle) {
   return () => {
     const rows = rowsOf(scene).filter(r => r.t !== null && measured(r, key));
+    const multi = new Set(rows.map(r => r.pr)).size > 1;  // as the PNG: sizes by profile where the scene ran several
     const g = groupBy(rows, r => r.so + '|' + r.pr);
     const traces = [];
     [...g.keys()].sort(bySceneOrder(scene, k => g.get(k)[0].so)).forEach(k => {
       const rs = g.get(k), so = rs[0].so, pr = rs[0].pr, col = colorIn(scene, so);
-      traces.push({type: 'scatter', mode: 'markers', name: so + (D.profiles.length > 1 ? ' [' + pr + ']' : ''), meta: {so: so, pr: pr},
+      traces.push({type: 'scatter', mode: 'markers', name: so, meta: {so: so, pr: pr}, legendgroup: so,
         x: rs.map(r => r.t), y: rs.map(r => Math.max(r[key], 1e-16)), customdata: rs.map(custom), hovertemplate: HOVER,
         marker: {color: rs.map(r => r.stt === 'solved' ? col : 'white'), line: {color: col, width: 1},
-          symbol: SYMBOL[so] || 'circle', size: D.profiles.length > 1 ? (PROFILE_SIZES[pr] || 8) : 7}});
+          symbol: SYMBOL[so] || 'circle', size: multi ? profileSize(pr) : profileSize('default')}});
     });
     const refs = key === 'perr' && rowsOf(scene).some(r => r.ref) ? '; reference\'s own not drawn' : '';
     const lay = layout('run time against ' + yTitle + ' (' + scene + refs + ')', 'solve time [s]', yTitle,
       rows.map(r => r.t), [1, 10, 100]);
     lay.yaxis.type = 'log';
-    return thin(scene, traces, lay);
+    const [drawn, lay2] = thin(scene, traces, lay);
+    // one legend entry per solver (its profiles are one legend group, told apart by the marker's size,
+    // which entries of their own explain), so that the legend holds the drawn solvers and no more
+    const seen = new Set();
+    drawn.forEach(t => { if (t.visible !== false) { t.showlegend = !seen.has(t.meta.so); seen.add(t.meta.so); } });
+    const profs = multi ? [...new Set(drawn.filter(t => t.visible !== false).map(t => t.meta.pr))] : [];
+    const sizes = profs.sort((a, b) => profileSize(a) - profileSize(b)).map(pr => ({type: 'scatter', mode: 'markers',
+      name: 'profile ' + pr + ' (marker size)', meta: {}, x: [null], y: [null], hoverinfo: 'skip',
+      marker: {symbol: 'circle', color: 'gray', size: profileSize(pr)}}));
+    return [drawn.concat(sizes), lay2];
   };
 }
 function ppChart(scene) {
   return () => {
     const p = D.pp[scene];
     const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).sort(bySceneOrder(scene, s => s)).map(s => Object.assign({
-      type: 'scatter', mode: 'lines+markers', name: s, meta: {so: s}, x: p.taus, y: p.curves[s],
+      // a curve at 0 all along (note null) or under an equal one (note: its solver), as report.md's legend says
+      type: 'scatter', mode: 'lines+markers', name: s + (p.notes && s in p.notes ? ' (' + (p.notes[s] === null ?
+        D.atZero : '= ' + p.notes[s]) + ')' : ''),
+      meta: {so: s}, x: p.taus, y: p.curves[s],
       hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}, ownLine(s, colorIn(scene, s), {shape: 'hv'})));
     const lay = layout('performance profile (' + scene + ', ' + p.n + ' problems)', 'tau (times the best time)',
       'fraction of problems solved', p.taus, [0, 1]);
@@ -264,34 +286,45 @@ function counterexampleChart(scene, c) {
     return [thin(scene, bars, lay)[0].concat(traces.filter(t => t.type !== 'bar')), lay];
   };
 }
+// Each solver's representative trace: its own residual against time, or against iteration as
+// D.traces.it_axis says (panels.iteration_axis: iteration + 1 on a log axis, so that iteration 0 is
+// drawn; d.x holds the placed values); a trace equal to another's against iteration, drawn under it
+// there, says so in its name on that chart.
 function traceChart(useTime) {
   return () => {
-    const T = D.traces;
+    const T = D.traces, A = T.it_axis || {log: false, shift: 0, title: 'iteration'};
     const traces = Object.keys(T.solvers).filter(s => state.solvers.has(s)).map(s => {
       const d = T.solvers[s];
-      return Object.assign({type: 'scatter', mode: 'lines+markers', name: s, meta: {so: s}, x: useTime ? d.t : d.it,
-        y: d.r, hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
-          (useTime ? '%{x:.3g} s' : 'iteration %{x}') + '<extra></extra>'}, ownLine(s, colorIn(T.scene, s)));
+      return Object.assign({type: 'scatter', mode: 'lines+markers', name: s + (!useTime && d.same ? ' (same as ' + d.same + ')' : ''),
+        meta: {so: s}, x: useTime ? d.t : d.x, y: d.r, customdata: d.it,
+        hovertemplate: s + ' (' + FAMILY[s] + ', ' + d.where + '): residual %{y:.2e} at ' +
+          (useTime ? '%{x:.3g} s' : 'iteration %{customdata}') + '<extra></extra>'}, ownLine(s, colorIn(T.scene, s)));
     });
     const xs = [].concat(...traces.map(t => t.x));
     const lay = layout('convergence traces (' + T.scene + '): own residual against ' + (useTime ? 'time' : 'iteration'),
-      useTime ? 'elapsed [s]' : 'iteration', 'own residual', xs, [1, 100]);
+      useTime ? 'elapsed [s]' : A.title, 'own residual', xs, [1, 100]);
     lay.yaxis.type = 'log';
-    if (useTime) lay.xaxis.type = 'log';
+    lay.xaxis.type = useTime || A.log ? 'log' : 'linear';
     if (T.empty) emptyNote(lay, T.empty);
     sparseMarks(traces, lay.xaxis.type === 'log', true);
     const [drawn, lay2] = thin(T.scene, traces, lay);
     return [drawn.concat(drawn.map(ownLegend)), lay2];
   };
 }
+// report.md's load-area figure (html.py load_area_data): A/A0 against the load over each surface's
+// h'_rms, per instance of the picked scenes, and the lines of Persson and Bush-Gibson-Thomas.
 function loadAreaChart() {
   return () => {
-    const traces = D.loadarea.filter(s => state.scenes.has(s.scene)).map((s, i) => ({type: 'scatter',
-      mode: 'lines+markers', name: s.scene + ' ' + s.instance, meta: {}, x: s.x, y: s.y, customdata: s.step,
-      hovertemplate: 'step %{customdata}: P/(E* A0) = %{x:.3g}, A/A0 = %{y:.3g}<extra></extra>'}));
-    const lay = layout('load-area curve', 'P / (E* A0)', 'A / A0', [1, 100], [1, 100]);
+    const L = D.loadarea;
+    const traces = L.series.filter(s => state.scenes.has(s.scene)).map(s => ({type: 'scatter',
+      mode: 'lines+markers', name: s.name, meta: {}, x: s.x, y: s.y, customdata: s.step,
+      hovertemplate: 'step %{customdata}: P/(E* A0 h\'_rms) = %{x:.3g}, A/A0 = %{y:.3g}<extra></extra>'}));
+    const lines = L.lines.map(l => ({type: 'scatter', mode: 'lines', name: l.name, meta: {}, x: l.x, y: l.y,
+      line: {color: 'black', dash: l.dash, width: 1}, hoverinfo: 'skip'}));
+    const lay = layout(L.title, L.x_title, L.y_title, [1, 100], [1, 100]);
     lay.xaxis.type = 'log'; lay.yaxis.type = 'log';
-    return thin('', traces, lay);
+    const [drawn, lay2] = thin('', traces, lay);
+    return [drawn.concat(lines), lay2];
   };
 }
 // Text of the table (a solver, scene or figure name) as HTML text: never markup.
@@ -339,10 +372,10 @@ function build() {
     if (D.pp[scene]) addChart(grid, scene, ppChart(scene));
     if (D.sgm[scene]) {
       const h = document.createElement('div');
+      // the SGM's words are report.md's (sections/generic.py SGM_CAPTION), without its Markdown
       h.innerHTML = '<h3>problems solved and shifted geometric mean of solve time (click a header to sort)</h3>' +
         '<p class="note">solved / problems: of every problem of the scene, a skipped or not run cell counting as ' +
-        'not solved; solved / attempted: of the cells the solver ran. SGM: every unsolved cell counts at its time ' +
-        'limit, relative to the best solver that solved a problem; - where no solver solved one.</p>';
+        'not solved; solved / attempted: of the cells the solver ran. ' + esc(D.sgm[scene].note.replace(/\*\*/g, '')) + '</p>';
       const t = document.createElement('div'); t.className = 'tablebox';
       h.appendChild(t); sec.appendChild(h); sgmTable(scene, t);
       charts.push({div: null, scene: scene, table: t});
@@ -354,7 +387,7 @@ function build() {
   field.innerHTML = '<h2>The contact fields and convergence</h2>';
   const grid = document.createElement('div'); grid.className = 'grid'; field.appendChild(grid);
   D.charts.filter(c => !c.scene).forEach(c => addChart(grid, '', () => [c.data, c.layout]));
-  if (D.loadarea.length) addChart(grid, '', loadAreaChart());
+  if (D.loadarea.series) addChart(grid, '', loadAreaChart());
   if (D.traces.scene) { addChart(grid, '', traceChart(false)); addChart(grid, '', traceChart(true)); }
   D.images.forEach(im => { const f = document.createElement('figure');
     f.innerHTML = '<img class="static" alt="' + esc(im.name) + '" src="' + esc(im.src) + '"><figcaption>' + esc(im.name) + ' (static, as in report.md)</figcaption>';

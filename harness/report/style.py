@@ -16,7 +16,9 @@ every report, and the split of many series into panels of at most ``MAX_SERIES``
   dashed: always clear of the light grey context lines.
 * Within one chart, any two series differ by at least ``COLOUR_APART`` (CIEDE2000) in colour or
   differ in marker or dash (tests/harness/test_series_distinct.py holds it for every chart of a
-  fabricated report).
+  fabricated report); two of the project's solvers closer than ``COLOUR_APART`` never share a
+  marker, whatever their families (``FAMILY_MARKER_OFFSETS``), so that a chart of markers only
+  holds it too.
 * ``family_panels`` splits a solver list into panels: one panel when it holds at most
   ``MAX_SERIES`` series, else one panel per family (a family larger than ``MAX_SERIES``
   in several), optionally preceded by an overview with the best solver of each family.
@@ -93,9 +95,18 @@ OUTSIDE_SLOTS = 4
 CANDIDATE_ROOM = 12
 #: Two palette neighbours (slots i and i + 1) differ at least this much in HLS lightness.
 NEIGHBOUR_LIGHTNESS = 0.06
-#: Markers, taken by slot (the page draws each: html.py ``SOLVER_SYMBOLS``); each family starts
-#: ``MARKER_STEP`` further along, so that the first members of two families differ in shape too.
+#: Markers, taken by slot (the page draws each: html.py ``SOLVER_SYMBOLS``); each known family
+#: starts ``FAMILY_MARKER_OFFSETS`` along, a family of its own, so that the first members of two
+#: families differ in shape too.
 MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*")
+#: Where each known family's markers start along ``MARKERS``: chosen so that no two solvers of the
+#: project (``FAMILY_SLOTS``, the registry) nor the first outside solvers of a family share a
+#: marker unless their colours lie at least ``COLOUR_APART`` (+3) apart -- a chart drawn with
+#: markers only (run time against error) tells them apart by colour or shape, whatever families
+#: it mixes.  (A step of 5 per family put ``nnls`` and ``qp-proxqp`` on one triangle 12.8 apart.)
+FAMILY_MARKER_OFFSETS: dict[str, int] = {"paper": 0, "fast": 5, "qp": 11, "wrapper": 3, "reference": 8,
+                                         "external": 2, "peer": 1, "other": 4}
+#: A family not in ``FAMILY_MARKER_OFFSETS`` starts this many markers along per its name's hash.
 MARKER_STEP = 5
 #: Line dashes, taken by slot (the reference family one further: its first member dashed).
 DASHES: tuple[str, ...] = ("-", "--", "-.", ":")
@@ -285,11 +296,11 @@ class SolverStyle:
 
 def slot_style(family: str, slot: int) -> SolverStyle:
     """The style of slot ``slot`` of ``family`` (module doc): colour ``slot % PALETTE_SIZE`` of
-    ``family_palette``, marker and dash by slot (the family's marker offset: its place in
-    ``FAMILY_ORDER``, else its name's hash)."""
+    ``family_palette``, marker and dash by slot (the family's marker offset: ``FAMILY_MARKER_OFFSETS``,
+    else by its name's hash)."""
     palette = family_palette(family)
-    offset = FAMILY_ORDER.index(family) if family in FAMILY_ORDER else zlib.crc32(family.encode())
-    return SolverStyle(family, palette[slot % len(palette)], _slot_marker(slot, MARKER_STEP * offset),
+    offset = FAMILY_MARKER_OFFSETS.get(family, MARKER_STEP * zlib.crc32(family.encode()))
+    return SolverStyle(family, palette[slot % len(palette)], _slot_marker(slot, offset),
                        _slot_dash(slot, family == "reference"))
 
 

@@ -20,14 +20,21 @@ Definitions (the report states them next to every number):
 * *Correct rate*: attempted rows on which the solver's own claim ``solver_converged``
   agrees with the verdict ``status == "solved"``.  A *false claim* is a row where the
   solver claims convergence and the check says otherwise.
+* A cell is *planned* when the table has a row of the solver for the problem, whatever
+  its status (a skipped row was planned and not run); a problem with no row of the solver
+  is a cell never planned (``CellTable``'s ``planned``).
 * *Shifted geometric mean* (Mittelmann's benchmarks): ``exp(mean(log(t + s))) - s``
-  with shift ``s`` seconds; every cell that is not solved -- failed, inaccurate,
-  timeout, crashed, skipped or absent -- counts at the time limit (``time_limit_s`` of
-  the cell, else the largest in the scene, else the largest observed time).
-  Reported relative to the best solver (1.00 = best): the smallest SGM among the solvers
-  that solved at least one cell.  Where no solver solved a cell, every cell counts at the
-  limit and the figure measures nothing: no solver gets an SGM (NaN, "-" in the report),
-  rather than a tie of everyone at "1 = best".
+  with shift ``s`` seconds, over the cells the solver was planned to run (their count is
+  ``SolverSummary.sgm_cells``): a planned cell that is not solved -- failed, inaccurate,
+  timeout, crashed or skipped -- counts at the time limit (``time_limit_s`` of the cell,
+  else the largest in the scene, else the largest observed time); a cell never planned
+  is not counted.  Reported relative to the best (1.00 = best): the solver's SGM over the
+  smallest SGM over the same cells among the solvers planned on every one of them that
+  solved at least one cell (so 1 is the best on the solver's own problems; one that
+  solved nothing is never the best).  A solver skipped on every problem has no SGM (the
+  limit it would count at is no measurement), and where no solver solved a cell every
+  cell counts at the limit and the figure measures nothing: no solver gets an SGM (NaN,
+  "-" in the report), rather than a tie of everyone at "1 = best".
 * *Own reference*: a row whose answer served as its step's reference solution
   (``reference_solver`` is ``served_name`` of the row itself, "<solver>@<profile>": the
   name the runner gives a run's own answer that serves).  Its
@@ -86,7 +93,8 @@ def shifted_geometric_mean(times: Iterable[float], shift: float = DEFAULT_SHIFT_
 class CellTable:
     """One row per (problem, solver): ``solved`` (bool), ``time_s`` (min over repeats,
     NaN when never timed), ``penalty_s`` (the time counted for an unsolved cell),
-    ``attempted`` (not skipped)."""
+    ``attempted`` (not skipped), ``planned`` (the table has a row of the solver for the
+    problem, whatever its status; False for a pair filled in as absent)."""
 
     frame: pd.DataFrame
     solvers: tuple[str, ...]
@@ -106,10 +114,10 @@ def _penalty_time(df: pd.DataFrame) -> pd.Series:
 
 
 def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTable:
-    """Fold repeats into cells and fill absent (problem, solver) pairs as unsolved and
-    not attempted.  ``solvers`` restricts / orders the solver set (default: all)."""
+    """Fold repeats into cells and fill absent (problem, solver) pairs as unsolved, not
+    attempted and not planned.  ``solvers`` restricts / orders the solver set (default: all)."""
     if df.empty:
-        return CellTable(pd.DataFrame(columns=[*PROBLEM_KEYS, "solver", "solved", "attempted", "time_s",
+        return CellTable(pd.DataFrame(columns=[*PROBLEM_KEYS, "solver", "solved", "attempted", "planned", "time_s",
                                                "penalty_s"]), (), ())
     d = df.copy()
     if "history" not in d.columns:  # a frame built by hand, not through the schema
@@ -124,6 +132,7 @@ def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTa
     cells = pd.DataFrame({
         "solved": g["_solved"].all(),
         "attempted": g["_attempted"].any(),
+        "planned": g["_solved"].size() > 0,  # a row of the solver, whatever its status
         "time_s": g["_time"].min(),
         "penalty_s": g["_penalty"].max(),
     }).reset_index()
@@ -132,8 +141,8 @@ def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTa
     full = pd.MultiIndex.from_tuples([(*p, s) for p in problems for s in all_solvers], names=keys)
     cells = cells.set_index(keys).reindex(full)
     limit_fill = float(d["_penalty"].max())
-    cells["solved"] = cells["solved"].astype("boolean").fillna(False).astype(bool)
-    cells["attempted"] = cells["attempted"].astype("boolean").fillna(False).astype(bool)
+    for flag in ("solved", "attempted", "planned"):
+        cells[flag] = cells[flag].astype("boolean").fillna(False).astype(bool)
     cells["penalty_s"] = cells["penalty_s"].fillna(limit_fill)
     return CellTable(cells.reset_index(), all_solvers, problems)
 
@@ -144,8 +153,9 @@ def _sort_key(t: tuple) -> tuple:
 
 
 def counted_times(cells: CellTable) -> pd.DataFrame:
-    """Problems x solvers matrix of the time counted by the shifted geometric mean:
-    the measured time where solved, the penalty (time limit) otherwise."""
+    """Problems x solvers matrix of the time a cell counts at in the shifted geometric mean
+    (which takes only the planned cells: ``time_aggregate``): the measured time where
+    solved, the penalty (time limit) otherwise."""
     f = cells.frame
     t = np.where(f["solved"], f["time_s"].clip(lower=0.0), f["penalty_s"])
     return _matrix(cells, t)
@@ -165,20 +175,10 @@ def solved_times(cells: CellTable) -> pd.DataFrame:
     return _matrix(cells, t)
 
 
-def shifted_geomean_table(cells: CellTable, shift: float = DEFAULT_SHIFT_S) -> dict[str, float]:
-    """Solver -> shifted geometric mean of counted times (seconds)."""
-    m = counted_times(cells)
-    return {s: shifted_geometric_mean(m[s].to_numpy(), shift) for s in cells.solvers}
-
-
-def relative_to_best(values: dict[str, float], among: Iterable[str] | None = None) -> dict[str, float]:
-    """Each value divided by the smallest finite positive one of the keys ``among`` (default:
-    all; the aggregate table passes the solvers with a solve, so that one that solved nothing
-    is never the best); NaN for all where there is none."""
-    pool = values if among is None else {k: values[k] for k in among if k in values}
-    finite = [v for v in pool.values() if np.isfinite(v) and v > 0]
-    best = min(finite) if finite else float("nan")
-    return {k: (v / best if best == best else float("nan")) for k, v in values.items()}
+def planned_matrix(cells: CellTable) -> pd.DataFrame:
+    """Problems x solvers matrix (as ``counted_times``): was the cell planned (a row of the
+    solver for the problem, whatever its status; see the module's definitions)?"""
+    return _matrix(cells, cells.frame["planned"].to_numpy(dtype=bool)).astype(bool)
 
 
 @dataclass(frozen=True)
@@ -241,8 +241,9 @@ class SolverSummary:
     claim_rows: int  # attempted rows with a known solver claim
     correct_rate: float  # claim agrees with verdict, over claim_rows
     false_claims: int  # claimed converged, verdict not solved
-    sgm_s: float  # shifted geometric mean of counted time
-    sgm_rel: float  # relative to the best solver
+    sgm_s: float  # shifted geometric mean of counted time over the planned cells
+    sgm_rel: float  # relative to the best solver over the same cells
+    sgm_cells: int  # the planned cells sgm_s counts (0 where it has none)
 
 
 def claim_agreement(df: pd.DataFrame) -> pd.Series:
@@ -257,14 +258,12 @@ def claim_agreement(df: pd.DataFrame) -> pd.Series:
 
 def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequence[str] | None = None,
               with_time: bool = True) -> list[SolverSummary]:
-    """The aggregate table of ``df`` (usually one scene): one SolverSummary per solver.
-    ``with_time=False`` leaves the time aggregate NaN (for tables mixing scenes, where
-    solvers do not all run on the same problems); so does a solver skipped on every problem
-    (``never_attempted``: it has no time to aggregate, and the limit it would count at is
-    no measurement; its skip reasons say why)."""
+    """The aggregate table of ``df`` (usually one scene): one SolverSummary per solver, its
+    time aggregate by ``time_aggregate`` (over the cells the solver was planned to run).
+    ``with_time=False`` leaves the time aggregate NaN, over 0 cells (for tables mixing
+    scenes, where solvers do not all run on the same problems)."""
     cells = cell_table(df, solvers)
-    sgm = time_aggregate(cells, shift) if with_time else {s: float("nan") for s in cells.solvers}
-    rel = relative_to_best(sgm, among=solvers_with_a_solve(cells))
+    times = time_aggregate(cells, shift) if with_time else {s: NO_TIME for s in cells.solvers}
     attempted_rows = df[df["status"].astype(str) != "skipped"]
     agree = claim_agreement(attempted_rows)
     claim = bool_series(attempted_rows["solver_converged"]) if "solver_converged" in attempted_rows \
@@ -284,7 +283,8 @@ def summarize(df: pd.DataFrame, shift: float = DEFAULT_SHIFT_S, solvers: Sequenc
             skipped=int(((~c["attempted"]) & c["solver"].notna()).sum()),
             solved=solved, solved_share=share(solved, len(c)), success_rate=share(solved, att),
             claim_rows=len(a), correct_rate=float(a.astype(bool).mean()) if len(a) else float("nan"),
-            false_claims=false_claims, sgm_s=sgm[s], sgm_rel=rel[s]))
+            false_claims=false_claims, sgm_s=times[s].sgm_s, sgm_rel=times[s].sgm_rel,
+            sgm_cells=times[s].cells))
     return out
 
 
@@ -300,16 +300,46 @@ def solvers_with_a_solve(cells: CellTable) -> tuple[str, ...]:
     return tuple(s for s in cells.solvers if bool(won.get(s, False)))
 
 
-def time_aggregate(cells: CellTable, shift: float = DEFAULT_SHIFT_S) -> dict[str, float]:
-    """Solver -> the SGM the aggregate table shows: ``shifted_geomean_table``, NaN for a
-    solver skipped on every problem (``never_attempted``: the limit it would count at is no
+@dataclass(frozen=True)
+class TimeAggregate:
+    """One solver's time aggregate (the module's definitions): ``sgm_s`` over the ``cells``
+    it was planned to run, ``sgm_rel`` that over the best over the same cells."""
+
+    sgm_s: float
+    sgm_rel: float
+    cells: int
+
+
+#: No time aggregate: NaN over no cells.
+NO_TIME = TimeAggregate(float("nan"), float("nan"), 0)
+
+
+def time_aggregate(cells: CellTable, shift: float = DEFAULT_SHIFT_S) -> dict[str, TimeAggregate]:
+    """Solver -> the SGM the aggregate table shows.  ``sgm_s``: the shifted geometric mean
+    of ``counted_times`` over the solver's planned cells (``planned_matrix``); ``sgm_rel``:
+    that over the smallest SGM over the same cells among the solvers of
+    ``solvers_with_a_solve`` planned on every one of them (NaN where none is, or that
+    smallest is 0); ``cells``: how many cells ``sgm_s`` counts.  ``NO_TIME`` for a solver
+    skipped on every problem (``never_attempted``: the limit it would count at is no
     measurement) and for every solver where none solved a cell (each would count every
     cell at the limit: a tie that reads as "1 = best")."""
-    if not solvers_with_a_solve(cells):
-        return {s: float("nan") for s in cells.solvers}
-    sgm = shifted_geomean_table(cells, shift)
-    sgm.update({s: float("nan") for s in never_attempted(cells)})
-    return sgm
+    won = solvers_with_a_solve(cells)
+    if not won:
+        return {s: NO_TIME for s in cells.solvers}
+    counted, planned = counted_times(cells), planned_matrix(cells)
+    skipped = set(never_attempted(cells))
+    out: dict[str, TimeAggregate] = {}
+    for s in cells.solvers:
+        mine = planned[s].to_numpy()
+        if s in skipped or not mine.any():
+            out[s] = NO_TIME
+            continue
+        sgm = shifted_geometric_mean(counted[s].to_numpy()[mine], shift)
+        peers = [shifted_geometric_mean(counted[t].to_numpy()[mine], shift) for t in won
+                 if planned[t].to_numpy()[mine].all()]
+        best = min(peers) if peers else float("nan")
+        out[s] = TimeAggregate(sgm, sgm / best if best > 0 else float("nan"), int(mine.sum()))
+    return out
 
 
 def own_reference(df: pd.DataFrame) -> pd.Series:

@@ -478,6 +478,21 @@ def test_a_near_tie_from_one_repeat_is_unresolved_not_holds() -> None:
     assert r["measured"] < 1.0 and r["verdict"] == "unresolved"
 
 
+def test_a_least_k_from_one_repeat_tied_with_a_k_of_another_verdict_is_unresolved() -> None:
+    """One repeat: K = 25 least (3 s), K = 100 3 % behind, inside the single repeat's assumed
+    spread; 25 fails and 100 holds, so the least K is not known.  ``best_k`` says so with
+    an infinite spread, which a single repeat's stand-in spread must not replace."""
+    rows = []
+    for K, t in ((0, 3.0), (25, 1.0), (100, 1.03), (200, 2.0)):
+        for row in _rows("gp-k-sweep", "fft", {f"nnls-gp[K={K}]": [t, t, t]}):
+            rows.append({**row, "base_solver": "nnls-gp", "params": json.dumps({"K": K})})
+    r = _one(cl.ledger(pd.DataFrame(rows)), "fig6-best-k", "fft")
+    assert r["measured"] == 25.0 and r["repeats"] == 1 and r["spread"] == math.inf, r
+    assert r["verdict"] == "unresolved" and "not told from K = 100" in r["evidence"], r
+    assert cr.judged_spread(cr.Timing(1, math.inf)) == math.inf
+    assert cr.judged_spread(cr.Timing(1, math.nan)) == cr.SINGLE_REPEAT_SPREAD
+
+
 def test_a_claim_measured_below_the_papers_n_says_what_the_papers_n_would_need() -> None:
     """ADMM and the greedy solvers answered at n <= 200 only: each Fig. 4-5 claim that needs
     them gets an ``unmeasured`` row at the paper's n naming them, their largest n and what

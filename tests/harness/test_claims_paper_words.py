@@ -91,7 +91,7 @@ def test_repeats_that_each_find_another_least_k_are_unresolved() -> None:
 
 def test_a_least_k_tied_with_another_within_the_timing_spread_is_unresolved() -> None:
     """Every repeat finds K = 100 least, but K = 150 is 5 % behind with a spread of 30 %
-    (``paper_readings.tied_with``): 100 (holds) and 150 (partly) cannot be told apart."""
+    (``claim_measures.tied_with``): 100 (holds) and 150 (partly) cannot be told apart."""
     r = _best_k({0: (9.0, 9.0, 9.0), 50: (3.0, 3.0, 3.9), 100: (1.0, 1.0, 1.3), 150: (1.05, 1.05, 1.4),
                  200: (2.0, 2.0, 2.6)})
     assert r["measured"] == 100.0 and r["verdict"] == "unresolved", r

@@ -10,7 +10,8 @@ The table (scene "s", profile "default", time limit 10 s; times in seconds):
 
 plus a second repeat of A on P1 at 1.6 s (the cell keeps the minimum, 1.0 s).
 
-Counted times (unsolved -> time limit 10 s):
+Counted times (unsolved -> time limit 10 s; every cell has a row, so every cell is planned
+and counts, C's skipped P2 at the limit):
     A: 1, 2, 4, 10      B: 2, 1, 10, 3      C: 4, 10, 2, 1.5
 
 Shifted geometric mean with shift s = 1 s:
@@ -18,6 +19,12 @@ Shifted geometric mean with shift s = 1 s:
     B: (3 * 2 * 11 * 4)^(1/4) - 1   = 264^(1/4) - 1   = 3.0309...
     C: (5 * 11 * 3 * 2.5)^(1/4) - 1 = 412.5^(1/4) - 1 = 3.5067...
     relative to the best (B): A 1.0763..., B 1, C 1.1570...
+
+With C's P2 row dropped (the cell never planned, not counted): C over P1, P3, P4 counts
+4, 2, 1.5: (5 * 3 * 2.5)^(1/3) - 1 = 37.5^(1/3) - 1 = 2.3472...; over those cells A counts
+(2 * 5 * 11)^(1/3) - 1 = 3.7915... and B (3 * 11 * 4)^(1/3) - 1 = 4.0906..., so C is the
+best on its own cells (1); A and B, planned on all four, are compared with the solvers
+planned on all four (A, B: C is not), and keep their figures.
 
 Performance-profile ratios r = t / min over solvers of t (inf where unsolved):
     P1: best 1   -> A 1,   B 2,   C 4
@@ -71,15 +78,14 @@ def hand_table() -> pd.DataFrame:
 
 
 def test_shifted_geometric_mean_by_hand() -> None:
-    cells = agg.cell_table(hand_table())
-    sgm = agg.shifted_geomean_table(cells, SHIFT)
-    assert sgm["A"] == pytest.approx(330 ** 0.25 - 1, rel=1e-12)
-    assert sgm["B"] == pytest.approx(264 ** 0.25 - 1, rel=1e-12)
-    assert sgm["C"] == pytest.approx(412.5 ** 0.25 - 1, rel=1e-12)
-    rel = agg.relative_to_best(sgm)
-    assert rel["B"] == 1.0
-    assert rel["A"] == pytest.approx((330 ** 0.25 - 1) / (264 ** 0.25 - 1), rel=1e-12)
-    assert rel["C"] == pytest.approx((412.5 ** 0.25 - 1) / (264 ** 0.25 - 1), rel=1e-12)
+    t = agg.time_aggregate(agg.cell_table(hand_table()), SHIFT)
+    assert t["A"].sgm_s == pytest.approx(330 ** 0.25 - 1, rel=1e-12)
+    assert t["B"].sgm_s == pytest.approx(264 ** 0.25 - 1, rel=1e-12)
+    assert t["C"].sgm_s == pytest.approx(412.5 ** 0.25 - 1, rel=1e-12)  # its skipped P2 counts at the limit
+    assert t["B"].sgm_rel == 1.0
+    assert t["A"].sgm_rel == pytest.approx((330 ** 0.25 - 1) / (264 ** 0.25 - 1), rel=1e-12)
+    assert t["C"].sgm_rel == pytest.approx((412.5 ** 0.25 - 1) / (264 ** 0.25 - 1), rel=1e-12)
+    assert [t[s].cells for s in "ABC"] == [4, 4, 4]
 
 
 def test_shifted_geometric_mean_basics() -> None:
@@ -120,6 +126,7 @@ def test_summary_rates_by_hand() -> None:
     assert summ["C"].correct_rate == pytest.approx(2 / 3) and summ["C"].false_claims == 0
     assert summ["B"].sgm_rel == 1.0
     assert summ["A"].sgm_s == pytest.approx(330 ** 0.25 - 1)
+    assert [summ[s].sgm_cells for s in "ABC"] == [4, 4, 4]
 
 
 def test_problem_nobody_solves_stays_in_the_denominator() -> None:
@@ -158,18 +165,30 @@ def test_a_solver_skipped_on_every_problem_has_no_time_aggregate() -> None:
     with_d = {s.solver: s for s in agg.summarize(pd.concat([t, skipped], ignore_index=True), SHIFT)}
     base = {s.solver: s for s in agg.summarize(t, SHIFT)}
     assert np.isnan(with_d["D"].sgm_s) and np.isnan(with_d["D"].sgm_rel) and with_d["D"].attempted == 0
+    assert with_d["D"].sgm_cells == 0
     for s in base:
         assert with_d[s].sgm_s == pytest.approx(base[s].sgm_s, rel=1e-12)
         assert with_d[s].sgm_rel == pytest.approx(base[s].sgm_rel, rel=1e-12)
     assert np.isfinite(base["C"].sgm_s)  # C, skipped on one problem, is timed
 
 
-def test_absent_pairs_count_as_unsolved_at_the_limit() -> None:
+def test_a_cell_never_planned_is_not_counted_in_the_time_aggregate() -> None:
+    """A problem with no row of the solver is no cell it was planned to run: its SGM leaves
+    it out (it counted at the 10 s limit: 412.5^(1/4) - 1 over four cells), and it is
+    compared, over its own cells, with the solvers planned on all of them.  The solved share
+    and the performance profile still count the absent cell as not solved."""
     t = hand_table()
     t = t[~((t["solver"] == "C") & (t["instance"] == "P2"))]  # drop the skipped row: now simply absent
+    summ = {s.solver: s for s in agg.summarize(t, SHIFT)}
+    assert summ["C"].sgm_s == pytest.approx(37.5 ** (1 / 3) - 1, rel=1e-12)
+    assert summ["C"].sgm_rel == 1.0  # A: 110^(1/3) - 1, B: 132^(1/3) - 1 over P1, P3, P4
+    assert (summ["C"].sgm_cells, summ["A"].sgm_cells, summ["B"].sgm_cells) == (3, 4, 4)
+    assert summ["A"].sgm_s == pytest.approx(330 ** 0.25 - 1, rel=1e-12)
+    assert summ["A"].sgm_rel == pytest.approx((330 ** 0.25 - 1) / (264 ** 0.25 - 1), rel=1e-12)
+    assert summ["B"].sgm_rel == 1.0
+    assert (summ["C"].problems, summ["C"].solved, summ["C"].attempted) == (4, 3, 3)
     cells = agg.cell_table(t)
-    sgm = agg.shifted_geomean_table(cells, SHIFT)
-    assert sgm["C"] == pytest.approx(412.5 ** 0.25 - 1, rel=1e-12)
+    assert agg.planned_matrix(cells).to_numpy().sum() == 11
     assert agg.performance_profile(cells).fraction("C", 4.0) == 0.75
 
 

@@ -72,7 +72,11 @@ def _cell(t: rp.TableRecord, solver: str, column: str) -> str:
 
 def test_solved_share_is_over_every_problem_and_success_over_the_attempted() -> None:
     """gp solved 3 of 10 problems, the 7 others skipped: 30 % of the problems, 100 % of
-    what it attempted; a solver absent from a problem counts it as not solved too."""
+    what it attempted; a solver absent from a problem counts it as not solved too, but its
+    time aggregate counts only the cells it was planned to run (pk on steps 0-4: 0.01 to
+    0.05 s, shift 0.01 s: (720 * 1e-10)^(1/5) - 0.01 s over 5 cells, the best there; gp,
+    planned on all ten, is compared with the solvers planned on all ten that solved one:
+    itself alone)."""
     t = _table()
     summ = {s.solver: s for s in agg.summarize(t)}
     gp = summ["gp"]
@@ -81,6 +85,9 @@ def test_solved_share_is_over_every_problem_and_success_over_the_attempted() -> 
     absent = t[~((t["solver"] == "pk") & (t["step"] >= 5))]
     pk = {s.solver: s for s in agg.summarize(absent)}["pk"]
     assert (pk.problems, pk.solved, pk.solved_share, pk.success_rate) == (10, 5, 0.5, 1.0)
+    after = {s.solver: s for s in agg.summarize(absent)}
+    assert pk.sgm_s == pytest.approx(720 ** 0.2 * 0.01 - 0.01, rel=1e-12)
+    assert (pk.sgm_cells, pk.sgm_rel, after["gp"].sgm_cells, after["gp"].sgm_rel) == (5, 1.0, 10, 1.0)
 
 
 def test_every_aggregate_table_shows_the_problems_and_both_shares(tmp_path: Path) -> None:

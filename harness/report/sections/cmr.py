@@ -39,12 +39,14 @@ from ..core import (
     attempted,
     fmt_num,
     natural_key,
+    natural_sorted,
     parse_json,
     per_cell,
     pick_profile,
     table_md,
 )
 from ...table.schema import ANSWERED
+from ..markdown_text import md_code
 from .paper import family_name
 
 #: The study's area-of-influence factor and first level: the cmr solver's declared
@@ -213,15 +215,16 @@ def cmr_pairs(rows: pd.DataFrame) -> pd.DataFrame:
     h, coarse, coarsest = zip(*(variant_params(b, p) for b, p in zip(cmr["base_solver"], cmr["params"])))
     cmr = cmr.assign(h=h, coarse=coarse, coarsest=coarsest, n_p_over_n=projected_share(cmr))
     keys = ["instance", "step", "history", "profile"]
-    d = direct[[*keys, "base_solver", "solve_time_s", "load", "build_time_s", "operator"]].rename(columns={
-        "base_solver": "base", "solve_time_s": "direct_solve_s", "load": "direct_load",
-        "build_time_s": "direct_build_s", "operator": "direct_operator"})
+    d = direct[[*keys, "base_solver", "solve_time_s", "load", "build_time_s", "operator", "warm_start"]].rename(
+        columns={"base_solver": "base", "solve_time_s": "direct_solve_s", "load": "direct_load",
+                 "build_time_s": "direct_build_s", "operator": "direct_operator", "warm_start": "direct_warm"})
     out = cmr.merge(d, on=[*keys, "base"], how="inner")
     if out.empty:
         return out
     dense = (out["direct_operator"] == "dense") & (out["operator"] != "dense")
     assembly = (out["direct_build_s"] - out["build_time_s"]).clip(lower=0.0).fillna(0.0)
     out["direct_assembly_s"] = np.where(dense, assembly, 0.0)
+    out["direct_assembled"] = dense.to_numpy(dtype=bool)
     out["direct_time_s"] = out["direct_solve_s"] + out["direct_assembly_s"]
     out["err"] = (out["load"] - out["direct_load"]) / out["direct_load"]
     out["N"] = out["N"].fillna(0).astype(int)
@@ -268,13 +271,90 @@ def variant_title(v: Variant) -> str:
     return f"{BASE_TEXT.get(v[0], v[0])}, coarse={v[1]}, N = {v[2]}"
 
 
-#: Short names of the bases for panel titles.
-BASE_SHORT = {"scipy-nnls": "dense NNLS base, cold (paper's solver)", "nnls": "dense NNLS base, warm (paper's reference)",
-              "fast-dual-pccg": "FFT base fast-dual-pccg"}
+@dataclass(frozen=True)
+class BaseRun:
+    """How one base ran in a scene's pairs, read from the table's columns only: ``base`` (the
+    direct solve's ``base_solver``), its ``operator``, how many of its distinct direct
+    solves were warm started (``warm_start``) of how many, how many of them count the
+    assembly of a dense H in their time (``cmr_pairs``: a dense direct solve against a CMR
+    run that is not), and how many of the CMR solves over it were warm started, of how many."""
+
+    base: str
+    operator: str
+    direct_warm: int
+    direct: int
+    assembled: int
+    cmr_warm: int
+    cmr: int
 
 
-def panel_title(v: Variant) -> str:
-    return f"{BASE_SHORT.get(v[0], v[0])}\ncoarse={v[1]}, N = {v[2]}"
+def base_runs(pairs: pd.DataFrame) -> dict[str, BaseRun]:
+    """Base -> its ``BaseRun`` in ``pairs`` (``cmr_pairs``), in ``variant_order``.  A direct
+    solve paired with several CMR variants counts once."""
+    out: dict[str, BaseRun] = {}
+    if pairs.empty:
+        return out
+    keys = ["instance", "step", "history", "profile"]
+    for base in dict.fromkeys(v[0] for v in variant_order(pairs)):
+        p = pairs[pairs["base"] == base]
+        direct = p.drop_duplicates([*keys, "base"])
+        ops = natural_sorted(set(direct["direct_operator"].fillna("").astype(str)) - {""})
+        cmr = p.drop_duplicates([*keys, "solver"])
+        out[base] = BaseRun(base, "/".join(ops) or "-", int(direct["direct_warm"].astype(bool).sum()), len(direct),
+                            int(direct["direct_assembled"].astype(bool).sum()), int(cmr["warm_start"].astype(bool).sum()),
+                            len(cmr))
+    return out
+
+
+def warm_short(warm: int, total: int) -> str:
+    """A panel title's words on the warm starts of ``total`` solves: "cold" (none), "warm"
+    (all), else "warm on k of n"."""
+    return "cold" if warm == 0 else "warm" if warm == total else f"warm on {warm} of {total}"
+
+
+def panel_title(v: Variant, runs: dict[str, BaseRun]) -> str:
+    """A CMR panel's title: the base as the table names it, its operator and whether its
+    direct solves were warm started (``runs``: ``base_runs`` of the panel's pairs), then the
+    coarse reading and N."""
+    r = runs.get(v[0])
+    how = f" ({r.operator})\ndirect solves {warm_short(r.direct_warm, r.direct)}" if r else ""
+    return f"{v[0]} base{how}\ncoarse={v[1]}, N = {v[2]}"
+
+
+#: What each coarse reading of the CMR levels is, for the design note.
+COARSE_TEXT = {"subsample": "exact subsamples (`coarse=subsample`)", "mean": "block means (`coarse=mean`)"}
+
+
+def _warm_words(warm: int, total: int, what: str) -> str:
+    if warm == 0:
+        return f"never warm started: each of its {total} {what} from scratch"
+    if warm == total:
+        return f"warm started from the previous step's answer on all {total} {what}"
+    return f"warm started from the previous step's answer on {warm} of its {total} {what}, the other {total - warm} from scratch"
+
+
+def design_note(pairs: pd.DataFrame) -> str:
+    """What the direct solves and the CMR runs of ``pairs`` (``cmr_pairs``) were, read from
+    the table: each base's ``base_solver``, operator and ``warm_start`` count, whether its
+    time includes a dense H's assembly, the coarse readings that ran, and the CMR runs' own
+    warm starts ("" for no pairs)."""
+    runs = base_runs(pairs)
+    if not runs:
+        return ""
+    bases = []
+    for r in runs.values():
+        what = BASE_TEXT.get(r.base, "")
+        text = f"{md_code(r.base)} ({what + ', ' if what and r.base not in what else ''}operator {r.operator}), " \
+               f"{_warm_words(r.direct_warm, r.direct, 'direct solves')}"
+        if r.assembled:
+            some = "" if r.assembled == r.direct else f" on {r.assembled} of its {r.direct} solves"
+            text += f"; its time includes the assembly of its dense H{some}"
+        bases.append(text)
+    coarse = [COARSE_TEXT.get(c, f"`coarse={c}`") for c in natural_sorted(set(pairs["coarse"].astype(str)))]
+    cmr = "; ".join(f"over {md_code(r.base)}, {_warm_words(r.cmr_warm, r.cmr, 'CMR solves')}" for r in runs.values())
+    return (f"**Direct solves and bases** (from the table's `base_solver`, `operator` and `warm_start`): "
+            f"{'; '.join(bases)}. CMR runs over each base, with the coarse levels as {' or '.join(coarse)}; "
+            f"CMR's fine level, {cmr}.\n")
 
 
 # ---------------------------------------------------------------------------

@@ -30,8 +30,11 @@ from .cmr import (
     PAPER_TIME_RATIO,
     ROBUST_SHARE,
     Band,
+    BaseRun,
     Table,
+    base_runs,
     by_family,
+    design_note,
     cmr_pairs,
     family_label,
     coarsest_table,
@@ -74,17 +77,37 @@ def _same_y(row: Sequence[Any], bottom: float | None = None, top: float | None =
         ax.set_ylim(lo, hi)
 
 
+#: The mantissas of the labelled steps of a log time-ratio axis.
+RATIO_STEPS = (1.0, 2.0, 5.0)
+
+
+def ratio_limits(lo: float, hi: float) -> tuple[float, float]:
+    """The y range of a log time-ratio axis over data from ``lo`` to ``hi`` (> 0): out to the
+    labelled step at or below ``lo`` and the one at or above ``hi`` (``RATIO_STEPS`` where the
+    data span under two decades, as ``tidy_log_ticks`` labels them, else powers of ten), so
+    that a labelled tick lies beyond the data at both ends (ratios of 1.5-1.8 under a top
+    label of 1 could not be read)."""
+    mantissas = RATIO_STEPS if np.log10(hi / lo) < 2 else (1.0,)
+    steps = np.array([m * 10.0 ** k for k in range(int(np.floor(np.log10(lo))) - 1, int(np.ceil(np.log10(hi))) + 1)
+                      for m in mantissas])
+    return float(steps[steps <= lo * (1 + 1e-9)].max()), float(steps[steps >= hi * (1 - 1e-9)].min())
+
+
 def _ratio_axes(row: Sequence[Any], ratios: Iterable[float]) -> None:
     """One y range for a row of time-ratio panels: logarithmic when the ratios span more
-    than a decade, else linear from 0."""
+    than a decade, out to a labelled step beyond the data at each end (``ratio_limits``),
+    else linear from 0."""
     v = finite(ratios)
     v = v[v > 0]
     if len(v) and np.log10(v.max() / v.min()) > 1:
         for ax in row:
             ax.set_yscale("log")
         _same_y(row)
-        for ax in row:
-            tidy_log_ticks(ax, "y", float(np.log10(v.max() / v.min())))
+        lo0, hi0 = row[0].get_ylim()
+        lo, hi = ratio_limits(lo0, hi0)
+        _same_y(row, bottom=lo, top=hi)
+        for ax in row:  # labelled as ``ratio_limits`` rounded: by the span of the data's range
+            tidy_log_ticks(ax, "y", float(np.log10(hi0 / lo0)))
     else:
         _same_y(row, bottom=0.0)
 
@@ -94,7 +117,9 @@ def _tol_lines(ax: Any) -> None:
         ax.axhline(y, color="gray", ls="--", lw=0.8)
 
 
-def fig8_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
+def fig8_figure(ctx: ReportContext, tot: pd.DataFrame, family: str, runs: dict[str, BaseRun]) -> str:
+    """Fig. 8 of ``tot`` (``instance_totals``) per variant; ``runs``: ``base_runs`` of its pairs
+    (the panel titles say how each base ran)."""
     variants = variant_order(tot)
     fig, axes = grid_figure(3, len(variants), width=3.4, height=2.6, wspace=0.35)
     for j, v in enumerate(variants):
@@ -106,7 +131,7 @@ def fig8_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
         _band_line(a1, Hs, [v.ratio for v in s.values()], "median", "tab:blue")
         a1.axhline(1.0, color="black", lw=0.8)
         a1.axhline(PAPER_TIME_RATIO, color="gray", ls=":", lw=0.8)
-        a1.set_title(panel_title(v), fontsize=8)
+        a1.set_title(panel_title(v, runs), fontsize=8)
         a1.set_ylabel("time CMR / direct\n(summed over the history)" if j == 0 else "")
         a2.scatter(sub["H"], 100 * sub["err"], s=6, color="tab:red", alpha=0.35)
         _band_line(a2, Hs, [v.err for v in s.values()], "median", "tab:red", scale=100.0)
@@ -130,6 +155,7 @@ def history_figure(ctx: ReportContext, pairs: pd.DataFrame, family: str) -> str:
     import matplotlib
 
     variants = variant_order(pairs)
+    runs = base_runs(pairs)
     hb = history_bands(pairs)
     Hs = sorted({k[3] for k in hb})
     cmap = matplotlib.colormaps["viridis"]
@@ -142,11 +168,12 @@ def history_figure(ctx: ReportContext, pairs: pd.DataFrame, family: str) -> str:
             if ks:
                 _band_line(ax, [k + 1 for k in ks], [hb[(*v, H, k)] for k in ks], f"H = {H:g}", colors[H], 100.0)
         ax.set_xticks(sorted({k[4] + 1 for k in hb}))
-        _error_panel(ax, v, j, "load step (1: lowest load)", "load error [%]")
+        _error_panel(ax, panel_title(v, runs), j, "load step (1: lowest load)", "load error [%]")
     return _error_row(ctx, fig, axes[0], f"fig8-history-{family or 'all'}")
 
 
-def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
+def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str, runs: dict[str, BaseRun]) -> str:
+    """Fig. 9 of ``tot`` (``instance_totals``) per variant; ``runs`` as ``fig8_figure``'s."""
     variants = variant_order(tot)
     metrics = (("np_n", "n_p / n", 1.0, "tab:purple"), ("ratio", "time CMR / direct", 1.0, "tab:blue"),
                ("err", "load error [%]", 100.0, "tab:red"))
@@ -164,7 +191,7 @@ def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
                 ax.axhline(1.0, color="black", lw=0.8)
             ax.set_ylabel(label if j == 0 else "")
             ax.grid(True, alpha=0.3)
-        axes[0][j].set_title(panel_title(v), fontsize=8)
+        axes[0][j].set_title(panel_title(v, runs), fontsize=8)
         axes[2][j].set_xlabel("area-of-influence factor h")
     _same_y(axes[0], bottom=0.0, top=1.0)
     _ratio_axes(axes[1], tot["ratio"])
@@ -172,7 +199,8 @@ def fig9_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
     return ctx.save_figure(fig, f"fig9-cmr-h-{family or 'all'}", on_page=True)
 
 
-def coarsest_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
+def coarsest_figure(ctx: ReportContext, tot: pd.DataFrame, family: str, runs: dict[str, BaseRun]) -> str:
+    """Where the cascade starts, per variant; ``runs`` as ``fig8_figure``'s."""
     Hs = sorted(tot["H"].dropna().unique())
     H = FIG9_H if FIG9_H in Hs else (Hs[-1] if Hs else np.nan)
     tot = tot[tot["H"] == H] if Hs else tot
@@ -188,14 +216,14 @@ def coarsest_figure(ctx: ReportContext, tot: pd.DataFrame, family: str) -> str:
         ax.plot(ks, [100 * x.worst for x in s.values()], "x--", color="black", label="worst seed")
         ax.set_xscale("log", base=2)
         ax.set_xticks(ks, [str(k) for k in ks])
-        _error_panel(ax, v, j, "first level (points per side)", "load error at the top step [%]")
+        _error_panel(ax, panel_title(v, runs), j, "first level (points per side)", "load error at the top step [%]")
     return _error_row(ctx, fig, axes[0], f"fig9-coarsest-{family or 'all'}")
 
 
-def _error_panel(ax: Any, variant: tuple, j: int, xlabel: str, ylabel: str) -> None:
+def _error_panel(ax: Any, title: str, j: int, xlabel: str, ylabel: str) -> None:
     """A load-error panel of one variant: the 2 % lines, title, labels (y on the first only), grid."""
     _tol_lines(ax)
-    ax.set_title(panel_title(variant), fontsize=8)
+    ax.set_title(title, fontsize=8)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel if j == 0 else "")
     ax.grid(True, alpha=0.3)
@@ -225,12 +253,12 @@ def cmr_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     left_out = (f"Left out of Fig. 8: {len(unplaced)} instance(s) with no Hurst exponent ({', '.join(unplaced)}).\n"
                 if unplaced else "")
     pairs = pairs[np.isfinite(pairs["H"])]
-    body = [surface_family_note(pairs), DESIGN_NOTE, left_out]
+    body = [surface_family_note(pairs), design_note(pairs), left_out]
     for family, fp in by_family(pairs):
         tot = instance_totals(fp)
         if len(by_family(pairs)) > 1:
             body.append(f"#### Surface family `{family or 'other'}`\n")
-        body.append(ctx.figure_md(fig8_figure(ctx, tot, family),
+        body.append(ctx.figure_md(fig8_figure(ctx, tot, family, base_runs(fp)),
                                   f"Fig. 8 ({family_label(family)}): against H, per base and coarse reading: (top) time CMR / "
                                   f"direct summed over the load history (dotted: the paper's ~{PAPER_TIME_RATIO:g}); "
                                   f"(middle) error in the load at the top step (dashed: +-{100 * ERROR_TOL:g} %); "
@@ -252,34 +280,27 @@ def cmr_h_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     pairs = cmr_pairs(rows)
     if pairs.empty:
         return Section(title, "No CMR row could be paired with its direct base solve.\n", page_charts=FIG9_PAGE)
-    body = [surface_family_note(pairs), DESIGN_NOTE]
+    body = [surface_family_note(pairs), design_note(pairs)]
     for family, fp in by_family(pairs):
         tot = instance_totals(fp)
         if len(by_family(pairs)) > 1:
             body.append(f"#### Surface family `{family or 'other'}`\n")
         hs = tot[tot["coarsest"] == CMR_COARSEST]
         if hs["h"].nunique() > 1:
-            body.append(ctx.figure_md(fig9_figure(ctx, hs, family),
+            body.append(ctx.figure_md(fig9_figure(ctx, hs, family, base_runs(fp)),
                                       f"Fig. 9 ({family_label(family)}): n_p/n, time CMR / direct and load error at the top step "
                                       f"against h, first level {CMR_COARSEST}; median and "
                                       f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band over the seeds."))
         body.append(h_table(hs, family).md(ctx))
         starts = tot[np.isclose(tot["h"], CMR_H)]
         if starts["coarsest"].nunique() > 1:
-            body.append(ctx.figure_md(coarsest_figure(ctx, starts, family),
+            body.append(ctx.figure_md(coarsest_figure(ctx, starts, family, base_runs(fp)),
                                       f"where the cascade starts ({family_label(family)}), h = {CMR_H:g}, H = {FIG9_H:g} (else the "
                                       f"largest H that ran): load error at the top step per first level; median, "
                                       f"{100 * BAND[0]:g}-{100 * BAND[1]:g} % band, seeds and the worst seed."))
             body.append(coarsest_table(starts, family).md(ctx))
         body.append(fig9_reading(tot))
     return Section(title, "\n".join(b for b in body if b), page_charts=FIG9_PAGE)
-
-
-DESIGN_NOTE = ("Direct solves and bases: the paper's dense Cholesky + NNLS (`scipy-nnls`, no warm start: every "
-               "step of the history from scratch; its time includes the assembly of its dense H) and our FFT "
-               "solver `fast-dual-pccg` (warm started from its previous step). CMR over each, with the coarse "
-               "levels as exact subsamples (`coarse=subsample`) or block means (`coarse=mean`); CMR's fine level "
-               "is warm started from its own previous answer along the history.\n")
 
 
 @register_section("cmr-cutoff", title="CMR on a PSD with a roll-off", group="paper", order=52)

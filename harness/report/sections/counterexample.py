@@ -25,6 +25,7 @@ from matplotlib.figure import Figure
 
 from ..charts import RowChart
 from ..claim_rules import CLAIMS
+from ..claim_tables import with_numbers
 from ..markdown_text import md_code
 from ..core import (
     ReportContext,
@@ -37,13 +38,13 @@ from ..core import (
     natural_key,
     natural_sorted,
     new_figure,
-    pick_profile,
     register_section,
     table_md,
 )
 from ...table.aggregates import own_reference
 from .generic import REF_CELL
 from .paper import resolve_role
+from .paper_conditions import Block, condition_blocks, operators_of
 
 #: The share of seeds on which the paper saw greedy CG violate the LCP (sec. 3: "about 40 %"),
 #: in percent, and its legend name: the dashed line of both Example 1 charts.
@@ -112,10 +113,16 @@ COUNTEREXAMPLE_REFERENCE = {25: 0.14, 100: 0.36, 400: 0.52}
 @register_section("counterexample", title="Example 1: the greedy counterexample", group="paper", order=40)
 def counterexample_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Example 1: the greedy counterexample (counterexample)"
-    prof = pick_profile(attempted(rows))
-    r = attempted(rows[rows["profile"] == prof])
+    parts = [_counterexample_block(ctx, b) for b in condition_blocks(rows)]
+    return Section(title, "\n".join(parts), page_charts=EXAMPLE1_PAGE)
+
+
+def _counterexample_block(ctx: ReportContext, block: Block) -> str:
+    """The chart, tables, reading and failing case of one block (condition) of the scene."""
+    prof = block.profile
+    r = attempted(block.rows)
     if r.empty:
-        return Section(title, "Every pair of this scene was skipped.\n", page_charts=EXAMPLE1_PAGE)
+        return "Every pair of this scene was skipped.\n"
     cells = seed_readings(r)
     frac = violation_counts(cells)
     ns = sorted(frac["n"].unique())
@@ -135,19 +142,20 @@ def counterexample_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | 
     ax.set_ylim(0, 105)
     ax.grid(True, axis="y", alpha=0.3)
     legend_outside(ax, "solver")
-    rel = ctx.save_figure(fig, "counterexample-violations")
+    rel = ctx.save_figure(fig, block.name("counterexample-violations"))
     tol = _check_tol_text(r)
-    body = [ctx.figure_md(rel, f"fraction of seeds on which each solver violates the LCP: the judge does not "
-                               f"accept the answer (status not `solved`: scaled KKT error above the profile's "
-                               f"check_tol{tol}, or no answer) at profile `{prof}`.")]
+    body = [block.lead() + ctx.figure_md(
+        rel, f"fraction of seeds on which each solver violates the LCP: the judge does not accept the answer "
+             f"(status not `solved`: scaled KKT error above the profile's check_tol{tol}, or no answer) at "
+             f"{block.profile_text}.")]
     rows_t = [(s, *[_frac_cell(frac, s, n) for n in ns]) for s in solvers]
     body.append(table_md(ctx, f"LCP violations by solver and n, as the judge reads them: rejected seeds / seeds "
                               f"(of which wrong = claimed convergence, unconverged, no answer), profile `{prof}`.",
                          ["solver", *[f"n = {int(n)}" for n in ns]], rows_t, "l" + "r" * len(ns)))
     body.append(_distance_table(ctx, cells, ns, solvers, prof, set(r.loc[own_reference(r), "solver"])))
-    body.append(_counterexample_reading(frac, cells))
-    body.append(_counterexample_case(ctx, cells))
-    return Section(title, "\n".join(body), page_charts=EXAMPLE1_PAGE)
+    body.append(_counterexample_reading(frac, cells, r))
+    body.append(_counterexample_case(ctx, cells, block))
+    return "\n".join(body)
 
 
 def _check_tol_text(rows: pd.DataFrame) -> str:
@@ -205,7 +213,28 @@ def share_verdict(share: float) -> str:
     return f"is {side} {paper}"
 
 
-def _counterexample_reading(frac: pd.DataFrame, cells: pd.DataFrame) -> str:
+def ledger_shares(rows: pd.DataFrame) -> pd.DataFrame:
+    """The claims ledger's measurement of ``ex1-greedy-fails`` (claims.py ``example1_rows``
+    reads it here) over the attempted ``rows``: per operator, solver and n, the
+    ``violation_counts`` columns, the seeds answered (``answered``: a crash or a timeout is
+    no answer), and ``share``, those on which the answer is wrong (claimed converged,
+    rejected by the judge) over ``answered`` (NaN where none was answered)."""
+    parts = []
+    for op, g in rows.groupby(operators_of(rows), sort=True):
+        f = violation_counts(seed_readings(g))
+        parts.append(f.assign(operator=str(op), answered=f["seeds"] - (f["violations"] - f["wrong"])))
+    if not parts:
+        return pd.DataFrame(columns=["operator", "n", "wrong", "answered", "share"])
+    out = pd.concat(parts, ignore_index=True)
+    return out.assign(share=out["wrong"] / out["answered"].where(out["answered"] > 0))
+
+
+def _counterexample_reading(frac: pd.DataFrame, cells: pd.DataFrame, rows: pd.DataFrame) -> str:
+    """Example 1's reading: each greedy solver's share of rejected seeds per n; greedy CG's
+    verdict is the claims ledger's, per n on the ledger's measurement (``ledger_shares``,
+    ``share_verdict``): the paper says "any n", so a share pooled over the sizes is given
+    without one."""
+    cg = resolve_role(cells, "greedy-cg")
     greedy = [s for s in (resolve_role(cells, k) for k in ("greedy-cg", "greedy-gs", "greedy-chol")) if s]
     measured = [f"{fmt_pct(f)} at n = {n}" for n, f in COUNTEREXAMPLE_REFERENCE.items()]
     parts = [("**Reading.** The paper reports that greedy CG violates the LCP in about 40 % of 100 seeds "
@@ -215,8 +244,21 @@ def _counterexample_reading(frac: pd.DataFrame, cells: pd.DataFrame) -> str:
         f = frac[frac["solver"] == s]
         desc = ", ".join(f"{fmt_pct(x)} at n = {int(n)}" for n, x in zip(f["n"], f["fraction"]))
         total = float(f["violations"].sum() / f["seeds"].sum())
-        verdict = share_verdict(total)
-        parts.append(f"{md_code(s)} violates it in {desc} ({fmt_pct(total)} overall), which {verdict}.")
+        pooled = (f" ({fmt_pct(total)} pooled over the sizes, given no verdict: the claims ledger reads each n apart)"
+                  if len(f) > 1 else "")
+        if s != cg:
+            parts.append(f"{md_code(s)} violates it in {desc}{pooled}; the paper's ~40 % and the claims ledger's row "
+                         f"`ex1-greedy-fails` are greedy CG's, so no verdict is read on it.")
+            continue
+        sh = ledger_shares(with_numbers(rows[rows["solver"] == s]))  # (the rows as the ledger reads them)
+        op = sh["operator"].nunique() > 1
+        each = "; ".join(f"n = {int(x.n)}" + (f" ({x.operator})" if op else "")
+                         + f": {int(x.wrong)} of {int(x.answered)} ({fmt_pct(x.share)}), which "
+                         + (share_verdict(float(x.share)) if x.answered > 0 else "cannot be read: no answer")
+                         for x in sh.itertuples())
+        parts.append(f"{md_code(s)} violates it in {desc}{pooled}. As the claims ledger reads it (row "
+                     f"`ex1-greedy-fails`: per n, the seeds whose answer is wrong -- claimed converged, rejected by "
+                     f"the judge -- of the seeds it answered): {each}.")
     if not greedy:
         parts.append("No greedy solver is in this table.")
     others = frac[~frac["solver"].isin(greedy)]
@@ -286,7 +328,9 @@ def load_counterexample_case(path: Path, instance: str, solver: str, check_tol: 
                               gap_floor, inst.contact_floor(tol))
 
 
-def _counterexample_case(ctx: ReportContext, cells: pd.DataFrame) -> str:
+def _counterexample_case(ctx: ReportContext, cells: pd.DataFrame, block: Block | None = None) -> str:
+    """One rejected case of ``cells`` plotted from its stored answer (its figure named for
+    ``block`` in a scene of several), or why none can be."""
     bad = cells[cells["violates"]].copy()
     if bad.empty:
         return "The judge rejected no answer, so there is no failing case to plot.\n"
@@ -322,7 +366,8 @@ def _counterexample_case(ctx: ReportContext, cells: pd.DataFrame) -> str:
         a.grid(True, alpha=0.3)
         legend_outside(a)
     axs[0].set_title(f"counterexample {case.instance}, solver {case.solver}", fontsize=9)
-    rel = ctx.save_figure(fig, f"counterexample-case-{case.instance}-{case.solver}", on_page=True)
+    rel = ctx.save_figure(fig, (block.name if block else str)(f"counterexample-case-{case.instance}-{case.solver}"),
+                          on_page=True)
     n_neg = int(neg.sum())
     dp = np.abs(case.p - case.p_ref)
     on, on_ref = case.p > case.contact_floor, case.p_ref > case.contact_floor

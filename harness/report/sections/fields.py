@@ -41,7 +41,7 @@ from ..core import (
     table_md,
     tidy_log_ticks,
 )
-from ..panels import MARK_EVERY, mark_empty, no_figure
+from ..panels import MARK_EVERY, iteration_axis, mark_empty, no_figure
 from ..style import family_panels, sort_families
 
 PERSSON_KAPPA = math.sqrt(8.0 / math.pi)
@@ -403,34 +403,47 @@ def _trace_figure(ctx: ReportContext) -> str:
         return no_figure(f"Convergence traces, scene `{scene}`: {empty}.") if empty else ""
     panels = [q for f in sort_families(ctx.family(s) for s in solvers)
               for q in family_panels([s for s in solvers if ctx.family(s) == f], ctx.family)]
+    traces = {s: parse_trace(reps[s]["trace"]) for s in solvers}
+    axis = iteration_axis([i for tr in traces.values() for i in tr[np.isfinite(tr[:, 2]) & (tr[:, 2] > 0), 0]])
     fig, axes = grid_figure(len(panels), 2, width=4.6, height=3.2, wspace=0.30)
     for (a1, a2), panel in zip(axes, panels):
         its: list[float] = []
         secs: list[float] = []
         res: list[float] = []
+        seen: list[str] = []
         for s in panel.solvers:
-            tr = parse_trace(reps[s]["trace"])
+            tr = traces[s]
             ok = np.isfinite(tr[:, 2]) & (tr[:, 2] > 0)
+            # a trace equal to another against iteration: one hides the other on the left, and the
+            # legend says so
+            twin = next((t for t in seen if np.array_equal(traces[t][:, [0, 2]], tr[:, [0, 2]], equal_nan=True)),
+                        None)
+            seen.append(s)
+            label = f"{s} (left: same as {twin})" if twin else s
             ok2 = ok & (tr[:, 1] > 0)
             # each line wears its solver's marker, sparsely (MARK_EVERY): two solvers of one shade
             # and dash differ in shape; a trace with one timed point is that marker alone
             mark = {"marker": ctx.marker(s), "ms": 4, "markevery": MARK_EVERY}
-            a1.plot(tr[ok, 0], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s, **mark)
-            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=s, **mark)
-            its += list(tr[ok, 0])
+            # iteration + 1 on a log axis (panels.iteration_axis): iteration 0 is drawn, as on the page
+            a1.plot(tr[ok, 0] + axis["shift"], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=label,
+                    **mark)
+            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=label, **mark)
+            its += list(tr[ok, 0] + axis["shift"])
             secs += list(tr[ok2, 1])
             res += list(tr[ok, 2])
         # a family's panel names it (and its part, "(1/2)"); a family in one panel is "all solvers"
         title = panel.title if panel.family or not panel.solvers else f"family {ctx.family(panel.solvers[0])}"
         a1.set_title(f"{title}: residual against iteration", fontsize=9)
         a2.set_title(f"{title}: residual against time", fontsize=9)
-        for a, xl in ((a1, "iteration  [-]"), (a2, "elapsed  [s]")):
+        for a, xl in ((a1, f"{axis['title']}  [-]"), (a2, "elapsed  [s]")):
             _log_axis(a, "y", res)
             a.set_xlabel(xl)
             a.set_ylabel("own residual  [-]", fontsize=8)
             a.grid(True, which="major", alpha=0.3)
         _log_axis(a2, "x", secs)
-        log_if_wide(a1, "x", its, decades=2.0)
+        if axis["log"]:
+            a1.set_xscale("log")
+            tidy_log_ticks(a1, "x", float(np.log10(max(its) / min(its))) if its else 0.0)
         legend_outside(a2)
         for a, xs in ((a1, its), (a2, secs)):
             if not xs:

@@ -16,7 +16,7 @@ import pandas as pd
 from ...table import aggregates as agg
 from ...table.meta import references_asked
 from ..style import GREY, MAX_SERIES, Panel, family_panels, panels_note
-from ..markdown_text import md_code
+from ..markdown_text import md_code, md_escape
 from ..core import (
     LOG_FLOOR,
     PROFILE_PREFERENCE,
@@ -40,7 +40,7 @@ from ..core import (
     status_counts,
     table_md,
 )
-from ..panels import MARK_EVERY, no_figure
+from ..panels import AT_ZERO, MARK_EVERY, curve_note, curve_notes, no_figure
 
 MAX_TABLE_ROWS = 80
 MAX_FAILURE_ROWS = 40
@@ -68,11 +68,24 @@ def reached_accuracy(rows: pd.DataFrame) -> dict[str, float]:
 # ---------------------------------------------------------------------------
 
 #: The marker size (matplotlib scatter area) of a work-precision point by its profile, where a
-#: scene ran several: the shape stays the solver's own (style.py), so that two solvers of one
-#: family differ in shape as well as in colour.
-_PROFILE_SIZES = {"low": 9.0, "default": 18.0, "mid": 30.0, "high": 44.0}
+#: scene ran several, growing with the profile's accuracy (harness/profiles.py: low 1e-3, the
+#: solver's own default, mid 1e-6, paper 1e-8, high 1e-9): the shape stays the solver's own
+#: (style.py), so that two solvers of one family differ in shape as well as in colour.  The
+#: page's points take the same sizes (``page_marker_sizes``).
+_PROFILE_SIZES = {"low": 9.0, "default": 18.0, "mid": 28.0, "paper": 36.0, "high": 46.0}
 #: The size of a profile not in ``_PROFILE_SIZES``.
 _OTHER_PROFILE_SIZE = 24.0
+
+
+#: A page marker's diameter (Plotly px) per square root of a ``_PROFILE_SIZES`` area.
+PAGE_MARKER_SCALE = 1.65
+
+
+def page_marker_sizes() -> dict[str, float]:
+    """The page's work-precision marker size (Plotly px) per profile, ``_PROFILE_SIZES``'s
+    order and ratios; "" keys the size of a profile not listed."""
+    sizes = {**_PROFILE_SIZES, "": _OTHER_PROFILE_SIZE}
+    return {p: round(PAGE_MARKER_SCALE * math.sqrt(a), 1) for p, a in sizes.items()}
 
 
 @register_section("work-precision", title="Run time against error", group="summary", order=10)
@@ -282,6 +295,17 @@ def solved_cells(s: agg.SolverSummary) -> tuple[Any, ...]:
     return s.problems, s.attempted, s.solved, fmt_pct(s.solved_share), fmt_pct(s.success_rate)
 
 
+#: What the aggregate tables' SGM counts, for their captions (report.md and report.html): the
+#: definition of harness/table/aggregates.py (``time_aggregate``), in the report's words.
+SGM_CAPTION = ("**SGM**: shifted geometric mean of solve time, exp(mean(log(t + s))) - s, over the cells the "
+               "solver was planned to run (those with a row in the table: the column **SGM cells** counts them); a "
+               "planned cell that is not solved (failed, inaccurate, timeout, crashed or skipped) counts at its time "
+               "limit, and a problem the solver was never planned to run is not counted. **SGM / best**: that over "
+               "the smallest SGM over the same cells among the solvers planned on every one of them that solved a "
+               "problem (1: the best on its own problems). A solver skipped on every problem has no SGM (-), nor has "
+               "any solver of a scene where none solved a problem.")
+
+
 @register_section("aggregates", title="Aggregates across instances", group="summary", order=20)
 def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     parts = [f"Per scene. A problem is one (instance, step, profile). A cell is solved when the harness's KKT "
@@ -290,11 +314,8 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
              f"attempted**: the share of the cells the solver ran (skipped cells are not attempted); read it "
              f"beside the attempted count: 3 solved of 3 attempted is 100 % however many were skipped. **Correct**: the "
              f"solver's own convergence claim agrees with that verdict, over attempted rows with a claim; "
-             f"**false claims** count rows claiming convergence that fail the check. **SGM**: shifted geometric "
-             f"mean of solve time, shift s = {fmt_num(ctx.shift)} s, exp(mean(log(t + s))) - s, relative to the "
-             f"best solver of the scene that solved a problem; every cell that is not solved (failed, inaccurate, "
-             f"timeout, crashed, skipped or not run) counts at its time limit; a solver skipped on every problem "
-             f"has no SGM (-), nor has any solver of a scene where none solved a problem. Repeats: a cell is "
+             f"**false claims** count rows claiming convergence that fail the check. "
+             f"{SGM_CAPTION.replace('exp(', f'shift s = {fmt_num(ctx.shift)} s, exp(', 1)} Repeats: a cell is "
              f"solved when every repeat is, at "
              f"the minimum time. **Performance profile** (Dolan & More 2002): the fraction of problems a "
              f"solver solves within tau times the best solver's time.\n"]
@@ -305,7 +326,7 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         parts.append(f"### {scene}\n")
         acc = reached_accuracy(r)
         rows_t = [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims,
-                   fmt_num(s.sgm_s), fmt_num(s.sgm_rel), fmt_err(acc.get(s.solver, np.nan)))
+                   fmt_num(s.sgm_s), fmt_num(s.sgm_rel), s.sgm_cells, fmt_err(acc.get(s.solver, np.nan)))
                   for s in sorted(summ, key=lambda s: natural_key(s.solver))]
         none_solved = " No solver solved a problem of this scene: no SGM (-)." if not any(s.solved for s in summ) \
             else ""
@@ -315,8 +336,8 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
                                    f"kkt_error of the solver's solved cells, the accuracy its times were bought at."
                                    + none_solved,
                               ["solver", *SOLVED_COLUMNS, "correct (rows)",
-                               "false claims", "SGM [s]", "SGM / best", "median kkt (solved)"], rows_t,
-                              "lrrrrrrrrrr"))
+                               "false claims", "SGM [s]", "SGM / best", "SGM cells", "median kkt (solved)"], rows_t,
+                              "lrrrrrrrrrrr"))
         prof = agg.performance_profile(cells)
         if len(prof.solvers) >= 2 and cells.problems:
             empty = profile_empty_note(prof, r)
@@ -377,14 +398,22 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
                             wspace=0.85)
     flat = [a for row in axes for a in row]
     curves = {s: prof.curve(s, taus) for s in prof.solvers}
+    hidden: dict[str, str | None] = {}
     for ax, panel in zip(flat, panels):
         if len(panels) > 1:
             for s in prof.solvers:
                 if s not in panel.solvers:
                     ax.step(taus, curves[s], where="post", color=GREY, lw=0.8)
+        notes = curve_notes(curves, panel.solvers)
         for s in panel.solvers:
-            ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5, label=s,
-                    marker=ctx.marker(s), ms=4, markevery=MARK_EVERY)
+            ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5,
+                    label=f"{s} ({curve_note(notes[s])})" if s in notes else s, marker=ctx.marker(s), ms=4,
+                    markevery=MARK_EVERY)
+        if panel.solvers and all(s in notes and notes[s] is None for s in panel.solvers):
+            ax.text(0.5, 0.5, f"none of the {len(panel.solvers)} solvers of this panel solved a problem:\n"
+                              f"every curve of the panel lies at 0", transform=ax.transAxes, ha="center", va="center",
+                    fontsize=8, color="dimgray", bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
+        hidden.update({s: n for s, n in notes.items() if s not in hidden})
         ax.set_xscale("log", base=2)
         ax.set_xlim(1.0, hi)
         ax.set_ylim(-0.02, 1.02)
@@ -398,9 +427,13 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
         ax.set_visible(False)
     rel = ctx.save_figure(fig, f"pp-{scene}")
     note = panels_note(panels).replace("best solver of each family", "best solver of each family by SGM")
+    lies = (f" Curves drawn on the axis at 0 (\"{AT_ZERO}\") or under another's (\"= ...\"), as their legend "
+            f"entries say: "
+            f"{', '.join(f'{md_escape(s)} ({curve_note(t if t is None else md_escape(t))})' for s, t in hidden.items())}."
+            if hidden else "")
     return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
                               f"which a solver is fastest among those that pass the same KKT check; the right "
-                              f"end is its solved / problems share.{note}"
+                              f"end is its solved / problems share.{note}{lies}"
                               + (f" Not drawn, skipped on every problem (the skips say why): "
                                  f"{', '.join(prof.left_out)}." if prof.left_out else ""))
 

@@ -3,21 +3,27 @@
 closed-form checks (``hertz``, ``flat-punch``).  Example 1 is in
 sections/counterexample.py.
 
-Each paper section ends with a reading computed from the table that says where we agree
-with the paper's claims and where not.  The paper's algorithms are found through
-``PAPER_ROLES``: by the table's ``base_solver`` (registry name) and ``params`` columns,
-never by the solver's label.
+Each section draws its scene once per condition (sections/paper_conditions.py
+``condition_blocks``: each operator at its tightest profile, so that no solver's rows
+are dropped for another condition's) and ends each with a reading computed from the
+table that says where we agree with the paper's claims and where not.  A verdict on a
+claim of the paper is the claims ledger's, read on the ledger's own measurement
+(paper_conditions.py); the section's own pooled numbers come without one.  The paper's
+algorithms are found through ``PAPER_ROLES``: by the table's ``base_solver`` (registry
+name) and ``params`` columns, never by the solver's label.
 """
 
 from __future__ import annotations
 
 from collections.abc import Hashable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
+from matplotlib import colormaps
 from matplotlib.colors import to_hex
+from matplotlib.ticker import MaxNLocator
 
 from contactbench.problems.surfaces import RMD_FAMILIES
 
@@ -40,31 +46,38 @@ from ..core import (
     legend_outside,
     log_if_wide,
     md_escape,
-    natural_key,
     natural_sorted,
     new_figure,
-    parse_json,
     per_cell,
-    pick_profile,
     register_section,
     status_counts,
     table_md,
 )
 from .generic import OWN_REF, fmt_int
+from ..claim_measures import FIG5_MIN_N, Spread, k_of as k_of, paired_median_ratio, tied_with  # (k_of: html.py)
+from ..claim_tables import PAPER_ROLES, paper_roles, resolve_role as resolve_role  # (counterexample.py reads it here)
+from .paper_conditions import (
+    Block,
+    absent,
+    condition_blocks,
+    fig4_elsewhere,
+    fig5_ledger,
+    fig6_elsewhere,
+    fig6_ledger,
+    operators_of,
+    paper_admm,
+)
 from .paper_readings import (
     SMALL_N_TEXT,
-    Spread,
     agreement as agreement,  # (the readings' words, re-exported)
     claim_sentence,
     fig6_reading,
     k_cells,
-    k_of as k_of,  # (read by claims.py and html.py)
     k_totals,
     largest_n,
     ledger_claim,
+    ledger_words,
     paired_count_text,
-    paired_median_ratio,
-    tied_with,
     ties_text,
     timing_spread,
     too_small,
@@ -88,10 +101,12 @@ FIG5_PAGE = (RowChart("Fig. 5: solve time against n", x="n", x_title="trial-set 
 FIG6_PAGE = (RowChart("Fig. 6: NNLS+GP time per step, per K"),)
 
 
-def drawn_as_png(page: tuple[RowChart, ...], profile: str, instance: str | None = None) -> tuple[RowChart, ...]:
-    """``page`` drawing only the rows its section's PNG draws: those of ``profile`` (the
-    section's ``pick_profile``; "" where nothing ran: any) and, where given, ``instance``."""
-    return tuple(replace(c, profile=profile or None, instance=instance) for c in page)
+def drawn_as_png(page: tuple[RowChart, ...], block: Block, instance: str | None = None) -> tuple[RowChart, ...]:
+    """``page`` drawing only the rows its section's PNG of ``block`` draws: those of the
+    block's profile ("" where nothing ran: any) and, where given, ``instance``; in a scene
+    of several blocks the title names the block's condition."""
+    where = "" if block.alone else f" ({block.where.replace('`', '')})"
+    return tuple(replace(c, title=c.title + where, profile=block.profile or None, instance=instance) for c in page)
 
 # ---------------------------------------------------------------------------
 # Which surfaces ran: the instance names of generated rough surfaces
@@ -131,89 +146,6 @@ def surface_family_note(rows: pd.DataFrame) -> str:
         return ""
     what = "; ".join(f"`{f}` -- {FAMILY_TEXT.get(f, 'an RMD family unknown to this report')}" for f in fams)
     return f"**Surface family.** {what}.\n"
-
-
-# ---------------------------------------------------------------------------
-# The paper's algorithms and claims
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class PaperRole:
-    """How to find one of the paper's algorithms in a table: its registry name, the
-    paper's parameter values (keys absent from a row's ``params`` take the solver's
-    defaults, which are the paper's), and whether the role is the warm-started run.
-    ``warm=False``: cold runs first, a warm-started one only when there is no cold one;
-    ``warm=True``: warm-started runs only."""
-
-    label: str
-    base_solver: str
-    params: dict[str, Any] = field(default_factory=dict)
-    warm: bool = False
-
-
-PAPER_ROLES: dict[str, PaperRole] = {
-    "nnls-gp": PaperRole("NNLS+GP", "nnls-gp", {"K": 100}),
-    "nnls": PaperRole("NNLS", "nnls"),
-    "pk": PaperRole("P&K 1999", "pk"),
-    "pk-printed": PaperRole("P&K as printed (the paper's Algorithm 2)", "pk-printed"),
-    "pk-warm": PaperRole("P&K 1999 + warm start", "pk", warm=True),
-    "greedy-cg": PaperRole("greedy CG", "greedy-cg"),
-    "greedy-gs": PaperRole("greedy Gauss-Seidel", "greedy-gs"),
-    "greedy-chol": PaperRole("greedy Cholesky", "greedy-chol"),
-    "admm": PaperRole("ADMM", "admm"),
-}
-
-
-def _params_match(params: Any, wanted: dict[str, Any]) -> bool:
-    p = parse_json(params, {})
-    return isinstance(p, dict) and all(p.get(k, v) == v for k, v in wanted.items())
-
-
-def resolve_role(curves: pd.DataFrame, role: str | PaperRole) -> str | None:
-    """The ``solver`` label that plays ``role`` (a key of PAPER_ROLES, or a role), or None.
-
-    ``curves`` has one row per label (or more; duplicates are ignored) with columns
-    ``solver``, ``base_solver``, ``params`` and, optionally, ``warm`` (the label is a
-    warm-started run).  Among the role's base solver's labels the one with the paper's
-    parameters wins, then the natural order of the labels."""
-    r = PAPER_ROLES[role] if isinstance(role, str) else role
-    c = curves[curves["base_solver"] == r.base_solver]
-    warm = c["warm"].astype(bool) if "warm" in c.columns else pd.Series(False, index=c.index)
-    if r.warm:
-        c, warm = c[warm], warm[warm]
-    ranked = sorted(((bool(w) != r.warm, not _params_match(p, r.params), natural_key(s), s)
-                     for s, p, w in zip(c["solver"], c["params"], warm)))
-    return ranked[0][-1] if ranked else None
-
-
-def paper_roles(curves: pd.DataFrame) -> dict[str, str | None]:
-    """Every role of PAPER_ROLES resolved in ``curves`` (see resolve_role)."""
-    return {k: resolve_role(curves, k) for k in PAPER_ROLES}
-
-
-#: The paper's methods as the claims ledger compares them: its algorithms (PAPER_ROLES but
-#: the warm-started P&K) and pure accelerated GP; each key is the method's registry name.
-LEDGER_ROLES: dict[str, PaperRole] = {**{k: r for k, r in PAPER_ROLES.items() if not r.warm},
-                                      "gp": PaperRole("accelerated GP", "gp")}
-
-
-def by_role(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with, in each scene, the label of each of the paper's methods (``LEDGER_ROLES``,
-    found by ``base_solver`` and ``params``: ``resolve_role``, with the paper's parameter
-    values only, never another variant) replaced by the role's key, and any other label
-    that spells a key marked with its base solver (``"pk (bvls)"``): a label is never taken
-    for the method it names."""
-    parts = []
-    for _, r in rows.groupby("scene", sort=False, dropna=False):
-        curves = r.drop_duplicates("solver")
-        params = dict(zip(curves["solver"], curves["params"]))
-        players = {s: k for k, role in LEDGER_ROLES.items()
-                   if (s := resolve_role(curves, role)) is not None and _params_match(params[s], role.params)}
-        bases = dict(zip(curves["solver"], curves["base_solver"]))
-        name = {s: players.get(s, f"{s} ({bases[s]})" if s in LEDGER_ROLES else s) for s in curves["solver"]}
-        parts.append(r.assign(solver=r["solver"].map(name)))
-    return pd.concat(parts) if parts else rows
 
 
 # ---------------------------------------------------------------------------
@@ -316,8 +248,6 @@ def _plot_time_vs_load(ax: Any, cells: pd.DataFrame, color_of: Callable[[str], A
     if ax.get_xscale() == "linear":  # loads are positive: log from half a decade on, else few ticks
         xs = list(x_of(every))
         if not log_if_wide(ax, "x", xs, decades=0.5):
-            from matplotlib.ticker import MaxNLocator
-
             ax.xaxis.set_major_locator(MaxNLocator(4))
 
 
@@ -340,13 +270,25 @@ def named(solvers: list[str]) -> str:
     return ", ".join(md_code(s) for s in solvers[:MAX_NAMED]) + more
 
 
+def blocks_section(title: str, rows: pd.DataFrame,
+                   one: Callable[[Block], tuple[str, tuple[RowChart, ...]]]) -> Section:
+    """A paper section of one block per condition (``condition_blocks``): ``one(block)``
+    gives each block's body and page charts, in the blocks' order."""
+    parts = [one(b) for b in condition_blocks(rows)]
+    return Section(title, "\n".join(body for body, _ in parts), page_charts=tuple(c for _, cs in parts for c in cs))
+
+
 @register_section("paper-sweep", title=FIG4_TITLE, group="paper", order=10)
 def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
-    prof = pick_profile(attempted(rows))
-    at_prof = rows[rows["profile"] == prof]
+    return blocks_section(FIG4_TITLE, rows, lambda block: _fig4_block(ctx, block))
+
+
+def _fig4_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, ...]]:
+    """Fig. 4, its totals table and its reading for one block of the scene."""
+    prof, at_prof = block.profile, block.rows
     r = attempted(at_prof)
     if r.empty:
-        return Section(FIG4_TITLE, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG4_PAGE, prof))
+        return "Every pair of this scene was skipped.\n", drawn_as_png(FIG4_PAGE, block)
     cells = _curve_cells(r, own_ref=True)
     n_steps = sweep_steps(at_prof)
     tot = sweep_totals(cells, n_steps)
@@ -357,10 +299,10 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     n_max = largest_n(at_prof)
     inst = natural_sorted(cells["instance"].unique())[0]
     sub = cells[cells["instance"] == inst]
-    body = [surface_family_note(r)]
+    body = [block.lead() + surface_family_note(r)]
     placed = load_abscissa(sub, sub).notna() & sub["solve_time_s"].notna()
     if placed.any():
-        body.append(_fig4_figure(ctx, sub, tot, at_prof, placed))
+        body.append(_fig4_figure(ctx, block, sub, tot, placed))
     else:
         body.append(no_figure(f"Instance {inst} at profile `{prof}` has no time to draw against the load: the "
                               f"load axis takes a step's load from its solved answers, and no step was solved "
@@ -373,8 +315,8 @@ def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
                               f"steps solved; {WORST_RULE}.",
                          ["solver", "family", "steps solved", "total [s]", "worst kkt", "worst p err"],
                          totals_rows(tot, ctx.family), "llrrrr"))
-    body.append(_fig4_reading(tot, n_max, paper_roles(cells), spread_of))
-    return Section(FIG4_TITLE, "\n".join(body), page_charts=drawn_as_png(FIG4_PAGE, prof, inst))
+    body.append(_fig4_reading(ctx, block, cells, tot, n_max, spread_of))
+    return "\n".join(body), drawn_as_png(FIG4_PAGE, block, inst)
 
 
 def _curve_cells(rows: pd.DataFrame, own_ref: bool = False) -> pd.DataFrame:
@@ -389,11 +331,10 @@ def _curve_cells(rows: pd.DataFrame, own_ref: bool = False) -> pd.DataFrame:
     return cells
 
 
-def _fig4_figure(ctx: ReportContext, sub: pd.DataFrame, tot: pd.DataFrame, at_prof: pd.DataFrame,
-                 placed: pd.Series) -> str:
+def _fig4_figure(ctx: ReportContext, block: Block, sub: pd.DataFrame, tot: pd.DataFrame, placed: pd.Series) -> str:
     """Fig. 4 of one instance's cells ``sub`` (``placed``: those with a load and a time to
-    draw), saved, with its caption."""
-    inst, prof = sub["instance"].iloc[0], at_prof["profile"].iloc[0]
+    draw) of ``block``, saved, with its caption."""
+    inst, prof, at_prof = sub["instance"].iloc[0], block.profile, block.rows
     labels = natural_sorted(sub["solver"].unique())
     best = best_per_family(tot.loc[labels], ctx.family)
     panels = family_panels(labels, ctx.family, best)
@@ -411,31 +352,33 @@ def _fig4_figure(ctx: ReportContext, sub: pd.DataFrame, tot: pd.DataFrame, at_pr
         legend_outside(ax, "solver")
     for ax in flat[len(panels):]:
         ax.set_visible(False)
-    rel = ctx.save_figure(fig, "fig4-paper-sweep")
+    rel = ctx.save_figure(fig, block.name("fig4-paper-sweep"))
     n_max = largest_n(at_prof)
     marks = [UNSOLVED_TEXT[k] for k in UNSOLVED_MARKS
              if (placed & ~sub["solved"] & (sub["status"].map(unsolved_kind) == k)).any()]
     best_rule = f" In the first panel {BEST_RULE}." if len(panels) > 1 and not panels[0].family else ""
+    grid = sorted(int(n) for n in sub["N"].dropna().unique())
     return ctx.figure_md(rel, f"solve time per load step against P/(E A), instance {inst} (N = "
-                              f"{fmt_int(at_prof['N'].max())}; the sweep's largest trial set has n = {n_max}), profile "
-                              f"`{prof}`; dashed: warm started"
+                              f"{', '.join(map(fmt_int, grid)) or '-'}; the sweep's largest trial set has n = {n_max}), "
+                              f"{block.profile_text}; dashed: warm started"
                               + "".join(f"; {m}" for m in marks) + ". "
-                              + _drawn_note(ctx, sub, at_prof, labels) + skipped_note(tot.loc[labels])
+                              + _drawn_note(ctx, block, sub, labels) + skipped_note(tot.loc[labels])
                               + _unplaced_note(sub, placed) + panels_note(panels) + best_rule
                               + " Paper Fig. 4 ran at eps = 1e-8.")
 
 
-def _drawn_note(ctx: ReportContext, sub: pd.DataFrame, at_prof: pd.DataFrame, labels: list[str]) -> str:
-    """Caption text: which solvers of the scene at the profile the figure draws, and which
-    it does not (those that ran no step of the drawn instance)."""
+def _drawn_note(ctx: ReportContext, block: Block, sub: pd.DataFrame, labels: list[str]) -> str:
+    """Caption text: which solvers of the scene's ``block`` the figure draws, and which it
+    does not (those that ran no step of the drawn instance)."""
     fams = ", ".join(sort_families(ctx.family(x) for x in labels))
     ran = {s.removesuffix(WARM_SUFFIX) for s in labels}
-    missing = [s for s in natural_sorted(at_prof["solver"].unique()) if s not in ran]
+    missing = [s for s in natural_sorted(block.rows["solver"].unique()) if s not in ran]
+    scope = "the scene" if block.alone else f"the scene under this condition ({block.where}; the others have their own)"
     if not missing:
-        return f"Every solver of the scene is drawn (families: {fams})."
-    return (f"Drawn: the {len(labels)} curves of the solvers that ran a step of this instance (families: {fams}); "
-            f"not drawn, {len(missing)} solvers that ran no step of it (skipped at every step; Skips and failures "
-            f"says why): {named(missing)}.")
+        return f"Every solver of {scope} is drawn (families: {fams})."
+    return (f"Drawn: the {len(labels)} curves of the solvers of {scope} that ran a step of this instance (families: "
+            f"{fams}); not drawn, {len(missing)} solvers that ran no step of it (skipped at every step; Skips and "
+            f"failures says why): {named(missing)}.")
 
 
 def _unplaced_note(sub: pd.DataFrame, placed: pd.Series) -> str:
@@ -449,12 +392,23 @@ def _unplaced_note(sub: pd.DataFrame, placed: pd.Series) -> str:
     return f" Not drawn, as no solver solved their step to give it a load: {what}."
 
 
-def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None],
+#: Fig. 4's checks of the paper's speed-ups: (role key, words, ledger row, what the paper says beyond the number).
+FIG4_CHECKS = (("pk-printed", "P&K as printed (Algorithm 2) / NNLS+GP", "fig4-pkprinted-over-nnlsgp", ""),
+               ("pk", "P&K 1999 / NNLS+GP", "fig4-pk-cold-over-nnlsgp", ""),
+               ("greedy-cg", "greedy CG / NNLS+GP", "fig4-greedy-over-nnlsgp", " (two orders of magnitude)"),
+               ("admm", "ADMM / NNLS+GP", "fig4-admm-over-nnlsgp", " (two orders of magnitude)"))
+
+
+def _fig4_reading(ctx: ReportContext, block: Block, cells: pd.DataFrame, tot: pd.DataFrame, n_max: int,
                   spread_of: Callable[[str, str], Spread]) -> str:
-    """Fig. 4's reading: the paper's speed-ups against NNLS+GP from the sweep totals
-    ``tot`` (paper_readings.py ``agreement``), and the fastest solver, overall and at each
+    """Fig. 4's reading of one block: the paper's speed-ups against NNLS+GP from the sweep
+    totals ``tot`` of its curve ``cells``, and the fastest solver, overall and at each
     common accuracy, named only when every other is slower by more than the timing spread
-    (``spread_of(a, b)``: the spread of the ratio of a's total to b's)."""
+    (``spread_of(a, b)``: the spread of the ratio of a's total to b's).  A speed-up is
+    judged (paper_readings.py ``agreement``) only where the claims ledger reads no other
+    measurement of it (``fig4_elsewhere``; ADMM: never, the ledger reads the paper's ADMM on
+    its own totals); else its ratio is given with the ledger's row named."""
+    role = paper_roles(cells)
     ref = role["nnls-gp"]
     parts = [f"**Reading.** The paper (sec. 4, n up to 35555 at 512²) finds NNLS+GP (K = 100) fastest. "
              f"Here the largest trial set has n = {n_max}. Solvers stop at their own tolerances, so every time "
@@ -462,24 +416,32 @@ def _fig4_reading(tot: pd.DataFrame, n_max: int, role: dict[str, str | None],
     if too_small(n_max):
         parts.append(SMALL_N_TEXT)
     if ref is None:
-        parts.append("No NNLS+GP solver is in this table, so the paper's speed-ups cannot be checked.")
+        parts.append(f"NNLS+GP {absent(ctx.table, 'paper-sweep', 'nnls-gp', block)}, so the paper's speed-ups "
+                     f"cannot be checked here.")
     else:
-        orders = " (two orders of magnitude)"
-        checks = [("pk-printed", "P&K as printed (Algorithm 2) / NNLS+GP",
-                   ledger_claim("fig4-pkprinted-over-nnlsgp")),
-                  ("pk", "P&K 1999 / NNLS+GP", ledger_claim("fig4-pk-cold-over-nnlsgp")),
-                  ("greedy-cg", "greedy CG / NNLS+GP", ledger_claim("fig4-greedy-over-nnlsgp", orders)),
-                  ("admm", "ADMM / NNLS+GP", ledger_claim("fig4-admm-over-nnlsgp", orders))]
-        for key, label, claim in checks:
-            s = role[key]
-            if s is None:
-                parts.append(f"{PAPER_ROLES[key].label} is not in this table.")
+        papers_admm, other_admm = paper_admm(cells)
+        role["admm"] = papers_admm
+        for key, label, ledger, beyond in FIG4_CHECKS:
+            s, claim = role[key], ledger_claim(ledger, beyond)
+            if s is None and key == "admm" and other_admm:
+                parts.append(f"{label}: {md_code(other_admm)} is not ADMM as the paper states it (alpha = 1.5, "
+                             f"rho = 1, the printed stop), so it is not read against the paper's {claim.text} (the "
+                             f"claims ledger reads only the paper's ADMM, row `{ledger}`).")
+            elif s is None:
+                parts.append(f"{PAPER_ROLES[key].label} {absent(ctx.table, 'paper-sweep', PAPER_ROLES[key].base_solver, block)}.")
             elif not tot.loc[s, "complete"]:
-                parts.append(f"{label}: `{s}` did not solve every step, so its ratio is not comparable.")
+                parts.append(f"{label}: `{s}` did not solve every step, so its ratio is not comparable here (the "
+                             f"claims ledger's row `{ledger}` totals its answers, solved or not).")
             else:
-                parts.append(claim_sentence(label, total_ratio(tot, s, ref), claim, spread_of(s, ref)).rstrip(".")
-                             + f" (worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])} against "
-                               f"{fmt_err(tot.loc[ref, 'worst_kkt'])}).")
+                kkt = f"worst kkt {fmt_err(tot.loc[s, 'worst_kkt'])} against {fmt_err(tot.loc[ref, 'worst_kkt'])})."
+                ops = operators_of(cells[cells["solver"].isin([s, ref])])
+                why = fig4_elsewhere(ctx.table, attempted(block.rows), PAPER_ROLES[key].base_solver, ops)
+                if key == "admm":
+                    why = why or "the claims ledger totals the paper's ADMM one repeat at a time and takes the median"
+                m = total_ratio(tot, s, ref)
+                parts.append(claim_sentence(label, m, claim, spread_of(s, ref)).rstrip(".") + " (" + kkt if not why
+                             else f"{label}: measured {fmt_ratio(m)} against the paper's {claim.text} -- no verdict "
+                                  f"here: {why} (row `{ledger}`; {kkt}")
         warm, cold = role["pk-warm"], role["pk"]
         if warm and cold and warm != cold:
             w = total_ratio(tot, warm, cold)
@@ -527,48 +489,64 @@ GREEDY_ROLES = ("greedy-cg", "greedy-gs", "greedy-chol")
                   group="paper", order=20)
 def fig5_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 5: greedy with CG, Gauss-Seidel and Cholesky (greedy-linear-solvers)"
-    prof = pick_profile(attempted(rows))
-    r = rows[rows["profile"] == prof]
+    return blocks_section(title, rows, lambda block: _fig5_block(ctx, block))
+
+
+def _fig5_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, ...]]:
+    """Fig. 5 and its reading for one block of the scene."""
+    prof, r = block.profile, block.rows
     cells = per_cell(attempted(r))
     if cells.empty:
-        return Section(title, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG5_PAGE, prof))
+        return "Every pair of this scene was skipped.\n", drawn_as_png(FIG5_PAGE, block)
     fig, (ax,) = new_figure(width=6.4, height=4.2)
     _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]", marker_of=ctx.marker)
     ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
     legend_outside(ax, "solver")
-    rel = ctx.save_figure(fig, "fig5-greedy-linear-solvers")
-    body = [surface_family_note(cells)]
+    rel = ctx.save_figure(fig, block.name("fig5-greedy-linear-solvers"))
+    body = [block.lead() + surface_family_note(cells)]
     drawn = natural_sorted(cells["solver"].unique())
     greedy = any(resolve_role(cells, k) is not None for k in GREEDY_ROLES)
-    body.append(ctx.figure_md(rel, f"solve time against the trial-set size n of {named(drawn)}, profile `{prof}` "
+    body.append(ctx.figure_md(rel, f"solve time against the trial-set size n of {named(drawn)}, {block.profile_text} "
                               + ("(" if greedy else "-- no greedy solver ran in this scene, so this is not ")
                               + "paper Fig. 5: greedy with CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel"
                               + (")." if greedy else ".")))
-    body.append(_fig5_reading(cells, r))
-    return Section(title, "\n".join(body), page_charts=drawn_as_png(FIG5_PAGE, prof))
+    body.append(_fig5_reading(ctx, block, cells, r))
+    return "\n".join(body), drawn_as_png(FIG5_PAGE, block)
 
 
-def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
-    """Fig. 5's reading: the paper's ratios of greedy Cholesky and Gauss-Seidel to greedy
-    CG (paper_readings.py ``agreement``) as the median of the paired per-step ratios of
-    ``cells`` (``per_cell`` of the attempted ``rows`` at one profile), each with the timing
-    spread of its repeats; and where Cholesky ran out of memory."""
+def _fig5_reading(ctx: ReportContext, block: Block, cells: pd.DataFrame, rows: pd.DataFrame) -> str:
+    """Fig. 5's reading of one block: the paper's ratios of greedy Cholesky and
+    Gauss-Seidel to greedy CG, first as the section pools them (the median of the paired
+    per-step ratios of ``cells``, ``per_cell`` of the attempted ``rows``; no verdict), then
+    as the claims ledger measures and judges them (``fig5_ledger``: per operator and grid
+    size, the steps with n >= ``FIG5_MIN_N``, the median over the repeats); and where
+    Cholesky ran out of memory."""
     cg, gs, ch = (resolve_role(rows, k) for k in GREEDY_ROLES)
     parts = ["**Reading.**"]
     if cg is None:
-        parts.append("No greedy-CG solver is in this table, so the paper's ratios cannot be checked.")
-    for other, label, claim in ((ch, "greedy Cholesky / greedy CG time",
-                                 ledger_claim("fig5-chol-over-cg", " (30-40 % faster)")),
-                                (gs, "greedy Gauss-Seidel / greedy CG time",
-                                 ledger_claim("fig5-gs-over-cg", " slower"))):
+        parts.append(f"Greedy CG {absent(ctx.table, 'greedy-linear-solvers', 'greedy-cg', block)}, so the paper's "
+                     f"ratios cannot be checked here.")
+    for other, key, label, ledger, beyond in ((ch, "greedy-chol", "greedy Cholesky / greedy CG time",
+                                               "fig5-chol-over-cg", " (30-40 % faster)"),
+                                              (gs, "greedy-gs", "greedy Gauss-Seidel / greedy CG time",
+                                               "fig5-gs-over-cg", " slower")):
         if cg is None:
             break
         if other is None:
-            parts.append(f"{label.split(' /')[0]} is not in this table.")
+            parts.append(f"{label.split(' /')[0]} {absent(ctx.table, 'greedy-linear-solvers', key, block)}.")
             continue
+        claim = ledger_claim(ledger, beyond)
         m, k, n_inst = paired_median_ratio(cells, other, cg)
-        spread = timing_spread(attempted(rows), lambda g, o=other: paired_median_ratio(per_cell(g), o, cg)[0])
-        parts.append(claim_sentence(f"{label} ({paired_count_text(k, n_inst)})", m, claim, spread))
+        sizes = "; ".join(f"N = {fmt_int(x.N)}" + (f" ({x.operator})" if len(block.operators) > 1 else "") + (
+            f": {fmt_ratio(x.measured)} over {x.count} step{'s' if x.count != 1 else ''} -- "
+            + ledger_words(x.verdict, x.measured, claim, x.repeats) if x.count else
+            f": no step with n >= {FIG5_MIN_N} both solved") for x in fig5_ledger(rows, key, "greedy-cg", ledger))
+        parts.append(f"{label} ({paired_count_text(k, n_inst)}): measured {fmt_ratio(m)} against the paper's "
+                     f"{claim.text}, each step's time the minimum over its repeats, pooled as drawn (no verdict on it); "
+                     + (f"the claims ledger's measurement (row `{ledger}`: per grid size, the steps with n >= "
+                        f"{FIG5_MIN_N} both solved, the median over the repeats): {sizes}." if sizes else
+                        f"no operator and grid size holds both, so the claims ledger's row `{ledger}` has no "
+                        f"measurement here."))
     if ch is not None:
         sk = rows[(rows["solver"] == ch) & (rows["status"] == "skipped")]
         if len(sk):
@@ -584,20 +562,22 @@ def _fig5_reading(cells: pd.DataFrame, rows: pd.DataFrame) -> str:
 @register_section("gp-k-sweep", title="Fig. 6: NNLS+GP time against K", group="paper", order=30)
 def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 6: NNLS+GP time against the number K of GP steps (gp-k-sweep)"
-    prof = pick_profile(attempted(rows))
-    at_prof = attempted(rows[rows["profile"] == prof])
+    return blocks_section(title, rows, lambda block: _fig6_block(ctx, block))
+
+
+def _fig6_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, ...]]:
+    """Fig. 6, its totals table and its reading for one block of the scene."""
+    prof = block.profile
+    at_prof = attempted(block.rows)
     cells = k_cells(at_prof)
     if per_cell(at_prof).empty:
-        return Section(title, "Every pair of this scene was skipped.\n", page_charts=drawn_as_png(FIG6_PAGE, prof))
+        return "Every pair of this scene was skipped.\n", drawn_as_png(FIG6_PAGE, block)
     if cells.empty:
-        return Section(title, f"No NNLS+GP K-variant was run in this scene (no row names its K, params JSON "
-                              f"{{\"K\": ...}}), so there is no K to plot; the solvers that ran: "
-                              f"{named(natural_sorted(at_prof['solver'].unique()))}.\n",
-                       page_charts=drawn_as_png(FIG6_PAGE, prof))
-    import matplotlib
-
+        return (block.lead() + f"No NNLS+GP K-variant was run in this scene (no row names its K, params JSON "
+                f"{{\"K\": ...}}), so there is no K to plot; the solvers that ran: "
+                f"{named(natural_sorted(at_prof['solver'].unique()))}.\n", drawn_as_png(FIG6_PAGE, block))
     Ks = sorted(cells["K"].unique())
-    cmap = matplotlib.colormaps["viridis"]
+    cmap = colormaps["viridis"]
     kcol = {k: cmap(i / max(len(Ks) - 1, 1)) for i, k in enumerate(Ks)}
     label_of_solver = dict(zip(cells["solver"], cells["K"]))
     inst = natural_sorted(cells["instance"].unique())[0]
@@ -623,9 +603,9 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     ax1.legend(handles1, labels1, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=4,
                frameon=False)
     legend_outside(ax2)
-    rel = ctx.save_figure(fig, "fig6-gp-k-sweep")
-    body = [surface_family_note(cells)]
-    body.append(ctx.figure_md(rel, f"NNLS+GP against K, profile `{prof}`: (left) time per step against P/(E A); "
+    rel = ctx.save_figure(fig, block.name("fig6-gp-k-sweep"))
+    body = [block.lead() + surface_family_note(cells)]
+    body.append(ctx.figure_md(rel, f"NNLS+GP against K, {block.profile_text}: (left) time per step against P/(E A); "
                                f"(right) total time summed over all steps and instances."))
     body.append(table_md(ctx, f"total NNLS+GP time against K, profile `{prof}`, {MIN_OVER_REPEATS}.",
                          ["K", "total [s]", "all solved"],
@@ -636,10 +616,12 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
         return timing_spread(at_prof, lambda g: float(k_totals(k_cells(g))["total_s"].get(k1, np.nan)
                                                       / k_totals(k_cells(g))["total_s"].get(k2, np.nan)))
 
-    body.append(fig6_reading(tot, spread_of, largest_n(at_prof)))
-    page = replace(drawn_as_png(FIG6_PAGE, prof, inst)[0], colors=tuple(
+    ledgers = fig6_ledger(at_prof)
+    body.append(fig6_reading(tot, spread_of, largest_n(at_prof), ledgers[0] if len(ledgers) == 1 else None,
+                             fig6_elsewhere(ctx.table, at_prof, len(ledgers))))
+    page = replace(drawn_as_png(FIG6_PAGE, block, inst)[0], colors=tuple(
         (s, to_hex(kcol[label_of_solver[s]])) for s in sorted(label_of_solver, key=label_of_solver.get)))
-    return Section(title, "\n".join(body), page_charts=(page,))
+    return "\n".join(body), (page,)
 
 
 # ---------------------------------------------------------------------------
@@ -649,7 +631,10 @@ def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
 
 def _analytic_section(ctx: ReportContext, rows: pd.DataFrame, scene: str) -> Section | None:
     title = f"Closed-form check ({scene})"
-    r = per_cell(attempted(rows[rows["profile"] == pick_profile(attempted(rows))]))
+    blocks = condition_blocks(rows)  # every condition; a label that ran under several is named with its profile
+    twice = {s for b in blocks for s in set(b.rows["solver"]) if sum(s in set(c.rows["solver"]) for c in blocks) > 1}
+    r = per_cell(pd.concat([attempted(b.rows).assign(solver=lambda d, p=b.profile: [
+        f"{s} ({p})" if s in twice else s for s in d["solver"]]) for b in blocks]))
     r = r[r["analytic_load_rel_error"].notna()]
     if r.empty:
         return Section(title, "No row carries an analytic load error.\n")

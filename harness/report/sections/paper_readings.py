@@ -11,15 +11,22 @@ A ratio is read in this order (``agreement``):
 3. a ratio on the other side of 1 from the paper's points the opposite way, however near
    it lies (the paper says faster, the table says slower, or the reverse);
 4. otherwise it is read by the claim's row of the claims ledger (claim_rules.py, the one
-   home of the paper's value and of the bands): inside the row's holds band it agrees,
-   inside its partly band it is close, and beyond that it points the same way, smaller or
-   larger by a factor taken against the paper's stated value (``Claim.value``; the nearer
-   end of a range the paper states as a range).
+   home of the paper's value and of the bands) as the ledger's ``judge`` reads it: a ratio
+   whose interval over the timing spread reaches across an edge of the row's bands is
+   unresolved; inside the row's holds band it agrees, inside its partly band it is close,
+   and beyond that it points the same way, smaller or larger by a factor taken against the
+   paper's stated value (``Claim.value``; the nearer end of a range the paper states as a
+   range).
+
+A reading gives such a verdict only on the ledger's own measurement of the claim
+(sections/paper_conditions.py), or where the ledger reads no other rows for it; the
+ledger's verdict on its measurement is worded by ``ledger_words``.
 
 The spread of a timing from one repeat is ``SINGLE_REPEAT_SPREAD``, the claims ledger's
 (claim_rules.py); from several repeats it is the relative range of the ratio over the
 repeats (``timing_spread``).  "Fastest" is said of a solver only when every other one is
-slower by more than the spread (``tied_with``).
+slower by more than the spread (``tied_with``).  The tie rule (``Spread``, ``tied_with``)
+and ``k_of`` are the ledger's own (claim_measures.py).
 """
 
 from __future__ import annotations
@@ -29,11 +36,11 @@ from dataclasses import dataclass
 from collections.abc import Hashable
 from typing import Callable
 
-import numpy as np
 import pandas as pd
 
-from ..claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, Rule, over_repeats
-from ..core import fmt_num, fmt_pct, fmt_ratio, parse_json, per_cell
+from ..claim_measures import EXACT, SINGLE, Spread, k_of, tied_with
+from ..claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, Rule, judge, over_repeats
+from ..core import fmt_num, fmt_pct, fmt_ratio, per_cell
 
 #: Below this largest trial-set size n fixed per-solve costs dominate the solve times, so a
 #: ratio or an optimum the paper measured at its sizes (n up to 35555) need not hold: the
@@ -52,37 +59,6 @@ def too_small(n_max: int) -> bool:
     """Whether a table whose largest trial set has ``n_max`` points (``largest_n``; 0:
     unknown) is under ``SMALL_N``, where the paper's ratios need not hold."""
     return n_max < SMALL_N
-
-
-@dataclass(frozen=True)
-class Spread:
-    """The relative spread ``s`` a time ratio is read with, and the number of timed
-    ``repeats`` it comes from (1: none measured, ``SINGLE_REPEAT_SPREAD``; 0: no timing)."""
-
-    s: float = 0.0
-    repeats: int = 0
-
-    @property
-    def source(self) -> str:
-        """Where the spread comes from, in words."""
-        return "single repeats" if self.repeats <= 1 else f"{self.repeats} repeats"
-
-    def ties(self, ratio: float) -> bool:
-        """Whether the spread cannot tell ``ratio`` from 1 (a tie): 1 / (1 + s) <= ratio
-        <= 1 + s, for a finite positive ratio and a positive spread."""
-        if not (self.s > 0.0 and math.isfinite(ratio) and ratio > 0.0):
-            return False
-        return abs(math.log(ratio)) <= math.log1p(self.s) * (1.0 + 1e-12)
-
-    def tie_text(self) -> str:
-        """The verdict of a tie."""
-        return f"unresolved (a tie within the timing spread of {self.source})"
-
-
-#: The spread of timings from a single repeat (no spread measured).
-SINGLE = Spread(SINGLE_REPEAT_SPREAD, 1)
-#: No timing spread: a ratio that is not a timing (iterations, a count).
-EXACT = Spread()
 
 
 def timing_spread(rows: pd.DataFrame, statistic: Callable[[pd.DataFrame], float]) -> Spread:
@@ -167,7 +143,9 @@ def agreement(measured: float, claim: Claim, spread: Spread = EXACT) -> str:
         return (f"{side} under this table's conditions; for the paper's (dense H, eps = 1e-8) see "
                 f"row `{claim.ledger}`, condition `dense`, of the claims ledger (`contactbench run paper-claims`, "
                 f"claims.md)")
-    verdict = claim.rule.at(measured)
+    verdict = judge(measured, claim.rule, claim.ledger, spread.s)
+    if verdict == "unresolved":
+        return f"unresolved (the timing spread of {spread.source} reaches across an edge of the claims ledger's bands)"
     if verdict == "holds":
         return f"agrees with the paper (the claims ledger's holds band, {band_text(claim, verdict)})"
     if verdict == "partly":
@@ -175,20 +153,29 @@ def agreement(measured: float, claim: Claim, spread: Spread = EXACT) -> str:
     return f"points the same way as the paper but is {_off_by(measured, claim)}"
 
 
+def ledger_words(verdict: str, measured: float, claim: Claim, repeats: int) -> str:
+    """Words for the claims ledger's ``verdict`` (``claim_rules.judge``) on the ledger's own
+    measurement of ``claim``, ``measured`` over ``repeats`` timed repeats: the verdict, then
+    why ("fails: it points the opposite way", "holds: agrees with the paper (...)")."""
+    if verdict == "holds":
+        return f"holds: it agrees with the paper (the claims ledger's holds band, {band_text(claim, verdict)})"
+    if verdict == "partly":
+        return f"partly: it is close to the paper (the claims ledger's partly band, {band_text(claim, verdict)})"
+    if verdict == "unresolved":
+        spread = "single repeats" if repeats <= 1 else f"{repeats} repeats"
+        return f"unresolved: the timing spread of {spread} reaches across an edge of the claims ledger's bands"
+    if verdict == "fails":
+        way = 1 if measured > 1.0 else -1 if measured < 1.0 else 0
+        if claim.direction and way != claim.direction:
+            return "fails: it points the opposite way" if way else "fails: it shows no difference"
+        return f"fails: it points the same way as the paper but is {_off_by(measured, claim)}"
+    return "unmeasured: no common solved step to read"
+
+
 def claim_sentence(label: str, measured: float, claim: Claim, spread: Spread = EXACT) -> str:
     """"label: measured 1.06x against the paper's ~26x -- <agreement>."."""
     return (f"{label}: measured {fmt_ratio(measured)} against the paper's {claim.text} -- "
             f"{agreement(measured, claim, spread)}.")
-
-
-def tied_with(times: pd.Series, best: Hashable, spread_of: Callable[[Hashable, Hashable], Spread]) -> list[Hashable]:
-    """The labels of ``times`` (label -> time) other than ``best`` whose time the spread
-    (``spread_of(label, best)``, of the ratio of the label's time to best's) cannot tell
-    from ``best``'s, fastest first."""
-    t0 = float(times[best])
-    out = [(float(t), s) for s, t in times.items()
-           if s != best and t0 > 0 and spread_of(s, best).ties(float(t) / t0)]
-    return [s for _, s in sorted(out, key=lambda x: x[0])]
 
 
 def ties_text(times: pd.Series, best: Hashable, tied: list[Hashable], spread: Spread,
@@ -208,21 +195,6 @@ def ties_text(times: pd.Series, best: Hashable, tied: list[Hashable], spread: Sp
 # ---------------------------------------------------------------------------
 
 
-def paired_median_ratio(cells: pd.DataFrame, a: str | None, b: str | None) -> tuple[float, int, int]:
-    """Median over the (instance, step) cells both ``a`` and ``b`` solved (b's time
-    positive) of t_a / t_b, the number of those cells, and the number of instances they
-    come from; (NaN, 0, 0) when either is None or none is common."""
-    if a is None or b is None:
-        return float("nan"), 0, 0
-    ka = cells[(cells["solver"] == a) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
-    kb = cells[(cells["solver"] == b) & cells["solved"]].set_index(["instance", "step"])["solve_time_s"]
-    j = pd.concat([ka.rename("a"), kb.rename("b")], axis=1, join="inner").dropna()
-    j = j[j["b"] > 0]
-    if not len(j):
-        return float("nan"), 0, 0
-    return float(np.median(j["a"] / j["b"])), len(j), int(j.index.get_level_values("instance").nunique())
-
-
 def paired_count_text(steps: int, instances: int) -> str:
     """What a paired median counts: "median over 4 common solved instances" when each
     instance gives one step, else "median over 5 common solved steps (instance, load
@@ -231,15 +203,6 @@ def paired_count_text(steps: int, instances: int) -> str:
         return f"median over {steps} common solved instances"
     return (f"median over {steps} common solved steps (instance, load step) of {instances} "
             f"instance{'s' if instances != 1 else ''}")
-
-
-def k_of(row: pd.Series) -> float:
-    """The GP step count K of a variant, from its ``params`` JSON {"K": ...}; NaN when absent."""
-    p = parse_json(row.get("params", ""), {})
-    try:
-        return float(p["K"]) if isinstance(p, dict) and "K" in p else float("nan")
-    except (TypeError, ValueError):
-        return float("nan")
 
 
 def k_cells(rows: pd.DataFrame) -> pd.DataFrame:
@@ -258,21 +221,82 @@ def k_totals(cells: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame({"total_s": g["solve_time_s"].sum(min_count=1), "complete": g["solved"].all()})
 
 
-#: The K at which the paper finds NNLS+GP's total least (Fig. 6), and the Ks a least total
-#: agrees with it at.
+#: The K at which the paper finds NNLS+GP's total least (Fig. 6).
 PAPER_BEST_K = 100.0
-PAPER_NEAR = (50.0, 150.0)
 
 
-def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Spread], n_max: int) -> str:
+@dataclass(frozen=True)
+class LedgerReading:
+    """One measurement of a claim as the claims ledger takes it (sections/paper_conditions.py):
+    on ``operator`` at grid size ``N`` (0: every size), ``measured`` over ``count`` steps
+    and ``repeats`` timed repeats, and the ledger's ``verdict``; ``near`` the values the
+    ledger could not tell from ``measured`` (Fig. 6: the Ks tied with the least, or a
+    repeat's own least)."""
+
+    operator: str
+    N: int
+    measured: float
+    count: int
+    repeats: int
+    verdict: str
+    near: tuple[float, ...] = ()
+
+
+def _k_band(verdict: str) -> str:
+    lo, hi = CLAIMS["fig6-best-k"].rule.interval(verdict)
+    return f"K = {fmt_num(lo)}-{fmt_num(hi)}"
+
+
+def _fig6_verdict(ledger: LedgerReading, kbest: float, tied: list[float], at_paper: float, n_max: int,
+                  comp: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Spread]) -> str:
+    """The verdict part of Fig. 6's reading: the claims ledger's on its own measurement
+    ``ledger`` (``fig6-best-k``), worded against the table's least ``kbest``."""
+    best, rule = ledger.measured, CLAIMS["fig6-best-k"].rule
+    read = ""
+    if best != kbest or set(ledger.near) != set(tied) or ledger.repeats > 1:
+        near = f", not told from K = {', '.join(f'{int(k)}' for k in ledger.near)}" if ledger.near else ""
+        read = (f"as the claims ledger reads it (each repeat's total over the steps, the median over "
+                f"{ledger.repeats} repeat{'s' if ledger.repeats != 1 else ''}) the least is at K = {int(best)}{near}: ")
+    takes = (f" (K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum)"
+             if kbest != PAPER_BEST_K and math.isfinite(at_paper) else "")
+    if ledger.verdict == "holds":
+        return f"{read}this agrees with the paper (the claims ledger's holds band, {_k_band('holds')}){takes}."
+    if ledger.verdict == "partly":
+        return (f"{read}this is close to the paper (the claims ledger's partly band, {_k_band('partly')}, outside "
+                f"its holds band, {_k_band('holds')}){takes}.")
+    if ledger.verdict == "unresolved":
+        each = "; ".join(f"K = {int(k)}: {rule.at(k)}" for k in sorted({best, *ledger.near}))
+        return (f"{read}{Spread(SINGLE_REPEAT_SPREAD, ledger.repeats).tie_text()} -- the Ks not told from the "
+                f"least total read differently by the claims ledger's bands ({each}).")
+    rule_word = (f"; the claims ledger's rule, which reads every size alike, reads K = {int(best)} as "
+                 f"{ledger.verdict}")
+    if not (comp.index.min() <= PAPER_BEST_K <= comp.index.max()):
+        return (f"{read}the sweep does not bracket K = {int(PAPER_BEST_K)}, so this cannot be compared directly"
+                f"{rule_word}.")
+    if too_small(n_max):
+        return (f"{read}unresolved at this size: the largest trial set has n = {n_max}"
+                + (f", where K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum"
+                   if math.isfinite(at_paper) else f" and no complete total at K = {int(PAPER_BEST_K)}") + rule_word + ".")
+    if math.isfinite(at_paper):
+        return (f"{read}this does not agree with the paper: K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the "
+                f"minimum, beyond the timing spread of {spread_of(PAPER_BEST_K, kbest).source}.")
+    return (f"{read}this does not agree with the paper, though the sweep has no complete total at "
+            f"K = {int(PAPER_BEST_K)} to compare with.")
+
+
+def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Spread], n_max: int,
+                 ledger: LedgerReading | None = None, elsewhere: str = "") -> str:
     """Fig. 6's reading of ``k_totals`` ``tot``: the K of least total time against the
     paper's K = 100, with the Ks whose totals the timing spread cannot tell from the least
-    (``spread_of(k1, k2)``: the spread of t(k1) / t(k2)) named as tied.  It agrees when the
-    least total and every K tied with it lie in ``PAPER_NEAR``; it is unresolved when only
-    some of them do; a disagreement is said with the ratio t(K = 100) / t(least) it rests
-    on.  When the largest trial set ``n_max`` is ``too_small`` the reading says so
-    (``SMALL_N_TEXT``) and a least total away from K = 100 is unresolved at this size,
-    never a disagreement."""
+    (``spread_of(k1, k2)``: the spread of t(k1) / t(k2)) named as tied.  The verdict is the
+    claims ledger's, on its own measurement of the same sweep (``ledger``: the least of each
+    repeat's total's median, judged by the ledger's rule ``fig6-best-k`` -- unresolved where
+    the Ks it cannot tell from the least read differently); none where the ledger reads
+    the claim on other rows (``elsewhere``: why) or where not every K answered every step
+    (``ledger`` None).  A failing least is said with the ratio t(K = 100) / t(least) it
+    rests on; when the largest trial set ``n_max`` is ``too_small`` the reading says so
+    (``SMALL_N_TEXT``) and calls such a least unresolved at this size, naming the ledger's
+    verdict beside."""
     comp = tot[tot["complete"]]
     if comp.empty:
         return "**Reading.** No K solved every step, so the minimum cannot be placed.\n"
@@ -285,25 +309,13 @@ def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Sp
     head = (f"**Reading.** The total time is smallest at K = {int(kbest)} ({fmt_num(times[kbest])} s){near}; the "
             f"paper finds the minimum at K = {int(PAPER_BEST_K)} (no saving beyond it) -- ")
     at_paper = times.get(PAPER_BEST_K, float("nan")) / times[kbest]
-    cand = [kbest, *tied]  # the Ks the spread cannot tell from the least total
-    if all(PAPER_NEAR[0] <= k <= PAPER_NEAR[1] for k in cand):
-        verdict = "this agrees with the paper" + (
-            f" (K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum)." if kbest != PAPER_BEST_K
-            and math.isfinite(at_paper) else ".")
-    elif any(PAPER_NEAR[0] <= k <= PAPER_NEAR[1] for k in cand):
-        verdict = f"{sp.tie_text()}: the Ks tied for the least total lie both near K = {int(PAPER_BEST_K)} and far from it."
-    elif not (comp.index.min() <= PAPER_BEST_K <= comp.index.max()):
-        verdict = f"the sweep does not bracket K = {int(PAPER_BEST_K)}, so this cannot be compared directly."
-    elif too_small(n_max):
-        verdict = (f"unresolved at this size: the largest trial set has n = {n_max}"
-                   + (f", where K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum."
-                      if math.isfinite(at_paper) else f" and no complete total at K = {int(PAPER_BEST_K)}."))
-    elif math.isfinite(at_paper):
-        verdict = (f"this does not agree with the paper: K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the "
-                   f"minimum, beyond the timing spread of {spread_of(PAPER_BEST_K, kbest).source}.")
+    if elsewhere:
+        verdict = f"no verdict here: {elsewhere} (row `fig6-best-k`)."
+    elif ledger is None:
+        verdict = ("no verdict: not every K answered every step, so the least total over the sweep is not known "
+                   "(the claims ledger reads only a sweep whose every K answered).")
     else:
-        verdict = (f"this does not agree with the paper, though the sweep has no complete total at "
-                   f"K = {int(PAPER_BEST_K)} to compare with.")
+        verdict = _fig6_verdict(ledger, kbest, tied, at_paper, n_max, comp, spread_of)
     parts = [head + verdict] + ([SMALL_N_TEXT] if too_small(n_max) else [])
     if 0.0 in times.index and kbest != 0.0:
         r0 = times[kbest] / times[0.0]
