@@ -14,11 +14,10 @@ harness/report/sections/, found by the registry on first use:
 * ``counterexample.py``   -- Example 1, the greedy counterexample; ``greedy_kernels.py``
   the same draw on other forms of H;
 * ``cmr.py``              -- cascade multi-resolution (sec. 5, Figs. 8-11; its figures in ``cmr_figures.py``);
-* ``constrained.py``      -- the load-controlled and hardness-bounded sweeps;
-* ``population.py``       -- Monte Carlo population statistics (kappa);
-* ``stress.py``           -- the stress battery's survival tables;
-* ``claims.py``           -- the paper's claims ledger, leading the report;
-* ``fields.py``           -- the contact fields, the load-area curve and the traces;
+* ``constrained.py``, ``population.py``, ``stress.py`` -- the load-controlled and hardness-bounded
+  sweeps, Monte Carlo population statistics (kappa), the stress battery's survival tables;
+* ``claims.py``, ``fields.py`` -- the claims ledger, leading the report; the contact fields,
+  the load-area curve and the traces;
 * ``generic.py``          -- what every table gets: run time against error,
   aggregates (harness/table/aggregates.py), skips and failures, one table per scene.
 
@@ -55,7 +54,7 @@ from .charts import Chart, RowChart
 from .figure_files import FIGURE_DIR, staging_dir
 from .panels import blank_panels, label_short_log_axes
 from .markdown_text import md_escape
-from .style import DEFAULT_FAMILY, SolverStyles
+from .style import DEFAULT_FAMILY, SolverStyles, scene_colors
 from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finite, as_text, bool_series
 from ..table.store import load_table
 
@@ -152,8 +151,11 @@ class ReportContext:
             self._styles = SolverStyles(solver_families(self.table), natural_key)
         return self._styles
 
-    def color(self, solver: str) -> Any:
-        return self.styles.color(solver.removesuffix(WARM_SUFFIX))
+    def color(self, solver: str, scene: str = "") -> Any:
+        """``solver``'s colour; in the figures of ``scene``, the scene's own where its section
+        gives one (``style.scene_colors``: Fig. 6's K variants), in the PNGs as on the page."""
+        name = solver.removesuffix(WARM_SUFFIX)
+        return scene_colors(self.table, scene).get(name) or self.styles.color(name)
 
     def marker(self, solver: str) -> str:
         return self.styles.marker(solver.removesuffix(WARM_SUFFIX))
@@ -189,8 +191,6 @@ class ReportContext:
 
 
 SectionFn = Callable[[ReportContext, pd.DataFrame], "Section | None"]
-
-
 SECTION_GROUPS = ("lead", "paper", "scenes", "summary")
 
 

@@ -403,3 +403,28 @@ def panels_note(panels: Sequence[Panel], what: str = "solvers") -> str:
         text += (f" The first panel shows the best {what[:-1] if what.endswith('s') else what} of each family "
                  f"({', '.join(md_code(s) for s in panels[0].solvers)}).")
     return text
+
+
+#: A colour rule of a scene's own: the scene's rows -> {solver: colour} (``register_scene_colors``).
+SceneColorRule = Callable[[Any], dict[str, str]]
+#: Scenes whose section colours their solvers itself, in every figure of the scene -- the
+#: PNGs of every section and the page alike (a sweep of one method's parameter, drawn dark to
+#: light along it, where the family's shades would hide the order).
+SCENE_COLORS: dict[str, SceneColorRule] = {}
+
+
+def register_scene_colors(scene: str) -> Callable[[SceneColorRule], SceneColorRule]:
+    """Register the decorated function as ``scene``'s colour rule (in the module of the
+    scene's own section: a scene is one place)."""
+    def put(rule: SceneColorRule) -> SceneColorRule:
+        SCENE_COLORS[scene] = rule
+        return rule
+    return put
+
+
+def scene_colors(table: Any, scene: str) -> dict[str, str]:
+    """The colours ``scene``'s rule gives its solvers from its rows of ``table`` (a results
+    table); {} for a scene without a rule, or with no rows."""
+    rule = SCENE_COLORS.get(scene)
+    rows = table[table["scene"] == scene] if rule is not None else None
+    return rule(rows) if rows is not None and len(rows) else {}

@@ -425,9 +425,9 @@ def _trace_figure(ctx: ReportContext) -> str:
             # and dash differ in shape; a trace with one timed point is that marker alone
             mark = {"marker": ctx.marker(s), "ms": 4, "markevery": MARK_EVERY}
             # iteration + 1 on a log axis (panels.iteration_axis): iteration 0 is drawn, as on the page
-            a1.plot(tr[ok, 0] + axis["shift"], tr[ok, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=label,
+            a1.plot(tr[ok, 0] + axis["shift"], tr[ok, 2], lw=1.2, color=ctx.color(s, scene), ls=ctx.dash(s), label=label,
                     **mark)
-            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s), ls=ctx.dash(s), label=label, **mark)
+            a2.plot(tr[ok2, 1], tr[ok2, 2], lw=1.2, color=ctx.color(s, scene), ls=ctx.dash(s), label=label, **mark)
             its += list(tr[ok, 0] + axis["shift"])
             secs += list(tr[ok2, 1])
             res += list(tr[ok, 2])

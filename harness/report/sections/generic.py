@@ -111,7 +111,7 @@ def work_precision_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         fig, axes = grid_figure(len(panels), 2 if referenced else 1, width=4.8, height=3.5, wspace=0.35)
         traced: dict[str, str] = {}
         for row, panel in zip(axes, panels):
-            _wp_panel(ctx, row, r, panel, traced)
+            _wp_panel(ctx, row, r, panel, traced, scene)
             where = f"{scene}, {panel.title}" if len(panels) > 1 else scene
             for a, what in zip(row, ("KKT error", "error against reference")):
                 a.set_title(f"{where}: {what}", fontsize=9)
@@ -233,7 +233,8 @@ def _wp_points(axes: list[Any], c: pd.DataFrame, color: Any, size: Callable[[str
                               alpha=alpha)
 
 
-def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel, traced: dict[str, str]) -> None:
+def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel, traced: dict[str, str],
+              scene: str) -> None:
     """One row of the work-precision figure (``axes``: the KKT error's panel, then the error
     against the reference where the run had one): every solve of the scene in grey, the
     panel's solvers in their colours with their representative traces."""
@@ -245,16 +246,16 @@ def _wp_panel(ctx: ReportContext, axes: list[Any], r: pd.DataFrame, panel: Panel
     ys = [list(floor_log(drawn_errors(r, col))) for col, _ in _WP_ERRORS]
     for s in panel.solvers:
         c = r[r["solver"] == s]
-        _wp_points(axes, c, ctx.color(s), _wp_sizes(r, 16.0), 0.8, ctx.marker)
+        _wp_points(axes, c, ctx.color(s, scene), _wp_sizes(r, 16.0), 0.8, ctx.marker)
         rep = representative_traces(c).get(s)
         if rep is not None:
             tr = parse_trace(rep["trace"])
             ok = (tr[:, 1] > 0) & np.isfinite(tr[:, 2])
-            a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s), alpha=0.8)
+            a1.plot(tr[ok, 1], floor_log(tr[ok, 2]), lw=1.0, color=ctx.color(s, scene), alpha=0.8)
             xs += list(tr[ok, 1])
             ys[0] += list(floor_log(tr[ok, 2]))
             traced[s] = f"{md_code(s)} ({rep['instance']}, step {int(rep['step'])}, {rep['profile']})"
-        a1.plot([], [], ls="none", marker=ctx.marker(s), color=ctx.color(s), label=s)
+        a1.plot([], [], ls="none", marker=ctx.marker(s), color=ctx.color(s, scene), label=s)
     if r["profile"].nunique() > 1:
         for prof in [p for p in PROFILE_PREFERENCE[::-1] if p in set(r["profile"])] + \
                 natural_sorted(set(r["profile"]) - set(PROFILE_PREFERENCE)):
@@ -406,7 +407,7 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
                     ax.step(taus, curves[s], where="post", color=GREY, lw=0.8)
         notes = curve_notes(curves, panel.solvers)
         for s in panel.solvers:
-            ax.step(taus, curves[s], where="post", color=ctx.color(s), ls=ctx.dash(s), lw=1.5,
+            ax.step(taus, curves[s], where="post", color=ctx.color(s, scene), ls=ctx.dash(s), lw=1.5,
                     label=f"{s} ({curve_note(notes[s])})" if s in notes else s, marker=ctx.marker(s), ms=4,
                     markevery=MARK_EVERY)
         if panel.solvers and all(s in notes and notes[s] is None for s in panel.solvers):

@@ -27,7 +27,7 @@ from matplotlib.ticker import MaxNLocator
 
 from contactbench.problems.surfaces import RMD_FAMILIES
 
-from ..style import GREY, family_panels, panels_note, sort_families
+from ..style import GREY, family_panels, panels_note, register_scene_colors, sort_families
 from ...table import aggregates as agg
 from ..charts import RowChart
 from ..panels import no_figure
@@ -559,6 +559,16 @@ def _fig5_reading(ctx: ReportContext, block: Block, cells: pd.DataFrame, rows: p
     return " ".join(parts) + "\n"
 
 
+@register_scene_colors("gp-k-sweep")
+def k_colors(rows: pd.DataFrame) -> dict[str, str]:
+    """Fig. 6's K variants dark to light along K (viridis), in every figure of the scene:
+    one method's shades of its family would hide the order of K."""
+    cells = k_cells(attempted(rows))
+    Ks = sorted(cells["K"].unique())
+    cmap = colormaps["viridis"]
+    return {str(s): to_hex(cmap(Ks.index(k) / max(len(Ks) - 1, 1))) for s, k in zip(cells["solver"], cells["K"])}
+
+
 @register_section("gp-k-sweep", title="Fig. 6: NNLS+GP time against K", group="paper", order=30)
 def fig6_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
     title = "Fig. 6: NNLS+GP time against the number K of GP steps (gp-k-sweep)"
@@ -576,15 +586,12 @@ def _fig6_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, 
         return (block.lead() + f"No NNLS+GP K-variant was run in this scene (no row names its K, params JSON "
                 f"{{\"K\": ...}}), so there is no K to plot; the solvers that ran: "
                 f"{named(natural_sorted(at_prof['solver'].unique()))}.\n", drawn_as_png(FIG6_PAGE, block))
-    Ks = sorted(cells["K"].unique())
-    cmap = colormaps["viridis"]
-    kcol = {k: cmap(i / max(len(Ks) - 1, 1)) for i, k in enumerate(Ks)}
     label_of_solver = dict(zip(cells["solver"], cells["K"]))
     inst = natural_sorted(cells["instance"].unique())[0]
     fig, (ax1, ax2) = new_figure(ncols=2, width=5.2, height=4.0)
     sub = cells[cells["instance"] == inst]
     order = sorted(sub["solver"].unique(), key=lambda s: label_of_solver[s])
-    _plot_time_vs_load(ax1, sub[sub["solver"].isin(order)], lambda s: kcol[label_of_solver[s]],
+    _plot_time_vs_load(ax1, sub[sub["solver"].isin(order)], lambda s: ctx.color(s, "gp-k-sweep"),
                        lambda s: f"K = {int(label_of_solver[s])}")
     ax1.set_title(f"per step, instance {inst}", fontsize=9)
     tot = k_totals(cells)
@@ -620,7 +627,7 @@ def _fig6_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, 
     body.append(fig6_reading(tot, spread_of, largest_n(at_prof), ledgers[0] if len(ledgers) == 1 else None,
                              fig6_elsewhere(ctx.table, at_prof, len(ledgers))))
     page = replace(drawn_as_png(FIG6_PAGE, block, inst)[0], colors=tuple(
-        (s, to_hex(kcol[label_of_solver[s]])) for s in sorted(label_of_solver, key=label_of_solver.get)))
+        (s, ctx.color(s, "gp-k-sweep")) for s in sorted(label_of_solver, key=label_of_solver.get)))
     return "\n".join(body), (page,)
 
 
