@@ -18,7 +18,9 @@ from contactbench.solvers.registry import all_solvers, get_solver
 
 E = 1e9
 DX = 1e-6
-NAMES = sorted(n for n in all_solvers() if not n.startswith("test-"))  # (the suite's throw-away solvers)
+#: The solvers the project ships (the suite's throw-away solvers, registered by other test
+#: modules, are not its to hold to a contract here).
+NAMES = sorted(n for n, s in all_solvers().items() if type(s).__module__.startswith("contactbench.solvers"))
 #: Peers that run past a limit inside one of their own stages (measured; strict: a fix fails the test).
 PAST_THEIR_LIMIT = {"aspher-active-f32": "ASPHER's active-set stage ran 11 iterations at max_iter 5 (16^2, ASPHER 0.1.3)"}
 
