@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 import scipy.linalg as sla
 from scipy.optimize import nnls
 
+from contactbench.harness.report.style import FAMILY_SLOTS
 from contactbench.harness.table.schema import ALL_COLUMNS
 from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder, paper_max_displacement
 from contactbench.problems.operators import spectral_norm_estimate
@@ -444,6 +445,19 @@ META = {"suite": "synthetic", "date": "2025-01-01T00:00:00+00:00", "command": ["
                     "threadpools": [{"user_api": "blas", "internal_api": "openblas", "num_threads": 1}],
                     "fft_workers": 1},
         "packages": {"numpy": "2.x", "scipy": "1.x"}, "warnings": []}
+
+
+def every_solver_table() -> pd.DataFrame:
+    """``fabricate_table`` with every solver of the project run in the paper sweep (the rows
+    of ``fast-pdas`` under each one's name and family, ``style.FAMILY_SLOTS``, each a little
+    slower than the last): families of up to 14 solvers, so the figures split into family
+    panels with the other families in grey."""
+    df = fabricate_table()
+    sweep = df[(df["scene"] == "paper-sweep") & (df["solver"] == "fast-pdas")]
+    extra = [sweep.assign(solver=s, base_solver=s, family=f, solve_time_s=sweep["solve_time_s"] * (1.0 + 0.37 * i))
+             for f, names in FAMILY_SLOTS.items() for i, s in enumerate(names)
+             if s not in set(df.loc[df["scene"] == "paper-sweep", "solver"])]
+    return pd.concat([df, *extra], ignore_index=True)
 
 
 def write_out(tmp: Path, df: pd.DataFrame, meta: dict | None = META, fmt: str = "parquet") -> Path:

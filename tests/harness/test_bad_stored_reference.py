@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -41,28 +42,40 @@ def test_read_reference_reads_only_a_step_s_own_finite_answer(tmp_path: Path) ->
     assert read_reference(str(folder), 5) is None
 
 
-def test_a_wrong_stored_reference_is_computed_again_not_charged_to_the_solvers(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+#: A small run of two exact solvers whose references the tests below spoil.
+RUN = ["run", "paper-sweep", "--size", "16", "--steps", "3", "--solvers", "pk,nnls", "--no-progress", "--no-warmup"]
+
+
+def rerun_with_spoiled_references(tmp_path: Path, capsys: pytest.CaptureFixture[str], step: int,
+                                  spoil: Callable[[Path, Path], None]) -> pd.DataFrame:
+    """Run ``RUN``, ``spoil(reference file, out)`` every stored reference of ``step``, drop
+    that step's rows from the journal, run again (a resume), and return the step's rows."""
     out = tmp_path / "out"
-    args = ["run", "paper-sweep", "--size", "16", "--steps", "3", "--solvers", "pk,nnls", "--no-progress",
-            "--no-warmup", "--out", str(out)]
+    args = [*RUN, "--out", str(out)]
     rc, _, err = run_cli(args, capsys)
     assert rc == 0, err
-    refs = sorted((out / "_cache").glob("ref-*-k2-*.npz"))
+    refs = sorted((out / "_cache").glob(f"ref-*-k{step}-*.npz"))
     assert refs
-    first = sorted((out / "_cache").glob("ref-*-k0-*.npz"))[0]
     for ref in refs:
-        ref.write_bytes(first.read_bytes())  # step 0's answer, of another length
+        spoil(ref, out)
     journal = out / "rows.jsonl"
-    kept = [line for line in journal.read_text().splitlines() if json.loads(line).get("step") != 2]
+    kept = [line for line in journal.read_text().splitlines() if json.loads(line).get("step") != step]
     journal.write_text("".join(line + "\n" for line in kept))
     for name in ("results.parquet", "results.csv"):
         (out / name).unlink(missing_ok=True)
     rc, _, err = run_cli(args, capsys)
     assert rc == 0, err
-    table = pd.read_csv(out / "results.csv")
-    top = table[table["step"] == 2]
+    top = pd.read_csv(out / "results.csv").query(f"step == {step}")
     assert len(top) == 2 and set(top["status"]) == {"solved"}, top[["solver", "status", "error"]]
+    return top
+
+
+def test_a_wrong_stored_reference_is_computed_again_not_charged_to_the_solvers(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    def another_steps(ref: Path, out: Path) -> None:  # step 0's answer, of another length
+        ref.write_bytes(sorted((out / "_cache").glob("ref-*-k0-*.npz"))[0].read_bytes())
+
+    top = rerun_with_spoiled_references(tmp_path, capsys, 2, another_steps)
     assert top["error"].isna().all()
 
 
@@ -70,24 +83,10 @@ def test_a_stored_reference_of_wrong_values_is_not_trusted(tmp_path: Path, capsy
     """A file of the step's own length whose answer is wrong (its stored kkt_error says 0)
     is judged on the step, found not solved, and computed again: the rows' error in p is
     measured against the true answer, not the file's."""
-    out = tmp_path / "out"
-    args = ["run", "paper-sweep", "--size", "16", "--steps", "2", "--solvers", "pk,nnls", "--no-progress",
-            "--no-warmup", "--out", str(out)]
-    rc, _, err = run_cli(args, capsys)
-    assert rc == 0, err
-    refs = sorted((out / "_cache").glob("ref-*-k1-*.npz"))
-    assert refs
-    for ref in refs:
+    def doubled(ref: Path, out: Path) -> None:  # the right length, twice the answer
         with np.load(ref) as data:
             p = np.asarray(data["p"])
-        np.savez(ref, p=2.0 * p, solver="pk", kkt_error=0.0, time=0.0)  # the right length, twice the answer
-    journal = out / "rows.jsonl"
-    kept = [line for line in journal.read_text().splitlines() if json.loads(line).get("step") != 1]
-    journal.write_text("".join(line + "\n" for line in kept))
-    for name in ("results.parquet", "results.csv"):
-        (out / name).unlink(missing_ok=True)
-    rc, _, err = run_cli(args, capsys)
-    assert rc == 0, err
-    top = pd.read_csv(out / "results.csv").query("step == 1")
-    assert len(top) == 2 and set(top["status"]) == {"solved"}, top[["solver", "status", "error"]]
+        np.savez(ref, p=2.0 * p, solver="pk", kkt_error=0.0, time=0.0)
+
+    top = rerun_with_spoiled_references(tmp_path, capsys, 2, doubled)
     assert (top["p_rel_error"] < 1e-3).all(), top[["solver", "p_rel_error"]]

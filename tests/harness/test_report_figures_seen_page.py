@@ -23,9 +23,9 @@ from matplotlib.colors import to_rgb
 from contactbench.harness.report import core as rp
 from contactbench.harness.report import html as html_report
 from contactbench.harness.report.page_script import PAGE_SCRIPT
-from contactbench.harness.report.style import COLOUR_APART, FAMILY_SLOTS, MAX_SERIES, cielab, delta_e00
+from contactbench.harness.report.style import COLOUR_APART, MAX_SERIES, cielab, delta_e00
 
-from tests.helpers import fabricate_table
+from tests.helpers import every_solver_table
 
 NODE = shutil.which("node")
 pytestmark = pytest.mark.skipif(NODE is None, reason="node is not installed")
@@ -56,15 +56,7 @@ setTimeout(() => console.log(JSON.stringify(calls)), 50);
 def _table() -> pd.DataFrame:
     """The fabricated table, every solver of the project run in the paper sweep (``fast-pdas``'s
     rows under each name and family), and ``pk``'s trace from iteration 0 over three decades."""
-    df = fabricate_table()
-    sweep = df[(df["scene"] == "paper-sweep") & (df["solver"] == "fast-pdas")]
-    extra = []
-    for f, names in FAMILY_SLOTS.items():
-        for i, s in enumerate(names):
-            if s not in set(df.loc[df["scene"] == "paper-sweep", "solver"]):
-                extra.append(sweep.assign(solver=s, base_solver=s, family=f,
-                                          solve_time_s=sweep["solve_time_s"] * (1.0 + 0.37 * i)))
-    df = pd.concat([df, *extra], ignore_index=True)
+    df = every_solver_table()
     pk = (df["scene"] == "paper-sweep") & (df["solver"] == "pk")
     df.loc[pk, "trace"] = json.dumps([[i, 1e-4 * (i + 1), 10.0 ** (-i / 100)] for i in (0, 1, 10, 100, 999)])
     return df

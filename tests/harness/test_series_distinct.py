@@ -24,7 +24,7 @@ from contactbench.harness.report.charts import Chart, Series
 from contactbench.harness.report.core import ReportContext, natural_key
 from contactbench.harness.report.style import (COLOUR_APART, FAMILY_SLOTS, GREY, SolverStyles, cielab,
                                                delta_e00)
-from tests.helpers import fabricate_table, write_out
+from tests.helpers import every_solver_table, write_out
 
 #: A solver's series and the context grey at least this far apart (CIEDE2000).
 GREY_MIN = 15.0
@@ -94,20 +94,7 @@ def _confusable(series: list[tuple[str, np.ndarray, str, str]]) -> list[tuple[st
 
 
 def _big_table() -> pd.DataFrame:
-    """The fabricated table with every solver of the project run in the paper sweep (the
-    rows of ``fast-pdas`` under each one's name and family): families of up to 14 solvers, so
-    the figures split into family panels with the other families in grey."""
-    df = fabricate_table()
-    sweep = df[(df["scene"] == "paper-sweep") & (df["solver"] == "fast-pdas")]
-    extra = []
-    for f, names in FAMILY_SLOTS.items():
-        for i, s in enumerate(names):
-            if s not in set(df.loc[df["scene"] == "paper-sweep", "solver"]):
-                rows = sweep.copy()
-                rows["solver"], rows["family"] = s, f
-                rows["solve_time_s"] = rows["solve_time_s"] * (1.0 + 0.37 * i)
-                extra.append(rows)
-    return pd.concat([df, *extra], ignore_index=True)
+    return every_solver_table()
 
 
 @pytest.fixture(scope="module")
