@@ -278,15 +278,37 @@ def _read(qp: Any, held: tuple[Any, ...] = ()) -> _Reader:
     geometry (the unknowns' grid indices, the far field, the surface with its heights and
     coarse levels, from which the steps after are built) -- and of the problems ``held``
     beside it in the process (the judge's own, named ``held[i]``; an operator, constraints
-    or a surface they share with ``qp`` are read once, under ``qp``'s name)."""
+    or a surface they share with ``qp`` are read once, under ``qp``'s name).  A held object
+    that is no problem (no ``ubar``: the load sequence the later steps are built from) is
+    read whole, with what its functions' closures hold (``_read_recipe``)."""
     reader = _Reader()
     for prefix, each in (("", qp), *((f"held[{i}].", q) for i, q in enumerate(held))):
+        if not hasattr(each, "ubar"):
+            _read_recipe(reader, each, prefix.rstrip("."))
+            continue
         reader.read(np.asarray(each.ubar), f"{prefix}ubar", _Context())
         for name in ("constraints", "H", "geometry"):
             part = getattr(each, name, None)
             if part is not None:
                 reader.read_object(part, f"{prefix}{name}", _Context())
     return reader.finish()
+
+
+def _read_recipe(reader: _Reader, recipe: Any, path: str) -> None:
+    """``recipe`` (a ``LoadSequence``) read whole, and the values its functions close over
+    (a step factory's far-field displacements, loads and instance builder), each under
+    ``<path>.<function>.<name>``: the seal names a function by its identity only, and a
+    solver reaching them (``gc``) would change every step built after its solve."""
+    reader.read_object(recipe, path, _Context())
+    for name, fn in sorted(vars(recipe).items(), key=lambda kv: kv[0]):
+        cells = getattr(fn, "__closure__", None) or ()
+        for var, cell in zip(getattr(getattr(fn, "__code__", None), "co_freevars", ()), cells):
+            try:
+                value = cell.cell_contents
+            except ValueError:  # a cell not yet filled
+                continue
+            if not _opaque_value(value):
+                reader.read(value, f"{path}.{name}.{var}", _Context())
 
 
 def _read_slot(value: Any, slot: _Slot, path: str) -> dict[str, _Entry]:

@@ -380,11 +380,12 @@ class SolveServer:
             return QP(self.dense[k], inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
         return QP(inst.qp.H, inst.qp.ubar.copy(), inst.qp.geometry, inst.qp.constraints)
 
-    def held_problems(self) -> list[QP]:
-        """The problems this worker holds beside the one a solver is handed -- the judge's
-        (each built step's ``inst.qp``): sealed with it, since a solver reaches every object
-        of its process (``gc``)."""
-        return [inst.qp for inst in self.steps.values()]
+    def held_problems(self) -> list[Any]:
+        """What this worker holds beside the problem a solver is handed -- the judge's
+        problems (each built step's ``inst.qp``) and the load sequence the steps after are
+        built from: sealed with it, since a solver reaches every object of its process
+        (``gc``)."""
+        return [inst.qp for inst in self.steps.values()] + ([self.seq] if self.seq is not None else [])
 
     def forget_problems(self) -> None:
         """Drop every built step and dense H (after a solver wrote into one)."""

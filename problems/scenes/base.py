@@ -70,7 +70,7 @@ class LoadSequence:
     none); ``analytic(k)`` returns closed-form values for the step, if any."""
 
     instance: str
-    deltas: list[float]
+    deltas: Sequence[float]
     factory: Callable[[int], ContactInstance]
     surface: Surface | None = None
     analytic: Callable[[int], dict[str, float]] | None = None

@@ -150,13 +150,13 @@ def ramp_sequence(spec: InstanceSpec, surface: Surface, deltas: np.ndarray) -> L
     builder = recipe_builder(p, surface)
     hardness = None if p.get("hardness") is None else float(p["hardness"])
     if p.get("control") == CONTROLS[1]:  # load control: the given loads, the approach is the answer's
-        loads = load_steps(p)
+        loads = tuple(load_steps(p))
 
         def by_load(k: int):
             return builder.build_load(builder.load_force(loads[k]), hardness=hardness, meta={"step": k})
 
-        return LoadSequence(spec.instance, [float("nan")] * len(loads), by_load, surface=surface)
-    ds = [float(d) for d in deltas]
+        return LoadSequence(spec.instance, (float("nan"),) * len(loads), by_load, surface=surface)
+    ds = tuple(float(d) for d in deltas)  # (a tuple: what the steps are built from is not written into)
 
     def factory(k: int):
         return builder.build(ds[k], hardness=hardness, meta={"step": k})

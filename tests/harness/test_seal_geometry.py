@@ -6,7 +6,9 @@ later solves get the problem as built, and by ``validate``."""
 
 from __future__ import annotations
 
+import gc
 from dataclasses import replace
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -16,6 +18,7 @@ from contactbench.harness.conformance import battery as cf
 from contactbench.harness.judging import ProblemSeal
 from contactbench.problems.instances import QP, InstanceBuilder
 from contactbench.problems.lcp import exact_solution
+from contactbench.problems.scenes.base import LoadSequence
 from contactbench.problems.surfaces import Surface, rmd_surface_n
 from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
 
@@ -177,3 +180,35 @@ def test_validate_finds_a_geometry_writer_wrong() -> None:
     assert judged and all(r.status == "WRONG" for r in judged), table.format()
     assert all("geometry.surface.heights" in r.message for r in judged), table.format()
     assert table.outcome() == "wrong", table.headline()
+
+
+class ChangesTheRecipe(Solver):
+    """Answers right, claimed, after doubling E in the instance builder that its worker's
+    load sequence builds the later steps from (reached through ``gc`` and the step
+    factory's closure: no attribute of its own problem)."""
+
+    name = "test-changes-the-recipe"
+    family = "test"
+    capabilities = Capabilities(needs_dense=False)
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        for obj in gc.get_objects():
+            if isinstance(obj, LoadSequence):
+                for cell in getattr(obj.factory, "__closure__", None) or ():
+                    if isinstance(cell.cell_contents, InstanceBuilder):
+                        cell.cell_contents.E *= 2.0
+        return Outcome(_exact(ctx), 1, True)
+
+
+def test_a_solver_changing_what_later_steps_are_built_from_is_caught_and_they_are_built_right(
+        run_harness: Callable[..., Any], tmp_path: Path) -> None:
+    def loads(table: Any) -> list[float]:
+        return [float(x) for x in table[table["solver"] == "pk"].sort_values("step")["load"]]
+
+    kw = {"size": 16, "steps": 3, "profiles": ("mid",), "reference": "none", "warmup": False, "timeout": 60.0}
+    alone = run_harness(["paper-sweep"], solvers=["pk"], out=tmp_path / "alone", **kw)
+    both = run_harness(["paper-sweep"], solvers=[f"{HERE}:ChangesTheRecipe", "pk"], out=tmp_path / "both", **kw)
+    mine = both[both["solver"] == "test-changes-the-recipe"]
+    assert (mine["status"] == "failed").all() and mine["error"].str.contains("wrote into the problem").all(), \
+        mine[["step", "status", "error"]].to_string()
+    np.testing.assert_allclose(loads(both), loads(alone), rtol=1e-9)
