@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..table.schema import ANSWERED
+from ..table.schema import ANSWERED, CELL_COLUMNS
 from .claim_rules import Timing, relative_range
 from .core import natural_key, parse_json, per_cell
 
@@ -163,12 +163,23 @@ COLD_SCENE = "greedy-linear-solvers"
 COLD = " cold"
 
 
-def repeat_totals(rows: pd.DataFrame, skipna: bool = False) -> pd.Series:
+def repeat_totals(rows: pd.DataFrame) -> pd.Series:
     """Per (solver, repeat) of the rows: the repeat's total solve time over the steps (NaN
-    where a step has none, or, with ``skipna``, the time of the steps that have one; a
-    table without ``repeat`` is one repeat, 0)."""
+    where a step has none; a table without ``repeat`` is one repeat, 0)."""
     rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
-    return rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=skipna))
+    return rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False))
+
+
+def spent_seconds(rows: pd.DataFrame) -> pd.Series:
+    """Per solver label of the (unfolded) rows: a lower bound of its total solve time over the
+    steps -- per cell (its repeats), the least time of a repeat that answered, else the most
+    time a repeat ran before it stopped (a timeout's limit; a row with no time counts 0)."""
+    keys = [c for c in CELL_COLUMNS if c in rows.columns]
+    t = pd.to_numeric(rows["solve_time_s"], errors="coerce").fillna(0.0)
+    r = rows.assign(_t=t, _answered=t.where(rows["status"].isin(ANSWERED)))
+    g = r.groupby(keys, sort=False, dropna=False)
+    cell = g["_answered"].min().fillna(g["_t"].max())
+    return cell.groupby(level="solver").sum()
 
 
 def totals(rows: pd.DataFrame) -> pd.DataFrame:
@@ -177,8 +188,7 @@ def totals(rows: pd.DataFrame) -> pd.DataFrame:
     and relative range); operator products and iterations (``matvecs``, ``iterations``: the
     time's load-independent witnesses), steps, steps answered and steps solved.  A total is
     ``comparable`` when every step of the largest count returned an answer; ``spent_s`` is
-    the median time of the steps that have one, answered or not (a lower bound of the
-    total of a solver that stopped)."""
+    ``spent_seconds``, a lower bound of the total of a solver that stopped."""
     cols = ["total_s", "spent_s", "repeats", "spread", "matvecs", "iterations", "steps", "answered", "solved",
             "comparable"]
     if rows.empty:
@@ -193,7 +203,7 @@ def totals(rows: pd.DataFrame) -> pd.DataFrame:
                         "solved": g["solved"].sum()})
     per = repeat_totals(rows).groupby(level=0)
     out["total_s"], out["repeats"], out["spread"] = per.median(), per.size(), per.agg(relative_range)
-    out["spent_s"] = repeat_totals(rows, skipna=True).groupby(level=0).median()
+    out["spent_s"] = spent_seconds(rows)
     out["comparable"] = (out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
     return out[cols]
 
