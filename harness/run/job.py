@@ -303,7 +303,8 @@ class JobDriver:
         auto = self.run_cfg.reference == "auto"
         server = self.reference_server(running) if auto else None
         served = self.served_names(server) if auto else []
-        if self.use_stored_reference(ctx, [*self.job.reference_candidates, *served]):
+        if self.use_stored_reference(ctx, self.job.reference_candidates) or \
+                self.use_stored_reference(ctx, served, self.served_max_kkt()):
             return
         if server is not None:
             ctx.serving = server
@@ -335,23 +336,32 @@ class JobDriver:
                  for i, (v, prof) in enumerate(running) if is_exact(v.base)]
         return min(exact)[-1] if exact else None
 
-    def use_stored_reference(self, ctx: StepContext, names: list[str] | tuple[str, ...]) -> bool:
+    def use_stored_reference(self, ctx: StepContext, names: list[str] | tuple[str, ...],
+                             max_kkt: float = REFERENCE_MAX_KKT) -> bool:
         """Take the first of ``names`` whose reference of this step is stored in OUT/_cache/
-        and holds on the step (``stored_reference_holds``); one that does not is written
-        over when that reference is obtained again."""
+        and holds on the step within ``max_kkt`` (``stored_reference_holds``); one that does
+        not is written over when that reference is obtained again."""
         for name in names:
             path = self.reference_path(ctx.k, name)
-            if path.is_file() and not path.is_symlink() and self.stored_reference_holds(ctx, path):
+            if path.is_file() and not path.is_symlink() and self.stored_reference_holds(ctx, path, max_kkt):
                 ctx.reference_solver, ctx.reference_path = name, str(path)
                 return True
         return False
 
-    def stored_reference_holds(self, ctx: StepContext, path: Path) -> bool:
+    def served_max_kkt(self) -> float:
+        """The scaled KKT error a run's own answer stored as a reference must meet to serve
+        this job: what a fresh run asks of the answer that serves (``plan_reference``), at
+        every profile of the job -- a resumed run takes no looser reference than it would
+        have made."""
+        return min([REFERENCE_MAX_KKT] + [get_profile(prof).check_tol for prof in self.job.profiles])
+
+    def stored_reference_holds(self, ctx: StepContext, path: Path, max_kkt: float = REFERENCE_MAX_KKT) -> bool:
         """Whether the worker reads the file at ``path`` as this step's answer and the judge
-        finds it solved (``Worker.reference_p``): its stored kkt is not trusted."""
+        finds it solved within ``max_kkt`` (``Worker.reference_p``): its stored kkt is not
+        trusted."""
         if not self.refresh(ctx):
             return False
-        out = self.call(CheckReference(ctx.k, str(path)), self.run_cfg.build_timeout)
+        out = self.call(CheckReference(ctx.k, str(path), max_kkt), self.run_cfg.build_timeout)
         return bool(out.ok and out.value is True)
 
     def obtain_reference(self, ctx: StepContext) -> None:

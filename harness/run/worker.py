@@ -8,8 +8,8 @@ The parent (``harness.run.job.JobDriver``) sends one message at a time:
 ``AssembleDense(k)``    assemble the dense H of step k once -> seconds it took;
 ``ComputeReference``    load the stored reference answer, or solve and store it ->
                         ``ReferenceReply``;
-``CheckReference``      whether the stored reference answer holds on its step
-                        (``Worker.reference_p``) -> bool;
+``CheckReference``      whether the stored reference answer holds on its step, within
+                        ``max_kkt`` (``Worker.reference_p``) -> bool;
 ``WarmUp(task)``        an untimed solve (imports, JIT, caches); its answer is dropped
                         -> ``UntimedReply``;
 ``Solve(task)``         one timed solve, judged by ``harness.judging.judge`` -> ``SolveReply``;
@@ -98,6 +98,7 @@ class ComputeReference:
 class CheckReference:
     step: int
     path: str
+    max_kkt: float = REFERENCE_MAX_KKT
 
 
 @dataclass(frozen=True)
@@ -307,7 +308,7 @@ class SolveServer:
         self.seq: Any = None
         self.steps: dict[int, ContactInstance] = {}
         self.dense: dict[int, DenseOperator] = {}
-        self.refs: dict[str, np.ndarray] = {}
+        self.refs: dict[str, tuple[np.ndarray, float]] = {}  # path -> (p, its scaled KKT error here)
         self.warm: dict[tuple[str, str, int], WarmState] = {}  # (label, profile, step)
 
     def __call__(self, msg: Message) -> Any:
@@ -322,7 +323,7 @@ class SolveServer:
         if isinstance(msg, ComputeReference):
             return self.reference(msg)
         if isinstance(msg, CheckReference):
-            return self.reference_p(msg.path, self.ensure_step(msg.step)[0]) is not None
+            return self.reference_p(msg.path, self.ensure_step(msg.step)[0], msg.max_kkt) is not None
         if isinstance(msg, Solve):
             return self.solve(msg.task)
         if isinstance(msg, Regenerate):
@@ -391,19 +392,23 @@ class SolveServer:
         """Drop every built step and dense H (after a solver wrote into one)."""
         self.seq, self.steps, self.dense = None, {}, {}
 
-    def reference_p(self, path: str | None, inst: ContactInstance) -> np.ndarray | None:
+    def reference_p(self, path: str | None, inst: ContactInstance,
+                    max_kkt: float = REFERENCE_MAX_KKT) -> np.ndarray | None:
         """The stored reference answer of step ``inst`` at ``path`` (``read_reference``),
         held once read; None where there is none to read, or where the judge does not find
-        it solved within ``REFERENCE_MAX_KKT`` on this step (a file edited by hand, or
-        another problem's of the same size): what the stored kkt says is not trusted."""
+        it solved within ``max_kkt`` (at most ``REFERENCE_MAX_KKT``) on this step (a file
+        edited by hand, another problem's of the same size, a run's own answer at a looser
+        profile than the run's now): what the stored kkt says is not trusted."""
         if not path:
             return None
         if path not in self.refs:
             p = read_reference(path, inst.n)
-            if p is None or judge(inst, p, True, REFERENCE_MAX_KKT).status != "solved":
+            verdict = None if p is None else judge(inst, p, True, REFERENCE_MAX_KKT)
+            if p is None or verdict is None or verdict.status != "solved":
                 return None
-            self.refs[path] = p
-        return self.refs[path]
+            self.refs[path] = (p, verdict.kkt_error)
+        p, kkt = self.refs[path]
+        return p if kkt <= max_kkt else None
 
     # -- solving ----------------------------------------------------------
     def reference(self, msg: ComputeReference) -> ReferenceReply:
@@ -429,7 +434,7 @@ class SolveServer:
     def keep_reference(self, path: str, p: np.ndarray, solver: str, kkt_error: float, elapsed: float) -> None:
         """Store ``p`` as the step's reference answer (npz, no pickles) and hold it."""
         write_npz_atomic(path, p=p, solver=solver, kkt_error=kkt_error, time=elapsed)
-        self.refs[path] = p
+        self.refs[path] = (p, float(kkt_error))
 
     def serve_as_reference(self, task: SolveTask, p: np.ndarray, verdict: Verdict, elapsed: float) -> bool:
         """Keep a run's own answer as the step's reference (no second solve) when the

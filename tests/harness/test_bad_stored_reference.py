@@ -14,7 +14,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from contactbench.harness.judging import judge
 from contactbench.harness.run.worker import read_reference
+from contactbench.problems.scenes import SceneConfig, get_scene
 from tests.helpers import run_cli
 
 
@@ -90,3 +92,37 @@ def test_a_stored_reference_of_wrong_values_is_not_trusted(tmp_path: Path, capsy
 
     top = rerun_with_spoiled_references(tmp_path, capsys, 2, doubled)
     assert (top["p_rel_error"] < 1e-3).all(), top[["solver", "p_rel_error"]]
+
+
+def test_a_resumed_run_takes_no_looser_served_reference_than_a_fresh_one(tmp_path: Path,
+                                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """A run's own answer stored as the reference at profile default (check 1e-6) does not
+    serve the rows of profile high (check 1e-8) that ``--append`` adds: a fresh run at both
+    profiles would have asked 1e-8 of it (``JobDriver.served_max_kkt``)."""
+    scene = get_scene("paper-sweep")
+    (spec,) = scene.instances(scene.config(SceneConfig(size=16, steps=2)))
+    inst = spec.build().at(1)
+    scale = {}
+
+    def loosened(ref: Path, out: Path) -> None:  # scaled until the judge reads its kkt in (1e-8, 1e-6]
+        with np.load(ref) as data:
+            p = np.asarray(data["p"])
+        lo, hi = 0.0, 1.0
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if judge(inst, p * (1 + mid), True, 5e-7).status == "solved" else (lo, mid)
+        scale[ref.name] = lo
+        np.savez(ref, p=p * (1 + lo), solver="pk", kkt_error=0.0, time=0.0)
+
+    out = tmp_path / "out"
+    run = [*RUN[:5], "2", *RUN[6:], "--profile", "default", "--out", str(out)]
+    rc, _, err = run_cli(run, capsys)
+    assert rc == 0, err
+    for ref in sorted((out / "_cache").glob("ref-*-k1-*.npz")):
+        loosened(ref, out)
+    assert scale and all(x > 0 for x in scale.values())
+    rc, _, err = run_cli([*run[:-4], "--profile", "default,high", "--append", "--out", str(out)], capsys)
+    assert rc == 0, err
+    high = pd.read_csv(out / "results.csv").query("step == 1 and profile == 'high'")
+    assert len(high) == 2 and (high["p_rel_error"] < 0.1 * min(scale.values())).all(), \
+        high[["solver", "reference_solver", "p_rel_error"]]
