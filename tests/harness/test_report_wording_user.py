@@ -84,10 +84,12 @@ def _reading(body: str) -> str:
 
 def test_fig6_at_small_sizes_reads_no_disagreement(tmp_path: Path) -> None:
     """K = 100 at 4.8x the least total, from a sweep with n <= 204 and one repeat: the
-    reading names the ratio but calls it unresolved at this size, with Fig. 4's hedge."""
+    reading names the ratio and gives the claims ledger's verdict (its rule reads every
+    size alike), with Fig. 4's hedge, and no verdict of its own."""
     reading = _reading(_body(tmp_path, _k_sweep(204), "gp-k-sweep"))
-    assert "does not agree" not in reading
-    assert "unresolved at this size: the largest trial set has n = 204, where K = 100 takes 4.8x" in reading
+    assert "does not agree" not in reading and "unresolved at this size" not in reading
+    assert "the largest trial set has n = 204, where K = 100 takes 4.8x" in reading
+    assert "`fig6-best-k`" in reading
     assert pr.SMALL_N_TEXT in reading
 
 

@@ -447,7 +447,7 @@ def _fig4_reading(ctx: ReportContext, block: Block, cells: pd.DataFrame, tot: pd
             w = total_ratio(tot, warm, cold)
             sp = spread_of(warm, cold)
             parts.append(f"Warm-started P&K takes {fmt_ratio(w)} the time of the cold one"
-                         + (f": {sp.tie_text()}." if sp.ties(w) else "."))
+                         + (f", a tie within the timing spread of {sp.source}." if sp.ties(w) else "."))
     complete = tot[tot["complete"]]
     if len(complete):
         times = complete["total_s"]

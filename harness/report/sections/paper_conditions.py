@@ -22,7 +22,8 @@ measurement, taken by those same functions on the rows as the ledger reads them
 (``claim_tables.ledger_rows``) and judged by ``claim_rules.judge_timed`` (``fig5_ledger``,
 ``fig6_ledger``; Example 1: counterexample.py ``ledger_shares``, which the ledger reads) --
 or, for a Fig. 4 ratio, where the ledger reads no other rows for the claim
-(``fig4_elsewhere``).  Where the section's own number pools otherwise it is given without a
+(``fig4_elsewhere``; never for P&K, P&K as printed or greedy CG, which the ledger reads
+on their cold solves only).  Where the section's own number pools otherwise it is given without a
 verdict, with the ledger's row named.  A section imports claim_tables.py and
 claim_measures.py, never claims.py (which imports the sections).
 """
@@ -132,12 +133,18 @@ def absent(table: pd.DataFrame, scene: str, base_solver: str, block: Block) -> s
 # ---------------------------------------------------------------------------
 
 
+#: The paper's methods whose Fig. 4 ratio to NNLS+GP the ledger reads only on their cold
+#: solves of ``COLD_SCENE`` (claims.py ``FIG4_RATIOS``, ``top_step_rows``), never on a sweep.
+COLD_READ: frozenset[str] = frozenset({"pk", "pk-printed", "greedy-cg"})
+
+
 def fig4_elsewhere(table: pd.DataFrame, sweep: pd.DataFrame, base_solver: str, operators: Iterable[str]) -> str:
     """Why Fig. 4's reading gives no verdict of its own on the ratio of ``base_solver`` to
     NNLS+GP over the attempted ``sweep`` rows of one block ("" where it may give one).
     The ledger (claims.py ``fig4_rows``) reads each grid size N apart, and reads P&K, P&K as
     printed and greedy CG on their cold solves of ``COLD_SCENE`` at the sweep's instances;
-    ``operators``: those the two solvers ran on (the ledger compares within one)."""
+    ``operators``: those the two solvers ran on (the ledger compares within one).  For a
+    method of ``COLD_READ`` it is never "": the sweep's solves are not the ledger's cold ones."""
     ops = sorted(set(operators))
     sizes = sorted(int(n) for n in sweep["N"].dropna().unique())
     if len(sizes) > 1:
@@ -149,6 +156,9 @@ def fig4_elsewhere(table: pd.DataFrame, sweep: pd.DataFrame, base_solver: str, o
     cold = t[operators_of(t).isin(ops) & t["N"].isin(sizes) & t["instance"].isin(set(sweep["instance"]))]
     if len(cold):
         return f"the claims ledger reads this claim on {md_code(base_solver)}'s cold solves of `{COLD_SCENE}`"
+    if base_solver in COLD_READ:
+        return (f"the claims ledger reads this claim on {md_code(base_solver)}'s cold solves of `{COLD_SCENE}` "
+                f"(every solve from p = 0), not on this sweep, and this table has none at these instances")
     return ""
 
 

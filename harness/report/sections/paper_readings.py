@@ -268,15 +268,14 @@ def _fig6_verdict(ledger: LedgerReading, kbest: float, tied: list[float], at_pap
         each = "; ".join(f"K = {int(k)}: {rule.at(k)}" for k in sorted({best, *ledger.near}))
         return (f"{read}{Spread(SINGLE_REPEAT_SPREAD, ledger.repeats).tie_text()} -- the Ks not told from the "
                 f"least total read differently by the claims ledger's bands ({each}).")
-    rule_word = (f"; the claims ledger's rule, which reads every size alike, reads K = {int(best)} as "
-                 f"{ledger.verdict}")
+    ledger_word = (f"the claims ledger's row `fig6-best-k` (its rule reads every size alike) reads K = {int(best)} as "
+                   f"{ledger.verdict}")
     if not (comp.index.min() <= PAPER_BEST_K <= comp.index.max()):
-        return (f"{read}the sweep does not bracket K = {int(PAPER_BEST_K)}, so this cannot be compared directly"
-                f"{rule_word}.")
+        return f"{read}{ledger_word}; the sweep does not bracket K = {int(PAPER_BEST_K)}."
     if too_small(n_max):
-        return (f"{read}unresolved at this size: the largest trial set has n = {n_max}"
+        return (f"{read}{ledger_word}; the largest trial set has n = {n_max}"
                 + (f", where K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the minimum"
-                   if math.isfinite(at_paper) else f" and no complete total at K = {int(PAPER_BEST_K)}") + rule_word + ".")
+                   if math.isfinite(at_paper) else f", with no complete total at K = {int(PAPER_BEST_K)}") + ".")
     if math.isfinite(at_paper):
         return (f"{read}this does not agree with the paper: K = {int(PAPER_BEST_K)} takes {fmt_ratio(at_paper)} the "
                 f"minimum, beyond the timing spread of {spread_of(PAPER_BEST_K, kbest).source}.")
@@ -295,8 +294,10 @@ def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Sp
     the claim on other rows (``elsewhere``: why) or where not every K answered every step
     (``ledger`` None).  A failing least is said with the ratio t(K = 100) / t(least) it
     rests on; when the largest trial set ``n_max`` is ``too_small`` the reading says so
-    (``SMALL_N_TEXT``) and calls such a least unresolved at this size, naming the ledger's
-    verdict beside."""
+    (``SMALL_N_TEXT``) and gives the ledger's verdict with its row named, and no other.  The
+    savings it reports beside (K = 0 against the least, the largest K against it) carry no
+    verdict word: the ledger rows that judge those claims (``gp-warm-start-benefit``,
+    ``fig6-k200-over-k100``) measure other ratios, and are named."""
     comp = tot[tot["complete"]]
     if comp.empty:
         return "**Reading.** No K solved every step, so the minimum cannot be placed.\n"
@@ -321,13 +322,16 @@ def fig6_reading(tot: pd.DataFrame, spread_of: Callable[[Hashable, Hashable], Sp
         r0 = times[kbest] / times[0.0]
         s0 = spread_of(kbest, 0.0)
         parts.append(f"Going from K = 0 to K = {int(kbest)} saves {fmt_pct(1 - r0)} of the time"
-                     + (f": {s0.tie_text()}." if s0.ties(r0) else "."))
+                     + (f", a tie within the timing spread of {s0.source}" if s0.ties(r0) else "")
+                     + " (no verdict here: the claims ledger's row `gp-warm-start-benefit` judges the paper's "
+                       "K = 100 against a cold K = 0).")
     above = times[times.index > kbest]
     if len(above):
         kmax = float(above.index.max())
         rmax = times[kmax] / times[kbest]
         smax = spread_of(kmax, kbest)
         parts.append(f"At K = {int(kmax)} the total is {fmt_ratio(rmax)} the minimum"
-                     + (f", {smax.tie_text()}" if smax.ties(rmax) else "")
-                     + " (the paper: more GP steps only add time).")
+                     + (f", a tie within the timing spread of {smax.source}" if smax.ties(rmax) else "")
+                     + " (the paper: more GP steps only add time; no verdict here: the claims ledger's row "
+                       "`fig6-k200-over-k100` judges K = 200 against K = 100).")
     return " ".join(parts) + "\n"
