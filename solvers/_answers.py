@@ -71,8 +71,9 @@ COUNT_RULE = f"an integer from 0 to {COUNT_MAX}"
 
 
 def is_plain_count(value: Any) -> bool:
-    """An integer (not a bool, not a float however whole) from 0 to ``COUNT_MAX``: a table's int64."""
-    return isinstance(value, (int, np.integer)) and is_count(value)
+    """An integer (not a bool, not a float however whole, not a subclass of int whose
+    conversion may say another number) from 0 to ``COUNT_MAX``: a table's int64."""
+    return (type(value) is int or isinstance(value, np.integer)) and is_count(value)
 
 
 def is_seconds(value: Any, most: float = math.inf) -> bool:

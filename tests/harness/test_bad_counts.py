@@ -37,6 +37,16 @@ def _restricted_set_back(ctx: SolveContext) -> None:
     sub.qp.H.matvec_count = -50
 
 
+class TwoFaced(int):
+    """An int that says 5 but converts to -7: the count a table would store is not the one checked."""
+
+    def __int__(self) -> int:
+        return -7
+
+    def __index__(self) -> int:
+        return -7
+
+
 def _clock_moved(ctx: SolveContext) -> None:
     ctx.trace.t0 = math.nan
 
@@ -57,6 +67,7 @@ LIES: dict[str, tuple[Callable[[SolveContext], None], str]] = {
     "setup-beyond-solve": (lambda ctx: ctx.add_setup_time(1e9), "setup_time is"),
     "setup-set-nan": (lambda ctx: setattr(ctx, "setup_time", math.nan), "setup_time is nan"),
     "clock-moved": (_clock_moved, "solve_time is nan"),
+    "int-that-converts-to-another": (lambda ctx: ctx.add_matvecs(TwoFaced(5)), "add_matvecs(5)"),
 }
 
 
@@ -121,7 +132,7 @@ def test_the_worker_reads_a_result_no_table_holds_as_a_failure() -> None:
     facts = solver_facts(good, 5)
     assert isinstance(facts, SolverFacts) and facts.matvecs == 5 and math.isnan(facts.setup_time_s)
     for field, value in (("matvecs", -7), ("iterations", 2.5), ("setup_time", -1.0), ("solve_time", math.inf),
-                         ("matvecs", 2**70)):
+                         ("matvecs", 2**70), ("iterations", TwoFaced(5))):
         why = solver_facts(SolveResult(p=np.zeros(3), **{field: value}), 5)
         assert isinstance(why, str) and f"{field} is" in why, why
     assert "cannot be read" in str(solver_facts(None, 0))
