@@ -4,8 +4,9 @@
 run a solver -- registered, or given by import path -- on every case of the battery
 (``harness.conformance.cases``: conditioning, units, edge cases, random LCPs, float32
 input, perturbation, paper Example 1 at n = 400, full packing, periodic whole grids,
-constrained and rectangular problems, and a few cases solved from a warm start that is not
-their answer, ``warm-start``, for solvers that take one).
+constrained and rectangular problems, a few small cases solved under an iteration limit of
+``cases.ITERATION_LIMIT``, ``iteration-limit``, and a few cases solved from a warm start that
+is not their answer, ``warm-start``, for solvers that take one).
 Every answer is judged by the one judge, ``harness.judging.judge``, at the tolerance the
 solver promises (``Capabilities.promise``, docs/verdicts.md): "exact" -- the case's
 profile's ``check_tol``, the threshold ``run`` uses for "solved", so a solve that ``run``
@@ -30,7 +31,10 @@ Row statuses (one row per solve):
                  judge as float64, ``solvers.base.readable_answer``: the judge's dtype
                  note is for an array judged directly), or the solver reports fewer
                  iterations than its own trace records (the table's count would
-                 flatter it); and on comparison rows, unit systems disagree by
+                 flatter it); in ``iteration-limit``, it reports more iterations than
+                 its limit (times the stages ``info["stages"]`` lists where it declares
+                 ``limit_per_stage``), whether or not the answer is accepted (an
+                 unaccepted one's row says so); and on comparison rows, unit systems disagree by
                  more than 1e-8, or a 1e-6 perturbation of ubar moved p by more than
                  10 cond(H) x 1e-6 (a chaotic active set).  The row and the headline
                  name which (``VerdictRow.flags``).
@@ -48,8 +52,9 @@ Row statuses (one row per solve):
 Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
 
 ``wrong``        any WRONG row (exit 1);
-``incomplete``   solves left unsolved -- unconverged, timeout, crashed, or refused
-                 outside the float32 case -- by any solver: exit 3, listing them;
+``incomplete``   solves left unsolved -- unconverged (outside ``iteration-limit``, where
+                 stopping at the limit is the answer asked for), timeout, crashed, or
+                 refused outside the float32 case -- by any solver: exit 3, listing them;
 ``untested``     none of these, and either no answer of the solver's own judged
                  (``VerdictTable.judged``): every selected case skipped for a capability
                  it declares, refused where refusing is allowed (float32), or answered by
@@ -112,6 +117,7 @@ from .declared import declaration_of, in_a_child, names_user_code
 from .cases import (
     BATTERY_GROUPS,
     DEFAULT_TIMEOUT,
+    LIMIT_GROUP,
     REFUSABLE_GROUPS,
     ConformanceCase,
     Reference,
@@ -141,7 +147,8 @@ P_TOL_RANGE = (1e-4, 0.05)
 PROMISE_BOUND = max(profile.check_tol for profile in PROFILES.values())
 #: What a flagged row's ``flags`` name, in the headline's words.
 FLAG_WORDS = {"reference": "off the exact reference", "dtype": "not float64",
-              "comparison": "failing a comparison", "count": "an iteration count below its own trace"}
+              "comparison": "failing a comparison", "count": "an iteration count below its own trace",
+              "limit": "more iterations than its iteration limit"}
 
 #: Statuses of a solve that produced an answer (the comparison rows need one per step).
 ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
@@ -250,9 +257,15 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
         v.problems.append(f"it reports {out.iterations} iterations where its own trace reaches iteration {out.traced}")
         v.kinds.append("count")
         row.status = "flagged"
+    over = over_limit(out, case)
+    if over and row.status in ("pass", "flagged", "unconverged"):  # (a claimed wrong answer stays WRONG)
+        v.problems.append(over)
+        v.kinds.append("limit")
+        row.status = "flagged"
     if row.status == "flagged":
         row.flags = "+".join(k for k in v.kinds if k in FLAG_WORDS)
-        row.message = "the KKT test accepts it, but " + "; ".join(v.problems)
+        lead = "the KKT test accepts it, but " if v.status == "solved" else "not converged, and "
+        row.message = lead + "; ".join(v.problems)
     elif row.status == "unconverged":
         row.message = f"{v.message()} (solver status: {out.solver_status})"
     else:
@@ -260,6 +273,18 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
     if not out.iterated:
         row.message = "ubar <= 0: p = 0 given by the lifecycle, the solver not called (judges nothing of it)"
     return row
+
+
+def over_limit(out: CaseAnswer, case: ConformanceCase) -> str:
+    """What the answer of a case solved under an iteration limit (``case.max_iter``) reports
+    beyond it: more iterations than the limit times ``out.stages`` ("" none, or no limit)."""
+    if case.max_iter is None or out.iterations is None:
+        return ""
+    allowed = case.max_iter * max(1, out.stages)
+    if out.iterations <= allowed:
+        return ""
+    stages = f" x {out.stages} stages = {allowed}" if out.stages > 1 else ""
+    return f"it reports {out.iterations} iterations under max_iter {case.max_iter}{stages}"
 
 
 def _comparison_row(rows: list[VerdictRow], case: ConformanceCase, solver: str, **kw: Any) -> VerdictRow:
@@ -355,8 +380,10 @@ class VerdictTable:
     @property
     def judged(self) -> list[VerdictRow]:
         """The solves that judged the solver itself: answers of its own (not the
-        lifecycle's p = 0 where ubar <= 0) that the judge accepted."""
-        return [r for r in self.solves if r.status in ("pass", "flagged") and r.iterated]
+        lifecycle's p = 0 where ubar <= 0) that the judge accepted (a row flagged for its
+        iteration count alone may hold an answer the KKT test does not accept)."""
+        return [r for r in self.solves if r.iterated and (r.status == "pass" or (
+            r.status == "flagged" and math.isfinite(r.kkt_error) and r.kkt_error <= r.check_tol))]
 
     @property
     def wrong(self) -> list[VerdictRow]:
@@ -373,9 +400,10 @@ class VerdictTable:
 
     @property
     def unsolved(self) -> list[VerdictRow]:
-        """Solves without a correct answer (besides WRONG ones): what no solver may leave."""
-        return [r for r in self.solves if r.status in UNSOLVED
-                or (r.status == "refused" and r.group not in REFUSABLE_GROUPS)]
+        """Solves without a correct answer (besides WRONG ones): what no solver may leave
+        (an unconverged answer at the limit of ``LIMIT_GROUP`` is the answer it asks for)."""
+        return [r for r in self.solves if (r.status in UNSOLVED and not (r.status == "unconverged"
+                and r.group == LIMIT_GROUP)) or (r.status == "refused" and r.group not in REFUSABLE_GROUPS)]
 
     def outcome(self, strict: bool = False) -> str:
         """"wrong", "strict" (only with ``strict``), "incomplete", "untested" or "conforms"
@@ -425,7 +453,10 @@ class VerdictTable:
             why = " or ".join(FLAG_WORDS[k] for k in FLAG_WORDS if k in kinds) or "failing a conformance extra"
             return (f"CONFORMS to its promise ({promise_text(self.promise)}): {len(flagged)} of {len(self.rows)} "
                     f"rows flagged -- accepted by the KKT test, but {why}")
-        return f"CONFORMS: every solve correct to its promise ({promise_text(self.promise)}; {solves} of {solves})"
+        limited = sum(r.status == "unconverged" and r.group == LIMIT_GROUP for r in self.solves)
+        stopped = f", {limited} stopped at the limit of {LIMIT_GROUP} as asked" if limited else ""
+        return (f"CONFORMS: every solve correct to its promise ({promise_text(self.promise)}; {solves - limited} of "
+                f"{solves - limited}){stopped}")
 
     def summary(self, strict: bool = False) -> str:
         statuses = ("pass", "WRONG", "unconverged", "flagged", "refused", "crashed", "timeout", "skipped")
@@ -501,7 +532,7 @@ def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Prom
     for k in range(len(seq)):
         inst = seq.at(k)
         ref = cached_reference(case.spec, k, inst)
-        out = runner.solve(case.spec, k, warm_start_of(case, k, inst))
+        out = runner.solve(case.spec, k, warm_start_of(case, k, inst), case.max_iter)
         rows.append(judge_solve(out, inst, ref, case, k, name, promise))
         ps.append(read_answer(out.p, inst.n)[0] if out.kind == "ok" else None)
         insts.append(inst)

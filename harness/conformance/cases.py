@@ -7,7 +7,10 @@
   shifted by a fraction of max|ubar| (a lighter load: the previous step of a loading sweep,
   as ``run`` hands it; a heavier one: of an unloading sweep), with that problem's gap as w.
   A solver that takes no warm start (``capabilities.warm_start`` "none") skips them, a
-  capability it declares;
+  capability it declares; and its group ``iteration-limit`` (``LIMIT_GROUP``): a few small
+  cases of it solved again under the iteration limit ``ITERATION_LIMIT`` (``SolverSettings.
+  max_iter``), whose answers report how many iterations the solver ran
+  (``CaseAnswer.iterations``, and the stages a limit bounds each of, ``CaseAnswer.stages``);
 * ``exact_reference`` -- the exact solution of one instance, computed independently of
   the solver registry (a judge must not be a contestant): the known solution where a
   recipe is built from one or certifies one (a periodic whole grid, where H is singular:
@@ -85,8 +88,17 @@ TRUSTED_REFERENCE_KKT = 1e-9
 REFUSABLE_GROUPS = ("precision",)
 #: The battery's own group: cases handed a warm start that is not their answer (module doc).
 WARM_GROUP = "warm-start"
-#: Every group of the battery: the stress groups, then ``WARM_GROUP``.
-BATTERY_GROUPS: tuple[str, ...] = (*GROUPS, WARM_GROUP)
+#: The battery's own group: cases solved under the iteration limit ``ITERATION_LIMIT`` (module doc).
+LIMIT_GROUP = "iteration-limit"
+#: The ``max_iter`` the cases of ``LIMIT_GROUP`` are solved under: far below what they take.
+ITERATION_LIMIT = 2
+#: The cases of ``LIMIT_GROUP``: small cases of the fast stress battery, one a step.
+LIMIT_CASES: tuple[str, ...] = (
+    "random/spd-n30-s0",  # dense H
+    "conditioning/bcc-n100-d1",  # the matrix-free (FFT) operator
+)
+#: Every group of the battery: the stress groups, then ``LIMIT_GROUP`` and ``WARM_GROUP``.
+BATTERY_GROUPS: tuple[str, ...] = (*GROUPS, LIMIT_GROUP, WARM_GROUP)
 #: The warm-started cases: (a case of the fast stress battery, the shift of ubar, as a
 #: fraction of max|ubar|, of the problem whose exact answer is the warm start).
 WARM_CASES: tuple[tuple[str, float], ...] = (
@@ -104,18 +116,35 @@ WARM_CASES: tuple[tuple[str, float], ...] = (
 @dataclass(frozen=True)
 class ConformanceCase:
     """One battery recipe (an InstanceSpec of the stress scenes) with its verdict profile;
-    with ``warm_shift``, the recipe solved from the warm start of ``WARM_GROUP`` (module doc)."""
+    with ``warm_shift``, the recipe solved from the warm start of ``WARM_GROUP``; with
+    ``limited``, solved under ``ITERATION_LIMIT`` as a case of ``LIMIT_GROUP`` (module doc;
+    not both: ``ValueError``)."""
 
     spec: InstanceSpec
     warm_shift: float | None = None
+    limited: bool = False
+
+    def __post_init__(self) -> None:
+        if self.limited and self.warm_shift is not None:
+            raise ValueError("a conformance case is warm-started or solved under a limit, not both")
+
+    @property
+    def derived(self) -> str | None:
+        """The battery's own group the case belongs to (None: a case of the stress groups)."""
+        return WARM_GROUP if self.warm_shift is not None else LIMIT_GROUP if self.limited else None
+
+    @property
+    def max_iter(self) -> int | None:
+        """The iteration limit the case is solved under (None: the solver's own)."""
+        return ITERATION_LIMIT if self.limited else None
 
     @property
     def name(self) -> str:
-        return self.spec.instance if self.warm_shift is None else f"{WARM_GROUP}/{self.spec.instance}"
+        return self.spec.instance if self.derived is None else f"{self.derived}/{self.spec.instance}"
 
     @property
     def group(self) -> str:
-        return str(self.spec.params["group"]) if self.warm_shift is None else WARM_GROUP
+        return str(self.spec.params["group"]) if self.derived is None else self.derived
 
     @property
     def profile(self) -> str:
@@ -123,7 +152,7 @@ class ConformanceCase:
 
     @property
     def compare(self) -> str:
-        return str(self.spec.params.get("compare", "none")) if self.warm_shift is None else "none"
+        return str(self.spec.params.get("compare", "none")) if self.derived is None else "none"
 
     def __str__(self) -> str:
         return self.name
@@ -135,6 +164,13 @@ def warm_cases() -> list[ConformanceCase]:
     groups = tuple(dict.fromkeys(name.split("/", 1)[0] for name in names))
     specs = {s.instance: s for s in battery_specs("fast", groups, scene="stress") if s.instance in names}
     return [ConformanceCase(specs[name], shift) for name, shift in WARM_CASES]
+
+
+def limit_cases() -> list[ConformanceCase]:
+    """The cases of ``LIMIT_GROUP`` (the same in every mode: they are few and small)."""
+    groups = tuple(dict.fromkeys(name.split("/", 1)[0] for name in LIMIT_CASES))
+    specs = {s.instance: s for s in battery_specs("fast", groups, scene="stress") if s.instance in LIMIT_CASES}
+    return [ConformanceCase(specs[name], limited=True) for name in LIMIT_CASES]
 
 
 def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
@@ -152,8 +188,10 @@ def conformance_cases(mode: str = "fast", groups: Sequence[str] | None = None,
         raise ProblemInputError(f"unknown battery group(s) {', '.join(map(repr, unknown))}; choose from "
                                 f"{', '.join(BATTERY_GROUPS)}")
     chosen = tuple(dict.fromkeys(named)) if named else BATTERY_GROUPS
-    stress = tuple(g for g in chosen if g != WARM_GROUP)
+    stress = tuple(g for g in chosen if g not in (LIMIT_GROUP, WARM_GROUP))
     cases = [ConformanceCase(s) for s in battery_specs(mode, stress, scene="stress")] if stress else []
+    if LIMIT_GROUP in chosen:
+        cases += limit_cases()
     if WARM_GROUP in chosen:
         cases += warm_cases()
     if pattern:
@@ -263,6 +301,7 @@ class CaseAnswer:
     time_s: float = float("nan")
     tampered: str = ""
     iterated: bool = True  # False: the lifecycle answered without calling the solver (``answered_without_iterate``)
+    stages: int = 1  # what one limit bounds: the stages of ``info["stages"]`` where ``Solver.limit_per_stage``
     own_skip: bool = False  # skipped by the solver's own refinements, not a capability it declares
     threads_left: str = ""  # the threads the solve left running ("" none)
     multiplier: float | None = None  # the approach Delta the solve reports (load control)
@@ -337,13 +376,26 @@ def first_line(text: str, fallback: str) -> str:
 @dataclass(frozen=True)
 class SolveOrder:
     """One solve, as the parent sends it to the worker: the recipe and step, the time
-    limit, the parameters, and the warm start (None: a cold start)."""
+    limit, the parameters, the warm start (None: a cold start) and the iteration limit
+    (``SolverSettings.max_iter``; None: the solver's own)."""
 
     spec: InstanceSpec
     step: int
     time_limit: float | None
     params: dict[str, Any]
     warm: WarmStart | None = None
+    max_iter: int | None = None
+
+
+def limit_stages(solver: Solver, info: dict[str, Any]) -> int:
+    """How many times ``max_iter`` the iterations ``solver`` reports may reach: the stages
+    ``info["stages"]`` lists (at least 1) where it declares ``limit_per_stage``, else 1."""
+    if not solver.limit_per_stage:
+        return 1
+    try:
+        return max(1, len(str(info.get("stages", "")).split()))
+    except Exception:  # (a stage list that cannot be read lists none)
+        return 1
 
 
 def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException], ...] = SOLVER_FAULTS
@@ -360,7 +412,8 @@ def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException
     the lifecycle answered without calling the solver is the harness's own reading of the
     problem (``answered_without_iterate``), never what the solver wrote into its result.  A
     result whose own account no results table holds (``harness.run.worker.solver_facts``) is
-    "crashed", as in a run."""
+    "crashed", as in a run.  The solve runs under ``msg.max_iter``; the answer says how many
+    times it the iterations may reach (``limit_stages``)."""
     case = ConformanceCase(msg.spec)
     inst = build_battery_spec(msg.spec).at(msg.step)
     qp = adapt_to_solver(inst, solver, msg.params, warm=msg.warm is not None)
@@ -368,7 +421,7 @@ def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException
         own = not qp.failed and declared_skip(solver, problem_traits(inst), msg.warm is not None) is None
         return {"kind": "crashed" if qp.failed else "skipped", "message": qp.reason, "detail": qp.reason,
                 "own_skip": own}
-    settings = get_profile(case.profile).solver_settings(msg.time_limit, msg.params)
+    settings = get_profile(case.profile).solver_settings(msg.time_limit, msg.params, msg.max_iter)
     seal, threads = ProblemSeal.of(qp), running_threads()
     lifecycle = answered_without_iterate(qp)
     t0 = time.perf_counter()
@@ -398,7 +451,8 @@ def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException
             "iterations": facts.iterations, "multiplier": res.multiplier,
             "traced": max((int(pt[0]) for pt in res.trace), default=0),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
-            "tampered": tampered, "iterated": not lifecycle, "threads_left": left}
+            "tampered": tampered, "iterated": not lifecycle, "threads_left": left,
+            "stages": limit_stages(solver, res.info if isinstance(res.info, dict) else {})}
 
 
 class _SolverHandler:
@@ -433,8 +487,11 @@ class CaseRunner:
         else:
             self.solver = load_solver(solver)
 
-    def solve(self, spec: InstanceSpec, step: int, warm: WarmStart | None = None) -> CaseAnswer:
-        msg = SolveOrder(spec, step, self.timeout, self.params, warm)
+    def solve(self, spec: InstanceSpec, step: int, warm: WarmStart | None = None,
+              max_iter: int | None = None) -> CaseAnswer:
+        """The answer of one solve of step ``step`` of ``spec``, from ``warm`` (None: cold),
+        under the iteration limit ``max_iter`` (None: the solver's own)."""
+        msg = SolveOrder(spec, step, self.timeout, self.params, warm, max_iter)
         if self.worker is None:
             assert self.solver is not None
             with ends_what_it_starts():

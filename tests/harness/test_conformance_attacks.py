@@ -466,8 +466,9 @@ def test_the_doc_names_every_group_of_the_battery_and_shows_todays_summary_line(
     section = text[text.index("It runs the solver through the battery"):text.index("Every answer is judged")]
     assert f"The groups, for `--group`: {', '.join(cf.BATTERY_GROUPS)}." in " ".join(section.split()), section
     summary = next(line.strip() for line in text.splitlines() if line.strip().startswith("example-apg [fast]:"))
-    assert re.fullmatch(r"example-apg \[fast\]: CONFORMS: every solve correct to its promise \(exact; (\d+) of \1\) "
-                        r"\(rows: pass \d+(, skipped \d+)?\)", summary), summary
+    assert re.fullmatch(r"example-apg \[fast\]: CONFORMS: every solve correct to its promise \(exact; (\d+) of \1\)"
+                        r"(, \d+ stopped at the limit of iteration-limit as asked)? "
+                        r"\(rows: pass \d+(, unconverged \d+)?(, skipped \d+)?\)", summary), summary
 
 
 #: What the threads ``LeavesAThread`` starts wait on (never set: the worker's end ends them).
