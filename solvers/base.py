@@ -493,6 +493,17 @@ class Solver(ABC):
     #: reports in all, which may then reach max_iter x stages.
     limit_per_stage: ClassVar[bool] = False
 
+    def limit_stages(self, info: Any) -> int:
+        """How many times ``max_iter`` the iterations of a solve whose ``info`` is given may
+        reach: the stages ``info["stages"]`` lists (at least 1) where the class declares
+        ``limit_per_stage``, else 1."""
+        if not self.limit_per_stage or not isinstance(info, dict):
+            return 1
+        try:
+            return max(1, len(str(info.get("stages", "")).split()))
+        except Exception:  # (a stage list that cannot be read lists none)
+            return 1
+
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Each method of ``HOOK_READERS`` that ``cls`` defines answers through its reader."""
         super().__init_subclass__(**kwargs)

@@ -34,7 +34,7 @@ import time
 import traceback
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Sequence, cast
+from typing import Any, Iterable, Sequence, cast
 
 import numpy as np
 
@@ -158,18 +158,22 @@ class ConformanceCase:
         return self.name
 
 
+def fast_specs(names: Iterable[str]) -> dict[str, InstanceSpec]:
+    """The recipes of the fast stress battery named ``names`` ("group/instance"), by name."""
+    wanted = set(names)
+    groups = tuple(dict.fromkeys(name.split("/", 1)[0] for name in wanted))
+    return {s.instance: s for s in battery_specs("fast", groups, scene="stress") if s.instance in wanted}
+
+
 def warm_cases() -> list[ConformanceCase]:
     """The cases of ``WARM_GROUP`` (the same in every mode: they are few and small)."""
-    names = {name for name, _ in WARM_CASES}
-    groups = tuple(dict.fromkeys(name.split("/", 1)[0] for name in names))
-    specs = {s.instance: s for s in battery_specs("fast", groups, scene="stress") if s.instance in names}
+    specs = fast_specs(name for name, _ in WARM_CASES)
     return [ConformanceCase(specs[name], shift) for name, shift in WARM_CASES]
 
 
 def limit_cases() -> list[ConformanceCase]:
     """The cases of ``LIMIT_GROUP`` (the same in every mode: they are few and small)."""
-    groups = tuple(dict.fromkeys(name.split("/", 1)[0] for name in LIMIT_CASES))
-    specs = {s.instance: s for s in battery_specs("fast", groups, scene="stress") if s.instance in LIMIT_CASES}
+    specs = fast_specs(LIMIT_CASES)
     return [ConformanceCase(specs[name], limited=True) for name in LIMIT_CASES]
 
 
@@ -387,17 +391,6 @@ class SolveOrder:
     max_iter: int | None = None
 
 
-def limit_stages(solver: Solver, info: dict[str, Any]) -> int:
-    """How many times ``max_iter`` the iterations ``solver`` reports may reach: the stages
-    ``info["stages"]`` lists (at least 1) where it declares ``limit_per_stage``, else 1."""
-    if not solver.limit_per_stage:
-        return 1
-    try:
-        return max(1, len(str(info.get("stages", "")).split()))
-    except Exception:  # (a stage list that cannot be read lists none)
-        return 1
-
-
 def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException], ...] = SOLVER_FAULTS
                ) -> dict[str, Any]:
     """Worker side: rebuild the instance from its recipe, solve, report plain data (the
@@ -413,7 +406,7 @@ def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException
     problem (``answered_without_iterate``), never what the solver wrote into its result.  A
     result whose own account no results table holds (``harness.run.worker.solver_facts``) is
     "crashed", as in a run.  The solve runs under ``msg.max_iter``; the answer says how many
-    times it the iterations may reach (``limit_stages``)."""
+    times it the iterations may reach (``Solver.limit_stages``)."""
     case = ConformanceCase(msg.spec)
     inst = build_battery_spec(msg.spec).at(msg.step)
     qp = adapt_to_solver(inst, solver, msg.params, warm=msg.warm is not None)
@@ -452,7 +445,7 @@ def solve_case(solver: Solver, msg: SolveOrder, faults: tuple[type[BaseException
             "traced": max((int(pt[0]) for pt in res.trace), default=0),
             "solver_status": str(res.status), "message": str(res.message), "time_s": elapsed,
             "tampered": tampered, "iterated": not lifecycle, "threads_left": left,
-            "stages": limit_stages(solver, res.info if isinstance(res.info, dict) else {})}
+            "stages": solver.limit_stages(res.info)}
 
 
 class _SolverHandler:
