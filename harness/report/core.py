@@ -9,10 +9,8 @@ the formatting and plotting helpers every section shares and the header; the ass
 is harness/report/build.py.  The sections live in the modules of
 harness/report/sections/, found by the registry on first use:
 
-* ``paper.py``            -- the paper reproductions (Bemporad & Paggi 2015, sec. 4):
-  Figs. 4, 5 and 6, and the closed-form checks (``hertz``, ``flat-punch``);
-* ``counterexample.py``   -- Example 1, the greedy counterexample; ``greedy_kernels.py``
-  the same draw on other forms of H;
+* ``paper.py``            -- Figs. 4, 5, 6 (Bemporad & Paggi 2015, sec. 4), the closed-form checks;
+* ``counterexample.py``, ``greedy_kernels.py`` -- Example 1, and its draw on other forms of H;
 * ``cmr.py``              -- cascade multi-resolution (sec. 5, Figs. 8-11; its figures in ``cmr_figures.py``);
 * ``constrained.py``, ``population.py``, ``stress.py`` -- the load-controlled and hardness-bounded
   sweeps, Monte Carlo population statistics (kappa), the stress battery's survival tables;
@@ -130,6 +128,7 @@ class ReportContext:
     #: no note saying why (harness/report/panels.py); the tests require none.
     blank_panels: list[str] = field(default_factory=list)
     _styles: SolverStyles | None = None
+    _own_colors: dict[str, dict[str, str]] = field(default_factory=dict)  # scene -> its ``scene_colors``
     _table_no: int = 0
     _fig_no: int = 0
 
@@ -153,9 +152,11 @@ class ReportContext:
 
     def color(self, solver: str, scene: str = "") -> Any:
         """``solver``'s colour; in the figures of ``scene``, the scene's own where its section
-        gives one (``style.scene_colors``: Fig. 6's K variants), in the PNGs as on the page."""
+        gives one (``style.scene_colors``, read once a report: Fig. 6's K variants)."""
+        if scene not in self._own_colors:
+            self._own_colors[scene] = scene_colors(self.table, scene)
         name = solver.removesuffix(WARM_SUFFIX)
-        return scene_colors(self.table, scene).get(name) or self.styles.color(name)
+        return self._own_colors[scene].get(name) or self.styles.color(name)
 
     def marker(self, solver: str) -> str:
         return self.styles.marker(solver.removesuffix(WARM_SUFFIX))
