@@ -43,7 +43,7 @@ from .operators import (
 )
 from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
 from .preprocessing import MapPreprocessing
-from .surfaces import Surface, check_grid_size, check_not_flat, check_seed
+from .surfaces import Surface, check_grid_size, check_not_flat, check_seed, read_only
 
 OperatorKind = Literal["fft", "dense", "gpu"]
 #: The operator kinds an instance can be built with: the matrix-free FFT operator, the
@@ -93,6 +93,11 @@ class Geometry:
     #: Spacing along axis 1 (None: square elements, ``delta``); the elastic layer (None: half-space).
     delta1: float | None = None
     layer: Layer | None = None
+
+    def __post_init__(self) -> None:
+        """The trial set is read-only (``surfaces.read_only``, its integer type kept)."""
+        idx = np.asarray(self.indices)
+        object.__setattr__(self, "indices", read_only(idx, idx.dtype))
 
     @property
     def spacing(self) -> tuple[float, float]:

@@ -34,15 +34,16 @@ from .kernels import square_spacing
 from .preprocessing import MapPreprocessing
 
 
-def read_only(a: np.ndarray) -> np.ndarray:
-    """``a`` as a float64 array no one writes through: its data an immutable ``bytes`` copy,
-    so ``flags.writeable = True`` fails on it and on every view of it (``a`` itself when it
-    is one already).  A solver handed a surface (``QP.geometry``) cannot change the steps
-    built from it after."""
-    if isinstance(a.base, bytes) and a.dtype == np.float64:
+def read_only(a: np.ndarray, dtype: object = np.float64) -> np.ndarray:
+    """``a`` as a C-contiguous array of ``dtype`` no one writes through: its data an
+    immutable ``bytes`` copy, so ``flags.writeable = True`` fails on it and on every view of
+    it (``a`` itself when it is one already).  A solver handed a surface or a trial set
+    (``QP.geometry``) cannot change the steps built from them after."""
+    dt = np.dtype(dtype)
+    if isinstance(a.base, bytes) and a.dtype == dt and a.flags.c_contiguous:
         return a
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    return np.ndarray(a.shape, np.float64, buffer=a.tobytes())
+    a = np.ascontiguousarray(a, dtype=dt)
+    return np.ndarray(a.shape, dt, buffer=a.tobytes())
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,8 @@
 """What a solver reaches through ``QP.geometry`` is the problem too: the surface's heights
-(its coarse levels' too) are read-only at the source, so no write changes the steps built
-from them after, and the seal reads the geometry (the unknowns' indices, the far field,
-the surface and its levels), so a write that gets past is caught -- by ``run``, whose
-later solves get the problem as built, and by ``validate``."""
+(its coarse levels' too) and the unknowns' indices are read-only at the source, so no write
+changes the steps built from them after, and the seal reads the geometry (the indices, the
+far field, the surface and its levels), so a write that gets past is caught -- by ``run``,
+whose later solves get the problem as built, and by ``validate``."""
 
 from __future__ import annotations
 
@@ -56,6 +56,22 @@ def test_no_write_through_numpy_reaches_a_surface_s_heights() -> None:
             heights *= 3.0
 
 
+def test_no_write_through_numpy_reaches_a_trial_set() -> None:
+    """A geometry's indices are read-only, its integer type kept, and a copy of the array
+    it was given; ``dataclasses.replace`` keeps them so."""
+    qp = surface_problem()
+    given = np.arange(qp.n, dtype=np.int32)
+    geometry = replace(qp.geometry, indices=given)
+    given[0] = 5
+    for idx in (geometry.indices, geometry.indices[1:], replace(geometry, far_field=0.0).indices):
+        assert idx.dtype == np.int32 and not idx.flags.writeable
+        with pytest.raises(ValueError):
+            idx.flags.writeable = True
+    assert geometry.indices[0] == 0
+    with pytest.raises(ValueError):
+        geometry.indices[...] = 0
+
+
 def _swap_heights(qp: QP) -> None:
     object.__setattr__(qp.geometry.surface, "heights", qp.geometry.surface.heights * 3.0)
 
@@ -65,8 +81,8 @@ def _swap_level(qp: QP) -> None:
     object.__setattr__(level, "heights", level.heights * 3.0)
 
 
-def _write_indices(qp: QP) -> None:
-    qp.geometry.indices[...] = 0
+def _swap_indices(qp: QP) -> None:
+    object.__setattr__(qp.geometry, "indices", np.zeros_like(qp.geometry.indices))
 
 
 def _far_field(qp: QP) -> None:
@@ -80,7 +96,7 @@ def _surface_meta(qp: QP) -> None:
 WRITES: dict[str, tuple[Callable[[QP], None], str]] = {
     "heights": (_swap_heights, "geometry.surface.heights"),
     "level": (_swap_level, "geometry.surface.levels[0].heights"),
-    "indices": (_write_indices, "geometry.indices"),
+    "indices": (_swap_indices, "geometry.indices"),
     "far-field": (_far_field, "geometry.far_field"),
     "surface-meta": (_surface_meta, "geometry.surface.meta"),
 }
