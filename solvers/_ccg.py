@@ -127,7 +127,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-from contactbench.problems.fft_threads import dots_in_bands, each_band, flatnonzero_in_bands
+from contactbench.problems.fft_threads import each_band, flatnonzero_in_bands
 from contactbench.problems.kkt import min_below_zero, read_scalars
 from contactbench.problems.operators import ContactOperator
 from contactbench.problems.operators_gpu import HOST, ArraySpace
@@ -137,11 +137,8 @@ from ._kit import matvec_seconds, serial_blas
 from ._partition import WHOLE_BUDGET
 from ._preconditioners import BUILD_BUDGET, ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
 from ._screen import solve_screened
+from ._steps import curved_step, exact_step, flat_curvature, polak_ribiere
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
-
-#: Polak-Ribiere's |beta| above this restarts the Bugnicourt loops (``polak_ribiere``): on the
-#: surface population's solves |beta| stays below 12, at a negative curvature 0.07-0.7.
-MAX_BETA = 1e6
 
 #: A warm start's held iterations (module doc, "A warm start's first iterations") go on while
 #: each step shrinks the penetrating set to less than this fraction of what it was ...
@@ -398,6 +395,7 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
     G_old, reset = 1.0, True
     run = CCGRun(0, np.inf, False)
     best, since = np.inf, 0
+    floor = flat_curvature(ctx.diag_max, state.H.dtype)
     for it in range(1, max_iter + 1):
         run = checkpoint(ctx, state, it - 1, first)
         if run.converged or ctx.expired():
@@ -425,9 +423,8 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
             return CCGRun(it - 1, run.kkt, False, stalled=True)
         t = z if reset or not G_old > 0.0 else on_set(z + (G / G_old) * t, S)  # step 3.1
         q = state.H.matvec(t)
-        tq = float(t @ q)
-        tau = float(r @ t) / tq if tq > 0.0 else math.nan  # step 3.2
-        if not (math.isfinite(tau) and tau != 0.0):  # t = 0, lost definiteness or a zero step: restart
+        tau = curved_step(float(r @ t), float(t @ q), t, floor, state.p)  # step 3.2
+        if not (math.isfinite(tau) and tau != 0.0):  # t = 0, lost definiteness, flat or a zero step: restart
             state.refresh()
             if reset:  # the steepest direction itself gives no step
                 return CCGRun(it, run.kkt, False, stalled=True)
@@ -444,7 +441,7 @@ def polonsky_keer(ctx: SolveContext, state: GapState, M: SetPreconditioner | Non
             state.settle()
         reset = bool(entering.size)
         G_old = G  # step 3.7
-    return CCGRun(max_iter, run.kkt, False)
+    return CCGRun(max_iter, ctx.kkt(state.p, state.g), False)  # (the error of the last step's iterate)
 
 
 def on_set(x: np.ndarray, mask: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -514,6 +511,7 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
     res = held_residual(state) if hold else dual_residual(state, u)
     d = inward(-precondition_on(M, res, res != 0.0), state, res, u)
     version = version_of(M)
+    floor = flat_curvature(ctx.diag_max, state.H.dtype)
     run = CCGRun(0, np.inf, False)
     flat, last = 0, math.inf  # iterations with the KKT error within STALL_FLAT of the last
     for it in range(1, max_iter + 1):
@@ -522,8 +520,8 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
             return run
         flat, last = (flat + 1 if run.kkt >= STALL_FLAT * last else 0), run.kkt
         Hd = state.H.matvec(d)
-        alpha, dHd = exact_step(res, d, Hd)
-        if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
+        alpha, dHd = exact_step(res, d, Hd, floor, state.p)
+        if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy, flat or a zero step: restart
             hold = False
             state.refresh()
             res = dual_residual(state, u)
@@ -551,7 +549,7 @@ def bugnicourt(ctx: SolveContext, state: GapState, M: SetPreconditioner | None =
         if flat >= STALL_PATIENCE and let_in(d, state, res, M):
             flat = 0
         inward(d, state, res, u)
-    return CCGRun(max_iter, run.kkt, False)
+    return CCGRun(max_iter, ctx.kkt(state.p, state.g), False)  # (the error of the last step's iterate)
 
 
 def version_of(M: SetPreconditioner | None) -> int:
@@ -599,29 +597,6 @@ def penetrating_count(state: GapState) -> int:
     """Points at the bound that no multiplier holds (``at_rest``): a negative gap (one read)."""
     (count,) = read_scalars(np.count_nonzero((state.p <= 0.0) & ~at_rest(state.p, state.g)))
     return int(count)
-
-
-def exact_step(res: np.ndarray, d: np.ndarray, Hd: np.ndarray) -> tuple[float, float]:
-    """(alpha, d'Hd): the exact line-search step -res'd / d'Hd along d (NaN where the
-    curvature d'Hd is not positive), both products read in one transfer."""
-    dHd, rd = read_scalars(*dots_in_bands([(d, Hd), (res, d)]))
-    return (-rd / dHd if dHd > 0.0 else math.nan), dHd
-
-
-def polak_ribiere(z: np.ndarray, res: np.ndarray, res_old: np.ndarray, step_curvature: float) -> float:
-    """Polak-Ribiere's beta of the Bugnicourt loops (preconditioned: z = M^-1 res),
-    (z'res - z'res_old) / (alpha d'Hd) with alpha d'Hd = -res_old'd; 0 (a restart along
-    -z) where the step's curvature ``step_curvature`` is 0 or not finite, or |beta| is
-    above ``MAX_BETA`` (a curvature lost to round-off).  A negative curvature is kept: after
-    ``inward`` or a projection d need not descend, the step then goes back along it (alpha
-    < 0; one or two steps a solve), and restarting there cost the plain loop 13 % more
-    products at 1024^2 on the surface population (median 68.5 against 60.5 matvecs on 32
-    members; results/perf/device-choice/README.md)."""
-    if step_curvature == 0.0 or not math.isfinite(step_curvature):
-        return 0.0
-    z_res, z_res_old = read_scalars(*dots_in_bands([(z, res), (z, res_old)]))
-    beta = (z_res - z_res_old) / step_curvature
-    return beta if abs(beta) <= MAX_BETA else 0.0
 
 
 def outcome(state: GapState, run: CCGRun, info: dict | None = None) -> Outcome:

@@ -91,11 +91,12 @@ import numpy as np
 from contactbench.problems.constraints import Constraints, fit_multiplier
 from contactbench.problems.kkt import min_below_zero, read_scalars
 
-from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, conjugate, dual_residual, entering_force, exact_step, inward,
-                   on_set, polak_ribiere, precondition_on)
+from ._ccg import (CCGRun, GapState, at_rest, bugnicourt, conjugate, dual_residual, entering_force, inward, on_set,
+                   precondition_on)
 from ._finish import FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from ._preconditioners import SetPreconditioner
 from ._screen import approach_floor
+from ._steps import curved_step, exact_step, flat_curvature, polak_ribiere
 from .base import SolveContext
 
 
@@ -327,6 +328,7 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
     feasible_start(ctx, state, u)
     t = np.zeros_like(state.p)
     G_old, reset = 1.0, True
+    floor = flat_curvature(ctx.diag_max, state.H.dtype)
     run = CCGRun(0, math.inf, False)
     last = np.zeros_like(state.p, dtype=bool)
     watch, extra = Stagnation(), 0
@@ -356,9 +358,8 @@ def polonsky_keer_box(ctx: SolveContext, state: GapState, M: SetPreconditioner |
         if load and M is None and not reset:  # P & K: the direction itself sums to zero on F
             t = on_set(t - mean_on(t, free), free)
         q = state.H.matvec(t)
-        tq = float(t @ q)
-        tau = float(r @ t) / tq if tq > 0.0 else math.nan
-        if not (math.isfinite(tau) and tau != 0.0):  # t = 0, lost definiteness or a zero step: restart
+        tau = curved_step(float(r @ t), float(t @ q), t, floor, state.p)
+        if not (math.isfinite(tau) and tau != 0.0):  # t = 0, lost definiteness, flat or a zero step: restart
             state.refresh()
             if reset:
                 return _broke_down(ctx, state, u, run, first, max_iter)
@@ -496,6 +497,7 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
     none = np.zeros_like(state.p, shape=(0,), dtype=np.int64)
     delta, res = _dual_residual(state, u, c)
     d = inward(-_dual_direction(M, res), state, res, u)
+    floor = flat_curvature(ctx.diag_max, state.H.dtype)
     run = CCGRun(0, math.inf, False)
     watch, extra = Stagnation(), 0
     for it in range(1, max_iter + 1):  # (delta, res) are the state's at the head of every iteration
@@ -515,8 +517,8 @@ def bugnicourt_load(ctx: SolveContext, state: GapState, M: SetPreconditioner | N
             d = inward(-_dual_direction(M, res), state, res, u)
             continue
         Hd = state.H.matvec(d)
-        alpha, dHd = exact_step(res, d, Hd)
-        if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy or a zero step: restart
+        alpha, dHd = exact_step(res, d, Hd, floor, state.p)
+        if not (math.isfinite(alpha) and alpha != 0.0):  # d = 0, lost conjugacy, flat or a zero step: restart
             state.refresh()
             delta, res = _dual_residual(state, u, c)
             steepest = inward(-_dual_direction(M, res), state, res, u)

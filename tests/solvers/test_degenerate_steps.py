@@ -29,7 +29,8 @@ from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP, ContactInstance, InstanceBuilder
 from contactbench.problems.surfaces import Surface
 from contactbench.problems.operators import DenseOperator
-from contactbench.solvers._ccg import MAX_BETA, CCGRun, GapState, polak_ribiere
+from contactbench.solvers._ccg import CCGRun, GapState
+from contactbench.solvers._steps import MAX_BETA, polak_ribiere
 from contactbench.solvers._constrained import _loop_head, constrained_start
 from contactbench.solvers._finish import FINISH_MAX_POINTS, FINISH_MAX_ROUNDS, Stagnation, can_finish, finish_exactly
 from contactbench.solvers.base import SolverSettings, WarmStart, constraint_skip

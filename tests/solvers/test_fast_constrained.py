@@ -438,7 +438,7 @@ def test_the_loops_vector_work_in_bands_on_the_threads_takes_the_same_steps(
     (summed in band order, so rounded otherwise), 1 and 3 threads take the same steps, and
     reach the whole vectors' answer within the tolerance, in as many products +-5 %."""
     from contactbench.problems import fft_threads
-    from contactbench.solvers import _ccg
+    from contactbench.solvers import _steps
 
     inst = square[0].build(square[1]) if case == "elastic" else request.getfixturevalue(case)[0]
     whole = get_solver(name).solve(inst.qp, TIGHT)
@@ -449,7 +449,7 @@ def test_the_loops_vector_work_in_bands_on_the_threads_takes_the_same_steps(
     for dots in ("whole", "banded"):
         with monkeypatch.context() as mp:
             if dots == "whole":
-                mp.setattr(_ccg, "dots_in_bands", lambda pairs: [x @ y for x, y in pairs])
+                mp.setattr(_steps, "dots_in_bands", lambda pairs: [x @ y for x, y in pairs])
             for workers in ("1", "3"):
                 mp.setenv("CONTACTBENCH_FFT_WORKERS", workers)
                 runs[dots, workers] = get_solver(name).solve(inst.qp, TIGHT)
