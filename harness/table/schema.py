@@ -51,11 +51,13 @@ VERDICTS: Final = ("pass", "wrong", "unconverged")
 HISTORIES: Final = ("warm", "cold")
 DTYPES: Final = ("string", "Int64", "boolean", "float64")
 #: What identifies a cell: one solve of one step by one solver variant at one profile,
-#: in one kind of run (``history``: warm starts along the load history, or ``--cold``).
-#: Repeats of a cell (column ``repeat``) fold into it.  The one definition, used by the
-#: plan's cell ids, the stored table's repeat statistics, the aggregates and the report.
-CELL_COLUMNS: Final = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "warm_start",
-                       "history")
+#: given one operator (``--operator``: the same problem's H as FFTs or dense, which a
+#: folder may hold both of through ``--append``), in one kind of run (``history``: warm
+#: starts along the load history, or ``--cold``).  Repeats of a cell (column ``repeat``)
+#: fold into it.  The one definition, used by the plan's cell ids, the stored table's
+#: repeat statistics, the aggregates and the report.
+CELL_COLUMNS: Final = ("scene", "instance", "step", "solver", "base_solver", "params", "profile", "operator",
+                       "warm_start", "history")
 #: The columns of a measured map's preparation (``problems.preprocessing.MapPreprocessing``).
 MAP_COLUMNS: Final = ("surface_source", "surface_hash", "height_unit", "nan_rule", "nan_filled", "detrend",
                       "removed_mean", "removed_slope0", "removed_slope1", "crop", "channel_index")
