@@ -3,8 +3,10 @@ status"): the statuses a shell reports for the signal, and what a command stoppe
 it ran anything says, read by the entry point (``contactbench.command``) before anything
 else is loaded, and by ``harness.cli``; and which stop signals arrived while a block ran
 (``signals_noted``), so that a stop the code it interrupted swallowed still stops the
-command (``raise_noted``: plug-in discovery, a user's solver module).  Nothing here imports
-beyond the standard library."""
+command (``raise_noted``: plug-in discovery, a user's solver module); and the holding back
+of those signals for a step that a stop must not cut short (``signals_deferred``: a run's
+shutdown, harness/run/interrupts.py; taking and letting go a folder's lock,
+harness/table/store.py).  Nothing here imports beyond the standard library."""
 
 from __future__ import annotations
 
@@ -66,3 +68,29 @@ def raise_noted(arrived: set[int]) -> None:
         handler = signal.getsignal(signum)
         if callable(handler):
             handler(signum, None)
+
+
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """``USER_STOP_SIGNALS`` held back for the block: a signal that arrives meanwhile is
+    acted on once the block is done -- the handler in force before it then runs -- unless
+    the block ends by an exception already (the command is then stopping anyway).  In a
+    thread other than the main one (which cannot set handlers) the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        pending.append(signum)
+
+    before = {sig: signal.signal(sig, hold) for sig in USER_STOP_SIGNALS}
+    failed = True
+    try:
+        yield
+        failed = False
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        if pending and not failed:
+            signal.raise_signal(pending[0])

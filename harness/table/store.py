@@ -36,6 +36,7 @@ whole run (an exclusive ``flock`` on OUT/run.lock, whose text names the holder).
 second run into a live folder is refused (``FolderInUseError``, exit 2, naming the
 holder's PID and host); a lock left by a process that is gone (same host, PID no longer
 running, or running a later process under a reused PID) is taken over with a warning.
+The lock is taken and let go with SIGINT and SIGTERM held back, so a signal never leaves it.
 ``report`` and ``load_table`` read without the lock: the table files are written to a
 unique temporary file in OUT and renamed over the old ones (``os.replace``), so a
 reader sees the old table or the new one, never half of one.
@@ -44,10 +45,12 @@ Crash safety: a row is appended with one ``write`` under an exclusive ``flock`` 
 fsync'ed, so concurrent writers (``--jobs``, Dask workers on a shared file system) do not
 interleave.  A ``kill -9`` can leave at most a partial last line; it is cut off when
 the store is next opened.  Rows are identified by ``cell_id``; reading keeps the first row
-of each cell (``first_of_each_cell``: journal and ``load_table``), so a cell is never counted
-twice.  The journal is read checked (``checked_journal``, harness/table/journal.py): a line
-that is not a JSON object is ignored; a row without ``cell_id`` or against the table
-contract is a ``JournalError``.
+of each cell (journal: ``first_of_each_cell``; ``load_table``: ``reading.first_rows``, where a
+row without a cell id is of the cell its cell columns name), so a cell is never counted
+twice; a folder's results.parquet is read only while it holds the journal's cells.  The
+journal is read checked (``checked_journal``, harness/table/journal.py): a line that is not
+a JSON object is ignored; a row without ``cell_id`` or against the table contract is a
+``JournalError``.
 """
 
 from __future__ import annotations
@@ -58,7 +61,6 @@ import fcntl
 import hashlib
 import json
 import logging
-import csv
 import os
 import socket
 import sys
@@ -69,15 +71,17 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from contactbench.problems.atomic_files import literal_path, names_nothing
+from contactbench.stops import signals_deferred
 from contactbench.problems.errors import ProblemInputError
 
 import pandas as pd
 
 from .files import canonical_json, pid_exists, replace_atomically
 from .meta import META_FILE
-from .journal import JournalError as JournalError, checked_journal, encode_row as encode_row, first_of_each_cell
+from .journal import JournalError as JournalError, checked_journal, encode_row as encode_row
 from .journal import read_journal as read_journal, repair_journal
-from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, columns_of
+from .reading import first_rows, journal_cell_ids, read_csv
+from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, text_values
 
 ROWS_FILE = "rows.jsonl"
 PARQUET_FILE = "results.parquet"
@@ -454,8 +458,20 @@ class RunLock:
         self.release()
 
     def acquire(self) -> "RunLock":
+        """Take the lock (class doc) with SIGINT and SIGTERM held back (``signals_deferred``),
+        so that no signal leaves run.lock naming this process half-way: one that came
+        meanwhile is acted on once the lock is taken, and the lock is then released."""
         if self.fd is not None:
             return self
+        try:
+            with signals_deferred():
+                self._acquire()
+        except BaseException:
+            self.release()
+            raise
+        return self
+
+    def _acquire(self) -> None:
         self.created_dir = not self.out.exists()
         self.out.mkdir(parents=True, exist_ok=True)
         try:
@@ -466,7 +482,7 @@ class RunLock:
                         self.fd = fd
                         _HELD.add(fd)
                         _HELD_PATHS[str(self.out.resolve())] = self
-                        return self
+                        return
                 except BaseException:
                     os.close(fd)
                     raise
@@ -520,20 +536,23 @@ class RunLock:
         return FolderInUseError(f"results folder {self.out} is in use by another run: {who}; {hint}")
 
     def release(self) -> None:
+        """Remove run.lock (when it is still ours) and let go of it, with SIGINT and SIGTERM
+        held back (``signals_deferred``): a signal never leaves the file behind."""
         if self.fd is None:
             return
-        try:
-            if self._is_current(self.fd):
-                os.unlink(self.path)
-        except OSError:
-            pass
-        finally:
-            _HELD.discard(self.fd)
-            if _HELD_PATHS.get(str(self.out.resolve())) is self:
-                del _HELD_PATHS[str(self.out.resolve())]
-            os.close(self.fd)
-            self.fd = None
-        self._remove_empty_dir()
+        with signals_deferred():
+            try:
+                if self._is_current(self.fd):
+                    os.unlink(self.path)
+            except OSError:
+                pass
+            finally:
+                _HELD.discard(self.fd)
+                if _HELD_PATHS.get(str(self.out.resolve())) is self:
+                    del _HELD_PATHS[str(self.out.resolve())]
+                os.close(self.fd)
+                self.fd = None
+            self._remove_empty_dir()
 
     def _remove_empty_dir(self) -> None:
         if self.created_dir:
@@ -598,82 +617,49 @@ os.register_at_fork(after_in_child=_close_held_in_child)
 # --- The one reader of a stored table ---
 
 
-def _read_csv(path: Path) -> pd.DataFrame:
-    """results.csv as written; ``TableError`` naming the file for one whose last row is cut
-    short (``cut_row``: a parser error too, where the cut falls inside a quoted field) or
-    that cannot be read as such (not text, not CSV)."""
-    head: Any = ()
-    try:
-        text = {c: "string" for c in columns_of("string")}
-        head = pd.read_csv(literal_path(path), nrows=0).columns
-        df = pd.read_csv(literal_path(path), dtype={c: t for c, t in text.items() if c in head}, keep_default_na=True)
-    except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        cut = cut_row(path, len(head)) if len(head) and not isinstance(exc, UnicodeDecodeError) else None
-        if cut is None:
-            lines = str(exc).splitlines()
-            raise TableError(f"{path} cannot be read as a results table ({type(exc).__name__}"
-                             f"{': ' + lines[0] if lines else ''})") from None
-    else:
-        cut = cut_row(path, len(head))
-        if cut is None:
-            return df
-    raise TableError(f"{path} ends in the middle of its row {cut} (a truncated table?): "
-                     "restore it, or remove it to read the run's rows.jsonl")
-
-
-def cut_row(path: Path, fields: int) -> int | None:
-    """The data row (from 1) the CSV file ends in the middle of: a file that does not end its
-    last row with a newline, whose last record has fewer than ``fields`` fields; else None
-    (None too for a file the CSV reader cannot read to its end)."""
-    with open(path, "rb") as f:
-        if f.seek(0, os.SEEK_END) == 0:
-            return None
-        f.seek(-1, os.SEEK_END)
-        if f.read(1) == b"\n":
-            return None
-    last: list[str] = []
-    records = 0
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            for records, last in enumerate(csv.reader(f), 1):
-                pass
-    except (csv.Error, UnicodeDecodeError):  # (no CSV text: not a cut row)
-        return None
-    return records - 1 if len(last) < fields else None
-
-
 def _read_run_dir(out: Path) -> pd.DataFrame:
-    """A run directory's table: results.parquet unless the journal is newer (a run that
-    stopped before writing its table: the journal is the source of truth, read here
-    without writing anything), else results.csv."""
+    """A run directory's table, read without writing anything.  The journal is the source
+    of truth where there is one: results.parquet is read only when it holds exactly the
+    cells the journal names (``reading.journal_cell_ids``) and the journal was not changed
+    after it (by its file time: a time may send the reader to the journal, never away from
+    it); else the journal itself (a run that stopped before writing its table, a table
+    older than its journal whatever the files' times say).  Without a journal:
+    results.parquet, else results.csv."""
     pq, csv, journal = out / PARQUET_FILE, out / CSV_FILE, out / ROWS_FILE
-    if pq.is_file() and not (journal.is_file() and journal.stat().st_mtime > pq.stat().st_mtime):
-        return pd.read_parquet(literal_path(pq))
-    if journal.is_file():
-        return tidy_table(checked_journal(journal))
-    if csv.is_file():
-        return _read_csv(csv)
-    raise MissingTableError(f"no results table in {out}: expected {PARQUET_FILE}, {CSV_FILE} or {ROWS_FILE}")
+    if not journal.is_file():
+        if pq.is_file():
+            return pd.read_parquet(literal_path(pq))
+        if csv.is_file():
+            return read_csv(csv)
+        raise MissingTableError(f"no results table in {out}: expected {PARQUET_FILE}, {CSV_FILE} or {ROWS_FILE}")
+    if pq.is_file() and journal.stat().st_mtime <= pq.stat().st_mtime:
+        try:
+            table = pd.read_parquet(literal_path(pq))
+        except (OSError, ValueError):  # (an unreadable table: the journal it is made from is read)
+            table = None
+        if table is not None and "cell_id" in table.columns:
+            if set(text_values(table["cell_id"])) == journal_cell_ids(journal):
+                return table
+    return tidy_table(checked_journal(journal))
 
 
 def load_table(path: str | os.PathLike[str]) -> pd.DataFrame:
     """The one reader of a stored tidy table, with the schema checked and applied.
 
     ``path`` is a run directory (see ``_read_run_dir``) or a ``.parquet`` / ``.csv``
-    file; the first row of each cell is kept (``first_of_each_cell``).  Reading never
-    writes."""
+    file; the first row of each cell is kept (``reading.first_rows``: a row without a
+    cell id is of the cell its cell columns and ``repeat`` name).  Reading never writes."""
     p = Path(path)
     if p.is_dir():
         df = _read_run_dir(p)
     elif p.suffix == ".parquet" and p.is_file():
         df = pd.read_parquet(literal_path(p))
     elif p.suffix == ".csv" and p.is_file():
-        df = _read_csv(p)
+        df = read_csv(p)
     elif not p.exists():
         raise MissingTableError(f"no results table in {p}: the path does not exist")
     else:
         raise TableError(f"{p} is not a stored table (a run directory, .parquet or .csv)")
     check_table(df, p)
-    if "cell_id" in df.columns:
-        df = df[first_of_each_cell(df["cell_id"])].reset_index(drop=True)
-    return apply_schema(df)
+    df = apply_schema(df)
+    return df[first_rows(df)].reset_index(drop=True)

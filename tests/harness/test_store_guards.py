@@ -8,7 +8,8 @@ value past the table contract, and a cell is never counted twice.
   numbered past its reader), are ignored; a row without
   ``cell_id`` is refused in one line naming rows.jsonl and the line;
 * ``load_table`` keeps the first row of each cell of a results.parquet / results.csv, as
-  the journal reader does; rows without a cell id are all kept;
+  the journal reader does; rows without a cell id are told apart by the cell's columns
+  and their repeat (``schema.CELL_COLUMNS``), the first of each kept;
 * ``RunLock`` leaves a run.lock that is not a lock record as it is."""
 
 from __future__ import annotations
@@ -144,10 +145,11 @@ def test_load_table_keeps_the_first_row_of_each_cell(genuine: Path, tmp_path: Pa
     doubled.to_parquet(path, index=False) if suffix == ".parquet" else doubled.to_csv(path, index=False)
     got = load_table(path)
     assert len(got) == 2 and set(got["status"]) == {"solved"}
-    anonymous = doubled.assign(cell_id="")  # a table without cell ids: nothing to tell apart, all kept
+    anonymous = doubled.assign(cell_id="")  # a table without cell ids: told apart by the cells' columns
     path2 = tmp_path / f"anonymous{suffix}"
     anonymous.to_parquet(path2, index=False) if suffix == ".parquet" else anonymous.to_csv(path2, index=False)
-    assert len(load_table(path2)) == 6
+    got = load_table(path2)
+    assert len(got) == 2 and set(got["status"]) == {"solved"}
 
 
 def test_a_duplicated_cell_in_a_run_folder_table_counts_once(genuine: Path, tmp_path: Path) -> None:
