@@ -19,7 +19,7 @@ from contactbench.problems.atomic_files import not_utf8_text
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.units import plain_float, plain_int
 
-#: Exit status of bad input: refused before anything runs, in one line per problem.
+#: Exit status of bad input: refused before anything runs, in one line (its problems joined by "; ").
 EXIT_BAD_INPUT = 2
 #: A number, negative ones and exponents included: the value of an option, never an
 #: option itself (argparse's own pattern misses ``-1e-6``).

@@ -13,8 +13,8 @@
 The scene options' flags come from their records (``problems.scenes.options``; ``list
 options`` prints the table and the scenes that read each); their rules are the plan's.
 ``run`` plans first (``harness.run.plan``: every scene option, solver, profile and
-reference name is checked before anything runs; bad input exits 2 with one line per
-problem and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
+reference name is checked before anything runs; bad input exits 2 with one line, its
+problems joined by "; ", and writes nothing), then writes DIR/rows.jsonl (the resumable journal),
 DIR/results.parquet, DIR/results.csv and DIR/meta.json; running the same command
 again completes only the missing cells.
 
@@ -25,8 +25,8 @@ Exit status (docs/harness.md, "Exit status"):
   timed out, crashed or was skipped (the summary line and the table say why); or the
   run stopped once it ran -- a ``--jobs`` process killed, a write that failed (a full
   disk) -- its rows kept (one line);
-* 2 -- bad input, refused before anything runs, in one line per problem and no
-  traceback: an unknown name (with the closest known ones), an empty or repeated item of
+* 2 -- bad input, refused before anything runs, in one line (its problems joined by
+  "; ") and no traceback: an unknown name (with the closest known ones), an empty or repeated item of
   a comma list (``--solvers pk,,nnls``, ``--profile low,low``), an option the scene would
   ignore, a configuration that cannot run (``--kernel spectral`` without
   ``--periodic``, an implausible ``--E``), or a path that cannot be read or written;
@@ -46,12 +46,10 @@ import threading
 import warnings
 from contextlib import contextmanager
 from importlib import metadata
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 from contactbench.problems.atomic_files import names_nothing
-from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.operators import fft_backend, fft_workers, memory_budget_scope
 from contactbench.problems.scenes import all_scenes
 from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionRecord
@@ -59,6 +57,7 @@ from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS, OptionR
 from contactbench.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, STARTING_TEXT
 from contactbench.plugins import did_you_mean
 
+from .held_warnings import INPUT_ERRORS, HeldWarnings, held_warnings
 from .arguments import (EXIT_BAD_INPUT, InputError, Parser, check_out_dir, check_utf8_path, comma_items, os_error_line,
                         positive_float, time_limit, positive_number, plain_number)
 
@@ -78,22 +77,40 @@ class Terminated(KeyboardInterrupt):
 
 
 @contextmanager
-def terminate_as_interrupt() -> Iterator[None]:
+def terminate_as_interrupt() -> Iterator[list[int]]:
     """SIGTERM raises ``Terminated`` in the main thread for the block (elsewhere: nothing
-    changes); the handler before is put back after.  The processes this one starts set
-    SIGTERM back to its default (harness/run/executors.py, harness/run/isolation.py)."""
+    changes); the handler before is put back after.  The list yielded gets the signal's
+    number each time the handler runs (``main``: a ``Terminated`` that Python swallowed, in
+    a weakref callback, still ends the command as terminated).  The processes this one
+    starts set SIGTERM back to its default (harness/run/executors.py, harness/run/isolation.py)."""
+    fired: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield fired
         return
 
     def raise_terminated(signum: int, frame: Any) -> None:
+        fired.append(signum)
         raise Terminated()
 
     before = signal.signal(signal.SIGTERM, raise_terminated)
     try:
-        yield
+        yield fired
     finally:
         signal.signal(signal.SIGTERM, before)
+
+
+def interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or SIGTERM (``Terminated``) that ``exc`` carries in its ``__cause__`` /
+    ``__context__`` chain, ``exc`` itself included (an interrupt that landed inside code that
+    wraps what it raises: ``__set_name__``'s RuntimeError), else None."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
+            return link
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    return None
 
 
 def output_reader_gone() -> int:
@@ -380,56 +397,6 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
         add_option(p, rec)
 
 
-#: What a command refuses bad input with (``_main``: one line per problem, exit 2; an
-#: ``OSError``: a path that cannot be read or written); the warnings its checks raised are
-#: then not shown (``HeldWarnings``).
-INPUT_ERRORS: tuple[type[Exception], ...] = (ProblemInputError, KeyError, ValueError)
-BAD_INPUT_ERRORS: tuple[type[Exception], ...] = (*INPUT_ERRORS, OSError)
-
-
-@dataclass
-class HeldWarnings:
-    """A ``warnings.showwarning`` that holds the warnings a command raises while it checks
-    its input, so that bad input is refused in its one line with nothing before it: once
-    every check has passed the command calls ``release`` (the warnings held are shown, in
-    order, and any later one at once); warnings still held when the command refuses its
-    input are dropped (``held_warnings``)."""
-
-    show: Any
-    held: list[tuple[Any, ...]] = field(default_factory=list)
-    released: bool = False
-
-    def __call__(self, message: Warning | str, category: type[Warning], filename: str, lineno: int,
-                 file: Any = None, line: str | None = None) -> None:
-        if self.released:
-            self.show(message, category, filename, lineno, file, line)
-        else:
-            self.held.append((message, category, filename, lineno, file, line))
-
-    def release(self) -> None:
-        """Show the warnings held, and from now on each warning at once."""
-        self.released = True
-        held, self.held = self.held, []
-        for args in held:
-            self.show(*args)
-
-
-@contextmanager
-def held_warnings() -> Iterator[HeldWarnings]:
-    """Hold the warnings shown in the block (``HeldWarnings``); at its end those still held
-    are shown, unless it ended by refusing bad input (``BAD_INPUT_ERRORS``)."""
-    holder = HeldWarnings(warnings.showwarning)
-    warnings.showwarning = holder
-    try:
-        yield holder
-    except BAD_INPUT_ERRORS:
-        holder.held.clear()
-        raise
-    finally:
-        warnings.showwarning = holder.show
-        holder.release()
-
-
 def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | None = None) -> int:
     """``run``: plan, check the folder, run; ``held``: the command's held warnings, shown
     once every check has passed (``run_benchmark``'s ``ready``; a Dask run's when it ends)."""
@@ -528,6 +495,9 @@ def cmd_report(out_dir: str) -> int:
     if names_nothing(out_dir):  # ("" would read the current folder)
         raise InputError(f"report: the folder must be named, got {out_dir!r}")
     check_utf8_path(out_dir, "report")
+    if Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise InputError(f"report {out_dir}: a file, not a run folder (give the --out folder of a run, which holds "
+                         "its results table)")
     if not Path(out_dir).is_dir():
         raise InputError(f"report {out_dir}: no such folder (give the --out folder of a run)")
     from .report.build import build_report
@@ -605,13 +575,30 @@ def show_warning_on_one_line(message: Warning | str, category: type[Warning], fi
     print(f"contactbench: warning: {message}", file=sys.stderr if file is None else file)
 
 
+#: The line's text of a SIGTERM that reached the handler but whose ``Terminated`` Python
+#: swallowed (raised in a weakref callback: "Exception ignored"), the command run on to its end.
+SWALLOWED_TEXT = "the signal arrived where Python could not stop the command, which ran on to its end"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """The command line (module doc); its exit status.  An exception whose cause or context
+    holds a Ctrl-C or SIGTERM is that interrupt (``interrupt_in_chain``); a SIGTERM whose
+    ``Terminated`` was swallowed still ends it with ``EXIT_TERMINATED``."""
+    fired: list[int] = []
     try:
-        with warnings.catch_warnings(), terminate_as_interrupt():
+        with warnings.catch_warnings(), terminate_as_interrupt() as fired:
             warnings.showwarning = show_warning_on_one_line
-            return _main(list(sys.argv[1:] if argv is None else argv))
-    except KeyboardInterrupt as exc:  # (stopped before a command ran: while its arguments and modules were read)
+            code = _main(list(sys.argv[1:] if argv is None else argv))
+    except Exception as exc:  # (stopped before a command ran: while its arguments and modules were read)
+        interrupt = interrupt_in_chain(exc)
+        if interrupt is None:
+            raise
+        return stopped(interrupt, STARTING_TEXT)
+    except KeyboardInterrupt as exc:
         return stopped(exc, STARTING_TEXT)
+    if fired and code not in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+        return stopped(Terminated(), SWALLOWED_TEXT)
+    return code
 
 
 def _main(argv: list[str]) -> int:
@@ -622,29 +609,44 @@ def _main(argv: list[str]) -> int:
         return cmd_validate(forwarded)
     args = build_parser().parse_args(argv)
     try:
-        if args.command == "list":
-            return cmd_list(args.what, args.params)
-        if args.command == "run":
-            with held_warnings() as held:
-                return cmd_run(args, argv, held)
-        if args.command == "report":
-            return cmd_report(args.dir)
-        if args.command == "export":
-            with held_warnings() as held:
-                return cmd_export(args, held)
+        try:
+            return run_command(args, argv)
+        except Exception as exc:  # an interrupt wrapped by the code it landed in is that interrupt
+            interrupt = interrupt_in_chain(exc)
+            if interrupt is None:
+                raise
+            raise interrupt from None
     except KeyboardInterrupt as exc:
         return stopped(exc, interrupted_text(args))
-    except INPUT_ERRORS as exc:
+    except INPUT_ERRORS as exc:  # one line: the problems joined by "; "
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        for line in str(msg).splitlines() or [""]:
-            print(f"contactbench: error: {line}", file=sys.stderr)
+        print(f"contactbench: error: {one_line(str(msg))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except BrokenPipeError:  # the reader of our output has gone (`contactbench list solvers | head`)
         return output_reader_gone()
     except OSError as exc:  # a path that cannot be read or written: one line naming it
         print(f"contactbench: error: {os_error_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+
+
+def run_command(args: argparse.Namespace, argv: list[str]) -> int:
+    """Run the command ``args`` names (``list``, ``run``, ``report``, ``export``)."""
+    if args.command == "list":
+        return cmd_list(args.what, args.params)
+    if args.command == "run":
+        with held_warnings() as held:
+            return cmd_run(args, argv, held)
+    if args.command == "report":
+        return cmd_report(args.dir)
+    if args.command == "export":
+        with held_warnings() as held:
+            return cmd_export(args, held)
     return 1
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line: its non-blank lines, stripped, joined by "; "."""
+    return "; ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -375,8 +375,9 @@ class EquilibratedAdapter(Solver):
         finite = x is not None and x.shape == sqp.u.shape and bool(np.all(np.isfinite(x)))
         status = status_of(out, finite, ctx.expired())
         if not finite:
-            return Outcome(np.full(sqp.n, np.nan), out.iterations, False, "backend returned no finite solution",
-                           status=status, info=info)
+            return Outcome(np.full(sqp.n, np.nan), out.iterations, False,
+                           f"backend returned no finite solution (backend status: {out.status})", status=status,
+                           info=info)
         if self.polish and not ctx.constraints.plain:
             return checked_claim(ctx, self._constrained_polish(sqp, x, ctx, status, info))
         if self.polish:

@@ -27,6 +27,7 @@ import numpy as np
 
 from contactbench.problems.lcp import cholesky_factor
 
+from ._params import ParamError
 from .base import Capabilities, Param, SolveContext
 from .qp_backends import OptionMap, clarabel_options, osqp_options, piqp_options, scs_options
 from .registry import register
@@ -66,6 +67,27 @@ def cvxpy_problem(H: np.ndarray, u: np.ndarray, form: str, ub: np.ndarray | None
     return cp.Problem(cp.Minimize(objective), constraints), p
 
 
+def installed_backends() -> tuple[str, ...] | None:
+    """The solver names CVXPY has installed here (upper case, ``cvxpy.installed_solvers``),
+    or None where CVXPY itself does not import (``availability`` then says why)."""
+    try:
+        import cvxpy as cp
+    except Exception:  # (not installed, or broken: the solver's availability names it)
+        return None
+    return tuple(str(s).upper() for s in cp.installed_solvers())
+
+
+def check_backend(solver: str, backend: Any) -> None:
+    """A one-line ``ParamError`` naming the installed backends unless ``backend`` (the
+    ``solver`` parameter of solver ``solver``, case-insensitive) is a CVXPY solver
+    installed here; nothing is checked where CVXPY does not import."""
+    installed = installed_backends()
+    if installed is None or str(backend).upper() in installed:
+        return
+    raise ParamError(f"solver {solver!r}: parameter 'solver' names the CVXPY backend {backend!r}, which is not "
+                     f"installed here; installed: {', '.join(installed) or '(none)'}")
+
+
 @dataclass
 class CVXPYModel:
     """The model built at build time, and what it was built for."""
@@ -96,6 +118,15 @@ class CVXPYAdapter(EquilibratedAdapter):
     memory_copies: ClassVar[float] = 7.0
     time_coef: ClassVar[float] = 2.8e-9
     time_exponent: ClassVar[float] = 3.0
+
+    def resolve_params(self, given: dict[str, Any] | None) -> dict[str, Any]:
+        """As the base's; a ``solver`` given that CVXPY has not installed here is a
+        ``ParamError`` naming the installed ones (``check_backend``), so that the plan
+        refuses it before anything runs.  The default is not checked (its rows say why)."""
+        params = super().resolve_params(given)
+        if given and "solver" in given:
+            check_backend(self.name, params["solver"])
+        return params
 
     def prepare(self, sqp: ScaledQP, ctx: SolveContext) -> CVXPYModel:
         form = str(ctx.params["form"])

@@ -14,12 +14,14 @@ pytest plugin and Dask runs all come through here), a plan too big to run (more 
 every scene's ``validate`` (sizes, surfaces, loads, and -- where a value is outside its
 plausible range or the surface is a measured map -- the kernel table and forces they make,
 ``scenes.core.check_float_range``), a scene whose every cell the solvers'
-time and memory models reject (``model_rejections``: from the trial-set sizes the scene
-tells, ``Scene.validate_sizes``, as the run's skip policy would), a solver list that
+declared capabilities (bounds or a load equality they cannot pose, ``max_n``, the
+operator) or time and memory models reject (``model_rejections``: from the trial-set
+sizes the scene tells, ``Scene.validate_sizes``, as the run's skip policy would), a
+``--reference`` that would serve none of its steps (``reference_rejection``), a solver list that
 names no solver (``names_no_solver``: ``[]``, ``""``, ``","``), every solver name,
 profile and reference name.  All problems found
-are raised together as one ``PlanError`` (a ``ProblemInputError``), one line each; the
-command line turns it into exit status 2 and writes no table.
+are raised together as one ``PlanError`` (a ``ProblemInputError``), on one line joined
+by "; "; the command line turns it into exit status 2 and writes no table.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
 from contactbench.problems.scenes.base import StepSizes, scene_counts
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers._loading import file_path_hint, user_code
-from contactbench.solvers.base import ProblemTraits, Solver
+from contactbench.solvers.base import ProblemTraits, Solver, constraint_skip
 from contactbench.solvers.registry import (NamedVariant, SolverLoadError, SolverSpec, all_solvers, available_solvers,
                                            check_late_sources,
                                            expand_solver_spec, get_solver, import_user_module, is_import_path,
@@ -210,11 +212,12 @@ class RunPlan:
 
 
 class PlanError(ProblemInputError):
-    """Bad input found while planning: one line per problem."""
+    """Bad input found while planning: ``problems``, one per item, and its text those
+    joined by "; " (one line: the command line prints it as one)."""
 
     def __init__(self, problems: Sequence[str]) -> None:
         self.problems = list(problems)
-        super().__init__("\n".join(self.problems))
+        super().__init__("; ".join(self.problems))
 
 
 # ---------------------------------------------------------------------------
@@ -401,7 +404,8 @@ def _estimate(instances: int, cells: int, specs: list[InstanceSpec]) -> SceneEst
 
 def check_bounds(est: SceneEstimate, run: RunConfig) -> None:
     """Refuse a scene whose plan is beyond ``run.max_cells`` or whose largest instance is
-    beyond ``run.memory_budget`` (``ProblemInputError`` with the estimate)."""
+    beyond ``run.memory_budget`` (``ProblemInputError`` with the estimate, its problems
+    joined by "; " on one line)."""
     problems = []
     if est.largest_bytes > run.memory_budget:
         problems.append(f"its largest instance ({est.largest}) needs at least {est.largest_bytes / 2**30:.3g} GiB, "
@@ -411,7 +415,7 @@ def check_bounds(est: SceneEstimate, run: RunConfig) -> None:
                         f"{'' if est.instances == 1 else 's'}), over the limit of "
                         f"{run.max_cells:,} (--max-cells)")
     if problems:
-        raise ProblemInputError("\n".join(problems))
+        raise ProblemInputError("; ".join(problems))
 
 
 def scene_jobs(study: Study, cfg: SceneConfig, solvers: Sequence[str | SolverSpec],
@@ -437,6 +441,10 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: Sequence[str | SolverSpe
     if rejected:
         raise ProblemInputError(f"every cell would be skipped: {rejected}; choose a smaller --size, other --solvers, "
                                 "a longer --timeout or a larger --memory-budget-gb")
+    unserved = reference_rejection(run.reference, jobs, sizes, run)
+    if unserved:
+        raise ProblemInputError(f"--reference {run.reference} would serve no step: {unserved}; choose another "
+                                "--reference, 'auto' or 'none'")
     return jobs, [f"{study.scene}: {w}" for w in scene.warnings(merged)]
 
 
@@ -450,12 +458,16 @@ def step_traits(params: dict[str, Any], n: int, side: int) -> ProblemTraits:
                          bounded=params.get("hardness") is not None, layer=layer)
 
 
-def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[bool, str]:
-    """(whether solver ``base`` would run on a step with ``traits``, the memory or time
-    model's reason when that model alone rejects it).  A solver that cannot be loaded, is
-    unavailable or skips for another reason (its ``max_n``, operator, own ``skip``) is
-    neither: the run records that skip with its reason, as before; one whose model or
-    skip check raised (``Decision.failed``) would run, to record its failed rows."""
+def model_rejection(base: str, traits: ProblemTraits, run: RunConfig, params: dict[str, Any] | None = None,
+                    timeout: float | None = None) -> tuple[bool, str]:
+    """(whether solver ``base`` with ``params`` would run on a step with ``traits``, the
+    reason when it would be skipped for what it declares: its ``capabilities``
+    (``declared_incapacity``: its ``max_n``, the operator, a load equality or bounds it
+    cannot pose) or its memory or time model, at ``run.memory_budget`` and ``timeout``
+    (None: ``run.timeout``)).  A solver that cannot be loaded, is unavailable or whose own
+    ``skip``/``skip_params`` alone skips the step is neither: the run records that skip
+    with its reason, as before; one whose availability, model or skip check raised
+    (``Decision.failed``) would run, to record its failed rows."""
     try:
         solver = load_solver(base)
     except Exception:  # (the plan names an unloadable solver elsewhere)
@@ -463,15 +475,29 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig) -> tuple[b
     ok, _, failed = checked_availability(solver)
     if not ok:  # an availability() that failed runs, to record its failed rows
         return failed, ""
-    free = capability_decision(solver, traits, float("inf"))
+    free = capability_decision(solver, traits, float("inf"), params)
     if free.skip:  # a model or skip check that raised runs, to record its failed rows
-        return free.failed, ""
-    d = capability_decision(solver, traits, run.memory_budget)
+        declared = not free.failed and bool(declared_incapacity(solver, traits))
+        return free.failed, free.reason if declared else ""
+    d = capability_decision(solver, traits, run.memory_budget, params)
     if not d.skip:
-        d = time_decision(solver, traits, d.operator, run.timeout, None)
+        d = time_decision(solver, traits, d.operator, run.timeout if timeout is None else timeout, None)
     if d.skip and not d.failed:
         return False, d.reason
     return True, ""
+
+
+def declared_incapacity(solver: Solver, traits: ProblemTraits) -> str:
+    """Why ``solver`` cannot take a step with ``traits`` by its declared ``capabilities``
+    alone, which the plan knows as the run does ("" when it can): n over its ``max_n``, a
+    dense H where it takes only the FFT operator, a load equality or bounds it cannot pose
+    (``constraint_skip``)."""
+    caps = solver.capabilities
+    if caps.max_n is not None and traits.n > caps.max_n:
+        return f"n = {traits.n} exceeds max_n = {caps.max_n}"
+    if traits.operator == "dense" and "dense" not in caps.operators:
+        return "it needs the FFT operator"
+    return constraint_skip(caps, traits.load_control, traits.bounded, solver.name) or ""
 
 
 def check_device_fit(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]) -> None:
@@ -495,8 +521,9 @@ def check_device_fit(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]) -
 
 def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], run: RunConfig) -> str:
     """"" when some cell of ``jobs`` would run, or when the scene tells no sizes; else,
-    where the time or memory model rejects every cell, the reason at the smallest step of
-    each solver (one line)."""
+    where every cell would be skipped for what its solver declares (``model_rejection``:
+    a capability, the time or memory model), the reason at the smallest step of each
+    solver (one line)."""
     reasons: dict[str, str] = {}
     for job in jobs:
         size = sizes.get(job.spec.instance)
@@ -505,7 +532,7 @@ def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], r
         for n in sorted(set(size.n)):
             traits = step_traits(job.spec.params, n, size.side)
             for v in job.variants:
-                runs, why = model_rejection(v.base, traits, run)
+                runs, why = model_rejection(v.base, traits, run, v.params)
                 if runs:
                     return ""
                 if why:
@@ -515,6 +542,29 @@ def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], r
     shown = [f"{name}: {why}" for name, why in list(reasons.items())[:3]]
     more = f" (and {len(reasons) - 3} more)" if len(reasons) > 3 else ""
     return "; ".join(shown) + more
+
+
+def reference_rejection(reference: str, jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes],
+                        run: RunConfig) -> str:
+    """"" unless ``reference`` names a solver (not "auto" or "none") that would be skipped
+    on every step of ``jobs`` (``model_rejection`` at the reference's limit,
+    ``RunConfig.ref_timeout``); then the reason at the first step (one line).  A scene
+    that tells no sizes, or a reference that cannot be loaded (named elsewhere) or is
+    unavailable, is not refused here."""
+    if reference in ("auto", "none") or not jobs:
+        return ""
+    first = ""
+    for job in jobs:
+        size = sizes.get(job.spec.instance)
+        if size is None:
+            return ""
+        for n in sorted(set(size.n)):
+            runs, why = model_rejection(reference, step_traits(job.spec.params, n, size.side), run,
+                                        timeout=run.ref_timeout)
+            if runs or not why:
+                return ""
+            first = first or why
+    return first
 
 
 def check_height_unit_applied(name: str, cfg: SceneConfig, scene: Any) -> None:
