@@ -38,7 +38,7 @@ from .instances import ContactInstance
 from .operators import check_dense_budget, memory_budget
 from .qpfile import problem_payload
 from .scenes import SceneConfig, get_scene
-from .scenes.base import InstanceSpec, LoadSequence, StepSizes, scene_counts
+from .scenes.base import InstanceSpec, LoadSequence, StepSizes, check_instance_memory, scene_counts
 from .scenes.options import check_config
 
 #: The most QPs (instances x steps) one export may write (``export_scene``'s ``max_qps``),
@@ -110,13 +110,17 @@ def check_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[Any,
     ``SceneConfig``), its options and inputs checked as the planner does and its QPs
     counted (``scene_counts``): more than ``max_qps`` is a one-line ``ProblemInputError``
     before any recipe of the whole range is made."""
-    scene, merged, _ = checked_scene(scene_name, cfg, max_qps)
+    scene, merged, _, _ = checked_scene(scene_name, cfg, max_qps)
     return scene, merged
 
 
-def checked_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[Any, SceneConfig, dict[str, StepSizes]]:
-    """``check_scene``, and the sizes of the recipes' steps where the scene tells them
-    (``Scene.validate_sizes``, by instance name; its ``validate`` is the same check)."""
+def checked_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS
+                  ) -> tuple[Any, SceneConfig, dict[str, StepSizes], list[InstanceSpec]]:
+    """``check_scene``, the sizes of the recipes' steps where the scene tells them
+    (``Scene.validate_sizes``, by instance name; its ``validate`` is the same check), and
+    the recipes.  A recipe whose instance would not fit the memory budget
+    (``scenes.base.check_instance_memory``, ``operators.memory_budget``) is refused before
+    any surface is made."""
     scene = get_scene(scene_name)
     check_config(scene_name, [scene], [cfg or SceneConfig()], cfg)
     merged = scene.config(cfg)
@@ -128,7 +132,9 @@ def checked_scene(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> tuple[An
         raise ProblemInputError(f"the export of {scene_name} has {size.steps:,} QPs ({size.instances:,} instance"
                                 f"{'' if size.instances == 1 else 's'} x their steps), over the limit of {limit:,}; "
                                 "choose fewer --steps or --seeds, or a larger --max-qps")
-    return scene, merged, scene.validate_sizes(merged)
+    specs = list(scene.instances(merged))
+    check_instance_memory(specs, memory_budget(), "CONTACTBENCH_MEMORY_BUDGET_GB", f"the export of {scene_name}")
+    return scene, merged, scene.validate_sizes(merged), specs
 
 
 def scene_steps(scene_name: str, cfg: Any, max_qps: int = MAX_QPS) -> Iterator[tuple[str, int, ContactInstance]]:
@@ -148,8 +154,7 @@ def plan_export(scene_name: str, cfg: Any, dense_limit: int, *, tables: bool, to
     refusal is a one-line ``ProblemInputError`` naming the QP.  ``tables``: whether a QP
     over ``dense_limit`` is written as its kernel table (problem-dir, hdf5) rather than
     skipped (qpbenchmark); ``tol`` as the export writes it.  Writes nothing."""
-    scene, merged, sizes = checked_scene(scene_name, cfg, max_qps)
-    specs = list(scene.instances(merged))
+    scene, merged, sizes, specs = checked_scene(scene_name, cfg, max_qps)
     qps: list[PlannedQP] = []
     names: set[str] = set()
     keep = Keeper(KEEP_SHARE * memory_budget())

@@ -43,7 +43,7 @@ from contactbench.problems.operators import DEFAULT_MEMORY_BUDGET
 from contactbench.problems.instances import check_operator_kind
 from contactbench.problems.operators_gpu import device_misfit
 from contactbench.problems.scenes import InstanceSpec, SceneConfig, get_scene
-from contactbench.problems.scenes.base import StepSizes, scene_counts
+from contactbench.problems.scenes.base import StepSizes, largest_recipe, scene_counts
 from contactbench.problems.scenes.options import config_problems
 from contactbench.solvers._loading import file_path_hint, user_code
 from contactbench.solvers.base import ProblemTraits, Solver, constraint_skip
@@ -65,11 +65,6 @@ from .studies import SolverVariant, Study, expand
 
 #: Default of ``RunConfig.max_cells`` (``--max-cells``).
 DEFAULT_MAX_CELLS = 100_000
-#: Lower bound of an instance's memory on an N x N grid (``instance_nbytes``): float64 or
-#: int64 arrays per grid point (heights, gap, pressure, grid index), and complex128
-#: half-spectra of the (padded) grid (the kernel's and one work buffer).
-GRID_ARRAYS = 4
-SPECTRA = 2
 
 
 #: A reference solve's time limit where the run names none (``RunConfig.reference_timeout``
@@ -369,22 +364,6 @@ class SceneEstimate:
     largest: str
 
 
-def instance_nbytes(params: dict[str, Any]) -> float:
-    """At least the bytes one instance of recipe ``params`` needs: on an N x N grid
-    (``size``) ``GRID_ARRAYS`` arrays of N^2 eight-byte numbers and ``SPECTRA``
-    complex128 half-spectra of the grid (padded to 2N x 2N unless periodic); for a
-    problem given by its size n (``n``), the dense H (8 n^2 bytes) where the operator is
-    dense."""
-    size, n = params.get("size"), params.get("n")
-    if isinstance(size, (int, float)) and size > 0:
-        N = int(size)
-        P = N if params.get("periodic") else 2 * N
-        return float(8 * GRID_ARRAYS * N * N + SPECTRA * 16 * P * (P // 2 + 1))
-    if isinstance(n, (int, float)) and n > 0:
-        return float(8 * int(n) * int(n) if params.get("operator") == "dense" else 8 * GRID_ARRAYS * int(n))
-    return 0.0
-
-
 def estimate_scene(scene: Any, cfg: SceneConfig, per_step: int) -> SceneEstimate:
     """The plan size of ``scene`` under ``cfg`` (merged) with ``per_step`` cells per
     instance step (variants x profiles x repeats), counted from the recipes without
@@ -394,12 +373,8 @@ def estimate_scene(scene: Any, cfg: SceneConfig, per_step: int) -> SceneEstimate
 
 
 def _estimate(instances: int, cells: int, specs: list[InstanceSpec]) -> SceneEstimate:
-    largest = max(specs, key=lambda s: instance_nbytes(s.params), default=None)
-    if largest is None:
-        return SceneEstimate(instances, cells, 0.0, "")
-    p = largest.params
-    what = f"N = {p['size']}" if p.get("size") else (f"n = {p['n']}" if p.get("n") else largest.instance)
-    return SceneEstimate(instances, cells, instance_nbytes(p), what)
+    what, nbytes = largest_recipe(specs)
+    return SceneEstimate(instances, cells, nbytes, what)
 
 
 def check_bounds(est: SceneEstimate, run: RunConfig) -> None:

@@ -197,6 +197,50 @@ def get_scene(name: str) -> Scene:
     return _SCENES.get(name)
 
 
+#: Lower bound of an instance's memory on an N x N grid (``instance_nbytes``): float64 or
+#: int64 arrays per grid point (heights, gap, pressure, grid index), and complex128
+#: half-spectra of the (padded) grid (the kernel's and one work buffer).
+GRID_ARRAYS = 4
+SPECTRA = 2
+
+
+def instance_nbytes(params: dict[str, Any]) -> float:
+    """At least the bytes one instance of recipe ``params`` needs: on an N x N grid
+    (``size``) ``GRID_ARRAYS`` arrays of N^2 eight-byte numbers and ``SPECTRA``
+    complex128 half-spectra of the grid (padded to 2N x 2N unless periodic); for a
+    problem given by its size n (``n``), the dense H (8 n^2 bytes) where the operator is
+    dense."""
+    size, n = params.get("size"), params.get("n")
+    if isinstance(size, (int, float)) and size > 0:
+        N = int(size)
+        P = N if params.get("periodic") else 2 * N
+        return float(8 * GRID_ARRAYS * N * N + SPECTRA * 16 * P * (P // 2 + 1))
+    if isinstance(n, (int, float)) and n > 0:
+        return float(8 * int(n) * int(n) if params.get("operator") == "dense" else 8 * GRID_ARRAYS * int(n))
+    return 0.0
+
+
+def largest_recipe(specs: Sequence[InstanceSpec]) -> tuple[str, float]:
+    """(what names it, its bytes by ``instance_nbytes``) of the recipe of ``specs`` that
+    needs the most memory: "N = <size>", "n = <n>" or its instance name; ("", 0.0) for none."""
+    largest = max(specs, key=lambda s: instance_nbytes(s.params), default=None)
+    if largest is None:
+        return "", 0.0
+    p = largest.params
+    what = f"N = {p['size']}" if p.get("size") else (f"n = {p['n']}" if p.get("n") else largest.instance)
+    return what, instance_nbytes(p)
+
+
+def check_instance_memory(specs: Sequence[InstanceSpec], budget: float, what: str, subject: str) -> None:
+    """A one-line ``ProblemInputError`` where the largest recipe of ``specs`` needs more
+    than ``budget`` bytes by ``instance_nbytes`` (before anything is built; ``what``: the
+    budget's name for the user, e.g. an option; ``subject``: what the recipes are of)."""
+    largest, nbytes = largest_recipe(specs)
+    if nbytes > budget:
+        raise ProblemInputError(f"{subject}: its largest instance ({largest}) needs at least {nbytes / 2**30:.3g} GiB, "
+                                f"over the memory budget of {budget / 2**30:.3g} GiB ({what})")
+
+
 class SceneCount(NamedTuple):
     """The size of a scene under one configuration, counted from its recipes alone."""
 

@@ -164,7 +164,7 @@ def test_observed_step_time_replaces_the_static_time_model(tmp_path: Path) -> No
 def test_dense_solver_beyond_the_memory_budget_is_skipped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from contactbench.harness.run import plan
 
-    monkeypatch.setattr(plan, "instance_nbytes", lambda params: 0.0)  # (the plan's own bound: test_run_folder.py)
+    monkeypatch.setattr(plan, "largest_recipe", lambda specs: ("", 0.0))  # (the plan's own bound: test_run_folder.py)
     monkeypatch.setattr(plan, "model_rejections", lambda *args: "")  # (its refusal: test_option_records.py)
     df = run(tmp_path, ["test-exact"], reference="none", memory_budget=4.0)  # bytes: n = 1 needs 8
     assert (df.status == "skipped").all()

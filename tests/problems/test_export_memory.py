@@ -74,3 +74,15 @@ def test_a_qpbenchmark_export_holds_one_P_at_a_time(tmp_path: Path) -> None:
         tracemalloc.stop()
     assert len(summary.written) == len(sizes) == 8
     assert export_peak <= build_peak + kept + 2 * one_P, (export_peak / one_P, build_peak / one_P)
+
+
+def test_a_grid_over_the_memory_budget_is_refused_before_any_surface_is_made(tmp_path: Path) -> None:
+    """The largest recipe's instance (``scenes.base.instance_nbytes``: its grid arrays and
+    spectra) over the budget is refused in one line naming it, nothing written: a 65537^2
+    export had made a 32 GiB surface and died with a traceback."""
+    out = tmp_path / "export"
+    with memory_budget_scope(BUDGET), pytest.raises(ProblemInputError) as exc:
+        export_scene("paper-sweep", SceneConfig(size=257, steps=2), "problem-dir", out)
+    text = str(exc.value)
+    assert "\n" not in text and "the export of paper-sweep" in text and "N = 257" in text and "memory budget" in text
+    assert not out.exists()
