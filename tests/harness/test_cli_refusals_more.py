@@ -56,6 +56,15 @@ def test_a_reference_that_cannot_pose_the_problem_is_refused(tmp_path: Path,
     assert not out.exists()
 
 
+def test_a_reference_timeout_without_a_reference_is_refused(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "o"
+    line = refused(["run", "paper-sweep", *TINY, "--solvers", "pk", "--reference", "none", "--reference-timeout", "3",
+                    "--out", str(out)], capsys)
+    assert "--reference-timeout" in line and "--reference none" in line, line
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("args, words", [
     (["run", "counterexample", "--control", "load", "--loads", "0.001"], ["--control", "--loads"]),
     (["run", "paper-sweep", "--size", "16", "--seeds", "0", "--surface", "X"], ["--size", "--seeds"]),
