@@ -185,11 +185,14 @@ def comma_items(text: str, split: Callable[[str], list[str]] | None = None, repe
 
 def check_out_dir(path: str, option: str = "--out") -> Path:
     """``path`` if it is, or can be made, a folder we may write: else one ``InputError``
-    naming it (a name that is not UTF-8 text, which the table's writer cannot take; an
+    naming it (a name that is not UTF-8 text, which the table's writer cannot take; one
+    holding a control character, which would break the lines that name it; an
     existing file, a path under a file, a path through a symbolic link that leads to
     nothing, where no folder can be made, a folder we may not write).  A ``path`` that is
     itself a link to a folder is that folder.  Creates nothing."""
     check_utf8_path(path, option)
+    if any(ord(c) < 32 or ord(c) == 127 for c in path):  # (each line the command prints names it on one line)
+        raise InputError(f"{option} {path!r}: the name holds a control character (a newline, a tab); choose another")
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise InputError(f"{option} {path}: exists and is not a folder")

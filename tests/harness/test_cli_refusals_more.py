@@ -65,6 +65,15 @@ def test_a_reference_timeout_without_a_reference_is_refused(tmp_path: Path,
     assert not out.exists()
 
 
+@pytest.mark.parametrize("name", ["nl\nx", "tab\tx", "cr\rx"])
+def test_an_out_folder_named_with_a_control_character_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                                 name: str) -> None:
+    out = tmp_path / name
+    line = refused(["run", "paper-sweep", *TINY, "--solvers", "pk", "--reference", "none", "--out", str(out)], capsys)
+    assert "control character" in line, line
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("args, words", [
     (["run", "counterexample", "--control", "load", "--loads", "0.001"], ["--control", "--loads"]),
     (["run", "paper-sweep", "--size", "16", "--seeds", "0", "--surface", "X"], ["--size", "--seeds"]),
