@@ -116,9 +116,6 @@ class RunConfig:
         check_time_limit(self.timeout, "timeout", "--timeout")  # (its rows record it: time_limit_s)
         if self.reference_timeout is not None:
             check_time_limit(self.reference_timeout, "reference_timeout", "--reference-timeout")
-            if self.reference == "none":
-                raise ValueError("--reference-timeout times the reference solve, and --reference none asks for none; "
-                                 "drop one of them")
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
         if self.max_cells < 1:

@@ -56,15 +56,6 @@ def test_a_reference_that_cannot_pose_the_problem_is_refused(tmp_path: Path,
     assert not out.exists()
 
 
-def test_a_reference_timeout_without_a_reference_is_refused(tmp_path: Path,
-                                                           capsys: pytest.CaptureFixture[str]) -> None:
-    out = tmp_path / "o"
-    line = refused(["run", "paper-sweep", *TINY, "--solvers", "pk", "--reference", "none", "--reference-timeout", "3",
-                    "--out", str(out)], capsys)
-    assert "--reference-timeout" in line and "--reference none" in line, line
-    assert not out.exists()
-
-
 @pytest.mark.parametrize("name", ["nl\nx", "tab\tx", "cr\rx"])
 def test_an_out_folder_named_with_a_control_character_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                                  name: str) -> None:
