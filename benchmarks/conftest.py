@@ -13,17 +13,19 @@ variable, its value and what it takes (``pytest.UsageError``, exit status 4):
                                 (default 3).
 
 A timing counts only when the judge passes every solve of its benchmark, the untimed
-warm-up included (``judged_benchmark``): any other benchmark -- a wrong answer, an honest
-non-convergence, an expected failure, a timeout, a crash -- is left out of the timing
-table (``pytest_benchmark_group_stats``) and of the JSON and saved runs (pytest-benchmark
-leaves out a benchmark whose ``has_error`` is set).
+warm-up included (the plugin's ``contactbench_benchmark``:
+``harness.judged_benchmark.JudgedBenchmark``): any other benchmark -- a wrong answer, an
+honest non-convergence, an expected failure, a timeout, a crash, a solver caching across
+solves -- is left out of the timing table (the plugin's ``pytest_benchmark_group_stats``:
+``keep_judged``) and of the JSON and saved runs (pytest-benchmark leaves out a benchmark
+whose ``has_error`` is set).
 """
 
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any, Generator, Mapping
+from typing import Mapping
 
 import pytest
 
@@ -34,9 +36,6 @@ PROFILE_VAR = "CONTACTBENCH_BENCH_PROFILE"
 TIMEOUT_VAR = "CONTACTBENCH_BENCH_TIMEOUT"
 ROUNDS_VAR = "CONTACTBENCH_BENCH_ROUNDS"
 DEFAULTS = {PROFILE_VAR: "default", TIMEOUT_VAR: "30", ROUNDS_VAR: "3"}
-
-#: ``extra_info`` key of this suite's benchmarks: True once every solve passed the judge.
-PASSED_KEY = "every_solve_passed"
 
 
 @dataclass(frozen=True)
@@ -99,39 +98,3 @@ def pytest_configure(config: pytest.Config) -> None:
 def bench_settings(pytestconfig: pytest.Config) -> BenchSettings:
     """The settings read when pytest configured (``read_settings``)."""
     return pytestconfig.stash[SETTINGS]
-
-
-@dataclass
-class JudgedBenchmark:
-    """pytest-benchmark's ``benchmark`` fixture, whose timing counts only once ``passed``
-    is called (module doc)."""
-
-    benchmark: Any
-
-    def passed(self) -> None:
-        """Every solve passed the judge: the timing goes into the table and the JSON."""
-        self.benchmark.has_error = False
-        self.benchmark.extra_info[PASSED_KEY] = True
-
-
-@pytest.fixture
-def judged_benchmark(benchmark: Any) -> JudgedBenchmark:
-    """``benchmark``, left out of the table and the JSON until ``passed``."""
-    benchmark.has_error = True
-    benchmark.extra_info[PASSED_KEY] = False
-    return JudgedBenchmark(benchmark)
-
-
-def counts(bench: Mapping[str, Any]) -> bool:
-    """Whether a benchmark (pytest-benchmark's flat record) goes into the table: any but
-    one of this suite's that has not passed (``PASSED_KEY``)."""
-    return (bench.get("extra_info") or {}).get(PASSED_KEY) is not False
-
-
-@pytest.hookimpl(wrapper=True)
-def pytest_benchmark_group_stats(config: pytest.Config, benchmarks: list[dict[str, Any]],
-                                 group_by: str) -> Generator[None, Any, list[tuple[Any, list[dict[str, Any]]]]]:
-    """pytest-benchmark's groups, less the benchmarks that do not count (``counts``)."""
-    groups = yield
-    kept = [(name, [b for b in group if counts(b)]) for name, group in groups]
-    return [(name, group) for name, group in kept if group]

@@ -5,13 +5,37 @@ module level.
 Fixtures
 --------
 ``contact_instance``  factory: ``contact_instance("rmd", N=32, step=-1)`` or
-                      ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance;
-                      an unknown keyword or a step outside the sequence is refused.
+                      ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance
+                      whose ubar (and upper bounds, trial set and dense H) are read-only
+                      arrays that cannot be made writeable again (``surfaces.read_only``):
+                      a solver that writes into them raises.  Refused, each with one
+                      ``ProblemInputError`` line naming the keyword and the value: an
+                      unknown kind or keyword, an integer keyword that is not an int
+                      (a float, a str or a bool: never rounded), a step outside the
+                      sequence, and an instance whose memory estimate
+                      (``scenes.base.check_instance_memory``, as the plan's) is over the
+                      memory budget, before anything is built.
+``contactbench_solve``  ``solve(solver, inst, settings=None)``: the harness's own solve of
+                      a test -- the solver handed a copy of ``inst``'s problem, sealed
+                      (``harness.judging.ProblemSeal``), its answer judged by the judge
+                      (``harness.judging.judge``) against ``inst`` and settled (``settle``):
+                      one call that a solver cannot fool by writing into its problem or
+                      by its own claim.  Use it rather than calling ``solver.solve`` and
+                      ``judge`` by hand.
 ``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
 ``case_conforms``     (a function) one case of the battery in a test, for a test
-                      parametrized over ``conformance_cases()`` (``ids=str``).
+                      parametrized over ``conformance_cases()`` (``ids=str``); a case may
+                      be given by its name.
 ``contactbench_settle``  ``settle(verdict, what, solver_message)``: a pytest outcome from
                       the judge's verdict, the rule pytest-benchmark runs use (below).
+``contactbench_benchmark``  pytest-benchmark's ``benchmark`` judged
+                      (``harness.judged_benchmark.JudgedBenchmark``): ``run(solver, inst,
+                      settings)`` -- each round a problem no earlier solve saw, every
+                      solve judged outside the clock, the row kept only when all passed.
+
+Hooks: a test using ``benchmark`` that does not pass has its row left out of
+pytest-benchmark's table and JSON (``pytest_runtest_makereport``,
+``pytest_benchmark_group_stats``: ``harness.judged_benchmark``).
 ``run_harness``       factory: run the harness into a temporary directory and return the
                       tidy table (pandas DataFrame), e.g.
                       ``run_harness(["paper-sweep"], solvers=["nnls"], size=16, steps=2)``;
@@ -19,31 +43,21 @@ Fixtures
                       ``extra={"height_unit": "um"}``.  The options are checked by the
                       plan, as on the command line (``problems.scenes.options``): a
                       refused one raises ``ProblemInputError`` with the CLI's message.
+                      A keyword that is neither a ``SceneConfig`` nor a ``RunConfig``
+                      field, and an ``extra`` key that is neither a scene option
+                      (``OPTIONS``) nor declared by the named scenes (``extra_keys``), is
+                      a ``ProblemInputError`` naming it and the valid ones: a typo never
+                      silently runs the default.
 """
 
 from __future__ import annotations
 
 import operator
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import pytest
 
-
-def settle(verdict: Any, what: str, solver_message: str = "") -> None:
-    """The pytest outcome of a judged answer (``harness.judging.Verdict``), as in
-    ``contactbench validate``: reading "wrong" (a failing answer claimed as converged,
-    no answer claimed as one, or a solver that wrote into its problem) fails the test;
-    "unconverged" (the solver said it did not converge) is an xfail; "pass" returns."""
-    figures = ", ".join(f"{k} {float(verdict.figures[k]):.3e}" for k in
-                        ("kkt_error", "primal_residual", "dual_residual", "complementarity", "p_rel_error",
-                         "load_rel_error") if k in verdict.figures) or f"kkt_error {verdict.kkt_error:.3e}"
-    if verdict.reading == "wrong":
-        who = "the solver claims convergence but" if verdict.claimed else "the solver wrote into its problem:"
-        pytest.fail(f"{what}: {who} the judge reads the answer as wrong: {verdict.message()}; KKT figures: {figures}",
-                    pytrace=False)
-    if verdict.reading == "unconverged":
-        pytest.xfail(f"{what}: not converged, as the solver says ({solver_message or 'no message'}): "
-                     f"{'; '.join(verdict.problems)}; KKT figures: {figures}")
+from .outcomes import settle
 
 
 @pytest.fixture
@@ -57,22 +71,42 @@ INSTANCE_KEYWORDS: dict[str, dict[str, Any]] = {
     "rmd": {"N": 32, "steps": 3, "seed": 0, "step": -1, "operator": None},
     "counterexample": {"n": 100, "seed": 0, "operator": "dense"},
 }
+#: The keywords of ``INSTANCE_KEYWORDS`` that are integers (an int or a NumPy integer).
+INTEGER_KEYWORDS: frozenset[str] = frozenset({"N", "n", "steps", "seed", "step"})
+
+
+def whole(what: str, name: str, value: Any) -> int:
+    """``value`` as an int where it is one (``operator.index``: an int or a NumPy integer,
+    never a bool, a str or a float, which would be rounded or parsed), else a one-line
+    ``ProblemInputError`` naming ``what``'s keyword ``name`` and the value."""
+    import numpy as np
+
+    from contactbench.problems.errors import ProblemInputError
+
+    if not isinstance(value, (bool, np.bool_, str, bytes)):
+        try:
+            return operator.index(value)
+        except TypeError:
+            pass
+    raise ProblemInputError(f"{what}: {name} must be an integer, got {value!r} ({type(value).__name__})")
 
 
 def instance_options(kind: str, kw: dict[str, Any]) -> dict[str, Any]:
-    """The keywords of ``contact_instance(kind, **kw)`` with the defaults filled in;
-    ``ValueError`` for an unknown kind, ``ProblemInputError`` naming any keyword the kind
-    does not take (a typo never silently runs the default)."""
+    """The keywords of ``contact_instance(kind, **kw)`` with the defaults filled in, the
+    integer ones (``INTEGER_KEYWORDS``) as ints; a one-line ``ProblemInputError`` for an
+    unknown kind, a keyword the kind does not take (a typo never silently runs the
+    default) or an integer keyword that is not an integer (``whole``)."""
     from contactbench.problems.errors import ProblemInputError
 
-    if kind not in INSTANCE_KEYWORDS:
-        raise ValueError(f"unknown instance kind {kind!r}: use 'rmd' or 'counterexample'")
+    if not isinstance(kind, str) or kind not in INSTANCE_KEYWORDS:
+        raise ProblemInputError(f"contact_instance: unknown instance kind {kind!r}; use 'rmd' or 'counterexample'")
     known = INSTANCE_KEYWORDS[kind]
     unknown = sorted(set(kw) - set(known))
     if unknown:
         raise ProblemInputError(f"contact_instance({kind!r}): unknown keyword(s) {', '.join(unknown)}; "
                                 f"it takes {', '.join(known)}")
-    return {**known, **kw}
+    what = f"contact_instance({kind!r})"
+    return {k: whole(what, k, v) if k in INTEGER_KEYWORDS else v for k, v in {**known, **kw}.items()}
 
 
 def step_index(step: Any, steps: int) -> int:
@@ -80,57 +114,237 @@ def step_index(step: Any, steps: int) -> int:
     in [-steps, steps), negative ones counted from the end; ``ProblemInputError`` else."""
     from contactbench.problems.errors import ProblemInputError
 
-    try:
-        k = operator.index(step)
-    except TypeError:
-        raise ProblemInputError(f"contact_instance: step {step!r} is not an integer") from None
+    k = whole("contact_instance", "step", step)
     if not -steps <= k < steps:
         raise ProblemInputError(f"contact_instance: step {k} is outside the {steps} load step(s) of the instance "
                                 f"(0 to {steps - 1}, or -{steps} to -1 counted from the end)")
     return k % steps
 
 
+def check_instance_budget(kind: str, o: dict[str, Any], budget: float) -> tuple[Any, Any]:
+    """Before anything is built: the scene and merged config of ``contact_instance(kind,
+    **o)`` ("rmd": paper-sweep's; "counterexample": its scene's where n is a square, else
+    (None, None): ``counterexample`` refuses it), refused in one ``ProblemInputError``
+    line where its instance's memory bound (``scenes.base.check_instance_memory``, the
+    plan's) is over ``budget`` bytes."""
+    import math
+
+    from contactbench.problems.scenes import SceneConfig, get_scene
+    from contactbench.problems.scenes.base import check_instance_memory
+
+    if kind == "counterexample":
+        N = math.isqrt(o["n"]) if o["n"] >= 4 else 0
+        if N * N != o["n"]:
+            return None, None
+        scene = get_scene("counterexample")
+        cfg = scene.config(SceneConfig(size=N, seeds=(o["seed"],), operator=o["operator"]))
+    else:
+        scene = get_scene("paper-sweep")
+        cfg = scene.config(SceneConfig(size=o["N"], steps=o["steps"], seeds=(o["seed"],), operator=o["operator"]))
+    check_instance_memory(scene.instances(cfg), budget, "CONTACTBENCH_MEMORY_BUDGET_GB", f"contact_instance({kind!r})")
+    return scene, cfg
+
+
+def sealed_instance(inst: Any) -> Any:
+    """``inst`` with its problem's arrays read-only for good (``surfaces.read_only``, a copy
+    of each: ubar, the upper bounds and a dense operator's H; the trial set is already): a
+    solver that writes into them raises instead of changing what it is judged on."""
+    from dataclasses import replace
+
+    from contactbench.problems.instances import QP
+    from contactbench.problems.operators import DenseOperator
+    from contactbench.problems.surfaces import read_only
+
+    qp = inst.qp
+    cons = qp.constraints
+    if cons.upper is not None:
+        cons = replace(cons, upper=read_only(cons.upper, cons.upper.dtype))
+    if type(qp.H) is DenseOperator:  # (the fixture's own operator: no one else holds it)
+        qp.H.H = read_only(qp.H.H, qp.H.H.dtype)
+    return replace(inst, qp=QP(qp.H, read_only(qp.ubar, qp.ubar.dtype), qp.geometry, cons))
+
+
+def make_instance(kind: str = "rmd", **kw: Any) -> Any:
+    """``contact_instance``'s factory (its doc): refused before anything is built where a
+    keyword or the memory estimate is bad; a ``MemoryBudgetError`` of the build is a
+    ``ProblemInputError`` naming the budget."""
+    from contactbench.problems.errors import MemoryBudgetError, ProblemInputError
+    from contactbench.problems.operators import memory_budget
+
+    o = instance_options(kind, kw)
+    scene, cfg = check_instance_budget(kind, o, memory_budget())
+    try:
+        if kind == "counterexample":
+            from contactbench.problems.instances import counterexample
+
+            return sealed_instance(counterexample(o["n"], o["seed"], operator=o["operator"]))
+        seq = scene.build(scene.instances(cfg)[0])
+        return sealed_instance(seq.at(step_index(o["step"], len(seq))))
+    except MemoryBudgetError as exc:
+        raise ProblemInputError(f"contact_instance({kind!r}): {exc} (contact_instance's budget, "
+                                "CONTACTBENCH_MEMORY_BUDGET_GB)") from None
+
+
 @pytest.fixture
 def contact_instance() -> Callable[..., Any]:
     """``make(kind="rmd", **kw)`` -> a ContactInstance: "rmd" (a paper-sweep instance;
     keywords N, steps, seed, step, operator) or "counterexample" (keywords n, seed,
-    operator); ``INSTANCE_KEYWORDS`` gives the defaults.  An unknown keyword or a step
-    outside the sequence raises ``ProblemInputError`` naming it."""
+    operator); ``INSTANCE_KEYWORDS`` gives the defaults.  Its problem's arrays are
+    read-only (``sealed_instance``).  Bad input raises one ``ProblemInputError`` line
+    naming it (module doc)."""
+    return make_instance
 
-    def make(kind: str = "rmd", **kw: Any) -> Any:
-        o = instance_options(kind, kw)
-        if kind == "counterexample":
-            from contactbench.problems.instances import counterexample
 
-            return counterexample(int(o["n"]), int(o["seed"]), operator=o["operator"])
-        from contactbench.problems.scenes import SceneConfig, get_scene
+class JudgedSolve(NamedTuple):
+    """What ``judged_solve`` returns: the solver's ``SolveResult`` and the judge's
+    ``Verdict`` (its reading "pass", or "unconverged" under ``settle=False``)."""
 
-        scene = get_scene("paper-sweep")
-        cfg = scene.config(SceneConfig(size=int(o["N"]), steps=int(o["steps"]), seeds=(int(o["seed"]),),
-                                       operator=o["operator"]))
-        seq = scene.build(scene.instances(cfg)[0])
-        return seq.at(step_index(o["step"], len(seq)))
+    result: Any
+    verdict: Any
 
-    return make
+
+def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = None, check_tol: float | None = None,
+                 what: str | None = None, settle_it: bool = True) -> JudgedSolve:
+    """Solve ``inst`` with ``solver`` (an instance, a registry name or ``module:NAME``) as the
+    harness does: the solver is handed a copy of the problem (its own ubar; the operator
+    shared), sealed with ``inst``'s beside it (``ProblemSeal``); what it changed, or the
+    threads it left running, makes the answer "wrong"; the answer is judged by ``judge``
+    against ``inst`` at ``check_tol`` (default: ``settings.check_tol``, else the "default"
+    profile's; the solver is told it) and, with ``settle_it``, settled (``settle``: a
+    wrong answer fails the test, an unconverged one xfails it).  ``settings``: a
+    ``SolverSettings`` or None; ``warm``: a ``WarmStart`` or None.  What the solver raises
+    propagates.  Bad input (``inst`` not a ContactInstance, ``settings`` not a
+    SolverSettings) is a one-line ``ProblemInputError``."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from contactbench.harness.judging import ProblemSeal, judge
+    from contactbench.harness.profiles import get_profile
+    from contactbench.harness.run.worker import running_threads, threads_left
+    from contactbench.problems.errors import ProblemInputError, check_positive
+    from contactbench.problems.instances import QP, ContactInstance
+    from contactbench.solvers.base import SolverSettings
+    from contactbench.solvers.registry import load_solver
+
+    if not isinstance(inst, ContactInstance):
+        raise ProblemInputError(f"contactbench_solve: inst must be a ContactInstance (contact_instance(...)), got "
+                                f"{type(inst).__name__}")
+    if settings is not None and not isinstance(settings, SolverSettings):
+        raise ProblemInputError(f"contactbench_solve: settings must be a SolverSettings or None, got "
+                                f"{type(settings).__name__}")
+    s = load_solver(solver)
+    settings = settings or SolverSettings()
+    tol = check_tol if check_tol is not None else settings.check_tol
+    tol = get_profile("default").check_tol if tol is None else check_positive("contactbench_solve: check_tol", tol)
+    settings = replace(settings, params=dict(settings.params), check_tol=tol)
+    qp = inst.qp
+    handed = QP(qp.H, np.array(qp.ubar, copy=True), qp.geometry, qp.constraints)
+    seal, threads = ProblemSeal.of(handed, [qp]), running_threads()
+    try:
+        res = s.solve(handed, settings, warm)
+    finally:
+        tampered = seal.broken(handed)
+        seal.mend(handed)  # (the judge's products run the sealed code)
+    tampered = tampered or threads_left(threads)
+    verdict = judge(inst, res.p, bool(res.converged), tol, tampered=tampered, multiplier=res.multiplier)
+    if settle_it:
+        settle(verdict, what or f"{s.name} on n = {inst.n}", str(res.message))
+    return JudgedSolve(res, verdict)
+
+
+@pytest.fixture
+def contactbench_solve() -> Callable[..., JudgedSolve]:
+    """``solve(solver, inst, settings=None, *, warm=None, check_tol=None, what=None)``
+    -> ``JudgedSolve`` (module function ``judged_solve``): solved sealed, judged by the
+    harness and settled as a pytest outcome."""
+    return judged_solve
+
+
+#: ``SceneConfig.extra`` keys scenes read without a default in ``Scene.defaults.extra``:
+#: the Hurst exponent of a generated rough surface and a stress scene's largest n.
+UNDEFAULTED_EXTRA: frozenset[str] = frozenset({"hurst", "max_n"})
+
+
+def extra_keys(scenes: list[str]) -> set[str]:
+    """The ``SceneConfig.extra`` keys the named scenes (or composites' parts) declare besides
+    the scene options (``OPTIONS``): their defaults' extra keys, a composite part's own,
+    their studies' sweep parameters (``Sweep.param``, ``fixed``, ``options``) and
+    ``UNDEFAULTED_EXTRA``.  An unknown name declares none (the plan refuses it)."""
+    from contactbench.harness.run.studies import expand
+    from contactbench.problems.scenes import get_scene
+
+    keys = set(UNDEFAULTED_EXTRA)
+    for name in scenes:
+        try:
+            parts = expand(name, None)
+        except KeyError:
+            continue
+        for study, cfg in parts:
+            keys |= set(get_scene(study.scene).defaults.extra) | set(cfg.extra)
+            for w in study.sweeps:
+                keys |= {w.param, *w.fixed, *w.options}
+    return keys
+
+
+def harness_options(scenes: Any, options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``run_harness``'s options split into ``SceneConfig`` and ``RunConfig`` keywords; a
+    one-line ``ProblemInputError`` naming a keyword that is neither, and an ``extra`` key
+    that is neither a scene option nor one the named scenes declare (``extra_keys``), with
+    the valid ones."""
+    from dataclasses import fields
+
+    from contactbench.harness.run.plan import RunConfig
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.problems.scenes.options import CONFIG_FIELDS, OPTIONS
+
+    scene_keys = CONFIG_FIELDS | {"extra"}
+    run_keys = {f.name for f in fields(RunConfig)}
+    option_names = {r.name for r in OPTIONS}
+    unknown = sorted(set(options) - scene_keys - run_keys)
+    if unknown:
+        hint = [k for k in unknown if k in option_names]
+        tip = f" ({', '.join(hint)}: a scene option, given in extra={{...}})" if hint else ""
+        raise ProblemInputError(f"run_harness: unknown keyword(s) {', '.join(unknown)}{tip}; it takes scenes, "
+                                f"solvers, out, {', '.join(sorted(scene_keys))} and {', '.join(sorted(run_keys))}")
+    extra = options.get("extra", {})
+    if not isinstance(extra, dict):
+        raise ProblemInputError(f"run_harness: extra must be a dict of scene options, got {type(extra).__name__}")
+    names = [scenes] if isinstance(scenes, str) else list(scenes)
+    declared = extra_keys(names) | (option_names - CONFIG_FIELDS)
+    bad = sorted(k for k in extra if k not in declared)
+    if bad:
+        raise ProblemInputError(f"run_harness: extra key(s) {', '.join(map(repr, bad))} neither a scene option nor "
+                                f"read by {', '.join(map(repr, names))}; the valid ones: "
+                                f"{', '.join(sorted(declared, key=str))}")
+    return ({k: v for k, v in options.items() if k in scene_keys},
+            {"progress": False, **{k: v for k, v in options.items() if k in run_keys}})
 
 
 @pytest.fixture
 def run_harness(tmp_path: Any) -> Callable[..., Any]:
     """``run(scenes, solvers=None, out=None, **options)`` -> the tidy table of
     ``run_benchmark`` into ``out`` (default: a temporary folder); the options are split
-    between ``SceneConfig`` and ``RunConfig``.  ``run_benchmark`` checks the folder, then
-    holds its lock while it writes: a folder it refuses is left as it is."""
+    between ``SceneConfig`` and ``RunConfig`` (``harness_options``: an unknown keyword or
+    ``extra`` key is refused).  ``run_benchmark`` checks the folder, then holds its lock
+    while it writes: a folder it refuses is left as it is."""
 
     def run(scenes: list[str], solvers: Any = None, out: Any = None, **options: Any) -> Any:
         from contactbench.harness.run.plan import RunConfig
         from contactbench.harness.run.runner import run_benchmark
         from contactbench.harness.table.store import load_table
         from contactbench.problems.scenes import SceneConfig
-        from contactbench.problems.scenes.options import CONFIG_FIELDS
 
-        scene_keys = CONFIG_FIELDS | {"extra"}  # the rest is the RunConfig's; run_benchmark's plan checks both
-        cfg = SceneConfig(**{k: v for k, v in options.items() if k in scene_keys})
-        run_cfg = RunConfig(progress=False, **{k: v for k, v in options.items() if k not in scene_keys})
+        from contactbench.problems.errors import ProblemInputError
+
+        scene_kw, run_kw = harness_options(scenes, options)
+        cfg = SceneConfig(**scene_kw)
+        try:
+            run_cfg = RunConfig(**run_kw)
+        except ProblemInputError:
+            raise
+        except ValueError as exc:  # (RunConfig's one line, naming the option and its flag)
+            raise ProblemInputError(f"run_harness: {exc}") from None
         out_dir = out or tmp_path / "run"
         run_benchmark(scenes, cfg, solvers, run_cfg, out_dir, command=["pytest"])
         return load_table(out_dir)
@@ -168,3 +382,39 @@ def case_conforms(solver: Any, case: Any, *, strict: bool = False, **kw: Any) ->
     if outcome != "conforms":
         pytest.fail(f"{table.solver} on {case}: {table.headline(strict)}\n{table.format(strict)}", pytrace=False)
     return table
+
+
+@pytest.fixture
+def contactbench_benchmark(benchmark: Any) -> Any:
+    """pytest-benchmark's ``benchmark`` as a ``harness.judged_benchmark.JudgedBenchmark``:
+    ``contactbench_benchmark.run(solver, inst, settings)`` times rounds of problems no
+    earlier solve saw, judges every solve outside the clock and counts the row only when
+    every one passed (a solver that carries work across solves fails).  Needs
+    pytest-benchmark."""
+    from contactbench.harness.judged_benchmark import JudgedBenchmark
+
+    return JudgedBenchmark(benchmark)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: Any, call: Any) -> Any:
+    """A test with pytest-benchmark's ``benchmark`` that does not pass (a failure -- a
+    ``contactbench_settle`` of a wrong answer --, an xfail, a skip after its call, a
+    teardown error) has its row left out of the table and the JSON
+    (``judged_benchmark.exclude_unpassed``): a user's own benchmark never records a timing
+    its test failed."""
+    report = yield
+    if "benchmark" in getattr(item, "fixturenames", ()):
+        from contactbench.harness.judged_benchmark import exclude_unpassed
+
+        exclude_unpassed(item, report)
+    return report
+
+
+@pytest.hookimpl(wrapper=True, optionalhook=True)
+def pytest_benchmark_group_stats(config: Any, benchmarks: Any, group_by: Any) -> Any:
+    """pytest-benchmark's table groups less the rows that do not count
+    (``judged_benchmark.keep_judged``); called only where pytest-benchmark is installed."""
+    from contactbench.harness.judged_benchmark import keep_judged
+
+    return keep_judged((yield))

@@ -91,7 +91,8 @@ report folder, never into another one; the exit status is the same.
 For pytest: ``assert_conforms(solver)`` raises AssertionError, its verdict line first and
 then the table, unless the solver conforms over the battery (an untested solver does
 not).  Case by case, parametrize over ``conformance_cases()`` (``ids=str``: each case by
-its name) and call ``harness.pytest_plugin.case_conforms(solver, case)``: a case the
+its name; a case may be given by its name too) and call
+``harness.pytest_plugin.case_conforms(solver, case)``: a case the
 solver is not handed (a declared capability rules it out, its own skip, or the lifecycle
 answers it) is a pytest skip with the reason, as the coverage rule belongs to the battery.
 """
@@ -513,12 +514,41 @@ def _num(x: float | None, fmt: str = "9.2e") -> str:
 # ---------------------------------------------------------------------------
 
 
-def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec] | None, mode: str) -> list[ConformanceCase]:
-    """The cases to run: the ``mode``'s battery, or ``cases``; ``ProblemInputError`` for an
+def case_named(name: str, mode: str) -> ConformanceCase:
+    """The case of the battery whose name (``str(case)``) is ``name``: of the ``mode``'s
+    battery first, then of the other modes'; else a one-line ``ProblemInputError``."""
+    for m in dict.fromkeys((mode, *DEFAULT_TIMEOUT)):
+        found = [c for c in conformance_cases(m) if c.name == name] if m in DEFAULT_TIMEOUT else []
+        if found:
+            return found[0]
+    raise ProblemInputError(f"no conformance case is named {name!r}; give a case of conformance_cases() "
+                            "or its name (str(case), e.g. 'conditioning/bcc-n100-d1')")
+
+
+def as_case(case: Any, mode: str) -> ConformanceCase:
+    """A case as given: a ``ConformanceCase``, a stress ``InstanceSpec`` or a case's name
+    (``case_named``); anything else is a one-line ``ProblemInputError`` naming what is
+    accepted."""
+    if isinstance(case, ConformanceCase):
+        return case
+    if isinstance(case, InstanceSpec):
+        return ConformanceCase(case)
+    if isinstance(case, str):
+        return case_named(case, mode)
+    raise ProblemInputError(f"a conformance case is a ConformanceCase (conformance_cases()), an InstanceSpec of the "
+                            f"stress battery or a case's name, got {type(case).__name__} {case!r:.80}")
+
+
+def _as_cases(cases: Iterable[ConformanceCase | InstanceSpec | str] | ConformanceCase | InstanceSpec | str | None,
+              mode: str) -> list[ConformanceCase]:
+    """The cases to run: the ``mode``'s battery, or ``cases`` (each as ``as_case`` reads
+    it; one case alone, or its name, is a selection of one); ``ProblemInputError`` for an
     empty selection (a battery of no case would conform vacuously)."""
     if cases is None:
         return conformance_cases(mode)
-    out = [c if isinstance(c, ConformanceCase) else ConformanceCase(c) for c in cases]
+    if isinstance(cases, (ConformanceCase, InstanceSpec, str)):
+        cases = [cases]
+    out = [as_case(c, mode) for c in cases]
     if not out:
         raise ProblemInputError("no conformance case was given (an empty selection: check its filter); "
                                 "a battery of no case tests nothing")
@@ -544,12 +574,13 @@ def run_case(runner: CaseRunner, case: ConformanceCase, name: str, promise: Prom
     return rows
 
 
-def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
+def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec | str] | str | None = None, *,
              mode: str = "fast", timeout: float | None = None, isolate: bool = True,
              progress: Callable[[VerdictRow], Any] | None = None,
              params: dict[str, Any] | None = None, label: str | None = None) -> VerdictTable:
     """Run ``solver`` (an instance, a registry name or ``module:NAME``) through the
-    battery (default: the ``mode`` cases) with its parameters ``params`` (checked against
+    battery (default: the ``mode`` cases; else ``cases``, each a case or its name:
+    ``as_case``) with its parameters ``params`` (checked against
     its declared ``Param``s first) and return the verdict table, its rows and summary
     named ``label`` (a variant's, ``name[k=v]``; default the solver's name).  ``timeout``: seconds
     per solve (``check_timeout``; None: the mode's default).  An empty ``cases`` is a
@@ -581,7 +612,7 @@ def validate(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpe
     return table
 
 
-def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec] | None = None, *,
+def assert_conforms(solver: Solver | str, cases: Iterable[ConformanceCase | InstanceSpec | str] | str | None = None, *,
                     mode: str = "fast", strict: bool = False, **kw: Any) -> VerdictTable:
     """For a user's pytest: raise AssertionError (with the table) unless ``solver``
     conforms -- a WRONG row, a case left unsolved, or nothing judged (``strict``: also crashes, timeouts
