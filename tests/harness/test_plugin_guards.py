@@ -24,8 +24,8 @@ import pytest
 
 from contactbench.harness.conformance import battery as cf
 from contactbench.harness.pytest_plugin import case_conforms, extra_keys
-from contactbench.problems.lcp import exact_solution
-from contactbench.solvers import Capabilities, Outcome, SolveContext, Solver
+from tests.helpers import ExactStub as Exact
+from contactbench.solvers import Outcome, SolveContext, Solver
 
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
 from contactbench.harness.table.store import LOCK_FILE, RunFolderError
@@ -80,15 +80,6 @@ def test_contact_instance_refuses_a_step_outside_the_sequence(contact_instance: 
             contact_instance("rmd", N=16, steps=3, step=step)
     first, last = contact_instance("rmd", N=16, steps=3, step=-3), contact_instance("rmd", N=16, steps=3, step=2)
     assert first.meta["step"] == 0 and last.meta["step"] == 2
-
-
-class Exact(Solver):
-    name = "test-guard-exact"
-    family = "test"
-    capabilities = Capabilities(needs_dense=True, exact=True)
-
-    def iterate(self, ctx: SolveContext) -> Outcome:
-        return Outcome(exact_solution(ctx.qp.H.to_dense(), np.asarray(ctx.qp.ubar, dtype=np.float64)).p, 1, True)
 
 
 class ZeroWriter(Exact):
