@@ -158,10 +158,10 @@ def sealed_instance(inst: Any) -> Any:
     qp = inst.qp
     cons = qp.constraints
     if cons.upper is not None:
-        cons = replace(cons, upper=read_only(cons.upper, cons.upper.dtype))
+        cons = replace(cons, upper=read_only(cons.upper, None))
     if type(qp.H) is DenseOperator:  # (the fixture's own operator: no one else holds it)
-        qp.H.H = read_only(qp.H.H, qp.H.H.dtype)
-    return replace(inst, qp=QP(qp.H, read_only(qp.ubar, qp.ubar.dtype), qp.geometry, cons))
+        qp.H.H = read_only(qp.H.H, None)
+    return replace(inst, qp=QP(qp.H, read_only(qp.ubar, None), qp.geometry, cons))
 
 
 def make_instance(kind: str = "rmd", **kw: Any) -> Any:

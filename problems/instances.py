@@ -96,8 +96,7 @@ class Geometry:
 
     def __post_init__(self) -> None:
         """The trial set is read-only (``surfaces.read_only``, its integer type kept)."""
-        idx = np.asarray(self.indices)
-        object.__setattr__(self, "indices", read_only(idx, idx.dtype))
+        object.__setattr__(self, "indices", read_only(self.indices, None))
 
     @property
     def spacing(self) -> tuple[float, float]:

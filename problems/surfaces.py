@@ -34,12 +34,13 @@ from .kernels import square_spacing
 from .preprocessing import MapPreprocessing
 
 
-def read_only(a: np.ndarray, dtype: object = np.float64) -> np.ndarray:
-    """``a`` as a C-contiguous array of ``dtype`` no one writes through: its data an
-    immutable ``bytes`` copy, so ``flags.writeable = True`` fails on it and on every view of
-    it (``a`` itself when it is one already).  A solver handed a surface or a trial set
-    (``QP.geometry``) cannot change the steps built from them after."""
-    dt = np.dtype(dtype)
+def read_only(a: np.ndarray, dtype: object | None = np.float64) -> np.ndarray:
+    """``a`` as a C-contiguous array of ``dtype`` (None: its own) no one writes through: its
+    data an immutable ``bytes`` copy, so ``flags.writeable = True`` fails on it and on every
+    view of it (``a`` itself when it is one already).  A solver handed a surface or a trial
+    set (``QP.geometry``) cannot change the steps built from them after."""
+    a = np.asarray(a)
+    dt = a.dtype if dtype is None else np.dtype(dtype)
     if isinstance(a.base, bytes) and a.dtype == dt and a.flags.c_contiguous:
         return a
     a = np.ascontiguousarray(a, dtype=dt)
