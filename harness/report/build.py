@@ -16,6 +16,7 @@ from contactbench.problems.atomic_files import FolderLockedError, folder_lock
 from ..table import aggregates as agg
 from ..table.files import write_text_atomic
 from ..table.meta import read_meta
+from .view import read_table
 from .core import (
     REPORT_NAME,
     PageChart,
@@ -24,7 +25,6 @@ from .core import (
     Section,
     SectionSpec,
     header_section,
-    read_table,
     registered_sections,
 )
 from .figure_files import discard, figure_dir, publish

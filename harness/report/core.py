@@ -53,8 +53,7 @@ from .figure_files import FIGURE_DIR, staging_dir
 from .panels import blank_panels, label_short_log_axes
 from .markdown_text import md_escape
 from .style import DEFAULT_FAMILY, SolverStyles, scene_colors
-from ..table.schema import CELL_COLUMNS, COLUMNS, STATUSES, TableError, as_finite, as_text, bool_series
-from ..table.store import load_table
+from ..table.schema import CELL_COLUMNS, STATUSES, TableError, as_finite, as_text
 
 REPORT_NAME = "report.md"
 #: The title report.md and report.html begin with ("<title>: <suite>").
@@ -364,29 +363,6 @@ def table_md(ctx: ReportContext, caption: str, headers: Sequence[str], rows: Seq
 # ---------------------------------------------------------------------------
 # Reading the table
 # ---------------------------------------------------------------------------
-
-
-def read_table(out_dir: str | Path) -> pd.DataFrame:
-    """The stored table (``schema.load_table``) as the report reads it: see ``report_view``."""
-    return report_view(load_table(out_dir))
-
-
-def report_view(df: pd.DataFrame) -> pd.DataFrame:
-    """Every number as float (NaN for missing), every text as str ('' for missing),
-    ``warm_start`` as bool; ``base_solver`` defaults to the label and ``history`` to
-    "warm" (tables written before those columns existed)."""
-    d = df.copy()
-    for c in COLUMNS.values():
-        if c.name not in d.columns:
-            d[c.name] = np.nan
-        if c.dtype in ("Int64", "float64"):
-            d[c.name] = pd.to_numeric(d[c.name], errors="coerce").astype(float)
-        elif c.dtype == "string":
-            d[c.name] = d[c.name].map(as_text)
-    d["warm_start"] = bool_series(d["warm_start"]).fillna(False).astype(bool)
-    d["base_solver"] = d["base_solver"].where(d["base_solver"] != "", d["solver"])
-    d["history"] = d["history"].map(lambda v: v or "warm")
-    return d
 
 
 def parse_json(text: Any, default: Any) -> Any:

@@ -20,6 +20,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import read_table
 from contactbench.harness.report.claim_measures import SINGLE, Spread
 from contactbench.harness.report.claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD
 from contactbench.harness.report.sections import paper as rpp
@@ -36,7 +37,7 @@ def _section(tmp_path: Path, df: pd.DataFrame, scene: str) -> str:
 def section_body(tmp_path: Path, df: pd.DataFrame, scene: str) -> str:
     """The body of the paper section of ``scene`` over the table ``df`` (figures not saved)."""
     out = write_out(tmp_path, df)
-    ctx = rp.ReportContext(out, rp.read_table(out), META)
+    ctx = rp.ReportContext(out, read_table(out), META)
 
     def keep(fig: Any, name: str, on_page: bool = False) -> str:
         return f"figures/{name}.png"

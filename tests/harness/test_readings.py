@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import read_table
 from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.judging import judge
 from contactbench.harness.table.schema import ALL_COLUMNS
@@ -88,7 +89,7 @@ def test_counterexample_counts_are_the_judges() -> None:
 def test_counterexample_section_prints_the_judges_counts(tmp_path: Any) -> None:
     table, expected = _counterexample_table()
     table.to_parquet(tmp_path / "results.parquet", index=False)
-    table = rp.read_table(tmp_path)
+    table = read_table(tmp_path)
     section = rce.counterexample_section(rp.ReportContext(tmp_path, table, {}), table).body
     g = expected[("greedy-cg", 100)]
     assert "| greedy-cg | - | " in section and f"({g}/6" in section
@@ -218,6 +219,6 @@ def test_the_counterexample_distance_table_marks_the_reference_own_answers(tmp_p
     table.loc[nnls, "reference_solver"] = "nnls@" + table.loc[nnls, "profile"].astype(str)
     table.loc[nnls, "p_rel_error"] = 0.0
     table.to_parquet(tmp_path / "results.parquet", index=False)
-    table = rp.read_table(tmp_path)
+    table = read_table(tmp_path)
     section = rce.counterexample_section(rp.ReportContext(tmp_path, table, {}), table).body
     assert "| nnls | - | ref |" in section and "the reference's own answers" in section

@@ -20,6 +20,7 @@ import pytest
 
 from contactbench.harness import build_report, load_table
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import read_table
 from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.report.sections import paper as rpp
 from contactbench.harness.table.meta import write_meta
@@ -159,7 +160,7 @@ def test_missing_scenes_get_no_section_and_the_report_is_deterministic(tmp_path:
 def test_counterexample_case_needs_stored_arrays(tmp_path: Path) -> None:
     df = fabricate_table()
     out = write_out(tmp_path, df[df["scene"] == "counterexample"], fmt="csv")
-    table = rp.read_table(out)  # the CSV fallback
+    table = read_table(out)  # the CSV fallback
     ctx = rp.ReportContext(out, table, {})
     cells = rce.seed_readings(table)
     msg = rce._counterexample_case(ctx, cells)
@@ -182,8 +183,8 @@ def test_counterexample_case_needs_stored_arrays(tmp_path: Path) -> None:
 
 def test_csv_and_parquet_read_alike(tmp_path: Path) -> None:
     df = fabricate_table()
-    a = rp.read_table(write_out(tmp_path / "pq", df))
-    b = rp.read_table(write_out(tmp_path / "csv", df, fmt="csv"))
+    a = read_table(write_out(tmp_path / "pq", df))
+    b = read_table(write_out(tmp_path / "csv", df, fmt="csv"))
     for col in ("status", "solver", "instance", "params", "trace", "skip_reason"):
         assert list(a[col]) == list(b[col]), col
     for col in ("solve_time_s", "kkt_error", "n", "dim_load"):

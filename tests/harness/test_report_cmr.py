@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import report_view
 from contactbench.harness.report.sections import cmr as rc
 from contactbench.harness.report.sections import cmr_figures as rcf
 from contactbench.harness.report.sections.paper import surface_families
@@ -77,7 +78,7 @@ def fabricate_cmr(family: str = "saupe", seed: int = 0, scene: str = "cmr",
                                          load=base_load[base] * (1 + e),
                                          solver_message=f"CMR 16->32->64 h={p['h']:g} coarse={coarse}: "
                                                         f"n_p/n={0.4 + 0.01 * s:.4f} coarse-loads=[1]"))
-    return rp.report_view(apply_schema(pd.DataFrame(rows))), errors
+    return report_view(apply_schema(pd.DataFrame(rows))), errors
 
 
 def test_each_cmr_row_is_paired_with_the_direct_solve_of_its_own_base() -> None:

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from contactbench.harness.report.core import ReportContext, report_view
+from contactbench.harness.report.core import ReportContext
+from contactbench.harness.report.view import report_view
 from contactbench.harness.report.sections.generic import skips_section
 from tests.helpers import META, fabricate_table
 

@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import read_table
 from contactbench.harness.report.sections import paper as rpp
 from contactbench.harness.table.aggregates import served_name
 from contactbench.harness.table.schema import ALL_COLUMNS
@@ -43,7 +44,7 @@ def sweep_rows(sweep: dict[str, list[Step]], family: dict[str, str] | None = Non
 def fig4(tmp_path: Path, df: pd.DataFrame) -> tuple[str, dict[str, Any], rp.ReportContext]:
     """(the section's Markdown, its figures by name, the context) for the table ``df``."""
     out = write_out(tmp_path, df)
-    ctx = rp.ReportContext(out, rp.read_table(out), META)
+    ctx = rp.ReportContext(out, read_table(out), META)
     figures: dict[str, Any] = {}
 
     def keep(fig: Any, name: str, on_page: bool = False) -> str:

@@ -24,6 +24,7 @@ from matplotlib.figure import Figure
 
 from contactbench.harness.profiles import PROFILES
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import report_view
 from contactbench.harness.report import html as html_report
 from contactbench.harness.report.core import PROFILE_PREFERENCE, natural_key, tidy_log_ticks
 from contactbench.harness.report import panels
@@ -135,7 +136,7 @@ def _planned_table() -> pd.DataFrame:
                                    time_limit_s=9000.0))
     rows.append(report_row(scene="paper-sweep", step=0, solver="gone", status="failed", solve_time_s=0.5,
                            time_limit_s=9000.0, solver_converged=False))
-    return rp.report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    return report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
 
 
 def test_the_sgm_leaves_out_the_cells_a_solver_was_never_planned_to_run(tmp_path: Path) -> None:
@@ -252,7 +253,7 @@ def test_a_performance_profile_panel_whose_curves_lie_at_zero_says_so(
         for s in wrappers:
             rows.append(report_row(scene="paper-sweep", step=k, solver=s, family="wrapper", solve_time_s=0.02,
                                    status="inaccurate", solver_converged=False))
-    t = rp.report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    t = report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
     ctx = rp.ReportContext(tmp_path, t, {})
     body = generic.aggregates_section(ctx, t).body
     fig = figures["pp-paper-sweep"]
@@ -271,7 +272,7 @@ def test_the_pages_iteration_axis_keeps_iteration_zero() -> None:
     log axis, so no point falls off it, and says so on the axis; an equal trace says so."""
     trace = json.dumps([[i, 1e-4 * (i + 1), 10.0 ** (-i / 100)] for i in (0, 1, 10, 100, 999)])
     rows = [report_row(scene="paper-sweep", solver=s, solve_time_s=0.1, trace=trace) for s in ("pk", "fast-ccg")]
-    t = rp.report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    t = report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
     data = html_report.trace_data(rp.ReportContext(Path("unused"), t, {}))
     axis = data["it_axis"]
     assert axis["log"] and axis["shift"] == 1 and "iteration + 1" in axis["title"]
@@ -298,7 +299,7 @@ def test_the_pages_load_area_chart_draws_the_pngs_numbers(tmp_path: Path, monkey
     hrms = 0.4
     rows = [report_row(scene="paper-sweep", instance="s0", step=k, solver="pk", solve_time_s=0.1, delta=1e-7 * (k + 1),
                        dim_load=1e-4 * 3 ** k, contact_fraction=2e-4 * 3 ** k) for k in range(4)]
-    t = rp.report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    t = report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
     _write_field(tmp_path, "paper-sweep", "s0", 3, hrms)
     ctx = rp.ReportContext(tmp_path, t, {})
     fields_section(ctx, t)

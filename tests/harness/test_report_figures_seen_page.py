@@ -21,6 +21,7 @@ import pytest
 from matplotlib.colors import to_rgb
 
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import report_view
 from contactbench.harness.report import html as html_report
 from contactbench.harness.report.page_script import PAGE_SCRIPT
 from contactbench.harness.report.style import COLOUR_APART, MAX_SERIES, cielab, delta_e00
@@ -66,7 +67,7 @@ def _table() -> pd.DataFrame:
 def charts(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
     """Every chart the page draws: (traces, layout) as handed to Plotly."""
     tmp = tmp_path_factory.mktemp("page")
-    ctx = rp.ReportContext(tmp, rp.report_view(_table()), {})
+    ctx = rp.ReportContext(tmp, report_view(_table()), {})
     (tmp / "data.json").write_text(json.dumps(html_report.page_data(ctx), allow_nan=False))
     (tmp / "page.js").write_text(PAGE_SCRIPT)
     (tmp / "stub.js").write_text(STUB)

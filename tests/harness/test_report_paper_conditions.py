@@ -26,6 +26,7 @@ import pytest
 
 from contactbench.harness.report import claims as cl
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import read_table
 from contactbench.harness.report.claim_rules import CLAIMS
 from contactbench.harness.report.sections import counterexample as rce
 from contactbench.harness.report.sections import paper as rpp
@@ -42,7 +43,7 @@ SHARE_WORDS = {"holds": "agrees with", "partly": "is close to", "fails": ("is be
 def section(tmp_path: Path, df: pd.DataFrame, scene: str) -> rp.Section:
     """The paper section of ``scene`` over the table ``df`` (figures named, not saved)."""
     out = write_out(tmp_path, df)
-    ctx = rp.ReportContext(out, rp.read_table(out), META)
+    ctx = rp.ReportContext(out, read_table(out), META)
 
     def keep(fig: Any, name: str, on_page: bool = False) -> str:
         return f"figures/{name}.png"

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from contactbench.harness import run_benchmark
-from contactbench.harness.report.core import ReportContext, header_section, read_table
+from contactbench.harness.report.core import ReportContext, header_section
+from contactbench.harness.report.view import read_table
 from contactbench.harness.run.plan import RunConfig
 from contactbench.harness.table.meta import META_FILE, read_meta
 from contactbench.harness.table.store import ROWS_FILE

@@ -24,6 +24,7 @@ import pandas as pd
 import pytest
 
 from contactbench.harness.report import core as rp
+from contactbench.harness.report.view import report_view
 from contactbench.harness.report import html as html_report
 from contactbench.harness.report.sections import generic
 from contactbench.harness.table.aggregates import served_name
@@ -51,7 +52,7 @@ def _table() -> pd.DataFrame:
                                reference_solver=ref, p_rel_error=1e-7))
         rows.append(report_row(scene=SCENE, step=k, n=100 + k, solver="greedy", solve_time_s=60.0, status="timeout",
                                solver_converged=False, reference_solver=ref, p_rel_error=np.nan, kkt_error=np.nan))
-    return rp.report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    return report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
 
 
 def _context(tmp_path: Path, table: pd.DataFrame) -> rp.ReportContext:

@@ -24,6 +24,7 @@ from ..claims import CLAIMS, CONDITIONS, LEDGER_COLUMNS, LEDGER_NAME, VERDICTS, 
 from ...table.files import write_text_atomic
 from ...table.meta import commands_of, read_meta
 from ..owned_files import refuse_foreign_page, title_line
+from ..view import read_table
 from ..core import (
     ReportContext,
     ReportInputError,
@@ -31,7 +32,6 @@ from ..core import (
     fmt_num,
     markdown_table,
     md_escape,
-    read_table,
     register_section,
 )
 
