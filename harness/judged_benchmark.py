@@ -25,8 +25,9 @@ out, for the benchmark suite (``benchmarks/``) and for a user's own benchmark th
       fails it as a timeout, one that raises fails it (``ProblemInputError`` in the first
       solve: a skip, the solver refuses the instance);
     * timed rounds whose fastest is more than ``WARMUP_SPEEDUP`` times faster than the
-      untimed warm-up solve are checked: untimed solves of perturbed problems (ubar with
-      noise, unpredictable) after them, up to ``PROBES``; when the fastest of them too is
+      untimed warm-up solve are checked: untimed solves of perturbed problems (each entry of
+      ubar times 1 + random noise of ``PROBE_NOISE``: its sign and its zeros kept, so the
+      problem is no harder than the timed one) after them, up to ``PROBES``; when the fastest of them too is
       that much slower than the fastest timed round, the solver carried work across solves (a
       cache) and the test fails naming the three times.  A one-off cost of the first
       call (compiling, a device context) is not flagged: the solve after it is fast.
@@ -70,7 +71,7 @@ if TYPE_CHECKING:
 PASSED_KEY = "every_solve_passed"
 #: Timed rounds this many times faster than the warm-up solve are checked for a cache.
 WARMUP_SPEEDUP = 10.0
-#: The relative size (to max |ubar|) of the noise on the cache check's problems.
+#: The relative size of the noise on each entry of ubar of the cache check's problems.
 PROBE_NOISE = 1e-6
 #: The cache check's solves at most (each of a problem of its own; the fastest counts).
 PROBES = 2
@@ -177,15 +178,17 @@ def round_factor(index: int, solves: int) -> float:
 
 def scaled_instance(inst: ContactInstance, factor: float, noise: np.ndarray | None = None) -> ContactInstance:
     """``inst`` with ubar, the upper bounds and the load times ``factor`` (the same
-    operator, geometry and physical context), ubar plus ``noise`` when given: for a
-    factor c and no noise its answer is c times ``inst``'s (Delta too)."""
+    operator, geometry and physical context), each entry of ubar also times (1 + its
+    ``noise``) when given -- every sign and every exact zero kept, so a problem does not
+    turn harder than the one timed (a plateau at zero gap stays p = 0): for a factor c and
+    no noise its answer is c times ``inst``'s (Delta too)."""
     from dataclasses import replace
 
     from contactbench.problems.constraints import Constraints
     from contactbench.problems.instances import QP
 
     qp, c = inst.qp, inst.qp.constraints
-    ubar = qp.ubar * factor + (0.0 if noise is None else noise)
+    ubar = qp.ubar * factor * (1.0 if noise is None else 1.0 + noise)
     constraints = Constraints(None if c.upper is None else c.upper * factor,
                               None if c.load is None else c.load * factor)
     return replace(inst, qp=QP(qp.H, ubar, qp.geometry, constraints), meta=dict(inst.meta))
@@ -326,12 +329,11 @@ class Rounds:
             return ""
         import numpy as np
 
-        ubar = np.asarray(self.inst.qp.ubar, dtype=np.float64)
-        scale = float(np.max(np.abs(ubar), initial=0.0)) or 1.0
+        shape = np.shape(self.inst.qp.ubar)
         rng = np.random.default_rng()
         probe = math.inf
         for k in range(PROBES):  # (the least of PROBES: a pause of the machine in one is not a cache)
-            noise = PROBE_NOISE * scale * rng.standard_normal(ubar.shape)
+            noise = PROBE_NOISE * rng.standard_normal(shape)
             solve = self.prepare(-1 - k, round_factor(self.count + k, self.count + PROBES), noise)
             self.solves.append(solve)
             self.watchdog.arm()

@@ -23,10 +23,11 @@ from contactbench.harness.judged_benchmark import (
     exclude_unpassed,
     keep_judged,
     round_factor,
+    scaled_instance,
 )
 from contactbench.problems.instances import ContactInstance, InstanceBuilder, counterexample
 from contactbench.problems.mixed_lcp import constrained_exact_solution
-from contactbench.problems.surfaces import fourier_synthesis
+from contactbench.problems.surfaces import Surface, fourier_synthesis
 from contactbench.solvers import Capabilities, Outcome, Solver
 from contactbench.solvers.base import SolveContext
 from tests.helpers import REPO, dense_exact_solution
@@ -402,3 +403,34 @@ def test_with_pytest_benchmark_disabled_its_one_solve_is_judged(inst: ContactIns
     assert bench.extra_info["solves_judged"] == 1 and not bench.has_error
     with pytest.raises(pytest.fail.Exception, match="in its one solve"):
         JudgedBenchmark(FakeBenchmark(disabled=True)).run(Wrong(), inst)
+
+
+def test_the_check_s_problems_are_no_harder_than_the_timed_ones() -> None:
+    """A problem at zero gap on a plateau (ubar <= 0, exact zeros: p = 0 at once) with a
+    one-off first-call cost: the check's perturbed problems keep every sign and zero, so
+    they stay trivial and the solver is not failed as a cache (with additive noise half
+    the zeros turned positive: a real solve, 27x the timed rounds)."""
+    h = np.minimum(np.random.default_rng(0).standard_normal((32, 32)), 0.0) * 1e-7
+    plateau = InstanceBuilder(Surface(h, 1e-6), 1e9, kernel="bcc").build(0.0)
+    assert np.max(plateau.qp.ubar) == 0.0
+    zero = scaled_instance(plateau, 1.5, 1e-6 * np.random.default_rng(1).standard_normal(plateau.n))
+    assert np.array_equal(zero.qp.ubar == 0.0, plateau.qp.ubar == 0.0) and np.max(zero.qp.ubar) == 0.0
+    bench = FakeBenchmark()
+    assert JudgedBenchmark(bench).run(SlowFirstSolve(), plateau, rounds=2).reading == "pass" and not bench.has_error
+
+
+class SlowFirstSolve(Exact):
+    """A one-off cost in its first ``solve`` ever, before the lifecycle (which answers a
+    problem with ubar <= 0 by p = 0 at once)."""
+
+    name = "test-judged-slow-first-solve"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls = 0
+
+    def solve(self, qp: Any, settings: Any = None, warm: Any = None) -> Any:
+        self.calls += 1
+        if self.calls == 1:
+            time.sleep(0.5)
+        return super().solve(qp, settings, warm)
