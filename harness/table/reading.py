@@ -1,12 +1,15 @@
 """Reading a results folder's table files (harness/table/store.py's ``load_table``):
 results.csv as written (``read_csv``, refusing a cut-short file: ``cut_row``), the cell
-ids a journal names, read without parsing its rows (``journal_cell_ids``), and which rows
-of a table are the first of their cell (``first_rows``).  Reading never writes.
+ids a journal names, read without parsing its rows (``journal_cell_ids``), which rows of a
+table are the first of their cell (``first_rows``), and the journal a results.parquet was
+made from (``journal_stamp``, kept in the parquet's metadata by ``write_parquet`` and read
+back by ``parquet_stamp``).  Reading never writes.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import os
 import re
@@ -110,3 +113,45 @@ def first_rows(df: pd.DataFrame) -> list[bool]:
             cells_without.add(cell)
         keep.append(kept)
     return keep
+
+
+#: The key of a results.parquet's metadata holding the stamp of the journal it was made from.
+STAMP_KEY = b"contactbench_journal"
+#: The bytes at a journal's end that its stamp reads: its last row or more (a row's
+#: timestamp and timings make it its own).
+STAMP_TAIL = 4096
+
+
+def journal_stamp(path: Path) -> str:
+    """The journal at ``path`` as it is now, cheaply: its size and the digest of its last
+    ``STAMP_TAIL`` bytes.  An appended, cut or repaired journal, or another run's, has
+    another stamp."""
+    with open(path, "rb") as f:
+        size = f.seek(0, os.SEEK_END)
+        f.seek(max(0, size - STAMP_TAIL))
+        return f"{size}:{hashlib.sha256(f.read()).hexdigest()[:32]}"
+
+
+def write_parquet(table: pd.DataFrame, path: str, stamp: str | None) -> None:
+    """``table`` as a Parquet file at ``path`` (as ``DataFrame.to_parquet``), with the
+    ``stamp`` of the journal it was made from in its metadata (``STAMP_KEY``)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = pa.Table.from_pandas(table, preserve_index=False)
+    if stamp is not None:
+        t = t.replace_schema_metadata({**(t.schema.metadata or {}), STAMP_KEY: stamp.encode("ascii")})
+    pq.write_table(t, path)
+
+
+def parquet_stamp(path: Path) -> str | None:
+    """The journal stamp a results.parquet keeps (``write_parquet``), or None (a table
+    written without one, or a file that is not Parquet)."""
+    import pyarrow.parquet as pq
+
+    try:
+        meta = pq.read_schema(literal_path(path)).metadata or {}
+    except (OSError, ValueError):
+        return None
+    raw = meta.get(STAMP_KEY)
+    return raw.decode("ascii", "replace") if raw is not None else None

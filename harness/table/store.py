@@ -80,7 +80,7 @@ from .files import canonical_json, pid_exists, replace_atomically
 from .meta import META_FILE
 from .journal import JournalError as JournalError, checked_journal, encode_row as encode_row
 from .journal import read_journal as read_journal, repair_journal
-from .reading import first_rows, journal_cell_ids, read_csv
+from .reading import first_rows, journal_cell_ids, journal_stamp, parquet_stamp, read_csv, write_parquet
 from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, text_values
 
 ROWS_FILE = "rows.jsonl"
@@ -172,9 +172,12 @@ class ResultStore:
         return checked_journal(self.path)
 
     def finalize(self) -> pd.DataFrame:
-        """Regenerate results.parquet and results.csv from the checked journal (or neither)."""
+        """Regenerate results.parquet and results.csv from the checked journal (or neither),
+        the parquet stamped with the journal as it was before it was read
+        (``reading.journal_stamp``: a row appended meanwhile makes the stamp stale)."""
+        stamp = journal_stamp(self.path) if self.path.exists() else None
         table = tidy_table(self.rows())
-        write_table(table, self.out)
+        write_table(table, self.out, stamp)
         return table
 
 
@@ -198,12 +201,12 @@ def fill_repeat_statistics(df: pd.DataFrame) -> None:
     df["solve_time_median_s"] = grouped.transform("median")
 
 
-def write_table(table: pd.DataFrame, out_dir: str | os.PathLike[str]) -> None:
-    """results.parquet and results.csv, each written to a unique temporary file in
-    ``out_dir`` and then renamed over the old one (a reader never sees half a table,
-    and two writers never share a temporary name)."""
+def write_table(table: pd.DataFrame, out_dir: str | os.PathLike[str], stamp: str | None = None) -> None:
+    """results.parquet (with the ``stamp`` of the journal it was made from) and results.csv,
+    each written to a unique temporary file in ``out_dir`` and then renamed over the old
+    one (a reader never sees half a table, and two writers never share a temporary name)."""
     out = Path(out_dir)
-    replace_atomically(out / PARQUET_FILE, lambda tmp: table.to_parquet(tmp, index=False))
+    replace_atomically(out / PARQUET_FILE, lambda tmp: write_parquet(table, tmp, stamp))
     replace_atomically(out / CSV_FILE, lambda tmp: table.to_csv(tmp, index=False))
 
 
@@ -619,7 +622,9 @@ os.register_at_fork(after_in_child=_close_held_in_child)
 
 def _read_run_dir(out: Path) -> pd.DataFrame:
     """A run directory's table, read without writing anything.  The journal is the source
-    of truth where there is one: results.parquet is read only when it holds exactly the
+    of truth where there is one: results.parquet is read when it was made from the journal
+    as it is now (its stamp, ``reading.journal_stamp``: a table copied from another run or
+    older than its journal is not); a table without a stamp when it holds exactly the
     cells the journal names (``reading.journal_cell_ids``) and the journal was not changed
     after it (by its file time: a time may send the reader to the journal, never away from
     it); else the journal itself (a run that stopped before writing its table, a table
@@ -632,7 +637,10 @@ def _read_run_dir(out: Path) -> pd.DataFrame:
         if csv.is_file():
             return read_csv(csv)
         raise MissingTableError(f"no results table in {out}: expected {PARQUET_FILE}, {CSV_FILE} or {ROWS_FILE}")
-    if pq.is_file() and journal.stat().st_mtime <= pq.stat().st_mtime:
+    stamp = parquet_stamp(pq) if pq.is_file() else None
+    if stamp is not None and stamp == journal_stamp(journal):  # (made from this journal as it is)
+        return pd.read_parquet(literal_path(pq))
+    if stamp is None and pq.is_file() and journal.stat().st_mtime <= pq.stat().st_mtime:  # (an unstamped table)
         try:
             table = pd.read_parquet(literal_path(pq))
         except (OSError, ValueError):  # (an unreadable table: the journal it is made from is read)

@@ -37,10 +37,10 @@ from contactbench.harness import cli
 
 announce, written = Path(sys.argv[1]), store.write_table
 
-def slow_write(table, out):
+def slow_write(*args: Any) -> None:
     announce.touch()
     time.sleep(1.0)
-    written(table, out)
+    written(*args)
 
 store.write_table = slow_write
 sys.exit(cli.main(sys.argv[2:]))
@@ -105,9 +105,9 @@ def test_a_run_interrupted_again_while_it_writes_its_table_writes_it_whole(tmp_p
                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     written = store_module.write_table
 
-    def interrupted_again(table: Any, out: Any) -> None:
+    def interrupted_again(*args: Any) -> None:
         signal.raise_signal(signal.SIGINT)
-        written(table, out)
+        written(*args)
 
     monkeypatch.setattr(store_module, "write_table", interrupted_again)
     out = tmp_path / "run"

@@ -1,7 +1,9 @@
 """Which rows a stored table is read from, and that the run lock survives a signal.
 
-* a run folder's results.parquet is read only while it holds exactly the cells its
-  rows.jsonl names (and is not older by its time): a table older than its journal is
+* a run folder's results.parquet is read when it was made from its rows.jsonl as it is
+  (its stamp), without reading the journal's rows; one copied from another run of the
+  same cells is not; an unstamped one only while it holds exactly the cells its rows.jsonl
+  names (and is not older by its time): a table older than its journal is
   never read, whatever the files' times say (a copy, an unpacked archive, a run killed after an interrupted one); an
   unreadable one gives way to the journal; a current one is read without parsing the
   journal's rows; reading writes nothing;
@@ -84,6 +86,40 @@ def test_a_current_table_is_read_without_parsing_the_journal(tmp_path: Path, mon
     monkeypatch.setattr(store_module, "checked_journal", parsed)
     got = load_table(store.out)
     assert len(got) == 4 and set(got["host"]) == {"from-the-table"}
+
+
+def test_a_table_copied_from_another_run_of_the_same_cells_is_not_read(tmp_path: Path) -> None:
+    """Two runs of one command hold the same cell ids; a results.parquet copied from the
+    other run (its file time the newer) is not this journal's: the folder's own rows are
+    read."""
+    ours, theirs = ResultStore(tmp_path / "ours"), ResultStore(tmp_path / "theirs")
+    for store, host in ((ours, "our-host"), (theirs, "their-host")):
+        for r in rows(3):
+            store.append(dict(r, host=host))
+        store.finalize()
+    (ours.out / PARQUET_FILE).write_bytes((theirs.out / PARQUET_FILE).read_bytes())
+    os.utime(ours.out / PARQUET_FILE, (ours.path.stat().st_mtime + 100,) * 2)
+    assert set(load_table(ours.out)["host"]) == {"our-host"}
+
+
+def test_a_stamped_table_is_read_without_reading_the_journal_s_rows(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """A results.parquet made from the journal as it is (its stamp: the journal's size and
+    tail) is read without scanning or parsing the journal."""
+    store = ResultStore(tmp_path / "run")
+    for r in rows(4):
+        store.append(r)
+    store.finalize()
+
+    def scanned(path: Path) -> Any:
+        raise AssertionError(f"{path} read although the table was made from it")
+
+    monkeypatch.setattr(store_module, "checked_journal", scanned)
+    monkeypatch.setattr(store_module, "journal_cell_ids", scanned)
+    assert len(load_table(store.out)) == 4
+    monkeypatch.undo()
+    store.append(dict(rows(5)[4]))  # one more row: the stamp is stale
+    assert len(load_table(store.out)) == 5
 
 
 def test_a_journal_whose_cell_id_has_escapes_is_matched(tmp_path: Path) -> None:
