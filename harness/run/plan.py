@@ -414,8 +414,9 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: Sequence[str | SolverSpe
         check_device_fit(jobs, sizes)
     rejected = model_rejections(jobs, sizes, run)
     if rejected:
-        raise ProblemInputError(f"every cell would be skipped: {rejected}; choose a smaller --size, other --solvers, "
-                                "a longer --timeout or a larger --memory-budget-gb")
+        raise ProblemInputError(f"every cell would be skipped: {rejected}; choose other --solvers, or, where a time or "
+                                "memory model is the reason, a smaller --size, a longer --timeout or a larger "
+                                "--memory-budget-gb")
     unserved = reference_rejection(run.reference, jobs, sizes, run)
     if unserved:
         raise ProblemInputError(f"--reference {run.reference} would serve no step: {unserved}; choose another "
