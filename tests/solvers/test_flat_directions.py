@@ -94,3 +94,14 @@ def test_a_loop_stopped_at_its_limit_quotes_the_error_of_its_answer(solver: str)
         quoted = float(re.search(r"scaled KKT error ([-+.0-9e]+)", s.result.message).group(1))
         assert s.result.iterations == limit and not s.result.converged
         assert quoted == pytest.approx(s.verdict.kkt_error, rel=1e-3), (limit, s.result.message)
+
+
+def test_the_flat_step_keeps_its_vectors_on_the_device() -> None:
+    """On a device's arrays (``tests.fake_device``: any implicit trip to the host raises) the
+    flat step reads one scalar: the first force at 0 along d."""
+    from tests.fake_device import SPACE
+
+    p, d = SPACE.put(np.array([1.0, 2.0, 0.5])), SPACE.put(np.array([-1.0, 1.0, -2.0]))
+    assert flat_step(p, d, -1.0, 1e-3) == pytest.approx(0.25)
+    alpha, curvature = exact_step(SPACE.put(np.ones(3)), d, SPACE.put(np.zeros(3)), 1e-3, p)
+    assert alpha == pytest.approx(0.25) and curvature == 0.0
