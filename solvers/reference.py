@@ -24,6 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.lcp import default_nnls_max_iter, exact_solution, exact_solution_on_subset
 from contactbench.problems.mixed_lcp import (UncertifiedConstrainedSolution, constrained_exact_solution,
                                              constrained_solution_on_subset)
@@ -85,7 +86,9 @@ class BVLSReference(Solver):
     principal pivoting on the sets with the load row; a periodic whole grid, H 1 = 0: the
     active set on the bordered system, ``load_active_set``).  Certified to a scaled KKT error
     of 1e-10 or it fails.  Dense H, no warm start; without bounds or a load it runs
-    ``exact_solution`` (as ``scipy-nnls``, without equilibration)."""
+    ``exact_solution`` (as ``scipy-nnls``, without equilibration).  It has no iteration
+    limit of its own (``default_max_iter`` None); under a load or a hardness a ``max_iter``
+    given is refused (``ProblemInputError``): the certified solve cannot stop at one."""
 
     name = "bvls"
     family = "reference"
@@ -122,6 +125,9 @@ class BVLSReference(Solver):
             except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:  # H not numerically SPD, LH cut short
                 return on_a_subset(ctx, str(exc))
             return Outcome(sol.p, sol.polish_rounds, sol.converged, w=sol.w)
+        if ctx.max_iter is not None:  # (the lifecycle answers a limit of 0 itself)
+            raise ProblemInputError(f"bvls: under a load or a hardness the certified solve has no iteration limit "
+                                    f"(max_iter {ctx.max_iter} asked); leave max_iter unset")
         try:
             ref = constrained_exact_solution(H, ubar, c)
         except np.linalg.LinAlgError as exc:  # H not numerically SPD: a periodic whole grid's

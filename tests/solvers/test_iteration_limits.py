@@ -74,3 +74,19 @@ def test_no_solver_reports_more_iterations_than_its_limit(name: str) -> None:
             assert 0 <= res.iterations <= allowed, (limit, res.iterations, res.info.get("stages"))
         return
     pytest.skip(f"{name} poses none of {PROBLEMS}")
+
+
+def test_bvls_refuses_an_iteration_limit_it_cannot_honour_under_a_hardness() -> None:
+    """The certified constrained solve of ``bvls`` cannot stop at a limit: a ``max_iter``
+    given under a hardness is refused in one line (it ran the whole solve whatever the limit
+    and claimed convergence); without one it solves, certified."""
+    h = 1e-6 * np.random.default_rng(0).standard_normal((12, 12))
+    b = InstanceBuilder(Surface(h, DX), E, "bcc", operator="fft")
+    plain = b.build(0.3 * float(np.ptp(h)))
+    p = get_solver("bvls").solve(plain.qp, SolverSettings()).p
+    inst = b.build(0.3 * float(np.ptp(h)), hardness=0.5 * float(np.max(p)) / DX**2)
+    with pytest.raises(ProblemInputError, match="max_iter 3") as refused:
+        get_solver("bvls").solve(inst.qp, SolverSettings(max_iter=3))
+    assert "\n" not in str(refused.value)
+    res = get_solver("bvls").solve(inst.qp, SolverSettings(check_tol=1e-6))
+    assert res.converged and res.status == Status.CONVERGED.value
