@@ -385,10 +385,17 @@ def _numbers(df: pd.DataFrame, name: str) -> np.ndarray:
 
 
 def check_numbers(col: pd.Series, name: str, source: object, whole: bool = False) -> None:
-    """Raise TableError for an entry of a numeric column that is text but no number (a
-    corrupted or hand-edited table: never read as missing), a number that is not whole in
+    """Raise TableError for an entry of a numeric column that is text but no number, or a
+    true/false value (a corrupted or hand-edited table: never read as missing nor as 0 or
+    1), a number that is not whole in
     a ``whole`` (count) column (never rounded) or beyond its int64 (``COUNT_MAX``), or a negative or infinite duration (the
     ``_s`` columns: seconds; missing is NaN)."""
+    flags = col.map(lambda v: isinstance(v, (bool, np.bool_))) if col.dtype == object or \
+        pd.api.types.is_bool_dtype(col) else None
+    if flags is not None and flags.any():
+        at = int(np.flatnonzero(flags.to_numpy(dtype=bool))[0])
+        raise TableError(f"column {name} of {source} holds {col.iloc[at]!r}, a true/false value, not a number "
+                         f"(row {at + 1}; {int(flags.sum())} such row(s))")
     if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
         values = col.astype("float64")
     else:

@@ -64,9 +64,10 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 
 @pytest.mark.parametrize(("column", "value", "words"), [("status", "banana", "banana"),
-                                                         ("solve_time_s", "fast", "'fast', not a number")])
+                                                         ("solve_time_s", "fast", "'fast', not a number"),
+                                                         ("iterations", True, "True, a true/false value")])
 def test_a_resume_of_a_hand_edited_journal_is_refused_untouched(genuine: Path, tmp_path: Path, column: str,
-                                                                 value: str, words: str,
+                                                                 value: object, words: str,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     out = copy_of(genuine, tmp_path)
     rows = journal(out)
