@@ -206,8 +206,8 @@ class JudgedSolve(NamedTuple):
 def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = None, check_tol: float | None = None,
                  what: str | None = None, settle_it: bool = True) -> JudgedSolve:
     """Solve ``inst`` with ``solver`` (an instance, a registry name or ``module:NAME``) as the
-    harness does: the solver is handed a copy of the problem (its own ubar; the operator
-    shared), sealed with ``inst``'s beside it (``ProblemSeal``); what it changed, or the
+    harness does: the solver is handed a copy of the problem that shares nothing with it
+    (``judged_benchmark.handed_copy``), sealed with ``inst``'s beside it (``ProblemSeal``); what it changed, or the
     threads it left running, makes the answer "wrong"; the answer is judged by ``judge``
     against ``inst`` at ``check_tol`` (default: ``settings.check_tol``, else the "default"
     profile's; the solver is told it) and, with ``settle_it``, settled (``settle``: a
@@ -217,13 +217,13 @@ def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = No
     SolverSettings) is a one-line ``ProblemInputError``."""
     from dataclasses import replace
 
-    import numpy as np
 
+    from contactbench.harness.judged_benchmark import handed_copy
     from contactbench.harness.judging import ProblemSeal, judge
     from contactbench.harness.profiles import get_profile
     from contactbench.harness.run.worker import running_threads, threads_left
     from contactbench.problems.errors import ProblemInputError, check_positive
-    from contactbench.problems.instances import QP, ContactInstance
+    from contactbench.problems.instances import ContactInstance
     from contactbench.solvers.base import SolverSettings
     from contactbench.solvers.registry import load_solver
 
@@ -239,7 +239,7 @@ def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = No
     tol = get_profile("default").check_tol if tol is None else check_positive("contactbench_solve: check_tol", tol)
     settings = replace(settings, params=dict(settings.params), check_tol=tol)
     qp = inst.qp
-    handed = QP(qp.H, np.array(qp.ubar, copy=True), qp.geometry, qp.constraints)
+    handed = handed_copy(qp)  # (the benchmarks' copy: nothing shared with the judge's problem)
     seal, threads = ProblemSeal.of(handed, [qp]), running_threads()
     try:
         res = s.solve(handed, settings, warm)

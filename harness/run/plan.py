@@ -495,24 +495,32 @@ def check_device_fit(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]) -
         raise ProblemInputError("operator 'gpu': " + "; ".join(misfits[:3]) + more + "; choose a smaller --size")
 
 
+def planned_steps(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]
+                  ) -> list[tuple[InstanceJob, ProblemTraits]] | None:
+    """(job, the traits of a step) for each distinct trial-set size of each recipe of
+    ``jobs``, smallest first; None where a recipe's scene tells no sizes."""
+    out: list[tuple[InstanceJob, ProblemTraits]] = []
+    for job in jobs:
+        size = sizes.get(job.spec.instance)
+        if size is None:
+            return None
+        out += [(job, step_traits(job.spec.params, n, size.side)) for n in sorted(set(size.n))]
+    return out
+
+
 def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], run: RunConfig) -> str:
     """"" when some cell of ``jobs`` would run, or when the scene tells no sizes; else,
     where every cell would be skipped for what its solver declares (``model_rejection``:
     a capability, the time or memory model), the reason at the smallest step of each
     solver (one line)."""
     reasons: dict[str, str] = {}
-    for job in jobs:
-        size = sizes.get(job.spec.instance)
-        if size is None:
-            return ""
-        for n in sorted(set(size.n)):
-            traits = step_traits(job.spec.params, n, size.side)
-            for v in job.variants:
-                runs, why = model_rejection(v.base, traits, run, v.params)
-                if runs:
-                    return ""
-                if why:
-                    reasons.setdefault(v.name, why)
+    for job, traits in planned_steps(jobs, sizes) or ():
+        for v in job.variants:
+            runs, why = model_rejection(v.base, traits, run, v.params)
+            if runs:
+                return ""
+            if why:
+                reasons.setdefault(v.name, why)
     if not reasons:
         return ""
     shown = [f"{name}: {why}" for name, why in list(reasons.items())[:3]]
@@ -527,19 +535,13 @@ def reference_rejection(reference: str, jobs: Sequence[InstanceJob], sizes: dict
     ``RunConfig.ref_timeout``); then the reason at the first step (one line).  A scene
     that tells no sizes, or a reference that cannot be loaded (named elsewhere) or is
     unavailable, is not refused here."""
-    if reference in ("auto", "none") or not jobs:
-        return ""
+    steps = planned_steps(jobs, sizes) if reference not in ("auto", "none") else None
     first = ""
-    for job in jobs:
-        size = sizes.get(job.spec.instance)
-        if size is None:
+    for _, traits in steps or ():
+        runs, why = model_rejection(reference, traits, run, timeout=run.ref_timeout)
+        if runs or not why:
             return ""
-        for n in sorted(set(size.n)):
-            runs, why = model_rejection(reference, step_traits(job.spec.params, n, size.side), run,
-                                        timeout=run.ref_timeout)
-            if runs or not why:
-                return ""
-            first = first or why
+        first = first or why
     return first
 
 
