@@ -128,9 +128,9 @@ class Geometry:
         return replace(self, indices=self.indices[np.asarray(pos)])
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class QP:
-    """What a solver sees: the operator H (n x n, SPD) and the vector ubar.
+    """What a solver sees (frozen): the operator H (n x n, SPD) and the vector ubar.
 
     ``geometry`` is optional and read only by solvers that need positions (CMR).
     ``constraints``: upper bounds and a load equality beyond p >= 0

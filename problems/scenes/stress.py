@@ -415,7 +415,7 @@ def build_precision(spec: InstanceSpec) -> LoadSequence:
     def make() -> ContactInstance:
         inst = InstanceBuilder(s, EDGE_E, str(p["kernel"]), operator=str(p.get("operator", "fft"))).build(
             paper_max_displacement(s))
-        inst.qp.ubar = inst.qp.ubar.astype(np.float32)
+        inst.qp = replace(inst.qp, ubar=inst.qp.ubar.astype(np.float32))
         return _with_meta(inst, dtype="float32")
 
     return _single(spec, make, paper_max_displacement(s))
@@ -432,7 +432,7 @@ def build_perturbation(spec: InstanceSpec) -> LoadSequence:
         if k == 1:
             d = np.random.default_rng(int(p["seed"]) + 7919).standard_normal(inst.n)
             d *= np.linalg.norm(inst.qp.ubar) / np.linalg.norm(d)
-            inst.qp.ubar = inst.qp.ubar + eps * d
+            inst.qp = replace(inst.qp, ubar=inst.qp.ubar + eps * d)
         return _with_meta(inst, perturbation_eps=eps if k == 1 else 0.0)
 
     return LoadSequence(spec.instance, [float("nan")] * 2, factory)

@@ -4,6 +4,7 @@ greedy counterexample (Example 1), analytic scenes, KKT unit invariance, bad inp
 from __future__ import annotations
 
 import warnings
+from dataclasses import FrozenInstanceError, replace
 
 import numpy as np
 import pytest
@@ -220,6 +221,20 @@ def test_restricted_qp_keeps_operator_ubar_and_geometry_consistent(surface: Surf
     np.testing.assert_array_equal(sub.geometry.indices, inst.geometry.indices[pos])
     assert sub.geometry.surface is surface and sub.geometry.far_field == inst.delta
     np.testing.assert_array_equal(rigid_body_ubar(surface.heights, inst.delta, inst.geometry.indices), inst.qp.ubar)
+
+
+def test_a_qp_is_frozen_so_no_solver_can_swap_its_arrays(surface: Surface) -> None:
+    """A solver handed ``inst.qp`` cannot rebind its fields (a test judging by hand against
+    ``inst.qp`` would read the swapped ones); a changed problem is a new QP."""
+    qp = InstanceBuilder(surface, E, operator="dense").build(paper_max_displacement(surface)).qp
+    ubar, H, geometry, constraints = qp.ubar, qp.H, qp.geometry, qp.constraints
+    for name, value in [("ubar", np.zeros_like(ubar)), ("H", None), ("geometry", None), ("constraints", None)]:
+        with pytest.raises(FrozenInstanceError):
+            setattr(qp, name, value)
+    assert qp.ubar is ubar and qp.H is H and qp.geometry is geometry and qp.constraints is constraints
+    moved = replace(qp, ubar=ubar + 1.0)
+    np.testing.assert_array_equal(moved.ubar, ubar + 1.0)
+    assert qp.ubar is ubar and moved.H is H
 
 
 def test_has_surface_tells_which_problems_can_be_rebuilt_from_their_surface(surface: Surface) -> None:
