@@ -431,7 +431,8 @@ def step_traits(params: dict[str, Any], n: int, side: int) -> ProblemTraits:
     return ProblemTraits(n=int(n), operator=str(params.get("operator") or "fft"), has_geometry=True,
                          has_surface=side > 0, periodic=bool(params.get("periodic")), kernel=str(params.get("kernel")),
                          surface_side=side, load_control=params.get("control") == CONTROLS[1],
-                         bounded=params.get("hardness") is not None, layer=layer)
+                         bounded=params.get("hardness") is not None or params.get("hardness_over_ps") is not None,
+                         layer=layer)
 
 
 def model_rejection(base: str, traits: ProblemTraits, run: RunConfig, params: dict[str, Any] | None = None,
@@ -461,6 +462,23 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig, params: di
     if d.skip and not d.failed:
         return False, d.reason
     return True, ""
+
+
+def declared_rejection(base: str, traits: ProblemTraits) -> tuple[bool, str]:
+    """``model_rejection`` where the scene tells no sizes: (whether solver ``base`` may run
+    on a step with ``traits``, the reason when its ``declared_incapacity`` alone skips it).
+    Only what the recipe tells is read -- the operator, a load equality, bounds; n and the
+    grid are unknown (``traits`` carries 0), so neither ``max_n`` nor a time or memory model
+    refuses here.  A solver that cannot be loaded or is unavailable: as ``model_rejection``."""
+    try:
+        solver = load_solver(base)
+    except Exception:  # (the plan names an unloadable solver elsewhere)
+        return False, ""
+    ok, _, failed = checked_availability(solver)
+    if not ok:
+        return failed, ""
+    why = declared_incapacity(solver, traits)
+    return not why, why
 
 
 def declared_incapacity(solver: Solver, traits: ProblemTraits) -> str:
@@ -509,14 +527,19 @@ def planned_steps(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes]
 
 
 def model_rejections(jobs: Sequence[InstanceJob], sizes: dict[str, StepSizes], run: RunConfig) -> str:
-    """"" when some cell of ``jobs`` would run, or when the scene tells no sizes; else,
-    where every cell would be skipped for what its solver declares (``model_rejection``:
-    a capability, the time or memory model), the reason at the smallest step of each
-    solver (one line)."""
+    """"" when some cell of ``jobs`` would run; else, where every cell would be skipped for
+    what its solver declares (``model_rejection``: a capability, the time or memory model),
+    the reason at the smallest step of each solver (one line).  Where the scene tells no
+    sizes, each recipe is one step of its params' traits at n = 0, asked of the declared
+    capabilities alone (``declared_rejection``)."""
     reasons: dict[str, str] = {}
-    for job, traits in planned_steps(jobs, sizes) or ():
+    steps = planned_steps(jobs, sizes)
+    unsized = steps is None
+    if steps is None:
+        steps = [(job, step_traits(job.spec.params, 0, 0)) for job in jobs]
+    for job, traits in steps:
         for v in job.variants:
-            runs, why = model_rejection(v.base, traits, run, v.params)
+            runs, why = declared_rejection(v.base, traits) if unsized else model_rejection(v.base, traits, run, v.params)
             if runs:
                 return ""
             if why:

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..constraints import CONTROLS
 from ..instances import ContactInstance, InstanceBuilder, paper_max_displacement
 from ..surfaces import Surface, rmd_surface_n
 from .base import InstanceSpec, LoadSequence
@@ -46,8 +47,11 @@ def _spec(scene: str, group: str, instance: str, **params: Any) -> InstanceSpec:
 
 
 def constrained_specs(scene: str, seed: int = 0) -> list[InstanceSpec]:
-    return [_spec(scene, "constrained", f"{case}-bcc-N{CONSTRAINED_N}", case=case, seed=seed, n=CONSTRAINED_N ** 2)
-            for case in CONSTRAINED_CASES]
+    """The constrained recipes; their params tell the planner each case's control and bound
+    (``control``, ``hardness_over_ps``, as the scenes' own recipes do), from ``CONSTRAINED_CASES``."""
+    return [_spec(scene, "constrained", f"{case}-bcc-N{CONSTRAINED_N}", case=case, seed=seed, n=CONSTRAINED_N ** 2,
+                  control=CONTROLS[int(load)], hardness_over_ps=HARDNESS_OVER_PS if bounded else None)
+            for case, (load, bounded) in CONSTRAINED_CASES.items()]
 
 
 def rectangular_specs(scene: str, seed: int = 0) -> list[InstanceSpec]:

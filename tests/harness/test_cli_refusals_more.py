@@ -47,6 +47,26 @@ def test_a_plan_where_some_cell_runs_still_runs_and_records_the_skips(tmp_path: 
     assert set(t.loc[t.solver == "pk", "status"]) == {"solved"}
 
 
+def test_a_scene_that_tells_no_sizes_is_refused_for_a_declared_capability(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """The stress scenes tell no trial-set sizes; their recipes' control and bounds still
+    refuse a solver that declares it cannot pose them, and a plan where some cell runs
+    still runs, recording the skipped cells' reasons."""
+    out = tmp_path / "o"
+    line = refused(["run", "stress-constrained", "--solvers", "nnls", "--no-progress", "--out", str(out)], capsys)
+    assert "every cell would be skipped" in line and "nnls cannot pose load control" in line, line
+    assert not out.exists()
+    rc, _, err = run_cli(["run", "stress-constrained", "--solvers", "nnls,pk", "--no-progress", "--out", str(out)],
+                         capsys)
+    assert rc == 0, err
+    t = pd.read_csv(out / "results.csv")
+    nnls = t[t.solver == "nnls"].set_index("instance")
+    assert set(nnls.status) == {"skipped"} and set(t.loc[t.solver == "pk", "status"]) == {"solved"}
+    assert nnls.skip_reason.str.contains("cannot pose").all()
+    assert nnls.control.to_dict() == {"constrained/load-bcc-N16": "load", "constrained/hardness-bcc-N16": "displacement",
+                                      "constrained/load-hardness-bcc-N16": "load"}
+
+
 def test_a_reference_that_cannot_pose_the_problem_is_refused(tmp_path: Path,
                                                              capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "o"
