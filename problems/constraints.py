@@ -68,6 +68,14 @@ class Constraints:
         return self.load is not None
 
     @property
+    def capacity_share(self) -> float:
+        """P / sum(upper): the share of what every element at its bound carries that the load
+        takes (1: every element plastic); 0 without a load equality or a finite bound."""
+        if self.load is None or not self.bounded:
+            return 0.0
+        return float(self.load) / float(np.sum(self.upper))
+
+    @property
     def plain(self) -> bool:
         """Neither bounds nor a load equality: the displacement-controlled problem."""
         return not self.bounded and not self.load_control
@@ -87,7 +95,7 @@ class Constraints:
     def check(self, n: int) -> None:
         """``ProblemInputError`` unless these constraints can be posed on n unknowns: upper
         of length n with entries > 0 (inf allowed, NaN not), load finite and >= 0, and the
-        box able to carry the load (sum(upper) >= load)."""
+        box able to carry the load (``load_exceeds``: sum(upper) >= load to round-off)."""
         if self.upper is not None:
             u = np.asarray(self.upper)
             if u.shape != (n,) or u.dtype != np.float64:
@@ -98,8 +106,8 @@ class Constraints:
             if not (isinstance(self.load, float) and math.isfinite(self.load) and self.load >= 0.0):
                 raise ProblemInputError(f"the load must be a finite float >= 0, got {self.load!r}")
             cap = float(np.sum(self.upper_or_inf(n)))
-            if cap < self.load:
-                raise ProblemInputError(overload_message(f"the load {self.load:g}", "the bounds", f"{cap:g}"))
+            if load_exceeds(self.load, cap, n):
+                raise ProblemInputError(overload_message(self.load, cap, "the load", "the bounds", "sum(upper)"))
 
 
 def make_constraints(n: int, upper: np.ndarray | float | None = None, load: float | None = None) -> Constraints:
@@ -134,23 +142,50 @@ def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int)
     return np.full(n, u)
 
 
-def overload_message(load: str, carrier: str, capacity: str) -> str:
-    """The one-line refusal of a load beyond what every element plastic carries."""
-    return f"{load} exceeds what {carrier} can carry ({capacity}): every element plastic cannot balance it"
+#: The round-off allowed per term of ``load_exceeds``: a load within LOAD_SLACK_ULPS (terms + 1)
+#: units of round-off (relative, eps = 2^-52) of a capacity is taken as at the capacity.
+LOAD_SLACK_ULPS = 8
+
+
+def load_exceeds(load: float, capacity: float, terms: int) -> bool:
+    """Whether the total force ``load`` exceeds what the bounds carry, ``capacity``, by more
+    than round-off: load > capacity (1 + s), s = LOAD_SLACK_ULPS (terms + 1) eps, ``terms``
+    the number of bounds summed into ``capacity`` (0 for a capacity not summed, e.g. the
+    planner's H_A against the load's E* P/(E* A)).  A load within s of the capacity is
+    feasible: every element at its bound (p = u) carries it to round-off.  The one test of a
+    load against the bounds, made by the planner (``check_load_under_hardness``, terms 0)
+    and the build (``Constraints.check``, terms n): a ratio the planner accepts gives a force
+    P = (load E*) A within (n + 4) eps of the summed bounds n (H_A d0 d1), inside the
+    build's slack (8 n eps more than the planner's), so the build accepts every load the
+    planner accepts.  An infinite capacity carries any load."""
+    if not math.isfinite(capacity):
+        return False
+    slack = LOAD_SLACK_ULPS * (max(int(terms), 0) + 1) * float(np.finfo(np.float64).eps)
+    return float(load) > float(capacity) * (1.0 + slack)
+
+
+def overload_message(load: float, capacity: float, what: str, carrier: str, capacity_name: str) -> str:
+    """The one-line refusal of a load beyond what every element plastic carries
+    (``load_exceeds``): both numbers in the shortest digits that tell them apart (``repr``)
+    and the relative excess."""
+    excess = float(load) / float(capacity) - 1.0 if capacity > 0.0 else math.inf
+    return (f"{what} {float(load)!r} exceeds what {carrier} can carry ({capacity_name} = {float(capacity)!r}; "
+            f"{excess:.3g} relative above it): every element plastic cannot balance it")
 
 
 def check_load_under_hardness(loads: list[float], hardness: float | None, E: float) -> None:
     """``ProblemInputError`` when a dimensionless load P / (E* A) of a load-controlled recipe
     on the whole grid exceeds H_A / E*, the load of every element plastic: sum(u) of
     ``hardness_bounds`` over the nominal area A, which ``Constraints.check`` would refuse
-    when the step is built.  Checked from the options, before anything runs."""
+    when the step is built.  Both decide by ``load_exceeds`` (here the product top E*
+    against H_A, no sum), so every load accepted here is accepted by the build.  Checked
+    from the options, before anything runs."""
     if hardness is None or not loads:
         return
     top = max(float(x) for x in loads)
-    if top * float(E) > float(hardness):
-        raise ProblemInputError(overload_message(f"--loads: the load P/(E* A) = {top:g}",
-                                                 f"--hardness {float(hardness):g} Pa",
-                                                 f"H_A/E* = {float(hardness) / float(E):.4g}")
+    if load_exceeds(top * float(E), float(hardness), 0):
+        raise ProblemInputError(overload_message(top, float(hardness) / float(E), "--loads: the load P/(E* A) =",
+                                                 f"--hardness {float(hardness):g} Pa", "H_A/E*")
                                 + "; lower the loads or raise the hardness")
 
 
@@ -262,5 +297,5 @@ def fit_multiplier(g: np.ndarray, p: np.ndarray, upper: np.ndarray | None) -> fl
     return float(np.min(g))
 
 
-__all__ = ["Constraints", "fit_multiplier", "hardness_bounds", "make_constraints",
+__all__ = ["Constraints", "fit_multiplier", "hardness_bounds", "load_exceeds", "make_constraints",
            "project_box", "project_box_sum", "project_feasible"]

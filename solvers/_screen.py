@@ -62,7 +62,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from contactbench.problems.constraints import fit_multiplier
+from contactbench.problems.constraints import fit_multiplier, load_exceeds
 from contactbench.problems.instances import QP
 
 from .base import Outcome, Param, SolveContext, Status
@@ -169,9 +169,13 @@ def touching(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:
 
 def carries_the_load(ctx: SolveContext, T: np.ndarray) -> bool:
     """Whether the points ``T`` (indices or a mask) can carry the load under the
-    hardness's bounds, sum(u_T) >= P (True without a load or a hardness)."""
+    hardness's bounds, sum(u_T) >= P to round-off (``constraints.load_exceeds``, as the
+    problem's own check; True without a load or a hardness)."""
     c = ctx.constraints
-    return not (c.load_control and c.upper is not None and float(np.sum(c.upper[T])) < float(c.load))
+    if not c.load_control or c.upper is None:
+        return True
+    u_T = c.upper[T]
+    return not load_exceeds(float(c.load), float(np.sum(u_T)), int(u_T.size))
 
 
 def screened_set(ctx: SolveContext, p: np.ndarray) -> np.ndarray | None:

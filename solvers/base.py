@@ -423,6 +423,7 @@ class ProblemTraits:
     surface_side: int = 0  # points per side of the instance's surface (0: none)
     load_control: bool = False  # the QP carries a load equality
     bounded: bool = False  # the QP carries finite upper bounds (a hardness)
+    capacity_share: float = 0.0  # P / sum(upper) (``Constraints.capacity_share``; 0: no load or no bound)
     layer: bool = False  # the kernel is an elastic layer of finite thickness (not a half-space)
     rectangular: bool = False  # the grid, or its elements, are known to be rectangular (not N x N squares)
     #: periodic with the whole grid as its trial set: H 1 = 0 there (the q = 0 mode removed), H singular

@@ -34,7 +34,8 @@ as they are: ContactMechanics' half-spaces take ``physical_sizes`` (L0, L1) with
 Load control and hardness: cm-pk-ccg poses both natively (``native_control``): its
 ``external_force`` is the load P (its returned ``offset`` is the approach Delta, reported
 as the multiplier), its ``hardness`` the per-pixel force bound -- except load control on
-the periodic domain, which it skips (``PERIODIC_LOAD_SKIP``).  cm-dual-ccg poses
+the periodic domain, which it skips (``PERIODIC_LOAD_SKIP``), and a load within one
+element of every element plastic, which it cannot pose (``SATURATED_LOAD_SKIP``).  cm-dual-ccg poses
 neither (its ``dual_minimize_proxy`` takes an offset only) and is skipped on them.
 
 Either way ContactMechanics solves exactly our problem (solvers/_peers.py: the QP posed on
@@ -67,6 +68,15 @@ GREEN_CHOICES = ("auto", "ours")
 PERIODIC_LOAD_SKIP = ("cm-pk-ccg does not pose periodic load control on our mean-free kernel: ContactMechanics' "
                       "force-controlled PK with stiffness_q0 = 0 stops after one iteration at its uniform start "
                       "(a q = 0 stiffness would pose another problem)")
+
+#: Why cm-pk-ccg does not pose a load above (n - 1) elements at a uniform bound h.  Where its
+#: CG area vanishes it relaxes the contact area, finding the offset by bisection on
+#: #(g < offset) h - P between max(g) and min(g): at most (n - 1) h - P at max(g), so for
+#: P > (n - 1) h no sign change -- scipy's ``bisect`` raises ValueError (plastic-sweep under
+#: load control, 8^2 and 16^2: it raises at P = (n - 0.99) h, not at (n - 1.01) h).
+SATURATED_LOAD_SKIP = ("cm-pk-ccg does not pose a load above what all elements but one carry at their bound: "
+                       "ContactMechanics' plastic-area bisection for the offset has no sign change there "
+                       "(scipy bisect raises)")
 
 
 #: Why cm-pk-ccg is not run on a periodic real-space kernel.  On our mean-free periodic
@@ -220,6 +230,8 @@ class CMPolonskyKeer(_CMSolver):
             return why
         if traits.periodic and traits.load_control:
             return PERIODIC_LOAD_SKIP
+        if traits.load_control and traits.bounded and traits.capacity_share * traits.n > traits.n - 1:
+            return SATURATED_LOAD_SKIP
         if traits.periodic and traits.kernel in ("love", "bcc"):
             return PERIODIC_REAL_SPACE_SKIP
         return None

@@ -259,6 +259,7 @@ def problem_traits(inst: ContactInstance) -> ProblemTraits:
                          has_surface=square, periodic=bool(inst.periodic), kernel=inst.kernel,
                          surface_side=int(geom.grid_shape[0]) if square else 0,
                          load_control=inst.qp.constraints.load_control, bounded=inst.qp.constraints.bounded,
+                         capacity_share=inst.qp.constraints.capacity_share,
                          layer=geom is not None and geom.layer is not None,
                          rectangular=geom is not None and (geom.grid_shape[0] != geom.grid_shape[1]
                                                            or geom.spacing[0] != geom.spacing[1]),

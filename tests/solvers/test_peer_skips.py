@@ -124,3 +124,35 @@ def test_cm_pk_ccg_skips_a_periodic_real_space_kernel_with_the_reason() -> None:
         assert dual.skip(traits) is None
     assert pk.skip(ProblemTraits(n=256, operator="fft", kernel="spectral", periodic=True)) is None
     assert pk.skip(ProblemTraits(n=256, operator="fft", kernel="love", periodic=False)) is None
+
+
+def saturated(margin: float, N: int = 8):
+    """An N^2 non-periodic BCC problem under a hardness of 0.3 E* whose load is what
+    n - ``margin`` elements carry at their bound."""
+    s = surface(N)
+    b = InstanceBuilder(s, E, "bcc", periodic=False)
+    h = 0.3 * E
+    return b.build_load((N * N - margin) * h * s.delta ** 2, hardness=h)
+
+
+@pytest.mark.parametrize("margin,skipped", [(0.99, True), (0.5, True), (1.01, False), (2.0, False)])
+def test_cm_pk_ccg_skips_a_load_above_all_elements_but_one_at_their_bound(margin: float, skipped: bool) -> None:
+    """ContactMechanics' plastic-area bisection has no sign change for a load above (n - 1)
+    bounds: skipped with the reason (the traits carry the load's share of the capacity)."""
+    inst = saturated(margin)
+    traits = problem_traits(inst)
+    assert traits.capacity_share == pytest.approx((inst.n - margin) / inst.n, rel=1e-12)
+    why = get_solver("cm-pk-ccg").skip(traits)
+    assert (why is not None and "all elements but one" in why) if skipped else why is None
+
+
+def test_cm_pk_ccg_raises_where_it_skips_a_nearly_saturated_load() -> None:
+    """The peer's own behaviour behind the skip (its ``solve`` does not ask ``skip``): it
+    raises at n - 0.99 bounds and answers at n - 1.01."""
+    solver = get_solver("cm-pk-ccg")
+    ok, why = solver.availability()
+    if not ok:
+        pytest.skip(why)
+    with pytest.raises(ValueError, match="different signs"):
+        solver.solve(saturated(0.99).qp, SolverSettings(max_iter=3000))
+    assert np.isfinite(solver.solve(saturated(1.01).qp, SolverSettings(max_iter=3000)).p).all()
