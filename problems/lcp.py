@@ -63,6 +63,10 @@ class UncertifiedSolutionError(RuntimeError):
     """``exact_solution_on_subset`` could not certify a subset solution on the whole problem."""
 
 
+class NNLSIterationLimit(RuntimeError):
+    """Lawson-Hanson hit its ``max_iter`` (``nnls_on_factor``); scipy hands back no iterate."""
+
+
 @dataclass
 class PolishOutcome:
     """What ``bpp_polish`` returns.
@@ -131,11 +135,16 @@ def default_nnls_max_iter(n: int) -> int:
 
 def nnls_on_factor(L: np.ndarray, ubar: np.ndarray, max_iter: int | None = None) -> np.ndarray:
     """min 1/2 p'Hp - ubar'p, p >= 0 for H = L L' as NNLS with A = L', b = L^{-1} ubar
-    (module doc).  Raises ``RuntimeError`` when Lawson-Hanson hits ``max_iter``."""
+    (module doc).  Raises ``NNLSIterationLimit`` (a ``RuntimeError``) when Lawson-Hanson
+    hits ``max_iter``."""
     b = sla.solve_triangular(L, ubar, lower=True, check_finite=False)
     A = np.ascontiguousarray(L.T)
     n = int(b.size)
-    p, _ = nnls(A, b, maxiter=default_nnls_max_iter(n) if max_iter is None else int(max_iter))
+    limit = default_nnls_max_iter(n) if max_iter is None else int(max_iter)
+    try:
+        p, _ = nnls(A, b, maxiter=limit)
+    except RuntimeError as exc:  # (scipy's only RuntimeError: its iteration limit)
+        raise NNLSIterationLimit(f"Lawson-Hanson reached its limit of {limit} iterations ({exc})") from exc
     return p
 
 
@@ -204,7 +213,7 @@ def exact_solution(H: np.ndarray, ubar: np.ndarray, max_iter: int | None = None)
     """The exact solution of the LCP (H, ubar) for a dense SPD H: Lawson-Hanson NNLS on
     the Cholesky factor, then ``bpp_polish`` to round-off (module doc).  ``max_iter``
     caps Lawson-Hanson (None: ``default_nnls_max_iter``); hitting it raises
-    ``RuntimeError``, a non-SPD H raises ``LinAlgError``."""
+    ``NNLSIterationLimit``, a non-SPD H raises ``LinAlgError``."""
     H, ubar = _check_dense(H, ubar)
     if ubar.size == 0:
         return LCPSolution(np.zeros(0), np.zeros(0), 0.0, 0, True)

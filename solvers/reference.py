@@ -13,7 +13,9 @@ ch. 23, which the paper's section 4 also relates to).  Lawson-Hanson terminates 
 with an exact solve on its final active set, hence ``exact=True``.  Block principal
 pivoting (``bpp_polish``) then checks and, if needed, repairs that active set, so the
 reference is at round-off.  ``max_iter`` caps Lawson-Hanson (default
-``default_nnls_max_iter(n)``); the tolerance is not used (the method is exact).  The
+``default_nnls_max_iter(n)``); at that limit scipy keeps no iterate, so the answer is the
+start, p = 0, not converged, status max_iter (as at a limit of 0: ``base.ZERO_LIMIT_NOTE``),
+never a non-finite p.  The tolerance is not used (the method is exact).  The
 Cholesky factorization and NNLS are solve time; ``iterations`` counts polish rounds.
 No warm start.
 """
@@ -25,7 +27,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from contactbench.problems.errors import ProblemInputError
-from contactbench.problems.lcp import default_nnls_max_iter, exact_solution, exact_solution_on_subset
+from contactbench.problems.lcp import (NNLSIterationLimit, default_nnls_max_iter, exact_solution,
+                                       exact_solution_on_subset)
 from contactbench.problems.mixed_lcp import (UncertifiedConstrainedSolution, constrained_exact_solution,
                                              constrained_solution_on_subset)
 
@@ -59,6 +62,8 @@ class ScipyNNLS(EquilibratedAdapter):
     def run_backend(self, sqp: ScaledQP, prepared: Any, ctx: SolveContext) -> BackendOutcome:
         try:
             sol = exact_solution(sqp.H, sqp.u, ctx.max_iter)
+        except NNLSIterationLimit as exc:  # (the start, the last iterate held: module doc)
+            return BackendOutcome(np.zeros_like(sqp.u), f"iteration limit: {exc}", False)
         except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
             return BackendOutcome(None, f"error: {type(exc).__name__}: {exc}", False)
         return BackendOutcome(

@@ -108,6 +108,17 @@ def test_zero_limit_is_an_honest_outcome(name: str, periodic: bool) -> None:
     assert res.status == Status.MAX_ITER.value and "max_iter 0" in res.message
 
 
+@pytest.mark.parametrize("limit", [1, 2])
+@pytest.mark.parametrize("periodic", [False, True])
+def test_scipy_nnls_at_a_small_limit_answers_its_finite_start(limit: int, periodic: bool) -> None:
+    """Lawson-Hanson stopped by its limit keeps no iterate: the answer is the start p = 0,
+    not converged, status max_iter -- never a non-finite p."""
+    inst = step(rough(8), periodic)
+    res = get_solver("scipy-nnls").solve(inst.qp, SolverSettings(max_iter=limit))
+    assert np.all(np.isfinite(res.p)) and not np.any(res.p)
+    assert not res.converged and res.status == Status.MAX_ITER.value and "iteration limit" in res.message
+
+
 def test_a_warm_start_is_kept_at_a_zero_limit() -> None:
     require("qp-osqp")
     inst = step(rough(8))
