@@ -15,7 +15,11 @@ sampling.
 min(N0 d0, N1 d1)); ``check_plausible_units`` refuses a surface outside the plausible
 range -- rms slope > ``MAX_RMS_SLOPE``, a height range larger than the side length, or an
 rms slope < ``MIN_RMS_SLOPE`` -- with one line that says what was found and what was
-probably meant: a height unit (``probable_unit``), else the side length.  Scenes call it
+probably meant: a height unit (``probable_unit``), else the side length -- unless a few
+outliers alone make it implausible (``outlier_account``: with at most ``OUTLIER_SHARE`` of the
+points, those farthest from the median height, set to the median the map is plausible),
+when it names them and suggests no unit (a spike read in another unit would shrink the
+whole map with it).  Scenes call it
 when they validate a measured (``--surface``) file, so ``contactbench run`` stops with
 exit 2 before anything runs; ``--height-unit m|mm|um|nm`` converts the heights of a file
 that states no unit, and ``--allow-steep`` skips the check (either bound) for those who
@@ -28,7 +32,10 @@ always a unit slip (MPa or GPa given as Pa); the ``--E`` option record
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
 
 from .errors import ProblemInputError
 from .surfaces import Surface
@@ -48,6 +55,9 @@ MIN_RMS_SLOPE = 1e-5
 #: almost surely in the wrong unit (and far outside it the influence coefficients under-
 #: or overflow).
 PLAUSIBLE_MODULUS: tuple[float, float] = (1e3, 1e13)
+#: The largest share of a map's points ``outlier_account`` may leave out (at least one point):
+#: a map plausible without them is implausible only by those outliers.
+OUTLIER_SHARE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -108,9 +118,10 @@ def probable_unit(figures: UnitFigures, height_unit: str = "m") -> str | None:
     return None
 
 
-def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
+def implausibility(figures: UnitFigures, height_unit: str | None, outliers: str | None = None) -> str:
     """The one-line account of an implausible surface (``height_unit`` None: the file
-    stated its own unit, so only the file or --length can be wrong)."""
+    stated its own unit, so only the file or --length can be wrong; ``outliers``: the
+    account of ``outlier_account``, which then replaces any advice on units)."""
     found = []
     if figures.too_steep:
         found.append(f"rms slope {figures.rms_slope:.2g} "
@@ -121,6 +132,8 @@ def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
         found.append(f"rms slope {figures.rms_slope:.2g} (below {MIN_RMS_SLOPE:g}, smoother than any measured "
                      "surface: a height unit or a side length off by 1e3 or 1e6?)")
     text = "; ".join(found)
+    if outliers is not None:
+        return f"{text}: {outliers}"
     if height_unit is None:
         return (f"{text}: the heights or the lateral size stated by the file look wrong; check the file's units "
                 "and --length, or pass --allow-steep to run it anyway")
@@ -132,6 +145,43 @@ def implausibility(figures: UnitFigures, height_unit: str | None) -> str:
             f"--height-unit {unit} (or --allow-steep to run it anyway)")
 
 
+def outlier_account(surface: Surface) -> str | None:
+    """The one-line account of an implausible surface that a few outliers alone make so,
+    else None: when the map with its ceil(``OUTLIER_SHARE`` n) points farthest from the
+    median height (|h - median|) set to the median is plausible, the fewest m of them that
+    must go (a bisection over m), the largest (its height in metres and its grid index) and
+    the figures without them.  No height unit is suggested: another unit scales every
+    height, the outliers' and the rest's alike."""
+    h = surface.heights
+    med = float(np.median(h))
+    dev = np.abs(h - med).ravel()
+    k = min(max(1, math.ceil(OUTLIER_SHARE * dev.size)), dev.size - 1)
+    top = np.argpartition(dev, dev.size - k)[dev.size - k:]
+    top = top[np.argsort(dev[top])[::-1]]  # (farthest first)
+
+    def without(m: int) -> UnitFigures:
+        flat = h.ravel().copy()
+        flat[top[:m]] = med
+        return unit_figures(replace(surface, heights=flat.reshape(h.shape), levels=()))
+
+    if not without(k).plausible:
+        return None
+    lo, hi = 0, k  # (implausible with lo left out, plausible with hi)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if without(mid).plausible:
+            hi = mid
+        else:
+            lo = mid
+    rest = without(hi)
+    idx = tuple(int(i) for i in np.unravel_index(int(top[0]), h.shape))
+    many = f"{hi} outlier points alone make" if hi > 1 else "1 outlier point alone makes"
+    return (f"{many} it so (the farthest from the median height: {float(h.ravel()[top[0]]):.3g} m at index {idx}, "
+            f"the median being {med:.3g} m); without {'them' if hi > 1 else 'it'} the map is plausible (rms slope "
+            f"{rest.rms_slope:.2g}, height range {rest.height_range:.3g} m), so no height unit is suggested: "
+            "remove or fill the outliers in the file, or pass --allow-steep to run it anyway")
+
+
 def check_plausible_units(surface: Surface, height_unit: str | None = "m", file: str | None = None) -> UnitFigures:
     """The figures of ``surface`` when they are within the plausible range (module doc),
     else an ``ImplausibleUnitsError``.  ``height_unit`` is the unit the file's numbers were read
@@ -140,8 +190,11 @@ def check_plausible_units(surface: Surface, height_unit: str | None = "m", file:
     figures = unit_figures(surface)
     if figures.plausible:
         return figures
-    suggestion = probable_unit(figures, height_unit) if height_unit is not None else None
     what = f"cannot use surface file {file!r}" if file else f"surface {surface.name!r}"
+    outliers = outlier_account(surface)
+    if outliers is not None:
+        raise ImplausibleUnitsError(f"{what}: {implausibility(figures, None, outliers)}", figures, None)
+    suggestion = probable_unit(figures, height_unit) if height_unit is not None else None
     raise ImplausibleUnitsError(f"{what}: {implausibility(figures, height_unit)}", figures, suggestion)
 
 
