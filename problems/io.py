@@ -60,6 +60,7 @@ Coarsening and the PSD power-law test are not I/O: they live in ``problems/coars
 
 from __future__ import annotations
 
+import errno
 import stat
 import warnings
 from collections.abc import Iterator
@@ -482,6 +483,22 @@ NOT_FILE_KINDS: tuple[tuple[Any, str], ...] = (
     (stat.S_ISSOCK, "a socket"))
 
 
+def resolved_path(p: Path) -> Path:
+    """``p.resolve()``, or a one-line ``SurfaceFileError`` naming ``p`` where its links cannot
+    be followed to an end: a symlink loop (``RuntimeError`` before Python 3.13, ``OSError``
+    ELOOP after) or another ``OSError`` (named by its reason)."""
+    try:
+        return p.resolve()
+    except RuntimeError:
+        raise SurfaceFileError(p, "it is a symlink loop (its links lead back to themselves); give a height-map "
+                                  "file") from None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise SurfaceFileError(p, "it is a symlink loop (its links lead back to themselves, or too many); give "
+                                      "a height-map file") from None
+        raise SurfaceFileError(p, f"its path cannot be followed ({exc.strerror or exc})") from None
+
+
 def check_surface_file(p: Path) -> None:
     """Refuse, in one ``SurfaceFileError`` line and before any of it is read, a surface
     path that is neither a regular file nor a folder (a named pipe, a device, a socket:
@@ -489,8 +506,10 @@ def check_surface_file(p: Path) -> None:
     folder, is left to the reader, which names why (a .npy header that declares more
     than the file holds: ``map_readers.check_npy_size``, before NumPy allocates).  A path,
     or the file a link leads to, whose name is not UTF-8 text is refused too: the map's
-    name and path are recorded in the results table and meta.json, which hold UTF-8 text."""
-    for name in (p, p.resolve()):
+    name and path are recorded in the results table and meta.json, which hold UTF-8 text.
+    A link that cannot be followed to its end (``resolved_path``: a symlink loop) is refused
+    here, naming the path."""
+    for name in (p, resolved_path(p)):
         shown = not_utf8_text(name)
         if shown is not None:
             raise SurfaceFileError(shown, "its name is not UTF-8 text (the results record it); rename the file")
