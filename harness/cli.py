@@ -432,9 +432,7 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | 
                 return EXIT_RUN_STOPPED
     if held is not None:
         held.release()
-    for w in summary.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    print(summary.line())
+    print(summary.line())  # (the plan's warnings: logged by run_benchmark as it starts)
     status = 0
     if summary.judged == 0:
         print(f"contactbench: error: no row could be judged ({summary.rows} rows, none solved or inaccurate)"

@@ -149,6 +149,26 @@ def surface_keys(surfaces: dict[str, dict[str, Any]]) -> list[str]:
                    if rec.get("key")})
 
 
+def same_heights(out_dir: str | os.PathLike[str], surfaces: dict[str, dict[str, Any]]) -> list[str]:
+    """One warning for each map of this run (``surfaces``: its ``surface_preprocessing``
+    records) that the folder ``out_dir`` already holds (its meta.json's records) under
+    another base name with the same ``key`` -- the same heights prepared the same way,
+    whose rows the report then counts as two maps.  Not a refusal: a user may mean it."""
+    earlier = read_meta(out_dir).get("surface_preprocessing")
+    recorded: dict[str, set[str]] = {}
+    for rec in (earlier.values() if isinstance(earlier, dict) else ()):
+        if isinstance(rec, dict) and rec.get("key"):
+            recorded.setdefault(str(rec["key"]), set()).add(str(rec.get("source")))
+    found = []
+    for rec in surfaces.values():
+        others = sorted(recorded.get(str(rec.get("key")), set()) - {str(rec.get("source"))})
+        if others:
+            found.append(f"surface {rec.get('source')!r} has the same heights, prepared the same way (key "
+                         f"{str(rec['key'])[:IDENTITY_KEY_DIGITS]}), as {', '.join(map(repr, others))} already in "
+                         f"{out_dir}: the report counts them as separate maps")
+    return list(dict.fromkeys(found))
+
+
 def run_identity(config: dict[str, Any]) -> dict[str, Any]:
     """The configuration a results folder pins (its marker), from a meta.json ``config``
     (``run_config_record``, of this run or of a folder written before the marker):
@@ -216,6 +236,7 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
         ready()
     with holding_lock(out_dir):
         folder = checked_folder(out_dir, identity, append, config.get("solver_sources", {}))  # again, locked
+        plan = replace(plan, warnings=[*plan.warnings, *same_heights(out_dir, surfaces)])
         for w in plan.warnings:
             log.warning("warning: %s", w)
         record_run(folder, identity)
