@@ -312,7 +312,8 @@ def test_each_solve_is_handed_a_problem_no_earlier_solve_saw(inst: ContactInstan
 
 def test_the_benchmark_suite_hands_each_round_its_own_problem(tmp_path: Path) -> None:
     """benchmarks/test_bench_solvers.py with a solver that records each ubar it is handed:
-    the warm-up and the 2 timed rounds each see a different one."""
+    the warm-up and the 2 timed rounds (and any solve the cache check adds on a loaded
+    machine) each see a different one."""
     record = tmp_path / "seen.txt"
     (tmp_path / "judged_recorder.py").write_text(f'''
 import hashlib
@@ -343,7 +344,7 @@ class Recorder(Solver):
     text = done.stdout + done.stderr
     assert "1 passed" in text, text
     seen = record.read_text().split()
-    assert len(seen) == 3 and len(set(seen)) == 3, (seen, text)
+    assert len(seen) >= 3 and len(set(seen)) == len(seen), (seen, text)
 
 
 @pytest.mark.parametrize("which", ["plain", "load-and-bounds"])
