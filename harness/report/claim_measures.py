@@ -26,11 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from contactbench.solvers.admm import PAPER_PARAMS
-from contactbench.solvers.registry import get_solver
 
 from .claim_rules import CLAIMS, SINGLE_REPEAT_SPREAD, Timing, judged_spread, over_repeats
-from .claim_tables import COLD_SCENE, ratio, repeat_totals, totals
+from .claim_tables import COLD_SCENE, plays, ratio, repeat_totals, totals
 from .core import natural_key, parse_json, per_cell
 
 # ---------------------------------------------------------------------------
@@ -210,9 +208,7 @@ def is_papers_admm(params: object) -> bool:
     """Whether a row's ``params`` make ADMM as the paper states it (``PAPER_PARAMS``, every
     other parameter at the registry's default): the only ADMM the ledger reads; the
     registry's ``admm`` (rho relative to mean diag H, the KKT stop) is another method."""
-    given = parse_json(params, {})
-    default = get_solver("admm").param_defaults()
-    return isinstance(given, dict) and {**default, **given} == {**default, **PAPER_PARAMS}
+    return plays("admm", params)  # (``claim_tables.PAPER_ROLES["admm"]``: the one home of the fact)
 
 
 def papers_admm(rows: pd.DataFrame) -> str | None:

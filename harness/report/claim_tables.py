@@ -4,6 +4,10 @@ report's readings that state its verdicts: which label plays each of the paper's
 (``ledger_rows``), the seeds a measurement rests on, a condition's rows, and each solver
 label's totals over the steps (``totals``) and their ratios (``ratio``).
 
+A condition is an operator and the profile the study runs it at (``CONDITION_PROFILES``,
+read from the study itself): every reader takes its rows through ``of_condition`` or
+``under``, so a row of another profile never stands for the paper's condition.
+
 This module and claim_measures.py are the one home of these measurements: claims.py and
 the report's sections import them; they import no section."""
 
@@ -17,6 +21,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from contactbench.solvers.admm import PAPER_PARAMS
+from contactbench.solvers.registry import get_solver
+
+from ..run.studies import CLAIMS_DENSE_PROFILE, CLAIMS_FFT_PROFILE
 from ..table.schema import ANSWERED, CELL_COLUMNS
 from .claim_rules import Timing, relative_range
 from .core import natural_key, parse_json, per_cell
@@ -29,8 +37,9 @@ from .core import natural_key, parse_json, per_cell
 @dataclass(frozen=True)
 class PaperRole:
     """How to find one of the paper's algorithms in a table: its registry name, the
-    paper's parameter values (keys absent from a row's ``params`` take the solver's
-    defaults, which are the paper's), and whether the role is the warm-started run.
+    paper's parameter values (a row plays the role when its ``params``, read with the
+    registry's defaults, are those values with every other parameter at its default:
+    ``plays``), and whether the role is the warm-started run.
     ``warm=False``: cold runs first, a warm-started one only when there is no cold one;
     ``warm=True``: warm-started runs only."""
 
@@ -49,13 +58,35 @@ PAPER_ROLES: dict[str, PaperRole] = {
     "greedy-cg": PaperRole("greedy CG", "greedy-cg"),
     "greedy-gs": PaperRole("greedy Gauss-Seidel", "greedy-gs"),
     "greedy-chol": PaperRole("greedy Cholesky", "greedy-chol"),
-    "admm": PaperRole("ADMM", "admm"),
+    # ADMM as section 4 states it (tex 1028-1029: alpha 1.5, rho 1, eps 1e-8 with the printed
+    # stop): ``solvers.admm.PAPER_PARAMS``; the registry's default ADMM is another method
+    "admm": PaperRole("ADMM", "admm", dict(PAPER_PARAMS)),
 }
 
 
-def _params_match(params: Any, wanted: dict[str, Any]) -> bool:
+def _defaults(base_solver: str) -> dict[str, Any] | None:
+    try:
+        return dict(get_solver(base_solver).param_defaults())
+    except KeyError:  # (a base solver the registry does not know: its params as given)
+        return None
+
+
+def _params_match(params: Any, wanted: dict[str, Any], base_solver: str = "") -> bool:
     p = parse_json(params, {})
-    return isinstance(p, dict) and all(p.get(k, v) == v for k, v in wanted.items())
+    if not isinstance(p, dict):
+        return False
+    default = _defaults(base_solver) if base_solver else None
+    if default is None:
+        return all(p.get(k, v) == v for k, v in wanted.items())
+    return {**default, **p} == {**default, **wanted}
+
+
+def plays(role: str | PaperRole, params: Any) -> bool:
+    """Whether a row with ``params`` (its JSON) plays ``role`` (a key of PAPER_ROLES, or a
+    role): read with the registry's defaults of the role's base solver, its parameters are
+    the paper's (``PaperRole.params``) and every other one is at the registry's default."""
+    r = PAPER_ROLES[role] if isinstance(role, str) else role
+    return _params_match(params, r.params, r.base_solver)
 
 
 def resolve_role(curves: pd.DataFrame, role: str | PaperRole) -> str | None:
@@ -70,7 +101,7 @@ def resolve_role(curves: pd.DataFrame, role: str | PaperRole) -> str | None:
     warm = c["warm"].astype(bool) if "warm" in c.columns else pd.Series(False, index=c.index)
     if r.warm:
         c, warm = c[warm], warm[warm]
-    ranked = sorted(((bool(w) != r.warm, not _params_match(p, r.params), natural_key(s), s)
+    ranked = sorted(((bool(w) != r.warm, not plays(r, p), natural_key(s), s)
                      for s, p, w in zip(c["solver"], c["params"], warm)))
     return ranked[0][-1] if ranked else None
 
@@ -91,13 +122,15 @@ def by_role(rows: pd.DataFrame) -> pd.DataFrame:
     found by ``base_solver`` and ``params``: ``resolve_role``, with the paper's parameter
     values only, never another variant) replaced by the role's key, and any other label
     that spells a key marked with its base solver (``"pk (bvls)"``): a label is never taken
-    for the method it names."""
+    for the method it names.  Roles are found per scene and grid size (``N``): a size's
+    own run of the method plays it there."""
     parts = []
-    for _, r in rows.groupby("scene", sort=False, dropna=False):
+    keys = [c for c in ("scene", "N") if c in rows.columns]
+    for _, r in rows.groupby(keys, sort=False, dropna=False):
         curves = r.drop_duplicates("solver")
         params = dict(zip(curves["solver"], curves["params"]))
         players = {s: k for k, role in LEDGER_ROLES.items()
-                   if (s := resolve_role(curves, role)) is not None and _params_match(params[s], role.params)}
+                   if (s := resolve_role(curves, role)) is not None and plays(role, params[s])}
         bases = dict(zip(curves["solver"], curves["base_solver"]))
         name = {s: players.get(s, f"{s} ({bases[s]})" if s in LEDGER_ROLES else s) for s in curves["solver"]}
         parts.append(r.assign(solver=r["solver"].map(name)))
@@ -109,20 +142,35 @@ MEASURED_COLUMNS: tuple[str, ...] = ("solve_time_s", "iterations", "load", "cont
 
 
 def with_numbers(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with each answered row lacking a finite ``MEASURED_COLUMNS`` number (or with
-    a negative time) read as failed: a sum or median over the rest would be a verdict."""
+    """``rows`` with each answered row lacking a finite ``MEASURED_COLUMNS`` number, or whose
+    time is not in (0, its ``time_limit_s``] (no limit where the column is absent or
+    blank), read as failed: a sum or median over the rest would be a verdict."""
     cols = [c for c in MEASURED_COLUMNS if c in rows.columns]
     values = rows[cols].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
-    times = values[:, cols.index("solve_time_s")] if "solve_time_s" in cols else np.zeros(len(rows))
-    lacking = ~np.isfinite(values).all(axis=1) | (times < 0)
+    times = values[:, cols.index("solve_time_s")] if "solve_time_s" in cols else np.ones(len(rows))
+    limit = (pd.to_numeric(rows["time_limit_s"], errors="coerce").fillna(math.inf).to_numpy(dtype=float)
+             if "time_limit_s" in rows.columns else np.full(len(rows), math.inf))
+    with np.errstate(invalid="ignore"):
+        lacking = ~np.isfinite(values).all(axis=1) | ~(times > 0) | (times > limit)
     bad = rows["status"].isin(ANSWERED).to_numpy() & lacking
     return rows.assign(status=rows["status"].mask(bad, "failed"))
 
 
+def one_row_per_cell(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with one row per cell and repeat, the first (the cell of
+    ``table.schema.CELL_COLUMNS``, as ``table.reading.first_rows`` tells two rows of one
+    cell without their ``cell_id``): a cell written twice under a fresh id is one
+    measurement, never two in a sum."""
+    keys = [c for c in (*CELL_COLUMNS, "repeat") if c in rows.columns]
+    if not keys or rows.empty:
+        return rows
+    return rows[~rows[keys].astype(str).duplicated(keep="first")]
+
+
 def ledger_rows(rows: pd.DataFrame) -> pd.DataFrame:
-    """The rows as the claims ledger reads them: ``with_numbers``, then ``by_role`` (the
-    paper's methods under their registry names, never by label)."""
-    return by_role(with_numbers(rows))
+    """The rows as the claims ledger reads them: ``one_row_per_cell``, ``with_numbers``,
+    then ``by_role`` (the paper's methods under their registry names, never by label)."""
+    return by_role(with_numbers(one_row_per_cell(rows)))
 
 
 # ---------------------------------------------------------------------------
@@ -148,9 +196,28 @@ def seeds_of(rows: pd.DataFrame) -> str:
     return seeds_text(pd.to_numeric(rows["seed"], errors="coerce").dropna().astype(int))
 
 
+#: Each condition of the ledger (the table's ``operator``) and the profile the study runs it
+#: at (``harness.run.studies``): dense at ``paper`` (eps = 1e-8), fft at ``default``.
+CONDITION_PROFILES: dict[str, str] = {"dense": CLAIMS_DENSE_PROFILE, "fft": CLAIMS_FFT_PROFILE}
+
+
+def condition_words(condition: str) -> str:
+    """"operator dense, profile paper": the condition in an evidence string."""
+    return f"operator {condition}, profile {CONDITION_PROFILES.get(condition, '?')}"
+
+
+def under(rows: pd.DataFrame, condition: str) -> pd.DataFrame:
+    """The rows of ``condition``: its operator and its profile (``CONDITION_PROFILES``); a
+    table without a ``profile`` column has none of the condition's rows."""
+    if "profile" not in rows.columns or condition not in CONDITION_PROFILES:
+        return rows.iloc[0:0]
+    return rows[(rows["operator"] == condition) & (rows["profile"] == CONDITION_PROFILES[condition])]
+
+
 def of_condition(rows: pd.DataFrame, scene: str, condition: str) -> pd.DataFrame:
-    """The attempted rows of ``scene`` under ``condition`` (column ``operator``)."""
-    r = rows[(rows["scene"] == scene) & (rows["operator"] == condition)]
+    """The attempted rows of ``scene`` under ``condition`` (``under``: operator and profile)."""
+    r = under(rows, condition)
+    r = r[r["scene"] == scene]
     return r[r["status"] != "skipped"]
 
 
@@ -165,7 +232,9 @@ COLD = " cold"
 
 def repeat_totals(rows: pd.DataFrame) -> pd.Series:
     """Per (solver, repeat) of the rows: the repeat's total solve time over the steps (NaN
-    where a step has none; a table without ``repeat`` is one repeat, 0)."""
+    where a step has none; a table without ``repeat`` is one repeat, 0), each cell counted
+    once (``one_row_per_cell``)."""
+    rows = one_row_per_cell(rows)
     rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
     return rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False))
 
@@ -217,10 +286,14 @@ def fmt_count(v: float) -> str:
     return f"{int(x)}" if math.isfinite(x) else "?"
 
 
-def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s") -> tuple[float, str, Timing]:
+def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s", inexact: Iterable[str] = ()
+          ) -> tuple[float, str, Timing]:
     """a / b of column ``of`` (the median total time; or ``iterations``) with the words saying
     what it rests on and its timing (NaN where either is missing or incomplete, or b is not
-    positive).  The spread of a time ratio is the sum of the two totals' spreads."""
+    positive).  The spread of a time ratio is the sum of the two totals' spreads.  A side
+    whose answers did not all pass the KKT check (solved < steps) did not converge: NaN,
+    the words say which, unless its label is in ``inexact`` (a method the claim names as
+    inexact by design, read as printed: the paper's own stop; the words say so)."""
     missing = [s for s in (a, b) if s not in tot.index]
     if missing:
         return math.nan, f"no rows of {', '.join(missing)}", Timing()
@@ -236,6 +309,15 @@ def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s") -> tuple[float
                     float(ta["spread"] + tb["spread"]) if of == "total_s" else 0.0)
     if not (ta["comparable"] and tb["comparable"]) or not tb[of] > 0 or not np.isfinite([ta[of], tb[of]]).all():
         return math.nan, words + "; not every step answered", timing
+    short = [(s, t) for s, t in ((a, ta), (b, tb)) if int(t["solved"]) < int(t["steps"])]
+    as_printed = [s for s, _ in short if s in set(inexact)]
+    if as_printed:
+        words += (f"; {', '.join(as_printed)} read as printed, inexact by design (its own stop, not the KKT "
+                  "check)")
+    unconverged = [f"{s} ({int(t['solved'])}/{int(t['steps'])})" for s, t in short if s not in as_printed]
+    if unconverged:
+        return math.nan, words + (f"; not every answer converged: {', '.join(unconverged)} steps pass the KKT "
+                                  "check, a time to an unconverged answer is no measurement"), timing
     return float(ta[of] / tb[of]), words, timing
 
 
@@ -245,6 +327,7 @@ def paper_labels(tot: pd.DataFrame) -> list[str]:
     return [s for s in tot.index if s.removesuffix(COLD) in LEDGER_ROLES]
 
 
-def nnlsgp_cold(tot: pd.DataFrame) -> str:
-    """The label of NNLS+GP (K = 100) from p = 0 (the cold K sweep), else the warm one."""
-    return "nnls-gp" + COLD if "nnls-gp" + COLD in tot.index else "nnls-gp"
+def nnlsgp_cold(tot: pd.DataFrame) -> str | None:
+    """The label of NNLS+GP (K = 100) from p = 0 (the cold solves of ``COLD_SCENE``), None
+    where the table has none (never the warm one: the claim reads the cold)."""
+    return "nnls-gp" + COLD if "nnls-gp" + COLD in tot.index else None
