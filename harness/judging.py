@@ -46,6 +46,7 @@ from contactbench.problems.errors import check_positive
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 from contactbench.problems.operator_state import Rebuild, SealRule, Verify, seal_rule
+from contactbench.problems.plastic_share import plastic_uncertain
 
 from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
@@ -613,7 +614,9 @@ def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: 
     """The table's figures of an answer: KKT figures, load, contact fraction and the
     errors against the reference / closed form (column names of ``harness.table.schema``).
     The contact fraction and its flag ``contact_uncertain`` are read at the judge's
-    ``check_tol`` (``ContactInstance.contact_mask``: p_i > check_tol x p_s)."""
+    ``check_tol`` (``ContactInstance.contact_mask``: p_i > check_tol x p_s), and under a
+    hardness so are the plastic share and its flag ``plastic_uncertain``
+    (``problems.plastic_share``)."""
     load = inst.load(p)
     out: dict[str, Any] = {
         "primal_residual": kkt.primal,
@@ -633,6 +636,7 @@ def answer_figures(inst: ContactInstance, p: np.ndarray, kkt: KKTReport, p_ref: 
         out["load_residual"] = kkt.equality
     if constraints.bounded:
         out["plastic_fraction"] = inst.plastic_fraction(p, check_tol)
+        out["plastic_uncertain"] = plastic_uncertain(inst, p, check_tol)
     if p_ref is not None:
         out["p_rel_error"] = relative_error(p, p_ref)
         out["load_rel_error"] = relative_load_error(load, float(np.sum(p_ref)))

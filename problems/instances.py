@@ -224,14 +224,14 @@ class ContactInstance:
         return CONTROLS[1] if self.qp.constraints.load_control else CONTROLS[0]
 
     def plastic_mask(self, p: np.ndarray, tol: float = CONTACT_TOL) -> np.ndarray:
-        """Elements at their upper bound (plastic): u_i - p_i <= tol x p_s with u_i finite
-        (none without bounds)."""
+        """Elements at their upper bound (plastic): u_i - p_i <= tol x p_s (``contact_floor``,
+        the plastic floor) with u_i finite (none without bounds; flag: ``plastic_share``)."""
         c = self.qp.constraints
         if not c.bounded:
             return np.zeros(self.n, dtype=bool)
         u = c.upper_or_inf(self.n)
         with np.errstate(invalid="ignore"):
-            return np.isfinite(u) & (u - np.asarray(p, dtype=np.float64) <= float(tol) * self.force_scale())
+            return np.isfinite(u) & (u - np.asarray(p, dtype=np.float64) <= self.contact_floor(tol))
 
     def plastic_fraction(self, p: np.ndarray, tol: float = CONTACT_TOL) -> float:
         """Plastic elements (``plastic_mask``) over the elements in contact
