@@ -167,7 +167,8 @@ def load_surface(
     relative = meta["nan_points"] > 0 and detrend == "plane"
     key = options_key(raw_hash, key_options(nan=nan, detrend=detrend, crop=crop, metres_per_unit=metres,
                                             spacing=spacing, channel=chosen, filled_above_plane=relative))
-    record = preprocessing_record(p, raw, meta, z.shape, (raw_hash, key), (height_unit, unit_from, metres))
+    hashes = (raw_hash, key, raw_heights_sha256(z))  # (the last: the heights as solved, Surface.heights)
+    record = preprocessing_record(p, raw, meta, z.shape, hashes, (height_unit, unit_from, metres))
     d0, d1 = spacing
     surface = Surface(z, d0, name=name or p.stem, periodic=False, meta=meta, delta1=None if d1 == d0 else d1,
                       preprocessing=record)
@@ -181,10 +182,12 @@ def warned_name(path: str | Path) -> str:
     return Path(path).resolve().name
 
 
-def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tuple[int, int], hashes: tuple[str, str],
+def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tuple[int, int],
+                         hashes: tuple[str, str, str],
                          unit: tuple[str, str, float]) -> MapPreprocessing:
     """The ``MapPreprocessing`` of a map read and cleaned by ``load_surface`` (``meta``:
-    what its cleaning steps recorded; ``hashes``: (raw heights, key); ``unit``: (the unit
+    what its cleaning steps recorded; ``hashes``: (raw heights, key, heights as solved,
+    each ``raw_heights_sha256`` but the key); ``unit``: (the unit
     of the file's numbers, where it came from, metres per number))."""
     n0, n1 = (int(v) for v in meta["original_shape"])
     spacing = (float(meta["spacing"][0]), float(meta["spacing"][1]))
@@ -196,6 +199,7 @@ def preprocessing_record(p: Path, raw: RawMap, meta: dict[str, Any], shape: tupl
     filled = int(meta["nan_points"])
     return MapPreprocessing(
         source=warned_name(p), path=str(p.resolve()), raw_sha256=hashes[0], key=hashes[1], format=raw.fmt,
+        solved_sha256=hashes[2],
         channel=None if raw.info.get("channel") is None else str(raw.info["channel"]), height_unit=unit[0],
         unit_from=unit[1], metres_per_unit=unit[2], shape_read=(n0, n1), shape=(int(shape[0]), int(shape[1])),
         spacing=spacing, spacing_from=str(meta["spacing_from"]), nan_rule=str(meta["nan_rule"]), filled=filled,

@@ -10,7 +10,8 @@ It holds
   and its index in the file, ``channel_index``: a name two channels share picks neither),
   and a content hash of the raw heights as read (``raw_sha256``: float64, C order, every
   missing point the same NaN, with the shape), so the same map given by two paths is
-  recognisably the same;
+  recognisably the same, and the same hash of the heights as solved (``solved_sha256``, in
+  metres after the unit, fill, detrend and crop: what the cleaning code made of it);
 * how it was read: the unit of the file's numbers and where it came from, the spacing per
   axis and where it came from, N0 x N1 as read and as solved, the lengths;
 * what was changed: the NaN rule with the count and share of filled points and the height
@@ -47,7 +48,8 @@ import numpy as np
 
 #: Hex digits of ``key`` in an instance name.
 NAME_KEY_DIGITS = 8
-#: Hex digits of ``raw_sha256`` in the table's ``surface_hash`` column.
+#: Hex digits of ``raw_sha256`` (``solved_sha256``) in the table's ``surface_hash``
+#: (``solved_hash``) column.
 TABLE_HASH_DIGITS = 16
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 #: Letters with no decomposition into a plain letter and a mark, written in plain letters.
@@ -110,6 +112,9 @@ class MapPreprocessing:
     #: How many of the ``filled`` points lie in the map as solved (a crop may leave some or
     #: all of them out of the problem); None: ``filled``.
     filled_solved: int | None = None
+    #: ``raw_heights_sha256`` of the heights as solved (metres, after the unit, the fill, the
+    #: detrend and the crop): pins the cleaning code's result; "" where not recorded.
+    solved_sha256: str = ""
 
     @property
     def filled_in_problem(self) -> int:
@@ -142,6 +147,7 @@ class MapPreprocessing:
         """The table's columns of the map (harness/table/schema.py)."""
         slope = self.removed_slope or (float("nan"), float("nan"))
         return {"surface_source": self.source, "surface_hash": self.raw_sha256[:TABLE_HASH_DIGITS],
+                "solved_hash": self.solved_sha256[:TABLE_HASH_DIGITS],
                 "height_unit": self.height_unit, "nan_rule": self.nan_rule, "nan_filled": self.filled_in_problem,
                 "detrend": self.detrend,
                 "removed_mean": float("nan") if self.removed_mean is None else self.removed_mean,

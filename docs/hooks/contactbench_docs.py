@@ -54,6 +54,7 @@ UNITS: dict[str, str] = {
     "N0": "count", "N1": "count", "delta0": "m", "delta1": "m", "thickness": "m", "nu": "1", "interface": "-",
     "surface_source": "-", "surface_hash": "-", "channel_index": "-", "height_unit": "-", "nan_rule": "-", "nan_filled": "count",
     "detrend": "-", "removed_mean": "m", "removed_slope0": "1", "removed_slope1": "1", "crop": "-",
+    "plastic_uncertain": "1", "solved_hash": "-",
 }
 
 

@@ -19,6 +19,15 @@ contact_uncertain elements whose contact state the tolerance leaves open (p_i wi
                  decade of that floor, or counted in contact with an open gap: w_i / u_s >=
                  p_i / p_s or w_i > sqrt(check_tol) u_s), divided by all N^2 elements: the
                  flag of contact_fraction (A/A0 is uncertain by about this).
+plastic_uncertain elements in contact whose plastic state the tolerance leaves open (a finite
+                 bound u_i with u_i - p_i within a decade of plastic_fraction's floor
+                 check_tol x p_s, or counted elastic while u_i - p_i <= sqrt(check_tol) p_s),
+                 divided by the elements in contact (plastic_fraction's denominator, not
+                 N^2): the flag of plastic_fraction; NaN without a hardness.
+solved_hash      sha256 of the measured map's heights as solved (metres, after unit, fill,
+                 detrend and crop; surface_hash's hash), first 16 hex digits: the same
+                 file prepared by other cleaning code gives another; '' for a generated
+                 surface (and in rows written before it was kept).
 kkt_error        the scaled figure of ``contactbench.problems.kkt``.
 p_rel_error      ||p - p_ref||_inf / ||p_ref||_inf against the scene's reference.
 load_rel_error   |P - P_ref| / |P_ref| against the reference solve (or the analytic
@@ -60,7 +69,7 @@ CELL_COLUMNS: Final = ("scene", "instance", "step", "solver", "base_solver", "pa
                        "warm_start", "history")
 #: The columns of a measured map's preparation (``problems.preprocessing.MapPreprocessing``).
 MAP_COLUMNS: Final = ("surface_source", "surface_hash", "height_unit", "nan_rule", "nan_filled", "detrend",
-                      "removed_mean", "removed_slope0", "removed_slope1", "crop", "channel_index")
+                      "removed_mean", "removed_slope0", "removed_slope1", "crop", "channel_index", "solved_hash")
 #: The instance parameters the table carries as columns (read from the instance's
 #: recipe, ``InstanceSpec.params``, and the built instance), so no report parses a name.
 #: With ``E``, ``control``, ``hardness``, ``delta`` (or ``dim_load`` under load control) and,
@@ -70,7 +79,7 @@ INSTANCE_COLUMNS: Final = ("surface_family", "hurst", "N", "seed", "kernel", "pe
 
 
 _COUNTS = ("step", "n", "repeat", "iterations", "matvecs", "N", "N0", "N1", "seed", "nan_filled", "channel_index")
-_SHARES = ("contact_fraction", "contact_uncertain", "plastic_fraction")
+_SHARES = ("contact_fraction", "contact_uncertain", "plastic_fraction", "plastic_uncertain")
 _FIGURES = ("primal_residual", "dual_residual", "complementarity", "complementarity_sum", "load_rel_error", "p_rel_error", "analytic_load_rel_error", "load_residual")
 _POSITIVE = ("E", "nominal_area", "hardness", "thickness")
 _FINITE = ("delta0", "delta1", "removed_mean", "removed_slope0", "removed_slope1")
@@ -210,6 +219,12 @@ _EXTRA = _columns(
     ("channel_index", "Int64", "the index of the channel read from the measured file (--channel INDEX, "
                                "load_surface's channel=; its name is in meta.json's surface_preprocessing record); "
                                "<NA> for a file of no channels (.npy, text) and a generated surface"),
+    ("plastic_uncertain", "float64", "share of the contact elements whose plastic state check_tol leaves open (slack "
+                                     "u_i - p_i within a decade of the plastic floor, or counted elastic within "
+                                     "sqrt(check_tol) p_s of the bound): the flag of plastic_fraction; NaN without "
+                                     "a hardness"),
+    ("solved_hash", "string", "sha256 of the measured map's heights as solved (metres, after unit, fill, detrend "
+                              "and crop; shape, float64, C order; first 16 hex digits); ''"),
 )
 
 #: Every column, by name, in table order.

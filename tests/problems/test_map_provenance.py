@@ -248,6 +248,7 @@ def test_a_row_rebuilds_its_problem_from_the_file(capsys: pytest.CaptureFixture[
                          nan=row["nan_rule"], detrend=row["detrend"], crop=row["crop"],
                          height_unit=None if raw.unit_known else row["height_unit"])
     assert s.preprocessing is not None and s.preprocessing.raw_sha256.startswith(row["surface_hash"])
+    assert row["solved_hash"] and s.preprocessing.solved_sha256.startswith(row["solved_hash"])  # (as solved)
     assert s.preprocessing.filled_solved == row["nan_filled"]  # (the filled points the cropped map keeps)
     inst = InstanceBuilder(s, float(row["E"]), kernel=row["kernel"], periodic=bool(row["periodic"])).build(
         float(row["delta"]))
