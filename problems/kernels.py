@@ -40,21 +40,32 @@ An elastic *layer* of finite thickness on a rigid base (``layer=``, a
 ``problems.layers.Layer``) replaces the half-space: its kernels are built in
 problems/layers.py (the formula, its source and its limits: docs/layers.md).
 
-Periodic real-space kernels (``bcc``, ``love``) sum the patch kernel over
-(2M+1)^2 periodic images (periods N1 d1 and N2 d2) and subtract the cell mean.  Removing the mean is removing
+Periodic real-space kernels (``bcc``, ``love``) sum the patch kernel over the periodic
+images (periods P1 = N1 d1 and P2 = N2 d2) |m_i| <= M_i and subtract the cell mean.  The
+box of images is a physical square (``image_counts``: M_i = ceil(M P_max / P_i), M =
+``images``; M1 = M2 = M on a square cell), so that every image outside it is at least
+M P_max from every offset of the cell: an elongated cell takes more images along its short
+period (a box of M short periods would not reach past the long one, and the tail below
+would not hold).  A cell longer than ``MAX_CELL_ASPECT`` times its width is refused
+towards 'spectral'.  Removing the mean is removing
 the q = 0 mode, whose compliance is infinite for a periodic half-space: the
 displacement is then measured from its own mean plane (so on the *whole* grid the
 periodic H is singular along the constant vector; on any proper subset it is SPD).
-After the subtraction an image at R = (X, Y) contributes, to leading order, the
-second-order Taylor term of 1/(pi E |R - x|): (3 (x.R)^2 / R^5 - |x|^2 / R^3) / (2 pi E),
+After the subtraction an image at R = (X, Y) contributes, to leading order in |x| / |R|,
+the second-order Taylor term of 1/(pi E |R - x|): (3 (x.R)^2 / R^5 - |x|^2 / R^3) / (2 pi E),
 which does not cancel over a shell (the in-plane Laplacian of 1/R is 1/R^3, not 0).
-Summed over the far images of a rectangular lattice the cross terms cancel and it is
+Summed over the images outside the box the cross terms cancel and it is
 (x^2 (3 Sxx - S) + y^2 (3 Syy - S)) / (2 pi E), S = sum R^-3, Sxx = sum X^2 / R^5,
 Syy = sum Y^2 / R^5 (a square lattice: Sxx = Syy = S/2, (|x|^2) S / (4 pi E)).
-Truncating at M shells therefore leaves an O(1/M) paraboloid error; it is added back in
-closed form from these lattice sums beyond shell M (``_image_tail_correction``), minus
+Truncating at the box therefore leaves an O(1/M) paraboloid error; it is added back in
+closed form from these lattice sums (``_image_tail_correction``), minus
 its mean, leaving O(M^-3): with M = 2 the table matches M = 24 to ~4e-5 of its diagonal
-at N = 16 (6.6e-3 without).
+at N = 16 (6.6e-3 without); on an 8 x 256 or 4 x 256 cell M = 2 matches M = 6 to 6e-5, and
+the longest mode's compliance is Boussinesq's 2 / (E* q) to 2e-4 ('love').
+
+Every periodic table is checked before use (``check_periodic_spectrum``): its spectrum,
+the eigenvalues of the periodic H, must be > 0 at every q != 0, or the build is a one-line
+``ProblemInputError`` pointing to 'spectral' (an indefinite H is a non-convex QP).
 """
 
 from __future__ import annotations
@@ -223,21 +234,63 @@ def aperiodic_table(kernel: str, shape: tuple[int, int], delta: Spacing, E: floa
     return table
 
 
+#: The longest periodic cell the real-space periodic kernels ('bcc', 'love') take, as the
+#: ratio of its longer period to its shorter (physical lengths N_i d_i).  The image box is a
+#: physical square (``image_counts``), so the images summed grow with the ratio: (4 r + 1) x 5
+#: at ``images`` = 2, 1285 at r = 64, against 25 for a square cell.  A longer cell is refused
+#: (``check_cell_aspect``): 'spectral' is exact on every shape at the cost of one FFT.
+MAX_CELL_ASPECT = 64.0
+
+
+def cell_aspect(shape: tuple[int, int], spacing: tuple[float, float]) -> float:
+    """The periodic cell's longer period over its shorter: max(N_i d_i) / min(N_i d_i)."""
+    p1, p2 = shape[0] * spacing[0], shape[1] * spacing[1]
+    return max(p1, p2) / min(p1, p2)
+
+
+def check_cell_aspect(kernel: str, shape: tuple[int, int], spacing: tuple[float, float]) -> None:
+    """A one-line ``ProblemInputError`` when the periodic cell is longer than
+    ``MAX_CELL_ASPECT`` times its width, for a real-space kernel ('spectral' takes any cell)."""
+    ratio = cell_aspect(shape, spacing)
+    if kernel != "spectral" and ratio > MAX_CELL_ASPECT:
+        raise ProblemInputError(
+            f"the periodic '{kernel}' kernel on the {shape[0]} x {shape[1]} grid: the cell's aspect ratio {ratio:.4g} "
+            f"exceeds {MAX_CELL_ASPECT:g} (its image sum would need about {ratio:.0f} x the images of a square cell); "
+            "use --kernel spectral (exact on every cell shape)")
+
+
+def image_counts(periods: tuple[float, float], images: int) -> tuple[int, int]:
+    """(M1, M2): the periodic images summed along each axis, |m_i| <= M_i, so that the box is
+    a physical square to within one period: M_i = ceil(images P_max / P_i) (a relative 1e-9
+    of slack, so equal periods up to round-off give M1 = M2 = ``images``).  The shorter
+    period takes more images; the tail beyond the box is then at a distance >= images
+    P_max from every offset of the cell, the condition of ``_image_tail_correction``."""
+    top = max(periods)
+    return tuple(max(int(images), int(np.ceil(images * top / p * (1.0 - 1e-9)))) for p in periods)  # type: ignore[return-value]
+
+
 def periodic_table(
     kernel: str, shape: tuple[int, int], delta: Spacing, E: float, images: int = 2
 ) -> np.ndarray:
-    """N1 x N2 circulant table of the periodic kernel, with the q = 0 mode removed."""
+    """N1 x N2 circulant table of the periodic kernel, with the q = 0 mode removed.
+
+    Real-space kernels sum |m_i| <= M_i images (``image_counts``: a physically square box)
+    plus the closed-form tail beyond it; a cell longer than ``MAX_CELL_ASPECT`` times its
+    width is a one-line ``ProblemInputError`` (``check_cell_aspect``)."""
     n1, n2 = shape
     if kernel == "spectral":
         return _spectral_table(shape, delta, E)
     f = _REAL_SPACE[kernel]
+    d1, d2 = grid_spacing(delta)
+    check_cell_aspect(kernel, (n1, n2), (d1, d2))
+    m1, m2 = image_counts((n1 * d1, n2 * d2), images)
     ox = _wrapped_offsets(n1, n1).astype(np.float64)
     oy = _wrapped_offsets(n2, n2).astype(np.float64)
     table = np.zeros(shape)
-    for mx in range(-images, images + 1):
-        for my in range(-images, images + 1):
+    for mx in range(-m1, m1 + 1):
+        for my in range(-m2, m2 + 1):
             table += f(ox[:, None] + mx * n1, oy[None, :] + my * n2, delta, E)
-    table += _image_tail_correction((n1, n2), delta, E, images)
+    table += _image_tail_correction((n1, n2), delta, E, (m1, m2))
     # Make the table exactly even (the half-period offset has an asymmetric image set).
     table = 0.5 * (table + np.roll(table[::-1, :], 1, axis=0))
     table = 0.5 * (table + np.roll(table[:, ::-1], 1, axis=1))
@@ -245,26 +298,34 @@ def periodic_table(
     return table
 
 
-def _lattice_tail_sums(periods: tuple[float, float], images: int, shells: int = 400) -> tuple[float, float, float]:
+def _lattice_tail_sums(periods: tuple[float, float], box: tuple[int, int], shells: int = 400) -> tuple[float, float, float]:
     """(S, Sxx, Syy) = sums of R^-3, X^2 R^-5 and Y^2 R^-5 over the lattice points
-    R = (mx P1, my P2) with max(|mx|, |my|) > images: explicit square shells up to
-    ``shells``, then the integral over the plane outside the rectangle of half-sides
-    (shells + 1/2) P at the lattice's density 1 / (P1 P2): integral dtheta w(theta) / R(theta)
-    with w = 1, cos^2, sin^2."""
+    R = (mx P1, my P2) outside the box |mx| <= M1, |my| <= M2: explicit rectangular rings
+    (M1 + j, M2 + j), j = 1 .. shells - min(M1, M2), then the integral over the plane outside
+    the last ring's rectangle of half-sides (M_i + j + 1/2) P_i at the lattice's density
+    1 / (P1 P2): integral dtheta w(theta) / R(theta) with w = 1, cos^2, sin^2.  The last
+    ring lies shells - min(M1, M2) periods past the box along each axis: >= 5 of the longer
+    period even along the shorter one for a cell of aspect <= ``MAX_CELL_ASPECT``, so the
+    integral replaces a sum over many lattice steps (shells = 1600 changes the sums by < 1e-7
+    relative on 8 x 256 and 4 x 256 cells).  (A square box, M1 = M2 = M: the shells
+    M + 1 .. ``shells``.)"""
     p1, p2 = periods
+    m1, m2 = box
+    rings = max(shells - min(m1, m2), 0)
     s = sxx = syy = 0.0
-    for k in range(images + 1, shells + 1):
-        i = np.arange(-k, k + 1, dtype=np.float64)
-        inner = i[1:-1]
-        # mx = +-k (all my) and my = +-k (|mx| < k)
-        X = np.concatenate([np.full(i.size, k * p1), inner * p1])
-        Y = np.concatenate([i * p2, np.full(inner.size, k * p2)])
+    for j in range(1, rings + 1):
+        a, b = m1 + j, m2 + j
+        iy = np.arange(-b, b + 1, dtype=np.float64)
+        ix = np.arange(-(a - 1), a, dtype=np.float64)
+        # mx = +-a (all |my| <= b) and my = +-b (|mx| < a)
+        X = np.concatenate([np.full(iy.size, a * p1), ix * p1])
+        Y = np.concatenate([iy * p2, np.full(ix.size, b * p2)])
         R2 = X * X + Y * Y
         inv3 = R2**-1.5
         s += 2.0 * float(np.sum(inv3))
         sxx += 2.0 * float(np.sum(X * X * inv3 / R2))
         syy += 2.0 * float(np.sum(Y * Y * inv3 / R2))
-    a, b = (shells + 0.5) * p1, (shells + 0.5) * p2
+    a, b = (m1 + rings + 0.5) * p1, (m2 + rings + 0.5) * p2
     theta = (np.arange(20000) + 0.5) * (2.0 * np.pi / 20000)
     c, sn = np.cos(theta), np.sin(theta)
     inv_R = np.maximum(np.abs(c) / a, np.abs(sn) / b)
@@ -273,16 +334,36 @@ def _lattice_tail_sums(periods: tuple[float, float], images: int, shells: int = 
             syy + w * float(np.mean(sn * sn * inv_R)))
 
 
-def _image_tail_correction(shape: tuple[int, int], delta: Spacing, E: float, images: int) -> np.ndarray:
-    """Leading-order contribution of the periodic images beyond shell ``images``:
-    (x^2 (3 Sxx - S) + y^2 (3 Syy - S)) / (2 pi E) (see the module doc), less its mean."""
+def _image_tail_correction(shape: tuple[int, int], delta: Spacing, E: float, box: tuple[int, int]) -> np.ndarray:
+    """Leading-order contribution of the periodic images outside the box |m_i| <= M_i:
+    (x^2 (3 Sxx - S) + y^2 (3 Syy - S)) / (2 pi E) (see the module doc), less its mean.
+    The Taylor expansion behind it is in |x| / |R|, |x| <= half the cell's diagonal: valid
+    when every image outside the box is far against the cell, as ``image_counts`` makes it."""
     n1, n2 = shape
     d1, d2 = grid_spacing(delta)
     x = _wrapped_offsets(n1, n1) * d1
     y = _wrapped_offsets(n2, n2) * d2
-    S, Sxx, Syy = _lattice_tail_sums((n1 * d1, n2 * d2), images)
+    S, Sxx, Syy = _lattice_tail_sums((n1 * d1, n2 * d2), box)
     quad = x[:, None] ** 2 * (3.0 * Sxx - S) + y[None, :] ** 2 * (3.0 * Syy - S)
     return (quad - quad.mean()) / (2.0 * np.pi * E)
+
+
+def check_periodic_spectrum(table: np.ndarray, kernel: str, spacing: tuple[float, float]) -> np.ndarray:
+    """``table`` (a periodic N1 x N2 circulant table) if its spectrum, the eigenvalues of the
+    periodic H, is > 0 at every wave vector q != 0 (q = 0 is removed by definition), else a
+    one-line ``ProblemInputError`` naming the kernel, the grid and the cell's aspect ratio:
+    an indefinite H is a non-convex QP.  One real FFT of the table."""
+    lam = np.fft.rfft2(table).real
+    lam.flat[0] = np.inf
+    if not lam.min() > 0.0:  # (check_table has ruled out NaN)
+        n1, n2 = table.shape
+        bad = int(np.count_nonzero(lam <= 0.0))
+        raise ProblemInputError(
+            f"the periodic '{kernel}' table on the {n1} x {n2} grid (cell aspect ratio "
+            f"{cell_aspect((n1, n2), spacing):.4g}) is not positive definite: {bad} wave vector(s) q != 0 have "
+            f"eigenvalue <= 0 (least {float(lam.min()):.3g}); "
+            "use --kernel spectral")
+    return table
 
 
 def _spectral_table(shape: tuple[int, int], delta: Spacing, E: float) -> np.ndarray:
@@ -305,7 +386,10 @@ def kernel_table(
     thickness on a rigid base (``problems.layers``; which kernels take one:
     ``Layer.check_kernel``).  An E for which float64 cannot hold the coefficients (any
     NaN or inf, or all below the smallest normal float64) is a one-line
-    ``ProblemInputError`` naming E (``check_table``), even where E itself passes."""
+    ``ProblemInputError`` naming E (``check_table``), even where E itself passes.  A
+    periodic table whose spectrum is not > 0 at every q != 0 is refused
+    (``check_periodic_spectrum``), and so is a periodic real-space kernel on a cell longer
+    than ``MAX_CELL_ASPECT`` times its width (``check_cell_aspect``)."""
     check_kernel(kernel, periodic, layer)
     check_positive("E (composite modulus)", E)
     spacing = grid_spacing(delta)
@@ -314,14 +398,16 @@ def kernel_table(
         raise ProblemInputError(f"grid shape {shape} has fewer than two points")
     with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):  # (check_table judges)
         if periodic and kernel == "spectral":
-            return check_table(spectral_layer_table((n1, n2), spacing, E, layer), E)
+            table = check_table(spectral_layer_table((n1, n2), spacing, E, layer), E)
+            return check_periodic_spectrum(table, kernel, spacing)
         if periodic:
             table = periodic_table(kernel, (n1, n2), spacing, E, images=images)
-            return check_table(table if layer is None else
-                               table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer), E)
+            table = check_table(table if layer is None else
+                                table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer), E)
+            return check_periodic_spectrum(table, kernel, spacing)
         table = aperiodic_table(kernel, (n1, n2), spacing, E)
         if layer is not None:
-            table = table + aperiodic_layer_correction((n1, n2), spacing, E, layer)
+            table = table + aperiodic_layer_correction(kernel, (n1, n2), spacing, E, layer)
             table[n1, :] = 0.0
             table[:, n2] = 0.0
     return check_table(table, E)

@@ -44,7 +44,9 @@ Tables (per unit force, the layout of problems/kernels.py):
 The q = 0 mode: a periodic layer, like the periodic half-space, has its q = 0 mode removed
 (displacements are measured from the mean plane); the uniform compression it would add,
 p_mean T / M for either base, is ``Layer.mean_compliance``.  Real-space kernels need
-T >= the grid spacing (the correction must be smooth on an element); 'spectral' takes any T.
+T >= the grid spacing (the correction must be smooth on an element), and 'bcc' T >=
+``BCC_MIN_THICKNESS`` spacings (its self-term makes a thin layer too stiff by ~0.58 spacing
+/ T); 'spectral' takes any T.
 """
 
 from __future__ import annotations
@@ -72,6 +74,16 @@ ELEMENT_GAUSS = 4
 RHO_FAR = 60.0
 #: Tabulation step of the non-periodic correction in r / T (cubic spline).
 RHO_STEP = 0.02
+#: The thinnest layer the 'bcc' kernel takes, in grid spacings (T >= BCC_MIN_THICKNESS x the
+#: larger spacing).  The paper's bcc self-term, 2 / (pi E* delta) per unit force, is 0.64 p delta
+#: / E* per unit pressure where Love's uniformly loaded square gives 1.12 p delta / E*: a
+#: deficit that does not shrink with the load's extent a, so bcc is too stiff by a relative
+#: error first order in delta / a.  In a layer the load acts over ~T, and the centre of a wide
+#: uniformly loaded bonded layer (nu = 0.3) sinks 0.417, 0.708, 0.854, 0.927, 0.956, 0.971
+#: x p T / M at T = 1, 2, 4, 8, 12.8, 20 spacings ('love': 1.000 to 1e-3): about 0.58 delta / T
+#: too stiff.  From 12 spacings on the error is under 5 %; the layer-sweep scene's thinnest
+#: layer (0.1 L at 128^2, 12.8 spacings) is 4.4 % too stiff.  'love' has no such bias.
+BCC_MIN_THICKNESS = 12.0
 
 
 @dataclass(frozen=True)
@@ -111,15 +123,22 @@ class Layer:
         return self.thickness * (1.0 - 2.0 * self.nu) / (float(E) * (1.0 - self.nu) ** 2)
 
     def check_kernel(self, kernel: str, periodic: bool, spacing: tuple[float, float] | None = None) -> None:
-        """A ``ProblemInputError`` when this layer cannot be built for ``kernel``: a real-space
-        kernel ('bcc', 'love') needs T >= the grid spacing (when ``spacing`` is known)."""
-        if kernel == "spectral":
+        """A ``ProblemInputError`` when this layer cannot be built for ``kernel`` (when
+        ``spacing`` is known): a real-space kernel ('bcc', 'love') needs T >= the grid spacing,
+        and 'bcc' T >= ``BCC_MIN_THICKNESS`` spacings (its bias, ~0.58 spacing / T too stiff)."""
+        if kernel == "spectral" or spacing is None:
             return
-        if spacing is not None and self.thickness < max(spacing):
+        d = max(spacing)
+        if self.thickness < d:
             raise ProblemInputError(
-                f"a layer of thickness {self.thickness:g} is thinner than a grid element ({max(spacing):g}): the "
+                f"a layer of thickness {self.thickness:g} is thinner than a grid element ({d:g}): the "
                 f"'{kernel}' kernel's layer correction needs T >= the spacing; use the periodic 'spectral' kernel "
                 "or a finer grid")
+        if kernel == "bcc" and self.thickness < BCC_MIN_THICKNESS * d:
+            raise ProblemInputError(
+                f"a layer of thickness {self.thickness:g} is {self.thickness / d:.3g} grid spacings ({d:g}): the 'bcc' "
+                f"kernel is too stiff on it by ~{58.0 * d / self.thickness:.0f} % (0.58 spacing / T) and needs "
+                f"T >= {BCC_MIN_THICKNESS:g} spacings; use --kernel love (or a finer grid)")
 
 
 def compliance_factor(s: np.ndarray, nu: float, interface: str) -> np.ndarray:
@@ -216,11 +235,12 @@ def point_correction(r: np.ndarray, E: float, layer: Layer) -> np.ndarray:
     return np.where(rho <= RHO_FAR, near, far) / (np.pi * E * T)
 
 
-def aperiodic_layer_correction(shape: tuple[int, int], spacing: tuple[float, float], E: float,
+def aperiodic_layer_correction(kernel: str, shape: tuple[int, int], spacing: tuple[float, float], E: float,
                                layer: Layer) -> np.ndarray:
-    """(2 N1) x (2 N2) circulant table of the layer's correction to a non-periodic kernel:
-    c averaged over the d1 x d2 element (module doc)."""
-    layer.check_kernel("love", False, spacing)
+    """(2 N1) x (2 N2) circulant table of the layer's correction to the non-periodic ``kernel``
+    ('bcc' or 'love'; ``Layer.check_kernel`` judges the thickness): c averaged over the
+    d1 x d2 element (module doc)."""
+    layer.check_kernel(kernel, False, spacing)
     n1, n2 = shape
     k1 = np.arange(2 * n1)
     k2 = np.arange(2 * n2)
@@ -236,6 +256,7 @@ def aperiodic_layer_correction(shape: tuple[int, int], spacing: tuple[float, flo
 
 __all__ = [
     "ALIASES",
+    "BCC_MIN_THICKNESS",
     "DEFAULT_NU",
     "ELEMENT_GAUSS",
     "INTERFACES",

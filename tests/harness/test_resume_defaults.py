@@ -69,7 +69,7 @@ def test_the_family_in_effect_follows_the_other_options() -> None:
 
 SPELLED_OUT = {
     "control": (("--control", "displacement"), ()),
-    "layer": (("--thickness", "5e-5", "--nu", "0.3", "--interface", "bonded"), ("--thickness", "5e-5")),
+    "layer": (("--thickness", "2e-4", "--nu", "0.3", "--interface", "bonded"), ("--thickness", "2e-4")),
     "map": (("--detrend", "plane", "--nan", "fill-mean", "--crop", "none"), ()),
 }
 
@@ -97,7 +97,7 @@ def test_an_option_at_the_value_its_recipe_reads_without_it_resumes(which: str, 
     if which == "layer":  # checked as given (no layer: refused), and another value is another configuration
         assert cli.main([*base, "--nu", "0.3", "--out", out]) == 2
         assert "--nu describes an elastic layer" in capsys.readouterr().err
-        assert cli.main([*base, "--thickness", "5e-5", "--nu", "0.4", "--out", out]) == 2
+        assert cli.main([*base, "--thickness", "2e-4", "--nu", "0.4", "--out", out]) == 2
         assert "scene_config.extra.nu" in capsys.readouterr().err
 
 

@@ -162,9 +162,11 @@ def test_layer_sweep_scene_runs_the_half_space_and_each_thickness() -> None:
     from contactbench.problems.scenes.layers import LAYER_THICKNESSES
 
     scene = get_scene("layer-sweep")
-    cfg = scene.config(SceneConfig(size=32, steps=2))
+    with pytest.raises(ProblemInputError, match="too stiff.*--kernel love"):
+        scene.validate(scene.config(SceneConfig(size=32, steps=2)))  # bcc: 0.1 L is 3.2 spacings
+    cfg = scene.config(SceneConfig(size=32, steps=2, kernel="love"))
     specs = scene.instances(cfg)
-    assert len(specs) == 1 + len(LAYER_THICKNESSES) and specs[0].instance == "saupe-H0.7-N32-bcc-np-s5-K2"
+    assert len(specs) == 1 + len(LAYER_THICKNESSES) and specs[0].instance == "saupe-H0.7-N32-love-np-s5-K2"
     assert [s.params.get("thickness_over_L") for s in specs] == [None, *LAYER_THICKNESSES]
     scene.validate(cfg)
     half, thin = specs[0].build(), specs[1].build()
@@ -173,7 +175,7 @@ def test_layer_sweep_scene_runs_the_half_space_and_each_thickness() -> None:
     layer = thin.at(1).qp.geometry.layer
     assert layer == Layer(0.1 * 1e-4, 0.3, "bonded")
     with pytest.raises(ProblemInputError, match="thinner than a grid element"):
-        scene.validate(scene.config(SceneConfig(size=8, steps=2)))  # 0.1 L < L / 8
+        scene.validate(scene.config(SceneConfig(size=8, steps=2, kernel="love")))  # 0.1 L < L / 8
     with pytest.raises(ProblemInputError, match="thicknesses"):
         scene.instances(scene.config(SceneConfig(size=32, extra={"thicknesses": (0.5, -1.0)})))
 
@@ -182,9 +184,9 @@ def test_paper_sweep_takes_a_layer_from_the_config() -> None:
     from contactbench.problems.scenes import SceneConfig, get_scene
 
     scene = get_scene("paper-sweep")
-    cfg = scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 2e-5, "nu": 0.45}))
+    cfg = scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 4e-5, "nu": 0.45}))  # 12.8 spacings
     (spec,) = scene.instances(cfg)
-    assert spec.instance.endswith("-T2e-05-nu0.45-K2")
-    assert spec.build().at(0).qp.geometry.layer == Layer(2e-5, 0.45)
+    assert spec.instance.endswith("-T4e-05-nu0.45-K2")
+    assert spec.build().at(0).qp.geometry.layer == Layer(4e-5, 0.45)
     with pytest.raises(ProblemInputError, match="nu"):
         scene.instances(scene.config(SceneConfig(size=32, steps=2, extra={"thickness": 2e-5, "nu": 0.7})))[0].build()
