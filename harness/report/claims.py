@@ -341,6 +341,33 @@ def example1_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     return out
 
 
+#: Section 3.1's words around Example 1, each on its own scene (problems/scenes/example1_variants.py):
+#: (claim, scene).
+EXAMPLE1_VARIANT_CLAIMS: tuple[tuple[str, str], ...] = (
+    ("greedy-random-h-fails", "random-positive-h"), ("greedy-spacing-2delta", "counterexample-2delta"))
+
+
+def example1_variant_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
+    """Example 1's variants (``EXAMPLE1_VARIANT_CLAIMS``): per n, the share of seeds whose
+    greedy-CG answer the judge rejects, read as Example 1 is (``ledger_shares``): its
+    ``violations`` over ``seeds`` -- "not solved exactly" and "always provides a solution
+    satisfying w* >= 0" are both about every seed, so an unconverged answer, a crash or a
+    timeout counts as rejected; NaN (unmeasured) where no seed has an answer at all."""
+    out = []
+    for claim_id, scene in EXAMPLE1_VARIANT_CLAIMS:
+        r = of_condition(rows, scene, condition)
+        r = r[r["base_solver"] == "greedy-cg"]
+        for _, f in (ledger_shares(r).iterrows() if not r.empty else ()):
+            n, seeds, rejected = int(f["n"]), int(f["seeds"]), int(f["violations"])
+            wrong, unconverged, silent = int(f["wrong"]), int(f["unconverged"]), int(f["no answer"])
+            which = seeds_of(r[r["n"] == f["n"]])
+            out.append(claim_row(claim_id, condition, rejected / seeds if silent < seeds else math.nan, f"n = {n}",
+                                 which, f"results.csv: {scene} {condition_words(condition)}, greedy-cg rejected by the "
+                                 f"judge on {rejected} of {seeds} seeds (n = {n}, seeds {which}): {wrong} wrong "
+                                 f"(claimed converged), {unconverged} unconverged, {silent} no answer"))
+    return out
+
+
 def rejected_share(rows: pd.DataFrame, label: str) -> tuple[float, str]:
     """The share of a solver's solves the judge rejects (attempted, folded over repeats:
     any status but "solved"), with the words."""
@@ -602,7 +629,7 @@ def paper_size_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
 
 #: The ledger's readers, each of one part of the paper (conditions looped where they apply).
 READERS: tuple[Callable[[pd.DataFrame, str], list[ClaimRow]], ...] = (
-    example1_rows, greedy_rows, fig4_rows, top_step_rows, paper_size_rows, fig5_rows, fig6_rows, fig8_rows,
+    example1_rows, example1_variant_rows, greedy_rows, fig4_rows, top_step_rows, paper_size_rows, fig5_rows, fig6_rows, fig8_rows,
     fig9_rows, real_rows)
 
 

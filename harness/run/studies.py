@@ -353,6 +353,11 @@ CLAIMS_SEED = 5
 CLAIMS_EXAMPLE1_SIZES: tuple[int, ...] = (25, 100, 400)
 CLAIMS_EXAMPLE1_LARGE = 1600
 CLAIMS_EXAMPLE1_LARGE_SEEDS = 20
+#: Section 3.1's words around Example 1 (problems/scenes/example1_variants.py): its trial
+#: elements 2 delta apart (tex 647-651) and a random SPD Q with positive entries (tex
+#: 601-604), greedy CG at n = 25 and 100 over seeds 0-99.
+CLAIMS_EXAMPLE1_VARIANTS: tuple[str, ...] = ("counterexample-2delta", "random-positive-h")
+CLAIMS_EXAMPLE1_VARIANT_SIZES: tuple[int, ...] = (25, 100)
 #: Fig. 6's K values: the paper's minimum (100), what lies beyond it (150, 200) and below.
 CLAIMS_K: tuple[int, ...] = (0, 50, 100, 150, 200)
 #: The CMR parts (Figs. 8-9) as tex 1200-1220 set them up: 256^2 (the paper's finest), the
@@ -430,6 +435,9 @@ def claims_parts() -> tuple[Part, ...]:
     parts.append(Part(example1, SceneConfig(seeds=tuple(range(100)), extra={"sizes": CLAIMS_EXAMPLE1_SIZES})))
     parts.append(Part(example1, SceneConfig(seeds=tuple(range(CLAIMS_EXAMPLE1_LARGE_SEEDS)),
                                             extra={"sizes": (CLAIMS_EXAMPLE1_LARGE,)})))
+    for scene in CLAIMS_EXAMPLE1_VARIANTS:
+        parts.append(Part(Study(scene, solvers=("greedy-cg",), profiles=paper),
+                          SceneConfig(seeds=tuple(range(100)), extra={"sizes": CLAIMS_EXAMPLE1_VARIANT_SIZES})))
     return tuple(parts)
 
 

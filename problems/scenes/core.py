@@ -12,10 +12,11 @@ from typing import Any
 import numpy as np
 
 from ..constraints import CONTROLS, check_load_under_hardness
-from ..errors import ProblemInputError, check_nonnegative
+from ..errors import ProblemInputError, check_nonnegative, check_whole
+from ..example1_variants import MATRICES, random_positive, spaced_counterexample
 from ..instances import (
+    ContactInstance,
     InstanceBuilder,
-    counterexample,
     flat_punch_load,
     flat_punch_surface,
     hertz_solution,
@@ -458,7 +459,16 @@ class PaperSweep(RampScene):
 @register_scene
 class Counterexample(Scene):
     """Paper Example 1: N x N grid all in the trial set, ubar ~ U(0,1), BCC, delta = 1,
-    E = 0.01; n = 25, 100, 400 over seeds 0..99."""
+    E = 0.01; n = 25, 100, 400 over seeds 0..99.
+
+    Two ``extra`` keys pose the variants of ``problems.example1_variants`` (scenes
+    ``counterexample-2delta`` and ``random-positive-h`` set them, so that Example 1's own
+    rows, section and ledger reading never pool with theirs): ``spacing`` (a whole number
+    >= 1, default 1) puts the trial elements that many grid spacings apart
+    (``spaced_counterexample``), ``matrix`` ("green2", the default, or "random-positive")
+    draws Q at random (``random_positive``).  A recipe of a variant records it in its params
+    (``spacing`` or ``matrix``, and ``variant``: the table's column) and its instance name;
+    Example 1's recipes are unchanged (no such keys)."""
 
     name = "counterexample"
     description = "greedy counterexample (paper Example 1): n = 25, 100, 400, ubar ~ U(0,1), seeds 0-99"
@@ -466,23 +476,54 @@ class Counterexample(Scene):
     options = frozenset({"size", "seeds", "operator"})  # n = size^2; ubar, H and E are the example's own
     load_history = False
 
+    def variant(self, cfg: SceneConfig) -> tuple[dict[str, Any], str]:
+        """The recipe params and instance-name suffix of ``cfg``'s variant ({} and "" for
+        Example 1); a spacing that is not a whole number >= 1, a matrix not in
+        ``example1_variants.MATRICES``, or a spacing with the random matrix (it has no
+        mesh) is a ``ProblemInputError``."""
+        spacing = check_whole("spacing (of the trial elements, in grid spacings)", cfg.extra.get("spacing", 1), 1)
+        matrix = str(cfg.extra.get("matrix") or MATRICES[0])
+        if matrix not in MATRICES:
+            raise ProblemInputError(f"matrix must be one of {', '.join(MATRICES)}, got {matrix!r}")
+        if matrix != MATRICES[0]:
+            if spacing != 1:
+                raise ProblemInputError(f"the {matrix} matrix has no mesh: spacing must be 1, got {spacing}")
+            return {"matrix": matrix, "variant": matrix}, f"-{matrix}"
+        if spacing != 1:
+            return {"spacing": spacing, "variant": f"spacing-{spacing}"}, f"-spacing{spacing}"
+        return {}, ""
+
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
         sizes = (cfg.size * cfg.size,) if cfg.size else tuple(cfg.extra.get("sizes", (25, 100, 400)))
+        params, suffix = self.variant(cfg)
         return [
-            InstanceSpec(self.name, f"n{n}-s{s}", {"n": int(n), "seed": int(s), "operator": cfg.operator})
+            InstanceSpec(self.name, f"n{n}-s{s}{suffix}", {"n": int(n), "seed": int(s), "operator": cfg.operator, **params})
             for n in sizes
             for s in seeds_of(cfg)
         ]
 
     def validate(self, cfg: SceneConfig) -> None:
-        # One build per size, with the cheap FFT operator: the builder owns the rule on n.
+        # One build per size: the builder owns the rule on n (Example 1's grids with the cheap FFT operator).
         sizes = {spec.params["n"]: spec for spec in self.instances(cfg)}
-        validate_each(list(sizes.values()), lambda spec: counterexample(int(spec.params["n"]), 0, operator="fft"))
+        validate_each(list(sizes.values()), lambda spec: example1_instance(
+            replace(spec, params={**spec.params, "seed": 0}), None if "matrix" in spec.params else "fft"))
 
     def build(self, spec: InstanceSpec) -> LoadSequence:
-        n, seed = int(spec.params["n"]), int(spec.params["seed"])
-        op = str(spec.params.get("operator") or "dense")
-        return LoadSequence(spec.instance, [float("nan")], lambda k: counterexample(n, seed, operator=op))
+        return LoadSequence(spec.instance, [float("nan")], lambda k: example1_instance(spec))
+
+
+def example1_instance(spec: InstanceSpec, operator: str | None = None) -> ContactInstance:
+    """The instance of a ``Counterexample`` recipe (``operator`` overrides the recipe's):
+    Example 1, its trial elements ``spacing`` apart, or the random positive matrix."""
+    n, seed = int(spec.params["n"]), int(spec.params["seed"])
+    op = operator or str(spec.params.get("operator") or "dense")
+    if spec.params.get("matrix", MATRICES[0]) != MATRICES[0]:
+        return random_positive(n, seed, operator=op)  # type: ignore[arg-type]
+    return spaced_counterexample(n, seed, int(spec.params.get("spacing", 1)), operator=op)  # type: ignore[arg-type]
+
+
+#: The height of the hertz scene's paraboloid at its apex (``hertz_surface``: xi = -r^2 / (2R)).
+HERTZ_APEX_HEIGHT = 0.0
 
 
 @register_scene
@@ -516,12 +557,21 @@ class Hertz(RampScene):
         return surface, load_ramp(float(p["delta"]), int(p["steps"]))
 
     def build(self, spec: InstanceSpec) -> LoadSequence:
+        """The ramp, with Hertz's closed forms at the approach measured from the apex.
+
+        A step's Delta is measured from the highest node (where the grid first touches);
+        Hertz's approach is measured from the paraboloid's apex, which an even N places
+        between nodes, above the highest one: the reference is taken at Delta + (apex
+        height - highest node's height), from the surface (``hertz_surface``: xi =
+        -r^2 / (2R), apex 0 at the grid's centre)."""
         seq = super().build(spec)
         p, deltas = spec.params, seq.deltas
         R, E = float(p["radius"]), float(p["E"])
+        surface = seq.surface if seq.surface is not None else self.loads(spec)[0]
+        apex_above_top = HERTZ_APEX_HEIGHT - float(np.max(surface.heights))
 
         def analytic(k: int) -> dict[str, float]:
-            s = hertz_solution(R, E, deltas[k])
+            s = hertz_solution(R, E, deltas[k] + apex_above_top)
             return {"load": s.load, "contact_radius": s.contact_radius, "peak_pressure": s.peak_pressure}
 
         seq.analytic = analytic
