@@ -435,6 +435,18 @@ def step_traits(params: dict[str, Any], n: int, side: int) -> ProblemTraits:
                          layer=layer)
 
 
+def planned_solver(base: str) -> tuple[Solver | None, bool]:
+    """(solver ``base``, True) when it loads and is available; else (None, whether the run
+    should still plan it): an unloadable one is not (the plan names it elsewhere), nor an
+    unavailable one, but one whose ``availability()`` raised is, to record its failed rows."""
+    try:
+        solver = load_solver(base)
+    except Exception:  # (the plan names an unloadable solver elsewhere)
+        return None, False
+    ok, _, failed = checked_availability(solver)
+    return (solver, True) if ok else (None, failed)
+
+
 def model_rejection(base: str, traits: ProblemTraits, run: RunConfig, params: dict[str, Any] | None = None,
                     timeout: float | None = None) -> tuple[bool, str]:
     """(whether solver ``base`` with ``params`` would run on a step with ``traits``, the
@@ -445,13 +457,9 @@ def model_rejection(base: str, traits: ProblemTraits, run: RunConfig, params: di
     ``skip``/``skip_params`` alone skips the step is neither: the run records that skip
     with its reason, as before; one whose availability, model or skip check raised
     (``Decision.failed``) would run, to record its failed rows."""
-    try:
-        solver = load_solver(base)
-    except Exception:  # (the plan names an unloadable solver elsewhere)
-        return False, ""
-    ok, _, failed = checked_availability(solver)
-    if not ok:  # an availability() that failed runs, to record its failed rows
-        return failed, ""
+    solver, runs = planned_solver(base)
+    if solver is None:
+        return runs, ""
     free = capability_decision(solver, traits, float("inf"), params)
     if free.skip:  # a model or skip check that raised runs, to record its failed rows
         declared = not free.failed and bool(declared_incapacity(solver, traits))
@@ -470,13 +478,9 @@ def declared_rejection(base: str, traits: ProblemTraits) -> tuple[bool, str]:
     Only what the recipe tells is read -- the operator, a load equality, bounds; n and the
     grid are unknown (``traits`` carries 0), so neither ``max_n`` nor a time or memory model
     refuses here.  A solver that cannot be loaded or is unavailable: as ``model_rejection``."""
-    try:
-        solver = load_solver(base)
-    except Exception:  # (the plan names an unloadable solver elsewhere)
-        return False, ""
-    ok, _, failed = checked_availability(solver)
-    if not ok:
-        return failed, ""
+    solver, runs = planned_solver(base)
+    if solver is None:
+        return runs, ""
     why = declared_incapacity(solver, traits)
     return not why, why
 
