@@ -68,3 +68,16 @@ def get_profile(name: str) -> Profile:
         return PROFILES[name]
     except KeyError:
         raise UnknownProfileError(f"unknown profile {name!r}; choose one of {', '.join(PROFILES)}") from None
+
+
+#: The claims study's paper condition (harness/run/studies.py ``claims_parts``; the ledger,
+#: harness/report/claim_tables.py, reads its rows by it): the dense H, the paper's
+#: tolerance (profile "paper": eps = 1e-8), the paper's algorithms with their paper parameters (the registry defaults: NNLS+GP K =
+#: 100, ADMM alpha 1.5; ADMM's rho = 1 as given, ``CLAIMS_ADMM_PAPER``, beside the registry's
+#: relative rho).  P&K runs warm along the load history (paper-sweep) and cold ("P&K1999":
+#: pk-printed, the printed Algorithm 2, and pk, Polonsky & Keer's own) on the same surface
+#: and steps as independent solves (greedy-linear-solvers with the paper-sweep seed and 10
+#: steps: the same instances).
+CLAIMS_DENSE_PROFILE = "paper"
+#: Our condition: FFT operators, each solver's own tolerance, the fast solvers beside the paper's.
+CLAIMS_FFT_PROFILE = "default"

@@ -24,7 +24,7 @@ import pandas as pd
 from contactbench.solvers.admm import PAPER_PARAMS
 from contactbench.solvers.registry import get_solver
 
-from ..run.studies import CLAIMS_DENSE_PROFILE, CLAIMS_FFT_PROFILE
+from ..profiles import CLAIMS_DENSE_PROFILE, CLAIMS_FFT_PROFILE
 from ..table.schema import ANSWERED, CELL_COLUMNS
 from .claim_rules import Timing, relative_range
 from .core import natural_key, parse_json, per_cell
@@ -197,7 +197,8 @@ def seeds_of(rows: pd.DataFrame) -> str:
 
 
 #: Each condition of the ledger (the table's ``operator``) and the profile the study runs it
-#: at (``harness.run.studies``): dense at ``paper`` (eps = 1e-8), fft at ``default``.
+#: at (``harness.profiles``, where the study, harness.run.studies, reads them too): dense at
+#: ``paper`` (eps = 1e-8), fft at ``default``.
 CONDITION_PROFILES: dict[str, str] = {"dense": CLAIMS_DENSE_PROFILE, "fft": CLAIMS_FFT_PROFILE}
 
 

@@ -40,6 +40,7 @@ from contactbench.solvers.registry import SolverSpec, expand_solver_spec, load_s
 
 from contactbench.plugins import did_you_mean
 
+from ..profiles import CLAIMS_DENSE_PROFILE, CLAIMS_FFT_PROFILE
 from ..table.files import canonical_json
 
 #: Exact solvers tried, in order, for the reference solution of a step (after the
@@ -322,16 +323,6 @@ STUDIES: dict[str, Study] = {s.scene: s for s in (
 )}
 
 # --- The paper's claims ledger (harness/report/claims.py): two conditions ----------------------
-#: The paper's condition: the dense H, the paper's tolerance (profile "paper": eps = 1e-8),
-#: the paper's algorithms with their paper parameters (the registry defaults: NNLS+GP K =
-#: 100, ADMM alpha 1.5; ADMM's rho = 1 as given, ``CLAIMS_ADMM_PAPER``, beside the registry's
-#: relative rho).  P&K runs warm along the load history (paper-sweep) and cold ("P&K1999":
-#: pk-printed, the printed Algorithm 2, and pk, Polonsky & Keer's own) on the same surface
-#: and steps as independent solves (greedy-linear-solvers with the paper-sweep seed and 10
-#: steps: the same instances).
-CLAIMS_DENSE_PROFILE = "paper"
-#: Our condition: FFT operators, each solver's own tolerance, the fast solvers beside the paper's.
-CLAIMS_FFT_PROFILE = "default"
 #: Grid sizes of the dense condition: every paper solver at the small ones; at the largest
 #: (256^2: n = 8,803 at the top step, a 0.6 GB H; 512^2, the paper's n = 35,555, needs
 #: 10 GB) only NNLS+GP and P&K (warm and cold), which fit the benchmark's time.
