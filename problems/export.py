@@ -32,8 +32,10 @@ dense H within the dense limit but over the process's memory budget for dense ma
 (``operators.memory_budget``) is refused with a one-line ``ProblemInputError`` before
 anything is written (``check_dense_fits``).
 ``DIR/manifest.json`` lists every QP -- name, scene, instance, step, n, far-field
-displacement, objective-free facts -- and every skip with its reason; the summary line
-says what was skipped.  A step with no unknown (n = 0) is skipped too.
+displacement, objective-free facts, and for a measured map the sha256 of its heights as
+read (``surface_sha256``) -- and every skip with its reason, with the scene options used
+(``scene_options``, the scene's defaults filled in) and the ``contactbench_version``; the
+summary line says what was skipped.  A step with no unknown (n = 0) is skipped too.
 
 ``DIR`` follows the rule of a run's results folder: a missing or empty folder is new, a
 folder an export wrote (its manifest.json names the tool) is written over, and any other
@@ -57,10 +59,12 @@ before it is written; ``owned_files``: ``problems.h5`` or a Parquet file), so a 
 whose export was interrupted is still an export's folder and the same command can be
 run again into it.  At the end the manifest is rewritten with ``"complete": true`` and
 the QP list; before that, whatever an earlier export wrote there and this one does not
-is removed: its problem directories that hold nothing but files of the problem
-directory format (``qpfile.PROBLEM_DIR_FILES``) and its ``problems.h5`` or Parquet
-file.  Nothing else in the folder is touched; a problem directory that is written
-again holds only the new QP's files (``qpfile.write_problem_dir``).
+is removed (``remove_owned``): the files of the problem directory format
+(``qpfile.PROBLEM_DIR_FILES``) in each of its problem directories, and the directory
+itself when nothing else is left in it, and its ``problems.h5`` or Parquet file.  Nothing
+else in the folder is touched: a file of another name in such a directory stays, and so
+does the directory that holds it (no longer listed as an export's).  A problem directory
+that is written again holds only the new QP's files (``qpfile.write_problem_dir``).
 """
 
 from __future__ import annotations
@@ -87,6 +91,7 @@ from .export_plan import (
     check_dense_fits,
     check_scene,
     file_safe,
+    package_version,
     plan_export,
     problem_name,
     scene_steps,
@@ -96,6 +101,7 @@ from .operators import PRECISIONS
 from .qpfile import (
     DENSE_LIMIT,
     PROBLEM_DIR_FILES,
+    PROBLEM_JSON,
     payload_nbytes,
     problem_json,
     problem_payload,
@@ -131,6 +137,8 @@ class ExportedQP:
     dense_H: bool
     #: The dtype of the QP's data as the instance holds it (``data_dtype``), e.g. float32.
     dtype: str
+    #: The sha256 of the measured map's heights as read (None: a generated surface).
+    surface_sha256: str | None = None
 
 
 @dataclass
@@ -143,6 +151,8 @@ class ExportSummary:
     dense_limit: int
     written: list[ExportedQP] = field(default_factory=list)
     skipped: list[dict[str, Any]] = field(default_factory=list)
+    options: dict[str, Any] = field(default_factory=dict)  # the scene options used (``options_record``)
+    version: str = ""  # the contactbench version that wrote it
 
     def line(self) -> str:
         no_dense = sum(1 for q in self.written if not q.dense_H)
@@ -202,7 +212,7 @@ def _export_locked(plan: ExportPlan, scene_name: str, qps: Iterator[tuple[Planne
     """``export_scene``'s writing of the checked ``plan``'s QPs (``qps``: each built where
     it is written), with the folder's lock held: the folder's entries are checked
     (``check_targets``) before anything is written."""
-    summary = ExportSummary(scene_name, fmt, str(out_dir), limit)
+    summary = ExportSummary(scene_name, fmt, str(out_dir), limit, options=plan.options, version=package_version())
     folders, files = owned_paths(out_dir)
     format_file = _format_file(fmt, scene_name)
     check_targets(out_dir, plan, format_file, folders, files)
@@ -220,8 +230,9 @@ def _export_locked(plan: ExportPlan, scene_name: str, qps: Iterator[tuple[Planne
                 summary.skipped.append({"name": name, "n": qp.n, "reason": f"n > dense limit {limit} (P must be dense)"})
                 continue
             check_room(out_dir, payload_nbytes(inst, limit), name)
+            record = inst.preprocessing
             entry = ExportedQP(name, scene_name, qp.instance, qp.step, inst.n, _finite(inst.delta), inst.n <= limit,
-                               data_dtype(inst).name)
+                               data_dtype(inst).name, None if record is None else record.raw_sha256)
             if fmt == "problem-dir":
                 check_target(out_dir, name, folders, directory=True)  # (again: only exports are locked out)
                 if name not in folders:  # listed before it exists, so an interrupted export still owns it
@@ -358,17 +369,21 @@ def owned_paths(out_dir: Path) -> tuple[set[str], set[str]]:
 
 
 def remove_owned(out_dir: Path, folders: set[str], files: set[str]) -> None:
-    """Remove the problem directories ``folders`` of ``out_dir`` that hold nothing but
-    regular files of the problem directory format, and the regular files ``files``;
-    anything else is left as it is."""
+    """Remove what an earlier export wrote in ``out_dir`` and this one does not: from each
+    problem directory of ``folders`` (a folder, not a symbolic link) its regular files of
+    the problem directory format (``qpfile.PROBLEM_DIR_FILES``; ``problem.json`` first, so
+    a folder whose removal stops part-way is no problem directory), then the folder itself
+    when nothing else is left in it -- a user's file there and the folder that holds it
+    stay as they are; and the regular files ``files``.  Nothing else is touched."""
     for name in sorted(folders):
         d = out_dir / name
         if not d.is_dir() or d.is_symlink():
             continue
-        entries = list(d.iterdir())
-        if all(e.name in PROBLEM_DIR_FILES and e.is_file() and not e.is_symlink() for e in entries):
-            for e in entries:
-                e.unlink()
+        for file in [PROBLEM_JSON, *sorted(PROBLEM_DIR_FILES - {PROBLEM_JSON})]:
+            path = d / file
+            if path.is_file() and not path.is_symlink():
+                path.unlink()
+        if not any(d.iterdir()):
             d.rmdir()
     for name in sorted(files):
         f = out_dir / name
@@ -611,7 +626,8 @@ def is_export_folder(out_dir: Path) -> bool:
 def write_manifest(summary: ExportSummary, path: Path) -> Path:
     """The complete manifest of a finished export (module doc)."""
     doc = {"tool": EXPORT_TOOL, "complete": True, "scene": summary.scene, "format": summary.fmt,
-           "dense_limit": summary.dense_limit, "qps": [asdict(q) for q in summary.written],
+           "dense_limit": summary.dense_limit, "contactbench_version": summary.version,
+           "scene_options": summary.options, "qps": [asdict(q) for q in summary.written],
            "skipped": summary.skipped}
     return _write_json(path, doc)
 

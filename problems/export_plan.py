@@ -29,8 +29,10 @@ its sizes builds each recipe with the operator its params name, at those sizes:
 
 from __future__ import annotations
 
+import json
 import re
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
+from importlib import metadata
 from typing import Any, Callable, Iterator
 
 from .errors import MemoryBudgetError, ProblemInputError
@@ -70,6 +72,8 @@ class ExportPlan:
     qps: list[PlannedQP]
     #: Instances the check built, by (recipe, step), kept for the export (module doc).
     kept: dict[tuple[int, int], ContactInstance] = field(default_factory=dict)
+    #: The scene options the export uses (``options_record`` of the merged configuration).
+    options: dict[str, Any] = field(default_factory=dict)
 
     def built(self, wanted: Callable[[PlannedQP], bool]) -> Iterator[tuple[PlannedQP, ContactInstance | None]]:
         """(QP, its instance) of every planned QP in order: the instance built where
@@ -173,7 +177,23 @@ def plan_export(scene_name: str, cfg: Any, dense_limit: int, *, tables: bool, to
             if 0 < qp.n <= dense_limit:
                 check_dense_fits(qp.name, qp.n)
             qps.append(qp)
-    return ExportPlan(scene, specs, qps, keep.kept)
+    return ExportPlan(scene, specs, qps, keep.kept, options_record(merged))
+
+
+def options_record(cfg: SceneConfig) -> dict[str, Any]:
+    """A scene configuration (the scene's defaults filled in) as JSON-ready values, as an
+    export's manifest records it: every field (null where unset) and ``extra``; a tuple as
+    a list, anything else JSON has no value for (a lazy seed range) as its text."""
+    doc: dict[str, Any] = json.loads(json.dumps(asdict(cfg), default=str))
+    return doc
+
+
+def package_version() -> str:
+    """The installed contactbench version (``importlib.metadata``), recorded with an export."""
+    try:
+        return metadata.version("contactbench")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
 
 
 @dataclass

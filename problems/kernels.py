@@ -366,8 +366,17 @@ def check_periodic_spectrum(table: np.ndarray, kernel: str, spacing: tuple[float
     return table
 
 
+def exactly_even(table: np.ndarray) -> np.ndarray:
+    """``table`` made exactly even on its periodic cell: 0.5 (K + K[(-i) mod P1, (-j) mod P2]),
+    so that K(-k) == K(k) bit for bit and H is exactly symmetric (an inverse FFT is even only
+    to round-off).  A table that is already even is returned unchanged, bit for bit."""
+    p1, p2 = table.shape
+    reflected = table[(-np.arange(p1)) % p1][:, (-np.arange(p2)) % p2]
+    return 0.5 * (table + reflected)
+
+
 def _spectral_table(shape: tuple[int, int], delta: Spacing, E: float) -> np.ndarray:
-    return spectral_layer_table(shape, grid_spacing(delta), E, None)
+    return exactly_even(spectral_layer_table(shape, grid_spacing(delta), E, None))
 
 
 def kernel_table(
@@ -384,7 +393,9 @@ def kernel_table(
     ``delta``: the spacing, one float (square elements) or (d1, d2) along axis 0 and
     axis 1.  ``layer``: None for the elastic half-space, else the elastic layer of finite
     thickness on a rigid base (``problems.layers``; which kernels take one:
-    ``Layer.check_kernel``).  An E for which float64 cannot hold the coefficients (any
+    ``Layer.check_kernel``).  Every table is exactly even, K(-k) == K(k) bit for bit, so H
+    is exactly symmetric (the spectral and layer tables by ``exactly_even``).  An E for
+    which float64 cannot hold the coefficients (any
     NaN or inf, or all below the smallest normal float64) is a one-line
     ``ProblemInputError`` naming E (``check_table``), even where E itself passes.  A
     periodic table whose spectrum is not > 0 at every q != 0 is refused
@@ -398,16 +409,17 @@ def kernel_table(
         raise ProblemInputError(f"grid shape {shape} has fewer than two points")
     with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):  # (check_table judges)
         if periodic and kernel == "spectral":
-            table = check_table(spectral_layer_table((n1, n2), spacing, E, layer), E)
+            table = check_table(exactly_even(spectral_layer_table((n1, n2), spacing, E, layer)), E)
             return check_periodic_spectrum(table, kernel, spacing)
         if periodic:
             table = periodic_table(kernel, (n1, n2), spacing, E, images=images)
             table = check_table(table if layer is None else
-                                table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer), E)
+                                exactly_even(table + periodic_layer_correction(kernel, (n1, n2), spacing, E, layer)),
+                                E)
             return check_periodic_spectrum(table, kernel, spacing)
         table = aperiodic_table(kernel, (n1, n2), spacing, E)
         if layer is not None:
-            table = table + aperiodic_layer_correction(kernel, (n1, n2), spacing, E, layer)
+            table = exactly_even(table + aperiodic_layer_correction(kernel, (n1, n2), spacing, E, layer))
             table[n1, :] = 0.0
             table[:, n2] = 0.0
     return check_table(table, E)

@@ -12,7 +12,13 @@ Problem directory
 
     {"format": "contactbench-qp/1", "n": 400, "grid": [20, 20], "spacing": 1.0,
      "spacing1": 1.0, "E": 0.01, "kernel": "bcc", "periodic": false, "tol": 1e-08, "time_limit": 60.0,
+     "max_iter": null, "singular": false,
      "arrays": {"ubar": {"file": "ubar.f64", "dtype": "<f8", "shape": [400]}, ...}}
+
+``max_iter`` is the iteration limit the program must honour (null: none; at the limit it
+stops and reports a non-claiming status such as "max_iter"); ``singular`` is true when H
+is singular -- a periodic QP on its whole grid, where H 1 = 0 -- and H is positive
+definite otherwise (a reader of a file without these keys takes null and false).
 
 ``grid`` is [N1, N2]: N1 points along axis 0 (grid index i), N2 along axis 1 (index j);
 ``spacing`` is the grid spacing along axis 0 and ``spacing1`` the one along axis 1 (a
@@ -156,6 +162,23 @@ def _finite_or_none(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(float(x)) else float(x)
 
 
+def _iteration_limit(max_iter: int | None) -> int | None:
+    """``max_iter`` as problem.json writes it: None, or a whole number 0 .. 2^63 - 1."""
+    if max_iter is None:
+        return None
+    if not is_count(max_iter):
+        raise ProblemInputError(f"max_iter must be a whole number from 0 to {COUNT_MAX} or None, got {max_iter!r}")
+    return int(max_iter)
+
+
+def singular_H(qp: QP, phys: _Physics) -> bool:
+    """Whether the QP's H is singular: a periodic grid QP whose unknowns are the whole
+    grid (the kernel's q = 0 mode is removed, so H 1 = 0); H is positive definite on any
+    proper subset of a periodic grid and on every aperiodic problem."""
+    g = qp.geometry
+    return bool(phys.periodic and g is not None and qp.n == int(np.prod(g.grid_shape)))
+
+
 def payload_nbytes(qp_or_instance: QP | ContactInstance, dense_limit: int = DENSE_LIMIT) -> int:
     """The bytes of ``problem_payload``'s arrays without a warm start, counted without
     building them (the dense H is not made): what writing the QP takes on a disk, its
@@ -168,12 +191,14 @@ def payload_nbytes(qp_or_instance: QP | ContactInstance, dense_limit: int = DENS
 
 
 def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, time_limit: float | None,
-                    p0: np.ndarray | None = None,
-                    dense_limit: int = DENSE_LIMIT) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+                    p0: np.ndarray | None = None, dense_limit: int = DENSE_LIMIT,
+                    max_iter: int | None = None) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """What a problem directory holds (module doc), in memory: its ``problem.json``
     document and its arrays (name -> C-order array of the listed dtype).  The one
     builder of the format; ``write_problem_dir`` writes it to files, the HDF5 export
-    packs it into a group."""
+    packs it into a group.  ``max_iter`` (an integer >= 0, or None: written as null) is
+    the iteration limit the reader must honour; ``"singular"`` says whether H is singular
+    (a periodic QP on its whole grid: ``singular_H``)."""
     qp, phys = _physics(qp_or_instance)
     n = qp.n
     arrays: dict[str, np.ndarray] = {"ubar": np.asarray(qp.ubar, dtype=np.float64)}
@@ -208,6 +233,8 @@ def problem_payload(qp_or_instance: QP | ContactInstance, *, tol: float | None, 
         "periodic": bool(phys.periodic),
         "tol": _finite_or_none(tol),
         "time_limit": _finite_or_none(time_limit),
+        "max_iter": _iteration_limit(max_iter),
+        "singular": singular_H(qp, phys),
         **({} if c.plain else {"load": None if c.load is None else float(c.load)}),
         "arrays": {name: {"file": ARRAY_FILES[name], "dtype": a.dtype.str, "shape": [int(s) for s in a.shape]}
                    for name, a in arrays.items()},
@@ -222,10 +249,11 @@ def problem_json(doc: dict[str, Any]) -> str:
 
 def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.PathLike[str], *,
                       tol: float | None, time_limit: float | None, p0: np.ndarray | None = None,
-                      dense_limit: int = DENSE_LIMIT) -> Path:
+                      dense_limit: int = DENSE_LIMIT, max_iter: int | None = None) -> Path:
     """Write the problem directory of a QP (module doc) into ``directory`` (created if
-    needed) and return its path.  ``tol`` is the scaled KKT error to reach and
-    ``time_limit`` the seconds allowed (either may be None: written as null).
+    needed) and return its path.  ``tol`` is the scaled KKT error to reach,
+    ``time_limit`` the seconds allowed and ``max_iter`` the iteration limit (each may be
+    None: written as null).
 
     The directory ends up holding exactly this QP's files of the format: a file of
     ``PROBLEM_DIR_FILES`` that this QP does not write (an array of a QP written there
@@ -233,7 +261,8 @@ def write_problem_dir(qp_or_instance: QP | ContactInstance, directory: str | os.
     removed first and written last, so a directory whose writing stopped part-way has
     none.  Each file is written as a new file (``_write_new``): a symbolic or hard link
     of its name is replaced, and what it points to is never written."""
-    doc, arrays = problem_payload(qp_or_instance, tol=tol, time_limit=time_limit, p0=p0, dense_limit=dense_limit)
+    doc, arrays = problem_payload(qp_or_instance, tol=tol, time_limit=time_limit, p0=p0, dense_limit=dense_limit,
+                                  max_iter=max_iter)
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     if (out / PROBLEM_JSON).is_symlink():
@@ -458,6 +487,9 @@ def _bounded_bytes(path: Path, what: str, most: int) -> bytes:
 def _read_vector(path: Path, n: int, what: str, *, nonnegative: bool, checked: bool = True) -> np.ndarray:
     data = _bounded_bytes(path, what, 8 * (4 * max(n, 1) + 1024))  # a wrong length is read, within reason
     size = len(data)
+    if n > 0 and size == 4 * n:  # (read as float64 it would be n/2 values, or a ragged tail, for either parity)
+        raise SolutionFileError(f"{what} ({path.name}) has {size} bytes for n = {n}: looks like float32 (4 n bytes); "
+                                "write float64 (8 n bytes)")
     if size % 8:
         raise SolutionFileError(f"{what} ({path.name}) has {size} bytes, not a whole number of float64 values")
     a = np.frombuffer(data, dtype="<f8")
@@ -490,7 +522,8 @@ def _read_report(path: Path) -> dict[str, Any]:
         return {}
     data = _bounded_bytes(path, "the report", MAX_REPORT_BYTES)
     try:
-        doc = json.loads(data.decode("utf-8"), object_pairs_hook=_unique_keys)
+        # (utf-8-sig: a byte-order mark, as Windows PowerShell 5 writes one, is skipped)
+        doc = json.loads(data.decode("utf-8-sig"), object_pairs_hook=_unique_keys)
     except (UnicodeDecodeError, ValueError) as exc:  # (JSON errors; a number of more digits than Python reads)
         raise SolutionFileError(f"solution.json is unreadable: {printable_excerpt(str(exc))}") from None
     except RecursionError:
@@ -530,8 +563,10 @@ SOLUTION_KEYS: tuple[str, ...] = ("iterations", "status", "time_s", "multiplier"
 def read_solution_dir(directory: str | os.PathLike[str], n: int, *, as_written: bool = False) -> SolutionFile:
     """The answer in a solution directory (module doc): p.f64 must be n finite float64
     values >= 0 (``as_written``: p is kept as written -- any length, NaN, inf or negative
-    entries -- for the judge to see; it must still be a whole number of float64 values);
-    w.f64 is read when present; solution.json's iterations/status/time_s when given.
+    entries -- for the judge to see; it must still be a whole number of float64 values, and
+    a file of exactly 4 n bytes, float32 by the look of it, is refused whatever n's parity);
+    w.f64 is read when present; solution.json's iterations/status/time_s when given
+    (UTF-8, with or without a byte-order mark).
     Anything wrong is a ``SolutionFileError`` that says which file and what."""
     d = Path(directory)
     p = _read_vector(d / SOLUTION_P, n, "solution p", nonnegative=True, checked=not as_written)

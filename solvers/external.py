@@ -47,7 +47,9 @@ reported as that source's error and this module stays importable, e.g. for
 
 One solve (``ExternalSolver.iterate``):
 
-1. write the problem directory into a temporary folder (set-up time, ``setup_time_s``), named
+1. write the problem directory -- with the tolerance, the time left and the iteration
+   limit (``ctx.max_iter``, null where the program keeps its own) -- into a temporary
+   folder (set-up time, ``setup_time_s``), named
    after at most ``TEMP_NAME_CHARS`` characters of the solver's name; a removal of that
    folder that fails afterwards is no failure of the row;
 2. run the command -- split by ``shlex`` and run without a shell, the placeholders
@@ -373,7 +375,8 @@ class ExternalSolver(Solver):
             root = Path(tmp)
             problem, solution = root / "problem", root / "solution"
             solution.mkdir()
-            write_problem_dir(ctx.qp, problem, tol=ctx.tol, time_limit=ctx.deadline.remaining(), p0=ctx.p0)
+            write_problem_dir(ctx.qp, problem, tol=ctx.tol, time_limit=ctx.deadline.remaining(), p0=ctx.p0,
+                              max_iter=ctx.max_iter)
             ctx.mark_setup_done()
             limit = ctx.deadline.remaining()
             proc = run_program(command_words(self.spec.command, problem, solution), self.spec.workdir, limit, root)

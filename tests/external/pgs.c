@@ -1,7 +1,7 @@
 /* Projected Gauss-Seidel on the dense H: an external solver for contactbench.
  *
  * It follows the file protocol contactbench-qp/1 (docs/external-solvers.md) and
- * nothing else: it reads n, tol and time_limit from problem.json with a tiny scanner,
+ * nothing else: it reads n, tol, time_limit and max_iter from problem.json with a tiny scanner,
  * the arrays ubar.f64 and H.f64 (and p0.f64 when present), and writes p.f64 and
  * solution.json into the solution directory.
  *
@@ -72,6 +72,7 @@ int main(int argc, char **argv) {
     if (!json) { fprintf(stderr, "cannot read %s\n", path); return 2; }
     long n = (long)json_number(json, "n");
     double tol = json_number(json, "tol"), limit = json_number(json, "time_limit");
+    double limit_iter = json_number(json, "max_iter"); /* NAN when null: no limit of the harness's */
     if (!(tol > 0)) tol = 1e-8;
     free(json);
     double *ubar = read_f64(pdir, "ubar.f64", n), *H = read_f64(pdir, "H.f64", n * n);
@@ -89,6 +90,7 @@ int main(int argc, char **argv) {
         if (fabs(ubar[i]) > umax) umax = fabs(ubar[i]);
     }
     long it = 0, max_iter = 1000000;
+    if (limit_iter >= 0 && limit_iter < max_iter) max_iter = (long)limit_iter; /* honour the harness's limit */
     double err = INFINITY;
     const char *status = "max_iter";
     for (it = 1; it <= max_iter; it++) {

@@ -4,7 +4,8 @@
     python standalone_solver.py PROBLEM_DIR SOLUTION_DIR [--kernel] [--variant NAME]
 
 It follows the file protocol contactbench-qp/1 (docs/external-solvers.md): it reads
-problem.json and the raw little-endian arrays, and writes p.f64 and solution.json.
+problem.json and the raw little-endian arrays, and writes p.f64 and solution.json; it stops
+at problem.json's ``max_iter`` when one is given, reporting status "max_iter".
 
 Method: when the dense H is present (and ``--kernel`` is not given), block principal pivoting (Judice & Pires 1994) on
 the LCP w = Hp - ubar >= 0, p >= 0, w'p = 0 -- finite for an SPD H.  Otherwise the
@@ -45,10 +46,11 @@ def scaled_kkt(p, w, ubar, dmax):
 
 
 def bpp(H, ubar, max_iter=1000):
-    """Block principal pivoting with Murty's single-index fallback."""
+    """Block principal pivoting with Murty's single-index fallback: (p, iterations, status)."""
     n = ubar.size
     F = np.zeros(n, dtype=bool)  # the free set: p > 0 there, w = 0
     best, backup = n + 1, 3
+    p = np.zeros(n)
     for it in range(1, max_iter + 1):
         p = np.zeros(n)
         if F.any():
@@ -57,7 +59,7 @@ def bpp(H, ubar, max_iter=1000):
         bad = (F & (p < 0)) | (~F & (w < -1e-14 * max(1.0, np.max(np.abs(ubar)))))
         k = int(np.count_nonzero(bad))
         if k == 0:
-            return np.maximum(p, 0.0), it
+            return np.maximum(p, 0.0), it, "converged"
         if k < best:
             best, backup = k, 3
             F ^= bad
@@ -67,7 +69,7 @@ def bpp(H, ubar, max_iter=1000):
         else:
             j = int(np.flatnonzero(bad).max())
             F[j] = not F[j]
-    return np.maximum(p, 0.0), max_iter
+    return np.maximum(p, 0.0), max_iter, "max_iter"
 
 
 class FFTOperator:
@@ -118,6 +120,8 @@ def main(argv):
     n, ubar = int(doc["n"]), a["ubar"].astype(np.float64)
     tol = doc.get("tol") or 1e-8
     limit = doc.get("time_limit") or 3600.0
+    max_iter = doc.get("max_iter")  # the harness's iteration limit (null: keep our own)
+    own = {} if max_iter is None else {"max_iter": int(max_iter)}
     status = "converged"
     if variant == "sleep":
         time.sleep(limit + 600.0)
@@ -132,11 +136,11 @@ def main(argv):
         if variant == "clip":
             p, it = np.maximum(np.linalg.solve(H, ubar), 0.0), 1
         else:
-            p, it = bpp(H, ubar)
+            p, it, status = bpp(H, ubar, **own)
     else:
         op = FFTOperator(a["kernel_table"], doc["grid"], a["index"])
         dmax = float(a["kernel_table"][0, 0])
-        p, it, status = polonsky_keer(op, ubar, dmax, tol, t0 + 0.9 * limit)
+        p, it, status = polonsky_keer(op, ubar, dmax, tol, t0 + 0.9 * limit, **own)
     if variant == "short":
         p = p[:-1]
     if variant == "nan":

@@ -166,14 +166,29 @@ def test_exporting_again_removes_what_the_earlier_export_wrote_and_this_one_does
     (tmp_path / "mine.txt").write_text("kept")
     export_scene("counterexample", COUNTER, "problem-dir", tmp_path)  # this export does not write the hertz folder
     assert _files(tmp_path) == {"manifest.json", "mine.txt", "n25-s0-step0", "n25-s1-step0"}
-    (tmp_path / "n25-s1-step0" / "notes.txt").write_text("not ours: the folder is kept whole")
+    (tmp_path / "n25-s1-step0" / "notes.txt").write_text("not ours: it and its folder are kept")
     export_scene("counterexample", COUNTER, "qpbenchmark", tmp_path)
     assert _files(tmp_path) == {"manifest.json", "mine.txt", "n25-s1-step0", "counterexample.parquet"}
-    assert _files(tmp_path / "n25-s1-step0") >= {"notes.txt", "problem.json", "ubar.f64"}
+    assert _files(tmp_path / "n25-s1-step0") == {"notes.txt"}  # the earlier export's files are gone
     export_scene("paper-sweep", SWEEP, "qpbenchmark", tmp_path)
     assert "counterexample.parquet" not in _files(tmp_path) and "paper-sweep.parquet" in _files(tmp_path)
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["complete"] is True and manifest["scene"] == "paper-sweep"
+
+
+def test_a_shorter_export_removes_an_earlier_qp_s_files_and_keeps_a_user_s_file_beside_them(tmp_path: Path) -> None:
+    out = tmp_path / "ex1"
+    first = export_scene("paper-sweep", SceneConfig(size=16, steps=2, seeds=(0,)), "problem-dir", out)
+    assert [q.step for q in first.written] == [0, 1]
+    gone = out / first.written[1].name
+    (gone / "notes.txt").write_text("the user's")
+    second = export_scene("paper-sweep", SceneConfig(size=16, steps=1, seeds=(0,)), "problem-dir", out)
+    assert gone.name not in {q.name for q in second.written}
+    assert _files(gone) == {"notes.txt"} and (gone / "notes.txt").read_text() == "the user's"
+    assert _files(out) == {"manifest.json", gone.name, second.written[0].name}
+    with pytest.raises(ProblemInputError, match="is not an export's"):  # (no longer listed: never written into)
+        export_scene("paper-sweep", SceneConfig(size=16, steps=2, seeds=(0,)), "problem-dir", out)
+    assert _files(gone) == {"notes.txt"}
 
 
 def test_an_interrupted_export_leaves_a_folder_that_the_same_export_writes_again(
@@ -241,3 +256,29 @@ def test_rectangular_pixels_are_described_by_both_spacings(tmp_path: Path) -> No
     del doc["spacing1"]
     (tmp_path / "dense" / "problem.json").write_text(json.dumps(doc))
     assert read_problem_dir(tmp_path / "dense").geometry().spacing == (square.delta, square.delta)
+
+
+def test_the_manifest_records_the_options_the_version_and_a_measured_map_s_hash(tmp_path: Path) -> None:
+    import warnings
+
+    from contactbench.problems.preprocessing import raw_heights_sha256
+    from contactbench.problems.scenes.options import CONFIG_FIELDS
+    from contactbench.problems.surfaces import rmd_surface_n
+
+    heights = rmd_surface_n(17, 0.7, length=1e-4, rms_height=1e-6, seed=2).heights
+    np.save(tmp_path / "m.npy", heights)
+    out = tmp_path / "out"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        export_scene("paper-sweep", SceneConfig(surface_path=str(tmp_path / "m.npy"), length=1e-4, steps=2),
+                     "problem-dir", out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["contactbench_version"] and isinstance(manifest["contactbench_version"], str)
+    options = manifest["scene_options"]
+    assert set(CONFIG_FIELDS) <= set(options) and options["steps"] == 2 and options["length"] == 1e-4
+    assert options["surface_path"] == str(tmp_path / "m.npy") and options["size"] is not None  # (defaults filled)
+    assert [q["surface_sha256"] for q in manifest["qps"]] == [raw_heights_sha256(heights)] * 2
+    export_scene("paper-sweep", SceneConfig(size=16, steps=1, seeds=range(0, 1)), "problem-dir", tmp_path / "gen")
+    generated = json.loads((tmp_path / "gen" / "manifest.json").read_text())
+    assert [q["surface_sha256"] for q in generated["qps"]] == [None]
+    assert generated["scene_options"]["size"] == 16 and generated["scene_options"]["seeds"] == "range(0, 1)"

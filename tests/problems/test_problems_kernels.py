@@ -108,3 +108,35 @@ def test_an_embedded_kernel_spectrum_from_its_quarter_is_the_full_transform(kern
     assert np.iscomplexobj(KernelTransform(odd, shape).khat) or np.abs(sfft.rfft2(odd).imag).max() <= 1e-12
     assert embedded_even_spectrum(kernel_table("bcc", (8, 8), 1e-6, 1e9, True), (8, 8)) is None
     assert embedded_even_spectrum(kernel_table("love", (1, 5), 1e-6, 1e9, False), (1, 5)) is None
+
+
+def _reflection(table: np.ndarray) -> np.ndarray:
+    p1, p2 = table.shape
+    return table[(-np.arange(p1)) % p1][:, (-np.arange(p2)) % p2]
+
+
+@pytest.mark.parametrize("shape", [(16, 16), (8, 12), (7, 5)])
+def test_every_table_equals_its_reflection_exactly(shape: tuple[int, int]) -> None:
+    """K(-k) == K(k) bit for bit, so H is exactly symmetric: the spectral table (an inverse
+    FFT, even only to round-off) and the layer-corrected tables too."""
+    from contactbench.problems.layers import Layer
+
+    tables = [kernel_table("spectral", shape, (DELTA, 1.3 * DELTA), E, periodic=True),
+              kernel_table("spectral", shape, DELTA, E, periodic=True, layer=Layer(5 * DELTA)),
+              periodic_table("spectral", shape, DELTA, E)]
+    for periodic in (True, False):
+        for kernel in ("bcc", "love"):
+            tables.append(kernel_table(kernel, shape, DELTA, E, periodic=periodic))
+            tables.append(kernel_table(kernel, shape, DELTA, E, periodic=periodic, layer=Layer(30 * DELTA)))
+    for table in tables:
+        assert np.array_equal(table, _reflection(table))
+
+
+def test_an_exported_spectral_h_is_exactly_symmetric() -> None:
+    from contactbench.problems.instances import InstanceBuilder
+    from contactbench.problems.surfaces import fourier_synthesis
+
+    inst = InstanceBuilder(fourier_synthesis(16, 0.8, 0.1, length=1e-4, seed=3), 1e9, "spectral",
+                           periodic=True).build(1e-6)
+    H = inst.qp.H.to_dense()
+    assert H.shape == (256, 256) and np.array_equal(H, H.T)

@@ -102,3 +102,21 @@ def test_a_key_the_protocol_does_not_know_or_a_null_is_named_not_read_as_a_claim
     with pytest.raises(SolutionFileError) as err:
         read_solution_dir(solution(tmp_path / "s", report), 3)
     assert words in str(err.value) and len(str(err.value).splitlines()) == 1, err.value
+
+
+@pytest.mark.parametrize("n", [3, 4])
+@pytest.mark.parametrize("as_written", [False, True])
+def test_a_float32_answer_is_named_whatever_the_parity_of_n(tmp_path: Path, n: int, as_written: bool) -> None:
+    d = tmp_path / "s"
+    d.mkdir()
+    (d / "p.f64").write_bytes(np.ones(n, dtype="<f4").tobytes())  # 4 n bytes
+    with pytest.raises(SolutionFileError, match=r"looks like float32 \(4 n bytes\); write float64") as err:
+        read_solution_dir(d, n, as_written=as_written)
+    assert len(str(err.value).splitlines()) == 1
+
+
+def test_a_report_with_a_utf8_byte_order_mark_is_read(tmp_path: Path) -> None:
+    d = solution(tmp_path / "s", None)
+    (d / "solution.json").write_bytes(b'\xef\xbb\xbf{"status": "max_iter", "iterations": 4}')
+    sol = read_solution_dir(d, 3)
+    assert sol.status == "max_iter" and sol.iterations == 4 and not sol.claims_converged

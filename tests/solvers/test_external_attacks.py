@@ -266,3 +266,88 @@ def test_what_a_program_left_running_ends_before_its_answer_is_read(
     while not process_gone(int(pid_file.read_text())) and time.monotonic() < deadline:  # (the kernel's time)
         time.sleep(0.02)
     assert process_gone(int(pid_file.read_text()))
+
+
+# ---------------------------------------------------------------------------
+# The iteration limit a program is told (problem.json's "max_iter")
+# ---------------------------------------------------------------------------
+
+#: A program that answers exactly and reports ``max_iter`` plus its first argument as its
+#: iteration count (0: honours the limit; 1: one past it), or 123 when it is told none.
+TOLD_LIMIT = '''
+import json, os, sys
+import numpy as np
+extra, prob, soln = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+doc = json.load(open(os.path.join(prob, "problem.json")))
+a = doc["arrays"]["H"]
+H = np.fromfile(os.path.join(prob, a["file"]), dtype="<f8").reshape(a["shape"])
+ubar = np.fromfile(os.path.join(prob, "ubar.f64"), dtype="<f8")
+F = np.zeros(ubar.size, dtype=bool)
+for _ in range(4 * ubar.size + 4):  # block principal pivoting: exact on these small SPD cases
+    p = np.zeros(ubar.size)
+    if F.any():
+        p[F] = np.linalg.solve(H[np.ix_(F, F)], ubar[F])
+    bad = (F & (p < 0)) | (~F & (H @ p - ubar < -1e-13 * np.abs(ubar).max()))
+    if not bad.any():
+        break
+    F ^= bad
+np.maximum(p, 0.0).astype("<f8").tofile(os.path.join(soln, "p.f64"))
+told = doc.get("max_iter")
+json.dump({"iterations": 123 if told is None else told + extra}, open(os.path.join(soln, "solution.json"), "w"))
+'''
+
+
+def told_limit_command(tmp_path: Path, extra: int) -> str:
+    script = tmp_path / "told_limit.py"
+    script.write_text(TOLD_LIMIT)
+    return f"{PY} {script} {extra} {{problem}} {{solution}}"
+
+
+def test_problem_json_carries_the_iteration_limit_the_solve_runs_under(tmp_path: Path) -> None:
+    from contactbench.problems.qpfile import problem_payload
+
+    inst = counterexample(16, 0)
+    assert problem_payload(inst, tol=1e-8, time_limit=None, max_iter=7)[0]["max_iter"] == 7
+    assert problem_payload(inst, tol=1e-8, time_limit=None)[0]["max_iter"] is None
+    with pytest.raises(ProblemInputError, match="max_iter"):
+        problem_payload(inst, tol=1e-8, time_limit=None, max_iter=-1)
+    solver = command_solver(told_limit_command(tmp_path, 0))
+    assert solver.solve(inst.qp, SolverSettings(max_iter=5, time_limit=30.0)).iterations == 5
+    assert solver.solve(inst.qp, SolverSettings(time_limit=30.0)).iterations == 123  # told none: null
+
+
+def test_the_limit_group_passes_a_program_that_honours_its_limit_and_flags_one_past_it(tmp_path: Path) -> None:
+    from contactbench.harness.conformance import battery as cf
+    from contactbench.harness.conformance.cases import ITERATION_LIMIT, limit_cases
+
+    honest = cf.validate(command_solver(told_limit_command(tmp_path, 0)), limit_cases(), isolate=False)
+    assert [r.status for r in honest.rows] == ["pass"] * len(honest.rows), honest.format()
+    assert [r.iterations for r in honest.rows] == [ITERATION_LIMIT] * len(honest.rows)
+    assert honest.exit_code(strict=True) == 0
+    past = cf.validate(command_solver(told_limit_command(tmp_path, 1)), limit_cases(), isolate=False)
+    assert [r.status for r in past.rows] == ["flagged"] * len(past.rows), past.format()
+    assert all(f"{ITERATION_LIMIT + 1} iterations under max_iter {ITERATION_LIMIT}" in r.message for r in past.rows)
+    assert past.exit_code(strict=True) == 1
+
+
+def test_the_example_program_stops_at_the_limit_it_is_told() -> None:
+    from contactbench.harness.conformance import battery as cf
+    from contactbench.harness.conformance.cases import ITERATION_LIMIT, limit_cases
+
+    table = cf.validate(command_solver(GOOD), limit_cases(), isolate=False)
+    assert all(r.status in ("pass", "unconverged") for r in table.rows), table.format()
+    assert all(r.iterations is not None and r.iterations <= ITERATION_LIMIT for r in table.rows), table.format()
+
+
+def test_problem_json_says_whether_h_is_singular() -> None:
+    from contactbench.problems.instances import InstanceBuilder
+    from contactbench.problems.qpfile import problem_payload
+    from contactbench.problems.surfaces import fourier_synthesis
+
+    inst = InstanceBuilder(fourier_synthesis(8, 0.8, 0.1, length=1e-4, seed=3), 1e9, "bcc", periodic=True).build(1e-6)
+    assert inst.n == 64  # a periodic step is posed on the whole grid: H 1 = 0
+    assert np.allclose(inst.qp.H.to_dense().sum(axis=1), 0.0, atol=1e-12 * float(inst.qp.H.diagonal().max()))
+    assert problem_payload(inst, tol=None, time_limit=None)[0]["singular"] is True
+    subset = inst.qp.restrict(np.arange(40))
+    assert problem_payload(subset, tol=None, time_limit=None)[0]["singular"] is False
+    assert problem_payload(counterexample(16, 0), tol=None, time_limit=None)[0]["singular"] is False
