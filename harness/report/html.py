@@ -40,8 +40,8 @@ from .core import (REPORT_TITLE, WARM_SUFFIX, ReportContext, attempted, fmt_num,
                    parse_trace, pick_profile)
 from .sections.fields import (BGT_KAPPA, MAX_LOAD_AREA_SERIES, PERSSON_KAPPA, fit_kappa, load_area_series,
                               short_traces, trace_scene, traces_empty_note)
-from .sections.generic import (SGM_CAPTION, SOLVED_COLUMNS, best_of_family, page_marker_sizes, profile_empty_note,
-                               profile_taus, reached_accuracy)
+from .sections.generic import (SGM_CAPTION, SOLVED_COLUMNS, best_of_family, family_rank, page_marker_sizes,
+                               profile_empty_note, profile_taus, reached_accuracy)
 from .sections.paper import UNSOLVED_MARKS, k_of, load_abscissa, unsolved_kind
 from .page_script import PAGE_SCRIPT
 from .panels import AT_ZERO, MARK_EVERY, curve_notes, iteration_axis
@@ -107,32 +107,40 @@ def unsolved_marks() -> dict[str, dict[str, str]]:
             for kind, (marker, color, label) in UNSOLVED_MARKS.items()}
 
 
-def scene_summaries(ctx: ReportContext) -> dict[str, list[agg.SolverSummary]]:
-    """Per scene, the aggregate of each solver (``table.aggregates.summarize``: its SGM over
-    the cells it was planned to run), as report.md's aggregate tables."""
+def scene_summaries(ctx: ReportContext) -> dict[str, list[tuple[str, list[agg.SolverSummary]]]]:
+    """Per scene, per profile (``table.aggregates.profile_parts``: solvers are compared within
+    one profile), the aggregate of each solver (``summarize``: its SGM over the cells it was
+    planned to run), as report.md's aggregate tables."""
     out = {}
     for scene in ctx.scenes():
-        r = ctx.rows(scene)
-        out[scene] = agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique()))
+        out[scene] = [(p, agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique())))
+                      for p, r in agg.profile_parts(ctx.rows(scene))]
     return out
 
 
-def scene_leads(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]) -> dict[str, dict[str, Any]]:
+def scene_leads(ctx: ReportContext, summaries: dict[str, list[tuple[str, list[agg.SolverSummary]]]]
+                ) -> dict[str, dict[str, Any]]:
     """Per scene, what its charts draw first when they would hold more than ``MAX_SERIES``
     series (the page's ``thin`` draws the first ``MAX_SERIES`` solvers of ``order``; the other
     series stay in the legend, a click away): ``order``, the scene's solvers with the best of
-    each family by SGM first (``best_of_family``, as the report's performance-profile panels;
-    ``best`` of them), then the others by SGM; and ``profile``, the report's profile for the
-    scene (``pick_profile``)."""
+    each family first (``best_of_family``, as the report's performance-profile panels;
+    ``best`` of them), then the others by solved share and SGM (``family_rank``); and
+    ``profile``, the report's profile for the scene (``pick_profile``).  A solver is ranked by
+    its summary at that profile, else at the first profile it ran at."""
     out = {}
-    for scene, summ in summaries.items():
-        sgm = {s.solver: s.sgm_s for s in summ}
-        best = best_of_family(ctx, sgm)
+    for scene, parts in summaries.items():
+        lead = pick_profile(attempted(ctx.rows(scene)))
+        mine: dict[str, agg.SolverSummary] = {}
+        for _, summ in sorted(parts, key=lambda ps: ps[0] != lead):
+            mine.update({s.solver: s for s in summ if s.solver not in mine and s.sgm_cells})
+        for _, summ in parts:
+            mine.update({s.solver: s for s in summ if s.solver not in mine})
+        best = best_of_family(ctx, mine.values())
         firsts = [best[f] for f in sort_families(best)]
-        rest = sorted((s for s in sgm if s not in firsts),
-                      key=lambda s: (sgm[s] if np.isfinite(sgm[s]) else np.inf, natural_key(s)))
-        out[scene] = {"order": firsts + rest, "best": len(firsts),
-                      "profile": pick_profile(attempted(ctx.rows(scene)))}
+        rest = sorted((s for s in mine if s not in firsts),
+                      key=lambda s: (*family_rank(mine[s]), natural_key(s)) if np.isfinite(mine[s].sgm_s)
+                      else (np.inf, np.inf, natural_key(s)))
+        out[scene] = {"order": firsts + rest, "best": len(firsts), "profile": lead}
     return out
 
 
@@ -145,36 +153,39 @@ SGM_PERCENT: tuple[str, ...] = ("solved / problems", "solved / attempted")
 SGM_SORT = "SGM / best"
 
 
-def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[agg.SolverSummary]]
-                     ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Per scene: the performance profile curves and the aggregate (SGM) table."""
-    pp: dict[str, Any] = {}
-    sgm: dict[str, Any] = {}
+def profiles_and_sgm(ctx: ReportContext, summaries: dict[str, list[tuple[str, list[agg.SolverSummary]]]]
+                     ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, list[dict[str, Any]]]]:
+    """Per scene, one entry per profile (``scene_summaries``; ``profile`` None where the
+    scene ran one): the performance profile curves and the aggregate (SGM) table."""
+    pp: dict[str, list[dict[str, Any]]] = {}
+    sgm: dict[str, list[dict[str, Any]]] = {}
     for scene in ctx.scenes():
-        r = ctx.rows(scene)
-        solvers = natural_sorted(r["solver"].unique())
-        summ = summaries[scene]
-        acc = reached_accuracy(r)
-        cells = agg.cell_table(r, solvers)
-        sgm[scene] = {"columns": [*SGM_COLUMNS], "note": SGM_CAPTION,
-                      "percent": [SGM_COLUMNS.index(c) for c in SGM_PERCENT],
-                      "sort": SGM_COLUMNS.index(SGM_SORT),
-                      "rows": [[s.solver, ctx.family(s.solver), s.problems, s.attempted, s.solved,
-                                as_finite(s.solved_share), as_finite(s.success_rate), as_finite(s.sgm_s),
-                                as_finite(s.sgm_rel), s.sgm_cells,
-                                as_finite(acc.get(s.solver)), s.false_claims]
-                               for s in summ]}
-        prof = agg.performance_profile(cells)
-        if len(prof.solvers) < 2 or not cells.problems:
-            continue
-        if empty := profile_empty_note(prof, r):  # the chart says why it has no curve, as report.md does
-            pp[scene] = {"taus": [], "n": prof.n_problems, "curves": {}, "empty": empty}
-            continue
-        taus, _ = profile_taus(prof, 120)
-        curves = {s: prof.curve(s, taus) for s in prof.solvers}
-        pp[scene] = {"taus": [float(x) for x in taus], "n": prof.n_problems,
-                     "curves": {s: [float(v) for v in c] for s, c in curves.items()},
-                     "notes": curve_notes(curves, prof.solvers)}  # a curve at 0 or under another, as report.md's
+        parts = dict(agg.profile_parts(ctx.rows(scene)))
+        for profile, summ in summaries[scene]:
+            r = parts[profile]
+            named = profile if len(parts) > 1 else None
+            acc = reached_accuracy(r)
+            cells = agg.cell_table(r, natural_sorted(r["solver"].unique()))
+            sgm.setdefault(scene, []).append({
+                "profile": named, "problems": len(cells.problems), "columns": [*SGM_COLUMNS], "note": SGM_CAPTION,
+                "percent": [SGM_COLUMNS.index(c) for c in SGM_PERCENT], "sort": SGM_COLUMNS.index(SGM_SORT),
+                "rows": [[s.solver, ctx.family(s.solver), s.problems, s.attempted, s.solved,
+                          as_finite(s.solved_share), as_finite(s.success_rate), as_finite(s.sgm_s),
+                          as_finite(s.sgm_rel), s.sgm_cells, as_finite(acc.get(s.solver)), s.false_claims]
+                         for s in summ]})
+            prof = agg.performance_profile(cells)
+            if len(prof.solvers) < 2 or not cells.problems:
+                continue
+            if empty := profile_empty_note(prof, r):  # the chart says why it has no curve, as report.md does
+                pp.setdefault(scene, []).append({"profile": named, "taus": [], "n": prof.n_problems, "curves": {},
+                                                 "empty": empty})
+                continue
+            taus, _ = profile_taus(prof, 120)
+            curves = {s: prof.curve(s, taus) for s in prof.solvers}
+            pp.setdefault(scene, []).append({
+                "profile": named, "taus": [float(x) for x in taus], "n": prof.n_problems,
+                "curves": {s: [float(v) for v in c] for s, c in curves.items()},
+                "notes": curve_notes(curves, prof.solvers)})  # a curve at 0 or under another, as report.md's
     return pp, sgm
 
 
@@ -307,7 +318,7 @@ def render_html(ctx: ReportContext) -> str:
             f"<header><h1>{title}</h1><p>Interactive companion of <a href=\"report.md\">report.md</a> "
             f"(same table, same colours). Pick solvers (a family box toggles the whole family), scenes and "
             f"profiles; a chart of more than {MAX_SERIES} series draws the best solver of each family first "
-            f"(by SGM) and keeps the rest in its legend, a click away; hover a point for its instance, step, n, errors, time, iterations and status; click a "
+            f"(by solved share, then SGM) and keeps the rest in its legend, a click away; hover a point for its instance, step, n, errors, time, iterations and status; click a "
             f"table header to sort.</p></header>\n"
             f"<div id=\"layout\"><nav id=\"picker\"></nav><main id=\"charts\"></main></div>\n"
             f"{tables_html(ctx)}"
@@ -343,7 +354,7 @@ header p{margin:4px 0;font-size:.85em;color:#555}
 #picker{width:260px;flex:none;padding:8px 12px;font-size:.8em;position:sticky;top:0;max-height:100vh;overflow:auto;
  border-right:1px solid #ddd}
 #picker fieldset{border:1px solid #ddd;margin:0 0 8px 0;padding:4px 8px}
-#picker label{display:block;white-space:nowrap}
+#picker label{display:block;overflow-wrap:anywhere}
 #picker .fam{font-weight:bold;margin-top:4px}
 #picker .sw{display:inline-block;width:10px;height:10px;margin-right:4px;border-radius:2px}
 #charts{flex:1;padding:8px 16px;min-width:0}
@@ -358,6 +369,7 @@ table.sgm{border-collapse:collapse;font-size:.8em;margin:8px 0}
 table.sgm th,table.sgm td{border:1px solid #ddd;padding:2px 6px;text-align:right}
 table.sgm th{cursor:pointer;background:#f6f6f6}
 table.sgm td:first-child,table.sgm td:nth-child(2){text-align:left}
+table.sgm td:first-child{max-width:16em;overflow-wrap:break-word}
 img.static{max-width:100%;border:1px solid #eee}
 .hidden{display:none}
 """

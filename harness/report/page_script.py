@@ -61,11 +61,12 @@ const fmt = v => (v === null || v === undefined) ? '-' : Number.isInteger(v) && 
   Number(v.toPrecision(3)).toString() : v.toExponential(1));
 const HOVER = 'instance %{customdata[0]}, step %{customdata[1]}, n %{customdata[2]}<br>' +
   'solver %{customdata[9]} (%{customdata[10]})<br>kkt_error %{customdata[3]}, p error %{customdata[4]}, ' +
-  'load error %{customdata[5]}<br>time %{customdata[6]} s, iterations %{customdata[7]}, status %{customdata[8]}' +
+  'load error %{customdata[5]}<br>time %{customdata[6]} s%{customdata[11]}, iterations %{customdata[7]}, status %{customdata[8]}' +
   '<extra></extra>';
 // A row whose answer served as its step's reference (r.ref) has p error 0 by construction: the hover
 // says 'ref', and the p-error chart leaves it out (at the log floor it would read as exact).
-const custom = r => [r.inst, r.st, r.n, fmt(r.kkt), r.ref ? 'ref' : fmt(r.perr), fmt(r.lerr), fmt(r.t), r.it, r.stt, r.so, r.pr];
+const custom = r => [r.inst, r.st, r.n, fmt(r.kkt), r.ref ? 'ref' : fmt(r.perr), fmt(r.lerr), fmt(r.t), r.it, r.stt, r.so, r.pr,
+  r.reps > 1 ? ' (the least of ' + r.reps + ' repeats)' : ''];
 const measured = (r, key) => r[key] !== null && !(key === 'perr' && r.ref);
 const base = lab => lab.replace(/ \(warm\)$/, '');
 
@@ -90,7 +91,7 @@ function layout(title, xt, yt, xs, ys, extra) {
 }
 // A chart of more than D.maxSeries series draws fewer, narrowing step by step while it still has
 // too many: the scene's first D.maxSeries solvers in D.lead's order (the best of each family, then
-// the others by SGM), then only the lead profile, then the first instances (a
+// the others by solved share, then SGM), then only the lead profile, then the first instances (a
 // chart of one curve per instance), then the first D.maxSeries; the other series are hidden and
 // left out of the legend (a legend of 70 entries, 60 of them greyed, could not be read; nor could
 // 70 series drawn at once tell their solvers apart), and the legend's title says how many are drawn,
@@ -176,12 +177,23 @@ function emptyNote(lay, text) {
     x: 0.5, y: 0.5, font: {color: 'gray'}}]);
   [lay.xaxis, lay.yaxis].forEach(a => Object.assign(a, {showticklabels: false, zeroline: false}));
 }
+// One point per cell (solver label, profile, instance, step), as the PNGs' (core.py per_cell): the
+// repeats of a cell are folded into the least time, and the cell is solved only when every repeat is
+// (else it wears the mark of its first repeat not solved); the hover says how many repeats.
+function foldRepeats(rows) {
+  const g = groupBy(rows, r => [r.lab, r.pr, r.inst, r.st].join('\u0001'));
+  return [...g.values()].map(rs => {
+    const fast = rs.reduce((a, b) => (b.t < a.t ? b : a));
+    const bad = rs.find(r => r.stt !== 'solved');
+    return Object.assign({}, fast, bad ? {stt: bad.stt, uk: bad.uk} : {}, {reps: rs.length});
+  });
+}
 function lineChart(scene, c) {
   return () => {
     const xKey = c.x;
     // only the profile and instance its section's PNG draws, where it names them
-    const picked = rowsOf(scene).filter(r => r.t !== null && (!c.profile || r.pr === c.profile) &&
-      (!c.instance || r.inst === c.instance));
+    const picked = foldRepeats(rowsOf(scene).filter(r => r.t !== null && (!c.profile || r.pr === c.profile) &&
+      (!c.instance || r.inst === c.instance)));
     const rows = picked.filter(r => r[xKey] !== null);
     const multiProf = new Set(rows.map(r => r.pr)).size > 1;
     const g = groupBy(rows, r => r.lab + (multiProf ? ' [' + r.pr + ']' : '') + (c.by_instance ? ' ' + r.inst : ''));
@@ -245,17 +257,18 @@ function wpChart(scene, key, yTitle) {
     return [drawn.concat(sizes), lay2];
   };
 }
-function ppChart(scene) {
+// One chart per profile of the scene (p.profile null where it ran one: the title as before): a profile
+// is its own accuracy target, and solvers are compared within one (html.py profiles_and_sgm).
+function ppChart(scene, p) {
   return () => {
-    const p = D.pp[scene];
     const traces = Object.keys(p.curves).filter(s => state.solvers.has(s)).sort(bySceneOrder(scene, s => s)).map(s => Object.assign({
       // a curve at 0 all along (note null) or under an equal one (note: its solver), as report.md's legend says
       type: 'scatter', mode: 'lines+markers', name: s + (p.notes && s in p.notes ? ' (' + (p.notes[s] === null ?
         D.atZero : '= ' + p.notes[s]) + ')' : ''),
       meta: {so: s}, x: p.taus, y: p.curves[s],
       hovertemplate: s + ': %{y:.2f} within tau = %{x:.3g}<extra></extra>'}, ownLine(s, colorIn(scene, s), {shape: 'hv'})));
-    const lay = layout('performance profile (' + scene + ', ' + p.n + ' problems)', 'tau (times the best time)',
-      'fraction of problems solved', p.taus, [0, 1]);
+    const lay = layout('performance profile (' + scene + (p.profile ? ', profile ' + p.profile : '') + ', ' + p.n +
+      ' problems)', 'tau (times the best time)', 'share of the ' + p.n + ' problems solved', p.taus, [0, 1]);
     lay.xaxis.type = 'log';
     lay.yaxis.range = [-0.02, 1.02];
     if (p.empty) emptyNote(lay, p.empty);
@@ -329,8 +342,7 @@ function loadAreaChart() {
 }
 // Text of the table (a solver, scene or figure name) as HTML text: never markup.
 const esc = v => String(v).replace(/[&<>"']/g, c => ({'&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;'})[c]);
-function sgmTable(scene, holder) {
-  const T = D.sgm[scene];
+function sgmTable(T, holder) {
   let sortCol = T.sort, asc = true;
   const pct = new Set(T.percent);
   function render() {
@@ -369,17 +381,19 @@ function build() {
       addChart(grid, scene, wpChart(scene, 'kkt', 'kkt_error'));
       if (D.rows.some(r => r.sc === scene && measured(r, 'perr'))) addChart(grid, scene, wpChart(scene, 'perr', 'p error'));
     }
-    if (D.pp[scene]) addChart(grid, scene, ppChart(scene));
-    if (D.sgm[scene]) {
+    (D.pp[scene] || []).forEach(p => addChart(grid, scene, ppChart(scene, p)));
+    (D.sgm[scene] || []).forEach(T => {
       const h = document.createElement('div');
       // the SGM's words are report.md's (sections/generic.py SGM_CAPTION), without its Markdown
-      h.innerHTML = '<h3>problems solved and shifted geometric mean of solve time (click a header to sort)</h3>' +
-        '<p class="note">solved / problems: of every problem of the scene, a skipped or not run cell counting as ' +
-        'not solved; solved / attempted: of the cells the solver ran. ' + esc(D.sgm[scene].note.replace(/\*\*/g, '')) + '</p>';
+      h.innerHTML = '<h3>problems solved and shifted geometric mean of solve time' +
+        (T.profile ? ', profile ' + esc(T.profile) + ' (' + T.problems + ' problems)' : '') + ' (click a header to sort)</h3>' +
+        '<p class="note">solved / problems: of every problem of the scene' + (T.profile ? ' at this profile' : '') +
+        ', a skipped or not run cell counting as not solved; solved / attempted: of the cells the solver ran. ' +
+        esc(T.note.replace(/\*\*/g, '')) + '</p>';
       const t = document.createElement('div'); t.className = 'tablebox';
-      h.appendChild(t); sec.appendChild(h); sgmTable(scene, t);
+      h.appendChild(t); sec.appendChild(h); sgmTable(T, t);
       charts.push({div: null, scene: scene, table: t});
-    }
+    });
     main.appendChild(sec);
   });
   const field = document.createElement('section');
@@ -405,7 +419,7 @@ const legendName = n => typeof n === 'string' && n.length > LEGEND_CHARS
 // A legend under its plot starts LEGEND_GAP_PX below the x axis's tick labels and title.  Plotly puts
 // it a share of the plot's height below the axis (legend.y), and on a plot made short by a long legend
 // that share is less than the labels' own height: the legend's title sat on the axis title.  Once
-// drawn, the legend moves down by what it lacks, and the plot shrinks by as much (the legend sets the
+// drawn, the legend moves down by what it lacks (or up by what it has to spare), and the plot shrinks (grows) by as much (the legend sets the
 // bottom margin), so the share is taken of the plot's new height.
 const LEGEND_GAP_PX = 6;
 function lowestAxisText(div) {
@@ -417,10 +431,26 @@ async function legendBelowAxis(div) {
   for (let i = 0; i < 3; i++) {
     const lg = div.querySelector('.legend'), bottom = lowestAxisText(div), size = div._fullLayout._size;
     if (!lg || bottom === null) return;
+    // (up as well: a legend a share of a grown plot's height below it left a wide empty band)
     const lack = bottom + LEGEND_GAP_PX - lg.getBoundingClientRect().top;
-    if (lack < 1 || size.h - lack < 1) return;
+    if (Math.abs(lack) < 1 || size.h - lack < 1) return;
     await Plotly.relayout(div, {'legend.y': -(-div._fullLayout.legend.y * size.h + lack) / (size.h - lack)});
   }
+}
+// A chart whose legend goes under its plot grows by what the legend takes, so that its plot keeps the
+// height it has in a chart of the CSS height (.chart) with its legend beside it: a long legend under a
+// fixed-height chart left the plot a sliver.  ``base``: the chart's CSS height.
+async function keepPlotHeight(div, base) {
+  const m = div.layout.margin || {t: 40, b: 50};
+  const normal = base - m.t - m.b;
+  for (let i = 0; i < 6; i++) {  // the legend sits a share of the plot's height below it: a few rounds
+    await legendBelowAxis(div);
+    const lack = normal - div._fullLayout._size.h;  // (< 0: taller than it needs, never below the CSS height)
+    if (Math.abs(lack) < 1 || (lack < 0 && div.clientHeight <= base)) return;
+    div.style.height = Math.max(base, div.clientHeight + Math.ceil(lack)) + 'px';
+    await Plotly.Plots.resize(div);
+  }
+  await legendBelowAxis(div);
 }
 // Draws every chart of the picked scenes; resolves once each is drawn and its legend placed.
 function redraw() {
@@ -438,8 +468,10 @@ function redraw() {
       if (lay.legend.title) lay.legend.title = Object.assign({}, lay.legend.title, {side: 'top'});
     }
     const div = c.div;
+    div.style.height = '';  // the CSS height, grown again below where the legend goes under the plot
+    const base = div.clientHeight;
     drawn.push(Plotly.react(div, traces, lay, {responsive: true, displayModeBar: false})
-      .then(() => below ? legendBelowAxis(div) : null));
+      .then(() => below ? keepPlotHeight(div, base) : null));
   });
   return Promise.all(drawn);
 }

@@ -93,6 +93,9 @@ OUTSIDE_SLOTS = 4
 #: ``FAMILY_APART`` is relaxed (one step at a time) until the band keeps this many candidates
 #: per palette colour: a band crowded by its neighbours still spreads its own colours.
 CANDIDATE_ROOM = 12
+#: Every palette colour has at least this contrast ratio (WCAG 2: (L1 + 0.05) / (L2 + 0.05) of the
+#: relative luminances) against the white page and figure: a pale yellow line (1.3:1) could not be seen.
+MIN_CONTRAST = 2.0
 #: Two palette neighbours (slots i and i + 1) differ at least this much in HLS lightness.
 NEIGHBOUR_LIGHTNESS = 0.06
 #: Markers, taken by slot (the page draws each: html.py ``SOLVER_SYMBOLS``); each known family
@@ -104,7 +107,7 @@ MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h
 #: marker unless their colours lie at least ``COLOUR_APART`` (+3) apart -- a chart drawn with
 #: markers only (run time against error) tells them apart by colour or shape, whatever families
 #: it mixes.  (A step of 5 per family put ``nnls`` and ``qp-proxqp`` on one triangle 12.8 apart.)
-FAMILY_MARKER_OFFSETS: dict[str, int] = {"paper": 0, "fast": 5, "qp": 11, "wrapper": 3, "reference": 8,
+FAMILY_MARKER_OFFSETS: dict[str, int] = {"paper": 0, "fast": 10, "qp": 7, "wrapper": 3, "reference": 8,
                                          "external": 2, "peer": 1, "other": 4}
 #: A family not in ``FAMILY_MARKER_OFFSETS`` starts this many markers along per its name's hash.
 MARKER_STEP = 5
@@ -200,6 +203,14 @@ def delta_e00(lab: Any, ref: Any) -> np.ndarray:
     return np.sqrt(np.maximum(dl ** 2 + dc ** 2 + dhh ** 2 + rot * dc * dhh, 0.0))
 
 
+def contrast_on_white(rgb: Any) -> np.ndarray:
+    """The WCAG 2 contrast ratio of sRGB colour(s) ``rgb`` (in [0, 1]; shape (3,) or (k, 3))
+    against white: 1.05 / (relative luminance + 0.05), from 1 (white) to 21 (black)."""
+    c = np.asarray(rgb, dtype=float)
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return 1.05 / (lin @ np.array([0.2126, 0.7152, 0.0722]) + 0.05)
+
+
 def family_hue(family: str) -> tuple[float, float]:
     """(hue, saturation) of ``family``: ``FAMILY_HUES``, else the spare hue its name hashes to."""
     if family in FAMILY_HUES:
@@ -241,8 +252,9 @@ def family_palette(family: str) -> tuple[tuple[float, float, float], ...]:
     """The ``PALETTE_SIZE`` colours of ``family``'s slots, fixed whatever the table holds.
 
     The first is the family's hue at ``BASE_LIGHTNESS``; each next one the candidate of the
-    band (``_candidates``) farthest (``delta_e00``) from those chosen, among those at least
-    ``GREY_APART`` from ``GREY``, ``FAMILY_APART`` from the palettes of the known families
+    band (``_candidates``) farthest (``delta_e00``) from those chosen, among those of at least
+    ``MIN_CONTRAST`` against white, at least ``GREY_APART`` from ``GREY``,
+    ``FAMILY_APART`` from the palettes of the known families
     before it (relaxed step by step: ``CANDIDATE_ROOM``) and ``NEIGHBOUR_LIGHTNESS``
     lighter or darker than the one before it.  So every prefix is spread as far as the band
     allows, and two neighbours differ in lightness.  The reference family: black and greys."""
@@ -258,7 +270,8 @@ def family_palette(family: str) -> tuple[tuple[float, float, float], ...]:
                     ) if before else np.empty((0, 3))
     apart = np.min(delta_e00(lab[:, None, :], others[None, :, :]), axis=1) if len(others) else np.full(len(cands), np.inf)
     apart94 = np.min(delta_e(lab[:, None, :], others[None, :, :]), axis=1) if len(others) else np.full(len(cands), np.inf)
-    ok = (delta_e00(lab, cielab(GREY)) >= GREY_APART) & (apart94 >= FAMILY_FLOOR + 1.0)
+    ok = ((delta_e00(lab, cielab(GREY)) >= GREY_APART) & (apart94 >= FAMILY_FLOOR + 1.0)
+          & (contrast_on_white(cands) >= MIN_CONTRAST))
     need = FAMILY_APART
     while not (ok & (apart >= need)).sum() >= CANDIDATE_ROOM * PALETTE_SIZE and need > 0:
         need -= 1.0
@@ -371,13 +384,14 @@ def family_panels(solvers: Sequence[str], family_of: Callable[[str], str], best:
     """Split ``solvers`` (in drawing order) into panels of at most ``max_series``.
 
     At most ``max_series`` solvers: one panel with all of them.  More: when ``best``
-    (family -> its best solver) is given, an overview panel with those first, then one
+    (family -> its best solver) is given and ``solvers`` hold two families or more, an
+    overview panel with those first, then one
     panel per family (in FAMILY_ORDER), a family over ``max_series`` split in parts."""
     solvers = list(dict.fromkeys(solvers))
     if len(solvers) <= max_series:
         return [Panel("all solvers", tuple(solvers))]
     panels: list[Panel] = []
-    if best:
+    if best and len({family_of(s) for s in solvers}) > 1:  # of one family, its best panel is one solver again
         chosen = [best[f] for f in sort_families(best) if best[f] in solvers][:max_series]
         if chosen:
             panels.append(Panel("best of each family", tuple(chosen)))

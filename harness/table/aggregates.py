@@ -42,7 +42,12 @@ Definitions (the report states them next to every number):
   reference, not as an exact answer (``own_reference``).
 * *Performance profile* (Dolan & More, Math. Program. 91, 2002):
   ``rho_s(tau) = |{p : t_ps <= tau * min_s' t_ps'}| / n_p`` with ``t_ps = inf`` for
-  cells that are not solved; problems no solver solves stay in ``n_p``.
+  cells that are not solved; problems no solver solves stay in ``n_p``, and so do the
+  problems a solver was never planned on (its curve ends at its solved share).
+* *Within one profile*: the SGM and the performance profile compare solvers on the same
+  problems, and a problem is one profile's; a scene whose rows ran at several profiles is
+  aggregated once per profile (``profile_parts``), never across them (two solvers that ran
+  only at different profiles never met).
 """
 
 from __future__ import annotations
@@ -99,6 +104,16 @@ class CellTable:
     frame: pd.DataFrame
     solvers: tuple[str, ...]
     problems: tuple[tuple, ...]
+
+
+def profile_parts(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """The rows of ``df`` (one scene) by profile, in order of the profile's name: each
+    part is aggregated on its own (the module's definitions: within one profile).  One
+    part where ``df`` ran at one profile; none for an empty ``df``."""
+    if df.empty:
+        return []
+    prof = df["profile"].astype(str)
+    return [(p, df[prof == p]) for p in sorted(prof.unique())]
 
 
 def _penalty_time(df: pd.DataFrame) -> pd.Series:

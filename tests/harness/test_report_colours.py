@@ -45,3 +45,17 @@ def test_every_family_s_members_in_the_registry_are_told_apart() -> None:
     across = min((d, p) for p, d in dist.items() if st.family(p[0]) != st.family(p[1]))
     assert across[0] >= MIN_ACROSS, across
 
+
+
+def test_every_palette_colour_stands_out_on_white() -> None:
+    """WCAG contrast against white at least ``MIN_CONTRAST`` (2:1) for every colour of every
+    family's palette (a pale yellow at 1.3:1 and a pale blue could not be seen as lines)."""
+    from contactbench.harness.report.style import FAMILY_HUES, MIN_CONTRAST, contrast_on_white, family_palette
+
+    assert MIN_CONTRAST >= 2.0
+    assert float(contrast_on_white((1.0, 1.0, 1.0))) == pytest.approx(1.0)
+    assert float(contrast_on_white((0.0, 0.0, 0.0))) == pytest.approx(21.0)
+    assert float(contrast_on_white((0xF4 / 255, 0xE0 / 255, 0x76 / 255))) < 1.5  # the pale yellow
+    for family in (*FAMILY_HUES, "an-outside-family"):
+        low = [c for c in family_palette(family) if float(contrast_on_white(c)) < MIN_CONTRAST]
+        assert not low, (family, low)

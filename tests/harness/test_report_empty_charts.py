@@ -48,7 +48,7 @@ def test_a_scene_nobody_solved_has_no_performance_profile_figure_but_says_why(tm
 
 def test_the_page_profile_of_a_scene_nobody_solved_has_no_curve_and_says_why(tmp_path: Path) -> None:
     ctx = rp.ReportContext(tmp_path, unsolved_sweep("[]"), dict(META))
-    pp = html_report.page_data(ctx)["pp"]["paper-sweep"]
+    (pp,) = html_report.page_data(ctx)["pp"]["paper-sweep"]
     assert pp["curves"] == {} and "no solver solved any of the scene's 3 problems" in pp["empty"]
 
 

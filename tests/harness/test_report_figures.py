@@ -145,3 +145,36 @@ def test_no_figure_of_a_full_report_has_a_blank_panel(tmp_path: Path) -> None:
     assert len(ctx.figures) >= 12
     assert ctx.blank_panels == []
     assert not [c.chart.name for c in ctx.charts if isinstance(c.chart, Chart) and chart_is_blank(c.chart)]
+
+
+@pytest.mark.parametrize(("largest", "unit", "expected"), [
+    (2e-3, "m", (1e3, "mm")), (6e-5, "m", (1e6, "um")), (5e-9, "m", (1e9, "nm")), (2.0, "m", (1.0, "m")),
+    (1e-3, "m", (1e3, "mm")), (0.5, "mm", (1e3, "um")), (3.0, "a.u.", (1.0, "a.u.")), (0.0, "m", (1.0, "m"))])
+def test_a_field_length_is_drawn_in_the_unit_that_puts_it_in_1_to_1000(
+        largest: float, unit: str, expected: tuple[float, str]) -> None:
+    """A 2 mm map reads 0.0 to 2.0 mm, not 0.0000 to 0.0020 m (whose zoom ticks ran together)."""
+    from contactbench.harness.report.sections.fields import _length_scale
+
+    factor, name = _length_scale(np.array([largest / 2, -largest]), unit)
+    assert (name, factor) == (expected[1], pytest.approx(expected[0]))
+    if largest > 0 and name in ("m", "mm", "um", "nm"):
+        assert 1.0 <= largest * factor < 1000.0
+
+
+def test_the_counterexample_field_draws_no_empty_surface_panel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Example 1 has no height map: its field figure has no surface panel at all (one that
+    would only say "none"), but the contact area, the pressure and the gap."""
+    from contactbench.harness.report.core import ReportContext
+
+    figures: dict[str, Figure] = {}
+    keep = ReportContext.save_figure
+
+    def record(self: ReportContext, fig: Figure, name: str, on_page: bool = False) -> str:
+        figures[name] = fig
+        return keep(self, fig, name, on_page)
+
+    monkeypatch.setattr(ReportContext, "save_figure", record)
+    _report(tmp_path, "counterexample", SceneConfig(size=5, seeds=(0,)), ["scipy-nnls"])
+    (name,) = [n for n in figures if n.startswith("field-counterexample")]
+    titles = [ax.get_title() for ax in figures[name].axes if ax.get_visible() and ax.get_title()]
+    assert len(titles) == 3 and not [t for t in titles if t.startswith("surface")], titles

@@ -157,9 +157,10 @@ def test_the_sgm_leaves_out_the_cells_a_solver_was_never_planned_to_run(tmp_path
     assert float(cell("gone", "SGM [s]")) == pytest.approx(9000.0, rel=1e-3)  # its one planned cell failed
     assert "never planned to run is not counted" in section.body
     _, sgm = html_report.profiles_and_sgm(ctx, html_report.scene_summaries(ctx))
-    page = {r[0]: dict(zip(sgm["paper-sweep"]["columns"], r)) for r in sgm["paper-sweep"]["rows"]}
+    (table_p,) = sgm["paper-sweep"]
+    page = {r[0]: dict(zip(table_p["columns"], r)) for r in table_p["rows"]}
     assert page["nnls-gp"]["SGM [s]"] == pytest.approx(2.0) and page["nnls-gp"]["SGM / best"] == pytest.approx(2.0)
-    assert page["nnls-gp"]["SGM cells"] == 2 and "never planned" in sgm["paper-sweep"]["note"]
+    assert page["nnls-gp"]["SGM cells"] == 2 and "never planned" in table_p["note"]
 
 
 # --- markers, sizes and tick labels ---------------------------------------------------------------
@@ -315,3 +316,39 @@ def test_the_pages_load_area_chart_draws_the_pngs_numbers(tmp_path: Path, monkey
         kappa = ln["y"][0] / ln["x"][0]
         assert kappa == pytest.approx(math.sqrt(8 / math.pi) if ln["name"].startswith("Persson") else
                                       math.sqrt(2 * math.pi))
+
+
+# --- Fig. 5: at most MAX_SERIES solvers a panel -----------------------------------------------------
+
+
+def test_fig5_of_thirteen_solvers_draws_a_panel_per_family(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Thirteen solvers of two families in greedy-linear-solvers: no panel draws more than
+    ``MAX_SERIES`` of them in colour, and every one is drawn in its family's panel."""
+    from contactbench.harness.report.sections import paper as rpp
+    from contactbench.harness.report.style import MAX_SERIES
+
+    figures = _figures(monkeypatch)
+    solvers = {**{f"greedy-v{i}": "greedy" for i in range(6)}, **{f"fast-v{i}": "fast" for i in range(7)}}
+    rows = [report_row(scene="greedy-linear-solvers", step=k, n=100 * 4 ** k, solver=s, family=f,
+                       solve_time_s=0.01 * (i + 1) * (k + 1))
+            for k in range(3) for i, (s, f) in enumerate(solvers.items())]
+    t = report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+    ctx = rp.ReportContext(tmp_path, t, {})
+    rpp.fig5_section(ctx, t)
+    (name,) = [n for n in figures if n.startswith("fig5-greedy-linear-solvers")]
+    drawn: set[str] = set()
+    for ax in figures[name].axes:
+        named = {str(line.get_label()) for line in ax.get_lines()} & set(solvers)
+        assert len(named) <= MAX_SERIES, ax.get_title()
+        drawn |= named
+    assert drawn == set(solvers)
+
+
+def test_one_family_gets_no_best_of_each_family_panel() -> None:
+    """Twelve solvers of one family: its "best of each family" panel would be one solver
+    drawn again; the panels are the family's parts only."""
+    from contactbench.harness.report.style import family_panels
+
+    names = [f"fast-v{i:02d}" for i in range(12)]
+    panels = family_panels(names, lambda s: "fast", {"fast": names[0]})
+    assert [p.title for p in panels] == ["family fast (1/2)", "family fast (2/2)"]

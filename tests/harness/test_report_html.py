@@ -266,3 +266,30 @@ def test_a_stored_field_gives_the_field_pictures_and_kappa(tmp_path: Path) -> No
     assert "figures/load-area.png" in text and "figures/traces-" not in text  # no traces stored
     kappa = fit_kappa(df["dim_load"].to_numpy(), df["contact_fraction"].to_numpy(), surf.rms_slope()).kappa
     assert "| paper-sweep | s1 | 4 |" in text and rp.fmt_num(kappa) in text
+
+
+@pytest.mark.slow
+def test_a_long_solver_name_wraps_in_the_picker_and_the_sgm_table(tmp_path: Path) -> None:
+    """At 1400 px, the crowded scene's long name (a solver with its parameters) is shown whole in
+    the picker (wrapped, not cut to a stub like its neighbours') and its SGM table cell wraps, so
+    that the table fits its box."""
+    from contactbench.harness.report.browser import load_page, open_driver
+
+    why = browser_missing()
+    if why:
+        pytest.skip(f"browser test skipped: {why}")
+    out = write_out(tmp_path, crowded_table())
+    build_report(out)
+    driver = open_driver(1400, 1000)
+    try:
+        load_page(driver, out / "report.html")
+        got = driver.execute_script("""
+          const nav = document.getElementById('picker'), edge = nav.getBoundingClientRect().right;
+          const cut = [...nav.querySelectorAll('label')].filter(l => l.getBoundingClientRect().right > edge + 1)
+            .map(l => l.textContent).concat(nav.scrollWidth > nav.clientWidth + 1 ? ['(the picker scrolls sideways)'] : []);
+          const wide = [...document.querySelectorAll('.tablebox')].filter(b => b.querySelector('table.sgm') &&
+            b.closest('section.scene')).map(b => [b.scrollWidth, b.clientWidth]).filter(([s, c]) => s > c + 1);
+          return {cut: cut, wide: wide};""")
+    finally:
+        driver.quit()
+    assert got["cut"] == [] and got["wide"] == [], got

@@ -115,11 +115,14 @@ const gaps = plots.filter(d => d.layout.legend && d.layout.legend.orientation ==
   const lg = d.querySelector('.legend');
   return [title(d), lg && texts.length ? lg.getBoundingClientRect().top - Math.max(...texts.map(b => b.bottom)) : null];
 });
+const below = plots.filter(d => d.layout.legend && d.layout.legend.orientation === 'h').map(d => [title(d),
+  d._fullLayout._size.h, d.layout.margin.t, d.layout.margin.b]);
 const own = {};
 JSON.parse(document.getElementById('report-data').textContent).families.forEach(f => f.solvers.forEach(s => {
   own[s.name] = [s.dash, s.symbol]; }));
 return {own: own, fig4: fig4.data.filter(t => t.customdata).map(t => t.customdata.map(c => [c[10], c[0]])),
-        lines: lines, gaps: gaps};
+        fig4pts: fig4.data.filter(t => t.customdata).map(t => t.customdata.map((c, i) => [t.name, c[9], c[1], t.y[i]])),
+        lines: lines, gaps: gaps, below: below};
 """
 
 
@@ -148,6 +151,21 @@ def test_the_page_fig4_draws_only_the_pngs_profile_and_instance(drawn: dict[str,
 
 
 @pytest.mark.slow
+def test_the_page_fig4_draws_one_point_per_cell_at_its_least_time(drawn: dict[str, Any]) -> None:
+    """As the PNG (core.py ``per_cell``): a step's repeats are one point, at the least time of them
+    (the fabricated sweep repeats nnls-gp's first step at the PNG's profile)."""
+    prof, inst = _expected("paper-sweep")
+    rows = _table(crowded=True)[lambda d: (d["scene"] == "paper-sweep") & (d["profile"] == prof) & (d["instance"] == inst)]
+    least = rows.groupby(["solver", "step"])["solve_time_s"].min()
+    points = [p for trace in drawn["fig4pts"] for p in trace]
+    keys = [(name, step) for name, _, step, _ in points]
+    assert points and len(keys) == len(set(keys))
+    assert rows.groupby(["solver", "step"]).size().max() > 1  # the table has repeats to fold
+    for _, so, step, y in points:
+        assert y == pytest.approx(least[(so, step)]), (so, step)
+
+
+@pytest.mark.slow
 def test_the_page_profiles_and_traces_draw_each_solver_in_its_dash_and_sparse_marker(drawn: dict[str, Any]) -> None:
     own = {s: tuple(v) for s, v in drawn["own"].items()}
     charts = {c["title"].split(" (")[0] + (" time" if c["title"].endswith("time") else ""): c for c in drawn["lines"]}
@@ -164,6 +182,15 @@ def test_the_page_profiles_and_traces_draw_each_solver_in_its_dash_and_sparse_ma
         marked = sum(1 for v in long["sizes"] if v > 0)
         # a mark every MARK_EVERY of the diagonal: about 1 / MARK_EVERY of them along a line that crosses the plot
         assert long["n"] == LONG_TRACE and 2 <= marked <= 3 / MARK_EVERY, (key, marked)
+
+
+@pytest.mark.slow
+def test_a_legend_under_its_plot_leaves_the_plot_its_normal_height(drawn: dict[str, Any]) -> None:
+    """The chart grows by its legend: the plot is as tall as in a chart of the CSS height (420 px)
+    with its legend beside it (long legends under a fixed height left the plots slivers)."""
+    assert drawn["below"]
+    short = [(t, round(h)) for t, h, top, bottom in drawn["below"] if h < 420 - top - bottom - 2]
+    assert not short, short
 
 
 @pytest.mark.slow

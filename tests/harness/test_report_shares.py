@@ -108,7 +108,7 @@ def test_every_aggregate_table_shows_the_problems_and_both_shares(tmp_path: Path
 def test_the_page_s_aggregate_table_shows_the_problems_and_both_shares(tmp_path: Path) -> None:
     ctx = _context(tmp_path, _table())
     _, sgm = html_report.profiles_and_sgm(ctx, html_report.scene_summaries(ctx))
-    t = sgm[SCENE]
+    (t,) = sgm[SCENE]
     for col in ("problems", "solved / problems", "solved / attempted"):
         assert col in t["columns"]
     assert [t["columns"][i] for i in t["percent"]] == ["solved / problems", "solved / attempted"]
@@ -215,3 +215,73 @@ def test_the_page_collapses_its_sidebar_on_a_narrow_screen(tmp_path: Path) -> No
     assert "minmax(min(520px,100%),1fr)" in head  # a grid column never wider than the page
     body = page.split("</head>")[1]
     assert body.count('<div class="tablebox"><table') == len(ctx.tables)  # each table scrolls in its own box
+
+
+# --- one profile at a time: solvers at two profiles never met ---------------------------------------
+
+
+def _two_profiles() -> pd.DataFrame:
+    """Four steps: fast-a and fast-b at profile "default", nnls-gp at "paper" (a profile is
+    an accuracy target: nnls-gp never solved the problems the others did)."""
+    rows = []
+    for k in range(4):
+        for solver, prof, t in (("fast-a", "default", 0.0147), ("fast-b", "default", 0.03), ("nnls-gp", "paper", 0.0071)):
+            rows.append(report_row(scene=SCENE, step=k, n=100, solver=solver, profile=prof, solve_time_s=t,
+                                   family="fast" if solver.startswith("fast") else "paper"))
+    return report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS)))
+
+
+def test_a_scene_at_two_profiles_is_aggregated_once_per_profile(tmp_path: Path) -> None:
+    """Each (instance, step) is one problem per profile: the aggregates of a scene whose
+    solvers ran at two profiles are a table and a performance profile per profile, 4 problems
+    each, never one of 8 where every curve stops at 1/2 and both profiles' fastest read "1"."""
+    ctx = _context(tmp_path, _two_profiles())
+    section = generic.aggregates_section(ctx, ctx.table)
+    tables = _tables(ctx, "aggregates, scene")
+    assert [t.caption.split(" (")[0] for t in tables] == [f"aggregates, scene `{SCENE}`, profile `default`",
+                                                          f"aggregates, scene `{SCENE}`, profile `paper`"]
+    assert [_cell(t, t.rows[0][0], "problems") for t in tables] == ["4", "4"]
+    assert [r[0] for r in tables[1].rows] == ["nnls-gp"]
+    assert any(rel.endswith(f"pp-{SCENE}-default.png") for rel in ctx.figures)
+    assert not any(f"pp-{SCENE}-paper" in rel for rel in ctx.figures)  # one solver: nothing to compare
+    assert "compared within each profile" in section.body
+    pp, sgm = html_report.profiles_and_sgm(ctx, html_report.scene_summaries(ctx))
+    assert [(t["profile"], t["problems"]) for t in sgm[SCENE]] == [("default", 4), ("paper", 4)]
+    (curves,) = pp[SCENE]
+    assert (curves["profile"], curves["n"], set(curves["curves"])) == ("default", 4, {"fast-a", "fast-b"})
+    assert curves["curves"]["fast-a"][-1] == pytest.approx(1.0) and curves["curves"]["fast-b"][-1] == pytest.approx(1.0)
+
+
+def test_a_scene_at_one_profile_keeps_its_one_table_and_profile(tmp_path: Path) -> None:
+    ctx = _context(tmp_path, _table())
+    generic.aggregates_section(ctx, ctx.table)
+    (t,) = _tables(ctx, "aggregates, scene")
+    assert "profile `" not in t.caption and any(rel.endswith(f"pp-{SCENE}.png") for rel in ctx.figures)
+    pp, _ = html_report.profiles_and_sgm(ctx, html_report.scene_summaries(ctx))
+    (curves,) = pp[SCENE]
+    assert curves["profile"] is None and curves["n"] == STEPS
+
+
+def test_the_profile_caption_names_its_denominator_and_the_short_planned(tmp_path: Path) -> None:
+    """gp was planned on 3 of the 10 problems: its curve stops at 0.3 because the y axis is a
+    share of every problem, and the caption says so."""
+    t = _table()
+    t = t[~((t["solver"] == "gp") & (t["step"] >= 3))]
+    ctx = _context(tmp_path, t)
+    section = generic.aggregates_section(ctx, ctx.table)
+    assert "a share of all the 10 problems of the scene" in section.body
+    assert "gp (3 of 10)" in section.body
+
+
+def test_the_best_of_a_family_is_ranked_by_solved_share_before_speed(tmp_path: Path) -> None:
+    """A solver planned on 2 of 10 problems and fast there is not its family's best over one
+    that solved all 10, a little slower."""
+    rows = []
+    for k in range(10):
+        rows.append(report_row(scene=SCENE, step=k, n=100, solver="many", solve_time_s=0.05, family="fast"))
+        if k < 2:
+            rows.append(report_row(scene=SCENE, step=k, n=100, solver="few", solve_time_s=0.01, family="fast"))
+    ctx = _context(tmp_path, report_view(pd.DataFrame(rows, columns=list(ALL_COLUMNS))))
+    summ = agg.summarize(ctx.table, ctx.shift, ["few", "many"])
+    assert generic.best_of_family(ctx, summ) == {"fast": "many"}
+    assert html_report.scene_leads(ctx, html_report.scene_summaries(ctx))[SCENE]["order"] == ["many", "few"]

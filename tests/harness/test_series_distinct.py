@@ -135,8 +135,9 @@ def _confusable_panels(drawn: dict[str, Figure], names: list[str]) -> dict[str, 
 
 
 def test_every_panel_of_every_figure_tells_its_solvers_apart(drawn: dict[str, Figure]) -> None:
-    assert {"fig4-paper-sweep", "fig5-greedy-linear-solvers", "wp-paper-sweep", "pp-paper-sweep",
+    assert {"fig4-paper-sweep", "fig5-greedy-linear-solvers", "wp-paper-sweep",
             "counterexample-violations", "analytic-hertz"} <= set(drawn)
+    assert any(n.startswith("pp-paper-sweep") for n in drawn)  # one per profile where it ran several
     bad = _confusable_panels(drawn, [n for n in drawn if not n.startswith(TRACES)])
     assert not bad, bad
 

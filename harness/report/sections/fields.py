@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from matplotlib.ticker import MaxNLocator
 
 from ...table.fields import ContactField, find_fields, load_field
 from ..markdown_text import md_code
@@ -91,11 +92,22 @@ def load_area_points(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame({"dim_load": g["dim_load"].median(), "area": g["contact_fraction"].median()}).reset_index()
 
 
+#: The length units a figure may draw in, in metres, largest first.
+LENGTH_UNITS: tuple[tuple[str, float], ...] = (("m", 1.0), ("mm", 1e-3), ("um", 1e-6), ("nm", 1e-9))
+
+
 def _length_scale(values: np.ndarray, unit: str) -> tuple[float, str]:
-    v = float(np.nanmax(np.abs(values))) if np.any(np.isfinite(values)) else 1.0
-    if unit == "m" and 0 < v < 1e-3:
-        return (1e6, "um") if v >= 1e-7 else (1e9, "nm")
-    return 1.0, unit
+    """(factor, unit) to draw lengths ``values`` given in ``unit`` with: the largest of
+    ``LENGTH_UNITS`` in which the largest magnitude is at least 1, so that tick values fall in
+    [1, 1000) (2e-3 m reads 2 mm, never 0.0020 m); (1, ``unit``) for a unit not among them,
+    nothing finite or all zero."""
+    v = float(np.nanmax(np.abs(values))) if np.any(np.isfinite(values)) else 0.0
+    size = dict(LENGTH_UNITS).get(unit)
+    if size is None or not v > 0:
+        return 1.0, unit
+    metres = v * size
+    name, to = next(((n, t) for n, t in LENGTH_UNITS if metres >= t), LENGTH_UNITS[-1])
+    return size / to, name
 
 
 def zoom_window(pressure: np.ndarray, frac: float = 1 / 6) -> tuple[slice, slice]:
@@ -162,14 +174,20 @@ def _approach_text(delta: float, control: str, unit: str) -> str:
     return "no far-field displacement: ubar is drawn, not derived from heights"
 
 
+def has_surface(f: ContactField) -> bool:
+    """Whether ``f`` has a height map to draw (not constant heights: Example 1's drawn ubar)."""
+    h = f.heights - np.nanmean(f.heights) if np.isfinite(f.heights).any() else f.heights
+    return bool(np.isfinite(h).any() and float(np.nanmax(np.abs(h))) > 0.0)
+
+
 def _surface_panel(fig: object, a: object, f: ContactField, ext: tuple[float, ...]) -> bool:
     """The height map on ``a``; a note instead when the field has no surface (constant
     heights: Example 1).  Returns whether it drew the map."""
-    h = f.heights - np.nanmean(f.heights)
-    if not np.isfinite(h).any() or float(np.nanmax(np.abs(h))) == 0.0:
+    if not has_surface(f):
         mark_empty(a, "no surface: this problem's ubar\nis drawn, not derived from heights")
         a.set_title(f"surface ({f.N}x{f.N1 or f.N}): none", fontsize=9)
         return False
+    h = f.heights - np.nanmean(f.heights)
     sh, uh = _length_scale(h, f.unit)
     im = a.imshow(h * sh, origin="lower", extent=ext, cmap="terrain")
     fig.colorbar(im, ax=a, fraction=0.046, pad=0.04).set_label(f"height - mean  [{uh}]", fontsize=8)
@@ -198,12 +216,14 @@ def _gap_panel(a: object, f: ContactField) -> bool:
 
 
 def _field_figure(ctx: ReportContext, f: ContactField) -> str:
-    fig, axes = grid_figure(1, 4, width=4.3, height=3.8, wspace=0.55)
-    a1, a2, a2z, a3 = axes[0]
+    drawn = has_surface(f)  # else no surface panel: it would say only that there is none
+    # wide gaps: a colour bar's label and the next panel's y label and ticks must not meet
+    fig, axes = grid_figure(1, 4 if drawn else 3, width=4.3, height=3.8, wspace=0.8)
+    a1, a2, a2z, a3 = axes[0] if drawn else (None, *axes[0])
     L0, L1 = f.extent
     sx, ux = _length_scale(np.array([max(L0, L1)]), f.unit)
     ext = (0, L1 * sx, 0, L0 * sx)
-    has_surface = _surface_panel(fig, a1, f, ext)
+    surface = drawn and _surface_panel(fig, a1, f, ext)
     a2.imshow(np.where(f.contact, 1.0, np.nan), origin="lower", extent=ext, cmap="gray_r", vmin=0, vmax=1,
               interpolation="nearest")
     a2.set_title(f"contact area, step {f.step} (A/A0 = {fmt_num(f.contact_fraction)})", fontsize=9)
@@ -213,13 +233,15 @@ def _field_figure(ctx: ReportContext, f: ContactField) -> str:
     a2.add_patch(__import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
         (zc.start * d, zr.start * d), (zc.stop - zc.start) * d, (zr.stop - zr.start) * d, fill=False,
         edgecolor="black", lw=0.8, ls="--"))
-    for a in (a1, a2, a2z) if has_surface else (a2, a2z):
-        a.set_xlabel(f"x  [{ux}]" if has_surface else "element index mod N  (no position)")
-        a.set_ylabel(f"y  [{ux}]" if has_surface else "element index div N")
+    for a in (a1, a2, a2z) if surface else (a2, a2z):
+        for axis in (a.xaxis, a.yaxis):
+            axis.set_major_locator(MaxNLocator(5))  # a zoom's many-digit ticks ran together
+        a.set_xlabel(f"x  [{ux}]" if surface else "element index mod N  (no position)")
+        a.set_ylabel(f"y  [{ux}]" if surface else "element index div N")
     has_gap = _gap_panel(a3, f)
     rel = ctx.save_figure(fig, f"field-{f.scene}-{f.instance}-k{f.step}", on_page=True)
     delta, control = field_approach(ctx, f)
-    what = [("the surface heights" if has_surface else "no surface panel (the problem has no height map: its "
+    what = [("the surface heights" if surface else "no surface panel (the problem has no height map: its "
                                                        "elements have no positions, and are laid out N x N in "
                                                        "index order only to be shown)"),
             "the contact area (black)",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -321,29 +321,15 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
              f"the minimum time. **Performance profile** (Dolan & More 2002): the fraction of problems a "
              f"solver solves within tau times the best solver's time.\n"]
     for scene in ctx.scenes():
-        r = ctx.rows(scene)
-        summ = agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique()))
-        cells = agg.cell_table(r, natural_sorted(r["solver"].unique()))
         parts.append(f"### {scene}\n")
-        acc = reached_accuracy(r)
-        rows_t = [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims,
-                   fmt_num(s.sgm_s), fmt_num(s.sgm_rel), s.sgm_cells, fmt_err(acc.get(s.solver, np.nan)))
-                  for s in sorted(summ, key=lambda s: natural_key(s.solver))]
-        none_solved = " No solver solved a problem of this scene: no SGM (-)." if not any(s.solved for s in summ) \
-            else ""
-        parts.append(table_md(ctx, f"aggregates, scene `{scene}` ({len(cells.problems)} problems; SGM shift "
-                                   f"{fmt_num(ctx.shift)} s). A solved cell passed the profile's KKT check, but "
-                                   f"solvers stop at their own tolerances: the last column is the median "
-                                   f"kkt_error of the solver's solved cells, the accuracy its times were bought at."
-                                   + none_solved,
-                              ["solver", *SOLVED_COLUMNS, "correct (rows)",
-                               "false claims", "SGM [s]", "SGM / best", "SGM cells", "median kkt (solved)"], rows_t,
-                              "lrrrrrrrrrrr"))
-        prof = agg.performance_profile(cells)
-        if len(prof.solvers) >= 2 and cells.problems:
-            empty = profile_empty_note(prof, r)
-            parts.append(no_figure(f"Performance profile, scene `{scene}`: {empty}.") if empty
-                         else _profile_figure(ctx, scene, prof, {x.solver: x.sgm_s for x in summ}))
+        by_profile = agg.profile_parts(ctx.rows(scene))
+        if len(by_profile) > 1:
+            parts.append(f"The scene's rows ran at {len(by_profile)} profiles "
+                         f"({', '.join(f'`{p}`' for p, _ in by_profile)}): a profile is its own accuracy target, so "
+                         f"the solvers are compared within each profile, one table and one performance profile "
+                         f"each, never across them.\n")
+        for profile, r in by_profile:
+            parts.extend(_scene_aggregates(ctx, scene, r, profile if len(by_profile) > 1 else None))
     parts.append("### All scenes\n")
     t = table
     summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
@@ -356,17 +342,64 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
     return Section("Aggregates across instances", "\n".join(parts))
 
 
-def best_of_family(ctx: ReportContext, score: dict[str, float]) -> dict[str, str]:
-    """Family -> its solver with the smallest finite ``score`` (e.g. SGM; ties by name)."""
-    best: dict[str, str] = {}
-    for s in natural_sorted(score):
-        v = score[s]
-        if not np.isfinite(v):
+def _scene_aggregates(ctx: ReportContext, scene: str, r: pd.DataFrame, profile: str | None) -> list[str]:
+    """The aggregate table and the performance profile of ``r``, the rows of ``scene`` at
+    one profile (``profile``, named in the captions and the figure's file where the scene
+    ran several; None where it ran one)."""
+    parts: list[str] = []
+    summ = agg.summarize(r, ctx.shift, natural_sorted(r["solver"].unique()))
+    cells = agg.cell_table(r, natural_sorted(r["solver"].unique()))
+    at = f", profile `{profile}`" if profile else ""
+    acc = reached_accuracy(r)
+    rows_t = [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims,
+               fmt_num(s.sgm_s), fmt_num(s.sgm_rel), s.sgm_cells, fmt_err(acc.get(s.solver, np.nan)))
+              for s in sorted(summ, key=lambda s: natural_key(s.solver))]
+    none_solved = " No solver solved a problem of this scene: no SGM (-)." if not any(s.solved for s in summ) \
+        else ""
+    parts.append(table_md(ctx, f"aggregates, scene `{scene}`{at} ({len(cells.problems)} problems; SGM shift "
+                               f"{fmt_num(ctx.shift)} s). A solved cell passed the profile's KKT check, but "
+                               f"solvers stop at their own tolerances: the last column is the median "
+                               f"kkt_error of the solver's solved cells, the accuracy its times were bought at."
+                               + none_solved,
+                          ["solver", *SOLVED_COLUMNS, "correct (rows)",
+                           "false claims", "SGM [s]", "SGM / best", "SGM cells", "median kkt (solved)"], rows_t,
+                          "lrrrrrrrrrrr"))
+    prof = agg.performance_profile(cells)
+    if len(prof.solvers) >= 2 and cells.problems:
+        empty = profile_empty_note(prof, r)
+        parts.append(no_figure(f"Performance profile, scene `{scene}`{at}: {empty}.") if empty
+                     else _profile_figure(ctx, scene, prof, summ, profile))
+    return parts
+
+
+def family_rank(s: agg.SolverSummary) -> tuple[float, float]:
+    """How ``best_of_family`` ranks a solver, smaller first: its solved share of every problem
+    (a solver planned on few problems is not the best for its speed on them), then its SGM."""
+    share = s.solved_share if np.isfinite(s.solved_share) else 0.0
+    return -share, s.sgm_s
+
+
+def best_of_family(ctx: ReportContext, summaries: Iterable[agg.SolverSummary]) -> dict[str, str]:
+    """Family -> its best solver by ``family_rank`` among those with a finite SGM (ties by
+    name)."""
+    best: dict[str, agg.SolverSummary] = {}
+    for s in sorted(summaries, key=lambda x: natural_key(x.solver)):
+        if not np.isfinite(s.sgm_s):
             continue
-        f = ctx.family(s)
-        if f not in best or v < score[best[f]]:
+        f = ctx.family(s.solver)
+        if f not in best or family_rank(s) < family_rank(best[f]):
             best[f] = s
-    return best
+    return {f: s.solver for f, s in best.items()}
+
+
+def planned_counts(prof: agg.PerformanceProfile, summ: Sequence[agg.SolverSummary]) -> str:
+    """The caption's words on the solvers of ``prof`` planned on fewer than all its problems
+    (their curves cannot rise above that share); "" where every one was planned on all."""
+    few = [(s.solver, s.sgm_cells) for s in summ if s.solver in prof.solvers and 0 < s.sgm_cells < prof.n_problems]
+    if not few:
+        return ""
+    return (" Planned on fewer problems than the scene holds (a curve stops at most at that share): "
+            + ", ".join(f"{md_escape(s)} ({k} of {prof.n_problems})" for s, k in few) + ".")
 
 
 def profile_empty_note(prof: agg.PerformanceProfile, rows: pd.DataFrame) -> str:
@@ -390,9 +423,10 @@ def profile_taus(prof: agg.PerformanceProfile, points: int) -> tuple[np.ndarray,
     return taus[(taus >= 1.0) & (taus <= hi)], hi
 
 
-def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile, sgm: dict[str, float]) -> str:
+def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile,
+                    summ: Sequence[agg.SolverSummary], profile: str | None) -> str:
     taus, hi = profile_taus(prof, 200)
-    panels = family_panels(list(prof.solvers), ctx.family, best_of_family(ctx, sgm))
+    panels = family_panels(list(prof.solvers), ctx.family, best_of_family(ctx, summ))
     ncols = 1 if len(panels) == 1 else 2
     nrows = -(-len(panels) // ncols)
     fig, axes = grid_figure(nrows, ncols, width=6.0 if ncols == 1 else 5.6, height=4.0 if ncols == 1 else 3.5,
@@ -422,19 +456,25 @@ def _profile_figure(ctx: ReportContext, scene: str, prof: agg.PerformanceProfile
         ax.set_ylabel("fraction of problems solved  [-]", fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
         where = "" if len(panels) == 1 else f", {panel.title}"
-        ax.set_title(f"performance profile, {scene}{where} ({prof.n_problems} problems)", fontsize=9)
+        at = f", profile {profile}" if profile else ""
+        ax.set_title(f"performance profile, {scene}{at}{where} ({prof.n_problems} problems)", fontsize=9)
         legend_outside(ax, "solver")
     for ax in flat[len(panels):]:
         ax.set_visible(False)
-    rel = ctx.save_figure(fig, f"pp-{scene}")
-    note = panels_note(panels).replace("best solver of each family", "best solver of each family by SGM")
+    rel = ctx.save_figure(fig, f"pp-{scene}" + (f"-{profile}" if profile else ""))
+    note = panels_note(panels).replace("best solver of each family",
+                                       "best solver of each family by solved share, then SGM")
+    planned = planned_counts(prof, summ)
     lies = (f" Curves drawn on the axis at 0 (\"{AT_ZERO}\") or under another's (\"= ...\"), as their legend "
             f"entries say: "
             f"{', '.join(f'{md_escape(s)} ({curve_note(t if t is None else md_escape(t))})' for s, t in hidden.items())}."
             if hidden else "")
-    return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`: rho(1) is the share of problems on "
+    at = f", profile `{profile}`" if profile else ""
+    return ctx.figure_md(rel, f"Dolan-More performance profile, scene `{scene}`{at}: the y axis is a share of all "
+                              f"the {prof.n_problems} problems of the scene{' at this profile' if profile else ''}, "
+                              f"those a solver was not planned on counted as not solved; rho(1) is the share on "
                               f"which a solver is fastest among those that pass the same KKT check; the right "
-                              f"end is its solved / problems share.{note}{lies}"
+                              f"end is its solved / problems share.{planned}{note}{lies}"
                               + (f" Not drawn, skipped on every problem (the skips say why): "
                                  f"{', '.join(prof.left_out)}." if prof.left_out else ""))
 

@@ -27,7 +27,7 @@ from matplotlib.ticker import MaxNLocator
 
 from contactbench.problems.surfaces import RMD_FAMILIES
 
-from ..style import GREY, family_panels, panels_note, register_scene_colors, sort_families
+from ..style import GREY, Panel, family_panels, panels_note, register_scene_colors, sort_families
 from ...table import aggregates as agg
 from ..charts import RowChart
 from ..panels import no_figure
@@ -331,6 +331,25 @@ def _curve_cells(rows: pd.DataFrame, own_ref: bool = False) -> pd.DataFrame:
     return cells
 
 
+def _panels_figure(panels: list[Panel], cells: pd.DataFrame, draw: Callable[[Any, pd.DataFrame, Any], None],
+                   title: Callable[[str], str]) -> Any:
+    """A figure of one axes per panel of ``panels`` (two columns where several): ``draw(ax,
+    the panel's cells, the other cells to draw in grey or None)``, titled ``title(where)``
+    (``where``: the panel's title and "; ", or "" for a single panel), its legend beside."""
+    ncols = 1 if len(panels) == 1 else 2
+    fig, axes = grid_figure(-(-len(panels) // ncols), ncols, width=6.4 if ncols == 1 else 5.6,
+                            height=4.2 if ncols == 1 else 3.6, wspace=0.85)
+    flat = [a for row in axes for a in row]
+    for ax, panel in zip(flat, panels):
+        mine = cells["solver"].isin(panel.solvers)
+        draw(ax, cells[mine], cells[~mine] if len(panels) > 1 else None)
+        ax.set_title(title("" if len(panels) == 1 else f"{panel.title}; "), fontsize=8)
+        legend_outside(ax, "solver")
+    for ax in flat[len(panels):]:
+        ax.set_visible(False)
+    return fig
+
+
 def _fig4_figure(ctx: ReportContext, block: Block, sub: pd.DataFrame, tot: pd.DataFrame, placed: pd.Series) -> str:
     """Fig. 4 of one instance's cells ``sub`` (``placed``: those with a load and a time to
     draw) of ``block``, saved, with its caption."""
@@ -338,20 +357,9 @@ def _fig4_figure(ctx: ReportContext, block: Block, sub: pd.DataFrame, tot: pd.Da
     labels = natural_sorted(sub["solver"].unique())
     best = best_per_family(tot.loc[labels], ctx.family)
     panels = family_panels(labels, ctx.family, best)
-    ncols = 1 if len(panels) == 1 else 2
-    nrows = -(-len(panels) // ncols)
-    fig, axes = grid_figure(nrows, ncols, width=6.4 if ncols == 1 else 5.6, height=4.2 if ncols == 1 else 3.6,
-                            wspace=0.85)
-    flat = [a for row in axes for a in row]
-    for ax, panel in zip(flat, panels):
-        mine = sub["solver"].isin(panel.solvers)
-        _plot_time_vs_load(ax, sub[mine], ctx.color, background=sub[~mine] if len(panels) > 1 else None,
-                           marker_of=ctx.marker)
-        where = "" if len(panels) == 1 else f"{panel.title}; "
-        ax.set_title(f"paper-sweep {inst}, {where}profile {prof}", fontsize=8)
-        legend_outside(ax, "solver")
-    for ax in flat[len(panels):]:
-        ax.set_visible(False)
+    fig = _panels_figure(panels, sub, lambda ax, c, bg: _plot_time_vs_load(ax, c, ctx.color, background=bg,
+                                                                            marker_of=ctx.marker),
+                         lambda where: f"paper-sweep {inst}, {where}profile {prof}")
     rel = ctx.save_figure(fig, block.name("fig4-paper-sweep"))
     n_max = largest_n(at_prof)
     marks = [UNSOLVED_TEXT[k] for k in UNSOLVED_MARKS
@@ -498,18 +506,20 @@ def _fig5_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, 
     cells = per_cell(attempted(r))
     if cells.empty:
         return "Every pair of this scene was skipped.\n", drawn_as_png(FIG5_PAGE, block)
-    fig, (ax,) = new_figure(width=6.4, height=4.2)
-    _plot_time_curves(ax, cells, lambda c: c["n"], "n", ctx.color, "trial-set size n  [points]", marker_of=ctx.marker)
-    ax.set_title(f"greedy-linear-solvers, profile {prof}", fontsize=9)
-    legend_outside(ax, "solver")
+    drawn = natural_sorted(cells["solver"].unique())
+    panels = family_panels(drawn, ctx.family, best_per_family(sweep_totals(cells, 0), ctx.family))
+    fig = _panels_figure(panels, cells, lambda ax, c, bg: _plot_time_curves(
+        ax, c, lambda x: x["n"], "n", ctx.color, "trial-set size n  [points]", background=bg, marker_of=ctx.marker),
+        lambda where: f"greedy-linear-solvers, {where}profile {prof}")
     rel = ctx.save_figure(fig, block.name("fig5-greedy-linear-solvers"))
     body = [block.lead() + surface_family_note(cells)]
-    drawn = natural_sorted(cells["solver"].unique())
     greedy = any(resolve_role(cells, k) is not None for k in GREEDY_ROLES)
     body.append(ctx.figure_md(rel, f"solve time against the trial-set size n of {named(drawn)}, {block.profile_text} "
                               + ("(" if greedy else "-- no greedy solver ran in this scene, so this is not ")
                               + "paper Fig. 5: greedy with CG against MATLAB's mldivide (Cholesky) and Gauss-Seidel"
-                              + (")." if greedy else ".")))
+                              + (")." if greedy else ".") + panels_note(panels)
+                              + (f" In the first panel {BEST_RULE}." if len(panels) > 1 and not panels[0].family
+                                 else "")))
     body.append(_fig5_reading(ctx, block, cells, r))
     return "\n".join(body), drawn_as_png(FIG5_PAGE, block)
 
