@@ -260,7 +260,7 @@ def test_validate_records_a_timeout_a_crash_and_a_claimed_non_answer(capsys: pyt
                             ("nan", "WRONG")):
         table = cf.validate(command_solver(script_command("--variant", variant)),
                             cf.conformance_cases("fast", ["edge"], "edge/plateau*"),
-                            timeout=1.0 if variant == "sleep" else None)  # None: the battery's 20 s
+                            timeout=1.0 if variant == "sleep" else 300.0)  # (room for a loaded machine)
         assert [r.status for r in table.rows] == [status], (variant, table.format())
         if status == "WRONG":  # a short or NaN p written with "converged": no answer, claimed as one
             assert table.outcome() == "wrong" and table.exit_code() == 1
