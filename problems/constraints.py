@@ -73,7 +73,8 @@ class Constraints:
         takes (1: every element plastic); 0 without a load equality or a finite bound."""
         if self.load is None or not self.bounded:
             return 0.0
-        return float(self.load) / float(np.sum(self.upper))
+        u = np.asarray(self.upper, dtype=np.float64)
+        return 0.0 if not np.all(np.isfinite(u)) else float(self.load) / 2.0 / math.fsum(u / 2.0)  # (halved: no overflow)
 
     @property
     def plain(self) -> bool:
@@ -105,9 +106,18 @@ class Constraints:
         if self.load is not None:
             if not (isinstance(self.load, float) and math.isfinite(self.load) and self.load >= 0.0):
                 raise ProblemInputError(f"the load must be a finite float >= 0, got {self.load!r}")
-            cap = float(np.sum(self.upper_or_inf(n)))
+            cap = bounds_total(self.upper_or_inf(n))
             if load_exceeds(self.load, cap, n):
                 raise ProblemInputError(overload_message(self.load, cap, "the load", "the bounds", "sum(upper)"))
+
+
+def bounds_total(upper: np.ndarray) -> float:
+    """sum(upper), exactly rounded and without overflow in the sum (bounds near the largest
+    float add to inf only where their total is past it; inf bounds give inf)."""
+    u = np.asarray(upper, dtype=np.float64)
+    if not np.all(np.isfinite(u)):
+        return math.inf
+    return 2.0 * math.fsum(u / 2.0)
 
 
 def make_constraints(n: int, upper: np.ndarray | float | None = None, load: float | None = None) -> Constraints:

@@ -254,7 +254,7 @@ def check_cell_aspect(kernel: str, shape: tuple[int, int], spacing: tuple[float,
     ratio = cell_aspect(shape, spacing)
     if kernel != "spectral" and ratio > MAX_CELL_ASPECT:
         raise ProblemInputError(
-            f"the periodic '{kernel}' kernel on the {shape[0]} x {shape[1]} grid: the cell's aspect ratio {ratio:.4g} "
+            f"the periodic '{kernel}' kernel on the {shape[0]} x {shape[1]} grid: the cell's aspect ratio {ratio!r} "
             f"exceeds {MAX_CELL_ASPECT:g} (its image sum would need about {ratio:.0f} x the images of a square cell); "
             "use --kernel spectral (exact on every cell shape)")
 

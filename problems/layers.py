@@ -84,6 +84,9 @@ RHO_STEP = 0.02
 #: too stiff.  From 12 spacings on the error is under 5 %; the layer-sweep scene's thinnest
 #: layer (0.1 L at 128^2, 12.8 spacings) is 4.4 % too stiff.  'love' has no such bias.
 BCC_MIN_THICKNESS = 12.0
+#: The relative round-off ``Layer.check_kernel`` forgives a thickness typed as a decimal
+#: (12 x L / N written out is not always 12 spacings to the last bit).
+THICKNESS_ROUNDING = 1e-12
 
 
 @dataclass(frozen=True)
@@ -134,7 +137,7 @@ class Layer:
                 f"a layer of thickness {self.thickness:g} is thinner than a grid element ({d:g}): the "
                 f"'{kernel}' kernel's layer correction needs T >= the spacing; use the periodic 'spectral' kernel "
                 "or a finer grid")
-        if kernel == "bcc" and self.thickness < BCC_MIN_THICKNESS * d:
+        if kernel == "bcc" and self.thickness < BCC_MIN_THICKNESS * d * (1.0 - THICKNESS_ROUNDING):
             raise ProblemInputError(
                 f"a layer of thickness {self.thickness:g} is {self.thickness / d:.3g} grid spacings ({d:g}): the 'bcc' "
                 f"kernel is too stiff on it by ~{58.0 * d / self.thickness:.0f} % (0.58 spacing / T) and needs "

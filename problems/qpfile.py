@@ -521,6 +521,9 @@ def _read_report(path: Path) -> dict[str, Any]:
     if not os.path.lexists(path):
         return {}
     data = _bounded_bytes(path, "the report", MAX_REPORT_BYTES)
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise SolutionFileError("solution.json is UTF-16 (it starts with a UTF-16 byte-order mark, as Windows "
+                                "PowerShell 5's > and Out-File write it): write it as UTF-8")
     try:
         # (utf-8-sig: a byte-order mark, as Windows PowerShell 5 writes one, is skipped)
         doc = json.loads(data.decode("utf-8-sig"), object_pairs_hook=_unique_keys)

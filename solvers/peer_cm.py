@@ -230,7 +230,7 @@ class CMPolonskyKeer(_CMSolver):
             return why
         if traits.periodic and traits.load_control:
             return PERIODIC_LOAD_SKIP
-        if traits.load_control and traits.bounded and traits.capacity_share * traits.n > traits.n - 1:
+        if traits.load_control and traits.bounded and traits.n > 1 and traits.capacity_share * traits.n > traits.n - 1:
             return SATURATED_LOAD_SKIP
         if traits.periodic and traits.kernel in ("love", "bcc"):
             return PERIODIC_REAL_SPACE_SKIP

@@ -379,7 +379,7 @@ def value_problem(rec: OptionRecord, value: Any, allow: set[str]) -> str | None:
             finite = "" if math.isfinite(x) else "finite and "
             return f"{rec.flag} must be {finite}{rec.valid.text()}{what}, got {x:g}"
     if rec.increasing and any(b <= a for a, b in zip(xs, xs[1:])):
-        return f"{rec.flag} must be increasing, got {','.join(f'{x:g}' for x in xs)}"
+        return f"{rec.flag} must be increasing, got {','.join(repr(x) for x in xs)}"
     if rec.plausible is not None and not ({ALLOW_IMPLAUSIBLE, rec.allowed_by} & allow):
         for x in xs:
             if not rec.plausible.contains(x):

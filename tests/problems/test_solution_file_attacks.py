@@ -120,3 +120,12 @@ def test_a_report_with_a_utf8_byte_order_mark_is_read(tmp_path: Path) -> None:
     (d / "solution.json").write_bytes(b'\xef\xbb\xbf{"status": "max_iter", "iterations": 4}')
     sol = read_solution_dir(d, 3)
     assert sol.status == "max_iter" and sol.iterations == 4 and not sol.claims_converged
+
+
+@pytest.mark.parametrize("codec", ["utf-16", "utf-16-be"])
+def test_a_utf16_report_is_named_as_such(tmp_path: Path, codec: str) -> None:
+    d = solution(tmp_path / "s", None)
+    text = '{"status": "max_iter"}'
+    (d / "solution.json").write_bytes(("\ufeff" + text).encode(codec) if codec.endswith("be") else text.encode(codec))
+    with pytest.raises(SolutionFileError, match="UTF-16"):
+        read_solution_dir(d, 3)
