@@ -15,11 +15,13 @@ sampling.
 min(N0 d0, N1 d1)); ``check_plausible_units`` refuses a surface outside the plausible
 range -- rms slope > ``MAX_RMS_SLOPE``, a height range larger than the side length, or an
 rms slope < ``MIN_RMS_SLOPE`` -- with one line that says what was found and what was
-probably meant: a height unit (``probable_unit``), else the side length -- unless a few
-outliers alone make it implausible (``outlier_account``: with at most ``OUTLIER_SHARE`` of the
-points, those farthest from the median height, set to the median the map is plausible),
-when it names them and suggests no unit (a spike read in another unit would shrink the
-whole map with it).  Scenes call it
+probably meant: a height unit (``probable_unit``) that makes the map's *bulk* plausible
+(``bulk_figures``: the figures with its ``OUTLIER_SHARE`` of points farthest from the median
+height left out), else the side length.  Where the whole and the bulk disagree -- the bulk
+plausible and the whole not (``outlier_account``), or the bulk too smooth and the whole not
+(``smooth_bulk_account``) -- a few outliers alone decide, so it names them (how many, the
+largest) and suggests no unit (a spike read in another unit would shrink the whole map with
+it); the whole map is also refused then, plausible or not.  Scenes call it
 when they validate a measured (``--surface``) file, so ``contactbench run`` stops with
 exit 2 before anything runs; ``--height-unit m|mm|um|nm`` converts the heights of a file
 that states no unit, and ``--allow-steep`` skips the check (either bound) for those who
@@ -33,7 +35,8 @@ always a unit slip (MPa or GPa given as Pa); the ``--E`` option record
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,9 +58,10 @@ MIN_RMS_SLOPE = 1e-5
 #: almost surely in the wrong unit (and far outside it the influence coefficients under-
 #: or overflow).
 PLAUSIBLE_MODULUS: tuple[float, float] = (1e3, 1e13)
-#: The largest share of a map's points ``outlier_account`` may leave out (at least one point):
-#: a map plausible without them is implausible only by those outliers.
-OUTLIER_SHARE = 1e-3
+#: The share of a map's points, those farthest from its median height (at least one), that
+#: its *bulk* leaves out (``bulk_figures``): units are judged on the bulk, and where the bulk
+#: and the whole map disagree the outliers are named and no unit is suggested.
+OUTLIER_SHARE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -118,10 +122,12 @@ def probable_unit(figures: UnitFigures, height_unit: str = "m") -> str | None:
     return None
 
 
-def implausibility(figures: UnitFigures, height_unit: str | None, outliers: str | None = None) -> str:
+def implausibility(figures: UnitFigures, height_unit: str | None, outliers: str | None = None,
+                   bulk: UnitFigures | None = None) -> str:
     """The one-line account of an implausible surface (``height_unit`` None: the file
     stated its own unit, so only the file or --length can be wrong; ``outliers``: the
-    account of ``outlier_account``, which then replaces any advice on units)."""
+    account of ``outlier_account``, which then replaces any advice on units; ``bulk``: the
+    figures the unit advice is judged on, ``figures`` when None)."""
     found = []
     if figures.too_steep:
         found.append(f"rms slope {figures.rms_slope:.2g} "
@@ -137,7 +143,7 @@ def implausibility(figures: UnitFigures, height_unit: str | None, outliers: str 
     if height_unit is None:
         return (f"{text}: the heights or the lateral size stated by the file look wrong; check the file's units "
                 "and --length, or pass --allow-steep to run it anyway")
-    unit = probable_unit(figures, height_unit)
+    unit = probable_unit(figures if bulk is None else bulk, height_unit)
     if unit is None:
         return (f"{text}: no height unit makes this plausible, so the side length is the likelier mistake; check "
                 f"--length (metres, the side of the map), or pass --allow-steep to run it anyway")
@@ -145,57 +151,133 @@ def implausibility(figures: UnitFigures, height_unit: str | None, outliers: str 
             f"--height-unit {unit} (or --allow-steep to run it anyway)")
 
 
-def outlier_account(surface: Surface) -> str | None:
-    """The one-line account of an implausible surface that a few outliers alone make so,
-    else None: when the map with its ceil(``OUTLIER_SHARE`` n) points farthest from the
-    median height (|h - median|) set to the median is plausible, the fewest m of them that
-    must go (a bisection over m), the largest (its height in metres and its grid index) and
-    the figures without them.  No height unit is suggested: another unit scales every
-    height, the outliers' and the rest's alike."""
+def _farthest(surface: Surface) -> tuple[np.ndarray, float, int]:
+    """The flat indices of the ceil(``OUTLIER_SHARE`` n) points farthest from the median
+    height (|h - median|, at least one, at most n - 1), farthest first; the median; their count."""
     h = surface.heights
     med = float(np.median(h))
     dev = np.abs(h - med).ravel()
     k = min(max(1, math.ceil(OUTLIER_SHARE * dev.size)), dev.size - 1)
     top = np.argpartition(dev, dev.size - k)[dev.size - k:]
-    top = top[np.argsort(dev[top])[::-1]]  # (farthest first)
+    return top[np.argsort(dev[top])[::-1]], med, k
 
-    def without(m: int) -> UnitFigures:
-        flat = h.ravel().copy()
-        flat[top[:m]] = med
-        return unit_figures(replace(surface, heights=flat.reshape(h.shape), levels=()))
 
-    if not without(k).plausible:
-        return None
-    lo, hi = 0, k  # (implausible with lo left out, plausible with hi)
+def figures_without(surface: Surface, out: np.ndarray) -> UnitFigures:
+    """``unit_figures`` of ``surface`` with the points of flat indices ``out`` left out:
+    the height range of the rest, and the rms slope over the forward differences (the pairs
+    ``Surface.rms_slope`` takes, periodic wrap included) whose two points are both kept --
+    so a left-out spike leaves no cliff behind.  With no pair left, the whole map's slope."""
+    h = surface.heights
+    keep = np.ones(h.shape, dtype=bool)
+    keep.ravel()[out] = False
+    d0, d1 = surface.spacing
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        if surface.periodic:
+            gx, kx = (np.roll(h, -1, 0) - h) / d0, keep & np.roll(keep, -1, 0)
+            gy, ky = (np.roll(h, -1, 1) - h) / d1, keep & np.roll(keep, -1, 1)
+        else:
+            gx, kx = np.diff(h, axis=0)[:, :-1] / d0, keep[:-1, :-1] & keep[1:, :-1]
+            gy, ky = np.diff(h, axis=1)[:-1, :] / d1, keep[:-1, :-1] & keep[:-1, 1:]
+        slope = (float(np.sqrt(np.mean(gx[kx] ** 2) + np.mean(gy[ky] ** 2))) if kx.any() and ky.any()
+                 else surface.rms_slope())
+    rest = h[keep]
+    return UnitFigures(slope, float(rest.max() - rest.min()), float(min(surface.lengths)))
+
+
+def bulk_figures(surface: Surface) -> UnitFigures:
+    """The figures of the map's bulk: ``figures_without`` its ceil(``OUTLIER_SHARE`` n) points
+    farthest from the median height.  Units are judged on these: a few outliers can make the
+    whole map look steep (a spike) or rough (on a map too smooth to be measured)."""
+    return figures_without(surface, _farthest(surface)[0])
+
+
+def _fewest(surface: Surface, top: np.ndarray, k: int, test: Callable[[UnitFigures], bool]) -> tuple[int, UnitFigures]:
+    """The fewest m <= k of ``top`` (farthest first) that, left out, make ``test`` hold
+    (``test`` fails on the whole map and holds with k left out; a bisection over m), and the
+    figures without them."""
+    lo, hi = 0, k
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if without(mid).plausible:
+        if test(figures_without(surface, top[:mid])):
             hi = mid
         else:
             lo = mid
-    rest = without(hi)
+    return hi, figures_without(surface, top[:hi])
+
+
+def _named(surface: Surface, top: np.ndarray, med: float, m: int, verb: str = "") -> str:
+    """"m outlier point(s)<verb> (the farthest from the median height: z m at index (i, j),
+    the median being ...)"; ``verb`` is given in the plural and put in the singular for m = 1
+    ("make" -> "makes")."""
+    h = surface.heights
     idx = tuple(int(i) for i in np.unravel_index(int(top[0]), h.shape))
-    many = f"{hi} outlier points alone make" if hi > 1 else "1 outlier point alone makes"
-    return (f"{many} it so (the farthest from the median height: {float(h.ravel()[top[0]]):.3g} m at index {idx}, "
-            f"the median being {med:.3g} m); without {'them' if hi > 1 else 'it'} the map is plausible (rms slope "
-            f"{rest.rms_slope:.2g}, height range {rest.height_range:.3g} m), so no height unit is suggested: "
-            "remove or fill the outliers in the file, or pass --allow-steep to run it anyway")
+    many = f"{m} outlier points{verb}" if m > 1 else f"1 outlier point{verb.replace(' make ', ' makes ', 1)}"
+    return (f"{many} (the farthest from the median height: {float(h.ravel()[top[0]]):.3g} m at index {idx}, "
+            f"the median being {med:.3g} m)")
+
+
+def outlier_account(surface: Surface) -> str | None:
+    """The one-line account of an implausible surface that a few outliers alone make so,
+    else None: when its bulk (``bulk_figures``) is plausible, the fewest m of the points
+    farthest from the median height that must be left out (a bisection over m), the largest
+    (its height in metres and its grid index) and the figures without them.  No height unit
+    is suggested: another unit scales every height, the outliers' and the rest's alike."""
+    top, med, k = _farthest(surface)
+    if not figures_without(surface, top).plausible:
+        return None
+    m, rest = _fewest(surface, top, k, lambda f: f.plausible)
+    many = _named(surface, top, med, m, " alone make it so")
+    return (f"{many}; without {'them' if m > 1 else 'it'} the map is plausible (rms slope {rest.rms_slope:.2g}, "
+            f"height range {rest.height_range:.3g} m), so no height unit is suggested: remove or fill the outliers "
+            "in the file, or pass --allow-steep to run it anyway")
+
+
+def smooth_bulk_account(surface: Surface, figures: UnitFigures) -> str | None:
+    """The one-line account of a surface whose bulk is too smooth (``bulk_figures``) while the
+    whole map (``figures``) is not -- a few outliers alone give it its slope -- else None: how
+    many (the fewest that, left out, leave it too smooth), the largest, and the slope without
+    them.  No height unit is suggested (it would scale the outliers too)."""
+    top, med, k = _farthest(surface)
+    if figures.too_smooth or not figures_without(surface, top).too_smooth:
+        return None
+    m, rest = _fewest(surface, top, k, lambda f: f.too_smooth)
+    return (f"rms slope {figures.rms_slope:.2g} only through {_named(surface, top, med, m)}: without "
+            f"{'them' if m > 1 else 'it'} the rms slope is {rest.rms_slope:.2g} (below {MIN_RMS_SLOPE:g}, smoother "
+            "than any measured surface: a height unit or a side length off by 1e3 or 1e6?), so no height unit is "
+            "suggested: remove or fill the outliers and check the file's units and --length, or pass --allow-steep "
+            "to run it anyway")
 
 
 def check_plausible_units(surface: Surface, height_unit: str | None = "m", file: str | None = None) -> UnitFigures:
-    """The figures of ``surface`` when they are within the plausible range (module doc),
-    else an ``ImplausibleUnitsError``.  ``height_unit`` is the unit the file's numbers were read
-    in (None when the file stated its own unit); ``file``, the map's path as given, which the
-    refusal names as a map reader's does (else it names the surface)."""
+    """The figures of ``surface`` when they and its bulk's (``bulk_figures``: all but its
+    farthest ``OUTLIER_SHARE`` of points) are within the plausible range (module doc), else an
+    ``ImplausibleUnitsError`` in one line.  Where the whole and the bulk disagree -- the bulk
+    plausible, the whole not; or the bulk too smooth, the whole not -- it names the outliers
+    and suggests no unit; else a suggested unit is one that makes the bulk plausible.
+    ``height_unit`` is the unit the file's numbers were read in (None when the file stated its
+    own unit); ``file``, the map's path as given, which the refusal names as a map reader's does
+    (else it names the surface)."""
     figures = unit_figures(surface)
+    what = f"cannot use surface file {file!r}" if file else f"surface {surface.name!r}"
+    smooth = smooth_bulk_account(surface, figures)
+    if smooth is not None:
+        raise ImplausibleUnitsError(f"{what}: {smooth}", figures, None)
     if figures.plausible:
         return figures
-    what = f"cannot use surface file {file!r}" if file else f"surface {surface.name!r}"
     outliers = outlier_account(surface)
     if outliers is not None:
         raise ImplausibleUnitsError(f"{what}: {implausibility(figures, None, outliers)}", figures, None)
-    suggestion = probable_unit(figures, height_unit) if height_unit is not None else None
-    raise ImplausibleUnitsError(f"{what}: {implausibility(figures, height_unit)}", figures, suggestion)
+    bulk = bulk_figures(surface)
+    suggestion = probable_unit(bulk, height_unit) if height_unit is not None else None
+    line = implausibility(figures, height_unit, bulk=bulk)
+    if suggestion is not None:
+        factor = HEIGHT_UNITS[suggestion] / HEIGHT_UNITS[str(height_unit)]
+        if not figures.scaled(factor).plausible:
+            top, med, k = _farthest(surface)
+            m, _ = _fewest(surface, top, k, lambda f: f.scaled(factor).plausible)
+            line += (f"; in {UNIT_NAMES[suggestion]} {_named(surface, top, med, m)} would still make it "
+                     "implausible: remove or fill them too")
+    raise ImplausibleUnitsError(f"{what}: {line}", figures, suggestion)
 
 
 def check_height_unit(height_unit: str) -> str:
