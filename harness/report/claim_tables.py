@@ -72,7 +72,11 @@ def _defaults(base_solver: str) -> dict[str, Any] | None:
 
 
 def _params_match(params: Any, wanted: dict[str, Any], base_solver: str = "") -> bool:
-    p = parse_json(params, {})
+    """Whether ``params`` (a row's JSON; blank or missing: none given) are ``wanted`` read with
+    the registry's defaults of ``base_solver``; params that are not a JSON object match nothing."""
+    blank = params is None or (isinstance(params, float) and math.isnan(params)) or (
+        isinstance(params, str) and not params.strip())
+    p = {} if blank else parse_json(params, None)
     if not isinstance(p, dict):
         return False
     default = _defaults(base_solver) if base_solver else None
@@ -87,6 +91,16 @@ def plays(role: str | PaperRole, params: Any) -> bool:
     the paper's (``PaperRole.params``) and every other one is at the registry's default."""
     r = PAPER_ROLES[role] if isinstance(role, str) else role
     return _params_match(params, r.params, r.base_solver)
+
+
+def playing(rows: pd.DataFrame, role: str | PaperRole) -> pd.DataFrame:
+    """The rows of ``rows`` that play ``role``: its base solver with the paper's parameters
+    (``plays``), so that a variant of the same solver (other parameters) never stands for it."""
+    r = PAPER_ROLES[role] if isinstance(role, str) else role
+    mine = rows[rows["base_solver"] == r.base_solver]
+    if "params" not in mine.columns:
+        return mine
+    return mine[np.array([plays(r, p) for p in mine["params"]], dtype=bool)]
 
 
 def resolve_role(curves: pd.DataFrame, role: str | PaperRole) -> str | None:

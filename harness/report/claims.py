@@ -40,7 +40,7 @@ from ..table.schema import ANSWERED
 from .claim_measures import FIG5_MIN_N, best_k, fig5_measure, k_sweep_rows, k_sweep_totals, papers_admm
 from .claim_rules import CLAIMS, PAPER_N, VERDICTS, Claim, Timing, falls, judge, judge_timed, over_repeats, spread
 from .claim_tables import (COLD, CONDITION_PROFILES, PAPER_METHODS, condition_words, ledger_rows, nnlsgp_cold, of_condition,
-                           paper_labels, ratio, seeds_of, seeds_text, totals, under)
+                           paper_labels, playing, ratio, seeds_of, seeds_text, totals, under)
 from .core import parse_json, per_cell
 from .sections.cmr import cmr_pairs, instance_totals, recorded_families
 from .sections.counterexample import ledger_shares
@@ -272,7 +272,8 @@ def fig5_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
                                  f"{x.count} steps with n >= {FIG5_MIN_N} both solved" if x.count else "",
                                  timing=x.timing))
     chol = under(rows, condition)
-    chol = chol[(chol["base_solver"] == "greedy-chol") & (chol["status"] != "skipped")]
+    chol = playing(chol, "greedy-chol")
+    chol = chol[chol["status"] != "skipped"]
     if len(chol):
         out.append(chol_memory_row(chol, condition))
     return out
@@ -324,8 +325,7 @@ def chol_memory_row(chol: pd.DataFrame, condition: str) -> ClaimRow:
 
 def example1_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     """Example 1: per n, the share of seeds whose greedy-CG answer the judge rejects."""
-    r = of_condition(rows, "counterexample", condition)
-    r = r[r["base_solver"] == "greedy-cg"]
+    r = playing(of_condition(rows, "counterexample", condition), "greedy-cg")
     if r.empty:
         return []
     out = []
@@ -355,8 +355,7 @@ def example1_variant_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     timeout counts as rejected; NaN (unmeasured) where no seed has an answer at all."""
     out = []
     for claim_id, scene in EXAMPLE1_VARIANT_CLAIMS:
-        r = of_condition(rows, scene, condition)
-        r = r[r["base_solver"] == "greedy-cg"]
+        r = playing(of_condition(rows, scene, condition), "greedy-cg")
         for _, f in (ledger_shares(r).iterrows() if not r.empty else ()):
             n, seeds, rejected = int(f["n"]), int(f["seeds"]), int(f["violations"])
             wrong, unconverged, silent = int(f["wrong"]), int(f["unconverged"]), int(f["no answer"])
