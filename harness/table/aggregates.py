@@ -107,9 +107,10 @@ class CellTable:
 
 
 def profile_parts(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
-    """The rows of ``df`` (one scene) by profile, in order of the profile's name: each
-    part is aggregated on its own (the module's definitions: within one profile).  One
-    part where ``df`` ran at one profile; none for an empty ``df``."""
+    """The rows of ``df`` (one scene, or every scene for a summary across them) by profile,
+    in order of the profile's name: each part is aggregated on its own (the module's
+    definitions: within one profile), so a solver is counted only at the profiles it ran.
+    One part where ``df`` ran at one profile; none for an empty ``df``."""
     if df.empty:
         return []
     prof = df["profile"].astype(str)

@@ -331,14 +331,19 @@ def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
         for profile, r in by_profile:
             parts.extend(_scene_aggregates(ctx, scene, r, profile if len(by_profile) > 1 else None))
     parts.append("### All scenes\n")
-    t = table
-    summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
-    parts.append(table_md(ctx, "solved shares and correct rates over every scene (no time aggregate across scenes: "
-                               "solvers do not all run on the same problems). problems: every problem of every "
-                               "scene, so a scene a solver did not run counts as not solved in solved / problems.",
-                          ["solver", *SOLVED_COLUMNS, "correct (rows)", "false claims"],
-                          [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})", s.false_claims)
-                           for s in sorted(summ, key=lambda s: natural_key(s.solver))], "lrrrrrrr"))
+    by_profile = agg.profile_parts(table)
+    for profile, t in by_profile:
+        at, of = (f", profile `{profile}`", " at this profile (a profile is its own accuracy target: one table "
+                  "each, a solver counted only at the profiles it ran)") if len(by_profile) > 1 else ("", "")
+        summ = agg.summarize(t, ctx.shift, natural_sorted(t["solver"].unique()), with_time=False)
+        parts.append(table_md(ctx, f"solved shares and correct rates over every scene{at} (no time aggregate across "
+                                   f"scenes: solvers do not all run on the same problems). problems: every problem of "
+                                   f"every scene{of}, so a scene a solver did not run counts as not solved in "
+                                   f"solved / problems.",
+                              ["solver", *SOLVED_COLUMNS, "correct (rows)", "false claims"],
+                              [(s.solver, *solved_cells(s), f"{fmt_pct(s.correct_rate)} ({s.claim_rows})",
+                                s.false_claims) for s in sorted(summ, key=lambda s: natural_key(s.solver))],
+                              "lrrrrrrr"))
     return Section("Aggregates across instances", "\n".join(parts))
 
 

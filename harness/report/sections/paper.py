@@ -4,8 +4,9 @@ closed-form checks (``hertz``, ``flat-punch``).  Example 1 is in
 sections/counterexample.py.
 
 Each section draws its scene once per condition (sections/paper_conditions.py
-``condition_blocks``: each operator at its tightest profile, so that no solver's rows
-are dropped for another condition's) and ends each with a reading computed from the
+``condition_blocks``: each operator at its tightest profile -- Fig. 4: where the most of its
+solvers ran, sections/fig4_profile.py -- so no solver's rows are dropped for another
+condition's) and ends each with a reading computed from the
 table that says where we agree with the paper's claims and where not.  A verdict on a
 claim of the paper is the claims ledger's, read on the ledger's own measurement
 (paper_conditions.py); the section's own pooled numbers come without one.  The paper's
@@ -56,6 +57,7 @@ from ..core import (
 from .generic import OWN_REF, fmt_int
 from ..claim_measures import FIG5_MIN_N, Spread, k_of as k_of, paired_median_ratio, tied_with  # (k_of: html.py)
 from ..claim_tables import PAPER_ROLES, paper_roles, resolve_role as resolve_role  # (counterexample.py reads it here)
+from .fig4_profile import fig4_rows, other_profiles_note
 from .paper_conditions import (
     Block,
     absent,
@@ -280,11 +282,12 @@ def blocks_section(title: str, rows: pd.DataFrame,
 
 @register_section("paper-sweep", title=FIG4_TITLE, group="paper", order=10)
 def fig4_section(ctx: ReportContext, rows: pd.DataFrame) -> Section | None:
-    return blocks_section(FIG4_TITLE, rows, lambda block: _fig4_block(ctx, block))
+    return blocks_section(FIG4_TITLE, fig4_rows(rows), lambda b: _fig4_block(ctx, b, other_profiles_note(rows, b)))
 
 
-def _fig4_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, ...]]:
-    """Fig. 4, its totals table and its reading for one block of the scene."""
+def _fig4_block(ctx: ReportContext, block: Block, others: str = "") -> tuple[str, tuple[RowChart, ...]]:
+    """Fig. 4, its totals table and its reading for one block of the scene (``fig4_rows``);
+    ``others``: the captions' words on the profiles not drawn (``other_profiles_note``)."""
     prof, at_prof = block.profile, block.rows
     r = attempted(at_prof)
     if r.empty:
@@ -302,7 +305,7 @@ def _fig4_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, 
     body = [block.lead() + surface_family_note(r)]
     placed = load_abscissa(sub, sub).notna() & sub["solve_time_s"].notna()
     if placed.any():
-        body.append(_fig4_figure(ctx, block, sub, tot, placed))
+        body.append(_fig4_figure(ctx, block, sub, tot, placed, others))
     else:
         body.append(no_figure(f"Instance {inst} at profile `{prof}` has no time to draw against the load: the "
                               f"load axis takes a step's load from its solved answers, and no step was solved "
@@ -312,7 +315,7 @@ def _fig4_block(ctx: ReportContext, block: Block) -> tuple[str, tuple[RowChart, 
                               f"is given only for a solver that solved every step; the others show '-' and, in "
                               f"parentheses, their time over the steps they ran, which is not comparable to a "
                               f"total. Rows: the solvers that solved every step by total time, then the others by "
-                              f"steps solved; {WORST_RULE}.",
+                              f"steps solved; {WORST_RULE}.{others}",
                          ["solver", "family", "steps solved", "total [s]", "worst kkt", "worst p err"],
                          totals_rows(tot, ctx.family), "llrrrr"))
     body.append(_fig4_reading(ctx, block, cells, tot, n_max, spread_of))
@@ -350,9 +353,10 @@ def _panels_figure(panels: list[Panel], cells: pd.DataFrame, draw: Callable[[Any
     return fig
 
 
-def _fig4_figure(ctx: ReportContext, block: Block, sub: pd.DataFrame, tot: pd.DataFrame, placed: pd.Series) -> str:
+def _fig4_figure(ctx: ReportContext, block: Block, sub: pd.DataFrame, tot: pd.DataFrame, placed: pd.Series,
+                 others: str = "") -> str:
     """Fig. 4 of one instance's cells ``sub`` (``placed``: those with a load and a time to
-    draw) of ``block``, saved, with its caption."""
+    draw) of ``block``, saved, with its caption (``others``: words on the profiles not drawn)."""
     inst, prof, at_prof = sub["instance"].iloc[0], block.profile, block.rows
     labels = natural_sorted(sub["solver"].unique())
     best = best_per_family(tot.loc[labels], ctx.family)
@@ -372,7 +376,7 @@ def _fig4_figure(ctx: ReportContext, block: Block, sub: pd.DataFrame, tot: pd.Da
                               + "".join(f"; {m}" for m in marks) + ". "
                               + _drawn_note(ctx, block, sub, labels) + skipped_note(tot.loc[labels])
                               + _unplaced_note(sub, placed) + panels_note(panels) + best_rule
-                              + " Paper Fig. 4 ran at eps = 1e-8.")
+                              + " Paper Fig. 4 ran at eps = 1e-8." + others)
 
 
 def _drawn_note(ctx: ReportContext, block: Block, sub: pd.DataFrame, labels: list[str]) -> str:
