@@ -127,3 +127,10 @@ def test_fig4_takes_the_tightest_of_profiles_with_as_many_solvers(tmp_path: Path
 def test_fig4_of_one_profile_names_no_other(tmp_path: Path) -> None:
     body = _fig4(tmp_path, _rows({"mid": THREE}))
     assert "also ran at" not in body and _totals_solvers(body) == set(THREE)
+
+
+def test_fig4_keeps_the_tightest_profile_that_lacks_only_one_of_many_solvers(tmp_path: Path) -> None:
+    """high holds three of the four solvers low holds (one declines that accuracy): high is
+    still the condition to draw, not the looser low."""
+    body = _fig4(tmp_path, _rows({"high": THREE, "low": (*THREE, "nnls")}))
+    assert "profile `high`" in body.split("*Figure")[1] and "the sweep also ran at `low`" in body
