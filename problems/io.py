@@ -39,10 +39,13 @@ nothing first):
    tilt, so that a filled point is never the map's summit because of the tilt.
 2. Tilt (``detrend=``): ``"plane"`` (default), ``"mean"`` or ``"none"``: subtract the
    least-squares mean plane z = a + b j + c i over the grid (i rows, j columns), the mean,
-   or nothing.  The plane's slope in physical units (``plane_tilt``, rise per length) is
-   measured either way and recorded (``meta["tilt"]``); a tilt larger than the rms slope of
-   the map without it warns (removed with "plane"; left in otherwise, where contact would
-   then gather along the high edge).
+   or nothing.  The plane is that of the map's bulk where a few outliers would tilt it
+   (``bulk_plane_fit``: the bulk as ``units.bulk_figures`` takes it, of the heights above the
+   plane), so that one spike does not tilt the whole map.  The plane's slope in physical
+   units (``plane_tilt``, rise per length) is measured either way and recorded
+   (``meta["tilt"]``); a tilt larger than the rms slope of the map without it warns
+   (removed with "plane"; left in otherwise, where contact would then gather along the
+   high edge).
 3. Crop (``crop=``): ``"none"`` (default) keeps every point, rectangular maps included;
    ``"square"`` keeps the central min(N0, N1) square; ``"pad-square"`` pads to max(N0, N1)
    with the lowest height, the data kept in the top-left corner.  Either keeps the spacing.
@@ -74,7 +77,7 @@ from .atomic_files import not_utf8_text
 from .errors import ProblemInputError, check_positive
 from .kernels import square_spacing
 from .map_files import write_text, write_topography, write_x3p
-from .units import plain_float
+from .units import farthest_points, plain_float
 from .map_readers import (
     LENGTH_RTOL,
     RawMap,
@@ -155,7 +158,7 @@ def load_surface(
         meta["height_unit"] = height_unit
     spacing = map_spacing(p, z.shape, length, file_spacing, meta)
     measured = check_measured(z, p)  # (a refusal names the file as given; a warning, the file a link names)
-    fitted = plane_fit(z, measured) if detrend == "plane" else None  # once, through the measured points
+    fitted = bulk_plane_fit(z, measured) if detrend == "plane" else None  # once, measured points
     z = fill_missing(z, nan, p, meta, plane=fitted)
     z = remove_tilt(z, detrend, meta, spacing, p, fitted)
     check_not_flat(z, raw.z[measured] * scale, spacing, p)
@@ -256,7 +259,7 @@ def unannounced() -> Iterator[None]:
 def fill_missing(z: np.ndarray, rule: NanRule, path: str | Path, meta: dict[str, Any],
                  plane: tuple[float, float, float] | None = None) -> np.ndarray:
     """Replace NaN points by the documented rule (module doc, step 1); ``plane``: the
-    measured points' least-squares plane (a, c, b) of ``plane_fit``, where the rule acts on
+    measured points' plane (a, c, b) of ``bulk_plane_fit``, where the rule acts on
     the heights above it and the plane is added back (so that on a tilted map a hole is
     filled along the tilt, not at one level that may rise above every measured point)."""
     missing = np.isnan(z)
@@ -344,6 +347,41 @@ def plane_fit(z: np.ndarray, measured: np.ndarray | None = None) -> tuple[float,
     return mean - c * 0.5 * (n0 - 1) - b * 0.5 * (n1 - 1), c, b
 
 
+#: At most this many refits of the bulk's plane (``bulk_plane_fit``); the points left out
+#: settle in two or three.
+BULK_PLANE_ROUNDS = 10
+
+
+def bulk_plane_fit(z: np.ndarray, measured: np.ndarray | None = None) -> tuple[float, float, float]:
+    """(a, c, b) of the plane detrend "plane" removes: the least-squares plane of the
+    ``measured`` points (``plane_fit``; every point when None), unless a few outliers tilt it.
+    The bulk's plane is the least-squares plane of the measured points less the outliers of
+    the heights above it (``units.farthest_points``: the points ``units.bulk_figures`` leaves out,
+    chosen among the measured ones), refitted until they settle (``BULK_PLANE_ROUNDS``).  It
+    is returned when it and the whole's plane part by more, from one side of the map to the
+    other, than the rms height of the bulk above its plane: the outliers alone tilt the plane
+    beyond the map's own relief.  Otherwise the whole's plane is returned unchanged, so that
+    a map without such outliers keeps its plain least-squares plane exactly."""
+    mask = np.ones(z.shape, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
+    whole = plane_fit(z, measured)
+    plane, out = whole, np.zeros(0, dtype=np.intp)
+    for _ in range(BULK_PLANE_ROUNDS):
+        above = z - plane_on_grid(z.shape, *plane)
+        above[~mask] = float(np.median(above[mask]))  # (a missing point at the median: never an outlier)
+        top = np.sort(farthest_points(Surface(above, 1.0))[0])
+        if np.array_equal(top, out):
+            break
+        out = top
+        keep = mask.copy()
+        keep.ravel()[out] = False
+        plane = plane_fit(z, keep)
+    keep = mask.copy()
+    keep.ravel()[out] = False
+    relief = float(np.sqrt(np.mean((z - plane_on_grid(z.shape, *plane))[keep] ** 2)))
+    parting = abs(plane[1] - whole[1]) * (z.shape[0] - 1) + abs(plane[2] - whole[2]) * (z.shape[1] - 1)
+    return plane if parting > relief else whole
+
+
 def plane_tilt(z: np.ndarray, spacing: tuple[float, float]) -> float:
     """|grad| of the least-squares plane of ``z`` in rise per length."""
     _, c, b = plane_fit(z)
@@ -354,10 +392,10 @@ def remove_tilt(z: np.ndarray, rule: DetrendRule, meta: dict[str, Any], spacing:
                 path: str | Path = "map", fitted: tuple[float, float, float] | None = None) -> np.ndarray:
     """Subtract nothing, the mean, or the least-squares mean plane (module doc, step 2),
     on the filled map (no point is missing): ``fitted``, the plane (a, c, b) already fitted
-    through the measured points, or (None) the plane through every point; warn when the
+    through the measured points, or (None) ``bulk_plane_fit`` through every point; warn when the
     plane's tilt exceeds the rms slope of the map without it."""
     meta["detrend"] = rule
-    a, c, b = plane_fit(z) if fitted is None else fitted
+    a, c, b = bulk_plane_fit(z) if fitted is None else fitted
     plane = plane_on_grid(z.shape, a, c, b)
     tilt = float(np.hypot(c / spacing[0], b / spacing[1]))
     rough = Surface(z - plane, spacing[0], delta1=spacing[1]).rms_slope()
@@ -536,10 +574,12 @@ def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> None:
 __all__ = [
     "CROP_RULES",
     "DETREND_RULES",
+    "BULK_PLANE_ROUNDS",
     "MAX_MISSING_FRACTION",
     "NAN_RULES",
     "RawMap",
     "SurfaceFileError",
+    "bulk_plane_fit",
     "crop_map",
     "check_measured",
     "check_surface_file",

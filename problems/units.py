@@ -151,7 +151,7 @@ def implausibility(figures: UnitFigures, height_unit: str | None, outliers: str 
             f"--height-unit {unit} (or --allow-steep to run it anyway)")
 
 
-def _farthest(surface: Surface) -> tuple[np.ndarray, float, int]:
+def farthest_points(surface: Surface) -> tuple[np.ndarray, float, int]:
     """The flat indices of the ceil(``OUTLIER_SHARE`` n) points farthest from the median
     height (|h - median|, at least one, at most n - 1), farthest first; the median; their count."""
     h = surface.heights
@@ -188,7 +188,7 @@ def bulk_figures(surface: Surface) -> UnitFigures:
     """The figures of the map's bulk: ``figures_without`` its ceil(``OUTLIER_SHARE`` n) points
     farthest from the median height.  Units are judged on these: a few outliers can make the
     whole map look steep (a spike) or rough (on a map too smooth to be measured)."""
-    return figures_without(surface, _farthest(surface)[0])
+    return figures_without(surface, farthest_points(surface)[0])
 
 
 def _fewest(surface: Surface, top: np.ndarray, k: int, test: Callable[[UnitFigures], bool]) -> tuple[int, UnitFigures]:
@@ -222,7 +222,7 @@ def outlier_account(surface: Surface) -> str | None:
     farthest from the median height that must be left out (a bisection over m), the largest
     (its height in metres and its grid index) and the figures without them.  No height unit
     is suggested: another unit scales every height, the outliers' and the rest's alike."""
-    top, med, k = _farthest(surface)
+    top, med, k = farthest_points(surface)
     if not figures_without(surface, top).plausible:
         return None
     m, rest = _fewest(surface, top, k, lambda f: f.plausible)
@@ -237,7 +237,7 @@ def smooth_bulk_account(surface: Surface, figures: UnitFigures) -> str | None:
     whole map (``figures``) is not -- a few outliers alone give it its slope -- else None: how
     many (the fewest that, left out, leave it too smooth), the largest, and the slope without
     them.  No height unit is suggested (it would scale the outliers too)."""
-    top, med, k = _farthest(surface)
+    top, med, k = farthest_points(surface)
     if figures.too_smooth or not figures_without(surface, top).too_smooth:
         return None
     m, rest = _fewest(surface, top, k, lambda f: f.too_smooth)
@@ -273,7 +273,7 @@ def check_plausible_units(surface: Surface, height_unit: str | None = "m", file:
     if suggestion is not None:
         factor = HEIGHT_UNITS[suggestion] / HEIGHT_UNITS[str(height_unit)]
         if not figures.scaled(factor).plausible:
-            top, med, k = _farthest(surface)
+            top, med, k = farthest_points(surface)
             m, _ = _fewest(surface, top, k, lambda f: f.scaled(factor).plausible)
             line += (f"; in {UNIT_NAMES[suggestion]} {_named(surface, top, med, m)} would still make it "
                      "implausible: remove or fill them too")
