@@ -17,9 +17,13 @@ All scaled figures are dimensionless and invariant under a change of units (E ->
 every length -> c length).  Their two scales come from the *problem*, never from the
 candidate (a huge answer must not shrink its own residuals):
 
-* a displacement scale  u_s = ||ubar||_inf  (length; ``U_SCALE_FALLBACK`` = 1 when
-  ubar = 0, whose only answer is p = 0, so the figures are then absolute; under load
-  control the load gives the scales then, ``constrained_scales``), and
+* a displacement scale  u_s = max(max ubar, ``RELIEF_SHARE`` ||ubar||_inf): the approach,
+  the deepest overlap of the rigid body (||ubar||_inf itself where every ubar_i >= 0, as on
+  a non-periodic trial set; on a periodic grid ubar holds the whole relief below zero, and
+  an approach light for it is not judged against gaps it never closes) (length;
+  ``U_SCALE_FALLBACK`` = 1 when ubar = 0, whose only answer is p = 0, so the figures are
+  then absolute; under load control, where ubar holds no approach, ||ubar||_inf or the
+  load's lengths, ``constrained_scales``), and
 * a force scale         p_s = u_s / max(diag H)  (the force that alone indents one
   element by u_s).
 
@@ -197,10 +201,16 @@ def _negative_part(x: float) -> float:
     return math.nan if math.isnan(x) else max(0.0, -x)
 
 
-def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = None) -> tuple[float, float]:
-    """(u_s, p_s) of the problem (module doc): u_s = ||ubar||_inf, p_s = u_s / max diag H.
-    ``ubar_max``: ||ubar||_inf when the caller already has it."""
-    u_s = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
+def problem_scales(ubar: np.ndarray, diag_max: float, ubar_max: float | None = None,
+                   displacement: bool = True) -> tuple[float, float]:
+    """(u_s, p_s) of the problem (module doc): u_s = max(max ubar, ``RELIEF_SHARE`` x
+    ||ubar||_inf) under displacement control -- the approach, the deepest overlap the rigid
+    body makes, so that a light approach on a high relief (a periodic grid's whole relief in
+    ubar) is not judged against gaps it never closes -- and ||ubar||_inf where ``displacement``
+    is False (under load control ubar holds no approach: it is the multiplier's);
+    p_s = u_s / max diag H.  ``ubar_max``: ||ubar||_inf when the caller already has it."""
+    top = float(np.max(np.abs(ubar), initial=0.0)) if ubar_max is None else float(ubar_max)
+    u_s = max(max_above_zero(ubar), RELIEF_SHARE * top) if displacement else top
     if not (u_s > 0.0 and u_s / float(diag_max) > 0.0):  # 0, or so small (subnormal) that p_s underflows
         u_s = U_SCALE_FALLBACK
     return u_s, u_s / float(diag_max)
@@ -225,7 +235,7 @@ def constrained_scales(ubar: np.ndarray, diag_max: float, constraints: Constrain
     if length is not None:
         u_s, p_s = length, length / float(diag_max)
     else:
-        u_s, p_s = problem_scales(ubar, diag_max, top)  # (||ubar||_inf read once)
+        u_s, p_s = problem_scales(ubar, diag_max, top, not constraints.load_control)  # (||ubar||_inf read once)
     if constraints.bounded:
         p_s = min(p_s, float(np.min(constraints.upper)))
     return u_s, p_s
@@ -274,7 +284,7 @@ def reachable_relief(ubar: np.ndarray, whole: float) -> float:
 def kkt_figures(p: np.ndarray, w: np.ndarray, ubar: np.ndarray, diag_max: float,
                 ubar_max: float | None = None) -> KKTFigures:
     """The scaled KKT figures of ``p`` with gap ``w = Hp - ubar`` (module doc), scaled by
-    the problem's u_s = ||ubar||_inf and p_s = u_s / max diag H.  ``ubar_max``:
+    the problem's u_s (``problem_scales``) and p_s = u_s / max diag H.  ``ubar_max``:
     ||ubar||_inf when the caller already has it (a solver testing every iteration).
     A non-finite entry of p or w, or a product that overflows, gives inf."""
     u_s, p_s = problem_scales(ubar, diag_max, ubar_max)

@@ -33,7 +33,7 @@ the force per element p' E* delta^2 (our force units), its approach a' as the lo
 multiplier Delta = a' L (its gap g = gap + S p - a is our w = Hp - ubar - Delta / L).
 
 Tolerance.  ASPHER's certified errors are relative to its gap scale g_ref = max(gap) -
-min(gap); our scaled KKT error to u_s = max|ubar| (problems.kkt).  It is handed
+min(gap); our scaled KKT error to u_s (problems.kkt.constrained_scales).  It is handed
 ``tol x min(1, u_s / (L g_ref))`` (``handed_tol``: its penetration bound is then at most
 ours, tol u_s, and never looser than ``tol``; under load control u_s = L g_ref on the whole
 grid and it gets ``tol`` itself).
@@ -91,6 +91,7 @@ import numpy as np
 from contactbench.problems.errors import ProblemInputError
 from contactbench.problems.instances import QP
 from contactbench.problems.lcp import UncertifiedSolutionError, exact_solution, exact_solution_on_subset
+from contactbench.problems.kkt import constrained_scales
 from contactbench.problems.operators import fft_workers
 
 from ._peers import INSTALL_HINT, GridProblem, PeerSolver, full_field, grid_problem, package_availability
@@ -211,7 +212,7 @@ def posed(ctx: SolveContext) -> Posed:
 def handed_tol(pz: Posed, ctx: SolveContext) -> float:
     """Our ``tol`` in ASPHER's units (module doc): tol min(1, u_s / (L g_ref))."""
     g_ref = float(np.ptp(pz.gap)) * pz.side
-    u_s = float(np.max(np.abs(ctx.qp.ubar), initial=0.0))
+    u_s, _ = constrained_scales(ctx.qp.ubar, ctx.diag_max, ctx.constraints, ctx.ubar_scale())  # (the judge's)
     return float(ctx.tol) * (min(1.0, u_s / g_ref) if g_ref > 0.0 and u_s > 0.0 else 1.0)
 
 

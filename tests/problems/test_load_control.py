@@ -323,7 +323,7 @@ def test_a_load_equality_alone_gives_the_general_figures(values: list[float], de
     explicitly) to the last digits, negative forces, NaN-free extremes and all."""
     p = np.asarray(values) * scale
     g = np.roll(p, 1) - 0.5 * scale
-    ubar = np.linspace(-1.0, 0.0, p.size) * scale
+    ubar = np.linspace(0.0, 1.0, p.size)  # (u_s: the approach, max ubar = 1) * scale
     short = constrained_figures(p, g, ubar, 2.0, Constraints(None, load), delta)
     general = constrained_figures(p, g, ubar, 2.0, Constraints(np.full(p.size, np.inf), load), delta)
     for a, b in zip(astuple(short), astuple(general)):
@@ -338,7 +338,7 @@ def test_a_bound_far_above_every_force_is_judged_as_no_bound(forces: list[float]
     could not certify its exact answer).  The upper product's slack is capped at the force
     scale, so a far bound gives the unbounded figures' reading of the same w, never more."""
     p = np.asarray(forces)
-    ubar = np.linspace(-1.0, 0.0, p.size)
+    ubar = np.linspace(0.0, 1.0, p.size)  # (u_s: the approach, max ubar = 1)
     g = np.where(np.arange(p.size) % 2 == 0, noise, -noise)  # w = g: round-off on every element
     free = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(p.size, np.inf), None))
     boxed = constrained_figures(p, g, ubar, 1.0, Constraints(np.full(p.size, far * (1.0 + float(np.max(p)))), None))
@@ -364,7 +364,7 @@ def test_a_gap_of_the_allowed_sign_near_either_bound_reads_as_its_product(eps: f
     point answer near p = 0), and one eps p_s below its bound with w = -eps u_s, both read
     eps^2, the product; the natural residual min(-w / u_s, (u - p) / p_s) had read the
     second eps (interior-point solvers' plastic answers at kkt 3e-4 for products of 6e-7)."""
-    ubar = np.array([-1.0, -0.5, 0.0])  # u_s = 1 and, with diag 1 and u = 5, p_s = 1
+    ubar = np.array([1.0, 0.5, 0.0])  # u_s = max ubar = 1 and, with diag 1 and u = 5, p_s = 1
     c = Constraints(np.full(3, 5.0), None)
     lower = constrained_figures(np.array([eps, 2.0, 3.0]), np.array([eps, 0.0, 0.0]), ubar, 1.0, c)
     upper = constrained_figures(np.array([5.0 - eps, 2.0, 3.0]), np.array([-eps, 0.0, 0.0]), ubar, 1.0, c)
