@@ -45,7 +45,7 @@ import sys
 import threading
 import warnings
 from contextlib import contextmanager
-from importlib import metadata
+import contactbench
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
@@ -125,14 +125,6 @@ def stopped(exc: KeyboardInterrupt, what: str) -> int:
     word, code = ("terminated", EXIT_TERMINATED) if isinstance(exc, Terminated) else ("interrupted", EXIT_INTERRUPTED)
     print(f"{word}: {what}", file=sys.stderr)
     return code
-
-
-def package_version() -> str:
-    """The installed contactbench version (``importlib.metadata``)."""
-    try:
-        return metadata.version("contactbench")
-    except metadata.PackageNotFoundError:
-        return "unknown (not installed)"
 
 
 def parse_seeds(text: str) -> Sequence[int]:
@@ -234,7 +226,7 @@ def positive_int(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog="contactbench", description="Benchmark harness for BEM rough-surface contact QPs")
-    ap.add_argument("--version", action="version", version=f"contactbench {package_version()}")
+    ap.add_argument("--version", action="version", version=f"contactbench {contactbench.__version__}")
     ap.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
                             parser_class=Parser)

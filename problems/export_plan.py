@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import asdict, dataclass, field
-from importlib import metadata
+import contactbench
 from typing import Any, Callable, Iterator
 
 from .errors import MemoryBudgetError, ProblemInputError
@@ -189,11 +189,8 @@ def options_record(cfg: SceneConfig) -> dict[str, Any]:
 
 
 def package_version() -> str:
-    """The installed contactbench version (``importlib.metadata``), recorded with an export."""
-    try:
-        return metadata.version("contactbench")
-    except metadata.PackageNotFoundError:
-        return "unknown (not installed)"
+    """The installed contactbench version, recorded with an export (``contactbench.__version__``)."""
+    return str(contactbench.__version__)
 
 
 @dataclass

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contactbench.harness.cli import main
 from contactbench.problems.io import bulk_plane_fit, load_surface, plane_fit
+from tests.helpers import run_cli
 
 N = 32
 SIDE = 32e-6
@@ -47,12 +47,9 @@ def test_the_cli_refuses_a_smooth_map_with_one_spike_under_the_default_detrend(
     z = smooth()
     z[SPIKE] += 5e-6
     np.save("m.npy", z)
-    try:
-        rc = main(["run", "paper-sweep", "--surface", "m.npy", "--length", f"{SIDE!r}", "--steps", "1",
-                   "--solvers", "pk", "--out", "o"])
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    lines = capsys.readouterr().err.strip().splitlines()
+    rc, _, err = run_cli(["run", "paper-sweep", "--surface", "m.npy", "--length", f"{SIDE!r}", "--steps", "1",
+                          "--solvers", "pk", "--out", "o"], capsys)
+    lines = err.strip().splitlines()
     assert rc == 2 and len(lines) == 1, lines
     assert "only through 1 outlier point" in lines[0] and "at index (5, 7)" in lines[0]
     assert not (tmp_path / "o").exists()

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contactbench.harness.cli import main
 from contactbench.problems.surfaces import Surface
 from contactbench.problems.units import ImplausibleUnitsError, check_plausible_units
+from tests.helpers import run_cli
 
 SIDE = 32e-6
 
@@ -53,12 +53,9 @@ def test_the_cli_refuses_a_spiky_map_in_one_line_without_unit_advice(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.chdir(tmp_path)
     np.save("spike.npy", spiky({(3, 4): 1e-3}))
-    try:
-        rc = main(["run", "paper-sweep", "--surface", "spike.npy", "--length", f"{SIDE!r}", "--steps", "2",
-                   "--solvers", "pk", "--out", "o"])
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    lines = capsys.readouterr().err.strip().splitlines()
+    rc, _, err = run_cli(["run", "paper-sweep", "--surface", "spike.npy", "--length", f"{SIDE!r}", "--steps", "2",
+                          "--solvers", "pk", "--out", "o"], capsys)
+    lines = err.strip().splitlines()
     assert rc == 2 and len(lines) == 1 and "1 outlier point" in lines[0] and "--height-unit" not in lines[0]
     assert not (tmp_path / "o").exists()
 
@@ -118,11 +115,8 @@ def test_the_cli_refuses_a_smooth_map_with_one_spike_in_one_line(
     h = rough(32, rms=1e-13)
     h[3, 4] = 5e-7
     np.save("smooth.npy", h)
-    try:  # (--detrend mean: a plane fitted through the spike would tilt the whole map)
-        rc = main(["run", "paper-sweep", "--surface", "smooth.npy", "--length", f"{SIDE!r}", "--steps", "2",
-                   "--solvers", "pk", "--detrend", "mean", "--out", "o"])
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    lines = capsys.readouterr().err.strip().splitlines()
+    rc, _, err = run_cli(["run", "paper-sweep", "--surface", "smooth.npy", "--length", f"{SIDE!r}", "--steps", "2",
+                          "--solvers", "pk", "--detrend", "mean", "--out", "o"], capsys)
+    lines = err.strip().splitlines()
     assert rc == 2 and len(lines) == 1 and "only through 1 outlier point" in lines[0]
     assert "--height-unit" not in lines[0] and not (tmp_path / "o").exists()
