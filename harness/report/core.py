@@ -384,6 +384,13 @@ def parse_trace(text: Any) -> np.ndarray:
     return a if a.ndim == 2 and a.shape[1] >= 3 and len(a) else np.empty((0, 3))
 
 
+def profile_rank(profile: str) -> tuple:
+    """A profile's sort key, tightest first: ``PROFILE_PREFERENCE``, then the others in
+    natural order."""
+    known = PROFILE_PREFERENCE.index(profile) if profile in PROFILE_PREFERENCE else len(PROFILE_PREFERENCE)
+    return known, natural_key(profile)
+
+
 def pick_profile(rows: pd.DataFrame) -> str:
     """The tightest profile of ``rows`` (``PROFILE_PREFERENCE``, then the others in natural
     order; "" for none); the paper sections pick one per condition (paper_conditions.py)."""

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..core import PROFILE_PREFERENCE, attempted, natural_key
+from ..core import attempted, profile_rank
 from ..markdown_text import md_code
 from .paper_conditions import Block, operators_of
 
@@ -23,12 +23,6 @@ from .paper_conditions import Block, operators_of
 #: The share of the most solvers any profile of an operator holds that the tightest profile
 #: Fig. 4 draws must hold (``fig4_profiles``).
 FIG4_SHARE = 0.75
-
-
-def _profile_rank(profile: str) -> tuple:
-    """Tightest first: ``PROFILE_PREFERENCE``, then the others in natural order."""
-    known = PROFILE_PREFERENCE.index(profile) if profile in PROFILE_PREFERENCE else len(PROFILE_PREFERENCE)
-    return known, natural_key(profile)
 
 
 def fig4_profiles(rows: pd.DataFrame) -> dict[str, tuple[str, tuple[str, ...]]]:
@@ -39,8 +33,8 @@ def fig4_profiles(rows: pd.DataFrame) -> dict[str, tuple[str, tuple[str, ...]]]:
     out: dict[str, tuple[str, tuple[str, ...]]] = {}
     for op, g in att.groupby(operators_of(att), sort=True):
         count = g.groupby(g["profile"].astype(str))["solver"].nunique()
-        enough = [p for p in sorted(count.index, key=_profile_rank) if count[p] >= FIG4_SHARE * count.max()]
-        out[str(op)] = enough[0], tuple(p for p in sorted(count.index, key=_profile_rank) if p != enough[0])
+        enough = [p for p in sorted(count.index, key=profile_rank) if count[p] >= FIG4_SHARE * count.max()]
+        out[str(op)] = enough[0], tuple(p for p in sorted(count.index, key=profile_rank) if p != enough[0])
     return out
 
 
@@ -68,7 +62,7 @@ def other_profiles_note(rows: pd.DataFrame, block: Block) -> str:
             others.update(rest)
     if not others:
         return ""
-    names = ", ".join(md_code(p) for p in sorted(others, key=_profile_rank))
+    names = ", ".join(md_code(p) for p in sorted(others, key=profile_rank))
     return (f" Shown: profile `{block.profile}`, the tightest at which at least {FIG4_SHARE:.0%} of the most "
             f"solvers any profile holds ran; the sweep also ran at {names}, not drawn here (Aggregates across instances compares the "
             f"solvers at each profile).")

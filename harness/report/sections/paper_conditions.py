@@ -38,7 +38,7 @@ import pandas as pd
 from ..claim_measures import best_k, fig5_measure, k_of, k_sweep_rows, k_sweep_totals, papers_admm
 from ..claim_rules import judge_timed
 from ..claim_tables import COLD_SCENE, ledger_rows
-from ..core import PROFILE_PREFERENCE, attempted, natural_key, pick_profile
+from ..core import attempted, natural_key, pick_profile, profile_rank
 from ..markdown_text import md_code
 from .paper_readings import LedgerReading
 
@@ -90,11 +90,6 @@ def tightest_by_operator(rows: pd.DataFrame) -> dict[str, str]:
     return {str(op): pick_profile(g) for op, g in att.groupby(operators_of(att), sort=True)}
 
 
-def _profile_rank(profile: str) -> tuple:
-    known = PROFILE_PREFERENCE.index(profile) if profile in PROFILE_PREFERENCE else len(PROFILE_PREFERENCE)
-    return known, natural_key(profile)
-
-
 def condition_blocks(rows: pd.DataFrame) -> list[Block]:
     """The blocks of a scene's ``rows`` (module doc), tightest profile first: the attempted
     rows of each operator at its tightest profile, and the skipped rows at that profile of
@@ -102,7 +97,7 @@ def condition_blocks(rows: pd.DataFrame) -> list[Block]:
     chosen = tightest_by_operator(rows)
     if not chosen:
         return [Block("", (), rows.iloc[0:0])]
-    profiles = sorted(set(chosen.values()), key=_profile_rank)
+    profiles = sorted(set(chosen.values()), key=profile_rank)
     ops = operators_of(rows)
     skipped = rows["status"] == "skipped"
     kept = ~skipped & (rows["profile"] == ops.map(chosen))
