@@ -73,8 +73,7 @@ class Constraints:
         takes (1: every element plastic); 0 without a load equality or a finite bound."""
         if self.load is None or not self.bounded:
             return 0.0
-        u = np.asarray(self.upper, dtype=np.float64)
-        return 0.0 if not np.all(np.isfinite(u)) else float(self.load) / 2.0 / math.fsum(u / 2.0)  # (halved: no overflow)
+        return float(self.load) / 2.0 / half_total(self.upper)  # (halved: no overflow)
 
     @property
     def plain(self) -> bool:
@@ -111,13 +110,17 @@ class Constraints:
                 raise ProblemInputError(overload_message(self.load, cap, "the load", "the bounds", "sum(upper)"))
 
 
-def bounds_total(upper: np.ndarray) -> float:
-    """sum(upper), exactly rounded and without overflow in the sum (bounds near the largest
-    float add to inf only where their total is past it; inf bounds give inf)."""
+def half_total(upper: np.ndarray) -> float:
+    """sum(upper) / 2, exactly rounded, with no overflow in the sum for finite bounds (each
+    halved first: bounds near the largest float); inf where a bound is inf."""
     u = np.asarray(upper, dtype=np.float64)
-    if not np.all(np.isfinite(u)):
-        return math.inf
-    return 2.0 * math.fsum(u / 2.0)
+    return math.fsum(u / 2.0) if np.all(np.isfinite(u)) else math.inf
+
+
+def bounds_total(upper: np.ndarray) -> float:
+    """sum(upper), exactly rounded (``half_total`` doubled: inf only where the total itself
+    is past the largest float, or a bound is inf)."""
+    return 2.0 * half_total(upper)
 
 
 def make_constraints(n: int, upper: np.ndarray | float | None = None, load: float | None = None) -> Constraints:
