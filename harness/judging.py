@@ -47,6 +47,7 @@ from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 from contactbench.problems.operator_state import Rebuild, SealRule, Verify, seal_rule
 from contactbench.problems.plastic_share import plastic_uncertain
+from contactbench.solvers._answers import is_real
 
 from .table.schema import VERDICTS as READINGS  # the table contract names the readings
 
@@ -587,8 +588,17 @@ def answer_report(inst: ContactInstance, p: np.ndarray, multiplier: float | None
     (``constraints.fit_multiplier``) and, where the solver reports a finite one, at that
     Delta -- the one it stopped on -- whichever is smaller.  Either is a certificate: with
     every figure small at some Delta, p is near the answer, whoever named the Delta."""
-    reported = isinstance(multiplier, (int, float)) and not isinstance(multiplier, bool) and math.isfinite(multiplier)
-    return kkt_check(inst, p, None, float(multiplier) if reported else None)  # type: ignore[arg-type]
+    return kkt_check(inst, p, None, reported_multiplier(multiplier))
+
+
+def reported_multiplier(value: Any) -> float | None:
+    """The approach a solver reports, as a float: a real number or a 0-d array of one
+    (NumPy's or a device's, read with ``item``), if finite; else None (not reported)."""
+    if getattr(value, "shape", None) == () and hasattr(value, "item"):
+        value = value.item()
+    if not is_real(value) or not math.isfinite(value):
+        return None
+    return float(value)
 
 
 def shown_apart(value: float, limit: float) -> tuple[str, str]:

@@ -58,7 +58,18 @@ def test_an_answer_within_the_tolerance_at_its_own_approach_is_accepted() -> Non
     assert v.kkt.multiplier == pytest.approx(approach, rel=1e-12)
 
 
-@pytest.mark.parametrize("claimed", [float("nan"), float("inf"), None, True, "1e-6"])
+@pytest.mark.parametrize("wrap", [np.float32, np.array, lambda x: np.array([x])[0], np.longdouble],
+                         ids=["float32", "0-d array", "numpy scalar", "longdouble"])
+def test_an_approach_reported_as_a_numpy_number_is_read(wrap: object) -> None:
+    inst = load_instance()
+    p, approach = interior_point_like(inst)
+    v = judge(inst, p, True, TOL, multiplier=wrap(approach))  # type: ignore[operator]
+    assert v.status == "solved", v.message()
+    assert v.kkt.multiplier == pytest.approx(approach, rel=1e-6)
+
+
+@pytest.mark.parametrize("claimed", [float("nan"), float("inf"), None, True, "1e-6", np.array([1.0, 2.0]),
+                                     np.array(np.nan), np.bool_(True), 1 + 2j])
 def test_a_reported_approach_that_is_no_number_leaves_the_fitted_one(claimed: object) -> None:
     inst = load_instance()
     p, _ = interior_point_like(inst)
