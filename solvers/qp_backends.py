@@ -209,6 +209,43 @@ def qpalm_options(req: Request) -> dict[str, Any]:
     return out
 
 
+#: DAQP's exit flags (``daqp.solve``), by name: a status a reader can tell apart -- an
+#: iteration limit is "iteration limit", not qpsolvers' bare "not found".
+DAQP_EXIT = {2: "soft optimal", 1: "optimal", -1: "infeasible", -2: "cycling", -3: "unbounded",
+             -4: "iteration limit", -5: "nonconvex", -6: "overdetermined initial active set", -7: "time limit"}
+
+
+def daqp_solve_problem(problem: Any, initvals: np.ndarray | None = None, **options: Any) -> Any:
+    """DAQP on a qpsolvers ``Problem`` with box bounds and equality rows (no general
+    inequalities: the contact QP has none): its exit flag named (``DAQP_EXIT``) as the
+    status and its iterations counted, and its last iterate kept where it stops short --
+    qpsolvers' own DAQP call drops all three.  ``initvals`` is not read (DAQP declares no
+    warm start).  Options go to ``daqp.solve`` by DAQP's own names."""
+    import daqp
+    import qpsolvers
+
+    t0 = time.perf_counter()
+    P, q, G, h, A, b, lb, ub = problem.unpack_as_dense()
+    if G is not None:
+        raise ValueError("daqp_solve_problem poses no general inequalities")
+    n = int(q.shape[0])
+    rows = np.zeros((0, n)) if A is None else np.asarray(A, dtype=np.float64)
+    rhs = np.zeros(0) if b is None else np.asarray(b, dtype=np.float64)
+    upper = np.concatenate([np.full(n, 1e30) if ub is None else np.asarray(ub, dtype=np.float64), rhs])
+    lower = np.concatenate([np.full(n, -1e30) if lb is None else np.asarray(lb, dtype=np.float64), rhs])
+    sense = np.zeros(n + rhs.size, dtype=np.intc)
+    sense[n:] = 5  # DAQP's word for an equality
+    t1 = time.perf_counter()
+    x, _, flag, info = daqp.solve(np.asarray(P, dtype=np.float64), np.asarray(q, dtype=np.float64), rows, upper,
+                                  lower, sense, **options)
+    sol = qpsolvers.Solution(problem)
+    sol.extras = {"status": DAQP_EXIT.get(int(flag), f"exit flag {int(flag)}"), "iter": int(info["iterations"])}
+    sol.found = int(flag) > 0
+    sol.x = np.asarray(x, dtype=np.float64)
+    sol.build_time, sol.solve_time = t1 - t0, time.perf_counter() - t1
+    return sol
+
+
 def daqp_options(req: Request) -> dict[str, Any]:
     """Dual active set (exact up to its feasibility tolerance)."""
     out = _limits(req, "iter_limit", None)
@@ -273,7 +310,7 @@ BACKENDS: tuple[BackendSpec, ...] = (
     BackendSpec("highs", "highspy", "active set", "sparse", "none", highs_options, 5.5, 1e-8),
     BackendSpec("cvxopt", "cvxopt", "interior point", "dense", "primal", cvxopt_options, 6.0, 1.8e-9),
     BackendSpec("qpalm", "qpalm", "proximal augmented Lagrangian", "sparse", "primal", qpalm_options, 5.5, 3.2e-9),
-    BackendSpec("daqp", "daqp", "dual active set", "dense", "none", daqp_options, 4.0, 4e-9),
+    BackendSpec("daqp", "daqp", "dual active set", "dense", "none", daqp_options, 4.0, 4e-9, call=daqp_solve_problem),
     BackendSpec("quadprog", "quadprog", "dual active set (Goldfarb-Idnani)", "dense", "none", no_options, 4.0, 6.4e-9),
     BackendSpec("ecos", "ecos", "interior point (SOCP)", "sparse", "none", ecos_options, 6.0, 1.4e-8,
                 accuracy_floor=1e-7),

@@ -77,6 +77,21 @@ def test_proxqp_reports_at_most_its_limit_and_runs_within_it(limit: int) -> None
     assert 0 < res.info["inner_iterations"] <= limit * (limit + 1)
 
 
+@pytest.mark.parametrize("instance", [lambda: step(rough(8)), lambda: loaded(rough(8))], ids=["plain", "load"])
+def test_daqp_at_its_limit_says_so_and_keeps_its_iterate(instance: object) -> None:
+    """DAQP stopped by its iteration limit reports ``max_iter`` with the count it ran and
+    its last (finite) iterate, which the judge reads -- not a NaN answer "failed"."""
+    require("qp-daqp")
+    inst = instance()  # type: ignore[operator]
+    res = get_solver("qp-daqp").solve(inst.qp, SolverSettings(1e-9, max_iter=2))
+    assert res.status == Status.MAX_ITER.value and not res.converged, res.message
+    assert res.iterations == 2 and res.info["backend_status"] == "iteration limit"
+    assert np.all(np.isfinite(res.p))
+    full = get_solver("qp-daqp").solve(inst.qp, SolverSettings(1e-9))
+    assert full.converged and full.status == Status.CONVERGED.value and full.iterations > 2
+    assert judge(inst, full.p, True, 1e-8, multiplier=full.multiplier).status == "solved"
+
+
 def test_proxqp_solves_with_the_harness_call_and_takes_a_warm_start() -> None:
     require("qp-proxqp")
     inst = step(rough(8))
