@@ -416,6 +416,14 @@ const LEGEND_CHARS = 44;
 const NARROW_CHART_PX = 600;
 const legendName = n => typeof n === 'string' && n.length > LEGEND_CHARS
   ? n.slice(0, LEGEND_CHARS / 2 - 1) + '\u2026' + n.slice(n.length - LEGEND_CHARS / 2) : n;
+// The legend entries of one chart: each elided, except those whose elided forms would read the
+// same as another's (names that differ only in their middle), which keep their full names.
+function legendNames(names) {
+  const short = names.map(legendName), seen = new Map();
+  short.forEach((s, i) => { if (s !== names[i]) seen.set(s, (seen.get(s) || 0) + 1); });
+  const told = new Set(names.filter((n, i) => short[i] === n));
+  return short.map((s, i) => s !== names[i] && (seen.get(s) > 1 || told.has(s)) ? names[i] : s);
+}
 // A legend under its plot starts LEGEND_GAP_PX below the x axis's tick labels and title.  Plotly puts
 // it a share of the plot's height below the axis (legend.y), and on a plot made short by a long legend
 // that share is less than the labels' own height: the legend's title sat on the axis title.  Once
@@ -461,7 +469,8 @@ function redraw() {
     if (c.scene && !state.scenes.has(c.scene)) return;
     if (c.table) { c.table.render(); return; }
     const [traces, lay] = c.draw();
-    traces.forEach(t => { t.name = legendName(t.name); });
+    const names = legendNames(traces.map(t => t.name));
+    traces.forEach((t, i) => { t.name = names[i]; });
     const below = c.div.clientWidth < NARROW_CHART_PX;
     if (below) {  // a legend at the side would leave the plot a sliver
       lay.legend = Object.assign({}, lay.legend, {orientation: 'h', x: 0, xanchor: 'left', y: -0.32, yanchor: 'top'});

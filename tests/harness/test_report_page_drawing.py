@@ -27,6 +27,9 @@ from tests.helpers import META, fabricate_table, trace_json, write_out
 #: The paper-sweep solver given a long trace (``LONG_TRACE`` points), so that its markers are sparse.
 LONG_SOLVER = "pk"
 LONG_TRACE = 400
+#: Solvers of the crowded sweep whose names are longer than the page's LEGEND_CHARS and differ
+#: only in their middle: elided alike, their legend entries would read the same.
+ALIKE = [f"cmr+fast-dual-pccg coarse=subsample h={h} from 16 on the finest grid" for h in ("1.5", "2", "3")]
 #: A second instance of the paper sweep: Fig. 4's PNG draws the first only.
 SECOND = "rmd-H0.7-N64-s1"
 
@@ -42,7 +45,9 @@ def _table(crowded: bool = False) -> pd.DataFrame:
     base = df[sweep & (df["solver"] == "fast-pdas")]
     many = [base.assign(solver=s, base_solver=s, family=f, solve_time_s=base["solve_time_s"] * (1 + 0.1 * i))
             for f in ("qp", "peer") if crowded for i, s in enumerate(FAMILY_SLOTS[f])]
-    df = pd.concat([df, *many], ignore_index=True)
+    alike = [base.assign(solver=s, base_solver=s, solve_time_s=base["solve_time_s"] * (1.05 + 0.1 * i))
+             for i, s in enumerate(ALIKE) if crowded]
+    df = pd.concat([df, *many, *alike], ignore_index=True)
     second = df[df["scene"] == "paper-sweep"].assign(instance=SECOND, solve_time_s=lambda d: d["solve_time_s"] * 1.5)
     return pd.concat([df, second], ignore_index=True)
 
@@ -122,7 +127,8 @@ JSON.parse(document.getElementById('report-data').textContent).families.forEach(
   own[s.name] = [s.dash, s.symbol]; }));
 return {own: own, fig4: fig4.data.filter(t => t.customdata).map(t => t.customdata.map(c => [c[10], c[0]])),
         fig4pts: fig4.data.filter(t => t.customdata).map(t => t.customdata.map((c, i) => [t.name, c[9], c[1], t.y[i]])),
-        lines: lines, gaps: gaps, below: below};
+        lines: lines, gaps: gaps, below: below,
+        legends: plots.map(d => [title(d), d.data.filter(t => t.showlegend !== false && t.name).map(t => t.name)])};
 """
 
 
@@ -198,3 +204,13 @@ def test_a_legend_under_its_plot_starts_below_the_x_axis_labels(drawn: dict[str,
     assert drawn["gaps"]
     bad = [(t, g) for t, g in drawn["gaps"] if g is None or g < 0]
     assert not bad, bad
+
+
+@pytest.mark.slow
+def test_no_two_legend_entries_of_a_chart_read_the_same(drawn: dict[str, Any]) -> None:
+    """Long names are elided in their middle (``legendName``), unless that makes two read the
+    same: those keep their full names (cmr variants that differ in h read alike)."""
+    seen = [(t, names) for t, names in drawn["legends"] if any(a in n for n in names for a in ALIKE)]
+    assert seen  # the alike names are drawn, whole
+    for title, names in drawn["legends"]:
+        assert len(set(names)) == len(names), (title, names)
