@@ -31,7 +31,7 @@ from ..coarsen import power_law_check
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
 from .base import CONTROL_SCENE_OPTIONS, LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
-from .core import (PAPER_E, RampScene, check_relief, departure_suffix, grid_suffix, modulus_suffix, rough_surface_specs,
+from .core import (PAPER_E, RampScene, recipe_rms_height, check_relief, departure_suffix, grid_suffix, modulus_suffix, rough_surface_specs,
                    square_length, steps_suffix, surface_from_params)
 
 
@@ -154,5 +154,6 @@ def cutoff_surface(params: dict[str, Any]) -> Surface:
     L = square_length(params["length"])
     frac = params.get("rolloff_fraction")
     return spectral_surface(int(params["size"]), float(params["hurst"]), length=L, seed=int(params["seed"]),
+                            rms_height=recipe_rms_height(params),
                             rolloff_wavelength=None if frac is None else float(frac) * L)
 

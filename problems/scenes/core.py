@@ -41,6 +41,11 @@ ANALYTIC_OPTIONS: frozenset[str] = frozenset({"size", "steps", "length", "E", "k
 PAPER_SEED = 5  # RMD seed of the paper-sweep default surface (see PaperSweep)
 PAPER_E = 1.0e9  # composite modulus (Pa); results are reported as P/(E A), so E only sets units
 PAPER_LENGTH = 100e-6  # the paper's lateral size L (metres), the rough-surface scenes' default
+#: A generated rough surface's rms height as a share of its side: the recipes' 1 um on the
+#: paper's L = 100 um (``PAPER_LENGTH``).  ``--length L`` is then the same surface at another
+#: scale -- its slopes, contact share and P/(E* A) unchanged -- not the same heights on
+#: another side (at L = 1 nm, 1 um heights gave slopes of 4e4 and P/(E* A) = 300).
+RECIPE_RMS_SHARE = 0.01
 
 #: The keywords of a measured surface file's cleaning (``problems.io.load_surface``'s
 #: ``detrend``, ``nan`` and ``crop``; options of the "surface-file" group, ``options.OPTIONS``).
@@ -105,6 +110,15 @@ def square_length(length: Any) -> float:
     return float(length)
 
 
+def recipe_rms_height(params: dict[str, Any]) -> float:
+    """The rms height (metres) of the surface a recipe generates: its own ``rms_height``
+    where it names one, else ``RECIPE_RMS_SHARE`` of its side."""
+    if params.get("rms_height") is not None:
+        return float(params["rms_height"])
+    length = params.get("length")
+    return RECIPE_RMS_SHARE * (PAPER_LENGTH if length is None else square_length(length))
+
+
 def surface_from_params(params: dict[str, Any]) -> Surface:
     """Rebuild the surface a recipe names: a measured file, or an RMD surface of
     ``params["family"]`` from its seed (no family: the size picks, ``rmd_surface_n``)."""
@@ -126,7 +140,7 @@ def surface_from_params(params: dict[str, Any]) -> Surface:
         int(params["size"]),
         float(params["hurst"]),
         length=square_length(params.get("length")),
-        rms_height=float(params.get("rms_height", 1e-6)),
+        rms_height=recipe_rms_height(params),
         seed=int(params["seed"]),
         family=params.get("family"),
     )

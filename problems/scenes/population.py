@@ -34,7 +34,8 @@ from ..errors import ProblemInputError
 from ..surfaces import Surface
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, SceneConfig, seeds_of
-from .core import PAPER_E, RampScene, departure_suffix, grid_suffix, ramp_sequence, surface_from_params
+from .core import (PAPER_E, RampScene, departure_suffix, grid_suffix, ramp_sequence, recipe_rms_height,
+                   surface_from_params)
 
 DEFAULT_HURSTS: tuple[float, ...] = (0.5, 0.7, 0.9)
 #: Flat-to-mean-plane separations, in units of the rms height (small loads first).
@@ -94,7 +95,7 @@ class Population(RampScene):
         kernel="bcc",
         periodic=True,
         operator="fft",
-        extra={"hursts": DEFAULT_HURSTS, "separations": DEFAULT_SEPARATIONS, "rms_height": 1e-6},
+        extra={"hursts": DEFAULT_HURSTS, "separations": DEFAULT_SEPARATIONS},
     )
     # periodic RMD surfaces of the size's own family; no surface file
     options = frozenset({"size", "seeds", "steps", "length", "E", "kernel", "periodic", "operator"})
@@ -116,7 +117,7 @@ class Population(RampScene):
             "kernel": cfg.kernel,
             "periodic": bool(cfg.periodic),
             "operator": cfg.operator,
-            "rms_height": float(cfg.extra.get("rms_height", 1e-6)),
+            "rms_height": recipe_rms_height({"rms_height": cfg.extra.get("rms_height"), "length": cfg.length}),
             "separations": list(seps),
             "steps": len(seps),
         }
