@@ -271,13 +271,17 @@ def power_law_check(surface: Surface, q_min: float | None = None, q_max: float |
     q0 = 2.0 * np.pi / min(surface.lengths)
     lo = 2.0 * q0 if q_min is None else q_min
     hi = 0.5 * np.pi / max(surface.spacing) if q_max is None else q_max
+    if not lo < hi:
+        raise ProblemInputError(f"the grid is too small for a power-law check of its PSD: from twice its fundamental "
+                                f"({lo:.3g} rad/m) to half its Nyquist wave number ({hi:.3g} rad/m) there is no range")
     mid = np.sqrt(lo * hi)
     x, y = np.log(psd.q), np.log(np.maximum(psd.C, np.finfo(float).tiny))
 
     def fit(a: float, b: float) -> tuple[float, float]:
         m = (psd.q >= a) & (psd.q <= b)
         if m.sum() < 3:
-            raise ProblemInputError(f"too few PSD bins in [{a:.3g}, {b:.3g}] rad/m for a power-law check")
+            raise ProblemInputError(f"the grid is too small for a power-law check of its PSD: {int(m.sum())} bins "
+                                    f"in [{a:.3g}, {b:.3g}] rad/m, 3 needed")
         s, c = np.polyfit(x[m], y[m], 1)
         r = y[m] - (c + s * x[m])
         return float(s), 1.0 - float(np.sum(r**2) / max(np.sum((y[m] - y[m].mean()) ** 2), 1e-300))

@@ -28,18 +28,24 @@ from typing import Any
 import numpy as np
 
 from ..coarsen import power_law_check
+from ..errors import ProblemInputError
 from ..surfaces import Surface, spectral_surface
 from . import register_scene
 from .base import CONTROL_SCENE_OPTIONS, LAYER_SCENE_OPTIONS, SCENE_OPTIONS, InstanceSpec, Scene, SceneConfig, seeds_of
-from .core import (PAPER_E, RampScene, recipe_rms_height, check_relief, departure_suffix, grid_suffix, modulus_suffix, rough_surface_specs,
-                   square_length, steps_suffix, surface_from_params)
+from .core import (PAPER_E, RampScene, check_relief, departure_suffix, grid_suffix, modulus_suffix, recipe_rms_height,
+                   rough_surface_specs, square_length, steps_suffix, surface_from_params)
 
 
 def psd_warnings(scene: Scene, cfg: SceneConfig, surface_of: Any) -> list[str]:
-    """One line per instance whose PSD is not a power law over the cascade's range."""
+    """One line per instance whose PSD is not a power law over the cascade's range, or
+    whose grid is too small to tell (a warning: the solve itself is well posed)."""
     out = []
     for spec in scene.instances(cfg):
-        check = power_law_check(surface_of(spec.params))
+        try:
+            check = power_law_check(surface_of(spec.params))
+        except ProblemInputError as exc:
+            out.append(f"{scene.name}/{spec.instance}: a multi-resolution method may be unreliable here: {exc}")
+            continue
         if not check.power_law:
             out.append(f"{scene.name}/{spec.instance}: a multi-resolution method is unreliable here: the {check.message}")
     return out
