@@ -449,12 +449,12 @@ class InstanceBuilder:
             idx = np.intersect1d(idx, self._candidate_indices(candidates), assume_unique=False)
         if idx.size == 0:
             where = " within the given candidate points" if candidates is not None else ""
-            raise ProblemInputError(f"empty trial set at Delta = {delta_disp!r}{where}: no element can touch")
+            raise ProblemInputError(f"empty trial set at Delta = {float(delta_disp)!r}{where}: no element can touch")
         ubar = rigid_body_ubar(h, delta_disp, idx)
         if self.periodic:
             if idx.size == h.size and float(np.sum(ubar)) >= 0.0:
                 raise ProblemInputError(
-                    f"periodic problem at Delta = {delta_disp!r} >= xi_max - xi_mean: H is singular along the "
+                    f"periodic problem at Delta = {float(delta_disp)!r} >= xi_max - xi_mean: H is singular along the "
                     "constant vector (its q = 0 mode is removed) and the QP is unbounded; use a smaller Delta "
                     "or a non-periodic kernel"
                 )

@@ -220,6 +220,15 @@ def check_grid_size(N: object, what: str = "surface") -> int:
     return int(N)  # type: ignore[arg-type]
 
 
+def check_hurst(hurst: object) -> float:
+    """``hurst`` as a float when it is a real number in (0, 1) (not a bool, not text), else
+    a one-line ``ProblemInputError``."""
+    if isinstance(hurst, (bool, np.bool_)) or not isinstance(hurst, (int, float, np.integer, np.floating)) \
+            or not 0.0 < float(hurst) < 1.0:
+        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst!r}")
+    return float(hurst)
+
+
 def check_seed(seed: object) -> int:
     """``seed`` as an int when it is an integer >= 0 (not a bool, not None: a surface's name
     records its seed, so the same name is the same surface), else a one-line
@@ -396,8 +405,7 @@ def rmd_surface(
     Family (``meta["family"]``, the name's prefix): "periodic" or "saupe".  ``k`` and
     ``min_level`` are whole numbers, ``seed`` an integer >= 0 (``check_seed``).
     """
-    if not (0.0 < hurst < 1.0):
-        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
+    hurst = check_hurst(hurst)
     k, min_level, seed = check_whole("RMD level k", k, 1), check_whole("min_level", min_level, 0), check_seed(seed)
     if k > RMD_MAX_LEVEL:
         raise ProblemInputError(f"RMD level k must be an integer in 1..{RMD_MAX_LEVEL}, got {k!r}")
@@ -469,8 +477,7 @@ def spectral_surface(
     wavelengths are finite and > 0, and some wave number 0 < q <= q_s must remain (else a
     one-line ``ProblemInputError``).
     """
-    if not (0.0 < hurst < 1.0):
-        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst}")
+    hurst = check_hurst(hurst)
     N = check_grid_size(N, "spectral surface")
     check_positive("length L", length)
     check_positive("rms height", rms_height)
@@ -517,12 +524,18 @@ def fourier_synthesis(N: int, hurst: float, rms_slope: float, length: float = 10
     (``spectral_surface``'s filter): C(q) flat below q_r = 2 pi / rolloff_wavelength
     (default ``ROLLOFF_FRACTION`` L), ~ q^(-2(1+H)) up to q_s = 2 pi / short_cutoff_wavelength
     (default ``SHORT_CUTOFF_SPACINGS`` grid spacings), zero above; heights scaled to the
-    given rms slope (``with_rms_slope``).  Name "fourier-H..-N..-s..", meta family "fourier"."""
+    given rms slope (``with_rms_slope``).  A wavelength given must leave the roll-off longer
+    than the cutoff (a self-affine range between them), else a one-line
+    ``ProblemInputError``; the defaults on a grid under 16 points leave none (a plateau).  Name "fourier-H..-N..-s..", meta family "fourier"."""
     check_positive("rms slope", rms_slope)
     N = check_grid_size(N, "Fourier-synthesis surface")
     check_positive("length L", length)
     rolloff = ROLLOFF_FRACTION * length if rolloff_wavelength is None else rolloff_wavelength
     cutoff = SHORT_CUTOFF_SPACINGS * length / N if short_cutoff_wavelength is None else short_cutoff_wavelength
+    if (rolloff_wavelength is not None or short_cutoff_wavelength is not None) \
+            and not check_positive("rolloff wavelength", rolloff) > check_positive("short cutoff wavelength", cutoff):
+        raise ProblemInputError(f"the roll-off wavelength {rolloff!r} is not longer than the short cutoff wavelength "
+                                f"{cutoff!r}: no self-affine range is left for H = {hurst!r}")
     s = spectral_surface(N, hurst, length=length, seed=seed, rolloff_wavelength=rolloff,
                          short_cutoff_wavelength=cutoff)
     s = replace(s, name=f"fourier-H{hurst:g}-N{N}-s{seed}", meta={**s.meta, "family": "fourier"})

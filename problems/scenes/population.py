@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ProblemInputError
-from ..surfaces import Surface
+from ..surfaces import Surface, check_hurst
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, SceneConfig, seeds_of
 from .core import (PAPER_E, RampScene, departure_suffix, grid_suffix, ramp_sequence, recipe_rms_height,
@@ -102,10 +102,7 @@ class Population(RampScene):
     load_history = True
 
     def instances(self, cfg: SceneConfig) -> list[InstanceSpec]:
-        hursts = tuple(float(h) for h in cfg.extra.get("hursts", DEFAULT_HURSTS))
-        for h in hursts:
-            if not 0.0 < h < 1.0:
-                raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {h}")
+        hursts = tuple(check_hurst(h) for h in cfg.extra.get("hursts", DEFAULT_HURSTS))
         seps = separations_for(cfg)
         size = int(cfg.size)
         if size & (size - 1):
