@@ -42,7 +42,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from contactbench.problems.errors import check_positive
+from contactbench.problems.errors import ProblemInputError, check_positive, printable_excerpt
 from contactbench.problems.instances import CONTACT_TOL, ContactInstance
 from contactbench.problems.kkt import KKTReport, kkt_check, relative_error, relative_load_error
 from contactbench.problems.operator_state import Rebuild, SealRule, Verify, seal_rule
@@ -537,9 +537,11 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
     ``multiplier`` the approach Delta the solver reports with its answer under load
     control (``answer_report``).
     ``inst`` must be the harness's own copy of the problem; ``check_tol`` a finite number
-    > 0 (``ProblemInputError``: an infinite one would pass p = 0, a NaN fail everything)."""
-    check_positive("the judge's check_tol", check_tol)
-    claimed = bool(claimed)
+    > 0 (an infinite one would pass p = 0, a NaN fail everything); ``claimed`` a bool,
+    Python's or NumPy's (the text "no" is no claim either way); ``p_ref`` None or a
+    length-n vector of finite real numbers; ``p_tol`` None or a finite number > 0.  Else
+    a one-line ``ProblemInputError`` naming the input (``_checked_inputs``)."""
+    claimed, p_ref = _checked_inputs(inst, claimed, check_tol, p_ref, p_tol)
     if tampered:
         verdict = _failed(claimed, tampered, reading="wrong", kind="tampered")
         verdict.tampered = True
@@ -568,6 +570,29 @@ def judge(inst: ContactInstance, p: Any, claimed: bool, check_tol: float, p_ref:
         kinds.append("reference")
     reading = "pass" if not problems else ("wrong" if claimed else "unconverged")
     return Verdict("solved" if solved else "inaccurate", reading, claimed, kkt, figures, problems, kinds=kinds)
+
+
+def _checked_inputs(inst: ContactInstance, claimed: Any, check_tol: float, p_ref: Any,
+                    p_tol: float | None) -> tuple[bool, np.ndarray | None]:
+    """``judge``'s inputs checked (its doc): the claim as a bool, p_ref as float64 or None."""
+    check_positive("the judge's check_tol", check_tol)
+    if p_tol is not None:
+        check_positive("the judge's p_tol", p_tol)
+    if not isinstance(claimed, (bool, np.bool_)):
+        raise ProblemInputError(f"the judge's claimed must be a bool (True or False), got "
+                                f"{printable_excerpt(repr(claimed))} of type {type(claimed).__name__}")
+    if p_ref is None:
+        return bool(claimed), None
+    try:
+        ref = np.asarray(p_ref)
+    except Exception:  # (ragged, or nothing numpy can wrap)
+        ref = np.asarray(None)
+    got = f"shape {ref.shape} dtype {ref.dtype}"
+    if ref.dtype.kind in "iuf" and ref.shape == (inst.n,):
+        got = f"{int(np.count_nonzero(~np.isfinite(ref)))} NaN/inf entries"
+    if got != "0 NaN/inf entries":
+        raise ProblemInputError(f"the judge's p_ref must be a length-{inst.n} vector of finite real numbers, got {got}")
+    return bool(claimed), ref.astype(np.float64, copy=False)
 
 
 def near_reference(p: np.ndarray, p_ref: np.ndarray, rel_error: float, p_tol: float, p_s: float) -> bool:

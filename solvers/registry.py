@@ -330,7 +330,14 @@ def register(obj: S | None = None, *, replace: bool = False) -> S | Callable[[S]
     return _do(obj)
 
 
-def unregister(name: str) -> None:
+def unregister(name: str, *, missing_ok: bool = False) -> None:
+    """Remove the solver registered as ``name`` (a test's throw-away solver, say): a later
+    ``get_solver(name)`` is an ``UnknownSolverError`` until it is registered again.  A name
+    that is not registered is a ``KeyError`` naming it, or nothing when ``missing_ok``."""
+    if name not in _SOLVERS:
+        if missing_ok:
+            return
+        raise UnknownSolverError(f"cannot unregister solver {name!r}: no solver of that name is registered")
     _SOLVERS.remove(name)
 
 
@@ -342,6 +349,10 @@ def all_solvers() -> dict[str, Solver]:
 
 
 def available_solvers() -> dict[str, Solver]:
+    """The registered solvers (``all_solvers``, late sources loaded first) whose
+    ``availability()`` answers available on this machine now, by name (sorted); a solver
+    whose check fails (a missing package, no GPU) is left out -- ``all_solvers`` lists it,
+    ``availability()`` gives its reason; an ``availability()`` that raises raises here."""
     return {k: s for k, s in all_solvers().items() if s.availability()[0]}
 
 

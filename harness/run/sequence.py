@@ -17,6 +17,7 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
+from contactbench.problems.errors import ProblemInputError, check_positive, real_number
 from contactbench.problems.instances import ContactInstance
 from contactbench.problems.scenes import LoadSequence
 from contactbench.solvers.base import Solver, SolveResult, SolverSettings, WarmStart
@@ -146,16 +147,33 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
     Each step warm-starts from the solver's own previous answer (``warm_start_from``,
     when ``warm`` and the solver takes one); each answer is judged by ``judge`` at
     ``check_tol`` (default: the "default" profile's), against ``references[k]`` when
-    given.  Stops after the step that brings the total solve time over ``budget_s``, or
-    at a ``MemoryError`` (recorded as that step's ``error``)."""
+    given (an entry None: that step has none).  Stops after the step that brings the total
+    solve time over ``budget_s`` (None: no budget), or at a ``MemoryError`` (recorded as
+    that step's ``error``).
+
+    ``budget_s`` must be None or a number > 0, ``check_tol`` None or a finite number > 0,
+    and ``references`` None or one entry per step: for ``steps`` with a length (a
+    ``LoadSequence``, a list) checked before any solve; for other iterables before the
+    solve of a step beyond the references, and once the steps run out short of them.
+    Else a one-line ``ProblemInputError``."""
+    if budget_s is not None and not real_number("solve_sequence's budget_s", budget_s, "a number > 0") > 0.0:
+        raise ProblemInputError(f"solve_sequence's budget_s must be a number > 0 (None: no budget), got {budget_s!r}")
+    refs = None if references is None else list(references)
+    count = len(steps) if hasattr(steps, "__len__") else None  # type: ignore[arg-type]
+    if refs is not None and count is not None and len(refs) != count:
+        raise ProblemInputError(f"solve_sequence was given {len(refs)} references for {count} steps")
     s = load_solver(solver)
     settings = settings or SolverSettings()
-    tol = get_profile("default").check_tol if check_tol is None else float(check_tol)
+    tol = get_profile("default").check_tol if check_tol is None else check_positive("solve_sequence's check_tol",
+                                                                                    check_tol)
     kind = s.capabilities.warm_start if warm else "none"
     out: list[StepSolve] = []
     state: WarmState | None = None
     total = 0.0
+    k = -1
     for k, inst in enumerate(instances_of(steps)):
+        if refs is not None and k >= len(refs):
+            raise ProblemInputError(f"solve_sequence was given {len(refs)} references for more steps")
         start = warm_start_from(state, inst, k, kind)
         seal = ProblemSeal.of(inst.qp)  # before the clock: hashing a large kernel table is the harness's time
         t0 = time.perf_counter()
@@ -165,7 +183,7 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
             out.append(StepSolve(k, inst, None, time.perf_counter() - t0, start is not None, None, f"memory: {exc}"))
             break
         seconds = time.perf_counter() - t0
-        p_ref = references[k] if references is not None and k < len(references) else None
+        p_ref = None if refs is None else refs[k]
         tampered = seal.broken(inst.qp)
         seal.mend(inst.qp)
         verdict = judge(inst, res.p, bool(res.converged), tol, p_ref=p_ref, tampered=tampered,
@@ -178,4 +196,7 @@ def solve_sequence(solver: Solver | str, steps: LoadSequence | Iterable[ContactI
         total += seconds
         if budget_s is not None and total > budget_s:
             break
+    else:
+        if refs is not None and len(refs) != k + 1:
+            raise ProblemInputError(f"solve_sequence was given {len(refs)} references for {k + 1} steps")
     return out

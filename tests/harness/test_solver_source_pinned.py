@@ -34,7 +34,7 @@ def no_module_left(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     monkeypatch.delitem(sys.modules, "pinned_mine", raising=False)
     yield
     sys.modules.pop("pinned_mine", None)
-    unregister("test-pinned-mine")
+    unregister("test-pinned-mine", missing_ok=True)
 
 
 def write_solver(folder: Path, bug: float) -> None:

@@ -53,7 +53,7 @@ def tree(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     yield tmp_path
     for name in [m for m in sys.modules if m.split(".")[0] in ("pkg", "sibling", "late", "unrelated")]:
         del sys.modules[name]
-    unregister("test-source-files-mine")
+    unregister("test-source-files-mine", missing_ok=True)
 
 
 def digest(tree: Path) -> str | None:
@@ -141,4 +141,4 @@ def test_a_helper_linked_into_the_tree_is_read_through_its_link(tmp_path: Path, 
     finally:
         for name in [m for m in sys.modules if m.split(".")[0] == "linkpkg"]:
             del sys.modules[name]
-        unregister("test-source-files-mine")
+        unregister("test-source-files-mine", missing_ok=True)
