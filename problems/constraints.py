@@ -141,7 +141,7 @@ def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int)
     """u_i = H_A d0 d1 for n elements of sides ``delta`` = (d0, d1) (one number: square
     elements): the force at which an element's mean pressure reaches the hardness
     ``hardness`` (inf: no bound); a ``ProblemInputError`` where a finite hardness gives a
-    force float64 cannot hold (0 by underflow, inf by overflow)."""
+    force float64 holds only as a subnormal or not at all (0 by underflow, inf by overflow)."""
     h = real_number("hardness", hardness, "> 0 (inf for none)")
     if math.isnan(h) or h <= 0.0:
         raise ProblemInputError(f"hardness must be > 0 (inf for none), got {hardness!r}")
@@ -149,7 +149,7 @@ def hardness_bounds(hardness: float, delta: float | tuple[float, float], n: int)
     if len(sides) != 2 or not all(math.isfinite(float(d)) and float(d) > 0.0 for d in sides):
         raise ProblemInputError(f"grid spacing must be finite and > 0, got {delta!r}")
     u = h * float(sides[0]) * float(sides[1])
-    if not u > 0.0 or (math.isinf(u) and math.isfinite(h)):
+    if not u >= np.finfo(np.float64).tiny or (math.isinf(u) and math.isfinite(h)):
         raise ProblemInputError(f"hardness {h:g} Pa times the element area {float(sides[0]) * float(sides[1]):g} m^2 "
                                 f"is a force float64 cannot hold ({u!r})")
     return np.full(n, u)

@@ -318,3 +318,11 @@ def test_a_complex_answer_is_no_answer(elastic) -> None:
     qp = b.build(d).qp
     assert kkt_check(qp, p + 1j).kkt_error == math.inf
     assert kkt_check(qp, p + 0j).kkt_error == pytest.approx(kkt_check(qp, p).kkt_error, abs=1e-15)
+
+
+def test_a_bound_that_float64_holds_only_as_a_subnormal_is_refused() -> None:
+    """1e-300 Pa on a 1e-11 m^2 element is a force of 1e-311 N: a subnormal, whose products
+    and sums lose digits -- refused as underflow, as 0 is."""
+    with pytest.raises(ProblemInputError, match="float64 cannot hold"):
+        hardness_bounds(1e-300, (1e-5, 1e-6), 4)
+    assert hardness_bounds(1e-290, (1e-5, 1e-6), 4)[0] == pytest.approx(1e-301)
