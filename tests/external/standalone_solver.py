@@ -36,9 +36,23 @@ def read_problem(d):
     return doc, arrays
 
 
+RELIEF_SHARE = 1e-6  # problems/kkt.py: the least share of ||ubar||_inf in the displacement scale
+U_SCALE_FALLBACK = 1.0  # problems/kkt.py: the scale when that is 0 (ubar = 0)
+
+
+def problem_scales(ubar, dmax):
+    """The judge's (u_s, p_s) under displacement control (problems/kkt.py, problem_scales):
+    u_s = max(max ubar, 1e-6 ||ubar||_inf), the approach -- U_SCALE_FALLBACK when that is 0
+    or p_s would underflow -- and p_s = u_s / max diag H."""
+    top = float(np.max(np.abs(ubar), initial=0.0))
+    us = max(float(np.max(ubar, initial=0.0)), RELIEF_SHARE * top)
+    if not (us > 0.0 and us / dmax > 0.0):
+        us = U_SCALE_FALLBACK
+    return us, us / dmax
+
+
 def scaled_kkt(p, w, ubar, dmax):
-    us = float(np.max(np.abs(ubar), initial=0.0)) or 1.0  # the problem's scale (problems/kkt.py)
-    ps = us / dmax
+    us, ps = problem_scales(ubar, dmax)  # the problem's scales, the judge's (problems/kkt.py)
     primal = max(0.0, -float(np.min(p, initial=0.0))) / ps
     dual = max(0.0, -float(np.min(w, initial=0.0))) / us
     comp = float(np.max(np.abs(w * p), initial=0.0)) / (us * ps)

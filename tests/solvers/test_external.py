@@ -237,6 +237,31 @@ def test_the_standalone_script_passes_with_kernel_inputs_and_says_what_it_left_o
     assert "builds a dense H" in text
 
 
+#: One periodic whole grid: ubar there holds the whole relief below zero, so the judge's
+#: displacement scale is the approach max ubar, far below ||ubar||_inf (problems/kkt.py).
+PERIODIC = ["--group", "periodic", "--cases", "periodic/whole-grid-bcc-*"]
+
+
+@pytest.mark.parametrize("inputs", ["dense", "kernel"], ids=["c-example-dense", "standalone-script-kernel"])
+def test_the_examples_stop_on_the_judges_scale_on_a_periodic_grid(
+        request: pytest.FixtureRequest, inputs: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Both examples stop on the judge's u_s = max(max ubar, 1e-6 ||ubar||_inf): an example
+    stopping on ||ubar||_inf claims convergence early on a periodic grid and is judged WRONG."""
+    pgs = request.getfixturevalue("pgs_binary") if inputs == "dense" else None
+    command = f"{pgs} {{problem}} {{solution}}" if pgs is not None else script_command("--kernel")
+    rc = validate_main(["--command", command, "--inputs", inputs, *PERIODIC])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert "CONFORMS: every solve correct" in text and "periodic/whole-grid-bcc-N32@0" in text
+
+
+def test_the_c_example_prints_its_version(pgs_binary: Path) -> None:
+    """`pgs --version` (the manifest example's version command) prints one line and exits 0."""
+    out = subprocess.run([str(pgs_binary), "--version"], capture_output=True, text=True, timeout=30)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("pgs ") and len(out.stdout.splitlines()) == 1
+
+
 def test_the_clipping_variant_is_caught_with_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "report"
     rc = validate_main(["--command", script_command("--variant", "clip"), "--group", "counterexample", "--quiet",
