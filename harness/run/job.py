@@ -55,10 +55,10 @@ from contactbench.solvers.registry import load_solver
 
 from .isolation import ChildProcess, ChildReply
 from .output_log import OUTPUT_LOG, OutputLog, SolverOutput
-from .plan import InstanceJob, RunConfig
+from .plan import InstanceJob, RunConfig, scene_operator
 from ..profiles import get_profile
 from .rows import RowFactory, answer_columns
-from .skips import Decision, SkipPolicy, extrapolated_time, problem_time_estimate, skip_decision
+from .skips import Decision, SkipPolicy, extrapolated_time, offered_operator, problem_time_estimate, skip_decision
 from ..table.aggregates import served_name
 from ..table.files import safe_name
 from ..table.store import ResultStore
@@ -92,6 +92,21 @@ Todo = list[tuple[SolverVariant, str, list[int]]]  # (variant, profile, repeats 
 #: 85-363 at 256^2-4096^2).  With ``_kit.matvec_seconds`` it keeps the warm-up of such a
 #: solve up to 512^2 and drops it from 1024^2 on the paper's trial sets.
 MIN_PREDICTED_MATVECS = 150
+
+
+def row_operator(base: str, scene_operator: str) -> str:
+    """The operator ("dense" or "fft") solver ``base`` is given on a step whose scene builds
+    ``scene_operator`` (``skips.offered_operator``; the scene's where the solver takes none
+    of it).  The operator a skip or planning-failure row names (its
+    ``Decision`` carries none), so the report counts it with the solves of the same
+    solver on that operator (``report.view.operator_labels``); the scene's where the solver
+    cannot be loaded."""
+    scene = "dense" if scene_operator == "dense" else "fft"
+    try:
+        caps = load_solver(base).capabilities
+    except Exception:  # (the decision says why it cannot be loaded)
+        return scene
+    return offered_operator(caps, scene) or scene
 
 
 @dataclass
@@ -178,8 +193,10 @@ class JobDriver:
                 if todo:
                     ctx = self.prepare_step(k)
                     if ctx is None:
+                        scene_op = scene_operator(self.job.spec.params)
                         for v, prof, reps in todo:
-                            self.emit_rows(None, k, v, prof, reps, status="failed", error=self._step_error)
+                            self.emit_rows(None, k, v, prof, reps, status="failed", error=self._step_error,
+                                           operator=row_operator(v.base, scene_op))
                     else:
                         n_steps = ctx.info.steps
                         self.run_step(ctx, todo)
@@ -283,11 +300,11 @@ class JobDriver:
             i = next((j for j, (v, prof, _) in enumerate(pending) if (v.name, prof) == ctx.serving), 0)
             v, prof, reps = pending.pop(i)
             d = decisions[(v.name, prof)]
-            if d.failed:
-                self.emit_rows(ctx, ctx.k, v, prof, reps, status="failed", error=d.reason)
-                continue
-            if d.skip:
-                self.emit_rows(ctx, ctx.k, v, prof, reps, status="skipped", skip_reason=d.reason)
+            if d.failed or d.skip:  # a row that ran nothing names the operator it would have been given
+                op = d.operator or row_operator(v.base, traits.operator)
+                self.emit_rows(ctx, ctx.k, v, prof, reps, operator=op,
+                               **({"status": "failed", "error": d.reason} if d.failed
+                                  else {"status": "skipped", "skip_reason": d.reason}))
                 continue
             self.run_group(ctx, v, prof, reps, d.operator)
             if ctx.serving == (v.name, prof) and ctx.reference_path is None:  # its answer did not serve:

@@ -424,11 +424,16 @@ def scene_jobs(study: Study, cfg: SceneConfig, solvers: Sequence[str | SolverSpe
     return jobs, [f"{study.scene}: {w}" for w in scene.warnings(merged)]
 
 
+def scene_operator(params: dict[str, Any]) -> str:
+    """The operator a recipe's steps build ("dense" or "fft"; "fft" where it names none)."""
+    return str(params.get("operator") or "fft")
+
+
 def step_traits(params: dict[str, Any], n: int, side: int) -> ProblemTraits:
     """What the skip policy will know of a step of n unknowns of recipe ``params``
     (``harness.run.worker.problem_traits`` of the built instance)."""
     layer = params.get("thickness") is not None or params.get("thickness_over_L") is not None
-    return ProblemTraits(n=int(n), operator=str(params.get("operator") or "fft"), has_geometry=True,
+    return ProblemTraits(n=int(n), operator=scene_operator(params), has_geometry=True,
                          has_surface=side > 0, periodic=bool(params.get("periodic")), kernel=str(params.get("kernel")),
                          surface_side=side, load_control=params.get("control") == CONTROLS[1],
                          bounded=params.get("hardness") is not None or params.get("hardness_over_ps") is not None,

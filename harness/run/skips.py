@@ -48,7 +48,7 @@ from typing import Any, Callable, Sequence
 from contactbench.solvers._kit import (FFT_POINTS_PER_UNKNOWN, TYPICAL_PK_LOAD_ITERATIONS, WHOLE_GRID_FFT_POINTS,
                                        matvec_seconds)
 from contactbench.solvers._loading import availability_failure
-from contactbench.solvers.base import ProblemTraits, Solver
+from contactbench.solvers.base import Capabilities, ProblemTraits, Solver
 from contactbench.solvers.pk import TYPICAL_PK_ITERATIONS
 from contactbench.solvers.reference import BVLS_FACTORISATIONS, BVLS_LOAD_FACTORISATIONS
 from contactbench.solvers.registry import load_solver
@@ -192,6 +192,16 @@ def skip_decision(base: str, traits: ProblemTraits, time_limit: float, memory_bu
     return time_decision(solver, traits, d.operator, time_limit, observed)
 
 
+def offered_operator(caps: Capabilities, scene_operator: str) -> str | None:
+    """The operator ("dense" or "fft") a solver of capabilities ``caps`` is given on a step
+    whose scene builds ``scene_operator``: the scene's dense H (None: the solver takes no
+    dense H), else the FFT operator unless the solver needs a dense H (``needs_dense``, or
+    no "fft" among its ``operators``)."""
+    if scene_operator == "dense":
+        return "dense" if "dense" in caps.operators else None
+    return "dense" if caps.needs_dense or "fft" not in caps.operators else "fft"
+
+
 def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: float,
                         params: dict[str, Any] | None = None) -> Decision:
     """Steps 2-5 of the module doc for a loaded, available solver: max_n, the operator
@@ -201,13 +211,9 @@ def capability_decision(solver: Solver, traits: ProblemTraits, memory_budget: fl
     n, caps = traits.n, solver.capabilities
     if caps.max_n is not None and n > caps.max_n:
         return Decision(reason=f"trial set n = {n} exceeds the solver's limit max_n = {caps.max_n}")
-    wants_dense = caps.needs_dense or "fft" not in caps.operators
-    if traits.operator == "dense":
-        if "dense" not in caps.operators:
-            return Decision(reason="the solver needs the matrix-free FFT operator; this scene builds a dense H")
-        operator = "dense"
-    else:
-        operator = "dense" if wants_dense else "fft"
+    operator = offered_operator(caps, traits.operator)
+    if operator is None:
+        return Decision(reason="the solver needs the matrix-free FFT operator; this scene builds a dense H")
     dense_bytes = 8.0 * n * n if operator == "dense" else 0.0  # the step's dense H, the scene's own included
     try:
         own_bytes = model_value(solver.memory_estimate(n), "memory_estimate")

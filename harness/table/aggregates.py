@@ -26,9 +26,13 @@ Definitions (the report states them next to every number):
 * *Shifted geometric mean* (Mittelmann's benchmarks): ``exp(mean(log(t + s))) - s``
   with shift ``s`` seconds, over the cells the solver was planned to run (their count is
   ``SolverSummary.sgm_cells``): a planned cell that is not solved -- failed, inaccurate,
-  timeout, crashed or skipped -- counts at the time limit (``time_limit_s`` of the cell,
-  else the largest in the scene, else the largest observed time); a cell never planned
-  is not counted.  Reported relative to the best (1.00 = best): the solver's SGM over the
+  timeout, crashed or skipped -- counts at the *penalty* of the part aggregated (one scene
+  at one profile, ``profile_parts``): the largest ``time_limit_s`` of its rows, never less
+  than its largest solved time (else, with no limit recorded, the largest observed time),
+  so an unsolved cell never counts cheaper than any solve of the part, whatever limit its
+  own row ran under (``run --append`` may add rows with another ``--timeout``); one home:
+  ``penalty_time``.  A cell never planned is not counted.  An SGM within rounding of 0
+  (every counted time 0) reads 0.  Reported relative to the best (1.00 = best): the solver's SGM over the
   smallest SGM over the same cells among the solvers planned on every one of them that
   solved at least one cell (so 1 is the best on the solver's own problems; one that
   solved nothing is never the best).  A solver skipped on every problem has no SGM (the
@@ -77,8 +81,15 @@ def served_name(label: str, profile: str) -> str:
     return f"{label}@{profile}"
 
 
+#: How many units in the last place of the shift an SGM may be off 0 and still read 0: the
+#: rounding of ``exp(log(shift)) - shift`` (all times 0), not a time.
+SGM_ZERO_ULPS: int = 8
+
+
 def shifted_geometric_mean(times: Iterable[float], shift: float = DEFAULT_SHIFT_S) -> float:
-    """``exp(mean(log(t_i + shift))) - shift``; NaN for an empty input.
+    """``exp(mean(log(t_i + shift))) - shift``, clipped at 0; NaN for an empty input.  A
+    result within ``SGM_ZERO_ULPS`` ulps of ``shift`` of 0 is rounding and reads exactly 0
+    (so every time 0 gives 0, and a ratio over it is undefined, not 1e15).
 
     ``shift`` must be >= 0 and every time >= 0 and finite (count failures at the time
     limit before calling)."""
@@ -91,13 +102,17 @@ def shifted_geometric_mean(times: Iterable[float], shift: float = DEFAULT_SHIFT_
         raise ValueError("shifted geometric mean needs finite times >= 0 (count failures at the time limit)")
     if shift == 0 and np.any(t == 0):
         raise ValueError("a zero time needs a positive shift")
-    return float(np.exp(np.mean(np.log(t + shift))) - shift)
+    sgm = float(np.exp(np.mean(np.log(t + shift))) - shift)
+    if abs(sgm) <= SGM_ZERO_ULPS * float(np.spacing(shift)):
+        return 0.0
+    return max(0.0, sgm)
 
 
 @dataclass(frozen=True)
 class CellTable:
     """One row per (problem, solver): ``solved`` (bool), ``time_s`` (min over repeats,
-    NaN when never timed), ``penalty_s`` (the time counted for an unsolved cell),
+    NaN when never timed), ``penalty_s`` (the time counted for an unsolved cell:
+    ``penalty_time`` of the whole table, the same for every cell),
     ``attempted`` (not skipped), ``planned`` (the table has a row of the solver for the
     problem, whatever its status; False for a pair filled in as absent)."""
 
@@ -117,21 +132,28 @@ def profile_parts(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     return [(p, df[prof == p]) for p in sorted(prof.unique())]
 
 
-def _penalty_time(df: pd.DataFrame) -> pd.Series:
-    """Per row: the row's time limit, else the largest limit in ``df``, else the
-    largest observed solve time (so a failure is never cheaper than any success)."""
-    limit = pd.to_numeric(df.get("time_limit_s", pd.Series(np.nan, index=df.index)), errors="coerce")
-    fallback = limit.max()
-    if not np.isfinite(fallback):
-        fallback = pd.to_numeric(df["solve_time_s"], errors="coerce").max()
-    if not np.isfinite(fallback):
-        fallback = 1.0
-    return limit.fillna(fallback)
+def penalty_time(df: pd.DataFrame) -> float:
+    """The time an unsolved cell of ``df`` counts at in the shifted geometric mean (the
+    module's definitions; ``df`` is the part aggregated, one scene at one profile): the
+    largest ``time_limit_s`` of its rows, raised to its largest solved ``solve_time_s``,
+    whatever limit the unsolved cell's own row ran under -- so a solver that solved nothing
+    never gets an SGM below one that solved; with no limit recorded, the largest observed
+    solve time; 1 s for a part with neither.  The one home of the rule."""
+    limit = pd.to_numeric(df["time_limit_s"], errors="coerce") if "time_limit_s" in df.columns \
+        else pd.Series(np.nan, index=df.index)
+    times = pd.to_numeric(df["solve_time_s"], errors="coerce")
+    solved = times[df["status"].astype(str) == "solved"]
+    candidates = [float(v) for v in (limit.max(), solved.max()) if np.isfinite(v)]
+    if not candidates:
+        candidates = [float(v) for v in (times.max(),) if np.isfinite(v)]
+    return max(candidates) if candidates else 1.0
 
 
 def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTable:
     """Fold repeats into cells and fill absent (problem, solver) pairs as unsolved, not
-    attempted and not planned.  ``solvers`` restricts / orders the solver set (default: all)."""
+    attempted and not planned.  ``solvers`` restricts / orders the solver set (default: all).
+    ``df`` is the part aggregated (one scene at one profile, ``profile_parts``): its unsolved
+    cells count at ``penalty_time(df)``."""
     if df.empty:
         return CellTable(pd.DataFrame(columns=[*PROBLEM_KEYS, "solver", "solved", "attempted", "planned", "time_s",
                                                "penalty_s"]), (), ())
@@ -142,7 +164,6 @@ def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTa
     d["_solved"] = d["status"].astype(str) == "solved"
     d["_attempted"] = d["status"].astype(str) != "skipped"
     d["_time"] = pd.to_numeric(d["solve_time_s"], errors="coerce")
-    d["_penalty"] = _penalty_time(d)
     keys = [*PROBLEM_KEYS, "solver"]
     g = d.groupby(keys, sort=True, dropna=False)
     cells = pd.DataFrame({
@@ -150,16 +171,14 @@ def cell_table(df: pd.DataFrame, solvers: Sequence[str] | None = None) -> CellTa
         "attempted": g["_attempted"].any(),
         "planned": g["_solved"].size() > 0,  # a row of the solver, whatever its status
         "time_s": g["_time"].min(),
-        "penalty_s": g["_penalty"].max(),
     }).reset_index()
     all_solvers = tuple(solvers) if solvers is not None else tuple(sorted(d["solver"].astype(str).unique()))
     problems = tuple(sorted({tuple(r) for r in d[list(PROBLEM_KEYS)].itertuples(index=False)}, key=_sort_key))
     full = pd.MultiIndex.from_tuples([(*p, s) for p in problems for s in all_solvers], names=keys)
     cells = cells.set_index(keys).reindex(full)
-    limit_fill = float(d["_penalty"].max())
     for flag in ("solved", "attempted", "planned"):
         cells[flag] = cells[flag].astype("boolean").fillna(False).astype(bool)
-    cells["penalty_s"] = cells["penalty_s"].fillna(limit_fill)
+    cells["penalty_s"] = penalty_time(d)
     return CellTable(cells.reset_index(), all_solvers, problems)
 
 
@@ -171,7 +190,7 @@ def _sort_key(t: tuple) -> tuple:
 def counted_times(cells: CellTable) -> pd.DataFrame:
     """Problems x solvers matrix of the time a cell counts at in the shifted geometric mean
     (which takes only the planned cells: ``time_aggregate``): the measured time where
-    solved, the penalty (time limit) otherwise."""
+    solved, the penalty (``penalty_time``) otherwise."""
     f = cells.frame
     t = np.where(f["solved"], f["time_s"].clip(lower=0.0), f["penalty_s"])
     return _matrix(cells, t)

@@ -167,7 +167,8 @@ _EXTRA = _columns(
     ("N", "Int64", "grid points per side; on a rectangular grid the points along axis 0 (= N0; see N1)"),
     ("kernel", "string", "influence-coefficient kernel"),
     ("periodic", "boolean", "periodic kernel"),
-    ("operator", "string", "'fft' or 'dense': what the solver was given"),
+    ("operator", "string", "'fft' or 'dense': what the solver was given (a skipped row, or one whose planning failed: "
+                           "what it would have been given)"),
     ("reference_solver", "string", "the solver of the reference solution"),
     ("analytic_load", "float64", "closed-form load, where the scene has one"),
     ("analytic_load_rel_error", "float64", "load error against the closed form"),
@@ -317,12 +318,26 @@ def apply_schema(df: pd.DataFrame) -> pd.DataFrame:
     return d
 
 
+#: The columns that name what a row is (``check_table``): ``status`` on every row; the
+#: others on every row of a table that names them on any (a run writes them on each).
+NAMING_COLUMNS: Final = ("status", "scene", "instance", "solver", "profile")
+
+
 def check_table(df: pd.DataFrame, source: object = "the table") -> None:
-    """Raise TableError when ``df`` lacks a required column or holds a status or
-    verdict outside the contract."""
+    """Raise TableError when ``df`` lacks a required column, leaves a ``NAMING_COLUMNS``
+    entry empty (missing or blank) on a row -- ``status`` on any row, the others on a row
+    of a table whose other rows name them (the report would print a scene, solver or
+    profile named "") -- or holds a status or verdict outside the contract.  An empty
+    entry's message names the column and the first such row (1-based, in table order)."""
     missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
     if missing:
         raise TableError(f"results table in {source} lacks required column(s): {', '.join(missing)}")
+    for name in NAMING_COLUMNS:
+        empty = np.array([not str(v).strip() for v in text_values(df[name])], dtype=bool)
+        if empty.any() and (name == "status" or not empty.all()):
+            first = int(np.flatnonzero(empty)[0])
+            raise TableError(f"column {name} of {source} is empty in row {first + 1} ({int(empty.sum())} such "
+                             f"row(s)); every row names its {name}")
     bad = sorted(set(text_values(df["status"])) - set(STATUSES))
     if bad:
         raise TableError(f"unknown status value(s) {bad} in {source}; expected one of {', '.join(STATUSES)}")

@@ -300,8 +300,8 @@ def solved_cells(s: agg.SolverSummary) -> tuple[Any, ...]:
 #: definition of harness/table/aggregates.py (``time_aggregate``), in the report's words.
 SGM_CAPTION = ("**SGM**: shifted geometric mean of solve time, exp(mean(log(t + s))) - s, over the cells the "
                "solver was planned to run (those with a row in the table: the column **SGM cells** counts them); a "
-               "planned cell that is not solved (failed, inaccurate, timeout, crashed or skipped) counts at its time "
-               "limit, and a problem the solver was never planned to run is not counted. **SGM / best**: that over "
+               "planned cell that is not solved (failed, inaccurate, timeout, crashed or skipped) counts at the largest "
+               "time limit of the scene's rows (at least their largest solved time), and a problem the solver was never planned to run is not counted. **SGM / best**: that over "
                "the smallest SGM over the same cells among the solvers planned on every one of them that solved a "
                "problem (1: the best on its own problems). A solver skipped on every problem has no SGM (-), nor has "
                "any solver of a scene where none solved a problem.")
@@ -677,14 +677,16 @@ def scene_tables_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
             g = cells.groupby(["n", "solver", "profile"], sort=True)
             rows_t = []
             for (n, s, p), c in g:
-                rows_t.append((fmt_int(n), s, p, len(c), int(c["solved"].sum()), fmt_num(c["solve_time_s"].median()),
+                won = c["solved"].astype(bool)  # an unsolved cell's time is no solve time
+                rows_t.append((fmt_int(n), s, p, len(c), int(won.sum()), fmt_num(c.loc[won, "solve_time_s"].median()),
                                fmt_int(c["iterations"].median()), fmt_err(c["kkt_error"].median()),
                                fmt_err(c["kkt_error"].max()), worst_p_error(c)))
             rows_t.sort(key=lambda x: (float(x[0]) if x[0] != "-" else -1, natural_key(x[1]), natural_key(x[2])))
             parts.append(table_md(ctx, f"scene `{scene}` ({len(cells)} cells, summarised by n, solver and profile): "
-                                       f"median time and iterations, median and worst kkt_error, worst error in p "
-                                       f"over the cells that are not the reference's own.{ref}",
-                                  ["n", "solver", "profile", "cells", "solved", "median time [s]", "median iters",
+                                       f"median time over the solved cells (- where none), median iterations, median "
+                                       f"and worst kkt_error over every cell, worst error in p over the cells that "
+                                       f"are not the reference's own.{ref}",
+                                  ["n", "solver", "profile", "cells", "solved", "median solved time [s]", "median iters",
                                    "median kkt", "worst kkt", "worst p err"], rows_t, "rllrrrrrrr"))
     return Section("Tables per scene", "\n".join(parts))
 
