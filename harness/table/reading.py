@@ -87,6 +87,25 @@ def journal_cell_ids(path: Path) -> set[str]:
     return ids
 
 
+def check_cell_ids(df: pd.DataFrame, where: object) -> None:
+    """Refuse (``TableError``) a table two of whose rows share a ``cell_id`` but name other
+    cells (their ``schema.CELL_COLUMNS`` or ``repeat`` differ): reading keeps the first row
+    of a cell, so the other would vanish unsaid -- a row edited or merged by hand.  Rows of
+    one cell that agree (a resumed run's repeat) pass."""
+    ids = text_values(df["cell_id"]) if "cell_id" in df.columns else [""] * len(df)
+    names = [c for c in (*CELL_COLUMNS, "repeat") if c in df.columns]
+    cells = list(zip(*(text_values(df[c]) for c in names))) if names else [()] * len(df)
+    first: dict[str, tuple[int, tuple[str, ...]]] = {}
+    for i, (cid, cell) in enumerate(zip(ids, cells)):
+        if not cid:
+            continue
+        j, seen = first.setdefault(cid, (i, cell))
+        if seen != cell:
+            apart = next(f"{n} {a!r} against {b!r}" for n, a, b in zip(names, seen, cell) if a != b)
+            raise TableError(f"rows {j + 1} and {i + 1} of {where} share cell_id {cid} but name other cells "
+                             f"({apart}): edited or merged by hand; give each cell its own id")
+
+
 def first_rows(df: pd.DataFrame) -> list[bool]:
     """For each row of ``df`` (a table after ``schema.apply_schema``), in order, whether
     reading keeps it: the first row of each cell.  Two rows are of one cell when their

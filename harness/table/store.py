@@ -80,7 +80,7 @@ from .files import canonical_json, pid_exists, replace_atomically
 from .meta import META_FILE
 from .journal import JournalError as JournalError, checked_journal, encode_row as encode_row
 from .journal import read_journal as read_journal, repair_journal
-from .reading import first_rows, journal_cell_ids, journal_stamp, parquet_stamp, read_csv, write_parquet
+from .reading import check_cell_ids, first_rows, journal_cell_ids, journal_stamp, parquet_stamp, read_csv, write_parquet
 from .schema import CELL_COLUMNS, MissingTableError, TableError, apply_schema, check_table, text_values
 
 ROWS_FILE = "rows.jsonl"
@@ -670,4 +670,5 @@ def load_table(path: str | os.PathLike[str]) -> pd.DataFrame:
         raise TableError(f"{p} is not a stored table (a run directory, .parquet or .csv)")
     check_table(df, p)
     df = apply_schema(df)
+    check_cell_ids(df, p)
     return df[first_rows(df)].reset_index(drop=True)

@@ -1,6 +1,7 @@
 """The report's aggregates against tables built to mislead them: a solver appended with a
 short time limit that solved nothing, an all-zero time column, skip and planning-failure
-rows that name no operator, rows that name no scene, solver, profile or status, and a
+rows that name no operator, rows that name no scene, solver, profile or status, a row that
+takes another cell's id, and a
 per-scene summary whose median time took in unsolved cells."""
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from contactbench.harness.report.view import report_view
 from contactbench.harness.run.plan import RunConfig
 from contactbench.harness.table import aggregates as agg
 from contactbench.harness.table.schema import ALL_COLUMNS, TableError, check_table
+from contactbench.harness.table.store import load_table
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers import register
 from contactbench.solvers.base import ProblemTraits
@@ -128,6 +130,20 @@ def test_the_report_of_a_table_with_an_empty_scene_is_one_line_and_exit_2(
     assert rc == 2 and "Traceback" not in err and err.count("\n") == 1, (rc, out, err)
     assert "column scene" in err and "row 2" in err
     assert not (tmp_path / "report.md").exists()
+
+
+def test_a_row_that_takes_another_cells_id_is_refused_not_dropped(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Reading keeps the first row of a cell: a row copied with another solver's cell_id would
+    vanish unsaid, so the table is refused in one line (exit 2); rows of one cell that agree
+    (a resumed run's) are read as one."""
+    rows = [report_row(scene="s", solver=so, cell_id="c1", solve_time_s=0.1) for so in ("pk", "nnls", "pk")]
+    pd.DataFrame(rows, columns=list(ALL_COLUMNS)).to_csv(tmp_path / "results.csv", index=False)
+    rc, out, err = run_cli(["report", str(tmp_path)], capsys)
+    assert rc == 2 and "Traceback" not in err and err.count("\n") == 1, (rc, out, err)
+    assert "rows 1 and 2" in err and "cell_id c1" in err and "'pk' against 'nnls'" in err
+    pd.DataFrame([rows[0], rows[2]], columns=list(ALL_COLUMNS)).to_csv(tmp_path / "results.csv", index=False)
+    assert len(load_table(tmp_path)) == 1
 
 
 # --- the per-scene summary's median time -------------------------------------------------------
