@@ -382,10 +382,14 @@ class EquilibratedAdapter(Solver):
             return checked_claim(ctx, self._constrained_polish(sqp, x, ctx, status, info))
         if self.polish:
             t1 = time.perf_counter()
-            pol = bpp_polish(sqp.H, sqp.u, x)
-            info.update(polish_time=time.perf_counter() - t1, polish_rounds=pol.rounds,
-                        polish_converged=pol.converged, polish_improved=pol.improved, polish_active=pol.active)
-            x = pol.p
+            try:
+                pol = bpp_polish(sqp.H, sqp.u, x)
+            except np.linalg.LinAlgError as exc:  # a singular block (a periodic grid's whole set): unpolished
+                info.update(polish_time=time.perf_counter() - t1, polish_error=str(exc), polish_improved=False)
+            else:
+                info.update(polish_time=time.perf_counter() - t1, polish_rounds=pol.rounds,
+                            polish_converged=pol.converged, polish_improved=pol.improved, polish_active=pol.active)
+                x = pol.p
         return checked_claim(ctx, Outcome(
             p=sqp.eq.to_original(x),
             iterations=out.iterations,

@@ -193,3 +193,18 @@ def test_tiny_heights_under_a_load_are_solved(name: str) -> None:
     res = get_solver(name).solve(inst.qp, SolverSettings(check_tol=1e-6))
     assert res.converged, f"{name}: {res.status} {res.message}"
     assert judge(inst, res.p, res.converged, 1e-6, multiplier=res.multiplier).status == "solved"
+
+
+@pytest.mark.parametrize("name", ["qp-clarabel+polish", "qp-piqp+polish"])
+def test_a_polish_on_a_singular_block_keeps_the_backends_answer(name: str) -> None:
+    """A periodic whole grid (H 1 = 0) whose answer is full contact: the polish's block is
+    singular, so the backend's own answer stands, unpolished -- no LinAlgError escapes."""
+    require(name)
+    h = np.zeros((4, 4))
+    h[1, 2] = 1.0
+    surface = Surface(h, 1.0, periodic=True)
+    delta = float(np.nextafter(h.max() - h.mean(), 0.0))  # just below the periodic limit
+    inst = InstanceBuilder(surface, 0.01, "love", True, operator="dense").build(delta)
+    res = get_solver(name).solve(inst.qp, SolverSettings(check_tol=1e-8))
+    assert res.info["polish_improved"] is False and "polish_error" in res.info
+    assert judge(inst, res.p, bool(res.converged), 1e-6).status == "solved"
