@@ -18,7 +18,12 @@ out, for the benchmark suite (``benchmarks/``) and for a user's own benchmark th
       the approach Delta too), a deep copy with its own operator, so no state carries
       over and a solver that memoises answers across solves misses every time;
     * sealed (``ProblemSeal``, with the harness's copies beside it) and watched for the
-      threads it leaves running (``threads_left``);
+      threads it leaves running (``threads_left``); the processes it starts end with it
+      and the working folder, the environment and NumPy's error handling are put back
+      after it, outside the clock (``Rounds.keep``: ``ends_what_it_starts``,
+      ``process_state_kept``);
+    * judged on a copy of its answer, taken when judged (``kept_answer``): a solver that
+      hands back a buffer it writes again in a later solve changes no verdict;
     * judged by ``judge`` on the harness's scaled copy (the reference scaled alike);
     * the first solve the judge does not pass settles the test (``settle``): "wrong"
       fails it, "unconverged" is an xfail; a solve past the hard limit (``Watchdog``)
@@ -210,7 +215,8 @@ def handed_copy(qp: QP, operator: str | None = None) -> QP:
 class Solve:
     """One solve (the ``index``-th of its benchmark, the warm-up 0; -1, -2 the cache check's):
     the harness's copy of its problem (``inst``, scaled by ``factor``), the copy handed to
-    the solver, its seal, the threads before it, its result and time."""
+    the solver, its seal, the threads before it, its result and time, and the copy of its
+    answer the judge read (``answer``, once ``judged``)."""
 
     index: int
     factor: float
@@ -221,6 +227,7 @@ class Solve:
     result: SolveResult | None = None
     seconds: float = math.nan
     judged: bool = False
+    answer: Any = None
 
 
 @dataclass
@@ -242,6 +249,27 @@ class Rounds:
     solves: list[Solve] = field(default_factory=list)
     verdict: Verdict | None = None
     problem_written: bool = False
+    kept: contextlib.ExitStack | None = None  # (``keep``: open from a solve's setup to its teardown)
+
+    def keep(self) -> None:
+        """From now until ``release``: the processes started end and the process state
+        (working folder, environment, NumPy's error handling) is put back
+        (``ends_what_it_starts``, ``process_state_kept``, as ``run`` and ``validate`` do)."""
+        from contactbench.harness.run.worker import process_state_kept
+        from contactbench.solvers._processes import ends_what_it_starts
+
+        self.release()
+        stack = contextlib.ExitStack()
+        stack.enter_context(ends_what_it_starts())
+        stack.enter_context(process_state_kept())
+        self.kept = stack
+
+    def release(self) -> None:
+        """End what ``keep`` started (the watchdog disarmed first: a stop never lands in it)."""
+        self.watchdog.disarm()
+        stack, self.kept = self.kept, None
+        if stack is not None:
+            stack.close()
 
     def prepare(self, index: int, factor: float, noise: np.ndarray | None = None) -> Solve:
         """Solve ``index``: the harness's scaled copy, a copy of it handed, the seal."""
@@ -256,6 +284,7 @@ class Rounds:
         index = len(self.solves)
         solve = self.prepare(index, round_factor(index, self.count))
         self.solves.append(solve)
+        self.keep()
         self.watchdog.arm()
         return (solve, copy.deepcopy(self.settings)), {}
 
@@ -266,7 +295,7 @@ class Rounds:
         return solve.result
 
     def teardown(self, solve: Solve, settings: SolverSettings) -> None:
-        self.watchdog.disarm()
+        self.release()
         self.judge(solve)
 
     def label(self, index: int) -> str:
@@ -296,21 +325,22 @@ class Rounds:
 
         assert solve.result is not None
         fault, res = self.fault(solve), solve.result
+        solve.answer = kept_answer(res.p)
         ref = None if self.reference is None or solve.index < 0 else self.reference * solve.factor
-        self.verdict = judge(solve.inst, res.p, bool(res.converged), self.check_tol, p_ref=ref, tampered=fault,
-                             multiplier=res.multiplier)
+        self.verdict = judge(solve.inst, solve.answer, bool(res.converged), self.check_tol, p_ref=ref,
+                             tampered=fault, multiplier=res.multiplier)
         settle(self.verdict, f"{self.what} {self.label(solve.index)}", res.message)
 
     def judge_pending(self) -> None:
         """Judge the solves ``teardown`` did not (pytest-benchmark disabled runs none)."""
-        self.watchdog.disarm()
+        self.release()
         for solve in self.solves:
             if not solve.judged:
                 self.judge(solve)
 
     def unfinished(self) -> tuple[str, str]:
         """(label, fault) of the solve that raised or was stopped (``fault``)."""
-        self.watchdog.disarm()
+        self.release()
         solve = self.solves[-1]
         return self.label(solve.index), self.fault(solve)
 
@@ -336,9 +366,10 @@ class Rounds:
             noise = PROBE_NOISE * rng.standard_normal(shape)
             solve = self.prepare(-1 - k, round_factor(self.count + k, self.count + PROBES), noise)
             self.solves.append(solve)
+            self.keep()
             self.watchdog.arm()
             self.solve(solve, copy.deepcopy(self.settings))
-            self.watchdog.disarm()
+            self.release()
             self.judge(solve)
             probe = min(probe, solve.seconds)
             if not fastest * limit < probe:
@@ -376,37 +407,49 @@ class JudgedBenchmark:
         never handed to the solver) with ``benchmark.pedantic`` -- one untimed warm-up and
         ``rounds`` timed rounds (>= 1), each solve on its own scaled copy, judged outside
         the clock (module doc) -- and return the verdict of the last timed round's answer
-        read back on ``inst`` (``read_back``).  ``settings``: the solver's settings
-        (None: ``SolverSettings(check_tol=check_tol, time_limit=time_limit)``);
-        ``check_tol``: the judge's (None: the default profile's); ``reference``: the exact
-        answer of ``inst`` (its errors in the figures); ``operator`` "dense" hands H
-        assembled; ``time_limit``: seconds, the hard limit is ``kill_limit`` of it (None:
-        none); ``what``: the name in messages (default: the solver's and n);
-        ``warmup_speedup``: the cache check's ratio (None: no check).  Every solve passed:
-        ``passed()`` is called and the figures go to ``extra_info``.  Otherwise the test is
-        settled: a failure, an xfail or a skip (module doc), and the row does not count."""
-        from contactbench.harness.profiles import get_profile
+        read back on ``inst`` (``read_back``; one that does not pass settles the test too).
+        ``settings``: the solver's settings (None: ``SolverSettings()``); ``check_tol``:
+        the judge's (None: ``settings.check_tol``, else the default profile's);
+        ``reference``: the exact answer of ``inst`` (its errors in the figures);
+        ``operator`` "dense" hands H assembled; ``time_limit``: seconds (None:
+        ``settings.time_limit``, else none), the hard limit is ``kill_limit`` of it;
+        ``what``: the name in messages (default: the solver's and n); ``warmup_speedup``:
+        the cache check's ratio (None: no check).  The solver is handed ``settings`` with
+        the check_tol judged at and the time limit the hard limit is of
+        (``resolved_settings``); a keyword that differs from a value ``settings`` gives,
+        ``settings`` that is not a ``SolverSettings`` or ``rounds`` that is not a whole
+        number >= 1 is refused (one-line ``ProblemInputError``; ``ValueError`` for rounds).
+        Every solve passed: ``passed()`` is called and the figures go to ``extra_info``.
+        Otherwise the test is settled: a failure, an xfail or a skip (module doc), and the
+        row does not count."""
         from contactbench.problems.errors import ProblemInputError
-        from contactbench.solvers.base import SolverSettings as _Settings
         from contactbench.solvers.registry import get_solver
 
         if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 1:
             raise ValueError(f"rounds must be a whole number >= 1, got {rounds!r}")
+        settings = resolved_settings("contactbench_benchmark.run", settings, check_tol, time_limit)
+        check_tol, time_limit = settings.check_tol, settings.time_limit
+        assert check_tol is not None
         solver = get_solver(solver) if isinstance(solver, str) else solver
-        check_tol = get_profile("default").check_tol if check_tol is None else float(check_tol)
-        settings = settings or _Settings(time_limit=time_limit, check_tol=check_tol)
         what = what or f"{solver.name or type(solver).__name__} (n = {inst.n})"
         watchdog = Watchdog(None if time_limit is None else kill_time(time_limit))
         disabled = bool(getattr(self.benchmark, "disabled", False))
         run = Rounds(solver, inst, operator, settings, check_tol, reference, watchdog, what,
                      count=1 if disabled else rounds + 1, first_timed=0 if disabled else 1)
         failure = refusal = ""  # (settled after the except blocks: a message without their traceback)
+        last: Solve | None = None
         try:
             with watchdog.installed():
                 try:
                     self.benchmark.pedantic(run.solve, setup=run.setup, teardown=run.teardown, rounds=rounds,
                                             iterations=1, warmup_rounds=1)
                     run.judge_pending()
+                    last = [s for s in run.solves if s.index >= 0][-1]
+                    assert last.result is not None and last.judged
+                    verdict = read_back(inst, last, check_tol, reference)  # (before the check's solves)
+                    if verdict.reading != "pass":
+                        settle(verdict, f"{what} {run.label(last.index)}, read back on the instance as given",
+                               str(last.result.message))
                     if warmup_speedup is not None:
                         failure = run.cache_check(warmup_speedup)
                 except SolveTimeout as exc:
@@ -426,14 +469,13 @@ class JudgedBenchmark:
                         pytest.fail(f"{what} {where}: raised, and {fault}")
                     raise
         finally:
+            run.release()
             self.problem_written = run.problem_written
         if failure:
             pytest.fail(failure, pytrace=False)
         if refusal:
             pytest.skip(refusal)
-        last = [s for s in run.solves if s.index >= 0][-1]
-        assert last.result is not None and last.judged
-        verdict = read_back(inst, last, check_tol, reference)
+        assert last is not None and last.result is not None
         self.benchmark.extra_info.update({
             "iterations": int(last.result.iterations), "solver_converged": bool(last.result.converged),
             "solves_judged": len(run.solves), "solved": verdict.status == "solved", "verdict": verdict.reading,
@@ -441,6 +483,49 @@ class JudgedBenchmark:
         })
         self.passed()
         return verdict
+
+
+def resolved_settings(what: str, settings: SolverSettings | None, check_tol: float | None,
+                      time_limit: float | None) -> SolverSettings:
+    """A copy of ``settings`` (None: ``SolverSettings()``) whose check_tol is ``check_tol``
+    (None: ``settings.check_tol``, else the default profile's) and whose time_limit is
+    ``time_limit`` (None: ``settings.time_limit``, else None): what the solver is handed,
+    judged at and stopped by.  A one-line ``ProblemInputError`` naming ``what``: ``settings``
+    not a ``SolverSettings``, a keyword that differs from the value ``settings`` gives, or a
+    value ``SolverSettings`` refuses."""
+    from dataclasses import replace
+
+    from contactbench.harness.profiles import get_profile
+    from contactbench.problems.errors import ProblemInputError
+    from contactbench.solvers.base import SolverSettings as _Settings
+
+    if settings is None:
+        settings = _Settings()
+    elif not isinstance(settings, _Settings):
+        raise ProblemInputError(f"{what}: settings must be a SolverSettings or None, got {type(settings).__name__}")
+    given = {"check_tol": check_tol, "time_limit": time_limit}
+    for name, value in given.items():
+        held = getattr(settings, name)
+        if value is not None and held is not None and value != held:
+            raise ProblemInputError(f"{what}: {name}={value!r} differs from the settings' {name} {held!r}; "
+                                    f"give it once")
+    tol = check_tol if check_tol is not None else settings.check_tol
+    limit = time_limit if time_limit is not None else settings.time_limit
+    tol = get_profile("default").check_tol if tol is None else tol
+    return replace(settings, params=dict(settings.params), check_tol=tol, time_limit=limit)
+
+
+def kept_answer(p: Any) -> Any:
+    """A copy of answer ``p`` that the solver holds no reference to (an array copied, any
+    other object deep-copied; as given where it cannot be copied: the judge reads it)."""
+    import numpy as np
+
+    if isinstance(p, np.ndarray):
+        return np.array(p, copy=True)
+    try:
+        return copy.deepcopy(p)
+    except Exception:  # (an object that refuses a copy: the judge says what it is)
+        return p
 
 
 def kill_time(time_limit: float) -> float:
@@ -451,14 +536,15 @@ def kill_time(time_limit: float) -> float:
 
 
 def read_back(inst: ContactInstance, solve: Solve, check_tol: float, reference: np.ndarray | None) -> Verdict:
-    """The verdict of ``solve``'s answer (one the judge passed) read back on ``inst``: the
-    answer and its Delta divided by the solve's factor (the figures of the instance as
-    given: its load, its objective); equal to the scaled problem's up to rounding."""
+    """The verdict of ``solve``'s answer (one the judge passed: the copy it read,
+    ``Solve.answer``) read back on ``inst``: the answer and its Delta divided by the solve's
+    factor (the figures of the instance as given: its load, its objective); equal to the
+    scaled problem's up to rounding."""
     from contactbench.harness.judging import judge, read_answer
 
     res = solve.result
-    assert res is not None
-    p, _ = read_answer(res.p, inst.n)
+    assert res is not None and solve.judged
+    p, _ = read_answer(solve.answer, inst.n)
     assert p is not None
     try:
         multiplier = None if res.multiplier is None else float(res.multiplier) / solve.factor

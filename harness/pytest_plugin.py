@@ -8,7 +8,10 @@ Fixtures
                       ``contact_instance("counterexample", n=100, seed=1)`` -> ContactInstance
                       whose ubar (and upper bounds, trial set and dense H) are read-only
                       arrays that cannot be made writeable again (``surfaces.read_only``):
-                      a solver that writes into them raises.  Refused, each with one
+                      a solver that writes into them raises.  Its operator's attributes
+                      and methods are not frozen (a solver handed ``inst.qp`` can replace
+                      ``H.matvec``); the problem is sealed (``ProblemSeal``) when made and
+                      ``contactbench_settle`` checks the seal.  Refused, each with one
                       ``ProblemInputError`` line naming the keyword and the value: an
                       unknown kind or keyword, an integer keyword that is not an int
                       (a float, a str or a bool: never rounded), a step outside the
@@ -20,18 +23,28 @@ Fixtures
                       (``harness.judging.ProblemSeal``), its answer judged by the judge
                       (``harness.judging.judge``) against ``inst`` and settled (``settle``):
                       one call that a solver cannot fool by writing into its problem or
-                      by its own claim.  Use it rather than calling ``solver.solve`` and
-                      ``judge`` by hand.
+                      by its own claim; under a hard time limit (``settings.time_limit``,
+                      else ``SOLVE_TIME_LIMIT``), the processes it starts ended and the
+                      working folder, environment and NumPy error state put back after
+                      it.  Use it rather than calling ``solver.solve`` and ``judge`` by
+                      hand.
 ``contactbench_conformance``  assert_conforms(solver): the conformance battery in a test.
 ``case_conforms``     (a function) one case of the battery in a test, for a test
                       parametrized over ``conformance_cases()`` (``ids=str``); a case may
                       be given by its name.
 ``contactbench_settle``  ``settle(verdict, what, solver_message)``: a pytest outcome from
-                      the judge's verdict, the rule pytest-benchmark runs use (below).
+                      the judge's verdict, the rule pytest-benchmark runs use (below),
+                      after checking that each problem ``contact_instance`` made in the
+                      test is as sealed when made (``check_made``): a hand judge after a
+                      plain ``benchmark(solver.solve, inst.qp, ...)`` whose solver wrote
+                      into ``inst`` or replaced its operator's products fails the test.
 ``contactbench_benchmark``  pytest-benchmark's ``benchmark`` judged
                       (``harness.judged_benchmark.JudgedBenchmark``): ``run(solver, inst,
                       settings)`` -- each round a problem no earlier solve saw, every
-                      solve judged outside the clock, the row kept only when all passed.
+                      solve judged outside the clock, the row kept only when all passed;
+                      judged at ``settings.check_tol`` and stopped past ``kill_limit`` of
+                      ``settings.time_limit`` (or the ``check_tol=`` / ``time_limit=``
+                      keywords; one that differs from the settings' is refused).
 
 Hooks: a test using ``benchmark`` that does not pass has its row left out of
 pytest-benchmark's table and JSON (``pytest_runtest_makereport``,
@@ -61,9 +74,40 @@ from .outcomes import settle
 
 
 @pytest.fixture
-def contactbench_settle() -> Callable[..., None]:
-    """``settle(verdict, what, solver_message)`` (module function ``settle``)."""
-    return settle
+def contactbench_made() -> list[tuple[Any, Any]]:
+    """The problems ``contact_instance`` made in this test, each with its ``ProblemSeal``
+    taken when made (what ``contactbench_settle`` checks)."""
+    return []
+
+
+def check_made(made: list[tuple[Any, Any]], what: str) -> None:
+    """Fail the test (``pytest.fail``, one line naming ``what``) where a problem of ``made``
+    is not as sealed when made: an array written, ubar or H replaced, a method of its
+    operator replaced or hidden (``ProblemSeal.broken``), so a verdict judged on it is not
+    the harness's; what can be is put back first (``ProblemSeal.mend``)."""
+    broken = []
+    for qp, seal in made:
+        found = seal.broken(qp)
+        if found:
+            seal.mend(qp)
+            broken.append(found)
+    if broken:
+        pytest.fail(f"{what}: the judge reads the answer as wrong: {'; '.join(broken)} -- a problem contact_instance "
+                    "made in this test, so no verdict judged on it counts", pytrace=False)
+
+
+@pytest.fixture
+def contactbench_settle(contactbench_made: list[tuple[Any, Any]]) -> Callable[..., None]:
+    """``settle(verdict, what, solver_message="")`` (module function ``settle``), after
+    checking that every problem ``contact_instance`` made in this test is as it was made
+    (``check_made``: a solver handed ``inst.qp`` that wrote into it or replaced its
+    operator's products fails the test, whatever the verdict)."""
+
+    def settle_checked(verdict: Any, what: str, solver_message: str = "") -> None:
+        check_made(contactbench_made, what)
+        settle(verdict, what, solver_message)
+
+    return settle_checked
 
 
 #: The keywords ``contact_instance`` takes for each kind, with their defaults.
@@ -186,13 +230,22 @@ def make_instance(kind: str = "rmd", **kw: Any) -> Any:
 
 
 @pytest.fixture
-def contact_instance() -> Callable[..., Any]:
+def contact_instance(contactbench_made: list[tuple[Any, Any]]) -> Callable[..., Any]:
     """``make(kind="rmd", **kw)`` -> a ContactInstance: "rmd" (a paper-sweep instance;
     keywords N, steps, seed, step, operator) or "counterexample" (keywords n, seed,
     operator); ``INSTANCE_KEYWORDS`` gives the defaults.  Its problem's arrays are
-    read-only (``sealed_instance``).  Bad input raises one ``ProblemInputError`` line
+    read-only (``sealed_instance``); its problem is sealed (``ProblemSeal``) when made, for
+    ``contactbench_settle`` to check.  Bad input raises one ``ProblemInputError`` line
     naming it (module doc)."""
-    return make_instance
+
+    def make(kind: str = "rmd", **kw: Any) -> Any:
+        from contactbench.harness.judging import ProblemSeal
+
+        inst = make_instance(kind, **kw)
+        contactbench_made.append((inst.qp, ProblemSeal.of(inst.qp)))
+        return inst
+
+    return make
 
 
 class JudgedSolve(NamedTuple):
@@ -201,6 +254,11 @@ class JudgedSolve(NamedTuple):
 
     result: Any
     verdict: Any
+
+
+#: ``contactbench_solve``'s time limit (seconds) where neither ``settings`` nor the call
+#: names one: ``contactbench run``'s default ``--timeout`` (``RunConfig.timeout``).
+SOLVE_TIME_LIMIT = 60.0
 
 
 def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = None, check_tol: float | None = None,
@@ -212,18 +270,24 @@ def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = No
     against ``inst`` at ``check_tol`` (default: ``settings.check_tol``, else the "default"
     profile's; the solver is told it) and, with ``settle_it``, settled (``settle``: a
     wrong answer fails the test, an unconverged one xfails it).  ``settings``: a
-    ``SolverSettings`` or None; ``warm``: a ``WarmStart`` or None.  What the solver raises
-    propagates.  Bad input (``inst`` not a ContactInstance, ``settings`` not a
-    SolverSettings) is a one-line ``ProblemInputError``."""
+    ``SolverSettings`` or None; ``warm``: a ``WarmStart`` or None.  The solve runs under
+    ``settings.time_limit`` (None: ``SOLVE_TIME_LIMIT``; the solver is told it): one still
+    running past ``kill_limit`` of it is stopped (``judged_benchmark.Watchdog``, as in
+    ``contactbench_benchmark``) and fails the test as a timeout.  The processes the solve
+    starts end with it, and the working folder, the environment and NumPy's error
+    handling are put back after it (``ends_what_it_starts``, ``process_state_kept``).
+    What the solver raises propagates.  Bad input (``inst`` not a ContactInstance,
+    ``settings`` not a SolverSettings, a ``check_tol`` that is not finite and > 0) is a
+    one-line ``ProblemInputError``."""
     from dataclasses import replace
 
-
-    from contactbench.harness.judged_benchmark import handed_copy
+    from contactbench.harness.judged_benchmark import SolveTimeout, Watchdog, handed_copy, kill_time
     from contactbench.harness.judging import ProblemSeal, judge
     from contactbench.harness.profiles import get_profile
-    from contactbench.harness.run.worker import running_threads, threads_left
+    from contactbench.harness.run.worker import process_state_kept, running_threads, threads_left
     from contactbench.problems.errors import ProblemInputError, check_positive
     from contactbench.problems.instances import ContactInstance
+    from contactbench.solvers._processes import ends_what_it_starts
     from contactbench.solvers.base import SolverSettings
     from contactbench.solvers.registry import load_solver
 
@@ -234,22 +298,35 @@ def judged_solve(solver: Any, inst: Any, settings: Any = None, *, warm: Any = No
         raise ProblemInputError(f"contactbench_solve: settings must be a SolverSettings or None, got "
                                 f"{type(settings).__name__}")
     s = load_solver(solver)
+    what = what or f"{s.name} on n = {inst.n}"
     settings = settings or SolverSettings()
     tol = check_tol if check_tol is not None else settings.check_tol
     tol = get_profile("default").check_tol if tol is None else check_positive("contactbench_solve: check_tol", tol)
-    settings = replace(settings, params=dict(settings.params), check_tol=tol)
+    limit = SOLVE_TIME_LIMIT if settings.time_limit is None else settings.time_limit
+    settings = replace(settings, params=dict(settings.params), check_tol=tol, time_limit=limit)
     qp = inst.qp
     handed = handed_copy(qp)  # (the benchmarks' copy: nothing shared with the judge's problem)
     seal, threads = ProblemSeal.of(handed, [qp]), running_threads()
+    watchdog, stopped = Watchdog(kill_time(limit)), ""
     try:
-        res = s.solve(handed, settings, warm)
+        with watchdog.installed(), ends_what_it_starts(), process_state_kept():
+            watchdog.arm()
+            try:
+                res = s.solve(handed, settings, warm)
+            except SolveTimeout as exc:
+                stopped = str(exc)
+            finally:
+                watchdog.disarm()
     finally:
         tampered = seal.broken(handed)
         seal.mend(handed)  # (the judge's products run the sealed code)
     tampered = tampered or threads_left(threads)
+    if stopped:
+        pytest.fail(f"{what}: timeout: {stopped} (the time limit {limit:g} s plus the grace); the solve was stopped"
+                    + (f"; {tampered}" if tampered else ""), pytrace=False)
     verdict = judge(inst, res.p, bool(res.converged), tol, tampered=tampered, multiplier=res.multiplier)
     if settle_it:
-        settle(verdict, what or f"{s.name} on n = {inst.n}", str(res.message))
+        settle(verdict, what, str(res.message))
     return JudgedSolve(res, verdict)
 
 
