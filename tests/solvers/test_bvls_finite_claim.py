@@ -1,15 +1,18 @@
 """bvls claims convergence only with a finite answer: where the exact solution lies beyond
 float64's range (ubar / H of 1e310), its own solve returns p = inf with a passing check, and the
-outcome says FAILED, not converged, instead."""
+outcome says FAILED, not converged, instead; and a certified answer is claimed only within the
+check it is handed."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from contactbench.problems.instances import QP
+from contactbench.harness.judging import judge
+from contactbench.problems.instances import QP, InstanceBuilder
 from contactbench.problems.operators import DenseOperator
-from contactbench.solvers.base import Outcome, Status
+from contactbench.problems.surfaces import Surface
+from contactbench.solvers.base import Outcome, SolverSettings, Status
 from contactbench.solvers._scaling import finite_claim
 from contactbench.solvers.registry import get_solver
 
@@ -44,3 +47,16 @@ def test_a_qp_adapter_s_answer_that_overflows_back_to_the_problem_s_units_is_not
         pytest.skip(f"{name}: {why}")
     res = solver.solve(QP(DenseOperator(np.array([[1e-300]])), np.array([1e10])))
     assert not (res.converged and not np.all(np.isfinite(res.p))), (res.status, res.p, res.message)
+
+
+def test_a_certified_answer_is_claimed_only_within_the_check_it_is_handed() -> None:
+    """A periodic whole grid (solved on a proper subset) is exact to about 1e-14: claimed
+    under a check of 1e-13, not under one of 1e-15, which round-off does not meet."""
+    rng = np.random.default_rng(1)
+    h = (rng.uniform(size=(16, 16)) < 0.5).astype(float)
+    inst = InstanceBuilder(Surface(h, 1.0, periodic=True), 1.0, "love", True, operator="dense").build(0.3)
+    for check in (1e-13, 1e-15):
+        res = get_solver("bvls").solve(inst.qp, SolverSettings(check_tol=check))
+        verdict = judge(inst, res.p, bool(res.converged), check)
+        assert res.converged == (verdict.status == "solved"), (check, verdict.kkt_error)
+        assert res.converged or res.status == Status.STALLED.value
