@@ -92,6 +92,12 @@ class Constraints:
         the load equality is unchanged)."""
         return Constraints(None if self.upper is None else self.upper[np.asarray(pos)], self.load)
 
+    def scaled(self, factor: float) -> "Constraints":
+        """The constraints of the problem whose ubar is multiplied by ``factor`` (its answer
+        p is then factor p): the bounds and the load multiplied by it."""
+        return Constraints(None if self.upper is None else self.upper * factor,
+                           None if self.load is None else float(self.load) * factor)
+
     def check(self, n: int) -> None:
         """``ProblemInputError`` unless these constraints can be posed on n unknowns: upper
         of length n with entries > 0 (inf allowed, NaN not), load finite and >= 0, and the

@@ -32,15 +32,8 @@ from .errors import MemoryBudgetError, ProblemInputError, check_nonnegative, che
 from .kernels import check_kernel, kernel_table
 from .kkt import constrained_scales, problem_scales
 from .layers import Layer
-from .operators import (
-    ContactOperator,
-    DenseOperator,
-    FFTOperator,
-    KernelTransform,
-    budget_or_default,
-    check_dense_budget,
-    check_positions,
-)
+from .operators import (ContactOperator, DenseOperator, FFTOperator, KernelTransform, budget_or_default,
+                        check_dense_budget, check_positions)
 from .operators_gpu import ArrayFFTOperator, ArrayKernelTransform, gpu_unavailable_reason
 from .preprocessing import MapPreprocessing
 from .surfaces import Surface, check_grid_size, check_not_flat, check_seed, read_only
@@ -161,6 +154,11 @@ class QP:
         pos = check_positions(pos, self.n)
         geom = None if self.geometry is None else self.geometry.subset(pos)
         return QP(self.H.restrict(pos), self.ubar[pos], geom, self.constraints.restrict(pos))
+
+    def scaled(self, factor: float) -> "QP":
+        """This QP with ubar, the bounds and the load times ``factor``: its answer, gap and
+        approach are factor times this one's, its scaled KKT figures the same."""
+        return QP(self.H, self.ubar * factor, self.geometry, self.constraints.scaled(factor))
 
     def can_touch(self, load: float, approach: float = 0.0) -> np.ndarray | None:
         """Positions that can carry force in the solution if its total force sum(p) is at

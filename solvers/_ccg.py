@@ -138,6 +138,7 @@ from ._partition import WHOLE_BUDGET
 from ._preconditioners import BUILD_BUDGET, ISLAND_KINDS, MAX_BLOCK, SetPreconditioner
 from ._screen import solve_screened
 from ._steps import curved_step, exact_step, flat_curvature, polak_ribiere
+from ._unit_scale import at_unit_scale
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 
 #: A warm start's held iterations (module doc, "A warm start's first iterations") go on while
@@ -664,9 +665,9 @@ class FastSolver(Solver):
         """``iterate_on`` the QP's screened set (solvers/_screen.py; under load control
         narrowed to the points near contact after the cold round), or on the whole QP
         where screening is off or does not pay; with BLAS on one thread
-        (``_kit.serial_blas``)."""
+        (``_kit.serial_blas``); at unit scale past ``_unit_scale.UNIT_SCALE_RANGE``."""
         with serial_blas():
-            return solve_screened(ctx, self.iterate_on)
+            return at_unit_scale(ctx, lambda c: solve_screened(c, self.iterate_on))
 
     @abstractmethod
     def iterate_on(self, ctx: SolveContext) -> Outcome:

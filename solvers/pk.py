@@ -56,6 +56,7 @@ from contactbench.problems.constraints import fit_multiplier
 from ._ccg import GapState, outcome, polonsky_keer
 from ._constrained import constrained_start, mean_on, scale_to_load, wants_to_move
 from ._kit import absolute_tol, matvec_seconds
+from ._unit_scale import at_unit_scale
 from .base import Capabilities, Outcome, SolveContext, Solver, Status
 from .registry import register
 
@@ -81,6 +82,10 @@ class PolonskyKeer(Solver):
     default_tol = 1e-10
 
     def iterate(self, ctx: SolveContext) -> Outcome:
+        """The loop (class doc), at unit scale past ``_unit_scale.UNIT_SCALE_RANGE``."""
+        return at_unit_scale(ctx, self.iterate_at_scale)
+
+    def iterate_at_scale(self, ctx: SolveContext) -> Outcome:
         if not ctx.constraints.plain:
             return pk_constrained(ctx)
         state = GapState.start(ctx)
