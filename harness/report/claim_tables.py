@@ -25,7 +25,7 @@ from contactbench.solvers.admm import PAPER_PARAMS
 from contactbench.solvers.registry import get_solver
 
 from ..profiles import CLAIMS_DENSE_PROFILE, CLAIMS_FFT_PROFILE
-from ..table.schema import ANSWERED, CELL_COLUMNS
+from ..table.schema import ANSWERED, CELL_COLUMNS, bool_series
 from .claim_rules import Timing, relative_range
 from .core import natural_key, parse_json, per_cell
 
@@ -246,12 +246,20 @@ COLD = " cold"
 
 
 def repeat_totals(rows: pd.DataFrame) -> pd.Series:
-    """Per (solver, repeat) of the rows: the repeat's total solve time over the steps (NaN
-    where a step has none; a table without ``repeat`` is one repeat, 0), each cell counted
-    once (``one_row_per_cell``)."""
+    """Per (solver, repeat) of the rows: the repeat's total solve time over the steps, each
+    cell counted once (``one_row_per_cell``); NaN where a step has no time, and NaN for a
+    repeat that lacks a row of any of the label's cells (the cells of
+    ``table.schema.CELL_COLUMNS`` any repeat of the label has): a repeat short of a step
+    is no total, never a smaller one.  A table without ``repeat`` is one repeat, 0."""
     rows = one_row_per_cell(rows)
     rep = rows.assign(repeat=rows["repeat"] if "repeat" in rows.columns else 0)
-    return rep.groupby(["solver", "repeat"])["solve_time_s"].agg(lambda v: v.sum(skipna=False))
+    keys = [c for c in CELL_COLUMNS if c in rep.columns and c != "solver"]
+    cells = rep.groupby(keys, dropna=False, sort=False).ngroup() if keys else pd.Series(0, index=rep.index)
+    g = rep.assign(_cell=cells).groupby(["solver", "repeat"])
+    total = g["solve_time_s"].agg(lambda v: v.sum(skipna=False))
+    per_label = rep.assign(_cell=cells).groupby("solver")["_cell"].nunique()
+    complete = g["_cell"].nunique() == per_label.reindex(total.index.get_level_values(0)).to_numpy()
+    return total.where(complete)
 
 
 def spent_seconds(rows: pd.DataFrame) -> pd.Series:
@@ -268,13 +276,15 @@ def spent_seconds(rows: pd.DataFrame) -> pd.Series:
 
 def totals(rows: pd.DataFrame) -> pd.DataFrame:
     """Per solver label of the (unfolded) rows: the total solve time over the steps, as the
-    median over the timed repeats of each repeat's sum (``repeats``, ``spread``: their count
-    and relative range); operator products and iterations (``matvecs``, ``iterations``: the
-    time's load-independent witnesses), steps, steps answered and steps solved.  A total is
-    ``comparable`` when every step of the largest count returned an answer; ``spent_s`` is
-    ``spent_seconds``, a lower bound of the total of a solver that stopped."""
+    median over the timed repeats of each complete repeat's sum (``repeat_totals``;
+    ``repeats``, ``spread``: their count and relative range); operator products and
+    iterations (``matvecs``, ``iterations``: the time's load-independent witnesses), steps,
+    steps answered and steps solved; ``uncounted``: ``uncounted_steps``.  A total is
+    ``comparable`` when every step of the largest count returned an answer and some repeat
+    is complete; ``spent_s`` is ``spent_seconds``, a lower bound of the total of a solver
+    that stopped."""
     cols = ["total_s", "spent_s", "repeats", "spread", "matvecs", "iterations", "steps", "answered", "solved",
-            "comparable"]
+            "comparable", "uncounted"]
     if rows.empty:
         return pd.DataFrame(columns=cols)
     cells = per_cell(rows)
@@ -285,11 +295,66 @@ def totals(rows: pd.DataFrame) -> pd.DataFrame:
                         if "iterations" in cells.columns else nan,
                         "steps": g.size(), "answered": g["status"].agg(lambda s: int(s.isin(ANSWERED).sum())),
                         "solved": g["solved"].sum()})
-    per = repeat_totals(rows).groupby(level=0)
+    per = repeat_totals(rows).dropna().groupby(level=0)  # (the complete repeats only)
     out["total_s"], out["repeats"], out["spread"] = per.median(), per.size(), per.agg(relative_range)
+    out["repeats"] = out["repeats"].fillna(0).astype(int)
     out["spent_s"] = spent_seconds(rows)
-    out["comparable"] = (out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
+    out["comparable"] = ((out["answered"] == out["steps"]) & (out["steps"] == out["steps"].max())
+                         & (out["repeats"] > 0))
+    out["uncounted"] = uncounted_steps(cells)
     return out[cols]
+
+
+def uncounted_steps(cells: pd.DataFrame) -> pd.Series:
+    """Per solver label of ``per_cell`` rows: the answered solves from p = 0 (``warm_start``
+    not True) of a problem with n > 0 whose iteration count is not positive -- a cold solve
+    of a non-empty problem that reports no iteration counted none, so no iteration claim
+    reads it (``ratio`` with ``of="iterations"``)."""
+    labels = cells["solver"].drop_duplicates()
+    if "iterations" not in cells.columns:
+        return pd.Series(0, index=labels.to_numpy())
+    warm = (bool_series(cells["warm_start"]).fillna(False).astype(bool) if "warm_start" in cells.columns
+            else pd.Series(False, index=cells.index))
+    n = pd.to_numeric(cells["n"], errors="coerce") if "n" in cells.columns else pd.Series(1.0, index=cells.index)
+    its = pd.to_numeric(cells["iterations"], errors="coerce")
+    bad = cells["status"].isin(ANSWERED) & ~warm & (n > 0) & ~(its > 0)
+    return bad.groupby(cells["solver"]).sum().astype(int)
+
+
+#: The project's reading of "the same normal force P" (tex 1039-1044: every method, once it
+#: has converged) for a method a claim reads as printed, inexact by design (``ratio``'s
+#: ``inexact``): its load at every step within this share of the other side's answer there --
+#: the paper's own bound on an approximate answer's load (tex 1349-1350: "relative errors
+#: less than 2 %").  Further off, or without its own stop, the answer is not the paper's.
+INEXACT_LOAD_TOL = 0.02
+
+
+def as_printed_refusal(rows: pd.DataFrame, label: str, ref: str) -> str:
+    """Why the answers of ``label`` among ``rows`` (the unfolded rows its totals come from)
+    are no measurement even read as printed, "" where they are one: every answer claims the
+    method's own stop (``solver_converged`` True, in every repeat) and its load at each
+    (instance, step) is within ``INEXACT_LOAD_TOL`` of the median load of ``ref``'s answers
+    there (a step ``ref`` did not answer, or a load that is not a number, is off)."""
+    mine = rows[(rows["solver"] == label) & rows["status"].isin(ANSWERED)]
+    if mine.empty:
+        return f"no answer of {label}"
+    why = []
+    stop = (bool_series(mine["solver_converged"]).fillna(False).astype(bool) if "solver_converged" in mine.columns
+            else pd.Series(False, index=mine.index))
+    if not stop.all():
+        why.append(f"{int((~stop).sum())} of its {len(mine)} answers did not reach its own stop "
+                   "(solver_converged False)")
+    theirs = rows[(rows["solver"] == ref) & rows["status"].isin(ANSWERED)]
+    ref_load = pd.to_numeric(theirs["load"], errors="coerce").groupby([theirs["instance"], theirs["step"]]).median()
+    at = ref_load.reindex(pd.MultiIndex.from_arrays([mine["instance"], mine["step"]])).to_numpy(dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gap = np.abs(pd.to_numeric(mine["load"], errors="coerce").to_numpy(dtype=float) / at - 1.0)
+    off = ~(gap <= INEXACT_LOAD_TOL)
+    if off.any():
+        worst = float(np.nanmax(gap)) if np.isfinite(gap).any() else math.nan
+        why.append(f"its load is off {ref}'s by more than {INEXACT_LOAD_TOL:g} (INEXACT_LOAD_TOL) on {int(off.sum())} "
+                   f"of {len(mine)} answers (at most {worst:.3g} where compared)")
+    return "; ".join(why)
 
 
 def fmt_count(v: float) -> str:
@@ -301,14 +366,19 @@ def fmt_count(v: float) -> str:
     return f"{int(x)}" if math.isfinite(x) else "?"
 
 
-def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s", inexact: Iterable[str] = ()
-          ) -> tuple[float, str, Timing]:
+def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s", inexact: Iterable[str] = (),
+          rows: pd.DataFrame | None = None) -> tuple[float, str, Timing]:
     """a / b of column ``of`` (the median total time; or ``iterations``) with the words saying
     what it rests on and its timing (NaN where either is missing or incomplete, or b is not
     positive).  The spread of a time ratio is the sum of the two totals' spreads.  A side
     whose answers did not all pass the KKT check (solved < steps) did not converge: NaN,
     the words say which, unless its label is in ``inexact`` (a method the claim names as
-    inexact by design, read as printed: the paper's own stop; the words say so)."""
+    inexact by design, read as printed: the paper's own stop; the words say so) and its
+    answers among ``rows`` (the unfolded rows ``tot`` comes from) pass
+    ``as_printed_refusal`` against the other side; ``rows`` None reads them unchecked, for a
+    method approximate by design whose load the ledger judges in claims of its own (CMR's
+    cascade: fig8-cmr-error), never for one of Fig. 4's methods.
+    An iteration ratio with a side that has ``uncounted`` steps (``uncounted_steps``) is NaN."""
     missing = [s for s in (a, b) if s not in tot.index]
     if missing:
         return math.nan, f"no rows of {', '.join(missing)}", Timing()
@@ -324,11 +394,21 @@ def ratio(tot: pd.DataFrame, a: str, b: str, of: str = "total_s", inexact: Itera
                     float(ta["spread"] + tb["spread"]) if of == "total_s" else 0.0)
     if not (ta["comparable"] and tb["comparable"]) or not tb[of] > 0 or not np.isfinite([ta[of], tb[of]]).all():
         return math.nan, words + "; not every step answered", timing
+    uncounted = [f"{s} ({int(t.get('uncounted', 0))})" for s, t in ((a, ta), (b, tb)) if t.get("uncounted", 0) > 0]
+    if of == "iterations" and uncounted:
+        return math.nan, words + (f"; a solve from p = 0 of n > 0 reporting no iteration: {', '.join(uncounted)} "
+                                  "steps, no iteration count"), timing
     short = [(s, t) for s, t in ((a, ta), (b, tb)) if int(t["solved"]) < int(t["steps"])]
     as_printed = [s for s, _ in short if s in set(inexact)]
+    for s in as_printed if rows is not None else ():
+        why = as_printed_refusal(rows, s, b if s == a else a)
+        if why:
+            return math.nan, words + (f"; {s} read as printed is no measurement: {why} -- a time to an answer that is "
+                                      "not the paper's 'same normal force' (tex 1039-1044)"), timing
     if as_printed:
         words += (f"; {', '.join(as_printed)} read as printed, inexact by design (its own stop, not the KKT "
-                  "check)")
+                  "check" + (f"; every answer at its own stop, its load within {INEXACT_LOAD_TOL:g} of the other "
+                             "side's)" if rows is not None else ")"))
     unconverged = [f"{s} ({int(t['solved'])}/{int(t['steps'])})" for s, t in short if s not in as_printed]
     if unconverged:
         return math.nan, words + (f"; not every answer converged: {', '.join(unconverged)} steps pass the KKT "

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 from contactbench.harness.report import claim_rules as cr
 from contactbench.harness.report import claims as cl
+from contactbench.harness.report.claim_tables import PAPER_METHODS
 from contactbench.harness.report.sections import claims as rc
 from contactbench.harness.cli import main
 from contactbench.harness.profiles import get_profile
@@ -168,6 +169,14 @@ def _rows(scene: str, operator: str, times: dict[str, list[float]], N: int = 64,
     return out
 
 
+def _every_paper_method(times: dict[str, list[float]], slow: float = 50.0) -> dict[str, list[float]]:
+    """``times`` with each of the paper's methods it lacks (``PAPER_METHODS``) at ``slow``
+    seconds a step: "the fastest of the paper's methods" reads every one of them (an "admm"
+    added plays the paper's ADMM once ``_paper_admm`` gives it the paper's parameters)."""
+    steps = len(next(iter(times.values())))
+    return {**times, **{m: [slow] * steps for m in sorted(PAPER_METHODS) if m not in times}}
+
+
 def _paper_admm(t: pd.DataFrame) -> pd.DataFrame:
     """``t`` with its "admm" rows ADMM as the paper states it (``PAPER_PARAMS``)."""
     return t.assign(params=t["params"].mask(t["solver"] == "admm", json.dumps(PAPER_PARAMS)))
@@ -176,7 +185,7 @@ def _paper_admm(t: pd.DataFrame) -> pd.DataFrame:
 def _table() -> pd.DataFrame:
     rows = []
     # the paper's condition: P&K cold 26x NNLS+GP, greedy CG 120x, ADMM 80x
-    rows += _rows("paper-sweep", "dense", {"nnls-gp": [0.1, 0.1], "admm": [8.0, 8.0]})
+    rows += _rows("paper-sweep", "dense", _every_paper_method({"nnls-gp": [0.1, 0.1], "admm": [8.0, 8.0]}))
     rows += _rows("greedy-linear-solvers", "dense", {"pk": [2.6, 2.6], "greedy-cg": [12.0, 12.0],
                                                      "greedy-chol": [7.8, 7.8], "greedy-gs": [36.0, 36.0]})
     # ours: P&K cold faster than NNLS+GP; one NNLS+GP step failed at the larger size
@@ -405,8 +414,9 @@ def test_a_contradicted_yes_no_claim_never_holds_nor_is_partly() -> None:
     r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "dense")
     assert r["measured"] == pytest.approx(1.7) and r["verdict"] == "fails"
     # a fast solver the paper never ran is not charged to the claim
-    rows = _rows("paper-sweep", "fft", {"nnls-gp": [0.1, 0.1], "pk": [0.2, 0.2], "fast-dual-pccg": [0.01, 0.01]})
-    r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "fft")
+    rows = _rows("paper-sweep", "fft", _every_paper_method({"nnls-gp": [0.1, 0.1], "pk": [0.2, 0.2],
+                                                             "fast-dual-pccg": [0.01, 0.01]}))
+    r = _one(cl.ledger(_paper_admm(pd.DataFrame(rows))), "fig4-nnlsgp-fastest", "fft")
     assert r["verdict"] == "holds" and "fastest other paper method: pk" in r["evidence"]
 
 
@@ -486,8 +496,8 @@ def test_paper_claims_runs_the_papers_methods_as_printed_and_stated() -> None:
 
 
 def test_a_near_tie_from_one_repeat_is_unresolved_not_holds() -> None:
-    rows = _rows("paper-sweep", "dense", {"nnls-gp": [0.016275, 0.016275], "pk": [0.01628, 0.01628]})
-    r = _one(cl.ledger(pd.DataFrame(rows)), "fig4-nnlsgp-fastest", "dense")
+    rows = _rows("paper-sweep", "dense", _every_paper_method({"nnls-gp": [0.016275, 0.016275], "pk": [0.01628, 0.01628]}))
+    r = _one(cl.ledger(_paper_admm(pd.DataFrame(rows))), "fig4-nnlsgp-fastest", "dense")
     assert r["repeats"] == 1 and math.isnan(r["spread"])
     assert r["measured"] < 1.0 and r["verdict"] == "unresolved"
 
@@ -562,12 +572,14 @@ def test_the_fastest_needs_every_paper_method_to_answer_or_to_have_spent_longer(
     """A paper method that stopped (a timeout, a crash) is slower than NNLS+GP only where the
     time it spent already exceeds NNLS+GP's total; one that stopped sooner, or was planned
     and never ran, leaves "the fastest of the paper's methods" unmeasured."""
-    def verdict(times: dict[str, list[float]], status: dict) -> str:
+    def verdict(times: dict[str, list[float]], status: dict, every: bool = True) -> str:
+        times = _every_paper_method(times) if every else times
         return _one(cl.ledger(_paper_admm(pd.DataFrame(_rows("paper-sweep", "dense", times, status=status)))),
                     "fig4-nnlsgp-fastest", "dense")["verdict"]
 
     gp, pk = [0.1, 0.1], [0.3, 0.3]
     assert verdict({"nnls-gp": gp, "pk": pk}, {}) == "holds"
+    assert verdict({"nnls-gp": gp, "pk": pk}, {}, every=False) == "unmeasured"  # the paper's others have no rows
     # admm stopped at step 0 after 0.05 s: it could still have been the fastest
     assert verdict({"nnls-gp": gp, "pk": pk, "admm": [0.05, math.nan]},
                    {("admm", 0): "timeout", ("admm", 1): "skipped"}) == "unmeasured"
@@ -587,7 +599,9 @@ def test_a_timeout_in_one_repeat_bounds_the_time_a_method_spent() -> None:
     attempted (no time): it spent at least 5 s, 25 x NNLS+GP's total, so it is slower."""
     rows = []
     for r in range(3):
-        for solver, ts in (("nnls-gp", [0.1, 0.1]), ("pk", [0.3, 0.3]), ("admm", [5.0 if r == 0 else math.nan, math.nan])):
+        steps = _every_paper_method({"nnls-gp": [0.1, 0.1], "pk": [0.3, 0.3],
+                                     "admm": [5.0 if r == 0 else math.nan, math.nan]})
+        for solver, ts in steps.items():
             status = {} if solver != "admm" else {("admm", 0): "timeout", ("admm", 1): "skipped"}
             for row in _rows("paper-sweep", "dense", {solver: ts}, status=status):
                 row["repeat"] = r

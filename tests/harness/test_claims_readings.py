@@ -14,7 +14,7 @@ import pytest
 from contactbench.harness.report import claims as cl
 from contactbench.solvers.admm import PAPER_PARAMS
 
-from tests.harness.test_claims import _one, _rows, _table
+from tests.harness.test_claims import _every_paper_method, _one, _rows, _table
 
 #: The committed paper-claims table (its CMR scenes are read below).
 RESULTS = Path(__file__).resolve().parents[2] / "results" / "claims" / "results.csv"
@@ -37,8 +37,8 @@ def _cmr_table(scenes: tuple[str, ...] = ("cmr",)) -> pd.DataFrame:
 def test_the_registrys_admm_plays_no_part_in_the_fastest() -> None:
     """The registry's ADMM (rho relative, the KKT stop) 100x faster than NNLS+GP made "NNLS+GP
     is the fastest" fail: it played the paper's ADMM, the first admm label by name."""
-    rows = _rows("paper-sweep", "dense", {"nnls-gp": [0.1, 0.1], "pk": [0.3, 0.3], "admm": [0.001, 0.001],
-                                          "admm[paper]": [10.0, 10.0]})
+    rows = _rows("paper-sweep", "dense", _every_paper_method({"nnls-gp": [0.1, 0.1], "pk": [0.3, 0.3],
+                                                              "admm": [0.001, 0.001], "admm[paper]": [10.0, 10.0]}))
     for r in rows:
         if r["solver"] == "admm[paper]":
             r["base_solver"], r["params"] = "admm", json.dumps(PAPER_PARAMS)
