@@ -130,9 +130,6 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
     the share of the trial set in contact."""
     warm = of_condition(rows, "paper-sweep", condition)
     cold = of_condition(rows, "greedy-linear-solvers", condition)
-    plan = under(rows, condition)
-    plan = plan[plan["scene"].isin(("paper-sweep", "greedy-linear-solvers"))]
-    planned = sorted(set(plan["base_solver"]) & PAPER_METHODS)  # skipped ones too: the table planned them
     out: list[ClaimRow] = []
     for N in sorted(warm["N"].dropna().unique()):
         w = warm[warm["N"] == N]
@@ -163,7 +160,7 @@ def fig4_rows(rows: pd.DataFrame, condition: str) -> list[ClaimRow]:
                 m, words, timing = claim_ratio(claim, tot, a, b, both, of="iterations")
                 out.append(claim_row(claim, condition, m, size, seeds, f"{where}; iterations: {words}", timing=timing))
         out += fastest_rows(tot, both, paper_labels(tot), condition, size, seeds, where)
-        out += agreement_rows(both, condition, size, seeds, where, planned)
+        out += agreement_rows(both, condition, size, seeds, where)
     return out
 
 
@@ -199,18 +196,17 @@ def fastest_rows(tot: pd.DataFrame, rows: pd.DataFrame, labels: list[str], condi
                       testable=not unknown or CLAIMS["fig4-nnlsgp-fastest"].rule.at(m) == "fails")]
 
 
-def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, where: str,
-                   planned: Iterable[str]) -> list[ClaimRow]:
+def agreement_rows(both: pd.DataFrame, condition: str, size: str, seeds: str, where: str) -> list[ClaimRow]:
     """The same load and contact domain at the top step over every paper method's answer
     (a wrong answer counts: the claim is about the methods, not about the judge).  Where a
-    paper method the table plans (``planned``) gave no answer at an instance's top step,
+    paper method (``PAPER_METHODS``, whatever the table plans) gave no answer at an instance's top step,
     the rest cannot hold a claim about every method: ``unmeasured``, unless they disagree
     (``fails``, whatever the missing ones would give)."""
     r = both[both["base_solver"].isin(PAPER_METHODS)]
     cells = per_cell(r)
     top = cells[(cells["step"] == cells["step"].max()) & cells["status"].isin(ANSWERED)]
     answered = {i: set(g["base_solver"]) for i, g in top.groupby("instance")}
-    missing = sorted({s for i in set(both["instance"]) for s in planned if s not in answered.get(i, set())})
+    missing = sorted({s for i in set(both["instance"]) for s in PAPER_METHODS if s not in answered.get(i, set())})
     partial = f"; no top-step answer of {', '.join(missing)}: the rest cannot hold 'every method'" if missing else ""
     out = []
     for claim, col in (("fig4-same-load", "load"), ("fig4-same-contact", "contact_fraction")):

@@ -255,7 +255,8 @@ def test_a_lying_solver_does_not_make_the_loads_agree() -> None:
     t.loc[(t["scene"] == "paper-sweep") & (t["solver"] == "admm") & (t["step"] == 1), "load"] = 1.5
     led = cl.ledger(t)
     assert _one(led, "fig4-same-load", "dense")["verdict"] == "fails"
-    assert _one(led, "fig4-same-load", "fft")["verdict"] == "holds"
+    # the fft rows agree, but hold only nnls-gp and pk of the paper's methods: no claim on every method
+    assert _one(led, "fig4-same-load", "fft")["verdict"] == "unmeasured"
 
 
 @pytest.mark.parametrize("corrupt", ["nan-time", "inf-time", "negative-time", "nan-load", "nan-iterations"])
