@@ -515,8 +515,8 @@ def interrupted_text(args: argparse.Namespace) -> str:
                 "again to finish it")
     if args.command == "report":
         return "no report was written; the last one and its figures are as they were"
-    if args.command == "run" and not has_results_table(run_out(args)):
-        return f"no row was written to {run_out(args)}; run the same command again to start"
+    if args.command == "run" and not has_rows(run_out(args)):
+        return f"no row was written to {run_out(args)} yet; run the same command again to start"
     return "rows so far are kept; run the same command again to finish"
 
 
@@ -531,6 +531,31 @@ def has_results_table(out_dir: str) -> bool:
     from .table.store import CSV_FILE, PARQUET_FILE, ROWS_FILE
 
     return any((Path(out_dir) / name).is_file() for name in (PARQUET_FILE, CSV_FILE, ROWS_FILE))
+
+
+def has_rows(out_dir: str) -> bool:
+    """Whether a folder holds a row of results: a line of its journal, or a row of its table
+    (a table of only its header, as an interrupt before the first row leaves, holds none).
+    True where a file is there but cannot be read (its rows are not said to be absent)."""
+    from .table.store import CSV_FILE, PARQUET_FILE, ROWS_FILE
+
+    out = Path(out_dir)
+    try:
+        if (out / ROWS_FILE).is_file():
+            with open(out / ROWS_FILE, "rb") as fh:
+                if any(line.strip() for line in fh):
+                    return True
+        if (out / PARQUET_FILE).is_file():
+            import pyarrow.parquet as pq
+
+            if pq.ParquetFile(out / PARQUET_FILE).metadata.num_rows > 0:
+                return True
+        if (out / CSV_FILE).is_file():
+            with open(out / CSV_FILE, "rb") as fh:
+                return sum(1 for line in fh if line.strip()) > 1  # (the header, then a row)
+    except Exception:  # (a file that cannot be read: not "no row")
+        return True
+    return False
 
 
 def cmd_validate(args: Sequence[str]) -> int:

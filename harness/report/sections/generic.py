@@ -309,7 +309,8 @@ SGM_CAPTION = ("**SGM**: shifted geometric mean of solve time, exp(mean(log(t + 
 
 @register_section("aggregates", title="Aggregates across instances", group="summary", order=20)
 def aggregates_section(ctx: ReportContext, table: pd.DataFrame) -> Section:
-    parts = [f"Per scene. A problem is one (instance, step, profile). A cell is solved when the harness's KKT "
+    parts = [f"Per scene. A problem is one (instance, step, profile, history): a step along a warm-started load "
+             f"history and the same step of a `--cold` run are two problems. A cell is solved when the harness's KKT "
              f"check passes at the profile's `check_tol` (status `solved`). **solved / problems**: the share of "
              f"all the scene's problems, a skipped or not run cell counting as not solved. **solved / "
              f"attempted**: the share of the cells the solver ran (skipped cells are not attempted); read it "
