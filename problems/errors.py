@@ -96,3 +96,12 @@ def printable_excerpt(text: str, limit: int = EXCERPT_CHARS) -> str:
     collapsed, at most ``limit`` characters (cut with "...")."""
     plain = " ".join(_NOT_PRINTABLE.sub(" ", text).split())
     return plain if len(plain) <= limit else plain[: max(limit - 3, 0)].rstrip() + "..."
+
+
+def check_hurst(hurst: object) -> float:
+    """``hurst`` as a float when it is a real number in (0, 1) (not a bool, not text), else
+    a one-line ``ProblemInputError``."""
+    if isinstance(hurst, (bool, np.bool_)) or not isinstance(hurst, (int, float, np.integer, np.floating)) \
+            or not 0.0 < float(hurst) < 1.0:
+        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst!r}")
+    return float(hurst)

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ProblemInputError, check_positive, check_whole, is_whole
+from .errors import ProblemInputError, check_hurst, check_positive, check_whole, is_whole
 from .kernels import square_spacing
 from .preprocessing import MapPreprocessing
 
@@ -218,15 +218,6 @@ def check_grid_size(N: object, what: str = "surface") -> int:
     if not is_whole(N, 2):
         raise ProblemInputError(f"a {what} needs an integer N >= 2 points per side, got N = {N!r}")
     return int(N)  # type: ignore[arg-type]
-
-
-def check_hurst(hurst: object) -> float:
-    """``hurst`` as a float when it is a real number in (0, 1) (not a bool, not text), else
-    a one-line ``ProblemInputError``."""
-    if isinstance(hurst, (bool, np.bool_)) or not isinstance(hurst, (int, float, np.integer, np.floating)) \
-            or not 0.0 < float(hurst) < 1.0:
-        raise ProblemInputError(f"Hurst exponent must lie in (0, 1), got {hurst!r}")
-    return float(hurst)
 
 
 def check_seed(seed: object) -> int:
@@ -500,14 +491,8 @@ def spectral_surface(
     z = np.real(np.fft.ifft2(noise * amp))
     z -= z.mean()
     z *= rms_height / z.std()
-    meta = {
-        "generator": "spectral",
-        "hurst": hurst,
-        "seed": seed,
-        "rolloff_wavelength": rolloff_wavelength,
-        "short_cutoff_wavelength": short_cutoff_wavelength,
-        "rms_height": rms_height,
-    }
+    meta = {"generator": "spectral", "hurst": hurst, "seed": seed, "rolloff_wavelength": rolloff_wavelength,
+            "short_cutoff_wavelength": short_cutoff_wavelength, "rms_height": rms_height}
     return Surface(z, delta, name=f"spectral-H{hurst:g}-N{N}-s{seed}", periodic=True, meta=meta)
 
 
@@ -524,9 +509,8 @@ def fourier_synthesis(N: int, hurst: float, rms_slope: float, length: float = 10
     (``spectral_surface``'s filter): C(q) flat below q_r = 2 pi / rolloff_wavelength
     (default ``ROLLOFF_FRACTION`` L), ~ q^(-2(1+H)) up to q_s = 2 pi / short_cutoff_wavelength
     (default ``SHORT_CUTOFF_SPACINGS`` grid spacings), zero above; heights scaled to the
-    given rms slope (``with_rms_slope``).  A wavelength given must leave the roll-off longer
-    than the cutoff (a self-affine range between them), else a one-line
-    ``ProblemInputError``; the defaults on a grid under 16 points leave none (a plateau).  Name "fourier-H..-N..-s..", meta family "fourier"."""
+    given rms slope (``with_rms_slope``); a wavelength given leaves the roll-off longer than
+    the cutoff (else ``ProblemInputError``).  Name "fourier-H..-N..-s..", family "fourier"."""
     check_positive("rms slope", rms_slope)
     N = check_grid_size(N, "Fourier-synthesis surface")
     check_positive("length L", length)

@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ProblemInputError
-from ..surfaces import Surface, check_hurst
+from ..errors import check_hurst
+from ..surfaces import Surface
 from . import register_scene
 from .base import InstanceSpec, LoadSequence, SceneConfig, seeds_of
 from .core import (PAPER_E, RampScene, departure_suffix, grid_suffix, ramp_sequence, recipe_rms_height,
