@@ -583,16 +583,13 @@ def _checked_inputs(inst: ContactInstance, claimed: Any, check_tol: float, p_ref
                                 f"{printable_excerpt(repr(claimed))} of type {type(claimed).__name__}")
     if p_ref is None:
         return bool(claimed), None
-    try:
-        ref = np.asarray(p_ref)
-    except Exception:  # (ragged, or nothing numpy can wrap)
-        ref = np.asarray(None)
-    got = f"shape {ref.shape} dtype {ref.dtype}"
-    if ref.dtype.kind in "iuf" and ref.shape == (inst.n,):
-        got = f"{int(np.count_nonzero(~np.isfinite(ref)))} NaN/inf entries"
-    if got != "0 NaN/inf entries":
-        raise ProblemInputError(f"the judge's p_ref must be a length-{inst.n} vector of finite real numbers, got {got}")
-    return bool(claimed), ref.astype(np.float64, copy=False)
+    ref, why = read_answer(p_ref, inst.n)  # (an answer's own rule, but for booleans: no forces)
+    if ref is not None and np.asarray(p_ref).dtype.kind == "b":
+        ref, why = None, "booleans"
+    if ref is None:
+        raise ProblemInputError(f"the judge's p_ref must be a length-{inst.n} vector of finite real numbers, read as an "
+                                f"answer: {why}")
+    return bool(claimed), ref
 
 
 def near_reference(p: np.ndarray, p_ref: np.ndarray, rel_error: float, p_tol: float, p_s: float) -> bool:

@@ -87,14 +87,20 @@ def journal_cell_ids(path: Path) -> set[str]:
     return ids
 
 
+def cell_keys(df: pd.DataFrame) -> tuple[list[str], list[tuple[str, ...]]]:
+    """The columns that name a row's cell (``schema.CELL_COLUMNS`` and ``repeat``, those
+    ``df`` has) and, per row, their values as text: two rows are of one cell when they agree."""
+    names = [c for c in (*CELL_COLUMNS, "repeat") if c in df.columns]
+    return names, list(zip(*(text_values(df[c]) for c in names))) if names else [()] * len(df)
+
+
 def check_cell_ids(df: pd.DataFrame, where: object) -> None:
     """Refuse (``TableError``) a table two of whose rows share a ``cell_id`` but name other
     cells (their ``schema.CELL_COLUMNS`` or ``repeat`` differ): reading keeps the first row
     of a cell, so the other would vanish unsaid -- a row edited or merged by hand.  Rows of
     one cell that agree (a resumed run's repeat) pass."""
     ids = text_values(df["cell_id"]) if "cell_id" in df.columns else [""] * len(df)
-    names = [c for c in (*CELL_COLUMNS, "repeat") if c in df.columns]
-    cells = list(zip(*(text_values(df[c]) for c in names))) if names else [()] * len(df)
+    names, cells = cell_keys(df)
     first: dict[str, tuple[int, tuple[str, ...]]] = {}
     for i, (cid, cell) in enumerate(zip(ids, cells)):
         if not cid:
@@ -115,8 +121,7 @@ def first_rows(df: pd.DataFrame) -> list[bool]:
     ids = text_values(df["cell_id"])
     if all(ids):
         return first_of_each_cell(ids)
-    names = [c for c in (*CELL_COLUMNS, "repeat") if c in df.columns]
-    cells = list(zip(*(text_values(df[c]) for c in names))) if names else [()] * len(df)
+    _, cells = cell_keys(df)
     seen_ids: set[str] = set()
     cells_with_id: set[tuple[str, ...]] = set()
     cells_without: set[tuple[str, ...]] = set()
