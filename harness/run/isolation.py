@@ -47,7 +47,10 @@ counter to know).  The child:
   terminal; a reply of a worker that died, timed out or failed quotes its last lines.
 
 Workers are started with the ``fork`` method on Linux: a child inherits everything
-registered in the parent (solvers registered by a test or given as ``module:NAME``).
+registered in the parent (solvers registered by a test or given as ``module:NAME``).  A fork
+soon after another first lets the threads that fork started reach their wait
+(``forks.settle_after_fork``): a library pool's stop before a fork misses a thread still on
+its way there, and the fork waits for it for ever.
 """
 
 from __future__ import annotations
@@ -76,6 +79,7 @@ from contactbench.solvers._loading import exception_text as exception_text
 from contactbench.solvers._processes import REAP_WAIT_S, become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
+from .forks import settle_after_fork
 from .stacks import dump_stacks_on_signal, pass_stack_signal_to, short_path, where_it_was
 
 Handler = Callable[[Any], Any]
@@ -226,6 +230,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         signal.signal(signal.SIGTERM, _end_kept_tree)
         set_parent_death_signal(signal.SIGTERM)  # (the keeper's: what it keeps ends with it)
         keeper = os.getpid()
+        settle_after_fork()  # the pool threads the fork that made this process started are waiting (``forks``)
         worker = os.fork()
         if worker:
             conn.close()  # (the worker's end of the pipe is the worker's alone: its death reads as EOF)
@@ -377,6 +382,7 @@ class ChildProcess:
         self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
         proc = self.ctx.Process(target=_worker_main, daemon=True,
                                 args=(child, self.factory, self.threads, self.scratch, self.capture_output, parent))
+        settle_after_fork()  # (a worker started just after another: ``forks``)
         proc.start()
         with contextlib.suppress(OSError):  # as the worker does: its group exists before any kill
             os.setpgid(proc.pid, proc.pid)
