@@ -27,6 +27,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
+from .forks import process_context
 from .isolation import remove_orphan_scratch, set_parent_death_signal
 from .interrupts import STOP_SIGNALS, signals_deferred
 from .job import JobDriver, run_instance_job
@@ -135,9 +136,7 @@ class PoolExecutor:
 
     def execute(self, jobs: Sequence[InstanceJob], run: RunConfig, store: ResultStore, statuses: dict[str, str],
                 progress: Progress, verbose: bool = False) -> None:
-        import multiprocessing as mp
-
-        ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
+        ctx = process_context() if sys.platform.startswith("linux") else None
         lines0 = store.count_lines()
         with ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx, initializer=_pool_init) as pool:
             futures = {pool.submit(_pool_run, j, run, str(store.out), statuses) for j in jobs}

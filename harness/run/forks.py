@@ -12,14 +12,18 @@ so both fork while such threads may still be on their way to their wait.
 ``settle_after_fork`` closes that window: within ``SETTLE_WAIT_S`` of this process's latest
 fork it waits until no other thread of the process is running (``/proc``: every other thread
 asleep or stopped), so that each pool thread is inside its wait when the next fork's stop
-wakes it.  Later, or where ``/proc`` cannot be read, it returns at once.
+wakes it.  Later, or where ``/proc`` cannot be read, it returns at once.  ``process_context``'s fork
+context forks each of its processes so (a worker's keeper, a ``--jobs`` pool's processes).
 """
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
+import sys
 import threading
 import time
+from multiprocessing.context import BaseContext
 
 #: How long after a fork (seconds) the threads it started may still be on their way to their
 #: wait, and so the longest ``settle_after_fork`` waits.  A wait for the scheduler, not a
@@ -80,3 +84,38 @@ def settle_after_fork(wait_s: float = SETTLE_WAIT_S) -> bool:
             return True
         time.sleep(SETTLE_POLL_S)
     return False
+
+
+if sys.platform != "win32":
+    from multiprocessing.context import ForkContext, ForkProcess
+
+    class SettledForkProcess(ForkProcess):
+        """A process forked once the threads of this process's latest fork are at rest."""
+
+        def start(self) -> None:
+            settle_after_fork()
+            super().start()
+
+    class SettledForkContext(ForkContext):
+        """``multiprocessing``'s fork context whose processes are ``SettledForkProcess``."""
+
+        Process = SettledForkProcess  # type: ignore[assignment]
+
+    _SETTLED_FORK: BaseContext | None = SettledForkContext()
+else:  # pragma: no cover - no fork
+    _SETTLED_FORK = None
+
+
+def default_start_method() -> str:
+    """How processes are started: fork on Linux (a child inherits what the parent
+    registered), spawn elsewhere."""
+    return "fork" if sys.platform.startswith("linux") else "spawn"
+
+
+def process_context(method: str | None = None) -> BaseContext:
+    """``multiprocessing``'s context for ``method`` (default ``default_start_method``); its
+    fork context forks each process after ``settle_after_fork``."""
+    method = method or default_start_method()
+    if method == "fork" and _SETTLED_FORK is not None:
+        return _SETTLED_FORK
+    return mp.get_context(method)

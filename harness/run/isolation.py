@@ -59,7 +59,6 @@ import contextlib
 import ctypes
 import faulthandler
 import math
-import multiprocessing as mp
 import os
 import resource
 import shutil
@@ -79,7 +78,7 @@ from contactbench.solvers._loading import exception_text as exception_text
 from contactbench.solvers._processes import REAP_WAIT_S, become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
-from .forks import settle_after_fork
+from .forks import process_context, settle_after_fork
 from .stacks import dump_stacks_on_signal, pass_stack_signal_to, short_path, where_it_was
 
 Handler = Callable[[Any], Any]
@@ -365,8 +364,7 @@ class ChildProcess:
         self.capture_output = capture_output  # the handler's stdout/stderr to a file (module doc)
         self.output_files = output_files  # other files the handler prints to (bounded as its own)
         self.output_cap = output_cap
-        method = start_method or ("fork" if sys.platform.startswith("linux") else "spawn")
-        self.ctx = mp.get_context(method)
+        self.ctx = process_context(start_method)  # (its fork waits for the threads of a recent fork: ``forks``)
         self.proc: Any = None
         self.conn: Connection | None = None
         self.scratch: str | None = None  # the live worker's temporary folder (``start``)
@@ -382,7 +380,6 @@ class ChildProcess:
         self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
         proc = self.ctx.Process(target=_worker_main, daemon=True,
                                 args=(child, self.factory, self.threads, self.scratch, self.capture_output, parent))
-        settle_after_fork()  # (a worker started just after another: ``forks``)
         proc.start()
         with contextlib.suppress(OSError):  # as the worker does: its group exists before any kill
             os.setpgid(proc.pid, proc.pid)

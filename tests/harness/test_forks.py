@@ -2,13 +2,15 @@
 
 The C pool (``lost_wakeup_pool.c``) stops its thread before every fork the way ducc0's and
 pocketfft's pools do, with the window in which a fresh thread misses the stop held open: a
-worker's keeper that forked at once, and a parent that started two workers back to back,
-each hung in ``fork`` until killed.
+worker's keeper that forked at once, a parent that started two workers back to back and a
+``--jobs`` pool forking its processes each hung in ``fork`` until killed.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import textwrap
@@ -44,6 +46,32 @@ SCRIPT = textwrap.dedent("""
     print(" ".join(f"{r.kind}:{r.value}" for r in replies))
 """)
 
+#: The same for a ``--jobs`` pool: its processes are forked back to back.
+POOL_SCRIPT = textwrap.dedent("""
+    import ctypes, sys, time
+    from concurrent.futures import ProcessPoolExecutor
+    from contactbench.harness.run.forks import process_context
+
+    ctypes.CDLL(sys.argv[1]).pool_start()
+    time.sleep(1.0)
+    with ProcessPoolExecutor(max_workers=3, mp_context=process_context("fork")) as pool:
+        print(" ".join(str(v) for v in pool.map(abs, [-1, -2, -3])))
+""")
+
+
+def run_script(script: str, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
+    """``script`` run by this interpreter in a session of its own; on a hang, that session
+    is killed (what a hung fork left) and the hang is the test's failure."""
+    proc = subprocess.Popen([sys.executable, "-c", script, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        pytest.fail(f"hung for {timeout:g} s (killed): {err[-2000:]}")
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
 
 @pytest.fixture(scope="module")
 def pool_library(tmp_path_factory: pytest.TempPathFactory) -> Path:
@@ -63,10 +91,15 @@ def test_workers_start_past_a_pool_that_loses_its_stop(pool_library: Path, worke
     """One worker: its keeper forks the worker while the thread the keeper's own fork started
     is in the window; two: the parent forks the second keeper while the thread its first fork
     started is.  Each worker answers."""
-    out = subprocess.run([sys.executable, "-c", SCRIPT, str(pool_library), str(workers), str(GAP_S)],
-                         capture_output=True, text=True, timeout=30)
+    out = run_script(SCRIPT, str(pool_library), str(workers), str(GAP_S))
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == [f"ok:{k + 1}" for k in range(workers)], out.stdout + out.stderr[-2000:]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork handlers and /proc: Linux")
+def test_a_jobs_pool_starts_past_a_pool_that_loses_its_stop(pool_library: Path) -> None:
+    out = run_script(POOL_SCRIPT, str(pool_library))
+    assert out.returncode == 0 and out.stdout.split() == ["1", "2", "3"], out.stdout + out.stderr[-2000:]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc: Linux")
