@@ -408,6 +408,10 @@ def cmd_run(args: argparse.Namespace, argv: Sequence[str], held: HeldWarnings | 
                         progress=False if args.no_progress else None, **kw)
     out = run_out(args)
     check_out_dir(out)
+    if args.report:  # a page the report would refuse is refused before the solves, not after them
+        from .report.build import check_pages
+
+        check_pages(out)
     # run_benchmark plans, checks the folder, then holds its lock (harness/table/store.py) while it writes
     with memory_budget_scope(kw.get("memory_budget")):  # the run's skips and builds read it too
         if args.scheduler is not None:  # (an empty address is refused, not read as a local run)

@@ -45,6 +45,13 @@ def build_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     return Path(out_dir) / REPORT_NAME
 
 
+def check_pages(out_dir: str | Path, html: bool = True) -> None:
+    """``ReportInputError`` (one line) when a report in ``out_dir`` would be refused for a
+    page there that no report wrote (``owned_files.refuse_foreign``): a run that builds its
+    report asks before it solves."""
+    refuse_foreign(Path(out_dir), page_names(html))
+
+
 def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: bool = True) -> ReportContext:
     """``build_report``, returning the context it filled: its figures, tables, charts and
     ``blank_panels`` (the panels saved with nothing on them and no note: none is right).
@@ -57,7 +64,7 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     if table.empty:
         raise ReportInputError(f"the results table in {out} has no rows")
     ctx = ReportContext(out, table, read_meta(out), shift=shift)
-    refuse_foreign(out, page_names(html))  # (before the figures folder is made; again under the lock)
+    check_pages(out, html)  # (before the figures folder is made; again under the lock)
     figure_dir(out).mkdir(parents=True, exist_ok=True)
     try:
         with folder_lock(figure_dir(out)):

@@ -155,3 +155,17 @@ def test_the_claims_population_and_stress_writers_leave_a_user_s_page(tmp_path: 
         writer(tmp_path)
     assert "\n" not in str(refused.value)
     assert sorted(p.name for p in tmp_path.iterdir()) == [name] and (tmp_path / name).read_bytes() == MINE
+
+
+@pytest.mark.parametrize("name", ["report.md", "report.html"])
+def test_run_report_refuses_a_user_s_page_before_it_solves(
+        tmp_path: Path, capsys: pytest.CaptureFixture, name: str) -> None:
+    """``run --report`` into a folder holding a page of a report's name that no report wrote:
+    one line naming it, exit 2, and no solve run (no table, no run record)."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / name).write_bytes(MINE)
+    rc, _, err = run_cli(["run", "hertz", "--solvers", "nnls", "--out", str(out), "--report", "--no-progress"], capsys)
+    lines = err.strip().splitlines()
+    assert rc == 2 and len(lines) == 1 and str(out / name) in lines[0] and "not written by a report" in lines[0], err
+    assert {p.name for p in out.iterdir()} == {name} and (out / name).read_bytes() == MINE
