@@ -50,7 +50,7 @@ from ..table.meta import build_meta, read_meta, surface_preprocessing, write_met
 from .plan import REFERENCE_TIMEOUT_FACTOR, RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
 from ..table.store import (ResultStore, RunFolder, RunFolderError, check_run_entries, holding_lock, read_run_folder,
-                           record_run, refuse_unrecorded)
+                           fingerprint, record_run, refuse_unrecorded)
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
 #: pins): those that change which cells exist, how they are judged or skipped.  The
@@ -229,6 +229,7 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     surfaces = surface_preprocessing(j.spec for j in plan.jobs)  # (the maps as prepared: their keys are pinned)
     config = run_config_record(scenes, cfg, plan, run, surfaces)
     identity = run_identity(config)
+    config["fingerprint"] = fingerprint(identity)  # (the plan a report counts the cells of: ``meta.planned_runs``)
     checked_folder(out_dir, identity, append, config.get("solver_sources", {}))
     read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
     check_run_entries(out_dir, {OUTPUT_LOG: False})  # (the solvers' log: never written through a link)

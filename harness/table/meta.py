@@ -219,13 +219,18 @@ def planned_cells(config: Any) -> int | None:
 
 def planned_runs(meta: dict[str, Any]) -> list[int]:
     """The cells of each distinct plan that wrote to the folder (``invocations``' configs; a
-    resume of a plan is the same plan), or of ``config`` alone in a record without them."""
+    resume of a plan is the same plan), or of ``config`` alone in a record without them.  A
+    plan is its run's configuration as the folder's marker pins it (``config.fingerprint``,
+    written by the runner: warm or cold, repeats and the limits included); in a record
+    without it, its scenes, scene options, solvers, profiles and cells."""
     configs = [inv.get("config") for inv in listed(meta.get("invocations")) if isinstance(inv, dict)]
     plans: dict[str, int] = {}
     for config in configs or [meta.get("config")]:
         cells = planned_cells(config)
         if cells is not None:
-            what = {k: config.get(k) for k in ("scenes", "scene_config", "solvers", "profiles", "cells")}
+            key = config.get("fingerprint")
+            what = key if isinstance(key, str) and key else \
+                {k: config.get(k) for k in ("scenes", "scene_config", "solvers", "profiles", "cells")}
             plans.setdefault(json.dumps(what, sort_keys=True, default=str), cells)
     return list(plans.values())
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -82,6 +83,22 @@ def test_a_run_appended_to_an_interrupted_one_leaves_the_folder_partial(whole: P
     shutil.copytree(whole, whole2)
     run_benchmark(["paper-sweep"], small, ["pk"], RUN, whole2, command=["pytest", "pk"], append=True)
     assert "| Cells | 7 of 7 planned cells over 2 runs added with --append (complete) |" in header(whole2)
+
+
+def test_a_cold_run_appended_to_a_warm_one_is_a_plan_of_its_own(whole: Path, tmp_path: Path) -> None:
+    """The same scenes, options, solvers and cells solved cold (``--cold --append``) are other
+    cells: a folder whose cold run wrote no row is not complete (it read "6 of 6 planned
+    cells (complete)": the two plans were counted as one)."""
+    out = tmp_path / "warm-then-cold"
+    shutil.copytree(whole, out)
+    warm_rows = (out / ROWS_FILE).read_text(encoding="utf-8")
+    run_benchmark(["paper-sweep"], CFG, SOLVERS, replace(RUN, warm=False), out, command=["pytest", "cold"], append=True)
+    assert "| Cells | 12 of 12 planned cells over 2 runs added with --append (complete) |" in header(out)
+    (out / ROWS_FILE).write_text(warm_rows, encoding="utf-8")  # what a cold run stopped before its first row leaves
+    for name in ("results.parquet", "results.csv"):
+        (out / name).unlink()
+    top = header(out)
+    assert "(complete)" not in top and "planned 6 + 6 cells" in top, top
 
 
 @pytest.mark.parametrize("text", ["[1, 2]", "not json", '{"config": {"cells": -5}}'])
