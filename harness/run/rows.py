@@ -88,9 +88,27 @@ class RowFactory:
             host=self.host, timestamp=now_iso(), cell_id=self.cell_id(k, v, profile, r),
             history=HISTORIES[0] if self.run.warm else HISTORIES[1], **instance_columns(spec.params),
         )
-        row.update(info.columns if info else {})
+        row.update(info.columns if info else recipe_columns(spec.params))
         row.update(values)
         return row
+
+
+def recipe_columns(params: dict[str, Any]) -> dict[str, Any]:
+    """What a row of a step that was not built (its build failed or timed out) knows of it
+    from the recipe alone: E, kernel and periodic where the recipe names them, and N where it
+    generates a square grid of ``size`` points a side (not a measured map, whose side the
+    file tells).  n is the built problem's and stays unknown."""
+    out: dict[str, Any] = {}
+    if isinstance(params.get("E"), (int, float)) and not isinstance(params.get("E"), bool):
+        out["E"] = float(params["E"])
+    if isinstance(params.get("kernel"), str):
+        out["kernel"] = params["kernel"]
+    if isinstance(params.get("periodic"), bool):
+        out["periodic"] = params["periodic"]
+    size = params.get("size")
+    if isinstance(size, int) and not isinstance(size, bool) and not params.get("surface_path"):
+        out["N"] = size
+    return out
 
 
 def instance_columns(params: dict[str, Any]) -> dict[str, Any]:
