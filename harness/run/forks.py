@@ -57,12 +57,12 @@ def thread_states(pid: int | None = None) -> dict[int, str]:
     states: dict[int, str] = {}
     for tid in tids:
         try:
-            with open(f"{task}/{tid}/stat", encoding="ascii", errors="replace") as fh:
-                after_name = fh.read().rpartition(")")[2].split()
+            with open(f"{task}/{tid}/stat", "rb") as fh:
+                after_name = fh.read().rpartition(b")")[2].split()
         except OSError:  # (the thread ended meanwhile)
             continue
         if after_name and tid.isdigit():
-            states[int(tid)] = after_name[0]
+            states[int(tid)] = after_name[0].decode("ascii", errors="replace")
     return states
 
 
