@@ -13,7 +13,8 @@ so both fork while such threads may still be on their way to their wait.
 fork it waits until no other thread of the process is running (``/proc``: every other thread
 asleep or stopped), so that each pool thread is inside its wait when the next fork's stop
 wakes it.  Later, or where ``/proc`` cannot be read, it returns at once.  ``process_context``'s fork
-context forks each of its processes so (a worker's keeper, a ``--jobs`` pool's processes).
+context forks each of its processes so (a worker's keeper, a ``--jobs`` pool's processes),
+and in a worker every fork does (``settle_every_fork``: a solver's own).
 """
 
 from __future__ import annotations
@@ -84,6 +85,17 @@ def settle_after_fork(wait_s: float = SETTLE_WAIT_S) -> bool:
             return True
         time.sleep(SETTLE_POLL_S)
     return False
+
+
+_EVERY_FORK = [False]  # whether ``settle_every_fork`` holds in this process (inherited by its children)
+
+
+def settle_every_fork() -> None:
+    """From now on, every fork of this process and of its children -- ``os.fork`` and what
+    forks through it, a solver's own included -- first runs ``settle_after_fork``."""
+    if not _EVERY_FORK[0] and hasattr(os, "register_at_fork"):
+        os.register_at_fork(before=settle_after_fork)
+        _EVERY_FORK[0] = True
 
 
 if sys.platform != "win32":

@@ -78,7 +78,7 @@ from contactbench.solvers._loading import exception_text as exception_text
 from contactbench.solvers._processes import REAP_WAIT_S, become_subreaper, end_descendants, end_own_descendants
 
 from ..table.files import pid_exists
-from .forks import process_context, settle_after_fork
+from .forks import process_context, settle_after_fork, settle_every_fork
 from .stacks import dump_stacks_on_signal, pass_stack_signal_to, short_path, where_it_was
 
 Handler = Callable[[Any], Any]
@@ -240,6 +240,7 @@ def _worker_main(conn: Connection, factory: HandlerFactory, threads: int | None,
         if os.getppid() != keeper:  # pragma: no cover - the keeper died before the line above
             os._exit(1)
         become_subreaper()  # the orphans of what a solver starts stay this worker's descendants
+    settle_every_fork()  # a solver's own fork, too (``forks``)
     if not os.environ.get("CONTACTBENCH_FAULTHANDLER"):
         faulthandler.disable()  # a crashing solver is reported as a row, not a stack dump
     _limits = limit_threads(threads)  # noqa: F841 - held for the process lifetime

@@ -31,12 +31,22 @@ GAP_S = 0.05
 #: ``GAP_S`` after the one before (the thread the fork before started is then in its window),
 #: and asks each for one reply.
 SCRIPT = textwrap.dedent("""
-    import ctypes, sys, time
+    import ctypes, os, sys, time
     from contactbench.harness.run.isolation import ChildProcess
 
     ctypes.CDLL(sys.argv[1]).pool_start()
     time.sleep(1.0)  # the pool's first thread is waiting: this process's first fork is safe
-    children = [ChildProcess(lambda: (lambda m: m + 1)) for _ in range(int(sys.argv[2]))]
+    def forks_then_answers(m):
+        for _ in range(2):  # a solver's own forks, the second in the window of the thread the first started
+            pid = os.fork()
+            if pid == 0:
+                os._exit(0)
+            os.waitpid(pid, 0)
+            time.sleep(float(sys.argv[3]))
+        return m + 1
+
+    handler = forks_then_answers if sys.argv[4] == "fork" else (lambda m: m + 1)
+    children = [ChildProcess(lambda: handler) for _ in range(int(sys.argv[2]))]
     for child in children:
         child.start()
         time.sleep(float(sys.argv[3]))
@@ -86,12 +96,13 @@ def pool_library(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork handlers and /proc: Linux")
-@pytest.mark.parametrize("workers", [1, 2])
-def test_workers_start_past_a_pool_that_loses_its_stop(pool_library: Path, workers: int) -> None:
+@pytest.mark.parametrize("workers, solve", [(1, "plain"), (2, "plain"), (1, "fork")])
+def test_workers_start_past_a_pool_that_loses_its_stop(pool_library: Path, workers: int, solve: str) -> None:
     """One worker: its keeper forks the worker while the thread the keeper's own fork started
     is in the window; two: the parent forks the second keeper while the thread its first fork
+    started is; a solve that forks twice: the worker forks while the thread its first fork
     started is.  Each worker answers."""
-    out = run_script(SCRIPT, str(pool_library), str(workers), str(GAP_S))
+    out = run_script(SCRIPT, str(pool_library), str(workers), str(GAP_S), solve)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == [f"ok:{k + 1}" for k in range(workers)], out.stdout + out.stderr[-2000:]
 
