@@ -14,6 +14,8 @@
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
 from dataclasses import replace
 import os
 import time
@@ -22,6 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
+import pytest
 from hypothesis import strategies as st
 import scipy.linalg as sla
 from scipy.optimize import nnls
@@ -520,3 +523,13 @@ def process_gone(pid: int) -> bool:
     except OSError:
         return True
     return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")
+
+
+def compile_c(source: Path, out: Path, *flags: str, what: str) -> Path:
+    """``source`` built into ``out`` by the system C compiler, ``flags`` after it (pytest skips,
+    naming ``what``, where there is no compiler)."""
+    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if cc is None:
+        pytest.skip(f"no C compiler (cc, gcc or clang) on PATH: {what} cannot be built")
+    subprocess.run([cc, "-O2", "-o", str(out), str(source), *flags], check=True, capture_output=True)
+    return out

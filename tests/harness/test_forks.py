@@ -9,7 +9,6 @@ worker's keeper that forked at once, a parent that started two workers back to b
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -21,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from contactbench.harness.run import forks
+from tests.helpers import compile_c
 
 HERE = Path(__file__).parent
 #: Seconds between two worker starts: within the C pool's window (``SPIN_S``, 0.2 s).
@@ -86,13 +86,8 @@ def run_script(script: str, *args: str, timeout: float = 30.0) -> subprocess.Com
 @pytest.fixture(scope="module")
 def pool_library(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The C pool, built with the system C compiler (skipped without one)."""
-    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if cc is None:
-        pytest.skip("no C compiler (cc, gcc or clang) on PATH: the C pool cannot be built")
     out = tmp_path_factory.mktemp("pool") / "liblost_wakeup_pool.so"
-    subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(out), str(HERE / "lost_wakeup_pool.c"), "-lpthread"],
-                   check=True, capture_output=True)
-    return out
+    return compile_c(HERE / "lost_wakeup_pool.c", out, "-shared", "-fPIC", "-lpthread", what="the C pool")
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork handlers and /proc: Linux")

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -42,7 +41,7 @@ from contactbench.solvers.external import (
     register_manifest,
 )
 from contactbench.solvers.registry import all_solvers, unregister
-from tests.helpers import REPO, TESTS
+from tests.helpers import REPO, TESTS, compile_c
 
 HERE = TESTS / "external"
 SCRIPT = HERE / "standalone_solver.py"
@@ -56,12 +55,7 @@ def script_command(*flags: str) -> str:
 @pytest.fixture(scope="module")
 def pgs_binary(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The C example, compiled with the system C compiler (skipped without one)."""
-    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if cc is None:
-        pytest.skip("no C compiler (cc, gcc or clang) on PATH: the C example cannot be built")
-    out = tmp_path_factory.mktemp("pgs") / "pgs"
-    subprocess.run([cc, "-O2", "-o", str(out), str(HERE / "pgs.c"), "-lm"], check=True, capture_output=True)
-    return out
+    return compile_c(HERE / "pgs.c", tmp_path_factory.mktemp("pgs") / "pgs", "-lm", what="the C example")
 
 
 # ---------------------------------------------------------------------------
