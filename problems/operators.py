@@ -10,15 +10,14 @@ One interface, two implementations:
     with the convolution done by real FFTs against a transform of the kernel that is
     computed once and shared by every restriction.  It never allocates n x n.
 
-Both expose: ``matvec``, ``diagonal``, ``submatrix``/``column`` (gathered from the
-kernel table, so even the FFT operator can hand out a dense block cheaply),
-``restrict`` (a sub-operator on a subset of I), ``to_dense`` (guarded by a memory
-budget), ``with_precision`` (the same operator with float32 products, for
-mixed-precision solvers; ``restrict`` keeps the precision) and memory estimates.
-Every operator counts its matvecs in ``matvec_count``.  The FFT machinery (the shared
+Both expose: ``matvec``, ``diagonal``, ``submatrix``/``column`` (gathered from the kernel
+table: even the FFT operator hands out a dense block cheaply), ``restrict`` (a sub-operator
+on a subset of I), ``to_dense`` (guarded by a memory budget), ``with_precision`` (float32
+products for mixed-precision solvers; ``restrict`` keeps the precision) and memory
+estimates; each counts its matvecs in ``matvec_count``.  The FFT machinery (the shared
 kernel transform, its pruned ducc0/scipy convolution, ``fft_floor_pair``) is in
-problems/fft_transform.py, its threads and FFT library in problems/fft_threads.py; their
-public names are re-exported here.
+problems/fft_transform.py, its threads and FFT library in problems/fft_threads.py (their
+public names re-exported here).
 """
 
 from __future__ import annotations
@@ -318,6 +317,7 @@ class ContactOperator(ABC):
         return dense_nbytes(self.n)
 
     def to_dense(self, budget: float | None = None) -> np.ndarray:
+        """H (float64; ``MemoryBudgetError`` over ``budget``), maybe read-only: copy to write."""
         check_dense_budget(self.n, budget)
         idx = np.arange(self.n)
         return self.submatrix(idx, idx)
@@ -358,7 +358,7 @@ def _pad_identity(blocks: np.ndarray, members: np.ndarray) -> np.ndarray:
 
 
 class DenseOperator(ContactOperator):
-    """H_II held as a dense array."""
+    """H_II held as a dense array, ``H``: a read-only view of the array given (``to_dense``)."""
     SEAL_RULE: ClassVar[SealRule] = SealRule(caches={"_floor": lambda op, key, current: op._fresh_floor()})
 
     def __init__(self, H: np.ndarray, dtype: object = np.float64) -> None:
@@ -366,7 +366,8 @@ class DenseOperator(ContactOperator):
         H = np.asarray(H, dtype=self.dtype)
         if H.ndim != 2 or H.shape[0] != H.shape[1]:
             raise ProblemInputError(f"H must be a square matrix, got shape {H.shape}")
-        self.H = H
+        self.H = H.view()  # (read-only: the class doc)
+        self.H.flags.writeable = False
         self.n = H.shape[0]
         self.matvec_count = 0
 
@@ -402,8 +403,7 @@ class DenseOperator(ContactOperator):
         return self.submatrix(rows, cols) @ np.asarray(x, dtype=np.float64)
 
     def partial_product_pays(self, entries: int) -> bool:
-        # A gathered entry costs a few times a streamed one.
-        return entries <= PARTIAL_PRODUCT_FACTOR * self.n * self.n
+        return entries <= PARTIAL_PRODUCT_FACTOR * self.n * self.n  # (a gathered entry: a few streamed ones)
 
     def entry_floor(self) -> float | None:
         if getattr(self, "_floor", None) is None:
