@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from contactbench.solvers.base import Solver
+from contactbench.solvers.base import Promise, Solver
 from contactbench.solvers.registry import is_import_path, load_named_solver
 
 from ..run.child_call import LoadFailed as LoadFailed
@@ -40,7 +40,7 @@ class Declaration:
     make, and whether it is ``available`` here (``why`` not)."""
 
     name: str
-    promise: str
+    promise: Promise
     available: bool
     why: str = ""
 
@@ -53,4 +53,5 @@ def declaration_of(solver: Solver | str, params: dict[str, Any] | None = None) -
     available, why, _ = checked_availability(s)
     if available:
         s.resolve_params(params)
-    return Declaration(s.name, str(s.capabilities.promise), bool(available), str(why))
+    promise = s.capabilities.promise
+    return Declaration(s.name, promise if promise == "exact" else float(promise), bool(available), str(why))
