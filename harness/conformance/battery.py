@@ -56,7 +56,8 @@ Outcomes (one per solver; ``VerdictTable.outcome``) and exit codes of ``main``:
                  stopping at the limit is the answer asked for), timeout, crashed, or
                  refused outside the float32 case -- by any solver: exit 3, listing them;
 ``untested``     none of these, and either no answer of the solver's own judged
-                 (``VerdictTable.judged``): every selected case skipped for a capability
+                 (``VerdictTable.judged``; in ``iteration-limit`` an answer stopped at the
+                 limit counts: ``limit_answers``): every selected case skipped for a capability
                  it declares, refused where refusing is allowed (float32), or answered by
                  the lifecycle without calling it (ubar <= 0: p = 0); or its own skips
                  left a whole group of the selection untried (the coverage rule below)
@@ -387,6 +388,14 @@ class VerdictTable:
             r.status == "flagged" and math.isfinite(r.kkt_error) and r.kkt_error <= r.check_tol))]
 
     @property
+    def limit_answers(self) -> list[VerdictRow]:
+        """The solves of ``LIMIT_GROUP`` answered by the solver itself and not wrong: that
+        group judges whether it keeps to its limit, and an unconverged answer at the limit
+        is the answer it asks for (its rows are flagged where the limit was not kept)."""
+        return [r for r in self.solves if r.group == LIMIT_GROUP and r.iterated
+                and r.status in ("pass", "unconverged", "flagged")]
+
+    @property
     def wrong(self) -> list[VerdictRow]:
         return [r for r in self.rows if r.status == "WRONG"]
 
@@ -415,7 +424,7 @@ class VerdictTable:
             return "strict"
         if self.unsolved:
             return "incomplete"
-        return "conforms" if self.judged and not self.untried_groups else "untested"
+        return "conforms" if (self.judged or self.limit_answers) and not self.untried_groups else "untested"
 
     @property
     def ok(self) -> bool:
@@ -452,9 +461,13 @@ class VerdictTable:
         if flagged:
             kinds = {k for r in flagged for k in r.flags.split("+") if k}
             why = " or ".join(FLAG_WORDS[k] for k in FLAG_WORDS if k in kinds) or "failing a conformance extra"
+            accepted = all(math.isfinite(r.kkt_error) and r.kkt_error <= r.check_tol for r in flagged)
             return (f"CONFORMS to its promise ({promise_text(self.promise)}): {len(flagged)} of {len(self.rows)} "
-                    f"rows flagged -- accepted by the KKT test, but {why}")
+                    f"rows flagged -- {'accepted by the KKT test, but ' if accepted else ''}{why}")
         limited = sum(r.status == "unconverged" and r.group == LIMIT_GROUP for r in self.solves)
+        if limited == solves:
+            return (f"CONFORMS: every solve stopped at the iteration limit of {LIMIT_GROUP} as asked ({limited} of "
+                    f"{solves}), none claimed as converged -- that group judges the limit, not the answers")
         stopped = f", {limited} stopped at the limit of {LIMIT_GROUP} as asked" if limited else ""
         return (f"CONFORMS: every solve correct to its promise ({promise_text(self.promise)}; {solves - limited} of "
                 f"{solves - limited}){stopped}")

@@ -110,7 +110,30 @@ def test_stopping_at_the_limit_is_not_left_unsolved() -> None:
     table = cf.validate(StopsAtTheLimit(), limit_cases(), isolate=False)
     assert [r.status for r in table.rows] == ["unconverged"] * len(LIMIT_CASES), table.format()
     assert [r.iterations for r in table.rows] == [ITERATION_LIMIT] * len(LIMIT_CASES)
-    assert not table.unsolved and table.outcome(strict=True) == "untested"  # nothing of its own accepted
+    assert not table.unsolved and table.outcome(strict=True) == "conforms"  # the answer the group asks for
+    assert table.headline().startswith(f"CONFORMS: every solve stopped at the iteration limit of {LIMIT_GROUP} as asked")
+
+
+def test_a_group_of_the_limit_alone_judges_the_limit(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--group iteration-limit`` alone: a solver that stops at the limit conforms (exit 0),
+    one that reports more iterations is flagged -- not "untested" for reasons none of which
+    held (no case skipped, refused or answered without it) -- and fails ``--strict``."""
+    assert validate_main(["nnls", "--group", LIMIT_GROUP, "--quiet", "--no-isolate"]) == 0
+    assert "stopped at the iteration limit" in capsys.readouterr().out
+    argv = [f"{__name__}:IgnoresTheLimit", "--group", LIMIT_GROUP, "--quiet", "--no-isolate"]
+    assert validate_main(argv) == 0
+    out = capsys.readouterr().out
+    assert "rows flagged" in out and "more iterations than its iteration limit" in out and "UNTESTED" not in out
+    assert validate_main([*argv, "--strict"]) == 1
+
+
+def test_flagged_rows_not_accepted_are_not_called_accepted() -> None:
+    """A limit row whose answer the KKT test does not accept is flagged for the limit, and
+    the headline does not say it was accepted."""
+    table = cf.validate(IgnoresTheLimit(), limit_cases(), isolate=False)
+    for row in table.rows:
+        row.kkt_error = 10 * row.check_tol
+    assert table.headline().startswith("CONFORMS to its promise (exact): 2 of 2 rows flagged -- more iterations")
 
 
 def test_a_limit_per_stage_allows_the_limit_times_its_stages() -> None:
