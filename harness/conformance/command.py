@@ -26,7 +26,7 @@ from contactbench.solvers.registry import load_named_solver as load_import_path
 
 from ..arguments import EXIT_BAD_INPUT, Parser, time_limit
 from ..arguments import check_out_dir as check_writable_dir
-from ..run.plan import refuse_name_clash
+from ..run.plan import probe_import, refuse_name_clash
 from ..run.skips import checked_availability
 from ..table.files import begins_with, replace_atomically
 from .declared import LoadFailed, OneLine, in_a_child, names_user_code
@@ -242,6 +242,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         command_solvers = command_solver_of(args.command, args.inputs)
         choose = (args.solvers, args.all, command_solvers, not args.list, args.params)
         in_child = not args.no_isolate and any(names_user_code(name) for name in args.solvers)
+        if in_child:  # a module whose import ends or hangs its process: named, as ``run`` names it
+            for name in args.solvers:
+                if names_user_code(name):
+                    probe_import(name.split("[", 1)[0])
         solvers = in_a_child(selected_solvers, *choose) if in_child else selected_solvers(*choose)
         if args.csv is not None:
             check_csv_path(args.csv)

@@ -3,7 +3,8 @@ child before its own process does: a module whose import ends the process that i
 (``os._exit``, a signal, a segfault) is one line naming the module and how that process
 ended, exit 2, before anything runs or is written, and ``run``'s own process never imports
 it; a module whose import ends nothing is imported by one child and by ``run``, and its
-solver runs (harness/run/plan.py ``probe_import``, harness/run/child_call.py)."""
+solver runs (harness/run/plan.py ``probe_import``, harness/run/child_call.py).  ``validate``
+probes the same way, and its line names the solver as ``run``'s does."""
 
 from __future__ import annotations
 
@@ -83,3 +84,16 @@ def test_a_module_whose_import_ends_nothing_is_imported_once_in_a_child_and_its_
     assert len(importers) == 2 and importers[-1] == os.getpid(), importers
     assert (in_tmp / "o" / "results.parquet").is_file()
     assert "solved 4" in out, out
+
+
+@pytest.mark.parametrize("text", list(ENDS_ITS_PROCESS), ids=["os-exit", "sigkill", "segfault"])
+def test_validate_names_the_solver_whose_import_ends_its_process(
+        text: str, user_module, capsys: pytest.CaptureFixture[str]) -> None:
+    """The same line as ``run``'s, with another solver beside it: which one, and how."""
+    module = user_module(text, "cb_ends_its_process")
+    rc, _, err = run_cli(["validate", "nnls", f"{module}:S", "--quiet"], capsys)
+    lines = err.strip().splitlines()
+    assert rc == 2 and len(lines) == 1 and lines[0].startswith("contactbench validate: error: "), (rc, err)
+    assert f"cannot load solver '{module}:S': importing module '{module}' ended its process" in lines[0], err
+    assert f"({ENDS_ITS_PROCESS[text]})" in lines[0], err
+    assert module not in sys.modules
