@@ -294,7 +294,7 @@ def _fig4_block(ctx: ReportContext, block: Block, others: str = "") -> tuple[str
         return "Every pair of this scene was skipped.\n", drawn_as_png(FIG4_PAGE, block)
     cells = _curve_cells(r, own_ref=True)
     n_steps = sweep_steps(at_prof)
-    tot = sweep_totals(cells, n_steps)
+    tot = sweep_totals(cells, n_steps, _curve_cells(at_prof))
 
     def spread_of(a: str, b: str) -> Spread:
         return timing_spread(r, lambda g: total_ratio(sweep_totals(_curve_cells(g), n_steps), a, b))

@@ -4,7 +4,9 @@ whole sweep, the accuracy its answers bought, and the best solver of each family
 
 A *step of the sweep* is a distinct (instance, step) of the scene at the profile drawn,
 skipped ones included: a solver skipped at a step has no time there, so its sum over
-the steps it ran is not a total over the sweep and is never ranked against one.
+the steps it ran is not a total over the sweep and is never ranked against one.  A solver
+with no row at a step (a run appended to the folder for other solvers) was not run there:
+its steps solved are counted over the steps it was run on, and say so.
 """
 
 from __future__ import annotations
@@ -39,21 +41,24 @@ def _steps_of(cells: pd.DataFrame) -> pd.Series:
     return cells.drop_duplicates(["solver", "instance", "step"]).groupby("solver", sort=False).size()
 
 
-def sweep_totals(cells: pd.DataFrame, n_steps: int) -> pd.DataFrame:
+def sweep_totals(cells: pd.DataFrame, n_steps: int, every: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per solver label of ``cells`` (``per_cell`` of the attempted rows, one label per
-    curve), over a sweep of ``n_steps`` steps: ``steps`` (the sweep's), ``run`` (steps
-    with a time), ``solved`` (steps solved), ``complete`` (every step of the sweep solved),
+    curve), over a sweep of ``n_steps`` steps: ``steps`` (the sweep's), ``planned`` (the
+    steps it has a row at in ``every``, the same cells with the skipped ones: the steps it
+    was run on; the sweep's without ``every``), ``run`` (steps with a time), ``solved``
+    (steps solved), ``complete`` (every step of the sweep solved),
     ``total_s`` (solve time summed over the steps run), ``solved_s`` (over the steps
     solved), ``worst_kkt`` and ``worst_p_err`` (over the answered cells, schema.ANSWERED,
     the error in p leaving out the answers that served as the reference, ``OWN_REF``; NaN
     when none answered) and ``reference_only`` (``reference_only``)."""
     labels = pd.Index(list(dict.fromkeys(cells["solver"])), name="solver")
     run = _steps_of(cells).reindex(labels, fill_value=0)
+    planned = n_steps if every is None else _steps_of(every).reindex(labels, fill_value=0)
     solved = _steps_of(cells[cells["solved"]]).reindex(labels, fill_value=0)
     g = cells.groupby("solver", sort=False)
     answered = cells[cells["status"].isin(ANSWERED)].groupby("solver", sort=False)
     return pd.DataFrame({
-        "steps": n_steps, "run": run, "solved": solved, "complete": solved >= n_steps,
+        "steps": n_steps, "planned": planned, "run": run, "solved": solved, "complete": solved >= n_steps,
         "total_s": g["solve_time_s"].sum(min_count=1).reindex(labels),
         "solved_s": cells[cells["solved"]].groupby("solver")["solve_time_s"].sum().reindex(labels, fill_value=0.0),
         "worst_kkt": answered["kkt_error"].max().reindex(labels),
@@ -96,13 +101,17 @@ def total_text(t: pd.Series) -> str:
         return fmt_num(t["total_s"])
     if not t["run"]:
         return "-"
+    if t["planned"] < t["steps"]:
+        return (f"- ({fmt_num(t['total_s'])} over {int(t['run'])} of the {int(t['planned'])} steps it was run on, "
+                f"of the sweep's {int(t['steps'])})")
     return f"- ({fmt_num(t['total_s'])} over {int(t['run'])} of {int(t['steps'])} steps)"
 
 
 def totals_rows(tot: pd.DataFrame, family_of: Callable[[str], str]) -> list[tuple[Any, ...]]:
     """The rows of Fig. 4's totals table, in ``ranked_labels`` order: solver, family,
-    steps solved (of the sweep's), total [s] (``total_text``), worst kkt, worst p err."""
-    return [(s, family_of(s), f"{int(tot.loc[s, 'solved'])} of {int(tot.loc[s, 'steps'])}",
+    steps solved (of the steps it was run on, ``planned``), total [s] (``total_text``), worst
+    kkt, worst p err."""
+    return [(s, family_of(s), f"{int(tot.loc[s, 'solved'])} of {int(tot.loc[s, 'planned'])}",
              total_text(tot.loc[s]), fmt_err(tot.loc[s, "worst_kkt"]),
              REF_CELL if tot.loc[s, "reference_only"] else fmt_err(tot.loc[s, "worst_p_err"]))
             for s in ranked_labels(tot)]
@@ -128,7 +137,7 @@ def best_per_family(tot: pd.DataFrame, family_of: Callable[[str], str]) -> dict[
 def skipped_note(tot: pd.DataFrame) -> str:
     """Caption text naming, per drawn label, the steps of the sweep it has no time at
     (skipped, or not run), which leave no mark on the figure; "" when none."""
-    short = [(s, int(tot.loc[s, "steps"]) - int(tot.loc[s, "run"])) for s in natural_sorted(tot.index)]
+    short = [(s, int(tot.loc[s, "planned"]) - int(tot.loc[s, "run"])) for s in natural_sorted(tot.index)]
     short = [(s, k) for s, k in short if k > 0]
     if not short:
         return ""
