@@ -60,7 +60,8 @@ def literal_path(path: str | os.PathLike[str]) -> Path:
 def replace_atomically(path: str | os.PathLike[str], write: Callable[[str], Any]) -> None:
     """``write(tmp)`` to a unique temporary file next to ``path`` (``literal_path``: every
     writer, ``write`` too, reads the one path), fsync it, then rename it over ``path``; the
-    temporary file is removed if anything fails."""
+    temporary file is removed if anything fails, and an ``OSError`` that names no file, or
+    the temporary one, names ``path`` (a full disk's "No space left on device" names none)."""
     p = literal_path(path)
     tmp = str(p.with_name(f".{p.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"))  # (umask applies)
     try:
@@ -68,9 +69,11 @@ def replace_atomically(path: str | os.PathLike[str], write: Callable[[str], Any]
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, p)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.filename in (None, tmp):
+            exc.filename = str(p)
         raise
 
 

@@ -240,9 +240,16 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
         plan = replace(plan, warnings=[*plan.warnings, *same_heights(out_dir, surfaces)])
         for w in plan.warnings:
             log.warning("warning: %s", w)
-        record_run(folder, identity)
+        try:
+            record_run(folder, identity)
+        except OSError as exc:  # (a full disk: a write that failed, no bad input)
+            raise RunStopped(f"{os_error_line(exc)}; {STOPPED_FIRST}") from None
         store = ResultStore(out_dir)
         return execute_plan(plan, run, store, config, command, executor, t0, surfaces)
+
+
+#: What a run that could not write its marker or meta.json says after the file's error.
+STOPPED_FIRST = "the run stopped before it solved anything: the same command starts it again"
 
 
 def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict[str, Any],
@@ -258,10 +265,13 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     ran = executor.run_config(run)  # (what each solve worker's BLAS/FFT threads are held to: the report's header)
     config = {**config, "run": asdict(ran), "executor": executor.describe(), "worker_threads": ran.worker_threads()}
     log_name = output_log_name(executor)
-    write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
-                                     surfaces=surface_preprocessing(j.spec for j in plan.jobs) if surfaces is None
-                                     else surfaces,
-                                     extra={"solver_output": log_name} if log_name else None))
+    try:
+        write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
+                                         surfaces=surface_preprocessing(j.spec for j in plan.jobs) if surfaces is None
+                                         else surfaces,
+                                         extra={"solver_output": log_name} if log_name else None))
+    except OSError as exc:  # (a full disk: a write that failed, no bad input)
+        raise RunStopped(f"{os_error_line(exc)}; {STOPPED_FIRST}") from None
     total = sum(j.n_cells(run.repeats) for j in pending)
     already = sum(1 for j in pending for c in job_cell_ids(j, run) if c in statuses)
     show_bar = run.progress if run.progress is not None else not under_ci()
