@@ -338,8 +338,10 @@ def describe_exit(exitcode: int | None) -> str:
 #: soon as the process ends, not a claim on speed.
 DIED_WAIT_S = REAP_WAIT_S + 25.0
 
-#: The longest single wait on a worker's pipe (``ChildProcess._answered_within``).
-POLL_CHUNK_S = 86_400.0
+#: How often (seconds) a parent waiting on a worker's pipe checks that its keeper lives
+#: (``ChildProcess._answered_within``): a process the solver started and left running may
+#: hold the pipe open after the worker and its keeper died, so no end of file comes.
+KEEPER_CHECK_S = 0.25
 
 #: A worker's temporary folder is ``<tmp>/<prefix><owner's pid>-<random>``.
 SCRATCH_PREFIX = "contactbench-worker-"
@@ -403,6 +405,8 @@ class ChildProcess:
         except (BrokenPipeError, OSError):
             return self._crashed(t0)
         if not self._answered_within(timeout):
+            if self._keeper_ended():  # (dead, its pipe held open by what the solver left running)
+                return self._crashed(t0)
             elapsed = time.perf_counter() - t0
             where = where_it_was(self.proc.pid, self.scratch) if self.scratch is not None else ""
             detail = f"no answer within the hard limit of {timeout:.3g} s; worker killed{where}" + self.output_tail()
@@ -419,19 +423,26 @@ class ChildProcess:
 
     def _answered_within(self, timeout: float | None) -> bool:
         """Whether the reply arrives within ``timeout`` s (None: waits for it), in waits of at
-        most ``POLL_CHUNK_S`` (the pipe's poll takes milliseconds as a C int: about 25 days),
-        or of ``OUTPUT_CHECK_S`` where the handler's output goes to files, each cut back
-        after each wait (``bound_output``)."""
+        most ``KEEPER_CHECK_S``, or of ``OUTPUT_CHECK_S`` where the handler's output goes to
+        files, each cut back after each wait (``bound_output``); False at once when the
+        keeper has ended with no reply sent (``_keeper_ended``)."""
         assert self.conn is not None
         files = self.bounded_files()
-        chunk = OUTPUT_CHECK_S if files else POLL_CHUNK_S
+        chunk = min(OUTPUT_CHECK_S if files else KEEPER_CHECK_S, KEEPER_CHECK_S)
         end = math.inf if timeout is None else time.monotonic() + timeout
         while (left := end - time.monotonic()) > 0:
             if self.conn.poll(min(left, chunk)):
                 return True
             for path in files:
                 bound_output(path, self.output_cap)
+            if self._keeper_ended():
+                break
         return bool(self.conn.poll(0))
+
+    def _keeper_ended(self) -> bool:
+        """Whether the worker's keeper (``proc``) has ended: then no reply can come, the
+        worker ending with it (``set_parent_death_signal``)."""
+        return self.proc is not None and self.proc.exitcode is not None
 
     def bounded_files(self) -> tuple[str, ...]:
         """The files the handler's output goes to, which a wait keeps under ``output_cap``."""

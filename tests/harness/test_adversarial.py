@@ -166,6 +166,7 @@ def test_a_solver_that_writes_into_its_problem_is_caught_by_the_seal(ex1) -> Non
     v = judge(inst, p, False, TOL, tampered=seal.broken(qp))
     assert (v.status, v.reading, v.tampered) == ("failed", "wrong", True)
     seal = ProblemSeal.of(qp)
+    qp.H.H.flags.writeable = True  # (read-only, but a view: a solver can make it writeable)
     qp.H.H[3, 3] *= 1.0 + 1e-15  # the dense operator's matrix
     assert "H.H" in seal.broken(qp)
     fft = counterexample(36, 1, operator="fft").qp
@@ -409,7 +410,8 @@ class WritesInItsWarmUp(Solver):
         H = ctx.qp.H.to_dense()
         if not WritesInItsWarmUp.wrote:
             WritesInItsWarmUp.wrote = True
-            H *= 2.0  # DenseOperator.to_dense: the operator's own matrix
+            H.flags.writeable = True  # DenseOperator.to_dense: the operator's own matrix, read-only, a view
+            H *= 2.0
         return Outcome(exact_of(H, ctx.qp.ubar), 1, True)
 
 

@@ -249,6 +249,41 @@ def test_a_worker_that_left_its_keeper_ends_when_the_runner_lets_it_go(tmp_path:
     assert ended_in_time(int(pid_file.read_text())), "the worker outlived the runner's end of its pipe"
 
 
+def hold_the_pipe_then_kill_the_keeper(pid_file: str) -> int:
+    """A worker's handler: leave behind a process outside the group that holds every file
+    of the worker's, its pipe among them, for ``LIFETIME_S`` (its pid into ``pid_file``),
+    then kill the keeper and go on "solving"."""
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # pragma: no cover - runs in the forked child
+        os.setsid()
+        holder = os.fork()
+        if holder == 0:
+            time.sleep(LIFETIME_S)
+        else:
+            os.write(write, str(holder).encode())
+        os._exit(0)
+    os.close(write)
+    Path(pid_file).write_text(os.read(read, 32).decode())
+    os.waitpid(child, 0)
+    os.kill(os.getppid(), signal.SIGKILL)
+    time.sleep(LIFETIME_S)
+    return 0
+
+
+def test_a_keeper_killed_while_its_pipe_is_held_open_is_a_crash_not_a_timeout(tmp_path: Path) -> None:
+    """No end of file comes while what the solver left running holds the pipe: the parent
+    reads the keeper's death itself, "crashed" with how it ended, not a hang to the limit."""
+    pid_file = tmp_path / "pid"
+    try:
+        with ChildProcess(lambda: hold_the_pipe_then_kill_the_keeper) as child:
+            reply = child.call(str(pid_file), timeout=LIFETIME_S / 2)
+        assert reply.kind == "crashed" and "SIGKILL" in reply.detail, reply
+    finally:
+        if pid_file.exists() and pid_file.read_text():
+            ended_in_time(int(pid_file.read_text()), wait_s=0.0)
+
+
 class EscapingSolver(Solver):
     """Starts a grandchild that leaves its group and outlives its parent, then answers."""
 
