@@ -141,19 +141,21 @@ def first_rows(df: pd.DataFrame) -> list[bool]:
 
 #: The key of a results.parquet's metadata holding the stamp of the journal it was made from.
 STAMP_KEY = b"contactbench_journal"
-#: The bytes at a journal's end that its stamp reads: its last row or more (a row's
-#: timestamp and timings make it its own).
-STAMP_TAIL = 4096
+#: The bytes a journal's stamp reads at a time.
+STAMP_BLOCK = 1 << 20
 
 
 def journal_stamp(path: Path) -> str:
-    """The journal at ``path`` as it is now, cheaply: its size and the digest of its last
-    ``STAMP_TAIL`` bytes.  An appended, cut or repaired journal, or another run's, has
+    """The journal at ``path`` as it is now: its size and the digest of all its bytes, read
+    in blocks of ``STAMP_BLOCK`` (about a second per GB).  An appended, cut, repaired or
+    hand-edited journal -- one edit that keeps its size included -- or another run's, has
     another stamp."""
+    digest = hashlib.sha256()
     with open(path, "rb") as f:
-        size = f.seek(0, os.SEEK_END)
-        f.seek(max(0, size - STAMP_TAIL))
-        return f"{size}:{hashlib.sha256(f.read()).hexdigest()[:32]}"
+        while block := f.read(STAMP_BLOCK):
+            digest.update(block)
+        size = f.tell()
+    return f"{size}:{digest.hexdigest()[:32]}"
 
 
 def write_parquet(table: pd.DataFrame, path: str, stamp: str | None) -> None:
