@@ -30,6 +30,7 @@ from ..run.plan import probe_import, refuse_name_clash
 from ..run.skips import checked_availability
 from ..table.files import begins_with, replace_atomically
 from .declared import LoadFailed, OneLine, in_a_child, names_user_code
+from .cases import KILL_GRACE
 from .battery import BATTERY_GROUPS, conformance_cases, left_out_lines, record_columns, validate
 from .report import check_report_folder, write_conformance_report
 
@@ -64,7 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--cases", metavar="GLOB", type=case_glob,
                     help="only cases whose name or group matches, e.g. 'edge/*'")
     ap.add_argument("--timeout", type=time_limit, help="seconds per solve, finite and > 0 (default: 20 fast, "
-                                                            "60 full)")
+                                                            "60 full): the solver's time limit; a solve still "
+                                                            f"running {KILL_GRACE[0]:g} s + {KILL_GRACE[1]:g} x "
+                                                            "the limit later is killed, a timeout")
     ap.add_argument("--strict", action="store_true", help="also fail on crashes, timeouts and flagged rows")
     ap.add_argument("--no-isolate", action="store_true",
                     help="solve in-process, for debugging: no time limit, no protection against a solver that "
