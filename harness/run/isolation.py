@@ -428,7 +428,7 @@ class ChildProcess:
         keeper has ended with no reply sent (``_keeper_ended``)."""
         assert self.conn is not None
         files = self.bounded_files()
-        chunk = min(OUTPUT_CHECK_S if files else KEEPER_CHECK_S, KEEPER_CHECK_S)
+        chunk = OUTPUT_CHECK_S if files else KEEPER_CHECK_S  # (the former the shorter)
         end = math.inf if timeout is None else time.monotonic() + timeout
         while (left := end - time.monotonic()) > 0:
             if self.conn.poll(min(left, chunk)):

@@ -37,7 +37,7 @@ import os
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 from contactbench.problems.scenes import SceneConfig
 from contactbench.solvers.registry import get_solver, source_digest
@@ -240,16 +240,21 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
         plan = replace(plan, warnings=[*plan.warnings, *same_heights(out_dir, surfaces)])
         for w in plan.warnings:
             log.warning("warning: %s", w)
-        try:
+        with stopped_before_solving():
             record_run(folder, identity)
-        except OSError as exc:  # (a full disk: a write that failed, no bad input)
-            raise RunStopped(f"{os_error_line(exc)}; {STOPPED_FIRST}") from None
         store = ResultStore(out_dir)
         return execute_plan(plan, run, store, config, command, executor, t0, surfaces)
 
 
-#: What a run that could not write its marker or meta.json says after the file's error.
-STOPPED_FIRST = "the run stopped before it solved anything: the same command starts it again"
+@contextlib.contextmanager
+def stopped_before_solving() -> Iterator[None]:
+    """A write at a run's start (its marker, meta.json) that fails -- a full disk -- as a
+    ``RunStopped`` naming the file: a write that failed, not bad input (``cli``: exit 1)."""
+    try:
+        yield
+    except OSError as exc:
+        raise RunStopped(f"{os_error_line(exc)}; the run stopped before it solved anything: the same command "
+                         "starts it again") from None
 
 
 def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict[str, Any],
@@ -265,13 +270,11 @@ def execute_plan(plan: RunPlan, run: RunConfig, store: ResultStore, config: dict
     ran = executor.run_config(run)  # (what each solve worker's BLAS/FFT threads are held to: the report's header)
     config = {**config, "run": asdict(ran), "executor": executor.describe(), "worker_threads": ran.worker_threads()}
     log_name = output_log_name(executor)
-    try:
+    with stopped_before_solving():
         write_meta(store.out, build_meta(command=command, config=config, warnings=plan.warnings,
                                          surfaces=surface_preprocessing(j.spec for j in plan.jobs) if surfaces is None
                                          else surfaces,
                                          extra={"solver_output": log_name} if log_name else None))
-    except OSError as exc:  # (a full disk: a write that failed, no bad input)
-        raise RunStopped(f"{os_error_line(exc)}; {STOPPED_FIRST}") from None
     total = sum(j.n_cells(run.repeats) for j in pending)
     already = sum(1 for j in pending for c in job_cell_ids(j, run) if c in statuses)
     show_bar = run.progress if run.progress is not None else not under_ci()
