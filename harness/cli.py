@@ -494,7 +494,7 @@ def cmd_report(out_dir: str) -> int:
                          "its results table)")
     if not Path(out_dir).is_dir():
         raise InputError(f"report {out_dir}: no such folder (give the --out folder of a run)")
-    from .report.build import build_report
+    from .report.build import ReportWriteError, build_report
     from .report.sections.claims import write_claims_report
 
     claims = write_claims_report(out_dir)  # a claims folder: claims.csv -> claims.md first
@@ -502,7 +502,11 @@ def cmd_report(out_dir: str) -> int:
         print(f"claims: {claims}")
         if not has_results_table(out_dir):
             return 0
-    path = build_report(out_dir)
+    try:
+        path = build_report(out_dir)
+    except ReportWriteError as exc:
+        print(f"contactbench: error: {exc}", file=sys.stderr)
+        return EXIT_RUN_STOPPED
     if path is not None:
         print(f"report: {path}")
     return 0

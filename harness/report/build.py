@@ -75,6 +75,12 @@ def write_report(out_dir: str | Path, shift: float = agg.DEFAULT_SHIFT_S, html: 
     return ctx
 
 
+class ReportWriteError(RuntimeError):
+    """A report whose figures or pages could not be written (a full disk): one line naming
+    the file (the folder where the system names none); the results are untouched and what
+    the report staged is discarded (``cli``: exit 1, not bad input)."""
+
+
 def _write_locked(ctx: ReportContext, html: bool) -> None:
     """``write_report``'s writing, with the folder's report lock held: whatever a report
     killed part-way staged is discarded first, and this one's staging on failure.  Once the
@@ -89,8 +95,11 @@ def _write_locked(ctx: ReportContext, html: bool) -> None:
         write_text_atomic(out / REPORT_NAME, text)
         if html:
             write_html_report(ctx)
-    except BaseException:
+    except BaseException as exc:
         discard(out)
+        if isinstance(exc, OSError):  # (the table was read before: a write that failed)
+            raise ReportWriteError(f"{exc.filename or out}: {exc.strerror or exc}; the report was not written, the "
+                                   "results are untouched: `contactbench report` writes it again") from None
         raise
     publish(out, [Path(rel).name for rel in ctx.figures])
 
