@@ -155,9 +155,9 @@ class PoolExecutor:
                 with signals_deferred():  # (a second Ctrl-C does not leave the pool's processes running)
                     stop_workers(pool)
                 if isinstance(exc, BrokenProcessPool):
-                    raise PoolProcessLost("a --jobs process ended abruptly (killed: out of memory, or kill -9) and "
-                                          "the run stopped; the rows stored are kept: the same command resumes "
-                                          "the rest") from None
+                    raise PoolProcessLost("a --jobs process ended abruptly (a signal -- the out-of-memory killer, "
+                                          "a kill -- or an exit of its own) and the run stopped; the rows stored "
+                                          "are kept: the same command resumes the rest") from None
                 raise
 
 
