@@ -46,11 +46,11 @@ from ..arguments import os_error_line
 from .executors import Executor, RunStopped, local_executor, output_log_name
 from .interrupts import signals_deferred
 from .output_log import OUTPUT_LOG
-from ..table.meta import build_meta, read_meta, surface_preprocessing, write_meta
+from ..table.meta import META_FILE, build_meta, listed, read_meta, surface_preprocessing, write_meta
 from .plan import REFERENCE_TIMEOUT_FACTOR, RunConfig, RunPlan, job_cell_ids, plan_run
 from .spelled_out import given_apart
-from ..table.store import (ResultStore, RunFolder, RunFolderError, check_run_entries, holding_lock, read_run_folder,
-                           fingerprint, record_run, refuse_unrecorded)
+from ..table.store import (MARKER_FILE, ResultStore, RunFolder, RunFolderError, check_run_entries, fingerprint,
+                           holding_lock, read_run_folder, record_run, refuse_unrecorded)
 
 #: The RunConfig fields that are part of a run's configuration (what the folder's marker
 #: pins): those that change which cells exist, how they are judged or skipped.  The
@@ -111,11 +111,30 @@ def solver_sources(plan: RunPlan) -> dict[str, str]:
 def checked_folder(out_dir: str | os.PathLike[str], identity: dict[str, Any], append: bool,
                    sources: dict[str, str]) -> RunFolder:
     """The results folder, read once (``read_run_folder``), that this run may write: no
-    edited solver's rows (``check_solver_sources``) and, unless ``append``, this run's
-    configuration recorded (``refuse_unrecorded``)."""
+    edited solver's rows (``check_solver_sources``), a meta.json that can be read
+    (``MetaError``) and is its own (``refuse_foreign_meta``) and, unless ``append``, this
+    run's configuration recorded (``refuse_unrecorded``)."""
     folder = read_run_folder(out_dir, run_identity)
     check_solver_sources(folder, sources)
+    refuse_foreign_meta(folder, read_meta(out_dir))
     return refuse_unrecorded(folder, identity, append)
+
+
+def refuse_foreign_meta(folder: RunFolder, meta: dict[str, Any]) -> None:
+    """``RunFolderError`` when meta.json records a run (its config's ``fingerprint``) that
+    the folder's marker does not: another folder's record put here, which a run would merge
+    for good and a report would read as this folder's.  Records written without a
+    fingerprint are not checked."""
+    if folder.kind != "marked":
+        return
+    known = {r.get("fingerprint") for r in folder.runs}
+    for inv in listed(meta.get("invocations")) or [meta]:
+        config = inv.get("config") if isinstance(inv, dict) else None
+        fp = config.get("fingerprint") if isinstance(config, dict) else None
+        if isinstance(fp, str) and fp and fp not in known:
+            raise RunFolderError(f"results folder {folder.out}: its {META_FILE} records a run its marker "
+                                 f"({MARKER_FILE}) does not -- another folder's record? Put this folder's "
+                                 f"{META_FILE} back, or remove it (the next run writes it anew); nothing was written")
 
 
 def check_solver_sources(folder: RunFolder, sources: dict[str, str]) -> None:
@@ -231,7 +250,6 @@ def run_benchmark(scenes: Sequence[str], cfg: SceneConfig | None = None, solvers
     identity = run_identity(config)
     config["fingerprint"] = fingerprint(identity)  # (the plan a report counts the cells of: ``meta.planned_runs``)
     checked_folder(out_dir, identity, append, config.get("solver_sources", {}))
-    read_meta(out_dir)  # a record that cannot be read is refused (MetaError) before anything is written
     check_run_entries(out_dir, {OUTPUT_LOG: False})  # (the solvers' log: never written through a link)
     if ready is not None:
         ready()
