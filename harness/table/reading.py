@@ -147,9 +147,8 @@ STAMP_BLOCK = 1 << 20
 
 def journal_stamp(path: Path) -> str:
     """The journal at ``path`` as it is now: its size and the digest of all its bytes, read
-    in blocks of ``STAMP_BLOCK`` (about a second per GB).  An appended, cut, repaired or
-    hand-edited journal -- one edit that keeps its size included -- or another run's, has
-    another stamp."""
+    in blocks of ``STAMP_BLOCK``.  An appended, cut, repaired or hand-edited journal -- one
+    edit that keeps its size included -- or another run's, has another stamp."""
     digest = hashlib.sha256()
     with open(path, "rb") as f:
         while block := f.read(STAMP_BLOCK):
