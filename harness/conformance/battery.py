@@ -156,6 +156,9 @@ FLAG_WORDS = {"reference": "off the exact reference", "dtype": "not float64",
 ANSWERED = ("pass", "WRONG", "unconverged", "flagged")
 #: Statuses of a solve that no solver may leave (besides WRONG): the case is unsolved.
 UNSOLVED = ("unconverged", "timeout", "crashed")
+#: The flags of a row's iteration count (``FLAG_WORDS``), the only ones an answer the KKT
+#: test does not accept is flagged for.
+COUNT_FLAGS = ("count", "limit")
 #: Statuses that ``--strict`` also fails on.
 STRICT_FAILING = ("crashed", "timeout", "flagged")
 #: Exit code of each outcome (``main``); bad input is ``arguments.EXIT_BAD_INPUT``.
@@ -264,8 +267,9 @@ def judge_solve(out: CaseAnswer, inst: ContactInstance, ref: Reference | None, c
         v.problems.append(over)
         v.kinds.append("limit")
         row.status = "flagged"
-    if row.status == "flagged":
-        row.flags = "+".join(k for k in v.kinds if k in FLAG_WORDS)
+    if row.status == "flagged":  # (an answer not accepted is flagged for its count alone: off the reference, as expected)
+        kinds = v.kinds if v.status == "solved" else [k for k in v.kinds if k in COUNT_FLAGS]
+        row.flags = "+".join(k for k in kinds if k in FLAG_WORDS)
         lead = "the KKT test accepts it, but " if v.status == "solved" else "not converged, and "
         row.message = lead + "; ".join(v.problems)
     elif row.status == "unconverged":

@@ -157,3 +157,21 @@ def test_an_unconverged_answer_past_the_limit_is_flagged_and_not_accepted() -> N
     assert [r.status for r in table.rows] == ["flagged"] * len(LIMIT_CASES), table.format()
     assert all(r.message.startswith("not converged, and ") for r in table.rows)
     assert not table.judged and table.exit_code(strict=True) == 1
+
+
+class HalfPastTheLimit(Solver):
+    """Half the exact answer, not claimed, reporting more iterations than its limit."""
+
+    name = "test-limit-half-past"
+    family = "test"
+
+    def iterate(self, ctx: SolveContext) -> Outcome:
+        return Outcome(0.5 * exact_p(ctx), ctx.max_iter + 7, False, "stopped")
+
+
+def test_an_answer_not_accepted_is_flagged_for_its_count_alone() -> None:
+    """Off the reference, as an answer stopped short is: that is no flag of its; the limit
+    it ignored is."""
+    table = cf.validate(HalfPastTheLimit(), limit_cases(), isolate=False)
+    assert [(r.status, r.flags) for r in table.rows] == [("flagged", "limit")] * len(LIMIT_CASES), table.format()
+    assert table.headline().endswith("rows flagged -- more iterations than its iteration limit")
