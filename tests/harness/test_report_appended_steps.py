@@ -26,4 +26,4 @@ def test_steps_not_run_are_not_counted_as_unsolved(in_tmp: Path, capsys: pytest.
     report = (in_tmp / "o" / "report.md").read_text()
     nnls, pk = totals_row(report, "nnls"), totals_row(report, "pk")
     assert nnls[2] == "5 of 5" and pk[2] == "3 of 3", (nnls, pk)
-    assert "of the 3 steps it was run on, of the sweep's 5" in pk[3], pk
+    assert "over the 3 steps it was run on, of the sweep's 5" in pk[3], pk

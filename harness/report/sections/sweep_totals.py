@@ -102,8 +102,9 @@ def total_text(t: pd.Series) -> str:
     if not t["run"]:
         return "-"
     if t["planned"] < t["steps"]:
-        return (f"- ({fmt_num(t['total_s'])} over {int(t['run'])} of the {int(t['planned'])} steps it was run on, "
-                f"of the sweep's {int(t['steps'])})")
+        over = "" if t["run"] == t["planned"] else f"{int(t['run'])} of "
+        return (f"- ({fmt_num(t['total_s'])} over {over}the {int(t['planned'])} steps it was run on, of the sweep's "
+                f"{int(t['steps'])})")
     return f"- ({fmt_num(t['total_s'])} over {int(t['run'])} of {int(t['steps'])} steps)"
 
 
