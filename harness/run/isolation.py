@@ -347,12 +347,25 @@ KEEPER_CHECK_S = 0.25
 SCRATCH_PREFIX = "contactbench-worker-"
 
 
+def scratch_owner(pid: int | None = None) -> str:
+    """The owner tag of a worker's temporary folder: "<pid namespace>.<pid>" of the process
+    that starts the worker (default: this one), so that only a process of the same pid
+    namespace -- not another container sharing the temporary folder -- reads the pid."""
+    try:
+        space = os.stat("/proc/self/ns/pid").st_ino
+    except OSError:
+        space = 0
+    return f"{space}.{os.getpid() if pid is None else pid}"
+
+
 def remove_orphan_scratch() -> None:
     """Remove the workers' temporary folders whose owner -- the process that started the
-    worker -- is no longer alive (it was killed before it could remove them)."""
+    worker, in this pid namespace (``scratch_owner``) -- is no longer alive (it was killed
+    before it could remove them)."""
+    space = scratch_owner().split(".", 1)[0]
     for d in Path(tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*-*"):
-        pid = d.name[len(SCRATCH_PREFIX):].split("-", 1)[0]
-        if pid.isdigit() and not pid_exists(int(pid)) and d.is_dir() and not d.is_symlink():
+        owner_space, _, pid = d.name[len(SCRATCH_PREFIX):].split("-", 1)[0].rpartition(".")
+        if owner_space == space and pid.isdigit() and not pid_exists(int(pid)) and d.is_dir() and not d.is_symlink():
             shutil.rmtree(d, ignore_errors=True)
 
 
@@ -380,7 +393,7 @@ class ChildProcess:
     def start(self) -> None:
         parent, child = self.ctx.Pipe(duplex=True)
         remove_orphan_scratch()
-        self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
+        self.scratch = tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{scratch_owner()}-")
         proc = self.ctx.Process(target=_worker_main, daemon=True,
                                 args=(child, self.factory, self.threads, self.scratch, self.capture_output, parent))
         proc.start()

@@ -24,7 +24,7 @@ import pytest
 
 from contactbench.harness import cli
 from contactbench.harness.table.meta import read_meta
-from contactbench.harness.run.isolation import ChildProcess
+from contactbench.harness.run.isolation import SCRATCH_PREFIX, ChildProcess, scratch_owner
 from contactbench.harness.run.plan import PlanError, RunConfig, plan_run
 from contactbench.harness import run_benchmark
 from contactbench.harness.table.store import (LOCK_FILE, FolderInUseError, RunLock, load_table, read_run_folder,
@@ -454,16 +454,18 @@ def test_a_killed_owners_worker_folder_is_removed_by_the_next_worker() -> None:
     gone = subprocess.Popen([sys.executable, "-c", "pass"])
     gone.wait()
     tmp = Path(tempfile.gettempdir())
-    dead = Path(tempfile.mkdtemp(prefix=f"contactbench-worker-{gone.pid}-", dir=tmp))
+    dead = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{scratch_owner(gone.pid)}-", dir=tmp))
     (dead / "problem.f64").write_bytes(b"left behind")
-    alive = Path(tempfile.mkdtemp(prefix=f"contactbench-worker-{os.getpid()}-", dir=tmp))
+    alive = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{scratch_owner()}-", dir=tmp))
+    # another pid namespace's (a container sharing the folder): its pid means nothing here
+    other = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}1{scratch_owner(gone.pid)}-", dir=tmp))
     try:
         child = ChildProcess(lambda: _leave_a_file)
         assert child.call("go", 30.0).ok
         child.close()
-        assert not dead.exists() and alive.is_dir()
+        assert not dead.exists() and alive.is_dir() and other.is_dir()
     finally:
-        for d in (dead, alive):
+        for d in (dead, alive, other):
             shutil.rmtree(d, ignore_errors=True)
 
 
