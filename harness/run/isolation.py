@@ -347,22 +347,26 @@ KEEPER_CHECK_S = 0.25
 SCRATCH_PREFIX = "contactbench-worker-"
 
 
+def pid_space() -> str:
+    """This process's pid namespace (the inode of /proc/self/ns/pid; "0" where unreadable)."""
+    try:
+        return str(os.stat("/proc/self/ns/pid").st_ino)
+    except OSError:
+        return "0"
+
+
 def scratch_owner(pid: int | None = None) -> str:
     """The owner tag of a worker's temporary folder: "<pid namespace>.<pid>" of the process
     that starts the worker (default: this one), so that only a process of the same pid
     namespace -- not another container sharing the temporary folder -- reads the pid."""
-    try:
-        space = os.stat("/proc/self/ns/pid").st_ino
-    except OSError:
-        space = 0
-    return f"{space}.{os.getpid() if pid is None else pid}"
+    return f"{pid_space()}.{os.getpid() if pid is None else pid}"
 
 
 def remove_orphan_scratch() -> None:
     """Remove the workers' temporary folders whose owner -- the process that started the
     worker, in this pid namespace (``scratch_owner``) -- is no longer alive (it was killed
     before it could remove them)."""
-    space = scratch_owner().split(".", 1)[0]
+    space = pid_space()
     for d in Path(tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*-*"):
         owner_space, _, pid = d.name[len(SCRATCH_PREFIX):].split("-", 1)[0].rpartition(".")
         if owner_space == space and pid.isdigit() and not pid_exists(int(pid)) and d.is_dir() and not d.is_symlink():
