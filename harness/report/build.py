@@ -13,6 +13,7 @@ from pathlib import Path
 
 from contactbench.problems.atomic_files import FolderLockedError, folder_lock
 
+from ..arguments import os_error_line
 from ..table import aggregates as agg
 from ..table.files import write_text_atomic
 from ..table.meta import read_meta
@@ -98,8 +99,9 @@ def _write_locked(ctx: ReportContext, html: bool) -> None:
     except BaseException as exc:
         discard(out)
         if isinstance(exc, OSError):  # (the table was read before: a write that failed)
-            raise ReportWriteError(f"{exc.filename or out}: {exc.strerror or exc}; the report was not written, the "
-                                   "results are untouched: `contactbench report` writes it again") from None
+            exc.filename = exc.filename or str(out)
+            raise ReportWriteError(f"{os_error_line(exc)}; the report was not written, the results are untouched: "
+                                   "`contactbench report` writes it again") from None
         raise
     publish(out, [Path(rel).name for rel in ctx.figures])
 
